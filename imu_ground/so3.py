@@ -1,0 +1,277 @@
+r"""The rotation group SO(3): exponential and logarithm, Jacobians, projection.
+
+Every function takes one element or a batch: a rotation vector of shape (3,)
+or (N, 3), a matrix of shape (3, 3) or (N, 3, 3), and returns the same leading
+shape. There is no Python loop over the batch.
+
+Conventions
+-----------
+- A rotation matrix ``R`` acts on column vectors: ``v_a = R @ v_b`` maps a vector
+  expressed in frame b into frame a (``R`` is "a from b").
+- A rotation vector ``phi = theta * axis`` (radians) and ``R = exp(hat(phi))``,
+  right-handed: ``exp(hat([0, 0, t]))`` turns x towards y.
+- Perturbations: ``exp(phi + dphi) ~= exp(phi) @ exp(J_r(phi) @ dphi)``
+  ``~= exp(J_l(phi) @ dphi) @ exp(phi)`` (Chirikjian; Forster et al. 2017, eq. 7-9).
+
+The logarithm is accurate over the whole range: near the identity through
+Taylor series (angles down to 1e-300 rad), and near pi from the symmetric part
+of ``R``, where the antisymmetric part vanishes and the usual formula loses
+every digit.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "hat", "vee", "exp", "log", "right_jacobian", "left_jacobian",
+    "right_jacobian_inv", "left_jacobian_inv", "project", "angle",
+    "rotx", "roty", "rotz",
+]
+
+_SMALL = 1e-4   # below this angle (rad) the Taylor series are exact to double precision
+
+
+def hat(phi: np.ndarray) -> np.ndarray:
+    """Skew-symmetric matrix of a vector: ``hat(a) @ b == cross(a, b)``.
+
+    Parameters
+    ----------
+    phi : array_like, shape (..., 3)
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+    """
+    phi = np.asarray(phi, dtype=float)
+    out = np.zeros(phi.shape[:-1] + (3, 3))
+    x, y, z = phi[..., 0], phi[..., 1], phi[..., 2]
+    out[..., 0, 1] = -z
+    out[..., 0, 2] = y
+    out[..., 1, 0] = z
+    out[..., 1, 2] = -x
+    out[..., 2, 0] = -y
+    out[..., 2, 1] = x
+    return out
+
+
+def vee(m: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`hat`: the vector of the antisymmetric part of ``m``.
+
+    Parameters
+    ----------
+    m : array_like, shape (..., 3, 3)
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        ``0.5 * [m21 - m12, m02 - m20, m10 - m01]`` (exact for skew matrices).
+    """
+    m = np.asarray(m, dtype=float)
+    return 0.5 * np.stack([m[..., 2, 1] - m[..., 1, 2],
+                           m[..., 0, 2] - m[..., 2, 0],
+                           m[..., 1, 0] - m[..., 0, 1]], axis=-1)
+
+
+def _coefficients(theta: np.ndarray):
+    """a = sin(t)/t, b = (1-cos t)/t^2, c = (t - sin t)/t^3, safe at 0."""
+    small = theta < _SMALL
+    t = np.where(small, 1.0, theta)
+    t2 = theta * theta
+    a = np.where(small, 1.0 - t2 / 6.0 + t2 * t2 / 120.0, np.sin(t) / t)
+    b = np.where(small, 0.5 - t2 / 24.0 + t2 * t2 / 720.0, (1.0 - np.cos(t)) / (t * t))
+    c = np.where(small, 1.0 / 6.0 - t2 / 120.0 + t2 * t2 / 5040.0, (t - np.sin(t)) / (t * t * t))
+    return a, b, c
+
+
+def exp(phi: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a rotation vector (Rodrigues' formula).
+
+    Parameters
+    ----------
+    phi : array_like, shape (..., 3)
+        Rotation vector, radians (axis times angle).
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+        ``I + sin(t)/t K + (1 - cos t)/t^2 K^2`` with ``K = hat(phi)``, ``t = |phi|``.
+    """
+    phi = np.asarray(phi, dtype=float)
+    theta = np.linalg.norm(phi, axis=-1)
+    a, b, _ = _coefficients(theta)
+    k = hat(phi)
+    return np.eye(3) + a[..., None, None] * k + b[..., None, None] * (k @ k)
+
+
+def log(r: np.ndarray) -> np.ndarray:
+    """Rotation vector of a rotation matrix, angle in [0, pi].
+
+    Parameters
+    ----------
+    r : array_like, shape (..., 3, 3)
+        Rotation matrices (orthonormal, det +1).
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        ``phi`` with ``exp(phi) == r``. At exactly pi the sign of the axis is
+        arbitrary (both are correct).
+    """
+    r = np.asarray(r, dtype=float)
+    w = vee(r)                                  # sin(t) * axis
+    s = np.linalg.norm(w, axis=-1)              # sin(t) >= 0
+    c = 0.5 * (np.trace(r, axis1=-2, axis2=-1) - 1.0)
+    theta = np.arctan2(s, np.clip(c, -1.0, 1.0))
+    a, _, _ = _coefficients(theta)              # sin(t)/t, Taylor near 0
+    phi = w / np.where(a > 0, a, 1.0)[..., None]
+    near_pi = c < -0.9
+    if np.any(near_pi):
+        # (R + R^T)/2 = cos(t) I + (1 - cos t) u u^T : read the axis off its
+        # largest column, take the sign from the antisymmetric part.
+        rs = r[near_pi]
+        sym = 0.5 * (rs + np.swapaxes(rs, -1, -2))
+        cc = c[near_pi]
+        uu = (sym - cc[:, None, None] * np.eye(3)) / (1.0 - cc)[:, None, None]
+        j = np.argmax(np.diagonal(uu, axis1=-2, axis2=-1), axis=-1)
+        col = np.take_along_axis(uu, j[:, None, None], axis=-1)[..., 0]
+        u = col / np.linalg.norm(col, axis=-1, keepdims=True)
+        sign = np.sign(np.sum(u * w[near_pi], axis=-1))
+        sign = np.where(sign == 0, 1.0, sign)
+        phi[near_pi] = (sign * theta[near_pi])[:, None] * u
+    return phi
+
+
+def right_jacobian(phi: np.ndarray) -> np.ndarray:
+    """Right Jacobian of SO(3): ``exp(phi + d) ~= exp(phi) exp(J_r(phi) d)``.
+
+    Parameters
+    ----------
+    phi : array_like, shape (..., 3)
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+        ``I - (1 - cos t)/t^2 K + (t - sin t)/t^3 K^2``.
+    """
+    phi = np.asarray(phi, dtype=float)
+    _, b, c = _coefficients(np.linalg.norm(phi, axis=-1))
+    k = hat(phi)
+    return np.eye(3) - b[..., None, None] * k + c[..., None, None] * (k @ k)
+
+
+def left_jacobian(phi: np.ndarray) -> np.ndarray:
+    """Left Jacobian of SO(3): ``exp(phi + d) ~= exp(J_l(phi) d) exp(phi)``; ``J_l(phi) = J_r(-phi)``.
+
+    Parameters
+    ----------
+    phi : array_like, shape (..., 3)
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+    """
+    return right_jacobian(-np.asarray(phi, dtype=float))
+
+
+def _inv_coefficient(theta: np.ndarray) -> np.ndarray:
+    """d = 1/t^2 - (1 + cos t) / (2 t sin t), safe at 0 (d -> 1/12)."""
+    small = theta < 1e-3
+    t = np.where(small, 1.0, theta)
+    t2 = theta * theta
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = 1.0 / (t * t) - (1.0 + np.cos(t)) / (2.0 * t * np.sin(t))
+    return np.where(small, 1.0 / 12.0 + t2 / 720.0 + t2 * t2 / 30240.0, d)
+
+
+def right_jacobian_inv(phi: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`right_jacobian`: ``I + K/2 + (1/t^2 - (1+cos t)/(2 t sin t)) K^2``.
+
+    Singular at ``|phi| = 2 pi``; defined for angles in [0, pi].
+
+    Parameters
+    ----------
+    phi : array_like, shape (..., 3)
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+    """
+    phi = np.asarray(phi, dtype=float)
+    d = _inv_coefficient(np.linalg.norm(phi, axis=-1))
+    k = hat(phi)
+    return np.eye(3) + 0.5 * k + d[..., None, None] * (k @ k)
+
+
+def left_jacobian_inv(phi: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`left_jacobian` (``= right_jacobian_inv(-phi)``).
+
+    Parameters
+    ----------
+    phi : array_like, shape (..., 3)
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+    """
+    return right_jacobian_inv(-np.asarray(phi, dtype=float))
+
+
+def project(m: np.ndarray) -> np.ndarray:
+    """Nearest rotation matrix in the Frobenius norm (SVD, det forced to +1).
+
+    Use it to pull a product of many rotations back onto SO(3) against
+    accumulated rounding.
+
+    Parameters
+    ----------
+    m : array_like, shape (..., 3, 3)
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+    """
+    m = np.asarray(m, dtype=float)
+    u, _, vt = np.linalg.svd(m)
+    d = np.sign(np.linalg.det(u @ vt))
+    d = np.where(d == 0, 1.0, d)
+    u = u.copy()
+    u[..., :, 2] *= d[..., None]
+    return u @ vt
+
+
+def angle(r: np.ndarray) -> np.ndarray:
+    """Rotation angle of ``r`` in radians, in [0, pi], accurate at 0 and pi.
+
+    Parameters
+    ----------
+    r : array_like, shape (..., 3, 3)
+    """
+    return np.linalg.norm(log(r), axis=-1)
+
+
+def _axis_rotation(angle_rad, i: int, j: int) -> np.ndarray:
+    a = np.asarray(angle_rad, dtype=float)
+    c, s = np.cos(a), np.sin(a)
+    out = np.zeros(a.shape + (3, 3))
+    k = 3 - i - j
+    out[..., k, k] = 1.0
+    out[..., i, i] = c
+    out[..., j, j] = c
+    out[..., i, j] = -s
+    out[..., j, i] = s
+    return out
+
+
+def rotx(a) -> np.ndarray:
+    """Rotation about x by ``a`` rad (right-handed), shape ``a.shape + (3, 3)``."""
+    return _axis_rotation(a, 1, 2)
+
+
+def roty(a) -> np.ndarray:
+    """Rotation about y by ``a`` rad (right-handed), shape ``a.shape + (3, 3)``."""
+    return _axis_rotation(a, 2, 0)
+
+
+def rotz(a) -> np.ndarray:
+    """Rotation about z by ``a`` rad (right-handed), shape ``a.shape + (3, 3)``."""
+    return _axis_rotation(a, 0, 1)
