@@ -20,12 +20,14 @@ every digit.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 __all__ = [
     "hat", "vee", "exp", "log", "right_jacobian", "left_jacobian",
     "right_jacobian_inv", "left_jacobian_inv", "project", "angle",
-    "rotx", "roty", "rotz",
+    "rotx", "roty", "rotz", "exp_one", "log_one",
 ]
 
 _SMALL = 1e-4   # below this angle (rad) the Taylor series are exact to double precision
@@ -275,3 +277,51 @@ def roty(a) -> np.ndarray:
 def rotz(a) -> np.ndarray:
     """Rotation about z by ``a`` rad (right-handed), shape ``a.shape + (3, 3)``."""
     return _axis_rotation(a, 0, 1)
+
+
+# ---------------------------------------------------------------------------
+# Single-element fast paths for streaming filters: the same formulas and
+# branches as the batch functions above, in scalar float arithmetic, so that
+# one call costs a few microseconds instead of a dozen numpy dispatches.
+# ---------------------------------------------------------------------------
+def exp_one(phi) -> np.ndarray:
+    """:func:`exp` of one rotation vector (3,) as a 3x3 array, fast scalar path."""
+    x, y, z = float(phi[0]), float(phi[1]), float(phi[2])
+    t2 = x * x + y * y + z * z
+    t = math.sqrt(t2)
+    if t < _SMALL:
+        a = 1.0 - t2 / 6.0 + t2 * t2 / 120.0
+        b = 0.5 - t2 / 24.0 + t2 * t2 / 720.0
+    else:
+        a = math.sin(t) / t
+        b = (1.0 - math.cos(t)) / t2
+    bxy, bxz, byz = b * x * y, b * x * z, b * y * z
+    return np.array([[1.0 - b * (y * y + z * z), bxy - a * z, bxz + a * y],
+                     [bxy + a * z, 1.0 - b * (x * x + z * z), byz - a * x],
+                     [bxz - a * y, byz + a * x, 1.0 - b * (x * x + y * y)]])
+
+
+def log_one(r) -> np.ndarray:
+    """:func:`log` of one 3x3 rotation as a (3,) array, fast scalar path."""
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = r.tolist() if hasattr(r, "tolist") else r
+    wx, wy, wz = 0.5 * (r21 - r12), 0.5 * (r02 - r20), 0.5 * (r10 - r01)
+    s = math.sqrt(wx * wx + wy * wy + wz * wz)
+    c = min(1.0, max(-1.0, 0.5 * (r00 + r11 + r22 - 1.0)))
+    theta = math.atan2(s, c)
+    if c >= -0.9:
+        if theta < _SMALL:
+            t2 = theta * theta
+            a = 1.0 - t2 / 6.0 + t2 * t2 / 120.0
+        else:
+            a = math.sin(theta) / theta
+        return np.array([wx / a, wy / a, wz / a])
+    d = 1.0 - c
+    cols = ((r00 - c) / d, 0.5 * (r10 + r01) / d, 0.5 * (r20 + r02) / d), \
+           (0.5 * (r01 + r10) / d, (r11 - c) / d, 0.5 * (r21 + r12) / d), \
+           (0.5 * (r02 + r20) / d, 0.5 * (r12 + r21) / d, (r22 - c) / d)
+    j = max(range(3), key=lambda i: cols[i][i])
+    ux, uy, uz = cols[j]
+    n = math.sqrt(ux * ux + uy * uy + uz * uz)
+    sign = -1.0 if (ux * wx + uy * wy + uz * wz) < 0 else 1.0
+    f = sign * theta / n
+    return np.array([f * ux, f * uy, f * uz])
