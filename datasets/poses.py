@@ -1,0 +1,236 @@
+"""Odometry pose files (visual odometry, SLAM, ground truth) to relative rotations.
+
+Two text formats are read:
+
+- KITTI odometry: one pose a line, 12 numbers, the row-major 3x4 matrix
+  ``[R | t]`` of the sensor in the first frame (world <- sensor_k), optionally
+  preceded by a frame index (ORB-SLAM2's output, whose frames start at 1).
+- TUM RGB-D: ``t x y z qx qy qz qw`` (seconds, metres, unit quaternion of
+  world <- sensor); ``#`` comments allowed.
+
+Camera conventions (x right, y down, z forward) are not special-cased here:
+the relative rotations stay in the sensor frame and the static extrinsic
+(:mod:`imu_ground.extrinsics`) carries them into the ground frame.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Optional, Union
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+__all__ = ["PoseSequence", "read_kitti_poses", "read_tum_poses", "read_poses", "relative_rotations",
+           "write_tum_poses"]
+
+_ORTHO_TOL = 1e-3      # text files carry 6-17 digits; worse than this is not a rotation
+
+
+@dataclass
+class PoseSequence:
+    """Poses of a sensor, world <- sensor_k.
+
+    Attributes
+    ----------
+    rotations : ndarray (N, 3, 3)
+        world <- sensor_k, projected onto SO(3).
+    translations : ndarray (N, 3)
+        Sensor position in the world frame (the file's units, usually metres).
+    t : ndarray (N,) or None
+        Timestamps in seconds (TUM), None when the file has none.
+    index : ndarray (N,)
+        Frame numbers (from the file's index column, else 0..N-1).
+    source : str
+    """
+    rotations: np.ndarray
+    translations: np.ndarray
+    t: Optional[np.ndarray]
+    index: np.ndarray
+    source: str = ""
+
+    def __len__(self) -> int:
+        return len(self.rotations)
+
+    def relative_rotations(self) -> np.ndarray:
+        """``sensor_{k-1} <- sensor_k`` rotations, shape (N-1, 3, 3); see :func:`relative_rotations`."""
+        return relative_rotations(self.rotations)
+
+
+def relative_rotations(rotations: np.ndarray) -> np.ndarray:
+    """Relative rotations between consecutive poses.
+
+    Parameters
+    ----------
+    rotations : ndarray (N, 3, 3)
+        world <- sensor_k.
+
+    Returns
+    -------
+    ndarray (N-1, 3, 3)
+        ``R_{k-1}^T R_k`` (sensor_{k-1} <- sensor_k), so that
+        ``R_k = R_{k-1} @ dR_k``.
+    """
+    r = np.asarray(rotations, dtype=float)
+    return np.swapaxes(r[:-1], 1, 2) @ r[1:]
+
+
+def _load_table(path: Path, widths: tuple[int, ...]) -> np.ndarray:
+    """Numeric rows of a whitespace text file; every row must have one of ``widths`` columns."""
+    if not path.is_file():
+        raise FileNotFoundError(f"pose file not found: {path}")
+    rows = []
+    width = None
+    for lineno, raw in enumerate(path.read_text().splitlines(), start=1):
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        parts = line.replace(",", " ").split()
+        if width is None:
+            if len(parts) not in widths:
+                raise ValueError(f"{path}:{lineno}: expected {' or '.join(map(str, widths))} numbers, got {len(parts)}")
+            width = len(parts)
+        elif len(parts) != width:
+            raise ValueError(f"{path}:{lineno}: expected {width} numbers like the first line, got {len(parts)} "
+                             f"(truncated or malformed line)")
+        try:
+            rows.append([float(v) for v in parts])
+        except ValueError:
+            raise ValueError(f"{path}:{lineno}: not a number in {raw.strip()!r}") from None
+    if not rows:
+        raise ValueError(f"{path}: no poses (empty file)")
+    data = np.array(rows)
+    bad = ~np.all(np.isfinite(data), axis=1)
+    if bad.any():
+        raise ValueError(f"{path}: {bad.sum()} lines with NaN or inf values, first at pose {np.flatnonzero(bad)[0]}")
+    return data
+
+
+def _check_rotations(path: Path, r: np.ndarray, lines: np.ndarray) -> np.ndarray:
+    err = np.abs(np.swapaxes(r, 1, 2) @ r - np.eye(3)).max(axis=(1, 2))
+    det = np.linalg.det(r)
+    bad = (err > _ORTHO_TOL) | (det < 0)
+    if bad.any():
+        i = np.flatnonzero(bad)[0]
+        raise ValueError(f"{path}: {bad.sum()} poses are not rotations (first at line {lines[i]}: "
+                         f"|R^T R - I| = {err[i]:.2e}, det = {det[i]:.4f})")
+    return Rotation.from_matrix(r).as_matrix()      # nearest rotation, float64
+
+
+def read_kitti_poses(path: Union[str, Path]) -> PoseSequence:
+    """Read a KITTI odometry pose file (12 numbers a line, optional leading frame index).
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    PoseSequence
+        world <- sensor_k rotations (the first camera frame is the world frame
+        in KITTI's files), translations in metres, frame indices.
+
+    Raises
+    ------
+    FileNotFoundError, ValueError
+        Missing file; malformed, truncated or non-numeric line (with its line
+        number); NaN; matrices that are not rotations; frame indices that are
+        not strictly increasing.
+    """
+    path = Path(path)
+    data = _load_table(path, (12, 13))
+    if data.shape[1] == 13:
+        index = data[:, 0]
+        if np.any(index != np.round(index)):
+            raise ValueError(f"{path}: the 13-column format needs an integer frame index in the first column")
+        index = index.astype(np.int64)
+        d = np.diff(index)
+        if np.any(d <= 0):
+            i = np.flatnonzero(d <= 0)[0]
+            raise ValueError(f"{path}: frame indices are not strictly increasing at line {i + 2} "
+                             f"({index[i]} then {index[i + 1]})")
+        data = data[:, 1:]
+    else:
+        index = np.arange(len(data))
+    m = data.reshape(-1, 3, 4)
+    rot = _check_rotations(path, m[:, :, :3], np.arange(1, len(m) + 1))
+    return PoseSequence(rot, m[:, :, 3].copy(), None, index, str(path))
+
+
+def read_tum_poses(path: Union[str, Path]) -> PoseSequence:
+    """Read a TUM-format trajectory (``t x y z qx qy qz qw`` a line).
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    PoseSequence
+        world <- sensor_k rotations, positions, timestamps in seconds.
+
+    Raises
+    ------
+    FileNotFoundError, ValueError
+        Missing file; malformed line (line number); NaN; quaternions far from
+        unit norm; timestamps unsorted or duplicated (which and where).
+    """
+    path = Path(path)
+    data = _load_table(path, (8,))
+    t = data[:, 0]
+    d = np.diff(t)
+    if np.any(d <= 0):
+        bad = np.flatnonzero(d <= 0)
+        kind = "duplicate" if np.all(d[bad] == 0) else "unsorted or duplicate"
+        raise ValueError(f"{path}: {bad.size} {kind} timestamps, first at pose {bad[0] + 1} "
+                         f"(t = {t[bad[0]]!r} then {t[bad[0] + 1]!r})")
+    q = data[:, 4:8]
+    norm = np.linalg.norm(q, axis=1)
+    if np.any(np.abs(norm - 1.0) > 1e-2):
+        i = np.flatnonzero(np.abs(norm - 1.0) > 1e-2)[0]
+        raise ValueError(f"{path}: quaternion at pose {i} has norm {norm[i]:.4f}, expected 1 (order qx qy qz qw)")
+    rot = Rotation.from_quat(q).as_matrix()
+    return PoseSequence(rot, data[:, 1:4].copy(), t, np.arange(len(t)), str(path))
+
+
+def read_poses(path: Union[str, Path], format: Optional[str] = None) -> PoseSequence:
+    """Read a pose file, KITTI or TUM, detected from the column count unless ``format`` is given.
+
+    Parameters
+    ----------
+    path : str or Path
+    format : {"kitti", "tum"}, optional
+    """
+    path = Path(path)
+    if format is None:
+        if not path.is_file():
+            raise FileNotFoundError(f"pose file not found: {path}")
+        with path.open() as fh:
+            first = next((ln for ln in fh if ln.split("#", 1)[0].strip()), "")
+        n = len(first.split("#", 1)[0].replace(",", " ").split())
+        format = {8: "tum", 12: "kitti", 13: "kitti"}.get(n)
+        if format is None:
+            raise ValueError(f"{path}: cannot tell the pose format from a first line of {n} numbers "
+                             f"(KITTI has 12 or 13, TUM has 8)")
+    if format == "kitti":
+        return read_kitti_poses(path)
+    if format == "tum":
+        return read_tum_poses(path)
+    raise ValueError(f"unknown pose format {format!r}: use 'kitti' or 'tum'")
+
+
+def write_tum_poses(path: Union[str, Path], t: np.ndarray, rotations: np.ndarray,
+                    translations: Optional[np.ndarray] = None) -> None:
+    """Write a TUM trajectory (``t x y z qx qy qz qw``), readable by evo.
+
+    Parameters
+    ----------
+    t : ndarray (N,), seconds.
+    rotations : ndarray (N, 3, 3), world <- sensor (or any a <- b the caller documents).
+    translations : ndarray (N, 3), metres; zeros by default.
+    """
+    t = np.asarray(t, dtype=float)
+    q = Rotation.from_matrix(rotations).as_quat()
+    p = np.zeros((len(t), 3)) if translations is None else np.broadcast_to(translations, (len(t), 3))
+    np.savetxt(path, np.column_stack([t, p, q]), fmt="%.9f", header="t x y z qx qy qz qw")
+

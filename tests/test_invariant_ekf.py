@@ -1,0 +1,183 @@
+"""InvariantEKF against filterpy's linear Kalman filter, chi-square consistency, long runs."""
+import numpy as np
+import pytest
+from filterpy.common import Saver
+from filterpy.kalman import KalmanFilter, rts_smoother as kf_rts
+from scipy.stats import chi2
+
+from imu_ground import so3
+from imu_ground.invariant_ekf import InvariantEKF
+
+
+def test_defaults_are_the_papers():
+    f = InvariantEKF()
+    assert np.array_equal(f.x, np.eye(3))
+    assert np.array_equal(f.Q, 1e-2 * np.eye(3))
+    assert np.array_equal(f.R, np.eye(3))
+    assert np.array_equal(f.P, np.eye(3))
+
+
+def test_filterpy_saver_records_every_attribute():
+    f = InvariantEKF(P=0.1, Q=1e-3, R=1e-2)
+    s = Saver(f)
+    rng = np.random.default_rng(0)
+    for _ in range(10):
+        f.predict(rng.normal(scale=0.01, size=3))
+        f.update(so3.exp(rng.normal(scale=0.1, size=3)))
+        s.save()
+    s.to_array()
+    for key in ("x", "P", "Q", "R", "x_prior", "P_prior", "x_post", "P_post", "y", "K", "S", "SI",
+                "log_likelihood", "likelihood", "mahalanobis"):
+        assert len(s[key]) == 10, key
+    assert s.x.shape == (10, 3, 3) and s.K.shape == (10, 3, 3)
+    assert np.all(np.isfinite(s.log_likelihood)) and np.all(s.mahalanobis >= 0)
+
+
+def test_likelihood_and_mahalanobis_match_scipy():
+    from scipy.stats import multivariate_normal
+    f = InvariantEKF(P=0.2, Q=0.0, R=0.1)
+    f.predict()
+    f.update(so3.exp([0.1, -0.2, 0.05]))
+    assert f.log_likelihood == pytest.approx(multivariate_normal(np.zeros(3), f.S).logpdf(f.y))
+    assert f.mahalanobis == pytest.approx(np.sqrt(f.y @ np.linalg.inv(f.S) @ f.y))
+
+
+@pytest.mark.parametrize("error", ["left", "right"])
+def test_small_angles_agree_with_linear_kalman_filter(error):
+    """For small rotations the IEKF is a linear KF on the rotation vector, to first order."""
+    rng = np.random.default_rng(1)
+    Q, R, P0 = 1e-8, 1e-6, 1e-6
+    truth = np.array([1e-3, -2e-3, 5e-4])
+    f = InvariantEKF(P=P0, Q=Q, R=R, error=error)
+    kf = KalmanFilter(dim_x=3, dim_z=3)
+    kf.x = np.zeros(3)
+    kf.P *= P0
+    kf.Q *= Q
+    kf.R *= R
+    kf.F = np.eye(3)
+    kf.H = np.eye(3)
+    for _ in range(50):
+        z = truth + rng.normal(scale=1e-3, size=3)
+        f.predict()
+        f.update(so3.exp(z))
+        kf.predict()
+        kf.update(z)
+        # covariance recursion is identical; the state differs at second order (~angle^2)
+        assert np.allclose(f.P, kf.P, rtol=1e-9)
+        assert np.allclose(so3.log(f.x), kf.x, atol=2e-7)
+    assert np.allclose(f.K, kf.K, rtol=1e-9)
+
+
+def _nees_runs(measure, runs=400, steps=15, seed=7, error="left"):
+    rng = np.random.default_rng(seed)
+    P0, R = 0.1 ** 2, 0.05 ** 2
+    nees = np.zeros((runs, steps))
+    for m in range(runs):
+        X = so3.exp(rng.normal(size=3))
+        xi0 = rng.normal(scale=0.1, size=3)
+        f = InvariantEKF(x=X @ so3.exp(-xi0), P=P0, Q=1e-12, R=R, error=error)
+        for k in range(steps):
+            f.predict()
+            if measure == "rotation":
+                z = X @ so3.exp(rng.normal(scale=0.05, size=3))
+            else:
+                z = X @ np.array([0.0, 0.0, 1.0]) + rng.normal(scale=0.05, size=3)
+            f.update(z)
+            err = so3.log(f.x.T @ X) if error == "left" else so3.log(X @ f.x.T)
+            nees[m, k] = err @ np.linalg.solve(f.P, err)
+    return nees
+
+
+@pytest.mark.parametrize("measure, error", [("rotation", "left"), ("up", "left"), ("rotation", "right")])
+def test_nees_is_chi_square_consistent(measure, error):
+    runs = 400
+    nees = _nees_runs(measure, runs=runs, error=error)
+    lo, hi = chi2.ppf([0.0005, 0.9995], 3 * runs) / runs
+    mean = nees.mean(axis=0)
+    # at most one of the 15 steps outside the 99.9% band, and the overall mean near 3
+    assert np.sum((mean < lo) | (mean > hi)) <= 1, mean
+    assert 2.7 < mean.mean() < 3.3
+
+
+def test_direction_measurement_observes_tilt_not_yaw():
+    f = InvariantEKF(P=0.1, Q=0.0, R=1e-4)
+    tilt = so3.rotx(0.05)
+    for _ in range(200):
+        f.predict()
+        f.update(tilt @ np.array([0.0, 0.0, 1.0]))
+    assert np.allclose(f.x @ [0, 0, 1.0], tilt @ [0, 0, 1.0], atol=1e-6)
+    assert f.P[2, 2] == pytest.approx(0.1)          # yaw untouched
+    assert f.P[0, 0] < 1e-3
+
+
+def test_batch_filter_matches_sequential_and_rts_matches_filterpy():
+    rng = np.random.default_rng(3)
+    n = 60
+    us = so3.exp(rng.normal(scale=1e-4, size=(n, 3)))
+    truth = np.cumsum(rng.normal(scale=1e-4, size=(n, 3)), axis=0)
+    zs = so3.exp(truth + rng.normal(scale=1e-3, size=(n, 3)))
+    f1 = InvariantEKF(P=1e-4, Q=1e-8, R=1e-6)
+    Xs, Ps, Xp, Pp = f1.batch_filter(zs, us=us)
+    f2 = InvariantEKF(P=1e-4, Q=1e-8, R=1e-6)
+    for k in range(n):
+        f2.predict(us[k])
+        assert np.allclose(f2.x, Xp[k]) and np.allclose(f2.P, Pp[k])
+        f2.update(zs[k])
+        assert np.array_equal(f2.x, Xs[k]) and np.array_equal(f2.P, Ps[k])
+    Xsm, Psm, Cs, _ = f1.rts_smoother(Xs, Ps, us=us)
+    # linear reference: small increments enter as F = I with a known input (first order)
+    kf = KalmanFilter(dim_x=3, dim_z=3)
+    kf.P *= 1e-4
+    kf.Q *= 1e-8
+    kf.R *= 1e-6
+    kf.F = np.eye(3)
+    kf.H = np.eye(3)
+    means, covs = [], []
+    cum = np.zeros(3)
+    for k in range(n):
+        cum = cum + so3.log(us[k])
+        kf.predict()
+        kf.update(so3.log(zs[k]) - cum)
+        means.append(kf.x.ravel().copy())
+        covs.append(kf.P.copy())
+    ms, Pss, _, _ = kf_rts(np.array(means), np.array(covs), [np.eye(3)] * n, [kf.Q] * n)
+    cums = np.cumsum(so3.log(us), axis=0)
+    assert np.allclose(Psm, Pss, rtol=1e-6, atol=1e-15)
+    # second-order (BCH) differences ~1e-7, against a smoothing correction of ~1e-3
+    assert np.allclose(so3.log(Xsm), ms + cums, atol=5e-7)
+    assert np.abs(so3.log(Xsm) - so3.log(Xs)).max() > 1e-4
+    # smoothing never increases the uncertainty
+    assert np.all(np.trace(Psm, axis1=1, axis2=2) <= np.trace(Ps, axis1=1, axis2=2) + 1e-15)
+
+
+def test_million_steps_stay_orthonormal_and_positive_definite():
+    rng = np.random.default_rng(11)
+    us = so3.exp(rng.normal(scale=0.05, size=(1000, 3)))
+    zs_rot = so3.exp(rng.normal(scale=1.0, size=(1000, 3)))
+    zs_dir = rng.normal(size=(1000, 3))
+    zs_dir /= np.linalg.norm(zs_dir, axis=1, keepdims=True)
+    f = InvariantEKF(P=1.0, Q=np.diag([1e-2, 2e-2, 5e-3]), R=np.diag([1.0, 0.5, 2.0]))
+    worst_sym = worst_orth = 0.0
+    for k in range(1_000_000):
+        j = k % 1000
+        f.predict(us[j])
+        f.update(zs_rot[j] if k % 2 else zs_dir[j])
+        if k % 50_000 == 49_999:
+            worst_orth = max(worst_orth, np.abs(f.x.T @ f.x - np.eye(3)).max())
+            worst_sym = max(worst_sym, np.abs(f.P - f.P.T).max())
+            assert np.linalg.eigvalsh(f.P).min() > 0
+    assert worst_orth < 1e-13
+    assert worst_sym == 0.0
+    assert np.linalg.det(f.x) == pytest.approx(1.0, abs=1e-13)
+
+
+def test_bad_inputs_are_named():
+    f = InvariantEKF()
+    with pytest.raises(ValueError, match="z must be a 3x3 rotation or a unit vector"):
+        f.update(np.zeros(4))
+    with pytest.raises(ValueError, match="rotation increment"):
+        f.predict(np.zeros(2))
+    with pytest.raises(ValueError, match="error must be"):
+        InvariantEKF(error="middle")
+    with pytest.raises(ValueError, match="Q must be"):
+        InvariantEKF(Q=np.zeros((2, 2)))

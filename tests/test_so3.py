@@ -1,0 +1,108 @@
+"""SO(3) toolkit against scipy's Rotation and finite differences."""
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from imu_ground import so3
+
+ANGLES = [0.0, 1e-12, 1e-9, 1e-6, 1e-4, 0.3, 1.5, 3.0, np.pi - 1e-3, np.pi - 1e-6]
+
+
+def _axes(n, seed=0):
+    a = np.random.default_rng(seed).normal(size=(n, 3))
+    return a / np.linalg.norm(a, axis=1, keepdims=True)
+
+
+def _phis():
+    ax = _axes(len(ANGLES))
+    return np.array(ANGLES)[:, None] * ax
+
+
+def test_hat_vee():
+    a, b = np.random.default_rng(1).normal(size=(2, 50, 3))
+    assert np.allclose(so3.hat(a) @ b[..., None], np.cross(a, b)[..., None])
+    assert np.allclose(so3.vee(so3.hat(a)), a)
+    assert so3.hat(a[0]).shape == (3, 3)
+
+
+def test_exp_matches_scipy_batch_and_single():
+    phi = _phis()
+    ref = Rotation.from_rotvec(phi).as_matrix()
+    assert np.abs(so3.exp(phi) - ref).max() < 1e-15
+    for p, r in zip(phi, ref):
+        assert np.abs(so3.exp(p) - r).max() < 1e-15
+        assert np.abs(so3.exp_one(p) - r).max() < 1e-15
+
+
+def test_log_matches_scipy_near_zero_and_pi():
+    phi = _phis()
+    r = Rotation.from_rotvec(phi).as_matrix()
+    out = so3.log(r)
+    # exact angles down to 1e-12 rad (relative) and up to pi - 1e-6
+    assert np.allclose(out, phi, rtol=1e-9, atol=1e-15)
+    for k, th in enumerate(ANGLES):
+        assert np.linalg.norm(out[k]) == pytest.approx(th, rel=1e-9, abs=1e-15)
+        assert np.allclose(so3.log_one(r[k]), out[k], rtol=1e-12, atol=1e-15)
+    assert np.allclose(out, Rotation.from_matrix(r).as_rotvec(), rtol=1e-8, atol=1e-15)
+
+
+def test_log_at_exactly_pi_either_sign():
+    u = _axes(5, 3)
+    r = so3.exp(np.pi * u)
+    out = so3.log(r)
+    assert np.allclose(np.linalg.norm(out, axis=1), np.pi)
+    assert np.allclose(np.abs(np.sum(out * u, axis=1)), np.pi)
+    assert np.allclose(so3.exp(out), r, atol=1e-14)
+
+
+def test_batch_shapes():
+    phi = np.random.default_rng(2).normal(size=(4, 5, 3))
+    assert so3.exp(phi).shape == (4, 5, 3, 3)
+    assert so3.log(so3.exp(phi)).shape == (4, 5, 3)
+    assert so3.right_jacobian(phi).shape == (4, 5, 3, 3)
+
+
+@pytest.mark.parametrize("th", [1e-9, 1e-5, 0.2, 1.3, 2.8, np.pi - 1e-3])
+def test_jacobians_by_finite_differences(th):
+    phi = th * _axes(1, 5)[0]
+    eps = 1e-7
+    Jr = so3.right_jacobian(phi)
+    Jl = so3.left_jacobian(phi)
+    R = so3.exp(phi)
+    for i in range(3):
+        d = np.zeros(3)
+        d[i] = eps
+        Rp, Rm = so3.exp(phi + d), so3.exp(phi - d)
+        col_r = (so3.log(R.T @ Rp) - so3.log(R.T @ Rm)) / (2 * eps)
+        col_l = (so3.log(Rp @ R.T) - so3.log(Rm @ R.T)) / (2 * eps)
+        assert np.allclose(Jr[:, i], col_r, atol=1e-7)
+        assert np.allclose(Jl[:, i], col_l, atol=1e-7)
+    assert np.allclose(Jl, R @ Jr, atol=1e-12)          # J_l = R J_r
+    assert np.allclose(so3.right_jacobian_inv(phi) @ Jr, np.eye(3), atol=1e-10)
+    assert np.allclose(so3.left_jacobian_inv(phi) @ Jl, np.eye(3), atol=1e-10)
+
+
+def test_jacobian_inverse_batch():
+    phi = _phis()[:-1]
+    prod = so3.right_jacobian_inv(phi) @ so3.right_jacobian(phi)
+    assert np.allclose(prod, np.eye(3), atol=1e-9)
+
+
+def test_project_restores_rotation():
+    rng = np.random.default_rng(4)
+    r = Rotation.random(100, random_state=5).as_matrix()
+    noisy = r + 1e-4 * rng.normal(size=r.shape)
+    p = so3.project(noisy)
+    assert np.allclose(np.swapaxes(p, 1, 2) @ p, np.eye(3), atol=1e-13)
+    assert np.allclose(np.linalg.det(p), 1.0)
+    assert np.abs(p - r).max() < 1e-3
+    assert np.allclose(so3.project(r), r, atol=1e-14)       # idempotent on rotations
+    # a reflection is turned into the nearest proper rotation
+    assert np.linalg.det(so3.project(np.diag([1.0, 1.0, -1.0]))) == pytest.approx(1.0)
+
+
+def test_axis_rotations_match_scipy_and_convention():
+    for f, ax in ((so3.rotx, "x"), (so3.roty, "y"), (so3.rotz, "z")):
+        assert np.allclose(f(0.4), Rotation.from_euler(ax, 0.4).as_matrix())
+    # KITTI: positive pitch is nose down
+    assert (so3.roty(0.1) @ np.array([1.0, 0, 0]))[2] < 0
