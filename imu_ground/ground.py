@@ -165,8 +165,9 @@ class GroundNormalFilter:
         code, which observes the camera's optical axis).
     follow_heading : bool
         Predict the road frame with the twist of each body increment about the
-        up axis (default). False is the paper's random walk, which lags by tens
-        of degrees in turns and mixes the tilt directions.
+        up axis (default). False is the paper's random walk, which lags in
+        turns (about 9 deg in a 9 deg/s turn at 10 Hz with the paper's noise,
+        the whole turn when only the up axis is observed).
     R0 : ndarray (3, 3), optional
         Initial cumulative rotation, world <- body (default identity).
 
