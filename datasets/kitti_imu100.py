@@ -1,0 +1,166 @@
+"""KITTI raw 100 Hz OXTS logs ("extract" data) stored as one CSV per drive.
+
+Each ``<drive>.csv`` or ``<drive>.csv.gz`` has the columns
+``t,wx,wy,wz,ax,ay,az,roll,pitch,yaw,ve,vn,vu,px,py,pz``:
+
+- ``t``: s since the drive's first sample; ``drives.csv`` beside the files gives
+  the start as seconds of the day (``t0_seconds_of_day``) and the sample count;
+- ``wx,wy,wz``: angular rate about x forward, y left, z up (FLU), rad/s;
+- ``ax,ay,az``: specific force along x, y, z, m/s^2 (about +9.81 on z at rest);
+- ``roll,pitch,yaw`` (rad), ``ve,vn,vu`` (m/s, east/north/up), ``px,py,pz`` (m,
+  east/north/up from the first sample): kept in ``extra``.
+
+The raw extract timestamps step back now and then (about -0.05 s, a block of
+samples sent twice) and have gaps over 1 s; the validation run by the reader
+(policy ``"drop"`` by default) drops and reports the out-of-order samples.
+"""
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from imu_ground.imu_data import ImuData
+from imu_ground.validation import ImuValidationWarning, MalformedFileError
+
+from .table import _finish, _numeric_columns, _read_csv_text
+
+__all__ = ["COLUMNS", "EXTRA_UNITS", "read_kitti_imu100", "read_drives_index", "drive_name"]
+
+#: Columns of a kitti_imu100 CSV, in order.
+COLUMNS: tuple[str, ...] = ("t", "wx", "wy", "wz", "ax", "ay", "az", "roll", "pitch", "yaw",
+                            "ve", "vn", "vu", "px", "py", "pz")
+#: Units of the columns kept in ``ImuData.extra``.
+EXTRA_UNITS: dict[str, str] = {"roll": "rad", "pitch": "rad", "yaw": "rad",
+                               "ve": "m/s", "vn": "m/s", "vu": "m/s",
+                               "px": "m", "py": "m", "pz": "m"}
+
+
+def drive_name(path: str | Path) -> str:
+    """Drive name of a kitti_imu100 file: ``.../2011_09_26_drive_0009.csv.gz`` -> ``2011_09_26_drive_0009``."""
+    name = Path(path).name
+    for suffix in (".csv.gz", ".csv"):
+        if name.endswith(suffix):
+            return name[: -len(suffix)]
+    return Path(path).stem
+
+
+def read_drives_index(path: str | Path) -> pd.DataFrame:
+    """Read ``drives.csv``: one row per drive, columns ``drive, t0_seconds_of_day, samples``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``drives.csv`` file, or the folder holding it.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Indexed by drive name; ``t0_seconds_of_day`` in s (float), ``samples`` (int).
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    MalformedFileError
+        Empty file, bad line, or missing columns.
+    """
+    p = Path(path)
+    if p.is_dir():
+        p = p / "drives.csv"
+    df, lines = _read_csv_text(p)
+    need = ["drive", "t0_seconds_of_day", "samples"]
+    missing = [c for c in need if c not in df.columns]
+    if missing:
+        raise MalformedFileError(p, f"missing column(s) {missing}; header has {list(df.columns)}", line=1)
+    num = _numeric_columns(df, need[1:], p, lines)
+    out = pd.DataFrame({"t0_seconds_of_day": num[:, 0], "samples": num[:, 1].astype(int)},
+                       index=pd.Index(df["drive"].astype(str), name="drive"))
+    return out
+
+
+def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None = None,
+                      validate: bool = True, policy: str = "drop", **validate_kw: Any) -> ImuData:
+    """Read one kitti_imu100 drive (100 Hz KITTI OXTS, CSV or CSV.gz).
+
+    Parameters
+    ----------
+    path : str or Path
+        The drive's ``.csv`` / ``.csv.gz`` file.
+    drives_csv : str, Path, bool or None
+        The ``drives.csv`` index giving the drive's start time; ``None`` (default)
+        uses the one beside ``path`` if there is one, ``False`` ignores it.
+    validate : bool
+        Run :func:`imu_ground.validation.validate` (default True).
+    policy : {"drop", "sort", "strict"}
+        Time-order policy of the validation (default ``"drop"``).
+    **validate_kw
+        Other options of :func:`~imu_ground.validation.validate`.
+
+    Returns
+    -------
+    ImuData
+        ``t`` s from the first sample, ``gyro`` rad/s and ``accel`` m/s^2 in
+        ``"FLU"`` (x forward, y left, z up); ``extra`` holds roll, pitch, yaw
+        (rad), ve, vn, vu (m/s), px, py, pz (m).  ``meta``: ``format``, ``drive``,
+        ``t0`` (start, seconds of the day, when ``drives.csv`` lists the drive, else
+        0.0), ``t0_clock``, ``expected_samples`` and ``validation``.
+
+    Raises
+    ------
+    FileNotFoundError
+        ``path`` (or an explicitly given ``drives_csv``) does not exist.
+    MalformedFileError
+        Empty or truncated file, wrong columns, a line with the wrong number of
+        fields or a non-number (the message names the file and line).
+    """
+    path = Path(path)
+    df, lines = _read_csv_text(path)
+    cols = [str(c) for c in df.columns]
+    if cols != list(COLUMNS):
+        missing = [c for c in COLUMNS if c not in cols]
+        raise MalformedFileError(path, f"expected columns {','.join(COLUMNS)}, got {','.join(cols)}"
+                                       + (f" (missing {missing})" if missing else ""), line=1)
+    data = _numeric_columns(df, COLUMNS, path, lines)
+    drive = drive_name(path)
+    t_first = float(data[0, 0]) if np.isfinite(data[0, 0]) else 0.0
+    meta: dict[str, Any] = {"format": "kitti_imu100", "drive": drive, "t0": 0.0,
+                            "t0_clock": "t of the file (no drives.csv entry)"}
+
+    index_path: Path | None
+    if drives_csv is False:
+        index_path = None
+    elif drives_csv is None or drives_csv is True:
+        index_path = path.parent / "drives.csv"
+        if not index_path.is_file():
+            if drives_csv is True:
+                raise FileNotFoundError(f"{index_path}: no such file (drives_csv=True)")
+            index_path = None
+    else:
+        index_path = Path(drives_csv)
+        if not index_path.exists():
+            raise FileNotFoundError(f"{index_path}: no such file")
+    if index_path is not None:
+        index = read_drives_index(index_path)
+        meta["drives_csv"] = str(index_path)
+        if drive in index.index:
+            row = index.loc[drive]
+            meta["t0"] = float(row["t0_seconds_of_day"]) + t_first
+            meta["t0_clock"] = "seconds of the day (drives.csv t0_seconds_of_day)"
+            meta["expected_samples"] = int(row["samples"])
+            if int(row["samples"]) != len(df):
+                warnings.warn(f"{path}: {len(df)} rows but {index_path} lists {int(row['samples'])} "
+                              f"samples for {drive} (truncated or edited file?)",
+                              ImuValidationWarning, stacklevel=1 + int(validate_kw.get("_depth", 1)))
+        else:
+            meta["notes"] = [f"{drive} not listed in {index_path}"]
+
+    if t_first != 0.0:
+        meta["t_offset_in_file"] = t_first
+    extra = pd.DataFrame(data[:, 7:], columns=list(COLUMNS[7:]))
+    imu = ImuData(data[:, 0] - t_first, data[:, 1:4], data[:, 4:7], "FLU", extra,
+                  dict(EXTRA_UNITS), str(path), meta)
+    return _finish(imu, validate, policy, validate_kw)
