@@ -31,6 +31,7 @@ from .kitti_imu100 import COLUMNS as KITTI_IMU100_COLUMNS
 from .kitti_imu100 import read_drives_index, read_kitti_imu100
 from .kitti_oxts import read_kitti_oxts
 from .nuscenes import read_nuscenes_imu
+from .poses import PoseSequence, read_kitti_poses, read_poses, read_tum_poses, relative_rotations, write_tum_poses
 from .table import from_dataframe, read_table
 
 __all__ = [
@@ -45,6 +46,12 @@ __all__ = [
     "from_dataframe",
     "read_nuscenes_imu",
     "read_comma2k19",
+    "PoseSequence",
+    "read_poses",
+    "read_kitti_poses",
+    "read_tum_poses",
+    "relative_rotations",
+    "write_tum_poses",
 ]
 
 #: Format name to reader.
