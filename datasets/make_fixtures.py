@@ -1,0 +1,95 @@
+"""Regenerate the shipped synthetic example drive in ``datasets/fixtures/``.
+
+The files are a pure function of the seed below, so running this again gives the
+same numbers (and, on the same platform and library versions, the same bytes)::
+
+    python -m imu_ground.datasets.make_fixtures            # or: python datasets/make_fixtures.py
+    python -m imu_ground.datasets.make_fixtures --out /tmp/check
+
+Files
+-----
+``example_drive.csv``
+    60 s of a navigation-grade IMU (preset ``"nav"``, OXTS RT3003-like) at
+    100 Hz: columns ``t,wx,wy,wz,ax,ay,az`` (s, rad/s, m/s^2). The sensor is
+    aligned with the vehicle's FLU body frame (x forward, y left, z up), 0.9 m
+    above the road and 0.3 m ahead of the reference point (``R_gs = I``,
+    ``t_gs = (0.3, 0, 0.9)``).
+``example_drive_truth.csv``
+    Ground truth at 10 Hz (every 10th IMU sample, from t = 0), the columns of
+    :data:`imu_ground.simulate.TRUTH_COLUMNS` (``stationary`` as 0/1).
+``example_drive_meta.json``
+    Seed, IMU error model, extrinsic and every simulation parameter.
+
+The drive: 5 s at rest, accelerations, two left-hand curves, a stop from 43 s
+to 50 s, grades between -1.6 % and +2.5 %, crown 2 %, ISO 8608 class B roughness.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import asdict
+from pathlib import Path
+
+from imu_ground.simulate import RoadParams, SimResult, SpeedParams, simulate
+
+FIXTURES = Path(__file__).resolve().parent / "fixtures"
+EXAMPLE_NAME = "example_drive"
+EXAMPLE_SEED = 2024
+FLOAT_FORMAT = "%.10g"
+
+
+def example_drive() -> SimResult:
+    """The example drive (deterministic)."""
+    return simulate(60.0, seed=EXAMPLE_SEED, imu="nav", imu_rate=100.0, frame_rate=10.0,
+                    road=RoadParams(roughness="B"), speed=SpeedParams(style="mixed"),
+                    R_gs=None, t_gs=(0.3, 0.0, 0.9), name=EXAMPLE_NAME)
+
+
+def _meta(result: SimResult) -> dict:
+    p = result.params
+    return {
+        "name": result.name,
+        "generator": "python -m imu_ground.datasets.make_fixtures",
+        "seed": result.seed,
+        "duration_s": p["duration"],
+        "imu_rate_hz": p["imu_rate"],
+        "frame_rate_hz": p["frame_rate"],
+        "imu_frame": result.imu.frame,
+        "imu_columns": {"t": "s", "wx,wy,wz": "rad/s, sensor frame",
+                        "ax,ay,az": "m/s^2, specific force, sensor frame"},
+        "imu_model": asdict(result.imu_model),
+        "R_gs": result.R_gs.tolist(),
+        "t_gs": result.t_gs.tolist(),
+        "road": asdict(p["road"]),
+        "vehicle": asdict(p["vehicle"]),
+        "speed": asdict(p["speed"]),
+        "conventions": "see imu_ground.simulate: world z up, body FLU, R = Rz(yaw) Ry(pitch) Rx(roll), "
+                       "pitch > 0 nose down, roll > 0 left side up; pitch/roll are body relative to road; "
+                       "normal_* in the sensor frame; q* is world <- sensor (w, x, y, z)",
+    }
+
+
+def write_example(out_dir: str | Path = FIXTURES) -> dict[str, Path]:
+    """Write the three example files into ``out_dir``; returns their paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    result = example_drive()
+    paths = {"imu": out / f"{EXAMPLE_NAME}.csv",
+             "truth": out / f"{EXAMPLE_NAME}_truth.csv",
+             "meta": out / f"{EXAMPLE_NAME}_meta.json"}
+    result.to_csv(paths["imu"], paths["truth"], float_format=FLOAT_FORMAT)
+    paths["meta"].write_text(json.dumps(_meta(result), indent=2) + "\n")
+    return paths
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", default=str(FIXTURES), help="output folder (default: %(default)s)")
+    args = parser.parse_args(argv)
+    for kind, path in write_example(args.out).items():
+        print(f"{kind:5s} {path} ({path.stat().st_size / 1024:.0f} KiB)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
