@@ -1,0 +1,247 @@
+r"""Error metrics for ground-normal estimates: per frame and per drive.
+
+Angles in, degrees out
+----------------------
+Every function takes pitch and roll in **radians** (the library's unit) and
+reports errors in **degrees** (the unit results are read in).
+
+Conventions: pitch and roll are those of the vehicle body relative to the road
+plane, KITTI's: pitch positive = nose down, roll positive = left side up, body
+attitude relative to the road ``Ry(pitch) @ Rx(roll)`` (the road's heading is
+irrelevant to its normal). The road normal expressed in the body frame (FLU)
+is then ``n = (Ry(pitch) Rx(roll))^T e_z = (-sin p, sin r cos p, cos r cos p)``.
+
+Per frame (:func:`frame_errors`)
+    * ``angle``: angle between the estimated and the true unit normals, deg,
+      in [0, 180], from ``atan2(|n1 x n2|, n1 . n2)`` (accurate for tiny
+      angles, where ``acos`` of the dot product loses half the digits);
+    * ``pitch``, ``roll``: signed errors, estimate minus truth, deg, wrapped to
+      (-180, 180].
+
+Per drive (:func:`summarize`, :func:`evaluate_drive`)
+    over the frames of a mask (e.g. moving frames, speed > 3 m/s): ``n``,
+    ``mean``, ``median``, ``rms``, ``p95`` (95th percentile) of the *absolute*
+    errors, and ``bias`` (mean of the signed error; for the angle, which has no
+    sign, it equals ``mean``).
+
+The real-data protocol: mean removal
+------------------------------------
+On real drives the reference is ``pitch + grade`` of the GPS/INS, whose drive
+mean is the static mounting offset between the INS and the car body (plus the
+car's static stance). An IMU-only estimator has its own constant offset (the
+IMU's mounting on the body). Both are what a one-off extrinsic calibration
+removes, and neither says anything about how well the *motion* of the ground
+normal is tracked. So with ``remove_mean=True`` the estimate and the reference
+are each replaced by their deviation from their own mean over the evaluated
+(masked, finite) frames before the errors are computed; pitch and roll are
+centred separately and the normals rebuilt from the centred angles. The
+constant estimate "always level" then scores the spread of the reference
+itself. Synthetic data with an exact truth use ``remove_mean=False``.
+"""
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+import numpy as np
+import pandas as pd
+
+__all__ = [
+    "normal_from_pitch_roll",
+    "normal_angle",
+    "wrap_angle",
+    "frame_errors",
+    "summarize",
+    "evaluate_drive",
+    "summary_table",
+]
+
+
+
+def normal_from_pitch_roll(pitch, roll) -> np.ndarray:
+    """Road normal in the body frame (FLU) for a body pitch and roll relative to the road.
+
+    Parameters
+    ----------
+    pitch, roll : array_like, rad
+        Broadcast together. Pitch positive nose down, roll positive left up.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        Unit vectors ``(-sin p, sin r cos p, cos r cos p)``.
+    """
+    p, r = np.broadcast_arrays(np.asarray(pitch, dtype=float), np.asarray(roll, dtype=float))
+    cp = np.cos(p)
+    return np.stack([-np.sin(p), np.sin(r) * cp, np.cos(r) * cp], axis=-1)
+
+
+def normal_angle(n_est, n_true) -> np.ndarray:
+    """Angle between two (not necessarily unit) vectors, deg, in [0, 180].
+
+    Parameters
+    ----------
+    n_est, n_true : array_like, shape (..., 3)
+
+    Returns
+    -------
+    ndarray, shape (...)
+        ``degrees(atan2(|a x b|, a . b))``: exact to rounding at any angle.
+    """
+    a = np.asarray(n_est, dtype=float)
+    b = np.asarray(n_true, dtype=float)
+    cross = np.linalg.norm(np.cross(a, b), axis=-1)
+    dot = np.sum(a * b, axis=-1)
+    return np.degrees(np.arctan2(cross, dot))
+
+
+def wrap_angle(a_deg) -> np.ndarray:
+    """Wrap angles in degrees to (-180, 180]."""
+    a = np.asarray(a_deg, dtype=float)
+    return 180.0 - np.mod(180.0 - a, 360.0)
+
+
+def frame_errors(est_pitch, true_pitch, est_roll=None, true_roll=None) -> pd.DataFrame:
+    """Per-frame errors of an estimate against the truth.
+
+    Parameters
+    ----------
+    est_pitch, true_pitch : array_like, shape (N,), rad
+    est_roll, true_roll : array_like, shape (N,), rad, optional
+        Both or neither. Without roll (real data: the road's cross-slope is
+        unknown) only the pitch error is returned.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``pitch`` (signed, estimate - truth, deg) and, with roll,
+        ``roll`` (signed, deg) and ``angle`` (between the normals, deg). NaN
+        inputs give NaN errors.
+    """
+    ep = np.asarray(est_pitch, dtype=float)
+    tp = np.asarray(true_pitch, dtype=float)
+    if ep.shape != tp.shape:
+        raise ValueError(f"estimate and truth differ in shape: {ep.shape} vs {tp.shape}")
+    out = {"pitch": wrap_angle(np.degrees(ep - tp))}
+    if (est_roll is None) != (true_roll is None):
+        raise ValueError("give both est_roll and true_roll, or neither")
+    if est_roll is not None:
+        er = np.asarray(est_roll, dtype=float)
+        tr = np.asarray(true_roll, dtype=float)
+        if er.shape != ep.shape or tr.shape != ep.shape:
+            raise ValueError("roll arrays must have the shape of the pitch arrays")
+        out["roll"] = wrap_angle(np.degrees(er - tr))
+        out["angle"] = normal_angle(normal_from_pitch_roll(ep, er), normal_from_pitch_roll(tp, tr))
+    return pd.DataFrame(out)
+
+
+def summarize(errors, mask=None) -> dict[str, float]:
+    """Summary statistics of one error series over the frames of a mask.
+
+    Parameters
+    ----------
+    errors : array_like, shape (N,)
+        Signed (or unsigned) errors, deg.
+    mask : array_like of bool, shape (N,), optional
+        Frames to use (default all). Non-finite errors are left out as well and
+        counted in ``n_nonfinite``.
+
+    Returns
+    -------
+    dict
+        ``n`` (frames used), ``mean``, ``median``, ``rms``, ``p95`` (95th
+        percentile, linear interpolation) of ``|errors|``, ``bias`` (mean of
+        the signed errors), ``n_nonfinite``. All NaN when no frame is used.
+    """
+    e = np.asarray(errors, dtype=float)
+    m = np.ones(e.shape, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
+    if m.shape != e.shape:
+        raise ValueError(f"mask shape {m.shape} differs from errors shape {e.shape}")
+    finite = np.isfinite(e)
+    n_nonfinite = int(np.count_nonzero(m & ~finite))
+    x = e[m & finite]
+    if x.size == 0:
+        nan = float("nan")
+        return {"n": 0, "mean": nan, "median": nan, "rms": nan, "p95": nan, "bias": nan,
+                "n_nonfinite": n_nonfinite}
+    a = np.abs(x)
+    return {"n": int(x.size), "mean": float(a.mean()), "median": float(np.median(a)),
+            "rms": float(np.sqrt(np.mean(x * x))), "p95": float(np.percentile(a, 95.0)),
+            "bias": float(x.mean()), "n_nonfinite": n_nonfinite}
+
+
+def evaluate_drive(est_pitch, true_pitch, est_roll=None, true_roll=None, mask=None,
+                   remove_mean: bool = False) -> dict[str, dict[str, float]]:
+    """Per-drive error summaries of pitch (and roll and normal angle when given).
+
+    Parameters
+    ----------
+    est_pitch, true_pitch : array_like, shape (N,), rad
+    est_roll, true_roll : array_like, shape (N,), rad, optional
+    mask : array_like of bool, shape (N,), optional
+        Frames evaluated, e.g. ``Reference.valid`` (moving, speed > 3 m/s).
+        Frames where any given input is not finite are left out too.
+    remove_mean : bool
+        The real-data protocol (module docstring): centre the estimate and the
+        truth on their own means over the evaluated frames, pitch and roll
+        separately, before computing the errors.
+
+    Returns
+    -------
+    dict
+        ``{"pitch": summary, "roll": summary, "angle": summary}`` (the last two
+        only with roll), each as returned by :func:`summarize`.
+    """
+    arrays = [np.asarray(est_pitch, dtype=float), np.asarray(true_pitch, dtype=float)]
+    with_roll = est_roll is not None or true_roll is not None
+    if with_roll:
+        if est_roll is None or true_roll is None:
+            raise ValueError("give both est_roll and true_roll, or neither")
+        arrays += [np.asarray(est_roll, dtype=float), np.asarray(true_roll, dtype=float)]
+    n = arrays[0].shape
+    for a in arrays:
+        if a.shape != n or a.ndim != 1:
+            raise ValueError("all angle arrays must be 1-D and of the same length")
+    m = np.ones(n, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
+    if m.shape != n:
+        raise ValueError(f"mask shape {m.shape} differs from the data's {n}")
+    use = m & np.logical_and.reduce([np.isfinite(a) for a in arrays])
+    if remove_mean and np.any(use):
+        arrays = [a - a[use].mean() for a in arrays]
+    if with_roll:
+        err = frame_errors(arrays[0], arrays[1], arrays[2], arrays[3])
+    else:
+        err = frame_errors(arrays[0], arrays[1])
+    return {k: summarize(err[k].to_numpy(), use) for k in err.columns}
+
+
+def summary_table(per_drive: Mapping[str, Mapping[str, Any]], quantity: str = "pitch",
+                  stat: str | None = None) -> pd.DataFrame:
+    """Per-drive summaries of one quantity as a table, with the mean over drives.
+
+    Parameters
+    ----------
+    per_drive : mapping
+        Drive name to the dict returned by :func:`evaluate_drive`.
+    quantity : str
+        ``"pitch"``, ``"roll"`` or ``"angle"``.
+    stat : str, optional
+        Keep only this column (e.g. ``"mean"``).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per drive (index: drive name) plus a last row ``"mean over
+        drives"`` (each statistic averaged over drives with frames; ``n``
+        summed). Every drive counts once, whatever its length.
+    """
+    rows = {name: dict(res[quantity]) for name, res in per_drive.items()}
+    table = pd.DataFrame.from_dict(rows, orient="index")
+    if len(table):
+        agg = table.drop(columns=["n", "n_nonfinite"], errors="ignore").mean(skipna=True)
+        agg["n"] = table["n"].sum()
+        if "n_nonfinite" in table:
+            agg["n_nonfinite"] = table["n_nonfinite"].sum()
+        table.loc["mean over drives"] = agg
+    if stat is not None:
+        return table[[stat]]
+    return table
