@@ -1,0 +1,225 @@
+r"""Strapdown dead reckoning in a gravity-aligned frame from preintegrated deltas.
+
+Navigation frame ``n``: a local level frame, z up, gravity ``g_n = [0, 0, -g]``;
+its heading is that of the initial attitude (yaw 0 when the attitude comes
+from the accelerometer). With per-frame deltas (:class:`~imu_ground.preintegration.FrameDeltas`)
+the state at frame boundaries follows Forster et al. 2017 (Sec. VI-A):
+
+.. math::
+
+    R_{k+1} = R_k \Delta R_k, \quad
+    v_{k+1} = v_k + g_n \Delta t_k + R_k \Delta v_k, \quad
+    p_{k+1} = p_k + v_k \Delta t_k + \tfrac12 g_n \Delta t_k^2 + R_k \Delta p_k,
+
+with ``R`` = navigation from body. All frames are propagated at once: a
+log-depth product scan gives every ``R_k``, cumulative sums give ``v`` and ``p``.
+Per-sample dead reckoning is the special case of one frame per sample
+(``every=1``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal, Sequence
+
+import numpy as np
+
+from . import so3
+from .imu_data import ImuData
+from .preintegration import FrameDeltas, _mm, _project_if_needed, _scan_products, preintegrate
+from .standstill import GRAVITY, estimate_gyro_bias
+
+__all__ = ["GRAVITY", "NavSolution", "attitude_from_accel", "dead_reckon", "dead_reckon_imu"]
+
+
+@dataclass
+class NavSolution:
+    """Dead-reckoned states at the frame boundaries.
+
+    Attributes
+    ----------
+    t : ndarray, shape (F + 1,)
+        Boundary times, s.
+    R : ndarray, shape (F + 1, 3, 3)
+        Attitude: body frame -> navigation frame (level, z up).
+    v : ndarray, shape (F + 1, 3)
+        Velocity in the navigation frame, m/s.
+    p : ndarray, shape (F + 1, 3)
+        Position in the navigation frame, m.
+    valid : ndarray of bool, shape (F + 1,)
+        False from the first frame that crossed a timestamp gap onwards.
+    gravity : float
+        Magnitude of gravity used, m/s^2.
+    """
+
+    t: np.ndarray
+    R: np.ndarray
+    v: np.ndarray
+    p: np.ndarray
+    valid: np.ndarray
+    gravity: float
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    @property
+    def roll_pitch_yaw(self) -> np.ndarray:
+        """(F + 1, 3) roll, pitch, yaw in rad with ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (body -> nav)."""
+        R = self.R
+        pitch = np.arcsin(np.clip(-R[:, 2, 0], -1.0, 1.0))
+        roll = np.arctan2(R[:, 2, 1], R[:, 2, 2])
+        yaw = np.arctan2(R[:, 1, 0], R[:, 0, 0])
+        return np.stack([roll, pitch, yaw], axis=1)
+
+
+def attitude_from_accel(accel_mean: Sequence[float], yaw: float = 0.0) -> np.ndarray:
+    """Attitude of a body at rest from its mean specific force.
+
+    The specific force at rest points up; roll and pitch follow, yaw is free.
+
+    Parameters
+    ----------
+    accel_mean : array_like, shape (3,)
+        Mean specific force at rest, body frame, m/s^2 (any positive scale).
+    yaw : float
+        Heading to use, rad.
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        ``R = Rz(yaw) Ry(pitch) Rx(roll)``: body frame -> level frame (z up), with
+        ``roll = atan2(f_y, f_z)``, ``pitch = atan2(-f_x, hypot(f_y, f_z))``, so that
+        ``R @ f / |f| = [0, 0, 1]``.
+    """
+    f = np.asarray(accel_mean, dtype=float).reshape(3)
+    if not np.all(np.isfinite(f)) or np.linalg.norm(f) == 0:
+        raise ValueError(f"need a finite non-zero specific force, got {f}")
+    roll = np.arctan2(f[1], f[2])
+    pitch = np.arctan2(-f[0], np.hypot(f[1], f[2]))
+    return so3.rotz(yaw) @ so3.roty(pitch) @ so3.rotx(roll)
+
+
+def _prefix_rotations(R0: np.ndarray, dR: np.ndarray) -> np.ndarray:
+    """[R0, R0 dR_0, R0 dR_0 dR_1, ...] by a log-depth scan; shape (F + 1, 3, 3)."""
+    F = dR.shape[0]
+    out = np.empty((F + 1, 3, 3))
+    out[0] = R0
+    if F:
+        P = _scan_products(np.ascontiguousarray(dR.transpose(1, 2, 0))[:, :, :, None])  # (3,3,F,1)
+        out[1:] = _mm(R0[:, :, None, None], P)[..., 0].transpose(2, 0, 1)
+    return _project_if_needed(out)
+
+
+def dead_reckon(deltas: FrameDeltas, R0: np.ndarray, v0: Sequence[float] = (0.0, 0.0, 0.0),
+                p0: Sequence[float] = (0.0, 0.0, 0.0), *, gravity: float = GRAVITY,
+                bias_gyro: Sequence[float] | None = None,
+                bias_accel: Sequence[float] | None = None) -> NavSolution:
+    """Propagate attitude, velocity and position through consecutive frames (vectorised).
+
+    Parameters
+    ----------
+    deltas : FrameDeltas
+        Consecutive frames (``t_end[k] == t_start[k+1]``), e.g. from
+        :func:`~imu_ground.preintegration.preintegrate`.
+    R0 : array_like, shape (3, 3)
+        Attitude at ``deltas.t_start[0]``: body frame -> navigation frame (level, z up).
+    v0 : array_like, shape (3,)
+        Initial velocity, navigation frame, m/s.
+    p0 : array_like, shape (3,)
+        Initial position, navigation frame, m.
+    gravity : float
+        Magnitude of gravity, m/s^2 (``g_n = [0, 0, -gravity]``).
+    bias_gyro, bias_accel : array_like, shape (3,), optional
+        Apply a first-order bias correction (:meth:`FrameDeltas.corrected`) from
+        the biases the deltas were integrated with to these (rad/s, m/s^2, body).
+
+    Returns
+    -------
+    NavSolution
+        States at ``[t_start[0], t_end[0], t_end[1], ...]``; ``R`` maps body -> navigation.
+    """
+    F = len(deltas)
+    if F > 1 and not np.allclose(deltas.t_end[:-1], deltas.t_start[1:], rtol=0, atol=1e-9):
+        raise ValueError("frames must be consecutive (t_end[k] == t_start[k+1])")
+    R0 = np.asarray(R0, dtype=float).reshape(3, 3)
+    if bias_gyro is not None or bias_accel is not None:
+        bg = deltas.bias_gyro if bias_gyro is None else bias_gyro
+        ba = deltas.bias_accel if bias_accel is None else bias_accel
+        dR, dv, dp = deltas.corrected(bg, ba)
+    else:
+        dR, dv, dp = deltas.delta_R, deltas.delta_v, deltas.delta_p
+    T = np.asarray(deltas.delta_t, dtype=float)
+    R = _prefix_rotations(so3.project(R0), dR)
+    gn = np.array([0.0, 0.0, -float(gravity)])
+    Rdv = np.einsum("fij,fj->fi", R[:-1], dv)
+    Rdp = np.einsum("fij,fj->fi", R[:-1], dp)
+    v = np.empty((F + 1, 3))
+    v[0] = v0
+    np.cumsum(gn * T[:, None] + Rdv, axis=0, out=v[1:])
+    v[1:] += v[0]
+    p = np.empty((F + 1, 3))
+    p[0] = p0
+    np.cumsum(v[:-1] * T[:, None] + 0.5 * gn * (T * T)[:, None] + Rdp, axis=0, out=p[1:])
+    p[1:] += p[0]
+    t = np.concatenate([deltas.t_start[:1], deltas.t_end])
+    valid = np.concatenate([[True], np.cumprod(deltas.valid).astype(bool)])
+    return NavSolution(t=t, R=R, v=v, p=p, valid=valid, gravity=float(gravity))
+
+
+def dead_reckon_imu(imu: ImuData, *, rate: float | None = None, every: int | None = None,
+                    R0: np.ndarray | None = None, v0: Sequence[float] = (0.0, 0.0, 0.0),
+                    p0: Sequence[float] = (0.0, 0.0, 0.0),
+                    bias_gyro: Sequence[float] | Literal["standstill"] | None = "standstill",
+                    bias_accel: Sequence[float] = (0.0, 0.0, 0.0), gravity: float = GRAVITY,
+                    hold: Literal["midpoint", "left"] = "midpoint", max_gap: float = 0.1,
+                    on_gap: Literal["raise", "flag"] = "raise",
+                    standstill: dict | None = None) -> NavSolution:
+    """Dead-reckon a whole log: bias and initial attitude from standstill, then propagate.
+
+    Parameters
+    ----------
+    imu : ImuData
+        Strictly increasing times (s), gyro (rad/s), specific force (m/s^2), body frame.
+    rate, every : optional
+        Output frames: ``rate`` Hz, or every ``every`` samples (default: every sample).
+    R0 : array_like (3, 3), optional
+        Initial attitude, body -> navigation (level, z up). Default: from the mean
+        specific force of the first standstill interval, which must begin within
+        1 s of the log's start (yaw 0); ValueError otherwise.
+    v0, p0 : array_like, shape (3,)
+        Initial velocity (m/s) and position (m), navigation frame.
+    bias_gyro : array_like (3,), "standstill" or None
+        Gyro bias, rad/s (``"standstill"``: :func:`~imu_ground.standstill.estimate_gyro_bias`,
+        zeros if there is no standstill; None: zeros).
+    bias_accel : array_like, shape (3,)
+        Accelerometer bias, m/s^2.
+    gravity : float
+        m/s^2.
+    hold, max_gap, on_gap :
+        See :func:`~imu_ground.preintegration.preintegrate`.
+    standstill : dict, optional
+        Keyword arguments for the standstill detection.
+
+    Returns
+    -------
+    NavSolution
+    """
+    kw = dict(standstill or {})
+    kw.setdefault("gravity", gravity)
+    need_est = R0 is None or (isinstance(bias_gyro, str) and bias_gyro == "standstill")
+    est = estimate_gyro_bias(imu, **kw) if need_est else None
+    if isinstance(bias_gyro, str):
+        if bias_gyro != "standstill":
+            raise ValueError(f"bias_gyro must be an array, 'standstill' or None, got {bias_gyro!r}")
+        bg = est.bias
+    else:
+        bg = np.zeros(3) if bias_gyro is None else np.asarray(bias_gyro, dtype=float)
+    if R0 is None:
+        if not est.found or est.intervals[0, 0] > imu.t[0] + 1.0:
+            raise ValueError("the log does not start at rest (no standstill within 1 s of its "
+                             "start); give the initial attitude R0")
+        R0 = attitude_from_accel(est.accel_mean[0])
+    if rate is None and every is None:
+        every = 1
+    deltas = preintegrate(imu, rate=rate, every=every, bias_gyro=bg, bias_accel=bias_accel,
+                          hold=hold, max_gap=max_gap, on_gap=on_gap, uncertainty=False)
+    return dead_reckon(deltas, R0, v0, p0, gravity=gravity)
