@@ -126,6 +126,7 @@ from scipy.linalg import expm
 from scipy.signal import lfilter, lfilter_zi
 from scipy.spatial.transform import Rotation
 
+from . import so3
 from .imu_data import ImuData
 from .so3 import rotx, roty, rotz
 
@@ -794,6 +795,31 @@ def _as_extrinsic(R_gs, t_gs):
     return r, t
 
 
+#: Length of the centred window (m) over which the roughness counts as part of
+#: the road plane in the truth (a triangular kernel: two boxcars of half this).
+ROAD_PLANE_WINDOW = 10.0
+
+
+def _rough_plane(x, h_l, h_r, s, track, dx):
+    """Grade and cross-slope (rad) of the roughness smoothed over ROAD_PLANE_WINDOW, at distances ``s``."""
+    if not np.any(h_l) and not np.any(h_r):
+        return np.zeros_like(s), np.zeros_like(s)
+    half = max(int(round(0.5 * ROAD_PLANE_WINDOW / dx)), 1)
+
+    def box(h):                       # centred moving average, edges padded with edge values
+        hp = np.pad(h, (half, half), mode="edge")
+        c = np.concatenate([[0.0], np.cumsum(hp)])
+        lo = np.arange(len(h)) + half - half // 2
+        return (c[lo + half] - c[lo]) / half
+
+    hl, hr = box(box(h_l)), box(box(h_r))
+    hc = 0.5 * (hl + hr)
+    slope = np.gradient(hc, x)
+    grade = np.arctan(np.interp(s, x, slope))
+    bank = np.arctan(np.interp(s, x, (hl - hr) / track))
+    return grade, bank
+
+
 def _clean_drive(duration: float, seed: int, imu_rate: float, frame_rate: float,
                  road: RoadParams, vehicle: VehicleParams, speed: SpeedParams,
                  R_gs: np.ndarray, t_gs: np.ndarray, oversample: int):
@@ -820,7 +846,7 @@ def _clean_drive(duration: float, seed: int, imu_rate: float, frame_rate: float,
     # roughness under the four wheels
     l_r = vehicle.rear_axle_to_ref
     l_f = vehicle.wheelbase - l_r
-    x_r, h_l, h_r = road_profile(length + l_r + 20.0, road.roughness, dx=road.dx, band=road.band,
+    x_rough, h_l, h_r = road_profile(length + l_r + 20.0, road.roughness, dx=road.dx, band=road.band,
                                  track=vehicle.track, coherence_decay=road.coherence_decay,
                                  x0=-l_r - 10.0, rng=rng_rough)
 
@@ -831,8 +857,8 @@ def _clean_drive(duration: float, seed: int, imu_rate: float, frame_rate: float,
     # ---- fine grid: suspension inputs
     a_f, v_f, s_f = motion(t_f)
     front, rear = s_f + l_f, s_f - l_r
-    hfl, hfr = np.interp(front, x_r, h_l), np.interp(front, x_r, h_r)
-    hrl, hrr = np.interp(rear, x_r, h_l), np.interp(rear, x_r, h_r)
+    hfl, hfr = np.interp(front, x_rough, h_l), np.interp(front, x_rough, h_r)
+    hrl, hrr = np.interp(rear, x_rough, h_l), np.interp(rear, x_rough, h_r)
     h_front, h_rear = 0.5 * (hfl + hfr), 0.5 * (hrl + hrr)
     u_pitch = -(h_front - h_rear) / vehicle.wheelbase
     u_roll = (0.5 * (hfl + hrl) - 0.5 * (hfr + hrr)) / vehicle.track
@@ -900,8 +926,17 @@ def _clean_drive(duration: float, seed: int, imu_rate: float, frame_rate: float,
     p_ws = p_wb + np.einsum("nij,j->ni", r_wb, t_gs)
 
     # ---- per-sample truth (subsampled to frames later)
-    cth, sth, cph, sph = np.cos(th), np.sin(th), np.cos(ph), np.sin(ph)
-    n_b = np.stack([-sth, sph * cth, cth * cph], axis=1)
+    # The road plane the truth refers to is the macro road (grade, cross-slope)
+    # plus the roughness smoothed over a centred window of ROAD_PLANE_WINDOW
+    # metres: undulations longer than that are road geometry (what a camera
+    # sees and what the real-data reference keeps in its 10 m grade), shorter
+    # ones shake the body. The IMU signals do not depend on this choice.
+    d_grade, d_bank = _rough_plane(x_rough, h_l, h_r, s, vehicle.track, road.dx)
+    al_t, bk_t = al + d_grade, bk + d_bank
+    r_wr_t = so3.rotz(psi) @ so3.roty(-al_t) @ so3.rotx(bk_t)
+    n_b = np.einsum("nji,nj->ni", r_wb, r_wr_t[:, :, 2])      # E^T e_z, E = R_wr^T R_wb
+    th_t = np.arctan2(-n_b[:, 0], np.hypot(n_b[:, 1], n_b[:, 2]))
+    ph_t = np.arctan2(n_b[:, 1], n_b[:, 2])
     n_s = n_b @ R_gs
     w_rz = -np.sin(bk) * qd[1] + np.cos(bk) * np.cos(q[1]) * qd[0]
     truth = {
@@ -909,11 +944,11 @@ def _clean_drive(duration: float, seed: int, imu_rate: float, frame_rate: float,
         "curvature": kap, "heading": psi,
         "normal_x": n_s[:, 0], "normal_y": n_s[:, 1], "normal_z": n_s[:, 2],
         "normal_body_x": n_b[:, 0], "normal_body_y": n_b[:, 1], "normal_body_z": n_b[:, 2],
-        "pitch": th, "roll": ph, "pitch_rate": th_d1, "roll_rate": ph_d1, "heave": zh,
-        "road_grade": al, "road_bank": bk,
+        "pitch": th_t, "roll": ph_t, "pitch_rate": th_d1, "roll_rate": ph_d1, "heave": zh,
+        "road_grade": al_t, "road_bank": bk_t,
     }
     return dict(t=t_imu, gyro=w_s, accel=f_s, R_ws=r_ws, R_wr=r_wr, p_ws=p_ws, v_ws=vel_w,
-                truth=truth, curves=curves, road=dict(x=x_r, h_left=h_l, h_right=h_r))
+                truth=truth, curves=curves, road=dict(x=x_rough, h_left=h_l, h_right=h_r))
 
 
 def _imu_errors(model: ImuErrorModel, n: int, rate: float, seed: int):

@@ -121,7 +121,14 @@ def test_normal_is_the_road_normal_in_the_sensor_frame(rough_drive):
     r_wr = (so3.rotz(tr["heading"].to_numpy()) @ so3.roty(-tr["road_grade"].to_numpy())
             @ so3.rotx(tr["road_bank"].to_numpy()))
     np.testing.assert_allclose(np.einsum("nji,nj->ni", r_ws, r_wr[:, :, 2]), n_s, atol=1e-12)
-    np.testing.assert_allclose(r_ws, r_wr @ e @ R_MOUNT, atol=1e-12)
+    # body relative to the truth road plane: its up-axis row is the normal; the
+    # small yaw it may carry (the road plane includes 10 m-smoothed roughness,
+    # tilted about axes that are not the body's) is second order: the road's
+    # inclination (grade, bank ~0.1 rad) times the body's tilt relative to the
+    # plane (~0.01 rad), i.e. a few thousandths of a degree up to ~0.02 deg
+    e_true = np.swapaxes(r_wr, 1, 2) @ r_ws @ R_MOUNT.T
+    np.testing.assert_allclose(e_true[:, 2, :], n_b, atol=1e-12)
+    assert np.degrees(np.abs(np.arctan2(e_true[:, 1, 0], e_true[:, 0, 0]))).max() < 0.05
     np.testing.assert_allclose(r_ws, rough_drive.R_ws[::10], atol=1e-12)
     # and the normal varies by the expected ~0.1-1 deg
     assert 0.05 < np.degrees(np.std(pitch)) < 2.0 and 0.05 < np.degrees(np.std(roll)) < 2.0
