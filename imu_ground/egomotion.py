@@ -75,7 +75,7 @@ class EgoMotion:
 
 
 def imu_to_egomotion(imu: ImuData, rate: float = 10.0, *, frame_times: Optional[np.ndarray] = None,
-                     bias_gyro: Union[str, Sequence[float], None] = "auto", max_gap: float = 0.1,
+                     bias_gyro: Union[str, Sequence[float], None] = "auto", max_gap: Optional[float] = None,
                      standstill_window: float = 1.0) -> EgoMotion:
     """Preintegrate an IMU log into frames.
 
@@ -90,9 +90,10 @@ def imu_to_egomotion(imu: ImuData, rate: float = 10.0, *, frame_times: Optional[
     bias_gyro : "auto", array_like (3,) or None
         ``"auto"``: the mean rate over the log's standstills (zero if it has
         none); an array: this bias, rad/s; None: no correction.
-    max_gap : float
+    max_gap : float, optional
         Sample steps longer than this (s) are gaps; frames across them are
-        integrated with the held signal and flagged ``valid = False``.
+        integrated with the held signal and flagged ``valid = False``. Default
+        10 times the median sample step (0.1 s at 100 Hz, 1 s at 10 Hz).
     standstill_window : float
         Shortest standstill (s) used for the per-frame ``stationary`` flags.
 
@@ -101,6 +102,9 @@ def imu_to_egomotion(imu: ImuData, rate: float = 10.0, *, frame_times: Optional[
     EgoMotion
     """
     meta: dict = {"source": imu.source}
+    if max_gap is None:
+        max_gap = 10.0 * float(np.median(np.diff(imu.t))) if len(imu) > 1 else 0.1
+    meta["max_gap"] = max_gap
     if isinstance(bias_gyro, str):
         if bias_gyro != "auto":
             raise ValueError(f"bias_gyro must be 'auto', a 3-vector or None, got {bias_gyro!r}")

@@ -74,6 +74,8 @@ class Drive:
     reason : str
     imu : ImuData, optional
         The raw log (kept for plots).
+    sim : SimResult, optional
+        The simulation a synthetic drive came from (kept for plots).
     """
     name: str
     kind: str
@@ -85,6 +87,7 @@ class Drive:
     valid: bool = True
     reason: str = "ok"
     imu: Optional[ImuData] = field(default=None, repr=False)
+    sim: Optional[object] = field(default=None, repr=False)
 
     @property
     def has_roll(self) -> bool:
@@ -210,7 +213,7 @@ def synthetic_drive(sim, rate: float = 10.0) -> Drive:
                           "evaluate": (sel["speed"] > 3.0).to_numpy() & em.valid})
     ext = Extrinsic(sim.R_gs, sim.t_gs, {"source": "simulation truth"})
     grade = sim.imu_model.name
-    return Drive(sim.name, "synthetic", grade, em, ext, truth, False, True, "ok", sim.imu)
+    return Drive(sim.name, "synthetic", grade, em, ext, truth, False, True, "ok", sim.imu, sim)
 
 
 def synthetic_drives(n: int = 10, seed: int = 0, grades: Sequence[str] = ("nav", "mems"),
