@@ -85,7 +85,7 @@ def estimate_log(path, fmt: Optional[str] = None, method: str = "filter", extrin
     steps.update()
     steps.set_postfix_str(method)
     if method in ("filter", "paper"):
-        kw = {} if method == "filter" else dict(Q=1e-2, R=1.0, follow_heading=False)
+        kw = {} if method == "filter" else dict(Q=1e-2, R=1.0, P=1.0, follow_heading=False)
         if Q is not None:
             kw["Q"] = Q
         if R is not None:

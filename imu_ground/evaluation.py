@@ -100,12 +100,11 @@ def _naive(d: Drive) -> GroundTrack:
 
 
 def _paper(d: Drive) -> GroundTrack:
-    return GroundNormalFilter(Q=1e-2, R=1.0, P=1.0, follow_heading=False, extrinsic=d.extrinsic).run(
-        d.egomotion.delta_R)
+    return GroundNormalFilter.paper(extrinsic=d.extrinsic).run(d.egomotion.delta_R)
 
 
 def _paper_code(d: Drive) -> GroundTrack:
-    return GroundNormalFilter.paper(extrinsic=d.extrinsic).run(d.egomotion.delta_R)
+    return GroundNormalFilter.reference_code(extrinsic=d.extrinsic).run(d.egomotion.delta_R)
 
 
 def _ekf(d: Drive) -> GroundTrack:

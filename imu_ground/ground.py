@@ -213,11 +213,24 @@ class GroundNormalFilter:
 
     @classmethod
     def paper(cls, **kwargs) -> "GroundNormalFilter":
-        """The reference implementation's configuration (Zhang et al. 2022).
+        """The paper's method with its published parameters (Zhang et al. 2022).
 
-        Random-walk slow state, observation of the forward axis only,
-        ``Q = 1e-2 I``, ``R = I``, ``P0 = I``; rotations accumulated in the
-        correct order. Keyword arguments override.
+        A random-walk slow state observed through the full cumulative rotation,
+        ``Q = 1e-2 I``, ``R = I``, ``P0 = I``, one predict and update a frame;
+        rotations accumulated in the correct order. Keyword arguments override.
+        """
+        kw = dict(Q=1e-2, R=1.0, P=1.0, measurement="rotation", follow_heading=False)
+        kw.update(kwargs)
+        return cls(**kw)
+
+    @classmethod
+    def reference_code(cls, **kwargs) -> "GroundNormalFilter":
+        """The configuration of the paper's reference code (manymuch/ground_normal_filter).
+
+        As :meth:`paper`, but only the forward axis of the cumulative rotation
+        is observed (the code measures the camera's optical axis, ``R_k e_z``
+        in camera axes, the body's x axis), so roll about it is never
+        corrected. Its accumulation-order error is not reproduced.
         """
         kw = dict(Q=1e-2, R=1.0, P=1.0, measurement="forward", follow_heading=False)
         kw.update(kwargs)

@@ -74,15 +74,19 @@ def test_wobble_is_recovered_and_smoother_is_better():
 
 
 @pytest.mark.parametrize("kw", [dict(), dict(measurement="up"), dict(Q=np.diag([1e-2, 2e-2, 1e-3])),
-                                dict(measurement="forward", follow_heading=False),
+                                dict(measurement="forward", follow_heading=False), "paper", "reference_code",
                                 dict(extrinsic="kitti_cam0"), dict(Q=1e-1, R=0.5, P=0.01)])
 def test_streaming_and_batch_identical(kw):
-    kw = dict(kw)
+    if isinstance(kw, str):
+        make = getattr(GroundNormalFilter, kw)
+    else:
+        make = GroundNormalFilter
+    kw = {} if isinstance(kw, str) else dict(kw)
     if kw.get("extrinsic") == "kitti_cam0":
         kw["extrinsic"] = load_extrinsic("kitti_cam0")
     rng = np.random.default_rng(0)
     d = so3.exp(rng.normal(scale=[0.003, 0.003, 0.03], size=(500, 3)))
-    f1, f2 = GroundNormalFilter(**kw), GroundNormalFilter(**kw)
+    f1, f2 = make(**kw), make(**kw)
     ests = [f1.step(x) for x in d]
     tr = f2.run(d)
     for name in ("normal", "pitch", "roll", "residual", "extrinsic", "P"):
@@ -90,7 +94,7 @@ def test_streaming_and_batch_identical(kw):
         assert np.allclose(a, getattr(tr, name), rtol=0, atol=1e-12), name
     assert np.allclose(f1.x, f2.x, atol=1e-12) and np.allclose(f1.P, f2.P, atol=1e-15)
     # and a batch run continues exactly where the previous one stopped
-    f3 = GroundNormalFilter(**kw)
+    f3 = make(**kw)
     a, b = f3.run(d[:137]), f3.run(d[137:])
     assert np.allclose(np.concatenate([a.pitch, b.pitch]), tr.pitch, atol=1e-12)
 
