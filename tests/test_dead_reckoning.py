@@ -181,12 +181,13 @@ def test_dead_reckon_imu_at_rest_stays_put():
 # real data
 # ---------------------------------------------------------------------------
 def _load_kitti(path):
-    pd = pytest.importorskip("pandas")
-    d = pd.read_csv(path)
-    t = d["t"].to_numpy()
-    keep = np.concatenate([[True], t[1:] > np.maximum.accumulate(t)[:-1]])
-    d = d[keep].reset_index(drop=True)
-    imu = ImuData(d["t"].to_numpy(), d[["wx", "wy", "wz"]].to_numpy(), d[["ax", "ay", "az"]].to_numpy())
+    import warnings
+
+    from imu_ground.datasets import read_kitti_imu100
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")         # the dropped out-of-order samples are reported
+        imu = read_kitti_imu100(path)
+    d = imu.to_dataframe()
     return imu, d
 
 
