@@ -255,6 +255,11 @@ class PreintegratedImu:
         Gyro white noise, rad/s/sqrt(Hz) (= rad/sqrt(s)), same on all axes.
     accel_noise_density : float
         Accelerometer white noise, m/s^2/sqrt(Hz), same on all axes.
+    uncertainty : bool
+        Propagate the covariance and the bias Jacobians (default). False keeps
+        only ``delta_R``, ``delta_v`` and ``delta_p`` (the same formulas, about
+        a quarter of the work: what a filter that needs only the deltas wants);
+        the covariance and Jacobian properties then raise ``ValueError``.
 
     Attributes
     ----------
@@ -274,11 +279,13 @@ class PreintegratedImu:
     """
 
     __slots__ = ("_s", "_bias", "_qg", "_qa", "_par", "gyro_noise_density", "accel_noise_density",
-                 "t_start", "t_end", "valid")
+                 "t_start", "t_end", "valid", "uncertainty")
 
     def __init__(self, bias_gyro: Sequence[float] = (0.0, 0.0, 0.0),
                  bias_accel: Sequence[float] = (0.0, 0.0, 0.0),
-                 gyro_noise_density: float = 0.0, accel_noise_density: float = 0.0) -> None:
+                 gyro_noise_density: float = 0.0, accel_noise_density: float = 0.0,
+                 uncertainty: bool = True) -> None:
+        self.uncertainty = bool(uncertainty)
         self._bias = _vec3(bias_gyro, "bias_gyro") + _vec3(bias_accel, "bias_accel")
         self.gyro_noise_density = float(gyro_noise_density)
         self.accel_noise_density = float(accel_noise_density)
@@ -326,6 +333,7 @@ class PreintegratedImu:
         out.gyro_noise_density = self.gyro_noise_density
         out.accel_noise_density = self.accel_noise_density
         out.t_start, out.t_end, out.valid = self.t_start, self.t_end, self.valid
+        out.uncertainty = self.uncertainty
         return out
 
     def integrate(self, dt: float, gyro: Sequence[float], accel: Sequence[float]) -> None:
@@ -351,9 +359,65 @@ class PreintegratedImu:
         self._integrate(float(dt), float(wx), float(wy), float(wz),
                         float(ax), float(ay), float(az))
 
+    def _integrate_deltas(self, dt: float, wx: float, wy: float, wz: float,
+                          ax: float, ay: float, az: float) -> None:
+        # uncertainty=False: delta_R, delta_v, delta_p only, the formulas of _integrate
+        bgx, bgy, bgz, bax, bay, baz, _, _ = self._par
+        s = self._s
+        T, r00, r01, r02, r10, r11, r12, r20, r21, r22, v0, v1, v2, p0, p1, p2 = s[:16]
+        x = (wx - bgx) * dt
+        y = (wy - bgy) * dt
+        z = (wz - bgz) * dt
+        fx = (ax - bax) * dt
+        fy = (ay - bay) * dt
+        fz = (az - baz) * dt
+        xx = x * x
+        yy = y * y
+        zz = z * z
+        t2 = xx + yy + zz
+        if t2 < _SMALL2:
+            A = 1.0 - t2 / 6.0 + t2 * t2 / 120.0
+            B = 0.5 - t2 / 24.0 + t2 * t2 / 720.0
+        else:
+            th = math.sqrt(t2)
+            hs = math.sin(0.5 * th)
+            A = math.sin(th) / th
+            B = 2.0 * hs * hs / t2
+        c0 = r00 * fx + r01 * fy + r02 * fz
+        c1 = r10 * fx + r11 * fy + r12 * fz
+        c2 = r20 * fx + r21 * fy + r22 * fz
+        Bxy = B * x * y
+        Bxz = B * x * z
+        Byz = B * y * z
+        Ax = A * x
+        Ay = A * y
+        Az = A * z
+        e00 = 1.0 - B * (yy + zz)
+        e11 = 1.0 - B * (xx + zz)
+        e22 = 1.0 - B * (xx + yy)
+        e01 = Bxy - Az
+        e10 = Bxy + Az
+        e02 = Bxz + Ay
+        e20 = Bxz - Ay
+        e12 = Byz - Ax
+        e21 = Byz + Ax
+        self._s = (
+            T + dt,
+            r00 * e00 + r01 * e10 + r02 * e20, r00 * e01 + r01 * e11 + r02 * e21,
+            r00 * e02 + r01 * e12 + r02 * e22,
+            r10 * e00 + r11 * e10 + r12 * e20, r10 * e01 + r11 * e11 + r12 * e21,
+            r10 * e02 + r11 * e12 + r12 * e22,
+            r20 * e00 + r21 * e10 + r22 * e20, r20 * e01 + r21 * e11 + r22 * e21,
+            r20 * e02 + r21 * e12 + r22 * e22,
+            v0 + c0, v1 + c1, v2 + c2,
+            p0 + dt * (v0 + 0.5 * c0), p1 + dt * (v1 + 0.5 * c1), p2 + dt * (v2 + 0.5 * c2),
+        ) + s[16:106] + (s[106] + 1,)
+
     def _integrate(self, dt: float, wx: float, wy: float, wz: float,
                    ax: float, ay: float, az: float) -> None:
         # Hot path: scalar floats only (see the module docstring and the state layout).
+        if not self.uncertainty:
+            return self._integrate_deltas(dt, wx, wy, wz, ax, ay, az)
         bgx, bgy, bgz, bax, bay, baz, qa, qg = self._par
         (T, r00, r01, r02, r10, r11, r12, r20, r21, r22, v0, v1, v2, p0, p1, p2,
          h00, h01, h02, h10, h11, h12, h20, h21, h22,
@@ -618,6 +682,11 @@ class PreintegratedImu:
             vq00, vq01, vq02, vq10, vq11, vq12, vq20, vq21, vq22,
             qq00, qq01, qq02, qq11, qq12, qq22, n + 1)
 
+    def _require_uncertainty(self) -> None:
+        if not self.uncertainty:
+            raise ValueError("this preintegration was made with uncertainty=False: it has no covariance "
+                             "or bias Jacobians (use uncertainty=True)")
+
     # -- array views ---------------------------------------------------------
     def _left_arrays(self) -> tuple:
         s = np.asarray(self._s)
@@ -650,6 +719,7 @@ class PreintegratedImu:
         out._bias = bias
         out._qg, out._qa = float(qg), float(qa)
         out._par = bias + (out._qa, out._qg)
+        out.uncertainty = True
         out.gyro_noise_density = math.sqrt(out._qg)
         out.accel_noise_density = math.sqrt(out._qa)
         iu = np.triu_indices(3)
@@ -717,40 +787,47 @@ class PreintegratedImu:
     @property
     def d_R_d_bg(self) -> np.ndarray:
         """dR/dbg (3, 3), rad per rad/s: ``delta_R(bg + d) ~= delta_R Exp(d_R_d_bg @ d)`` (right, end-body frame)."""
+        self._require_uncertainty()
         R = np.array(self._s[1:10]).reshape(3, 3)
         return R.T @ np.array(self._s[16:25]).reshape(3, 3)
 
     @property
     def d_v_d_bg(self) -> np.ndarray:
         """d delta_v / d bg, shape (3, 3), m/s per rad/s (start-body frame)."""
+        self._require_uncertainty()
         return np.array(self._s[25:34]).reshape(3, 3)
 
     @property
     def d_p_d_bg(self) -> np.ndarray:
         """d delta_p / d bg, shape (3, 3), m per rad/s (start-body frame)."""
+        self._require_uncertainty()
         s = self._s
         return (s[0] * np.array(s[25:34]) + np.array(s[34:43])).reshape(3, 3)
 
     @property
     def d_v_d_ba(self) -> np.ndarray:
         """d delta_v / d ba, shape (3, 3), s (start-body frame)."""
+        self._require_uncertainty()
         return np.array(self._s[43:52]).reshape(3, 3)
 
     @property
     def d_p_d_ba(self) -> np.ndarray:
         """d delta_p / d ba, shape (3, 3), s^2 (start-body frame)."""
+        self._require_uncertainty()
         s = self._s
         return (s[0] * np.array(s[43:52]) + np.array(s[52:61])).reshape(3, 3)
 
     @property
     def bias_jacobian(self) -> np.ndarray:
         """All bias Jacobians as one (9, 6) matrix: rows [rotation, velocity, position], columns [bg, ba]."""
+        self._require_uncertainty()
         T, R, v, p, J, S = self._left_arrays()
         return _left_to_right(R, J, S)[0]
 
     @property
     def covariance(self) -> np.ndarray:
         """Noise covariance (9, 9): [rotation (right error, end-body frame, rad), velocity (m/s), position (m)]."""
+        self._require_uncertainty()
         T, R, v, p, J, S = self._left_arrays()
         return _left_to_right(R, J, S)[1]
 
@@ -772,6 +849,7 @@ class PreintegratedImu:
         delta_p : ndarray (3,)
             ``delta_p + d_p_d_bg @ dbg + d_p_d_ba @ dba``, m, start-body frame.
         """
+        self._require_uncertainty()
         dbg = np.asarray(bias_gyro, dtype=float) - self.bias_gyro
         dba = np.asarray(bias_accel, dtype=float) - self.bias_accel
         R = self.delta_R @ so3.exp(self.d_R_d_bg @ dbg)
@@ -801,6 +879,7 @@ class PreintegratedImu:
         b = tuple(np.asarray(x) for x in other._left_arrays())
         T, R, v, p, J, S = _compose_left(a, b)
         out = PreintegratedImu._from_left_arrays(T, R, v, p, J, S, self._bias, self._qg, self._qa)
+        out.uncertainty = self.uncertainty and other.uncertainty
         out.t_start, out.t_end = self.t_start, other.t_end
         out.valid = bool(self.valid and other.valid)
         out.n_intervals = self.n_intervals + other.n_intervals
@@ -1429,8 +1508,10 @@ class StreamingPreintegrator:
         First boundary for ``rate`` (default: the first sample's time), s.
     bias_gyro, bias_accel, gyro_noise_density, accel_noise_density :
         As in :class:`PreintegratedImu`.
-    hold, max_gap, on_gap, snap_tol :
-        As in :func:`preintegrate`.
+    hold, max_gap, on_gap, snap_tol, uncertainty :
+        As in :func:`preintegrate` (``uncertainty=False``: deltas only, no
+        covariance or bias Jacobians; the fast choice for a filter that needs
+        just ``delta_R``/``delta_v``).
 
     Notes
     -----
@@ -1450,7 +1531,7 @@ class StreamingPreintegrator:
                  bias_accel: Sequence[float] = (0.0, 0.0, 0.0),
                  gyro_noise_density: float = 0.0, accel_noise_density: float = 0.0,
                  hold: Hold = "midpoint", max_gap: float = 0.1, on_gap: OnGap = "raise",
-                 snap_tol: float = 1e-9) -> None:
+                 snap_tol: float = 1e-9, uncertainty: bool = True) -> None:
         _check_hold(hold)
         _check_on_gap(on_gap)
         if sum(x is not None for x in (frame_times, rate, every)) != 1:
@@ -1472,8 +1553,9 @@ class StreamingPreintegrator:
         self.max_gap = float(max_gap)
         self.on_gap = on_gap
         self.snap_tol = float(snap_tol)
-        self._pim = PreintegratedImu(bias_gyro, bias_accel, gyro_noise_density, accel_noise_density)
-        self._integ = self._pim._integrate
+        self._pim = PreintegratedImu(bias_gyro, bias_accel, gyro_noise_density, accel_noise_density,
+                                     uncertainty=uncertainty)
+        self._integ = self._pim._integrate if uncertainty else self._pim._integrate_deltas
         self._prev: tuple | None = None     # (t, wx, wy, wz, ax, ay, az) of the last sample
         self._cd = 1 << 62                  # samples until the next every-N boundary
         self._k = 0                         # index of the next boundary

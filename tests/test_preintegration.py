@@ -546,3 +546,27 @@ def test_kitti_gyro_attitude_change_matches_oxts(shared_data):
     assert med < 0.5 and p95 < 3.0
     assert np.median(tl) < 0.3
     assert np.median(w) > 10 * med
+
+
+def test_streaming_deltas_only_matches_batch_and_refuses_covariance():
+    rng = np.random.default_rng(42)
+    n = 2000
+    t = np.arange(n) * 0.01 + 0.002 * rng.random(n)
+    w = rng.normal(scale=0.2, size=(n, 3))
+    f = rng.normal(size=(n, 3)) + [0.0, 0.0, 9.8]
+    ref = preintegrate((t, w, f), rate=10.0, t_origin=t[0] + 0.0035, bias_gyro=[1e-3, 0, -2e-3])
+    full = StreamingPreintegrator(rate=10.0, t_origin=t[0] + 0.0035, bias_gyro=[1e-3, 0, -2e-3])
+    lean = StreamingPreintegrator(rate=10.0, t_origin=t[0] + 0.0035, bias_gyro=[1e-3, 0, -2e-3],
+                                  uncertainty=False)
+    a, b = [], []
+    for i in range(n):
+        a += full.push(t[i], w[i], f[i])
+        b += lean.push(t[i], w[i], f[i])
+    assert len(a) == len(b) > 10
+    for i, (x, y) in enumerate(zip(a, b)):
+        assert np.allclose(y.delta_R, ref.delta_R[i], atol=1e-14)
+        assert np.allclose(y.delta_v, x.delta_v, atol=1e-13) and np.allclose(y.delta_p, x.delta_p, atol=1e-13)
+    with pytest.raises(ValueError, match="uncertainty=False"):
+        b[0].covariance
+    with pytest.raises(ValueError, match="uncertainty=False"):
+        b[0].d_R_d_bg
