@@ -1,0 +1,278 @@
+"""SuspensionAwareFilter and GravityVelocityFilter: streaming == batch, filterpy's Saver, validity of
+covariances and rotations, a braking manoeuvre, a synthetic suite against the paper's method, and
+the 30 valid KITTI drives (skipped without the shared recordings)."""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+from filterpy.common import Saver
+
+from imu_ground import so3
+from imu_ground.egomotion import EgoMotion, imu_to_egomotion
+from imu_ground.extrinsics import Extrinsic
+from imu_ground.ground import GroundEstimate, GroundNormalFilter, GroundTrack
+from imu_ground.metrics import evaluate_drive, normal_angle
+from imu_ground.simulate import RoadParams, SpeedParams, simulate, simulate_suite
+from imu_ground.suspension import (DEFAULT_GAINS, GravityVelocityFilter, SuspensionAwareFilter,
+                                   SuspensionTrack, estimate_suspension_aware)
+
+DEG = np.pi / 180.0
+
+
+def piece(em: EgoMotion, a: int, b: int) -> EgoMotion:
+    return EgoMotion(em.t[a:b], em.delta_R[a:b], em.delta_v[a:b], em.delta_t[a:b], em.stationary[a:b],
+                     em.valid[a:b])
+
+
+def truth_at(sim, em: EgoMotion) -> pd.DataFrame:
+    tr = sim.truth
+    idx = np.searchsorted(tr["t"].to_numpy(), em.t - 1e-6)
+    return tr.iloc[idx].reset_index(drop=True)
+
+
+@pytest.fixture(scope="module")
+def mems_drive():
+    """A MEMS drive with a misaligned mount, a lever arm and standstills."""
+    sim = simulate(90.0, seed=11, imu="mems", road=RoadParams(roughness="B"), speed=SpeedParams(style="urban"),
+                   R_gs=so3.rotz(0.1) @ so3.roty(0.03) @ so3.rotx(-0.02), t_gs=[0.4, 0.1, 1.1])
+    em = imu_to_egomotion(sim.imu)
+    return sim, em, Extrinsic(sim.R_gs, sim.t_gs)
+
+
+# ----------------------------------------------------------------------------- streaming == batch
+@pytest.mark.parametrize("kw", [
+    {},
+    dict(online_gains=True, response=(1.5, 0.5), lever_arm=[0.4, 0.1, 1.1]),
+    dict(load="acceleration", q_dist=0.0),
+])
+def test_streaming_equals_batch(mems_drive, kw):
+    sim, em, ext = mems_drive
+    a = SuspensionAwareFilter(extrinsic=ext, **kw)
+    ests = [a.step(em.delta_R[k], em.delta_v[k], em.delta_t[k], em.stationary[k], em.valid[k])
+            for k in range(len(em))]
+    assert all(isinstance(e, GroundEstimate) for e in ests)
+    b = SuspensionAwareFilter(extrinsic=ext, **kw)
+    half = len(em) // 3
+    parts = [b.run(piece(em, 0, half)), b.run(piece(em, half, len(em)))]     # run() continues
+    assert all(isinstance(p, SuspensionTrack) and isinstance(p, GroundTrack) for p in parts)
+    cat = lambda name: np.concatenate([getattr(p, name) for p in parts])
+    np.testing.assert_allclose(np.array([e.normal for e in ests]), cat("normal"), atol=1e-12)
+    np.testing.assert_allclose(np.array([e.pitch for e in ests]), cat("pitch"), atol=1e-12)
+    np.testing.assert_allclose(np.array([e.roll for e in ests]), cat("roll"), atol=1e-12)
+    np.testing.assert_allclose(np.array([e.residual for e in ests]), cat("residual"), atol=1e-12)
+    np.testing.assert_allclose(np.array([e.extrinsic for e in ests]), cat("extrinsic"), atol=1e-12)
+    np.testing.assert_allclose(np.array([e.P for e in ests]), cat("P"), rtol=1e-12, atol=1e-22)
+    # the streaming state is left where step() leaves it
+    np.testing.assert_allclose(a.x, b.x, atol=1e-12)
+    np.testing.assert_allclose(a.P, b.P, rtol=1e-12, atol=1e-22)
+    np.testing.assert_allclose(a.gains, b.gains, rtol=1e-10, atol=1e-15)
+    np.testing.assert_allclose(a.gravity_filter.x, b.gravity_filter.x, atol=1e-9)
+    np.testing.assert_allclose(a.gravity_filter.P, b.gravity_filter.P, rtol=1e-9)
+    np.testing.assert_allclose(a.cumulative, b.cumulative, atol=1e-12)
+    if kw.get("online_gains"):
+        assert not np.allclose(cat("gains")[0], cat("gains")[-1])       # the gains did move
+
+
+def test_gravity_filter_streaming_equals_batch(mems_drive):
+    _, em, ext = mems_drive
+    a = GravityVelocityFilter(extrinsic=ext, lever_arm=ext.translation)
+    est = [a.step(em.delta_R[k], em.delta_v[k], em.delta_t[k], em.stationary[k], em.valid[k])
+           for k in range(len(em))]
+    tr = GravityVelocityFilter(extrinsic=ext, lever_arm=ext.translation).run(em)
+    np.testing.assert_allclose([e.velocity for e in est], tr.velocity, atol=1e-9)
+    np.testing.assert_allclose([e.specific_force for e in est], tr.specific_force, atol=1e-9)
+    np.testing.assert_allclose([e.acceleration for e in est], tr.acceleration, atol=1e-9)
+    # gravity is about 9.81 m/s^2 and the speed follows the truth
+    assert np.abs(np.linalg.norm(tr.gravity, axis=1) - 9.81).max() < 0.3
+    # with a nav-grade IMU (same trajectory) the speed follows the truth; the MEMS accelerometer bias
+    # (0.2 m/s^2) makes the forward speed drift between stops: it is only observed at standstills
+    nav = simulate(**{**mems_drive[0].params, "imu": "nav"})
+    em_nav = imu_to_egomotion(nav.imu)
+    sm = GravityVelocityFilter(extrinsic=ext).run(em_nav, smooth=True)
+    truth = truth_at(nav, em_nav)["speed"].to_numpy()
+    assert np.median(np.abs(sm.speed - truth)) < 0.3
+
+
+# ----------------------------------------------------------------------------- filterpy interface
+def test_saver_records_filterpy_attributes(mems_drive):
+    _, em, ext = mems_drive
+    f = SuspensionAwareFilter(extrinsic=ext, online_gains=True)
+    s = Saver(f)
+    g = GravityVelocityFilter(extrinsic=ext)
+    sg = Saver(g)
+    n = 50
+    for k in range(n):
+        f.step(em.delta_R[k], em.delta_v[k], em.delta_t[k], em.stationary[k], em.valid[k])
+        s.save()
+        g.step(em.delta_R[k], em.delta_v[k], em.delta_t[k], em.stationary[k], em.valid[k])
+        sg.save()
+    s.to_array()
+    sg.to_array()
+    for name in ("x", "P", "Q", "R", "K", "S", "x_prior", "P_prior", "x_post", "P_post"):
+        assert getattr(s, name).shape == (n, 3, 3), name
+    assert s.y.shape == (n, 3) and s.gains.shape == (n, 2) and s.cumulative.shape == (n, 3, 3)
+    np.testing.assert_allclose(s.x[-1], f.x)
+    assert sg.x.shape == (n, 6) and sg.P.shape == (n, 6, 6) and sg.F.shape == (n, 6, 6)
+    assert sg.Q.shape == (n, 6, 6) and sg.H.shape == (n, 3, 6) and sg.K.shape == (n, 6, 3)
+    assert sg.y.shape == (n, 3) and sg.S.shape == (n, 3, 3)
+
+
+def test_defaults_and_validation():
+    f = SuspensionAwareFilter()
+    np.testing.assert_allclose(f.gains, DEFAULT_GAINS)
+    np.testing.assert_allclose(np.degrees(f.gains), [-0.25, 0.5])
+    r = (0.2 * DEG) ** 2
+    np.testing.assert_allclose(f.R, np.diag([r, r, 1e-6 * r]))
+    assert f.load == "specific_force" and not f.online_gains
+    with pytest.raises(ValueError):
+        SuspensionAwareFilter(load="torque")
+    with pytest.raises(ValueError):
+        SuspensionAwareFilter(smoother_weight=1.5)
+    with pytest.raises(ValueError):
+        SuspensionAwareFilter(sigma_e=0.0)
+
+
+def test_at_rest_the_normal_is_the_static_one():
+    R_gs = so3.roty(0.05) @ so3.rotx(-0.03)
+    f = SuspensionAwareFilter(extrinsic=R_gs)
+    g_s = R_gs.T @ np.array([0.0, 0.0, 9.81])            # the IMU reads the gravity reaction, sensor frame
+    for _ in range(30):
+        est = f.step(np.eye(3), 0.1 * g_s, 0.1, stationary=True)
+    np.testing.assert_allclose(est.normal, R_gs[2], atol=1e-12)
+    assert abs(est.pitch) < 1e-12 and abs(est.roll) < 1e-12
+
+
+def test_covariances_and_rotations_valid(mems_drive):
+    _, em, ext = mems_drive
+    for smooth in (False, True):
+        tr = SuspensionAwareFilter(extrinsic=ext).run(em, smooth=smooth)
+        np.testing.assert_allclose(tr.P, np.swapaxes(tr.P, 1, 2), atol=0)
+        assert np.all(np.linalg.eigvalsh(tr.P) > 0)
+        for M in (tr.x, tr.residual, tr.extrinsic, tr.cumulative):
+            np.testing.assert_allclose(M @ np.swapaxes(M, 1, 2), np.broadcast_to(np.eye(3), M.shape), atol=1e-9)
+            np.testing.assert_allclose(np.linalg.det(M), 1.0, atol=1e-9)
+        np.testing.assert_allclose(np.linalg.norm(tr.normal, axis=1), 1.0, atol=1e-12)
+    Pg = GravityVelocityFilter(extrinsic=ext).run(em, smooth=True).P
+    np.testing.assert_allclose(Pg, np.swapaxes(Pg, 1, 2), atol=0)
+    assert np.all(np.linalg.eigvalsh(Pg) > 0)
+
+
+def test_smoother_weight_is_a_geodesic_blend(mems_drive):
+    _, em, ext = mems_drive
+    fwd = SuspensionAwareFilter(extrinsic=ext, smoother_weight=0.0).run(em, smooth=True)
+    rts = SuspensionAwareFilter(extrinsic=ext, smoother_weight=1.0).run(em, smooth=True)
+    mix = SuspensionAwareFilter(extrinsic=ext, smoother_weight=0.25).run(em, smooth=True)
+    full = so3.angle(np.swapaxes(fwd.x, 1, 2) @ rts.x)
+    part = so3.angle(np.swapaxes(fwd.x, 1, 2) @ mix.x)
+    big = full > 1e-4
+    np.testing.assert_allclose(part[big] / full[big], 0.25, atol=1e-6)
+    # the smoother uses the future: it differs from the forward pass before the last frame only
+    assert full[-1] < 1e-12 and full.max() > 1e-3
+
+
+# ----------------------------------------------------------------------------- accuracy, synthetic
+def test_braking_keeps_the_nose_dive_that_the_paper_filter_loses():
+    """3 m/s^2 braking for ~3 s: the body pitches ~0.75 deg nose down relative to the road for the whole
+    manoeuvre; the paper's random walk follows it into the 'road' within a second."""
+    speed = SpeedParams(v_start=15.0, start_at_rest=False,
+                        plan=[(15.0, 1.0, 8.0), (5.0, 3.0, 6.0), (15.0, 1.5, 10.0)])
+    sim = simulate(40.0, seed=2, imu="nav", road=RoadParams(roughness="A", grade_std=0.0, grade0=0.0, crown=0.0,
+                                                              curves=False), speed=speed)
+    em = imu_to_egomotion(sim.imu)
+    tr = truth_at(sim, em)
+    braking = (tr["acc_long"] < -2.5).to_numpy()
+    assert braking.sum() > 10 and np.degrees(tr["pitch"][braking]).mean() > 0.6
+    err = lambda p: np.degrees(np.abs(p - tr["pitch"].to_numpy()))[braking].mean()
+    ours = err(SuspensionAwareFilter(extrinsic=sim.R_gs).run(em).pitch)
+    paper = err(GroundNormalFilter.paper(extrinsic=sim.R_gs).run(em.delta_R).pitch)
+    assert ours < 0.1 < 0.4 < paper
+
+
+def test_synthetic_suite_well_below_the_paper():
+    """3 short drives per IMU grade (different vehicles, roads, mounts), default configuration:
+    normal angle error over moving frames at least 40 % below GroundNormalFilter.paper()."""
+    sims = simulate_suite(3, seed=7, duration_range=(60.0, 90.0))
+    rows = []
+    for sim in sims:
+        em = imu_to_egomotion(sim.imu)
+        tr = truth_at(sim, em)
+        n_true = tr[["normal_x", "normal_y", "normal_z"]].to_numpy()
+        mask = (tr["speed"] > 3.0).to_numpy() & em.valid
+        ext = Extrinsic(sim.R_gs, sim.t_gs)
+        err = lambda n: normal_angle(n, n_true)[mask].mean()
+        rows.append(dict(grade=sim.imu_model.name,
+                         paper=err(GroundNormalFilter.paper(extrinsic=ext).run(em.delta_R).normal),
+                         stream=err(SuspensionAwareFilter(extrinsic=ext).run(em).normal),
+                         rts=err(SuspensionAwareFilter(extrinsic=ext, smoother_weight=1.0).run(em, smooth=True).normal)))
+    df = pd.DataFrame(rows).groupby("grade").mean()
+    assert set(df.index) == {"nav", "mems"}
+    assert np.all(df["stream"] <= 0.6 * df["paper"]), df
+    # with an exact truth the pure (zero-lag) smoother is better still
+    assert np.all(df["rts"] < df["stream"]), df
+
+
+def test_one_call_function(mems_drive):
+    sim, em, ext = mems_drive
+    a = estimate_suspension_aware(em, extrinsic=ext, smooth=True, q_dist=0.05)
+    b = SuspensionAwareFilter(extrinsic=ext, q_dist=0.05).run(em, smooth=True)
+    np.testing.assert_array_equal(a.normal, b.normal)
+    c = estimate_suspension_aware(sim.imu, extrinsic=ext)           # raw IMU: preintegrated at 10 Hz
+    np.testing.assert_allclose(c.normal, SuspensionAwareFilter(extrinsic=ext).run(em).normal, atol=1e-12)
+
+
+# ----------------------------------------------------------------------------- real data
+@pytest.fixture(scope="module")
+def kitti(shared_data):
+    """The 30 valid kitti_imu100 drives: check_reference's verdict, minus the README-listed 0002."""
+    from imu_ground.datasets import read_kitti_imu100
+    from imu_ground.reference import check_reference, pitch_reference
+    folder = shared_data / "kitti_imu100"
+    drives, skipped = {}, {}
+    for name in pd.read_csv(folder / "drives.csv")["drive"]:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            imu = read_kitti_imu100(folder / f"{name}.csv.gz")
+        em = imu_to_egomotion(imu)
+        df = imu.to_dataframe()
+        ref = pitch_reference(df, times=em.t)
+        chk = check_reference(df, ref)
+        if not chk.valid:
+            skipped[name] = chk.reason
+        elif name == "2011_09_28_drive_0002":
+            skipped[name] = "listed faulty in the data README (its signals look clean)"
+        else:
+            drives[name] = (em, ref)
+    return drives, skipped
+
+
+def _kitti_scores(drives, method) -> pd.Series:
+    out = {}
+    for name, (em, ref) in drives.items():
+        out[name] = evaluate_drive(method(em), ref.pitch_rel_road, mask=ref.valid, remove_mean=True)["pitch"]["mean"]
+    return pd.Series(out)
+
+
+@pytest.mark.shared
+def test_kitti_pitch_accuracy(kitti):
+    drives, skipped = kitti
+    assert len(drives) == 30
+    assert set(skipped) == {"2011_09_26_drive_0093", "2011_09_28_drive_0039", "2011_09_28_drive_0002"}
+    paper = _kitti_scores(drives, lambda em: GroundNormalFilter.paper().run(em.delta_R).pitch)
+    stream = _kitti_scores(drives, lambda em: SuspensionAwareFilter().run(em).pitch)
+    online = _kitti_scores(drives, lambda em: SuspensionAwareFilter(online_gains=True).run(em).pitch)
+    offline = _kitti_scores(drives, lambda em: SuspensionAwareFilter().run(em, smooth=True).pitch)
+    rts = _kitti_scores(drives, lambda em: SuspensionAwareFilter(smoother_weight=1.0).run(em, smooth=True).pitch)
+    assert 0.21 < paper.mean() < 0.23                       # 0.221
+    assert stream.mean() <= 0.135                           # 0.132 (target 0.15)
+    assert online.mean() <= 0.14                            # 0.134: close to, not better than, fixed gains
+    assert offline.mean() < stream.mean()                   # 0.131
+    # the pure RTS smoother is *worse* than the forward filter against this (causal INS) reference
+    assert stream.mean() < rts.mean() < 0.15                # 0.146
+    # per drive: only 2011_09_26_drive_0091 is more than 10 % worse than the paper's filter (1.12):
+    # slow driving (5.9 m/s) where the INS reference drifts; with error content slower than 20 s
+    # removed the suspension filter is better there too (0.110 vs 0.126 deg)
+    ratio = stream / paper
+    assert set(ratio[ratio > 1.1].index) <= {"2011_09_26_drive_0091"} and ratio.max() < 1.15
