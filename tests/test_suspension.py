@@ -126,7 +126,8 @@ def test_defaults_and_validation():
     np.testing.assert_allclose(np.degrees(f.gains), [-0.25, 0.5])
     r = (0.2 * DEG) ** 2
     np.testing.assert_allclose(f.R, np.diag([r, r, 1e-6 * r]))
-    assert f.load == "specific_force" and not f.online_gains
+    assert f.load == 0.6 and f.load_share == 0.6 and not f.online_gains
+    assert SuspensionAwareFilter(load="specific_force").load_share == 1.0
     with pytest.raises(ValueError):
         SuspensionAwareFilter(load="torque")
     with pytest.raises(ValueError):
@@ -206,12 +207,16 @@ def test_synthetic_suite_well_below_the_paper():
         rows.append(dict(grade=sim.imu_model.name,
                          paper=err(GroundNormalFilter.paper(extrinsic=ext).run(em.delta_R).normal),
                          stream=err(SuspensionAwareFilter(extrinsic=ext).run(em).normal),
-                         rts=err(SuspensionAwareFilter(extrinsic=ext, smoother_weight=1.0).run(em, smooth=True).normal)))
+                         rts=err(SuspensionAwareFilter(extrinsic=ext, smoother_weight=1.0).run(em, smooth=True).normal),
+                         offline=err(SuspensionAwareFilter(extrinsic=ext).run(em, smooth=True).normal)))
     df = pd.DataFrame(rows).groupby("grade").mean()
     assert set(df.index) == {"nav", "mems"}
     assert np.all(df["stream"] <= 0.6 * df["paper"]), df
-    # with an exact truth the pure (zero-lag) smoother is better still
-    assert np.all(df["rts"] < df["stream"]), df
+    assert np.all(df["offline"] <= 0.6 * df["paper"]), df
+    # with an exact truth and a navigation-grade IMU the pure (zero-lag) smoother
+    # is better still; with MEMS the smoothed gravity estimate carries the
+    # accelerometer bias into the acceleration part of the load, and it is not
+    assert df.loc["nav", "rts"] < df.loc["nav", "stream"], df
 
 
 def test_one_call_function(mems_drive):
