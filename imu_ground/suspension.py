@@ -53,8 +53,9 @@ moving frames, per-drive means removed, averaged over drives):
 - ``k_pitch = -0.25`` deg per m/s^2: the slope of the reference pitch on the
   IMU acceleration below 0.3 Hz (-0.257), and the best of a 24-point grid
   (k_pitch -0.20 ... -0.33, two k_roll, process noise x0.5 ... x2). Choosing the
-  grid point on 15 drives and scoring the other 15 (10 random splits) gives
-  0.132 deg on the held-out halves, the same as on all 30.
+  grid point on 15 drives and scoring the other 15 (10 random splits) gave
+  0.132 deg on the held-out halves, the same as on all 30 (with the load of
+  specific force; see ``load`` below for the default).
 - ``k_roll = +0.50`` deg per m/s^2: not observable in the pitch-only reference;
   the IMU band-pass self-calibration (:func:`imu_ground.calibration.calibrate`)
   gives +0.45 ... +0.61 depending on the lever-arm assumption (pooled over the
@@ -89,7 +90,7 @@ road (cars speed up downhill, roads bank into curves), higher ones by the
 suspension resonance and noise. The regression also sees the sensor's
 lever-arm kinematics about the body's pitch and roll centre (``a = alpha x r``
 correlates with the tilt itself), removed with ``lever_arm`` when that
-position is known. On KITTI the online gains score 0.134 deg against 0.132
+position is known. On KITTI the online gains score 0.136 deg against 0.134
 with the fixed ones (the prototype found learning the gains as EKF states
 worse still), so fixed, calibrated gains are the default.
 
@@ -100,8 +101,7 @@ attitude filter and its Rauch-Tung-Striebel smoother on the group (zero lag),
 blended on the group, ``X = X_f Exp(w Log(X_f^T X_s))``, ``w = smoother_weight``;
 ``w = 1`` is the pure smoother. The default ``w = 0.25`` is what measured best
 on the real drives, where the pure smoother is *worse* than the forward filter
-(0.146 against 0.132 deg; the blend 0.131, the forward pass alone with the
-smoothed speed 0.131): real pitch events rise sharply and decay slowly, which
+(0.146 against 0.134 deg; the blend 0.131): real pitch events rise sharply and decay slowly, which
 a random-walk road and white body motion smoothed both ways do not capture,
 and the reference itself comes from a causal INS solution. With an exact
 truth the pure smoother is clearly the best (synthetic suite of
@@ -684,11 +684,12 @@ class SuspensionAwareFilter:
     averaged over drives; IMU only, through
     :func:`~imu_ground.egomotion.imu_to_egomotion`; re-measured by
     ``tests/test_suspension.py``): constant normal 0.242 deg, the paper's
-    filter 0.221, this filter 0.132 streaming, 0.134 with online gains, 0.131
-    offline (``smooth=True``), 0.146 with the pure RTS smoother. Per drive,
-    only 2011_09_26_drive_0091 is more than 10 % worse than the paper's filter
-    (0.246 vs 0.219 deg): a slow drive (5.9 m/s) on which the INS reference
-    drifts; with error content slower than 20 s removed, 0.110 vs 0.126.
+    filter 0.221, this filter 0.134 streaming, 0.136 with online gains, 0.131
+    offline (``smooth=True``), 0.146 with the pure RTS smoother. The drive
+    closest to the paper's filter is 2011_09_26_drive_0091 (0.242 vs 0.222 deg,
+    ratio 1.09; 1.08 offline): a slow drive (5.9 m/s) on which the INS
+    reference drifts; with error content slower than 20 s removed, ours is
+    the better one.
 
     Parameters
     ----------
@@ -716,7 +717,7 @@ class SuspensionAwareFilter:
     response : (float, float), optional
         Second-order response ``(freq_hz, damping)`` (unit static gain) applied
         to the load; None (default): quasi-static, which measured better on
-        KITTI (0.132 deg; 2 Hz / 0.7: 0.133, 1 Hz / 0.7: 0.135).
+        KITTI (0.134 deg; 2 Hz / 0.7: 0.135).
     online_gains : bool
         Estimate the gains online (band-pass RLS).
     gain_prior_seconds : float
