@@ -28,6 +28,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from typing import Optional
+
 import numpy as np
 
 from .imu_data import ImuData
@@ -89,7 +91,7 @@ def _window_stats(t: np.ndarray, x: np.ndarray, end: np.ndarray):
 
 
 def _standstill_mask(imu: ImuData, window: float, gyro_std_max: float, gyro_norm_max: float,
-                     accel_std_max: float, accel_norm_tol: float, gravity: float,
+                     accel_std_max: float, accel_norm_tol: float, gravity: Optional[float],
                      max_gap: float) -> np.ndarray:
     t = np.asarray(imu.t, dtype=float)
     n = t.size
@@ -106,11 +108,18 @@ def _standstill_mask(imu: ImuData, window: float, gyro_std_max: float, gyro_norm
     no_gap = gaps[end - 1] == gaps
     gm, gs = _window_stats(t, imu.gyro, end)
     am, as_ = _window_stats(t, imu.accel, end)
-    good = (ok & no_gap
-            & np.all(gs <= gyro_std_max, axis=1)
-            & (np.linalg.norm(gm, axis=1) <= gyro_norm_max)
-            & np.all(as_ <= accel_std_max, axis=1)
-            & (np.abs(np.linalg.norm(am, axis=1) - gravity) <= accel_norm_tol))
+    quiet = (ok & no_gap
+             & np.all(gs <= gyro_std_max, axis=1)
+             & (np.linalg.norm(gm, axis=1) <= gyro_norm_max)
+             & np.all(as_ <= accel_std_max, axis=1))
+    norm = np.linalg.norm(am, axis=1)
+    if gravity is None:
+        # the log's own |f| at rest: an accelerometer bias or scale error moves it
+        # away from 9.81 (0.2 m/s^2 is common for MEMS) and must not hide the stops
+        if not quiet.any():
+            return np.zeros(n, dtype=bool)
+        gravity = float(np.median(norm[quiet]))
+    good = quiet & (np.abs(norm - gravity) <= accel_norm_tol)
     # union of the good windows [i, end[i]) : difference array
     d = np.zeros(n + 1, dtype=np.int64)
     gi = np.flatnonzero(good)
@@ -127,7 +136,7 @@ def _runs(mask: np.ndarray) -> np.ndarray:
 
 def detect_standstill(imu: ImuData, *, window: float = 2.0, gyro_std_max: float = 0.004,
                       gyro_norm_max: float = 0.05, accel_std_max: float = 0.04,
-                      accel_norm_tol: float = 0.15, gravity: float = GRAVITY,
+                      accel_norm_tol: float = 0.15, gravity: Optional[float] = None,
                       max_gap: float = 0.1) -> np.ndarray:
     """Standstill intervals of a log (vectorised, no loop over samples).
 
@@ -146,8 +155,12 @@ def detect_standstill(imu: ImuData, *, window: float = 2.0, gyro_std_max: float 
         Largest per-axis accelerometer standard deviation, m/s^2.
     accel_norm_tol : float
         Largest difference between the mean specific force's norm and ``gravity``, m/s^2.
-    gravity : float
-        Magnitude of gravity, m/s^2.
+    gravity : float, optional
+        Magnitude of the specific force at rest, m/s^2. Default: measured from
+        the log (median over the windows that pass the rate and variance
+        tests), so that an accelerometer bias or scale error does not hide
+        the stops; ``accel_norm_tol`` then rejects windows of steady
+        acceleration.
     max_gap : float
         Windows containing a longer timestamp step are rejected, s.
 
@@ -165,7 +178,7 @@ def detect_standstill(imu: ImuData, *, window: float = 2.0, gyro_std_max: float 
 
 def estimate_gyro_bias(imu: ImuData, *, window: float = 2.0, gyro_std_max: float = 0.004,
                        gyro_norm_max: float = 0.05, accel_std_max: float = 0.04,
-                       accel_norm_tol: float = 0.15, gravity: float = GRAVITY,
+                       accel_norm_tol: float = 0.15, gravity: Optional[float] = None,
                        max_gap: float = 0.1) -> GyroBiasEstimate:
     """Gyro bias and gravity direction from the standstill periods of a log.
 

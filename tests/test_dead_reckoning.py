@@ -240,3 +240,24 @@ def test_kitti_dead_reckoned_tilt_from_rest(shared_data):
           f"{np.round(errs, 3).tolist()} deg")
     assert len(errs) >= 4
     assert np.median(errs) < 0.5
+
+
+def test_accelerometer_bias_does_not_hide_the_stops():
+    """A MEMS accelerometer's bias moves |f| at rest away from 9.81; the stops must still be found."""
+    from imu_ground.simulate import simulate
+    from imu_ground.standstill import detect_standstill, estimate_gyro_bias
+    sim = simulate(60.0, seed=2, imu="perfect")
+    stopped = sim.truth["stationary"].to_numpy()
+    assert stopped.any()
+    bg = np.array([0.01, -0.02, 0.015])                       # rad/s, MEMS-like turn-on bias
+    imu = ImuData(sim.imu.t, sim.imu.gyro + bg, sim.imu.accel + np.array([0.1, -0.1, 0.3]))
+    assert len(detect_standstill(imu, gravity=9.80665)) == 0      # against nominal g: nothing found
+    found = detect_standstill(imu)
+    assert len(found) >= 1
+    est = estimate_gyro_bias(imu)
+    np.testing.assert_allclose(est.bias, bg, atol=1e-4)
+    # every detected standstill is a true stop
+    t_stop = sim.truth["t"].to_numpy()[stopped]
+    for a, b in found:
+        inside = (t_stop >= a - 0.1) & (t_stop <= b + 0.1)
+        assert inside.sum() >= int((b - a) * 10) - 2
