@@ -90,7 +90,7 @@ from . import so3
 from .egomotion import EgoMotion, imu_to_egomotion
 from .extrinsics import Extrinsic, load_extrinsic, save_extrinsic
 from .imu_data import ImuData
-from .suspension import GAIN_BAND, GravityVelocityFilter, bandpass_gain_regression
+from .suspension import DEFAULT_GAINS, GAIN_BAND, GravityVelocityFilter, bandpass_gain_regression
 
 __all__ = ["Calibration", "calibrate", "load_calibration"]
 
@@ -172,7 +172,8 @@ class Calibration:
         if self.gains is not None:
             kp, kr = np.degrees(self.gains)
             lines.append(f"  suspension gains: pitch {kp:+.3f}, roll {kr:+.3f} deg per m/s^2")
-        for key in ("tilt_source", "yaw_source", "cruise_s", "standstill_s", "gain_frames"):
+        for key in ("tilt_source", "yaw_source", "cruise_s", "standstill_s", "gain_frames",
+                    "pitch_gain_rejected", "roll_gain_rejected"):
             if key in self.stats:
                 lines.append(f"  {key}: {self.stats[key]}")
         return "\n".join(lines)
@@ -362,5 +363,15 @@ def calibrate(data: Union[ImuData, EgoMotion, Sequence[Union[ImuData, EgoMotion]
         with np.errstate(invalid="ignore", divide="ignore"):
             k = np.where(sxx > 0, sxy / sxx, np.nan)
         stats.update(gain_frames=int(sum(np.count_nonzero(m) for m in movings)), gain_sxx=sxx.tolist())
+        # physics: braking pitches the nose down (k_pitch < 0) and a car rolls out
+        # of a turn (k_roll > 0). A regression with the other sign has measured
+        # something else, typically the road banking into curves (superelevation
+        # correlates with lateral acceleration in the regression band): keep the
+        # default gain for that axis and say so.
+        for i, (name, sign) in enumerate((("pitch", -1.0), ("roll", 1.0))):
+            if np.isfinite(k[i]) and np.sign(k[i]) != sign:
+                stats[f"{name}_gain_rejected"] = (f"{np.degrees(k[i]):+.3f} deg per m/s^2 has the wrong sign "
+                                                  f"(road geometry, not suspension); default kept")
+                k[i] = DEFAULT_GAINS[i]
     meta = {"calibrated_by": "imu_ground.calibration.calibrate", "tilt_source": src, "yaw_source": yaw_src}
     return Calibration(Extrinsic(R, translation, meta), k, stats)

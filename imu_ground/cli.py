@@ -209,10 +209,15 @@ def _cmd_simulate(a) -> int:
 def _cmd_calibrate(a) -> int:
     from .calibration import calibrate
     from .datasets import read_imu
-    imu = read_imu(a.log, format=a.format, policy=a.policy)
-    cal = calibrate(imu)
+    imus = [read_imu(p, format=a.format, policy=a.policy) for p in a.logs]
+    with_gains = a.lever_arm is not None
+    cal = calibrate(imus if len(imus) > 1 else imus[0], tilt=a.tilt, gains=with_gains,
+                    lever_arm=a.lever_arm, translation=a.translation)
     cal.save(a.output)
     print(cal)
+    if not with_gains:
+        print("suspension gains not estimated: they need the sensor's position relative to the body's "
+              "pitch/roll centre (--lever-arm X Y Z, metres, ground frame); the filter keeps its defaults")
     print(f"wrote {a.output}")
     return 0
 
@@ -261,10 +266,19 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--plot", help="also write a picture of the road and body motion (PNG)")
     s.set_defaults(func=_cmd_simulate)
 
-    c = sub.add_parser("calibrate", help="static extrinsic and suspension gains from a drive")
-    c.add_argument("log")
+    c = sub.add_parser("calibrate", help="static extrinsic and suspension gains from drives of one platform")
+    c.add_argument("logs", nargs="+", help="one or more IMU logs of the same mounting (several drives, e.g. a "
+                                           "closed loop or both directions of a road, average out the grade)")
     c.add_argument("--format")
     c.add_argument("--policy", default="drop", choices=("drop", "sort", "strict"))
+    c.add_argument("--tilt", default="auto", choices=("auto", "cruise", "standstill", "all"),
+                   help="frames that define 'up': straight constant-speed driving (auto, if there is enough), "
+                        "standstills, or all")
+    c.add_argument("--lever-arm", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                   help="sensor position relative to the body's pitch/roll centre, m (ground frame); "
+                        "needed to estimate the suspension gains")
+    c.add_argument("--translation", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                   help="sensor origin in the ground frame, m (stored; not observable from an IMU)")
     c.add_argument("-o", "--output", required=True, help="calibration file (calib/ text format)")
     c.set_defaults(func=_cmd_calibrate)
     return ap

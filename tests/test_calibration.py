@@ -169,3 +169,18 @@ def test_kitti_platform_self_calibration(shared_data):
     calibrated = score(lambda em: SuspensionAwareFilter.from_calibration(c).run(em).pitch)
     paper = score(lambda em: GroundNormalFilter.paper().run(em.delta_R).pitch)
     assert calibrated < 0.15 < 0.2 < paper                      # 0.138 vs 0.221
+
+
+def test_gain_with_impossible_sign_is_rejected_on_banked_roads():
+    """Default roads bank into their curves; the roll regression then measures the road, not the
+    springs, and comes out with the wrong sign: the default gain is kept and the reason recorded."""
+    from imu_ground.calibration import calibrate
+    from imu_ground.simulate import simulate
+    from imu_ground.suspension import DEFAULT_GAINS
+    sims = [simulate(150.0, seed=s) for s in (4, 5)]
+    cal = calibrate([s.imu for s in sims], lever_arm=sims[0].t_gs)
+    assert cal.gains[0] < 0 and cal.gains[1] > 0                 # physically possible signs only
+    true_pitch = -np.radians(sims[0].params["vehicle"].pitch_gain_deg)
+    assert abs(cal.gains[0] - true_pitch) < 0.3 * abs(true_pitch)
+    assert "roll_gain_rejected" in cal.stats and cal.gains[1] == DEFAULT_GAINS[1]
+    assert "roll_gain_rejected" in str(cal)
