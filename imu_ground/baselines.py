@@ -31,14 +31,6 @@ from .ground import GroundTrack, _twist_angle, pitch_roll_from_normal
 __all__ = ["ConstantNormal", "EulerEKF", "euler_zyx", "from_euler_zyx"]
 
 
-def _as_extrinsic(extrinsic) -> Extrinsic:
-    if extrinsic is None:
-        return Extrinsic()
-    if isinstance(extrinsic, Extrinsic):
-        return extrinsic
-    return Extrinsic(rotation=np.asarray(extrinsic, dtype=float))
-
-
 def _body_increments(delta_Rs: np.ndarray, ext: Extrinsic) -> np.ndarray:
     d = np.asarray(delta_Rs, dtype=float)
     if d.ndim == 2 and d.shape[1] == 3:
@@ -92,7 +84,7 @@ class ConstantNormal:
     """
 
     def __init__(self, extrinsic: Union[Extrinsic, np.ndarray, None] = None) -> None:
-        self.extrinsic = _as_extrinsic(extrinsic)
+        self.extrinsic = Extrinsic.coerce(extrinsic)
 
     def run(self, delta_Rs: np.ndarray, R0: Optional[np.ndarray] = None) -> GroundTrack:
         """Per-frame track whose residual is the identity (normal = static normal).
@@ -136,7 +128,7 @@ class EulerEKF:
 
     def __init__(self, Q=1e-2, R=1.0, P=1.0, extrinsic=None, follow_heading: bool = True,
                  x0: Optional[np.ndarray] = None) -> None:
-        self.extrinsic = _as_extrinsic(extrinsic)
+        self.extrinsic = Extrinsic.coerce(extrinsic)
         self.follow_heading = follow_heading
         ekf = ExtendedKalmanFilter(dim_x=3, dim_z=3)
         ekf.x = np.zeros(3) if x0 is None else np.asarray(x0, dtype=float).copy()

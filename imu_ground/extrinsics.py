@@ -60,6 +60,15 @@ class Extrinsic:
             raise ValueError(f"extrinsic rotation is not a rotation (|R^T R - I| = {err:.2e}, "
                              f"det = {np.linalg.det(self.rotation):.6f})")
 
+    @classmethod
+    def coerce(cls, value: Union["Extrinsic", np.ndarray, None]) -> "Extrinsic":
+        """An Extrinsic from None (identity), an Extrinsic (itself) or a 3x3 rotation (ground <- sensor)."""
+        if value is None:
+            return cls()
+        if isinstance(value, cls):
+            return value
+        return cls(rotation=np.asarray(value, dtype=float))
+
     @property
     def normal(self) -> np.ndarray:
         """Static ground normal in the sensor frame, ``R^T e_z``."""

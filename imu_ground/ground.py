@@ -195,10 +195,7 @@ class GroundNormalFilter:
                  R0: Optional[np.ndarray] = None) -> None:
         if measurement not in ("rotation", "up", "forward"):
             raise ValueError(f"measurement must be 'rotation', 'up' or 'forward', got {measurement!r}")
-        if extrinsic is None:
-            extrinsic = Extrinsic()
-        elif not isinstance(extrinsic, Extrinsic):
-            extrinsic = Extrinsic(rotation=np.asarray(extrinsic, dtype=float))
+        extrinsic = Extrinsic.coerce(extrinsic)
         self.extrinsic = extrinsic
         self.measurement = measurement
         self.follow_heading = bool(follow_heading)
@@ -454,12 +451,15 @@ class GroundNormalFilter:
         return Xs, Ps, cum
 
 
-def _residual_recursion(qe, qd, cps, sps, ka, kc, up):
+def _residual_recursion(qe, qd, cps, sps, ka, kc, up, bx=None, by=None):
     """Scalar loop of the residual quaternion (see ``GroundNormalFilter._run_fast``).
 
     ``qe``: initial residual (w, x, y, z); ``qd``: body increments; ``cps``,
     ``sps``: cos and sin of half the twist angles; ``ka``, ``kc``: gains about
-    the horizontal axes and the up axis. Returns a list of residual quaternions.
+    the horizontal axes and the up axis. ``bx``, ``by`` (optional, rad): a
+    modelled body tilt ``b = (bx, by, 0)`` per frame, so that the rotation
+    measurement's innovation is ``Log(E^- Exp(-b))`` (the suspension-aware
+    filter); not used with ``up``. Returns a list of residual quaternions.
     """
     sqrt, atan2, sin, cos = math.sqrt, math.atan2, math.sin, math.cos
     ew, ex, ey, ez = qe
@@ -492,12 +492,25 @@ def _residual_recursion(qe, qd, cps, sps, ka, kc, up):
             yy = 2.0 * (my * mz - mw * mx)
             gx, gy, gz = -ka[k] * yy, ka[k] * yx, 0.0
         else:
-            vn = sqrt(mx * mx + my * my + mz * mz)
+            if bx is None:
+                Mw, Mx, My, Mz = mw, mx, my, mz
+            else:
+                # M = m Exp(-b), b = (bx, by, 0)
+                bn = sqrt(bx[k] * bx[k] + by[k] * by[k])
+                hb = 0.5 - bn * bn / 48.0 if bn < 1e-4 else sin(0.5 * bn) / bn
+                cw, cx, cy = cos(0.5 * bn), -hb * bx[k], -hb * by[k]
+                Mw = mw * cw - mx * cx - my * cy
+                Mx = mw * cx + mx * cw - mz * cy
+                My = mw * cy + my * cw + mz * cx
+                Mz = mz * cw + mx * cy - my * cx
+                if Mw < 0.0:
+                    Mw, Mx, My, Mz = -Mw, -Mx, -My, -Mz
+            vn = sqrt(Mx * Mx + My * My + Mz * Mz)
             if vn < 1e-300:
                 f = 0.0
             else:
-                f = 2.0 * atan2(vn, mw) / vn
-            gx, gy, gz = ka[k] * f * mx, ka[k] * f * my, kc[k] * f * mz
+                f = 2.0 * atan2(vn, Mw) / vn
+            gx, gy, gz = ka[k] * f * Mx, ka[k] * f * My, kc[k] * f * Mz
         # E = Exp(-g) E^-
         th = sqrt(gx * gx + gy * gy + gz * gz)
         if th < 1e-4:

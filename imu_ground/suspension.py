@@ -135,7 +135,7 @@ from scipy.spatial.transform import Rotation
 from . import so3
 from .egomotion import EgoMotion, imu_to_egomotion
 from .extrinsics import Extrinsic
-from .ground import GroundEstimate, GroundTrack, _twist_angle, pitch_roll_from_normal
+from .ground import GroundEstimate, GroundTrack, _residual_recursion, _twist_angle, pitch_roll_from_normal
 from .imu_data import ImuData
 from .invariant_ekf import InvariantEKF, _renormalise
 from .simulate import _foh_filter
@@ -158,14 +158,6 @@ GAIN_BAND = (0.3, 1.5)
 #: Mean band-passed acceleration power ``(a_x, a_y)`` over the 30 valid kitti_imu100 drives,
 #: (m/s^2)^2; scales the prior weight of the online gains.
 TYPICAL_BAND_POWER = (0.0417, 0.0264)
-
-
-def _as_extrinsic(extrinsic) -> Extrinsic:
-    if extrinsic is None:
-        return Extrinsic()
-    if isinstance(extrinsic, Extrinsic):
-        return extrinsic
-    return Extrinsic(rotation=np.asarray(extrinsic, dtype=float))
 
 
 def _rot3(d) -> np.ndarray:
@@ -320,7 +312,7 @@ class GravityVelocityFilter:
         self.q_v, self.q_g, self.q_gap = float(q_v), float(q_g), float(q_gap)
         self.sigma_v0, self.sigma_g0 = float(sigma_v0), float(sigma_g0)
         self.zupt_gate = float(zupt_gate)
-        self.extrinsic = _as_extrinsic(extrinsic)
+        self.extrinsic = Extrinsic.coerce(extrinsic)
         self._Rgs = self.extrinsic.rotation
         self._identity_extrinsic = bool(np.array_equal(self._Rgs, _I3))
         self.lever_arm = None if lever_arm is None else np.asarray(lever_arm, dtype=float).reshape(3)
@@ -798,7 +790,7 @@ class SuspensionAwareFilter:
         if not 0.0 <= smoother_weight <= 1.0:
             raise ValueError("smoother_weight must be in [0, 1]")
         self.smoother_weight = float(smoother_weight)
-        self.extrinsic = _as_extrinsic(extrinsic)
+        self.extrinsic = Extrinsic.coerce(extrinsic)
         self._Rgs = self.extrinsic.rotation
         self._identity_extrinsic = bool(np.array_equal(self._Rgs, _I3))
         self.lever_arm = None if lever_arm is None else np.asarray(lever_arm, dtype=float).reshape(3)
@@ -995,9 +987,9 @@ class SuspensionAwareFilter:
             a, c = g * r, h * ry
             ka[k], kc[k], pa[k], pc[k] = g, h, a, c
         qs = Rotation.from_matrix(np.concatenate([E0[None], d])).as_quat(scalar_first=True)
-        qE = _suspension_recursion(qs[0].tolist(), qs[1:].tolist(), np.cos(0.5 * psi).tolist(),
-                                   np.sin(0.5 * psi).tolist(), ka.tolist(), kc.tolist(),
-                                   susp[:, 1].tolist(), susp[:, 0].tolist())
+        qE = _residual_recursion(qs[0].tolist(), qs[1:].tolist(), np.cos(0.5 * psi).tolist(),
+                                 np.sin(0.5 * psi).tolist(), ka.tolist(), kc.tolist(), False,
+                                 susp[:, 1].tolist(), susp[:, 0].tolist())
         E = Rotation.from_quat(qE, scalar_first=True).as_matrix() if n else np.zeros((0, 3, 3))
         Xs = cum @ np.swapaxes(E, 1, 2)
         Ps = np.zeros((n, 3, 3))
@@ -1008,58 +1000,6 @@ class SuspensionAwareFilter:
             ekf.Q = np.diag([q[-1], q[-1], qy])
             ekf.x_post, ekf.P_post = ekf.x.copy(), ekf.P.copy()
         return Xs, Ps
-
-
-def _suspension_recursion(qe, qd, cps, sps, ka, kc, bx, by):
-    """Scalar loop of the residual quaternion (w, x, y, z) with the modelled tilt ``b = (bx, by, 0)``.
-
-    ``qe``: initial residual; ``qd``: body increments; ``cps``, ``sps``: cos and
-    sin of half the twist angles; ``ka``, ``kc``: gains about the horizontal axes
-    and about up; ``bx``, ``by``: modelled roll and pitch, rad.
-    """
-    sqrt, atan2, sin, cos = math.sqrt, math.atan2, math.sin, math.cos
-    ew, ex, ey, ez = qe
-    out = [None] * len(qd)
-    for k in range(len(qd)):
-        # prior residual m = T^T E dR (see ground._residual_recursion)
-        ch, sh = cps[k], sps[k]
-        c2, s2 = ch * ch - sh * sh, 2.0 * ch * sh
-        vx = c2 * ex + s2 * ey
-        vy = -s2 * ex + c2 * ey
-        dw, dx, dy, dz = qd[k]
-        sw, sx = ch * dw + sh * dz, ch * dx + sh * dy
-        sy, sz = ch * dy - sh * dx, ch * dz - sh * dw
-        mw = ew * sw - vx * sx - vy * sy - ez * sz
-        mx = ew * sx + vx * sw + vy * sz - ez * sy
-        my = ew * sy - vx * sz + vy * sw + ez * sx
-        mz = ew * sz + vx * sy - vy * sx + ez * sw
-        if mw < 0.0:
-            mw, mx, my, mz = -mw, -mx, -my, -mz
-        # innovation y = Log(m Exp(-b))
-        bn = sqrt(bx[k] * bx[k] + by[k] * by[k])
-        hb = 0.5 - bn * bn / 48.0 if bn < 1e-4 else sin(0.5 * bn) / bn
-        cw, cx, cy = cos(0.5 * bn), -hb * bx[k], -hb * by[k]
-        Mw = mw * cw - mx * cx - my * cy
-        Mx = mw * cx + mx * cw - mz * cy
-        My = mw * cy + my * cw + mz * cx
-        Mz = mz * cw + mx * cy - my * cx
-        if Mw < 0.0:
-            Mw, Mx, My, Mz = -Mw, -Mx, -My, -Mz
-        vn = sqrt(Mx * Mx + My * My + Mz * Mz)
-        f = 0.0 if vn < 1e-300 else 2.0 * atan2(vn, Mw) / vn
-        gx, gy, gz = ka[k] * f * Mx, ka[k] * f * My, kc[k] * f * Mz
-        # E = Exp(-K y) m
-        th = sqrt(gx * gx + gy * gy + gz * gz)
-        hs = 0.5 - th * th / 48.0 if th < 1e-4 else sin(0.5 * th) / th
-        aw, ax, ay, az = cos(0.5 * th), -hs * gx, -hs * gy, -hs * gz
-        ew = aw * mw - ax * mx - ay * my - az * mz
-        ex = aw * mx + ax * mw + ay * mz - az * my
-        ey = aw * my - ax * mz + ay * mw + az * mx
-        ez = aw * mz + ax * my - ay * mx + az * mw
-        nrm = 1.0 / sqrt(ew * ew + ex * ex + ey * ey + ez * ez)
-        ew, ex, ey, ez = ew * nrm, ex * nrm, ey * nrm, ez * nrm
-        out[k] = (ew, ex, ey, ez)
-    return out
 
 
 # =============================================================================== one call
