@@ -133,6 +133,24 @@ class GroundTrack:
         return df
 
 
+def _increment_matrix(delta_R) -> np.ndarray:
+    """3x3 rotation from a 3x3 rotation, a 4x4 relative pose or a rotation vector (rad)."""
+    d = np.asarray(delta_R, dtype=float)
+    if d.shape == (3,):
+        return so3.exp_one(d)
+    if d.shape == (4, 4):
+        return d[:3, :3]
+    if d.shape != (3, 3):
+        raise ValueError(f"delta_R must be a 3x3 rotation, a 4x4 pose or a rotation vector, got shape {d.shape}")
+    return d
+
+
+def _rotz_one(psi: float) -> np.ndarray:
+    """Rotation about z by ``psi`` rad, one 3x3 matrix (scalar fast path of :func:`so3.rotz`)."""
+    c, s = math.cos(psi), math.sin(psi)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
 def _twist_angle(d: np.ndarray) -> np.ndarray:
     """Angle of the twist of ``d`` about z (swing-twist), ``2 atan2(q_z, q_w)``, batch."""
     return np.arctan2(d[..., 1, 0] - d[..., 0, 1], d[..., 0, 0] + d[..., 1, 1])
@@ -249,13 +267,7 @@ class GroundNormalFilter:
 
     # -- streaming -------------------------------------------------------------
     def _body_increment(self, delta_R: np.ndarray) -> np.ndarray:
-        d = np.asarray(delta_R, dtype=float)
-        if d.shape == (3,):
-            d = so3.exp_one(d)
-        elif d.shape == (4, 4):
-            d = d[:3, :3]
-        elif d.shape != (3, 3):
-            raise ValueError(f"delta_R must be a 3x3 rotation, a 4x4 pose or a rotation vector, got shape {d.shape}")
+        d = _increment_matrix(delta_R)
         if not self._identity_extrinsic:
             d = self._Rgs @ d @ self._Rgs.T
         return d
@@ -282,9 +294,7 @@ class GroundNormalFilter:
         self.cumulative = Rk
         ekf = self.ekf
         if self.follow_heading:
-            psi = math.atan2(d[1, 0] - d[0, 1], d[0, 0] + d[1, 1])
-            c, s = math.cos(psi), math.sin(psi)
-            ekf.predict(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]))
+            ekf.predict(_rotz_one(math.atan2(d[1, 0] - d[0, 1], d[0, 0] + d[1, 1])))
         else:
             ekf.predict()
         if self.measurement == "rotation":
@@ -380,8 +390,7 @@ class GroundNormalFilter:
             if self._count % _RENORM_EVERY == 0:
                 Rk = _renormalise(Rk)
             self.cumulative = Rk
-            c, s = math.cos(psi[k]), math.sin(psi[k])
-            ekf.predict(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) if self.follow_heading else None)
+            ekf.predict(_rotz_one(psi[k]) if self.follow_heading else None)
             ekf.update(Rk if self.measurement == "rotation" else Rk @ ekf.b)
             Xs[k], Ps[k], cum[k] = ekf.x, ekf.P, Rk
         return Xs, Ps, cum

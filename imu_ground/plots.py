@@ -15,6 +15,8 @@ from typing import Iterable, Optional, Sequence
 import numpy as np
 import pandas as pd
 
+from .metrics import normal_angle
+
 __all__ = ["plot_pitch_over_time", "plot_error_distribution", "plot_simulation", "evaluation_plots"]
 
 
@@ -32,9 +34,7 @@ def _frame_errors(drive, track) -> np.ndarray:
     """Per-frame error (deg) as evaluated: pitch for real drives (means removed), normal angle otherwise."""
     m = drive.truth["evaluate"].to_numpy()
     if drive.has_roll:
-        n_true = drive.truth[["normal_x", "normal_y", "normal_z"]].to_numpy()
-        c = np.clip(np.sum(track.normal * n_true, axis=1), -1.0, 1.0)
-        return np.degrees(np.arccos(c))[m]
+        return normal_angle(track.normal, drive.truth[["normal_x", "normal_y", "normal_z"]].to_numpy())[m]
     est, ref = track.pitch[m], drive.truth["pitch"].to_numpy()[m]
     if drive.remove_mean:
         est, ref = est - est.mean(), ref - ref.mean()

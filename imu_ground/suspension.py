@@ -135,7 +135,8 @@ from scipy.spatial.transform import Rotation
 from . import so3
 from .egomotion import EgoMotion, imu_to_egomotion
 from .extrinsics import Extrinsic
-from .ground import GroundEstimate, GroundTrack, _residual_recursion, _twist_angle, pitch_roll_from_normal
+from .ground import (GroundEstimate, GroundTrack, _increment_matrix, _residual_recursion, _rotz_one,
+                     _twist_angle, pitch_roll_from_normal)
 from .imu_data import ImuData
 from .invariant_ekf import InvariantEKF, _renormalise
 from .simulate import _foh_filter
@@ -158,22 +159,6 @@ GAIN_BAND = (0.3, 1.5)
 #: Mean band-passed acceleration power ``(a_x, a_y)`` over the 30 valid kitti_imu100 drives,
 #: (m/s^2)^2; scales the prior weight of the online gains.
 TYPICAL_BAND_POWER = (0.0417, 0.0264)
-
-
-def _rot3(d) -> np.ndarray:
-    d = np.asarray(d, dtype=float)
-    if d.shape == (3,):
-        return so3.exp_one(d)
-    if d.shape == (4, 4):
-        return d[:3, :3]
-    if d.shape != (3, 3):
-        raise ValueError(f"delta_R must be a 3x3 rotation, a 4x4 pose or a rotation vector, got shape {d.shape}")
-    return d
-
-
-def _rotz(psi: float) -> np.ndarray:
-    c, s = math.cos(psi), math.sin(psi)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def _egomotion_arrays(ego: Union[EgoMotion, ImuData]):
@@ -496,7 +481,7 @@ class GravityVelocityFilter:
         -------
         GravityEstimate
         """
-        d, dv = self._to_body(_rot3(delta_R), np.asarray(delta_v, dtype=float).reshape(3))
+        d, dv = self._to_body(_increment_matrix(delta_R), np.asarray(delta_v, dtype=float).reshape(3))
         f, a = self._frame(d, dv, float(delta_t), bool(stationary), bool(valid))
         v = self.x[:3].copy()
         return GravityEstimate(v, self.x[3:].copy(), a, f, float(np.linalg.norm(v)))
@@ -872,7 +857,7 @@ class SuspensionAwareFilter:
             ``E R_gs`` (road-ground <- sensor) and the covariance of ``X``.
         """
         gf = self.gravity_filter
-        d, dv = gf._to_body(_rot3(delta_R), np.asarray(delta_v, dtype=float).reshape(3))
+        d, dv = gf._to_body(_increment_matrix(delta_R), np.asarray(delta_v, dtype=float).reshape(3))
         dt = float(delta_t)
         f, acc = gf._frame(d, dv, dt, bool(stationary), bool(valid))
         u = (acc + self.load_share * (f - acc))[:2]
@@ -891,7 +876,7 @@ class SuspensionAwareFilter:
         ekf = self.ekf
         q = self._q(self.speed, dt)
         ekf.Q = np.diag([q, q, self.q_yaw])
-        ekf.predict(_rotz(math.atan2(d[1, 0] - d[0, 1], d[0, 0] + d[1, 1])))
+        ekf.predict(_rotz_one(math.atan2(d[1, 0] - d[0, 1], d[0, 0] + d[1, 1])))
         Rk = gf.cumulative
         ekf.update(Rk @ so3.exp_one(-b))
         E = ekf.x.T @ Rk
