@@ -11,7 +11,7 @@ import time
 import numpy as np
 
 from imu_ground import so3
-from imu_ground.ground import GroundNormalFilter
+from imu_ground.filters.ground import GroundNormalFilter
 
 
 def main(argv=None) -> None:

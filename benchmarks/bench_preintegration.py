@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from imu_ground.preintegration import PreintegratedImu, StreamingPreintegrator, preintegrate
+from imu_ground.imu.preintegration import PreintegratedImu, StreamingPreintegrator, preintegrate
 
 
 def make_log(n: int, seed: int = 0):

@@ -1,6 +1,6 @@
 """Speed of the SuspensionAwareFilter: streaming µs/frame and batch frames/s.
 
-Input: a synthetic drive (``imu_ground.simulate``, nav-grade IMU) preintegrated
+Input: a synthetic drive (``imu_ground.evaluation.simulate``, nav-grade IMU) preintegrated
 into 10 Hz frames and tiled to ``--frames`` frames (the filter does not care
 that the drive repeats). Run: ``python benchmarks/bench_suspension.py
 [--frames N] [--repeat R]``.
@@ -12,9 +12,9 @@ import time
 
 import numpy as np
 
-from imu_ground.egomotion import EgoMotion, imu_to_egomotion
-from imu_ground.simulate import simulate
-from imu_ground.suspension import GravityVelocityFilter, SuspensionAwareFilter
+from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
+from imu_ground.evaluation.simulate import simulate
+from imu_ground.filters.suspension import GravityVelocityFilter, SuspensionAwareFilter
 
 
 def _frames(n: int) -> EgoMotion:

@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from imu_ground.evaluation import load_real_drives
-from imu_ground.ground import GroundNormalFilter
-from imu_ground.metrics import evaluate_drive
+from imu_ground.evaluation.runner import load_real_drives
+from imu_ground.filters.ground import GroundNormalFilter
+from imu_ground.evaluation.metrics import evaluate_drive
 
 GRID = [1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.3, 1.0, 3.0]
 

@@ -17,10 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from imu_ground.evaluation import load_real_drives
-from imu_ground.ground import GroundNormalFilter
-from imu_ground.metrics import evaluate_drive
-from imu_ground.suspension import estimate_suspension_aware
+from imu_ground.evaluation.runner import load_real_drives
+from imu_ground.filters.ground import GroundNormalFilter
+from imu_ground.evaluation.metrics import evaluate_drive
+from imu_ground.filters.suspension import estimate_suspension_aware
 
 SHARES = [0.0, 0.25, 0.5, 0.6, 0.75, 1.0]
 

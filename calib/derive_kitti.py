@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from imu_ground.extrinsics import Extrinsic, save_extrinsic
+from imu_ground.filters.extrinsics import Extrinsic, save_extrinsic
 
 __all__ = ["IMU_HEIGHT", "read_kitti_calib", "derive_kitti_extrinsics", "main"]
 

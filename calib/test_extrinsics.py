@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from imu_ground.extrinsics import Extrinsic, available_extrinsics, load_extrinsic, save_extrinsic
+from imu_ground.filters.extrinsics import Extrinsic, available_extrinsics, load_extrinsic, save_extrinsic
 
 
 def test_shipped_kitti_extrinsics_load_and_are_rotations():

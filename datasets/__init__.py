@@ -1,4 +1,4 @@
-"""Readers of IMU logs; each returns an :class:`~imu_ground.imu_data.ImuData`.
+"""Readers of IMU logs; each returns an :class:`~imu_ground.imu.data.ImuData`.
 
 =================  ===========================================  ===================
 format             what                                         reader
@@ -13,7 +13,7 @@ format             what                                         reader
 
 :func:`read_imu` picks the reader from the path (:func:`detect_format`).
 Every reader validates its output by default (``validate=True``,
-``policy="drop"``; see :func:`imu_ground.validation.validate`) and stores the
+``policy="drop"``; see :func:`imu_ground.datasets.validation.validate`) and stores the
 report in ``meta["validation"]``.
 """
 from __future__ import annotations
@@ -24,7 +24,7 @@ from typing import Any, Callable
 
 import pandas as pd
 
-from imu_ground.imu_data import ImuData
+from imu_ground.imu.data import ImuData
 
 from .comma2k19 import read_comma2k19
 from .kitti_imu100 import COLUMNS as KITTI_IMU100_COLUMNS

@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from imu_ground.imu_data import ImuData
-from imu_ground.validation import ImuValidationWarning, MalformedFileError, check_timestamps
+from imu_ground.imu.data import ImuData
+from imu_ground.datasets.validation import ImuValidationWarning, MalformedFileError, check_timestamps
 
 from .table import _finish
 
@@ -71,12 +71,12 @@ def read_comma2k19(path: str | Path, *, validate: bool = True, policy: str = "dr
         The segment folder (holding ``processed_log``), or its ``processed_log``
         or ``processed_log/IMU`` folder.
     validate : bool
-        Run :func:`imu_ground.validation.validate` (default True).
+        Run :func:`imu_ground.datasets.validation.validate` (default True).
     policy : {"drop", "sort", "strict"}
         Time-order policy, applied to the accelerometer's own times before the
         alignment and to the result.
     **validate_kw
-        Other options of :func:`~imu_ground.validation.validate`.
+        Other options of :func:`~imu_ground.datasets.validation.validate`.
 
     Returns
     -------

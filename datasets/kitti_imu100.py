@@ -23,8 +23,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from imu_ground.imu_data import ImuData
-from imu_ground.validation import ImuValidationWarning, MalformedFileError
+from imu_ground.imu.data import ImuData
+from imu_ground.datasets.validation import ImuValidationWarning, MalformedFileError
 
 from .table import _finish, _numeric_columns, _read_csv_text
 
@@ -94,11 +94,11 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
         The ``drives.csv`` index giving the drive's start time; ``None`` (default)
         uses the one beside ``path`` if there is one, ``False`` ignores it.
     validate : bool
-        Run :func:`imu_ground.validation.validate` (default True).
+        Run :func:`imu_ground.datasets.validation.validate` (default True).
     policy : {"drop", "sort", "strict"}
         Time-order policy of the validation (default ``"drop"``).
     **validate_kw
-        Other options of :func:`~imu_ground.validation.validate`.
+        Other options of :func:`~imu_ground.datasets.validation.validate`.
 
     Returns
     -------

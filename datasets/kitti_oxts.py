@@ -21,8 +21,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from imu_ground.imu_data import ImuData
-from imu_ground.validation import ImuValidationWarning, MalformedFileError
+from imu_ground.imu.data import ImuData
+from imu_ground.datasets.validation import ImuValidationWarning, MalformedFileError
 
 from .table import _finish
 
@@ -216,11 +216,11 @@ def read_kitti_oxts(path: str | Path, *, allow_missing: bool = False, validate: 
         If packet files are missing from ``data/``, read the ones present (matched
         to ``timestamps.txt`` by file number) with a warning instead of raising.
     validate : bool
-        Run :func:`imu_ground.validation.validate` (default True).
+        Run :func:`imu_ground.datasets.validation.validate` (default True).
     policy : {"drop", "sort", "strict"}
         Time-order policy of the validation (default ``"drop"``).
     **validate_kw
-        Other options of :func:`~imu_ground.validation.validate`.
+        Other options of :func:`~imu_ground.datasets.validation.validate`.
 
     Returns
     -------

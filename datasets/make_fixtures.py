@@ -16,7 +16,7 @@ Files
     ``t_gs = (0.3, 0, 0.9)``).
 ``example_drive_truth.csv``
     Ground truth at 10 Hz (every 10th IMU sample, from t = 0), the columns of
-    :data:`imu_ground.simulate.TRUTH_COLUMNS` (``stationary`` as 0/1).
+    :data:`imu_ground.evaluation.simulate.TRUTH_COLUMNS` (``stationary`` as 0/1).
 ``example_drive_meta.json``
     Seed, IMU error model, extrinsic and every simulation parameter.
 
@@ -30,7 +30,7 @@ import json
 from dataclasses import asdict
 from pathlib import Path
 
-from imu_ground.simulate import RoadParams, SimResult, SpeedParams, simulate
+from imu_ground.evaluation.simulate import RoadParams, SimResult, SpeedParams, simulate
 
 FIXTURES = Path(__file__).resolve().parent / "fixtures"
 EXAMPLE_NAME = "example_drive"
@@ -63,7 +63,7 @@ def _meta(result: SimResult) -> dict:
         "road": asdict(p["road"]),
         "vehicle": asdict(p["vehicle"]),
         "speed": asdict(p["speed"]),
-        "conventions": "see imu_ground.simulate: world z up, body FLU, R = Rz(yaw) Ry(pitch) Rx(roll), "
+        "conventions": "see imu_ground.evaluation.simulate: world z up, body FLU, R = Rz(yaw) Ry(pitch) Rx(roll), "
                        "pitch > 0 nose down, roll > 0 left side up; pitch/roll are body relative to road; "
                        "normal_* in the sensor frame; q* is world <- sensor (w, x, y, z)",
     }

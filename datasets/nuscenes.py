@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from imu_ground.imu_data import ImuData
-from imu_ground.validation import MalformedFileError
+from imu_ground.imu.data import ImuData
+from imu_ground.datasets.validation import MalformedFileError
 
 from .table import _finish
 
@@ -90,11 +90,11 @@ def read_nuscenes_imu(path: str | Path, *, scene: str | None = None, validate: b
     scene : str, optional
         Scene name to pick in a folder with several scenes.
     validate : bool
-        Run :func:`imu_ground.validation.validate` (default True).
+        Run :func:`imu_ground.datasets.validation.validate` (default True).
     policy : {"drop", "sort", "strict"}
         Time-order policy of the validation (default ``"drop"``).
     **validate_kw
-        Other options of :func:`~imu_ground.validation.validate`.
+        Other options of :func:`~imu_ground.datasets.validation.validate`.
 
     Returns
     -------

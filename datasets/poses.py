@@ -10,7 +10,7 @@ Two text formats are read:
 
 Camera conventions (x right, y down, z forward) are not special-cased here:
 the relative rotations stay in the sensor frame and the static extrinsic
-(:mod:`imu_ground.extrinsics`) carries them into the ground frame.
+(:mod:`imu_ground.filters.extrinsics`) carries them into the ground frame.
 """
 from __future__ import annotations
 

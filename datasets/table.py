@@ -1,7 +1,7 @@
 """Generic IMU tables: a CSV file or a pandas DataFrame with named columns.
 
 You say which columns hold time, angular rate and specific force and in which
-units; the reader converts to the :class:`~imu_ground.imu_data.ImuData`
+units; the reader converts to the :class:`~imu_ground.imu.data.ImuData`
 conventions (s, rad/s, m/s^2) and keeps every other column in ``extra``.
 
 Example
@@ -23,9 +23,9 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from imu_ground.imu_data import ImuData
-from imu_ground.validation import STANDARD_GRAVITY, MalformedFileError
-from imu_ground.validation import validate as _validate
+from imu_ground.imu.data import ImuData
+from imu_ground.datasets.validation import STANDARD_GRAVITY, MalformedFileError
+from imu_ground.datasets.validation import validate as _validate
 
 __all__ = [
     "TIME_UNITS",
@@ -165,7 +165,7 @@ def _numeric_columns(df: pd.DataFrame, columns: Sequence[str], where: str | Path
 
 
 def _finish(imu: ImuData, validate: bool, policy: str, validate_kw: dict[str, Any]) -> ImuData:
-    """Run :func:`imu_ground.validation.validate` as the readers do.
+    """Run :func:`imu_ground.datasets.validation.validate` as the readers do.
 
     ``validate_kw["_depth"]`` (default 1) is the number of library frames between
     the user's call and this function's caller, so that warnings point at the user.
@@ -281,11 +281,11 @@ def read_table(source: str | Path | pd.DataFrame, *, time: str = "t",
     sep : str
         Field separator of the text file.
     validate : bool
-        Run :func:`imu_ground.validation.validate` (default True).
+        Run :func:`imu_ground.datasets.validation.validate` (default True).
     policy : {"drop", "sort", "strict"}
         Time-order policy of the validation.
     **validate_kw
-        Other options of :func:`~imu_ground.validation.validate` (``nonfinite``,
+        Other options of :func:`~imu_ground.datasets.validation.validate` (``nonfinite``,
         ``gap_factor``, ...).
 
     Returns

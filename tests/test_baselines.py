@@ -4,9 +4,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from imu_ground import so3
-from imu_ground.baselines import ConstantNormal, EulerEKF, euler_zyx, from_euler_zyx
-from imu_ground.extrinsics import load_extrinsic
-from imu_ground.ground import GroundNormalFilter
+from imu_ground.evaluation.baselines import ConstantNormal, EulerEKF, euler_zyx, from_euler_zyx
+from imu_ground.filters.extrinsics import load_extrinsic
+from imu_ground.filters.ground import GroundNormalFilter
 
 
 def _drive(n=400, yaw_rate=0.0, seed=0):

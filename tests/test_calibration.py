@@ -9,11 +9,11 @@ import pandas as pd
 import pytest
 
 from imu_ground import so3
-from imu_ground.calibration import calibrate, load_calibration
-from imu_ground.egomotion import EgoMotion, imu_to_egomotion
-from imu_ground.extrinsics import Extrinsic, load_extrinsic
-from imu_ground.simulate import RoadParams, SpeedParams, VehicleParams, simulate
-from imu_ground.suspension import SuspensionAwareFilter, estimate_suspension_aware
+from imu_ground.filters.calibration import calibrate, load_calibration
+from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
+from imu_ground.filters.extrinsics import Extrinsic, load_extrinsic
+from imu_ground.evaluation.simulate import RoadParams, SpeedParams, VehicleParams, simulate
+from imu_ground.filters.suspension import SuspensionAwareFilter, estimate_suspension_aware
 
 DEG = np.pi / 180.0
 R_GS = so3.rotz(-6.0 * DEG) @ so3.roty(2.0 * DEG) @ so3.rotx(-1.5 * DEG)     # ground <- sensor
@@ -142,9 +142,9 @@ def test_file_round_trip_and_use(tmp_path, drive, cal):
 def test_kitti_platform_self_calibration(shared_data):
     """IMU-only calibration pooled over the 30 valid drives, then the filter with it."""
     from imu_ground.datasets import read_kitti_imu100
-    from imu_ground.ground import GroundNormalFilter
-    from imu_ground.metrics import evaluate_drive
-    from imu_ground.reference import check_reference, pitch_reference
+    from imu_ground.filters.ground import GroundNormalFilter
+    from imu_ground.evaluation.metrics import evaluate_drive
+    from imu_ground.evaluation.reference import check_reference, pitch_reference
     folder = shared_data / "kitti_imu100"
     drives = []
     for name in pd.read_csv(folder / "drives.csv")["drive"]:
@@ -174,9 +174,9 @@ def test_kitti_platform_self_calibration(shared_data):
 def test_gain_with_impossible_sign_is_rejected_on_banked_roads():
     """Default roads bank into their curves; the roll regression then measures the road, not the
     springs, and comes out with the wrong sign: the default gain is kept and the reason recorded."""
-    from imu_ground.calibration import calibrate
-    from imu_ground.simulate import simulate
-    from imu_ground.suspension import DEFAULT_GAINS
+    from imu_ground.filters.calibration import calibrate
+    from imu_ground.evaluation.simulate import simulate
+    from imu_ground.filters.suspension import DEFAULT_GAINS
     sims = [simulate(150.0, seed=s) for s in (4, 5)]
     cal = calibrate([s.imu for s in sims], lever_arm=sims[0].t_gs)
     assert cal.gains[0] < 0 and cal.gains[1] > 0                 # physically possible signs only

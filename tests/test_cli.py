@@ -76,7 +76,7 @@ def test_evaluate_synthetic_tables_and_plots(tmp_path, capsys):
 
 
 def test_evaluate_real_flags_faulty_drives(shared_data):
-    from imu_ground.evaluation import evaluate, load_real_drives, summary_table
+    from imu_ground.evaluation.runner import evaluate, load_real_drives, summary_table
     drives = load_real_drives(shared_data / "kitti_imu100", progress=False)
     flagged = {d.name: d.reason for d in drives if not d.valid}
     assert set(flagged) == {"2011_09_26_drive_0093", "2011_09_28_drive_0002", "2011_09_28_drive_0039"}

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 from imu_ground import so3
-from imu_ground.dead_reckoning import (GRAVITY, attitude_from_accel, dead_reckon, dead_reckon_imu)
-from imu_ground.imu_data import ImuData
-from imu_ground.preintegration import preintegrate
-from imu_ground.standstill import detect_standstill, estimate_gyro_bias
+from imu_ground.imu.dead_reckoning import (GRAVITY, attitude_from_accel, dead_reckon, dead_reckon_imu)
+from imu_ground.imu.data import ImuData
+from imu_ground.imu.preintegration import preintegrate
+from imu_ground.imu.standstill import detect_standstill, estimate_gyro_bias
 
 
 # ---------------------------------------------------------------------------
@@ -244,8 +244,8 @@ def test_kitti_dead_reckoned_tilt_from_rest(shared_data):
 
 def test_accelerometer_bias_does_not_hide_the_stops():
     """A MEMS accelerometer's bias moves |f| at rest away from 9.81; the stops must still be found."""
-    from imu_ground.simulate import simulate
-    from imu_ground.standstill import detect_standstill, estimate_gyro_bias
+    from imu_ground.evaluation.simulate import simulate
+    from imu_ground.imu.standstill import detect_standstill, estimate_gyro_bias
     sim = simulate(60.0, seed=2, imu="perfect")
     stopped = sim.truth["stationary"].to_numpy()
     assert stopped.any()

@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 
 from imu_ground import so3
-from imu_ground.extrinsics import Extrinsic, load_extrinsic
-from imu_ground.ground import GroundNormalFilter, pitch_roll_from_normal
-from imu_ground.invariant_ekf import InvariantEKF
+from imu_ground.filters.extrinsics import Extrinsic, load_extrinsic
+from imu_ground.filters.ground import GroundNormalFilter, pitch_roll_from_normal
+from imu_ground.filters.invariant_ekf import InvariantEKF
 
 
 def turn_with_wobble(turn: bool, n: int = 100, rate: float = 10.0):

@@ -6,7 +6,7 @@ from filterpy.kalman import KalmanFilter, rts_smoother as kf_rts
 from scipy.stats import chi2
 
 from imu_ground import so3
-from imu_ground.invariant_ekf import InvariantEKF
+from imu_ground.filters.invariant_ekf import InvariantEKF
 
 
 def test_defaults_are_the_papers():

@@ -1,4 +1,4 @@
-"""Tests of imu_ground.metrics against hand-computed values."""
+"""Tests of imu_ground.evaluation.metrics against hand-computed values."""
 from __future__ import annotations
 
 import math
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from imu_ground import so3
-from imu_ground.metrics import (evaluate_drive, frame_errors, normal_angle,
+from imu_ground.evaluation.metrics import (evaluate_drive, frame_errors, normal_angle,
                                 normal_from_pitch_roll, summarize, summary_table, wrap_angle)
 
 D = math.radians

@@ -1,4 +1,4 @@
-"""Tests of imu_ground.preintegration: closed forms, Forster's recursion, finite
+"""Tests of imu_ground.imu.preintegration: closed forms, Forster's recursion, finite
 differences, Monte Carlo, batch == streaming, boundary splitting, gaps, and the
 KITTI attitude check."""
 from __future__ import annotations
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from imu_ground import so3
-from imu_ground.imu_data import ImuData
-from imu_ground.preintegration import (FrameDeltas, PreintegratedImu, StreamingPreintegrator,
+from imu_ground.imu.data import ImuData
+from imu_ground.imu.preintegration import (FrameDeltas, PreintegratedImu, StreamingPreintegrator,
                                        _exp_and_left_jacobian, make_frame_times, preintegrate)
 
 SG, SA = 0.01, 0.1          # noise densities used in the comparisons

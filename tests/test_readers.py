@@ -23,7 +23,7 @@ from imu_ground.datasets import (
 )
 from imu_ground.datasets.kitti_imu100 import COLUMNS
 from imu_ground.datasets.kitti_oxts import OXTS_FIELDS
-from imu_ground.validation import (
+from imu_ground.datasets.validation import (
     STANDARD_GRAVITY,
     GapWarning,
     ImuValidationError,
@@ -76,7 +76,7 @@ class TestKittiOxtsReal:
 
 
 class TestKittiImu100Real:
-    @pytest.mark.filterwarnings("ignore::imu_ground.validation.GapWarning")
+    @pytest.mark.filterwarnings("ignore::imu_ground.datasets.validation.GapWarning")
     def test_drive_0023(self, shared_data):
         path = shared_data / "kitti_imu100/2011_09_26_drive_0023.csv.gz"
         with pytest.warns(TimestampWarning, match=r"5 sample\(s\) out of order.*index 4013.*dropped 6 of 4973"):
@@ -100,14 +100,14 @@ class TestKittiImu100Real:
         with pytest.raises(ImuValidationError, match="not strictly increasing"):
             read_kitti_imu100(shared_data / "kitti_imu100/2011_09_26_drive_0023.csv.gz", policy="strict")
 
-    @pytest.mark.filterwarnings("ignore::imu_ground.validation.TimestampWarning")
+    @pytest.mark.filterwarnings("ignore::imu_ground.datasets.validation.TimestampWarning")
     def test_long_gap_reported(self, shared_data):
         with pytest.warns(GapWarning, match=r"longest 1\.6 s at t=41\.841629 s"):
             imu = read_kitti_imu100(shared_data / "kitti_imu100/2011_09_26_drive_0029.csv.gz")
         rep = imu.meta["validation"]
         assert rep.gap_length.max() == pytest.approx(1.6, abs=1e-3)
 
-    @pytest.mark.filterwarnings("ignore::imu_ground.validation.ImuValidationWarning")
+    @pytest.mark.filterwarnings("ignore::imu_ground.datasets.validation.ImuValidationWarning")
     def test_all_drives(self, shared_data):
         folder = shared_data / "kitti_imu100"
         index = pd.read_csv(folder / "drives.csv")

@@ -1,4 +1,4 @@
-"""Tests of imu_ground.reference: synthetic drives with known answers, then the real drives."""
+"""Tests of imu_ground.evaluation.reference: synthetic drives with known answers, then the real drives."""
 from __future__ import annotations
 
 import math
@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from imu_ground.reference import (check_reference, drop_out_of_order, frame_times,
+from imu_ground.evaluation.reference import (check_reference, drop_out_of_order, frame_times,
                                   pitch_reference, smoothed_grade, travelled_distance)
 
 

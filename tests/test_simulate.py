@@ -11,8 +11,8 @@ import pytest
 from scipy.signal import coherence, lsim, welch
 
 from imu_ground import so3
-from imu_ground.imu_data import ImuData
-from imu_ground.simulate import (
+from imu_ground.imu.data import ImuData
+from imu_ground.evaluation.simulate import (
     GRAVITY, IMU_PRESETS, ISO8608_CLASSES, TRUTH_COLUMNS, ImuErrorModel, RoadParams, SimResult,
     SpeedParams, VehicleParams, imu_error_model, iso8608_psd, road_profile, simulate,
     simulate_suite, suspension_response,

@@ -11,12 +11,12 @@ import pytest
 from filterpy.common import Saver
 
 from imu_ground import so3
-from imu_ground.egomotion import EgoMotion, imu_to_egomotion
-from imu_ground.extrinsics import Extrinsic
-from imu_ground.ground import GroundEstimate, GroundNormalFilter, GroundTrack
-from imu_ground.metrics import evaluate_drive, normal_angle
-from imu_ground.simulate import RoadParams, SpeedParams, simulate, simulate_suite
-from imu_ground.suspension import (DEFAULT_GAINS, GravityVelocityFilter, SuspensionAwareFilter,
+from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
+from imu_ground.filters.extrinsics import Extrinsic
+from imu_ground.filters.ground import GroundEstimate, GroundNormalFilter, GroundTrack
+from imu_ground.evaluation.metrics import evaluate_drive, normal_angle
+from imu_ground.evaluation.simulate import RoadParams, SpeedParams, simulate, simulate_suite
+from imu_ground.filters.suspension import (DEFAULT_GAINS, GravityVelocityFilter, SuspensionAwareFilter,
                                    SuspensionTrack, estimate_suspension_aware)
 
 DEG = np.pi / 180.0
@@ -233,7 +233,7 @@ def test_one_call_function(mems_drive):
 def kitti(shared_data):
     """The 30 valid kitti_imu100 drives: check_reference's verdict, minus the README-listed 0002."""
     from imu_ground.datasets import read_kitti_imu100
-    from imu_ground.reference import check_reference, pitch_reference
+    from imu_ground.evaluation.reference import check_reference, pitch_reference
     folder = shared_data / "kitti_imu100"
     drives, skipped = {}, {}
     for name in pd.read_csv(folder / "drives.csv")["drive"]:

@@ -9,8 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from imu_ground.imu_data import ImuData
-from imu_ground.validation import (
+from imu_ground.imu.data import ImuData
+from imu_ground.datasets.validation import (
     STANDARD_GRAVITY,
     GapWarning,
     ImuValidationError,

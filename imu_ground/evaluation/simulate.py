@@ -126,9 +126,9 @@ from scipy.linalg import expm
 from scipy.signal import lfilter, lfilter_zi
 from scipy.spatial.transform import Rotation
 
-from . import so3
-from .imu_data import ImuData
-from .so3 import rotx, roty, rotz
+from imu_ground import so3
+from imu_ground.imu.data import ImuData
+from imu_ground.so3 import rotx, roty, rotz
 
 __all__ = [
     "GRAVITY", "ISO8608_N0", "ISO8608_CLASSES", "ImuErrorModel", "IMU_PRESETS",

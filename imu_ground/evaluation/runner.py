@@ -2,17 +2,17 @@
 
 A :class:`Drive` holds one drive's ego-motion (IMU preintegrated into 10 Hz
 frames), its static extrinsic and its truth at the frames. Every method in
-:data:`METHODS` turns a drive into a :class:`~imu_ground.ground.GroundTrack`;
+:data:`METHODS` turns a drive into a :class:`~imu_ground.filters.ground.GroundTrack`;
 :func:`evaluate` runs methods over drives and summarises the errors.
 
 Protocols
 ---------
 - Real drives (``kitti_imu100``): the truth is the body pitch relative to the
-  road from the OXTS GPS/INS (:mod:`imu_ground.reference`), pitch only, on
+  road from the OXTS GPS/INS (:mod:`imu_ground.evaluation.reference`), pitch only, on
   moving frames (speed > 3 m/s), with the means of estimate and reference
   removed per drive (the mean is the static mounting offset a calibration
   removes). Drives whose reference is faulty are reported, not averaged.
-- Synthetic drives (:mod:`imu_ground.simulate`): exact truth of the normal in
+- Synthetic drives (:mod:`imu_ground.evaluation.simulate`): exact truth of the normal in
   the sensor frame, pitch and roll; frames with speed > 3 m/s; nothing removed.
   Every method gets the true static extrinsic (as a calibration would give).
 """
@@ -26,18 +26,18 @@ from typing import Callable, Iterable, Optional, Sequence
 import numpy as np
 import pandas as pd
 
-from .baselines import ConstantNormal, EulerEKF
-from .egomotion import EgoMotion, imu_to_egomotion
-from .extrinsics import Extrinsic
-from .ground import GroundNormalFilter, GroundTrack
-from .imu_data import ImuData
-from .metrics import evaluate_drive
+from imu_ground.evaluation.baselines import ConstantNormal, EulerEKF
+from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
+from imu_ground.filters.extrinsics import Extrinsic
+from imu_ground.filters.ground import GroundNormalFilter, GroundTrack
+from imu_ground.imu.data import ImuData
+from imu_ground.evaluation.metrics import evaluate_drive
 
 __all__ = ["Drive", "METHODS", "TUNED", "LISTED_FAULTY", "load_real_drive", "load_real_drives",
            "synthetic_drives", "run_method", "evaluate", "summary_table", "format_table"]
 
 #: Drives the data provider's README names as faulty. The signal checks of
-#: :func:`imu_ground.reference.check_reference` catch 0093 and 0039 by
+#: :func:`imu_ground.evaluation.reference.check_reference` catch 0093 and 0039 by
 #: themselves; 0002 shows no fault in its signals (its INS attitude, velocity
 #: and position agree with the IMU; it brakes from 11.7 m/s to a stop) and is
 #: excluded only because it is listed, which the report says.
@@ -116,7 +116,7 @@ def _paper_tuned(d: Drive) -> GroundTrack:
 
 
 def _suspension(d: Drive, smooth: bool = False) -> GroundTrack:
-    from .suspension import estimate_suspension_aware
+    from imu_ground.filters.suspension import estimate_suspension_aware
     return estimate_suspension_aware(d.egomotion, extrinsic=d.extrinsic, smooth=smooth)
 
 
@@ -152,8 +152,8 @@ def load_real_drive(path: Path, rate: float = 10.0) -> Drive:
     rate : float
         Frame rate, Hz.
     """
-    from .datasets import read_kitti_imu100
-    from .reference import check_reference, pitch_reference
+    from imu_ground.datasets import read_kitti_imu100
+    from imu_ground.evaluation.reference import check_reference, pitch_reference
 
     path = Path(path)
     name = path.name.split(".")[0]
@@ -198,7 +198,7 @@ def load_real_drives(folder: Path, names: Optional[Sequence[str]] = None, progre
 
 
 def synthetic_drive(sim, rate: float = 10.0) -> Drive:
-    """A :class:`Drive` from a :class:`~imu_ground.simulate.SimResult` (exact truth)."""
+    """A :class:`Drive` from a :class:`~imu_ground.evaluation.simulate.SimResult` (exact truth)."""
     em = imu_to_egomotion(sim.imu, rate=rate)
     tr = sim.truth
     # truth frames are at multiples of 1/rate from t=0, as are the frame ends
@@ -217,9 +217,9 @@ def synthetic_drive(sim, rate: float = 10.0) -> Drive:
 
 def synthetic_drives(n: int = 10, seed: int = 0, grades: Sequence[str] = ("nav", "mems"),
                      progress: bool = True, **kw) -> list[Drive]:
-    """A synthetic suite: ``n`` drives per IMU grade (see :func:`imu_ground.simulate.simulate_suite`)."""
+    """A synthetic suite: ``n`` drives per IMU grade (see :func:`imu_ground.evaluation.simulate.simulate_suite`)."""
     from tqdm.auto import tqdm
-    from .simulate import simulate_suite
+    from imu_ground.evaluation.simulate import simulate_suite
     sims = simulate_suite(n, seed=seed, grades=tuple(grades), **kw)
     return [synthetic_drive(s) for s in tqdm(sims, desc="simulating", unit="drive", disable=not progress)]
 

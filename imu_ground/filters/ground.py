@@ -14,7 +14,7 @@ Pipeline, per frame k
 1. body increment ``dR_b = R_gs dR_s R_gs^T`` (``dR_s``: sensor_{k-1} <- sensor_k);
 2. cumulative body rotation ``R_k = R_{k-1} dR_b`` (world <- body), right-multiplied
    because the increments are expressed in the moving body frame;
-3. invariant EKF (:class:`~imu_ground.invariant_ekf.InvariantEKF`, left error)
+3. invariant EKF (:class:`~imu_ground.filters.invariant_ekf.InvariantEKF`, left error)
    on ``X_k``: predict ``X <- X T_k`` where ``T_k = Rz(psi_k)`` is the twist of
    ``dR_b`` about the body up axis (the road frame turns with the vehicle's
    heading; ``follow_heading=False`` gives the paper's pure random walk),
@@ -39,9 +39,9 @@ import numpy as np
 import pandas as pd
 from scipy.spatial.transform import Rotation
 
-from . import so3
-from .extrinsics import Extrinsic
-from .invariant_ekf import InvariantEKF, _renormalise
+from imu_ground import so3
+from imu_ground.filters.extrinsics import Extrinsic
+from imu_ground.filters.invariant_ekf import InvariantEKF, _renormalise
 
 __all__ = ["GroundNormalFilter", "GroundEstimate", "GroundTrack", "pitch_roll_from_normal"]
 
@@ -200,7 +200,7 @@ class GroundNormalFilter:
     Examples
     --------
     >>> import numpy as np
-    >>> from imu_ground.ground import GroundNormalFilter
+    >>> from imu_ground.filters.ground import GroundNormalFilter
     >>> f = GroundNormalFilter()
     >>> est = f.step(np.eye(3))
     >>> est.normal

@@ -2,8 +2,8 @@
 
 ``imu_to_egomotion`` runs: gyro bias from the log's standstills (if any),
 preintegration into frames (10 Hz by default), and per-frame standstill flags.
-The result, :class:`EgoMotion`, is what :class:`~imu_ground.ground.GroundNormalFilter`
-(``delta_R``) and :class:`~imu_ground.suspension.SuspensionAwareFilter`
+The result, :class:`EgoMotion`, is what :class:`~imu_ground.filters.ground.GroundNormalFilter`
+(``delta_R``) and :class:`~imu_ground.filters.suspension.SuspensionAwareFilter`
 (``delta_R``, ``delta_v``, ``delta_t``, ``stationary``) consume.
 
 Frames: everything is in the IMU's body frame (``imu.frame``); ``delta_R``
@@ -18,9 +18,9 @@ from typing import Optional, Sequence, Union
 
 import numpy as np
 
-from .imu_data import ImuData
-from .preintegration import preintegrate
-from .standstill import detect_standstill, estimate_gyro_bias
+from imu_ground.imu.data import ImuData
+from imu_ground.imu.preintegration import preintegrate
+from imu_ground.imu.standstill import detect_standstill, estimate_gyro_bias
 
 __all__ = ["EgoMotion", "imu_to_egomotion"]
 

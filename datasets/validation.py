@@ -1,7 +1,7 @@
 """Checks on IMU logs: time order, gaps, non-finite values and plausible units.
 
 Every reader in :mod:`imu_ground.datasets` calls :func:`validate` by default, and
-it can be used on its own on any :class:`~imu_ground.imu_data.ImuData`::
+it can be used on its own on any :class:`~imu_ground.imu.data.ImuData`::
 
     imu, report = validate(imu, policy="drop")
     print(report.summary())
@@ -40,7 +40,7 @@ from typing import Any, Literal, NamedTuple
 
 import numpy as np
 
-from imu_ground.imu_data import ImuData
+from imu_ground.imu.data import ImuData
 
 __all__ = [
     "STANDARD_GRAVITY",

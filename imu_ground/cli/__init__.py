@@ -36,7 +36,7 @@ def estimate_log(path, fmt: Optional[str] = None, method: str = "filter", extrin
     fmt : str, optional
         Format name; detected from the path when None.
     method : {"filter", "paper", "suspension", "suspension-offline"}
-        ``filter``: :class:`~imu_ground.ground.GroundNormalFilter` (heading-following
+        ``filter``: :class:`~imu_ground.filters.ground.GroundNormalFilter` (heading-following
         invariant EKF); ``paper``: the paper's random-walk filter with its
         published parameters; ``suspension`` / ``suspension-offline``: the
         suspension-aware filter, streaming or smoothed.
@@ -45,7 +45,7 @@ def estimate_log(path, fmt: Optional[str] = None, method: str = "filter", extrin
     rate : float
         Frame rate, Hz.
     policy : {"drop", "sort", "strict"}
-        What to do with out-of-order timestamps (see :func:`imu_ground.validation.validate`).
+        What to do with out-of-order timestamps (see :func:`imu_ground.datasets.validation.validate`).
     progress : bool
         Progress bars.
     Q, R : float, optional
@@ -54,15 +54,15 @@ def estimate_log(path, fmt: Optional[str] = None, method: str = "filter", extrin
     Returns
     -------
     track : GroundTrack
-        Frames as documented in :class:`~imu_ground.ground.GroundTrack` (normal in
+        Frames as documented in :class:`~imu_ground.filters.ground.GroundTrack` (normal in
         the sensor frame; pitch/roll of the body relative to the road).
     egomotion : EgoMotion
         The frames (times, validity) the track belongs to.
     """
-    from .datasets import read_imu
-    from .egomotion import imu_to_egomotion
-    from .extrinsics import Extrinsic, load_extrinsic
-    from .ground import GroundNormalFilter
+    from imu_ground.datasets import read_imu
+    from imu_ground.imu.egomotion import imu_to_egomotion
+    from imu_ground.filters.extrinsics import Extrinsic, load_extrinsic
+    from imu_ground.filters.ground import GroundNormalFilter
 
     if method not in ESTIMATE_METHODS:
         raise ValueError(f"unknown method {method!r}; choose from {', '.join(ESTIMATE_METHODS)}")
@@ -101,7 +101,7 @@ def estimate_log(path, fmt: Optional[str] = None, method: str = "filter", extrin
         bar.close()
         track = _concat(parts)
     else:
-        from .suspension import estimate_suspension_aware
+        from imu_ground.filters.suspension import estimate_suspension_aware
         track = estimate_suspension_aware(em, extrinsic=ext, smooth=(method == "suspension-offline"))
     steps.update()
     steps.close()
@@ -109,7 +109,7 @@ def estimate_log(path, fmt: Optional[str] = None, method: str = "filter", extrin
 
 
 def _concat(parts):
-    from .ground import GroundTrack
+    from imu_ground.filters.ground import GroundTrack
     if len(parts) == 1:
         return parts[0]
     fields = ("normal", "pitch", "roll", "residual", "extrinsic", "P", "x", "cumulative")
@@ -139,7 +139,7 @@ def _cmd_estimate(a) -> int:
     out = Path(a.output) if a.output else Path(Path(a.log).name.split(".")[0] + "_ground.csv")
     _write_estimate(track, em, out)
     if a.tum:
-        from .datasets.poses import write_tum_poses
+        from imu_ground.datasets.poses import write_tum_poses
         write_tum_poses(a.tum, em.t, track.extrinsic, track.translation)
     dt = time.perf_counter() - t0
     p = np.degrees(track.pitch)
@@ -153,7 +153,7 @@ def _cmd_estimate(a) -> int:
 
 
 def _cmd_evaluate(a) -> int:
-    from .evaluation import METHODS, evaluate, format_table, load_real_drives, summary_table, synthetic_drives
+    from imu_ground.evaluation.runner import METHODS, evaluate, format_table, load_real_drives, summary_table, synthetic_drives
     if a.real is None and not a.synthetic:
         raise SystemExit("imu-ground evaluate: give --real DIR and/or --synthetic N")
     methods = a.methods.split(",") if a.methods else list(METHODS)
@@ -187,28 +187,28 @@ def _cmd_evaluate(a) -> int:
         Path(a.markdown).write_text(format_table(table[cols], "markdown") + "\n")
         print(f"wrote {a.markdown}")
     if a.plots:
-        from .plots import evaluation_plots
+        from imu_ground.evaluation.plots import evaluation_plots
         for p in evaluation_plots(drives, res, tracks, Path(a.plots)):
             print(f"wrote {p}")
     return 0
 
 
 def _cmd_simulate(a) -> int:
-    from .simulate import simulate
+    from imu_ground.evaluation.simulate import simulate
     sim = simulate(a.duration, seed=a.seed, imu=a.imu)
     out = Path(a.output)
     truth = Path(a.truth) if a.truth else out.with_name(out.name.replace(".csv", "") + "_truth.csv")
     sim.to_csv(out, truth)
     print(f"simulated {a.duration:g} s ({a.imu} IMU, seed {a.seed}): wrote {out} and {truth}")
     if a.plot:
-        from .plots import plot_simulation
+        from imu_ground.evaluation.plots import plot_simulation
         print(f"wrote {plot_simulation(sim, Path(a.plot))}")
     return 0
 
 
 def _cmd_calibrate(a) -> int:
-    from .calibration import calibrate
-    from .datasets import read_imu
+    from imu_ground.filters.calibration import calibrate
+    from imu_ground.datasets import read_imu
     imus = [read_imu(p, format=a.format, policy=a.policy) for p in a.logs]
     with_gains = a.lever_arm is not None
     cal = calibrate(imus if len(imus) > 1 else imus[0], tilt=a.tilt, gains=with_gains,

@@ -32,7 +32,7 @@ from typing import Optional
 
 import numpy as np
 
-from .imu_data import ImuData
+from imu_ground.imu.data import ImuData
 
 __all__ = ["GRAVITY", "GyroBiasEstimate", "detect_standstill", "estimate_gyro_bias"]
 

@@ -95,8 +95,8 @@ from typing import Iterable, Literal, Sequence
 
 import numpy as np
 
-from . import so3
-from .imu_data import ImuData
+from imu_ground import so3
+from imu_ground.imu.data import ImuData
 
 __all__ = [
     "PreintegratedImu",

@@ -6,14 +6,14 @@ r"""Baselines to compare the ground normal filter against.
   angles ``(roll, pitch, yaw)`` of the slow road attitude ``X`` (world <- road,
   ``X = Rz(yaw) Ry(pitch) Rx(roll)``). It gets the same ego-motion, the same
   prediction (``X <- X T_k``, the heading twist of each increment, or a pure
-  random walk) and the same Q and R as :class:`~imu_ground.ground.GroundNormalFilter`
+  random walk) and the same Q and R as :class:`~imu_ground.filters.ground.GroundNormalFilter`
   and measures the Euler angles of the cumulative rotation (``H = I``, angle
   differences wrapped to (-pi, pi]). What it lacks is invariance: its
   covariance lives in Euler coordinates, whose Jacobians depend on the state
   and whose axes do not turn with the vehicle, so large turns and poor
   initial estimates are where it differs.
 
-Both return a :class:`~imu_ground.ground.GroundTrack`, frames as documented there.
+Both return a :class:`~imu_ground.filters.ground.GroundTrack`, frames as documented there.
 """
 from __future__ import annotations
 
@@ -24,9 +24,9 @@ import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 from scipy.spatial.transform import Rotation
 
-from . import so3
-from .extrinsics import Extrinsic
-from .ground import GroundTrack, _twist_angle, pitch_roll_from_normal
+from imu_ground import so3
+from imu_ground.filters.extrinsics import Extrinsic
+from imu_ground.filters.ground import GroundTrack, _twist_angle, pitch_roll_from_normal
 
 __all__ = ["ConstantNormal", "EulerEKF", "euler_zyx", "from_euler_zyx"]
 
@@ -116,7 +116,7 @@ class EulerEKF:
         Static sensor-to-ground extrinsic (ground <- sensor).
     follow_heading : bool
         Predict with the heading twist of each body increment (as
-        :class:`~imu_ground.ground.GroundNormalFilter` does by default).
+        :class:`~imu_ground.filters.ground.GroundNormalFilter` does by default).
     x0 : array_like (3,), optional
         Initial (roll, pitch, yaw) of the slow state, rad; default zeros.
 

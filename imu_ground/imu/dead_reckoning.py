@@ -2,7 +2,7 @@ r"""Strapdown dead reckoning in a gravity-aligned frame from preintegrated delta
 
 Navigation frame ``n``: a local level frame, z up, gravity ``g_n = [0, 0, -g]``;
 its heading is that of the initial attitude (yaw 0 when the attitude comes
-from the accelerometer). With per-frame deltas (:class:`~imu_ground.preintegration.FrameDeltas`)
+from the accelerometer). With per-frame deltas (:class:`~imu_ground.imu.preintegration.FrameDeltas`)
 the state at frame boundaries follows Forster et al. 2017 (Sec. VI-A):
 
 .. math::
@@ -23,10 +23,10 @@ from typing import Literal, Sequence
 
 import numpy as np
 
-from . import so3
-from .imu_data import ImuData
-from .preintegration import FrameDeltas, _mm, _project_if_needed, _scan_products, preintegrate
-from .standstill import GRAVITY, estimate_gyro_bias
+from imu_ground import so3
+from imu_ground.imu.data import ImuData
+from imu_ground.imu.preintegration import FrameDeltas, _mm, _project_if_needed, _scan_products, preintegrate
+from imu_ground.imu.standstill import GRAVITY, estimate_gyro_bias
 
 __all__ = ["GRAVITY", "NavSolution", "attitude_from_accel", "dead_reckon", "dead_reckon_imu"]
 
@@ -119,7 +119,7 @@ def dead_reckon(deltas: FrameDeltas, R0: np.ndarray, v0: Sequence[float] = (0.0,
     ----------
     deltas : FrameDeltas
         Consecutive frames (``t_end[k] == t_start[k+1]``), e.g. from
-        :func:`~imu_ground.preintegration.preintegrate`.
+        :func:`~imu_ground.imu.preintegration.preintegrate`.
     R0 : array_like, shape (3, 3)
         Attitude at ``deltas.t_start[0]``: body frame -> navigation frame (level, z up).
     v0 : array_like, shape (3,)
@@ -188,14 +188,14 @@ def dead_reckon_imu(imu: ImuData, *, rate: float | None = None, every: int | Non
     v0, p0 : array_like, shape (3,)
         Initial velocity (m/s) and position (m), navigation frame.
     bias_gyro : array_like (3,), "standstill" or None
-        Gyro bias, rad/s (``"standstill"``: :func:`~imu_ground.standstill.estimate_gyro_bias`,
+        Gyro bias, rad/s (``"standstill"``: :func:`~imu_ground.imu.standstill.estimate_gyro_bias`,
         zeros if there is no standstill; None: zeros).
     bias_accel : array_like, shape (3,)
         Accelerometer bias, m/s^2.
     gravity : float
         m/s^2.
     hold, max_gap, on_gap :
-        See :func:`~imu_ground.preintegration.preintegrate`.
+        See :func:`~imu_ground.imu.preintegration.preintegrate`.
     standstill : dict, optional
         Keyword arguments for the standstill detection.
 

@@ -17,7 +17,7 @@ How the reference is built (every choice, and why)
 --------------------------------------------------
 1. **Time order.** The OXTS extract timestamps step backwards by about 0.05 s
    at times. Only samples later than every earlier sample are kept (the same
-   rule as ``imu_ground.validation``'s ``policy="drop"``); data already cleaned
+   rule as ``imu_ground.datasets.validation``'s ``policy="drop"``); data already cleaned
    that way passes unchanged. Gaps (over 1 s on two drives) are kept: nothing
    is interpolated across them (see 5).
 2. **Travelled distance** ``s`` is the trapezoidal integral of the horizontal
@@ -59,7 +59,7 @@ How the reference is built (every choice, and why)
    mounting offset between the IMU/INS and the car body (plus the car's static
    stance), which a calibration removes and which the OXTS attitude cannot
    tell apart from the road; an estimator's output is compared after removing
-   its own mean (see :mod:`imu_ground.metrics`).
+   its own mean (see :mod:`imu_ground.evaluation.metrics`).
 
 Known limitation
 ----------------

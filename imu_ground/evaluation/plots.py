@@ -15,7 +15,7 @@ from typing import Iterable, Optional, Sequence
 import numpy as np
 import pandas as pd
 
-from .metrics import normal_angle
+from imu_ground.evaluation.metrics import normal_angle
 
 __all__ = ["plot_pitch_over_time", "plot_error_distribution", "plot_simulation", "evaluation_plots"]
 
@@ -46,7 +46,7 @@ def plot_pitch_over_time(drive, tracks: dict, path: Path, methods: Optional[Sequ
 
     Parameters
     ----------
-    drive : imu_ground.evaluation.Drive
+    drive : imu_ground.evaluation.runner.Drive
     tracks : dict
         ``{method: GroundTrack}`` for this drive.
     path : Path
@@ -111,7 +111,7 @@ def plot_error_distribution(errors: dict, path: Path, title: str = "") -> Path:
 
 
 def plot_simulation(sim, path: Path) -> Path:
-    """The synthetic road and the body motion of a :class:`~imu_ground.simulate.SimResult`.
+    """The synthetic road and the body motion of a :class:`~imu_ground.evaluation.simulate.SimResult`.
 
     Panels: top view of the path coloured by speed; road grade and bank along
     the path; roughness profile (left and right tracks); body pitch and roll
@@ -171,7 +171,7 @@ def evaluation_plots(drives: Iterable, results: pd.DataFrame, tracks: dict, fold
     Parameters
     ----------
     drives : the drives evaluated.
-    results : DataFrame from :func:`imu_ground.evaluation.evaluate`.
+    results : DataFrame from :func:`imu_ground.evaluation.runner.evaluate`.
     tracks : ``{(drive, method): GroundTrack}`` from the same call (``keep_tracks=True``).
     folder : output folder (created).
     max_drives : pitch-over-time plots for at most this many drives per kind.

@@ -1,7 +1,7 @@
 r"""Per-platform calibration from one drive: static sensor-to-ground extrinsic and suspension gains.
 
 Calibrate once per vehicle and IMU mounting, save, then run the
-:class:`~imu_ground.suspension.SuspensionAwareFilter` with the fixed result::
+:class:`~imu_ground.filters.suspension.SuspensionAwareFilter` with the fixed result::
 
     cal = calibrate(imu)                  # ImuData or EgoMotion of a calibration drive
     cal.save("my_car.txt")                # the calib/ text format, plus a suspension_gains line
@@ -10,7 +10,7 @@ Calibrate once per vehicle and IMU mounting, save, then run the
 What an IMU alone can tell (and what it cannot)
 -----------------------------------------------
 The ground frame is FLU with z along the road normal when the car stands on
-level ground (:mod:`imu_ground.extrinsics`); ``R_gs`` maps sensor vectors into it.
+level ground (:mod:`imu_ground.filters.extrinsics`); ``R_gs`` maps sensor vectors into it.
 
 - **Tilt (the ground's z axis in the sensor frame).** At a standstill the
   accelerometer reads the reaction to gravity, i.e. "up". Driving straight at
@@ -43,9 +43,9 @@ level ground (:mod:`imu_ground.extrinsics`); ``R_gs`` maps sensor vectors into i
   with the gyro's in the extract, or lateral accelerations correlated with
   speeding up and braking in city driving), so check the yaw against another
   source where one exists.
-- **Suspension gains** (:func:`~imu_ground.suspension.bandpass_gain_regression`):
+- **Suspension gains** (:func:`~imu_ground.filters.suspension.bandpass_gain_regression`):
   the body tilt from the gyro regressed on the gravity-compensated
-  acceleration (from :class:`~imu_ground.suspension.GravityVelocityFilter`,
+  acceleration (from :class:`~imu_ground.filters.suspension.GravityVelocityFilter`,
   with the extrinsic just found), both band-passed to 0.3 - 1.5 Hz. Not lower:
   there the gyro tilt is mostly the road, and the road correlates with the
   acceleration (cars speed up downhill; roads bank into curves, which makes
@@ -65,7 +65,7 @@ level ground (:mod:`imu_ground.extrinsics`); ``R_gs`` maps sensor vectors into i
 
 The calibration file
 --------------------
-:meth:`Calibration.save` writes :func:`~imu_ground.extrinsics.save_extrinsic`'s
+:meth:`Calibration.save` writes :func:`~imu_ground.filters.extrinsics.save_extrinsic`'s
 format with extra ``key: value`` lines, which the extrinsic loader keeps as
 metadata::
 
@@ -74,7 +74,7 @@ metadata::
     R: ...
     t: ...
 
-:func:`load_calibration` (or :func:`~imu_ground.extrinsics.load_extrinsic` and
+:func:`load_calibration` (or :func:`~imu_ground.filters.extrinsics.load_extrinsic` and
 :meth:`Calibration.from_extrinsic`) reads it back.
 """
 from __future__ import annotations
@@ -86,11 +86,11 @@ from typing import Any, Optional, Sequence, Union
 
 import numpy as np
 
-from . import so3
-from .egomotion import EgoMotion, imu_to_egomotion
-from .extrinsics import Extrinsic, load_extrinsic, save_extrinsic
-from .imu_data import ImuData
-from .suspension import DEFAULT_GAINS, GAIN_BAND, GravityVelocityFilter, bandpass_gain_regression
+from imu_ground import so3
+from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
+from imu_ground.filters.extrinsics import Extrinsic, load_extrinsic, save_extrinsic
+from imu_ground.imu.data import ImuData
+from imu_ground.filters.suspension import DEFAULT_GAINS, GAIN_BAND, GravityVelocityFilter, bandpass_gain_regression
 
 __all__ = ["Calibration", "calibrate", "load_calibration"]
 
@@ -125,7 +125,7 @@ class Calibration:
         return self.extrinsic.rotation
 
     def filter_kwargs(self) -> dict:
-        """Keyword arguments of :class:`~imu_ground.suspension.SuspensionAwareFilter` for this platform."""
+        """Keyword arguments of :class:`~imu_ground.filters.suspension.SuspensionAwareFilter` for this platform."""
         kw: dict[str, Any] = {"extrinsic": self.extrinsic}
         if self.gains is not None and np.all(np.isfinite(self.gains)):
             kw["gains"] = tuple(float(g) for g in self.gains)
@@ -145,7 +145,7 @@ class Calibration:
         if self.gains is not None:
             meta["suspension_gains"] = f"{self.gains[0]:.10g} {self.gains[1]:.10g}"
             meta["suspension_gains_unit"] = "rad per m/s^2"
-        head = ("calibrated by imu_ground.calibration.calibrate: R ground <- sensor, t sensor origin in the "
+        head = ("calibrated by imu_ground.filters.calibration.calibrate: R ground <- sensor, t sensor origin in the "
                 "ground frame (m); suspension_gains: k_pitch k_roll")
         text = head + ("\n" + comment if comment else "")
         save_extrinsic(Extrinsic(self.extrinsic.rotation, self.extrinsic.translation, meta), path, comment=text)
@@ -193,7 +193,7 @@ def load_calibration(name_or_path: Union[str, Path]) -> Calibration:
     Parameters
     ----------
     name_or_path : str or Path
-        As for :func:`~imu_ground.extrinsics.load_extrinsic`.
+        As for :func:`~imu_ground.filters.extrinsics.load_extrinsic`.
 
     Returns
     -------
@@ -373,5 +373,5 @@ def calibrate(data: Union[ImuData, EgoMotion, Sequence[Union[ImuData, EgoMotion]
                 stats[f"{name}_gain_rejected"] = (f"{np.degrees(k[i]):+.3f} deg per m/s^2 has the wrong sign "
                                                   f"(road geometry, not suspension); default kept")
                 k[i] = DEFAULT_GAINS[i]
-    meta = {"calibrated_by": "imu_ground.calibration.calibrate", "tilt_source": src, "yaw_source": yaw_src}
+    meta = {"calibrated_by": "imu_ground.filters.calibration.calibrate", "tilt_source": src, "yaw_source": yaw_src}
     return Calibration(Extrinsic(R, translation, meta), k, stats)

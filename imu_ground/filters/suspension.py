@@ -1,6 +1,6 @@
 r"""Suspension-aware ground normal: the road's slow attitude plus the body's load-transfer tilt.
 
-The paper's filter (:class:`~imu_ground.ground.GroundNormalFilter`) splits the
+The paper's filter (:class:`~imu_ground.filters.ground.GroundNormalFilter`) splits the
 gyro-integrated attitude into slow road geometry and fast body motion by
 frequency alone, so body tilt that lasts (the nose dive through a whole
 braking, the roll through a long bend) leaks into the "road". The body's pitch
@@ -9,7 +9,7 @@ accelerometer measures. This module adds that to the invariant filter.
 
 Frames and signs
 ----------------
-As in :mod:`imu_ground.ground`: sensor frame ``s`` (the IMU), body/ground frame
+As in :mod:`imu_ground.filters.ground`: sensor frame ``s`` (the IMU), body/ground frame
 ``g`` (FLU; ``R_gs``: ground <- sensor, the static extrinsic), world frame ``w``
 (the body frame at the start, ``R0``), road frame ``r`` (the slow state ``X``,
 world <- road). Pitch positive nose down, roll positive left side up; residual
@@ -41,7 +41,7 @@ Pipeline, per frame k (10 Hz, IMU only)
    ``e_k ~ N(0, diag(sigma_e^2, sigma_e^2, r_yaw sigma_e^2))``, i.e. the
    rotation measurement ``z_k = R_k Exp(-b_k)`` of ``X_k``.
 4. **Output** ``E_k = X_k^T R_k``: the modelled tilt ``b_k`` plus the unmodelled
-   fast body motion; pitch, roll and the normal as in :mod:`imu_ground.ground`.
+   fast body motion; pitch, roll and the normal as in :mod:`imu_ground.filters.ground`.
 
 The configuration (``SuspensionAwareFilter()``)
 -----------------------------------------------
@@ -57,7 +57,7 @@ moving frames, per-drive means removed, averaged over drives):
   0.132 deg on the held-out halves, the same as on all 30 (with the load of
   specific force; see ``load`` below for the default).
 - ``k_roll = +0.50`` deg per m/s^2: not observable in the pitch-only reference;
-  the IMU band-pass self-calibration (:func:`imu_ground.calibration.calibrate`)
+  the IMU band-pass self-calibration (:func:`imu_ground.filters.calibration.calibrate`)
   gives +0.45 ... +0.61 depending on the lever-arm assumption (pooled over the
   30 drives, IMU only: -0.32 / +0.57, which scores 0.138 deg: a calibration
   run of a new platform gets close to the tuned configuration).
@@ -105,7 +105,7 @@ on the real drives, where the pure smoother is *worse* than the forward filter
 a random-walk road and white body motion smoothed both ways do not capture,
 and the reference itself comes from a causal INS solution. With an exact
 truth the pure smoother is clearly the best (synthetic suite of
-:func:`~imu_ground.simulate.simulate_suite`, 10 drives a grade, normal angle
+:func:`~imu_ground.evaluation.simulate.simulate_suite`, 10 drives a grade, normal angle
 error: nav 0.129 deg against 0.167 for the blend and 0.188 streaming, MEMS
 0.185 / 0.232 / 0.275), so label datasets with ``smoother_weight=1`` when the
 labels must be free of lag.
@@ -113,7 +113,7 @@ labels must be free of lag.
 Synthetic drives
 ----------------
 Same suite, default configuration (the KITTI gains, not the simulated
-vehicles'), against :meth:`GroundNormalFilter.paper() <imu_ground.ground.GroundNormalFilter.paper>`:
+vehicles'), against :meth:`GroundNormalFilter.paper() <imu_ground.filters.ground.GroundNormalFilter.paper>`:
 nav 0.188 vs 0.450 deg (58 % lower), MEMS 0.275 vs 1.005 deg (73 % lower),
 every drive at most 0.68 times the paper's error (20 more drives, seed 1:
 nav 65 %, MEMS 71 % lower). On MEMS drives whose stops
@@ -132,14 +132,14 @@ import numpy as np
 from scipy.signal import butter, lfilter, lfilter_zi
 from scipy.spatial.transform import Rotation
 
-from . import so3
-from .egomotion import EgoMotion, imu_to_egomotion
-from .extrinsics import Extrinsic
-from .ground import (GroundEstimate, GroundTrack, _increment_matrix, _residual_recursion, _rotz_one,
+from imu_ground import so3
+from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
+from imu_ground.filters.extrinsics import Extrinsic
+from imu_ground.filters.ground import (GroundEstimate, GroundTrack, _increment_matrix, _residual_recursion, _rotz_one,
                      _twist_angle, pitch_roll_from_normal)
-from .imu_data import ImuData
-from .invariant_ekf import InvariantEKF, _renormalise
-from .simulate import _foh_filter
+from imu_ground.imu.data import ImuData
+from imu_ground.filters.invariant_ekf import InvariantEKF, _renormalise
+from imu_ground.evaluation.simulate import _foh_filter
 
 __all__ = [
     "DEFAULT_GAINS", "GAIN_BAND", "GravityEstimate", "GravityTrack", "GravityVelocityFilter",
@@ -627,7 +627,7 @@ class _Lfilter:
 # =============================================================================== the filter
 @dataclass
 class SuspensionTrack(GroundTrack):
-    """A :class:`~imu_ground.ground.GroundTrack` plus the suspension model's inputs (N frames).
+    """A :class:`~imu_ground.filters.ground.GroundTrack` plus the suspension model's inputs (N frames).
 
     Attributes
     ----------
@@ -659,7 +659,7 @@ class SuspensionAwareFilter:
     Real-data scores (30 valid ``kitti_imu100`` drives, pitch relative to the
     road, mean absolute error over moving frames, per-drive means removed,
     averaged over drives; IMU only, through
-    :func:`~imu_ground.egomotion.imu_to_egomotion`; re-measured by
+    :func:`~imu_ground.imu.egomotion.imu_to_egomotion`; re-measured by
     ``tests/test_suspension.py``): constant normal 0.242 deg, the paper's
     filter 0.221, this filter 0.134 streaming, 0.136 with online gains, 0.131
     offline (``smooth=True``), 0.146 with the pure RTS smoother. The drive
@@ -735,7 +735,7 @@ class SuspensionAwareFilter:
     Examples
     --------
     >>> import numpy as np
-    >>> from imu_ground.suspension import SuspensionAwareFilter
+    >>> from imu_ground.filters.suspension import SuspensionAwareFilter
     >>> f = SuspensionAwareFilter()
     >>> est = f.step(np.eye(3), np.array([0.0, 0.0, 0.981]), 0.1, stationary=True)
     >>> est.normal.round(6)
@@ -786,7 +786,7 @@ class SuspensionAwareFilter:
 
     @classmethod
     def from_calibration(cls, calibration, **kwargs) -> "SuspensionAwareFilter":
-        """A filter with the extrinsic and fixed gains of a :class:`~imu_ground.calibration.Calibration`
+        """A filter with the extrinsic and fixed gains of a :class:`~imu_ground.filters.calibration.Calibration`
         (keyword arguments override)."""
         kw = calibration.filter_kwargs()
         kw.update(kwargs)
@@ -995,17 +995,17 @@ def estimate_suspension_aware(egomotion: Union[EgoMotion, ImuData], extrinsic=No
     Parameters
     ----------
     egomotion : EgoMotion or ImuData
-        Per-frame ego-motion (:func:`~imu_ground.egomotion.imu_to_egomotion`);
+        Per-frame ego-motion (:func:`~imu_ground.imu.egomotion.imu_to_egomotion`);
         an ImuData is preintegrated at 10 Hz.
     extrinsic : Extrinsic, ndarray (3, 3), str or Path, optional
         Static ground <- sensor extrinsic, or a calibration file (name or path,
-        as for :func:`~imu_ground.extrinsics.load_extrinsic`). An Extrinsic
+        as for :func:`~imu_ground.filters.extrinsics.load_extrinsic`). An Extrinsic
         whose metadata has ``suspension_gains`` (a file written by
-        :meth:`imu_ground.calibration.Calibration.save`) also sets the gains.
+        :meth:`imu_ground.filters.calibration.Calibration.save`) also sets the gains.
     smooth : bool
         Offline mode (forward filter and RTS smoother).
     calibration : Calibration, optional
-        Extrinsic and gains from :func:`imu_ground.calibration.calibrate`.
+        Extrinsic and gains from :func:`imu_ground.filters.calibration.calibrate`.
     **params
         Any :class:`SuspensionAwareFilter` parameter (these win).
 
@@ -1014,7 +1014,7 @@ def estimate_suspension_aware(egomotion: Union[EgoMotion, ImuData], extrinsic=No
     SuspensionTrack
         Normal in the sensor frame, pitch and roll relative to the road (rad), ...
     """
-    from .calibration import Calibration, load_calibration
+    from imu_ground.filters.calibration import Calibration, load_calibration
     if extrinsic is not None and not isinstance(extrinsic, (Extrinsic, np.ndarray, list, tuple)):
         calibration = load_calibration(extrinsic)
         extrinsic = None

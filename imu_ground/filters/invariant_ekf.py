@@ -49,7 +49,7 @@ from typing import Optional, Union
 
 import numpy as np
 
-from . import so3
+from imu_ground import so3
 
 __all__ = ["InvariantEKF"]
 
@@ -134,7 +134,7 @@ class InvariantEKF:
     Examples
     --------
     >>> import numpy as np
-    >>> from imu_ground.invariant_ekf import InvariantEKF
+    >>> from imu_ground.filters.invariant_ekf import InvariantEKF
     >>> f = InvariantEKF()
     >>> f.predict()
     >>> f.update(np.array([0.0, 0.0, 1.0]))   # the body up axis is seen straight up

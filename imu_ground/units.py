@@ -1,0 +1,27 @@
+"""Units and physical constants: the one owner of each.
+
+Every module that needs one of these numbers imports it from here. Angles are
+radians and times seconds everywhere in the library; degrees appear only at the
+edges (CLI output columns ``*_deg``, documentation).
+"""
+from __future__ import annotations
+
+import math
+
+__all__ = ["GRAVITY", "DEG", "DEFAULT_FRAME_RATE", "RENORM_EVERY"]
+
+#: Standard gravity, m/s^2 (ISO 80000-3; the magnitude of "1 g").
+GRAVITY: float = 9.80665
+
+#: One degree in radians: ``x_deg * DEG`` is radians, ``x_rad / DEG`` degrees.
+DEG: float = math.pi / 180.0
+
+#: Default ego-motion frame rate, Hz (the paper's 10 Hz camera rate). Only the
+#: front-end (:func:`imu_ground.imu.egomotion.imu_to_egomotion`) uses it; every
+#: estimator reads the rate from the ego-motion it is given.
+DEFAULT_FRAME_RATE: float = 10.0
+
+#: Frames between re-orthonormalisations of a cumulative rotation product:
+#: the rounding error of 64 products of orthonormal 3x3 matrices stays near
+#: 1e-14, far below any effect on the estimates, and hours of data stay on SO(3).
+RENORM_EVERY: int = 64
