@@ -12,6 +12,7 @@ _EXPORTS = {
     "StreamingPreintegrator": "imu_ground.imu.preintegration",
     "preintegrate": "imu_ground.imu.preintegration",
     "make_frame_times": "imu_ground.imu.preintegration",
+    "EgoFrame": "imu_ground.imu.egomotion",
     "EgoMotion": "imu_ground.imu.egomotion",
     "imu_to_egomotion": "imu_ground.imu.egomotion",
     "NavSolution": "imu_ground.imu.dead_reckoning",

@@ -14,15 +14,44 @@ increment in the body frame at the frame's start (m/s).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Optional, Sequence, Union
+from typing import Iterator, NamedTuple, Optional, Sequence, Union
 
 import numpy as np
 
 from imu_ground.imu.data import ImuData
+from imu_ground.units import DEFAULT_FRAME_RATE
 from imu_ground.imu.preintegration import preintegrate
 from imu_ground.imu.standstill import detect_standstill, estimate_gyro_bias
 
-__all__ = ["EgoMotion", "imu_to_egomotion"]
+__all__ = ["EgoFrame", "EgoMotion", "imu_to_egomotion"]
+
+
+class EgoFrame(NamedTuple):
+    """One frame of ego-motion: what a streaming estimator's ``step`` takes.
+
+    Attributes
+    ----------
+    delta_R : ndarray (3, 3)
+        ``R_{body_{k-1} <- body_k}``: the body frame at the frame's end expressed
+        in the body frame at its start (``R_k = R_{k-1} @ delta_R``).
+    delta_v : ndarray (3,)
+        Gravity-free velocity increment, m/s, body frame at the frame's start
+        (zeros when the source has no accelerometer, e.g. visual odometry).
+    delta_t : float
+        Frame duration, s (> 0).
+    stationary : bool
+        The frame ends inside a standstill.
+    valid : bool
+        False when the frame spans a gap in the source (integrated through).
+    t : float
+        Frame (end) time, s; NaN when unknown.
+    """
+    delta_R: np.ndarray
+    delta_v: np.ndarray
+    delta_t: float
+    stationary: bool = False
+    valid: bool = True
+    t: float = float("nan")
 
 
 @dataclass
@@ -49,6 +78,11 @@ class EgoMotion:
         Body frame name of the IMU.
     meta : dict
         Where the numbers came from (standstill intervals, gap count, source).
+    rate : float
+        Nominal frame rate, Hz: the one owner of the frame rate; estimators
+        derive their discrete-time design (filters, noise per frame) from it.
+    has_accel : bool
+        False when ``delta_v`` is not measured (ego-motion from poses).
     """
     t: np.ndarray
     delta_R: np.ndarray
@@ -59,9 +93,58 @@ class EgoMotion:
     bias_gyro: np.ndarray = field(default_factory=lambda: np.zeros(3))
     frame: str = "FLU"
     meta: dict = field(default_factory=dict)
+    rate: float = DEFAULT_FRAME_RATE
+    has_accel: bool = True
 
     def __len__(self) -> int:
         return int(self.t.shape[0])
+
+    def frame_at(self, k: int) -> EgoFrame:
+        """Frame ``k`` as an :class:`EgoFrame` (views, no copies)."""
+        return EgoFrame(self.delta_R[k], self.delta_v[k], float(self.delta_t[k]), bool(self.stationary[k]),
+                        bool(self.valid[k]), float(self.t[k]))
+
+    def frames(self) -> Iterator[EgoFrame]:
+        """The frames one at a time, for streaming estimators."""
+        for k in range(len(self)):
+            yield self.frame_at(k)
+
+    @classmethod
+    def from_rotations(cls, delta_R: np.ndarray, t: Optional[np.ndarray] = None,
+                       rate: Optional[float] = None, frame: str = "FLU", meta: Optional[dict] = None) -> "EgoMotion":
+        """Ego-motion from rotation increments alone (visual odometry, pose files).
+
+        Parameters
+        ----------
+        delta_R : ndarray (F, 3, 3)
+            ``R_{body_{k-1} <- body_k}`` increments.
+        t : ndarray (F,), optional
+            Frame end times, s. Default ``(k + 1) / rate``.
+        rate : float, optional
+            Frame rate, Hz. Default: from the median step of ``t``, else
+            :data:`~imu_ground.units.DEFAULT_FRAME_RATE`.
+        frame : str
+            Body frame name.
+        meta : dict, optional
+            Provenance.
+
+        Returns
+        -------
+        EgoMotion
+            ``delta_v`` zeros and ``has_accel = False``; no frame stationary.
+        """
+        d = np.asarray(delta_R, dtype=float).reshape(-1, 3, 3)
+        n = len(d)
+        if t is None:
+            rate = DEFAULT_FRAME_RATE if rate is None else float(rate)
+            t = np.arange(1, n + 1, dtype=float) / rate
+        else:
+            t = np.asarray(t, dtype=float).reshape(n)
+            if rate is None:
+                rate = 1.0 / float(np.median(np.diff(t))) if n > 1 else DEFAULT_FRAME_RATE
+        dt = np.diff(t, prepend=t[0] - 1.0 / rate) if n else np.zeros(0)
+        return cls(t, d, np.zeros((n, 3)), dt, np.zeros(n, dtype=bool), np.ones(n, dtype=bool),
+                   np.zeros(3), frame, dict(meta or {}), float(rate), False)
 
     @property
     def specific_force(self) -> np.ndarray:
@@ -74,7 +157,7 @@ class EgoMotion:
         return dv_end / self.delta_t[:, None]
 
 
-def imu_to_egomotion(imu: ImuData, rate: float = 10.0, *, frame_times: Optional[np.ndarray] = None,
+def imu_to_egomotion(imu: ImuData, rate: float = DEFAULT_FRAME_RATE, *, frame_times: Optional[np.ndarray] = None,
                      bias_gyro: Union[str, Sequence[float], None] = "auto", max_gap: Optional[float] = None,
                      standstill_window: float = 1.0) -> EgoMotion:
     """Preintegrate an IMU log into frames.
@@ -129,5 +212,8 @@ def imu_to_egomotion(imu: ImuData, rate: float = 10.0, *, frame_times: Optional[
         stationary[ok] = te[ok] <= intervals[i[ok], 1]
     meta["standstill_intervals"] = intervals.tolist()
     meta["invalid_frames"] = int(np.sum(~fd.valid))
+    if frame_times is not None:
+        ft = np.asarray(frame_times, dtype=float)
+        rate = 1.0 / float(np.median(np.diff(ft))) if len(ft) > 1 else rate
     return EgoMotion(te.copy(), fd.delta_R, fd.delta_v, fd.delta_t, stationary, fd.valid.copy(),
-                     bg, imu.frame, meta)
+                     bg, imu.frame, meta, float(rate), True)
