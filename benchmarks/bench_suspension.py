@@ -14,7 +14,8 @@ import numpy as np
 
 from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
 from imu_ground.evaluation.simulate import simulate
-from imu_ground.filters.suspension import GravityVelocityFilter, SuspensionAwareFilter
+from imu_ground.filters.gravity_velocity import GravityVelocityFilter
+from imu_ground.filters.suspension import SuspensionAwareFilter
 
 
 def _frames(n: int) -> EgoMotion:

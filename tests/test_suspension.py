@@ -16,8 +16,8 @@ from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.filters.ground import GroundEstimate, GroundNormalFilter, GroundTrack
 from imu_ground.evaluation.metrics import evaluate_drive, normal_angle
 from imu_ground.evaluation.simulate import RoadParams, SpeedParams, simulate, simulate_suite
-from imu_ground.filters.suspension import (DEFAULT_GAINS, GravityVelocityFilter, SuspensionAwareFilter,
-                                   SuspensionTrack, estimate_suspension_aware)
+from imu_ground.filters.gravity_velocity import GravityVelocityFilter
+from imu_ground.filters.suspension import DEFAULT_GAINS, SuspensionAwareFilter, SuspensionTrack, estimate_suspension_aware
 
 DEG = np.pi / 180.0
 

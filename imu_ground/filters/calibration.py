@@ -45,7 +45,7 @@ level ground (:mod:`imu_ground.filters.extrinsics`); ``R_gs`` maps sensor vector
   source where one exists.
 - **Suspension gains** (:func:`~imu_ground.filters.suspension.bandpass_gain_regression`):
   the body tilt from the gyro regressed on the gravity-compensated
-  acceleration (from :class:`~imu_ground.filters.suspension.GravityVelocityFilter`,
+  acceleration (from :class:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter`,
   with the extrinsic just found), both band-passed to 0.3 - 1.5 Hz. Not lower:
   there the gyro tilt is mostly the road, and the road correlates with the
   acceleration (cars speed up downhill; roads bank into curves, which makes
@@ -90,7 +90,8 @@ from imu_ground import so3
 from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
 from imu_ground.filters.extrinsics import Extrinsic, load_extrinsic, save_extrinsic
 from imu_ground.imu.data import ImuData
-from imu_ground.filters.suspension import DEFAULT_GAINS, GAIN_BAND, GravityVelocityFilter, bandpass_gain_regression
+from imu_ground.filters.gravity_velocity import GravityVelocityFilter
+from imu_ground.filters.suspension import DEFAULT_GAINS, GAIN_BAND, bandpass_gain_regression
 
 __all__ = ["Calibration", "calibrate", "load_calibration"]
 
