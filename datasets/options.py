@@ -38,6 +38,8 @@ READER_OPTIONS: dict[str, ReaderOption] = {o.name: o for o in (
                  ("rad/s", "deg/s"), None),
     ReaderOption("accel_unit", "--accel-unit", "unit of the accelerometer columns (detected when omitted)",
                  ("m/s^2", "g"), None),
+    ReaderOption("topic", "--topic", "ROS bag / MCAP: the topic to read when the log has several of the kind "
+                 "(IMU, pose or speed)"),
     ReaderOption("allow_missing", "--allow-missing", "KITTI OXTS: skip missing packet files instead of failing",
                  None, False),
 )}
