@@ -1,0 +1,167 @@
+"""Latency of ``InvariantEKF.predict`` + ``update`` against GTSAM's ``InvariantEKFRot3`` (issue 12).
+
+Both filters run the same left-invariant model on the same data in the same
+process: predict with a body increment ``U`` and process noise ``Q``, then
+correct with a measurement. Two measurements:
+
+- ``rotation``: a full rotation ``Z = X Exp(v)``. GTSAM's update takes a vector
+  innovation, so its loop computes ``Log(X^T Z)`` with ``gtsam.Rot3.Logmap``
+  (``updateWithVector(0, I, Log(X^T Z), R)``); the "inputs given" row leaves that
+  out (a lower bound for GTSAM: the innovation handed over precomputed).
+- ``direction``: the world-frame up axis ``z = X e_z + v``; GTSAM gets
+  ``prediction = e_z``, ``H = -[e_z]x``, ``z_body = X^T z`` and ``X^T R X``.
+
+Each configuration runs ``--steps`` predict/update pairs per repeat; the
+median is over ``--repeat`` (>= 5) repeats of the per-step mean, the p99 over
+every individually timed step. The run also checks that the two filters give
+the same states and covariances. Run: ``python benchmarks/bench_ekf.py``.
+:func:`rows` returns the table for ``benchmarks/make_results.py``.
+"""
+from __future__ import annotations
+
+import argparse
+import time
+from typing import Callable, Dict, List
+
+import numpy as np
+
+from imu_ground import so3
+from imu_ground.filters.invariant_ekf import InvariantEKF
+
+__all__ = ["rows", "main"]
+
+_Q = np.diag([1e-2, 2e-2, 5e-3])
+_R = np.diag([1.0, 0.5, 2.0])
+
+
+def _data(n: int, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    us = so3.exp(rng.normal(scale=0.05, size=(n, 3)))
+    zs_rot = so3.exp(rng.normal(scale=0.3, size=(n, 3)))
+    zs_dir = rng.normal(scale=0.1, size=(n, 3)) + [0.0, 0.0, 1.0]
+    zs_dir /= np.linalg.norm(zs_dir, axis=1, keepdims=True)
+    return us, zs_rot, zs_dir
+
+
+def _time(step: Callable[[int], None], n: int, repeat: int):
+    """Per-step mean of each repeat (s) and every single step's duration (s)."""
+    means, singles = [], []
+    clock = time.perf_counter
+    for _ in range(repeat):
+        t0 = clock()
+        for k in range(n):
+            step(k)
+        means.append((clock() - t0) / n)
+        one = np.empty(n)
+        for k in range(n):
+            t1 = clock()
+            step(k)
+            one[k] = clock() - t1
+        singles.append(one)
+    return np.median(means), np.percentile(np.concatenate(singles), 99)
+
+
+def _ours(measure: str, us, zs):
+    f = InvariantEKF(P=1.0, Q=_Q, R=_R)
+    predict, update = f.predict, f.update
+
+    def step(k):
+        predict(us[k])
+        update(zs[k])
+    return f, step
+
+
+def _gtsam(measure: str, us, zs, precomputed: bool = False):
+    import gtsam
+    g = gtsam.InvariantEKFRot3(gtsam.Rot3(), np.eye(3))
+    Ug = [gtsam.Rot3(u) for u in us]
+    zero, eye = np.zeros(3), np.eye(3)
+    Q, R = _Q, _R
+    predict, update, logmap = g.predict, g.updateWithVector, gtsam.Rot3.Logmap
+    if measure == "rotation" and precomputed:
+        xi = [so3.log_one(z) for z in zs]
+
+        def step(k):
+            predict(Ug[k], Q)
+            update(zero, eye, xi[k], R, False)
+    elif measure == "rotation":
+        Zg = [gtsam.Rot3(z) for z in zs]
+
+        def step(k):
+            predict(Ug[k], Q)
+            update(zero, eye, logmap(g.state().between(Zg[k])), R, False)
+    else:
+        ez = np.array([0.0, 0.0, 1.0])
+        H = -so3.hat(ez)
+
+        def step(k):
+            predict(Ug[k], Q)
+            X = g.state().matrix()
+            update(ez, H, X.T @ zs[k], X.T @ R @ X, False)
+    return g, step
+
+
+def _agreement(measure: str, us, zs, n: int = 200) -> float:
+    """Largest difference of state and covariance between ours and GTSAM after ``n`` steps."""
+    f, s1 = _ours(measure, us, zs)
+    g, s2 = _gtsam(measure, us, zs)
+    worst = 0.0
+    for k in range(n):
+        s1(k)
+        s2(k)
+        worst = max(worst, np.abs(f.x - g.state().matrix()).max(), np.abs(f.P - g.covariance()).max())
+    return float(worst)
+
+
+def rows(steps: int = 20_000, repeat: int = 7) -> List[Dict]:
+    """Benchmark rows: one per measurement kind, ours against GTSAM in the same run.
+
+    Returns
+    -------
+    list of dict
+        Keys ``benchmark``, ``target``, ``figure`` (our median, us), ``p99`` (us),
+        ``competitor`` (GTSAM median, us), ``competitor_p99``, ``agreement``
+        (max abs difference of X and P), ``passed``.
+    """
+    us, zs_rot, zs_dir = _data(steps)
+    try:
+        import gtsam  # noqa: F401
+        have_gtsam = True
+    except ImportError:
+        have_gtsam = False
+    out = []
+    for measure, zs in (("rotation", zs_rot), ("direction", zs_dir)):
+        med, p99 = _time(_ours(measure, us, zs)[1], steps, repeat)
+        row = dict(benchmark=f"InvariantEKF.predict + update ({measure})",
+                   target="<= GTSAM InvariantEKFRot3 (same run)", figure=med * 1e6, p99=p99 * 1e6,
+                   competitor=float("nan"), competitor_p99=float("nan"), agreement=float("nan"), passed=None)
+        if have_gtsam:
+            gm, gp = _time(_gtsam(measure, us, zs)[1], steps, repeat)
+            row.update(competitor=gm * 1e6, competitor_p99=gp * 1e6, agreement=_agreement(measure, us, zs),
+                       passed=bool(med <= gm))
+        out.append(row)
+        if have_gtsam and measure == "rotation":
+            gm, gp = _time(_gtsam(measure, us, zs, precomputed=True)[1], steps, repeat)
+            out.append(dict(benchmark="InvariantEKF.predict + update (rotation), GTSAM given the innovation",
+                            target="<= GTSAM with Log(X^T Z) precomputed (informative)", figure=med * 1e6,
+                            p99=p99 * 1e6, competitor=gm * 1e6, competitor_p99=gp * 1e6,
+                            agreement=float("nan"), passed=bool(med <= gm)))
+    return out
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--steps", type=int, default=20_000)
+    ap.add_argument("--repeat", type=int, default=7, help="median over this many repeats (>= 5)")
+    args = ap.parse_args(argv)
+    res = rows(args.steps, max(5, args.repeat))
+    print(f"{'benchmark':<70}{'ours us (p99)':>16}{'GTSAM us (p99)':>17}{'max |diff|':>12}  result")
+    for r in res:
+        verdict = "n/a" if r["passed"] is None else ("PASS" if r["passed"] else "FAIL")
+        print(f"{r['benchmark']:<70}{r['figure']:>7.2f} ({r['p99']:5.2f}){r['competitor']:>8.2f} "
+              f"({r['competitor_p99']:5.2f}){r['agreement']:>12.1e}  {verdict}")
+        print(f"    target: {r['target']}")
+
+
+if __name__ == "__main__":
+    main()
