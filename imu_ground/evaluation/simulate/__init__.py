@@ -1,0 +1,105 @@
+r"""Synthetic drives with exact ground truth: a vehicle on a rough road, and its IMU.
+
+A drive is built from small value types, one module each, every step vectorised
+over the samples:
+
+- :mod:`~imu_ground.evaluation.simulate.road`: :class:`RoadParams`, the road as a
+  function of the distance travelled (curvature, grade, cross-slope) and its
+  ISO 8608 roughness per wheel track;
+- :mod:`~imu_ground.evaluation.simulate.vehicle`: :class:`VehicleParams` and
+  :class:`SpeedParams`, the speed profile in time and the body's pitch, roll and
+  heave on its suspension (three second-order systems driven by the road under
+  the wheels and by the longitudinal and lateral specific force);
+- :mod:`~imu_ground.evaluation.simulate.imu_errors`: :class:`ImuErrorModel` and
+  its presets (white noise, bias random walk, turn-on bias);
+- :mod:`~imu_ground.evaluation.simulate.kinematics`: exact attitude, angular rate,
+  specific force and position of the sensor;
+- :mod:`~imu_ground.evaluation.simulate.drive`: :func:`simulate` and
+  :class:`SimResult`; :mod:`~imu_ground.evaluation.simulate.suite`:
+  :func:`simulate_suite` (varied random drives);
+- :mod:`~imu_ground.evaluation.simulate.smooth`: the closed-form smooth profiles.
+
+Conventions
+-----------
+Frames and signs as in the glossary of :mod:`imu_ground.so3`; specifically:
+
+- **World** ``w``: local level, z up (ENU-like), treated as inertial (the Earth's
+  rotation, 7.3e-5 rad/s, is not simulated); gravity ``g_w = (0, 0, -9.80665)``.
+- **Body / ground frame** ``b`` (FLU): x forward, y left, z up, fixed to the
+  vehicle body; its origin is on the road surface below the vehicle reference
+  point (by default mid-wheelbase), displaced vertically by the body's heave.
+- **Attitude** of a frame ``a`` relative to a frame ``c`` as ``R (c <- a) =
+  Rz(yaw) @ Ry(pitch) @ Rx(roll)``; pitch positive = nose DOWN (right-handed
+  about y-left), roll positive = left side UP (right-handed about x-forward),
+  the KITTI OXTS convention.
+- **Road frame** ``r`` at the vehicle: x along the road tangent in the heading
+  direction, z the road-surface normal of the *macro* road (grade and
+  cross-slope) plus the roughness smoothed over 10 m (the rest of the roughness
+  is not part of the plane, it is what shakes the body). ``R_wr = Rz(heading) @
+  Ry(-grade) @ Rx(bank)``: ``road_grade`` (rad) positive uphill; ``road_bank``
+  (rad) positive when the left edge is higher.
+- **Body relative to road**: ``E = R_rb = Ry(pitch) @ Rx(roll)`` (no side-slip).
+  The ground normal in the body frame is ``n_b = E^T e_z = [-sin(pitch),
+  sin(roll) cos(pitch), cos(pitch) cos(roll)]``.
+- **Sensor** ``s``: ``R_gs`` (body/ground <- sensor) and ``t_gs`` (sensor origin in
+  the body frame, m). ``R_ws = R_wr @ E @ R_gs``; ``p_ws = p_wb + R_wb @ t_gs``. The
+  normal in the sensor frame is ``n_s = R_gs^T n_b``. The IMU measures, in the
+  sensor frame, the angular rate of the sensor frame (``w_s = R_gs^T w_b``) and
+  the specific force ``f_s = R_ws^T (a_w - g_w)`` (about ``+9.81`` up at rest).
+
+Exactness
+---------
+Every rotation and its first two time derivatives are closed-form: the speed
+profile, curvature, grade and bank are made of septic (C^3) smooth steps (with
+their integrals: speed, distance, heading), and the three suspension systems
+are discretised exactly for a first-order-hold input on a fine time grid
+(default 1 kHz), which gives their state exactly at the grid points and the
+angular acceleration from the differential equation. The angular rate comes
+from the Euler-angle rates through the kinematic chain, the specific force from
+the analytic acceleration of the sensor (road path, heave and the lever arm
+with the body's angular rate and acceleration). The positions are the
+Gauss-Legendre (3-point) integral of the analytic velocity. So noise-free
+samples are the exact derivatives of the truth trajectory.
+"""
+from imu_ground.evaluation.simulate.drive import TRUTH_COLUMNS, SimResult, simulate
+from imu_ground.evaluation.simulate.imu_errors import (
+                                                 IMU_PRESETS,
+                                                 ImuErrorModel,
+                                                 imu_error_model,
+)
+from imu_ground.evaluation.simulate.road import (
+                                                 ISO8608_CLASSES,
+                                                 ISO8608_N0,
+                                                 ROAD_PLANE_WINDOW,
+                                                 RoadParams,
+                                                 iso8608_psd,
+                                                 road_profile,
+)
+from imu_ground.evaluation.simulate.suite import simulate_suite
+from imu_ground.evaluation.simulate.vehicle import (  # noqa: F401
+                                                 SpeedParams,
+                                                 VehicleParams,
+                                                 _foh_filter,
+                                                 suspension_response,
+)
+from imu_ground.units import GRAVITY
+
+__all__ = [
+                                                 "GRAVITY",
+                                                 "IMU_PRESETS",
+                                                 "ISO8608_CLASSES",
+                                                 "ISO8608_N0",
+                                                 "ROAD_PLANE_WINDOW",
+                                                 "TRUTH_COLUMNS",
+                                                 "ImuErrorModel",
+                                                 "RoadParams",
+                                                 "SimResult",
+                                                 "SpeedParams",
+                                                 "VehicleParams",
+                                                 "imu_error_model",
+                                                 "iso8608_psd",
+                                                 "road_profile",
+                                                 "simulate",
+                                                 "simulate_suite",
+                                                 "suspension_response",
+]

@@ -1,0 +1,307 @@
+r"""One simulated drive: the road, the vehicle on it, the sensor and its errors, with exact truth.
+
+:func:`simulate` builds the clean drive (:func:`clean_drive`: speed profile, road
+layout and roughness, body motion on a fine grid, exact sensor kinematics at
+the IMU samples), then adds the IMU errors and samples the truth at the frames
+(:class:`SimResult`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from imu_ground import so3
+from imu_ground.evaluation.simulate.imu_errors import (
+    ImuErrorModel,
+    imu_error_model,
+    imu_errors,
+)
+from imu_ground.evaluation.simulate.kinematics import (
+    quat_wxyz,
+    road_positions,
+    sensor_kinematics,
+)
+from imu_ground.evaluation.simulate.road import (
+    RoadParams,
+    road_layout,
+    road_profile,
+    rough_plane,
+)
+from imu_ground.evaluation.simulate.vehicle import (
+    SpeedParams,
+    VehicleParams,
+    body_motion,
+    speed_profile,
+)
+from imu_ground.imu.data import ImuData
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = [
+    "TRUTH_COLUMNS",
+    "SimResult",
+    "as_extrinsic",
+    "check_rates",
+    "clean_drive",
+    "finish_drive",
+    "simulate",
+]
+
+TRUTH_COLUMNS = (
+    "t", "s", "speed", "acc_long", "acc_lat", "curvature", "heading",
+    "normal_x", "normal_y", "normal_z", "normal_body_x", "normal_body_y", "normal_body_z",
+    "pitch", "roll", "pitch_rate", "roll_rate", "heave", "road_grade", "road_bank",
+    "qw", "qx", "qy", "qz", "x", "y", "z", "vx", "vy", "vz", "stationary",
+)
+
+
+@dataclass
+class SimResult:
+    """One simulated drive.
+
+    Attributes
+    ----------
+    imu : ImuData
+        Noisy samples in the sensor frame (``t``, ``gyro`` rad/s, ``accel`` m/s^2).
+    imu_clean : ImuData
+        The same without any error (exact angular rate and specific force).
+    truth : pandas.DataFrame
+        One row per frame (``frame_rate``), columns :data:`TRUTH_COLUMNS`:
+        ``t`` s; ``s`` distance travelled m; ``speed`` m/s; ``acc_long`` dv/dt and
+        ``acc_lat`` (lateral acceleration of the reference point in the road
+        frame, ~ v^2 curvature, > 0 to the left) m/s^2; ``curvature`` 1/m (> 0 left);
+        ``heading`` rad (yaw of the road frame); ``normal_x/y/z`` the ground normal
+        in the sensor frame; ``normal_body_x/y/z`` in the body frame; ``pitch``,
+        ``roll`` body relative to road (rad, nose down / left up positive) and their
+        rates rad/s; ``heave`` m; ``road_grade`` rad (uphill positive), ``road_bank``
+        rad (left edge higher positive); ``qw, qx, qy, qz`` world <- sensor (``qw >= 0``);
+        ``x, y, z`` sensor position and ``vx, vy, vz`` its velocity in the world
+        frame (m, m/s); ``stationary`` (speed exactly 0).
+    R_gs, t_gs : ndarray
+        The extrinsic (body/ground <- sensor rotation, sensor origin in the body frame).
+    imu_model : ImuErrorModel
+    bias_gyro, bias_accel : ndarray, shape (N, 3)
+        The true biases at every IMU sample.
+    R_ws, p_ws, v_ws : ndarray
+        World <- sensor attitude (N, 3, 3), position and velocity (N, 3) at every IMU sample.
+    params : dict
+        Everything needed to rerun: ``simulate(**params)`` gives this drive again.
+    seed : int
+    name : str
+    curves : list of (s_start, transition, arc, curvature)
+    road : dict
+        The roughness profile: ``x``, ``h_left``, ``h_right`` (m).
+    """
+
+    imu: ImuData
+    imu_clean: ImuData
+    truth: pd.DataFrame
+    R_gs: np.ndarray
+    t_gs: np.ndarray
+    imu_model: ImuErrorModel
+    bias_gyro: np.ndarray
+    bias_accel: np.ndarray
+    R_ws: np.ndarray
+    p_ws: np.ndarray
+    v_ws: np.ndarray
+    params: dict[str, Any]
+    seed: int
+    name: str = ""
+    curves: list = field(default_factory=list)
+    road: dict = field(default_factory=dict, repr=False)
+
+    def __repr__(self) -> str:
+        return (f"SimResult(name={self.name!r}, seed={self.seed}, imu={self.imu_model.name!r}, "
+                f"duration={self.imu.duration:.1f} s, samples={len(self.imu)}, frames={len(self.truth)})")
+
+    def to_csv(self, imu_path, truth_path=None, float_format: str = "%.10g") -> None:
+        """Write the noisy IMU (columns t,wx,wy,wz,ax,ay,az) and, if given, the truth."""
+        df = self.imu.to_dataframe()[["t", "wx", "wy", "wz", "ax", "ay", "az"]]
+        df.to_csv(imu_path, index=False, float_format=float_format, lineterminator="\n")
+        if truth_path is not None:
+            truth = self.truth.copy()
+            truth["stationary"] = truth["stationary"].astype(int)
+            truth.to_csv(truth_path, index=False, float_format=float_format, lineterminator="\n")
+
+
+def as_extrinsic(R_gs, t_gs):
+    """The checked extrinsic: ``R_gs`` (default identity) and ``t_gs`` (default ``(0.3, 0, 0.9)`` m)."""
+    r = np.eye(3) if R_gs is None else np.array(R_gs, dtype=float)
+    t = np.array([0.3, 0.0, 0.9]) if t_gs is None else np.array(t_gs, dtype=float)
+    if r.shape != (3, 3) or t.shape != (3,):
+        raise ValueError("R_gs must be 3x3 and t_gs of length 3")
+    if not np.allclose(r @ r.T, np.eye(3), atol=1e-9) or np.linalg.det(r) < 0:
+        raise ValueError("R_gs must be a rotation matrix")
+    return r, t
+
+
+def check_rates(duration, imu_rate, frame_rate, oversample) -> int:
+    """Check durations and rates; the fine-grid factor (default: the smallest giving >= 1 kHz)."""
+    if duration <= 0:
+        raise ValueError("duration must be > 0")
+    if imu_rate <= 0 or frame_rate <= 0:
+        raise ValueError("rates must be > 0")
+    ratio = imu_rate / frame_rate
+    if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+        raise ValueError(f"imu_rate / frame_rate must be a whole number, got {ratio}")
+    if oversample is None:
+        oversample = max(1, int(math.ceil(1000.0 / imu_rate - 1e-9)))
+    if int(oversample) < 1:
+        raise ValueError("oversample must be >= 1")
+    return int(oversample)
+
+
+def _truth_samples(kin, body, rough, s, vehicle: VehicleParams, road: RoadParams, t_imu, a, v, R_gs):
+    """Per-sample truth columns (subsampled to frames later).
+
+    The road plane the truth refers to is the macro road (grade, cross-slope) plus
+    the roughness smoothed over a centred window (:func:`~imu_ground.evaluation.simulate.road.rough_plane`).
+    The IMU signals do not depend on this choice.
+    """
+    (th, th_d1, _), (ph, ph_d1, _), (zh, _, _) = body
+    d_grade, d_bank = rough_plane(rough[0], rough[1], rough[2], s, vehicle.track, road.dx)
+    al_t, bk_t = kin["grade"] + d_grade, kin["bank"] + d_bank
+    r_wr_t = so3.rotz(kin["heading"]) @ so3.roty(-al_t) @ so3.rotx(bk_t)
+    n_b = np.einsum("nji,nj->ni", kin["R_wb"], r_wr_t[:, :, 2])      # E^T e_z, E = R_wr^T R_wb
+    th_t = np.arctan2(-n_b[:, 0], np.hypot(n_b[:, 1], n_b[:, 2]))
+    ph_t = np.arctan2(n_b[:, 1], n_b[:, 2])
+    n_s = n_b @ R_gs
+    return {
+        "t": t_imu, "s": s, "speed": v, "acc_long": a, "acc_lat": kin["acc_lat"],
+        "curvature": kin["curvature"], "heading": kin["heading"],
+        "normal_x": n_s[:, 0], "normal_y": n_s[:, 1], "normal_z": n_s[:, 2],
+        "normal_body_x": n_b[:, 0], "normal_body_y": n_b[:, 1], "normal_body_z": n_b[:, 2],
+        "pitch": th_t, "roll": ph_t, "pitch_rate": th_d1, "roll_rate": ph_d1, "heave": zh,
+        "road_grade": al_t, "road_bank": bk_t,
+    }
+
+
+def clean_drive(duration: float, seed: int, imu_rate: float, road: RoadParams, vehicle: VehicleParams,
+                speed: SpeedParams, R_gs: np.ndarray, t_gs: np.ndarray, oversample: int) -> dict:
+    """The exact trajectory and noise-free IMU samples of one drive.
+
+    The speed profile, the road layout and the roughness use the first three
+    children of ``SeedSequence(seed)`` (the IMU errors the fourth).
+
+    Returns
+    -------
+    dict
+        ``t``, ``gyro``, ``accel`` (noise-free samples), ``R_ws``, ``R_wr``, ``p_ws``,
+        ``v_ws``, ``truth`` (per-sample columns), ``curves``, ``road`` (roughness profile).
+    """
+    ss = np.random.SeedSequence(seed)
+    rng_speed, rng_road, rng_rough, _ = (np.random.default_rng(s) for s in ss.spawn(4))
+    n_imu = int(math.floor(duration * imu_rate + 1e-9)) + 1
+    dt = 1.0 / imu_rate
+    t_imu = dt * np.arange(n_imu)
+    dt_f = dt / oversample
+    t_f = dt_f * np.arange((n_imu - 1) * oversample + 1)
+
+    acc_pw = speed_profile(speed, duration, rng_speed)
+    t_coarse = np.linspace(0.0, duration, int(duration * 10) + 2)
+    _, _, _, v_c, s_c = acc_pw(t_coarse)
+    v_c = np.maximum(v_c, 0.0)
+    length = float(s_c[-1]) + vehicle.wheelbase + 50.0
+    kappa_pw, grade_pw, bank_pw, curves = road_layout(road, length, s_c, v_c, rng_road)
+    layout = (kappa_pw, grade_pw, bank_pw)
+    l_r = vehicle.rear_axle_to_ref
+    rough = road_profile(length + l_r + 20.0, road.roughness, dx=road.dx, band=road.band,
+                         track=vehicle.track, coherence_decay=road.coherence_decay,
+                         x0=-l_r - 10.0, rng=rng_rough)
+
+    def motion(t):
+        a, _, _, v, s = acc_pw(t)
+        return a, np.maximum(v, 0.0), s
+
+    a_f, v_f, s_f = motion(t_f)
+    body_f = body_motion(vehicle, a_f, v_f, s_f, dt_f, layout, rough)
+    sub = slice(None, None, oversample)
+    body = tuple(tuple(x[sub] for x in axis) for axis in body_f)
+    a, v, s = a_f[sub], v_f[sub], s_f[sub]
+    kin = sensor_kinematics(a, v, s, layout, body, R_gs, t_gs)
+    p_wb = road_positions(t_imu, dt, motion, layout) + body[2][0][:, None] * np.array([0.0, 0.0, 1.0])
+    p_ws = p_wb + np.einsum("nij,j->ni", kin["R_wb"], t_gs)
+    truth = _truth_samples(kin, body, rough, s, vehicle, road, t_imu, a, v, R_gs)
+    return dict(t=t_imu, gyro=kin["gyro"], accel=kin["accel"], R_ws=kin["R_ws"], R_wr=kin["R_wr"],
+                p_ws=p_ws, v_ws=kin["v_ws"], truth=truth, curves=curves,
+                road=dict(x=rough[0], h_left=rough[1], h_right=rough[2]))
+
+
+def finish_drive(clean: dict, model: ImuErrorModel, seed: int, imu_rate: float, frame_rate: float,
+                 R_gs, t_gs, params: dict, name: str) -> SimResult:
+    """Add the IMU errors of ``model`` to a clean drive and sample the truth at the frames."""
+    import pandas as pd
+    n = clean["t"].shape[0]
+    bias_g, noise_g, bias_a, noise_a = imu_errors(model, n, imu_rate, seed)
+    frame = "FLU" if np.allclose(R_gs, np.eye(3), atol=1e-12) else "sensor"
+    meta = {"seed": seed, "imu_model": model.name, "R_gs": R_gs.tolist(), "t_gs": t_gs.tolist(),
+            "simulated": True, "name": name}
+    imu_clean = ImuData(clean["t"], clean["gyro"], clean["accel"], frame=frame,
+                        source="simulated (noise-free)", meta=dict(meta))
+    imu = ImuData(clean["t"], clean["gyro"] + bias_g + noise_g, clean["accel"] + bias_a + noise_a,
+                  frame=frame, source="simulated", meta=dict(meta))
+    step = int(round(imu_rate / frame_rate))
+    idx = np.arange(0, n, step)
+    truth = pd.DataFrame({k: np.asarray(v)[idx] for k, v in clean["truth"].items()})
+    q = quat_wxyz(clean["R_ws"][idx])
+    for i, c in enumerate("wxyz"):
+        truth[f"q{c}"] = q[:, i]
+    for i, c in enumerate("xyz"):
+        truth[c] = clean["p_ws"][idx, i]
+        truth[f"v{c}"] = clean["v_ws"][idx, i]
+    truth["stationary"] = truth["speed"].to_numpy() == 0.0
+    truth = truth[list(TRUTH_COLUMNS)]
+    return SimResult(imu=imu, imu_clean=imu_clean, truth=truth, R_gs=R_gs.copy(), t_gs=t_gs.copy(),
+                     imu_model=model, bias_gyro=bias_g, bias_accel=bias_a, R_ws=clean["R_ws"],
+                     p_ws=clean["p_ws"], v_ws=clean["v_ws"], params=params, seed=seed, name=name,
+                     curves=clean["curves"], road=clean["road"])
+
+
+def simulate(duration: float = 120.0, seed: int = 0, imu: str | ImuErrorModel | None = "nav", *,
+             imu_rate: float = 100.0, frame_rate: float = 10.0,
+             road: RoadParams | None = None, vehicle: VehicleParams | None = None,
+             speed: SpeedParams | None = None, R_gs=None, t_gs=None,
+             oversample: int | None = None, name: str = "") -> SimResult:
+    """Simulate one drive with exact ground truth.
+
+    Parameters
+    ----------
+    duration : float
+        Seconds; the IMU has ``floor(duration * imu_rate) + 1`` samples from t = 0.
+    seed : int
+        Everything random (speed profile, road layout, roughness, IMU errors) follows
+        from it; the IMU errors use their own stream, so the same seed with another
+        ``imu`` gives the same trajectory.
+    imu : str or ImuErrorModel or None
+        ``"nav"``, ``"mems"``, ``"perfect"`` (no error), or a model.
+    imu_rate, frame_rate : float
+        Hz; ``imu_rate / frame_rate`` must be a whole number (truth frames fall on
+        IMU samples, the first at t = 0).
+    road, vehicle, speed : RoadParams, VehicleParams, SpeedParams
+        Defaults when ``None``.
+    R_gs, t_gs : array_like
+        Extrinsic, body/ground <- sensor; default identity and ``(0.3, 0, 0.9)`` m.
+    oversample : int, optional
+        Fine-grid factor for the suspension (default: the smallest giving >= 1 kHz).
+    name : str
+
+    Returns
+    -------
+    SimResult
+    """
+    oversample = check_rates(duration, imu_rate, frame_rate, oversample)
+    road = road or RoadParams()
+    vehicle = vehicle or VehicleParams()
+    speed = speed or SpeedParams()
+    r, t = as_extrinsic(R_gs, t_gs)
+    model = imu_error_model(imu)
+    seed = int(seed)
+    clean = clean_drive(float(duration), seed, float(imu_rate), road, vehicle, speed, r, t, oversample)
+    params = dict(duration=float(duration), seed=seed, imu=model, imu_rate=float(imu_rate),
+                  frame_rate=float(frame_rate), road=road, vehicle=vehicle, speed=speed,
+                  R_gs=r.tolist(), t_gs=t.tolist(), oversample=oversample, name=name)
+    return finish_drive(clean, model, seed, float(imu_rate), float(frame_rate), r, t, params, name)

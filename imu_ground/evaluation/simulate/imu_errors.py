@@ -1,0 +1,153 @@
+r"""IMU errors of the simulator: white noise, bias random walk and turn-on bias per axis.
+
+Presets (one sigma, per axis; white noise std at rate ``fs`` is ``density * sqrt(fs)``)
+-------------------------------------------------------------------------------------
+``"nav"`` (navigation-grade GPS/INS like KITTI's OXTS RT3003):
+    gyro noise 0.0025 deg/s/sqrt(Hz) (0.15 deg/sqrt(h); OXTS RT3000-series
+    datasheets quote an ARW of 0.2 deg/sqrt(h); KITTI raw 100 Hz OXTS data at standstill,
+    engine running, shows 0.021-0.031 deg/s per sample, i.e. 0.002-0.003
+    deg/s/sqrt(Hz)), gyro in-run bias instability 2 deg/h (datasheet) as a
+    random walk of 2 deg/h per 100 s, turn-on gyro bias 10 deg/h (stationary
+    KITTI means are 5-40 deg/h, Earth rate included); accelerometer noise
+    0.0008 m/s^2/sqrt(Hz) (~80 ug/sqrt(Hz); KITTI standstill 0.006-0.010 m/s^2 per
+    sample at 100 Hz), bias random walk 1e-5 m/s^3/sqrt(Hz) (10 ug per 100 s),
+    turn-on 0.005 m/s^2 (0.5 mg).
+``"mems"`` (phone / consumer MEMS, Bosch BMI160 / InvenSense MPU-6500 class):
+    gyro noise 0.007 deg/s/sqrt(Hz) (BMI160 datasheet typ.; MPU-6500 0.01), bias
+    random walk 1 deg/h per sqrt(s) (10 deg/h of wander over 100 s, the order of
+    consumer-MEMS in-run bias instability), turn-on gyro bias 1 deg/s (BMI160 zero-rate
+    offset +-3 deg/s typ. before offset compensation; phones' bias calibration leaves
+    ~0.1-1 deg/s); accelerometer noise 180 ug/sqrt(Hz) (BMI160 typ.; MPU-6500 300
+    ug/sqrt(Hz)), bias random walk 1e-4 m/s^3/sqrt(Hz) (0.1 mg per 100 s), turn-on
+    0.2 m/s^2 (~20 mg; BMI160 zero-g offset +-40 mg typ.).
+``"perfect"``: no error at all.
+
+Both real presets are the sensor's own errors: vibration of a phone holder or an
+engine above the body's own motion is not in them (pass a model with larger
+densities, e.g. :meth:`ImuErrorModel.scaled`, to emulate it).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from imu_ground.units import DEG, GRAVITY
+
+__all__ = ["IMU_PRESETS", "ImuErrorModel", "imu_error_model", "imu_errors"]
+
+_DEG_H = DEG / 3600.0                  # 1 deg/h in rad/s
+
+
+@dataclass(frozen=True)
+class ImuErrorModel:
+    """Stochastic errors of a 6-axis IMU (same numbers on every axis, one sigma).
+
+    Measurement ``y_k = true_k + b_k + n_k``: ``n_k`` white, std
+    ``density * sqrt(rate)``; ``b_k = b_0 + random walk`` with increments of std
+    ``bias_rw * sqrt(dt)``; ``b_0`` drawn once per drive, std ``turn_on``.
+
+    Parameters
+    ----------
+    name : str
+    gyro_noise_density : float
+        Angular random walk, rad/s/sqrt(Hz).
+    gyro_bias_rw : float
+        Rate random walk, rad/s^2/sqrt(Hz) (rad/s per sqrt(s)).
+    gyro_bias_turn_on : float
+        Constant gyro bias, rad/s.
+    accel_noise_density : float
+        Velocity random walk, m/s^2/sqrt(Hz).
+    accel_bias_rw : float
+        Accelerometer bias random walk, m/s^3/sqrt(Hz).
+    accel_bias_turn_on : float
+        Constant accelerometer bias, m/s^2.
+    """
+
+    name: str
+    gyro_noise_density: float
+    gyro_bias_rw: float
+    gyro_bias_turn_on: float
+    accel_noise_density: float
+    accel_bias_rw: float
+    accel_bias_turn_on: float
+
+    def gyro_noise_std(self, rate: float) -> float:
+        """Std of the gyro white noise per sample at ``rate`` Hz, rad/s."""
+        return self.gyro_noise_density * math.sqrt(rate)
+
+    def accel_noise_std(self, rate: float) -> float:
+        """Std of the accelerometer white noise per sample at ``rate`` Hz, m/s^2."""
+        return self.accel_noise_density * math.sqrt(rate)
+
+    def scaled(self, factor: float, name: str | None = None) -> ImuErrorModel:
+        """The same model with every error multiplied by ``factor``."""
+        return ImuErrorModel(name or f"{self.name}x{factor:g}",
+                             *(factor * v for v in (self.gyro_noise_density, self.gyro_bias_rw,
+                                                    self.gyro_bias_turn_on, self.accel_noise_density,
+                                                    self.accel_bias_rw, self.accel_bias_turn_on)))
+
+
+IMU_PRESETS: dict[str, ImuErrorModel] = {
+    # Sources and reasoning in the module docstring.
+    "nav": ImuErrorModel(
+        name="nav",
+        gyro_noise_density=0.0025 * DEG,             # 0.15 deg/sqrt(h)
+        gyro_bias_rw=2.0 * _DEG_H / 10.0,            # 2 deg/h wander over 100 s
+        gyro_bias_turn_on=10.0 * _DEG_H,
+        accel_noise_density=8e-4,                    # ~80 ug/sqrt(Hz)
+        accel_bias_rw=1e-5,                          # 1e-4 m/s^2 over 100 s
+        accel_bias_turn_on=5e-3,
+    ),
+    "mems": ImuErrorModel(
+        name="mems",
+        gyro_noise_density=0.007 * DEG,              # BMI160 typ.
+        gyro_bias_rw=10.0 * _DEG_H / 10.0,           # ~10 deg/h wander over 100 s
+        gyro_bias_turn_on=1.0 * DEG,
+        accel_noise_density=180e-6 * GRAVITY,        # 180 ug/sqrt(Hz)
+        accel_bias_rw=1e-4,                          # 1e-3 m/s^2 over 100 s
+        accel_bias_turn_on=0.2,                      # ~20 mg
+    ),
+    "perfect": ImuErrorModel("perfect", 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+}
+
+
+def imu_error_model(model: str | ImuErrorModel | None) -> ImuErrorModel:
+    """An :class:`ImuErrorModel` from a preset name (``"nav"``, ``"mems"``,
+    ``"perfect"``; ``None`` means ``"perfect"``) or a model (returned as is)."""
+    if model is None:
+        return IMU_PRESETS["perfect"]
+    if isinstance(model, ImuErrorModel):
+        return model
+    try:
+        return IMU_PRESETS[str(model).lower()]
+    except KeyError:
+        raise ValueError(f"unknown IMU preset {model!r}; choose one of {sorted(IMU_PRESETS)}"
+                         " or pass an ImuErrorModel") from None
+
+
+def imu_errors(model: ImuErrorModel, n: int, rate: float, seed: int):
+    """One draw of the errors of ``n`` samples at ``rate`` Hz.
+
+    The random stream is the fourth child of ``SeedSequence(seed)`` (the first
+    three drive the speed profile, the road layout and the roughness), so the same
+    seed with another model gives the same trajectory.
+
+    Returns
+    -------
+    bias_gyro, noise_gyro, bias_accel, noise_accel : ndarray, shape (n, 3)
+        rad/s and m/s^2, sensor frame.
+    """
+    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(4)[3])
+    dt = 1.0 / rate
+    out = []
+    for dens, rw, on in ((model.gyro_noise_density, model.gyro_bias_rw, model.gyro_bias_turn_on),
+                         (model.accel_noise_density, model.accel_bias_rw, model.accel_bias_turn_on)):
+        b0 = on * rng.standard_normal(3)
+        steps = rw * math.sqrt(dt) * rng.standard_normal((n, 3))
+        steps[0] = 0.0
+        bias = b0 + np.cumsum(steps, axis=0)
+        noise = dens * math.sqrt(rate) * rng.standard_normal((n, 3))
+        out += [bias, noise]
+    return out

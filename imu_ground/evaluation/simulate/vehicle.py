@@ -1,0 +1,296 @@
+r"""The simulated vehicle: speed profile in time, and the body on its suspension.
+
+Speed
+-----
+A speed profile in time (cruising, accelerating, braking, stops) made of
+smooth-step phases of the longitudinal acceleration (:func:`speed_profile`):
+speed and distance are its closed-form integrals, and stops are exact (speed
+exactly 0, no creeping).
+
+Suspension
+----------
+``x'' + 2 zeta w x' + w^2 x = w^2 u(t)`` for pitch, roll and heave (unit static
+gain), with ``u`` the road input plus, for pitch, ``-K_pitch * f_x`` and, for
+roll, ``+K_roll * f_y`` (``f`` the specific force of the reference point in the
+road frame: acceleration and, with ``gravity_load_transfer``, the components
+of gravity along the grade and the cross-slope). Braking (``f_x < 0``) thus
+pitches the nose down, ``pitch = K_pitch * deceleration`` once the transient
+has died out; a left turn (``f_y > 0``) rolls the body to the right, i.e. raises
+its left side relative to the road (positive roll). Road inputs: pitch
+``-(h_front - h_rear) / wheelbase`` (track-averaged); roll
+``(h_left - h_right) / track`` (axle-averaged); heave the height of the wheel
+plane under the reference point. The three systems are discretised exactly for
+a first-order-hold input (:func:`suspension_response`).
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from imu_ground.evaluation.simulate.smooth import Piecewise
+from imu_ground.units import DEG, GRAVITY
+
+__all__ = [
+    "STYLES",
+    "SpeedParams",
+    "VehicleParams",
+    "body_motion",
+    "speed_profile",
+    "suspension_response",
+]
+
+
+@dataclass
+class VehicleParams:
+    """Geometry and suspension of the vehicle.
+
+    Frequencies in Hz, damping ratios dimensionless, gains in degrees per m/s^2
+    of specific force (static: ``pitch = pitch_gain_deg * deceleration``).
+    """
+
+    wheelbase: float = 2.7               # m
+    rear_axle_to_ref: float = 1.35       # m, reference point ahead of the rear axle
+    track: float = 1.6                   # m
+    pitch_freq: float = 1.4
+    pitch_damping: float = 0.35
+    roll_freq: float = 1.2
+    roll_damping: float = 0.4
+    heave_freq: float = 1.2
+    heave_damping: float = 0.3
+    pitch_gain_deg: float = 0.25         # nose down per m/s^2 of deceleration
+    roll_gain_deg: float = 0.4           # outward roll per m/s^2 of lateral acceleration
+    gravity_load_transfer: bool = True   # grade and cross-slope load the suspension too
+
+
+#: Driving styles: speed range (m/s), probability of a stop at each change,
+#: cruise duration (s), acceleration and braking magnitudes (m/s^2).
+STYLES = {
+    "urban": dict(speed=(5.0, 14.0), stop_p=0.35, cruise=(4.0, 15.0), accel=(0.8, 2.0), brake=(1.0, 3.0)),
+    "rural": dict(speed=(12.0, 24.0), stop_p=0.1, cruise=(6.0, 25.0), accel=(0.6, 1.8), brake=(0.8, 2.5)),
+    "highway": dict(speed=(22.0, 33.0), stop_p=0.0, cruise=(10.0, 40.0), accel=(0.4, 1.2), brake=(0.5, 2.0)),
+    "mixed": dict(speed=(5.0, 25.0), stop_p=0.2, cruise=(4.0, 20.0), accel=(0.6, 2.2), brake=(0.8, 3.0)),
+}
+
+
+@dataclass
+class SpeedParams:
+    """The speed profile: random by ``style`` or an explicit ``plan``.
+
+    ``style``: ``"urban"``, ``"rural"``, ``"highway"`` or ``"mixed"`` (speed range,
+    stop probability, accelerations); any of the ``None`` fields overrides the
+    style's value. ``plan``: ``[(target_speed, accel, hold), ...]``: reach
+    ``target_speed`` (m/s) with a peak acceleration of magnitude ``accel`` (m/s^2;
+    smooth jerk ramps of ``ramp_time`` s), then hold it ``hold`` s; starts at
+    ``v_start`` (m/s) and the last speed holds to the end of the drive.
+    """
+
+    style: str = "mixed"
+    speed_range: tuple[float, float] | None = None
+    stop_probability: float | None = None
+    cruise_duration: tuple[float, float] | None = None
+    accel: tuple[float, float] | None = None
+    brake: tuple[float, float] | None = None
+    ramp_time: tuple[float, float] = (0.5, 1.2)   # s of jerk at each end of a speed change
+    stop_duration: tuple[float, float] = (3.0, 15.0)
+    start_at_rest: bool = True
+    initial_rest: tuple[float, float] = (3.0, 6.0)
+    plan: Sequence[tuple[float, float, float]] | None = None
+    v_start: float = 0.0
+
+
+# --------------------------------------------------------------------------- speed
+def _speed_change(phases: list, v_from: float, v_to: float, a_mag: float, ramp: float) -> float:
+    """Append the phases of one speed change (jerk ramp, constant acceleration, ramp); its seconds."""
+    dv = v_to - v_from
+    if dv == 0.0 or a_mag <= 0.0:
+        return 0.0
+    hold = abs(dv) / a_mag - ramp
+    if hold < 0.0:
+        hold, a_mag = 0.0, abs(dv) / ramp
+    a_p = math.copysign(a_mag, dv)
+    phases.extend([(ramp, a_p), (hold, 0.0), (ramp, -a_p)])
+    return 2.0 * ramp + hold
+
+
+def _planned_speed(p: SpeedParams) -> Piecewise:
+    phases: list[tuple[float, float]] = []
+    v = float(p.v_start)
+    ramp = float(np.mean(p.ramp_time))
+    for target, accel, hold in p.plan:
+        if target < 0:
+            raise ValueError("speeds in the plan must be >= 0")
+        _speed_change(phases, v, float(target), float(accel), ramp)
+        v = float(target)
+        if hold > 0:
+            phases.append((float(hold), 0.0))
+    return Piecewise(0.0, 0.0, phases, i1_0=float(p.v_start), snap=True)
+
+
+def _random_speed(p: SpeedParams, duration: float, rng: np.random.Generator) -> Piecewise:
+    style = STYLES.get(p.style)
+    if style is None:
+        raise ValueError(f"unknown speed style {p.style!r}; choose one of {sorted(STYLES)}")
+    vr = p.speed_range or style["speed"]
+    stop_p = style["stop_p"] if p.stop_probability is None else p.stop_probability
+    cruise = p.cruise_duration or style["cruise"]
+    acc = p.accel or style["accel"]
+    brk = p.brake or style["brake"]
+    phases: list[tuple[float, float]] = []
+    t = 0.0
+    if p.start_at_rest:
+        v = 0.0
+        rest = rng.uniform(*p.initial_rest)
+        phases.append((rest, 0.0))
+        t += rest
+    else:
+        v = rng.uniform(*vr)
+    v0 = v
+    while t < duration:
+        if v > 0.0 and rng.random() < stop_p:
+            target = 0.0
+        else:
+            target = rng.uniform(*vr)
+            if abs(target - v) < 1.0:
+                target = min(vr[1], v + 2.0) if v < 0.5 * (vr[0] + vr[1]) else max(vr[0], v - 2.0)
+        a_mag = rng.uniform(*(acc if target > v else brk))
+        t += _speed_change(phases, v, target, a_mag, rng.uniform(*p.ramp_time))
+        v = target
+        hold = rng.uniform(*(p.stop_duration if v == 0.0 else cruise))
+        phases.append((hold, 0.0))
+        t += hold
+    return Piecewise(0.0, 0.0, phases, i1_0=v0, snap=True)
+
+
+def speed_profile(p: SpeedParams, duration: float, rng: np.random.Generator) -> Piecewise:
+    """Longitudinal acceleration (m/s^2) as smooth-step phases in time (s).
+
+    Its first integral is the speed (m/s), its second the distance (m). With
+    ``p.plan`` the profile follows the plan; otherwise it is drawn from ``rng``
+    by ``p.style`` until ``duration`` seconds are covered.
+    """
+    if p.plan is not None:
+        return _planned_speed(p)
+    return _random_speed(p, duration, rng)
+
+
+# --------------------------------------------------------------------------- suspension
+def _foh_filter(freq: float, damping: float, dt: float):
+    """Transfer functions (num_x, num_xdot, den) of ``x'' + 2 z w x' + w^2 x = w^2 u``
+    discretised exactly for a first-order-hold (piecewise-linear) input."""
+    from scipy.linalg import expm
+    w = 2.0 * math.pi * freq
+    a = np.array([[0.0, 1.0], [-w * w, -2.0 * damping * w]])
+    b = np.array([0.0, w * w])
+    m = np.zeros((4, 4))
+    m[:2, :2] = a
+    m[:2, 2] = b
+    m[2, 3] = 1.0
+    e = expm(m * dt)
+    phi, g1, g2 = e[:2, :2], e[:2, 2], e[:2, 3]
+    # x[k+1] = phi x[k] + g1 u[k] + g2 (u[k+1] - u[k]) / dt
+    b0 = g1 - g2 / dt
+    b1 = g2 / dt
+    k = np.array([[-phi[1, 1], phi[0, 1]], [phi[1, 0], -phi[0, 0]]])   # adj(zI - phi) = zI + k
+    num = np.stack([b1, b0 + k @ b1, k @ b0], axis=1)                   # rows: x, xdot
+    den = np.array([1.0, -np.trace(phi), np.linalg.det(phi)])
+    return num[0], num[1], den
+
+
+def suspension_response(u, dt: float, freq: float, damping: float, gain: float = 1.0):
+    """Exact response of ``x'' + 2 zeta w x' + w^2 x = w^2 gain u(t)``, ``w = 2 pi freq``.
+
+    ``u`` is sampled every ``dt`` and linear in between (first-order hold); the
+    system starts at rest in equilibrium with ``u[0]``. The states are exact at the
+    samples (no discretisation error), the acceleration follows from the equation.
+
+    Parameters
+    ----------
+    u : array_like, shape (N,)
+    dt : float
+        Sample interval, s.
+    freq : float
+        Undamped natural frequency, Hz.
+    damping : float
+        Damping ratio.
+    gain : float
+        Static gain.
+
+    Returns
+    -------
+    x, xdot, xddot : ndarray, shape (N,)
+    """
+    from scipy.signal import lfilter, lfilter_zi
+    u = gain * np.asarray(u, dtype=float)
+    num_x, num_v, den = _foh_filter(freq, damping, dt)
+    x = lfilter(num_x, den, u, zi=lfilter_zi(num_x, den) * u[0])[0]
+    v = lfilter(num_v, den, u, zi=lfilter_zi(num_v, den) * u[0])[0]
+    w = 2.0 * math.pi * freq
+    acc = w * w * (u - x) - 2.0 * damping * w * v
+    return x, v, acc
+
+
+def _road_inputs(vehicle: VehicleParams, s_f, rough):
+    """Pitch, roll and heave inputs of the roughness under the four wheels at distances ``s_f``."""
+    x_rough, h_l, h_r = rough
+    l_r = vehicle.rear_axle_to_ref
+    l_f = vehicle.wheelbase - l_r
+    front, rear = s_f + l_f, s_f - l_r
+    hfl, hfr = np.interp(front, x_rough, h_l), np.interp(front, x_rough, h_r)
+    hrl, hrr = np.interp(rear, x_rough, h_l), np.interp(rear, x_rough, h_r)
+    h_front, h_rear = 0.5 * (hfl + hfr), 0.5 * (hrl + hrr)
+    u_pitch = -(h_front - h_rear) / vehicle.wheelbase
+    u_roll = (0.5 * (hfl + hrl) - 0.5 * (hfr + hrr)) / vehicle.track
+    u_heave = (l_r * h_front + l_f * h_rear) / vehicle.wheelbase
+    return u_pitch, u_roll, u_heave
+
+
+def _load_transfer(vehicle: VehicleParams, a_f, v_f, s_f, layout):
+    """Road-frame specific force ``(f_x, f_y)`` of the reference point (m/s^2) at the fine grid."""
+    kappa_pw, grade_pw, bank_pw = layout
+    al, al_s, _, _, _ = grade_pw(s_f)
+    bk, bk_s, _, _, _ = bank_pw(s_f)
+    kap = kappa_pw(s_f)[0]
+    th_r = -al
+    psi_d, th_d, ph_d = kap * v_f, -al_s * v_f, bk_s * v_f
+    w_rz = -np.sin(bk) * th_d + np.cos(bk) * np.cos(th_r) * psi_d
+    f_x = a_f.copy()
+    f_y = v_f * w_rz
+    if vehicle.gravity_load_transfer:
+        f_x += GRAVITY * np.sin(al)
+        f_y += GRAVITY * np.cos(th_r) * np.sin(bk)
+    return f_x, f_y
+
+
+def body_motion(vehicle: VehicleParams, a_f, v_f, s_f, dt_f: float, layout, rough):
+    """Body pitch, roll and heave relative to the road on a fine time grid.
+
+    Parameters
+    ----------
+    vehicle : VehicleParams
+    a_f, v_f, s_f : ndarray, shape (N,)
+        Longitudinal acceleration (m/s^2), speed (m/s) and distance (m) at the fine grid.
+    dt_f : float
+        Fine-grid step, s.
+    layout : (curvature, grade, bank)
+        The road profiles (:func:`~imu_ground.evaluation.simulate.road.road_layout`).
+    rough : (x, h_left, h_right)
+        The roughness profile (:func:`~imu_ground.evaluation.simulate.road.road_profile`).
+
+    Returns
+    -------
+    pitch, roll, heave : tuple of three ndarrays (N,)
+        Each ``(value, rate, acceleration)``: rad, rad/s, rad/s^2 (heave m, m/s, m/s^2);
+        pitch nose down positive, roll left side up positive.
+    """
+    u_pitch, u_roll, u_heave = _road_inputs(vehicle, s_f, rough)
+    if vehicle.pitch_gain_deg or vehicle.roll_gain_deg:
+        f_x, f_y = _load_transfer(vehicle, a_f, v_f, s_f, layout)
+        u_pitch = u_pitch - vehicle.pitch_gain_deg * DEG * f_x
+        u_roll = u_roll + vehicle.roll_gain_deg * DEG * f_y
+    pitch = suspension_response(u_pitch, dt_f, vehicle.pitch_freq, vehicle.pitch_damping)
+    roll = suspension_response(u_roll, dt_f, vehicle.roll_freq, vehicle.roll_damping)
+    heave = suspension_response(u_heave, dt_f, vehicle.heave_freq, vehicle.heave_damping)
+    return pitch, roll, heave
