@@ -1,0 +1,470 @@
+"""ROS logs: ``sensor_msgs/Imu``, poses and speeds from ROS 1 bags, ROS 2 bags and MCAP files.
+
+Read with `rosbags <https://gitlab.com/ternaris/rosbags>`_ (pure Python, the
+``ros`` extra), imported only when a function here is called. What is read:
+
+- a ROS 1 bag (``*.bag``);
+- a ROS 2 bag folder (``metadata.yaml`` and ``*.db3`` or ``*.mcap`` storage);
+- a plain MCAP file (``*.mcap``) with ROS 2 (CDR) messages.
+
+Times
+-----
+Message times are the header stamps (``time_source="header"``, the sensor's
+clock) by default; the bag's record times (when the recorder received the
+message) with ``time_source="record"``. When the two disagree (the median of
+record - header beyond ``stamp_tolerance``, or the spread of that difference
+beyond it), one :class:`~imu_ground.datasets.validation.TimestampWarning` says so;
+header stamps that are all zero fall back to the record times, also with a
+warning. ``ImuData.t`` starts at 0; ``meta["t0_ns"]`` (int, ns) and ``meta["t0"]``
+(s) hold the first stamp, so ``t0_ns + round(t * 1e9)`` is the original stamp.
+Poses and speeds are returned on the same clock: seconds since ``t0_ns`` when it
+is given (pass the IMU's ``meta["t0_ns"]`` to line them up), else since the epoch.
+
+Frames
+------
+ROS body frames are x forward, y left, z up (REP 103), so ``ImuData.frame`` is
+``"FLU"``, except for an ``*optical*`` frame_id (z forward, x right, y down:
+``"RDF"``); the message's ``frame_id`` itself is in ``meta["frame_id"]``.
+"""
+from __future__ import annotations
+
+import sqlite3
+import struct
+import warnings
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from imu_ground.datasets.options import ImuInputError
+from imu_ground.datasets.validation import MalformedFileError, TimestampWarning
+from imu_ground.datasets.validation import validate as _validate
+
+from imu_ground.imu.data import ImuData
+
+__all__ = [
+    "IMU_TYPE",
+    "POSE_TYPES",
+    "SPEED_TYPES",
+    "is_rosbag",
+    "read_rosbag_imu",
+    "read_rosbag_poses",
+    "read_rosbag_speed",
+    "rosbag_topics",
+]
+
+#: Message type read by :func:`read_rosbag_imu` (rosbags' ROS 2 spelling; ROS 1's ``sensor_msgs/Imu``).
+IMU_TYPE = "sensor_msgs/msg/Imu"
+#: Message types read by :func:`read_rosbag_poses`.
+POSE_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped",
+              "geometry_msgs/msg/PoseWithCovarianceStamped")
+#: Message types read by :func:`read_rosbag_speed`.
+SPEED_TYPES = ("geometry_msgs/msg/TwistStamped", "nav_msgs/msg/Odometry",
+               "geometry_msgs/msg/TwistWithCovarianceStamped")
+
+PathLike = str | Path
+
+
+def is_rosbag(path: PathLike) -> bool:
+    """Whether ``path`` looks like a ROS log: a ``.bag`` or ``.mcap`` file, or a folder with ``metadata.yaml``."""
+    p = Path(path)
+    if p.is_dir():
+        return (p / "metadata.yaml").is_file()
+    return p.suffix.lower() in (".bag", ".mcap")
+
+
+# --------------------------------------------------------------------------- opening
+def _corrupt(path: Path, err: BaseException) -> MalformedFileError:
+    detail = str(err).strip() or type(err).__name__
+    hint = ("; a ROS 1 bag whose recording was cut off needs 'rosbag reindex'" if path.suffix == ".bag" else
+            "; 'mcap recover' salvages the complete messages of a cut-off MCAP file"
+            if path.suffix == ".mcap" else "")
+    return MalformedFileError(path, f"truncated or corrupt ROS log, cannot read it ({detail}){hint}")
+
+
+def _read_errors() -> tuple[type[BaseException], ...]:
+    from rosbags.highlevel import AnyReaderError
+    from rosbags.rosbag1 import ReaderError as Reader1Error
+    from rosbags.rosbag2 import ReaderError as Reader2Error
+    from rosbags.serde import SerdeError
+    return (AnyReaderError, Reader1Error, Reader2Error, SerdeError, sqlite3.DatabaseError, struct.error,
+            EOFError, KeyError, IndexError, UnicodeDecodeError)
+
+
+@contextmanager
+def _open(path: PathLike) -> Iterator[Any]:
+    """An open ``rosbags.highlevel.AnyReader``; unreadable files raise :class:`MalformedFileError` naming them."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    p = Path(path)
+    if not p.exists():
+        raise FileNotFoundError(f"{p}: no such file or folder")
+    if not is_rosbag(p):
+        raise ValueError(f"{p}: not a ROS log (expected a .bag or .mcap file, or a ROS 2 bag folder with "
+                         f"metadata.yaml)")
+    errors = _read_errors()
+    reader = AnyReader([p], default_typestore=get_typestore(
+        Stores.ROS1_NOETIC if p.suffix == ".bag" else Stores.LATEST))
+    try:
+        reader.open()
+    except errors as e:
+        raise _corrupt(p, e) from e
+    try:
+        yield reader
+    except errors as e:
+        raise _corrupt(p, e) from e
+    finally:
+        reader.close()
+
+
+def _topic_rates(reader: Any, connections: Sequence[Any]) -> dict[str, float]:
+    """Median message rate, Hz, of each topic, from its record times (nan below 2 messages)."""
+    times: dict[str, list[int]] = {}
+    for conn, rec_ns, _ in reader.messages(connections=connections):
+        times.setdefault(conn.topic, []).append(rec_ns)
+    out = {}
+    for topic, ts in times.items():
+        d = np.diff(np.sort(np.asarray(ts, dtype=np.int64)))
+        d = d[d > 0]
+        out[topic] = float(1e9 / np.median(d)) if d.size else float("nan")
+    return out
+
+
+def _topic_rows(reader: Any, connections: Sequence[Any]) -> list[tuple[str, str, int, float]]:
+    counts: dict[tuple[str, str], int] = {}
+    for c in connections:
+        counts[(c.topic, c.msgtype)] = counts.get((c.topic, c.msgtype), 0) + c.msgcount
+    rates = _topic_rates(reader, connections) if connections else {}
+    return [(topic, msgtype, n, rates.get(topic, float("nan"))) for (topic, msgtype), n in sorted(counts.items())]
+
+
+def rosbag_topics(path: PathLike) -> list[tuple[str, str, int, float]]:
+    """Topics of a ROS log.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.bag``, ``.mcap`` or ROS 2 bag folder.
+
+    Returns
+    -------
+    list of (topic, msgtype, count, rate_hz)
+        Sorted by topic; ``msgtype`` in rosbags' spelling (``sensor_msgs/msg/Imu``),
+        ``rate_hz`` the median rate of the record times (nan below 2 messages).
+
+    Raises
+    ------
+    MalformedFileError
+        Truncated or corrupt file (the message names it).
+    """
+    with _open(path) as reader:
+        return _topic_rows(reader, reader.connections)
+
+
+def _describe(rows: Sequence[tuple[str, str, int, float]]) -> str:
+    return ", ".join(f"{t} ({m}, {n} messages, {r:.4g} Hz)" for t, m, n, r in rows) or "no topics"
+
+
+def _choose(reader: Any, path: Path, types: Sequence[str], topic: str | None, what: str) -> list[Any]:
+    """Connections of the one topic of a type in ``types`` (or of ``topic``); clear errors otherwise."""
+    conns = reader.connections
+    if topic is not None:
+        chosen = [c for c in conns if c.topic == topic]
+        if not chosen:
+            raise ImuInputError(f"{path}: no topic {topic!r}; topics: {_describe(_topic_rows(reader, conns))}",
+                                option="topic", value=topic)
+        if chosen[0].msgtype not in types:
+            raise ImuInputError(f"{path}: topic {topic!r} carries {chosen[0].msgtype}, not {what} "
+                                f"({' or '.join(types)})", option="topic", value=topic)
+        return chosen
+    matching = [c for c in conns if c.msgtype in types]
+    names = sorted({c.topic for c in matching})
+    if not names:
+        raise ImuInputError(f"{path}: no {what} topic ({' or '.join(types)}); the log has "
+                            f"{_describe(_topic_rows(reader, conns))}")
+    if len(names) > 1:
+        rows = _topic_rows(reader, matching)
+        raise ImuInputError(f"{path}: {len(names)} {what} topics: {_describe(rows)}; choose one with {{hint}}",
+                            option="topic", value=names[0])
+    return matching
+
+
+def _raw_messages(reader: Any, conns: Sequence[Any]) -> tuple[np.ndarray, list[bytes]]:
+    """Record times (ns, int64) and serialised messages of ``conns``, in record order."""
+    rec: list[int] = []
+    raws: list[bytes] = []
+    for _, rec_ns, raw in reader.messages(connections=conns):
+        rec.append(rec_ns)
+        raws.append(bytes(raw))
+    return np.asarray(rec, dtype=np.int64), raws
+
+
+def _messages(reader: Any, conns: Sequence[Any]) -> tuple[np.ndarray, list[Any]]:
+    """Record times (ns, int64) and deserialised messages of ``conns``, in record order."""
+    rec, raws = _raw_messages(reader, conns)
+    return rec, [reader.deserialize(raw, conns[0].msgtype) for raw in raws]
+
+
+#: float64 fields of sensor_msgs/Imu after its header: orientation (4), its covariance (9),
+#: angular_velocity (3), covariance (9), linear_acceleration (3), covariance (9).
+_IMU_DOUBLES = 37
+
+
+def _imu_columns(raws: Sequence[bytes], ros1: bool) -> tuple[np.ndarray, str, np.ndarray] | None:
+    """Decode serialised ``sensor_msgs/Imu`` messages of one length with numpy (no per-message Python).
+
+    Spells out the two wire formats: ROS 1 (``seq, sec, nsec: uint32``, frame_id as
+    uint32 length + bytes, then the 37 float64 unaligned) and ROS 2 little-endian
+    CDR (4-byte encapsulation header, ``sec: int32, nanosec: uint32``, frame_id as
+    uint32 length + bytes + NUL, padding to 8, then the 37 float64).
+
+    Returns
+    -------
+    (header stamps ns (N,), frame_id, doubles (N, 37)), or None when the messages
+    differ in length or are big-endian CDR (then the caller deserialises each).
+    """
+    size = len(raws[0])
+    if size < 16 or any(len(r) != size for r in raws):
+        return None
+    length = int.from_bytes(raws[0][12:16], "little")
+    if ros1:
+        start, name = 16 + length, raws[0][16:16 + length]
+    else:
+        if raws[0][:2] != b"\x00\x01":
+            return None
+        start, name = 4 + -(-(12 + length) // 8) * 8, raws[0][16:16 + length].rstrip(b"\x00")
+    if start + 8 * _IMU_DOUBLES != size:
+        return None
+    buf = np.frombuffer(b"".join(raws), dtype=np.uint8).reshape(len(raws), size)
+    # both formats: sec at byte 4, nanoseconds at byte 8 (after seq / the encapsulation header)
+    sec = np.ascontiguousarray(buf[:, 4:8]).view("<u4" if ros1 else "<i4")[:, 0]
+    nsec = np.ascontiguousarray(buf[:, 8:12]).view("<u4")[:, 0]
+    stamps = sec.astype(np.int64) * 1_000_000_000 + nsec.astype(np.int64)
+    doubles = np.ascontiguousarray(buf[:, start:]).view("<f8")
+    return stamps, name.decode("utf-8", "replace"), doubles
+
+
+def _header_ns(msgs: Sequence[Any]) -> np.ndarray:
+    return np.fromiter((m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec for m in msgs),
+                       dtype=np.int64, count=len(msgs))
+
+
+def _stamps(path: Path, hdr: np.ndarray, rec: np.ndarray, time_source: str, tolerance: float,
+            stacklevel: int) -> tuple[np.ndarray, str]:
+    """Message times, ns: header stamps ``hdr`` or record times ``rec``; one warning when they disagree."""
+    if time_source not in ("header", "record"):
+        raise ValueError(f"time_source must be 'header' or 'record', got {time_source!r}")
+    if time_source == "record" or not len(hdr):
+        return rec, "record"
+    if not hdr.any():
+        warnings.warn(f"{path}: every header stamp is zero; using the record times instead",
+                      TimestampWarning, stacklevel=stacklevel)
+        return rec, "record (header stamps are zero)"
+    d = (rec - hdr) * 1e-9
+    med = float(np.median(d))
+    spread = float(np.percentile(np.abs(d - med), 99)) if d.size else 0.0
+    if abs(med) > tolerance or spread > tolerance:
+        warnings.warn(f"{path}: the header stamps disagree with the record times (record - header: median "
+                      f"{med:.6g} s, 99th percentile of its deviation {spread:.3g} s, tolerance {tolerance:g} s); "
+                      f"using the header stamps (time_source='record' for the record times)",
+                      TimestampWarning, stacklevel=stacklevel)
+    return hdr, "header"
+
+
+def _vectors(msgs: Sequence[Any], attr: str) -> np.ndarray:
+    out = np.empty((len(msgs), 3))
+    for k, m in enumerate(msgs):
+        v = getattr(m, attr)
+        out[k] = (v.x, v.y, v.z)
+    return out
+
+
+def _imu_slow(msgs: Sequence[Any]) -> tuple[np.ndarray, str, np.ndarray]:
+    """What :func:`_imu_columns` returns, from deserialised messages."""
+    d = np.empty((len(msgs), _IMU_DOUBLES))
+    for k, m in enumerate(msgs):
+        o, w, a = m.orientation, m.angular_velocity, m.linear_acceleration
+        d[k, :4] = (o.x, o.y, o.z, o.w)
+        d[k, 4:13] = m.orientation_covariance
+        d[k, 13:16] = (w.x, w.y, w.z)
+        d[k, 16:25] = m.angular_velocity_covariance
+        d[k, 25:28] = (a.x, a.y, a.z)
+        d[k, 28:] = m.linear_acceleration_covariance
+    return _header_ns(msgs), str(msgs[0].header.frame_id), d
+
+
+def _read_imu_topic(reader: Any, conns: Sequence[Any]) -> tuple[np.ndarray, np.ndarray, str, np.ndarray]:
+    """Record times, header stamps (ns), frame_id and the float64 fields (N, 37) of an IMU topic."""
+    rec, raws = _raw_messages(reader, conns)
+    if not raws:
+        return rec, rec, "", np.empty((0, _IMU_DOUBLES))
+    fast = _imu_columns(raws, ros1=not reader.is2)
+    if fast is None:
+        fast = _imu_slow([reader.deserialize(raw, conns[0].msgtype) for raw in raws])
+    return (rec, *fast)
+
+
+def _orientation(d: np.ndarray) -> np.ndarray | None:
+    """The IMU's own attitude (w, x, y, z) per message, or None when not provided (covariance[0] = -1, or zeros)."""
+    if d[0, 4] == -1 or not np.any(d[:, :4]):
+        return None
+    return d[:, [3, 0, 1, 2]]
+
+
+def _axes(frame_id: str) -> str:
+    return "RDF" if "optical" in frame_id else "FLU"
+
+
+def read_rosbag_imu(path: PathLike, *, topic: str | None = None, time_source: str = "header",
+                    stamp_tolerance: float = 0.1, validate: bool = True, policy: str = "drop",
+                    **options: Any) -> ImuData:
+    """Read the ``sensor_msgs/Imu`` messages of a ROS log.
+
+    Parameters
+    ----------
+    path : str or Path
+        ROS 1 bag (``.bag``), ROS 2 bag folder (sqlite3 or MCAP storage) or MCAP file.
+    topic : str, optional
+        The IMU topic; needed only when the log has more than one.
+    time_source : {"header", "record"}
+        Header stamps (default) or the recorder's receive times.
+    stamp_tolerance : float
+        Disagreement, s, between header and record times beyond which a warning is issued.
+    validate : bool
+        Check and clean the log as every reader does
+        (:func:`imu_ground.datasets.validation.validate`).
+    policy : str
+        Time-order policy of the validation (``"drop"``, ``"sort"``, ``"strict"``).
+    **options
+        Other options of the validation (``nonfinite``, ``gap_factor``, ...).
+
+    Returns
+    -------
+    ImuData
+        ``t`` s from the first stamp, ``gyro`` (``angular_velocity``) rad/s,
+        ``accel`` (``linear_acceleration``, specific force) m/s^2, both in the
+        message's frame (REP 103: ``frame="FLU"``); ``extra`` holds the IMU's own
+        attitude ``qw, qx, qy, qz`` when the messages carry one; ``meta``:
+        ``format="rosbag"``, ``topic``, ``frame_id``, ``t0_ns`` / ``t0`` (first
+        stamp, ns / s), ``time_source``, ``record_t0_ns``.
+
+    Raises
+    ------
+    ImuInputError
+        No IMU topic (the message lists the topics there are), several (it
+        lists them with counts and rates and names the ``topic`` option), or
+        ``topic`` is not an IMU topic.
+    MalformedFileError
+        Truncated or corrupt file, or no IMU message.
+    """
+    import pandas as pd
+
+    p = Path(path)
+    depth = int(options.pop("_depth", 1))
+    with _open(p) as reader:
+        conns = _choose(reader, p, (IMU_TYPE,), topic, "IMU")
+        rec, hdr, frame_id, d = _read_imu_topic(reader, conns)
+    if not len(rec):
+        raise MalformedFileError(p, f"IMU topic {conns[0].topic!r} has no messages")
+    ns, used = _stamps(p, hdr, rec, time_source, stamp_tolerance, stacklevel=2 + depth)
+    q = _orientation(d)
+    extra = pd.DataFrame(q, columns=["qw", "qx", "qy", "qz"]) if q is not None else pd.DataFrame()
+    meta = {"format": "rosbag", "topic": conns[0].topic, "frame_id": frame_id, "t0_ns": int(ns[0]),
+            "t0": int(ns[0]) / 1e9, "t0_clock": f"{used} time of the first message",
+            "time_source": used, "record_t0_ns": int(rec[0])}
+    imu = ImuData((ns - ns[0]) / 1e9, d[:, 13:16], d[:, 25:28], _axes(frame_id), extra, {c: "1" for c in extra.columns}, str(p), meta)
+    if not validate:
+        if options:
+            raise TypeError(f"validation options {sorted(options)} given with validate=False")
+        return imu
+    out, _ = _validate(imu, policy, **options)  # type: ignore[arg-type]
+    return out
+
+
+def _times(ns: np.ndarray, t0_ns: int | None) -> np.ndarray:
+    return (ns - (0 if t0_ns is None else int(t0_ns))) / 1e9
+
+
+def _read_typed(path: PathLike, types: Sequence[str], topic: str | None, what: str,
+                time_source: str, stamp_tolerance: float) -> tuple[Path, str, np.ndarray, list[Any]]:
+    p = Path(path)
+    with _open(p) as reader:
+        conns = _choose(reader, p, types, topic, what)
+        rec, msgs = _messages(reader, conns)
+    if not msgs:
+        raise MalformedFileError(p, f"{what} topic {conns[0].topic!r} has no messages")
+    ns, _ = _stamps(p, _header_ns(msgs), rec, time_source, stamp_tolerance, stacklevel=4)
+    return p, conns[0].msgtype, ns, msgs
+
+
+def read_rosbag_poses(path: PathLike, topic: str | None = None, *, t0_ns: int | None = None,
+                      time_source: str = "header", stamp_tolerance: float = 0.1) -> Any:
+    """Poses from a ``nav_msgs/Odometry``, ``geometry_msgs/PoseStamped`` or ``PoseWithCovarianceStamped`` topic.
+
+    Parameters
+    ----------
+    path : str or Path
+        ROS log.
+    topic : str, optional
+        The pose topic; needed only when the log has more than one.
+    t0_ns : int, optional
+        Clock origin, ns, of the returned times (the IMU's ``meta["t0_ns"]``);
+        default: the epoch.
+    time_source, stamp_tolerance
+        As in :func:`read_rosbag_imu`.
+
+    Returns
+    -------
+    PoseSequence
+        ``rotations`` world <- sensor (the message's ``header.frame_id`` <-
+        ``child_frame_id``/the pose's frame), ``translations`` m, ``t`` s,
+        ``index`` 0..N-1.
+    """
+    from imu_ground.datasets.poses import PoseSequence
+    from scipy.spatial.transform import Rotation
+
+    p, _, ns, msgs = _read_typed(path, POSE_TYPES, topic, "pose", time_source, stamp_tolerance)
+    poses = [m.pose.pose if hasattr(m.pose, "pose") else m.pose for m in msgs]
+    quat = np.array([(x.orientation.x, x.orientation.y, x.orientation.z, x.orientation.w) for x in poses])
+    bad = np.flatnonzero(~(np.abs(np.linalg.norm(quat, axis=1) - 1.0) < 1e-3))
+    if bad.size:
+        raise MalformedFileError(p, f"{bad.size} pose(s) with a non-unit orientation quaternion, first message "
+                                    f"{int(bad[0]) + 1} (1-based)")
+    return PoseSequence(rotations=Rotation.from_quat(quat).as_matrix(), translations=_vectors(poses, "position"),
+                        t=_times(ns, t0_ns), index=np.arange(len(poses)), source=str(p))
+
+
+def read_rosbag_speed(path: PathLike, topic: str | None = None, *, t0_ns: int | None = None,
+                      time_source: str = "header",
+                      stamp_tolerance: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
+    """Vehicle speed from a ``geometry_msgs/TwistStamped``, ``TwistWithCovarianceStamped`` or ``nav_msgs/Odometry`` topic.
+
+    Parameters
+    ----------
+    path : str or Path
+        ROS log.
+    topic : str, optional
+        The twist topic; needed only when the log has more than one.
+    t0_ns : int, optional
+        Clock origin, ns, of the returned times (the IMU's ``meta["t0_ns"]``);
+        default: the epoch.
+    time_source, stamp_tolerance
+        As in :func:`read_rosbag_imu`.
+
+    Returns
+    -------
+    t : ndarray (N,)
+        s.
+    speed : ndarray (N,)
+        m/s. ``nav_msgs/Odometry``: ``twist.linear.x``, the signed forward speed
+        (its twist is in the body frame, ``child_frame_id``, REP 105); twist
+        messages (frame not known to be the body's): the norm of ``linear``,
+        unsigned.
+    """
+    _, msgtype, ns, msgs = _read_typed(path, SPEED_TYPES, topic, "speed", time_source, stamp_tolerance)
+    twists = [m.twist.twist if hasattr(m.twist, "twist") else m.twist for m in msgs]
+    v = _vectors(twists, "linear")
+    speed = v[:, 0] if msgtype == "nav_msgs/msg/Odometry" else np.linalg.norm(v, axis=1)
+    return _times(ns, t0_ns), speed

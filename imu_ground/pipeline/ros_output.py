@@ -1,0 +1,299 @@
+"""The ground estimate as ROS topics: a ROS 1 bag, a ROS 2 bag folder or an MCAP file.
+
+The result plays in Foxglove or RViz next to the recording it came from: the
+header stamps are the recording's own clock (see ``t0`` / ``t0_ns`` below) and
+the ``frame_id`` is the IMU's.
+
+Topics written (``PREFIX`` is ``topic_prefix``, default ``/ground``), one
+message per valid frame of the output table (invalid frames and rows with NaN are
+skipped):
+
+====================  ===============================  ==========================================
+topic                 type                             content
+====================  ===============================  ==========================================
+``PREFIX/normal``     ``geometry_msgs/Vector3Stamped`` unit ground normal in the body frame
+                                                       (``frame_id``), dimensionless
+``PREFIX/rotation``   ``geometry_msgs/QuaternionStamped`` residual rotation road <- body (the
+                                                       table's qw, qx, qy, qz)
+``PREFIX/pitch_roll`` ``geometry_msgs/Vector3Stamped`` ``x`` = roll, ``y`` = pitch of the body
+                                                       relative to the road, rad (signs as in
+                                                       the table); ``z`` = 0
+``PREFIX/settings``   ``std_msgs/String``              the method's settings as JSON, once, at
+                                                       the first stamp (only with ``settings``)
+====================  ===============================  ==========================================
+
+Pitch and roll share one ``Vector3Stamped`` (rather than two ``std_msgs/Float64``
+topics, which carry no stamp) so that each value keeps its header stamp and
+``frame_id``; in Foxglove plot ``PREFIX/pitch_roll.vector.y`` for pitch.
+
+Container from the path: ``.bag`` = ROS 1 bag (ROS 1 serialisation), ``.mcap`` =
+one MCAP file (ROS 2 CDR messages, ``ros2msg`` schemas), a path without suffix =
+ROS 2 bag folder (``metadata.yaml`` + one storage file, MCAP by default,
+``storage="sqlite3"`` for a ``.db3``).
+"""
+from __future__ import annotations
+
+import json
+import shutil
+from collections.abc import Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from imu_ground.units import DEG
+
+if TYPE_CHECKING:
+    from typing_extensions import Self
+
+__all__ = ["ROS_OUTPUT_TOPICS", "RosWriter", "ros_output_kind", "write_ros_output"]
+
+#: Topic suffix -> message type (ROS 2 spelling) of what :func:`write_ros_output` writes.
+ROS_OUTPUT_TOPICS: dict[str, str] = {
+    "normal": "geometry_msgs/msg/Vector3Stamped",
+    "rotation": "geometry_msgs/msg/QuaternionStamped",
+    "pitch_roll": "geometry_msgs/msg/Vector3Stamped",
+    "settings": "std_msgs/msg/String",
+}
+
+_TABLE_COLUMNS = ("t", "normal_x", "normal_y", "normal_z", "pitch_deg", "roll_deg", "qw", "qx", "qy", "qz")
+_KINDS = {".bag": "ros1", ".mcap": "mcap", "": "ros2"}
+
+
+def ros_output_kind(path: str | Path) -> str:
+    """Container written for ``path``: ``"ros1"`` (``.bag``), ``"mcap"`` (``.mcap``) or ``"ros2"``.
+
+    ``"ros2"`` is a ROS 2 bag folder: a path without suffix, or an existing folder.
+
+    Raises
+    ------
+    ValueError
+        Any other suffix; the message lists the supported ones.
+    """
+    p = Path(path)
+    if p.is_dir():
+        return "ros2"
+    kind = _KINDS.get(p.suffix.lower())
+    if kind is None:
+        raise ValueError(f"{p}: cannot write ROS output with suffix {p.suffix!r}: use .bag (ROS 1), "
+                         f".mcap (MCAP, ROS 2 messages) or a folder name without suffix (ROS 2 bag)")
+    return kind
+
+
+class RosWriter:
+    """One ROS log being written, whatever the container; a context manager.
+
+    Parameters
+    ----------
+    path : str or Path
+        Output path; the container follows from it (:func:`ros_output_kind`).
+        Written exactly there (nothing renamed); it must not exist unless
+        ``overwrite``.
+    storage : {"mcap", "sqlite3"}
+        Storage of a ROS 2 bag folder (ignored for ``.bag`` and ``.mcap``).
+    overwrite : bool
+        Remove an existing file, or an existing ROS 2 bag folder (one with a
+        ``metadata.yaml``), first.
+
+    Examples
+    --------
+    >>> with RosWriter("out.mcap") as w:                                  # doctest: +SKIP
+    ...     h = w.add_topic("/x", "std_msgs/msg/String")
+    ...     w.write(h, 0, w.message("std_msgs/msg/String", data="hi"))
+    """
+
+    def __init__(self, path: str | Path, *, storage: str = "mcap", overwrite: bool = False) -> None:
+        from rosbags.typesys import Stores, get_typestore
+
+        self.path = Path(path)
+        self.kind = ros_output_kind(self.path)
+        if storage not in ("mcap", "sqlite3"):
+            raise ValueError(f"storage must be 'mcap' or 'sqlite3', got {storage!r}")
+        self.storage = storage
+        if self.path.exists():
+            _remove_existing(self.path, overwrite)
+        self.ros1 = self.kind == "ros1"
+        self.typestore = get_typestore(Stores.ROS1_NOETIC if self.ros1 else Stores.ROS2_HUMBLE)
+        self._writer: Any = None
+        self._file: Any = None
+        self._schemas: dict[str, int] = {}
+        self.counts: dict[str, int] = {}
+
+    # -- opening and closing ------------------------------------------------------------
+    def __enter__(self) -> Self:
+        self.open()
+        return self
+
+    def __exit__(self, exc_type: object, exc: object, tb: object) -> None:
+        self.close()
+
+    def open(self) -> None:
+        """Create the file or folder."""
+        if self.kind == "ros1":
+            from rosbags.rosbag1 import Writer as Writer1
+            self._writer = Writer1(self.path)
+            self._writer.open()
+        elif self.kind == "ros2":
+            from rosbags.rosbag2 import StoragePlugin
+            from rosbags.rosbag2 import Writer as Writer2
+            plugin = StoragePlugin.MCAP if self.storage == "mcap" else StoragePlugin.SQLITE3
+            self._writer = Writer2(self.path, version=9, storage_plugin=plugin)
+            self._writer.open()
+        else:
+            from mcap.writer import Writer as McapWriter
+            self._file = open(self.path, "xb")  # noqa: SIM115 (closed by close(), after the index)
+            self._writer = McapWriter(self._file)
+            self._writer.start(profile="ros2", library="imu-ground")
+
+    def close(self) -> None:
+        """Write the index and close; the log is complete only after this."""
+        if self._writer is None:
+            return
+        if self.kind == "mcap":
+            self._writer.finish()
+            self._file.close()
+        else:
+            self._writer.close()
+        self._writer = None
+
+    # -- messages -------------------------------------------------------------------------
+    def add_topic(self, topic: str, msgtype: str) -> Any:
+        """Register ``topic`` of type ``msgtype`` (ROS 2 spelling, ``pkg/msg/Name``); returns its handle."""
+        self.counts.setdefault(topic, 0)
+        if self.kind != "mcap":
+            return self._writer.add_connection(topic, msgtype, typestore=self.typestore), topic
+        if msgtype not in self._schemas:
+            msgdef, _ = self.typestore.generate_msgdef(msgtype, ros_version=2)
+            self._schemas[msgtype] = self._writer.register_schema(
+                name=msgtype, encoding="ros2msg", data=msgdef.encode())
+        channel = self._writer.register_channel(topic=topic, message_encoding="cdr",
+                                                schema_id=self._schemas[msgtype])
+        return channel, topic
+
+    def message(self, msgtype: str, **fields: Any) -> Any:
+        """A message object of ``msgtype`` from this writer's type store (ROS 1 or ROS 2)."""
+        return self.typestore.types[msgtype](**fields)
+
+    def header(self, stamp_ns: int, frame_id: str, seq: int = 0) -> Any:
+        """A ``std_msgs/Header`` with stamp ``stamp_ns`` (ns since the clock's epoch, >= 0)."""
+        stamp_ns = int(stamp_ns)
+        if stamp_ns < 0:
+            raise ValueError(f"{self.path}: negative ROS stamp {stamp_ns} ns; pass t0/t0_ns (the log's start time)")
+        t = self.message("builtin_interfaces/msg/Time", sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
+        if self.ros1:
+            return self.message("std_msgs/msg/Header", seq=seq, stamp=t, frame_id=frame_id)
+        return self.message("std_msgs/msg/Header", stamp=t, frame_id=frame_id)
+
+    def write(self, handle: Any, stamp_ns: int, msg: Any) -> None:
+        """Write ``msg`` on the topic of ``handle`` with record (log) time ``stamp_ns``."""
+        conn, topic = handle
+        msgtype = msg.__msgtype__
+        if self.kind == "ros1":
+            self._writer.write(conn, int(stamp_ns), self.typestore.serialize_ros1(msg, msgtype))
+        elif self.kind == "ros2":
+            self._writer.write(conn, int(stamp_ns), self.typestore.serialize_cdr(msg, msgtype))
+        else:
+            self._writer.add_message(channel_id=conn, log_time=int(stamp_ns), publish_time=int(stamp_ns),
+                                     data=bytes(self.typestore.serialize_cdr(msg, msgtype)),
+                                     sequence=self.counts[topic])
+        self.counts[topic] += 1
+
+
+def _remove_existing(path: Path, overwrite: bool) -> None:
+    if not overwrite:
+        raise FileExistsError(f"{path} exists already; remove it or pass overwrite=True")
+    if path.is_dir():
+        if not (path / "metadata.yaml").is_file():
+            raise FileExistsError(f"{path} is a folder but not a ROS 2 bag (no metadata.yaml); not removing it")
+        shutil.rmtree(path)
+    else:
+        path.unlink()
+
+
+def _stamp_origin(t0: float | None, t0_ns: int | None, settings: Mapping[str, Any] | None) -> int:
+    """The clock offset, ns, added to the table's ``t``: argument, else settings, else 0."""
+    s = settings or {}
+    if t0_ns is None and t0 is None:
+        t0_ns, t0 = s.get("t0_ns"), s.get("t0")
+    if t0_ns is not None:
+        return int(t0_ns)
+    return round(float(t0) * 1e9) if t0 is not None else 0
+
+
+def _valid_rows(table: Any) -> dict[str, np.ndarray]:
+    """The table's columns (float arrays) restricted to valid rows with finite values."""
+    missing = [c for c in _TABLE_COLUMNS if c not in table]
+    if missing:
+        raise ValueError(f"the output table lacks column(s) {missing}; expected {list(_TABLE_COLUMNS)} and valid")
+    cols = {c: np.asarray(table[c], dtype=float) for c in _TABLE_COLUMNS}
+    keep = np.all(np.isfinite(np.column_stack(list(cols.values()))), axis=1)
+    if "valid" in table:
+        keep &= np.asarray(table["valid"], dtype=bool)
+    return {c: v[keep] for c, v in cols.items()}
+
+
+def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
+                     settings: Mapping[str, Any] | None = None, topic_prefix: str = "/ground",
+                     t0: float | None = None, t0_ns: int | None = None,
+                     storage: str = "mcap", overwrite: bool = False) -> dict[str, int]:
+    """Write the per-frame ground estimate as ROS topics (see the module docstring for the topics).
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.bag`` (ROS 1), ``.mcap`` (MCAP file, ROS 2 CDR) or a folder name
+        without suffix (ROS 2 bag). Written exactly there; the caller renames
+        for atomicity.
+    table : pandas.DataFrame or mapping of arrays
+        THE output table (:func:`imu_ground.filters.track_table`): t (s),
+        normal_x/y/z, pitch_deg, roll_deg (deg), qw, qx, qy, qz (road <- body),
+        valid. Rows with ``valid`` false or a NaN are skipped.
+    frame_id : str
+        ``header.frame_id`` of every message: the IMU's frame (the input's
+        ``meta["frame_id"]`` for a ROS input).
+    settings : mapping, optional
+        The method's settings (JSON-serialisable; others are written with
+        ``str``), written once on ``PREFIX/settings``. Its ``t0_ns`` / ``t0``
+        entries are used when the arguments are not given.
+    topic_prefix : str
+        Namespace of the topics.
+    t0, t0_ns : optional
+        Time, in s (float) or in ns (int, exact), added to the table's ``t`` to
+        make the header stamps: the log's start time (``ImuData.meta["t0_ns"]``
+        from :func:`imu_ground.datasets.rosbag.read_rosbag_imu`, or
+        ``meta["t0"]``) so that the topics line up with the recording. Default:
+        ``settings``' entries, else 0 (stamps are the table's ``t``). Each frame's
+        stamp is ``t0_ns + round(t * 1e9)`` ns; record times equal the stamps.
+    storage : {"mcap", "sqlite3"}
+        Storage of a ROS 2 bag folder.
+    overwrite : bool
+        Replace an existing output (otherwise :class:`FileExistsError`).
+
+    Returns
+    -------
+    dict
+        Topic -> number of messages written.
+    """
+    rows = _valid_rows(table)
+    origin = _stamp_origin(t0, t0_ns, settings)
+    stamps = origin + np.round(rows["t"] * 1e9).astype(np.int64)
+    prefix = "/" + topic_prefix.strip("/") if topic_prefix.strip("/") else ""
+    with RosWriter(path, storage=storage, overwrite=overwrite) as w:
+        h = {k: w.add_topic(f"{prefix}/{k}", m) for k, m in ROS_OUTPUT_TOPICS.items()
+             if k != "settings" or settings is not None}
+        if settings is not None and len(stamps):
+            text = json.dumps(dict(settings), default=str, sort_keys=True)
+            w.write(h["settings"], int(stamps[0]), w.message("std_msgs/msg/String", data=text))
+        vec = "geometry_msgs/msg/Vector3"
+        for k, ns in enumerate(stamps.tolist()):
+            n = w.message(vec, x=rows["normal_x"][k], y=rows["normal_y"][k], z=rows["normal_z"][k])
+            w.write(h["normal"], ns, w.message(ROS_OUTPUT_TOPICS["normal"], header=w.header(ns, frame_id, k),
+                                               vector=n))
+            q = w.message("geometry_msgs/msg/Quaternion", x=rows["qx"][k], y=rows["qy"][k], z=rows["qz"][k],
+                          w=rows["qw"][k])
+            w.write(h["rotation"], ns, w.message(ROS_OUTPUT_TOPICS["rotation"], header=w.header(ns, frame_id, k),
+                                                 quaternion=q))
+            pr = w.message(vec, x=rows["roll_deg"][k] * DEG, y=rows["pitch_deg"][k] * DEG, z=0.0)
+            w.write(h["pitch_roll"], ns, w.message(ROS_OUTPUT_TOPICS["pitch_roll"],
+                                                   header=w.header(ns, frame_id, k), vector=pr))
+        return dict(w.counts)
