@@ -34,7 +34,7 @@ import warnings
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from imu_ground.datasets.options import ImuInputError
@@ -88,8 +88,79 @@ def _read_errors() -> tuple[type[BaseException], ...]:
     from rosbags.rosbag1 import ReaderError as Reader1Error
     from rosbags.rosbag2 import ReaderError as Reader2Error
     from rosbags.serde import SerdeError
-    return (AnyReaderError, Reader1Error, Reader2Error, SerdeError, sqlite3.DatabaseError, struct.error,
-            EOFError, KeyError, IndexError, UnicodeDecodeError)
+    errors: tuple[type[BaseException], ...] = (AnyReaderError, Reader1Error, Reader2Error, SerdeError,
+                                               sqlite3.DatabaseError, struct.error, EOFError, KeyError, IndexError,
+                                               UnicodeDecodeError)
+    try:
+        from mcap.exceptions import McapError
+    except ImportError:  # the mcap package is needed only for ROS 1 MCAP files
+        return errors
+    return (*errors, McapError)
+
+
+def _mcap_profile(path: Path) -> str:
+    """The profile (``"ros1"``, ``"ros2"``, ...) in an MCAP file's header record ('' when unreadable)."""
+    with open(path, "rb") as f:
+        head = f.read(8 + 1 + 8 + 4 + 64)
+    if len(head) < 21 or not head.startswith(b"\x89MCAP") or head[8] != 0x01:
+        return ""
+    (n,) = struct.unpack_from("<I", head, 17)
+    return head[21:21 + n].decode("utf-8", "replace")
+
+
+class _Connection(NamedTuple):
+    topic: str
+    msgtype: str
+    msgcount: int
+    id: int
+
+
+class _Ros1Mcap:
+    """The part of rosbags' ``AnyReader`` used here, over an MCAP file of ROS 1 messages.
+
+    rosbags reads MCAP files of profile ``ros2`` only; ``mcap convert x.bag x.mcap``
+    writes profile ``ros1`` (``ros1msg`` schemas, ROS 1 serialisation). The
+    ``mcap`` package reads the records, rosbags deserialises the messages.
+    """
+
+    is2 = False
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.connections: list[_Connection] = []
+
+    def open(self) -> None:
+        from mcap.reader import make_reader
+        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+        from rosbags.typesys.msg import normalize_msgtype
+
+        self._file = open(self.path, "rb")  # noqa: SIM115 (closed by close())
+        self._reader = make_reader(self._file)
+        summary = self._reader.get_summary()
+        if summary is None:
+            raise EOFError("no summary section")
+        counts = summary.statistics.channel_message_counts if summary.statistics else {}
+        types: dict[str, Any] = {}
+        for cid, ch in sorted(summary.channels.items()):
+            schema = summary.schemas[ch.schema_id]
+            msgtype = normalize_msgtype(schema.name)
+            if schema.encoding == "ros1msg":
+                types.update(get_types_from_msg(schema.data.decode(), msgtype))
+            self.connections.append(_Connection(ch.topic, msgtype, int(counts.get(cid, 0)), cid))
+        self.typestore = get_typestore(Stores.EMPTY)
+        self.typestore.register(types)
+
+    def close(self) -> None:
+        self._file.close()
+
+    def messages(self, connections: Sequence[_Connection] = ()) -> Iterator[tuple[_Connection, int, bytes]]:
+        by_id = {c.id: c for c in (connections or self.connections)}
+        for _, channel, message in self._reader.iter_messages(topics=sorted({c.topic for c in by_id.values()})):
+            if channel.id in by_id:
+                yield by_id[channel.id], message.log_time, message.data
+
+    def deserialize(self, raw: bytes, msgtype: str) -> Any:
+        return self.typestore.deserialize_ros1(raw, msgtype)
 
 
 @contextmanager
@@ -105,8 +176,11 @@ def _open(path: PathLike) -> Iterator[Any]:
         raise ValueError(f"{p}: not a ROS log (expected a .bag or .mcap file, or a ROS 2 bag folder with "
                          f"metadata.yaml)")
     errors = _read_errors()
-    reader = AnyReader([p], default_typestore=get_typestore(
-        Stores.ROS1_NOETIC if p.suffix == ".bag" else Stores.LATEST))
+    if p.is_file() and p.suffix.lower() == ".mcap" and _mcap_profile(p) == "ros1":
+        reader: Any = _Ros1Mcap(p)
+    else:
+        reader = AnyReader([p], default_typestore=get_typestore(
+            Stores.ROS1_NOETIC if p.suffix == ".bag" else Stores.LATEST))
     try:
         reader.open()
     except errors as e:

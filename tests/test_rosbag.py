@@ -34,7 +34,7 @@ from imu_ground.pipeline.ros_output import RosWriter, ros_output_kind, write_ros
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "datasets" / "fixtures" / "example_drive.csv"
 T0_NS = 1_700_000_000_123_456_789          # an absolute epoch, as a real recording has
-KINDS = ("ros1", "ros2-sqlite3", "ros2-mcap", "mcap")
+KINDS = ("ros1", "ros2-sqlite3", "ros2-mcap", "mcap", "ros1-mcap")
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +44,44 @@ def csv_imu():
 
 def _bag_path(tmp: Path, kind: str) -> Path:
     return {"ros1": tmp / "drive.bag", "ros2-sqlite3": tmp / "drive_db3", "ros2-mcap": tmp / "drive_mcap",
-            "mcap": tmp / "drive.mcap"}[kind]
+            "mcap": tmp / "drive.mcap", "ros1-mcap": tmp / "drive1.mcap"}[kind]
+
+
+def _bag_to_ros1_mcap(bag: Path, path: Path) -> None:
+    """What ``mcap convert x.bag x.mcap`` does: ROS 1 messages in MCAP (profile ros1, ros1msg schemas)."""
+    from mcap.writer import Writer
+    from rosbags.rosbag1 import Reader
+    from rosbags.typesys.msg import denormalize_msgtype
+
+    with Reader(bag) as reader, open(path, "wb") as f:
+        w = Writer(f)
+        w.start(profile="ros1", library="test")
+        channels = {}
+        for c in reader.connections:
+            sid = w.register_schema(name=denormalize_msgtype(c.msgtype), encoding="ros1msg",
+                                    data=c.msgdef.data.encode())
+            channels[c.id] = w.register_channel(topic=c.topic, message_encoding="ros1", schema_id=sid,
+                                                metadata={"md5sum": c.digest})
+        for c, ns, raw in reader.messages():
+            w.add_message(channel_id=channels[c.id], log_time=ns, publish_time=ns, data=bytes(raw))
+        w.finish()
+
+
+def make_log(path: Path, kind: str, fill) -> Path:
+    """A log of ``kind`` at ``path`` whose content ``fill(writer)`` writes (rosbags' writers underneath)."""
+    if kind == "mcap":   # the storage file of a ROS 2 bag written by rosbags is a plain MCAP file
+        folder = make_log(path.with_suffix(""), "ros2-mcap", fill)
+        shutil.move(str(next(folder.glob("*.mcap"))), path)
+        shutil.rmtree(folder)
+        return path
+    if kind == "ros1-mcap":
+        bag = make_log(path.with_suffix(".bag"), "ros1", fill)
+        _bag_to_ros1_mcap(bag, path)
+        bag.unlink()
+        return path
+    with RosWriter(path, storage="sqlite3" if kind == "ros2-sqlite3" else "mcap") as w:
+        fill(w)
+    return path
 
 
 def _imu_msg(w: RosWriter, ns: int, frame_id: str, k: int, gyro, accel):
@@ -62,13 +99,7 @@ def _imu_msg(w: RosWriter, ns: int, frame_id: str, k: int, gyro, accel):
 def write_bag(path: Path, kind: str, imu, *, topics=("/imu/data",), frame_ids=("imu_link",),
               record_offset_ns: int = 0, zero_stamps: bool = False, extra=None) -> Path:
     """A log of ``kind`` with the IMU samples of ``imu`` on each of ``topics``; ``extra(w)`` adds more."""
-    if kind == "mcap":   # the storage file of a ROS 2 bag written by rosbags is a plain MCAP file
-        folder = write_bag(path.with_suffix(""), "ros2-mcap", imu, topics=topics, frame_ids=frame_ids,
-                           record_offset_ns=record_offset_ns, zero_stamps=zero_stamps, extra=extra)
-        shutil.move(str(next(folder.glob("*.mcap"))), path)
-        shutil.rmtree(folder)
-        return path
-    with RosWriter(path, storage="sqlite3" if kind == "ros2-sqlite3" else "mcap") as w:
+    def fill(w: RosWriter) -> None:
         handles = [w.add_topic(t, "sensor_msgs/msg/Imu") for t in topics]
         stamps = T0_NS + np.round(imu.t * 1e9).astype(np.int64)
         for k, ns in enumerate(stamps.tolist()):
@@ -78,7 +109,7 @@ def write_bag(path: Path, kind: str, imu, *, topics=("/imu/data",), frame_ids=("
                 w.write(h, ns + record_offset_ns, msg)
         if extra is not None:
             extra(w)
-    return path
+    return make_log(path, kind, fill)
 
 
 @pytest.fixture(scope="module", params=KINDS)
@@ -130,7 +161,7 @@ def test_topics_lists_counts_and_rates(bag, csv_imu):
     assert rate == pytest.approx(100.0, rel=1e-6)
 
 
-@pytest.mark.parametrize("kind", ["ros1", "ros2-mcap"])
+@pytest.mark.parametrize("kind", ["ros1", "ros2-mcap", "ros1-mcap"])
 def test_numpy_decoder_equals_rosbags_deserializer(tmp_path, csv_imu, kind):
     path = write_bag(_bag_path(tmp_path, kind), kind, csv_imu.select(np.arange(50)), frame_ids=("imu_lnk",))
     with _open(path) as reader:
@@ -145,13 +176,15 @@ def test_numpy_decoder_equals_rosbags_deserializer(tmp_path, csv_imu, kind):
     np.testing.assert_array_equal(fast[2], slow[2])
 
 
-@pytest.mark.parametrize("kind", ["ros1", "mcap"])
+@pytest.mark.parametrize("kind", ["ros1", "mcap", "ros1-mcap"])
 def test_messages_of_different_lengths_read_one_by_one(tmp_path, csv_imu, kind):
     """frame_ids of two lengths defeat the numpy decoder; the per-message path gives the same data."""
-    path = write_bag(_bag_path(tmp_path, kind), kind, csv_imu, frame_ids=("imu", "imu_link"))
+    part = csv_imu.select(np.arange(1000))
+    path = write_bag(_bag_path(tmp_path, kind), kind, part, frame_ids=("imu", "imu_link"))
     imu = read_rosbag_imu(path)
-    np.testing.assert_allclose(imu.t, csv_imu.t, rtol=0, atol=1e-12)
-    np.testing.assert_array_equal(imu.gyro, csv_imu.gyro)
+    np.testing.assert_allclose(imu.t, part.t, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(imu.gyro, part.gyro)
+    np.testing.assert_array_equal(imu.accel, part.accel)
     assert imu.meta["frame_id"] == "imu"
 
 
@@ -211,13 +244,7 @@ def _odometry(w: RosWriter, n: int = 30, topic: str = "/odom"):
 
 @pytest.mark.parametrize("kind", KINDS)
 def test_no_imu_topic(tmp_path, kind):
-    path = _bag_path(tmp_path, kind)
-    if kind == "mcap":
-        with RosWriter(path) as w:
-            _odometry(w)
-    else:
-        with RosWriter(path, storage="sqlite3" if kind == "ros2-sqlite3" else "mcap") as w:
-            _odometry(w)
+    path = make_log(_bag_path(tmp_path, kind), kind, _odometry)
     with pytest.raises(ImuInputError) as e:
         read_rosbag_imu(path)
     msg = str(e.value)
@@ -270,11 +297,9 @@ def test_not_a_rosbag(tmp_path):
 
 
 # --------------------------------------------------------------------------- poses and speed
-@pytest.mark.parametrize("kind", ["ros1", "mcap"])
+@pytest.mark.parametrize("kind", ["ros1", "mcap", "ros1-mcap"])
 def test_poses_and_speed_from_odometry(tmp_path, kind):
-    path = _bag_path(tmp_path, kind)
-    with RosWriter(path) as w:
-        _odometry(w)
+    path = make_log(_bag_path(tmp_path, kind), kind, _odometry)
     poses = read_rosbag_poses(path)
     assert len(poses) == 30 and poses.source == str(path)
     np.testing.assert_allclose(poses.t, (T0_NS + np.arange(30) * 100_000_000) / 1e9, rtol=0, atol=1e-6)
