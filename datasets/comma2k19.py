@@ -14,18 +14,18 @@ accelerometer is linearly interpolated onto the gyro times, and
 """
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from imu_ground.imu.data import ImuData
-from imu_ground.datasets.validation import ImuValidationWarning, MalformedFileError, check_timestamps
 
-from .table import _finish
+from .report import ImuValidationWarning, MalformedFileError, warn_user
+from .skeleton import finish, register_format
+from .timestamps import check_timestamps
 
-__all__ = ["read_comma2k19", "find_imu_dir"]
+__all__ = ["find_imu_dir", "read_comma2k19"]
 
 
 def find_imu_dir(path: str | Path) -> Path:
@@ -61,7 +61,7 @@ def _load(path: Path, ndim: int) -> np.ndarray:
     return np.asarray(arr, dtype=float)
 
 
-def read_comma2k19(path: str | Path, *, validate: bool = True, policy: str = "drop",
+def read_comma2k19(path: str | Path, *, validate: bool = True, policy: str = "retime",
                    **validate_kw: Any) -> ImuData:
     """Read the IMU of a comma2k19 segment, accelerometer aligned onto gyro times.
 
@@ -72,9 +72,9 @@ def read_comma2k19(path: str | Path, *, validate: bool = True, policy: str = "dr
         or ``processed_log/IMU`` folder.
     validate : bool
         Run :func:`imu_ground.datasets.validation.validate` (default True).
-    policy : {"drop", "sort", "strict"}
-        Time-order policy, applied to the accelerometer's own times before the
-        alignment and to the result.
+    policy : {"retime", "drop", "sort", "strict"}
+        Time-order policy of the result; the accelerometer's own times (only
+        interpolated from) get ``"drop"`` under ``"retime"``.
     **validate_kw
         Other options of :func:`~imu_ground.datasets.validation.validate`.
 
@@ -106,19 +106,17 @@ def read_comma2k19(path: str | Path, *, validate: bool = True, policy: str = "dr
         if t_.shape[0] != v_.shape[0]:
             raise MalformedFileError(imu_dir / name / "value",
                                      f"{v_.shape[0]} samples but {imu_dir / name / 't'} has {t_.shape[0]}")
-    depth = int(validate_kw.get("_depth", 1))
     identical = tg.shape == ta.shape and bool(np.array_equal(tg, ta))
 
     # the accelerometer's own time base must be finite and increasing for np.interp
     fin = np.flatnonzero(np.isfinite(ta))
     n_accel_in = ta.size
     if fin.size < ta.size:
-        warnings.warn(f"{imu_dir / 'accelerometer' / 't'}: {ta.size - fin.size} non-finite time(s) "
-                      f"(first at index {int(np.flatnonzero(~np.isfinite(ta))[0])}); those "
-                      f"accelerometer samples are not used", ImuValidationWarning, stacklevel=1 + depth)
-    keep, _ = check_timestamps(ta[fin], policy, gaps="ignore",  # type: ignore[arg-type]
-                               source=str(imu_dir / "accelerometer" / "t"), index=fin,
-                               _stacklevel=2 + depth)
+        warn_user(f"{imu_dir / 'accelerometer' / 't'}: {ta.size - fin.size} non-finite time(s) "
+                  f"(first at index {int(np.flatnonzero(~np.isfinite(ta))[0])}); those "
+                  f"accelerometer samples are not used", ImuValidationWarning)
+    keep, _, _ = check_timestamps(ta[fin], "drop" if policy == "retime" else policy,  # type: ignore[arg-type]
+                                  gaps="ignore", source=str(imu_dir / "accelerometer" / "t"), index=fin)
     sel = fin[keep]
     ta_k, va_k = ta[sel], va[sel]
 
@@ -126,9 +124,9 @@ def read_comma2k19(path: str | Path, *, validate: bool = True, policy: str = "dr
     inside = ((tg >= ta_k[0]) & (tg <= ta_k[-1])) | ~np.isfinite(tg)
     n_out = int((~inside).sum())
     if n_out:
-        warnings.warn(f"{imu_dir / 'gyro' / 't'}: {n_out} gyro sample(s) outside the accelerometer's "
-                      f"time span [{ta_k[0]:.6f}, {ta_k[-1]:.6f}] s dropped (no accelerometer "
-                      f"data to align)", ImuValidationWarning, stacklevel=1 + depth)
+        warn_user(f"{imu_dir / 'gyro' / 't'}: {n_out} gyro sample(s) outside the accelerometer's "
+                  f"time span [{ta_k[0]:.6f}, {ta_k[-1]:.6f}] s dropped (no accelerometer "
+                  f"data to align)", ImuValidationWarning)
     tg_in, wg_in = tg[inside], wg[inside]
     acc = np.column_stack([np.interp(tg_in, ta_k, va_k[:, j]) for j in range(3)])
     if ta_k.size > 1 and tg_in.size:
@@ -153,4 +151,14 @@ def read_comma2k19(path: str | Path, *, validate: bool = True, policy: str = "dr
         },
     }
     imu = ImuData(tg_in - t_first, wg_in, acc, "device", source=str(imu_dir), meta=meta)
-    return _finish(imu, validate, policy, validate_kw)
+    return finish(imu, validate=validate, policy=policy, **validate_kw)
+
+
+def _probe(p: Path) -> bool:
+    """A comma2k19 segment, ``processed_log`` or ``IMU`` folder (gyro and accelerometer arrays)."""
+    return p.is_dir() and ((p / "processed_log" / "IMU").is_dir() or (p / "IMU" / "gyro").is_dir()
+                           or ((p / "gyro").is_dir() and (p / "accelerometer").is_dir()))
+
+
+register_format("comma2k19", _probe, read_comma2k19, "comma2k19 segment folder (processed_log/IMU)",
+                priority=20)

@@ -10,25 +10,28 @@ Each ``<drive>.csv`` or ``<drive>.csv.gz`` has the columns
 - ``roll,pitch,yaw`` (rad), ``ve,vn,vu`` (m/s, east/north/up), ``px,py,pz`` (m,
   east/north/up from the first sample): kept in ``extra``.
 
-The raw extract timestamps step back now and then (about -0.05 s, a block of
-samples sent twice) and have gaps over 1 s; the validation run by the reader
-(policy ``"drop"`` by default) drops and reports the out-of-order samples.
+The raw extract timestamps jitter (a step forward, then back by about 0.05 s)
+while the samples keep a steady 100 Hz, and have real dropouts over 1 s; the
+validation run by the reader (policy ``"retime"`` by default) puts the samples
+back on the sample clock, keeps the dropouts as gaps and reports both.
 """
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from imu_ground.imu.data import ImuData
-from imu_ground.datasets.validation import ImuValidationWarning, MalformedFileError
 
-from .table import _finish, _numeric_columns, _read_csv_text
+from .csvio import open_binary, read_delimited
+from .report import ImuValidationWarning, MalformedFileError, warn_user
+from .skeleton import finish, register_format
 
-__all__ = ["COLUMNS", "EXTRA_UNITS", "read_kitti_imu100", "read_drives_index", "drive_name"]
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = ["COLUMNS", "EXTRA_UNITS", "drive_name", "read_drives_index", "read_kitti_imu100"]
 
 #: Columns of a kitti_imu100 CSV, in order.
 COLUMNS: tuple[str, ...] = ("t", "wx", "wy", "wz", "ax", "ay", "az", "roll", "pitch", "yaw",
@@ -71,19 +74,21 @@ def read_drives_index(path: str | Path) -> pd.DataFrame:
     p = Path(path)
     if p.is_dir():
         p = p / "drives.csv"
-    df, lines = _read_csv_text(p)
+    import pandas as pd
+
+    from .csvio import numeric
+    cols, lines = read_delimited(p)
     need = ["drive", "t0_seconds_of_day", "samples"]
-    missing = [c for c in need if c not in df.columns]
+    missing = [c for c in need if c not in cols]
     if missing:
-        raise MalformedFileError(p, f"missing column(s) {missing}; header has {list(df.columns)}", line=1)
-    num = _numeric_columns(df, need[1:], p, lines)
-    out = pd.DataFrame({"t0_seconds_of_day": num[:, 0], "samples": num[:, 1].astype(int)},
-                       index=pd.Index(df["drive"].astype(str), name="drive"))
-    return out
+        raise MalformedFileError(p, f"missing column(s) {missing}; header has {list(cols)}", line=1)
+    return pd.DataFrame({"t0_seconds_of_day": numeric(cols[need[1]], need[1], p, lines),
+                         "samples": numeric(cols[need[2]], need[2], p, lines).astype(int)},
+                        index=pd.Index(cols["drive"].astype(str), name="drive"))
 
 
 def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None = None,
-                      validate: bool = True, policy: str = "drop", **validate_kw: Any) -> ImuData:
+                      validate: bool = True, policy: str = "retime", **validate_kw: Any) -> ImuData:
     """Read one kitti_imu100 drive (100 Hz KITTI OXTS, CSV or CSV.gz).
 
     Parameters
@@ -95,8 +100,8 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
         uses the one beside ``path`` if there is one, ``False`` ignores it.
     validate : bool
         Run :func:`imu_ground.datasets.validation.validate` (default True).
-    policy : {"drop", "sort", "strict"}
-        Time-order policy of the validation (default ``"drop"``).
+    policy : {"retime", "drop", "sort", "strict"}
+        Time-order policy of the validation (default ``"retime"``).
     **validate_kw
         Other options of :func:`~imu_ground.datasets.validation.validate`.
 
@@ -117,16 +122,19 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
         Empty or truncated file, wrong columns, a line with the wrong number of
         fields or a non-number (the message names the file and line).
     """
+    import pandas as pd
+
+    from .csvio import numeric
     path = Path(path)
-    df, lines = _read_csv_text(path)
-    cols = [str(c) for c in df.columns]
-    if cols != list(COLUMNS):
+    cols, lines = read_delimited(path)
+    if list(cols) != list(COLUMNS):
         missing = [c for c in COLUMNS if c not in cols]
         raise MalformedFileError(path, f"expected columns {','.join(COLUMNS)}, got {','.join(cols)}"
                                        + (f" (missing {missing})" if missing else ""), line=1)
-    data = _numeric_columns(df, COLUMNS, path, lines)
+    t = numeric(cols.pop("t"), "t", path, lines)
+    n = t.size
     drive = drive_name(path)
-    t_first = float(data[0, 0]) if np.isfinite(data[0, 0]) else 0.0
+    t_first = float(t[0]) if np.isfinite(t[0]) else 0.0
     meta: dict[str, Any] = {"format": "kitti_imu100", "drive": drive, "t0": 0.0,
                             "t0_clock": "t of the file (no drives.csv entry)"}
 
@@ -151,16 +159,34 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
             meta["t0"] = float(row["t0_seconds_of_day"]) + t_first
             meta["t0_clock"] = "seconds of the day (drives.csv t0_seconds_of_day)"
             meta["expected_samples"] = int(row["samples"])
-            if int(row["samples"]) != len(df):
-                warnings.warn(f"{path}: {len(df)} rows but {index_path} lists {int(row['samples'])} "
-                              f"samples for {drive} (truncated or edited file?)",
-                              ImuValidationWarning, stacklevel=1 + int(validate_kw.get("_depth", 1)))
+            if int(row["samples"]) != n:
+                warn_user(f"{path}: {n} rows but {index_path} lists {int(row['samples'])} "
+                          f"samples for {drive} (truncated or edited file?)", ImuValidationWarning)
         else:
             meta["notes"] = [f"{drive} not listed in {index_path}"]
 
     if t_first != 0.0:
         meta["t_offset_in_file"] = t_first
-    extra = pd.DataFrame(data[:, 7:], columns=list(COLUMNS[7:]))
-    imu = ImuData(data[:, 0] - t_first, data[:, 1:4], data[:, 4:7], "FLU", extra,
-                  dict(EXTRA_UNITS), str(path), meta)
-    return _finish(imu, validate, policy, validate_kw)
+    meta["row_lines"] = lines
+    gyro = np.column_stack([numeric(cols.pop(c), c, path, lines) for c in COLUMNS[1:4]])
+    accel = np.column_stack([numeric(cols.pop(c), c, path, lines) for c in COLUMNS[4:7]])
+    extra = pd.DataFrame({c: numeric(cols.pop(c), c, path, lines) for c in COLUMNS[7:]})
+    t -= t_first
+    imu = ImuData(t, gyro, accel, "FLU", extra, dict(EXTRA_UNITS), str(path), meta)
+    return finish(imu, validate=validate, policy=policy, **validate_kw)
+
+
+def _probe(path: Path) -> bool:
+    """A ``.csv`` / ``.csv.gz`` file whose header is exactly :data:`COLUMNS`."""
+    if not (path.is_file() and path.name.lower().endswith((".csv", ".csv.gz"))):
+        return False
+    try:
+        with open_binary(path) as f:
+            line = f.readline(4096).decode("utf-8")
+    except (OSError, EOFError, UnicodeDecodeError, ValueError):
+        return False
+    return [c.strip() for c in line.strip().split(",")] == list(COLUMNS)
+
+
+register_format("kitti_imu100", _probe, read_kitti_imu100, "KITTI 100 Hz CSV(.gz) with header t,wx,...,pz",
+                priority=50)

@@ -14,20 +14,26 @@ from __future__ import annotations
 
 import itertools
 import re
-import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
 from imu_ground.imu.data import ImuData
-from imu_ground.datasets.validation import ImuValidationWarning, MalformedFileError
 
-from .table import _finish
+from .options import ImuInputError
+from .report import ImuValidationWarning, MalformedFileError, warn_user
+from .skeleton import finish, register_format
 
-__all__ = ["OXTS_FIELDS", "OXTS_UNITS", "read_kitti_oxts", "read_oxts_timestamps",
-           "read_oxts_dataformat", "find_oxts_dir"]
+__all__ = [
+    "OXTS_FIELDS",
+    "OXTS_UNITS",
+    "MissingPacketsError",
+    "find_oxts_dir",
+    "read_kitti_oxts",
+    "read_oxts_dataformat",
+    "read_oxts_timestamps",
+]
 
 #: The 30 OXTS fields of KITTI raw, in file order (KITTI devkit).
 OXTS_FIELDS: tuple[str, ...] = (
@@ -44,6 +50,11 @@ OXTS_UNITS: dict[str, str] = {
     "posmode": "-", "velmode": "-", "orimode": "-"}
 
 _GYRO = ("wf", "wl", "wu")
+
+
+class MissingPacketsError(ImuInputError, FileNotFoundError):
+    """Packet files listed in ``timestamps.txt`` are missing (the message names ``allow_missing``)."""
+
 _ACCEL = ("af", "al", "au")
 _LINE = re.compile(r"^\s*([A-Za-z_]\w*)\s*:\s*(.*?)\s*$")
 
@@ -205,7 +216,7 @@ def _is_number(s: str) -> bool:
 
 
 def read_kitti_oxts(path: str | Path, *, allow_missing: bool = False, validate: bool = True,
-                    policy: str = "drop", **validate_kw: Any) -> ImuData:
+                    policy: str = "retime", **validate_kw: Any) -> ImuData:
     """Read a KITTI raw OXTS log (sync 10 Hz or extract 100 Hz).
 
     Parameters
@@ -217,8 +228,8 @@ def read_kitti_oxts(path: str | Path, *, allow_missing: bool = False, validate: 
         to ``timestamps.txt`` by file number) with a warning instead of raising.
     validate : bool
         Run :func:`imu_ground.datasets.validation.validate` (default True).
-    policy : {"drop", "sort", "strict"}
-        Time-order policy of the validation (default ``"drop"``).
+    policy : {"retime", "drop", "sort", "strict"}
+        Time-order policy of the validation (default ``"retime"``).
     **validate_kw
         Other options of :func:`~imu_ground.datasets.validation.validate`.
 
@@ -276,11 +287,11 @@ def read_kitti_oxts(path: str | Path, *, allow_missing: bool = False, validate: 
         msg = (f"{first}: no such file; {missing.size} of {n_ts} packet files listed in "
                f"timestamps.txt are missing (first numbers {missing[:5].tolist()})")
         if not allow_missing:
-            raise FileNotFoundError(msg + " (allow_missing=True reads the others)")
-        warnings.warn(msg + f"; reading the {number.size} present", ImuValidationWarning,
-                      stacklevel=1 + int(validate_kw.get("_depth", 1)))
+            raise MissingPacketsError(msg + " ({hint} reads the others)", option="allow_missing", value=True)
+        warn_user(msg + f"; reading the {number.size} present", ImuValidationWarning)
         notes.append(msg)
 
+    import pandas as pd
     values = _read_packets(files, len(names))
     ns = ts.astype(np.int64)[number]
     t = (ns - ns[0]).astype(float) * 1e-9
@@ -303,4 +314,14 @@ def read_kitti_oxts(path: str | Path, *, allow_missing: bool = False, validate: 
         meta["missing_packets"] = missing
     imu = ImuData(t, values[:, gyro_idx], values[:, accel_idx], "FLU", extra, units,
                   str(oxts), meta)
-    return _finish(imu, validate, policy, validate_kw)
+    return finish(imu, validate=validate, policy=policy, **validate_kw)
+
+
+def _probe(p: Path) -> bool:
+    """A KITTI drive folder (``oxts/timestamps.txt``) or its ``oxts`` folder (``timestamps.txt`` + ``data/``)."""
+    return p.is_dir() and ((p / "oxts" / "timestamps.txt").is_file()
+                           or ((p / "timestamps.txt").is_file() and (p / "data").is_dir()))
+
+
+register_format("kitti_oxts", _probe, read_kitti_oxts, "KITTI raw drive or oxts folder (oxts/timestamps.txt)",
+                priority=10, options=("allow_missing",))

@@ -9,17 +9,19 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from imu_ground.imu.data import ImuData
-from imu_ground.datasets.validation import MalformedFileError
 
-from .table import _finish
+from .report import MalformedFileError
+from .skeleton import finish, register_format
 
-__all__ = ["read_nuscenes_imu", "find_ms_imu"]
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = ["find_ms_imu", "read_nuscenes_imu"]
 
 _VECTORS = {"linear_accel": 3, "rotation_rate": 3, "q": 4}
 
@@ -80,7 +82,7 @@ def _vectors(df: pd.DataFrame, key: str, width: int, path: Path) -> np.ndarray:
 
 
 def read_nuscenes_imu(path: str | Path, *, scene: str | None = None, validate: bool = True,
-                      policy: str = "drop", **validate_kw: Any) -> ImuData:
+                      policy: str = "retime", **validate_kw: Any) -> ImuData:
     """Read a nuScenes CAN bus ``*_ms_imu.json`` file.
 
     Parameters
@@ -91,8 +93,8 @@ def read_nuscenes_imu(path: str | Path, *, scene: str | None = None, validate: b
         Scene name to pick in a folder with several scenes.
     validate : bool
         Run :func:`imu_ground.datasets.validation.validate` (default True).
-    policy : {"drop", "sort", "strict"}
-        Time-order policy of the validation (default ``"drop"``).
+    policy : {"retime", "drop", "sort", "strict"}
+        Time-order policy of the validation (default ``"retime"``).
     **validate_kw
         Other options of :func:`~imu_ground.datasets.validation.validate`.
 
@@ -113,6 +115,7 @@ def read_nuscenes_imu(path: str | Path, *, scene: str | None = None, validate: b
         Not JSON (line and column given), not a list of messages, empty, a
         missing key or a vector of the wrong length (message index given).
     """
+    import pandas as pd
     p = find_ms_imu(path, scene)
     try:
         with open(p, encoding="utf-8") as f:
@@ -154,4 +157,16 @@ def read_nuscenes_imu(path: str | Path, *, scene: str | None = None, validate: b
         "quaternion": "extra qw, qx, qy, qz = the message's q (w, x, y, z) as given",
     }
     imu = ImuData(t, vec["rotation_rate"], vec["linear_accel"], "FLU", extra, units, str(p), meta)
-    return _finish(imu, validate, policy, validate_kw)
+    return finish(imu, validate=validate, policy=policy, **validate_kw)
+
+
+def _probe(p: Path) -> bool:
+    """A ``*ms_imu*.json`` file, or a folder holding a ``*_ms_imu.json``."""
+    if p.is_dir():
+        return any(p.glob("*_ms_imu.json"))
+    name = p.name.lower()
+    return name.endswith(".json") and "ms_imu" in name
+
+
+register_format("nuscenes", _probe, read_nuscenes_imu, "nuScenes CAN bus *_ms_imu.json (or its folder)",
+                priority=30)

@@ -8,10 +8,11 @@ command line prints.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Optional, Sequence
+from typing import Any
 
-__all__ = ["ReaderOption", "READER_OPTIONS", "ImuInputError", "option_hint"]
+__all__ = ["READER_OPTIONS", "ImuInputError", "OptionMessage", "ReaderOption", "option_hint"]
 
 
 @dataclass(frozen=True)
@@ -20,7 +21,7 @@ class ReaderOption:
     name: str
     flag: str
     help: str
-    choices: Optional[Sequence[str]] = None
+    choices: Sequence[str] | None = None
     default: Any = None
 
 
@@ -28,8 +29,9 @@ class ReaderOption:
 #: ``calibrate``, ``batch``) and passes it to :func:`imu_ground.datasets.read_imu`.
 READER_OPTIONS: dict[str, ReaderOption] = {o.name: o for o in (
     ReaderOption("format", "--format", "log format (detected when omitted)"),
-    ReaderOption("policy", "--policy", "out-of-order or duplicate timestamps: retime (sample index as the "
-                 "clock where the rate is steady), drop, sort, or strict (fail)", None, None),
+    ReaderOption("policy", "--policy", "out-of-order or duplicate timestamps: retime (default: sample index as "
+                 "the clock where the rate is steady, else drop), drop, sort, or strict (fail)",
+                 ("retime", "drop", "sort", "strict"), "retime"),
     ReaderOption("nonfinite", "--nonfinite", "rows with NaN/inf values: raise (default) or drop",
                  ("raise", "drop"), "raise"),
     ReaderOption("time_unit", "--time-unit", "unit of the time column of a CSV table (detected when omitted)",
@@ -57,7 +59,34 @@ def option_hint(name: str, value: Any = None, cli: bool = False) -> str:
     return f"{name}={value!r}"
 
 
-class ImuInputError(ValueError):
+class OptionMessage:
+    """A message template whose ``{hint}`` names a reader option, in Python or CLI spelling.
+
+    Attributes
+    ----------
+    template : str
+        The text with ``{hint}`` where the option goes.
+    option : str or None
+        Key of :data:`READER_OPTIONS`.
+    value : optional
+        The option value to suggest.
+    """
+
+    template: str
+    option: str | None
+    value: Any
+
+    def _render(self, cli: bool) -> str:
+        if self.option is None or "{hint}" not in self.template:
+            return self.template.replace("{hint}", "the matching option")
+        return self.template.replace("{hint}", option_hint(self.option, self.value, cli))
+
+    def cli_message(self) -> str:
+        """The message with the option spelled as its ``imu-ground`` flag."""
+        return self._render(cli=True)
+
+
+class ImuInputError(OptionMessage, ValueError):
     """Bad input to a reader that an option can fix; the message names the option.
 
     Parameters
@@ -72,15 +101,6 @@ class ImuInputError(ValueError):
         The option value to suggest.
     """
 
-    def __init__(self, message: str, option: Optional[str] = None, value: Any = None) -> None:
+    def __init__(self, message: str, option: str | None = None, value: Any = None) -> None:
         self.template, self.option, self.value = message, option, value
         super().__init__(self._render(cli=False))
-
-    def _render(self, cli: bool) -> str:
-        if self.option is None or "{hint}" not in self.template:
-            return self.template
-        return self.template.replace("{hint}", option_hint(self.option, self.value, cli))
-
-    def cli_message(self) -> str:
-        """The message with the option spelled as its ``imu-ground`` flag."""
-        return self._render(cli=True)

@@ -16,13 +16,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Optional, Union
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-__all__ = ["PoseSequence", "read_kitti_poses", "read_tum_poses", "read_poses", "relative_rotations",
-           "write_tum_poses"]
+__all__ = [
+    "PoseSequence",
+    "detect_pose_format",
+    "read_kitti_poses",
+    "read_poses",
+    "read_tum_poses",
+    "relative_rotations",
+    "write_tum_poses",
+]
 
 _ORTHO_TOL = 1e-3      # text files carry 6-17 digits; worse than this is not a rotation
 
@@ -45,7 +50,7 @@ class PoseSequence:
     """
     rotations: np.ndarray
     translations: np.ndarray
-    t: Optional[np.ndarray]
+    t: np.ndarray | None
     index: np.ndarray
     source: str = ""
 
@@ -114,10 +119,76 @@ def _check_rotations(path: Path, r: np.ndarray, lines: np.ndarray) -> np.ndarray
         i = np.flatnonzero(bad)[0]
         raise ValueError(f"{path}: {bad.sum()} poses are not rotations (first at line {lines[i]}: "
                          f"|R^T R - I| = {err[i]:.2e}, det = {det[i]:.4f})")
+    from scipy.spatial.transform import Rotation
     return Rotation.from_matrix(r).as_matrix()      # nearest rotation, float64
 
 
-def read_kitti_poses(path: Union[str, Path]) -> PoseSequence:
+_BINARY_SUFFIXES = (".gz", ".bz2", ".bag", ".mcap", ".parquet", ".pq", ".json", ".npy", ".db3", ".zip")
+
+
+def _first_rows(path: Path, n: int = 3) -> list[list[float]]:
+    """Up to ``n`` first data rows as numbers ([] when a line is not whitespace-separated numbers)."""
+    rows: list[list[float]] = []
+    try:
+        with path.open("rb") as fh:
+            head = fh.read(8192).decode("utf-8")
+    except (OSError, UnicodeDecodeError):
+        return []
+    lines = head.splitlines()
+    if len(head) == 8192 and lines:
+        lines = lines[:-1]  # the last line may be cut
+    for raw in lines:
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        if "," in line:
+            return []
+        try:
+            rows.append([float(v) for v in line.split()])
+        except ValueError:
+            return []
+        if len(rows) == n:
+            break
+    return rows
+
+
+def detect_pose_format(path: str | Path) -> str | None:
+    """``"kitti"`` or ``"tum"`` when ``path`` is a pose file, else None.
+
+    A KITTI odometry file has 12 numbers a line (or a frame index then 12)
+    whose 3x3 part is a rotation; a TUM file has ``t x y z qx qy qz qw`` with a
+    unit quaternion. Only the first lines are read; text with a header, commas
+    or compressed files are not pose files.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    str or None
+    """
+    p = Path(path)
+    if not p.is_file() or p.name.lower().endswith(_BINARY_SUFFIXES):
+        return None
+    rows = _first_rows(p)
+    if not rows or len({len(r) for r in rows}) != 1:
+        return None
+    width = len(rows[0])
+    data = np.asarray(rows, dtype=float)
+    if not np.isfinite(data).all():
+        return None
+    if width in (12, 13):
+        m = data[:, -12:].reshape(-1, 3, 4)[:, :, :3]
+        ortho = np.abs(np.swapaxes(m, 1, 2) @ m - np.eye(3)).max() < 1e-2
+        index_ok = width == 12 or bool(np.all(data[:, 0] == np.round(data[:, 0])))
+        return "kitti" if ortho and index_ok else None
+    if width == 8:
+        return "tum" if np.all(np.abs(np.linalg.norm(data[:, 4:8], axis=1) - 1.0) < 1e-2) else None
+    return None
+
+
+def read_kitti_poses(path: str | Path) -> PoseSequence:
     """Read a KITTI odometry pose file (12 numbers a line, optional leading frame index).
 
     Parameters
@@ -157,7 +228,7 @@ def read_kitti_poses(path: Union[str, Path]) -> PoseSequence:
     return PoseSequence(rot, m[:, :, 3].copy(), None, index, str(path))
 
 
-def read_tum_poses(path: Union[str, Path]) -> PoseSequence:
+def read_tum_poses(path: str | Path) -> PoseSequence:
     """Read a TUM-format trajectory (``t x y z qx qy qz qw`` a line).
 
     Parameters
@@ -189,11 +260,12 @@ def read_tum_poses(path: Union[str, Path]) -> PoseSequence:
     if np.any(np.abs(norm - 1.0) > 1e-2):
         i = np.flatnonzero(np.abs(norm - 1.0) > 1e-2)[0]
         raise ValueError(f"{path}: quaternion at pose {i} has norm {norm[i]:.4f}, expected 1 (order qx qy qz qw)")
+    from scipy.spatial.transform import Rotation
     rot = Rotation.from_quat(q).as_matrix()
     return PoseSequence(rot, data[:, 1:4].copy(), t, np.arange(len(t)), str(path))
 
 
-def read_poses(path: Union[str, Path], format: Optional[str] = None) -> PoseSequence:
+def read_poses(path: str | Path, format: str | None = None) -> PoseSequence:
     """Read a pose file, KITTI or TUM, detected from the column count unless ``format`` is given.
 
     Parameters
@@ -219,8 +291,8 @@ def read_poses(path: Union[str, Path], format: Optional[str] = None) -> PoseSequ
     raise ValueError(f"unknown pose format {format!r}: use 'kitti' or 'tum'")
 
 
-def write_tum_poses(path: Union[str, Path], t: np.ndarray, rotations: np.ndarray,
-                    translations: Optional[np.ndarray] = None) -> None:
+def write_tum_poses(path: str | Path, t: np.ndarray, rotations: np.ndarray,
+                    translations: np.ndarray | None = None) -> None:
     """Write a TUM trajectory (``t x y z qx qy qz qw``), readable by evo.
 
     Parameters
@@ -229,6 +301,7 @@ def write_tum_poses(path: Union[str, Path], t: np.ndarray, rotations: np.ndarray
     rotations : ndarray (N, 3, 3), world <- sensor (or any a <- b the caller documents).
     translations : ndarray (N, 3), metres; zeros by default.
     """
+    from scipy.spatial.transform import Rotation
     t = np.asarray(t, dtype=float)
     q = Rotation.from_matrix(rotations).as_quat()
     p = np.zeros((len(t), 3)) if translations is None else np.broadcast_to(translations, (len(t), 3))

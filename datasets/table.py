@@ -1,7 +1,10 @@
-"""Generic IMU tables: a CSV file or a pandas DataFrame with named columns.
+"""Generic IMU tables: CSV (optionally compressed), Parquet, or a pandas DataFrame with named columns.
 
-You say which columns hold time, angular rate and specific force and in which
-units; the reader converts to the :class:`~imu_ground.imu.data.ImuData`
+You say which columns hold time, angular rate and specific force; their units
+are told from the data when you do not say them (see
+:mod:`imu_ground.datasets.unit_checks`: converted with one warning where the
+evidence is unambiguous, else an error naming ``time_unit`` / ``gyro_unit`` /
+``accel_unit``). The reader converts to the :class:`~imu_ground.imu.data.ImuData`
 conventions (s, rad/s, m/s^2) and keeps every other column in ``extra``.
 
 Example
@@ -12,287 +15,200 @@ Example
 """
 from __future__ import annotations
 
-import gzip
-import io
-import math
-import re
-import zlib
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from imu_ground.imu.data import ImuData
-from imu_ground.datasets.validation import STANDARD_GRAVITY, MalformedFileError
-from imu_ground.datasets.validation import validate as _validate
+
+from .csvio import Columns, numeric, read_delimited
+from .report import MalformedFileError, UnitsWarning, warn_user
+from .skeleton import finish, register_format
+from .unit_checks import (
+    ACCEL_UNITS,
+    GYRO_UNITS,
+    TIME_UNITS,
+    detect_accel_unit,
+    detect_gyro_unit,
+    detect_time_unit,
+    unit_scale,
+)
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = [
-    "TIME_UNITS",
-    "GYRO_UNITS",
     "ACCEL_UNITS",
-    "unit_scale",
-    "read_table",
+    "GYRO_UNITS",
+    "PARQUET_SUFFIXES",
+    "TABLE_SUFFIXES",
+    "TIME_UNITS",
     "from_dataframe",
+    "map_columns",
+    "read_parquet_table",
+    "read_table",
+    "unit_scale",
 ]
 
-#: Time units accepted by :func:`read_table`, to seconds.
-TIME_UNITS: dict[str, float] = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9}
-#: Angular-rate units accepted by :func:`read_table`, to rad/s.
-GYRO_UNITS: dict[str, float] = {"rad/s": 1.0, "deg/s": math.pi / 180.0}
-#: Specific-force units accepted by :func:`read_table`, to m/s^2 (g = 9.80665 m/s^2).
-ACCEL_UNITS: dict[str, float] = {"m/s^2": 1.0, "m/s2": 1.0, "g": STANDARD_GRAVITY}
-
-_UNIT_TABLES = {"time": TIME_UNITS, "gyro": GYRO_UNITS, "accel": ACCEL_UNITS}
+#: File names read as delimited text tables.
+TABLE_SUFFIXES = (".csv", ".csv.gz", ".txt", ".tsv", ".csv.bz2", ".txt.gz", ".tsv.gz")
+#: File names read as Parquet tables.
+PARQUET_SUFFIXES = (".parquet", ".pq")
 
 
-def unit_scale(kind: str, unit: str) -> float:
-    """Factor converting ``unit`` to the ImuData unit of ``kind``.
+def _time_values(col: np.ndarray, name: str, source: str, row_lines) -> tuple[np.ndarray, str | None]:
+    """Raw time values (int64 kept exact) and a forced unit for datetime columns."""
+    if col.dtype.kind == "M":
+        return col.astype("datetime64[ns]").astype(np.int64), "ns"
+    if col.dtype.kind in "iu":
+        return col.astype(np.int64, copy=False), None
+    return numeric(col, name, source, row_lines), None
 
-    Parameters
-    ----------
-    kind : {"time", "gyro", "accel"}
-        Quantity: time (to s), angular rate (to rad/s), specific force (to m/s^2).
-    unit : str
-        Unit of the source, one of :data:`TIME_UNITS`, :data:`GYRO_UNITS` or
-        :data:`ACCEL_UNITS`.
 
-    Returns
-    -------
-    float
-        Multiply source values by this.
+def _unit(kind: str, given: str | None, detect: Callable, values: np.ndarray, *args: Any) -> str:
+    """The unit given, or the one told from the data (warning once when it is not the ImuData unit)."""
+    if given is not None:
+        unit_scale(kind, given)
+        return given
+    unit, note = detect(values, *args)
+    if note:
+        warn_user(note, UnitsWarning, f"{kind}_unit", unit)
+    return unit
 
-    Raises
-    ------
-    ValueError
-        Unknown ``kind`` or ``unit``; the message lists the allowed units.
+
+def map_columns(cols: Mapping[str, np.ndarray], *, time: str = "t",
+                gyro: Sequence[str] = ("wx", "wy", "wz"), accel: Sequence[str] = ("ax", "ay", "az"),
+                time_unit: str | None = None, gyro_unit: str | None = None,
+                accel_unit: str | None = None, frame: str = "FLU",
+                extra_units: Mapping[str, str] | None = None, relative_time: bool = True,
+                source: str = "<DataFrame>", row_lines: Callable | None = None,
+                extra: pd.DataFrame | None = None) -> ImuData:
+    """Named columns to an (unvalidated) :class:`ImuData`: pick, convert units, keep the rest.
+
+    Parameters are those of :func:`read_table`; ``cols`` maps column names to
+    arrays in file order, ``row_lines`` maps rows to 1-based file lines (kept in
+    ``meta["row_lines"]`` for the validation's messages), ``extra`` overrides the
+    extra columns (a DataFrame source keeps its own).
     """
-    if kind not in _UNIT_TABLES:
-        raise ValueError(f"unknown quantity {kind!r}; allowed: {list(_UNIT_TABLES)}")
-    table = _UNIT_TABLES[kind]
-    if unit not in table:
-        raise ValueError(f"unknown {kind} unit {unit!r}; allowed: {list(table)}")
-    return table[unit]
-
-
-# --------------------------------------------------------------------------- text helpers
-def _read_text(path: Path) -> str:
-    """Whole text of a file (gzip when it ends in .gz), with file errors named."""
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: no such file")
-    if not path.is_file():
-        raise MalformedFileError(path, "is not a file")
-    try:
-        if path.suffix == ".gz":
-            with gzip.open(path, "rt", encoding="utf-8", newline="") as f:
-                return f.read()
-        return path.read_text(encoding="utf-8")
-    except (EOFError, gzip.BadGzipFile, zlib.error) as e:
-        raise MalformedFileError(path, f"truncated or corrupt gzip file ({e})") from e
-    except UnicodeDecodeError as e:
-        raise MalformedFileError(path, f"not UTF-8 text ({e})") from e
-
-
-def _line_field_counts(text: str, sep: str) -> tuple[np.ndarray, np.ndarray]:
-    """(1-based numbers of non-blank lines, field count of each), without a Python loop."""
-    b = np.frombuffer(text.encode("utf-8"), dtype=np.uint8)
-    nl = np.flatnonzero(b == 10)
-    n_lines = nl.size + (1 if b.size and b[-1] != 10 else 0)
-    starts = np.concatenate(([0], nl + 1))[:n_lines]
-    ends = np.concatenate((nl, [b.size]))[:n_lines]  # exclusive
-    # blank: nothing but spaces, tabs and \r
-    space = (b == 32) | (b == 9) | (b == 13)
-    cs = np.concatenate(([0], np.cumsum(~space)))
-    nonblank = (cs[ends] - cs[starts]) > 0
-    seps = np.flatnonzero(b == ord(sep))
-    counts = np.bincount(np.searchsorted(nl, seps), minlength=n_lines)[:n_lines] + 1
-    lines = np.flatnonzero(nonblank)
-    return lines + 1, counts[lines]
-
-
-def _read_csv_text(path: Path, sep: str = ",") -> tuple[pd.DataFrame, np.ndarray]:
-    """Parse a delimited text file; every line must have as many fields as the header.
-
-    Returns the DataFrame and, for each row, its 1-based line number in the file.
-    """
-    text = _read_text(path)
-    if not text.strip():
-        raise MalformedFileError(path, "file is empty")
-    line_no, counts = _line_field_counts(text, sep)
-    if '"' not in text:  # quoted fields may contain the separator: let pandas judge
-        bad = np.flatnonzero(counts != counts[0])
-        if bad.size:
-            k = int(bad[0])
-            last = " (last line: truncated file?)" if k == counts.size - 1 else ""
-            raise MalformedFileError(
-                path, f"{counts[k]} fields, expected {counts[0]} as in the header{last}; "
-                      f"{bad.size} such line(s), first line numbers {line_no[bad[:5]].tolist()}",
-                line=int(line_no[k]))
-    try:
-        df = pd.read_csv(io.StringIO(text), sep=sep, skip_blank_lines=True)
-    except pd.errors.EmptyDataError as e:
-        raise MalformedFileError(path, "file is empty") from e
-    except pd.errors.ParserError as e:
-        m = re.search(r"line (\d+)", str(e))
-        raise MalformedFileError(path, f"cannot parse: {e}", line=int(m.group(1)) if m else None) from e
-    if len(df) == 0:
-        raise MalformedFileError(path, "header only, no data rows", line=int(line_no[0]))
-    rows_lines = line_no[1:] if len(line_no) == len(df) + 1 else np.arange(len(df)) + 2
-    return df, rows_lines
-
-
-def _numeric_columns(df: pd.DataFrame, columns: Sequence[str], where: str | Path,
-                     row_lines: np.ndarray | None = None) -> np.ndarray:
-    """Columns as a float array (N, k); a non-number raises naming column and line/row."""
-    out = np.empty((len(df), len(columns)), dtype=float)
-    for j, c in enumerate(columns):
-        col = df[c]
-        if pd.api.types.is_bool_dtype(col) or not pd.api.types.is_numeric_dtype(col):
-            num = pd.to_numeric(col, errors="coerce")
-            bad = np.flatnonzero(num.isna().to_numpy() & col.notna().to_numpy())
-            if bad.size:
-                r = int(bad[0])
-                if row_lines is not None:
-                    raise MalformedFileError(
-                        where, f"column {c!r}: {col.iloc[r]!r} is not a number "
-                               f"({bad.size} such value(s) in this column)", line=int(row_lines[r]))
-                raise ValueError(f"{where}: column {c!r}, row {r}: {col.iloc[r]!r} is not a number "
-                                 f"({bad.size} such value(s) in this column)")
-            out[:, j] = num.to_numpy(dtype=float)
-        else:
-            out[:, j] = col.to_numpy(dtype=float)
-    return out
-
-
-def _finish(imu: ImuData, validate: bool, policy: str, validate_kw: dict[str, Any]) -> ImuData:
-    """Run :func:`imu_ground.datasets.validation.validate` as the readers do.
-
-    ``validate_kw["_depth"]`` (default 1) is the number of library frames between
-    the user's call and this function's caller, so that warnings point at the user.
-    """
-    depth = int(validate_kw.pop("_depth", 1))
-    if not validate:
-        if validate_kw:
-            raise TypeError(f"validation options {sorted(validate_kw)} given with validate=False")
-        return imu
-    kw = {"_stacklevel": 3 + depth, **validate_kw}
-    out, _ = _validate(imu, policy, **kw)  # type: ignore[arg-type]
-    return out
-
-
-# --------------------------------------------------------------------------- reader
-def from_dataframe(df: pd.DataFrame, *, time: str = "t",
-                   gyro: Sequence[str] = ("wx", "wy", "wz"),
-                   accel: Sequence[str] = ("ax", "ay", "az"),
-                   time_unit: str = "s", gyro_unit: str = "rad/s", accel_unit: str = "m/s^2",
-                   frame: str = "FLU", extra_units: Mapping[str, str] | None = None,
-                   relative_time: bool = True, source: str = "<DataFrame>",
-                   validate: bool = True, policy: str = "drop",
-                   _row_lines: np.ndarray | None = None, **validate_kw: Any) -> ImuData:
-    """Build an :class:`ImuData` from a DataFrame; see :func:`read_table` for the parameters."""
-    t_scale = unit_scale("time", time_unit)
-    w_scale = unit_scale("gyro", gyro_unit)
-    a_scale = unit_scale("accel", accel_unit)
+    import pandas as pd
     gyro, accel = tuple(gyro), tuple(accel)
-    for name, cols in (("gyro", gyro), ("accel", accel)):
-        if len(cols) != 3:
-            raise ValueError(f"{name} must name 3 columns (x, y, z), got {cols!r}")
+    for name, c3 in (("gyro", gyro), ("accel", accel)):
+        if len(c3) != 3:
+            raise ValueError(f"{name} must name 3 columns (x, y, z), got {c3!r}")
     needed = [time, *gyro, *accel]
-    missing = [c for c in needed if c not in df.columns]
+    missing = [c for c in needed if c not in cols]
     if missing:
-        raise ValueError(f"{source}: column(s) {missing} not found; available: {list(map(str, df.columns))}")
-    if len(df) == 0:
+        raise ValueError(f"{source}: column(s) {missing} not found; available: {list(map(str, cols))}")
+    n = len(cols[time])
+    if n == 0:
         raise MalformedFileError(source, "no data rows")
-
-    # time: subtract the first value in the source's own representation (exact for ints)
-    tcol = df[time]
-    meta: dict[str, Any] = {}
-    if pd.api.types.is_datetime64_any_dtype(tcol):
-        raw = tcol.to_numpy(dtype="datetime64[ns]").astype(np.int64)
-        t_scale = 1e-9
-        meta["time_unit_used"] = "ns (datetime column)"
-        tval: np.ndarray = raw
-    elif pd.api.types.is_integer_dtype(tcol):
-        tval = tcol.to_numpy(dtype=np.int64)
-    else:
-        tval = _numeric_columns(df, [time], source, _row_lines)[:, 0]
+    tval, forced = _time_values(np.asarray(cols[time]), time, source, row_lines)
+    w = np.column_stack([numeric(np.asarray(cols[c]), c, source, row_lines) for c in gyro])
+    a = np.column_stack([numeric(np.asarray(cols[c]), c, source, row_lines) for c in accel])
+    t_unit = forced or _unit("time", time_unit, detect_time_unit, tval, source, time)
+    g_unit = _unit("gyro", gyro_unit, detect_gyro_unit, w, source)
+    a_unit = _unit("accel", accel_unit, detect_accel_unit, a, source)
+    t_scale = unit_scale("time", t_unit)
+    if GYRO_UNITS[g_unit] != 1.0:
+        w *= GYRO_UNITS[g_unit]
+    if ACCEL_UNITS[a_unit] != 1.0:
+        a *= ACCEL_UNITS[a_unit]
     first = tval[0]
-    if relative_time and (np.issubdtype(tval.dtype, np.integer) or np.isfinite(first)):
-        t = (tval - first).astype(float) * t_scale
-        t0 = float(first) * t_scale
+    if relative_time and (tval.dtype.kind == "i" or np.isfinite(first)):
+        t, t0 = (tval - first).astype(float) * t_scale, float(first) * t_scale
     else:
-        t = tval.astype(float) * t_scale
-        t0 = 0.0
-    w = _numeric_columns(df, gyro, source, _row_lines) * w_scale
-    a = _numeric_columns(df, accel, source, _row_lines) * a_scale
-
-    extra_cols = [c for c in df.columns if c not in needed]
-    extra = df[extra_cols].reset_index(drop=True) if extra_cols else pd.DataFrame()
-    extra_units = dict(extra_units or {})
-    units = {str(c): extra_units.get(str(c), "unknown") for c in extra_cols}
-    meta.update({
-        "format": "table",
-        "t0": t0,
+        t, t0 = tval.astype(float) * t_scale, 0.0
+    extra_cols = [c for c in cols if c not in needed]
+    if extra is None:
+        extra = pd.DataFrame({c: cols[c] for c in extra_cols}) if extra_cols else pd.DataFrame()
+    units = {str(c): dict(extra_units or {}).get(str(c), "unknown") for c in extra_cols}
+    meta: dict[str, Any] = {
+        "format": "table", "t0": t0,
         "t0_clock": f"the source's {time!r} column" if relative_time else "t not shifted",
         "columns": {"time": time, "gyro": list(gyro), "accel": list(accel)},
-        "source_units": {"time": time_unit, "gyro": gyro_unit, "accel": accel_unit},
-    })
-    imu = ImuData(t, w, a, frame, extra, units, source, meta)
-    return _finish(imu, validate, policy, validate_kw)
+        "source_units": {"time": time_unit or t_unit, "gyro": gyro_unit or g_unit,
+                         "accel": accel_unit or a_unit},
+        "detected_units": {k: u for k, u, given in (("time", t_unit, time_unit or forced),
+                                                     ("gyro", g_unit, gyro_unit),
+                                                     ("accel", a_unit, accel_unit)) if given is None},
+    }
+    if forced:
+        meta["time_unit_used"] = "ns (datetime column)"
+    if row_lines is not None:
+        meta["row_lines"] = row_lines
+    return ImuData(t, w, a, frame, extra, units, source, meta)
 
 
-def read_table(source: str | Path | pd.DataFrame, *, time: str = "t",
-               gyro: Sequence[str] = ("wx", "wy", "wz"),
-               accel: Sequence[str] = ("ax", "ay", "az"),
-               time_unit: str = "s", gyro_unit: str = "rad/s", accel_unit: str = "m/s^2",
-               frame: str = "FLU", extra_units: Mapping[str, str] | None = None,
-               relative_time: bool = True, sep: str = ",",
-               validate: bool = True, policy: str = "drop", **validate_kw: Any) -> ImuData:
-    """Read a generic IMU table (CSV file, optionally gzip, or DataFrame).
+def from_dataframe(df: pd.DataFrame, *, source: str = "<DataFrame>", validate: bool = True,
+                   policy: str = "retime", **kw: Any) -> ImuData:
+    """Build an :class:`ImuData` from a DataFrame; see :func:`read_table` for the parameters."""
+    mapping, options = _split(kw)
+    cols = {str(c): df[c].to_numpy() for c in df.columns}
+    needed = {mapping.get("time", "t"), *mapping.get("gyro", ("wx", "wy", "wz")),
+              *mapping.get("accel", ("ax", "ay", "az"))}
+    rest = [c for c in df.columns if str(c) not in needed]
+    extra = df[rest].reset_index(drop=True) if rest else None
+    imu = map_columns(cols, source=source, extra=extra, **mapping)
+    return finish(imu, validate=validate, policy=policy, **options)
+
+
+_MAPPING_KEYS = ("time", "gyro", "accel", "time_unit", "gyro_unit", "accel_unit", "frame", "extra_units",
+                 "relative_time")
+
+
+def _split(kw: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(column-mapping options, validation options)."""
+    mapping = {k: kw.pop(k) for k in _MAPPING_KEYS if k in kw}
+    for kind in ("time", "gyro", "accel"):
+        if mapping.get(f"{kind}_unit") is not None:
+            unit_scale(kind, mapping[f"{kind}_unit"])  # fail on a bad unit before reading anything
+    return mapping, kw
+
+
+def read_table(source: str | Path | pd.DataFrame, *, sep: str = ",", validate: bool = True,
+               policy: str = "retime", **kw: Any) -> ImuData:
+    """Read a generic IMU table (CSV file, optionally ``.gz`` / ``.bz2``, or DataFrame).
 
     Parameters
     ----------
     source : str, Path or pandas.DataFrame
-        A delimited text file with a header line (``.gz`` is decompressed), or a
-        DataFrame.
+        A delimited text file with a header line, or a DataFrame.
     time : str
-        Name of the time column (numbers in ``time_unit``, or a datetime column).
+        Name of the time column (numbers, or a datetime column), default ``"t"``.
     gyro : tuple of 3 str
-        Names of the angular-rate columns about the body x, y, z axes.
+        Angular-rate columns about the body x, y, z axes (default ``wx, wy, wz``).
     accel : tuple of 3 str
-        Names of the specific-force columns along the body x, y, z axes (what the
-        accelerometer measures: +1 g on the up axis at rest).
-    time_unit : {"s", "ms", "us", "µs", "ns"}
-        Unit of the time column.
-    gyro_unit : {"rad/s", "deg/s"}
-        Unit of the angular-rate columns; converted to rad/s.
-    accel_unit : {"m/s^2", "m/s2", "g"}
-        Unit of the specific-force columns; converted to m/s^2 with
-        g = 9.80665 m/s^2.
+        Specific-force columns along the body x, y, z axes (default ``ax, ay, az``;
+        what the accelerometer measures: +1 g on the up axis at rest).
+    time_unit : {"s", "ms", "us", "µs", "ns"}, optional
+        Unit of the time column; told from the data when omitted.
+    gyro_unit : {"rad/s", "deg/s"}, optional
+        Unit of the angular-rate columns; told from the data when omitted.
+    accel_unit : {"m/s^2", "m/s2", "g"}, optional
+        Unit of the specific-force columns (g = 9.80665 m/s^2); told from the data when omitted.
     frame : str
-        Name of the body frame the columns are expressed in (default ``"FLU"``:
-        x forward, y left, z up).  The reader does not rotate anything.
+        Name of the body frame of the columns (default ``"FLU"``); nothing is rotated.
     extra_units : dict, optional
         Units of the other columns (kept in ``extra``), default ``"unknown"``.
     relative_time : bool
-        Shift ``t`` to start at 0 (default) and keep the first time, in s, in
-        ``meta["t0"]``; integer times are shifted before conversion so that
-        nanosecond timestamps keep their precision.
+        Shift ``t`` to start at 0 (default) and keep the first time, s, in
+        ``meta["t0"]``; integer times are shifted before conversion (exact ns).
     sep : str
         Field separator of the text file.
     validate : bool
         Run :func:`imu_ground.datasets.validation.validate` (default True).
-    policy : {"drop", "sort", "strict"}
+    policy : {"retime", "drop", "sort", "strict"}
         Time-order policy of the validation.
-    **validate_kw
-        Other options of :func:`~imu_ground.datasets.validation.validate` (``nonfinite``,
-        ``gap_factor``, ...).
+    **kw
+        Other options of :func:`~imu_ground.datasets.validation.validate`.
 
     Returns
     -------
     ImuData
         ``t`` s, ``gyro`` rad/s, ``accel`` m/s^2 in ``frame``; other columns in
-        ``extra``; ``meta["source_units"]`` records the conversion.
+        ``extra``; ``meta["source_units"]`` and ``meta["detected_units"]`` record the conversion.
 
     Raises
     ------
@@ -300,18 +216,68 @@ def read_table(source: str | Path | pd.DataFrame, *, time: str = "t",
         The file does not exist.
     MalformedFileError
         Empty file, a line with the wrong number of fields, or a non-number in a
-        time/gyro/accel column (the message names the file and line).
+        time/gyro/accel column (the message names the file and 1-based line).
+    ImuInputError
+        Unknown unit, or units the data cannot decide (the message names the option).
     ValueError
-        Unknown unit (the message lists the allowed ones) or missing column.
+        Missing column.
     """
-    for kind, unit in (("time", time_unit), ("gyro", gyro_unit), ("accel", accel_unit)):
-        unit_scale(kind, unit)  # fail on a bad unit before reading anything
-    common = dict(time=time, gyro=gyro, accel=accel, time_unit=time_unit, gyro_unit=gyro_unit,
-                  accel_unit=accel_unit, frame=frame, extra_units=extra_units,
-                  relative_time=relative_time, validate=validate, policy=policy)
-    validate_kw["_depth"] = int(validate_kw.get("_depth", 1)) + 1
+    import pandas as pd
+    mapping, options = _split(kw)
     if isinstance(source, pd.DataFrame):
-        return from_dataframe(source, **common, **validate_kw)
+        return from_dataframe(source, validate=validate, policy=policy, **mapping, **options)
     path = Path(source)
-    df, row_lines = _read_csv_text(path, sep)
-    return from_dataframe(df, source=str(path), _row_lines=row_lines, **common, **validate_kw)
+    cols, row_lines = read_delimited(path, sep)
+    imu = map_columns(cols, source=str(path), row_lines=row_lines, **mapping)
+    del cols
+    return finish(imu, validate=validate, policy=policy, **options)
+
+
+def read_parquet_table(path: str | Path, *, validate: bool = True, policy: str = "retime",
+                       **kw: Any) -> ImuData:
+    """Read a Parquet IMU table (pyarrow) through the same column mapping as :func:`read_table`.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.parquet`` file. Rows are numbered from 0 in messages (Parquet has no lines).
+    **kw
+        ``time``, ``gyro``, ``accel``, units, ``frame``, ... as in :func:`read_table`,
+        and the validation options.
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    MalformedFileError
+        Not a readable Parquet file.
+    """
+    import pyarrow.parquet as pq
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such file")
+    try:
+        table = pq.read_table(path)
+    except Exception as e:  # pyarrow raises ArrowInvalid / OSError for broken files
+        raise MalformedFileError(path, f"not a readable Parquet file ({e})") from e
+    cols: Columns = {name: table.column(name).to_numpy() for name in table.column_names}
+    del table
+    mapping, options = _split(kw)
+    imu = map_columns(cols, source=str(path), **mapping)
+    imu.meta["format"] = "parquet"
+    return finish(imu, validate=validate, policy=policy, **options)
+
+
+def _is_table(path: Path) -> bool:
+    return path.is_file() and path.name.lower().endswith(TABLE_SUFFIXES)
+
+
+def _is_parquet(path: Path) -> bool:
+    return path.is_file() and path.name.lower().endswith(PARQUET_SUFFIXES)
+
+
+_UNIT_OPTIONS = ("time_unit", "gyro_unit", "accel_unit")
+register_format("parquet", _is_parquet, read_parquet_table, "Parquet IMU table (pyarrow), same columns as CSV",
+                priority=40, options=_UNIT_OPTIONS)
+register_format("table", _is_table, read_table, "any CSV(.gz) / DataFrame with a column map", priority=90,
+                options=_UNIT_OPTIONS)

@@ -1,10 +1,14 @@
 """Odometry pose readers (KITTI, TUM): round trips, relative rotations, clear errors."""
 import numpy as np
 import pytest
+from imu_ground.datasets.poses import (
+    read_kitti_poses,
+    read_poses,
+    read_tum_poses,
+    relative_rotations,
+    write_tum_poses,
+)
 from scipy.spatial.transform import Rotation
-
-from imu_ground.datasets.poses import (read_kitti_poses, read_poses, read_tum_poses, relative_rotations,
-                                       write_tum_poses)
 
 
 def _poses(n=20, seed=0):

@@ -1,0 +1,313 @@
+"""What the readers' checks report: errors, warnings and the validation report.
+
+The lowest room of :mod:`imu_ground.datasets`: every reader and check imports
+from here, nothing here imports a reader. Warnings are attributed to the user's
+code with :func:`warn_user` (the first caller outside the package), so no reader
+has to count its own stack depth.
+"""
+from __future__ import annotations
+
+import sys
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from imu_ground.units import GRAVITY
+
+from .options import ImuInputError, OptionMessage
+
+__all__ = [
+    "STANDARD_GRAVITY",
+    "Gap",
+    "GapWarning",
+    "ImuValidationError",
+    "ImuValidationWarning",
+    "MalformedFileError",
+    "NonFiniteWarning",
+    "TimestampWarning",
+    "UnitsWarning",
+    "ValidationReport",
+    "row_names",
+    "warn_user",
+]
+
+#: Standard gravity, m/s^2 (the one owner is :data:`imu_ground.units.GRAVITY`).
+STANDARD_GRAVITY = GRAVITY
+
+_PACKAGE_DIRS = tuple(str(Path(p).resolve()) for p in (
+    Path(__file__).parent, Path(__file__).parent.parent / "imu_ground"))
+
+
+# --------------------------------------------------------------------------- errors
+class ImuValidationError(ImuInputError):
+    """An IMU log failed a check whose policy is to raise; ``option`` names the fix, if any."""
+
+
+class MalformedFileError(ValueError):
+    """A log file cannot be parsed: empty, truncated, wrong field count, not a number.
+
+    Attributes
+    ----------
+    path : str
+        The file.
+    line : int or None
+        1-based line number of the first bad line, when there is one.
+    """
+
+    def __init__(self, path: str | Path, message: str, line: int | None = None) -> None:
+        self.path = str(path)
+        self.line = line
+        where = f"{self.path}, line {line}" if line is not None else self.path
+        super().__init__(f"{where}: {message}")
+
+
+class ImuValidationWarning(OptionMessage, UserWarning):
+    """Base class of every warning issued by the readers and :func:`validate`.
+
+    Like :class:`~imu_ground.datasets.options.ImuInputError`, the text may name a
+    reader option (``{hint}``); :meth:`cli_message` spells it as the CLI flag.
+    """
+
+    def __init__(self, message: str = "", option: str | None = None, value: Any = None) -> None:
+        self.template, self.option, self.value = message, option, value
+        super().__init__(self._render(cli=False))
+
+
+class TimestampWarning(ImuValidationWarning):
+    """Samples were retimed, dropped or reordered because of unsorted or duplicate times."""
+
+
+class GapWarning(ImuValidationWarning):
+    """The log has steps much longer than its usual sample period."""
+
+
+class NonFiniteWarning(ImuValidationWarning):
+    """Rows with NaN or inf were dropped (``nonfinite="drop"``)."""
+
+
+class UnitsWarning(ImuValidationWarning):
+    """Units were detected from the data and converted, or magnitudes look wrong."""
+
+
+def warn_user(message: str, category: type[Warning] = ImuValidationWarning, option: str | None = None,
+              value: Any = None) -> None:
+    """Issue a warning attributed to the first caller outside imu_ground (the user's line).
+
+    Parameters
+    ----------
+    message : str
+        The text, naming the file (and 1-based line where there is one); may hold
+        ``{hint}`` for ``option``.
+    category : Warning subclass
+        The warning class.
+    option, value : optional
+        The reader option (and value) the text names (ImuValidationWarning subclasses).
+    """
+    level, frame = 1, sys._getframe(1)
+    while frame is not None and frame.f_code.co_filename.startswith(_PACKAGE_DIRS):
+        frame, level = frame.f_back, level + 1
+    if issubclass(category, ImuValidationWarning):
+        warnings.warn(category(message, option, value), stacklevel=level + 1)
+    else:
+        warnings.warn(message, category, stacklevel=level + 1)
+
+
+def row_names(rows: np.ndarray, row_lines: Callable[[np.ndarray], np.ndarray] | None) -> tuple[str, list[int]]:
+    """How to name input rows in a message: ``("line", 1-based file lines)`` or ``("row", 0-based rows)``."""
+    rows = np.asarray(rows, dtype=np.int64)
+    if row_lines is None:
+        return "row", rows.tolist()
+    return "line", np.asarray(row_lines(rows), dtype=np.int64).tolist()
+
+
+# --------------------------------------------------------------------------- report
+class Gap(NamedTuple):
+    """One gap: the sample before it, its start time and its length.
+
+    Attributes
+    ----------
+    index : int
+        Input row of the sample before the gap.
+    out_index : int
+        Row of that sample in the cleaned output.
+    t_start : float
+        Time of the sample before the gap, s.
+    length : float
+        Time to the next kept sample, s.
+    """
+
+    index: int
+    out_index: int
+    t_start: float
+    length: float
+
+
+def _empty_int() -> np.ndarray:
+    return np.zeros(0, dtype=np.int64)
+
+
+def _empty_float() -> np.ndarray:
+    return np.zeros(0, dtype=float)
+
+
+@dataclass
+class ValidationReport:
+    """What :func:`~imu_ground.datasets.validation.validate` found and did.
+
+    Attributes
+    ----------
+    source : str
+        Where the data came from.
+    policy : str
+        Time-order policy asked for (``"retime"``, ``"drop"``, ``"sort"``, ``"strict"``).
+    n_in, n_out : int
+        Samples before and after cleaning.
+    nonfinite_index : ndarray of int
+        Input rows with NaN/inf in t, gyro or accel.
+    nonfinite_columns : dict
+        Column name (``t``, ``wx``... ``az``) to number of non-finite values.
+    nonfinite_dropped : bool
+        Whether those rows were dropped.
+    backstep_index : ndarray of int
+        Input rows where time steps back (``t[i] < t[i-1]``), among finite rows.
+    backstep_size : ndarray of float
+        The size of those steps, s (negative).
+    out_of_order_index : ndarray of int
+        Input rows earlier than the latest time before them.
+    duplicate_index : ndarray of int
+        Input rows whose time equals an earlier one.
+    dropped_index : ndarray of int
+        Every input row not in the output (non-finite, out of order, duplicate).
+    reordered : bool
+        Whether samples were sorted (``policy="sort"`` and something was out of order).
+    retimed : bool
+        Whether the sample index became the clock (``policy="retime"``).
+    retime_rate : float
+        Fitted sample rate of the index clock, Hz (nan when not retimed).
+    retime_shift_max, retime_shift_rms : float
+        Largest and RMS move of a timestamp by the retiming, s.
+    retime_dropout_index : ndarray of int
+        Input rows that start a new stretch after a real dropout (kept as a gap).
+    retime_note : str
+        Why retiming was not applied (empty when it was, or was not asked for).
+    median_step : float
+        Median time step of the cleaned data, s (nan for fewer than 2 samples).
+    gap_threshold : float
+        Steps longer than this are gaps, s.
+    gap_index, gap_out_index, gap_start, gap_length : ndarray
+        The gaps: input row and output row of the sample before each gap, its time
+        and the gap's length (s).  See :attr:`gaps`.
+    gyro_max_norm : float
+        Largest angular-rate magnitude, rad/s (nan when empty).
+    gyro_sustained : float
+        Longest time the rate stays above ``gyro_limit``, s.
+    gyro_limit : float
+        Rate above which a car's gyro is implausible, rad/s.
+    accel_median_norm : float
+        Median specific-force magnitude, m/s^2 (over samples at rest when there
+        are enough, see ``accel_norm_at_rest``).
+    accel_norm_at_rest : bool
+        Whether ``accel_median_norm`` was taken over samples with small rate.
+    issues : list of str
+        One message per problem found (the texts of the warnings/errors).
+    """
+
+    source: str = ""
+    policy: str = "retime"
+    n_in: int = 0
+    n_out: int = 0
+    nonfinite_index: np.ndarray = field(default_factory=_empty_int)
+    nonfinite_columns: dict[str, int] = field(default_factory=dict)
+    nonfinite_dropped: bool = False
+    backstep_index: np.ndarray = field(default_factory=_empty_int)
+    backstep_size: np.ndarray = field(default_factory=_empty_float)
+    out_of_order_index: np.ndarray = field(default_factory=_empty_int)
+    duplicate_index: np.ndarray = field(default_factory=_empty_int)
+    dropped_index: np.ndarray = field(default_factory=_empty_int)
+    reordered: bool = False
+    retimed: bool = False
+    retime_rate: float = float("nan")
+    retime_shift_max: float = 0.0
+    retime_shift_rms: float = 0.0
+    retime_dropout_index: np.ndarray = field(default_factory=_empty_int)
+    retime_note: str = ""
+    median_step: float = float("nan")
+    gap_threshold: float = float("nan")
+    gap_index: np.ndarray = field(default_factory=_empty_int)
+    gap_out_index: np.ndarray = field(default_factory=_empty_int)
+    gap_start: np.ndarray = field(default_factory=_empty_float)
+    gap_length: np.ndarray = field(default_factory=_empty_float)
+    gyro_max_norm: float = float("nan")
+    gyro_sustained: float = 0.0
+    gyro_limit: float = float("nan")
+    accel_median_norm: float = float("nan")
+    accel_norm_at_rest: bool = False
+    issues: list[str] = field(default_factory=list)
+
+    @property
+    def n_dropped(self) -> int:
+        """Input samples not in the output."""
+        return int(self.dropped_index.size)
+
+    @property
+    def n_out_of_order(self) -> int:
+        """Samples earlier than the latest time before them."""
+        return int(self.out_of_order_index.size)
+
+    @property
+    def n_duplicates(self) -> int:
+        """Samples repeating an earlier time."""
+        return int(self.duplicate_index.size)
+
+    @property
+    def n_nonfinite(self) -> int:
+        """Rows with NaN/inf in t, gyro or accel."""
+        return int(self.nonfinite_index.size)
+
+    @property
+    def n_gaps(self) -> int:
+        """Number of gaps."""
+        return int(self.gap_start.size)
+
+    @property
+    def gaps(self) -> list[Gap]:
+        """The gaps as a list of :class:`Gap` (index, out_index, t_start, length)."""
+        return [Gap(int(i), int(j), float(s), float(g)) for i, j, s, g in
+                zip(self.gap_index, self.gap_out_index, self.gap_start, self.gap_length)]
+
+    @property
+    def ok(self) -> bool:
+        """True when no problem was found."""
+        return not self.issues
+
+    def summary(self) -> str:
+        """A few lines of text describing the findings."""
+        head = (f"{self.source or '<ImuData>'}: {self.n_in} samples in, {self.n_out} out "
+                f"(policy={self.policy!r}); {self.n_out_of_order} out of order, "
+                f"{self.n_duplicates} duplicate times, {self.n_nonfinite} non-finite rows, "
+                f"{self.n_gaps} gaps > {self.gap_threshold:.4g} s")
+        if self.retimed:
+            head += (f"; retimed at {self.retime_rate:.6g} Hz (max shift {self.retime_shift_max:.4g} s, "
+                     f"RMS {self.retime_shift_rms:.4g} s)")
+        return "\n".join([head, *self.issues]) if self.issues else head + "; no issues"
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-Python (JSON-friendly) version of the report."""
+        out: dict[str, Any] = {}
+        for k, v in self.__dict__.items():
+            if isinstance(v, np.ndarray):
+                out[k] = v.tolist()
+            elif isinstance(v, (list, dict)):
+                out[k] = type(v)(v)
+            elif isinstance(v, (np.floating, np.integer, np.bool_)):
+                out[k] = v.item()
+            else:
+                out[k] = v
+        out.update(n_dropped=self.n_dropped, n_out_of_order=self.n_out_of_order,
+                   n_duplicates=self.n_duplicates, n_nonfinite=self.n_nonfinite,
+                   n_gaps=self.n_gaps, ok=self.ok)
+        return out

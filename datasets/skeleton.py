@@ -1,0 +1,233 @@
+"""The one reader skeleton: open, decompress, parse, map columns, convert units, validate, report.
+
+Each format registers here (:func:`register_format`) a *probe* (does this path
+look like my format?) and its own parsing (the reader). The shared steps live in
+one place each:
+
+- open / decompress / parse text: :mod:`imu_ground.datasets.csvio`;
+- map columns and convert units (told from the data when not given):
+  :mod:`imu_ground.datasets.table`, :mod:`imu_ground.datasets.unit_checks`;
+- validate and report: :func:`finish`, which every reader (including the ROS
+  bag reader) calls last, and which stores the report in ``meta["validation"]``.
+
+:func:`detect_format` asks the probes in priority order; :func:`read_imu` picks
+the reader, passes the reader options it accepts (:data:`~imu_ground.datasets.options.READER_OPTIONS`)
+and names an option that does not apply. A pose file handed to either gets a
+:class:`PoseFileError` saying so.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from imu_ground.imu.data import ImuData
+
+from .options import READER_OPTIONS, ImuInputError
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = [
+    "ALIASES",
+    "FORMATS",
+    "FormatSpec",
+    "PoseFileError",
+    "UnknownFormatError",
+    "detect_format",
+    "finish",
+    "read_imu",
+    "register_format",
+]
+
+#: Options every reader takes (they go to :func:`finish`).
+COMMON_OPTIONS = frozenset({"policy", "nonfinite"})
+
+
+@dataclass(frozen=True)
+class FormatSpec:
+    """One registered log format.
+
+    Attributes
+    ----------
+    name : str
+        Format name (``read_imu(format=...)``, ``--format``).
+    probe : callable
+        ``probe(path: Path) -> bool``: does this existing path look like the format?
+        Cheap (names, a header line), never raises for a foreign path.
+    reader : callable
+        ``reader(path, **options) -> ImuData`` (validated through :func:`finish`).
+    description : str
+        One line: what the format is and what the probe looks for.
+    priority : int
+        Probes run in increasing priority.
+    options : frozenset of str
+        Reader options (keys of ``READER_OPTIONS``) that apply besides ``policy`` and ``nonfinite``.
+    """
+
+    name: str
+    probe: Callable[[Path], bool]
+    reader: Callable[..., ImuData]
+    description: str
+    priority: int = 50
+    options: frozenset = field(default_factory=frozenset)
+
+
+#: Format name -> spec, in probe order once sorted by priority.
+FORMATS: dict[str, FormatSpec] = {}
+#: Other names accepted for ``format``.
+ALIASES: dict[str, str] = {"csv": "table", "oxts": "kitti_oxts", "kitti": "kitti_oxts",
+                           "nuscenes_can_bus": "nuscenes", "ms_imu": "nuscenes", "comma": "comma2k19",
+                           "bag": "rosbag", "mcap": "rosbag", "ros": "rosbag"}
+
+
+class UnknownFormatError(ImuInputError):
+    """:func:`detect_format` cannot tell which reader a path needs (the message names ``format``)."""
+
+
+class PoseFileError(UnknownFormatError):
+    """An IMU log was asked for, but the path is a pose file (KITTI odometry or TUM)."""
+
+
+def register_format(name: str, probe: Callable[[Path], bool], reader: Callable[..., ImuData],
+                    description: str, *, priority: int = 50, options: tuple[str, ...] = ()) -> FormatSpec:
+    """Add (or replace) a format; see :class:`FormatSpec`. Returns the spec."""
+    unknown = set(options) - set(READER_OPTIONS)
+    if unknown:
+        raise ValueError(f"options {sorted(unknown)} are not in READER_OPTIONS")
+    spec = FormatSpec(name, probe, reader, description, priority, frozenset(options))
+    FORMATS[name] = spec
+    return spec
+
+
+def finish(imu: ImuData, *, validate: bool = True, policy: str = "retime", **options: Any) -> ImuData:
+    """The readers' last step: validate (time order, gaps, units) and store the report.
+
+    Parameters
+    ----------
+    imu : ImuData
+        As parsed, in ImuData units (``meta["row_lines"]`` may map rows to file lines).
+    validate : bool
+        Run :func:`imu_ground.datasets.validation.validate` (default True); False
+        returns ``imu`` unchanged and refuses validation options.
+    policy : {"retime", "drop", "sort", "strict"}
+        Time-order policy (default ``"retime"``).
+    **options
+        Other options of :func:`~imu_ground.datasets.validation.validate` (``nonfinite``, ``gaps``, ...).
+
+    Returns
+    -------
+    ImuData
+        The cleaned log, ``meta["validation"]`` the report.
+    """
+    from .validation import validate as _validate
+    if not validate:
+        if options:
+            raise TypeError(f"validation options {sorted(options)} given with validate=False")
+        return imu
+    return _validate(imu, policy, **options)[0]  # type: ignore[arg-type]
+
+
+def _ordered() -> list[FormatSpec]:
+    return sorted(FORMATS.values(), key=lambda s: s.priority)
+
+
+def detect_format(path: str | Path | pd.DataFrame) -> str:
+    """Name of the format of ``path`` (a key of :data:`FORMATS`), asking each format's probe.
+
+    Raises
+    ------
+    FileNotFoundError
+        ``path`` does not exist.
+    PoseFileError
+        ``path`` is a KITTI odometry or TUM pose file, not an IMU log.
+    UnknownFormatError
+        No probe recognises it; the message lists what was looked for and names ``format``.
+    """
+    if not isinstance(path, (str, Path)):
+        return "table"
+    p = Path(path)
+    if not p.exists():
+        raise FileNotFoundError(f"{p}: no such file or folder")
+    if p.is_file():
+        from .poses import detect_pose_format
+        kind = detect_pose_format(p)
+        if kind is not None:
+            what = {"kitti": "KITTI odometry poses (12 numbers a line)",
+                    "tum": "TUM trajectory (t x y z qx qy qz qw)"}[kind]
+            raise PoseFileError(f"{p}: a pose file ({what}), not an IMU log; `imu-ground estimate` accepts it "
+                                f"as poses (read it with imu_ground.datasets.read_poses)")
+    for spec in _ordered():
+        if spec.probe(p):
+            return spec.name
+    kind = "folder" if p.is_dir() else "file"
+    looked = "; ".join(f"{s.name}: {s.description}" for s in _ordered())
+    raise UnknownFormatError(f"{p}: cannot tell the IMU log format of this {kind}; supported: {looked} "
+                             f"(or pass {{hint}})", option="format")
+
+
+def _resolve(path: Any, format: str | None) -> FormatSpec:
+    fmt = detect_format(path) if format is None else ALIASES.get(format, format)
+    if fmt not in FORMATS:
+        raise UnknownFormatError(f"unknown format {format!r} for {path}; known: {sorted(FORMATS)} "
+                                 f"(aliases {sorted(ALIASES)}); pass {{hint}}", option="format")
+    return FORMATS[fmt]
+
+
+def read_imu(path: str | Path | pd.DataFrame, format: str | None = None, **kw: Any) -> ImuData:
+    """Read an IMU log of any registered format.
+
+    Parameters
+    ----------
+    path : str, Path or pandas.DataFrame
+        File or folder (see :func:`detect_format`), or a DataFrame (``table``).
+    format : str, optional
+        A key of :data:`FORMATS` or :data:`ALIASES`; detected from ``path`` when omitted.
+    **kw
+        Reader options (``policy``, ``nonfinite``, ``time_unit``, ``gyro_unit``,
+        ``accel_unit``, ``topic``, ``allow_missing``; None means "not set") and
+        reader-specific keywords (the column map of :func:`read_table`, ...).
+
+    Returns
+    -------
+    ImuData
+        ``t`` s, ``gyro`` rad/s, ``accel`` m/s^2 (specific force), validated.
+
+    Raises
+    ------
+    FileNotFoundError
+        ``path`` does not exist.
+    UnknownFormatError
+        The format cannot be detected, or ``format`` is not known.
+    ImuInputError
+        A reader option that does not apply to the format (named).
+    """
+    spec = _resolve(path, format)
+    for name in [k for k in kw if k in READER_OPTIONS]:
+        value = kw[name]
+        if value is None or (value is False and name == "allow_missing"):
+            del kw[name]
+        elif name not in COMMON_OPTIONS and name not in spec.options:
+            raise ImuInputError(f"{path}: option {{hint}} does not apply to {spec.name} logs", option=name,
+                                value=value)
+    return spec.reader(path, **kw)
+
+
+# --------------------------------------------------------------------------- lazy formats
+def _is_rosbag(p: Path) -> bool:
+    if p.is_dir():
+        return (p / "metadata.yaml").is_file()
+    return p.suffix.lower() in (".bag", ".mcap")
+
+
+def _read_rosbag(path: Any, **kw: Any) -> ImuData:
+    from .rosbag import (
+        read_rosbag_imu,  # imported only when a bag is read (rosbags is optional)
+    )
+    return read_rosbag_imu(path, **kw)
+
+
+register_format("rosbag", _is_rosbag, _read_rosbag,
+                "ROS 1 *.bag, *.mcap, or a ROS 2 bag folder with metadata.yaml (sensor_msgs/Imu)",
+                priority=35, options=("topic",))

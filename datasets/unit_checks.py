@@ -1,0 +1,149 @@
+"""Units and time scales told from the data, for tables whose units are not given.
+
+Each check returns the unit it settles on and, when that is not the
+ImuData unit, the one warning text saying what was converted; where the data
+cannot decide, it raises :class:`~imu_ground.datasets.options.ImuInputError`
+naming the option to pass (``time_unit``, ``gyro_unit``, ``accel_unit``).
+
+- time: the median step must give an IMU rate of 1-2000 Hz, and times of epoch
+  size (1980-2100 since 1970) fix the unit by their magnitude;
+- gyro: a car does not turn at more than ~2 rad/s for 1 % of a drive; numbers
+  that large are deg/s (a gentle drive in deg/s can stay below this and is
+  then not caught);
+- accel: the specific force's median magnitude is about 9.8 in m/s^2 and about
+  1 in g.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from imu_ground.units import DEG, GRAVITY
+
+from .options import ImuInputError
+
+__all__ = [
+    "ACCEL_UNITS",
+    "GYRO_UNITS",
+    "TIME_UNITS",
+    "detect_accel_unit",
+    "detect_gyro_unit",
+    "detect_time_unit",
+    "unit_scale",
+]
+
+#: Time units, to seconds.
+TIME_UNITS: dict[str, float] = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9}
+#: Angular-rate units, to rad/s.
+GYRO_UNITS: dict[str, float] = {"rad/s": 1.0, "deg/s": DEG}
+#: Specific-force units, to m/s^2 (g = 9.80665 m/s^2).
+ACCEL_UNITS: dict[str, float] = {"m/s^2": 1.0, "m/s2": 1.0, "g": GRAVITY}
+_TABLES = {"time": TIME_UNITS, "gyro": GYRO_UNITS, "accel": ACCEL_UNITS}
+_OPTION = {"time": "time_unit", "gyro": "gyro_unit", "accel": "accel_unit"}
+_NAMES = {"s": "seconds", "ms": "milliseconds", "us": "microseconds", "ns": "nanoseconds"}
+
+RATE_RANGE = (1.0, 2000.0)          # plausible IMU rates, Hz
+EPOCH_RANGE = (3.15e8, 4.1e9)       # 1980 .. 2100, s since 1970
+GYRO_DEG_SURE = 2.0                 # 99th percentile |w| above this (rad/s): deg/s
+GYRO_RAD_SURE = 1.0                 # ... below this: rad/s; between: ask
+
+
+def unit_scale(kind: str, unit: str) -> float:
+    """Factor converting ``unit`` to the ImuData unit of ``kind`` (``"time"``, ``"gyro"``, ``"accel"``).
+
+    Raises
+    ------
+    ImuInputError
+        Unknown ``kind`` or ``unit``; the message lists the allowed units and names the option.
+    """
+    if kind not in _TABLES:
+        raise ValueError(f"unknown quantity {kind!r}; allowed: {list(_TABLES)}")
+    table = _TABLES[kind]
+    if unit not in table:
+        raise ImuInputError(f"unknown {kind} unit {unit!r}; allowed: {list(table)} ({{hint}})",
+                            option=_OPTION[kind])
+    return table[unit]
+
+
+def detect_time_unit(values: np.ndarray, source: str, column: str) -> tuple[str, str | None]:
+    """Unit of a time column from its median step and magnitude: ``(unit, warning or None)``.
+
+    Parameters
+    ----------
+    values : ndarray (N,)
+        Raw times (any numeric dtype), in file order.
+    source, column : str
+        Named in messages.
+
+    Raises
+    ------
+    ImuInputError
+        Several units or none give a plausible rate (``option="time_unit"``).
+    """
+    v = np.asarray(values)
+    fin = v[np.isfinite(v)] if v.dtype.kind == "f" else v
+    if fin.size < 2:
+        return "s", None
+    steps = np.diff(fin)
+    steps = steps[steps > 0]
+    if not steps.size:
+        return "s", None
+    step = float(np.median(steps))
+    first = float(abs(fin[0]))
+    units = ("s", "ms", "us", "ns")
+    rate_ok = [u for u in units if RATE_RANGE[0] <= 1.0 / (step * TIME_UNITS[u]) <= RATE_RANGE[1]]
+    epoch = [u for u in units if EPOCH_RANGE[0] <= first * TIME_UNITS[u] <= EPOCH_RANGE[1]]
+    choice = [u for u in rate_ok if u in epoch] if epoch else rate_ok
+    if len(choice) == 1:
+        u = choice[0]
+        if u == "s":
+            return u, None
+        why = f"epoch-sized values ({first:.6g}) and " if epoch else ""
+        return u, (f"{source}: time column {column!r} read as {_NAMES[u]} from the data: {why}median step "
+                   f"{step:.6g} = {1.0 / (step * TIME_UNITS[u]):.6g} Hz (pass {{hint}} to say so)")
+    rates = ", ".join(f"{u}: {1.0 / (step * TIME_UNITS[u]):.6g} Hz" for u in units)
+    if not choice:
+        msg = (f"{source}: cannot tell the unit of time column {column!r}: its median step {step:.6g} gives "
+               f"no IMU rate of {RATE_RANGE[0]:g}-{RATE_RANGE[1]:g} Hz ({rates}); pass {{hint}}")
+    else:
+        msg = (f"{source}: cannot tell the unit of time column {column!r}: median step {step:.6g} fits "
+               f"{' or '.join(choice)} ({rates}); pass {{hint}}")
+    raise ImuInputError(msg, option="time_unit")
+
+
+def detect_gyro_unit(gyro: np.ndarray, source: str) -> tuple[str, str | None]:
+    """``"rad/s"`` or ``"deg/s"`` from the 99th percentile of the rate magnitude; see the module docstring.
+
+    Raises
+    ------
+    ImuInputError
+        The magnitude is between what a car does in rad/s and what deg/s shows (``option="gyro_unit"``).
+    """
+    w = np.asarray(gyro, dtype=float)
+    w = w[np.isfinite(w).all(axis=1)]
+    if not w.size:
+        return "rad/s", None
+    q = float(np.percentile(np.linalg.norm(w, axis=1), 99))
+    if q <= GYRO_RAD_SURE:
+        return "rad/s", None
+    if q > GYRO_DEG_SURE:
+        return "deg/s", (f"{source}: gyro read as deg/s from the data: 1 % of the samples turn faster than "
+                         f"{q:.3g} in the file's unit, which no car does in rad/s (pass {{hint}} to say so)")
+    raise ImuInputError(f"{source}: cannot tell the gyro unit: 1 % of the samples turn faster than {q:.3g} "
+                        f"(fast for a car in rad/s, slow in deg/s); pass {{hint}} or gyro_unit='rad/s'",
+                        option="gyro_unit", value="deg/s")
+
+
+def detect_accel_unit(accel: np.ndarray, source: str) -> tuple[str, str | None]:
+    """``"m/s^2"`` or ``"g"`` from the median specific-force magnitude (about 9.8 or about 1).
+
+    Anything else is left to the validation's units check (gravity removed, mg, ...).
+    """
+    a = np.asarray(accel, dtype=float)
+    a = a[np.isfinite(a).all(axis=1)]
+    if not a.size:
+        return "m/s^2", None
+    med = float(np.median(np.linalg.norm(a, axis=1)))
+    if abs(med - 1.0) < 0.25:
+        return "g", (f"{source}: accelerometer read as units of g from the data: median specific-force "
+                     f"magnitude {med:.4g} (pass {{hint}} to say so)")
+    return "m/s^2", None
