@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import json
 import math
-import time
 
 import numpy as np
 import pandas as pd
@@ -393,11 +392,9 @@ def test_stops_measure_only_gravity_and_noise(urban_drive):
         assert err.std() < 2 * IMU_PRESETS["mems"].accel_noise_std(100.0)
 
 
-# --------------------------------------------------------------------------- suite and speed
-def test_suite_varied_reproducible_and_fast():
-    t0 = time.perf_counter()
+# --------------------------------------------------------------------------- suite
+def test_suite_varied_and_reproducible():
     suite = simulate_suite(3, seed=5, grades=("nav", "mems"))
-    elapsed = time.perf_counter() - t0
     assert len(suite) == 6
     assert [s.name for s in suite[:2]] == ["drive000_nav", "drive000_mems"]
     durations = [s.imu.duration for s in suite[::2]]
@@ -406,19 +403,22 @@ def test_suite_varied_reproducible_and_fast():
     pd.testing.assert_frame_equal(suite[0].truth, suite[1].truth)
     assert suite[0].imu_model.name == "nav" and suite[1].imu_model.name == "mems"
     assert not np.allclose(suite[0].imu.gyro, suite[1].imu.gyro)
-    # drives differ
-    assert suite[0].params["road"] != suite[2].params["road"] or suite[0].seed != suite[2].seed
+    # the drives differ: their seeds, their roads (each field drawn at random) and their motion
+    first, second = suite[0], suite[2]
+    assert first.seed != second.seed
+    assert first.params["road"].grade_std != second.params["road"].grade_std
+    assert first.params["road"].crown != second.params["road"].crown
+    assert first.params["vehicle"].pitch_freq != second.params["vehicle"].pitch_freq
+    n = min(len(first.truth), len(second.truth))
+    assert not np.allclose(first.truth["pitch"].iloc[:n], second.truth["pitch"].iloc[:n])
     # any one result reruns from its params
     again = simulate(**suite[3].params)
     np.testing.assert_array_equal(again.imu.accel, suite[3].imu.accel)
     pd.testing.assert_frame_equal(again.truth, suite[3].truth)
-    # the same seed gives the same suite
+    # the same seed gives the same suite, another seed another one
     other = simulate_suite(1, seed=5, grades=("nav",))
     np.testing.assert_array_equal(other[0].imu.gyro, suite[0].imu.gyro)
-    assert elapsed < 6 * 1.0
-    t0 = time.perf_counter()
-    simulate(120.0, seed=9, imu="mems", road=RoadParams(roughness="C"), speed=SpeedParams(style="highway"))
-    assert time.perf_counter() - t0 < 1.0
+    assert simulate_suite(1, seed=6, grades=("nav",))[0].seed != suite[0].seed
 
 
 # --------------------------------------------------------------------------- shipped example

@@ -20,7 +20,8 @@ its left side relative to the road (positive roll). Road inputs: pitch
 ``-(h_front - h_rear) / wheelbase`` (track-averaged); roll
 ``(h_left - h_right) / track`` (axle-averaged); heave the height of the wheel
 plane under the reference point. The three systems are discretised exactly for
-a first-order-hold input (:func:`suspension_response`).
+a first-order-hold input (:func:`suspension_response`, with the filter design of
+:func:`imu_ground.filters.design.foh_filter`).
 """
 from __future__ import annotations
 
@@ -31,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from imu_ground.evaluation.simulate.smooth import Piecewise
+from imu_ground.filters.design import foh_filter
 from imu_ground.units import DEG, GRAVITY
 
 __all__ = [
@@ -177,28 +179,6 @@ def speed_profile(p: SpeedParams, duration: float, rng: np.random.Generator) -> 
 
 
 # --------------------------------------------------------------------------- suspension
-def _foh_filter(freq: float, damping: float, dt: float):
-    """Transfer functions (num_x, num_xdot, den) of ``x'' + 2 z w x' + w^2 x = w^2 u``
-    discretised exactly for a first-order-hold (piecewise-linear) input."""
-    from scipy.linalg import expm
-    w = 2.0 * math.pi * freq
-    a = np.array([[0.0, 1.0], [-w * w, -2.0 * damping * w]])
-    b = np.array([0.0, w * w])
-    m = np.zeros((4, 4))
-    m[:2, :2] = a
-    m[:2, 2] = b
-    m[2, 3] = 1.0
-    e = expm(m * dt)
-    phi, g1, g2 = e[:2, :2], e[:2, 2], e[:2, 3]
-    # x[k+1] = phi x[k] + g1 u[k] + g2 (u[k+1] - u[k]) / dt
-    b0 = g1 - g2 / dt
-    b1 = g2 / dt
-    k = np.array([[-phi[1, 1], phi[0, 1]], [phi[1, 0], -phi[0, 0]]])   # adj(zI - phi) = zI + k
-    num = np.stack([b1, b0 + k @ b1, k @ b0], axis=1)                   # rows: x, xdot
-    den = np.array([1.0, -np.trace(phi), np.linalg.det(phi)])
-    return num[0], num[1], den
-
-
 def suspension_response(u, dt: float, freq: float, damping: float, gain: float = 1.0):
     """Exact response of ``x'' + 2 zeta w x' + w^2 x = w^2 gain u(t)``, ``w = 2 pi freq``.
 
@@ -224,7 +204,7 @@ def suspension_response(u, dt: float, freq: float, damping: float, gain: float =
     """
     from scipy.signal import lfilter, lfilter_zi
     u = gain * np.asarray(u, dtype=float)
-    num_x, num_v, den = _foh_filter(freq, damping, dt)
+    num_x, num_v, den = foh_filter(freq, damping, dt)
     x = lfilter(num_x, den, u, zi=lfilter_zi(num_x, den) * u[0])[0]
     v = lfilter(num_v, den, u, zi=lfilter_zi(num_v, den) * u[0])[0]
     w = 2.0 * math.pi * freq
