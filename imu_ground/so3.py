@@ -1,17 +1,54 @@
-r"""The rotation group SO(3): exponential and logarithm, Jacobians, projection.
+r"""The rotation group SO(3), and the glossary of frames and signs for the whole package.
 
 Every function takes one element or a batch: a rotation vector of shape (3,)
 or (N, 3), a matrix of shape (3, 3) or (N, 3, 3), and returns the same leading
-shape. There is no Python loop over the batch.
+shape, without a Python loop over the batch. The ``*_one`` functions are the
+same formulas for one element; the ``*_flat`` functions are the scalar kernels
+of the streaming filters (a 3x3 matrix as a row-major tuple of 9 floats, a
+vector as 3 floats), a few times faster than numpy on one tiny matrix.
 
-Conventions
------------
-- A rotation matrix ``R`` acts on column vectors: ``v_a = R @ v_b`` maps a vector
-  expressed in frame b into frame a (``R`` is "a from b").
-- A rotation vector ``phi = theta * axis`` (radians) and ``R = exp(hat(phi))``,
+Glossary of frames and signs (every module refers here)
+-------------------------------------------------------
+Rotations: ``R_{a<-b}`` is the rotation matrix that maps a vector expressed in
+frame b into frame a, acting on column vectors: ``v_a = R_{a<-b} @ v_b``. Its
+columns are b's axes in a's coordinates; ``R_{b<-a} = R_{a<-b}.T``; they
+compose by matching inner frames, ``R_{a<-c} = R_{a<-b} @ R_{b<-c}``. In code a
+rotation named ``R_xy`` (e.g. ``R_gs``) is ``R_{x<-y}``; where a rotation
+crosses a module boundary its docstring says "a <- b".
+
+Frames (all right-handed):
+
+- ``s`` sensor: the IMU's (or camera's, or odometry's) own axes.
+- ``b`` body / ``g`` ground: the vehicle frame, FLU (x forward, y left, z up);
+  static extrinsic ``R_gs = R_{ground<-sensor}`` with the sensor position in
+  the ground frame (:class:`~imu_ground.filters.extrinsics.Extrinsic`). Without
+  an extrinsic the body frame is the sensor frame.
+- ``body_k``: the body frame at the end of frame k. Ego-motion increments are
+  ``delta_R_k = R_{body_{k-1}<-body_k}`` and the cumulative attitude is
+  ``R_k = R_{w<-body_k} = R_{k-1} @ delta_R_k`` (``R_0``, default identity).
+- ``w`` world: the gyro-integrated body frame at the start (not gravity
+  aligned); the gravity/velocity filter finds gravity in it.
+- ``r`` road: the slowly varying road-plane frame (z the road normal); the
+  ground filters' slow state is ``X_k = R_{w<-road}`` and the residual
+  ``E_k = X_k^T R_k = R_{road<-body}`` (the body's attitude on its suspension).
+
+Signs:
+
+- Rotation vector ``phi = theta * axis`` (rad), ``R = exp(hat(phi))``,
   right-handed: ``exp(hat([0, 0, t]))`` turns x towards y.
+- Pitch and roll of the body relative to the road, from the road normal in the
+  body frame ``n_b = E^T e_z = [-sin p, sin r cos p, cos p cos r]``: pitch
+  positive = nose down (right-handed about y-left), roll positive = left side
+  up (right-handed about x-forward); KITTI's convention. Euler angles are ZYX:
+  ``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)``.
+- Gravity is stored as its reaction (what an accelerometer at rest reads):
+  +9.81 m/s^2 up; specific force ``f = a - g_vector``.
 - Perturbations: ``exp(phi + dphi) ~= exp(phi) @ exp(J_r(phi) @ dphi)``
-  ``~= exp(J_l(phi) @ dphi) @ exp(phi)`` (Chirikjian; Forster et al. 2017, eq. 7-9).
+  ``~= exp(J_l(phi) @ dphi) @ exp(phi)`` (Chirikjian; Forster et al. 2017,
+  eq. 7-9). A left-invariant (body) error is ``X = Xhat @ Exp(xi)``, a
+  right-invariant (world) error ``X = Exp(xi) @ Xhat``.
+- Units: radians and seconds everywhere inside the library
+  (:mod:`imu_ground.units` owns the constants); degrees only at the edges.
 
 The logarithm is accurate over the whole range: near the identity through
 Taylor series (angles down to 1e-300 rad), and near pi from the symmetric part
@@ -27,7 +64,8 @@ import numpy as np
 __all__ = [
     "hat", "vee", "exp", "log", "right_jacobian", "left_jacobian",
     "right_jacobian_inv", "left_jacobian_inv", "project", "angle",
-    "rotx", "roty", "rotz", "exp_one", "log_one",
+    "rotx", "roty", "rotz", "renormalise", "exp_one", "log_one",
+    "exp_flat", "log_flat", "mul_flat", "mul_tn_flat", "mul_nt_flat", "renormalise_flat",
 ]
 
 _SMALL = 1e-4   # below this angle (rad) the Taylor series are exact to double precision
@@ -279,34 +317,55 @@ def rotz(a) -> np.ndarray:
     return _axis_rotation(a, 0, 1)
 
 
+def renormalise(r: np.ndarray) -> np.ndarray:
+    """One Newton step towards the nearest rotation: ``R (3 I - R^T R) / 2``.
+
+    Cheap and enough against the rounding drift of a product of rotations
+    (orthonormality error ``e`` becomes about ``e^2``); :func:`project` for
+    matrices far from SO(3).
+
+    Parameters
+    ----------
+    r : array_like, shape (..., 3, 3)
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+    """
+    r = np.asarray(r, dtype=float)
+    return r @ (1.5 * np.eye(3) - 0.5 * (np.swapaxes(r, -1, -2) @ r))
+
+
 # ---------------------------------------------------------------------------
 # Single-element fast paths for streaming filters: the same formulas and
 # branches as the batch functions above, in scalar float arithmetic, so that
 # one call costs a few microseconds instead of a dozen numpy dispatches.
+# ``*_flat``: a 3x3 matrix is a row-major sequence of 9 floats.
 # ---------------------------------------------------------------------------
-def exp_one(phi) -> np.ndarray:
-    """:func:`exp` of one rotation vector (3,) as a 3x3 array, fast scalar path."""
-    x, y, z = float(phi[0]), float(phi[1]), float(phi[2])
+def exp_flat(x: float, y: float, z: float) -> tuple:
+    """:func:`exp` of the rotation vector ``(x, y, z)`` (rad) as a row-major 9-tuple."""
     t2 = x * x + y * y + z * z
-    t = math.sqrt(t2)
-    if t < _SMALL:
+    if t2 < _SMALL * _SMALL:
         a = 1.0 - t2 / 6.0 + t2 * t2 / 120.0
         b = 0.5 - t2 / 24.0 + t2 * t2 / 720.0
     else:
+        t = math.sqrt(t2)
         a = math.sin(t) / t
         b = (1.0 - math.cos(t)) / t2
     bxy, bxz, byz = b * x * y, b * x * z, b * y * z
-    return np.array([[1.0 - b * (y * y + z * z), bxy - a * z, bxz + a * y],
-                     [bxy + a * z, 1.0 - b * (x * x + z * z), byz - a * x],
-                     [bxz - a * y, byz + a * x, 1.0 - b * (x * x + y * y)]])
+    ax, ay, az = a * x, a * y, a * z
+    return (1.0 - b * (y * y + z * z), bxy - az, bxz + ay,
+            bxy + az, 1.0 - b * (x * x + z * z), byz - ax,
+            bxz - ay, byz + ax, 1.0 - b * (x * x + y * y))
 
 
-def log_one(r) -> np.ndarray:
-    """:func:`log` of one 3x3 rotation as a (3,) array, fast scalar path."""
-    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = r.tolist() if hasattr(r, "tolist") else r
+def log_flat(r) -> tuple:
+    """:func:`log` of one rotation given as a row-major sequence of 9 floats; returns ``(x, y, z)``, rad."""
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = r
     wx, wy, wz = 0.5 * (r21 - r12), 0.5 * (r02 - r20), 0.5 * (r10 - r01)
+    c = 0.5 * (r00 + r11 + r22 - 1.0)
+    c = 1.0 if c > 1.0 else (-1.0 if c < -1.0 else c)
     s = math.sqrt(wx * wx + wy * wy + wz * wz)
-    c = min(1.0, max(-1.0, 0.5 * (r00 + r11 + r22 - 1.0)))
     theta = math.atan2(s, c)
     if c >= -0.9:
         if theta < _SMALL:
@@ -314,14 +373,66 @@ def log_one(r) -> np.ndarray:
             a = 1.0 - t2 / 6.0 + t2 * t2 / 120.0
         else:
             a = math.sin(theta) / theta
-        return np.array([wx / a, wy / a, wz / a])
+        return wx / a, wy / a, wz / a
+    # near pi: (R + R^T)/2 = cos(t) I + (1 - cos t) u u^T, axis from its largest column
     d = 1.0 - c
-    cols = ((r00 - c) / d, 0.5 * (r10 + r01) / d, 0.5 * (r20 + r02) / d), \
-           (0.5 * (r01 + r10) / d, (r11 - c) / d, 0.5 * (r21 + r12) / d), \
-           (0.5 * (r02 + r20) / d, 0.5 * (r12 + r21) / d, (r22 - c) / d)
+    cols = (((r00 - c) / d, 0.5 * (r10 + r01) / d, 0.5 * (r20 + r02) / d),
+            (0.5 * (r01 + r10) / d, (r11 - c) / d, 0.5 * (r21 + r12) / d),
+            (0.5 * (r02 + r20) / d, 0.5 * (r12 + r21) / d, (r22 - c) / d))
     j = max(range(3), key=lambda i: cols[i][i])
     ux, uy, uz = cols[j]
     n = math.sqrt(ux * ux + uy * uy + uz * uz)
     sign = -1.0 if (ux * wx + uy * wy + uz * wz) < 0 else 1.0
     f = sign * theta / n
-    return np.array([f * ux, f * uy, f * uz])
+    return f * ux, f * uy, f * uz
+
+
+def mul_flat(a, b) -> tuple:
+    """``A @ B`` of two row-major 9-sequences (unrolled: 27 products)."""
+    a0, a1, a2, a3, a4, a5, a6, a7, a8 = a
+    b0, b1, b2, b3, b4, b5, b6, b7, b8 = b
+    return (a0 * b0 + a1 * b3 + a2 * b6, a0 * b1 + a1 * b4 + a2 * b7, a0 * b2 + a1 * b5 + a2 * b8,
+            a3 * b0 + a4 * b3 + a5 * b6, a3 * b1 + a4 * b4 + a5 * b7, a3 * b2 + a4 * b5 + a5 * b8,
+            a6 * b0 + a7 * b3 + a8 * b6, a6 * b1 + a7 * b4 + a8 * b7, a6 * b2 + a7 * b5 + a8 * b8)
+
+
+def mul_tn_flat(a, b) -> tuple:
+    """``A^T @ B`` of two row-major 9-sequences (unrolled)."""
+    a0, a1, a2, a3, a4, a5, a6, a7, a8 = a
+    b0, b1, b2, b3, b4, b5, b6, b7, b8 = b
+    return (a0 * b0 + a3 * b3 + a6 * b6, a0 * b1 + a3 * b4 + a6 * b7, a0 * b2 + a3 * b5 + a6 * b8,
+            a1 * b0 + a4 * b3 + a7 * b6, a1 * b1 + a4 * b4 + a7 * b7, a1 * b2 + a4 * b5 + a7 * b8,
+            a2 * b0 + a5 * b3 + a8 * b6, a2 * b1 + a5 * b4 + a8 * b7, a2 * b2 + a5 * b5 + a8 * b8)
+
+
+def mul_nt_flat(a, b) -> tuple:
+    """``A @ B^T`` of two row-major 9-sequences (unrolled)."""
+    a0, a1, a2, a3, a4, a5, a6, a7, a8 = a
+    b0, b1, b2, b3, b4, b5, b6, b7, b8 = b
+    return (a0 * b0 + a1 * b1 + a2 * b2, a0 * b3 + a1 * b4 + a2 * b5, a0 * b6 + a1 * b7 + a2 * b8,
+            a3 * b0 + a4 * b1 + a5 * b2, a3 * b3 + a4 * b4 + a5 * b5, a3 * b6 + a4 * b7 + a5 * b8,
+            a6 * b0 + a7 * b1 + a8 * b2, a6 * b3 + a7 * b4 + a8 * b5, a6 * b6 + a7 * b7 + a8 * b8)
+
+
+def renormalise_flat(r) -> tuple:
+    """:func:`renormalise` of one row-major 9-sequence: ``R (3 I - R^T R) / 2``."""
+    r0, r1, r2, r3, r4, r5, r6, r7, r8 = r
+    # M = 1.5 I - 0.5 R^T R (symmetric)
+    m00 = 1.5 - 0.5 * (r0 * r0 + r3 * r3 + r6 * r6)
+    m11 = 1.5 - 0.5 * (r1 * r1 + r4 * r4 + r7 * r7)
+    m22 = 1.5 - 0.5 * (r2 * r2 + r5 * r5 + r8 * r8)
+    m01 = -0.5 * (r0 * r1 + r3 * r4 + r6 * r7)
+    m02 = -0.5 * (r0 * r2 + r3 * r5 + r6 * r8)
+    m12 = -0.5 * (r1 * r2 + r4 * r5 + r7 * r8)
+    return mul_flat(r, (m00, m01, m02, m01, m11, m12, m02, m12, m22))
+
+
+def exp_one(phi) -> np.ndarray:
+    """:func:`exp` of one rotation vector (3,) as a 3x3 array, fast scalar path."""
+    return np.array(exp_flat(float(phi[0]), float(phi[1]), float(phi[2]))).reshape(3, 3)
+
+
+def log_one(r) -> np.ndarray:
+    """:func:`log` of one 3x3 rotation as a (3,) array, fast scalar path."""
+    flat = np.ravel(r).tolist() if hasattr(r, "shape") else [v for row in r for v in row]
+    return np.array(log_flat(flat))

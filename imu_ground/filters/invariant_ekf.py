@@ -38,9 +38,21 @@ with ``H = I`` and noise ``A R A^T``, direction ``y = z - Xhat b`` with
 For body-axis observations the left error is the natural one; the right error
 is there for world-frame measurements and for comparison.
 
-Covariances are updated in Joseph form and symmetrised; the state is
-re-orthonormalised after every correction, so both stay valid over millions
-of steps.
+Covariances are updated in Joseph form (for ``H = I`` in the equivalent
+information form ``P <- K Rn``, positive definite by construction) and kept
+exactly symmetric (the upper triangle is computed, the lower mirrored); the
+state is re-orthonormalised every :data:`imu_ground.units.RENORM_EVERY`
+corrections, so both stay valid over millions of steps. Frames and signs: the
+glossary of :mod:`imu_ground.so3`.
+
+Implementation
+--------------
+One predict/update touches a handful of 3x3 matrices, where numpy's per-call
+overhead dominates: the kernels below are scalar Python on row-major 9-tuples
+(:func:`imu_ground.so3.mul_flat` and friends). The filterpy attributes (``x``,
+``P``, ``K``, ``S``, ``x_prior``, ...) are properties that build their numpy
+array on first access; ``x``, ``P``, ``Q`` and ``R`` may be assigned or
+modified in place as in filterpy (the array, once handed out, is the state).
 """
 from __future__ import annotations
 
@@ -50,44 +62,30 @@ from typing import Optional, Union
 import numpy as np
 
 from imu_ground import so3
+from imu_ground.so3 import exp_flat, log_flat, mul_flat, mul_nt_flat, mul_tn_flat, renormalise_flat
+from imu_ground.units import RENORM_EVERY
 
 __all__ = ["InvariantEKF"]
 
 ArrayLike = Union[np.ndarray, list, tuple]
 _I3 = np.eye(3)
+_I9 = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 _LOG2PI = math.log(2.0 * math.pi)
-_RENORM_EVERY = 32   # updates between re-orthonormalisations (drift is ~1e-16 a step)
+
+#: Kept for ``ground.py`` until it imports :func:`imu_ground.so3.renormalise`.
+_renormalise = so3.renormalise
 
 
-def _as_rotation(u: Optional[ArrayLike]) -> Optional[np.ndarray]:
-    """3x3 rotation from a 3x3 matrix or a rotation vector (rad); None stays None."""
+def _flat_rotation(u) -> Optional[tuple]:
+    """Row-major 9 floats of a 3x3 matrix or a rotation vector (rad); None stays None."""
     if u is None:
         return None
     u = np.asarray(u, dtype=float)
     if u.shape == (3, 3):
-        return u
+        return u.ravel().tolist()
     if u.shape == (3,):
-        return so3.exp_one(u)
+        return exp_flat(*u.tolist())
     raise ValueError(f"rotation increment must be a 3x3 matrix or a rotation vector of shape (3,), got {u.shape}")
-
-
-def _inv3(m: np.ndarray):
-    """Inverse and determinant of a 3x3 matrix by cofactors (scalar, fast)."""
-    (a, b, c), (d, e, f), (g, h, i) = m.tolist()
-    A, B, C = e * i - f * h, f * g - d * i, d * h - e * g
-    det = a * A + b * B + c * C
-    if det == 0.0 or not math.isfinite(det):
-        raise np.linalg.LinAlgError(f"innovation covariance is singular (det = {det})")
-    r = 1.0 / det
-    inv = np.array([[A * r, (c * h - b * i) * r, (b * f - c * e) * r],
-                    [B * r, (a * i - c * g) * r, (c * d - a * f) * r],
-                    [C * r, (b * g - a * h) * r, (a * e - b * d) * r]])
-    return inv, det
-
-
-def _renormalise(x: np.ndarray) -> np.ndarray:
-    """One Newton step towards the nearest rotation: X (3 I - X^T X) / 2."""
-    return x @ (1.5 * _I3 - 0.5 * (x.T @ x))
 
 
 def _check_cov(name: str, m: Optional[ArrayLike]) -> Optional[np.ndarray]:
@@ -99,6 +97,162 @@ def _check_cov(name: str, m: Optional[ArrayLike]) -> Optional[np.ndarray]:
     if m.shape != (3, 3):
         raise ValueError(f"{name} must be a scalar or a 3x3 matrix, got shape {m.shape}")
     return m
+
+
+def _congruence(a, p) -> tuple:
+    """``A P A^T`` for a symmetric ``P`` (upper triangle computed, lower mirrored), row-major 9-tuples."""
+    a0, a1, a2, a3, a4, a5, a6, a7, a8 = a
+    p0, p1, p2, _, p4, p5, _, _, p8 = p
+    # M = A P (P symmetric: p3 = p1, p6 = p2, p7 = p5)
+    m0, m1, m2 = a0 * p0 + a1 * p1 + a2 * p2, a0 * p1 + a1 * p4 + a2 * p5, a0 * p2 + a1 * p5 + a2 * p8
+    m3, m4, m5 = a3 * p0 + a4 * p1 + a5 * p2, a3 * p1 + a4 * p4 + a5 * p5, a3 * p2 + a4 * p5 + a5 * p8
+    m6, m7, m8 = a6 * p0 + a7 * p1 + a8 * p2, a6 * p1 + a7 * p4 + a8 * p5, a6 * p2 + a7 * p5 + a8 * p8
+    c00 = m0 * a0 + m1 * a1 + m2 * a2
+    c01 = m0 * a3 + m1 * a4 + m2 * a5
+    c02 = m0 * a6 + m1 * a7 + m2 * a8
+    c11 = m3 * a3 + m4 * a4 + m5 * a5
+    c12 = m3 * a6 + m4 * a7 + m5 * a8
+    c22 = m6 * a6 + m7 * a7 + m8 * a8
+    return c00, c01, c02, c01, c11, c12, c02, c12, c22
+
+
+def _sym_upper(m) -> tuple:
+    """The symmetric matrix of the upper triangle of ``m`` (row-major 9-tuple)."""
+    return m[0], m[1], m[2], m[1], m[4], m[5], m[2], m[5], m[8]
+
+
+def _inv_flat(m):
+    """Inverse (row-major 9-tuple) and determinant of a 3x3 matrix by cofactors."""
+    a, b, c, d, e, f, g, h, i = m
+    A, B, C = e * i - f * h, f * g - d * i, d * h - e * g
+    det = a * A + b * B + c * C
+    if det == 0.0 or not math.isfinite(det):
+        raise np.linalg.LinAlgError(f"innovation covariance is singular (det = {det})")
+    r = 1.0 / det
+    return (A * r, (c * h - b * i) * r, (b * f - c * e) * r,
+            B * r, (a * i - c * g) * r, (c * d - a * f) * r,
+            C * r, (b * g - a * h) * r, (a * e - b * d) * r), det
+
+
+def _predict_left(x, P, U, q):
+    """Left-error predict, unrolled: ``x U`` and ``U^T P U + Q`` (P, Q symmetric; row-major 9-tuples)."""
+    x0, x1, x2, x3, x4, x5, x6, x7, x8 = x
+    u0, u1, u2, u3, u4, u5, u6, u7, u8 = U
+    p0, p1, p2, _, p4, p5, _, _, p8 = P
+    # M = P U
+    m0, m1, m2 = p0 * u0 + p1 * u3 + p2 * u6, p0 * u1 + p1 * u4 + p2 * u7, p0 * u2 + p1 * u5 + p2 * u8
+    m3, m4, m5 = p1 * u0 + p4 * u3 + p5 * u6, p1 * u1 + p4 * u4 + p5 * u7, p1 * u2 + p4 * u5 + p5 * u8
+    m6, m7, m8 = p2 * u0 + p5 * u3 + p8 * u6, p2 * u1 + p5 * u4 + p8 * u7, p2 * u2 + p5 * u5 + p8 * u8
+    # U^T M + Q, upper triangle
+    c01 = u0 * m1 + u3 * m4 + u6 * m7 + q[1]
+    c02 = u0 * m2 + u3 * m5 + u6 * m8 + q[2]
+    c12 = u1 * m2 + u4 * m5 + u7 * m8 + q[5]
+    return ((x0 * u0 + x1 * u3 + x2 * u6, x0 * u1 + x1 * u4 + x2 * u7, x0 * u2 + x1 * u5 + x2 * u8,
+             x3 * u0 + x4 * u3 + x5 * u6, x3 * u1 + x4 * u4 + x5 * u7, x3 * u2 + x4 * u5 + x5 * u8,
+             x6 * u0 + x7 * u3 + x8 * u6, x6 * u1 + x7 * u4 + x8 * u7, x6 * u2 + x7 * u5 + x8 * u8),
+            (u0 * m0 + u3 * m3 + u6 * m6 + q[0], c01, c02,
+             c01, u1 * m1 + u4 * m4 + u7 * m7 + q[4], c12,
+             c02, c12, u2 * m2 + u5 * m5 + u8 * m8 + q[8]))
+
+
+def _update_rotation_left(x, P, z, r):
+    """Left-error update with a rotation measurement, unrolled (H = I, all matrices row-major 9-tuples).
+
+    Unrolls ``y = Log(x^T z)`` (the near-pi branch calls :func:`~imu_ground.so3.log_flat`),
+    ``S = P + R``, ``S^-1`` by symmetric cofactors, ``K = P S^-1``, ``x <- x Exp(K y)``
+    and ``P <- K R`` (upper triangle, mirrored). Returns ``x, P, y, K, S, SI, det S``.
+    """
+    x0, x1, x2, x3, x4, x5, x6, x7, x8 = x
+    z0, z1, z2, z3, z4, z5, z6, z7, z8 = z
+    # A = x^T z
+    a00, a11, a22 = x0 * z0 + x3 * z3 + x6 * z6, x1 * z1 + x4 * z4 + x7 * z7, x2 * z2 + x5 * z5 + x8 * z8
+    a01, a10 = x0 * z1 + x3 * z4 + x6 * z7, x1 * z0 + x4 * z3 + x7 * z6
+    a02, a20 = x0 * z2 + x3 * z5 + x6 * z8, x2 * z0 + x5 * z3 + x8 * z6
+    a12, a21 = x1 * z2 + x4 * z5 + x7 * z8, x2 * z1 + x5 * z4 + x8 * z7
+    c = 0.5 * (a00 + a11 + a22 - 1.0)
+    if c >= -0.9:                       # so3.log_flat's main branch
+        wx, wy, wz = 0.5 * (a21 - a12), 0.5 * (a02 - a20), 0.5 * (a10 - a01)
+        theta = math.atan2(math.sqrt(wx * wx + wy * wy + wz * wz), c if c < 1.0 else 1.0)
+        if theta < 1e-4:
+            t2 = theta * theta
+            f = 1.0 / (1.0 - t2 / 6.0 + t2 * t2 / 120.0)
+        else:
+            f = theta / math.sin(theta)
+        y0, y1, y2 = wx * f, wy * f, wz * f
+    else:
+        y0, y1, y2 = log_flat((a00, a01, a02, a10, a11, a12, a20, a21, a22))
+    p0, p1, p2, _, p4, p5, _, _, p8 = P
+    r0, r1, r2, _, r4, r5, _, _, r8 = r
+    s0, s1, s2, s4, s5, s8 = p0 + r0, p1 + r1, p2 + r2, p4 + r4, p5 + r5, p8 + r8
+    i00, i01, i02 = s4 * s8 - s5 * s5, s2 * s5 - s1 * s8, s1 * s5 - s2 * s4
+    det = s0 * i00 + s1 * i01 + s2 * i02
+    if det == 0.0 or not math.isfinite(det):
+        raise np.linalg.LinAlgError(f"innovation covariance is singular (det = {det})")
+    d = 1.0 / det
+    i00, i01, i02 = i00 * d, i01 * d, i02 * d
+    i11, i12, i22 = (s0 * s8 - s2 * s2) * d, (s1 * s2 - s0 * s5) * d, (s0 * s4 - s1 * s1) * d
+    k0, k1, k2 = p0 * i00 + p1 * i01 + p2 * i02, p0 * i01 + p1 * i11 + p2 * i12, p0 * i02 + p1 * i12 + p2 * i22
+    k3, k4, k5 = p1 * i00 + p4 * i01 + p5 * i02, p1 * i01 + p4 * i11 + p5 * i12, p1 * i02 + p4 * i12 + p5 * i22
+    k6, k7, k8 = p2 * i00 + p5 * i01 + p8 * i02, p2 * i01 + p5 * i11 + p8 * i12, p2 * i02 + p5 * i12 + p8 * i22
+    n01 = k0 * r1 + k1 * r4 + k2 * r5
+    n02 = k0 * r2 + k1 * r5 + k2 * r8
+    n12 = k3 * r2 + k4 * r5 + k5 * r8
+    Pn = (k0 * r0 + k1 * r1 + k2 * r2, n01, n02, n01, k3 * r1 + k4 * r4 + k5 * r5, n12,
+          n02, n12, k6 * r2 + k7 * r5 + k8 * r8)
+    e0, e1, e2, e3, e4, e5, e6, e7, e8 = exp_flat(k0 * y0 + k1 * y1 + k2 * y2, k3 * y0 + k4 * y1 + k5 * y2,
+                                                  k6 * y0 + k7 * y1 + k8 * y2)
+    xn = (x0 * e0 + x1 * e3 + x2 * e6, x0 * e1 + x1 * e4 + x2 * e7, x0 * e2 + x1 * e5 + x2 * e8,
+          x3 * e0 + x4 * e3 + x5 * e6, x3 * e1 + x4 * e4 + x5 * e7, x3 * e2 + x4 * e5 + x5 * e8,
+          x6 * e0 + x7 * e3 + x8 * e6, x6 * e1 + x7 * e4 + x8 * e7, x6 * e2 + x7 * e5 + x8 * e8)
+    return (xn, Pn, (y0, y1, y2), (k0, k1, k2, k3, k4, k5, k6, k7, k8), (s0, s1, s2, s1, s4, s5, s2, s5, s8),
+            (i00, i01, i02, i01, i11, i12, i02, i12, i22), det)
+
+
+def _hat_flat(x: float, y: float, z: float) -> tuple:
+    return 0.0, -z, y, z, 0.0, -x, -y, x, 0.0
+
+
+def _matrix(t) -> np.ndarray:
+    return np.array(t).reshape(3, 3)
+
+
+def _state_property(name: str, doc: str) -> property:
+    """A 3x3 attribute held as a 9-tuple in ``_<name>``; its array, once handed out, is authoritative.
+
+    The getter builds (and caches in ``_<name>_a``) the numpy array; the hot
+    path reads the tuple, or the cached array when there is one (so in-place
+    changes such as ``f.P *= 2`` or ``f.x[0, 0] = 1`` are seen).
+    """
+    slot, cache = "_" + name, "_" + name + "_a"
+
+    def get(self):
+        a = self.__dict__[cache]
+        if a is None:
+            a = self.__dict__[cache] = _matrix(self.__dict__[slot])
+        return a
+
+    def set_(self, value):
+        a = np.asarray(value, dtype=float)
+        if a.shape != (3, 3):
+            raise ValueError(f"{name} must be a 3x3 matrix, got shape {a.shape}")
+        self.__dict__[cache] = a
+        self.__dict__[slot] = a.ravel().tolist()
+
+    return property(get, set_, doc=doc)
+
+
+def _output_property(name: str, doc: str, shape=(3, 3)) -> property:
+    """A result attribute (``K``, ``S``, ``x_prior``, ...) held as a tuple, built as an array on access."""
+    slot = "_" + name
+
+    def get(self):
+        t = self.__dict__[slot]
+        return None if t is None else np.array(t).reshape(shape)
+
+    def set_(self, value):
+        self.__dict__[slot] = None if value is None else np.asarray(value, dtype=float).ravel().tolist()
+
+    return property(get, set_, doc=doc)
 
 
 class InvariantEKF:
@@ -146,36 +300,68 @@ class InvariantEKF:
         if error not in ("left", "right"):
             raise ValueError(f"error must be 'left' or 'right', got {error!r}")
         self.error = error
-        self.x = _I3.copy() if x is None else np.array(x, dtype=float)
-        if self.x.shape != (3, 3):
-            raise ValueError(f"x must be a 3x3 rotation matrix, got shape {self.x.shape}")
-        self.P = _check_cov("P", 1.0 if P is None else P).copy()
-        self.Q = _check_cov("Q", 1e-2 if Q is None else Q).copy()
-        self.R = _check_cov("R", 1.0 if R is None else R).copy()
+        self._left = error == "left"
+        x = _I3 if x is None else np.asarray(x, dtype=float)
+        if x.shape != (3, 3):
+            raise ValueError(f"x must be a 3x3 rotation matrix, got shape {x.shape}")
+        self._x, self._x_a = x.ravel().tolist(), None
+        self._P, self._P_a = _check_cov("P", 1.0 if P is None else P).ravel().tolist(), None
+        self._Q, self._Q_a = _check_cov("Q", 1e-2 if Q is None else Q).ravel().tolist(), None
+        self._R, self._R_a = _check_cov("R", 1.0 if R is None else R).ravel().tolist(), None
         b = np.array([0.0, 0.0, 1.0]) if b is None else np.asarray(b, dtype=float)
         if b.shape != (3,) or not np.isclose(np.linalg.norm(b), 1.0):
             raise ValueError("b must be a unit vector of shape (3,)")
         self.b = b
-        self._hb = so3.hat(b)
-        self.z: Optional[np.ndarray] = None
-        self.y = np.zeros(3)
-        self.K = np.zeros((3, 3))
-        self.S = np.zeros((3, 3))
-        self.SI = np.zeros((3, 3))
-        self.x_prior = self.x.copy()
-        self.P_prior = self.P.copy()
-        self.x_post = self.x.copy()
-        self.P_post = self.P.copy()
+        self._bt = tuple(b.tolist())
+        self._Hb = tuple(-v for v in _hat_flat(*self._bt))     # H = -[b]x of the left direction update
+        self._z, self._z_shape = None, None
+        self._y = (0.0, 0.0, 0.0)
+        self._K = self._S = self._SI = (0.0,) * 9
+        self._detS = 1.0
+        self._x_prior = self._x_post = self._x
+        self._P_prior = self._P_post = self._P
         self._updates = 0
         self._log_likelihood = math.log(1e-300)
         self._mahalanobis: Optional[float] = None
 
+    x = _state_property("x", "Current rotation, world <- body (3x3).")
+    P = _state_property("P", "Current error covariance, tangent space (rad^2, 3x3).")
+    Q = _state_property("Q", "Process noise per predict (rad^2, 3x3; symmetric, its upper triangle is used).")
+    R = _state_property("R", "Measurement noise (3x3; symmetric, its upper triangle is used).")
+    x_prior = _output_property("x_prior", "Rotation after the last predict.")
+    P_prior = _output_property("P_prior", "Covariance after the last predict.")
+    x_post = _output_property("x_post", "Rotation after the last update.")
+    P_post = _output_property("P_post", "Covariance after the last update.")
+    y = _output_property("y", "Last innovation (3,): tangent (rotation) or body-frame residual (direction).", (3,))
+    K = _output_property("K", "Last Kalman gain (3x3).")
+    S = _output_property("S", "Last innovation covariance (3x3).")
+    SI = _output_property("SI", "Inverse of the last innovation covariance (3x3).")
+
+    @property
+    def z(self) -> Optional[np.ndarray]:
+        """Last measurement, (3, 3) rotation or (3,) direction; None after a skipped update."""
+        return None if self._z is None else np.array(self._z).reshape(self._z_shape)
+
+    @z.setter
+    def z(self, value) -> None:
+        if value is None:
+            self._z, self._z_shape = None, None
+        else:
+            value = np.asarray(value, dtype=float)
+            self._z, self._z_shape = value.ravel().tolist(), value.shape
+
     # -- filterpy-style derived quantities ---------------------------------
+    def _ysiy(self) -> float:
+        y0, y1, y2 = self._y
+        s = self._SI
+        return (y0 * (s[0] * y0 + s[1] * y1 + s[2] * y2) + y1 * (s[3] * y0 + s[4] * y1 + s[5] * y2)
+                + y2 * (s[6] * y0 + s[7] * y1 + s[8] * y2))
+
     @property
     def log_likelihood(self) -> float:
         """Log-likelihood of the last innovation under N(0, S) (computed on first access)."""
         if self._log_likelihood is None:
-            self._log_likelihood = float(-0.5 * (self.y @ self.SI @ self.y + math.log(self._detS) + 3 * _LOG2PI))
+            self._log_likelihood = -0.5 * (self._ysiy() + math.log(self._detS) + 3 * _LOG2PI)
         return self._log_likelihood
 
     @property
@@ -187,7 +373,7 @@ class InvariantEKF:
     def mahalanobis(self) -> float:
         """Mahalanobis distance of the last innovation, ``sqrt(y^T S^-1 y)``."""
         if self._mahalanobis is None:
-            self._mahalanobis = float(math.sqrt(max(float(self.y @ self.SI @ self.y), 0.0)))
+            self._mahalanobis = math.sqrt(max(self._ysiy(), 0.0))
         return self._mahalanobis
 
     # -- the filter ----------------------------------------------------------
@@ -202,19 +388,37 @@ class InvariantEKF:
         Q : float or ndarray (3, 3), optional
             Process noise for this step (body tangent space); default ``self.Q``.
         """
-        Q = self.Q if Q is None else _check_cov("Q", Q)
-        U = _as_rotation(u)
-        if U is not None:
-            self.x = self.x @ U
-        if self.error == "left":
-            P = self.P if U is None else U.T @ self.P @ U
-            self.P = P + Q
+        xa, Pa = self._x_a, self._P_a
+        x = self._x if xa is None else xa.ravel().tolist()
+        P = self._P if Pa is None else Pa.ravel().tolist()
+        if Q is None:
+            Qa = self._Q_a
+            q = self._Q if Qa is None else Qa.ravel().tolist()
         else:
-            A = self.x
-            P = self.P + A @ Q @ A.T
-            self.P = 0.5 * (P + P.T)
-        self.x_prior = self.x.copy()
-        self.P_prior = self.P.copy()
+            q = _check_cov("Q", Q).ravel().tolist()
+        if u is None:
+            U = None
+        elif type(u) is np.ndarray and u.shape == (3, 3):
+            U = u.ravel().tolist()
+        else:
+            U = _flat_rotation(u)
+        if self._left and U is not None:
+            x, P = _predict_left(x, P, U, q)
+            self._x = self._x_prior = x
+            self._P = self._P_prior = P
+            self._x_a = self._P_a = None
+            return
+        if U is not None:
+            x = mul_flat(x, U)
+        if not self._left:              # P <- P + A Q A^T, A = x U
+            q = _congruence(x, q)
+        p0, p1, p2, _, p4, p5, _, _, p8 = P
+        q0, q1, q2, _, q4, q5, _, _, q8 = q
+        a, b, c = p1 + q1, p2 + q2, p5 + q5
+        P = (p0 + q0, a, b, a, p4 + q4, c, b, c, p8 + q8)
+        self._x = self._x_prior = x
+        self._P = self._P_prior = P
+        self._x_a = self._P_a = None
 
     def update(self, z: Optional[ArrayLike], R: Union[float, ArrayLike, None] = None) -> None:
         """Correct with a rotation or a direction measurement.
@@ -227,70 +431,86 @@ class InvariantEKF:
         R : float or ndarray (3, 3), optional
             Measurement noise for this update; default ``self.R``.
         """
+        xa, Pa = self._x_a, self._P_a
+        x = self._x if xa is None else xa.ravel().tolist()
+        P = self._P if Pa is None else Pa.ravel().tolist()
         if z is None:
-            self.z = None
-            self.x_post = self.x.copy()
-            self.P_post = self.P.copy()
-            self.y = np.zeros(3)
+            self._z = self._z_shape = None
+            self._x = self._x_post = x
+            self._P = self._P_post = P
+            self._x_a = self._P_a = None
+            self._y = (0.0, 0.0, 0.0)
             return
-        R = self.R if R is None else _check_cov("R", R)
-        z = np.asarray(z, dtype=float)
-        x = self.x
-        if z.shape == (3, 3):
-            if self.error == "left":
-                y = so3.log_one(x.T @ z)
-                Rn = R
-            else:
-                y = so3.log_one(z @ x.T)
-                Rn = x @ R @ x.T
-            H = None
-        elif z.shape == (3,):
-            if self.error == "left":
-                y = x.T @ z - self.b
-                H = -self._hb
-                Rn = x.T @ R @ x
-            else:
-                xb = x @ self.b
-                y = z - xb
-                H = -so3.hat(xb)
-                Rn = R
+        if R is None:
+            Ra = self._R_a
+            r = self._R if Ra is None else Ra.ravel().tolist()
         else:
-            raise ValueError(f"z must be a 3x3 rotation or a unit vector of shape (3,), got {z.shape}")
+            r = _check_cov("R", R).ravel().tolist()
+        if type(z) is not np.ndarray:
+            z = np.asarray(z, dtype=float)
+        shape = z.shape
+        zl = z.ravel().tolist()
+        if shape == (3, 3) and self._left:
+            x, Pn, y, K, S, SI, detS = _update_rotation_left(x, P, zl, r)
+            self._finish_update(x, Pn, zl, shape, y, K, S, SI, detS)
+            return
+        if shape == (3, 3):
+            # H = I: K = P S^-1, P <- (I - K) P = K Rn (information form, PD by construction)
+            if self._left:
+                y = log_flat(mul_tn_flat(x, zl))
+                Rn = r
+            else:
+                y = log_flat(mul_nt_flat(zl, x))
+                Rn = _congruence(x, r)
+            p0, p1, p2, _, p4, p5, _, _, p8 = P
+            r0, r1, r2, _, r4, r5, _, _, r8 = Rn
+            a, b, c = p1 + r1, p2 + r2, p5 + r5
+            S = (p0 + r0, a, b, a, p4 + r4, c, b, c, p8 + r8)
+            SI, detS = _inv_flat(S)
+            K = mul_flat(P, SI)
+            Pn = _sym_upper(mul_flat(K, Rn))
+        elif shape == (3,):
+            z0, z1, z2 = zl
+            if self._left:
+                x0, x1, x2, x3, x4, x5, x6, x7, x8 = x
+                b0, b1, b2 = self._bt
+                y = (x0 * z0 + x3 * z1 + x6 * z2 - b0, x1 * z0 + x4 * z1 + x7 * z2 - b1,
+                     x2 * z0 + x5 * z1 + x8 * z2 - b2)
+                H = self._Hb
+                Rn = _congruence((x0, x3, x6, x1, x4, x7, x2, x5, x8), r)
+            else:
+                b0, b1, b2 = self._bt
+                xb = (x[0] * b0 + x[1] * b1 + x[2] * b2, x[3] * b0 + x[4] * b1 + x[5] * b2,
+                      x[6] * b0 + x[7] * b1 + x[8] * b2)
+                y = (z0 - xb[0], z1 - xb[1], z2 - xb[2])
+                H = tuple(-v for v in _hat_flat(*xb))
+                Rn = r
+            PHT = mul_nt_flat(P, H)
+            S = tuple(m + n for m, n in zip(_sym_upper(mul_flat(H, PHT)), _sym_upper(Rn)))
+            SI, detS = _inv_flat(S)
+            K = mul_flat(PHT, SI)
+            KH = mul_flat(K, H)
+            IKH = tuple(i - kh for i, kh in zip(_I9, KH))           # Joseph form
+            Pn = tuple(m + n for m, n in zip(_congruence(IKH, P), _congruence(K, Rn)))
+        else:
+            raise ValueError(f"z must be a 3x3 rotation or a unit vector of shape (3,), got {shape}")
+        y0, y1, y2 = y
+        k0, k1, k2, k3, k4, k5, k6, k7, k8 = K
+        E = exp_flat(k0 * y0 + k1 * y1 + k2 * y2, k3 * y0 + k4 * y1 + k5 * y2, k6 * y0 + k7 * y1 + k8 * y2)
+        x = mul_flat(x, E) if self._left else mul_flat(E, x)
+        self._finish_update(x, Pn, zl, shape, y, K, S, SI, detS)
 
-        P = self.P
-        if H is None:                       # H = I
-            PHT = P
-            S = P + Rn
-        else:
-            PHT = P @ H.T
-            S = H @ PHT + Rn
-        SI, detS = _inv3(S)
-        K = PHT @ SI
-        dx = K @ y
-        if self.error == "left":
-            x = x @ so3.exp_one(dx)
-        else:
-            x = so3.exp_one(dx) @ x
+    def _finish_update(self, x, Pn, zl, shape, y, K, S, SI, detS) -> None:
+        """Renormalise every RENORM_EVERY corrections and store the results of an update."""
         self._updates += 1
-        if self._updates % _RENORM_EVERY == 0:
-            x = _renormalise(x)
-        self.x = x
-        if H is None:
-            # H = I: (I - K) P = P (P + Rn)^-1 Rn = K Rn, the information form
-            # (P^-1 + Rn^-1)^-1, positive definite by construction.
-            P = K @ Rn
-        else:
-            IKH = _I3 - K @ H       # Joseph form
-            P = IKH @ P @ IKH.T + K @ Rn @ K.T
-        self.P = 0.5 * (P + P.T)
-
-        self.z = z.copy()
-        self.y, self.K, self.S, self.SI = y, K, S, SI
-        self._detS = detS
-        self._log_likelihood = None
-        self._mahalanobis = None
-        self.x_post = self.x.copy()
-        self.P_post = self.P.copy()
+        if self._updates % RENORM_EVERY == 0:
+            x = renormalise_flat(x)
+        self._x = self._x_post = x
+        self._P = self._P_post = Pn
+        self._x_a = self._P_a = None
+        self._z, self._z_shape = zl, shape
+        self._y, self._K, self._S, self._SI, self._detS = y, K, S, SI, detS
+        self._log_likelihood = self._mahalanobis = None
 
     # -- batch -----------------------------------------------------------------
     def batch_filter(self, zs, us=None, Rs=None, Qs=None, saver=None):
@@ -370,7 +590,7 @@ class InvariantEKF:
         if n:
             Ppr[0] = Ps[0]
         for k in range(n - 2, -1, -1):
-            U = _I3 if us is None else _as_rotation(us[k + 1])
+            U = _I3 if us is None else _matrix(_flat_rotation(us[k + 1]))
             Q = self.Q if Qs is None else _check_cov("Q", Qs[k + 1])
             Xpred = Xs[k] @ U
             if self.error == "left":
@@ -383,10 +603,10 @@ class InvariantEKF:
             C = Ps[k] @ F.T @ np.linalg.inv(Pp)
             if self.error == "left":
                 d = so3.log_one(Xpred.T @ Xsm[k + 1])
-                Xsm[k] = _renormalise(Xs[k] @ so3.exp_one(C @ d))
+                Xsm[k] = so3.renormalise(Xs[k] @ so3.exp_one(C @ d))
             else:
                 d = so3.log_one(Xsm[k + 1] @ Xpred.T)
-                Xsm[k] = _renormalise(so3.exp_one(C @ d) @ Xs[k])
+                Xsm[k] = so3.renormalise(so3.exp_one(C @ d) @ Xs[k])
             P = Ps[k] + C @ (Psm[k + 1] - Pp) @ C.T
             Psm[k] = 0.5 * (P + P.T)
             Cs[k] = C
