@@ -1,19 +1,40 @@
-"""Speed of IMU preintegration: one hour of 100 Hz IMU into 10 Hz frames (batch), and
-the streaming front-end's µs per sample.
+"""Speed of IMU preintegration against GTSAM in the same run (issue 12).
 
-Run: ``python benchmarks/bench_preintegration.py [--samples N] [--repeat R]``.
-Targets (2-core machine): batch < 0.5 s for 360,000 samples, streaming < 10 µs a
-sample. Both include the 9x9 covariance and the bias Jacobians. Wall-clock and
-process CPU times are printed; on a shared machine the CPU time is the steadier one.
+- streaming: ``StreamingPreintegrator.push`` in µs per sample, 100 Hz samples into
+  10 Hz frames: deltas only (``uncertainty=False``), with the 9x9 covariance and
+  the bias Jacobians, and with the frame read-out (``delta_R``, ``delta_v``,
+  ``covariance``, ``bias_jacobian`` of every emitted frame); GTSAM's
+  ``PreintegratedImuMeasurements.integrateMeasurement`` called from Python per
+  sample (it always propagates covariance and Jacobians);
+- batch: ``preintegrate`` of one hour at 100 Hz into 10 Hz frames, with
+  covariance and bias Jacobians, against GTSAM's per-sample loop over the same
+  hour (``resetIntegration`` at each frame).
+
+Figures are medians over ``--repeat`` (>= 5) runs of wall-clock time; the CPU
+time is printed too (steadier on a shared machine). The run checks that the
+streaming frames equal the batch ones. Run: ``python benchmarks/bench_preintegration.py``.
+:func:`rows` returns the table for ``benchmarks/make_results.py``.
 """
 from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Callable
 
 import numpy as np
 
-from imu_ground.imu.preintegration import PreintegratedImu, StreamingPreintegrator, preintegrate
+from imu_ground.imu.preintegration import (
+    PreintegrationParams,
+    StreamingPreintegrator,
+    preintegrate,
+)
+
+__all__ = ["main", "make_log", "rows"]
+
+_PARAMS = PreintegrationParams(gyro_noise_density=1e-3, accel_noise_density=1e-2,
+                               bias_gyro=(1e-3, -2e-3, 5e-4), bias_accel=(0.01, 0.02, -0.01))
+_TARGETS = {"deltas": 2.0, "covariance": 4.0}     # µs per sample (issue 12)
+_BATCH_TARGET = 0.5                               # s for one hour at 100 Hz
 
 
 def make_log(n: int, seed: int = 0):
@@ -26,77 +47,123 @@ def make_log(n: int, seed: int = 0):
     return t, gyro, accel
 
 
-def timed(fn, repeat: int):
-    """Best wall and CPU time over `repeat` runs, and the last result."""
-    wall = cpu = np.inf
-    out = None
+def _median_time(fn: Callable[[], object], repeat: int) -> tuple[float, float, object]:
+    """Median wall and CPU seconds over ``repeat`` runs, and the last result."""
+    walls, cpus, out = [], [], None
     for _ in range(repeat):
         w0, c0 = time.perf_counter(), time.process_time()
         out = fn()
-        wall = min(wall, time.perf_counter() - w0)
-        cpu = min(cpu, time.process_time() - c0)
-    return wall, cpu, out
+        walls.append(time.perf_counter() - w0)
+        cpus.append(time.process_time() - c0)
+    return float(np.median(walls)), float(np.median(cpus)), out
+
+
+def _stream(ts, gs, acs, uncertainty: bool, readout: bool) -> Callable[[], list]:
+    def run() -> list:
+        sp = StreamingPreintegrator(rate=10.0, params=_PARAMS, uncertainty=uncertainty)
+        push = sp.push
+        out = []
+        for i in range(len(ts)):
+            r = push(ts[i], gs[i], acs[i])
+            if r:
+                if readout:
+                    for f in r:
+                        _ = (f.delta_R, f.delta_v, f.covariance, f.bias_jacobian)
+                out += r
+        return out
+    return run
+
+
+def _gtsam_pim(params: PreintegrationParams):
+    import gtsam
+    p = gtsam.PreintegrationParams.MakeSharedU(params.gravity)
+    p.setGyroscopeCovariance(params.gyro_noise_density ** 2 * np.eye(3))
+    p.setAccelerometerCovariance(params.accel_noise_density ** 2 * np.eye(3))
+    p.setIntegrationCovariance(np.zeros((3, 3)))
+    bias = gtsam.imuBias.ConstantBias(np.array(params.bias_accel), np.array(params.bias_gyro))
+    return gtsam.PreintegratedImuMeasurements(p, bias)
+
+
+def _gtsam_loop(t, gyro, accel, frame_every: int = 10) -> Callable[[], object]:
+    pim = _gtsam_pim(_PARAMS)
+    dts = np.diff(t).tolist()
+    gs, acs = list(gyro[:-1]), list(accel[:-1])     # numpy rows: what GTSAM's binding takes
+    integrate, reset = pim.integrateMeasurement, pim.resetIntegration
+
+    def run():
+        for i in range(len(dts)):
+            integrate(acs[i], gs[i], dts[i])
+            if i % frame_every == frame_every - 1:
+                reset()
+        return pim
+    return run
+
+
+def _row(benchmark: str, target: str, figure: float, cpu: float, unit: str, limit: float | None,
+         competitor: float = float("nan"), agreement: float = float("nan")) -> dict:
+    return dict(benchmark=benchmark, target=target, figure=figure, cpu=cpu, unit=unit,
+                competitor=competitor, agreement=agreement,
+                passed=None if limit is None else bool(figure <= limit))
+
+
+def rows(samples: int = 360_000, stream_samples: int = 20_000, repeat: int = 5) -> list[dict]:
+    """Benchmark rows: each operation with its target, the figure and GTSAM's in the same run.
+
+    Returns
+    -------
+    list of dict
+        Keys ``benchmark``, ``target``, ``figure`` (median wall time), ``cpu``
+        (median CPU time), ``unit`` ("us/sample" or "s"), ``competitor`` (GTSAM,
+        same unit; nan without gtsam), ``agreement`` (max abs difference of the
+        streaming frames' ``delta_R`` from the batch ones), ``passed`` (None if
+        there is no target).
+    """
+    try:
+        import gtsam  # noqa: F401
+        have_gtsam = True
+    except ImportError:
+        have_gtsam = False
+    repeat = max(5, repeat)
+    t, gyro, accel = make_log(samples)
+    m = min(stream_samples, samples)
+    ts, gs, acs = t[:m].tolist(), gyro[:m].tolist(), accel[:m].tolist()
+    ref = preintegrate((t[:m], gyro[:m], accel[:m]), rate=10.0, params=_PARAMS)
+    g_us = float("nan")
+    if have_gtsam:
+        g_wall, _, _ = _median_time(_gtsam_loop(t[:m + 1], gyro[:m + 1], accel[:m + 1]), repeat)
+        g_us = g_wall / m * 1e6
+    out = []
+    for name, unc, readout, limit in (("deltas only (uncertainty=False)", False, False, _TARGETS["deltas"]),
+                                      ("with covariance and bias Jacobians", True, False, _TARGETS["covariance"]),
+                                      ("with covariance, Jacobians and frame read-out", True, True, None)):
+        wall, cpu, frames = _median_time(_stream(ts, gs, acs, unc, readout), repeat)
+        agree = max(float(np.abs(f.delta_R - ref.delta_R[i]).max()) for i, f in enumerate(frames))
+        target = f"<= {limit:g} us/sample" if limit else "(informative)"
+        out.append(_row(f"StreamingPreintegrator.push, {name}", target, wall / m * 1e6, cpu / m * 1e6,
+                        "us/sample", limit, g_us, agree))
+    wall, cpu, fd = _median_time(lambda: preintegrate((t, gyro, accel), rate=10.0, params=_PARAMS), repeat)
+    g_batch = float("nan")
+    if have_gtsam:
+        g_batch = _median_time(_gtsam_loop(t, gyro, accel), max(1, repeat // 5))[0]
+    out.append(_row(f"preintegrate, {samples / 360_000:g} h at 100 Hz into {len(fd)} frames, with covariance",
+                    f"< {_BATCH_TARGET:g} s", wall, cpu, "s", _BATCH_TARGET, g_batch))
+    return out
 
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--samples", type=int, default=360_000, help="batch log length (100 Hz)")
-    ap.add_argument("--stream-samples", type=int, default=30_000)
-    ap.add_argument("--repeat", type=int, default=5, help="best of this many runs")
+    ap.add_argument("--stream-samples", type=int, default=20_000)
+    ap.add_argument("--repeat", type=int, default=5, help="median over this many runs (>= 5)")
     args = ap.parse_args(argv)
-    kw = dict(gyro_noise_density=1e-3, accel_noise_density=1e-2,
-              bias_gyro=[1e-3, -2e-3, 5e-4], bias_accel=[0.01, 0.02, -0.01])
-
-    t, gyro, accel = make_log(args.samples)
-    w0 = time.perf_counter()
-    fd = preintegrate((t, gyro, accel), rate=10.0, **kw)           # first call (cold)
-    cold = time.perf_counter() - w0
-    wall, cpu, fd = timed(lambda: preintegrate((t, gyro, accel), rate=10.0, **kw), args.repeat)
-    print(f"batch: {args.samples} samples ({args.samples / 360_000:.2f} h at 100 Hz) -> {len(fd)} "
-          f"frames at 10 Hz: {wall:.3f} s wall, {cpu:.3f} s CPU (best of {args.repeat}; "
-          f"first call {cold:.3f} s) = {args.samples / wall / 1e6:.2f} M samples/s  [target < 0.5 s]")
-
-    m = args.stream_samples
-    ts, gs, acs = t[:m].tolist(), gyro[:m].tolist(), accel[:m].tolist()
-
-    def run_stream(uncertainty=True):
-        sp = StreamingPreintegrator(rate=10.0, uncertainty=uncertainty, **kw)
-        push = sp.push
-        out = []
-        for i in range(m):
-            r = push(ts[i], gs[i], acs[i])
-            if r:
-                out += r
-        return out
-
-    wall, cpu, frames = timed(run_stream, max(3, args.repeat // 2 + 1))
-    print(f"streaming front-end: {m} samples, {len(frames)} frames: {wall / m * 1e6:.2f} µs/sample "
-          f"wall, {cpu / m * 1e6:.2f} µs/sample CPU (best of {max(3, args.repeat // 2 + 1)})  "
-          f"[target < 10 µs]")
-    wall, cpu, lean = timed(lambda: run_stream(False), max(3, args.repeat // 2 + 1))
-    print(f"streaming, deltas only (uncertainty=False): {wall / m * 1e6:.2f} µs/sample wall, "
-          f"{cpu / m * 1e6:.2f} µs/sample CPU")
-
-    def run_value_type():
-        pim = PreintegratedImu(**kw)
-        integ = pim._integrate
-        for i in range(m):
-            g, a = gs[i], acs[i]
-            integ(0.01, g[0], g[1], g[2], a[0], a[1], a[2])
-        return pim
-
-    wall, cpu, _ = timed(run_value_type, 3)
-    print(f"value type alone (PreintegratedImu, one interval per call): {wall / m * 1e6:.2f} µs wall, "
-          f"{cpu / m * 1e6:.2f} µs CPU")
-
-    # the two paths agree on what was timed
-    ref = preintegrate((t[:m], gyro[:m], accel[:m]), rate=10.0, **kw)
-    dR = max(np.abs(f.delta_R - ref.delta_R[i]).max() for i, f in enumerate(frames))
-    dC = max(np.abs(f.covariance - ref.covariance[i]).max() / np.abs(ref.covariance[i]).max()
-             for i, f in enumerate(frames))
-    dL = max(np.abs(f.delta_R - ref.delta_R[i]).max() for i, f in enumerate(lean))
-    print(f"check: streaming vs batch over {len(frames)} frames: max |delta_R diff| {dR:.1e} "
-          f"(deltas only: {dL:.1e}), max relative covariance diff {dC:.1e}")
+    res = rows(args.samples, args.stream_samples, args.repeat)
+    print(f"{'benchmark':<84}{'ours (CPU)':>18}{'GTSAM':>10}  result")
+    for r in res:
+        verdict = "n/a" if r["passed"] is None else ("PASS" if r["passed"] else "FAIL")
+        print(f"{r['benchmark']:<84}{r['figure']:>8.3f} ({r['cpu']:6.3f}){r['competitor']:>10.3f}  {verdict}"
+              f"  [{r['unit']}]")
+        extra = f"; streaming vs batch max |delta_R diff| {r['agreement']:.1e}" if r["agreement"] == r["agreement"] else ""
+        print(f"    target: {r['target']}{extra}")
 
 
 if __name__ == "__main__":

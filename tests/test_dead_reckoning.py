@@ -5,10 +5,15 @@ import numpy as np
 import pytest
 
 from imu_ground import so3
-from imu_ground.imu.dead_reckoning import (GRAVITY, attitude_from_accel, dead_reckon, dead_reckon_imu)
 from imu_ground.imu.data import ImuData
+from imu_ground.imu.dead_reckoning import (
+    attitude_from_accel,
+    dead_reckon,
+    dead_reckon_imu,
+)
 from imu_ground.imu.preintegration import preintegrate
 from imu_ground.imu.standstill import detect_standstill, estimate_gyro_bias
+from imu_ground.units import GRAVITY
 
 
 # ---------------------------------------------------------------------------

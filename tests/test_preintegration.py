@@ -10,8 +10,14 @@ import pytest
 
 from imu_ground import so3
 from imu_ground.imu.data import ImuData
-from imu_ground.imu.preintegration import (FrameDeltas, PreintegratedImu, StreamingPreintegrator,
-                                       _exp_and_left_jacobian, make_frame_times, preintegrate)
+from imu_ground.imu.matrix3 import exp_and_left_jacobian
+from imu_ground.imu.preintegration import (
+    FrameDeltas,
+    PreintegratedImu,
+    StreamingPreintegrator,
+    make_frame_times,
+    preintegrate,
+)
 
 SG, SA = 0.01, 0.1          # noise densities used in the comparisons
 
@@ -100,7 +106,7 @@ def test_fused_exp_and_left_jacobian_match_so3():
                           rng.normal(0, 1e-3, (50, 3)), np.zeros((1, 3)),
                           3.1 * so3.vee(so3.hat(rng.normal(0, 1, (20, 3)))) /
                           np.linalg.norm(rng.normal(0, 1, (20, 3)), axis=1, keepdims=True)])
-    E, Jl = _exp_and_left_jacobian(phi[:, 0].copy(), phi[:, 1].copy(), phi[:, 2].copy())
+    E, Jl = exp_and_left_jacobian(phi[:, 0].copy(), phi[:, 1].copy(), phi[:, 2].copy())
     np.testing.assert_allclose(E.transpose(2, 0, 1), so3.exp(phi), atol=2e-15)
     np.testing.assert_allclose(Jl.transpose(2, 0, 1), so3.left_jacobian(phi), atol=2e-15)
 

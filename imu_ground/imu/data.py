@@ -20,12 +20,20 @@ Frames and units
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
+
+if TYPE_CHECKING:       # pandas is imported where it is used, not with the package
+    import pandas as pd
 
 __all__ = ["ImuData"]
+
+
+def _empty_frame() -> "pd.DataFrame":
+    """The default ``extra``: an empty DataFrame (pandas imported on first use)."""
+    import pandas as pd
+    return pd.DataFrame()
 
 
 @dataclass
@@ -57,7 +65,7 @@ class ImuData:
     gyro: np.ndarray
     accel: np.ndarray
     frame: str = "FLU"
-    extra: pd.DataFrame = field(default_factory=pd.DataFrame)
+    extra: pd.DataFrame = field(default_factory=_empty_frame)
     units: dict[str, str] = field(default_factory=dict)
     source: str = ""
     meta: dict[str, Any] = field(default_factory=dict)
@@ -90,7 +98,7 @@ class ImuData:
             return float("nan")
         return float(1.0 / np.median(np.diff(self.t)))
 
-    def select(self, mask_or_index: np.ndarray) -> "ImuData":
+    def select(self, mask_or_index: np.ndarray) -> ImuData:
         """A new ImuData with only the given rows (boolean mask or integer index)."""
         idx = np.asarray(mask_or_index)
         extra = self.extra.iloc[idx].reset_index(drop=True) if len(self.extra) else self.extra
@@ -99,6 +107,7 @@ class ImuData:
 
     def to_dataframe(self) -> pd.DataFrame:
         """All columns as one DataFrame: t, wx, wy, wz (rad/s), ax, ay, az (m/s^2), extras."""
+        import pandas as pd
         df = pd.DataFrame({"t": self.t,
                            "wx": self.gyro[:, 0], "wy": self.gyro[:, 1], "wz": self.gyro[:, 2],
                            "ax": self.accel[:, 0], "ay": self.accel[:, 1], "az": self.accel[:, 2]})

@@ -1,34 +1,38 @@
-r"""Strapdown dead reckoning in a gravity-aligned frame from preintegrated deltas.
+r"""Strapdown dead reckoning in a gravity-aligned world frame from preintegrated deltas.
 
-Navigation frame ``n``: a local level frame, z up, gravity ``g_n = [0, 0, -g]``;
-its heading is that of the initial attitude (yaw 0 when the attitude comes
-from the accelerometer). With per-frame deltas (:class:`~imu_ground.imu.preintegration.FrameDeltas`)
+World frame: a local level frame, z up, gravity ``g_world = [0, 0, -g]``; its
+heading is that of the initial attitude (yaw 0 when the attitude comes from the
+accelerometer). Attitudes are ``R_{world<-body}`` (glossary: :mod:`imu_ground.so3`),
+the convention of the filters' ``R0``: ``R @ f_body`` is ``f`` in the world frame. With per-frame deltas (:class:`~imu_ground.imu.preintegration.FrameDeltas`)
 the state at frame boundaries follows Forster et al. 2017 (Sec. VI-A):
 
 .. math::
 
     R_{k+1} = R_k \Delta R_k, \quad
-    v_{k+1} = v_k + g_n \Delta t_k + R_k \Delta v_k, \quad
-    p_{k+1} = p_k + v_k \Delta t_k + \tfrac12 g_n \Delta t_k^2 + R_k \Delta p_k,
+    v_{k+1} = v_k + g \Delta t_k + R_k \Delta v_k, \quad
+    p_{k+1} = p_k + v_k \Delta t_k + \tfrac12 g \Delta t_k^2 + R_k \Delta p_k,
 
-with ``R`` = navigation from body. All frames are propagated at once: a
+with ``R = R_{world<-body}``, ``g = g_world``. All frames are propagated at once: a
 log-depth product scan gives every ``R_k``, cumulative sums give ``v`` and ``p``.
 Per-sample dead reckoning is the special case of one frame per sample
 (``every=1``).
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal, Sequence
+from typing import Literal
 
 import numpy as np
 
 from imu_ground import so3
 from imu_ground.imu.data import ImuData
-from imu_ground.imu.preintegration import FrameDeltas, _mm, _project_if_needed, _scan_products, preintegrate
-from imu_ground.imu.standstill import GRAVITY, estimate_gyro_bias
+from imu_ground.imu.matrix3 import mm, project_if_needed, scan_products
+from imu_ground.imu.preintegration import FrameDeltas, preintegrate
+from imu_ground.imu.standstill import estimate_gyro_bias
+from imu_ground.units import GRAVITY
 
-__all__ = ["GRAVITY", "NavSolution", "attitude_from_accel", "dead_reckon", "dead_reckon_imu"]
+__all__ = ["NavSolution", "attitude_from_accel", "dead_reckon", "dead_reckon_imu"]
 
 
 @dataclass
@@ -40,11 +44,11 @@ class NavSolution:
     t : ndarray, shape (F + 1,)
         Boundary times, s.
     R : ndarray, shape (F + 1, 3, 3)
-        Attitude: body frame -> navigation frame (level, z up).
+        Attitude ``R_{world<-body}`` (world: level, z up).
     v : ndarray, shape (F + 1, 3)
-        Velocity in the navigation frame, m/s.
+        Velocity in the world frame, m/s.
     p : ndarray, shape (F + 1, 3)
-        Position in the navigation frame, m.
+        Position in the world frame, m.
     valid : ndarray of bool, shape (F + 1,)
         False from the first frame that crossed a timestamp gap onwards.
     gravity : float
@@ -63,7 +67,7 @@ class NavSolution:
 
     @property
     def roll_pitch_yaw(self) -> np.ndarray:
-        """(F + 1, 3) roll, pitch, yaw in rad with ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (body -> nav)."""
+        """(F + 1, 3) roll, pitch, yaw in rad with ``R_{world<-body} = Rz(yaw) Ry(pitch) Rx(roll)``."""
         R = self.R
         pitch = np.arcsin(np.clip(-R[:, 2, 0], -1.0, 1.0))
         roll = np.arctan2(R[:, 2, 1], R[:, 2, 2])
@@ -86,7 +90,7 @@ def attitude_from_accel(accel_mean: Sequence[float], yaw: float = 0.0) -> np.nda
     Returns
     -------
     ndarray, shape (3, 3)
-        ``R = Rz(yaw) Ry(pitch) Rx(roll)``: body frame -> level frame (z up), with
+        ``R_{world<-body} = Rz(yaw) Ry(pitch) Rx(roll)`` (world: level, z up), with
         ``roll = atan2(f_y, f_z)``, ``pitch = atan2(-f_x, hypot(f_y, f_z))``, so that
         ``R @ f / |f| = [0, 0, 1]``.
     """
@@ -104,9 +108,9 @@ def _prefix_rotations(R0: np.ndarray, dR: np.ndarray) -> np.ndarray:
     out = np.empty((F + 1, 3, 3))
     out[0] = R0
     if F:
-        P = _scan_products(np.ascontiguousarray(dR.transpose(1, 2, 0))[:, :, :, None])  # (3,3,F,1)
-        out[1:] = _mm(R0[:, :, None, None], P)[..., 0].transpose(2, 0, 1)
-    return _project_if_needed(out)
+        P = scan_products(np.ascontiguousarray(dR.transpose(1, 2, 0))[:, :, :, None])  # (3,3,F,1)
+        out[1:] = mm(R0[:, :, None, None], P)[..., 0].transpose(2, 0, 1)
+    return project_if_needed(out)
 
 
 def dead_reckon(deltas: FrameDeltas, R0: np.ndarray, v0: Sequence[float] = (0.0, 0.0, 0.0),
@@ -121,13 +125,13 @@ def dead_reckon(deltas: FrameDeltas, R0: np.ndarray, v0: Sequence[float] = (0.0,
         Consecutive frames (``t_end[k] == t_start[k+1]``), e.g. from
         :func:`~imu_ground.imu.preintegration.preintegrate`.
     R0 : array_like, shape (3, 3)
-        Attitude at ``deltas.t_start[0]``: body frame -> navigation frame (level, z up).
+        ``R_{world<-body}`` at ``deltas.t_start[0]`` (world: level, z up).
     v0 : array_like, shape (3,)
-        Initial velocity, navigation frame, m/s.
+        Initial velocity, world frame, m/s.
     p0 : array_like, shape (3,)
-        Initial position, navigation frame, m.
+        Initial position, world frame, m.
     gravity : float
-        Magnitude of gravity, m/s^2 (``g_n = [0, 0, -gravity]``).
+        Magnitude of gravity, m/s^2 (``g_world = [0, 0, -gravity]``).
     bias_gyro, bias_accel : array_like, shape (3,), optional
         Apply a first-order bias correction (:meth:`FrameDeltas.corrected`) from
         the biases the deltas were integrated with to these (rad/s, m/s^2, body).
@@ -135,7 +139,7 @@ def dead_reckon(deltas: FrameDeltas, R0: np.ndarray, v0: Sequence[float] = (0.0,
     Returns
     -------
     NavSolution
-        States at ``[t_start[0], t_end[0], t_end[1], ...]``; ``R`` maps body -> navigation.
+        States at ``[t_start[0], t_end[0], t_end[1], ...]``; ``R`` is ``R_{world<-body}``.
     """
     F = len(deltas)
     if F > 1 and not np.allclose(deltas.t_end[:-1], deltas.t_start[1:], rtol=0, atol=1e-9):
@@ -149,16 +153,16 @@ def dead_reckon(deltas: FrameDeltas, R0: np.ndarray, v0: Sequence[float] = (0.0,
         dR, dv, dp = deltas.delta_R, deltas.delta_v, deltas.delta_p
     T = np.asarray(deltas.delta_t, dtype=float)
     R = _prefix_rotations(so3.project(R0), dR)
-    gn = np.array([0.0, 0.0, -float(gravity)])
+    g_world = np.array([0.0, 0.0, -float(gravity)])
     Rdv = np.einsum("fij,fj->fi", R[:-1], dv)
     Rdp = np.einsum("fij,fj->fi", R[:-1], dp)
     v = np.empty((F + 1, 3))
     v[0] = v0
-    np.cumsum(gn * T[:, None] + Rdv, axis=0, out=v[1:])
+    np.cumsum(g_world * T[:, None] + Rdv, axis=0, out=v[1:])
     v[1:] += v[0]
     p = np.empty((F + 1, 3))
     p[0] = p0
-    np.cumsum(v[:-1] * T[:, None] + 0.5 * gn * (T * T)[:, None] + Rdp, axis=0, out=p[1:])
+    np.cumsum(v[:-1] * T[:, None] + 0.5 * g_world * (T * T)[:, None] + Rdp, axis=0, out=p[1:])
     p[1:] += p[0]
     t = np.concatenate([deltas.t_start[:1], deltas.t_end])
     valid = np.concatenate([[True], np.cumprod(deltas.valid).astype(bool)])
@@ -182,11 +186,11 @@ def dead_reckon_imu(imu: ImuData, *, rate: float | None = None, every: int | Non
     rate, every : optional
         Output frames: ``rate`` Hz, or every ``every`` samples (default: every sample).
     R0 : array_like (3, 3), optional
-        Initial attitude, body -> navigation (level, z up). Default: from the mean
+        Initial attitude ``R_{world<-body}`` (world: level, z up). Default: from the mean
         specific force of the first standstill interval, which must begin within
         1 s of the log's start (yaw 0); ValueError otherwise.
     v0, p0 : array_like, shape (3,)
-        Initial velocity (m/s) and position (m), navigation frame.
+        Initial velocity (m/s) and position (m), world frame.
     bias_gyro : array_like (3,), "standstill" or None
         Gyro bias, rad/s (``"standstill"``: :func:`~imu_ground.imu.standstill.estimate_gyro_bias`,
         zeros if there is no standstill; None: zeros).

@@ -13,15 +13,16 @@ increment in the body frame at the frame's start (m/s).
 """
 from __future__ import annotations
 
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Iterator, NamedTuple, Optional, Sequence, Union
+from typing import NamedTuple
 
 import numpy as np
 
 from imu_ground.imu.data import ImuData
-from imu_ground.units import DEFAULT_FRAME_RATE
 from imu_ground.imu.preintegration import preintegrate
 from imu_ground.imu.standstill import detect_standstill, estimate_gyro_bias
+from imu_ground.units import DEFAULT_FRAME_RATE
 
 __all__ = ["EgoFrame", "EgoMotion", "imu_to_egomotion"]
 
@@ -110,8 +111,8 @@ class EgoMotion:
             yield self.frame_at(k)
 
     @classmethod
-    def from_rotations(cls, delta_R: np.ndarray, t: Optional[np.ndarray] = None,
-                       rate: Optional[float] = None, frame: str = "FLU", meta: Optional[dict] = None) -> "EgoMotion":
+    def from_rotations(cls, delta_R: np.ndarray, t: np.ndarray | None = None,
+                       rate: float | None = None, frame: str = "FLU", meta: dict | None = None) -> EgoMotion:
         """Ego-motion from rotation increments alone (visual odometry, pose files).
 
         Parameters
@@ -157,8 +158,8 @@ class EgoMotion:
         return dv_end / self.delta_t[:, None]
 
 
-def imu_to_egomotion(imu: ImuData, rate: float = DEFAULT_FRAME_RATE, *, frame_times: Optional[np.ndarray] = None,
-                     bias_gyro: Union[str, Sequence[float], None] = "auto", max_gap: Optional[float] = None,
+def imu_to_egomotion(imu: ImuData, rate: float = DEFAULT_FRAME_RATE, *, frame_times: np.ndarray | None = None,
+                     bias_gyro: str | Sequence[float] | None = "auto", max_gap: float | None = None,
                      standstill_window: float = 1.0) -> EgoMotion:
     """Preintegrate an IMU log into frames.
 

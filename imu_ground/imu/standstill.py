@@ -28,15 +28,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from typing import Optional
-
 import numpy as np
 
 from imu_ground.imu.data import ImuData
 
-__all__ = ["GRAVITY", "GyroBiasEstimate", "detect_standstill", "estimate_gyro_bias"]
-
-GRAVITY = 9.80665   # standard gravity, m/s^2
+__all__ = ["GyroBiasEstimate", "detect_standstill", "estimate_gyro_bias"]
 
 
 @dataclass
@@ -91,7 +87,7 @@ def _window_stats(t: np.ndarray, x: np.ndarray, end: np.ndarray):
 
 
 def _standstill_mask(imu: ImuData, window: float, gyro_std_max: float, gyro_norm_max: float,
-                     accel_std_max: float, accel_norm_tol: float, gravity: Optional[float],
+                     accel_std_max: float, accel_norm_tol: float, gravity: float | None,
                      max_gap: float) -> np.ndarray:
     t = np.asarray(imu.t, dtype=float)
     n = t.size
@@ -136,7 +132,7 @@ def _runs(mask: np.ndarray) -> np.ndarray:
 
 def detect_standstill(imu: ImuData, *, window: float = 2.0, gyro_std_max: float = 0.004,
                       gyro_norm_max: float = 0.05, accel_std_max: float = 0.04,
-                      accel_norm_tol: float = 0.15, gravity: Optional[float] = None,
+                      accel_norm_tol: float = 0.15, gravity: float | None = None,
                       max_gap: float = 0.1) -> np.ndarray:
     """Standstill intervals of a log (vectorised, no loop over samples).
 
@@ -178,7 +174,7 @@ def detect_standstill(imu: ImuData, *, window: float = 2.0, gyro_std_max: float 
 
 def estimate_gyro_bias(imu: ImuData, *, window: float = 2.0, gyro_std_max: float = 0.004,
                        gyro_norm_max: float = 0.05, accel_std_max: float = 0.04,
-                       accel_norm_tol: float = 0.15, gravity: Optional[float] = None,
+                       accel_norm_tol: float = 0.15, gravity: float | None = None,
                        max_gap: float = 0.1) -> GyroBiasEstimate:
     """Gyro bias and gravity direction from the standstill periods of a log.
 

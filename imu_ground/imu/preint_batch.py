@@ -1,0 +1,357 @@
+"""Batch preintegration of a whole log into frames, vectorised (no Python loop over samples).
+
+Fused batched ``Exp`` and left Jacobians, a log-depth (Hillis-Steele) product
+scan for ``delta_R`` within each frame, cumulative sums for ``delta_v``/``delta_p``,
+and the closed-form solution of the covariance and Jacobian recursions,
+``sum_k G_k Q_k G_k^T`` and ``sum_k G_k``, where ``G_k`` is the sensitivity of the
+frame's deltas to the noise of interval ``k`` (see :func:`_blocks_kernel`). The
+only Python loop runs over chunks of about 32k intervals, to keep the
+temporaries in cache. Frames with many more intervals than the others are cut
+into blocks that are merged with the associative composition
+:func:`~imu_ground.imu.preint_measurement.compose_left` (a log-depth tree).
+The knots, held values and gap rules are those of the module docstring of
+:mod:`imu_ground.imu.preintegration`, as in the streaming front-end.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from imu_ground.imu.data import ImuData
+from imu_ground.imu.matrix3 import (
+    cross_rows,
+    exp_and_left_jacobian,
+    hat_times,
+    mm,
+    project_if_needed,
+    scan_products,
+)
+from imu_ground.imu.preint_frames import FrameDeltas, make_frame_times
+from imu_ground.imu.preint_measurement import compose_left, left_to_right
+from imu_ground.imu.preint_params import PreintegrationParams, gap_message
+
+__all__ = ["preintegrate"]
+
+_CHUNK = 1 << 15         # intervals per vectorised chunk (cache-sized temporaries)
+
+
+def _blocks_kernel(dt: np.ndarray, w: np.ndarray, f: np.ndarray, qg: float, qa: float,
+                   uncertainty: bool = True) -> tuple:
+    """Preintegrate padded blocks of intervals in closed form, left-error form.
+
+    Parameters are component-major, interval index before block index (so that
+    every elementwise operation runs over long contiguous rows): ``dt`` (L, B)
+    with zeros as padding, ``w`` and ``f`` (3, L, B) bias-corrected held rate and
+    specific force. Interval ``k``
+    of a block has rotation ``Rk`` before it, rotated velocity increment ``c_k``,
+    deltas ``V_k``/``P_k`` after it and ends at ``e_k``; with ``xv_k = v_n - V_k`` and
+    ``xp_k = p_n - P_k - V_k (T - e_k)`` a left rotation perturbation ``u`` at the end
+    of interval ``k`` moves ``(dtheta, dv, dp)`` by ``(u, -hat(xv_k) u, -hat(xp_k) u)``.
+    Hence, with ``U_k = Rk Jl(phi_k) dt_k``:
+
+    - Jacobians: ``Th = -sum U_k``, ``Vg = sum hat(xv_k) U_k``, ``Pg = sum hat(xp_k) U_k``,
+      ``Va = -sum Rk dt_k``, ``Pa = -sum Rk dt_k (T - e_k + dt_k / 2)``;
+    - covariance: ``sum_k G_k Q_k G_k^T`` with ``W_k = q_g U_k U_k^T / dt_k``
+      (rotation rows) and the isotropic accelerometer terms.
+
+    Returns (T, R, v, p, J, S) with shapes (B,), (B,3,3), (B,3), (B,3), (B,9,6), (B,9,9);
+    J and S are None when ``uncertainty`` is False.
+    """
+    L, nb = dt.shape
+    phi = w * dt
+    E, Jl = exp_and_left_jacobian(phi[0], phi[1], phi[2])
+    del phi
+    P = scan_products(E)                                   # delta_R after interval k
+    del E
+    Rk = np.empty_like(P)                                   # delta_R before interval k
+    Rk[:, :, 0] = np.eye(3)[:, :, None]
+    Rk[:, :, 1:] = P[:, :, :-1]
+    fd = f * dt
+    c = np.empty_like(fd)
+    for i in range(3):
+        c[i] = Rk[i, 0] * fd[0] + Rk[i, 1] * fd[1] + Rk[i, 2] * fd[2]
+    del fd
+    V = np.cumsum(c, axis=1)                                # delta_v after interval k
+    Vb = np.empty_like(V)                                   # ... and before
+    Vb[:, 0] = 0.0
+    Vb[:, 1:] = V[:, :-1]
+    Pp = np.cumsum(dt * (Vb + 0.5 * c), axis=1)             # delta_p after interval k
+    del Vb, c
+    e = np.cumsum(dt, axis=0)                               # end time of interval k
+    T = e[-1].copy()
+    Rn = np.ascontiguousarray(P[:, :, -1].transpose(2, 0, 1))
+    vn = np.ascontiguousarray(V[:, -1].T)
+    pn = np.ascontiguousarray(Pp[:, -1].T)
+    if not uncertainty:
+        return T, Rn, vn, pn, None, None
+    Uo = mm(Rk, Jl)                                        # U / dt
+    del Jl, P
+    U = Uo * dt
+    xv = vn.T[:, None, :] - V
+    rem = T[None, :] - e                                    # time left after interval k
+    xp = pn.T[:, None, :] - Pp - V * rem
+    del V, Pp
+    wa = dt * (rem + 0.5 * dt)                              # dt (T - midpoint of interval k)
+    J = np.zeros((nb, 9, 6))
+    J[:, 0:3, 0:3] = -U.sum(axis=2).transpose(2, 0, 1)
+    J[:, 3:6, 0:3] = hat_times(xv, U).sum(axis=2).transpose(2, 0, 1)
+    J[:, 6:9, 0:3] = hat_times(xp, U).sum(axis=2).transpose(2, 0, 1)
+    J[:, 3:6, 3:6] = -(Rk * dt).sum(axis=2).transpose(2, 0, 1)
+    J[:, 6:9, 3:6] = -(Rk * wa).sum(axis=2).transpose(2, 0, 1)
+    S = np.zeros((nb, 9, 9))
+    if qg != 0.0:
+        # W = q_g dt Uo Uo^T (symmetric); rv = sum W hat(xv), rp = sum W hat(xp),
+        # vv = sum hat(xv) W hat(xv)^T = -sum hat(xv) (W hat(xv)), vp, pp alike.
+        W = np.empty((3, 3, L, nb))
+        qdt = qg * dt
+        for i in range(3):
+            for j in range(i, 3):
+                W[i, j] = (Uo[i, 0] * Uo[j, 0] + Uo[i, 1] * Uo[j, 1] + Uo[i, 2] * Uo[j, 2]) * qdt
+                if j != i:
+                    W[j, i] = W[i, j]
+        M1 = cross_rows(W, xv)
+        M2 = cross_rows(W, xp)
+        S[:, 0:3, 0:3] = W.sum(axis=2).transpose(2, 0, 1)
+        S[:, 0:3, 3:6] = M1.sum(axis=2).transpose(2, 0, 1)
+        S[:, 0:3, 6:9] = M2.sum(axis=2).transpose(2, 0, 1)
+        S[:, 3:6, 3:6] = -hat_times(xv, M1).sum(axis=2).transpose(2, 0, 1)
+        S[:, 3:6, 6:9] = -hat_times(xv, M2).sum(axis=2).transpose(2, 0, 1)
+        S[:, 6:9, 6:9] = -hat_times(xp, M2).sum(axis=2).transpose(2, 0, 1)
+        S[:, 3:6, 0:3] = S[:, 0:3, 3:6].transpose(0, 2, 1)
+        S[:, 6:9, 0:3] = S[:, 0:3, 6:9].transpose(0, 2, 1)
+        S[:, 6:9, 3:6] = S[:, 3:6, 6:9].transpose(0, 2, 1)
+    if qa != 0.0:
+        s0 = qa * T
+        s1 = qa * wa.sum(axis=0)
+        s2 = qa * (wa * (rem + 0.5 * dt)).sum(axis=0)
+        i3 = np.arange(3)
+        S[:, 3 + i3, 3 + i3] += s0[:, None]
+        S[:, 3 + i3, 6 + i3] += s1[:, None]
+        S[:, 6 + i3, 3 + i3] += s1[:, None]
+        S[:, 6 + i3, 6 + i3] += s2[:, None]
+    return T, Rn, vn, pn, J, 0.5 * (S + S.transpose(0, 2, 1))
+
+
+def _merge_blocks(res: tuple, block_frame: np.ndarray, n_frames: int) -> tuple:
+    """Merge consecutive blocks of the same frame with a log-depth tree of compositions."""
+    counts = np.bincount(block_frame, minlength=n_frames)
+    if np.all(counts == 1):
+        return res
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    multi = np.flatnonzero(counts > 1)
+    width = int(counts.max())
+    pos = np.arange(block_frame.size) - first[block_frame]
+    # padded (n_multi, width) table of blocks with identity padding
+    sel = np.isin(block_frame, multi)
+    row = np.searchsorted(multi, block_frame[sel])
+    col = pos[sel]
+
+    def pad(x, ident):
+        out = np.broadcast_to(ident, (multi.size, width) + ident.shape).copy()
+        out[row, col] = x[sel]
+        return out
+
+    ident = (np.float64(0.0), np.eye(3), np.zeros(3), np.zeros(3), np.zeros((9, 6)), np.zeros((9, 9)))
+    m = 6 if res[4] is not None else 4          # without covariance and Jacobians: 4 entries
+    cur = [pad(x, i) for x, i in zip(res[:m], ident)]
+    while cur[0].shape[1] > 1:
+        if cur[0].shape[1] % 2:
+            cur = [np.concatenate([x, np.broadcast_to(i, (x.shape[0], 1) + i.shape)], axis=1)
+                   for x, i in zip(cur, ident)]
+        a = tuple(x[:, 0::2] for x in cur) + (None, None) * (m == 4)
+        b = tuple(x[:, 1::2] for x in cur) + (None, None) * (m == 4)
+        cur = list(compose_left(a, b))[:m]
+    out = []
+    single = counts == 1
+    for x, c in zip(res[:m], cur):
+        o = np.empty((n_frames,) + x.shape[1:])
+        o[single] = x[first[single]]
+        o[multi] = c[:, 0]
+        out.append(o)
+    return tuple(out) + (None, None) * (m == 4)
+
+
+def _validate_times(t: np.ndarray) -> None:
+    if t.ndim != 1 or t.size < 2:
+        raise ValueError(f"need at least 2 samples, got t of shape {t.shape}")
+    if not np.all(np.isfinite(t)):
+        raise ValueError("IMU timestamps contain NaN or inf")
+    d = np.diff(t)
+    bad = np.flatnonzero(~(d > 0))
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(
+            f"IMU timestamps must be strictly increasing: t[{i + 1}] = {t[i + 1]!r} s comes after "
+            f"t[{i}] = {t[i]!r} s ({bad.size} non-increasing step(s)); drop non-increasing samples "
+            f"upstream (validation) before preintegrating")
+
+
+def _inputs(imu: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t, gyro, accel) as float arrays from an ImuData or a tuple, checked."""
+    if isinstance(imu, ImuData):
+        t, gyro, accel = imu.t, imu.gyro, imu.accel
+    else:
+        t, gyro, accel = imu
+    t = np.ascontiguousarray(t, dtype=float)
+    gyro = np.asarray(gyro, dtype=float)
+    accel = np.asarray(accel, dtype=float)
+    if gyro.shape != (t.size, 3) or accel.shape != (t.size, 3):
+        raise ValueError(f"gyro and accel must have shape ({t.size}, 3), got {gyro.shape}, {accel.shape}")
+    _validate_times(t)
+    return t, gyro, accel
+
+
+def _boundaries(t: np.ndarray, frame_times: Any, rate: float | None, every: int | None,
+                t_origin: float | None, snap_tol: float) -> np.ndarray:
+    """Frame boundaries (F + 1,) inside the log, checked."""
+    if frame_times is None:
+        T = make_frame_times(t, rate=rate, every=every, t_origin=t_origin, snap_tol=snap_tol)
+    else:
+        if rate is not None or every is not None:
+            raise ValueError("give frame_times or rate/every, not both")
+        T = np.asarray(frame_times, dtype=float).reshape(-1)
+    if T.size < 2:
+        raise ValueError(f"need at least 2 frame boundaries inside the log, got {T.size}")
+    if not np.all(np.diff(T) > 2 * snap_tol):
+        raise ValueError("frame_times must be strictly increasing (by more than 2 * snap_tol)")
+    if T[0] < t[0] - snap_tol or T[-1] > t[-1] + snap_tol:
+        raise ValueError(f"frame boundaries [{T[0]!r}, {T[-1]!r}] s are not inside the log "
+                         f"[{t[0]!r}, {t[-1]!r}] s")
+    return T
+
+
+def _knots(t: np.ndarray, y: np.ndarray, T: np.ndarray, par: PreintegrationParams) -> tuple:
+    """Integration intervals: the samples plus the boundaries that fall between samples.
+
+    Returns ``(dt, held, b, valid)``: interval lengths (K,), held values (K, 6)
+    (gyro then accel, bias not removed), the knot index of each boundary
+    relative to the first (F + 1,), and the per-frame validity (F,) after the
+    gap rule (raises for ``on_gap="raise"``).
+    """
+    n = t.size
+    k = np.searchsorted(t, T)                       # t[k-1] < T <= t[k]
+    hi = np.minimum(k, n - 1)
+    lo = np.maximum(k - 1, 0)
+    d_hi = np.abs(t[hi] - T)
+    d_lo = np.abs(T - t[lo])
+    near = np.where(d_hi <= d_lo, hi, lo)
+    snapped = np.minimum(d_hi, d_lo) <= par.snap_tol
+    ins = ~snapped
+    ki = k[ins]
+    Ti = T[ins]
+    if par.hold == "midpoint":
+        wgt = (Ti - t[ki - 1]) / (t[ki] - t[ki - 1])
+        yb = y[ki - 1] + (y[ki] - y[ki - 1]) * wgt[:, None]
+    else:
+        yb = y[ki - 1]
+    kt = np.insert(t, ki, Ti)
+    ky = np.insert(y, ki, yb, axis=0)
+    b = np.searchsorted(kt, np.where(snapped, t[near], T))     # knot index of each boundary
+    if np.any(np.diff(b) <= 0):
+        raise ValueError("two frame boundaries fall on the same sample; frames must be longer "
+                         "than the snapping tolerance")
+    j0, j1 = int(b[0]), int(b[-1])
+    dt = np.diff(kt[j0:j1 + 1])
+    held = (ky[j0:j1] + ky[j0 + 1:j1 + 1]) * 0.5 if par.hold == "midpoint" else ky[j0:j1]
+    # gaps, on the original sample intervals
+    nfr = T.size - 1
+    orig = np.searchsorted(t, kt[j0:j1], side="right") - 1   # sample interval of each knot interval
+    is_gap = (np.diff(t) > par.max_gap)[orig]
+    valid = np.ones(nfr, dtype=bool)
+    if np.any(is_gap):
+        if par.on_gap == "raise":
+            g = int(orig[np.flatnonzero(is_gap)[0]])
+            raise ValueError(gap_message(float(t[g]), float(t[g + 1] - t[g]), par.max_gap))
+        frame_of = np.repeat(np.arange(nfr), np.diff(b))
+        valid[np.unique(frame_of[is_gap])] = False
+    return dt, held, b - j0, valid
+
+
+def _integrate_frames(dt: np.ndarray, held: np.ndarray, b: np.ndarray, par: PreintegrationParams) -> tuple:
+    """Left-form (T, R, v, p, J, S) per frame: frames cut into padded blocks, chunked kernel, merge."""
+    nfr = b.size - 1
+    nint = np.diff(b)
+    Lb = int(min(nint.max(), max(16, 2 * math.ceil(dt.size / nfr))))
+    nblk = -(-nint // Lb)
+    block_frame = np.repeat(np.arange(nfr), nblk)
+    nbt = int(nblk.sum())
+    first_blk = np.cumsum(nblk) - nblk
+    blk_in_frame = np.arange(nbt) - np.repeat(first_blk, nblk)
+    start = b[:-1][block_frame] + Lb * blk_in_frame
+    stop = np.minimum(start + Lb, b[1:][block_frame])
+    idx = start[None, :] + np.arange(Lb)[:, None]            # (Lb, blocks)
+    pad = idx >= stop[None, :]
+    idx[pad] = 0
+    dtp = dt[idx]
+    dtp[pad] = 0.0
+    hp = np.ascontiguousarray(held.T)[:, idx]                # component-major (6, Lb, blocks)
+    hp[:, pad] = 0.0
+    hp[0:3] -= np.array(par.bias_gyro)[:, None, None]
+    hp[3:6] -= np.array(par.bias_accel)[:, None, None]
+    qg, qa = par.gyro_noise_density ** 2, par.accel_noise_density ** 2
+    # chunks of about _CHUNK intervals keep the temporaries in cache (a loop over groups of frames)
+    step = max(1, _CHUNK // Lb)
+    parts = [_blocks_kernel(dtp[:, i:i + step], hp[0:3, :, i:i + step], hp[3:6, :, i:i + step], qg, qa,
+                            par.uncertainty) for i in range(0, nbt, step)]
+    res = tuple(np.concatenate([r[j] for r in parts]) if par.uncertainty or j < 4 else None for j in range(6))
+    return _merge_blocks(res, block_frame, nfr)
+
+
+def preintegrate(imu: ImuData | tuple[np.ndarray, np.ndarray, np.ndarray],
+                 frame_times: np.ndarray | None = None, *,
+                 rate: float | None = None, every: int | None = None,
+                 t_origin: float | None = None, params: PreintegrationParams | None = None,
+                 **options: Any) -> FrameDeltas:
+    """Preintegrate a whole log into frames, vectorised (no Python loop over samples).
+
+    Parameters
+    ----------
+    imu : ImuData or (t, gyro, accel)
+        Times (s, strictly increasing), angular rate (rad/s) and specific force
+        (m/s^2), both in the body frame.
+    frame_times : array_like, shape (F + 1,), optional
+        Frame boundaries, s, strictly increasing and inside ``[t[0], t[-1]]``;
+        frame ``i`` spans ``[frame_times[i], frame_times[i+1]]``.
+    rate, every, t_origin :
+        Instead of ``frame_times``: frames at ``rate`` Hz from ``t_origin``
+        (default ``t[0]``), or every ``every`` samples (see :func:`make_frame_times`).
+    params : PreintegrationParams, optional
+        Biases, noise densities, hold, gap rule, snapping, ``uncertainty``
+        (False: no covariance or bias Jacobians; those fields are None).
+    **options
+        Fields of :class:`~imu_ground.imu.preint_params.PreintegrationParams`
+        overriding ``params`` (``bias_gyro=..., on_gap="flag"``).
+
+    Returns
+    -------
+    FrameDeltas
+        Per frame: ``delta_R`` (``R_{start<-end}``), ``delta_v``, ``delta_p``
+        (start body frame), 9x9 covariance, bias Jacobians, validity.
+
+    Raises
+    ------
+    ValueError
+        Non-increasing timestamps, frame boundaries outside the log or not
+        increasing, or a gap inside a frame with ``on_gap="raise"``.
+    """
+    par = PreintegrationParams.coerce(params, **options)
+    t, gyro, accel = _inputs(imu)
+    T = _boundaries(t, frame_times, rate, every, t_origin, par.snap_tol)
+    dt, held, b, valid = _knots(t, np.concatenate([gyro, accel], axis=1), T, par)
+    Tn, Rn, vn, pn, Jn, Sn = _integrate_frames(dt, held, b, par)
+    Rn = project_if_needed(Rn)
+    names = ("d_R_d_bg", "d_v_d_bg", "d_p_d_bg", "d_v_d_ba", "d_p_d_ba")
+    if par.uncertainty:
+        Jr, Sr = left_to_right(Rn, Jn, Sn)
+        blocks = ((0, 0), (3, 0), (6, 0), (3, 3), (6, 3))
+        jac = {k: Jr[:, r:r + 3, c:c + 3].copy() for k, (r, c) in zip(names, blocks)}
+    else:
+        Sr, jac = None, dict.fromkeys(names)
+    return FrameDeltas(
+        t_start=T[:-1].copy(), t_end=T[1:].copy(), delta_t=np.asarray(Tn, dtype=float),
+        delta_R=Rn, delta_v=vn, delta_p=pn, covariance=Sr, **jac, valid=valid,
+        n_intervals=np.diff(b).astype(int), bias_gyro=np.array(par.bias_gyro),
+        bias_accel=np.array(par.bias_accel), gyro_noise_density=par.gyro_noise_density,
+        accel_noise_density=par.accel_noise_density, hold=par.hold, params=par)

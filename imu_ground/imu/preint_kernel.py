@@ -1,0 +1,352 @@
+"""The scalar kinematics of one integration interval, written once: deltas, and optionally
+their bias Jacobians and covariance.
+
+:func:`integrate_interval` is the hot path of the streaming preintegration and of
+:class:`~imu_ground.imu.preint_measurement.PreintegratedImu`: Forster's recursion
+(Forster, Carlone, Dellaert, Scaramuzza, IEEE T-RO 2017, Sec. VI and appendix) in
+scalar Python floats. Numpy's per-call overhead dominates 3x3 operations, so the
+state is a flat tuple of floats, unpacked into locals, updated, and packed again.
+
+State layouts
+-------------
+``deltas`` (16 floats): ``T`` (integrated time, s), ``delta_R`` row-major
+(``R_{start<-now}``, body frame now -> body frame at the start), ``delta_v``
+(m/s) and ``delta_p`` (m) in the start body frame.
+
+``uncertainty`` (90 floats), left-error form in the start body frame
+(``delta_R_measured = Exp(dtheta) delta_R_true``, which makes the transition unit
+lower block-triangular), position rows in the "q form" ``q = p - T v`` (so that
+every position row is a scaled copy of the velocity increment)::
+
+    0:9    Th   left rotation-error Jacobian w.r.t. b_g (= delta_R @ dR_dbg)
+    9:18   Vg   d delta_v / d b_g
+    18:27  Mg   d delta_p / d b_g - T Vg
+    27:36  Va   d delta_v / d b_a
+    36:45  Ma   d delta_p / d b_a - T Va
+    45:51  rr   covariance of dtheta, symmetric (00 01 02 11 12 22)
+    51:60  rv   E[dtheta dv^T], row-major
+    60:69  rq   E[dtheta dq^T]
+    69:75  vv   symmetric
+    75:84  vq   E[dv dq^T]
+    84:90  qq   symmetric
+
+:mod:`imu_ground.imu.preint_measurement` converts them to Forster's right-error,
+p-form 9x9 covariance and 9x6 bias Jacobian.
+"""
+from __future__ import annotations
+
+import math
+
+from imu_ground.imu.matrix3 import SMALL_ANGLE2
+
+__all__ = ["DELTAS_IDENTITY", "UNCERTAINTY_ZERO", "integrate_interval"]
+
+#: Deltas of an empty interval: T = 0, delta_R = I, delta_v = delta_p = 0.
+DELTAS_IDENTITY: tuple = (0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+#: Bias Jacobians and covariance of an empty interval (all zero).
+UNCERTAINTY_ZERO: tuple = (0.0,) * 90
+
+
+def integrate_interval(s: tuple, u: tuple | None, dt: float, wx: float, wy: float, wz: float,
+                       ax: float, ay: float, az: float, par: tuple) -> tuple[tuple, tuple | None]:
+    """Add one interval of held rate and specific force to preintegrated deltas (unrolled).
+
+    Unrolled kernel: every 3x3 product, cross product and symmetric update is
+    written out entry by entry on float locals (no loops, no numpy), which is
+    why it is longer than the usual function. Per interval, with the
+    bias-corrected increments ``phi = (w - b_g) dt``, ``f dt = (a - b_a) dt``, the
+    rotation before the interval ``R_k``, ``c = R_k f dt`` and ``mid = T + dt/2``:
+
+    - deltas: ``p += dt (v + c/2)``, ``v += c``, ``R = R_k Exp(phi)``,
+      ``Exp = I + A K + B K^2`` (``K = hat(phi)``);
+    - when ``u`` is given, first the bias Jacobians
+      (``Vg -= hat(c) Th``, ``Mg += mid hat(c) Th``, ``Th -= R_k Jl(phi) dt``,
+      ``Va -= R_k dt``, ``Ma += mid R_k dt``) and the covariance: with
+      ``u_k = hat(c) dtheta - n_a`` the errors move as ``dv' = dv - u_k``,
+      ``dq' = dq + mid u_k``, and the gyro noise adds
+      ``q_g dt [(1 - kappa t^2) I + kappa psi psi^T]`` to ``rr``
+      (``psi = R_k phi``, ``Jl Jl^T = I + kappa K^2``).
+
+    Parameters
+    ----------
+    s : tuple of 16 floats
+        Deltas so far (module docstring).
+    u : tuple of 90 floats, or None
+        Bias Jacobians and covariance so far, or None to integrate the deltas only.
+    dt : float
+        Interval length, s (> 0).
+    wx, wy, wz : float
+        Angular rate held over the interval, rad/s, body frame (bias not removed).
+    ax, ay, az : float
+        Specific force held over the interval, m/s^2, body frame (bias not removed).
+    par : tuple of 8 floats
+        ``PreintegrationParams.scalars``: gyro and accelerometer bias, ``q_g``, ``q_a``.
+
+    Returns
+    -------
+    (deltas, uncertainty)
+        The new state; ``uncertainty`` is None when ``u`` was.
+    """
+    bgx, bgy, bgz, bax, bay, baz, qg, qa = par
+    T, r00, r01, r02, r10, r11, r12, r20, r21, r22, v0, v1, v2, p0, p1, p2 = s
+    x = (wx - bgx) * dt
+    y = (wy - bgy) * dt
+    z = (wz - bgz) * dt
+    fx = (ax - bax) * dt
+    fy = (ay - bay) * dt
+    fz = (az - baz) * dt
+    xx = x * x
+    yy = y * y
+    zz = z * z
+    t2 = xx + yy + zz
+    if t2 < SMALL_ANGLE2:
+        A = 1.0 - t2 / 6.0 + t2 * t2 / 120.0
+        B = 0.5 - t2 / 24.0 + t2 * t2 / 720.0
+    else:
+        th = math.sqrt(t2)
+        sn = math.sin(th)
+        hs = math.sin(0.5 * th)
+        A = sn / th
+        B = 2.0 * hs * hs / t2
+    xy = x * y
+    xz = x * z
+    yz = y * z
+    # c = R_k f dt: the rotated velocity increment (start body frame)
+    c0 = r00 * fx + r01 * fy + r02 * fz
+    c1 = r10 * fx + r11 * fy + r12 * fz
+    c2 = r20 * fx + r21 * fy + r22 * fz
+    if u is not None:
+        (h00, h01, h02, h10, h11, h12, h20, h21, h22,
+         g00, g01, g02, g10, g11, g12, g20, g21, g22,
+         m00, m01, m02, m10, m11, m12, m20, m21, m22,
+         a00, a01, a02, a10, a11, a12, a20, a21, a22,
+         b00, b01, b02, b10, b11, b12, b20, b21, b22,
+         rr00, rr01, rr02, rr11, rr12, rr22,
+         rv00, rv01, rv02, rv10, rv11, rv12, rv20, rv21, rv22,
+         rq00, rq01, rq02, rq10, rq11, rq12, rq20, rq21, rq22,
+         vv00, vv01, vv02, vv11, vv12, vv22,
+         vq00, vq01, vq02, vq10, vq11, vq12, vq20, vq21, vq22,
+         qq00, qq01, qq02, qq11, qq12, qq22) = u
+        if t2 < SMALL_ANGLE2:
+            C = 1.0 / 6.0 - t2 / 120.0 + t2 * t2 / 5040.0
+        else:
+            C = (th - sn) / (t2 * th)
+        mid = T + 0.5 * dt
+        # --- gyro-bias Jacobians: H = hat(c) Th; Vg -= H; Mg += mid H; Th -= delta_R_k Jl dt
+        H0 = c1 * h20 - c2 * h10
+        H1 = c1 * h21 - c2 * h11
+        H2 = c1 * h22 - c2 * h12
+        g00 -= H0
+        g01 -= H1
+        g02 -= H2
+        m00 += mid * H0
+        m01 += mid * H1
+        m02 += mid * H2
+        H0 = c2 * h00 - c0 * h20
+        H1 = c2 * h01 - c0 * h21
+        H2 = c2 * h02 - c0 * h22
+        g10 -= H0
+        g11 -= H1
+        g12 -= H2
+        m10 += mid * H0
+        m11 += mid * H1
+        m12 += mid * H2
+        H0 = c0 * h10 - c1 * h00
+        H1 = c0 * h11 - c1 * h01
+        H2 = c0 * h12 - c1 * h02
+        g20 -= H0
+        g21 -= H1
+        g22 -= H2
+        m20 += mid * H0
+        m21 += mid * H1
+        m22 += mid * H2
+        # j = Jl(phi) dt = (I + B K + C K^2) dt
+        Cd = C * dt
+        Bd = B * dt
+        Cxy = Cd * xy
+        Cxz = Cd * xz
+        Cyz = Cd * yz
+        Bx = Bd * x
+        By = Bd * y
+        Bz = Bd * z
+        j00 = dt - Cd * (yy + zz)
+        j11 = dt - Cd * (xx + zz)
+        j22 = dt - Cd * (xx + yy)
+        j01 = Cxy - Bz
+        j10 = Cxy + Bz
+        j02 = Cxz + By
+        j20 = Cxz - By
+        j12 = Cyz - Bx
+        j21 = Cyz + Bx
+        # Th -= U, U = delta_R_k Jl dt
+        h00 -= (r00 * j00 + r01 * j10 + r02 * j20)
+        h01 -= (r00 * j01 + r01 * j11 + r02 * j21)
+        h02 -= (r00 * j02 + r01 * j12 + r02 * j22)
+        h10 -= (r10 * j00 + r11 * j10 + r12 * j20)
+        h11 -= (r10 * j01 + r11 * j11 + r12 * j21)
+        h12 -= (r10 * j02 + r11 * j12 + r12 * j22)
+        h20 -= (r20 * j00 + r21 * j10 + r22 * j20)
+        h21 -= (r20 * j01 + r21 * j11 + r22 * j21)
+        h22 -= (r20 * j02 + r21 * j12 + r22 * j22)
+        # --- accelerometer-bias Jacobians: d = delta_R_k dt; Va -= d; Ma += mid d
+        d = r00 * dt
+        a00 -= d
+        b00 += mid * d
+        d = r01 * dt
+        a01 -= d
+        b01 += mid * d
+        d = r02 * dt
+        a02 -= d
+        b02 += mid * d
+        d = r10 * dt
+        a10 -= d
+        b10 += mid * d
+        d = r11 * dt
+        a11 -= d
+        b11 += mid * d
+        d = r12 * dt
+        a12 -= d
+        b12 += mid * d
+        d = r20 * dt
+        a20 -= d
+        b20 += mid * d
+        d = r21 * dt
+        a21 -= d
+        b21 += mid * d
+        d = r22 * dt
+        a22 -= d
+        b22 += mid * d
+        # --- covariance (left form, q rows). u = hat(c) theta is the velocity error
+        # increment (plus accelerometer noise n): v' = v - u + n, q' = q + mid (u - n).
+        # X = hat(c) rr, XH = hat(c) rr hat(c)^T (+ noise N = qa dt I), Y = hat(c) rv, Yq = hat(c) rq.
+        X00 = c1 * rr02 - c2 * rr01
+        X01 = c1 * rr12 - c2 * rr11
+        X02 = c1 * rr22 - c2 * rr12
+        X10 = c2 * rr00 - c0 * rr02
+        X11 = c2 * rr01 - c0 * rr12
+        X12 = c2 * rr02 - c0 * rr22
+        X20 = c0 * rr01 - c1 * rr00
+        X21 = c0 * rr11 - c1 * rr01
+        X22 = c0 * rr12 - c1 * rr02
+        na = qa * dt
+        N00 = c1 * X02 - c2 * X01 + na
+        N01 = c2 * X00 - c0 * X02
+        N02 = c0 * X01 - c1 * X00
+        N11 = c2 * X10 - c0 * X12 + na
+        N12 = c0 * X11 - c1 * X10
+        N22 = c0 * X21 - c1 * X20 + na
+        Y00 = c1 * rv20 - c2 * rv10
+        Y01 = c1 * rv21 - c2 * rv11
+        Y02 = c1 * rv22 - c2 * rv12
+        Y10 = c2 * rv00 - c0 * rv20
+        Y11 = c2 * rv01 - c0 * rv21
+        Y12 = c2 * rv02 - c0 * rv22
+        Y20 = c0 * rv10 - c1 * rv00
+        Y21 = c0 * rv11 - c1 * rv01
+        Y22 = c0 * rv12 - c1 * rv02
+        Z00 = c1 * rq20 - c2 * rq10
+        Z01 = c1 * rq21 - c2 * rq11
+        Z02 = c1 * rq22 - c2 * rq12
+        Z10 = c2 * rq00 - c0 * rq20
+        Z11 = c2 * rq01 - c0 * rq21
+        Z12 = c2 * rq02 - c0 * rq22
+        Z20 = c0 * rq10 - c1 * rq00
+        Z21 = c0 * rq11 - c1 * rq01
+        Z22 = c0 * rq12 - c1 * rq02
+        # qq' = qq + mid (Z + Z^T) + mid^2 (XH + N)
+        mid2 = mid * mid
+        qq00 += mid * 2.0 * Z00 + mid2 * N00
+        qq01 += mid * (Z01 + Z10) + mid2 * N01
+        qq02 += mid * (Z02 + Z20) + mid2 * N02
+        qq11 += mid * 2.0 * Z11 + mid2 * N11
+        qq12 += mid * (Z12 + Z21) + mid2 * N12
+        qq22 += mid * 2.0 * Z22 + mid2 * N22
+        # vq' = vq + mid (Y^T - XH - N) - Z
+        vq00 += mid * (Y00 - N00) - Z00
+        vq01 += mid * (Y10 - N01) - Z01
+        vq02 += mid * (Y20 - N02) - Z02
+        vq10 += mid * (Y01 - N01) - Z10
+        vq11 += mid * (Y11 - N11) - Z11
+        vq12 += mid * (Y21 - N12) - Z12
+        vq20 += mid * (Y02 - N02) - Z20
+        vq21 += mid * (Y12 - N12) - Z21
+        vq22 += mid * (Y22 - N22) - Z22
+        # vv' = vv - (Y + Y^T) + XH + N
+        vv00 += N00 - 2.0 * Y00
+        vv01 += N01 - Y01 - Y10
+        vv02 += N02 - Y02 - Y20
+        vv11 += N11 - 2.0 * Y11
+        vv12 += N12 - Y12 - Y21
+        vv22 += N22 - 2.0 * Y22
+        # rq' = rq + mid X^T, rv' = rv - X^T
+        rq00 += mid * X00
+        rq01 += mid * X10
+        rq02 += mid * X20
+        rq10 += mid * X01
+        rq11 += mid * X11
+        rq12 += mid * X21
+        rq20 += mid * X02
+        rq21 += mid * X12
+        rq22 += mid * X22
+        rv00 -= X00
+        rv01 -= X10
+        rv02 -= X20
+        rv10 -= X01
+        rv11 -= X11
+        rv12 -= X21
+        rv20 -= X02
+        rv21 -= X12
+        rv22 -= X22
+        # gyro noise: U Q U^T / dt = qg dt [(1 - k t2) I + k psi psi^T], psi = delta_R_k phi,
+        # since Jl Jl^T = I + k K^2 with k = 2C - B^2 - C^2 t2
+        if qg != 0.0:
+            kap = 2.0 * C - B * B - C * C * t2
+            w1 = qg * dt * kap
+            w0 = qg * dt - w1 * t2
+            s0 = r00 * x + r01 * y + r02 * z
+            s1 = r10 * x + r11 * y + r12 * z
+            s2 = r20 * x + r21 * y + r22 * z
+            ws0 = w1 * s0
+            ws1 = w1 * s1
+            rr00 += w0 + ws0 * s0
+            rr11 += w0 + ws1 * s1
+            rr22 += w0 + w1 * s2 * s2
+            rr01 += ws0 * s1
+            rr02 += ws0 * s2
+            rr12 += ws1 * s2
+        u = (h00, h01, h02, h10, h11, h12, h20, h21, h22,
+             g00, g01, g02, g10, g11, g12, g20, g21, g22,
+             m00, m01, m02, m10, m11, m12, m20, m21, m22,
+             a00, a01, a02, a10, a11, a12, a20, a21, a22,
+             b00, b01, b02, b10, b11, b12, b20, b21, b22,
+             rr00, rr01, rr02, rr11, rr12, rr22,
+             rv00, rv01, rv02, rv10, rv11, rv12, rv20, rv21, rv22,
+             rq00, rq01, rq02, rq10, rq11, rq12, rq20, rq21, rq22,
+             vv00, vv01, vv02, vv11, vv12, vv22,
+             vq00, vq01, vq02, vq10, vq11, vq12, vq20, vq21, vq22,
+             qq00, qq01, qq02, qq11, qq12, qq22)
+    # --- deltas: p += dt (v + c/2), v += c, R = R_k Exp(phi), Exp = I + A K + B K^2
+    Bxy = B * xy
+    Bxz = B * xz
+    Byz = B * yz
+    Ax = A * x
+    Ay = A * y
+    Az = A * z
+    e00 = 1.0 - B * (yy + zz)
+    e11 = 1.0 - B * (xx + zz)
+    e22 = 1.0 - B * (xx + yy)
+    e01 = Bxy - Az
+    e10 = Bxy + Az
+    e02 = Bxz + Ay
+    e20 = Bxz - Ay
+    e12 = Byz - Ax
+    e21 = Byz + Ax
+    return (T + dt,
+            r00 * e00 + r01 * e10 + r02 * e20, r00 * e01 + r01 * e11 + r02 * e21,
+            r00 * e02 + r01 * e12 + r02 * e22,
+            r10 * e00 + r11 * e10 + r12 * e20, r10 * e01 + r11 * e11 + r12 * e21,
+            r10 * e02 + r11 * e12 + r12 * e22,
+            r20 * e00 + r21 * e10 + r22 * e20, r20 * e01 + r21 * e11 + r22 * e21,
+            r20 * e02 + r21 * e12 + r22 * e22,
+            v0 + c0, v1 + c1, v2 + c2,
+            p0 + dt * (v0 + 0.5 * c0), p1 + dt * (v1 + 0.5 * c1), p2 + dt * (v2 + 0.5 * c2)), u

@@ -1,0 +1,403 @@
+"""The preintegrated measurement between two times, and its composition.
+
+:class:`PreintegratedImu` is the value type of GTSAM's ``PreintegratedImuMeasurements``:
+:meth:`~PreintegratedImu.integrate` adds one interval (through the scalar kernel
+:func:`~imu_ground.imu.preint_kernel.integrate_interval`), the properties read the
+deltas, the 9x9 covariance and the bias Jacobians in Forster's right-error form,
+:meth:`~PreintegratedImu.combine` composes two consecutive measurements exactly,
+:meth:`~PreintegratedImu.predict` moves a navigation state across the interval.
+
+Frames (glossary: :mod:`imu_ground.so3`): ``delta_R`` is ``R_{start<-end}``, the
+body frame at the end expressed in the body frame at the start;
+``delta_v``/``delta_p`` are in the body frame at the start.
+
+:func:`compose_left` is the batched composition (left-error, p-form arrays) that
+both :meth:`~PreintegratedImu.combine` and the batch preintegration's block merge use.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from imu_ground import so3
+from imu_ground.imu.matrix3 import project_if_needed
+from imu_ground.imu.preint_kernel import (
+    DELTAS_IDENTITY,
+    UNCERTAINTY_ZERO,
+    integrate_interval,
+)
+from imu_ground.imu.preint_params import PreintegrationParams
+
+__all__ = ["PreintegratedImu", "compose_left", "left_to_right", "right_to_left"]
+
+_I9 = np.eye(9)
+
+
+def _gather_indices() -> tuple[np.ndarray, np.ndarray]:
+    """Positions in ``(*uncertainty, 0.0)`` of the left-form q-form J (9x6) and S (9x9) entries."""
+    J = np.full((9, 6), 90)
+    for k, (r, c) in enumerate(((0, 0), (3, 0), (6, 0), (3, 3), (6, 3))):
+        J[r:r + 3, c:c + 3] = np.arange(9 * k, 9 * k + 9).reshape(3, 3)
+    S = np.full((9, 9), 90)
+    sym = np.array([[0, 1, 2], [1, 3, 4], [2, 4, 5]])
+    blocks = {(0, 0): (45, True), (0, 3): (51, False), (0, 6): (60, False),
+              (3, 3): (69, True), (3, 6): (75, False), (6, 6): (84, True)}
+    for (r, c), (o, is_sym) in blocks.items():
+        idx = o + (sym if is_sym else np.arange(9).reshape(3, 3))
+        S[r:r + 3, c:c + 3] = idx
+        S[c:c + 3, r:r + 3] = idx.T
+    return J, S
+
+
+_J_IDX, _S_IDX = _gather_indices()
+
+
+def left_to_right(R: np.ndarray, J: np.ndarray, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Left rotation error (start frame) to Forster's right error: ``D = diag(R^T, I, I)``.
+
+    Parameters
+    ----------
+    R : ndarray (..., 3, 3)
+        ``delta_R`` (``R_{start<-end}``).
+    J : ndarray (..., 9, 6)
+        Bias Jacobian, left form.
+    S : ndarray (..., 9, 9)
+        Covariance, left form.
+
+    Returns
+    -------
+    J, S : ndarrays of the same shapes, right form (S symmetrised).
+    """
+    Rt = np.swapaxes(R, -1, -2)
+    J = J.copy()
+    J[..., 0:3, :] = Rt @ J[..., 0:3, :]
+    S = S.copy()
+    S[..., 0:3, :] = Rt @ S[..., 0:3, :]
+    S[..., :, 0:3] = S[..., :, 0:3] @ R
+    return J, 0.5 * (S + np.swapaxes(S, -1, -2))
+
+
+def right_to_left(R: np.ndarray, J: np.ndarray, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse of :func:`left_to_right`."""
+    return left_to_right(np.swapaxes(R, -1, -2), J, S)
+
+
+def compose_left(a: tuple, b: tuple) -> tuple:
+    """Compose two consecutive preintegrated measurements (left-error, p-form), batched.
+
+    ``a`` and ``b`` are tuples ``(T, R, v, p, J, S)`` with shapes (...), (...,3,3),
+    (...,3), (...,3), (...,9,6), (...,9,9); ``a`` comes first; ``J``/``S`` may be
+    None (deltas only). Exact for the deltas, exact linear-error propagation for
+    the bias Jacobian ``J`` and the covariance ``S``.
+    """
+    Ta, Ra, va, pa, Ja, Sa = a
+    Tb, Rb, vb, pb, Jb, Sb = b
+    R = Ra @ Rb
+    Rvb = np.einsum("...ij,...j->...i", Ra, vb)
+    Rpb = np.einsum("...ij,...j->...i", Ra, pb)
+    v = va + Rvb
+    p = pa + va * Tb[..., None] + Rpb
+    T = Ta + Tb
+    if Ja is None:
+        return T, R, v, p, None, None
+    shape = Ta.shape
+    Fa = np.broadcast_to(_I9, shape + (9, 9)).copy()
+    Fa[..., 3:6, 0:3] = -so3.hat(Rvb)
+    Fa[..., 6:9, 0:3] = -so3.hat(Rpb)
+    Fa[..., 6:9, 3:6] = Tb[..., None, None] * np.eye(3)
+    Fb = np.zeros(shape + (9, 9))
+    for k in range(3):
+        Fb[..., 3 * k:3 * k + 3, 3 * k:3 * k + 3] = Ra
+    J = Fa @ Ja + Fb @ Jb
+    S = Fa @ Sa @ np.swapaxes(Fa, -1, -2) + Fb @ Sb @ np.swapaxes(Fb, -1, -2)
+    return T, R, v, p, J, 0.5 * (S + np.swapaxes(S, -1, -2))
+
+
+class PreintegratedImu:
+    """Preintegrated IMU measurements between two times (value type).
+
+    Like GTSAM's ``PreintegratedImuMeasurements``: :meth:`integrate` each
+    interval's duration and held measurements, read the deltas, covariance and
+    bias Jacobians, :meth:`reset` to start a new interval.
+
+    Parameters
+    ----------
+    params : PreintegrationParams, optional
+        Biases, noise densities, gravity, ``uncertainty`` (False: deltas only;
+        the covariance and Jacobian properties then raise ValueError).
+    **options
+        Fields of :class:`~imu_ground.imu.preint_params.PreintegrationParams`
+        overriding ``params`` (``bias_gyro=..., gyro_noise_density=...``).
+
+    Attributes
+    ----------
+    params : PreintegrationParams
+    t_start, t_end : float
+        Times of the interval this object summarises, s (``nan`` unless set by
+        :class:`~imu_ground.imu.preint_stream.StreamingPreintegrator` or
+        :meth:`FrameDeltas.frame <imu_ground.imu.preint_batch.FrameDeltas.frame>`).
+    valid : bool
+        False when the interval spans a timestamp gap longer than ``max_gap``.
+    n_intervals : int
+        Number of integration intervals since the last reset.
+    """
+
+    __slots__ = ("_par", "_right_cache", "_s", "_u", "n_intervals", "params", "t_end", "t_start", "valid")
+
+    def __init__(self, params: PreintegrationParams | None = None, **options: Any) -> None:
+        self.params = PreintegrationParams.coerce(params, **options)
+        self.reset()
+
+    @classmethod
+    def _from_state(cls, params: PreintegrationParams, s: tuple, u: tuple | None, n: int,
+                    t_start: float, t_end: float, valid: bool) -> PreintegratedImu:
+        out = cls.__new__(cls)
+        out.params = params
+        out._par = params.scalars
+        out._s, out._u, out.n_intervals = s, u, n
+        out._right_cache = None
+        out.t_start, out.t_end, out.valid = t_start, t_end, valid
+        return out
+
+    # -- state -------------------------------------------------------------
+    def reset(self, bias_gyro: Sequence[float] | None = None,
+              bias_accel: Sequence[float] | None = None) -> None:
+        """Start over: identity deltas, zero covariance and Jacobians.
+
+        Parameters
+        ----------
+        bias_gyro, bias_accel : array_like, shape (3,), optional
+            New linearisation biases (rad/s, m/s^2, body frame); unchanged if None.
+        """
+        self.params = PreintegrationParams.coerce(self.params, bias_gyro=bias_gyro, bias_accel=bias_accel)
+        self._par = self.params.scalars
+        self._s = DELTAS_IDENTITY
+        self._u = UNCERTAINTY_ZERO if self.params.uncertainty else None
+        self._right_cache = None
+        self.n_intervals = 0
+        self.t_start = self.t_end = math.nan
+        self.valid = True
+
+    def copy(self) -> PreintegratedImu:
+        """An independent copy (the states are immutable tuples, shared)."""
+        return PreintegratedImu._from_state(self.params, self._s, self._u, self.n_intervals,
+                                            self.t_start, self.t_end, self.valid)
+
+    def integrate(self, dt: float, gyro: Sequence[float], accel: Sequence[float]) -> None:
+        """Add one interval with constant measurements.
+
+        Parameters
+        ----------
+        dt : float
+            Interval length, s (> 0).
+        gyro : sequence of 3 floats
+            Angular rate held over the interval, rad/s, body frame (bias not removed).
+        accel : sequence of 3 floats
+            Specific force held over the interval, m/s^2, body frame (bias not removed).
+        """
+        if not dt > 0.0:
+            raise ValueError(f"dt must be > 0, got {dt!r}")
+        wx, wy, wz = (float(g) for g in gyro)
+        ax, ay, az = (float(a) for a in accel)
+        self._s, self._u = integrate_interval(self._s, self._u, float(dt), wx, wy, wz, ax, ay, az, self._par)
+        self.n_intervals += 1
+
+    # -- read-outs -----------------------------------------------------------
+    @property
+    def uncertainty(self) -> bool:
+        """Whether the covariance and the bias Jacobians are propagated."""
+        return self._u is not None
+
+    @property
+    def gyro_noise_density(self) -> float:
+        """rad/s/sqrt(Hz)."""
+        return self.params.gyro_noise_density
+
+    @property
+    def accel_noise_density(self) -> float:
+        """m/s^2/sqrt(Hz)."""
+        return self.params.accel_noise_density
+
+    @property
+    def bias_gyro(self) -> np.ndarray:
+        """Gyro bias the deltas were integrated with, rad/s, body frame, shape (3,)."""
+        return np.array(self.params.bias_gyro)
+
+    @property
+    def bias_accel(self) -> np.ndarray:
+        """Accelerometer bias the deltas were integrated with, m/s^2, body frame, shape (3,)."""
+        return np.array(self.params.bias_accel)
+
+    @property
+    def delta_t(self) -> float:
+        """Integrated time, s (sum of the interval lengths)."""
+        return self._s[0]
+
+    @property
+    def delta_R(self) -> np.ndarray:
+        """``R_{start<-end}``, shape (3, 3): body frame at the end -> body frame at the start."""
+        return project_if_needed(np.array(self._s[1:10]).reshape(3, 3))
+
+    @property
+    def delta_v(self) -> np.ndarray:
+        """Velocity increment without gravity, m/s, body frame at the start, shape (3,)."""
+        return np.array(self._s[10:13])
+
+    @property
+    def delta_p(self) -> np.ndarray:
+        """Position increment without gravity, m, body frame at the start, shape (3,)."""
+        return np.array(self._s[13:16])
+
+    def _left_arrays(self) -> tuple:
+        """(T, R, v, p, J, S): left-error, p-form arrays of the state."""
+        if self._u is None:
+            raise ValueError("this preintegration was made with uncertainty=False: it has no covariance "
+                             "or bias Jacobians (use uncertainty=True)")
+        s = self._s
+        T = s[0]
+        a = np.array(self._u + (0.0,))
+        J = a[_J_IDX]
+        S = a[_S_IDX]
+        # q form -> p form: p = q + T v (rows 6:9 += T rows 3:6, same for columns)
+        J[6:9] += T * J[3:6]
+        S[6:9] += T * S[3:6]
+        S[:, 6:9] += T * S[:, 3:6]
+        return (np.float64(T), np.array(s[1:10]).reshape(3, 3), np.array(s[10:13]),
+                np.array(s[13:16]), J, S)
+
+    def _right(self) -> tuple[np.ndarray, np.ndarray]:
+        """(J, S) in Forster's right form, computed once per state (the state tuples are immutable)."""
+        cache = self._right_cache
+        if cache is None or cache[0] is not self._u:
+            _, R, _, _, J, S = self._left_arrays()
+            cache = self._right_cache = (self._u, *left_to_right(R, J, S))
+        return cache[1], cache[2]
+
+    @property
+    def bias_jacobian(self) -> np.ndarray:
+        """All bias Jacobians (9, 6): rows [rotation (right, end body frame), velocity, position], columns [bg, ba]."""
+        return self._right()[0].copy()
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """Noise covariance (9, 9): [rotation (right error, end body frame, rad), velocity (m/s), position (m)]."""
+        return self._right()[1].copy()
+
+    @property
+    def d_R_d_bg(self) -> np.ndarray:
+        """(3, 3), rad per rad/s: ``delta_R(bg + d) ~= delta_R Exp(d_R_d_bg @ d)`` (right, end body frame)."""
+        return self._right()[0][0:3, 0:3].copy()
+
+    @property
+    def d_v_d_bg(self) -> np.ndarray:
+        """d delta_v / d bg, (3, 3), m/s per rad/s (start body frame)."""
+        return self._right()[0][3:6, 0:3].copy()
+
+    @property
+    def d_p_d_bg(self) -> np.ndarray:
+        """d delta_p / d bg, (3, 3), m per rad/s (start body frame)."""
+        return self._right()[0][6:9, 0:3].copy()
+
+    @property
+    def d_v_d_ba(self) -> np.ndarray:
+        """d delta_v / d ba, (3, 3), s (start body frame)."""
+        return self._right()[0][3:6, 3:6].copy()
+
+    @property
+    def d_p_d_ba(self) -> np.ndarray:
+        """d delta_p / d ba, (3, 3), s^2 (start body frame)."""
+        return self._right()[0][6:9, 3:6].copy()
+
+    def corrected(self, bias_gyro: Sequence[float], bias_accel: Sequence[float]
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """First-order bias update of the deltas without re-integration (Forster, Sec. VI-C).
+
+        Parameters
+        ----------
+        bias_gyro, bias_accel : array_like, shape (3,)
+            New bias estimates, rad/s and m/s^2, body frame.
+
+        Returns
+        -------
+        delta_R : ndarray (3, 3)
+            ``delta_R Exp(d_R_d_bg @ dbg)``, ``R_{start<-end}``.
+        delta_v : ndarray (3,)
+            ``delta_v + d_v_d_bg @ dbg + d_v_d_ba @ dba``, m/s, start body frame.
+        delta_p : ndarray (3,)
+            ``delta_p + d_p_d_bg @ dbg + d_p_d_ba @ dba``, m, start body frame.
+        """
+        J = self.bias_jacobian
+        d = np.concatenate([np.asarray(bias_gyro, dtype=float) - self.bias_gyro,
+                            np.asarray(bias_accel, dtype=float) - self.bias_accel])
+        e = J @ d
+        R = self.delta_R @ so3.exp(e[0:3])
+        return so3.project(R), self.delta_v + e[3:6], self.delta_p + e[6:9]
+
+    def predict(self, R_world_start: np.ndarray, v_world: Sequence[float], p_world: Sequence[float]
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Navigation state at the end from the state at the start (Forster, Sec. VI-A).
+
+        Parameters
+        ----------
+        R_world_start : array_like (3, 3)
+            ``R_{world<-body}`` at the start (world: z up, gravity ``[0, 0, -params.gravity]``).
+        v_world, p_world : array_like (3,)
+            Velocity (m/s) and position (m) at the start, world frame.
+
+        Returns
+        -------
+        R_world_end, v_world_end, p_world_end
+            ``R_i delta_R``, ``v_i + g T + R_i delta_v``, ``p_i + v_i T + g T^2 / 2 + R_i delta_p``.
+        """
+        Ri = np.asarray(R_world_start, dtype=float).reshape(3, 3)
+        vi = np.asarray(v_world, dtype=float).reshape(3)
+        pi = np.asarray(p_world, dtype=float).reshape(3)
+        T = self.delta_t
+        g = np.array([0.0, 0.0, -self.params.gravity])
+        return (Ri @ self.delta_R, vi + g * T + Ri @ self.delta_v,
+                pi + vi * T + 0.5 * g * T * T + Ri @ self.delta_p)
+
+    def combine(self, other: PreintegratedImu) -> PreintegratedImu:
+        """Preintegration of this interval followed by ``other`` (exact composition).
+
+        Both must share biases and noise densities. The result's ``delta_R`` is
+        ``self.delta_R @ other.delta_R`` (end of ``other`` -> start of ``self``);
+        covariance and bias Jacobians are propagated exactly (linear errors).
+        """
+        if not self.params.same_model(other.params):
+            raise ValueError("combine needs equal biases and noise densities")
+        T, R, v, p, J, S = compose_left(self._left_arrays(), other._left_arrays())
+        return PreintegratedImu.from_arrays(
+            self.params, T, R, v, p, J, S, t_start=self.t_start, t_end=other.t_end,
+            valid=bool(self.valid and other.valid), n_intervals=self.n_intervals + other.n_intervals)
+
+    @classmethod
+    def from_arrays(cls, params: PreintegrationParams, T: float, R: np.ndarray, v: np.ndarray,
+                    p: np.ndarray, J: np.ndarray, S: np.ndarray, *, t_start: float = math.nan,
+                    t_end: float = math.nan, valid: bool = True, n_intervals: int = 0) -> PreintegratedImu:
+        """A measurement from left-error, p-form arrays (as :func:`compose_left` returns them).
+
+        ``J``/``S`` (9x6, 9x9) are converted to the q form of the kernel state.
+        """
+        T = float(T)
+        J = np.array(J, dtype=float)
+        S = np.array(S, dtype=float)
+        J[6:9] -= T * J[3:6]
+        S[6:9] -= T * S[3:6]
+        S[:, 6:9] -= T * S[:, 3:6]
+        u = np.empty(91)
+        u[_J_IDX] = J
+        u[_S_IDX] = S
+        s = (T, *np.asarray(R, dtype=float).reshape(9).tolist(), *np.asarray(v, dtype=float).tolist(),
+             *np.asarray(p, dtype=float).tolist())
+        return cls._from_state(params, s, tuple(u[:90].tolist()), int(n_intervals), float(t_start),
+                               float(t_end), bool(valid))
+
+    def __repr__(self) -> str:
+        phi = so3.log(self.delta_R)
+        return (f"PreintegratedImu(delta_t={self.delta_t:.6g} s, n_intervals={self.n_intervals}, "
+                f"rotvec={np.array2string(phi, precision=5)}, delta_v={np.array2string(self.delta_v, precision=5)}, "
+                f"delta_p={np.array2string(self.delta_p, precision=5)}, valid={self.valid})")

@@ -1,0 +1,277 @@
+"""Sample-by-sample preintegration into frames: the streaming front-end.
+
+:class:`StreamingPreintegrator` cuts the stream into the same frames as the batch
+:func:`~imu_ground.imu.preint_batch.preintegrate` (same knots, held values,
+boundary splitting and gap rule, see :mod:`imu_ground.imu.preintegration`) and
+integrates each interval with the same scalar kernel as
+:class:`~imu_ground.imu.preint_measurement.PreintegratedImu`
+(:func:`~imu_ground.imu.preint_kernel.integrate_interval`). The per-sample path
+touches only Python floats and tuples: no numpy, no object per sample.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import numpy as np
+
+from imu_ground.imu.preint_frames import first_rate_boundary
+from imu_ground.imu.preint_kernel import (
+    DELTAS_IDENTITY,
+    UNCERTAINTY_ZERO,
+    integrate_interval,
+)
+from imu_ground.imu.preint_measurement import PreintegratedImu
+from imu_ground.imu.preint_params import PreintegrationParams, gap_message
+
+__all__ = ["StreamingPreintegrator"]
+
+_ndarray = np.ndarray
+_INF = math.inf
+
+
+class StreamingPreintegrator:
+    """Sample-by-sample front-end: emits a finished :class:`PreintegratedImu` per frame.
+
+    Frames are given by explicit boundary times, a frame rate, or a sample
+    count, exactly as in :func:`~imu_ground.imu.preint_batch.preintegrate`, and
+    the results are the same.
+
+    Parameters
+    ----------
+    frame_times : iterable of float, optional
+        Boundaries, s, strictly increasing; samples before the first are ignored.
+    rate : float, optional
+        Frame rate, Hz: boundaries ``t_origin + k / rate``, unbounded.
+    every : int, optional
+        A boundary at every ``every``-th sample, starting with the first.
+    t_origin : float, optional
+        First boundary for ``rate`` (default: the first sample's time), s.
+    params : PreintegrationParams, optional
+        Biases, noise densities, hold, gap rule, snapping, ``uncertainty``
+        (False: deltas only, the fast choice for a filter that needs just
+        ``delta_R``/``delta_v``).
+    **options
+        Fields of :class:`~imu_ground.imu.preint_params.PreintegrationParams`
+        overriding ``params``.
+
+    Notes
+    -----
+    A frame is emitted by the first sample at or after its end boundary (less
+    ``snap_tol``), since the interval that straddles the boundary is needed.
+    For speed pass Python floats (tuples or lists); numpy rows are converted
+    with ``tolist()``. Each emitted frame has ``t_start``, ``t_end`` and
+    ``valid`` set; its ``delta_R`` is ``R_{start<-end}`` (body frame at
+    ``t_end`` -> body frame at ``t_start``). A sample rejected with ValueError
+    (non-increasing time, gap with ``on_gap="raise"``) leaves the state unchanged.
+    """
+
+    def __init__(self, frame_times: Iterable[float] | None = None, *,
+                 rate: float | None = None, every: int | None = None,
+                 t_origin: float | None = None, params: PreintegrationParams | None = None,
+                 **options: Any) -> None:
+        par = self.params = PreintegrationParams.coerce(params, **options)
+        if sum(x is not None for x in (frame_times, rate, every)) != 1:
+            raise ValueError("give exactly one of frame_times, rate and every")
+        self._times = None
+        if frame_times is not None:
+            self._times = np.asarray(list(frame_times), dtype=float).reshape(-1).tolist()
+            if any(not (b - a > 2 * par.snap_tol) for a, b in zip(self._times, self._times[1:])):
+                raise ValueError("frame_times must be strictly increasing (by more than 2 * snap_tol)")
+        if rate is not None and not rate > 0:
+            raise ValueError(f"rate must be > 0, got {rate}")
+        if every is not None and int(every) < 1:
+            raise ValueError(f"every must be >= 1, got {every}")
+        self._rate = None if rate is None else float(rate)
+        self._every = None if every is None else int(every)
+        self._origin = None if t_origin is None else float(t_origin)
+        self._par = par.scalars
+        self._max_gap = par.max_gap
+        self._tol = par.snap_tol
+        self._midpoint = par.hold == "midpoint"
+        self._u0 = UNCERTAINTY_ZERO if par.uncertainty else None
+        self._s, self._u, self._n = DELTAS_IDENTITY, self._u0, 0
+        self._t_start, self._valid = math.nan, True
+        self._prev: tuple | None = None     # (t, wx, wy, wz, ax, ay, az) of the last sample
+        self._cd = 1 << 62                  # samples until the next every-N boundary
+        self._k = 0                         # index of the next boundary
+        self._next = _INF                   # time of the next boundary
+        self._lim = -_INF                   # fast path while t < _lim (= _next - snap_tol, inside a frame)
+        self._active = False                # inside a frame
+        self.push = self._push_midpoint if self._midpoint else self._push_left
+
+    # settings, read-only views of params
+    hold = property(lambda self: self.params.hold, doc="``'midpoint'`` or ``'left'``.")
+    max_gap = property(lambda self: self.params.max_gap, doc="Longest sample step, s, that is not a gap.")
+    on_gap = property(lambda self: self.params.on_gap, doc="``'raise'`` or ``'flag'``.")
+    snap_tol = property(lambda self: self.params.snap_tol, doc="Boundary snapping tolerance, s.")
+
+    @property
+    def current(self) -> PreintegratedImu:
+        """A snapshot of the frame being integrated (``t_end`` nan)."""
+        return PreintegratedImu._from_state(self.params, self._s, self._u, self._n, self._t_start,
+                                            math.nan, self._valid)
+
+    def push(self, t: float, gyro: Sequence[float], accel: Sequence[float]) -> tuple[PreintegratedImu, ...]:
+        """Add one sample; return the frames finished by it (usually none, or one).
+
+        Parameters
+        ----------
+        t : float
+            Sample time, s (strictly increasing).
+        gyro : sequence of 3 floats
+            Angular rate, rad/s, body frame.
+        accel : sequence of 3 floats
+            Specific force, m/s^2, body frame.
+
+        Returns
+        -------
+        tuple of PreintegratedImu
+            Finished frames (usually an empty tuple), each with ``t_start``,
+            ``t_end``, ``valid``; ``delta_R`` of each is ``R_{start<-end}``.
+        """
+        return self.push(t, gyro, accel)    # replaced per instance by the hold's fast path
+
+    def _push_midpoint(self, t: float, gyro: Sequence[float], accel: Sequence[float]) -> tuple:
+        # fast path (no boundary, no gap, inside a frame, not an every-N sample); else _push_slow
+        if type(t) is not float:
+            t = float(t)
+        if type(gyro) is _ndarray:
+            gyro = gyro.tolist()
+        if type(accel) is _ndarray:
+            accel = accel.tolist()
+        prev = self._prev
+        if t < self._lim and prev is not None:
+            h = t - prev[0]
+            if 0.0 < h <= self._max_gap:
+                cd = self._cd - 1
+                if cd:
+                    self._cd = cd
+                    wx, wy, wz = gyro
+                    ax, ay, az = accel
+                    self._prev = (t, wx, wy, wz, ax, ay, az)
+                    _, gx, gy, gz, fx, fy, fz = prev
+                    self._s, self._u = integrate_interval(
+                        self._s, self._u, h, (gx + wx) * 0.5, (gy + wy) * 0.5, (gz + wz) * 0.5,
+                        (fx + ax) * 0.5, (fy + ay) * 0.5, (fz + az) * 0.5, self._par)
+                    self._n += 1
+                    return ()
+        return self._push_slow(t, gyro, accel)
+
+    def _push_left(self, t: float, gyro: Sequence[float], accel: Sequence[float]) -> tuple:
+        # as _push_midpoint, with the left sample's value held
+        if type(t) is not float:
+            t = float(t)
+        if type(gyro) is _ndarray:
+            gyro = gyro.tolist()
+        if type(accel) is _ndarray:
+            accel = accel.tolist()
+        prev = self._prev
+        if t < self._lim and prev is not None:
+            h = t - prev[0]
+            if 0.0 < h <= self._max_gap:
+                cd = self._cd - 1
+                if cd:
+                    self._cd = cd
+                    wx, wy, wz = gyro
+                    ax, ay, az = accel
+                    self._prev = (t, wx, wy, wz, ax, ay, az)
+                    self._s, self._u = integrate_interval(self._s, self._u, h, prev[1], prev[2], prev[3],
+                                                          prev[4], prev[5], prev[6], self._par)
+                    self._n += 1
+                    return ()
+        return self._push_slow(t, gyro, accel)
+
+    # -- boundaries ---------------------------------------------------------
+    def _boundary(self, k: int) -> float:
+        if self._times is not None:
+            return self._times[k] if k < len(self._times) else _INF
+        if self._rate is not None:
+            return self._origin + k / self._rate
+        return _INF     # every-N boundaries are counted in samples
+
+    def _cross(self, tb: float, out: list) -> None:
+        """A boundary at tb: emit the running frame, start the next if there is one."""
+        if self._active:
+            out.append(PreintegratedImu._from_state(self.params, self._s, self._u, self._n,
+                                                    self._t_start, tb, self._valid))
+        self._k += 1
+        self._next = self._boundary(self._k)
+        self._active = self._every is not None or self._next != _INF
+        self._lim = self._next - self._tol if self._active else -_INF
+        self._s, self._u, self._n = DELTAS_IDENTITY, self._u0, 0
+        self._t_start, self._valid = tb, True
+
+    def _piece(self, dt: float, ka: tuple, kb: tuple, gap: bool) -> None:
+        """Integrate a piece of length dt between knots with values ka and kb."""
+        if gap:
+            self._valid = False
+        if self._midpoint:
+            held = [(a + b) * 0.5 for a, b in zip(ka, kb)]
+        else:
+            held = ka
+        self._s, self._u = integrate_interval(self._s, self._u, dt, *held, self._par)
+        self._n += 1
+
+    def _start(self, t: float, out: list) -> None:
+        """The first sample: place the first boundary."""
+        tol = self._tol
+        if self._every is not None:
+            self._cross(t, out)
+            self._cd = self._every
+            return
+        if self._rate is not None:
+            if self._origin is None:
+                self._origin = t
+            self._k = first_rate_boundary(t, self._rate, self._origin, tol)   # as make_frame_times
+        self._next = self._boundary(self._k)
+        self._lim = -_INF
+        if self._next < t - tol:
+            raise ValueError(f"frame boundary {self._next!r} s is before the first sample at {t!r} s")
+        if abs(self._next - t) <= tol:
+            self._cross(self._next, out)
+
+    def _push_slow(self, t: float, gyro: Sequence[float], accel: Sequence[float]) -> tuple:
+        sample = (t, *gyro, *accel)
+        if len(sample) != 7:
+            raise ValueError(f"gyro and accel must have 3 values each, got {gyro!r}, {accel!r}")
+        out: list[PreintegratedImu] = []
+        prev = self._prev
+        tol = self._tol
+        if prev is None:
+            self._start(t, out)
+            self._prev = sample
+            return tuple(out)
+        t0 = prev[0]
+        h = t - t0
+        if not h > 0.0:
+            raise ValueError(f"IMU timestamps must be strictly increasing: got t = {t!r} s after "
+                             f"{t0!r} s; drop non-increasing samples upstream (validation)")
+        gap = h > self._max_gap
+        if gap and self.params.on_gap == "raise" and (self._active or self._next < t - tol):
+            raise ValueError(gap_message(t0, h, self._max_gap))
+        self._prev = sample
+        # boundaries strictly inside (t0, t - tol): split the interval there
+        tk, k0, k1 = t0, prev[1:], sample[1:]
+        while self._next < t - tol:
+            tb = self._next
+            if self._midpoint:
+                wgt = (tb - t0) / h
+                kb = tuple(a + (b - a) * wgt for a, b in zip(prev[1:], k1))
+            else:
+                kb = k0
+            if self._active:
+                self._piece(tb - tk, k0, kb, gap)
+            self._cross(tb, out)
+            tk, k0 = tb, kb
+        if self._active:
+            self._piece(t - tk, k0, k1, gap)
+        if self._every is not None:
+            self._cd -= 1
+            if self._cd == 0:
+                self._cross(t, out)
+                self._cd = self._every
+        elif abs(self._next - t) <= tol:
+            self._cross(self._next, out)
+        return tuple(out)
