@@ -7,8 +7,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from imu_ground.evaluation.reference import (check_reference, drop_out_of_order, frame_times,
-                                  pitch_reference, smoothed_grade, travelled_distance)
+from imu_ground.evaluation.reference import (
+    check_reference,
+    drop_out_of_order,
+    frame_times,
+    pitch_reference,
+    smoothed_grade,
+    travelled_distance,
+)
 
 
 def make_drive(t, speed, grade, pitch, heading=0.3, vu=None):
@@ -159,57 +165,43 @@ def test_check_reference_synthetic_verdicts():
 
 
 # ----------------------------------------------------------------------------- real drives
-
-def _drives(shared_data):
-    folder = shared_data / "kitti_imu100"
-    names = pd.read_csv(folder / "drives.csv")["drive"].tolist()
-    return folder, names
-
-
 @pytest.fixture(scope="module")
-def kitti_checks(shared_data):
-    folder, names = _drives(shared_data)
-    out = {}
-    for name in names:
-        df = pd.read_csv(folder / f"{name}.csv.gz")
-        ref = pitch_reference(df)
-        out[name] = (ref, check_reference(df, ref))
-    return out
+def kitti_drives(shared_data):
+    """All 33 kitti_imu100 drives through the evaluation's one loader."""
+    from imu_ground.evaluation.drives import load_real_drives
+    return {d.name: d for d in load_real_drives(shared_data / "kitti_imu100", progress=False)}
 
 
-@pytest.mark.shared
-def test_kitti_faulty_drives_are_detected(kitti_checks):
-    assert len(kitti_checks) == 33
-    flagged = {name for name, (_, chk) in kitti_checks.items() if not chk.valid}
-    # Detected from the data: 0093 (vu stuck near -6.5 m/s: 25-50 deg "grades")
-    # and 2011_09_28_drive_0039 (parked, never above 0.3 m/s).
-    # 2011_09_28_drive_0002, which the data README lists as faulty for lack of
-    # motion, has 81 moving frames (73 m) and a consistent INS solution: more
-    # motion than 2011_09_26_drive_0057 (61 frames, 48 m) and _0018 (74 frames,
-    # 51 m), which the README counts as valid. No motion threshold can flag it
-    # without flagging those two; it passes, see the reference report.
+def test_kitti_faulty_drives_are_detected(kitti_drives):
+    assert len(kitti_drives) == 33
+    flagged = {name for name, d in kitti_drives.items() if not d.valid}
+    # Detected from the data alone: 0093 (vu stuck near -6.5 m/s: 25-50 deg "grades")
+    # and 2011_09_28_drive_0039 (parked, never above 0.3 m/s). 2011_09_28_drive_0002
+    # (81 moving frames, 73 m, a consistent INS solution) passes: 31 valid drives,
+    # as the data README now counts them.
     assert flagged == {"2011_09_26_drive_0093", "2011_09_28_drive_0039"}
-    chk = kitti_checks["2011_09_26_drive_0093"][1]
+    chk = kitti_drives["2011_09_26_drive_0093"].check
     assert "impossible road grade" in chk.reason and chk.stats["max_abs_vu"] > 5.0
-    assert "too little motion" in kitti_checks["2011_09_28_drive_0039"][1].reason
+    assert "too little motion" in kitti_drives["2011_09_28_drive_0039"].reason
+    assert kitti_drives["2011_09_28_drive_0002"].valid
 
 
-@pytest.mark.shared
-def test_kitti_reference_plausible_on_valid_drives(kitti_checks):
+def test_kitti_reference_plausible_on_valid_drives(kitti_drives):
     """On good drives: pitch relative to the road within a few degrees, offsets under 1.5 deg."""
-    for name, (ref, chk) in kitti_checks.items():
-        if not chk.valid:
+    for name, d in kitti_drives.items():
+        if not d.valid:
             continue
-        assert chk.stats["n_moving_frames"] >= 50, name
-        assert chk.stats["max_abs_pitch_rel_road_deg"] < 5.0, name
-        assert abs(chk.stats["offset_deg"]) < 1.5, name
+        assert d.check.stats["n_moving_frames"] >= 50, name
+        assert d.check.stats["max_abs_pitch_rel_road_deg"] < 5.0, name
+        assert abs(d.check.stats["offset_deg"]) < 1.5, name
+        # the reference's uncertainty: finite on the evaluated frames, largest at low speed
+        sigma = d.truth["ref_sigma"][d.truth["evaluate"]].to_numpy()
+        assert np.all(np.isfinite(sigma)) and np.all(sigma > 0), name
 
 
-@pytest.mark.shared
-def test_kitti_constant_normal_baseline(kitti_checks):
-    """'Always level' scores the mean |pitch relative to the road|: 0.24 deg on the 30 README drives."""
-    readme_faulty = {"2011_09_26_drive_0093", "2011_09_28_drive_0002", "2011_09_28_drive_0039"}
-    errs = [np.mean(np.abs(np.degrees(ref.pitch_rel_road[ref.valid])))
-            for name, (ref, _) in kitti_checks.items() if name not in readme_faulty]
-    assert len(errs) == 30
-    assert np.mean(errs) == pytest.approx(0.242, abs=0.003)
+def test_kitti_constant_normal_baseline(kitti_drives):
+    """'Always level' scores the mean |pitch relative to the road|: 0.240 deg on the 31 valid drives."""
+    errs = [np.mean(np.abs(np.degrees(d.truth["pitch"][d.truth["evaluate"]])))
+            for d in kitti_drives.values() if d.valid]
+    assert len(errs) == 31
+    assert np.mean(errs) == pytest.approx(0.240, abs=0.003)

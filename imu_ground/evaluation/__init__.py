@@ -1,4 +1,4 @@
-"""Evaluation: reference, metrics, baselines, simulator, plots and the runner."""
+"""Evaluation: reference, metrics, conditions, baselines, simulator, drives, plots and the runner."""
 from imu_ground._lazy import lazy_exports
 
 _EXPORTS = {
@@ -47,15 +47,25 @@ _EXPORTS = {
     "plot_error_distribution": "imu_ground.evaluation.plots",
     "plot_simulation": "imu_ground.evaluation.plots",
     "evaluation_plots": "imu_ground.evaluation.plots",
-    "Drive": "imu_ground.evaluation.runner",
+    "ROAD_PLANE_WINDOW": "imu_ground.evaluation.simulate",
+    "Drive": "imu_ground.evaluation.drives",
+    "load_real_drive": "imu_ground.evaluation.drives",
+    "load_real_drives": "imu_ground.evaluation.drives",
+    "synthetic_drive": "imu_ground.evaluation.drives",
+    "synthetic_drives": "imu_ground.evaluation.drives",
+    "CONDITIONS": "imu_ground.evaluation.conditions",
+    "frame_signals": "imu_ground.evaluation.conditions",
+    "condition_masks": "imu_ground.evaluation.conditions",
+    "moving_segments": "imu_ground.evaluation.conditions",
+    "segment_centred": "imu_ground.evaluation.conditions",
+    "reference_sigma": "imu_ground.evaluation.conditions",
+    "Method": "imu_ground.evaluation.runner",
+    "EVALUATION_METHODS": "imu_ground.evaluation.runner",
     "METHODS": "imu_ground.evaluation.runner",
     "TUNED": "imu_ground.evaluation.runner",
-    "LISTED_FAULTY": "imu_ground.evaluation.runner",
-    "load_real_drive": "imu_ground.evaluation.runner",
-    "load_real_drives": "imu_ground.evaluation.runner",
-    "synthetic_drives": "imu_ground.evaluation.runner",
     "run_method": "imu_ground.evaluation.runner",
     "evaluate": "imu_ground.evaluation.runner",
+    "conditions_table": "imu_ground.evaluation.runner",
     "format_table": "imu_ground.evaluation.runner",
 }
 __all__ = list(_EXPORTS)

@@ -1,4 +1,4 @@
-r"""Baselines to compare the ground normal filter against.
+r"""Baselines to compare the ground normal filters against, on the estimator protocol.
 
 - :class:`ConstantNormal`: the static extrinsic alone (the paper's "naive").
 - :class:`EulerEKF`: a standard EKF on filterpy's
@@ -6,62 +6,39 @@ r"""Baselines to compare the ground normal filter against.
   angles ``(roll, pitch, yaw)`` of the slow road attitude ``X`` (world <- road,
   ``X = Rz(yaw) Ry(pitch) Rx(roll)``). It gets the same ego-motion, the same
   prediction (``X <- X T_k``, the heading twist of each increment, or a pure
-  random walk) and the same Q and R as :class:`~imu_ground.filters.ground.GroundNormalFilter`
+  random walk) and the same Q and R as :class:`~imu_ground.filters.GroundNormalFilter`
   and measures the Euler angles of the cumulative rotation (``H = I``, angle
   differences wrapped to (-pi, pi]). What it lacks is invariance: its
   covariance lives in Euler coordinates, whose Jacobians depend on the state
   and whose axes do not turn with the vehicle, so large turns and poor
   initial estimates are where it differs.
 
-Both return a :class:`~imu_ground.filters.ground.GroundTrack`, frames as documented there.
+Both follow :class:`~imu_ground.filters.estimator.GroundEstimator`: ``reset()``,
+``step(frame) -> GroundEstimate`` and ``run(egomotion, smooth=False) -> GroundTrack``
+(frames and signs as documented in :mod:`imu_ground.filters.estimator`). A bad
+frame (not a rotation, non-finite, ``delta_t <= 0``) raises ``ValueError`` and
+leaves the state as it was.
 """
 from __future__ import annotations
 
-import math
-from typing import Optional, Union
-
 import numpy as np
-from filterpy.kalman import ExtendedKalmanFilter
-from scipy.spatial.transform import Rotation
 
 from imu_ground import so3
+from imu_ground.filters.estimator import (
+    GroundEstimate,
+    GroundTrack,
+    as_egomotion,
+    bad_frame_error,
+    frame_problem,
+    frame_problems,
+    frame_where,
+    pitch_roll_from_normal,
+    static_rotation,
+)
 from imu_ground.filters.extrinsics import Extrinsic
-from imu_ground.filters.ground import GroundTrack, _twist_angle, pitch_roll_from_normal
+from imu_ground.filters.rotations import cumulative_rotations, euler_zyx, twist_angle
 
 __all__ = ["ConstantNormal", "EulerEKF", "euler_zyx", "from_euler_zyx"]
-
-
-def _body_increments(delta_Rs: np.ndarray, ext: Extrinsic) -> np.ndarray:
-    d = np.asarray(delta_Rs, dtype=float)
-    if d.ndim == 2 and d.shape[1] == 3:
-        d = so3.exp(d)
-    if d.ndim != 3 or d.shape[1:] != (3, 3):
-        raise ValueError(f"delta_Rs must have shape (N, 3, 3) or (N, 3), got {np.shape(delta_Rs)}")
-    return ext.rotation @ d @ ext.rotation.T
-
-
-def _cumulative(d: np.ndarray, R0: np.ndarray) -> np.ndarray:
-    out = np.empty_like(d)
-    R = R0
-    for k in range(len(d)):          # per frame (10 Hz), not per IMU sample
-        R = R @ d[k]
-        out[k] = R
-    return so3.project(out)
-
-
-def _track(E: np.ndarray, X: np.ndarray, P: np.ndarray, cum: np.ndarray, ext: Extrinsic) -> GroundTrack:
-    pitch, roll = pitch_roll_from_normal(E[:, 2, :])
-    dyn = E @ ext.rotation
-    return GroundTrack(dyn[:, 2, :].copy(), pitch, roll, E, dyn, P, X, cum, ext.translation.copy())
-
-
-def euler_zyx(R: np.ndarray) -> np.ndarray:
-    """``(roll, pitch, yaw)`` with ``R = Rz(yaw) Ry(pitch) Rx(roll)``, rad, batch (..., 3, 3) -> (..., 3)."""
-    R = np.asarray(R, dtype=float)
-    yaw = np.arctan2(R[..., 1, 0], R[..., 0, 0])
-    pitch = np.arctan2(-R[..., 2, 0], np.hypot(R[..., 2, 1], R[..., 2, 2]))
-    roll = np.arctan2(R[..., 2, 1], R[..., 2, 2])
-    return np.stack([roll, pitch, yaw], axis=-1)
 
 
 def from_euler_zyx(e: np.ndarray) -> np.ndarray:
@@ -74,7 +51,36 @@ def _wrap(a: np.ndarray) -> np.ndarray:
     return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
-class ConstantNormal:
+class _Baseline:
+    """The protocol's plumbing both baselines share: extrinsic, frame checks, ``run`` over ``step``."""
+
+    def __init__(self, extrinsic: Extrinsic | np.ndarray | None) -> None:
+        self.extrinsic = Extrinsic.coerce(extrinsic)
+        self._Rgs = static_rotation(self.extrinsic)
+        self._count = 0
+        self.cumulative = np.eye(3)
+
+    def _body_increment(self, frame) -> np.ndarray:
+        """``R_gs delta_R R_gs^T`` of a frame (an EgoFrame or a bare 3x3 rotation), checked."""
+        d = np.asarray(getattr(frame, "delta_R", frame), dtype=float)
+        dt = float(getattr(frame, "delta_t", 1.0))
+        problem = frame_problem(d.ravel().tolist(), None, dt) if d.shape == (3, 3) else \
+            f"delta_R must be 3x3, got shape {d.shape}"
+        if problem:
+            raise bad_frame_error(problem, frame_where(self._count, float(getattr(frame, "t", np.nan))))
+        self._count += 1
+        return d if self._Rgs is None else self._Rgs @ d @ self._Rgs.T
+
+    def _estimate(self, E: np.ndarray, P: np.ndarray) -> GroundEstimate:
+        pitch, roll = pitch_roll_from_normal(E[2])
+        return GroundEstimate(float(pitch), float(roll), True, residual=E, Rgs=self._Rgs, P=P)
+
+    def _no_smoother(self, smooth: bool) -> None:
+        if smooth:
+            raise ValueError(f"{type(self).__name__} has no offline smoother: run it with smooth=False")
+
+
+class ConstantNormal(_Baseline):
     """The static extrinsic alone: the normal never moves (the paper's "naive").
 
     Parameters
@@ -83,28 +89,51 @@ class ConstantNormal:
         Static sensor-to-ground extrinsic (ground <- sensor); identity by default.
     """
 
-    def __init__(self, extrinsic: Union[Extrinsic, np.ndarray, None] = None) -> None:
-        self.extrinsic = Extrinsic.coerce(extrinsic)
+    def __init__(self, extrinsic: Extrinsic | np.ndarray | None = None) -> None:
+        super().__init__(extrinsic)
 
-    def run(self, delta_Rs: np.ndarray, R0: Optional[np.ndarray] = None) -> GroundTrack:
-        """Per-frame track whose residual is the identity (normal = static normal).
+    def reset(self) -> None:
+        """Back to the start (cumulative rotation the identity)."""
+        self.cumulative = np.eye(3)
+        self._count = 0
+
+    def step(self, frame) -> GroundEstimate:
+        """One frame: the residual is the identity (normal = static normal).
 
         Parameters
         ----------
-        delta_Rs : ndarray (N, 3, 3) or (N, 3)
-            Relative sensor rotations, sensor_{k-1} <- sensor_k (only their count
-            and the cumulative rotation, for completeness, are used).
-        R0 : ndarray (3, 3), optional
-            Initial cumulative rotation, world <- body.
+        frame : EgoFrame or ndarray (3, 3)
+            ``delta_R`` sensor_{k-1} <- sensor_k (only the cumulative rotation uses it).
         """
-        d = _body_increments(delta_Rs, self.extrinsic)
-        n = len(d)
-        cum = _cumulative(d, np.eye(3) if R0 is None else np.asarray(R0, dtype=float))
+        self.cumulative = self.cumulative @ self._body_increment(frame)
+        return self._estimate(np.eye(3), np.zeros((3, 3)))
+
+    def run(self, egomotion, smooth: bool = False) -> GroundTrack:
+        """The whole drive at once (``smooth`` changes nothing: the estimate is constant).
+
+        Parameters
+        ----------
+        egomotion : EgoMotion, ImuData or ndarray (F, 3, 3) / (F, 3)
+            Frames in the sensor frame (see :func:`~imu_ground.filters.estimator.as_egomotion`).
+        smooth : bool
+        """
+        em = as_egomotion(egomotion)
+        d = np.asarray(em.delta_R, dtype=float)
+        for k, problem in enumerate(frame_problems(d, None, np.asarray(em.delta_t, dtype=float))):
+            if problem:
+                raise bad_frame_error(problem, frame_where(self._count + k, float(em.t[k])))
+        body = d if self._Rgs is None else self._Rgs @ d @ self._Rgs.T
+        n = len(body)
+        cum = cumulative_rotations(body, self.cumulative, self._count) if n else np.zeros((0, 3, 3))
+        if n:
+            self.cumulative = cum[-1].copy()
+            self._count += n
         E = np.tile(np.eye(3), (n, 1, 1))
-        return _track(E, cum, np.zeros((n, 3, 3)), cum, self.extrinsic)
+        return GroundTrack.from_residuals(E, cum, np.zeros((n, 3, 3)), cum, self._Rgs,
+                                          self.extrinsic.translation, t=em.t, valid=em.valid)
 
 
-class EulerEKF:
+class EulerEKF(_Baseline):
     """Standard EKF baseline with an Euler-angle state, on filterpy.
 
     Parameters
@@ -116,7 +145,7 @@ class EulerEKF:
         Static sensor-to-ground extrinsic (ground <- sensor).
     follow_heading : bool
         Predict with the heading twist of each body increment (as
-        :class:`~imu_ground.filters.ground.GroundNormalFilter` does by default).
+        :class:`~imu_ground.filters.GroundNormalFilter` does by default).
     x0 : array_like (3,), optional
         Initial (roll, pitch, yaw) of the slow state, rad; default zeros.
 
@@ -127,16 +156,24 @@ class EulerEKF:
     """
 
     def __init__(self, Q=1e-2, R=1.0, P=1.0, extrinsic=None, follow_heading: bool = True,
-                 x0: Optional[np.ndarray] = None) -> None:
-        self.extrinsic = Extrinsic.coerce(extrinsic)
+                 x0: np.ndarray | None = None) -> None:
+        super().__init__(extrinsic)
         self.follow_heading = follow_heading
+        self._init = (Q, R, P, None if x0 is None else np.asarray(x0, dtype=float).copy())
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the initial state and covariance."""
+        from filterpy.kalman import ExtendedKalmanFilter
+        Q, R, P, x0 = self._init
         ekf = ExtendedKalmanFilter(dim_x=3, dim_z=3)
-        ekf.x = np.zeros(3) if x0 is None else np.asarray(x0, dtype=float).copy()
+        ekf.x = np.zeros(3) if x0 is None else x0.copy()
         ekf.P = np.eye(3) * P if np.ndim(P) == 0 else np.asarray(P, dtype=float).copy()
         ekf.Q = np.eye(3) * Q if np.ndim(Q) == 0 else np.asarray(Q, dtype=float).copy()
         ekf.R = np.eye(3) * R if np.ndim(R) == 0 else np.asarray(R, dtype=float).copy()
         self.ekf = ekf
         self.cumulative = np.eye(3)
+        self._count = 0
 
     @staticmethod
     def _predict_jacobian(x: np.ndarray, T: np.ndarray) -> np.ndarray:
@@ -149,19 +186,24 @@ class EulerEKF:
             F[:, i] = _wrap(euler_zyx(from_euler_zyx(x + dx) @ T) - euler_zyx(from_euler_zyx(x - dx) @ T)) / (2 * h)
         return F
 
-    def step(self, delta_R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """One frame: returns the residual ``E = X^T R_k`` (road <- body) and ``P``.
+    def step(self, frame) -> GroundEstimate:
+        """One frame: predict with the heading twist (or a random walk), update with the Euler angles.
 
         Parameters
         ----------
-        delta_R : ndarray (3, 3)
-            sensor_{k-1} <- sensor_k.
+        frame : EgoFrame or ndarray (3, 3)
+            ``delta_R`` sensor_{k-1} <- sensor_k.
+
+        Returns
+        -------
+        GroundEstimate
+            Residual ``E = X^T R_k`` (road <- body), ``P`` in Euler coordinates (rad^2).
         """
-        d = self.extrinsic.rotation @ np.asarray(delta_R, dtype=float) @ self.extrinsic.rotation.T
+        d = self._body_increment(frame)
         self.cumulative = self.cumulative @ d
         ekf = self.ekf
         if self.follow_heading:
-            T = so3.rotz(float(_twist_angle(d)))
+            T = so3.rotz(float(twist_angle(d)))
             F = self._predict_jacobian(ekf.x, T)
             ekf.x = euler_zyx(from_euler_zyx(ekf.x) @ T)
         else:
@@ -174,21 +216,26 @@ class EulerEKF:
                    residual=lambda a, b: _wrap(np.asarray(a) - np.asarray(b)))
         ekf.x = np.asarray(ekf.x, dtype=float).ravel()
         ekf.x[2] = _wrap(ekf.x[2])
-        E = from_euler_zyx(ekf.x).T @ self.cumulative
-        return E, ekf.P
+        return self._estimate(from_euler_zyx(ekf.x).T @ self.cumulative, ekf.P.copy())
 
-    def run(self, delta_Rs: np.ndarray) -> GroundTrack:
-        """Process a sequence of relative rotations (sensor_{k-1} <- sensor_k), (N, 3, 3)."""
-        d = np.asarray(delta_Rs, dtype=float)
-        if d.ndim == 2 and d.shape[1] == 3:
-            d = so3.exp(d)
-        n = len(d)
-        E = np.empty((n, 3, 3))
-        P = np.empty((n, 3, 3))
-        X = np.empty((n, 3, 3))
-        cum = np.empty((n, 3, 3))
-        for k in range(n):
-            E[k], P[k] = self.step(d[k])
+    def run(self, egomotion, smooth: bool = False) -> GroundTrack:
+        """Process a drive frame by frame (continuing from the current state).
+
+        Parameters
+        ----------
+        egomotion : EgoMotion, ImuData or ndarray (F, 3, 3) / (F, 3)
+            Frames in the sensor frame (see :func:`~imu_ground.filters.estimator.as_egomotion`).
+        smooth : bool
+            Must be False (no smoother).
+        """
+        self._no_smoother(smooth)
+        em = as_egomotion(egomotion)
+        n = len(em)
+        E, P, X, cum = (np.empty((n, 3, 3)) for _ in range(4))
+        for k, frame in enumerate(em.frames()):
+            est = self.step(frame)
+            E[k], P[k] = est.residual, est.P
             X[k] = from_euler_zyx(self.ekf.x)
             cum[k] = self.cumulative
-        return _track(E, X, P, cum, self.extrinsic)
+        return GroundTrack.from_residuals(E, X, P, cum, self._Rgs, self.extrinsic.translation,
+                                          t=em.t, valid=em.valid)

@@ -1,0 +1,256 @@
+r"""Where the error is: driving conditions per frame, moving segments, and the reference's own uncertainty.
+
+Conditions (:func:`frame_signals`, :func:`condition_masks`)
+-----------------------------------------------------------
+Every condition is defined from signals that real and synthetic drives both
+have, per frame:
+
+- ``speed`` (m/s): the reference's horizontal speed (GPS/INS on real drives,
+  the simulation's truth on synthetic ones);
+- ``acc_long`` (m/s^2): its time derivative, a central difference over
+  ``+-ACC_WINDOW_S / 2`` (1 s in all), so that single-frame jitter of the INS
+  speed does not count as braking;
+- ``yaw_rate`` (rad/s): the rotation of the body about its z axis per frame,
+  from the ego-motion (``log(R_gs delta_R R_gs^T)_z / delta_t``);
+- ``pitch_rate_hf`` (rad/s): the RMS over a centred ``ROUGH_WINDOW_S`` window of
+  the body pitch rate from the ego-motion minus its centred moving mean over
+  the same window: the body shaking above about 1 Hz, i.e. road roughness.
+
+The conditions (a frame can be in several; all are further restricted to the
+evaluated frames of the drive, i.e. valid and moving above 3 m/s):
+
+============  ==============================================================
+``speed_3_6``  ``3 < speed <= 6``
+``speed_6_12`` ``6 < speed <= 12``
+``speed_o..``  ``speed > 12`` (``speed_over_12``)
+``turning``    ``|yaw_rate| > TURN_YAW_RATE`` (0.1 rad/s = 5.7 deg/s: a 90 deg
+               turn in 16 s or less)
+``braking``    ``acc_long < -BRAKE_DECEL`` (1 m/s^2)
+``near_stop``  within ``NEAR_STOP_S`` (3 s) before or after a frame with
+               ``speed < STOP_SPEED`` (0.5 m/s)
+``rough``      ``pitch_rate_hf > ROUGH_PITCH_RATE`` (1.1 deg/s: the upper quartile
+               of the evaluated frames of the 31 shared real drives)
+============  ==============================================================
+
+Moving segments (:func:`moving_segments`, :func:`segment_centred`)
+------------------------------------------------------------------
+A moving segment is a maximal run of frames between two stops (``speed <
+STOP_SPEED``), data gaps (invalid frames) included in the run. The
+per-segment metric removes the mean of the estimate and of the reference per
+segment (over its evaluated frames) instead of per drive: what is left is the
+error within a stretch of driving, without the slow offsets that change from
+one stop to the next. Segments with fewer than ``MIN_SEGMENT_FRAMES`` evaluated
+frames (3 s at 10 Hz) are left out of this metric.
+
+Reference uncertainty (:func:`reference_sigma`)
+-----------------------------------------------
+The real-data reference is ``pitch + atan(vu / v)`` from the INS. An error
+``e_vu`` of the vertical velocity is an error ``e_vu / v`` of the grade (rad), so
+the reference's uncertainty per frame is
+``sigma_ref = sqrt((INS_VU_NOISE / v)^2 + INS_PITCH_NOISE^2)`` with the INS's
+vertical-velocity noise 0.03 m/s (the level of the slow ``vu`` errors seen on
+the KITTI drives: 0.4 deg of grade at 4 m/s) and its pitch noise 0.03 deg (the
+OXTS RT3003 datasheet, 1 sigma). The 10 m grade window does not average the
+``vu`` error away: it is slow (correlated over many seconds), not white. A
+perfect estimator would then score ``sqrt(2 / pi) * sigma_ref`` in mean absolute
+error (``ref_floor``), and ``mean(sigma_ref^2) / mean(error^2)`` is the share of a
+method's mean squared error the reference alone can explain (``ref_share``).
+Synthetic drives have an exact truth: ``sigma_ref = 0``.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from imu_ground import so3
+from imu_ground.units import DEG
+
+__all__ = [
+    "ACC_WINDOW_S",
+    "BRAKE_DECEL",
+    "CONDITIONS",
+    "INS_PITCH_NOISE",
+    "INS_VU_NOISE",
+    "MIN_SEGMENT_FRAMES",
+    "NEAR_STOP_S",
+    "ROUGH_PITCH_RATE",
+    "ROUGH_WINDOW_S",
+    "SPEED_BINS",
+    "STOP_SPEED",
+    "TURN_YAW_RATE",
+    "condition_masks",
+    "frame_signals",
+    "moving_segments",
+    "reference_sigma",
+    "segment_centred",
+]
+
+#: Speed bins, m/s: (key, low, high), low exclusive, high inclusive.
+SPEED_BINS = (("speed_3_6", 3.0, 6.0), ("speed_6_12", 6.0, 12.0), ("speed_over_12", 12.0, math.inf))
+#: Yaw rate above which a frame is turning, rad/s.
+TURN_YAW_RATE = 0.1
+#: Deceleration above which a frame is braking, m/s^2.
+BRAKE_DECEL = 1.0
+#: Speed below which the vehicle is stopped, m/s.
+STOP_SPEED = 0.5
+#: Frames within this many seconds of a stop are "near stop", s.
+NEAR_STOP_S = 3.0
+#: RMS of the high-passed body pitch rate above which the road is rough, rad/s.
+ROUGH_PITCH_RATE = 1.1 * DEG
+#: Window of the roughness measure, s.
+ROUGH_WINDOW_S = 1.0
+#: Span of the central difference for the longitudinal acceleration, s.
+ACC_WINDOW_S = 1.0
+#: Fewest evaluated frames of a moving segment in the per-segment metric.
+MIN_SEGMENT_FRAMES = 30
+#: INS vertical-velocity noise, m/s (slow, correlated), and pitch noise, rad.
+INS_VU_NOISE = 0.03
+INS_PITCH_NOISE = 0.03 * DEG
+#: Condition keys and their labels in the reports, in report order.
+CONDITIONS = {"speed_3_6": "3-6 m/s", "speed_6_12": "6-12 m/s", "speed_over_12": ">12 m/s",
+              "turning": "turning", "braking": "braking", "near_stop": "within 3 s of a stop",
+              "rough": "rough road"}
+
+
+def _centred_mean(x: np.ndarray, half: int) -> np.ndarray:
+    """Centred moving mean over ``2 half + 1`` samples, windows truncated at the ends, NaN ignored."""
+    ok = np.isfinite(x)
+    c = np.concatenate([[0.0], np.cumsum(np.where(ok, x, 0.0))])
+    n = np.concatenate([[0], np.cumsum(ok)])
+    idx = np.arange(x.size)
+    lo = np.clip(idx - half, 0, x.size)
+    hi = np.clip(idx + half + 1, 0, x.size)
+    cnt = n[hi] - n[lo]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(cnt > 0, (c[hi] - c[lo]) / np.maximum(cnt, 1), np.nan)
+
+
+def frame_signals(egomotion, extrinsic_rotation: np.ndarray, speed: np.ndarray) -> dict[str, np.ndarray]:
+    """Per-frame signals that define the conditions (module docstring).
+
+    Parameters
+    ----------
+    egomotion : EgoMotion
+        Frames in the sensor frame (``delta_R`` sensor_{k-1} <- sensor_k, ``delta_t`` s, ``t`` s).
+    extrinsic_rotation : ndarray (3, 3)
+        Body/ground <- sensor.
+    speed : ndarray (F,)
+        Horizontal speed at the frames, m/s (NaN where unknown).
+
+    Returns
+    -------
+    dict of ndarray (F,)
+        ``speed`` m/s, ``acc_long`` m/s^2, ``yaw_rate`` rad/s, ``pitch_rate_hf`` rad/s.
+    """
+    r = np.asarray(extrinsic_rotation, dtype=float)
+    d = r @ np.asarray(egomotion.delta_R, dtype=float) @ r.T
+    dt = np.asarray(egomotion.delta_t, dtype=float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rate = so3.log(d) / np.where(dt > 0, dt, np.nan)[:, None] if len(d) else np.zeros((0, 3))
+    t = np.asarray(egomotion.t, dtype=float)
+    v = np.asarray(speed, dtype=float)
+    fr = float(egomotion.rate)
+    k = max(int(round(0.5 * ACC_WINDOW_S * fr)), 1)
+    acc = np.full(v.shape, np.nan)
+    if v.size > 2 * k:
+        acc[k:-k] = (v[2 * k:] - v[:-2 * k]) / (t[2 * k:] - t[:-2 * k])
+    half = max(int(round(0.5 * ROUGH_WINDOW_S * fr)), 1)
+    q = rate[:, 1] if len(rate) else np.zeros(0)
+    hf = q - _centred_mean(q, half)
+    rough = np.sqrt(_centred_mean(hf * hf, half)) if q.size else q
+    return {"speed": v, "acc_long": acc, "yaw_rate": rate[:, 2] if len(rate) else q,
+            "pitch_rate_hf": rough}
+
+
+def condition_masks(signals: dict[str, np.ndarray], t: np.ndarray) -> dict[str, np.ndarray]:
+    """Boolean masks per condition (:data:`CONDITIONS`) from :func:`frame_signals`.
+
+    Parameters
+    ----------
+    signals : dict
+        As from :func:`frame_signals`.
+    t : ndarray (F,)
+        Frame times, s.
+    """
+    v = signals["speed"]
+    with np.errstate(invalid="ignore"):
+        out = {name: (v > lo) & (v <= hi) for name, lo, hi in SPEED_BINS}
+        out["turning"] = np.abs(signals["yaw_rate"]) > TURN_YAW_RATE
+        out["braking"] = signals["acc_long"] < -BRAKE_DECEL
+        stopped = v < STOP_SPEED
+        out["rough"] = signals["pitch_rate_hf"] > ROUGH_PITCH_RATE
+    t = np.asarray(t, dtype=float)
+    near = np.zeros(v.shape, dtype=bool)
+    ts = t[stopped]                                   # increasing, as t is
+    if ts.size:
+        j = np.clip(np.searchsorted(ts, t), 1, ts.size)
+        before = np.abs(t - ts[j - 1])
+        after = np.abs(ts[np.minimum(j, ts.size - 1)] - t)
+        near = np.minimum(before, after) <= NEAR_STOP_S
+    out["near_stop"] = near
+    return {name: np.asarray(out[name], dtype=bool) for name in CONDITIONS}
+
+
+def moving_segments(speed: np.ndarray) -> np.ndarray:
+    """Segment index per frame: runs between stops get 0, 1, 2, ...; stopped frames -1.
+
+    Parameters
+    ----------
+    speed : ndarray (F,)
+        m/s; NaN (unknown, e.g. a data gap) does not end a segment.
+    """
+    v = np.asarray(speed, dtype=float)
+    with np.errstate(invalid="ignore"):
+        stopped = v < STOP_SPEED
+    starts = ~stopped & np.concatenate([[True], stopped[:-1]]) if v.size else stopped
+    seg = np.cumsum(starts) - 1
+    return np.where(stopped, -1, seg)
+
+
+def segment_centred(est: np.ndarray, ref: np.ndarray, mask: np.ndarray, segments: np.ndarray):
+    """Estimate minus reference with each one's mean removed per moving segment.
+
+    Parameters
+    ----------
+    est, ref : ndarray (F,)
+        Angles (any unit; the result has it).
+    mask : ndarray of bool (F,)
+        Evaluated frames.
+    segments : ndarray of int (F,)
+        From :func:`moving_segments`.
+
+    Returns
+    -------
+    errors : ndarray (F,)
+        NaN outside the evaluated frames of segments with at least
+        :data:`MIN_SEGMENT_FRAMES` evaluated frames.
+    """
+    use = np.asarray(mask, dtype=bool) & np.isfinite(est) & np.isfinite(ref) & (segments >= 0)
+    out = np.full(np.shape(est), np.nan)
+    for s in np.unique(segments[use]):
+        m = use & (segments == s)
+        if np.count_nonzero(m) >= MIN_SEGMENT_FRAMES:
+            out[m] = (est[m] - est[m].mean()) - (ref[m] - ref[m].mean())
+    return out
+
+
+def reference_sigma(speed: np.ndarray, vu_noise: float = INS_VU_NOISE,
+                    pitch_noise: float = INS_PITCH_NOISE) -> np.ndarray:
+    """Uncertainty (1 sigma, rad) of the INS pitch-relative-to-road reference per frame.
+
+    ``sqrt((vu_noise / v)^2 + pitch_noise^2)``; see the module docstring.
+
+    Parameters
+    ----------
+    speed : ndarray (F,)
+        Horizontal speed, m/s (frames at or below 0 m/s give inf).
+    vu_noise : float
+        INS vertical-velocity noise, m/s.
+    pitch_noise : float
+        INS pitch noise, rad.
+    """
+    v = np.asarray(speed, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        grade = np.where(v > 0, vu_noise / v, np.inf)
+    return np.sqrt(grade * grade + pitch_noise * pitch_noise)

@@ -1,0 +1,208 @@
+"""Drives with ground truth for the evaluation: real KITTI drives and synthetic ones.
+
+A :class:`Drive` holds one drive's ego-motion (IMU preintegrated into frames),
+its static extrinsic and its truth at the frames. :func:`load_real_drive` and
+:func:`load_real_drives` are THE loaders of the real ``kitti_imu100`` drives
+(tests, benchmarks and the CLI use them): the reader, the reference
+(:func:`~imu_ground.evaluation.reference.pitch_reference`) and its verdict from
+the signals alone (:func:`~imu_ground.evaluation.reference.check_reference`; no
+list of drive names is consulted).
+
+Protocols
+---------
+- Real drives: the truth is the body pitch relative to the road from the OXTS
+  GPS/INS, pitch only, on moving frames (speed > 3 m/s) that are valid in the
+  ego-motion, with the means of estimate and reference removed per drive (the
+  static mounting offset a calibration removes). Each frame carries the
+  reference's uncertainty (:func:`~imu_ground.evaluation.conditions.reference_sigma`).
+  Drives whose reference is faulty are reported, not averaged.
+- Synthetic drives: exact truth of the normal in the sensor frame, pitch and
+  roll; valid frames with speed > 3 m/s; nothing removed. Every method gets the
+  true static extrinsic (as a calibration would give).
+"""
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from imu_ground.evaluation.conditions import frame_signals, reference_sigma
+from imu_ground.evaluation.reference import MIN_SPEED
+from imu_ground.filters import Extrinsic
+from imu_ground.imu import EgoMotion, ImuData, imu_to_egomotion
+from imu_ground.units import DEFAULT_FRAME_RATE
+
+__all__ = ["Drive", "drive_name", "load_real_drive", "load_real_drives", "synthetic_drive",
+           "synthetic_drives"]
+
+
+@dataclass
+class Drive:
+    """One drive for evaluation.
+
+    Attributes
+    ----------
+    name : str
+    kind : {"real", "synthetic"}
+    grade : str
+        IMU grade (``"oxts"`` for KITTI, ``"nav"`` or ``"mems"`` for synthetic).
+    egomotion : EgoMotion
+        Frames in the IMU (sensor) frame.
+    extrinsic : Extrinsic
+        Static sensor-to-ground extrinsic given to every method.
+    truth : pandas.DataFrame
+        Per frame (aligned with ``egomotion.t``): ``t`` (s), ``pitch`` (rad), ``roll``
+        (rad, NaN when unknown), ``normal_x/y/z`` (sensor frame, NaN when unknown),
+        ``speed`` (m/s), ``evaluate`` (bool: valid moving frames that count),
+        ``ref_sigma`` (rad, 1 sigma of the reference; 0 for an exact truth) and the
+        condition signals ``acc_long`` (m/s^2), ``yaw_rate``, ``pitch_rate_hf`` (rad/s)
+        (:func:`~imu_ground.evaluation.conditions.frame_signals`).
+    remove_mean : bool
+        Centre estimate and truth per drive before the errors (real protocol).
+    valid : bool
+        False when the truth is unusable; ``reason`` says why.
+    reason : str
+    imu : ImuData, optional
+        The raw log (kept for plots).
+    sim : SimResult, optional
+        The simulation a synthetic drive came from (kept for plots).
+    check : ReferenceCheck, optional
+        The verdict on a real drive's reference, with its statistics.
+    """
+    name: str
+    kind: str
+    grade: str
+    egomotion: EgoMotion
+    extrinsic: Extrinsic
+    truth: Any
+    remove_mean: bool
+    valid: bool = True
+    reason: str = "ok"
+    imu: ImuData | None = field(default=None, repr=False)
+    sim: object | None = field(default=None, repr=False)
+    check: object | None = field(default=None, repr=False)
+
+    @property
+    def has_roll(self) -> bool:
+        """Whether the truth has roll (synthetic drives)."""
+        return bool(np.isfinite(self.truth["roll"]).any())
+
+
+def _truth_frame(em: EgoMotion, ext: Extrinsic, columns: dict):
+    """The truth table of a drive: the given columns plus the condition signals."""
+    import pandas as pd
+    truth = pd.DataFrame({"t": em.t, **columns})
+    for key, value in frame_signals(em, ext.rotation, truth["speed"].to_numpy(float)).items():
+        if key != "speed":
+            truth[key] = value
+    return truth
+
+
+def drive_name(path: Path) -> str:
+    """The drive name of a ``kitti_imu100`` file: ``.../2011_09_26_drive_0001.csv.gz`` -> ``2011_09_26_drive_0001``."""
+    return Path(path).name.split(".")[0]
+
+
+def load_real_drive(path: Path, rate: float = DEFAULT_FRAME_RATE) -> Drive:
+    """A ``kitti_imu100`` drive with its pitch-relative-to-road reference.
+
+    Parameters
+    ----------
+    path : Path
+        ``.../kitti_imu100/<drive>.csv.gz``.
+    rate : float
+        Frame rate, Hz.
+
+    Returns
+    -------
+    Drive
+        ``valid`` and ``reason`` from the signals alone; ``check`` holds the verdict's
+        statistics; the reader's warnings are in ``egomotion.meta["reader_warnings"]``.
+    """
+    from imu_ground.datasets import read_kitti_imu100
+    from imu_ground.evaluation.reference import check_reference, pitch_reference
+
+    path = Path(path)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        imu = read_kitti_imu100(path)
+    em = imu_to_egomotion(imu, rate=rate)
+    df = imu.to_dataframe()
+    ref = pitch_reference(df, times=em.t)
+    check = check_reference(df, ref)
+    n = len(em)
+    ext = Extrinsic()
+    truth = _truth_frame(em, ext, {
+        "pitch": ref.pitch_rel_road, "roll": np.full(n, np.nan), "normal_x": np.nan, "normal_y": np.nan,
+        "normal_z": np.nan, "speed": ref.speed, "evaluate": ref.valid & em.valid,
+        "ref_sigma": reference_sigma(ref.speed)})
+    drive = Drive(drive_name(path), "real", "oxts", em, ext, truth, True, check.valid, check.reason, imu,
+                  check=check)
+    drive.egomotion.meta["reader_warnings"] = [str(w.message) for w in caught]
+    return drive
+
+
+def load_real_drives(folder: Path, names: Sequence[str] | None = None, progress: bool = True,
+                     rate: float = DEFAULT_FRAME_RATE, valid_only: bool = False) -> list[Drive]:
+    """All ``*.csv.gz`` drives of a ``kitti_imu100`` folder (or the named ones), sorted by name.
+
+    Parameters
+    ----------
+    folder : Path
+    names : sequence of str, optional
+        Drive names (e.g. ``2011_09_26_drive_0001``); every one must exist.
+    progress : bool
+        A progress bar over the drives.
+    rate : float
+        Frame rate, Hz.
+    valid_only : bool
+        Keep only the drives whose reference passes the checks.
+    """
+    from tqdm.auto import tqdm
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"real-data folder not found: {folder}")
+    paths = sorted(folder.glob("*.csv.gz"))
+    if names:
+        wanted = set(names)
+        paths = [p for p in paths if drive_name(p) in wanted]
+        missing = wanted - {drive_name(p) for p in paths}
+        if missing:
+            raise FileNotFoundError(f"drives not found in {folder}: {', '.join(sorted(missing))}")
+    if not paths:
+        raise FileNotFoundError(f"no *.csv.gz drives in {folder}")
+    drives = [load_real_drive(p, rate) for p in tqdm(paths, desc="loading drives", unit="drive",
+                                                     disable=not progress)]
+    return [d for d in drives if d.valid] if valid_only else drives
+
+
+def synthetic_drive(sim, rate: float = DEFAULT_FRAME_RATE) -> Drive:
+    """A :class:`Drive` from a :class:`~imu_ground.evaluation.simulate.SimResult` (exact truth)."""
+    em = imu_to_egomotion(sim.imu, rate=rate)
+    tr = sim.truth
+    # truth frames are at multiples of 1/rate from t=0, as are the frame ends
+    idx = np.clip(np.searchsorted(tr["t"].to_numpy(), em.t - 1e-6), 0, len(tr) - 1)
+    if np.abs(tr["t"].to_numpy()[idx] - em.t).max() > 1e-6:
+        raise ValueError(f"{sim.name}: truth frames do not line up with the IMU frames")
+    sel = tr.iloc[idx].reset_index(drop=True)
+    ext = Extrinsic(sim.R_gs, sim.t_gs, {"source": "simulation truth"})
+    truth = _truth_frame(em, ext, {
+        "pitch": sel["pitch"].to_numpy(), "roll": sel["roll"].to_numpy(),
+        "normal_x": sel["normal_x"].to_numpy(), "normal_y": sel["normal_y"].to_numpy(),
+        "normal_z": sel["normal_z"].to_numpy(), "speed": sel["speed"].to_numpy(),
+        "evaluate": (sel["speed"] > MIN_SPEED).to_numpy() & em.valid, "ref_sigma": np.zeros(len(em))})
+    return Drive(sim.name, "synthetic", sim.imu_model.name, em, ext, truth, False, True, "ok", sim.imu, sim)
+
+
+def synthetic_drives(n: int = 10, seed: int = 0, grades: Sequence[str] = ("nav", "mems"),
+                     progress: bool = True, **kw) -> list[Drive]:
+    """A synthetic suite: ``n`` drives per IMU grade (see :func:`imu_ground.evaluation.simulate.simulate_suite`)."""
+    from tqdm.auto import tqdm
+
+    from imu_ground.evaluation.simulate import simulate_suite
+    sims = simulate_suite(n, seed=seed, grades=tuple(grades), **kw)
+    return [synthetic_drive(s) for s in tqdm(sims, desc="simulating", unit="drive", disable=not progress)]
