@@ -1,0 +1,120 @@
+"""What the ``imu-ground`` commands share: option types, reader flags, progress, messages.
+
+Nothing heavy is imported here: each command imports the library inside its
+``run`` function, so ``imu-ground --help`` and argument errors stay fast.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import warnings
+from contextlib import contextmanager
+from typing import Any, Callable, Iterator
+
+__all__ = ["LazyHelp", "positive_float", "nonnegative_int", "add_reader_flags", "reader_options", "progress_enabled",
+           "add_progress_flag", "say", "warn_line", "warnings_as_lines"]
+
+
+class LazyHelp(str):
+    """Help text computed only when ``--help`` prints it (lists that need a library import)."""
+
+    def __new__(cls, fn: Callable[[], str]) -> "LazyHelp":
+        obj = super().__new__(cls, "(listed by --help)")
+        obj._fn = fn
+        return obj
+
+    def __mod__(self, params: Any) -> str:
+        return self._fn().replace("%", "%%") % params
+
+    def __str__(self) -> str:
+        return self._fn()
+
+    def strip(self, chars: Any = None) -> str:
+        return self._fn().strip(chars)
+
+
+def positive_float(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
+    return v
+
+
+def nonnegative_int(text: str) -> int:
+    """argparse type: an integer >= 0."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {text}")
+    return v
+
+
+def _format_help(poses: bool) -> str:
+    from imu_ground.datasets import FORMATS
+    names = sorted(FORMATS)
+    if poses:
+        from imu_ground.pipeline.estimate import POSE_FORMATS
+        names += sorted(POSE_FORMATS)
+    return f"input format, detected when omitted: {', '.join(names)}"
+
+
+def add_reader_flags(parser: argparse.ArgumentParser, poses: bool = False) -> None:
+    """One flag per entry of :data:`imu_ground.datasets.options.READER_OPTIONS` (the table owns them)."""
+    from imu_ground.datasets.options import READER_OPTIONS
+    group = parser.add_argument_group("reading the log")
+    for opt in READER_OPTIONS.values():
+        dest = opt.name
+        if opt.name == "format":
+            group.add_argument(opt.flag, dest=dest, metavar="NAME", help=LazyHelp(lambda: _format_help(poses)))
+        elif opt.default is False:
+            group.add_argument(opt.flag, dest=dest, action="store_true", default=None, help=opt.help)
+        else:
+            group.add_argument(opt.flag, dest=dest, choices=opt.choices, default=None, help=opt.help)
+
+
+def reader_options(args: argparse.Namespace) -> dict:
+    """The reader flags the user set, as ``read_imu`` keywords (``format`` included)."""
+    from imu_ground.datasets.options import READER_OPTIONS
+    return {name: getattr(args, name) for name in READER_OPTIONS if getattr(args, name, None) is not None}
+
+
+def add_progress_flag(parser: argparse.ArgumentParser) -> None:
+    """``--no-progress`` (bars are shown only when stderr is a terminal anyway)."""
+    parser.add_argument("--no-progress", action="store_true",
+                        help="no progress bars (they are shown only when stderr is a terminal)")
+
+
+def progress_enabled(args: argparse.Namespace) -> bool:
+    """Progress bars only when asked for and stderr is a terminal."""
+    return not getattr(args, "no_progress", False) and sys.stderr.isatty()
+
+
+def say(text: str) -> None:
+    """One line of a command's result on stdout."""
+    print(text, flush=True)
+
+
+def warn_line(message: str, file: Any = None) -> None:
+    """A warning as one line on stderr, ``file: warning: message`` (no Python source line)."""
+    text = " ".join(str(message).split())
+    prefix = f"{file}: " if file is not None else ""
+    if prefix and text.startswith(prefix):
+        text = text[len(prefix):]
+    print(f"{prefix}warning: {text}", file=sys.stderr, flush=True)
+
+
+@contextmanager
+def warnings_as_lines(file: Any = None) -> Iterator[None]:
+    """Collect the warnings raised inside the block and print each once, one line each, at its end."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        yield
+    for message in dict.fromkeys(str(w.message) for w in caught):
+        warn_line(message, file)

@@ -1,0 +1,61 @@
+"""``imu-ground batch LOG_OR_GLOB... -o OUTDIR``: estimate many logs on Dask, one output per log and a summary."""
+from __future__ import annotations
+
+import argparse
+
+from imu_ground.cli._common import add_progress_flag, add_reader_flags, nonnegative_int, progress_enabled, say
+from imu_ground.cli.estimate import add_method_flags, method_kwargs
+
+__all__ = ["register", "run"]
+
+
+def register(sub) -> None:
+    """Add the ``batch`` sub-command."""
+    b = sub.add_parser("batch", help="many logs -> one output each and a summary table (Dask)",
+                       description="Estimate every log (paths or quoted glob patterns) on Dask: a local cluster of "
+                                   "--workers processes, or a running cluster (--scheduler). Each output is the "
+                                   "file 'imu-ground estimate' writes; a rerun skips logs whose output exists; a "
+                                   "failing log is reported in the summary and never stops the others.")
+    b.add_argument("logs", nargs="+", metavar="LOG_OR_GLOB",
+                   help="IMU logs or pose files, or glob patterns in quotes (e.g. 'logs/**/*.csv.gz')")
+    b.add_argument("-o", "--output", required=True, metavar="OUTDIR",
+                   help="output folder (created): <log name>_ground.<type> per log and summary.csv")
+    b.add_argument("--type", default="csv", choices=("csv", "parquet", "tum", "mcap", "bag"),
+                   help="output file type of every log (default csv)")
+    b.add_argument("--workers", type=nonnegative_int, metavar="N",
+                   help="worker processes of the local Dask cluster (default: CPU count; 0: no Dask, one "
+                        "log after the other in this process)")
+    b.add_argument("--scheduler", metavar="ADDRESS",
+                   help="address of a running Dask scheduler (e.g. tcp://10.0.0.5:8786) instead of a local cluster")
+    add_method_flags(b)
+    add_reader_flags(b, poses=True)
+    add_progress_flag(b)
+    b.set_defaults(func=run)
+
+
+def _fmt(x) -> str:
+    import math
+    if isinstance(x, float):
+        return "" if math.isnan(x) else f"{x:+.3f}"
+    return "" if x is None else str(x)
+
+
+def run(a: argparse.Namespace) -> int:
+    """Run the batch, print one line per log and the totals; exit 1 when a log failed."""
+    from imu_ground.pipeline.batch import run_batch
+    table = run_batch(a.logs, a.output, workers=a.workers, scheduler=a.scheduler, suffix="." + a.type,
+                      progress=progress_enabled(a), cli=True, **method_kwargs(a))
+    for _, r in table.iterrows():
+        if r["status"] == "failed":
+            say(f"FAILED  {r['log']}: {r['error']}")
+        else:
+            share = "" if r["valid_share"] != r["valid_share"] else f"{100 * r['valid_share']:.1f}% valid"
+            frames = "" if r["frames"] != r["frames"] else f"{int(r['frames'])} frames"
+            say(f"{r['status'][:7]:7s} {r['log']}: {_fmt(r['format'])} {frames} {share}, pitch "
+                f"{_fmt(r['pitch_mean_deg'])} +- {_fmt(r['pitch_std_deg'])} deg, roll {_fmt(r['roll_mean_deg'])} "
+                f"+- {_fmt(r['roll_std_deg'])} deg" + (f"; warnings: {r['warnings']}" if _fmt(r["warnings"]) else ""))
+    failed = int((table["status"] == "failed").sum())
+    done = int((table["status"] == "ok").sum())
+    say(f"{len(table)} logs: {done} estimated, {len(table) - done - failed} skipped (output exists), {failed} failed; "
+        f"wrote {a.output}/summary.csv")
+    return 1 if failed else 0

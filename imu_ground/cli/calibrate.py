@@ -1,0 +1,59 @@
+"""``imu-ground calibrate LOG... -o CAR.txt``: static extrinsic and suspension gains of one platform."""
+from __future__ import annotations
+
+import argparse
+
+from imu_ground.cli._common import add_reader_flags, reader_options, say, warnings_as_lines
+
+__all__ = ["register", "run"]
+
+
+def register(sub) -> None:
+    """Add the ``calibrate`` sub-command."""
+    c = sub.add_parser("calibrate", help="static extrinsic and suspension gains from drives of one platform",
+                       description="Estimate the sensor-to-ground extrinsic ('up' and 'forward' of the vehicle in "
+                                   "the IMU's axes) and, with --lever-arm, the suspension gains, from IMU logs of "
+                                   "one mounting.")
+    c.add_argument("logs", nargs="+", metavar="LOG",
+                   help="one or more IMU logs of the same mounting (several drives, e.g. a closed loop or both "
+                        "directions of a road, average out the grade)")
+    c.add_argument("-o", "--output", required=True, metavar="FILE",
+                   help="calibration file to write (calib/ text format; pass it to 'estimate --extrinsic')")
+    c.add_argument("--tilt", default="auto", choices=("auto", "cruise", "standstill", "all"),
+                   help="frames that define 'up': straight constant-speed driving (auto, if there is enough), "
+                        "standstills, or all")
+    c.add_argument("--lever-arm", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                   help="sensor position relative to the body's pitch/roll centre, m (ground frame); "
+                        "needed to estimate the suspension gains")
+    c.add_argument("--translation", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                   help="sensor origin in the ground frame, m (stored; not observable from an IMU)")
+    add_reader_flags(c)
+    c.set_defaults(func=run)
+
+
+def run(a: argparse.Namespace) -> int:
+    """Read every log (IMU logs only), calibrate, write the file atomically."""
+    from imu_ground.datasets import read_imu
+    from imu_ground.filters import calibrate
+    from imu_ground.pipeline.estimate import require_imu_log
+    from imu_ground.pipeline.output import atomic_path, check_output_path
+    opts = reader_options(a)
+    fmt = opts.pop("format", None)
+    check_output_path(a.output, a.logs, kind="txt")
+    imus = []
+    for log in a.logs:
+        require_imu_log(log, fmt, "'imu-ground calibrate'")
+        with warnings_as_lines(log):
+            imus.append(read_imu(log, format=fmt, **opts))
+    with_gains = a.lever_arm is not None
+    with warnings_as_lines():
+        cal = calibrate(imus if len(imus) > 1 else imus[0], tilt=a.tilt, gains=with_gains,
+                        lever_arm=a.lever_arm, translation=a.translation)
+    with atomic_path(a.output) as tmp:
+        cal.save(tmp)
+    say(str(cal))
+    if not with_gains:
+        say("suspension gains not estimated: they need the sensor's position relative to the body's pitch/roll "
+            "centre (--lever-arm X Y Z, metres, ground frame); the filter keeps its defaults")
+    say(f"wrote {a.output}")
+    return 0

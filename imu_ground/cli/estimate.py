@@ -1,0 +1,102 @@
+"""``imu-ground estimate LOG``: one IMU log or pose file -> per-frame ground normals (CSV, Parquet, TUM, ROS)."""
+from __future__ import annotations
+
+import argparse
+import time
+import warnings
+
+from imu_ground.cli._common import (add_progress_flag, add_reader_flags, positive_float, progress_enabled,
+                                    reader_options, say, warn_line)
+
+__all__ = ["register", "run", "add_method_flags", "method_kwargs"]
+
+
+def _methods_epilog() -> str:
+    """One line per method, shown under the options by ``--help``."""
+    from imu_ground.pipeline.estimate import available_methods
+    methods = {"auto": ("the best for the input (default): suspension for IMU logs with an accelerometer, "
+                        "filter for pose files", False), **available_methods()}
+    width = max(map(len, methods)) + 2
+    lines = ["methods (--method):"]
+    for name, (desc, _) in methods.items():
+        lines.append(f"  {name:<{width}}{' '.join(desc.split())}")
+    return "\n".join(lines)
+
+
+def _method_choices() -> list[str]:
+    from imu_ground.pipeline.estimate import available_methods
+    return ["auto", *available_methods()]
+
+
+def add_method_flags(p: argparse.ArgumentParser) -> None:
+    """Method, extrinsic, frame rate and noise flags (shared by ``estimate`` and ``batch``)."""
+    p.formatter_class = argparse.RawDescriptionHelpFormatter
+    p.epilog = _methods_epilog()
+    g = p.add_argument_group("estimation")
+    g.add_argument("--method", default="auto", choices=_method_choices(), metavar="NAME",
+                   help="estimation method: auto (default) or one of those listed below")
+    g.add_argument("--extrinsic", metavar="NAME_OR_FILE",
+                   help="static sensor-to-ground extrinsic: a shipped name (kitti_imu; kitti_cam0 for KITTI "
+                        "camera poses) or a calibration file from 'imu-ground calibrate'; identity by default")
+    g.add_argument("--rate", type=positive_float, metavar="HZ",
+                   help="frame rate, Hz, at most the IMU's sample rate (default 10; pose files: a TUM file's own "
+                        "times, a KITTI pose file 10 Hz unless given)")
+    g.add_argument("--Q", type=positive_float, metavar="RAD2",
+                   help="process noise of --method filter or paper, rad^2 per frame (> 0)")
+    g.add_argument("--R", type=positive_float, metavar="VAR", help="measurement noise of --method filter or paper (> 0)")
+
+
+def method_kwargs(a: argparse.Namespace) -> dict:
+    """:func:`~imu_ground.pipeline.estimate_log` keywords from the parsed flags."""
+    return dict(method=a.method, extrinsic=a.extrinsic, rate=a.rate, Q=a.Q, R=a.R, **reader_options(a))
+
+
+def register(sub) -> None:
+    """Add the ``estimate`` sub-command."""
+    e = sub.add_parser("estimate", help="IMU log or pose file -> per-frame ground normals",
+                       description="Per-frame ground normal, pitch and roll of the body relative to the road from "
+                                   "one IMU log (KITTI, nuScenes, comma2k19, CSV table, ROS bag) or odometry pose "
+                                   "file (KITTI odometry, TUM).")
+    e.add_argument("log", help="IMU log file or folder, or a pose file (format detected; see --format)")
+    e.add_argument("-o", "--output", metavar="FILE",
+                   help="output file; .csv, .parquet, .tum (valid frames only), .bag or .mcap "
+                        "(default: <log name>_ground.csv in the current folder)")
+    e.add_argument("--tum", metavar="FILE",
+                   help="also write the dynamic extrinsic (ground <- sensor) of the valid frames as TUM poses "
+                        "(t x y z qx qy qz qw), e.g. for evo")
+    add_method_flags(e)
+    add_reader_flags(e, poses=True)
+    add_progress_flag(e)
+    e.set_defaults(func=run)
+
+
+def run(a: argparse.Namespace) -> int:
+    """Estimate, write the outputs (atomically, all or none) and print a three-line summary."""
+    from pathlib import Path
+
+    from imu_ground.pipeline.estimate import estimate_to_files
+    from imu_ground.pipeline.output import check_output_path, default_output_name, summarize_table
+    t0 = time.perf_counter()
+    outputs = [check_output_path(a.output or default_output_name(a.log), [a.log])]
+    kinds = [None]
+    if a.tum:
+        outputs.append(check_output_path(a.tum, [a.log], "--tum", kind=".tum"))
+        kinds.append(".tum")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res, table = estimate_to_files(a.log, outputs, kinds, progress=progress_enabled(a), **method_kwargs(a))
+    for w in res.meta["warnings"]:
+        warn_line(w, a.log)
+    s = summarize_table(table)
+    em = res.egomotion
+    say(f"{res.meta['format']} {'pose file' if res.meta['kind'] == 'poses' else 'log'} {a.log}: {s['frames']} frames "
+        f"at {em.rate:g} Hz, method {res.meta['method']}, {s['frames'] - s['valid_frames']} across gaps, "
+        f"{int(em.stationary.sum())} stationary ({time.perf_counter() - t0:.2f} s)")
+    if s["valid_frames"]:
+        say(f"pitch {s['pitch_mean_deg']:+.3f} +- {s['pitch_std_deg']:.3f} deg (range {s['pitch_min_deg']:+.2f} .. "
+            f"{s['pitch_max_deg']:+.2f}), roll {s['roll_mean_deg']:+.3f} +- {s['roll_std_deg']:.3f} deg "
+            f"over the {s['valid_frames']} valid frames")
+    else:
+        say("no valid frame: every frame spans a gap in the log")
+    say("wrote " + " and ".join(str(Path(p)) for p in outputs))
+    return 0

@@ -1,0 +1,103 @@
+"""``imu-ground evaluate``: compare the methods on real (KITTI) and/or synthetic drives."""
+from __future__ import annotations
+
+import argparse
+import warnings
+
+from imu_ground.cli._common import LazyHelp, add_progress_flag, nonnegative_int, progress_enabled, say
+
+__all__ = ["register", "run"]
+
+
+def _methods_help() -> str:
+    from imu_ground.evaluation.runner import METHODS
+    return f"comma-separated methods to compare (default all): {', '.join(METHODS)}"
+
+
+def register(sub) -> None:
+    """Add the ``evaluate`` sub-command."""
+    v = sub.add_parser("evaluate", help="compare methods on real and/or synthetic drives",
+                       description="Error of every method against the reference (real KITTI drives: pitch relative "
+                                   "to the road from the INS; synthetic drives: exact truth), like the paper's "
+                                   "Table 2. Give --real, --synthetic or both.")
+    v.add_argument("--real", metavar="DIR", help="folder of kitti_imu100 drives (*.csv.gz), e.g. ../shared/data/kitti_imu100")
+    v.add_argument("--synthetic", type=nonnegative_int, default=0, metavar="N",
+                   help="number of synthetic drives per IMU grade (default 0)")
+    v.add_argument("--grades", default="nav,mems", metavar="LIST",
+                   help="comma-separated IMU grades of the synthetic drives: nav, mems, perfect (default nav,mems)")
+    v.add_argument("--seed", type=int, default=0, help="random seed of the synthetic drives (default 0)")
+    v.add_argument("--methods", metavar="LIST", help=LazyHelp(_methods_help))
+    v.add_argument("--per-drive", action="store_true", help="also print the per-drive error table")
+    v.add_argument("--csv", metavar="FILE", help="write the per-drive results as CSV")
+    v.add_argument("--markdown", metavar="FILE", help="write the summary table as Markdown")
+    v.add_argument("--plots", metavar="DIR", help="write PNG plots into this folder (needs matplotlib)")
+    add_progress_flag(v)
+    v.set_defaults(func=run)
+
+
+def _check(a: argparse.Namespace) -> list:
+    from imu_ground.evaluation.runner import METHODS
+    if a.real is None and not a.synthetic:
+        raise ValueError("nothing to evaluate: give --real DIR (kitti_imu100 drives) and/or --synthetic N")
+    methods = [m.strip() for m in a.methods.split(",") if m.strip()] if a.methods else list(METHODS)
+    unknown = [m for m in methods if m not in METHODS]
+    if unknown:
+        raise ValueError(f"--methods: unknown {', '.join(unknown)}; choose from {', '.join(METHODS)}")
+    bad = [g for g in a.grades.split(",") if g not in ("nav", "mems", "perfect")]
+    if bad:
+        raise ValueError(f"--grades: unknown {', '.join(bad)}; choose from nav, mems, perfect")
+    from imu_ground.pipeline.output import check_output_path
+    for option, path in (("--csv", a.csv), ("--markdown", a.markdown)):
+        if path:
+            check_output_path(path, option=option, kind="text")
+    return methods
+
+
+def _write_text(path: str, text: str) -> None:
+    from imu_ground.pipeline.output import atomic_path
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
+def run(a: argparse.Namespace) -> int:
+    """Load the drives, run the methods, print the summary (and per-drive) tables, write the files asked for."""
+    import numpy as np
+
+    from imu_ground.evaluation.runner import evaluate, format_table, load_real_drives, summary_table, synthetic_drives
+    from pathlib import Path
+    methods = _check(a)
+    progress = progress_enabled(a)
+    drives = []
+    if a.real is not None:
+        drives += load_real_drives(Path(a.real), progress=progress)
+    if a.synthetic:
+        drives += synthetic_drives(a.synthetic, seed=a.seed, grades=a.grades.split(","), progress=progress)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = evaluate(drives, methods, progress=progress, keep_tracks=bool(a.plots))
+    res, tracks = out if isinstance(out, tuple) else (out, {})
+    table = summary_table(res)
+    cols = [c for c in ("drives", "mean_deg", "median_deg", "worst_deg", "worst_ratio_to_paper", "worst_ratio_drive",
+                        "us_per_frame") if c in table.columns]
+    say(format_table(table[cols], "text"))
+    excluded = res[~res["valid"]].drop_duplicates("drive")
+    if len(excluded):
+        say("\nexcluded drives (reference not usable):")
+        for _, row in excluded.iterrows():
+            say(f"  {row['drive']}: {row['reason']}")
+    if a.per_drive:
+        q = np.where(res["kind"] == "real", res.get("pitch_mean"), res.get("angle_mean", np.nan))
+        per = res.assign(error_deg=q).pivot_table(index="drive", columns="method", values="error_deg")
+        say("\nper drive (mean absolute error, deg: pitch for real drives, normal angle for synthetic):")
+        say(format_table(per[[m for m in methods if m in per.columns]], "text"))
+    if a.csv:
+        _write_text(a.csv, res.to_csv(index=False, float_format="%.5f"))
+        say(f"wrote {a.csv}")
+    if a.markdown:
+        _write_text(a.markdown, format_table(table[cols], "markdown") + "\n")
+        say(f"wrote {a.markdown}")
+    if a.plots:
+        from imu_ground.evaluation.plots import evaluation_plots
+        for p in evaluation_plots(drives, res, tracks, Path(a.plots)):
+            say(f"wrote {p}")
+    return 0

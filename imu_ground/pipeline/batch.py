@@ -1,0 +1,213 @@
+"""Many logs: :func:`run_batch` estimates every log on Dask, one output file per log and a summary table.
+
+Each log is one task (:func:`process_log`) that reads the log, estimates, writes its
+output atomically and returns one summary row, never the data: a worker holds one
+log at a time (one thread a worker), so its memory is bounded by the largest log,
+not the fleet. A failing log becomes a row with its error; the others go on. An
+output that exists is complete (writes are atomic), so a rerun skips it (resume).
+
+The output of a log is the file ``imu-ground estimate LOG -o OUT`` writes, byte for
+byte: both call :func:`~imu_ground.pipeline.estimate.estimate_to_files`.
+"""
+from __future__ import annotations
+
+import glob
+import os
+import warnings
+from pathlib import Path
+from typing import Any, Iterable, Optional, Sequence, Union
+
+__all__ = ["expand_logs", "output_names", "process_log", "run_batch", "SUMMARY_COLUMNS"]
+
+#: Columns of the summary table, in order.
+SUMMARY_COLUMNS = ("log", "status", "format", "method", "frames", "valid_share", "pitch_mean_deg", "pitch_std_deg",
+                   "pitch_min_deg", "pitch_max_deg", "roll_mean_deg", "roll_std_deg", "roll_min_deg", "roll_max_deg",
+                   "warnings", "error", "output")
+_GLOB_CHARS = set("*?[")
+
+
+def expand_logs(patterns: Iterable[Union[str, Path]]) -> list[tuple[str, Optional[str]]]:
+    """Logs named by paths and glob patterns, in order, each once: ``(log, error or None)``.
+
+    A pattern that matches nothing gives ``(pattern, "no file matches ...")``; a
+    plain path is kept as given (a missing one fails when it is read).
+    """
+    out: dict[str, Optional[str]] = {}
+    for pat in patterns:
+        pat = str(pat)
+        if _GLOB_CHARS & set(pat) and not Path(pat).exists():
+            matches = sorted(glob.glob(pat, recursive=True))
+            if not matches:
+                out.setdefault(pat, f"{pat}: no file matches this pattern")
+            for m in matches:
+                out.setdefault(m, None)
+        else:
+            out.setdefault(pat, None)
+    return list(out.items())
+
+
+def output_names(logs: Sequence[str], suffix: str = ".csv") -> list[str]:
+    """Output file name of each log (``<name>_ground<suffix>``), made unique with the parent folders' names."""
+    from imu_ground.pipeline.output import default_output_name
+    names = [default_output_name(log, suffix) for log in logs]
+    for depth in range(1, 8):
+        counts: dict[str, int] = {}
+        for n in names:
+            counts[n] = counts.get(n, 0) + 1
+        clash = [i for i, n in enumerate(names) if counts[n] > 1]
+        if not clash:
+            break
+        for i in clash:
+            parents = Path(os.path.abspath(logs[i])).parent.parts[-depth:]
+            names[i] = "_".join([*parents, default_output_name(logs[i], suffix)])
+    return names
+
+
+def _skipped_row(out: Path) -> dict[str, Any]:
+    from imu_ground.pipeline.output import summarize_table
+    row: dict[str, Any] = {"status": "skipped (output exists)"}
+    try:
+        if out.suffix == ".csv":
+            import pandas as pd
+            row.update(summarize_table(pd.read_csv(out, comment="#")))
+        elif out.suffix == ".parquet":
+            import pandas as pd
+            row.update(summarize_table(pd.read_parquet(out)))
+    except Exception as e:                                   # noqa: BLE001 - the row reports it
+        row["warnings"] = f"{out}: could not summarise the existing output ({e})"
+    return row
+
+
+def process_log(log: str, out: Union[str, Path], options: dict, cli: bool = False) -> dict[str, Any]:
+    """One task: estimate ``log`` into ``out`` unless ``out`` exists; one summary row, never an exception.
+
+    Parameters
+    ----------
+    log : str
+    out : str or Path
+    options : dict
+        :func:`~imu_ground.pipeline.estimate_log` keywords.
+    cli : bool
+        Errors with the options spelled as command-line flags.
+    """
+    from imu_ground.pipeline.estimate import estimate_to_files
+    from imu_ground.pipeline.output import check_output_path, summarize_table
+    out = Path(out)
+    row: dict[str, Any] = {"log": log, "output": str(out)}
+    if out.exists():
+        row.update(_skipped_row(out))
+        return row
+    try:
+        check_output_path(out, [log])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res, table = estimate_to_files(log, [out], **options)
+    except Exception as e:                                   # noqa: BLE001 - a failing log never stops the others
+        message = e.cli_message() if cli and hasattr(e, "cli_message") else str(e)
+        row.update(status="failed", error=" ".join(f"{message}".split()) or type(e).__name__)
+        return row
+    row.update(status="ok", format=res.meta.get("format"), method=res.meta.get("method"),
+               warnings=" | ".join(res.meta.get("warnings", [])), **summarize_table(table))
+    return row
+
+
+def _client(workers: Optional[int], scheduler: Optional[str]):
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:
+        raise ValueError("imu-ground batch needs Dask: pip install 'imu-ground[fleet]'") from None
+    if scheduler:
+        return Client(scheduler, timeout="10s"), None
+    import logging
+    n = int(workers) if workers else (os.cpu_count() or 1)
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                           silence_logs=logging.ERROR)
+    return Client(cluster), cluster
+
+
+def run_batch(logs: Iterable[Union[str, Path]], outdir: Union[str, Path], *, workers: Optional[int] = None,
+              scheduler: Optional[str] = None, suffix: str = ".csv", progress: bool = False, cli: bool = False,
+              summary: Optional[str] = "summary.csv", **options: Any):
+    """Estimate every log into ``outdir`` on Dask; returns the summary table.
+
+    Parameters
+    ----------
+    logs : iterable of str or Path
+        Log paths and glob patterns (``"logs/**/*.csv.gz"``).
+    outdir : str or Path
+        Output folder (created); one ``<log name>_ground<suffix>`` per log.
+    workers : int, optional
+        Worker processes of the local cluster (default: CPU count); 0 runs
+        the logs one after the other in this process, without Dask.
+    scheduler : str, optional
+        Address of a running Dask scheduler (``tcp://host:8786``) to use instead.
+    suffix : str
+        Output type, one of :data:`~imu_ground.pipeline.output.OUTPUT_SUFFIXES`.
+    progress : bool
+        Progress bar counting logs.
+    cli : bool
+        Error messages name command-line flags.
+    summary : str, optional
+        File name of the summary CSV in ``outdir`` (None: not written).
+    **options
+        :func:`~imu_ground.pipeline.estimate_log` keywords (method, extrinsic, rate, reader options).
+
+    Returns
+    -------
+    pandas.DataFrame
+        :data:`SUMMARY_COLUMNS`, one row per log in input order.
+    """
+    import pandas as pd
+    from tqdm.auto import tqdm
+
+    from imu_ground.pipeline.estimate import check_options
+    from imu_ground.pipeline.output import OUTPUT_SUFFIXES, atomic_path
+    if suffix not in OUTPUT_SUFFIXES:
+        raise ValueError(f"unknown output type {suffix!r}; choose from {', '.join(OUTPUT_SUFFIXES)}")
+    check_options(**{k: v for k, v in options.items() if k not in ("extrinsic", "progress")})
+    out_dir = Path(outdir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ValueError(f"{out_dir}: is a file; give -o an output folder")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    found = expand_logs(logs)
+    names = output_names([log for log, _ in found], suffix)
+    rows: list[Optional[dict]] = [None] * len(found)
+    jobs = []
+    for i, ((log, err), name) in enumerate(zip(found, names)):
+        if err is not None:
+            rows[i] = {"log": log, "status": "failed", "error": err}
+        else:
+            jobs.append((i, log, str(out_dir / name)))
+    bar = tqdm(total=len(found), desc="logs", unit="log", disable=not progress)
+    bar.update(len(found) - len(jobs))
+    if workers == 0 and not scheduler:
+        for i, log, out in jobs:
+            rows[i] = process_log(log, out, options, cli)
+            bar.update()
+    else:
+        _run_on_dask(jobs, rows, options, cli, workers, scheduler, bar)
+    bar.close()
+    table = pd.DataFrame(rows).reindex(columns=list(SUMMARY_COLUMNS))
+    if summary:
+        with atomic_path(out_dir / summary) as tmp:
+            table.to_csv(tmp, index=False, float_format="%.6g")
+    return table
+
+
+def _run_on_dask(jobs, rows, options, cli, workers, scheduler, bar) -> None:
+    from dask.distributed import as_completed
+    client, cluster = _client(workers, scheduler)
+    try:
+        futures = {client.submit(process_log, log, out, options, cli, pure=False): (i, log)
+                   for i, log, out in jobs}
+        for fut in as_completed(futures):
+            i, log = futures[fut]
+            try:
+                rows[i] = fut.result()
+            except Exception as e:                           # noqa: BLE001 - e.g. a worker killed by memory
+                rows[i] = {"log": log, "status": "failed", "error": f"{log}: worker failed: {e}"}
+            bar.update()
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()

@@ -1,0 +1,410 @@
+"""One log in, per-frame ground normals out: :func:`estimate_log`, the library form of ``imu-ground estimate``.
+
+The input is an IMU log of any format :func:`imu_ground.datasets.read_imu` reads,
+or an odometry pose file (KITTI odometry ``poses/00.txt``, TUM ``t x y z qx qy qz qw``).
+The method is one of the registry's (:func:`available_methods`); ``"auto"``
+picks the best for the input: the suspension-aware filter when the log has an
+accelerometer, the invariant filter (``"filter"``) for poses.
+
+Options are checked before any work, and a bad one raises :class:`OptionError`
+(a ``ValueError``) whose message names the option as the user spells it:
+``rate=...`` from Python, ``--rate`` from the command line
+(:meth:`OptionError.cli_message`), as the readers'
+:class:`~imu_ground.datasets.options.ImuInputError` does.
+"""
+from __future__ import annotations
+
+import math
+import warnings
+from pathlib import Path
+from typing import Any, NamedTuple, Optional, Union
+
+import numpy as np
+
+__all__ = ["EstimateResult", "OptionError", "estimate_log", "estimate_to_files", "check_options", "available_methods", "resolve_method",
+           "detect_input", "require_imu_log", "POSE_FORMATS"]
+
+#: ``--format`` names of the pose files :func:`estimate_log` reads, to :func:`imu_ground.datasets.read_poses` names.
+POSE_FORMATS = {"kitti_poses": "kitti", "tum": "tum"}
+
+#: Used only until :mod:`imu_ground.filters.methods` exists: name -> (one-line description, needs accelerometer).
+_FALLBACK_METHODS = {
+    "suspension": ("suspension-aware invariant filter, streaming: the slow body pitch/roll of braking "
+                   "and cornering from the accelerometer (default for IMU logs)", True),
+    "suspension-offline": ("suspension-aware filter with a zero-lag smoother (uses future frames)", True),
+    "filter": ("heading-following invariant EKF on SO(3) from rotations only (default for pose files)", False),
+    "paper": ("the paper's method: random-walk invariant EKF, Q = 1e-2 I, R = I", False),
+}
+
+
+class OptionError(ValueError):
+    """A bad option value; the message names the option as Python keyword or CLI flag.
+
+    Parameters
+    ----------
+    template : str
+        Message with ``{opt}`` where the option's name goes.
+    name : str
+        Python keyword (e.g. ``"rate"``).
+    flag : str, optional
+        CLI flag (default ``--`` + name with ``_`` as ``-``).
+    """
+
+    def __init__(self, template: str, name: str, flag: Optional[str] = None) -> None:
+        self.template, self.name = template, name
+        self.flag = flag or "--" + name.replace("_", "-")
+        super().__init__(template.replace("{opt}", name))
+
+    def cli_message(self) -> str:
+        """The message with the option spelled as its ``imu-ground`` flag."""
+        return self.template.replace("{opt}", self.flag)
+
+
+class EstimateResult(NamedTuple):
+    """What :func:`estimate_log` returns (unpacks as ``track, egomotion, meta``).
+
+    Attributes
+    ----------
+    track : GroundTrack
+        Per-frame normal (sensor frame), pitch and roll of the body relative to
+        the road (rad), residual rotation road <- body; ``t`` (s) and ``valid``.
+    egomotion : EgoMotion
+        The frames the track belongs to.
+    meta : dict
+        ``source``, ``format``, ``kind`` ("imu" or "poses"), ``method``,
+        ``method_description``, ``settings`` (everything that determines the
+        numbers), ``warnings`` (one line each, ``file: message``), ``frame_id``
+        (the log's, e.g. a ROS header's; else "imu"), ``t0_ns`` (the first stamp,
+        ns, when the log has absolute times; the track's ``t`` starts at 0),
+        ``imu_rate`` (Hz, IMU input), ``extrinsic`` (rotation ground <- sensor
+        and translation, m).
+    """
+    track: Any
+    egomotion: Any
+    meta: dict
+
+
+def available_methods() -> dict[str, tuple[str, bool]]:
+    """Method name -> (one-line description, needs accelerometer data), from the filters' registry."""
+    try:
+        from imu_ground.filters.methods import METHODS
+    except ImportError:
+        return dict(_FALLBACK_METHODS)
+    return {name: (spec.description, bool(spec.needs_accel)) for name, spec in METHODS.items()}
+
+
+def resolve_method(method: str, has_accel: bool) -> str:
+    """The method to run: ``"auto"`` is the best for the input; others are checked against it."""
+    methods = available_methods()
+    if method == "auto":
+        try:
+            from imu_ground.filters.methods import default_method
+        except ImportError:
+            return "suspension" if has_accel else "filter"
+        return default_method(has_accel)
+    if method not in methods:
+        raise OptionError(f"unknown {{opt}} {method!r}; choose auto or one of {', '.join(methods)}", "method")
+    if methods[method][1] and not has_accel:
+        without = ", ".join(m for m, (_, acc) in methods.items() if not acc)
+        raise OptionError(f"{{opt}} {method} needs accelerometer data and pose input has none; use one of "
+                          f"{without} (or auto)", "method")
+    return method
+
+
+# ------------------------------------------------------------------------------------------ input kind
+def _sniff_pose_format(path: Path) -> Optional[str]:
+    """``kitti_poses``/``tum`` when the file's first data line is 12/13 or 8 numbers separated by blanks."""
+    try:
+        from imu_ground.datasets.poses import detect_pose_format
+    except ImportError:
+        detect_pose_format = None
+    if detect_pose_format is not None:
+        name = detect_pose_format(path)
+        return {"kitti": "kitti_poses", "kitti_poses": "kitti_poses", "tum": "tum"}.get(name) if name else None
+    if not path.is_file() or path.suffix.lower() in (".csv", ".gz", ".json", ".bag", ".mcap", ".parquet", ".db3"):
+        return None
+    try:
+        with path.open("r", encoding="utf-8") as fh:
+            for line in fh:
+                line = line.split("#", 1)[0].strip()
+                if line:
+                    break
+            else:
+                return None
+        values = [float(v) for v in line.split()]
+    except (OSError, UnicodeDecodeError, ValueError):
+        return None
+    return {8: "tum", 12: "kitti_poses", 13: "kitti_poses"}.get(len(values))
+
+
+def detect_input(path: Union[str, Path], format: Optional[str] = None) -> tuple[str, Optional[str]]:
+    """What ``path`` is: ``("poses", "kitti_poses" | "tum")`` or ``("imu", format or None)``.
+
+    Raises
+    ------
+    FileNotFoundError
+        ``path`` does not exist.
+    """
+    p = Path(path)
+    if format in POSE_FORMATS:
+        return "poses", format
+    if not p.exists():
+        raise FileNotFoundError(f"{p}: no such file or folder")
+    if format is None:
+        pose = _sniff_pose_format(p)
+        if pose is not None:
+            return "poses", pose
+    return "imu", format
+
+
+def require_imu_log(path: Union[str, Path], format: Optional[str] = None, what: str = "this command") -> None:
+    """Raise a clear ``ValueError`` when ``path`` is a pose file where an IMU log is required."""
+    kind, fmt = detect_input(path, format)
+    if kind == "poses":
+        raise ValueError(f"{path}: this is an odometry pose file ({fmt}), but {what} needs an IMU log with "
+                         f"gyro and accelerometer (poses work with 'imu-ground estimate')")
+
+
+# ------------------------------------------------------------------------------------------ checks
+def _check_positive(value: Any, name: str, what: str) -> Any:
+    if value is None:
+        return None
+    a = np.asarray(value, dtype=float)
+    if a.ndim == 0:
+        ok = math.isfinite(float(a)) and float(a) > 0
+    else:
+        ok = bool(np.all(np.isfinite(a))) and a.ndim == 2 and a.shape[0] == a.shape[1] and bool(
+            np.allclose(a, a.T)) and bool(np.all(np.linalg.eigvalsh(a) > 0))
+    if not ok:
+        raise OptionError(f"{{opt}} must be positive and finite ({what}), got {value!r}", name)
+    return value
+
+
+def _check_rate(rate: Optional[float]) -> Optional[float]:
+    if rate is None:
+        return None
+    if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
+        raise OptionError(f"{{opt}} must be a positive frame rate in Hz, got {rate!r}", "rate")
+    return float(rate)
+
+
+def check_options(*, method: str = "auto", rate: Optional[float] = None, Q: Any = None, R: Any = None,
+                  **reader_options: Any) -> dict:
+    """Check :func:`estimate_log`'s options without reading anything; returns the reader keywords to pass.
+
+    Raises
+    ------
+    OptionError
+        Unknown method, non-positive rate or noise.
+    TypeError
+        A reader option that :data:`~imu_ground.datasets.options.READER_OPTIONS` does not have.
+    """
+    if method != "auto" and method not in available_methods():
+        raise OptionError(f"unknown {{opt}} {method!r}; choose auto or one of {', '.join(available_methods())}",
+                          "method")
+    _check_rate(rate)
+    _check_positive(Q, "Q", "process noise, rad^2 per frame")
+    _check_positive(R, "R", "measurement noise")
+    return _reader_kwargs(reader_options)
+
+
+def _reader_kwargs(options: dict) -> dict:
+    from imu_ground.datasets.options import READER_OPTIONS
+    unknown = sorted(set(options) - set(READER_OPTIONS))
+    if unknown:
+        raise TypeError(f"estimate_log() got unknown reader options {unknown}; known: {sorted(READER_OPTIONS)}")
+    return {k: v for k, v in options.items() if v is not None and k != "format"}
+
+
+def _one_line(path: Union[str, Path], message: Any) -> str:
+    text = " ".join(str(message).split())
+    return text if text.startswith(str(path)) else f"{path}: {text}"
+
+
+# ------------------------------------------------------------------------------------------ estimate
+def estimate_log(path: Union[str, Path], *, format: Optional[str] = None, method: str = "auto",
+                 extrinsic: Any = None, rate: Optional[float] = None, Q: Any = None, R: Any = None,
+                 progress: bool = False, **reader_options: Any) -> EstimateResult:
+    """Per-frame ground normals of one log: what ``imu-ground estimate`` computes.
+
+    Parameters
+    ----------
+    path : str or Path
+        IMU log (any format of :func:`imu_ground.datasets.read_imu`) or pose file
+        (KITTI odometry, TUM; detected from the content).
+    format : str, optional
+        Input format: a reader's name, or ``"kitti_poses"`` / ``"tum"``; detected when None.
+    method : str
+        ``"auto"`` (suspension-aware with an accelerometer, ``"filter"`` for poses)
+        or a name of :func:`available_methods`.
+    extrinsic : str, Path or Extrinsic, optional
+        Static ground <- sensor extrinsic: a shipped name (``kitti_imu``,
+        ``kitti_cam0`` for KITTI camera poses), a file (a calibration file also
+        sets the suspension gains), or an :class:`~imu_ground.filters.Extrinsic`.
+        Identity when None.
+    rate : float, optional
+        Frame rate, Hz; at most the IMU's sample rate. Default 10 Hz
+        (:data:`~imu_ground.units.DEFAULT_FRAME_RATE`); for a TUM pose file its
+        own times; for a KITTI pose file (no times) this rate or the default.
+    Q, R : float or ndarray (3, 3), optional
+        Process (rad^2 per frame) and measurement noise of the ``filter`` and
+        ``paper`` methods; positive.
+    progress : bool
+        Progress bar on stderr.
+    **reader_options
+        Entries of :data:`imu_ground.datasets.options.READER_OPTIONS`
+        (``policy``, ``nonfinite``, ``gyro_unit``, ...), passed to the reader
+        when not None.
+
+    Returns
+    -------
+    EstimateResult
+        ``(track, egomotion, meta)``.
+
+    Raises
+    ------
+    FileNotFoundError
+        No such log.
+    OptionError
+        A bad option (message names it).
+    ValueError
+        The log cannot be read (the reader's message: file, line, option to use).
+    """
+    reader_kw = check_options(method=method, rate=rate, Q=Q, R=R, **reader_options)
+    kind, fmt = detect_input(path, format)
+    settings: dict = {"method": method, "rate": rate, "extrinsic": None if extrinsic is None else str(extrinsic),
+                      "Q": Q, "R": R, **reader_kw}
+    bar = _steps(progress)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        if kind == "poses":
+            em, info = _poses_egomotion(path, fmt, rate)
+        else:
+            em, info = _imu_egomotion(path, fmt, rate, extrinsic, reader_kw)
+        bar.update()
+        name = resolve_method(method, em.has_accel)
+        if Q is not None or R is not None:
+            if name not in ("filter", "paper"):
+                raise OptionError(f"{{opt}} sets the noise of the filter and paper methods; method {name} "
+                                  "does not use it (add --method filter, or leave it out)", "Q" if Q is not None else "R")
+        ext = _load_extrinsic(extrinsic)
+        track = _run_method(name, em, extrinsic, ext, Q, R)
+        bar.update()
+    bar.close()
+    messages = list(dict.fromkeys(_one_line(path, w.message) for w in caught))
+    for m in messages:
+        warnings.warn(m, UserWarning, stacklevel=2)
+    settings.update(method=name, rate=float(em.rate))
+    meta = {"source": str(path), "kind": kind, **info, "method": name,
+            "method_description": available_methods().get(name, ("", False))[0],
+            "settings": settings, "warnings": messages,
+            "extrinsic": {"rotation": ext.rotation.tolist(), "translation": ext.translation.tolist()}}
+    return EstimateResult(track, em, meta)
+
+
+def _steps(progress: bool):
+    from tqdm.auto import tqdm
+    return tqdm(total=2, desc="estimate", unit="step", disable=not progress, leave=False)
+
+
+def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
+    from imu_ground.datasets import detect_format, read_imu
+    from imu_ground.imu import imu_to_egomotion
+    from imu_ground.units import DEFAULT_FRAME_RATE
+    fmt = detect_format(path) if fmt is None else fmt
+    imu = read_imu(path, format=fmt, **reader_kw)
+    imu_rate = 1.0 / float(np.median(np.diff(imu.t))) if len(imu) > 1 else float("nan")
+    if rate is not None and math.isfinite(imu_rate) and rate > imu_rate * (1 + 1e-6):
+        raise OptionError(f"{{opt}} {rate:g} Hz is above the IMU's own sample rate of {imu_rate:.4g} Hz in "
+                          f"{path}; choose a frame rate of at most {imu_rate:.4g} Hz", "rate")
+    if imu.frame != "FLU" and extrinsic is None:
+        warnings.warn(f"{path}: the IMU's body frame is {imu.frame!r}, not FLU (x forward, y left, z up), and no "
+                      "extrinsic was given: pitch and roll refer to the sensor's own axes; run 'imu-ground "
+                      "calibrate' once and pass the result with --extrinsic")
+    em = imu_to_egomotion(imu, rate=DEFAULT_FRAME_RATE if rate is None else rate)
+    info = {"format": fmt, "imu_rate": imu_rate, "frame_id": imu.meta.get("frame_id") or "imu"}
+    if imu.meta.get("t0_ns") is not None:
+        info["t0_ns"] = int(imu.meta["t0_ns"])
+    return em, info
+
+
+def _poses_egomotion(path, fmt, rate):
+    from imu_ground.datasets import read_poses
+    from imu_ground.imu import EgoMotion
+    poses = read_poses(path, format=POSE_FORMATS[fmt])
+    if len(poses) < 2:
+        raise ValueError(f"{path}: {len(poses)} pose(s); at least 2 are needed for one frame")
+    t = None
+    if poses.t is not None:
+        t = poses.t[1:]
+        if rate is not None:
+            warnings.warn(f"{path}: a TUM pose file carries its own times; --rate {rate:g} is not used "
+                          "(one frame per pose)")
+            rate = None
+    em = EgoMotion.from_rotations(poses.relative_rotations(), t=t, rate=rate,
+                                  meta={"source": str(path), "format": fmt})
+    return em, {"format": fmt, "frame_id": "camera" if fmt == "kitti_poses" else "sensor"}
+
+
+def _load_extrinsic(extrinsic):
+    from imu_ground.filters import Extrinsic, load_extrinsic
+    if extrinsic is None:
+        return Extrinsic()
+    if isinstance(extrinsic, Extrinsic):
+        return extrinsic
+    if isinstance(extrinsic, (str, Path)):
+        return load_extrinsic(extrinsic)
+    return Extrinsic.coerce(np.asarray(extrinsic, dtype=float))
+
+
+def _run_method(name, em, extrinsic, ext, Q, R):
+    """Run method ``name`` over the ego-motion; the track gets ``t`` and ``valid`` when it lacks them."""
+    try:
+        from imu_ground.filters.methods import METHODS
+    except ImportError:
+        METHODS = None
+    if METHODS is not None and hasattr(METHODS[name], "build"):
+        est = METHODS[name].build(extrinsic=ext if extrinsic is None or not isinstance(extrinsic, (str, Path))
+                                  else extrinsic, Q=Q, R=R)
+        track = est.run(em, smooth=bool(getattr(METHODS[name], "smooth", False)))
+    elif name in ("filter", "paper"):
+        from imu_ground.filters import GroundNormalFilter
+        kw = {k: v for k, v in (("Q", Q), ("R", R)) if v is not None}
+        f = GroundNormalFilter.paper(extrinsic=ext, **kw) if name == "paper" else GroundNormalFilter(extrinsic=ext, **kw)
+        track = f.run(em.delta_R)
+    else:
+        from imu_ground.filters import estimate_suspension_aware
+        track = estimate_suspension_aware(em, extrinsic=ext if extrinsic is None else extrinsic,
+                                          smooth=name == "suspension-offline")
+    if getattr(track, "t", None) is None:
+        track.t = np.asarray(em.t, dtype=float)
+    if getattr(track, "valid", None) is None:
+        track.valid = np.asarray(em.valid, dtype=bool)
+    return track
+
+
+def estimate_to_files(path: Union[str, Path], outputs, kinds=None, **kwargs: Any):
+    """:func:`estimate_log` and write its table to ``outputs`` (all or none); what the CLI and batch run.
+
+    Parameters
+    ----------
+    path : str or Path
+        The log.
+    outputs : sequence of str or Path
+        Output files (writer by suffix, or by ``kinds``; see
+        :func:`imu_ground.pipeline.output.write_outputs`).
+    kinds : sequence of str or None, optional
+    **kwargs
+        :func:`estimate_log`'s keywords.
+
+    Returns
+    -------
+    result : EstimateResult
+    table : pandas.DataFrame
+        The table written.
+    """
+    from imu_ground.pipeline.output import result_table, write_outputs
+    result = estimate_log(path, **kwargs)
+    table = result_table(result)
+    write_outputs(outputs, table, result.meta, kinds)
+    return result, table

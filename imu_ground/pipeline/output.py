@@ -1,0 +1,296 @@
+"""The one output table of an estimate and its writers, chosen by the file's suffix; every write is atomic.
+
+Table (:func:`result_table`; the filters' ``track_table`` once it exists): ``t`` (s, frame
+end), ``normal_x/y/z`` (unit ground normal, sensor frame), ``pitch_deg`` (+ nose down),
+``roll_deg`` (+ left side up) of the body relative to the road, ``qw qx qy qz`` (residual
+rotation road <- body, scalar first) and ``valid``; frames inside a gap longer than
+:data:`GAP_NAN_FRAMES` frames hold NaN.
+
+Writers: ``.csv`` (comment header with units, method, settings and what ``valid``
+holds), ``.parquet`` (typed; units and settings in the schema metadata), ``.tum``
+(dynamic extrinsic ground <- sensor of the valid frames, for evo), ``.bag``/``.mcap``
+(ROS topics, :mod:`imu_ground.pipeline.ros_output`).
+
+Atomic: each file is written to a temporary folder beside its destination and
+renamed into place only when every requested file has been written, so a
+failure leaves neither a partial file nor a fresh file beside a missing one.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from contextlib import ExitStack, contextmanager
+from pathlib import Path
+from typing import Any, Iterator, Mapping, Optional, Sequence, Union
+
+import numpy as np
+
+__all__ = ["package_version", "OUTPUT_SUFFIXES", "COLUMNS", "UNITS", "GAP_NAN_FRAMES", "result_table", "summarize_table",
+           "default_output_name", "check_output_path", "atomic_path", "write_output", "write_outputs"]
+
+#: File suffixes :func:`write_output` knows.
+OUTPUT_SUFFIXES = (".csv", ".parquet", ".tum", ".bag", ".mcap")
+#: Columns of the output table, in order.
+COLUMNS = ("t", "normal_x", "normal_y", "normal_z", "pitch_deg", "roll_deg", "qw", "qx", "qy", "qz", "valid")
+#: Unit (and meaning) of each column.
+UNITS = {"t": "s (frame end)", "normal_x": "1 (unit normal, sensor frame)", "normal_y": "1 (unit normal, sensor frame)",
+         "normal_z": "1 (unit normal, sensor frame)", "pitch_deg": "deg, + nose down, body relative to road",
+         "roll_deg": "deg, + left side up, body relative to road",
+         **{q: "1 (unit quaternion road <- body, scalar first)" for q in ("qw", "qx", "qy", "qz")},
+         "valid": "bool: true = from measured motion, false = frame spans a gap"}
+#: Runs of invalid frames longer than this are NaN in the table (shorter ones are kept, flagged).
+GAP_NAN_FRAMES = 3
+_PathLike = Union[str, Path]
+
+
+# ------------------------------------------------------------------------------------------ table
+def _local_track_table(track) -> "Any":
+    """The brief's table from a track with ``t`` and ``valid`` (until ``filters.estimator.track_table`` exists)."""
+    import pandas as pd
+    from scipy.spatial.transform import Rotation
+    q = Rotation.from_matrix(np.asarray(track.residual)).as_quat(scalar_first=True)
+    valid = np.asarray(track.valid, dtype=bool)
+    df = pd.DataFrame({"t": np.asarray(track.t, dtype=float),
+                       "normal_x": track.normal[:, 0], "normal_y": track.normal[:, 1], "normal_z": track.normal[:, 2],
+                       "pitch_deg": np.degrees(track.pitch), "roll_deg": np.degrees(track.roll),
+                       "qw": q[:, 0], "qx": q[:, 1], "qy": q[:, 2], "qz": q[:, 3], "valid": valid})
+    df.loc[_long_gaps(valid), list(COLUMNS[1:-1])] = np.nan
+    return df
+
+
+def _long_gaps(valid: np.ndarray) -> np.ndarray:
+    """Frames in runs of more than :data:`GAP_NAN_FRAMES` consecutive invalid frames."""
+    bad = ~np.asarray(valid, dtype=bool)
+    edges = np.diff(np.concatenate([[0], bad.astype(np.int8), [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    out = np.zeros(bad.shape, dtype=bool)
+    for s, e in zip(starts, ends):
+        if e - s > GAP_NAN_FRAMES:
+            out[s:e] = True
+    return out
+
+
+def result_table(result) -> "Any":
+    """The output table (pandas.DataFrame, :data:`COLUMNS`) of an :class:`~imu_ground.pipeline.EstimateResult`."""
+    try:
+        from imu_ground.filters.estimator import track_table
+    except ImportError:
+        track_table = _local_track_table
+    return track_table(result.track)
+
+
+def summarize_table(table) -> dict[str, Any]:
+    """Frames, valid share and pitch/roll statistics (deg) over the valid, finite frames of a table."""
+    valid = table["valid"].to_numpy(dtype=bool)
+    p, r = table["pitch_deg"].to_numpy(), table["roll_deg"].to_numpy()
+    ok = valid & np.isfinite(p) & np.isfinite(r)
+    row: dict[str, Any] = {"frames": int(len(table)), "valid_frames": int(valid.sum()),
+                           "valid_share": float(valid.mean()) if len(table) else float("nan")}
+    for name, x in (("pitch", p[ok]), ("roll", r[ok])):
+        empty = x.size == 0
+        row.update({f"{name}_mean_deg": float("nan") if empty else float(x.mean()),
+                    f"{name}_std_deg": float("nan") if empty else float(x.std()),
+                    f"{name}_min_deg": float("nan") if empty else float(x.min()),
+                    f"{name}_max_deg": float("nan") if empty else float(x.max())})
+    return row
+
+
+# ------------------------------------------------------------------------------------------ paths
+def default_output_name(log: _PathLike, suffix: str = ".csv") -> str:
+    """``<log name without extensions>_ground<suffix>`` (``drive.csv.gz`` -> ``drive_ground.csv``)."""
+    name = Path(str(log).rstrip("/\\")).name
+    return name.split(".")[0] + "_ground" + suffix
+
+
+def check_output_path(path: _PathLike, inputs: Sequence[_PathLike] = (), option: str = "-o",
+                      kind: Optional[str] = None) -> Path:
+    """Check that ``path`` can be written as an output, before any work is done.
+
+    Parameters
+    ----------
+    path : str or Path
+        Output file; its suffix picks the writer (:data:`OUTPUT_SUFFIXES`).
+    inputs : sequence of str or Path
+        Input logs, which an output must never overwrite.
+    option : str
+        How the user named the path (for messages).
+    kind : str, optional
+        Writer to use whatever the suffix (e.g. ``".tum"``); default: by suffix.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    ValueError
+        Unknown suffix; the path is a folder, an input, or lies under a file;
+        no permission to write there. One line, naming the path and what to do.
+    """
+    p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"{p}: is a folder; give {option} a file name, e.g. {p / 'ground.csv'}")
+    if kind is None and p.suffix.lower() not in OUTPUT_SUFFIXES:
+        raise ValueError(f"{p}: unknown output type {p.suffix or '(no suffix)'!r}; end the {option} file name "
+                         f"with {', '.join(OUTPUT_SUFFIXES)}")
+    for src in inputs:
+        s = Path(src)
+        if p.resolve() == s.resolve() or (p.exists() and s.exists() and os.path.samefile(p, s)):
+            raise ValueError(f"{p}: is the input log; writing it would overwrite the log: choose another {option}")
+    anc = p.parent
+    while not anc.exists() and anc != anc.parent:
+        anc = anc.parent
+    if not anc.is_dir():
+        raise ValueError(f"{p}: cannot be created because {anc} is a file, not a folder; choose another {option}")
+    if not os.access(anc, os.W_OK | os.X_OK):
+        raise ValueError(f"{p}: no permission to write in {anc}; choose another {option}")
+    return p
+
+
+@contextmanager
+def atomic_path(path: _PathLike) -> Iterator[Path]:
+    """Temporary path beside ``path`` (same folder, same name); renamed onto ``path`` when the block succeeds.
+
+    The parent folders are created. On an exception nothing is left behind and
+    an existing ``path`` is untouched.
+    """
+    p = Path(path)
+    with _staged(p) as tmp:
+        yield tmp
+        os.replace(tmp, p)
+
+
+# ------------------------------------------------------------------------------------------ writers
+def package_version() -> str:
+    """The installed distribution's version (its one owner is ``pyproject.toml``)."""
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return version("imu-ground")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
+
+def _csv_header(meta: Mapping[str, Any]) -> str:
+    settings = json.dumps(meta.get("settings", {}), sort_keys=True, default=str)
+    lines = [
+        f"imu-ground {package_version()} estimate: format {meta.get('format')}, method {meta.get('method')} "
+        f"({meta.get('method_description', '')})",
+        f"settings: {settings}",
+        "columns: t (s, frame end); normal_x, normal_y, normal_z (unit ground normal, sensor frame); "
+        "pitch_deg (deg, + nose down) and roll_deg (deg, + left side up) of the body relative to the road; "
+        "qw, qx, qy, qz (residual rotation road <- body, unit quaternion, scalar first)",
+        "valid: 1 = estimated from measured motion, 0 = the frame spans a timestamp gap (integrated "
+        f"through, extrapolated); inside gaps longer than {GAP_NAN_FRAMES} frames every column but t and "
+        "valid is nan",
+    ]
+    return "".join(f"# {ln}\n" for ln in lines)
+
+
+def _write_csv(path: Path, table, meta: Mapping[str, Any]) -> None:
+    df = table.copy()
+    df["valid"] = df["valid"].astype(np.int8)
+    with open(path, "w", encoding="utf-8", newline="\n") as fh:
+        fh.write(_csv_header(meta))
+        df.to_csv(fh, index=False, float_format="%.9g", na_rep="nan", lineterminator="\n")
+
+
+def _write_parquet(path: Path, table, meta: Mapping[str, Any]) -> None:
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError:
+        raise ValueError(f"{path}: writing Parquet needs pyarrow: pip install 'imu-ground[parquet]'") from None
+    df = table.reset_index(drop=True)
+    df["valid"] = df["valid"].astype(bool)
+    fields = [pa.field(c, pa.bool_() if c == "valid" else pa.float64(), metadata={"unit": UNITS[c]})
+              for c in df.columns]
+    info = {k: meta.get(k) for k in ("format", "method", "method_description", "settings", "extrinsic")}
+    info["units"] = UNITS
+    info["gap_nan_frames"] = GAP_NAN_FRAMES
+    schema = pa.schema(fields, metadata={"imu_ground": json.dumps(info, sort_keys=True, default=str)})
+    pq.write_table(pa.Table.from_pandas(df, schema=schema, preserve_index=False), path)
+
+
+def _write_tum(path: Path, table, meta: Mapping[str, Any]) -> None:
+    from scipy.spatial.transform import Rotation
+    ext = meta.get("extrinsic") or {}
+    r_gs = np.asarray(ext.get("rotation", np.eye(3)), dtype=float)
+    trans = np.asarray(ext.get("translation", np.zeros(3)), dtype=float)
+    q = table[["qw", "qx", "qy", "qz"]].to_numpy(dtype=float)
+    keep = table["valid"].to_numpy(dtype=bool) & np.all(np.isfinite(q), axis=1)
+    dyn = Rotation.from_quat(q[keep], scalar_first=True).as_matrix() @ r_gs     # road-ground <- sensor
+    q_xyzw = Rotation.from_matrix(dyn).as_quat() if len(dyn) else np.zeros((0, 4))
+    t = table["t"].to_numpy(dtype=float)[keep]
+    rows = np.column_stack([t, np.broadcast_to(trans, (len(t), 3)), q_xyzw])
+    np.savetxt(path, rows, fmt="%.9f",
+               header="dynamic extrinsic ground <- sensor of the valid frames: t x y z qx qy qz qw")
+
+
+def _write_ros(path: Path, table, meta: Mapping[str, Any]) -> None:
+    try:
+        from imu_ground.pipeline.ros_output import write_ros_output
+    except ImportError as e:
+        raise ValueError(f"{path}: writing {path.suffix} needs the ROS extras: pip install 'imu-ground[ros]' "
+                         f"({e})") from None
+    settings = dict(meta.get("settings", {}))
+    if meta.get("t0_ns") is not None:
+        settings["t0_ns"] = int(meta["t0_ns"])                   # stamps line up with the recording
+    write_ros_output(path, table, frame_id=meta.get("frame_id") or "imu", settings=settings)
+
+
+_WRITERS = {".csv": _write_csv, ".parquet": _write_parquet, ".tum": _write_tum, ".bag": _write_ros,
+            ".mcap": _write_ros}
+
+
+def write_outputs(paths: Sequence[_PathLike], table, meta: Mapping[str, Any],
+                  kinds: Optional[Sequence[Optional[str]]] = None) -> list[Path]:
+    """Write ``table`` to every path (writer by suffix); all appear together or none does.
+
+    Parameters
+    ----------
+    paths : sequence of str or Path
+        Destinations (checked with :func:`check_output_path` first is advised).
+    kinds : sequence of str or None, optional
+        Writer per path (a suffix of :data:`OUTPUT_SUFFIXES`, e.g. ``".tum"`` for a
+        TUM file named ``.txt``); None: from the path's suffix.
+    table : pandas.DataFrame
+        :func:`result_table`'s columns.
+    meta : mapping
+        :class:`~imu_ground.pipeline.EstimateResult` ``meta`` (format, method,
+        settings, extrinsic, frame_id).
+
+    Returns
+    -------
+    list of Path
+    """
+    out = [Path(p) for p in paths]
+    kinds = [k or p.suffix.lower() for p, k in zip(out, kinds or [None] * len(out))]
+    for p, k in zip(out, kinds):
+        if k not in _WRITERS:
+            raise ValueError(f"{p}: unknown output type {k!r}; use {', '.join(OUTPUT_SUFFIXES)}")
+    with ExitStack() as stack:
+        temps = [stack.enter_context(_staged(p)) for p in out]
+        for k, tmp in zip(kinds, temps):
+            _WRITERS[k](tmp, table, meta)
+        for p, tmp in zip(out, temps):
+            os.replace(tmp, p)
+    return out
+
+
+@contextmanager
+def _staged(path: Path) -> Iterator[Path]:
+    """Like :func:`atomic_path` but the caller renames (so several files can be committed together)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmpdir = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+    try:
+        yield tmpdir / path.name
+    finally:
+        shutil.rmtree(tmpdir, ignore_errors=True)
+
+
+def write_output(path: _PathLike, table, meta: Mapping[str, Any], extra: Optional[Sequence[_PathLike]] = None) -> Path:
+    """Write one output (and optional ``extra`` ones, all or none); returns its path."""
+    return write_outputs([path, *(extra or ())], table, meta)[0]

@@ -1,0 +1,82 @@
+"""``imu-ground batch`` on a local Dask cluster: one output per log (equal to estimate's), a broken log, a rerun."""
+import shutil
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from imu_ground.cli import main
+
+pytest.importorskip("dask.distributed")
+
+REPO = Path(__file__).resolve().parents[1]
+EXAMPLE = REPO / "datasets" / "fixtures" / "example_drive.csv"
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory):
+    """Four small logs (the example cut in pieces, one in a sub-folder) and one broken log."""
+    d = tmp_path_factory.mktemp("fleet")
+    df = pd.read_csv(EXAMPLE)
+    for i, (a, b) in enumerate([(0, 2000), (1500, 3500), (3000, 6001)]):
+        df.iloc[a:b].to_csv(d / f"drive{i}.csv", index=False)
+    (d / "sub").mkdir()
+    shutil.copy(EXAMPLE, d / "sub" / "drive3.csv")
+    (d / "broken.csv").write_text("t,wx,wy,wz,ax,ay,az\n0,0,0,0,0,0,9.8\n0.01,0,0,0,0,0,oops\n")
+    return d
+
+
+def test_batch_local_cluster_broken_log_and_rerun(fleet, tmp_path, capsys):
+    out = tmp_path / "out"
+    code = main(["batch", str(fleet / "*.csv"), str(fleet / "sub" / "drive3.csv"), str(fleet / "nothing*.csv"),
+                 "-o", str(out), "--workers", "2"])
+    stdout = capsys.readouterr().out
+    assert code == 1                                              # some logs failed, the others went on
+    summary = pd.read_csv(out / "summary.csv")
+    assert len(summary) == 6
+    by_log = summary.set_index(summary["log"].map(lambda p: Path(p).name))
+    assert by_log.loc["broken.csv", "status"] == "failed" and "broken.csv" in by_log.loc["broken.csv", "error"]
+    assert by_log.loc["nothing*.csv", "status"] == "failed" and "no file matches" in by_log.loc["nothing*.csv", "error"]
+    ok = summary[summary["status"] == "ok"]
+    assert len(ok) == 4 and (ok["format"] == "table").all() and (ok["method"] == "suspension").all()
+    assert (ok["valid_share"] == 1.0).all() and ok["pitch_std_deg"].notna().all()
+    assert sorted(p.name for p in out.glob("*_ground.csv")) == ["drive0_ground.csv", "drive1_ground.csv",
+                                                                  "drive2_ground.csv", "drive3_ground.csv"]
+    assert "4 estimated, 0 skipped (output exists), 2 failed" in stdout
+
+    # the same bytes as `imu-ground estimate` writes
+    single = tmp_path / "single.csv"
+    assert main(["estimate", str(fleet / "drive1.csv"), "-o", str(single)]) == 0
+    assert (out / "drive1_ground.csv").read_bytes() == single.read_bytes()
+
+    # rerun: complete outputs are skipped, the failing log is tried again
+    stamp = (out / "drive0_ground.csv").stat().st_mtime_ns
+    code = main(["batch", str(fleet / "*.csv"), str(fleet / "sub" / "drive3.csv"), "-o", str(out), "--workers", "2"])
+    stdout = capsys.readouterr().out
+    assert code == 1
+    assert "0 estimated, 4 skipped (output exists), 1 failed" in stdout
+    assert (out / "drive0_ground.csv").stat().st_mtime_ns == stamp
+    rerun = pd.read_csv(out / "summary.csv")
+    assert rerun.loc[rerun["status"].str.startswith("skipped"), "frames"].notna().all()
+
+
+def test_batch_in_process_and_name_clashes(fleet, tmp_path, capsys):
+    from imu_ground.pipeline.batch import output_names, run_batch
+    names = output_names([str(fleet / "drive3.csv"), str(fleet / "sub" / "drive3.csv")])
+    assert len(set(names)) == 2
+    table = run_batch([fleet / "drive0.csv"], tmp_path / "o", workers=0, suffix=".parquet")
+    assert list(table["status"]) == ["ok"] and (tmp_path / "o" / "drive0_ground.parquet").is_file()
+
+
+def test_batch_bad_options_fail_before_any_log(fleet, tmp_path, capsys):
+    code = main(["batch", str(fleet / "drive0.csv"), "-o", str(tmp_path / "o"), "--workers", "0",
+                 "--method", "filter", "--Q", "0.5", "--R", "2"])
+    assert code == 0
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as e:
+        main(["batch", str(fleet / "drive0.csv"), "-o", str(tmp_path / "o"), "--rate", "-3"])
+    assert e.value.code == 2
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    assert main(["batch", str(fleet / "drive0.csv"), "-o", str(blocker), "--workers", "0"]) == 2
+    assert "give -o an output folder" in capsys.readouterr().err
