@@ -14,6 +14,7 @@ from imu_ground.imu.matrix3 import exp_and_left_jacobian
 from imu_ground.imu.preintegration import (
     FrameDeltas,
     PreintegratedImu,
+    PreintegrationParams,
     StreamingPreintegrator,
     make_frame_times,
     preintegrate,
@@ -576,3 +577,90 @@ def test_streaming_deltas_only_matches_batch_and_refuses_covariance():
         b[0].covariance
     with pytest.raises(ValueError, match="uncertainty=False"):
         b[0].d_R_d_bg
+
+
+# ---------------------------------------------------------------------------
+# GTSAM (an independent implementation of the same discrete model)
+# ---------------------------------------------------------------------------
+def _gtsam_pim(gtsam, bg, ba, sg, sa, g):
+    p = gtsam.PreintegrationParams.MakeSharedU(g)
+    p.setGyroscopeCovariance(sg ** 2 * np.eye(3))
+    p.setAccelerometerCovariance(sa ** 2 * np.eye(3))
+    p.setIntegrationCovariance(np.zeros((3, 3)))
+    return gtsam.PreintegratedImuMeasurementsManifold(p, gtsam.imuBias.ConstantBias(ba, bg))
+
+
+def test_matches_gtsam_manifold_preintegration():
+    """Zero-order hold (GTSAM's model): deltas, 9x9 covariance (GTSAM orders it
+    [rotation, position, velocity], in the end body frame), the bias Jacobians through a bias-corrected
+    prediction, and the navigation-state prediction, against GTSAM's
+    ``PreintegratedImuMeasurements`` (manifold) and ``PreintegratedRotation``."""
+    gtsam = pytest.importorskip("gtsam")
+    t, gyro, accel = random_log(400, seed=21)
+    bg, ba = np.array([0.01, -0.02, 0.005]), np.array([0.1, -0.05, 0.2])
+    params = PreintegrationParams(bias_gyro=bg, bias_accel=ba, gyro_noise_density=SG,
+                                  accel_noise_density=SA, hold="left")
+    fd = preintegrate((t, gyro, accel), frame_times=[t[0], t[-1]], params=params)
+    pim = _gtsam_pim(gtsam, bg, ba, SG, SA, params.gravity)
+    rot = gtsam.PreintegratedRotation(gtsam.PreintegratedRotationParams())
+    for k in range(len(t) - 1):
+        dt = t[k + 1] - t[k]
+        pim.integrateMeasurement(accel[k], gyro[k], dt)
+        rot.integrateGyroMeasurement(gyro[k], bg, dt)
+    np.testing.assert_allclose(fd.delta_t[0], pim.deltaTij(), rtol=1e-14)
+    np.testing.assert_allclose(fd.delta_R[0], pim.deltaRij().matrix(), atol=1e-14)
+    np.testing.assert_allclose(fd.delta_v[0], pim.deltaVij(), atol=1e-13 * np.abs(fd.delta_v[0]).max())
+    np.testing.assert_allclose(fd.delta_p[0], pim.deltaPij(), atol=1e-13 * np.abs(fd.delta_p[0]).max())
+    # ours [rot, vel, pos] with vel/pos errors in the start body frame -> GTSAM's NavState tangent
+    # [rot, pos, vel] with every error in the end body frame (retract p + R dp)
+    order = np.r_[0:3, 6:9, 3:6]
+    D = np.kron(np.eye(3), fd.delta_R[0].T)
+    D[0:3, 0:3] = np.eye(3)
+    C = D @ fd.covariance[0][np.ix_(order, order)] @ D.T
+    np.testing.assert_allclose(C, pim.preintMeasCov(), rtol=0, atol=1e-12 * np.abs(C).max())
+    np.testing.assert_allclose(fd.d_R_d_bg[0], rot.delRdelBiasOmega(), atol=1e-13)
+    # a state moved across the interval, at the integration bias and at a nearby one
+    R0 = so3.exp([0.1, -0.2, 0.3])
+    v0, p0 = np.array([10.0, -1.0, 0.5]), np.array([1.0, 2.0, 3.0])
+    state = gtsam.NavState(gtsam.Rot3(R0), p0, v0)
+    frame = fd.frame(0)
+    for dbg, dba in ((np.zeros(3), np.zeros(3)), (np.array([2e-4, -1e-4, 3e-4]), np.array([0.01, 0.02, -0.01]))):
+        ref = pim.predict(state, gtsam.imuBias.ConstantBias(ba + dba, bg + dbg))
+        dR, dv, dp = frame.corrected(bg + dbg, ba + dba)
+        g = np.array([0.0, 0.0, -params.gravity])
+        T = frame.delta_t
+        np.testing.assert_allclose(R0 @ dR, ref.attitude().matrix(), atol=1e-13)
+        np.testing.assert_allclose(v0 + g * T + R0 @ dv, ref.velocity(), atol=1e-11)
+        np.testing.assert_allclose(p0 + v0 * T + 0.5 * g * T * T + R0 @ dp, ref.position(), atol=1e-10)
+    Rp, vp, pp = frame.predict(R0, v0, p0)
+    ref = pim.predict(state, gtsam.imuBias.ConstantBias(ba, bg))
+    np.testing.assert_allclose(Rp, ref.attitude().matrix(), atol=1e-13)
+    np.testing.assert_allclose(vp, ref.velocity(), atol=1e-11)
+    np.testing.assert_allclose(pp, ref.position(), atol=1e-10)
+
+
+def test_params_value_type():
+    p = PreintegrationParams(bias_gyro=np.array([1.0, 2.0, 3.0]), hold="left")
+    assert p.bias_gyro == (1.0, 2.0, 3.0) and p.hold == "left"
+    q = PreintegrationParams.coerce(p, gyro_noise_density=0.5, bias_accel=None)
+    assert q.gyro_noise_density == 0.5 and q.bias_accel == p.bias_accel and q.hold == "left"
+    assert PreintegrationParams.coerce(p) is p
+    with pytest.raises(TypeError, match="unknown preintegration option"):
+        PreintegrationParams.coerce(p, gyro_noise=1.0)
+    with pytest.raises(ValueError, match="hold"):
+        PreintegrationParams(hold="cubic")
+    with pytest.raises(ValueError, match="on_gap"):
+        PreintegrationParams(on_gap="skip")
+    with pytest.raises(ValueError, match="gyro_noise_density"):
+        PreintegrationParams(gyro_noise_density=-1.0)
+    with pytest.raises(ValueError, match="bias_gyro"):
+        PreintegrationParams(bias_gyro=[1.0, 2.0])
+    # every entry point takes the same params (or its fields as keywords), with the same result
+    t, gyro, accel = random_log(300, seed=22)
+    par = PreintegrationParams(bias_gyro=[0.01, 0.0, 0.0], gyro_noise_density=SG, accel_noise_density=SA)
+    a = preintegrate((t, gyro, accel), rate=10.0, params=par)
+    b = preintegrate((t, gyro, accel), rate=10.0, bias_gyro=[0.01, 0.0, 0.0], gyro_noise_density=SG,
+                     accel_noise_density=SA)
+    np.testing.assert_array_equal(a.covariance, b.covariance)
+    assert a.params == par
+    assert_same(stream(t, gyro, accel, rate=10.0, params=par), a)
