@@ -1,0 +1,235 @@
+"""Write benchmarks/RESULTS.md: every accuracy and speed table of the project, measured in one run.
+
+Regenerate with::
+
+    python benchmarks/make_results.py            # full: 31 real drives, 10 synthetic drives a grade, all benchmarks
+    python benchmarks/make_results.py --quick    # fast subset (a few drives, small benchmark sizes)
+
+Accuracy: the evaluation (:mod:`imu_ground.evaluation`) of every method on the
+shared real KITTI drives (``../shared/data/kitti_imu100``; pitch relative to the
+road, per drive means removed; by condition; per moving segment; the
+reference's own uncertainty) and on the synthetic suite (navigation-grade and
+MEMS IMUs; exact truth, normal angle, pitch and roll). Speed: the tables of the
+benchmark scripts, each of which exposes ``rows()`` returning its rows
+(``bench_filter``, ``bench_suspension``, ``bench_preintegration``, ``bench_ekf``,
+``bench_gravity``, ``bench_readers``, ``bench_batch``); a script that is missing
+or has no ``rows()`` is listed with a note instead. Figures are measured on
+whatever machine runs this (shared, 2 cores while others work: speed figures are
+medians but noisy).
+"""
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import importlib.util
+import inspect
+import math
+import platform
+import subprocess
+import sys
+import time
+import warnings
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent
+DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_imu100"
+OUT = HERE / "RESULTS.md"
+BENCHMARKS = ("bench_filter", "bench_suspension", "bench_preintegration", "bench_ekf", "bench_gravity",
+              "bench_readers", "bench_batch")
+#: Smaller sizes for ``--quick``, passed to a benchmark's ``rows()`` where it has the parameter.
+QUICK_KWARGS = {"frames": 20_000, "stream_frames": 5_000, "repeat": 2, "steps": 5_000, "samples": 60_000,
+                "stream_samples": 5_000, "hours": (0.1,), "n": 2, "drives": 4}
+QUICK_REAL_DRIVES = 6
+SYNTHETIC_DRIVES, QUICK_SYNTHETIC_DRIVES = 10, 2
+
+__all__ = ["accuracy_sections", "speed_sections", "main"]
+
+
+# ----------------------------------------------------------------------------- formatting
+def _cell(v) -> str:
+    if isinstance(v, bool) or v is None:
+        return "" if v is None else ("yes" if v else "no")
+    if isinstance(v, float):
+        if not math.isfinite(v):
+            return ""
+        return f"{v:.3f}" if abs(v) < 1000 else f"{v:,.0f}"
+    if hasattr(v, "item") and not isinstance(v, (str, bytes)):
+        return _cell(v.item())
+    return str(v).replace("|", "\\|")
+
+
+def markdown(rows: list[dict]) -> str:
+    """A list of dicts as a Markdown table (columns: the union of the keys, first seen first)."""
+    if not rows:
+        return "(no rows)"
+    cols: list[str] = []
+    for r in rows:
+        cols += [k for k in r if k not in cols]
+    lines = ["| " + " | ".join(cols) + " |", "|" + "|".join("---" for _ in cols) + "|"]
+    lines += ["| " + " | ".join(_cell(r.get(c)) for c in cols) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def _frame_rows(df) -> list[dict]:
+    return df.reset_index().to_dict("records")
+
+
+# ----------------------------------------------------------------------------- accuracy
+def _real_section(data: Path, quick: bool) -> list[str]:
+    from imu_ground.evaluation import conditions as cond
+    from imu_ground.evaluation.runner import conditions_table, evaluate, load_real_drives, summary_table
+    if not data.is_dir():
+        return ["## Real drives", "", f"Skipped: {data} not found (the shared recordings are not on this machine)."]
+    drives = load_real_drives(data, progress=False)
+    excluded = [d for d in drives if not d.valid]
+    valid = [d for d in drives if d.valid]
+    if quick:
+        valid = valid[:QUICK_REAL_DRIVES]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = evaluate(valid, progress=False)
+    summary = summary_table(res)[["drives", "mean_deg", "median_deg", "worst_deg", "worst_drive",
+                                  "worst_ratio_to_paper", "seg_pitch_deg", "ref_floor_deg", "ref_share",
+                                  "us_per_frame"]]
+    out = ["## Real drives (shared KITTI, IMU only)", "",
+           f"{len(valid)} valid drives of `{data.name}`" + (" (quick subset)" if quick else "")
+           + "; excluded from their signals: "
+           + ("; ".join(f"{d.name} ({d.reason})" for d in excluded) or "none") + ".", "",
+           "Mean absolute pitch error relative to the road, deg, over the valid frames above 3 m/s, means "
+           "removed per drive (`mean_deg`: mean over drives; `worst_ratio_to_paper`: worst drive's error over "
+           "the paper's method's on the same drive). `seg_pitch_deg`: the same with the means removed per moving "
+           "segment (between stops). `ref_floor_deg`: what a perfect estimator would score against this "
+           f"reference (INS vertical-velocity noise {cond.INS_VU_NOISE} m/s over the speed, pitch noise "
+           f"{math.degrees(cond.INS_PITCH_NOISE):.2f} deg); `ref_share`: share of the method's mean squared "
+           "error the reference's own uncertainty can explain. `us_per_frame`: batch run time.", "",
+           markdown(_frame_rows(summary)), "",
+           "### By condition (real drives)", "",
+           "Mean absolute pitch error, deg, pooled over the frames of each condition "
+           "(definitions in `imu_ground.evaluation.conditions`: speed bins; turning |yaw rate| > "
+           f"{cond.TURN_YAW_RATE} rad/s; braking deceleration > {cond.BRAKE_DECEL} m/s^2; within "
+           f"{cond.NEAR_STOP_S:g} s of a stop (< {cond.STOP_SPEED} m/s); rough road: high-passed pitch rate RMS > "
+           f"{math.degrees(cond.ROUGH_PITCH_RATE):.1f} deg/s).", "",
+           markdown(_frame_rows(conditions_table(res))), "",
+           "Frames per condition:", "",
+           markdown(_frame_rows(conditions_table(res, counts=True).groupby(level=0).first())), ""]
+    return out
+
+
+def _synthetic_section(quick: bool) -> list[str]:
+    from imu_ground.evaluation.runner import conditions_table, evaluate, summary_table, synthetic_drives
+    n = QUICK_SYNTHETIC_DRIVES if quick else SYNTHETIC_DRIVES
+    drives = synthetic_drives(n, seed=0, grades=("nav", "mems"), progress=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = evaluate(drives, progress=False)
+    ok = res[res["valid"]]
+    by = ok.groupby(["grade", "method"], sort=False)[["angle_mean", "pitch_mean", "roll_mean", "seg_pitch_mean"]]
+    table = by.mean().rename(columns=lambda c: c.replace("_mean", "_deg"))
+    summary = summary_table(res)[["drives", "mean_deg", "median_deg", "worst_deg", "worst_ratio_to_paper",
+                                  "us_per_frame"]]
+    return ["## Synthetic drives", "",
+            f"`simulate_suite({n}, seed=0, grades=('nav', 'mems'))` (the CLI's `evaluate --synthetic {n}`): "
+            "exact truth, nothing removed, valid frames above 3 m/s. Mean over drives of the per-drive mean "
+            "absolute error, deg: normal angle, pitch, roll, pitch per moving segment.", "",
+            markdown(_frame_rows(table)), "",
+            "Normal angle error per IMU grade (`worst_ratio_to_paper` as for the real drives):", "",
+            markdown(_frame_rows(summary)), "",
+            "By condition (pitch, deg):", "",
+            markdown(_frame_rows(conditions_table(res))), ""]
+
+
+def accuracy_sections(data: Path, quick: bool) -> list[str]:
+    """The accuracy part of RESULTS.md as Markdown lines."""
+    return ["# Accuracy", ""] + _real_section(data, quick) + _synthetic_section(quick)
+
+
+# ----------------------------------------------------------------------------- speed
+def _load(name: str):
+    path = HERE / f"{name}.py"
+    if not path.is_file():
+        return None
+    spec = importlib.util.spec_from_file_location(f"_bench_{name}", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def speed_sections(quick: bool, only: tuple[str, ...] = BENCHMARKS) -> list[str]:
+    """The speed part of RESULTS.md: each benchmark script's ``rows()`` as a table, or a note."""
+    out = ["# Speed", ""]
+    for name in only:
+        out += [f"## {name}", ""]
+        try:
+            module = _load(name)
+        except Exception as exc:            # a broken script must not stop the others
+            out += [f"Not run: importing `benchmarks/{name}.py` failed: {type(exc).__name__}: {exc}", ""]
+            continue
+        if module is None:
+            out += [f"Skipped: `benchmarks/{name}.py` does not exist yet.", ""]
+            continue
+        rows = getattr(module, "rows", None)
+        if rows is None:
+            out += [f"Skipped: `benchmarks/{name}.py` has no `rows()` function (run it by hand: "
+                    f"`python benchmarks/{name}.py`).", ""]
+            continue
+        params = inspect.signature(rows).parameters
+        kwargs = {k: v for k, v in QUICK_KWARGS.items() if k in params} if quick else {}
+        t0 = time.perf_counter()
+        try:
+            table = rows(**kwargs)
+        except Exception as exc:
+            out += [f"Failed: `{name}.rows({_args(kwargs)})` raised {type(exc).__name__}: {exc}", ""]
+            continue
+        out += [f"`{name}.rows({_args(kwargs)})`, {time.perf_counter() - t0:.0f} s:", "",
+                markdown(list(table)), ""]
+    return out
+
+
+def _args(kwargs: dict) -> str:
+    return ", ".join(f"{k}={v!r}" for k, v in kwargs.items())
+
+
+# ----------------------------------------------------------------------------- main
+def _header(argv: list[str], quick: bool) -> list[str]:
+    try:
+        commit = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"], capture_output=True,
+                                text=True, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(REPO), "status", "--porcelain", "--untracked-files=no"],
+                               capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        commit, dirty = "unknown", ""
+    command = " ".join(["python benchmarks/make_results.py"] + argv)
+    return ["# imu-ground results", "",
+            f"Regenerate: `{command}`" + ("" if quick else " (add `--quick` for a fast subset)"), "",
+            f"Written {_dt.datetime.now(_dt.timezone.utc):%Y-%m-%d %H:%M} UTC at commit {commit}"
+            + (" (with uncommitted changes in the tree)" if dirty else "")
+            + f", Python {platform.python_version()}, {platform.machine()}."
+            + (" QUICK SUBSET: not the reference figures." if quick else ""), "",
+            "Every measured figure of the project lives here (docstrings and the README point to this file).", ""]
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="a fast subset: few drives, small benchmark sizes")
+    ap.add_argument("--data", type=Path, default=DEFAULT_DATA, help="folder of the kitti_imu100 drives")
+    ap.add_argument("--out", type=Path, default=OUT, help="output file (default %(default)s)")
+    ap.add_argument("--no-speed", action="store_true", help="accuracy tables only")
+    ap.add_argument("--no-accuracy", action="store_true", help="speed tables only")
+    a = ap.parse_args(argv)
+    lines = _header(argv, a.quick)
+    if not a.no_accuracy:
+        lines += accuracy_sections(a.data, a.quick)
+    if not a.no_speed:
+        lines += speed_sections(a.quick)
+    tmp = a.out.with_suffix(a.out.suffix + ".tmp")
+    tmp.write_text("\n".join(lines).rstrip() + "\n")
+    tmp.replace(a.out)
+    print(f"wrote {a.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
