@@ -75,9 +75,23 @@ class _Baseline:
         pitch, roll = pitch_roll_from_normal(E[2])
         return GroundEstimate(float(pitch), float(roll), True, residual=E, Rgs=self._Rgs, P=P)
 
-    def _no_smoother(self, smooth: bool) -> None:
-        if smooth:
+    #: Whether ``run(..., smooth=True)`` is allowed (it changes nothing for a constant estimate).
+    _smooth_ok = False
+
+    def run(self, egomotion, smooth: bool = False) -> GroundTrack:
+        """Process a drive (continuing from the current state, as ``step`` would).
+
+        Parameters
+        ----------
+        egomotion : EgoMotion, ImuData or ndarray (F, 3, 3) / (F, 3)
+            Frames in the sensor frame (see :func:`~imu_ground.filters.estimator.as_egomotion`).
+        smooth : bool
+            Offline smoothing: the baselines have none (:class:`ConstantNormal` accepts
+            it and changes nothing, :class:`EulerEKF` refuses it).
+        """
+        if smooth and not self._smooth_ok:
             raise ValueError(f"{type(self).__name__} has no offline smoother: run it with smooth=False")
+        return self._run(as_egomotion(egomotion))
 
 
 class ConstantNormal(_Baseline):
@@ -108,16 +122,10 @@ class ConstantNormal(_Baseline):
         self.cumulative = self.cumulative @ self._body_increment(frame)
         return self._estimate(np.eye(3), np.zeros((3, 3)))
 
-    def run(self, egomotion, smooth: bool = False) -> GroundTrack:
-        """The whole drive at once (``smooth`` changes nothing: the estimate is constant).
+    _smooth_ok = True
 
-        Parameters
-        ----------
-        egomotion : EgoMotion, ImuData or ndarray (F, 3, 3) / (F, 3)
-            Frames in the sensor frame (see :func:`~imu_ground.filters.estimator.as_egomotion`).
-        smooth : bool
-        """
-        em = as_egomotion(egomotion)
+    def _run(self, em) -> GroundTrack:
+        """The whole drive at once (vectorised)."""
         d = np.asarray(em.delta_R, dtype=float)
         for k, problem in enumerate(frame_problems(d, None, np.asarray(em.delta_t, dtype=float))):
             if problem:
@@ -218,18 +226,8 @@ class EulerEKF(_Baseline):
         ekf.x[2] = _wrap(ekf.x[2])
         return self._estimate(from_euler_zyx(ekf.x).T @ self.cumulative, ekf.P.copy())
 
-    def run(self, egomotion, smooth: bool = False) -> GroundTrack:
-        """Process a drive frame by frame (continuing from the current state).
-
-        Parameters
-        ----------
-        egomotion : EgoMotion, ImuData or ndarray (F, 3, 3) / (F, 3)
-            Frames in the sensor frame (see :func:`~imu_ground.filters.estimator.as_egomotion`).
-        smooth : bool
-            Must be False (no smoother).
-        """
-        self._no_smoother(smooth)
-        em = as_egomotion(egomotion)
+    def _run(self, em) -> GroundTrack:
+        """The drive frame by frame."""
         n = len(em)
         E, P, X, cum = (np.empty((n, 3, 3)) for _ in range(4))
         for k, frame in enumerate(em.frames()):
