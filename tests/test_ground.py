@@ -148,7 +148,7 @@ def test_bad_inputs():
     f = GroundNormalFilter()
     with pytest.raises(ValueError, match="delta_R must be"):
         f.step(np.zeros((2, 2)))
-    with pytest.raises(ValueError, match="non-finite values in 1 frames, first at index 3"):
+    with pytest.raises(ValueError, match=r"frame index 3, t = 0.4 s; 1 bad of 5\): delta_R is not finite"):
         d = np.tile(np.eye(3), (5, 1, 1))
         d[3, 0, 0] = np.nan
         f.run(d)

@@ -36,172 +36,45 @@ level ground (:mod:`imu_ground.filters.extrinsics`); ``R_gs`` maps sensor vector
   with its sign taken from the turns. A drive without turns leaves the sign
   to the sensor's x axis, one without either leaves the yaw unobservable
   (``stats["yaw_source"]``; the sensor's x axis projected on the ground plane
-  is kept). On synthetic drives the extrinsic comes back within 0.1 - 0.2 deg.
-  On KITTI (30 drives pooled) the yaw comes out at -1.8 deg although the
-  INS's own velocity heading puts the IMU's x axis within 0.3 deg of the
-  direction of travel: an unexplained 2 deg (accelerometer axes misaligned
-  with the gyro's in the extract, or lateral accelerations correlated with
-  speeding up and braking in city driving), so check the yaw against another
-  source where one exists.
-- **Suspension gains** (:func:`~imu_ground.filters.suspension.bandpass_gain_regression`):
+  is kept). Lateral accelerations correlated with speeding up and braking
+  (city driving) bias it: check the yaw against another source where one
+  exists.
+- **Suspension gains** (:func:`~imu_ground.filters.gains.bandpass_gain_regression`):
   the body tilt from the gyro regressed on the gravity-compensated
   acceleration (from :class:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter`,
   with the extrinsic just found), both band-passed to 0.3 - 1.5 Hz. Not lower:
   there the gyro tilt is mostly the road, and the road correlates with the
   acceleration (cars speed up downhill; roads bank into curves, which makes
-  the roll gain of a drive through superelevated curves meaningless): on
-  KITTI, below 0.3 Hz the gyro tilt gives -0.04 deg per m/s^2 where the
-  reference pitch relative to the road gives -0.26. Not higher: the
+  the roll gain of a drive through superelevated curves meaningless). Not higher: the
   suspension's resonance (1 - 1.5 Hz) and the acceleration noise. Inside the
   band the regression also sees the sensor's lever arm about the body's
   pitch/roll centre (an IMU 0.9 m above it reads 0.9 m times the angular
   acceleration, which moves with the tilt); give ``lever_arm`` when that
-  position is known. Synthetic vehicles (which pitch about the road surface)
-  come out 10 - 25 % high with it (their resonance lies in the band) and far
-  too high without it. On KITTI, pooled over the 30 valid drives and without a
-  lever arm (the pitch centre is unknown), -0.32 / +0.57 deg per m/s^2; with
-  that calibration (extrinsic and gains, IMU only) the filter scores 0.138 deg
-  against 0.132 with the tuned configuration (-0.25 / +0.50).
+  position is known. How well the calibration recovers synthetic mounts and
+  gains, and how the KITTI platform's calibration scores, is in
+  ``benchmarks/RESULTS.md``.
 
-The calibration file
---------------------
-:meth:`Calibration.save` writes :func:`~imu_ground.filters.extrinsics.save_extrinsic`'s
-format with extra ``key: value`` lines, which the extrinsic loader keeps as
-metadata::
-
-    suspension_gains: -0.0043633 0.0087266      # k_pitch k_roll
-    suspension_gains_unit: rad per m/s^2
-    R: ...
-    t: ...
-
-:func:`load_calibration` (or :func:`~imu_ground.filters.extrinsics.load_extrinsic` and
-:meth:`Calibration.from_extrinsic`) reads it back.
+The calibration file format (:class:`~imu_ground.filters.extrinsics.Calibration`,
+:func:`~imu_ground.filters.extrinsics.load_calibration`) lives with the extrinsics.
 """
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any, Optional, Sequence, Union
+from typing import TYPE_CHECKING, Any, Optional, Sequence, Union
 
 import numpy as np
 
 from imu_ground import so3
-from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
-from imu_ground.filters.extrinsics import Extrinsic, load_extrinsic, save_extrinsic
-from imu_ground.imu.data import ImuData
+from imu_ground.filters.estimator import as_egomotion
+from imu_ground.filters.extrinsics import Calibration, Extrinsic, load_calibration
+from imu_ground.filters.gains import DEFAULT_GAINS, GAIN_BAND, bandpass_gain_regression
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
-from imu_ground.filters.suspension import DEFAULT_GAINS, GAIN_BAND, bandpass_gain_regression
+from imu_ground.filters.rotations import euler_zyx
+
+if TYPE_CHECKING:
+    from imu_ground.imu.data import ImuData
+    from imu_ground.imu.egomotion import EgoMotion
 
 __all__ = ["Calibration", "calibrate", "load_calibration"]
-
-_DEG = math.pi / 180.0
-_GAIN_UNITS = {"rad per m/s^2": 1.0, "deg per m/s^2": _DEG}
-
-
-@dataclass
-class Calibration:
-    """Result of :func:`calibrate`: a static extrinsic and suspension gains.
-
-    Attributes
-    ----------
-    extrinsic : Extrinsic
-        ``rotation``: ground <- sensor (ground frame FLU, z the road normal);
-        ``translation``: sensor origin in the ground frame, m (as given to
-        :func:`calibrate`: an IMU cannot measure it); ``meta``: how it was made.
-    gains : ndarray (2,) or None
-        ``(k_pitch, k_roll)``, rad per m/s^2 (body pitch, nose down +, per m/s^2
-        of forward acceleration; roll, left side up +, per m/s^2 of leftward
-        acceleration); NaN where the drive had no signal, None if not estimated.
-    stats : dict
-        The numbers behind the result (frames used, per-source tilts in deg, ...).
-    """
-    extrinsic: Extrinsic
-    gains: Optional[np.ndarray] = None
-    stats: dict = field(default_factory=dict)
-
-    @property
-    def rotation(self) -> np.ndarray:
-        """ground <- sensor rotation (3x3)."""
-        return self.extrinsic.rotation
-
-    def filter_kwargs(self) -> dict:
-        """Keyword arguments of :class:`~imu_ground.filters.suspension.SuspensionAwareFilter` for this platform."""
-        kw: dict[str, Any] = {"extrinsic": self.extrinsic}
-        if self.gains is not None and np.all(np.isfinite(self.gains)):
-            kw["gains"] = tuple(float(g) for g in self.gains)
-        return kw
-
-    def save(self, path: Union[str, Path], comment: str = "") -> None:
-        """Write the calibration file (the ``calib/`` extrinsic format with a ``suspension_gains`` line).
-
-        Parameters
-        ----------
-        path : str or Path
-        comment : str
-            Extra comment lines at the top.
-        """
-        meta = {k: v for k, v in self.extrinsic.meta.items()
-                if k not in ("suspension_gains", "suspension_gains_unit")}
-        if self.gains is not None:
-            meta["suspension_gains"] = f"{self.gains[0]:.10g} {self.gains[1]:.10g}"
-            meta["suspension_gains_unit"] = "rad per m/s^2"
-        head = ("calibrated by imu_ground.filters.calibration.calibrate: R ground <- sensor, t sensor origin in the "
-                "ground frame (m); suspension_gains: k_pitch k_roll")
-        text = head + ("\n" + comment if comment else "")
-        save_extrinsic(Extrinsic(self.extrinsic.rotation, self.extrinsic.translation, meta), path, comment=text)
-
-    @classmethod
-    def from_extrinsic(cls, ext: Extrinsic) -> "Calibration":
-        """A Calibration from a loaded extrinsic whose metadata may hold ``suspension_gains``."""
-        gains = None
-        if "suspension_gains" in ext.meta:
-            parts = str(ext.meta["suspension_gains"]).split()
-            unit = str(ext.meta.get("suspension_gains_unit", "rad per m/s^2")).strip()
-            if len(parts) != 2 or unit not in _GAIN_UNITS:
-                raise ValueError(f"{ext.meta.get('source', 'extrinsic')}: 'suspension_gains' needs two numbers "
-                                 f"and a unit in {sorted(_GAIN_UNITS)}, got {ext.meta['suspension_gains']!r} "
-                                 f"({unit!r})")
-            gains = np.array([float(p) for p in parts]) * _GAIN_UNITS[unit]
-        return cls(ext, gains, {})
-
-    def __str__(self) -> str:
-        pitch, roll, yaw = _mount_angles(self.extrinsic.rotation)
-        lines = [f"Calibration: sensor mounted with roll {roll:+.3f} deg, pitch {pitch:+.3f} deg, "
-                 f"yaw {yaw:+.2f} deg relative to the ground frame (ground <- sensor = "
-                 f"Rz(yaw) Ry(pitch) Rx(roll))"]
-        if self.gains is not None:
-            kp, kr = np.degrees(self.gains)
-            lines.append(f"  suspension gains: pitch {kp:+.3f}, roll {kr:+.3f} deg per m/s^2")
-        for key in ("tilt_source", "yaw_source", "cruise_s", "standstill_s", "gain_frames",
-                    "pitch_gain_rejected", "roll_gain_rejected"):
-            if key in self.stats:
-                lines.append(f"  {key}: {self.stats[key]}")
-        return "\n".join(lines)
-
-
-def _mount_angles(R: np.ndarray):
-    """(pitch, roll, yaw) in deg of ``R = Rz(yaw) Ry(pitch) Rx(roll)``."""
-    pitch = math.degrees(math.asin(max(-1.0, min(1.0, -R[2, 0]))))
-    roll = math.degrees(math.atan2(R[2, 1], R[2, 2]))
-    yaw = math.degrees(math.atan2(R[1, 0], R[0, 0]))
-    return pitch, roll, yaw
-
-
-def load_calibration(name_or_path: Union[str, Path]) -> Calibration:
-    """Read a calibration file (or any extrinsic file; the gains are None without a ``suspension_gains`` line).
-
-    Parameters
-    ----------
-    name_or_path : str or Path
-        As for :func:`~imu_ground.filters.extrinsics.load_extrinsic`.
-
-    Returns
-    -------
-    Calibration
-        ``extrinsic.rotation`` ground <- sensor, ``gains`` rad per m/s^2.
-    """
-    return Calibration.from_extrinsic(load_extrinsic(name_or_path))
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -213,14 +86,6 @@ def _extrinsic_from_axes(up: np.ndarray, fwd: np.ndarray) -> np.ndarray:
     z = _unit(up)
     x = _unit(fwd - (fwd @ z) * z)
     return np.vstack([x, np.cross(z, x), z])
-
-
-def _as_egomotion(data, rate: float) -> EgoMotion:
-    if isinstance(data, ImuData):
-        return imu_to_egomotion(data, rate=rate)
-    if isinstance(data, EgoMotion):
-        return data
-    raise TypeError(f"expected ImuData or EgoMotion, got {type(data).__name__}")
 
 
 def _pooled_frames(egos, R, min_speed, lever_arm=None):
@@ -241,11 +106,11 @@ def _pooled_frames(egos, R, min_speed, lever_arm=None):
         [p["moving"] for p in parts]
 
 
-def calibrate(data: Union[ImuData, EgoMotion, Sequence[Union[ImuData, EgoMotion]]], *, tilt: str = "auto",
+def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "EgoMotion"]]], *, tilt: str = "auto",
               translation: Optional[Sequence[float]] = None, lever_arm: Optional[Sequence[float]] = None,
               gains: bool = True, band: Sequence[float] = GAIN_BAND, min_cruise_s: float = 20.0,
               min_speed: float = 3.0, max_yaw_rate: float = 0.02, max_accel: float = 0.15,
-              rate: float = 10.0) -> Calibration:
+              rate: Optional[float] = None) -> Calibration:
     """Static sensor-to-ground extrinsic and suspension gains from a drive, or several of one platform.
 
     See the module docstring for what is observable and how each part is found.
@@ -277,8 +142,9 @@ def calibrate(data: Union[ImuData, EgoMotion, Sequence[Union[ImuData, EgoMotion]
         Straight driving: yaw rate below this, rad/s.
     max_accel : float
         Constant speed: longitudinal and lateral acceleration below this, m/s^2.
-    rate : float
-        Frame rate for ImuData, Hz.
+    rate : float, optional
+        Frame rate for ImuData, Hz (default :data:`~imu_ground.units.DEFAULT_FRAME_RATE`);
+        ego-motion keeps its own rate.
 
     Returns
     -------
@@ -294,7 +160,7 @@ def calibrate(data: Union[ImuData, EgoMotion, Sequence[Union[ImuData, EgoMotion]
     if tilt not in ("auto", "cruise", "standstill", "all"):
         raise ValueError(f"tilt must be 'auto', 'cruise', 'standstill' or 'all', got {tilt!r}")
     many = isinstance(data, (list, tuple))
-    egos = [_as_egomotion(d, rate) for d in (data if many else [data])]
+    egos = [as_egomotion(d, rate) for d in (data if many else [data])]
     if not egos or sum(len(e) for e in egos) < 2:
         raise ValueError("calibration needs at least two frames")
     translation = np.zeros(3) if translation is None else np.asarray(translation, dtype=float).reshape(3)
@@ -349,8 +215,8 @@ def calibrate(data: Union[ImuData, EgoMotion, Sequence[Union[ImuData, EgoMotion]
                              "moving_s": round(float(dt[moving].sum()), 1)}
     for name, u in candidates.items():
         if u is not None:
-            p, r, _ = _mount_angles(_extrinsic_from_axes(u, R[0]))
-            stats[f"tilt_{name}_deg"] = (round(p, 4), round(r, 4))
+            r, p, _ = np.degrees(euler_zyx(_extrinsic_from_axes(u, R[0])))
+            stats[f"tilt_{name}_deg"] = (round(float(p), 4), round(float(r), 4))
     k = None
     if gains:
         _, tracks, movings = _pooled_frames(egos, R, min_speed, lever_arm)
@@ -359,7 +225,7 @@ def calibrate(data: Union[ImuData, EgoMotion, Sequence[Union[ImuData, EgoMotion]
             if len(em) < 2:
                 continue
             _, a, b = bandpass_gain_regression(gt.body_increments, gt.acceleration, band=band,
-                                               frame_rate=1.0 / float(np.median(em.delta_t)), mask=mv)
+                                               frame_rate=em.rate, mask=mv)
             sxy, sxx = sxy + a, sxx + b
         with np.errstate(invalid="ignore", divide="ignore"):
             k = np.where(sxx > 0, sxy / sxx, np.nan)

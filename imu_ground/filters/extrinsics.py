@@ -16,19 +16,35 @@ File format (``calib/*.txt``, described in ``calib/README.md``)::
 
 ``R`` is required; ``t`` defaults to zero; other ``key: value`` lines are kept
 as metadata.
+
+A *calibration file* is the same format with two more lines, the platform's
+suspension gains (written by :meth:`Calibration.save`, read by
+:func:`load_calibration`)::
+
+    suspension_gains: -0.0043633 0.0087266      # k_pitch k_roll
+    suspension_gains_unit: rad per m/s^2         # or: deg per m/s^2
+
+:func:`resolve_platform` is the one reader of an ``extrinsic=`` argument:
+None, an :class:`Extrinsic`, a :class:`Calibration`, a 3x3 rotation, a
+shipped name or a file path.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Union
+from typing import Any, Optional, Union
 
 import numpy as np
 
-__all__ = ["Extrinsic", "load_extrinsic", "save_extrinsic", "available_extrinsics"]
+from imu_ground.filters.rotations import euler_zyx
+from imu_ground.units import DEG
+
+__all__ = ["Extrinsic", "load_extrinsic", "save_extrinsic", "available_extrinsics", "Calibration",
+           "load_calibration", "resolve_platform"]
 
 _ORTHO_TOL = 1e-6
+_GAIN_UNITS = {"rad per m/s^2": 1.0, "deg per m/s^2": DEG}
 
 
 @dataclass
@@ -61,13 +77,10 @@ class Extrinsic:
                              f"det = {np.linalg.det(self.rotation):.6f})")
 
     @classmethod
-    def coerce(cls, value: Union["Extrinsic", np.ndarray, None]) -> "Extrinsic":
-        """An Extrinsic from None (identity), an Extrinsic (itself) or a 3x3 rotation (ground <- sensor)."""
-        if value is None:
-            return cls()
-        if isinstance(value, cls):
-            return value
-        return cls(rotation=np.asarray(value, dtype=float))
+    def coerce(cls, value) -> "Extrinsic":
+        """An Extrinsic from None (identity), an Extrinsic (itself), a 3x3 rotation (ground <- sensor),
+        a :class:`Calibration` (its extrinsic) or a shipped name or file path (:func:`load_extrinsic`)."""
+        return resolve_platform(value)[0]
 
     @property
     def normal(self) -> np.ndarray:
@@ -170,3 +183,121 @@ def save_extrinsic(ext: Extrinsic, path: Union[str, Path], comment: str = "") ->
     lines.append("R: " + " ".join(f"{v:.17g}" for v in ext.rotation.ravel()))
     lines.append("t: " + " ".join(f"{v:.17g}" for v in ext.translation))
     Path(path).write_text("\n".join(lines) + "\n")
+
+
+def _gains_from_meta(ext: Extrinsic) -> Optional[np.ndarray]:
+    """Suspension gains ``(k_pitch, k_roll)`` (rad per m/s^2) of a calibration file's metadata, or None."""
+    if "suspension_gains" not in ext.meta:
+        return None
+    parts = str(ext.meta["suspension_gains"]).split()
+    unit = str(ext.meta.get("suspension_gains_unit", "rad per m/s^2")).strip()
+    if len(parts) != 2 or unit not in _GAIN_UNITS:
+        raise ValueError(f"{ext.meta.get('source', 'extrinsic')}: 'suspension_gains' needs two numbers "
+                         f"and a unit in {sorted(_GAIN_UNITS)}, got {ext.meta['suspension_gains']!r} ({unit!r})")
+    try:
+        return np.array([float(p) for p in parts]) * _GAIN_UNITS[unit]
+    except ValueError:
+        raise ValueError(f"{ext.meta.get('source', 'extrinsic')}: 'suspension_gains' has a value that is not a "
+                         f"number: {ext.meta['suspension_gains']!r}") from None
+
+
+@dataclass
+class Calibration:
+    """A platform's calibration: static extrinsic and suspension gains (:func:`~imu_ground.filters.calibration.calibrate`).
+
+    Attributes
+    ----------
+    extrinsic : Extrinsic
+        ``rotation``: ground <- sensor; ``translation``: sensor origin in the ground frame, m.
+    gains : ndarray (2,) or None
+        ``(k_pitch, k_roll)``, rad per m/s^2 (pitch nose down + per m/s^2 of
+        forward acceleration; roll left side up + per m/s^2 of leftward
+        acceleration); NaN where a drive had no signal, None if not estimated.
+    stats : dict
+        The numbers behind the result (frames used, per-source tilts in deg, ...).
+    """
+    extrinsic: Extrinsic
+    gains: Optional[np.ndarray] = None
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def rotation(self) -> np.ndarray:
+        """ground <- sensor rotation (3x3)."""
+        return self.extrinsic.rotation
+
+    def filter_kwargs(self) -> dict:
+        """Keyword arguments of :class:`~imu_ground.filters.suspension.SuspensionAwareFilter` for this platform."""
+        kw: dict[str, Any] = {"extrinsic": self.extrinsic}
+        if self.gains is not None and np.all(np.isfinite(self.gains)):
+            kw["gains"] = tuple(float(g) for g in self.gains)
+        return kw
+
+    def save(self, path: Union[str, Path], comment: str = "") -> None:
+        """Write the calibration file (the extrinsic format with a ``suspension_gains`` line)."""
+        meta = {k: v for k, v in self.extrinsic.meta.items()
+                if k not in ("suspension_gains", "suspension_gains_unit")}
+        if self.gains is not None:
+            meta["suspension_gains"] = f"{self.gains[0]:.10g} {self.gains[1]:.10g}"
+            meta["suspension_gains_unit"] = "rad per m/s^2"
+        head = ("calibrated by imu_ground.filters.calibration.calibrate: R ground <- sensor, t sensor origin in the "
+                "ground frame (m); suspension_gains: k_pitch k_roll")
+        text = head + ("\n" + comment if comment else "")
+        save_extrinsic(Extrinsic(self.extrinsic.rotation, self.extrinsic.translation, meta), path, comment=text)
+
+    @classmethod
+    def from_extrinsic(cls, ext: Extrinsic) -> "Calibration":
+        """A Calibration from a loaded extrinsic whose metadata may hold ``suspension_gains``."""
+        return cls(ext, _gains_from_meta(ext), {})
+
+    def __str__(self) -> str:
+        roll, pitch, yaw = np.degrees(euler_zyx(self.extrinsic.rotation))
+        lines = [f"Calibration: sensor mounted with roll {roll:+.3f} deg, pitch {pitch:+.3f} deg, "
+                 f"yaw {yaw:+.2f} deg relative to the ground frame (ground <- sensor = "
+                 f"Rz(yaw) Ry(pitch) Rx(roll))"]
+        if self.gains is not None:
+            kp, kr = np.degrees(self.gains)
+            lines.append(f"  suspension gains: pitch {kp:+.3f}, roll {kr:+.3f} deg per m/s^2")
+        for key in ("tilt_source", "yaw_source", "cruise_s", "standstill_s", "gain_frames",
+                    "pitch_gain_rejected", "roll_gain_rejected"):
+            if key in self.stats:
+                lines.append(f"  {key}: {self.stats[key]}")
+        return "\n".join(lines)
+
+
+def load_calibration(name_or_path: Union[str, Path]) -> Calibration:
+    """Read a calibration file (or any extrinsic file; the gains are None without a ``suspension_gains`` line).
+
+    Parameters
+    ----------
+    name_or_path : str or Path
+        As for :func:`load_extrinsic`.
+    """
+    return Calibration.from_extrinsic(load_extrinsic(name_or_path))
+
+
+def resolve_platform(value) -> tuple:
+    """The extrinsic and suspension gains an ``extrinsic=`` argument stands for.
+
+    Parameters
+    ----------
+    value : None, Extrinsic, Calibration, array_like (3, 3), str or Path
+        None: identity; a 3x3 rotation: ground <- sensor; a str or Path: a
+        shipped name or a file (:func:`load_extrinsic`), whose
+        ``suspension_gains`` line, if any, gives the gains.
+
+    Returns
+    -------
+    extrinsic : Extrinsic
+    gains : ndarray (2,) or None
+        rad per m/s^2, when the value carries them.
+    """
+    if value is None:
+        return Extrinsic(), None
+    if isinstance(value, Calibration):
+        g = value.gains
+        return value.extrinsic, (g if g is not None and np.all(np.isfinite(g)) else None)
+    if isinstance(value, (str, Path)):
+        value = load_extrinsic(value)
+    if isinstance(value, Extrinsic):
+        return value, _gains_from_meta(value)
+    return Extrinsic(rotation=np.asarray(value, dtype=float)), None

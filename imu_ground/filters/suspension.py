@@ -7,267 +7,84 @@ braking, the roll through a long bend) leaks into the "road". The body's pitch
 and roll relative to the road follow the load on the suspension, which the
 accelerometer measures. This module adds that to the invariant filter.
 
-Frames and signs
-----------------
-As in :mod:`imu_ground.filters.ground`: sensor frame ``s`` (the IMU), body/ground frame
-``g`` (FLU; ``R_gs``: ground <- sensor, the static extrinsic), world frame ``w``
-(the body frame at the start, ``R0``), road frame ``r`` (the slow state ``X``,
-world <- road). Pitch positive nose down, roll positive left side up; residual
-``E = X^T R`` (road <- body); normal in the sensor frame ``n_s = (E R_gs)^T e_z``.
-Forces and accelerations are in the body frame, m/s^2: ``x`` forward, ``y`` left.
+Frames and signs are those of :mod:`imu_ground.filters.estimator`; forces and
+accelerations are in the body frame (FLU), m/s^2.
 
-Pipeline, per frame k (10 Hz, IMU only)
----------------------------------------
-1. **Gravity and velocity** (:class:`GravityVelocityFilter`): linear Kalman
-   filter on ``[v_w, g_w]`` (velocity, reaction to gravity) in the
-   gyro-integrated world frame with the non-holonomic constraint while moving
-   and zero-velocity updates at standstill. Gives the speed (which scales the
-   road process noise), the gravity-compensated acceleration and the specific
-   force, both as frame means in the body frame.
-2. **Suspension model**: the body tilt relative to the road caused by the load
-   ``u_k``, ``b_k = [k_roll u_y, k_pitch u_x, 0]`` (a rotation vector: roll about
-   x, pitch about y), optionally through a second-order response. The load is
-   the gravity-compensated acceleration plus a share of gravity's component
-   in the road plane (``load``, default 0.6): what the springs feel is
-   acceleration *and* gravity along the road's grade and cross-slope (a car
-   parked on a hill sits nose-up on its springs), i.e. the specific force
-   (``load="specific_force"``, share 1); ``load="acceleration"`` (share 0) is
-   the research prototype's choice.
+Pipeline, per frame k
+---------------------
+1. **Gravity and velocity** (:class:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter`):
+   the speed (which scales the road process noise), the gravity-compensated
+   acceleration ``a`` and the specific force ``f``, frame means in the body frame.
+2. **Suspension model**: the load ``u = a + s (f - a)`` (``s = load``: the share
+   of gravity's road-plane component the springs feel, 0 to 1), optionally
+   through a second-order ``response``; the body tilt relative to the road
+   ``b_k = [k_roll u_y, k_pitch u_x, 0]`` (rotation vector: roll about x, pitch about y).
 3. **Invariant EKF on SO(3)** (left error) on the road attitude ``X``: predict
-   ``X <- X Rz(psi_k)`` (the road turns with the heading; ``psi_k`` the twist of
-   the body increment about up) with noise ``diag(q_k, q_k, q_yaw)``,
-   ``q_k = (q_time + q_dist |v_k|) dt_k sigma_e^2``; update with the cumulative
-   gyro rotation through the model, ``R_k = X_k Exp(e_k) Exp(b_k)``,
-   ``e_k ~ N(0, diag(sigma_e^2, sigma_e^2, r_yaw sigma_e^2))``, i.e. the
-   rotation measurement ``z_k = R_k Exp(-b_k)`` of ``X_k``.
-4. **Output** ``E_k = X_k^T R_k``: the modelled tilt ``b_k`` plus the unmodelled
-   fast body motion; pitch, roll and the normal as in :mod:`imu_ground.filters.ground`.
+   ``X <- X Rz(psi_k)`` (the road turns with the heading) with noise
+   ``diag(q_k, q_k, q_yaw)``, ``q_k = (q_time + q_dist |v_k|) dt_k sigma_e^2``;
+   update with the rotation measurement ``Z_k = R_k Exp(-b_k)``, noise
+   ``diag(sigma_e^2, sigma_e^2, r_yaw sigma_e^2)``. It runs as the scalar
+   :class:`~imu_ground.filters.residual.ResidualKernel` (the modelled tilt is its ``tilt``).
+4. **Output** ``E_k = X_k^T R_k``: the modelled tilt plus the unmodelled fast body motion.
 
-The configuration (``SuspensionAwareFilter()``)
------------------------------------------------
-One configuration for every drive of a platform; the defaults are the KITTI
-car's (OXTS RT3003, FLU, identity extrinsic), from the 30 valid
-``kitti_imu100`` drives (pitch relative to the road, mean absolute error over
-moving frames, per-drive means removed, averaged over drives):
+Online gains (``online_gains=True``): causal recursive least squares of the
+band-passed gyro tilt on the band-passed acceleration
+(:func:`~imu_ground.filters.gains.bandpass_gain_regression` done frame by
+frame), with the prior ``gains`` weighted like ``gain_prior_seconds`` of typical
+driving. Offline mode (``run(..., smooth=True)``): gravity and speed from the
+RTS smoother of the linear filter, then the forward attitude filter and its
+RTS smoother on the group, blended ``X = X_f Exp(w Log(X_f^T X_s))``,
+``w = smoother_weight``.
 
-- ``k_pitch = -0.25`` deg per m/s^2: the slope of the reference pitch on the
-  IMU acceleration below 0.3 Hz (-0.257), and the best of a 24-point grid
-  (k_pitch -0.20 ... -0.33, two k_roll, process noise x0.5 ... x2). Choosing the
-  grid point on 15 drives and scoring the other 15 (10 random splits) gave
-  0.132 deg on the held-out halves, the same as on all 30 (with the load of
-  specific force; see ``load`` below for the default).
-- ``k_roll = +0.50`` deg per m/s^2: not observable in the pitch-only reference;
-  the IMU band-pass self-calibration (:func:`imu_ground.filters.calibration.calibrate`)
-  gives +0.45 ... +0.61 depending on the lever-arm assumption (pooled over the
-  30 drives, IMU only: -0.32 / +0.57, which scores 0.138 deg: a calibration
-  run of a new platform gets close to the tuned configuration).
-- ``sigma_e = 0.2`` deg; ``q_time = q_dist = 0.1`` (``sigma_e^2`` per second and
-  per metre: 0.01 + 0.01 |v| per 10 Hz frame); ``r_yaw = 1e-6`` (the road frame
-  takes the body's heading); ``q_yaw = 1`` rad^2 per frame. From the research
-  prototype (``suspension_prototype.py``); re-checked on the grid above.
-- ``load=0.6`` (share of gravity's road-plane component in the load). On the
-  real drives a larger share lowers the mean error but raises the error on the
-  slow drive 2011_09_26_drive_0091 (whose INS reference drifts) above the
-  paper's by more than 10 %; a smaller share leaves the MEMS-grade synthetic
-  drives, whose gravity estimate suffers from accelerometer bias, barely
-  better than the paper's method. Measured (real mean / worst ratio to the
-  paper on a real drive / improvement over the paper on 6 synthetic drives per
-  grade, nav and MEMS): share 0: 0.140 / 1.054 / 38 % and -14 %; 0.5: 0.135 /
-  1.085 / 52 % and 41 %; 0.6: 0.134 / 1.092 / 54 % and 52 %; 0.75: 0.133 /
-  1.102; 1 (specific force): 0.132 / 1.118 / 61 % and 75 %. The share was
-  chosen as the largest that keeps every real drive within 10 % of the
-  paper's method.
-
-Online gains (``online_gains=True``)
-------------------------------------
-Causal recursive least squares in the 0.3 - 1.5 Hz band: the gyro tilt (body
-pitch/roll angles integrated from the increments) and the gravity-compensated
-acceleration pass the same 2nd-order Butterworth band-pass, and per axis
-``k = (sum x y + w k0) / (sum x^2 + w)`` with the prior ``k0`` (``gains``)
-weighted like ``gain_prior_seconds`` of typical driving; frame k uses the
-estimate from the frames before it. Lower frequencies are confounded by the
-road (cars speed up downhill, roads bank into curves), higher ones by the
-suspension resonance and noise. The regression also sees the sensor's
-lever-arm kinematics about the body's pitch and roll centre (``a = alpha x r``
-correlates with the tilt itself), removed with ``lever_arm`` when that
-position is known. On KITTI the online gains score 0.136 deg against 0.134
-with the fixed ones (the prototype found learning the gains as EKF states
-worse still), so fixed, calibrated gains are the default.
-
-Offline mode (``run(..., smooth=True)``)
-----------------------------------------
-Gravity and speed from the RTS smoother of the linear filter, the forward
-attitude filter and its Rauch-Tung-Striebel smoother on the group (zero lag),
-blended on the group, ``X = X_f Exp(w Log(X_f^T X_s))``, ``w = smoother_weight``;
-``w = 1`` is the pure smoother. The default ``w = 0.25`` is what measured best
-on the real drives, where the pure smoother is *worse* than the forward filter
-(0.146 against 0.134 deg; the blend 0.131): real pitch events rise sharply and decay slowly, which
-a random-walk road and white body motion smoothed both ways do not capture,
-and the reference itself comes from a causal INS solution. With an exact
-truth the pure smoother is clearly the best (synthetic suite of
-:func:`~imu_ground.evaluation.simulate.simulate_suite`, 10 drives a grade, normal angle
-error: nav 0.129 deg against 0.167 for the blend and 0.188 streaming, MEMS
-0.185 / 0.232 / 0.275), so label datasets with ``smoother_weight=1`` when the
-labels must be free of lag.
-
-Synthetic drives
-----------------
-Same suite, default configuration (the KITTI gains, not the simulated
-vehicles'), against :meth:`GroundNormalFilter.paper() <imu_ground.filters.ground.GroundNormalFilter.paper>`:
-nav 0.188 vs 0.450 deg (58 % lower), MEMS 0.275 vs 1.005 deg (73 % lower),
-every drive at most 0.68 times the paper's error (20 more drives, seed 1:
-nav 65 %, MEMS 71 % lower). On MEMS drives whose stops
-the standstill detector misses, the gyro bias (about 1 deg/s) stays in the
-increments; the paper's filter lags behind the drift it causes, while here
-the faster road state follows it and the specific-force load needs no
-gravity estimate that the drift would spoil.
+The discrete-time design (band-pass, response) follows the ego-motion's frame
+rate (:attr:`~imu_ground.imu.egomotion.EgoMotion.rate`). How the defaults were
+chosen and how every configuration scores on real and synthetic drives is in
+``benchmarks/RESULTS.md`` (regenerated by the scripts in ``benchmarks/``).
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Optional, Sequence, Union
 
 import numpy as np
-from scipy.signal import butter, lfilter, lfilter_zi
-from scipy.spatial.transform import Rotation
 
 from imu_ground import so3
-from imu_ground.imu.egomotion import EgoMotion
-from imu_ground.filters.extrinsics import Extrinsic
-from imu_ground.filters.ground import (GroundEstimate, GroundTrack, _increment_matrix, _residual_recursion, _rotz_one,
-                     _twist_angle, pitch_roll_from_normal)
-from imu_ground.imu.data import ImuData
+from imu_ground.filters.design import IIRFilter, butter_bandpass, foh_filter
+from imu_ground.filters.estimator import (GroundEstimate, GroundTrack, as_egomotion, bad_frame_error,
+                                          check_on_invalid, frame_problem, frame_problems, frame_where,
+                                          hold_skipped, pitch_roll_from_normal, static_rotation)
+from imu_ground.filters.extrinsics import Extrinsic, resolve_platform
+from imu_ground.filters.gains import DEFAULT_GAINS, GAIN_BAND, TYPICAL_BAND_POWER, tilt_angles
+from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.filters.invariant_ekf import InvariantEKF
-from imu_ground.evaluation.simulate import _foh_filter
+from imu_ground.filters.residual import ResidualKernel
+from imu_ground.filters.rotations import as_rotations, matrix_from_quat, twist_angle
+from imu_ground.units import DEG
 
-from imu_ground.filters.gravity_velocity import GravityVelocityFilter, _egomotion_arrays
+__all__ = ["DEFAULT_GAINS", "GAIN_BAND", "SuspensionAwareFilter", "SuspensionTrack", "estimate_suspension_aware",
+           "bandpass_gain_regression"]
 
-__all__ = [
-    "DEFAULT_GAINS", "GAIN_BAND",
-    "SuspensionAwareFilter", "SuspensionTrack", "estimate_suspension_aware", "bandpass_gain_regression",
-]
+from imu_ground.filters.gains import bandpass_gain_regression  # noqa: E402  (re-exported, former home)
 
-_DEG = math.pi / 180.0
 _I3 = np.eye(3)
-_DIAG = (np.arange(6), np.arange(6))
-_UPPER = np.eye(6, k=3)
-_RENORM_EVERY = 64          # frames between re-orthonormalisations of the cumulative rotation
-
-#: Suspension gains of the KITTI car ``(k_pitch, k_roll)``, rad per m/s^2 (module docstring).
-DEFAULT_GAINS = (-0.25 * _DEG, 0.50 * _DEG)
-#: Band of the gain regression, Hz.
-GAIN_BAND = (0.3, 1.5)
-#: Mean band-passed acceleration power ``(a_x, a_y)`` over the 30 valid kitti_imu100 drives,
-#: (m/s^2)^2; scales the prior weight of the online gains.
-TYPICAL_BAND_POWER = (0.0417, 0.0264)
+_LOADS = {"specific_force": 1.0, "acceleration": 0.0}
 
 
-
-# =============================================================================== gain regression
-def _bandpass(band: Sequence[float], frame_rate: float):
-    nyq = 0.5 * frame_rate
-    if not 0.0 < band[0] < band[1] < nyq:
-        raise ValueError(f"gain band {tuple(band)} Hz must lie inside (0, {nyq:g}) Hz at {frame_rate:g} Hz")
-    return butter(2, [band[0] / nyq, band[1] / nyq], "bandpass")
-
-
-def _tilt_angles(d: np.ndarray) -> np.ndarray:
-    """Body pitch (about y) and roll (about x) angles integrated from increments, rad, (N, 2)."""
-    return np.cumsum(so3.log(d)[:, [1, 0]], axis=0)
-
-
-def bandpass_gain_regression(body_increments: np.ndarray, acceleration: np.ndarray,
-                             band: Sequence[float] = GAIN_BAND, frame_rate: float = 10.0,
-                             mask: Optional[np.ndarray] = None):
-    """Suspension gains: band-passed gyro tilt regressed on the band-passed acceleration.
-
-    Parameters
-    ----------
-    body_increments : ndarray (N, 3, 3)
-        Body-frame rotation increments, body_{k-1} <- body_k.
-    acceleration : ndarray (N, 2) or (N, 3)
-        Gravity-compensated body acceleration per frame (``a_x, a_y``), m/s^2.
-    band : (float, float)
-        Pass band, Hz.
-    frame_rate : float
-        Frames per second.
-    mask : ndarray of bool (N,), optional
-        Frames that enter the sums (after filtering), e.g. moving frames.
-
-    Returns
-    -------
-    gains : ndarray (2,)
-        ``(k_pitch, k_roll)``, rad per m/s^2 (NaN without signal).
-    sxy, sxx : ndarray (2,)
-        The sums (tilt x acceleration and acceleration^2) per axis.
-    """
-    b, a = _bandpass(band, frame_rate)
-    y = lfilter(b, a, _tilt_angles(np.asarray(body_increments, dtype=float)), axis=0)
-    x = lfilter(b, a, np.asarray(acceleration, dtype=float)[:, :2], axis=0)
-    if mask is not None:
-        m = np.asarray(mask, dtype=bool)[:, None]
-        x, y = x * m, y * m
-    sxy = np.sum(x * y, axis=0)
-    sxx = np.sum(x * x, axis=0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        k = np.where(sxx > 0, sxy / sxx, np.nan)
-    return k, sxy, sxx
-
-
-class _Lfilter:
-    """A causal IIR filter over a few channels, one frame at a time (direct form II transposed,
-    the recursion of :func:`scipy.signal.lfilter`), with a batch path that continues it."""
-
-    def __init__(self, b: np.ndarray, a: np.ndarray, channels: int, steady: bool = False) -> None:
-        self.b = np.asarray(b, dtype=float) / a[0]
-        self.a = np.asarray(a, dtype=float) / a[0]
-        self.z = np.zeros((len(self.a) - 1, channels))
-        self.steady = steady          # start in equilibrium with the first input
-        self.started = False
-
-    def _start(self, u0: np.ndarray) -> None:
-        if self.steady:
-            self.z = lfilter_zi(self.b, self.a)[:, None] * u0[None, :]
-        self.started = True
-
-    def step(self, u: np.ndarray) -> np.ndarray:
-        if not self.started:
-            self._start(u)
-        z, b, a = self.z, self.b, self.a
-        y = b[0] * u + z[0]
-        m = len(z)
-        for i in range(m - 1):
-            z[i] = b[i + 1] * u + z[i + 1] - a[i + 1] * y
-        z[m - 1] = b[m] * u - a[m] * y
-        return y
-
-    def run(self, u: np.ndarray) -> np.ndarray:
-        if len(u) == 0:
-            return u.copy()
-        if not self.started:
-            self._start(u[0])
-        y, self.z = lfilter(self.b, self.a, u, axis=0, zi=self.z)
-        return y
-
-
-# =============================================================================== the filter
 @dataclass
 class SuspensionTrack(GroundTrack):
-    """A :class:`~imu_ground.filters.ground.GroundTrack` plus the suspension model's inputs (N frames).
+    """A :class:`~imu_ground.filters.estimator.GroundTrack` plus the suspension model's inputs (F frames).
 
     Attributes
     ----------
-    load : ndarray (N, 2)
-        Load entering the model (``u_x``, ``u_y``; specific force or acceleration
-        after the optional response), m/s^2, body frame.
-    speed : ndarray (N,)
+    load : ndarray (F, 2)
+        Load entering the model (``u_x``, ``u_y``), m/s^2, body frame.
+    speed : ndarray (F,)
         Speed from the gravity/velocity filter, m/s.
-    gains : ndarray (N, 2)
+    gains : ndarray (F, 2)
         ``(k_pitch, k_roll)`` used at each frame, rad per m/s^2.
-    suspension : ndarray (N, 2)
+    suspension : ndarray (F, 2)
         Modelled tilt ``(pitch, roll) = (k_pitch u_x, k_roll u_y)``, rad.
-    gravity : ndarray (N, 3)
+    gravity : ndarray (F, 3)
         Reaction to gravity, world frame, m/s^2.
     """
     load: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
@@ -277,82 +94,83 @@ class SuspensionTrack(GroundTrack):
     gravity: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
 
+def _load_share(load: Union[str, float]) -> float:
+    if isinstance(load, str):
+        if load not in _LOADS:
+            raise ValueError(f"load must be 'specific_force', 'acceleration' or a share in [0, 1], got {load!r}")
+        return _LOADS[load]
+    share = float(load)
+    if not 0.0 <= share <= 1.0:
+        raise ValueError(f"load share must be in [0, 1], got {load!r}")
+    return share
+
+
 class SuspensionAwareFilter:
     r"""Ground normal with a suspension model: an invariant EKF on the road attitude, filterpy style.
 
-    See the module docstring for the model and where the defaults come from;
-    ``SuspensionAwareFilter()`` is the one configuration used on every real drive.
-
-    Real-data scores (30 valid ``kitti_imu100`` drives, pitch relative to the
-    road, mean absolute error over moving frames, per-drive means removed,
-    averaged over drives; IMU only, through
-    :func:`~imu_ground.imu.egomotion.imu_to_egomotion`; re-measured by
-    ``tests/test_suspension.py``): constant normal 0.242 deg, the paper's
-    filter 0.221, this filter 0.134 streaming, 0.136 with online gains, 0.131
-    offline (``smooth=True``), 0.146 with the pure RTS smoother. The drive
-    closest to the paper's filter is 2011_09_26_drive_0091 (0.242 vs 0.222 deg,
-    ratio 1.09; 1.08 offline): a slow drive (5.9 m/s) on which the INS
-    reference drifts; with error content slower than 20 s removed, ours is
-    the better one.
+    See the module docstring for the model; ``SuspensionAwareFilter()`` is the
+    configuration of the KITTI car (OXTS RT3003, FLU, identity extrinsic).
 
     Parameters
     ----------
     gains : (float, float)
         ``(k_pitch, k_roll)``, rad per m/s^2: pitch (nose down +) per m/s^2 of
         forward load (negative: braking dives the nose) and roll (left side up +)
-        per m/s^2 of leftward load (positive: a left turn rolls the body to the
-        right). With ``online_gains``: the prior.
+        per m/s^2 of leftward load (positive: a car rolls out of a turn).
+        With ``online_gains``: the prior.
     sigma_e : float
         Std of the unmodelled body motion per frame, rad (0.2 deg).
     q_time, q_dist : float
-        Road process noise in units of ``sigma_e^2`` per second and per metre (0.1, 0.1).
+        Road process noise in units of ``sigma_e^2`` per second and per metre.
     q_yaw : float
-        Process noise about up per frame, rad^2 (1).
+        Process noise about up per frame, rad^2.
     r_yaw : float
-        Measurement noise about up, units of ``sigma_e^2`` (1e-6: the road
+        Measurement noise about up, units of ``sigma_e^2`` (tiny: the road
         frame follows the heading).
     P0 : float
-        Initial variance of the road attitude, units of ``sigma_e^2`` (1).
+        Initial variance of the road attitude, units of ``sigma_e^2``.
     load : {"specific_force", "acceleration"} or float
-        What loads the suspension (module docstring): the gravity-compensated
-        acceleration plus this share (0 to 1) of gravity's component in the
-        road plane; ``"acceleration"`` is 0, ``"specific_force"`` (what the
-        accelerometer reads, gravity along grade and cross-slope included) is 1.
+        Share (0 to 1) of gravity's road-plane component in the load;
+        ``"acceleration"`` is 0, ``"specific_force"`` 1.
     response : (float, float), optional
         Second-order response ``(freq_hz, damping)`` (unit static gain) applied
-        to the load; None (default): quasi-static, which measured better on
-        KITTI (0.134 deg; 2 Hz / 0.7: 0.135).
+        to the load; None: quasi-static.
     online_gains : bool
         Estimate the gains online (band-pass RLS).
     gain_prior_seconds : float
-        Weight of the prior gains in the online estimate, seconds of typical
-        driving (60).
+        Weight of the prior gains in the online estimate, seconds of typical driving.
     gain_band : (float, float)
         Band of the online regression, Hz.
-    frame_rate : float
-        Nominal frame rate, Hz (band-pass and response filters).
+    frame_rate : float, optional
+        Frame rate, Hz, of the discrete-time design (band-pass, response) and of
+        the preintegration of an ImuData given to :meth:`run`. Default: the rate
+        of the ego-motion given to :meth:`run` (or ``1 / delta_t`` of the first
+        frame given to :meth:`step`).
     smoother_weight : float
-        Offline mode: weight of the RTS smoother against the forward filter
-        (0.25; 1 = pure smoother).
-    extrinsic : Extrinsic or ndarray (3, 3), optional
-        Static ground <- sensor extrinsic (identity).
+        Offline mode: weight of the RTS smoother against the forward filter (1 = pure smoother).
+    extrinsic : Extrinsic, ndarray (3, 3), str or Path, optional
+        Static ground <- sensor extrinsic (identity), or a shipped name or a
+        calibration file (:func:`~imu_ground.filters.extrinsics.resolve_platform`;
+        a file's suspension gains are used unless ``gains`` is given).
     lever_arm : array_like (3,), optional
         Sensor position relative to the body's pitch/roll centre (ground frame,
-        m), to move the accelerations there (see :class:`GravityVelocityFilter`).
+        m), to move the accelerations there.
     gravity : dict, optional
-        Other options of the :class:`GravityVelocityFilter`.
+        Other options of the :class:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter`.
     R0 : ndarray (3, 3), optional
         Initial body attitude, world <- body.
+    on_invalid : {"raise", "skip"}
+        A bad frame raises ``ValueError`` with the state unchanged, or is
+        skipped (``step`` returns the previous estimate flagged ``valid=False``).
 
     Attributes
     ----------
-    ekf : InvariantEKF
-        The filter on the road attitude; ``x`` (world <- road), ``P``, ``Q``,
-        ``R``, ``K``, ``y``, ``S``, ``x_prior``, ``P_prior``, ``x_post``,
-        ``P_post`` are forwarded from it.
+    x, P, Q, R, K, y, S, x_prior, P_prior, x_post, P_post : ndarray
+        filterpy-style. ``Q`` and ``R`` are the configured noises: ``Q =
+        diag(q_time sigma_e^2, q_time sigma_e^2, q_yaw)`` (horizontal per second
+        at standstill, up per frame); the process noise of the last frame is ``Q_last``.
     gains : ndarray (2,)
-        Current ``(k_pitch, k_roll)``, rad per m/s^2 (updated every frame with
-        ``online_gains``).
+        Current ``(k_pitch, k_roll)``, rad per m/s^2.
     gravity_filter : GravityVelocityFilter
     cumulative : ndarray (3, 3)
         ``R_k``, world <- body.
@@ -369,104 +187,137 @@ class SuspensionAwareFilter:
     array([0., 0., 1.])
     """
 
-    def __init__(self, gains: Sequence[float] = DEFAULT_GAINS, sigma_e: float = 0.2 * _DEG,
+    def __init__(self, gains: Optional[Sequence[float]] = None, sigma_e: float = 0.2 * DEG,
                  q_time: float = 0.1, q_dist: float = 0.1, q_yaw: float = 1.0, r_yaw: float = 1e-6,
                  P0: float = 1.0, load: Union[str, float] = 0.6, response: Optional[Sequence[float]] = None,
                  online_gains: bool = False, gain_prior_seconds: float = 60.0,
-                 gain_band: Sequence[float] = GAIN_BAND, frame_rate: float = 10.0,
-                 smoother_weight: float = 0.25, extrinsic: Union[Extrinsic, np.ndarray, None] = None,
+                 gain_band: Sequence[float] = GAIN_BAND, frame_rate: Optional[float] = None,
+                 smoother_weight: float = 0.25, extrinsic=None,
                  lever_arm: Optional[Sequence[float]] = None, gravity: Optional[dict] = None,
-                 R0: Optional[np.ndarray] = None) -> None:
+                 R0: Optional[np.ndarray] = None, on_invalid: str = "raise") -> None:
+        self.extrinsic, file_gains = resolve_platform(extrinsic)
+        if gains is None:
+            gains = DEFAULT_GAINS if file_gains is None else file_gains
         self.gains0 = np.array(gains, dtype=float).reshape(2)
         self.sigma_e = float(sigma_e)
         self.q_time, self.q_dist = float(q_time), float(q_dist)
         self.q_yaw, self.r_yaw, self.P0 = float(q_yaw), float(r_yaw), float(P0)
-        if min(self.sigma_e, self.q_yaw, self.r_yaw, self.P0) <= 0 or min(self.q_time, self.q_dist) < 0:
+        if not (min(self.sigma_e, self.q_yaw, self.r_yaw, self.P0) > 0 and min(self.q_time, self.q_dist) >= 0):
             raise ValueError("sigma_e, q_yaw, r_yaw and P0 must be positive; q_time and q_dist non-negative")
-        shares = {"specific_force": 1.0, "acceleration": 0.0}
-        if isinstance(load, str):
-            if load not in shares:
-                raise ValueError(f"load must be 'specific_force', 'acceleration' or a share in [0, 1], got {load!r}")
-            share = shares[load]
-        else:
-            share = float(load)
-            if not 0.0 <= share <= 1.0:
-                raise ValueError(f"load share must be in [0, 1], got {load!r}")
         self.load = load
-        self.load_share = share
+        self.load_share = _load_share(load)
         self.response = None if response is None else (float(response[0]), float(response[1]))
         self.online_gains = bool(online_gains)
         self.gain_prior_seconds = float(gain_prior_seconds)
         self.gain_band = (float(gain_band[0]), float(gain_band[1]))
-        self.frame_rate = float(frame_rate)
+        self.frame_rate = None if frame_rate is None else float(frame_rate)
         if not 0.0 <= smoother_weight <= 1.0:
-            raise ValueError("smoother_weight must be in [0, 1]")
+            raise ValueError(f"smoother_weight must be in [0, 1], got {smoother_weight!r}")
         self.smoother_weight = float(smoother_weight)
-        self.extrinsic = Extrinsic.coerce(extrinsic)
-        self._Rgs = self.extrinsic.rotation
-        self._identity_extrinsic = bool(np.array_equal(self._Rgs, _I3))
+        self.on_invalid = check_on_invalid(on_invalid)
+        self._Rgs = static_rotation(self.extrinsic)
         self.lever_arm = None if lever_arm is None else np.asarray(lever_arm, dtype=float).reshape(3)
         self._gravity_kw = dict(gravity or {})
         self.R0 = _I3.copy() if R0 is None else np.array(R0, dtype=float)
-        self._bp = _bandpass(self.gain_band, self.frame_rate)
+        self._r = self.sigma_e ** 2
         self.reset()
 
     @classmethod
     def from_calibration(cls, calibration, **kwargs) -> "SuspensionAwareFilter":
-        """A filter with the extrinsic and fixed gains of a :class:`~imu_ground.filters.calibration.Calibration`
-        (keyword arguments override)."""
+        """A filter with the extrinsic and fixed gains of a calibration (keyword arguments override)."""
         kw = calibration.filter_kwargs()
         kw.update(kwargs)
         return cls(**kw)
 
     def reset(self) -> None:
         """Back to the initial state (attitude R0, prior gains, fresh gravity filter)."""
-        r = self.sigma_e ** 2
-        self._r = r
-        self.ekf = InvariantEKF(x=self.R0, P=self.P0 * r * _I3, Q=np.diag([0.0, 0.0, self.q_yaw]),
-                                R=np.diag([r, r, self.r_yaw * r]))
+        r = self._r
+        self._kernel = ResidualKernel(self.P0 * r, self.P0 * r, r, self.r_yaw * r, Rgs=self._Rgs)
         self.gravity_filter = GravityVelocityFilter(R0=self.R0, extrinsic=self.extrinsic,
                                                     lever_arm=self.lever_arm, **self._gravity_kw)
         self.gains = self.gains0.copy()
-        self._resp = None
-        if self.response is not None:
-            num, _, den = _foh_filter(self.response[0], self.response[1], 1.0 / self.frame_rate)
-            self._resp = _Lfilter(num, den, 2, steady=True)
-        self._bpf = _Lfilter(*self._bp, 4)
+        self._kp, self._kr = (float(g) for g in self.gains0)
+        self._rate = None
+        self._resp = self._bpf = None
         self._phi = np.zeros(2)
-        w = self.gain_prior_seconds * self.frame_rate * np.asarray(TYPICAL_BAND_POWER)
-        self._sxx = w.copy()          # the sums include the prior: gains = sxy / sxx
-        self._sxy = w * self.gains0
+        self._sxx = self._sxy = None
         self.last_load = np.zeros(2)
         self.speed = 0.0
+        self.Q_last = np.diag([0.0, 0.0, self.q_yaw])
+        self._frames = 0
+        if self.frame_rate is not None:
+            self._design(self.frame_rate)
 
-    # filterpy-style attributes forwarded from the EKF
-    x = property(lambda self: self.ekf.x, doc="Slow road attitude X_k, world <- road (3x3).")
-    P = property(lambda self: self.ekf.P, doc="Covariance of X, body tangent space (rad^2).")
-    Q = property(lambda self: self.ekf.Q, doc="Process noise of the last predict (rad^2).")
-    R = property(lambda self: self.ekf.R, doc="Measurement noise (rad^2).")
-    K = property(lambda self: self.ekf.K, doc="Last Kalman gain.")
-    y = property(lambda self: self.ekf.y, doc="Last innovation (rad).")
-    S = property(lambda self: self.ekf.S, doc="Last innovation covariance (rad^2).")
-    x_prior = property(lambda self: self.ekf.x_prior, doc="X after the last predict.")
-    P_prior = property(lambda self: self.ekf.P_prior, doc="P after the last predict.")
-    x_post = property(lambda self: self.ekf.x_post, doc="X after the last update.")
-    P_post = property(lambda self: self.ekf.P_post, doc="P after the last update.")
+    def _design(self, rate: float) -> None:
+        """Discrete-time design for frames at ``rate`` Hz (once; a later, different rate is an error)."""
+        if self._rate is not None:
+            if abs(rate - self._rate) > 1e-6 * self._rate and (self.online_gains or self.response is not None):
+                raise ValueError(f"the filter is designed for {self._rate:g} Hz frames but got {rate:g} Hz "
+                                 f"(reset() or a new filter for another frame rate)")
+            return
+        self._rate = float(rate)
+        if self.response is not None:
+            num, _, den = foh_filter(self.response[0], self.response[1], 1.0 / rate)
+            self._resp = IIRFilter(num, den, 2, steady=True)
+        if self.online_gains:
+            self._bpf = IIRFilter(*butter_bandpass(self.gain_band, rate), 4)
+            w = self.gain_prior_seconds * rate * np.asarray(TYPICAL_BAND_POWER)
+            self._sxx = w.copy()          # the sums include the prior: gains = sxy / sxx
+            self._sxy = w * self.gains0
+
+    # -- filterpy-style attributes --------------------------------------------------------------
     cumulative = property(lambda self: self.gravity_filter.cumulative,
                           doc="Cumulative body attitude R_k, world <- body (3x3).")
+    Q = property(lambda self: np.diag([self.q_time * self._r, self.q_time * self._r, self.q_yaw]),
+                 doc="Configured process noise (horizontal rad^2/s at standstill, up rad^2 per frame).")
+    R = property(lambda self: np.diag([self._r, self._r, self.r_yaw * self._r]),
+                 doc="Configured measurement noise (rad^2).")
 
-    def _q(self, speed, dt):
-        return (self.q_time + self.q_dist * speed) * dt * self._r
+    @property
+    def residual(self) -> np.ndarray:
+        """``E_k``, road <- body (3x3)."""
+        return matrix_from_quat(np.array(self._kernel.E))
 
-    # -- streaming ------------------------------------------------------------------------
-    def step(self, delta_R: np.ndarray, delta_v: np.ndarray, delta_t: float, stationary: bool = False,
+    @property
+    def x(self) -> np.ndarray:
+        """Slow road attitude X_k, world <- road (3x3)."""
+        return self.cumulative @ self.residual.T
+
+    @property
+    def P(self) -> np.ndarray:
+        """Covariance of X, body tangent space (rad^2)."""
+        return np.diag([self._kernel.a, self._kernel.a, self._kernel.c])
+
+    x_post = x
+    P_post = P
+
+    def _last(self, i: int, default):
+        last = self._kernel.last
+        return default if last is None else last[i]
+
+    K = property(lambda self: np.diag([self._last(0, 0.0)] * 2 + [self._last(1, 0.0)]), doc="Last Kalman gain.")
+    y = property(lambda self: np.array(self._last(4, (0.0, 0.0, 0.0))), doc="Last innovation (rad).")
+    S = property(lambda self: np.diag([self._last(2, 0.0)] * 2 + [self._last(3, 0.0)]) + self.R,
+                 doc="Last innovation covariance (rad^2).")
+    P_prior = property(lambda self: np.diag([self._last(2, self._kernel.a)] * 2 + [self._last(3, self._kernel.c)]),
+                       doc="P after the last predict.")
+
+    @property
+    def x_prior(self) -> np.ndarray:
+        """X after the last predict."""
+        m = self._last(5, None)
+        return self.x if m is None else self.cumulative @ matrix_from_quat(np.array(m)).T
+
+    # -- streaming -------------------------------------------------------------------------------
+    def step(self, frame, delta_v=None, delta_t: Optional[float] = None, stationary: bool = False,
              valid: bool = True) -> GroundEstimate:
         """Process one frame of ego-motion.
 
         Parameters
         ----------
-        delta_R : ndarray (3, 3), (4, 4) or (3,)
-            Sensor rotation increment, sensor_{k-1} <- sensor_k.
+        frame : EgoFrame or ndarray (3, 3)
+            An :class:`~imu_ground.imu.egomotion.EgoFrame`, or its ``delta_R``
+            (sensor_{k-1} <- sensor_k) followed by the other fields:
         delta_v : ndarray (3,)
             Gravity-free velocity increment, sensor frame at the frame's start, m/s.
         delta_t : float
@@ -479,156 +330,180 @@ class SuspensionAwareFilter:
         Returns
         -------
         GroundEstimate
-            Normal (sensor frame), pitch and roll of the body relative to the
-            road (rad), residual ``E`` (road <- body), dynamic extrinsic
-            ``E R_gs`` (road-ground <- sensor) and the covariance of ``X``.
+
+        Raises
+        ------
+        ValueError
+            A bad frame with ``on_invalid="raise"`` (the state is unchanged).
         """
-        gf = self.gravity_filter
-        d, dv = gf._to_body(_increment_matrix(delta_R), np.asarray(delta_v, dtype=float).reshape(3))
+        if delta_v is None:
+            d, delta_v, delta_t, stationary, valid = frame[:5]
+        else:
+            d = frame
+        if type(d) is not np.ndarray or d.shape != (3, 3):
+            d = as_rotations(d)
+        d9 = d.ravel().tolist()
+        dv = delta_v.tolist() if type(delta_v) is np.ndarray and delta_v.shape == (3,) else \
+            np.asarray(delta_v, dtype=float).reshape(3).tolist()
         dt = float(delta_t)
-        f, acc = gf._frame(d, dv, dt, bool(stationary), bool(valid))
-        u = (acc + self.load_share * (f - acc))[:2]
+        problem = frame_problem(d9, dv, dt)
+        if problem is not None:
+            if self.on_invalid == "raise":
+                raise bad_frame_error(problem, frame_where(self._frames, getattr(frame, "t", float("nan"))))
+            return self._current()
+        if self._rate is None:
+            self._design(1.0 / dt)
+        self._frames += 1
+        ge = self.gravity_filter.step(d, np.array(dv), dt, bool(stationary), bool(valid))
+        fx, fy, _ = ge.specific_force.tolist()
+        ax, ay, _ = ge.acceleration.tolist()
+        s = self.load_share
+        ux, uy = ax + s * (fx - ax), ay + s * (fy - ay)
         if self._resp is not None:
-            u = self._resp.step(u)
-        self.last_load = u
-        self.speed = float(np.linalg.norm(gf.x[:3]))
-        kp, kr = self.gains
-        b = np.array([kr * u[1], kp * u[0], 0.0])
+            ux, uy = self._resp.step(np.array([ux, uy])).tolist()
+        self.last_load = (ux, uy)
+        self.speed = speed = float(ge.speed)
+        kp, kr = self._kp, self._kr
         if self.online_gains:
-            self._phi = self._phi + so3.log_one(d)[[1, 0]]
-            z = self._bpf.step(np.concatenate([acc[:2], self._phi]))
-            self._sxy = self._sxy + z[:2] * z[2:]
-            self._sxx = self._sxx + z[:2] * z[:2]
-            self.gains = self._sxy / self._sxx
-        ekf = self.ekf
-        q = self._q(self.speed, dt)
-        ekf.Q = np.diag([q, q, self.q_yaw])
-        ekf.predict(_rotz_one(math.atan2(d[1, 0] - d[0, 1], d[0, 0] + d[1, 1])))
-        Rk = gf.cumulative
-        ekf.update(Rk @ so3.exp_one(-b))
-        E = ekf.x.T @ Rk
-        nb = E[2]
-        pitch = math.atan2(-nb[0], math.hypot(nb[1], nb[2]))
-        roll = math.atan2(nb[1], nb[2])
-        dyn = E if self._identity_extrinsic else E @ self._Rgs
-        return GroundEstimate(dyn[2].copy(), pitch, roll, E, dyn, ekf.P.copy())
+            self._update_gains(d, ax, ay)
+        q = (self.q_time + self.q_dist * speed) * dt * self._r
+        self.Q_last = np.diag([q, q, self.q_yaw])
+        o = self._kernel.advance((d9,), q, self.q_yaw, (kr * uy,), (kp * ux,))[0]
+        return GroundEstimate(o[6], o[7], True, o[:4], None, self._Rgs, (o[4], o[5]))
 
-    # -- batch ------------------------------------------------------------------------------
-    def run(self, egomotion: Union[EgoMotion, ImuData], smooth: bool = False) -> SuspensionTrack:
-        """Process a whole drive.
+    def _update_gains(self, d: np.ndarray, ax: float, ay: float) -> None:
+        """One frame of the online gain regression (the batch twin is in :meth:`_online_gains`)."""
+        db = d if self._Rgs is None else self._Rgs @ d @ self._Rgs.T
+        self._phi = self._phi + so3.log_one(db)[[1, 0]]
+        z = self._bpf.step(np.concatenate([[ax, ay], self._phi]))
+        self._sxy = self._sxy + z[:2] * z[2:]
+        self._sxx = self._sxx + z[:2] * z[:2]
+        self.gains = self._sxy / self._sxx
+        self._kp, self._kr = self.gains.tolist()
 
-        Continues from the filter's current state exactly as calling
-        :meth:`step` once per frame would (same numbers to rounding); the
-        attitude filter runs as a scalar recursion.
+    def _current(self) -> GroundEstimate:
+        """The estimate of the current state flagged invalid (what a skipped frame returns)."""
+        E = self.residual
+        pitch, roll = pitch_roll_from_normal(E[2])
+        return GroundEstimate(float(pitch), float(roll), False, None, E, self._Rgs, self.P)
+
+    # -- batch -----------------------------------------------------------------------------------
+    def run(self, egomotion, smooth: bool = False) -> SuspensionTrack:
+        """Process a whole drive, continuing from the current state as :meth:`step` would (the same kernel).
 
         Parameters
         ----------
         egomotion : EgoMotion or ImuData
-            Per-frame ``delta_R``, ``delta_v``, ``delta_t``, ``stationary``,
-            ``valid`` in the sensor frame (an ImuData is preintegrated at 10 Hz).
+            Per-frame ego-motion in the sensor frame (an ImuData is
+            preintegrated at ``frame_rate``, default 10 Hz).
         smooth : bool
-            Offline mode: gravity and speed from the RTS smoother, then the
-            forward attitude filter and its RTS smoother on the group, blended
-            with ``smoother_weight``. The streaming state is left at the end of
-            the forward pass.
+            Offline mode (module docstring). The streaming state is left at the
+            end of the forward pass.
 
         Returns
         -------
         SuspensionTrack
-            Normal in the sensor frame, pitch, roll (rad), residual (road <- body),
-            dynamic extrinsic, covariance, slow state (world <- road), cumulative
-            rotation (world <- body), and the model inputs.
+            With the ego-motion's times and validity (False also on skipped frames).
+
+        Raises
+        ------
+        ValueError
+            A bad frame with ``on_invalid="raise"`` (nothing is processed), or
+            a frame rate other than the one the filter is designed for.
         """
-        d, dv, dt, st, valid = _egomotion_arrays(egomotion)
-        gf = self.gravity_filter
-        d, dv = gf._to_body(d, dv)
-        n = len(dt)
-        E0 = self.ekf.x.T @ gf.cumulative
-        gt = gf._run_body(d, dv, dt, st, valid, smooth)
+        em = as_egomotion(egomotion, rate=self.frame_rate)
+        n = len(em)
+        problems = frame_problems(em.delta_R, em.delta_v, em.delta_t)
+        good = np.array([p is None for p in problems], dtype=bool)
+        if not good.all() and self.on_invalid == "raise":
+            k = int(np.argmin(good))
+            raise bad_frame_error(problems[k], frame_where(k, float(em.t[k])) + f"; {n - good.sum()} bad of {n}")
+        self._design(float(em.rate))
+        start = dict(E=self.residual, P=self.P, cum=self.cumulative.copy(), load=np.array(self.last_load),
+                     speed=self.speed, gains=self.gains.copy(), gravity=self.gravity_filter.x[3:].copy())
+        sub = em if good.all() else _frames_of(em, good)
+        m = len(sub)
+        self._frames += m
+        gt = self.gravity_filter.run(sub, smooth=smooth)
         u = (gt.acceleration + self.load_share * (gt.specific_force - gt.acceleration))[:, :2]
         if self._resp is not None:
             u = self._resp.run(u)
-        if n:
-            self.last_load, self.speed = u[-1].copy(), float(gt.speed[-1])
-        if self.online_gains and n:
-            phi = self._phi + _tilt_angles(d)
-            z = self._bpf.run(np.concatenate([gt.acceleration[:, :2], phi], axis=1))
-            sxy = self._sxy + np.cumsum(z[:, :2] * z[:, 2:], axis=0)
-            sxx = self._sxx + np.cumsum(z[:, :2] * z[:, :2], axis=0)
-            ks = np.vstack([self.gains[None], (sxy / sxx)[:-1]])
-            self._phi, self._sxy, self._sxx = phi[-1].copy(), sxy[-1].copy(), sxx[-1].copy()
-            self.gains = self._sxy / self._sxx
-        else:
-            ks = np.tile(self.gains, (n, 1))
+        if m:
+            self.last_load, self.speed = tuple(u[-1].tolist()), float(gt.speed[-1])
+        ks = self._online_gains(gt) if self.online_gains and m else np.tile(self.gains, (m, 1))
         susp = ks * u                                   # (pitch, roll) = (k_p u_x, k_r u_y)
-        psi = _twist_angle(d)
-        q = self._q(gt.speed, dt)
-        Xs, Ps = self._run_fast(d, psi, susp, q, gt.cumulative, E0)
-        if smooth and n:
-            Qs = np.zeros((n, 3, 3))
-            Qs[:, 0, 0] = Qs[:, 1, 1] = q
-            Qs[:, 2, 2] = self.q_yaw
-            Xsm, Psm, _, _ = self.ekf.rts_smoother(Xs, Ps, us=so3.rotz(psi), Qs=Qs)
-            w = self.smoother_weight
-            if w == 1.0:
-                Xs, Ps = Xsm, Psm
-            elif w > 0.0:
-                Xs = Xs @ so3.exp(w * so3.log(np.swapaxes(Xs, 1, 2) @ Xsm))
-                Ps = (1.0 - w) * Ps + w * Psm
+        dt = np.asarray(sub.delta_t, dtype=float)
+        q = (self.q_time + self.q_dist * gt.speed) * dt * self._r
+        o = np.array(self._kernel.advance(np.asarray(sub.delta_R, dtype=float).reshape(-1, 9).tolist(), q.tolist(),
+                                          self.q_yaw, susp[:, 1].tolist(), susp[:, 0].tolist())).reshape(-1, 8)
+        if m:
+            self.Q_last = np.diag([q[-1], q[-1], self.q_yaw])
+        E = matrix_from_quat(o[:, :4])
+        Ps = np.zeros((m, 3, 3))
+        Ps[:, 0, 0] = Ps[:, 1, 1] = o[:, 4]
+        Ps[:, 2, 2] = o[:, 5]
         cum = gt.cumulative
-        E = np.swapaxes(Xs, 1, 2) @ cum
-        pitch, roll = pitch_roll_from_normal(E[:, 2, :])
-        dyn = E if self._identity_extrinsic else E @ self._Rgs
-        return SuspensionTrack(dyn[:, 2, :].copy(), pitch, roll, E, dyn, Ps, Xs, cum,
-                               self.extrinsic.translation.copy(), load=u, speed=gt.speed, gains=ks,
-                               suspension=susp, gravity=gt.gravity)
+        if smooth and m:
+            Xs = self._smooth(gt.body_increments, cum @ np.swapaxes(E, 1, 2), Ps, q)
+            E = np.swapaxes(Xs, 1, 2) @ cum
+        held = {name: hold_skipped(v, good, start[name]) for name, v in
+                dict(E=E, P=Ps, cum=cum, load=u, speed=gt.speed, gains=ks, gravity=gt.gravity).items()}
+        susp_all = held["gains"] * held["load"]
+        cum_all = held["cum"]
+        return SuspensionTrack.from_residuals(
+            held["E"], cum_all @ np.swapaxes(held["E"], 1, 2), held["P"], cum_all, self._Rgs,
+            self.extrinsic.translation, em.t, np.asarray(em.valid, dtype=bool) & good,
+            load=held["load"], speed=held["speed"], gains=held["gains"], suspension=susp_all,
+            gravity=held["gravity"])
 
-    def _run_fast(self, d, psi, susp, q, cum, E0):
-        """Scalar recursion on the residual (P stays diag(a, a, c), as in ``GroundNormalFilter._run_fast``):
-        ``E_k^- = T_k^T E_{k-1} dR_k``, ``y_k = Log(E_k^- Exp(-b_k))``, ``E_k = Exp(-K_k y_k) E_k^-``."""
-        n = len(d)
-        ekf = self.ekf
-        r, ry = ekf.R[0, 0], ekf.R[2, 2]
-        a, c = ekf.P[0, 0], ekf.P[2, 2]
-        qy = self.q_yaw
-        ka, kc, pa, pc = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-        for k, qk in enumerate(q.tolist()):
-            a += qk
-            c += qy
-            g, h = a / (a + r), c / (c + ry)
-            a, c = g * r, h * ry
-            ka[k], kc[k], pa[k], pc[k] = g, h, a, c
-        qs = Rotation.from_matrix(np.concatenate([E0[None], d])).as_quat(scalar_first=True)
-        qE = _residual_recursion(qs[0].tolist(), qs[1:].tolist(), np.cos(0.5 * psi).tolist(),
-                                 np.sin(0.5 * psi).tolist(), ka.tolist(), kc.tolist(), False,
-                                 susp[:, 1].tolist(), susp[:, 0].tolist())
-        E = Rotation.from_quat(qE, scalar_first=True).as_matrix() if n else np.zeros((0, 3, 3))
-        Xs = cum @ np.swapaxes(E, 1, 2)
-        Ps = np.zeros((n, 3, 3))
-        Ps[:, 0, 0] = Ps[:, 1, 1] = pa
-        Ps[:, 2, 2] = pc
-        if n:
-            ekf.x, ekf.P = Xs[-1].copy(), Ps[-1].copy()
-            ekf.Q = np.diag([q[-1], q[-1], qy])
-            ekf.x_post, ekf.P_post = ekf.x.copy(), ekf.P.copy()
-        return Xs, Ps
+    def _online_gains(self, gt) -> np.ndarray:
+        """Gains used at each frame of a batch (the frame before's estimate); advances the regression."""
+        phi = self._phi + tilt_angles(gt.body_increments)
+        z = self._bpf.run(np.concatenate([gt.acceleration[:, :2], phi], axis=1))
+        sxy = self._sxy + np.cumsum(z[:, :2] * z[:, 2:], axis=0)
+        sxx = self._sxx + np.cumsum(z[:, :2] * z[:, :2], axis=0)
+        ks = np.vstack([self.gains[None], (sxy / sxx)[:-1]])
+        self._phi, self._sxy, self._sxx = phi[-1].copy(), sxy[-1].copy(), sxx[-1].copy()
+        self.gains = self._sxy / self._sxx
+        self._kp, self._kr = self.gains.tolist()
+        return ks
+
+    def _smooth(self, db: np.ndarray, Xs: np.ndarray, Ps: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """RTS smoother on the group over the forward pass, blended with ``smoother_weight``."""
+        n = len(Xs)
+        Qs = np.zeros((n, 3, 3))
+        Qs[:, 0, 0] = Qs[:, 1, 1] = q
+        Qs[:, 2, 2] = self.q_yaw
+        smoother = InvariantEKF(Q=self.Q_last, R=self.R, error="left")
+        Xsm, Psm, _, _ = smoother.rts_smoother(Xs, Ps, us=so3.rotz(twist_angle(db)), Qs=Qs)
+        w = self.smoother_weight
+        if w == 1.0:
+            Ps[:] = Psm
+            return Xsm
+        if w > 0.0:
+            Ps[:] = (1.0 - w) * Ps + w * Psm
+            return Xs @ so3.exp(w * so3.log(np.swapaxes(Xs, 1, 2) @ Xsm))
+        return Xs
 
 
-# =============================================================================== one call
-def estimate_suspension_aware(egomotion: Union[EgoMotion, ImuData], extrinsic=None, smooth: bool = False,
-                              calibration=None, **params) -> SuspensionTrack:
+def _frames_of(em, keep: np.ndarray):
+    """The ego-motion restricted to the frames ``keep`` (same rate and metadata)."""
+    from dataclasses import replace
+    return replace(em, t=em.t[keep], delta_R=em.delta_R[keep], delta_v=em.delta_v[keep], delta_t=em.delta_t[keep],
+                   stationary=em.stationary[keep], valid=em.valid[keep])
+
+
+def estimate_suspension_aware(egomotion, extrinsic=None, smooth: bool = False, calibration=None,
+                              **params) -> SuspensionTrack:
     """Suspension-aware ground normal of a whole drive in one call.
 
     Parameters
     ----------
     egomotion : EgoMotion or ImuData
-        Per-frame ego-motion (:func:`~imu_ground.imu.egomotion.imu_to_egomotion`);
-        an ImuData is preintegrated at 10 Hz.
+        Per-frame ego-motion (an ImuData is preintegrated at 10 Hz, or at ``frame_rate``).
     extrinsic : Extrinsic, ndarray (3, 3), str or Path, optional
-        Static ground <- sensor extrinsic, or a calibration file (name or path,
-        as for :func:`~imu_ground.filters.extrinsics.load_extrinsic`). An Extrinsic
-        whose metadata has ``suspension_gains`` (a file written by
-        :meth:`imu_ground.filters.calibration.Calibration.save`) also sets the gains.
+        Static ground <- sensor extrinsic, or a calibration file (name or path);
+        see :func:`~imu_ground.filters.extrinsics.resolve_platform`.
     smooth : bool
         Offline mode (forward filter and RTS smoother).
     calibration : Calibration, optional
@@ -639,18 +514,8 @@ def estimate_suspension_aware(egomotion: Union[EgoMotion, ImuData], extrinsic=No
     Returns
     -------
     SuspensionTrack
-        Normal in the sensor frame, pitch and roll relative to the road (rad), ...
     """
-    from imu_ground.filters.calibration import Calibration, load_calibration
-    if extrinsic is not None and not isinstance(extrinsic, (Extrinsic, np.ndarray, list, tuple)):
-        calibration = load_calibration(extrinsic)
-        extrinsic = None
-    elif isinstance(extrinsic, Extrinsic) and "suspension_gains" in extrinsic.meta:
-        calibration = Calibration.from_extrinsic(extrinsic)
-        extrinsic = None
-    kw: dict = {}
-    if calibration is not None:
-        kw.update(calibration.filter_kwargs())
+    kw: dict = {} if calibration is None else calibration.filter_kwargs()
     if extrinsic is not None:
         kw["extrinsic"] = extrinsic
     kw.update(params)

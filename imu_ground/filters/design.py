@@ -1,0 +1,140 @@
+"""Discrete-time filter design for the estimators: band-pass, second-order response, a streaming IIR runner.
+
+Every design takes the frame rate (Hz) or the frame interval (s) it is for; the
+estimators pass the rate of the ego-motion they run on
+(:attr:`~imu_ground.imu.egomotion.EgoMotion.rate`). scipy is imported inside the
+functions that need it, so the streaming path does not load it.
+"""
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+import numpy as np
+
+__all__ = ["butter_bandpass", "foh_filter", "IIRFilter"]
+
+
+def butter_bandpass(band: Sequence[float], rate: float, order: int = 2):
+    """Butterworth band-pass ``(b, a)`` for a signal sampled at ``rate``.
+
+    Parameters
+    ----------
+    band : (float, float)
+        Pass band, Hz; must lie strictly inside (0, rate / 2).
+    rate : float
+        Sampling (frame) rate, Hz.
+    order : int
+        Order of the low-pass prototype (the band-pass has twice as many poles).
+
+    Returns
+    -------
+    b, a : ndarray
+        Numerator and denominator, as for :func:`scipy.signal.lfilter`.
+
+    Raises
+    ------
+    ValueError
+        A band outside (0, rate / 2).
+    """
+    from scipy.signal import butter
+    nyq = 0.5 * float(rate)
+    lo, hi = float(band[0]), float(band[1])
+    if not 0.0 < lo < hi < nyq:
+        raise ValueError(f"band {(lo, hi)} Hz must lie inside (0, {nyq:g}) Hz at a frame rate of {rate:g} Hz")
+    return butter(order, [lo / nyq, hi / nyq], "bandpass")
+
+
+def foh_filter(freq: float, damping: float, dt: float):
+    """Exact discretisation of ``x'' + 2 zeta w x' + w^2 x = w^2 u`` for a first-order-hold input.
+
+    The input is linear between samples ``dt`` apart; the state ``(x, x')`` is
+    propagated by the matrix exponential of the system augmented with the input
+    and its slope, so the sampled response has no discretisation error.
+
+    Parameters
+    ----------
+    freq : float
+        Undamped natural frequency, Hz (``w = 2 pi freq``).
+    damping : float
+        Damping ratio ``zeta``.
+    dt : float
+        Sample interval, s.
+
+    Returns
+    -------
+    num_x, num_xdot, den : ndarray (3,)
+        Transfer functions from ``u`` to ``x`` and to ``x'`` (unit static gain
+        for ``x``), for :func:`scipy.signal.lfilter`.
+    """
+    from scipy.linalg import expm
+    w = 2.0 * math.pi * float(freq)
+    # augmented state (x, x', u, u'): u' constant over the sample interval
+    big = np.zeros((4, 4))
+    big[0, 1] = 1.0
+    big[1, 0], big[1, 1], big[1, 2] = -w * w, -2.0 * float(damping) * w, w * w
+    big[2, 3] = 1.0
+    e = expm(big * float(dt))
+    phi = e[:2, :2]
+    gu, gs = e[:2, 2], e[:2, 3]
+    # x_{k+1} = phi x_k + gu u_k + gs (u_{k+1} - u_k) / dt  =  phi x_k + c0 u_k + c1 u_{k+1}
+    c1 = gs / dt
+    c0 = gu - c1
+    adj = np.array([[-phi[1, 1], phi[0, 1]], [phi[1, 0], -phi[0, 0]]])     # adj(z I - phi) = z I + adj
+    num = np.column_stack([c1, c0 + adj @ c1, adj @ c0])
+    den = np.array([1.0, -np.trace(phi), np.linalg.det(phi)])
+    return num[0], num[1], den
+
+
+class IIRFilter:
+    """A causal IIR filter over a few channels, one sample at a time or a batch that continues it.
+
+    The recursion of :func:`scipy.signal.lfilter` (direct form II transposed).
+
+    Parameters
+    ----------
+    b, a : array_like
+        Numerator and denominator.
+    channels : int
+        Independent channels filtered alike.
+    steady : bool
+        Start in equilibrium with the first input (instead of from zero).
+    """
+
+    def __init__(self, b, a, channels: int, steady: bool = False) -> None:
+        a = np.asarray(a, dtype=float)
+        self.b = np.asarray(b, dtype=float) / a[0]
+        self.a = a / a[0]
+        self.z = np.zeros((len(self.a) - 1, channels))
+        self.steady = bool(steady)
+        self.started = False
+
+    def _start(self, u0: np.ndarray) -> None:
+        if self.steady:
+            from scipy.signal import lfilter_zi
+            self.z = lfilter_zi(self.b, self.a)[:, None] * np.asarray(u0, dtype=float)[None, :]
+        self.started = True
+
+    def step(self, u: np.ndarray) -> np.ndarray:
+        """Filter one sample (one value per channel)."""
+        u = np.asarray(u, dtype=float)
+        if not self.started:
+            self._start(u)
+        z, b, a = self.z, self.b, self.a
+        y = b[0] * u + z[0]
+        m = len(z)
+        for i in range(m - 1):
+            z[i] = b[i + 1] * u + z[i + 1] - a[i + 1] * y
+        z[m - 1] = b[m] * u - a[m] * y
+        return y
+
+    def run(self, u: np.ndarray) -> np.ndarray:
+        """Filter samples (N, channels), continuing from the current state."""
+        from scipy.signal import lfilter
+        u = np.asarray(u, dtype=float)
+        if len(u) == 0:
+            return u.copy()
+        if not self.started:
+            self._start(u[0])
+        y, self.z = lfilter(self.b, self.a, u, axis=0, zi=self.z)
+        return y

@@ -1,0 +1,388 @@
+r"""What every ground estimator shares: the protocol, its results, the output table, the frame checks.
+
+Frames and signs (see the glossary of :mod:`imu_ground.so3`)
+------------------------------------------------------------
+- sensor ``s``: the frame of the ego-motion (IMU, camera, ...);
+- body/ground ``g``: FLU vehicle frame, z along the road normal at rest on flat
+  ground; ``R_gs`` (ground <- sensor) is the static extrinsic;
+- world ``w``: the body frame at the start (``R0``); road ``r``: the slow state
+  ``X`` (world <- road) of the estimators;
+- residual ``E = X^T R`` (road <- body): the fast body motion, with ``R``
+  (world <- body) the cumulative rotation.
+
+Pitch is positive nose *down* (right-handed about y-left), roll positive left
+side *up* (about x-forward); both are read off the road normal in the body
+frame ``n_b = E^T e_z = [-sin p, sin r cos p, cos p cos r]`` (:func:`pitch_roll_from_normal`).
+The normal in the sensor frame is ``n_s = (E R_gs)^T e_z``.
+
+Every estimator (:class:`GroundEstimator`) has ``reset()``, ``step(frame) ->``
+:class:`GroundEstimate` and ``run(egomotion, smooth=False) ->`` :class:`GroundTrack`;
+:func:`track_table` is the one output table. The scalar residual filter both
+invariant-EKF estimators run on is :class:`~imu_ground.filters.residual.ResidualKernel`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Optional, Protocol, Union, runtime_checkable
+
+import numpy as np
+
+from imu_ground.filters.rotations import as_rotations, matrix_from_quat, quat_from_matrix
+from imu_ground.units import DEFAULT_FRAME_RATE
+
+if TYPE_CHECKING:                                   # imported lazily: the imu layer pulls in pandas
+    import pandas as pd
+
+    from imu_ground.imu.egomotion import EgoFrame, EgoMotion
+
+__all__ = ["GroundEstimate", "GroundTrack", "GroundEstimator", "pitch_roll_from_normal", "track_table",
+           "as_egomotion", "ON_INVALID", "ORTHO_TOL", "frame_problem", "frame_problems", "check_on_invalid",
+           "bad_frame_error", "static_rotation", "frame_where", "hold_skipped"]
+
+#: What a streaming estimator does with a bad frame: raise ``ValueError`` (state untouched) or
+#: skip it and return an estimate flagged invalid.
+ON_INVALID = ("raise", "skip")
+#: Largest ``|R^T R - I|`` entry of an accepted rotation increment.
+ORTHO_TOL = 1e-6
+_EZ3 = (0.0, 0.0, 1.0)
+
+
+def pitch_roll_from_normal(n_body):
+    """Pitch and roll of the body relative to the road from the normal in the body frame.
+
+    Parameters
+    ----------
+    n_body : array_like, shape (..., 3)
+        Unit road normal in the body (FLU) frame.
+
+    Returns
+    -------
+    pitch, roll : ndarray, shape (...)
+        Radians; pitch positive nose down, roll positive left side up
+        (``n_b = [-sin p, sin r cos p, cos p cos r]``).
+    """
+    n = np.asarray(n_body, dtype=float)
+    pitch = np.arctan2(-n[..., 0], np.hypot(n[..., 1], n[..., 2]))
+    roll = np.arctan2(n[..., 1], n[..., 2])
+    return pitch, roll
+
+
+class GroundEstimate:
+    """One frame's result of an estimator's ``step``.
+
+    Pitch, roll and the flag are plain floats; the arrays are built on first
+    access (a streaming step that only needs pitch and roll does not pay for them).
+
+    Attributes
+    ----------
+    normal : ndarray (3,)
+        Unit ground normal in the sensor frame.
+    pitch, roll : float
+        Body attitude relative to the road, rad (pitch + nose down, roll + left up).
+    residual : ndarray (3, 3)
+        ``E = X^T R`` (road <- body), the fast body motion.
+    extrinsic : ndarray (3, 3)
+        Dynamic extrinsic rotation ``E R_gs`` (road-ground <- sensor).
+    P : ndarray (3, 3)
+        Covariance of the slow state, body tangent space (rad^2).
+    valid : bool
+        False for a frame the estimator skipped (``on_invalid="skip"``): the
+        values are then those of the previous frame.
+    """
+    __slots__ = ("pitch", "roll", "valid", "_q", "_E", "_Rgs", "_P")
+
+    def __init__(self, pitch: float, roll: float, valid: bool = True, quaternion=None, residual=None,
+                 Rgs: Optional[np.ndarray] = None, P=None) -> None:
+        self.pitch, self.roll, self.valid = pitch, roll, valid
+        self._q, self._E, self._Rgs, self._P = quaternion, residual, Rgs, P
+
+    @property
+    def residual(self) -> np.ndarray:
+        if self._E is None:
+            self._E = matrix_from_quat(np.array(self._q))
+        return self._E
+
+    @property
+    def extrinsic(self) -> np.ndarray:
+        return self.residual if self._Rgs is None else self.residual @ self._Rgs
+
+    @property
+    def normal(self) -> np.ndarray:
+        return self.extrinsic[2].copy()
+
+    @property
+    def P(self) -> np.ndarray:
+        p = self._P
+        return np.diag([p[0], p[0], p[1]]) if isinstance(p, tuple) else p
+
+    def __iter__(self):
+        """``normal, pitch, roll, residual, extrinsic, P`` (the fields of the former named tuple)."""
+        return iter((self.normal, self.pitch, self.roll, self.residual, self.extrinsic, self.P))
+
+    def __repr__(self) -> str:
+        return (f"GroundEstimate(pitch={self.pitch!r}, roll={self.roll!r}, valid={self.valid!r}, "
+                f"normal={self.normal!r})")
+
+
+@dataclass
+class GroundTrack:
+    """Per-frame results of an estimator's ``run`` (F frames).
+
+    Attributes
+    ----------
+    normal : ndarray (F, 3)      unit ground normal, sensor frame.
+    pitch, roll : ndarray (F,)   rad, body relative to road (signs as in :class:`GroundEstimate`).
+    residual : ndarray (F, 3, 3) road <- body.
+    extrinsic : ndarray (F, 3, 3) dynamic extrinsic, road-ground <- sensor.
+    P : ndarray (F, 3, 3)        covariance of the slow state (rad^2).
+    x : ndarray (F, 3, 3)        slow state, world <- road.
+    cumulative : ndarray (F, 3, 3) cumulative body rotation, world <- body.
+    translation : ndarray (3,)   static sensor position in the ground frame (m).
+    t : ndarray (F,)             frame (end) times, s (NaN when unknown).
+    valid : ndarray of bool (F,) False where the frame spans a gap in the source or was skipped.
+    """
+    normal: np.ndarray
+    pitch: np.ndarray
+    roll: np.ndarray
+    residual: np.ndarray
+    extrinsic: np.ndarray
+    P: np.ndarray
+    x: np.ndarray
+    cumulative: np.ndarray
+    translation: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    t: Optional[np.ndarray] = None
+    valid: Optional[np.ndarray] = None
+
+    def __post_init__(self) -> None:
+        n = len(self.pitch)
+        self.t = np.full(n, np.nan) if self.t is None else np.asarray(self.t, dtype=float).reshape(n)
+        self.valid = np.ones(n, dtype=bool) if self.valid is None else np.asarray(self.valid, dtype=bool).reshape(n)
+
+    def __len__(self) -> int:
+        return len(self.pitch)
+
+    @classmethod
+    def from_residuals(cls, E: np.ndarray, X: np.ndarray, P: np.ndarray, cumulative: np.ndarray,
+                       Rgs: Optional[np.ndarray] = None, translation=None, t=None, valid=None, **extra):
+        """The track of residuals ``E`` (road <- body): normal, pitch, roll and dynamic extrinsic from them.
+
+        Parameters
+        ----------
+        E, X, P, cumulative : ndarray (F, 3, 3)
+            Residual, slow state (world <- road), its covariance, cumulative rotation (world <- body).
+        Rgs : ndarray (3, 3), optional
+            Static extrinsic ground <- sensor (None: identity).
+        translation : array_like (3,), optional
+            Static sensor position in the ground frame, m.
+        t, valid : ndarray (F,), optional
+            Frame times (s) and validity.
+        **extra
+            Further fields of a subclass.
+        """
+        E = np.asarray(E, dtype=float).reshape(-1, 3, 3)
+        pitch, roll = pitch_roll_from_normal(E[:, 2, :])
+        dyn = E if Rgs is None else E @ Rgs
+        tr = np.zeros(3) if translation is None else np.array(translation, dtype=float)
+        return cls(dyn[:, 2, :].copy(), pitch, roll, E, dyn, P, X, cumulative, tr, t, valid, **extra)
+
+    def to_dataframe(self):
+        """The output table, :func:`track_table`."""
+        return track_table(self)
+
+
+@runtime_checkable
+class GroundEstimator(Protocol):
+    """What every ground estimator offers (structural type: no base class needed)."""
+
+    def reset(self) -> None:
+        """Back to the initial state."""
+
+    def step(self, frame: "EgoFrame") -> GroundEstimate:
+        """Process one frame of ego-motion (sensor frame) and return its estimate."""
+
+    def run(self, egomotion: "EgoMotion", smooth: bool = False) -> GroundTrack:
+        """Process a whole drive, continuing from the current state as ``step`` would."""
+
+
+def track_table(track: GroundTrack, max_gap_frames: int = 3) -> "pd.DataFrame":
+    """THE output table of an estimate, one row a frame.
+
+    Parameters
+    ----------
+    track : GroundTrack
+    max_gap_frames : int
+        Invalid frames in a run of more than this many consecutive invalid
+        frames (a long gap in the source) get NaN values; shorter runs keep
+        their (extrapolated) values. ``valid`` is False for all of them.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``t`` (s), ``normal_x, normal_y, normal_z`` (unit normal, sensor
+        frame), ``pitch_deg`` (+ nose down), ``roll_deg`` (+ left side up),
+        ``qw, qx, qy, qz`` (residual rotation road <- body, scalar first,
+        ``qw >= 0``), ``valid`` (bool).
+    """
+    import pandas as pd
+    n = len(track)
+    q = quat_from_matrix(track.residual) if n else np.zeros((0, 4))
+    valid = np.asarray(track.valid, dtype=bool)
+    df = pd.DataFrame({"t": np.asarray(track.t, dtype=float),
+                       "normal_x": track.normal[:, 0], "normal_y": track.normal[:, 1], "normal_z": track.normal[:, 2],
+                       "pitch_deg": np.degrees(track.pitch), "roll_deg": np.degrees(track.roll),
+                       "qw": q[:, 0], "qx": q[:, 1], "qy": q[:, 2], "qz": q[:, 3], "valid": valid})
+    blank = _long_runs(~valid, max_gap_frames)
+    if blank.any():
+        df.loc[blank, df.columns[1:-1]] = np.nan
+    return df
+
+
+def _long_runs(mask: np.ndarray, longer_than: int) -> np.ndarray:
+    """Elements of ``mask`` that lie in runs of more than ``longer_than`` consecutive True."""
+    m = np.concatenate([[False], mask, [False]]).astype(np.int8)
+    edges = np.flatnonzero(np.diff(m))
+    out = np.zeros(len(mask), dtype=bool)
+    for a, b in zip(edges[::2], edges[1::2]):
+        if b - a > longer_than:
+            out[a:b] = True
+    return out
+
+
+def as_egomotion(data, rate: Optional[float] = None) -> "EgoMotion":
+    """An :class:`~imu_ground.imu.egomotion.EgoMotion` from what an estimator's ``run`` accepts.
+
+    Parameters
+    ----------
+    data : EgoMotion, ImuData or array_like
+        Ego-motion (returned as is), a raw IMU log (preintegrated at ``rate``)
+        or rotation increments sensor_{k-1} <- sensor_k, shape (F, 3, 3),
+        (F, 4, 4) or (F, 3) (rotation vectors, rad), at ``rate``.
+    rate : float, optional
+        Frame rate, Hz, for the last two; :data:`~imu_ground.units.DEFAULT_FRAME_RATE` by default.
+    """
+    from imu_ground.imu.data import ImuData
+    from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
+    if isinstance(data, EgoMotion):
+        return data
+    rate = DEFAULT_FRAME_RATE if rate is None else float(rate)
+    if isinstance(data, ImuData):
+        return imu_to_egomotion(data, rate=rate)
+    d = np.asarray(data, dtype=float)
+    if d.ndim not in (2, 3) or (d.ndim == 2 and d.shape[1] != 3) or (d.ndim == 3 and d.shape[1:] not in ((3, 3), (4, 4))):
+        raise ValueError(f"expected an EgoMotion, an ImuData or rotation increments of shape (F, 3, 3), (F, 4, 4) "
+                         f"or (F, 3), got {type(data).__name__} of shape {d.shape}")
+    return EgoMotion.from_rotations(as_rotations(d, "delta_Rs"), rate=rate)
+
+
+# ------------------------------------------------------------------------------------------ frame checks
+def frame_problem(d9, delta_v=None, delta_t: float = 1.0) -> Optional[str]:
+    """What is wrong with one frame, or None (scalar check, the streaming twin of :func:`frame_problems`).
+
+    Parameters
+    ----------
+    d9 : sequence of 9 float
+        ``delta_R`` row-major (sensor_{k-1} <- sensor_k).
+    delta_v : sequence of 3 float, optional
+        Velocity increment, m/s.
+    delta_t : float
+        Frame duration, s.
+    """
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = d9
+    lo, hi = 1.0 - ORTHO_TOL, 1.0 + ORTHO_TOL
+    if not (lo <= r00 * r00 + r10 * r10 + r20 * r20 <= hi and lo <= r01 * r01 + r11 * r11 + r21 * r21 <= hi
+            and lo <= r02 * r02 + r12 * r12 + r22 * r22 <= hi
+            and -ORTHO_TOL <= r00 * r01 + r10 * r11 + r20 * r21 <= ORTHO_TOL
+            and -ORTHO_TOL <= r00 * r02 + r10 * r12 + r20 * r22 <= ORTHO_TOL
+            and -ORTHO_TOL <= r01 * r02 + r11 * r12 + r21 * r22 <= ORTHO_TOL
+            and r00 * (r11 * r22 - r12 * r21) - r01 * (r10 * r22 - r12 * r20) + r02 * (r10 * r21 - r11 * r20) > 0.0):
+        return _rotation_message(d9)                # (NaN fails every comparison)
+    if delta_v is not None:
+        vx, vy, vz = delta_v
+        if not math.isfinite(vx + vy + vz):
+            return f"delta_v is not finite ({vx}, {vy}, {vz})"
+    if not delta_t > 0.0 or delta_t == math.inf:
+        return f"delta_t must be a positive number of seconds, got {delta_t}"
+    return None
+
+
+def _rotation_message(d9) -> str:
+    m = np.array(d9, dtype=float).reshape(3, 3)
+    if not np.all(np.isfinite(m)):
+        return "delta_R is not finite"
+    err = float(np.abs(m.T @ m - np.eye(3)).max())
+    return (f"delta_R is not a rotation: |R^T R - I| = {err:.3g} (tolerance {ORTHO_TOL:g}), "
+            f"det = {np.linalg.det(m):.6g} (must be +1)")
+
+
+def frame_problems(d: np.ndarray, dv: Optional[np.ndarray] = None, dt: Optional[np.ndarray] = None) -> list:
+    """Per frame, what is wrong with it (None for a good frame); the batch twin of :func:`frame_problem`.
+
+    Parameters
+    ----------
+    d : ndarray (F, 3, 3)
+        Rotation increments.
+    dv : ndarray (F, 3), optional
+        Velocity increments, m/s.
+    dt : ndarray (F,), optional
+        Frame durations, s.
+    """
+    d = np.asarray(d, dtype=float)
+    n = len(d)
+    with np.errstate(invalid="ignore", over="ignore"):
+        err = np.abs(np.swapaxes(d, 1, 2) @ d - np.eye(3)).max(axis=(1, 2)) if n else np.zeros(0)
+        det = np.linalg.det(d) if n else np.zeros(0)
+        bad = ~((err <= ORTHO_TOL) & (det > 0.0))
+        if dv is not None:
+            bad |= ~np.all(np.isfinite(dv), axis=1)
+        if dt is not None:
+            bad |= ~((dt > 0.0) & (dt < np.inf))
+    out: list = [None] * n
+    for k in np.flatnonzero(bad).tolist():
+        out[k] = frame_problem(d[k].ravel().tolist(), None if dv is None else dv[k].tolist(),
+                               1.0 if dt is None else float(dt[k])) or _rotation_message(d[k].ravel().tolist())
+    return out
+
+
+# ------------------------------------------------------------------------------------------ shared plumbing
+def check_on_invalid(on_invalid: str) -> str:
+    """``on_invalid`` validated (one of :data:`ON_INVALID`)."""
+    if on_invalid not in ON_INVALID:
+        raise ValueError(f"on_invalid must be 'raise' or 'skip', got {on_invalid!r}")
+    return on_invalid
+
+
+def bad_frame_error(problem: str, where: str) -> ValueError:
+    """The error a streaming estimator raises for a bad frame (its state untouched)."""
+    return ValueError(f"bad ego-motion frame ({where}): {problem}; the estimator's state is unchanged "
+                      f"(construct it with on_invalid='skip' to skip such frames)")
+
+
+def static_rotation(extrinsic) -> Optional[np.ndarray]:
+    """The extrinsic's ground <- sensor rotation, or None when it is the identity (nothing to apply)."""
+    R = extrinsic.rotation
+    return None if np.array_equal(R, np.eye(3)) else R
+
+
+def frame_where(index: int, t: float) -> str:
+    """``"frame 12 of the run, t = 1.3 s"``-style location of a frame (0-based index)."""
+    return f"frame index {index}" + ("" if math.isnan(t) else f", t = {t:.6g} s")
+
+
+def hold_skipped(values: np.ndarray, good: np.ndarray, initial: np.ndarray) -> np.ndarray:
+    """Per-frame values of the good frames spread over all frames, a skipped frame holding the previous one.
+
+    Parameters
+    ----------
+    values : ndarray (G, ...)
+        One row per good frame.
+    good : ndarray of bool (F,)
+        Which frames were processed (``G = good.sum()``).
+    initial : ndarray (...)
+        The value before the first good frame.
+    """
+    if good.all():
+        return values
+    idx = np.cumsum(good) - 1
+    padded = np.concatenate([np.asarray(initial, dtype=float)[None], values])
+    return padded[idx + 1]

@@ -1,0 +1,216 @@
+r"""The scalar residual filter both invariant-EKF ground estimators run on, one frame or a whole drive.
+
+With process and measurement noise symmetric about the up axis, the slow road
+attitude ``X`` (world <- road) of an invariant EKF (left error) keeps a
+covariance ``P = diag(a, a, c)`` whatever the data, and the residual
+``E = X^T R`` (road <- body) follows a recursion that needs neither ``X`` nor
+the cumulative rotation ``R``. Per frame, with ``dR`` the body increment and
+``T = Rz(psi)`` its heading twist (``psi = 2 atan2(q_z, q_w)``):
+
+- predict ``X^- = X T``:  ``E^- = T^T E dR``,  ``a += q_h``, ``c += q_v``;
+- update with the rotation ``Z = R Exp(-b)`` (``b``: a modelled body tilt,
+  zero for the paper's filter): ``y = Log(E^- Exp(-b))``, ``K = diag(k_a, k_a, k_c)``
+  with ``k_a = a / (a + r_h)``, ``k_c = c / (c + r_v)``; or with the up axis
+  ``R e_z``: ``y = E^- e_z - e_z``, correction ``k_a (e_z x y)``;
+- ``E = Exp(-K y) E^-`` (the correction ``X = X^- Exp(K y)`` seen from the body);
+- ``a = k_a r_h``, ``c = k_c r_v`` (``c`` unchanged with the up axis).
+
+:class:`ResidualKernel` holds that state as Python floats (``E`` and, when
+asked, ``R`` as unit quaternions) and advances it over a list of frames: the
+same loop serves a streaming ``step`` (a list of one) and a batch ``run``, so
+the two cannot drift apart.
+"""
+from __future__ import annotations
+
+import math
+from typing import Optional, Sequence, Union
+
+__all__ = ["ResidualKernel"]
+
+
+class ResidualKernel:
+    """State ``(E, a, c[, R])`` of the residual filter and the loop that advances it.
+
+    Parameters
+    ----------
+    a, c : float
+        Initial covariance ``diag(a, a, c)`` of the slow state, rad^2.
+    r_h, r_v : float
+        Measurement noise about the horizontal axes and about up, rad^2 (with
+        ``up``: the noise of each component of the observed up axis).
+    up : bool
+        Observe only the up axis ``R e_z`` (tilt), not the whole rotation.
+    follow_heading : bool
+        Predict with the heading twist of each increment (False: random walk).
+    Rgs : ndarray (3, 3), optional
+        Static extrinsic ground <- sensor: increments are given in the sensor
+        frame and turned into the body frame (``R_gs dR R_gs^T``). None: identity.
+    cumulative : bool
+        Also accumulate ``R_k = R_{k-1} dR_k`` (world <- body, from ``R0`` = identity).
+
+    Attributes
+    ----------
+    E : tuple of 4 float
+        Residual road <- body, unit quaternion (w, x, y, z).
+    a, c : float
+        Covariance entries after the last frame.
+    R : tuple of 4 float or None
+        Cumulative rotation, unit quaternion.
+    last : tuple or None
+        Of the last frame: ``(k_a, k_c, a_prior, c_prior, y, E_prior)`` with
+        ``y`` the innovation (3 floats) and ``E_prior`` the predicted residual.
+    """
+
+    __slots__ = ("E", "a", "c", "R", "r_h", "r_v", "up", "follow", "g", "last")
+
+    def __init__(self, a: float, c: float, r_h: float, r_v: float, up: bool = False, follow_heading: bool = True,
+                 Rgs=None, cumulative: bool = False) -> None:
+        self.E = (1.0, 0.0, 0.0, 0.0)
+        self.a, self.c = float(a), float(c)
+        self.r_h, self.r_v = float(r_h), float(r_v)
+        self.up, self.follow = bool(up), bool(follow_heading)
+        self.g = None if Rgs is None else tuple(float(v) for v in Rgs.ravel())
+        self.R = (1.0, 0.0, 0.0, 0.0) if cumulative else None
+        self.last = None
+
+    def advance(self, frames: Sequence[Sequence[float]], q_h: Union[float, Sequence[float]], q_v: float,
+                tilt_x: Optional[Sequence[float]] = None, tilt_y: Optional[Sequence[float]] = None) -> list:
+        """Advance over frames; an unrolled quaternion kernel (hence its length).
+
+        It unrolls, per frame: the quaternion of the increment (Shepperd), its
+        rotation into the body frame, the twist, the scalar covariance and gain
+        recursion, the residual update of the module docstring in quaternion
+        products, the cumulative rotation, and pitch and roll from the third
+        row of ``E`` (:func:`~imu_ground.filters.estimator.pitch_roll_from_normal`).
+
+        Parameters
+        ----------
+        frames : sequence of 9-float sequences
+            Increments sensor_{k-1} <- sensor_k, row-major (already checked:
+            rotations, see :func:`~imu_ground.filters.estimator.frame_problem`).
+        q_h : float or sequence of float
+            Horizontal process noise per frame, rad^2 (one value for all frames, or one a frame).
+        q_v : float
+            Process noise about up per frame, rad^2.
+        tilt_x, tilt_y : sequence of float, optional
+            Modelled body tilt ``b = (b_x, b_y, 0)`` (rotation vector, rad) per
+            frame; not used with ``up``.
+
+        Returns
+        -------
+        list of tuple
+            Per frame ``(ew, ex, ey, ez, a, c, pitch, roll)``, plus ``(rw, rx, ry, rz)``
+            when the cumulative rotation is tracked.
+        """
+        sqrt, atan2, sin, cos = math.sqrt, math.atan2, math.sin, math.cos
+        ew, ex, ey, ez = self.E
+        a, c, r_h, r_v, up, follow = self.a, self.c, self.r_h, self.r_v, self.up, self.follow
+        per_frame_q = not isinstance(q_h, (float, int))
+        qh = q_h
+        tilt = tilt_x is not None and not up
+        g = self.g
+        if g is not None:
+            g00, g01, g02, g10, g11, g12, g20, g21, g22 = g
+        cum = self.R is not None
+        if cum:
+            rw, rx, ry, rz = self.R
+        ka = kc = a_pr = c_pr = yx = yy = yz = mw = mx = my = mz = 0.0
+        out = []
+        append = out.append
+        for k in range(len(frames)):
+            r00, r01, r02, r10, r11, r12, r20, r21, r22 = frames[k]
+            # -- quaternion of the increment (Shepperd), w >= 0
+            tr = r00 + r11 + r22
+            if tr > 0.0:
+                s = 2.0 * sqrt(tr + 1.0)
+                si = 1.0 / s
+                dw, dx, dy, dz = 0.25 * s, (r21 - r12) * si, (r02 - r20) * si, (r10 - r01) * si
+            elif r00 >= r11 and r00 >= r22:
+                s = 2.0 * sqrt(1.0 + r00 - r11 - r22)
+                dw, dx, dy, dz = (r21 - r12) / s, 0.25 * s, (r01 + r10) / s, (r02 + r20) / s
+            elif r11 >= r22:
+                s = 2.0 * sqrt(1.0 + r11 - r00 - r22)
+                dw, dx, dy, dz = (r02 - r20) / s, (r01 + r10) / s, 0.25 * s, (r12 + r21) / s
+            else:
+                s = 2.0 * sqrt(1.0 + r22 - r00 - r11)
+                dw, dx, dy, dz = (r10 - r01) / s, (r02 + r20) / s, (r12 + r21) / s, 0.25 * s
+            if dw < 0.0:
+                dw, dx, dy, dz = -dw, -dx, -dy, -dz
+            if g is not None:                       # body increment: vector part turned by R_gs
+                dx, dy, dz = (g00 * dx + g01 * dy + g02 * dz, g10 * dx + g11 * dy + g12 * dz,
+                              g20 * dx + g21 * dy + g22 * dz)
+            # -- covariance and gains
+            a += qh[k] if per_frame_q else qh
+            c += q_v
+            a_pr, c_pr = a, c
+            ka = a / (a + r_h)
+            a = ka * r_h
+            if up:
+                kc = 0.0
+            else:
+                kc = c / (c + r_v)
+                c = kc * r_v
+            # -- E^- = T^T E dR: p = E d, then m = conj(t) p with t = (ch, 0, 0, sh) the heading twist
+            pw = ew * dw - ex * dx - ey * dy - ez * dz
+            px = ew * dx + ex * dw + ey * dz - ez * dy
+            py = ew * dy - ex * dz + ey * dw + ez * dx
+            pz = ew * dz + ex * dy - ey * dx + ez * dw
+            if follow and (dw > 0.0 or dz != 0.0):    # (a half turn about a level axis has no twist)
+                h = 1.0 / sqrt(dw * dw + dz * dz)
+                ch, sh = dw * h, dz * h
+                mw, mx, my, mz = ch * pw + sh * pz, ch * px + sh * py, ch * py - sh * px, ch * pz - sh * pw
+            else:
+                mw, mx, my, mz = pw, px, py, pz
+            if mw < 0.0:
+                mw, mx, my, mz = -mw, -mx, -my, -mz
+            # -- innovation y and correction g = K y
+            if up:
+                yx, yy, yz = 2.0 * (mx * mz + mw * my), 2.0 * (my * mz - mw * mx), -2.0 * (mx * mx + my * my)
+                gx, gy, gz = -ka * yy, ka * yx, 0.0
+            else:
+                if tilt:                            # M = E^- Exp(-b), b = (bx, by, 0)
+                    bx, by = tilt_x[k], tilt_y[k]
+                    bn = sqrt(bx * bx + by * by)
+                    hb = 0.5 - bn * bn / 48.0 if bn < 1e-4 else sin(0.5 * bn) / bn
+                    cw, cx, cy = cos(0.5 * bn), -hb * bx, -hb * by
+                    Mw = mw * cw - mx * cx - my * cy
+                    Mx = mw * cx + mx * cw - mz * cy
+                    My = mw * cy + my * cw + mz * cx
+                    Mz = mz * cw + mx * cy - my * cx
+                    if Mw < 0.0:
+                        Mw, Mx, My, Mz = -Mw, -Mx, -My, -Mz
+                else:
+                    Mw, Mx, My, Mz = mw, mx, my, mz
+                vn = sqrt(Mx * Mx + My * My + Mz * Mz)
+                f = 2.0 * atan2(vn, Mw) / vn if vn > 1e-300 else 2.0
+                yx, yy, yz = f * Mx, f * My, f * Mz
+                gx, gy, gz = ka * yx, ka * yy, kc * yz
+            # -- E = Exp(-g) E^-, renormalised
+            th = sqrt(gx * gx + gy * gy + gz * gz)
+            hs = 0.5 - th * th / 48.0 if th < 1e-4 else sin(0.5 * th) / th
+            aw, ax, ay, az = cos(0.5 * th), -hs * gx, -hs * gy, -hs * gz
+            ew = aw * mw - ax * mx - ay * my - az * mz
+            ex = aw * mx + ax * mw + ay * mz - az * my
+            ey = aw * my - ax * mz + ay * mw + az * mx
+            ez = aw * mz + ax * my - ay * mx + az * mw
+            nrm = 1.0 / sqrt(ew * ew + ex * ex + ey * ey + ez * ez)
+            ew, ex, ey, ez = ew * nrm, ex * nrm, ey * nrm, ez * nrm
+            # -- pitch and roll from n_b = E^T e_z, the third row of E
+            n0 = 2.0 * (ex * ez - ew * ey)
+            n1 = 2.0 * (ey * ez + ew * ex)
+            n2 = 1.0 - 2.0 * (ex * ex + ey * ey)
+            pitch, roll = atan2(-n0, sqrt(n1 * n1 + n2 * n2)), atan2(n1, n2)
+            if cum:                                 # R = R dR, renormalised
+                rw, rx, ry, rz = (rw * dw - rx * dx - ry * dy - rz * dz, rw * dx + rx * dw + ry * dz - rz * dy,
+                                  rw * dy - rx * dz + ry * dw + rz * dx, rw * dz + rx * dy - ry * dx + rz * dw)
+                nrm = 1.0 / sqrt(rw * rw + rx * rx + ry * ry + rz * rz)
+                rw, rx, ry, rz = rw * nrm, rx * nrm, ry * nrm, rz * nrm
+                append((ew, ex, ey, ez, a, c, pitch, roll, rw, rx, ry, rz))
+            else:
+                append((ew, ex, ey, ez, a, c, pitch, roll))
+        if out:
+            self.E, self.a, self.c = (ew, ex, ey, ez), a, c
+            if cum:
+                self.R = (rw, rx, ry, rz)
+            self.last = (ka, kc, a_pr, c_pr, (yx, yy, yz), (mw, mx, my, mz))
+        return out

@@ -1,0 +1,181 @@
+"""Rotation helpers the filters share: increments in any form, heading twist, ZYX Euler angles,
+quaternions, cumulative rotations.
+
+Frames and signs follow the glossary of :mod:`imu_ground.so3`. Quaternions are
+scalar first, ``(w, x, y, z)``, with ``w >= 0``. These functions belong with
+:mod:`imu_ground.so3` (they are layer-free rotation algebra); they live here
+until that module takes them over, and every filter imports them from here.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from imu_ground import so3
+from imu_ground.units import RENORM_EVERY
+
+__all__ = ["as_rotations", "twist_angle", "euler_zyx", "quat_from_matrix", "matrix_from_quat",
+           "cumulative_rotations", "renormalise"]
+
+_I3 = np.eye(3)
+
+
+def as_rotations(delta_R, name: str = "delta_R") -> np.ndarray:
+    """Rotation matrices from rotation matrices, 4x4 relative poses or rotation vectors (rad).
+
+    Parameters
+    ----------
+    delta_R : array_like, shape (3, 3), (4, 4), (3,), (N, 3, 3), (N, 4, 4) or (N, 3)
+        One increment or a batch; the rotation part of a 4x4 pose is its upper-left 3x3 block
+        (a (3, 3) array is one matrix, never three rotation vectors).
+    name : str
+        Argument name used in the error message.
+
+    Returns
+    -------
+    ndarray, shape (3, 3) or (N, 3, 3)
+        The rotations (a view where no conversion is needed).
+
+    Raises
+    ------
+    ValueError
+        Any other shape.
+    """
+    d = np.asarray(delta_R, dtype=float)
+    if d.ndim in (2, 3) and d.shape[-2:] == (3, 3):        # (3, 3) is one matrix, not three vectors
+        return d
+    if d.ndim in (2, 3) and d.shape[-2:] == (4, 4):
+        return d[..., :3, :3]
+    if d.shape == (3,):
+        return so3.exp_one(d)
+    if d.ndim == 2 and d.shape[1] == 3:
+        return so3.exp(d)
+    raise ValueError(f"{name} must be a 3x3 rotation, a 4x4 pose or a rotation vector (or a batch of them), "
+                     f"got shape {d.shape}")
+
+
+def twist_angle(d: np.ndarray) -> np.ndarray:
+    """Angle of the twist of a rotation about z (swing-twist decomposition), rad.
+
+    ``psi = 2 atan2(q_z, q_w) = atan2(R_10 - R_01, R_00 + R_11)``: the heading
+    change of a body increment about its up axis.
+
+    Parameters
+    ----------
+    d : ndarray (..., 3, 3)
+
+    Returns
+    -------
+    ndarray (...)
+        In (-pi, pi].
+    """
+    return np.arctan2(d[..., 1, 0] - d[..., 0, 1], d[..., 0, 0] + d[..., 1, 1])
+
+
+def euler_zyx(R: np.ndarray) -> np.ndarray:
+    """``(roll, pitch, yaw)`` with ``R = Rz(yaw) Ry(pitch) Rx(roll)``, rad.
+
+    Parameters
+    ----------
+    R : ndarray (..., 3, 3)
+        Rotations (e.g. world <- body, or ground <- sensor for a mounting).
+
+    Returns
+    -------
+    ndarray (..., 3)
+        Roll about x, pitch about y (``atan2(-R_20, hypot(R_21, R_22))``, in
+        [-pi/2, pi/2]), yaw about z.
+    """
+    R = np.asarray(R, dtype=float)
+    yaw = np.arctan2(R[..., 1, 0], R[..., 0, 0])
+    pitch = np.arctan2(-R[..., 2, 0], np.hypot(R[..., 2, 1], R[..., 2, 2]))
+    roll = np.arctan2(R[..., 2, 1], R[..., 2, 2])
+    return np.stack([roll, pitch, yaw], axis=-1)
+
+
+def quat_from_matrix(R: np.ndarray) -> np.ndarray:
+    """Unit quaternions ``(w, x, y, z)``, ``w >= 0``, of rotation matrices (Shepperd's method).
+
+    Parameters
+    ----------
+    R : ndarray (..., 3, 3)
+
+    Returns
+    -------
+    ndarray (..., 4)
+    """
+    R = np.asarray(R, dtype=float)
+    m = R.reshape(-1, 3, 3)
+    r00, r11, r22 = m[:, 0, 0], m[:, 1, 1], m[:, 2, 2]
+    # 4 q_i^2 for i = w, x, y, z; use the largest for the division (well conditioned)
+    sq = np.stack([1.0 + r00 + r11 + r22, 1.0 + r00 - r11 - r22, 1.0 - r00 + r11 - r22, 1.0 - r00 - r11 + r22], 1)
+    i = np.argmax(sq, axis=1)
+    s = 2.0 * np.sqrt(np.maximum(sq[np.arange(len(m)), i], 1e-300))
+    a21, a12 = m[:, 2, 1], m[:, 1, 2]
+    a02, a20 = m[:, 0, 2], m[:, 2, 0]
+    a10, a01 = m[:, 1, 0], m[:, 0, 1]
+    q = np.empty((len(m), 4))
+    cand = (np.stack([0.25 * s, (a21 - a12) / s, (a02 - a20) / s, (a10 - a01) / s], 1),
+            np.stack([(a21 - a12) / s, 0.25 * s, (a01 + a10) / s, (a02 + a20) / s], 1),
+            np.stack([(a02 - a20) / s, (a01 + a10) / s, 0.25 * s, (a12 + a21) / s], 1),
+            np.stack([(a10 - a01) / s, (a02 + a20) / s, (a12 + a21) / s, 0.25 * s], 1))
+    for j in range(4):
+        q[i == j] = cand[j][i == j]
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    q[q[:, 0] < 0] *= -1.0
+    return q.reshape(R.shape[:-2] + (4,))
+
+
+def matrix_from_quat(q: np.ndarray) -> np.ndarray:
+    """Rotation matrices of unit quaternions ``(w, x, y, z)``.
+
+    Parameters
+    ----------
+    q : ndarray (..., 4)
+
+    Returns
+    -------
+    ndarray (..., 3, 3)
+    """
+    q = np.asarray(q, dtype=float)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    xx, yy, zz = x * x, y * y, z * z
+    xy, xz, yz, wx, wy, wz = x * y, x * z, y * z, w * x, w * y, w * z
+    out = np.stack([1.0 - 2.0 * (yy + zz), 2.0 * (xy - wz), 2.0 * (xz + wy),
+                    2.0 * (xy + wz), 1.0 - 2.0 * (xx + zz), 2.0 * (yz - wx),
+                    2.0 * (xz - wy), 2.0 * (yz + wx), 1.0 - 2.0 * (xx + yy)], axis=-1)
+    return out.reshape(q.shape[:-1] + (3, 3))
+
+
+def renormalise(x: np.ndarray) -> np.ndarray:
+    """One Newton step towards the nearest rotation, ``X (3 I - X^T X) / 2`` (one matrix or a batch)."""
+    return x @ (1.5 * _I3 - 0.5 * (np.swapaxes(x, -1, -2) @ x))
+
+
+def cumulative_rotations(d: np.ndarray, R0=None, count: int = 0) -> np.ndarray:
+    """``R_k = R_{k-1} d_k`` (right-multiplied: increments in the moving frame), kept on SO(3).
+
+    Re-orthonormalised (:func:`renormalise`) every
+    :data:`~imu_ground.units.RENORM_EVERY` products, counted from ``count``.
+
+    Parameters
+    ----------
+    d : ndarray (N, 3, 3)
+        Increments ``R_{body_{k-1} <- body_k}``.
+    R0 : ndarray (3, 3), optional
+        ``R`` before the first increment (world <- body); identity by default.
+    count : int
+        Products already taken before ``d[0]`` (to continue a sequence).
+
+    Returns
+    -------
+    ndarray (N, 3, 3)
+        World <- body after each increment.
+    """
+    out = np.empty((len(d), 3, 3))
+    R = _I3 if R0 is None else np.asarray(R0, dtype=float)
+    for k in range(len(d)):
+        R = R @ d[k]
+        if (count + k + 1) % RENORM_EVERY == 0:
+            R = renormalise(R)
+        out[k] = R
+    return out
