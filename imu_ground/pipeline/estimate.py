@@ -363,14 +363,14 @@ def _run_method(name, em, extrinsic, ext, Q, R):
         from imu_ground.filters.methods import METHODS
     except ImportError:
         METHODS = None
-    if METHODS is not None and hasattr(METHODS[name], "build"):
-        est = METHODS[name].build(extrinsic=ext if extrinsic is None or not isinstance(extrinsic, (str, Path))
-                                  else extrinsic, Q=Q, R=R)
-        track = est.run(em, smooth=bool(getattr(METHODS[name], "smooth", False)))
+    noise = {k: v for k, v in (("Q", Q), ("R", R)) if v is not None}
+    if METHODS is not None:
+        spec = METHODS[name]
+        track = spec.factory(extrinsic=ext, **noise).run(em, smooth=bool(spec.smooth))
     elif name in ("filter", "paper"):
         from imu_ground.filters import GroundNormalFilter
-        kw = {k: v for k, v in (("Q", Q), ("R", R)) if v is not None}
-        f = GroundNormalFilter.paper(extrinsic=ext, **kw) if name == "paper" else GroundNormalFilter(extrinsic=ext, **kw)
+        make = GroundNormalFilter.paper if name == "paper" else GroundNormalFilter
+        f = make(extrinsic=ext, **noise)
         track = f.run(em.delta_R)
     else:
         from imu_ground.filters import estimate_suspension_aware

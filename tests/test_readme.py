@@ -1,0 +1,138 @@
+"""Every ``imu-ground`` line of the README, verbatim, and each sub-command with only its required arguments.
+
+Placeholders: ``LOG`` (and ``LOG2``) is the shipped example drive; ``../shared/data`` is the
+real recordings (lines that use them skip when they are absent). Lines run in a fresh folder
+in which ``datasets`` points at the repository's, so outputs land in that folder's ``out/``.
+"""
+import re
+import shlex
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from imu_ground.cli import main
+
+REPO = Path(__file__).resolve().parents[1]
+README = REPO / "README.md"
+EXAMPLE = REPO / "datasets" / "fixtures" / "example_drive.csv"
+PLACEHOLDERS = {"LOG": str(EXAMPLE), "LOG2": str(EXAMPLE)}
+OUTPUT_FLAGS = ("-o", "--output", "--tum", "--markdown", "--csv", "--plots", "--truth", "--plot")
+
+
+def readme_commands() -> list[str]:
+    """``imu-ground ...`` commands of the README's bash blocks (after ``&&`` too), comments removed."""
+    blocks = re.findall(r"```bash\n(.*?)```", README.read_text(encoding="utf-8"), flags=re.S)
+    commands = []
+    for block in blocks:
+        for line in block.splitlines():
+            for part in line.split("&&"):
+                words = shlex.split(part, comments=True)
+                if words and words[0] == "imu-ground":
+                    commands.append(shlex.join(words))
+    return commands
+
+
+COMMANDS = readme_commands()
+
+
+def _argv(command: str, shared: Path | None) -> list[str]:
+    argv = []
+    for w in shlex.split(command)[1:]:
+        if "../shared/data" in w:
+            if shared is None:
+                pytest.skip("needs the real recordings in ../shared/data")
+            w = w.replace("../shared/data", str(shared))
+        argv.append(PLACEHOLDERS.get(w, w))
+    return argv
+
+
+@pytest.fixture(scope="module")
+def readme_dir(tmp_path_factory):
+    """One folder for all README lines, run in order (a line may use an earlier line's output)."""
+    d = tmp_path_factory.mktemp("readme")
+    (d / "datasets").symlink_to(REPO / "datasets")
+    return d
+
+
+@pytest.fixture
+def workdir(readme_dir, monkeypatch):
+    monkeypatch.chdir(readme_dir)
+    return readme_dir
+
+
+def test_the_readme_has_the_commands():
+    assert COMMANDS[0].startswith("imu-ground estimate datasets/fixtures/example_drive.csv")
+    assert {c.split()[1] for c in COMMANDS} >= {"estimate", "batch", "evaluate", "simulate", "calibrate"}
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_readme_command_verbatim(command, workdir, request, capsys):
+    shared = None
+    if "../shared/data" in command:
+        shared = request.getfixturevalue("shared_data")
+    argv = _argv(command, shared)
+    assert main(argv) == 0, capsys.readouterr().err
+    outputs = [argv[i + 1] for i, w in enumerate(argv[:-1]) if w in OUTPUT_FLAGS]
+    for out in outputs:
+        assert (workdir / out).exists(), out
+
+
+def test_readme_outputs_go_to_one_ignored_folder():
+    for command in COMMANDS:
+        words = shlex.split(command)
+        for i, w in enumerate(words[:-1]):
+            if w in OUTPUT_FLAGS:
+                assert words[i + 1].startswith("out/"), command
+    ignored = subprocess.run(["git", "check-ignore", "-q", "out/example_ground.csv"], cwd=REPO)
+    if ignored.returncode == 128:
+        pytest.skip("not a git checkout")
+    assert ignored.returncode == 0, "out/ is not ignored by .gitignore"
+
+
+def _cli(*args, cwd):
+    return subprocess.run([sys.executable, "-m", "imu_ground", *map(str, args)], cwd=cwd, capture_output=True,
+                          text=True, timeout=600)
+
+
+@pytest.mark.parametrize("args", [
+    ("estimate", "LOG"),
+    ("batch", "LOG", "-o", "fleet"),
+    ("simulate", "-o", "sim.csv"),
+    ("calibrate", "LOG", "-o", "car.txt"),
+    ("evaluate", "--synthetic", "1"),
+], ids=lambda a: a[0])
+def test_each_command_with_only_its_required_arguments(args, tmp_path):
+    r = _cli(*[PLACEHOLDERS.get(a, a) for a in args], cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "Traceback" not in r.stderr
+    made = {p.name for p in tmp_path.iterdir()}
+    expected = {"estimate": "example_drive_ground.csv", "batch": "fleet", "simulate": "sim_truth.csv",
+                "calibrate": "car.txt"}.get(args[0])
+    assert expected is None or expected in made, made
+
+
+def test_evaluate_without_a_data_source_says_what_to_give(tmp_path):
+    r = _cli("evaluate", cwd=tmp_path)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert "--real" in r.stderr and "--synthetic" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_console_script(tmp_path):
+    import shutil
+    exe = shutil.which("imu-ground")
+    if exe is None:
+        pytest.skip("imu-ground is not on PATH (package not installed)")
+    r = subprocess.run([exe, "estimate", str(EXAMPLE), "-o", "g.csv"], cwd=tmp_path, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "g.csv").is_file()
+
+
+def test_ci_runs_exactly_the_readme_test_command():
+    blocks = re.findall(r"```bash\n(.*?)```", README.read_text(encoding="utf-8"), flags=re.S)
+    test_command = blocks[1].strip()
+    assert "pytest" in test_command
+    ci = (REPO / ".ci" / "run").read_text(encoding="utf-8").splitlines()
+    assert ci[-1].strip() == test_command
+    assert any("venv" in ln for ln in ci)
