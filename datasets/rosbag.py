@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import sqlite3
 import struct
-import warnings
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -38,8 +37,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 from imu_ground.datasets.options import ImuInputError
-from imu_ground.datasets.validation import MalformedFileError, TimestampWarning
-from imu_ground.datasets.validation import validate as _validate
+from imu_ground.datasets.report import MalformedFileError, TimestampWarning, warn_user
+from imu_ground.datasets.skeleton import finish
 
 from imu_ground.imu.data import ImuData
 
@@ -325,25 +324,23 @@ def _header_ns(msgs: Sequence[Any]) -> np.ndarray:
                        dtype=np.int64, count=len(msgs))
 
 
-def _stamps(path: Path, hdr: np.ndarray, rec: np.ndarray, time_source: str, tolerance: float,
-            stacklevel: int) -> tuple[np.ndarray, str]:
+def _stamps(path: Path, hdr: np.ndarray, rec: np.ndarray, time_source: str,
+            tolerance: float) -> tuple[np.ndarray, str]:
     """Message times, ns: header stamps ``hdr`` or record times ``rec``; one warning when they disagree."""
     if time_source not in ("header", "record"):
         raise ValueError(f"time_source must be 'header' or 'record', got {time_source!r}")
     if time_source == "record" or not len(hdr):
         return rec, "record"
     if not hdr.any():
-        warnings.warn(f"{path}: every header stamp is zero; using the record times instead",
-                      TimestampWarning, stacklevel=stacklevel)
+        warn_user(f"{path}: every header stamp is zero; using the record times instead", TimestampWarning)
         return rec, "record (header stamps are zero)"
     d = (rec - hdr) * 1e-9
     med = float(np.median(d))
     spread = float(np.percentile(np.abs(d - med), 99)) if d.size else 0.0
     if abs(med) > tolerance or spread > tolerance:
-        warnings.warn(f"{path}: the header stamps disagree with the record times (record - header: median "
-                      f"{med:.6g} s, 99th percentile of its deviation {spread:.3g} s, tolerance {tolerance:g} s); "
-                      f"using the header stamps (time_source='record' for the record times)",
-                      TimestampWarning, stacklevel=stacklevel)
+        warn_user(f"{path}: the header stamps disagree with the record times (record - header: median "
+                  f"{med:.6g} s, 99th percentile of its deviation {spread:.3g} s, tolerance {tolerance:g} s); "
+                  f"using the header stamps (time_source='record' for the record times)", TimestampWarning)
     return hdr, "header"
 
 
@@ -392,7 +389,7 @@ def _axes(frame_id: str) -> str:
 
 
 def read_rosbag_imu(path: PathLike, *, topic: str | None = None, time_source: str = "header",
-                    stamp_tolerance: float = 0.1, validate: bool = True, policy: str = "drop",
+                    stamp_tolerance: float = 0.1, validate: bool = True, policy: str = "retime",
                     **options: Any) -> ImuData:
     """Read the ``sensor_msgs/Imu`` messages of a ROS log.
 
@@ -408,9 +405,10 @@ def read_rosbag_imu(path: PathLike, *, topic: str | None = None, time_source: st
         Disagreement, s, between header and record times beyond which a warning is issued.
     validate : bool
         Check and clean the log as every reader does
-        (:func:`imu_ground.datasets.validation.validate`).
+        (:func:`imu_ground.datasets.skeleton.finish`).
     policy : str
-        Time-order policy of the validation (``"drop"``, ``"sort"``, ``"strict"``).
+        Time-order policy of the validation (``"retime"``, ``"drop"``, ``"sort"``, ``"strict"``), as
+        for every reader (:func:`imu_ground.datasets.skeleton.finish`).
     **options
         Other options of the validation (``nonfinite``, ``gap_factor``, ...).
 
@@ -436,25 +434,20 @@ def read_rosbag_imu(path: PathLike, *, topic: str | None = None, time_source: st
     import pandas as pd
 
     p = Path(path)
-    depth = int(options.pop("_depth", 1))
     with _open(p) as reader:
         conns = _choose(reader, p, (IMU_TYPE,), topic, "IMU")
         rec, hdr, frame_id, d = _read_imu_topic(reader, conns)
     if not len(rec):
         raise MalformedFileError(p, f"IMU topic {conns[0].topic!r} has no messages")
-    ns, used = _stamps(p, hdr, rec, time_source, stamp_tolerance, stacklevel=2 + depth)
+    ns, used = _stamps(p, hdr, rec, time_source, stamp_tolerance)
     q = _orientation(d)
     extra = pd.DataFrame(q, columns=["qw", "qx", "qy", "qz"]) if q is not None else pd.DataFrame()
     meta = {"format": "rosbag", "topic": conns[0].topic, "frame_id": frame_id, "t0_ns": int(ns[0]),
             "t0": int(ns[0]) / 1e9, "t0_clock": f"{used} time of the first message",
             "time_source": used, "record_t0_ns": int(rec[0])}
-    imu = ImuData((ns - ns[0]) / 1e9, d[:, 13:16], d[:, 25:28], _axes(frame_id), extra, {c: "1" for c in extra.columns}, str(p), meta)
-    if not validate:
-        if options:
-            raise TypeError(f"validation options {sorted(options)} given with validate=False")
-        return imu
-    out, _ = _validate(imu, policy, **options)  # type: ignore[arg-type]
-    return out
+    imu = ImuData((ns - ns[0]) / 1e9, d[:, 13:16], d[:, 25:28], _axes(frame_id), extra,
+                  {c: "1" for c in extra.columns}, str(p), meta)
+    return finish(imu, validate=validate, policy=policy, **options)
 
 
 def _times(ns: np.ndarray, t0_ns: int | None) -> np.ndarray:
@@ -469,7 +462,7 @@ def _read_typed(path: PathLike, types: Sequence[str], topic: str | None, what: s
         rec, msgs = _messages(reader, conns)
     if not msgs:
         raise MalformedFileError(p, f"{what} topic {conns[0].topic!r} has no messages")
-    ns, _ = _stamps(p, _header_ns(msgs), rec, time_source, stamp_tolerance, stacklevel=4)
+    ns, _ = _stamps(p, _header_ns(msgs), rec, time_source, stamp_tolerance)
     return p, conns[0].msgtype, ns, msgs
 
 
@@ -517,15 +510,8 @@ def read_rosbag_speed(path: PathLike, topic: str | None = None, *, t0_ns: int | 
 
     Parameters
     ----------
-    path : str or Path
-        ROS log.
-    topic : str, optional
-        The twist topic; needed only when the log has more than one.
-    t0_ns : int, optional
-        Clock origin, ns, of the returned times (the IMU's ``meta["t0_ns"]``);
-        default: the epoch.
-    time_source, stamp_tolerance
-        As in :func:`read_rosbag_imu`.
+    path, topic, t0_ns, time_source, stamp_tolerance
+        As in :func:`read_rosbag_poses` (``topic``: the twist topic).
 
     Returns
     -------

@@ -270,6 +270,21 @@ def test_topic_option_in_reader_options():
     assert READER_OPTIONS["topic"].flag == "--topic"
 
 
+@pytest.mark.parametrize("kind", ["ros1", "ros2-sqlite3", "mcap"])
+def test_read_imu_detects_ros_logs_and_passes_topic(tmp_path, csv_imu, kind):
+    from imu_ground.datasets import detect_format, read_imu
+
+    short = csv_imu.select(np.arange(300))
+    path = write_bag(_bag_path(tmp_path, kind), kind, short, topics=("/imu/a", "/imu/b"))
+    assert detect_format(path) == "rosbag"
+    with pytest.raises(ImuInputError, match="2 IMU topics"):
+        read_imu(path)
+    imu = read_imu(path, topic="/imu/a")
+    assert imu.meta["format"] == "rosbag" and imu.meta["topic"] == "/imu/a"
+    np.testing.assert_allclose(imu.t, short.t, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(imu.gyro, short.gyro)
+
+
 def test_unknown_or_wrong_topic(tmp_path, csv_imu):
     path = write_bag(tmp_path / "x.bag", "ros1", csv_imu.select(np.arange(20)), extra=_odometry)
     with pytest.raises(ImuInputError, match="no topic '/nope'"):
