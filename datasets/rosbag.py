@@ -38,7 +38,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from imu_ground.datasets.options import ImuInputError
 from imu_ground.datasets.report import MalformedFileError, TimestampWarning, warn_user
-from imu_ground.datasets.skeleton import finish
+from imu_ground.datasets.validation import validate as _validate
 
 from imu_ground.imu.data import ImuData
 
@@ -405,7 +405,8 @@ def read_rosbag_imu(path: PathLike, *, topic: str | None = None, time_source: st
         Disagreement, s, between header and record times beyond which a warning is issued.
     validate : bool
         Check and clean the log as every reader does
-        (:func:`imu_ground.datasets.skeleton.finish`).
+        (:func:`imu_ground.datasets.validation.validate`, as
+        :func:`imu_ground.datasets.skeleton.finish` does).
     policy : str
         Time-order policy of the validation (``"retime"``, ``"drop"``, ``"sort"``, ``"strict"``), as
         for every reader (:func:`imu_ground.datasets.skeleton.finish`).
@@ -447,7 +448,12 @@ def read_rosbag_imu(path: PathLike, *, topic: str | None = None, time_source: st
             "time_source": used, "record_t0_ns": int(rec[0])}
     imu = ImuData((ns - ns[0]) / 1e9, d[:, 13:16], d[:, 25:28], _axes(frame_id), extra,
                   {c: "1" for c in extra.columns}, str(p), meta)
-    return finish(imu, validate=validate, policy=policy, **options)
+    # what skeleton.finish does (skeleton imports this module lazily: importing finish back would be a cycle)
+    if not validate:
+        if options:
+            raise TypeError(f"validation options {sorted(options)} given with validate=False")
+        return imu
+    return _validate(imu, policy, **options)[0]  # type: ignore[arg-type]
 
 
 def _times(ns: np.ndarray, t0_ns: int | None) -> np.ndarray:
