@@ -47,15 +47,17 @@ DELTAS_IDENTITY: tuple = (0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0,
 UNCERTAINTY_ZERO: tuple = (0.0,) * 90
 
 
-def integrate_interval(s: tuple, u: tuple | None, dt: float, wx: float, wy: float, wz: float,
-                       ax: float, ay: float, az: float, par: tuple) -> tuple[tuple, tuple | None]:
+def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float, z: float,
+                       fx: float, fy: float, fz: float, noise: tuple[float, float]) -> tuple[tuple, tuple | None]:
     """Add one interval of held rate and specific force to preintegrated deltas (unrolled).
 
     Unrolled kernel: every 3x3 product, cross product and symmetric update is
     written out entry by entry on float locals (no loops, no numpy), which is
     why it is longer than the usual function. Per interval, with the
-    bias-corrected increments ``phi = (w - b_g) dt``, ``f dt = (a - b_a) dt``, the
-    rotation before the interval ``R_k``, ``c = R_k f dt`` and ``mid = T + dt/2``:
+    bias-corrected increments ``phi = (w - b_g) dt`` and ``f dt = (a - b_a) dt``
+    (the caller forms them: the streaming front-end folds the midpoint hold's
+    ``1/2`` into ``dt``), the rotation before the interval ``R_k``, ``c = R_k f dt``
+    and ``mid = T + dt/2``:
 
     - deltas: ``p += dt (v + c/2)``, ``v += c``, ``R = R_k Exp(phi)``,
       ``Exp = I + A K + B K^2`` (``K = hat(phi)``);
@@ -75,26 +77,20 @@ def integrate_interval(s: tuple, u: tuple | None, dt: float, wx: float, wy: floa
         Bias Jacobians and covariance so far, or None to integrate the deltas only.
     dt : float
         Interval length, s (> 0).
-    wx, wy, wz : float
-        Angular rate held over the interval, rad/s, body frame (bias not removed).
-    ax, ay, az : float
-        Specific force held over the interval, m/s^2, body frame (bias not removed).
-    par : tuple of 8 floats
-        ``PreintegrationParams.scalars``: gyro and accelerometer bias, ``q_g``, ``q_a``.
+    x, y, z : float
+        Rotation increment ``phi = (w - b_g) dt``, rad, body frame.
+    fx, fy, fz : float
+        Velocity increment ``(a - b_a) dt`` before rotation, m/s, body frame.
+    noise : (float, float)
+        ``(q_g, q_a)``: squared gyro and accelerometer noise densities
+        (``PreintegrationParams.noise``); used only with ``u``.
 
     Returns
     -------
     (deltas, uncertainty)
         The new state; ``uncertainty`` is None when ``u`` was.
     """
-    bgx, bgy, bgz, bax, bay, baz, qg, qa = par
     T, r00, r01, r02, r10, r11, r12, r20, r21, r22, v0, v1, v2, p0, p1, p2 = s
-    x = (wx - bgx) * dt
-    y = (wy - bgy) * dt
-    z = (wz - bgz) * dt
-    fx = (ax - bax) * dt
-    fy = (ay - bay) * dt
-    fz = (az - baz) * dt
     xx = x * x
     yy = y * y
     zz = z * z
@@ -131,6 +127,7 @@ def integrate_interval(s: tuple, u: tuple | None, dt: float, wx: float, wy: floa
             C = 1.0 / 6.0 - t2 / 120.0 + t2 * t2 / 5040.0
         else:
             C = (th - sn) / (t2 * th)
+        qg, qa = noise
         mid = T + 0.5 * dt
         # --- gyro-bias Jacobians: H = hat(c) Th; Vg -= H; Mg += mid H; Th -= delta_R_k Jl dt
         H0 = c1 * h20 - c2 * h10

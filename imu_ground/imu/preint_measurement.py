@@ -145,7 +145,7 @@ class PreintegratedImu:
         Number of integration intervals since the last reset.
     """
 
-    __slots__ = ("_par", "_right_cache", "_s", "_u", "n_intervals", "params", "t_end", "t_start", "valid")
+    __slots__ = ("_right_cache", "_s", "_u", "n_intervals", "params", "t_end", "t_start", "valid")
 
     def __init__(self, params: PreintegrationParams | None = None, **options: Any) -> None:
         self.params = PreintegrationParams.coerce(params, **options)
@@ -156,7 +156,6 @@ class PreintegratedImu:
                     t_start: float, t_end: float, valid: bool) -> PreintegratedImu:
         out = cls.__new__(cls)
         out.params = params
-        out._par = params.scalars
         out._s, out._u, out.n_intervals = s, u, n
         out._right_cache = None
         out.t_start, out.t_end, out.valid = t_start, t_end, valid
@@ -173,7 +172,6 @@ class PreintegratedImu:
             New linearisation biases (rad/s, m/s^2, body frame); unchanged if None.
         """
         self.params = PreintegrationParams.coerce(self.params, bias_gyro=bias_gyro, bias_accel=bias_accel)
-        self._par = self.params.scalars
         self._s = DELTAS_IDENTITY
         self._u = UNCERTAINTY_ZERO if self.params.uncertainty else None
         self._right_cache = None
@@ -200,9 +198,13 @@ class PreintegratedImu:
         """
         if not dt > 0.0:
             raise ValueError(f"dt must be > 0, got {dt!r}")
+        dt = float(dt)
+        bgx, bgy, bgz, bax, bay, baz = self.params.bias
         wx, wy, wz = (float(g) for g in gyro)
         ax, ay, az = (float(a) for a in accel)
-        self._s, self._u = integrate_interval(self._s, self._u, float(dt), wx, wy, wz, ax, ay, az, self._par)
+        self._s, self._u = integrate_interval(self._s, self._u, dt, (wx - bgx) * dt, (wy - bgy) * dt,
+                                              (wz - bgz) * dt, (ax - bax) * dt, (ay - bay) * dt,
+                                              (az - baz) * dt, self.params.noise)
         self.n_intervals += 1
 
     # -- read-outs -----------------------------------------------------------

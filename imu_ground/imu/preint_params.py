@@ -125,9 +125,14 @@ class PreintegrationParams:
         return dataclasses.replace(base, **changes) if changes else base
 
     @property
-    def scalars(self) -> tuple[float, ...]:
-        """``(bg_x, bg_y, bg_z, ba_x, ba_y, ba_z, q_g, q_a)`` for the scalar kernel (``q = density**2``)."""
-        return self.bias_gyro + self.bias_accel + (self.gyro_noise_density ** 2, self.accel_noise_density ** 2)
+    def bias(self) -> tuple[float, ...]:
+        """``(bg_x, bg_y, bg_z, ba_x, ba_y, ba_z)``: rad/s and m/s^2, body frame."""
+        return self.bias_gyro + self.bias_accel
+
+    @property
+    def noise(self) -> tuple[float, float]:
+        """``(q_g, q_a)``: the squared noise densities, for the scalar kernel."""
+        return self.gyro_noise_density ** 2, self.accel_noise_density ** 2
 
     def same_model(self, other: PreintegrationParams) -> bool:
         """Equal biases and noise densities (what composing two measurements needs)."""

@@ -86,14 +86,16 @@ class StreamingPreintegrator:
         self._rate = None if rate is None else float(rate)
         self._every = None if every is None else int(every)
         self._origin = None if t_origin is None else float(t_origin)
-        self._par = par.scalars
+        self._bias = par.bias
+        self._noise = par.noise
         self._max_gap = par.max_gap
         self._tol = par.snap_tol
         self._midpoint = par.hold == "midpoint"
         self._u0 = UNCERTAINTY_ZERO if par.uncertainty else None
-        self._s, self._u, self._n = DELTAS_IDENTITY, self._u0, 0
+        self._st = (DELTAS_IDENTITY, self._u0)   # kernel state: (deltas, uncertainty)
+        self._n = 0
         self._t_start, self._valid = math.nan, True
-        self._prev: tuple | None = None     # (t, wx, wy, wz, ax, ay, az) of the last sample
+        self._prev: tuple | None = None     # (t, wx, wy, wz, ax, ay, az) of the last sample, bias removed
         self._cd = 1 << 62                  # samples until the next every-N boundary
         self._k = 0                         # index of the next boundary
         self._next = _INF                   # time of the next boundary
@@ -110,7 +112,7 @@ class StreamingPreintegrator:
     @property
     def current(self) -> PreintegratedImu:
         """A snapshot of the frame being integrated (``t_end`` nan)."""
-        return PreintegratedImu._from_state(self.params, self._s, self._u, self._n, self._t_start,
+        return PreintegratedImu._from_state(self.params, *self._st, self._n, self._t_start,
                                             math.nan, self._valid)
 
     def push(self, t: float, gyro: Sequence[float], accel: Sequence[float]) -> tuple[PreintegratedImu, ...]:
@@ -148,13 +150,21 @@ class StreamingPreintegrator:
                 cd = self._cd - 1
                 if cd:
                     self._cd = cd
+                    bgx, bgy, bgz, bax, bay, baz = self._bias
                     wx, wy, wz = gyro
                     ax, ay, az = accel
+                    wx -= bgx
+                    wy -= bgy
+                    wz -= bgz
+                    ax -= bax
+                    ay -= bay
+                    az -= baz
                     self._prev = (t, wx, wy, wz, ax, ay, az)
                     _, gx, gy, gz, fx, fy, fz = prev
-                    self._s, self._u = integrate_interval(
-                        self._s, self._u, h, (gx + wx) * 0.5, (gy + wy) * 0.5, (gz + wz) * 0.5,
-                        (fx + ax) * 0.5, (fy + ay) * 0.5, (fz + az) * 0.5, self._par)
+                    hh = 0.5 * h
+                    s, u = self._st
+                    self._st = integrate_interval(s, u, h, (gx + wx) * hh, (gy + wy) * hh, (gz + wz) * hh,
+                                                  (fx + ax) * hh, (fy + ay) * hh, (fz + az) * hh, self._noise)
                     self._n += 1
                     return ()
         return self._push_slow(t, gyro, accel)
@@ -174,11 +184,14 @@ class StreamingPreintegrator:
                 cd = self._cd - 1
                 if cd:
                     self._cd = cd
+                    bgx, bgy, bgz, bax, bay, baz = self._bias
                     wx, wy, wz = gyro
                     ax, ay, az = accel
-                    self._prev = (t, wx, wy, wz, ax, ay, az)
-                    self._s, self._u = integrate_interval(self._s, self._u, h, prev[1], prev[2], prev[3],
-                                                          prev[4], prev[5], prev[6], self._par)
+                    self._prev = (t, wx - bgx, wy - bgy, wz - bgz, ax - bax, ay - bay, az - baz)
+                    _, gx, gy, gz, fx, fy, fz = prev
+                    s, u = self._st
+                    self._st = integrate_interval(s, u, h, gx * h, gy * h, gz * h, fx * h, fy * h, fz * h,
+                                                  self._noise)
                     self._n += 1
                     return ()
         return self._push_slow(t, gyro, accel)
@@ -194,24 +207,28 @@ class StreamingPreintegrator:
     def _cross(self, tb: float, out: list) -> None:
         """A boundary at tb: emit the running frame, start the next if there is one."""
         if self._active:
-            out.append(PreintegratedImu._from_state(self.params, self._s, self._u, self._n,
+            out.append(PreintegratedImu._from_state(self.params, *self._st, self._n,
                                                     self._t_start, tb, self._valid))
         self._k += 1
         self._next = self._boundary(self._k)
         self._active = self._every is not None or self._next != _INF
         self._lim = self._next - self._tol if self._active else -_INF
-        self._s, self._u, self._n = DELTAS_IDENTITY, self._u0, 0
+        self._st, self._n = (DELTAS_IDENTITY, self._u0), 0
         self._t_start, self._valid = tb, True
 
     def _piece(self, dt: float, ka: tuple, kb: tuple, gap: bool) -> None:
-        """Integrate a piece of length dt between knots with values ka and kb."""
+        """Integrate a piece of length dt between knots with (bias-free) values ka and kb."""
         if gap:
             self._valid = False
+        s, u = self._st
         if self._midpoint:
-            held = [(a + b) * 0.5 for a, b in zip(ka, kb)]
+            hh = 0.5 * dt
+            self._st = integrate_interval(s, u, dt, (ka[0] + kb[0]) * hh, (ka[1] + kb[1]) * hh,
+                                          (ka[2] + kb[2]) * hh, (ka[3] + kb[3]) * hh, (ka[4] + kb[4]) * hh,
+                                          (ka[5] + kb[5]) * hh, self._noise)
         else:
-            held = ka
-        self._s, self._u = integrate_interval(self._s, self._u, dt, *held, self._par)
+            self._st = integrate_interval(s, u, dt, ka[0] * dt, ka[1] * dt, ka[2] * dt, ka[3] * dt,
+                                          ka[4] * dt, ka[5] * dt, self._noise)
         self._n += 1
 
     def _start(self, t: float, out: list) -> None:
@@ -233,9 +250,14 @@ class StreamingPreintegrator:
             self._cross(self._next, out)
 
     def _push_slow(self, t: float, gyro: Sequence[float], accel: Sequence[float]) -> tuple:
-        sample = (t, *gyro, *accel)
-        if len(sample) != 7:
-            raise ValueError(f"gyro and accel must have 3 values each, got {gyro!r}, {accel!r}")
+        try:
+            wx, wy, wz = gyro
+            ax, ay, az = accel
+        except ValueError:
+            raise ValueError(f"gyro and accel must have 3 values each, got {gyro!r}, {accel!r}") from None
+        bgx, bgy, bgz, bax, bay, baz = self._bias
+        sample = (t, float(wx) - bgx, float(wy) - bgy, float(wz) - bgz,
+                  float(ax) - bax, float(ay) - bay, float(az) - baz)
         out: list[PreintegratedImu] = []
         prev = self._prev
         tol = self._tol
@@ -258,7 +280,9 @@ class StreamingPreintegrator:
             tb = self._next
             if self._midpoint:
                 wgt = (tb - t0) / h
-                kb = tuple(a + (b - a) * wgt for a, b in zip(prev[1:], k1))
+                _, g0, g1, g2, f0, f1, f2 = prev
+                kb = (g0 + (sample[1] - g0) * wgt, g1 + (sample[2] - g1) * wgt, g2 + (sample[3] - g2) * wgt,
+                      f0 + (sample[4] - f0) * wgt, f1 + (sample[5] - f1) * wgt, f2 + (sample[6] - f2) * wgt)
             else:
                 kb = k0
             if self._active:
