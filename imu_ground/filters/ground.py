@@ -49,14 +49,16 @@ _I3 = np.eye(3)
 _MEASUREMENTS = ("rotation", "up", "forward")
 
 
-def _cov(name: str, m) -> np.ndarray:
-    m = np.asarray(m, dtype=float)
+def _cov(name: str, value) -> np.ndarray:
+    m = np.asarray(value, dtype=float)
     if m.ndim == 0:
         m = float(m) * _I3
     if m.shape != (3, 3):
         raise ValueError(f"{name} must be a scalar or a 3x3 matrix, got shape {m.shape}")
     if not (np.all(np.isfinite(m)) and np.allclose(m, m.T) and np.all(np.linalg.eigvalsh(m) > 0)):
-        raise ValueError(f"{name} must be a positive definite (co)variance, got {m.tolist()}")
+        shown = value if np.ndim(value) == 0 else m.tolist()
+        raise ValueError(f"{name} must be a positive (co)variance, rad^2 (a positive number or a positive "
+                         f"definite 3x3 matrix), got {shown}")
     return m
 
 

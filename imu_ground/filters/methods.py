@@ -1,0 +1,150 @@
+"""The ground estimators by name: what ``imu-ground estimate --method NAME`` and the evaluation run.
+
+:data:`METHODS` maps a CLI name to a :class:`MethodSpec` (one-line description,
+factory, whether it needs an accelerometer, whether it smooths offline);
+:func:`default_method` picks the method for an input; :func:`estimate` runs one.
+A method accepts exactly the options of its estimator's constructor: anything
+else (e.g. ``Q``/``R`` for the suspension methods, whose noise is set by
+``sigma_e``, ``q_time`` and ``q_dist``) is rejected with a message that lists
+what the method does accept.
+"""
+from __future__ import annotations
+
+import inspect
+from dataclasses import dataclass
+from typing import Any, Callable
+
+__all__ = ["MethodSpec", "METHODS", "default_method", "make_estimator", "estimate"]
+
+
+@dataclass(frozen=True)
+class MethodSpec:
+    """One named ground-estimation method.
+
+    Attributes
+    ----------
+    name : str
+        CLI name.
+    description : str
+        One line for ``--help``.
+    factory : callable
+        ``factory(**options) -> estimator`` (a :class:`~imu_ground.filters.estimator.GroundEstimator`).
+    needs_accel : bool
+        The method uses ``delta_v`` (an IMU log, not poses).
+    smooth : bool
+        ``run(..., smooth=True)``: offline, results depend on the future.
+    """
+    name: str
+    description: str
+    factory: Callable[..., Any]
+    needs_accel: bool
+    smooth: bool
+
+    @property
+    def options(self) -> tuple:
+        """Names of the options the factory accepts."""
+        return tuple(p for p in inspect.signature(self.factory).parameters if p != "self")
+
+    def make(self, **options):
+        """The estimator with these options; unknown options raise ``ValueError`` naming the accepted ones."""
+        unknown = sorted(set(options) - set(self.options))
+        if unknown:
+            raise ValueError(f"method {self.name!r} does not take option(s) {', '.join(unknown)}; "
+                             f"it takes: {', '.join(self.options)}")
+        return self.factory(**options)
+
+
+def _ground(**options):
+    from imu_ground.filters.ground import GroundNormalFilter
+    return GroundNormalFilter(**options)
+
+
+def _paper(**options):
+    from imu_ground.filters.ground import GroundNormalFilter
+    return GroundNormalFilter.paper(**options)
+
+
+def _suspension(**options):
+    from imu_ground.filters.suspension import SuspensionAwareFilter
+    return SuspensionAwareFilter(**options)
+
+
+class _Factory:
+    """A factory whose signature is its estimator constructor's (resolved on first use: lazy imports)."""
+
+    def __init__(self, fn: Callable[..., Any], module: str, cls: str) -> None:
+        self.fn, self.module, self.cls = fn, module, cls
+
+    def __call__(self, **options):
+        return self.fn(**options)
+
+    @property
+    def __signature__(self) -> inspect.Signature:
+        import importlib
+        init = getattr(importlib.import_module(self.module), self.cls).__init__
+        params = [p for name, p in inspect.signature(init).parameters.items() if name != "self"]
+        return inspect.Signature(params)
+
+
+_GROUND = "imu_ground.filters.ground"
+_SUSPENSION = "imu_ground.filters.suspension"
+
+#: CLI name -> method. "suspension" is the default for IMU input, "filter" for poses.
+METHODS: dict[str, MethodSpec] = {
+    "suspension": MethodSpec(
+        "suspension", "suspension-aware invariant EKF: road attitude plus the body's load-transfer tilt "
+        "(streaming; needs an accelerometer)",
+        _Factory(_suspension, _SUSPENSION, "SuspensionAwareFilter"), True, False),
+    "suspension-offline": MethodSpec(
+        "suspension-offline", "suspension-aware filter with the offline smoother (zero lag; uses the future)",
+        _Factory(_suspension, _SUSPENSION, "SuspensionAwareFilter"), True, True),
+    "filter": MethodSpec(
+        "filter", "heading-following invariant EKF on the cumulative rotation (rotations only: any odometry)",
+        _Factory(_ground, _GROUND, "GroundNormalFilter"), False, False),
+    "paper": MethodSpec(
+        "paper", "the paper's method: random-walk invariant EKF, Q = 1e-2 I, R = I (Zhang et al. 2022)",
+        _Factory(_paper, _GROUND, "GroundNormalFilter"), False, False),
+}
+
+
+def default_method(has_accel: bool) -> str:
+    """The method to use by default: ``"suspension"`` with an accelerometer, ``"filter"`` without (poses)."""
+    return "suspension" if has_accel else "filter"
+
+
+def make_estimator(name: str, **options):
+    """The estimator of method ``name`` with ``options`` (:meth:`MethodSpec.make`)."""
+    if name not in METHODS:
+        raise ValueError(f"unknown method {name!r}; choose from {', '.join(METHODS)}")
+    return METHODS[name].make(**options)
+
+
+def estimate(egomotion, method=None, **options):
+    """Run a method over a whole drive.
+
+    Parameters
+    ----------
+    egomotion : EgoMotion
+        Per-frame ego-motion (sensor frame).
+    method : str, optional
+        A name of :data:`METHODS`; default :func:`default_method` of the input.
+    **options
+        Options of the method's estimator.
+
+    Returns
+    -------
+    GroundTrack
+
+    Raises
+    ------
+    ValueError
+        Unknown method or option, or a method that needs an accelerometer on
+        input without one.
+    """
+    has_accel = bool(getattr(egomotion, "has_accel", True))
+    name = default_method(has_accel) if method is None else method
+    est = make_estimator(name, **options)
+    if METHODS[name].needs_accel and not has_accel:
+        raise ValueError(f"method {name!r} needs accelerometer data and this input has none (rotations or poses "
+                         f"only); use 'filter' or 'paper'")
+    return est.run(egomotion, smooth=METHODS[name].smooth)
