@@ -6,10 +6,12 @@ The result, :class:`EgoMotion`, is what :class:`~imu_ground.filters.ground.Groun
 (``delta_R``) and :class:`~imu_ground.filters.suspension.SuspensionAwareFilter`
 (``delta_R``, ``delta_v``, ``delta_t``, ``stationary``) consume.
 
-Frames: everything is in the IMU's body frame (``imu.frame``); ``delta_R``
-maps the body frame at a frame's end into the body frame at its start
-(``R_k = R_{k-1} @ delta_R_k``), ``delta_v`` is the gravity-free velocity
-increment in the body frame at the frame's start (m/s).
+Frames (glossary: :mod:`imu_ground.so3`): everything is in the IMU's body frame
+(``imu.frame``); ``delta_R`` is ``R_{body_{k-1}<-body_k}``, the body frame at a
+frame's end expressed in the body frame at its start (``R_k = R_{k-1} @ delta_R_k``
+for ``R_{world<-body}`` attitudes), ``delta_v`` is the gravity-free velocity
+increment in the body frame at the frame's start (m/s). ``t`` holds the frame
+*end* times.
 """
 from __future__ import annotations
 
@@ -64,7 +66,7 @@ class EgoMotion:
     t : ndarray (F,)
         Frame times (end of each frame), s.
     delta_R : ndarray (F, 3, 3)
-        body_{k-1} <- body_k rotation increments.
+        ``R_{body_{k-1}<-body_k}`` rotation increments.
     delta_v : ndarray (F, 3)
         Gravity-free velocity increment, m/s, body frame at the frame's start.
     delta_t : ndarray (F,)

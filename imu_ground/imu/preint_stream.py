@@ -101,7 +101,6 @@ class StreamingPreintegrator:
         self._next = _INF                   # time of the next boundary
         self._lim = -_INF                   # fast path while t < _lim (= _next - snap_tol, inside a frame)
         self._active = False                # inside a frame
-        self.push = self._push_midpoint if self._midpoint else self._push_left
 
     # settings, read-only views of params
     hold = property(lambda self: self.params.hold, doc="``'midpoint'`` or ``'left'``.")
@@ -133,10 +132,6 @@ class StreamingPreintegrator:
             Finished frames (usually an empty tuple), each with ``t_start``,
             ``t_end``, ``valid``; ``delta_R`` of each is ``R_{start<-end}``.
         """
-        return self.push(t, gyro, accel)    # replaced per instance by the hold's fast path
-
-    def _push_midpoint(self, t: float, gyro: Sequence[float], accel: Sequence[float]) -> tuple:
-        # fast path (no boundary, no gap, inside a frame, not an every-N sample); else _push_slow
         if type(t) is not float:
             t = float(t)
         if type(gyro) is _ndarray:
@@ -144,6 +139,7 @@ class StreamingPreintegrator:
         if type(accel) is _ndarray:
             accel = accel.tolist()
         prev = self._prev
+        # fast path: inside a frame, no boundary, no gap, not an every-N sample; else _push_slow
         if t < self._lim and prev is not None:
             h = t - prev[0]
             if 0.0 < h <= self._max_gap:
@@ -161,37 +157,14 @@ class StreamingPreintegrator:
                     az -= baz
                     self._prev = (t, wx, wy, wz, ax, ay, az)
                     _, gx, gy, gz, fx, fy, fz = prev
-                    hh = 0.5 * h
                     s, u = self._st
-                    self._st = integrate_interval(s, u, h, (gx + wx) * hh, (gy + wy) * hh, (gz + wz) * hh,
-                                                  (fx + ax) * hh, (fy + ay) * hh, (fz + az) * hh, self._noise)
-                    self._n += 1
-                    return ()
-        return self._push_slow(t, gyro, accel)
-
-    def _push_left(self, t: float, gyro: Sequence[float], accel: Sequence[float]) -> tuple:
-        # as _push_midpoint, with the left sample's value held
-        if type(t) is not float:
-            t = float(t)
-        if type(gyro) is _ndarray:
-            gyro = gyro.tolist()
-        if type(accel) is _ndarray:
-            accel = accel.tolist()
-        prev = self._prev
-        if t < self._lim and prev is not None:
-            h = t - prev[0]
-            if 0.0 < h <= self._max_gap:
-                cd = self._cd - 1
-                if cd:
-                    self._cd = cd
-                    bgx, bgy, bgz, bax, bay, baz = self._bias
-                    wx, wy, wz = gyro
-                    ax, ay, az = accel
-                    self._prev = (t, wx - bgx, wy - bgy, wz - bgz, ax - bax, ay - bay, az - baz)
-                    _, gx, gy, gz, fx, fy, fz = prev
-                    s, u = self._st
-                    self._st = integrate_interval(s, u, h, gx * h, gy * h, gz * h, fx * h, fy * h, fz * h,
-                                                  self._noise)
+                    if self._midpoint:      # mean of the two samples, the 1/2 folded into dt
+                        hh = 0.5 * h
+                        self._st = integrate_interval(s, u, h, (gx + wx) * hh, (gy + wy) * hh, (gz + wz) * hh,
+                                                      (fx + ax) * hh, (fy + ay) * hh, (fz + az) * hh, self._noise)
+                    else:                   # the left sample's value
+                        self._st = integrate_interval(s, u, h, gx * h, gy * h, gz * h, fx * h, fy * h, fz * h,
+                                                      self._noise)
                     self._n += 1
                     return ()
         return self._push_slow(t, gyro, accel)

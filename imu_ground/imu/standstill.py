@@ -16,13 +16,9 @@ force points *up*, so gravity points along ``-mean(accel)`` in the body frame.
 
 A vehicle cruising straight at constant speed on a smooth road looks like
 standstill to an IMU; the bias estimate is still sound there (the true rate is
-close to zero), the thresholds decide how strict to be. The defaults were
-checked on the 33 KITTI drives in ``kitti_imu100``: at rest the OXTS shows
-per-axis standard deviations of about 5e-4 rad/s and 0.01 m/s^2, while slow
-driving (1-8 m/s) on smooth roads can get down to 0.005 rad/s and 0.05 m/s^2
-over 1 s; with 2 s windows, 0.004 rad/s and 0.04 m/s^2 every detected interval
-is a real stop (GPS speed < 0.3 m/s) and the gravity direction agrees with the
-OXTS roll and pitch to < 0.1 deg. Noisier sensors (phones) need looser limits.
+close to zero), the thresholds decide how strict to be. The defaults suit an
+automotive-grade IMU (the OXTS of the KITTI drives, where every detected interval
+is a real stop); noisier sensors (phones) need looser limits.
 """
 from __future__ import annotations
 
