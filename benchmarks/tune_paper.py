@@ -6,7 +6,8 @@ road over moving frames, means removed, averaged over the valid drives. A split-
 check (tune on one half, test on the other, 20 random splits) shows whether the
 choice carries over to drives it was not tuned on.
 
-Run: ``python benchmarks/tune_paper.py [--data ../shared/data/kitti_imu100]``
+Run: ``python benchmarks/tune_paper.py [--data ../shared/data/kitti_imu100]``;
+``rows()`` returns the table for ``benchmarks/make_results.py``.
 """
 from __future__ import annotations
 
@@ -16,45 +17,58 @@ from pathlib import Path
 
 import numpy as np
 
-from imu_ground.evaluation.runner import load_real_drives
-from imu_ground.filters.ground import GroundNormalFilter
 from imu_ground.evaluation.metrics import evaluate_drive
+from imu_ground.evaluation.runner import load_real_drives
+from imu_ground.filters import GroundNormalFilter
 
 GRID = [1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.3, 1.0, 3.0]
+DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "kitti_imu100"
 
 
 def score(drive, Q):
-    tr = GroundNormalFilter(Q=Q, R=1.0, P=1.0, extrinsic=drive.extrinsic).run(drive.egomotion.delta_R)
+    tr = GroundNormalFilter(Q=Q, R=1.0, P=1.0, extrinsic=drive.extrinsic).run(drive.egomotion)
     res = evaluate_drive(tr.pitch, drive.truth["pitch"], mask=drive.truth["evaluate"].to_numpy(), remove_mean=True)
     return res["pitch"]["mean"]
 
 
-def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default=str(Path(__file__).resolve().parents[2] / "shared" / "data" / "kitti_imu100"))
-    a = ap.parse_args(argv)
+def rows(data: Path = DEFAULT_DATA, drives: int = 0) -> list[dict]:
+    """Mean error per Q and the split-half check as rows (``drives``: first N only, 0 = all)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        drives = [d for d in load_real_drives(Path(a.data), progress=False) if d.valid]
-    table = np.array([[score(d, q) for q in GRID] for d in drives])      # drives x grid
+        ds = [d for d in load_real_drives(Path(data), progress=False) if d.valid]
+    ds = ds[:drives] if drives else ds
+    table = np.array([[score(d, q) for q in GRID] for d in ds])      # drives x grid
     mean = table.mean(axis=0)
-    print(f"{len(drives)} valid drives; mean |pitch error| (deg) by Q (R = 1):")
-    for q, m in zip(GRID, mean):
-        print(f"  Q = {q:<6g} {m:.4f}")
-    best = GRID[int(np.argmin(mean))]
-    print(f"best on all drives: Q = {best:g}")
+    out = [dict(Q=q, R=1.0, drives=len(ds), mean_deg=float(m)) for q, m in zip(GRID, mean)]
     rng = np.random.default_rng(0)
     picks, tests, papers = [], [], []
     i_paper = GRID.index(1e-2)
     for _ in range(20):
-        idx = rng.permutation(len(drives))
+        idx = rng.permutation(len(ds))
         tr_i, te_i = idx[: len(idx) // 2], idx[len(idx) // 2:]
         j = int(np.argmin(table[tr_i].mean(axis=0)))
         picks.append(GRID[j])
         tests.append(table[te_i, j].mean())
         papers.append(table[te_i, i_paper].mean())
-    print(f"split-half (20 splits): chosen Q {sorted(set(picks))}, held-out error {np.mean(tests):.4f} "
-          f"(Q = 1e-2 on the same halves: {np.mean(papers):.4f})")
+    out.append(dict(Q=f"split-half choice {sorted(set(picks))}", R=1.0, drives=len(ds),
+                    mean_deg=float(np.mean(tests)), paper_Q_same_halves_deg=float(np.mean(papers))))
+    return out
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", default=str(DEFAULT_DATA))
+    ap.add_argument("--drives", type=int, default=0, help="first N valid drives only (0: all)")
+    a = ap.parse_args(argv)
+    out = rows(Path(a.data), a.drives)
+    print(f"{out[0]['drives']} valid drives; mean |pitch error| (deg) by Q (R = 1):")
+    for r in out[:-1]:
+        print(f"  Q = {r['Q']:<6g} {r['mean_deg']:.4f}")
+    best = min(out[:-1], key=lambda r: r["mean_deg"])
+    print(f"best on all drives: Q = {best['Q']:g}")
+    last = out[-1]
+    print(f"split-half (20 splits): {last['Q']}, held-out error {last['mean_deg']:.4f} "
+          f"(Q = 1e-2 on the same halves: {last['paper_Q_same_halves_deg']:.4f})")
 
 
 if __name__ == "__main__":

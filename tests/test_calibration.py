@@ -184,3 +184,28 @@ def test_gain_with_impossible_sign_is_rejected_on_banked_roads():
     assert abs(cal.gains[0] - true_pitch) < 0.3 * abs(true_pitch)
     assert "roll_gain_rejected" in cal.stats and cal.gains[1] == DEFAULT_GAINS[1]
     assert "roll_gain_rejected" in str(cal)
+
+
+def test_one_reader_of_the_extrinsic_argument(tmp_path, cal):
+    """None, a rotation, an Extrinsic, a Calibration, a shipped name or a calibration file: one function reads
+    them all, and every estimator takes any of them."""
+    from imu_ground.filters.extrinsics import Calibration, resolve_platform
+    from imu_ground.filters.ground import GroundNormalFilter
+    path = tmp_path / "car.txt"
+    cal.save(path)
+    ext, gains = resolve_platform(path)
+    np.testing.assert_allclose(ext.rotation, cal.rotation, atol=1e-15)
+    np.testing.assert_allclose(gains, cal.gains, rtol=1e-9)
+    assert resolve_platform(None)[1] is None and np.array_equal(resolve_platform(None)[0].rotation, np.eye(3))
+    assert resolve_platform(R_GS)[1] is None and np.array_equal(resolve_platform(R_GS)[0].rotation, R_GS)
+    assert resolve_platform(cal)[0] is cal.extrinsic
+    assert resolve_platform(Calibration(cal.extrinsic, np.array([np.nan, 0.1])))[1] is None
+    shipped, none = resolve_platform("kitti_imu")
+    assert none is None and np.array_equal(shipped.rotation, load_extrinsic("kitti_imu").rotation)
+    assert np.array_equal(Extrinsic.coerce("kitti_imu").rotation, shipped.rotation)
+    f = SuspensionAwareFilter(extrinsic=str(path))
+    np.testing.assert_allclose(f.gains, cal.gains, rtol=1e-9)
+    np.testing.assert_allclose(SuspensionAwareFilter(extrinsic=path, gains=(0.0, 0.0)).gains, 0.0)   # explicit wins
+    np.testing.assert_allclose(GroundNormalFilter(extrinsic=path).extrinsic.rotation, cal.rotation, atol=1e-15)
+    with pytest.raises(FileNotFoundError, match="no shipped extrinsic named 'nowhere'"):
+        resolve_platform("nowhere")

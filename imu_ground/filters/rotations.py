@@ -14,7 +14,7 @@ from imu_ground import so3
 from imu_ground.units import RENORM_EVERY
 
 __all__ = ["as_rotations", "twist_angle", "euler_zyx", "quat_from_matrix", "matrix_from_quat",
-           "cumulative_rotations", "renormalise"]
+           "cumulative_rotations"]
 
 _I3 = np.eye(3)
 
@@ -146,15 +146,10 @@ def matrix_from_quat(q: np.ndarray) -> np.ndarray:
     return out.reshape(q.shape[:-1] + (3, 3))
 
 
-def renormalise(x: np.ndarray) -> np.ndarray:
-    """One Newton step towards the nearest rotation, ``X (3 I - X^T X) / 2`` (one matrix or a batch)."""
-    return x @ (1.5 * _I3 - 0.5 * (np.swapaxes(x, -1, -2) @ x))
-
-
 def cumulative_rotations(d: np.ndarray, R0=None, count: int = 0) -> np.ndarray:
     """``R_k = R_{k-1} d_k`` (right-multiplied: increments in the moving frame), kept on SO(3).
 
-    Re-orthonormalised (:func:`renormalise`) every
+    Re-orthonormalised (:func:`imu_ground.so3.renormalise`) every
     :data:`~imu_ground.units.RENORM_EVERY` products, counted from ``count``.
 
     Parameters
@@ -176,6 +171,6 @@ def cumulative_rotations(d: np.ndarray, R0=None, count: int = 0) -> np.ndarray:
     for k in range(len(d)):
         R = R @ d[k]
         if (count + k + 1) % RENORM_EVERY == 0:
-            R = renormalise(R)
+            R = so3.renormalise(R)
         out[k] = R
     return out
