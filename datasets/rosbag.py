@@ -205,27 +205,32 @@ def _topic_rates(reader: Any, connections: Sequence[Any]) -> dict[str, float]:
     return out
 
 
-def _topic_rows(reader: Any, connections: Sequence[Any]) -> list[tuple[str, str, int, float]]:
+def _topic_rows(reader: Any, connections: Sequence[Any], rates: bool = True) -> list[tuple[str, str, int, float]]:
+    """(topic, msgtype, count, rate_hz) of ``connections``; rates (nan without ``rates``) read every message."""
     counts: dict[tuple[str, str], int] = {}
     for c in connections:
         counts[(c.topic, c.msgtype)] = counts.get((c.topic, c.msgtype), 0) + c.msgcount
-    rates = _topic_rates(reader, connections) if connections else {}
-    return [(topic, msgtype, n, rates.get(topic, float("nan"))) for (topic, msgtype), n in sorted(counts.items())]
+    hz = _topic_rates(reader, connections) if connections and rates else {}
+    return [(topic, msgtype, n, hz.get(topic, float("nan"))) for (topic, msgtype), n in sorted(counts.items())]
 
 
-def rosbag_topics(path: PathLike) -> list[tuple[str, str, int, float]]:
+def rosbag_topics(path: PathLike, rates: bool = True) -> list[tuple[str, str, int, float]]:
     """Topics of a ROS log.
 
     Parameters
     ----------
     path : str or Path
         ``.bag``, ``.mcap`` or ROS 2 bag folder.
+    rates : bool
+        Measure each topic's rate, which reads every message of the log (camera
+        topics included); False: counts only, from the index, ``rate_hz`` nan.
 
     Returns
     -------
     list of (topic, msgtype, count, rate_hz)
         Sorted by topic; ``msgtype`` in rosbags' spelling (``sensor_msgs/msg/Imu``),
-        ``rate_hz`` the median rate of the record times (nan below 2 messages).
+        ``rate_hz`` the median rate of the record times (nan below 2 messages
+        or without ``rates``).
 
     Raises
     ------
@@ -233,11 +238,12 @@ def rosbag_topics(path: PathLike) -> list[tuple[str, str, int, float]]:
         Truncated or corrupt file (the message names it).
     """
     with _open(path) as reader:
-        return _topic_rows(reader, reader.connections)
+        return _topic_rows(reader, reader.connections, rates)
 
 
 def _describe(rows: Sequence[tuple[str, str, int, float]]) -> str:
-    return ", ".join(f"{t} ({m}, {n} messages, {r:.4g} Hz)" for t, m, n, r in rows) or "no topics"
+    return ", ".join(f"{t} ({m}, {n} messages" + (f", {r:.4g} Hz)" if np.isfinite(r) else ")")
+                     for t, m, n, r in rows) or "no topics"
 
 
 def _choose(reader: Any, path: Path, types: Sequence[str], topic: str | None, what: str) -> list[Any]:
@@ -246,7 +252,7 @@ def _choose(reader: Any, path: Path, types: Sequence[str], topic: str | None, wh
     if topic is not None:
         chosen = [c for c in conns if c.topic == topic]
         if not chosen:
-            raise ImuInputError(f"{path}: no topic {topic!r}; topics: {_describe(_topic_rows(reader, conns))}",
+            raise ImuInputError(f"{path}: no topic {topic!r}; topics: {_describe(_topic_rows(reader, conns, False))}",
                                 option="topic", value=topic)
         if chosen[0].msgtype not in types:
             raise ImuInputError(f"{path}: topic {topic!r} carries {chosen[0].msgtype}, not {what} "
@@ -256,7 +262,7 @@ def _choose(reader: Any, path: Path, types: Sequence[str], topic: str | None, wh
     names = sorted({c.topic for c in matching})
     if not names:
         raise ImuInputError(f"{path}: no {what} topic ({' or '.join(types)}); the log has "
-                            f"{_describe(_topic_rows(reader, conns))}")
+                            f"{_describe(_topic_rows(reader, conns, False))}")
     if len(names) > 1:
         rows = _topic_rows(reader, matching)
         raise ImuInputError(f"{path}: {len(names)} {what} topics: {_describe(rows)}; choose one with {{hint}}",

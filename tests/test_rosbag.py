@@ -159,6 +159,8 @@ def test_topics_lists_counts_and_rates(bag, csv_imu):
     (topic, msgtype, count, rate), = rosbag_topics(path)
     assert (topic, msgtype, count) == ("/imu/data", "sensor_msgs/msg/Imu", len(csv_imu))
     assert rate == pytest.approx(100.0, rel=1e-6)
+    (_, _, count, rate), = rosbag_topics(path, rates=False)
+    assert count == len(csv_imu) and np.isnan(rate)
 
 
 @pytest.mark.parametrize("kind", ["ros1", "ros2-mcap", "ros1-mcap"])
@@ -248,7 +250,7 @@ def test_no_imu_topic(tmp_path, kind):
     with pytest.raises(ImuInputError) as e:
         read_rosbag_imu(path)
     msg = str(e.value)
-    assert str(path) in msg and "no IMU topic" in msg and "/odom (nav_msgs/msg/Odometry, 30 messages" in msg
+    assert str(path) in msg and "no IMU topic" in msg and "/odom (nav_msgs/msg/Odometry, 30 messages)" in msg
     assert "\n" not in msg
 
 
