@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -19,11 +19,45 @@ from imu_ground.evaluation.simulate.vehicle import SpeedParams, VehicleParams
 from imu_ground.so3 import rotx, roty, rotz
 from imu_ground.units import DEG
 
-__all__ = ["random_drive", "simulate_suite"]
+__all__ = ["SuiteRanges", "random_drive", "simulate_suite"]
 
 
-def random_drive(rng: np.random.Generator, duration_range, roughness_classes, styles) -> dict:
-    """One random drive configuration: duration, road, vehicle, speed style and mount.
+@dataclass(frozen=True)
+class SuiteRanges:
+    """The ranges a suite draws each drive's road, vehicle and mount from (uniform unless said).
+
+    Road: ``grade_std`` (rise over run), ``crown``, and the grade layout along the
+    road (``grade_segment``, ``grade_transition``, m; see
+    :class:`~imu_ground.evaluation.simulate.road.RoadParams`). Vehicle: wheelbase and
+    track (m), suspension frequencies (Hz), damping ratios, pitch and roll gains (deg
+    per m/s^2), reference point as a share of the wheelbase ahead of the rear axle.
+    Mount: misalignment std per axis (rad) and lever-arm box (m). Speed:
+    probability of starting at rest.
+    """
+
+    grade_std: tuple[float, float] = (0.0, 0.05)
+    crown: tuple[float, float] = (0.0, 0.025)
+    grade_segment: tuple[float, float] = (150.0, 800.0)
+    grade_transition: tuple[float, float] = (60.0, 250.0)
+    wheelbase: tuple[float, float] = (2.5, 3.0)
+    track: tuple[float, float] = (1.5, 1.7)
+    pitch_freq: tuple[float, float] = (1.1, 1.5)
+    pitch_damping: tuple[float, float] = (0.3, 0.5)
+    roll_freq: tuple[float, float] = (1.0, 1.4)
+    roll_damping: tuple[float, float] = (0.3, 0.5)
+    heave_freq: tuple[float, float] = (1.0, 1.5)
+    heave_damping: tuple[float, float] = (0.25, 0.4)
+    pitch_gain_deg: tuple[float, float] = (0.2, 0.35)
+    roll_gain_deg: tuple[float, float] = (0.3, 0.5)
+    ref_share: tuple[float, float] = (0.4, 0.6)
+    mount_std: float = 1.5 * DEG
+    lever_arm: tuple[tuple[float, float], ...] = ((-1.0, 1.0), (-0.4, 0.4), (0.6, 1.5))
+    start_at_rest: float = 0.7
+
+
+def random_drive(rng: np.random.Generator, duration_range, roughness_classes, styles,
+                 ranges: SuiteRanges = SuiteRanges()) -> dict:
+    """One random drive configuration: duration, road, vehicle, speed style and mount, from ``ranges``.
 
     Returns
     -------
@@ -31,22 +65,21 @@ def random_drive(rng: np.random.Generator, duration_range, roughness_classes, st
         ``duration`` (s), ``road``, ``vehicle``, ``speed`` (parameter objects),
         ``R_gs`` (body <- sensor, 1.5 deg per axis) and ``t_gs`` (lever arm, m).
     """
-    duration = float(rng.uniform(*duration_range))
+    r = ranges
+    u = lambda lim: float(rng.uniform(*lim))           # noqa: E731  (one draw, in this order)
+    duration = u(duration_range)
     style = str(rng.choice(list(styles)))
-    road = RoadParams(roughness=str(rng.choice(list(roughness_classes))),
-                      grade_std=float(rng.uniform(0.0, 0.05)),
-                      crown=float(rng.uniform(0.0, 0.025)))
+    road = RoadParams(roughness=str(rng.choice(list(roughness_classes))), grade_std=u(r.grade_std),
+                      crown=u(r.crown), grade_segment=r.grade_segment, grade_transition=r.grade_transition)
     vehicle = VehicleParams(
-        wheelbase=float(rng.uniform(2.5, 3.0)), track=float(rng.uniform(1.5, 1.7)),
-        pitch_freq=float(rng.uniform(1.1, 1.5)), pitch_damping=float(rng.uniform(0.3, 0.5)),
-        roll_freq=float(rng.uniform(1.0, 1.4)), roll_damping=float(rng.uniform(0.3, 0.5)),
-        heave_freq=float(rng.uniform(1.0, 1.5)), heave_damping=float(rng.uniform(0.25, 0.4)),
-        pitch_gain_deg=float(rng.uniform(0.2, 0.35)), roll_gain_deg=float(rng.uniform(0.3, 0.5)))
-    vehicle.rear_axle_to_ref = float(rng.uniform(0.4, 0.6)) * vehicle.wheelbase
-    speed = SpeedParams(style=style, start_at_rest=bool(rng.random() < 0.7))
-    ang = rng.normal(0.0, 1.5 * DEG, 3)
+        wheelbase=u(r.wheelbase), track=u(r.track), pitch_freq=u(r.pitch_freq), pitch_damping=u(r.pitch_damping),
+        roll_freq=u(r.roll_freq), roll_damping=u(r.roll_damping), heave_freq=u(r.heave_freq),
+        heave_damping=u(r.heave_damping), pitch_gain_deg=u(r.pitch_gain_deg), roll_gain_deg=u(r.roll_gain_deg))
+    vehicle.rear_axle_to_ref = u(r.ref_share) * vehicle.wheelbase
+    speed = SpeedParams(style=style, start_at_rest=bool(rng.random() < r.start_at_rest))
+    ang = rng.normal(0.0, r.mount_std, 3)
     r_gs = rotz(ang[2]) @ roty(ang[1]) @ rotx(ang[0])
-    t_gs = np.array([rng.uniform(-1.0, 1.0), rng.uniform(-0.4, 0.4), rng.uniform(0.6, 1.5)])
+    t_gs = np.array([u(lim) for lim in r.lever_arm])
     return dict(duration=duration, road=road, vehicle=vehicle, speed=speed, R_gs=r_gs, t_gs=t_gs)
 
 
@@ -54,7 +87,8 @@ def simulate_suite(n: int, seed: int = 0, grades: Sequence[str | ImuErrorModel] 
                    duration_range: tuple[float, float] = (60.0, 180.0),
                    roughness_classes: Sequence[str] = ("A", "B", "C"),
                    styles: Sequence[str] = ("urban", "rural", "highway", "mixed"),
-                   imu_rate: float = 100.0, frame_rate: float = 10.0) -> list[SimResult]:
+                   imu_rate: float = 100.0, frame_rate: float = 10.0,
+                   ranges: SuiteRanges = SuiteRanges()) -> list[SimResult]:
     """``n`` varied drives, each simulated once per IMU grade.
 
     Every drive draws its duration, roughness class, driving style, grades and
@@ -63,6 +97,7 @@ def simulate_suite(n: int, seed: int = 0, grades: Sequence[str | ImuErrorModel] 
     mount (1.5 deg per axis) with its lever arm; the grades of one drive share its
     trajectory and extrinsic. Returns ``n * len(grades)`` results, drive-major,
     named ``"drive{i:03d}_{grade}"``; ``simulate(**result.params)`` reproduces any one.
+    ``ranges`` (:class:`SuiteRanges`) sets what each drive is drawn from.
     """
     if n < 0:
         raise ValueError("n must be >= 0")
@@ -72,7 +107,7 @@ def simulate_suite(n: int, seed: int = 0, grades: Sequence[str | ImuErrorModel] 
     for i in range(n):
         drive_seed = int(np.random.SeedSequence([int(seed), i]).generate_state(1)[0])
         cfg = random_drive(np.random.default_rng([int(seed), i, 1]), duration_range,
-                           roughness_classes, styles)
+                           roughness_classes, styles, ranges)
         r, t = as_extrinsic(cfg["R_gs"], cfg["t_gs"])
         clean = clean_drive(cfg["duration"], drive_seed, float(imu_rate), cfg["road"], cfg["vehicle"],
                             cfg["speed"], r, t, oversample)
