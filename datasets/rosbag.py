@@ -5,7 +5,9 @@ Read with `rosbags <https://gitlab.com/ternaris/rosbags>`_ (pure Python, the
 
 - a ROS 1 bag (``*.bag``);
 - a ROS 2 bag folder (``metadata.yaml`` and ``*.db3`` or ``*.mcap`` storage);
-- a plain MCAP file (``*.mcap``) with ROS 2 (CDR) messages.
+- a plain MCAP file (``*.mcap``) with ROS 2 (CDR) messages, or with ROS 1
+  messages (profile ``ros1``, as ``mcap convert x.bag`` writes; read with the
+  ``mcap`` package, which rosbags does not cover, and deserialised by rosbags).
 
 Times
 -----
@@ -75,7 +77,7 @@ def is_rosbag(path: PathLike) -> bool:
 
 # --------------------------------------------------------------------------- opening
 def _corrupt(path: Path, err: BaseException) -> MalformedFileError:
-    detail = str(err).strip() or type(err).__name__
+    detail = " ".join(str(err).split()) or type(err).__name__      # one line
     hint = ("; a ROS 1 bag whose recording was cut off needs 'rosbag reindex'" if path.suffix == ".bag" else
             "; 'mcap recover' salvages the complete messages of a cut-off MCAP file"
             if path.suffix == ".mcap" else "")
@@ -134,9 +136,14 @@ class _Ros1Mcap:
         from rosbags.typesys.msg import normalize_msgtype
 
         self._file = open(self.path, "rb")  # noqa: SIM115 (closed by close())
-        self._reader = make_reader(self._file)
-        summary = self._reader.get_summary()
+        try:
+            self._reader = make_reader(self._file)
+            summary = self._reader.get_summary()
+        except BaseException:
+            self._file.close()
+            raise
         if summary is None:
+            self._file.close()
             raise EOFError("no summary section")
         counts = summary.statistics.channel_message_counts if summary.statistics else {}
         types: dict[str, Any] = {}
@@ -165,8 +172,11 @@ class _Ros1Mcap:
 @contextmanager
 def _open(path: PathLike) -> Iterator[Any]:
     """An open ``rosbags.highlevel.AnyReader``; unreadable files raise :class:`MalformedFileError` naming them."""
-    from rosbags.highlevel import AnyReader
-    from rosbags.typesys import Stores, get_typestore
+    try:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+    except ImportError as e:
+        raise ImportError(f"{path}: reading ROS logs needs rosbags: pip install 'imu-ground[ros]' ({e})") from e
 
     p = Path(path)
     if not p.exists():
@@ -175,12 +185,12 @@ def _open(path: PathLike) -> Iterator[Any]:
         raise ValueError(f"{p}: not a ROS log (expected a .bag or .mcap file, or a ROS 2 bag folder with "
                          f"metadata.yaml)")
     errors = _read_errors()
-    if p.is_file() and p.suffix.lower() == ".mcap" and _mcap_profile(p) == "ros1":
-        reader: Any = _Ros1Mcap(p)
-    else:
-        reader = AnyReader([p], default_typestore=get_typestore(
-            Stores.ROS1_NOETIC if p.suffix == ".bag" else Stores.LATEST))
     try:
+        if p.is_file() and p.suffix.lower() == ".mcap" and _mcap_profile(p) == "ros1":
+            reader: Any = _Ros1Mcap(p)
+        else:
+            reader = AnyReader([p], default_typestore=get_typestore(
+                Stores.ROS1_NOETIC if p.suffix == ".bag" else Stores.LATEST))
         reader.open()
     except errors as e:
         raise _corrupt(p, e) from e
@@ -518,7 +528,7 @@ def read_rosbag_poses(path: PathLike, topic: str | None = None, *, t0_ns: int | 
 def read_rosbag_speed(path: PathLike, topic: str | None = None, *, t0_ns: int | None = None,
                       time_source: str = "header",
                       stamp_tolerance: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
-    """Vehicle speed from a ``geometry_msgs/TwistStamped``, ``TwistWithCovarianceStamped`` or ``nav_msgs/Odometry`` topic.
+    """Vehicle speed from a ``TwistStamped``, ``TwistWithCovarianceStamped`` or ``nav_msgs/Odometry`` topic.
 
     Parameters
     ----------

@@ -295,15 +295,25 @@ def test_unknown_or_wrong_topic(tmp_path, csv_imu):
         read_rosbag_imu(path, topic="/odom")
 
 
+@pytest.mark.parametrize("keep", [0.5, 0.0])
 @pytest.mark.parametrize("kind", KINDS)
-def test_truncated_file(tmp_path, csv_imu, kind):
-    path = write_bag(_bag_path(tmp_path, kind), kind, csv_imu)
+def test_truncated_file(tmp_path, csv_imu, kind, keep):
+    path = write_bag(_bag_path(tmp_path, kind), kind, csv_imu.select(np.arange(2000)))
     data_file = path if path.is_file() else next(f for f in path.iterdir() if f.name != "metadata.yaml")
-    data_file.write_bytes(data_file.read_bytes()[: data_file.stat().st_size // 2])
+    data_file.write_bytes(data_file.read_bytes()[: int(data_file.stat().st_size * keep)])
     with pytest.raises(MalformedFileError) as e:
         read_rosbag_imu(path)
     msg = str(e.value)
     assert msg.startswith(str(path)) and "truncated or corrupt" in msg and "\n" not in msg
+
+
+def test_corrupt_metadata_is_one_line(tmp_path):
+    folder = tmp_path / "bag2"
+    folder.mkdir()
+    (folder / "metadata.yaml").write_text("rosbag2_bagfile_information: [\n")
+    with pytest.raises(MalformedFileError) as e:
+        read_rosbag_imu(folder)
+    assert str(e.value).startswith(str(folder)) and "\n" not in str(e.value)
 
 
 def test_not_a_rosbag(tmp_path):
