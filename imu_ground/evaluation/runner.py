@@ -94,16 +94,7 @@ class Method:
 
 def _library_methods() -> list[Method]:
     """The library's methods under their CLI names (the filters' registry)."""
-    try:
-        from imu_ground.filters.methods import METHODS as REGISTRY
-    except ImportError:          # the registry is being written: the same four methods by hand
-        from imu_ground.filters import GroundNormalFilter, SuspensionAwareFilter
-        return [Method("suspension", "suspension-aware filter (streaming)", SuspensionAwareFilter, False, True),
-                Method("suspension-offline", "suspension-aware filter, offline smoother",
-                       SuspensionAwareFilter, True, True),
-                Method("filter", "invariant EKF, heading-following", GroundNormalFilter),
-                Method("paper", "the paper's method: random-walk invariant EKF, Q=1e-2 I, R=I",
-                       GroundNormalFilter.paper)]
+    from imu_ground.filters.methods import METHODS as REGISTRY
     return [Method(name, spec.description, spec.factory, bool(spec.smooth), bool(spec.needs_accel))
             for name, spec in REGISTRY.items()]
 
