@@ -67,8 +67,6 @@ from imu_ground.evaluation.simulate.road import (ISO8608_CLASSES, ISO8608_N0, RO
                                                  iso8608_psd, road_profile)
 from imu_ground.evaluation.simulate.suite import simulate_suite
 from imu_ground.evaluation.simulate.vehicle import SpeedParams, VehicleParams, suspension_response
-# Kept only while imu_ground.filters.suspension imports it from here; the design lives in filters.design.
-from imu_ground.filters.design import foh_filter as _foh_filter  # noqa: F401
 from imu_ground.units import GRAVITY
 
 __all__ = [
