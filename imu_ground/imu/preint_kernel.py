@@ -9,9 +9,11 @@ state is a flat tuple of floats, unpacked into locals, updated, and packed again
 
 State layouts
 -------------
-``deltas`` (16 floats): ``T`` (integrated time, s), ``delta_R`` row-major
-(``R_{start<-now}``, body frame now -> body frame at the start), ``delta_v``
-(m/s) and ``delta_p`` (m) in the start body frame.
+``deltas`` (11 floats): ``T`` (integrated time, s), ``delta_R`` as the unit
+quaternion ``(w, x, y, z)`` of ``R_{start<-now}`` (body frame now -> body frame at
+the start; a quaternion product is 28 float operations where a 3x3 product and
+the matrix exponential are about 70), ``delta_v`` (m/s) and ``delta_p`` (m) in the
+start body frame. :func:`rotation_from_quaternion` gives the matrix.
 
 ``uncertainty`` (90 floats), left-error form in the start body frame
 (``delta_R_measured = Exp(dtheta) delta_R_true``, which makes the transition unit
@@ -39,10 +41,11 @@ import math
 
 from imu_ground.imu.matrix3 import SMALL_ANGLE2
 
-__all__ = ["DELTAS_IDENTITY", "UNCERTAINTY_ZERO", "integrate_interval"]
+__all__ = ["DELTAS_IDENTITY", "UNCERTAINTY_ZERO", "integrate_interval", "quaternion_from_rotation",
+           "rotation_from_quaternion"]
 
-#: Deltas of an empty interval: T = 0, delta_R = I, delta_v = delta_p = 0.
-DELTAS_IDENTITY: tuple = (0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+#: Deltas of an empty interval: T = 0, delta_R = I (quaternion 1), delta_v = delta_p = 0.
+DELTAS_IDENTITY: tuple = (0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 #: Bias Jacobians and covariance of an empty interval (all zero).
 UNCERTAINTY_ZERO: tuple = (0.0,) * 90
 
@@ -59,8 +62,8 @@ def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float,
     ``1/2`` into ``dt``), the rotation before the interval ``R_k``, ``c = R_k f dt``
     and ``mid = T + dt/2``:
 
-    - deltas: ``p += dt (v + c/2)``, ``v += c``, ``R = R_k Exp(phi)``,
-      ``Exp = I + A K + B K^2`` (``K = hat(phi)``);
+    - deltas: ``p += dt (v + c/2)``, ``v += c``, ``R = R_k Exp(phi)`` as the
+      quaternion product ``q_k (x) (cos(th/2), sin(th/2) phi / th)``;
     - when ``u`` is given, first the bias Jacobians
       (``Vg -= hat(c) Th``, ``Mg += mid hat(c) Th``, ``Th -= R_k Jl(phi) dt``,
       ``Va -= R_k dt``, ``Ma += mid R_k dt``) and the covariance: with
@@ -71,7 +74,7 @@ def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float,
 
     Parameters
     ----------
-    s : tuple of 16 floats
+    s : tuple of 11 floats
         Deltas so far (module docstring).
     u : tuple of 90 floats, or None
         Bias Jacobians and covariance so far, or None to integrate the deltas only.
@@ -90,23 +93,41 @@ def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float,
     (deltas, uncertainty)
         The new state; ``uncertainty`` is None when ``u`` was.
     """
-    T, r00, r01, r02, r10, r11, r12, r20, r21, r22, v0, v1, v2, p0, p1, p2 = s
+    T, qw, qx, qy, qz, v0, v1, v2, p0, p1, p2 = s
     xx = x * x
     yy = y * y
     zz = z * z
     t2 = xx + yy + zz
+    # Exp(phi) as the unit quaternion (cos(th/2), k phi), k = sin(th/2) / th
     if t2 < SMALL_ANGLE2:
-        A = 1.0 - t2 / 6.0 + t2 * t2 / 120.0
-        B = 0.5 - t2 / 24.0 + t2 * t2 / 720.0
+        ch = 1.0 - t2 / 8.0 + t2 * t2 / 384.0
+        k = 0.5 - t2 / 48.0 + t2 * t2 / 3840.0
     else:
         th = math.sqrt(t2)
-        sn = math.sin(th)
-        hs = math.sin(0.5 * th)
-        A = sn / th
-        B = 2.0 * hs * hs / t2
-    xy = x * y
-    xz = x * z
-    yz = y * z
+        ch = math.cos(0.5 * th)
+        k = math.sin(0.5 * th) / th
+    # R_k = delta_R before the interval, from the quaternion
+    x2 = qx + qx
+    y2 = qy + qy
+    z2 = qz + qz
+    wx2 = qw * x2
+    wy2 = qw * y2
+    wz2 = qw * z2
+    xx2 = qx * x2
+    yy2 = qy * y2
+    zz2 = qz * z2
+    xy2 = qx * y2
+    xz2 = qx * z2
+    yz2 = qy * z2
+    r00 = 1.0 - yy2 - zz2
+    r01 = xy2 - wz2
+    r02 = xz2 + wy2
+    r10 = xy2 + wz2
+    r11 = 1.0 - xx2 - zz2
+    r12 = yz2 - wx2
+    r20 = xz2 - wy2
+    r21 = yz2 + wx2
+    r22 = 1.0 - xx2 - yy2
     # c = R_k f dt: the rotated velocity increment (start body frame)
     c0 = r00 * fx + r01 * fy + r02 * fz
     c1 = r10 * fx + r11 * fy + r12 * fz
@@ -124,9 +145,14 @@ def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float,
          vq00, vq01, vq02, vq10, vq11, vq12, vq20, vq21, vq22,
          qq00, qq01, qq02, qq11, qq12, qq22) = u
         if t2 < SMALL_ANGLE2:
+            B = 0.5 - t2 / 24.0 + t2 * t2 / 720.0
             C = 1.0 / 6.0 - t2 / 120.0 + t2 * t2 / 5040.0
         else:
-            C = (th - sn) / (t2 * th)
+            B = 2.0 * k * k                         # (1 - cos th) / th^2 = 2 sin^2(th/2) / th^2
+            C = (th - math.sin(th)) / (t2 * th)
+        xy = x * y
+        xz = x * z
+        yz = y * z
         qg, qa = noise
         mid = T + 0.5 * dt
         # --- gyro-bias Jacobians: H = hat(c) Th; Vg -= H; Mg += mid H; Th -= delta_R_k Jl dt
@@ -322,28 +348,50 @@ def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float,
              vv00, vv01, vv02, vv11, vv12, vv22,
              vq00, vq01, vq02, vq10, vq11, vq12, vq20, vq21, vq22,
              qq00, qq01, qq02, qq11, qq12, qq22)
-    # --- deltas: p += dt (v + c/2), v += c, R = R_k Exp(phi), Exp = I + A K + B K^2
-    Bxy = B * xy
-    Bxz = B * xz
-    Byz = B * yz
-    Ax = A * x
-    Ay = A * y
-    Az = A * z
-    e00 = 1.0 - B * (yy + zz)
-    e11 = 1.0 - B * (xx + zz)
-    e22 = 1.0 - B * (xx + yy)
-    e01 = Bxy - Az
-    e10 = Bxy + Az
-    e02 = Bxz + Ay
-    e20 = Bxz - Ay
-    e12 = Byz - Ax
-    e21 = Byz + Ax
+    # --- deltas: p += dt (v + c/2), v += c, q = q_k (x) (ch, k phi)
+    dx = k * x
+    dy = k * y
+    dz = k * z
     return (T + dt,
-            r00 * e00 + r01 * e10 + r02 * e20, r00 * e01 + r01 * e11 + r02 * e21,
-            r00 * e02 + r01 * e12 + r02 * e22,
-            r10 * e00 + r11 * e10 + r12 * e20, r10 * e01 + r11 * e11 + r12 * e21,
-            r10 * e02 + r11 * e12 + r12 * e22,
-            r20 * e00 + r21 * e10 + r22 * e20, r20 * e01 + r21 * e11 + r22 * e21,
-            r20 * e02 + r21 * e12 + r22 * e22,
+            qw * ch - qx * dx - qy * dy - qz * dz, qw * dx + qx * ch + qy * dz - qz * dy,
+            qw * dy - qx * dz + qy * ch + qz * dx, qw * dz + qx * dy - qy * dx + qz * ch,
             v0 + c0, v1 + c1, v2 + c2,
             p0 + dt * (v0 + 0.5 * c0), p1 + dt * (v1 + 0.5 * c1), p2 + dt * (v2 + 0.5 * c2)), u
+
+
+def rotation_from_quaternion(q: tuple) -> tuple:
+    """Row-major rotation matrix (9 floats) of a quaternion ``(w, x, y, z)``, normalised first."""
+    w, x, y, z = q
+    n = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
+    w, x, y, z = w * n, x * n, y * n, z * n
+    return (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y),
+            2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x),
+            2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y))
+
+
+def quaternion_from_rotation(r: tuple) -> tuple:
+    """Unit quaternion ``(w, x, y, z)`` of a row-major rotation matrix (9 floats), Shepperd's method.
+
+    The largest of ``w, x, y, z`` is taken from the diagonal, the others from
+    the off-diagonal sums, so no branch divides by a small number.
+    """
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = r
+    tr = r00 + r11 + r22
+    if tr >= r00 and tr >= r11 and tr >= r22:
+        w = 0.5 * math.sqrt(max(1.0 + tr, 0.0))
+        f = 0.25 / w
+        q = (w, (r21 - r12) * f, (r02 - r20) * f, (r10 - r01) * f)
+    elif r00 >= r11 and r00 >= r22:
+        x = 0.5 * math.sqrt(max(1.0 + r00 - r11 - r22, 0.0))
+        f = 0.25 / x
+        q = ((r21 - r12) * f, x, (r01 + r10) * f, (r02 + r20) * f)
+    elif r11 >= r22:
+        y = 0.5 * math.sqrt(max(1.0 - r00 + r11 - r22, 0.0))
+        f = 0.25 / y
+        q = ((r02 - r20) * f, (r01 + r10) * f, y, (r12 + r21) * f)
+    else:
+        z = 0.5 * math.sqrt(max(1.0 - r00 - r11 + r22, 0.0))
+        f = 0.25 / z
+        q = ((r10 - r01) * f, (r02 + r20) * f, (r12 + r21) * f, z)
+    n = 1.0 / math.sqrt(sum(v * v for v in q))
+    return tuple(v * n for v in q)

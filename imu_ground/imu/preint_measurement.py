@@ -23,11 +23,12 @@ from typing import Any
 import numpy as np
 
 from imu_ground import so3
-from imu_ground.imu.matrix3 import project_if_needed
 from imu_ground.imu.preint_kernel import (
     DELTAS_IDENTITY,
     UNCERTAINTY_ZERO,
     integrate_interval,
+    quaternion_from_rotation,
+    rotation_from_quaternion,
 )
 from imu_ground.imu.preint_params import PreintegrationParams
 
@@ -241,17 +242,17 @@ class PreintegratedImu:
     @property
     def delta_R(self) -> np.ndarray:
         """``R_{start<-end}``, shape (3, 3): body frame at the end -> body frame at the start."""
-        return project_if_needed(np.array(self._s[1:10]).reshape(3, 3))
+        return np.array(rotation_from_quaternion(self._s[1:5])).reshape(3, 3)
 
     @property
     def delta_v(self) -> np.ndarray:
         """Velocity increment without gravity, m/s, body frame at the start, shape (3,)."""
-        return np.array(self._s[10:13])
+        return np.array(self._s[5:8])
 
     @property
     def delta_p(self) -> np.ndarray:
         """Position increment without gravity, m, body frame at the start, shape (3,)."""
-        return np.array(self._s[13:16])
+        return np.array(self._s[8:11])
 
     def _left_arrays(self) -> tuple:
         """(T, R, v, p, J, S): left-error, p-form arrays of the state."""
@@ -267,8 +268,8 @@ class PreintegratedImu:
         J[6:9] += T * J[3:6]
         S[6:9] += T * S[3:6]
         S[:, 6:9] += T * S[:, 3:6]
-        return (np.float64(T), np.array(s[1:10]).reshape(3, 3), np.array(s[10:13]),
-                np.array(s[13:16]), J, S)
+        return (np.float64(T), np.array(rotation_from_quaternion(s[1:5])).reshape(3, 3), np.array(s[5:8]),
+                np.array(s[8:11]), J, S)
 
     def _right(self) -> tuple[np.ndarray, np.ndarray]:
         """(J, S) in Forster's right form, computed once per state (the state tuples are immutable)."""
@@ -393,7 +394,8 @@ class PreintegratedImu:
         u = np.empty(91)
         u[_J_IDX] = J
         u[_S_IDX] = S
-        s = (T, *np.asarray(R, dtype=float).reshape(9).tolist(), *np.asarray(v, dtype=float).tolist(),
+        q = quaternion_from_rotation(tuple(np.asarray(R, dtype=float).reshape(9).tolist()))
+        s = (T, *q, *np.asarray(v, dtype=float).tolist(),
              *np.asarray(p, dtype=float).tolist())
         return cls._from_state(params, s, tuple(u[:90].tolist()), int(n_intervals), float(t_start),
                                float(t_end), bool(valid))
