@@ -92,7 +92,7 @@ def rows(frames: int = 100_000, stream_frames: int = 20_000, repeat: int = 5) ->
     for _ in range(repeat):
         f = _filter()
         t0 = time.perf_counter()
-        tr = f.run(em)
+        f.run(em)
         runs.append((time.perf_counter() - t0) / frames)
     run_med = float(np.median(runs)) * 1e6
     head = EgoMotion(em.t[:n], em.delta_R[:n], em.delta_v[:n], em.delta_t[:n], em.stationary[:n], em.valid[:n])

@@ -1,42 +1,62 @@
 """Gravity and velocity from an IMU alone, with vehicle constraints: a linear Kalman filter on frames.
 
-Frames and signs follow :mod:`imu_ground.so3`: world ``w`` is the gyro-integrated
-body frame at the start (``R0``, world <- body), body ``b`` FLU (x forward,
-y left, z up), gravity stored as its reaction (+9.81 m/s^2 up at rest).
+Frames and signs follow the glossary of :mod:`imu_ground.so3`: world ``w`` is the
+gyro-integrated body frame at the start (``R0 = R_{w<-body_0}``), body ``b`` FLU
+(x forward, y left, z up), gravity stored as its reaction (+9.81 m/s^2 up at rest).
+
+One scalar kernel (:func:`_predict_update`, unrolled arithmetic on the 21 unique
+covariance entries) serves :meth:`GravityVelocityFilter.step` and ``run``, so the
+two cannot drift; the forces are scalar in ``step``, vectorised in ``run``.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from types import SimpleNamespace
 from typing import NamedTuple, Optional, Sequence, Union
 
 import numpy as np
 
 from imu_ground import so3
 from imu_ground.filters.extrinsics import Extrinsic
-from imu_ground.filters.ground import _increment_matrix
-from imu_ground.filters.invariant_ekf import _renormalise
 from imu_ground.imu.data import ImuData
 from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
-from imu_ground.units import RENORM_EVERY as _RENORM_EVERY
+from imu_ground.so3 import exp_flat, log_flat, mul_flat, mul_nt_flat, renormalise_flat
+from imu_ground.units import RENORM_EVERY
 
-__all__ = ["GravityEstimate", "GravityTrack", "GravityVelocityFilter"]
+__all__ = ["GravityEstimate", "GravityTrack", "GravityVelocityFilter", "egomotion_arrays"]
 
 _I3 = np.eye(3)
-_DIAG = (np.arange(6), np.arange(6))
-_UPPER = np.eye(6, k=3)
+#: (row, column) of P's 21 unique entries: cov(v) upper triangle, cov(v, g) row-major, cov(g) upper triangle.
+_UPPER21 = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2),
+            (0, 3), (0, 4), (0, 5), (1, 3), (1, 4), (1, 5), (2, 3), (2, 4), (2, 5),
+            (3, 3), (3, 4), (3, 5), (4, 4), (4, 5), (5, 5))
+_FULL_INDEX = np.empty((6, 6), dtype=int)
+for _m, (_i, _j) in enumerate(_UPPER21):
+    _FULL_INDEX[_i, _j] = _FULL_INDEX[_j, _i] = _m
 
-def _egomotion_arrays(ego: Union[EgoMotion, ImuData]):
-    """``(delta_R, delta_v, delta_t, stationary, valid)`` of an EgoMotion (an ImuData is preintegrated)."""
+
+def _full_cov(p21: np.ndarray) -> np.ndarray:
+    """(..., 21) unique entries -> (..., 6, 6) symmetric covariances."""
+    return np.asarray(p21)[..., _FULL_INDEX]
+
+
+def egomotion_arrays(ego: Union[EgoMotion, ImuData]):
+    """``(delta_R, delta_v, delta_t, stationary, valid)`` of an EgoMotion (an ImuData is preintegrated).
+
+    Raises
+    ------
+    TypeError, ValueError
+        Not an EgoMotion; inconsistent shapes; non-finite increments or
+        non-positive frame durations.
+    """
     if isinstance(ego, ImuData):
         ego = imu_to_egomotion(ego)
     if not isinstance(ego, EgoMotion):
         raise TypeError(f"expected an EgoMotion (or ImuData), got {type(ego).__name__}")
-    d = np.asarray(ego.delta_R, dtype=float)
+    d, dv, dt = (np.asarray(a, dtype=float) for a in (ego.delta_R, ego.delta_v, ego.delta_t))
+    st, valid = (np.asarray(a, dtype=bool) for a in (ego.stationary, ego.valid))
     n = len(d)
-    dv = np.asarray(ego.delta_v, dtype=float)
-    dt = np.asarray(ego.delta_t, dtype=float)
-    st = np.asarray(ego.stationary, dtype=bool)
-    valid = np.asarray(ego.valid, dtype=bool)
     if d.shape != (n, 3, 3) or dv.shape != (n, 3) or dt.shape != (n,) or st.shape != (n,) or valid.shape != (n,):
         raise ValueError("EgoMotion arrays have inconsistent shapes")
     if not (np.all(np.isfinite(d)) and np.all(np.isfinite(dv)) and np.all(dt > 0)):
@@ -44,22 +64,168 @@ def _egomotion_arrays(ego: Union[EgoMotion, ImuData]):
     return d, dv, dt, st, valid
 
 
+_egomotion_arrays = egomotion_arrays      # old private name (suspension.py, until it imports the public one)
+
+
+def _flat_increment(delta_R) -> list:
+    """Row-major 9 floats of a 3x3 rotation, a 4x4 relative pose or a rotation vector (rad)."""
+    d = delta_R if type(delta_R) is np.ndarray else np.asarray(delta_R, dtype=float)
+    if d.shape == (3, 3):
+        return d.ravel().tolist()
+    if d.shape == (4, 4):
+        return d[:3, :3].ravel().tolist()
+    if d.shape == (3,):
+        return list(exp_flat(*d.tolist()))
+    raise ValueError(f"delta_R must be a 3x3 rotation, a 4x4 pose or a rotation vector, got shape {d.shape}")
+
+
+def _cross(a, b):
+    return a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
+
+
+def _predict_update(s, frames, prm, out=None, priors=None):
+    """The filter's recursion over frames: one kernel for :meth:`GravityVelocityFilter.step` and ``run``.
+
+    Unrolled scalar arithmetic on the state list ``s`` (velocity, gravity, the 21
+    unique entries of P in ``_UPPER21`` order, ``R_{w<-body_k}`` as 9 floats
+    row-major, the frame count), updated in place. ``frames``: ``(d9, dv3, dt,
+    stationary, valid)`` per frame, body frame. ``prm``: ``(q_v^2, q_gap^2, q_g^2,
+    sigma_zupt^2, sigma_nhc^2, zupt_gate, initialised)``. Per frame: the
+    cumulative attitude (renormalised every ``RENORM_EVERY`` frames), the
+    predict ``v += R_{k-1} dv - dt g``, ``P <- F P F^T + Q`` (written out for
+    ``F = [[I, -dt I], [0, I]]`` and isotropic ``Q``), then the update with the
+    body velocity: the zero-velocity update (gated; see :func:`_zupt`) or the
+    non-holonomic constraint on the body y and z axes, ``P <- P - K S K^T``.
+    ``out`` (optional list) receives the posterior state per frame, ``priors``
+    the prior. Returns the last frame's ``(zupt, K, y, S, dt, qv, qg, prior)``, the
+    count of rejected standstill flags and whether gravity is initialised.
+    """
+    (v0, v1, v2, g0, g1, g2, a00, a01, a02, a11, a12, a22, b00, b01, b02, b10, b11, b12, b20, b21, b22,
+     c00, c01, c02, c11, c12, c22, r0, r1, r2, r3, r4, r5, r6, r7, r8, count) = s
+    qv2, qgap2, qg2, rz, rn, gate, initialised = prm
+    rejected, last = 0, None
+    for (d0, d1, d2, d3, d4, d5, d6, d7, d8), (dv0, dv1, dv2), dt, stationary, valid in frames:
+        p0, p1, p2, p3, p4, p5, p6, p7, p8 = r0, r1, r2, r3, r4, r5, r6, r7, r8
+        count += 1
+        r0, r1, r2 = p0 * d0 + p1 * d3 + p2 * d6, p0 * d1 + p1 * d4 + p2 * d7, p0 * d2 + p1 * d5 + p2 * d8
+        r3, r4, r5 = p3 * d0 + p4 * d3 + p5 * d6, p3 * d1 + p4 * d4 + p5 * d7, p3 * d2 + p4 * d5 + p5 * d8
+        r6, r7, r8 = p6 * d0 + p7 * d3 + p8 * d6, p6 * d1 + p7 * d4 + p8 * d7, p6 * d2 + p7 * d5 + p8 * d8
+        if count % RENORM_EVERY == 0:
+            r0, r1, r2, r3, r4, r5, r6, r7, r8 = renormalise_flat((r0, r1, r2, r3, r4, r5, r6, r7, r8))
+        w0, w1, w2 = p0 * dv0 + p1 * dv1 + p2 * dv2, p3 * dv0 + p4 * dv1 + p5 * dv2, p6 * dv0 + p7 * dv1 + p8 * dv2
+        if not initialised:                         # gravity from the first frame's mean specific force
+            g0, g1, g2 = w0 / dt, w1 / dt, w2 / dt
+            initialised = True
+        v0, v1, v2 = v0 + w0 - dt * g0, v1 + w1 - dt * g1, v2 + w2 - dt * g2
+        qv = (qv2 if valid else qv2 + qgap2) * dt
+        qg = qg2 * dt
+        a00, a11, a22 = (a00 - dt * (2.0 * b00 - dt * c00) + qv, a11 - dt * (2.0 * b11 - dt * c11) + qv,
+                         a22 - dt * (2.0 * b22 - dt * c22) + qv)
+        a01, a02, a12 = a01 - dt * (b01 + b10 - dt * c01), a02 - dt * (b02 + b20 - dt * c02), \
+            a12 - dt * (b12 + b21 - dt * c12)
+        b00, b01, b02 = b00 - dt * c00, b01 - dt * c01, b02 - dt * c02
+        b10, b11, b12 = b10 - dt * c01, b11 - dt * c11, b12 - dt * c12
+        b20, b21, b22 = b20 - dt * c02, b21 - dt * c12, b22 - dt * c22
+        c00, c11, c22 = c00 + qg, c11 + qg, c22 + qg
+        prior = (v0, v1, v2, g0, g1, g2, a00, a01, a02, a11, a12, a22, b00, b01, b02, b10, b11, b12,
+                 b20, b21, b22, c00, c01, c02, c11, c12, c22)
+        if priors is not None:
+            priors.append(prior)
+        zupt = False
+        if stationary:
+            st = _zupt(prior, rz, gate)
+            if st is None:
+                rejected += 1                       # a smooth cruise flagged as standstill: constraint instead
+            else:
+                zupt = True
+                ((v0, v1, v2, g0, g1, g2, a00, a01, a02, a11, a12, a22, b00, b01, b02, b10, b11, b12,
+                  b20, b21, b22, c00, c01, c02, c11, c12, c22), K, y, S) = st
+        if not zupt:
+            # non-holonomic constraint: body y and z velocity, h = columns 1 and 2 of R_k
+            uy0, uy1, uy2 = a00 * r1 + a01 * r4 + a02 * r7, a01 * r1 + a11 * r4 + a12 * r7, \
+                a02 * r1 + a12 * r4 + a22 * r7
+            uy3, uy4, uy5 = b00 * r1 + b10 * r4 + b20 * r7, b01 * r1 + b11 * r4 + b21 * r7, \
+                b02 * r1 + b12 * r4 + b22 * r7
+            uz0, uz1, uz2 = a00 * r2 + a01 * r5 + a02 * r8, a01 * r2 + a11 * r5 + a12 * r8, \
+                a02 * r2 + a12 * r5 + a22 * r8
+            uz3, uz4, uz5 = b00 * r2 + b10 * r5 + b20 * r8, b01 * r2 + b11 * r5 + b21 * r8, \
+                b02 * r2 + b12 * r5 + b22 * r8
+            s00 = r1 * uy0 + r4 * uy1 + r7 * uy2 + rn
+            s01 = r1 * uz0 + r4 * uz1 + r7 * uz2
+            s11 = r2 * uz0 + r5 * uz1 + r8 * uz2 + rn
+            det = s00 * s11 - s01 * s01
+            i00, i01, i11 = s11 / det, -s01 / det, s00 / det
+            e0 = -(r1 * v0 + r4 * v1 + r7 * v2)
+            e1 = -(r2 * v0 + r5 * v1 + r8 * v2)
+            ky0, kz0 = uy0 * i00 + uz0 * i01, uy0 * i01 + uz0 * i11
+            ky1, kz1 = uy1 * i00 + uz1 * i01, uy1 * i01 + uz1 * i11
+            ky2, kz2 = uy2 * i00 + uz2 * i01, uy2 * i01 + uz2 * i11
+            ky3, kz3 = uy3 * i00 + uz3 * i01, uy3 * i01 + uz3 * i11
+            ky4, kz4 = uy4 * i00 + uz4 * i01, uy4 * i01 + uz4 * i11
+            ky5, kz5 = uy5 * i00 + uz5 * i01, uy5 * i01 + uz5 * i11
+            v0, v1, v2 = v0 + ky0 * e0 + kz0 * e1, v1 + ky1 * e0 + kz1 * e1, v2 + ky2 * e0 + kz2 * e1
+            g0, g1, g2 = g0 + ky3 * e0 + kz3 * e1, g1 + ky4 * e0 + kz4 * e1, g2 + ky5 * e0 + kz5 * e1
+            # P - K S K^T = P - K PHT^T (upper triangle)
+            a00, a01, a02 = a00 - ky0 * uy0 - kz0 * uz0, a01 - ky0 * uy1 - kz0 * uz1, a02 - ky0 * uy2 - kz0 * uz2
+            a11, a12, a22 = a11 - ky1 * uy1 - kz1 * uz1, a12 - ky1 * uy2 - kz1 * uz2, a22 - ky2 * uy2 - kz2 * uz2
+            b00, b01, b02 = b00 - ky0 * uy3 - kz0 * uz3, b01 - ky0 * uy4 - kz0 * uz4, b02 - ky0 * uy5 - kz0 * uz5
+            b10, b11, b12 = b10 - ky1 * uy3 - kz1 * uz3, b11 - ky1 * uy4 - kz1 * uz4, b12 - ky1 * uy5 - kz1 * uz5
+            b20, b21, b22 = b20 - ky2 * uy3 - kz2 * uz3, b21 - ky2 * uy4 - kz2 * uz4, b22 - ky2 * uy5 - kz2 * uz5
+            c00, c01, c02 = c00 - ky3 * uy3 - kz3 * uz3, c01 - ky3 * uy4 - kz3 * uz4, c02 - ky3 * uy5 - kz3 * uz5
+            c11, c12, c22 = c11 - ky4 * uy4 - kz4 * uz4, c12 - ky4 * uy5 - kz4 * uz5, c22 - ky5 * uy5 - kz5 * uz5
+        if out is not None:
+            out.append((v0, v1, v2, g0, g1, g2, a00, a01, a02, a11, a12, a22, b00, b01, b02, b10, b11, b12,
+                        b20, b21, b22, c00, c01, c02, c11, c12, c22, r0, r1, r2, r3, r4, r5, r6, r7, r8))
+    if frames:
+        if not zupt:
+            K = (ky0, kz0, ky1, kz1, ky2, kz2, ky3, kz3, ky4, kz4, ky5, kz5)
+            y, S = (e0, e1), (s00, s01, s11)
+        last = (zupt, K, y, S, dt, qv, qg, prior)
+    s[:] = (v0, v1, v2, g0, g1, g2, a00, a01, a02, a11, a12, a22, b00, b01, b02, b10, b11, b12, b20, b21, b22,
+            c00, c01, c02, c11, c12, c22, r0, r1, r2, r3, r4, r5, r6, r7, r8, count)
+    return last, rejected, initialised
+
+
+def _zupt(xp, rz, gate):
+    """Zero-velocity update with noise ``rz I``, or None when gated out (squared Mahalanobis > ``gate``).
+
+    The body-frame measurement ``R_k^T v`` with isotropic noise is the
+    world-frame ``v`` with the same noise (``R_k`` cancels), so ``H = [I, 0]``:
+    ``S = A + rz I``, ``K = [A; B^T] S^-1``, ``P <- P - K S K^T``. ``xp``: the
+    6-state then the 21 unique entries of P (``_UPPER21`` order). Returns
+    ``(xp, K, y, S)`` in world axes (K row-major 6x3, S its upper triangle).
+    """
+    v0, v1, v2 = xp[0:3]
+    a00, a01, a02, a11, a12, a22 = xp[6:12]
+    b = xp[12:21]
+    s0, s1, s2, s4, s5, s8 = a00 + rz, a01, a02, a11 + rz, a12, a22 + rz
+    j00, j01, j02 = s4 * s8 - s5 * s5, s2 * s5 - s1 * s8, s1 * s5 - s2 * s4
+    det = s0 * j00 + s1 * j01 + s2 * j02
+    j11, j12, j22 = s0 * s8 - s2 * s2, s1 * s2 - s0 * s5, s0 * s4 - s1 * s1
+    si = ((j00 / det, j01 / det, j02 / det), (j01 / det, j11 / det, j12 / det), (j02 / det, j12 / det, j22 / det))
+    y = (-v0, -v1, -v2)
+    siy = [si[i][0] * y[0] + si[i][1] * y[1] + si[i][2] * y[2] for i in range(3)]
+    if y[0] * siy[0] + y[1] * siy[1] + y[2] * siy[2] > gate:
+        return None
+    pht = ((a00, a01, a02), (a01, a11, a12), (a02, a12, a22),
+           (b[0], b[3], b[6]), (b[1], b[4], b[7]), (b[2], b[5], b[8]))
+    K = [tuple(r[0] * si[0][j] + r[1] * si[1][j] + r[2] * si[2][j] for j in range(3)) for r in pht]
+    xn = [xp[i] + K[i][0] * y[0] + K[i][1] * y[1] + K[i][2] * y[2] for i in range(6)]
+    pn = [xp[6 + m] - (K[i][0] * pht[j][0] + K[i][1] * pht[j][1] + K[i][2] * pht[j][2])
+          for m, (i, j) in enumerate(_UPPER21)]
+    return tuple(xn + pn), tuple(v for r in K for v in r), y, (s0, s1, s2, s4, s5, s8)
+
+
 class GravityEstimate(NamedTuple):
     """One frame of :meth:`GravityVelocityFilter.step`.
 
     Attributes
     ----------
-    velocity : ndarray (3,)
-        Velocity, world frame (gyro-integrated body frame at the start), m/s.
-    gravity : ndarray (3,)
-        Reaction to gravity (+9.81 m/s^2 up at rest), world frame, m/s^2.
-    acceleration : ndarray (3,)
-        Gravity-compensated acceleration, frame mean, body frame at mid-frame, m/s^2.
-    specific_force : ndarray (3,)
-        Specific force (what an accelerometer reads), frame mean, body frame at
-        mid-frame, m/s^2.
-    speed : float
-        ``|velocity|``, m/s.
+    velocity : ndarray (3,)          m/s, world frame (gyro-integrated body frame at the start).
+    gravity : ndarray (3,)           reaction to gravity (+9.81 m/s^2 up at rest), m/s^2, world frame.
+    acceleration : ndarray (3,)      gravity-compensated, frame mean, m/s^2, body frame at mid-frame.
+    specific_force : ndarray (3,)    what an accelerometer reads, frame mean, m/s^2, body frame at mid-frame.
+    speed : float                    ``|velocity|``, m/s.
     """
     velocity: np.ndarray
     gravity: np.ndarray
@@ -111,14 +277,11 @@ class GravityVelocityFilter:
 
     Parameters
     ----------
-    sigma_nhc : float
-        Std of the body lateral and vertical velocity, m/s (0.3).
-    sigma_zupt : float
-        Std of the velocity at standstill, m/s (0.05).
-    q_v : float
-        Velocity random walk, m/s/sqrt(s) (0.05).
-    q_g : float
-        Gravity random walk, m/s^2/sqrt(s) (1e-6).
+    sigma_nhc, sigma_zupt : float
+        Std of the body lateral and vertical velocity (0.3) and of the velocity
+        at standstill (0.05), m/s.
+    q_v, q_g : float
+        Velocity (m/s/sqrt(s), 0.05) and gravity (m/s^2/sqrt(s), 1e-6) random walks.
     q_gap : float
         Extra velocity random walk on frames integrated through a timestamp gap
         (``valid`` False), m/s/sqrt(s) (1.0).
@@ -146,9 +309,18 @@ class GravityVelocityFilter:
     x, P : ndarray (6,), (6, 6)
         State and covariance; ``x_prior``, ``P_prior``, ``x_post``, ``P_post``,
         ``F``, ``Q``, ``H``, ``R``, ``K``, ``y``, ``S`` of the last step
-        (filterpy's names).
+        (filterpy's names, built on access).
     cumulative : ndarray (3, 3)
         ``R_k``, world <- body.
+    zupt_rejected : int
+        Standstill flags overruled by the gate so far.
+
+    Notes
+    -----
+    Public building blocks for estimators built on this filter (the
+    suspension-aware filter): :meth:`to_body`, :meth:`step_body` (one
+    body-frame frame as plain floats, the fast path) and :meth:`run_body`;
+    :func:`egomotion_arrays` checks an EgoMotion.
     """
 
     def __init__(self, sigma_nhc: float = 0.3, sigma_zupt: float = 0.05, q_v: float = 0.05,
@@ -163,7 +335,9 @@ class GravityVelocityFilter:
         self.extrinsic = Extrinsic.coerce(extrinsic)
         self._Rgs = self.extrinsic.rotation
         self._identity_extrinsic = bool(np.array_equal(self._Rgs, _I3))
+        self._rgs9 = self._Rgs.ravel().tolist()
         self.lever_arm = None if lever_arm is None else np.asarray(lever_arm, dtype=float).reshape(3)
+        self._lever = None if self.lever_arm is None else tuple(self.lever_arm.tolist())
         self.R0 = _I3.copy() if R0 is None else np.array(R0, dtype=float)
         self._v0 = None if v0 is None else np.asarray(v0, dtype=float).reshape(3)
         self._g0 = None if g0 is None else np.asarray(g0, dtype=float).reshape(3)
@@ -171,183 +345,179 @@ class GravityVelocityFilter:
 
     def reset(self) -> None:
         """Back to the initial state."""
-        self.x = np.zeros(6)
-        if self._v0 is not None:
-            self.x[:3] = self._v0
-        if self._g0 is not None:
-            self.x[3:] = self._g0
+        v = [0.0] * 3 if self._v0 is None else self._v0.tolist()
+        g = [0.0] * 3 if self._g0 is None else self._g0.tolist()
+        sv, sg = self.sigma_v0 ** 2, self.sigma_g0 ** 2
+        p = [sv, 0.0, 0.0, sv, 0.0, sv] + [0.0] * 9 + [sg, 0.0, 0.0, sg, 0.0, sg]
+        self._s = v + g + p + self.R0.ravel().tolist() + [0]     # the kernel's state list
+        # arrays handed out by x / P / cumulative (_pull), last step: one object for filterpy's Saver
+        self._w = SimpleNamespace(sync=None, last=None)
         self._initialised = self._g0 is not None
-        self.P = np.diag([self.sigma_v0 ** 2] * 3 + [self.sigma_g0 ** 2] * 3)
-        self.cumulative = self.R0.copy()
-        self._count = 0
-        self._w_prev = np.zeros(3)             # mean body rate of the previous frame (rad/s)
-        self._has_w_prev = False
+        self._prm = (self.q_v ** 2, self.q_gap ** 2, self.q_g ** 2, self.sigma_zupt ** 2, self.sigma_nhc ** 2,
+                     self.zupt_gate)
+        self._w_prev = None                 # mean body rate of the previous frame (rad/s)
         self.zupt_rejected = 0
-        self._F = np.eye(6)
-        self._Rzupt = self.sigma_zupt ** 2 * _I3
-        self._Rnhc = self.sigma_nhc ** 2 * _I3
-        self._Rnhc[0, 0] = 0.0
-        self._dt, self._qv, self._qg, self._zupt = 0.0, 0.0, 0.0, False
-        self._Rk = self.cumulative.copy()
-        self.K = np.zeros((6, 3))
-        self.y = np.zeros(3)
-        self.S = np.zeros((3, 3))
-        self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
-        self.x_post, self.P_post = self.x.copy(), self.P.copy()
 
-    # filterpy-style matrices of the last step, built on demand
-    @property
-    def F(self) -> np.ndarray:
-        """State transition of the last predict (6x6)."""
-        F = np.eye(6)
-        F[:3, 3:] = -self._dt * _I3
-        return F
+    # -- state as numpy arrays (built on access; in-place changes are seen by the next frame) --------
+    def _pull(self) -> None:
+        """Copy arrays handed out by ``x``, ``P`` or ``cumulative`` back into the kernel's state."""
+        x, P, R = self._w.sync
+        self._s[0:36] = x.tolist() + [float(P[i, j]) for i, j in _UPPER21] + R.ravel().tolist()
+        self._w.sync = None
 
-    @property
-    def Q(self) -> np.ndarray:
-        """Process noise of the last predict (6x6)."""
-        return np.diag([self._qv] * 3 + [self._qg] * 3)
+    def _arrays(self):
+        if self._w.sync is None:
+            s = self._s
+            self._w.sync = (np.array(s[0:6]), _full_cov(np.array(s[6:27])), np.array(s[27:36]).reshape(3, 3))
+        return self._w.sync
 
-    @property
-    def H(self) -> np.ndarray:
-        """Measurement matrix of the last update (3x6): body-frame velocity ``R_k^T v``; the forward
-        row is zero for the non-holonomic update (forward speed unobserved)."""
+    def _set_array(self, i: int, value) -> None:
+        a = self._arrays()[i]
+        a[...] = np.asarray(value, dtype=float).reshape(a.shape)
+
+    x = property(lambda self: self._arrays()[0], lambda self, v: self._set_array(0, v),
+                 doc="State ``[v_w, g_w]`` (6,): velocity (m/s) and gravity reaction (m/s^2), world frame.")
+    P = property(lambda self: self._arrays()[1], lambda self, v: self._set_array(1, v),
+                 doc="Covariance of ``[v, g]`` (6, 6).")
+    cumulative = property(lambda self: self._arrays()[2], lambda self, v: self._set_array(2, v),
+                          doc="``R_k = R_{w<-body_k}`` (3, 3), the gyro-integrated attitude at the last frame's end.")
+    x_prior = property(lambda self: np.array(self._last_step()[7][:6]), doc="State after the last predict (6,).")
+    P_prior = property(lambda self: _full_cov(np.array(self._last_step()[7][6:27])), doc="P after the last predict.")
+    x_post = property(lambda self: self.x.copy(), doc="State after the last update (6,).")
+    P_post = property(lambda self: self.P.copy(), doc="P after the last update (6, 6).")
+
+    # -- filterpy-style matrices of the last step, built on demand ----------------------------------
+    def _last_step(self):
+        last = self._w.last
+        return last if last is not None else (False, (0.0,) * 12, (0.0, 0.0), (0.0,) * 3, 0.0, 0.0, 0.0,
+                                              tuple(self._s[:27]))
+
+    def _update_matrices(self):
+        """``H, R, K, y, S`` of the last update in body axes (forward row/column zero for the NHC)."""
+        zupt, K, y, S, _, _, _, _ = self._last_step()
+        Rk = self.cumulative
         H = np.zeros((3, 6))
-        H[:, :3] = self._Rk.T
-        if not self._zupt:
-            H[0] = 0.0
-        return H
+        H[:, :3] = Rk.T
+        if zupt:                                # kept in world axes by the kernel: rotate to the body
+            s0, s1, s2, s4, s5, s8 = S
+            return (H, self.sigma_zupt ** 2 * _I3, np.array(K).reshape(6, 3) @ Rk, Rk.T @ np.array(y),
+                    Rk.T @ np.array([[s0, s1, s2], [s1, s4, s5], [s2, s5, s8]]) @ Rk)
+        H[0] = 0.0
+        Kb, Sb = np.zeros((6, 3)), np.zeros((3, 3))
+        Kb[:, 1:] = np.array(K).reshape(6, 2)
+        Sb[1:, 1:] = [[S[0], S[1]], [S[1], S[2]]]
+        return H, np.diag([0.0, self.sigma_nhc ** 2, self.sigma_nhc ** 2]), Kb, np.array([0.0, y[0], y[1]]), Sb
 
-    @property
-    def R(self) -> np.ndarray:
-        """Measurement noise of the last update, (m/s)^2 (3x3, forward entry zero for the NHC)."""
-        return self._Rzupt if self._zupt else self._Rnhc
+    F = property(lambda self: np.eye(6) - self._last_step()[4] * np.eye(6, k=3),
+                 doc="State transition of the last predict (6x6), ``[[I, -dt I], [0, I]]``.")
+    Q = property(lambda self: np.diag([self._last_step()[5]] * 3 + [self._last_step()[6]] * 3),
+                 doc="Process noise of the last predict (6x6).")
+    H = property(lambda self: self._update_matrices()[0],
+                 doc="Measurement matrix of the last update (3x6): body-frame velocity ``R_k^T v``.")
+    R = property(lambda self: self._update_matrices()[1], doc="Measurement noise of the last update, (m/s)^2.")
+    K = property(lambda self: self._update_matrices()[2], doc="Gain of the last update (6x3, body axes).")
+    y = property(lambda self: self._update_matrices()[3], doc="Innovation of the last update (3,), body axes.")
+    S = property(lambda self: self._update_matrices()[4], doc="Innovation covariance of the last update (3x3).")
 
-    # -- internals (shared with SuspensionAwareFilter) -------------------------------------
-    def _to_body(self, d: np.ndarray, dv: np.ndarray):
-        """Sensor-frame increments (one or a batch) to the body frame: ``R_gs d R_gs^T``, ``R_gs dv``."""
+    # -- public building blocks (SuspensionAwareFilter) --------------------------------------------
+    def to_body(self, d: np.ndarray, dv: np.ndarray):
+        """Sensor-frame increments ``d`` (..., 3, 3), sensor_{k-1} <- sensor_k, and ``dv`` (..., 3), m/s,
+        to the body frame: ``R_gs d R_gs^T``, ``R_gs dv``."""
         if self._identity_extrinsic:
             return d, dv
         R = self._Rgs
         return R @ d @ R.T, dv @ R.T
 
-    def _step_body(self, d: np.ndarray, dv: np.ndarray, dt: float, stationary: bool, valid: bool) -> np.ndarray:
-        """Predict and update with one body-frame frame; returns ``R_{k-1}``."""
-        Rprev = self.cumulative
-        self._count += 1
-        Rk = Rprev @ d
-        if self._count % _RENORM_EVERY == 0:
-            Rk = _renormalise(Rk)
-        self.cumulative = Rk
-        x = self.x
-        if not self._initialised:
-            x = x.copy()
-            x[3:] = Rprev @ dv / dt
-            self._initialised = True
-        # predict: v <- v + R_{k-1} dv - dt g; P <- F P F^T + Q, F = [[I, -dt I], [0, I]]
-        g = x[3:]
-        x = np.concatenate([x[:3] + Rprev @ dv - dt * g, g])
-        qv = (self.q_v ** 2 + (0.0 if valid else self.q_gap ** 2)) * dt
-        qg = self.q_g ** 2 * dt
-        F = self._F
-        if F[0, 3] != -dt:
-            F = self._F = np.eye(6) - dt * _UPPER
-        P = F @ self.P @ F.T
-        P[_DIAG] += (qv, qv, qv, qg, qg, qg)
-        self.x_prior, self.P_prior = x, P
-        self._dt, self._qv, self._qg, self._Rk = dt, qv, qg, Rk
-        # update with the body-frame velocity R_k^T v: all of it at a standstill (zero-velocity
-        # update), its lateral and vertical components while moving (non-holonomic constraint)
-        if stationary:
-            h, Rm = Rk.T, self._Rzupt
-            PHT = P[:, :3] @ Rk
-            S = h @ PHT[:3] + Rm
-            Si = np.linalg.inv(S)
-            y = -(h @ x[:3])
-            if y @ Si @ y > self.zupt_gate:
-                stationary = False          # a smooth cruise flagged as standstill: constraint instead
-                self.zupt_rejected += 1
-        if not stationary:
-            h, Rm = Rk.T[1:3], self._Rnhc[1:, 1:]
-            PHT = P[:, :3] @ h.T
-            S = h @ PHT[:3] + Rm
-            (s00, s01), (s10, s11) = S.tolist()
-            det = s00 * s11 - s01 * s10
-            Si = np.array([[s11 / det, -s01 / det], [-s10 / det, s00 / det]])
-            y = -(h @ x[:3])
-        self._zupt = stationary
-        K = PHT @ Si
-        x = x + K @ y
-        KPt = K @ PHT.T                          # Joseph form: P - K H P - P H^T K^T + K S K^T
-        P = P - KPt - KPt.T + K @ S @ K.T
-        P = 0.5 * (P + P.T)
-        self.x = self.x_post = x
-        self.P = self.P_post = P
-        if stationary:
-            self.K, self.y, self.S = K, y, S
-        else:                                    # padded to the 3 body axes (forward: unobserved)
-            self.K = np.zeros((6, 3))
-            self.K[:, 1:] = K
-            self.y = np.array([0.0, y[0], y[1]])
-            self.S = np.zeros((3, 3))
-            self.S[1:, 1:] = S
-        return Rprev
+    def step_body(self, d9, dv3, dt: float, stationary: bool = False, valid: bool = True):
+        """One frame already in the body frame, as plain floats: the fast path of :meth:`step`.
 
-    def _forces(self, Rprev, d, dv, dt, g, w_prev):
-        """Specific force and gravity-compensated acceleration, frame means in the body frame at
-        mid-frame (one frame or a batch), and the frames' mean body rates (rad/s)."""
-        dt = np.asarray(dt, dtype=float)[..., None]
-        phi = so3.log(d)
-        w = phi / dt
-        half = so3.exp(0.5 * phi)                  # body_{k-1} <- body at mid-frame
-        f = np.einsum("...ji,...j->...i", half, dv / dt)
-        if self.lever_arm is not None:
-            r = self.lever_arm
-            alpha = (w - w_prev) / dt
-            f = f - np.cross(alpha, r) - np.cross(w, np.cross(w, r))
-        g_mid = np.einsum("...ji,...j->...i", half, np.einsum("...ji,...j->...i", Rprev, g))
-        return f, f - g_mid, w
+        Parameters
+        ----------
+        d9 : sequence of 9 floats
+            ``R_{body_{k-1}<-body_k}``, row-major.
+        dv3 : sequence of 3 floats
+            Gravity-free velocity increment, body frame at the frame's start, m/s.
+        dt : float
+            Frame duration, s (> 0).
+        stationary, valid : bool
+            As in :meth:`step`.
 
-    def _frame(self, d: np.ndarray, dv: np.ndarray, dt: float, stationary: bool, valid: bool):
-        """One body-frame frame: filter step, then the forces with the posterior gravity (as ``_forces``)."""
-        Rprev = self._step_body(d, dv, dt, stationary, valid)
-        phi = so3.log_one(d)
-        w = phi / dt
-        half = so3.exp_one(0.5 * phi)
-        f = (dv / dt) @ half
-        if self.lever_arm is not None:
-            r = self.lever_arm
-            alpha = (w - (self._w_prev if self._has_w_prev else w)) / dt
-            f = f - np.cross(alpha, r) - np.cross(w, np.cross(w, r))
-        self._w_prev, self._has_w_prev = w, True
-        return f, f - (self.x[3:] @ Rprev) @ half
+        Returns
+        -------
+        specific_force, acceleration : tuple of 3 floats
+            Frame means in the body frame at mid-frame, m/s^2 (see :class:`GravityEstimate`).
+        """
+        if self._w.sync is not None:
+            self._pull()
+        s = self._s
+        rprev = s[27:36]
+        last, rej, self._initialised = _predict_update(s, ((d9, dv3, dt, stationary, valid),),
+                                                       self._prm + (self._initialised,))
+        self._w.last = last
+        self.zupt_rejected += rej
+        # forces with the posterior gravity, frame means at mid-frame
+        p0, p1, p2 = log_flat(d9)
+        w = (p0 / dt, p1 / dt, p2 / dt)
+        h0, h1, h2, h3, h4, h5, h6, h7, h8 = exp_flat(0.5 * p0, 0.5 * p1, 0.5 * p2)   # body_{k-1} <- mid
+        u0, u1, u2 = dv3[0] / dt, dv3[1] / dt, dv3[2] / dt
+        f0, f1, f2 = h0 * u0 + h3 * u1 + h6 * u2, h1 * u0 + h4 * u1 + h7 * u2, h2 * u0 + h5 * u1 + h8 * u2
+        if self._lever is not None:
+            r = self._lever
+            wp = w if self._w_prev is None else self._w_prev
+            ax, ay, az = _cross(((w[0] - wp[0]) / dt, (w[1] - wp[1]) / dt, (w[2] - wp[2]) / dt), r)
+            cx, cy, cz = _cross(w, _cross(w, r))
+            f0, f1, f2 = f0 - ax - cx, f1 - ay - cy, f2 - az - cz
+        self._w_prev = w
+        g0, g1, g2 = s[3], s[4], s[5]
+        q0, q1, q2 = (rprev[0] * g0 + rprev[3] * g1 + rprev[6] * g2, rprev[1] * g0 + rprev[4] * g1 + rprev[7] * g2,
+                      rprev[2] * g0 + rprev[5] * g1 + rprev[8] * g2)       # R_{k-1}^T g
+        return (f0, f1, f2), (f0 - (h0 * q0 + h3 * q1 + h6 * q2), f1 - (h1 * q0 + h4 * q1 + h7 * q2),
+                              f2 - (h2 * q0 + h5 * q1 + h8 * q2))
 
     # -- streaming ----------------------------------------------------------------------------
-    def step(self, delta_R: np.ndarray, delta_v: np.ndarray, delta_t: float, stationary: bool = False,
+    def step(self, delta_R, delta_v=None, delta_t=None, stationary: bool = False,
              valid: bool = True) -> GravityEstimate:
         """Process one frame.
 
         Parameters
         ----------
-        delta_R : ndarray (3, 3), (4, 4) or (3,)
-            Sensor rotation increment, sensor_{k-1} <- sensor_k.
+        delta_R : ndarray (3, 3), (4, 4) or (3,), or EgoFrame
+            Sensor rotation increment, sensor_{k-1} <- sensor_k; or an
+            :class:`~imu_ground.imu.egomotion.EgoFrame` carrying every field.
         delta_v : ndarray (3,)
             Gravity-free velocity increment, sensor frame at the frame's start, m/s.
         delta_t : float
             Frame duration, s.
-        stationary : bool
-            The frame ends at a standstill (zero-velocity update).
-        valid : bool
-            False for a frame integrated through a timestamp gap.
+        stationary, valid : bool
+            The frame ends at a standstill (zero-velocity update); False for a
+            frame integrated through a timestamp gap.
 
         Returns
         -------
         GravityEstimate
+
+        Raises
+        ------
+        ValueError
+            Non-finite increments or a non-positive ``delta_t`` (the state is unchanged).
         """
-        d, dv = self._to_body(_increment_matrix(delta_R), np.asarray(delta_v, dtype=float).reshape(3))
-        f, a = self._frame(d, dv, float(delta_t), bool(stationary), bool(valid))
-        v = self.x[:3].copy()
-        return GravityEstimate(v, self.x[3:].copy(), a, f, float(np.linalg.norm(v)))
+        if delta_v is None:
+            delta_R, delta_v, delta_t, stationary, valid = delta_R[:5]
+        d9 = _flat_increment(delta_R)
+        dv = delta_v.tolist() if type(delta_v) is np.ndarray and delta_v.shape == (3,) else \
+            np.asarray(delta_v, dtype=float).reshape(3).tolist()
+        dt = float(delta_t)
+        if not (dt > 0.0 and math.isfinite(dt + math.fsum(d9) + math.fsum(dv))):
+            raise ValueError(f"bad frame: delta_t = {dt!r} must be > 0 and delta_R, delta_v finite")
+        if not self._identity_extrinsic:
+            R = self._rgs9
+            d9 = mul_nt_flat(mul_flat(R, d9), R)
+            dv = (R[0] * dv[0] + R[1] * dv[1] + R[2] * dv[2], R[3] * dv[0] + R[4] * dv[1] + R[5] * dv[2],
+                  R[6] * dv[0] + R[7] * dv[1] + R[8] * dv[2])
+        f, a = self.step_body(d9, dv, dt, bool(stationary), bool(valid))
+        s = self._s
+        return GravityEstimate(np.array(s[0:3]), np.array(s[3:6]), np.array(a), np.array(f),
+                               math.sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]))
 
     # -- batch -------------------------------------------------------------------------------
     def run(self, egomotion: Union[EgoMotion, ImuData], smooth: bool = False) -> GravityTrack:
@@ -364,38 +534,66 @@ class GravityVelocityFilter:
         -------
         GravityTrack
         """
-        d, dv, dt, st, valid = _egomotion_arrays(egomotion)
-        return self._run_body(*self._to_body(d, dv), dt, st, valid, smooth)
+        d, dv, dt, st, valid = egomotion_arrays(egomotion)
+        return self.run_body(*self.to_body(d, dv), dt, st, valid, smooth)
 
-    def _run_body(self, d, dv, dt, st, valid, smooth) -> GravityTrack:
+    def run_body(self, d, dv, dt, stationary, valid, smooth: bool = False) -> GravityTrack:
+        """:meth:`run` on body-frame arrays (``d`` (N, 3, 3), ``dv`` (N, 3), ``dt``, ``stationary``,
+        ``valid`` (N,)), already checked (:func:`egomotion_arrays`)."""
         n = len(dt)
-        xs = np.empty((n, 6))
-        Ps = np.empty((n, 6, 6))
-        cum = np.empty((n, 3, 3))
-        Rprev = np.empty((n, 3, 3))
-        if smooth:
-            xps, Pps = np.empty((n, 6)), np.empty((n, 6, 6))
-        for k in range(n):
-            Rprev[k] = self._step_body(d[k], dv[k], float(dt[k]), bool(st[k]), bool(valid[k]))
-            xs[k], Ps[k], cum[k] = self.x, self.P, self.cumulative
-            if smooth:
-                xps[k], Pps[k] = self.x_prior, self.P_prior
-        if smooth:
-            F = np.eye(6)
-            for k in range(n - 2, -1, -1):
-                F[:3, 3:] = -dt[k + 1] * _I3
-                C = np.linalg.solve(Pps[k + 1], F @ Ps[k]).T
-                xs[k] = xs[k] + C @ (xs[k + 1] - xps[k + 1])
-                P = Ps[k] + C @ (Ps[k + 1] - Pps[k + 1]) @ C.T
-                Ps[k] = 0.5 * (P + P.T)
+        if self._w.sync is not None:
+            self._pull()
+        r_start = np.array(self._s[27:36]).reshape(3, 3)
+        frames = list(zip(np.reshape(d, (n, 9)).tolist(), np.asarray(dv).tolist(), np.asarray(dt).tolist(),
+                          np.asarray(stationary).tolist(), np.asarray(valid).tolist()))
+        out, priors = [], ([] if smooth else None)
+        last, rej, self._initialised = _predict_update(self._s, frames, self._prm + (self._initialised,),
+                                                       out, priors)
+        self.zupt_rejected += rej
         if n:
-            w_prev = np.empty((n, 3))
-            w_prev[1:] = so3.log(d[:-1]) / dt[:-1, None]
-            w_prev[0] = self._w_prev if self._has_w_prev else so3.log_one(d[0]) / dt[0]
-            f, acc, w = self._forces(Rprev, d, dv, dt, xs[:, 3:], w_prev)
-            self._w_prev, self._has_w_prev = w[-1].copy(), True
+            self._w.last = last
+        rows = np.array(out).reshape(n, 36)
+        xs, Ps, cum = rows[:, :6], _full_cov(rows[:, 6:27]), rows[:, 27:].reshape(n, 3, 3)
+        if smooth and n:
+            pr = np.array(priors)
+            xs, Ps = _rts(xs, Ps, pr[:, :6], _full_cov(pr[:, 6:27]), dt)
+        if n:
+            # forces with the posterior gravity, frame means at mid-frame (as step_body, vectorised)
+            phi = so3.log(d)
+            w = phi / dt[:, None]
+            half = so3.exp(0.5 * phi)                  # body_{k-1} <- body at mid-frame
+            f = np.einsum("nji,nj->ni", half, dv / dt[:, None])
+            if self.lever_arm is not None:
+                w_prev = np.concatenate([[w[0] if self._w_prev is None else self._w_prev], w[:-1]])
+                r = self.lever_arm
+                f = f - np.cross((w - w_prev) / dt[:, None], r) - np.cross(w, np.cross(w, r))
+            Rprev = np.concatenate([r_start[None], cum[:-1]])
+            acc = f - np.einsum("nji,nj->ni", half, np.einsum("nji,nj->ni", Rprev, xs[:, 3:]))
+            self._w_prev = tuple(w[-1].tolist())
         else:
             f = acc = np.zeros((0, 3))
         return GravityTrack(xs[:, :3].copy(), xs[:, 3:].copy(), acc, f, np.linalg.norm(xs[:, :3], axis=1),
                             Ps, cum, d)
 
+    # -- old private names, kept until suspension.py uses the public ones ----------------------
+    _to_body = to_body
+    _run_body = run_body
+
+    def _frame(self, d: np.ndarray, dv: np.ndarray, dt: float, stationary: bool, valid: bool):
+        """Old private form of :meth:`step_body` (arrays in and out)."""
+        f, a = self.step_body(np.asarray(d, dtype=float).ravel().tolist(), np.asarray(dv, dtype=float).tolist(),
+                              float(dt), bool(stationary), bool(valid))
+        return np.array(f), np.array(a)
+
+
+def _rts(xs, Ps, xps, Pps, dt):
+    """Rauch-Tung-Striebel smoother of the filter's forward pass (F = [[I, -dt I], [0, I]])."""
+    xs, Ps = xs.copy(), Ps.copy()
+    F = np.eye(6)
+    for k in range(len(dt) - 2, -1, -1):
+        F[:3, 3:] = -dt[k + 1] * _I3
+        C = np.linalg.solve(Pps[k + 1], F @ Ps[k]).T
+        xs[k] = xs[k] + C @ (xs[k + 1] - xps[k + 1])
+        P = Ps[k] + C @ (Ps[k + 1] - Pps[k + 1]) @ C.T
+        Ps[k] = 0.5 * (P + P.T)
+    return xs, Ps
