@@ -30,7 +30,12 @@ from imu_ground.datasets.rosbag import (
 )
 from imu_ground.datasets.validation import MalformedFileError, TimestampWarning
 
-from imu_ground.pipeline.ros_output import RosWriter, ros_output_kind, write_ros_output
+from imu_ground.pipeline.ros_output import (
+    RosWriter,
+    ros_output_kind,
+    serialize_stamped,
+    write_ros_output,
+)
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "datasets" / "fixtures" / "example_drive.csv"
 T0_NS = 1_700_000_000_123_456_789          # an absolute epoch, as a real recording has
@@ -432,6 +437,35 @@ def test_ros_output_of_a_bag_estimate_lines_up_with_the_recording(tmp_path, csv_
     normals = _read_topics(out)["/ground/normal"]
     assert normals[0][0] == T0_NS + round(float(em.t[em.valid][0]) * 1e9)
     assert T0_NS < normals[-1][0] <= T0_NS + round(float(csv_imu.t[-1]) * 1e9)
+
+
+@pytest.mark.parametrize("frame_id", ["", "a", "imu", "imu_lin", "imu_link", "base_link_imu"])
+@pytest.mark.parametrize("ros1", [True, False])
+def test_serialize_stamped_equals_rosbags(frame_id, ros1):
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    serialize = ts.serialize_ros1 if ros1 else ts.serialize_cdr
+    rng = np.random.default_rng(3)
+    stamps = T0_NS + np.array([0, 1, 999_999_999, 1_000_000_000, 123_456_789_012])
+    for msgtype, field, names in (("geometry_msgs/msg/Vector3Stamped", "vector", "xyz"),
+                                  ("geometry_msgs/msg/QuaternionStamped", "quaternion", "xyzw")):
+        values = rng.normal(size=(len(stamps), len(names)))
+        got = serialize_stamped(stamps, frame_id, values, ros1)
+        for i, ns in enumerate(stamps.tolist()):
+            t = ts.types["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
+            hdr = ts.types["std_msgs/msg/Header"](**({"seq": i} if ros1 else {}), stamp=t, frame_id=frame_id)
+            body = ts.types[msgtype.replace("Stamped", "")](**dict(zip(names, values[i])))
+            msg = ts.types[msgtype](header=hdr, **{field: body})
+            assert got[i] == bytes(serialize(msg, msgtype)), (msgtype, i)
+
+
+def test_negative_stamps_need_t0(tmp_path):
+    table = _table()
+    table["t"] -= 1.0
+    with pytest.raises(ValueError, match="negative ROS stamps.*t0"):
+        write_ros_output(tmp_path / "neg.mcap", table)
+    write_ros_output(tmp_path / "neg.mcap", table, t0=100.0)
 
 
 def test_ros_output_paths(tmp_path):

@@ -46,7 +46,7 @@ from imu_ground.units import DEG
 if TYPE_CHECKING:
     from typing_extensions import Self
 
-__all__ = ["ROS_OUTPUT_TOPICS", "RosWriter", "ros_output_kind", "write_ros_output"]
+__all__ = ["ROS_OUTPUT_TOPICS", "RosWriter", "ros_output_kind", "serialize_stamped", "write_ros_output"]
 
 #: Topic suffix -> message type (ROS 2 spelling) of what :func:`write_ros_output` writes.
 ROS_OUTPUT_TOPICS: dict[str, str] = {
@@ -186,17 +186,69 @@ class RosWriter:
 
     def write(self, handle: Any, stamp_ns: int, msg: Any) -> None:
         """Write ``msg`` on the topic of ``handle`` with record (log) time ``stamp_ns``."""
-        conn, topic = handle
         msgtype = msg.__msgtype__
-        if self.kind == "ros1":
-            self._writer.write(conn, int(stamp_ns), self.typestore.serialize_ros1(msg, msgtype))
-        elif self.kind == "ros2":
-            self._writer.write(conn, int(stamp_ns), self.typestore.serialize_cdr(msg, msgtype))
+        if self.ros1:
+            self.write_raw(handle, stamp_ns, self.typestore.serialize_ros1(msg, msgtype))
         else:
+            self.write_raw(handle, stamp_ns, self.typestore.serialize_cdr(msg, msgtype))
+
+    def write_raw(self, handle: Any, stamp_ns: int, data: bytes | memoryview) -> None:
+        """Write an already serialised message (ROS 1 for ``.bag``, CDR otherwise)."""
+        conn, topic = handle
+        if self.kind == "mcap":
             self._writer.add_message(channel_id=conn, log_time=int(stamp_ns), publish_time=int(stamp_ns),
-                                     data=bytes(self.typestore.serialize_cdr(msg, msgtype)),
-                                     sequence=self.counts[topic])
+                                     data=bytes(data), sequence=self.counts[topic])
+        else:
+            self._writer.write(conn, int(stamp_ns), data)
         self.counts[topic] += 1
+
+
+def serialize_stamped(stamps_ns: np.ndarray, frame_id: str, values: np.ndarray, ros1: bool) -> list[bytes]:
+    """Serialise N messages ``std_msgs/Header header`` + K float64 at once (numpy, no per-message Python).
+
+    Covers ``geometry_msgs/Vector3Stamped`` (K = 3: x, y, z) and
+    ``geometry_msgs/QuaternionStamped`` (K = 4: x, y, z, w). Spells out the two
+    wire formats: ROS 1 (``seq, sec, nsec: uint32``, frame_id as uint32 length +
+    bytes, then the doubles, no padding; ``seq`` = row index) and ROS 2 CDR
+    little-endian (encapsulation ``00 01 00 00``, ``sec: int32, nanosec: uint32``,
+    frame_id as uint32 length + bytes + NUL, zero padding to 8, the doubles).
+
+    Parameters
+    ----------
+    stamps_ns : ndarray (N,) of int64
+        Header stamps, ns since the clock's epoch (>= 0).
+    frame_id : str
+        Header frame_id.
+    values : ndarray (N, K)
+        The float64 fields after the header, in message order.
+    ros1 : bool
+        ROS 1 serialisation, else CDR.
+
+    Returns
+    -------
+    list of bytes
+        One serialised message per row.
+    """
+    name = frame_id.encode()
+    values = np.ascontiguousarray(values, dtype="<f8")
+    n, k = values.shape
+    if ros1:
+        text, start = name, 16 + len(name)
+    else:
+        text = name + b"\x00"
+        start = 4 + -(-(12 + len(text)) // 8) * 8
+    size = start + 8 * k
+    buf = np.zeros((n, size), dtype=np.uint8)
+    head = np.zeros((n, 4), dtype="<u4")
+    head[:, 0] = np.arange(n) if ros1 else 0x100          # ROS 1: seq; CDR: bytes 00 01 00 00
+    head[:, 1] = stamps_ns // 1_000_000_000
+    head[:, 2] = stamps_ns % 1_000_000_000
+    head[:, 3] = len(text)
+    buf[:, :16] = head.view(np.uint8)
+    buf[:, 16:16 + len(text)] = np.frombuffer(text, dtype=np.uint8)
+    buf[:, start:] = values.view(np.uint8).reshape(n, 8 * k)
+    whole = buf.tobytes()
+    return [whole[i * size:(i + 1) * size] for i in range(n)]
 
 
 def _remove_existing(path: Path, overwrite: bool) -> None:
@@ -277,6 +329,9 @@ def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
     rows = _valid_rows(table)
     origin = _stamp_origin(t0, t0_ns, settings)
     stamps = origin + np.round(rows["t"] * 1e9).astype(np.int64)
+    if len(stamps) and stamps.min() < 0:
+        raise ValueError(f"{path}: negative ROS stamps (first valid t = {rows['t'][0]:g} s); pass t0 or t0_ns, "
+                         f"the log's start time")
     prefix = "/" + topic_prefix.strip("/") if topic_prefix.strip("/") else ""
     with RosWriter(path, storage=storage, overwrite=overwrite) as w:
         h = {k: w.add_topic(f"{prefix}/{k}", m) for k, m in ROS_OUTPUT_TOPICS.items()
@@ -284,16 +339,15 @@ def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
         if settings is not None and len(stamps):
             text = json.dumps(dict(settings), default=str, sort_keys=True)
             w.write(h["settings"], int(stamps[0]), w.message("std_msgs/msg/String", data=text))
-        vec = "geometry_msgs/msg/Vector3"
+        ros1 = w.ros1
+        normal = serialize_stamped(stamps, frame_id, np.column_stack(
+            [rows["normal_x"], rows["normal_y"], rows["normal_z"]]), ros1)
+        rotation = serialize_stamped(stamps, frame_id, np.column_stack(
+            [rows["qx"], rows["qy"], rows["qz"], rows["qw"]]), ros1)
+        pitch_roll = serialize_stamped(stamps, frame_id, np.column_stack(
+            [rows["roll_deg"] * DEG, rows["pitch_deg"] * DEG, np.zeros(len(stamps))]), ros1)
         for k, ns in enumerate(stamps.tolist()):
-            n = w.message(vec, x=rows["normal_x"][k], y=rows["normal_y"][k], z=rows["normal_z"][k])
-            w.write(h["normal"], ns, w.message(ROS_OUTPUT_TOPICS["normal"], header=w.header(ns, frame_id, k),
-                                               vector=n))
-            q = w.message("geometry_msgs/msg/Quaternion", x=rows["qx"][k], y=rows["qy"][k], z=rows["qz"][k],
-                          w=rows["qw"][k])
-            w.write(h["rotation"], ns, w.message(ROS_OUTPUT_TOPICS["rotation"], header=w.header(ns, frame_id, k),
-                                                 quaternion=q))
-            pr = w.message(vec, x=rows["roll_deg"][k] * DEG, y=rows["pitch_deg"][k] * DEG, z=0.0)
-            w.write(h["pitch_roll"], ns, w.message(ROS_OUTPUT_TOPICS["pitch_roll"],
-                                                   header=w.header(ns, frame_id, k), vector=pr))
+            w.write_raw(h["normal"], ns, normal[k])
+            w.write_raw(h["rotation"], ns, rotation[k])
+            w.write_raw(h["pitch_roll"], ns, pitch_roll[k])
         return dict(w.counts)
