@@ -43,54 +43,26 @@ def open_binary(path: Path) -> io.BufferedIOBase:
     return open(path, "rb")
 
 
-class _Counting(io.RawIOBase):
-    """Pass-through reader counting newlines, so the row -> line map is known without a second pass."""
-
-    def __init__(self, raw: io.BufferedIOBase) -> None:
-        self.raw, self.newlines, self.last, self.size = raw, 0, b"", 0
-
-    def readable(self) -> bool:
-        return True
-
-    def readinto(self, b: Any) -> int:
-        data = self.raw.read(len(b))
-        n = len(data)
-        b[:n] = data
-        if n:
-            self.newlines += data.count(b"\n")
-            self.last = data[-1:]
-            self.size += n
-        return n
-
-    @property
-    def lines(self) -> int:
-        """Number of lines read (a last line without newline counts)."""
-        return self.newlines + (1 if self.size and self.last != b"\n" else 0)
-
-
 class RowLines:
-    """Data row (0-based) -> 1-based file line; computed by a scan only when asked and needed.
+    """Data row (0-based, blank lines skipped) -> 1-based file line.
 
     Parameters
     ----------
-    path : Path
-        The file.
-    simple : bool
-        True when the file has no blank line: row ``r`` is on line ``r + 2``.
+    blank : ndarray of int
+        Positions, among the lines after the header, of the blank lines the
+        parser saw (usually none: row ``r`` is then on line ``r + 2``).
     """
 
-    def __init__(self, path: Path, simple: bool) -> None:
-        self.path, self.simple = path, simple
-        self._lines: np.ndarray | None = None
+    def __init__(self, blank: np.ndarray) -> None:
+        self.blank = np.asarray(blank, dtype=np.int64)
 
     def __call__(self, rows: np.ndarray) -> np.ndarray:
         rows = np.asarray(rows, dtype=np.int64)
-        if self.simple:
+        if not self.blank.size:
             return rows + 2
-        if self._lines is None:
-            with open_binary(self.path) as f:
-                self._lines = np.array([i for i, ln in enumerate(f, 1) if ln.strip()], dtype=np.int64)[1:]
-        return self._lines[rows]
+        # row r is the r-th non-blank position: shift by the blanks at or before it
+        free = self.blank - np.arange(self.blank.size)  # rows before which each blank sits
+        return rows + np.searchsorted(free, rows, side="right") + 2
 
 
 def _iter_lines(path: Path) -> Iterator[tuple[int, bytes]]:
@@ -126,34 +98,44 @@ def locate_bad_lines(path: Path, sep: str = ",") -> MalformedFileError | None:
                                     f"{bad.size} such line(s), first line numbers {lines}", line=numbers[k])
 
 
-def _short_line_suspect(chunk: Any) -> bool:
-    """A short line leaves NaN in the last column: worth a look for a field-count error."""
-    last = chunk.iloc[:, -1]
-    return bool(last.isna().any())
-
-
-def _parse(path: Path, sep: str, counter: _Counting) -> tuple[list[str], dict[str, list[np.ndarray]], int]:
+def _parse(path: Path, sep: str) -> tuple[list[str], dict[str, list[np.ndarray]], int, np.ndarray]:
+    """Chunked C-engine parse: (names, column chunks, rows, blank-line positions)."""
     import pandas as pd
-    reader = pd.read_csv(io.BufferedReader(counter, buffer_size=1 << 20), sep=sep, engine="c",
-                         chunksize=CHUNK_ROWS, skip_blank_lines=True, encoding="utf-8")
+    source = open_binary(path)
     names: list[str] = []
     parts: dict[str, list[np.ndarray]] = {}
     n = 0
+    raw_rows = 0
+    blank: list[np.ndarray] = []
     suspect = False
-    with reader:
-        for chunk in reader:
-            if not names:
-                names = [str(c) for c in chunk.columns]
-                parts = {c: [] for c in names}
-            suspect = suspect or _short_line_suspect(chunk)
-            for c, col in zip(names, chunk.columns):
-                parts[c].append(chunk[col].to_numpy())
-            n += len(chunk)
+    try:
+        reader = pd.read_csv(source, sep=sep, engine="c", chunksize=CHUNK_ROWS, skip_blank_lines=False,
+                             encoding="utf-8", low_memory=False)
+        with reader:
+            for chunk in reader:
+                if not names:
+                    names = [str(c) for c in chunk.columns]
+                    parts = {c: [] for c in names}
+                arrays = [chunk[col].to_numpy() for col in chunk.columns]
+                empty = pd.isna(arrays[0])
+                if empty.any():  # blank lines are all-NaN rows: note where, then leave them out
+                    empty &= np.logical_and.reduce([pd.isna(x) for x in arrays[1:]]) if len(arrays) > 1 \
+                        else empty
+                    if empty.any():
+                        blank.append(np.flatnonzero(empty) + raw_rows)
+                        arrays = [x[~empty] for x in arrays]
+                suspect = suspect or bool(pd.isna(arrays[-1]).any())  # a short line leaves NaN at the end
+                for c, x in zip(names, arrays):
+                    parts[c].append(x)
+                n += arrays[0].size
+                raw_rows += len(chunk)
+    finally:
+        source.close()
     if suspect:
         err = locate_bad_lines(path, sep)
         if err is not None:
             raise err
-    return names, parts, n
+    return names, parts, n, (np.concatenate(blank) if blank else np.zeros(0, dtype=np.int64))
 
 
 def read_delimited(path: str | Path, sep: str = ",") -> tuple[Columns, RowLines]:
@@ -184,10 +166,8 @@ def read_delimited(path: str | Path, sep: str = ",") -> tuple[Columns, RowLines]
     """
     import pandas as pd
     path = Path(path)
-    raw = open_binary(path)
-    counter = _Counting(raw)
     try:
-        names, parts, n = _parse(path, sep, counter)
+        names, parts, n, blank = _parse(path, sep)
     except pd.errors.EmptyDataError as e:
         raise MalformedFileError(path, "file is empty") from e
     except pd.errors.ParserError as e:
@@ -202,9 +182,6 @@ def read_delimited(path: str | Path, sep: str = ",") -> tuple[Columns, RowLines]
         raise MalformedFileError(path, f"truncated or corrupt gzip file ({e})") from e
     except UnicodeDecodeError as e:
         raise MalformedFileError(path, f"not UTF-8 text ({e})") from e
-    finally:
-        raw.close()
-    simple = counter.lines == n + 1
     if n == 0:
         header = next((i for i, ln in _iter_lines(path) if ln.strip()), 1)
         raise MalformedFileError(path, "header only, no data rows", line=header)
@@ -214,7 +191,7 @@ def read_delimited(path: str | Path, sep: str = ",") -> tuple[Columns, RowLines]
         one = chunks[0] if len(chunks) == 1 else None
         cols[c] = (one if one.flags.writeable else one.copy()) if one is not None else np.concatenate(chunks)
         del chunks
-    return cols, RowLines(path, simple)
+    return cols, RowLines(blank)
 
 
 def first_nonnumber(values: np.ndarray) -> tuple[int, int]:

@@ -170,7 +170,7 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
     meta["row_lines"] = lines
     gyro = np.column_stack([numeric(cols.pop(c), c, path, lines) for c in COLUMNS[1:4]])
     accel = np.column_stack([numeric(cols.pop(c), c, path, lines) for c in COLUMNS[4:7]])
-    extra = pd.DataFrame({c: numeric(cols.pop(c), c, path, lines) for c in COLUMNS[7:]})
+    extra = pd.DataFrame({c: numeric(cols.pop(c), c, path, lines) for c in COLUMNS[7:]}, copy=False)
     t -= t_first
     imu = ImuData(t, gyro, accel, "FLU", extra, dict(EXTRA_UNITS), str(path), meta)
     return finish(imu, validate=validate, policy=policy, **validate_kw)

@@ -122,7 +122,7 @@ def map_columns(cols: Mapping[str, np.ndarray], *, time: str = "t",
         t, t0 = tval.astype(float) * t_scale, 0.0
     extra_cols = [c for c in cols if c not in needed]
     if extra is None:
-        extra = pd.DataFrame({c: cols[c] for c in extra_cols}) if extra_cols else pd.DataFrame()
+        extra = pd.DataFrame({c: cols[c] for c in extra_cols}, copy=False) if extra_cols else pd.DataFrame()
     units = {str(c): dict(extra_units or {}).get(str(c), "unknown") for c in extra_cols}
     meta: dict[str, Any] = {
         "format": "table", "t0": t0,

@@ -85,22 +85,53 @@ class RetimeResult(NamedTuple):
     note: str
 
 
-def _running_median(x: np.ndarray, w: int) -> np.ndarray:
-    """Centred running median over ``w`` (odd) samples, edges padded by reflection."""
+def _running_median(x: np.ndarray, w: int, events: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Centred running median over ``w`` (odd) samples (edges padded with the end values), and where it differs.
+
+    Evaluated only within ``w // 2`` samples of an ``events`` position (a step
+    that is not one sample period); elsewhere the window holds one undisturbed
+    stretch and the value is taken as it is, so the cost follows the events,
+    not the log's length. Returns the medians and the positions evaluated.
+    """
     h = w // 2
-    xp = np.pad(x, h, mode="edge")
-    win = np.lib.stride_tricks.sliding_window_view(xp, w)
-    if x.size <= 200_000:
-        return np.median(win, axis=1)
-    out = np.empty(x.size)
-    for s in range(0, x.size, 200_000):  # bounded memory on long logs
-        out[s:s + 200_000] = np.median(win[s:s + 200_000], axis=1)
-    return out
+    out = x.copy()
+    if not events.size:
+        return out, events
+    edges = np.zeros(x.size + 1, dtype=np.int32)  # +1 where a window opens, -1 where it closes
+    np.add.at(edges, np.clip(events - h - 1, 0, x.size), 1)
+    np.add.at(edges, np.clip(events + h + 2, 0, x.size), -1)
+    near = np.flatnonzero(np.cumsum(edges[:-1]) > 0)
+    win = np.lib.stride_tricks.sliding_window_view(np.pad(x, h, mode="edge"), w)
+    for s in range(0, near.size, 50_000):  # bounded memory on long logs
+        rows = near[s:s + 50_000]
+        out[rows] = np.median(win[rows], axis=1)
+    return out, near
+
+
+def _stretches(level: np.ndarray, near: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
+    """Stretch number of each sample and the positions starting a new one (None: a negative jump)."""
+    if not near.size:
+        return np.zeros(level.size, dtype=np.int64), near
+    j = near[near < level.size - 1]
+    jump = level[j + 1] - level[j]
+    if np.any(jump < -1.0):
+        return None, near
+    breaks = j[jump > 1.0] + 1
+    seg = np.zeros(level.size, dtype=np.int64)
+    seg[breaks] = 1
+    return np.cumsum(seg), breaks
 
 
 def retime(t: np.ndarray, index: np.ndarray | None = None, *, window_s: float = 2.0,
            min_inliers: float = 0.95) -> RetimeResult:
     """Sample index as the clock: ``t_k = a_s + k / rate`` per stretch ``s`` between dropouts.
+
+    The stamps' offset from a nominal clock (in samples) is smoothed by a running
+    median over ``window_s``: a stretch displaced for less than half the window
+    is jitter, a lasting step of more than one sample is a dropout (a new
+    stretch, kept as a gap). One rate and one intercept per stretch are then
+    fitted by least squares to the stamps within half a sample of the smoothed
+    offset.
 
     Parameters
     ----------
@@ -110,11 +141,10 @@ def retime(t: np.ndarray, index: np.ndarray | None = None, *, window_s: float = 
         Sample number of each stamp (input rows: a dropped non-finite row still
         took a slot); default ``arange(N)``.
     window_s : float
-        Length of the running median, s, that tells a stretch displaced for a
-        while (jitter) from a lasting one (dropout).
+        Length of the running median, s.
     min_inliers : float
-        Share of the log over which the stamps' running median must lie within
-        one sample of the fitted clock (single stamps may jitter further).
+        Share of the log over which the smoothed offset must lie within one
+        sample of the fitted clock (single stamps may jitter further).
 
     Returns
     -------
@@ -126,44 +156,43 @@ def retime(t: np.ndarray, index: np.ndarray | None = None, *, window_s: float = 
     none = np.zeros(0, dtype=np.int64)
     if t.size < 10:
         return RetimeResult(None, float("nan"), none, "fewer than 10 samples")
-    steps = np.diff(t) / np.maximum(np.diff(k), 1.0)
-    pos = steps[steps > 0]
-    if pos.size < t.size // 2:
+    steps = np.diff(t) if index is None else np.diff(t) / np.maximum(np.diff(k), 1.0)
+    sub = steps[:: max(1, steps.size // 200_000)]  # the median step from at most ~200k steps
+    pos = sub[sub > 0]
+    if pos.size < sub.size // 2:
         return RetimeResult(None, float("nan"), none, "most time steps are not positive")
     dt = float(np.median(pos))
-    span = float(t.max() - t.min())
     w = int(min(max(21, round(window_s / dt) | 1), (t.size // 2) | 1))
-    off = (t - t[0]) / dt - k                       # in samples; jitter = bump, dropout = step
-    level = _running_median(off, w)
-    jump = np.diff(level)
-    if np.any(jump < -1.0):
+    off = (t - t[0]) * (1.0 / dt) - k                # in samples; jitter = bump, dropout = step
+    events = np.flatnonzero(np.abs(np.diff(off)) > 0.5)
+    level, near = _running_median(off, w, events)
+    seg, breaks = _stretches(level, near)
+    if seg is None:
         return RetimeResult(None, 1.0 / dt, none, "more samples than the stamps' time span in a stretch "
                                                   "(the sample count disagrees with a steady rate)")
-    breaks = np.flatnonzero(jump > 1.0) + 1
-    seg = np.zeros(t.size, dtype=np.int64)
-    seg[breaks] = 1
-    seg = np.cumsum(seg)
-    inl = np.abs(off - level) < 0.5
+    inl = np.ones(t.size, dtype=bool)
+    inl[near] = np.abs(off[near] - level[near]) < 0.5  # elsewhere off == level
     n_seg = int(seg[-1]) + 1
-    cnt = np.bincount(seg[inl], minlength=n_seg).astype(float)
-    fit = inl & (cnt[seg] >= 2)
+    sf = seg[inl]
+    cnt = np.bincount(sf, minlength=n_seg)
+    fit = inl if cnt.min() >= 2 else inl & (cnt[seg] >= 2)
     if fit.sum() < t.size // 2:
         return RetimeResult(None, 1.0 / dt, none, f"only {inl.mean():.0%} of the stamps lie within half a "
                                                   f"sample of a steady {1 / dt:.6g} Hz clock")
     # pooled within-stretch least squares: one rate, one intercept per stretch
-    cf = np.maximum(np.bincount(seg[fit], minlength=n_seg), 1)
-    km = np.bincount(seg[fit], k[fit], n_seg) / cf
-    tm = np.bincount(seg[fit], t[fit], n_seg) / cf
-    dk, dtt = k[fit] - km[seg[fit]], t[fit] - tm[seg[fit]]
+    sf = seg[fit]
+    cf = np.bincount(sf, minlength=n_seg)
+    km = np.bincount(sf, k[fit], n_seg) / np.maximum(cf, 1)
+    tm = np.bincount(sf, t[fit], n_seg) / np.maximum(cf, 1)
+    dk, dtt = k[fit] - km[sf], t[fit] - tm[sf]
     slope = float(np.dot(dk, dtt) / np.dot(dk, dk))
-    if not (slope > 0 and 1.0 <= 1.0 / slope <= 1e5) or span <= 0:
+    if not (slope > 0 and 1.0 <= 1.0 / slope <= 1e5):
         return RetimeResult(None, 1.0 / dt, none, "no steady positive rate")
     icpt = tm - slope * km
-    for s_ in np.flatnonzero(np.bincount(seg[fit], minlength=n_seg) == 0):  # tiny stretches: their median
+    for s_ in np.flatnonzero(cf == 0):  # tiny stretches: their median
         icpt[s_] = float(np.median(t[seg == s_] - slope * k[seg == s_]))
     out = icpt[seg] + slope * k
-    resid = (out - t) / slope
-    agree = float(np.mean(np.abs(_running_median(resid, w)) < 1.0))
+    agree = float(np.mean(np.abs((out - t[0]) * (1.0 / dt) - k - level) < 1.0))  # smoothed offset vs clock
     if agree < min_inliers:
         return RetimeResult(None, 1.0 / slope, none, f"the stamps follow the sample clock within a sample "
                                                      f"over only {agree:.0%} of the log")

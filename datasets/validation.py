@@ -92,6 +92,11 @@ def _longest_run(flags: np.ndarray, t: np.ndarray) -> tuple[float, int]:
     return float(durations[k]), int(starts[k])
 
 
+def _norm(v: np.ndarray) -> np.ndarray:
+    """Row norms of an (N, 3) array (einsum: one pass, no (N, 3) temporary)."""
+    return np.sqrt(np.einsum("ij,ij->i", v, v))
+
+
 def _nonfinite(imu: ImuData, report: ValidationReport, nonfinite: str, warn: bool, row_lines) -> np.ndarray:
     """Rows to keep (finite t, gyro, accel); raise or warn about the others."""
     names = ["t", "wx", "wy", "wz", "ax", "ay", "az"]
@@ -132,7 +137,7 @@ def _units(report, t, gyro, accel, keep, units, src, gyro_limit, gyro_min_durati
             act(units, f"{src}: median time step {step:.6g} s ({1 / step:.6g} Hz) is outside the plausible IMU "
                        f"rates {RATE_RANGE[0]:g}-{RATE_RANGE[1]:g} Hz: is the time column in another unit? "
                        f"(pass {{hint}})", UnitsWarning, report, option="time_unit")
-    wn = np.linalg.norm(gyro, axis=1)
+    wn = _norm(gyro)
     report.gyro_max_norm = float(wn.max())
     over = wn > gyro_limit
     dur, first = _longest_run(over, t)
@@ -143,7 +148,7 @@ def _units(report, t, gyro, accel, keep, units, src, gyro_limit, gyro_min_durati
                    f"(t={t[first]:.6f} s), max {wn.max():.4g}: implausible for a car in rad/s; is the gyro "
                    f"in deg/s? (pass {{hint}}; {int(over.sum())} samples above)", UnitsWarning, report,
             option="gyro_unit", value="deg/s")
-    an = np.linalg.norm(accel, axis=1)
+    an = _norm(accel)
     rest = wn < rest_gyro
     at_rest = int(rest.sum()) >= 10
     med = float(np.median(an[rest] if at_rest else an))

@@ -1,0 +1,181 @@
+"""Reader speed and memory on long logs: ``read_imu`` beside ``pandas.read_csv``, and ``imu-ground estimate``.
+
+Run: ``python benchmarks/bench_readers.py [--hours 1 10] [--repeat 3] [--tmp DIR]``.
+
+The 1 h and 10 h logs are 100 Hz KITTI-format CSV files (``t,wx,...,pz``, 16
+columns) written into a temporary folder (never the repository) by tiling one
+shared kitti_imu100 drive, its stamps continued (jitter included). Every figure
+is measured in a fresh process (time: wall clock, memory: that process's peak
+RSS), the median of ``--repeat`` runs, the competitor in the same run.
+
+Targets (issue 9, this 2-core machine):
+
+- 10 h through ``imu-ground estimate``: <= 15 s end to end, peak RSS <= 2 GB;
+- 1 h through ``imu-ground estimate``: <= 2.5 s end to end;
+- ``read_imu`` within 1.5x of ``pandas.read_csv`` on the same file;
+- peak memory grows with the samples held (a few hundred bytes a sample), not with
+  the text: the RSS growth from 1 h to 10 h per added sample <= 500 bytes.
+
+The end-to-end time includes the preintegration and the filter (other rooms):
+the reader's share is printed beside it. :func:`rows` returns the table for
+``benchmarks/make_results.py``.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["DRIVE", "make_log", "measure", "rows", "main"]
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED = Path(os.environ.get("IMU_GROUND_SHARED_DATA", REPO.parent / "shared" / "data"))
+#: The shared drive tiled into long logs (11,546 samples, one timestamp jitter).
+DRIVE = SHARED / "kitti_imu100" / "2011_09_30_drive_0027.csv.gz"
+RATE = 100.0
+
+_READ = {
+    "read_imu": "from imu_ground.datasets import read_imu; import warnings; warnings.simplefilter('ignore'); "
+                "x = read_imu(PATH); n = len(x)",
+    "pandas.read_csv": "import pandas as pd; x = pd.read_csv(PATH); n = len(x)",
+}
+_CHILD = """
+import resource, sys, time
+PATH = sys.argv[1]
+t0 = time.perf_counter()
+{code}
+dt = time.perf_counter() - t0
+print(dt, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024, n)
+"""
+
+
+def make_log(hours: float, folder: Path) -> Path:
+    """A ``hours`` long 100 Hz KITTI-format CSV in ``folder`` (reused when already there)."""
+    path = folder / f"kitti_{hours:g}h.csv"
+    if path.is_file():
+        return path
+    import gzip
+    with gzip.open(DRIVE, "rt") as f:
+        header = f.readline()
+        lines = f.read().splitlines()
+    t = np.array([float(ln.split(",", 1)[0]) for ln in lines])
+    rest = [ln.split(",", 1)[1] for ln in lines]
+    n_total = int(round(hours * 3600 * RATE))
+    span = t[-1] + 1.0 / RATE
+    tmp = path.with_suffix(".part")
+    with open(tmp, "w") as out:
+        out.write(header)
+        k = 0
+        tile = 0
+        while k < n_total:
+            m = min(len(lines), n_total - k)
+            base = tile * span
+            out.write("".join(f"{base + t[i]:.6f},{rest[i]}\n" for i in range(m)))
+            k += m
+            tile += 1
+    tmp.rename(path)
+    return path
+
+
+def _child(code: str, path: Path) -> tuple[float, float, int]:
+    out = subprocess.run([sys.executable, "-c", _CHILD.format(code=code), str(path)], check=True,
+                         capture_output=True, text=True, cwd=REPO)
+    dt, rss, n = out.stdout.split()
+    return float(dt), float(rss), int(n)
+
+
+def _estimate(path: Path, folder: Path) -> tuple[float, float]:
+    """Wall time and peak RSS of ``imu-ground estimate path`` in its own process."""
+    import time
+    exe = Path(sys.executable).with_name("imu-ground")
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "imu_ground"]
+    t0 = time.perf_counter()
+    p = subprocess.Popen([*cmd, "estimate", str(path), "-o", str(folder / "out.csv"), "--no-progress"],
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=folder)
+    _, status, usage = os.wait4(p.pid, 0)
+    dt = time.perf_counter() - t0
+    err = p.stderr.read().decode() if p.stderr else ""
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise RuntimeError(f"imu-ground estimate failed: {err.strip()[-500:]}")
+    return dt, usage.ru_maxrss * 1024.0
+
+
+def measure(hours: float, folder: Path, repeat: int = 3, estimate: bool = True) -> dict[str, float]:
+    """Median time (s) and peak RSS (bytes) of each reader, and of ``estimate``, on a ``hours`` log."""
+    path = make_log(hours, folder)
+    res: dict[str, float] = {"hours": hours, "mb": path.stat().st_size / 1e6}
+    for name, code in _READ.items():
+        runs = [_child(code, path) for _ in range(repeat)]
+        res[f"{name} s"] = statistics.median(r[0] for r in runs)
+        res[f"{name} rss"] = statistics.median(r[1] for r in runs)
+        res["samples"] = runs[0][2]
+    if estimate:
+        try:
+            runs_e = [_estimate(path, folder) for _ in range(repeat)]
+        except RuntimeError as e:  # the CLI belongs to other rooms: report, do not stop
+            print(f"note: {e}", file=sys.stderr)
+            runs_e = [(float("nan"), float("nan"))]
+        res["estimate s"] = statistics.median(r[0] for r in runs_e)
+        res["estimate rss"] = statistics.median(r[1] for r in runs_e)
+    return res
+
+
+def rows(hours: tuple[float, ...] = (1.0, 10.0), repeat: int = 3, folder: Path | None = None,
+         estimate: bool = True) -> list[dict[str, object]]:
+    """The benchmark as table rows: ``{"target", "figure", "pass"}`` plus the raw measurements."""
+    own = folder is None
+    tmp = tempfile.TemporaryDirectory(prefix="imu_ground_bench_") if own else None
+    where = Path(tmp.name) if tmp else Path(folder)  # type: ignore[arg-type]
+    try:
+        meas = {h: measure(h, where, repeat if h < 5 else max(1, repeat - 1), estimate) for h in hours}
+    finally:
+        if tmp:
+            tmp.cleanup()
+    out: list[dict[str, object]] = []
+    for h, m in meas.items():
+        ratio = m["read_imu s"] / m["pandas.read_csv s"]
+        out.append({"target": f"{h:g} h ({m['samples']:,} samples, {m['mb']:.0f} MB): read_imu <= 1.5x "
+                              f"pandas.read_csv",
+                    "figure": f"read_imu {m['read_imu s']:.2f} s / {m['read_imu rss'] / 2**20:,.0f} MiB; "
+                              f"pandas {m['pandas.read_csv s']:.2f} s / {m['pandas.read_csv rss'] / 2**20:,.0f} "
+                              f"MiB; ratio {ratio:.2f}",
+                    "pass": ratio <= 1.5, **m})
+        if estimate:
+            limit = 15.0 if h >= 10 else 2.5 * h
+            ok = m["estimate s"] <= limit and (h < 10 or m["estimate rss"] <= 2e9)
+            out.append({"target": f"{h:g} h: imu-ground estimate <= {limit:g} s"
+                                  + (", peak RSS <= 2 GB" if h >= 10 else ""),
+                        "figure": f"{m['estimate s']:.2f} s, {m['estimate rss'] / 2**20:,.0f} MiB "
+                                  f"(reader share {m['read_imu s'] / m['estimate s']:.0%})",
+                        "pass": ok})
+    if len(meas) >= 2:
+        lo, hi = meas[min(meas)], meas[max(meas)]
+        per = (hi["read_imu rss"] - lo["read_imu rss"]) / (hi["samples"] - lo["samples"])
+        text = (hi["mb"] - lo["mb"]) * 1e6 / (hi["samples"] - lo["samples"])
+        out.append({"target": "read_imu peak RSS growth per sample <= 500 B (memory follows samples, not text)",
+                    "figure": f"{per:.0f} B/sample (text: {text:.0f} B/sample)", "pass": per <= 500})
+    return out
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Print target, figure and pass/fail for each row."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--hours", type=float, nargs="+", default=[1.0, 10.0])
+    ap.add_argument("--repeat", type=int, default=3, help="median of this many fresh processes")
+    ap.add_argument("--tmp", type=Path, help="folder for the generated logs (kept); default a temporary one")
+    ap.add_argument("--no-estimate", action="store_true", help="readers only")
+    args = ap.parse_args(argv)
+    if not DRIVE.is_file():
+        sys.exit(f"{DRIVE}: shared drive not found (set IMU_GROUND_SHARED_DATA)")
+    for r in rows(tuple(args.hours), args.repeat, args.tmp, not args.no_estimate):
+        print(f"{'PASS' if r['pass'] else 'FAIL'}  {r['target']}: {r['figure']}")
+
+
+if __name__ == "__main__":
+    main()
