@@ -8,19 +8,15 @@ Topics written (``PREFIX`` is ``topic_prefix``, default ``/ground``), one
 message per valid frame of the output table (invalid frames and rows with NaN are
 skipped):
 
-====================  ===============================  ==========================================
-topic                 type                             content
-====================  ===============================  ==========================================
-``PREFIX/normal``     ``geometry_msgs/Vector3Stamped`` unit ground normal in the body frame
-                                                       (``frame_id``), dimensionless
-``PREFIX/rotation``   ``geometry_msgs/QuaternionStamped`` residual rotation road <- body (the
-                                                       table's qw, qx, qy, qz)
-``PREFIX/pitch_roll`` ``geometry_msgs/Vector3Stamped`` ``x`` = roll, ``y`` = pitch of the body
-                                                       relative to the road, rad (signs as in
-                                                       the table); ``z`` = 0
-``PREFIX/settings``   ``std_msgs/String``              the method's settings as JSON, once, at
-                                                       the first stamp (only with ``settings``)
-====================  ===============================  ==========================================
+- ``PREFIX/normal`` (``geometry_msgs/Vector3Stamped``): unit ground normal in
+  the body frame (``frame_id``), dimensionless;
+- ``PREFIX/rotation`` (``geometry_msgs/QuaternionStamped``): residual rotation
+  road <- body (the table's qw, qx, qy, qz);
+- ``PREFIX/pitch_roll`` (``geometry_msgs/Vector3Stamped``): ``x`` = roll,
+  ``y`` = pitch of the body relative to the road, rad (signs as in the table),
+  ``z`` = 0;
+- ``PREFIX/settings`` (``std_msgs/String``): the method's settings as JSON,
+  once, at the first stamp (only with ``settings``).
 
 Pitch and roll share one ``Vector3Stamped`` (rather than two ``std_msgs/Float64``
 topics, which carry no stamp) so that each value keeps its header stamp and
