@@ -195,6 +195,28 @@ def test_messages_of_different_lengths_read_one_by_one(tmp_path, csv_imu, kind):
     assert imu.meta["frame_id"] == "imu"
 
 
+@pytest.mark.parametrize("kind", ["ros1", "mcap"])
+def test_the_imus_own_attitude_goes_to_extra(tmp_path, csv_imu, kind):
+    part = csv_imu.select(np.arange(100))
+    yaw = 0.01 * np.arange(100)
+
+    def fill(w: RosWriter) -> None:
+        h = w.add_topic("/imu", "sensor_msgs/msg/Imu")
+        for k in range(100):
+            ns = T0_NS + round(part.t[k] * 1e9)
+            msg = _imu_msg(w, ns, "imu", k, part.gyro[k], part.accel[k])
+            msg.orientation = w.message("geometry_msgs/msg/Quaternion", x=0.0, y=0.0, z=np.sin(yaw[k] / 2),
+                                        w=np.cos(yaw[k] / 2))
+            msg.orientation_covariance = np.full(9, 1e-4)
+            w.write(h, ns, msg)
+
+    imu = read_rosbag_imu(make_log(_bag_path(tmp_path, kind), kind, fill))
+    assert list(imu.extra.columns) == ["qw", "qx", "qy", "qz"]
+    np.testing.assert_array_equal(imu.extra["qz"], np.sin(yaw / 2))
+    np.testing.assert_array_equal(imu.extra["qw"], np.cos(yaw / 2))
+    assert not imu.extra["qx"].any()
+
+
 def test_optical_frame_is_not_flu(tmp_path, csv_imu):
     path = write_bag(tmp_path / "o.bag", "ros1", csv_imu.select(np.arange(20)), frame_ids=("cam_imu_optical_frame",))
     imu = read_rosbag_imu(path)
