@@ -35,6 +35,7 @@ from imu_ground.imu.preint_params import PreintegrationParams
 __all__ = ["PreintegratedImu", "compose_left", "left_to_right", "right_to_left"]
 
 _I9 = np.eye(9)
+_I3 = np.eye(3)
 
 
 def _gather_indices() -> tuple[np.ndarray, np.ndarray]:
@@ -272,11 +273,21 @@ class PreintegratedImu:
                 np.array(s[8:11]), J, S)
 
     def _right(self) -> tuple[np.ndarray, np.ndarray]:
-        """(J, S) in Forster's right form, computed once per state (the state tuples are immutable)."""
+        """(J, S) in Forster's right form, computed once per state (the state tuples are immutable).
+
+        One 9x9 map ``K = diag(R^T, I, I) M`` takes the kernel's left-error,
+        q-form state to the right-error, p-form read-out (``M``: ``p = q + T v``).
+        """
         cache = self._right_cache
         if cache is None or cache[0] is not self._u:
-            _, R, _, _, J, S = self._left_arrays()
-            cache = self._right_cache = (self._u, *left_to_right(R, J, S))
+            if self._u is None:
+                self._left_arrays()         # raises the uncertainty=False error
+            a = np.array(self._u + (0.0,))
+            K = _I9.copy()
+            K[0:3, 0:3] = np.array(rotation_from_quaternion(self._s[1:5])).reshape(3, 3).T
+            K[6:9, 3:6] = self._s[0] * _I3
+            S = K @ a[_S_IDX] @ K.T
+            cache = self._right_cache = (self._u, K @ a[_J_IDX], 0.5 * (S + S.T))
         return cache[1], cache[2]
 
     @property
