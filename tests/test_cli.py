@@ -132,8 +132,8 @@ def test_noise_and_rate_must_be_positive(tmp_path, capsys, flag, value):
 
 def test_library_checks_the_same_options():
     from imu_ground.pipeline import OptionError, estimate_log
-    for kw, name in ((dict(Q=-1.0, method="filter"), "Q"), (dict(R=0.0, method="filter"), "R"),
-                     (dict(rate=1000.0), "rate")):
+    for kw, name in (({"Q": -1.0, "method": "filter"}, "Q"), ({"R": 0.0, "method": "filter"}, "R"),
+                     ({"rate": 1000.0}, "rate")):
         with pytest.raises(OptionError) as e:
             estimate_log(EXAMPLE, **kw)
         assert f"{name} " in str(e.value) and f"--{name}" in e.value.cli_message()
@@ -220,10 +220,10 @@ def test_a_pose_file_where_an_imu_log_is_needed_says_so(tmp_path, capsys):
 
 def test_real_kitti_odometry_poses(shared_data, tmp_path, capsys):
     poses = shared_data / "kitti_odometry" / "poses" / "00.txt"
-    code, stdout, err = run(capsys, "estimate", poses, "--extrinsic", "kitti_cam0", "-o", tmp_path / "00.csv")
+    code, _stdout, err = run(capsys, "estimate", poses, "--extrinsic", "kitti_cam0", "-o", tmp_path / "00.csv")
     assert code == 0, err
     df = pd.read_csv(tmp_path / "00.csv", comment="#")
-    assert len(df) == sum(1 for _ in open(poses)) - 1
+    assert len(df) == len(poses.read_text().splitlines()) - 1
     assert df["pitch_deg"].abs().max() < 10.0                     # camera axes mapped to the ground frame
 
 
@@ -233,7 +233,7 @@ def test_version_and_python_dash_m(capsys):
     __version__ = version("imu-ground")
     code, out, _ = run(capsys, "--version")
     assert code == 0 and out.strip() == f"imu-ground {__version__}"
-    r = subprocess.run([sys.executable, "-m", "imu_ground", "--version"], capture_output=True, text=True)
+    r = subprocess.run([sys.executable, "-m", "imu_ground", "--version"], capture_output=True, text=True, check=False)
     assert r.returncode == 0 and r.stdout.strip() == f"imu-ground {__version__}"
 
 
@@ -317,7 +317,7 @@ def test_evaluate_bad_options_are_one_line(capsys):
 def test_evaluate_synthetic_tables_and_plots(tmp_path, capsys):
     pytest.importorskip("matplotlib")
     md, plots = tmp_path / "t.md", tmp_path / "plots"
-    code, out, err = run(capsys, "evaluate", "--synthetic", "1", "--grades", "nav", "--methods", "naive,paper",
+    code, _out, err = run(capsys, "evaluate", "--synthetic", "1", "--grades", "nav", "--methods", "naive,paper",
                          "--markdown", md, "--plots", plots)
     assert code == 0, err
     assert md.read_text().startswith("| set | method |")

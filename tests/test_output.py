@@ -8,7 +8,13 @@ import pandas as pd
 import pytest
 
 from imu_ground.pipeline import estimate_log, result_table, write_output, write_outputs
-from imu_ground.pipeline.output import COLUMNS, GAP_NAN_FRAMES, check_output_path, default_output_name, summarize_table
+from imu_ground.pipeline.output import (
+    COLUMNS,
+    GAP_NAN_FRAMES,
+    check_output_path,
+    default_output_name,
+    summarize_table,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLE = REPO / "datasets" / "fixtures" / "example_drive.csv"

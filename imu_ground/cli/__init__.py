@@ -11,9 +11,9 @@ import argparse
 import os
 import sys
 import warnings
-from typing import Optional, Sequence
+from collections.abc import Sequence
 
-__all__ = ["main", "build_parser", "COMMANDS"]
+__all__ = ["COMMANDS", "build_parser", "main"]
 
 #: Sub-command modules, in the order ``--help`` lists them.
 COMMANDS = ("estimate", "batch", "evaluate", "simulate", "calibrate")
@@ -52,7 +52,7 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
     print(f"warning: {' '.join(str(message).split())}", file=sys.stderr)
 
 
-def main(argv: Optional[Sequence[str]] = None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``imu-ground`` console script; returns the exit status.
 
     0 success; 1 a batch in which some logs failed; 2 bad input, option or path
@@ -70,7 +70,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except (ValueError, OSError, ImportError) as e:
         print(f"imu-ground {args.command}: error: {_one_line(e)}", file=sys.stderr)
         return 2
-    except Exception as e:                                    # noqa: BLE001 - the one handler of the command line
+    except Exception as e:
         if os.environ.get("IMU_GROUND_DEBUG"):
             raise
         print(f"imu-ground {args.command}: unexpected error: {type(e).__name__}: {_one_line(e)} (please report it; "

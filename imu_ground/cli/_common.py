@@ -9,17 +9,28 @@ import argparse
 import math
 import sys
 import warnings
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from typing import Any, Callable, Iterator
+from typing import Any
 
-__all__ = ["LazyHelp", "positive_float", "nonnegative_int", "add_reader_flags", "reader_options", "progress_enabled",
-           "add_progress_flag", "say", "warn_line", "warnings_as_lines"]
+__all__ = [
+    "LazyHelp",
+    "add_progress_flag",
+    "add_reader_flags",
+    "nonnegative_int",
+    "positive_float",
+    "progress_enabled",
+    "reader_options",
+    "say",
+    "warn_line",
+    "warnings_as_lines",
+]
 
 
 class LazyHelp(str):
     """Help text computed only when ``--help`` prints it (lists that need a library import)."""
 
-    def __new__(cls, fn: Callable[[], str]) -> "LazyHelp":
+    def __new__(cls, fn: Callable[[], str]) -> LazyHelp:
         obj = super().__new__(cls, "(listed by --help)")
         obj._fn = fn
         return obj

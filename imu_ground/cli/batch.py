@@ -3,7 +3,13 @@ from __future__ import annotations
 
 import argparse
 
-from imu_ground.cli._common import add_progress_flag, add_reader_flags, nonnegative_int, progress_enabled, say
+from imu_ground.cli._common import (
+    add_progress_flag,
+    add_reader_flags,
+    nonnegative_int,
+    progress_enabled,
+    say,
+)
 from imu_ground.cli.estimate import add_method_flags, method_kwargs
 
 __all__ = ["register", "run"]

@@ -3,7 +3,12 @@ from __future__ import annotations
 
 import argparse
 
-from imu_ground.cli._common import add_reader_flags, reader_options, say, warnings_as_lines
+from imu_ground.cli._common import (
+    add_reader_flags,
+    reader_options,
+    say,
+    warnings_as_lines,
+)
 
 __all__ = ["register", "run"]
 

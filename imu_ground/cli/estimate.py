@@ -5,17 +5,24 @@ import argparse
 import time
 import warnings
 
-from imu_ground.cli._common import (add_progress_flag, add_reader_flags, positive_float, progress_enabled,
-                                    reader_options, say, warn_line)
+from imu_ground.cli._common import (
+    add_progress_flag,
+    add_reader_flags,
+    positive_float,
+    progress_enabled,
+    reader_options,
+    say,
+    warn_line,
+)
 
-__all__ = ["register", "run", "add_method_flags", "method_kwargs"]
+__all__ = ["add_method_flags", "method_kwargs", "register", "run"]
 
 
 def _methods_epilog() -> str:
     """One line per method, shown under the options by ``--help``."""
     from imu_ground.pipeline.estimate import available_methods
-    methods = {"auto": ("the best for the input (default): suspension for IMU logs with an accelerometer, "
-                        "filter for pose files", False), **available_methods()}
+    methods = {"auto": (("the best for the input (default): suspension for IMU logs with an accelerometer, "
+                        "filter for pose files"), False), **available_methods()}
     width = max(map(len, methods)) + 2
     lines = ["methods (--method):"]
     for name, (desc, _) in methods.items():
@@ -75,7 +82,11 @@ def run(a: argparse.Namespace) -> int:
     from pathlib import Path
 
     from imu_ground.pipeline.estimate import estimate_to_files
-    from imu_ground.pipeline.output import check_output_path, default_output_name, summarize_table
+    from imu_ground.pipeline.output import (
+        check_output_path,
+        default_output_name,
+        summarize_table,
+    )
     t0 = time.perf_counter()
     outputs = [check_output_path(a.output or default_output_name(a.log), [a.log])]
     kinds = [None]

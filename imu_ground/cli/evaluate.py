@@ -4,7 +4,13 @@ from __future__ import annotations
 import argparse
 import warnings
 
-from imu_ground.cli._common import LazyHelp, add_progress_flag, nonnegative_int, progress_enabled, say
+from imu_ground.cli._common import (
+    LazyHelp,
+    add_progress_flag,
+    nonnegative_int,
+    progress_enabled,
+    say,
+)
 
 __all__ = ["register", "run"]
 
@@ -61,10 +67,17 @@ def _write_text(path: str, text: str) -> None:
 
 def run(a: argparse.Namespace) -> int:
     """Load the drives, run the methods, print the summary (and per-drive) tables, write the files asked for."""
+    from pathlib import Path
+
     import numpy as np
 
-    from imu_ground.evaluation.runner import evaluate, format_table, load_real_drives, summary_table, synthetic_drives
-    from pathlib import Path
+    from imu_ground.evaluation.runner import (
+        evaluate,
+        format_table,
+        load_real_drives,
+        summary_table,
+        synthetic_drives,
+    )
     methods = _check(a)
     progress = progress_enabled(a)
     drives = []

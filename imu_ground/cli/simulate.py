@@ -5,7 +5,7 @@ import argparse
 
 from imu_ground.cli._common import positive_float, say
 
-__all__ = ["register", "run", "TRUTH_ANGLES"]
+__all__ = ["TRUTH_ANGLES", "register", "run"]
 
 #: Truth columns in radians (or rad/s) -> the name the truth file gives them, in degrees (or deg/s).
 TRUTH_ANGLES = {"heading": "heading_deg", "pitch": "pitch_deg", "roll": "roll_deg", "pitch_rate": "pitch_rate_deg_s",
@@ -36,7 +36,7 @@ def truth_table(sim):
     truth = sim.truth.copy()
     if "stationary" in truth:
         truth["stationary"] = truth["stationary"].astype(int)
-    for col, name in TRUTH_ANGLES.items():
+    for col in TRUTH_ANGLES:
         if col in truth:
             truth[col] = np.degrees(truth[col].to_numpy(dtype=float))
     return truth.rename(columns=TRUTH_ANGLES)

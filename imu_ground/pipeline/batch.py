@@ -14,10 +14,11 @@ from __future__ import annotations
 import glob
 import os
 import warnings
+from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Any, Iterable, Optional, Sequence, Union
+from typing import Any
 
-__all__ = ["expand_logs", "output_names", "process_log", "run_batch", "SUMMARY_COLUMNS"]
+__all__ = ["SUMMARY_COLUMNS", "expand_logs", "output_names", "process_log", "run_batch"]
 
 #: Columns of the summary table, in order.
 SUMMARY_COLUMNS = ("log", "status", "format", "method", "frames", "valid_share", "pitch_mean_deg", "pitch_std_deg",
@@ -26,13 +27,13 @@ SUMMARY_COLUMNS = ("log", "status", "format", "method", "frames", "valid_share",
 _GLOB_CHARS = set("*?[")
 
 
-def expand_logs(patterns: Iterable[Union[str, Path]]) -> list[tuple[str, Optional[str]]]:
+def expand_logs(patterns: Iterable[str | Path]) -> list[tuple[str, str | None]]:
     """Logs named by paths and glob patterns, in order, each once: ``(log, error or None)``.
 
     A pattern that matches nothing gives ``(pattern, "no file matches ...")``; a
     plain path is kept as given (a missing one fails when it is read).
     """
-    out: dict[str, Optional[str]] = {}
+    out: dict[str, str | None] = {}
     for pat in patterns:
         pat = str(pat)
         if _GLOB_CHARS & set(pat) and not Path(pat).exists():
@@ -78,7 +79,7 @@ def _skipped_row(out: Path) -> dict[str, Any]:
     return row
 
 
-def process_log(log: str, out: Union[str, Path], options: dict, cli: bool = False) -> dict[str, Any]:
+def process_log(log: str, out: str | Path, options: dict, cli: bool = False) -> dict[str, Any]:
     """One task: estimate ``log`` into ``out`` unless ``out`` exists; one summary row, never an exception.
 
     Parameters
@@ -111,7 +112,7 @@ def process_log(log: str, out: Union[str, Path], options: dict, cli: bool = Fals
     return row
 
 
-def _client(workers: Optional[int], scheduler: Optional[str]):
+def _client(workers: int | None, scheduler: str | None):
     try:
         from dask.distributed import Client, LocalCluster
     except ImportError:
@@ -125,9 +126,9 @@ def _client(workers: Optional[int], scheduler: Optional[str]):
     return Client(cluster), cluster
 
 
-def run_batch(logs: Iterable[Union[str, Path]], outdir: Union[str, Path], *, workers: Optional[int] = None,
-              scheduler: Optional[str] = None, suffix: str = ".csv", progress: bool = False, cli: bool = False,
-              summary: Optional[str] = "summary.csv", **options: Any):
+def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | None = None,
+              scheduler: str | None = None, suffix: str = ".csv", progress: bool = False, cli: bool = False,
+              summary: str | None = "summary.csv", **options: Any):
     """Estimate every log into ``outdir`` on Dask; returns the summary table.
 
     Parameters
@@ -171,7 +172,7 @@ def run_batch(logs: Iterable[Union[str, Path]], outdir: Union[str, Path], *, wor
     out_dir.mkdir(parents=True, exist_ok=True)
     found = expand_logs(logs)
     names = output_names([log for log, _ in found], suffix)
-    rows: list[Optional[dict]] = [None] * len(found)
+    rows: list[dict | None] = [None] * len(found)
     jobs = []
     for i, ((log, err), name) in enumerate(zip(found, names)):
         if err is not None:

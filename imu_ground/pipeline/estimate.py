@@ -17,25 +17,25 @@ from __future__ import annotations
 import math
 import warnings
 from pathlib import Path
-from typing import Any, NamedTuple, Optional, Union
+from typing import Any, NamedTuple
 
 import numpy as np
 
-__all__ = ["EstimateResult", "OptionError", "estimate_log", "estimate_to_files", "check_options", "available_methods", "resolve_method",
-           "detect_input", "require_imu_log", "POSE_FORMATS"]
+__all__ = [
+    "POSE_FORMATS",
+    "EstimateResult",
+    "OptionError",
+    "available_methods",
+    "check_options",
+    "detect_input",
+    "estimate_log",
+    "estimate_to_files",
+    "require_imu_log",
+    "resolve_method",
+]
 
 #: ``--format`` names of the pose files :func:`estimate_log` reads, to :func:`imu_ground.datasets.read_poses` names.
 POSE_FORMATS = {"kitti_poses": "kitti", "tum": "tum"}
-
-#: Used only until :mod:`imu_ground.filters.methods` exists: name -> (one-line description, needs accelerometer).
-_FALLBACK_METHODS = {
-    "suspension": ("suspension-aware invariant filter, streaming: the slow body pitch/roll of braking "
-                   "and cornering from the accelerometer (default for IMU logs)", True),
-    "suspension-offline": ("suspension-aware filter with a zero-lag smoother (uses future frames)", True),
-    "filter": ("heading-following invariant EKF on SO(3) from rotations only (default for pose files)", False),
-    "paper": ("the paper's method: random-walk invariant EKF, Q = 1e-2 I, R = I", False),
-}
-
 
 class OptionError(ValueError):
     """A bad option value; the message names the option as Python keyword or CLI flag.
@@ -50,7 +50,7 @@ class OptionError(ValueError):
         CLI flag (default ``--`` + name with ``_`` as ``-``).
     """
 
-    def __init__(self, template: str, name: str, flag: Optional[str] = None) -> None:
+    def __init__(self, template: str, name: str, flag: str | None = None) -> None:
         self.template, self.name = template, name
         self.flag = flag or "--" + name.replace("_", "-")
         super().__init__(template.replace("{opt}", name))
@@ -85,22 +85,16 @@ class EstimateResult(NamedTuple):
 
 
 def available_methods() -> dict[str, tuple[str, bool]]:
-    """Method name -> (one-line description, needs accelerometer data), from the filters' registry."""
-    try:
-        from imu_ground.filters.methods import METHODS
-    except ImportError:
-        return dict(_FALLBACK_METHODS)
+    """Method name -> (one-line description, needs accelerometer data), from :data:`imu_ground.filters.methods.METHODS`."""
+    from imu_ground.filters.methods import METHODS
     return {name: (spec.description, bool(spec.needs_accel)) for name, spec in METHODS.items()}
 
 
 def resolve_method(method: str, has_accel: bool) -> str:
     """The method to run: ``"auto"`` is the best for the input; others are checked against it."""
+    from imu_ground.filters.methods import default_method
     methods = available_methods()
     if method == "auto":
-        try:
-            from imu_ground.filters.methods import default_method
-        except ImportError:
-            return "suspension" if has_accel else "filter"
         return default_method(has_accel)
     if method not in methods:
         raise OptionError(f"unknown {{opt}} {method!r}; choose auto or one of {', '.join(methods)}", "method")
@@ -112,32 +106,14 @@ def resolve_method(method: str, has_accel: bool) -> str:
 
 
 # ------------------------------------------------------------------------------------------ input kind
-def _sniff_pose_format(path: Path) -> Optional[str]:
-    """``kitti_poses``/``tum`` when the file's first data line is 12/13 or 8 numbers separated by blanks."""
-    try:
-        from imu_ground.datasets.poses import detect_pose_format
-    except ImportError:
-        detect_pose_format = None
-    if detect_pose_format is not None:
-        name = detect_pose_format(path)
-        return {"kitti": "kitti_poses", "kitti_poses": "kitti_poses", "tum": "tum"}.get(name) if name else None
-    if not path.is_file() or path.suffix.lower() in (".csv", ".gz", ".json", ".bag", ".mcap", ".parquet", ".db3"):
-        return None
-    try:
-        with path.open("r", encoding="utf-8") as fh:
-            for line in fh:
-                line = line.split("#", 1)[0].strip()
-                if line:
-                    break
-            else:
-                return None
-        values = [float(v) for v in line.split()]
-    except (OSError, UnicodeDecodeError, ValueError):
-        return None
-    return {8: "tum", 12: "kitti_poses", 13: "kitti_poses"}.get(len(values))
+def _pose_format(path: Path) -> str | None:
+    """``"kitti_poses"`` or ``"tum"`` when ``path`` is an odometry pose file, else None."""
+    from imu_ground.datasets.poses import detect_pose_format
+    name = detect_pose_format(path)
+    return {"kitti": "kitti_poses", "tum": "tum"}.get(name) if name else None
 
 
-def detect_input(path: Union[str, Path], format: Optional[str] = None) -> tuple[str, Optional[str]]:
+def detect_input(path: str | Path, format: str | None = None) -> tuple[str, str | None]:
     """What ``path`` is: ``("poses", "kitti_poses" | "tum")`` or ``("imu", format or None)``.
 
     Raises
@@ -151,13 +127,13 @@ def detect_input(path: Union[str, Path], format: Optional[str] = None) -> tuple[
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such file or folder")
     if format is None:
-        pose = _sniff_pose_format(p)
+        pose = _pose_format(p)
         if pose is not None:
             return "poses", pose
     return "imu", format
 
 
-def require_imu_log(path: Union[str, Path], format: Optional[str] = None, what: str = "this command") -> None:
+def require_imu_log(path: str | Path, format: str | None = None, what: str = "this command") -> None:
     """Raise a clear ``ValueError`` when ``path`` is a pose file where an IMU log is required."""
     kind, fmt = detect_input(path, format)
     if kind == "poses":
@@ -180,7 +156,7 @@ def _check_positive(value: Any, name: str, what: str) -> Any:
     return value
 
 
-def _check_rate(rate: Optional[float]) -> Optional[float]:
+def _check_rate(rate: float | None) -> float | None:
     if rate is None:
         return None
     if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
@@ -188,7 +164,7 @@ def _check_rate(rate: Optional[float]) -> Optional[float]:
     return float(rate)
 
 
-def check_options(*, method: str = "auto", rate: Optional[float] = None, Q: Any = None, R: Any = None,
+def check_options(*, method: str = "auto", rate: float | None = None, Q: Any = None, R: Any = None,
                   **reader_options: Any) -> dict:
     """Check :func:`estimate_log`'s options without reading anything; returns the reader keywords to pass.
 
@@ -216,14 +192,14 @@ def _reader_kwargs(options: dict) -> dict:
     return {k: v for k, v in options.items() if v is not None and k != "format"}
 
 
-def _one_line(path: Union[str, Path], message: Any) -> str:
+def _one_line(path: str | Path, message: Any) -> str:
     text = " ".join(str(message).split())
     return text if text.startswith(str(path)) else f"{path}: {text}"
 
 
 # ------------------------------------------------------------------------------------------ estimate
-def estimate_log(path: Union[str, Path], *, format: Optional[str] = None, method: str = "auto",
-                 extrinsic: Any = None, rate: Optional[float] = None, Q: Any = None, R: Any = None,
+def estimate_log(path: str | Path, *, format: str | None = None, method: str = "auto",
+                 extrinsic: Any = None, rate: float | None = None, Q: Any = None, R: Any = None,
                  progress: bool = False, **reader_options: Any) -> EstimateResult:
     """Per-frame ground normals of one log: what ``imu-ground estimate`` computes.
 
@@ -283,12 +259,11 @@ def estimate_log(path: Union[str, Path], *, format: Optional[str] = None, method
             em, info = _imu_egomotion(path, fmt, rate, extrinsic, reader_kw)
         bar.update()
         name = resolve_method(method, em.has_accel)
-        if Q is not None or R is not None:
-            if name not in ("filter", "paper"):
-                raise OptionError(f"{{opt}} sets the noise of the filter and paper methods; method {name} "
-                                  "does not use it (add --method filter, or leave it out)", "Q" if Q is not None else "R")
+        if (Q is not None or R is not None) and name not in ("filter", "paper"):
+            raise OptionError(f"{{opt}} sets the noise of the filter and paper methods; method {name} does not "
+                              "use it (add --method filter, or leave it out)", "Q" if Q is not None else "R")
         ext = _load_extrinsic(extrinsic)
-        track = _run_method(name, em, extrinsic, ext, Q, R)
+        track = _run_method(name, em, ext, Q, R)
         bar.update()
     bar.close()
     messages = list(dict.fromkeys(_one_line(path, w.message) for w in caught))
@@ -357,33 +332,15 @@ def _load_extrinsic(extrinsic):
     return Extrinsic.coerce(np.asarray(extrinsic, dtype=float))
 
 
-def _run_method(name, em, extrinsic, ext, Q, R):
-    """Run method ``name`` over the ego-motion; the track gets ``t`` and ``valid`` when it lacks them."""
-    try:
-        from imu_ground.filters.methods import METHODS
-    except ImportError:
-        METHODS = None
+def _run_method(name: str, em, ext, Q, R):
+    """Run method ``name`` of the registry over the ego-motion (noise options only when given)."""
+    from imu_ground.filters.methods import METHODS
+    spec = METHODS[name]
     noise = {k: v for k, v in (("Q", Q), ("R", R)) if v is not None}
-    if METHODS is not None:
-        spec = METHODS[name]
-        track = spec.factory(extrinsic=ext, **noise).run(em, smooth=bool(spec.smooth))
-    elif name in ("filter", "paper"):
-        from imu_ground.filters import GroundNormalFilter
-        make = GroundNormalFilter.paper if name == "paper" else GroundNormalFilter
-        f = make(extrinsic=ext, **noise)
-        track = f.run(em.delta_R)
-    else:
-        from imu_ground.filters import estimate_suspension_aware
-        track = estimate_suspension_aware(em, extrinsic=ext if extrinsic is None else extrinsic,
-                                          smooth=name == "suspension-offline")
-    if getattr(track, "t", None) is None:
-        track.t = np.asarray(em.t, dtype=float)
-    if getattr(track, "valid", None) is None:
-        track.valid = np.asarray(em.valid, dtype=bool)
-    return track
+    return spec.make(extrinsic=ext, **noise).run(em, smooth=bool(spec.smooth))
 
 
-def estimate_to_files(path: Union[str, Path], outputs, kinds=None, **kwargs: Any):
+def estimate_to_files(path: str | Path, outputs, kinds=None, **kwargs: Any):
     """:func:`estimate_log` and write its table to ``outputs`` (all or none); what the CLI and batch run.
 
     Parameters

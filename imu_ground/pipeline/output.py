@@ -1,6 +1,6 @@
 """The one output table of an estimate and its writers, chosen by the file's suffix; every write is atomic.
 
-Table (:func:`result_table`; the filters' ``track_table`` once it exists): ``t`` (s, frame
+Table (:func:`result_table`, the filters' :func:`~imu_ground.filters.track_table`): ``t`` (s, frame
 end), ``normal_x/y/z`` (unit ground normal, sensor frame), ``pitch_deg`` (+ nose down),
 ``roll_deg`` (+ left side up) of the body relative to the road, ``qw qx qy qz`` (residual
 rotation road <- body, scalar first) and ``valid``; frames inside a gap longer than
@@ -21,14 +21,27 @@ import json
 import os
 import shutil
 import tempfile
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
-from typing import Any, Iterator, Mapping, Optional, Sequence, Union
+from typing import Any
 
 import numpy as np
 
-__all__ = ["package_version", "OUTPUT_SUFFIXES", "COLUMNS", "UNITS", "GAP_NAN_FRAMES", "result_table", "summarize_table",
-           "default_output_name", "check_output_path", "atomic_path", "write_output", "write_outputs"]
+__all__ = [
+    "COLUMNS",
+    "GAP_NAN_FRAMES",
+    "OUTPUT_SUFFIXES",
+    "UNITS",
+    "atomic_path",
+    "check_output_path",
+    "default_output_name",
+    "package_version",
+    "result_table",
+    "summarize_table",
+    "write_output",
+    "write_outputs",
+]
 
 #: File suffixes :func:`write_output` knows.
 OUTPUT_SUFFIXES = (".csv", ".parquet", ".tum", ".bag", ".mcap")
@@ -42,43 +55,14 @@ UNITS = {"t": "s (frame end)", "normal_x": "1 (unit normal, sensor frame)", "nor
          "valid": "bool: true = from measured motion, false = frame spans a gap"}
 #: Runs of invalid frames longer than this are NaN in the table (shorter ones are kept, flagged).
 GAP_NAN_FRAMES = 3
-_PathLike = Union[str, Path]
+_PathLike = str | Path
 
 
 # ------------------------------------------------------------------------------------------ table
-def _local_track_table(track) -> "Any":
-    """The brief's table from a track with ``t`` and ``valid`` (until ``filters.estimator.track_table`` exists)."""
-    import pandas as pd
-    from scipy.spatial.transform import Rotation
-    q = Rotation.from_matrix(np.asarray(track.residual)).as_quat(scalar_first=True)
-    valid = np.asarray(track.valid, dtype=bool)
-    df = pd.DataFrame({"t": np.asarray(track.t, dtype=float),
-                       "normal_x": track.normal[:, 0], "normal_y": track.normal[:, 1], "normal_z": track.normal[:, 2],
-                       "pitch_deg": np.degrees(track.pitch), "roll_deg": np.degrees(track.roll),
-                       "qw": q[:, 0], "qx": q[:, 1], "qy": q[:, 2], "qz": q[:, 3], "valid": valid})
-    df.loc[_long_gaps(valid), list(COLUMNS[1:-1])] = np.nan
-    return df
-
-
-def _long_gaps(valid: np.ndarray) -> np.ndarray:
-    """Frames in runs of more than :data:`GAP_NAN_FRAMES` consecutive invalid frames."""
-    bad = ~np.asarray(valid, dtype=bool)
-    edges = np.diff(np.concatenate([[0], bad.astype(np.int8), [0]]))
-    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    out = np.zeros(bad.shape, dtype=bool)
-    for s, e in zip(starts, ends):
-        if e - s > GAP_NAN_FRAMES:
-            out[s:e] = True
-    return out
-
-
-def result_table(result) -> "Any":
+def result_table(result) -> Any:
     """The output table (pandas.DataFrame, :data:`COLUMNS`) of an :class:`~imu_ground.pipeline.EstimateResult`."""
-    try:
-        from imu_ground.filters.estimator import track_table
-    except ImportError:
-        track_table = _local_track_table
-    return track_table(result.track)
+    from imu_ground.filters import track_table
+    return track_table(result.track, max_gap_frames=GAP_NAN_FRAMES)
 
 
 def summarize_table(table) -> dict[str, Any]:
@@ -86,7 +70,7 @@ def summarize_table(table) -> dict[str, Any]:
     valid = table["valid"].to_numpy(dtype=bool)
     p, r = table["pitch_deg"].to_numpy(), table["roll_deg"].to_numpy()
     ok = valid & np.isfinite(p) & np.isfinite(r)
-    row: dict[str, Any] = {"frames": int(len(table)), "valid_frames": int(valid.sum()),
+    row: dict[str, Any] = {"frames": len(table), "valid_frames": int(valid.sum()),
                            "valid_share": float(valid.mean()) if len(table) else float("nan")}
     for name, x in (("pitch", p[ok]), ("roll", r[ok])):
         empty = x.size == 0
@@ -105,7 +89,7 @@ def default_output_name(log: _PathLike, suffix: str = ".csv") -> str:
 
 
 def check_output_path(path: _PathLike, inputs: Sequence[_PathLike] = (), option: str = "-o",
-                      kind: Optional[str] = None) -> Path:
+                      kind: str | None = None) -> Path:
     """Check that ``path`` can be written as an output, before any work is done.
 
     Parameters
@@ -176,15 +160,15 @@ def package_version() -> str:
 def _csv_header(meta: Mapping[str, Any]) -> str:
     settings = json.dumps(meta.get("settings", {}), sort_keys=True, default=str)
     lines = [
-        f"imu-ground {package_version()} estimate: format {meta.get('format')}, method {meta.get('method')} "
-        f"({meta.get('method_description', '')})",
+        (f"imu-ground {package_version()} estimate: format {meta.get('format')}, method {meta.get('method')} "
+        f"({meta.get('method_description', '')})"),
         f"settings: {settings}",
-        "columns: t (s, frame end); normal_x, normal_y, normal_z (unit ground normal, sensor frame); "
+        ("columns: t (s, frame end); normal_x, normal_y, normal_z (unit ground normal, sensor frame); "
         "pitch_deg (deg, + nose down) and roll_deg (deg, + left side up) of the body relative to the road; "
-        "qw, qx, qy, qz (residual rotation road <- body, unit quaternion, scalar first)",
-        "valid: 1 = estimated from measured motion, 0 = the frame spans a timestamp gap (integrated "
+        "qw, qx, qy, qz (residual rotation road <- body, unit quaternion, scalar first)"),
+        ("valid: 1 = estimated from measured motion, 0 = the frame spans a timestamp gap (integrated "
         f"through, extrapolated); inside gaps longer than {GAP_NAN_FRAMES} frames every column but t and "
-        "valid is nan",
+        "valid is nan"),
     ]
     return "".join(f"# {ln}\n" for ln in lines)
 
@@ -246,7 +230,7 @@ _WRITERS = {".csv": _write_csv, ".parquet": _write_parquet, ".tum": _write_tum, 
 
 
 def write_outputs(paths: Sequence[_PathLike], table, meta: Mapping[str, Any],
-                  kinds: Optional[Sequence[Optional[str]]] = None) -> list[Path]:
+                  kinds: Sequence[str | None] | None = None) -> list[Path]:
     """Write ``table`` to every path (writer by suffix); all appear together or none does.
 
     Parameters
@@ -291,6 +275,6 @@ def _staged(path: Path) -> Iterator[Path]:
         shutil.rmtree(tmpdir, ignore_errors=True)
 
 
-def write_output(path: _PathLike, table, meta: Mapping[str, Any], extra: Optional[Sequence[_PathLike]] = None) -> Path:
+def write_output(path: _PathLike, table, meta: Mapping[str, Any], extra: Sequence[_PathLike] | None = None) -> Path:
     """Write one output (and optional ``extra`` ones, all or none); returns its path."""
     return write_outputs([path, *(extra or ())], table, meta)[0]
