@@ -139,8 +139,9 @@ class StreamingPreintegrator:
         if type(accel) is _ndarray:
             accel = accel.tolist()
         prev = self._prev
-        # fast path: inside a frame, no boundary, no gap, not an every-N sample; else _push_slow
-        if t < self._lim and prev is not None:
+        # fast path: inside a frame (_lim is -inf before the first sample and outside frames),
+        # no boundary, no gap, not an every-N sample; else _push_slow
+        if t < self._lim:
             h = t - prev[0]
             if 0.0 < h <= self._max_gap:
                 cd = self._cd - 1
