@@ -106,3 +106,47 @@ def test_axis_rotations_match_scipy_and_convention():
         assert np.allclose(f(0.4), Rotation.from_euler(ax, 0.4).as_matrix())
     # KITTI: positive pitch is nose down
     assert (so3.roty(0.1) @ np.array([1.0, 0, 0]))[2] < 0
+
+
+def test_flat_kernels_match_the_batch_functions():
+    rng = np.random.default_rng(3)
+    phi = np.vstack([_phis(), rng.normal(size=(20, 3))])
+    for p in phi:
+        R = so3.exp(p)
+        np.testing.assert_allclose(np.reshape(so3.exp_flat(*p), (3, 3)), R, atol=1e-15)
+        np.testing.assert_allclose(so3.log_flat(R.ravel()), so3.log(R), atol=1e-12)
+        np.testing.assert_allclose(so3.exp_one(p), R, atol=1e-15)
+        np.testing.assert_allclose(so3.log_one(R), so3.log(R), atol=1e-12)
+        np.testing.assert_allclose(so3.log_one(R.tolist()), so3.log(R), atol=1e-12)    # nested lists too
+    A, B = rng.normal(size=(2, 3, 3))
+    a, b = A.ravel().tolist(), B.ravel().tolist()
+    np.testing.assert_allclose(np.reshape(so3.mul_flat(a, b), (3, 3)), A @ B, atol=1e-15)
+    np.testing.assert_allclose(np.reshape(so3.mul_tn_flat(a, b), (3, 3)), A.T @ B, atol=1e-15)
+    np.testing.assert_allclose(np.reshape(so3.mul_nt_flat(a, b), (3, 3)), A @ B.T, atol=1e-15)
+
+
+def test_renormalise_pulls_drifted_rotations_back():
+    R = so3.exp(np.random.default_rng(2).normal(size=(5, 3)))
+    drifted = R + 1e-9 * np.random.default_rng(3).normal(size=R.shape)
+    fixed = so3.renormalise(drifted)
+    err = lambda M: np.abs(np.swapaxes(M, -1, -2) @ M - np.eye(3)).max()   # noqa: E731
+    assert err(drifted) > 1e-10 and err(fixed) < 1e-14
+    np.testing.assert_allclose(fixed, so3.project(drifted), atol=1e-13)
+    for k in range(5):
+        np.testing.assert_allclose(np.reshape(so3.renormalise_flat(drifted[k].ravel()), (3, 3)), fixed[k],
+                                   atol=1e-15)
+
+
+def test_glossary_states_the_conventions_every_module_references():
+    doc = so3.__doc__
+    for phrase in ("R_{a<-b}", "v_a = R_{a<-b} @ v_b", "R_{a<-c} = R_{a<-b} @ R_{b<-c}",
+                   "delta_R_k = R_{body_{k-1}<-body_k}", "R_gs = R_{ground<-sensor}", "nose down",
+                   "left side", "FLU"):
+        assert phrase in doc, phrase
+
+
+def test_so3_imports_no_scipy():
+    import subprocess
+    import sys
+    code = "import sys, imu_ground.so3; sys.exit('scipy' in sys.modules)"
+    assert subprocess.run([sys.executable, "-c", code]).returncode == 0
