@@ -38,7 +38,7 @@ if TYPE_CHECKING:                                   # imported lazily: the imu l
 
 __all__ = ["GroundEstimate", "GroundTrack", "GroundEstimator", "pitch_roll_from_normal", "track_table",
            "as_egomotion", "ON_INVALID", "ORTHO_TOL", "frame_problem", "frame_problems", "check_on_invalid",
-           "bad_frame_error", "static_rotation", "frame_where", "hold_skipped"]
+           "bad_frame_error", "static_rotation", "frame_where", "hold_skipped", "vector3"]
 
 #: What a streaming estimator does with a bad frame: raise ``ValueError`` (state untouched) or
 #: skip it and return an estimate flagged invalid.
@@ -92,6 +92,9 @@ class GroundEstimate:
     """
     __slots__ = ("pitch", "roll", "valid", "_q", "_E", "_Rgs", "_P")
 
+    # quaternion: a kernel output row (its first 4 entries, w x y z); P: a 3x3 array or the same row
+    # (entries 4 and 5: diag(a, a, c))
+
     def __init__(self, pitch: float, roll: float, valid: bool = True, quaternion=None, residual=None,
                  Rgs: Optional[np.ndarray] = None, P=None) -> None:
         self.pitch, self.roll, self.valid = pitch, roll, valid
@@ -100,7 +103,7 @@ class GroundEstimate:
     @property
     def residual(self) -> np.ndarray:
         if self._E is None:
-            self._E = matrix_from_quat(np.array(self._q))
+            self._E = matrix_from_quat(np.array(self._q[:4]))
         return self._E
 
     @property
@@ -114,7 +117,7 @@ class GroundEstimate:
     @property
     def P(self) -> np.ndarray:
         p = self._P
-        return np.diag([p[0], p[0], p[1]]) if isinstance(p, tuple) else p
+        return np.diag([p[4], p[4], p[5]]) if isinstance(p, tuple) else p
 
     def __iter__(self):
         """``normal, pitch, roll, residual, extrinsic, P`` (the fields of the former named tuple)."""
@@ -386,3 +389,10 @@ def hold_skipped(values: np.ndarray, good: np.ndarray, initial: np.ndarray) -> n
     idx = np.cumsum(good) - 1
     padded = np.concatenate([np.asarray(initial, dtype=float)[None], values])
     return padded[idx + 1]
+
+
+def vector3(v) -> list:
+    """A 3-vector (e.g. ``delta_v``) as a list of 3 Python floats (the streaming fast path for an ndarray (3,))."""
+    if type(v) is np.ndarray and v.shape == (3,):
+        return v.tolist()
+    return np.asarray(v, dtype=float).reshape(3).tolist()

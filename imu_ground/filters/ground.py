@@ -31,7 +31,7 @@ import numpy as np
 from imu_ground import so3
 from imu_ground.filters.estimator import (GroundEstimate, GroundTrack, as_egomotion, bad_frame_error,
                                           check_on_invalid, frame_problem, frame_problems, frame_where,
-                                          hold_skipped, pitch_roll_from_normal, static_rotation)
+                                          hold_skipped, pitch_roll_from_normal, static_rotation, vector3)
 from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
@@ -131,7 +131,7 @@ class GroundNormalFilter:
         self.R0 = _I3.copy() if R0 is None else np.array(R0, dtype=float)
         self._Q, self._R, self._P0 = _cov("Q", Q), _cov("R", R), _cov("P", P)
         self._Rgs = static_rotation(self.extrinsic)
-        self._qh, self._qv = float(self._Q[0, 0]), float(self._Q[2, 2])
+        self._qh, self._qv = (float(self._Q[0, 0]),), float(self._Q[2, 2])
         sym = _is_axisymmetric(self._P0) and _is_axisymmetric(self._Q)
         self._scalar = sym and (measurement == "rotation" and _is_axisymmetric(self._R)
                                 or measurement == "up" and np.array_equal(self._R, self._R[0, 0] * _I3))
@@ -223,7 +223,7 @@ class GroundNormalFilter:
         if self.ekf is not None:
             return self.ekf.y
         last = self._kernel.last
-        return np.zeros(3) if last is None else np.array(last[4])
+        return np.zeros(3) if last is None else np.array(last[4:7])
 
     @property
     def S(self) -> np.ndarray:
@@ -257,17 +257,16 @@ class GroundNormalFilter:
         ValueError
             A bad frame with ``on_invalid="raise"`` (the state is unchanged).
         """
-        bare = type(frame) is np.ndarray or not hasattr(frame, "delta_R")
-        d = frame if bare else frame.delta_R
+        if type(frame) is np.ndarray or not hasattr(frame, "delta_R"):
+            d, dv, dt = frame, None, 1.0
+        else:
+            d, dv, dt = frame.delta_R, vector3(frame.delta_v), frame.delta_t
         if type(d) is not np.ndarray or d.shape != (3, 3):
             d = as_rotations(d)
             if d.shape != (3, 3):
                 raise ValueError(f"delta_R must be one rotation, got shape {d.shape}")
         d9 = d.ravel().tolist()
-        if bare:
-            problem = frame_problem(d9)
-        else:
-            problem = frame_problem(d9, np.asarray(frame.delta_v, dtype=float).ravel().tolist(), frame.delta_t)
+        problem = frame_problem(d9, dv, dt)
         if problem is not None:
             if self.on_invalid == "raise":
                 raise bad_frame_error(problem, frame_where(self._frames, getattr(frame, "t", float("nan"))))
@@ -275,7 +274,7 @@ class GroundNormalFilter:
         self._frames += 1
         if self.ekf is None:
             o = self._kernel.advance((d9,), self._qh, self._qv)[0]
-            return GroundEstimate(o[6], o[7], True, o[:4], None, self._Rgs, (o[4], o[5]))
+            return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o)
         E = self._ekf_frame(d)
         nb = E[2]
         pitch, roll = pitch_roll_from_normal(nb)
@@ -334,7 +333,8 @@ class GroundNormalFilter:
         start = (self.residual, self.P.copy(), self.cumulative)
         dg = d[good]
         if self.ekf is None:
-            o = np.array(self._kernel.advance(dg.reshape(-1, 9).tolist(), self._qh, self._qv)).reshape(-1, 12)
+            o = np.array(self._kernel.advance(dg.reshape(-1, 9).tolist(), self._qh * len(dg), self._qv,
+                                                   angles=False)).reshape(-1, 12)
             self._frames += len(dg)
             E = matrix_from_quat(o[:, :4])
             Ps = np.zeros((len(o), 3, 3))

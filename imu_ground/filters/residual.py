@@ -23,7 +23,9 @@ the two cannot drift apart.
 from __future__ import annotations
 
 import math
-from typing import Optional, Sequence, Union
+from typing import Optional, Sequence
+
+from imu_ground.units import RENORM_EVERY
 
 __all__ = ["ResidualKernel"]
 
@@ -50,31 +52,41 @@ class ResidualKernel:
 
     Attributes
     ----------
-    E : tuple of 4 float
-        Residual road <- body, unit quaternion (w, x, y, z).
-    a, c : float
-        Covariance entries after the last frame.
-    R : tuple of 4 float or None
-        Cumulative rotation, unit quaternion.
+    state : list
+        ``[ew, ex, ey, ez, a, c, rw, rx, ry, rz, frames]``: the residual road <- body and
+        the cumulative rotation as quaternions (w, x, y, z), re-normalised every
+        :data:`~imu_ground.units.RENORM_EVERY` frames (so unit to ~1e-14 in between),
+        the covariance entries, the frames processed.
     last : tuple or None
-        Of the last frame: ``(k_a, k_c, a_prior, c_prior, y, E_prior)`` with
-        ``y`` the innovation (3 floats) and ``E_prior`` the predicted residual.
+        Of the last frame: ``(k_a, k_c, a_prior, c_prior, yx, yy, yz, mw, mx, my, mz)``:
+        gains, predicted covariance, innovation and predicted residual ``E^-``.
     """
 
-    __slots__ = ("E", "a", "c", "R", "r_h", "r_v", "up", "follow", "g", "last")
+    __slots__ = ("state", "params", "last")
 
     def __init__(self, a: float, c: float, r_h: float, r_v: float, up: bool = False, follow_heading: bool = True,
                  Rgs=None, cumulative: bool = False) -> None:
-        self.E = (1.0, 0.0, 0.0, 0.0)
-        self.a, self.c = float(a), float(c)
-        self.r_h, self.r_v = float(r_h), float(r_v)
-        self.up, self.follow = bool(up), bool(follow_heading)
-        self.g = None if Rgs is None else tuple(float(v) for v in Rgs.ravel())
-        self.R = (1.0, 0.0, 0.0, 0.0) if cumulative else None
+        self.state = [1.0, 0.0, 0.0, 0.0, float(a), float(c), 1.0, 0.0, 0.0, 0.0, 0]
+        g = None if Rgs is None else tuple(float(v) for v in Rgs.ravel())
+        self.params = (float(r_h), float(r_v), bool(up), bool(follow_heading), g, bool(cumulative))
         self.last = None
 
-    def advance(self, frames: Sequence[Sequence[float]], q_h: Union[float, Sequence[float]], q_v: float,
-                tilt_x: Optional[Sequence[float]] = None, tilt_y: Optional[Sequence[float]] = None) -> list:
+    @property
+    def E(self) -> tuple:
+        """Residual road <- body, quaternion (w, x, y, z)."""
+        return tuple(self.state[:4])
+
+    @property
+    def R(self) -> Optional[tuple]:
+        """Cumulative rotation world <- body (from identity), quaternion, or None when not tracked."""
+        return tuple(self.state[6:10]) if self.params[5] else None
+
+    a = property(lambda self: self.state[4], doc="Covariance about the horizontal axes, rad^2.")
+    c = property(lambda self: self.state[5], doc="Covariance about up, rad^2.")
+
+    def advance(self, frames: Sequence[Sequence[float]], q_h: Sequence[float], q_v: float,
+                tilt_x: Optional[Sequence[float]] = None, tilt_y: Optional[Sequence[float]] = None,
+                angles: bool = True) -> list:
         """Advance over frames; an unrolled quaternion kernel (hence its length).
 
         It unrolls, per frame: the quaternion of the increment (Shepperd), its
@@ -88,13 +100,16 @@ class ResidualKernel:
         frames : sequence of 9-float sequences
             Increments sensor_{k-1} <- sensor_k, row-major (already checked:
             rotations, see :func:`~imu_ground.filters.estimator.frame_problem`).
-        q_h : float or sequence of float
-            Horizontal process noise per frame, rad^2 (one value for all frames, or one a frame).
+        q_h : sequence of float
+            Horizontal process noise of each frame, rad^2 (a sequence at least as long as ``frames``).
         q_v : float
             Process noise about up per frame, rad^2.
         tilt_x, tilt_y : sequence of float, optional
             Modelled body tilt ``b = (b_x, b_y, 0)`` (rotation vector, rad) per
             frame; not used with ``up``.
+        angles : bool
+            Compute pitch and roll (a batch that derives them from the residuals
+            afterwards passes False; they are then NaN).
 
         Returns
         -------
@@ -103,20 +118,14 @@ class ResidualKernel:
             when the cumulative rotation is tracked.
         """
         sqrt, atan2, sin, cos = math.sqrt, math.atan2, math.sin, math.cos
-        ew, ex, ey, ez = self.E
-        a, c, r_h, r_v, up, follow = self.a, self.c, self.r_h, self.r_v, self.up, self.follow
-        per_frame_q = not isinstance(q_h, (float, int))
-        qh = q_h
+        ew, ex, ey, ez, a, c, rw, rx, ry, rz, count = self.state
+        r_h, r_v, up, follow, g, cum = self.params
         tilt = tilt_x is not None and not up
-        g = self.g
         if g is not None:
             g00, g01, g02, g10, g11, g12, g20, g21, g22 = g
-        cum = self.R is not None
-        if cum:
-            rw, rx, ry, rz = self.R
-        ka = kc = a_pr = c_pr = yx = yy = yz = mw = mx = my = mz = 0.0
         out = []
         append = out.append
+        pitch = roll = math.nan
         for k in range(len(frames)):
             r00, r01, r02, r10, r11, r12, r20, r21, r22 = frames[k]
             # -- quaternion of the increment (Shepperd), w >= 0
@@ -140,7 +149,7 @@ class ResidualKernel:
                 dx, dy, dz = (g00 * dx + g01 * dy + g02 * dz, g10 * dx + g11 * dy + g12 * dz,
                               g20 * dx + g21 * dy + g22 * dz)
             # -- covariance and gains
-            a += qh[k] if per_frame_q else qh
+            a += q_h[k]
             c += q_v
             a_pr, c_pr = a, c
             ka = a / (a + r_h)
@@ -185,7 +194,7 @@ class ResidualKernel:
                 f = 2.0 * atan2(vn, Mw) / vn if vn > 1e-300 else 2.0
                 yx, yy, yz = f * Mx, f * My, f * Mz
                 gx, gy, gz = ka * yx, ka * yy, kc * yz
-            # -- E = Exp(-g) E^-, renormalised
+            # -- E = Exp(-g) E^- (re-normalised every RENORM_EVERY frames)
             th = sqrt(gx * gx + gy * gy + gz * gz)
             hs = 0.5 - th * th / 48.0 if th < 1e-4 else sin(0.5 * th) / th
             aw, ax, ay, az = cos(0.5 * th), -hs * gx, -hs * gy, -hs * gz
@@ -193,24 +202,27 @@ class ResidualKernel:
             ex = aw * mx + ax * mw + ay * mz - az * my
             ey = aw * my - ax * mz + ay * mw + az * mx
             ez = aw * mz + ax * my - ay * mx + az * mw
-            nrm = 1.0 / sqrt(ew * ew + ex * ex + ey * ey + ez * ez)
-            ew, ex, ey, ez = ew * nrm, ex * nrm, ey * nrm, ez * nrm
+            count += 1
+            renorm = count % RENORM_EVERY == 0
+            if renorm:
+                nrm = 1.0 / sqrt(ew * ew + ex * ex + ey * ey + ez * ez)
+                ew, ex, ey, ez = ew * nrm, ex * nrm, ey * nrm, ez * nrm
             # -- pitch and roll from n_b = E^T e_z, the third row of E
-            n0 = 2.0 * (ex * ez - ew * ey)
-            n1 = 2.0 * (ey * ez + ew * ex)
-            n2 = 1.0 - 2.0 * (ex * ex + ey * ey)
-            pitch, roll = atan2(-n0, sqrt(n1 * n1 + n2 * n2)), atan2(n1, n2)
-            if cum:                                 # R = R dR, renormalised
+            if angles:
+                n0 = 2.0 * (ex * ez - ew * ey)
+                n1 = 2.0 * (ey * ez + ew * ex)
+                n2 = 1.0 - 2.0 * (ex * ex + ey * ey)
+                pitch, roll = atan2(-n0, sqrt(n1 * n1 + n2 * n2)), atan2(n1, n2)
+            if cum:                                 # R = R dR
                 rw, rx, ry, rz = (rw * dw - rx * dx - ry * dy - rz * dz, rw * dx + rx * dw + ry * dz - rz * dy,
                                   rw * dy - rx * dz + ry * dw + rz * dx, rw * dz + rx * dy - ry * dx + rz * dw)
-                nrm = 1.0 / sqrt(rw * rw + rx * rx + ry * ry + rz * rz)
-                rw, rx, ry, rz = rw * nrm, rx * nrm, ry * nrm, rz * nrm
+                if renorm:
+                    nrm = 1.0 / sqrt(rw * rw + rx * rx + ry * ry + rz * rz)
+                    rw, rx, ry, rz = rw * nrm, rx * nrm, ry * nrm, rz * nrm
                 append((ew, ex, ey, ez, a, c, pitch, roll, rw, rx, ry, rz))
             else:
                 append((ew, ex, ey, ez, a, c, pitch, roll))
         if out:
-            self.E, self.a, self.c = (ew, ex, ey, ez), a, c
-            if cum:
-                self.R = (rw, rx, ry, rz)
-            self.last = (ka, kc, a_pr, c_pr, (yx, yy, yz), (mw, mx, my, mz))
+            self.state = [ew, ex, ey, ez, a, c, rw, rx, ry, rz, count]
+            self.last = (ka, kc, a_pr, c_pr, yx, yy, yz, mw, mx, my, mz)
         return out

@@ -126,7 +126,7 @@ def quat_from_matrix(R: np.ndarray) -> np.ndarray:
 
 
 def matrix_from_quat(q: np.ndarray) -> np.ndarray:
-    """Rotation matrices of unit quaternions ``(w, x, y, z)``.
+    """Rotation matrices of quaternions ``(w, x, y, z)`` (normalised first).
 
     Parameters
     ----------
@@ -137,6 +137,7 @@ def matrix_from_quat(q: np.ndarray) -> np.ndarray:
     ndarray (..., 3, 3)
     """
     q = np.asarray(q, dtype=float)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     xx, yy, zz = x * x, y * y, z * z
     xy, xz, yz, wx, wy, wz = x * y, x * z, y * z, w * x, w * y, w * z

@@ -52,7 +52,7 @@ from imu_ground import so3
 from imu_ground.filters.design import IIRFilter, butter_bandpass, foh_filter
 from imu_ground.filters.estimator import (GroundEstimate, GroundTrack, as_egomotion, bad_frame_error,
                                           check_on_invalid, frame_problem, frame_problems, frame_where,
-                                          hold_skipped, pitch_roll_from_normal, static_rotation)
+                                          hold_skipped, pitch_roll_from_normal, static_rotation, vector3)
 from imu_ground.filters.extrinsics import Extrinsic, resolve_platform
 from imu_ground.filters.gains import DEFAULT_GAINS, GAIN_BAND, TYPICAL_BAND_POWER, tilt_angles
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
@@ -241,9 +241,9 @@ class SuspensionAwareFilter:
         self._resp = self._bpf = None
         self._phi = np.zeros(2)
         self._sxx = self._sxy = None
-        self.last_load = np.zeros(2)
+        self._load = (0.0, 0.0)
         self.speed = 0.0
-        self.Q_last = np.diag([0.0, 0.0, self.q_yaw])
+        self._q_last = 0.0
         self._frames = 0
         if self.frame_rate is not None:
             self._design(self.frame_rate)
@@ -272,6 +272,9 @@ class SuspensionAwareFilter:
                  doc="Configured process noise (horizontal rad^2/s at standstill, up rad^2 per frame).")
     R = property(lambda self: np.diag([self._r, self._r, self.r_yaw * self._r]),
                  doc="Configured measurement noise (rad^2).")
+    last_load = property(lambda self: np.array(self._load), doc="Load of the last frame (u_x, u_y), m/s^2.")
+    Q_last = property(lambda self: np.diag([self._q_last, self._q_last, self.q_yaw]),
+                      doc="Process noise of the last frame's predict (rad^2).")
 
     @property
     def residual(self) -> np.ndarray:
@@ -296,7 +299,7 @@ class SuspensionAwareFilter:
         return default if last is None else last[i]
 
     K = property(lambda self: np.diag([self._last(0, 0.0)] * 2 + [self._last(1, 0.0)]), doc="Last Kalman gain.")
-    y = property(lambda self: np.array(self._last(4, (0.0, 0.0, 0.0))), doc="Last innovation (rad).")
+    y = property(lambda self: np.array(self._last(slice(4, 7), (0.0, 0.0, 0.0))), doc="Last innovation (rad).")
     S = property(lambda self: np.diag([self._last(2, 0.0)] * 2 + [self._last(3, 0.0)]) + self.R,
                  doc="Last innovation covariance (rad^2).")
     P_prior = property(lambda self: np.diag([self._last(2, self._kernel.a)] * 2 + [self._last(3, self._kernel.c)]),
@@ -305,7 +308,7 @@ class SuspensionAwareFilter:
     @property
     def x_prior(self) -> np.ndarray:
         """X after the last predict."""
-        m = self._last(5, None)
+        m = self._last(slice(7, 11), None)
         return self.x if m is None else self.cumulative @ matrix_from_quat(np.array(m)).T
 
     # -- streaming -------------------------------------------------------------------------------
@@ -343,8 +346,7 @@ class SuspensionAwareFilter:
         if type(d) is not np.ndarray or d.shape != (3, 3):
             d = as_rotations(d)
         d9 = d.ravel().tolist()
-        dv = delta_v.tolist() if type(delta_v) is np.ndarray and delta_v.shape == (3,) else \
-            np.asarray(delta_v, dtype=float).reshape(3).tolist()
+        dv = vector3(delta_v)
         dt = float(delta_t)
         problem = frame_problem(d9, dv, dt)
         if problem is not None:
@@ -354,22 +356,22 @@ class SuspensionAwareFilter:
         if self._rate is None:
             self._design(1.0 / dt)
         self._frames += 1
-        ge = self.gravity_filter.step(d, np.array(dv), dt, bool(stationary), bool(valid))
+        ge = self.gravity_filter.step(d, delta_v, dt, bool(stationary), bool(valid))
         fx, fy, _ = ge.specific_force.tolist()
         ax, ay, _ = ge.acceleration.tolist()
         s = self.load_share
         ux, uy = ax + s * (fx - ax), ay + s * (fy - ay)
         if self._resp is not None:
             ux, uy = self._resp.step(np.array([ux, uy])).tolist()
-        self.last_load = (ux, uy)
+        self._load = (ux, uy)
         self.speed = speed = float(ge.speed)
         kp, kr = self._kp, self._kr
         if self.online_gains:
             self._update_gains(d, ax, ay)
         q = (self.q_time + self.q_dist * speed) * dt * self._r
-        self.Q_last = np.diag([q, q, self.q_yaw])
-        o = self._kernel.advance((d9,), q, self.q_yaw, (kr * uy,), (kp * ux,))[0]
-        return GroundEstimate(o[6], o[7], True, o[:4], None, self._Rgs, (o[4], o[5]))
+        self._q_last = q
+        o = self._kernel.advance((d9,), (q,), self.q_yaw, (kr * uy,), (kp * ux,))[0]
+        return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o)
 
     def _update_gains(self, d: np.ndarray, ax: float, ay: float) -> None:
         """One frame of the online gain regression (the batch twin is in :meth:`_online_gains`)."""
@@ -419,7 +421,7 @@ class SuspensionAwareFilter:
             k = int(np.argmin(good))
             raise bad_frame_error(problems[k], frame_where(k, float(em.t[k])) + f"; {n - good.sum()} bad of {n}")
         self._design(float(em.rate))
-        start = dict(E=self.residual, P=self.P, cum=self.cumulative.copy(), load=np.array(self.last_load),
+        start = dict(E=self.residual, P=self.P, cum=self.cumulative.copy(), load=self.last_load,
                      speed=self.speed, gains=self.gains.copy(), gravity=self.gravity_filter.x[3:].copy())
         sub = em if good.all() else _frames_of(em, good)
         m = len(sub)
@@ -429,15 +431,16 @@ class SuspensionAwareFilter:
         if self._resp is not None:
             u = self._resp.run(u)
         if m:
-            self.last_load, self.speed = tuple(u[-1].tolist()), float(gt.speed[-1])
+            self._load, self.speed = tuple(u[-1].tolist()), float(gt.speed[-1])
         ks = self._online_gains(gt) if self.online_gains and m else np.tile(self.gains, (m, 1))
         susp = ks * u                                   # (pitch, roll) = (k_p u_x, k_r u_y)
         dt = np.asarray(sub.delta_t, dtype=float)
         q = (self.q_time + self.q_dist * gt.speed) * dt * self._r
-        o = np.array(self._kernel.advance(np.asarray(sub.delta_R, dtype=float).reshape(-1, 9).tolist(), q.tolist(),
-                                          self.q_yaw, susp[:, 1].tolist(), susp[:, 0].tolist())).reshape(-1, 8)
+        d9 = np.asarray(sub.delta_R, dtype=float).reshape(-1, 9).tolist()
+        o = self._kernel.advance(d9, q.tolist(), self.q_yaw, susp[:, 1].tolist(), susp[:, 0].tolist(), angles=False)
+        o = np.array(o).reshape(-1, 8)
         if m:
-            self.Q_last = np.diag([q[-1], q[-1], self.q_yaw])
+            self._q_last = float(q[-1])
         E = matrix_from_quat(o[:, :4])
         Ps = np.zeros((m, 3, 3))
         Ps[:, 0, 0] = Ps[:, 1, 1] = o[:, 4]
