@@ -352,6 +352,4 @@ def preintegrate(imu: ImuData | tuple[np.ndarray, np.ndarray, np.ndarray],
     return FrameDeltas(
         t_start=T[:-1].copy(), t_end=T[1:].copy(), delta_t=np.asarray(Tn, dtype=float),
         delta_R=Rn, delta_v=vn, delta_p=pn, covariance=Sr, **jac, valid=valid,
-        n_intervals=np.diff(b).astype(int), bias_gyro=np.array(par.bias_gyro),
-        bias_accel=np.array(par.bias_accel), gyro_noise_density=par.gyro_noise_density,
-        accel_noise_density=par.accel_noise_density, hold=par.hold, params=par)
+        n_intervals=np.diff(b).astype(int), params=par)

@@ -97,14 +97,9 @@ class FrameDeltas:
         False for frames that overlap a timestamp gap longer than ``max_gap``.
     n_intervals : ndarray of int, shape (F,)
         Number of integration intervals (sample pieces) in each frame.
-    bias_gyro, bias_accel : ndarray, shape (3,)
-        Biases the deltas were integrated with (rad/s, m/s^2, body frame).
-    gyro_noise_density, accel_noise_density : float
-        Noise densities used for ``covariance``.
-    hold : str
-        ``"midpoint"`` or ``"left"`` (module docstring of :mod:`imu_ground.imu.preintegration`).
     params : PreintegrationParams
-        All the settings the deltas were computed with.
+        All the settings the deltas were computed with (the one owner of the
+        biases, noise densities and hold, also readable as properties).
     """
 
     t_start: np.ndarray
@@ -121,15 +116,35 @@ class FrameDeltas:
     d_p_d_ba: np.ndarray | None
     valid: np.ndarray
     n_intervals: np.ndarray
-    bias_gyro: np.ndarray
-    bias_accel: np.ndarray
-    gyro_noise_density: float
-    accel_noise_density: float
-    hold: str
     params: PreintegrationParams = field(default_factory=PreintegrationParams)
 
     def __len__(self) -> int:
         return int(self.t_start.shape[0])
+
+    @property
+    def bias_gyro(self) -> np.ndarray:
+        """Gyro bias the deltas were integrated with, rad/s, body frame, shape (3,)."""
+        return np.array(self.params.bias_gyro)
+
+    @property
+    def bias_accel(self) -> np.ndarray:
+        """Accelerometer bias the deltas were integrated with, m/s^2, body frame, shape (3,)."""
+        return np.array(self.params.bias_accel)
+
+    @property
+    def gyro_noise_density(self) -> float:
+        """rad/s/sqrt(Hz), as used for ``covariance``."""
+        return self.params.gyro_noise_density
+
+    @property
+    def accel_noise_density(self) -> float:
+        """m/s^2/sqrt(Hz), as used for ``covariance``."""
+        return self.params.accel_noise_density
+
+    @property
+    def hold(self) -> str:
+        """``"midpoint"`` or ``"left"`` (module docstring of :mod:`imu_ground.imu.preintegration`)."""
+        return self.params.hold
 
     def _need_uncertainty(self) -> None:
         if self.covariance is None or self.d_R_d_bg is None:
@@ -162,9 +177,9 @@ class FrameDeltas:
         delta_R : ndarray (F, 3, 3)
             ``delta_R Exp(d_R_d_bg dbg)``: ``R_{start<-end}``.
         delta_v : ndarray (F, 3)
-            m/s, start-body frame.
+            m/s, body frame at the start.
         delta_p : ndarray (F, 3)
-            m, start-body frame.
+            m, body frame at the start.
         """
         self._need_uncertainty()
         dbg = np.broadcast_to(np.asarray(bias_gyro, dtype=float) - self.bias_gyro, (len(self), 3))
