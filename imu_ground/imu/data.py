@@ -30,7 +30,7 @@ if TYPE_CHECKING:       # pandas is imported where it is used, not with the pack
 __all__ = ["ImuData"]
 
 
-def _empty_frame() -> "pd.DataFrame":
+def _empty_frame() -> pd.DataFrame:
     """The default ``extra``: an empty DataFrame (pandas imported on first use)."""
     import pandas as pd
     return pd.DataFrame()
