@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["POLICIES", "drive_paths", "measure", "rows", "main"]
+__all__ = ["POLICIES", "drive_paths", "main", "measure", "rows"]
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("IMU_GROUND_SHARED_DATA", REPO.parent / "shared" / "data"))
@@ -41,6 +41,7 @@ def drive_paths(data: Path) -> list[Path]:
 def measure(path: Path, policy: str) -> dict[str, object]:
     """One drive read with ``policy``: dropped, invalid frames, shifts, gaps, pitch error."""
     from imu_ground.datasets import read_imu
+
     from imu_ground.evaluation.metrics import evaluate_drive
     from imu_ground.evaluation.reference import check_reference, pitch_reference
     from imu_ground.filters import Extrinsic

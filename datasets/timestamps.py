@@ -104,7 +104,7 @@ def _running_median(x: np.ndarray, w: int, events: np.ndarray) -> tuple[np.ndarr
     win = np.lib.stride_tricks.sliding_window_view(np.pad(x, h, mode="edge"), w)
     for s in range(0, near.size, 50_000):  # bounded memory on long logs
         rows = near[s:s + 50_000]
-        out[rows] = np.median(win[rows], axis=1)
+        out[rows] = np.median(win[rows], axis=1, overwrite_input=True)  # win[rows] is a gathered copy
     return out, near
 
 
