@@ -16,7 +16,7 @@ import numpy as np
 from imu_ground import so3
 from imu_ground.imu.matrix3 import project_if_needed
 from imu_ground.imu.preint_measurement import PreintegratedImu, right_to_left
-from imu_ground.imu.preint_params import PreintegrationParams
+from imu_ground.imu.preint_params import ParamsView, PreintegrationParams
 
 __all__ = ["FrameDeltas", "first_rate_boundary", "make_frame_times"]
 
@@ -73,7 +73,7 @@ def make_frame_times(t: np.ndarray, *, rate: float | None = None, every: int | N
 
 
 @dataclass
-class FrameDeltas:
+class FrameDeltas(ParamsView):
     """Preintegrated deltas of consecutive frames (output of :func:`~imu_ground.imu.preint_batch.preintegrate`).
 
     Attributes
@@ -120,31 +120,6 @@ class FrameDeltas:
 
     def __len__(self) -> int:
         return int(self.t_start.shape[0])
-
-    @property
-    def bias_gyro(self) -> np.ndarray:
-        """Gyro bias the deltas were integrated with, rad/s, body frame, shape (3,)."""
-        return np.array(self.params.bias_gyro)
-
-    @property
-    def bias_accel(self) -> np.ndarray:
-        """Accelerometer bias the deltas were integrated with, m/s^2, body frame, shape (3,)."""
-        return np.array(self.params.bias_accel)
-
-    @property
-    def gyro_noise_density(self) -> float:
-        """rad/s/sqrt(Hz), as used for ``covariance``."""
-        return self.params.gyro_noise_density
-
-    @property
-    def accel_noise_density(self) -> float:
-        """m/s^2/sqrt(Hz), as used for ``covariance``."""
-        return self.params.accel_noise_density
-
-    @property
-    def hold(self) -> str:
-        """``"midpoint"`` or ``"left"`` (module docstring of :mod:`imu_ground.imu.preintegration`)."""
-        return self.params.hold
 
     def _need_uncertainty(self) -> None:
         if self.covariance is None or self.d_R_d_bg is None:

@@ -30,7 +30,7 @@ from imu_ground.imu.preint_kernel import (
     quaternion_from_rotation,
     rotation_from_quaternion,
 )
-from imu_ground.imu.preint_params import PreintegrationParams
+from imu_ground.imu.preint_params import ParamsView, PreintegrationParams
 
 __all__ = ["PreintegratedImu", "compose_left", "left_to_right", "right_to_left"]
 
@@ -118,7 +118,7 @@ def compose_left(a: tuple, b: tuple) -> tuple:
     return T, R, v, p, J, 0.5 * (S + np.swapaxes(S, -1, -2))
 
 
-class PreintegratedImu:
+class PreintegratedImu(ParamsView):
     """Preintegrated IMU measurements between two times (value type).
 
     Like GTSAM's ``PreintegratedImuMeasurements``: :meth:`integrate` each
@@ -214,26 +214,6 @@ class PreintegratedImu:
     def uncertainty(self) -> bool:
         """Whether the covariance and the bias Jacobians are propagated."""
         return self._u is not None
-
-    @property
-    def gyro_noise_density(self) -> float:
-        """rad/s/sqrt(Hz)."""
-        return self.params.gyro_noise_density
-
-    @property
-    def accel_noise_density(self) -> float:
-        """m/s^2/sqrt(Hz)."""
-        return self.params.accel_noise_density
-
-    @property
-    def bias_gyro(self) -> np.ndarray:
-        """Gyro bias the deltas were integrated with, rad/s, body frame, shape (3,)."""
-        return np.array(self.params.bias_gyro)
-
-    @property
-    def bias_accel(self) -> np.ndarray:
-        """Accelerometer bias the deltas were integrated with, m/s^2, body frame, shape (3,)."""
-        return np.array(self.params.bias_accel)
 
     @property
     def delta_t(self) -> float:

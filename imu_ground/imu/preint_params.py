@@ -16,9 +16,11 @@ import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
+import numpy as np
+
 from imu_ground.units import GRAVITY
 
-__all__ = ["Hold", "OnGap", "PreintegrationParams", "gap_message"]
+__all__ = ["Hold", "OnGap", "ParamsView", "PreintegrationParams", "gap_message"]
 
 Hold = Literal["midpoint", "left"]
 OnGap = Literal["raise", "flag"]
@@ -139,6 +141,43 @@ class PreintegrationParams:
         return (self.bias_gyro == other.bias_gyro and self.bias_accel == other.bias_accel
                 and self.gyro_noise_density == other.gyro_noise_density
                 and self.accel_noise_density == other.accel_noise_density)
+
+
+class ParamsView:
+    """Read-only views of ``self.params`` under their old attribute names (a mixin).
+
+    :class:`~imu_ground.imu.preint_measurement.PreintegratedImu` and
+    :class:`~imu_ground.imu.preint_frames.FrameDeltas` keep their settings in one
+    :class:`PreintegrationParams`; these properties read it.
+    """
+
+    __slots__ = ()
+    params: PreintegrationParams
+
+    @property
+    def bias_gyro(self) -> np.ndarray:
+        """Gyro bias the deltas were integrated with, rad/s, body frame, shape (3,)."""
+        return np.array(self.params.bias_gyro)
+
+    @property
+    def bias_accel(self) -> np.ndarray:
+        """Accelerometer bias the deltas were integrated with, m/s^2, body frame, shape (3,)."""
+        return np.array(self.params.bias_accel)
+
+    @property
+    def gyro_noise_density(self) -> float:
+        """Gyro white noise used for the covariance, rad/s/sqrt(Hz)."""
+        return self.params.gyro_noise_density
+
+    @property
+    def accel_noise_density(self) -> float:
+        """Accelerometer white noise used for the covariance, m/s^2/sqrt(Hz)."""
+        return self.params.accel_noise_density
+
+    @property
+    def hold(self) -> str:
+        """``"midpoint"`` or ``"left"`` (module docstring of :mod:`imu_ground.imu.preintegration`)."""
+        return self.params.hold
 
 
 def gap_message(t0: float, length: float, max_gap: float) -> str:
