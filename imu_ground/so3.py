@@ -65,7 +65,7 @@ __all__ = [
     "hat", "vee", "exp", "log", "right_jacobian", "left_jacobian",
     "right_jacobian_inv", "left_jacobian_inv", "project", "angle",
     "rotx", "roty", "rotz", "renormalise", "exp_one", "log_one",
-    "exp_flat", "log_flat", "mul_flat", "mul_tn_flat", "mul_nt_flat", "renormalise_flat",
+    "exp_flat", "log_flat", "mul_flat", "mul_tn_flat", "mul_nt_flat", "transpose_flat", "renormalise_flat",
 ]
 
 _SMALL = 1e-4   # below this angle (rad) the Taylor series are exact to double precision
@@ -396,22 +396,19 @@ def mul_flat(a, b) -> tuple:
             a6 * b0 + a7 * b3 + a8 * b6, a6 * b1 + a7 * b4 + a8 * b7, a6 * b2 + a7 * b5 + a8 * b8)
 
 
+def transpose_flat(a) -> tuple:
+    """``A^T`` of a row-major 9-sequence."""
+    return a[0], a[3], a[6], a[1], a[4], a[7], a[2], a[5], a[8]
+
+
 def mul_tn_flat(a, b) -> tuple:
-    """``A^T @ B`` of two row-major 9-sequences (unrolled)."""
-    a0, a1, a2, a3, a4, a5, a6, a7, a8 = a
-    b0, b1, b2, b3, b4, b5, b6, b7, b8 = b
-    return (a0 * b0 + a3 * b3 + a6 * b6, a0 * b1 + a3 * b4 + a6 * b7, a0 * b2 + a3 * b5 + a6 * b8,
-            a1 * b0 + a4 * b3 + a7 * b6, a1 * b1 + a4 * b4 + a7 * b7, a1 * b2 + a4 * b5 + a7 * b8,
-            a2 * b0 + a5 * b3 + a8 * b6, a2 * b1 + a5 * b4 + a8 * b7, a2 * b2 + a5 * b5 + a8 * b8)
+    """``A^T @ B`` of two row-major 9-sequences."""
+    return mul_flat(transpose_flat(a), b)
 
 
 def mul_nt_flat(a, b) -> tuple:
-    """``A @ B^T`` of two row-major 9-sequences (unrolled)."""
-    a0, a1, a2, a3, a4, a5, a6, a7, a8 = a
-    b0, b1, b2, b3, b4, b5, b6, b7, b8 = b
-    return (a0 * b0 + a1 * b1 + a2 * b2, a0 * b3 + a1 * b4 + a2 * b5, a0 * b6 + a1 * b7 + a2 * b8,
-            a3 * b0 + a4 * b1 + a5 * b2, a3 * b3 + a4 * b4 + a5 * b5, a3 * b6 + a4 * b7 + a5 * b8,
-            a6 * b0 + a7 * b1 + a8 * b2, a6 * b3 + a7 * b4 + a8 * b5, a6 * b6 + a7 * b7 + a8 * b8)
+    """``A @ B^T`` of two row-major 9-sequences."""
+    return mul_flat(a, transpose_flat(b))
 
 
 def renormalise_flat(r) -> tuple:

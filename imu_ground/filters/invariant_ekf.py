@@ -62,7 +62,7 @@ from typing import Optional, Union
 import numpy as np
 
 from imu_ground import so3
-from imu_ground.so3 import exp_flat, log_flat, mul_flat, mul_nt_flat, mul_tn_flat, renormalise_flat
+from imu_ground.so3 import exp_flat, log_flat, mul_flat, mul_nt_flat, mul_tn_flat, renormalise_flat, transpose_flat
 from imu_ground.units import RENORM_EVERY
 
 __all__ = ["InvariantEKF"]
@@ -100,13 +100,9 @@ def _check_cov(name: str, m: Optional[ArrayLike]) -> Optional[np.ndarray]:
 
 
 def _congruence(a, p) -> tuple:
-    """``A P A^T`` for a symmetric ``P`` (upper triangle computed, lower mirrored), row-major 9-tuples."""
+    """``A P A^T`` for a symmetric ``P`` (upper triangle of the result computed, lower mirrored), 9-tuples."""
     a0, a1, a2, a3, a4, a5, a6, a7, a8 = a
-    p0, p1, p2, _, p4, p5, _, _, p8 = p
-    # M = A P (P symmetric: p3 = p1, p6 = p2, p7 = p5)
-    m0, m1, m2 = a0 * p0 + a1 * p1 + a2 * p2, a0 * p1 + a1 * p4 + a2 * p5, a0 * p2 + a1 * p5 + a2 * p8
-    m3, m4, m5 = a3 * p0 + a4 * p1 + a5 * p2, a3 * p1 + a4 * p4 + a5 * p5, a3 * p2 + a4 * p5 + a5 * p8
-    m6, m7, m8 = a6 * p0 + a7 * p1 + a8 * p2, a6 * p1 + a7 * p4 + a8 * p5, a6 * p2 + a7 * p5 + a8 * p8
+    m0, m1, m2, m3, m4, m5, m6, m7, m8 = mul_flat(a, p)
     c00 = m0 * a0 + m1 * a1 + m2 * a2
     c01 = m0 * a3 + m1 * a4 + m2 * a5
     c02 = m0 * a6 + m1 * a7 + m2 * a8
@@ -132,27 +128,6 @@ def _inv_flat(m):
     return (A * r, (c * h - b * i) * r, (b * f - c * e) * r,
             B * r, (a * i - c * g) * r, (c * d - a * f) * r,
             C * r, (b * g - a * h) * r, (a * e - b * d) * r), det
-
-
-def _predict_left(x, P, U, q):
-    """Left-error predict, unrolled: ``x U`` and ``U^T P U + Q`` (P, Q symmetric; row-major 9-tuples)."""
-    x0, x1, x2, x3, x4, x5, x6, x7, x8 = x
-    u0, u1, u2, u3, u4, u5, u6, u7, u8 = U
-    p0, p1, p2, _, p4, p5, _, _, p8 = P
-    # M = P U
-    m0, m1, m2 = p0 * u0 + p1 * u3 + p2 * u6, p0 * u1 + p1 * u4 + p2 * u7, p0 * u2 + p1 * u5 + p2 * u8
-    m3, m4, m5 = p1 * u0 + p4 * u3 + p5 * u6, p1 * u1 + p4 * u4 + p5 * u7, p1 * u2 + p4 * u5 + p5 * u8
-    m6, m7, m8 = p2 * u0 + p5 * u3 + p8 * u6, p2 * u1 + p5 * u4 + p8 * u7, p2 * u2 + p5 * u5 + p8 * u8
-    # U^T M + Q, upper triangle
-    c01 = u0 * m1 + u3 * m4 + u6 * m7 + q[1]
-    c02 = u0 * m2 + u3 * m5 + u6 * m8 + q[2]
-    c12 = u1 * m2 + u4 * m5 + u7 * m8 + q[5]
-    return ((x0 * u0 + x1 * u3 + x2 * u6, x0 * u1 + x1 * u4 + x2 * u7, x0 * u2 + x1 * u5 + x2 * u8,
-             x3 * u0 + x4 * u3 + x5 * u6, x3 * u1 + x4 * u4 + x5 * u7, x3 * u2 + x4 * u5 + x5 * u8,
-             x6 * u0 + x7 * u3 + x8 * u6, x6 * u1 + x7 * u4 + x8 * u7, x6 * u2 + x7 * u5 + x8 * u8),
-            (u0 * m0 + u3 * m3 + u6 * m6 + q[0], c01, c02,
-             c01, u1 * m1 + u4 * m4 + u7 * m7 + q[4], c12,
-             c02, c12, u2 * m2 + u5 * m5 + u8 * m8 + q[8]))
 
 
 def _update_rotation_left(x, P, z, r):
@@ -191,9 +166,8 @@ def _update_rotation_left(x, P, z, r):
     d = 1.0 / det
     i00, i01, i02 = i00 * d, i01 * d, i02 * d
     i11, i12, i22 = (s0 * s8 - s2 * s2) * d, (s1 * s2 - s0 * s5) * d, (s0 * s4 - s1 * s1) * d
-    k0, k1, k2 = p0 * i00 + p1 * i01 + p2 * i02, p0 * i01 + p1 * i11 + p2 * i12, p0 * i02 + p1 * i12 + p2 * i22
-    k3, k4, k5 = p1 * i00 + p4 * i01 + p5 * i02, p1 * i01 + p4 * i11 + p5 * i12, p1 * i02 + p4 * i12 + p5 * i22
-    k6, k7, k8 = p2 * i00 + p5 * i01 + p8 * i02, p2 * i01 + p5 * i11 + p8 * i12, p2 * i02 + p5 * i12 + p8 * i22
+    SI = (i00, i01, i02, i01, i11, i12, i02, i12, i22)
+    K = k0, k1, k2, k3, k4, k5, k6, k7, k8 = mul_flat(P, SI)
     n01 = k0 * r1 + k1 * r4 + k2 * r5
     n02 = k0 * r2 + k1 * r5 + k2 * r8
     n12 = k3 * r2 + k4 * r5 + k5 * r8
@@ -204,8 +178,7 @@ def _update_rotation_left(x, P, z, r):
     xn = (x0 * e0 + x1 * e3 + x2 * e6, x0 * e1 + x1 * e4 + x2 * e7, x0 * e2 + x1 * e5 + x2 * e8,
           x3 * e0 + x4 * e3 + x5 * e6, x3 * e1 + x4 * e4 + x5 * e7, x3 * e2 + x4 * e5 + x5 * e8,
           x6 * e0 + x7 * e3 + x8 * e6, x6 * e1 + x7 * e4 + x8 * e7, x6 * e2 + x7 * e5 + x8 * e8)
-    return (xn, Pn, (y0, y1, y2), (k0, k1, k2, k3, k4, k5, k6, k7, k8), (s0, s1, s2, s1, s4, s5, s2, s5, s8),
-            (i00, i01, i02, i01, i11, i12, i02, i12, i22), det)
+    return xn, Pn, (y0, y1, y2), K, (s0, s1, s2, s1, s4, s5, s2, s5, s8), SI, det
 
 
 def _hat_flat(x: float, y: float, z: float) -> tuple:
@@ -402,14 +375,10 @@ class InvariantEKF:
             U = u.ravel().tolist()
         else:
             U = _flat_rotation(u)
-        if self._left and U is not None:
-            x, P = _predict_left(x, P, U, q)
-            self._x = self._x_prior = x
-            self._P = self._P_prior = P
-            self._x_a = self._P_a = None
-            return
         if U is not None:
             x = mul_flat(x, U)
+            if self._left:              # P <- U^T P U
+                P = _congruence(transpose_flat(U), P)
         if not self._left:              # P <- P + A Q A^T, A = x U
             q = _congruence(x, q)
         p0, p1, p2, _, p4, p5, _, _, p8 = P
