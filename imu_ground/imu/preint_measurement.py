@@ -118,6 +118,11 @@ def compose_left(a: tuple, b: tuple) -> tuple:
     return T, R, v, p, J, 0.5 * (S + np.swapaxes(S, -1, -2))
 
 
+def _jacobian_block(row: int, col: int, doc: str) -> property:
+    """A read-only property: the 3x3 block at (row, col) of the right-form bias Jacobian."""
+    return property(lambda self: self._right()[0][row:row + 3, col:col + 3].copy(), doc=doc)
+
+
 class PreintegratedImu(ParamsView):
     """Preintegrated IMU measurements between two times (value type).
 
@@ -280,30 +285,12 @@ class PreintegratedImu(ParamsView):
         """Noise covariance (9, 9): [rotation (right error, end body frame, rad), velocity (m/s), position (m)]."""
         return self._right()[1].copy()
 
-    @property
-    def d_R_d_bg(self) -> np.ndarray:
-        """(3, 3), rad per rad/s: ``delta_R(bg + d) ~= delta_R Exp(d_R_d_bg @ d)`` (right, end body frame)."""
-        return self._right()[0][0:3, 0:3].copy()
-
-    @property
-    def d_v_d_bg(self) -> np.ndarray:
-        """d delta_v / d bg, (3, 3), m/s per rad/s (start body frame)."""
-        return self._right()[0][3:6, 0:3].copy()
-
-    @property
-    def d_p_d_bg(self) -> np.ndarray:
-        """d delta_p / d bg, (3, 3), m per rad/s (start body frame)."""
-        return self._right()[0][6:9, 0:3].copy()
-
-    @property
-    def d_v_d_ba(self) -> np.ndarray:
-        """d delta_v / d ba, (3, 3), s (start body frame)."""
-        return self._right()[0][3:6, 3:6].copy()
-
-    @property
-    def d_p_d_ba(self) -> np.ndarray:
-        """d delta_p / d ba, (3, 3), s^2 (start body frame)."""
-        return self._right()[0][6:9, 3:6].copy()
+    d_R_d_bg = _jacobian_block(0, 0, "(3, 3), rad per rad/s: ``delta_R(bg + d) ~= delta_R Exp(d_R_d_bg @ d)`` "
+                                      "(right, end body frame).")
+    d_v_d_bg = _jacobian_block(3, 0, "d delta_v / d bg, (3, 3), m/s per rad/s (start body frame).")
+    d_p_d_bg = _jacobian_block(6, 0, "d delta_p / d bg, (3, 3), m per rad/s (start body frame).")
+    d_v_d_ba = _jacobian_block(3, 3, "d delta_v / d ba, (3, 3), s (start body frame).")
+    d_p_d_ba = _jacobian_block(6, 3, "d delta_p / d ba, (3, 3), s^2 (start body frame).")
 
     def corrected(self, bias_gyro: Sequence[float], bias_accel: Sequence[float]
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
