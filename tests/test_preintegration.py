@@ -664,3 +664,37 @@ def test_params_value_type():
     np.testing.assert_array_equal(a.covariance, b.covariance)
     assert a.params == par
     assert_same(stream(t, gyro, accel, rate=10.0, params=par), a)
+
+
+def test_quaternion_round_trip_covers_every_branch():
+    """The kernel keeps delta_R as a quaternion; matrices go in (combine, FrameDeltas.frame) and out."""
+    from imu_ground.imu.preint_kernel import quaternion_from_rotation, rotation_from_quaternion
+    rng = np.random.default_rng(23)
+    phis = [rng.normal(size=3) for _ in range(50)]
+    phis += [np.array([np.pi, 0, 0]), np.array([0, np.pi, 0]), np.array([0, 0, np.pi]),
+             np.array([0.0, 0.0, 0.0]), np.array([np.pi - 1e-9, 1e-9, 0.0])]
+    for phi in phis:
+        R = so3.exp(phi)
+        q = quaternion_from_rotation(tuple(R.reshape(9).tolist()))
+        assert abs(sum(v * v for v in q) - 1.0) < 1e-15
+        np.testing.assert_allclose(np.array(rotation_from_quaternion(q)).reshape(3, 3), R, atol=4e-16 * 8)
+
+
+def test_predict_equals_dead_reckoning_and_current_is_a_snapshot():
+    from imu_ground.imu.dead_reckoning import dead_reckon
+    t, gyro, accel = random_log(300, seed=24)
+    fd = preintegrate((t, gyro, accel), frame_times=[t[0], t[150], t[-1]], gyro_noise_density=SG)
+    R0, v0, p0 = so3.exp([0.2, -0.1, 0.5]), np.array([3.0, 0.5, -0.2]), np.array([1.0, 2.0, 3.0])
+    nav = dead_reckon(fd, R0, v0, p0)
+    R1, v1, p1 = fd.frame(0).predict(R0, v0, p0)
+    R2, v2, p2 = fd.frame(1).predict(R1, v1, p1)
+    np.testing.assert_allclose(R2, nav.R[2], atol=1e-13)
+    np.testing.assert_allclose(v2, nav.v[2], atol=1e-11)
+    np.testing.assert_allclose(p2, nav.p[2], atol=1e-10)
+    sp = StreamingPreintegrator(frame_times=[t[0], t[-1]])
+    for i in range(100):
+        sp.push(t[i], gyro[i], accel[i])
+    snap = sp.current
+    assert snap.n_intervals == 99 and snap.delta_t == pytest.approx(t[99] - t[0], rel=1e-14)
+    sp.push(t[100], gyro[100], accel[100])
+    assert snap.n_intervals == 99 and sp.current.n_intervals == 100
