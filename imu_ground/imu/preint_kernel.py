@@ -38,6 +38,7 @@ p-form 9x9 covariance and 9x6 bias Jacobian.
 from __future__ import annotations
 
 import math
+from math import cos, sin, sqrt
 
 from imu_ground.imu.matrix3 import SMALL_ANGLE2
 
@@ -103,9 +104,9 @@ def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float,
         ch = 1.0 - t2 / 8.0 + t2 * t2 / 384.0
         k = 0.5 - t2 / 48.0 + t2 * t2 / 3840.0
     else:
-        th = math.sqrt(t2)
-        ch = math.cos(0.5 * th)
-        k = math.sin(0.5 * th) / th
+        th = sqrt(t2)
+        ch = cos(0.5 * th)
+        k = sin(0.5 * th) / th
     # R_k = delta_R before the interval, from the quaternion
     x2 = qx + qx
     y2 = qy + qy
@@ -149,7 +150,7 @@ def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float,
             C = 1.0 / 6.0 - t2 / 120.0 + t2 * t2 / 5040.0
         else:
             B = 2.0 * k * k                         # (1 - cos th) / th^2 = 2 sin^2(th/2) / th^2
-            C = (th - math.sin(th)) / (t2 * th)
+            C = (th - sin(th)) / (t2 * th)
         xy = x * y
         xz = x * z
         yz = y * z
