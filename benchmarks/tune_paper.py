@@ -31,12 +31,25 @@ def score(drive, Q):
     return res["pitch"]["mean"]
 
 
-def rows(data: Path = DEFAULT_DATA, drives: int = 0) -> list[dict]:
-    """Mean error per Q and the split-half check as rows (``drives``: first N only, 0 = all)."""
+def valid_drives(data: Path = DEFAULT_DATA, drives: int = 0) -> list:
+    """The valid real drives of ``data`` (the first ``drives`` only; 0: all), reader warnings silenced."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         ds = [d for d in load_real_drives(Path(data), progress=False) if d.valid]
-    ds = ds[:drives] if drives else ds
+    return ds[:drives] if drives else ds
+
+
+def parse_args(doc: str, argv=None) -> argparse.Namespace:
+    """``--data`` and ``--drives``, the options of the tuning scripts."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    ap.add_argument("--data", default=str(DEFAULT_DATA))
+    ap.add_argument("--drives", type=int, default=0, help="first N valid drives only (0: all)")
+    return ap.parse_args(argv)
+
+
+def rows(data: Path = DEFAULT_DATA, drives: int = 0) -> list[dict]:
+    """Mean error per Q and the split-half check as rows (``drives``: first N only, 0 = all)."""
+    ds = valid_drives(data, drives)
     table = np.array([[score(d, q) for q in GRID] for d in ds])      # drives x grid
     mean = table.mean(axis=0)
     out = [dict(Q=q, R=1.0, drives=len(ds), mean_deg=float(m)) for q, m in zip(GRID, mean)]
@@ -56,10 +69,7 @@ def rows(data: Path = DEFAULT_DATA, drives: int = 0) -> list[dict]:
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default=str(DEFAULT_DATA))
-    ap.add_argument("--drives", type=int, default=0, help="first N valid drives only (0: all)")
-    a = ap.parse_args(argv)
+    a = parse_args(__doc__, argv)
     out = rows(Path(a.data), a.drives)
     print(f"{out[0]['drives']} valid drives; mean |pitch error| (deg) by Q (R = 1):")
     for r in out[:-1]:

@@ -14,18 +14,18 @@ Run: ``python benchmarks/tune_suspension.py [--data ../shared/data/kitti_imu100]
 """
 from __future__ import annotations
 
-import argparse
-import warnings
+import sys
 from pathlib import Path
 
 import numpy as np
 
 from imu_ground.evaluation.metrics import evaluate_drive
-from imu_ground.evaluation.runner import load_real_drives
 from imu_ground.filters import GroundNormalFilter, SuspensionAwareFilter
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from tune_paper import DEFAULT_DATA, parse_args, valid_drives  # noqa: E402
+
 SHARES = [0.0, 0.25, 0.5, 0.6, 0.75, 1.0]
-DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "kitti_imu100"
 #: label -> (constructor keywords, smooth)
 CONFIGURATIONS = {
     "streaming (default)": ({}, False),
@@ -49,10 +49,7 @@ def pick(err: np.ndarray, paper: np.ndarray, idx: np.ndarray) -> int:
 
 def rows(data: Path = DEFAULT_DATA, drives: int = 0) -> list[dict]:
     """Load-share grid, split-half check and configurations as rows (``drives``: first N only, 0 = all)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        ds = [d for d in load_real_drives(Path(data), progress=False) if d.valid]
-    ds = ds[:drives] if drives else ds
+    ds = valid_drives(data, drives)
     paper = np.array([score(d, GroundNormalFilter.paper(extrinsic=d.extrinsic).run(d.egomotion)) for d in ds])
     err = np.array([[score(d, SuspensionAwareFilter(extrinsic=d.extrinsic, load=s).run(d.egomotion))
                      for s in SHARES] for d in ds])
@@ -80,10 +77,7 @@ def rows(data: Path = DEFAULT_DATA, drives: int = 0) -> list[dict]:
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default=str(DEFAULT_DATA))
-    ap.add_argument("--drives", type=int, default=0, help="first N valid drives only (0: all)")
-    a = ap.parse_args(argv)
+    a = parse_args(__doc__, argv)
     for r in rows(Path(a.data), a.drives):
         extra = f", worst ratio to the paper {r['worst_ratio_to_paper']:.3f} ({r['worst_drive']})" \
             if "worst_ratio_to_paper" in r else ""

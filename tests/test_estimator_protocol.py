@@ -17,7 +17,7 @@ from imu_ground.filters.ground import GroundNormalFilter
 from imu_ground.filters.methods import METHODS, default_method, estimate, make_estimator
 from imu_ground.filters.rotations import as_rotations, euler_zyx, matrix_from_quat, quat_from_matrix, twist_angle
 from imu_ground.filters.suspension import SuspensionAwareFilter
-from imu_ground.imu.egomotion import EgoFrame, EgoMotion, imu_to_egomotion
+from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
 
 ESTIMATORS = {
     "filter": lambda: GroundNormalFilter(),

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from imu_ground import so3
-from imu_ground.filters.extrinsics import Extrinsic, load_extrinsic
+from imu_ground.filters.extrinsics import load_extrinsic
 from imu_ground.filters.ground import GroundNormalFilter, pitch_roll_from_normal
 from imu_ground.filters.invariant_ekf import InvariantEKF
 

@@ -106,6 +106,56 @@ def _pooled_frames(egos, R, min_speed, lever_arm=None):
         [p["moving"] for p in parts]
 
 
+def _forward_axis(fs, up, yaw_rate, moving, max_yaw_rate, x_prev):
+    """The ground's forward axis in sensor axes (or None) and where it came from.
+
+    The lateral axis from turns (``a_y = v * yaw rate``, ``v > 0``), the longitudinal axis from the
+    straight-line accelerations (principal direction), its sign from the turns (else ``x_prev``).
+    """
+    Ph = np.eye(3) - np.outer(up, up)
+    fh = fs @ Ph                                         # horizontal specific force, sensor frame
+    fwd_turn = np.cross(Ph @ (fh[moving].T @ yaw_rate[moving]), up)       # left x up = forward
+    has_turns = bool(np.linalg.norm(fwd_turn) > 1e-9)
+    straight = moving & (np.abs(yaw_rate) < max_yaw_rate)
+    fwd, yaw_src = None, "assumed (sensor x axis)"
+    if np.count_nonzero(straight) >= 20:
+        h = fh[straight] - fh[straight].mean(axis=0)
+        evals, evecs = np.linalg.eigh(h.T @ h)
+        if evals[2] > 4.0 * evals[1]:
+            fwd = evecs[:, 2]
+            if fwd @ (fwd_turn if has_turns else x_prev) < 0:
+                fwd = -fwd
+            yaw_src = "straight accelerations, sign from " + ("turns" if has_turns else "the sensor x axis")
+    if fwd is None and has_turns:
+        fwd, yaw_src = fwd_turn, "turns"
+    return fwd, yaw_src
+
+
+def _suspension_gains(egos, R, min_speed, lever_arm, band, stats: dict) -> np.ndarray:
+    """Pooled band-pass gain regression in the ground frame of ``R`` (rad per m/s^2); notes go to ``stats``."""
+    _, tracks, movings = _pooled_frames(egos, R, min_speed, lever_arm)
+    sxy, sxx = np.zeros(2), np.zeros(2)
+    for em, gt, mv in zip(egos, tracks, movings):
+        if len(em) < 2:
+            continue
+        _, a, b = bandpass_gain_regression(gt.body_increments, gt.acceleration, band=band,
+                                           frame_rate=em.rate, mask=mv)
+        sxy, sxx = sxy + a, sxx + b
+    with np.errstate(invalid="ignore", divide="ignore"):
+        k = np.where(sxx > 0, sxy / sxx, np.nan)
+    stats.update(gain_frames=int(sum(np.count_nonzero(m) for m in movings)), gain_sxx=sxx.tolist())
+    # physics: braking pitches the nose down (k_pitch < 0) and a car rolls out of a turn
+    # (k_roll > 0). A regression with the other sign has measured something else, typically the
+    # road banking into curves (superelevation correlates with lateral acceleration in the
+    # regression band): keep the default gain for that axis and say so.
+    for i, (name, sign) in enumerate((("pitch", -1.0), ("roll", 1.0))):
+        if np.isfinite(k[i]) and np.sign(k[i]) != sign:
+            stats[f"{name}_gain_rejected"] = (f"{np.degrees(k[i]):+.3f} deg per m/s^2 has the wrong sign "
+                                              f"(road geometry, not suspension); default kept")
+            k[i] = DEFAULT_GAINS[i]
+    return k
+
+
 def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "EgoMotion"]]], *, tilt: str = "auto",
               translation: Optional[Sequence[float]] = None, lever_arm: Optional[Sequence[float]] = None,
               gains: bool = True, band: Sequence[float] = GAIN_BAND, min_cruise_s: float = 20.0,
@@ -191,24 +241,7 @@ def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "Ego
         if candidates[src] is None:
             raise ValueError(f"tilt={tilt!r}: the drive has no {src} frames")
         up = candidates[src]
-        # -- yaw: the lateral axis from turns (a_y = v * yaw rate, v > 0), the longitudinal axis
-        #    from the straight-line accelerations, its sign from the turns
-        Ph = np.eye(3) - np.outer(up, up)
-        fh = fs @ Ph                                         # horizontal specific force, sensor frame
-        fwd_turn = np.cross(Ph @ (fh[moving].T @ yaw_rate[moving]), up)       # left x up = forward
-        has_turns = bool(np.linalg.norm(fwd_turn) > 1e-9)
-        straight = moving & (np.abs(yaw_rate) < max_yaw_rate)
-        fwd, yaw_src = None, "assumed (sensor x axis)"
-        if np.count_nonzero(straight) >= 20:
-            h = fh[straight] - fh[straight].mean(axis=0)
-            evals, evecs = np.linalg.eigh(h.T @ h)
-            if evals[2] > 4.0 * evals[1]:
-                fwd = evecs[:, 2]
-                if fwd @ (fwd_turn if has_turns else R[0]) < 0:
-                    fwd = -fwd
-                yaw_src = "straight accelerations, sign from " + ("turns" if has_turns else "the sensor x axis")
-        if fwd is None and has_turns:
-            fwd, yaw_src = fwd_turn, "turns"
+        fwd, yaw_src = _forward_axis(fs, up, yaw_rate, moving, max_yaw_rate, R[0])
         R = _extrinsic_from_axes(up, R[0] if fwd is None else fwd)
     stats: dict[str, Any] = {"drives": len(egos), "frames": int(len(dt)), "tilt_source": src, "yaw_source": yaw_src,
                              "cruise_s": round(cruise_s, 1), "standstill_s": round(float(dt[F["still"]].sum()), 1),
@@ -217,28 +250,6 @@ def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "Ego
         if u is not None:
             r, p, _ = np.degrees(euler_zyx(_extrinsic_from_axes(u, R[0])))
             stats[f"tilt_{name}_deg"] = (round(float(p), 4), round(float(r), 4))
-    k = None
-    if gains:
-        _, tracks, movings = _pooled_frames(egos, R, min_speed, lever_arm)
-        sxy, sxx = np.zeros(2), np.zeros(2)
-        for em, gt, mv in zip(egos, tracks, movings):
-            if len(em) < 2:
-                continue
-            _, a, b = bandpass_gain_regression(gt.body_increments, gt.acceleration, band=band,
-                                               frame_rate=em.rate, mask=mv)
-            sxy, sxx = sxy + a, sxx + b
-        with np.errstate(invalid="ignore", divide="ignore"):
-            k = np.where(sxx > 0, sxy / sxx, np.nan)
-        stats.update(gain_frames=int(sum(np.count_nonzero(m) for m in movings)), gain_sxx=sxx.tolist())
-        # physics: braking pitches the nose down (k_pitch < 0) and a car rolls out
-        # of a turn (k_roll > 0). A regression with the other sign has measured
-        # something else, typically the road banking into curves (superelevation
-        # correlates with lateral acceleration in the regression band): keep the
-        # default gain for that axis and say so.
-        for i, (name, sign) in enumerate((("pitch", -1.0), ("roll", 1.0))):
-            if np.isfinite(k[i]) and np.sign(k[i]) != sign:
-                stats[f"{name}_gain_rejected"] = (f"{np.degrees(k[i]):+.3f} deg per m/s^2 has the wrong sign "
-                                                  f"(road geometry, not suspension); default kept")
-                k[i] = DEFAULT_GAINS[i]
+    k = _suspension_gains(egos, R, min_speed, lever_arm, band, stats) if gains else None
     meta = {"calibrated_by": "imu_ground.filters.calibration.calibrate", "tilt_source": src, "yaw_source": yaw_src}
     return Calibration(Extrinsic(R, translation, meta), k, stats)

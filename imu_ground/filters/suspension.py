@@ -53,7 +53,7 @@ from imu_ground.filters.design import IIRFilter, butter_bandpass, foh_filter
 from imu_ground.filters.estimator import (GroundEstimate, GroundTrack, as_egomotion, bad_frame_error,
                                           check_on_invalid, frame_problem, frame_problems, frame_where,
                                           hold_skipped, pitch_roll_from_normal, static_rotation, vector3)
-from imu_ground.filters.extrinsics import Extrinsic, resolve_platform
+from imu_ground.filters.extrinsics import resolve_platform
 from imu_ground.filters.gains import DEFAULT_GAINS, GAIN_BAND, TYPICAL_BAND_POWER, tilt_angles
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.filters.invariant_ekf import InvariantEKF
