@@ -67,7 +67,7 @@ def make_log(hours: float, folder: Path) -> Path:
         lines = f.read().splitlines()
     t = np.array([float(ln.split(",", 1)[0]) for ln in lines])
     rest = [ln.split(",", 1)[1] for ln in lines]
-    n_total = int(round(hours * 3600 * RATE))
+    n_total = round(hours * 3600 * RATE)
     span = t[-1] + 1.0 / RATE
     tmp = path.with_suffix(".part")
     with open(tmp, "w") as out:

@@ -15,6 +15,7 @@ import numpy as np
 
 from imu_ground.imu.data import ImuData
 
+from .options import ImuInputError
 from .report import MalformedFileError
 from .skeleton import finish, register_format
 
@@ -40,8 +41,8 @@ def find_ms_imu(path: str | Path, scene: str | None = None) -> Path:
     ------
     FileNotFoundError
         Nothing found (the message names the path and pattern).
-    ValueError
-        A folder with several ``*_ms_imu.json`` files and no ``scene``.
+    ImuInputError
+        A folder with several ``*_ms_imu.json`` files and no ``scene`` (the message names the option).
     """
     p = Path(path)
     if not p.exists():
@@ -57,8 +58,9 @@ def find_ms_imu(path: str | Path, scene: str | None = None) -> Path:
     if not found:
         raise FileNotFoundError(f"{p}: no *_ms_imu.json file in this folder")
     if len(found) > 1:
-        raise ValueError(f"{p}: {len(found)} *_ms_imu.json files ({found[0].name}, ...); "
-                         f"pass the file or scene=")
+        first = found[0].name[: -len("_ms_imu.json")]
+        raise ImuInputError(f"{p}: {len(found)} *_ms_imu.json files ({found[0].name}, ...); pass the file "
+                            f"or {{hint}}", option="scene", value=first)
     return found[0]
 
 
@@ -169,4 +171,4 @@ def _probe(p: Path) -> bool:
 
 
 register_format("nuscenes", _probe, read_nuscenes_imu, "nuScenes CAN bus *_ms_imu.json (or its folder)",
-                priority=30)
+                priority=30, options=("scene",))

@@ -42,6 +42,8 @@ READER_OPTIONS: dict[str, ReaderOption] = {o.name: o for o in (
                  ("m/s^2", "g"), None),
     ReaderOption("topic", "--topic", "ROS bag / MCAP: the topic to read when the log has several of the kind "
                  "(IMU, pose or speed)"),
+    ReaderOption("scene", "--scene", "nuScenes CAN bus folder with several scenes: the scene to read "
+                 "(e.g. scene-0103)"),
     ReaderOption("allow_missing", "--allow-missing", "KITTI OXTS: skip missing packet files instead of failing",
                  None, False),
 )}

@@ -218,3 +218,11 @@ def test_pose_file_real(shared_data):
     assert detect_pose_format(shared_data / "kitti_odometry" / "times" / "00.txt") is None
     with pytest.raises(PoseFileError, match="KITTI odometry poses"):
         read_imu(shared_data / "kitti_odometry" / "poses" / "00.txt")
+
+
+def test_nuscenes_folder_with_several_scenes_names_the_scene_option(tmp_path):
+    for name in ("scene-0001", "scene-0002"):
+        (tmp_path / f"{name}_ms_imu.json").write_text("[]")
+    with pytest.raises(ImuInputError, match=r"2 \*_ms_imu\.json files.*scene='scene-0001'") as e:
+        read_imu(tmp_path)
+    assert "--scene scene-0001" in e.value.cli_message() and "scene" in READER_OPTIONS
