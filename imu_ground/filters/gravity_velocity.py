@@ -11,6 +11,7 @@ two cannot drift; the forces are scalar in ``step``, vectorised in ``run``.
 from __future__ import annotations
 
 import math
+from array import array
 from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import NamedTuple, Optional, Sequence, Union
@@ -79,10 +80,6 @@ def _flat_increment(delta_R) -> list:
     raise ValueError(f"delta_R must be a 3x3 rotation, a 4x4 pose or a rotation vector, got shape {d.shape}")
 
 
-def _cross(a, b):
-    return a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
-
-
 def _predict_update(s, frames, prm, out=None, priors=None):
     """The filter's recursion over frames: one kernel for :meth:`GravityVelocityFilter.step` and ``run``.
 
@@ -96,9 +93,9 @@ def _predict_update(s, frames, prm, out=None, priors=None):
     ``F = [[I, -dt I], [0, I]]`` and isotropic ``Q``), then the update with the
     body velocity: the zero-velocity update (gated; see :func:`_zupt`) or the
     non-holonomic constraint on the body y and z axes, ``P <- P - K S K^T``.
-    ``out`` (optional list) receives the posterior state per frame, ``priors``
-    the prior. Returns the last frame's ``(zupt, K, y, S, dt, qv, qg, prior)``, the
-    count of rejected standstill flags and whether gravity is initialised.
+    ``out`` (optional ``array('d')``) receives the posterior state and ``R_k``
+    (36 floats a frame), ``priors`` the prior state (27). Returns the last frame's
+    ``(zupt, K, y, S, dt, qv, qg, prior)``, the rejected standstill flags, whether g is set.
     """
     (v0, v1, v2, g0, g1, g2, a00, a01, a02, a11, a12, a22, b00, b01, b02, b10, b11, b12, b20, b21, b22,
      c00, c01, c02, c11, c12, c22, r0, r1, r2, r3, r4, r5, r6, r7, r8, count) = s
@@ -130,7 +127,7 @@ def _predict_update(s, frames, prm, out=None, priors=None):
         prior = (v0, v1, v2, g0, g1, g2, a00, a01, a02, a11, a12, a22, b00, b01, b02, b10, b11, b12,
                  b20, b21, b22, c00, c01, c02, c11, c12, c22)
         if priors is not None:
-            priors.append(prior)
+            priors.extend(prior)
         zupt = False
         if stationary:
             st = _zupt(prior, rz, gate)
@@ -174,7 +171,7 @@ def _predict_update(s, frames, prm, out=None, priors=None):
             c00, c01, c02 = c00 - ky3 * uy3 - kz3 * uz3, c01 - ky3 * uy4 - kz3 * uz4, c02 - ky3 * uy5 - kz3 * uz5
             c11, c12, c22 = c11 - ky4 * uy4 - kz4 * uz4, c12 - ky4 * uy5 - kz4 * uz5, c22 - ky5 * uy5 - kz5 * uz5
         if out is not None:
-            out.append((v0, v1, v2, g0, g1, g2, a00, a01, a02, a11, a12, a22, b00, b01, b02, b10, b11, b12,
+            out.extend((v0, v1, v2, g0, g1, g2, a00, a01, a02, a11, a12, a22, b00, b01, b02, b10, b11, b12,
                         b20, b21, b22, c00, c01, c02, c11, c12, c22, r0, r1, r2, r3, r4, r5, r6, r7, r8))
     if frames:
         if not zupt:
@@ -464,8 +461,10 @@ class GravityVelocityFilter:
         if self._lever is not None:
             r = self._lever
             wp = w if self._w_prev is None else self._w_prev
-            ax, ay, az = _cross(((w[0] - wp[0]) / dt, (w[1] - wp[1]) / dt, (w[2] - wp[2]) / dt), r)
-            cx, cy, cz = _cross(w, _cross(w, r))
+            al = ((w[0] - wp[0]) / dt, (w[1] - wp[1]) / dt, (w[2] - wp[2]) / dt)
+            ax, ay, az = al[1] * r[2] - al[2] * r[1], al[2] * r[0] - al[0] * r[2], al[0] * r[1] - al[1] * r[0]
+            m0, m1, m2 = w[1] * r[2] - w[2] * r[1], w[2] * r[0] - w[0] * r[2], w[0] * r[1] - w[1] * r[0]   # w x r
+            cx, cy, cz = w[1] * m2 - w[2] * m1, w[2] * m0 - w[0] * m2, w[0] * m1 - w[1] * m0
             f0, f1, f2 = f0 - ax - cx, f1 - ay - cy, f2 - az - cz
         self._w_prev = w
         g0, g1, g2 = s[3], s[4], s[5]
@@ -503,11 +502,12 @@ class GravityVelocityFilter:
         """
         if delta_v is None:
             delta_R, delta_v, delta_t, stationary, valid = delta_R[:5]
-        d9 = _flat_increment(delta_R)
+        d9 = delta_R.ravel().tolist() if type(delta_R) is np.ndarray and delta_R.shape == (3, 3) else \
+            _flat_increment(delta_R)
         dv = delta_v.tolist() if type(delta_v) is np.ndarray and delta_v.shape == (3,) else \
             np.asarray(delta_v, dtype=float).reshape(3).tolist()
         dt = float(delta_t)
-        if not (dt > 0.0 and math.isfinite(dt + math.fsum(d9) + math.fsum(dv))):
+        if not (dt > 0.0 and math.isfinite(dt + sum(d9) + sum(dv))):
             raise ValueError(f"bad frame: delta_t = {dt!r} must be > 0 and delta_R, delta_v finite")
         if not self._identity_extrinsic:
             R = self._rgs9
@@ -516,8 +516,8 @@ class GravityVelocityFilter:
                   R[6] * dv[0] + R[7] * dv[1] + R[8] * dv[2])
         f, a = self.step_body(d9, dv, dt, bool(stationary), bool(valid))
         s = self._s
-        return GravityEstimate(np.array(s[0:3]), np.array(s[3:6]), np.array(a), np.array(f),
-                               math.sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]))
+        e = np.array(s[0:6] + list(a + f))          # one array, four views
+        return GravityEstimate(e[0:3], e[3:6], e[6:9], e[9:12], math.sqrt(s[0] ** 2 + s[1] ** 2 + s[2] ** 2))
 
     # -- batch -------------------------------------------------------------------------------
     def run(self, egomotion: Union[EgoMotion, ImuData], smooth: bool = False) -> GravityTrack:
@@ -546,16 +546,16 @@ class GravityVelocityFilter:
         r_start = np.array(self._s[27:36]).reshape(3, 3)
         frames = list(zip(np.reshape(d, (n, 9)).tolist(), np.asarray(dv).tolist(), np.asarray(dt).tolist(),
                           np.asarray(stationary).tolist(), np.asarray(valid).tolist()))
-        out, priors = [], ([] if smooth else None)
+        out, priors = array("d"), (array("d") if smooth else None)
         last, rej, self._initialised = _predict_update(self._s, frames, self._prm + (self._initialised,),
                                                        out, priors)
         self.zupt_rejected += rej
         if n:
             self._w.last = last
-        rows = np.array(out).reshape(n, 36)
+        rows = np.frombuffer(out, dtype=float).reshape(n, 36)
         xs, Ps, cum = rows[:, :6], _full_cov(rows[:, 6:27]), rows[:, 27:].reshape(n, 3, 3)
         if smooth and n:
-            pr = np.array(priors)
+            pr = np.frombuffer(priors, dtype=float).reshape(n, 27)
             xs, Ps = _rts(xs, Ps, pr[:, :6], _full_cov(pr[:, 6:27]), dt)
         if n:
             # forces with the posterior gravity, frame means at mid-frame (as step_body, vectorised)

@@ -147,12 +147,8 @@ def _update_rotation_left(x, P, z, r):
     c = 0.5 * (a00 + a11 + a22 - 1.0)
     if c >= -0.9:                       # so3.log_flat's main branch
         wx, wy, wz = 0.5 * (a21 - a12), 0.5 * (a02 - a20), 0.5 * (a10 - a01)
-        theta = math.atan2(math.sqrt(wx * wx + wy * wy + wz * wz), c if c < 1.0 else 1.0)
-        if theta < 1e-4:
-            t2 = theta * theta
-            f = 1.0 / (1.0 - t2 / 6.0 + t2 * t2 / 120.0)
-        else:
-            f = theta / math.sin(theta)
+        sn = math.sqrt(wx * wx + wy * wy + wz * wz)          # sin(theta)
+        f = math.atan2(sn, c if c < 1.0 else 1.0) / sn if sn > 0.0 else 1.0     # theta / sin(theta)
         y0, y1, y2 = wx * f, wy * f, wz * f
     else:
         y0, y1, y2 = log_flat((a00, a01, a02, a10, a11, a12, a20, a21, a22))
@@ -168,11 +164,15 @@ def _update_rotation_left(x, P, z, r):
     i11, i12, i22 = (s0 * s8 - s2 * s2) * d, (s1 * s2 - s0 * s5) * d, (s0 * s4 - s1 * s1) * d
     SI = (i00, i01, i02, i01, i11, i12, i02, i12, i22)
     K = k0, k1, k2, k3, k4, k5, k6, k7, k8 = mul_flat(P, SI)
-    n01 = k0 * r1 + k1 * r4 + k2 * r5
-    n02 = k0 * r2 + k1 * r5 + k2 * r8
-    n12 = k3 * r2 + k4 * r5 + k5 * r8
-    Pn = (k0 * r0 + k1 * r1 + k2 * r2, n01, n02, n01, k3 * r1 + k4 * r4 + k5 * r5, n12,
-          n02, n12, k6 * r2 + k7 * r5 + k8 * r8)
+    if r1 == 0.0 and r2 == 0.0 and r5 == 0.0:   # diagonal R (the same numbers, without the zero terms)
+        n01, n02, n12 = k1 * r4, k2 * r8, k5 * r8
+        Pn = (k0 * r0, n01, n02, n01, k4 * r4, n12, n02, n12, k8 * r8)
+    else:
+        n01 = k0 * r1 + k1 * r4 + k2 * r5
+        n02 = k0 * r2 + k1 * r5 + k2 * r8
+        n12 = k3 * r2 + k4 * r5 + k5 * r8
+        Pn = (k0 * r0 + k1 * r1 + k2 * r2, n01, n02, n01, k3 * r1 + k4 * r4 + k5 * r5, n12,
+              n02, n12, k6 * r2 + k7 * r5 + k8 * r8)
     e0, e1, e2, e3, e4, e5, e6, e7, e8 = exp_flat(k0 * y0 + k1 * y1 + k2 * y2, k3 * y0 + k4 * y1 + k5 * y2,
                                                   k6 * y0 + k7 * y1 + k8 * y2)
     xn = (x0 * e0 + x1 * e3 + x2 * e6, x0 * e1 + x1 * e4 + x2 * e7, x0 * e2 + x1 * e5 + x2 * e8,
