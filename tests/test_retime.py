@@ -7,7 +7,6 @@ import warnings
 import numpy as np
 import pandas as pd
 import pytest
-
 from imu_ground.datasets import read_imu, read_kitti_imu100
 from imu_ground.datasets.timestamps import retime
 from imu_ground.datasets.validation import (
@@ -16,6 +15,7 @@ from imu_ground.datasets.validation import (
     TimestampWarning,
     validate,
 )
+
 from imu_ground.imu.data import ImuData
 
 
@@ -25,7 +25,7 @@ def kitti_jitter(n=3000, dt=0.01, dropout_at=2000, dropout=1.6, seed=0):
     rng = np.random.default_rng(seed)
     for start in rng.choice(np.arange(50, dropout_at - 100), 8, replace=False):
         lead = 0.05 * rng.integers(1, 5)            # jumps ahead by 0.05-0.2 s ...
-        for j in range(int(round(lead / 0.05))):    # ... then catches up 0.05 s every 6 samples
+        for j in range(round(lead / 0.05)):    # ... then catches up 0.05 s every 6 samples
             t[start + 6 * j: start + 6 * (j + 1)] += lead - 0.05 * j
     t[dropout_at:] += dropout
     return t + rng.normal(0, 2e-5, n)
@@ -40,9 +40,9 @@ def imu_of(t):
 def test_retime_restores_the_sample_clock_and_keeps_the_dropout():
     t = kitti_jitter()
     with pytest.warns(TimestampWarning, match=r"retimed on the sample index at 100 Hz, nothing dropped.*"
-                                              r"1 dropout\(s\) kept as gaps \(before rows \[2000\]\)"):
-        with pytest.warns(GapWarning, match=r"longest 1\.61 s"):
-            out, rep = validate(imu_of(t))
+                                              r"1 dropout\(s\) kept as gaps \(before rows \[2000\]\)"), \
+            pytest.warns(GapWarning, match=r"longest 1\.61 s"):
+        out, rep = validate(imu_of(t))
     assert len(out) == t.size and rep.n_dropped == 0 and rep.retimed
     np.testing.assert_array_equal(out.extra["k"], np.arange(t.size))  # same samples, same order
     truth = np.arange(t.size) * 0.01
@@ -125,8 +125,8 @@ def test_shared_drive_jitter_is_not_a_gap(shared_data):
 def test_shared_drive_real_dropout_stays_a_gap(shared_data):
     """Drive 0029: a 1.6 s dropout (KITTI has real ones) is kept as a gap, named by its file line."""
     path = shared_data / "kitti_imu100" / "2011_09_26_drive_0029.csv.gz"
-    with pytest.warns(GapWarning, match=r"1 gap\(s\).*longest 1\.6 s .*\(line 4186\)"):
-        with pytest.warns(TimestampWarning, match=r"1 dropout\(s\) kept as gaps \(before lines \[4187\]\)"):
-            imu = read_imu(path)
+    with pytest.warns(GapWarning, match=r"1 gap\(s\).*longest 1\.6 s .*\(line 4186\)"), \
+            pytest.warns(TimestampWarning, match=r"1 dropout\(s\) kept as gaps \(before lines \[4187\]\)"):
+        imu = read_imu(path)
     rep = imu.meta["validation"]
     assert rep.n_dropped == 0 and rep.n_gaps == 1 and rep.gap_length[0] == pytest.approx(1.6, abs=0.01)
