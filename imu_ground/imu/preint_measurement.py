@@ -159,8 +159,23 @@ class PreintegratedImu(ParamsView):
         self.reset()
 
     @classmethod
-    def _from_state(cls, params: PreintegrationParams, s: tuple, u: tuple | None, n: int,
-                    t_start: float, t_end: float, valid: bool) -> PreintegratedImu:
+    def from_state(cls, params: PreintegrationParams, s: tuple, u: tuple | None, n: int,
+                   t_start: float, t_end: float, valid: bool) -> PreintegratedImu:
+        """A measurement from the scalar kernel's state (no copy: the tuples are immutable).
+
+        Parameters
+        ----------
+        params : PreintegrationParams
+        s, u : tuple
+            Deltas (11 floats) and uncertainty (90 floats or None), layouts in
+            :mod:`imu_ground.imu.preint_kernel`.
+        n : int
+            Number of intervals integrated.
+        t_start, t_end : float
+            Times of the interval, s.
+        valid : bool
+            False when it spans a timestamp gap.
+        """
         out = cls.__new__(cls)
         out.params = params
         out._s, out._u, out.n_intervals = s, u, n
@@ -188,7 +203,7 @@ class PreintegratedImu(ParamsView):
 
     def copy(self) -> PreintegratedImu:
         """An independent copy (the states are immutable tuples, shared)."""
-        return PreintegratedImu._from_state(self.params, self._s, self._u, self.n_intervals,
+        return PreintegratedImu.from_state(self.params, self._s, self._u, self.n_intervals,
                                             self.t_start, self.t_end, self.valid)
 
     def integrate(self, dt: float, gyro: Sequence[float], accel: Sequence[float]) -> None:
@@ -375,7 +390,7 @@ class PreintegratedImu(ParamsView):
         q = quaternion_from_rotation(tuple(np.asarray(R, dtype=float).reshape(9).tolist()))
         s = (T, *q, *np.asarray(v, dtype=float).tolist(),
              *np.asarray(p, dtype=float).tolist())
-        return cls._from_state(params, s, tuple(u[:90].tolist()), int(n_intervals), float(t_start),
+        return cls.from_state(params, s, tuple(u[:90].tolist()), int(n_intervals), float(t_start),
                                float(t_end), bool(valid))
 
     def __repr__(self) -> str:

@@ -111,7 +111,7 @@ class StreamingPreintegrator:
     @property
     def current(self) -> PreintegratedImu:
         """A snapshot of the frame being integrated (``t_end`` nan)."""
-        return PreintegratedImu._from_state(self.params, *self._st, self._n, self._t_start,
+        return PreintegratedImu.from_state(self.params, *self._st, self._n, self._t_start,
                                             math.nan, self._valid)
 
     def push(self, t: float, gyro: Sequence[float], accel: Sequence[float]) -> tuple[PreintegratedImu, ...]:
@@ -181,7 +181,7 @@ class StreamingPreintegrator:
     def _cross(self, tb: float, out: list) -> None:
         """A boundary at tb: emit the running frame, start the next if there is one."""
         if self._active:
-            out.append(PreintegratedImu._from_state(self.params, *self._st, self._n,
+            out.append(PreintegratedImu.from_state(self.params, *self._st, self._n,
                                                     self._t_start, tb, self._valid))
         self._k += 1
         self._next = self._boundary(self._k)
