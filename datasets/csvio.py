@@ -20,7 +20,7 @@ import numpy as np
 
 from .report import MalformedFileError
 
-__all__ = ["Columns", "RowLines", "locate_bad_lines", "open_binary", "read_delimited"]
+__all__ = ["Columns", "RowLines", "first_nonnumber", "locate_bad_lines", "numeric", "open_binary", "read_delimited"]
 
 #: Rows per parsed chunk (bounded working memory on long logs).
 CHUNK_ROWS = 1 << 19
