@@ -107,32 +107,14 @@ def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float,
         th = sqrt(t2)
         ch = cos(0.5 * th)
         k = sin(0.5 * th) / th
-    # R_k = delta_R before the interval, from the quaternion
-    x2 = qx + qx
-    y2 = qy + qy
-    z2 = qz + qz
-    wx2 = qw * x2
-    wy2 = qw * y2
-    wz2 = qw * z2
-    xx2 = qx * x2
-    yy2 = qy * y2
-    zz2 = qz * z2
-    xy2 = qx * y2
-    xz2 = qx * z2
-    yz2 = qy * z2
-    r00 = 1.0 - yy2 - zz2
-    r01 = xy2 - wz2
-    r02 = xz2 + wy2
-    r10 = xy2 + wz2
-    r11 = 1.0 - xx2 - zz2
-    r12 = yz2 - wx2
-    r20 = xz2 - wy2
-    r21 = yz2 + wx2
-    r22 = 1.0 - xx2 - yy2
-    # c = R_k f dt: the rotated velocity increment (start body frame)
-    c0 = r00 * fx + r01 * fy + r02 * fz
-    c1 = r10 * fx + r11 * fy + r12 * fz
-    c2 = r20 * fx + r21 * fy + r22 * fz
+    # c = R_k f dt, the rotated velocity increment (start body frame), by the quaternion:
+    # c = f + qw t + q_v x t with t = 2 q_v x f
+    tx = 2.0 * (qy * fz - qz * fy)
+    ty = 2.0 * (qz * fx - qx * fz)
+    tz = 2.0 * (qx * fy - qy * fx)
+    c0 = fx + qw * tx + qy * tz - qz * ty
+    c1 = fy + qw * ty + qz * tx - qx * tz
+    c2 = fz + qw * tz + qx * ty - qy * tx
     if u is not None:
         (h00, h01, h02, h10, h11, h12, h20, h21, h22,
          g00, g01, g02, g10, g11, g12, g20, g21, g22,
@@ -154,6 +136,28 @@ def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float,
         xy = x * y
         xz = x * z
         yz = y * z
+        # R_k = delta_R before the interval, from the quaternion
+        x2 = qx + qx
+        y2 = qy + qy
+        z2 = qz + qz
+        wx2 = qw * x2
+        wy2 = qw * y2
+        wz2 = qw * z2
+        xx2 = qx * x2
+        yy2 = qy * y2
+        zz2 = qz * z2
+        xy2 = qx * y2
+        xz2 = qx * z2
+        yz2 = qy * z2
+        r00 = 1.0 - yy2 - zz2
+        r01 = xy2 - wz2
+        r02 = xz2 + wy2
+        r10 = xy2 + wz2
+        r11 = 1.0 - xx2 - zz2
+        r12 = yz2 - wx2
+        r20 = xz2 - wy2
+        r21 = yz2 + wx2
+        r22 = 1.0 - xx2 - yy2
         qg, qa = noise
         mid = T + 0.5 * dt
         # --- gyro-bias Jacobians: H = hat(c) Th; Vg -= H; Mg += mid H; Th -= delta_R_k Jl dt
