@@ -93,10 +93,11 @@ class StreamingPreintegrator:
         self._midpoint = par.hold == "midpoint"
         self._u0 = UNCERTAINTY_ZERO if par.uncertainty else None
         self._st = (DELTAS_IDENTITY, self._u0)   # kernel state: (deltas, uncertainty)
-        self._n = 0
+        self._n = 0                         # intervals integrated by the slow path in this frame
         self._t_start, self._valid = math.nan, True
         self._prev: tuple | None = None     # (t, wx, wy, wz, ax, ay, az) of the last sample, bias removed
         self._cd = 1 << 62                  # samples until the next every-N boundary
+        self._mark = self._cd               # _cd at the frame's start: the fast path's intervals are _mark - _cd
         self._k = 0                         # index of the next boundary
         self._next = _INF                   # time of the next boundary
         self._lim = -_INF                   # fast path while t < _lim (= _next - snap_tol, inside a frame)
@@ -111,8 +112,8 @@ class StreamingPreintegrator:
     @property
     def current(self) -> PreintegratedImu:
         """A snapshot of the frame being integrated (``t_end`` nan)."""
-        return PreintegratedImu.from_state(self.params, *self._st, self._n, self._t_start,
-                                            math.nan, self._valid)
+        return PreintegratedImu.from_state(self.params, *self._st, self._n + self._mark - self._cd,
+                                           self._t_start, math.nan, self._valid)
 
     def push(self, t: float, gyro: Sequence[float], accel: Sequence[float]) -> tuple[PreintegratedImu, ...]:
         """Add one sample; return the frames finished by it (usually none, or one).
@@ -166,7 +167,6 @@ class StreamingPreintegrator:
                     else:                   # the left sample's value
                         self._st = integrate_interval(s, u, h, gx * h, gy * h, gz * h, fx * h, fy * h, fz * h,
                                                       self._noise)
-                    self._n += 1
                     return ()
         return self._push_slow(t, gyro, accel)
 
@@ -181,13 +181,13 @@ class StreamingPreintegrator:
     def _cross(self, tb: float, out: list) -> None:
         """A boundary at tb: emit the running frame, start the next if there is one."""
         if self._active:
-            out.append(PreintegratedImu.from_state(self.params, *self._st, self._n,
-                                                    self._t_start, tb, self._valid))
+            out.append(PreintegratedImu.from_state(self.params, *self._st, self._n + self._mark - self._cd,
+                                                   self._t_start, tb, self._valid))
         self._k += 1
         self._next = self._boundary(self._k)
         self._active = self._every is not None or self._next != _INF
         self._lim = self._next - self._tol if self._active else -_INF
-        self._st, self._n = (DELTAS_IDENTITY, self._u0), 0
+        self._st, self._n, self._mark = (DELTAS_IDENTITY, self._u0), 0, self._cd
         self._t_start, self._valid = tb, True
 
     def _piece(self, dt: float, ka: tuple, kb: tuple, gap: bool) -> None:
@@ -210,7 +210,7 @@ class StreamingPreintegrator:
         tol = self._tol
         if self._every is not None:
             self._cross(t, out)
-            self._cd = self._every
+            self._cd = self._mark = self._every
             return
         if self._rate is not None:
             if self._origin is None:
@@ -267,9 +267,10 @@ class StreamingPreintegrator:
             self._piece(t - tk, k0, k1, gap)
         if self._every is not None:
             self._cd -= 1
+            self._mark -= 1                 # not a fast-path interval
             if self._cd == 0:
                 self._cross(t, out)
-                self._cd = self._every
+                self._cd = self._mark = self._every
         elif abs(self._next - t) <= tol:
             self._cross(self._next, out)
         return tuple(out)
