@@ -37,10 +37,6 @@ from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
 from imu_ground.filters.rotations import as_rotations, cumulative_rotations, matrix_from_quat, twist_angle
 
-# ``_increment_matrix`` and ``_twist_angle`` are kept for modules not yet moved to the public names
-_increment_matrix = as_rotations
-_twist_angle = twist_angle
-
 __all__ = ["GroundNormalFilter", "GroundEstimate", "GroundTrack", "pitch_roll_from_normal"]
 
 _EZ = np.array([0.0, 0.0, 1.0])
@@ -170,6 +166,7 @@ class GroundNormalFilter:
             self._kernel = ResidualKernel(self._P0[0, 0], self._P0[2, 2], self._R[0, 0], self._R[2, 2],
                                           up=self.measurement == "up", follow_heading=self.follow_heading,
                                           Rgs=self._Rgs, cumulative=True)
+            self._advance = self._kernel.advance
         else:
             b = _EX if self.measurement == "forward" else _EZ
             self.ekf = InvariantEKF(x=self.R0, P=self._P0, Q=self._Q, R=self._R, error="left", b=b)
@@ -273,7 +270,7 @@ class GroundNormalFilter:
             return self._current(valid=False)
         self._frames += 1
         if self.ekf is None:
-            o = self._kernel.advance((d9,), self._qh, self._qv)[0]
+            o = self._advance((d9,), self._qh, self._qv)[0]
             return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o)
         E = self._ekf_frame(d)
         nb = E[2]

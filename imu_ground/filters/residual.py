@@ -22,7 +22,7 @@ the two cannot drift apart.
 """
 from __future__ import annotations
 
-import math
+from math import atan2, cos, nan, sin, sqrt
 from typing import Optional, Sequence
 
 from imu_ground.units import RENORM_EVERY
@@ -117,7 +117,6 @@ class ResidualKernel:
             Per frame ``(ew, ex, ey, ez, a, c, pitch, roll)``, plus ``(rw, rx, ry, rz)``
             when the cumulative rotation is tracked.
         """
-        sqrt, atan2, sin, cos = math.sqrt, math.atan2, math.sin, math.cos
         ew, ex, ey, ez, a, c, rw, rx, ry, rz, count = self.state
         r_h, r_v, up, follow, g, cum = self.params
         tilt = tilt_x is not None and not up
@@ -125,7 +124,7 @@ class ResidualKernel:
             g00, g01, g02, g10, g11, g12, g20, g21, g22 = g
         out = []
         append = out.append
-        pitch = roll = math.nan
+        pitch = roll = nan
         for k in range(len(frames)):
             r00, r01, r02, r10, r11, r12, r20, r21, r22 = frames[k]
             # -- quaternion of the increment (Shepperd), w >= 0

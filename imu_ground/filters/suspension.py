@@ -54,7 +54,8 @@ from imu_ground.filters.estimator import (GroundEstimate, GroundTrack, as_egomot
                                           check_on_invalid, frame_problem, frame_problems, frame_where,
                                           hold_skipped, pitch_roll_from_normal, static_rotation, vector3)
 from imu_ground.filters.extrinsics import resolve_platform
-from imu_ground.filters.gains import DEFAULT_GAINS, GAIN_BAND, TYPICAL_BAND_POWER, tilt_angles
+from imu_ground.filters.gains import (DEFAULT_GAINS, GAIN_BAND, TYPICAL_BAND_POWER,  # noqa: F401 (re-exported)
+                                      bandpass_gain_regression, tilt_angles)
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
@@ -63,8 +64,6 @@ from imu_ground.units import DEG
 
 __all__ = ["DEFAULT_GAINS", "GAIN_BAND", "SuspensionAwareFilter", "SuspensionTrack", "estimate_suspension_aware",
            "bandpass_gain_regression"]
-
-from imu_ground.filters.gains import bandpass_gain_regression  # noqa: E402  (re-exported, former home)
 
 _I3 = np.eye(3)
 _LOADS = {"specific_force": 1.0, "acceleration": 0.0}
