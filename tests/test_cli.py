@@ -127,6 +127,7 @@ def test_noise_and_rate_must_be_positive(tmp_path, capsys, flag, value):
     code, _, err = run(capsys, "estimate", EXAMPLE, "-o", tmp_path / "g.csv", flag, value)
     assert code == 2
     one_error_line(err, flag, value)
+    assert len(err.strip().splitlines()) == 1                    # no usage block, one line
     assert not (tmp_path / "g.csv").exists()
 
 

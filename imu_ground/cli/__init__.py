@@ -19,12 +19,19 @@ __all__ = ["COMMANDS", "build_parser", "main"]
 COMMANDS = ("estimate", "batch", "evaluate", "simulate", "calibrate")
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with usage errors as one line (``imu-ground CMD: error: ...; see --help``), exit status 2."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see '{self.prog} --help')\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every command (help text for every option)."""
     import importlib
 
     from imu_ground.pipeline.output import package_version
-    ap = argparse.ArgumentParser(prog="imu-ground", description="Ground plane normal (pitch and roll of the body "
+    ap = _Parser(prog="imu-ground", description="Ground plane normal (pitch and roll of the body "
                                  "relative to the road) of a moving vehicle, frame by frame, from IMU logs or "
                                  "odometry.")
     ap.add_argument("--version", action="version", version=f"imu-ground {package_version()}")
