@@ -100,6 +100,13 @@ class GroundEstimate:
         self.pitch, self.roll, self.valid = pitch, roll, valid
         self._q, self._E, self._Rgs, self._P = quaternion, residual, Rgs, P
 
+    @classmethod
+    def of_residual(cls, E: np.ndarray, P: np.ndarray, Rgs: Optional[np.ndarray] = None,
+                    valid: bool = True) -> "GroundEstimate":
+        """The estimate of a residual ``E`` (road <- body, 3x3) with covariance ``P`` and static extrinsic ``Rgs``."""
+        pitch, roll = pitch_roll_from_normal(E[2])
+        return cls(float(pitch), float(roll), valid, None, E, Rgs, P)
+
     @property
     def residual(self) -> np.ndarray:
         if self._E is None:

@@ -267,21 +267,12 @@ class GroundNormalFilter:
         if problem is not None:
             if self.on_invalid == "raise":
                 raise bad_frame_error(problem, frame_where(self._frames, getattr(frame, "t", float("nan"))))
-            return self._current(valid=False)
+            return GroundEstimate.of_residual(self.residual, self.P.copy(), self._Rgs, valid=False)
         self._frames += 1
         if self.ekf is None:
             o = self._advance((d9,), self._qh, self._qv)[0]
             return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o)
-        E = self._ekf_frame(d)
-        nb = E[2]
-        pitch, roll = pitch_roll_from_normal(nb)
-        return GroundEstimate(float(pitch), float(roll), True, None, E, self._Rgs, self.ekf.P.copy())
-
-    def _current(self, valid: bool) -> GroundEstimate:
-        """The estimate of the current state (what a skipped frame returns)."""
-        E = self.residual
-        pitch, roll = pitch_roll_from_normal(E[2])
-        return GroundEstimate(float(pitch), float(roll), valid, None, E, self._Rgs, self.P.copy())
+        return GroundEstimate.of_residual(self._ekf_frame(d), self.ekf.P.copy(), self._Rgs)
 
     def _ekf_frame(self, d: np.ndarray) -> np.ndarray:
         """General path: one frame of the InvariantEKF; returns the residual E (road <- body)."""

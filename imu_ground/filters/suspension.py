@@ -52,7 +52,7 @@ from imu_ground import so3
 from imu_ground.filters.design import IIRFilter, butter_bandpass, foh_filter
 from imu_ground.filters.estimator import (GroundEstimate, GroundTrack, as_egomotion, bad_frame_error,
                                           check_on_invalid, frame_problem, frame_problems, frame_where,
-                                          hold_skipped, pitch_roll_from_normal, static_rotation, vector3)
+                                          hold_skipped, static_rotation, vector3)
 from imu_ground.filters.extrinsics import resolve_platform
 from imu_ground.filters.gains import (DEFAULT_GAINS, GAIN_BAND, TYPICAL_BAND_POWER,  # noqa: F401 (re-exported)
                                       bandpass_gain_regression, tilt_angles)
@@ -351,7 +351,7 @@ class SuspensionAwareFilter:
         if problem is not None:
             if self.on_invalid == "raise":
                 raise bad_frame_error(problem, frame_where(self._frames, getattr(frame, "t", float("nan"))))
-            return self._current()
+            return GroundEstimate.of_residual(self.residual, self.P, self._Rgs, valid=False)
         if self._rate is None:
             self._design(1.0 / dt)
         self._frames += 1
@@ -381,12 +381,6 @@ class SuspensionAwareFilter:
         self._sxx = self._sxx + z[:2] * z[:2]
         self.gains = self._sxy / self._sxx
         self._kp, self._kr = self.gains.tolist()
-
-    def _current(self) -> GroundEstimate:
-        """The estimate of the current state flagged invalid (what a skipped frame returns)."""
-        E = self.residual
-        pitch, roll = pitch_roll_from_normal(E[2])
-        return GroundEstimate(float(pitch), float(roll), False, None, E, self._Rgs, self.P)
 
     # -- batch -----------------------------------------------------------------------------------
     def run(self, egomotion, smooth: bool = False) -> SuspensionTrack:
