@@ -66,6 +66,7 @@ __all__ = [
     "right_jacobian_inv", "left_jacobian_inv", "project", "angle",
     "rotx", "roty", "rotz", "renormalise", "exp_one", "log_one",
     "exp_flat", "log_flat", "mul_flat", "mul_tn_flat", "mul_nt_flat", "transpose_flat", "renormalise_flat",
+    "quat_from_flat", "flat_from_quat", "quat_mul", "quat_exp", "quat_normalise", "hat_flat",
 ]
 
 _SMALL = 1e-4   # below this angle (rad) the Taylor series are exact to double precision
@@ -422,6 +423,66 @@ def renormalise_flat(r) -> tuple:
     m02 = -0.5 * (r0 * r2 + r3 * r5 + r6 * r8)
     m12 = -0.5 * (r1 * r2 + r4 * r5 + r7 * r8)
     return mul_flat(r, (m00, m01, m02, m01, m11, m12, m02, m12, m22))
+
+
+def quat_from_flat(r) -> tuple:
+    """Unit quaternion ``(w, x, y, z)`` (scalar first, ``w >= 0``) of a rotation given as a row-major 9-sequence.
+
+    Shepperd's method: the largest of ``w, x, y, z`` is taken from the trace or a
+    diagonal entry, the others from sums and differences, so every rotation
+    (also at pi) converts to full precision.
+    """
+    r0, r1, r2, r3, r4, r5, r6, r7, r8 = r
+    t = r0 + r4 + r8
+    if t >= r0 and t >= r4 and t >= r8:
+        s = 0.5 / math.sqrt(1.0 + t)
+        return 0.25 / s, (r7 - r5) * s, (r2 - r6) * s, (r3 - r1) * s
+    if r0 >= r4 and r0 >= r8:
+        s = 0.5 / math.sqrt(1.0 + r0 - r4 - r8)
+        q = (r7 - r5) * s, 0.25 / s, (r1 + r3) * s, (r2 + r6) * s
+    elif r4 >= r8:
+        s = 0.5 / math.sqrt(1.0 + r4 - r0 - r8)
+        q = (r2 - r6) * s, (r1 + r3) * s, 0.25 / s, (r5 + r7) * s
+    else:
+        s = 0.5 / math.sqrt(1.0 + r8 - r0 - r4)
+        q = (r3 - r1) * s, (r2 + r6) * s, (r5 + r7) * s, 0.25 / s
+    return q if q[0] >= 0.0 else (-q[0], -q[1], -q[2], -q[3])
+
+
+def flat_from_quat(q) -> tuple:
+    """Row-major 9-tuple of the rotation of a unit quaternion ``(w, x, y, z)``."""
+    w, x, y, z = q
+    xx, yy, zz, xy, xz, yz, wx, wy, wz = x * x, y * y, z * z, x * y, x * z, y * z, w * x, w * y, w * z
+    return (1.0 - 2.0 * (yy + zz), 2.0 * (xy - wz), 2.0 * (xz + wy),
+            2.0 * (xy + wz), 1.0 - 2.0 * (xx + zz), 2.0 * (yz - wx),
+            2.0 * (xz - wy), 2.0 * (yz + wx), 1.0 - 2.0 * (xx + yy))
+
+
+def quat_mul(a, b) -> tuple:
+    """Hamilton product ``a b`` of two quaternions ``(w, x, y, z)`` (the rotation ``R(a) @ R(b)``)."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw)
+
+
+def quat_exp(x: float, y: float, z: float) -> tuple:
+    """Unit quaternion ``(w, x, y, z)`` of the rotation vector ``(x, y, z)`` (rad)."""
+    t = math.sqrt(x * x + y * y + z * z)
+    h = 0.5 - t * t / 48.0 if t < _SMALL else math.sin(0.5 * t) / t
+    return math.cos(0.5 * t), h * x, h * y, h * z
+
+
+def quat_normalise(q) -> tuple:
+    """``q / |q|``: a quaternion back to unit norm against rounding drift."""
+    w, x, y, z = q
+    n = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
+    return w * n, x * n, y * n, z * n
+
+
+def hat_flat(x: float, y: float, z: float) -> tuple:
+    """:func:`hat` of ``(x, y, z)`` as a row-major 9-tuple."""
+    return 0.0, -z, y, z, 0.0, -x, -y, x, 0.0
 
 
 def exp_one(phi) -> np.ndarray:

@@ -45,14 +45,12 @@ state is re-orthonormalised every :data:`imu_ground.units.RENORM_EVERY`
 corrections, so both stay valid over millions of steps. Frames and signs: the
 glossary of :mod:`imu_ground.so3`.
 
-Implementation
---------------
-One predict/update touches a handful of 3x3 matrices, where numpy's per-call
-overhead dominates: the kernels below are scalar Python on row-major 9-tuples
-(:func:`imu_ground.so3.mul_flat` and friends). The filterpy attributes (``x``,
-``P``, ``K``, ``S``, ``x_prior``, ...) are properties that build their numpy
-array on first access; ``x``, ``P``, ``Q`` and ``R`` may be assigned or
-modified in place as in filterpy (the array, once handed out, is the state).
+Implementation: one predict/update touches a handful of 3x3 matrices, where
+numpy's per-call overhead dominates, so the kernels are scalar Python on
+row-major 9-tuples (:func:`imu_ground.so3.mul_flat` and friends) and the state
+is held as a unit quaternion. The filterpy attributes (``x``, ``P``, ``K``,
+``x_prior``, ...) are properties that build their array on access; ``x``,
+``P``, ``Q``, ``R`` may be assigned or changed in place as in filterpy.
 """
 from __future__ import annotations
 
@@ -62,7 +60,8 @@ from typing import Optional, Union
 import numpy as np
 
 from imu_ground import so3
-from imu_ground.so3 import exp_flat, log_flat, mul_flat, mul_nt_flat, mul_tn_flat, renormalise_flat, transpose_flat
+from imu_ground.so3 import (exp_flat, flat_from_quat, hat_flat, log_flat, mul_flat, mul_nt_flat, mul_tn_flat,
+                            quat_exp, quat_from_flat, quat_mul, quat_normalise, transpose_flat)
 from imu_ground.units import RENORM_EVERY
 
 __all__ = ["InvariantEKF"]
@@ -70,10 +69,8 @@ __all__ = ["InvariantEKF"]
 ArrayLike = Union[np.ndarray, list, tuple]
 _I3 = np.eye(3)
 _I9 = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+_ZERO9 = (0.0,) * 9
 _LOG2PI = math.log(2.0 * math.pi)
-
-#: Kept for ``ground.py`` until it imports :func:`imu_ground.so3.renormalise`.
-_renormalise = so3.renormalise
 
 
 def _flat_rotation(u) -> Optional[tuple]:
@@ -89,8 +86,6 @@ def _flat_rotation(u) -> Optional[tuple]:
 
 
 def _check_cov(name: str, m: Optional[ArrayLike]) -> Optional[np.ndarray]:
-    if m is None:
-        return None
     m = np.asarray(m, dtype=float)
     if m.ndim == 0:
         return float(m) * _I3
@@ -99,16 +94,16 @@ def _check_cov(name: str, m: Optional[ArrayLike]) -> Optional[np.ndarray]:
     return m
 
 
-def _congruence(a, p) -> tuple:
-    """``A P A^T`` for a symmetric ``P`` (upper triangle of the result computed, lower mirrored), 9-tuples."""
+def _congruence(a, p, q=_ZERO9) -> tuple:
+    """``A P A^T + Q`` for symmetric ``P`` and ``Q`` (upper triangle computed, lower mirrored), 9-tuples."""
     a0, a1, a2, a3, a4, a5, a6, a7, a8 = a
     m0, m1, m2, m3, m4, m5, m6, m7, m8 = mul_flat(a, p)
-    c00 = m0 * a0 + m1 * a1 + m2 * a2
-    c01 = m0 * a3 + m1 * a4 + m2 * a5
-    c02 = m0 * a6 + m1 * a7 + m2 * a8
-    c11 = m3 * a3 + m4 * a4 + m5 * a5
-    c12 = m3 * a6 + m4 * a7 + m5 * a8
-    c22 = m6 * a6 + m7 * a7 + m8 * a8
+    c00 = m0 * a0 + m1 * a1 + m2 * a2 + q[0]
+    c01 = m0 * a3 + m1 * a4 + m2 * a5 + q[1]
+    c02 = m0 * a6 + m1 * a7 + m2 * a8 + q[2]
+    c11 = m3 * a3 + m4 * a4 + m5 * a5 + q[4]
+    c12 = m3 * a6 + m4 * a7 + m5 * a8 + q[5]
+    c22 = m6 * a6 + m7 * a7 + m8 * a8 + q[8]
     return c00, c01, c02, c01, c11, c12, c02, c12, c22
 
 
@@ -130,28 +125,24 @@ def _inv_flat(m):
             C * r, (b * g - a * h) * r, (a * e - b * d) * r), det
 
 
-def _update_rotation_left(x, P, z, r):
-    """Left-error update with a rotation measurement, unrolled (H = I, all matrices row-major 9-tuples).
+def _update_rotation_left(q, P, z, r):
+    """Left-error update with a rotation measurement, unrolled (H = I; the state a unit quaternion).
 
-    Unrolls ``y = Log(x^T z)`` (the near-pi branch calls :func:`~imu_ground.so3.log_flat`),
-    ``S = P + R``, ``S^-1`` by symmetric cofactors, ``K = P S^-1``, ``x <- x Exp(K y)``
-    and ``P <- K R`` (upper triangle, mirrored). Returns ``x, P, y, K, S, SI, det S``.
+    Unrolls ``y = Log(x^T z)`` (as ``2 atan2(|v|, w) v / |v|`` of the quaternion
+    ``conj(q) q_z``, accurate up to pi), ``S = P + R``, ``S^-1`` by symmetric
+    cofactors, ``K = P S^-1``, ``q <- q Exp(K y)`` and ``P <- K R`` (upper
+    triangle, mirrored); matrices are row-major 9-tuples. Returns ``q, P, y, K,
+    S, SI, det S``.
     """
-    x0, x1, x2, x3, x4, x5, x6, x7, x8 = x
-    z0, z1, z2, z3, z4, z5, z6, z7, z8 = z
-    # A = x^T z
-    a00, a11, a22 = x0 * z0 + x3 * z3 + x6 * z6, x1 * z1 + x4 * z4 + x7 * z7, x2 * z2 + x5 * z5 + x8 * z8
-    a01, a10 = x0 * z1 + x3 * z4 + x6 * z7, x1 * z0 + x4 * z3 + x7 * z6
-    a02, a20 = x0 * z2 + x3 * z5 + x6 * z8, x2 * z0 + x5 * z3 + x8 * z6
-    a12, a21 = x1 * z2 + x4 * z5 + x7 * z8, x2 * z1 + x5 * z4 + x8 * z7
-    c = 0.5 * (a00 + a11 + a22 - 1.0)
-    if c >= -0.9:                       # so3.log_flat's main branch
-        wx, wy, wz = 0.5 * (a21 - a12), 0.5 * (a02 - a20), 0.5 * (a10 - a01)
-        sn = math.sqrt(wx * wx + wy * wy + wz * wz)          # sin(theta)
-        f = math.atan2(sn, c if c < 1.0 else 1.0) / sn if sn > 0.0 else 1.0     # theta / sin(theta)
-        y0, y1, y2 = wx * f, wy * f, wz * f
-    else:
-        y0, y1, y2 = log_flat((a00, a01, a02, a10, a11, a12, a20, a21, a22))
+    qw, qx, qy, qz = q
+    zw, zx, zy, zz = quat_from_flat(z)
+    aw, ax, ay, az = (qw * zw + qx * zx + qy * zy + qz * zz, qw * zx - qx * zw - qy * zz + qz * zy,
+                      qw * zy + qx * zz - qy * zw - qz * zx, qw * zz - qx * zy + qy * zx - qz * zw)
+    if aw < 0.0:
+        aw, ax, ay, az = -aw, -ax, -ay, -az
+    vn = math.sqrt(ax * ax + ay * ay + az * az)
+    f = 2.0 * math.atan2(vn, aw) / vn if vn > 0.0 else 2.0
+    y0, y1, y2 = ax * f, ay * f, az * f
     p0, p1, p2, _, p4, p5, _, _, p8 = P
     r0, r1, r2, _, r4, r5, _, _, r8 = r
     s0, s1, s2, s4, s5, s8 = p0 + r0, p1 + r1, p2 + r2, p4 + r4, p5 + r5, p8 + r8
@@ -173,16 +164,8 @@ def _update_rotation_left(x, P, z, r):
         n12 = k3 * r2 + k4 * r5 + k5 * r8
         Pn = (k0 * r0 + k1 * r1 + k2 * r2, n01, n02, n01, k3 * r1 + k4 * r4 + k5 * r5, n12,
               n02, n12, k6 * r2 + k7 * r5 + k8 * r8)
-    e0, e1, e2, e3, e4, e5, e6, e7, e8 = exp_flat(k0 * y0 + k1 * y1 + k2 * y2, k3 * y0 + k4 * y1 + k5 * y2,
-                                                  k6 * y0 + k7 * y1 + k8 * y2)
-    xn = (x0 * e0 + x1 * e3 + x2 * e6, x0 * e1 + x1 * e4 + x2 * e7, x0 * e2 + x1 * e5 + x2 * e8,
-          x3 * e0 + x4 * e3 + x5 * e6, x3 * e1 + x4 * e4 + x5 * e7, x3 * e2 + x4 * e5 + x5 * e8,
-          x6 * e0 + x7 * e3 + x8 * e6, x6 * e1 + x7 * e4 + x8 * e7, x6 * e2 + x7 * e5 + x8 * e8)
-    return xn, Pn, (y0, y1, y2), K, (s0, s1, s2, s1, s4, s5, s2, s5, s8), SI, det
-
-
-def _hat_flat(x: float, y: float, z: float) -> tuple:
-    return 0.0, -z, y, z, 0.0, -x, -y, x, 0.0
+    return (quat_mul(q, quat_exp(k0 * y0 + k1 * y1 + k2 * y2, k3 * y0 + k4 * y1 + k5 * y2, k6 * y0 + k7 * y1 + k8 * y2)),
+            Pn, (y0, y1, y2), K, (s0, s1, s2, s1, s4, s5, s2, s5, s8), SI, det)
 
 
 def _matrix(t) -> np.ndarray:
@@ -190,12 +173,8 @@ def _matrix(t) -> np.ndarray:
 
 
 def _state_property(name: str, doc: str) -> property:
-    """A 3x3 attribute held as a 9-tuple in ``_<name>``; its array, once handed out, is authoritative.
-
-    The getter builds (and caches in ``_<name>_a``) the numpy array; the hot
-    path reads the tuple, or the cached array when there is one (so in-place
-    changes such as ``f.P *= 2`` or ``f.x[0, 0] = 1`` are seen).
-    """
+    """A 3x3 attribute held as a 9-tuple in ``_<name>``; the array the getter builds (and caches in
+    ``_<name>_a``), once handed out, is what the next step reads (so ``f.P *= 2`` is seen)."""
     slot, cache = "_" + name, "_" + name + "_a"
 
     def get(self):
@@ -214,16 +193,18 @@ def _state_property(name: str, doc: str) -> property:
     return property(get, set_, doc=doc)
 
 
-def _output_property(name: str, doc: str, shape=(3, 3)) -> property:
-    """A result attribute (``K``, ``S``, ``x_prior``, ...) held as a tuple, built as an array on access."""
+def _output_property(name: str, doc: str, shape=(3, 3), rotation: bool = False) -> property:
+    """A result attribute (``K``, ``S``, ``x_prior``, ...) held as a tuple (a quaternion for a
+    ``rotation``), built as an array on access."""
     slot = "_" + name
 
     def get(self):
         t = self.__dict__[slot]
-        return None if t is None else np.array(t).reshape(shape)
+        return None if t is None else np.array(flat_from_quat(t) if rotation else t).reshape(shape)
 
     def set_(self, value):
-        self.__dict__[slot] = None if value is None else np.asarray(value, dtype=float).ravel().tolist()
+        t = None if value is None else np.asarray(value, dtype=float).ravel().tolist()
+        self.__dict__[slot] = quat_from_flat(t) if rotation and t is not None else t
 
     return property(get, set_, doc=doc)
 
@@ -277,7 +258,8 @@ class InvariantEKF:
         x = _I3 if x is None else np.asarray(x, dtype=float)
         if x.shape != (3, 3):
             raise ValueError(f"x must be a 3x3 rotation matrix, got shape {x.shape}")
-        self._x, self._x_a = x.ravel().tolist(), None
+        self._x = self._x_t = tuple(x.ravel().tolist())     # matrix (None: stale), as handed out
+        self._q, self._x_a = quat_from_flat(self._x), None          # the state: a unit quaternion
         self._P, self._P_a = _check_cov("P", 1.0 if P is None else P).ravel().tolist(), None
         self._Q, self._Q_a = _check_cov("Q", 1e-2 if Q is None else Q).ravel().tolist(), None
         self._R, self._R_a = _check_cov("R", 1.0 if R is None else R).ravel().tolist(), None
@@ -286,24 +268,50 @@ class InvariantEKF:
             raise ValueError("b must be a unit vector of shape (3,)")
         self.b = b
         self._bt = tuple(b.tolist())
-        self._Hb = tuple(-v for v in _hat_flat(*self._bt))     # H = -[b]x of the left direction update
+        self._Hb = tuple(-v for v in hat_flat(*self._bt))     # H = -[b]x of the left direction update
         self._z, self._z_shape = None, None
         self._y = (0.0, 0.0, 0.0)
         self._K = self._S = self._SI = (0.0,) * 9
-        self._detS = 1.0
-        self._x_prior = self._x_post = self._x
+        self._detS = None                   # no update yet
+        self._x_prior = self._x_post = self._q
         self._P_prior = self._P_post = self._P
         self._updates = 0
-        self._log_likelihood = math.log(1e-300)
-        self._mahalanobis: Optional[float] = None
 
-    x = _state_property("x", "Current rotation, world <- body (3x3).")
+    def _xmat(self) -> tuple:
+        """The state as a row-major 9-tuple (built from the quaternion when stale)."""
+        if self._x is None:
+            self._x = flat_from_quat(self._q)
+        return self._x
+
+    def _pull_x(self) -> None:
+        """Take in an ``x`` array handed out and changed in place since."""
+        xl = tuple(self._x_a.ravel().tolist())
+        if xl != self._x_t:
+            self._x, self._q = xl, quat_from_flat(xl)
+        self._x_a = None
+
+    @property
+    def x(self) -> np.ndarray:
+        """Current rotation, world <- body (3x3)."""
+        if self._x_a is None:
+            self._x_t = self._xmat()
+            self._x_a = _matrix(self._x_t)
+        return self._x_a
+
+    @x.setter
+    def x(self, value) -> None:
+        a = np.asarray(value, dtype=float)
+        if a.shape != (3, 3):
+            raise ValueError(f"x must be a 3x3 matrix, got shape {a.shape}")
+        self._x = self._x_t = tuple(a.ravel().tolist())
+        self._q, self._x_a = quat_from_flat(self._x), a
+
     P = _state_property("P", "Current error covariance, tangent space (rad^2, 3x3).")
     Q = _state_property("Q", "Process noise per predict (rad^2, 3x3; symmetric, its upper triangle is used).")
     R = _state_property("R", "Measurement noise (3x3; symmetric, its upper triangle is used).")
-    x_prior = _output_property("x_prior", "Rotation after the last predict.")
+    x_prior = _output_property("x_prior", "Rotation after the last predict.", rotation=True)
     P_prior = _output_property("P_prior", "Covariance after the last predict.")
-    x_post = _output_property("x_post", "Rotation after the last update.")
+    x_post = _output_property("x_post", "Rotation after the last update.", rotation=True)
     P_post = _output_property("P_post", "Covariance after the last update.")
     y = _output_property("y", "Last innovation (3,): tangent (rotation) or body-frame residual (direction).", (3,))
     K = _output_property("K", "Last Kalman gain (3x3).")
@@ -332,10 +340,10 @@ class InvariantEKF:
 
     @property
     def log_likelihood(self) -> float:
-        """Log-likelihood of the last innovation under N(0, S) (computed on first access)."""
-        if self._log_likelihood is None:
-            self._log_likelihood = -0.5 * (self._ysiy() + math.log(self._detS) + 3 * _LOG2PI)
-        return self._log_likelihood
+        """Log-likelihood of the last innovation under N(0, S) (computed on access)."""
+        if self._detS is None:
+            return math.log(1e-300)                       # filterpy's value before any update
+        return -0.5 * (self._ysiy() + math.log(self._detS) + 3 * _LOG2PI)
 
     @property
     def likelihood(self) -> float:
@@ -345,9 +353,7 @@ class InvariantEKF:
     @property
     def mahalanobis(self) -> float:
         """Mahalanobis distance of the last innovation, ``sqrt(y^T S^-1 y)``."""
-        if self._mahalanobis is None:
-            self._mahalanobis = math.sqrt(max(self._ysiy(), 0.0))
-        return self._mahalanobis
+        return math.sqrt(max(self._ysiy(), 0.0))
 
     # -- the filter ----------------------------------------------------------
     def predict(self, u: Optional[ArrayLike] = None, Q: Union[float, ArrayLike, None] = None) -> None:
@@ -361,14 +367,16 @@ class InvariantEKF:
         Q : float or ndarray (3, 3), optional
             Process noise for this step (body tangent space); default ``self.Q``.
         """
-        xa, Pa = self._x_a, self._P_a
-        x = self._x if xa is None else xa.ravel().tolist()
+        if self._x_a is not None:
+            self._pull_x()
+        Pa = self._P_a
         P = self._P if Pa is None else Pa.ravel().tolist()
+        q, x = self._q, None
         if Q is None:
             Qa = self._Q_a
-            q = self._Q if Qa is None else Qa.ravel().tolist()
+            qn = self._Q if Qa is None else Qa.ravel().tolist()
         else:
-            q = _check_cov("Q", Q).ravel().tolist()
+            qn = _check_cov("Q", Q).ravel().tolist()
         if u is None:
             U = None
         elif type(u) is np.ndarray and u.shape == (3, 3):
@@ -376,18 +384,23 @@ class InvariantEKF:
         else:
             U = _flat_rotation(u)
         if U is not None:
-            x = mul_flat(x, U)
-            if self._left:              # P <- U^T P U
-                P = _congruence(transpose_flat(U), P)
+            q = quat_mul(q, quat_from_flat(U))
+            if self._left:              # P <- U^T P U + Q
+                self._P = self._P_prior = _congruence(transpose_flat(U), P, qn)
+                self._q = self._x_prior = q
+                self._x = self._P_a = None
+                return
+        else:
+            x = self._x
         if not self._left:              # P <- P + A Q A^T, A = x U
-            q = _congruence(x, q)
+            x = flat_from_quat(q) if x is None else x
+            qn = _congruence(x, qn)
         p0, p1, p2, _, p4, p5, _, _, p8 = P
-        q0, q1, q2, _, q4, q5, _, _, q8 = q
+        q0, q1, q2, _, q4, q5, _, _, q8 = qn
         a, b, c = p1 + q1, p2 + q2, p5 + q5
-        P = (p0 + q0, a, b, a, p4 + q4, c, b, c, p8 + q8)
-        self._x = self._x_prior = x
-        self._P = self._P_prior = P
-        self._x_a = self._P_a = None
+        self._P = self._P_prior = (p0 + q0, a, b, a, p4 + q4, c, b, c, p8 + q8)
+        self._q = self._x_prior = q
+        self._x, self._P_a = x, None
 
     def update(self, z: Optional[ArrayLike], R: Union[float, ArrayLike, None] = None) -> None:
         """Correct with a rotation or a direction measurement.
@@ -400,14 +413,15 @@ class InvariantEKF:
         R : float or ndarray (3, 3), optional
             Measurement noise for this update; default ``self.R``.
         """
-        xa, Pa = self._x_a, self._P_a
-        x = self._x if xa is None else xa.ravel().tolist()
+        if self._x_a is not None:
+            self._pull_x()
+        Pa = self._P_a
         P = self._P if Pa is None else Pa.ravel().tolist()
         if z is None:
             self._z = self._z_shape = None
-            self._x = self._x_post = x
+            self._x_post = self._q
             self._P = self._P_post = P
-            self._x_a = self._P_a = None
+            self._P_a = None
             self._y = (0.0, 0.0, 0.0)
             return
         if R is None:
@@ -419,10 +433,17 @@ class InvariantEKF:
             z = np.asarray(z, dtype=float)
         shape = z.shape
         zl = z.ravel().tolist()
-        if shape == (3, 3) and self._left:
-            x, Pn, y, K, S, SI, detS = _update_rotation_left(x, P, zl, r)
-            self._finish_update(x, Pn, zl, shape, y, K, S, SI, detS)
+        if shape == (3, 3) and self._left:       # the usual case, stored here (as _finish_update)
+            q, Pn, y, K, S, SI, detS = _update_rotation_left(self._q, P, zl, r)
+            self._updates += 1
+            if self._updates % RENORM_EVERY == 0:
+                q = quat_normalise(q)
+            self._q = self._x_post = q
+            self._P = self._P_post = Pn
+            self._x = self._P_a = None
+            self._z, self._z_shape, self._y, self._K, self._S, self._SI, self._detS = zl, shape, y, K, S, SI, detS
             return
+        x = self._xmat()
         if shape == (3, 3):
             # H = I: K = P S^-1, P <- (I - K) P = K Rn (information form, PD by construction)
             if self._left:
@@ -452,7 +473,7 @@ class InvariantEKF:
                 xb = (x[0] * b0 + x[1] * b1 + x[2] * b2, x[3] * b0 + x[4] * b1 + x[5] * b2,
                       x[6] * b0 + x[7] * b1 + x[8] * b2)
                 y = (z0 - xb[0], z1 - xb[1], z2 - xb[2])
-                H = tuple(-v for v in _hat_flat(*xb))
+                H = tuple(-v for v in hat_flat(*xb))
                 Rn = r
             PHT = mul_nt_flat(P, H)
             S = tuple(m + n for m, n in zip(_sym_upper(mul_flat(H, PHT)), _sym_upper(Rn)))
@@ -467,19 +488,19 @@ class InvariantEKF:
         k0, k1, k2, k3, k4, k5, k6, k7, k8 = K
         E = exp_flat(k0 * y0 + k1 * y1 + k2 * y2, k3 * y0 + k4 * y1 + k5 * y2, k6 * y0 + k7 * y1 + k8 * y2)
         x = mul_flat(x, E) if self._left else mul_flat(E, x)
-        self._finish_update(x, Pn, zl, shape, y, K, S, SI, detS)
+        self._finish_update(quat_from_flat(x), x, Pn, zl, shape, y, K, S, SI, detS)
 
-    def _finish_update(self, x, Pn, zl, shape, y, K, S, SI, detS) -> None:
+    def _finish_update(self, q, x, Pn, zl, shape, y, K, S, SI, detS) -> None:
         """Renormalise every RENORM_EVERY corrections and store the results of an update."""
         self._updates += 1
         if self._updates % RENORM_EVERY == 0:
-            x = renormalise_flat(x)
-        self._x = self._x_post = x
+            q, x = quat_normalise(q), None
+        self._q = self._x_post = q
+        self._x = x
         self._P = self._P_post = Pn
-        self._x_a = self._P_a = None
+        self._P_a = None
         self._z, self._z_shape = zl, shape
         self._y, self._K, self._S, self._SI, self._detS = y, K, S, SI, detS
-        self._log_likelihood = self._mahalanobis = None
 
     # -- batch -----------------------------------------------------------------
     def batch_filter(self, zs, us=None, Rs=None, Qs=None, saver=None):
@@ -504,10 +525,7 @@ class InvariantEKF:
             Predicted rotations and covariances (what :meth:`rts_smoother` needs).
         """
         n = len(zs)
-        Xs = np.empty((n, 3, 3))
-        Ps = np.empty((n, 3, 3))
-        Xp = np.empty((n, 3, 3))
-        Pp = np.empty((n, 3, 3))
+        Xs, Ps, Xp, Pp = (np.empty((n, 3, 3)) for _ in range(4))
         for k in range(n):
             self.predict(None if us is None else us[k], None if Qs is None else Qs[k])
             Xp[k], Pp[k] = self.x, self.P
@@ -552,10 +570,8 @@ class InvariantEKF:
         Xs = np.asarray(Xs, dtype=float)
         Ps = np.asarray(Ps, dtype=float)
         n = len(Xs)
-        Xsm = Xs.copy()
-        Psm = Ps.copy()
-        Cs = np.zeros((n, 3, 3))
-        Ppr = np.zeros((n, 3, 3))
+        Xsm, Psm = Xs.copy(), Ps.copy()
+        Cs, Ppr = np.zeros((n, 3, 3)), np.zeros((n, 3, 3))
         if n:
             Ppr[0] = Ps[0]
         for k in range(n - 2, -1, -1):
