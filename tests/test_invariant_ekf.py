@@ -220,6 +220,16 @@ def test_scalar_kernels_match_the_numpy_equations(error, measure):
         np.testing.assert_allclose(f.z, z)
 
 
+@pytest.mark.parametrize("angle", [1e-9, 1e-5, 0.5, 3.0, np.pi - 1e-6])
+def test_rotation_innovation_is_the_logarithm_over_the_whole_range(angle):
+    X = so3.exp([0.3, -1.0, 2.0])
+    f = InvariantEKF(x=X, P=1e-3, Q=0.0, R=1.0)
+    axis = np.array([1.0, 2.0, -2.0]) / 3.0
+    f.predict()
+    f.update(X @ so3.exp(angle * axis))
+    np.testing.assert_allclose(f.y, so3.log(so3.exp(angle * axis)), rtol=1e-9, atol=1e-15)
+
+
 def test_filterpy_assignments_and_in_place_changes_are_seen():
     a, b = InvariantEKF(P=0.5, R=0.2), InvariantEKF(P=0.5, R=0.2)
     u, z = so3.exp([0.01, 0.02, 0.1]), so3.exp([0.2, -0.1, 0.3])

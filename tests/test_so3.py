@@ -150,3 +150,20 @@ def test_so3_imports_no_scipy():
     import sys
     code = "import sys, imu_ground.so3; sys.exit('scipy' in sys.modules)"
     assert subprocess.run([sys.executable, "-c", code]).returncode == 0
+
+
+def test_quaternion_helpers_round_trip_over_the_whole_range():
+    R = so3.exp(_phis())
+    R = np.concatenate([R, Rotation.random(200, random_state=4).as_matrix(), so3.rotx(np.array([np.pi])),
+                        so3.roty(np.array([np.pi])), so3.rotz(np.array([-np.pi]))])
+    for M in R:
+        q = so3.quat_from_flat(M.ravel().tolist())
+        assert q[0] >= 0.0 and abs(np.linalg.norm(q) - 1.0) < 1e-15
+        np.testing.assert_allclose(np.reshape(so3.flat_from_quat(q), (3, 3)), M, atol=2e-15)
+    a, b = Rotation.random(2, random_state=5).as_matrix()
+    qab = so3.quat_mul(so3.quat_from_flat(a.ravel()), so3.quat_from_flat(b.ravel()))
+    np.testing.assert_allclose(np.reshape(so3.flat_from_quat(qab), (3, 3)), a @ b, atol=1e-15)
+    for p in _phis():
+        np.testing.assert_allclose(np.reshape(so3.flat_from_quat(so3.quat_exp(*p)), (3, 3)), so3.exp(p), atol=1e-15)
+    np.testing.assert_allclose(so3.quat_normalise((2.0, 0.0, 0.0, 0.0)), (1.0, 0.0, 0.0, 0.0))
+    np.testing.assert_allclose(np.reshape(so3.hat_flat(1.0, 2.0, 3.0), (3, 3)), so3.hat([1.0, 2.0, 3.0]))
