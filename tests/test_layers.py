@@ -137,3 +137,16 @@ def _edges_cache() -> dict[str, set[str]]:
     if not _CACHE:
         _CACHE.update(_edges())
     return _CACHE
+
+
+def test_every_sub_package_is_packaged():
+    """pyproject lists every sub-package (an editable install hides a missing one; a wheel would lack it)."""
+    import tomllib
+    pyproject = ROOT.parent / "pyproject.toml"
+    if not pyproject.is_file():
+        pytest.skip("not a source checkout")
+    listed = set(tomllib.loads(pyproject.read_text())["tool"]["setuptools"]["packages"])
+    found = {"imu_ground." + ".".join(p.parent.relative_to(ROOT).parts) if p.parent != ROOT else "imu_ground"
+             for p in ROOT.rglob("__init__.py") if "datasets" not in p.relative_to(ROOT).parts}
+    missing = sorted(found - listed)
+    assert not missing, f"sub-packages missing from pyproject's [tool.setuptools] packages: {missing}"
