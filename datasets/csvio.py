@@ -97,6 +97,15 @@ def locate_bad_lines(path: Path, sep: str = ",") -> MalformedFileError | None:
                                     f"{bad.size} such line(s), first line numbers {lines}", line=numbers[k])
 
 
+def _blank(x: np.ndarray) -> np.ndarray:
+    """Missing or whitespace-only values (what a blank line leaves in a column)."""
+    import pandas as pd
+    empty = np.asarray(pd.isna(x))
+    if x.dtype == object:
+        empty = empty | np.array([isinstance(v, str) and not v.strip() for v in x], dtype=bool)
+    return empty
+
+
 def _parse(path: Path, sep: str) -> tuple[list[str], dict[str, list[np.ndarray]], int, np.ndarray]:
     """Chunked C-engine parse: (names, column chunks, rows, blank-line positions)."""
     import pandas as pd
@@ -116,10 +125,10 @@ def _parse(path: Path, sep: str) -> tuple[list[str], dict[str, list[np.ndarray]]
                     names = [str(c) for c in chunk.columns]
                     parts = {c: [] for c in names}
                 arrays = [chunk[col].to_numpy() for col in chunk.columns]
-                empty = pd.isna(arrays[0])
-                if empty.any():  # blank lines are all-NaN rows: note where, then leave them out
-                    empty &= np.logical_and.reduce([pd.isna(x) for x in arrays[1:]]) if len(arrays) > 1 \
-                        else empty
+                empty = _blank(arrays[0])
+                if empty.any():  # blank lines are all-NaN (or whitespace) rows: note where, then leave them out
+                    for x in arrays[1:]:
+                        empty &= _blank(x)
                     if empty.any():
                         blank.append(np.flatnonzero(empty) + raw_rows)
                         arrays = [x[~empty] for x in arrays]

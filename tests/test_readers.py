@@ -259,6 +259,14 @@ def test_table_blank_lines_do_not_shift_line_numbers(tmp_path):
         read_table(p)
 
 
+def test_table_whitespace_lines_are_blank(tmp_path):
+    p = write_csv(tmp_path / "ws.csv", HEADER + rows(2) + "   \n\t\n" + "0.02,x,0.02,0.03,0.1,0.2,9.8\n")
+    with pytest.raises(MalformedFileError, match=r"line 6: column 'wx'"):
+        read_table(p)
+    p = write_csv(tmp_path / "ws2.csv", (HEADER + rows(20) + "  \n").replace("\n", "\r\n"))
+    assert len(read_table(p)) == 20
+
+
 def test_table_empty_and_header_only(tmp_path):
     with pytest.raises(MalformedFileError, match=r"empty\.csv: file is empty"):
         read_table(write_csv(tmp_path / "empty.csv", ""))
