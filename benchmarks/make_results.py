@@ -21,13 +21,10 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
-import importlib.util
-import inspect
 import math
 import platform
 import subprocess
 import sys
-import time
 import warnings
 from pathlib import Path
 
@@ -145,45 +142,61 @@ def accuracy_sections(data: Path, quick: bool) -> list[str]:
 
 
 # ----------------------------------------------------------------------------- speed
-def _load(name: str):
-    path = HERE / f"{name}.py"
-    if not path.is_file():
-        return None
-    spec = importlib.util.spec_from_file_location(f"_bench_{name}", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+#: Seconds a benchmark's ``rows()`` may take before it is stopped and noted.
+BENCH_TIMEOUT = 1800.0
+
+_CHILD = """
+import inspect, json, sys, time
+sys.path.insert(0, {here!r})
+name, quick, quick_kwargs = {name!r}, {quick!r}, {quick_kwargs!r}
+module = __import__(name)
+rows = getattr(module, "rows", None)
+if rows is None:
+    print(json.dumps({{"status": "norows"}}))
+    raise SystemExit(0)
+params = inspect.signature(rows).parameters
+kwargs = {{k: v for k, v in quick_kwargs.items() if k in params}} if quick else {{}}
+t0 = time.perf_counter()
+table = [dict(r) for r in rows(**kwargs)]
+print(json.dumps({{"status": "ok", "kwargs": kwargs, "seconds": time.perf_counter() - t0, "rows": table}},
+                 default=lambda o: o.item() if hasattr(o, "item") else str(o)))
+"""
+
+
+def _run_benchmark(name: str, quick: bool) -> dict:
+    """``benchmarks/<name>.py``'s ``rows()`` in a child process (imported by name, so that its own
+    worker processes can import it too); its result as a dict with ``status``."""
+    import json
+    if not (HERE / f"{name}.py").is_file():
+        return {"status": "missing"}
+    code = _CHILD.format(here=str(HERE), name=name, quick=quick, quick_kwargs=QUICK_KWARGS)
+    try:
+        proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO,
+                              timeout=BENCH_TIMEOUT)
+    except subprocess.TimeoutExpired:
+        return {"status": "error", "error": f"stopped after {BENCH_TIMEOUT:.0f} s"}
+    if proc.returncode != 0:
+        lines = [ln for ln in proc.stderr.strip().splitlines() if ln.strip()]
+        return {"status": "error", "error": lines[-1] if lines else f"exit code {proc.returncode}"}
+    return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
 def speed_sections(quick: bool, only: tuple[str, ...] = BENCHMARKS) -> list[str]:
     """The speed part of RESULTS.md: each benchmark script's ``rows()`` as a table, or a note."""
     out = ["# Speed", ""]
     for name in only:
+        res = _run_benchmark(name, quick)
         out += [f"## {name}", ""]
-        try:
-            module = _load(name)
-        except Exception as exc:            # a broken script must not stop the others
-            out += [f"Not run: importing `benchmarks/{name}.py` failed: {type(exc).__name__}: {exc}", ""]
-            continue
-        if module is None:
+        if res["status"] == "missing":
             out += [f"Skipped: `benchmarks/{name}.py` does not exist yet.", ""]
-            continue
-        rows = getattr(module, "rows", None)
-        if rows is None:
+        elif res["status"] == "norows":
             out += [f"Skipped: `benchmarks/{name}.py` has no `rows()` function (run it by hand: "
                     f"`python benchmarks/{name}.py`).", ""]
-            continue
-        params = inspect.signature(rows).parameters
-        kwargs = {k: v for k, v in QUICK_KWARGS.items() if k in params} if quick else {}
-        t0 = time.perf_counter()
-        try:
-            table = rows(**kwargs)
-        except Exception as exc:
-            out += [f"Failed: `{name}.rows({_args(kwargs)})` raised {type(exc).__name__}: {exc}", ""]
-            continue
-        out += [f"`{name}.rows({_args(kwargs)})`, {time.perf_counter() - t0:.0f} s:", "",
-                markdown(list(table)), ""]
+        elif res["status"] == "error":
+            out += [f"Failed: `benchmarks/{name}.py` rows(): {res['error']}", ""]
+        else:
+            out += [f"`{name}.rows({_args(res['kwargs'])})`, {res['seconds']:.0f} s:", "",
+                    markdown(res["rows"]), ""]
     return out
 
 
