@@ -41,7 +41,7 @@ is there for world-frame measurements and for comparison.
 Covariances are updated in Joseph form (for ``H = I`` in the equivalent
 information form ``P <- K Rn``, positive definite by construction) and kept
 exactly symmetric (the upper triangle is computed, the lower mirrored); the
-state is re-orthonormalised every :data:`imu_ground.units.RENORM_EVERY`
+state's quaternion is renormalised every :data:`imu_ground.units.RENORM_EVERY`
 corrections, so both stay valid over millions of steps. Frames and signs: the
 glossary of :mod:`imu_ground.so3`.
 
@@ -486,17 +486,17 @@ class InvariantEKF:
             raise ValueError(f"z must be a 3x3 rotation or a unit vector of shape (3,), got {shape}")
         y0, y1, y2 = y
         k0, k1, k2, k3, k4, k5, k6, k7, k8 = K
-        E = exp_flat(k0 * y0 + k1 * y1 + k2 * y2, k3 * y0 + k4 * y1 + k5 * y2, k6 * y0 + k7 * y1 + k8 * y2)
-        x = mul_flat(x, E) if self._left else mul_flat(E, x)
-        self._finish_update(quat_from_flat(x), x, Pn, zl, shape, y, K, S, SI, detS)
+        e = quat_exp(k0 * y0 + k1 * y1 + k2 * y2, k3 * y0 + k4 * y1 + k5 * y2, k6 * y0 + k7 * y1 + k8 * y2)
+        self._finish_update(quat_mul(self._q, e) if self._left else quat_mul(e, self._q), Pn, zl, shape,
+                            y, K, S, SI, detS)
 
-    def _finish_update(self, q, x, Pn, zl, shape, y, K, S, SI, detS) -> None:
+    def _finish_update(self, q, Pn, zl, shape, y, K, S, SI, detS) -> None:
         """Renormalise every RENORM_EVERY corrections and store the results of an update."""
         self._updates += 1
         if self._updates % RENORM_EVERY == 0:
-            q, x = quat_normalise(q), None
+            q = quat_normalise(q)
         self._q = self._x_post = q
-        self._x = x
+        self._x = None
         self._P = self._P_post = Pn
         self._P_a = None
         self._z, self._z_shape = zl, shape
