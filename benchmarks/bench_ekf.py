@@ -129,7 +129,7 @@ def rows(steps: int = 20_000, repeat: int = 7) -> List[Dict]:
     Returns
     -------
     list of dict
-        Keys ``benchmark``, ``target``, ``figure`` (our median, us), ``p99`` (us),
+        Keys ``benchmark``, ``target``, ``figure`` (our median), ``unit`` ("us"), ``p99`` (us),
         ``competitor`` (GTSAM median, us), ``competitor_p99``, ``agreement``
         (max abs difference of X and P), ``passed``.
     """
@@ -148,7 +148,7 @@ def rows(steps: int = 20_000, repeat: int = 7) -> List[Dict]:
                 loops.append(_gtsam(measure, us, zs, precomputed=True)[1])
         med, p99 = _time_pair(loops, steps, repeat)
         row = dict(benchmark=f"InvariantEKF.predict + update ({measure})",
-                   target="<= GTSAM InvariantEKFRot3 (same run)", figure=med[0] * 1e6, p99=p99[0] * 1e6,
+                   target="<= GTSAM InvariantEKFRot3 (same run)", figure=med[0] * 1e6, unit="us", p99=p99[0] * 1e6,
                    competitor=float("nan"), competitor_p99=float("nan"), agreement=float("nan"), passed=None)
         if have_gtsam:
             row.update(competitor=med[1] * 1e6, competitor_p99=p99[1] * 1e6,
@@ -156,7 +156,7 @@ def rows(steps: int = 20_000, repeat: int = 7) -> List[Dict]:
         out.append(row)
         if have_gtsam and measure == "rotation":
             out.append(dict(benchmark="InvariantEKF.predict + update (rotation), GTSAM given the innovation",
-                            target="<= GTSAM with Log(X^T Z) precomputed (informative)", figure=med[0] * 1e6,
+                            target="<= GTSAM with Log(X^T Z) precomputed (informative)", figure=med[0] * 1e6, unit="us",
                             p99=p99[0] * 1e6, competitor=med[2] * 1e6, competitor_p99=p99[2] * 1e6,
                             agreement=float("nan"), passed=bool(med[0] <= med[2])))
     return out
