@@ -115,7 +115,9 @@ def test_public_building_blocks_and_old_names(drive):
     d, dv = a.to_body(em.delta_R, em.delta_v)
     for k in range(30):
         ge = a.step(em.delta_R[k], em.delta_v[k], em.delta_t[k], em.stationary[k], em.valid[k])
-        f, acc = b.step_body(d[k].ravel().tolist(), dv[k].tolist(), float(em.delta_t[k]), bool(em.stationary[k]))
+        f, acc, speed = b.step_body(d[k].ravel().tolist(), dv[k].tolist(), float(em.delta_t[k]),
+                                    bool(em.stationary[k]))
+        assert speed == pytest.approx(ge.speed, abs=1e-13)
         f2, acc2 = c._frame(*c._to_body(em.delta_R[k], em.delta_v[k]), em.delta_t[k], em.stationary[k], True)
         np.testing.assert_allclose(f, ge.specific_force, atol=1e-13)
         np.testing.assert_allclose(acc, ge.acceleration, atol=1e-13)

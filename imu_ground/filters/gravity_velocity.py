@@ -443,6 +443,8 @@ class GravityVelocityFilter:
         -------
         specific_force, acceleration : tuple of 3 floats
             Frame means in the body frame at mid-frame, m/s^2 (see :class:`GravityEstimate`).
+        speed : float
+            ``|v|`` after the update, m/s.
         """
         if self._w.sync is not None:
             self._pull()
@@ -470,8 +472,8 @@ class GravityVelocityFilter:
         g0, g1, g2 = s[3], s[4], s[5]
         q0, q1, q2 = (rprev[0] * g0 + rprev[3] * g1 + rprev[6] * g2, rprev[1] * g0 + rprev[4] * g1 + rprev[7] * g2,
                       rprev[2] * g0 + rprev[5] * g1 + rprev[8] * g2)       # R_{k-1}^T g
-        return (f0, f1, f2), (f0 - (h0 * q0 + h3 * q1 + h6 * q2), f1 - (h1 * q0 + h4 * q1 + h7 * q2),
-                              f2 - (h2 * q0 + h5 * q1 + h8 * q2))
+        return ((f0, f1, f2), (f0 - (h0 * q0 + h3 * q1 + h6 * q2), f1 - (h1 * q0 + h4 * q1 + h7 * q2),
+                               f2 - (h2 * q0 + h5 * q1 + h8 * q2)), math.sqrt(s[0] ** 2 + s[1] ** 2 + s[2] ** 2))
 
     # -- streaming ----------------------------------------------------------------------------
     def step(self, delta_R, delta_v=None, delta_t=None, stationary: bool = False,
@@ -514,10 +516,9 @@ class GravityVelocityFilter:
             d9 = mul_nt_flat(mul_flat(R, d9), R)
             dv = (R[0] * dv[0] + R[1] * dv[1] + R[2] * dv[2], R[3] * dv[0] + R[4] * dv[1] + R[5] * dv[2],
                   R[6] * dv[0] + R[7] * dv[1] + R[8] * dv[2])
-        f, a = self.step_body(d9, dv, dt, bool(stationary), bool(valid))
-        s = self._s
-        e = np.array(s[0:6] + list(a + f))          # one array, four views
-        return GravityEstimate(e[0:3], e[3:6], e[6:9], e[9:12], math.sqrt(s[0] ** 2 + s[1] ** 2 + s[2] ** 2))
+        f, a, speed = self.step_body(d9, dv, dt, bool(stationary), bool(valid))
+        e = np.array(self._s[0:6] + list(a + f))          # one array, four views
+        return GravityEstimate(e[0:3], e[3:6], e[6:9], e[9:12], speed)
 
     # -- batch -------------------------------------------------------------------------------
     def run(self, egomotion: Union[EgoMotion, ImuData], smooth: bool = False) -> GravityTrack:
@@ -581,8 +582,8 @@ class GravityVelocityFilter:
 
     def _frame(self, d: np.ndarray, dv: np.ndarray, dt: float, stationary: bool, valid: bool):
         """Old private form of :meth:`step_body` (arrays in and out)."""
-        f, a = self.step_body(np.asarray(d, dtype=float).ravel().tolist(), np.asarray(dv, dtype=float).tolist(),
-                              float(dt), bool(stationary), bool(valid))
+        f, a, _ = self.step_body(np.asarray(d, dtype=float).ravel().tolist(), np.asarray(dv, dtype=float).tolist(),
+                                 float(dt), bool(stationary), bool(valid))
         return np.array(f), np.array(a)
 
 
