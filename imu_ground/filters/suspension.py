@@ -248,9 +248,9 @@ class SuspensionAwareFilter:
             self._design(self.frame_rate)
 
     def _design(self, rate: float) -> None:
-        """Discrete-time design for frames at ``rate`` Hz (once; a later, different rate is an error)."""
+        """Discrete-time design for frames at ``rate`` Hz (once; a later rate more than 2 % off is an error)."""
         if self._rate is not None:
-            if abs(rate - self._rate) > 1e-6 * self._rate and (self.online_gains or self.response is not None):
+            if abs(rate - self._rate) > 0.02 * self._rate and (self.online_gains or self.response is not None):
                 raise ValueError(f"the filter is designed for {self._rate:g} Hz frames but got {rate:g} Hz "
                                  f"(reset() or a new filter for another frame rate)")
             return
