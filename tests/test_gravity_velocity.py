@@ -1,5 +1,5 @@
 """GravityVelocityFilter: the scalar kernel against a plain 6x6 Kalman filter, streaming == batch,
-the public building blocks (and the old private names), bad frames, filterpy-style state access."""
+the public building blocks, bad frames, filterpy-style state access."""
 from __future__ import annotations
 
 import numpy as np
@@ -108,21 +108,19 @@ def test_streaming_equals_batch_in_pieces(drive):
     assert a.zupt_rejected == b.zupt_rejected
 
 
-def test_public_building_blocks_and_old_names(drive):
+def test_public_building_blocks(drive):
     em = drive
     ext = so3.rotz(0.3)
-    a, b, c = (GravityVelocityFilter(extrinsic=ext) for _ in range(3))
+    a, b = GravityVelocityFilter(extrinsic=ext), GravityVelocityFilter(extrinsic=ext)
     d, dv = a.to_body(em.delta_R, em.delta_v)
     for k in range(30):
         ge = a.step(em.delta_R[k], em.delta_v[k], em.delta_t[k], em.stationary[k], em.valid[k])
         f, acc, speed = b.step_body(d[k].ravel().tolist(), dv[k].tolist(), float(em.delta_t[k]),
                                     bool(em.stationary[k]))
         assert speed == pytest.approx(ge.speed, abs=1e-13)
-        f2, acc2 = c._frame(*c._to_body(em.delta_R[k], em.delta_v[k]), em.delta_t[k], em.stationary[k], True)
         np.testing.assert_allclose(f, ge.specific_force, atol=1e-13)
         np.testing.assert_allclose(acc, ge.acceleration, atol=1e-13)
-        np.testing.assert_allclose(acc2, ge.acceleration, atol=1e-13)
-    tr = GravityVelocityFilter(extrinsic=ext)._run_body(d, dv, em.delta_t, em.stationary, em.valid, False)
+    tr = GravityVelocityFilter(extrinsic=ext).run_body(d, dv, em.delta_t, em.stationary, em.valid)
     np.testing.assert_allclose(tr.velocity, GravityVelocityFilter(extrinsic=ext).run(em).velocity, atol=0)
     assert all(np.array_equal(p, q) for p, q in zip(egomotion_arrays(em), (em.delta_R, em.delta_v, em.delta_t,
                                                                             em.stationary, em.valid)))

@@ -65,9 +65,6 @@ def egomotion_arrays(ego: Union[EgoMotion, ImuData]):
     return d, dv, dt, st, valid
 
 
-_egomotion_arrays = egomotion_arrays      # old private name (suspension.py, until it imports the public one)
-
-
 def _flat_increment(delta_R) -> list:
     """Row-major 9 floats of a 3x3 rotation, a 4x4 relative pose or a rotation vector (rad)."""
     d = delta_R if type(delta_R) is np.ndarray else np.asarray(delta_R, dtype=float)
@@ -194,23 +191,35 @@ def _zupt(xp, rz, gate):
     """
     v0, v1, v2 = xp[0:3]
     a00, a01, a02, a11, a12, a22 = xp[6:12]
-    b = xp[12:21]
+    b0, b1, b2, b3, b4, b5, b6, b7, b8 = xp[12:21]
+    c00, c01, c02, c11, c12, c22 = xp[21:27]
     s0, s1, s2, s4, s5, s8 = a00 + rz, a01, a02, a11 + rz, a12, a22 + rz
     j00, j01, j02 = s4 * s8 - s5 * s5, s2 * s5 - s1 * s8, s1 * s5 - s2 * s4
     det = s0 * j00 + s1 * j01 + s2 * j02
     j11, j12, j22 = s0 * s8 - s2 * s2, s1 * s2 - s0 * s5, s0 * s4 - s1 * s1
-    si = ((j00 / det, j01 / det, j02 / det), (j01 / det, j11 / det, j12 / det), (j02 / det, j12 / det, j22 / det))
-    y = (-v0, -v1, -v2)
-    siy = [si[i][0] * y[0] + si[i][1] * y[1] + si[i][2] * y[2] for i in range(3)]
-    if y[0] * siy[0] + y[1] * siy[1] + y[2] * siy[2] > gate:
+    d = 1.0 / det
+    i00, i01, i02, i11, i12, i22 = j00 * d, j01 * d, j02 * d, j11 * d, j12 * d, j22 * d
+    y0, y1, y2 = y = (-v0, -v1, -v2)
+    w0, w1, w2 = i00 * y0 + i01 * y1 + i02 * y2, i01 * y0 + i11 * y1 + i12 * y2, i02 * y0 + i12 * y1 + i22 * y2
+    if y0 * w0 + y1 * w1 + y2 * w2 > gate:
         return None
-    pht = ((a00, a01, a02), (a01, a11, a12), (a02, a12, a22),
-           (b[0], b[3], b[6]), (b[1], b[4], b[7]), (b[2], b[5], b[8]))
-    K = [tuple(r[0] * si[0][j] + r[1] * si[1][j] + r[2] * si[2][j] for j in range(3)) for r in pht]
-    xn = [xp[i] + K[i][0] * y[0] + K[i][1] * y[1] + K[i][2] * y[2] for i in range(6)]
-    pn = [xp[6 + m] - (K[i][0] * pht[j][0] + K[i][1] * pht[j][1] + K[i][2] * pht[j][2])
-          for m, (i, j) in enumerate(_UPPER21)]
-    return tuple(xn + pn), tuple(v for r in K for v in r), y, (s0, s1, s2, s4, s5, s8)
+    pht = ((a00, a01, a02), (a01, a11, a12), (a02, a12, a22), (b0, b3, b6), (b1, b4, b7), (b2, b5, b8))
+    K = [(r0 * i00 + r1 * i01 + r2 * i02, r0 * i01 + r1 * i11 + r2 * i12, r0 * i02 + r1 * i12 + r2 * i22)
+         for r0, r1, r2 in pht]
+    xn = [xp[i] + k0 * y0 + k1 * y1 + k2 * y2 for i, (k0, k1, k2) in enumerate(K)]
+    (k00, k01, k02), (k10, k11, k12), (k20, k21, k22), (k30, k31, k32), (k40, k41, k42), (k50, k51, k52) = K
+    pn = (a00 - (k00 * a00 + k01 * a01 + k02 * a02), a01 - (k00 * a01 + k01 * a11 + k02 * a12),
+          a02 - (k00 * a02 + k01 * a12 + k02 * a22), a11 - (k10 * a01 + k11 * a11 + k12 * a12),
+          a12 - (k10 * a02 + k11 * a12 + k12 * a22), a22 - (k20 * a02 + k21 * a12 + k22 * a22),
+          b0 - (k00 * b0 + k01 * b3 + k02 * b6), b1 - (k00 * b1 + k01 * b4 + k02 * b7),
+          b2 - (k00 * b2 + k01 * b5 + k02 * b8), b3 - (k10 * b0 + k11 * b3 + k12 * b6),
+          b4 - (k10 * b1 + k11 * b4 + k12 * b7), b5 - (k10 * b2 + k11 * b5 + k12 * b8),
+          b6 - (k20 * b0 + k21 * b3 + k22 * b6), b7 - (k20 * b1 + k21 * b4 + k22 * b7),
+          b8 - (k20 * b2 + k21 * b5 + k22 * b8), c00 - (k30 * b0 + k31 * b3 + k32 * b6),
+          c01 - (k30 * b1 + k31 * b4 + k32 * b7), c02 - (k30 * b2 + k31 * b5 + k32 * b8),
+          c11 - (k40 * b1 + k41 * b4 + k42 * b7), c12 - (k40 * b2 + k41 * b5 + k42 * b8),
+          c22 - (k50 * b2 + k51 * b5 + k52 * b8))
+    return tuple(xn) + pn, tuple(v for r in K for v in r), y, (s0, s1, s2, s4, s5, s8)
 
 
 class GravityEstimate(NamedTuple):
@@ -575,16 +584,6 @@ class GravityVelocityFilter:
             f = acc = np.zeros((0, 3))
         return GravityTrack(xs[:, :3].copy(), xs[:, 3:].copy(), acc, f, np.linalg.norm(xs[:, :3], axis=1),
                             Ps, cum, d)
-
-    # -- old private names, kept until suspension.py uses the public ones ----------------------
-    _to_body = to_body
-    _run_body = run_body
-
-    def _frame(self, d: np.ndarray, dv: np.ndarray, dt: float, stationary: bool, valid: bool):
-        """Old private form of :meth:`step_body` (arrays in and out)."""
-        f, a, _ = self.step_body(np.asarray(d, dtype=float).ravel().tolist(), np.asarray(dv, dtype=float).tolist(),
-                                 float(dt), bool(stationary), bool(valid))
-        return np.array(f), np.array(a)
 
 
 def _rts(xs, Ps, xps, Pps, dt):
