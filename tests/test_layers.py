@@ -150,3 +150,25 @@ def test_every_sub_package_is_packaged():
              for p in ROOT.rglob("__init__.py") if "datasets" not in p.relative_to(ROOT).parts}
     missing = sorted(found - listed)
     assert not missing, f"sub-packages missing from pyproject's [tool.setuptools] packages: {missing}"
+
+
+def test_top_level_names_resolve():
+    """Every lazily exported name of every package namespace imports and is what it says."""
+    import importlib
+    for pkg in ("imu_ground", "imu_ground.imu", "imu_ground.filters", "imu_ground.pipeline", "imu_ground.evaluation"):
+        mod = importlib.import_module(pkg)
+        for name in mod.__all__:
+            if name != "__version__":
+                assert getattr(mod, name) is not None, f"{pkg}.{name}"
+    with pytest.raises(AttributeError):
+        imu_ground.NoSuchName  # noqa: B018
+
+
+def test_import_is_light():
+    """``import imu_ground`` and building a filter load neither scipy nor pandas (issue 12)."""
+    import subprocess
+    import sys
+    code = ("import sys, imu_ground; imu_ground.GroundNormalFilter(); imu_ground.SuspensionAwareFilter(); "
+            "print(sorted(m for m in ('scipy', 'pandas', 'matplotlib', 'tqdm') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]", out
