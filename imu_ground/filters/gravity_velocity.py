@@ -20,6 +20,7 @@ import numpy as np
 
 from imu_ground import so3
 from imu_ground.filters.extrinsics import Extrinsic
+from imu_ground.filters.rotations import as_rotations
 from imu_ground.imu.data import ImuData
 from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
 from imu_ground.so3 import exp_flat, log_flat, mul_flat, mul_nt_flat, renormalise_flat
@@ -48,8 +49,7 @@ def egomotion_arrays(ego: Union[EgoMotion, ImuData]):
     Raises
     ------
     TypeError, ValueError
-        Not an EgoMotion; inconsistent shapes; non-finite increments or
-        non-positive frame durations.
+        Not an EgoMotion; inconsistent shapes; non-finite increments or non-positive durations.
     """
     if isinstance(ego, ImuData):
         ego = imu_to_egomotion(ego)
@@ -65,40 +65,29 @@ def egomotion_arrays(ego: Union[EgoMotion, ImuData]):
     return d, dv, dt, st, valid
 
 
-def _flat_increment(delta_R) -> list:
-    """Row-major 9 floats of a 3x3 rotation, a 4x4 relative pose or a rotation vector (rad)."""
-    d = delta_R if type(delta_R) is np.ndarray else np.asarray(delta_R, dtype=float)
-    if d.shape == (3, 3):
-        return d.ravel().tolist()
-    if d.shape == (4, 4):
-        return d[:3, :3].ravel().tolist()
-    if d.shape == (3,):
-        return list(exp_flat(*d.tolist()))
-    raise ValueError(f"delta_R must be a 3x3 rotation, a 4x4 pose or a rotation vector, got shape {d.shape}")
-
-
 def _predict_update(s, frames, prm, out=None, priors=None):
     """The filter's recursion over frames: one kernel for :meth:`GravityVelocityFilter.step` and ``run``.
 
     Unrolled scalar arithmetic on the state list ``s`` (velocity, gravity, the 21
     unique entries of P in ``_UPPER21`` order, ``R_{w<-body_k}`` as 9 floats
     row-major, the frame count), updated in place. ``frames``: ``(d9, dv3, dt,
-    stationary, valid)`` per frame, body frame. ``prm``: ``(q_v^2, q_gap^2, q_g^2,
-    sigma_zupt^2, sigma_nhc^2, zupt_gate, initialised)``. Per frame: the
+    stationary, valid, speed)`` per frame, body frame (``speed`` NaN: none). ``prm``: ``(q_v^2,
+    q_gap^2, q_g^2, sigma_zupt^2, sigma_nhc^2, zupt_gate, sigma_speed^2, initialised)``. Per frame: the
     cumulative attitude (renormalised every ``RENORM_EVERY`` frames), the
     predict ``v += R_{k-1} dv - dt g``, ``P <- F P F^T + Q`` (written out for
     ``F = [[I, -dt I], [0, I]]`` and isotropic ``Q``), then the update with the
-    body velocity: the zero-velocity update (gated; see :func:`_zupt`) or the
-    non-holonomic constraint on the body y and z axes, ``P <- P - K S K^T``.
-    ``out`` (optional ``array('d')``) receives the posterior state and ``R_k``
-    (36 floats a frame), ``priors`` the prior state (27). Returns the last frame's
-    ``(zupt, K, y, S, dt, qv, qg, prior)``, the rejected standstill flags, whether g is set.
+    body velocity (:func:`_velocity_update`): a measured forward ``speed`` as ``R_k^T v = (speed, 0,
+    0)``, else the gated zero-velocity update, else the non-holonomic constraint on the body y and z
+    axes, ``P <- P - K S K^T``. ``out`` (``array('d')``) receives the posterior state and ``R_k`` (36
+    floats a frame), ``priors`` the prior state (27). Returns the last frame's ``(kind, K, y, S, dt,
+    qv, qg, prior)`` (kind 0 constraint, 1 ZUPT, 2 speed), the rejected standstill flags, g set.
     """
     (v0, v1, v2, g0, g1, g2, a00, a01, a02, a11, a12, a22, b00, b01, b02, b10, b11, b12, b20, b21, b22,
      c00, c01, c02, c11, c12, c22, r0, r1, r2, r3, r4, r5, r6, r7, r8, count) = s
-    qv2, qgap2, qg2, rz, rn, gate, initialised = prm
+    qv2, qgap2, qg2, rz, rn, gate, rs, initialised = prm
+    nz = (rz, 0.0, 0.0, rz, 0.0, rz)
     rejected, last = 0, None
-    for (d0, d1, d2, d3, d4, d5, d6, d7, d8), (dv0, dv1, dv2), dt, stationary, valid in frames:
+    for (d0, d1, d2, d3, d4, d5, d6, d7, d8), (dv0, dv1, dv2), dt, stationary, valid, speed in frames:
         p0, p1, p2, p3, p4, p5, p6, p7, p8 = r0, r1, r2, r3, r4, r5, r6, r7, r8
         count += 1
         r0, r1, r2 = p0 * d0 + p1 * d3 + p2 * d6, p0 * d1 + p1 * d4 + p2 * d7, p0 * d2 + p1 * d5 + p2 * d8
@@ -125,14 +114,20 @@ def _predict_update(s, frames, prm, out=None, priors=None):
                  b20, b21, b22, c00, c01, c02, c11, c12, c22)
         if priors is not None:
             priors.extend(prior)
-        zupt = False
-        if stationary:
-            st = _zupt(prior, rz, gate)
+        zupt = 0
+        if speed == speed:                          # measured forward speed along the body x axis (r0, r3, r6)
+            ds = rs - rn
+            st = _velocity_update(prior, (rn + ds * r0 * r0, ds * r0 * r3, ds * r0 * r6, rn + ds * r3 * r3,
+                                          ds * r3 * r6, rn + ds * r6 * r6), (speed * r0, speed * r3, speed * r6))
+            zupt = 2
+        elif stationary:
+            st = _velocity_update(prior, nz, (0.0, 0.0, 0.0), gate)
             if st is None:
                 rejected += 1                       # a smooth cruise flagged as standstill: constraint instead
             else:
-                zupt = True
-                ((v0, v1, v2, g0, g1, g2, a00, a01, a02, a11, a12, a22, b00, b01, b02, b10, b11, b12,
+                zupt = 1
+        if zupt:
+            ((v0, v1, v2, g0, g1, g2, a00, a01, a02, a11, a12, a22, b00, b01, b02, b10, b11, b12,
                   b20, b21, b22, c00, c01, c02, c11, c12, c22), K, y, S) = st
         if not zupt:
             # non-holonomic constraint: body y and z velocity, h = columns 1 and 2 of R_k
@@ -180,26 +175,26 @@ def _predict_update(s, frames, prm, out=None, priors=None):
     return last, rejected, initialised
 
 
-def _zupt(xp, rz, gate):
-    """Zero-velocity update with noise ``rz I``, or None when gated out (squared Mahalanobis > ``gate``).
+def _velocity_update(xp, n6, z, gate=math.inf):
+    """Update with the velocity ``z`` (world frame, noise ``n6``), or None when gated out.
 
-    The body-frame measurement ``R_k^T v`` with isotropic noise is the
-    world-frame ``v`` with the same noise (``R_k`` cancels), so ``H = [I, 0]``:
-    ``S = A + rz I``, ``K = [A; B^T] S^-1``, ``P <- P - K S K^T``. ``xp``: the
-    6-state then the 21 unique entries of P (``_UPPER21`` order). Returns
-    ``(xp, K, y, S)`` in world axes (K row-major 6x3, S its upper triangle).
+    The body-frame measurement ``R_k^T v = z_b``, noise ``N_b``, is the world-frame ``v = R_k z_b``,
+    noise ``N = R_k N_b R_k^T``: ``H = [I, 0]``, ``S = A + N``, ``K = [A; B^T] S^-1``, ``P <- P - K S
+    K^T`` (zero-velocity update: ``z = 0``, ``N = sigma_zupt^2 I``). ``n6``: upper triangle of ``N``;
+    ``gate``: largest squared Mahalanobis distance; ``xp``: the 6-state then P's 21 unique entries
+    (``_UPPER21`` order). Returns ``(xp, K, y, S)``, world axes (K row-major 6x3, S upper triangle).
     """
     v0, v1, v2 = xp[0:3]
     a00, a01, a02, a11, a12, a22 = xp[6:12]
     b0, b1, b2, b3, b4, b5, b6, b7, b8 = xp[12:21]
     c00, c01, c02, c11, c12, c22 = xp[21:27]
-    s0, s1, s2, s4, s5, s8 = a00 + rz, a01, a02, a11 + rz, a12, a22 + rz
+    s0, s1, s2, s4, s5, s8 = a00 + n6[0], a01 + n6[1], a02 + n6[2], a11 + n6[3], a12 + n6[4], a22 + n6[5]
     j00, j01, j02 = s4 * s8 - s5 * s5, s2 * s5 - s1 * s8, s1 * s5 - s2 * s4
     det = s0 * j00 + s1 * j01 + s2 * j02
     j11, j12, j22 = s0 * s8 - s2 * s2, s1 * s2 - s0 * s5, s0 * s4 - s1 * s1
     d = 1.0 / det
     i00, i01, i02, i11, i12, i22 = j00 * d, j01 * d, j02 * d, j11 * d, j12 * d, j22 * d
-    y0, y1, y2 = y = (-v0, -v1, -v2)
+    y0, y1, y2 = y = (z[0] - v0, z[1] - v1, z[2] - v2)
     w0, w1, w2 = i00 * y0 + i01 * y1 + i02 * y2, i01 * y0 + i11 * y1 + i12 * y2, i02 * y0 + i12 * y1 + i22 * y2
     if y0 * w0 + y1 * w1 + y2 * w2 > gate:
         return None
@@ -275,11 +270,10 @@ class GravityVelocityFilter:
         v_k = v_{k-1} + R_{k-1} dv_k - dt_k g_w      (dv_k: gravity-free velocity increment, body_{k-1})
         g_k = g_{k-1} + w_g                           (earth rate and gyro drift: a tiny random walk)
 
-    observed by the non-holonomic constraint ``[e_y, e_z]^T R_k^T v_k = 0 + n``
-    (a car neither slides sideways nor moves vertically in its own frame) while
-    moving and by ``v_k = 0 + n`` at standstill frames. The constraint needs the
-    body frame to be the vehicle's (FLU): give the ``extrinsic`` when the IMU is
-    mounted otherwise.
+    observed by the non-holonomic constraint ``[e_y, e_z]^T R_k^T v_k = 0 + n`` (a car
+    neither slides sideways nor moves vertically in its own frame) while moving, by ``v_k = 0 +
+    n`` at standstill frames, or by a measured speed (``sigma_speed``). The constraint needs the
+    body frame to be the vehicle's (FLU): give the ``extrinsic`` when it is mounted otherwise.
 
     Parameters
     ----------
@@ -289,33 +283,31 @@ class GravityVelocityFilter:
     q_v, q_g : float
         Velocity (m/s/sqrt(s), 0.05) and gravity (m/s^2/sqrt(s), 1e-6) random walks.
     q_gap : float
-        Extra velocity random walk on frames integrated through a timestamp gap
-        (``valid`` False), m/s/sqrt(s) (1.0).
+        Extra velocity random walk through a timestamp gap (``valid`` False), m/s/sqrt(s) (1.0).
     zupt_gate : float
-        A standstill flag is ignored (the constraint used instead) when the
-        predicted velocity is this far from zero, squared Mahalanobis distance
-        (100: ten sigma). Standstill detectors flag smooth cruising too.
-    sigma_v0, sigma_g0 : float
-        Initial std of velocity (m/s, 30) and gravity (m/s^2, 1).
-    v0, g0 : array_like (3,), optional
-        Initial velocity and gravity reaction, world frame. Default zero velocity
-        and the first frame's mean specific force.
+        A standstill flag is ignored (the constraint used instead) when the predicted velocity is
+        this far from zero, squared Mahalanobis distance (100: ten sigma; detectors flag cruising too).
+    sigma_v0, sigma_g0, v0, g0
+        Initial std of velocity (m/s, 30) and gravity (m/s^2, 1); initial velocity and gravity
+        reaction (array_like (3,), world frame; default zero and the first frame's specific force).
     extrinsic : Extrinsic or ndarray (3, 3), optional
         Static ground <- sensor rotation (inputs are sensor-frame increments).
     lever_arm : array_like (3,), optional
-        Sensor position relative to the body's pitch/roll centre, ground frame,
-        m. When given, the accelerations are moved to that point,
-        ``f_0 = f_s - alpha x r - w x (w x r)`` (``w`` the frame's mean rate,
+        Sensor position relative to the body's pitch/roll centre, ground frame, m: the accelerations
+        are moved there, ``f_0 = f_s - alpha x r - w x (w x r)`` (``w`` the frame's mean rate,
         ``alpha`` its backward difference: half a frame late). Default: none.
     R0 : ndarray (3, 3), optional
         Initial attitude, world <- body (identity).
+    sigma_speed : float
+        Std of a measured forward speed (``speed`` of :meth:`step` / :meth:`run`, wheel or CAN),
+        m/s (0.1): the update is then ``R_k^T v = (speed, 0, 0)``, noise ``diag(sigma_speed^2,
+        sigma_nhc^2, sigma_nhc^2)``, in place of the zero-velocity update and the constraint.
 
     Attributes
     ----------
     x, P : ndarray (6,), (6, 6)
-        State and covariance; ``x_prior``, ``P_prior``, ``x_post``, ``P_post``,
-        ``F``, ``Q``, ``H``, ``R``, ``K``, ``y``, ``S`` of the last step
-        (filterpy's names, built on access).
+        State and covariance; ``x_prior``, ``P_prior``, ``x_post``, ``P_post``, ``F``, ``Q``,
+        ``H``, ``R``, ``K``, ``y``, ``S`` of the last step (filterpy's names, built on access).
     cumulative : ndarray (3, 3)
         ``R_k``, world <- body.
     zupt_rejected : int
@@ -323,18 +315,19 @@ class GravityVelocityFilter:
 
     Notes
     -----
-    Public building blocks for estimators built on this filter (the
-    suspension-aware filter): :meth:`to_body`, :meth:`step_body` (one
-    body-frame frame as plain floats, the fast path) and :meth:`run_body`;
-    :func:`egomotion_arrays` checks an EgoMotion.
+    Building blocks for estimators on this filter: :meth:`to_body` (:meth:`to_body_flat`),
+    :meth:`step_body` (plain floats, the fast path), :meth:`run_body`, :func:`egomotion_arrays`.
     """
 
     def __init__(self, sigma_nhc: float = 0.3, sigma_zupt: float = 0.05, q_v: float = 0.05,
                  q_g: float = 1e-6, q_gap: float = 1.0, sigma_v0: float = 30.0, sigma_g0: float = 1.0,
                  zupt_gate: float = 100.0, v0: Optional[Sequence[float]] = None,
                  g0: Optional[Sequence[float]] = None, extrinsic: Union[Extrinsic, np.ndarray, None] = None,
-                 lever_arm: Optional[Sequence[float]] = None, R0: Optional[np.ndarray] = None) -> None:
-        self.sigma_nhc, self.sigma_zupt = float(sigma_nhc), float(sigma_zupt)
+                 lever_arm: Optional[Sequence[float]] = None, R0: Optional[np.ndarray] = None,
+                 sigma_speed: float = 0.1) -> None:
+        if not float(sigma_speed) > 0:
+            raise ValueError(f"sigma_speed must be positive (m/s), got {sigma_speed!r}")
+        self.sigma_speed, self.sigma_nhc, self.sigma_zupt = float(sigma_speed), float(sigma_nhc), float(sigma_zupt)
         self.q_v, self.q_g, self.q_gap = float(q_v), float(q_g), float(q_gap)
         self.sigma_v0, self.sigma_g0 = float(sigma_v0), float(sigma_g0)
         self.zupt_gate = float(zupt_gate)
@@ -360,7 +353,7 @@ class GravityVelocityFilter:
         self._w = SimpleNamespace(sync=None, last=None)
         self._initialised = self._g0 is not None
         self._prm = (self.q_v ** 2, self.q_gap ** 2, self.q_g ** 2, self.sigma_zupt ** 2, self.sigma_nhc ** 2,
-                     self.zupt_gate)
+                     self.zupt_gate, self.sigma_speed ** 2)
         self._w_prev = None                 # mean body rate of the previous frame (rad/s)
         self.zupt_rejected = 0
 
@@ -404,15 +397,17 @@ class GravityVelocityFilter:
         Rk = self.cumulative
         H = np.zeros((3, 6))
         H[:, :3] = Rk.T
+        sn = self.sigma_nhc ** 2
         if zupt:                                # kept in world axes by the kernel: rotate to the body
             s0, s1, s2, s4, s5, s8 = S
-            return (H, self.sigma_zupt ** 2 * _I3, np.array(K).reshape(6, 3) @ Rk, Rk.T @ np.array(y),
+            return (H, self.sigma_zupt ** 2 * _I3 if zupt == 1 else np.diag([self.sigma_speed ** 2, sn, sn]),
+                    np.array(K).reshape(6, 3) @ Rk, Rk.T @ np.array(y),
                     Rk.T @ np.array([[s0, s1, s2], [s1, s4, s5], [s2, s5, s8]]) @ Rk)
         H[0] = 0.0
         Kb, Sb = np.zeros((6, 3)), np.zeros((3, 3))
         Kb[:, 1:] = np.array(K).reshape(6, 2)
         Sb[1:, 1:] = [[S[0], S[1]], [S[1], S[2]]]
-        return H, np.diag([0.0, self.sigma_nhc ** 2, self.sigma_nhc ** 2]), Kb, np.array([0.0, y[0], y[1]]), Sb
+        return H, np.diag([0.0, sn, sn]), Kb, np.array([0.0, y[0], y[1]]), Sb
 
     F = property(lambda self: np.eye(6) - self._last_step()[4] * np.eye(6, k=3),
                  doc="State transition of the last predict (6x6), ``[[I, -dt I], [0, I]]``.")
@@ -429,24 +424,28 @@ class GravityVelocityFilter:
     def to_body(self, d: np.ndarray, dv: np.ndarray):
         """Sensor-frame increments ``d`` (..., 3, 3), sensor_{k-1} <- sensor_k, and ``dv`` (..., 3), m/s,
         to the body frame: ``R_gs d R_gs^T``, ``R_gs dv``."""
-        if self._identity_extrinsic:
-            return d, dv
         R = self._Rgs
-        return R @ d @ R.T, dv @ R.T
+        return (d, dv) if self._identity_extrinsic else (R @ d @ R.T, dv @ R.T)
 
-    def step_body(self, d9, dv3, dt: float, stationary: bool = False, valid: bool = True):
+    def to_body_flat(self, d9, dv3):
+        """:meth:`to_body` of one frame as plain floats (9 row-major, 3)."""
+        if self._identity_extrinsic:
+            return d9, dv3
+        R = self._rgs9
+        return mul_nt_flat(mul_flat(R, d9), R), (R[0] * dv3[0] + R[1] * dv3[1] + R[2] * dv3[2],
+                                                 R[3] * dv3[0] + R[4] * dv3[1] + R[5] * dv3[2],
+                                                 R[6] * dv3[0] + R[7] * dv3[1] + R[8] * dv3[2])
+
+    def step_body(self, d9, dv3, dt: float, stationary: bool = False, valid: bool = True,
+                  speed: Optional[float] = None):
         """One frame already in the body frame, as plain floats: the fast path of :meth:`step`.
 
         Parameters
         ----------
-        d9 : sequence of 9 floats
-            ``R_{body_{k-1}<-body_k}``, row-major.
-        dv3 : sequence of 3 floats
-            Gravity-free velocity increment, body frame at the frame's start, m/s.
-        dt : float
-            Frame duration, s (> 0).
-        stationary, valid : bool
-            As in :meth:`step`.
+        d9, dv3 : sequences of 9 and 3 floats
+            ``R_{body_{k-1}<-body_k}`` row-major; gravity-free velocity increment (body_{k-1}, m/s).
+        dt, stationary, valid, speed
+            As in :meth:`step` (``dt`` > 0, s).
 
         Returns
         -------
@@ -459,7 +458,8 @@ class GravityVelocityFilter:
             self._pull()
         s = self._s
         rprev = s[27:36]
-        last, rej, self._initialised = _predict_update(s, ((d9, dv3, dt, stationary, valid),),
+        sp = math.nan if speed is None else float(speed)
+        last, rej, self._initialised = _predict_update(s, ((d9, dv3, dt, stationary, valid, sp),),
                                                        self._prm + (self._initialised,))
         self._w.last = last
         self.zupt_rejected += rej
@@ -486,7 +486,7 @@ class GravityVelocityFilter:
 
     # -- streaming ----------------------------------------------------------------------------
     def step(self, delta_R, delta_v=None, delta_t=None, stationary: bool = False,
-             valid: bool = True) -> GravityEstimate:
+             valid: bool = True, speed: Optional[float] = None) -> GravityEstimate:
         """Process one frame.
 
         Parameters
@@ -499,8 +499,9 @@ class GravityVelocityFilter:
         delta_t : float
             Frame duration, s.
         stationary, valid : bool
-            The frame ends at a standstill (zero-velocity update); False for a
-            frame integrated through a timestamp gap.
+            The frame ends at a standstill (zero-velocity update); False through a timestamp gap.
+        speed : float, optional
+            Measured forward speed at the frame's end (wheel / CAN), m/s; None or NaN: none.
 
         Returns
         -------
@@ -513,24 +514,20 @@ class GravityVelocityFilter:
         """
         if delta_v is None:
             delta_R, delta_v, delta_t, stationary, valid = delta_R[:5]
-        d9 = delta_R.ravel().tolist() if type(delta_R) is np.ndarray and delta_R.shape == (3, 3) else \
-            _flat_increment(delta_R)
-        dv = delta_v.tolist() if type(delta_v) is np.ndarray and delta_v.shape == (3,) else \
-            np.asarray(delta_v, dtype=float).reshape(3).tolist()
+        d9 = (delta_R if type(delta_R) is np.ndarray and delta_R.shape == (3, 3) else
+              as_rotations(delta_R)).ravel().tolist()
+        dv = np.asarray(delta_v, dtype=float).reshape(3).tolist()
         dt = float(delta_t)
         if not (dt > 0.0 and math.isfinite(dt + sum(d9) + sum(dv))):
             raise ValueError(f"bad frame: delta_t = {dt!r} must be > 0 and delta_R, delta_v finite")
-        if not self._identity_extrinsic:
-            R = self._rgs9
-            d9 = mul_nt_flat(mul_flat(R, d9), R)
-            dv = (R[0] * dv[0] + R[1] * dv[1] + R[2] * dv[2], R[3] * dv[0] + R[4] * dv[1] + R[5] * dv[2],
-                  R[6] * dv[0] + R[7] * dv[1] + R[8] * dv[2])
-        f, a, speed = self.step_body(d9, dv, dt, bool(stationary), bool(valid))
+        d9, dv = self.to_body_flat(d9, dv)
+        f, a, speed = self.step_body(d9, dv, dt, bool(stationary), bool(valid), speed)
         e = np.array(self._s[0:6] + list(a + f))          # one array, four views
         return GravityEstimate(e[0:3], e[3:6], e[6:9], e[9:12], speed)
 
     # -- batch -------------------------------------------------------------------------------
-    def run(self, egomotion: Union[EgoMotion, ImuData], smooth: bool = False) -> GravityTrack:
+    def run(self, egomotion: Union[EgoMotion, ImuData], smooth: bool = False,
+            speed: Optional[np.ndarray] = None) -> GravityTrack:
         """Process a whole drive, continuing from the current state as :meth:`step` would.
 
         Parameters
@@ -539,23 +536,26 @@ class GravityVelocityFilter:
             Per-frame increments (an ImuData is preintegrated at 10 Hz).
         smooth : bool
             Rauch-Tung-Striebel smoother over the drive (offline).
+        speed : ndarray (N,), optional
+            Measured forward speed per frame, m/s (NaN: none at that frame).
 
         Returns
         -------
         GravityTrack
         """
         d, dv, dt, st, valid = egomotion_arrays(egomotion)
-        return self.run_body(*self.to_body(d, dv), dt, st, valid, smooth)
+        return self.run_body(*self.to_body(d, dv), dt, st, valid, smooth, speed)
 
-    def run_body(self, d, dv, dt, stationary, valid, smooth: bool = False) -> GravityTrack:
+    def run_body(self, d, dv, dt, stationary, valid, smooth: bool = False, speed=None) -> GravityTrack:
         """:meth:`run` on body-frame arrays (``d`` (N, 3, 3), ``dv`` (N, 3), ``dt``, ``stationary``,
-        ``valid`` (N,)), already checked (:func:`egomotion_arrays`)."""
+        ``valid``, ``speed`` (N,) or None), already checked (:func:`egomotion_arrays`)."""
         n = len(dt)
+        sp = [math.nan] * n if speed is None else np.asarray(speed, dtype=float).reshape(n).tolist()
         if self._w.sync is not None:
             self._pull()
         r_start = np.array(self._s[27:36]).reshape(3, 3)
         frames = list(zip(np.reshape(d, (n, 9)).tolist(), np.asarray(dv).tolist(), np.asarray(dt).tolist(),
-                          np.asarray(stationary).tolist(), np.asarray(valid).tolist()))
+                          np.asarray(stationary).tolist(), np.asarray(valid).tolist(), sp))
         out, priors = array("d"), (array("d") if smooth else None)
         last, rej, self._initialised = _predict_update(self._s, frames, self._prm + (self._initialised,),
                                                        out, priors)
