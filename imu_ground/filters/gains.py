@@ -19,11 +19,15 @@ from imu_ground import so3
 from imu_ground.filters.design import butter_bandpass
 from imu_ground.units import DEG
 
-__all__ = ["DEFAULT_GAINS", "GAIN_BAND", "TYPICAL_BAND_POWER", "tilt_angles", "bandpass_gain_regression"]
+__all__ = ["DEFAULT_GAINS", "DEFAULT_CROSS_GAIN", "GAIN_BAND", "TYPICAL_BAND_POWER", "tilt_angles", "bandpass_gain_regression"]
 
 #: Suspension gains of the KITTI car ``(k_pitch, k_roll)``, rad per m/s^2: braking dives the nose
 #: (``k_pitch < 0``), a car rolls out of a turn (``k_roll > 0``).
 DEFAULT_GAINS = (-0.25 * DEG, 0.50 * DEG)
+#: Pitch (nose down +) per m/s^2 of *lateral* load ``u_y``, rad: a left-turn load lifts the nose.
+#: Empirical (road crown, chassis asymmetry), chosen by split-half validation on the real KITTI
+#: drives (``benchmarks/tune_suspension.py``; figures in ``benchmarks/RESULTS.md``).
+DEFAULT_CROSS_GAIN = -0.05 * DEG
 #: Band of the gain regression, Hz.
 GAIN_BAND = (0.3, 1.5)
 #: Mean band-passed acceleration power ``(a_x, a_y)`` of typical (KITTI) driving, (m/s^2)^2;

@@ -18,7 +18,8 @@ Pipeline, per frame k
 2. **Suspension model**: the load ``u = a + s (f - a)`` (``s = load``: the share
    of gravity's road-plane component the springs feel, 0 to 1), optionally
    through a second-order ``response``; the body tilt relative to the road
-   ``b_k = [k_roll u_y, k_pitch u_x, 0]`` (rotation vector: roll about x, pitch about y).
+   ``b_k = [k_roll u_y, k_pitch u_x + k_cross u_y, 0]`` (rotation vector: roll about x, pitch
+   about y; ``k_cross = cross_gain``, the pitch from the lateral load).
 3. **Invariant EKF on SO(3)** (left error) on the road attitude ``X``: predict
    ``X <- X Rz(psi_k)`` (the road turns with the heading) with noise
    ``diag(q_k, q_k, q_yaw)``, ``q_k = (q_time + q_dist |v_k|) dt_k sigma_e^2``;
@@ -26,6 +27,11 @@ Pipeline, per frame k
    ``diag(sigma_e^2, sigma_e^2, r_yaw sigma_e^2)``. It runs as the scalar
    :class:`~imu_ground.filters.residual.ResidualKernel` (the modelled tilt is its ``tilt``).
 4. **Output** ``E_k = X_k^T R_k``: the modelled tilt plus the unmodelled fast body motion.
+
+Speed-aided mode (``run(..., speed=v)``, ``step(frame, speed=v_k)``): a measured forward
+speed per frame (wheel / CAN speed, m/s; NaN where unknown) is a velocity measurement of the
+gravity/velocity filter (``R_k^T v = (v_k, 0, 0)``, std ``sigma_speed``, in place of the
+zero-velocity update and the constraint) and the speed in the road noise ``q_k``.
 
 Online gains (``online_gains=True``): causal recursive least squares of the
 band-passed gyro tilt on the band-passed acceleration
@@ -43,6 +49,7 @@ chosen and how every configuration scores on real and synthetic drives is in
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Optional, Sequence, Union
 
@@ -54,7 +61,7 @@ from imu_ground.filters.estimator import (GroundEstimate, GroundTrack, as_egomot
                                           check_on_invalid, frame_problem, frame_problems, frame_where,
                                           hold_skipped, static_rotation, vector3)
 from imu_ground.filters.extrinsics import resolve_platform
-from imu_ground.filters.gains import (DEFAULT_GAINS, GAIN_BAND, TYPICAL_BAND_POWER,  # noqa: F401 (re-exported)
+from imu_ground.filters.gains import (DEFAULT_CROSS_GAIN, DEFAULT_GAINS, GAIN_BAND, TYPICAL_BAND_POWER,  # noqa: F401 (re-exported)
                                       bandpass_gain_regression, tilt_angles)
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.filters.invariant_ekf import InvariantEKF
@@ -62,7 +69,7 @@ from imu_ground.filters.residual import ResidualKernel
 from imu_ground.filters.rotations import as_rotations, matrix_from_quat, twist_angle
 from imu_ground.units import DEG
 
-__all__ = ["DEFAULT_GAINS", "GAIN_BAND", "SuspensionAwareFilter", "SuspensionTrack", "estimate_suspension_aware",
+__all__ = ["DEFAULT_GAINS", "DEFAULT_CROSS_GAIN", "GAIN_BAND", "SuspensionAwareFilter", "SuspensionTrack", "estimate_suspension_aware",
            "bandpass_gain_regression"]
 
 _I3 = np.eye(3)
@@ -78,11 +85,11 @@ class SuspensionTrack(GroundTrack):
     load : ndarray (F, 2)
         Load entering the model (``u_x``, ``u_y``), m/s^2, body frame.
     speed : ndarray (F,)
-        Speed from the gravity/velocity filter, m/s.
+        Speed in the road noise, m/s: the measured speed where given, else the gravity/velocity filter's.
     gains : ndarray (F, 2)
         ``(k_pitch, k_roll)`` used at each frame, rad per m/s^2.
     suspension : ndarray (F, 2)
-        Modelled tilt ``(pitch, roll) = (k_pitch u_x, k_roll u_y)``, rad.
+        Modelled tilt ``(pitch, roll) = (k_pitch u_x + cross_gain u_y, k_roll u_y)``, rad.
     gravity : ndarray (F, 3)
         Reaction to gravity, world frame, m/s^2.
     """
@@ -161,6 +168,9 @@ class SuspensionAwareFilter:
     on_invalid : {"raise", "skip"}
         A bad frame raises ``ValueError`` with the state unchanged, or is
         skipped (``step`` returns the previous estimate flagged ``valid=False``).
+    cross_gain : float
+        Pitch (nose down +) per m/s^2 of lateral load ``u_y``, rad
+        (:data:`~imu_ground.filters.gains.DEFAULT_CROSS_GAIN`; 0 disables).
 
     Attributes
     ----------
@@ -193,7 +203,9 @@ class SuspensionAwareFilter:
                  gain_band: Sequence[float] = GAIN_BAND, frame_rate: Optional[float] = None,
                  smoother_weight: float = 0.25, extrinsic=None,
                  lever_arm: Optional[Sequence[float]] = None, gravity: Optional[dict] = None,
-                 R0: Optional[np.ndarray] = None, on_invalid: str = "raise") -> None:
+                 R0: Optional[np.ndarray] = None, on_invalid: str = "raise",
+                 cross_gain: float = DEFAULT_CROSS_GAIN) -> None:
+        self.cross_gain = float(cross_gain)
         self.extrinsic, file_gains = resolve_platform(extrinsic)
         if gains is None:
             gains = DEFAULT_GAINS if file_gains is None else file_gains
@@ -312,7 +324,7 @@ class SuspensionAwareFilter:
 
     # -- streaming -------------------------------------------------------------------------------
     def step(self, frame, delta_v=None, delta_t: Optional[float] = None, stationary: bool = False,
-             valid: bool = True) -> GroundEstimate:
+             valid: bool = True, speed: Optional[float] = None) -> GroundEstimate:
         """Process one frame of ego-motion.
 
         Parameters
@@ -328,6 +340,8 @@ class SuspensionAwareFilter:
             The frame ends at a standstill.
         valid : bool
             False for a frame integrated through a timestamp gap.
+        speed : float, optional
+            Measured forward speed over the frame (wheel / CAN), m/s; None or NaN: IMU only.
 
         Returns
         -------
@@ -355,21 +369,21 @@ class SuspensionAwareFilter:
         if self._rate is None:
             self._design(1.0 / dt)
         self._frames += 1
-        ge = self.gravity_filter.step(d, delta_v, dt, bool(stationary), bool(valid))
-        fx, fy, _ = ge.specific_force.tolist()
-        ax, ay, _ = ge.acceleration.tolist()
+        gf = self.gravity_filter
+        sp = math.nan if speed is None else float(speed)
+        (fx, fy, _), (ax, ay, _), v = gf.step_body(*gf.to_body_flat(d9, dv), dt, bool(stationary), bool(valid), sp)
         s = self.load_share
         ux, uy = ax + s * (fx - ax), ay + s * (fy - ay)
         if self._resp is not None:
             ux, uy = self._resp.step(np.array([ux, uy])).tolist()
         self._load = (ux, uy)
-        self.speed = speed = float(ge.speed)
+        self.speed = speed = sp if sp == sp else v
         kp, kr = self._kp, self._kr
         if self.online_gains:
             self._update_gains(d, ax, ay)
         q = (self.q_time + self.q_dist * speed) * dt * self._r
         self._q_last = q
-        o = self._kernel.advance((d9,), (q,), self.q_yaw, (kr * uy,), (kp * ux,))[0]
+        o = self._kernel.advance((d9,), (q,), self.q_yaw, (kr * uy,), (kp * ux + self.cross_gain * uy,))[0]
         return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o)
 
     def _update_gains(self, d: np.ndarray, ax: float, ay: float) -> None:
@@ -383,7 +397,7 @@ class SuspensionAwareFilter:
         self._kp, self._kr = self.gains.tolist()
 
     # -- batch -----------------------------------------------------------------------------------
-    def run(self, egomotion, smooth: bool = False) -> SuspensionTrack:
+    def run(self, egomotion, smooth: bool = False, speed: Optional[np.ndarray] = None) -> SuspensionTrack:
         """Process a whole drive, continuing from the current state as :meth:`step` would (the same kernel).
 
         Parameters
@@ -394,6 +408,9 @@ class SuspensionAwareFilter:
         smooth : bool
             Offline mode (module docstring). The streaming state is left at the
             end of the forward pass.
+        speed : ndarray (N,), optional
+            Measured forward speed per frame (wheel / CAN, e.g. from
+            :func:`imu_ground.datasets.speed.frame_speed`), m/s; NaN where unknown.
 
         Returns
         -------
@@ -418,15 +435,23 @@ class SuspensionAwareFilter:
                      speed=self.speed, gains=self.gains.copy(), gravity=self.gravity_filter.x[3:].copy())
         sub = em if good.all() else _frames_of(em, good)
         m = len(sub)
+        if speed is not None:
+            speed = np.asarray(speed, dtype=float)
+            if speed.shape != (n,):
+                raise ValueError(f"speed must have one value per frame ({n}), got shape {speed.shape}")
+            speed = speed[good]
         self._frames += m
-        gt = self.gravity_filter.run(sub, smooth=smooth)
+        gt = self.gravity_filter.run(sub, smooth=smooth, speed=speed)
+        if speed is not None:
+            gt.speed = np.where(np.isfinite(speed), speed, gt.speed)
         u = (gt.acceleration + self.load_share * (gt.specific_force - gt.acceleration))[:, :2]
         if self._resp is not None:
             u = self._resp.run(u)
         if m:
             self._load, self.speed = tuple(u[-1].tolist()), float(gt.speed[-1])
         ks = self._online_gains(gt) if self.online_gains and m else np.tile(self.gains, (m, 1))
-        susp = ks * u                                   # (pitch, roll) = (k_p u_x, k_r u_y)
+        susp = ks * u                                   # (pitch, roll) = (k_p u_x, k_r u_y) ...
+        susp[:, 0] += self.cross_gain * u[:, 1]         # ... + the pitch from the lateral load
         dt = np.asarray(sub.delta_t, dtype=float)
         q = (self.q_time + self.q_dist * gt.speed) * dt * self._r
         d9 = np.asarray(sub.delta_R, dtype=float).reshape(-1, 9).tolist()
@@ -445,6 +470,7 @@ class SuspensionAwareFilter:
         held = {name: hold_skipped(v, good, start[name]) for name, v in
                 dict(E=E, P=Ps, cum=cum, load=u, speed=gt.speed, gains=ks, gravity=gt.gravity).items()}
         susp_all = held["gains"] * held["load"]
+        susp_all[:, 0] += self.cross_gain * held["load"][:, 1]
         cum_all = held["cum"]
         return SuspensionTrack.from_residuals(
             held["E"], cum_all @ np.swapaxes(held["E"], 1, 2), held["P"], cum_all, self._Rgs,
