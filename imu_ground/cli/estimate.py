@@ -72,6 +72,11 @@ def register(sub) -> None:
                    help="also write the dynamic extrinsic (ground <- sensor) of the valid frames as TUM poses "
                         "(t x y z qx qy qz qw), e.g. for evo")
     add_method_flags(e)
+    e.add_argument("--speed", default="none", metavar="auto|none|FILE|COLUMN",
+                   help="measured vehicle speed for the suspension methods (speed-aided mode): none (default, IMU "
+                        "only); auto (the log's own: KITTI INS horizontal speed, nuScenes CAN pose, comma2k19 CAN, "
+                        "ROS twist/odometry); a CSV file with columns t,speed (s on the log's time base, m/s); or "
+                        "the name of a speed column of a CSV log")
     add_reader_flags(e, poses=True)
     add_progress_flag(e)
     e.set_defaults(func=run)
@@ -95,14 +100,15 @@ def run(a: argparse.Namespace) -> int:
         kinds.append(".tum")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res, table = estimate_to_files(a.log, outputs, kinds, progress=progress_enabled(a), **method_kwargs(a))
+        res, table = estimate_to_files(a.log, outputs, kinds, progress=progress_enabled(a), speed=a.speed,
+                                       **method_kwargs(a))
     for w in res.meta["warnings"]:
         warn_line(w, a.log)
     s = summarize_table(table)
     em = res.egomotion
     say(f"{res.meta['format']} {'pose file' if res.meta['kind'] == 'poses' else 'log'} {a.log}: {s['frames']} frames "
         f"at {em.rate:g} Hz, method {res.meta['method']}, {s['frames'] - s['valid_frames']} across gaps, "
-        f"{int(em.stationary.sum())} stationary ({time.perf_counter() - t0:.2f} s)")
+        f"{int(em.stationary.sum())} stationary, speed {res.meta['speed']} ({time.perf_counter() - t0:.2f} s)")
     if s["valid_frames"]:
         say(f"pitch {s['pitch_mean_deg']:+.3f} +- {s['pitch_std_deg']:.3f} deg (range {s['pitch_min_deg']:+.2f} .. "
             f"{s['pitch_max_deg']:+.2f}), roll {s['roll_mean_deg']:+.3f} +- {s['roll_std_deg']:.3f} deg "

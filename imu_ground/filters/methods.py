@@ -33,12 +33,15 @@ class MethodSpec:
         The method uses ``delta_v`` (an IMU log, not poses).
     smooth : bool
         ``run(..., smooth=True)``: offline, results depend on the future.
+    speed_aided : bool
+        ``run(..., speed=v)`` takes a measured forward speed per frame (m/s).
     """
     name: str
     description: str
     factory: Callable[..., Any]
     needs_accel: bool
     smooth: bool
+    speed_aided: bool = False
 
     @property
     def options(self) -> tuple:
@@ -94,10 +97,10 @@ METHODS: dict[str, MethodSpec] = {
     "suspension": MethodSpec(
         "suspension", "suspension-aware invariant EKF: road attitude plus the body's load-transfer tilt "
         "(streaming; needs an accelerometer)",
-        _Factory(_suspension, _SUSPENSION, "SuspensionAwareFilter"), True, False),
+        _Factory(_suspension, _SUSPENSION, "SuspensionAwareFilter"), True, False, True),
     "suspension-offline": MethodSpec(
         "suspension-offline", "suspension-aware filter with the offline smoother (zero lag; uses the future)",
-        _Factory(_suspension, _SUSPENSION, "SuspensionAwareFilter"), True, True),
+        _Factory(_suspension, _SUSPENSION, "SuspensionAwareFilter"), True, True, True),
     "filter": MethodSpec(
         "filter", "heading-following invariant EKF on the cumulative rotation (rotations only: any odometry)",
         _Factory(_ground, _GROUND, "GroundNormalFilter"), False, False),
@@ -119,7 +122,7 @@ def make_estimator(name: str, **options):
     return METHODS[name].make(**options)
 
 
-def estimate(egomotion, method=None, **options):
+def estimate(egomotion, method=None, speed=None, **options):
     """Run a method over a whole drive.
 
     Parameters
@@ -128,6 +131,9 @@ def estimate(egomotion, method=None, **options):
         Per-frame ego-motion (sensor frame).
     method : str, optional
         A name of :data:`METHODS`; default :func:`default_method` of the input.
+    speed : ndarray (F,), optional
+        Measured forward speed per frame, m/s (NaN where unknown), for a
+        ``speed_aided`` method; None: IMU only.
     **options
         Options of the method's estimator.
 
@@ -147,4 +153,8 @@ def estimate(egomotion, method=None, **options):
     if METHODS[name].needs_accel and not has_accel:
         raise ValueError(f"method {name!r} needs accelerometer data and this input has none (rotations or poses "
                          f"only); use 'filter' or 'paper'")
-    return est.run(egomotion, smooth=METHODS[name].smooth)
+    if speed is None:
+        return est.run(egomotion, smooth=METHODS[name].smooth)
+    if not METHODS[name].speed_aided:
+        raise ValueError(f"method {name!r} does not take a speed; use 'suspension' or 'suspension-offline'")
+    return est.run(egomotion, smooth=METHODS[name].smooth, speed=speed)

@@ -200,7 +200,7 @@ def _one_line(path: str | Path, message: Any) -> str:
 # ------------------------------------------------------------------------------------------ estimate
 def estimate_log(path: str | Path, *, format: str | None = None, method: str = "auto",
                  extrinsic: Any = None, rate: float | None = None, Q: Any = None, R: Any = None,
-                 progress: bool = False, **reader_options: Any) -> EstimateResult:
+                 progress: bool = False, speed: Any = None, **reader_options: Any) -> EstimateResult:
     """Per-frame ground normals of one log: what ``imu-ground estimate`` computes.
 
     Parameters
@@ -227,6 +227,13 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
         ``paper`` methods; positive.
     progress : bool
         Progress bar on stderr.
+    speed : None, "none", "auto", str, Path or ndarray, optional
+        Measured vehicle speed for the speed-aided mode of the suspension methods
+        (:mod:`imu_ground.datasets.speed`): ``None`` / ``"none"`` IMU only;
+        ``"auto"`` the log's own speed where its format has one (else IMU only);
+        a speed file (CSV ``t,speed``, s on the log's time base) or the name of a
+        column of the log's table; or an array, one speed per frame (m/s). What
+        was used is in ``meta["speed"]``.
     **reader_options
         Entries of :data:`imu_ground.datasets.options.READER_OPTIONS`
         (``policy``, ``nonfinite``, ``gyro_unit``, ...), passed to the reader
@@ -256,23 +263,25 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
         if kind == "poses":
             em, info = _poses_egomotion(path, fmt, rate)
         else:
-            em, info = _imu_egomotion(path, fmt, rate, extrinsic, reader_kw)
+            em, info, imu = _imu_egomotion(path, fmt, rate, extrinsic, reader_kw)
         bar.update()
         name = resolve_method(method, em.has_accel)
         if (Q is not None or R is not None) and name not in ("filter", "paper"):
             raise OptionError(f"{{opt}} sets the noise of the filter and paper methods; method {name} does not "
                               "use it (add --method filter, or leave it out)", "Q" if Q is not None else "R")
+        frame_speeds, speed_info = _frame_speeds(speed, path, kind, info.get("format"), imu if kind == "imu" else None,
+                                                 em, name, reader_kw.get("topic"))
         ext = _load_extrinsic(extrinsic)
-        track = _run_method(name, em, ext, Q, R)
+        track = _run_method(name, em, ext, Q, R, frame_speeds)
         bar.update()
     bar.close()
     messages = list(dict.fromkeys(_one_line(path, w.message) for w in caught))
     for m in messages:
         warnings.warn(m, UserWarning, stacklevel=2)
-    settings.update(method=name, rate=float(em.rate))
+    settings.update(method=name, rate=float(em.rate), speed=speed_info)
     meta = {"source": str(path), "kind": kind, **info, "method": name,
             "method_description": available_methods().get(name, ("", False))[0],
-            "settings": settings, "warnings": messages,
+            "settings": settings, "warnings": messages, "speed": speed_info,
             "extrinsic": {"rotation": ext.rotation.tolist(), "translation": ext.translation.tolist()}}
     return EstimateResult(track, em, meta)
 
@@ -300,7 +309,7 @@ def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
     info = {"format": fmt, "imu_rate": imu_rate, "frame_id": imu.meta.get("frame_id") or "imu"}
     if imu.meta.get("t0_ns") is not None:
         info["t0_ns"] = int(imu.meta["t0_ns"])
-    return em, info
+    return em, info, imu
 
 
 def _poses_egomotion(path, fmt, rate):
@@ -332,12 +341,52 @@ def _load_extrinsic(extrinsic):
     return Extrinsic.coerce(np.asarray(extrinsic, dtype=float))
 
 
-def _run_method(name: str, em, ext, Q, R):
-    """Run method ``name`` of the registry over the ego-motion (noise options only when given)."""
+def _frame_speeds(speed, path, kind: str, fmt, imu, em, method: str, topic):
+    """Per-frame speeds (m/s, NaN where unknown) for :func:`estimate_log`'s ``speed``, and what they are.
+
+    Returns ``(None, "none")`` for IMU only; ``(array, description)`` otherwise.
+    """
+    from imu_ground.filters.methods import METHODS
+    if speed is None or (isinstance(speed, str) and speed == "none"):
+        return None, "none"
+    auto = isinstance(speed, str) and speed == "auto"
+    if not METHODS[method].speed_aided:
+        if auto:
+            return None, f"none (method {method} does not use a speed)"
+        raise OptionError(f"{{opt}} is used by the suspension methods only, not by method {method} (leave it out)",
+                          "speed")
+    if isinstance(speed, (np.ndarray, list, tuple)):
+        v = np.asarray(speed, dtype=float)
+        if v.shape != (len(em),):
+            raise OptionError(f"{{opt}} as an array needs one value per frame ({len(em)}), got shape {v.shape}",
+                              "speed")
+        return v, "given per frame"
+    from imu_ground.datasets.speed import SPEED_SOURCES, frame_speed, log_speed, read_speed
+    if auto:
+        got = log_speed(path, fmt, imu, topic) if fmt in SPEED_SOURCES else None
+        if got is None:
+            return None, f"none (a {fmt} log has no speed signal)"
+        what = f"the log's {SPEED_SOURCES[fmt]}"
+    else:
+        try:
+            got = read_speed(speed, log=path, format=fmt, imu=imu, topic=topic)
+        except (ValueError, FileNotFoundError) as e:
+            raise OptionError(f"{{opt}} {speed}: {e}", "speed") from e
+        what = f"{speed}"
+    v = frame_speed(*got, em.t, em.delta_t)
+    if not np.isfinite(v).any():
+        raise OptionError(f"{{opt}} {speed}: the speed's times ({got[0][0]:.3f} .. {got[0][-1]:.3f} s) do not "
+                          f"cover the log's frames ({em.t[0]:.3f} .. {em.t[-1]:.3f} s)", "speed")
+    return v, f"{what} ({int(np.isfinite(v).sum())} of {len(v)} frames)"
+
+
+def _run_method(name: str, em, ext, Q, R, speed=None):
+    """Run method ``name`` of the registry over the ego-motion (noise options and speed only when given)."""
     from imu_ground.filters.methods import METHODS
     spec = METHODS[name]
     noise = {k: v for k, v in (("Q", Q), ("R", R)) if v is not None}
-    return spec.make(extrinsic=ext, **noise).run(em, smooth=bool(spec.smooth))
+    extra = {} if speed is None else {"speed": speed}
+    return spec.make(extrinsic=ext, **noise).run(em, smooth=bool(spec.smooth), **extra)
 
 
 def estimate_to_files(path: str | Path, outputs, kinds=None, **kwargs: Any):

@@ -1,0 +1,223 @@
+"""A vehicle speed signal (wheel / CAN speed) for the speed-aided estimators, and its resampling to frames.
+
+Sources, by :func:`read_speed`:
+
+- a separate file: a CSV table with a time column and a speed column
+  (header ``t,speed``; the time in the IMU log's clock, s from its first sample);
+- a column of the IMU log's own table (a CSV table read by :func:`~imu_ground.datasets.read_imu`);
+- found in the log (:func:`log_speed`): KITTI (``kitti_imu100`` and raw OXTS) the INS
+  horizontal speed ``hypot(ve, vn)`` as a stand-in for a wheel speed (never ``vu``);
+  nuScenes CAN bus the ``vel`` of the scene's ``pose.json`` beside its ``ms_imu.json``
+  (forward speed, ego frame); comma2k19 ``processed_log/CAN/speed``; ROS bags and MCAP a
+  twist or odometry topic (:func:`~imu_ground.datasets.rosbag.read_rosbag_speed`).
+
+Times are seconds on the IMU's time base (``ImuData.t``: from the log's first IMU sample),
+so :func:`frame_speed` can average the speed over each frame of the ego-motion.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["SPEED_SOURCES", "frame_speed", "log_speed", "read_speed", "read_speed_file"]
+
+#: Log formats with a speed signal of their own, and what it is.
+SPEED_SOURCES = {
+    "kitti_imu100": "INS horizontal speed hypot(ve, vn)",
+    "kitti_oxts": "INS horizontal speed hypot(ve, vn)",
+    "nuscenes": "CAN bus pose.json forward speed",
+    "comma2k19": "CAN speed",
+    "rosbag": "twist / odometry topic speed",
+}
+
+
+def _checked(t, v, source: str) -> tuple[np.ndarray, np.ndarray]:
+    t = np.asarray(t, dtype=float).ravel()
+    v = np.asarray(v, dtype=float).ravel()
+    if t.shape != v.shape or t.size == 0:
+        raise ValueError(f"{source}: {t.size} times but {v.size} speeds (need the same number, at least one)")
+    ok = np.isfinite(t) & np.isfinite(v)
+    t, v = t[ok], v[ok]
+    order = np.argsort(t, kind="stable")
+    t, v = t[order], v[order]
+    keep = np.concatenate([[True], np.diff(t) > 0]) if t.size else np.zeros(0, bool)
+    if not keep.any():
+        raise ValueError(f"{source}: no finite speed sample")
+    return t[keep], v[keep]
+
+
+def read_speed_file(path: str | Path, column: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """A speed table: CSV with a header, the time column (``t``, or the first) and ``column`` (default ``speed``).
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    ValueError
+        No such column (the message lists the columns), non-numeric values.
+    """
+    import pandas as pd
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"{p}: no such speed file")
+    df = pd.read_csv(p, skipinitialspace=True)
+    cols = [str(c).strip() for c in df.columns]
+    df.columns = cols
+    name = column or ("speed" if "speed" in cols else (cols[1] if len(cols) == 2 else None))
+    if name is None or name not in cols:
+        raise ValueError(f"{p}: no speed column {column or 'speed'!r}; columns: {', '.join(cols)} "
+                         f"(a speed file has a header 't,speed')")
+    tcol = "t" if "t" in cols else cols[0]
+    try:
+        t, v = df[tcol].to_numpy(float), df[name].to_numpy(float)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{p}: column {tcol!r} or {name!r} is not numeric ({e})") from e
+    return _checked(t, v, str(p))
+
+
+def _imu_t0(imu) -> float:
+    return float(imu.meta.get("t0", 0.0)) if imu is not None else 0.0
+
+
+def _nuscenes_speed(imu, path: Path) -> tuple[np.ndarray, np.ndarray]:
+    from imu_ground.datasets.nuscenes import find_ms_imu
+    ms = find_ms_imu(path)
+    pose = ms.with_name(ms.name.replace("_ms_imu.json", "_pose.json"))
+    if not pose.is_file():
+        raise FileNotFoundError(f"{pose}: no CAN bus pose file beside {ms.name} (its 'vel' is the speed)")
+    with open(pose, encoding="utf-8") as f:
+        msgs = json.load(f)
+    utime = np.array([m["utime"] for m in msgs], dtype=np.int64)
+    vel = np.array([m["vel"] for m in msgs], dtype=float)
+    t0_us = int(imu.meta["t0_ns"]) // 1000 if imu is not None and imu.meta.get("t0_ns") is not None else utime[0]
+    return _checked((utime - t0_us) * 1e-6, np.linalg.norm(vel, axis=1), str(pose))
+
+
+def _comma_speed(imu, path: Path) -> tuple[np.ndarray, np.ndarray]:
+    from imu_ground.datasets.comma2k19 import find_imu_dir
+    can = find_imu_dir(path).parent / "CAN" / "speed"
+    if not (can / "t").is_file():
+        raise FileNotFoundError(f"{can}: no CAN speed in this comma2k19 segment")
+    t = np.load(can / "t", allow_pickle=False)
+    v = np.load(can / "value", allow_pickle=False)
+    return _checked(t - _imu_t0(imu), np.asarray(v, dtype=float).reshape(len(t), -1)[:, 0], str(can))
+
+
+def log_speed(path: str | Path, format: str, imu=None, topic: str | None = None
+              ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The log's own speed signal on the IMU's time base, or None when its format has none.
+
+    Parameters
+    ----------
+    path : str or Path
+        The IMU log.
+    format : str
+        Its format (a :func:`~imu_ground.datasets.detect_format` name).
+    imu : ImuData, optional
+        The log as read (its ``t0`` / ``t0_ns`` and, for KITTI, its ``ve, vn`` columns);
+        read when needed and not given.
+    topic : str, optional
+        ROS: the twist / odometry topic.
+    """
+    p = Path(path)
+    if format in ("kitti_imu100", "kitti_oxts"):
+        if imu is None:
+            from imu_ground.datasets import read_imu
+            imu = read_imu(p, format=format)
+        if not {"ve", "vn"} <= set(imu.extra.columns):
+            return None
+        return _checked(imu.t, np.hypot(imu.extra["ve"].to_numpy(float), imu.extra["vn"].to_numpy(float)), str(p))
+    if format in ("nuscenes", "comma2k19") and imu is None:
+        from imu_ground.datasets import read_imu
+        imu = read_imu(p, format=format)
+    if format == "nuscenes":
+        return _nuscenes_speed(imu, p)
+    if format == "comma2k19":
+        return _comma_speed(imu, p)
+    if format == "rosbag":
+        from imu_ground.datasets.rosbag import read_rosbag_speed
+        t0_ns = None if imu is None else imu.meta.get("t0_ns")
+        return _checked(*read_rosbag_speed(p, topic, t0_ns=t0_ns), str(p))
+    return None
+
+
+def read_speed(source: Any, *, log: str | Path | None = None, format: str | None = None, imu=None,
+               topic: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """A speed signal ``(t, speed)``: t in s on the IMU's time base, speed in m/s (finite, t increasing).
+
+    Parameters
+    ----------
+    source : str or Path
+        A speed file (CSV ``t,speed``), a column name of the log's table, or the
+        log itself (its own speed, :func:`log_speed`).
+    log : str or Path, optional
+        The IMU log (for a column name); default ``source``.
+    format : str, optional
+        The log's format (detected when None).
+    imu : ImuData, optional
+        The log as read (saves reading it again).
+    topic : str, optional
+        ROS: the speed topic.
+
+    Raises
+    ------
+    ValueError
+        No such column, or a log without a speed signal (the message says what to pass).
+    """
+    src = Path(str(source))
+    log = src if log is None else Path(log)
+    if src.is_file() and src != log:
+        return read_speed_file(src)
+    if src == log:
+        from imu_ground.datasets import detect_format
+        fmt = detect_format(log) if format is None else format
+        out = log_speed(log, fmt, imu, topic)
+        if out is None:
+            raise ValueError(f"{log}: a {fmt} log carries no speed signal; give a speed file (CSV t,speed) or "
+                             f"the name of the log's speed column (formats with their own: {', '.join(SPEED_SOURCES)})")
+        return out
+    if imu is None:
+        from imu_ground.datasets import read_imu
+        imu = read_imu(log, format=format)
+    name = str(source)
+    if name not in imu.extra.columns:
+        raise ValueError(f"{log}: no column {name!r} for the speed (and no such file); columns besides the IMU's: "
+                         f"{', '.join(map(str, imu.extra.columns)) or 'none'}")
+    return _checked(imu.t, imu.extra[name].to_numpy(float), f"{log} column {name}")
+
+
+def frame_speed(t: np.ndarray, speed: np.ndarray, frame_t: np.ndarray, frame_dt: np.ndarray) -> np.ndarray:
+    """Mean speed over each frame ``(t_k - dt_k, t_k]``, m/s; NaN for frames outside the signal's span.
+
+    The mean of the piecewise-linear speed (exact integral of the linear interpolation),
+    or the interpolated value for a signal with one sample in the frame.
+
+    Parameters
+    ----------
+    t, speed : ndarray (M,)
+        Speed samples (s, increasing; m/s).
+    frame_t, frame_dt : ndarray (F,)
+        Frame end times and durations, s (an EgoMotion's ``t`` and ``delta_t``).
+    """
+    t = np.asarray(t, dtype=float)
+    v = np.asarray(speed, dtype=float)
+    te = np.asarray(frame_t, dtype=float)
+    ts = te - np.asarray(frame_dt, dtype=float)
+    if t.size == 1:
+        return np.where((te >= t[0]) & (ts <= t[0]), v[0], np.nan)
+    cum = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+
+    def integral(x):
+        xc = np.clip(x, t[0], t[-1])
+        j = np.clip(np.searchsorted(t, xc, side="right") - 1, 0, t.size - 2)
+        h = xc - t[j]
+        slope = (v[j + 1] - v[j]) / (t[j + 1] - t[j])
+        return cum[j] + h * (v[j] + 0.5 * slope * h)
+
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = (integral(te) - integral(ts)) / (te - ts)
+    inside = (ts >= t[0] - 1e-9) & (te <= t[-1] + 1e-9)
+    return np.where(inside, out, np.nan)
