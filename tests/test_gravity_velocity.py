@@ -183,3 +183,15 @@ def test_filterpy_matrices_describe_the_last_update(drive):
     assert np.all(H[0] == 0) and np.all(K[:, 0] == 0) and R[0, 0] == 0
     np.testing.assert_allclose(S[1:, 1:], (H @ g.P_prior @ H.T + R)[1:, 1:], atol=1e-12)
     np.testing.assert_allclose(g.x, g.x_prior + K @ g.y, atol=1e-12)
+
+
+def test_to_body_flat_matches_to_body():
+    from imu_ground import so3
+    R = so3.rotz(0.3) @ so3.rotx(-0.1)
+    f = GravityVelocityFilter(extrinsic=R)
+    d = so3.exp(np.array([0.01, -0.02, 0.03]))
+    dv = np.array([0.5, -0.1, 0.98])
+    d9, dv3 = f.to_body_flat(d.ravel().tolist(), dv.tolist())
+    db, dvb = f.to_body(d, dv)
+    np.testing.assert_allclose(np.reshape(d9, (3, 3)), db, atol=1e-15)
+    np.testing.assert_allclose(dv3, dvb, atol=1e-15)

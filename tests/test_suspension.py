@@ -11,13 +11,18 @@ import pytest
 from filterpy.common import Saver
 
 from imu_ground import so3
-from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
-from imu_ground.filters.extrinsics import Extrinsic
-from imu_ground.filters.ground import GroundEstimate, GroundNormalFilter, GroundTrack
 from imu_ground.evaluation.metrics import evaluate_drive, normal_angle
 from imu_ground.evaluation.simulate import RoadParams, SpeedParams, simulate, simulate_suite
+from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
-from imu_ground.filters.suspension import DEFAULT_GAINS, SuspensionAwareFilter, SuspensionTrack, estimate_suspension_aware
+from imu_ground.filters.ground import GroundEstimate, GroundNormalFilter, GroundTrack
+from imu_ground.filters.suspension import (
+    DEFAULT_GAINS,
+    SuspensionAwareFilter,
+    SuspensionTrack,
+    estimate_suspension_aware,
+)
+from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
 
 DEG = np.pi / 180.0
 
@@ -233,6 +238,7 @@ def test_one_call_function(mems_drive):
 def kitti(shared_data):
     """The 30 valid kitti_imu100 drives: check_reference's verdict, minus the README-listed 0002."""
     from imu_ground.datasets import read_kitti_imu100
+
     from imu_ground.evaluation.reference import check_reference, pitch_reference
     folder = shared_data / "kitti_imu100"
     drives, skipped = {}, {}
@@ -281,3 +287,16 @@ def test_kitti_pitch_accuracy(kitti):
     # removed the suspension filter is better there too (0.110 vs 0.126 deg)
     ratio = stream / paper
     assert set(ratio[ratio > 1.1].index) <= {"2011_09_26_drive_0091"} and ratio.max() < 1.15
+
+
+# ----------------------------------------------------------------------------- pitch from the lateral load
+def test_cross_gain_adds_pitch_from_the_lateral_load(mems_drive):
+    from imu_ground.filters.gains import DEFAULT_CROSS_GAIN
+    sim, em, ext = mems_drive
+    tr = SuspensionAwareFilter(extrinsic=ext).run(em)
+    assert DEFAULT_CROSS_GAIN < 0
+    np.testing.assert_allclose(tr.suspension[:, 0], tr.gains[:, 0] * tr.load[:, 0] + DEFAULT_CROSS_GAIN * tr.load[:, 1],
+                               atol=1e-15)
+    off = SuspensionAwareFilter(extrinsic=ext, cross_gain=0.0).run(em)
+    np.testing.assert_allclose(off.suspension, off.gains * off.load, atol=1e-15)
+    assert np.max(np.abs(off.pitch - tr.pitch)) > 1e-5

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from array import array
 from dataclasses import dataclass
+from math import isnan
 from types import SimpleNamespace
 from typing import NamedTuple, Optional, Sequence, Union
 
@@ -115,7 +116,7 @@ def _predict_update(s, frames, prm, out=None, priors=None):
         if priors is not None:
             priors.extend(prior)
         zupt = 0
-        if speed == speed:                          # measured forward speed along the body x axis (r0, r3, r6)
+        if not isnan(speed):                        # measured forward speed along the body x axis (r0, r3, r6)
             ds = rs - rn
             st = _velocity_update(prior, (rn + ds * r0 * r0, ds * r0 * r3, ds * r0 * r6, rn + ds * r3 * r3,
                                           ds * r3 * r6, rn + ds * r6 * r6), (speed * r0, speed * r3, speed * r6))
@@ -300,7 +301,7 @@ class GravityVelocityFilter:
         Initial attitude, world <- body (identity).
     sigma_speed : float
         Std of a measured forward speed (``speed`` of :meth:`step` / :meth:`run`, wheel or CAN),
-        m/s (0.1): the update is then ``R_k^T v = (speed, 0, 0)``, noise ``diag(sigma_speed^2,
+        m/s (0.1; at most 1000): the update is then ``R_k^T v = (speed, 0, 0)``, noise ``diag(sigma_speed^2,
         sigma_nhc^2, sigma_nhc^2)``, in place of the zero-velocity update and the constraint.
 
     Attributes
@@ -325,8 +326,8 @@ class GravityVelocityFilter:
                  g0: Optional[Sequence[float]] = None, extrinsic: Union[Extrinsic, np.ndarray, None] = None,
                  lever_arm: Optional[Sequence[float]] = None, R0: Optional[np.ndarray] = None,
                  sigma_speed: float = 0.1) -> None:
-        if not float(sigma_speed) > 0:
-            raise ValueError(f"sigma_speed must be positive (m/s), got {sigma_speed!r}")
+        if not 0 < float(sigma_speed) <= 1e3:     # (larger: no information, and S ill-conditioned)
+            raise ValueError(f"sigma_speed must be in (0, 1000] m/s (no speed: leave it out), got {sigma_speed!r}")
         self.sigma_speed, self.sigma_nhc, self.sigma_zupt = float(sigma_speed), float(sigma_nhc), float(sigma_zupt)
         self.q_v, self.q_g, self.q_gap = float(q_v), float(q_g), float(q_gap)
         self.sigma_v0, self.sigma_g0 = float(sigma_v0), float(sigma_g0)

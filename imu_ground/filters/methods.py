@@ -14,7 +14,7 @@ import inspect
 from dataclasses import dataclass
 from typing import Any, Callable
 
-__all__ = ["MethodSpec", "METHODS", "default_method", "make_estimator", "estimate"]
+__all__ = ["METHODS", "MethodSpec", "default_method", "estimate", "make_estimator"]
 
 
 @dataclass(frozen=True)

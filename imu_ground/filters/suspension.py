@@ -57,20 +57,43 @@ import numpy as np
 
 from imu_ground import so3
 from imu_ground.filters.design import IIRFilter, butter_bandpass, foh_filter
-from imu_ground.filters.estimator import (GroundEstimate, GroundTrack, as_egomotion, bad_frame_error,
-                                          check_on_invalid, frame_problem, frame_problems, frame_where,
-                                          hold_skipped, static_rotation, vector3)
+from imu_ground.filters.estimator import (
+    GroundEstimate,
+    GroundTrack,
+    as_egomotion,
+    bad_frame_error,
+    check_on_invalid,
+    frame_problem,
+    frame_problems,
+    frame_where,
+    hold_skipped,
+    static_rotation,
+    vector3,
+)
 from imu_ground.filters.extrinsics import resolve_platform
-from imu_ground.filters.gains import (DEFAULT_CROSS_GAIN, DEFAULT_GAINS, GAIN_BAND, TYPICAL_BAND_POWER,  # noqa: F401 (re-exported)
-                                      bandpass_gain_regression, tilt_angles)
+from imu_ground.filters.gains import (
+    DEFAULT_CROSS_GAIN,
+    DEFAULT_GAINS,
+    GAIN_BAND,
+    TYPICAL_BAND_POWER,
+    bandpass_gain_regression,
+    tilt_angles,
+)
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
 from imu_ground.filters.rotations import as_rotations, matrix_from_quat, twist_angle
 from imu_ground.units import DEG
 
-__all__ = ["DEFAULT_GAINS", "DEFAULT_CROSS_GAIN", "GAIN_BAND", "SuspensionAwareFilter", "SuspensionTrack", "estimate_suspension_aware",
-           "bandpass_gain_regression"]
+__all__ = [
+    "DEFAULT_CROSS_GAIN",
+    "DEFAULT_GAINS",
+    "GAIN_BAND",
+    "SuspensionAwareFilter",
+    "SuspensionTrack",
+    "bandpass_gain_regression",
+    "estimate_suspension_aware",
+]
 
 _I3 = np.eye(3)
 _LOADS = {"specific_force": 1.0, "acceleration": 0.0}
@@ -377,7 +400,7 @@ class SuspensionAwareFilter:
         if self._resp is not None:
             ux, uy = self._resp.step(np.array([ux, uy])).tolist()
         self._load = (ux, uy)
-        self.speed = speed = sp if sp == sp else v
+        self.speed = speed = v if math.isnan(sp) else sp
         kp, kr = self._kp, self._kr
         if self.online_gains:
             self._update_gains(d, ax, ay)
