@@ -130,7 +130,7 @@ def log_speed(path: str | Path, format: str, imu=None, topic: str | None = None
         if not {"ve", "vn"} <= set(imu.extra.columns):
             return None
         return _checked(imu.t, np.hypot(imu.extra["ve"].to_numpy(float), imu.extra["vn"].to_numpy(float)), str(p))
-    if format in ("nuscenes", "comma2k19") and imu is None:
+    if format in ("nuscenes", "comma2k19", "rosbag") and imu is None:
         from imu_ground.datasets import read_imu
         imu = read_imu(p, format=format)
     if format == "nuscenes":

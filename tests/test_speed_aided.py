@@ -186,3 +186,19 @@ def test_cli_speed_auto_on_a_kitti_drive(shared_data, tmp_path, capsys):
     code, out, err = _run(capsys, "estimate", path, "-o", tmp_path / "a.csv", "--speed", "auto")
     assert code == 0, err
     assert "INS horizontal speed" in out.splitlines()[0]
+
+
+def test_rosbag_speed_from_odometry(tmp_path):
+    """A bag with an IMU topic and an odometry topic: the speed on the IMU's time base, and ``auto`` uses it."""
+    pytest.importorskip("rosbags")
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("rosbag_helpers", Path(__file__).with_name("test_rosbag.py"))
+    rb = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(rb)                                     # the ROS tests' bag writer
+    from imu_ground.datasets import read_table
+    path = rb.write_bag(rb._bag_path(tmp_path, "mcap"), "mcap", read_table(EXAMPLE), extra=rb._odometry)
+    t, v = read_speed(path)
+    np.testing.assert_allclose(t, np.arange(30) * 0.1, atol=1e-6)       # T0_NS is also the first IMU stamp
+    assert v[0] == -2.0 and np.all(v[1:] == 10.0)
+    res = estimate_log(path, speed="auto")
+    assert res.meta["speed"].startswith("the log's twist / odometry topic speed (29 of")

@@ -269,8 +269,8 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
         if (Q is not None or R is not None) and name not in ("filter", "paper"):
             raise OptionError(f"{{opt}} sets the noise of the filter and paper methods; method {name} does not "
                               "use it (add --method filter, or leave it out)", "Q" if Q is not None else "R")
-        frame_speeds, speed_info = _frame_speeds(speed, path, kind, info.get("format"), imu if kind == "imu" else None,
-                                                 em, name, reader_kw.get("topic"))
+        frame_speeds, speed_info = _frame_speeds(speed, path, info.get("format"), imu if kind == "imu" else None,
+                                                 em, name)
         ext = _load_extrinsic(extrinsic)
         track = _run_method(name, em, ext, Q, R, frame_speeds)
         bar.update()
@@ -341,10 +341,11 @@ def _load_extrinsic(extrinsic):
     return Extrinsic.coerce(np.asarray(extrinsic, dtype=float))
 
 
-def _frame_speeds(speed, path, kind: str, fmt, imu, em, method: str, topic):
+def _frame_speeds(speed, path, fmt, imu, em, method: str):
     """Per-frame speeds (m/s, NaN where unknown) for :func:`estimate_log`'s ``speed``, and what they are.
 
-    Returns ``(None, "none")`` for IMU only; ``(array, description)`` otherwise.
+    Returns ``(None, "none")`` for IMU only; ``(array, description)`` otherwise. A ROS log's speed
+    topic is found by its message type (``--topic`` names the IMU topic).
     """
     from imu_ground.filters.methods import METHODS
     if speed is None or (isinstance(speed, str) and speed == "none"):
@@ -363,13 +364,13 @@ def _frame_speeds(speed, path, kind: str, fmt, imu, em, method: str, topic):
         return v, "given per frame"
     from imu_ground.datasets.speed import SPEED_SOURCES, frame_speed, log_speed, read_speed
     if auto:
-        got = log_speed(path, fmt, imu, topic) if fmt in SPEED_SOURCES else None
+        got = log_speed(path, fmt, imu) if fmt in SPEED_SOURCES else None
         if got is None:
             return None, f"none (a {fmt} log has no speed signal)"
         what = f"the log's {SPEED_SOURCES[fmt]}"
     else:
         try:
-            got = read_speed(speed, log=path, format=fmt, imu=imu, topic=topic)
+            got = read_speed(speed, log=path, format=fmt, imu=imu)
         except (ValueError, FileNotFoundError) as e:
             raise OptionError(f"{{opt}} {speed}: {e}", "speed") from e
         what = f"{speed}"
