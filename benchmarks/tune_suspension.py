@@ -158,9 +158,10 @@ def other_logs(data: Path = DEFAULT_DATA) -> list[dict]:
             a, b = (estimate_log(path, speed=sp) for sp in ("none", "auto"))
         ok = a.track.valid & b.track.valid
         diff = np.degrees(b.track.pitch[ok] - a.track.pitch[ok])
+        sa, sb = (float(np.degrees(np.std(r.track.pitch[ok]))) for r in (a, b))
         out.append(dict(table="other logs", setting=f"{name}: {ok.sum()} frames, speed {b.meta['speed']}; pitch std "
-                        f"{np.degrees(np.std(a.track.pitch[ok])):.3f} (IMU) / {np.degrees(np.std(b.track.pitch[ok])):.3f} "
-                        f"(speed) deg; RMS difference", drives=1, mean_deg=float(np.sqrt(np.mean(diff ** 2)))))
+                        f"{sa:.3f} (IMU) / {sb:.3f} (speed) deg; RMS difference", drives=1,
+                        mean_deg=float(np.sqrt(np.mean(diff ** 2)))))
     return out
 
 
