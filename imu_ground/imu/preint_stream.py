@@ -151,12 +151,8 @@ class StreamingPreintegrator:
                     bgx, bgy, bgz, bax, bay, baz = self._bias
                     wx, wy, wz = gyro
                     ax, ay, az = accel
-                    wx -= bgx
-                    wy -= bgy
-                    wz -= bgz
-                    ax -= bax
-                    ay -= bay
-                    az -= baz
+                    wx, wy, wz = wx - bgx, wy - bgy, wz - bgz
+                    ax, ay, az = ax - bax, ay - bay, az - baz
                     self._prev = (t, wx, wy, wz, ax, ay, az)
                     _, gx, gy, gz, fx, fy, fz = prev
                     s, u = self._st
