@@ -28,3 +28,15 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     for item in items:
         if "shared_data" in getattr(item, "fixturenames", ()):
             item.add_marker(pytest.mark.shared)
+
+
+@pytest.fixture(scope="session")
+def kitti_drives(shared_data: Path) -> list:
+    """Every shared ``kitti_imu100`` drive with its reference, loaded once for the whole session
+    (:func:`imu_ground.evaluation.load_real_drives`; ``Drive.valid`` is the reference check's verdict)."""
+    import warnings
+
+    from imu_ground.evaluation import load_real_drives
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return load_real_drives(shared_data / "kitti_imu100", progress=False)

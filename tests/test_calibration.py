@@ -2,10 +2,8 @@
 vehicle; the calibration file; online gains converging; the KITTI platform (shared recordings)."""
 from __future__ import annotations
 
-import warnings
 
 import numpy as np
-import pandas as pd
 import pytest
 
 from imu_ground import so3
@@ -139,24 +137,12 @@ def test_file_round_trip_and_use(tmp_path, drive, cal):
 
 # ----------------------------------------------------------------------------- the KITTI platform
 @pytest.mark.shared
-def test_kitti_platform_self_calibration(shared_data):
-    """IMU-only calibration pooled over the 30 valid drives, then the filter with it."""
-    from imu_ground.datasets import read_kitti_imu100
+def test_kitti_platform_self_calibration(kitti_drives):
+    """IMU-only calibration pooled over the 31 valid drives, then the filter with it."""
     from imu_ground.filters.ground import GroundNormalFilter
     from imu_ground.evaluation.metrics import evaluate_drive
-    from imu_ground.evaluation.reference import check_reference, pitch_reference
-    folder = shared_data / "kitti_imu100"
-    drives = []
-    for name in pd.read_csv(folder / "drives.csv")["drive"]:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            imu = read_kitti_imu100(folder / f"{name}.csv.gz")
-        em = imu_to_egomotion(imu)
-        df = imu.to_dataframe()
-        ref = pitch_reference(df, times=em.t)
-        if check_reference(df, ref).valid and name != "2011_09_28_drive_0002":
-            drives.append((em, ref))
-    assert len(drives) == 30
+    drives = [(d.egomotion, d.truth) for d in kitti_drives if d.valid]
+    assert len(drives) == 31
     c = calibrate([em for em, _ in drives])
     kp, kr = np.degrees(c.gains)
     assert -0.35 < kp < -0.25 and 0.45 < kr < 0.7              # -0.32, +0.57
@@ -164,8 +150,8 @@ def test_kitti_platform_self_calibration(shared_data):
     # yaw comes out at -1.8 deg although the INS puts its x axis within 0.3 deg of the direction of
     # travel (see the report)
     assert np.degrees(so3.angle(c.rotation)) < 2.5
-    score = lambda f: np.mean([evaluate_drive(f(em), ref.pitch_rel_road, mask=ref.valid, remove_mean=True)
-                               ["pitch"]["mean"] for em, ref in drives])
+    score = lambda f: np.mean([evaluate_drive(f(em), truth["pitch"].to_numpy(), mask=truth["evaluate"].to_numpy(),
+                                              remove_mean=True)["pitch"]["mean"] for em, truth in drives])
     calibrated = score(lambda em: SuspensionAwareFilter.from_calibration(c).run(em).pitch)
     paper = score(lambda em: GroundNormalFilter.paper().run(em.delta_R).pitch)
     assert calibrated < 0.15 < 0.2 < paper                      # 0.138 vs 0.221

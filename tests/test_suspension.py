@@ -3,7 +3,6 @@ covariances and rotations, a braking manoeuvre, a synthetic suite against the pa
 the 30 valid KITTI drives (skipped without the shared recordings)."""
 from __future__ import annotations
 
-import warnings
 
 import numpy as np
 import pandas as pd
@@ -236,32 +235,23 @@ def test_one_call_function(mems_drive):
 
 # ----------------------------------------------------------------------------- real data
 @pytest.fixture(scope="module")
-def kitti(shared_data):
-    """The 31 valid kitti_imu100 drives (check_reference's verdict), with the INS horizontal speed per frame."""
-    from imu_ground.datasets import read_kitti_imu100
-
-    from imu_ground.evaluation.reference import check_reference, pitch_reference
-    folder = shared_data / "kitti_imu100"
+def kitti(kitti_drives):
+    """The 31 valid kitti_imu100 drives (the evaluation's loader), with the INS horizontal speed per frame."""
     drives, skipped = {}, {}
-    for name in pd.read_csv(folder / "drives.csv")["drive"]:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            imu = read_kitti_imu100(folder / f"{name}.csv.gz")
-        em = imu_to_egomotion(imu)
-        df = imu.to_dataframe()
-        ref = pitch_reference(df, times=em.t)
-        chk = check_reference(df, ref)
-        if not chk.valid:
-            skipped[name] = chk.reason
-        else:
-            drives[name] = (em, ref, frame_speed(imu.t, np.hypot(imu.extra["ve"], imu.extra["vn"]), em.t, em.delta_t))
+    for d in kitti_drives:
+        if not d.valid:
+            skipped[d.name] = d.reason
+            continue
+        em, imu = d.egomotion, d.imu
+        speed = frame_speed(imu.t, np.hypot(imu.extra["ve"], imu.extra["vn"]), em.t, em.delta_t)
+        drives[d.name] = (em, d.truth["pitch"].to_numpy(), d.truth["evaluate"].to_numpy(), speed)
     return drives, skipped
 
 
 def _kitti_scores(drives, method) -> pd.Series:
     out = {}
-    for name, (em, ref, speed) in drives.items():
-        out[name] = evaluate_drive(method(em, speed), ref.pitch_rel_road, mask=ref.valid, remove_mean=True)["pitch"]["mean"]
+    for name, (em, ref, mask, speed) in drives.items():
+        out[name] = evaluate_drive(method(em, speed), ref, mask=mask, remove_mean=True)["pitch"]["mean"]
     return pd.Series(out)
 
 
