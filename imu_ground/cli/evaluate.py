@@ -17,7 +17,8 @@ __all__ = ["register", "run"]
 
 def _methods_help() -> str:
     from imu_ground.evaluation.runner import METHODS
-    return f"comma-separated methods to compare (default all): {', '.join(METHODS)}"
+    lines = [f"{name}: {getattr(m, 'description', '')}" for name, m in METHODS.items()]
+    return "comma-separated methods to compare (default all): " + "; ".join(lines)
 
 
 def register(sub) -> None:
@@ -72,6 +73,7 @@ def run(a: argparse.Namespace) -> int:
     import numpy as np
 
     from imu_ground.evaluation.runner import (
+        conditions_table,
         evaluate,
         format_table,
         load_real_drives,
@@ -91,8 +93,13 @@ def run(a: argparse.Namespace) -> int:
     res, tracks = out if isinstance(out, tuple) else (out, {})
     table = summary_table(res)
     cols = [c for c in ("drives", "mean_deg", "median_deg", "worst_deg", "worst_ratio_to_paper", "worst_ratio_drive",
-                        "us_per_frame") if c in table.columns]
+                        "seg_pitch_deg", "ref_floor_deg", "ref_share", "us_per_frame") if c in table.columns]
     say(format_table(table[cols], "text"))
+    say("(mean_deg: per-drive mean absolute error averaged over drives; seg_pitch_deg: the same with the mean "
+        "removed per moving segment; ref_floor_deg: what a perfect estimator would score against the reference's "
+        "own uncertainty; ref_share: the share of the squared error the reference alone can explain)")
+    say("\nby condition (mean absolute pitch error, deg, pooled over frames):")
+    say(format_table(conditions_table(res), "text"))
     excluded = res[~res["valid"]].drop_duplicates("drive")
     if len(excluded):
         say("\nexcluded drives (reference not usable):")
