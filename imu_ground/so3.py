@@ -78,6 +78,7 @@ def hat(phi: np.ndarray) -> np.ndarray:
     Parameters
     ----------
     phi : array_like, shape (..., 3)
+        Any vectors (the map is linear; units carry over).
 
     Returns
     -------
@@ -101,6 +102,7 @@ def vee(m: np.ndarray) -> np.ndarray:
     Parameters
     ----------
     m : array_like, shape (..., 3, 3)
+        Any square matrices; the symmetric part is ignored.
 
     Returns
     -------
@@ -188,6 +190,7 @@ def right_jacobian(phi: np.ndarray) -> np.ndarray:
     Parameters
     ----------
     phi : array_like, shape (..., 3)
+        Rotation vectors, rad.
 
     Returns
     -------
@@ -203,13 +206,7 @@ def right_jacobian(phi: np.ndarray) -> np.ndarray:
 def left_jacobian(phi: np.ndarray) -> np.ndarray:
     """Left Jacobian of SO(3): ``exp(phi + d) ~= exp(J_l(phi) d) exp(phi)``; ``J_l(phi) = J_r(-phi)``.
 
-    Parameters
-    ----------
-    phi : array_like, shape (..., 3)
-
-    Returns
-    -------
-    ndarray, shape (..., 3, 3)
+    Shapes and units as :func:`right_jacobian`: ``phi`` (..., 3), rad -> (..., 3, 3).
     """
     return right_jacobian(-np.asarray(phi, dtype=float))
 
@@ -232,6 +229,7 @@ def right_jacobian_inv(phi: np.ndarray) -> np.ndarray:
     Parameters
     ----------
     phi : array_like, shape (..., 3)
+        Rotation vectors, rad, angle ``|phi|`` at most pi.
 
     Returns
     -------
@@ -244,16 +242,7 @@ def right_jacobian_inv(phi: np.ndarray) -> np.ndarray:
 
 
 def left_jacobian_inv(phi: np.ndarray) -> np.ndarray:
-    """Inverse of :func:`left_jacobian` (``= right_jacobian_inv(-phi)``).
-
-    Parameters
-    ----------
-    phi : array_like, shape (..., 3)
-
-    Returns
-    -------
-    ndarray, shape (..., 3, 3)
-    """
+    """Inverse of :func:`left_jacobian`, ``J_l^{-1}(phi) = J_r^{-1}(-phi)``; shapes as :func:`right_jacobian_inv`."""
     return right_jacobian_inv(-np.asarray(phi, dtype=float))
 
 
@@ -266,6 +255,7 @@ def project(m: np.ndarray) -> np.ndarray:
     Parameters
     ----------
     m : array_like, shape (..., 3, 3)
+        Non-singular matrices, near SO(3) or not.
 
     Returns
     -------
@@ -328,6 +318,7 @@ def renormalise(r: np.ndarray) -> np.ndarray:
     Parameters
     ----------
     r : array_like, shape (..., 3, 3)
+        Nearly orthonormal matrices (e.g. long products of rotations).
 
     Returns
     -------
