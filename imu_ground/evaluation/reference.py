@@ -36,9 +36,9 @@ How the reference is built (every choice, and why)
    computed with cumulative sums and ``np.interp`` (vectorised, O(N)). Only
    samples above ``min_speed`` enter the average: below it ``atan2(vu, v)``
    is noise, and weighting by distance already gives stops no weight. The
-   window is thus the same stretch of road at any speed. (On the 30 benchmark
-   drives, averaging all samples by distance instead gives a noisier
-   reference: the constant-normal error rises from 0.242 to 0.250 deg.)
+   window is thus the same stretch of road at any speed. (Averaging all
+   samples by distance instead gives a noisier reference: the constant
+   normal's error against it rises.)
    10 m is a few wheelbases: enough to average the noise (about 0.5 s of
    data at 20 m/s, 3 s at 3 m/s), short against the length of vertical
    curves on roads (radii of hundreds of metres: a 10 m centred mean of a
