@@ -34,15 +34,12 @@ import numpy as np
 
 from imu_ground.imu.data import ImuData
 
+from . import report as _report
+from .report import *  # re-exports the report's public names (errors, warnings, ValidationReport)
 from .report import (
     STANDARD_GRAVITY,
-    Gap,
-    GapWarning,
     ImuValidationError,
-    ImuValidationWarning,
-    MalformedFileError,
     NonFiniteWarning,
-    TimestampWarning,
     UnitsWarning,
     ValidationReport,
     row_names,
@@ -57,21 +54,11 @@ from .timestamps import (
     fmt_list,
 )
 
-__all__ = [
-    "POLICIES",
-    "STANDARD_GRAVITY",
-    "Gap",
-    "GapWarning",
-    "ImuValidationError",
-    "ImuValidationWarning",
-    "MalformedFileError",
-    "NonFiniteWarning",
-    "TimestampWarning",
-    "UnitsWarning",
-    "ValidationReport",
-    "check_timestamps",
-    "validate",
-]
+#: The readers' helpers of :mod:`~imu_ground.datasets.report` that are not re-exported here.
+_READER_HELPERS = ("row_names", "warn_user")
+# this module's own names, and the report's public ones (errors, warnings, ValidationReport)
+__all__ = ["POLICIES", "check_timestamps", "validate"] + [
+    name for name in _report.__all__ if name not in _READER_HELPERS]
 
 _NONFINITE = ("raise", "drop")
 #: Plausible IMU sample rates, Hz.
