@@ -26,7 +26,7 @@ from imu_ground.imu.data import ImuData
 
 from .csvio import open_binary, read_delimited
 from .report import ImuValidationWarning, MalformedFileError, warn_user
-from .skeleton import finish, register_format
+from .skeleton import finish, register_format, with_finish_parameters
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -87,6 +87,7 @@ def read_drives_index(path: str | Path) -> pd.DataFrame:
                         index=pd.Index(cols["drive"].astype(str), name="drive"))
 
 
+@with_finish_parameters
 def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None = None,
                       validate: bool = True, policy: str = "retime", **validate_kw: Any) -> ImuData:
     """Read one kitti_imu100 drive (100 Hz KITTI OXTS, CSV or CSV.gz).
@@ -98,12 +99,7 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
     drives_csv : str, Path, bool or None
         The ``drives.csv`` index giving the drive's start time; ``None`` (default)
         uses the one beside ``path`` if there is one, ``False`` ignores it.
-    validate : bool
-        Run :func:`imu_ground.datasets.validation.validate` (default True).
-    policy : {"retime", "drop", "sort", "strict"}
-        Time-order policy of the validation (default ``"retime"``).
-    **validate_kw
-        Other options of :func:`~imu_ground.datasets.validation.validate`.
+    {finish_parameters}
 
     Returns
     -------

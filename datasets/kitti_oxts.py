@@ -23,7 +23,7 @@ from imu_ground.imu.data import ImuData
 
 from .options import ImuInputError
 from .report import ImuValidationWarning, MalformedFileError, warn_user
-from .skeleton import finish, register_format
+from .skeleton import finish, register_format, with_finish_parameters
 
 __all__ = [
     "OXTS_FIELDS",
@@ -215,6 +215,7 @@ def _is_number(s: str) -> bool:
     return True
 
 
+@with_finish_parameters
 def read_kitti_oxts(path: str | Path, *, allow_missing: bool = False, validate: bool = True,
                     policy: str = "retime", **validate_kw: Any) -> ImuData:
     """Read a KITTI raw OXTS log (sync 10 Hz or extract 100 Hz).
@@ -226,12 +227,7 @@ def read_kitti_oxts(path: str | Path, *, allow_missing: bool = False, validate: 
     allow_missing : bool
         If packet files are missing from ``data/``, read the ones present (matched
         to ``timestamps.txt`` by file number) with a warning instead of raising.
-    validate : bool
-        Run :func:`imu_ground.datasets.validation.validate` (default True).
-    policy : {"retime", "drop", "sort", "strict"}
-        Time-order policy of the validation (default ``"retime"``).
-    **validate_kw
-        Other options of :func:`~imu_ground.datasets.validation.validate`.
+    {finish_parameters}
 
     Returns
     -------

@@ -17,7 +17,7 @@ from imu_ground.imu.data import ImuData
 
 from .options import ImuInputError
 from .report import MalformedFileError
-from .skeleton import finish, register_format
+from .skeleton import finish, register_format, with_finish_parameters
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -83,6 +83,7 @@ def _vectors(df: pd.DataFrame, key: str, width: int, path: Path) -> np.ndarray:
     raise MalformedFileError(path, f"{key!r} has an unexpected shape")  # pragma: no cover
 
 
+@with_finish_parameters
 def read_nuscenes_imu(path: str | Path, *, scene: str | None = None, validate: bool = True,
                       policy: str = "retime", **validate_kw: Any) -> ImuData:
     """Read a nuScenes CAN bus ``*_ms_imu.json`` file.
@@ -93,12 +94,7 @@ def read_nuscenes_imu(path: str | Path, *, scene: str | None = None, validate: b
         The ``<scene>_ms_imu.json`` file, or a folder holding one (see ``scene``).
     scene : str, optional
         Scene name to pick in a folder with several scenes.
-    validate : bool
-        Run :func:`imu_ground.datasets.validation.validate` (default True).
-    policy : {"retime", "drop", "sort", "strict"}
-        Time-order policy of the validation (default ``"retime"``).
-    **validate_kw
-        Other options of :func:`~imu_ground.datasets.validation.validate`.
+    {finish_parameters}
 
     Returns
     -------

@@ -17,10 +17,11 @@ and names an option that does not apply. A pose file handed to either gets a
 """
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from imu_ground.imu.data import ImuData
 
@@ -31,6 +32,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "ALIASES",
+    "FINISH_PARAMETERS",
     "FORMATS",
     "FormatSpec",
     "PoseFileError",
@@ -39,10 +41,23 @@ __all__ = [
     "finish",
     "read_imu",
     "register_format",
+    "with_finish_parameters",
 ]
 
 #: Options every reader takes (they go to :func:`finish`).
 COMMON_OPTIONS = frozenset({"policy", "nonfinite"})
+
+#: The readers' common parameters, which they pass on to :func:`finish`, as numpydoc
+#: ``Parameters`` entries; :func:`with_finish_parameters` puts them in a reader's docstring.
+FINISH_PARAMETERS = """\
+validate : bool
+    Run :func:`imu_ground.datasets.validation.validate` (default True).
+policy : {"retime", "drop", "sort", "strict"}
+    Time-order policy of the validation (default ``"retime"``).
+**validate_kw
+    Other options of :func:`~imu_ground.datasets.validation.validate`."""
+
+_Reader = TypeVar("_Reader", bound=Callable[..., Any])
 
 
 @dataclass(frozen=True)
@@ -127,6 +142,20 @@ def finish(imu: ImuData, *, validate: bool = True, policy: str = "retime", **opt
             raise TypeError(f"validation options {sorted(options)} given with validate=False")
         return imu
     return _validate(imu, policy, **options)[0]  # type: ignore[arg-type]
+
+
+def with_finish_parameters(reader: _Reader) -> _Reader:
+    """Decorator: replace the line ``{finish_parameters}`` of ``reader``'s docstring by :data:`FINISH_PARAMETERS`.
+
+    The entries take the placeholder line's indentation, so the docstring reads
+    (``help``, Sphinx) as if they were written there.
+    """
+    doc = reader.__doc__
+    if doc and "{finish_parameters}" in doc:    # docstrings are None under python -OO
+        line = next(x for x in doc.splitlines() if "{finish_parameters}" in x)
+        indent = line[:len(line) - len(line.lstrip())]
+        reader.__doc__ = doc.replace(line, textwrap.indent(FINISH_PARAMETERS, indent))
+    return reader
 
 
 def _ordered() -> list[FormatSpec]:

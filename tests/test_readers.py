@@ -540,3 +540,15 @@ def test_read_imu_generic_csv_with_kwargs(tmp_path):
     texts = [str(w.message) for w in rec]
     assert len(texts) == 2 and "time column 'ts' read as milliseconds" in texts[0] and "deg/s" in texts[1]
     np.testing.assert_allclose(imu2.gyro, imu.gyro, rtol=1e-15)
+
+
+def test_reader_docstrings_carry_the_common_parameters():
+    """The readers' shared validate/policy entries (skeleton.FINISH_PARAMETERS) stand in their docstrings."""
+    import inspect
+
+    from imu_ground.datasets.skeleton import FINISH_PARAMETERS
+    for reader in (read_kitti_imu100, read_kitti_oxts, read_nuscenes_imu):
+        doc = inspect.getdoc(reader)
+        assert "{finish_parameters}" not in doc, reader.__name__
+        assert FINISH_PARAMETERS in doc, reader.__name__
+        assert doc.index(FINISH_PARAMETERS) < doc.index("Returns\n-------"), reader.__name__
