@@ -163,6 +163,7 @@ def detect_pose_format(path: str | Path) -> str | None:
     Parameters
     ----------
     path : str or Path
+        Any path; a folder or a missing file gives None.
 
     Returns
     -------
@@ -194,6 +195,8 @@ def read_kitti_poses(path: str | Path) -> PoseSequence:
     Parameters
     ----------
     path : str or Path
+        Text file, e.g. ``poses/XX.txt`` of the odometry benchmark (12 numbers) or
+        ORB-SLAM2's output (frame index, then 12 numbers).
 
     Returns
     -------
@@ -234,6 +237,7 @@ def read_tum_poses(path: str | Path) -> PoseSequence:
     Parameters
     ----------
     path : str or Path
+        Text file, whitespace separated, ``t`` in s.
 
     Returns
     -------
