@@ -150,3 +150,11 @@ def test_bare_rotation_step_checks_the_rotation_only():
     assert not est.valid and est.pitch == 0.0 and np.array_equal(est.normal, [0.0, 0.0, 1.0])
     with pytest.raises(ValueError, match="on_invalid must be 'raise' or 'skip'"):
         SuspensionAwareFilter(on_invalid="ignore")
+
+
+def test_step_refuses_several_rotations_as_one_frame():
+    """Both streaming estimators share the frame check (estimator.checked_rotation): a batch is named as such."""
+    batch = np.stack([np.eye(3), so3.rotz(0.1)])
+    for f in (GroundNormalFilter(on_invalid="skip"), SuspensionAwareFilter(on_invalid="skip")):
+        with pytest.raises(ValueError, match=r"delta_R must be one rotation, got shape \(2, 3, 3\)"):
+            f.step(batch, np.zeros(3), 0.1) if isinstance(f, SuspensionAwareFilter) else f.step(batch)

@@ -38,7 +38,7 @@ if TYPE_CHECKING:                                   # imported lazily: the imu l
 
 __all__ = ["GroundEstimate", "GroundTrack", "GroundEstimator", "pitch_roll_from_normal", "track_table",
            "as_egomotion", "ON_INVALID", "ORTHO_TOL", "frame_problem", "frame_problems", "check_on_invalid",
-           "bad_frame_error", "static_rotation", "frame_where", "hold_skipped", "vector3"]
+           "bad_frame_error", "checked_rotation", "static_rotation", "frame_where", "hold_skipped", "vector3"]
 
 #: What a streaming estimator does with a bad frame: raise ``ValueError`` (state untouched) or
 #: skip it and return an estimate flagged invalid.
@@ -366,6 +366,54 @@ def bad_frame_error(problem: str, where: str) -> ValueError:
     """The error a streaming estimator raises for a bad frame (its state untouched)."""
     return ValueError(f"bad ego-motion frame ({where}): {problem}; the estimator's state is unchanged "
                       f"(construct it with on_invalid='skip' to skip such frames)")
+
+
+def checked_rotation(frame, delta_R, delta_v, delta_t: float, on_invalid: str,
+                     index: int) -> tuple[np.ndarray, list] | None:
+    """A streamed frame's ``delta_R`` as a 3x3 array and as 9 row-major floats, if the frame passes the checks.
+
+    The first step of every estimator's ``step``: coerce the rotation, then
+    :func:`frame_problem`; a bad frame raises or is to be skipped.
+
+    Parameters
+    ----------
+    frame : object
+        The frame as given to ``step``; its ``t`` (s), if it has one, locates the error.
+    delta_R : array_like
+        sensor_{k-1} <- sensor_k: a rotation matrix, a 4x4 relative pose or a
+        rotation vector, rad (:func:`~imu_ground.filters.rotations.as_rotations`).
+    delta_v : sequence of 3 float, or None
+        Velocity increment, m/s (None: not checked).
+    delta_t : float
+        Frame duration, s.
+    on_invalid : {"raise", "skip"}
+        The estimator's policy (:data:`ON_INVALID`).
+    index : int
+        0-based index of the frame in the estimator's run, for the message.
+
+    Returns
+    -------
+    (ndarray (3, 3), list of 9 float) or None
+        None: a bad frame to skip (``on_invalid="skip"``); the caller returns
+        its current estimate flagged invalid.
+
+    Raises
+    ------
+    ValueError
+        ``delta_R`` is not one rotation, or a bad frame with ``on_invalid="raise"``.
+    """
+    d = delta_R
+    if type(d) is not np.ndarray or d.shape != (3, 3):
+        d = as_rotations(d)
+        if d.shape != (3, 3):
+            raise ValueError(f"delta_R must be one rotation, got shape {d.shape}")
+    d9 = d.ravel().tolist()
+    problem = frame_problem(d9, delta_v, delta_t)
+    if problem is None:
+        return d, d9
+    if on_invalid == "raise":
+        raise bad_frame_error(problem, frame_where(index, getattr(frame, "t", math.nan)))
+    return None
 
 
 def static_rotation(extrinsic) -> Optional[np.ndarray]:

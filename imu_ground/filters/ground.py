@@ -30,12 +30,12 @@ import numpy as np
 
 from imu_ground import so3
 from imu_ground.filters.estimator import (GroundEstimate, GroundTrack, as_egomotion, bad_frame_error,
-                                          check_on_invalid, frame_problem, frame_problems, frame_where,
+                                          check_on_invalid, checked_rotation, frame_problems, frame_where,
                                           hold_skipped, pitch_roll_from_normal, static_rotation, vector3)
 from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
-from imu_ground.filters.rotations import as_rotations, cumulative_rotations, matrix_from_quat, twist_angle
+from imu_ground.filters.rotations import cumulative_rotations, matrix_from_quat, twist_angle
 
 __all__ = ["GroundNormalFilter", "GroundEstimate", "GroundTrack", "pitch_roll_from_normal"]
 
@@ -248,6 +248,8 @@ class GroundNormalFilter:
         Returns
         -------
         GroundEstimate
+            Pitch and roll relative to the road after this frame; a skipped bad
+            frame gives the previous state flagged ``valid=False``.
 
         Raises
         ------
@@ -258,16 +260,10 @@ class GroundNormalFilter:
             d, dv, dt = frame, None, 1.0
         else:
             d, dv, dt = frame.delta_R, vector3(frame.delta_v), frame.delta_t
-        if type(d) is not np.ndarray or d.shape != (3, 3):
-            d = as_rotations(d)
-            if d.shape != (3, 3):
-                raise ValueError(f"delta_R must be one rotation, got shape {d.shape}")
-        d9 = d.ravel().tolist()
-        problem = frame_problem(d9, dv, dt)
-        if problem is not None:
-            if self.on_invalid == "raise":
-                raise bad_frame_error(problem, frame_where(self._frames, getattr(frame, "t", float("nan"))))
+        checked = checked_rotation(frame, d, dv, dt, self.on_invalid, self._frames)
+        if checked is None:
             return GroundEstimate.of_residual(self.residual, self.P.copy(), self._Rgs, valid=False)
+        d, d9 = checked
         self._frames += 1
         if self.ekf is None:
             o = self._advance((d9,), self._qh, self._qv)[0]

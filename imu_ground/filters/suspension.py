@@ -63,7 +63,7 @@ from imu_ground.filters.estimator import (
     as_egomotion,
     bad_frame_error,
     check_on_invalid,
-    frame_problem,
+    checked_rotation,
     frame_problems,
     frame_where,
     hold_skipped,
@@ -82,7 +82,7 @@ from imu_ground.filters.gains import (
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
-from imu_ground.filters.rotations import as_rotations, matrix_from_quat, twist_angle
+from imu_ground.filters.rotations import matrix_from_quat, twist_angle
 from imu_ground.units import DEG
 
 __all__ = [
@@ -369,6 +369,8 @@ class SuspensionAwareFilter:
         Returns
         -------
         GroundEstimate
+            The residual rotation road <- body after this frame (pitch, roll,
+            quaternion); a skipped bad frame gives the previous state, ``valid=False``.
 
         Raises
         ------
@@ -379,16 +381,12 @@ class SuspensionAwareFilter:
             d, delta_v, delta_t, stationary, valid = frame[:5]
         else:
             d = frame
-        if type(d) is not np.ndarray or d.shape != (3, 3):
-            d = as_rotations(d)
-        d9 = d.ravel().tolist()
         dv = vector3(delta_v)
         dt = float(delta_t)
-        problem = frame_problem(d9, dv, dt)
-        if problem is not None:
-            if self.on_invalid == "raise":
-                raise bad_frame_error(problem, frame_where(self._frames, getattr(frame, "t", float("nan"))))
+        checked = checked_rotation(frame, d, dv, dt, self.on_invalid, self._frames)
+        if checked is None:
             return GroundEstimate.of_residual(self.residual, self.P, self._Rgs, valid=False)
+        d, d9 = checked
         if self._rate is None:
             self._design(1.0 / dt)
         self._frames += 1
