@@ -139,16 +139,17 @@ def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float,
         r20, r21, r22 = xz2 - wy2, yz2 + wx2, 1.0 - xx2 - yy2
         qg, qa = noise
         mid = T + 0.5 * dt
-        # --- gyro-bias Jacobians: H = hat(c) Th; Vg -= H; Mg += mid H; Th -= delta_R_k Jl dt
-        H00, H01, H02 = c1 * h20 - c2 * h10, c1 * h21 - c2 * h11, c1 * h22 - c2 * h12
-        H10, H11, H12 = c2 * h00 - c0 * h20, c2 * h01 - c0 * h21, c2 * h02 - c0 * h22
-        H20, H21, H22 = c0 * h10 - c1 * h00, c0 * h11 - c1 * h01, c0 * h12 - c1 * h02
-        g00, g01, g02 = g00 - H00, g01 - H01, g02 - H02
-        m00, m01, m02 = m00 + mid * H00, m01 + mid * H01, m02 + mid * H02
-        g10, g11, g12 = g10 - H10, g11 - H11, g12 - H12
-        m10, m11, m12 = m10 + mid * H10, m11 + mid * H11, m12 + mid * H12
-        g20, g21, g22 = g20 - H20, g21 - H21, g22 - H22
-        m20, m21, m22 = m20 + mid * H20, m21 + mid * H21, m22 + mid * H22
+        # --- gyro-bias Jacobians: H = hat(c) Th; Vg -= H; Mg += mid H; Th -= delta_R_k Jl dt.
+        # Row by row, H (and D below) reused so that each row's floats are freed at once (faster).
+        H0, H1, H2 = c1 * h20 - c2 * h10, c1 * h21 - c2 * h11, c1 * h22 - c2 * h12
+        g00, g01, g02 = g00 - H0, g01 - H1, g02 - H2
+        m00, m01, m02 = m00 + mid * H0, m01 + mid * H1, m02 + mid * H2
+        H0, H1, H2 = c2 * h00 - c0 * h20, c2 * h01 - c0 * h21, c2 * h02 - c0 * h22
+        m10, m11, m12 = m10 + mid * H0, m11 + mid * H1, m12 + mid * H2
+        g10, g11, g12 = g10 - H0, g11 - H1, g12 - H2
+        H0, H1, H2 = c0 * h10 - c1 * h00, c0 * h11 - c1 * h01, c0 * h12 - c1 * h02
+        g20, g21, g22 = g20 - H0, g21 - H1, g22 - H2
+        m20, m21, m22 = m20 + mid * H0, m21 + mid * H1, m22 + mid * H2
         # j = Jl(phi) dt = (I + B K + C K^2) dt
         Cd, Bd = C * dt, B * dt
         Cxy, Cxz, Cyz = Cd * (x * y), Cd * (x * z), Cd * (y * z)
@@ -164,15 +165,15 @@ def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float,
         h20, h21, h22 = (h20 - (r20 * j00 + r21 * j10 + r22 * j20), h21 - (r20 * j01 + r21 * j11 + r22 * j21),
                          h22 - (r20 * j02 + r21 * j12 + r22 * j22))
         # --- accelerometer-bias Jacobians: D = delta_R_k dt; Va -= D; Ma += mid D
-        D00, D01, D02 = r00 * dt, r01 * dt, r02 * dt
-        D10, D11, D12 = r10 * dt, r11 * dt, r12 * dt
-        D20, D21, D22 = r20 * dt, r21 * dt, r22 * dt
-        a00, a01, a02 = a00 - D00, a01 - D01, a02 - D02
-        a10, a11, a12 = a10 - D10, a11 - D11, a12 - D12
-        a20, a21, a22 = a20 - D20, a21 - D21, a22 - D22
-        b00, b01, b02 = b00 + mid * D00, b01 + mid * D01, b02 + mid * D02
-        b10, b11, b12 = b10 + mid * D10, b11 + mid * D11, b12 + mid * D12
-        b20, b21, b22 = b20 + mid * D20, b21 + mid * D21, b22 + mid * D22
+        D0, D1, D2 = r00 * dt, r01 * dt, r02 * dt
+        a00, a01, a02 = a00 - D0, a01 - D1, a02 - D2
+        b00, b01, b02 = b00 + mid * D0, b01 + mid * D1, b02 + mid * D2
+        D0, D1, D2 = r10 * dt, r11 * dt, r12 * dt
+        b10, b11, b12 = b10 + mid * D0, b11 + mid * D1, b12 + mid * D2
+        a10, a11, a12 = a10 - D0, a11 - D1, a12 - D2
+        D0, D1, D2 = r20 * dt, r21 * dt, r22 * dt
+        a20, a21, a22 = a20 - D0, a21 - D1, a22 - D2
+        b20, b21, b22 = b20 + mid * D0, b21 + mid * D1, b22 + mid * D2
         # --- covariance (left form, q rows). u = hat(c) theta is the velocity error
         # increment (plus accelerometer noise n): v' = v - u + n, q' = q + mid (u - n).
         # X = hat(c) rr, XH = hat(c) rr hat(c)^T (+ noise N = qa dt I), Y = hat(c) rv, Yq = hat(c) rq.
@@ -189,11 +190,11 @@ def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float,
         Z10, Z11, Z12 = c2 * rq00 - c0 * rq20, c2 * rq01 - c0 * rq21, c2 * rq02 - c0 * rq22
         Z20, Z21, Z22 = c0 * rq10 - c1 * rq00, c0 * rq11 - c1 * rq01, c0 * rq12 - c1 * rq02
         # qq' = qq + mid (Z + Z^T) + mid^2 (XH + N)
-        mid2 = mid * mid
-        qq00, qq01, qq02 = (qq00 + (mid * 2.0 * Z00 + mid2 * N00), qq01 + (mid * (Z01 + Z10) + mid2 * N01),
+        mid2, midx2 = mid * mid, mid * 2.0
+        qq00, qq01, qq02 = (qq00 + (midx2 * Z00 + mid2 * N00), qq01 + (mid * (Z01 + Z10) + mid2 * N01),
                             qq02 + (mid * (Z02 + Z20) + mid2 * N02))
-        qq11, qq12, qq22 = (qq11 + (mid * 2.0 * Z11 + mid2 * N11), qq12 + (mid * (Z12 + Z21) + mid2 * N12),
-                            qq22 + (mid * 2.0 * Z22 + mid2 * N22))
+        qq11, qq12, qq22 = (qq11 + (midx2 * Z11 + mid2 * N11), qq12 + (mid * (Z12 + Z21) + mid2 * N12),
+                            qq22 + (midx2 * Z22 + mid2 * N22))
         # vq' = vq + mid (Y^T - XH - N) - Z
         vq00, vq01, vq02 = (vq00 + (mid * (Y00 - N00) - Z00), vq01 + (mid * (Y10 - N01) - Z01),
                             vq02 + (mid * (Y20 - N02) - Z02))
@@ -215,8 +216,9 @@ def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float,
         # since Jl Jl^T = I + k K^2 with k = 2C - B^2 - C^2 t2
         if qg != 0.0:
             kap = 2.0 * C - B * B - C * C * t2
-            w1 = qg * dt * kap
-            w0 = qg * dt - w1 * t2
+            qgd = qg * dt
+            w1 = qgd * kap
+            w0 = qgd - w1 * t2
             s0 = r00 * x + r01 * y + r02 * z
             s1 = r10 * x + r11 * y + r12 * z
             s2 = r20 * x + r21 * y + r22 * z
