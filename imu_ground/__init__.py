@@ -21,26 +21,16 @@ from imu_ground._lazy import lazy_exports
 __version__ = "0.2.0"
 
 _EXPORTS = {
-    "ImuData": "imu_ground.imu.data",
-    "EgoFrame": "imu_ground.imu.egomotion",
-    "EgoMotion": "imu_ground.imu.egomotion",
-    "imu_to_egomotion": "imu_ground.imu.egomotion",
-    "preintegrate": "imu_ground.imu.preintegration",
-    "PreintegrationParams": "imu_ground.imu.preintegration",
-    "read_imu": "imu_ground.datasets",
-    "read_poses": "imu_ground.datasets",
-    "InvariantEKF": "imu_ground.filters.invariant_ekf",
-    "GroundEstimator": "imu_ground.filters.estimator",
-    "track_table": "imu_ground.filters.estimator",
-    "GroundEstimate": "imu_ground.filters.estimator",
-    "GroundNormalFilter": "imu_ground.filters.ground",
-    "GroundTrack": "imu_ground.filters.estimator",
-    "pitch_roll_from_normal": "imu_ground.filters.estimator",
-    "SuspensionAwareFilter": "imu_ground.filters.suspension",
-    "Extrinsic": "imu_ground.filters.extrinsics",
-    "available_extrinsics": "imu_ground.filters.extrinsics",
-    "load_extrinsic": "imu_ground.filters.extrinsics",
-    "estimate_log": "imu_ground.pipeline.estimate",
+    ".imu.data": "ImuData",
+    ".imu.egomotion": "EgoFrame EgoMotion imu_to_egomotion",
+    ".imu.preintegration": "preintegrate PreintegrationParams",
+    ".datasets": "read_imu read_poses",
+    ".filters.invariant_ekf": "InvariantEKF",
+    ".filters.estimator": ("GroundEstimator track_table GroundEstimate GroundTrack "
+                           "pitch_roll_from_normal"),
+    ".filters.ground": "GroundNormalFilter",
+    ".filters.suspension": "SuspensionAwareFilter",
+    ".filters.extrinsics": "Extrinsic available_extrinsics load_extrinsic",
+    ".pipeline.estimate": "estimate_log",
 }
-__all__ = ["__version__", *_EXPORTS]
-__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+__getattr__, __dir__, __all__ = lazy_exports(__name__, {"imu_ground": "__version__", **_EXPORTS})

@@ -11,20 +11,9 @@ Names are imported lazily (numpy only at package import).
 from imu_ground._lazy import lazy_exports
 
 _EXPORTS = {
-    "EstimateResult": "imu_ground.pipeline.estimate",
-    "OptionError": "imu_ground.pipeline.estimate",
-    "estimate_log": "imu_ground.pipeline.estimate",
-    "POSE_FORMATS": "imu_ground.pipeline.estimate",
-    "OUTPUT_SUFFIXES": "imu_ground.pipeline.output",
-    "check_output_path": "imu_ground.pipeline.output",
-    "default_output_name": "imu_ground.pipeline.output",
-    "result_table": "imu_ground.pipeline.output",
-    "summarize_table": "imu_ground.pipeline.output",
-    "write_output": "imu_ground.pipeline.output",
-    "write_outputs": "imu_ground.pipeline.output",
-    "atomic_path": "imu_ground.pipeline.output",
-    "run_batch": "imu_ground.pipeline.batch",
-    "expand_logs": "imu_ground.pipeline.batch",
+    ".estimate": "EstimateResult OptionError estimate_log POSE_FORMATS",
+    ".output": ("OUTPUT_SUFFIXES check_output_path default_output_name result_table "
+                "summarize_table write_output write_outputs atomic_path"),
+    ".batch": "run_batch expand_logs",
 }
-__all__ = list(_EXPORTS)
-__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+__getattr__, __dir__, __all__ = lazy_exports(__name__, _EXPORTS)
