@@ -95,9 +95,7 @@ def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float,
         The new state; ``uncertainty`` is None when ``u`` was.
     """
     T, qw, qx, qy, qz, v0, v1, v2, p0, p1, p2 = s
-    xx = x * x
-    yy = y * y
-    zz = z * z
+    xx, yy, zz = x * x, y * y, z * z
     t2 = xx + yy + zz
     # Exp(phi) as the unit quaternion (cos(th/2), k phi), k = sin(th/2) / th
     if t2 < SMALL_ANGLE2:
@@ -109,239 +107,124 @@ def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float,
         k = sin(0.5 * th) / th
     # c = R_k f dt, the rotated velocity increment (start body frame), by the quaternion:
     # c = f + qw t + q_v x t with t = 2 q_v x f
-    tx = 2.0 * (qy * fz - qz * fy)
-    ty = 2.0 * (qz * fx - qx * fz)
-    tz = 2.0 * (qx * fy - qy * fx)
+    tx, ty, tz = 2.0 * (qy * fz - qz * fy), 2.0 * (qz * fx - qx * fz), 2.0 * (qx * fy - qy * fx)
     c0 = fx + qw * tx + qy * tz - qz * ty
     c1 = fy + qw * ty + qz * tx - qx * tz
     c2 = fz + qw * tz + qx * ty - qy * tx
     if u is not None:
-        (h00, h01, h02, h10, h11, h12, h20, h21, h22,
-         g00, g01, g02, g10, g11, g12, g20, g21, g22,
-         m00, m01, m02, m10, m11, m12, m20, m21, m22,
-         a00, a01, a02, a10, a11, a12, a20, a21, a22,
-         b00, b01, b02, b10, b11, b12, b20, b21, b22,
-         rr00, rr01, rr02, rr11, rr12, rr22,
-         rv00, rv01, rv02, rv10, rv11, rv12, rv20, rv21, rv22,
-         rq00, rq01, rq02, rq10, rq11, rq12, rq20, rq21, rq22,
-         vv00, vv01, vv02, vv11, vv12, vv22,
-         vq00, vq01, vq02, vq10, vq11, vq12, vq20, vq21, vq22,
-         qq00, qq01, qq02, qq11, qq12, qq22) = u
+        (h00, h01, h02, h10, h11, h12, h20, h21, h22,                 # 0:9    Th
+         g00, g01, g02, g10, g11, g12, g20, g21, g22,                 # 9:18   Vg
+         m00, m01, m02, m10, m11, m12, m20, m21, m22,                 # 18:27  Mg
+         a00, a01, a02, a10, a11, a12, a20, a21, a22,                 # 27:36  Va
+         b00, b01, b02, b10, b11, b12, b20, b21, b22,                 # 36:45  Ma
+         rr00, rr01, rr02, rr11, rr12, rr22,                          # 45:51  rr
+         rv00, rv01, rv02, rv10, rv11, rv12, rv20, rv21, rv22,        # 51:60  rv
+         rq00, rq01, rq02, rq10, rq11, rq12, rq20, rq21, rq22,        # 60:69  rq
+         vv00, vv01, vv02, vv11, vv12, vv22,                          # 69:75  vv
+         vq00, vq01, vq02, vq10, vq11, vq12, vq20, vq21, vq22,        # 75:84  vq
+         qq00, qq01, qq02, qq11, qq12, qq22) = u                      # 84:90  qq
         if t2 < SMALL_ANGLE2:
             B = 0.5 - t2 / 24.0 + t2 * t2 / 720.0
             C = 1.0 / 6.0 - t2 / 120.0 + t2 * t2 / 5040.0
         else:
             B = 2.0 * k * k                         # (1 - cos th) / th^2 = 2 sin^2(th/2) / th^2
             C = (th - sin(th)) / (t2 * th)
-        xy = x * y
-        xz = x * z
-        yz = y * z
         # R_k = delta_R before the interval, from the quaternion
-        x2 = qx + qx
-        y2 = qy + qy
-        z2 = qz + qz
-        wx2 = qw * x2
-        wy2 = qw * y2
-        wz2 = qw * z2
-        xx2 = qx * x2
-        yy2 = qy * y2
-        zz2 = qz * z2
-        xy2 = qx * y2
-        xz2 = qx * z2
-        yz2 = qy * z2
-        r00 = 1.0 - yy2 - zz2
-        r01 = xy2 - wz2
-        r02 = xz2 + wy2
-        r10 = xy2 + wz2
-        r11 = 1.0 - xx2 - zz2
-        r12 = yz2 - wx2
-        r20 = xz2 - wy2
-        r21 = yz2 + wx2
-        r22 = 1.0 - xx2 - yy2
+        x2, y2, z2 = qx + qx, qy + qy, qz + qz
+        wx2, wy2, wz2 = qw * x2, qw * y2, qw * z2
+        xx2, yy2, zz2 = qx * x2, qy * y2, qz * z2
+        xy2, xz2, yz2 = qx * y2, qx * z2, qy * z2
+        r00, r01, r02 = 1.0 - yy2 - zz2, xy2 - wz2, xz2 + wy2
+        r10, r11, r12 = xy2 + wz2, 1.0 - xx2 - zz2, yz2 - wx2
+        r20, r21, r22 = xz2 - wy2, yz2 + wx2, 1.0 - xx2 - yy2
         qg, qa = noise
         mid = T + 0.5 * dt
-        # --- gyro-bias Jacobians: H = hat(c) Th; Vg -= H; Mg += mid H; Th -= delta_R_k Jl dt
-        H0 = c1 * h20 - c2 * h10
-        H1 = c1 * h21 - c2 * h11
-        H2 = c1 * h22 - c2 * h12
-        g00 -= H0
-        g01 -= H1
-        g02 -= H2
-        m00 += mid * H0
-        m01 += mid * H1
-        m02 += mid * H2
-        H0 = c2 * h00 - c0 * h20
-        H1 = c2 * h01 - c0 * h21
-        H2 = c2 * h02 - c0 * h22
-        g10 -= H0
-        g11 -= H1
-        g12 -= H2
-        m10 += mid * H0
-        m11 += mid * H1
-        m12 += mid * H2
-        H0 = c0 * h10 - c1 * h00
-        H1 = c0 * h11 - c1 * h01
-        H2 = c0 * h12 - c1 * h02
-        g20 -= H0
-        g21 -= H1
-        g22 -= H2
-        m20 += mid * H0
-        m21 += mid * H1
-        m22 += mid * H2
+        # --- gyro-bias Jacobians: H = hat(c) Th; Vg -= H; Mg += mid H; Th -= delta_R_k Jl dt.
+        # Row by row, H (and D below) reused so that each row's floats are freed at once (faster).
+        H0, H1, H2 = c1 * h20 - c2 * h10, c1 * h21 - c2 * h11, c1 * h22 - c2 * h12
+        g00, g01, g02 = g00 - H0, g01 - H1, g02 - H2
+        m00, m01, m02 = m00 + mid * H0, m01 + mid * H1, m02 + mid * H2
+        H0, H1, H2 = c2 * h00 - c0 * h20, c2 * h01 - c0 * h21, c2 * h02 - c0 * h22
+        m10, m11, m12 = m10 + mid * H0, m11 + mid * H1, m12 + mid * H2
+        g10, g11, g12 = g10 - H0, g11 - H1, g12 - H2
+        H0, H1, H2 = c0 * h10 - c1 * h00, c0 * h11 - c1 * h01, c0 * h12 - c1 * h02
+        g20, g21, g22 = g20 - H0, g21 - H1, g22 - H2
+        m20, m21, m22 = m20 + mid * H0, m21 + mid * H1, m22 + mid * H2
         # j = Jl(phi) dt = (I + B K + C K^2) dt
-        Cd = C * dt
-        Bd = B * dt
-        Cxy = Cd * xy
-        Cxz = Cd * xz
-        Cyz = Cd * yz
-        Bx = Bd * x
-        By = Bd * y
-        Bz = Bd * z
-        j00 = dt - Cd * (yy + zz)
-        j11 = dt - Cd * (xx + zz)
-        j22 = dt - Cd * (xx + yy)
-        j01 = Cxy - Bz
-        j10 = Cxy + Bz
-        j02 = Cxz + By
-        j20 = Cxz - By
-        j12 = Cyz - Bx
-        j21 = Cyz + Bx
-        # Th -= U, U = delta_R_k Jl dt
-        h00 -= (r00 * j00 + r01 * j10 + r02 * j20)
-        h01 -= (r00 * j01 + r01 * j11 + r02 * j21)
-        h02 -= (r00 * j02 + r01 * j12 + r02 * j22)
-        h10 -= (r10 * j00 + r11 * j10 + r12 * j20)
-        h11 -= (r10 * j01 + r11 * j11 + r12 * j21)
-        h12 -= (r10 * j02 + r11 * j12 + r12 * j22)
-        h20 -= (r20 * j00 + r21 * j10 + r22 * j20)
-        h21 -= (r20 * j01 + r21 * j11 + r22 * j21)
-        h22 -= (r20 * j02 + r21 * j12 + r22 * j22)
-        # --- accelerometer-bias Jacobians: d = delta_R_k dt; Va -= d; Ma += mid d
-        d = r00 * dt
-        a00 -= d
-        b00 += mid * d
-        d = r01 * dt
-        a01 -= d
-        b01 += mid * d
-        d = r02 * dt
-        a02 -= d
-        b02 += mid * d
-        d = r10 * dt
-        a10 -= d
-        b10 += mid * d
-        d = r11 * dt
-        a11 -= d
-        b11 += mid * d
-        d = r12 * dt
-        a12 -= d
-        b12 += mid * d
-        d = r20 * dt
-        a20 -= d
-        b20 += mid * d
-        d = r21 * dt
-        a21 -= d
-        b21 += mid * d
-        d = r22 * dt
-        a22 -= d
-        b22 += mid * d
+        Cd, Bd = C * dt, B * dt
+        Cxy, Cxz, Cyz = Cd * (x * y), Cd * (x * z), Cd * (y * z)
+        Bx, By, Bz = Bd * x, Bd * y, Bd * z
+        j00, j11, j22 = dt - Cd * (yy + zz), dt - Cd * (xx + zz), dt - Cd * (xx + yy)
+        j01, j10, j02 = Cxy - Bz, Cxy + Bz, Cxz + By
+        j20, j12, j21 = Cxz - By, Cyz - Bx, Cyz + Bx
+        # Th -= U, U = delta_R_k Jl dt, by rows
+        h00, h01, h02 = (h00 - (r00 * j00 + r01 * j10 + r02 * j20), h01 - (r00 * j01 + r01 * j11 + r02 * j21),
+                         h02 - (r00 * j02 + r01 * j12 + r02 * j22))
+        h10, h11, h12 = (h10 - (r10 * j00 + r11 * j10 + r12 * j20), h11 - (r10 * j01 + r11 * j11 + r12 * j21),
+                         h12 - (r10 * j02 + r11 * j12 + r12 * j22))
+        h20, h21, h22 = (h20 - (r20 * j00 + r21 * j10 + r22 * j20), h21 - (r20 * j01 + r21 * j11 + r22 * j21),
+                         h22 - (r20 * j02 + r21 * j12 + r22 * j22))
+        # --- accelerometer-bias Jacobians: D = delta_R_k dt; Va -= D; Ma += mid D
+        D0, D1, D2 = r00 * dt, r01 * dt, r02 * dt
+        a00, a01, a02 = a00 - D0, a01 - D1, a02 - D2
+        b00, b01, b02 = b00 + mid * D0, b01 + mid * D1, b02 + mid * D2
+        D0, D1, D2 = r10 * dt, r11 * dt, r12 * dt
+        b10, b11, b12 = b10 + mid * D0, b11 + mid * D1, b12 + mid * D2
+        a10, a11, a12 = a10 - D0, a11 - D1, a12 - D2
+        D0, D1, D2 = r20 * dt, r21 * dt, r22 * dt
+        a20, a21, a22 = a20 - D0, a21 - D1, a22 - D2
+        b20, b21, b22 = b20 + mid * D0, b21 + mid * D1, b22 + mid * D2
         # --- covariance (left form, q rows). u = hat(c) theta is the velocity error
         # increment (plus accelerometer noise n): v' = v - u + n, q' = q + mid (u - n).
         # X = hat(c) rr, XH = hat(c) rr hat(c)^T (+ noise N = qa dt I), Y = hat(c) rv, Yq = hat(c) rq.
-        X00 = c1 * rr02 - c2 * rr01
-        X01 = c1 * rr12 - c2 * rr11
-        X02 = c1 * rr22 - c2 * rr12
-        X10 = c2 * rr00 - c0 * rr02
-        X11 = c2 * rr01 - c0 * rr12
-        X12 = c2 * rr02 - c0 * rr22
-        X20 = c0 * rr01 - c1 * rr00
-        X21 = c0 * rr11 - c1 * rr01
-        X22 = c0 * rr12 - c1 * rr02
+        X00, X01, X02 = c1 * rr02 - c2 * rr01, c1 * rr12 - c2 * rr11, c1 * rr22 - c2 * rr12
+        X10, X11, X12 = c2 * rr00 - c0 * rr02, c2 * rr01 - c0 * rr12, c2 * rr02 - c0 * rr22
+        X20, X21, X22 = c0 * rr01 - c1 * rr00, c0 * rr11 - c1 * rr01, c0 * rr12 - c1 * rr02
         na = qa * dt
-        N00 = c1 * X02 - c2 * X01 + na
-        N01 = c2 * X00 - c0 * X02
-        N02 = c0 * X01 - c1 * X00
-        N11 = c2 * X10 - c0 * X12 + na
-        N12 = c0 * X11 - c1 * X10
-        N22 = c0 * X21 - c1 * X20 + na
-        Y00 = c1 * rv20 - c2 * rv10
-        Y01 = c1 * rv21 - c2 * rv11
-        Y02 = c1 * rv22 - c2 * rv12
-        Y10 = c2 * rv00 - c0 * rv20
-        Y11 = c2 * rv01 - c0 * rv21
-        Y12 = c2 * rv02 - c0 * rv22
-        Y20 = c0 * rv10 - c1 * rv00
-        Y21 = c0 * rv11 - c1 * rv01
-        Y22 = c0 * rv12 - c1 * rv02
-        Z00 = c1 * rq20 - c2 * rq10
-        Z01 = c1 * rq21 - c2 * rq11
-        Z02 = c1 * rq22 - c2 * rq12
-        Z10 = c2 * rq00 - c0 * rq20
-        Z11 = c2 * rq01 - c0 * rq21
-        Z12 = c2 * rq02 - c0 * rq22
-        Z20 = c0 * rq10 - c1 * rq00
-        Z21 = c0 * rq11 - c1 * rq01
-        Z22 = c0 * rq12 - c1 * rq02
+        N00, N01, N02 = c1 * X02 - c2 * X01 + na, c2 * X00 - c0 * X02, c0 * X01 - c1 * X00
+        N11, N12, N22 = c2 * X10 - c0 * X12 + na, c0 * X11 - c1 * X10, c0 * X21 - c1 * X20 + na
+        Y00, Y01, Y02 = c1 * rv20 - c2 * rv10, c1 * rv21 - c2 * rv11, c1 * rv22 - c2 * rv12
+        Y10, Y11, Y12 = c2 * rv00 - c0 * rv20, c2 * rv01 - c0 * rv21, c2 * rv02 - c0 * rv22
+        Y20, Y21, Y22 = c0 * rv10 - c1 * rv00, c0 * rv11 - c1 * rv01, c0 * rv12 - c1 * rv02
+        Z00, Z01, Z02 = c1 * rq20 - c2 * rq10, c1 * rq21 - c2 * rq11, c1 * rq22 - c2 * rq12
+        Z10, Z11, Z12 = c2 * rq00 - c0 * rq20, c2 * rq01 - c0 * rq21, c2 * rq02 - c0 * rq22
+        Z20, Z21, Z22 = c0 * rq10 - c1 * rq00, c0 * rq11 - c1 * rq01, c0 * rq12 - c1 * rq02
         # qq' = qq + mid (Z + Z^T) + mid^2 (XH + N)
-        mid2 = mid * mid
-        qq00 += mid * 2.0 * Z00 + mid2 * N00
-        qq01 += mid * (Z01 + Z10) + mid2 * N01
-        qq02 += mid * (Z02 + Z20) + mid2 * N02
-        qq11 += mid * 2.0 * Z11 + mid2 * N11
-        qq12 += mid * (Z12 + Z21) + mid2 * N12
-        qq22 += mid * 2.0 * Z22 + mid2 * N22
+        mid2, midx2 = mid * mid, mid * 2.0
+        qq00, qq01, qq02 = (qq00 + (midx2 * Z00 + mid2 * N00), qq01 + (mid * (Z01 + Z10) + mid2 * N01),
+                            qq02 + (mid * (Z02 + Z20) + mid2 * N02))
+        qq11, qq12, qq22 = (qq11 + (midx2 * Z11 + mid2 * N11), qq12 + (mid * (Z12 + Z21) + mid2 * N12),
+                            qq22 + (midx2 * Z22 + mid2 * N22))
         # vq' = vq + mid (Y^T - XH - N) - Z
-        vq00 += mid * (Y00 - N00) - Z00
-        vq01 += mid * (Y10 - N01) - Z01
-        vq02 += mid * (Y20 - N02) - Z02
-        vq10 += mid * (Y01 - N01) - Z10
-        vq11 += mid * (Y11 - N11) - Z11
-        vq12 += mid * (Y21 - N12) - Z12
-        vq20 += mid * (Y02 - N02) - Z20
-        vq21 += mid * (Y12 - N12) - Z21
-        vq22 += mid * (Y22 - N22) - Z22
+        vq00, vq01, vq02 = (vq00 + (mid * (Y00 - N00) - Z00), vq01 + (mid * (Y10 - N01) - Z01),
+                            vq02 + (mid * (Y20 - N02) - Z02))
+        vq10, vq11, vq12 = (vq10 + (mid * (Y01 - N01) - Z10), vq11 + (mid * (Y11 - N11) - Z11),
+                            vq12 + (mid * (Y21 - N12) - Z12))
+        vq20, vq21, vq22 = (vq20 + (mid * (Y02 - N02) - Z20), vq21 + (mid * (Y12 - N12) - Z21),
+                            vq22 + (mid * (Y22 - N22) - Z22))
         # vv' = vv - (Y + Y^T) + XH + N
-        vv00 += N00 - 2.0 * Y00
-        vv01 += N01 - Y01 - Y10
-        vv02 += N02 - Y02 - Y20
-        vv11 += N11 - 2.0 * Y11
-        vv12 += N12 - Y12 - Y21
-        vv22 += N22 - 2.0 * Y22
+        vv00, vv01, vv02 = vv00 + (N00 - 2.0 * Y00), vv01 + (N01 - Y01 - Y10), vv02 + (N02 - Y02 - Y20)
+        vv11, vv12, vv22 = vv11 + (N11 - 2.0 * Y11), vv12 + (N12 - Y12 - Y21), vv22 + (N22 - 2.0 * Y22)
         # rq' = rq + mid X^T, rv' = rv - X^T
-        rq00 += mid * X00
-        rq01 += mid * X10
-        rq02 += mid * X20
-        rq10 += mid * X01
-        rq11 += mid * X11
-        rq12 += mid * X21
-        rq20 += mid * X02
-        rq21 += mid * X12
-        rq22 += mid * X22
-        rv00 -= X00
-        rv01 -= X10
-        rv02 -= X20
-        rv10 -= X01
-        rv11 -= X11
-        rv12 -= X21
-        rv20 -= X02
-        rv21 -= X12
-        rv22 -= X22
+        rq00, rq01, rq02 = rq00 + mid * X00, rq01 + mid * X10, rq02 + mid * X20
+        rq10, rq11, rq12 = rq10 + mid * X01, rq11 + mid * X11, rq12 + mid * X21
+        rq20, rq21, rq22 = rq20 + mid * X02, rq21 + mid * X12, rq22 + mid * X22
+        rv00, rv01, rv02 = rv00 - X00, rv01 - X10, rv02 - X20
+        rv10, rv11, rv12 = rv10 - X01, rv11 - X11, rv12 - X21
+        rv20, rv21, rv22 = rv20 - X02, rv21 - X12, rv22 - X22
         # gyro noise: U Q U^T / dt = qg dt [(1 - k t2) I + k psi psi^T], psi = delta_R_k phi,
         # since Jl Jl^T = I + k K^2 with k = 2C - B^2 - C^2 t2
         if qg != 0.0:
             kap = 2.0 * C - B * B - C * C * t2
-            w1 = qg * dt * kap
-            w0 = qg * dt - w1 * t2
+            qgd = qg * dt
+            w1 = qgd * kap
+            w0 = qgd - w1 * t2
             s0 = r00 * x + r01 * y + r02 * z
             s1 = r10 * x + r11 * y + r12 * z
             s2 = r20 * x + r21 * y + r22 * z
-            ws0 = w1 * s0
-            ws1 = w1 * s1
-            rr00 += w0 + ws0 * s0
-            rr11 += w0 + ws1 * s1
-            rr22 += w0 + w1 * s2 * s2
-            rr01 += ws0 * s1
-            rr02 += ws0 * s2
-            rr12 += ws1 * s2
+            ws0, ws1 = w1 * s0, w1 * s1
+            rr00, rr11, rr22 = rr00 + (w0 + ws0 * s0), rr11 + (w0 + ws1 * s1), rr22 + (w0 + w1 * s2 * s2)
+            rr01, rr02, rr12 = rr01 + ws0 * s1, rr02 + ws0 * s2, rr12 + ws1 * s2
         u = (h00, h01, h02, h10, h11, h12, h20, h21, h22,
              g00, g01, g02, g10, g11, g12, g20, g21, g22,
              m00, m01, m02, m10, m11, m12, m20, m21, m22,
@@ -354,9 +237,7 @@ def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float,
              vq00, vq01, vq02, vq10, vq11, vq12, vq20, vq21, vq22,
              qq00, qq01, qq02, qq11, qq12, qq22)
     # --- deltas: p += dt (v + c/2), v += c, q = q_k (x) (ch, k phi)
-    dx = k * x
-    dy = k * y
-    dz = k * z
+    dx, dy, dz = k * x, k * y, k * z
     return (T + dt,
             qw * ch - qx * dx - qy * dy - qz * dz, qw * dx + qx * ch + qy * dz - qz * dy,
             qw * dy - qx * dz + qy * ch + qz * dx, qw * dz + qx * dy - qy * dx + qz * ch,
