@@ -90,6 +90,15 @@ def add_reader_flags(parser: argparse.ArgumentParser, poses: bool = False) -> No
             group.add_argument(opt.flag, dest=dest, choices=opt.choices, default=None, help=opt.help)
 
 
+def add_logs_command(sub, name: str, *, help: str, description: str, logs_metavar: str, logs_help: str,
+                     output_metavar: str, output_help: str) -> argparse.ArgumentParser:
+    """A sub-command that takes one or more logs and a required ``-o/--output``."""
+    p = sub.add_parser(name, help=help, description=description)
+    p.add_argument("logs", nargs="+", metavar=logs_metavar, help=logs_help)
+    p.add_argument("-o", "--output", required=True, metavar=output_metavar, help=output_help)
+    return p
+
+
 def reader_options(args: argparse.Namespace) -> dict:
     """The reader flags the user set, as ``read_imu`` keywords (``format`` included)."""
     from imu_ground.datasets.options import READER_OPTIONS

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 
 from imu_ground.cli._common import (
+    add_logs_command,
     add_progress_flag,
     add_reader_flags,
     nonnegative_int,
@@ -17,15 +18,14 @@ __all__ = ["register", "run"]
 
 def register(sub) -> None:
     """Add the ``batch`` sub-command."""
-    b = sub.add_parser("batch", help="many logs -> one output each and a summary table (Dask)",
-                       description="Estimate every log (paths or quoted glob patterns) on Dask: a local cluster of "
-                                   "--workers processes, or a running cluster (--scheduler). Each output is the "
-                                   "file 'imu-ground estimate' writes; a rerun skips logs whose output exists; a "
-                                   "failing log is reported in the summary and never stops the others.")
-    b.add_argument("logs", nargs="+", metavar="LOG_OR_GLOB",
-                   help="IMU logs or pose files, or glob patterns in quotes (e.g. 'logs/**/*.csv.gz')")
-    b.add_argument("-o", "--output", required=True, metavar="OUTDIR",
-                   help="output folder (created): <log name>_ground.<type> per log and summary.csv")
+    b = add_logs_command(
+        sub, "batch", help="many logs -> one output each and a summary table (Dask)",
+        description="Estimate every log (paths or quoted glob patterns) on Dask: a local cluster of --workers "
+                    "processes, or a running cluster (--scheduler). Each output is the file 'imu-ground estimate' "
+                    "writes; a rerun skips logs whose output exists; a failing log is reported in the summary and "
+                    "never stops the others.",
+        logs_metavar="LOG_OR_GLOB", logs_help="IMU logs or pose files, or glob patterns in quotes (e.g. 'logs/**/*.csv.gz')",
+        output_metavar="OUTDIR", output_help="output folder (created): <log name>_ground.<type> per log and summary.csv")
     b.add_argument("--type", default="csv", choices=("csv", "parquet", "tum", "mcap", "bag"),
                    help="output file type of every log (default csv)")
     b.add_argument("--workers", type=nonnegative_int, metavar="N",

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 
 from imu_ground.cli._common import (
+    add_logs_command,
     add_reader_flags,
     reader_options,
     say,
@@ -15,15 +16,14 @@ __all__ = ["register", "run"]
 
 def register(sub) -> None:
     """Add the ``calibrate`` sub-command."""
-    c = sub.add_parser("calibrate", help="static extrinsic and suspension gains from drives of one platform",
-                       description="Estimate the sensor-to-ground extrinsic ('up' and 'forward' of the vehicle in "
-                                   "the IMU's axes) and, with --lever-arm, the suspension gains, from IMU logs of "
-                                   "one mounting.")
-    c.add_argument("logs", nargs="+", metavar="LOG",
-                   help="one or more IMU logs of the same mounting (several drives, e.g. a closed loop or both "
-                        "directions of a road, average out the grade)")
-    c.add_argument("-o", "--output", required=True, metavar="FILE",
-                   help="calibration file to write (calib/ text format; pass it to 'estimate --extrinsic')")
+    c = add_logs_command(
+        sub, "calibrate", help="static extrinsic and suspension gains from drives of one platform",
+        description="Estimate the sensor-to-ground extrinsic ('up' and 'forward' of the vehicle in the IMU's axes) "
+                    "and, with --lever-arm, the suspension gains, from IMU logs of one mounting.",
+        logs_metavar="LOG", logs_help="one or more IMU logs of the same mounting (several drives, e.g. a closed loop "
+                                      "or both directions of a road, average out the grade)",
+        output_metavar="FILE",
+        output_help="calibration file to write (calib/ text format; pass it to 'estimate --extrinsic')")
     c.add_argument("--tilt", default="auto", choices=("auto", "cruise", "standstill", "all"),
                    help="frames that define 'up': straight constant-speed driving (auto, if there is enough), "
                         "standstills, or all")
