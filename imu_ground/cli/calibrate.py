@@ -3,20 +3,14 @@ from __future__ import annotations
 
 import argparse
 
-from imu_ground.cli._common import (
-    add_logs_command,
-    add_reader_flags,
-    reader_options,
-    say,
-    warnings_as_lines,
-)
+from imu_ground.cli import _common as common
 
 __all__ = ["register", "run"]
 
 
 def register(sub) -> None:
     """Add the ``calibrate`` sub-command."""
-    c = add_logs_command(
+    c = common.add_logs_command(
         sub, "calibrate", help="static extrinsic and suspension gains from drives of one platform",
         description="Estimate the sensor-to-ground extrinsic ('up' and 'forward' of the vehicle in the IMU's axes) "
                     "and, with --lever-arm, the suspension gains, from IMU logs of one mounting.",
@@ -32,7 +26,7 @@ def register(sub) -> None:
                         "needed to estimate the suspension gains")
     c.add_argument("--translation", type=float, nargs=3, metavar=("X", "Y", "Z"),
                    help="sensor origin in the ground frame, m (stored; not observable from an IMU)")
-    add_reader_flags(c)
+    common.add_reader_flags(c)
     c.set_defaults(func=run)
 
 
@@ -42,23 +36,23 @@ def run(a: argparse.Namespace) -> int:
     from imu_ground.filters import calibrate
     from imu_ground.pipeline.estimate import require_imu_log
     from imu_ground.pipeline.output import atomic_path, check_output_path
-    opts = reader_options(a)
+    opts = common.reader_options(a)
     fmt = opts.pop("format", None)
     check_output_path(a.output, a.logs, kind="txt")
     imus = []
     for log in a.logs:
         require_imu_log(log, fmt, "'imu-ground calibrate'")
-        with warnings_as_lines(log):
+        with common.warnings_as_lines(log):
             imus.append(read_imu(log, format=fmt, **opts))
     with_gains = a.lever_arm is not None
-    with warnings_as_lines():
+    with common.warnings_as_lines():
         cal = calibrate(imus if len(imus) > 1 else imus[0], tilt=a.tilt, gains=with_gains,
                         lever_arm=a.lever_arm, translation=a.translation)
     with atomic_path(a.output) as tmp:
         cal.save(tmp)
-    say(str(cal))
+    common.say(str(cal))
     if not with_gains:
-        say("suspension gains not estimated: they need the sensor's position relative to the body's pitch/roll "
+        common.say("suspension gains not estimated: they need the sensor's position relative to the body's pitch/roll "
             "centre (--lever-arm X Y Z, metres, ground frame); the filter keeps its defaults")
-    say(f"wrote {a.output}")
+    common.say(f"wrote {a.output}")
     return 0
