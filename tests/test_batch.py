@@ -80,3 +80,19 @@ def test_batch_bad_options_fail_before_any_log(fleet, tmp_path, capsys):
     blocker.write_text("x")
     assert main(["batch", str(fleet / "drive0.csv"), "-o", str(blocker), "--workers", "0"]) == 2
     assert "give -o an output folder" in capsys.readouterr().err
+
+
+def test_batch_on_a_running_dask_cluster(fleet, tmp_path, capsys):
+    """--scheduler ADDRESS: the logs go to an existing dask.distributed cluster; same bytes as the local pool."""
+    import logging
+
+    from dask.distributed import LocalCluster
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None,
+                      silence_logs=logging.ERROR) as cluster:
+        remote = tmp_path / "remote"
+        code = main(["batch", str(fleet / "drive0.csv"), str(fleet / "broken.csv"), "-o", str(remote),
+                     "--scheduler", cluster.scheduler_address])
+    assert code == 1 and "1 estimated, 0 skipped (output exists), 1 failed" in capsys.readouterr().out
+    local = tmp_path / "local"
+    assert main(["batch", str(fleet / "drive0.csv"), "-o", str(local), "--workers", "0"]) == 0
+    assert (remote / "drive0_ground.csv").read_bytes() == (local / "drive0_ground.csv").read_bytes()

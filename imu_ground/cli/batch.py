@@ -20,7 +20,7 @@ def register(sub) -> None:
     """Add the ``batch`` sub-command."""
     b = add_logs_command(
         sub, "batch", help="many logs -> one output each and a summary table (Dask)",
-        description="Estimate every log (paths or quoted glob patterns) on Dask: a local cluster of --workers "
+        description="Estimate every log (paths or quoted glob patterns) on Dask: a local pool of --workers "
                     "processes, or a running cluster (--scheduler). Each output is the file 'imu-ground estimate' "
                     "writes; a rerun skips logs whose output exists; a failing log is reported in the summary and "
                     "never stops the others.",

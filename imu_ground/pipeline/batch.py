@@ -112,18 +112,13 @@ def process_log(log: str, out: str | Path, options: dict, cli: bool = False) -> 
     return row
 
 
-def _client(workers: int | None, scheduler: str | None):
+def _client(scheduler: str):
+    """A client of the running Dask cluster at ``scheduler``."""
     try:
-        from dask.distributed import Client, LocalCluster
+        from dask.distributed import Client
     except ImportError:
-        raise ValueError("imu-ground batch needs Dask: pip install 'imu-ground[fleet]'") from None
-    if scheduler:
-        return Client(scheduler, timeout="10s"), None
-    import logging
-    n = int(workers) if workers else (os.cpu_count() or 1)
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                           silence_logs=logging.ERROR)
-    return Client(cluster), cluster
+        raise ValueError("imu-ground batch --scheduler needs dask.distributed: pip install 'imu-ground[fleet]'") from None
+    return Client(scheduler, timeout="10s")
 
 
 def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | None = None,
@@ -138,8 +133,8 @@ def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | 
     outdir : str or Path
         Output folder (created); one ``<log name>_ground<suffix>`` per log.
     workers : int, optional
-        Worker processes of the local cluster (default: CPU count); 0 runs
-        the logs one after the other in this process, without Dask.
+        Worker processes of Dask's local process pool (default: CPU count); 0
+        runs the logs one after the other in this process, without Dask.
     scheduler : str, optional
         Address of a running Dask scheduler (``tcp://host:8786``) to use instead.
     suffix : str
@@ -186,7 +181,7 @@ def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | 
             rows[i] = process_log(log, out, options, cli)
             bar.update()
     elif scheduler:
-        _run_on_dask(jobs, rows, options, cli, workers, scheduler, bar)
+        _run_on_dask(jobs, rows, options, cli, scheduler, bar)
     else:
         _run_local(jobs, rows, options, cli, workers, bar)
     bar.close()
@@ -223,9 +218,10 @@ def _run_local(jobs, rows, options, cli, workers, bar) -> None:
         rows[i] = row
 
 
-def _run_on_dask(jobs, rows, options, cli, workers, scheduler, bar) -> None:
+def _run_on_dask(jobs, rows, options, cli, scheduler, bar) -> None:
+    """The logs on a running dask.distributed cluster; a worker that dies fails its log only."""
+    client = _client(scheduler)
     from dask.distributed import as_completed
-    client, cluster = _client(workers, scheduler)
     try:
         futures = {client.submit(process_log, log, out, options, cli, pure=False): (i, log)
                    for i, log, out in jobs}
@@ -238,5 +234,3 @@ def _run_on_dask(jobs, rows, options, cli, workers, scheduler, bar) -> None:
             bar.update()
     finally:
         client.close()
-        if cluster is not None:
-            cluster.close()
