@@ -37,9 +37,9 @@ p-form 9x9 covariance and 9x6 bias Jacobian.
 """
 from __future__ import annotations
 
-import math
 from math import cos, sin, sqrt
 
+from imu_ground import so3
 from imu_ground.imu.matrix3 import SMALL_ANGLE2
 
 __all__ = ["DELTAS_IDENTITY", "UNCERTAINTY_ZERO", "integrate_interval", "quaternion_from_rotation",
@@ -247,37 +247,10 @@ def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float,
 
 def rotation_from_quaternion(q: tuple) -> tuple:
     """Row-major rotation matrix (9 floats) of a quaternion ``(w, x, y, z)``, normalised first."""
-    w, x, y, z = q
-    n = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
-    w, x, y, z = w * n, x * n, y * n, z * n
-    return (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y),
-            2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x),
-            2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y))
+    return so3.flat_from_quat(so3.quat_normalise(q))
 
 
 def quaternion_from_rotation(r: tuple) -> tuple:
-    """Unit quaternion ``(w, x, y, z)`` of a row-major rotation matrix (9 floats), Shepperd's method.
-
-    The largest of ``w, x, y, z`` is taken from the diagonal, the others from
-    the off-diagonal sums, so no branch divides by a small number.
-    """
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = r
-    tr = r00 + r11 + r22
-    if tr >= r00 and tr >= r11 and tr >= r22:
-        w = 0.5 * math.sqrt(max(1.0 + tr, 0.0))
-        f = 0.25 / w
-        q = (w, (r21 - r12) * f, (r02 - r20) * f, (r10 - r01) * f)
-    elif r00 >= r11 and r00 >= r22:
-        x = 0.5 * math.sqrt(max(1.0 + r00 - r11 - r22, 0.0))
-        f = 0.25 / x
-        q = ((r21 - r12) * f, x, (r01 + r10) * f, (r02 + r20) * f)
-    elif r11 >= r22:
-        y = 0.5 * math.sqrt(max(1.0 - r00 + r11 - r22, 0.0))
-        f = 0.25 / y
-        q = ((r02 - r20) * f, (r01 + r10) * f, y, (r12 + r21) * f)
-    else:
-        z = 0.5 * math.sqrt(max(1.0 - r00 - r11 + r22, 0.0))
-        f = 0.25 / z
-        q = ((r10 - r01) * f, (r02 + r20) * f, (r12 + r21) * f, z)
-    n = 1.0 / math.sqrt(sum(v * v for v in q))
-    return tuple(v * n for v in q)
+    """Unit quaternion ``(w, x, y, z)`` of a row-major rotation matrix (9 floats): :func:`imu_ground.so3.quat_from_flat`
+    (Shepperd's method), normalised against the matrix's own rounding."""
+    return so3.quat_normalise(so3.quat_from_flat(r))
