@@ -271,7 +271,8 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
                               "use it (add --method filter, or leave it out)", "Q" if Q is not None else "R")
         frame_speeds, speed_info = _frame_speeds(speed, path, info.get("format"), imu if kind == "imu" else None,
                                                  em, name)
-        ext = _load_extrinsic(extrinsic)
+        from imu_ground.filters import Extrinsic
+        ext = Extrinsic.coerce(extrinsic)
         track = _run_method(name, em, ext, Q, R, frame_speeds)
         bar.update()
     bar.close()
@@ -330,17 +331,6 @@ def _poses_egomotion(path, fmt, rate):
     return em, {"format": fmt, "frame_id": "camera" if fmt == "kitti_poses" else "sensor"}
 
 
-def _load_extrinsic(extrinsic):
-    from imu_ground.filters import Extrinsic, load_extrinsic
-    if extrinsic is None:
-        return Extrinsic()
-    if isinstance(extrinsic, Extrinsic):
-        return extrinsic
-    if isinstance(extrinsic, (str, Path)):
-        return load_extrinsic(extrinsic)
-    return Extrinsic.coerce(np.asarray(extrinsic, dtype=float))
-
-
 def _frame_speeds(speed, path, fmt, imu, em, method: str):
     """Per-frame speeds (m/s, NaN where unknown) for :func:`estimate_log`'s ``speed``, and what they are.
 
@@ -362,7 +352,12 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
             raise OptionError(f"{{opt}} as an array needs one value per frame ({len(em)}), got shape {v.shape}",
                               "speed")
         return v, "given per frame"
-    from imu_ground.datasets.speed import SPEED_SOURCES, frame_speed, log_speed, read_speed
+    from imu_ground.datasets.speed import (
+        SPEED_SOURCES,
+        frame_speed,
+        log_speed,
+        read_speed,
+    )
     if auto:
         got = log_speed(path, fmt, imu) if fmt in SPEED_SOURCES else None
         if got is None:
