@@ -17,8 +17,7 @@ The names below are imported lazily, on first use, so ``import imu_ground``
 costs no more than numpy.
 """
 from imu_ground._lazy import lazy_exports
-
-__version__ = "0.2.0"
+from imu_ground._version import __version__ as __version__
 
 _EXPORTS = {
     ".imu.data": "ImuData",
@@ -33,4 +32,4 @@ _EXPORTS = {
     ".filters.extrinsics": "Extrinsic available_extrinsics load_extrinsic",
     ".pipeline.estimate": "estimate_log",
 }
-__getattr__, __dir__, __all__ = lazy_exports(__name__, {"imu_ground": "__version__", **_EXPORTS})
+__getattr__, __dir__, __all__ = lazy_exports(__name__, {"imu_ground._version": "__version__", **_EXPORTS})

@@ -148,12 +148,9 @@ def atomic_path(path: _PathLike) -> Iterator[Path]:
 
 # ------------------------------------------------------------------------------------------ writers
 def package_version() -> str:
-    """The installed distribution's version (its one owner is ``pyproject.toml``)."""
-    from importlib.metadata import PackageNotFoundError, version
-    try:
-        return version("imu-ground")
-    except PackageNotFoundError:
-        return "unknown (not installed)"
+    """The package's version (its one owner is ``imu_ground/_version.py``; pyproject reads it from there)."""
+    from imu_ground._version import __version__
+    return __version__
 
 
 
