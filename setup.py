@@ -1,0 +1,39 @@
+"""Build hook for the compiled kernels (everything else is declared in pyproject.toml).
+
+Every ``imu_ground/**/_*_native.c`` file is one C extension module of the same
+dotted name (``imu_ground/filters/_residual_native.c`` ->
+``imu_ground.filters._residual_native``): the scalar per-frame kernels of the
+streaming filters and of the preintegration, written against the plain CPython
+API (no numpy headers), each with a pure-Python twin that is the reference its
+tests compare it with. The extensions are optional: without a C compiler the
+package installs and runs on the pure-Python kernels (slower, same results);
+see :mod:`imu_ground._native` (``IMU_GROUND_PURE_PYTHON=1`` forces them).
+
+Compiled without fused multiply-add contraction (``-ffp-contract=off``) so the
+C and the Python kernels round alike on every platform.
+"""
+from pathlib import Path
+
+from setuptools import Extension, setup
+
+HERE = Path(__file__).resolve().parent
+
+
+def native_extensions() -> list:
+    """One optional Extension per ``_*_native.c`` file under ``imu_ground/``."""
+    exts = []
+    for src in sorted((HERE / "imu_ground").rglob("_*_native.c")):
+        rel = src.relative_to(HERE)
+        exts.append(Extension(".".join(rel.with_suffix("").parts), [rel.as_posix()],
+                              extra_compile_args=["-O2", "-ffp-contract=off", "-fno-fast-math"]
+                              if not _msvc() else ["/O2", "/fp:precise"],
+                              optional=True))
+    return exts
+
+
+def _msvc() -> bool:
+    import sysconfig
+    return sysconfig.get_platform().startswith("win")
+
+
+setup(ext_modules=native_extensions())
