@@ -8,7 +8,7 @@ import pytest
 
 from imu_ground import so3
 from imu_ground.evaluation.metrics import (evaluate_drive, frame_errors, normal_angle,
-                                normal_from_pitch_roll, summarize, summary_table, wrap_angle)
+                                normal_from_pitch_roll, summarize, per_drive_table, wrap_angle)
 
 D = math.radians
 
@@ -136,7 +136,7 @@ def test_evaluate_drive_with_roll_and_table():
     assert a["angle"]["mean"] == pytest.approx(
         math.degrees(math.acos(math.cos(D(1)) ** 2)), rel=1e-10)
     b = evaluate_drive(np.radians([2.0]), np.zeros(1))
-    table = summary_table({"a": a, "b": b}, "pitch")
+    table = per_drive_table({"a": a, "b": b}, "pitch")
     assert table.loc["mean over drives", "mean"] == pytest.approx(1.5)
     assert table.loc["mean over drives", "n"] == 3
-    assert list(summary_table({"a": a}, "pitch", stat="rms").columns) == ["rms"]
+    assert list(per_drive_table({"a": a}, "pitch", stat="rms").columns) == ["rms"]

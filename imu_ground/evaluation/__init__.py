@@ -6,7 +6,7 @@ _EXPORTS = {
                    "MIN_MOVING_FRAMES Reference ReferenceCheck drop_out_of_order frame_times "
                    "travelled_distance smoothed_grade pitch_reference check_reference"),
     ".metrics": ("normal_from_pitch_roll normal_angle wrap_angle frame_errors summarize "
-                 "evaluate_drive summary_table"),
+                 "evaluate_drive per_drive_table"),
     ".baselines": "ConstantNormal EulerEKF euler_zyx from_euler_zyx",
     ".simulate": ("GRAVITY ISO8608_N0 ISO8608_CLASSES ImuErrorModel IMU_PRESETS imu_error_model "
                   "VehicleParams RoadParams SpeedParams SimResult simulate simulate_suite "
@@ -16,6 +16,6 @@ _EXPORTS = {
     ".conditions": ("CONDITIONS frame_signals condition_masks moving_segments segment_centred "
                     "reference_sigma"),
     ".runner": ("Method EVALUATION_METHODS METHODS TUNED run_method evaluate conditions_table "
-                "format_table"),
+                "format_table summary_table"),
 }
 __getattr__, __dir__, __all__ = lazy_exports(__name__, _EXPORTS)

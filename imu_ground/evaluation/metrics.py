@@ -52,7 +52,7 @@ __all__ = [
     "frame_errors",
     "summarize",
     "evaluate_drive",
-    "summary_table",
+    "per_drive_table",
 ]
 
 
@@ -214,7 +214,7 @@ def evaluate_drive(est_pitch, true_pitch, est_roll=None, true_roll=None, mask=No
     return {k: summarize(err[k].to_numpy(), use) for k in err.columns}
 
 
-def summary_table(per_drive: Mapping[str, Mapping[str, Any]], quantity: str = "pitch",
+def per_drive_table(per_drive: Mapping[str, Mapping[str, Any]], quantity: str = "pitch",
                   stat: str | None = None) -> pd.DataFrame:
     """Per-drive summaries of one quantity as a table, with the mean over drives.
 
