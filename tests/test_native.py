@@ -1,0 +1,57 @@
+"""The compiled kernels: every C source is built and loaded, and the pure-Python switch works.
+
+``setup.py`` builds each ``imu_ground/**/_*_native.c`` as an *optional* extension,
+so a failed compile does not stop the install; this test is what notices it
+(CI installs with a compiler, so every kernel must be there). Each kernel's own
+tests compare the C and the Python twin.
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from imu_ground._native import PURE_PYTHON_ENV, load_native, native_kernels
+
+PACKAGE = Path(__file__).resolve().parents[1] / "imu_ground"
+SOURCES = sorted(PACKAGE.rglob("_*_native.c"))
+
+
+def _module_name(src: Path) -> str:
+    return ".".join(("imu_ground",) + src.relative_to(PACKAGE).with_suffix("").parts)
+
+
+def test_sources_follow_the_naming_rule():
+    for src in SOURCES:
+        text = src.read_text()
+        stem = src.stem
+        assert f"PyInit_{stem}" in text, f"{src}: the init function must be PyInit_{stem}"
+
+
+@pytest.mark.skipif(os.environ.get(PURE_PYTHON_ENV, "") not in ("", "0"),
+                    reason=f"{PURE_PYTHON_ENV} is set: the pure-Python kernels are in use")
+@pytest.mark.parametrize("src", SOURCES, ids=[s.name for s in SOURCES])
+def test_every_kernel_is_built_and_loads(src):
+    name = _module_name(src)
+    module = load_native(name)
+    assert module is not None, (f"{name} is not built: reinstall with a C compiler "
+                                f"(`pip install -e .`) and read the compiler's output")
+    assert native_kernels()[name] is True
+    assert Path(module.__file__).stat().st_mtime >= src.stat().st_mtime - 1.0, \
+        f"{module.__file__} is older than {src.name}: rebuild (`pip install -e .`)"
+
+
+def test_pure_python_switch_turns_every_kernel_off():
+    names = [_module_name(s) for s in SOURCES] or ["imu_ground.filters._residual_native"]
+    code = ("import sys; from imu_ground._native import load_native; "
+            f"sys.exit(any(load_native(n) is not None for n in {names!r}))")
+    env = dict(os.environ, **{PURE_PYTHON_ENV: "1"})
+    assert subprocess.run([sys.executable, "-c", code], env=env).returncode == 0
+
+
+def test_a_missing_module_falls_back():
+    assert load_native("imu_ground.filters._no_such_native") is None
+    assert native_kernels()["imu_ground.filters._no_such_native"] is False
