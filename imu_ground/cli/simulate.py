@@ -5,11 +5,7 @@ import argparse
 
 from imu_ground.cli._common import positive_float, say
 
-__all__ = ["TRUTH_ANGLES", "register", "run"]
-
-#: Truth columns in radians (or rad/s) -> the name the truth file gives them, in degrees (or deg/s).
-TRUTH_ANGLES = {"heading": "heading_deg", "pitch": "pitch_deg", "roll": "roll_deg", "pitch_rate": "pitch_rate_deg_s",
-                "roll_rate": "roll_rate_deg_s", "road_grade": "road_grade_deg", "road_bank": "road_bank_deg"}
+__all__ = ["register", "run"]
 
 
 def register(sub) -> None:
@@ -30,18 +26,6 @@ def register(sub) -> None:
     s.set_defaults(func=run)
 
 
-def truth_table(sim):
-    """The truth table as written: angles converted to degrees, unit in each angle's column name."""
-    import numpy as np
-    truth = sim.truth.copy()
-    if "stationary" in truth:
-        truth["stationary"] = truth["stationary"].astype(int)
-    for col in TRUTH_ANGLES:
-        if col in truth:
-            truth[col] = np.degrees(truth[col].to_numpy(dtype=float))
-    return truth.rename(columns=TRUTH_ANGLES)
-
-
 def run(a: argparse.Namespace) -> int:
     """Simulate and write both files atomically (both or neither)."""
     from pathlib import Path
@@ -56,8 +40,7 @@ def run(a: argparse.Namespace) -> int:
         check_output_path(a.plot, option="--plot", kind="png")
     sim = simulate(a.duration, seed=a.seed, imu=a.imu)
     with atomic_path(out) as tmp_imu, atomic_path(truth) as tmp_truth:
-        sim.to_csv(tmp_imu)
-        truth_table(sim).to_csv(tmp_truth, index=False, float_format="%.10g", lineterminator="\n")
+        sim.to_csv(tmp_imu, tmp_truth)
     say(f"simulated {a.duration:g} s ({a.imu} IMU, seed {a.seed}): wrote {out} and {truth}")
     if a.plot:
         from imu_ground.evaluation.plots import plot_simulation

@@ -42,6 +42,7 @@ if TYPE_CHECKING:
     import pandas as pd
 
 __all__ = [
+    "TRUTH_ANGLES",
     "TRUTH_COLUMNS",
     "SimResult",
     "as_extrinsic",
@@ -57,6 +58,9 @@ TRUTH_COLUMNS = (
     "pitch", "roll", "pitch_rate", "roll_rate", "heave", "road_grade", "road_bank",
     "qw", "qx", "qy", "qz", "x", "y", "z", "vx", "vy", "vz", "stationary",
 )
+#: Truth columns in radians (or rad/s) -> their name in the written truth file, in degrees (or deg/s).
+TRUTH_ANGLES = {"heading": "heading_deg", "pitch": "pitch_deg", "roll": "roll_deg", "pitch_rate": "pitch_rate_deg_s",
+                "roll_rate": "roll_rate_deg_s", "road_grade": "road_grade_deg", "road_bank": "road_bank_deg"}
 
 
 @dataclass
@@ -118,14 +122,26 @@ class SimResult:
         return (f"SimResult(name={self.name!r}, seed={self.seed}, imu={self.imu_model.name!r}, "
                 f"duration={self.imu.duration:.1f} s, samples={len(self.imu)}, frames={len(self.truth)})")
 
+    def truth_table(self) -> pd.DataFrame:
+        """The truth as written to a file: angles in degrees, the unit in each angle's column name.
+
+        The columns of :attr:`truth` in their order, those of :data:`TRUTH_ANGLES` converted
+        from rad (rad/s) to degrees (deg/s) and renamed (``pitch`` -> ``pitch_deg``, ...;
+        ``pitch_deg``/``roll_deg`` with the signs of the ``estimate`` output), ``stationary`` as 0/1.
+        """
+        truth = self.truth.copy()
+        truth["stationary"] = truth["stationary"].astype(int)
+        for col in TRUTH_ANGLES:
+            truth[col] = np.degrees(truth[col].to_numpy(dtype=float))
+        return truth.rename(columns=TRUTH_ANGLES)
+
     def to_csv(self, imu_path, truth_path=None, float_format: str = "%.10g") -> None:
-        """Write the noisy IMU (columns t,wx,wy,wz,ax,ay,az) and, if given, the truth."""
+        """Write the noisy IMU (columns t,wx,wy,wz,ax,ay,az; s, rad/s, m/s^2) and, if given,
+        the truth (:meth:`truth_table`: angles in degrees, e.g. ``pitch_deg``, ``roll_deg``)."""
         df = self.imu.to_dataframe()[["t", "wx", "wy", "wz", "ax", "ay", "az"]]
         df.to_csv(imu_path, index=False, float_format=float_format, lineterminator="\n")
         if truth_path is not None:
-            truth = self.truth.copy()
-            truth["stationary"] = truth["stationary"].astype(int)
-            truth.to_csv(truth_path, index=False, float_format=float_format, lineterminator="\n")
+            self.truth_table().to_csv(truth_path, index=False, float_format=float_format, lineterminator="\n")
 
 
 def as_extrinsic(R_gs, t_gs):
