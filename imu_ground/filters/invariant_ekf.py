@@ -55,156 +55,89 @@ is held as a unit quaternion. The filterpy attributes (``x``, ``P``, ``K``,
 from __future__ import annotations
 
 import math
+from array import array
 from typing import Optional, Union
 
 import numpy as np
 
 from imu_ground import so3
-from imu_ground.so3 import (exp_flat, flat_from_quat, hat_flat, log_flat, mul_flat, mul_nt_flat, mul_tn_flat,
-                            quat_exp, quat_from_flat, quat_mul, quat_normalise, transpose_flat)
+from imu_ground._native import load_native
+from imu_ground.filters import invariant_ekf_kernel as _kernel
+from imu_ground.filters.invariant_ekf_kernel import (B_DET, B_K, B_NUP, B_P, B_PPO, B_PPR, B_Q, B_QN, B_RN, B_S,
+                                                     B_SI, B_X, B_XPO, B_XPR, B_XV, B_Y, B_Z, B_ZN, check_cov,
+                                                     flat_rotation, new_state, state_x)
+from imu_ground.so3 import flat_from_quat, quat_from_flat
 from imu_ground.units import RENORM_EVERY
 
 __all__ = ["InvariantEKF"]
 
 ArrayLike = Union[np.ndarray, list, tuple]
 _I3 = np.eye(3)
-_I9 = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
-_ZERO9 = (0.0,) * 9
 _LOG2PI = math.log(2.0 * math.pi)
 
+#: The compiled kernels (imu_ground/filters/_ekf_native.c), or None: the pure-Python ones of invariant_ekf_kernel.
+_native = load_native("imu_ground.filters._ekf_native")
+if _native is not None:
+    _predict, _update = _native.predict, _native.update
 
-def _flat_rotation(u) -> Optional[tuple]:
-    """Row-major 9 floats of a 3x3 matrix or a rotation vector (rad); None stays None."""
-    if u is None:
-        return None
-    u = np.asarray(u, dtype=float)
-    if u.shape == (3, 3):
-        return u.ravel().tolist()
-    if u.shape == (3,):
-        return exp_flat(*u.tolist())
-    raise ValueError(f"rotation increment must be a 3x3 matrix or a rotation vector of shape (3,), got {u.shape}")
-
-
-def _check_cov(name: str, m: Optional[ArrayLike]) -> Optional[np.ndarray]:
-    m = np.asarray(m, dtype=float)
-    if m.ndim == 0:
-        return float(m) * _I3
-    if m.shape != (3, 3):
-        raise ValueError(f"{name} must be a scalar or a 3x3 matrix, got shape {m.shape}")
-    return m
-
-
-def _congruence(a, p, q=_ZERO9) -> tuple:
-    """``A P A^T + Q`` for symmetric ``P`` and ``Q`` (upper triangle computed, lower mirrored), 9-tuples."""
-    a0, a1, a2, a3, a4, a5, a6, a7, a8 = a
-    m0, m1, m2, m3, m4, m5, m6, m7, m8 = mul_flat(a, p)
-    c00 = m0 * a0 + m1 * a1 + m2 * a2 + q[0]
-    c01 = m0 * a3 + m1 * a4 + m2 * a5 + q[1]
-    c02 = m0 * a6 + m1 * a7 + m2 * a8 + q[2]
-    c11 = m3 * a3 + m4 * a4 + m5 * a5 + q[4]
-    c12 = m3 * a6 + m4 * a7 + m5 * a8 + q[5]
-    c22 = m6 * a6 + m7 * a7 + m8 * a8 + q[8]
-    return c00, c01, c02, c01, c11, c12, c02, c12, c22
-
-
-def _sym_upper(m) -> tuple:
-    """The symmetric matrix of the upper triangle of ``m`` (row-major 9-tuple)."""
-    return m[0], m[1], m[2], m[1], m[4], m[5], m[2], m[5], m[8]
-
-
-def _inv_flat(m):
-    """Inverse (row-major 9-tuple) and determinant of a 3x3 matrix by cofactors."""
-    a, b, c, d, e, f, g, h, i = m
-    A, B, C = e * i - f * h, f * g - d * i, d * h - e * g
-    det = a * A + b * B + c * C
-    if det == 0.0 or not math.isfinite(det):
-        raise np.linalg.LinAlgError(f"innovation covariance is singular (det = {det})")
-    r = 1.0 / det
-    return (A * r, (c * h - b * i) * r, (b * f - c * e) * r,
-            B * r, (a * i - c * g) * r, (c * d - a * f) * r,
-            C * r, (b * g - a * h) * r, (a * e - b * d) * r), det
-
-
-def _update_rotation_left(q, P, z, r):
-    """Left-error update with a rotation measurement, unrolled (H = I; the state a unit quaternion).
-
-    Unrolls ``y = Log(x^T z)`` (as ``2 atan2(|v|, w) v / |v|`` of the quaternion
-    ``conj(q) q_z``, accurate up to pi), ``S = P + R``, ``S^-1`` by symmetric
-    cofactors, ``K = P S^-1``, ``q <- q Exp(K y)`` and ``P <- K R`` (upper
-    triangle, mirrored); matrices are row-major 9-tuples. Returns ``q, P, y, K,
-    S, SI, det S``.
-    """
-    qw, qx, qy, qz = q
-    zw, zx, zy, zz = quat_from_flat(z)
-    aw, ax, ay, az = (qw * zw + qx * zx + qy * zy + qz * zz, qw * zx - qx * zw - qy * zz + qz * zy,
-                      qw * zy + qx * zz - qy * zw - qz * zx, qw * zz - qx * zy + qy * zx - qz * zw)
-    if aw < 0.0:
-        aw, ax, ay, az = -aw, -ax, -ay, -az
-    vn = math.sqrt(ax * ax + ay * ay + az * az)
-    f = 2.0 * math.atan2(vn, aw) / vn if vn > 0.0 else 2.0
-    y0, y1, y2 = ax * f, ay * f, az * f
-    p0, p1, p2, _, p4, p5, _, _, p8 = P
-    r0, r1, r2, _, r4, r5, _, _, r8 = r
-    s0, s1, s2, s4, s5, s8 = p0 + r0, p1 + r1, p2 + r2, p4 + r4, p5 + r5, p8 + r8
-    i00, i01, i02 = s4 * s8 - s5 * s5, s2 * s5 - s1 * s8, s1 * s5 - s2 * s4
-    det = s0 * i00 + s1 * i01 + s2 * i02
-    if det == 0.0 or not math.isfinite(det):
-        raise np.linalg.LinAlgError(f"innovation covariance is singular (det = {det})")
-    d = 1.0 / det
-    i00, i01, i02 = i00 * d, i01 * d, i02 * d
-    i11, i12, i22 = (s0 * s8 - s2 * s2) * d, (s1 * s2 - s0 * s5) * d, (s0 * s4 - s1 * s1) * d
-    SI = (i00, i01, i02, i01, i11, i12, i02, i12, i22)
-    K = k0, k1, k2, k3, k4, k5, k6, k7, k8 = mul_flat(P, SI)
-    if r1 == 0.0 and r2 == 0.0 and r5 == 0.0:   # diagonal R (the same numbers, without the zero terms)
-        n01, n02, n12 = k1 * r4, k2 * r8, k5 * r8
-        Pn = (k0 * r0, n01, n02, n01, k4 * r4, n12, n02, n12, k8 * r8)
-    else:
-        n01 = k0 * r1 + k1 * r4 + k2 * r5
-        n02 = k0 * r2 + k1 * r5 + k2 * r8
-        n12 = k3 * r2 + k4 * r5 + k5 * r8
-        Pn = (k0 * r0 + k1 * r1 + k2 * r2, n01, n02, n01, k3 * r1 + k4 * r4 + k5 * r5, n12,
-              n02, n12, k6 * r2 + k7 * r5 + k8 * r8)
-    return (quat_mul(q, quat_exp(k0 * y0 + k1 * y1 + k2 * y2, k3 * y0 + k4 * y1 + k5 * y2, k6 * y0 + k7 * y1 + k8 * y2)),
-            Pn, (y0, y1, y2), K, (s0, s1, s2, s1, s4, s5, s2, s5, s8), SI, det)
+    def _buffer(values) -> array:
+        return array("d", values)
+else:
+    _predict, _update, _buffer = _kernel.predict, _kernel.update, list
 
 
 def _matrix(t) -> np.ndarray:
     return np.array(t).reshape(3, 3)
 
 
-def _state_property(name: str, doc: str) -> property:
-    """A 3x3 attribute held as a 9-tuple in ``_<name>``; the array the getter builds (and caches in
-    ``_<name>_a``), once handed out, is what the next step reads (so ``f.P *= 2`` is seen)."""
-    slot, cache = "_" + name, "_" + name + "_a"
+def _coerce(v, what: str) -> Optional[np.ndarray]:
+    """An increment (``what="u"``) or measurement (``"z"``) as the C kernels take it, or the named error."""
+    if v is None:
+        return None
+    a = np.ascontiguousarray(v, dtype=float)
+    if a.shape not in ((3, 3), (3,)):
+        if what == "u":
+            flat_rotation(a)            # raises the named error
+        raise ValueError(f"z must be a 3x3 rotation or a unit vector of shape (3,), got {a.shape}")
+    return a
+
+
+def _state_property(name: str, start: int, doc: str) -> property:
+    """A 3x3 input (``P``, ``Q``, ``R``) held in the state buffer at ``start``. The array the getter builds (and
+    caches in ``_<name>_a``), once handed out, is what the next step reads (so ``f.P *= 2`` is seen); an
+    assigned array likewise."""
+    cache = "_" + name + "_a"
 
     def get(self):
         a = self.__dict__[cache]
         if a is None:
-            a = self.__dict__[cache] = _matrix(self.__dict__[slot])
+            a = self.__dict__[cache] = _matrix(self._s[start:start + 9])
+            self._held = True
         return a
 
     def set_(self, value):
         a = np.asarray(value, dtype=float)
         if a.shape != (3, 3):
             raise ValueError(f"{name} must be a 3x3 matrix, got shape {a.shape}")
-        self.__dict__[cache] = a
-        self.__dict__[slot] = a.ravel().tolist()
+        self.__dict__[cache] = a if a.flags.c_contiguous else np.ascontiguousarray(a)
+        self._s[start:start + 9] = _buffer(a.ravel().tolist())
+        self._held = True
 
     return property(get, set_, doc=doc)
 
 
-def _output_property(name: str, doc: str, shape=(3, 3), rotation: bool = False) -> property:
-    """A result attribute (``K``, ``S``, ``x_prior``, ...) held as a tuple (a quaternion for a
-    ``rotation``), built as an array on access."""
-    slot = "_" + name
+def _output_property(name: str, start: int, doc: str, shape=(3, 3), rotation: bool = False) -> property:
+    """A result (``K``, ``S``, ``x_prior``, ...) held in the state buffer at ``start`` (a quaternion for a
+    ``rotation``), built as a fresh array on access."""
+    size = 4 if rotation else int(np.prod(shape))
 
     def get(self):
-        t = self.__dict__[slot]
-        return None if t is None else np.array(flat_from_quat(t) if rotation else t).reshape(shape)
+        t = self._s[start:start + size]
+        return np.array(flat_from_quat(t) if rotation else t).reshape(shape)
 
     def set_(self, value):
-        t = None if value is None else np.asarray(value, dtype=float).ravel().tolist()
-        self.__dict__[slot] = quat_from_flat(t) if rotation and t is not None else t
+        t = np.asarray(value, dtype=float).reshape(shape).ravel().tolist()
+        self._s[start:start + size] = _buffer(quat_from_flat(t) if rotation else t)
 
     return property(get, set_, doc=doc)
 
@@ -258,92 +191,114 @@ class InvariantEKF:
         x = _I3 if x is None else np.asarray(x, dtype=float)
         if x.shape != (3, 3):
             raise ValueError(f"x must be a 3x3 rotation matrix, got shape {x.shape}")
-        self._x = self._x_t = tuple(x.ravel().tolist())     # matrix (None: stale), as handed out
-        self._q, self._x_a = quat_from_flat(self._x), None          # the state: a unit quaternion
-        self._P, self._P_a = _check_cov("P", 1.0 if P is None else P).ravel().tolist(), None
-        self._Q, self._Q_a = _check_cov("Q", 1e-2 if Q is None else Q).ravel().tolist(), None
-        self._R, self._R_a = _check_cov("R", 1.0 if R is None else R).ravel().tolist(), None
+        P, Q, R = (check_cov(n, d if v is None else v) for n, v, d in (("P", P, 1.0), ("Q", Q, 1e-2), ("R", R, 1.0)))
         b = np.array([0.0, 0.0, 1.0]) if b is None else np.asarray(b, dtype=float)
         if b.shape != (3,) or not np.isclose(np.linalg.norm(b), 1.0):
             raise ValueError("b must be a unit vector of shape (3,)")
         self.b = b
-        self._bt = tuple(b.tolist())
-        self._Hb = tuple(-v for v in hat_flat(*self._bt))     # H = -[b]x of the left direction update
-        self._z, self._z_shape = None, None
-        self._y = (0.0, 0.0, 0.0)
-        self._K = self._S = self._SI = (0.0,) * 9
-        self._detS = None                   # no update yet
-        self._x_prior = self._x_post = self._q
-        self._P_prior = self._P_post = self._P
-        self._updates = 0
+        xt = tuple(x.ravel().tolist())
+        # the whole state, one flat buffer (layout: invariant_ekf_kernel); what the kernels read and write
+        self._s = _buffer(new_state(quat_from_flat(xt), P.ravel().tolist(), Q.ravel().tolist(),
+                                    R.ravel().tolist(), b.tolist(), self._left, RENORM_EVERY))
+        self._s[B_X:B_X + 9] = _buffer(xt)       # x as given (the quaternion is its Shepperd conversion)
+        self._s[B_XV] = 1.0
+        self._x_t = xt                           # x as last handed out or assigned
+        self._x_a = self._P_a = self._Q_a = self._R_a = None     # arrays handed out (see _state_property)
+        self._held = False                       # any of them not None
 
-    def _xmat(self) -> tuple:
-        """The state as a row-major 9-tuple (built from the quaternion when stale)."""
-        if self._x is None:
-            self._x = flat_from_quat(self._q)
-        return self._x
-
-    def _pull_x(self) -> None:
-        """Take in an ``x`` array handed out and changed in place since."""
-        xl = tuple(self._x_a.ravel().tolist())
-        if xl != self._x_t:
-            self._x, self._q = xl, quat_from_flat(xl)
-        self._x_a = None
+    def _take_held(self) -> None:
+        """Take in the ``x`` and ``P`` arrays handed out (or assigned) since the last step, maybe changed in place."""
+        s, xa, Pa = self._s, self._x_a, self._P_a
+        if xa is not None:
+            xl = tuple(xa.ravel().tolist())
+            if xl != self._x_t:
+                s[B_X:B_X + 9] = _buffer(xl)
+                s[B_XV] = 1.0
+                s[B_Q:B_Q + 4] = _buffer(quat_from_flat(xl))
+            self._x_a = None
+        if Pa is not None:
+            s[B_P:B_P + 9] = _buffer(Pa.ravel().tolist())
+            self._P_a = None
+        self._held = self._Q_a is not None or self._R_a is not None
 
     @property
     def x(self) -> np.ndarray:
         """Current rotation, world <- body (3x3)."""
         if self._x_a is None:
-            self._x_t = self._xmat()
+            self._x_t = tuple(state_x(self._s) if type(self._s) is list else self._x_native())
             self._x_a = _matrix(self._x_t)
+            self._held = True
         return self._x_a
+
+    def _x_native(self) -> array:
+        s = self._s
+        if not s[B_XV]:
+            s[B_X:B_X + 9] = array("d", flat_from_quat(s[B_Q:B_Q + 4]))
+            s[B_XV] = 1.0
+        return s[B_X:B_X + 9]
 
     @x.setter
     def x(self, value) -> None:
         a = np.asarray(value, dtype=float)
         if a.shape != (3, 3):
             raise ValueError(f"x must be a 3x3 matrix, got shape {a.shape}")
-        self._x = self._x_t = tuple(a.ravel().tolist())
-        self._q, self._x_a = quat_from_flat(self._x), a
+        s = self._s
+        self._x_t = xt = tuple(a.ravel().tolist())
+        s[B_X:B_X + 9] = _buffer(xt)
+        s[B_XV] = 1.0
+        s[B_Q:B_Q + 4] = _buffer(quat_from_flat(xt))
+        self._x_a = a
+        self._held = True
 
-    P = _state_property("P", "Current error covariance, tangent space (rad^2, 3x3).")
-    Q = _state_property("Q", "Process noise per predict (rad^2, 3x3; symmetric, its upper triangle is used).")
-    R = _state_property("R", "Measurement noise (3x3; symmetric, its upper triangle is used).")
-    x_prior = _output_property("x_prior", "Rotation after the last predict.", rotation=True)
-    P_prior = _output_property("P_prior", "Covariance after the last predict.")
-    x_post = _output_property("x_post", "Rotation after the last update.", rotation=True)
-    P_post = _output_property("P_post", "Covariance after the last update.")
-    y = _output_property("y", "Last innovation (3,): tangent (rotation) or body-frame residual (direction).", (3,))
-    K = _output_property("K", "Last Kalman gain (3x3).")
-    S = _output_property("S", "Last innovation covariance (3x3).")
-    SI = _output_property("SI", "Inverse of the last innovation covariance (3x3).")
+    P = _state_property("P", B_P, "Current error covariance, tangent space (rad^2, 3x3).")
+    Q = _state_property("Q", B_QN, "Process noise per predict (rad^2, 3x3; symmetric, its upper triangle is used).")
+    R = _state_property("R", B_RN, "Measurement noise (3x3; symmetric, its upper triangle is used).")
+    x_prior = _output_property("x_prior", B_XPR, "Rotation after the last predict.", rotation=True)
+    P_prior = _output_property("P_prior", B_PPR, "Covariance after the last predict.")
+    x_post = _output_property("x_post", B_XPO, "Rotation after the last update.", rotation=True)
+    P_post = _output_property("P_post", B_PPO, "Covariance after the last update.")
+    y = _output_property("y", B_Y, "Last innovation (3,): tangent (rotation) or body-frame residual (direction).",
+                         (3,))
+    K = _output_property("K", B_K, "Last Kalman gain (3x3).")
+    S = _output_property("S", B_S, "Last innovation covariance (3x3).")
+    SI = _output_property("SI", B_SI, "Inverse of the last innovation covariance (3x3).")
 
     @property
     def z(self) -> Optional[np.ndarray]:
         """Last measurement, (3, 3) rotation or (3,) direction; None after a skipped update."""
-        return None if self._z is None else np.array(self._z).reshape(self._z_shape)
+        n = int(self._s[B_ZN])
+        return None if n == 0 else np.array(self._s[B_Z:B_Z + n]).reshape((3, 3) if n == 9 else (3,))
 
     @z.setter
     def z(self, value) -> None:
         if value is None:
-            self._z, self._z_shape = None, None
-        else:
-            value = np.asarray(value, dtype=float)
-            self._z, self._z_shape = value.ravel().tolist(), value.shape
+            self._s[B_ZN] = 0.0
+            return
+        t = np.asarray(value, dtype=float).ravel().tolist()
+        if len(t) not in (3, 9):
+            raise ValueError(f"z must be a 3x3 rotation or a unit vector of shape (3,), got {len(t)} values")
+        self._s[B_Z:B_Z + len(t)] = _buffer(t)
+        self._s[B_ZN] = float(len(t))
+
+    @property
+    def _updates(self) -> int:
+        """Number of updates so far (the renormalisation counter)."""
+        return int(self._s[B_NUP])
 
     # -- filterpy-style derived quantities ---------------------------------
     def _ysiy(self) -> float:
-        y0, y1, y2 = self._y
-        s = self._SI
+        y0, y1, y2 = self._s[B_Y:B_Y + 3]
+        s = self._s[B_SI:B_SI + 9]
         return (y0 * (s[0] * y0 + s[1] * y1 + s[2] * y2) + y1 * (s[3] * y0 + s[4] * y1 + s[5] * y2)
                 + y2 * (s[6] * y0 + s[7] * y1 + s[8] * y2))
 
     @property
     def log_likelihood(self) -> float:
         """Log-likelihood of the last innovation under N(0, S) (computed on access)."""
-        if self._detS is None:
+        det = self._s[B_DET]
+        if det != det:
             return math.log(1e-300)                       # filterpy's value before any update
-        return -0.5 * (self._ysiy() + math.log(self._detS) + 3 * _LOG2PI)
+        return -0.5 * (self._ysiy() + math.log(det) + 3 * _LOG2PI)
 
     @property
     def likelihood(self) -> float:
@@ -367,40 +322,11 @@ class InvariantEKF:
         Q : float or ndarray (3, 3), optional
             Process noise for this step (body tangent space); default ``self.Q``.
         """
-        if self._x_a is not None:
-            self._pull_x()
-        Pa = self._P_a
-        P = self._P if Pa is None else Pa.ravel().tolist()
-        q, x = self._q, None
-        if Q is None:
-            Qa = self._Q_a
-            qn = self._Q if Qa is None else Qa.ravel().tolist()
-        else:
-            qn = _check_cov("Q", Q).ravel().tolist()
-        if u is None:
-            U = None
-        elif type(u) is np.ndarray and u.shape == (3, 3):
-            U = u.ravel().tolist()
-        else:
-            U = _flat_rotation(u)
-        if U is not None:
-            q = quat_mul(q, quat_from_flat(U))
-            if self._left:              # P <- U^T P U + Q
-                self._P = self._P_prior = _congruence(transpose_flat(U), P, qn)
-                self._q = self._x_prior = q
-                self._x = self._P_a = None
-                return
-        else:
-            x = self._x
-        if not self._left:              # P <- P + A Q A^T, A = x U
-            x = flat_from_quat(q) if x is None else x
-            qn = _congruence(x, qn)
-        p0, p1, p2, _, p4, p5, _, _, p8 = P
-        q0, q1, q2, _, q4, q5, _, _, q8 = qn
-        a, b, c = p1 + q1, p2 + q2, p5 + q5
-        self._P = self._P_prior = (p0 + q0, a, b, a, p4 + q4, c, b, c, p8 + q8)
-        self._q = self._x_prior = q
-        self._x, self._P_a = x, None
+        if self._held:
+            self._take_held()
+        Q = self._Q_a if Q is None else check_cov("Q", Q)
+        if not _predict(self._s, u, Q):         # the C kernel takes float64 C-contiguous arrays only
+            _predict(self._s, _coerce(u, "u"), None if Q is None else np.ascontiguousarray(Q))
 
     def update(self, z: Optional[ArrayLike], R: Union[float, ArrayLike, None] = None) -> None:
         """Correct with a rotation or a direction measurement.
@@ -413,94 +339,15 @@ class InvariantEKF:
         R : float or ndarray (3, 3), optional
             Measurement noise for this update; default ``self.R``.
         """
-        if self._x_a is not None:
-            self._pull_x()
-        Pa = self._P_a
-        P = self._P if Pa is None else Pa.ravel().tolist()
-        if z is None:
-            self._z = self._z_shape = None
-            self._x_post = self._q
-            self._P = self._P_post = P
-            self._P_a = None
-            self._y = (0.0, 0.0, 0.0)
-            return
-        if R is None:
-            Ra = self._R_a
-            r = self._R if Ra is None else Ra.ravel().tolist()
-        else:
-            r = _check_cov("R", R).ravel().tolist()
-        if type(z) is not np.ndarray:
-            z = np.asarray(z, dtype=float)
-        shape = z.shape
-        zl = z.ravel().tolist()
-        if shape == (3, 3) and self._left:       # the usual case, stored here (as _finish_update)
-            q, Pn, y, K, S, SI, detS = _update_rotation_left(self._q, P, zl, r)
-            self._updates += 1
-            if self._updates % RENORM_EVERY == 0:
-                q = quat_normalise(q)
-            self._q = self._x_post = q
-            self._P = self._P_post = Pn
-            self._x = self._P_a = None
-            self._z, self._z_shape, self._y, self._K, self._S, self._SI, self._detS = zl, shape, y, K, S, SI, detS
-            return
-        x = self._xmat()
-        if shape == (3, 3):
-            # H = I: K = P S^-1, P <- (I - K) P = K Rn (information form, PD by construction)
-            if self._left:
-                y = log_flat(mul_tn_flat(x, zl))
-                Rn = r
-            else:
-                y = log_flat(mul_nt_flat(zl, x))
-                Rn = _congruence(x, r)
-            p0, p1, p2, _, p4, p5, _, _, p8 = P
-            r0, r1, r2, _, r4, r5, _, _, r8 = Rn
-            a, b, c = p1 + r1, p2 + r2, p5 + r5
-            S = (p0 + r0, a, b, a, p4 + r4, c, b, c, p8 + r8)
-            SI, detS = _inv_flat(S)
-            K = mul_flat(P, SI)
-            Pn = _sym_upper(mul_flat(K, Rn))
-        elif shape == (3,):
-            z0, z1, z2 = zl
-            if self._left:
-                x0, x1, x2, x3, x4, x5, x6, x7, x8 = x
-                b0, b1, b2 = self._bt
-                y = (x0 * z0 + x3 * z1 + x6 * z2 - b0, x1 * z0 + x4 * z1 + x7 * z2 - b1,
-                     x2 * z0 + x5 * z1 + x8 * z2 - b2)
-                H = self._Hb
-                Rn = _congruence((x0, x3, x6, x1, x4, x7, x2, x5, x8), r)
-            else:
-                b0, b1, b2 = self._bt
-                xb = (x[0] * b0 + x[1] * b1 + x[2] * b2, x[3] * b0 + x[4] * b1 + x[5] * b2,
-                      x[6] * b0 + x[7] * b1 + x[8] * b2)
-                y = (z0 - xb[0], z1 - xb[1], z2 - xb[2])
-                H = tuple(-v for v in hat_flat(*xb))
-                Rn = r
-            PHT = mul_nt_flat(P, H)
-            S = tuple(m + n for m, n in zip(_sym_upper(mul_flat(H, PHT)), _sym_upper(Rn)))
-            SI, detS = _inv_flat(S)
-            K = mul_flat(PHT, SI)
-            KH = mul_flat(K, H)
-            IKH = tuple(i - kh for i, kh in zip(_I9, KH))           # Joseph form
-            Pn = tuple(m + n for m, n in zip(_congruence(IKH, P), _congruence(K, Rn)))
-        else:
-            raise ValueError(f"z must be a 3x3 rotation or a unit vector of shape (3,), got {shape}")
-        y0, y1, y2 = y
-        k0, k1, k2, k3, k4, k5, k6, k7, k8 = K
-        e = quat_exp(k0 * y0 + k1 * y1 + k2 * y2, k3 * y0 + k4 * y1 + k5 * y2, k6 * y0 + k7 * y1 + k8 * y2)
-        self._finish_update(quat_mul(self._q, e) if self._left else quat_mul(e, self._q), Pn, zl, shape,
-                            y, K, S, SI, detS)
-
-    def _finish_update(self, q, Pn, zl, shape, y, K, S, SI, detS) -> None:
-        """Renormalise every RENORM_EVERY corrections and store the results of an update."""
-        self._updates += 1
-        if self._updates % RENORM_EVERY == 0:
-            q = quat_normalise(q)
-        self._q = self._x_post = q
-        self._x = None
-        self._P = self._P_post = Pn
-        self._P_a = None
-        self._z, self._z_shape = zl, shape
-        self._y, self._K, self._S, self._SI, self._detS = y, K, S, SI, detS
+        if self._held:
+            self._take_held()
+        R = self._R_a if R is None else check_cov("R", R)
+        done = _update(self._s, z, R)
+        if done is not True:
+            if done is False:                   # the C kernel takes float64 C-contiguous arrays only
+                done = _update(self._s, _coerce(z, "z"), None if R is None else np.ascontiguousarray(R))
+            if done is not True:                # the C kernel's det S of a singular S (state unchanged)
+                raise np.linalg.LinAlgError(f"innovation covariance is singular (det = {done})")
 
     # -- batch -----------------------------------------------------------------
     def batch_filter(self, zs, us=None, Rs=None, Qs=None, saver=None):
@@ -575,8 +422,8 @@ class InvariantEKF:
         if n:
             Ppr[0] = Ps[0]
         for k in range(n - 2, -1, -1):
-            U = _I3 if us is None else _matrix(_flat_rotation(us[k + 1]))
-            Q = self.Q if Qs is None else _check_cov("Q", Qs[k + 1])
+            U = _I3 if us is None else _matrix(flat_rotation(us[k + 1]))
+            Q = self.Q if Qs is None else check_cov("Q", Qs[k + 1])
             Xpred = Xs[k] @ U
             if self.error == "left":
                 F = U.T
