@@ -37,14 +37,18 @@ if TYPE_CHECKING:                                   # imported lazily: the imu l
     from imu_ground.imu.egomotion import EgoFrame, EgoMotion
 
 __all__ = ["GroundEstimate", "GroundTrack", "GroundEstimator", "pitch_roll_from_normal", "track_table",
-           "as_egomotion", "ON_INVALID", "ORTHO_TOL", "frame_problem", "frame_problems", "check_on_invalid",
-           "bad_frame_error", "checked_rotation", "static_rotation", "frame_where", "hold_skipped", "vector3"]
+           "as_egomotion", "ON_INVALID", "ORTHO_TOL", "frame_status", "frame_problem",
+           "BAD_ROTATION", "BAD_DELTA_V", "BAD_DELTA_T", "frame_problems", "check_on_invalid",
+           "bad_frame_error", "checked_frame", "coerce_frame", "bad_frame", "static_rotation", "frame_where",
+           "hold_skipped"]
 
 #: What a streaming estimator does with a bad frame: raise ``ValueError`` (state untouched) or
 #: skip it and return an estimate flagged invalid.
 ON_INVALID = ("raise", "skip")
 #: Largest ``|R^T R - I|`` entry of an accepted rotation increment.
 ORTHO_TOL = 1e-6
+#: :func:`frame_status` codes of a bad frame.
+BAD_ROTATION, BAD_DELTA_V, BAD_DELTA_T = 1, 2, 3
 _EZ3 = (0.0, 0.0, 1.0)
 
 
@@ -286,8 +290,11 @@ def as_egomotion(data, rate: Optional[float] = None) -> "EgoMotion":
 
 
 # ------------------------------------------------------------------------------------------ frame checks
-def frame_problem(d9, delta_v=None, delta_t: float = 1.0) -> Optional[str]:
-    """What is wrong with one frame, or None (scalar check, the streaming twin of :func:`frame_problems`).
+def frame_status(d9, delta_v=None, delta_t: float = 1.0) -> int:
+    """What is wrong with one frame, as a code (the scalar check the streaming estimators run).
+
+    The compiled twin is ``check`` of :mod:`imu_ground.filters.residual` (same
+    comparisons, same results); :func:`frame_problem` turns a code into the message.
 
     Parameters
     ----------
@@ -297,6 +304,13 @@ def frame_problem(d9, delta_v=None, delta_t: float = 1.0) -> Optional[str]:
         Velocity increment, m/s.
     delta_t : float
         Frame duration, s.
+
+    Returns
+    -------
+    int
+        0: a good frame; :data:`BAD_ROTATION` (non-finite, not orthonormal to
+        :data:`ORTHO_TOL`, or det <= 0), :data:`BAD_DELTA_V` (not finite) or
+        :data:`BAD_DELTA_T` (not a positive finite number of seconds).
     """
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = d9
     lo, hi = 1.0 - ORTHO_TOL, 1.0 + ORTHO_TOL
@@ -306,12 +320,34 @@ def frame_problem(d9, delta_v=None, delta_t: float = 1.0) -> Optional[str]:
             and -ORTHO_TOL <= r00 * r02 + r10 * r12 + r20 * r22 <= ORTHO_TOL
             and -ORTHO_TOL <= r01 * r02 + r11 * r12 + r21 * r22 <= ORTHO_TOL
             and r00 * (r11 * r22 - r12 * r21) - r01 * (r10 * r22 - r12 * r20) + r02 * (r10 * r21 - r11 * r20) > 0.0):
-        return _rotation_message(d9)                # (NaN fails every comparison)
+        return BAD_ROTATION                         # (NaN fails every comparison)
     if delta_v is not None:
         vx, vy, vz = delta_v
         if not math.isfinite(vx + vy + vz):
-            return f"delta_v is not finite ({vx}, {vy}, {vz})"
+            return BAD_DELTA_V
     if not delta_t > 0.0 or delta_t == math.inf:
+        return BAD_DELTA_T
+    return 0
+
+
+def frame_problem(d9, delta_v=None, delta_t: float = 1.0, status: Optional[int] = None) -> Optional[str]:
+    """What is wrong with one frame, or None (the message of :func:`frame_status`; the streaming
+    twin of :func:`frame_problems`).
+
+    Parameters
+    ----------
+    d9, delta_v, delta_t
+        As in :func:`frame_status`.
+    status : int, optional
+        The frame's :func:`frame_status` when already known (e.g. from the compiled check).
+    """
+    status = frame_status(d9, delta_v, delta_t) if status is None else status
+    if status == BAD_ROTATION:
+        return _rotation_message(d9)
+    if status == BAD_DELTA_V:
+        vx, vy, vz = delta_v
+        return f"delta_v is not finite ({vx}, {vy}, {vz})"
+    if status == BAD_DELTA_T:
         return f"delta_t must be a positive number of seconds, got {delta_t}"
     return None
 
@@ -368,21 +404,23 @@ def bad_frame_error(problem: str, where: str) -> ValueError:
                       f"(construct it with on_invalid='skip' to skip such frames)")
 
 
-def checked_rotation(frame, delta_R, delta_v, delta_t: float, on_invalid: str,
-                     index: int) -> tuple[np.ndarray, list] | None:
-    """A streamed frame's ``delta_R`` as a 3x3 array and as 9 row-major floats, if the frame passes the checks.
+def checked_frame(check, frame, delta_R, delta_v, delta_t: float, on_invalid: str, index: int) -> tuple | None:
+    """A streamed frame's ``delta_R`` (3x3) and ``delta_v`` (3,) as float64 arrays, if the frame passes the check.
 
-    The first step of every estimator's ``step``: coerce the rotation, then
-    :func:`frame_problem`; a bad frame raises or is to be skipped.
+    The first step of every estimator's ``step`` on its general path: the
+    kernel's ``check`` (C or Python twin of :func:`frame_status`), after
+    :func:`coerce_frame` when the inputs are not float64 arrays already; a bad
+    frame raises or is to be skipped (:func:`bad_frame`).
 
     Parameters
     ----------
+    check : callable
+        ``check(delta_R, delta_v, delta_t) -> int`` (:func:`imu_ground.filters.residual.check`).
     frame : object
         The frame as given to ``step``; its ``t`` (s), if it has one, locates the error.
     delta_R : array_like
-        sensor_{k-1} <- sensor_k: a rotation matrix, a 4x4 relative pose or a
-        rotation vector, rad (:func:`~imu_ground.filters.rotations.as_rotations`).
-    delta_v : sequence of 3 float, or None
+        sensor_{k-1} <- sensor_k: a rotation matrix, a 4x4 relative pose or a rotation vector, rad.
+    delta_v : array_like (3,) or None
         Velocity increment, m/s (None: not checked).
     delta_t : float
         Frame duration, s.
@@ -393,7 +431,7 @@ def checked_rotation(frame, delta_R, delta_v, delta_t: float, on_invalid: str,
 
     Returns
     -------
-    (ndarray (3, 3), list of 9 float) or None
+    (ndarray (3, 3), ndarray (3,) or None) or None
         None: a bad frame to skip (``on_invalid="skip"``); the caller returns
         its current estimate flagged invalid.
 
@@ -402,18 +440,61 @@ def checked_rotation(frame, delta_R, delta_v, delta_t: float, on_invalid: str,
     ValueError
         ``delta_R`` is not one rotation, or a bad frame with ``on_invalid="raise"``.
     """
-    d = delta_R
-    if type(d) is not np.ndarray or d.shape != (3, 3):
-        d = as_rotations(d)
-        if d.shape != (3, 3):
-            raise ValueError(f"delta_R must be one rotation, got shape {d.shape}")
-    d9 = d.ravel().tolist()
-    problem = frame_problem(d9, delta_v, delta_t)
-    if problem is None:
-        return d, d9
+    d, dv = delta_R, delta_v
+    try:
+        status = check(d, dv, delta_t)
+    except (TypeError, ValueError):
+        d, dv = coerce_frame(d, dv)
+        status = check(d, dv, delta_t)
+    if status:
+        bad_frame(frame, status, d, dv, delta_t, on_invalid, index)
+        return None
+    return d, dv
+
+
+def coerce_frame(delta_R, delta_v=None) -> tuple:
+    """A streamed frame's ``delta_R`` as one C-contiguous float64 3x3 rotation and ``delta_v`` as a float64 (3,)
+    array (or None): what the kernels' ``step`` and ``check`` take (they raise TypeError/ValueError otherwise).
+
+    Parameters
+    ----------
+    delta_R : array_like
+        sensor_{k-1} <- sensor_k: a rotation matrix, a 4x4 relative pose or a
+        rotation vector, rad (:func:`~imu_ground.filters.rotations.as_rotations`).
+    delta_v : array_like (3,), optional
+        Velocity increment, m/s.
+
+    Raises
+    ------
+    ValueError
+        ``delta_R`` is not one rotation (e.g. a batch) or ``delta_v`` not 3 values.
+    """
+    d = as_rotations(delta_R)
+    if d.shape != (3, 3):
+        raise ValueError(f"delta_R must be one rotation, got shape {d.shape}")
+    dv = None if delta_v is None else np.ascontiguousarray(np.asarray(delta_v, dtype=float).reshape(3))
+    return np.ascontiguousarray(d, dtype=float), dv
+
+
+def bad_frame(frame, status: int, d: np.ndarray, dv, dt: float, on_invalid: str, index: int) -> None:
+    """A bad streamed frame (its :func:`frame_status` ``status`` > 0): raise the error, or return with
+    ``on_invalid="skip"`` (the caller then returns its current estimate flagged invalid).
+
+    Parameters
+    ----------
+    frame : object
+        The frame as given to ``step``; its ``t`` (s), if it has one, locates the error.
+    status : int
+        The frame's :func:`frame_status`.
+    d, dv, dt
+        Its ``delta_R`` (3x3), ``delta_v`` (3,) or None, ``delta_t`` (s).
+    on_invalid : {"raise", "skip"}
+    index : int
+        0-based index of the frame in the estimator's run, for the message.
+    """
     if on_invalid == "raise":
+        problem = frame_problem(np.asarray(d).ravel().tolist(), None if dv is None else list(dv), dt, status)
         raise bad_frame_error(problem, frame_where(index, getattr(frame, "t", math.nan)))
-    return None
 
 
 def static_rotation(extrinsic) -> Optional[np.ndarray]:
@@ -444,10 +525,3 @@ def hold_skipped(values: np.ndarray, good: np.ndarray, initial: np.ndarray) -> n
     idx = np.cumsum(good) - 1
     padded = np.concatenate([np.asarray(initial, dtype=float)[None], values])
     return padded[idx + 1]
-
-
-def vector3(v) -> list:
-    """A 3-vector (e.g. ``delta_v``) as a list of 3 Python floats (the streaming fast path for an ndarray (3,))."""
-    if type(v) is np.ndarray and v.shape == (3,):
-        return v.tolist()
-    return np.asarray(v, dtype=float).reshape(3).tolist()

@@ -29,9 +29,9 @@ from typing import Optional, Union
 import numpy as np
 
 from imu_ground import so3
-from imu_ground.filters.estimator import (GroundEstimate, GroundTrack, as_egomotion, bad_frame_error,
-                                          check_on_invalid, checked_rotation, frame_problems, frame_where,
-                                          hold_skipped, pitch_roll_from_normal, static_rotation, vector3)
+from imu_ground.filters.estimator import (GroundEstimate, GroundTrack, as_egomotion, bad_frame, bad_frame_error,
+                                          check_on_invalid, checked_frame, coerce_frame, frame_problems,
+                                          frame_where, hold_skipped, pitch_roll_from_normal, static_rotation)
 from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
@@ -127,7 +127,7 @@ class GroundNormalFilter:
         self.R0 = _I3.copy() if R0 is None else np.array(R0, dtype=float)
         self._Q, self._R, self._P0 = _cov("Q", Q), _cov("R", R), _cov("P", P)
         self._Rgs = static_rotation(self.extrinsic)
-        self._qh, self._qv = (float(self._Q[0, 0]),), float(self._Q[2, 2])
+        self._qh, self._qv = float(self._Q[0, 0]), float(self._Q[2, 2])
         sym = _is_axisymmetric(self._P0) and _is_axisymmetric(self._Q)
         self._scalar = sym and (measurement == "rotation" and _is_axisymmetric(self._R)
                                 or measurement == "up" and np.array_equal(self._R, self._R[0, 0] * _I3))
@@ -161,12 +161,12 @@ class GroundNormalFilter:
     def reset(self) -> None:
         """Back to the initial state (cumulative rotation R0, slow state R0, covariance P0)."""
         self._frames = 0
-        if self._scalar:
-            self.ekf = None
-            self._kernel = ResidualKernel(self._P0[0, 0], self._P0[2, 2], self._R[0, 0], self._R[2, 2],
+        self._kernel = k = ResidualKernel(self._P0[0, 0], self._P0[2, 2], self._R[0, 0], self._R[2, 2],
                                           up=self.measurement == "up", follow_heading=self.follow_heading,
                                           Rgs=self._Rgs, cumulative=True)
-            self._advance = self._kernel.advance
+        self._kbuf, self._kstep = k.buf, k.impl.step      # the streaming fast path
+        if self._scalar:
+            self.ekf = None
         else:
             b = _EX if self.measurement == "forward" else _EZ
             self.ekf = InvariantEKF(x=self.R0, P=self._P0, Q=self._Q, R=self._R, error="left", b=b)
@@ -259,16 +259,27 @@ class GroundNormalFilter:
         if type(frame) is np.ndarray or not hasattr(frame, "delta_R"):
             d, dv, dt = frame, None, 1.0
         else:
-            d, dv, dt = frame.delta_R, vector3(frame.delta_v), frame.delta_t
-        checked = checked_rotation(frame, d, dv, dt, self.on_invalid, self._frames)
+            d, dv, dt = frame.delta_R, frame.delta_v, frame.delta_t
+        if self.ekf is not None:
+            return self._ekf_step(frame, d, dv, dt)
+        try:
+            o = self._kstep(self._kbuf, d, self._qh, self._qv, None, None, dv, dt)
+        except (TypeError, ValueError):                 # not float64 arrays (3, 3) and (3,): coerce, retry
+            d, dv = coerce_frame(d, dv)
+            o = self._kstep(self._kbuf, d, self._qh, self._qv, None, None, dv, dt)
+        if type(o) is int:
+            bad_frame(frame, o, d, dv, dt, self.on_invalid, self._frames)
+            return GroundEstimate.of_residual(self.residual, self.P.copy(), self._Rgs, valid=False)
+        self._frames += 1
+        return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o)
+
+    def _ekf_step(self, frame, d, dv, dt: float) -> GroundEstimate:
+        """General path of :meth:`step`: the frame checked, then one frame of the InvariantEKF."""
+        checked = checked_frame(self._kernel.impl.check, frame, d, dv, dt, self.on_invalid, self._frames)
         if checked is None:
             return GroundEstimate.of_residual(self.residual, self.P.copy(), self._Rgs, valid=False)
-        d, d9 = checked
         self._frames += 1
-        if self.ekf is None:
-            o = self._advance((d9,), self._qh, self._qv)[0]
-            return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o)
-        return GroundEstimate.of_residual(self._ekf_frame(d), self.ekf.P.copy(), self._Rgs)
+        return GroundEstimate.of_residual(self._ekf_frame(checked[0]), self.ekf.P.copy(), self._Rgs)
 
     def _ekf_frame(self, d: np.ndarray) -> np.ndarray:
         """General path: one frame of the InvariantEKF; returns the residual E (road <- body)."""
@@ -317,8 +328,7 @@ class GroundNormalFilter:
         start = (self.residual, self.P.copy(), self.cumulative)
         dg = d[good]
         if self.ekf is None:
-            o = np.array(self._kernel.advance(dg.reshape(-1, 9).tolist(), self._qh * len(dg), self._qv,
-                                                   angles=False)).reshape(-1, 12)
+            o = self._kernel.run(dg, self._qh, self._qv)
             self._frames += len(dg)
             E = matrix_from_quat(o[:, :4])
             Ps = np.zeros((len(o), 3, 3))

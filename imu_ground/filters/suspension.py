@@ -63,12 +63,11 @@ from imu_ground.filters.estimator import (
     as_egomotion,
     bad_frame_error,
     check_on_invalid,
-    checked_rotation,
+    checked_frame,
     frame_problems,
     frame_where,
     hold_skipped,
     static_rotation,
-    vector3,
 )
 from imu_ground.filters.extrinsics import resolve_platform
 from imu_ground.filters.gains import (
@@ -266,7 +265,8 @@ class SuspensionAwareFilter:
     def reset(self) -> None:
         """Back to the initial state (attitude R0, prior gains, fresh gravity filter)."""
         r = self._r
-        self._kernel = ResidualKernel(self.P0 * r, self.P0 * r, r, self.r_yaw * r, Rgs=self._Rgs)
+        self._kernel = k = ResidualKernel(self.P0 * r, self.P0 * r, r, self.r_yaw * r, Rgs=self._Rgs)
+        self._kbuf, self._kstep, self._kcheck = k.buf, k.impl.step, k.impl.check   # the streaming fast path
         self.gravity_filter = GravityVelocityFilter(R0=self.R0, extrinsic=self.extrinsic,
                                                     lever_arm=self.lever_arm, **self._gravity_kw)
         self.gains = self.gains0.copy()
@@ -381,18 +381,18 @@ class SuspensionAwareFilter:
             d, delta_v, delta_t, stationary, valid = frame[:5]
         else:
             d = frame
-        dv = vector3(delta_v)
-        dt = float(delta_t)
-        checked = checked_rotation(frame, d, dv, dt, self.on_invalid, self._frames)
+        checked = checked_frame(self._kcheck, frame, d, delta_v, delta_t, self.on_invalid, self._frames)
         if checked is None:
             return GroundEstimate.of_residual(self.residual, self.P, self._Rgs, valid=False)
-        d, d9 = checked
+        d, dv = checked
+        dt = float(delta_t)
         if self._rate is None:
             self._design(1.0 / dt)
         self._frames += 1
         gf = self.gravity_filter
         sp = math.nan if speed is None else float(speed)
-        (fx, fy, _), (ax, ay, _), v = gf.step_body(*gf.to_body_flat(d9, dv), dt, bool(stationary), bool(valid), sp)
+        (fx, fy, _), (ax, ay, _), v = gf.step_body(*gf.to_body_flat(d.ravel().tolist(), dv.tolist()), dt,
+                                                   bool(stationary), bool(valid), sp)
         s = self.load_share
         ux, uy = ax + s * (fx - ax), ay + s * (fy - ay)
         if self._resp is not None:
@@ -404,7 +404,7 @@ class SuspensionAwareFilter:
             self._update_gains(d, ax, ay)
         q = (self.q_time + self.q_dist * speed) * dt * self._r
         self._q_last = q
-        o = self._kernel.advance((d9,), (q,), self.q_yaw, (kr * uy,), (kp * ux + self.cross_gain * uy,))[0]
+        o = self._kstep(self._kbuf, d, q, self.q_yaw, kr * uy, kp * ux + self.cross_gain * uy, None, 1.0)
         return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o)
 
     def _update_gains(self, d: np.ndarray, ax: float, ay: float) -> None:
@@ -475,9 +475,7 @@ class SuspensionAwareFilter:
         susp[:, 0] += self.cross_gain * u[:, 1]         # ... + the pitch from the lateral load
         dt = np.asarray(sub.delta_t, dtype=float)
         q = (self.q_time + self.q_dist * gt.speed) * dt * self._r
-        d9 = np.asarray(sub.delta_R, dtype=float).reshape(-1, 9).tolist()
-        o = self._kernel.advance(d9, q.tolist(), self.q_yaw, susp[:, 1].tolist(), susp[:, 0].tolist(), angles=False)
-        o = np.array(o).reshape(-1, 8)
+        o = self._kernel.run(sub.delta_R, q, self.q_yaw, susp[:, 1], susp[:, 0])
         if m:
             self._q_last = float(q[-1])
         E = matrix_from_quat(o[:, :4])

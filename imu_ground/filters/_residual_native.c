@@ -1,0 +1,495 @@
+/*
+ * The compiled twin of the scalar residual filter (imu_ground/filters/residual.py).
+ *
+ * Same math, same operation order as the pure-Python reference
+ * (residual.advance), so both round alike (built with -ffp-contract=off).
+ * Plain CPython API, no numpy headers: arrays come in through the buffer
+ * protocol. No global mutable state: the filter's state and parameters live in
+ * a float64 buffer owned by the Python ResidualKernel (layout: residual.py,
+ * the S_* / L_* / P_* indices below; BUF_LEN is checked at load).
+ *
+ * Entry points (all METH_FASTCALL):
+ *   step(buf, d, q_h, q_v, tilt_x, tilt_y, dv, dt) -> tuple (one output row) or int status
+ *   run(buf, d, q_h, q_v, tilt_x, tilt_y, out, angles) -> None  (rows written into out)
+ *   check(d, dv, dt) -> int status (0: good frame; 1 rotation, 2 delta_v, 3 delta_t)
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <math.h>
+#include <string.h>
+
+/* ---- buffer layout (mirrors residual.py) ---- */
+enum {
+    S_EW = 0, S_EX, S_EY, S_EZ, S_A, S_C, S_RW, S_RX, S_RY, S_RZ, S_COUNT,    /* 0..10 state */
+    L_KA = 11,                                                                 /* 11..21 last */
+    L_HAS = 22, P_RH, P_RV, P_UP, P_FOLLOW, P_CUM, P_HASG, P_RENORM,           /* 22..29 */
+    P_G = 30,                                                                  /* 30..38 R_gs */
+    BUF_LEN = 39
+};
+
+enum { ST_OK = 0, ST_ROTATION = 1, ST_DELTA_V = 2, ST_DELTA_T = 3 };
+
+#define ORTHO_TOL 1e-6
+
+/* ------------------------------------------------------------------------------------ inputs */
+
+static int is_double_format(const char *fmt)
+{
+    if (fmt == NULL)
+        return 0;
+    if (fmt[0] == '@' || fmt[0] == '=')
+        fmt++;
+    else if (fmt[0] == '<') {
+        const unsigned int one = 1;
+        if (*(const unsigned char *)&one != 1)      /* big-endian host: '<d' is not native */
+            return 0;
+        fmt++;
+    }
+    return fmt[0] == 'd' && fmt[1] == '\0';
+}
+
+/* A C-contiguous float64 buffer of obj, n doubles (n < 0: any whole number of doubles).
+   0 on success (release the view), -1 with TypeError/ValueError set. */
+static int get_doubles(PyObject *obj, Py_ssize_t n, Py_buffer *view, int writable, const char *name)
+{
+    int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
+    if (PyObject_GetBuffer(obj, view, flags) < 0) {
+        PyErr_Clear();
+        PyErr_Format(PyExc_TypeError, "%s must be a C-contiguous%s float64 array, got %.100s",
+                     name, writable ? " writable" : "", Py_TYPE(obj)->tp_name);
+        return -1;
+    }
+    if (view->itemsize != 8 || !is_double_format(view->format)) {
+        PyErr_Format(PyExc_TypeError, "%s must hold float64 values, got buffer format '%s'",
+                     name, view->format ? view->format : "B");
+        PyBuffer_Release(view);
+        return -1;
+    }
+    if (n >= 0 && view->len != n * 8) {
+        PyErr_Format(PyExc_ValueError, "%s must hold %zd float64 values, got %zd", name, n, view->len / 8);
+        PyBuffer_Release(view);
+        return -1;
+    }
+    return 0;
+}
+
+/* Copy the values of obj, a float64 array of shape (rows, 3) (rows 0: shape (3,)), into dst. */
+static int read_fixed(PyObject *obj, Py_ssize_t rows, double *dst, const char *name)
+{
+    Py_buffer view;
+    const Py_ssize_t n = rows ? 3 * rows : 3;
+    if (get_doubles(obj, n, &view, 0, name) < 0)
+        return -1;
+    if (view.ndim != (rows ? 2 : 1) || (rows && view.shape[0] != rows)) {
+        if (rows)
+            PyErr_Format(PyExc_ValueError, "%s must have shape (%zd, 3)", name, rows);
+        else
+            PyErr_Format(PyExc_ValueError, "%s must have shape (3,)", name);
+        PyBuffer_Release(&view);
+        return -1;
+    }
+    memcpy(dst, view.buf, (size_t)n * sizeof(double));
+    PyBuffer_Release(&view);
+    return 0;
+}
+
+/* ------------------------------------------------------------------------------- frame check */
+
+/* The twin of estimator.frame_status: 0 for a good frame (NaN fails every comparison). */
+static inline int frame_status(const double *r, const double *dv, double dt)
+{
+    const double r00 = r[0], r01 = r[1], r02 = r[2], r10 = r[3], r11 = r[4], r12 = r[5];
+    const double r20 = r[6], r21 = r[7], r22 = r[8];
+    const double lo = 1.0 - ORTHO_TOL, hi = 1.0 + ORTHO_TOL;
+    const double c0 = r00 * r00 + r10 * r10 + r20 * r20, c1 = r01 * r01 + r11 * r11 + r21 * r21;
+    const double c2 = r02 * r02 + r12 * r12 + r22 * r22;
+    const double o01 = r00 * r01 + r10 * r11 + r20 * r21, o02 = r00 * r02 + r10 * r12 + r20 * r22;
+    const double o12 = r01 * r02 + r11 * r12 + r21 * r22;
+    const double det = r00 * (r11 * r22 - r12 * r21) - r01 * (r10 * r22 - r12 * r20) + r02 * (r10 * r21 - r11 * r20);
+    if (!(lo <= c0 && c0 <= hi && lo <= c1 && c1 <= hi && lo <= c2 && c2 <= hi
+          && -ORTHO_TOL <= o01 && o01 <= ORTHO_TOL && -ORTHO_TOL <= o02 && o02 <= ORTHO_TOL
+          && -ORTHO_TOL <= o12 && o12 <= ORTHO_TOL && det > 0.0))
+        return ST_ROTATION;
+    if (dv != NULL && !isfinite(dv[0] + dv[1] + dv[2]))
+        return ST_DELTA_V;
+    if (!(dt > 0.0) || dt == INFINITY)
+        return ST_DELTA_T;
+    return ST_OK;
+}
+
+/* ------------------------------------------------------------------------------------ kernel */
+
+typedef struct {
+    double ew, ex, ey, ez, a, c, rw, rx, ry, rz;
+    long long count;
+    double last[11];
+    /* parameters */
+    double r_h, r_v, g[9];
+    int up, follow, cum, hasg;
+    long long renorm_every;
+} Kernel;
+
+static void kernel_load(Kernel *k, const double *b)
+{
+    k->ew = b[S_EW]; k->ex = b[S_EX]; k->ey = b[S_EY]; k->ez = b[S_EZ];
+    k->a = b[S_A]; k->c = b[S_C];
+    k->rw = b[S_RW]; k->rx = b[S_RX]; k->ry = b[S_RY]; k->rz = b[S_RZ];
+    k->count = (long long)b[S_COUNT];
+    k->r_h = b[P_RH]; k->r_v = b[P_RV];
+    k->up = b[P_UP] != 0.0; k->follow = b[P_FOLLOW] != 0.0; k->cum = b[P_CUM] != 0.0; k->hasg = b[P_HASG] != 0.0;
+    k->renorm_every = (long long)b[P_RENORM];
+    memcpy(k->g, b + P_G, sizeof k->g);
+}
+
+static void kernel_store(const Kernel *k, double *b)
+{
+    b[S_EW] = k->ew; b[S_EX] = k->ex; b[S_EY] = k->ey; b[S_EZ] = k->ez;
+    b[S_A] = k->a; b[S_C] = k->c;
+    b[S_RW] = k->rw; b[S_RX] = k->rx; b[S_RY] = k->ry; b[S_RZ] = k->rz;
+    b[S_COUNT] = (double)k->count;
+    memcpy(b + L_KA, k->last, sizeof k->last);
+    b[L_HAS] = 1.0;
+}
+
+/* One frame of residual.advance, unrolled: the quaternion of the increment (Shepperd), its
+   rotation into the body frame, the twist, the scalar covariance and gain recursion, the
+   residual update in quaternion products, the cumulative rotation, pitch and roll.
+   row receives 8 values (12 with the cumulative rotation). */
+static inline void kernel_frame(Kernel *k, const double *r, double q_h, double q_v,
+                                int tilt, double bx, double by, int angles, double *row)
+{
+    const double r00 = r[0], r01 = r[1], r02 = r[2], r10 = r[3], r11 = r[4], r12 = r[5];
+    const double r20 = r[6], r21 = r[7], r22 = r[8];
+    double dw, dx, dy, dz, s;
+    /* -- quaternion of the increment (Shepperd), w >= 0 */
+    const double tr = r00 + r11 + r22;
+    if (tr > 0.0) {
+        s = 2.0 * sqrt(tr + 1.0);
+        const double si = 1.0 / s;
+        dw = 0.25 * s; dx = (r21 - r12) * si; dy = (r02 - r20) * si; dz = (r10 - r01) * si;
+    } else if (r00 >= r11 && r00 >= r22) {
+        s = 2.0 * sqrt(1.0 + r00 - r11 - r22);
+        dw = (r21 - r12) / s; dx = 0.25 * s; dy = (r01 + r10) / s; dz = (r02 + r20) / s;
+    } else if (r11 >= r22) {
+        s = 2.0 * sqrt(1.0 + r11 - r00 - r22);
+        dw = (r02 - r20) / s; dx = (r01 + r10) / s; dy = 0.25 * s; dz = (r12 + r21) / s;
+    } else {
+        s = 2.0 * sqrt(1.0 + r22 - r00 - r11);
+        dw = (r10 - r01) / s; dx = (r02 + r20) / s; dy = (r12 + r21) / s; dz = 0.25 * s;
+    }
+    if (dw < 0.0) {
+        dw = -dw; dx = -dx; dy = -dy; dz = -dz;
+    }
+    if (k->hasg) {                                  /* body increment: vector part turned by R_gs */
+        const double *g = k->g;
+        const double tx = g[0] * dx + g[1] * dy + g[2] * dz, ty = g[3] * dx + g[4] * dy + g[5] * dz;
+        const double tz = g[6] * dx + g[7] * dy + g[8] * dz;
+        dx = tx; dy = ty; dz = tz;
+    }
+    /* -- covariance and gains */
+    double a = k->a + q_h, c = k->c + q_v;
+    const double a_pr = a, c_pr = c;
+    const double ka = a / (a + k->r_h);
+    a = ka * k->r_h;
+    double kc;
+    if (k->up) {
+        kc = 0.0;
+    } else {
+        kc = c / (c + k->r_v);
+        c = kc * k->r_v;
+    }
+    k->a = a; k->c = c;
+    /* -- E^- = T^T E dR: p = E d, then m = conj(t) p with t = (ch, 0, 0, sh) the heading twist */
+    const double ew = k->ew, ex = k->ex, ey = k->ey, ez = k->ez;
+    const double pw = ew * dw - ex * dx - ey * dy - ez * dz;
+    const double px = ew * dx + ex * dw + ey * dz - ez * dy;
+    const double py = ew * dy - ex * dz + ey * dw + ez * dx;
+    const double pz = ew * dz + ex * dy - ey * dx + ez * dw;
+    double mw, mx, my, mz;
+    if (k->follow && (dw > 0.0 || dz != 0.0)) {     /* (a half turn about a level axis has no twist) */
+        const double h = 1.0 / sqrt(dw * dw + dz * dz);
+        const double ch = dw * h, sh = dz * h;
+        mw = ch * pw + sh * pz; mx = ch * px + sh * py; my = ch * py - sh * px; mz = ch * pz - sh * pw;
+    } else {
+        mw = pw; mx = px; my = py; mz = pz;
+    }
+    if (mw < 0.0) {
+        mw = -mw; mx = -mx; my = -my; mz = -mz;
+    }
+    /* -- innovation y and correction g = K y */
+    double yx, yy, yz, gx, gy, gz;
+    if (k->up) {
+        yx = 2.0 * (mx * mz + mw * my); yy = 2.0 * (my * mz - mw * mx); yz = -2.0 * (mx * mx + my * my);
+        gx = -ka * yy; gy = ka * yx; gz = 0.0;
+    } else {
+        double Mw, Mx, My, Mz;
+        if (tilt) {                                 /* M = E^- Exp(-b), b = (bx, by, 0) */
+            const double bn = sqrt(bx * bx + by * by);
+            const double hb = bn < 1e-4 ? 0.5 - bn * bn / 48.0 : sin(0.5 * bn) / bn;
+            const double cw = cos(0.5 * bn), cx = -hb * bx, cy = -hb * by;
+            Mw = mw * cw - mx * cx - my * cy;
+            Mx = mw * cx + mx * cw - mz * cy;
+            My = mw * cy + my * cw + mz * cx;
+            Mz = mz * cw + mx * cy - my * cx;
+            if (Mw < 0.0) {
+                Mw = -Mw; Mx = -Mx; My = -My; Mz = -Mz;
+            }
+        } else {
+            Mw = mw; Mx = mx; My = my; Mz = mz;
+        }
+        const double vn = sqrt(Mx * Mx + My * My + Mz * Mz);
+        const double f = vn > 1e-300 ? 2.0 * atan2(vn, Mw) / vn : 2.0;
+        yx = f * Mx; yy = f * My; yz = f * Mz;
+        gx = ka * yx; gy = ka * yy; gz = kc * yz;
+    }
+    /* -- E = Exp(-g) E^- (re-normalised every renorm_every frames) */
+    const double th = sqrt(gx * gx + gy * gy + gz * gz);
+    const double hs = th < 1e-4 ? 0.5 - th * th / 48.0 : sin(0.5 * th) / th;
+    const double aw = cos(0.5 * th), ax = -hs * gx, ay = -hs * gy, az = -hs * gz;
+    double nw = aw * mw - ax * mx - ay * my - az * mz;
+    double nx = aw * mx + ax * mw + ay * mz - az * my;
+    double ny = aw * my - ax * mz + ay * mw + az * mx;
+    double nz = aw * mz + ax * my - ay * mx + az * mw;
+    k->count += 1;
+    const int renorm = k->count % k->renorm_every == 0;
+    if (renorm) {
+        const double nrm = 1.0 / sqrt(nw * nw + nx * nx + ny * ny + nz * nz);
+        nw = nw * nrm; nx = nx * nrm; ny = ny * nrm; nz = nz * nrm;
+    }
+    k->ew = nw; k->ex = nx; k->ey = ny; k->ez = nz;
+    /* -- pitch and roll from n_b = E^T e_z, the third row of E */
+    double pitch = NAN, roll = NAN;
+    if (angles) {
+        const double n0 = 2.0 * (nx * nz - nw * ny);
+        const double n1 = 2.0 * (ny * nz + nw * nx);
+        const double n2 = 1.0 - 2.0 * (nx * nx + ny * ny);
+        pitch = atan2(-n0, sqrt(n1 * n1 + n2 * n2));
+        roll = atan2(n1, n2);
+    }
+    row[0] = nw; row[1] = nx; row[2] = ny; row[3] = nz; row[4] = a; row[5] = c; row[6] = pitch; row[7] = roll;
+    if (k->cum) {                                   /* R = R dR */
+        const double rw = k->rw, rx = k->rx, ry = k->ry, rz = k->rz;
+        double sw = rw * dw - rx * dx - ry * dy - rz * dz, sx = rw * dx + rx * dw + ry * dz - rz * dy;
+        double sy = rw * dy - rx * dz + ry * dw + rz * dx, sz = rw * dz + rx * dy - ry * dx + rz * dw;
+        if (renorm) {
+            const double nrm = 1.0 / sqrt(sw * sw + sx * sx + sy * sy + sz * sz);
+            sw = sw * nrm; sx = sx * nrm; sy = sy * nrm; sz = sz * nrm;
+        }
+        k->rw = sw; k->rx = sx; k->ry = sy; k->rz = sz;
+        row[8] = sw; row[9] = sx; row[10] = sy; row[11] = sz;
+    }
+    double *l = k->last;
+    l[0] = ka; l[1] = kc; l[2] = a_pr; l[3] = c_pr; l[4] = yx; l[5] = yy; l[6] = yz;
+    l[7] = mw; l[8] = mx; l[9] = my; l[10] = mz;
+}
+
+/* ------------------------------------------------------------------------------- entry points */
+
+static double *state_buffer(PyObject *obj, Py_buffer *view)
+{
+    if (get_doubles(obj, BUF_LEN, view, 1, "buf") < 0)
+        return NULL;
+    return (double *)view->buf;
+}
+
+static int optional_double(PyObject *obj, double *dst)
+{
+    if (obj == Py_None)
+        return 0;
+    *dst = PyFloat_AsDouble(obj);
+    if (*dst == -1.0 && PyErr_Occurred())
+        return -1;
+    return 1;
+}
+
+static PyObject *row_tuple(const double *row, Py_ssize_t n)
+{
+    PyObject *t = PyTuple_New(n);
+    if (t == NULL)
+        return NULL;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        PyObject *v = PyFloat_FromDouble(row[i]);
+        if (v == NULL) {
+            Py_DECREF(t);
+            return NULL;
+        }
+        PyTuple_SET_ITEM(t, i, v);
+    }
+    return t;
+}
+
+PyDoc_STRVAR(step_doc,
+"step(buf, d, q_h, q_v, tilt_x, tilt_y, dv, dt) -> tuple or int\n\n"
+"One frame (residual.step): the row (ew, ex, ey, ez, a, c, pitch, roll[, rw, rx, ry, rz]),\n"
+"or the frame's status (int > 0) with the state untouched when the frame fails the check.");
+
+static PyObject *py_step(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    if (nargs != 8) {
+        PyErr_Format(PyExc_TypeError, "step() takes 8 arguments (%zd given)", nargs);
+        return NULL;
+    }
+    double d[9], dv[3], q_h, q_v, bx = 0.0, by = 0.0, dt, row[12];
+    if (read_fixed(args[1], 3, d, "delta_R") < 0)
+        return NULL;
+    int has_dv = args[6] != Py_None;
+    if (has_dv && read_fixed(args[6], 0, dv, "delta_v") < 0)
+        return NULL;
+    q_h = PyFloat_AsDouble(args[2]);
+    if (q_h == -1.0 && PyErr_Occurred())
+        return NULL;
+    q_v = PyFloat_AsDouble(args[3]);
+    if (q_v == -1.0 && PyErr_Occurred())
+        return NULL;
+    int tilt = optional_double(args[4], &bx);
+    if (tilt < 0 || optional_double(args[5], &by) < 0)
+        return NULL;
+    dt = PyFloat_AsDouble(args[7]);
+    if (dt == -1.0 && PyErr_Occurred())
+        return NULL;
+    int status = frame_status(d, has_dv ? dv : NULL, dt);
+    if (status != ST_OK)
+        return PyLong_FromLong(status);
+    Py_buffer view;
+    double *b = state_buffer(args[0], &view);
+    if (b == NULL)
+        return NULL;
+    Kernel k;
+    kernel_load(&k, b);
+    kernel_frame(&k, d, q_h, q_v, tilt && !k.up, bx, by, 1, row);
+    kernel_store(&k, b);
+    PyBuffer_Release(&view);
+    return row_tuple(row, k.cum ? 12 : 8);
+}
+
+PyDoc_STRVAR(run_doc,
+"run(buf, d, q_h, q_v, tilt_x, tilt_y, out, angles) -> None\n\n"
+"Many frames (residual.run): d (F, 3, 3) float64 (already checked), q_h a float or (F,),\n"
+"tilt_x and tilt_y None or (F,), out (F, 8) or (F, 12) float64 receives the rows.");
+
+static PyObject *py_run(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    if (nargs != 8) {
+        PyErr_Format(PyExc_TypeError, "run() takes 8 arguments (%zd given)", nargs);
+        return NULL;
+    }
+    Py_buffer vb, vd, vq, vx, vy, vo;
+    PyObject *result = NULL;
+    int have_q = 0, have_t = 0;
+    double q_const = 0.0;
+    double *b = state_buffer(args[0], &vb);
+    if (b == NULL)
+        return NULL;
+    Kernel k;
+    kernel_load(&k, b);
+    const Py_ssize_t width = k.cum ? 12 : 8;
+    const double q_v = PyFloat_AsDouble(args[3]);
+    const int angles = PyObject_IsTrue(args[7]);
+    if ((q_v == -1.0 && PyErr_Occurred()) || angles < 0)
+        goto done_b;
+    if (get_doubles(args[1], -1, &vd, 0, "delta_R") < 0)
+        goto done_b;
+    const Py_ssize_t n = vd.len / 8 / 9;
+    if (vd.len != n * 9 * 8) {
+        PyErr_Format(PyExc_ValueError, "delta_R must hold 9 values a frame, got %zd values", vd.len / 8);
+        goto done_d;
+    }
+    if (PyFloat_Check(args[2]) || PyLong_Check(args[2])) {
+        q_const = PyFloat_AsDouble(args[2]);
+        if (q_const == -1.0 && PyErr_Occurred())
+            goto done_d;
+    } else {
+        if (get_doubles(args[2], n, &vq, 0, "q_h") < 0)
+            goto done_d;
+        have_q = 1;
+    }
+    if (args[4] != Py_None) {
+        if (get_doubles(args[4], n, &vx, 0, "tilt_x") < 0)
+            goto done_q;
+        if (get_doubles(args[5], n, &vy, 0, "tilt_y") < 0) {
+            PyBuffer_Release(&vx);
+            goto done_q;
+        }
+        have_t = 1;
+    }
+    if (get_doubles(args[6], n * width, &vo, 1, "out") < 0)
+        goto done_t;
+    {
+        const double *d = (const double *)vd.buf, *q = have_q ? (const double *)vq.buf : NULL;
+        const double *tx = have_t ? (const double *)vx.buf : NULL, *ty = have_t ? (const double *)vy.buf : NULL;
+        double *out = (double *)vo.buf;
+        const int tilt = have_t && !k.up;
+        for (Py_ssize_t i = 0; i < n; i++)
+            kernel_frame(&k, d + 9 * i, q ? q[i] : q_const, q_v, tilt, tilt ? tx[i] : 0.0, tilt ? ty[i] : 0.0,
+                         angles, out + width * i);
+        if (n > 0)
+            kernel_store(&k, b);
+    }
+    PyBuffer_Release(&vo);
+    result = Py_None;
+    Py_INCREF(result);
+done_t:
+    if (have_t) {
+        PyBuffer_Release(&vx);
+        PyBuffer_Release(&vy);
+    }
+done_q:
+    if (have_q)
+        PyBuffer_Release(&vq);
+done_d:
+    PyBuffer_Release(&vd);
+done_b:
+    PyBuffer_Release(&vb);
+    return result;
+}
+
+PyDoc_STRVAR(check_doc,
+"check(d, dv, dt) -> int\n\n"
+"The frame's status (estimator.frame_status): 0 good, 1 delta_R not a rotation,\n"
+"2 delta_v not finite, 3 delta_t not a positive number of seconds. dv may be None.");
+
+static PyObject *py_check(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    if (nargs != 3) {
+        PyErr_Format(PyExc_TypeError, "check() takes 3 arguments (%zd given)", nargs);
+        return NULL;
+    }
+    double d[9], dv[3];
+    if (read_fixed(args[0], 3, d, "delta_R") < 0)
+        return NULL;
+    int has_dv = args[1] != Py_None;
+    if (has_dv && read_fixed(args[1], 0, dv, "delta_v") < 0)
+        return NULL;
+    const double dt = PyFloat_AsDouble(args[2]);
+    if (dt == -1.0 && PyErr_Occurred())
+        return NULL;
+    return PyLong_FromLong(frame_status(d, has_dv ? dv : NULL, dt));
+}
+
+static PyMethodDef methods[] = {
+    {"step", (PyCFunction)(void (*)(void))py_step, METH_FASTCALL, step_doc},
+    {"run", (PyCFunction)(void (*)(void))py_run, METH_FASTCALL, run_doc},
+    {"check", (PyCFunction)(void (*)(void))py_check, METH_FASTCALL, check_doc},
+    {NULL, NULL, 0, NULL}
+};
+
+static struct PyModuleDef module = {
+    PyModuleDef_HEAD_INIT, "_residual_native",
+    "Compiled twin of imu_ground.filters.residual (the scalar residual filter).", -1, methods,
+    NULL, NULL, NULL, NULL
+};
+
+PyMODINIT_FUNC PyInit__residual_native(void)
+{
+    PyObject *m = PyModule_Create(&module);
+    if (m == NULL)
+        return NULL;
+    if (PyModule_AddIntConstant(m, "BUF_LEN", BUF_LEN) < 0) {
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
+}
