@@ -1,0 +1,558 @@
+/* The gravity/velocity filter's per-frame kernel in C: the twin of imu_ground/filters/gravity_kernel.py.
+ *
+ * Same recursion (gravity_kernel._predict_update and _velocity_update), same forces
+ * (gravity_kernel.step_frame), same operation order term by term, compiled without
+ * FMA contraction: the results equal the pure-Python kernel's to rounding (the tests
+ * compare them to 1e-12; most frames are bit-identical).
+ *
+ * All state lives in the caller's float64 buffer (layout: gravity_kernel's docstring;
+ * indices below); this module has no mutable global state.
+ *
+ * Entry points (METH_FASTCALL):
+ *   step_frame(s, d9, dv3, dt, stationary, valid, speed) -> ((f0, f1, f2), (a0, a1, a2), |v|)
+ *   step_sensor(...)  the same on a sensor-frame frame (the buffer's extrinsic applied first)
+ *   run_frames(s, d, dv, dt, stationary, valid, speed|None, v, g, P, cum, f, a, speed_out, priors|None,
+ *              body_out|None)   body_out given: d, dv are sensor-frame (the extrinsic applied, d written there)
+ * d9/dv3: sequences of 9/3 floats (list, tuple or a float64 buffer); run_frames takes C-contiguous
+ * buffers (float64, bool flags) and writes into the output buffers.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <math.h>
+#include <string.h>
+
+/* buffer layout (gravity_kernel.py) */
+enum {
+    I_V = 0, I_G = 3, I_P = 6, I_R = 27, I_COUNT = 36, I_INIT = 37, I_WPREV = 38, I_REJECTED = 42,
+    I_PRM = 43, I_LEVER = 50, I_EXTR = 54, I_RENORM = 64, I_SMALL = 65,
+    I_LAST = 66, I_KIND = 67, I_K = 68, I_Y = 86, I_S = 89, I_DT = 95, I_QV = 96, I_QG = 97, I_PRIOR = 98,
+    BUF_LEN = 125
+};
+
+/* ------------------------------------------------------------------------------------ so3 helpers */
+/* so3.mul_flat: c = a @ b, row-major 3x3 */
+static inline void mul33(const double *a, const double *b, double *c)
+{
+    double t[9];
+    t[0] = a[0] * b[0] + a[1] * b[3] + a[2] * b[6];
+    t[1] = a[0] * b[1] + a[1] * b[4] + a[2] * b[7];
+    t[2] = a[0] * b[2] + a[1] * b[5] + a[2] * b[8];
+    t[3] = a[3] * b[0] + a[4] * b[3] + a[5] * b[6];
+    t[4] = a[3] * b[1] + a[4] * b[4] + a[5] * b[7];
+    t[5] = a[3] * b[2] + a[4] * b[5] + a[5] * b[8];
+    t[6] = a[6] * b[0] + a[7] * b[3] + a[8] * b[6];
+    t[7] = a[6] * b[1] + a[7] * b[4] + a[8] * b[7];
+    t[8] = a[6] * b[2] + a[7] * b[5] + a[8] * b[8];
+    memcpy(c, t, sizeof t);
+}
+
+/* so3.renormalise_flat: r (3 I - r^T r) / 2 */
+static inline void renormalise(double *r)
+{
+    double m[9];
+    m[0] = 1.5 - 0.5 * (r[0] * r[0] + r[3] * r[3] + r[6] * r[6]);
+    m[4] = 1.5 - 0.5 * (r[1] * r[1] + r[4] * r[4] + r[7] * r[7]);
+    m[8] = 1.5 - 0.5 * (r[2] * r[2] + r[5] * r[5] + r[8] * r[8]);
+    m[1] = m[3] = -0.5 * (r[0] * r[1] + r[3] * r[4] + r[6] * r[7]);
+    m[2] = m[6] = -0.5 * (r[0] * r[2] + r[3] * r[5] + r[6] * r[8]);
+    m[5] = m[7] = -0.5 * (r[1] * r[2] + r[4] * r[5] + r[7] * r[8]);
+    mul33(r, m, r);
+}
+
+/* so3.log_flat: rotation vector (rad) of a row-major rotation */
+static inline void log33(const double *r, double small, double *phi)
+{
+    double wx = 0.5 * (r[7] - r[5]), wy = 0.5 * (r[2] - r[6]), wz = 0.5 * (r[3] - r[1]);
+    double c = 0.5 * (r[0] + r[4] + r[8] - 1.0);
+    c = c > 1.0 ? 1.0 : (c < -1.0 ? -1.0 : c);
+    double s = sqrt(wx * wx + wy * wy + wz * wz);
+    double theta = atan2(s, c);
+    if (c >= -0.9) {
+        double a;
+        if (theta < small) {
+            double t2 = theta * theta;
+            a = 1.0 - t2 / 6.0 + t2 * t2 / 120.0;
+        } else {
+            a = sin(theta) / theta;
+        }
+        phi[0] = wx / a; phi[1] = wy / a; phi[2] = wz / a;
+        return;
+    }
+    double d = 1.0 - c;       /* near pi: the axis from the largest column of (R + R^T)/2 - c I */
+    double cols[3][3] = {
+        {(r[0] - c) / d, 0.5 * (r[3] + r[1]) / d, 0.5 * (r[6] + r[2]) / d},
+        {0.5 * (r[1] + r[3]) / d, (r[4] - c) / d, 0.5 * (r[7] + r[5]) / d},
+        {0.5 * (r[2] + r[6]) / d, 0.5 * (r[5] + r[7]) / d, (r[8] - c) / d}};
+    int j = 0;
+    if (cols[1][1] > cols[j][j]) j = 1;
+    if (cols[2][2] > cols[j][j]) j = 2;
+    double ux = cols[j][0], uy = cols[j][1], uz = cols[j][2];
+    double n = sqrt(ux * ux + uy * uy + uz * uz);
+    double sign = (ux * wx + uy * wy + uz * wz) < 0 ? -1.0 : 1.0;
+    double f = sign * theta / n;
+    phi[0] = f * ux; phi[1] = f * uy; phi[2] = f * uz;
+}
+
+/* so3.exp_flat: row-major rotation of the rotation vector (x, y, z) */
+static inline void exp33(double x, double y, double z, double small, double *h)
+{
+    double t2 = x * x + y * y + z * z, a, b;
+    if (t2 < small * small) {
+        a = 1.0 - t2 / 6.0 + t2 * t2 / 120.0;
+        b = 0.5 - t2 / 24.0 + t2 * t2 / 720.0;
+    } else {
+        double t = sqrt(t2);
+        a = sin(t) / t;
+        b = (1.0 - cos(t)) / t2;
+    }
+    double bxy = b * x * y, bxz = b * x * z, byz = b * y * z;
+    double ax = a * x, ay = a * y, az = a * z;
+    h[0] = 1.0 - b * (y * y + z * z); h[1] = bxy - az; h[2] = bxz + ay;
+    h[3] = bxy + az; h[4] = 1.0 - b * (x * x + z * z); h[5] = byz - ax;
+    h[6] = bxz - ay; h[7] = byz + ax; h[8] = 1.0 - b * (x * x + y * y);
+}
+
+/* gravity_kernel.body_increment: (R d R^T, R dv) */
+static inline void body_increment(const double *R, const double *d, const double *dv, double *db, double *dvb)
+{
+    double t[9], rt[9] = {R[0], R[3], R[6], R[1], R[4], R[7], R[2], R[5], R[8]};
+    mul33(R, d, t);
+    mul33(t, rt, db);
+    dvb[0] = R[0] * dv[0] + R[1] * dv[1] + R[2] * dv[2];
+    dvb[1] = R[3] * dv[0] + R[4] * dv[1] + R[5] * dv[2];
+    dvb[2] = R[6] * dv[0] + R[7] * dv[1] + R[8] * dv[2];
+}
+
+/* ----------------------------------------------------------------------------------------- kernel */
+/* gravity_kernel._velocity_update: update of xp (6 state + 21 P entries) with the world-frame velocity z,
+ * noise n6 (upper triangle). Returns 0 when gated out (xp untouched), else 1 with xn, K (6x3), y, S. */
+static inline int velocity_update(const double *xp, const double *n6, const double *z, double gate,
+                                  double *xn, double *K, double *y, double *S)
+{
+    double v0 = xp[0], v1 = xp[1], v2 = xp[2];
+    double a00 = xp[6], a01 = xp[7], a02 = xp[8], a11 = xp[9], a12 = xp[10], a22 = xp[11];
+    const double *b = xp + 12;
+    double c00 = xp[21], c01 = xp[22], c02 = xp[23], c11 = xp[24], c12 = xp[25], c22 = xp[26];
+    double s0 = a00 + n6[0], s1 = a01 + n6[1], s2 = a02 + n6[2], s4 = a11 + n6[3], s5 = a12 + n6[4],
+           s8 = a22 + n6[5];
+    double j00 = s4 * s8 - s5 * s5, j01 = s2 * s5 - s1 * s8, j02 = s1 * s5 - s2 * s4;
+    double det = s0 * j00 + s1 * j01 + s2 * j02;
+    double j11 = s0 * s8 - s2 * s2, j12 = s1 * s2 - s0 * s5, j22 = s0 * s4 - s1 * s1;
+    double d = 1.0 / det;
+    double i00 = j00 * d, i01 = j01 * d, i02 = j02 * d, i11 = j11 * d, i12 = j12 * d, i22 = j22 * d;
+    double y0 = z[0] - v0, y1 = z[1] - v1, y2 = z[2] - v2;
+    double w0 = i00 * y0 + i01 * y1 + i02 * y2, w1 = i01 * y0 + i11 * y1 + i12 * y2,
+           w2 = i02 * y0 + i12 * y1 + i22 * y2;
+    if (y0 * w0 + y1 * w1 + y2 * w2 > gate)
+        return 0;
+    const double pht[6][3] = {{a00, a01, a02}, {a01, a11, a12}, {a02, a12, a22},
+                              {b[0], b[3], b[6]}, {b[1], b[4], b[7]}, {b[2], b[5], b[8]}};
+    for (int i = 0; i < 6; i++) {
+        double r0 = pht[i][0], r1 = pht[i][1], r2 = pht[i][2];
+        K[3 * i] = r0 * i00 + r1 * i01 + r2 * i02;
+        K[3 * i + 1] = r0 * i01 + r1 * i11 + r2 * i12;
+        K[3 * i + 2] = r0 * i02 + r1 * i12 + r2 * i22;
+        xn[i] = xp[i] + K[3 * i] * y0 + K[3 * i + 1] * y1 + K[3 * i + 2] * y2;
+    }
+    const double *k = K;   /* k[3 i + j] = K_ij */
+    double *p = xn + 6;
+    p[0] = a00 - (k[0] * a00 + k[1] * a01 + k[2] * a02);
+    p[1] = a01 - (k[0] * a01 + k[1] * a11 + k[2] * a12);
+    p[2] = a02 - (k[0] * a02 + k[1] * a12 + k[2] * a22);
+    p[3] = a11 - (k[3] * a01 + k[4] * a11 + k[5] * a12);
+    p[4] = a12 - (k[3] * a02 + k[4] * a12 + k[5] * a22);
+    p[5] = a22 - (k[6] * a02 + k[7] * a12 + k[8] * a22);
+    for (int i = 0; i < 3; i++)            /* cov(v, g) rows: b_ij - (K_i . B[:, j]) */
+        for (int j = 0; j < 3; j++)
+            p[6 + 3 * i + j] = b[3 * i + j] - (k[3 * i] * b[j] + k[3 * i + 1] * b[3 + j] + k[3 * i + 2] * b[6 + j]);
+    p[15] = c00 - (k[9] * b[0] + k[10] * b[3] + k[11] * b[6]);
+    p[16] = c01 - (k[9] * b[1] + k[10] * b[4] + k[11] * b[7]);
+    p[17] = c02 - (k[9] * b[2] + k[10] * b[5] + k[11] * b[8]);
+    p[18] = c11 - (k[12] * b[1] + k[13] * b[4] + k[14] * b[7]);
+    p[19] = c12 - (k[12] * b[2] + k[13] * b[5] + k[14] * b[8]);
+    p[20] = c22 - (k[15] * b[2] + k[16] * b[5] + k[17] * b[8]);
+    y[0] = y0; y[1] = y1; y[2] = y2;
+    S[0] = s0; S[1] = s1; S[2] = s2; S[3] = s4; S[4] = s5; S[5] = s8;
+    return 1;
+}
+
+/* gravity_kernel._predict_update for one frame (unrolled: the predict on the 21 unique entries of P
+ * for F = [[I, -dt I], [0, I]], then the speed update, the gated ZUPT or the non-holonomic constraint
+ * on the body y and z axes), state and last-step record in s; prior (27) copied out when not NULL. */
+static inline void predict_update(double *s, const double *d, const double *dv, double dt, int stationary,
+                                  int valid, double speed, double *prior)
+{
+    double *x = s, *r = s + I_R;
+    const double *prm = s + I_PRM;
+    double rp[9];
+    memcpy(rp, r, sizeof rp);
+    double count = s[I_COUNT] + 1.0;
+    s[I_COUNT] = count;
+    mul33(rp, d, r);
+    if (fmod(count, s[I_RENORM]) == 0.0)
+        renormalise(r);
+    double w0 = rp[0] * dv[0] + rp[1] * dv[1] + rp[2] * dv[2], w1 = rp[3] * dv[0] + rp[4] * dv[1] + rp[5] * dv[2],
+           w2 = rp[6] * dv[0] + rp[7] * dv[1] + rp[8] * dv[2];
+    if (s[I_INIT] == 0.0) {                /* gravity from the first frame's mean specific force */
+        x[3] = w0 / dt; x[4] = w1 / dt; x[5] = w2 / dt;
+        s[I_INIT] = 1.0;
+    }
+    double g0 = x[3], g1 = x[4], g2 = x[5];
+    x[0] = x[0] + w0 - dt * g0; x[1] = x[1] + w1 - dt * g1; x[2] = x[2] + w2 - dt * g2;
+    double qv = (valid ? prm[0] : prm[0] + prm[1]) * dt, qg = prm[2] * dt;
+    double *a = x + 6, *b = x + 12, *c = x + 21;   /* a: 00 01 02 11 12 22; b: row-major; c: as a */
+    a[0] = a[0] - dt * (2.0 * b[0] - dt * c[0]) + qv;
+    a[3] = a[3] - dt * (2.0 * b[4] - dt * c[3]) + qv;
+    a[5] = a[5] - dt * (2.0 * b[8] - dt * c[5]) + qv;
+    a[1] = a[1] - dt * (b[1] + b[3] - dt * c[1]);
+    a[2] = a[2] - dt * (b[2] + b[6] - dt * c[2]);
+    a[4] = a[4] - dt * (b[5] + b[7] - dt * c[4]);
+    b[0] = b[0] - dt * c[0]; b[1] = b[1] - dt * c[1]; b[2] = b[2] - dt * c[2];
+    b[3] = b[3] - dt * c[1]; b[4] = b[4] - dt * c[3]; b[5] = b[5] - dt * c[4];
+    b[6] = b[6] - dt * c[2]; b[7] = b[7] - dt * c[4]; b[8] = b[8] - dt * c[5];
+    c[0] = c[0] + qg; c[3] = c[3] + qg; c[5] = c[5] + qg;
+    double *pr = s + I_PRIOR;
+    memcpy(pr, x, 27 * sizeof(double));
+    if (prior)
+        memcpy(prior, x, 27 * sizeof(double));
+    s[I_LAST] = 1.0; s[I_DT] = dt; s[I_QV] = qv; s[I_QG] = qg;
+    double *K = s + I_K, *y = s + I_Y, *S = s + I_S;
+    int kind = 0;
+    if (!isnan(speed)) {                   /* measured forward speed along the body x axis */
+        double rs = prm[6], rn = prm[4], ds = rs - rn;
+        double n6[6] = {rn + ds * r[0] * r[0], ds * r[0] * r[3], ds * r[0] * r[6], rn + ds * r[3] * r[3],
+                        ds * r[3] * r[6], rn + ds * r[6] * r[6]};
+        double z[3] = {speed * r[0], speed * r[3], speed * r[6]};
+        kind = 2 * velocity_update(pr, n6, z, INFINITY, x, K, y, S);
+    } else if (stationary) {
+        double rz = prm[3], n6[6] = {rz, 0.0, 0.0, rz, 0.0, rz}, z[3] = {0.0, 0.0, 0.0};
+        kind = velocity_update(pr, n6, z, prm[5], x, K, y, S);
+        if (!kind)
+            s[I_REJECTED] += 1.0;          /* a smooth cruise flagged as standstill: constraint instead */
+    }
+    s[I_KIND] = (double)kind;
+    if (kind)
+        return;
+    /* non-holonomic constraint: body y and z velocity, h = columns 1 and 2 of R_k */
+    double uy[6], uz[6];
+    uy[0] = a[0] * r[1] + a[1] * r[4] + a[2] * r[7];
+    uy[1] = a[1] * r[1] + a[3] * r[4] + a[4] * r[7];
+    uy[2] = a[2] * r[1] + a[4] * r[4] + a[5] * r[7];
+    uy[3] = b[0] * r[1] + b[3] * r[4] + b[6] * r[7];
+    uy[4] = b[1] * r[1] + b[4] * r[4] + b[7] * r[7];
+    uy[5] = b[2] * r[1] + b[5] * r[4] + b[8] * r[7];
+    uz[0] = a[0] * r[2] + a[1] * r[5] + a[2] * r[8];
+    uz[1] = a[1] * r[2] + a[3] * r[5] + a[4] * r[8];
+    uz[2] = a[2] * r[2] + a[4] * r[5] + a[5] * r[8];
+    uz[3] = b[0] * r[2] + b[3] * r[5] + b[6] * r[8];
+    uz[4] = b[1] * r[2] + b[4] * r[5] + b[7] * r[8];
+    uz[5] = b[2] * r[2] + b[5] * r[5] + b[8] * r[8];
+    double rn = prm[4];
+    double s00 = r[1] * uy[0] + r[4] * uy[1] + r[7] * uy[2] + rn;
+    double s01 = r[1] * uz[0] + r[4] * uz[1] + r[7] * uz[2];
+    double s11 = r[2] * uz[0] + r[5] * uz[1] + r[8] * uz[2] + rn;
+    double det = s00 * s11 - s01 * s01;
+    double i00 = s11 / det, i01 = -s01 / det, i11 = s00 / det;
+    double e0 = -(r[1] * x[0] + r[4] * x[1] + r[7] * x[2]);
+    double e1 = -(r[2] * x[0] + r[5] * x[1] + r[8] * x[2]);
+    double ky[6], kz[6];
+    for (int i = 0; i < 6; i++) {
+        ky[i] = uy[i] * i00 + uz[i] * i01;
+        kz[i] = uy[i] * i01 + uz[i] * i11;
+        K[2 * i] = ky[i]; K[2 * i + 1] = kz[i];
+    }
+    for (int i = 0; i < 6; i++)
+        x[i] = x[i] + ky[i] * e0 + kz[i] * e1;
+    /* P - K S K^T = P - K PHT^T (upper triangle) */
+    a[0] = a[0] - ky[0] * uy[0] - kz[0] * uz[0]; a[1] = a[1] - ky[0] * uy[1] - kz[0] * uz[1];
+    a[2] = a[2] - ky[0] * uy[2] - kz[0] * uz[2]; a[3] = a[3] - ky[1] * uy[1] - kz[1] * uz[1];
+    a[4] = a[4] - ky[1] * uy[2] - kz[1] * uz[2]; a[5] = a[5] - ky[2] * uy[2] - kz[2] * uz[2];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            b[3 * i + j] = b[3 * i + j] - ky[i] * uy[3 + j] - kz[i] * uz[3 + j];
+    c[0] = c[0] - ky[3] * uy[3] - kz[3] * uz[3]; c[1] = c[1] - ky[3] * uy[4] - kz[3] * uz[4];
+    c[2] = c[2] - ky[3] * uy[5] - kz[3] * uz[5]; c[3] = c[3] - ky[4] * uy[4] - kz[4] * uz[4];
+    c[4] = c[4] - ky[4] * uy[5] - kz[4] * uz[5]; c[5] = c[5] - ky[5] * uy[5] - kz[5] * uz[5];
+    y[0] = e0; y[1] = e1;
+    S[0] = s00; S[1] = s01; S[2] = s11;
+}
+
+/* gravity_kernel.step_frame: one frame, then its mean specific force f and acceleration acc (body, mid-frame);
+ * returns |v| */
+static inline double frame(double *s, const double *d, const double *dv, double dt, int stationary, int valid,
+                           double speed, double *prior, double *f, double *acc)
+{
+    double rp[9], phi[3], h[9], w[3];
+    memcpy(rp, s + I_R, sizeof rp);
+    predict_update(s, d, dv, dt, stationary, valid, speed, prior);
+    double small = s[I_SMALL];
+    log33(d, small, phi);
+    w[0] = phi[0] / dt; w[1] = phi[1] / dt; w[2] = phi[2] / dt;
+    exp33(0.5 * phi[0], 0.5 * phi[1], 0.5 * phi[2], small, h);       /* body_{k-1} <- mid */
+    double u0 = dv[0] / dt, u1 = dv[1] / dt, u2 = dv[2] / dt;
+    double f0 = h[0] * u0 + h[3] * u1 + h[6] * u2, f1 = h[1] * u0 + h[4] * u1 + h[7] * u2,
+           f2 = h[2] * u0 + h[5] * u1 + h[8] * u2;
+    if (s[I_LEVER] != 0.0) {
+        const double *l = s + I_LEVER + 1, *wp = s[I_WPREV] != 0.0 ? s + I_WPREV + 1 : w;
+        double al0 = (w[0] - wp[0]) / dt, al1 = (w[1] - wp[1]) / dt, al2 = (w[2] - wp[2]) / dt;
+        double ax = al1 * l[2] - al2 * l[1], ay = al2 * l[0] - al0 * l[2], az = al0 * l[1] - al1 * l[0];
+        double m0 = w[1] * l[2] - w[2] * l[1], m1 = w[2] * l[0] - w[0] * l[2], m2 = w[0] * l[1] - w[1] * l[0];
+        double cx = w[1] * m2 - w[2] * m1, cy = w[2] * m0 - w[0] * m2, cz = w[0] * m1 - w[1] * m0;
+        f0 = f0 - ax - cx; f1 = f1 - ay - cy; f2 = f2 - az - cz;
+    }
+    s[I_WPREV] = 1.0;
+    s[I_WPREV + 1] = w[0]; s[I_WPREV + 2] = w[1]; s[I_WPREV + 3] = w[2];
+    double g0 = s[I_G], g1 = s[I_G + 1], g2 = s[I_G + 2];
+    double q0 = rp[0] * g0 + rp[3] * g1 + rp[6] * g2, q1 = rp[1] * g0 + rp[4] * g1 + rp[7] * g2,
+           q2 = rp[2] * g0 + rp[5] * g1 + rp[8] * g2;                  /* R_{k-1}^T g */
+    f[0] = f0; f[1] = f1; f[2] = f2;
+    acc[0] = f0 - (h[0] * q0 + h[3] * q1 + h[6] * q2);
+    acc[1] = f1 - (h[1] * q0 + h[4] * q1 + h[7] * q2);
+    acc[2] = f2 - (h[2] * q0 + h[5] * q1 + h[8] * q2);
+    return sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+}
+
+/* -------------------------------------------------------------------------------- argument parsing */
+/* a buffer of n items of a format in `formats` (itemsize isz), C-contiguous; n < 0: any length */
+static int get_buffer(PyObject *o, Py_buffer *view, const char *name, Py_ssize_t n, int writable, char kind)
+{
+    int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
+    if (PyObject_GetBuffer(o, view, flags) < 0) {
+        PyErr_Format(PyExc_TypeError, "%s must be a C-contiguous %sbuffer of %s, got %.100s", name,
+                     writable ? "writable " : "", kind == 'd' ? "float64" : "bool", Py_TYPE(o)->tp_name);
+        return -1;
+    }
+    const char *fmt = view->format ? view->format : "B";
+    if (*fmt == '@' || *fmt == '=' || *fmt == '<')
+        fmt++;
+    int ok = kind == 'd' ? (fmt[0] == 'd' && fmt[1] == 0 && view->itemsize == 8)
+                         : ((fmt[0] == '?' || fmt[0] == 'b' || fmt[0] == 'B') && fmt[1] == 0 && view->itemsize == 1);
+    if (!ok) {
+        PyErr_Format(PyExc_TypeError, "%s must hold %s, got format '%s'", name, kind == 'd' ? "float64" : "bool",
+                     view->format ? view->format : "B");
+        PyBuffer_Release(view);
+        return -1;
+    }
+    Py_ssize_t have = view->len / view->itemsize;
+    if (n >= 0 && have != n) {
+        PyErr_Format(PyExc_ValueError, "%s must have %zd items, got %zd", name, n, have);
+        PyBuffer_Release(view);
+        return -1;
+    }
+    return 0;
+}
+
+/* the state buffer: writable float64, BUF_LEN items */
+static double *get_state(PyObject *o, Py_buffer *view)
+{
+    if (get_buffer(o, view, "state", BUF_LEN, 1, 'd') < 0)
+        return NULL;
+    return (double *)view->buf;
+}
+
+/* n floats from a list, a tuple or a float64 buffer */
+static int read_floats(PyObject *o, double *out, Py_ssize_t n, const char *name)
+{
+    if (PyList_CheckExact(o) || PyTuple_CheckExact(o)) {
+        Py_ssize_t len = PySequence_Fast_GET_SIZE(o);
+        if (len != n) {
+            PyErr_Format(PyExc_ValueError, "%s must have %zd floats, got %zd", name, n, len);
+            return -1;
+        }
+        PyObject **items = PySequence_Fast_ITEMS(o);
+        for (Py_ssize_t i = 0; i < n; i++) {
+            PyObject *it = items[i];
+            out[i] = PyFloat_CheckExact(it) ? PyFloat_AS_DOUBLE(it) : PyFloat_AsDouble(it);
+            if (out[i] == -1.0 && PyErr_Occurred()) {
+                PyErr_Format(PyExc_TypeError, "%s[%zd] must be a float, got %.100s", name, i, Py_TYPE(it)->tp_name);
+                return -1;
+            }
+        }
+        return 0;
+    }
+    Py_buffer view;
+    if (get_buffer(o, &view, name, n, 0, 'd') < 0)
+        return -1;
+    memcpy(out, view.buf, n * sizeof(double));
+    PyBuffer_Release(&view);
+    return 0;
+}
+
+static PyObject *triple(const double *v)
+{
+    PyObject *t = PyTuple_New(3);
+    if (!t)
+        return NULL;
+    for (int i = 0; i < 3; i++) {
+        PyObject *x = PyFloat_FromDouble(v[i]);
+        if (!x) {
+            Py_DECREF(t);
+            return NULL;
+        }
+        PyTuple_SET_ITEM(t, i, x);
+    }
+    return t;
+}
+
+/* ------------------------------------------------------------------------------------ entry points */
+static PyObject *step_common(PyObject *const *args, Py_ssize_t nargs, int sensor, const char *fname)
+{
+    if (nargs != 7) {
+        PyErr_Format(PyExc_TypeError, "%s expects 7 arguments (s, d9, dv3, dt, stationary, valid, speed), got %zd",
+                     fname, nargs);
+        return NULL;
+    }
+    double d[9], dv[3], f[3], acc[3];
+    if (read_floats(args[1], d, 9, "d9") < 0 || read_floats(args[2], dv, 3, "dv3") < 0)
+        return NULL;
+    double dt = PyFloat_AsDouble(args[3]);
+    if (dt == -1.0 && PyErr_Occurred())
+        return NULL;
+    int stationary = PyObject_IsTrue(args[4]), valid = PyObject_IsTrue(args[5]);
+    if (stationary < 0 || valid < 0)
+        return NULL;
+    double speed = NAN;
+    if (args[6] != Py_None) {
+        speed = PyFloat_AsDouble(args[6]);
+        if (speed == -1.0 && PyErr_Occurred())
+            return NULL;
+    }
+    Py_buffer view;
+    double *s = get_state(args[0], &view);
+    if (!s)
+        return NULL;
+    double v;
+    if (sensor && s[I_EXTR] != 0.0) {
+        double db[9], dvb[3];
+        body_increment(s + I_EXTR + 1, d, dv, db, dvb);
+        v = frame(s, db, dvb, dt, stationary, valid, speed, NULL, f, acc);
+    } else {
+        v = frame(s, d, dv, dt, stationary, valid, speed, NULL, f, acc);
+    }
+    PyBuffer_Release(&view);
+    PyObject *ft = triple(f), *at = triple(acc), *vv = PyFloat_FromDouble(v);
+    if (!ft || !at || !vv) {
+        Py_XDECREF(ft); Py_XDECREF(at); Py_XDECREF(vv);
+        return NULL;
+    }
+    PyObject *res = PyTuple_New(3);
+    if (!res) {
+        Py_DECREF(ft); Py_DECREF(at); Py_DECREF(vv);
+        return NULL;
+    }
+    PyTuple_SET_ITEM(res, 0, ft);
+    PyTuple_SET_ITEM(res, 1, at);
+    PyTuple_SET_ITEM(res, 2, vv);
+    return res;
+}
+
+static PyObject *step_frame(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    return step_common(args, nargs, 0, "step_frame");
+}
+
+static PyObject *step_sensor(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    return step_common(args, nargs, 1, "step_sensor");
+}
+
+enum { RUN_NARGS = 16, RUN_BUFFERS = 16 };
+
+static PyObject *run_frames(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    static const char *names[RUN_BUFFERS] = {"state", "d", "dv", "dt", "stationary", "valid", "speed", "v_out",
+                                             "g_out", "p_out", "cum_out", "f_out", "a_out", "speed_out", "priors",
+                                             "body_out"};
+    /* items per frame and kind of each argument (after the state) */
+    static const int width[RUN_BUFFERS] = {0, 9, 3, 1, 1, 1, 1, 3, 3, 36, 9, 3, 3, 1, 27, 9};
+    static const char kinds[RUN_BUFFERS + 1] = "dddd??dddddddddd";
+    if (nargs != RUN_NARGS) {
+        PyErr_Format(PyExc_TypeError, "run_frames expects %d arguments, got %zd", RUN_NARGS, nargs);
+        return NULL;
+    }
+    Py_buffer views[RUN_BUFFERS];
+    int got[RUN_BUFFERS] = {0};
+    double *s = get_state(args[0], &views[0]);
+    PyObject *result = NULL;
+    if (!s)
+        return NULL;
+    got[0] = 1;
+    /* the frame count from dt */
+    if (get_buffer(args[3], &views[3], "dt", -1, 0, 'd') < 0)
+        goto done;
+    got[3] = 1;
+    Py_ssize_t n = views[3].len / 8;
+    for (int i = 1; i < RUN_BUFFERS; i++) {
+        if (got[i] || ((i == 6 || i == 14 || i == 15) && args[i] == Py_None))
+            continue;
+        if (get_buffer(args[i], &views[i], names[i], n * width[i], i >= 7, kinds[i]) < 0)
+            goto done;
+        got[i] = 1;
+    }
+    const double *d = views[1].buf, *dv = views[2].buf, *dt = views[3].buf;
+    const unsigned char *st = views[4].buf, *va = views[5].buf;
+    const double *sp = got[6] ? views[6].buf : NULL;
+    double *vo = views[7].buf, *go = views[8].buf, *po = views[9].buf, *co = views[10].buf, *fo = views[11].buf,
+           *ao = views[12].buf, *so = views[13].buf, *pri = got[14] ? views[14].buf : NULL,
+           *bo = got[15] ? views[15].buf : NULL;
+    const double *extr = s[I_EXTR] != 0.0 ? s + I_EXTR + 1 : NULL;
+    static const int full[36] = {0, 1, 2, 6, 7, 8, 1, 3, 4, 9, 10, 11, 2, 4, 5, 12, 13, 14,
+                                 6, 9, 12, 15, 16, 17, 7, 10, 13, 16, 18, 19, 8, 11, 14, 17, 19, 20};
+    for (Py_ssize_t k = 0; k < n; k++) {
+        const double *dk = d + 9 * k, *dvk = dv + 3 * k;
+        double dvb[3];
+        if (bo) {                          /* sensor -> body */
+            if (extr) {
+                body_increment(extr, dk, dvk, bo + 9 * k, dvb);
+                dvk = dvb;
+            } else {
+                memcpy(bo + 9 * k, dk, 9 * sizeof(double));
+            }
+            dk = bo + 9 * k;
+        }
+        so[k] = frame(s, dk, dvk, dt[k], st[k] != 0, va[k] != 0, sp ? sp[k] : NAN,
+                      pri ? pri + 27 * k : NULL, fo + 3 * k, ao + 3 * k);
+        memcpy(vo + 3 * k, s + I_V, 3 * sizeof(double));
+        memcpy(go + 3 * k, s + I_G, 3 * sizeof(double));
+        memcpy(co + 9 * k, s + I_R, 9 * sizeof(double));
+        for (int j = 0; j < 36; j++)
+            po[36 * k + j] = s[I_P + full[j]];
+    }
+    result = Py_None;
+    Py_INCREF(result);
+done:
+    for (int i = 0; i < RUN_BUFFERS; i++)
+        if (got[i])
+            PyBuffer_Release(&views[i]);
+    return result;
+}
+
+static PyMethodDef methods[] = {
+    {"step_frame", (PyCFunction)(void (*)(void))step_frame, METH_FASTCALL,
+     "step_frame(s, d9, dv3, dt, stationary, valid, speed) -> ((f0, f1, f2), (a0, a1, a2), speed):\n"
+     "one body-frame frame (gravity_kernel.step_frame); speed None or NaN: none."},
+    {"step_sensor", (PyCFunction)(void (*)(void))step_sensor, METH_FASTCALL,
+     "step_sensor(s, d9, dv3, dt, stationary, valid, speed): step_frame of a sensor-frame frame\n"
+     "(the state's extrinsic applied first; gravity_kernel.step_sensor)."},
+    {"run_frames", (PyCFunction)(void (*)(void))run_frames, METH_FASTCALL,
+     "run_frames(s, d, dv, dt, stationary, valid, speed, v_out, g_out, p_out, cum_out, f_out, a_out,\n"
+     "speed_out, priors, body_out) -> None: a drive into the output buffers (gravity_kernel.run_frames)."},
+    {NULL, NULL, 0, NULL}};
+
+static struct PyModuleDef moduledef = {
+    PyModuleDef_HEAD_INIT, "_gravity_native",
+    "C twin of imu_ground.filters.gravity_kernel (the gravity/velocity filter's per-frame kernel).", 0, methods,
+    NULL, NULL, NULL, NULL};
+
+PyMODINIT_FUNC PyInit__gravity_native(void)
+{
+    PyObject *m = PyModule_Create(&moduledef);
+    if (m && PyModule_AddIntConstant(m, "BUF_LEN", BUF_LEN) < 0) {
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
+}
