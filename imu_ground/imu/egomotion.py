@@ -23,7 +23,7 @@ import numpy as np
 
 from imu_ground.imu.data import ImuData
 from imu_ground.imu.preintegration import preintegrate
-from imu_ground.imu.standstill import detect_standstill, estimate_gyro_bias
+from imu_ground.imu.standstill import WindowSums, detect_standstill, estimate_gyro_bias
 from imu_ground.units import DEFAULT_FRAME_RATE
 
 __all__ = ["EgoFrame", "EgoMotion", "imu_to_egomotion"]
@@ -191,12 +191,17 @@ def imu_to_egomotion(imu: ImuData, rate: float = DEFAULT_FRAME_RATE, *, frame_ti
     if max_gap is None:
         max_gap = 10.0 * float(np.median(np.diff(imu.t))) if len(imu) > 1 else 0.1
     meta["max_gap"] = max_gap
+    intervals = None
     if isinstance(bias_gyro, str):
         if bias_gyro != "auto":
             raise ValueError(f"bias_gyro must be 'auto', a 3-vector or None, got {bias_gyro!r}")
-        est = estimate_gyro_bias(imu, max_gap=max_gap)
+        sums = WindowSums(imu) if len(imu) > 1 else None      # shared by the bias's and the flags' windows
+        est = estimate_gyro_bias(imu, max_gap=max_gap, sums=sums)
         bg = est.bias
         meta["standstill_for_bias"] = est.intervals.tolist()
+        # the flags' standstills now (times checked above), so the sums are freed before preintegrating
+        intervals = detect_standstill(imu, window=standstill_window, max_gap=max_gap, sums=sums)
+        del sums
     elif bias_gyro is None:
         bg = np.zeros(3)
     else:
@@ -206,7 +211,8 @@ def imu_to_egomotion(imu: ImuData, rate: float = DEFAULT_FRAME_RATE, *, frame_ti
     else:
         fd = preintegrate(imu, np.asarray(frame_times, dtype=float), bias_gyro=bg, max_gap=max_gap,
                           on_gap="flag", uncertainty=False)
-    intervals = detect_standstill(imu, window=standstill_window, max_gap=max_gap)
+    if intervals is None:
+        intervals = detect_standstill(imu, window=standstill_window, max_gap=max_gap)
     te = fd.t_end
     stationary = np.zeros(len(te), dtype=bool)
     if len(intervals):

@@ -28,7 +28,7 @@ import numpy as np
 
 from imu_ground.imu.data import ImuData
 
-__all__ = ["GyroBiasEstimate", "detect_standstill", "estimate_gyro_bias"]
+__all__ = ["GyroBiasEstimate", "WindowSums", "detect_standstill", "estimate_gyro_bias"]
 
 
 @dataclass
@@ -69,28 +69,88 @@ class GyroBiasEstimate:
         return self.intervals.shape[0] > 0
 
 
-def _window_stats(t: np.ndarray, x: np.ndarray, end: np.ndarray):
-    """Mean and std of x over samples [i, end[i]) for every i (cumulative sums)."""
-    xc = x - x.mean(axis=0)
-    c1 = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(xc, axis=0)])
-    c2 = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(xc * xc, axis=0)])
-    n = (end - np.arange(t.size))[:, None].astype(float)
-    n = np.maximum(n, 1.0)
-    i = np.arange(t.size)
-    m = (c1[end] - c1[i]) / n
-    var = np.maximum((c2[end] - c2[i]) / n - m * m, 0.0)
-    return m + x.mean(axis=0), np.sqrt(var)
+#: Samples per block of the window statistics (bounded, cache-sized temporaries on long logs).
+_BLOCK = 1 << 15
+
+
+class WindowSums:
+    """Cumulative sums of a log's centred gyro and specific force and of their squares.
+
+    What :func:`detect_standstill` and :func:`estimate_gyro_bias` derive every
+    window's mean and standard deviation from; they do not depend on the window
+    length, so one instance serves several calls on the same log (pass it as
+    ``sums``). Component-major, so that every operation runs along contiguous rows.
+
+    Parameters
+    ----------
+    imu : ImuData
+        The log (gyro rad/s, specific force m/s^2, body frame).
+
+    Attributes
+    ----------
+    mean : ndarray, shape (6, 1)
+        Mean gyro (rad/s) then specific force (m/s^2) over the log.
+    c1, c2 : ndarray, shape (6, N + 1)
+        ``c1[:, k]`` sum of the first ``k`` centred samples, ``c2[:, k]`` of their squares.
+    """
+
+    def __init__(self, imu: ImuData) -> None:
+        n = len(imu)
+        self.n = n
+        self.mean = np.concatenate([imu.gyro.mean(axis=0), imu.accel.mean(axis=0)])[:, None]
+        xc = np.empty((6, n))
+        np.subtract(imu.gyro.T, self.mean[:3], out=xc[:3])
+        np.subtract(imu.accel.T, self.mean[3:], out=xc[3:])
+        self.c1 = np.empty((6, n + 1))
+        self.c2 = np.empty((6, n + 1))
+        self.c1[:, 0] = 0.0
+        self.c2[:, 0] = 0.0
+        np.cumsum(xc, axis=1, out=self.c1[:, 1:])
+        np.multiply(xc, xc, out=xc)
+        np.cumsum(xc, axis=1, out=self.c2[:, 1:])
+
+    def stats(self, lo: int, end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Mean and standard deviation (6, N') over samples ``[i, end[i - lo])`` for ``i = lo, lo + 1, ...``."""
+        hi = lo + end.size
+        n = np.maximum((end - np.arange(lo, hi)).astype(float), 1.0)
+        m = (self.c1[:, end] - self.c1[:, lo:hi]) / n
+        var = np.maximum((self.c2[:, end] - self.c2[:, lo:hi]) / n - m * m, 0.0)
+        return m + self.mean, np.sqrt(var)
+
+
+def _norm3(x: np.ndarray) -> np.ndarray:
+    """Euclidean norm of the columns of a (3, N) array (as ``np.linalg.norm`` of its rows: same sum order)."""
+    return np.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+
+
+def _quiet_windows(sums: WindowSums, end: np.ndarray, usable: np.ndarray, gyro_std_max: float,
+                   gyro_norm_max: float, accel_std_max: float) -> tuple[np.ndarray, np.ndarray]:
+    """Windows passing the rate and variance tests, and each window's mean specific-force norm (m/s^2)."""
+    n = end.size
+    quiet = np.empty(n, dtype=bool)
+    norm = np.empty(n)
+    for lo in range(0, n, _BLOCK):
+        hi = min(lo + _BLOCK, n)
+        mean, std = sums.stats(lo, end[lo:hi])
+        quiet[lo:hi] = (usable[lo:hi] & (_norm3(mean[:3]) <= gyro_norm_max)
+                        & np.all(std[:3] <= gyro_std_max, axis=0) & np.all(std[3:] <= accel_std_max, axis=0))
+        norm[lo:hi] = _norm3(mean[3:])
+    return quiet, norm
 
 
 def _standstill_mask(imu: ImuData, window: float, gyro_std_max: float, gyro_norm_max: float,
                      accel_std_max: float, accel_norm_tol: float, gravity: float | None,
-                     max_gap: float) -> np.ndarray:
+                     max_gap: float, sums: WindowSums | None = None) -> np.ndarray:
     t = np.asarray(imu.t, dtype=float)
     n = t.size
     if n < 2:
         return np.zeros(n, dtype=bool)
     if np.any(np.diff(t) <= 0):
         raise ValueError("IMU timestamps must be strictly increasing (drop non-increasing samples first)")
+    if sums is None:
+        sums = WindowSums(imu)
+    elif sums.n != n:
+        raise ValueError(f"sums were computed for a log of {sums.n} samples, this one has {n}")
     # window of sample i: samples i .. end[i]-1 with t < t[i] + window, plus the
     # first sample at or after t[i] + window so that it spans >= window seconds
     last = np.searchsorted(t, t + window, side="left")     # first index with t >= t_i + window
@@ -98,13 +158,7 @@ def _standstill_mask(imu: ImuData, window: float, gyro_std_max: float, gyro_norm
     end = np.minimum(last + 1, n)
     gaps = np.concatenate([[0], np.cumsum(np.diff(t) > max_gap)])
     no_gap = gaps[end - 1] == gaps
-    gm, gs = _window_stats(t, imu.gyro, end)
-    am, as_ = _window_stats(t, imu.accel, end)
-    quiet = (ok & no_gap
-             & np.all(gs <= gyro_std_max, axis=1)
-             & (np.linalg.norm(gm, axis=1) <= gyro_norm_max)
-             & np.all(as_ <= accel_std_max, axis=1))
-    norm = np.linalg.norm(am, axis=1)
+    quiet, norm = _quiet_windows(sums, end, ok & no_gap, gyro_std_max, gyro_norm_max, accel_std_max)
     if gravity is None:
         # the log's own |f| at rest: an accelerometer bias or scale error moves it
         # away from 9.81 (0.2 m/s^2 is common for MEMS) and must not hide the stops
@@ -113,10 +167,8 @@ def _standstill_mask(imu: ImuData, window: float, gyro_std_max: float, gyro_norm
         gravity = float(np.median(norm[quiet]))
     good = quiet & (np.abs(norm - gravity) <= accel_norm_tol)
     # union of the good windows [i, end[i]) : difference array
-    d = np.zeros(n + 1, dtype=np.int64)
     gi = np.flatnonzero(good)
-    np.add.at(d, gi, 1)
-    np.add.at(d, end[gi], -1)
+    d = np.bincount(gi, minlength=n + 1) - np.bincount(end[gi], minlength=n + 1)
     return np.cumsum(d[:-1]) > 0
 
 
@@ -129,7 +181,7 @@ def _runs(mask: np.ndarray) -> np.ndarray:
 def detect_standstill(imu: ImuData, *, window: float = 2.0, gyro_std_max: float = 0.004,
                       gyro_norm_max: float = 0.05, accel_std_max: float = 0.04,
                       accel_norm_tol: float = 0.15, gravity: float | None = None,
-                      max_gap: float = 0.1) -> np.ndarray:
+                      max_gap: float = 0.1, sums: WindowSums | None = None) -> np.ndarray:
     """Standstill intervals of a log (vectorised, no loop over samples).
 
     Parameters
@@ -155,6 +207,8 @@ def detect_standstill(imu: ImuData, *, window: float = 2.0, gyro_std_max: float 
         acceleration.
     max_gap : float
         Windows containing a longer timestamp step are rejected, s.
+    sums : WindowSums, optional
+        This log's :class:`WindowSums`, to share between calls (computed when None).
 
     Returns
     -------
@@ -162,7 +216,7 @@ def detect_standstill(imu: ImuData, *, window: float = 2.0, gyro_std_max: float 
         ``[start, end]`` times of the standstill intervals, s.
     """
     mask = _standstill_mask(imu, window, gyro_std_max, gyro_norm_max, accel_std_max,
-                            accel_norm_tol, gravity, max_gap)
+                            accel_norm_tol, gravity, max_gap, sums)
     r = _runs(mask)
     t = np.asarray(imu.t, dtype=float)
     return np.stack([t[r[:, 0]], t[r[:, 1] - 1]], axis=1) if r.size else np.zeros((0, 2))
@@ -171,15 +225,15 @@ def detect_standstill(imu: ImuData, *, window: float = 2.0, gyro_std_max: float 
 def estimate_gyro_bias(imu: ImuData, *, window: float = 2.0, gyro_std_max: float = 0.004,
                        gyro_norm_max: float = 0.05, accel_std_max: float = 0.04,
                        accel_norm_tol: float = 0.15, gravity: float | None = None,
-                       max_gap: float = 0.1) -> GyroBiasEstimate:
+                       max_gap: float = 0.1, sums: WindowSums | None = None) -> GyroBiasEstimate:
     """Gyro bias and gravity direction from the standstill periods of a log.
 
     Parameters
     ----------
     imu : ImuData
         Strictly increasing times (s), gyro (rad/s), specific force (m/s^2), body frame.
-    window, gyro_std_max, gyro_norm_max, accel_std_max, accel_norm_tol, gravity, max_gap :
-        Standstill criteria, see :func:`detect_standstill`.
+    window, gyro_std_max, gyro_norm_max, accel_std_max, accel_norm_tol, gravity, max_gap, sums :
+        Standstill criteria and shared sums, see :func:`detect_standstill`.
 
     Returns
     -------
@@ -188,7 +242,7 @@ def estimate_gyro_bias(imu: ImuData, *, window: float = 2.0, gyro_std_max: float
         standstill), the intervals, and gravity's direction in the body frame at rest.
     """
     mask = _standstill_mask(imu, window, gyro_std_max, gyro_norm_max, accel_std_max,
-                            accel_norm_tol, gravity, max_gap)
+                            accel_norm_tol, gravity, max_gap, sums)
     r = _runs(mask)
     t = np.asarray(imu.t, dtype=float)
     k = r.shape[0]
