@@ -4,8 +4,11 @@ their bias Jacobians and covariance.
 :func:`integrate_interval` is the hot path of the streaming preintegration and of
 :class:`~imu_ground.imu.preint_measurement.PreintegratedImu`: Forster's recursion
 (Forster, Carlone, Dellaert, Scaramuzza, IEEE T-RO 2017, Sec. VI and appendix) in
-scalar Python floats. Numpy's per-call overhead dominates 3x3 operations, so the
-state is a flat tuple of floats, unpacked into locals, updated, and packed again.
+scalar Python floats (:func:`integrate_interval_python`, the reference). Numpy's per-call
+overhead dominates 3x3 operations, so the state is a flat tuple of floats, unpacked into
+locals, updated, and packed again. Its C twin (``_preint_native.c``, the same formulas term
+for term, bit-identical) serves as :func:`integrate_interval` when the extension is built
+(:func:`imu_ground._native.load_native`; ``IMU_GROUND_PURE_PYTHON=1`` selects the Python one).
 
 State layouts
 -------------
@@ -40,10 +43,11 @@ from __future__ import annotations
 from math import cos, sin, sqrt
 
 from imu_ground import so3
+from imu_ground._native import load_native
 from imu_ground.imu.matrix3 import SMALL_ANGLE2
 
-__all__ = ["DELTAS_IDENTITY", "UNCERTAINTY_ZERO", "integrate_interval", "quaternion_from_rotation",
-           "rotation_from_quaternion"]
+__all__ = ["DELTAS_IDENTITY", "UNCERTAINTY_ZERO", "integrate_interval", "integrate_interval_python",
+           "quaternion_from_rotation", "rotation_from_quaternion", "NATIVE"]
 
 #: Deltas of an empty interval: T = 0, delta_R = I (quaternion 1), delta_v = delta_p = 0.
 DELTAS_IDENTITY: tuple = (0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -51,7 +55,7 @@ DELTAS_IDENTITY: tuple = (0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 UNCERTAINTY_ZERO: tuple = (0.0,) * 90
 
 
-def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float, z: float,
+def integrate_interval_python(s: tuple, u: tuple | None, dt: float, x: float, y: float, z: float,
                        fx: float, fy: float, fz: float, noise: tuple[float, float]) -> tuple[tuple, tuple | None]:
     """Add one interval of held rate and specific force to preintegrated deltas (unrolled).
 
@@ -243,6 +247,14 @@ def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float,
             qw * dy - qx * dz + qy * ch + qz * dx, qw * dz + qx * dy - qy * dx + qz * ch,
             v0 + c0, v1 + c1, v2 + c2,
             p0 + dt * (v0 + 0.5 * c0), p1 + dt * (v1 + 0.5 * c1), p2 + dt * (v2 + 0.5 * c2)), u
+
+
+#: The compiled twin (``imu_ground/imu/_preint_native.c``: :func:`integrate_interval_python` term for term,
+#: bit-identical, plus the streaming front-end's per-sample fast path), or None (not built, or
+#: ``IMU_GROUND_PURE_PYTHON=1``).
+NATIVE = load_native("imu_ground.imu._preint_native")
+#: The kernel in use: the C twin when built, else :func:`integrate_interval_python` (same signature and results).
+integrate_interval = integrate_interval_python if NATIVE is None else NATIVE.integrate_interval
 
 
 def rotation_from_quaternion(q: tuple) -> tuple:

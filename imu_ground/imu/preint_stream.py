@@ -11,6 +11,7 @@ touches only Python floats and tuples: no numpy, no object per sample.
 from __future__ import annotations
 
 import math
+from array import array
 from collections.abc import Iterable, Sequence
 from typing import Any
 
@@ -19,6 +20,7 @@ import numpy as np
 from imu_ground.imu.preint_frames import first_rate_boundary
 from imu_ground.imu.preint_kernel import (
     DELTAS_IDENTITY,
+    NATIVE,
     UNCERTAINTY_ZERO,
     integrate_interval,
 )
@@ -30,8 +32,143 @@ __all__ = ["StreamingPreintegrator"]
 _ndarray = np.ndarray
 _INF = math.inf
 
+# Streaming state buffer of the C fast path (offsets in floats: the S_* enum of _preint_native.c)
+_S_UNC, _S_PREV, _S_LIM, _S_MAXGAP, _S_CD, _S_BIAS, _S_NOISE, _S_MIDPOINT, _S_UNCERTAINTY, _S_SIZE = (
+    11, 101, 108, 109, 110, 111, 117, 119, 120, 121)
 
-class StreamingPreintegrator:
+_PUSH_DOC = """Add one sample; return the frames finished by it (usually none, or one).
+
+    Parameters
+    ----------
+    t : float
+        Sample time, s (strictly increasing).
+    gyro : sequence of 3 floats
+        Angular rate, rad/s, body frame.
+    accel : sequence of 3 floats
+        Specific force, m/s^2, body frame.
+
+    Returns
+    -------
+    tuple of PreintegratedImu
+        Finished frames (usually an empty tuple), each with ``t_start``,
+        ``t_end``, ``valid``; ``delta_R`` of each is ``R_{start<-end}``.
+"""
+
+
+class _PythonKernel:
+    """The kernel state as tuples ``self._st = (deltas, uncertainty)``, the pure-Python fast path."""
+
+    def _kernel_init(self) -> None:
+        self._st = (DELTAS_IDENTITY, self._u0)
+
+    def _kernel_reset(self) -> None:
+        self._st = (DELTAS_IDENTITY, self._u0)
+
+    def _kernel_state(self) -> tuple:
+        return self._st
+
+    def _integrate(self, dt: float, x: float, y: float, z: float, fx: float, fy: float, fz: float) -> None:
+        s, u = self._st
+        self._st = integrate_interval(s, u, dt, x, y, z, fx, fy, fz, self._noise)
+
+    def _load(self) -> None:
+        """Nothing to do: the fast path keeps its state in the attributes."""
+
+    def push(self, t: float, gyro: Sequence[float], accel: Sequence[float]) -> tuple[PreintegratedImu, ...]:
+        if type(t) is not float:
+            t = float(t)
+        if type(gyro) is _ndarray:
+            gyro = gyro.tolist()
+        if type(accel) is _ndarray:
+            accel = accel.tolist()
+        prev = self._prev
+        # fast path: inside a frame (_lim is -inf before the first sample and outside frames),
+        # no boundary, no gap, not an every-N sample; else _push_slow
+        if t < self._lim:
+            h = t - prev[0]
+            if 0.0 < h <= self._max_gap:
+                cd = self._cd - 1
+                if cd:
+                    self._cd = cd
+                    bgx, bgy, bgz, bax, bay, baz = self._bias
+                    wx, wy, wz = gyro
+                    ax, ay, az = accel
+                    wx, wy, wz = wx - bgx, wy - bgy, wz - bgz
+                    ax, ay, az = ax - bax, ay - bay, az - baz
+                    self._prev = (t, wx, wy, wz, ax, ay, az)
+                    _, gx, gy, gz, fx, fy, fz = prev
+                    s, u = self._st
+                    if self._midpoint:      # mean of the two samples, the 1/2 folded into dt
+                        hh = 0.5 * h
+                        self._st = integrate_interval(s, u, h, (gx + wx) * hh, (gy + wy) * hh, (gz + wz) * hh,
+                                                      (fx + ax) * hh, (fy + ay) * hh, (fz + az) * hh, self._noise)
+                    else:                   # the left sample's value
+                        self._st = integrate_interval(s, u, h, gx * h, gy * h, gz * h, fx * h, fy * h, fz * h,
+                                                      self._noise)
+                    return ()
+        return self._push_slow(t, gyro, accel)
+
+
+    push.__doc__ = _PUSH_DOC
+
+
+class _NativeKernel:
+    """The kernel state in one buffer ``self._b`` (array('d'), layout ``_S_*``), the fast path in C
+    (``_preint_native.push``); the slow path runs in Python on the attributes, taken from the buffer
+    before it (:meth:`_load`) and put back after (:meth:`_save`)."""
+
+    def _kernel_init(self) -> None:
+        b = self._b = array("d", bytes(8 * _S_SIZE))
+        b[0:11] = array("d", DELTAS_IDENTITY)
+        b[_S_LIM], b[_S_MAXGAP], b[_S_CD] = self._lim, self._max_gap, float(self._cd)
+        b[_S_BIAS:_S_BIAS + 6] = array("d", self._bias)
+        b[_S_NOISE:_S_NOISE + 2] = array("d", self._noise)
+        b[_S_MIDPOINT] = 1.0 if self._midpoint else 0.0
+        b[_S_UNCERTAINTY] = 0.0 if self._u0 is None else 1.0
+
+    def _kernel_reset(self) -> None:
+        self._b[0:_S_PREV] = array("d", DELTAS_IDENTITY + UNCERTAINTY_ZERO)
+
+    def _kernel_state(self) -> tuple:
+        b = self._b
+        return tuple(b[0:11]), (None if self._u0 is None else tuple(b[_S_UNC:_S_PREV]))
+
+    def _integrate(self, dt: float, x: float, y: float, z: float, fx: float, fy: float, fz: float) -> None:
+        _native_integrate(self._b, dt, x, y, z, fx, fy, fz)
+
+    def _load(self) -> None:
+        """Buffer -> attributes: what the C fast path changes (the last sample, the every-N countdown)."""
+        b = self._b
+        if self._prev is not None:
+            self._prev = tuple(b[_S_PREV:_S_LIM])
+        self._cd = int(b[_S_CD])
+
+    def _save(self) -> None:
+        """Attributes -> buffer: what the slow path changes and the C fast path reads."""
+        b = self._b
+        if self._prev is not None:
+            b[_S_PREV:_S_LIM] = array("d", self._prev)
+        b[_S_LIM], b[_S_CD] = self._lim, float(self._cd)
+
+    def push(self, t: float, gyro: Sequence[float], accel: Sequence[float]) -> tuple[PreintegratedImu, ...]:
+        if _native_push(self._b, t, gyro, accel):
+            return ()
+        if type(gyro) is _ndarray:
+            gyro = gyro.tolist()
+        if type(accel) is _ndarray:
+            accel = accel.tolist()
+        self._load()
+        out = self._push_slow(float(t), gyro, accel)
+        self._save()
+        return out
+    push.__doc__ = _PUSH_DOC
+
+
+if NATIVE is not None:
+    _native_push, _native_integrate = NATIVE.push, NATIVE.integrate
+
+
+class StreamingPreintegrator(_NativeKernel if NATIVE is not None else _PythonKernel):
     """Sample-by-sample front-end: emits a finished :class:`PreintegratedImu` per frame.
 
     Frames are given by explicit boundary times, a frame rate, or a sample
@@ -92,16 +229,16 @@ class StreamingPreintegrator:
         self._tol = par.snap_tol
         self._midpoint = par.hold == "midpoint"
         self._u0 = UNCERTAINTY_ZERO if par.uncertainty else None
-        self._st = (DELTAS_IDENTITY, self._u0)   # kernel state: (deltas, uncertainty)
         self._n = 0                         # intervals integrated by the slow path in this frame
         self._t_start, self._valid = math.nan, True
         self._prev: tuple | None = None     # (t, wx, wy, wz, ax, ay, az) of the last sample, bias removed
-        self._cd = 1 << 62                  # samples until the next every-N boundary
+        self._cd = 1 << 52                  # samples until the next every-N boundary (exact as a float too)
         self._mark = self._cd               # _cd at the frame's start: the fast path's intervals are _mark - _cd
         self._k = 0                         # index of the next boundary
         self._next = _INF                   # time of the next boundary
         self._lim = -_INF                   # fast path while t < _lim (= _next - snap_tol, inside a frame)
         self._active = False                # inside a frame
+        self._kernel_init()                 # kernel state: (deltas, uncertainty)
 
     # settings, read-only views of params
     hold = property(lambda self: self.params.hold, doc="``'midpoint'`` or ``'left'``.")
@@ -112,59 +249,9 @@ class StreamingPreintegrator:
     @property
     def current(self) -> PreintegratedImu:
         """A snapshot of the frame being integrated (``t_end`` nan)."""
-        return PreintegratedImu.from_state(self.params, *self._st, self._n + self._mark - self._cd,
+        self._load()
+        return PreintegratedImu.from_state(self.params, *self._kernel_state(), self._n + self._mark - self._cd,
                                            self._t_start, math.nan, self._valid)
-
-    def push(self, t: float, gyro: Sequence[float], accel: Sequence[float]) -> tuple[PreintegratedImu, ...]:
-        """Add one sample; return the frames finished by it (usually none, or one).
-
-        Parameters
-        ----------
-        t : float
-            Sample time, s (strictly increasing).
-        gyro : sequence of 3 floats
-            Angular rate, rad/s, body frame.
-        accel : sequence of 3 floats
-            Specific force, m/s^2, body frame.
-
-        Returns
-        -------
-        tuple of PreintegratedImu
-            Finished frames (usually an empty tuple), each with ``t_start``,
-            ``t_end``, ``valid``; ``delta_R`` of each is ``R_{start<-end}``.
-        """
-        if type(t) is not float:
-            t = float(t)
-        if type(gyro) is _ndarray:
-            gyro = gyro.tolist()
-        if type(accel) is _ndarray:
-            accel = accel.tolist()
-        prev = self._prev
-        # fast path: inside a frame (_lim is -inf before the first sample and outside frames),
-        # no boundary, no gap, not an every-N sample; else _push_slow
-        if t < self._lim:
-            h = t - prev[0]
-            if 0.0 < h <= self._max_gap:
-                cd = self._cd - 1
-                if cd:
-                    self._cd = cd
-                    bgx, bgy, bgz, bax, bay, baz = self._bias
-                    wx, wy, wz = gyro
-                    ax, ay, az = accel
-                    wx, wy, wz = wx - bgx, wy - bgy, wz - bgz
-                    ax, ay, az = ax - bax, ay - bay, az - baz
-                    self._prev = (t, wx, wy, wz, ax, ay, az)
-                    _, gx, gy, gz, fx, fy, fz = prev
-                    s, u = self._st
-                    if self._midpoint:      # mean of the two samples, the 1/2 folded into dt
-                        hh = 0.5 * h
-                        self._st = integrate_interval(s, u, h, (gx + wx) * hh, (gy + wy) * hh, (gz + wz) * hh,
-                                                      (fx + ax) * hh, (fy + ay) * hh, (fz + az) * hh, self._noise)
-                    else:                   # the left sample's value
-                        self._st = integrate_interval(s, u, h, gx * h, gy * h, gz * h, fx * h, fy * h, fz * h,
-                                                      self._noise)
-                    return ()
-        return self._push_slow(t, gyro, accel)
 
     # -- boundaries ---------------------------------------------------------
     def _boundary(self, k: int) -> float:
@@ -177,28 +264,26 @@ class StreamingPreintegrator:
     def _cross(self, tb: float, out: list) -> None:
         """A boundary at tb: emit the running frame, start the next if there is one."""
         if self._active:
-            out.append(PreintegratedImu.from_state(self.params, *self._st, self._n + self._mark - self._cd,
+            out.append(PreintegratedImu.from_state(self.params, *self._kernel_state(), self._n + self._mark - self._cd,
                                                    self._t_start, tb, self._valid))
         self._k += 1
         self._next = self._boundary(self._k)
         self._active = self._every is not None or self._next != _INF
         self._lim = self._next - self._tol if self._active else -_INF
-        self._st, self._n, self._mark = (DELTAS_IDENTITY, self._u0), 0, self._cd
+        self._kernel_reset()
+        self._n, self._mark = 0, self._cd
         self._t_start, self._valid = tb, True
 
     def _piece(self, dt: float, ka: tuple, kb: tuple, gap: bool) -> None:
         """Integrate a piece of length dt between knots with (bias-free) values ka and kb."""
         if gap:
             self._valid = False
-        s, u = self._st
         if self._midpoint:
             hh = 0.5 * dt
-            self._st = integrate_interval(s, u, dt, (ka[0] + kb[0]) * hh, (ka[1] + kb[1]) * hh,
-                                          (ka[2] + kb[2]) * hh, (ka[3] + kb[3]) * hh, (ka[4] + kb[4]) * hh,
-                                          (ka[5] + kb[5]) * hh, self._noise)
+            self._integrate(dt, (ka[0] + kb[0]) * hh, (ka[1] + kb[1]) * hh, (ka[2] + kb[2]) * hh,
+                            (ka[3] + kb[3]) * hh, (ka[4] + kb[4]) * hh, (ka[5] + kb[5]) * hh)
         else:
-            self._st = integrate_interval(s, u, dt, ka[0] * dt, ka[1] * dt, ka[2] * dt, ka[3] * dt,
-                                          ka[4] * dt, ka[5] * dt, self._noise)
+            self._integrate(dt, ka[0] * dt, ka[1] * dt, ka[2] * dt, ka[3] * dt, ka[4] * dt, ka[5] * dt)
         self._n += 1
 
     def _start(self, t: float, out: list) -> None:
