@@ -61,8 +61,9 @@ def test_kernel_rejects_bad_arguments_by_name():
         NATIVE.push(bytearray(16), 0.0, [0.0] * 3, [0.0] * 3)
 
 
-class _Pure(_PythonKernel, StreamingPreintegrator):
-    """The pure-Python front-end (its fast path first in the MRO), for a same-process comparison."""
+if NATIVE is not None:
+    class _Pure(_PythonKernel, StreamingPreintegrator):
+        """The pure-Python front-end (its fast path first in the MRO), for a same-process comparison."""
 
 
 def _frames(cls, t, gyro, accel, as_arrays=False, **kw):
