@@ -145,6 +145,14 @@ def test_egoframe_input_and_bad_frames_leave_the_state_unchanged(drive):
     np.testing.assert_array_equal(a.cumulative, R)
     with pytest.raises(ValueError, match="delta_R must be"):
         a.step(np.zeros(5), em.delta_v[20], 0.1)
+    # the estimators' frame check (estimator.frame_problem): also rotations that are not rotations
+    for d in (2.0 * np.eye(3), np.diag([1.0, 1.0, -1.0]), np.full((3, 3), np.nan)):
+        with pytest.raises(ValueError, match="bad frame: delta_R is not"):
+            a.step(d, em.delta_v[20], 0.1)
+    with pytest.raises(ValueError, match="bad frame: delta_t must be a positive number"):
+        a.step(em.delta_R[20], em.delta_v[20], np.inf)
+    np.testing.assert_array_equal(a.x, x)
+    np.testing.assert_array_equal(a.P, P)
 
 
 def test_state_arrays_can_be_set_and_changed_in_place(drive):
@@ -193,5 +201,23 @@ def test_to_body_flat_matches_to_body():
     dv = np.array([0.5, -0.1, 0.98])
     d9, dv3 = f.to_body_flat(d.ravel().tolist(), dv.tolist())
     db, dvb = f.to_body(d, dv)
-    np.testing.assert_allclose(np.reshape(d9, (3, 3)), db, atol=1e-15)
-    np.testing.assert_allclose(dv3, dvb, atol=1e-15)
+    np.testing.assert_array_equal(np.reshape(d9, (3, 3)), db)          # the same sums in the same order
+    np.testing.assert_array_equal(dv3, dvb)
+    np.testing.assert_allclose(db, R @ d @ R.T, atol=1e-15)
+    np.testing.assert_allclose(dvb, R @ dv, atol=1e-15)
+    many, many_v = f.to_body(np.stack([d, d.T]), np.stack([dv, -dv]))
+    np.testing.assert_array_equal(many[0], db)
+    np.testing.assert_array_equal(many_v[1], -dvb)
+
+
+def test_step_sensor_is_step_body_of_to_body_flat(drive):
+    em = drive
+    ext = Extrinsic(so3.rotz(0.2) @ so3.rotx(0.05), [0.3, 0.0, 1.0])
+    a = GravityVelocityFilter(extrinsic=ext, lever_arm=ext.translation)
+    b = GravityVelocityFilter(extrinsic=ext, lever_arm=ext.translation)
+    for k in range(120):
+        d9, dv = em.delta_R[k].ravel().tolist(), em.delta_v[k].tolist()
+        args = (float(em.delta_t[k]), bool(em.stationary[k]), bool(em.valid[k]), 3.0 if k % 4 == 0 else None)
+        assert a.step_sensor(d9, dv, *args) == b.step_body(*b.to_body_flat(d9, dv), *args)
+    np.testing.assert_array_equal(a.x, b.x)
+    np.testing.assert_array_equal(a.P, b.P)

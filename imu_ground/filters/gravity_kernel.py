@@ -44,6 +44,7 @@ __all__ = [
     "I_WPREV",
     "body_forces",
     "body_increment",
+    "body_increments",
     "full_cov",
     "new_state",
     "run_frames",
@@ -249,6 +250,19 @@ def _velocity_update(xp, n6, z, gate=math.inf):
     return tuple(xn) + pn, tuple(v for r in K for v in r), y, (s0, s1, s2, s4, s5, s8)
 
 
+def body_increments(r, d, dv):
+    """:func:`body_increment` of many frames, vectorised: ``d`` (..., 3, 3), ``dv`` (..., 3), ``r`` (3, 3).
+
+    Summed in :func:`body_increment`'s order (one rounding per product and sum, no
+    matrix-product library), so each frame equals the scalar result bit for bit.
+    """
+    r = np.asarray(r, dtype=float)
+    d, dv = np.asarray(d, dtype=float), np.asarray(dv, dtype=float)
+    t = (r[:, 0, None] * d[..., None, 0, :] + r[:, 1, None] * d[..., None, 1, :]) + r[:, 2, None] * d[..., None, 2, :]
+    b = (t[..., :, 0, None] * r[:, 0] + t[..., :, 1, None] * r[:, 1]) + t[..., :, 2, None] * r[:, 2]
+    return b, (dv[..., 0, None] * r[:, 0] + dv[..., 1, None] * r[:, 1]) + dv[..., 2, None] * r[:, 2]
+
+
 def step_frame(s: list, d9, dv3, dt: float, stationary: bool, valid: bool, speed: float):
     """One body-frame frame: :func:`_predict_update`, then the frame's mean forces (the C twin's ``step_frame``).
 
@@ -297,8 +311,9 @@ def step_frame(s: list, d9, dv3, dt: float, stationary: bool, valid: bool, speed
     g0, g1, g2 = st[3], st[4], st[5]
     q0, q1, q2 = (rprev[0] * g0 + rprev[3] * g1 + rprev[6] * g2, rprev[1] * g0 + rprev[4] * g1 + rprev[7] * g2,
                   rprev[2] * g0 + rprev[5] * g1 + rprev[8] * g2)       # R_{k-1}^T g
+    v0, v1, v2 = st[0], st[1], st[2]
     return ((f0, f1, f2), (f0 - (h0 * q0 + h3 * q1 + h6 * q2), f1 - (h1 * q0 + h4 * q1 + h7 * q2),
-                           f2 - (h2 * q0 + h5 * q1 + h8 * q2)), math.sqrt(st[0] ** 2 + st[1] ** 2 + st[2] ** 2))
+                           f2 - (h2 * q0 + h5 * q1 + h8 * q2)), math.sqrt(v0 * v0 + v1 * v1 + v2 * v2))
 
 
 def step_sensor(s: list, d9, dv3, dt: float, stationary: bool, valid: bool, speed: float):
@@ -332,8 +347,7 @@ def run_frames(s: list, d, dv, dt, stationary, valid, speed, v_out, g_out, p_out
     n = len(dt)
     if body_out is not None:
         if s[I_EXTR]:
-            r = np.reshape(s[I_EXTR + 1:I_EXTR + 10], (3, 3))
-            d, dv = r @ d @ r.T, dv @ r.T
+            d, dv = body_increments(np.reshape(s[I_EXTR + 1:I_EXTR + 10], (3, 3)), d, dv)
         body_out[...] = d
     sp = [math.nan] * n if speed is None else np.asarray(speed, dtype=float).tolist()
     frames = list(zip(np.reshape(d, (n, 9)).tolist(), np.asarray(dv).tolist(), np.asarray(dt).tolist(),

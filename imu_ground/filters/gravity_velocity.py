@@ -31,6 +31,7 @@ from imu_ground.filters.gravity_kernel import (  # noqa: F401 (reference)
     _velocity_update,
     body_forces,
     body_increment,
+    body_increments,
     new_state,
 )
 from imu_ground.filters.gravity_kernel import full_cov as _full_cov
@@ -293,9 +294,8 @@ class GravityVelocityFilter:
     # -- public building blocks (SuspensionAwareFilter) --------------------------------------------
     def to_body(self, d: np.ndarray, dv: np.ndarray):
         """Sensor-frame increments ``d`` (..., 3, 3), sensor_{k-1} <- sensor_k, and ``dv`` (..., 3), m/s,
-        to the body frame: ``R_gs d R_gs^T``, ``R_gs dv``."""
-        R = self._Rgs
-        return (d, dv) if self._identity_extrinsic else (R @ d @ R.T, dv @ R.T)
+        to the body frame: ``R_gs d R_gs^T``, ``R_gs dv`` (each frame as :meth:`to_body_flat`, bit for bit)."""
+        return (d, dv) if self._identity_extrinsic else body_increments(self._Rgs, d, dv)
 
     def to_body_flat(self, d9, dv3):
         """:meth:`to_body` of one frame as plain floats (9 row-major, 3)."""
