@@ -149,6 +149,18 @@ def test_c_equals_python_on_kitti_drives(shared_data, drive):
     _compare_everything(em, speed, kw, drive + " with speed")
 
 
+def test_to_body_c_equals_python():
+    c, p = _pair(**CONFIGS["extrinsic, lever arm"])
+    em = _synthetic()
+    for k in range(0, len(em), 7):
+        d9, dv = em.delta_R[k].ravel().tolist(), em.delta_v[k].tolist()
+        got = NATIVE.to_body(c._s, d9, dv)
+        assert got == gravity_kernel.to_body(p._s, d9, dv) == c.to_body_flat(d9, dv)
+        np.testing.assert_array_equal(np.reshape(got[0], (3, 3)), c.to_body(em.delta_R[k], em.delta_v[k])[0])
+    plain = _state()
+    assert NATIVE.to_body(plain, d9, dv) == (tuple(d9), tuple(dv))    # no extrinsic: unchanged
+
+
 def test_run_continues_the_stream_and_pieces_equal_the_whole():
     em = _synthetic()
     sp = _speed(len(em))
@@ -260,6 +272,7 @@ def test_no_leaks_and_reference_counts_unchanged():
         snap = tracemalloc.take_snapshot()
         for _ in range(100_000):
             NATIVE.step_sensor(s, d9, dv, dt, False, True, speed)
+            NATIVE.to_body(s, d9, dv)
         for _ in range(1000):
             NATIVE.run_frames(s, *ins, *outs)
         for _ in range(1000):                              # error paths release what they took

@@ -11,6 +11,7 @@
  * Entry points (METH_FASTCALL):
  *   step_frame(s, d9, dv3, dt, stationary, valid, speed) -> ((f0, f1, f2), (a0, a1, a2), |v|)
  *   step_sensor(...)  the same on a sensor-frame frame (the buffer's extrinsic applied first)
+ *   to_body(s, d9, dv3) -> ((9 floats), (3 floats))  that extrinsic applied (gravity_kernel.to_body)
  *   run_frames(s, d, dv, dt, stationary, valid, speed|None, v, g, P, cum, f, a, speed_out, priors|None,
  *              body_out|None)   body_out given: d, dv are sensor-frame (the extrinsic applied, d written there)
  * d9/dv3: sequences of 9/3 floats (list, tuple or a float64 buffer); run_frames takes C-contiguous
@@ -378,12 +379,12 @@ static int read_floats(PyObject *o, double *out, Py_ssize_t n, const char *name)
     return 0;
 }
 
-static PyObject *triple(const double *v)
+static PyObject *floats(const double *v, int n)
 {
-    PyObject *t = PyTuple_New(3);
+    PyObject *t = PyTuple_New(n);
     if (!t)
         return NULL;
-    for (int i = 0; i < 3; i++) {
+    for (int i = 0; i < n; i++) {
         PyObject *x = PyFloat_FromDouble(v[i]);
         if (!x) {
             Py_DECREF(t);
@@ -430,7 +431,7 @@ static PyObject *step_common(PyObject *const *args, Py_ssize_t nargs, int sensor
         v = frame(s, d, dv, dt, stationary, valid, speed, NULL, f, acc);
     }
     PyBuffer_Release(&view);
-    PyObject *ft = triple(f), *at = triple(acc), *vv = PyFloat_FromDouble(v);
+    PyObject *ft = floats(f, 3), *at = floats(acc, 3), *vv = PyFloat_FromDouble(v);
     if (!ft || !at || !vv) {
         Py_XDECREF(ft); Py_XDECREF(at); Py_XDECREF(vv);
         return NULL;
@@ -456,6 +457,38 @@ static PyObject *step_sensor(PyObject *self, PyObject *const *args, Py_ssize_t n
 {
     (void)self;
     return step_common(args, nargs, 1, "step_sensor");
+}
+
+static PyObject *to_body(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    if (nargs != 3) {
+        PyErr_Format(PyExc_TypeError, "to_body expects 3 arguments (s, d9, dv3), got %zd", nargs);
+        return NULL;
+    }
+    double d[9], dv[3], db[9], dvb[3];
+    if (read_floats(args[1], d, 9, "d9") < 0 || read_floats(args[2], dv, 3, "dv3") < 0)
+        return NULL;
+    Py_buffer view;
+    double *s = get_state(args[0], &view);
+    if (!s)
+        return NULL;
+    if (s[I_EXTR] != 0.0) {
+        body_increment(s + I_EXTR + 1, d, dv, db, dvb);
+    } else {
+        memcpy(db, d, sizeof db);
+        memcpy(dvb, dv, sizeof dvb);
+    }
+    PyBuffer_Release(&view);
+    PyObject *a = floats(db, 9), *b = floats(dvb, 3);
+    if (!a || !b) {
+        Py_XDECREF(a); Py_XDECREF(b);
+        return NULL;
+    }
+    PyObject *res = PyTuple_Pack(2, a, b);
+    Py_DECREF(a);
+    Py_DECREF(b);
+    return res;
 }
 
 enum { RUN_NARGS = 16, RUN_BUFFERS = 16 };
@@ -537,6 +570,9 @@ static PyMethodDef methods[] = {
     {"step_sensor", (PyCFunction)(void (*)(void))step_sensor, METH_FASTCALL,
      "step_sensor(s, d9, dv3, dt, stationary, valid, speed): step_frame of a sensor-frame frame\n"
      "(the state's extrinsic applied first; gravity_kernel.step_sensor)."},
+    {"to_body", (PyCFunction)(void (*)(void))to_body, METH_FASTCALL,
+     "to_body(s, d9, dv3) -> (d9, dv3): one sensor-frame frame in the body frame (the state's extrinsic;\n"
+     "gravity_kernel.to_body)."},
     {"run_frames", (PyCFunction)(void (*)(void))run_frames, METH_FASTCALL,
      "run_frames(s, d, dv, dt, stationary, valid, speed, v_out, g_out, p_out, cum_out, f_out, a_out,\n"
      "speed_out, priors, body_out) -> None: a drive into the output buffers (gravity_kernel.run_frames)."},

@@ -50,6 +50,7 @@ __all__ = [
     "run_frames",
     "step_frame",
     "step_sensor",
+    "to_body",
 ]
 
 #: (row, column) of P's 21 unique entries: cov(v) upper triangle, cov(v, g) row-major, cov(g) upper triangle.
@@ -314,6 +315,11 @@ def step_frame(s: list, d9, dv3, dt: float, stationary: bool, valid: bool, speed
     v0, v1, v2 = st[0], st[1], st[2]
     return ((f0, f1, f2), (f0 - (h0 * q0 + h3 * q1 + h6 * q2), f1 - (h1 * q0 + h4 * q1 + h7 * q2),
                            f2 - (h2 * q0 + h5 * q1 + h8 * q2)), math.sqrt(v0 * v0 + v1 * v1 + v2 * v2))
+
+
+def to_body(s: list, d9, dv3):
+    """One sensor-frame frame ``(d9, dv3)`` in the body frame (the buffer's extrinsic, :func:`body_increment`)."""
+    return body_increment(s[I_EXTR + 1:I_EXTR + 10], d9, dv3) if s[I_EXTR] else (tuple(d9), tuple(dv3))
 
 
 def step_sensor(s: list, d9, dv3, dt: float, stationary: bool, valid: bool, speed: float):

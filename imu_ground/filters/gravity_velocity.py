@@ -30,7 +30,6 @@ from imu_ground.filters.gravity_kernel import (  # noqa: F401 (reference)
     _predict_update,
     _velocity_update,
     body_forces,
-    body_increment,
     body_increments,
     new_state,
 )
@@ -212,6 +211,7 @@ class GravityVelocityFilter:
         k = self.kernel
         self._s = s if k is gravity_kernel else np.array(s)   # the kernel's state buffer (gravity_kernel)
         self._step_frame, self._step_sensor, self._run_frames = k.step_frame, k.step_sensor, k.run_frames
+        self._to_body = k.to_body
         # arrays handed out by x / P / cumulative (_pull): one object for filterpy's Saver
         self._w = SimpleNamespace(sync=None)
 
@@ -299,7 +299,7 @@ class GravityVelocityFilter:
 
     def to_body_flat(self, d9, dv3):
         """:meth:`to_body` of one frame as plain floats (9 row-major, 3)."""
-        return (d9, dv3) if self._identity_extrinsic else body_increment(self._rgs9, d9, dv3)
+        return (d9, dv3) if self._identity_extrinsic else self._to_body(self._s, d9, dv3)
 
     def step_body(self, d9, dv3, dt: float, stationary: bool = False, valid: bool = True,
                   speed: Optional[float] = None):
