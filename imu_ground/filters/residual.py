@@ -45,7 +45,8 @@ from imu_ground.units import RENORM_EVERY
 
 __all__ = ["ResidualKernel", "advance", "step", "run", "check", "BUF_LEN", "NATIVE", "PYTHON"]
 
-_S_LEN, _L_KA, _L_HAS, _P_RH, _P_G = 11, 11, 22, 23, 30
+_L_KA, _L_HAS, _P_RH, _P_G = 11, 22, 23, 30
+_F64 = np.dtype(np.float64)
 #: Length of a kernel's state-and-parameter buffer (float64).
 BUF_LEN = 39
 
@@ -63,7 +64,7 @@ def advance(buf: array, frames: Sequence[Sequence[float]], q_h: Sequence[float],
 
     Parameters
     ----------
-    buf : array of float64 (BUF_LEN,)
+    buf : array of float64 (BUF_LEN,) or list of float
         State and parameters (module docstring); updated in place.
     frames : sequence of 9-float sequences
         Increments sensor_{k-1} <- sensor_k, row-major (already checked:
@@ -85,14 +86,11 @@ def advance(buf: array, frames: Sequence[Sequence[float]], q_h: Sequence[float],
         Per frame ``(ew, ex, ey, ez, a, c, pitch, roll)``, plus ``(rw, rx, ry, rz)``
         when the cumulative rotation is tracked.
     """
-    ew, ex, ey, ez, a, c, rw, rx, ry, rz, count = buf[:_S_LEN]
-    count = int(count)
-    r_h, r_v, up, follow, cum, hasg, every = buf[_P_RH:_P_G]
-    up, follow, cum, every = up != 0.0, follow != 0.0, cum != 0.0, int(every)
-    g = tuple(buf[_P_G:BUF_LEN]) if hasg != 0.0 else None
+    ew, ex, ey, ez, a, c, rw, rx, ry, rz, count = buf[:_L_KA]       # the layout of the module docstring
+    r_h, r_v, up, follow, cum, g, every = buf[_P_RH:_P_G]             # (flags and counts as floats: exact)
+    if g:
+        g00, g01, g02, g10, g11, g12, g20, g21, g22 = buf[_P_G:BUF_LEN]
     tilt = tilt_x is not None and not up
-    if g is not None:
-        g00, g01, g02, g10, g11, g12, g20, g21, g22 = g
     out = []
     append = out.append
     pitch = roll = nan
@@ -115,7 +113,7 @@ def advance(buf: array, frames: Sequence[Sequence[float]], q_h: Sequence[float],
             dw, dx, dy, dz = (r10 - r01) / s, (r02 + r20) / s, (r12 + r21) / s, 0.25 * s
         if dw < 0.0:
             dw, dx, dy, dz = -dw, -dx, -dy, -dz
-        if g is not None:                       # body increment: vector part turned by R_gs
+        if g:                                   # body increment: vector part turned by R_gs
             dx, dy, dz = (g00 * dx + g01 * dy + g02 * dz, g10 * dx + g11 * dy + g12 * dz,
                           g20 * dx + g21 * dy + g22 * dz)
         # -- covariance and gains
@@ -193,15 +191,15 @@ def advance(buf: array, frames: Sequence[Sequence[float]], q_h: Sequence[float],
         else:
             append((ew, ex, ey, ez, a, c, pitch, roll))
     if out:
-        buf[:_P_RH] = array("d", (ew, ex, ey, ez, a, c, rw, rx, ry, rz, count,
-                                  ka, kc, a_pr, c_pr, yx, yy, yz, mw, mx, my, mz, 1.0))
+        new = (ew, ex, ey, ez, a, c, rw, rx, ry, rz, count, ka, kc, a_pr, c_pr, yx, yy, yz, mw, mx, my, mz, 1.0)
+        buf[:_P_RH] = new if type(buf) is list else array("d", new)
     return out
 
 
 def _floats(v, shape: tuple, name: str) -> list:
     """``v``, a float64 ndarray of ``shape``, as a flat list of Python floats; TypeError or
     ValueError otherwise, as the C twin raises them."""
-    if type(v) is not np.ndarray or v.dtype != np.float64 or not v.flags.c_contiguous:
+    if type(v) is not np.ndarray or (v.dtype is not _F64 and v.dtype != _F64) or not v.flags.c_contiguous:
         raise TypeError(f"{name} must be a C-contiguous float64 array, got {type(v).__name__}"
                         + (f" of {v.dtype}" if type(v) is np.ndarray else ""))
     if v.shape != shape:
@@ -215,7 +213,7 @@ def step(buf: array, d, q_h: float, q_v: float, tilt_x: Optional[float], tilt_y:
 
     Parameters
     ----------
-    buf : array of float64 (BUF_LEN,)
+    buf : array of float64 (BUF_LEN,) or list of float
         The kernel's buffer (:attr:`ResidualKernel.buf`), updated in place.
     d : ndarray (3, 3), float64
         Increment sensor_{k-1} <- sensor_k.
@@ -254,7 +252,7 @@ def run(buf: array, d, q_h, q_v: float, tilt_x, tilt_y, out: np.ndarray, angles:
 
     Parameters
     ----------
-    buf : array of float64 (BUF_LEN,)
+    buf : array of float64 (BUF_LEN,) or list of float
         The kernel's buffer, updated in place.
     d : ndarray (F, 3, 3) or (F, 9), float64
         Increments sensor_{k-1} <- sensor_k.
@@ -317,8 +315,9 @@ class ResidualKernel:
 
     Attributes
     ----------
-    buf : array of float64 (BUF_LEN,)
-        State and parameters (module docstring). The residual road <- body and the
+    buf : array of float64 (BUF_LEN,), or list of float
+        State and parameters (module docstring); a list for the Python kernel
+        (faster to unpack in pure Python). The residual road <- body and the
         cumulative rotation are quaternions (w, x, y, z), re-normalised every
         :data:`~imu_ground.units.RENORM_EVERY` frames (so unit to ~1e-14 in between).
     native : bool
@@ -330,12 +329,13 @@ class ResidualKernel:
     def __init__(self, a: float, c: float, r_h: float, r_v: float, up: bool = False, follow_heading: bool = True,
                  Rgs=None, cumulative: bool = False, native: Optional[bool] = None) -> None:
         g = [0.0] * 9 if Rgs is None else [float(v) for v in np.asarray(Rgs, dtype=float).ravel()]
-        self.buf = array("d", [1.0, 0.0, 0.0, 0.0, float(a), float(c), 1.0, 0.0, 0.0, 0.0, 0.0] + [0.0] * 12
-                         + [float(r_h), float(r_v), float(bool(up)), float(bool(follow_heading)),
-                            float(bool(cumulative)), float(Rgs is not None), float(RENORM_EVERY)] + g)
+        values = ([1.0, 0.0, 0.0, 0.0, float(a), float(c), 1.0, 0.0, 0.0, 0.0, 0.0] + [0.0] * 12
+                  + [float(r_h), float(r_v), float(bool(up)), float(bool(follow_heading)),
+                     float(bool(cumulative)), float(Rgs is not None), float(RENORM_EVERY)] + g)
         if native is True and NATIVE is None:
             raise ImportError("the compiled residual kernel is not built (or IMU_GROUND_PURE_PYTHON is set)")
         self.native = native is not False and NATIVE is not None
+        self.buf = array("d", values) if self.native else values
 
     @property
     def impl(self):
