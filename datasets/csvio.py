@@ -2,15 +2,22 @@
 
 :func:`read_delimited` parses with pandas' C engine in chunks, from a
 decompressing stream (``.gz``, ``.bz2``), so memory grows with the parsed columns,
-not with the text. Only when the fast parse fails or looks suspicious (a short
-line fills the last column with NaN) does :func:`locate_bad_lines` walk the file
-line by line to name the first bad line (1-based file line) as before.
+not with the text. A plain (uncompressed) file of at least
+:data:`PARALLEL_MIN_BYTES` is cut at line ends into pieces of
+:data:`PIECE_BYTES` that threads parse side by side (the C engine releases the
+GIL while it tokenises and converts); a file the pieces cannot represent
+exactly (quotes, bare carriage returns, text columns, any parse error) is
+parsed again the serial way, which owns every error message. Only when the
+fast parse fails or looks suspicious (a short line fills the last column with
+NaN) does :func:`locate_bad_lines` walk the file line by line to name the
+first bad line (1-based file line) as before.
 """
 from __future__ import annotations
 
 import bz2
 import gzip
 import io
+import os
 import re
 import zlib
 from collections.abc import Callable, Iterator
@@ -24,6 +31,12 @@ __all__ = ["Columns", "RowLines", "first_nonnumber", "locate_bad_lines", "numeri
 
 #: Rows per parsed chunk (bounded working memory on long logs).
 CHUNK_ROWS = 1 << 19
+#: Plain files at least this large (bytes) are parsed in pieces by several threads.
+PARALLEL_MIN_BYTES = 8 << 20
+#: Bytes of text per piece of a parallel parse (cut at a line end).
+PIECE_BYTES = 8 << 20
+#: Most threads a parallel parse uses (fewer when the process may use fewer CPUs).
+MAX_THREADS = 4
 
 Columns = dict[str, np.ndarray]
 
@@ -106,9 +119,24 @@ def _blank(x: np.ndarray) -> np.ndarray:
     return empty
 
 
+def _drop_blank_rows(arrays: list[np.ndarray], first_row: int, blank: list[np.ndarray]) -> list[np.ndarray]:
+    """The chunk's columns without its blank lines (all-NaN or whitespace rows), whose raw rows go to ``blank``."""
+    empty = _blank(arrays[0])
+    if empty.any():
+        for x in arrays[1:]:
+            empty &= _blank(x)
+        if empty.any():
+            blank.append(np.flatnonzero(empty) + first_row)
+            arrays = [x[~empty] for x in arrays]
+    return arrays
+
+
 def _parse(path: Path, sep: str) -> tuple[list[str], dict[str, list[np.ndarray]], int, np.ndarray]:
     """Chunked C-engine parse: (names, column chunks, rows, blank-line positions)."""
     import pandas as pd
+    parallel = _parse_parallel(path, sep)
+    if parallel is not None:
+        return parallel
     source = open_binary(path)
     names: list[str] = []
     parts: dict[str, list[np.ndarray]] = {}
@@ -124,14 +152,7 @@ def _parse(path: Path, sep: str) -> tuple[list[str], dict[str, list[np.ndarray]]
                 if not names:
                     names = [str(c) for c in chunk.columns]
                     parts = {c: [] for c in names}
-                arrays = [chunk[col].to_numpy() for col in chunk.columns]
-                empty = _blank(arrays[0])
-                if empty.any():  # blank lines are all-NaN (or whitespace) rows: note where, then leave them out
-                    for x in arrays[1:]:
-                        empty &= _blank(x)
-                    if empty.any():
-                        blank.append(np.flatnonzero(empty) + raw_rows)
-                        arrays = [x[~empty] for x in arrays]
+                arrays = _drop_blank_rows([chunk[col].to_numpy() for col in chunk.columns], raw_rows, blank)
                 suspect = suspect or bool(pd.isna(arrays[-1]).any())  # a short line leaves NaN at the end
                 for c, x in zip(names, arrays):
                     parts[c].append(x)
@@ -143,6 +164,95 @@ def _parse(path: Path, sep: str) -> tuple[list[str], dict[str, list[np.ndarray]]
         err = locate_bad_lines(path, sep)
         if err is not None:
             raise err
+    return names, parts, n, (np.concatenate(blank) if blank else np.zeros(0, dtype=np.int64))
+
+
+class _NotParallel(Exception):
+    """A piece the parallel parse cannot represent exactly: parse the file the serial way."""
+
+
+def _threads() -> int:
+    """Threads for a parallel parse: the CPUs this process may use, at most :data:`MAX_THREADS`."""
+    try:
+        n = len(os.sched_getaffinity(0))
+    except AttributeError:              # not on Linux
+        n = os.cpu_count() or 1
+    return max(1, min(n, MAX_THREADS))
+
+
+def _piece_offsets(path: Path) -> list[int]:
+    """Byte offsets cutting a plain file into pieces of about :data:`PIECE_BYTES`, each after a ``\\n``."""
+    size = path.stat().st_size
+    offsets = [0]
+    with open(path, "rb") as f:
+        f.readline()                    # the header stays in the first piece
+        pos = max(f.tell(), PIECE_BYTES)
+        while pos < size:
+            f.seek(pos)
+            f.readline()
+            pos = f.tell()
+            if pos >= size:
+                break
+            offsets.append(pos)
+            pos += PIECE_BYTES
+    offsets.append(size)
+    return offsets
+
+
+def _parse_piece(fd: int, start: int, stop: int, sep: str, names: list[str] | None):
+    """One piece's DataFrame (the first piece, ``names`` None, holds the header line)."""
+    import pandas as pd
+    data = os.pread(fd, stop - start, start)
+    if b'"' in data or (b"\r" in data and data.count(b"\r") != data.count(b"\r\n")):
+        raise _NotParallel("quoted fields or bare carriage returns")
+    kw = {"header": None, "names": names, "index_col": False} if names is not None else {}
+    try:
+        # low_memory (the default) tokenises in short runs: about twice as fast on a piece; a column of
+        # mixed types comes out as object and sends the file to the serial parse
+        chunk = pd.read_csv(io.BytesIO(data), sep=sep, engine="c", skip_blank_lines=False, encoding="utf-8", **kw)
+    except Exception as e:             # the serial parse says what is wrong, with the file's line
+        raise _NotParallel(str(e)) from e
+    if any(chunk[c].dtype.kind not in "fiu" for c in chunk.columns):
+        raise _NotParallel("a column that is not all numbers")
+    return chunk
+
+
+def _parse_parallel(path: Path, sep: str) -> tuple[list[str], dict[str, list[np.ndarray]], int, np.ndarray] | None:
+    """:func:`_parse` by threads over pieces of a plain file; None where the serial parse must do it."""
+    import pandas as pd
+    if (path.name.lower().endswith((".gz", ".bz2")) or not path.is_file()
+            or path.stat().st_size < PARALLEL_MIN_BYTES or _threads() < 2 or len(sep) != 1):
+        return None
+    offsets = _piece_offsets(path)
+    if len(offsets) < 3:
+        return None
+    from concurrent.futures import ThreadPoolExecutor
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        first = _parse_piece(fd, offsets[0], offsets[1], sep, None)
+        names = [str(c) for c in first.columns]
+        if len(set(names)) != len(names):
+            return None
+        with ThreadPoolExecutor(_threads()) as pool:
+            rest = list(pool.map(lambda k: _parse_piece(fd, offsets[k], offsets[k + 1], sep, names),
+                                 range(1, len(offsets) - 1)))
+    except _NotParallel:
+        return None
+    finally:
+        os.close(fd)
+    parts: dict[str, list[np.ndarray]] = {c: [] for c in names}
+    blank: list[np.ndarray] = []
+    n = raw_rows = 0
+    for chunk in [first, *rest]:
+        if list(chunk.columns) != names:
+            return None
+        arrays = _drop_blank_rows([chunk[c].to_numpy() for c in names], raw_rows, blank)
+        if pd.isna(arrays[-1]).any():   # a short line: the serial parse finds and names it
+            return None
+        for c, x in zip(names, arrays):
+            parts[c].append(x)
+        n += arrays[0].size
+        raw_rows += len(chunk)
     return names, parts, n, (np.concatenate(blank) if blank else np.zeros(0, dtype=np.int64))
 
 
@@ -193,13 +303,39 @@ def read_delimited(path: str | Path, sep: str = ",") -> tuple[Columns, RowLines]
     if n == 0:
         header = next((i for i, ln in _iter_lines(path) if ln.strip()), 1)
         raise MalformedFileError(path, "header only, no data rows", line=header)
+    return _join_columns(names, parts, n), RowLines(blank)
+
+
+def _join_columns(names: list[str], parts: dict[str, list[np.ndarray]], n: int) -> Columns:
+    """Each column's chunks as one array (``parts`` is emptied); numeric columns joined by threads."""
+    import functools
     cols: Columns = {}
+    jobs: list[tuple[np.ndarray, list[np.ndarray]]] = []
     for c in names:
         chunks = parts.pop(c)
-        one = chunks[0] if len(chunks) == 1 else None
-        cols[c] = (one if one.flags.writeable else one.copy()) if one is not None else np.concatenate(chunks)
-        del chunks
-    return cols, RowLines(blank)
+        if len(chunks) == 1:
+            cols[c] = chunks[0] if chunks[0].flags.writeable else chunks[0].copy()
+        elif all(x.dtype.kind in "fiu" for x in chunks):       # the dtype np.concatenate would give
+            cols[c] = np.empty(n, dtype=functools.reduce(np.promote_types, {x.dtype for x in chunks}))
+            jobs.append((cols[c], chunks))
+        else:
+            cols[c] = np.concatenate(chunks)
+
+    def fill(job: tuple[np.ndarray, list[np.ndarray]]) -> None:
+        out, chunks = job
+        k = 0
+        for x in chunks:
+            out[k:k + x.size] = x
+            k += x.size
+
+    if len(jobs) > 1 and n * len(jobs) >= PIECE_BYTES // 8 and _threads() > 1:
+        from concurrent.futures import ThreadPoolExecutor
+        with ThreadPoolExecutor(_threads()) as pool:      # copies release the GIL: page faults in parallel
+            list(pool.map(fill, jobs))
+    else:
+        for job in jobs:
+            fill(job)
+    return cols
 
 
 def first_nonnumber(values: np.ndarray) -> tuple[int, int]:
