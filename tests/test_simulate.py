@@ -46,7 +46,7 @@ def rough_drive():
 @pytest.fixture(scope="module")
 def urban_drive():
     return simulate(90.0, seed=11, imu="mems", road=RoadParams(roughness="B"),
-                    speed=SpeedParams(style="urban"), R_gs=R_MOUNT, t_gs=T_MOUNT)
+                    speed=SpeedParams(style="urban", stop_probability=0.3), R_gs=R_MOUNT, t_gs=T_MOUNT)
 
 
 # --------------------------------------------------------------------------- API and determinism
@@ -158,8 +158,9 @@ def test_specific_force_is_the_second_derivative_of_position():
 
 
 def test_specific_force_consistent_on_a_rough_road():
-    # class C at 1 kHz: the velocity increments are the integral of the acceleration
-    r = simulate(20.0, seed=3, imu="perfect", imu_rate=1000.0, road=RoadParams(roughness="C"),
+    # class C at 1 kHz: the velocity increments are the integral of the acceleration (ISO's single
+    # slope: the trapezoid rule this test checks with is too coarse for the default short waviness)
+    r = simulate(20.0, seed=3, imu="perfect", imu_rate=1000.0, road=RoadParams(roughness="C", waviness=(2.0, 2.0)),
                  speed=SpeedParams(style="highway", start_at_rest=False), R_gs=R_MOUNT, t_gs=T_MOUNT)
     h = 1e-3
     a_w = np.einsum("nij,nj->ni", r.R_ws, r.imu.accel) + G_W

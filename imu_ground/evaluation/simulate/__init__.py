@@ -61,12 +61,31 @@ with the body's angular rate and acceleration). The positions are the
 Gauss-Legendre (3-point) integral of the analytic velocity. So noise-free
 samples are the exact derivatives of the truth trajectory.
 """
-from imu_ground.evaluation.simulate.drive import TRUTH_ANGLES, TRUTH_COLUMNS, SimResult, simulate
-from imu_ground.evaluation.simulate.imu_errors import IMU_PRESETS, ImuErrorModel, imu_error_model
-from imu_ground.evaluation.simulate.road import (ISO8608_CLASSES, ISO8608_N0, ROAD_PLANE_WINDOW, RoadParams,
-                                                 iso8608_psd, road_profile)
+from imu_ground.evaluation.simulate.drive import (
+                                                 TRUTH_ANGLES,
+                                                 TRUTH_COLUMNS,
+                                                 SimResult,
+                                                 simulate,
+)
+from imu_ground.evaluation.simulate.imu_errors import (
+                                                 IMU_PRESETS,
+                                                 ImuErrorModel,
+                                                 imu_error_model,
+)
+from imu_ground.evaluation.simulate.road import (
+                                                 ISO8608_CLASSES,
+                                                 ISO8608_N0,
+                                                 ROAD_PLANE_WINDOW,
+                                                 RoadParams,
+                                                 iso8608_psd,
+                                                 road_profile,
+)
 from imu_ground.evaluation.simulate.suite import simulate_suite
-from imu_ground.evaluation.simulate.vehicle import SpeedParams, VehicleParams, suspension_response
+from imu_ground.evaluation.simulate.vehicle import (
+                                                 SpeedParams,
+                                                 VehicleParams,
+                                                 suspension_response,
+)
 from imu_ground.units import GRAVITY
 
 __all__ = [

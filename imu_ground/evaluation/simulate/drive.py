@@ -227,7 +227,7 @@ def clean_drive(duration: float, seed: int, imu_rate: float, road: RoadParams, v
     l_r = vehicle.rear_axle_to_ref
     rough = road_profile(length + l_r + 20.0, road.roughness, dx=road.dx, band=road.band,
                          track=vehicle.track, coherence_decay=road.coherence_decay,
-                         x0=-l_r - 10.0, rng=rng_rough)
+                         x0=-l_r - 10.0, rng=rng_rough, waviness=road.waviness)
 
     def motion(t):
         a, _, _, v, s = acc_pw(t)

@@ -5,15 +5,23 @@ A road is a function of the distance travelled ``s`` (m):
 - horizontal **curvature** (straights, curves with smooth transitions; the
   heading follows), 1/m, > 0 turning left;
 - **grade** (vertical curves between constant grades), rad, uphill positive;
-- **cross-slope** (crown on straights, superelevation in curves), rad, > 0 when
-  the left edge is higher;
+- **cross-slope** (crown on straights, superelevation in curves driven above
+  ``superelevation_speed``, 50 km/h: urban streets and intersections keep their
+  crown through the turn, as urban design guides such as Germany's RASt 06 keep
+  the 2.5 % cross-fall), rad, > 0 when the left edge is higher;
 - a random **roughness** profile per wheel track after ISO 8608.
 
 Road roughness
 --------------
-ISO 8608: displacement PSD ``G_d(n) = G_d(n0) (n / n0)^-2``, ``n0 = 0.1``
+ISO 8608: displacement PSD ``G_d(n) = G_d(n0) (n / n0)^-w``, ``n0 = 0.1``
 cycles/m, class A ``16e-6``, B ``64e-6``, C ``256e-6``, D ``1024e-6`` m^3 (the
-geometric means of the classes), on the band ``0.011 <= n <= 2.83`` cycles/m
+geometric means of the classes). The waviness ``w`` is 2 (ISO 8608's simplified
+spectrum) below ``n0`` and :data:`SHORT_WAVINESS` (1.5) above it by default: measured
+roads fall off more slowly at short wavelengths (Dodds & Robson 1973, two-slope fits
+to British roads: ``w2`` 1.36-1.44 against ``w1`` 1.95-2.05; ISO 8608's own
+general form keeps a second exponent), and the real KITTI drives' body pitch and
+pitch rate at 2-5 Hz against 0.5-2 Hz need it (``waviness=(2, 2)`` gives the
+single-slope ISO spectrum). The band is ``0.011 <= n <= 2.83`` cycles/m
 (wavelengths 0.35 m to 90 m; the upper edge stands in for the tyre's
 enveloping of shorter wavelengths). The left and right wheel tracks are two
 Gaussian profiles with that PSD and the coherence ``c(n) = exp(-k n B)`` (``B``
@@ -41,6 +49,7 @@ __all__ = [
     "ISO8608_CLASSES",
     "ISO8608_N0",
     "ROAD_PLANE_WINDOW",
+    "SHORT_WAVINESS",
     "RoadParams",
     "iso8608_psd",
     "road_layout",
@@ -53,6 +62,8 @@ ISO8608_CLASSES = {"A": 16e-6, "B": 64e-6, "C": 256e-6, "D": 1024e-6}   # G_d(n0
 #: Length of the centred window (m) over which the roughness counts as part of
 #: the road plane in the truth (a triangular kernel: two boxcars of half this).
 ROAD_PLANE_WINDOW = 10.0
+#: Waviness (PSD exponent) of the roughness above ``n0`` (wavelengths under 10 m).
+SHORT_WAVINESS = 1.5
 
 
 @dataclass
@@ -72,6 +83,7 @@ class RoadParams:
 
     roughness: str | float | None = "B"
     band: tuple[float, float] = (0.011, 2.83)     # cycles/m
+    waviness: tuple[float, float] = (2.0, SHORT_WAVINESS)   # PSD exponents below / above n0
     coherence_decay: float = 4.0
     dx: float = 0.05                              # m, roughness sampling
     grade0: float | None = None                   # grade at s = 0; None: random (0 if grade_std == 0)
@@ -82,6 +94,7 @@ class RoadParams:
     crown: float = 0.02                           # cross-slope on straights, > 0: left edge higher
     superelevation_max: float = 0.06
     superelevation_factor: float = 0.4            # share of v^2 kappa / g taken by the bank
+    superelevation_speed: float = 14.0            # m/s: slower curves keep the crown
     curves: bool = True
     straight_length: tuple[float, float] = (60.0, 400.0)     # m
     turn_angle_deg: tuple[float, float] = (15.0, 100.0)
@@ -109,8 +122,8 @@ def _roughness_level(roughness: str | float | None) -> float:
     return value
 
 
-def iso8608_psd(n, roughness: str | float = "B") -> np.ndarray:
-    """ISO 8608 displacement PSD ``G_d(n) = G_d(n0) (n / n0)^-2``, m^3 (one-sided).
+def iso8608_psd(n, roughness: str | float = "B", waviness: tuple[float, float] = (2.0, 2.0)) -> np.ndarray:
+    """ISO 8608 displacement PSD ``G_d(n) = G_d(n0) (n / n0)^-w``, m^3 (one-sided).
 
     Parameters
     ----------
@@ -118,15 +131,20 @@ def iso8608_psd(n, roughness: str | float = "B") -> np.ndarray:
         Spatial frequency, cycles/m (> 0).
     roughness : str or float
         Class letter or ``G_d(n0)`` in m^3.
+    waviness : (float, float)
+        Exponent ``w`` below and above ``n0`` (default ``(2, 2)``: ISO 8608's
+        simplified single-slope spectrum; :class:`RoadParams` uses ``(2, 1.5)``).
     """
     n = np.asarray(n, dtype=float)
-    return _roughness_level(roughness) * (n / ISO8608_N0) ** -2.0
+    w = np.where(n < ISO8608_N0, waviness[0], waviness[1])
+    return _roughness_level(roughness) * (n / ISO8608_N0) ** -w
 
 
 def road_profile(length: float, roughness: str | float | None = "B", *, dx: float = 0.05,
                  band: tuple[float, float] = (0.011, 2.83), track: float = 1.6,
                  coherence_decay: float = 4.0, x0: float = 0.0,
-                 rng: np.random.Generator | int | None = None):
+                 rng: np.random.Generator | int | None = None,
+                 waviness: tuple[float, float] = (2.0, 2.0)):
     """Random left and right wheel-track heights with the ISO 8608 PSD.
 
     Parameters
@@ -146,12 +164,14 @@ def road_profile(length: float, roughness: str | float | None = "B", *, dx: floa
     x0 : float
         Position of the first sample, m.
     rng : numpy Generator, seed or None
+    waviness : (float, float)
+        PSD exponents below and above ``n0`` (:func:`iso8608_psd`).
 
     Returns
     -------
     x, h_left, h_right : ndarray, shape (N,)
         Positions and heights (m); Gaussian, zero mean, one-sided PSD
-        ``iso8608_psd(n)`` in the band for each track.
+        ``iso8608_psd(n, roughness, waviness)`` in the band for each track.
     """
     rng = np.random.default_rng(rng)
     n_pts = max(int(math.ceil(length / dx)) + 1, 16)
@@ -164,7 +184,7 @@ def road_profile(length: float, roughness: str | float | None = "B", *, dx: floa
     dn = 1.0 / (n_fft * dx)
     inband = (freqs >= band[0]) & (freqs <= band[1]) & (freqs > 0)
     psd = np.zeros_like(freqs)
-    psd[inband] = level * (freqs[inband] / ISO8608_N0) ** -2.0
+    psd[inband] = iso8608_psd(freqs[inband], level, waviness)
     amp = 0.5 * n_fft * np.sqrt(psd * dn)
     shape = (2, freqs.size)
     z = amp * (rng.standard_normal(shape) + 1j * rng.standard_normal(shape))
@@ -255,6 +275,8 @@ def _curvature_and_bank(p: RoadParams, curves, s_grid, v_grid, rng: np.random.Ge
         vmax = max(_max_speed_between(s_grid, v_grid, s0, s0 + 2 * w + arc), 0.0)
         e = min(p.superelevation_max, p.superelevation_factor * abs(kappa) * vmax * vmax / GRAVITY)
         bank = -math.copysign(math.atan(e), kappa)          # inside of the curve lower
+        if vmax < p.superelevation_speed:
+            bank = crown                                    # a street: the crown stays
         gap = s0 - s_prev
         kappa_phases += [(gap, 0.0), (w, kappa), (arc, 0.0), (w, -kappa)]
         bank_phases += [(gap, 0.0), (w, bank - crown), (arc, 0.0), (w, crown - bank)]
