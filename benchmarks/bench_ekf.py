@@ -17,18 +17,27 @@ per-step mean, the p99 over every individually timed step. GTSAM's update is
 called with ``performReset=False``: its default transports the covariance
 through the correction's Jacobian, which ours (like the paper's filter and
 filterpy's) does not do; with it off the two agree to rounding. The run also checks that the two filters give
-the same states and covariances. Run: ``python benchmarks/bench_ekf.py``.
-:func:`rows` returns the table for ``benchmarks/make_results.py``.
+the same states and covariances. The figure is that of the kernels in use (the C twins of
+``imu_ground/filters/_ekf_native.c`` when built); the pure-Python kernels' figure is printed
+too (informative), measured by this script in a child process with ``IMU_GROUND_PURE_PYTHON=1``
+right after. Run: ``python benchmarks/bench_ekf.py``. :func:`rows` returns the table for
+``benchmarks/make_results.py``.
 """
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import subprocess
+import sys
 import time
 from typing import Callable, Dict, List
 
 import numpy as np
 
 from imu_ground import so3
+from imu_ground._native import PURE_PYTHON_ENV
+from imu_ground.filters import invariant_ekf
 from imu_ground.filters.invariant_ekf import InvariantEKF
 
 __all__ = ["rows", "main"]
@@ -123,16 +132,35 @@ def _agreement(measure: str, us, zs, n: int = 200) -> float:
     return float(worst)
 
 
+def _ours_only(steps: int, repeat: int) -> Dict[str, float]:
+    """Median us per predict + update of the kernels in use, per measurement kind (no GTSAM)."""
+    us, zs_rot, zs_dir = _data(steps)
+    return {m: _time_pair([_ours(m, us, zs)[1]], steps, repeat)[0][0] * 1e6
+            for m, zs in (("rotation", zs_rot), ("direction", zs_dir))}
+
+
+def _python_figures(steps: int, repeat: int) -> Dict[str, float]:
+    """:func:`_ours_only` of the pure-Python kernels, measured in a child process (``IMU_GROUND_PURE_PYTHON=1``)."""
+    if invariant_ekf._native is None:
+        return _ours_only(steps, repeat)
+    env = dict(os.environ, **{PURE_PYTHON_ENV: "1"})
+    out = subprocess.run([sys.executable, __file__, "--ours-json", "--steps", str(steps), "--repeat", str(repeat)],
+                         env=env, capture_output=True, text=True, check=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
 def rows(steps: int = 20_000, repeat: int = 7) -> List[Dict]:
     """Benchmark rows: one per measurement kind, ours against GTSAM in the same run.
 
     Returns
     -------
     list of dict
-        Keys ``benchmark``, ``target``, ``figure`` (our median), ``unit`` ("us"), ``p99`` (us),
-        ``competitor`` (GTSAM median, us), ``competitor_p99``, ``agreement``
-        (max abs difference of X and P), ``passed``.
+        Keys ``benchmark``, ``target``, ``figure`` (our median with the kernels in use), ``unit`` ("us"),
+        ``p99`` (us), ``kernel`` ("C" or "Python"), ``python`` (the pure-Python kernels' median, us,
+        informative), ``competitor`` (GTSAM median, us), ``competitor_p99``, ``agreement`` (max abs
+        difference of X and P), ``passed``.
     """
+    kernel = "Python" if invariant_ekf._native is None else "C"
     us, zs_rot, zs_dir = _data(steps)
     try:
         import gtsam  # noqa: F401
@@ -149,7 +177,8 @@ def rows(steps: int = 20_000, repeat: int = 7) -> List[Dict]:
         med, p99 = _time_pair(loops, steps, repeat)
         row = dict(benchmark=f"InvariantEKF.predict + update ({measure})",
                    target="<= GTSAM InvariantEKFRot3 (same run)", figure=med[0] * 1e6, unit="us", p99=p99[0] * 1e6,
-                   competitor=float("nan"), competitor_p99=float("nan"), agreement=float("nan"), passed=None)
+                   kernel=kernel, python=float("nan"), competitor=float("nan"), competitor_p99=float("nan"),
+                   agreement=float("nan"), passed=None)
         if have_gtsam:
             row.update(competitor=med[1] * 1e6, competitor_p99=p99[1] * 1e6,
                        agreement=_agreement(measure, us, zs), passed=bool(med[0] <= med[1]))
@@ -157,8 +186,11 @@ def rows(steps: int = 20_000, repeat: int = 7) -> List[Dict]:
         if have_gtsam and measure == "rotation":
             out.append(dict(benchmark="InvariantEKF.predict + update (rotation), GTSAM given the innovation",
                             target="<= GTSAM with Log(X^T Z) precomputed (informative)", figure=med[0] * 1e6, unit="us",
-                            p99=p99[0] * 1e6, competitor=med[2] * 1e6, competitor_p99=p99[2] * 1e6,
-                            agreement=float("nan"), passed=bool(med[0] <= med[2])))
+                            p99=p99[0] * 1e6, kernel=kernel, python=float("nan"), competitor=med[2] * 1e6,
+                            competitor_p99=p99[2] * 1e6, agreement=float("nan"), passed=bool(med[0] <= med[2])))
+    py = _python_figures(steps, repeat)
+    for r in out:
+        r["python"] = py["rotation" if "(rotation)" in r["benchmark"] else "direction"]
     return out
 
 
@@ -166,14 +198,18 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=20_000)
     ap.add_argument("--repeat", type=int, default=7, help="median over this many repeats (>= 5)")
+    ap.add_argument("--ours-json", action="store_true", help=argparse.SUPPRESS)   # child process of rows()
     args = ap.parse_args(argv)
+    if args.ours_json:
+        print(json.dumps(_ours_only(args.steps, max(5, args.repeat))))
+        return
     res = rows(args.steps, max(5, args.repeat))
-    print(f"{'benchmark':<70}{'ours us (p99)':>16}{'GTSAM us (p99)':>17}{'max |diff|':>12}  result")
+    print(f"{'benchmark':<70}{'ours us (p99)':>16}{'Python us':>10}{'GTSAM us (p99)':>17}{'max |diff|':>12}  result")
     for r in res:
         verdict = "n/a" if r["passed"] is None else ("PASS" if r["passed"] else "FAIL")
-        print(f"{r['benchmark']:<70}{r['figure']:>7.2f} ({r['p99']:5.2f}){r['competitor']:>8.2f} "
+        print(f"{r['benchmark']:<70}{r['figure']:>7.2f} ({r['p99']:5.2f}){r['python']:>10.2f}{r['competitor']:>8.2f} "
               f"({r['competitor_p99']:5.2f}){r['agreement']:>12.1e}  {verdict}")
-        print(f"    target: {r['target']}")
+        print(f"    target: {r['target']}; ours = the {r['kernel']} kernels, Python = the pure-Python ones (informative)")
 
 
 if __name__ == "__main__":

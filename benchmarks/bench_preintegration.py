@@ -12,17 +12,26 @@
 
 Figures are medians over ``--repeat`` (>= 5) runs of wall-clock time; the CPU
 time is printed too (steadier on a shared machine). The run checks that the
-streaming frames equal the batch ones. Run: ``python benchmarks/bench_preintegration.py``.
+streaming frames equal the batch ones. The streaming figures are those of the kernels in
+use (the C twins of ``imu_ground/imu/_preint_native.c`` when built); the pure-Python
+kernels' figures are printed too (informative), measured by this script in a child process
+with ``IMU_GROUND_PURE_PYTHON=1`` right after. Run: ``python benchmarks/bench_preintegration.py``.
 :func:`rows` returns the table for ``benchmarks/make_results.py``.
 """
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import subprocess
+import sys
 import time
 from collections.abc import Callable
 
 import numpy as np
 
+from imu_ground._native import PURE_PYTHON_ENV
+from imu_ground.imu.preint_kernel import NATIVE
 from imu_ground.imu.preintegration import (
     PreintegrationParams,
     StreamingPreintegrator,
@@ -127,10 +136,31 @@ def _gtsam_agreement(t, gyro, accel, frame_every: int = 10) -> tuple[float, floa
     return dR, dC
 
 
+_CASES = (("deltas only (uncertainty=False)", False, False, _TARGETS["deltas"]),
+          ("with covariance and bias Jacobians", True, False, _TARGETS["covariance"]),
+          ("with covariance, Jacobians and frame read-out", True, True, None))
+
+
+def _stream_only(samples: int, repeat: int) -> dict[str, float]:
+    """Median wall µs per sample of each streaming case with the kernels in use (no GTSAM, no checks)."""
+    t, gyro, accel = make_log(samples)
+    ts, gs, acs = t.tolist(), gyro.tolist(), accel.tolist()
+    res = _median_times({name: _stream(ts, gs, acs, unc, readout) for name, unc, readout, _ in _CASES}, repeat)
+    return {name: res[name][0] / samples * 1e6 for name, *_ in _CASES}
+
+
+def _python_figures(samples: int, repeat: int) -> dict[str, float]:
+    """:func:`_stream_only` of the pure-Python kernels, in a child process (``IMU_GROUND_PURE_PYTHON=1``)."""
+    env = dict(os.environ, **{PURE_PYTHON_ENV: "1"})
+    out = subprocess.run([sys.executable, __file__, "--stream-json", "--stream-samples", str(samples),
+                          "--repeat", str(repeat)], env=env, capture_output=True, text=True, check=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
 def _row(benchmark: str, target: str, figure: float, cpu: float, unit: str, limit: float | None,
          competitor: tuple[float, float] = (float("nan"), float("nan")), agreement: float = float("nan")) -> dict:
     return {"benchmark": benchmark, "target": target, "figure": figure, "cpu": cpu, "unit": unit,
-            "competitor": competitor[0], "competitor_cpu": competitor[1], "agreement": agreement,
+            "kernel": "Python" if NATIVE is None else "C", "python": float("nan"), "competitor": competitor[0], "competitor_cpu": competitor[1], "agreement": agreement,
             "passed": None if limit is None else bool(figure <= limit)}
 
 
@@ -156,22 +186,21 @@ def rows(samples: int = 360_000, stream_samples: int = 20_000, repeat: int = 5) 
     m = min(stream_samples, samples)
     ts, gs, acs = t[:m].tolist(), gyro[:m].tolist(), accel[:m].tolist()
     ref = preintegrate((t[:m], gyro[:m], accel[:m]), rate=10.0, params=_PARAMS)
-    cases = (("deltas only (uncertainty=False)", False, False, _TARGETS["deltas"]),
-             ("with covariance and bias Jacobians", True, False, _TARGETS["covariance"]),
-             ("with covariance, Jacobians and frame read-out", True, True, None))
-    fns = {name: _stream(ts, gs, acs, unc, readout) for name, unc, readout, _ in cases}
+    fns = {name: _stream(ts, gs, acs, unc, readout) for name, unc, readout, _ in _CASES}
     if have_gtsam:
         fns["gtsam"] = _gtsam_loop(t[:m + 1], gyro[:m + 1], accel[:m + 1])
     res = _median_times(fns, repeat)
     nan2 = (float("nan"), float("nan"))
     g_us = (res["gtsam"][0] / m * 1e6, res["gtsam"][1] / m * 1e6) if have_gtsam else nan2
+    py = _python_figures(m, repeat) if NATIVE is not None else {n: res[n][0] / m * 1e6 for n, *_ in _CASES}
     out = []
-    for name, _, _, limit in cases:
+    for name, _, _, limit in _CASES:
         wall, cpu, frames = res[name]
         agree = max(float(np.abs(f.delta_R - ref.delta_R[i]).max()) for i, f in enumerate(frames))
         target = f"<= {limit:g} us/sample" if limit else "(informative)"
         out.append(_row(f"StreamingPreintegrator.push, {name}", target, wall / m * 1e6, cpu / m * 1e6,
                         "us/sample", limit, g_us, agree))
+        out[-1]["python"] = py[name]
     batch = {"ours": lambda: preintegrate((t, gyro, accel), rate=10.0, params=_PARAMS)}
     if have_gtsam:
         batch["gtsam"] = _gtsam_loop(t, gyro, accel)
@@ -194,17 +223,23 @@ def main(argv=None) -> None:
     ap.add_argument("--samples", type=int, default=360_000, help="batch log length (100 Hz)")
     ap.add_argument("--stream-samples", type=int, default=20_000)
     ap.add_argument("--repeat", type=int, default=5, help="median over this many runs (>= 5)")
+    ap.add_argument("--stream-json", action="store_true", help=argparse.SUPPRESS)   # child process of rows()
     args = ap.parse_args(argv)
+    if args.stream_json:
+        print(json.dumps(_stream_only(args.stream_samples, max(5, args.repeat))))
+        return
     res = rows(args.samples, args.stream_samples, args.repeat)
-    print(f"{'benchmark':<84}{'ours (CPU)':>18}{'GTSAM (CPU)':>18}  result")
+    print(f"{'benchmark':<84}{'ours (CPU)':>18}{'Python':>8}{'GTSAM (CPU)':>18}  result")
     for r in res:
         verdict = "n/a" if r["passed"] is None else ("PASS" if r["passed"] else "FAIL")
-        print(f"{r['benchmark']:<84}{r['figure']:>8.3g} ({r['cpu']:6.3g}){r['competitor']:>10.3g} ({r['competitor_cpu']:5.3g})  {verdict}"
-              f"  [{r['unit']}]")
+        print(f"{r['benchmark']:<84}{r['figure']:>8.3g} ({r['cpu']:6.3g}){r['python']:>8.3g}{r['competitor']:>10.3g} "
+              f"({r['competitor_cpu']:5.3g})  {verdict}  [{r['unit']}]")
         what = "GTSAM" if r["unit"] == "relative" else "batch"
         extra = (f"; max |delta_R diff| from {what} {r['agreement']:.1e}" if r["agreement"] == r["agreement"]
                  else "")
-        print(f"    target: {r['target']}{extra}")
+        kern = (f"; ours = the {r['kernel']} kernels, Python = the pure-Python ones (informative)"
+                if r["python"] == r["python"] else "")
+        print(f"    target: {r['target']}{extra}{kern}")
 
 
 if __name__ == "__main__":

@@ -127,7 +127,10 @@ class _NativeKernel:
         b[_S_UNCERTAINTY] = 0.0 if self._u0 is None else 1.0
 
     def _kernel_reset(self) -> None:
-        self._b[0:_S_PREV] = array("d", DELTAS_IDENTITY + UNCERTAINTY_ZERO)
+        if self._u0 is None:
+            self._b[0:_S_UNC] = _DELTAS_IDENTITY_ARRAY
+        else:
+            self._b[0:_S_PREV] = _STATE_ZERO_ARRAY
 
     def _kernel_state(self) -> tuple:
         b = self._b
@@ -166,6 +169,8 @@ class _NativeKernel:
 
 if NATIVE is not None:
     _native_push, _native_integrate = NATIVE.push, NATIVE.integrate
+    _DELTAS_IDENTITY_ARRAY = array("d", DELTAS_IDENTITY)
+    _STATE_ZERO_ARRAY = array("d", DELTAS_IDENTITY + UNCERTAINTY_ZERO)
 
 
 class StreamingPreintegrator(_NativeKernel if NATIVE is not None else _PythonKernel):
