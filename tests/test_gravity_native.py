@@ -228,13 +228,21 @@ def test_argument_errors_name_the_argument():
         NATIVE.step_frame(s, d9[:8], dv, 0.1, False, True, None)
     with pytest.raises(TypeError, match=r"dv3\[1\] must be a float"):
         NATIVE.step_frame(s, d9, [0.0, "x", 1.0], 0.1, False, True, None)
-    with pytest.raises(TypeError, match="expects 7 arguments"):
+    with pytest.raises(TypeError, match="expects 7 or 8 arguments"):
         NATIVE.step_sensor(s, d9, dv, 0.1)
+    with pytest.raises(ValueError, match="out must have 12 items"):
+        NATIVE.step_sensor(s, d9, dv, 0.1, False, True, None, np.empty(11))
     with pytest.raises(TypeError):
         NATIVE.step_frame(s, d9, dv, "0.1", False, True, None)
     assert s[36] == 0.0                                    # nothing was processed
     NATIVE.step_frame(s, np.eye(3).ravel(), np.array(dv), 0.1, False, True, 3.0)    # buffers are fine too
     assert s[36] == 1.0
+    out = np.full(12, np.nan)
+    v = NATIVE.step_frame(s, d9, dv, 0.1, False, True, None, out)
+    np.testing.assert_array_equal(out[:6], s[:6])
+    assert v == np.sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]) and np.all(np.isfinite(out))
+    assert s[36] == 2.0
+    s[36] = 1.0
     n = 5
     out = [np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 6, 6)), np.empty((n, 3, 3)), np.empty((n, 3)),
            np.empty((n, 3)), np.empty(n), None, None]
@@ -270,8 +278,10 @@ def test_no_leaks_and_reference_counts_unchanged():
     tracemalloc.start()
     try:
         snap = tracemalloc.take_snapshot()
+        e = np.empty(12)
         for _ in range(100_000):
             NATIVE.step_sensor(s, d9, dv, dt, False, True, speed)
+            NATIVE.step_sensor(s, d9, dv, dt, True, False, None, e)
             NATIVE.to_body(s, d9, dv)
         for _ in range(1000):
             NATIVE.run_frames(s, *ins, *outs)

@@ -10,6 +10,7 @@
  *
  * Entry points (METH_FASTCALL):
  *   step_frame(s, d9, dv3, dt, stationary, valid, speed) -> ((f0, f1, f2), (a0, a1, a2), |v|)
+ *   step_frame(..., speed, out) -> |v|, out (12 float64) = [v, g, acceleration, specific force]
  *   step_sensor(...)  the same on a sensor-frame frame (the buffer's extrinsic applied first)
  *   to_body(s, d9, dv3) -> ((9 floats), (3 floats))  that extrinsic applied (gravity_kernel.to_body)
  *   run_frames(s, d, dv, dt, stationary, valid, speed|None, v, g, P, cum, f, a, speed_out, priors|None,
@@ -398,9 +399,9 @@ static PyObject *floats(const double *v, int n)
 /* ------------------------------------------------------------------------------------ entry points */
 static PyObject *step_common(PyObject *const *args, Py_ssize_t nargs, int sensor, const char *fname)
 {
-    if (nargs != 7) {
-        PyErr_Format(PyExc_TypeError, "%s expects 7 arguments (s, d9, dv3, dt, stationary, valid, speed), got %zd",
-                     fname, nargs);
+    if (nargs != 7 && nargs != 8) {
+        PyErr_Format(PyExc_TypeError, "%s expects 7 or 8 arguments (s, d9, dv3, dt, stationary, valid, speed[, out]), "
+                     "got %zd", fname, nargs);
         return NULL;
     }
     double d[9], dv[3], f[3], acc[3];
@@ -418,10 +419,15 @@ static PyObject *step_common(PyObject *const *args, Py_ssize_t nargs, int sensor
         if (speed == -1.0 && PyErr_Occurred())
             return NULL;
     }
-    Py_buffer view;
-    double *s = get_state(args[0], &view);
-    if (!s)
+    Py_buffer view, out;
+    if (nargs == 8 && get_buffer(args[7], &out, "out", 12, 1, 'd') < 0)
         return NULL;
+    double *s = get_state(args[0], &view);
+    if (!s) {
+        if (nargs == 8)
+            PyBuffer_Release(&out);
+        return NULL;
+    }
     double v;
     if (sensor && s[I_EXTR] != 0.0) {
         double db[9], dvb[3];
@@ -429,6 +435,15 @@ static PyObject *step_common(PyObject *const *args, Py_ssize_t nargs, int sensor
         v = frame(s, db, dvb, dt, stationary, valid, speed, NULL, f, acc);
     } else {
         v = frame(s, d, dv, dt, stationary, valid, speed, NULL, f, acc);
+    }
+    if (nargs == 8) {                      /* [v, g, acceleration, specific force] into out, |v| returned */
+        double *o = out.buf;
+        memcpy(o, s, 6 * sizeof(double));
+        memcpy(o + 6, acc, sizeof acc);
+        memcpy(o + 9, f, sizeof f);
+        PyBuffer_Release(&out);
+        PyBuffer_Release(&view);
+        return PyFloat_FromDouble(v);
     }
     PyBuffer_Release(&view);
     PyObject *ft = floats(f, 3), *at = floats(acc, 3), *vv = PyFloat_FromDouble(v);
@@ -565,10 +580,11 @@ done:
 
 static PyMethodDef methods[] = {
     {"step_frame", (PyCFunction)(void (*)(void))step_frame, METH_FASTCALL,
-     "step_frame(s, d9, dv3, dt, stationary, valid, speed) -> ((f0, f1, f2), (a0, a1, a2), speed):\n"
-     "one body-frame frame (gravity_kernel.step_frame); speed None or NaN: none."},
+     "step_frame(s, d9, dv3, dt, stationary, valid, speed[, out]) -> ((f0, f1, f2), (a0, a1, a2), speed):\n"
+     "one body-frame frame (gravity_kernel.step_frame); speed None or NaN: none. With out (12 float64):\n"
+     "[v, g, acceleration, specific force] written there, |v| returned."},
     {"step_sensor", (PyCFunction)(void (*)(void))step_sensor, METH_FASTCALL,
-     "step_sensor(s, d9, dv3, dt, stationary, valid, speed): step_frame of a sensor-frame frame\n"
+     "step_sensor(s, d9, dv3, dt, stationary, valid, speed[, out]): step_frame of a sensor-frame frame\n"
      "(the state's extrinsic applied first; gravity_kernel.step_sensor)."},
     {"to_body", (PyCFunction)(void (*)(void))to_body, METH_FASTCALL,
      "to_body(s, d9, dv3) -> (d9, dv3): one sensor-frame frame in the body frame (the state's extrinsic;\n"

@@ -264,7 +264,7 @@ def body_increments(r, d, dv):
     return b, (dv[..., 0, None] * r[:, 0] + dv[..., 1, None] * r[:, 1]) + dv[..., 2, None] * r[:, 2]
 
 
-def step_frame(s: list, d9, dv3, dt: float, stationary: bool, valid: bool, speed: float):
+def step_frame(s: list, d9, dv3, dt: float, stationary: bool, valid: bool, speed: float, out=None):
     """One body-frame frame: :func:`_predict_update`, then the frame's mean forces (the C twin's ``step_frame``).
 
     Parameters
@@ -279,6 +279,8 @@ def step_frame(s: list, d9, dv3, dt: float, stationary: bool, valid: bool, speed
         Standstill at the frame's end; False through a timestamp gap.
     speed : float or None
         Measured forward speed, m/s (None or NaN: none).
+    out : ndarray (12,), optional
+        Receives ``[v, g, acceleration, specific_force]``; only ``|v|`` is returned then.
 
     Returns
     -------
@@ -313,8 +315,13 @@ def step_frame(s: list, d9, dv3, dt: float, stationary: bool, valid: bool, speed
     q0, q1, q2 = (rprev[0] * g0 + rprev[3] * g1 + rprev[6] * g2, rprev[1] * g0 + rprev[4] * g1 + rprev[7] * g2,
                   rprev[2] * g0 + rprev[5] * g1 + rprev[8] * g2)       # R_{k-1}^T g
     v0, v1, v2 = st[0], st[1], st[2]
-    return ((f0, f1, f2), (f0 - (h0 * q0 + h3 * q1 + h6 * q2), f1 - (h1 * q0 + h4 * q1 + h7 * q2),
-                           f2 - (h2 * q0 + h5 * q1 + h8 * q2)), math.sqrt(v0 * v0 + v1 * v1 + v2 * v2))
+    f, a = (f0, f1, f2), (f0 - (h0 * q0 + h3 * q1 + h6 * q2), f1 - (h1 * q0 + h4 * q1 + h7 * q2),
+                          f2 - (h2 * q0 + h5 * q1 + h8 * q2))
+    speed = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    if out is None:
+        return f, a, speed
+    out[:] = st[0:6] + list(a + f)
+    return speed
 
 
 def to_body(s: list, d9, dv3):
@@ -322,11 +329,11 @@ def to_body(s: list, d9, dv3):
     return body_increment(s[I_EXTR + 1:I_EXTR + 10], d9, dv3) if s[I_EXTR] else (tuple(d9), tuple(dv3))
 
 
-def step_sensor(s: list, d9, dv3, dt: float, stationary: bool, valid: bool, speed: float):
+def step_sensor(s: list, d9, dv3, dt: float, stationary: bool, valid: bool, speed: float, out=None):
     """:func:`step_frame` of a sensor-frame frame (the extrinsic of the buffer applied first)."""
     if s[I_EXTR]:
         d9, dv3 = body_increment(s[I_EXTR + 1:I_EXTR + 10], d9, dv3)
-    return step_frame(s, d9, dv3, dt, stationary, valid, speed)
+    return step_frame(s, d9, dv3, dt, stationary, valid, speed, out)
 
 
 def run_frames(s: list, d, dv, dt, stationary, valid, speed, v_out, g_out, p_out, cum_out, f_out, a_out,

@@ -366,10 +366,11 @@ class GravityVelocityFilter:
         """
         if delta_v is None:
             delta_R, delta_v, delta_t, stationary, valid = delta_R[:5]
-        d = delta_R if type(delta_R) is np.ndarray and delta_R.shape == (3, 3) else as_rotations(delta_R)
-        if d.shape != (3, 3):
-            raise ValueError(f"delta_R must be one rotation, got shape {d.shape}")
-        d9 = d.ravel().tolist()
+        if type(delta_R) is not np.ndarray or delta_R.shape != (3, 3):
+            delta_R = as_rotations(delta_R)
+            if delta_R.shape != (3, 3):
+                raise ValueError(f"delta_R must be one rotation, got shape {delta_R.shape}")
+        d9 = delta_R.ravel().tolist()
         dv = (delta_v if type(delta_v) is np.ndarray and delta_v.shape == (3,) else
               np.asarray(delta_v, dtype=float).reshape(3)).tolist()
         dt = float(delta_t)
@@ -378,9 +379,8 @@ class GravityVelocityFilter:
             raise ValueError(f"bad frame: {problem}; the filter's state is unchanged")
         if self._w.sync is not None:
             self._pull()
-        s = self._s
-        f, a, speed = self._step_sensor(s, d9, dv, dt, stationary, valid, speed)
-        e = np.array((s[0:6] if type(s) is list else s[0:6].tolist()) + [*a, *f])   # one array, four views
+        e = np.empty(12)                                    # [v, g, acceleration, specific force]: four views
+        speed = self._step_sensor(self._s, d9, dv, dt, stationary, valid, speed, e)
         return GravityEstimate(e[0:3], e[3:6], e[6:9], e[9:12], speed)
 
     # -- batch -------------------------------------------------------------------------------
