@@ -25,7 +25,8 @@ __all__ = ["STATE_SIZE", "B_Q", "B_P", "B_QN", "B_RN", "B_X", "B_XV", "B_XPR", "
            "B_Y", "B_K", "B_S", "B_SI", "B_DET", "B_NUP", "B_B", "B_HB", "B_LEFT", "B_RENORM", "B_Z", "B_ZN",
            "new_state", "predict", "update", "flat_rotation", "check_cov"]
 
-# State buffer layout (offsets in floats; the E_* enum of _ekf_native.c)
+# State buffer layout (offsets in floats; the E_* enum of _ekf_native.c). The Python kernels write
+# neighbours in one slice: q and P, x_prior and P_prior, x_post and P_post, and y .. det S are adjacent.
 B_Q, B_P, B_QN, B_RN = 0, 4, 13, 22           # quaternion of x (4), P, Q, R (9 each)
 B_X, B_XV = 31, 40                             # x as a matrix (cache) and its validity flag
 B_XPR, B_PPR, B_XPO, B_PPO = 41, 45, 54, 58    # x_prior (quaternion), P_prior, x_post, P_post
@@ -183,8 +184,7 @@ def predict(s: list, u, Q: Optional[np.ndarray]) -> bool:
     if U is not None:
         q = quat_mul(q, quat_from_flat(U))
         if s[B_LEFT]:                   # P <- U^T P U + Q
-            s[B_P:B_P + 9] = s[B_PPR:B_PPR + 9] = _congruence(transpose_flat(U), P, qn)
-            s[B_Q:B_Q + 4] = s[B_XPR:B_XPR + 4] = q
+            s[B_Q:B_P + 9] = s[B_XPR:B_PPR + 9] = q + _congruence(transpose_flat(U), P, qn)   # q, P adjacent
             s[B_XV] = 0.0
             return True
     elif s[B_XV]:
@@ -195,8 +195,7 @@ def predict(s: list, u, Q: Optional[np.ndarray]) -> bool:
     p0, p1, p2, _, p4, p5, _, _, p8 = P
     q0, q1, q2, _, q4, q5, _, _, q8 = qn
     a, b, c = p1 + q1, p2 + q2, p5 + q5
-    s[B_P:B_P + 9] = s[B_PPR:B_PPR + 9] = (p0 + q0, a, b, a, p4 + q4, c, b, c, p8 + q8)
-    s[B_Q:B_Q + 4] = s[B_XPR:B_XPR + 4] = q
+    s[B_Q:B_P + 9] = s[B_XPR:B_PPR + 9] = (*q, p0 + q0, a, b, a, p4 + q4, c, b, c, p8 + q8)
     if x is not None:
         s[B_X:B_X + 9] = x
         s[B_XV] = 1.0
@@ -274,14 +273,9 @@ def update(s: list, z, R: Optional[np.ndarray]) -> bool:
     s[B_NUP] = n
     if n % s[B_RENORM] == 0.0:
         q = quat_normalise(q)
-    s[B_Q:B_Q + 4] = s[B_XPO:B_XPO + 4] = q
+    s[B_Q:B_P + 9] = s[B_XPO:B_PPO + 9] = (*q, *Pn)        # adjacent in the layout
     s[B_XV] = 0.0
-    s[B_P:B_P + 9] = s[B_PPO:B_PPO + 9] = Pn
     s[B_Z:B_Z + len(zl)] = zl
     s[B_ZN] = float(len(zl))
-    s[B_Y:B_Y + 3] = y
-    s[B_K:B_K + 9] = K
-    s[B_S:B_S + 9] = S
-    s[B_SI:B_SI + 9] = SI
-    s[B_DET] = detS
+    s[B_Y:B_DET + 1] = (*y, *K, *S, *SI, detS)            # y, K, S, SI, det S adjacent
     return True
