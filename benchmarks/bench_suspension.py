@@ -3,9 +3,13 @@
 Input: a synthetic drive (``imu_ground.evaluation.simulate``, nav-grade IMU) preintegrated into
 10 Hz frames and tiled to ``--frames`` frames. Streaming: ``step(EgoFrame)`` per frame (median
 over >= 5 repeats of the per-frame mean; p99 over every timed call); the
-GravityVelocityFilter's own step is timed in the same run, so the share of the suspension
-layer is visible. Batch: ``run`` over the whole drive (median of the repeats). The run checks
-that streaming equals batch.
+GravityVelocityFilter's own step and run are timed in the same run, so the share of the
+suspension layer (the residual kernel and the plumbing around it) is visible. Batch: ``run``
+over the whole drive (median of the repeats). The run checks that streaming equals batch.
+
+The figures are those of the kernels in use (the C twins ``imu_ground/filters/_residual_native.c``
+and ``_gravity_native.c`` when built); the pure-Python kernels' figures (column ``python``,
+informative) are measured by this script in a child process with ``IMU_GROUND_PURE_PYTHON=1``.
 
 Run: ``python benchmarks/bench_suspension.py [--frames N] [--stream-frames N] [--repeat R]``.
 :func:`rows` returns the table for ``benchmarks/make_results.py``.
@@ -24,9 +28,18 @@ from imu_ground.filters.suspension import SuspensionAwareFilter
 from imu_ground.imu.egomotion import EgoMotion
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_filter import P99_FACTOR, run_cli, tiled_drive, time_steps  # noqa: E402
+from bench_filter import (  # noqa: E402
+    P99_FACTOR,
+    head_of,
+    kernels_in_use,
+    python_figures,
+    run_cli,
+    run_fps,
+    tiled_drive,
+    time_steps,
+)
 
-__all__ = ["rows", "main"]
+__all__ = ["rows", "timings", "main"]
 
 STEP_TARGET_US = 10.0
 RUN_TARGET_FPS = 200_000.0
@@ -44,14 +57,18 @@ def _gravity_step_us(em: EgoMotion, repeat: int) -> float:
     return float(np.median(means)) * 1e6
 
 
-def _run_fps(em: EgoMotion, repeat: int, smooth: bool = False, **kw) -> float:
-    fps = []
-    for _ in range(repeat):
-        f = SuspensionAwareFilter(**kw)
-        t0 = time.perf_counter()
-        f.run(em, smooth=smooth)
-        fps.append(len(em) / (time.perf_counter() - t0))
-    return float(np.median(fps))
+def timings(frames: int = 100_000, stream_frames: int = 20_000, repeat: int = 5,
+            em: EgoMotion = None) -> Dict[str, float]:
+    """The timed figures with the kernels in use: ``step`` (median, p99, CPU, us), the gravity filter's
+    step (us), ``run`` and the gravity filter's ``run`` alone (frames/s), on ``em`` (default:
+    :func:`~bench_filter.tiled_drive` of ``frames``)."""
+    repeat = max(5, repeat)
+    em = tiled_drive(frames) if em is None else em
+    head = head_of(em, min(stream_frames, frames))
+    med, p99, _, cpu = time_steps(SuspensionAwareFilter, list(head.frames()), repeat)
+    us = 1e6
+    return dict(step=med * us, step_p99=p99 * us, step_cpu=cpu * us, gravity_step=_gravity_step_us(head, repeat),
+                run=run_fps(SuspensionAwareFilter, em, repeat), gravity_run=run_fps(GravityVelocityFilter, em, repeat))
 
 
 def rows(frames: int = 100_000, stream_frames: int = 20_000, repeat: int = 5) -> List[Dict]:
@@ -60,43 +77,57 @@ def rows(frames: int = 100_000, stream_frames: int = 20_000, repeat: int = 5) ->
     Returns
     -------
     list of dict
-        Keys ``benchmark``, ``target``, ``figure``, ``unit``, ``p99``, ``passed`` (None: informative).
+        Keys ``benchmark``, ``target``, ``figure`` (the kernels in use), ``unit``, ``p99``, ``cpu``,
+        ``kernel`` ("C", "Python" or a mix), ``python`` (the pure-Python kernels' figure, informative),
+        ``passed`` (None: informative).
     """
     repeat = max(5, repeat)
     em = tiled_drive(frames)
-    n = min(stream_frames, frames)
-    head = EgoMotion(em.t[:n], em.delta_R[:n], em.delta_v[:n], em.delta_t[:n], em.stationary[:n], em.valid[:n])
-    med, p99, est, cpu = time_steps(SuspensionAwareFilter, list(head.frames()), repeat)
+    head = head_of(em, min(stream_frames, frames))
+    t = timings(frames, stream_frames, repeat, em)
     med_on, p99_on, _, cpu_on = time_steps(lambda: SuspensionAwareFilter(online_gains=True), list(head.frames()),
                                            repeat)
-    gv = _gravity_step_us(head, repeat)
+    f = SuspensionAwareFilter()
+    est = [f.step(fr) for fr in head.frames()]
     tb = SuspensionAwareFilter().run(head)
     diff = max(np.abs(np.array([e.normal for e in est]) - tb.normal).max(),
                np.abs(np.array([e.pitch for e in est]) - tb.pitch).max())
-    fps = _run_fps(em, repeat)
-    us = 1e6
-    nan = float("nan")
-    return [
+    py = python_figures(__file__, timings, frames, stream_frames, repeat)
+    kernel, nan = kernels_in_use("residual", "gravity"), float("nan")
+
+    def own_us(r: Dict[str, float]) -> float:        # run time per frame without the gravity filter's run
+        return 1e6 / r["run"] - 1e6 / r["gravity_run"]
+
+    rows_ = [
         dict(benchmark="SuspensionAwareFilter.step(EgoFrame)", target=f"<= {STEP_TARGET_US:g} us, p99 <= "
-             f"{P99_FACTOR:g}x median", figure=med * us, unit="us", p99=p99 * us, cpu=cpu * us,
-             passed=bool(med * us <= STEP_TARGET_US and p99 <= P99_FACTOR * med)),
-        dict(benchmark="  of which GravityVelocityFilter.step", target="informative (other engineer's)", figure=gv,
-             unit="us", p99=nan, passed=None),
-        dict(benchmark="SuspensionAwareFilter.step, online gains", target="informative", figure=med_on * us,
-             unit="us", p99=p99_on * us, cpu=cpu_on * us, passed=None),
-        dict(benchmark="SuspensionAwareFilter.run", target=f">= {RUN_TARGET_FPS:,.0f} frames/s", figure=fps,
-             unit="frames/s", p99=nan, passed=bool(fps >= RUN_TARGET_FPS)),
+             f"{P99_FACTOR:g}x median", figure=t["step"], unit="us", p99=t["step_p99"], cpu=t["step_cpu"],
+             python=py["step"], passed=bool(t["step"] <= STEP_TARGET_US and t["step_p99"] <= P99_FACTOR * t["step"])),
+        dict(benchmark="  of which GravityVelocityFilter.step", target="informative (other engineer's)",
+             figure=t["gravity_step"], unit="us", p99=nan, python=py["gravity_step"], passed=None),
+        dict(benchmark="SuspensionAwareFilter.step, online gains", target="informative", figure=med_on * 1e6,
+             unit="us", p99=p99_on * 1e6, cpu=cpu_on * 1e6, python=nan, passed=None),
+        dict(benchmark="SuspensionAwareFilter.run", target=f">= {RUN_TARGET_FPS:,.0f} frames/s", figure=t["run"],
+             unit="frames/s", p99=nan, python=py["run"], passed=bool(t["run"] >= RUN_TARGET_FPS)),
+        dict(benchmark="  of which GravityVelocityFilter.run", target="informative (other engineer's)",
+             figure=t["gravity_run"], unit="frames/s", p99=nan, python=py["gravity_run"], passed=None),
+        dict(benchmark="  the rest of run (suspension layer)", target="informative", figure=own_us(t),
+             unit="us/frame", p99=nan, python=own_us(py), passed=None),
         dict(benchmark="SuspensionAwareFilter.run, online gains", target="informative",
-             figure=_run_fps(em, repeat, online_gains=True), unit="frames/s", p99=nan, passed=None),
+             figure=run_fps(lambda: SuspensionAwareFilter(online_gains=True), em, repeat), unit="frames/s", p99=nan,
+             python=nan, passed=None),
         dict(benchmark="SuspensionAwareFilter.run(smooth=True)", target="informative",
-             figure=_run_fps(head, repeat, smooth=True), unit="frames/s", p99=nan, passed=None),
+             figure=run_fps(SuspensionAwareFilter, head, repeat, smooth=True), unit="frames/s", p99=nan,
+             python=nan, passed=None),
         dict(benchmark="SuspensionAwareFilter streaming == batch", target="<= 1e-12 (normal, rad)",
-             figure=float(diff), unit="max abs diff", p99=nan, passed=bool(diff <= 1e-12)),
+             figure=float(diff), unit="max abs diff", p99=nan, python=nan, passed=bool(diff <= 1e-12)),
     ]
+    for r in rows_:
+        r["kernel"] = kernel
+    return rows_
 
 
 def main(argv=None) -> None:
-    run_cli(rows, __doc__, argv)
+    run_cli(rows, __doc__, argv, timings)
 
 
 if __name__ == "__main__":
