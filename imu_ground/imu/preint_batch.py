@@ -225,10 +225,11 @@ def _boundaries(t: np.ndarray, frame_times: Any, rate: float | None, every: int 
 def _knots(t: np.ndarray, y: np.ndarray, T: np.ndarray, par: PreintegrationParams) -> tuple:
     """Integration intervals: the samples plus the boundaries that fall between samples.
 
-    Returns ``(dt, held, b, valid)``: interval lengths (K,), held values (K, 6)
-    (gyro then accel, bias not removed), the knot index of each boundary
-    relative to the first (F + 1,), and the per-frame validity (F,) after the
-    gap rule (raises for ``on_gap="raise"``).
+    ``y`` is component-major (6, N): gyro then accel. Returns ``(dt, held, b,
+    valid)``: interval lengths (K,), held values (6, K) (bias not removed; may
+    be a view), the knot index of each boundary relative to the first (F + 1,),
+    and the per-frame validity (F,) after the gap rule (raises for
+    ``on_gap="raise"``).
     """
     n = t.size
     k = np.searchsorted(t, T)                       # t[k-1] < T <= t[k]
@@ -243,21 +244,23 @@ def _knots(t: np.ndarray, y: np.ndarray, T: np.ndarray, par: PreintegrationParam
     Ti = T[ins]
     if par.hold == "midpoint":
         wgt = (Ti - t[ki - 1]) / (t[ki] - t[ki - 1])
-        yb = y[ki - 1] + (y[ki] - y[ki - 1]) * wgt[:, None]
+        yb = y[:, ki - 1] + (y[:, ki] - y[:, ki - 1]) * wgt
     else:
-        yb = y[ki - 1]
+        yb = y[:, ki - 1]
     kt = np.insert(t, ki, Ti)
-    ky = np.insert(y, ki, yb, axis=0)
+    ky = np.insert(y, ki, yb, axis=1)
     b = np.searchsorted(kt, np.where(snapped, t[near], T))     # knot index of each boundary
     if np.any(np.diff(b) <= 0):
         raise ValueError("two frame boundaries fall on the same sample; frames must be longer "
                          "than the snapping tolerance")
     j0, j1 = int(b[0]), int(b[-1])
     dt = np.diff(kt[j0:j1 + 1])
-    held = (ky[j0:j1] + ky[j0 + 1:j1 + 1]) * 0.5 if par.hold == "midpoint" else ky[j0:j1]
-    # gaps, on the original sample intervals
+    held = (ky[:, j0:j1] + ky[:, j0 + 1:j1 + 1]) * 0.5 if par.hold == "midpoint" else ky[:, j0:j1]
+    # gaps, on the original sample intervals: knot j lies in sample interval (samples up to it) - 1
     nfr = T.size - 1
-    orig = np.searchsorted(t, kt[j0:j1], side="right") - 1   # sample interval of each knot interval
+    is_sample = np.ones(kt.size, dtype=np.int64)
+    is_sample[ki + np.arange(ki.size)] = 0          # where np.insert put the boundaries
+    orig = np.cumsum(is_sample)[j0:j1] - 1           # sample interval of each knot interval
     is_gap = (np.diff(t) > par.max_gap)[orig]
     valid = np.ones(nfr, dtype=bool)
     if np.any(is_gap):
@@ -270,7 +273,11 @@ def _knots(t: np.ndarray, y: np.ndarray, T: np.ndarray, par: PreintegrationParam
 
 
 def _integrate_frames(dt: np.ndarray, held: np.ndarray, b: np.ndarray, par: PreintegrationParams) -> tuple:
-    """Left-form (T, R, v, p, J, S) per frame: frames cut into padded blocks, chunked kernel, merge."""
+    """Left-form (T, R, v, p, J, S) per frame: frames cut into padded blocks, chunked kernel, merge.
+
+    ``held`` is component-major (6, K). The padded blocks are gathered chunk by
+    chunk, so every temporary stays cache-sized whatever the log's length.
+    """
     nfr = b.size - 1
     nint = np.diff(b)
     Lb = int(min(nint.max(), max(16, 2 * math.ceil(dt.size / nfr))))
@@ -281,20 +288,23 @@ def _integrate_frames(dt: np.ndarray, held: np.ndarray, b: np.ndarray, par: Prei
     blk_in_frame = np.arange(nbt) - np.repeat(first_blk, nblk)
     start = b[:-1][block_frame] + Lb * blk_in_frame
     stop = np.minimum(start + Lb, b[1:][block_frame])
-    idx = start[None, :] + np.arange(Lb)[:, None]            # (Lb, blocks)
-    pad = idx >= stop[None, :]
-    idx[pad] = 0
-    dtp = dt[idx]
-    dtp[pad] = 0.0
-    hp = np.ascontiguousarray(held.T)[:, idx]                # component-major (6, Lb, blocks)
-    hp[:, pad] = 0.0
-    hp[0:3] -= np.array(par.bias_gyro)[:, None, None]
-    hp[3:6] -= np.array(par.bias_accel)[:, None, None]
+    bias = np.concatenate([np.asarray(par.bias_gyro, dtype=float),
+                           np.asarray(par.bias_accel, dtype=float)])[:, None, None]
     qg, qa = par.gyro_noise_density ** 2, par.accel_noise_density ** 2
     # chunks of about _CHUNK intervals keep the temporaries in cache (a loop over groups of frames)
     step = max(1, _CHUNK // Lb)
-    parts = [_blocks_kernel(dtp[:, i:i + step], hp[0:3, :, i:i + step], hp[3:6, :, i:i + step], qg, qa,
-                            par.uncertainty) for i in range(0, nbt, step)]
+    lanes = np.arange(Lb)[:, None]
+    parts = []
+    for i in range(0, nbt, step):
+        idx = start[None, i:i + step] + lanes                  # (Lb, blocks of this chunk)
+        pad = idx >= stop[None, i:i + step]
+        idx[pad] = 0
+        dtp = dt[idx]
+        dtp[pad] = 0.0
+        hp = held[:, idx]                                      # component-major (6, Lb, blocks)
+        hp[:, pad] = 0.0
+        hp -= bias
+        parts.append(_blocks_kernel(dtp, hp[0:3], hp[3:6], qg, qa, par.uncertainty))
     res = tuple(np.concatenate([r[j] for r in parts]) if par.uncertainty or j < 4 else None for j in range(6))
     return _merge_blocks(res, block_frame, nfr)
 
@@ -339,7 +349,11 @@ def preintegrate(imu: ImuData | tuple[np.ndarray, np.ndarray, np.ndarray],
     par = PreintegrationParams.coerce(params, **options)
     t, gyro, accel = _inputs(imu)
     T = _boundaries(t, frame_times, rate, every, t_origin, par.snap_tol)
-    dt, held, b, valid = _knots(t, np.concatenate([gyro, accel], axis=1), T, par)
+    y = np.empty((6, t.size))                       # component-major: gyro then accel
+    y[0:3] = gyro.T
+    y[3:6] = accel.T
+    dt, held, b, valid = _knots(t, y, T, par)
+    del y
     Tn, Rn, vn, pn, Jn, Sn = _integrate_frames(dt, held, b, par)
     Rn = project_if_needed(Rn)
     names = ("d_R_d_bg", "d_v_d_bg", "d_p_d_bg", "d_v_d_ba", "d_p_d_ba")
