@@ -31,7 +31,7 @@ import os
 import subprocess
 import sys
 import time
-from typing import Callable, Dict, List
+from collections.abc import Callable
 
 import numpy as np
 
@@ -40,7 +40,7 @@ from imu_ground._native import PURE_PYTHON_ENV
 from imu_ground.filters import invariant_ekf
 from imu_ground.filters.invariant_ekf import InvariantEKF
 
-__all__ = ["rows", "main"]
+__all__ = ["main", "rows"]
 
 _Q = np.diag([1e-2, 2e-2, 5e-3])
 _R = np.diag([1.0, 0.5, 2.0])
@@ -55,7 +55,7 @@ def _data(n: int, seed: int = 0):
     return us, zs_rot, zs_dir
 
 
-def _time_pair(steps: List[Callable[[int], None]], n: int, repeat: int):
+def _time_pair(steps: list[Callable[[int], None]], n: int, repeat: int):
     """Per-step medians (s) and p99s (s) of several loops timed in alternation.
 
     Each repeat times every loop over ``n`` steps in turn (so that a busy
@@ -132,14 +132,14 @@ def _agreement(measure: str, us, zs, n: int = 200) -> float:
     return float(worst)
 
 
-def _ours_only(steps: int, repeat: int) -> Dict[str, float]:
+def _ours_only(steps: int, repeat: int) -> dict[str, float]:
     """Median us per predict + update of the kernels in use, per measurement kind (no GTSAM)."""
     us, zs_rot, zs_dir = _data(steps)
     return {m: _time_pair([_ours(m, us, zs)[1]], steps, repeat)[0][0] * 1e6
             for m, zs in (("rotation", zs_rot), ("direction", zs_dir))}
 
 
-def _python_figures(steps: int, repeat: int) -> Dict[str, float]:
+def _python_figures(steps: int, repeat: int) -> dict[str, float]:
     """:func:`_ours_only` of the pure-Python kernels, measured in a child process (``IMU_GROUND_PURE_PYTHON=1``)."""
     if invariant_ekf._native is None:
         return _ours_only(steps, repeat)
@@ -149,7 +149,7 @@ def _python_figures(steps: int, repeat: int) -> Dict[str, float]:
     return json.loads(out.strip().splitlines()[-1])
 
 
-def rows(steps: int = 20_000, repeat: int = 7) -> List[Dict]:
+def rows(steps: int = 20_000, repeat: int = 7) -> list[dict]:
     """Benchmark rows: one per measurement kind, ours against GTSAM in the same run.
 
     Returns

@@ -16,9 +16,17 @@ import numpy as np
 import pytest
 
 from imu_ground import so3
-from imu_ground.filters import invariant_ekf, invariant_ekf_kernel as kernel
+from imu_ground.filters import invariant_ekf
+from imu_ground.filters import invariant_ekf_kernel as kernel
 from imu_ground.filters.invariant_ekf import InvariantEKF
-from imu_ground.filters.invariant_ekf_kernel import B_DET, B_P, B_X, B_XV, STATE_SIZE, new_state
+from imu_ground.filters.invariant_ekf_kernel import (
+    B_DET,
+    B_P,
+    B_X,
+    B_XV,
+    STATE_SIZE,
+    new_state,
+)
 
 NATIVE = invariant_ekf._native
 pytestmark = pytest.mark.skipif(NATIVE is None, reason="C kernels not built or IMU_GROUND_PURE_PYTHON set")

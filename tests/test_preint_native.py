@@ -13,7 +13,11 @@ import numpy as np
 import pytest
 
 from imu_ground.imu import preint_kernel, preint_stream
-from imu_ground.imu.preint_kernel import DELTAS_IDENTITY, UNCERTAINTY_ZERO, integrate_interval_python
+from imu_ground.imu.preint_kernel import (
+    DELTAS_IDENTITY,
+    UNCERTAINTY_ZERO,
+    integrate_interval_python,
+)
 from imu_ground.imu.preint_stream import StreamingPreintegrator, _PythonKernel
 
 NATIVE = preint_kernel.NATIVE

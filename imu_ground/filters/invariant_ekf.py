@@ -46,26 +46,53 @@ corrections, so both stay valid over millions of steps. Frames and signs: the
 glossary of :mod:`imu_ground.so3`.
 
 Implementation: one predict/update touches a handful of 3x3 matrices, where
-numpy's per-call overhead dominates, so the kernels are scalar Python on
-row-major 9-tuples (:func:`imu_ground.so3.mul_flat` and friends) and the state
-is held as a unit quaternion. The filterpy attributes (``x``, ``P``, ``K``,
-``x_prior``, ...) are properties that build their array on access; ``x``,
-``P``, ``Q``, ``R`` may be assigned or changed in place as in filterpy.
+numpy's per-call overhead dominates, so the kernels are scalar code on row-major
+9-sequences and the rotation is held as a unit quaternion. The whole state
+(estimate, covariance, noises, priors, posteriors, last innovation and gain) is
+one flat buffer of floats owned by the filter (layout in
+:mod:`imu_ground.filters.invariant_ekf_kernel`); predict and update run the C
+twins of ``_ekf_native.c`` on it when that extension is built (loaded through
+:func:`imu_ground._native.load_native`; the same formulas term for term, equal
+bit for bit), else the pure-Python kernels of ``invariant_ekf_kernel``, the
+reference (``IMU_GROUND_PURE_PYTHON=1`` selects them). The filterpy attributes
+(``x``, ``P``, ``K``, ``x_prior``, ...) are properties that build their array on
+access; ``x``, ``P``, ``Q``, ``R`` may be assigned or changed in place as in filterpy.
 """
 from __future__ import annotations
 
 import math
 from array import array
-from typing import Optional, Union
+from typing import Union
 
 import numpy as np
 
 from imu_ground import so3
 from imu_ground._native import load_native
 from imu_ground.filters import invariant_ekf_kernel as _kernel
-from imu_ground.filters.invariant_ekf_kernel import (B_DET, B_K, B_NUP, B_P, B_PPO, B_PPR, B_Q, B_QN, B_RN, B_S,
-                                                     B_SI, B_X, B_XPO, B_XPR, B_XV, B_Y, B_Z, B_ZN, check_cov,
-                                                     flat_rotation, new_state, state_x)
+from imu_ground.filters.invariant_ekf_kernel import (
+    B_DET,
+    B_K,
+    B_NUP,
+    B_P,
+    B_PPO,
+    B_PPR,
+    B_Q,
+    B_QN,
+    B_RN,
+    B_S,
+    B_SI,
+    B_X,
+    B_XPO,
+    B_XPR,
+    B_XV,
+    B_Y,
+    B_Z,
+    B_ZN,
+    check_cov,
+    flat_rotation,
+    new_state,
+    state_x,
+)
 from imu_ground.so3 import flat_from_quat, quat_from_flat
 from imu_ground.units import RENORM_EVERY
 
@@ -90,7 +117,7 @@ def _matrix(t) -> np.ndarray:
     return np.array(t).reshape(3, 3)
 
 
-def _coerce(v, what: str) -> Optional[np.ndarray]:
+def _coerce(v, what: str) -> np.ndarray | None:
     """An increment (``what="u"``) or measurement (``"z"``) as the C kernels take it, or the named error."""
     if v is None:
         return None
@@ -181,9 +208,9 @@ class InvariantEKF:
     >>> f.update(np.array([0.0, 0.0, 1.0]))   # the body up axis is seen straight up
     """
 
-    def __init__(self, x: Optional[ArrayLike] = None, P: Union[float, ArrayLike, None] = None,
-                 Q: Union[float, ArrayLike, None] = None, R: Union[float, ArrayLike, None] = None,
-                 error: str = "left", b: Optional[ArrayLike] = None) -> None:
+    def __init__(self, x: ArrayLike | None = None, P: float | ArrayLike | None = None,
+                 Q: float | ArrayLike | None = None, R: float | ArrayLike | None = None,
+                 error: str = "left", b: ArrayLike | None = None) -> None:
         if error not in ("left", "right"):
             raise ValueError(f"error must be 'left' or 'right', got {error!r}")
         self.error = error
@@ -264,7 +291,7 @@ class InvariantEKF:
     SI = _output_property("SI", B_SI, "Inverse of the last innovation covariance (3x3).")
 
     @property
-    def z(self) -> Optional[np.ndarray]:
+    def z(self) -> np.ndarray | None:
         """Last measurement, (3, 3) rotation or (3,) direction; None after a skipped update."""
         n = int(self._s[B_ZN])
         return None if n == 0 else np.array(self._s[B_Z:B_Z + n]).reshape((3, 3) if n == 9 else (3,))
@@ -296,7 +323,7 @@ class InvariantEKF:
     def log_likelihood(self) -> float:
         """Log-likelihood of the last innovation under N(0, S) (computed on access)."""
         det = self._s[B_DET]
-        if det != det:
+        if math.isnan(det):
             return math.log(1e-300)                       # filterpy's value before any update
         return -0.5 * (self._ysiy() + math.log(det) + 3 * _LOG2PI)
 
@@ -311,7 +338,7 @@ class InvariantEKF:
         return math.sqrt(max(self._ysiy(), 0.0))
 
     # -- the filter ----------------------------------------------------------
-    def predict(self, u: Optional[ArrayLike] = None, Q: Union[float, ArrayLike, None] = None) -> None:
+    def predict(self, u: ArrayLike | None = None, Q: float | ArrayLike | None = None) -> None:
         """Propagate with the body-frame increment ``u`` and process noise.
 
         Parameters
@@ -328,7 +355,7 @@ class InvariantEKF:
         if not _predict(self._s, u, Q):         # the C kernel takes float64 C-contiguous arrays only
             _predict(self._s, _coerce(u, "u"), None if Q is None else np.ascontiguousarray(Q))
 
-    def update(self, z: Optional[ArrayLike], R: Union[float, ArrayLike, None] = None) -> None:
+    def update(self, z: ArrayLike | None, R: float | ArrayLike | None = None) -> None:
         """Correct with a rotation or a direction measurement.
 
         Parameters

@@ -14,16 +14,54 @@ kernels take an ``array('d')``. The equations are in the module notes of
 from __future__ import annotations
 
 import math
-from typing import Optional
 
 import numpy as np
 
-from imu_ground.so3 import (exp_flat, flat_from_quat, hat_flat, log_flat, mul_flat, mul_nt_flat, quat_exp,
-                            quat_from_flat, quat_mul, quat_normalise, transpose_flat)
+from imu_ground.so3 import (
+    exp_flat,
+    flat_from_quat,
+    hat_flat,
+    log_flat,
+    mul_flat,
+    mul_nt_flat,
+    quat_exp,
+    quat_from_flat,
+    quat_mul,
+    quat_normalise,
+    transpose_flat,
+)
 
-__all__ = ["STATE_SIZE", "B_Q", "B_P", "B_QN", "B_RN", "B_X", "B_XV", "B_XPR", "B_PPR", "B_XPO", "B_PPO",
-           "B_Y", "B_K", "B_S", "B_SI", "B_DET", "B_NUP", "B_B", "B_HB", "B_LEFT", "B_RENORM", "B_Z", "B_ZN",
-           "new_state", "predict", "update", "flat_rotation", "check_cov"]
+__all__ = [
+    "B_B",
+    "B_DET",
+    "B_HB",
+    "B_K",
+    "B_LEFT",
+    "B_NUP",
+    "B_P",
+    "B_PPO",
+    "B_PPR",
+    "B_Q",
+    "B_QN",
+    "B_RENORM",
+    "B_RN",
+    "B_S",
+    "B_SI",
+    "B_X",
+    "B_XPO",
+    "B_XPR",
+    "B_XV",
+    "B_Y",
+    "B_Z",
+    "B_ZN",
+    "STATE_SIZE",
+    "check_cov",
+    "flat_rotation",
+    "new_state",
+    "predict",
+    "state_x",
+    "update",
+]
 
 # State buffer layout (offsets in floats; the E_* enum of _ekf_native.c). The Python kernels write
 # neighbours in one slice: q and P, x_prior and P_prior, x_post and P_post, and y .. det S are adjacent.
@@ -60,7 +98,7 @@ def new_state(q, P, Q, R, b, left: bool, renorm_every: int) -> list:
     return s
 
 
-def flat_rotation(u) -> Optional[list]:
+def flat_rotation(u) -> list | None:
     """Row-major 9 floats of a 3x3 matrix or a rotation vector (rad); None stays None."""
     if u is None:
         return None
@@ -168,7 +206,7 @@ def state_x(s: list) -> list:
     return s[B_X:B_X + 9]
 
 
-def predict(s: list, u, Q: Optional[np.ndarray]) -> bool:
+def predict(s: list, u, Q: np.ndarray | None) -> bool:
     """``InvariantEKF.predict`` on the state ``s``: increment ``u`` (None, (3, 3) or a rotation vector (3,),
     rad), process noise ``Q`` ((3, 3) array; None: the state's). Returns True (the C twin's "done")."""
     P = s[B_P:B_P + 9]
@@ -250,7 +288,7 @@ def _update_general(s: list, shape, zl, r):
     return quat_mul(q, e) if left else quat_mul(e, q), Pn, y, K, S, SI, detS
 
 
-def update(s: list, z, R: Optional[np.ndarray]) -> bool:
+def update(s: list, z, R: np.ndarray | None) -> bool:
     """``InvariantEKF.update`` on the state ``s``: ``z`` None (skip), a (3, 3) rotation or a (3,) direction;
     noise ``R`` ((3, 3) array; None: the state's). Returns True; raises LinAlgError for a singular ``S``
     (the C twin returns ``det S`` instead) and ValueError naming a bad ``z``; the state is then unchanged."""

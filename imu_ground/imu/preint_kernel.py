@@ -46,8 +46,15 @@ from imu_ground import so3
 from imu_ground._native import load_native
 from imu_ground.imu.matrix3 import SMALL_ANGLE2
 
-__all__ = ["DELTAS_IDENTITY", "UNCERTAINTY_ZERO", "integrate_interval", "integrate_interval_python",
-           "quaternion_from_rotation", "rotation_from_quaternion", "NATIVE"]
+__all__ = [
+    "DELTAS_IDENTITY",
+    "NATIVE",
+    "UNCERTAINTY_ZERO",
+    "integrate_interval",
+    "integrate_interval_python",
+    "quaternion_from_rotation",
+    "rotation_from_quaternion",
+]
 
 #: Deltas of an empty interval: T = 0, delta_R = I (quaternion 1), delta_v = delta_p = 0.
 DELTAS_IDENTITY: tuple = (0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
