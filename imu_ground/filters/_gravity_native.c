@@ -549,6 +549,7 @@ static PyObject *run_frames(PyObject *self, PyObject *const *args, Py_ssize_t na
     const double *extr = s[I_EXTR] != 0.0 ? s + I_EXTR + 1 : NULL;
     static const int full[36] = {0, 1, 2, 6, 7, 8, 1, 3, 4, 9, 10, 11, 2, 4, 5, 12, 13, 14,
                                  6, 9, 12, 15, 16, 17, 7, 10, 13, 16, 18, 19, 8, 11, 14, 17, 19, 20};
+    Py_BEGIN_ALLOW_THREADS                 /* plain arithmetic on the held buffers from here */
     for (Py_ssize_t k = 0; k < n; k++) {
         const double *dk = d + 9 * k, *dvk = dv + 3 * k;
         double dvb[3];
@@ -569,6 +570,7 @@ static PyObject *run_frames(PyObject *self, PyObject *const *args, Py_ssize_t na
         for (int j = 0; j < 36; j++)
             po[36 * k + j] = s[I_P + full[j]];
     }
+    Py_END_ALLOW_THREADS
     result = Py_None;
     Py_INCREF(result);
 done:
