@@ -293,3 +293,22 @@ def test_no_leaks_and_reference_counts_unchanged():
         tracemalloc.stop()
     assert grown < 64 * 1024, f"{grown} bytes kept after 1e5 steps"
     assert [sys.getrefcount(o) for o in watched] == before
+
+
+def test_runs_in_threads_equal_one_run():
+    """run_frames releases the GIL: concurrent runs on their own filters give the single run's numbers."""
+    from concurrent.futures import ThreadPoolExecutor
+    em = _synthetic()
+    kw = CONFIGS["extrinsic, lever arm"]
+
+    def one(_):
+        f = GravityVelocityFilter(**kw)
+        f.kernel = NATIVE
+        f.reset()
+        return f.run(em, speed=_speed(len(em)))
+    ref = one(0)
+    with ThreadPoolExecutor(4) as pool:
+        tracks = list(pool.map(one, range(8)))
+    for tr in tracks:
+        for name in FIELDS:
+            np.testing.assert_array_equal(getattr(tr, name), getattr(ref, name), err_msg=name)
