@@ -485,45 +485,54 @@ static int get_array(PyObject *obj, Py_buffer *view, int allow3)
     return n;
 }
 
+/* Arguments (state, v, m) of both entry points: the state buffer (left acquired in *st), v copied
+ * into vout (9 or 3 doubles; None: 0) and m into mout (9 doubles; None: the state's own at `deflt`).
+ * Returns the size of v, -2 when v or m must be coerced by the caller (nothing held, no exception),
+ * -1 with an exception set. */
+static int take_args(PyObject *const *args, Py_ssize_t nargs, const char *sig, Py_buffer *st, double *vout,
+                     double *mout, int deflt)
+{
+    if (nargs != 3) {
+        PyErr_Format(PyExc_TypeError, "%s takes 3 arguments", sig);
+        return -1;
+    }
+    if (get_state(args[0], st) < 0)
+        return -1;
+    Py_buffer vb, mb;
+    int nv = get_array(args[1], &vb, 1);
+    int nm = nv == -2 ? -2 : get_array(args[2], &mb, 0);
+    if (nv > 0) {
+        memcpy(vout, vb.buf, nv * sizeof(double));
+        PyBuffer_Release(&vb);
+    }
+    if (nm == -2) {
+        PyBuffer_Release(st);
+        return -2;
+    }
+    memcpy(mout, nm ? (const double *)mb.buf : (const double *)st->buf + deflt, 9 * sizeof(double));
+    if (nm)
+        PyBuffer_Release(&mb);
+    return nv;
+}
+
 static PyObject *ekf_predict(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 3) {
-        PyErr_SetString(PyExc_TypeError, "predict(state, u, Q) takes 3 arguments");
+    Py_buffer st;
+    double u[9], U[9], Qn[9];
+    int nu = take_args(args, nargs, "predict(state, u, Q)", &st, u, Qn, E_QN);
+    if (nu == -1)
         return NULL;
-    }
-    Py_buffer st, ub, qb;
-    if (get_state(args[0], &st) < 0)
-        return NULL;
-    int nu = get_array(args[1], &ub, 1);
-    if (nu == -2) {
-        PyBuffer_Release(&st);
+    if (nu == -2)
         Py_RETURN_FALSE;
-    }
-    int nq = get_array(args[2], &qb, 0);
-    if (nq == -2) {
-        if (nu > 0)
-            PyBuffer_Release(&ub);
-        PyBuffer_Release(&st);
-        Py_RETURN_FALSE;
-    }
-    double *b = (double *)st.buf, U[9];
     const double *up = NULL;
     if (nu == 9) {
-        memcpy(U, ub.buf, sizeof U);
-        up = U;
-    } else if (nu == 3) {
-        const double *v = (const double *)ub.buf;
-        exp_flat(v[0], v[1], v[2], U);
+        up = u;
+    } else if (nu == 3) {                               /* a rotation vector: its matrix, as so3.exp_flat */
+        exp_flat(u[0], u[1], u[2], U);
         up = U;
     }
-    double Qn[9];
-    memcpy(Qn, nq ? (const double *)qb.buf : b + E_QN, sizeof Qn);
-    predict_core(b, up, Qn);
-    if (nq)
-        PyBuffer_Release(&qb);
-    if (nu)
-        PyBuffer_Release(&ub);
+    predict_core((double *)st.buf, up, Qn);
     PyBuffer_Release(&st);
     Py_RETURN_TRUE;
 }
@@ -531,34 +540,14 @@ static PyObject *ekf_predict(PyObject *self, PyObject *const *args, Py_ssize_t n
 static PyObject *ekf_update(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 3) {
-        PyErr_SetString(PyExc_TypeError, "update(state, z, R) takes 3 arguments");
+    Py_buffer st;
+    double z[9], r[9], det = 0.0;
+    int nz = take_args(args, nargs, "update(state, z, R)", &st, z, r, E_RN);
+    if (nz == -1)
         return NULL;
-    }
-    Py_buffer st, zb, rb;
-    if (get_state(args[0], &st) < 0)
-        return NULL;
-    int nz = get_array(args[1], &zb, 1);
-    if (nz == -2) {
-        PyBuffer_Release(&st);
+    if (nz == -2)
         Py_RETURN_FALSE;
-    }
-    int nr = get_array(args[2], &rb, 0);
-    if (nr == -2) {
-        if (nz > 0)
-            PyBuffer_Release(&zb);
-        PyBuffer_Release(&st);
-        Py_RETURN_FALSE;
-    }
-    double *b = (double *)st.buf, z[9], r[9], det = 0.0;
-    if (nz)
-        memcpy(z, zb.buf, nz * sizeof(double));
-    memcpy(r, nr ? (const double *)rb.buf : b + E_RN, sizeof r);
-    int ok = update_core(b, z, nz, r, &det);
-    if (nr)
-        PyBuffer_Release(&rb);
-    if (nz)
-        PyBuffer_Release(&zb);
+    int ok = update_core((double *)st.buf, z, nz, r, &det);
     PyBuffer_Release(&st);
     if (!ok)
         return PyFloat_FromDouble(det);

@@ -224,6 +224,17 @@ static int read_floats(PyObject *seq, double *out, Py_ssize_t n, const char *wha
     return 0;
 }
 
+/* n float arguments into out; -1 with the exception of the first that is not a number */
+static int float_args(PyObject *const *args, int n, double *out)
+{
+    for (int i = 0; i < n; i++) {
+        out[i] = PyFloat_AsDouble(args[i]);
+        if (out[i] == -1.0 && PyErr_Occurred())
+            return -1;
+    }
+    return 0;
+}
+
 static PyObject *tuple_of(const double *v, Py_ssize_t n)
 {
     PyObject *t = PyTuple_New(n);
@@ -264,13 +275,8 @@ static PyObject *py_integrate_interval(PyObject *self, PyObject *const *args, Py
     double s[11], u[90], f[7], noise[2];
     int have_u = args[1] != Py_None;
     if (read_floats(args[0], s, 11, "deltas s") < 0 || (have_u && read_floats(args[1], u, 90, "uncertainty u") < 0) ||
-        read_floats(args[9], noise, 2, "noise") < 0)
+        read_floats(args[9], noise, 2, "noise") < 0 || float_args(args + 2, 7, f) < 0)
         return NULL;
-    for (int i = 0; i < 7; i++) {
-        f[i] = PyFloat_AsDouble(args[2 + i]);
-        if (f[i] == -1.0 && PyErr_Occurred())
-            return NULL;
-    }
     integrate(s, have_u ? u : NULL, f[0], f[1], f[2], f[3], f[4], f[5], f[6], noise[0], noise[1]);
     PyObject *so = tuple_of(s, 11);
     if (so == NULL)
@@ -305,13 +311,8 @@ static PyObject *py_integrate(PyObject *self, PyObject *const *args, Py_ssize_t 
         return NULL;
     }
     double f[7];
-    for (int i = 0; i < 7; i++) {
-        f[i] = PyFloat_AsDouble(args[1 + i]);
-        if (f[i] == -1.0 && PyErr_Occurred())
-            return NULL;
-    }
     Py_buffer st;
-    if (get_state(args[0], &st) < 0)
+    if (float_args(args + 1, 7, f) < 0 || get_state(args[0], &st) < 0)
         return NULL;
     double *b = (double *)st.buf;
     integrate(b + S_DELTAS, b[S_UNCERTAINTY] != 0.0 ? b + S_UNC : NULL, f[0], f[1], f[2], f[3], f[4], f[5], f[6],
