@@ -12,6 +12,7 @@
  *   step(buf, d, q_h, q_v, tilt_x, tilt_y, dv, dt) -> tuple (one output row) or int status
  *   run(buf, d, q_h, q_v, tilt_x, tilt_y, out, angles) -> None  (rows written into out)
  *   check(d, dv, dt) -> int status (0: good frame; 1 rotation, 2 delta_v, 3 delta_t)
+ *   check_many(d, dv, dt, out) -> int  (statuses of many frames into a uint8 array; the bad count)
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -67,6 +68,23 @@ static int get_doubles(PyObject *obj, Py_ssize_t n, Py_buffer *view, int writabl
     }
     if (n >= 0 && view->len != n * 8) {
         PyErr_Format(PyExc_ValueError, "%s must hold %zd float64 values, got %zd", name, n, view->len / 8);
+        PyBuffer_Release(view);
+        return -1;
+    }
+    return 0;
+}
+
+/* A C-contiguous writable buffer of n bytes (uint8 or bool), for per-frame status codes. */
+static int get_status_out(PyObject *obj, Py_ssize_t n, Py_buffer *view)
+{
+    if (PyObject_GetBuffer(obj, view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_WRITABLE) < 0) {
+        PyErr_Clear();
+        PyErr_Format(PyExc_TypeError, "out must be a C-contiguous writable uint8 array, got %.100s",
+                     Py_TYPE(obj)->tp_name);
+        return -1;
+    }
+    if (view->itemsize != 1 || view->format == NULL || strcmp(view->format, "B") != 0 || view->len != n) {
+        PyErr_Format(PyExc_ValueError, "out must be a uint8 array of %zd values", n);
         PyBuffer_Release(view);
         return -1;
     }
@@ -469,10 +487,69 @@ static PyObject *py_check(PyObject *self, PyObject *const *args, Py_ssize_t narg
     return PyLong_FromLong(frame_status(d, has_dv ? dv : NULL, dt));
 }
 
+PyDoc_STRVAR(check_many_doc,
+"check_many(d, dv, dt, out) -> int\n\n"
+"check() of every frame: d (F, 3, 3), dv (F, 3) or None, dt (F,) or None (float64);\n"
+"out (F,) uint8 receives the statuses. Returns the number of bad frames.");
+
+static PyObject *py_check_many(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    if (nargs != 4) {
+        PyErr_Format(PyExc_TypeError, "check_many() takes 4 arguments (%zd given)", nargs);
+        return NULL;
+    }
+    Py_buffer vd, vv, vt, vo;
+    PyObject *result = NULL;
+    int have_v = 0, have_t = 0;
+    if (get_doubles(args[0], -1, &vd, 0, "delta_R") < 0)
+        return NULL;
+    const Py_ssize_t n = vd.len / 8 / 9;
+    if (vd.len != n * 9 * 8) {
+        PyErr_Format(PyExc_ValueError, "delta_R must hold 9 values a frame, got %zd values", vd.len / 8);
+        goto done_d;
+    }
+    if (args[1] != Py_None) {
+        if (get_doubles(args[1], 3 * n, &vv, 0, "delta_v") < 0)
+            goto done_d;
+        have_v = 1;
+    }
+    if (args[2] != Py_None) {
+        if (get_doubles(args[2], n, &vt, 0, "delta_t") < 0)
+            goto done_v;
+        have_t = 1;
+    }
+    if (get_status_out(args[3], n, &vo) < 0)
+        goto done_t;
+    {
+        const double *d = (const double *)vd.buf, *dv = have_v ? (const double *)vv.buf : NULL;
+        const double *dt = have_t ? (const double *)vt.buf : NULL;
+        unsigned char *out = (unsigned char *)vo.buf;
+        long bad = 0;
+        for (Py_ssize_t i = 0; i < n; i++) {
+            const int st = frame_status(d + 9 * i, dv ? dv + 3 * i : NULL, dt ? dt[i] : 1.0);
+            out[i] = (unsigned char)st;
+            bad += st != ST_OK;
+        }
+        result = PyLong_FromLong(bad);
+    }
+    PyBuffer_Release(&vo);
+done_t:
+    if (have_t)
+        PyBuffer_Release(&vt);
+done_v:
+    if (have_v)
+        PyBuffer_Release(&vv);
+done_d:
+    PyBuffer_Release(&vd);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"step", (PyCFunction)(void (*)(void))py_step, METH_FASTCALL, step_doc},
     {"run", (PyCFunction)(void (*)(void))py_run, METH_FASTCALL, run_doc},
     {"check", (PyCFunction)(void (*)(void))py_check, METH_FASTCALL, check_doc},
+    {"check_many", (PyCFunction)(void (*)(void))py_check_many, METH_FASTCALL, check_many_doc},
     {NULL, NULL, 0, NULL}
 };
 

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Optional, Protocol, runtime_checkable
 
 import numpy as np
 
+from imu_ground._native import load_native
 from imu_ground.filters.rotations import as_rotations, matrix_from_quat, quat_from_matrix
 from imu_ground.units import DEFAULT_FRAME_RATE
 
@@ -38,7 +39,8 @@ if TYPE_CHECKING:                                   # imported lazily: the imu l
 
 __all__ = ["GroundEstimate", "GroundTrack", "GroundEstimator", "pitch_roll_from_normal", "track_table",
            "as_egomotion", "ON_INVALID", "ORTHO_TOL", "frame_status", "frame_problem",
-           "BAD_ROTATION", "BAD_DELTA_V", "BAD_DELTA_T", "frame_problems", "check_on_invalid",
+           "BAD_ROTATION", "BAD_DELTA_V", "BAD_DELTA_T", "frame_problems", "frame_statuses", "checked_frames",
+           "check_on_invalid",
            "bad_frame_error", "checked_frame", "coerce_frame", "bad_frame", "static_rotation", "frame_where",
            "hold_skipped"]
 
@@ -49,6 +51,7 @@ ON_INVALID = ("raise", "skip")
 ORTHO_TOL = 1e-6
 #: :func:`frame_status` codes of a bad frame.
 BAD_ROTATION, BAD_DELTA_V, BAD_DELTA_T = 1, 2, 3
+_NATIVE = load_native("imu_ground.filters._residual_native")     # its check/check_many twin frame_status
 _EZ3 = (0.0, 0.0, 1.0)
 
 
@@ -283,7 +286,8 @@ def as_egomotion(data, rate: Optional[float] = None) -> "EgoMotion":
     if isinstance(data, ImuData):
         return imu_to_egomotion(data, rate=rate)
     d = np.asarray(data, dtype=float)
-    if d.ndim not in (2, 3) or (d.ndim == 2 and d.shape[1] != 3) or (d.ndim == 3 and d.shape[1:] not in ((3, 3), (4, 4))):
+    if (d.ndim not in (2, 3) or (d.ndim == 2 and d.shape[1] != 3)
+            or (d.ndim == 3 and d.shape[1:] not in ((3, 3), (4, 4)))):
         raise ValueError(f"expected an EgoMotion, an ImuData or rotation increments of shape (F, 3, 3), (F, 4, 4) "
                          f"or (F, 3), got {type(data).__name__} of shape {d.shape}")
     return EgoMotion.from_rotations(as_rotations(d, "delta_Rs"), rate=rate)
@@ -361,8 +365,12 @@ def _rotation_message(d9) -> str:
             f"det = {np.linalg.det(m):.6g} (must be +1)")
 
 
-def frame_problems(d: np.ndarray, dv: Optional[np.ndarray] = None, dt: Optional[np.ndarray] = None) -> list:
-    """Per frame, what is wrong with it (None for a good frame); the batch twin of :func:`frame_problem`.
+def frame_statuses(d: np.ndarray, dv: Optional[np.ndarray] = None, dt: Optional[np.ndarray] = None) -> np.ndarray:
+    """:func:`frame_status` of every frame: the batch check.
+
+    With the compiled residual kernel, its ``check_many`` (the same comparisons
+    as the streaming check, so a batch flags exactly the frames a stream would);
+    otherwise a vectorised numpy check (``|R^T R - I|`` and ``det``).
 
     Parameters
     ----------
@@ -372,22 +380,83 @@ def frame_problems(d: np.ndarray, dv: Optional[np.ndarray] = None, dt: Optional[
         Velocity increments, m/s.
     dt : ndarray (F,), optional
         Frame durations, s.
+
+    Returns
+    -------
+    ndarray of uint8 (F,)
+        0 for a good frame, else :data:`BAD_ROTATION`, :data:`BAD_DELTA_V` or :data:`BAD_DELTA_T`.
     """
-    d = np.asarray(d, dtype=float)
+    d = np.ascontiguousarray(d, dtype=float)
     n = len(d)
+    dv = None if dv is None else np.ascontiguousarray(dv, dtype=float)
+    dt = None if dt is None else np.ascontiguousarray(dt, dtype=float)
+    out = np.zeros(n, dtype=np.uint8)
+    if not n:
+        return out
+    if _NATIVE is not None:
+        _NATIVE.check_many(d, dv, dt, out)
+        return out
     with np.errstate(invalid="ignore", over="ignore"):
-        err = np.abs(np.swapaxes(d, 1, 2) @ d - np.eye(3)).max(axis=(1, 2)) if n else np.zeros(0)
-        det = np.linalg.det(d) if n else np.zeros(0)
-        bad = ~((err <= ORTHO_TOL) & (det > 0.0))
-        if dv is not None:
-            bad |= ~np.all(np.isfinite(dv), axis=1)
+        err = np.abs(np.swapaxes(d, 1, 2) @ d - np.eye(3)).max(axis=(1, 2))
+        det = np.linalg.det(d)
         if dt is not None:
-            bad |= ~((dt > 0.0) & (dt < np.inf))
-    out: list = [None] * n
-    for k in np.flatnonzero(bad).tolist():
-        out[k] = frame_problem(d[k].ravel().tolist(), None if dv is None else dv[k].tolist(),
-                               1.0 if dt is None else float(dt[k])) or _rotation_message(d[k].ravel().tolist())
+            out[~((dt > 0.0) & (dt < np.inf))] = BAD_DELTA_T
+        if dv is not None:
+            out[~np.isfinite(dv.sum(axis=1))] = BAD_DELTA_V
+        out[~((err <= ORTHO_TOL) & (det > 0.0))] = BAD_ROTATION
     return out
+
+
+def _problem_at(k: int, status: int, d: np.ndarray, dv, dt) -> str:
+    return frame_problem(d[k].ravel().tolist(), None if dv is None else np.asarray(dv[k], dtype=float).tolist(),
+                         1.0 if dt is None else float(dt[k]), status=status)
+
+
+def frame_problems(d: np.ndarray, dv: Optional[np.ndarray] = None, dt: Optional[np.ndarray] = None) -> list:
+    """Per frame, what is wrong with it (None for a good frame); the batch twin of :func:`frame_problem`.
+
+    Parameters
+    ----------
+    d, dv, dt
+        As in :func:`frame_statuses`.
+    """
+    status = frame_statuses(d, dv, dt)
+    out: list = [None] * len(status)
+    for k in np.flatnonzero(status).tolist():
+        out[k] = _problem_at(k, int(status[k]), np.asarray(d, dtype=float), dv, dt)
+    return out
+
+
+def checked_frames(d: np.ndarray, dv: Optional[np.ndarray], dt: Optional[np.ndarray], t: np.ndarray,
+                   on_invalid: str) -> np.ndarray:
+    """Which frames of a batch an estimator's ``run`` processes (the others it skips); the first step of ``run``.
+
+    Parameters
+    ----------
+    d, dv, dt
+        As in :func:`frame_statuses`.
+    t : ndarray (F,)
+        Frame times, s (to name a bad frame).
+    on_invalid : {"raise", "skip"}
+        The estimator's policy (:data:`ON_INVALID`).
+
+    Returns
+    -------
+    ndarray of bool (F,)
+        True for a good frame.
+
+    Raises
+    ------
+    ValueError
+        A bad frame with ``on_invalid="raise"``: the first one is named, with the count.
+    """
+    status = frame_statuses(d, dv, dt)
+    good = status == 0
+    if on_invalid == "raise" and not good.all():
+        k = int(np.argmin(good))
+        problem = _problem_at(k, int(status[k]), np.asarray(d, dtype=float), dv, dt)
+        raise bad_frame_error(problem, frame_where(k, float(t[k])) + f"; {len(good) - good.sum()} bad of {len(good)}")
+    return good
 
 
 # ------------------------------------------------------------------------------------------ shared plumbing

@@ -29,9 +29,9 @@ from typing import Optional, Union
 import numpy as np
 
 from imu_ground import so3
-from imu_ground.filters.estimator import (GroundEstimate, GroundTrack, as_egomotion, bad_frame, bad_frame_error,
-                                          check_on_invalid, checked_frame, coerce_frame, frame_problems,
-                                          frame_where, hold_skipped, pitch_roll_from_normal, static_rotation)
+from imu_ground.filters.estimator import (GroundEstimate, GroundTrack, as_egomotion, bad_frame, check_on_invalid,
+                                          checked_frame, checked_frames, coerce_frame, hold_skipped,
+                                          pitch_roll_from_normal, static_rotation)
 from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
@@ -318,13 +318,8 @@ class GroundNormalFilter:
             nothing is processed).
         """
         em = as_egomotion(egomotion)
-        n = len(em)
         d = np.asarray(em.delta_R, dtype=float)
-        problems = frame_problems(d, em.delta_v, em.delta_t)
-        good = np.array([p is None for p in problems], dtype=bool)
-        if not good.all() and self.on_invalid == "raise":
-            k = int(np.argmin(good))
-            raise bad_frame_error(problems[k], frame_where(k, float(em.t[k])) + f"; {n - good.sum()} bad of {n}")
+        good = checked_frames(d, em.delta_v, em.delta_t, em.t, self.on_invalid)
         start = (self.residual, self.P.copy(), self.cumulative)
         dg = d[good]
         if self.ekf is None:

@@ -61,11 +61,9 @@ from imu_ground.filters.estimator import (
     GroundEstimate,
     GroundTrack,
     as_egomotion,
-    bad_frame_error,
     check_on_invalid,
     checked_frame,
-    frame_problems,
-    frame_where,
+    checked_frames,
     hold_skipped,
     static_rotation,
 )
@@ -391,8 +389,8 @@ class SuspensionAwareFilter:
         self._frames += 1
         gf = self.gravity_filter
         sp = math.nan if speed is None else float(speed)
-        (fx, fy, _), (ax, ay, _), v = gf.step_body(*gf.to_body_flat(d.ravel().tolist(), dv.tolist()), dt,
-                                                   bool(stationary), bool(valid), sp)
+        (fx, fy, _), (ax, ay, _), v = gf.step_sensor(d.ravel().tolist(), dv.tolist(), dt, bool(stationary),
+                                                     bool(valid), sp)
         s = self.load_share
         ux, uy = ax + s * (fx - ax), ay + s * (fy - ay)
         if self._resp is not None:
@@ -446,11 +444,7 @@ class SuspensionAwareFilter:
         """
         em = as_egomotion(egomotion, rate=self.frame_rate)
         n = len(em)
-        problems = frame_problems(em.delta_R, em.delta_v, em.delta_t)
-        good = np.array([p is None for p in problems], dtype=bool)
-        if not good.all() and self.on_invalid == "raise":
-            k = int(np.argmin(good))
-            raise bad_frame_error(problems[k], frame_where(k, float(em.t[k])) + f"; {n - good.sum()} bad of {n}")
+        good = checked_frames(em.delta_R, em.delta_v, em.delta_t, em.t, self.on_invalid)
         self._design(float(em.rate))
         start = dict(E=self.residual, P=self.P, cum=self.cumulative.copy(), load=self.last_load,
                      speed=self.speed, gains=self.gains.copy(), gravity=self.gravity_filter.x[3:].copy())
