@@ -195,6 +195,29 @@ def test_frame_check_matches_and_a_bad_frame_leaves_the_state(kind):
         assert isinstance(oc, tuple) and np.max(np.abs(np.subtract(oc, op))) <= TOL
 
 
+def test_batch_check_matches_the_streaming_check(monkeypatch):
+    """check_many flags exactly the frames check (and the Python frame_status) flags; the numpy fallback
+    of estimator.frame_statuses agrees on them."""
+    from imu_ground.filters import estimator
+    d = np.concatenate([synthetic_frames(seed=10)] + [np.ascontiguousarray(BAD[k][0])[None] for k in BAD])
+    n = len(d)
+    dv = np.zeros((n, 3))
+    dt = np.full(n, 0.1)
+    for i, k in enumerate(BAD, start=n - len(BAD)):
+        dv[i] = 0.0 if BAD[k][1] is None else BAD[k][1]
+        dt[i] = BAD[k][2]
+    out = np.full(n, 255, dtype=np.uint8)
+    bad = C.check_many(d, dv, dt, out)
+    expected = [frame_status(d[k].ravel().tolist(), dv[k].tolist(), float(dt[k])) for k in range(n)]
+    assert out.tolist() == expected and bad == sum(e != 0 for e in expected) == 10
+    assert [C.check(d[k], dv[k], dt[k]) for k in range(n)] == expected
+    assert estimator.frame_statuses(d, dv, dt).tolist() == expected
+    monkeypatch.setattr(estimator, "_NATIVE", None)
+    assert estimator.frame_statuses(d, dv, dt).tolist() == expected
+    with pytest.raises(ValueError, match=rf"frame index {n - len(BAD)}, t = .*; 10 bad of {n}\): delta_R is not a rot"):
+        estimator.checked_frames(d, dv, dt, np.arange(n) * 0.1, "raise")
+
+
 @pytest.mark.parametrize("impl", ["C", "Python"])
 def test_bad_inputs_raise_what_the_filters_catch(impl):
     k = ResidualKernel(1.0, 1.0, 0.1, 0.1, native=impl == "C")
