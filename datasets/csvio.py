@@ -20,7 +20,7 @@ import io
 import os
 import re
 import zlib
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +37,8 @@ PARALLEL_MIN_BYTES = 8 << 20
 PIECE_BYTES = 8 << 20
 #: Most threads a parallel parse uses (fewer when the process may use fewer CPUs).
 MAX_THREADS = 4
+#: After parsing at least this many values, the freed heap memory is returned to the system.
+TRIM_VALUES = 1 << 22
 
 Columns = dict[str, np.ndarray]
 
@@ -256,7 +258,8 @@ def _parse_parallel(path: Path, sep: str) -> tuple[list[str], dict[str, list[np.
     return names, parts, n, (np.concatenate(blank) if blank else np.zeros(0, dtype=np.int64))
 
 
-def read_delimited(path: str | Path, sep: str = ",") -> tuple[Columns, RowLines]:
+def read_delimited(path: str | Path, sep: str = ",", *,
+                   stack: Mapping[str, Sequence[str]] | None = None) -> tuple[Columns, RowLines]:
     """Parse a delimited text file with a header line into named column arrays.
 
     Parameters
@@ -265,12 +268,18 @@ def read_delimited(path: str | Path, sep: str = ",") -> tuple[Columns, RowLines]
         The file (``.gz`` / ``.bz2`` decompressed as a stream).
     sep : str
         Field separator.
+    stack : mapping of str to sequence of str, optional
+        New name -> columns to return side by side as one float64 array (N, k)
+        under the new name (in their place), written there straight from the
+        parsed chunks; only when they are consecutive in the header in this
+        order, all numbers, and no column has the new name (else they come
+        back one by one, as without ``stack``).
 
     Returns
     -------
     columns : dict of str to ndarray
         One array per column, in file order (float or int where every value is
-        a number, else object).
+        a number, else object), the stacked ones as asked.
     row_lines : RowLines
         Data row -> 1-based file line.
 
@@ -303,17 +312,53 @@ def read_delimited(path: str | Path, sep: str = ",") -> tuple[Columns, RowLines]
     if n == 0:
         header = next((i for i, ln in _iter_lines(path) if ln.strip()), 1)
         raise MalformedFileError(path, "header only, no data rows", line=header)
-    return _join_columns(names, parts, n), RowLines(blank)
+    cols = _join_columns(names, parts, n, stack)
+    if n * len(cols) >= TRIM_VALUES:
+        _return_free_memory()
+    return cols, RowLines(blank)
 
 
-def _join_columns(names: list[str], parts: dict[str, list[np.ndarray]], n: int) -> Columns:
-    """Each column's chunks as one array (``parts`` is emptied); numeric columns joined by threads."""
+def _return_free_memory() -> None:
+    """Give the C heap's free pages back to the system (glibc ``malloc_trim``; nothing elsewhere).
+
+    A long parse frees about as much as it keeps (the chunks' frames, the
+    pieces); glibc keeps such memory in its heaps (one per parsing thread), where
+    the arrays allocated later cannot always reuse it, so the peak RSS of the
+    whole run would carry it.
+    """
+    import ctypes
+    try:
+        ctypes.CDLL(None).malloc_trim(0)
+    except (OSError, AttributeError):           # not glibc
+        pass
+
+
+def _join_columns(names: list[str], parts: dict[str, list[np.ndarray]], n: int,
+                  stack: Mapping[str, Sequence[str]] | None = None) -> Columns:
+    """Each column's chunks as one array (``parts`` is emptied); numeric columns joined by threads.
+
+    ``stack`` (name -> columns) puts numeric columns side by side into one
+    float64 array (N, k) under its name, written there straight from the chunks.
+    """
     import functools
+    groups = {}
+    for name, members in (stack or {}).items():
+        at = names.index(members[0]) if members and members[0] in names else -1
+        if (at >= 0 and name not in names and names[at:at + len(members)] == list(members)
+                and all(x.dtype.kind in "fiu" for c in members for x in parts[c])):
+            groups[name] = np.empty((n, len(members)))
+    into = {c: (name, j) for name, members in (stack or {}).items() if name in groups
+            for j, c in enumerate(members)}
     cols: Columns = {}
     jobs: list[tuple[np.ndarray, list[np.ndarray]]] = []
     for c in names:
         chunks = parts.pop(c)
-        if len(chunks) == 1:
+        if c in into:
+            name, j = into[c]
+            if name not in cols:
+                cols[name] = groups[name]
+            jobs.append((groups[name][:, j], chunks))
+        elif len(chunks) == 1:
             cols[c] = chunks[0] if chunks[0].flags.writeable else chunks[0].copy()
         elif all(x.dtype.kind in "fiu" for x in chunks):       # the dtype np.concatenate would give
             cols[c] = np.empty(n, dtype=functools.reduce(np.promote_types, {x.dtype for x in chunks}))

@@ -36,6 +36,8 @@ __all__ = ["COLUMNS", "EXTRA_UNITS", "drive_name", "read_drives_index", "read_ki
 #: Columns of a kitti_imu100 CSV, in order.
 COLUMNS: tuple[str, ...] = ("t", "wx", "wy", "wz", "ax", "ay", "az", "roll", "pitch", "yaw",
                             "ve", "vn", "vu", "px", "py", "pz")
+#: Columns read side by side into ImuData's (N, 3) arrays.
+_STACKS = {"gyro": COLUMNS[1:4], "accel": COLUMNS[4:7]}
 #: Units of the columns kept in ``ImuData.extra``.
 EXTRA_UNITS: dict[str, str] = {"roll": "rad", "pitch": "rad", "yaw": "rad",
                                "ve": "m/s", "vn": "m/s", "vu": "m/s",
@@ -122,10 +124,11 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
 
     from .csvio import numeric
     path = Path(path)
-    cols, lines = read_delimited(path)
-    if list(cols) != list(COLUMNS):
-        missing = [c for c in COLUMNS if c not in cols]
-        raise MalformedFileError(path, f"expected columns {','.join(COLUMNS)}, got {','.join(cols)}"
+    cols, lines = read_delimited(path, stack=_STACKS)       # numbers straight into (N, 3) arrays
+    names = [m for c in cols for m in _STACKS.get(c, (c,))]  # the header as in the file
+    if names != list(COLUMNS):
+        missing = [c for c in COLUMNS if c not in names]
+        raise MalformedFileError(path, f"expected columns {','.join(COLUMNS)}, got {','.join(names)}"
                                        + (f" (missing {missing})" if missing else ""), line=1)
     t = numeric(cols.pop("t"), "t", path, lines)
     n = t.size
@@ -164,8 +167,8 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
     if t_first != 0.0:
         meta["t_offset_in_file"] = t_first
     meta["row_lines"] = lines
-    gyro = np.column_stack([numeric(cols.pop(c), c, path, lines) for c in COLUMNS[1:4]])
-    accel = np.column_stack([numeric(cols.pop(c), c, path, lines) for c in COLUMNS[4:7]])
+    gyro, accel = (cols.pop(k) if k in cols else np.column_stack([numeric(cols.pop(c), c, path, lines) for c in m])
+                   for k, m in _STACKS.items())
     extra = pd.DataFrame({c: numeric(cols.pop(c), c, path, lines) for c in COLUMNS[7:]}, copy=False)
     t -= t_first
     imu = ImuData(t, gyro, accel, "FLU", extra, dict(EXTRA_UNITS), str(path), meta)

@@ -116,3 +116,39 @@ def test_compressed_files_take_the_serial_path(tmp_path, monkeypatch):
     monkeypatch.setattr(csvio, "_parse_piece", lambda *a: pytest.fail("a piece of a gzip file"))
     cols, _ = csvio.read_delimited(p)
     assert cols["t"].size == 300
+
+
+@pytest.mark.parametrize("parallel", [True, False])
+def test_stacked_columns_equal_the_columns_side_by_side(parallel, tmp_path, monkeypatch):
+    p = tmp_path / "s.csv"
+    p.write_text(HEADER + "".join(f"{i},1,2,3,4,5,6\n" for i in range(100)) + _rows(300, t0=1.0))
+    plain = _read(p, parallel, monkeypatch)[0]
+    with monkeypatch.context() as m:
+        if parallel:
+            m.setattr(csvio, "PARALLEL_MIN_BYTES", 0)
+            m.setattr(csvio, "PIECE_BYTES", 300)
+            m.setattr(csvio, "_threads", lambda: 2)
+        cols, _ = csvio.read_delimited(p, stack={"gyro": ("wx", "wy", "wz"), "accel": ("ax", "ay", "az")})
+    assert list(cols) == ["t", "gyro", "accel"]
+    for name, members in (("gyro", ("wx", "wy", "wz")), ("accel", ("ax", "ay", "az"))):
+        assert cols[name].dtype == float and cols[name].flags.c_contiguous
+        assert np.array_equal(cols[name], np.column_stack([plain[c].astype(float) for c in members]))
+
+
+@pytest.mark.parametrize("stack", [{"g": ("wy", "wx")}, {"g": ("wx", "wz")}, {"t": ("wx", "wy")},
+                                   {"g": ("wx", "nope")}, {"g": ("wx", "wy", "text")}])
+def test_columns_are_stacked_only_when_consecutive_numbers_under_a_new_name(stack, tmp_path):
+    p = tmp_path / "s.csv"
+    p.write_text("t,wx,wy,text,wz\n" + "".join(f"{i},1,2,a{i},3\n" for i in range(20)))
+    cols, _ = csvio.read_delimited(p, stack=stack)
+    assert list(cols) == ["t", "wx", "wy", "text", "wz"]
+
+
+def test_kitti_header_with_gyro_and_accel_swapped_is_still_refused(tmp_path):
+    from imu_ground.datasets.kitti_imu100 import COLUMNS
+    names = list(COLUMNS)
+    names[1:4], names[4:7] = names[4:7], names[1:4]
+    p = tmp_path / "swap.csv"
+    p.write_text(",".join(names) + "\n" + "".join(",".join(["0.01"] * 16) + "\n" for _ in range(20)))
+    with pytest.raises(MalformedFileError, match=r"swap\.csv, line 1: expected columns t,wx,wy,wz,ax"):
+        read_imu(p, format="kitti_imu100")
