@@ -221,3 +221,22 @@ def test_step_sensor_is_step_body_of_to_body_flat(drive):
         assert a.step_sensor(d9, dv, *args) == b.step_body(*b.to_body_flat(d9, dv), *args)
     np.testing.assert_array_equal(a.x, b.x)
     np.testing.assert_array_equal(a.P, b.P)
+
+
+def test_copies_and_pickles_continue_alike(drive):
+    import copy
+    import pickle
+    em = drive
+    a = GravityVelocityFilter(extrinsic=so3.rotz(0.1), lever_arm=[0.1, 0.2, 0.3])
+    for k in range(60):
+        a.step(em.frame_at(k))
+    b, c = copy.deepcopy(a), pickle.loads(pickle.dumps(a))
+    for f in (a, b, c):
+        for k in range(60, 90):
+            e = f.step(em.frame_at(k), speed=4.0 if k % 3 else None)
+        f.last = e
+    for f in (b, c):
+        np.testing.assert_array_equal(f.x, a.x)
+        np.testing.assert_array_equal(f.P, a.P)
+        np.testing.assert_array_equal(f.last.acceleration, a.last.acceleration)
+    assert b._s is not a._s

@@ -6,7 +6,8 @@ state in one flat buffer ``s`` (layout below: a ``list`` for this module, a floa
 from ``_gravity_native.c``) and calls :func:`step_frame` / :func:`step_sensor`
 (one frame) or :func:`run_frames` (a drive) of whichever kernel is loaded; both
 kernels run the same recursion :func:`_predict_update` in the same operation
-order, so they agree to rounding (the tests compare them to 1e-12).
+order: one frame at a time they agree bit for bit; over a drive to 1e-12 (this
+module's :func:`run_frames` computes the forces vectorised, :func:`body_forces`).
 
 Buffer layout (indices; frames and units as in the filter's docstring)::
 
@@ -33,25 +34,9 @@ from imu_ground import so3
 from imu_ground.so3 import exp_flat, log_flat, mul_flat, mul_nt_flat, renormalise_flat
 from imu_ground.units import RENORM_EVERY
 
-__all__ = [
-    "BUF_LEN",
-    "I_EXTR",
-    "I_INIT",
-    "I_LAST",
-    "I_LEVER",
-    "I_PRM",
-    "I_REJECTED",
-    "I_WPREV",
-    "body_forces",
-    "body_increment",
-    "body_increments",
-    "full_cov",
-    "new_state",
-    "run_frames",
-    "step_frame",
-    "step_sensor",
-    "to_body",
-]
+__all__ = ["BUF_LEN", "I_EXTR", "I_INIT", "I_LAST", "I_LEVER", "I_PRM", "I_REJECTED", "I_WPREV", "body_forces",
+           "body_increment", "body_increments", "full_cov", "new_state", "run_frames", "step_frame", "step_sensor",
+           "to_body"]
 
 #: (row, column) of P's 21 unique entries: cov(v) upper triangle, cov(v, g) row-major, cov(g) upper triangle.
 _UPPER21 = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2),
