@@ -40,16 +40,17 @@ class SuiteRanges:
     probability of starting at rest.
 
     Calibrated to the shared real KITTI drives (``benchmarks/sim_vs_real.py``): their
-    smoothed grade varies by 0.2-3 deg (std per drive) and changes every few hundred
-    metres, which needs hillier roads with shorter constant-grade stretches than a
-    highway's; their mean roll of ~1.6 deg is a 2.5-3 % crown (with the mount); their
-    gyro pitch rate peaks at 1.3-1.5 Hz, broader than a lightly damped 1.1 Hz pitch mode.
+    smoothed grade varies by only ~0.3 deg within a moving stretch (median; 0.2-0.6
+    interquartile, reference noise included) and changes at ~0.06 deg/s below 0.1 Hz:
+    flat city streets with short rises, not long hills; their mean roll of ~1.6 deg is
+    a 2.5-3 % crown (with the mount); their gyro pitch rate peaks at 1.3-1.5 Hz,
+    broader than a lightly damped 1.1 Hz pitch mode.
     """
 
-    grade_std: tuple[float, float] = (0.01, 0.07)
+    grade_std: tuple[float, float] = (0.002, 0.015)
     crown: tuple[float, float] = (0.015, 0.03)
-    grade_segment: tuple[float, float] = (80.0, 400.0)
-    grade_transition: tuple[float, float] = (40.0, 150.0)
+    grade_segment: tuple[float, float] = (30.0, 200.0)
+    grade_transition: tuple[float, float] = (20.0, 80.0)
     wheelbase: tuple[float, float] = (2.5, 3.0)
     track: tuple[float, float] = (1.5, 1.7)
     pitch_freq: tuple[float, float] = (1.2, 1.6)
