@@ -310,14 +310,56 @@ static double *state_buffer(PyObject *obj, Py_buffer *view)
     return (double *)view->buf;
 }
 
+static int read_double(PyObject *obj, double *dst)
+{
+    *dst = PyFloat_AsDouble(obj);
+    return (*dst == -1.0 && PyErr_Occurred()) ? -1 : 0;
+}
+
+/* obj as a double into dst: 1, or 0 for None (dst untouched), -1 on error. */
 static int optional_double(PyObject *obj, double *dst)
 {
     if (obj == Py_None)
         return 0;
-    *dst = PyFloat_AsDouble(obj);
-    if (*dst == -1.0 && PyErr_Occurred())
+    return read_double(obj, dst) < 0 ? -1 : 1;
+}
+
+/* A frame's delta_R into d (9 values), then its status (frame_status over delta_v, None or (3,), and
+   delta_t): >= 0, or -1 with an exception set. */
+static int read_frame_status(PyObject *od, PyObject *odv, PyObject *odt, double *d)
+{
+    double dv[3];
+    if (read_fixed(od, 3, d, "delta_R") < 0)
         return -1;
-    return 1;
+    const int has_dv = odv != Py_None;
+    if (has_dv && read_fixed(odv, 0, dv, "delta_v") < 0)
+        return -1;
+    double dt;
+    if (read_double(odt, &dt) < 0)
+        return -1;
+    return frame_status(d, has_dv ? dv : NULL, dt);
+}
+
+/* The frames of a many-frame entry: a float64 buffer of 9 values a frame; their count, or -1 (released). */
+static Py_ssize_t get_frames(PyObject *obj, Py_buffer *view)
+{
+    if (get_doubles(obj, -1, view, 0, "delta_R") < 0)
+        return -1;
+    const Py_ssize_t n = view->len / 8 / 9;
+    if (view->len != n * 9 * 8) {
+        PyErr_Format(PyExc_ValueError, "delta_R must hold 9 values a frame, got %zd values", view->len / 8);
+        PyBuffer_Release(view);
+        return -1;
+    }
+    return n;
+}
+
+static int nargs_ok(Py_ssize_t nargs, Py_ssize_t n, const char *name)
+{
+    if (nargs == n)
+        return 1;
+    PyErr_Format(PyExc_TypeError, "%s() takes %zd arguments (%zd given)", name, n, nargs);
+    return 0;
 }
 
 static PyObject *row_tuple(const double *row, Py_ssize_t n)
@@ -344,29 +386,17 @@ PyDoc_STRVAR(step_doc,
 static PyObject *py_step(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 8) {
-        PyErr_Format(PyExc_TypeError, "step() takes 8 arguments (%zd given)", nargs);
+    if (!nargs_ok(nargs, 8, "step"))
         return NULL;
-    }
-    double d[9], dv[3], q_h, q_v, bx = 0.0, by = 0.0, dt, row[12];
-    if (read_fixed(args[1], 3, d, "delta_R") < 0)
+    double d[9], q_h, q_v, bx = 0.0, by = 0.0, row[12];
+    const int status = read_frame_status(args[1], args[6], args[7], d);
+    if (status < 0)
         return NULL;
-    int has_dv = args[6] != Py_None;
-    if (has_dv && read_fixed(args[6], 0, dv, "delta_v") < 0)
+    if (read_double(args[2], &q_h) < 0 || read_double(args[3], &q_v) < 0)
         return NULL;
-    q_h = PyFloat_AsDouble(args[2]);
-    if (q_h == -1.0 && PyErr_Occurred())
-        return NULL;
-    q_v = PyFloat_AsDouble(args[3]);
-    if (q_v == -1.0 && PyErr_Occurred())
-        return NULL;
-    int tilt = optional_double(args[4], &bx);
+    const int tilt = optional_double(args[4], &bx);
     if (tilt < 0 || optional_double(args[5], &by) < 0)
         return NULL;
-    dt = PyFloat_AsDouble(args[7]);
-    if (dt == -1.0 && PyErr_Occurred())
-        return NULL;
-    int status = frame_status(d, has_dv ? dv : NULL, dt);
     if (status != ST_OK)
         return PyLong_FromLong(status);
     Py_buffer view;
@@ -389,10 +419,8 @@ PyDoc_STRVAR(run_doc,
 static PyObject *py_run(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 8) {
-        PyErr_Format(PyExc_TypeError, "run() takes 8 arguments (%zd given)", nargs);
+    if (!nargs_ok(nargs, 8, "run"))
         return NULL;
-    }
     Py_buffer vb, vd, vq, vx, vy, vo;
     PyObject *result = NULL;
     int have_q = 0, have_t = 0;
@@ -403,20 +431,17 @@ static PyObject *py_run(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     Kernel k;
     kernel_load(&k, b);
     const Py_ssize_t width = k.cum ? 12 : 8;
-    const double q_v = PyFloat_AsDouble(args[3]);
+    double q_v;
+    if (read_double(args[3], &q_v) < 0)
+        goto done_b;
     const int angles = PyObject_IsTrue(args[7]);
-    if ((q_v == -1.0 && PyErr_Occurred()) || angles < 0)
+    if (angles < 0)
         goto done_b;
-    if (get_doubles(args[1], -1, &vd, 0, "delta_R") < 0)
+    const Py_ssize_t n = get_frames(args[1], &vd);
+    if (n < 0)
         goto done_b;
-    const Py_ssize_t n = vd.len / 8 / 9;
-    if (vd.len != n * 9 * 8) {
-        PyErr_Format(PyExc_ValueError, "delta_R must hold 9 values a frame, got %zd values", vd.len / 8);
-        goto done_d;
-    }
     if (PyFloat_Check(args[2]) || PyLong_Check(args[2])) {
-        q_const = PyFloat_AsDouble(args[2]);
-        if (q_const == -1.0 && PyErr_Occurred())
+        if (read_double(args[2], &q_const) < 0)
             goto done_d;
     } else {
         if (get_doubles(args[2], n, &vq, 0, "q_h") < 0)
@@ -471,20 +496,11 @@ PyDoc_STRVAR(check_doc,
 static PyObject *py_check(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 3) {
-        PyErr_Format(PyExc_TypeError, "check() takes 3 arguments (%zd given)", nargs);
+    if (!nargs_ok(nargs, 3, "check"))
         return NULL;
-    }
-    double d[9], dv[3];
-    if (read_fixed(args[0], 3, d, "delta_R") < 0)
-        return NULL;
-    int has_dv = args[1] != Py_None;
-    if (has_dv && read_fixed(args[1], 0, dv, "delta_v") < 0)
-        return NULL;
-    const double dt = PyFloat_AsDouble(args[2]);
-    if (dt == -1.0 && PyErr_Occurred())
-        return NULL;
-    return PyLong_FromLong(frame_status(d, has_dv ? dv : NULL, dt));
+    double d[9];
+    const int status = read_frame_status(args[0], args[1], args[2], d);
+    return status < 0 ? NULL : PyLong_FromLong(status);
 }
 
 PyDoc_STRVAR(check_many_doc,
@@ -495,20 +511,14 @@ PyDoc_STRVAR(check_many_doc,
 static PyObject *py_check_many(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 4) {
-        PyErr_Format(PyExc_TypeError, "check_many() takes 4 arguments (%zd given)", nargs);
+    if (!nargs_ok(nargs, 4, "check_many"))
         return NULL;
-    }
     Py_buffer vd, vv, vt, vo;
     PyObject *result = NULL;
     int have_v = 0, have_t = 0;
-    if (get_doubles(args[0], -1, &vd, 0, "delta_R") < 0)
+    const Py_ssize_t n = get_frames(args[0], &vd);
+    if (n < 0)
         return NULL;
-    const Py_ssize_t n = vd.len / 8 / 9;
-    if (vd.len != n * 9 * 8) {
-        PyErr_Format(PyExc_ValueError, "delta_R must hold 9 values a frame, got %zd values", vd.len / 8);
-        goto done_d;
-    }
     if (args[1] != Py_None) {
         if (get_doubles(args[1], 3 * n, &vv, 0, "delta_v") < 0)
             goto done_d;
