@@ -158,7 +158,8 @@ def test_design_follows_the_egomotion_rate():
         tracks[rate] = (em, f.run(em), f.gains.copy())
     # the same drive at 10 and 20 frames a second: the same gains and the same pitch (a band-pass
     # designed for 10 Hz on 20 Hz frames gives roll gain +0.67 instead of -0.19 deg per m/s^2, pitch 0.29 deg off)
-    np.testing.assert_allclose(tracks[20.0][2], tracks[10.0][2], rtol=0.15)
+    # (tolerance: 15 % of the larger gain, the smaller one being near zero on some drives)
+    np.testing.assert_allclose(tracks[20.0][2], tracks[10.0][2], rtol=0, atol=0.15 * np.abs(tracks[10.0][2]).max())
     em10, tr10, _ = tracks[10.0]
     em20, tr20, _ = tracks[20.0]
     p20 = np.interp(em10.t, em20.t, tr20.pitch)
