@@ -12,6 +12,7 @@
  *                                          Q: None (the state's Q) or (3, 3). False when u or Q is
  *                                          not a C-contiguous float64 buffer of those shapes (the
  *                                          caller coerces and names the problem).
+ *   fill_x(state)                          x as a matrix into its cache (from the quaternion when stale).
  *   update(state, z, R) -> True           z: None (skip), (3, 3) rotation or (3,) direction;
  *                                          False as above; a float (det S) when the innovation
  *                                          covariance is singular (state untouched).
@@ -554,7 +555,20 @@ static PyObject *ekf_update(PyObject *self, PyObject *const *args, Py_ssize_t na
     Py_RETURN_TRUE;
 }
 
+static PyObject *ekf_fill_x(PyObject *self, PyObject *state)
+{
+    (void)self;
+    Py_buffer st;
+    if (get_state(state, &st) < 0)
+        return NULL;
+    state_x((double *)st.buf);
+    PyBuffer_Release(&st);
+    Py_RETURN_NONE;
+}
+
 static PyMethodDef methods[] = {
+    {"fill_x", (PyCFunction)ekf_fill_x, METH_O,
+     "fill_x(state): the state's rotation matrix cache, built from the quaternion if stale."},
     {"predict", (PyCFunction)(void (*)(void))ekf_predict, METH_FASTCALL,
      "predict(state, u, Q) -> bool: InvariantEKF.predict on the state buffer (False: coerce u or Q)."},
     {"update", (PyCFunction)(void (*)(void))ekf_update, METH_FASTCALL,

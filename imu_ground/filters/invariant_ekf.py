@@ -104,13 +104,22 @@ _LOG2PI = math.log(2.0 * math.pi)
 
 #: The compiled kernels (imu_ground/filters/_ekf_native.c), or None: the pure-Python ones of invariant_ekf_kernel.
 _native = load_native("imu_ground.filters._ekf_native")
-if _native is not None:
-    _predict, _update = _native.predict, _native.update
+if _native is not None:                 # state: an array('d'), read through a memoryview
+    _predict, _update, _fill_x, _view = _native.predict, _native.update, _native.fill_x, memoryview
 
     def _buffer(values) -> array:
         return array("d", values)
-else:
-    _predict, _update, _buffer = _kernel.predict, _kernel.update, list
+
+    def _from_array(a: np.ndarray) -> array:
+        return array("d", a.tobytes())
+else:                                   # state: a list
+    _predict, _update, _fill_x, _buffer = _kernel.predict, _kernel.update, state_x, list
+
+    def _view(s: list) -> list:
+        return s
+
+    def _from_array(a: np.ndarray) -> list:
+        return a.ravel().tolist()
 
 
 def _matrix(t) -> np.ndarray:
@@ -138,7 +147,7 @@ def _state_property(name: str, start: int, doc: str) -> property:
     def get(self):
         a = self.__dict__[cache]
         if a is None:
-            a = self.__dict__[cache] = _matrix(self._s[start:start + 9])
+            a = self.__dict__[cache] = _matrix(_view(self._s)[start:start + 9])
             self._held = True
         return a
 
@@ -147,7 +156,7 @@ def _state_property(name: str, start: int, doc: str) -> property:
         if a.shape != (3, 3):
             raise ValueError(f"{name} must be a 3x3 matrix, got shape {a.shape}")
         self.__dict__[cache] = a if a.flags.c_contiguous else np.ascontiguousarray(a)
-        self._s[start:start + 9] = _buffer(a.ravel().tolist())
+        self._s[start:start + 9] = _from_array(a)
         self._held = True
 
     return property(get, set_, doc=doc)
@@ -159,7 +168,7 @@ def _output_property(name: str, start: int, doc: str, shape=(3, 3), rotation: bo
     size = 4 if rotation else int(np.prod(shape))
 
     def get(self):
-        t = self._s[start:start + size]
+        t = _view(self._s)[start:start + size]
         return np.array(flat_from_quat(t) if rotation else t).reshape(shape)
 
     def set_(self, value):
@@ -229,7 +238,7 @@ class InvariantEKF:
                                     R.ravel().tolist(), b.tolist(), self._left, RENORM_EVERY))
         self._s[B_X:B_X + 9] = _buffer(xt)       # x as given (the quaternion is its Shepperd conversion)
         self._s[B_XV] = 1.0
-        self._x_t = xt                           # x as last handed out or assigned
+        self._x_t = b""                          # bytes of x as last handed out or assigned
         self._x_a = self._P_a = self._Q_a = self._R_a = None     # arrays handed out (see _state_property)
         self._held = False                       # any of them not None
 
@@ -237,32 +246,27 @@ class InvariantEKF:
         """Take in the ``x`` and ``P`` arrays handed out (or assigned) since the last step, maybe changed in place."""
         s, xa, Pa = self._s, self._x_a, self._P_a
         if xa is not None:
-            xl = tuple(xa.ravel().tolist())
-            if xl != self._x_t:
+            if xa.tobytes() != self._x_t:       # changed in place since handed out
+                xl = xa.ravel().tolist()
                 s[B_X:B_X + 9] = _buffer(xl)
                 s[B_XV] = 1.0
                 s[B_Q:B_Q + 4] = _buffer(quat_from_flat(xl))
             self._x_a = None
         if Pa is not None:
-            s[B_P:B_P + 9] = _buffer(Pa.ravel().tolist())
+            s[B_P:B_P + 9] = _from_array(Pa)
             self._P_a = None
         self._held = self._Q_a is not None or self._R_a is not None
 
     @property
     def x(self) -> np.ndarray:
         """Current rotation, world <- body (3x3)."""
-        if self._x_a is None:
-            self._x_t = tuple(state_x(self._s) if type(self._s) is list else self._x_native())
-            self._x_a = _matrix(self._x_t)
+        a = self._x_a
+        if a is None:
+            _fill_x(self._s)
+            a = self._x_a = _matrix(_view(self._s)[B_X:B_X + 9])
+            self._x_t = a.tobytes()
             self._held = True
-        return self._x_a
-
-    def _x_native(self) -> array:
-        s = self._s
-        if not s[B_XV]:
-            s[B_X:B_X + 9] = array("d", flat_from_quat(s[B_Q:B_Q + 4]))
-            s[B_XV] = 1.0
-        return s[B_X:B_X + 9]
+        return a
 
     @x.setter
     def x(self, value) -> None:
@@ -270,11 +274,11 @@ class InvariantEKF:
         if a.shape != (3, 3):
             raise ValueError(f"x must be a 3x3 matrix, got shape {a.shape}")
         s = self._s
-        self._x_t = xt = tuple(a.ravel().tolist())
+        xt = a.ravel().tolist()
         s[B_X:B_X + 9] = _buffer(xt)
         s[B_XV] = 1.0
         s[B_Q:B_Q + 4] = _buffer(quat_from_flat(xt))
-        self._x_a = a
+        self._x_a, self._x_t = a, a.tobytes()
         self._held = True
 
     P = _state_property("P", B_P, "Current error covariance, tangent space (rad^2, 3x3).")
@@ -294,7 +298,7 @@ class InvariantEKF:
     def z(self) -> np.ndarray | None:
         """Last measurement, (3, 3) rotation or (3,) direction; None after a skipped update."""
         n = int(self._s[B_ZN])
-        return None if n == 0 else np.array(self._s[B_Z:B_Z + n]).reshape((3, 3) if n == 9 else (3,))
+        return None if n == 0 else np.array(_view(self._s)[B_Z:B_Z + n]).reshape((3, 3) if n == 9 else (3,))
 
     @z.setter
     def z(self, value) -> None:
