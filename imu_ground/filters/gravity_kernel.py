@@ -46,7 +46,7 @@ _FULL_INDEX = np.empty((6, 6), dtype=int)
 for _m, (_i, _j) in enumerate(_UPPER21):
     _FULL_INDEX[_i, _j] = _FULL_INDEX[_j, _i] = _m
 
-N_KERNEL, I_INIT, I_WPREV, I_REJECTED, I_PRM, I_LEVER, I_EXTR = 37, 37, 38, 42, 43, 50, 54
+I_INIT, I_WPREV, I_REJECTED, I_PRM, I_LEVER, I_EXTR = 37, 38, 42, 43, 50, 54
 I_RENORM, I_SMALL, I_LAST, BUF_LEN = 64, 65, 66, 125
 
 
@@ -84,14 +84,14 @@ def body_increment(r9, d9, dv3):
                                                r9[6] * dv3[0] + r9[7] * dv3[1] + r9[8] * dv3[2])
 
 
-def _predict_update(s, frames, prm, out=None, priors=None):
+def _predict_update(s, frames, out=None, priors=None):
     """The filter's recursion over frames: one kernel for :meth:`GravityVelocityFilter.step` and ``run``.
 
-    Unrolled scalar arithmetic on the state list ``s`` (velocity, gravity, the 21
-    unique entries of P in ``_UPPER21`` order, ``R_{w<-body_k}`` as 9 floats
-    row-major, the frame count), updated in place. ``frames``: ``(d9, dv3, dt,
-    stationary, valid, speed)`` per frame, body frame (``speed`` NaN: none). ``prm``: ``(q_v^2,
-    q_gap^2, q_g^2, sigma_zupt^2, sigma_nhc^2, zupt_gate, sigma_speed^2, initialised)``. Per frame: the
+    Unrolled scalar arithmetic on the state buffer ``s`` (module docstring: velocity,
+    gravity, the 21 unique entries of P in ``_UPPER21`` order, ``R_{w<-body_k}`` as 9
+    floats row-major, the frame count, the gravity-initialised flag, the rejected
+    standstill flags, the noise parameters), updated in place. ``frames``: ``(d9, dv3, dt,
+    stationary, valid, speed)`` per frame, body frame (``speed`` NaN: none). Per frame: the
     cumulative attitude (renormalised every ``RENORM_EVERY`` frames), the
     predict ``v += R_{k-1} dv - dt g``, ``P <- F P F^T + Q`` (written out for
     ``F = [[I, -dt I], [0, I]]`` and isotropic ``Q``), then the update with the
@@ -99,11 +99,11 @@ def _predict_update(s, frames, prm, out=None, priors=None):
     0)``, else the gated zero-velocity update, else the non-holonomic constraint on the body y and z
     axes, ``P <- P - K S K^T``. ``out`` (``array('d')``) receives the posterior state and ``R_k`` (36
     floats a frame), ``priors`` the prior state (27). Returns the last frame's ``(kind, K, y, S, dt,
-    qv, qg, prior)`` (kind 0 constraint, 1 ZUPT, 2 speed), the rejected standstill flags, g set.
+    qv, qg, prior)`` (kind 0 constraint, 1 ZUPT, 2 speed), None without frames.
     """
     (v0, v1, v2, g0, g1, g2, a00, a01, a02, a11, a12, a22, b00, b01, b02, b10, b11, b12, b20, b21, b22,
-     c00, c01, c02, c11, c12, c22, r0, r1, r2, r3, r4, r5, r6, r7, r8, count) = s
-    qv2, qgap2, qg2, rz, rn, gate, rs, initialised = prm
+     c00, c01, c02, c11, c12, c22, r0, r1, r2, r3, r4, r5, r6, r7, r8, count, initialised) = s[:38]
+    qv2, qgap2, qg2, rz, rn, gate, rs = s[I_PRM:I_PRM + 7]
     nz = (rz, 0.0, 0.0, rz, 0.0, rz)
     rejected, last = 0, None
     for (d0, d1, d2, d3, d4, d5, d6, d7, d8), (dv0, dv1, dv2), dt, stationary, valid, speed in frames:
@@ -117,7 +117,7 @@ def _predict_update(s, frames, prm, out=None, priors=None):
         w0, w1, w2 = p0 * dv0 + p1 * dv1 + p2 * dv2, p3 * dv0 + p4 * dv1 + p5 * dv2, p6 * dv0 + p7 * dv1 + p8 * dv2
         if not initialised:                         # gravity from the first frame's mean specific force
             g0, g1, g2 = w0 / dt, w1 / dt, w2 / dt
-            initialised = True
+            initialised = 1.0
         v0, v1, v2 = v0 + w0 - dt * g0, v1 + w1 - dt * g1, v2 + w2 - dt * g2
         qv = (qv2 if valid else qv2 + qgap2) * dt
         qg = qg2 * dt
@@ -189,9 +189,10 @@ def _predict_update(s, frames, prm, out=None, priors=None):
             K = (ky0, kz0, ky1, kz1, ky2, kz2, ky3, kz3, ky4, kz4, ky5, kz5)
             y, S = (e0, e1), (s00, s01, s11)
         last = (zupt, K, y, S, dt, qv, qg, prior)
-    s[:] = (v0, v1, v2, g0, g1, g2, a00, a01, a02, a11, a12, a22, b00, b01, b02, b10, b11, b12, b20, b21, b22,
-            c00, c01, c02, c11, c12, c22, r0, r1, r2, r3, r4, r5, r6, r7, r8, count)
-    return last, rejected, initialised
+    s[:38] = (v0, v1, v2, g0, g1, g2, a00, a01, a02, a11, a12, a22, b00, b01, b02, b10, b11, b12, b20, b21, b22,
+              c00, c01, c02, c11, c12, c22, r0, r1, r2, r3, r4, r5, r6, r7, r8, count, initialised)
+    s[I_REJECTED] += rejected
+    return last
 
 
 def _velocity_update(xp, n6, z, gate=math.inf):
@@ -274,14 +275,8 @@ def step_frame(s: list, d9, dv3, dt: float, stationary: bool, valid: bool, speed
     speed : float
         ``|v|`` after the update, m/s.
     """
-    st = s[:N_KERNEL]
     rprev = s[27:36]
-    speed = math.nan if speed is None else float(speed)
-    last, rej, init = _predict_update(st, ((d9, dv3, dt, stationary, valid, speed),),
-                                      tuple(s[I_PRM:I_PRM + 7]) + (s[I_INIT],))
-    s[:N_KERNEL] = st
-    s[I_INIT], s[I_LAST] = 1.0 if init else 0.0, last
-    s[I_REJECTED] += rej
+    s[I_LAST] = _predict_update(s, ((d9, dv3, dt, stationary, valid, math.nan if speed is None else float(speed)),))
     p0, p1, p2 = log_flat(d9)
     w = (p0 / dt, p1 / dt, p2 / dt)
     h0, h1, h2, h3, h4, h5, h6, h7, h8 = exp_flat(0.5 * p0, 0.5 * p1, 0.5 * p2)   # body_{k-1} <- mid
@@ -296,16 +291,15 @@ def step_frame(s: list, d9, dv3, dt: float, stationary: bool, valid: bool, speed
         cx, cy, cz = w[1] * m2 - w[2] * m1, w[2] * m0 - w[0] * m2, w[0] * m1 - w[1] * m0
         f0, f1, f2 = f0 - ax - cx, f1 - ay - cy, f2 - az - cz
     s[I_WPREV:I_WPREV + 4] = (1.0,) + w
-    g0, g1, g2 = st[3], st[4], st[5]
+    v0, v1, v2, g0, g1, g2 = s[:6]
     q0, q1, q2 = (rprev[0] * g0 + rprev[3] * g1 + rprev[6] * g2, rprev[1] * g0 + rprev[4] * g1 + rprev[7] * g2,
                   rprev[2] * g0 + rprev[5] * g1 + rprev[8] * g2)       # R_{k-1}^T g
-    v0, v1, v2 = st[0], st[1], st[2]
     f, a = (f0, f1, f2), (f0 - (h0 * q0 + h3 * q1 + h6 * q2), f1 - (h1 * q0 + h4 * q1 + h7 * q2),
                           f2 - (h2 * q0 + h5 * q1 + h8 * q2))
     speed = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
     if out is None:
         return f, a, speed
-    out[:] = st[0:6] + list(a + f)
+    out[:] = s[0:6] + list(a + f)
     return speed
 
 
@@ -350,12 +344,9 @@ def run_frames(s: list, d, dv, dt, stationary, valid, speed, v_out, g_out, p_out
     sp = [math.nan] * n if speed is None else np.asarray(speed, dtype=float).tolist()
     frames = list(zip(np.reshape(d, (n, 9)).tolist(), np.asarray(dv).tolist(), np.asarray(dt).tolist(),
                       np.asarray(stationary).tolist(), np.asarray(valid).tolist(), sp))
-    st, r_start, w_prev = s[:N_KERNEL], s[27:36], s[I_WPREV:I_WPREV + 4]
+    r_start, w_prev = s[27:36], s[I_WPREV:I_WPREV + 4]
     out, pri = array("d"), (array("d") if priors is not None else None)
-    last, rej, init = _predict_update(st, frames, tuple(s[I_PRM:I_PRM + 7]) + (s[I_INIT],), out, pri)
-    s[:N_KERNEL] = st
-    s[I_INIT] = 1.0 if init else 0.0
-    s[I_REJECTED] += rej
+    last = _predict_update(s, frames, out, pri)
     if not n:
         return
     s[I_LAST] = last
