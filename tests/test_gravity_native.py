@@ -234,6 +234,16 @@ def test_argument_errors_name_the_argument():
         NATIVE.step_sensor(s, d9, dv, 0.1, False, True, None, np.empty(11))
     with pytest.raises(TypeError):
         NATIVE.step_frame(s, d9, dv, "0.1", False, True, None)
+    p = GravityVelocityFilter()
+    p.kernel = gravity_kernel
+    p.reset()
+    for dt in (0.0, -0.1, np.nan):
+        for k in (NATIVE.step_frame, NATIVE.step_sensor):
+            with pytest.raises(ValueError, match="dt must be > 0"):
+                k(s, d9, dv, dt, False, True, None)
+        with pytest.raises(ValueError, match="dt must be > 0"):
+            gravity_kernel.step_sensor(p._s, d9, dv, dt, False, True, None)
+    assert p._s[36] == 0.0
     assert s[36] == 0.0                                    # nothing was processed
     NATIVE.step_frame(s, np.eye(3).ravel(), np.array(dv), 0.1, False, True, 3.0)    # buffers are fine too
     assert s[36] == 1.0

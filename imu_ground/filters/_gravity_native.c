@@ -410,6 +410,10 @@ static PyObject *step_common(PyObject *const *args, Py_ssize_t nargs, int sensor
     double dt = PyFloat_AsDouble(args[3]);
     if (dt == -1.0 && PyErr_Occurred())
         return NULL;
+    if (!(dt > 0.0)) {                     /* (the Python twin divides by it: the same error in both) */
+        PyErr_Format(PyExc_ValueError, "dt must be > 0 s, got %R", args[3]);
+        return NULL;
+    }
     int stationary = PyObject_IsTrue(args[4]), valid = PyObject_IsTrue(args[5]);
     if (stationary < 0 || valid < 0)
         return NULL;

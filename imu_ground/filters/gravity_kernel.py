@@ -260,7 +260,7 @@ def step_frame(s: list, d9, dv3, dt: float, stationary: bool, valid: bool, speed
     d9, dv3 : sequences of 9 and 3 floats
         ``R_{body_{k-1}<-body_k}`` row-major; gravity-free velocity increment (body_{k-1}, m/s).
     dt : float
-        Frame duration, s (> 0).
+        Frame duration, s (> 0, else ValueError; nothing else is checked).
     stationary, valid : bool
         Standstill at the frame's end; False through a timestamp gap.
     speed : float or None
@@ -275,6 +275,8 @@ def step_frame(s: list, d9, dv3, dt: float, stationary: bool, valid: bool, speed
     speed : float
         ``|v|`` after the update, m/s.
     """
+    if not dt > 0.0:
+        raise ValueError(f"dt must be > 0 s, got {dt!r}")
     rprev = s[27:36]
     s[I_LAST] = _predict_update(s, ((d9, dv3, dt, stationary, valid, math.nan if speed is None else float(speed)),))
     p0, p1, p2 = log_flat(d9)
