@@ -198,13 +198,17 @@ def advance(buf: array, frames: Sequence[Sequence[float]], q_h: Sequence[float],
 
 def _floats(v, shape: tuple, name: str) -> list:
     """``v``, a float64 ndarray of ``shape``, as a flat list of Python floats; TypeError or
-    ValueError otherwise, as the C twin raises them."""
-    if type(v) is not np.ndarray or (v.dtype is not _F64 and v.dtype != _F64) or not v.flags.c_contiguous:
+    ValueError otherwise, as the C twin raises them (the C twin also refuses a non-contiguous array,
+    which the filters then copy; the result is the same)."""
+    if type(v) is np.ndarray and v.shape == shape and (v.dtype is _F64 or v.dtype == _F64):
+        return v.ravel().tolist()
+    if type(v) is not np.ndarray or v.dtype != _F64:
         raise TypeError(f"{name} must be a C-contiguous float64 array, got {type(v).__name__}"
                         + (f" of {v.dtype}" if type(v) is np.ndarray else ""))
-    if v.shape != shape:
-        raise ValueError(f"{name} must have shape {shape}, got {v.shape}")
-    return v.ravel().tolist()
+    raise ValueError(f"{name} must have shape {shape}, got {v.shape}")
+
+
+_SHAPE_R, _SHAPE_V = (3, 3), (3,)
 
 
 def step(buf: array, d, q_h: float, q_v: float, tilt_x: Optional[float], tilt_y: Optional[float],
@@ -218,7 +222,8 @@ def step(buf: array, d, q_h: float, q_v: float, tilt_x: Optional[float], tilt_y:
     d : ndarray (3, 3), float64
         Increment sensor_{k-1} <- sensor_k.
     q_h, q_v : float
-        Process noise of this frame, horizontal and about up, rad^2.
+        Process noise of this frame, horizontal and about up, rad^2 (Python floats: the loop
+        computes in the type it is given).
     tilt_x, tilt_y : float or None
         Modelled body tilt, rad (None: none).
     dv : ndarray (3,) float64, or None
@@ -237,14 +242,13 @@ def step(buf: array, d, q_h: float, q_v: float, tilt_x: Optional[float], tilt_y:
     TypeError, ValueError
         ``d`` or ``dv`` is not a float64 array of that shape: the caller coerces and retries.
     """
-    d9 = _floats(d, (3, 3), "delta_R")
-    status = frame_status(d9, None if dv is None else _floats(dv, (3,), "delta_v"), float(dt))
+    d9 = _floats(d, _SHAPE_R, "delta_R")
+    status = frame_status(d9, None if dv is None else _floats(dv, _SHAPE_V, "delta_v"), dt)
     if status:
         return status
     if tilt_x is None:
-        return advance(buf, (d9,), (float(q_h),), float(q_v))[0]
-    return advance(buf, (d9,), (float(q_h),), float(q_v), (float(tilt_x),),
-                   (0.0 if tilt_y is None else float(tilt_y),))[0]
+        return advance(buf, (d9,), (q_h,), q_v)[0]
+    return advance(buf, (d9,), (q_h,), q_v, (tilt_x,), (0.0 if tilt_y is None else tilt_y,))[0]
 
 
 def run(buf: array, d, q_h, q_v: float, tilt_x, tilt_y, out: np.ndarray, angles: bool) -> None:
@@ -279,8 +283,8 @@ def run(buf: array, d, q_h, q_v: float, tilt_x, tilt_y, out: np.ndarray, angles:
 
 def check(d, dv, dt: float) -> int:
     """The status of one frame (:func:`~imu_ground.filters.estimator.frame_status`; 0: good)."""
-    dv3 = None if dv is None else _floats(dv, (3,), "delta_v")
-    return frame_status(_floats(d, (3, 3), "delta_R"), dv3, float(dt))
+    dv3 = None if dv is None else _floats(dv, _SHAPE_V, "delta_v")
+    return frame_status(_floats(d, _SHAPE_R, "delta_R"), dv3, dt)
 
 
 #: The pure-Python kernel (``step``, ``run``, ``check``): the reference.
