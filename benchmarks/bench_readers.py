@@ -20,6 +20,16 @@ Targets (issue 9, this 2-core machine):
 The end-to-end time includes the preintegration and the filter (other rooms):
 the reader's share is printed beside it. :func:`rows` returns the table for
 ``benchmarks/make_results.py``.
+
+Both readers use threads: pandas (3.1 and later) parses a plain file given by
+path in byte ranges on up to six threads, and ``read_imu`` parses pieces of the
+file on as many threads as the process may use (``imu_ground.datasets.csvio``).
+Their wall times therefore depend on how busy the second core is (the 1-minute
+load average is printed with every figure): a reader on one thread compared
+with pandas on several gives a ratio that drifts with the load. An informative
+figure gives pandas on one thread (``mode.max_threads = 1``), and an
+informative row splits one ``estimate`` run into its stages (wall and CPU
+seconds, RSS after each), in one fresh process.
 """
 from __future__ import annotations
 
@@ -45,6 +55,8 @@ _READ = {
     "read_imu": "from imu_ground.datasets import read_imu; import warnings; warnings.simplefilter('ignore'); "
                 "x = read_imu(PATH); n = len(x)",
     "pandas.read_csv": "import pandas as pd; x = pd.read_csv(PATH); n = len(x)",
+    "pandas 1 thread": "import pandas as pd\ntry:\n    pd.set_option('mode.max_threads', 1)\n"
+                       "except Exception:\n    pass\nx = pd.read_csv(PATH); n = len(x)",
 }
 _CHILD = """
 import resource, sys, time
@@ -84,6 +96,42 @@ def make_log(hours: float, folder: Path) -> Path:
     return path
 
 
+_STAGES = """
+import resource, sys, time, warnings
+warnings.simplefilter('ignore')
+PATH = sys.argv[1]
+out = []
+t0, c0 = time.perf_counter(), time.process_time()
+def mark(name):
+    global t0, c0
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    out.append(f"{name} {time.perf_counter() - t0:.2f} s (CPU {time.process_time() - c0:.2f}, peak {rss:,.0f} MiB)")
+    t0, c0 = time.perf_counter(), time.process_time()
+from imu_ground.datasets import read_imu
+from imu_ground.imu import imu_to_egomotion
+from imu_ground.filters import Extrinsic, track_table
+from imu_ground.filters.methods import METHODS, default_method
+from imu_ground.pipeline.output import GAP_NAN_FRAMES, write_csv_rows
+mark('imports')
+imu = read_imu(PATH); mark('read_imu')
+em = imu_to_egomotion(imu, rate=10.0); mark('egomotion')
+spec = METHODS[default_method(True)]
+track = spec.make(extrinsic=Extrinsic.coerce(None)).run(em, smooth=bool(spec.smooth)); mark('filter')
+table = track_table(track, max_gap_frames=GAP_NAN_FRAMES); mark('table')
+with open(sys.argv[2], 'w', newline='\\n') as fh:
+    write_csv_rows(fh, table)
+mark('csv writer')
+print('; '.join(out))
+"""
+
+
+def _stages(path: Path, folder: Path) -> str:
+    """One ``estimate``'s stages in a fresh process: wall s, CPU s and peak RSS after each (text)."""
+    out = subprocess.run([sys.executable, "-c", _STAGES, str(path), str(folder / "stages.csv")], check=False,
+                         capture_output=True, text=True, cwd=REPO)
+    return out.stdout.strip() if out.returncode == 0 else f"failed: {out.stderr.strip()[-300:]}"
+
+
 def _child(code: str, path: Path) -> tuple[float, float, int, float]:
     """(wall s, peak RSS bytes, samples, CPU s) of ``code`` in a fresh process."""
     out = subprocess.run([sys.executable, "-c", _CHILD.format(code=code), str(path)], check=True,
@@ -108,10 +156,18 @@ def _estimate(path: Path, folder: Path) -> tuple[float, float, float]:
     return dt, usage.ru_maxrss * 1024.0, usage.ru_utime + usage.ru_stime
 
 
+def _load() -> float:
+    """The machine's 1-minute load average (nan where unknown)."""
+    try:
+        return os.getloadavg()[0]
+    except OSError:
+        return float("nan")
+
+
 def measure(hours: float, folder: Path, repeat: int = 3, estimate: bool = True) -> dict[str, float]:
     """Median time (s) and peak RSS (bytes) of each reader, and of ``estimate``, on a ``hours`` log."""
     path = make_log(hours, folder)
-    res: dict[str, float] = {"hours": hours, "mb": path.stat().st_size / 1e6}
+    res: dict[str, float] = {"hours": hours, "mb": path.stat().st_size / 1e6, "load": _load()}
     for name, code in _READ.items():
         runs = [_child(code, path) for _ in range(repeat)]
         res[f"{name} s"] = statistics.median(r[0] for r in runs)
@@ -127,6 +183,8 @@ def measure(hours: float, folder: Path, repeat: int = 3, estimate: bool = True) 
         res["estimate s"] = statistics.median(r[0] for r in runs_e)
         res["estimate rss"] = statistics.median(r[1] for r in runs_e)
         res["estimate cpu"] = statistics.median(r[2] for r in runs_e)
+        res["stages"] = _stages(path, folder)  # type: ignore[assignment]
+    res["load"] = max(res["load"], _load())          # the busier of the start and the end
     return res
 
 
@@ -137,7 +195,8 @@ def _reader_row(h: float, m: dict[str, float]) -> dict[str, object]:
             "figure": f"read_imu {m['read_imu s']:.2f} s (CPU {m['read_imu cpu']:.2f}), "
                       f"{m['read_imu rss'] / 2**20:,.0f} MiB; pandas {m['pandas.read_csv s']:.2f} s "
                       f"(CPU {m['pandas.read_csv cpu']:.2f}), {m['pandas.read_csv rss'] / 2**20:,.0f} MiB; "
-                      f"ratio {ratio:.2f} (CPU {m['read_imu cpu'] / m['pandas.read_csv cpu']:.2f})",
+                      f"ratio {ratio:.2f} (CPU {m['read_imu cpu'] / m['pandas.read_csv cpu']:.2f}); "
+                      f"pandas on 1 thread {m['pandas 1 thread s']:.2f} s; load {m['load']:.1f}",
             "passed": ratio <= 1.5}
 
 
@@ -148,7 +207,8 @@ def _estimate_row(h: float, m: dict[str, float]) -> dict[str, object]:
         m["estimate s"] <= limit and (h < 10 or m["estimate rss"] <= 2e9))
     return {"benchmark": f"imu-ground estimate, {h:g} h end to end", "target": target,
             "figure": f"{m['estimate s']:.2f} s (CPU {m['estimate cpu']:.2f}), {m['estimate rss'] / 2**20:,.0f} "
-                      f"MiB; reader's share {m['read_imu s']:.2f} s ({m['read_imu s'] / m['estimate s']:.0%})",
+                      f"MiB; reader's share {m['read_imu s']:.2f} s ({m['read_imu s'] / m['estimate s']:.0%}); "
+                      f"load {m['load']:.1f}",
             "passed": False if limit is not None and ok is None else ok}
 
 
@@ -167,6 +227,8 @@ def rows(hours: tuple[float, ...] = (1.0, 10.0), repeat: int = 3, folder: Path |
         out.append(_reader_row(h, m))
         if estimate:
             out.append(_estimate_row(h, m))
+            out.append({"benchmark": f"imu-ground estimate, {h:g} h, by stage (one process)",
+                        "target": "informative", "figure": m["stages"], "passed": None})
     if len(meas) >= 2:
         lo, hi = meas[min(meas)], meas[max(meas)]
         per = (hi["read_imu rss"] - lo["read_imu rss"]) / (hi["samples"] - lo["samples"])

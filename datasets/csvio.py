@@ -34,7 +34,7 @@ CHUNK_ROWS = 1 << 19
 #: Plain files at least this large (bytes) are parsed in pieces by several threads.
 PARALLEL_MIN_BYTES = 8 << 20
 #: Bytes of text per piece of a parallel parse (cut at a line end).
-PIECE_BYTES = 8 << 20
+PIECE_BYTES = 16 << 20
 #: Most threads a parallel parse uses (fewer when the process may use fewer CPUs).
 MAX_THREADS = 4
 #: After parsing at least this many values, the freed heap memory is returned to the system.
