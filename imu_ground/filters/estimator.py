@@ -562,7 +562,8 @@ def bad_frame(frame, status: int, d: np.ndarray, dv, dt: float, on_invalid: str,
         0-based index of the frame in the estimator's run, for the message.
     """
     if on_invalid == "raise":
-        problem = frame_problem(np.asarray(d).ravel().tolist(), None if dv is None else list(dv), dt, status)
+        dv3 = None if dv is None else np.asarray(dv, dtype=float).ravel().tolist()
+        problem = frame_problem(np.asarray(d, dtype=float).ravel().tolist(), dv3, dt, status)
         raise bad_frame_error(problem, frame_where(index, getattr(frame, "t", math.nan)))
 
 
