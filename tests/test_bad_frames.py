@@ -153,8 +153,29 @@ def test_bare_rotation_step_checks_the_rotation_only():
 
 
 def test_step_refuses_several_rotations_as_one_frame():
-    """Both streaming estimators share the frame check (estimator.checked_rotation): a batch is named as such."""
-    batch = np.stack([np.eye(3), so3.rotz(0.1)])
-    for f in (GroundNormalFilter(on_invalid="skip"), SuspensionAwareFilter(on_invalid="skip")):
-        with pytest.raises(ValueError, match=r"delta_R must be one rotation, got shape \(2, 3, 3\)"):
-            f.step(batch, np.zeros(3), 0.1) if isinstance(f, SuspensionAwareFilter) else f.step(batch)
+    """Both streaming estimators share the frame check (the kernel's check, then estimator.coerce_frame):
+    a batch is named as such, even a batch of one."""
+    for batch in (np.stack([np.eye(3), so3.rotz(0.1)]), so3.rotz(0.1)[None]):
+        for f in (GroundNormalFilter(on_invalid="skip"), SuspensionAwareFilter(on_invalid="skip")):
+            with pytest.raises(ValueError, match=rf"delta_R must be one rotation, got shape \({len(batch)}, 3, 3\)"):
+                f.step(batch, np.zeros(3), 0.1) if isinstance(f, SuspensionAwareFilter) else f.step(batch)
+
+
+@pytest.mark.parametrize("form", ["nested list", "float32", "Fortran order", "4x4 pose", "rotation vector",
+                                  "delta_v list"])
+def test_step_takes_every_form_of_a_frame(form):
+    """The kernels' fast path takes float64 arrays; any other form is converted and gives the same estimate."""
+    phi = np.array([0.01, -0.02, 0.3])
+    R = so3.exp_one(phi)
+    pose = np.eye(4)
+    pose[:3, :3], pose[:3, 3] = R, [1.0, 2.0, 3.0]
+    d = {"nested list": R.tolist(), "float32": R.astype(np.float32), "Fortran order": np.asfortranarray(R),
+         "4x4 pose": pose, "rotation vector": phi, "delta_v list": R}[form]
+    dv = [0.5, 0.0, 0.0] if form == "delta_v list" else np.array([0.5, 0.0, 0.0])
+    for make in (GroundNormalFilter, SuspensionAwareFilter):
+        ref, f = make(), make()
+        a = ref.step(R, np.array([0.5, 0.0, 0.0]), 0.1) if make is SuspensionAwareFilter else ref.step(R)
+        b = f.step(d, dv, 0.1) if make is SuspensionAwareFilter else f.step(d)
+        tol = 1e-7 if form == "float32" else 1e-15
+        np.testing.assert_allclose(b.normal, a.normal, rtol=0, atol=tol)
+        assert b.valid
