@@ -1,9 +1,7 @@
 /* The gravity/velocity filter's per-frame kernel in C: the twin of imu_ground/filters/gravity_kernel.py.
  *
- * Same recursion (gravity_kernel._predict_update and _velocity_update), same forces
- * (gravity_kernel.step_frame), same operation order term by term, compiled without
- * FMA contraction: the results equal the pure-Python kernel's to rounding (the tests
- * compare them to 1e-12; most frames are bit-identical).
+ * Same recursion (gravity_kernel._predict_update, _velocity_update), forces (step_frame) and operation
+ * order term by term, compiled without FMA contraction: frame by frame bit-identical to the Python twin.
  *
  * All state lives in the caller's float64 buffer (layout: gravity_kernel's docstring;
  * indices below); this module has no mutable global state.
@@ -36,15 +34,9 @@ enum {
 static inline void mul33(const double *a, const double *b, double *c)
 {
     double t[9];
-    t[0] = a[0] * b[0] + a[1] * b[3] + a[2] * b[6];
-    t[1] = a[0] * b[1] + a[1] * b[4] + a[2] * b[7];
-    t[2] = a[0] * b[2] + a[1] * b[5] + a[2] * b[8];
-    t[3] = a[3] * b[0] + a[4] * b[3] + a[5] * b[6];
-    t[4] = a[3] * b[1] + a[4] * b[4] + a[5] * b[7];
-    t[5] = a[3] * b[2] + a[4] * b[5] + a[5] * b[8];
-    t[6] = a[6] * b[0] + a[7] * b[3] + a[8] * b[6];
-    t[7] = a[6] * b[1] + a[7] * b[4] + a[8] * b[7];
-    t[8] = a[6] * b[2] + a[7] * b[5] + a[8] * b[8];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            t[3 * i + j] = a[3 * i] * b[j] + a[3 * i + 1] * b[3 + j] + a[3 * i + 2] * b[6 + j];
     memcpy(c, t, sizeof t);
 }
 
@@ -236,19 +228,14 @@ static inline void predict_update(double *s, const double *d, const double *dv, 
     if (kind)
         return;
     /* non-holonomic constraint: body y and z velocity, h = columns 1 and 2 of R_k */
-    double uy[6], uz[6];
-    uy[0] = a[0] * r[1] + a[1] * r[4] + a[2] * r[7];
-    uy[1] = a[1] * r[1] + a[3] * r[4] + a[4] * r[7];
-    uy[2] = a[2] * r[1] + a[4] * r[4] + a[5] * r[7];
-    uy[3] = b[0] * r[1] + b[3] * r[4] + b[6] * r[7];
-    uy[4] = b[1] * r[1] + b[4] * r[4] + b[7] * r[7];
-    uy[5] = b[2] * r[1] + b[5] * r[4] + b[8] * r[7];
-    uz[0] = a[0] * r[2] + a[1] * r[5] + a[2] * r[8];
-    uz[1] = a[1] * r[2] + a[3] * r[5] + a[4] * r[8];
-    uz[2] = a[2] * r[2] + a[4] * r[5] + a[5] * r[8];
-    uz[3] = b[0] * r[2] + b[3] * r[5] + b[6] * r[8];
-    uz[4] = b[1] * r[2] + b[4] * r[5] + b[7] * r[8];
-    uz[5] = b[2] * r[2] + b[5] * r[5] + b[8] * r[8];
+    double uy[6], uz[6];                   /* P H^T: [A; B^T] times the columns 1 and 2 of R_k */
+    const double A[3][3] = {{a[0], a[1], a[2]}, {a[1], a[3], a[4]}, {a[2], a[4], a[5]}};
+    for (int i = 0; i < 3; i++) {
+        uy[i] = A[i][0] * r[1] + A[i][1] * r[4] + A[i][2] * r[7];
+        uz[i] = A[i][0] * r[2] + A[i][1] * r[5] + A[i][2] * r[8];
+        uy[3 + i] = b[i] * r[1] + b[3 + i] * r[4] + b[6 + i] * r[7];
+        uz[3 + i] = b[i] * r[2] + b[3 + i] * r[5] + b[6 + i] * r[8];
+    }
     double rn = prm[4];
     double s00 = r[1] * uy[0] + r[4] * uy[1] + r[7] * uy[2] + rn;
     double s01 = r[1] * uz[0] + r[4] * uz[1] + r[7] * uz[2];
@@ -466,21 +453,18 @@ static PyObject *step_common(PyObject *const *args, Py_ssize_t nargs, int sensor
     return res;
 }
 
-static PyObject *step_frame(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+static PyObject *step_frame(PyObject *Py_UNUSED(self), PyObject *const *args, Py_ssize_t nargs)
 {
-    (void)self;
     return step_common(args, nargs, 0, "step_frame");
 }
 
-static PyObject *step_sensor(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+static PyObject *step_sensor(PyObject *Py_UNUSED(self), PyObject *const *args, Py_ssize_t nargs)
 {
-    (void)self;
     return step_common(args, nargs, 1, "step_sensor");
 }
 
-static PyObject *to_body(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+static PyObject *to_body(PyObject *Py_UNUSED(self), PyObject *const *args, Py_ssize_t nargs)
 {
-    (void)self;
     if (nargs != 3) {
         PyErr_Format(PyExc_TypeError, "to_body expects 3 arguments (s, d9, dv3), got %zd", nargs);
         return NULL;
@@ -512,9 +496,8 @@ static PyObject *to_body(PyObject *self, PyObject *const *args, Py_ssize_t nargs
 
 enum { RUN_NARGS = 16, RUN_BUFFERS = 16 };
 
-static PyObject *run_frames(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+static PyObject *run_frames(PyObject *Py_UNUSED(self), PyObject *const *args, Py_ssize_t nargs)
 {
-    (void)self;
     static const char *names[RUN_BUFFERS] = {"state", "d", "dv", "dt", "stationary", "valid", "speed", "v_out",
                                              "g_out", "p_out", "cum_out", "f_out", "a_out", "speed_out", "priors",
                                              "body_out"};
