@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import gc
 import math
+import sys
 import tracemalloc
 
 import numpy as np
@@ -61,8 +62,8 @@ def test_kernel_rejects_bad_arguments_by_name():
         NATIVE.integrate_interval(DELTAS_IDENTITY, None, "x", 0, 0, 0, 0, 0, 0, NOISE)
     with pytest.raises(TypeError, match="10 arguments"):
         NATIVE.integrate_interval(DELTAS_IDENTITY, None)
-    with pytest.raises(ValueError, match="121 doubles"):
-        NATIVE.push(bytearray(16), 0.0, [0.0] * 3, [0.0] * 3)
+    with pytest.raises(ValueError, match="132 doubles"):
+        NATIVE.push(bytearray(16), None, 0.0, [0.0] * 3, [0.0] * 3)
 
 
 if NATIVE is not None:
@@ -162,23 +163,29 @@ def test_rejected_samples_leave_the_state_unchanged():
 
 
 def test_no_leaks_over_many_calls():
-    """1e5 kernel calls and pushes allocate nothing that stays (refcounts of the inputs unchanged too)."""
+    """1e5 kernel calls and pushes (frames finished in C and in Python) allocate nothing that stays;
+    the inputs' refcounts are unchanged."""
     s, u, noise = DELTAS_IDENTITY, UNCERTAINTY_ZERO, NOISE
     g, a = [0.1, -0.2, 0.3], [0.0, 0.0, 9.8]
-    sp = StreamingPreintegrator(every=50)
-    refs = [__import__("sys").getrefcount(o) for o in (s, u, noise, g, a)]
+    sps = [StreamingPreintegrator(every=50), StreamingPreintegrator(rate=10.0),
+           StreamingPreintegrator(frame_times=np.arange(0.0003, 1001.0, 0.1), uncertainty=False)]
+    refs = [sys.getrefcount(o) for o in (s, u, noise, g, a)]
+    frames = 0
+
+    def run(k0, k1):
+        nonlocal frames
+        for k in range(k0, k1):
+            NATIVE.integrate_interval(s, u, 0.01, 1e-3, 2e-3, 3e-3, 0.1, 0.2, 9.8, noise)
+            for sp in sps:
+                frames += len(sp.push(k * 0.01 + 0.0003, g, a))
+    run(0, 2000)                                        # warm-up: free lists and caches
     gc.collect()
     tracemalloc.start()
-    for k in range(2000):                               # warm-up: free lists and caches
-        NATIVE.integrate_interval(s, u, 0.01, 1e-3, 2e-3, 3e-3, 0.1, 0.2, 9.8, noise)
-        sp.push(k * 0.01, g, a)
     base = tracemalloc.get_traced_memory()[0]
-    for k in range(2000, 100_000):
-        NATIVE.integrate_interval(s, u, 0.01, 1e-3, 2e-3, 3e-3, 0.1, 0.2, 9.8, noise)
-        sp.push(k * 0.01, g, a)
+    run(2000, 100_000)
     gc.collect()
     grown = tracemalloc.get_traced_memory()[0] - base
     tracemalloc.stop()
     assert grown < 64 * 1024, grown
-    assert [__import__("sys").getrefcount(o) for o in (s, u, noise, g, a)] == refs
-    assert math.isfinite(sp.current.delta_t)
+    assert [sys.getrefcount(o) for o in (s, u, noise, g, a)] == refs
+    assert frames > 20_000 and all(math.isfinite(sp.current.delta_t) for sp in sps)

@@ -10,10 +10,13 @@
  *       the drop-in twin of the Python function (tuples in, new tuples out; u None stays None);
  *   integrate(state, dt, x, y, z, fx, fy, fz)
  *       the same on a streaming state buffer, in place;
- *   push(state, t, gyro, accel) -> bool
- *       StreamingPreintegrator.push's fast path on the state buffer: True when the sample was
- *       integrated (inside a frame, no boundary, no gap, not an every-N sample), False (state
- *       untouched) when the Python slow path must take it.
+ *   push(state, times, t, gyro, accel) -> True, False or a list of frames
+ *       StreamingPreintegrator.push on the state buffer (times: the frame_times as array('d')):
+ *       True when the sample was integrated inside a frame (no boundary, no gap, not an every-N
+ *       sample); a list of (deltas, uncertainty, n, t_start, t_end, valid) of the frames it
+ *       finished when it crossed rate or frame_times boundaries without a gap (split there,
+ *       midpoint values interpolated, as the Python slow path); False (state untouched) for
+ *       everything else (first sample, gaps, every-N boundaries, errors), the Python slow path's.
  * Streaming state buffer (array('d'), S_* offsets below, mirrored in preint_stream.py).
  * No global mutable state.
  */
@@ -33,7 +36,18 @@ enum {
     S_NOISE = 117,  /* 2: q_g, q_a */
     S_MIDPOINT = 119,
     S_UNCERTAINTY = 120,
-    S_SIZE = 121
+    S_K = 121,      /* index of the next boundary */
+    S_NEXT = 122,   /* its time (inf: none) */
+    S_ACTIVE = 123, /* inside a frame */
+    S_N = 124,      /* intervals integrated by the boundary path in this frame */
+    S_MARK = 125,   /* S_CD at the frame's start */
+    S_TSTART = 126,
+    S_VALID = 127,
+    S_TOL = 128,    /* snap_tol */
+    S_MODE = 129,   /* boundaries: 0 every-N (the boundary path is Python's), 1 rate, 2 frame_times */
+    S_RATE = 130,
+    S_ORIGIN = 131,
+    S_SIZE = 132
 };
 
 #define SMALL_ANGLE2 1e-8   /* imu_ground.imu.matrix3.SMALL_ANGLE2 */
@@ -352,14 +366,121 @@ static int three(PyObject *o, double *out)
     return ok;
 }
 
+/* One piece of length dt between knots with (bias-free) values ka and kb (_piece of preint_stream.py). */
+static inline void piece(double *b, double dt, const double *ka, const double *kb)
+{
+    double *u = b[S_UNCERTAINTY] != 0.0 ? b + S_UNC : NULL;
+    if (b[S_MIDPOINT] != 0.0) {
+        double hh = 0.5 * dt;
+        integrate(b + S_DELTAS, u, dt, (ka[0] + kb[0]) * hh, (ka[1] + kb[1]) * hh, (ka[2] + kb[2]) * hh,
+                  (ka[3] + kb[3]) * hh, (ka[4] + kb[4]) * hh, (ka[5] + kb[5]) * hh, b[S_NOISE], b[S_NOISE + 1]);
+    } else {
+        integrate(b + S_DELTAS, u, dt, ka[0] * dt, ka[1] * dt, ka[2] * dt, ka[3] * dt, ka[4] * dt, ka[5] * dt,
+                  b[S_NOISE], b[S_NOISE + 1]);
+    }
+    b[S_N] += 1.0;
+}
+
+/* A boundary at tb (_cross of preint_stream.py, rate or frame_times): the running frame appended
+ * to out as (deltas, uncertainty, n, t_start, t_end, valid), the next one started. -1 on error. */
+static int cross(double *b, const double *times, Py_ssize_t ntimes, double tb, PyObject *out)
+{
+    if (b[S_ACTIVE] != 0.0) {
+        PyObject *rec = PyTuple_New(6);
+        if (rec == NULL)
+            return -1;
+        PyObject *items[6] = {
+            tuple_of(b + S_DELTAS, 11),
+            b[S_UNCERTAINTY] != 0.0 ? tuple_of(b + S_UNC, 90) : Py_NewRef(Py_None),
+            PyLong_FromDouble(b[S_N] + b[S_MARK] - b[S_CD]),
+            PyFloat_FromDouble(b[S_TSTART]),
+            PyFloat_FromDouble(tb),
+            PyBool_FromLong(b[S_VALID] != 0.0)};
+        int bad = 0;
+        for (int i = 0; i < 6; i++) {
+            if (items[i] == NULL)
+                bad = 1;
+            else
+                PyTuple_SET_ITEM(rec, i, items[i]);      /* the tuple owns it */
+        }
+        int err = bad ? -1 : PyList_Append(out, rec);
+        Py_DECREF(rec);                                  /* NULL slots are skipped by the deallocator */
+        if (err < 0)
+            return -1;
+    }
+    double k = b[S_K] + 1.0, next;
+    if (b[S_MODE] == 2.0)
+        next = k < (double)ntimes ? times[(Py_ssize_t)k] : INFINITY;
+    else
+        next = b[S_ORIGIN] + k / b[S_RATE];
+    b[S_K] = k;
+    b[S_NEXT] = next;
+    b[S_ACTIVE] = next != INFINITY ? 1.0 : 0.0;
+    b[S_LIM] = next != INFINITY ? next - b[S_TOL] : -INFINITY;
+    memset(b + S_DELTAS, 0, (S_PREV - S_DELTAS) * sizeof(double));
+    b[S_DELTAS + 1] = 1.0;                              /* identity quaternion */
+    b[S_N] = 0.0;
+    b[S_MARK] = b[S_CD];
+    b[S_TSTART] = tb;
+    b[S_VALID] = 1.0;
+    return 0;
+}
+
+/* The sample (t, w, a) crossing one or more boundaries without a gap (_push_slow of preint_stream.py
+ * for rate / frame_times boundaries); returns the list of finished frames, NULL on error. */
+static PyObject *cross_boundaries(double *b, const double *times, Py_ssize_t ntimes, double t, const double *w,
+                                  const double *a)
+{
+    const double *bias = b + S_BIAS;
+    double *prev = b + S_PREV, tol = b[S_TOL];
+    double t0 = prev[0], h = t - t0, pv[6], k1[6], k0[6], kb[6];
+    for (int i = 0; i < 3; i++) {
+        k1[i] = w[i] - bias[i];
+        k1[3 + i] = a[i] - bias[3 + i];
+    }
+    memcpy(pv, prev + 1, sizeof pv);
+    memcpy(k0, pv, sizeof k0);
+    prev[0] = t;
+    memcpy(prev + 1, k1, sizeof k1);
+    PyObject *out = PyList_New(0);
+    if (out == NULL)
+        return NULL;
+    double tk = t0;
+    while (b[S_NEXT] < t - tol) {
+        double tb = b[S_NEXT];
+        if (b[S_MIDPOINT] != 0.0) {
+            double wgt = (tb - t0) / h;
+            for (int i = 0; i < 6; i++)
+                kb[i] = pv[i] + (k1[i] - pv[i]) * wgt;
+        } else {
+            memcpy(kb, k0, sizeof kb);
+        }
+        if (b[S_ACTIVE] != 0.0)
+            piece(b, tb - tk, k0, kb);
+        if (cross(b, times, ntimes, tb, out) < 0) {
+            Py_DECREF(out);
+            return NULL;
+        }
+        tk = tb;
+        memcpy(k0, kb, sizeof k0);
+    }
+    if (b[S_ACTIVE] != 0.0)
+        piece(b, t - tk, k0, k1);
+    if (fabs(b[S_NEXT] - t) <= tol && cross(b, times, ntimes, b[S_NEXT], out) < 0) {
+        Py_DECREF(out);
+        return NULL;
+    }
+    return out;
+}
+
 static PyObject *py_push(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 4) {
-        PyErr_SetString(PyExc_TypeError, "push(state, t, gyro, accel) takes 4 arguments");
+    if (nargs != 5) {
+        PyErr_SetString(PyExc_TypeError, "push(state, times, t, gyro, accel) takes 5 arguments");
         return NULL;
     }
-    double t = PyFloat_AsDouble(args[1]), w[3], a[3];
+    double t = PyFloat_AsDouble(args[2]), w[3], a[3];
     if (t == -1.0 && PyErr_Occurred()) {
         PyErr_Clear();
         Py_RETURN_FALSE;
@@ -367,38 +488,63 @@ static PyObject *py_push(PyObject *self, PyObject *const *args, Py_ssize_t nargs
     Py_buffer st;
     if (get_state(args[0], &st) < 0)
         return NULL;
-    double *b = (double *)st.buf;
-    int done = 0;
-    /* as the fast path of StreamingPreintegrator.push */
-    if (t < b[S_LIM]) {
-        double *prev = b + S_PREV;
-        double h = t - prev[0];
-        if (0.0 < h && h <= b[S_MAXGAP]) {
-            double cd = b[S_CD] - 1.0;
-            if (cd != 0.0 && three(args[2], w) && three(args[3], a)) {
-                const double *bias = b + S_BIAS;
-                b[S_CD] = cd;
-                double wx = w[0] - bias[0], wy = w[1] - bias[1], wz = w[2] - bias[2];
-                double ax = a[0] - bias[3], ay = a[1] - bias[4], az = a[2] - bias[5];
-                double gx = prev[1], gy = prev[2], gz = prev[3], fx = prev[4], fy = prev[5], fz = prev[6];
-                prev[0] = t; prev[1] = wx; prev[2] = wy; prev[3] = wz; prev[4] = ax; prev[5] = ay; prev[6] = az;
-                double *u = b[S_UNCERTAINTY] != 0.0 ? b + S_UNC : NULL;
-                if (b[S_MIDPOINT] != 0.0) {
-                    double hh = 0.5 * h;
-                    integrate(b + S_DELTAS, u, h, (gx + wx) * hh, (gy + wy) * hh, (gz + wz) * hh,
-                              (fx + ax) * hh, (fy + ay) * hh, (fz + az) * hh, b[S_NOISE], b[S_NOISE + 1]);
-                } else {
-                    integrate(b + S_DELTAS, u, h, gx * h, gy * h, gz * h, fx * h, fy * h, fz * h,
-                              b[S_NOISE], b[S_NOISE + 1]);
-                }
-                done = 1;
+    double *b = (double *)st.buf, *prev = b + S_PREV;
+    double h = t - prev[0];
+    PyObject *res = Py_False;
+    if (t < b[S_LIM]) {                     /* the fast path of StreamingPreintegrator.push */
+        double cd = b[S_CD] - 1.0;
+        if (0.0 < h && h <= b[S_MAXGAP] && cd != 0.0 && three(args[3], w) && three(args[4], a)) {
+            const double *bias = b + S_BIAS;
+            b[S_CD] = cd;
+            double wx = w[0] - bias[0], wy = w[1] - bias[1], wz = w[2] - bias[2];
+            double ax = a[0] - bias[3], ay = a[1] - bias[4], az = a[2] - bias[5];
+            double gx = prev[1], gy = prev[2], gz = prev[3], fx = prev[4], fy = prev[5], fz = prev[6];
+            prev[0] = t; prev[1] = wx; prev[2] = wy; prev[3] = wz; prev[4] = ax; prev[5] = ay; prev[6] = az;
+            double *u = b[S_UNCERTAINTY] != 0.0 ? b + S_UNC : NULL;
+            if (b[S_MIDPOINT] != 0.0) {
+                double hh = 0.5 * h;
+                integrate(b + S_DELTAS, u, h, (gx + wx) * hh, (gy + wy) * hh, (gz + wz) * hh,
+                          (fx + ax) * hh, (fy + ay) * hh, (fz + az) * hh, b[S_NOISE], b[S_NOISE + 1]);
+            } else {
+                integrate(b + S_DELTAS, u, h, gx * h, gy * h, gz * h, fx * h, fy * h, fz * h,
+                          b[S_NOISE], b[S_NOISE + 1]);
             }
+            res = Py_True;
         }
+    } else if (b[S_MODE] != 0.0 && b[S_ACTIVE] != 0.0 && 0.0 < h && h <= b[S_MAXGAP] &&
+               three(args[3], w) && three(args[4], a)) {   /* boundaries inside (t0, t], no gap */
+        Py_buffer tv;
+        const double *times = NULL;
+        Py_ssize_t ntimes = 0;
+        int have_tv = 0;
+        if (b[S_MODE] == 2.0) {
+            if (PyObject_GetBuffer(args[1], &tv, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
+                PyBuffer_Release(&st);
+                return NULL;
+            }
+            have_tv = 1;
+            if (tv.format == NULL || strcmp(tv.format, "d") != 0 || tv.itemsize != sizeof(double)) {
+                PyBuffer_Release(&tv);
+                PyBuffer_Release(&st);
+                PyErr_SetString(PyExc_ValueError, "times must be a buffer of doubles (array('d'))");
+                return NULL;
+            }
+            times = (const double *)tv.buf;
+            ntimes = tv.len / (Py_ssize_t)sizeof(double);
+        }
+        res = cross_boundaries(b, times, ntimes, t, w, a);
+        if (have_tv)
+            PyBuffer_Release(&tv);
+        if (res == NULL) {
+            PyBuffer_Release(&st);
+            return NULL;
+        }
+        PyBuffer_Release(&st);
+        return res;
     }
     PyBuffer_Release(&st);
-    if (done)
-        Py_RETURN_TRUE;
-    Py_RETURN_FALSE;
+    Py_INCREF(res);
+    return res;
 }
 
 static PyMethodDef methods[] = {
@@ -407,7 +553,8 @@ static PyMethodDef methods[] = {
     {"integrate", (PyCFunction)(void (*)(void))py_integrate, METH_FASTCALL,
      "integrate(state, dt, x, y, z, fx, fy, fz): one interval on a streaming state buffer, in place."},
     {"push", (PyCFunction)(void (*)(void))py_push, METH_FASTCALL,
-     "push(state, t, gyro, accel) -> bool: StreamingPreintegrator.push's fast path (False: the slow path's)."},
+     "push(state, times, t, gyro, accel) -> True, frames or False: StreamingPreintegrator.push (False: the "
+     "Python slow path's)."},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef module = {

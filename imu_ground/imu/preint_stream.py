@@ -7,6 +7,13 @@ integrates each interval with the same scalar kernel as
 :class:`~imu_ground.imu.preint_measurement.PreintegratedImu`
 (:func:`~imu_ground.imu.preint_kernel.integrate_interval`). The per-sample path
 touches only Python floats and tuples: no numpy, no object per sample.
+
+When the C twins are built (``_preint_native.c``, see :mod:`imu_ground.imu.preint_kernel`),
+``push`` is one C call per sample: the state and the bookkeeping live in one buffer of
+floats, and the C code integrates inside frames and splits the sample interval at rate or
+frame_times boundaries (returning the finished frames' states); the first sample, gaps,
+every-N boundaries and errors go through the Python code below (the reference), which
+reads and writes the same buffer around its work. Frames are equal bit for bit either way.
 """
 from __future__ import annotations
 
@@ -33,8 +40,11 @@ _ndarray = np.ndarray
 _INF = math.inf
 
 # Streaming state buffer of the C fast path (offsets in floats: the S_* enum of _preint_native.c)
-_S_UNC, _S_PREV, _S_LIM, _S_MAXGAP, _S_CD, _S_BIAS, _S_NOISE, _S_MIDPOINT, _S_UNCERTAINTY, _S_SIZE = (
-    11, 101, 108, 109, 110, 111, 117, 119, 120, 121)
+_S_UNC, _S_PREV, _S_LIM, _S_MAXGAP, _S_CD, _S_BIAS, _S_NOISE, _S_MIDPOINT, _S_UNCERTAINTY = (
+    11, 101, 108, 109, 110, 111, 117, 119, 120)
+_S_K, _S_NEXT, _S_TOL, _S_MODE, _S_RATE, _S_ORIGIN, _S_SIZE = 121, 122, 128, 129, 130, 131, 132
+# (_S_NEXT .. _S_TOL: next boundary, active, n, mark, t_start, valid)
+_from_state = PreintegratedImu.from_state
 
 _PUSH_DOC = """Add one sample; return the frames finished by it (usually none, or one).
 
@@ -113,18 +123,24 @@ class _PythonKernel:
 
 
 class _NativeKernel:
-    """The kernel state in one buffer ``self._b`` (array('d'), layout ``_S_*``), the fast path in C
-    (``_preint_native.push``); the slow path runs in Python on the attributes, taken from the buffer
-    before it (:meth:`_load`) and put back after (:meth:`_save`)."""
+    """The kernel state and the per-sample bookkeeping in one buffer ``self._b`` (array('d'), layout
+    ``_S_*``), run by ``_preint_native.push``: inside frames, and across rate / frame_times boundaries
+    without a gap (it returns the finished frames' raw states). The rest (first sample, gaps,
+    every-N boundaries, errors) runs in Python on the attributes, taken from the buffer before it
+    (:meth:`_load`) and put back after (:meth:`_save`)."""
 
     def _kernel_init(self) -> None:
         b = self._b = array("d", bytes(8 * _S_SIZE))
-        b[0:11] = array("d", DELTAS_IDENTITY)
-        b[_S_LIM], b[_S_MAXGAP], b[_S_CD] = self._lim, self._max_gap, float(self._cd)
+        b[0:11] = _DELTAS_IDENTITY_ARRAY
+        b[_S_MAXGAP], b[_S_TOL] = self._max_gap, self._tol
         b[_S_BIAS:_S_BIAS + 6] = array("d", self._bias)
         b[_S_NOISE:_S_NOISE + 2] = array("d", self._noise)
         b[_S_MIDPOINT] = 1.0 if self._midpoint else 0.0
         b[_S_UNCERTAINTY] = 0.0 if self._u0 is None else 1.0
+        b[_S_MODE] = 0.0 if self._every is not None else (1.0 if self._rate is not None else 2.0)
+        b[_S_RATE] = self._rate or 0.0
+        self._tb = array("d", self._times or ())
+        self._save()
 
     def _kernel_reset(self) -> None:
         if self._u0 is None:
@@ -140,22 +156,31 @@ class _NativeKernel:
         _native_integrate(self._b, dt, x, y, z, fx, fy, fz)
 
     def _load(self) -> None:
-        """Buffer -> attributes: what the C fast path changes (the last sample, the every-N countdown)."""
+        """Buffer -> attributes: what the C push changes."""
         b = self._b
         if self._prev is not None:
             self._prev = tuple(b[_S_PREV:_S_LIM])
-        self._cd = int(b[_S_CD])
+        (self._lim, self._cd, self._k, self._next, active, self._n, self._mark, self._t_start,
+         valid) = b[_S_LIM], int(b[_S_CD]), int(b[_S_K]), *b[_S_NEXT:_S_TOL]
+        self._active, self._valid, self._n, self._mark = active != 0.0, valid != 0.0, int(self._n), int(self._mark)
 
     def _save(self) -> None:
-        """Attributes -> buffer: what the slow path changes and the C fast path reads."""
+        """Attributes -> buffer: what the Python slow path changes and the C push reads."""
         b = self._b
         if self._prev is not None:
             b[_S_PREV:_S_LIM] = array("d", self._prev)
         b[_S_LIM], b[_S_CD] = self._lim, float(self._cd)
+        b[_S_K:_S_TOL] = array("d", (self._k, self._next, self._active, self._n, self._mark, self._t_start,
+                                      self._valid))
+        b[_S_ORIGIN] = math.nan if self._origin is None else self._origin
 
     def push(self, t: float, gyro: Sequence[float], accel: Sequence[float]) -> tuple[PreintegratedImu, ...]:
-        if _native_push(self._b, t, gyro, accel):
+        done = _native_push(self._b, self._tb, t, gyro, accel)
+        if done is True:
             return ()
+        if done is not False:                  # boundaries crossed in C: the finished frames' states
+            par = self.params
+            return tuple([_from_state(par, *f) for f in done])
         if type(gyro) is _ndarray:
             gyro = gyro.tolist()
         if type(accel) is _ndarray:
