@@ -209,7 +209,8 @@ def main(argv=None) -> None:
         verdict = "n/a" if r["passed"] is None else ("PASS" if r["passed"] else "FAIL")
         print(f"{r['benchmark']:<70}{r['figure']:>7.2f} ({r['p99']:5.2f}){r['python']:>10.2f}{r['competitor']:>8.2f} "
               f"({r['competitor_p99']:5.2f}){r['agreement']:>12.1e}  {verdict}")
-        print(f"    target: {r['target']}; ours = the {r['kernel']} kernels, Python = the pure-Python ones (informative)")
+        print(f"    target: {r['target']}; ours = the {r['kernel']} kernels, "
+              "Python = the pure-Python ones (informative)")
 
 
 if __name__ == "__main__":

@@ -160,7 +160,8 @@ def _python_figures(samples: int, repeat: int) -> dict[str, float]:
 def _row(benchmark: str, target: str, figure: float, cpu: float, unit: str, limit: float | None,
          competitor: tuple[float, float] = (float("nan"), float("nan")), agreement: float = float("nan")) -> dict:
     return {"benchmark": benchmark, "target": target, "figure": figure, "cpu": cpu, "unit": unit,
-            "kernel": "Python" if NATIVE is None else "C", "python": float("nan"), "competitor": competitor[0], "competitor_cpu": competitor[1], "agreement": agreement,
+            "kernel": "Python" if NATIVE is None else "C", "python": float("nan"), "competitor": competitor[0],
+            "competitor_cpu": competitor[1], "agreement": agreement,
             "passed": None if limit is None else bool(figure <= limit)}
 
 

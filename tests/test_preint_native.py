@@ -100,8 +100,8 @@ def _assert_frames_equal(a, b):
         assert (fa.n_intervals, fa.t_start, fa.t_end, fa.valid) == (fb.n_intervals, fb.t_start, fb.t_end, fb.valid)
 
 
-@pytest.mark.parametrize("frames", [dict(rate=10.0), dict(rate=7.0, t_origin=0.0123), dict(every=9),
-                                    dict(frame_times="knots"), dict(frame_times="between")])
+@pytest.mark.parametrize("frames", [dict(rate=10.0), dict(rate=7.0, t_origin=0.0123), dict(rate=230.0),
+                                    dict(every=9), dict(frame_times="knots"), dict(frame_times="between")])
 @pytest.mark.parametrize("hold", ["midpoint", "left"])
 @pytest.mark.parametrize("uncertainty", [True, False])
 def test_streaming_fast_path_bit_identical(monkeypatch, frames, hold, uncertainty):

@@ -194,7 +194,8 @@ def _update_rotation_left(q, P, z, r):
         n12 = k3 * r2 + k4 * r5 + k5 * r8
         Pn = (k0 * r0 + k1 * r1 + k2 * r2, n01, n02, n01, k3 * r1 + k4 * r4 + k5 * r5, n12,
               n02, n12, k6 * r2 + k7 * r5 + k8 * r8)
-    return (quat_mul(q, quat_exp(k0 * y0 + k1 * y1 + k2 * y2, k3 * y0 + k4 * y1 + k5 * y2, k6 * y0 + k7 * y1 + k8 * y2)),
+    e = quat_exp(k0 * y0 + k1 * y1 + k2 * y2, k3 * y0 + k4 * y1 + k5 * y2, k6 * y0 + k7 * y1 + k8 * y2)
+    return (quat_mul(q, e),
             Pn, (y0, y1, y2), K, (s0, s1, s2, s1, s4, s5, s2, s5, s8), SI, det)
 
 
