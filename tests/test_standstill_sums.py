@@ -42,7 +42,7 @@ def test_blocks_smaller_than_the_log_change_nothing(monkeypatch):
 def test_window_sums_give_each_windows_mean_and_std():
     imu = _stop_and_go(50, 40)
     end = np.minimum(np.arange(len(imu)) + 25, len(imu))
-    mean, std = WindowSums(imu).stats(0, end)
+    mean, std = WindowSums(imu).stats(np.arange(len(imu)), end)
     x = np.hstack([imu.gyro, imu.accel])
     for i in (0, 17, 60, len(imu) - 1):
         np.testing.assert_allclose(mean[:, i], x[i:end[i]].mean(axis=0), rtol=0, atol=1e-12)

@@ -109,13 +109,17 @@ class WindowSums:
         np.multiply(xc, xc, out=xc)
         np.cumsum(xc, axis=1, out=self.c2[:, 1:])
 
-    def stats(self, lo: int, end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Mean and standard deviation (6, N') over samples ``[i, end[i - lo])`` for ``i = lo, lo + 1, ...``."""
-        hi = lo + end.size
-        n = np.maximum((end - np.arange(lo, hi)).astype(float), 1.0)
-        m = (self.c1[:, end] - self.c1[:, lo:hi]) / n
-        var = np.maximum((self.c2[:, end] - self.c2[:, lo:hi]) / n - m * m, 0.0)
-        return m + self.mean, np.sqrt(var)
+    def stats(self, start: np.ndarray, end: np.ndarray, rows: slice = slice(0, 6)) -> tuple[np.ndarray, np.ndarray]:
+        """Mean and standard deviation over samples ``[start[j], end[j])`` of the components ``rows``.
+
+        Returns two arrays (k, J): rows of :attr:`mean`'s order (gyro rad/s, then
+        specific force m/s^2), one column per window.
+        """
+        n = np.maximum((end - start).astype(float), 1.0)
+        c1, c2 = self.c1[rows], self.c2[rows]
+        m = (c1[:, end] - c1[:, start]) / n
+        var = np.maximum((c2[:, end] - c2[:, start]) / n - m * m, 0.0)
+        return m + self.mean[rows], np.sqrt(var)
 
 
 def _norm3(x: np.ndarray) -> np.ndarray:
@@ -125,16 +129,22 @@ def _norm3(x: np.ndarray) -> np.ndarray:
 
 def _quiet_windows(sums: WindowSums, end: np.ndarray, usable: np.ndarray, gyro_std_max: float,
                    gyro_norm_max: float, accel_std_max: float) -> tuple[np.ndarray, np.ndarray]:
-    """Windows passing the rate and variance tests, and each window's mean specific-force norm (m/s^2)."""
+    """Windows passing the rate and variance tests, and the mean specific-force norm (m/s^2) of those.
+
+    The specific force's statistics are computed only for the windows whose
+    rate passes (the norm is NaN elsewhere; only quiet windows use it).
+    """
     n = end.size
-    quiet = np.empty(n, dtype=bool)
-    norm = np.empty(n)
+    quiet = np.zeros(n, dtype=bool)
+    norm = np.full(n, np.nan)
     for lo in range(0, n, _BLOCK):
         hi = min(lo + _BLOCK, n)
-        mean, std = sums.stats(lo, end[lo:hi])
-        quiet[lo:hi] = (usable[lo:hi] & (_norm3(mean[:3]) <= gyro_norm_max)
-                        & np.all(std[:3] <= gyro_std_max, axis=0) & np.all(std[3:] <= accel_std_max, axis=0))
-        norm[lo:hi] = _norm3(mean[3:])
+        i, e = np.arange(lo, hi), end[lo:hi]
+        gm, gs = sums.stats(i, e, slice(0, 3))
+        k = np.flatnonzero(usable[lo:hi] & (_norm3(gm) <= gyro_norm_max) & np.all(gs <= gyro_std_max, axis=0))
+        am, as_ = sums.stats(i[k], e[k], slice(3, 6))
+        quiet[lo + k] = np.all(as_ <= accel_std_max, axis=0)
+        norm[lo + k] = _norm3(am)
     return quiet, norm
 
 
