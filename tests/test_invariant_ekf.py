@@ -289,3 +289,20 @@ def test_bad_inputs_are_named():
         InvariantEKF(error="middle")
     with pytest.raises(ValueError, match="Q must be"):
         InvariantEKF(Q=np.zeros((2, 2)))
+
+
+def test_copies_and_pickles_continue_identically():
+    """The state buffer (C or Python kernels) is copied with the filter: copies go on alone, equal."""
+    import copy
+    import pickle
+    f = InvariantEKF(P=0.3, Q=np.diag([1e-2, 2e-2, 5e-3]), R=0.5, error="right")
+    f.predict(so3.rotz(0.2))
+    f.update(so3.exp([0.1, -0.2, 0.3]))
+    _ = f.P, f.x                                        # arrays handed out: part of what is copied
+    g, h = copy.deepcopy(f), pickle.loads(pickle.dumps(f))
+    for e in (f, g, h):
+        e.predict(so3.rotx(0.1))
+        e.update(np.array([0.0, 0.6, 0.8]))
+    g.update(so3.roty(0.3))                              # g alone moves on
+    assert np.array_equal(f.P, h.P) and np.array_equal(f.x, h.x) and np.array_equal(f.K, h.K)
+    assert not np.array_equal(f.P, g.P)

@@ -698,3 +698,22 @@ def test_predict_equals_dead_reckoning_and_current_is_a_snapshot():
     assert snap.n_intervals == 99 and snap.delta_t == pytest.approx(t[99] - t[0], rel=1e-14)
     sp.push(t[100], gyro[100], accel[100])
     assert snap.n_intervals == 99 and sp.current.n_intervals == 100
+
+
+@pytest.mark.parametrize("frames", [{"rate": 10.0}, {"every": 7}])
+def test_streaming_copies_and_pickles_continue_identically(frames):
+    import copy
+    import pickle
+    t, gyro, accel = random_log(300, seed=4)
+    sp = StreamingPreintegrator(**frames)
+    for i in range(150):
+        sp.push(t[i], gyro[i].tolist(), accel[i].tolist())
+    copies = [copy.deepcopy(sp), pickle.loads(pickle.dumps(sp))]
+    outs = [[], [], []]
+    for i in range(150, 300):
+        for out, s in zip(outs, [sp, *copies]):
+            out += s.push(t[i], gyro[i].tolist(), accel[i].tolist())
+    assert len(outs[0]) > 5
+    for other in outs[1:]:
+        assert [(f._s, f._u, f.n_intervals, f.t_end) for f in other] == \
+            [(f._s, f._u, f.n_intervals, f.t_end) for f in outs[0]]
