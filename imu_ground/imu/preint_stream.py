@@ -39,7 +39,7 @@ __all__ = ["StreamingPreintegrator"]
 _ndarray = np.ndarray
 _INF = math.inf
 
-# Streaming state buffer of the C fast path (offsets in floats: the S_* enum of _preint_native.c)
+# Streaming state buffer of the C push (offsets in floats: the S_* enum of _preint_native.c)
 _S_UNC, _S_PREV, _S_LIM, _S_MAXGAP, _S_CD, _S_BIAS, _S_NOISE, _S_MIDPOINT, _S_UNCERTAINTY = (
     11, 101, 108, 109, 110, 111, 117, 119, 120)
 _S_K, _S_NEXT, _S_TOL, _S_MODE, _S_RATE, _S_ORIGIN, _S_SIZE = 121, 122, 128, 129, 130, 131, 132
@@ -68,11 +68,10 @@ _PUSH_DOC = """Add one sample; return the frames finished by it (usually none, o
 class _PythonKernel:
     """The kernel state as tuples ``self._st = (deltas, uncertainty)``, the pure-Python fast path."""
 
-    def _kernel_init(self) -> None:
-        self._st = (DELTAS_IDENTITY, self._u0)
-
     def _kernel_reset(self) -> None:
         self._st = (DELTAS_IDENTITY, self._u0)
+
+    _kernel_init = _kernel_reset
 
     def _kernel_state(self) -> tuple:
         return self._st
