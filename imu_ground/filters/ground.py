@@ -18,7 +18,8 @@ Pipeline, per frame k
    ground normal in the sensor frame ``n_s = R_gs(k)^T e_z``.
 
 With noise symmetric about the up axis (the defaults and the paper's) steps 2-4
-run as the scalar :class:`~imu_ground.filters.residual.ResidualKernel`; other
+run as the scalar :class:`~imu_ground.filters.residual.ResidualKernel` (compiled when
+its C twin is built, the same numbers either way); other
 settings (the reference code's forward-axis measurement, general covariances)
 run :class:`~imu_ground.filters.invariant_ekf.InvariantEKF` frame by frame.
 """
