@@ -278,6 +278,18 @@ def test_no_leaks_over_many_calls():
         tracemalloc.stop()
     assert grown < 10_000
     assert [sys.getrefcount(x) for x in (d, dv, buf, bad)] == refs
+    # the many-frame entries, with and without errors: every buffer they take is released
+    frames, q, out, status = synthetic_frames()[:20], np.full(20, 1e-6), np.empty((20, 12)), np.empty(20, np.uint8)
+    arrays = (frames, q, out, status, buf)
+    refs = [sys.getrefcount(x) for x in arrays]
+    for _ in range(2000):
+        C.run(buf, frames, q, 1e-6, q, q, out, True)
+        C.check_many(frames, None, q, status)
+        with pytest.raises(ValueError):
+            C.run(buf, frames, q, 1e-6, q, q[:5], out, True)
+        with pytest.raises(ValueError):
+            C.check_many(frames, None, q, status[:5])
+    assert [sys.getrefcount(x) for x in arrays] == refs
 
 
 # ----------------------------------------------------------------------------------- real drives, whole filters
