@@ -133,10 +133,10 @@ def _drop_blank_rows(arrays: list[np.ndarray], first_row: int, blank: list[np.nd
     return arrays
 
 
-def _parse(path: Path, sep: str) -> tuple[list[str], dict[str, list[np.ndarray]], int, np.ndarray]:
-    """Chunked C-engine parse: (names, column chunks, rows, blank-line positions)."""
+def _parse(path: Path, sep: str, stack: Mapping[str, Sequence[str]] | None) -> tuple[Columns, int, np.ndarray]:
+    """Chunked C-engine parse: (columns, rows, blank-line positions)."""
     import pandas as pd
-    parallel = _parse_parallel(path, sep)
+    parallel = _parse_parallel(path, sep, stack)
     if parallel is not None:
         return parallel
     source = open_binary(path)
@@ -166,7 +166,11 @@ def _parse(path: Path, sep: str) -> tuple[list[str], dict[str, list[np.ndarray]]
         err = locate_bad_lines(path, sep)
         if err is not None:
             raise err
-    return names, parts, n, (np.concatenate(blank) if blank else np.zeros(0, dtype=np.int64))
+    return _join_columns(names, parts, n, stack), n, _blank_rows(blank)
+
+
+def _blank_rows(blank: list[np.ndarray]) -> np.ndarray:
+    return np.concatenate(blank) if blank else np.zeros(0, dtype=np.int64)
 
 
 class _NotParallel(Exception):
@@ -219,9 +223,72 @@ def _parse_piece(fd: int, start: int, stop: int, sep: str, names: list[str] | No
     return chunk
 
 
-def _parse_parallel(path: Path, sep: str) -> tuple[list[str], dict[str, list[np.ndarray]], int, np.ndarray] | None:
-    """:func:`_parse` by threads over pieces of a plain file; None where the serial parse must do it."""
-    import pandas as pd
+def _stack_layout(names: list[str], stack: Mapping[str, Sequence[str]] | None,
+                  numeric: Callable[[str], bool]) -> dict[str, tuple[str, int]]:
+    """Column -> (stack name, position) for the stacks that apply (see :func:`read_delimited`'s ``stack``)."""
+    into: dict[str, tuple[str, int]] = {}
+    for name, members in (stack or {}).items():
+        at = names.index(members[0]) if members and members[0] in names else -1
+        if (at >= 0 and name not in names and names[at:at + len(members)] == list(members)
+                and all(numeric(c) for c in members)):
+            into.update({c: (name, j) for j, c in enumerate(members)})
+    return into
+
+
+class _ColumnSink:
+    """Numeric columns filled piece by piece, in file order, into arrays with room to spare.
+
+    ``finish`` returns views of the filled rows (pages never written cost no memory).
+    """
+
+    def __init__(self, names: list[str], into: dict[str, tuple[str, int]], capacity: int) -> None:
+        self.names, self.into, self.cap, self.n = names, into, capacity, 0
+        width = {g: j + 1 for g, j in into.values()}
+        self.arrays: dict[str, np.ndarray] = {g: np.empty((capacity, k)) for g, k in width.items()}
+
+    def _resize(self, key: str, dtype: np.dtype, cap: int) -> np.ndarray:
+        old = self.arrays.get(key)
+        new = np.empty((cap,) + (old.shape[1:] if old is not None else ()), dtype=dtype)
+        if old is not None:
+            new[:self.n] = old[:self.n]
+        self.arrays[key] = new
+        return new
+
+    def add(self, columns: list[np.ndarray]) -> None:
+        m = columns[0].size
+        if self.n + m > self.cap:                      # more rows than the estimate: grow
+            self.cap = max(2 * self.cap, self.n + m)
+            for key, a in list(self.arrays.items()):
+                self._resize(key, a.dtype, self.cap)
+        rows = slice(self.n, self.n + m)
+        for c, x in zip(self.names, columns):
+            if c in self.into:
+                g, j = self.into[c]
+                self.arrays[g][rows, j] = x
+                continue
+            dest = self.arrays.get(c)
+            if dest is None or np.promote_types(dest.dtype, x.dtype) != dest.dtype:   # as np.concatenate
+                dest = self._resize(c, x.dtype if dest is None else np.promote_types(dest.dtype, x.dtype),
+                                    self.cap)
+            dest[rows] = x
+        self.n += m
+
+    def finish(self) -> Columns:
+        cols: Columns = {}
+        for c in self.names:
+            key = self.into[c][0] if c in self.into else c
+            if key not in cols:
+                cols[key] = self.arrays[key][:self.n]
+        return cols
+
+
+def _parse_parallel(path: Path, sep: str, stack: Mapping[str, Sequence[str]] | None
+                    ) -> tuple[Columns, int, np.ndarray] | None:
+    """:func:`_parse` by threads over pieces of a plain file; None where the serial parse must do it.
+
+    The pieces are parsed by a pool of threads while this thread copies each
+    finished piece, in order, into the columns (the copies release the GIL).
+    """
     if (path.name.lower().endswith((".gz", ".bz2")) or not path.is_file()
             or path.stat().st_size < PARALLEL_MIN_BYTES or _threads() < 2 or len(sep) != 1):
         return None
@@ -230,32 +297,42 @@ def _parse_parallel(path: Path, sep: str) -> tuple[list[str], dict[str, list[np.
         return None
     from concurrent.futures import ThreadPoolExecutor
     fd = os.open(path, os.O_RDONLY)
+    pool = ThreadPoolExecutor(_threads())
+    futures: list = []
     try:
         first = _parse_piece(fd, offsets[0], offsets[1], sep, None)
         names = [str(c) for c in first.columns]
         if len(set(names)) != len(names):
             return None
-        with ThreadPoolExecutor(_threads()) as pool:
-            rest = list(pool.map(lambda k: _parse_piece(fd, offsets[k], offsets[k + 1], sep, names),
-                                 range(1, len(offsets) - 1)))
+        futures = [pool.submit(_parse_piece, fd, offsets[k], offsets[k + 1], sep, names)
+                   for k in range(1, len(offsets) - 1)]
+        rows_per_byte = len(first) / max(offsets[1] - offsets[0], 1)
+        sink = _ColumnSink(names, _stack_layout(names, stack, lambda c: True),
+                           int(rows_per_byte * offsets[-1] * 1.25) + 1024)
+        blank: list[np.ndarray] = []
+        raw_rows = 0
+        for k in range(len(offsets) - 1):
+            chunk = first if k == 0 else futures[k - 1].result()
+            if k:
+                futures[k - 1] = None          # the piece is freed once copied
+            if list(chunk.columns) != names:
+                return None
+            columns = _drop_blank_rows([chunk[c].to_numpy() for c in names], raw_rows, blank)
+            if columns[-1].dtype.kind == "f" and np.isnan(columns[-1]).any():
+                return None                    # a short line: the serial parse finds and names it
+            sink.add(columns)
+            raw_rows += len(chunk)
+            del chunk, columns
+            first = None
+        return sink.finish(), sink.n, _blank_rows(blank)
     except _NotParallel:
         return None
     finally:
+        for f in futures:
+            if f is not None:
+                f.cancel()
+        pool.shutdown(wait=True)
         os.close(fd)
-    parts: dict[str, list[np.ndarray]] = {c: [] for c in names}
-    blank: list[np.ndarray] = []
-    n = raw_rows = 0
-    for chunk in [first, *rest]:
-        if list(chunk.columns) != names:
-            return None
-        arrays = _drop_blank_rows([chunk[c].to_numpy() for c in names], raw_rows, blank)
-        if pd.isna(arrays[-1]).any():   # a short line: the serial parse finds and names it
-            return None
-        for c, x in zip(names, arrays):
-            parts[c].append(x)
-        n += arrays[0].size
-        raw_rows += len(chunk)
-    return names, parts, n, (np.concatenate(blank) if blank else np.zeros(0, dtype=np.int64))
 
 
 def read_delimited(path: str | Path, sep: str = ",", *,
@@ -294,7 +371,7 @@ def read_delimited(path: str | Path, sep: str = ",", *,
     import pandas as pd
     path = Path(path)
     try:
-        names, parts, n, blank = _parse(path, sep)
+        cols, n, blank = _parse(path, sep, stack)
     except pd.errors.EmptyDataError as e:
         raise MalformedFileError(path, "file is empty") from e
     except pd.errors.ParserError as e:
@@ -312,7 +389,6 @@ def read_delimited(path: str | Path, sep: str = ",", *,
     if n == 0:
         header = next((i for i, ln in _iter_lines(path) if ln.strip()), 1)
         raise MalformedFileError(path, "header only, no data rows", line=header)
-    cols = _join_columns(names, parts, n, stack)
     if n * len(cols) >= TRIM_VALUES:
         _return_free_memory()
     return cols, RowLines(blank)
@@ -341,14 +417,8 @@ def _join_columns(names: list[str], parts: dict[str, list[np.ndarray]], n: int,
     float64 array (N, k) under its name, written there straight from the chunks.
     """
     import functools
-    groups = {}
-    for name, members in (stack or {}).items():
-        at = names.index(members[0]) if members and members[0] in names else -1
-        if (at >= 0 and name not in names and names[at:at + len(members)] == list(members)
-                and all(x.dtype.kind in "fiu" for c in members for x in parts[c])):
-            groups[name] = np.empty((n, len(members)))
-    into = {c: (name, j) for name, members in (stack or {}).items() if name in groups
-            for j, c in enumerate(members)}
+    into = _stack_layout(names, stack, lambda c: all(x.dtype.kind in "fiu" for x in parts[c]))
+    groups = {g: np.empty((n, sum(1 for h, _ in into.values() if h == g))) for g, _ in into.values()}
     cols: Columns = {}
     jobs: list[tuple[np.ndarray, list[np.ndarray]]] = []
     for c in names:

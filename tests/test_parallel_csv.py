@@ -8,7 +8,8 @@ from imu_ground.datasets.report import MalformedFileError
 
 HEADER = "t,wx,wy,wz,ax,ay,az\n"
 #: Cases the pieces represent exactly (the others go to the serial parse, which names the bad line).
-PARALLEL_CASES = ("blank lines", "integers then floats", "crlf", "no final newline", "blank last line")
+PARALLEL_CASES = ("blank lines", "integers then floats", "crlf", "no final newline", "blank last line",
+                  "long lines then short")
 
 
 def _rows(n: int, t0: float = 0.0) -> str:
@@ -58,7 +59,7 @@ def test_pieces_are_used_and_give_the_serial_columns(tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("case", ["blank lines", "integers then floats", "crlf", "no final newline",
                                   "short line", "long line", "not a number", "quoted", "bare cr",
-                                  "blank last line", "whitespace line"])
+                                  "blank last line", "whitespace line", "long lines then short"])
 def test_every_case_reads_as_the_serial_parse(case, tmp_path, monkeypatch):
     body = _rows(300)
     lines = body.splitlines(keepends=True)
@@ -83,6 +84,9 @@ def test_every_case_reads_as_the_serial_parse(case, tmp_path, monkeypatch):
         lines[100] = lines[100].replace("\n", "\r")
     elif case == "blank last line":
         lines.append("\n")
+    elif case == "long lines then short":          # more rows than the first piece suggests: columns grow
+        lines[:8] = [",".join([f"{0.1 * i:.15e}"] * 7) + "\n" for i in range(8)]
+        lines[8:] = [f"{i},1,2,3,4,5,6\n" for i in range(8, 300)]
     else:
         lines[120] = "   \n"
     p = tmp_path / "x.csv"
@@ -92,7 +96,7 @@ def test_every_case_reads_as_the_serial_parse(case, tmp_path, monkeypatch):
         m.setattr(csvio, "PARALLEL_MIN_BYTES", 0)
         m.setattr(csvio, "PIECE_BYTES", 300)
         m.setattr(csvio, "_threads", lambda: 2)
-        took_pieces = csvio._parse_parallel(p, ",") is not None
+        took_pieces = csvio._parse_parallel(p, ",", None) is not None
     assert took_pieces == (case in PARALLEL_CASES)
 
 
@@ -152,3 +156,15 @@ def test_kitti_header_with_gyro_and_accel_swapped_is_still_refused(tmp_path):
     p.write_text(",".join(names) + "\n" + "".join(",".join(["0.01"] * 16) + "\n" for _ in range(20)))
     with pytest.raises(MalformedFileError, match=r"swap\.csv, line 1: expected columns t,wx,wy,wz,ax"):
         read_imu(p, format="kitti_imu100")
+
+
+def test_sink_grows_and_promotes_like_concatenate():
+    sink = csvio._ColumnSink(["a", "x", "y"], {"x": ("xy", 0), "y": ("xy", 1)}, capacity=2)
+    parts = [[np.arange(3), np.arange(3) * 1.5, np.arange(3)], [np.array([0.5, 7.0]), np.ones(2), np.zeros(2)]]
+    for p in parts:
+        sink.add(p)
+    cols = sink.finish()
+    assert list(cols) == ["a", "xy"]
+    assert cols["a"].dtype == np.concatenate([parts[0][0], parts[1][0]]).dtype == float
+    assert np.array_equal(cols["a"], [0, 1, 2, 0.5, 7.0])
+    assert np.array_equal(cols["xy"], [[0, 0], [1.5, 1], [3, 2], [1, 0], [1, 0]])
