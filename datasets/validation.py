@@ -121,7 +121,8 @@ def _units(report, t, gyro, accel, keep, units, src, gyro_limit, gyro_min_durati
            row_lines) -> None:
     """Magnitude checks of the cleaned data (rate, gyro, specific force)."""
     if t.size > 1:
-        step = float(np.median(np.diff(t)))
+        # the gap check's median step of these same times, when it ran (one median of the log, not two)
+        step = report.median_step if np.isfinite(report.median_step) else float(np.median(np.diff(t)))
         if step > 0 and not RATE_RANGE[0] <= 1.0 / step <= RATE_RANGE[1]:
             act(units, f"{src}: median time step {step:.6g} s ({1 / step:.6g} Hz) is outside the plausible IMU "
                        f"rates {RATE_RANGE[0]:g}-{RATE_RANGE[1]:g} Hz: is the time column in another unit? "
