@@ -98,16 +98,23 @@ class WindowSums:
         n = len(imu)
         self.n = n
         self.mean = np.concatenate([imu.gyro.mean(axis=0), imu.accel.mean(axis=0)])[:, None]
-        xc = np.empty((6, n))
-        np.subtract(imu.gyro.T, self.mean[:3], out=xc[:3])
-        np.subtract(imu.accel.T, self.mean[3:], out=xc[3:])
         self.c1 = np.empty((6, n + 1))
         self.c2 = np.empty((6, n + 1))
         self.c1[:, 0] = 0.0
         self.c2[:, 0] = 0.0
-        np.cumsum(xc, axis=1, out=self.c1[:, 1:])
-        np.multiply(xc, xc, out=xc)
-        np.cumsum(xc, axis=1, out=self.c2[:, 1:])
+        # block by block: each block's running sums start from the previous block's last one, so every
+        # entry is the same sequence of additions as one cumulative sum over the whole log
+        buf = np.empty((6, min(_BLOCK, n) + 1))
+        for a in range(0, n, _BLOCK):
+            b = min(a + _BLOCK, n)
+            x = buf[:, :b - a + 1]
+            np.subtract(imu.gyro[a:b].T, self.mean[:3], out=x[:3, 1:])
+            np.subtract(imu.accel[a:b].T, self.mean[3:], out=x[3:, 1:])
+            x[:, 0] = self.c1[:, a]
+            np.cumsum(x, axis=1, out=self.c1[:, a:b + 1])
+            np.multiply(x[:, 1:], x[:, 1:], out=x[:, 1:])
+            x[:, 0] = self.c2[:, a]
+            np.cumsum(x, axis=1, out=self.c2[:, a:b + 1])
 
     def stats(self, start: np.ndarray, end: np.ndarray, rows: slice = slice(0, 6)) -> tuple[np.ndarray, np.ndarray]:
         """Mean and standard deviation over samples ``[start[j], end[j])`` of the components ``rows``.
