@@ -225,9 +225,9 @@ def _boundaries(t: np.ndarray, frame_times: Any, rate: float | None, every: int 
 def _knots(t: np.ndarray, y: np.ndarray, T: np.ndarray, par: PreintegrationParams) -> tuple:
     """Integration intervals: the samples plus the boundaries that fall between samples.
 
-    ``y`` is component-major (6, N): gyro then accel. Returns ``(dt, held, b,
-    valid)``: interval lengths (K,), held values (6, K) (bias not removed; may
-    be a view), the knot index of each boundary relative to the first (F + 1,),
+    ``y`` is component-major (6, N): gyro then accel. Returns ``(dt, kv, b,
+    valid)``: interval lengths (K,), the values at the knots (6, K + 1) (bias
+    not removed; a view), the knot index of each boundary relative to the first (F + 1,),
     and the per-frame validity (F,) after the gap rule (raises for
     ``on_gap="raise"``).
     """
@@ -255,7 +255,6 @@ def _knots(t: np.ndarray, y: np.ndarray, T: np.ndarray, par: PreintegrationParam
                          "than the snapping tolerance")
     j0, j1 = int(b[0]), int(b[-1])
     dt = np.diff(kt[j0:j1 + 1])
-    held = (ky[:, j0:j1] + ky[:, j0 + 1:j1 + 1]) * 0.5 if par.hold == "midpoint" else ky[:, j0:j1]
     # gaps, on the original sample intervals: knot j lies in sample interval (samples up to it) - 1
     nfr = T.size - 1
     is_sample = np.ones(kt.size, dtype=np.int64)
@@ -269,14 +268,16 @@ def _knots(t: np.ndarray, y: np.ndarray, T: np.ndarray, par: PreintegrationParam
             raise ValueError(gap_message(float(t[g]), float(t[g + 1] - t[g]), par.max_gap))
         frame_of = np.repeat(np.arange(nfr), np.diff(b))
         valid[np.unique(frame_of[is_gap])] = False
-    return dt, held, b - j0, valid
+    return dt, ky[:, j0:j1 + 1], b - j0, valid
 
 
-def _integrate_frames(dt: np.ndarray, held: np.ndarray, b: np.ndarray, par: PreintegrationParams) -> tuple:
+def _integrate_frames(dt: np.ndarray, kv: np.ndarray, b: np.ndarray, par: PreintegrationParams) -> tuple:
     """Left-form (T, R, v, p, J, S) per frame: frames cut into padded blocks, chunked kernel, merge.
 
-    ``held`` is component-major (6, K). The padded blocks are gathered chunk by
-    chunk, so every temporary stays cache-sized whatever the log's length.
+    ``kv`` holds the values at the knots, component-major (6, K + 1). The
+    padded blocks and their held values (the knots' mean for ``"midpoint"``,
+    the left knot's value for ``"left"``) are made chunk by chunk, so every
+    temporary stays cache-sized whatever the log's length.
     """
     nfr = b.size - 1
     nint = np.diff(b)
@@ -301,7 +302,10 @@ def _integrate_frames(dt: np.ndarray, held: np.ndarray, b: np.ndarray, par: Prei
         idx[pad] = 0
         dtp = dt[idx]
         dtp[pad] = 0.0
-        hp = held[:, idx]                                      # component-major (6, Lb, blocks)
+        if par.hold == "midpoint":                             # component-major (6, Lb, blocks)
+            hp = (kv[:, idx] + kv[:, idx + 1]) * 0.5
+        else:
+            hp = kv[:, idx]
         hp[:, pad] = 0.0
         hp -= bias
         parts.append(_blocks_kernel(dtp, hp[0:3], hp[3:6], qg, qa, par.uncertainty))
@@ -352,9 +356,9 @@ def preintegrate(imu: ImuData | tuple[np.ndarray, np.ndarray, np.ndarray],
     y = np.empty((6, t.size))                       # component-major: gyro then accel
     y[0:3] = gyro.T
     y[3:6] = accel.T
-    dt, held, b, valid = _knots(t, y, T, par)
+    dt, kv, b, valid = _knots(t, y, T, par)
     del y
-    Tn, Rn, vn, pn, Jn, Sn = _integrate_frames(dt, held, b, par)
+    Tn, Rn, vn, pn, Jn, Sn = _integrate_frames(dt, kv, b, par)
     Rn = project_if_needed(Rn)
     names = ("d_R_d_bg", "d_v_d_bg", "d_p_d_bg", "d_v_d_ba", "d_p_d_ba")
     if par.uncertainty:
