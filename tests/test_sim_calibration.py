@@ -8,7 +8,7 @@ from scipy.signal import welch
 
 from imu_ground.evaluation.simulate import (ISO8608_CLASSES, ISO8608_N0, RoadParams, SpeedParams,
                                             iso8608_psd, road_profile, simulate, simulate_suite)
-from imu_ground.evaluation.simulate.road import SHORT_WAVINESS
+from imu_ground.evaluation.simulate.road import LONG_WAVINESS
 
 
 def test_default_road_has_two_slopes_within_its_band():
@@ -18,8 +18,8 @@ def test_default_road_has_two_slopes_within_its_band():
     f, p = welch(hl, fs=1.0 / dx, nperseg=2**15)
     short = (f >= 0.2) & (f <= 2.0)
     long = (f >= 0.02) & (f <= 0.08)
-    assert np.polyfit(np.log(f[short]), np.log(p[short]), 1)[0] == pytest.approx(-SHORT_WAVINESS, abs=0.1)
-    assert np.polyfit(np.log(f[long]), np.log(p[long]), 1)[0] == pytest.approx(-2.0, abs=0.3)
+    assert np.polyfit(np.log(f[short]), np.log(p[short]), 1)[0] == pytest.approx(-2.0, abs=0.1)
+    assert np.polyfit(np.log(f[long]), np.log(p[long]), 1)[0] == pytest.approx(-LONG_WAVINESS, abs=0.3)
     np.testing.assert_allclose(np.median(p[short] / iso8608_psd(f[short], "C", p_road.waviness)), 1.0, atol=0.15)
     outside = f > 1.2 * p_road.band[1]
     assert p[outside].max() < 1e-3 * iso8608_psd(np.array([p_road.band[1]]), "C", p_road.waviness)[0]

@@ -15,13 +15,13 @@ Road roughness
 --------------
 ISO 8608: displacement PSD ``G_d(n) = G_d(n0) (n / n0)^-w``, ``n0 = 0.1``
 cycles/m, class A ``16e-6``, B ``64e-6``, C ``256e-6``, D ``1024e-6`` m^3 (the
-geometric means of the classes). The waviness ``w`` is 2 (ISO 8608's simplified
-spectrum) below ``n0`` and :data:`SHORT_WAVINESS` (1.5) above it by default: measured
-roads fall off more slowly at short wavelengths (Dodds & Robson 1973, two-slope fits
-to British roads: ``w2`` 1.36-1.44 against ``w1`` 1.95-2.05; ISO 8608's own
-general form keeps a second exponent), and the real KITTI drives' body pitch and
-pitch rate at 2-5 Hz against 0.5-2 Hz need it (``waviness=(2, 2)`` gives the
-single-slope ISO spectrum). The band is ``0.011 <= n <= 2.83`` cycles/m
+geometric means of the classes). The waviness ``w`` is ISO 8608's 2 above ``n0``
+(wavelengths under 10 m) and :data:`LONG_WAVINESS` (2.5) below it by default:
+measured roads depart from the single slope at long wavelengths (two-slope fits
+such as Dodds & Robson's), and the real KITTI drives' 10 m-smoothed grade
+carries about twice the power at 18-90 m wavelengths (0.1-0.5 Hz at their ~9 m/s)
+that the single slope extrapolates from the body's 0.5-5 Hz motion
+(``waviness=(2, 2)`` gives ISO 8608's simplified spectrum). The band is ``0.011 <= n <= 2.83`` cycles/m
 (wavelengths 0.35 m to 90 m; the upper edge stands in for the tyre's
 enveloping of shorter wavelengths). The left and right wheel tracks are two
 Gaussian profiles with that PSD and the coherence ``c(n) = exp(-k n B)`` (``B``
@@ -49,7 +49,7 @@ __all__ = [
     "ISO8608_CLASSES",
     "ISO8608_N0",
     "ROAD_PLANE_WINDOW",
-    "SHORT_WAVINESS",
+    "LONG_WAVINESS",
     "RoadParams",
     "iso8608_psd",
     "road_layout",
@@ -62,8 +62,8 @@ ISO8608_CLASSES = {"A": 16e-6, "B": 64e-6, "C": 256e-6, "D": 1024e-6}   # G_d(n0
 #: Length of the centred window (m) over which the roughness counts as part of
 #: the road plane in the truth (a triangular kernel: two boxcars of half this).
 ROAD_PLANE_WINDOW = 10.0
-#: Waviness (PSD exponent) of the roughness above ``n0`` (wavelengths under 10 m).
-SHORT_WAVINESS = 1.5
+#: Waviness (PSD exponent) of the roughness below ``n0`` (wavelengths over 10 m).
+LONG_WAVINESS = 2.5
 
 
 @dataclass
@@ -83,7 +83,7 @@ class RoadParams:
 
     roughness: str | float | None = "B"
     band: tuple[float, float] = (0.011, 2.83)     # cycles/m
-    waviness: tuple[float, float] = (2.0, SHORT_WAVINESS)   # PSD exponents below / above n0
+    waviness: tuple[float, float] = (LONG_WAVINESS, 2.0)   # PSD exponents below / above n0
     coherence_decay: float = 4.0
     dx: float = 0.05                              # m, roughness sampling
     grade0: float | None = None                   # grade at s = 0; None: random (0 if grade_std == 0)
@@ -97,8 +97,8 @@ class RoadParams:
     superelevation_speed: float = 14.0            # m/s: slower curves keep the crown
     curves: bool = True
     straight_length: tuple[float, float] = (60.0, 400.0)     # m
-    turn_angle_deg: tuple[float, float] = (15.0, 100.0)
-    lat_accel: tuple[float, float] = (1.0, 3.0)   # m/s^2 at the highest speed in the curve
+    turn_angle_deg: tuple[float, float] = (30.0, 100.0)
+    lat_accel: tuple[float, float] = (0.6, 2.0)   # m/s^2 at the highest speed in the curve
     radius_range: tuple[float, float] = (12.0, 1500.0)       # m
     transition_time: tuple[float, float] = (1.5, 3.0)        # s of driving over a transition
     heading0: float | None = None                 # rad, None: random
@@ -133,7 +133,7 @@ def iso8608_psd(n, roughness: str | float = "B", waviness: tuple[float, float] =
         Class letter or ``G_d(n0)`` in m^3.
     waviness : (float, float)
         Exponent ``w`` below and above ``n0`` (default ``(2, 2)``: ISO 8608's
-        simplified single-slope spectrum; :class:`RoadParams` uses ``(2, 1.5)``).
+        simplified single-slope spectrum; :class:`RoadParams` uses ``(2.5, 2)``).
     """
     n = np.asarray(n, dtype=float)
     w = np.where(n < ISO8608_N0, waviness[0], waviness[1])

@@ -14,7 +14,7 @@ from imu_ground.evaluation.simulate.drive import (
     finish_drive,
 )
 from imu_ground.evaluation.simulate.imu_errors import ImuErrorModel, imu_error_model
-from imu_ground.evaluation.simulate.road import RoadParams
+from imu_ground.evaluation.simulate.road import ISO8608_CLASSES, RoadParams
 from imu_ground.evaluation.simulate.vehicle import SpeedParams, VehicleParams
 from imu_ground.so3 import rotx, roty, rotz
 from imu_ground.units import DEG
@@ -31,7 +31,9 @@ STYLE_MIX = {"urban": 0.4, "mixed": 0.3, "rural": 0.2, "highway": 0.1}
 class SuiteRanges:
     """The ranges a suite draws each drive's road, vehicle and mount from (uniform unless said).
 
-    Road: ``grade_std`` (rise over run), ``crown``, and the grade layout along the
+    Road: ``roughness_level`` (ISO 8608 ``G_d(n0)``, m^3, log-uniform between the two;
+    used when the suite is given no ``roughness_classes``), ``grade_std`` (rise over
+    run), ``crown``, and the grade layout along the
     road (``grade_segment``, ``grade_transition``, m; see
     :class:`~imu_ground.evaluation.simulate.road.RoadParams`). Vehicle: wheelbase and
     track (m), suspension frequencies (Hz), damping ratios, pitch and roll gains (deg
@@ -47,7 +49,8 @@ class SuiteRanges:
     broader than a lightly damped 1.1 Hz pitch mode.
     """
 
-    grade_std: tuple[float, float] = (0.002, 0.015)
+    roughness_level: tuple[float, float] = (ISO8608_CLASSES["B"], ISO8608_CLASSES["C"])
+    grade_std: tuple[float, float] = (0.002, 0.012)
     crown: tuple[float, float] = (0.015, 0.03)
     grade_segment: tuple[float, float] = (30.0, 200.0)
     grade_transition: tuple[float, float] = (20.0, 80.0)
@@ -85,7 +88,11 @@ def random_drive(rng: np.random.Generator, duration_range, roughness_classes, st
         style = str(rng.choice(names, p=weights / weights.sum()))
     else:
         style = str(rng.choice(list(styles)))
-    road = RoadParams(roughness=str(rng.choice(list(roughness_classes))), grade_std=u(r.grade_std),
+    if roughness_classes is None:       # a level between the ends, log-uniform
+        roughness: str | float = float(np.exp(rng.uniform(*np.log(r.roughness_level))))
+    else:
+        roughness = str(rng.choice(list(roughness_classes)))
+    road = RoadParams(roughness=roughness, grade_std=u(r.grade_std),
                       crown=u(r.crown), grade_segment=r.grade_segment, grade_transition=r.grade_transition)
     vehicle = VehicleParams(
         wheelbase=u(r.wheelbase), track=u(r.track), pitch_freq=u(r.pitch_freq), pitch_damping=u(r.pitch_damping),
@@ -101,14 +108,15 @@ def random_drive(rng: np.random.Generator, duration_range, roughness_classes, st
 
 def simulate_suite(n: int, seed: int = 0, grades: Sequence[str | ImuErrorModel] = ("nav", "mems"), *,
                    duration_range: tuple[float, float] = (60.0, 180.0),
-                   roughness_classes: Sequence[str] = ("B", "C"),
+                   roughness_classes: Sequence[str] | None = None,
                    styles: Sequence[str] | Mapping[str, float] = STYLE_MIX,
                    imu_rate: float = 100.0, frame_rate: float = 10.0,
                    ranges: SuiteRanges = SuiteRanges()) -> list[SimResult]:
     """``n`` varied drives, each simulated once per IMU grade.
 
-    Every drive draws its duration, roughness class (ISO 8608 B or C: the real
-    drives' body pitch at 0.5-5 Hz lies between the two), driving style (weighted by
+    Every drive draws its duration, roughness (by default a level between ISO 8608
+    classes B and C, ``ranges.roughness_level``: the real drives' body motion at
+    0.5-5 Hz lies between the two; or one of ``roughness_classes``), driving style (weighted by
     ``styles``, a mapping of style to share, or a sequence drawn uniformly), grades and
     cross-slope, vehicle geometry and suspension (frequencies 1.0-1.6 Hz, damping
     0.3-0.55, gains 0.2-0.35 / 0.3-0.5 deg per m/s^2) and a slightly misaligned

@@ -9,9 +9,13 @@ exactly 0, no creeping).
 
 Suspension
 ----------
-``x'' + 2 zeta w x' + w^2 x = w^2 u(t)`` for pitch, roll and heave (unit static
-gain), with ``u`` the road input plus, for pitch, ``-K_pitch * f_x`` and, for
-roll, ``+K_roll * f_y`` (``f`` the specific force of the reference point in the
+``x'' + 2 zeta w x' + w^2 x = w^2 (r(t) + l(t)) + 2 zeta w r'(t)`` for pitch,
+roll and heave (unit static gain), with ``r`` the road input, transmitted by the
+springs and, through its velocity, by the dampers (the base-excited quarter car
+``(c s + k) / (m s^2 + c s + k)``: above the body's resonance the road's motion
+falls off as ``1/f``, not ``1/f^2``, which is what the real drives' body pitch at
+2-5 Hz shows; ``VehicleParams.damper_road_input=False`` drops it), and ``l`` the
+load: for pitch ``-K_pitch * f_x``, for roll ``+K_roll * f_y`` (``f`` the specific force of the reference point in the
 road frame: acceleration and, with ``gravity_load_transfer``, the components
 of gravity along the grade and the cross-slope). Braking (``f_x < 0``) thus
 pitches the nose down, ``pitch = K_pitch * deceleration`` once the transient
@@ -21,7 +25,9 @@ its left side relative to the road (positive roll). Road inputs: pitch
 ``(h_left - h_right) / track`` (axle-averaged); heave the height of the wheel
 plane under the reference point. The three systems are discretised exactly for
 a first-order-hold input (:func:`suspension_response`, with the filter design of
-:func:`imu_ground.filters.design.foh_filter`).
+:func:`imu_ground.filters.design.foh_filter`); the damper's share is the
+response's own derivative, exact too (the road rate is the profile's slope under
+each wheel times the speed).
 """
 from __future__ import annotations
 
@@ -66,6 +72,7 @@ class VehicleParams:
     pitch_gain_deg: float = 0.25         # nose down per m/s^2 of deceleration
     roll_gain_deg: float = 0.4           # outward roll per m/s^2 of lateral acceleration
     gravity_load_transfer: bool = True   # grade and cross-slope load the suspension too
+    damper_road_input: bool = True       # the dampers transmit the road's velocity (False: springs only)
 
 
 #: Driving styles: speed range (m/s), probability of a stop at each change,
@@ -83,10 +90,10 @@ class VehicleParams:
 #: continual speed modulation (0.01-0.1 Hz) that pitches the body relative to the
 #: road on real drives, through the suspension's ~0.25 deg per m/s^2.
 STYLES = {
-    "urban": dict(speed=(4.0, 14.0), stop_p=0.08, cruise=(0.3, 3.0), accel=(0.4, 1.8), brake=(0.4, 2.2), step=5.0),
-    "rural": dict(speed=(10.0, 22.0), stop_p=0.02, cruise=(0.5, 6.0), accel=(0.4, 1.5), brake=(0.4, 1.8), step=5.0),
-    "highway": dict(speed=(20.0, 32.0), stop_p=0.0, cruise=(2.0, 12.0), accel=(0.3, 1.0), brake=(0.3, 1.4), step=5.0),
-    "mixed": dict(speed=(4.0, 20.0), stop_p=0.05, cruise=(0.3, 4.0), accel=(0.4, 1.8), brake=(0.4, 2.2), step=6.0),
+    "urban": dict(speed=(4.0, 14.0), stop_p=0.08, cruise=(0.3, 3.0), accel=(0.35, 1.6), brake=(0.35, 1.9), step=5.0),
+    "rural": dict(speed=(10.0, 18.0), stop_p=0.02, cruise=(0.5, 6.0), accel=(0.3, 1.3), brake=(0.3, 1.5), step=5.0),
+    "highway": dict(speed=(18.0, 28.0), stop_p=0.0, cruise=(2.0, 12.0), accel=(0.2, 0.9), brake=(0.2, 1.1), step=5.0),
+    "mixed": dict(speed=(4.0, 16.0), stop_p=0.05, cruise=(0.3, 4.0), accel=(0.35, 1.6), brake=(0.35, 1.9), step=6.0),
 }
 #: Braking magnitude (m/s^2) of a stop: drivers brake harder to a standstill than in traffic.
 STOP_BRAKE = (0.8, 2.2)
@@ -231,19 +238,47 @@ def suspension_response(u, dt: float, freq: float, damping: float, gain: float =
     return x, v, acc
 
 
-def _road_inputs(vehicle: VehicleParams, s_f, rough):
-    """Pitch, roll and heave inputs of the roughness under the four wheels at distances ``s_f``."""
+def _profile_at(x_rough, h, pos):
+    """Height (m) of a uniformly sampled profile, linear between samples, and its slope dh/ds there."""
+    dx = x_rough[1] - x_rough[0]
+    i = np.clip(np.floor((pos - x_rough[0]) / dx).astype(int), 0, len(x_rough) - 2)
+    slope = (h[i + 1] - h[i]) / dx
+    return h[i] + slope * (pos - x_rough[i]), slope
+
+
+def _road_inputs(vehicle: VehicleParams, s_f, v_f, rough):
+    """Pitch, roll and heave inputs of the roughness under the four wheels at distances ``s_f``,
+    and their exact time derivatives (the profile's slope under each wheel times the speed ``v_f``)."""
     x_rough, h_l, h_r = rough
     l_r = vehicle.rear_axle_to_ref
     l_f = vehicle.wheelbase - l_r
     front, rear = s_f + l_f, s_f - l_r
-    hfl, hfr = np.interp(front, x_rough, h_l), np.interp(front, x_rough, h_r)
-    hrl, hrr = np.interp(rear, x_rough, h_l), np.interp(rear, x_rough, h_r)
-    h_front, h_rear = 0.5 * (hfl + hfr), 0.5 * (hrl + hrr)
-    u_pitch = -(h_front - h_rear) / vehicle.wheelbase
-    u_roll = (0.5 * (hfl + hrl) - 0.5 * (hfr + hrr)) / vehicle.track
-    u_heave = (l_r * h_front + l_f * h_rear) / vehicle.wheelbase
-    return u_pitch, u_roll, u_heave
+    (hfl, sfl), (hfr, sfr) = _profile_at(x_rough, h_l, front), _profile_at(x_rough, h_r, front)
+    (hrl, srl), (hrr, srr) = _profile_at(x_rough, h_l, rear), _profile_at(x_rough, h_r, rear)
+
+    def inputs(fl, fr, rl, rr):
+        h_front, h_rear = 0.5 * (fl + fr), 0.5 * (rl + rr)
+        return (-(h_front - h_rear) / vehicle.wheelbase, (0.5 * (fl + rl) - 0.5 * (fr + rr)) / vehicle.track,
+                (l_r * h_front + l_f * h_rear) / vehicle.wheelbase)
+
+    return inputs(hfl, hfr, hrl, hrr), tuple(d * v_f for d in inputs(sfl, sfr, srl, srr))
+
+
+def _base_excited(road, road_rate, load, dt_f: float, freq: float, damping: float, damper: bool = True):
+    """One suspension mode driven by the road through spring and damper, and by a load.
+
+    ``x'' + 2 zeta w x' + w^2 x = w^2 (road + load) + 2 zeta w road'``: the damper
+    transmits the road's velocity (the base-excited quarter car, ``(c s + k) / (m s^2
+    + c s + k)``), the load (load transfer, a force) only through the spring's static
+    gain. By linearity, with ``y`` the response of the plain system to the road,
+    ``x = y + (2 zeta / w) y' + x_load``. ``damper=False``: the road through the spring only.
+    """
+    y, yd, ydd = suspension_response(road, dt_f, freq, damping)
+    x_l, xd_l, xdd_l = suspension_response(load, dt_f, freq, damping)
+    w = 2.0 * math.pi * freq
+    c = 2.0 * damping / w if damper else 0.0
+    yddd = w * w * (road_rate - yd) - 2.0 * damping * w * ydd
+    return y + c * yd + x_l, yd + c * ydd + xd_l, ydd + c * yddd + xdd_l
 
 
 def _load_transfer(vehicle: VehicleParams, a_f, v_f, s_f, layout):
@@ -284,12 +319,16 @@ def body_motion(vehicle: VehicleParams, a_f, v_f, s_f, dt_f: float, layout, roug
         Each ``(value, rate, acceleration)``: rad, rad/s, rad/s^2 (heave m, m/s, m/s^2);
         pitch nose down positive, roll left side up positive.
     """
-    u_pitch, u_roll, u_heave = _road_inputs(vehicle, s_f, rough)
+    (u_pitch, u_roll, u_heave), (du_pitch, du_roll, du_heave) = _road_inputs(vehicle, s_f, v_f, rough)
+    load_pitch = load_roll = np.zeros_like(s_f)
     if vehicle.pitch_gain_deg or vehicle.roll_gain_deg:
         f_x, f_y = _load_transfer(vehicle, a_f, v_f, s_f, layout)
-        u_pitch = u_pitch - vehicle.pitch_gain_deg * DEG * f_x
-        u_roll = u_roll + vehicle.roll_gain_deg * DEG * f_y
-    pitch = suspension_response(u_pitch, dt_f, vehicle.pitch_freq, vehicle.pitch_damping)
-    roll = suspension_response(u_roll, dt_f, vehicle.roll_freq, vehicle.roll_damping)
-    heave = suspension_response(u_heave, dt_f, vehicle.heave_freq, vehicle.heave_damping)
+        load_pitch = -vehicle.pitch_gain_deg * DEG * f_x
+        load_roll = vehicle.roll_gain_deg * DEG * f_y
+    pitch = _base_excited(u_pitch, du_pitch, load_pitch, dt_f, vehicle.pitch_freq, vehicle.pitch_damping,
+                          vehicle.damper_road_input)
+    roll = _base_excited(u_roll, du_roll, load_roll, dt_f, vehicle.roll_freq, vehicle.roll_damping,
+                         vehicle.damper_road_input)
+    heave = _base_excited(u_heave, du_heave, np.zeros_like(s_f), dt_f, vehicle.heave_freq, vehicle.heave_damping,
+                          vehicle.damper_road_input)
     return pitch, roll, heave
