@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.signal import welch
 
-from imu_ground.evaluation.simulate import (ISO8608_CLASSES, ISO8608_N0, RoadParams, SpeedParams,
+from imu_ground.evaluation.simulate import (ISO8608_CLASSES, ISO8608_N0, RoadParams, SpeedParams, VehicleParams,
                                             iso8608_psd, road_profile, simulate, simulate_suite)
 from imu_ground.evaluation.simulate.road import LONG_WAVINESS
 
@@ -60,3 +60,30 @@ def test_style_mix_weights_and_reproducible_by_seed():
     one = simulate(30.0, seed=9)
     np.testing.assert_array_equal(one.imu.accel, simulate(30.0, seed=9).imu.accel)
     assert not np.array_equal(one.imu.accel, simulate(30.0, seed=10).imu.accel)
+
+
+@pytest.mark.parametrize("freq_ratio", [0.5, 1.0, 2.5])
+def test_dampers_pass_on_the_road_velocity(freq_ratio):
+    """A sinusoidal road under all four wheels at speed: the heave follows the base-excited quarter car
+    ``(1 + j 2 zeta r) / (1 - r^2 + j 2 zeta r)``; without the damper input, ``1 / (1 - r^2 + j 2 zeta r)``."""
+    from imu_ground.evaluation.simulate.vehicle import body_motion
+    from imu_ground.evaluation.simulate.smooth import Piecewise
+    f0, zeta, v, amp = 1.2, 0.4, 10.0, 0.01
+    f = freq_ratio * f0
+    dt = 1e-3
+    t = np.arange(0.0, 40.0, dt)
+    x = np.arange(-20.0, 450.0, 0.01)
+    h = amp * np.sin(2 * np.pi * f / v * x)
+    layout = tuple(Piecewise(0.0, 0.0, []) for _ in range(3))
+    late = (t > 30.0) & (t < 39.9)
+    for damper in (True, False):
+        veh = VehicleParams(heave_freq=f0, heave_damping=zeta, pitch_gain_deg=0.0, roll_gain_deg=0.0,
+                            damper_road_input=damper)
+        _, _, (z, zd, zdd) = body_motion(veh, np.zeros_like(t), np.full_like(t, v), v * t, dt, layout, (x, h, h))
+        r, k = freq_ratio, 2 * np.pi * f / v
+        l_r, l_f = veh.rear_axle_to_ref, veh.wheelbase - veh.rear_axle_to_ref
+        wheels = abs(l_r * np.exp(1j * k * l_f) + l_f * np.exp(-1j * k * l_r)) / veh.wheelbase   # the axles' average
+        num = abs(1 + 2j * zeta * r) if damper else 1.0
+        gain = wheels * num / abs(1 - r * r + 2j * zeta * r)
+        assert np.abs(z[late]).max() == pytest.approx(gain * amp, rel=0.01)
+        np.testing.assert_allclose(np.gradient(z, dt)[late], zd[late], atol=2e-3 * gain * amp * 2 * np.pi * f)
