@@ -201,9 +201,14 @@ def retime(t: np.ndarray, index: np.ndarray | None = None, *, window_s: float = 
     return RetimeResult(out, 1.0 / slope, breaks.astype(np.int64), "")
 
 
-def _apply_retime(t: np.ndarray, index: np.ndarray, report: ValidationReport) -> np.ndarray | None:
-    """Retime into the report; the new stamps, or None (then ``drop`` applies)."""
-    res = retime(t, index)
+def _apply_retime(t: np.ndarray, index: np.ndarray, report: ValidationReport,
+                  consecutive: bool = False) -> np.ndarray | None:
+    """Retime into the report; the new stamps, or None (then ``drop`` applies).
+
+    ``consecutive``: ``index`` is ``0, 1, 2, ...`` (no row left out), which
+    :func:`retime` then need not divide by.
+    """
+    res = retime(t, None if consecutive else index)
     if res.t is None:
         report.retime_note = res.note
         return None
@@ -328,6 +333,7 @@ def check_timestamps(t: np.ndarray, policy: Policy = "retime", *, gaps: Action |
     t = np.asarray(t, dtype=float)
     if t.ndim != 1:
         raise ValueError(f"timestamps must be 1-D, got shape {t.shape}")
+    consecutive = index is None
     index = np.arange(t.size) if index is None else np.asarray(index, dtype=np.int64)
     if report is None:
         report = ValidationReport(source=source, policy=policy, n_in=int(t.size))
@@ -339,7 +345,6 @@ def check_timestamps(t: np.ndarray, policy: Policy = "retime", *, gaps: Action |
     report.backstep_size = steps[back - 1]
     report.out_of_order_index = index[ooo]
     report.duplicate_index = index[dup]
-    t_out = t[keep]
     if ooo.size or dup.size:
         what = f"{src}: " + _order_message(src, t, index, back, steps, ooo, dup, row_lines)
         if policy == "strict":
@@ -347,7 +352,7 @@ def check_timestamps(t: np.ndarray, policy: Policy = "retime", *, gaps: Action |
             report.issues.append(msg)
             raise ImuValidationError(msg + " (policy='strict'; {hint} retimes them on the sample index, "
                                            "'drop' or 'sort' also accepted)", option="policy", value="retime")
-        new_t = _apply_retime(t, index, report) if policy == "retime" else None
+        new_t = _apply_retime(t, index, report, consecutive) if policy == "retime" else None
         if new_t is not None:
             keep, t_out = np.arange(n), new_t
             kind, where = row_names(report.retime_dropout_index, row_lines)
@@ -367,6 +372,9 @@ def check_timestamps(t: np.ndarray, policy: Policy = "retime", *, gaps: Action |
             msg = (f"{what}; dropped {n - keep.size} of {n} samples{why} "
                    f"(policy={policy!r}, report in meta['validation'])")
         act("warn" if warn else "ignore", msg, TimestampWarning, report)
+        t_out = new_t if new_t is not None else t[keep]
+    else:
+        t_out = t.copy()                # nothing out of order: every sample kept, in order
     if t_out.size > 1:
         _gaps(t_out, keep, index, report, gaps, gap_factor, gap_threshold, src, row_lines)
     elif gap_threshold is not None:

@@ -234,10 +234,12 @@ def validate(imu: ImuData, policy: Policy = "retime", *,
         report.issues.append(f"{src}: no samples (empty log)")
         raise ImuValidationError(report.issues[-1])
     good = _nonfinite(imu, report, nonfinite, warn, row_lines)
-    keep_pos, t, _ = check_timestamps(imu.t[good], policy, gaps=gaps, gap_factor=gap_factor,
-                                      gap_threshold=gap_threshold, source=src, index=good,
-                                      report=report, warn=warn, row_lines=row_lines)
-    keep = good[keep_pos]
+    every_row = good.size == n                  # nothing dropped: the rows are 0, 1, 2, ... as they are
+    keep_pos, t, _ = check_timestamps(imu.t if every_row else imu.t[good], policy, gaps=gaps,
+                                      gap_factor=gap_factor, gap_threshold=gap_threshold, source=src,
+                                      index=None if every_row else good, report=report, warn=warn,
+                                      row_lines=row_lines)
+    keep = keep_pos if every_row else good[keep_pos]
     dropped = np.ones(n, dtype=bool)
     dropped[keep] = False
     report.dropped_index = np.flatnonzero(dropped)
