@@ -257,7 +257,8 @@ def rows(drives: int = 12, real_limit: int | None = None, reference_error: bool 
     syn = synthetic_spectra(max(spectra_drives, drives), with_reference_error=reference_error)
     out: list[dict[str, object]] = []
     for r in compare_spectra(real, syn).itertuples():
-        out.append({"benchmark": f"sim vs real: {r.signal} power {r.band}", "target": "synthetic/real median within 1/1.5..1.5",
+        out.append({"benchmark": f"sim vs real: {r.signal} power {r.band}",
+                    "target": "synthetic/real median within 1/1.5..1.5",
                     "figure": float(r.ratio), "unit": "ratio", "passed": bool(r.within_15)})
     rk = ranking(data, drives, real_limit, with_reference_error=reference_error)
     sub = rk.loc[[m for m in RANKED_METHODS if m in rk.index]]
@@ -309,7 +310,8 @@ def main(argv=None) -> int:
             agree, bad = order_agreement(sub["real_pitch"], sub[c])
             agree_all, bad_all = order_agreement(rk["real_pitch"], rk[c])
             print(f"{c}: Spearman {rho:.2f} (all methods); ranking equal ({', '.join(sub.index)}; pairs > "
-                  f"{ORDER_TOL:.0%} apart on real): {'yes' if agree else 'no'}" + (f" ({'; '.join(bad)})" if bad else "")
+                  f"{ORDER_TOL:.0%} apart on real): {'yes' if agree else 'no'}"
+                  + (f" ({'; '.join(bad)})" if bad else "")
                   + f"; all methods: {'yes' if agree_all else 'no'}" + (f" ({'; '.join(bad_all)})" if bad_all else ""))
     return 0
 

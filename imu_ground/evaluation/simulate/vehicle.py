@@ -15,8 +15,8 @@ springs and, through its velocity, by the dampers (the base-excited quarter car
 ``(c s + k) / (m s^2 + c s + k)``: above the body's resonance the road's motion
 falls off as ``1/f``, not ``1/f^2``, which is what the real drives' body pitch at
 2-5 Hz shows; ``VehicleParams.damper_road_input=False`` drops it), and ``l`` the
-load: for pitch ``-K_pitch * f_x``, for roll ``+K_roll * f_y`` (``f`` the specific force of the reference point in the
-road frame: acceleration and, with ``gravity_load_transfer``, the components
+load: for pitch ``-K_pitch * f_x``, for roll ``+K_roll * f_y`` (``f`` the specific
+force of the reference point in the road frame: acceleration and, with ``gravity_load_transfer``, the components
 of gravity along the grade and the cross-slope). Braking (``f_x < 0``) thus
 pitches the nose down, ``pitch = K_pitch * deceleration`` once the transient
 has died out; a left turn (``f_y > 0``) rolls the body to the right, i.e. raises
@@ -80,15 +80,14 @@ class VehicleParams:
 #: and the largest speed change of one manoeuvre (m/s).
 #:
 #: Calibrated to the shared real KITTI drives (city, residential, country road and
-#: one motorway): drivers there change speed every ~8 s (holds between speed
-#: changes of median 1.2 s, 90 % under 6 s), by a median of 1.6 m/s (accelerating)
-#: and 2.9 m/s (braking), at mean accelerations of 0.5-0.6 m/s^2 (90 % under
-#: 1.1 m/s^2; peaks of 0.7-1 m/s^2, 90 % under 1.8 (accelerating) and 2.1 m/s^2
-#: (braking)) over 3-5 s; the mean absolute acceleration while moving is
-#: 0.5 m/s^2. Traffic keeps the speed moving
-#: around the style's range rather than jumping across it: it is this slow,
-#: continual speed modulation (0.01-0.1 Hz) that pitches the body relative to the
-#: road on real drives, through the suspension's ~0.25 deg per m/s^2.
+#: one motorway; ~9 m/s on average while moving): drivers there change speed every
+#: ~8 s (holds between speed changes of median 1.2 s, 90 % under 6 s), by a median
+#: of 1.6 m/s (accelerating) and 2.9 m/s (braking), at mean accelerations of
+#: 0.5-0.6 m/s^2 over 3-5 s (peaks 90 % under 1.8 and 2.1 m/s^2). Traffic keeps
+#: the speed moving around the style's range rather than jumping across it. Through
+#: the suspension's ~0.25 deg per m/s^2 (fitted per real drive: median 0.265) this
+#: slow speed modulation is the body's slow pitch relative to the road; the rest of
+#: the real reference's slow pitch is the INS's own error (``benchmarks/sim_vs_real.py``).
 STYLES = {
     "urban": dict(speed=(4.0, 14.0), stop_p=0.08, cruise=(0.3, 3.0), accel=(0.35, 1.6), brake=(0.35, 1.9), step=5.0),
     "rural": dict(speed=(10.0, 18.0), stop_p=0.02, cruise=(0.5, 6.0), accel=(0.3, 1.3), brake=(0.3, 1.5), step=5.0),
@@ -97,6 +96,7 @@ STYLES = {
 }
 #: Braking magnitude (m/s^2) of a stop: drivers brake harder to a standstill than in traffic.
 STOP_BRAKE = (0.8, 2.2)
+
 
 @dataclass
 class SpeedParams:
