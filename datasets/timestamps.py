@@ -97,10 +97,14 @@ def _running_median(x: np.ndarray, w: int, events: np.ndarray) -> tuple[np.ndarr
     out = x.copy()
     if not events.size:
         return out, events
-    edges = np.zeros(x.size + 1, dtype=np.int32)  # +1 where a window opens, -1 where it closes
-    np.add.at(edges, np.clip(events - h - 1, 0, x.size), 1)
-    np.add.at(edges, np.clip(events + h + 2, 0, x.size), -1)
-    near = np.flatnonzero(np.cumsum(edges[:-1]) > 0)
+    # the positions within [e - h - 1, e + h + 2) of an event e: the union of these (sorted) ranges
+    starts = np.clip(events - h - 1, 0, x.size)
+    stops = np.clip(events + h + 2, 0, x.size)
+    new = np.concatenate([[True], starts[1:] > stops[:-1]])      # a range not overlapping the one before
+    lo = starts[new]
+    hi = np.maximum.reduceat(stops, np.flatnonzero(new))
+    lens = hi - lo
+    near = np.repeat(lo - np.concatenate([[0], np.cumsum(lens)[:-1]]), lens) + np.arange(int(lens.sum()))
     win = np.lib.stride_tricks.sliding_window_view(np.pad(x, h, mode="edge"), w)
     for s in range(0, near.size, 50_000):  # bounded memory on long logs
         rows = near[s:s + 50_000]
@@ -163,8 +167,12 @@ def retime(t: np.ndarray, index: np.ndarray | None = None, *, window_s: float = 
         return RetimeResult(None, float("nan"), none, "most time steps are not positive")
     dt = float(np.median(pos))
     w = int(min(max(21, round(window_s / dt) | 1), (t.size // 2) | 1))
-    off = (t - t[0]) * (1.0 / dt) - k                # in samples; jitter = bump, dropout = step
-    events = np.flatnonzero(np.abs(np.diff(off)) > 0.5)
+    off = t - t[0]                                   # in samples; jitter = bump, dropout = step
+    off *= 1.0 / dt
+    off -= k
+    step = np.diff(off)
+    events = np.flatnonzero(np.abs(step, out=step) > 0.5)
+    del step
     level, near = _running_median(off, w, events)
     seg, breaks = _stretches(level, near)
     if seg is None:
@@ -180,19 +188,30 @@ def retime(t: np.ndarray, index: np.ndarray | None = None, *, window_s: float = 
         return RetimeResult(None, 1.0 / dt, none, f"only {inl.mean():.0%} of the stamps lie within half a "
                                                   f"sample of a steady {1 / dt:.6g} Hz clock")
     # pooled within-stretch least squares: one rate, one intercept per stretch
-    sf = seg[fit]
+    if fit is not inl:
+        sf = seg[fit]
     cf = np.bincount(sf, minlength=n_seg)
-    km = np.bincount(sf, k[fit], n_seg) / np.maximum(cf, 1)
-    tm = np.bincount(sf, t[fit], n_seg) / np.maximum(cf, 1)
-    dk, dtt = k[fit] - km[sf], t[fit] - tm[sf]
+    dk, dtt = k[fit], t[fit]
+    km = np.bincount(sf, dk, n_seg) / np.maximum(cf, 1)
+    tm = np.bincount(sf, dtt, n_seg) / np.maximum(cf, 1)
+    dk -= km[0] if n_seg == 1 else km[sf]             # one stretch: the same value for every sample
+    dtt -= tm[0] if n_seg == 1 else tm[sf]
+    del sf
     slope = float(np.dot(dk, dtt) / np.dot(dk, dk))
+    del dk, dtt
     if not (slope > 0 and 1.0 <= 1.0 / slope <= 1e5):
         return RetimeResult(None, 1.0 / dt, none, "no steady positive rate")
     icpt = tm - slope * km
     for s_ in np.flatnonzero(cf == 0):  # tiny stretches: their median
         icpt[s_] = float(np.median(t[seg == s_] - slope * k[seg == s_]))
-    out = icpt[seg] + slope * k
-    agree = float(np.mean(np.abs((out - t[0]) * (1.0 / dt) - k - level) < 1.0))  # smoothed offset vs clock
+    out = slope * k
+    out += icpt[0] if n_seg == 1 else icpt[seg]
+    dev = out - t[0]                                  # smoothed offset vs clock, in samples
+    dev *= 1.0 / dt
+    dev -= k
+    dev -= level
+    agree = float(np.mean(np.abs(dev, out=dev) < 1.0))
+    del dev
     if agree < min_inliers:
         return RetimeResult(None, 1.0 / slope, none, f"the stamps follow the sample clock within a sample "
                                                      f"over only {agree:.0%} of the log")
