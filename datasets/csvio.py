@@ -19,6 +19,7 @@ import gzip
 import io
 import os
 import re
+import threading
 import zlib
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
@@ -205,17 +206,43 @@ def _piece_offsets(path: Path) -> list[int]:
     return offsets
 
 
+class _PieceReader(io.RawIOBase):
+    """A piece of the file held in a reused buffer, read without copying it whole (what the parser reads from)."""
+
+    def __init__(self, view: memoryview) -> None:
+        super().__init__()
+        self.view, self.pos = view, 0
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, b) -> int:
+        n = min(len(b), len(self.view) - self.pos)
+        b[:n] = self.view[self.pos:self.pos + n]
+        self.pos += n
+        return n
+
+
+#: One text buffer per parsing thread, reused piece after piece (no fresh pages to fault in per piece).
+_buffers = threading.local()
+
+
 def _parse_piece(fd: int, start: int, stop: int, sep: str, names: list[str] | None):
     """One piece's DataFrame (the first piece, ``names`` None, holds the header line)."""
     import pandas as pd
-    data = os.pread(fd, stop - start, start)
-    if b'"' in data or (b"\r" in data and data.count(b"\r") != data.count(b"\r\n")):
+    size = stop - start
+    buf = getattr(_buffers, "buf", None)
+    if buf is None or len(buf) < size:
+        buf = _buffers.buf = bytearray(size)
+    n = os.preadv(fd, [memoryview(buf)[:size]], start)
+    if buf.find(b'"', 0, n) >= 0 or (buf.find(b"\r", 0, n) >= 0 and buf.count(b"\r", 0, n) != buf.count(b"\r\n", 0, n)):
         raise _NotParallel("quoted fields or bare carriage returns")
     kw = {"header": None, "names": names, "index_col": False} if names is not None else {}
     try:
         # low_memory (the default) tokenises in short runs: about twice as fast on a piece; a column of
         # mixed types comes out as object and sends the file to the serial parse
-        chunk = pd.read_csv(io.BytesIO(data), sep=sep, engine="c", skip_blank_lines=False, encoding="utf-8", **kw)
+        chunk = pd.read_csv(io.BufferedReader(_PieceReader(memoryview(buf)[:n]), 1 << 18), sep=sep, engine="c",
+                            skip_blank_lines=False, encoding="utf-8", **kw)
     except Exception as e:             # the serial parse says what is wrong, with the file's line
         raise _NotParallel(str(e)) from e
     if any(chunk[c].dtype.kind not in "fiu" for c in chunk.columns):
@@ -333,6 +360,7 @@ def _parse_parallel(path: Path, sep: str, stack: Mapping[str, Sequence[str]] | N
                 f.cancel()
         pool.shutdown(wait=True)
         os.close(fd)
+        _buffers.__dict__.pop("buf", None)     # this thread's text buffer (the pool's went with its threads)
 
 
 def read_delimited(path: str | Path, sep: str = ",", *,
