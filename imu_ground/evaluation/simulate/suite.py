@@ -50,7 +50,7 @@ class SuiteRanges:
     """
 
     roughness_level: tuple[float, float] = (ISO8608_CLASSES["B"], ISO8608_CLASSES["C"])
-    grade_std: tuple[float, float] = (0.002, 0.012)
+    grade_std: tuple[float, float] = (0.002, 0.008)
     crown: tuple[float, float] = (0.015, 0.03)
     grade_segment: tuple[float, float] = (30.0, 200.0)
     grade_transition: tuple[float, float] = (20.0, 80.0)
