@@ -106,8 +106,8 @@ def _running_median(x: np.ndarray, w: int, events: np.ndarray) -> tuple[np.ndarr
     lens = hi - lo
     near = np.repeat(lo - np.concatenate([[0], np.cumsum(lens)[:-1]]), lens) + np.arange(int(lens.sum()))
     win = np.lib.stride_tricks.sliding_window_view(np.pad(x, h, mode="edge"), w)
-    for s in range(0, near.size, 50_000):  # bounded memory on long logs
-        rows = near[s:s + 50_000]
+    for s in range(0, near.size, 4096):  # cache-sized windows, whatever the log's length
+        rows = near[s:s + 4096]
         out[rows] = np.median(win[rows], axis=1, overwrite_input=True)  # win[rows] is a gathered copy
     return out, near
 

@@ -248,7 +248,8 @@ def validate(imu: ImuData, policy: Policy = "retime", *,
         report.issues.append(f"{src}: {keep.size} sample(s) left after cleaning ({n} read), "
                              f"need at least {max(min_samples, 1)}")
         raise ImuValidationError(report.issues[-1])
-    same = keep.size == n and (keep == np.arange(n)).all()
+    # every row kept in order (only "sort" can keep them all in another order)
+    same = keep.size == n and (policy != "sort" or bool((keep == np.arange(n)).all()))
     gyro = imu.gyro if same else imu.gyro[keep]
     accel = imu.accel if same else imu.accel[keep]
     _units(report, t, gyro, accel, keep, units, src, gyro_limit, gyro_min_duration, accel_tol, rest_gyro,
