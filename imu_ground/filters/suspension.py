@@ -57,6 +57,7 @@ from typing import Optional, Sequence, Union
 import numpy as np
 
 from imu_ground import so3
+from imu_ground.filters import gravity_kernel
 from imu_ground.filters.design import IIRFilter, butter_bandpass, foh_filter
 from imu_ground.filters.estimator import (
     GroundEstimate,
@@ -268,6 +269,8 @@ class SuspensionAwareFilter:
         self._kbuf, self._kstep, self._kcheck = k.buf, k.impl.step, k.impl.check   # the streaming fast path
         self.gravity_filter = GravityVelocityFilter(R0=self.R0, extrinsic=self.extrinsic,
                                                     lever_arm=self.lever_arm, **self._gravity_kw)
+        # both kernels compiled: the frame goes to the gravity kernel as the float64 arrays the check took
+        self._arrays = k.native and self.gravity_filter.kernel is not gravity_kernel
         self.gains = self.gains0.copy()
         self._kp, self._kr = (float(g) for g in self.gains0)
         self._rate = None
@@ -390,8 +393,11 @@ class SuspensionAwareFilter:
         self._frames += 1
         gf = self.gravity_filter
         sp = math.nan if speed is None else float(speed)
-        (fx, fy, _), (ax, ay, _), v = gf.step_sensor(d.ravel().tolist(), dv.tolist(), dt, bool(stationary),
-                                                     bool(valid), sp)
+        if self._arrays:
+            (fx, fy, _), (ax, ay, _), v = gf.step_sensor(d, dv, dt, bool(stationary), bool(valid), sp)
+        else:
+            (fx, fy, _), (ax, ay, _), v = gf.step_sensor(d.ravel().tolist(), dv.tolist(), dt, bool(stationary),
+                                                         bool(valid), sp)
         s = self.load_share
         ux, uy = ax + s * (fx - ax), ay + s * (fy - ay)
         if self._resp is not None:
