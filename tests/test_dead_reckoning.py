@@ -261,8 +261,10 @@ def test_accelerometer_bias_does_not_hide_the_stops():
     assert len(found) >= 1
     est = estimate_gyro_bias(imu)
     np.testing.assert_allclose(est.bias, bg, atol=1e-4)
-    # every detected standstill is a true stop
-    t_stop = sim.truth["t"].to_numpy()[stopped]
+    # every detected standstill is a true stop: the car moves at most a creep (a gentle start's
+    # first few tenths of a second, which no IMU detector can tell from rest), and it covers the stop
+    t, speed = sim.truth["t"].to_numpy(), sim.truth["speed"].to_numpy()
     for a, b in found:
-        inside = (t_stop >= a - 0.1) & (t_stop <= b + 0.1)
-        assert inside.sum() >= int((b - a) * 10) - 2
+        inside = (t >= a) & (t <= b)
+        assert speed[inside].max() < 0.02, (a, b, speed[inside].max())
+        assert stopped[inside].sum() >= int((b - a) * 10) - 5
