@@ -28,7 +28,8 @@ import numpy as np
 
 from .report import MalformedFileError
 
-__all__ = ["Columns", "RowLines", "first_nonnumber", "locate_bad_lines", "numeric", "open_binary", "read_delimited"]
+__all__ = ["Columns", "RowLines", "first_nonnumber", "locate_bad_lines", "numeric", "open_binary", "read_delimited",
+           "return_free_memory"]
 
 #: Rows per parsed chunk (bounded working memory on long logs).
 CHUNK_ROWS = 1 << 19
@@ -38,8 +39,8 @@ PARALLEL_MIN_BYTES = 8 << 20
 PIECE_BYTES = 16 << 20
 #: Most threads a parallel parse uses (fewer when the process may use fewer CPUs).
 MAX_THREADS = 4
-#: After parsing at least this many values, the freed heap memory is returned to the system.
-TRIM_VALUES = 1 << 22
+#: Logs of at least this many samples return the freed heap memory to the system once read.
+TRIM_SAMPLES = 1 << 18
 
 Columns = dict[str, np.ndarray]
 
@@ -417,18 +418,18 @@ def read_delimited(path: str | Path, sep: str = ",", *,
     if n == 0:
         header = next((i for i, ln in _iter_lines(path) if ln.strip()), 1)
         raise MalformedFileError(path, "header only, no data rows", line=header)
-    if n * len(cols) >= TRIM_VALUES:
-        _return_free_memory()
     return cols, RowLines(blank)
 
 
-def _return_free_memory() -> None:
+def return_free_memory() -> None:
     """Give the C heap's free pages back to the system (glibc ``malloc_trim``; nothing elsewhere).
 
-    A long parse frees about as much as it keeps (the chunks' frames, the
-    pieces); glibc keeps such memory in its heaps (one per parsing thread), where
-    the arrays allocated later cannot always reuse it, so the peak RSS of the
-    whole run would carry it.
+    A long parse and its validation free about as much as they keep (the
+    chunks' frames, the pieces, the checks' temporaries); glibc keeps such
+    memory in its heaps (one per parsing thread), where the arrays allocated
+    later cannot always reuse it, so the peak RSS of the whole run would carry
+    it. :func:`~imu_ground.datasets.skeleton.finish` calls this after reading a
+    long log.
     """
     import ctypes
     try:

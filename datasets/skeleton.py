@@ -136,12 +136,16 @@ def finish(imu: ImuData, *, validate: bool = True, policy: str = "retime", **opt
     ImuData
         The cleaned log, ``meta["validation"]`` the report.
     """
+    from .csvio import TRIM_SAMPLES, return_free_memory
     from .validation import validate as _validate
     if not validate:
         if options:
             raise TypeError(f"validation options {sorted(options)} given with validate=False")
-        return imu
-    return _validate(imu, policy, **options)[0]  # type: ignore[arg-type]
+    else:
+        imu = _validate(imu, policy, **options)[0]  # type: ignore[arg-type]
+    if len(imu) >= TRIM_SAMPLES:        # a long read freed much of what it used: give it back
+        return_free_memory()
+    return imu
 
 
 def with_finish_parameters(reader: _Reader) -> _Reader:
