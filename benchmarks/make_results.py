@@ -9,7 +9,9 @@ Accuracy: the evaluation (:mod:`imu_ground.evaluation`) of every method on the
 shared real KITTI drives (``../shared/data/kitti_imu100``; pitch relative to the
 road, per drive means removed; by condition; per moving segment; the
 reference's own uncertainty) and on the synthetic suite (navigation-grade and
-MEMS IMUs; exact truth, normal angle, pitch and roll). Speed: the tables of the
+MEMS IMUs; exact truth, normal angle, pitch and roll), and the simulator's
+checks against the real drives (``sim_vs_real.rows()``: band powers and method
+ranking, issue 10.5). Speed: the tables of the
 benchmark scripts, each of which exposes ``rows()`` returning its rows
 (``bench_filter``, ``bench_suspension``, ``bench_preintegration``, ``bench_ekf``,
 ``bench_gravity``, ``bench_readers``, ``bench_batch``); a script that is missing
@@ -34,6 +36,8 @@ DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_imu100"
 OUT = HERE / "RESULTS.md"
 BENCHMARKS = ("bench_filter", "bench_suspension", "bench_preintegration", "bench_ekf", "bench_gravity",
               "bench_readers", "bench_batch")
+#: Scripts whose rows are checks of the simulator against the real drives (issue 10.5), not speeds.
+SIMULATOR_CHECKS = ("sim_vs_real",)
 #: Smaller sizes for ``--quick``, passed to a benchmark's ``rows()`` where it has the parameter.
 QUICK_KWARGS = {"frames": 20_000, "stream_frames": 5_000, "repeat": 2, "steps": 5_000, "samples": 60_000,
                 "stream_samples": 5_000, "hours": (0.1,), "n": 2, "drives": 4}
@@ -181,9 +185,9 @@ def _run_benchmark(name: str, quick: bool) -> dict:
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
-def speed_sections(quick: bool, only: tuple[str, ...] = BENCHMARKS) -> list[str]:
-    """The speed part of RESULTS.md: each benchmark script's ``rows()`` as a table, or a note."""
-    out = ["# Speed", ""]
+def speed_sections(quick: bool, only: tuple[str, ...] = BENCHMARKS, title: str = "Speed") -> list[str]:
+    """A part of RESULTS.md (by default the speed part): each script's ``rows()`` as a table, or a note."""
+    out = [f"# {title}", ""]
     for name in only:
         res = _run_benchmark(name, quick)
         out += [f"## {name}", ""]
@@ -235,6 +239,7 @@ def main(argv: list[str] | None = None) -> int:
     lines = _header(argv, a.quick)
     if not a.no_accuracy:
         lines += accuracy_sections(a.data, a.quick)
+        lines += speed_sections(a.quick, SIMULATOR_CHECKS, "Simulator against the real drives")
     if not a.no_speed:
         lines += speed_sections(a.quick)
     tmp = a.out.with_suffix(a.out.suffix + ".tmp")
