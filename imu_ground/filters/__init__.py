@@ -7,10 +7,16 @@ Module map (each imports only the ones above it, and the imu layer below):
 - ``extrinsics``: static extrinsics and the calibration file format (``Calibration``);
 - ``estimator``: the estimator protocol, ``GroundEstimate``, ``GroundTrack``, ``track_table``, frame checks;
 - ``residual``: the scalar residual filter both invariant-EKF estimators run on;
+- ``invariant_ekf_kernel``, ``gravity_kernel``: the pure-Python per-frame kernels of the invariant
+  EKF and of the gravity/velocity filter (references of, and fallbacks for, the C twins);
 - ``invariant_ekf``, ``gravity_velocity``: the filters the estimators are built from;
 - ``gains``: suspension gains (defaults, band-pass regression);
 - ``ground`` (``GroundNormalFilter``), ``suspension`` (``SuspensionAwareFilter``): the estimators;
 - ``methods``: the estimators by CLI name; ``calibration``: ``calibrate`` a platform.
+
+Compiled kernels (optional, built by ``setup.py`` when a C compiler is available;
+:mod:`imu_ground._native`): ``_residual_native``, ``_gravity_native``, ``_ekf_native``,
+each the C twin of a pure-Python kernel above, tested equal to it.
 """
 from imu_ground._lazy import lazy_exports
 
