@@ -35,8 +35,10 @@ __all__ = ["Columns", "RowLines", "first_nonnumber", "locate_bad_lines", "numeri
 CHUNK_ROWS = 1 << 19
 #: Plain files at least this large (bytes) are parsed in pieces by several threads.
 PARALLEL_MIN_BYTES = 8 << 20
-#: Bytes of text per piece of a parallel parse (cut at a line end).
+#: Bytes of text per piece of a parallel parse (cut at a line end), at most.
 PIECE_BYTES = 16 << 20
+#: Bytes of the first piece, at most (parsed alone, for the header's column names).
+FIRST_PIECE_BYTES = 1 << 20
 #: Most threads a parallel parse uses (fewer when the process may use fewer CPUs).
 MAX_THREADS = 4
 #: Logs of at least this many samples return the freed heap memory to the system once read.
@@ -188,13 +190,17 @@ def _threads() -> int:
     return max(1, min(n, MAX_THREADS))
 
 
-def _piece_offsets(path: Path) -> list[int]:
-    """Byte offsets cutting a plain file into pieces of about :data:`PIECE_BYTES`, each after a ``\\n``."""
+def _piece_offsets(path: Path, piece: int) -> list[int]:
+    """Byte offsets cutting a plain file into pieces of about ``piece`` bytes, each after a ``\\n``.
+
+    The first piece (with the header, parsed before the others start, for the
+    column names) is at most :data:`FIRST_PIECE_BYTES`.
+    """
     size = path.stat().st_size
     offsets = [0]
     with open(path, "rb") as f:
         f.readline()                    # the header stays in the first piece
-        pos = max(f.tell(), PIECE_BYTES)
+        pos = max(f.tell(), min(piece, FIRST_PIECE_BYTES))
         while pos < size:
             f.seek(pos)
             f.readline()
@@ -202,7 +208,7 @@ def _piece_offsets(path: Path) -> list[int]:
             if pos >= size:
                 break
             offsets.append(pos)
-            pos += PIECE_BYTES
+            pos += piece
     offsets.append(size)
     return offsets
 
@@ -320,7 +326,9 @@ def _parse_parallel(path: Path, sep: str, stack: Mapping[str, Sequence[str]] | N
     if (path.name.lower().endswith((".gz", ".bz2")) or not path.is_file()
             or path.stat().st_size < PARALLEL_MIN_BYTES or _threads() < 2 or len(sep) != 1):
         return None
-    offsets = _piece_offsets(path)
+    # pieces small enough for a few per thread (the last ones finish together), at most PIECE_BYTES
+    size = path.stat().st_size
+    offsets = _piece_offsets(path, min(PIECE_BYTES, max(PIECE_BYTES // 4, size // (4 * _threads()))))
     if len(offsets) < 3:
         return None
     from concurrent.futures import ThreadPoolExecutor
