@@ -42,7 +42,7 @@ FIRST_PIECE_BYTES = 1 << 20
 #: Most threads a parallel parse uses (fewer when the process may use fewer CPUs).
 MAX_THREADS = 4
 #: Logs of at least this many samples return the freed heap memory to the system once read.
-TRIM_SAMPLES = 1 << 18
+TRIM_SAMPLES = 1 << 20
 
 Columns = dict[str, np.ndarray]
 
