@@ -110,6 +110,8 @@ def test_fused_exp_and_left_jacobian_match_so3():
     E, Jl = exp_and_left_jacobian(phi[:, 0].copy(), phi[:, 1].copy(), phi[:, 2].copy())
     np.testing.assert_allclose(E.transpose(2, 0, 1), so3.exp(phi), atol=2e-15)
     np.testing.assert_allclose(Jl.transpose(2, 0, 1), so3.left_jacobian(phi), atol=2e-15)
+    E_only, none = exp_and_left_jacobian(phi[:, 0].copy(), phi[:, 1].copy(), phi[:, 2].copy(), jacobian=False)
+    assert none is None and np.array_equal(E_only, E)          # the same rotations, bit for bit
 
 
 @pytest.mark.parametrize("hold", ["left", "midpoint"])

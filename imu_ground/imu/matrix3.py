@@ -85,7 +85,8 @@ def hat_times(x: np.ndarray, M: np.ndarray) -> np.ndarray:
     return out
 
 
-def exp_and_left_jacobian(x: np.ndarray, y: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def exp_and_left_jacobian(x: np.ndarray, y: np.ndarray, z: np.ndarray,
+                          jacobian: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
     """``Exp(phi)`` and ``J_l(phi)`` of rotation vectors given as component arrays (fused).
 
     The same formulas as :func:`imu_ground.so3.exp` and :func:`imu_ground.so3.left_jacobian`
@@ -97,10 +98,12 @@ def exp_and_left_jacobian(x: np.ndarray, y: np.ndarray, z: np.ndarray) -> tuple[
     ----------
     x, y, z : ndarray, shape S
         Components of ``phi``, rad.
+    jacobian : bool
+        Also compute ``J_l`` (False: ``Jl`` is None and its coefficient is skipped).
 
     Returns
     -------
-    E, Jl : ndarray, shape (3, 3) + S
+    E, Jl : ndarray, shape (3, 3) + S (``Jl`` None without ``jacobian``)
     """
     xx, yy, zz = x * x, y * y, z * z
     t2 = xx + yy + zz
@@ -112,16 +115,17 @@ def exp_and_left_jacobian(x: np.ndarray, y: np.ndarray, z: np.ndarray) -> tuple[
     hs = np.sin(0.5 * th)
     A = sn / th
     B = 2.0 * hs * hs / ts2
-    C = (th - sn) / (ts2 * th)
+    C = (th - sn) / (ts2 * th) if jacobian else None
     if any_small:
         t2s = t2[small]
         tts = t2s * t2s
         A[small] = 1.0 - t2s / 6.0 + tts / 120.0
         B[small] = 0.5 - t2s / 24.0 + tts / 720.0
-        C[small] = 1.0 / 6.0 - t2s / 120.0 + tts / 5040.0
+        if jacobian:
+            C[small] = 1.0 / 6.0 - t2s / 120.0 + tts / 5040.0
     xy, xz, yz = x * y, x * z, y * z
     out = []
-    for a, b in ((A, B), (B, C)):   # Exp: I + A K + B K^2; Jl: I + B K + C K^2
+    for a, b in ((A, B), (B, C))[:2 if jacobian else 1]:   # Exp: I + A K + B K^2; Jl: I + B K + C K^2
         M = np.empty((3, 3) + x.shape)
         M[0, 0] = 1.0 - b * (yy + zz)
         M[1, 1] = 1.0 - b * (xx + zz)
@@ -135,7 +139,7 @@ def exp_and_left_jacobian(x: np.ndarray, y: np.ndarray, z: np.ndarray) -> tuple[
         M[1, 2] = byz - ax
         M[2, 1] = byz + ax
         out.append(M)
-    return out[0], out[1]
+    return out[0], (out[1] if jacobian else None)
 
 
 def project_if_needed(R: np.ndarray) -> np.ndarray:

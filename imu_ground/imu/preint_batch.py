@@ -61,7 +61,7 @@ def _blocks_kernel(dt: np.ndarray, w: np.ndarray, f: np.ndarray, qg: float, qa: 
     """
     L, nb = dt.shape
     phi = w * dt
-    E, Jl = exp_and_left_jacobian(phi[0], phi[1], phi[2])
+    E, Jl = exp_and_left_jacobian(phi[0], phi[1], phi[2], jacobian=uncertainty)
     del phi
     P = scan_products(E)                                   # delta_R after interval k
     del E
