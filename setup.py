@@ -9,6 +9,9 @@ tests compare it with. The extensions are optional: without a C compiler the
 package installs and runs on the pure-Python kernels (slower, same results);
 see :mod:`imu_ground._native` (``IMU_GROUND_PURE_PYTHON=1`` forces them).
 
+The kernels share the static inline helpers of ``imu_ground/_native_util.h``
+(rotations, argument reading, module creation).
+
 Compiled without fused multiply-add contraction (``-ffp-contract=off``) so the
 C and the Python kernels round alike on every platform.
 """
@@ -17,6 +20,9 @@ from pathlib import Path
 from setuptools import Extension, setup
 
 HERE = Path(__file__).resolve().parent
+#: The helpers every kernel includes (``#include "_native_util.h"``), relative to this file: in each
+#: extension's ``depends`` (a change rebuilds every kernel, and setuptools puts it in the sdist).
+SHARED_HEADER = Path("imu_ground") / "_native_util.h"
 
 
 def native_extensions() -> list:
@@ -25,6 +31,7 @@ def native_extensions() -> list:
     for src in sorted((HERE / "imu_ground").rglob("_*_native.c")):
         rel = src.relative_to(HERE)
         exts.append(Extension(".".join(rel.with_suffix("").parts), [rel.as_posix()],
+                              include_dirs=[SHARED_HEADER.parent.as_posix()], depends=[SHARED_HEADER.as_posix()],
                               extra_compile_args=["-O2", "-ffp-contract=off", "-fno-fast-math"]
                               if not _msvc() else ["/O2", "/fp:precise"],
                               optional=True))
