@@ -16,10 +16,7 @@
  * d9/dv3: sequences of 9/3 floats (list, tuple or a float64 buffer); run_frames takes C-contiguous
  * buffers (float64, bool flags) and writes into the output buffers.
  */
-#define PY_SSIZE_T_CLEAN
-#include <Python.h>
-#include <math.h>
-#include <string.h>
+#include "_native_util.h"
 
 /* buffer layout (gravity_kernel.py) */
 enum {
@@ -29,89 +26,13 @@ enum {
     BUF_LEN = 125
 };
 
-/* ------------------------------------------------------------------------------------ so3 helpers */
-/* so3.mul_flat: c = a @ b, row-major 3x3 */
-static inline void mul33(const double *a, const double *b, double *c)
-{
-    double t[9];
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++)
-            t[3 * i + j] = a[3 * i] * b[j] + a[3 * i + 1] * b[3 + j] + a[3 * i + 2] * b[6 + j];
-    memcpy(c, t, sizeof t);
-}
-
-/* so3.renormalise_flat: r (3 I - r^T r) / 2 */
-static inline void renormalise(double *r)
-{
-    double m[9];
-    m[0] = 1.5 - 0.5 * (r[0] * r[0] + r[3] * r[3] + r[6] * r[6]);
-    m[4] = 1.5 - 0.5 * (r[1] * r[1] + r[4] * r[4] + r[7] * r[7]);
-    m[8] = 1.5 - 0.5 * (r[2] * r[2] + r[5] * r[5] + r[8] * r[8]);
-    m[1] = m[3] = -0.5 * (r[0] * r[1] + r[3] * r[4] + r[6] * r[7]);
-    m[2] = m[6] = -0.5 * (r[0] * r[2] + r[3] * r[5] + r[6] * r[8]);
-    m[5] = m[7] = -0.5 * (r[1] * r[2] + r[4] * r[5] + r[7] * r[8]);
-    mul33(r, m, r);
-}
-
-/* so3.log_flat: rotation vector (rad) of a row-major rotation */
-static inline void log33(const double *r, double small, double *phi)
-{
-    double wx = 0.5 * (r[7] - r[5]), wy = 0.5 * (r[2] - r[6]), wz = 0.5 * (r[3] - r[1]);
-    double c = 0.5 * (r[0] + r[4] + r[8] - 1.0);
-    c = c > 1.0 ? 1.0 : (c < -1.0 ? -1.0 : c);
-    double s = sqrt(wx * wx + wy * wy + wz * wz);
-    double theta = atan2(s, c);
-    if (c >= -0.9) {
-        double a;
-        if (theta < small) {
-            double t2 = theta * theta;
-            a = 1.0 - t2 / 6.0 + t2 * t2 / 120.0;
-        } else {
-            a = sin(theta) / theta;
-        }
-        phi[0] = wx / a; phi[1] = wy / a; phi[2] = wz / a;
-        return;
-    }
-    double d = 1.0 - c;       /* near pi: the axis from the largest column of (R + R^T)/2 - c I */
-    double cols[3][3] = {
-        {(r[0] - c) / d, 0.5 * (r[3] + r[1]) / d, 0.5 * (r[6] + r[2]) / d},
-        {0.5 * (r[1] + r[3]) / d, (r[4] - c) / d, 0.5 * (r[7] + r[5]) / d},
-        {0.5 * (r[2] + r[6]) / d, 0.5 * (r[5] + r[7]) / d, (r[8] - c) / d}};
-    int j = 0;
-    if (cols[1][1] > cols[j][j]) j = 1;
-    if (cols[2][2] > cols[j][j]) j = 2;
-    double ux = cols[j][0], uy = cols[j][1], uz = cols[j][2];
-    double n = sqrt(ux * ux + uy * uy + uz * uz);
-    double sign = (ux * wx + uy * wy + uz * wz) < 0 ? -1.0 : 1.0;
-    double f = sign * theta / n;
-    phi[0] = f * ux; phi[1] = f * uy; phi[2] = f * uz;
-}
-
-/* so3.exp_flat: row-major rotation of the rotation vector (x, y, z) */
-static inline void exp33(double x, double y, double z, double small, double *h)
-{
-    double t2 = x * x + y * y + z * z, a, b;
-    if (t2 < small * small) {
-        a = 1.0 - t2 / 6.0 + t2 * t2 / 120.0;
-        b = 0.5 - t2 / 24.0 + t2 * t2 / 720.0;
-    } else {
-        double t = sqrt(t2);
-        a = sin(t) / t;
-        b = (1.0 - cos(t)) / t2;
-    }
-    double bxy = b * x * y, bxz = b * x * z, byz = b * y * z;
-    double ax = a * x, ay = a * y, az = a * z;
-    h[0] = 1.0 - b * (y * y + z * z); h[1] = bxy - az; h[2] = bxz + ay;
-    h[3] = bxy + az; h[4] = 1.0 - b * (x * x + z * z); h[5] = byz - ax;
-    h[6] = bxz - ay; h[7] = byz + ax; h[8] = 1.0 - b * (x * x + y * y);
-}
-
 /* gravity_kernel.body_increment: (R d R^T, R dv) */
 static inline void body_increment(const double *R, const double *d, const double *dv, double *db, double *dvb)
 {
-    double t[9], rt[9] = {R[0], R[3], R[6], R[1], R[4], R[7], R[2], R[5], R[8]};
-    mul33(R, d, t);
-    mul33(t, rt, db);
+    double t[9], rt[9];
+    ig_transpose33(R, rt);
+    ig_mul33(R, d, t);
+    ig_mul33(t, rt, db);
     dvb[0] = R[0] * dv[0] + R[1] * dv[1] + R[2] * dv[2];
     dvb[1] = R[3] * dv[0] + R[4] * dv[1] + R[5] * dv[2];
     dvb[2] = R[6] * dv[0] + R[7] * dv[1] + R[8] * dv[2];
@@ -182,9 +103,9 @@ static inline void predict_update(double *s, const double *d, const double *dv, 
     memcpy(rp, r, sizeof rp);
     double count = s[I_COUNT] + 1.0;
     s[I_COUNT] = count;
-    mul33(rp, d, r);
+    ig_mul33(rp, d, r);
     if (fmod(count, s[I_RENORM]) == 0.0)
-        renormalise(r);
+        ig_renormalise33(r);
     double w0 = rp[0] * dv[0] + rp[1] * dv[1] + rp[2] * dv[2], w1 = rp[3] * dv[0] + rp[4] * dv[1] + rp[5] * dv[2],
            w2 = rp[6] * dv[0] + rp[7] * dv[1] + rp[8] * dv[2];
     if (s[I_INIT] == 0.0) {                /* gravity from the first frame's mean specific force */
@@ -275,9 +196,9 @@ static inline double frame(double *s, const double *d, const double *dv, double 
     memcpy(rp, s + I_R, sizeof rp);
     predict_update(s, d, dv, dt, stationary, valid, speed, prior);
     double small = s[I_SMALL];
-    log33(d, small, phi);
+    ig_log33(d, small, phi);
     w[0] = phi[0] / dt; w[1] = phi[1] / dt; w[2] = phi[2] / dt;
-    exp33(0.5 * phi[0], 0.5 * phi[1], 0.5 * phi[2], small, h);       /* body_{k-1} <- mid */
+    ig_exp33(0.5 * phi[0], 0.5 * phi[1], 0.5 * phi[2], small, h);       /* body_{k-1} <- mid */
     double u0 = dv[0] / dt, u1 = dv[1] / dt, u2 = dv[2] / dt;
     double f0 = h[0] * u0 + h[3] * u1 + h[6] * u2, f1 = h[1] * u0 + h[4] * u1 + h[7] * u2,
            f2 = h[2] * u0 + h[5] * u1 + h[8] * u2;
@@ -302,100 +223,22 @@ static inline double frame(double *s, const double *d, const double *dv, double 
 }
 
 /* -------------------------------------------------------------------------------- argument parsing */
-/* a buffer of n items of a format in `formats` (itemsize isz), C-contiguous; n < 0: any length */
-static int get_buffer(PyObject *o, Py_buffer *view, const char *name, Py_ssize_t n, int writable, char kind)
-{
-    int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
-    if (PyObject_GetBuffer(o, view, flags) < 0) {
-        PyErr_Format(PyExc_TypeError, "%s must be a C-contiguous %sbuffer of %s, got %.100s", name,
-                     writable ? "writable " : "", kind == 'd' ? "float64" : "bool", Py_TYPE(o)->tp_name);
-        return -1;
-    }
-    const char *fmt = view->format ? view->format : "B";
-    if (*fmt == '@' || *fmt == '=' || *fmt == '<')
-        fmt++;
-    int ok = kind == 'd' ? (fmt[0] == 'd' && fmt[1] == 0 && view->itemsize == 8)
-                         : ((fmt[0] == '?' || fmt[0] == 'b' || fmt[0] == 'B') && fmt[1] == 0 && view->itemsize == 1);
-    if (!ok) {
-        PyErr_Format(PyExc_TypeError, "%s must hold %s, got format '%s'", name, kind == 'd' ? "float64" : "bool",
-                     view->format ? view->format : "B");
-        PyBuffer_Release(view);
-        return -1;
-    }
-    Py_ssize_t have = view->len / view->itemsize;
-    if (n >= 0 && have != n) {
-        PyErr_Format(PyExc_ValueError, "%s must have %zd items, got %zd", name, n, have);
-        PyBuffer_Release(view);
-        return -1;
-    }
-    return 0;
-}
-
 /* the state buffer: writable float64, BUF_LEN items */
 static double *get_state(PyObject *o, Py_buffer *view)
 {
-    if (get_buffer(o, view, "state", BUF_LEN, 1, 'd') < 0)
+    if (ig_get_buffer(o, view, "state", BUF_LEN, 1, 'd') < 0)
         return NULL;
     return (double *)view->buf;
-}
-
-/* n floats from a list, a tuple or a float64 buffer */
-static int read_floats(PyObject *o, double *out, Py_ssize_t n, const char *name)
-{
-    if (PyList_CheckExact(o) || PyTuple_CheckExact(o)) {
-        Py_ssize_t len = PySequence_Fast_GET_SIZE(o);
-        if (len != n) {
-            PyErr_Format(PyExc_ValueError, "%s must have %zd floats, got %zd", name, n, len);
-            return -1;
-        }
-        PyObject **items = PySequence_Fast_ITEMS(o);
-        for (Py_ssize_t i = 0; i < n; i++) {
-            PyObject *it = items[i];
-            out[i] = PyFloat_CheckExact(it) ? PyFloat_AS_DOUBLE(it) : PyFloat_AsDouble(it);
-            if (out[i] == -1.0 && PyErr_Occurred()) {
-                PyErr_Format(PyExc_TypeError, "%s[%zd] must be a float, got %.100s", name, i, Py_TYPE(it)->tp_name);
-                return -1;
-            }
-        }
-        return 0;
-    }
-    Py_buffer view;
-    if (get_buffer(o, &view, name, n, 0, 'd') < 0)
-        return -1;
-    memcpy(out, view.buf, n * sizeof(double));
-    PyBuffer_Release(&view);
-    return 0;
-}
-
-static PyObject *floats(const double *v, int n)
-{
-    PyObject *t = PyTuple_New(n);
-    if (!t)
-        return NULL;
-    for (int i = 0; i < n; i++) {
-        PyObject *x = PyFloat_FromDouble(v[i]);
-        if (!x) {
-            Py_DECREF(t);
-            return NULL;
-        }
-        PyTuple_SET_ITEM(t, i, x);
-    }
-    return t;
 }
 
 /* ------------------------------------------------------------------------------------ entry points */
 static PyObject *step_common(PyObject *const *args, Py_ssize_t nargs, int sensor, const char *fname)
 {
-    if (nargs != 7 && nargs != 8) {
-        PyErr_Format(PyExc_TypeError, "%s expects 7 or 8 arguments (s, d9, dv3, dt, stationary, valid, speed[, out]), "
-                     "got %zd", fname, nargs);
+    if (!ig_check_nargs(nargs, 7, 8, fname, "s, d9, dv3, dt, stationary, valid, speed[, out]"))
         return NULL;
-    }
-    double d[9], dv[3], f[3], acc[3];
-    if (read_floats(args[1], d, 9, "d9") < 0 || read_floats(args[2], dv, 3, "dv3") < 0)
-        return NULL;
-    double dt = PyFloat_AsDouble(args[3]);
-    if (dt == -1.0 && PyErr_Occurred())
+    double d[9], dv[3], f[3], acc[3], dt;
+    if (ig_read_floats(args[1], d, 9, "d9") < 0 || ig_read_floats(args[2], dv, 3, "dv3") < 0 ||
+        ig_read_double(args[3], &dt) < 0)
         return NULL;
     if (!(dt > 0.0)) {                     /* (the Python twin divides by it: the same error in both) */
         PyErr_Format(PyExc_ValueError, "dt must be > 0 s, got %R", args[3]);
@@ -405,13 +248,10 @@ static PyObject *step_common(PyObject *const *args, Py_ssize_t nargs, int sensor
     if (stationary < 0 || valid < 0)
         return NULL;
     double speed = NAN;
-    if (args[6] != Py_None) {
-        speed = PyFloat_AsDouble(args[6]);
-        if (speed == -1.0 && PyErr_Occurred())
-            return NULL;
-    }
+    if (args[6] != Py_None && ig_read_double(args[6], &speed) < 0)
+        return NULL;
     Py_buffer view, out;
-    if (nargs == 8 && get_buffer(args[7], &out, "out", 12, 1, 'd') < 0)
+    if (nargs == 8 && ig_get_buffer(args[7], &out, "out", 12, 1, 'd') < 0)
         return NULL;
     double *s = get_state(args[0], &view);
     if (!s) {
@@ -437,7 +277,7 @@ static PyObject *step_common(PyObject *const *args, Py_ssize_t nargs, int sensor
         return PyFloat_FromDouble(v);
     }
     PyBuffer_Release(&view);
-    PyObject *ft = floats(f, 3), *at = floats(acc, 3), *vv = PyFloat_FromDouble(v);
+    PyObject *ft = ig_tuple_of(f, 3), *at = ig_tuple_of(acc, 3), *vv = PyFloat_FromDouble(v);
     if (!ft || !at || !vv) {
         Py_XDECREF(ft); Py_XDECREF(at); Py_XDECREF(vv);
         return NULL;
@@ -465,12 +305,10 @@ static PyObject *step_sensor(PyObject *Py_UNUSED(self), PyObject *const *args, P
 
 static PyObject *to_body(PyObject *Py_UNUSED(self), PyObject *const *args, Py_ssize_t nargs)
 {
-    if (nargs != 3) {
-        PyErr_Format(PyExc_TypeError, "to_body expects 3 arguments (s, d9, dv3), got %zd", nargs);
+    if (!ig_check_nargs(nargs, 3, 3, "to_body", "s, d9, dv3"))
         return NULL;
-    }
     double d[9], dv[3], db[9], dvb[3];
-    if (read_floats(args[1], d, 9, "d9") < 0 || read_floats(args[2], dv, 3, "dv3") < 0)
+    if (ig_read_floats(args[1], d, 9, "d9") < 0 || ig_read_floats(args[2], dv, 3, "dv3") < 0)
         return NULL;
     Py_buffer view;
     double *s = get_state(args[0], &view);
@@ -483,7 +321,7 @@ static PyObject *to_body(PyObject *Py_UNUSED(self), PyObject *const *args, Py_ss
         memcpy(dvb, dv, sizeof dvb);
     }
     PyBuffer_Release(&view);
-    PyObject *a = floats(db, 9), *b = floats(dvb, 3);
+    PyObject *a = ig_tuple_of(db, 9), *b = ig_tuple_of(dvb, 3);
     if (!a || !b) {
         Py_XDECREF(a); Py_XDECREF(b);
         return NULL;
@@ -504,35 +342,31 @@ static PyObject *run_frames(PyObject *Py_UNUSED(self), PyObject *const *args, Py
     /* items per frame and kind of each argument (after the state) */
     static const int width[RUN_BUFFERS] = {0, 9, 3, 1, 1, 1, 1, 3, 3, 36, 9, 3, 3, 1, 27, 9};
     static const char kinds[RUN_BUFFERS + 1] = "dddd??dddddddddd";
-    if (nargs != RUN_NARGS) {
-        PyErr_Format(PyExc_TypeError, "run_frames expects %d arguments, got %zd", RUN_NARGS, nargs);
+    if (!ig_check_nargs(nargs, RUN_NARGS, RUN_NARGS, "run_frames", "s, d, dv, dt, stationary, valid, speed, v_out, "
+                        "g_out, p_out, cum_out, f_out, a_out, speed_out, priors, body_out"))
         return NULL;
-    }
-    Py_buffer views[RUN_BUFFERS];
-    int got[RUN_BUFFERS] = {0};
-    double *s = get_state(args[0], &views[0]);
+    ig_views vs = {0};
+    void *buf[RUN_BUFFERS] = {NULL};       /* each argument's values (NULL: None) */
+    const Py_buffer *v = ig_take(&vs, args[0], "state", BUF_LEN, 1, 'd');
     PyObject *result = NULL;
-    if (!s)
+    if (!v)
         return NULL;
-    got[0] = 1;
-    /* the frame count from dt */
-    if (get_buffer(args[3], &views[3], "dt", -1, 0, 'd') < 0)
+    double *s = buf[0] = v->buf;
+    if (!(v = ig_take(&vs, args[3], "dt", -1, 0, 'd')))   /* the frame count from dt */
         goto done;
-    got[3] = 1;
-    Py_ssize_t n = views[3].len / 8;
+    buf[3] = v->buf;
+    Py_ssize_t n = v->len / 8;
     for (int i = 1; i < RUN_BUFFERS; i++) {
-        if (got[i] || ((i == 6 || i == 14 || i == 15) && args[i] == Py_None))
+        if (i == 3 || ((i == 6 || i == 14 || i == 15) && args[i] == Py_None))
             continue;
-        if (get_buffer(args[i], &views[i], names[i], n * width[i], i >= 7, kinds[i]) < 0)
+        if (!(v = ig_take(&vs, args[i], names[i], n * width[i], i >= 7, kinds[i])))
             goto done;
-        got[i] = 1;
+        buf[i] = v->buf;
     }
-    const double *d = views[1].buf, *dv = views[2].buf, *dt = views[3].buf;
-    const unsigned char *st = views[4].buf, *va = views[5].buf;
-    const double *sp = got[6] ? views[6].buf : NULL;
-    double *vo = views[7].buf, *go = views[8].buf, *po = views[9].buf, *co = views[10].buf, *fo = views[11].buf,
-           *ao = views[12].buf, *so = views[13].buf, *pri = got[14] ? views[14].buf : NULL,
-           *bo = got[15] ? views[15].buf : NULL;
+    const double *d = buf[1], *dv = buf[2], *dt = buf[3], *sp = buf[6];
+    const unsigned char *st = buf[4], *va = buf[5];
+    double *vo = buf[7], *go = buf[8], *po = buf[9], *co = buf[10], *fo = buf[11], *ao = buf[12], *so = buf[13],
+           *pri = buf[14], *bo = buf[15];
     const double *extr = s[I_EXTR] != 0.0 ? s + I_EXTR + 1 : NULL;
     static const int full[36] = {0, 1, 2, 6, 7, 8, 1, 3, 4, 9, 10, 11, 2, 4, 5, 12, 13, 14,
                                  6, 9, 12, 15, 16, 17, 7, 10, 13, 16, 18, 19, 8, 11, 14, 17, 19, 20};
@@ -558,42 +392,32 @@ static PyObject *run_frames(PyObject *Py_UNUSED(self), PyObject *const *args, Py
             po[36 * k + j] = s[I_P + full[j]];
     }
     Py_END_ALLOW_THREADS
-    result = Py_None;
-    Py_INCREF(result);
+    result = Py_NewRef(Py_None);
 done:
-    for (int i = 0; i < RUN_BUFFERS; i++)
-        if (got[i])
-            PyBuffer_Release(&views[i]);
+    ig_release(&vs);
     return result;
 }
 
 static PyMethodDef methods[] = {
-    {"step_frame", (PyCFunction)(void (*)(void))step_frame, METH_FASTCALL,
+    {"step_frame", IG_FASTCALL(step_frame), METH_FASTCALL,
      "step_frame(s, d9, dv3, dt, stationary, valid, speed[, out]) -> ((f0, f1, f2), (a0, a1, a2), speed):\n"
      "one body-frame frame (gravity_kernel.step_frame); speed None or NaN: none. With out (12 float64):\n"
      "[v, g, acceleration, specific force] written there, |v| returned."},
-    {"step_sensor", (PyCFunction)(void (*)(void))step_sensor, METH_FASTCALL,
+    {"step_sensor", IG_FASTCALL(step_sensor), METH_FASTCALL,
      "step_sensor(s, d9, dv3, dt, stationary, valid, speed[, out]): step_frame of a sensor-frame frame\n"
      "(the state's extrinsic applied first; gravity_kernel.step_sensor)."},
-    {"to_body", (PyCFunction)(void (*)(void))to_body, METH_FASTCALL,
+    {"to_body", IG_FASTCALL(to_body), METH_FASTCALL,
      "to_body(s, d9, dv3) -> (d9, dv3): one sensor-frame frame in the body frame (the state's extrinsic;\n"
      "gravity_kernel.to_body)."},
-    {"run_frames", (PyCFunction)(void (*)(void))run_frames, METH_FASTCALL,
+    {"run_frames", IG_FASTCALL(run_frames), METH_FASTCALL,
      "run_frames(s, d, dv, dt, stationary, valid, speed, v_out, g_out, p_out, cum_out, f_out, a_out,\n"
      "speed_out, priors, body_out) -> None: a drive into the output buffers (gravity_kernel.run_frames)."},
     {NULL, NULL, 0, NULL}};
 
-static struct PyModuleDef moduledef = {
-    PyModuleDef_HEAD_INIT, "_gravity_native",
-    "C twin of imu_ground.filters.gravity_kernel (the gravity/velocity filter's per-frame kernel).", 0, methods,
-    NULL, NULL, NULL, NULL};
-
 PyMODINIT_FUNC PyInit__gravity_native(void)
 {
-    PyObject *m = PyModule_Create(&moduledef);
-    if (m && PyModule_AddIntConstant(m, "BUF_LEN", BUF_LEN) < 0) {
-        Py_DECREF(m);
-        return NULL;
-    }
-    return m;
+    static struct PyModuleDef def = {.m_base = PyModuleDef_HEAD_INIT, .m_name = "_gravity_native", .m_size = 0,
+        .m_methods = methods, .m_doc = "C twin of imu_ground.filters.gravity_kernel (the gravity/velocity filter's"
+                                       " per-frame kernel)."};
+    return ig_module_create(&def, "BUF_LEN", BUF_LEN);
 }
