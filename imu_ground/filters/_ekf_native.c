@@ -18,10 +18,7 @@
  *                                          covariance is singular (state untouched).
  * No global mutable state; the state buffer is validated at each call.
  */
-#define PY_SSIZE_T_CLEAN
-#include <Python.h>
-#include <math.h>
-#include <string.h>
+#include "_native_util.h"
 
 /* state layout (doubles) */
 enum {
@@ -53,27 +50,6 @@ enum {
 #define SMALL 1e-4   /* so3._SMALL */
 
 /* ---- scalar kernels (so3's *_flat and quat_* functions) ---------------------------------- */
-static inline void mul_flat(const double *a, const double *b, double *o)
-{
-    double r[9];
-    r[0] = a[0] * b[0] + a[1] * b[3] + a[2] * b[6];
-    r[1] = a[0] * b[1] + a[1] * b[4] + a[2] * b[7];
-    r[2] = a[0] * b[2] + a[1] * b[5] + a[2] * b[8];
-    r[3] = a[3] * b[0] + a[4] * b[3] + a[5] * b[6];
-    r[4] = a[3] * b[1] + a[4] * b[4] + a[5] * b[7];
-    r[5] = a[3] * b[2] + a[4] * b[5] + a[5] * b[8];
-    r[6] = a[6] * b[0] + a[7] * b[3] + a[8] * b[6];
-    r[7] = a[6] * b[1] + a[7] * b[4] + a[8] * b[7];
-    r[8] = a[6] * b[2] + a[7] * b[5] + a[8] * b[8];
-    memcpy(o, r, sizeof r);
-}
-
-static inline void transpose_flat(const double *a, double *o)
-{
-    double r[9] = {a[0], a[3], a[6], a[1], a[4], a[7], a[2], a[5], a[8]};
-    memcpy(o, r, sizeof r);
-}
-
 static inline void sym_upper(double *m)
 {
     m[3] = m[1];
@@ -85,7 +61,7 @@ static inline void sym_upper(double *m)
 static inline void congruence(const double *a, const double *p, const double *q, double *o)
 {
     double m[9];
-    mul_flat(a, p, m);
+    ig_mul33(a, p, m);
     double c00 = m[0] * a[0] + m[1] * a[1] + m[2] * a[2] + q[0];
     double c01 = m[0] * a[3] + m[1] * a[4] + m[2] * a[5] + q[1];
     double c02 = m[0] * a[6] + m[1] * a[7] + m[2] * a[8] + q[2];
@@ -115,121 +91,11 @@ static inline int inv_flat(const double *m, double *o, double *det_out)
     return 1;
 }
 
-static inline void exp_flat(double x, double y, double z, double *o)
-{
-    double t2 = x * x + y * y + z * z, a, b;
-    if (t2 < SMALL * SMALL) {
-        a = 1.0 - t2 / 6.0 + t2 * t2 / 120.0;
-        b = 0.5 - t2 / 24.0 + t2 * t2 / 720.0;
-    } else {
-        double t = sqrt(t2);
-        a = sin(t) / t;
-        b = (1.0 - cos(t)) / t2;
-    }
-    double bxy = b * x * y, bxz = b * x * z, byz = b * y * z;
-    double ax = a * x, ay = a * y, az = a * z;
-    o[0] = 1.0 - b * (y * y + z * z); o[1] = bxy - az; o[2] = bxz + ay;
-    o[3] = bxy + az; o[4] = 1.0 - b * (x * x + z * z); o[5] = byz - ax;
-    o[6] = bxz - ay; o[7] = byz + ax; o[8] = 1.0 - b * (x * x + y * y);
-}
-
-static inline void log_flat(const double *r, double *o)
-{
-    double r00 = r[0], r01 = r[1], r02 = r[2], r10 = r[3], r11 = r[4], r12 = r[5];
-    double r20 = r[6], r21 = r[7], r22 = r[8];
-    double wx = 0.5 * (r21 - r12), wy = 0.5 * (r02 - r20), wz = 0.5 * (r10 - r01);
-    double c = 0.5 * (r00 + r11 + r22 - 1.0);
-    c = c > 1.0 ? 1.0 : (c < -1.0 ? -1.0 : c);
-    double s = sqrt(wx * wx + wy * wy + wz * wz);
-    double theta = atan2(s, c);
-    if (c >= -0.9) {
-        double a;
-        if (theta < SMALL) {
-            double t2 = theta * theta;
-            a = 1.0 - t2 / 6.0 + t2 * t2 / 120.0;
-        } else {
-            a = sin(theta) / theta;
-        }
-        o[0] = wx / a; o[1] = wy / a; o[2] = wz / a;
-        return;
-    }
-    double d = 1.0 - c;
-    double cols[3][3] = {
-        {(r00 - c) / d, 0.5 * (r10 + r01) / d, 0.5 * (r20 + r02) / d},
-        {0.5 * (r01 + r10) / d, (r11 - c) / d, 0.5 * (r21 + r12) / d},
-        {0.5 * (r02 + r20) / d, 0.5 * (r12 + r21) / d, (r22 - c) / d}};
-    int j = 0;                            /* max(range(3), key=diagonal): the first largest */
-    if (cols[1][1] > cols[j][j]) j = 1;
-    if (cols[2][2] > cols[j][j]) j = 2;
-    double ux = cols[j][0], uy = cols[j][1], uz = cols[j][2];
-    double n = sqrt(ux * ux + uy * uy + uz * uz);
-    double sign = (ux * wx + uy * wy + uz * wz) < 0 ? -1.0 : 1.0;
-    double f = sign * theta / n;
-    o[0] = f * ux; o[1] = f * uy; o[2] = f * uz;
-}
-
-/* Shepperd's method, w >= 0 (so3.quat_from_flat) */
-static inline void quat_from_flat(const double *r, double *q)
-{
-    double r0 = r[0], r1 = r[1], r2 = r[2], r3 = r[3], r4 = r[4], r5 = r[5], r6 = r[6], r7 = r[7], r8 = r[8];
-    double t = r0 + r4 + r8, s;
-    if (t >= r0 && t >= r4 && t >= r8) {
-        s = 0.5 / sqrt(1.0 + t);
-        q[0] = 0.25 / s; q[1] = (r7 - r5) * s; q[2] = (r2 - r6) * s; q[3] = (r3 - r1) * s;
-        return;
-    }
-    if (r0 >= r4 && r0 >= r8) {
-        s = 0.5 / sqrt(1.0 + r0 - r4 - r8);
-        q[0] = (r7 - r5) * s; q[1] = 0.25 / s; q[2] = (r1 + r3) * s; q[3] = (r2 + r6) * s;
-    } else if (r4 >= r8) {
-        s = 0.5 / sqrt(1.0 + r4 - r0 - r8);
-        q[0] = (r2 - r6) * s; q[1] = (r1 + r3) * s; q[2] = 0.25 / s; q[3] = (r5 + r7) * s;
-    } else {
-        s = 0.5 / sqrt(1.0 + r8 - r0 - r4);
-        q[0] = (r3 - r1) * s; q[1] = (r2 + r6) * s; q[2] = (r5 + r7) * s; q[3] = 0.25 / s;
-    }
-    if (!(q[0] >= 0.0)) {
-        q[0] = -q[0]; q[1] = -q[1]; q[2] = -q[2]; q[3] = -q[3];
-    }
-}
-
-static inline void flat_from_quat(const double *q, double *o)
-{
-    double w = q[0], x = q[1], y = q[2], z = q[3];
-    double xx = x * x, yy = y * y, zz = z * z, xy = x * y, xz = x * z, yz = y * z;
-    double wx = w * x, wy = w * y, wz = w * z;
-    o[0] = 1.0 - 2.0 * (yy + zz); o[1] = 2.0 * (xy - wz); o[2] = 2.0 * (xz + wy);
-    o[3] = 2.0 * (xy + wz); o[4] = 1.0 - 2.0 * (xx + zz); o[5] = 2.0 * (yz - wx);
-    o[6] = 2.0 * (xz - wy); o[7] = 2.0 * (yz + wx); o[8] = 1.0 - 2.0 * (xx + yy);
-}
-
-static inline void quat_mul(const double *a, const double *b, double *o)
-{
-    double aw = a[0], ax = a[1], ay = a[2], az = a[3], bw = b[0], bx = b[1], by = b[2], bz = b[3];
-    o[0] = aw * bw - ax * bx - ay * by - az * bz;
-    o[1] = aw * bx + ax * bw + ay * bz - az * by;
-    o[2] = aw * by - ax * bz + ay * bw + az * bx;
-    o[3] = aw * bz + ax * by - ay * bx + az * bw;
-}
-
-static inline void quat_exp(double x, double y, double z, double *o)
-{
-    double t = sqrt(x * x + y * y + z * z);
-    double h = t < SMALL ? 0.5 - t * t / 48.0 : sin(0.5 * t) / t;
-    o[0] = cos(0.5 * t); o[1] = h * x; o[2] = h * y; o[3] = h * z;
-}
-
-static inline void quat_normalise(double *q)
-{
-    double n = 1.0 / sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-    q[0] = q[0] * n; q[1] = q[1] * n; q[2] = q[2] * n; q[3] = q[3] * n;
-}
-
 /* the state's x as a matrix: the cached one, else built from the quaternion and cached */
 static inline const double *state_x(double *b)
 {
     if (b[E_XV] == 0.0) {
-        flat_from_quat(b + E_Q, b + E_X);
+        ig_33_from_quat(b + E_Q, b + E_X);
         b[E_XV] = 1.0;
     }
     return b + E_X;
@@ -245,11 +111,11 @@ static inline void predict_core(double *b, const double *U, const double *qn)
     memcpy(q, b + E_Q, sizeof q);
     if (U) {
         double qu[4];
-        quat_from_flat(U, qu);
-        quat_mul(b + E_Q, qu, q);
+        ig_quat_from33(U, qu);
+        ig_quat_mul(b + E_Q, qu, q);
         if (left) {                                  /* P <- U^T P U + Q */
             double Ut[9];
-            transpose_flat(U, Ut);
+            ig_transpose33(U, Ut);
             congruence(Ut, P, qn, b + E_P);
             memcpy(b + E_PPR, b + E_P, 9 * sizeof(double));
             memcpy(b + E_Q, q, sizeof q);
@@ -264,7 +130,7 @@ static inline void predict_core(double *b, const double *U, const double *qn)
     const double *qq = qn;
     if (!left) {                                     /* P <- P + A Q A^T, A = x U */
         if (!have_x) {
-            flat_from_quat(q, x);
+            ig_33_from_quat(q, x);
             have_x = 1;
         }
         congruence(x, qn, ZERO9, A);
@@ -292,7 +158,7 @@ static inline int update_rotation_left(const double *b, const double *z, const d
     double zq[4];
     const double *P = b + E_P, *qs = b + E_Q;
     double qw = qs[0], qx = qs[1], qy = qs[2], qz = qs[3];
-    quat_from_flat(z, zq);
+    ig_quat_from33(z, zq);
     double zw = zq[0], zx = zq[1], zy = zq[2], zz = zq[3];
     double aw = qw * zw + qx * zx + qy * zy + qz * zz, ax = qw * zx - qx * zw - qy * zz + qz * zy;
     double ay = qw * zy + qx * zz - qy * zw - qz * zx, az = qw * zz - qx * zy + qy * zx - qz * zw;
@@ -315,7 +181,7 @@ static inline int update_rotation_left(const double *b, const double *z, const d
     double i11 = (s0 * s8 - s2 * s2) * d, i12 = (s1 * s2 - s0 * s5) * d, i22 = (s0 * s4 - s1 * s1) * d;
     SI[0] = i00; SI[1] = i01; SI[2] = i02; SI[3] = i01; SI[4] = i11; SI[5] = i12;
     SI[6] = i02; SI[7] = i12; SI[8] = i22;
-    mul_flat(P, SI, K);
+    ig_mul33(P, SI, K);
     double k0 = K[0], k1 = K[1], k2 = K[2], k3 = K[3], k4 = K[4], k5 = K[5], k6 = K[6], k7 = K[7], k8 = K[8];
     double n01, n02, n12;
     if (r1 == 0.0 && r2 == 0.0 && r5 == 0.0) {      /* diagonal R */
@@ -331,8 +197,8 @@ static inline int update_rotation_left(const double *b, const double *z, const d
     }
     Pn[1] = n01; Pn[2] = n02; Pn[3] = n01; Pn[5] = n12; Pn[6] = n02; Pn[7] = n12;
     double e[4];
-    quat_exp(k0 * y0 + k1 * y1 + k2 * y2, k3 * y0 + k4 * y1 + k5 * y2, k6 * y0 + k7 * y1 + k8 * y2, e);
-    quat_mul(qs, e, q);
+    ig_quat_exp(k0 * y0 + k1 * y1 + k2 * y2, k3 * y0 + k4 * y1 + k5 * y2, k6 * y0 + k7 * y1 + k8 * y2, SMALL, e);
+    ig_quat_mul(qs, e, q);
     y[0] = y0; y[1] = y1; y[2] = y2;
     S[0] = s0; S[1] = s1; S[2] = s2; S[3] = s1; S[4] = s4; S[5] = s5; S[6] = s2; S[7] = s5; S[8] = s8;
     return 1;
@@ -348,17 +214,17 @@ static inline int update_general(double *b, const double *z, int zn, const doubl
     double Rn[9], t9[9];
     if (zn == 9) {                                   /* right error, H = I */
         double xt[9];
-        transpose_flat(x, xt);
-        mul_flat(z, xt, t9);
-        log_flat(t9, y);
+        ig_transpose33(x, xt);
+        ig_mul33(z, xt, t9);
+        ig_log33(t9, SMALL, y);
         congruence(x, r, ZERO9, Rn);
         double a = P[1] + Rn[1], bb = P[2] + Rn[2], c = P[5] + Rn[5];
         double Sv[9] = {P[0] + Rn[0], a, bb, a, P[4] + Rn[4], c, bb, c, P[8] + Rn[8]};
         memcpy(S, Sv, sizeof Sv);
         if (!inv_flat(S, SI, det_out))
             return 0;
-        mul_flat(P, SI, K);
-        mul_flat(K, Rn, Pn);
+        ig_mul33(P, SI, K);
+        ig_mul33(K, Rn, Pn);
         sym_upper(Pn);
     } else {
         double H[9], Ht[9], PHT[9], HPHT[9], KH[9], IKH[9], c1[9], c2[9];
@@ -369,7 +235,7 @@ static inline int update_general(double *b, const double *z, int zn, const doubl
             y[2] = x[2] * z0 + x[5] * z1 + x[8] * z2 - b2;
             memcpy(H, b + E_HB, sizeof H);
             double xt[9];
-            transpose_flat(x, xt);
+            ig_transpose33(x, xt);
             congruence(xt, r, ZERO9, Rn);
         } else {
             double xb0 = x[0] * b0 + x[1] * b1 + x[2] * b2, xb1 = x[3] * b0 + x[4] * b1 + x[5] * b2;
@@ -380,9 +246,9 @@ static inline int update_general(double *b, const double *z, int zn, const doubl
                 H[i] = -hat[i];
             memcpy(Rn, r, sizeof Rn);
         }
-        transpose_flat(H, Ht);
-        mul_flat(P, Ht, PHT);
-        mul_flat(H, PHT, HPHT);
+        ig_transpose33(H, Ht);
+        ig_mul33(P, Ht, PHT);
+        ig_mul33(H, PHT, HPHT);
         sym_upper(HPHT);
         double Ru[9];
         memcpy(Ru, Rn, sizeof Ru);
@@ -391,8 +257,8 @@ static inline int update_general(double *b, const double *z, int zn, const doubl
             S[i] = HPHT[i] + Ru[i];
         if (!inv_flat(S, SI, det_out))
             return 0;
-        mul_flat(PHT, SI, K);
-        mul_flat(K, H, KH);
+        ig_mul33(PHT, SI, K);
+        ig_mul33(K, H, KH);
         for (int i = 0; i < 9; i++)
             IKH[i] = (i % 4 == 0 ? 1.0 : 0.0) - KH[i];        /* Joseph form */
         congruence(IKH, P, ZERO9, c1);
@@ -401,12 +267,12 @@ static inline int update_general(double *b, const double *z, int zn, const doubl
             Pn[i] = c1[i] + c2[i];
     }
     double e[4];
-    quat_exp(K[0] * y[0] + K[1] * y[1] + K[2] * y[2], K[3] * y[0] + K[4] * y[1] + K[5] * y[2],
-             K[6] * y[0] + K[7] * y[1] + K[8] * y[2], e);
+    ig_quat_exp(K[0] * y[0] + K[1] * y[1] + K[2] * y[2], K[3] * y[0] + K[4] * y[1] + K[5] * y[2],
+                K[6] * y[0] + K[7] * y[1] + K[8] * y[2], SMALL, e);
     if (left)
-        quat_mul(b + E_Q, e, q);
+        ig_quat_mul(b + E_Q, e, q);
     else
-        quat_mul(e, b + E_Q, q);
+        ig_quat_mul(e, b + E_Q, q);
     return 1;
 }
 
@@ -430,7 +296,7 @@ static inline int update_core(double *b, const double *z, int zn, const double *
     double nup = b[E_NUP] + 1.0;
     b[E_NUP] = nup;
     if (fmod(nup, b[E_RENORM]) == 0.0)
-        quat_normalise(q);
+        ig_quat_normalise(q);
     memcpy(b + E_Q, q, sizeof q);
     memcpy(b + E_XPO, q, sizeof q);
     b[E_XV] = 0.0;
@@ -450,15 +316,7 @@ static inline int update_core(double *b, const double *z, int zn, const double *
 /* The state buffer (writable, C-contiguous doubles, E_SIZE of them); -1 with an exception set. */
 static int get_state(PyObject *obj, Py_buffer *view)
 {
-    if (PyObject_GetBuffer(obj, view, PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0)
-        return -1;
-    if (view->format == NULL || strcmp(view->format, "d") != 0 || view->itemsize != sizeof(double) ||
-        view->len != (Py_ssize_t)(E_SIZE * sizeof(double))) {
-        PyBuffer_Release(view);
-        PyErr_Format(PyExc_ValueError, "state must be a buffer of %d doubles (array('d'))", (int)E_SIZE);
-        return -1;
-    }
-    return 0;
+    return ig_get_buffer(obj, view, "state", E_SIZE, 1, 'd');
 }
 
 /* An optional float64 C-contiguous array argument of 9 or 3 doubles (shape (3, 3) or (3,)).
@@ -470,17 +328,15 @@ static int get_array(PyObject *obj, Py_buffer *view, int allow3)
         return 0;
     if (!PyObject_CheckBuffer(obj))
         return -2;
-    if (PyObject_GetBuffer(obj, view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
+    if (ig_get_buffer(obj, view, "u", -1, 0, 'd') < 0) {
         PyErr_Clear();
         return -2;
     }
     int n = -2;
-    if (view->format != NULL && strcmp(view->format, "d") == 0 && view->itemsize == sizeof(double)) {
-        if (view->ndim == 2 && view->shape[0] == 3 && view->shape[1] == 3)
-            n = 9;
-        else if (allow3 && view->ndim == 1 && view->shape[0] == 3)
-            n = 3;
-    }
+    if (view->ndim == 2 && view->shape[0] == 3 && view->shape[1] == 3)
+        n = 9;
+    else if (allow3 && view->ndim == 1 && view->shape[0] == 3)
+        n = 3;
     if (n < 0)
         PyBuffer_Release(view);
     return n;
@@ -490,13 +346,11 @@ static int get_array(PyObject *obj, Py_buffer *view, int allow3)
  * into vout (9 or 3 doubles; None: 0) and m into mout (9 doubles; None: the state's own at `deflt`).
  * Returns the size of v, -2 when v or m must be coerced by the caller (nothing held, no exception),
  * -1 with an exception set. */
-static int take_args(PyObject *const *args, Py_ssize_t nargs, const char *sig, Py_buffer *st, double *vout,
-                     double *mout, int deflt)
+static int take_args(PyObject *const *args, Py_ssize_t nargs, const char *name, const char *params, Py_buffer *st,
+                     double *vout, double *mout, int deflt)
 {
-    if (nargs != 3) {
-        PyErr_Format(PyExc_TypeError, "%s takes 3 arguments", sig);
+    if (!ig_check_nargs(nargs, 3, 3, name, params))
         return -1;
-    }
     if (get_state(args[0], st) < 0)
         return -1;
     Py_buffer vb, mb;
@@ -521,7 +375,7 @@ static PyObject *ekf_predict(PyObject *self, PyObject *const *args, Py_ssize_t n
     (void)self;
     Py_buffer st;
     double u[9], U[9], Qn[9];
-    int nu = take_args(args, nargs, "predict(state, u, Q)", &st, u, Qn, E_QN);
+    int nu = take_args(args, nargs, "predict", "state, u, Q", &st, u, Qn, E_QN);
     if (nu == -1)
         return NULL;
     if (nu == -2)
@@ -530,7 +384,7 @@ static PyObject *ekf_predict(PyObject *self, PyObject *const *args, Py_ssize_t n
     if (nu == 9) {
         up = u;
     } else if (nu == 3) {                               /* a rotation vector: its matrix, as so3.exp_flat */
-        exp_flat(u[0], u[1], u[2], U);
+        ig_exp33(u[0], u[1], u[2], SMALL, U);
         up = U;
     }
     predict_core((double *)st.buf, up, Qn);
@@ -543,7 +397,7 @@ static PyObject *ekf_update(PyObject *self, PyObject *const *args, Py_ssize_t na
     (void)self;
     Py_buffer st;
     double z[9], r[9], det = 0.0;
-    int nz = take_args(args, nargs, "update(state, z, R)", &st, z, r, E_RN);
+    int nz = take_args(args, nargs, "update", "state, z, R", &st, z, r, E_RN);
     if (nz == -1)
         return NULL;
     if (nz == -2)
@@ -569,25 +423,16 @@ static PyObject *ekf_fill_x(PyObject *self, PyObject *state)
 static PyMethodDef methods[] = {
     {"fill_x", (PyCFunction)ekf_fill_x, METH_O,
      "fill_x(state): the state's rotation matrix cache, built from the quaternion if stale."},
-    {"predict", (PyCFunction)(void (*)(void))ekf_predict, METH_FASTCALL,
+    {"predict", IG_FASTCALL(ekf_predict), METH_FASTCALL,
      "predict(state, u, Q) -> bool: InvariantEKF.predict on the state buffer (False: coerce u or Q)."},
-    {"update", (PyCFunction)(void (*)(void))ekf_update, METH_FASTCALL,
+    {"update", IG_FASTCALL(ekf_update), METH_FASTCALL,
      "update(state, z, R) -> True, False (coerce z or R) or det S (singular, state untouched)."},
     {NULL, NULL, 0, NULL}};
 
-static struct PyModuleDef module = {
-    PyModuleDef_HEAD_INIT, "_ekf_native",
-    "C twin of the InvariantEKF predict/update kernels (see imu_ground.filters.invariant_ekf).", -1, methods,
-    NULL, NULL, NULL, NULL};
-
 PyMODINIT_FUNC PyInit__ekf_native(void)
 {
-    PyObject *m = PyModule_Create(&module);
-    if (m == NULL)
-        return NULL;
-    if (PyModule_AddIntConstant(m, "STATE_SIZE", E_SIZE) < 0) {
-        Py_DECREF(m);
-        return NULL;
-    }
-    return m;
+    static struct PyModuleDef def = {.m_base = PyModuleDef_HEAD_INIT, .m_name = "_ekf_native", .m_size = -1,
+        .m_methods = methods, .m_doc = "C twin of the InvariantEKF predict/update kernels (see"
+                                       " imu_ground.filters.invariant_ekf)."};
+    return ig_module_create(&def, "STATE_SIZE", E_SIZE);
 }
