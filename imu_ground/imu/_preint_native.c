@@ -20,10 +20,7 @@
  * Streaming state buffer (array('d'), S_* offsets below, mirrored in preint_stream.py).
  * No global mutable state.
  */
-#define PY_SSIZE_T_CLEAN
-#include <Python.h>
-#include <math.h>
-#include <string.h>
+#include "_native_util.h"
 
 enum {
     S_DELTAS = 0,   /* 11 */
@@ -203,101 +200,61 @@ static inline void integrate(double *s, double *u, double dt, double x, double y
             qq00, qq01, qq02, qq11, qq12, qq22};
         memcpy(u, o, sizeof o);
     }
-    double dx = k * x, dy = k * y, dz = k * z;
+    const double e[4] = {ch, k * x, k * y, k * z};
     s[0] = T + dt;
-    s[1] = qw * ch - qx * dx - qy * dy - qz * dz;
-    s[2] = qw * dx + qx * ch + qy * dz - qz * dy;
-    s[3] = qw * dy - qx * dz + qy * ch + qz * dx;
-    s[4] = qw * dz + qx * dy - qy * dx + qz * ch;
+    ig_quat_mul(s + 1, e, s + 1);           /* q <- q Exp(phi) (s[1..4] still hold qw, qx, qy, qz) */
     s[5] = v0 + c0; s[6] = v1 + c1; s[7] = v2 + c2;
     s[8] = p0 + dt * (v0 + 0.5 * c0); s[9] = p1 + dt * (v1 + 0.5 * c1); s[10] = p2 + dt * (v2 + 0.5 * c2);
 }
 
 /* ---- argument helpers -------------------------------------------------------------------- */
-/* n floats of a tuple or list into out; -1 with a TypeError/ValueError naming `what` */
+/* n floats of any sequence into out; -1 with a TypeError/ValueError naming `what` */
 static int read_floats(PyObject *seq, double *out, Py_ssize_t n, const char *what)
 {
     PyObject *fast = PySequence_Fast(seq, what);
     if (fast == NULL)
         return -1;
-    if (PySequence_Fast_GET_SIZE(fast) != n) {
+    int err = -1;
+    if (PySequence_Fast_GET_SIZE(fast) != n)
         PyErr_Format(PyExc_ValueError, "%s must have %zd values, got %zd", what, n, PySequence_Fast_GET_SIZE(fast));
-        Py_DECREF(fast);
-        return -1;
-    }
-    PyObject **items = PySequence_Fast_ITEMS(fast);
-    for (Py_ssize_t i = 0; i < n; i++) {
-        double v = PyFloat_AsDouble(items[i]);
-        if (v == -1.0 && PyErr_Occurred()) {
-            Py_DECREF(fast);
-            return -1;
-        }
-        out[i] = v;
-    }
+    else
+        err = ig_read_items(PySequence_Fast_ITEMS(fast), n, out, what);
     Py_DECREF(fast);
-    return 0;
+    return err;
 }
 
 /* n float arguments into out; -1 with the exception of the first that is not a number */
 static int float_args(PyObject *const *args, int n, double *out)
 {
-    for (int i = 0; i < n; i++) {
-        out[i] = PyFloat_AsDouble(args[i]);
-        if (out[i] == -1.0 && PyErr_Occurred())
+    for (int i = 0; i < n; i++)
+        if (ig_read_double(args[i], out + i) < 0)
             return -1;
-    }
     return 0;
-}
-
-static PyObject *tuple_of(const double *v, Py_ssize_t n)
-{
-    PyObject *t = PyTuple_New(n);
-    if (t == NULL)
-        return NULL;
-    for (Py_ssize_t i = 0; i < n; i++) {
-        PyObject *f = PyFloat_FromDouble(v[i]);
-        if (f == NULL) {
-            Py_DECREF(t);
-            return NULL;
-        }
-        PyTuple_SET_ITEM(t, i, f);
-    }
-    return t;
 }
 
 static int get_state(PyObject *obj, Py_buffer *view)
 {
-    if (PyObject_GetBuffer(obj, view, PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0)
-        return -1;
-    if (view->format == NULL || strcmp(view->format, "d") != 0 || view->itemsize != sizeof(double) ||
-        view->len != (Py_ssize_t)(S_SIZE * sizeof(double))) {
-        PyBuffer_Release(view);
-        PyErr_Format(PyExc_ValueError, "state must be a buffer of %d doubles (array('d'))", (int)S_SIZE);
-        return -1;
-    }
-    return 0;
+    return ig_get_buffer(obj, view, "state", S_SIZE, 1, 'd');
 }
 
 /* ---- entry points ------------------------------------------------------------------------ */
 static PyObject *py_integrate_interval(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 10) {
-        PyErr_SetString(PyExc_TypeError, "integrate_interval(s, u, dt, x, y, z, fx, fy, fz, noise) takes 10 arguments");
+    if (!ig_check_nargs(nargs, 10, 10, "integrate_interval", "s, u, dt, x, y, z, fx, fy, fz, noise"))
         return NULL;
-    }
     double s[11], u[90], f[7], noise[2];
     int have_u = args[1] != Py_None;
     if (read_floats(args[0], s, 11, "deltas s") < 0 || (have_u && read_floats(args[1], u, 90, "uncertainty u") < 0) ||
         read_floats(args[9], noise, 2, "noise") < 0 || float_args(args + 2, 7, f) < 0)
         return NULL;
     integrate(s, have_u ? u : NULL, f[0], f[1], f[2], f[3], f[4], f[5], f[6], noise[0], noise[1]);
-    PyObject *so = tuple_of(s, 11);
+    PyObject *so = ig_tuple_of(s, 11);
     if (so == NULL)
         return NULL;
     PyObject *uo;
     if (have_u) {
-        uo = tuple_of(u, 90);
+        uo = ig_tuple_of(u, 90);
         if (uo == NULL) {
             Py_DECREF(so);
             return NULL;
@@ -320,10 +277,8 @@ static PyObject *py_integrate_interval(PyObject *self, PyObject *const *args, Py
 static PyObject *py_integrate(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 8) {
-        PyErr_SetString(PyExc_TypeError, "integrate(state, dt, x, y, z, fx, fy, fz) takes 8 arguments");
+    if (!ig_check_nargs(nargs, 8, 8, "integrate", "state, dt, x, y, z, fx, fy, fz"))
         return NULL;
-    }
     double f[7];
     Py_buffer st;
     if (float_args(args + 1, 7, f) < 0 || get_state(args[0], &st) < 0)
@@ -341,25 +296,20 @@ static int three(PyObject *o, double *out)
     if (PyList_CheckExact(o) || PyTuple_CheckExact(o)) {
         if (PySequence_Fast_GET_SIZE(o) != 3)
             return 0;
-        PyObject **items = PySequence_Fast_ITEMS(o);
-        for (int i = 0; i < 3; i++) {
-            out[i] = PyFloat_AsDouble(items[i]);
-            if (out[i] == -1.0 && PyErr_Occurred()) {
-                PyErr_Clear();
-                return 0;
-            }
+        if (ig_read_items(PySequence_Fast_ITEMS(o), 3, out, "sample") < 0) {
+            PyErr_Clear();
+            return 0;
         }
         return 1;
     }
     if (!PyObject_CheckBuffer(o))
         return 0;
     Py_buffer v;
-    if (PyObject_GetBuffer(o, &v, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
+    if (ig_get_buffer(o, &v, "sample", 3, 0, 'd') < 0) {
         PyErr_Clear();
         return 0;
     }
-    int ok = v.format != NULL && strcmp(v.format, "d") == 0 && v.itemsize == sizeof(double) && v.ndim == 1 &&
-             v.len == 3 * (Py_ssize_t)sizeof(double);
+    int ok = v.ndim == 1;
     if (ok)
         memcpy(out, v.buf, 3 * sizeof(double));
     PyBuffer_Release(&v);
@@ -390,8 +340,8 @@ static int cross(double *b, const double *times, Py_ssize_t ntimes, double tb, P
         if (rec == NULL)
             return -1;
         PyObject *items[6] = {
-            tuple_of(b + S_DELTAS, 11),
-            b[S_UNCERTAINTY] != 0.0 ? tuple_of(b + S_UNC, 90) : Py_NewRef(Py_None),
+            ig_tuple_of(b + S_DELTAS, 11),
+            b[S_UNCERTAINTY] != 0.0 ? ig_tuple_of(b + S_UNC, 90) : Py_NewRef(Py_None),
             PyLong_FromDouble(b[S_N] + b[S_MARK] - b[S_CD]),
             PyFloat_FromDouble(b[S_TSTART]),
             PyFloat_FromDouble(tb),
@@ -476,10 +426,8 @@ static PyObject *cross_boundaries(double *b, const double *times, Py_ssize_t nti
 static PyObject *py_push(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 5) {
-        PyErr_SetString(PyExc_TypeError, "push(state, times, t, gyro, accel) takes 5 arguments");
+    if (!ig_check_nargs(nargs, 5, 5, "push", "state, times, t, gyro, accel"))
         return NULL;
-    }
     double t = PyFloat_AsDouble(args[2]), w[3], a[3];
     if (t == -1.0 && PyErr_Occurred()) {
         PyErr_Clear();
@@ -518,17 +466,11 @@ static PyObject *py_push(PyObject *self, PyObject *const *args, Py_ssize_t nargs
         Py_ssize_t ntimes = 0;
         int have_tv = 0;
         if (b[S_MODE] == 2.0) {
-            if (PyObject_GetBuffer(args[1], &tv, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
+            if (ig_get_buffer(args[1], &tv, "times", -1, 0, 'd') < 0) {
                 PyBuffer_Release(&st);
                 return NULL;
             }
             have_tv = 1;
-            if (tv.format == NULL || strcmp(tv.format, "d") != 0 || tv.itemsize != sizeof(double)) {
-                PyBuffer_Release(&tv);
-                PyBuffer_Release(&st);
-                PyErr_SetString(PyExc_ValueError, "times must be a buffer of doubles (array('d'))");
-                return NULL;
-            }
             times = (const double *)tv.buf;
             ntimes = tv.len / (Py_ssize_t)sizeof(double);
         }
@@ -548,28 +490,19 @@ static PyObject *py_push(PyObject *self, PyObject *const *args, Py_ssize_t nargs
 }
 
 static PyMethodDef methods[] = {
-    {"integrate_interval", (PyCFunction)(void (*)(void))py_integrate_interval, METH_FASTCALL,
+    {"integrate_interval", IG_FASTCALL(py_integrate_interval), METH_FASTCALL,
      "integrate_interval(s, u, dt, x, y, z, fx, fy, fz, noise) -> (s, u): preint_kernel.integrate_interval in C."},
-    {"integrate", (PyCFunction)(void (*)(void))py_integrate, METH_FASTCALL,
+    {"integrate", IG_FASTCALL(py_integrate), METH_FASTCALL,
      "integrate(state, dt, x, y, z, fx, fy, fz): one interval on a streaming state buffer, in place."},
-    {"push", (PyCFunction)(void (*)(void))py_push, METH_FASTCALL,
+    {"push", IG_FASTCALL(py_push), METH_FASTCALL,
      "push(state, times, t, gyro, accel) -> True, frames or False: StreamingPreintegrator.push (False: the "
      "Python slow path's)."},
     {NULL, NULL, 0, NULL}};
 
-static struct PyModuleDef module = {
-    PyModuleDef_HEAD_INIT, "_preint_native",
-    "C twin of the preintegration kernel and of the streaming fast path (see imu_ground.imu.preint_kernel).", -1,
-    methods, NULL, NULL, NULL, NULL};
-
 PyMODINIT_FUNC PyInit__preint_native(void)
 {
-    PyObject *m = PyModule_Create(&module);
-    if (m == NULL)
-        return NULL;
-    if (PyModule_AddIntConstant(m, "STATE_SIZE", S_SIZE) < 0) {
-        Py_DECREF(m);
-        return NULL;
-    }
-    return m;
+    static struct PyModuleDef def = {.m_base = PyModuleDef_HEAD_INIT, .m_name = "_preint_native", .m_size = -1,
+        .m_methods = methods, .m_doc = "C twin of the preintegration kernel and of the streaming fast path (see"
+                                       " imu_ground.imu.preint_kernel)."};
+    return ig_module_create(&def, "STATE_SIZE", S_SIZE);
 }
