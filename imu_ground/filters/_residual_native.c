@@ -14,10 +14,7 @@
  *   check(d, dv, dt) -> int status (0: good frame; 1 rotation, 2 delta_v, 3 delta_t)
  *   check_many(d, dv, dt, out) -> int  (statuses of many frames into a uint8 array; the bad count)
  */
-#define PY_SSIZE_T_CLEAN
-#include <Python.h>
-#include <math.h>
-#include <string.h>
+#include "_native_util.h"
 
 /* ---- buffer layout (mirrors residual.py) ---- */
 enum {
@@ -34,69 +31,12 @@ enum { ST_OK = 0, ST_ROTATION = 1, ST_DELTA_V = 2, ST_DELTA_T = 3 };
 
 /* ------------------------------------------------------------------------------------ inputs */
 
-static int is_double_format(const char *fmt)
-{
-    if (fmt == NULL)
-        return 0;
-    if (fmt[0] == '@' || fmt[0] == '=')
-        fmt++;
-    else if (fmt[0] == '<') {
-        const unsigned int one = 1;
-        if (*(const unsigned char *)&one != 1)      /* big-endian host: '<d' is not native */
-            return 0;
-        fmt++;
-    }
-    return fmt[0] == 'd' && fmt[1] == '\0';
-}
-
-/* A C-contiguous float64 buffer of obj, n doubles (n < 0: any whole number of doubles).
-   0 on success (release the view), -1 with TypeError/ValueError set. */
-static int get_doubles(PyObject *obj, Py_ssize_t n, Py_buffer *view, int writable, const char *name)
-{
-    int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
-    if (PyObject_GetBuffer(obj, view, flags) < 0) {
-        PyErr_Clear();
-        PyErr_Format(PyExc_TypeError, "%s must be a C-contiguous%s float64 array, got %.100s",
-                     name, writable ? " writable" : "", Py_TYPE(obj)->tp_name);
-        return -1;
-    }
-    if (view->itemsize != 8 || !is_double_format(view->format)) {
-        PyErr_Format(PyExc_TypeError, "%s must hold float64 values, got buffer format '%s'",
-                     name, view->format ? view->format : "B");
-        PyBuffer_Release(view);
-        return -1;
-    }
-    if (n >= 0 && view->len != n * 8) {
-        PyErr_Format(PyExc_ValueError, "%s must hold %zd float64 values, got %zd", name, n, view->len / 8);
-        PyBuffer_Release(view);
-        return -1;
-    }
-    return 0;
-}
-
-/* A C-contiguous writable buffer of n bytes (uint8 or bool), for per-frame status codes. */
-static int get_status_out(PyObject *obj, Py_ssize_t n, Py_buffer *view)
-{
-    if (PyObject_GetBuffer(obj, view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_WRITABLE) < 0) {
-        PyErr_Clear();
-        PyErr_Format(PyExc_TypeError, "out must be a C-contiguous writable uint8 array, got %.100s",
-                     Py_TYPE(obj)->tp_name);
-        return -1;
-    }
-    if (view->itemsize != 1 || view->format == NULL || strcmp(view->format, "B") != 0 || view->len != n) {
-        PyErr_Format(PyExc_ValueError, "out must be a uint8 array of %zd values", n);
-        PyBuffer_Release(view);
-        return -1;
-    }
-    return 0;
-}
-
 /* Copy the values of obj, a float64 array of shape (rows, 3) (rows 0: shape (3,)), into dst. */
 static int read_fixed(PyObject *obj, Py_ssize_t rows, double *dst, const char *name)
 {
     Py_buffer view;
     const Py_ssize_t n = rows ? 3 * rows : 3;
-    if (get_doubles(obj, n, &view, 0, name) < 0)
+    if (ig_get_buffer(obj, &view, name, n, 0, 'd') < 0)
         return -1;
     if (view.ndim != (rows ? 2 : 1) || (rows && view.shape[0] != rows)) {
         if (rows)
@@ -218,11 +158,10 @@ static inline void kernel_frame(Kernel *k, const double *r, double q_h, double q
     }
     k->a = a; k->c = c;
     /* -- E^- = T^T E dR: p = E d, then m = conj(t) p with t = (ch, 0, 0, sh) the heading twist */
-    const double ew = k->ew, ex = k->ex, ey = k->ey, ez = k->ez;
-    const double pw = ew * dw - ex * dx - ey * dy - ez * dz;
-    const double px = ew * dx + ex * dw + ey * dz - ez * dy;
-    const double py = ew * dy - ex * dz + ey * dw + ez * dx;
-    const double pz = ew * dz + ex * dy - ey * dx + ez * dw;
+    const double e[4] = {k->ew, k->ex, k->ey, k->ez}, q[4] = {dw, dx, dy, dz};
+    double p[4];
+    ig_quat_mul(e, q, p);
+    const double pw = p[0], px = p[1], py = p[2], pz = p[3];
     double mw, mx, my, mz;
     if (k->follow && (dw > 0.0 || dz != 0.0)) {     /* (a half turn about a level axis has no twist) */
         const double h = 1.0 / sqrt(dw * dw + dz * dz);
@@ -261,19 +200,15 @@ static inline void kernel_frame(Kernel *k, const double *r, double q_h, double q
         gx = ka * yx; gy = ka * yy; gz = kc * yz;
     }
     /* -- E = Exp(-g) E^- (re-normalised every renorm_every frames) */
-    const double th = sqrt(gx * gx + gy * gy + gz * gz);
-    const double hs = th < 1e-4 ? 0.5 - th * th / 48.0 : sin(0.5 * th) / th;
-    const double aw = cos(0.5 * th), ax = -hs * gx, ay = -hs * gy, az = -hs * gz;
-    double nw = aw * mw - ax * mx - ay * my - az * mz;
-    double nx = aw * mx + ax * mw + ay * mz - az * my;
-    double ny = aw * my - ax * mz + ay * mw + az * mx;
-    double nz = aw * mz + ax * my - ay * mx + az * mw;
+    double xq[4], n[4];
+    const double m[4] = {mw, mx, my, mz};
+    ig_quat_exp(-gx, -gy, -gz, 1e-4, xq);           /* h (-g) = (-h) g and |-g| = |g|, exactly */
+    ig_quat_mul(xq, m, n);
     k->count += 1;
     const int renorm = k->count % k->renorm_every == 0;
-    if (renorm) {
-        const double nrm = 1.0 / sqrt(nw * nw + nx * nx + ny * ny + nz * nz);
-        nw = nw * nrm; nx = nx * nrm; ny = ny * nrm; nz = nz * nrm;
-    }
+    if (renorm)
+        ig_quat_normalise(n);
+    const double nw = n[0], nx = n[1], ny = n[2], nz = n[3];
     k->ew = nw; k->ex = nx; k->ey = ny; k->ez = nz;
     /* -- pitch and roll from n_b = E^T e_z, the third row of E */
     double pitch = NAN, roll = NAN;
@@ -286,15 +221,13 @@ static inline void kernel_frame(Kernel *k, const double *r, double q_h, double q
     }
     row[0] = nw; row[1] = nx; row[2] = ny; row[3] = nz; row[4] = a; row[5] = c; row[6] = pitch; row[7] = roll;
     if (k->cum) {                                   /* R = R dR */
-        const double rw = k->rw, rx = k->rx, ry = k->ry, rz = k->rz;
-        double sw = rw * dw - rx * dx - ry * dy - rz * dz, sx = rw * dx + rx * dw + ry * dz - rz * dy;
-        double sy = rw * dy - rx * dz + ry * dw + rz * dx, sz = rw * dz + rx * dy - ry * dx + rz * dw;
-        if (renorm) {
-            const double nrm = 1.0 / sqrt(sw * sw + sx * sx + sy * sy + sz * sz);
-            sw = sw * nrm; sx = sx * nrm; sy = sy * nrm; sz = sz * nrm;
-        }
-        k->rw = sw; k->rx = sx; k->ry = sy; k->rz = sz;
-        row[8] = sw; row[9] = sx; row[10] = sy; row[11] = sz;
+        const double rq[4] = {k->rw, k->rx, k->ry, k->rz};
+        double sq[4];
+        ig_quat_mul(rq, q, sq);
+        if (renorm)
+            ig_quat_normalise(sq);
+        k->rw = sq[0]; k->rx = sq[1]; k->ry = sq[2]; k->rz = sq[3];
+        memcpy(row + 8, sq, sizeof sq);
     }
     double *l = k->last;
     l[0] = ka; l[1] = kc; l[2] = a_pr; l[3] = c_pr; l[4] = yx; l[5] = yy; l[6] = yz;
@@ -305,15 +238,9 @@ static inline void kernel_frame(Kernel *k, const double *r, double q_h, double q
 
 static double *state_buffer(PyObject *obj, Py_buffer *view)
 {
-    if (get_doubles(obj, BUF_LEN, view, 1, "buf") < 0)
+    if (ig_get_buffer(obj, view, "buf", BUF_LEN, 1, 'd') < 0)
         return NULL;
     return (double *)view->buf;
-}
-
-static int read_double(PyObject *obj, double *dst)
-{
-    *dst = PyFloat_AsDouble(obj);
-    return (*dst == -1.0 && PyErr_Occurred()) ? -1 : 0;
 }
 
 /* obj as a double into dst: 1, or 0 for None (dst untouched), -1 on error. */
@@ -321,7 +248,7 @@ static int optional_double(PyObject *obj, double *dst)
 {
     if (obj == Py_None)
         return 0;
-    return read_double(obj, dst) < 0 ? -1 : 1;
+    return ig_read_double(obj, dst) < 0 ? -1 : 1;
 }
 
 /* A frame's delta_R into d (9 values), then its status (frame_status over delta_v, None or (3,), and
@@ -335,47 +262,25 @@ static int read_frame_status(PyObject *od, PyObject *odv, PyObject *odt, double 
     if (has_dv && read_fixed(odv, 0, dv, "delta_v") < 0)
         return -1;
     double dt;
-    if (read_double(odt, &dt) < 0)
+    if (ig_read_double(odt, &dt) < 0)
         return -1;
     return frame_status(d, has_dv ? dv : NULL, dt);
 }
 
-/* The frames of a many-frame entry: a float64 buffer of 9 values a frame; their count, or -1 (released). */
-static Py_ssize_t get_frames(PyObject *obj, Py_buffer *view)
+/* The frames of a many-frame entry, 9 float64 values a frame, taken into vs (*d: their values):
+   their count, or -1 with an exception set. */
+static Py_ssize_t get_frames(ig_views *vs, PyObject *obj, const double **d)
 {
-    if (get_doubles(obj, -1, view, 0, "delta_R") < 0)
+    const Py_buffer *v = ig_take(vs, obj, "delta_R", -1, 0, 'd');
+    if (v == NULL)
         return -1;
-    const Py_ssize_t n = view->len / 8 / 9;
-    if (view->len != n * 9 * 8) {
-        PyErr_Format(PyExc_ValueError, "delta_R must hold 9 values a frame, got %zd values", view->len / 8);
-        PyBuffer_Release(view);
+    const Py_ssize_t n = v->len / 8 / 9;
+    if (v->len != n * 9 * 8) {
+        PyErr_Format(PyExc_ValueError, "delta_R must hold 9 values a frame, got %zd values", v->len / 8);
         return -1;
     }
+    *d = (const double *)v->buf;
     return n;
-}
-
-static int nargs_ok(Py_ssize_t nargs, Py_ssize_t n, const char *name)
-{
-    if (nargs == n)
-        return 1;
-    PyErr_Format(PyExc_TypeError, "%s() takes %zd arguments (%zd given)", name, n, nargs);
-    return 0;
-}
-
-static PyObject *row_tuple(const double *row, Py_ssize_t n)
-{
-    PyObject *t = PyTuple_New(n);
-    if (t == NULL)
-        return NULL;
-    for (Py_ssize_t i = 0; i < n; i++) {
-        PyObject *v = PyFloat_FromDouble(row[i]);
-        if (v == NULL) {
-            Py_DECREF(t);
-            return NULL;
-        }
-        PyTuple_SET_ITEM(t, i, v);
-    }
-    return t;
 }
 
 PyDoc_STRVAR(step_doc,
@@ -386,13 +291,13 @@ PyDoc_STRVAR(step_doc,
 static PyObject *py_step(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (!nargs_ok(nargs, 8, "step"))
+    if (!ig_check_nargs(nargs, 8, 8, "step", "buf, d, q_h, q_v, tilt_x, tilt_y, dv, dt"))
         return NULL;
     double d[9], q_h, q_v, bx = 0.0, by = 0.0, row[12];
     const int status = read_frame_status(args[1], args[6], args[7], d);
     if (status < 0)
         return NULL;
-    if (read_double(args[2], &q_h) < 0 || read_double(args[3], &q_v) < 0)
+    if (ig_read_double(args[2], &q_h) < 0 || ig_read_double(args[3], &q_v) < 0)
         return NULL;
     const int tilt = optional_double(args[4], &bx);
     if (tilt < 0 || optional_double(args[5], &by) < 0)
@@ -408,7 +313,7 @@ static PyObject *py_step(PyObject *self, PyObject *const *args, Py_ssize_t nargs
     kernel_frame(&k, d, q_h, q_v, tilt && !k.up, bx, by, 1, row);
     kernel_store(&k, b);
     PyBuffer_Release(&view);
-    return row_tuple(row, k.cum ? 12 : 8);
+    return ig_tuple_of(row, k.cum ? 12 : 8);
 }
 
 PyDoc_STRVAR(run_doc,
@@ -419,72 +324,53 @@ PyDoc_STRVAR(run_doc,
 static PyObject *py_run(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (!nargs_ok(nargs, 8, "run"))
+    if (!ig_check_nargs(nargs, 8, 8, "run", "buf, d, q_h, q_v, tilt_x, tilt_y, out, angles"))
         return NULL;
-    Py_buffer vb, vd, vq, vx, vy, vo;
+    ig_views vs = {0};
     PyObject *result = NULL;
-    int have_q = 0, have_t = 0;
-    double q_const = 0.0;
-    double *b = state_buffer(args[0], &vb);
-    if (b == NULL)
+    const Py_buffer *vb = ig_take(&vs, args[0], "buf", BUF_LEN, 1, 'd'), *v;
+    if (vb == NULL)
         return NULL;
     Kernel k;
-    kernel_load(&k, b);
+    kernel_load(&k, (const double *)vb->buf);
     const Py_ssize_t width = k.cum ? 12 : 8;
-    double q_v;
-    if (read_double(args[3], &q_v) < 0)
-        goto done_b;
-    const int angles = PyObject_IsTrue(args[7]);
-    if (angles < 0)
-        goto done_b;
-    const Py_ssize_t n = get_frames(args[1], &vd);
+    const double *d, *q = NULL, *tx = NULL, *ty = NULL;
+    double q_v, q_const = 0.0;
+    int angles, have_t = 0;
+    if (ig_read_double(args[3], &q_v) < 0 || (angles = PyObject_IsTrue(args[7])) < 0)
+        goto done;
+    const Py_ssize_t n = get_frames(&vs, args[1], &d);
     if (n < 0)
-        goto done_b;
+        goto done;
     if (PyFloat_Check(args[2]) || PyLong_Check(args[2])) {
-        if (read_double(args[2], &q_const) < 0)
-            goto done_d;
+        if (ig_read_double(args[2], &q_const) < 0)
+            goto done;
     } else {
-        if (get_doubles(args[2], n, &vq, 0, "q_h") < 0)
-            goto done_d;
-        have_q = 1;
+        if ((v = ig_take(&vs, args[2], "q_h", n, 0, 'd')) == NULL)
+            goto done;
+        q = (const double *)v->buf;
     }
     if (args[4] != Py_None) {
-        if (get_doubles(args[4], n, &vx, 0, "tilt_x") < 0)
-            goto done_q;
-        if (get_doubles(args[5], n, &vy, 0, "tilt_y") < 0) {
-            PyBuffer_Release(&vx);
-            goto done_q;
-        }
+        if ((v = ig_take(&vs, args[4], "tilt_x", n, 0, 'd')) == NULL)
+            goto done;
+        tx = (const double *)v->buf;
+        if ((v = ig_take(&vs, args[5], "tilt_y", n, 0, 'd')) == NULL)
+            goto done;
+        ty = (const double *)v->buf;
         have_t = 1;
     }
-    if (get_doubles(args[6], n * width, &vo, 1, "out") < 0)
-        goto done_t;
-    {
-        const double *d = (const double *)vd.buf, *q = have_q ? (const double *)vq.buf : NULL;
-        const double *tx = have_t ? (const double *)vx.buf : NULL, *ty = have_t ? (const double *)vy.buf : NULL;
-        double *out = (double *)vo.buf;
-        const int tilt = have_t && !k.up;
-        for (Py_ssize_t i = 0; i < n; i++)
-            kernel_frame(&k, d + 9 * i, q ? q[i] : q_const, q_v, tilt, tilt ? tx[i] : 0.0, tilt ? ty[i] : 0.0,
-                         angles, out + width * i);
-        if (n > 0)
-            kernel_store(&k, b);
-    }
-    PyBuffer_Release(&vo);
-    result = Py_None;
-    Py_INCREF(result);
-done_t:
-    if (have_t) {
-        PyBuffer_Release(&vx);
-        PyBuffer_Release(&vy);
-    }
-done_q:
-    if (have_q)
-        PyBuffer_Release(&vq);
-done_d:
-    PyBuffer_Release(&vd);
-done_b:
-    PyBuffer_Release(&vb);
+    if ((v = ig_take(&vs, args[6], "out", n * width, 1, 'd')) == NULL)
+        goto done;
+    double *out = (double *)v->buf;
+    const int tilt = have_t && !k.up;
+    for (Py_ssize_t i = 0; i < n; i++)
+        kernel_frame(&k, d + 9 * i, q ? q[i] : q_const, q_v, tilt, tilt ? tx[i] : 0.0, tilt ? ty[i] : 0.0,
+                     angles, out + width * i);
+    if (n > 0)
+        kernel_store(&k, (double *)vb->buf);
+    result = Py_NewRef(Py_None);
+done:
+    ig_release(&vs);
     return result;
 }
 
@@ -496,7 +382,7 @@ PyDoc_STRVAR(check_doc,
 static PyObject *py_check(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (!nargs_ok(nargs, 3, "check"))
+    if (!ig_check_nargs(nargs, 3, 3, "check", "d, dv, dt"))
         return NULL;
     double d[9];
     const int status = read_frame_status(args[0], args[1], args[2], d);
@@ -511,72 +397,51 @@ PyDoc_STRVAR(check_many_doc,
 static PyObject *py_check_many(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (!nargs_ok(nargs, 4, "check_many"))
+    if (!ig_check_nargs(nargs, 4, 4, "check_many", "d, dv, dt, out"))
         return NULL;
-    Py_buffer vd, vv, vt, vo;
+    ig_views vs = {0};
     PyObject *result = NULL;
-    int have_v = 0, have_t = 0;
-    const Py_ssize_t n = get_frames(args[0], &vd);
+    const Py_buffer *v;
+    const double *d, *dv = NULL, *dt = NULL;
+    const Py_ssize_t n = get_frames(&vs, args[0], &d);
     if (n < 0)
-        return NULL;
+        goto done;
     if (args[1] != Py_None) {
-        if (get_doubles(args[1], 3 * n, &vv, 0, "delta_v") < 0)
-            goto done_d;
-        have_v = 1;
+        if ((v = ig_take(&vs, args[1], "delta_v", 3 * n, 0, 'd')) == NULL)
+            goto done;
+        dv = (const double *)v->buf;
     }
     if (args[2] != Py_None) {
-        if (get_doubles(args[2], n, &vt, 0, "delta_t") < 0)
-            goto done_v;
-        have_t = 1;
+        if ((v = ig_take(&vs, args[2], "delta_t", n, 0, 'd')) == NULL)
+            goto done;
+        dt = (const double *)v->buf;
     }
-    if (get_status_out(args[3], n, &vo) < 0)
-        goto done_t;
-    {
-        const double *d = (const double *)vd.buf, *dv = have_v ? (const double *)vv.buf : NULL;
-        const double *dt = have_t ? (const double *)vt.buf : NULL;
-        unsigned char *out = (unsigned char *)vo.buf;
-        long bad = 0;
-        for (Py_ssize_t i = 0; i < n; i++) {
-            const int st = frame_status(d + 9 * i, dv ? dv + 3 * i : NULL, dt ? dt[i] : 1.0);
-            out[i] = (unsigned char)st;
-            bad += st != ST_OK;
-        }
-        result = PyLong_FromLong(bad);
+    if ((v = ig_take(&vs, args[3], "out", n, 1, 'B')) == NULL)
+        goto done;
+    unsigned char *out = (unsigned char *)v->buf;
+    long bad = 0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        const int st = frame_status(d + 9 * i, dv ? dv + 3 * i : NULL, dt ? dt[i] : 1.0);
+        out[i] = (unsigned char)st;
+        bad += st != ST_OK;
     }
-    PyBuffer_Release(&vo);
-done_t:
-    if (have_t)
-        PyBuffer_Release(&vt);
-done_v:
-    if (have_v)
-        PyBuffer_Release(&vv);
-done_d:
-    PyBuffer_Release(&vd);
+    result = PyLong_FromLong(bad);
+done:
+    ig_release(&vs);
     return result;
 }
 
 static PyMethodDef methods[] = {
-    {"step", (PyCFunction)(void (*)(void))py_step, METH_FASTCALL, step_doc},
-    {"run", (PyCFunction)(void (*)(void))py_run, METH_FASTCALL, run_doc},
-    {"check", (PyCFunction)(void (*)(void))py_check, METH_FASTCALL, check_doc},
-    {"check_many", (PyCFunction)(void (*)(void))py_check_many, METH_FASTCALL, check_many_doc},
+    {"step", IG_FASTCALL(py_step), METH_FASTCALL, step_doc},
+    {"run", IG_FASTCALL(py_run), METH_FASTCALL, run_doc},
+    {"check", IG_FASTCALL(py_check), METH_FASTCALL, check_doc},
+    {"check_many", IG_FASTCALL(py_check_many), METH_FASTCALL, check_many_doc},
     {NULL, NULL, 0, NULL}
-};
-
-static struct PyModuleDef module = {
-    PyModuleDef_HEAD_INIT, "_residual_native",
-    "Compiled twin of imu_ground.filters.residual (the scalar residual filter).", -1, methods,
-    NULL, NULL, NULL, NULL
 };
 
 PyMODINIT_FUNC PyInit__residual_native(void)
 {
-    PyObject *m = PyModule_Create(&module);
-    if (m == NULL)
-        return NULL;
-    if (PyModule_AddIntConstant(m, "BUF_LEN", BUF_LEN) < 0) {
-        Py_DECREF(m);
-        return NULL;
-    }
-    return m;
+    static struct PyModuleDef def = {.m_base = PyModuleDef_HEAD_INIT, .m_name = "_residual_native", .m_size = -1,
+        .m_methods = methods, .m_doc = "Compiled twin of imu_ground.filters.residual (the scalar residual filter)."};
+    return ig_module_create(&def, "BUF_LEN", BUF_LEN);
 }
