@@ -78,7 +78,7 @@ static inline int frame_status(const double *r, const double *dv, double dt)
 /* ------------------------------------------------------------------------------------ kernel */
 
 typedef struct {
-    double ew, ex, ey, ez, a, c, rw, rx, ry, rz;
+    double e[4], a, c, r[4];               /* E and the cumulative R as quaternions (w, x, y, z) */
     long long count;
     double last[11];
     /* parameters */
@@ -89,9 +89,9 @@ typedef struct {
 
 static void kernel_load(Kernel *k, const double *b)
 {
-    k->ew = b[S_EW]; k->ex = b[S_EX]; k->ey = b[S_EY]; k->ez = b[S_EZ];
+    memcpy(k->e, b + S_EW, sizeof k->e);
     k->a = b[S_A]; k->c = b[S_C];
-    k->rw = b[S_RW]; k->rx = b[S_RX]; k->ry = b[S_RY]; k->rz = b[S_RZ];
+    memcpy(k->r, b + S_RW, sizeof k->r);
     k->count = (long long)b[S_COUNT];
     k->r_h = b[P_RH]; k->r_v = b[P_RV];
     k->up = b[P_UP] != 0.0; k->follow = b[P_FOLLOW] != 0.0; k->cum = b[P_CUM] != 0.0; k->hasg = b[P_HASG] != 0.0;
@@ -101,9 +101,9 @@ static void kernel_load(Kernel *k, const double *b)
 
 static void kernel_store(const Kernel *k, double *b)
 {
-    b[S_EW] = k->ew; b[S_EX] = k->ex; b[S_EY] = k->ey; b[S_EZ] = k->ez;
+    memcpy(b + S_EW, k->e, sizeof k->e);
     b[S_A] = k->a; b[S_C] = k->c;
-    b[S_RW] = k->rw; b[S_RX] = k->rx; b[S_RY] = k->ry; b[S_RZ] = k->rz;
+    memcpy(b + S_RW, k->r, sizeof k->r);
     b[S_COUNT] = (double)k->count;
     memcpy(b + L_KA, k->last, sizeof k->last);
     b[L_HAS] = 1.0;
@@ -158,9 +158,9 @@ static inline void kernel_frame(Kernel *k, const double *r, double q_h, double q
     }
     k->a = a; k->c = c;
     /* -- E^- = T^T E dR: p = E d, then m = conj(t) p with t = (ch, 0, 0, sh) the heading twist */
-    const double e[4] = {k->ew, k->ex, k->ey, k->ez}, q[4] = {dw, dx, dy, dz};
+    const double q[4] = {dw, dx, dy, dz};
     double p[4];
-    ig_quat_mul(e, q, p);
+    ig_quat_mul(k->e, q, p);
     const double pw = p[0], px = p[1], py = p[2], pz = p[3];
     double mw, mx, my, mz;
     if (k->follow && (dw > 0.0 || dz != 0.0)) {     /* (a half turn about a level axis has no twist) */
@@ -200,7 +200,7 @@ static inline void kernel_frame(Kernel *k, const double *r, double q_h, double q
         gx = ka * yx; gy = ka * yy; gz = kc * yz;
     }
     /* -- E = Exp(-g) E^- (re-normalised every renorm_every frames) */
-    double xq[4], n[4];
+    double xq[4], *n = k->e;
     const double m[4] = {mw, mx, my, mz};
     ig_quat_exp(-gx, -gy, -gz, 1e-4, xq);           /* h (-g) = (-h) g and |-g| = |g|, exactly */
     ig_quat_mul(xq, m, n);
@@ -209,7 +209,6 @@ static inline void kernel_frame(Kernel *k, const double *r, double q_h, double q
     if (renorm)
         ig_quat_normalise(n);
     const double nw = n[0], nx = n[1], ny = n[2], nz = n[3];
-    k->ew = nw; k->ex = nx; k->ey = ny; k->ez = nz;
     /* -- pitch and roll from n_b = E^T e_z, the third row of E */
     double pitch = NAN, roll = NAN;
     if (angles) {
@@ -221,13 +220,10 @@ static inline void kernel_frame(Kernel *k, const double *r, double q_h, double q
     }
     row[0] = nw; row[1] = nx; row[2] = ny; row[3] = nz; row[4] = a; row[5] = c; row[6] = pitch; row[7] = roll;
     if (k->cum) {                                   /* R = R dR */
-        const double rq[4] = {k->rw, k->rx, k->ry, k->rz};
-        double sq[4];
-        ig_quat_mul(rq, q, sq);
+        ig_quat_mul(k->r, q, k->r);
         if (renorm)
-            ig_quat_normalise(sq);
-        k->rw = sq[0]; k->rx = sq[1]; k->ry = sq[2]; k->rz = sq[3];
-        memcpy(row + 8, sq, sizeof sq);
+            ig_quat_normalise(k->r);
+        memcpy(row + 8, k->r, sizeof k->r);
     }
     double *l = k->last;
     l[0] = ka; l[1] = kc; l[2] = a_pr; l[3] = c_pr; l[4] = yx; l[5] = yy; l[6] = yz;
