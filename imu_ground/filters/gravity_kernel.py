@@ -20,7 +20,8 @@ Buffer layout (indices; frames and units as in the filter's docstring)::
     66 last step recorded (0/1)   67 its kind (0 constraint, 1 ZUPT, 2 speed)   68-85 K   86-88 y
     89-94 S   95 dt   96 q_v^2 dt (+ gap)   97 q_g^2 dt   98-124 the prior (x then P's 21 entries)
 
-(this module keeps the last step as a tuple at index 66 instead of 66-124).
+Every entry is a float in both kernels (filterpy's ``Saver`` stores the buffer as an array). The
+constraint's K, y and S fill the first 12, 2 and 3 of their slots; the rest keep their values.
 """
 from __future__ import annotations
 
@@ -48,6 +49,7 @@ for _m, (_i, _j) in enumerate(_UPPER21):
 
 I_INIT, I_WPREV, I_REJECTED, I_PRM, I_LEVER, I_EXTR = 37, 38, 42, 43, 50, 54
 I_RENORM, I_SMALL, I_LAST, BUF_LEN = 64, 65, 66, 125
+_I_K, _I_Y, _I_S, _I_DT, _I_PRIOR = 68, 86, 89, 95, 98      # the last step's record (I_LAST + 1: its kind)
 
 
 def full_cov(p21: np.ndarray) -> np.ndarray:
@@ -75,6 +77,17 @@ def new_state(x6, p21, r9, prm7, initialised: bool, lever=None, extrinsic9=None)
     s += [0.0] * 10 if extrinsic9 is None else [1.0] + [float(v) for v in extrinsic9]
     s += [float(RENORM_EVERY), so3._SMALL] + [0.0] * (BUF_LEN - I_LAST)
     return s
+
+
+def _record_last(s: list, last) -> None:
+    """Write :func:`_predict_update`'s last step ``(kind, K, y, S, dt, qv, qg, prior)`` into ``s[66:125]`` as floats."""
+    kind, K, y, S, dt, qv, qg, prior = last
+    s[I_LAST], s[I_LAST + 1] = 1.0, float(kind)
+    s[_I_K:_I_K + len(K)] = K
+    s[_I_Y:_I_Y + len(y)] = y
+    s[_I_S:_I_S + len(S)] = S
+    s[_I_DT:_I_DT + 3] = float(dt), qv, qg
+    s[_I_PRIOR:_I_PRIOR + 27] = prior
 
 
 def body_increment(r9, d9, dv3):
@@ -278,7 +291,8 @@ def step_frame(s: list, d9, dv3, dt: float, stationary: bool, valid: bool, speed
     if not dt > 0.0:
         raise ValueError(f"dt must be > 0 s, got {dt!r}")
     rprev = s[27:36]
-    s[I_LAST] = _predict_update(s, ((d9, dv3, dt, stationary, valid, math.nan if speed is None else float(speed)),))
+    _record_last(s, _predict_update(s, ((d9, dv3, dt, stationary, valid,
+                                         math.nan if speed is None else float(speed)),)))
     p0, p1, p2 = log_flat(d9)
     w = (p0 / dt, p1 / dt, p2 / dt)
     h0, h1, h2, h3, h4, h5, h6, h7, h8 = exp_flat(0.5 * p0, 0.5 * p1, 0.5 * p2)   # body_{k-1} <- mid
@@ -351,7 +365,7 @@ def run_frames(s: list, d, dv, dt, stationary, valid, speed, v_out, g_out, p_out
     last = _predict_update(s, frames, out, pri)
     if not n:
         return
-    s[I_LAST] = last
+    _record_last(s, last)
     rows = np.frombuffer(out, dtype=float).reshape(n, 36)
     v_out[...], g_out[...], p_out[...] = rows[:, :3], rows[:, 3:6], full_cov(rows[:, 6:27])
     cum_out[...] = rows[:, 27:].reshape(n, 3, 3)

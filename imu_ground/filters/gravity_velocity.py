@@ -252,14 +252,13 @@ class GravityVelocityFilter:
     def _last_step(self):
         """``(kind, K, y, S, dt, qv, qg, prior)`` of the last frame (kind 0 constraint, 1 ZUPT, 2 speed)."""
         s = self._s
-        if type(s) is list:
-            if s[I_LAST]:
-                return s[I_LAST]
-        elif s[I_LAST]:
-            kind, k, y, S = int(s[I_LAST + 1]), I_LAST + 2, I_LAST + 20, I_LAST + 23   # (layout: gravity_kernel)
+        if s[I_LAST]:                           # (layout: gravity_kernel; a list or an array of floats)
+            last = s[I_LAST:I_LAST + 59]
+            last = last if type(last) is list else last.tolist()
+            kind = int(last[1])
             nk, ny, ns = (18, 3, 6) if kind else (12, 2, 3)
-            return (kind, tuple(s[k:k + nk].tolist()), tuple(s[y:y + ny].tolist()), tuple(s[S:S + ns].tolist()),
-                    *s[I_LAST + 29:I_LAST + 32].tolist(), tuple(s[I_LAST + 32:I_LAST + 59].tolist()))
+            return (kind, tuple(last[2:2 + nk]), tuple(last[20:20 + ny]), tuple(last[23:23 + ns]), *last[29:32],
+                    tuple(last[32:59]))
         return (0, (0.0,) * 12, (0.0, 0.0), (0.0,) * 3, 0.0, 0.0, 0.0, tuple(s[:27]))
 
     def _update_matrices(self):
