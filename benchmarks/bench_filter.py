@@ -4,7 +4,8 @@ Input: a synthetic drive (``imu_ground.evaluation.simulate``, nav-grade IMU) pre
 10 Hz frames and tiled to ``--frames`` frames. Streaming: ``step(EgoFrame)`` per frame (the
 figure is the median over >= 5 repeats of the per-frame mean; p99 over every timed call).
 Batch: ``run`` over the whole drive (median of the repeats). The run checks that streaming
-equals batch. Import: ``python -c "import imu_ground; imu_ground.GroundNormalFilter()"`` in
+equals batch. Import: ``python -c "import imu_ground; imu_ground.GroundNormalFilter()"`` and a first step
+(the compiled kernel's load and first call count) in
 fresh processes against ``python -c "import numpy"`` (medians), and that neither scipy nor
 pandas is loaded.
 
@@ -38,7 +39,9 @@ __all__ = ["rows", "main", "tiled_drive", "head_of", "time_steps", "run_fps", "k
 STEP_TARGET_US = 4.0
 P99_FACTOR = 3.0
 IMPORT_FACTOR = 1.5
-IMPORT_CODE = ("import sys, imu_ground; imu_ground.GroundNormalFilter(); "
+#: The import as the issue writes it, plus the first step: the compiled kernel's load and first call
+#: count against the import target.
+IMPORT_CODE = ("import sys, numpy, imu_ground; imu_ground.GroundNormalFilter().step(numpy.eye(3)); "
                "sys.exit(any(m in sys.modules for m in ('scipy', 'pandas')))")
 
 
@@ -171,7 +174,7 @@ def rows(frames: int = 100_000, stream_frames: int = 20_000, repeat: int = 5) ->
              kernel=kernel, python=py["run"], passed=None),
         dict(benchmark="GroundNormalFilter streaming == batch", target="<= 1e-12 (normal, rad)", figure=float(diff),
              unit="max abs diff", p99=nan, kernel=kernel, python=nan, passed=bool(diff <= 1e-12)),
-        dict(benchmark="import imu_ground + GroundNormalFilter()", target=f"<= {IMPORT_FACTOR:g}x import numpy "
+        dict(benchmark="import imu_ground + GroundNormalFilter() + first step", target=f"<= {IMPORT_FACTOR:g}x import numpy "
              f"({t_numpy:.3f} s), no scipy/pandas", figure=t_ours, unit="s", p99=nan, kernel=kernel, python=nan,
              passed=bool(light and t_ours <= IMPORT_FACTOR * t_numpy)),
     ]
