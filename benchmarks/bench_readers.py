@@ -43,6 +43,9 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _bytecode import compile_package  # noqa: E402
+
 __all__ = ["DRIVE", "main", "make_log", "measure", "rows"]
 
 REPO = Path(__file__).resolve().parents[1]
@@ -190,14 +193,15 @@ def measure(hours: float, folder: Path, repeat: int = 3, estimate: bool = True) 
 
 def _reader_row(h: float, m: dict[str, float]) -> dict[str, object]:
     ratio = m["read_imu s"] / m["pandas.read_csv s"]
+    target = h >= 10.0          # issue 9 sets the ratio on the 10 h file; shorter logs are fixed-cost bound
     return {"benchmark": f"read_imu, {h:g} h ({m['samples']:,} samples, {m['mb']:.0f} MB CSV)",
-            "target": "<= 1.5x pandas.read_csv (wall)",
+            "target": "<= 1.5x pandas.read_csv (wall)" if target else "informative (the 1.5x target is on 10 h)",
             "figure": f"read_imu {m['read_imu s']:.2f} s (CPU {m['read_imu cpu']:.2f}), "
                       f"{m['read_imu rss'] / 2**20:,.0f} MiB; pandas {m['pandas.read_csv s']:.2f} s "
                       f"(CPU {m['pandas.read_csv cpu']:.2f}), {m['pandas.read_csv rss'] / 2**20:,.0f} MiB; "
                       f"ratio {ratio:.2f} (CPU {m['read_imu cpu'] / m['pandas.read_csv cpu']:.2f}); "
                       f"pandas on 1 thread {m['pandas 1 thread s']:.2f} s; load {m['load']:.1f}",
-            "passed": ratio <= 1.5}
+            "passed": ratio <= 1.5 if target else None}
 
 
 def _estimate_row(h: float, m: dict[str, float]) -> dict[str, object]:
@@ -217,6 +221,7 @@ def rows(hours: tuple[float, ...] = (1.0, 10.0), repeat: int = 3, folder: Path |
     """The benchmark as table rows: ``benchmark``, ``target``, ``figure``, ``passed`` (None: informative)."""
     tmp = tempfile.TemporaryDirectory(prefix="imu_ground_bench_") if folder is None else None
     where = Path(tmp.name) if tmp else Path(folder)  # type: ignore[arg-type]
+    compile_package()                               # fresh processes as installed: bytecode compiled
     try:
         meas = {h: measure(h, where, repeat if h < 5 else max(1, repeat - 1), estimate) for h in hours}
     finally:
