@@ -1,11 +1,14 @@
 """Build hook for the compiled kernels (everything else is declared in pyproject.toml).
 
-Every ``imu_ground/**/_*_native.c`` file is one C extension module of the same
-dotted name (``imu_ground/filters/_residual_native.c`` ->
-``imu_ground.filters._residual_native``): the scalar per-frame kernels of the
-streaming filters and of the preintegration, written against the plain CPython
-API (no numpy headers), each with a pure-Python twin that is the reference its
-tests compare it with. The extensions are optional: without a C compiler the
+Every ``_*_native.c`` file of a package folder (``imu_ground/`` and the folders
+installed as its sub-packages, e.g. ``datasets/`` as ``imu_ground.datasets``) is
+one C extension module of the same dotted name
+(``imu_ground/filters/_residual_native.c`` -> ``imu_ground.filters._residual_native``,
+``datasets/_csv_native.c`` -> ``imu_ground.datasets._csv_native``): the scalar
+per-frame kernels of the streaming filters and of the preintegration, and the
+numeric CSV parse, written against the plain CPython API (no numpy headers),
+each with a pure-Python (or pandas) twin that is the reference its tests
+compare it with. The extensions are optional: without a C compiler the
 package installs and runs on the pure-Python kernels (slower, same results);
 see :mod:`imu_ground._native` (``IMU_GROUND_PURE_PYTHON=1`` forces them).
 
@@ -23,18 +26,23 @@ HERE = Path(__file__).resolve().parent
 #: The helpers every kernel includes (``#include "_native_util.h"``), relative to this file: in each
 #: extension's ``depends`` (a change rebuilds every kernel, and setuptools puts it in the sdist).
 SHARED_HEADER = Path("imu_ground") / "_native_util.h"
+#: Folders whose ``_*_native.c`` files are built -> the package they are installed as (pyproject's package-dir).
+NATIVE_FOLDERS = {"imu_ground": "imu_ground", "datasets": "imu_ground.datasets"}
 
 
 def native_extensions() -> list:
-    """One optional Extension per ``_*_native.c`` file under ``imu_ground/``."""
+    """One optional Extension per ``_*_native.c`` file under :data:`NATIVE_FOLDERS`."""
     exts = []
-    for src in sorted((HERE / "imu_ground").rglob("_*_native.c")):
-        rel = src.relative_to(HERE)
-        exts.append(Extension(".".join(rel.with_suffix("").parts), [rel.as_posix()],
-                              include_dirs=[SHARED_HEADER.parent.as_posix()], depends=[SHARED_HEADER.as_posix()],
-                              extra_compile_args=["-O2", "-ffp-contract=off", "-fno-fast-math"]
-                              if not _msvc() else ["/O2", "/fp:precise"],
-                              optional=True))
+    for folder, package in NATIVE_FOLDERS.items():
+        for src in sorted((HERE / folder).rglob("_*_native.c")):
+            rel = src.relative_to(HERE)
+            name = ".".join([package, *src.relative_to(HERE / folder).with_suffix("").parts])
+            exts.append(Extension(name, [rel.as_posix()],
+                                  include_dirs=[SHARED_HEADER.parent.as_posix()],
+                                  depends=[SHARED_HEADER.as_posix()],
+                                  extra_compile_args=["-O2", "-ffp-contract=off", "-fno-fast-math"]
+                                  if not _msvc() else ["/O2", "/fp:precise"],
+                                  optional=True))
     return exts
 
 

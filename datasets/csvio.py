@@ -1,6 +1,9 @@
 """Delimited text files: streamed decompression, a real CSV engine, bad lines found only on failure.
 
-:func:`read_delimited` parses with pandas' C engine in chunks, from a
+:func:`read_delimited` first tries :func:`~imu_ground.datasets.numeric_csv.parse_numeric`:
+a plain file whose every field is a decimal number is parsed by the compiled
+kernel straight into the columns (pieces on threads, no pandas). Any other file
+(or without the compiled kernel) is parsed with pandas' C engine in chunks, from a
 decompressing stream (``.gz``, ``.bz2``), so memory grows with the parsed columns,
 not with the text. A plain (uncompressed) file of at least
 :data:`PARALLEL_MIN_BYTES` is cut at line ends into pieces of
@@ -26,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .numeric_csv import _stack_layout, parse_numeric
 from .report import MalformedFileError
 
 __all__ = ["Columns", "RowLines", "first_nonnumber", "locate_bad_lines", "numeric", "open_binary", "read_delimited",
@@ -257,18 +261,6 @@ def _parse_piece(fd: int, start: int, stop: int, sep: str, names: list[str] | No
     return chunk
 
 
-def _stack_layout(names: list[str], stack: Mapping[str, Sequence[str]] | None,
-                  numeric: Callable[[str], bool]) -> dict[str, tuple[str, int]]:
-    """Column -> (stack name, position) for the stacks that apply (see :func:`read_delimited`'s ``stack``)."""
-    into: dict[str, tuple[str, int]] = {}
-    for name, members in (stack or {}).items():
-        at = names.index(members[0]) if members and members[0] in names else -1
-        if (at >= 0 and name not in names and names[at:at + len(members)] == list(members)
-                and all(numeric(c) for c in members)):
-            into.update({c: (name, j) for j, c in enumerate(members)})
-    return into
-
-
 class _ColumnSink:
     """Numeric columns filled piece by piece, in file order, into arrays with room to spare.
 
@@ -405,8 +397,12 @@ def read_delimited(path: str | Path, sep: str = ",", *,
         Empty file, header only, a line with the wrong number of fields
         (first bad line and count), not UTF-8, truncated or corrupt compression.
     """
-    import pandas as pd
     path = Path(path)
+    fast = parse_numeric(path, sep, stack, piece_bytes=PIECE_BYTES, threads=_threads(),
+                         parallel_min_bytes=PARALLEL_MIN_BYTES)
+    if fast is not None:                  # a plain all-numbers file: the compiled parse, no pandas
+        return fast[0], RowLines(fast[2])
+    import pandas as pd
     try:
         cols, n, blank = _parse(path, sep, stack)
     except pd.errors.EmptyDataError as e:

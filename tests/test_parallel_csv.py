@@ -1,10 +1,21 @@
-"""The parallel parse of plain CSV files (datasets/csvio.py): the same columns, lines and errors as the serial parse."""
+"""The parallel pandas parse of plain CSV files (datasets/csvio.py): the same columns, lines and errors as the serial parse.
+
+The compiled numeric parse (datasets/numeric_csv.py, tested in test_numeric_csv.py)
+comes first for plain all-number files; it is switched off here, so that these
+tests reach the pandas paths it leaves the other files to (and every file,
+without a C compiler).
+"""
 import gzip
 
 import numpy as np
 import pytest
-from imu_ground.datasets import csvio, read_imu
+from imu_ground.datasets import csvio, numeric_csv, read_imu
 from imu_ground.datasets.report import MalformedFileError
+
+
+@pytest.fixture(autouse=True)
+def _pandas_paths(monkeypatch):
+    monkeypatch.setattr(numeric_csv, "_native", None)
 
 HEADER = "t,wx,wy,wz,ax,ay,az\n"
 #: Cases the pieces represent exactly (the others go to the serial parse, which names the bad line).
