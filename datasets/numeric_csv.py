@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._native import load_native
+from imu_ground._native import load_native
 
 __all__ = ["parse_numeric"]
 
