@@ -126,7 +126,8 @@ def parse_numeric(path: Path, sep: str, stack: Mapping[str, Sequence[str]] | Non
     if head is None or head[1] >= size:
         return None
     names, start = head
-    threads = threads if size >= parallel_min_bytes else 1
+    # one thread on Windows: its read is a seek and a read on the shared descriptor (no pread)
+    threads = threads if size >= parallel_min_bytes and os.name != "nt" else 1
     step = min(piece_bytes, max(piece_bytes // 4, size // (4 * threads)))
     pieces = _pieces(path, start, size, max(step, 1))
     fd = os.open(path, os.O_RDONLY | getattr(os, "O_BINARY", 0))
