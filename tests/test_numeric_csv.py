@@ -199,3 +199,51 @@ def test_shared_drives_read_as_pandas_reads_them(tmp_path, monkeypatch):
         with gzip.open(gz, "rb") as f:
             p.write_bytes(f.read())
         _same_as_pandas(p, monkeypatch, stack=STACK, piece=1 << 18)
+
+
+def test_the_kernel_leaks_nothing_and_checks_its_arguments(tmp_path):
+    """2e4 calls (good pieces and refused ones) leave no memory or references behind; bad arguments raise."""
+    import gc
+    import sys
+    import tracemalloc
+    k = numeric_csv._native
+    p = tmp_path / "a.csv"
+    good, bad = b"1,2.5\n3,4e-3\n", b"1,x\n"
+    p.write_bytes(good + bad)
+    fd = os.open(p, os.O_RDONLY)
+    try:
+        buf, out = bytearray(64), np.empty(4)
+        layout = np.array([[0, 0, 2], [0, 1, 2]], dtype=np.int64)
+        arrays, sep = (out,), b","
+        refs = [sys.getrefcount(o) for o in (buf, out, layout, arrays, sep)]
+
+        def calls(n):
+            for _ in range(n):
+                assert k.count_lines(fd, 0, len(good), buf) == 2
+                assert k.parse_piece(fd, 0, len(good), buf, sep, arrays, layout, 0, 2) == (b"\x00\x01", b"\x00\x00")  # column 0 all integers
+                with pytest.raises(ValueError, match="not a decimal number at byte"):
+                    k.parse_piece(fd, len(good), len(good) + len(bad), buf, sep, arrays, layout, 0, 1)
+
+        calls(500)
+        gc.collect()
+        tracemalloc.start()
+        base = tracemalloc.get_traced_memory()[0]
+        calls(10_000)
+        gc.collect()
+        grown = tracemalloc.get_traced_memory()[0] - base
+        tracemalloc.stop()
+        assert grown < 16 * 1024, grown
+        assert [sys.getrefcount(o) for o in (buf, out, layout, arrays, sep)] == refs
+        assert out.tolist() == [1.0, 2.5, 3.0, 4e-3]
+        with pytest.raises(ValueError, match="do not fit"):
+            k.parse_piece(fd, 0, len(good), buf, sep, arrays, layout, 1, 2)
+        with pytest.raises(ValueError, match="sentinel"):
+            k.parse_piece(fd, 0, len(good), bytearray(len(good)), sep, arrays, layout, 0, 2)
+        with pytest.raises(TypeError):
+            k.parse_piece(fd, 0, len(good), buf, sep, (out.astype(np.float32),), layout, 0, 2)
+        with pytest.raises(ValueError, match="fewer lines than counted|more lines"):
+            k.parse_piece(fd, 0, len(good), buf, sep, arrays, layout, 0, 1)
+        with pytest.raises(OSError):
+            k.count_lines(fd, 0, 10_000, bytearray(10_001))       # past the end of the file
+    finally:
+        os.close(fd)
