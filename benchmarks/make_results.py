@@ -12,8 +12,9 @@ reference's own uncertainty) and on the synthetic suite (navigation-grade and
 MEMS IMUs; exact truth, normal angle, pitch and roll), and the simulator's
 checks against the real drives (``sim_vs_real.rows()``: band powers and method
 ranking, issue 10.5), and the real-drive error by speed, slow and fast, shared
-between methods and against the reference's own error (``error_budget.rows()``).
-Speed: the tables of the
+between methods and against the reference's own error (``error_budget.rows()``),
+and the timestamp policies ``drop`` against ``retime`` on the shared drives
+(``retime_table.rows()``: samples dropped, frames invalid, pitch error). Speed: the tables of the
 benchmark scripts, each of which exposes ``rows()`` returning its rows
 (``bench_filter``, ``bench_suspension``, ``bench_preintegration``, ``bench_ekf``,
 ``bench_gravity``, ``bench_readers``, ``bench_batch``); a script that is missing
@@ -42,6 +43,8 @@ BENCHMARKS = ("bench_filter", "bench_suspension", "bench_preintegration", "bench
 SIMULATOR_CHECKS = ("sim_vs_real",)
 #: Scripts whose rows break the real-drive error down (issue 10: the estimator's or the reference's).
 ERROR_BUDGET = ("error_budget",)
+#: Scripts whose rows compare the readers' timestamp policies on the real drives (issue 9: drop against retime).
+READER_CHECKS = ("retime_table",)
 #: Smaller sizes for ``--quick``, passed to a benchmark's ``rows()`` where it has the parameter.
 QUICK_KWARGS = {"frames": 20_000, "stream_frames": 5_000, "repeat": 2, "steps": 5_000, "samples": 60_000,
                 "stream_samples": 5_000, "hours": (0.1,), "n": 2, "drives": 4}
@@ -245,6 +248,7 @@ def main(argv: list[str] | None = None) -> int:
         lines += accuracy_sections(a.data, a.quick)
         lines += speed_sections(a.quick, ERROR_BUDGET, "Where the real-drive error is")
         lines += speed_sections(a.quick, SIMULATOR_CHECKS, "Simulator against the real drives")
+        lines += speed_sections(a.quick, READER_CHECKS, "Timestamp policies on the real drives")
     if not a.no_speed:
         lines += speed_sections(a.quick)
     tmp = a.out.with_suffix(a.out.suffix + ".tmp")
