@@ -28,6 +28,7 @@ from .report import (
     row_names,
     warn_user,
 )
+from .unit_checks import _medians_near, _near, median
 
 __all__ = ["POLICIES", "Action", "Policy", "RetimeResult", "act", "check_timestamps", "fmt_list", "retime"]
 
@@ -63,6 +64,18 @@ def act(action: str, message: str, category: type[Warning], report: ValidationRe
         warn_user(message, category, option, value)
 
 
+# --------------------------------------------------------------------------- helpers
+#: Samples per block of the passes over a whole log (a few such blocks stay in the CPU cache).
+_BLOCK = 1 << 15
+#: Backsteps up to which :func:`_ooo_dup` follows each one instead of a running maximum of the log.
+_LOCAL_BACKSTEPS = 2048
+
+
+def _rows(pos: np.ndarray, index: np.ndarray | None) -> np.ndarray:
+    """Input rows (int64) of positions ``pos``: ``index[pos]``, or ``pos`` itself when rows are 0, 1, 2, ..."""
+    return np.asarray(pos, dtype=np.int64).copy() if index is None else index[pos]
+
+
 # --------------------------------------------------------------------------- retime
 class RetimeResult(NamedTuple):
     """Outcome of :func:`retime`.
@@ -85,45 +98,125 @@ class RetimeResult(NamedTuple):
     note: str
 
 
-def _running_median(x: np.ndarray, w: int, events: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Centred running median over ``w`` (odd) samples (edges padded with the end values), and where it differs.
+class _RetimeStats(NamedTuple):
+    """By-products of a successful retime: the stamps' shift and the retimed steps."""
 
-    Evaluated only within ``w // 2`` samples of an ``events`` position (a step
-    that is not one sample period); elsewhere the window holds one undisturbed
-    stretch and the value is taken as it is, so the cost follows the events,
-    not the log's length. Returns the medians and the positions evaluated.
+    shift_max: float
+    shift_rms: float
+    steps: np.ndarray
+
+
+#: Rounding allowance of the shortcuts in :func:`_retime` (see :class:`_Clock`).
+_SLACK = 1e-4
+
+
+class _Clock:
+    """The stamps' offset from a nominal clock, in samples: ``(t - t[0]) / dt - k`` (jitter = bump, dropout = step).
+
+    ``k`` None: the sample index ``0, 1, 2, ...``, made block by block. Offsets
+    are formed with the same three roundings wherever they are needed.
+
+    Shortcuts (consecutive index only): ``(t_i - t0) r`` and ``i`` are below
+    ``S`` (:attr:`scale`), so forming an offset, or the offset of the clock,
+    rounds by less than ``u S`` (``u = 2**-53``) a few times over. While
+    ``16 u S < 1e-4`` (:meth:`shortcuts`: any log shorter than ~9 years at
+    100 Hz), the offset's step differs from the raw step in samples, and
+    ``(clock - t0) r - off`` from the clock's shift in samples, by far less
+    than 1e-3; raw steps within ``[0.502, 1.498] dt`` then cannot step the offset
+    by more than half a sample, and shifts below ``0.999 dt`` cannot put it a
+    sample away. Only the other samples are worked out.
     """
-    h = w // 2
-    out = x.copy()
-    if not events.size:
-        return out, events
-    # the positions within [e - h - 1, e + h + 2) of an event e: the union of these (sorted) ranges
-    starts = np.clip(events - h - 1, 0, x.size)
-    stops = np.clip(events + h + 2, 0, x.size)
-    new = np.concatenate([[True], starts[1:] > stops[:-1]])      # a range not overlapping the one before
-    lo = starts[new]
-    hi = np.maximum.reduceat(stops, np.flatnonzero(new))
-    lens = hi - lo
-    near = np.repeat(lo - np.concatenate([[0], np.cumsum(lens)[:-1]]), lens) + np.arange(int(lens.sum()))
-    win = np.lib.stride_tricks.sliding_window_view(np.pad(x, h, mode="edge"), w)
-    for s in range(0, near.size, 4096):  # cache-sized windows, whatever the log's length
-        rows = near[s:s + 4096]
-        out[rows] = np.median(win[rows], axis=1, overwrite_input=True)  # win[rows] is a gathered copy
-    return out, near
+
+    def __init__(self, t: np.ndarray, k: np.ndarray | None, dt: float) -> None:
+        self.t, self.k, self.t0, self.dt, self.r = t, k, t[0], dt, 1.0 / dt
+        with np.errstate(all="ignore"):         # (a non-finite stamp: no shortcuts)
+            span = float(max(t.max() - self.t0, self.t0 - t.min())) * self.r
+        self.scale = span + t.size + 4 if k is None else np.inf
+
+    def shortcuts(self, scale: float = 0.0) -> bool:
+        """Whether the shortcuts hold (``scale``: another bound of a clock in samples, e.g. the fitted one)."""
+        return bool(16 * 2.0 ** -53 * self.scale < _SLACK and 16 * 2.0 ** -53 * scale < _SLACK)
+
+    def kblock(self, lo: int, hi: int) -> np.ndarray:
+        """The index at positions ``lo:hi`` as floats."""
+        return np.arange(lo, hi, dtype=float) if self.k is None else self.k[lo:hi]
+
+    def block(self, lo: int, hi: int, out: np.ndarray) -> np.ndarray:
+        """Offsets at positions ``lo:hi`` into ``out[:hi - lo]``."""
+        o = np.subtract(self.t[lo:hi], self.t0, out=out[:hi - lo])
+        o *= self.r
+        o -= self.kblock(lo, hi)
+        return o
+
+    def at(self, idx: np.ndarray) -> np.ndarray:
+        """Offsets at positions ``idx``."""
+        o = self.t[idx] - self.t0
+        o *= self.r
+        o -= idx if self.k is None else self.k[idx]
+        return o
+
+    def events(self, raw: np.ndarray | None) -> np.ndarray:
+        """Positions ``i`` where the offset steps by more than half a sample from ``i`` to ``i + 1``.
+
+        ``raw``: the steps ``t[1:] - t[:-1]``, if at hand (with :meth:`shortcuts`, only
+        the raw steps outside ``[0.502, 1.498] dt`` are looked at).
+        """
+        n = self.t.size
+        if raw is not None and self.k is None and self.shortcuts():
+            cand = np.flatnonzero((raw < (0.5 + 2e-3) * self.dt) | (raw > (1.5 - 2e-3) * self.dt))
+            if cand.size <= n >> 4:
+                step = self.at(cand + 1) - self.at(cand)
+                return cand[np.abs(step) > 0.5]
+        buf, step, found = np.empty(min(n, _BLOCK + 1)), np.empty(min(n - 1, _BLOCK)), []
+        for lo in range(0, n - 1, _BLOCK):
+            hi = min(lo + _BLOCK, n - 1)
+            o = self.block(lo, hi + 1, buf)
+            s = np.subtract(o[1:], o[:-1], out=step[:hi - lo])
+            e = np.flatnonzero(np.abs(s, out=s) > 0.5)
+            if e.size:
+                found.append(e + lo)
+        return np.concatenate(found) if found else np.zeros(0, dtype=np.int64)
+
+    def agree(self, out: np.ndarray, idx: np.ndarray | None = None) -> int:
+        """How many samples (at ``idx``, default all) have ``|(out - t0) r - k - offset| < 1``."""
+        if idx is not None:
+            d = out[idx] - self.t0
+            d *= self.r
+            d -= idx if self.k is None else self.k[idx]
+            d -= self.at(idx)
+            return int(np.count_nonzero(np.abs(d, out=d) < 1.0))
+        n, count = out.size, 0
+        b1, b2 = np.empty(min(n, _BLOCK)), np.empty(min(n, _BLOCK))
+        for lo in range(0, n, _BLOCK):
+            hi = min(lo + _BLOCK, n)
+            d = np.subtract(out[lo:hi], self.t0, out=b1[:hi - lo])
+            d *= self.r
+            d -= self.kblock(lo, hi)
+            d -= self.block(lo, hi, b2)
+            count += int(np.count_nonzero(np.abs(d, out=d) < 1.0))
+        return count
 
 
-def _stretches(level: np.ndarray, near: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
-    """Stretch number of each sample and the positions starting a new one (None: a negative jump)."""
-    if not near.size:
-        return np.zeros(level.size, dtype=np.int64), near
-    j = near[near < level.size - 1]
-    jump = level[j + 1] - level[j]
-    if np.any(jump < -1.0):
-        return None, near
-    breaks = j[jump > 1.0] + 1
-    seg = np.zeros(level.size, dtype=np.int64)
-    seg[breaks] = 1
-    return np.cumsum(seg), breaks
+def _seq_sum(x: np.ndarray) -> float:
+    """Left-to-right float sum from 0.0 (as ``np.bincount`` adds its weights), block by block."""
+    acc = np.float64(0.0)
+    buf = np.empty(min(x.size, _BLOCK))
+    for lo in range(0, x.size, _BLOCK):
+        c = x[lo:lo + _BLOCK]
+        first = c[0]
+        c[0] = acc + first                # the running sum enters the block's first term
+        acc = np.add.accumulate(c, out=buf[:c.size])[-1]
+        c[0] = first
+    return float(acc)
+
+
+def _kept_runs(n: int, gone: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Starts and stops of the runs of ``range(n)`` without the (sorted, distinct) positions ``gone``."""
+    if not gone.size:
+        return np.array([0]), np.array([n])
+    new = np.flatnonzero(np.diff(gone) != 1) + 1
+    return (np.concatenate([[0], gone[np.concatenate([new - 1, [gone.size - 1]])] + 1]),
+            np.concatenate([gone[np.concatenate([[0], new])], [n]]))
 
 
 def retime(t: np.ndarray, index: np.ndarray | None = None, *, window_s: float = 2.0,
@@ -155,137 +248,277 @@ def retime(t: np.ndarray, index: np.ndarray | None = None, *, window_s: float = 
     RetimeResult
         ``t`` None with a ``note`` when the stamps do not follow a steady rate.
     """
-    t = np.asarray(t, dtype=float)
-    k = np.arange(t.size, dtype=float) if index is None else np.asarray(index, dtype=float)
+    return _retime(np.asarray(t, dtype=float), index, window_s, min_inliers)[0]
+
+
+def _retime(t: np.ndarray, index: np.ndarray | None, window_s: float, min_inliers: float,
+            scratch: np.ndarray | None = None) -> tuple[RetimeResult, _RetimeStats | None]:
+    """:func:`retime`, plus the shift of the stamps and the retimed steps when it applies.
+
+    ``scratch``: an (N - 1,) float array the caller no longer needs, to hold the retimed steps.
+
+    The offset from the nominal clock is formed block by block (and again where
+    needed) instead of kept whole; the sums, products and comparisons are the
+    same operations on the same values, in the same order, so the result is
+    bit for bit the whole-array fit's. Beyond that only: sums of the integer
+    index are exact in any order (so they are formed in closed form), and the
+    :class:`_Clock` shortcuts skip samples that provably pass a test.
+    """
+    n = t.size
+    k = None if index is None else np.asarray(index, dtype=float)
     none = np.zeros(0, dtype=np.int64)
-    if t.size < 10:
-        return RetimeResult(None, float("nan"), none, "fewer than 10 samples")
-    steps = np.diff(t) if index is None else np.diff(t) / np.maximum(np.diff(k), 1.0)
-    sub = steps[:: max(1, steps.size // 200_000)]  # the median step from at most ~200k steps
+    if n < 10:
+        return RetimeResult(None, float("nan"), none, "fewer than 10 samples"), None
+    stride = max(1, (n - 1) // 200_000)                  # the median step from at most ~200k steps
+    sub = t[1::stride] - t[:-1:stride]
+    if k is not None:
+        sub /= np.maximum(k[1::stride] - k[:-1:stride], 1.0)
     pos = sub[sub > 0]
     if pos.size < sub.size // 2:
-        return RetimeResult(None, float("nan"), none, "most time steps are not positive")
-    dt = float(np.median(pos))
-    w = int(min(max(21, round(window_s / dt) | 1), (t.size // 2) | 1))
-    off = t - t[0]                                   # in samples; jitter = bump, dropout = step
-    off *= 1.0 / dt
-    off -= k
-    step = np.diff(off)
-    events = np.flatnonzero(np.abs(step, out=step) > 0.5)
-    del step
-    level, near = _running_median(off, w, events)
-    seg, breaks = _stretches(level, near)
-    if seg is None:
+        return RetimeResult(None, float("nan"), none, "most time steps are not positive"), None
+    dt = median(pos)
+    w = int(min(max(21, round(window_s / dt) | 1), (n // 2) | 1))
+    clock = _Clock(t, k, dt)
+    raw = scratch if scratch is not None and scratch.shape == (n - 1,) else None
+    events = clock.events(raw)
+    # the running median of the offset, near the events only (elsewhere it is the offset itself)
+    near = _near(events, w // 2, n) if events.size else none
+    level = _medians_near(clock.at, n, near, w) if near.size else np.zeros(0)
+    off = clock.at(near)
+    # stretches: a lasting step of the smoothed offset by more than one sample
+    m = int(np.searchsorted(near, n - 1))                # near[:m] < n - 1
+    nxt = near[:m] + 1
+    i = np.minimum(np.searchsorted(near, nxt), max(near.size - 1, 0))
+    inside = near[i] == nxt if m else np.zeros(0, dtype=bool)
+    after = np.where(inside, level[i], 0.0)
+    after[~inside] = clock.at(nxt[~inside])
+    jump = after - level[:m]
+    if np.any(jump < -1.0):
         return RetimeResult(None, 1.0 / dt, none, "more samples than the stamps' time span in a stretch "
-                                                  "(the sample count disagrees with a steady rate)")
-    inl = np.ones(t.size, dtype=bool)
-    inl[near] = np.abs(off[near] - level[near]) < 0.5  # elsewhere off == level
-    n_seg = int(seg[-1]) + 1
-    sf = seg[inl]
-    cnt = np.bincount(sf, minlength=n_seg)
-    fit = inl if cnt.min() >= 2 else inl & (cnt[seg] >= 2)
-    if fit.sum() < t.size // 2:
-        return RetimeResult(None, 1.0 / dt, none, f"only {inl.mean():.0%} of the stamps lie within half a "
-                                                  f"sample of a steady {1 / dt:.6g} Hz clock")
+                                                  "(the sample count disagrees with a steady rate)"), None
+    breaks = near[:m][jump > 1.0] + 1
+    outl = near[~(np.abs(off - level) < 0.5)]          # elsewhere off == level: inliers
+    bounds = np.concatenate([[0], breaks, [n]])
+    n_seg = breaks.size + 1
+    seg_out = np.searchsorted(breaks, outl, side="right")
+    cnt = np.diff(bounds) - np.bincount(seg_out, minlength=n_seg)
+    ok = cnt >= 2
+    if int(cnt[ok].sum()) < n // 2:
+        return RetimeResult(None, 1.0 / dt, none, f"only {(n - outl.size) / n:.0%} of the stamps lie within half "
+                                                  f"a sample of a steady {1 / dt:.6g} Hz clock"), None
     # pooled within-stretch least squares: one rate, one intercept per stretch
-    if fit is not inl:
-        sf = seg[fit]
-    cf = np.bincount(sf, minlength=n_seg)
-    dk, dtt = k[fit], t[fit]
-    km = np.bincount(sf, dk, n_seg) / np.maximum(cf, 1)
-    tm = np.bincount(sf, dtt, n_seg) / np.maximum(cf, 1)
-    dk -= km[0] if n_seg == 1 else km[sf]             # one stretch: the same value for every sample
-    dtt -= tm[0] if n_seg == 1 else tm[sf]
-    del sf
+    cf = np.where(ok, cnt, 0)
+    kbuf, tbuf = np.empty(n), np.empty(n)              # later the clock and the squared shifts
+    dk, dtt = kbuf[:cf.sum()], tbuf[:cf.sum()]
+    if not ok.all() or outl.size > n >> 6 or k is not None:
+        fit = np.ones(n, dtype=bool)
+        fit[outl] = False
+        for s_ in np.flatnonzero(~ok):
+            fit[bounds[s_]:bounds[s_ + 1]] = False
+        np.compress(fit, np.arange(n, dtype=float) if k is None else k, out=dk)
+        np.compress(fit, t, out=dtt)
+    else:                                                # the runs between outliers, copied whole
+        p = 0
+        for a, b in zip(*(r.tolist() for r in _kept_runs(n, outl))):
+            dk[p:p + b - a] = clock.kblock(a, b)
+            dtt[p:p + b - a] = t[a:b]
+            p += b - a
+    if k is None and n < 1 << 26:        # integer sums below 2**53: exact in any order
+        a, b = bounds[:-1], bounds[1:]
+        ksum = np.where(ok, (a + b - 1) * (b - a) // 2 - np.bincount(seg_out, outl.astype(float), n_seg), 0.0)
+    else:
+        ksum = np.bincount(np.repeat(np.arange(n_seg), cf), dk, n_seg)
+    if n_seg <= 64:                       # each stretch's sum, left to right as bincount adds
+        co = np.concatenate([[0], np.cumsum(cf)])
+        tsum = np.array([_seq_sum(dtt[co[s_]:co[s_ + 1]]) if cf[s_] else 0.0 for s_ in range(n_seg)])
+    else:
+        tsum = np.bincount(np.repeat(np.arange(n_seg), cf), dtt, n_seg)
+    km = ksum / np.maximum(cf, 1)
+    tm = tsum / np.maximum(cf, 1)
+    dk -= km[0] if n_seg == 1 else np.repeat(km, cf)   # one stretch: the same value for every sample
+    dtt -= tm[0] if n_seg == 1 else np.repeat(tm, cf)
     slope = float(np.dot(dk, dtt) / np.dot(dk, dk))
     del dk, dtt
     if not (slope > 0 and 1.0 <= 1.0 / slope <= 1e5):
-        return RetimeResult(None, 1.0 / dt, none, "no steady positive rate")
+        return RetimeResult(None, 1.0 / dt, none, "no steady positive rate"), None
     icpt = tm - slope * km
     for s_ in np.flatnonzero(cf == 0):  # tiny stretches: their median
-        icpt[s_] = float(np.median(t[seg == s_] - slope * k[seg == s_]))
-    out = slope * k
-    out += icpt[0] if n_seg == 1 else icpt[seg]
-    dev = out - t[0]                                  # smoothed offset vs clock, in samples
-    dev *= 1.0 / dt
-    dev -= k
-    dev -= level
-    agree = float(np.mean(np.abs(dev, out=dev) < 1.0))
-    del dev
-    if agree < min_inliers:
+        a_, b_ = bounds[s_], bounds[s_ + 1]
+        icpt[s_] = float(np.median(t[a_:b_] - slope * clock.kblock(a_, b_)))
+    # block by block: the clock (slope k + the stretch's intercept), its steps, its shift from the stamps, and
+    # the samples shifted by less than 0.999 dt (the smoothed offset is then within a sample of the clock)
+    out, sq = kbuf, tbuf
+    steps = np.empty(n - 1) if raw is None else raw
+    absd = np.empty(min(n, _BLOCK))
+    thr = 0.999 * dt
+    close, far, top, lowest = 0, [], [], []
+    for lo in range(0, n, _BLOCK):
+        hi = min(lo + _BLOCK, n)
+        o = np.multiply(clock.kblock(lo, hi), slope, out=out[lo:hi])
+        for s_ in range(int(np.searchsorted(bounds, lo, "right")) - 1, int(np.searchsorted(bounds, hi - 1, "right"))):
+            o[max(bounds[s_], lo) - lo:min(bounds[s_ + 1], hi) - lo] += icpt[s_]
+        st = np.subtract(out[max(lo, 1):hi], out[max(lo - 1, 0):hi - 1], out=steps[max(lo - 1, 0):hi - 1])
+        lowest.append(np.fmin.reduce(st, initial=np.inf))
+        sh = np.subtract(o, t[lo:hi], out=sq[lo:hi])
+        a_ = np.abs(sh, out=absd[:hi - lo])
+        top.append(a_.max())
+        near_clock = a_ < thr
+        c_ = int(np.count_nonzero(near_clock))
+        close += c_
+        if c_ < hi - lo:
+            far.append(np.flatnonzero(~near_clock) + lo)
+        np.multiply(sh, sh, out=sh)
+    ends = np.concatenate([bounds[:-1], bounds[1:] - 1])          # the clock is monotone within a stretch
+    with np.errstate(all="ignore"):
+        reach = float(np.max(np.abs(out[ends] - clock.t0))) * clock.r + n + 4
+    top_ = float(np.max(top))
+    if clock.shortcuts(reach + top_ * clock.r):
+        agree = close + (clock.agree(out, np.concatenate(far)) if far else 0)
+    else:
+        agree = clock.agree(out)
+    if near.size:                         # where the offset was smoothed: with the smoothed offset
+        dn = out[near] - clock.t0
+        dn *= clock.r
+        dn -= near if k is None else k[near]
+        agree += int(np.count_nonzero(np.abs(dn - level) < 1.0)) - int(np.count_nonzero(np.abs(dn - off) < 1.0))
+    share = agree / n
+    if share < min_inliers:
         return RetimeResult(None, 1.0 / slope, none, f"the stamps follow the sample clock within a sample "
-                                                     f"over only {agree:.0%} of the log")
-    if np.any(np.diff(out) <= 0):
-        return RetimeResult(None, 1.0 / slope, none, "stretches between dropouts overlap")
-    return RetimeResult(out, 1.0 / slope, breaks.astype(np.int64), "")
+                                                     f"over only {share:.0%} of the log"), None
+    if np.fmin.reduce(lowest) <= 0:       # a step not forward (fmin, as any(steps <= 0), passes NaN by)
+        return RetimeResult(None, 1.0 / slope, none, "stretches between dropouts overlap"), None
+    stats = _RetimeStats(top_, float(np.sqrt(np.mean(sq))), steps)
+    return RetimeResult(out, 1.0 / slope, breaks.astype(np.int64), ""), stats
 
 
-def _apply_retime(t: np.ndarray, index: np.ndarray, report: ValidationReport,
-                  consecutive: bool = False) -> np.ndarray | None:
-    """Retime into the report; the new stamps, or None (then ``drop`` applies).
+def _apply_retime(t: np.ndarray, index: np.ndarray | None, report: ValidationReport, scratch: np.ndarray,
+                  ) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Retime into the report; the new stamps and their steps, or None (then ``drop`` applies).
 
-    ``consecutive``: ``index`` is ``0, 1, 2, ...`` (no row left out), which
-    :func:`retime` then need not divide by.
+    ``index`` None: the rows are ``0, 1, 2, ...`` (no row left out). ``scratch``: see :func:`_retime`.
     """
-    res = retime(t, None if consecutive else index)
-    if res.t is None:
+    res, stats = _retime(t, index, 2.0, 0.95, scratch)
+    if res.t is None or stats is None:
         report.retime_note = res.note
-        return None
-    shift = res.t - t
+        return None, None
     report.retimed = True
     report.retime_rate = res.rate
-    report.retime_shift_max = float(np.abs(shift).max())
-    report.retime_shift_rms = float(np.sqrt(np.mean(shift ** 2)))
-    report.retime_dropout_index = index[res.breaks]
-    return res.t
+    report.retime_shift_max = stats.shift_max
+    report.retime_shift_rms = stats.shift_rms
+    report.retime_dropout_index = _rows(res.breaks, index)
+    return res.t, stats.steps
 
 
 # --------------------------------------------------------------------------- check
-def _order_message(src, t, index, back, steps, ooo, dup, row_lines) -> str:
+def _order_message(src, t, rows, back, steps, ooo, dup, row_lines) -> str:
     parts = []
     if ooo.size:
         b0 = int(back[0])  # the first out-of-order sample is always the first backward step
-        kind, where = row_names(index[[b0]], row_lines)
+        kind, where = row_names(rows(back[:1]), row_lines)
         parts.append(f"{ooo.size} sample(s) out of order (time steps back {back.size} time(s), "
                      f"first at {kind} {where[0]}, t={t[b0]:.6f} s, step {steps[b0 - 1]:+.6f} s)")
     if dup.size:
         d0 = int(dup[0])
-        kind, where = row_names(index[[d0]], row_lines)
+        kind, where = row_names(rows(dup[:1]), row_lines)
         parts.append(f"{dup.size} duplicate timestamp(s) (first at {kind} {where[0]}, t={t[d0]:.6f} s)")
     return " and ".join(parts)
 
 
-def _order(t: np.ndarray, policy: str):
-    """(backsteps, out-of-order, duplicates, keep) positions under ``policy`` (not retime)."""
-    n = t.size
-    steps = np.diff(t)
-    back = np.flatnonzero(steps < 0) + 1
-    if n > 1:
+def _stretch_end(t: np.ndarray, b: int, top: float) -> int:
+    """The first position from ``b`` on with a time later than ``top`` (``t.size`` if none)."""
+    lo, span = b, 16
+    while lo < t.size:
+        hit = t[lo:lo + span] > top
+        j = int(hit.argmax())
+        if hit[j]:
+            return lo + j
+        lo, span = lo + span, span * 4
+    return t.size
+
+
+def _ooo_dup(t: np.ndarray, steps: np.ndarray, back: np.ndarray, zero: np.ndarray,
+             finite: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Positions earlier than (out of order) and equal to (duplicates) the latest time before them.
+
+    ``back``, ``zero``: positions after a backward and a zero step; ``finite``:
+    ``t`` is known to be finite. The latest time before ``i`` is ``t[i - 1]``
+    except from a backward step until the stamps pass the time before it again:
+    with few backsteps only these stretches are looked at (at once while they
+    end within 16 samples), else (or with non-finite times) the running maximum
+    of the log is formed.
+    """
+    if not back.size:
+        return back[:0], zero
+    if not finite:
+        with np.errstate(all="ignore"):
+            finite = bool(np.isfinite(np.add.reduce(steps)))  # all finite (or inf - inf: the slow way too)
+    if back.size > _LOCAL_BACKSTEPS or not finite:
         prev_max = np.maximum.accumulate(t)[:-1]
-        ooo = np.flatnonzero(t[1:] < prev_max) + 1
-        dup = np.flatnonzero(t[1:] == prev_max) + 1
-    else:
-        ooo = dup = np.zeros(0, dtype=np.int64)
+        return np.flatnonzero(t[1:] < prev_max) + 1, np.flatnonzero(t[1:] == prev_max) + 1
+    n = t.size
+    top = t[back - 1]                      # the latest time before a backstep that starts a stretch
+    win = t[np.minimum(back[:, None] + np.arange(16), n - 1)]
+    hit = win > top[:, None]
+    first = hit.argmax(axis=1)
+    found = hit[np.arange(back.size), first].tolist()
+    stretch, stops, end = [], [], 0
+    for i, (b, j) in enumerate(zip(back.tolist(), first.tolist())):
+        if b >= end:                       # not within the stretch of an earlier backstep
+            end = b + j if found[i] else _stretch_end(t, b, float(top[i]))
+            stretch.append(i)
+            stops.append(end)
+    sel, start, stop = np.array(stretch), back[stretch], np.array(stops)
+    span = stop - start
+    short = span <= 16
+    ooo, dup = [], []
+    if short.any():                        # positions of the short stretches, row by row: in order
+        w, tp = win[sel[short]], top[sel[short], None]
+        inside = np.arange(16) < span[short, None]
+        for part, mask in ((ooo, w < tp), (dup, w == tp)):
+            r, c = np.nonzero(mask & inside)
+            part.append(start[short][r] + c)
+    for i in np.flatnonzero(~short).tolist():
+        seg = t[start[i]:stop[i]]
+        ooo.append(np.flatnonzero(seg < top[sel[i]]) + start[i])
+        dup.append(np.flatnonzero(seg == top[sel[i]]) + start[i])
+    j = np.searchsorted(start, zero, side="right") - 1   # a repeated time outside the stretches: a duplicate
+    dup.append(zero[(j < 0) | (zero >= stop[np.maximum(j, 0)])])
+    return np.sort(np.concatenate(ooo)), np.sort(np.concatenate(dup))
+
+
+def _order(t: np.ndarray, policy: str, steps: np.ndarray, finite: bool = False):
+    """(backsteps, out-of-order, duplicates, keep) positions under ``policy`` (not retime).
+
+    ``keep`` is None under ``"drop"`` (see :func:`_kept`); ``finite``: ``t`` is known to be finite.
+    """
+    cand = np.flatnonzero(steps <= 0)
+    neg = steps[cand] < 0
+    back = cand[neg] + 1
+    ooo, dup = _ooo_dup(t, steps, back, cand[~neg] + 1, finite)
     if policy == "sort":
         order = np.argsort(t, kind="stable")
         ts = t[order]
-        first = np.ones(n, dtype=bool)
+        first = np.ones(t.size, dtype=bool)
         first[1:] = ts[1:] != ts[:-1]
-        return steps, back, ooo, np.sort(order[~first]), order[first]
+        return back, ooo, np.sort(order[~first]), order[first]
+    return back, ooo, dup, None
+
+
+def _kept(n: int, ooo: np.ndarray, dup: np.ndarray) -> np.ndarray:
+    """Positions kept under ``"drop"``: all but the out-of-order and duplicate ones."""
     bad = np.zeros(n, dtype=bool)
     bad[ooo] = True
     bad[dup] = True
-    return steps, back, ooo, dup, np.flatnonzero(~bad)
+    return np.flatnonzero(~bad)
 
 
-def _gaps(tk, keep, index, report, gaps, gap_factor, gap_threshold, src, row_lines) -> None:
-    dk = np.diff(tk)
-    report.median_step = float(np.median(dk))
+def _gaps(tk, dk, out_rows, report, gaps, gap_factor, gap_threshold, src, row_lines) -> None:
+    report.median_step = median(dk)
     thr = float(gap_threshold) if gap_threshold is not None else gap_factor * report.median_step
     report.gap_threshold = thr
     g = np.flatnonzero(dk > thr)
     report.gap_out_index = g.astype(np.int64)
-    report.gap_index = index[keep[g]]
+    report.gap_index = out_rows(g)
     report.gap_start = tk[g]
     report.gap_length = dk[g]
     if g.size:
@@ -344,6 +577,17 @@ def check_timestamps(t: np.ndarray, policy: Policy = "retime", *, gaps: Action |
         ``policy="strict"`` and the times are not strictly increasing, or
         ``gaps="raise"`` and there is a gap.
     """
+    keep, t_out, report = _check_timestamps(t, policy, gaps, gap_factor, gap_threshold, source, index, report,
+                                            warn, row_lines)
+    return (np.arange(t_out.size) if keep is None else keep), t_out, report
+
+
+def _check_timestamps(t, policy, gaps, gap_factor, gap_threshold, source, index, report, warn, row_lines,
+                      finite: bool = False) -> tuple[np.ndarray | None, np.ndarray, ValidationReport]:
+    """:func:`check_timestamps`, with ``keep`` None when every sample is kept in order.
+
+    ``finite``: the times are known to be finite (validated).
+    """
     check_choice("policy", policy, POLICIES)
     gaps = gaps if gaps is not None else ("raise" if policy == "strict" else "warn")
     check_choice("gaps", gaps, ACTIONS)
@@ -352,28 +596,34 @@ def check_timestamps(t: np.ndarray, policy: Policy = "retime", *, gaps: Action |
     t = np.asarray(t, dtype=float)
     if t.ndim != 1:
         raise ValueError(f"timestamps must be 1-D, got shape {t.shape}")
-    consecutive = index is None
-    index = np.arange(t.size) if index is None else np.asarray(index, dtype=np.int64)
+    index = None if index is None else np.asarray(index, dtype=np.int64)
+
+    def rows(pos: np.ndarray) -> np.ndarray:
+        return _rows(pos, index)
+
     if report is None:
         report = ValidationReport(source=source, policy=policy, n_in=int(t.size))
     report.policy = policy
     src = source or "<timestamps>"
     n = t.size
-    steps, back, ooo, dup, keep = _order(t, "sort" if policy == "sort" else "drop")
-    report.backstep_index = index[back]
+    steps = t[1:] - t[:-1]
+    back, ooo, dup, keep = _order(t, "sort" if policy == "sort" else "drop", steps, finite)
+    report.backstep_index = rows(back)
     report.backstep_size = steps[back - 1]
-    report.out_of_order_index = index[ooo]
-    report.duplicate_index = index[dup]
+    report.out_of_order_index = rows(ooo)
+    report.duplicate_index = rows(dup)
+    dk: np.ndarray | None = None
     if ooo.size or dup.size:
-        what = f"{src}: " + _order_message(src, t, index, back, steps, ooo, dup, row_lines)
+        what = f"{src}: " + _order_message(src, t, rows, back, steps, ooo, dup, row_lines)
         if policy == "strict":
             msg = f"{src}: timestamps not strictly increasing: {what[len(src) + 2:]}"
             report.issues.append(msg)
             raise ImuValidationError(msg + " (policy='strict'; {hint} retimes them on the sample index, "
                                            "'drop' or 'sort' also accepted)", option="policy", value="retime")
-        new_t = _apply_retime(t, index, report, consecutive) if policy == "retime" else None
+        # the raw steps are not used again: their array may hold the retimed ones
+        new_t, dk = _apply_retime(t, index, report, steps) if policy == "retime" else (None, None)
         if new_t is not None:
-            keep, t_out = np.arange(n), new_t
+            keep, t_out = None, new_t
             kind, where = row_names(report.retime_dropout_index, row_lines)
             gaps_kept = f"{len(where)} dropout(s) kept as gaps (before {kind}s {fmt_list(where)})" if where \
                 else "no dropout"
@@ -387,15 +637,22 @@ def check_timestamps(t: np.ndarray, policy: Policy = "retime", *, gaps: Action |
             msg = (f"{what}; {' and '.join(acts)}, {keep.size} of {n} samples kept "
                    f"(policy='sort', report in meta['validation'])")
         else:
+            keep = _kept(n, ooo, dup)
             why = f" (not retimed: {report.retime_note})" if policy == "retime" else ""
             msg = (f"{what}; dropped {n - keep.size} of {n} samples{why} "
                    f"(policy={policy!r}, report in meta['validation'])")
         act("warn" if warn else "ignore", msg, TimestampWarning, report)
         t_out = new_t if new_t is not None else t[keep]
-    else:
-        t_out = t.copy()                # nothing out of order: every sample kept, in order
+    else:                               # nothing out of order: every sample kept, in order
+        keep, t_out, dk = (keep if policy == "sort" else None), t.copy(), steps
     if t_out.size > 1:
-        _gaps(t_out, keep, index, report, gaps, gap_factor, gap_threshold, src, row_lines)
+        kept = keep
+
+        def out_rows(g: np.ndarray) -> np.ndarray:
+            return rows(g if kept is None else kept[g])
+
+        _gaps(t_out, t_out[1:] - t_out[:-1] if dk is None else dk, out_rows, report, gaps, gap_factor,
+              gap_threshold, src, row_lines)
     elif gap_threshold is not None:
         report.gap_threshold = float(gap_threshold)
     return keep, t_out, report

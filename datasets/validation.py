@@ -48,11 +48,13 @@ from .timestamps import (
     POLICIES,
     Action,
     Policy,
+    _check_timestamps,
     act,
     check_choice,
     check_timestamps,
     fmt_list,
 )
+from .unit_checks import median
 
 #: The readers' helpers of :mod:`~imu_ground.datasets.report` that are not re-exported here.
 _READER_HELPERS = ("row_names", "warn_user")
@@ -65,36 +67,127 @@ _NONFINITE = ("raise", "drop")
 RATE_RANGE = (1.0, 2000.0)
 
 
-def _longest_run(flags: np.ndarray, t: np.ndarray) -> tuple[float, int]:
-    """Longest time span of consecutive True flags (vectorised); (duration s, first index)."""
+def _longest_run(flags: np.ndarray, t: np.ndarray, step: float) -> tuple[float, int]:
+    """Longest time span of consecutive True flags (vectorised); (duration s, first index).
+
+    ``step`` is the median time step (0 for a single sample).
+    """
     if not flags.any():
         return 0.0, -1
     padded = np.concatenate(([0], flags.astype(np.int8), [0]))
     edges = np.diff(padded)
     starts = np.flatnonzero(edges == 1)
     ends = np.flatnonzero(edges == -1) - 1  # inclusive
-    step = float(np.median(np.diff(t))) if t.size > 1 else 0.0
     durations = t[ends] - t[starts] + step
     k = int(np.argmax(durations))
     return float(durations[k]), int(starts[k])
 
 
-def _norm(v: np.ndarray) -> np.ndarray:
-    """Row norms of an (N, 3) array (einsum: one pass, no (N, 3) temporary)."""
-    return np.sqrt(np.einsum("ij,ij->i", v, v))
+_EINSUM_ORDER: list[bool] = []          # whether np.einsum("ij,ij->i") sums (x0*x0 + x2*x2) + x1*x1 here
 
 
-def _nonfinite(imu: ImuData, report: ValidationReport, nonfinite: str, warn: bool, row_lines) -> np.ndarray:
-    """Rows to keep (finite t, gyro, accel); raise or warn about the others."""
+def _pairs_first_and_last(v: np.ndarray, out: np.ndarray, buf: np.ndarray) -> np.ndarray:
+    """``(x0*x0 + x2*x2) + x1*x1`` of each row of ``v`` (N, 3) into ``out`` (N,); ``buf`` (N, 3) scratch."""
+    np.multiply(v, v, out=buf)
+    np.add(buf[:, 0], buf[:, 2], out=out)
+    out += buf[:, 1]
+    return out
+
+
+def _einsum_order() -> bool:
+    """Whether ``np.einsum("ij,ij->i", v, v)`` adds ``(x0*x0 + x2*x2) + x1*x1`` here (checked once, on random rows)."""
+    if not _EINSUM_ORDER:
+        q = np.random.default_rng(0).standard_normal((256, 3)) * np.exp(np.random.default_rng(1).normal(0, 3, (256, 3)))
+        _EINSUM_ORDER.append(bool(np.array_equal(np.einsum("ij,ij->i", q, q),
+                                                 _pairs_first_and_last(q, np.empty(256), np.empty((256, 3))))))
+    return _EINSUM_ORDER[0]
+
+
+def _sq_norms(v: np.ndarray, out: np.ndarray | None = None, buf: np.ndarray | None = None) -> np.ndarray:
+    """Squared row norms of an (N, 3) array, the same values as ``np.einsum("ij,ij->i", v, v)``.
+
+    einsum spends most of its time stepping through rows of three; the same
+    sums in the order its kernel adds them run as whole-array products (einsum
+    itself where that order is not the one found here). ``out`` (N,) and ``buf``
+    (N, 3): scratch for a block of rows.
+    """
+    if not (_einsum_order() and v.ndim == 2 and v.shape[1] == 3 and v.dtype == np.float64
+            and v.flags.c_contiguous):
+        return np.einsum("ij,ij->i", v, v)
+    n = v.shape[0]
+    with np.errstate(all="ignore"):         # as einsum: overflow to inf without a warning
+        return _pairs_first_and_last(v, np.empty(n) if out is None else out[:n],
+                                     np.empty((n, 3)) if buf is None else buf[:n])
+
+
+class _RowStats:
+    """What the checks need of the rows' squared norms, found block by block (no whole-log arrays).
+
+    Attributes
+    ----------
+    total : float
+        Sum of all squared norms (finite iff every gyro and accel value is, unless it overflows).
+    top : float
+        Largest squared rate (sqrt is monotone: its root is the largest rate).
+    n_rest : int
+        Rows at rest (squared rate below ``rest_bound``; -1 without a bound).
+    rest_accel : ndarray
+        Squared specific forces of those rows, in order.
+    """
+
+    def __init__(self, gyro: np.ndarray, accel: np.ndarray, rest_bound: float | None, block: int = 1 << 15) -> None:
+        n = gyro.shape[0]
+        sums, tops, rest = [], [], []
+        sg_buf, sa_buf, buf = np.empty(min(n, block)), np.empty(min(n, block)), np.empty((min(n, block), 3))
+        with np.errstate(all="ignore"):
+            for lo in range(0, n, block):
+                sg = _sq_norms(gyro[lo:lo + block], sg_buf, buf)
+                sa = _sq_norms(accel[lo:lo + block], sa_buf, buf)
+                sums.append(sg.sum() + sa.sum())
+                tops.append(sg.max())
+                if rest_bound is not None:
+                    rest.append(sa[sg < rest_bound])
+            self.total = float(np.sum(sums))
+        self.top = float(np.max(tops)) if tops else float("nan")
+        self.rest_accel = np.concatenate(rest) if rest else np.zeros(0)
+        self.n_rest = self.rest_accel.size if rest_bound is not None else -1
+
+
+def _sqrt_below(limit: float) -> float | None:
+    """The least ``s`` with ``sqrt(s) >= limit`` (so ``sqrt(x) < limit`` iff ``x < s``); None if not found.
+
+    The square root is monotone and correctly rounded, so this bound stands for
+    any ``x``; it is found from ``limit**2`` by stepping to neighbouring floats.
+    """
+    if not 1e-150 < limit < 1e150:               # (its square a normal float)
+        return None
+    s = np.float64(limit) * np.float64(limit)
+    for _ in range(8):
+        below = np.nextafter(s, -np.inf)
+        if np.sqrt(s) >= limit and not np.sqrt(below) >= limit:
+            return float(s)
+        s = below if np.sqrt(below) >= limit else np.nextafter(s, np.inf)
+    return None
+
+
+def _nonfinite(imu: ImuData, report: ValidationReport, nonfinite: str, warn: bool, row_lines,
+               sq_total: float) -> np.ndarray | None:
+    """Rows to keep (finite t, gyro, accel), None for all; raise or warn about the others.
+
+    ``sq_total``: the sum of the gyro and accel rows' squared norms (finite: all values are).
+    """
     names = ["t", "wx", "wy", "wz", "ax", "ay", "az"]
-    if np.isfinite(imu.t.sum() + imu.gyro.sum() + imu.accel.sum()):  # fast path: a sum is finite iff all are
-        return np.arange(len(imu))
+    t_sum = imu.t.sum()
+    with np.errstate(all="ignore"):
+        fast = np.isfinite(t_sum + sq_total)  # fast path: a sum is finite iff all terms are
+    if fast or np.isfinite(t_sum + imu.gyro.sum() + imu.accel.sum()):  # (as before, with its warnings)
+        return None
     finite = np.column_stack([np.isfinite(imu.t), np.isfinite(imu.gyro), np.isfinite(imu.accel)])
     row_ok = finite.all(axis=1)
     rows = np.flatnonzero(~row_ok)
     report.nonfinite_index = rows
     if not rows.size:
-        return np.arange(len(imu))
+        return None
     src = imu.source or "<ImuData>"
     counts = (~finite).sum(axis=0)
     report.nonfinite_columns = {nm: int(c) for nm, c in zip(names, counts) if c}
@@ -117,31 +210,41 @@ def _nonfinite(imu: ImuData, report: ValidationReport, nonfinite: str, warn: boo
     return np.flatnonzero(row_ok)
 
 
-def _units(report, t, gyro, accel, keep, units, src, gyro_limit, gyro_min_duration, accel_tol, rest_gyro,
+def _units(report, t, gyro, accel, stats, keep, units, src, gyro_limit, gyro_min_duration, accel_tol, rest_gyro,
            row_lines) -> None:
-    """Magnitude checks of the cleaned data (rate, gyro, specific force)."""
+    """Magnitude checks of the cleaned data (rate, gyro, specific force); ``stats``: their :class:`_RowStats`.
+
+    The norms' square roots are taken where needed: sqrt is monotone, so the
+    largest and middle norms are the roots of the largest and middle squares.
+    """
+    step = 0.0
     if t.size > 1:
         # the gap check's median step of these same times, when it ran (one median of the log, not two)
-        step = report.median_step if np.isfinite(report.median_step) else float(np.median(np.diff(t)))
+        step = report.median_step if np.isfinite(report.median_step) else median(t[1:] - t[:-1])
         if step > 0 and not RATE_RANGE[0] <= 1.0 / step <= RATE_RANGE[1]:
             act(units, f"{src}: median time step {step:.6g} s ({1 / step:.6g} Hz) is outside the plausible IMU "
                        f"rates {RATE_RANGE[0]:g}-{RATE_RANGE[1]:g} Hz: is the time column in another unit? "
                        f"(pass {{hint}})", UnitsWarning, report, option="time_unit")
-    wn = _norm(gyro)
-    report.gyro_max_norm = float(wn.max())
-    over = wn > gyro_limit
-    dur, first = _longest_run(over, t)
+    report.gyro_max_norm = float(np.sqrt(stats.top))
+    over = None
+    dur, first = 0.0, -1
+    if report.gyro_max_norm > gyro_limit:       # some sample above the limit (else no run of them)
+        over = np.sqrt(_sq_norms(gyro)) > gyro_limit
+        dur, first = _longest_run(over, t, step)
     report.gyro_sustained = dur
     if dur >= gyro_min_duration:
-        kind, where = row_names(keep[[first]], row_lines)
+        if over is None:
+            over = np.sqrt(_sq_norms(gyro)) > gyro_limit
+        kind, where = row_names(np.array([range(t.size)[first]]) if keep is None else keep[[first]], row_lines)
         act(units, f"{src}: angular rate above {gyro_limit:g} rad/s for {dur:.3g} s from {kind} {where[0]} "
-                   f"(t={t[first]:.6f} s), max {wn.max():.4g}: implausible for a car in rad/s; is the gyro "
-                   f"in deg/s? (pass {{hint}}; {int(over.sum())} samples above)", UnitsWarning, report,
+                   f"(t={t[first]:.6f} s), max {report.gyro_max_norm:.4g}: implausible for a car in rad/s; is "
+                   f"the gyro in deg/s? (pass {{hint}}; {int(over.sum())} samples above)", UnitsWarning, report,
             option="gyro_unit", value="deg/s")
-    an = _norm(accel)
-    rest = wn < rest_gyro
-    at_rest = int(rest.sum()) >= 10
-    med = float(np.median(an[rest] if at_rest else an))
+    rest_accel = stats.rest_accel
+    if stats.n_rest < 0:                         # no bound on the squares: the rates themselves
+        rest_accel = _sq_norms(accel)[np.sqrt(_sq_norms(gyro)) < rest_gyro]
+    at_rest = rest_accel.size >= 10
+    med = median(rest_accel if at_rest else _sq_norms(accel), sqrt=True)
     report.accel_median_norm = med
     report.accel_norm_at_rest = at_rest
     g = STANDARD_GRAVITY
@@ -233,27 +336,32 @@ def validate(imu: ImuData, policy: Policy = "retime", *,
     if n == 0:
         report.issues.append(f"{src}: no samples (empty log)")
         raise ImuValidationError(report.issues[-1])
-    good = _nonfinite(imu, report, nonfinite, warn, row_lines)
-    every_row = good.size == n                  # nothing dropped: the rows are 0, 1, 2, ... as they are
-    keep_pos, t, _ = check_timestamps(imu.t if every_row else imu.t[good], policy, gaps=gaps,
-                                      gap_factor=gap_factor, gap_threshold=gap_threshold, source=src,
-                                      index=None if every_row else good, report=report, warn=warn,
-                                      row_lines=row_lines)
-    keep = keep_pos if every_row else good[keep_pos]
-    dropped = np.ones(n, dtype=bool)
-    dropped[keep] = False
-    report.dropped_index = np.flatnonzero(dropped)
-    report.n_out = int(keep.size)
-    if keep.size < max(min_samples, 1):
-        report.issues.append(f"{src}: {keep.size} sample(s) left after cleaning ({n} read), "
+    rest_bound = _sqrt_below(rest_gyro)
+    stats = _RowStats(imu.gyro, imu.accel, rest_bound)
+    good = _nonfinite(imu, report, nonfinite, warn, row_lines, stats.total)  # None: every row
+    # (the times left are finite)
+    keep_pos, t, _ = _check_timestamps(imu.t if good is None else imu.t[good], policy, gaps, gap_factor,
+                                       gap_threshold, src, good, report, warn, row_lines, finite=True)
+    # input rows kept, in output order (None: every row, in order)
+    keep = (good if keep_pos is None else good[keep_pos]) if good is not None else keep_pos
+    n_out = n if keep is None else int(keep.size)
+    if n_out == n:                      # keep holds distinct rows: all of them
+        report.dropped_index = np.zeros(0, dtype=np.intp)
+    else:
+        dropped = np.ones(n, dtype=bool)
+        dropped[keep] = False
+        report.dropped_index = np.flatnonzero(dropped)
+    report.n_out = n_out
+    if n_out < max(min_samples, 1):
+        report.issues.append(f"{src}: {n_out} sample(s) left after cleaning ({n} read), "
                              f"need at least {max(min_samples, 1)}")
         raise ImuValidationError(report.issues[-1])
     # every row kept in order (only "sort" can keep them all in another order)
-    same = keep.size == n and (policy != "sort" or bool((keep == np.arange(n)).all()))
+    same = keep is None or (n_out == n and (policy != "sort" or bool((keep == np.arange(n)).all())))
     gyro = imu.gyro if same else imu.gyro[keep]
     accel = imu.accel if same else imu.accel[keep]
-    _units(report, t, gyro, accel, keep, units, src, gyro_limit, gyro_min_duration, accel_tol, rest_gyro,
-           row_lines)
+    _units(report, t, gyro, accel, stats if same else _RowStats(gyro, accel, rest_bound), keep, units, src,
+           gyro_limit, gyro_min_duration, accel_tol, rest_gyro, row_lines)
     extra = imu.extra if same or not len(imu.extra) else imu.extra.iloc[keep].reset_index(drop=True)
     meta: dict[str, Any] = dict(imu.meta)
     meta["validation"] = report
