@@ -11,13 +11,8 @@ import warnings
 
 import numpy as np
 import pytest
-from imu_ground.datasets.timestamps import (
-    _Clock,
-    _ooo_dup,
-    _seq_sum,
-    check_timestamps,
-    retime,
-)
+from imu_ground.datasets.retime import _Clock, _seq_sum, retime
+from imu_ground.datasets.timestamps import _ooo_dup, check_timestamps
 from imu_ground.datasets.unit_checks import _running_median, median
 from imu_ground.datasets.validation import _RowStats, _sq_norms, _sqrt_below, validate
 
