@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .numeric_csv import _stack_layout, parse_numeric
+from .numeric_csv import _stack_layout, line_cuts, parse_numeric
 from .report import MalformedFileError
 
 __all__ = ["Columns", "RowLines", "first_nonnumber", "locate_bad_lines", "numeric", "open_binary", "read_delimited",
@@ -200,21 +200,9 @@ def _piece_offsets(path: Path, piece: int) -> list[int]:
     The first piece (with the header, parsed before the others start, for the
     column names) is at most :data:`FIRST_PIECE_BYTES`.
     """
-    size = path.stat().st_size
-    offsets = [0]
     with open(path, "rb") as f:
-        f.readline()                    # the header stays in the first piece
-        pos = max(f.tell(), min(piece, FIRST_PIECE_BYTES))
-        while pos < size:
-            f.seek(pos)
-            f.readline()
-            pos = f.tell()
-            if pos >= size:
-                break
-            offsets.append(pos)
-            pos += piece
-    offsets.append(size)
-    return offsets
+        header = len(f.readline())      # the header stays in the first piece
+    return line_cuts(path, 0, max(header, min(piece, FIRST_PIECE_BYTES)), piece)
 
 
 class _PieceReader(io.RawIOBase):

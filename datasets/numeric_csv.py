@@ -28,7 +28,7 @@ import numpy as np
 
 from imu_ground._native import load_native
 
-__all__ = ["parse_numeric"]
+__all__ = ["line_cuts", "parse_numeric"]
 
 #: The compiled kernel (None: not built, or switched off by IMU_GROUND_PURE_PYTHON).
 _native = load_native("imu_ground.datasets._csv_native")
@@ -63,11 +63,16 @@ def _header(path: Path, sep: str) -> tuple[list[str], int] | None:
     return names, len(head)
 
 
-def _pieces(path: Path, start: int, size: int, piece: int) -> list[tuple[int, int]]:
-    """[start, size) cut into pieces of about ``piece`` bytes, each ending after a ``\\n`` (or at the end)."""
+def line_cuts(path: Path, start: int, first: int, piece: int) -> list[int]:
+    """Byte offsets from ``start`` to the file's end, each other one just after a ``\\n``, about ``piece`` apart.
+
+    The first cut after ``start`` ends the line holding byte ``first``; each
+    next one the line holding the byte ``piece`` further on.
+    """
+    size = path.stat().st_size
     cuts = [start]
     with open(path, "rb") as f:
-        pos = start + piece
+        pos = first
         while pos < size:
             f.seek(pos)
             f.readline()
@@ -77,7 +82,7 @@ def _pieces(path: Path, start: int, size: int, piece: int) -> list[tuple[int, in
             cuts.append(pos)
             pos += piece
     cuts.append(size)
-    return list(itertools.pairwise(cuts))
+    return cuts
 
 
 def _stack_layout(names: list[str], stack: Mapping[str, Sequence[str]] | None,
@@ -128,8 +133,8 @@ def parse_numeric(path: Path, sep: str, stack: Mapping[str, Sequence[str]] | Non
     names, start = head
     # one thread on Windows: its read is a seek and a read on the shared descriptor (no pread)
     threads = threads if size >= parallel_min_bytes and os.name != "nt" else 1
-    step = min(piece_bytes, max(piece_bytes // 4, size // (4 * threads)))
-    pieces = _pieces(path, start, size, max(step, 1))
+    step = max(1, min(piece_bytes, max(piece_bytes // 4, size // (4 * threads))))
+    pieces = list(itertools.pairwise(line_cuts(path, start, start + step, step)))
     fd = os.open(path, os.O_RDONLY | getattr(os, "O_BINARY", 0))
     pool = None
     try:
