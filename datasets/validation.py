@@ -83,41 +83,9 @@ def _longest_run(flags: np.ndarray, t: np.ndarray, step: float) -> tuple[float, 
     return float(durations[k]), int(starts[k])
 
 
-_EINSUM_ORDER: list[bool] = []          # whether np.einsum("ij,ij->i") sums (x0*x0 + x2*x2) + x1*x1 here
-
-
-def _pairs_first_and_last(v: np.ndarray, out: np.ndarray, buf: np.ndarray) -> np.ndarray:
-    """``(x0*x0 + x2*x2) + x1*x1`` of each row of ``v`` (N, 3) into ``out`` (N,); ``buf`` (N, 3) scratch."""
-    np.multiply(v, v, out=buf)
-    np.add(buf[:, 0], buf[:, 2], out=out)
-    out += buf[:, 1]
-    return out
-
-
-def _einsum_order() -> bool:
-    """Whether ``np.einsum("ij,ij->i", v, v)`` adds ``(x0*x0 + x2*x2) + x1*x1`` here (checked once, on random rows)."""
-    if not _EINSUM_ORDER:
-        q = np.random.default_rng(0).standard_normal((256, 3)) * np.exp(np.random.default_rng(1).normal(0, 3, (256, 3)))
-        _EINSUM_ORDER.append(bool(np.array_equal(np.einsum("ij,ij->i", q, q),
-                                                 _pairs_first_and_last(q, np.empty(256), np.empty((256, 3))))))
-    return _EINSUM_ORDER[0]
-
-
-def _sq_norms(v: np.ndarray, out: np.ndarray | None = None, buf: np.ndarray | None = None) -> np.ndarray:
-    """Squared row norms of an (N, 3) array, the same values as ``np.einsum("ij,ij->i", v, v)``.
-
-    einsum spends most of its time stepping through rows of three; the same
-    sums in the order its kernel adds them run as whole-array products (einsum
-    itself where that order is not the one found here). ``out`` (N,) and ``buf``
-    (N, 3): scratch for a block of rows.
-    """
-    if not (_einsum_order() and v.ndim == 2 and v.shape[1] == 3 and v.dtype == np.float64
-            and v.flags.c_contiguous):
-        return np.einsum("ij,ij->i", v, v)
-    n = v.shape[0]
-    with np.errstate(all="ignore"):         # as einsum: overflow to inf without a warning
-        return _pairs_first_and_last(v, np.empty(n) if out is None else out[:n],
-                                     np.empty((n, 3)) if buf is None else buf[:n])
+def _sq_norms(v: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """Squared row norms of an (N, 3) array (einsum: one pass, no (N, 3) temporary); ``out`` (>= N,): scratch."""
+    return np.einsum("ij,ij->i", v, v, out=None if out is None else out[:v.shape[0]])
 
 
 class _RowStats:
@@ -138,11 +106,11 @@ class _RowStats:
     def __init__(self, gyro: np.ndarray, accel: np.ndarray, rest_bound: float | None, block: int = 1 << 15) -> None:
         n = gyro.shape[0]
         sums, tops, rest = [], [], []
-        sg_buf, sa_buf, buf = np.empty(min(n, block)), np.empty(min(n, block)), np.empty((min(n, block), 3))
+        sg_buf, sa_buf = np.empty(min(n, block)), np.empty(min(n, block))
         with np.errstate(all="ignore"):
             for lo in range(0, n, block):
-                sg = _sq_norms(gyro[lo:lo + block], sg_buf, buf)
-                sa = _sq_norms(accel[lo:lo + block], sa_buf, buf)
+                sg = _sq_norms(gyro[lo:lo + block], sg_buf)
+                sa = _sq_norms(accel[lo:lo + block], sa_buf)
                 sums.append(sg.sum() + sa.sum())
                 tops.append(sg.max())
                 if rest_bound is not None:

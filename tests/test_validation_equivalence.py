@@ -14,7 +14,7 @@ import pytest
 from imu_ground.datasets.retime import _Clock, _seq_sum, retime
 from imu_ground.datasets.timestamps import _ooo_dup, check_timestamps
 from imu_ground.datasets.unit_checks import _running_median, median
-from imu_ground.datasets.validation import _RowStats, _sq_norms, _sqrt_below, validate
+from imu_ground.datasets.validation import _RowStats, _sqrt_below, validate
 
 from imu_ground.imu.data import ImuData
 
@@ -271,15 +271,6 @@ def test_check_timestamps_retimes_as_the_whole_array_fit(seed):
 
 
 # --------------------------------------------------------------------------- units
-def test_squared_norms_are_einsums():
-    rng = np.random.default_rng(0)
-    for n in (1, 5, 40_000, 70_001):
-        v = rng.normal(size=(n, 3)) * np.exp(rng.normal(0, 4, (n, 3)))
-        assert np.array_equal(_sq_norms(v), np.einsum("ij,ij->i", v, v))
-    v = np.asfortranarray(rng.normal(size=(100, 3)))
-    assert np.array_equal(_sq_norms(v), np.einsum("ij,ij->i", v, v))
-
-
 def test_rest_bound_is_exact():
     rng = np.random.default_rng(2)
     for limit in (0.05, 1e-3, 0.1, 7.0, 1e5):
