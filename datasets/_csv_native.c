@@ -84,6 +84,31 @@ static int text_buffer(PyObject *obj, Py_buffer *view, Py_ssize_t n)
     return 0;
 }
 
+/* The descriptor, byte range and text buffer of a piece (args[0..3]: fd, start, stop, buf) into
+   fd, start, stop and bv: 0 with bv held (release it), or -1 with an exception set. */
+static int piece_args(PyObject *const *args, int *fd, long long *start, long long *stop, Py_buffer *bv)
+{
+    *fd = (int)PyLong_AsLong(args[0]);
+    *start = PyLong_AsLongLong(args[1]);
+    *stop = PyLong_AsLongLong(args[2]);
+    if (PyErr_Occurred())
+        return -1;
+    if (*stop < *start) {
+        PyErr_Format(PyExc_ValueError, "stop %lld before start %lld", *stop, *start);
+        return -1;
+    }
+    return text_buffer(args[3], bv, (Py_ssize_t)(*stop - *start));
+}
+
+/* The OSError of a failed read_range (err: its errno, 0 when the file ended first); NULL. */
+static PyObject *read_error(int err, long long stop)
+{
+    if (err == 0)
+        return PyErr_Format(PyExc_OSError, "the file ended before byte %lld", stop);
+    errno = err;
+    return PyErr_SetFromErrno(PyExc_OSError);
+}
+
 /* count_lines(fd, start, stop, buf) -> lines in the file's bytes [start, stop): its "\n"
    plus one when it does not end with "\n" (an unended last line); buf is scratch (n + 1 bytes). */
 static PyObject *py_count_lines(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
@@ -91,22 +116,20 @@ static PyObject *py_count_lines(PyObject *self, PyObject *const *args, Py_ssize_
     (void)self;
     if (!ig_check_nargs(nargs, 4, 4, "count_lines", "fd, start, stop, buf"))
         return NULL;
-    const int fd = (int)PyLong_AsLong(args[0]);
-    const long long start = PyLong_AsLongLong(args[1]), stop = PyLong_AsLongLong(args[2]);
-    if (PyErr_Occurred())
+    int fd;
+    long long start, stop;
+    Py_buffer bv;
+    if (piece_args(args, &fd, &start, &stop, &bv) < 0)
         return NULL;
     const Py_ssize_t n = (Py_ssize_t)(stop - start);
-    if (n < 0)
-        return PyErr_Format(PyExc_ValueError, "stop %lld before start %lld", stop, start);
-    Py_buffer bv;
-    if (text_buffer(args[3], &bv, n) < 0)
-        return NULL;
     char *buf = (char *)bv.buf;
     long long lines = 0;
-    int rc;
+    int rc, err = 0;
     Py_BEGIN_ALLOW_THREADS
     rc = read_range(fd, buf, n, start);
-    if (rc == 0) {
+    if (rc < 0) {
+        err = errno;
+    } else {
         const char *p = buf, *end = buf + n;
         while ((p = memchr(p, '\n', (size_t)(end - p))) != NULL) {
             lines++;
@@ -117,10 +140,7 @@ static PyObject *py_count_lines(PyObject *self, PyObject *const *args, Py_ssize_
     }
     Py_END_ALLOW_THREADS
     PyBuffer_Release(&bv);
-    if (rc < 0)
-        return errno ? PyErr_SetFromErrno(PyExc_OSError)
-                     : PyErr_Format(PyExc_OSError, "the file ended before byte %lld", stop);
-    return PyLong_FromLongLong(lines);
+    return rc < 0 ? read_error(err, stop) : PyLong_FromLongLong(lines);
 }
 
 /* Where one column's values go: dst[row * stride] (stride in doubles). */
@@ -131,7 +151,7 @@ typedef struct {
 
 /* Outcome of a piece's parse without the GIL: 0, or the failure and the offset (in the piece) it names. */
 typedef struct {
-    const char *why;
+    const char *why;                /* NULL: the read failed (io_errno: its errno, 0 for an early end of file) */
     Py_ssize_t at;
     int io_errno;
 } failure;
@@ -259,8 +279,6 @@ static PyObject *py_parse_piece(PyObject *self, PyObject *const *args, Py_ssize_
     (void)self;
     if (!ig_check_nargs(nargs, 9, 9, "parse_piece", "fd, start, stop, buf, sep, arrays, layout, row0, nrows"))
         return NULL;
-    const int fd = (int)PyLong_AsLong(args[0]);
-    const long long start = PyLong_AsLongLong(args[1]), stop = PyLong_AsLongLong(args[2]);
     const Py_ssize_t row0 = PyLong_AsSsize_t(args[7]), nrows = PyLong_AsSsize_t(args[8]);
     if (PyErr_Occurred())
         return NULL;
@@ -275,22 +293,25 @@ static PyObject *py_parse_piece(PyObject *self, PyObject *const *args, Py_ssize_
     const struct lconv *lc = localeconv();
     if (lc == NULL || lc->decimal_point == NULL || strcmp(lc->decimal_point, ".") != 0)
         return PyErr_Format(PyExc_ValueError, "the C library's decimal point is not '.' (locale)");
+    if (row0 < 0 || nrows < 0)
+        return PyErr_Format(PyExc_ValueError, "negative rows");
+    int fd;
+    long long start, stop;
+    Py_buffer bv, lv;
+    if (piece_args(args, &fd, &start, &stop, &bv) < 0)
+        return NULL;
     const Py_ssize_t n = (Py_ssize_t)(stop - start), narrays = PyTuple_GET_SIZE(args[5]);
-    if (n < 0 || row0 < 0 || nrows < 0)
-        return PyErr_Format(PyExc_ValueError, "negative range or rows");
 
     PyObject *result = NULL;
-    Py_buffer bv, lv;
     Py_buffer *views = PyMem_Calloc((size_t)(narrays > 0 ? narrays : 1), sizeof(Py_buffer));
     column_out *cols = NULL;
     unsigned char *flags = NULL;
     Py_ssize_t held = 0, ncols = 0;
-    int have_text = 0, have_layout = 0;
-    if (views == NULL)
-        return PyErr_NoMemory();
-    if (text_buffer(args[3], &bv, n) < 0)
+    int have_layout = 0;
+    if (views == NULL) {
+        PyErr_NoMemory();
         goto done;
-    have_text = 1;
+    }
     if (PyObject_GetBuffer(args[6], &lv, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0)
         goto done;
     have_layout = 1;
@@ -329,18 +350,15 @@ static PyObject *py_parse_piece(PyObject *self, PyObject *const *args, Py_ssize_
     Py_BEGIN_ALLOW_THREADS
     rc = read_range(fd, (char *)bv.buf, n, start);
     if (rc < 0) {
-        f.io_errno = errno ? errno : -1;
+        f.io_errno = errno;
     } else {
         ((char *)bv.buf)[n] = '\0';
         rc = parse_rows((const char *)bv.buf, n, sep, cols, ncols, row0, nrows, flags, flags + ncols, &f);
     }
     Py_END_ALLOW_THREADS
     if (rc < 0) {
-        if (f.io_errno > 0) {
-            errno = f.io_errno;
-            PyErr_SetFromErrno(PyExc_OSError);
-        } else if (f.io_errno < 0)
-            PyErr_Format(PyExc_OSError, "the file ended before byte %lld", stop);
+        if (f.why == NULL)
+            read_error(f.io_errno, stop);
         else
             PyErr_Format(PyExc_ValueError, "%s at byte %lld", f.why, start + (long long)f.at);
         goto done;
@@ -354,8 +372,7 @@ done:
     PyMem_Free(flags);
     if (have_layout)
         PyBuffer_Release(&lv);
-    if (have_text)
-        PyBuffer_Release(&bv);
+    PyBuffer_Release(&bv);
     return result;
 }
 
