@@ -18,6 +18,7 @@ parses the file with pandas, the path that owns every error message.
 """
 from __future__ import annotations
 
+import collections
 import itertools
 import os
 import threading
@@ -153,14 +154,16 @@ def parse_numeric(path: Path, sep: str, stack: Mapping[str, Sequence[str]] | Non
         if n == 0:
             return None
         into = _stack_layout(names, stack, lambda c: True)
+        width = collections.Counter(g for g, _ in into.values())     # stacked arrays: columns side by side
         arrays: dict[str, np.ndarray] = {}
-        layout = np.empty((len(names), 3), dtype=np.int64)
+        slot: dict[str, int] = {}
+        layout = np.empty((len(names), 3), dtype=np.int64)           # (array, first item, stride) a column
         for k, c in enumerate(names):
             key, j = into.get(c, (c, 0))
             if key not in arrays:
-                width = sum(1 for g, _ in into.values() if g == key) if c in into else 1
-                arrays[key] = np.empty((n, width)) if c in into else np.empty(n)
-            layout[k] = (list(arrays).index(key), j, arrays[key].shape[1] if arrays[key].ndim == 2 else 1)
+                slot[key] = len(arrays)
+                arrays[key] = np.empty((n, width[key])) if key in width else np.empty(n)
+            layout[k] = (slot[key], j, width.get(key, 1))
         targets = tuple(arrays.values())
         rows0 = np.concatenate([[0], np.cumsum(lines)[:-1]]).tolist()
         failed = threading.Event()
