@@ -12,13 +12,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .order_stats import BLOCK, _medians_near, _near, median
 from .report import ValidationReport
-from .unit_checks import _medians_near, _near, median
 
 __all__ = ["RetimeResult", "retime"]
-
-#: Samples per block of the passes over a whole log (a few such blocks stay in the CPU cache).
-_BLOCK = 1 << 15
 
 
 def _rows(pos: np.ndarray, index: np.ndarray | None) -> np.ndarray:
@@ -117,9 +114,9 @@ class _Clock:
             if cand.size <= n >> 4:
                 step = self.at(cand + 1) - self.at(cand)
                 return cand[np.abs(step) > 0.5]
-        buf, step, found = np.empty(min(n, _BLOCK + 1)), np.empty(min(n - 1, _BLOCK)), []
-        for lo in range(0, n - 1, _BLOCK):
-            hi = min(lo + _BLOCK, n - 1)
+        buf, step, found = np.empty(min(n, BLOCK + 1)), np.empty(min(n - 1, BLOCK)), []
+        for lo in range(0, n - 1, BLOCK):
+            hi = min(lo + BLOCK, n - 1)
             o = self.block(lo, hi + 1, buf)
             s = np.subtract(o[1:], o[:-1], out=step[:hi - lo])
             e = np.flatnonzero(np.abs(s, out=s) > 0.5)
@@ -136,9 +133,9 @@ class _Clock:
             d -= self.at(idx)
             return int(np.count_nonzero(np.abs(d, out=d) < 1.0))
         n, count = out.size, 0
-        b1, b2 = np.empty(min(n, _BLOCK)), np.empty(min(n, _BLOCK))
-        for lo in range(0, n, _BLOCK):
-            hi = min(lo + _BLOCK, n)
+        b1, b2 = np.empty(min(n, BLOCK)), np.empty(min(n, BLOCK))
+        for lo in range(0, n, BLOCK):
+            hi = min(lo + BLOCK, n)
             d = np.subtract(out[lo:hi], self.t0, out=b1[:hi - lo])
             d *= self.r
             d -= self.kblock(lo, hi)
@@ -150,9 +147,9 @@ class _Clock:
 def _seq_sum(x: np.ndarray) -> float:
     """Left-to-right float sum from 0.0 (as ``np.bincount`` adds its weights), block by block."""
     acc = np.float64(0.0)
-    buf = np.empty(min(x.size, _BLOCK))
-    for lo in range(0, x.size, _BLOCK):
-        c = x[lo:lo + _BLOCK]
+    buf = np.empty(min(x.size, BLOCK))
+    for lo in range(0, x.size, BLOCK):
+        c = x[lo:lo + BLOCK]
         first = c[0]
         c[0] = acc + first                # the running sum enters the block's first term
         acc = np.add.accumulate(c, out=buf[:c.size])[-1]
@@ -299,11 +296,11 @@ def _retime(t: np.ndarray, index: np.ndarray | None, window_s: float, min_inlier
     # the samples shifted by less than 0.999 dt (the smoothed offset is then within a sample of the clock)
     out, sq = kbuf, tbuf
     steps = np.empty(n - 1) if raw is None else raw
-    absd = np.empty(min(n, _BLOCK))
+    absd = np.empty(min(n, BLOCK))
     thr = 0.999 * dt
     close, far, top, lowest = 0, [], [], []
-    for lo in range(0, n, _BLOCK):
-        hi = min(lo + _BLOCK, n)
+    for lo in range(0, n, BLOCK):
+        hi = min(lo + BLOCK, n)
         o = np.multiply(clock.kblock(lo, hi), slope, out=out[lo:hi])
         for s_ in range(int(np.searchsorted(bounds, lo, "right")) - 1, int(np.searchsorted(bounds, hi - 1, "right"))):
             o[max(bounds[s_], lo) - lo:min(bounds[s_ + 1], hi) - lo] += icpt[s_]

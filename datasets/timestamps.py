@@ -20,6 +20,7 @@ from typing import Literal
 import numpy as np
 
 from .options import option_hint
+from .order_stats import median
 from .report import (
     GapWarning,
     ImuValidationError,
@@ -29,7 +30,6 @@ from .report import (
     warn_user,
 )
 from .retime import RetimeResult, _apply_retime, _rows, retime
-from .unit_checks import median
 
 __all__ = ["POLICIES", "Action", "Policy", "RetimeResult", "act", "check_timestamps", "fmt_list", "retime"]
 

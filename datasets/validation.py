@@ -35,6 +35,7 @@ import numpy as np
 from imu_ground.imu.data import ImuData
 
 from . import report as _report
+from .order_stats import median
 from .report import *  # re-exports the report's public names (errors, warnings, ValidationReport)
 from .report import (
     STANDARD_GRAVITY,
@@ -54,7 +55,6 @@ from .timestamps import (
     check_timestamps,
     fmt_list,
 )
-from .unit_checks import median
 
 #: The readers' helpers of :mod:`~imu_ground.datasets.report` that are not re-exported here.
 _READER_HELPERS = ("row_names", "warn_user")

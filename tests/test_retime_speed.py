@@ -1,8 +1,8 @@
-"""Retiming's running median (datasets/unit_checks.py) against its definition, windows at the ends included."""
+"""Retiming's running median (datasets/order_stats.py) against its definition, windows at the ends included."""
 import numpy as np
 import pytest
+from imu_ground.datasets.order_stats import _running_median
 from imu_ground.datasets.timestamps import retime
-from imu_ground.datasets.unit_checks import _running_median
 
 
 @pytest.mark.parametrize("seed", range(12))

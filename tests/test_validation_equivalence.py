@@ -11,9 +11,9 @@ import warnings
 
 import numpy as np
 import pytest
+from imu_ground.datasets.order_stats import _running_median, median
 from imu_ground.datasets.retime import _Clock, _seq_sum, retime
 from imu_ground.datasets.timestamps import _ooo_dup, check_timestamps
-from imu_ground.datasets.unit_checks import _running_median, median
 from imu_ground.datasets.validation import _RowStats, _sqrt_below, validate
 
 from imu_ground.imu.data import ImuData
