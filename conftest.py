@@ -30,6 +30,30 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(pytest.mark.shared)
 
 
+#: The shared kitti_imu100 drives whose GPS/INS reference is known to be unusable (named in
+#: ../shared/data/README.md); every other drive listed in ``drives.csv`` is expected to be valid.
+KITTI_FAULTY_DRIVES = frozenset({"2011_09_26_drive_0093", "2011_09_28_drive_0039"})
+
+
+@pytest.fixture(scope="session")
+def kitti_index(shared_data: Path):
+    """``kitti_imu100/drives.csv`` as a DataFrame: the one list of shared drives tests count from."""
+    import pandas as pd
+    return pd.read_csv(shared_data / "kitti_imu100" / "drives.csv")
+
+
+@pytest.fixture(scope="session")
+def kitti_faulty_names() -> frozenset:
+    """:data:`KITTI_FAULTY_DRIVES`, for tests (conftest is not importable under ``--import-mode=importlib``)."""
+    return KITTI_FAULTY_DRIVES
+
+
+@pytest.fixture(scope="session")
+def kitti_valid_names(kitti_index) -> list:
+    """Names of the drives of ``drives.csv`` whose reference should pass the evaluation's check."""
+    return [n for n in kitti_index["drive"] if n not in KITTI_FAULTY_DRIVES]
+
+
 @pytest.fixture(scope="session")
 def kitti_drives(shared_data: Path) -> list:
     """Every shared ``kitti_imu100`` drive with its reference, loaded once for the whole session

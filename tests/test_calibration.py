@@ -139,12 +139,12 @@ def test_file_round_trip_and_use(tmp_path, drive, cal):
 
 # ----------------------------------------------------------------------------- the KITTI platform
 @pytest.mark.shared
-def test_kitti_platform_self_calibration(kitti_drives):
-    """IMU-only calibration pooled over the 31 valid drives, then the filter with it."""
+def test_kitti_platform_self_calibration(kitti_drives, kitti_valid_names):
+    """IMU-only calibration pooled over the valid drives of drives.csv, then the filter with it."""
     from imu_ground.filters.ground import GroundNormalFilter
     from imu_ground.evaluation.metrics import evaluate_drive
     drives = [(d.egomotion, d.truth) for d in kitti_drives if d.valid]
-    assert len(drives) == 31
+    assert len(drives) == len(kitti_valid_names)
     c = calibrate([em for em, _ in drives])
     kp, kr = np.degrees(c.gains)
     assert -0.35 < kp < -0.25 and 0.45 < kr < 0.7              # -0.32, +0.57
@@ -156,7 +156,7 @@ def test_kitti_platform_self_calibration(kitti_drives):
                                               remove_mean=True)["pitch"]["mean"] for em, truth in drives])
     calibrated = score(lambda em: SuspensionAwareFilter.from_calibration(c).run(em).pitch)
     paper = score(lambda em: GroundNormalFilter.paper().run(em.delta_R).pitch)
-    assert calibrated < 0.15 < 0.2 < paper                      # 0.138 vs 0.221
+    assert calibrated < 0.7 * paper                              # against the published method, same drives
 
 
 def test_gain_with_impossible_sign_is_rejected_on_banked_roads():

@@ -236,7 +236,7 @@ def test_one_call_function(mems_drive):
 # ----------------------------------------------------------------------------- real data
 @pytest.fixture(scope="module")
 def kitti(kitti_drives):
-    """The 31 valid kitti_imu100 drives (the evaluation's loader), with the INS horizontal speed per frame."""
+    """The valid kitti_imu100 drives (the evaluation's loader), with the INS horizontal speed per frame."""
     drives, skipped = {}, {}
     for d in kitti_drives:
         if not d.valid:
@@ -256,10 +256,10 @@ def _kitti_scores(drives, method) -> pd.Series:
 
 
 @pytest.mark.shared
-def test_kitti_pitch_accuracy(kitti):
+def test_kitti_pitch_accuracy(kitti, kitti_valid_names, kitti_faulty_names):
     drives, skipped = kitti
-    assert len(drives) == 31
-    assert set(skipped) == {"2011_09_26_drive_0093", "2011_09_28_drive_0039"}
+    assert sorted(drives) == sorted(kitti_valid_names)
+    assert set(skipped) == kitti_faulty_names
     paper = _kitti_scores(drives, lambda em, v: GroundNormalFilter.paper().run(em.delta_R).pitch)
     stream = _kitti_scores(drives, lambda em, v: SuspensionAwareFilter().run(em).pitch)
     no_cross = _kitti_scores(drives, lambda em, v: SuspensionAwareFilter(cross_gain=0.0).run(em).pitch)
@@ -267,13 +267,14 @@ def test_kitti_pitch_accuracy(kitti):
     online = _kitti_scores(drives, lambda em, v: SuspensionAwareFilter(online_gains=True).run(em).pitch)
     offline = _kitti_scores(drives, lambda em, v: SuspensionAwareFilter().run(em, smooth=True).pitch)
     rts = _kitti_scores(drives, lambda em, v: SuspensionAwareFilter(smoother_weight=1.0).run(em, smooth=True).pitch)
-    assert 0.21 < paper.mean() < 0.23
-    assert stream.mean() <= 0.131 and stream.mean() < no_cross.mean() - 0.002     # the pitch from the lateral load
+    # against the published method on the same drives, whatever drives.csv lists
+    assert stream.mean() < 0.65 * paper.mean()
+    assert stream.mean() < no_cross.mean() - 0.002                                 # the pitch from the lateral load
     assert speed.mean() < stream.mean() - 0.001                                    # speed-aided
-    assert online.mean() <= 0.14                            # 0.134: close to, not better than, fixed gains
-    assert offline.mean() < stream.mean()                   # 0.131
+    assert online.mean() < 0.7 * paper.mean()               # close to, not better than, fixed gains
+    assert offline.mean() < stream.mean()
     # the pure RTS smoother is *worse* than the forward filter against this (causal INS) reference
-    assert stream.mean() < rts.mean() < 0.15                # 0.146
+    assert stream.mean() < rts.mean() < paper.mean()
     # per drive: no drive more than 10 % worse than the paper's filter (the worst: 2011_09_26_drive_0091,
     # slow driving where the INS reference drifts); benchmarks/tune_suspension.py prints the figures
     assert (stream / paper).max() <= 1.1 and (speed / paper).max() <= 1.1
