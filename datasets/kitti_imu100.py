@@ -170,7 +170,7 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
     gyro, accel = (cols.pop(k) if k in cols else np.column_stack([numeric(cols.pop(c), c, path, lines) for c in m])
                    for k, m in _STACKS.items())
     extra = pd.DataFrame({c: numeric(cols.pop(c), c, path, lines) for c in COLUMNS[7:]}, copy=False)
-    t -= t_first
+    t = t - t_first
     imu = ImuData(t, gyro, accel, "FLU", extra, dict(EXTRA_UNITS), str(path), meta)
     return finish(imu, validate=validate, policy=policy, **validate_kw)
 
