@@ -49,11 +49,13 @@ from .timestamps import (
     POLICIES,
     Action,
     Policy,
-    _check_timestamps,
     act,
     check_choice,
+    check_gaps,
     check_timestamps,
     fmt_list,
+    gap_action,
+    order_samples,
 )
 
 #: The readers' helpers of :mod:`~imu_ground.datasets.report` that are not re-exported here.
@@ -291,27 +293,60 @@ def validate(imu: ImuData, policy: Policy = "retime", *,
         (``policy="strict"``), or gaps / units with action ``"raise"``; the
         message names the option that changes the outcome.
     """
+    # the options, checked before any work
     check_choice("policy", policy, POLICIES)
     check_choice("nonfinite", nonfinite, _NONFINITE)
     units = units if units is not None else ("raise" if policy == "strict" else "warn")
     check_choice("units", units, ("warn", "raise", "ignore"))
     if not warn and units == "warn":
         units = "ignore"
+    gaps = gap_action(gaps, policy, warn)
     src = imu.source or "<ImuData>"
     row_lines = imu.meta.get("row_lines")
     n = len(imu)
     report = ValidationReport(source=imu.source, policy=policy, n_in=n, gyro_limit=gyro_limit)
+
+    # 1. empty input
     if n == 0:
         report.issues.append(f"{src}: no samples (empty log)")
         raise ImuValidationError(report.issues[-1])
+
+    # 2. non-finite values: raise, or the rows to keep (None: every row)
     rest_bound = _sqrt_below(rest_gyro)
     stats = _RowStats(imu.gyro, imu.accel, rest_bound)
-    good = _nonfinite(imu, report, nonfinite, warn, row_lines, stats.total)  # None: every row
-    # (the times left are finite)
-    keep_pos, t, _ = _check_timestamps(imu.t if good is None else imu.t[good], policy, gaps, gap_factor,
-                                       gap_threshold, src, good, report, warn, row_lines, finite=True)
-    # input rows kept, in output order (None: every row, in order)
+    good = _nonfinite(imu, report, nonfinite, warn, row_lines, stats.total)
+
+    # 3. time order under the policy (the times left are finite): positions of those rows kept, new times
+    keep_pos, t, steps = order_samples(imu.t if good is None else imu.t[good], policy, src, good, report, warn,
+                                       row_lines, finite=True)
+
+    # 4. gaps in the ordered times
+    check_gaps(t, steps, keep_pos, good, report, gaps, gap_factor, gap_threshold, src, row_lines)
+
+    # 5. input rows kept, in output order (None: every row, in order); enough of them?
     keep = (good if keep_pos is None else good[keep_pos]) if good is not None else keep_pos
+    _record_dropped(report, keep, n)
+    if report.n_out < max(min_samples, 1):
+        report.issues.append(f"{src}: {report.n_out} sample(s) left after cleaning ({n} read), "
+                             f"need at least {max(min_samples, 1)}")
+        raise ImuValidationError(report.issues[-1])
+
+    # 6. units and magnitudes of the rows kept
+    same = keep is None or (report.n_out == n and (policy != "sort" or bool((keep == np.arange(n)).all())))
+    gyro = imu.gyro if same else imu.gyro[keep]
+    accel = imu.accel if same else imu.accel[keep]
+    _units(report, t, gyro, accel, stats if same else _RowStats(gyro, accel, rest_bound), keep, units, src,
+           gyro_limit, gyro_min_duration, accel_tol, rest_gyro, row_lines)
+
+    # 7. the cleaned log, the report in its meta
+    extra = imu.extra if same or not len(imu.extra) else imu.extra.iloc[keep].reset_index(drop=True)
+    meta: dict[str, Any] = dict(imu.meta)
+    meta["validation"] = report
+    return ImuData(t, gyro, accel, imu.frame, extra, dict(imu.units), imu.source, meta), report
+
+
+def _record_dropped(report: ValidationReport, keep: np.ndarray | None, n: int) -> None:
+    """``dropped_index`` and ``n_out`` of the report from the input rows kept (None: all ``n``)."""
     n_out = n if keep is None else int(keep.size)
     if n_out == n:                      # keep holds distinct rows: all of them
         report.dropped_index = np.zeros(0, dtype=np.intp)
@@ -320,17 +355,3 @@ def validate(imu: ImuData, policy: Policy = "retime", *,
         dropped[keep] = False
         report.dropped_index = np.flatnonzero(dropped)
     report.n_out = n_out
-    if n_out < max(min_samples, 1):
-        report.issues.append(f"{src}: {n_out} sample(s) left after cleaning ({n} read), "
-                             f"need at least {max(min_samples, 1)}")
-        raise ImuValidationError(report.issues[-1])
-    # every row kept in order (only "sort" can keep them all in another order)
-    same = keep is None or (n_out == n and (policy != "sort" or bool((keep == np.arange(n)).all())))
-    gyro = imu.gyro if same else imu.gyro[keep]
-    accel = imu.accel if same else imu.accel[keep]
-    _units(report, t, gyro, accel, stats if same else _RowStats(gyro, accel, rest_bound), keep, units, src,
-           gyro_limit, gyro_min_duration, accel_tol, rest_gyro, row_lines)
-    extra = imu.extra if same or not len(imu.extra) else imu.extra.iloc[keep].reset_index(drop=True)
-    meta: dict[str, Any] = dict(imu.meta)
-    meta["validation"] = report
-    return ImuData(t, gyro, accel, imu.frame, extra, dict(imu.units), imu.source, meta), report

@@ -6,11 +6,11 @@ The method is one of the registry's (:func:`available_methods`); ``"auto"``
 picks the best for the input: the suspension-aware filter when the log has an
 accelerometer, the invariant filter (``"filter"``) for poses.
 
-Options are checked before any work, and a bad one raises :class:`OptionError`
-(a ``ValueError``) whose message names the option as the user spells it:
-``rate=...`` from Python, ``--rate`` from the command line
-(:meth:`OptionError.cli_message`), as the readers'
-:class:`~imu_ground.datasets.options.ImuInputError` does.
+Options are checked before any work, and a bad one raises
+:class:`~imu_ground.datasets.options.OptionError` (a ``ValueError``, the one
+option error of the package, the readers' base too) whose message names the
+option as the user spells it: ``rate`` from Python, ``--rate`` from the
+command line (:meth:`~imu_ground.datasets.options.OptionMessage.cli_message`).
 """
 from __future__ import annotations
 
@@ -20,6 +20,8 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
+
+from imu_ground.datasets.options import OptionError
 
 __all__ = [
     "POSE_FORMATS",
@@ -36,29 +38,6 @@ __all__ = [
 
 #: ``--format`` names of the pose files :func:`estimate_log` reads, to :func:`imu_ground.datasets.read_poses` names.
 POSE_FORMATS = {"kitti_poses": "kitti", "tum": "tum"}
-
-class OptionError(ValueError):
-    """A bad option value; the message names the option as Python keyword or CLI flag.
-
-    Parameters
-    ----------
-    template : str
-        Message with ``{opt}`` where the option's name goes.
-    name : str
-        Python keyword (e.g. ``"rate"``).
-    flag : str, optional
-        CLI flag (default ``--`` + name with ``_`` as ``-``).
-    """
-
-    def __init__(self, template: str, name: str, flag: str | None = None) -> None:
-        self.template, self.name = template, name
-        self.flag = flag or "--" + name.replace("_", "-")
-        super().__init__(template.replace("{opt}", name))
-
-    def cli_message(self) -> str:
-        """The message with the option spelled as its ``imu-ground`` flag."""
-        return self.template.replace("{opt}", self.flag)
-
 
 class EstimateResult(NamedTuple):
     """What :func:`estimate_log` returns (unpacks as ``track, egomotion, meta``).
