@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["READER_OPTIONS", "ImuInputError", "OptionError", "OptionMessage", "ReaderOption", "option_hint"]
+__all__ = ["READER_OPTIONS", "ImuInputError", "OptionError", "OptionMessage", "OptionText", "ReaderOption", "option_hint"]
 
 
 @dataclass(frozen=True)
@@ -144,3 +144,23 @@ class OptionError(OptionMessage, ValueError):
 
 class ImuInputError(OptionError):
     """Bad input to a reader that an option can fix (an :class:`OptionError` raised by :mod:`imu_ground.datasets`)."""
+
+
+class OptionText(str):
+    """A message as plain text (the Python spelling) that keeps its CLI spelling: ``cli_message()``.
+
+    What a warning becomes once collected as a line (``estimate_log``'s
+    ``meta["warnings"]``): it compares and prints as the Python text, and the
+    command line prints :meth:`cli_message`.
+    """
+
+    cli: str
+
+    def __new__(cls, text: str, cli: str | None = None) -> OptionText:
+        self = super().__new__(cls, text)
+        self.cli = text if cli is None else cli
+        return self
+
+    def cli_message(self) -> str:
+        """The text with options spelled as ``imu-ground`` flags."""
+        return self.cli

@@ -24,15 +24,18 @@ import numpy as np
 from imu_ground.imu.data import ImuData
 
 from .csvio import Columns, numeric, read_delimited
-from .report import MalformedFileError, UnitsWarning, warn_user
+from .report import MalformedFileError
 from .skeleton import finish, register_format
 from .unit_checks import (
     ACCEL_UNITS,
     GYRO_UNITS,
     TIME_UNITS,
+    UNIT_OPTIONS,
     detect_accel_unit,
     detect_gyro_unit,
     detect_time_unit,
+    raw_times,
+    settle_unit,
     unit_scale,
 )
 
@@ -56,26 +59,6 @@ __all__ = [
 TABLE_SUFFIXES = (".csv", ".csv.gz", ".txt", ".tsv", ".csv.bz2", ".txt.gz", ".tsv.gz")
 #: File names read as Parquet tables.
 PARQUET_SUFFIXES = (".parquet", ".pq")
-
-
-def _time_values(col: np.ndarray, name: str, source: str, row_lines) -> tuple[np.ndarray, str | None]:
-    """Raw time values (int64 kept exact) and a forced unit for datetime columns."""
-    if col.dtype.kind == "M":
-        return col.astype("datetime64[ns]").astype(np.int64), "ns"
-    if col.dtype.kind in "iu":
-        return col.astype(np.int64, copy=False), None
-    return numeric(col, name, source, row_lines), None
-
-
-def _unit(kind: str, given: str | None, detect: Callable, values: np.ndarray, *args: Any) -> str:
-    """The unit given, or the one told from the data (warning once when it is not the ImuData unit)."""
-    if given is not None:
-        unit_scale(kind, given)
-        return given
-    unit, note = detect(values, *args)
-    if note:
-        warn_user(note, UnitsWarning, f"{kind}_unit", unit)
-    return unit
 
 
 def map_columns(cols: Mapping[str, np.ndarray], *, time: str = "t",
@@ -104,12 +87,12 @@ def map_columns(cols: Mapping[str, np.ndarray], *, time: str = "t",
     n = len(cols[time])
     if n == 0:
         raise MalformedFileError(source, "no data rows")
-    tval, forced = _time_values(np.asarray(cols[time]), time, source, row_lines)
+    tval, forced = raw_times(np.asarray(cols[time]), time, source, row_lines)
     w = np.column_stack([numeric(np.asarray(cols[c]), c, source, row_lines) for c in gyro])
     a = np.column_stack([numeric(np.asarray(cols[c]), c, source, row_lines) for c in accel])
-    t_unit = forced or _unit("time", time_unit, detect_time_unit, tval, source, time)
-    g_unit = _unit("gyro", gyro_unit, detect_gyro_unit, w, source)
-    a_unit = _unit("accel", accel_unit, detect_accel_unit, a, source)
+    t_unit = forced or settle_unit("time", time_unit, detect_time_unit, tval, source, time)
+    g_unit = settle_unit("gyro", gyro_unit, detect_gyro_unit, w, source)
+    a_unit = settle_unit("accel", accel_unit, detect_accel_unit, a, source)
     t_scale = unit_scale("time", t_unit)
     if GYRO_UNITS[g_unit] != 1.0:
         w *= GYRO_UNITS[g_unit]
@@ -276,8 +259,7 @@ def _is_parquet(path: Path) -> bool:
     return path.is_file() and path.name.lower().endswith(PARQUET_SUFFIXES)
 
 
-_UNIT_OPTIONS = ("time_unit", "gyro_unit", "accel_unit")
 register_format("parquet", _is_parquet, read_parquet_table, "Parquet IMU table (pyarrow), same columns as CSV",
-                priority=40, options=_UNIT_OPTIONS)
+                priority=40, options=UNIT_OPTIONS)
 register_format("table", _is_table, read_table, "any CSV(.gz) / DataFrame with a column map", priority=90,
-                options=_UNIT_OPTIONS)
+                options=UNIT_OPTIONS)

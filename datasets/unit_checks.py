@@ -17,12 +17,17 @@ The medians of whole logs come from :func:`~imu_ground.datasets.order_stats.medi
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
 
 from imu_ground.units import DEG, GRAVITY
 
+from .csvio import numeric
 from .options import ImuInputError
 from .order_stats import median
+from .report import UnitsWarning, warn_user
 
 __all__ = [
     "ACCEL_UNITS",
@@ -31,6 +36,8 @@ __all__ = [
     "detect_accel_unit",
     "detect_gyro_unit",
     "detect_time_unit",
+    "raw_times",
+    "settle_unit",
     "unit_scale",
 ]
 
@@ -40,6 +47,8 @@ TIME_UNITS: dict[str, float] = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "
 GYRO_UNITS: dict[str, float] = {"rad/s": 1.0, "deg/s": DEG}
 #: Specific-force units, to m/s^2 (g = 9.80665 m/s^2).
 ACCEL_UNITS: dict[str, float] = {"m/s^2": 1.0, "m/s2": 1.0, "g": GRAVITY}
+#: The reader options that give the units (a format that converts units accepts them).
+UNIT_OPTIONS = ("time_unit", "gyro_unit", "accel_unit")
 _TABLES = {"time": TIME_UNITS, "gyro": GYRO_UNITS, "accel": ACCEL_UNITS}
 _OPTION = {"time": "time_unit", "gyro": "gyro_unit", "accel": "accel_unit"}
 _NAMES = {"s": "seconds", "ms": "milliseconds", "us": "microseconds", "ns": "nanoseconds"}
@@ -65,6 +74,30 @@ def unit_scale(kind: str, unit: str) -> float:
         raise ImuInputError(f"unknown {kind} unit {unit!r}; allowed: {list(table)} ({{hint}})",
                             option=_OPTION[kind])
     return table[unit]
+
+
+def raw_times(col: np.ndarray, name: str, source: str, row_lines) -> tuple[np.ndarray, str | None]:
+    """Raw time values (int64 kept exact, for epoch ns) and a forced unit for datetime columns (else None)."""
+    if col.dtype.kind == "M":
+        return col.astype("datetime64[ns]").astype(np.int64), "ns"
+    if col.dtype.kind in "iu":
+        return col.astype(np.int64, copy=False), None
+    return numeric(col, name, source, row_lines), None
+
+
+def settle_unit(kind: str, given: str | None, detect: Callable, values: np.ndarray, *args: Any) -> str:
+    """The unit given (checked), or the one told from the data by ``detect``, warning once when it converts.
+
+    ``kind`` is ``"time"``, ``"gyro"`` or ``"accel"``; ``detect(values, *args)``
+    returns ``(unit, warning text or None)`` (the ``detect_*`` functions here).
+    """
+    if given is not None:
+        unit_scale(kind, given)
+        return given
+    unit, note = detect(values, *args)
+    if note:
+        warn_user(note, UnitsWarning, _OPTION[kind], unit)
+    return unit
 
 
 def detect_time_unit(values: np.ndarray, source: str, column: str) -> tuple[str, str | None]:

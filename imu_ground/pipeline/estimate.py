@@ -21,7 +21,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from imu_ground.datasets.options import OptionError
+from imu_ground.datasets.options import OptionError, OptionText
 
 __all__ = [
     "POSE_FORMATS",
@@ -172,8 +172,13 @@ def _reader_kwargs(options: dict) -> dict:
 
 
 def _one_line(path: str | Path, message: Any) -> str:
-    text = " ".join(str(message).split())
-    return text if text.startswith(str(path)) else f"{path}: {text}"
+    """One line naming the file; a message that names an option keeps its CLI spelling (:class:`OptionText`)."""
+    def line(text: str) -> str:
+        text = " ".join(str(text).split())
+        return text if text.startswith(str(path)) else f"{path}: {text}"
+    if hasattr(message, "cli_message"):
+        return OptionText(line(message), line(message.cli_message()))
+    return line(message)
 
 
 # ------------------------------------------------------------------------------------------ estimate
