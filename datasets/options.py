@@ -41,6 +41,9 @@ READER_OPTIONS: dict[str, ReaderOption] = {o.name: o for o in (
                  ("rad/s", "deg/s"), None),
     ReaderOption("accel_unit", "--accel-unit", "unit of the accelerometer columns (detected when omitted)",
                  ("m/s^2", "g"), None),
+    ReaderOption("columns", "--columns", "CSV table: which column holds what, e.g. t=timestamp,wx=gyro_x,wy=gyro_y,"
+                 "wz=gyro_z,ax=acc_x,ay=acc_y,az=acc_z (only those not named t, wx, wy, wz, ax, ay, az; names "
+                 "are matched regardless of case)"),
     ReaderOption("topic", "--topic", "ROS bag / MCAP: the topic to read when the log has several of the kind "
                  "(IMU, pose or speed)"),
     ReaderOption("scene", "--scene", "nuScenes CAN bus folder with several scenes: the scene to read "

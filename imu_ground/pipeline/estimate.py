@@ -290,7 +290,14 @@ def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
         warnings.warn(f"{path}: the IMU's body frame is {imu.frame!r}, not FLU (x forward, y left, z up), and no "
                       "extrinsic was given: pitch and roll refer to the sensor's own axes; run 'imu-ground "
                       "calibrate' once and pass the result with --extrinsic")
-    em = imu_to_egomotion(imu, rate=DEFAULT_FRAME_RATE if rate is None else rate)
+    frame_rate = DEFAULT_FRAME_RATE if rate is None else rate
+    try:
+        em = imu_to_egomotion(imu, rate=frame_rate)
+    except ValueError as e:             # too short a log: the message names the file, as every other one
+        if str(e).startswith(str(path)):
+            raise
+        raise ValueError(f"{path}: {len(imu)} sample(s) over {imu.duration:.3g} s, too short for frames at "
+                         f"{frame_rate:g} Hz ({e})") from e
     info = {"format": fmt, "imu_rate": imu_rate, "frame_id": imu.meta.get("frame_id") or "imu"}
     if imu.meta.get("t0_ns") is not None:
         info["t0_ns"] = int(imu.meta["t0_ns"])
