@@ -44,6 +44,8 @@ READER_OPTIONS: dict[str, ReaderOption] = {o.name: o for o in (
     ReaderOption("columns", "--columns", "CSV table: which column holds what, e.g. t=timestamp,wx=gyro_x,wy=gyro_y,"
                  "wz=gyro_z,ax=acc_x,ay=acc_y,az=acc_z (only those not named t, wx, wy, wz, ax, ay, az; names "
                  "are matched regardless of case)"),
+    ReaderOption("times", "--times", "KITTI odometry pose file: the sequence's times.txt (one time a line, s), "
+                 "the camera's own clock (without it frames are timed by --rate)"),
     ReaderOption("topic", "--topic", "ROS bag / MCAP: the topic to read when the log has several of the kind "
                  "(IMU, pose or speed)"),
     ReaderOption("scene", "--scene", "nuScenes CAN bus folder with several scenes: the scene to read "

@@ -245,7 +245,7 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         if kind == "poses":
-            em, info = _poses_egomotion(path, fmt, rate)
+            em, info = _poses_egomotion(path, fmt, rate, reader_kw.get("times"), extrinsic)
         else:
             em, info, imu = _imu_egomotion(path, fmt, rate, extrinsic, reader_kw)
         bar.update()
@@ -304,22 +304,35 @@ def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
     return em, info, imu
 
 
-def _poses_egomotion(path, fmt, rate):
-    from imu_ground.datasets import read_poses
+def _poses_egomotion(path, fmt, rate, times=None, extrinsic=None):
+    from imu_ground.datasets.poses import moves_along_z, read_poses
     from imu_ground.imu import EgoMotion
-    poses = read_poses(path, format=POSE_FORMATS[fmt])
+    from imu_ground.units import DEFAULT_FRAME_RATE
+    poses = read_poses(path, format=POSE_FORMATS[fmt], times=times)
     if len(poses) < 2:
         raise ValueError(f"{path}: {len(poses)} pose(s); at least 2 are needed for one frame")
+    if extrinsic is None and moves_along_z(poses):
+        raise OptionError(f"{path}: camera poses (the motion is along the sensor's +z axis: x right, y down, "
+                          f"z forward), whose axes are not a vehicle's; pass {{opt}} kitti_cam0 (KITTI's camera 0) "
+                          f"or the camera's own extrinsic", "extrinsic")
     t = None
     if poses.t is not None:
         t = poses.t[1:]
+        clock = poses.clock
         if rate is not None:
-            warnings.warn(f"{path}: a TUM pose file carries its own times; --rate {rate:g} is not used "
+            warnings.warn(f"{path}: the poses carry their own times ({clock}); --rate {rate:g} is not used "
                           "(one frame per pose)")
             rate = None
+    else:
+        clock = f"frame index / {DEFAULT_FRAME_RATE if rate is None else rate:g} Hz (no times)"
+        if fmt == "kitti_poses":
+            warnings.warn(f"{path}: a KITTI pose file has no times: frames are timed as index / "
+                          f"{DEFAULT_FRAME_RATE if rate is None else rate:g} Hz, but KITTI's cameras run at about "
+                          "9.65 Hz (t drifts by seconds over a sequence); pass --times with the sequence's "
+                          "times.txt")
     em = EgoMotion.from_rotations(poses.relative_rotations(), t=t, rate=rate,
                                   meta={"source": str(path), "format": fmt})
-    return em, {"format": fmt, "frame_id": "camera" if fmt == "kitti_poses" else "sensor"}
+    return em, {"format": fmt, "frame_id": "camera" if fmt == "kitti_poses" else "sensor", "clock": clock}
 
 
 def _frame_speeds(speed, path, fmt, imu, em, method: str):
