@@ -155,10 +155,12 @@ def detect_gyro_unit(gyro: np.ndarray, source: str) -> tuple[str, str | None]:
         The magnitude is between what a car does in rad/s and what deg/s shows (``option="gyro_unit"``).
     """
     w = np.asarray(gyro, dtype=float)
-    w = w[np.isfinite(w).all(axis=1)]
-    if not w.size:
+    with np.errstate(over="ignore"):
+        norms = np.linalg.norm(w[np.isfinite(w).all(axis=1)], axis=1)
+    norms = norms[np.isfinite(norms)]          # (a norm of huge values overflows: left to the validation)
+    if not norms.size:
         return "rad/s", None
-    q = float(np.percentile(np.linalg.norm(w, axis=1), 99))
+    q = float(np.percentile(norms, 99))
     if q <= GYRO_RAD_SURE:
         return "rad/s", None
     if q > GYRO_DEG_SURE:
