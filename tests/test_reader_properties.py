@@ -1,6 +1,6 @@
 """Property-based tests of the readers (hypothesis): random tables are read or refused, never anything else.
 
-Random CSV tables (the table layout or the kitti_imu100 one, columns in any
+Random CSV tables, plain or gzip (the table layout or the kitti_imu100 one, columns in any
 order, several units, NaN/inf, duplicated, reversed and gapped times, 0-10
 rows, huge values, text in numeric columns, other column names given by
 ``columns=``) must:
@@ -15,6 +15,7 @@ The counts of generated, read and refused tables are printed (``pytest -s``).
 """
 from __future__ import annotations
 
+import gzip
 import hashlib
 import re
 import string
@@ -91,7 +92,7 @@ def tables(draw) -> dict:
         options["columns"] = ",".join(f"{q}={rename[q]}" for q in QUANTITIES)
     options["policy"] = draw(st.sampled_from(["retime", "drop", "sort", "strict"]))
     options["nonfinite"] = draw(st.sampled_from(["raise", "drop"]))
-    return {"header": header, "rows": rows, "options": options, "gz": False}
+    return {"header": header, "rows": rows, "options": options, "gz": draw(st.booleans())}
 
 
 def _text(table: dict) -> str:
@@ -107,8 +108,8 @@ def test_random_tables_are_read_or_refused_with_a_documented_error():
     def read_or_refuse(table: dict) -> None:
         counts["generated"] += 1
         with tempfile.TemporaryDirectory() as folder:
-            path = Path(folder) / "log.csv"
-            path.write_text(_text(table))
+            path = Path(folder) / ("log.csv.gz" if table["gz"] else "log.csv")
+            path.write_bytes(gzip.compress(_text(table).encode()) if table["gz"] else _text(table).encode())
             before = (hashlib.sha256(path.read_bytes()).hexdigest(), path.stat().st_mtime_ns)
             try:
                 with warnings.catch_warnings():
