@@ -287,3 +287,16 @@ def test_upper_case_names_are_read(example, tmp_path):
     imu = read_imu(p)
     np.testing.assert_array_equal(imu.accel, ref.accel)
     assert list(imu.extra.columns) == []
+
+
+# ------------------------------------------------------------------------------------------ one option error
+def test_one_option_error_for_the_readers_and_the_pipeline():
+    from imu_ground.datasets.options import OptionError
+    from imu_ground.pipeline import OptionError as PipelineOptionError
+    assert PipelineOptionError is OptionError and issubclass(ImuInputError, OptionError)
+    e = OptionError("{opt} must be positive, got -1", "rate")
+    assert str(e) == "rate must be positive, got -1" and e.cli_message() == "--rate must be positive, got -1"
+    e = ImuInputError("x.csv: pass {hint}", option="gyro_unit", value="deg/s")
+    assert str(e) == "x.csv: pass gyro_unit='deg/s'" and e.cli_message() == "x.csv: pass --gyro-unit deg/s"
+    e = OptionError("{opt} kitti_cam0 is needed", "extrinsic")
+    assert e.cli_message() == "--extrinsic kitti_cam0 is needed"
