@@ -130,7 +130,8 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
         ``"FLU"`` (x forward, y left, z up); ``extra`` holds roll, pitch, yaw
         (rad), ve, vn, vu (m/s), px, py, pz (m).  ``meta``: ``format``, ``drive``,
         ``t0`` (start, seconds of the day, when ``drives.csv`` lists the drive, else
-        0.0), ``t0_clock``, ``expected_samples`` and ``validation``.
+        0.0), ``t0_clock``, ``expected_samples``, ``source_units`` (the file's
+        time, gyro and accel units, given or told from the data) and ``validation``.
 
     Raises
     ------
