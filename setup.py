@@ -1,14 +1,11 @@
 """Build hook for the compiled kernels (everything else is declared in pyproject.toml).
 
-Every ``_*_native.c`` file of a package folder (``imu_ground/`` and the folders
-installed as its sub-packages, e.g. ``datasets/`` as ``imu_ground.datasets``) is
-one C extension module of the same dotted name
-(``imu_ground/filters/_residual_native.c`` -> ``imu_ground.filters._residual_native``,
-``datasets/_csv_native.c`` -> ``imu_ground.datasets._csv_native``): the scalar
-per-frame kernels of the streaming filters and of the preintegration, and the
-numeric CSV parse, written against the plain CPython API (no numpy headers),
-each with a pure-Python (or pandas) twin that is the reference its tests
-compare it with. The extensions are optional: without a C compiler the
+Every ``_*_native.c`` file under ``imu_ground/`` is one C extension module of
+the same dotted name (``imu_ground/filters/_residual_native.c`` ->
+``imu_ground.filters._residual_native``): the scalar per-frame kernels of the
+streaming filters and of the preintegration, written against the plain CPython
+API (no numpy headers), each with a pure-Python twin that is the reference its
+tests compare it with. The extensions are optional: without a C compiler the
 package installs and runs on the pure-Python kernels (slower, same results);
 see :mod:`imu_ground._native` (``IMU_GROUND_PURE_PYTHON=1`` forces them).
 
@@ -27,7 +24,7 @@ HERE = Path(__file__).resolve().parent
 #: extension's ``depends`` (a change rebuilds every kernel, and setuptools puts it in the sdist).
 SHARED_HEADER = Path("imu_ground") / "_native_util.h"
 #: Folders whose ``_*_native.c`` files are built -> the package they are installed as (pyproject's package-dir).
-NATIVE_FOLDERS = {"imu_ground": "imu_ground", "datasets": "imu_ground.datasets"}
+NATIVE_FOLDERS = {"imu_ground": "imu_ground"}
 
 
 def native_extensions() -> list:

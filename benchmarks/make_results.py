@@ -4,6 +4,7 @@ Regenerate with::
 
     python benchmarks/make_results.py            # full: 31 real drives, 10 synthetic drives a grade, all benchmarks
     python benchmarks/make_results.py --quick    # fast subset (a few drives, small benchmark sizes)
+    python benchmarks/make_results.py --only bench_readers   # rewrite that script's section only
 
 Accuracy: the evaluation (:mod:`imu_ground.evaluation`) of every method on the
 shared real KITTI drives (``../shared/data/kitti_imu100``; pitch relative to the
@@ -242,7 +243,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=OUT, help="output file (default %(default)s)")
     ap.add_argument("--no-speed", action="store_true", help="accuracy tables only")
     ap.add_argument("--no-accuracy", action="store_true", help="speed tables only")
+    ap.add_argument("--only", nargs="+", metavar="SCRIPT",
+                    help="rerun these benchmark scripts and replace their sections of the existing file")
     a = ap.parse_args(argv)
+    if a.only:
+        return _rewrite_sections(a.out, a.only, a.quick, argv)
     lines = _header(argv, a.quick)
     if not a.no_accuracy:
         lines += accuracy_sections(a.data, a.quick)
@@ -255,6 +260,28 @@ def main(argv: list[str] | None = None) -> int:
     tmp.write_text("\n".join(lines).rstrip() + "\n")
     tmp.replace(a.out)
     print(f"wrote {a.out}")
+    return 0
+
+
+def _rewrite_sections(out: Path, names: list[str], quick: bool, argv: list[str]) -> int:
+    """Replace the ``## NAME`` sections of ``out`` by a fresh run of those scripts (the rest is kept)."""
+    text = out.read_text().splitlines()
+    commit = _header(argv, quick)[4]
+    for name in names:
+        fresh = speed_sections(quick, (name,))[2:]          # "## name" and its table, without the part title
+        fresh.insert(2, f"Section rewritten alone (`python benchmarks/make_results.py {' '.join(argv)}`): "
+                        f"{commit[0].lower()}{commit[1:]}")
+        fresh.insert(3, "")
+        start = text.index(f"## {name}") if f"## {name}" in text else None
+        if start is None:
+            text += [""] + fresh
+            continue
+        stop = next((i for i in range(start + 1, len(text)) if text[i].startswith(("## ", "# "))), len(text))
+        text[start:stop] = fresh
+    tmp = out.with_suffix(out.suffix + ".tmp")
+    tmp.write_text("\n".join(text).rstrip() + "\n")
+    tmp.replace(out)
+    print(f"rewrote {', '.join(names)} in {out}")
     return 0
 
 

@@ -9,7 +9,7 @@ format             what                                         reader
 ``nuscenes``       nuScenes CAN bus ``*_ms_imu.json``           :func:`read_nuscenes_imu`
 ``rosbag``         ROS 1 ``.bag``, ``.mcap``, ROS 2 bag folder  ``rosbag.read_rosbag_imu`` (lazy)
 ``parquet``        Parquet IMU table                            :func:`read_parquet_table`
-``kitti_imu100``   KITTI 100 Hz CSV(.gz) ``t,wx,...,pz``         :func:`read_kitti_imu100`
+``kitti_imu100``   KITTI 100 Hz CSV(.gz) ``t,wx,...,pz``        :func:`read_kitti_imu100`
 ``table``          any CSV(.gz) / DataFrame with a column map   :func:`read_table`
 =================  ===========================================  ===================
 
@@ -31,7 +31,7 @@ from .kitti_imu100 import COLUMNS as KITTI_IMU100_COLUMNS
 from .kitti_imu100 import read_drives_index, read_kitti_imu100
 from .kitti_oxts import read_kitti_oxts
 from .nuscenes import read_nuscenes_imu
-from .options import READER_OPTIONS, ImuInputError
+from .options import READER_OPTIONS, ImuInputError, OptionError
 from .poses import (
                     PoseSequence,
                     detect_pose_format,
@@ -57,6 +57,7 @@ __all__ = [
                     "KITTI_IMU100_COLUMNS",
                     "READER_OPTIONS",
                     "ImuInputError",
+                    "OptionError",
                     "PoseFileError",
                     "PoseSequence",
                     "UnknownFormatError",

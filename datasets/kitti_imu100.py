@@ -10,6 +10,12 @@ Each ``<drive>.csv`` or ``<drive>.csv.gz`` has the columns
 - ``roll,pitch,yaw`` (rad), ``ve,vn,vu`` (m/s, east/north/up), ``px,py,pz`` (m,
   east/north/up from the first sample): kept in ``extra``.
 
+Files written by other tools in the same layout may hold the gyro in deg/s,
+the accelerometer in g, or times in ms or epoch ns: as for CSV tables
+(:mod:`imu_ground.datasets.unit_checks`), the units are told from the data
+(one warning per conversion) unless ``time_unit``, ``gyro_unit``,
+``accel_unit`` (``--time-unit``, ...) say them.
+
 The raw extract timestamps jitter (a step forward, then back by about 0.05 s)
 while the samples keep a steady 100 Hz, and have real dropouts over 1 s; the
 validation run by the reader (policy ``"retime"`` by default) puts the samples
@@ -24,9 +30,18 @@ import numpy as np
 
 from imu_ground.imu.data import ImuData
 
-from .csvio import open_binary, read_delimited
+from .csvio import numeric, open_binary, read_delimited
 from .report import ImuValidationWarning, MalformedFileError, warn_user
 from .skeleton import finish, register_format, with_finish_parameters
+from .unit_checks import (
+    UNIT_OPTIONS,
+    detect_accel_unit,
+    detect_gyro_unit,
+    detect_time_unit,
+    raw_times,
+    settle_unit,
+    unit_scale,
+)
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -77,8 +92,6 @@ def read_drives_index(path: str | Path) -> pd.DataFrame:
     if p.is_dir():
         p = p / "drives.csv"
     import pandas as pd
-
-    from .csvio import numeric
     cols, lines = read_delimited(p)
     need = ["drive", "t0_seconds_of_day", "samples"]
     missing = [c for c in need if c not in cols]
@@ -91,6 +104,7 @@ def read_drives_index(path: str | Path) -> pd.DataFrame:
 
 @with_finish_parameters
 def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None = None,
+                      time_unit: str | None = None, gyro_unit: str | None = None, accel_unit: str | None = None,
                       validate: bool = True, policy: str = "retime", **validate_kw: Any) -> ImuData:
     """Read one kitti_imu100 drive (100 Hz KITTI OXTS, CSV or CSV.gz).
 
@@ -101,6 +115,12 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
     drives_csv : str, Path, bool or None
         The ``drives.csv`` index giving the drive's start time; ``None`` (default)
         uses the one beside ``path`` if there is one, ``False`` ignores it.
+    time_unit : {"s", "ms", "us", "ns"}, optional
+        Unit of ``t``; told from the data when omitted (seconds for KITTI's own files).
+    gyro_unit : {"rad/s", "deg/s"}, optional
+        Unit of ``wx, wy, wz``; told from the data when omitted.
+    accel_unit : {"m/s^2", "g"}, optional
+        Unit of ``ax, ay, az``; told from the data when omitted.
     {finish_parameters}
 
     Returns
@@ -110,7 +130,8 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
         ``"FLU"`` (x forward, y left, z up); ``extra`` holds roll, pitch, yaw
         (rad), ve, vn, vu (m/s), px, py, pz (m).  ``meta``: ``format``, ``drive``,
         ``t0`` (start, seconds of the day, when ``drives.csv`` lists the drive, else
-        0.0), ``t0_clock``, ``expected_samples`` and ``validation``.
+        0.0), ``t0_clock``, ``expected_samples``, ``source_units`` (the file's
+        time, gyro and accel units, given or told from the data) and ``validation``.
 
     Raises
     ------
@@ -119,10 +140,13 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
     MalformedFileError
         Empty or truncated file, wrong columns, a line with the wrong number of
         fields or a non-number (the message names the file and line).
+    ImuInputError
+        Unknown unit, or units the data cannot decide (the message names the option).
     """
     import pandas as pd
-
-    from .csvio import numeric
+    for kind, unit in (("time", time_unit), ("gyro", gyro_unit), ("accel", accel_unit)):
+        if unit is not None:
+            unit_scale(kind, unit)          # a bad unit fails before anything is read
     path = Path(path)
     cols, lines = read_delimited(path, stack=_STACKS)       # numbers straight into (N, 3) arrays
     names = [m for c in cols for m in _STACKS.get(c, (c,))]  # the header as in the file
@@ -130,10 +154,24 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
         missing = [c for c in COLUMNS if c not in names]
         raise MalformedFileError(path, f"expected columns {','.join(COLUMNS)}, got {','.join(names)}"
                                        + (f" (missing {missing})" if missing else ""), line=1)
-    t = numeric(cols.pop("t"), "t", path, lines)
-    n = t.size
+    tval = raw_times(cols.pop("t"), "t", str(path), lines)[0]
+    gyro, accel = (cols.pop(k) if k in cols else np.column_stack([numeric(cols.pop(c), c, path, lines) for c in m])
+                   for k, m in _STACKS.items())
+    t_unit = settle_unit("time", time_unit, detect_time_unit, tval, str(path), "t")
+    g_unit = settle_unit("gyro", gyro_unit, detect_gyro_unit, gyro, str(path))
+    a_unit = settle_unit("accel", accel_unit, detect_accel_unit, accel, str(path))
+    if g_unit != "rad/s":
+        gyro = gyro * unit_scale("gyro", g_unit)
+    if a_unit not in ("m/s^2", "m/s2"):
+        accel = accel * unit_scale("accel", a_unit)
+    n = tval.size
     drive = drive_name(path)
-    t_first = float(t[0]) if np.isfinite(t[0]) else 0.0
+    first = tval[0] if tval.dtype.kind == "i" or np.isfinite(tval[0]) else 0
+    if t_unit == "s":                   # KITTI's own files: t - t[0] as it stands
+        t = tval - first if tval.dtype.kind == "f" else (tval - first).astype(float)
+    else:                               # shifted before scaling (exact for integer ns)
+        t = (tval - first).astype(float) * unit_scale("time", t_unit)
+    t_first = float(first) * unit_scale("time", t_unit)
     meta: dict[str, Any] = {"format": "kitti_imu100", "drive": drive, "t0": 0.0,
                             "t0_clock": "t of the file (no drives.csv entry)"}
 
@@ -167,10 +205,8 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
     if t_first != 0.0:
         meta["t_offset_in_file"] = t_first
     meta["row_lines"] = lines
-    gyro, accel = (cols.pop(k) if k in cols else np.column_stack([numeric(cols.pop(c), c, path, lines) for c in m])
-                   for k, m in _STACKS.items())
+    meta["source_units"] = {"time": t_unit, "gyro": g_unit, "accel": a_unit}
     extra = pd.DataFrame({c: numeric(cols.pop(c), c, path, lines) for c in COLUMNS[7:]}, copy=False)
-    t -= t_first
     imu = ImuData(t, gyro, accel, "FLU", extra, dict(EXTRA_UNITS), str(path), meta)
     return finish(imu, validate=validate, policy=policy, **validate_kw)
 
@@ -188,4 +224,4 @@ def _probe(path: Path) -> bool:
 
 
 register_format("kitti_imu100", _probe, read_kitti_imu100, "KITTI 100 Hz CSV(.gz) with header t,wx,...,pz",
-                priority=50)
+                priority=50, options=UNIT_OPTIONS)

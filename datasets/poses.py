@@ -11,6 +11,13 @@ Two text formats are read:
 Camera conventions (x right, y down, z forward) are not special-cased here:
 the relative rotations stay in the sensor frame and the static extrinsic
 (:mod:`imu_ground.filters.extrinsics`) carries them into the ground frame.
+:func:`moves_along_z` tells a camera's poses (the motion is along the sensor's
++z axis) from a vehicle body's (along +x), so that a caller can refuse to take
+camera axes as body axes.
+
+Times: a TUM file carries its own; a KITTI file has none, and the odometry
+benchmark's ``times/XX.txt`` (one time a line, seconds) gives them
+(``times=``); :attr:`PoseSequence.clock` says which clock ``t`` is on.
 """
 from __future__ import annotations
 
@@ -22,7 +29,9 @@ import numpy as np
 __all__ = [
     "PoseSequence",
     "detect_pose_format",
+    "moves_along_z",
     "read_kitti_poses",
+    "read_pose_times",
     "read_poses",
     "read_tum_poses",
     "relative_rotations",
@@ -47,12 +56,15 @@ class PoseSequence:
     index : ndarray (N,)
         Frame numbers (from the file's index column, else 0..N-1).
     source : str
+    clock : str
+        What ``t`` is: the TUM file's own times, a KITTI times file, or "" (no times).
     """
     rotations: np.ndarray
     translations: np.ndarray
     t: np.ndarray | None
     index: np.ndarray
     source: str = ""
+    clock: str = ""
 
     def __len__(self) -> int:
         return len(self.rotations)
@@ -189,7 +201,56 @@ def detect_pose_format(path: str | Path) -> str | None:
     return None
 
 
-def read_kitti_poses(path: str | Path) -> PoseSequence:
+def read_pose_times(path: str | Path, frames: np.ndarray, source: str | Path = "") -> np.ndarray:
+    """The times, s, of KITTI pose frames from the benchmark's ``times.txt`` (one time a line).
+
+    Parameters
+    ----------
+    path : str or Path
+        The times file (``times/XX.txt``).
+    frames : ndarray of int (N,)
+        Line of the times file (0-based) of each pose.
+    source : str or Path
+        The pose file (named in messages).
+
+    Raises
+    ------
+    FileNotFoundError, ValueError
+        No such file; not one number a line; too few lines for the frames;
+        times not strictly increasing over the frames.
+    """
+    path = Path(path)
+    times = _load_table(path, (1,))[:, 0]
+    frames = np.asarray(frames, dtype=np.int64)
+    if frames.size and (frames.min() < 0 or frames.max() >= times.size):
+        raise ValueError(f"{source}: {times.size} time(s) in {path} but the poses need frames "
+                         f"{int(frames.min())}..{int(frames.max())} (is it the times file of this sequence?)")
+    t = times[frames]
+    if np.any(np.diff(t) <= 0):
+        i = int(np.flatnonzero(np.diff(t) <= 0)[0])
+        raise ValueError(f"{path}: times not strictly increasing at line {frames[i + 1] + 1} "
+                         f"({t[i]!r} then {t[i + 1]!r})")
+    return t
+
+
+def moves_along_z(poses: PoseSequence, share: float = 0.9, min_steps: int = 10) -> bool:
+    """Whether the sensor moves along its own +z axis, as a camera does (x right, y down, z forward).
+
+    The steps ``R_{k-1}^T (p_k - p_{k-1})`` (sensor_{k-1} frame) longer than a
+    thousandth of the longest are made unit vectors; their mean's z component
+    above ``share`` (with at least ``min_steps`` such steps) says "camera". A
+    vehicle body (x forward, REP 103 / KITTI IMU) moves along +x.
+    """
+    r = np.asarray(poses.rotations, dtype=float)
+    d = np.einsum("nji,nj->ni", r[:-1], np.diff(np.asarray(poses.translations, dtype=float), axis=0))
+    norm = np.linalg.norm(d, axis=1)
+    moving = norm > 1e-3 * norm.max() if norm.size and norm.max() > 0 else np.zeros(0, dtype=bool)
+    if np.count_nonzero(moving) < min_steps:
+        return False
+    return bool(np.mean(d[moving, 2] / norm[moving]) > share)
+
+
+def read_kitti_poses(path: str | Path, times: str | Path | None = None) -> PoseSequence:
     """Read a KITTI odometry pose file (12 numbers a line, optional leading frame index).
 
     Parameters
@@ -197,6 +258,11 @@ def read_kitti_poses(path: str | Path) -> PoseSequence:
     path : str or Path
         Text file, e.g. ``poses/XX.txt`` of the odometry benchmark (12 numbers) or
         ORB-SLAM2's output (frame index, then 12 numbers).
+    times : str or Path, optional
+        The sequence's ``times.txt`` (one time a line, s; ``--times`` on the
+        command line). Pose ``k`` takes line ``k``; with a frame index column,
+        the index counts the lines from 1 (from 0 when an index 0 is present).
+        Without it ``t`` is None (frames are timed by the caller's rate).
 
     Returns
     -------
@@ -228,7 +294,13 @@ def read_kitti_poses(path: str | Path) -> PoseSequence:
         index = np.arange(len(data))
     m = data.reshape(-1, 3, 4)
     rot = _check_rotations(path, m[:, :, :3], np.arange(1, len(m) + 1))
-    return PoseSequence(rot, m[:, :, 3].copy(), None, index, str(path))
+    t, clock = None, ""
+    if times is not None:
+        frames = np.arange(len(m)) if index[0] == 0 and np.array_equal(index, np.arange(len(m))) else \
+            index - (0 if index.min() == 0 else 1)
+        t = read_pose_times(times, frames, path)
+        clock = f"KITTI times file {times}"
+    return PoseSequence(rot, m[:, :, 3].copy(), t, index, str(path), clock)
 
 
 def read_tum_poses(path: str | Path) -> PoseSequence:
@@ -266,16 +338,19 @@ def read_tum_poses(path: str | Path) -> PoseSequence:
         raise ValueError(f"{path}: quaternion at pose {i} has norm {norm[i]:.4f}, expected 1 (order qx qy qz qw)")
     from scipy.spatial.transform import Rotation
     rot = Rotation.from_quat(q).as_matrix()
-    return PoseSequence(rot, data[:, 1:4].copy(), t, np.arange(len(t)), str(path))
+    return PoseSequence(rot, data[:, 1:4].copy(), t, np.arange(len(t)), str(path), "the TUM file's own times")
 
 
-def read_poses(path: str | Path, format: str | None = None) -> PoseSequence:
+def read_poses(path: str | Path, format: str | None = None, times: str | Path | None = None) -> PoseSequence:
     """Read a pose file, KITTI or TUM, detected from the column count unless ``format`` is given.
 
     Parameters
     ----------
     path : str or Path
     format : {"kitti", "tum"}, optional
+    times : str or Path, optional
+        KITTI only: the sequence's ``times.txt`` (see :func:`read_kitti_poses`).
+        A TUM file has its own times (refused with it).
     """
     path = Path(path)
     if format is None:
@@ -289,8 +364,11 @@ def read_poses(path: str | Path, format: str | None = None) -> PoseSequence:
             raise ValueError(f"{path}: cannot tell the pose format from a first line of {n} numbers "
                              f"(KITTI has 12 or 13, TUM has 8)")
     if format == "kitti":
-        return read_kitti_poses(path)
+        return read_kitti_poses(path, times)
     if format == "tum":
+        if times is not None:
+            raise ValueError(f"{path}: a TUM pose file carries its own times; a times file ({times}) is for "
+                             "KITTI pose files")
         return read_tum_poses(path)
     raise ValueError(f"unknown pose format {format!r}: use 'kitti' or 'tum'")
 

@@ -28,6 +28,7 @@ __all__ = [
     "ImuValidationWarning",
     "MalformedFileError",
     "NonFiniteWarning",
+    "SensorWarning",
     "TimestampWarning",
     "UnitsWarning",
     "ValidationReport",
@@ -91,6 +92,10 @@ class NonFiniteWarning(ImuValidationWarning):
 
 class UnitsWarning(ImuValidationWarning):
     """Units were detected from the data and converted, or magnitudes look wrong."""
+
+
+class SensorWarning(ImuValidationWarning):
+    """A sensor reads what a working one does not: a dead gyro, a stuck accelerometer, or no motion at all."""
 
 
 def warn_user(message: str, category: type[Warning] = ImuValidationWarning, option: str | None = None,

@@ -17,6 +17,7 @@ and names an option that does not apply. A pose file handed to either gets a
 """
 from __future__ import annotations
 
+import re
 import textwrap
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -244,7 +245,15 @@ def read_imu(path: str | Path | pd.DataFrame, format: str | None = None, **kw: A
         elif name not in COMMON_OPTIONS and name not in spec.options:
             raise ImuInputError(f"{path}: option {{hint}} does not apply to {spec.name} logs", option=name,
                                 value=value)
-    return spec.reader(path, **kw)
+    try:
+        return spec.reader(path, **kw)
+    except TypeError as e:              # a keyword no step of this reader takes: name read_imu, not the step
+        bad = re.search(r"unexpected keyword argument '(\w+)'", str(e))
+        if bad is None or bad.group(1) not in kw:
+            raise
+        raise TypeError(f"read_imu() got an unexpected keyword argument {bad.group(1)!r} for {spec.name} logs "
+                        f"(reader options: {', '.join(sorted(COMMON_OPTIONS | spec.options))}; see "
+                        f"help(imu_ground.datasets.{spec.reader.__name__}))") from None
 
 
 # --------------------------------------------------------------------------- lazy formats

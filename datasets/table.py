@@ -24,15 +24,19 @@ import numpy as np
 from imu_ground.imu.data import ImuData
 
 from .csvio import Columns, numeric, read_delimited
-from .report import MalformedFileError, UnitsWarning, warn_user
+from .options import ImuInputError
+from .report import MalformedFileError
 from .skeleton import finish, register_format
 from .unit_checks import (
     ACCEL_UNITS,
     GYRO_UNITS,
     TIME_UNITS,
+    UNIT_OPTIONS,
     detect_accel_unit,
     detect_gyro_unit,
     detect_time_unit,
+    raw_times,
+    settle_unit,
     unit_scale,
 )
 
@@ -47,6 +51,7 @@ __all__ = [
     "TIME_UNITS",
     "from_dataframe",
     "map_columns",
+    "parse_columns",
     "read_parquet_table",
     "read_table",
     "unit_scale",
@@ -58,24 +63,44 @@ TABLE_SUFFIXES = (".csv", ".csv.gz", ".txt", ".tsv", ".csv.bz2", ".txt.gz", ".ts
 PARQUET_SUFFIXES = (".parquet", ".pq")
 
 
-def _time_values(col: np.ndarray, name: str, source: str, row_lines) -> tuple[np.ndarray, str | None]:
-    """Raw time values (int64 kept exact) and a forced unit for datetime columns."""
-    if col.dtype.kind == "M":
-        return col.astype("datetime64[ns]").astype(np.int64), "ns"
-    if col.dtype.kind in "iu":
-        return col.astype(np.int64, copy=False), None
-    return numeric(col, name, source, row_lines), None
+#: The quantities a table needs, in ``columns`` order: time, angular rate x y z, specific force x y z.
+QUANTITIES = ("t", "wx", "wy", "wz", "ax", "ay", "az")
 
 
-def _unit(kind: str, given: str | None, detect: Callable, values: np.ndarray, *args: Any) -> str:
-    """The unit given, or the one told from the data (warning once when it is not the ImuData unit)."""
-    if given is not None:
-        unit_scale(kind, given)
-        return given
-    unit, note = detect(values, *args)
-    if note:
-        warn_user(note, UnitsWarning, f"{kind}_unit", unit)
-    return unit
+def parse_columns(columns: str | Mapping[str, str]) -> dict[str, Any]:
+    """``columns`` (``"t=timestamp,wx=gyro_x,..."`` or a mapping) as ``time``/``gyro``/``accel`` keywords.
+
+    Quantities not named keep their default column names (``t``, ``wx``, ...).
+
+    Raises
+    ------
+    ImuInputError
+        Not ``key=name`` pairs, or a key that is not one of :data:`QUANTITIES` (names ``columns``).
+    """
+    if isinstance(columns, str):
+        pairs = [p.strip() for p in columns.split(",") if p.strip()]
+        if not pairs or any(p.count("=") != 1 or not all(x.strip() for x in p.split("=")) for p in pairs):
+            raise ImuInputError(f"columns {columns!r}: expected QUANTITY=COLUMN pairs separated by commas, e.g. "
+                                f"{{hint}}", option="columns", value="t=timestamp,wx=gyro_x")
+        given = {k.strip(): v.strip() for k, v in (p.split("=") for p in pairs)}
+    else:
+        given = {str(k): str(v) for k, v in dict(columns).items()}
+    unknown = sorted(set(given) - set(QUANTITIES))
+    if unknown:
+        raise ImuInputError(f"columns: unknown quantit{'y' if len(unknown) == 1 else 'ies'} {unknown}; the "
+                            f"quantities are {', '.join(QUANTITIES)} ({{hint}})", option="columns",
+                            value="t=timestamp,wx=gyro_x")
+    name = {q: given.get(q, q) for q in QUANTITIES}
+    return {"time": name["t"], "gyro": (name["wx"], name["wy"], name["wz"]),
+            "accel": (name["ax"], name["ay"], name["az"])}
+
+
+def _match_case(cols: Mapping[str, np.ndarray], wanted: str) -> str:
+    """``wanted``, or the one column equal to it regardless of case and surrounding spaces (else ``wanted``)."""
+    if wanted in cols:
+        return wanted
+    found = [c for c in cols if str(c).strip().lower() == wanted.strip().lower()]
+    return found[0] if len(found) == 1 else wanted
 
 
 def map_columns(cols: Mapping[str, np.ndarray], *, time: str = "t",
@@ -97,19 +122,24 @@ def map_columns(cols: Mapping[str, np.ndarray], *, time: str = "t",
     for name, c3 in (("gyro", gyro), ("accel", accel)):
         if len(c3) != 3:
             raise ValueError(f"{name} must name 3 columns (x, y, z), got {c3!r}")
+    time = _match_case(cols, time)
+    gyro = tuple(_match_case(cols, c) for c in gyro)
+    accel = tuple(_match_case(cols, c) for c in accel)
     needed = [time, *gyro, *accel]
     missing = [c for c in needed if c not in cols]
     if missing:
-        raise ValueError(f"{source}: column(s) {missing} not found; available: {list(map(str, cols))}")
+        hint = ",".join(f"{q}=NAME" for q, c in zip(QUANTITIES, needed) if c not in cols)
+        raise ImuInputError(f"{source}: column(s) {missing} not found; available: {list(map(str, cols))}; say "
+                            f"which column holds what with {{hint}}", option="columns", value=hint)
     n = len(cols[time])
     if n == 0:
         raise MalformedFileError(source, "no data rows")
-    tval, forced = _time_values(np.asarray(cols[time]), time, source, row_lines)
+    tval, forced = raw_times(np.asarray(cols[time]), time, source, row_lines)
     w = np.column_stack([numeric(np.asarray(cols[c]), c, source, row_lines) for c in gyro])
     a = np.column_stack([numeric(np.asarray(cols[c]), c, source, row_lines) for c in accel])
-    t_unit = forced or _unit("time", time_unit, detect_time_unit, tval, source, time)
-    g_unit = _unit("gyro", gyro_unit, detect_gyro_unit, w, source)
-    a_unit = _unit("accel", accel_unit, detect_accel_unit, a, source)
+    t_unit = forced or settle_unit("time", time_unit, detect_time_unit, tval, source, time)
+    g_unit = settle_unit("gyro", gyro_unit, detect_gyro_unit, w, source)
+    a_unit = settle_unit("accel", accel_unit, detect_accel_unit, a, source)
     t_scale = unit_scale("time", t_unit)
     if GYRO_UNITS[g_unit] != 1.0:
         w *= GYRO_UNITS[g_unit]
@@ -146,8 +176,8 @@ def from_dataframe(df: pd.DataFrame, *, source: str = "<DataFrame>", validate: b
     """Build an :class:`ImuData` from a DataFrame; see :func:`read_table` for the parameters."""
     mapping, options = _split(kw)
     cols = {str(c): df[c].to_numpy() for c in df.columns}
-    needed = {mapping.get("time", "t"), *mapping.get("gyro", ("wx", "wy", "wz")),
-              *mapping.get("accel", ("ax", "ay", "az"))}
+    needed = {_match_case(cols, c) for c in (mapping.get("time", "t"), *mapping.get("gyro", ("wx", "wy", "wz")),
+                                             *mapping.get("accel", ("ax", "ay", "az")))}
     rest = [c for c in df.columns if str(c) not in needed]
     extra = df[rest].reset_index(drop=True) if rest else None
     imu = map_columns(cols, source=source, extra=extra, **mapping)
@@ -159,8 +189,11 @@ _MAPPING_KEYS = ("time", "gyro", "accel", "time_unit", "gyro_unit", "accel_unit"
 
 
 def _split(kw: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
-    """(column-mapping options, validation options)."""
+    """(column-mapping options, validation options); ``columns`` becomes ``time``/``gyro``/``accel``."""
+    columns = kw.pop("columns", None)
     mapping = {k: kw.pop(k) for k in _MAPPING_KEYS if k in kw}
+    if columns is not None:
+        mapping.update(parse_columns(columns))
     for kind in ("time", "gyro", "accel"):
         if mapping.get(f"{kind}_unit") is not None:
             unit_scale(kind, mapping[f"{kind}_unit"])  # fail on a bad unit before reading anything
@@ -175,6 +208,11 @@ def read_table(source: str | Path | pd.DataFrame, *, sep: str = ",", validate: b
     ----------
     source : str, Path or pandas.DataFrame
         A delimited text file with a header line, or a DataFrame.
+    columns : str or dict, optional
+        Which column holds what, ``"t=timestamp,wx=gyro_x,..."`` or
+        ``{"t": "timestamp", ...}`` (keys of :data:`QUANTITIES`; the ones not
+        given keep their default names). ``--columns`` on the command line.
+        Column names are matched regardless of case (``T``, ``WX`` ...).
     time : str
         Name of the time column (numbers, or a datetime column), default ``"t"``.
     gyro : tuple of 3 str
@@ -218,9 +256,8 @@ def read_table(source: str | Path | pd.DataFrame, *, sep: str = ",", validate: b
         Empty file, a line with the wrong number of fields, or a non-number in a
         time/gyro/accel column (the message names the file and 1-based line).
     ImuInputError
-        Unknown unit, or units the data cannot decide (the message names the option).
-    ValueError
-        Missing column.
+        Unknown unit, units the data cannot decide, or a missing column (the
+        message names the option: ``time_unit``..., ``columns``).
     """
     import pandas as pd
     mapping, options = _split(kw)
@@ -276,8 +313,7 @@ def _is_parquet(path: Path) -> bool:
     return path.is_file() and path.name.lower().endswith(PARQUET_SUFFIXES)
 
 
-_UNIT_OPTIONS = ("time_unit", "gyro_unit", "accel_unit")
 register_format("parquet", _is_parquet, read_parquet_table, "Parquet IMU table (pyarrow), same columns as CSV",
-                priority=40, options=_UNIT_OPTIONS)
+                priority=40, options=(*UNIT_OPTIONS, "columns"))
 register_format("table", _is_table, read_table, "any CSV(.gz) / DataFrame with a column map", priority=90,
-                options=_UNIT_OPTIONS)
+                options=(*UNIT_OPTIONS, "columns"))

@@ -31,7 +31,8 @@ from .report import (
 )
 from .retime import RetimeResult, _apply_retime, _rows, retime
 
-__all__ = ["POLICIES", "Action", "Policy", "RetimeResult", "act", "check_timestamps", "fmt_list", "retime"]
+__all__ = ["POLICIES", "Action", "Policy", "RetimeResult", "act", "check_gaps", "check_timestamps", "fmt_list", "gap_action",
+           "order_samples", "retime"]
 
 Policy = Literal["retime", "drop", "sort", "strict"]
 Action = Literal["warn", "raise", "ignore"]
@@ -237,32 +238,51 @@ def check_timestamps(t: np.ndarray, policy: Policy = "retime", *, gaps: Action |
         ``policy="strict"`` and the times are not strictly increasing, or
         ``gaps="raise"`` and there is a gap.
     """
-    keep, t_out, report = _check_timestamps(t, policy, gaps, gap_factor, gap_threshold, source, index, report,
-                                            warn, row_lines)
-    return (np.arange(t_out.size) if keep is None else keep), t_out, report
-
-
-def _check_timestamps(t, policy, gaps, gap_factor, gap_threshold, source, index, report, warn, row_lines,
-                      finite: bool = False) -> tuple[np.ndarray | None, np.ndarray, ValidationReport]:
-    """:func:`check_timestamps`, with ``keep`` None when every sample is kept in order.
-
-    ``finite``: the times are known to be finite (validated).
-    """
     check_choice("policy", policy, POLICIES)
-    gaps = gaps if gaps is not None else ("raise" if policy == "strict" else "warn")
-    check_choice("gaps", gaps, ACTIONS)
-    if not warn and gaps == "warn":
-        gaps = "ignore"
+    gaps = gap_action(gaps, policy, warn)
     t = np.asarray(t, dtype=float)
     if t.ndim != 1:
         raise ValueError(f"timestamps must be 1-D, got shape {t.shape}")
     index = None if index is None else np.asarray(index, dtype=np.int64)
+    if report is None:
+        report = ValidationReport(source=source, policy=policy, n_in=int(t.size))
+    keep, t_out, steps = order_samples(t, policy, source, index, report, warn, row_lines)
+    check_gaps(t_out, steps, keep, index, report, gaps, gap_factor, gap_threshold, source, row_lines)
+    return (np.arange(t_out.size) if keep is None else keep), t_out, report
+
+
+def gap_action(gaps: str | None, policy: str, warn: bool) -> str:
+    """The gap action asked for, or the default (``"raise"`` under ``"strict"``, else ``"warn"``), checked."""
+    gaps = gaps if gaps is not None else ("raise" if policy == "strict" else "warn")
+    check_choice("gaps", gaps, ACTIONS)
+    return "ignore" if not warn and gaps == "warn" else gaps
+
+
+def _reverse_order_error(src: str, n: int, back: np.ndarray, policy: str) -> ImuValidationError | None:
+    """The error for a log whose samples are newest first (most steps go back), None for any other log.
+
+    Retiming cannot apply and dropping would keep a handful of samples (a
+    silently wrong result): sorting is what such a log needs.
+    """
+    if policy not in ("retime", "drop") or n < 3 or back.size * 2 <= n - 1:
+        return None
+    how = "in reverse order (newest first)" if back.size == n - 1 else "mostly in reverse order"
+    return ImuValidationError(f"{src}: the samples are {how}: {back.size} of {n - 1} time steps go back; "
+                              f"pass {{hint}} to sort them by time", option="policy", value="sort")
+
+
+def order_samples(t, policy, source, index, report, warn, row_lines, finite: bool = False
+                  ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
+    """Apply the time-order policy: (positions kept in output order or None for all, their times, their steps).
+
+    ``finite``: the times are known to be finite (validated). Fills the
+    report's order fields; warns (or raises under ``"strict"``) naming the
+    first out-of-order and duplicate samples.
+    """
 
     def rows(pos: np.ndarray) -> np.ndarray:
         return _rows(pos, index)
 
-    if report is None:
-        report = ValidationReport(source=source, policy=policy, n_in=int(t.size))
     report.policy = policy
     src = source or "<timestamps>"
     n = t.size
@@ -272,47 +292,56 @@ def _check_timestamps(t, policy, gaps, gap_factor, gap_threshold, source, index,
     report.backstep_size = steps[back - 1]
     report.out_of_order_index = rows(ooo)
     report.duplicate_index = rows(dup)
-    dk: np.ndarray | None = None
-    if ooo.size or dup.size:
-        what = f"{src}: " + _order_message(src, t, rows, back, steps, ooo, dup, row_lines)
-        if policy == "strict":
-            msg = f"{src}: timestamps not strictly increasing: {what[len(src) + 2:]}"
-            report.issues.append(msg)
-            raise ImuValidationError(msg + " (policy='strict'; {hint} retimes them on the sample index, "
-                                           "'drop' or 'sort' also accepted)", option="policy", value="retime")
-        # the raw steps are not used again: their array may hold the retimed ones
-        new_t, dk = _apply_retime(t, index, report, steps) if policy == "retime" else (None, None)
-        if new_t is not None:
-            keep, t_out = None, new_t
-            kind, where = row_names(report.retime_dropout_index, row_lines)
-            gaps_kept = f"{len(where)} dropout(s) kept as gaps (before {kind}s {fmt_list(where)})" if where \
-                else "no dropout"
-            msg = (f"{what}; retimed on the sample index at {report.retime_rate:.6g} Hz, nothing dropped: "
-                   f"max shift {report.retime_shift_max:.4g} s, RMS {report.retime_shift_rms:.4g} s; "
-                   f"{gaps_kept} (policy='retime', report in meta['validation'])")
-        elif policy == "sort":
-            report.reordered = bool(ooo.size)
-            acts = (["sorted by time"] if ooo.size else []) + \
-                ([f"dropped {dup.size} repeated time(s)"] if dup.size else [])
-            msg = (f"{what}; {' and '.join(acts)}, {keep.size} of {n} samples kept "
-                   f"(policy='sort', report in meta['validation'])")
-        else:
-            keep = _kept(n, ooo, dup)
-            why = f" (not retimed: {report.retime_note})" if policy == "retime" else ""
-            msg = (f"{what}; dropped {n - keep.size} of {n} samples{why} "
-                   f"(policy={policy!r}, report in meta['validation'])")
+    if not (ooo.size or dup.size):      # nothing out of order: every sample kept, in order
+        return (keep if policy == "sort" else None), t.copy(), steps
+    what = f"{src}: " + _order_message(src, t, rows, back, steps, ooo, dup, row_lines)
+    if policy == "strict":
+        msg = f"{src}: timestamps not strictly increasing: {what[len(src) + 2:]}"
+        report.issues.append(msg)
+        raise ImuValidationError(msg + " (policy='strict'; {hint} retimes them on the sample index, "
+                                       "'drop' or 'sort' also accepted)", option="policy", value="retime")
+    reverse = _reverse_order_error(src, n, back, policy)
+    if reverse is not None:
+        report.issues.append(str(reverse))
+        raise reverse
+    # the raw steps are not used again: their array may hold the retimed ones
+    new_t, dk = _apply_retime(t, index, report, steps) if policy == "retime" else (None, None)
+    if new_t is not None:
+        kind, where = row_names(report.retime_dropout_index, row_lines)
+        gaps_kept = f"{len(where)} dropout(s) kept as gaps (before {kind}s {fmt_list(where)})" if where \
+            else "no dropout"
+        msg = (f"{what}; retimed on the sample index at {report.retime_rate:.6g} Hz, nothing dropped: "
+               f"max shift {report.retime_shift_max:.4g} s, RMS {report.retime_shift_rms:.4g} s; "
+               f"{gaps_kept} (policy='retime', report in meta['validation'])")
         act("warn" if warn else "ignore", msg, TimestampWarning, report)
-        t_out = new_t if new_t is not None else t[keep]
-    else:                               # nothing out of order: every sample kept, in order
-        keep, t_out, dk = (keep if policy == "sort" else None), t.copy(), steps
+        return None, new_t, dk
+    if policy == "sort":
+        report.reordered = bool(ooo.size)
+        acts = (["sorted by time"] if ooo.size else []) + \
+            ([f"dropped {dup.size} repeated time(s)"] if dup.size else [])
+        msg = (f"{what}; {' and '.join(acts)}, {keep.size} of {n} samples kept "
+               f"(policy='sort', report in meta['validation'])")
+    else:
+        keep = _kept(n, ooo, dup)
+        why = f" (not retimed: {report.retime_note})" if policy == "retime" else ""
+        msg = (f"{what}; dropped {n - keep.size} of {n} samples{why} "
+               f"(policy={policy!r}, report in meta['validation'])")
+    act("warn" if warn else "ignore", msg, TimestampWarning, report)
+    t_out = t[keep]
+    return keep, t_out, t_out[1:] - t_out[:-1]
+
+
+def check_gaps(t_out, steps, keep, index, report, gaps, gap_factor, gap_threshold, source, row_lines) -> None:
+    """Find the steps longer than the gap threshold in the ordered times ``t_out`` (``steps`` their steps).
+
+    ``keep``: positions of ``t_out`` in the input of :func:`order_samples` (None:
+    the same positions); ``index``: their input rows (None: the positions).
+    """
     if t_out.size > 1:
-        kept = keep
 
         def out_rows(g: np.ndarray) -> np.ndarray:
-            return rows(g if kept is None else kept[g])
+            return _rows(g if keep is None else keep[g], index)
 
-        _gaps(t_out, t_out[1:] - t_out[:-1] if dk is None else dk, out_rows, report, gaps, gap_factor,
-              gap_threshold, src, row_lines)
+        _gaps(t_out, steps, out_rows, report, gaps, gap_factor, gap_threshold, source or "<timestamps>", row_lines)
     elif gap_threshold is not None:
         report.gap_threshold = float(gap_threshold)
-    return keep, t_out, report

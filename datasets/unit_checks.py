@@ -13,16 +13,24 @@ naming the option to pass (``time_unit``, ``gyro_unit``, ``accel_unit``).
 - accel: the specific force's median magnitude is about 9.8 in m/s^2 and about
   1 in g.
 
-The medians of whole logs come from :func:`~imu_ground.datasets.order_stats.median`.
+The medians of whole logs come from :func:`~imu_ground.datasets.order_stats.median`;
+on logs longer than :data:`DECIDE_SAMPLES` rows the decision is taken on that many
+rows evenly spread over the log (a unit is a property of the whole file: a
+sample of it decides it as well, at a fraction of the cost).
 """
 from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
 from imu_ground.units import DEG, GRAVITY
 
+from .csvio import numeric
 from .options import ImuInputError
 from .order_stats import median
+from .report import UnitsWarning, warn_user
 
 __all__ = [
     "ACCEL_UNITS",
@@ -31,6 +39,8 @@ __all__ = [
     "detect_accel_unit",
     "detect_gyro_unit",
     "detect_time_unit",
+    "raw_times",
+    "settle_unit",
     "unit_scale",
 ]
 
@@ -40,14 +50,23 @@ TIME_UNITS: dict[str, float] = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "
 GYRO_UNITS: dict[str, float] = {"rad/s": 1.0, "deg/s": DEG}
 #: Specific-force units, to m/s^2 (g = 9.80665 m/s^2).
 ACCEL_UNITS: dict[str, float] = {"m/s^2": 1.0, "m/s2": 1.0, "g": GRAVITY}
+#: The reader options that give the units (a format that converts units accepts them).
+UNIT_OPTIONS = ("time_unit", "gyro_unit", "accel_unit")
 _TABLES = {"time": TIME_UNITS, "gyro": GYRO_UNITS, "accel": ACCEL_UNITS}
 _OPTION = {"time": "time_unit", "gyro": "gyro_unit", "accel": "accel_unit"}
 _NAMES = {"s": "seconds", "ms": "milliseconds", "us": "microseconds", "ns": "nanoseconds"}
 
+#: Rows (evenly spread) on which a long log's units are decided.
+DECIDE_SAMPLES = 200_000
 RATE_RANGE = (1.0, 2000.0)          # plausible IMU rates, Hz
 EPOCH_RANGE = (3.15e8, 4.1e9)       # 1980 .. 2100, s since 1970
 GYRO_DEG_SURE = 2.0                 # 99th percentile |w| above this (rad/s): deg/s
 GYRO_RAD_SURE = 1.0                 # ... below this: rad/s; between: ask
+
+
+def _spread(x: np.ndarray) -> np.ndarray:
+    """At most about :data:`DECIDE_SAMPLES` rows of ``x``, evenly spread (all of a shorter log)."""
+    return x[::max(1, x.shape[0] // DECIDE_SAMPLES)]
 
 
 def unit_scale(kind: str, unit: str) -> float:
@@ -65,6 +84,30 @@ def unit_scale(kind: str, unit: str) -> float:
         raise ImuInputError(f"unknown {kind} unit {unit!r}; allowed: {list(table)} ({{hint}})",
                             option=_OPTION[kind])
     return table[unit]
+
+
+def raw_times(col: np.ndarray, name: str, source: str, row_lines) -> tuple[np.ndarray, str | None]:
+    """Raw time values (int64 kept exact, for epoch ns) and a forced unit for datetime columns (else None)."""
+    if col.dtype.kind == "M":
+        return col.astype("datetime64[ns]").astype(np.int64), "ns"
+    if col.dtype.kind in "iu":
+        return col.astype(np.int64, copy=False), None
+    return numeric(col, name, source, row_lines), None
+
+
+def settle_unit(kind: str, given: str | None, detect: Callable, values: np.ndarray, *args: Any) -> str:
+    """The unit given (checked), or the one told from the data by ``detect``, warning once when it converts.
+
+    ``kind`` is ``"time"``, ``"gyro"`` or ``"accel"``; ``detect(values, *args)``
+    returns ``(unit, warning text or None)`` (the ``detect_*`` functions here).
+    """
+    if given is not None:
+        unit_scale(kind, given)
+        return given
+    unit, note = detect(values, *args)
+    if note:
+        warn_user(note, UnitsWarning, _OPTION[kind], unit)
+    return unit
 
 
 def detect_time_unit(values: np.ndarray, source: str, column: str) -> tuple[str, str | None]:
@@ -86,7 +129,8 @@ def detect_time_unit(values: np.ndarray, source: str, column: str) -> tuple[str,
     fin = v[np.isfinite(v)] if v.dtype.kind == "f" else v
     if fin.size < 2:
         return "s", None
-    steps = np.diff(fin)
+    stride = max(1, (fin.size - 1) // DECIDE_SAMPLES)   # steps of evenly spread pairs of neighbours
+    steps = fin[1::stride] - fin[:-1:stride]
     steps = steps[steps > 0]
     if not steps.size:
         return "s", None
@@ -121,11 +165,13 @@ def detect_gyro_unit(gyro: np.ndarray, source: str) -> tuple[str, str | None]:
     ImuInputError
         The magnitude is between what a car does in rad/s and what deg/s shows (``option="gyro_unit"``).
     """
-    w = np.asarray(gyro, dtype=float)
-    w = w[np.isfinite(w).all(axis=1)]
-    if not w.size:
+    w = _spread(np.asarray(gyro, dtype=float))
+    with np.errstate(over="ignore"):
+        norms = np.linalg.norm(w[np.isfinite(w).all(axis=1)], axis=1)
+    norms = norms[np.isfinite(norms)]          # (a norm of huge values overflows: left to the validation)
+    if not norms.size:
         return "rad/s", None
-    q = float(np.percentile(np.linalg.norm(w, axis=1), 99))
+    q = float(np.percentile(norms, 99))
     if q <= GYRO_RAD_SURE:
         return "rad/s", None
     if q > GYRO_DEG_SURE:
@@ -141,7 +187,7 @@ def detect_accel_unit(accel: np.ndarray, source: str) -> tuple[str, str | None]:
 
     Anything else is left to the validation's units check (gravity removed, mg, ...).
     """
-    a = np.asarray(accel, dtype=float)
+    a = _spread(np.asarray(accel, dtype=float))
     a = a[np.isfinite(a).all(axis=1)]
     if not a.size:
         return "m/s^2", None

@@ -22,6 +22,11 @@ What is checked, in this order
 5. **Units**: a median step outside 1-2000 Hz, a sustained angular rate above
    ``gyro_limit`` rad/s and a median specific-force magnitude far from 1 g give
    a :class:`UnitsWarning` (or raise, see ``units``), naming the option to pass.
+6. **Sensors**: a gyro that reads exactly 0 throughout, an accelerometer that
+   reads one value throughout, or a log in which the vehicle never moves (every
+   rate below ``rest_gyro``, the specific force within :data:`STILL_SPREAD` on
+   every axis) give one :class:`SensorWarning` (the first that applies; never
+   an error; silent with ``units="ignore"`` or ``warn=False``).
 
 Indices in the report refer to rows of the *input* (``index``) unless named
 ``out_index`` (rows of the returned data); times are the input's ``t`` in s.
@@ -41,6 +46,7 @@ from .report import (
     STANDARD_GRAVITY,
     ImuValidationError,
     NonFiniteWarning,
+    SensorWarning,
     UnitsWarning,
     ValidationReport,
     row_names,
@@ -49,22 +55,29 @@ from .timestamps import (
     POLICIES,
     Action,
     Policy,
-    _check_timestamps,
     act,
     check_choice,
+    check_gaps,
     check_timestamps,
     fmt_list,
+    gap_action,
+    order_samples,
 )
 
 #: The readers' helpers of :mod:`~imu_ground.datasets.report` that are not re-exported here.
 _READER_HELPERS = ("row_names", "warn_user")
 # this module's own names, and the report's public ones (errors, warnings, ValidationReport)
-__all__ = ["POLICIES", "check_timestamps", "validate"] + [
+__all__ = ["POLICIES", "STILL_SPREAD", "check_timestamps", "validate"] + [
     name for name in _report.__all__ if name not in _READER_HELPERS]
 
 _NONFINITE = ("raise", "drop")
 #: Plausible IMU sample rates, Hz.
 RATE_RANGE = (1.0, 2000.0)
+#: Spread (1st to 99th percentile, m/s^2) of the specific force on every axis below which, with every rate
+#: below ``rest_gyro``, a log never moves: a moving car brakes, accelerates or meets bumps beyond it.
+STILL_SPREAD = 0.5
+#: Leading rows compared first when looking for a stuck accelerometer (a working one differs within them).
+_STUCK_PROBE = 1024
 
 
 def _longest_run(flags: np.ndarray, t: np.ndarray, step: float) -> tuple[float, int]:
@@ -291,27 +304,89 @@ def validate(imu: ImuData, policy: Policy = "retime", *,
         (``policy="strict"``), or gaps / units with action ``"raise"``; the
         message names the option that changes the outcome.
     """
+    # the options, checked before any work
     check_choice("policy", policy, POLICIES)
     check_choice("nonfinite", nonfinite, _NONFINITE)
     units = units if units is not None else ("raise" if policy == "strict" else "warn")
     check_choice("units", units, ("warn", "raise", "ignore"))
     if not warn and units == "warn":
         units = "ignore"
+    gaps = gap_action(gaps, policy, warn)
     src = imu.source or "<ImuData>"
     row_lines = imu.meta.get("row_lines")
     n = len(imu)
     report = ValidationReport(source=imu.source, policy=policy, n_in=n, gyro_limit=gyro_limit)
+
+    # 1. empty input
     if n == 0:
         report.issues.append(f"{src}: no samples (empty log)")
         raise ImuValidationError(report.issues[-1])
+
+    # 2. non-finite values: raise, or the rows to keep (None: every row)
     rest_bound = _sqrt_below(rest_gyro)
     stats = _RowStats(imu.gyro, imu.accel, rest_bound)
-    good = _nonfinite(imu, report, nonfinite, warn, row_lines, stats.total)  # None: every row
-    # (the times left are finite)
-    keep_pos, t, _ = _check_timestamps(imu.t if good is None else imu.t[good], policy, gaps, gap_factor,
-                                       gap_threshold, src, good, report, warn, row_lines, finite=True)
-    # input rows kept, in output order (None: every row, in order)
+    good = _nonfinite(imu, report, nonfinite, warn, row_lines, stats.total)
+
+    # 3. time order under the policy (the times left are finite): positions of those rows kept, new times
+    keep_pos, t, steps = order_samples(imu.t if good is None else imu.t[good], policy, src, good, report, warn,
+                                       row_lines, finite=True)
+
+    # 4. gaps in the ordered times
+    check_gaps(t, steps, keep_pos, good, report, gaps, gap_factor, gap_threshold, src, row_lines)
+
+    # 5. input rows kept, in output order (None: every row, in order); enough of them?
     keep = (good if keep_pos is None else good[keep_pos]) if good is not None else keep_pos
+    _record_dropped(report, keep, n)
+    if report.n_out < max(min_samples, 1):
+        report.issues.append(f"{src}: {report.n_out} sample(s) left after cleaning ({n} read), "
+                             f"need at least {max(min_samples, 1)}")
+        raise ImuValidationError(report.issues[-1])
+
+    # 6. units and magnitudes of the rows kept
+    same = keep is None or (report.n_out == n and (policy != "sort" or bool((keep == np.arange(n)).all())))
+    gyro = imu.gyro if same else imu.gyro[keep]
+    accel = imu.accel if same else imu.accel[keep]
+    _units(report, t, gyro, accel, stats if same else _RowStats(gyro, accel, rest_bound), keep, units, src,
+           gyro_limit, gyro_min_duration, accel_tol, rest_gyro, row_lines)
+
+    # 7. sensors that do not work, or a vehicle that never moves
+    _sensors(report, gyro, accel, rest_gyro, src, "ignore" if units == "ignore" else "warn")
+
+    # 8. the cleaned log, the report in its meta
+    extra = imu.extra if same or not len(imu.extra) else imu.extra.iloc[keep].reset_index(drop=True)
+    meta: dict[str, Any] = dict(imu.meta)
+    meta["validation"] = report
+    return ImuData(t, gyro, accel, imu.frame, extra, dict(imu.units), imu.source, meta), report
+
+
+def _sensors(report: ValidationReport, gyro: np.ndarray, accel: np.ndarray, rest_gyro: float, src: str,
+             action: str) -> None:
+    """One :class:`SensorWarning` for a dead gyro, a stuck accelerometer or a log that never moves (the first found).
+
+    Cheap on a working log: the largest rate is known (``report.gyro_max_norm``),
+    and a working accelerometer's first rows already differ.
+    """
+    n = gyro.shape[0]
+    msg = None
+    if n >= 2 and report.gyro_max_norm == 0.0:
+        msg = (f"{src}: the gyro reads exactly 0 on all {n} samples: a dead or disconnected gyro? (no rotation "
+               "can be measured)")
+    elif n >= 2 and not np.any(accel[1:_STUCK_PROBE] != accel[0]) and not np.any(accel != accel[0]):
+        a = ", ".join(f"{v:.6g}" for v in accel[0])
+        msg = (f"{src}: the accelerometer reads the same value ({a} m/s^2) on all {n} samples: a stuck "
+               "accelerometer?")
+    elif n >= 2 and report.gyro_max_norm < rest_gyro:
+        spread = np.percentile(accel, 99, axis=0) - np.percentile(accel, 1, axis=0)
+        if np.all(spread < STILL_SPREAD):
+            msg = (f"{src}: the vehicle never moves in this log: every angular rate is below {rest_gyro:g} rad/s "
+                   f"and the specific force varies by less than {STILL_SPREAD:g} m/s^2 on every axis; only the "
+                   "standstill tilt can be estimated")
+    if msg is not None:
+        act(action, msg, SensorWarning, report)
+
+
+def _record_dropped(report: ValidationReport, keep: np.ndarray | None, n: int) -> None:
+    """``dropped_index`` and ``n_out`` of the report from the input rows kept (None: all ``n``)."""
     n_out = n if keep is None else int(keep.size)
     if n_out == n:                      # keep holds distinct rows: all of them
         report.dropped_index = np.zeros(0, dtype=np.intp)
@@ -320,17 +395,3 @@ def validate(imu: ImuData, policy: Policy = "retime", *,
         dropped[keep] = False
         report.dropped_index = np.flatnonzero(dropped)
     report.n_out = n_out
-    if n_out < max(min_samples, 1):
-        report.issues.append(f"{src}: {n_out} sample(s) left after cleaning ({n} read), "
-                             f"need at least {max(min_samples, 1)}")
-        raise ImuValidationError(report.issues[-1])
-    # every row kept in order (only "sort" can keep them all in another order)
-    same = keep is None or (n_out == n and (policy != "sort" or bool((keep == np.arange(n)).all())))
-    gyro = imu.gyro if same else imu.gyro[keep]
-    accel = imu.accel if same else imu.accel[keep]
-    _units(report, t, gyro, accel, stats if same else _RowStats(gyro, accel, rest_bound), keep, units, src,
-           gyro_limit, gyro_min_duration, accel_tol, rest_gyro, row_lines)
-    extra = imu.extra if same or not len(imu.extra) else imu.extra.iloc[keep].reset_index(drop=True)
-    meta: dict[str, Any] = dict(imu.meta)
-    meta["validation"] = report
-    return ImuData(t, gyro, accel, imu.frame, extra, dict(imu.units), imu.source, meta), report

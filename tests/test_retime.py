@@ -1,4 +1,4 @@
-"""The retime policy (issue 9 point 2): jittered stamps back on the sample clock, real dropouts kept as gaps."""
+"""The retime policy: jittered stamps back on the sample clock, real dropouts kept as gaps."""
 from __future__ import annotations
 
 import gzip
@@ -33,7 +33,10 @@ def kitti_jitter(n=3000, dt=0.01, dropout_at=2000, dropout=1.6, seed=0):
 
 def imu_of(t):
     n = t.size
-    return ImuData(t, np.tile([0.001, 0.0, 0.01], (n, 1)), np.tile([0.0, 0.0, 9.81], (n, 1)),
+    k = np.arange(n)        # a moving car: turns and brakes (a still or constant log gets a SensorWarning)
+    gyro = np.tile([0.001, 0.0, 0.01], (n, 1)) + np.outer(0.2 * np.sin(k / 7.0), [0, 0, 1])
+    accel = np.tile([0.0, 0.0, 9.81], (n, 1)) + np.outer(np.sin(k / 5.0), [1, 0, 0])
+    return ImuData(t, gyro, accel,
                    extra=pd.DataFrame({"k": np.arange(n)}), source="log.csv")
 
 

@@ -56,7 +56,8 @@ def _one_line(e: BaseException) -> str:
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    print(f"warning: {' '.join(str(message).split())}", file=sys.stderr)
+    text = message.cli_message() if hasattr(message, "cli_message") else str(message)
+    print(f"warning: {' '.join(text.split())}", file=sys.stderr)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -122,8 +122,8 @@ def say(text: str) -> None:
 
 
 def warn_line(message: str, file: Any = None) -> None:
-    """A warning as one line on stderr, ``file: warning: message`` (no Python source line)."""
-    text = " ".join(str(message).split())
+    """A warning as one line on stderr, ``file: warning: message`` (no Python source line; options as CLI flags)."""
+    text = " ".join((message.cli_message() if hasattr(message, "cli_message") else str(message)).split())
     prefix = f"{file}: " if file is not None else ""
     if prefix and text.startswith(prefix):
         text = text[len(prefix):]
@@ -136,5 +136,5 @@ def warnings_as_lines(file: Any = None) -> Iterator[None]:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         yield
-    for message in dict.fromkeys(str(w.message) for w in caught):
+    for message in {str(w.message): w.message for w in caught}.values():
         warn_line(message, file)

@@ -108,7 +108,8 @@ def run(a: argparse.Namespace) -> int:
     em = res.egomotion
     say(f"{res.meta['format']} {'pose file' if res.meta['kind'] == 'poses' else 'log'} {a.log}: {s['frames']} frames "
         f"at {em.rate:g} Hz, method {res.meta['method']}, {s['frames'] - s['valid_frames']} across gaps, "
-        f"{int(em.stationary.sum())} stationary, speed {res.meta['speed']} ({time.perf_counter() - t0:.2f} s)")
+        f"{int(em.stationary.sum())} stationary, speed {res.meta['speed']}"
+        + (f", t on {res.meta['clock']}" if res.meta.get("clock") else "") + f" ({time.perf_counter() - t0:.2f} s)")
     if s["valid_frames"]:
         say(f"pitch {s['pitch_mean_deg']:+.3f} +- {s['pitch_std_deg']:.3f} deg (range {s['pitch_min_deg']:+.2f} .. "
             f"{s['pitch_max_deg']:+.2f}), roll {s['roll_mean_deg']:+.3f} +- {s['roll_std_deg']:.3f} deg "

@@ -6,11 +6,11 @@ The method is one of the registry's (:func:`available_methods`); ``"auto"``
 picks the best for the input: the suspension-aware filter when the log has an
 accelerometer, the invariant filter (``"filter"``) for poses.
 
-Options are checked before any work, and a bad one raises :class:`OptionError`
-(a ``ValueError``) whose message names the option as the user spells it:
-``rate=...`` from Python, ``--rate`` from the command line
-(:meth:`OptionError.cli_message`), as the readers'
-:class:`~imu_ground.datasets.options.ImuInputError` does.
+Options are checked before any work, and a bad one raises
+:class:`~imu_ground.datasets.options.OptionError` (a ``ValueError``, the one
+option error of the package, the readers' base too) whose message names the
+option as the user spells it: ``rate`` from Python, ``--rate`` from the
+command line (:meth:`~imu_ground.datasets.options.OptionMessage.cli_message`).
 """
 from __future__ import annotations
 
@@ -20,6 +20,8 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
+
+from imu_ground.datasets.options import OptionError, OptionText
 
 __all__ = [
     "POSE_FORMATS",
@@ -36,29 +38,6 @@ __all__ = [
 
 #: ``--format`` names of the pose files :func:`estimate_log` reads, to :func:`imu_ground.datasets.read_poses` names.
 POSE_FORMATS = {"kitti_poses": "kitti", "tum": "tum"}
-
-class OptionError(ValueError):
-    """A bad option value; the message names the option as Python keyword or CLI flag.
-
-    Parameters
-    ----------
-    template : str
-        Message with ``{opt}`` where the option's name goes.
-    name : str
-        Python keyword (e.g. ``"rate"``).
-    flag : str, optional
-        CLI flag (default ``--`` + name with ``_`` as ``-``).
-    """
-
-    def __init__(self, template: str, name: str, flag: str | None = None) -> None:
-        self.template, self.name = template, name
-        self.flag = flag or "--" + name.replace("_", "-")
-        super().__init__(template.replace("{opt}", name))
-
-    def cli_message(self) -> str:
-        """The message with the option spelled as its ``imu-ground`` flag."""
-        return self.template.replace("{opt}", self.flag)
-
 
 class EstimateResult(NamedTuple):
     """What :func:`estimate_log` returns (unpacks as ``track, egomotion, meta``).
@@ -193,8 +172,13 @@ def _reader_kwargs(options: dict) -> dict:
 
 
 def _one_line(path: str | Path, message: Any) -> str:
-    text = " ".join(str(message).split())
-    return text if text.startswith(str(path)) else f"{path}: {text}"
+    """One line naming the file; a message that names an option keeps its CLI spelling (:class:`OptionText`)."""
+    def line(text: str) -> str:
+        text = " ".join(str(text).split())
+        return text if text.startswith(str(path)) else f"{path}: {text}"
+    if hasattr(message, "cli_message"):
+        return OptionText(line(message), line(message.cli_message()))
+    return line(message)
 
 
 # ------------------------------------------------------------------------------------------ estimate
@@ -261,7 +245,7 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         if kind == "poses":
-            em, info = _poses_egomotion(path, fmt, rate)
+            em, info = _poses_egomotion(path, fmt, rate, reader_kw.get("times"), extrinsic)
         else:
             em, info, imu = _imu_egomotion(path, fmt, rate, extrinsic, reader_kw)
         bar.update()
@@ -306,29 +290,49 @@ def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
         warnings.warn(f"{path}: the IMU's body frame is {imu.frame!r}, not FLU (x forward, y left, z up), and no "
                       "extrinsic was given: pitch and roll refer to the sensor's own axes; run 'imu-ground "
                       "calibrate' once and pass the result with --extrinsic")
-    em = imu_to_egomotion(imu, rate=DEFAULT_FRAME_RATE if rate is None else rate)
+    frame_rate = DEFAULT_FRAME_RATE if rate is None else rate
+    try:
+        em = imu_to_egomotion(imu, rate=frame_rate)
+    except ValueError as e:             # too short a log: the message names the file, as every other one
+        if str(e).startswith(str(path)):
+            raise
+        raise ValueError(f"{path}: {len(imu)} sample(s) over {imu.duration:.3g} s, too short for frames at "
+                         f"{frame_rate:g} Hz ({e})") from e
     info = {"format": fmt, "imu_rate": imu_rate, "frame_id": imu.meta.get("frame_id") or "imu"}
     if imu.meta.get("t0_ns") is not None:
         info["t0_ns"] = int(imu.meta["t0_ns"])
     return em, info, imu
 
 
-def _poses_egomotion(path, fmt, rate):
-    from imu_ground.datasets import read_poses
+def _poses_egomotion(path, fmt, rate, times=None, extrinsic=None):
+    from imu_ground.datasets.poses import moves_along_z, read_poses
     from imu_ground.imu import EgoMotion
-    poses = read_poses(path, format=POSE_FORMATS[fmt])
+    from imu_ground.units import DEFAULT_FRAME_RATE
+    poses = read_poses(path, format=POSE_FORMATS[fmt], times=times)
     if len(poses) < 2:
         raise ValueError(f"{path}: {len(poses)} pose(s); at least 2 are needed for one frame")
+    if extrinsic is None and moves_along_z(poses):
+        raise OptionError(f"{path}: camera poses (the motion is along the sensor's +z axis: x right, y down, "
+                          f"z forward), whose axes are not a vehicle's; pass {{opt}} kitti_cam0 (KITTI's camera 0) "
+                          f"or the camera's own extrinsic", "extrinsic")
     t = None
     if poses.t is not None:
         t = poses.t[1:]
+        clock = poses.clock
         if rate is not None:
-            warnings.warn(f"{path}: a TUM pose file carries its own times; --rate {rate:g} is not used "
+            warnings.warn(f"{path}: the poses carry their own times ({clock}); --rate {rate:g} is not used "
                           "(one frame per pose)")
             rate = None
+    else:
+        clock = f"frame index / {DEFAULT_FRAME_RATE if rate is None else rate:g} Hz (no times)"
+        if fmt == "kitti_poses":
+            warnings.warn(f"{path}: a KITTI pose file has no times: frames are timed as index / "
+                          f"{DEFAULT_FRAME_RATE if rate is None else rate:g} Hz, but KITTI's cameras run at about "
+                          "9.65 Hz (t drifts by seconds over a sequence); pass --times with the sequence's "
+                          "times.txt")
     em = EgoMotion.from_rotations(poses.relative_rotations(), t=t, rate=rate,
                                   meta={"source": str(path), "format": fmt})
-    return em, {"format": fmt, "frame_id": "camera" if fmt == "kitti_poses" else "sensor"}
+    return em, {"format": fmt, "frame_id": "camera" if fmt == "kitti_poses" else "sensor", "clock": clock}
 
 
 def _frame_speeds(speed, path, fmt, imu, em, method: str):

@@ -161,6 +161,7 @@ def _csv_header(meta: Mapping[str, Any]) -> str:
         (f"imu-ground {package_version()} estimate: format {meta.get('format')}, method {meta.get('method')} "
         f"({meta.get('method_description', '')})"),
         f"settings: {settings}",
+        *([f"clock: t is on {meta['clock']}"] if meta.get("clock") else []),
         ("columns: t (s, frame end); normal_x, normal_y, normal_z (unit ground normal, sensor frame); "
         "pitch_deg (deg, + nose down) and roll_deg (deg, + left side up) of the body relative to the road; "
         "qw, qx, qy, qz (residual rotation road <- body, unit quaternion, scalar first)"),
