@@ -153,7 +153,7 @@ def test_bare_rotation_step_checks_the_rotation_only():
 
 
 def test_step_refuses_several_rotations_as_one_frame():
-    """Both streaming estimators share the frame check (the kernel's check, then estimator.coerce_frame):
+    """Both streaming estimators share the frame check (the kernel's check, then frame_checks.coerce_frame):
     a batch is named as such, even a batch of one."""
     for batch in (np.stack([np.eye(3), so3.rotz(0.1)]), so3.rotz(0.1)[None]):
         for f in (GroundNormalFilter(on_invalid="skip"), SuspensionAwareFilter(on_invalid="skip")):

@@ -1,4 +1,5 @@
 """The ``imu-ground`` command: issue 8's cases (each the failing case it was filed with) and issue 10's default."""
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -231,11 +232,19 @@ def test_real_kitti_odometry_poses(shared_data, tmp_path, capsys):
 # ------------------------------------------------------------------------------------------ conveniences
 def test_version_and_python_dash_m(capsys):
     from importlib.metadata import version
+
+    from imu_ground._native import PURE_PYTHON_ENV, STREAMING_KERNELS, native_kernels
     __version__ = version("imu-ground")
+    built = all(native_kernels()[name] for name in STREAMING_KERNELS)
+    kernels = "compiled kernels" if built else "pure Python kernels"
     code, out, _ = run(capsys, "--version")
-    assert code == 0 and out.strip() == f"imu-ground {__version__}"
+    assert code == 0 and out.strip().startswith(f"imu-ground {__version__}, {kernels}")
     r = subprocess.run([sys.executable, "-m", "imu_ground", "--version"], capture_output=True, text=True, check=False)
-    assert r.returncode == 0 and r.stdout.strip() == f"imu-ground {__version__}"
+    assert r.returncode == 0 and r.stdout.strip() == out.strip()
+    # the switch is reported: the version line tells which kernels run
+    r = subprocess.run([sys.executable, "-m", "imu_ground", "--version"], capture_output=True, text=True, check=False,
+                       env={**os.environ, PURE_PYTHON_ENV: "1"})
+    assert r.stdout.strip() == f"imu-ground {__version__}, pure Python kernels: {PURE_PYTHON_ENV} is set"
 
 
 def _subparsers(parser):

@@ -8,10 +8,14 @@ to do, and exit status 2. Run ``imu-ground COMMAND --help`` for each command's o
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import sys
 import warnings
 from collections.abc import Sequence
+
+from imu_ground._native import kernels_in_use
+from imu_ground.pipeline.output import package_version
 
 __all__ = ["COMMANDS", "build_parser", "main"]
 
@@ -28,13 +32,10 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every command (help text for every option)."""
-    import importlib
-
-    from imu_ground.pipeline.output import package_version
     ap = _Parser(prog="imu-ground", description="Ground plane normal (pitch and roll of the body "
                                  "relative to the road) of a moving vehicle, frame by frame, from IMU logs or "
                                  "odometry.")
-    ap.add_argument("--version", action="version", version=f"imu-ground {package_version()}")
+    ap.add_argument("--version", action="version", version=f"imu-ground {package_version()}, {kernels_in_use()}")
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in COMMANDS:
         importlib.import_module(f"imu_ground.cli.{name}").register(sub)

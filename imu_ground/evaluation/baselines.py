@@ -24,15 +24,12 @@ from __future__ import annotations
 import numpy as np
 
 from imu_ground import so3
-from imu_ground.filters.estimator import (
-    GroundEstimate,
-    GroundTrack,
-    as_egomotion,
+from imu_ground.filters.estimator import GroundEstimate, GroundTrack, as_egomotion, pitch_roll_from_normal
+from imu_ground.filters.frame_checks import (
     bad_frame_error,
     frame_problem,
     frame_problems,
     frame_where,
-    pitch_roll_from_normal,
     static_rotation,
 )
 from imu_ground.filters.extrinsics import Extrinsic

@@ -30,9 +30,9 @@ from typing import Optional, Union
 import numpy as np
 
 from imu_ground import so3
-from imu_ground.filters.estimator import (GroundEstimate, GroundTrack, as_egomotion, bad_frame, check_on_invalid,
-                                          checked_frame, checked_frames, coerce_frame, hold_skipped,
-                                          pitch_roll_from_normal, static_rotation)
+from imu_ground.filters.estimator import GroundEstimate, GroundTrack, as_egomotion, pitch_roll_from_normal
+from imu_ground.filters.frame_checks import (bad_frame, check_on_invalid, checked_frame, checked_frames, coerce_frame,
+                                             hold_skipped, static_rotation)
 from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel

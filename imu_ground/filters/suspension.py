@@ -59,10 +59,8 @@ import numpy as np
 from imu_ground import so3
 from imu_ground.filters import gravity_kernel
 from imu_ground.filters.design import IIRFilter, butter_bandpass, foh_filter
-from imu_ground.filters.estimator import (
-    GroundEstimate,
-    GroundTrack,
-    as_egomotion,
+from imu_ground.filters.estimator import GroundEstimate, GroundTrack, as_egomotion
+from imu_ground.filters.frame_checks import (
     check_on_invalid,
     checked_frame,
     checked_frames,

@@ -2,7 +2,8 @@
  * front-end's per-sample fast path (imu_ground/imu/preint_stream.py).
  *
  * integrate() below is integrate_interval of preint_kernel.py, term for term and in the same
- * order (the extension is compiled without FMA contraction), so the two agree bit for bit.
+ * order (the extension is compiled without FMA contraction), so the two round alike (equality rule:
+ * imu_ground/_native.py).
  * State layouts: deltas (11 doubles) and uncertainty (90), as documented in preint_kernel.py.
  *
  * Entry points (METH_FASTCALL):
