@@ -16,10 +16,10 @@ from imu_ground.filters.design import IIRFilter, foh_filter
 from imu_ground.filters.estimator import pitch_roll_from_normal
 from imu_ground.filters.ground import GroundNormalFilter
 from imu_ground.filters.methods import METHODS, default_method, estimate, make_estimator
-from imu_ground.filters.rotations import as_rotations, euler_zyx, matrix_from_quat, quat_from_matrix, twist_angle
 from imu_ground.filters.suspension import SuspensionAwareFilter
 from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
 from imu_ground.pipeline.output import track_table
+from imu_ground.so3 import as_rotations, euler_zyx, matrix_from_quat, quat_from_matrix, twist_angle
 
 ESTIMATORS = {
     "filter": lambda: GroundNormalFilter(),

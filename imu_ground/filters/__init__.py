@@ -2,7 +2,6 @@
 
 Module map (each imports only the ones above it, and the imu layer below):
 
-- ``rotations``: increments in any form, heading twist, ZYX Euler angles, quaternions;
 - ``design``: discrete-time filter design (band-pass, second-order response, IIR runner);
 - ``extrinsics``: static extrinsics and the calibration file format (``Calibration``);
 - ``estimator``: the estimator protocol, ``GroundEstimate``, ``GroundTrack``, ``as_egomotion``;
@@ -31,7 +30,7 @@ _EXPORTS = {
     ".extrinsics": ("Extrinsic load_extrinsic save_extrinsic available_extrinsics Calibration "
                     "load_calibration resolve_platform"),
     ".calibration": "calibrate",
-    ".rotations": "euler_zyx twist_angle as_rotations",
+    "imu_ground.so3": "euler_zyx twist_angle as_rotations",      # rotation helpers, re-exported from so3
     ".design": "butter_bandpass foh_filter",
 }
 __getattr__, __dir__, __all__ = lazy_exports(__name__, _EXPORTS)

@@ -47,7 +47,7 @@ enum {
     E_SIZE = 123
 };
 
-#define SMALL 1e-4   /* so3._SMALL */
+#define SMALL 1e-4   /* so3.SMALL_ANGLE */
 
 /* ---- scalar kernels (so3's *_flat and quat_* functions) ---------------------------------- */
 static inline void sym_upper(double *m)

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Optional, Protocol, runtime_checkable
 
 import numpy as np
 
-from imu_ground.filters.rotations import as_rotations, matrix_from_quat
+from imu_ground.so3 import as_rotations, matrix_from_quat
 from imu_ground.units import DEFAULT_FRAME_RATE
 
 if TYPE_CHECKING:

@@ -16,7 +16,7 @@ from typing import Optional
 import numpy as np
 
 from imu_ground import _native
-from imu_ground.filters.rotations import as_rotations
+from imu_ground.so3 import as_rotations
 
 __all__ = ["ON_INVALID", "ORTHO_TOL", "BAD_ROTATION", "BAD_DELTA_V", "BAD_DELTA_T", "frame_status", "frame_problem",
            "frame_problems", "frame_statuses", "checked_frames", "check_on_invalid", "bad_frame_error",
@@ -267,7 +267,7 @@ def coerce_frame(delta_R, delta_v=None) -> tuple:
     ----------
     delta_R : array_like
         sensor_{k-1} <- sensor_k: a rotation matrix, a 4x4 relative pose or a
-        rotation vector, rad (:func:`~imu_ground.filters.rotations.as_rotations`).
+        rotation vector, rad (:func:`~imu_ground.so3.as_rotations`).
     delta_v : array_like (3,), optional
         Velocity increment, m/s.
 

@@ -76,7 +76,7 @@ def new_state(x6, p21, r9, prm7, initialised: bool, lever=None, extrinsic9=None)
     s += [1.0 if initialised else 0.0, 0.0, 0.0, 0.0, 0.0, 0.0] + [float(v) for v in prm7]
     s += [0.0, 0.0, 0.0, 0.0] if lever is None else [1.0] + [float(v) for v in lever]
     s += [0.0] * 10 if extrinsic9 is None else [1.0] + [float(v) for v in extrinsic9]
-    s += [float(RENORM_EVERY), so3._SMALL] + [0.0] * (BUF_LEN - I_LAST)
+    s += [float(RENORM_EVERY), so3.SMALL_ANGLE] + [0.0] * (BUF_LEN - I_LAST)
     return s
 
 

@@ -20,8 +20,8 @@ import numpy as np
 
 from imu_ground import _native
 from imu_ground.filters import gravity_kernel
-from imu_ground.filters.frame_checks import frame_problem
 from imu_ground.filters.extrinsics import Extrinsic
+from imu_ground.filters.frame_checks import frame_problem
 from imu_ground.filters.gravity_kernel import (  # noqa: F401 (reference)
     _UPPER21,
     I_LAST,
@@ -34,9 +34,9 @@ from imu_ground.filters.gravity_kernel import (  # noqa: F401 (reference)
     new_state,
 )
 from imu_ground.filters.gravity_kernel import full_cov as _full_cov
-from imu_ground.filters.rotations import as_rotations
 from imu_ground.imu.data import ImuData
 from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
+from imu_ground.so3 import as_rotations
 
 __all__ = ["NATIVE", "GravityEstimate", "GravityTrack", "GravityVelocityFilter", "egomotion_arrays"]
 

@@ -31,12 +31,13 @@ import numpy as np
 
 from imu_ground import so3
 from imu_ground.filters.estimator import GroundEstimate, GroundTrack, as_egomotion, pitch_roll_from_normal
+from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.filters.frame_checks import (bad_frame, check_on_invalid, checked_frame, checked_frames, coerce_frame,
                                              hold_skipped, static_rotation)
-from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
-from imu_ground.filters.rotations import cumulative_rotations, matrix_from_quat, twist_angle
+from imu_ground.so3 import cumulative_rotations, matrix_from_quat, twist_angle
+from imu_ground.units import RENORM_EVERY
 
 __all__ = ["GroundNormalFilter", "GroundEstimate", "GroundTrack", "pitch_roll_from_normal"]
 
@@ -286,7 +287,7 @@ class GroundNormalFilter:
         """General path: one frame of the InvariantEKF; returns the residual E (road <- body)."""
         if self._Rgs is not None:
             d = self._Rgs @ d @ self._Rgs.T
-        self._cum = Rk = cumulative_rotations(d[None], self._cum, self._frames - 1)[0]
+        self._cum = Rk = cumulative_rotations(d[None], self._cum, self._frames - 1, renorm_every=RENORM_EVERY)[0]
         ekf = self.ekf
         ekf.predict(so3.rotz(float(twist_angle(d))) if self.follow_heading else None)
         ekf.update(Rk if self.measurement == "rotation" else Rk @ ekf.b)

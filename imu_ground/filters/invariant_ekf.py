@@ -66,8 +66,8 @@ from typing import Union
 
 import numpy as np
 
-from imu_ground import so3
 from imu_ground import _native
+from imu_ground import so3
 from imu_ground.filters import invariant_ekf_kernel as _kernel
 from imu_ground.filters.invariant_ekf_kernel import (
     B_DET,

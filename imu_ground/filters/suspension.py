@@ -60,6 +60,7 @@ from imu_ground import so3
 from imu_ground.filters import gravity_kernel
 from imu_ground.filters.design import IIRFilter, butter_bandpass, foh_filter
 from imu_ground.filters.estimator import GroundEstimate, GroundTrack, as_egomotion
+from imu_ground.filters.extrinsics import resolve_platform
 from imu_ground.filters.frame_checks import (
     check_on_invalid,
     checked_frame,
@@ -67,7 +68,6 @@ from imu_ground.filters.frame_checks import (
     hold_skipped,
     static_rotation,
 )
-from imu_ground.filters.extrinsics import resolve_platform
 from imu_ground.filters.gains import (
     DEFAULT_CROSS_GAIN,
     DEFAULT_GAINS,
@@ -79,7 +79,7 @@ from imu_ground.filters.gains import (
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
-from imu_ground.filters.rotations import matrix_from_quat, twist_angle
+from imu_ground.so3 import matrix_from_quat, twist_angle
 from imu_ground.units import DEG
 
 __all__ = [

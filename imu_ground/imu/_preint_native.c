@@ -48,7 +48,7 @@ enum {
     S_SIZE = 132
 };
 
-#define SMALL_ANGLE2 1e-8   /* imu_ground.imu.matrix3.SMALL_ANGLE2 */
+#define SMALL_ANGLE2 1e-8   /* imu_ground.so3.component_major.SMALL_ANGLE2 */
 
 /* One interval (see integrate_interval in preint_kernel.py): s (11) and, unless NULL, u (90), in place.
  * Unrolled like its Python twin: every product written out entry by entry. */

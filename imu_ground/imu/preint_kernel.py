@@ -43,9 +43,9 @@ from __future__ import annotations
 
 from math import cos, sin, sqrt
 
-from imu_ground import so3
 from imu_ground import _native
-from imu_ground.imu.matrix3 import SMALL_ANGLE2
+from imu_ground import so3
+from imu_ground.so3.component_major import SMALL_ANGLE2
 
 __all__ = [
     "DELTAS_IDENTITY",

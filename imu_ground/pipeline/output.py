@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from imu_ground.filters.estimator import GroundTrack
-from imu_ground.filters.rotations import quat_from_matrix
+from imu_ground.so3 import quat_from_matrix
 
 if TYPE_CHECKING:
     import pandas as pd

@@ -1,4 +1,4 @@
-"""Batched 3x3 matrix helpers in component-major layout, shared by the batch preintegration and dead reckoning.
+"""Batches of 3x3 rotations in component-major layout, shared by the batch preintegration and dead reckoning.
 
 Component-major means a batch of 3x3 matrices is stored as an array of shape
 ``(3, 3, ...)`` (entry ``[i, j]`` first, batch axes after), so that every
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from imu_ground import so3
+from imu_ground.so3.group import project
 
 __all__ = [
     "ORTHO_TOL",
@@ -24,7 +24,7 @@ __all__ = [
 ]
 
 #: theta^2 (rad^2) below which the Taylor series of the SO(3) coefficients are used
-#: (theta < 1e-4 rad, where they are exact to double precision; as in :mod:`imu_ground.so3`).
+#: (theta < :data:`~imu_ground.so3.group.SMALL_ANGLE`, where they are exact to double precision).
 SMALL_ANGLE2 = 1e-8
 #: A rotation whose orthonormality defect ``max |R^T R - I|`` exceeds this is projected onto SO(3).
 ORTHO_TOL = 1e-12
@@ -160,5 +160,5 @@ def project_if_needed(R: np.ndarray) -> np.ndarray:
     bad = np.max(np.abs(E), axis=(-2, -1)) > ORTHO_TOL
     if np.any(bad):
         R = R.copy()
-        R[bad] = so3.project(R[bad])
+        R[bad] = project(R[bad])
     return R
