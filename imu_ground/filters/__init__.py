@@ -10,7 +10,7 @@ Module map (each imports only the ones above it, and the imu layer below):
 - ``invariant_ekf_kernel``, ``gravity_kernel``: the pure-Python per-frame kernels of the invariant
   EKF and of the gravity/velocity filter (references of, and fallbacks for, the C twins);
 - ``invariant_ekf``, ``gravity_velocity``: the filters the estimators are built from;
-- ``gains``: suspension gains (defaults, band-pass regression);
+- ``gains``: suspension gains (defaults, band-pass regression); ``suspension_model``: load, gains and body tilt;
 - ``ground`` (``GroundNormalFilter``), ``suspension`` (``SuspensionAwareFilter``): the estimators;
 - ``methods``: the estimators by CLI name; ``calibration``: ``calibrate`` a platform.
 
