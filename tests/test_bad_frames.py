@@ -1,4 +1,4 @@
-"""A bad frame does not break a streaming estimator (issue 8, point 4).
+"""A bad frame does not break a streaming estimator: it raises with the state unchanged, or is skipped and flagged.
 
 Each kind of bad frame is injected into a real drive (KITTI, shared recordings). With
 ``on_invalid="raise"`` the frame raises a ``ValueError`` naming the problem and leaves the state

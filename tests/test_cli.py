@@ -1,4 +1,5 @@
-"""The ``imu-ground`` command: issue 8's cases (each the failing case it was filed with) and issue 10's default."""
+"""The ``imu-ground`` command: bad input (one line naming the file and the flag, exit status 2, no partial
+file), the default method, and the conveniences."""
 import os
 import subprocess
 import sys
@@ -69,7 +70,7 @@ def test_estimate_on_the_shipped_example(tmp_path, capsys):
 
 
 def test_default_method_beats_the_constant_normal_on_the_example(tmp_path, capsys):
-    """Issue 10.1: the README's first command, scored against the example's truth."""
+    """The README's first command, scored against the example's truth: the default method beats a constant normal."""
     from imu_ground.evaluation.metrics import normal_angle
     out = tmp_path / "example_ground.csv"
     assert run(capsys, "estimate", EXAMPLE, "-o", out)[0] == 0
@@ -306,7 +307,7 @@ def test_simulate_truth_names_its_angle_units(tmp_path, capsys):
 
 
 def test_evaluate_without_plots(tmp_path, capsys):
-    """Issue 8.1: every evaluate run without --plots failed with 'too many values to unpack'."""
+    """evaluate without --plots runs (it once failed with 'too many values to unpack' on every such run)."""
     csv = tmp_path / "r.csv"
     code, out, err = run(capsys, "evaluate", "--synthetic", "1", "--grades", "mems", "--methods", "naive,paper",
                          "--csv", csv, "--per-drive")

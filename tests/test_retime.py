@@ -1,4 +1,4 @@
-"""The retime policy (issue 9 point 2): jittered stamps back on the sample clock, real dropouts kept as gaps."""
+"""The retime policy: jittered stamps back on the sample clock, real dropouts kept as gaps."""
 from __future__ import annotations
 
 import gzip

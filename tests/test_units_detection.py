@@ -1,4 +1,4 @@
-"""Units and time scales told from the data (issue 9 point 3), the options errors name, pose files, formats."""
+"""Units and time scales told from the data, the options errors name, pose files, formats."""
 from __future__ import annotations
 
 import warnings

@@ -65,7 +65,7 @@ __all__ = [
 
 #: Tuned parameters of the paper's method (the GroundNormalFilter with the
 #: heading-following slow state): chosen on the real drives, see
-#: ``benchmarks/tune_paper.py``.
+#: ``benchmarks/studies/tune_paper.py``.
 TUNED = dict(Q=0.1, R=1.0, P=1.0)
 
 
