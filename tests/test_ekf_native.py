@@ -2,7 +2,8 @@
 
 The whole state buffer (estimate, covariance, prior/posterior, y, K, S, S^-1, det S, counters)
 held to the twin rule (:func:`imu_ground._native.assert_twins_equal`): the C kernels are the
-Python ones term for term, compiled without FMA contraction. Skipped when the extension is not built (or IMU_GROUND_PURE_PYTHON=1).
+Python ones term for term, compiled without FMA contraction. Skipped when the extension is not built
+(or IMU_GROUND_PURE_PYTHON=1).
 """
 from __future__ import annotations
 

@@ -84,7 +84,8 @@ CONFIGS = {
 
 
 def _compare_everything(em, speed, kw, what):
-    """C against Python, step and run (also with the smoother): the twin rule; C step == C run bit for bit (one kernel)."""
+    """C against Python, step and run (also with the smoother): the twin rule; C step == C run bit for bit
+    (one kernel for both)."""
     c, p = _pair(**kw)
     n = len(em)
     sp = [None] * n if speed is None else speed

@@ -1,7 +1,8 @@
 """The C preintegration kernel and streaming fast path (imu/_preint_native.c) against their Python twins.
 
 Held to the twin rule (:func:`imu_ground._native.assert_twins_equal`): the C kernel is the
-Python one term for term, compiled without FMA contraction. Skipped when the extension is not built (or IMU_GROUND_PURE_PYTHON=1).
+Python one term for term, compiled without FMA contraction. Skipped when the extension is not built
+(or IMU_GROUND_PURE_PYTHON=1).
 """
 from __future__ import annotations
 

@@ -1,7 +1,8 @@
 """The ``imu-ground`` command: ``estimate | batch | evaluate | simulate | calibrate``.
 
-One module per command (``register`` adds its parser, ``run`` does the work and
-imports the library lazily). :func:`main` is the one error handler: bad input,
+One module per command (``register`` adds its parser, ``run`` does the work; the
+library's heavy dependencies, pandas, scipy, matplotlib and the optional ones, load
+only when a command needs them). :func:`main` is the one error handler: bad input,
 options or paths never show a traceback but one line naming the file and what
 to do, and exit status 2. Run ``imu-ground COMMAND --help`` for each command's options.
 """

@@ -29,11 +29,13 @@ from typing import TYPE_CHECKING, Optional, Protocol, runtime_checkable
 
 import numpy as np
 
+from imu_ground.imu.data import ImuData
+from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
 from imu_ground.so3 import as_rotations, matrix_from_quat
 from imu_ground.units import DEFAULT_FRAME_RATE
 
 if TYPE_CHECKING:
-    from imu_ground.imu.egomotion import EgoFrame, EgoMotion
+    from imu_ground.imu.egomotion import EgoFrame
 
 __all__ = ["GroundEstimate", "GroundTrack", "GroundEstimator", "pitch_roll_from_normal", "as_egomotion"]
 
@@ -213,8 +215,6 @@ def as_egomotion(data, rate: Optional[float] = None) -> "EgoMotion":
     rate : float, optional
         Frame rate, Hz, for the last two; :data:`~imu_ground.units.DEFAULT_FRAME_RATE` by default.
     """
-    from imu_ground.imu.data import ImuData
-    from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
     if isinstance(data, EgoMotion):
         return data
     rate = DEFAULT_FRAME_RATE if rate is None else float(rate)

@@ -280,17 +280,9 @@ class _ResidualEngine:
     def cumulative(self) -> np.ndarray:
         return self._f.R0 @ matrix_from_quat(np.array(self._kernel.R))
 
-    @property
-    def residual(self) -> np.ndarray:
-        return matrix_from_quat(np.array(self._kernel.E))
-
-    @property
-    def x(self) -> np.ndarray:
-        return self.cumulative @ self.residual.T
-
-    @property
-    def P(self) -> np.ndarray:
-        return np.diag([self._kernel.a, self._kernel.a, self._kernel.c])
+    residual = property(lambda self: self._kernel.residual_matrix())
+    x = property(lambda self: self.cumulative @ self.residual.T)
+    P = property(lambda self: self._kernel.covariance())
 
     @property
     def K(self) -> np.ndarray:

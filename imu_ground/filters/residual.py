@@ -41,6 +41,7 @@ import numpy as np
 
 from imu_ground import _native
 from imu_ground.filters.frame_checks import frame_status
+from imu_ground.so3 import matrix_from_quat
 from imu_ground.units import RENORM_EVERY
 
 __all__ = ["ResidualKernel", "advance", "step", "run", "check", "BUF_LEN", "NATIVE", "PYTHON"]
@@ -294,7 +295,8 @@ PYTHON = SimpleNamespace(step=step, run=run, check=check, BUF_LEN=BUF_LEN)
 NATIVE = _native.RESIDUAL
 if NATIVE is not None and getattr(NATIVE, "BUF_LEN", None) != BUF_LEN:
     raise ImportError(f"{NATIVE.__file__} is older than residual.py (its state buffer has "
-                      f"{getattr(NATIVE, 'BUF_LEN', '?')} floats, residual.py {BUF_LEN}): rebuild with `pip install -e .`")
+                      f"{getattr(NATIVE, 'BUF_LEN', '?')} floats, residual.py {BUF_LEN}): "
+                      f"rebuild with `pip install -e .`")
 
 
 class ResidualKernel:
@@ -361,6 +363,14 @@ class ResidualKernel:
 
     a = property(lambda self: self.buf[4], doc="Covariance about the horizontal axes, rad^2.")
     c = property(lambda self: self.buf[5], doc="Covariance about up, rad^2.")
+
+    def residual_matrix(self) -> np.ndarray:
+        """:attr:`E` as a rotation matrix (3, 3), road <- body."""
+        return matrix_from_quat(np.array(self.E))
+
+    def covariance(self) -> np.ndarray:
+        """``diag(a, a, c)`` (3, 3), rad^2: the covariance of the slow state, body tangent space."""
+        return np.diag([self.a, self.a, self.c])
     frames = property(lambda self: int(self.buf[10]), doc="Frames processed.")
 
     @property

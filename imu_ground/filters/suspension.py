@@ -52,7 +52,7 @@ chosen and how every configuration scores on real and synthetic drives is in
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Optional, Sequence, Union
 
 import numpy as np
@@ -273,20 +273,9 @@ class SuspensionAwareFilter:
     Q_last = property(lambda self: np.diag([self._q_last, self._q_last, self.q_yaw]),
                       doc="Process noise of the last frame's predict (rad^2).")
 
-    @property
-    def residual(self) -> np.ndarray:
-        """``E_k``, road <- body (3x3)."""
-        return matrix_from_quat(np.array(self._kernel.E))
-
-    @property
-    def x(self) -> np.ndarray:
-        """Slow road attitude X_k, world <- road (3x3)."""
-        return self.cumulative @ self.residual.T
-
-    @property
-    def P(self) -> np.ndarray:
-        """Covariance of X, body tangent space (rad^2)."""
-        return np.diag([self._kernel.a, self._kernel.a, self._kernel.c])
+    residual = property(lambda self: self._kernel.residual_matrix(), doc="``E_k``, road <- body (3x3).")
+    x = property(lambda self: self.cumulative @ self.residual.T, doc="Slow road attitude X_k, world <- road (3x3).")
+    P = property(lambda self: self._kernel.covariance(), doc="Covariance of X, body tangent space (rad^2).")
 
     x_post = x
     P_post = P
@@ -456,7 +445,6 @@ class SuspensionAwareFilter:
 
 def _frames_of(em, keep: np.ndarray):
     """The ego-motion restricted to the frames ``keep`` (same rate and metadata)."""
-    from dataclasses import replace
     return replace(em, t=em.t[keep], delta_R=em.delta_R[keep], delta_v=em.delta_v[keep], delta_t=em.delta_t[keep],
                    stationary=em.stationary[keep], valid=em.valid[keep])
 

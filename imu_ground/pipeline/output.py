@@ -28,7 +28,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from imu_ground._version import __version__
 from imu_ground.filters.estimator import GroundTrack
+from imu_ground.pipeline.ros_output import write_ros_output
 from imu_ground.so3 import quat_from_matrix
 
 if TYPE_CHECKING:
@@ -200,7 +202,6 @@ def atomic_path(path: _PathLike) -> Iterator[Path]:
 # ------------------------------------------------------------------------------------------ writers
 def package_version() -> str:
     """The package's version (its one owner is ``imu_ground/_version.py``; pyproject reads it from there)."""
-    from imu_ground._version import __version__
     return __version__
 
 
@@ -311,15 +312,14 @@ def _write_tum(path: Path, table, meta: Mapping[str, Any]) -> None:
 
 
 def _write_ros(path: Path, table, meta: Mapping[str, Any]) -> None:
-    try:
-        from imu_ground.pipeline.ros_output import write_ros_output
-    except ImportError as e:
-        raise ValueError(f"{path}: writing {path.suffix} needs the ROS extras: pip install 'imu-ground[ros]' "
-                         f"({e})") from None
     settings = dict(meta.get("settings", {}))
     if meta.get("t0_ns") is not None:
         settings["t0_ns"] = int(meta["t0_ns"])                   # stamps line up with the recording
-    write_ros_output(path, table, frame_id=meta.get("frame_id") or "imu", settings=settings)
+    try:
+        write_ros_output(path, table, frame_id=meta.get("frame_id") or "imu", settings=settings)
+    except ImportError as e:                                     # rosbags / mcap load on first use
+        raise ValueError(f"{path}: writing {path.suffix} needs the ROS extras: pip install 'imu-ground[ros]' "
+                         f"({e})") from None
 
 
 _WRITERS = {".csv": _write_csv, ".parquet": _write_parquet, ".tum": _write_tum, ".bag": _write_ros,

@@ -54,54 +54,8 @@ Signs:
   (:mod:`imu_ground.units` owns the constants); degrees only at the edges.
 """
 from imu_ground.so3 import component_major, conversions, group
-from imu_ground.so3.component_major import (
-    SMALL_ANGLE2,
-    cross_rows,
-    exp_and_left_jacobian,
-    hat_times,
-    mm,
-    project_if_needed,
-    scan_products,
-)
-from imu_ground.so3.conversions import (
-    as_rotations,
-    cumulative_rotations,
-    euler_zyx,
-    matrix_from_quat,
-    quat_from_matrix,
-    twist_angle,
-)
-from imu_ground.so3.group import (
-    SMALL_ANGLE,
-    angle,
-    exp,
-    exp_flat,
-    exp_one,
-    flat_from_quat,
-    hat,
-    hat_flat,
-    left_jacobian,
-    left_jacobian_inv,
-    log,
-    log_flat,
-    log_one,
-    mul_flat,
-    mul_nt_flat,
-    mul_tn_flat,
-    project,
-    quat_exp,
-    quat_from_flat,
-    quat_mul,
-    quat_normalise,
-    renormalise,
-    renormalise_flat,
-    right_jacobian,
-    right_jacobian_inv,
-    rotx,
-    roty,
-    rotz,
-    transpose_flat,
-    vee,
-)
+from imu_ground.so3.component_major import *  # noqa: F403 (the package re-exports each submodule's __all__)
+from imu_ground.so3.conversions import *  # noqa: F403
+from imu_ground.so3.group import *  # noqa: F403
 
-__all__ = group.__all__ + conversions.__all__ + [n for n in component_major.__all__ if n != "ORTHO_TOL"]
+__all__ = group.__all__ + conversions.__all__ + component_major.__all__

@@ -13,7 +13,7 @@ import numpy as np
 from imu_ground.so3.group import project
 
 __all__ = [
-    "ORTHO_TOL",
+    "PROJECTION_TOL",
     "SMALL_ANGLE2",
     "cross_rows",
     "exp_and_left_jacobian",
@@ -27,7 +27,7 @@ __all__ = [
 #: (theta < :data:`~imu_ground.so3.group.SMALL_ANGLE`, where they are exact to double precision).
 SMALL_ANGLE2 = 1e-8
 #: A rotation whose orthonormality defect ``max |R^T R - I|`` exceeds this is projected onto SO(3).
-ORTHO_TOL = 1e-12
+PROJECTION_TOL = 1e-12
 
 
 def mm(A: np.ndarray, B: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
@@ -143,7 +143,7 @@ def exp_and_left_jacobian(x: np.ndarray, y: np.ndarray, z: np.ndarray,
 
 
 def project_if_needed(R: np.ndarray) -> np.ndarray:
-    """Project onto SO(3) the rotations whose orthonormality defect exceeds :data:`ORTHO_TOL`.
+    """Project onto SO(3) the rotations whose orthonormality defect exceeds :data:`PROJECTION_TOL`.
 
     Parameters
     ----------
@@ -152,12 +152,12 @@ def project_if_needed(R: np.ndarray) -> np.ndarray:
     Returns
     -------
     ndarray, shape (..., 3, 3)
-        ``R`` itself where it is orthonormal to ``ORTHO_TOL`` (rounding of long
+        ``R`` itself where it is orthonormal to ``PROJECTION_TOL`` (rounding of long
         products), :func:`imu_ground.so3.project` of it elsewhere.
     """
     R = np.asarray(R, dtype=float)
     E = np.swapaxes(R, -1, -2) @ R - np.eye(3)
-    bad = np.max(np.abs(E), axis=(-2, -1)) > ORTHO_TOL
+    bad = np.max(np.abs(E), axis=(-2, -1)) > PROJECTION_TOL
     if np.any(bad):
         R = R.copy()
         R[bad] = project(R[bad])
