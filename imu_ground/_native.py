@@ -7,25 +7,28 @@ This module imports each compiled twin once, at import, and exposes it (or None
 when it is not built or switched off); the modules that own a kernel take it
 from here and fall back to their Python twin when it is None:
 
-====================  ==========================================  =============================================
-name                  compiled module                             Python twin
-====================  ==========================================  =============================================
-:data:`RESIDUAL`      ``imu_ground.filters._residual_native``     :mod:`imu_ground.filters.residual` (and the
-                                                                  frame checks of ``estimator_checks``)
-:data:`GRAVITY`       ``imu_ground.filters._gravity_native``      :mod:`imu_ground.filters.gravity_kernel`
-:data:`EKF`           ``imu_ground.filters._ekf_native``          :mod:`imu_ground.filters.invariant_ekf_kernel`
-:data:`PREINTEGRATION` ``imu_ground.imu._preint_native``          :mod:`imu_ground.imu.preint_kernel`,
-                                                                  :mod:`imu_ground.imu.preint_stream`
-====================  ==========================================  =============================================
+=======================  =========================================  =========================================
+name                     compiled module                            Python twin
+=======================  =========================================  =========================================
+:data:`RESIDUAL`         ``imu_ground.filters._residual_native``    :mod:`imu_ground.filters.residual`, and
+                                                                    :mod:`imu_ground.filters.frame_checks`
+:data:`GRAVITY`          ``imu_ground.filters._gravity_native``     :mod:`imu_ground.filters.gravity_kernel`
+:data:`EKF`              ``imu_ground.filters._ekf_native``         :mod:`imu_ground.filters.invariant_ekf_kernel`
+:data:`PREINTEGRATION`   ``imu_ground.imu._preint_native``          :mod:`imu_ground.imu.preint_kernel`,
+                                                                    :mod:`imu_ground.imu.preint_stream`
+=======================  =========================================  =========================================
+
+The numeric CSV parse (``imu_ground.datasets._csv_native``, not on the streaming
+path) is loaded by its reader through :func:`load_native`.
 
 Equality rule between twins (the one the tests check, all with
 :func:`assert_twins_equal`): every output of a C kernel equals its Python twin's
 to :data:`TWIN_RTOL` (``1e-12``) relative to ``max(1, |value|)``, with NaN and
-infinities in the same places and integers and flags exactly equal. Most paths agree bit for bit (the C is the
-Python formula term for term, compiled without FMA contraction), but the
-vectorised numpy steps of some Python batch paths (e.g. the frame-mean forces
-of ``gravity_kernel.run_frames``) round differently in the last bit, so the
-rule promised is the tolerance.
+infinities in the same places and integers and flags exactly equal. Most paths
+agree bit for bit (the C is the Python formula term for term, compiled without
+FMA contraction), but the vectorised numpy steps of some Python batch paths
+(e.g. the frame-mean forces of ``gravity_kernel.run_frames``) round differently
+in the last bit, so the rule promised is the tolerance.
 
 Environment
 -----------
@@ -35,7 +38,7 @@ Environment
     A compiled kernel that is not built is an error of the test suite (CI sets
     it: ``.ci/run``) instead of a skip.
 
-This is a foundation module: it imports nothing of the package.
+A foundation module: it imports nothing of the package (numpy only, for :func:`assert_twins_equal`).
 """
 from __future__ import annotations
 
