@@ -1,6 +1,6 @@
 """Fleet throughput of ``imu-ground batch`` (Dask) against a plain loop of ``estimate`` in one process.
 
-Issue 11.3's benchmark: ``n`` synthetic drives of ``minutes`` minutes each, written by
+The benchmark: ``n`` synthetic drives of ``minutes`` minutes each, written by
 ``imu-ground simulate`` into a temporary folder; then
 
 - ``loop``: one process estimating them one after the other (what a shell loop of
@@ -27,7 +27,7 @@ from pathlib import Path
 
 __all__ = ["TARGET_SPEEDUP", "rows", "write_logs"]
 
-#: Issue 11.3: two workers at least this many times the single-process loop.
+#: Target: two workers at least this many times the single-process loop (on 2 cores).
 TARGET_SPEEDUP = 1.7
 
 

@@ -1,4 +1,4 @@
-"""Latency of ``InvariantEKF.predict`` + ``update`` against GTSAM's ``InvariantEKFRot3`` (issue 12).
+"""Latency of ``InvariantEKF.predict`` + ``update`` against GTSAM's ``InvariantEKFRot3`` (target: no slower).
 
 Both filters run the same left-invariant model on the same data in the same
 process: predict with a body increment ``U`` and process noise ``Q``, then

@@ -1,4 +1,4 @@
-"""Latency of GroundNormalFilter (issue 12): streaming step, batch run, and the import it needs.
+"""Latency of GroundNormalFilter: streaming step, batch run, and the import it needs (targets below).
 
 Input: a synthetic drive (``imu_ground.evaluation.simulate``, nav-grade IMU) preintegrated into
 10 Hz frames and tiled to ``--frames`` frames. Streaming: ``step(EgoFrame)`` per frame (the
@@ -42,7 +42,7 @@ __all__ = ["rows", "main", "tiled_drive", "head_of", "time_steps", "run_fps", "k
 STEP_TARGET_US = 4.0
 P99_FACTOR = 3.0
 IMPORT_FACTOR = 1.5
-#: The import as the issue writes it, plus the first step: the compiled kernel's load and first call
+#: ``import imu_ground`` and a filter, plus the first step: the compiled kernel's load and first call
 #: count against the import target.
 IMPORT_CODE = ("import sys, numpy, imu_ground; imu_ground.GroundNormalFilter().step(numpy.eye(3)); "
                "sys.exit(any(m in sys.modules for m in ('scipy', 'pandas')))")

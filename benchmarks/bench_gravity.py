@@ -1,4 +1,4 @@
-"""Latency of the gravity/velocity filter (issue 12): ``GravityVelocityFilter.step``, ``step_body``, ``run``.
+"""Latency of the gravity/velocity filter: ``GravityVelocityFilter.step``, ``step_body``, ``run``.
 
 Input: a synthetic drive (``imu_ground.evaluation.simulate``, nav-grade IMU,
 standstills included) preintegrated into 10 Hz frames and tiled to ``--frames``
@@ -38,8 +38,9 @@ from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
 
 __all__ = ["rows", "main"]
 
-#: Targets (issue 12): the suspension step's budget is 10 us in all, its run >= 200,000 frames/s (5 us/frame),
-#: of which the gravity filter may take about 2 us (step_body) and 1 us/frame (run).
+#: Targets, the gravity filter's share of the suspension filter's: the suspension step's budget is 10 us in
+#: all, its run >= 200,000 frames/s (5 us/frame), of which the gravity filter may take about 2 us (step_body)
+#: and 1 us/frame (run).
 STEP_TARGET_US = 4.0
 STEP_BODY_TARGET_US = 2.0
 RUN_TARGET_US = 1.0

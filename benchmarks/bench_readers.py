@@ -110,9 +110,9 @@ def mark(name):
     t0, c0 = time.perf_counter(), time.process_time()
 from imu_ground.datasets import read_imu
 from imu_ground.imu import imu_to_egomotion
-from imu_ground.filters import Extrinsic, track_table
+from imu_ground.filters import Extrinsic
 from imu_ground.filters.methods import METHODS, default_method
-from imu_ground.pipeline.output import GAP_NAN_FRAMES, write_csv_rows
+from imu_ground.pipeline.output import GAP_NAN_FRAMES, track_table, write_csv_rows
 mark('imports')
 imu = read_imu(PATH); mark('read_imu')
 em = imu_to_egomotion(imu, rate=10.0); mark('egomotion')

@@ -1,4 +1,4 @@
-"""Latency of the SuspensionAwareFilter (issue 12): streaming step, batch run, offline run.
+"""Latency of the SuspensionAwareFilter: streaming step, batch run, offline run (targets below).
 
 Input: a synthetic drive (``imu_ground.evaluation.simulate``, nav-grade IMU) preintegrated into
 10 Hz frames and tiled to ``--frames`` frames. Streaming: ``step(EgoFrame)`` per frame (median

@@ -11,12 +11,14 @@ shared real KITTI drives (``../shared/data/kitti_imu100``; pitch relative to the
 road, per drive means removed; by condition; per moving segment; the
 reference's own uncertainty) and on the synthetic suite (navigation-grade and
 MEMS IMUs; exact truth, normal angle, pitch and roll), and the simulator's
-checks against the real drives (``sim_vs_real.rows()``: band powers and method
-ranking, issue 10.5), and the real-drive error by speed, slow and fast, shared
-between methods and against the reference's own error (``error_budget.rows()``),
-and the timestamp policies ``drop`` against ``retime`` on the shared drives
-(``retime_table.rows()``: samples dropped, frames invalid, pitch error). Speed: the tables of the
-benchmark scripts, each of which exposes ``rows()`` returning its rows
+checks against the real drives (``sim_vs_real.rows()``: band powers of body pitch
+and gyro pitch rate, and the methods' ranking, synthetic against real), and the
+real-drive error by speed, slow and fast, shared between methods and against the
+reference's own error (``error_budget.rows()``), and the timestamp policies
+``drop`` against ``retime`` on the shared drives (``retime_table.rows()``: samples
+dropped, frames invalid, pitch error); these studies live in ``benchmarks/studies/``.
+Speed: the tables of the benchmark scripts in ``benchmarks/``, each of which exposes
+``rows()`` returning its rows
 (``bench_filter``, ``bench_suspension``, ``bench_preintegration``, ``bench_ekf``,
 ``bench_gravity``, ``bench_readers``, ``bench_batch``); a script that is missing
 or has no ``rows()`` is listed with a note instead. Figures are measured on
@@ -27,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
+import json
 import math
 import platform
 import subprocess
@@ -40,11 +43,13 @@ DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_imu100"
 OUT = HERE / "RESULTS.md"
 BENCHMARKS = ("bench_filter", "bench_suspension", "bench_preintegration", "bench_ekf", "bench_gravity",
               "bench_readers", "bench_batch")
-#: Scripts whose rows are checks of the simulator against the real drives (issue 10.5), not speeds.
+#: Folder of the studies (accuracy, tuning and simulator checks; not speed targets).
+STUDIES = HERE / "studies"
+#: Studies whose rows check the simulator against the real drives (band powers, method ranking), not speeds.
 SIMULATOR_CHECKS = ("sim_vs_real",)
-#: Scripts whose rows break the real-drive error down (issue 10: the estimator's or the reference's).
+#: Studies whose rows break the real-drive error down: the estimator's share, or the reference's own.
 ERROR_BUDGET = ("error_budget",)
-#: Scripts whose rows compare the readers' timestamp policies on the real drives (issue 9: drop against retime).
+#: Studies whose rows compare the readers' timestamp policies on the real drives (drop against retime).
 READER_CHECKS = ("retime_table",)
 #: Smaller sizes for ``--quick``, passed to a benchmark's ``rows()`` where it has the parameter.
 QUICK_KWARGS = {"frames": 20_000, "stream_frames": 5_000, "repeat": 2, "steps": 5_000, "samples": 60_000,
@@ -175,13 +180,18 @@ print(json.dumps({{"status": "ok", "kwargs": kwargs, "seconds": time.perf_counte
 """
 
 
+def _script(name: str) -> Path:
+    """``benchmarks/<name>.py`` or, for a study, ``benchmarks/studies/<name>.py``."""
+    return HERE / f"{name}.py" if (HERE / f"{name}.py").is_file() else STUDIES / f"{name}.py"
+
+
 def _run_benchmark(name: str, quick: bool) -> dict:
-    """``benchmarks/<name>.py``'s ``rows()`` in a child process (imported by name, so that its own
+    """The script's ``rows()`` in a child process (imported by name from its folder, so that its own
     worker processes can import it too); its result as a dict with ``status``."""
-    import json
-    if not (HERE / f"{name}.py").is_file():
+    script = _script(name)
+    if not script.is_file():
         return {"status": "missing"}
-    code = _CHILD.format(here=str(HERE), name=name, quick=quick, quick_kwargs=QUICK_KWARGS)
+    code = _CHILD.format(here=str(script.parent), name=name, quick=quick, quick_kwargs=QUICK_KWARGS)
     try:
         proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO,
                               timeout=BENCH_TIMEOUT)
@@ -198,14 +208,15 @@ def speed_sections(quick: bool, only: tuple[str, ...] = BENCHMARKS, title: str =
     out = [f"# {title}", ""]
     for name in only:
         res = _run_benchmark(name, quick)
+        path = _script(name).relative_to(REPO).as_posix()
         out += [f"## {name}", ""]
         if res["status"] == "missing":
-            out += [f"Skipped: `benchmarks/{name}.py` does not exist yet.", ""]
+            out += [f"Skipped: `{path}` does not exist yet.", ""]
         elif res["status"] == "norows":
-            out += [f"Skipped: `benchmarks/{name}.py` has no `rows()` function (run it by hand: "
-                    f"`python benchmarks/{name}.py`).", ""]
+            out += [f"Skipped: `{path}` has no `rows()` function (run it by hand: "
+                    f"`python {path}`).", ""]
         elif res["status"] == "error":
-            out += [f"Failed: `benchmarks/{name}.py` rows(): {res['error']}", ""]
+            out += [f"Failed: `{path}` rows(): {res['error']}", ""]
         else:
             out += [f"`{name}.rows({_args(res['kwargs'])})`, {res['seconds']:.0f} s:", "",
                     markdown(res["rows"]), ""]

@@ -25,11 +25,11 @@ _EXPORTS = {
     ".imu.preintegration": "preintegrate PreintegrationParams",
     ".datasets": "read_imu read_poses",
     ".filters.invariant_ekf": "InvariantEKF",
-    ".filters.estimator": ("GroundEstimator track_table GroundEstimate GroundTrack "
-                           "pitch_roll_from_normal"),
+    ".filters.estimator": "GroundEstimator GroundEstimate GroundTrack pitch_roll_from_normal",
     ".filters.ground": "GroundNormalFilter",
     ".filters.suspension": "SuspensionAwareFilter",
     ".filters.extrinsics": "Extrinsic available_extrinsics load_extrinsic",
     ".pipeline.estimate": "estimate_log",
+    ".pipeline.output": "track_table",
 }
 __getattr__, __dir__, __all__ = lazy_exports(__name__, {"imu_ground._version": "__version__", **_EXPORTS})

@@ -56,7 +56,7 @@ static inline void ig_renormalise33(double *r)
     ig_mul33(r, m, r);
 }
 
-/* so3.exp_flat: o = Exp((x, y, z)); series below the angle `small` (so3._SMALL, rad). */
+/* so3.exp_flat: o = Exp((x, y, z)); series below the angle `small` (so3.SMALL_ANGLE, rad). */
 static inline void ig_exp33(double x, double y, double z, double small, double *o)
 {
     double t2 = x * x + y * y + z * z, a, b;

@@ -1,4 +1,4 @@
-"""A bad frame does not break a streaming estimator (issue 8, point 4).
+"""A bad frame does not break a streaming estimator: it raises with the state unchanged, or is skipped and flagged.
 
 Each kind of bad frame is injected into a real drive (KITTI, shared recordings). With
 ``on_invalid="raise"`` the frame raises a ``ValueError`` naming the problem and leaves the state
@@ -153,7 +153,7 @@ def test_bare_rotation_step_checks_the_rotation_only():
 
 
 def test_step_refuses_several_rotations_as_one_frame():
-    """Both streaming estimators share the frame check (the kernel's check, then estimator.coerce_frame):
+    """Both streaming estimators share the frame check (the kernel's check, then frame_checks.coerce_frame):
     a batch is named as such, even a batch of one."""
     for batch in (np.stack([np.eye(3), so3.rotz(0.1)]), so3.rotz(0.1)[None]):
         for f in (GroundNormalFilter(on_invalid="skip"), SuspensionAwareFilter(on_invalid="skip")):

@@ -1,4 +1,6 @@
-"""The ``imu-ground`` command: issue 8's cases (each the failing case it was filed with) and issue 10's default."""
+"""The ``imu-ground`` command: bad input (one line naming the file and the flag, exit status 2, no partial
+file), the default method, and the conveniences."""
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -68,7 +70,7 @@ def test_estimate_on_the_shipped_example(tmp_path, capsys):
 
 
 def test_default_method_beats_the_constant_normal_on_the_example(tmp_path, capsys):
-    """Issue 10.1: the README's first command, scored against the example's truth."""
+    """The README's first command, scored against the example's truth: the default method beats a constant normal."""
     from imu_ground.evaluation.metrics import normal_angle
     out = tmp_path / "example_ground.csv"
     assert run(capsys, "estimate", EXAMPLE, "-o", out)[0] == 0
@@ -231,11 +233,19 @@ def test_real_kitti_odometry_poses(shared_data, tmp_path, capsys):
 # ------------------------------------------------------------------------------------------ conveniences
 def test_version_and_python_dash_m(capsys):
     from importlib.metadata import version
+
+    from imu_ground._native import PURE_PYTHON_ENV, STREAMING_KERNELS, native_kernels
     __version__ = version("imu-ground")
+    built = all(native_kernels()[name] for name in STREAMING_KERNELS)
+    kernels = "compiled kernels" if built else "pure Python kernels"
     code, out, _ = run(capsys, "--version")
-    assert code == 0 and out.strip() == f"imu-ground {__version__}"
+    assert code == 0 and out.strip().startswith(f"imu-ground {__version__}, {kernels}")
     r = subprocess.run([sys.executable, "-m", "imu_ground", "--version"], capture_output=True, text=True, check=False)
-    assert r.returncode == 0 and r.stdout.strip() == f"imu-ground {__version__}"
+    assert r.returncode == 0 and r.stdout.strip() == out.strip()
+    # the switch is reported: the version line tells which kernels run
+    r = subprocess.run([sys.executable, "-m", "imu_ground", "--version"], capture_output=True, text=True, check=False,
+                       env={**os.environ, PURE_PYTHON_ENV: "1"})
+    assert r.stdout.strip() == f"imu-ground {__version__}, pure Python kernels: {PURE_PYTHON_ENV} is set"
 
 
 def _subparsers(parser):
@@ -297,7 +307,7 @@ def test_simulate_truth_names_its_angle_units(tmp_path, capsys):
 
 
 def test_evaluate_without_plots(tmp_path, capsys):
-    """Issue 8.1: every evaluate run without --plots failed with 'too many values to unpack'."""
+    """evaluate without --plots runs (it once failed with 'too many values to unpack' on every such run)."""
     csv = tmp_path / "r.csv"
     code, out, err = run(capsys, "evaluate", "--synthetic", "1", "--grades", "mems", "--methods", "naive,paper",
                          "--csv", csv, "--per-drive")

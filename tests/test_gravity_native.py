@@ -1,8 +1,8 @@
 """The gravity/velocity filter's C kernel (``_gravity_native``) against its pure-Python twin (``gravity_kernel``).
 
-Both kernels run in the same process (``GravityVelocityFilter.kernel`` set per instance):
-streaming bit-identical, batch equal to 1e-12 (the Python batch computes the forces with
-numpy) on real KITTI drives and on synthetic frames
+Both kernels run in the same process (``GravityVelocityFilter.kernel`` set per instance),
+held to the twin rule (:func:`imu_ground._native.assert_twins_equal`), streaming and batch,
+on real KITTI drives and on synthetic frames
 with standstills, gated standstill flags, gaps, speed-aided frames with NaN speed, a
 lever arm and an extrinsic, the small-angle and near-pi branches of the rotation
 log/exp, zero process noise; streaming == batch; the smoother's path; the C entry
@@ -18,16 +18,15 @@ import numpy as np
 import pytest
 
 from imu_ground import so3
-from imu_ground._native import load_native
+from imu_ground._native import GRAVITY as NATIVE
+from imu_ground._native import assert_twins_equal
 from imu_ground.filters import gravity_kernel
 from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
 
-NATIVE = load_native("imu_ground.filters._gravity_native")
 pytestmark = pytest.mark.skipif(NATIVE is None, reason="the C kernel is not built (or IMU_GROUND_PURE_PYTHON=1)")
 
-TOL = 1e-12
 FIELDS = ("velocity", "gravity", "acceleration", "specific_force", "speed", "P", "cumulative", "body_increments")
 KITTI = ("2011_09_26_drive_0009", "2011_09_28_drive_0039", "2011_09_30_drive_0016")
 
@@ -40,14 +39,6 @@ def _pair(**kw):
     p.reset()
     assert type(c._s) is np.ndarray and type(p._s) is list
     return c, p
-
-
-def _close(a, b, what=""):
-    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    scale = np.maximum(1.0, np.abs(b))
-    err = np.abs(a - b) / scale
-    assert a.shape == b.shape and np.nanmax(err, initial=0.0) <= TOL, f"{what}: {np.nanmax(err)}"
-    np.testing.assert_array_equal(np.isnan(a), np.isnan(b), err_msg=what)
 
 
 def _synthetic(n=600, seed=7):
@@ -93,7 +84,8 @@ CONFIGS = {
 
 
 def _compare_everything(em, speed, kw, what):
-    """C step == Python step, C run == Python run (also with the smoother), C step == C run bit for bit."""
+    """C against Python, step and run (also with the smoother): the twin rule; C step == C run bit for bit
+    (one kernel for both)."""
     c, p = _pair(**kw)
     n = len(em)
     sp = [None] * n if speed is None else speed
@@ -101,21 +93,20 @@ def _compare_everything(em, speed, kw, what):
     for k in range(n):
         fr = (em.delta_R[k], em.delta_v[k], em.delta_t[k], em.stationary[k], em.valid[k])
         ec, ep = c.step(*fr, speed=sp[k]), p.step(*fr, speed=sp[k])
-        # the same operations in the same order (no FMA contraction; one libm): bit for bit
         for name in ("velocity", "gravity", "acceleration", "specific_force", "speed"):
-            np.testing.assert_array_equal(getattr(ec, name), getattr(ep, name), err_msg=f"{what}: step {k} {name}")
-        np.testing.assert_array_equal(c._s[:66], p._s[:66], err_msg=f"{what}: state after step {k}")
+            assert_twins_equal(getattr(ec, name), getattr(ep, name), f"{what}: step {k} {name}")
+        assert_twins_equal(c._s[:66], p._s[:66], f"{what}: state after step {k}")
         stream.append(ec)
     for name in ("x", "P", "cumulative", "x_prior", "P_prior", "F", "Q", "H", "R", "K", "y", "S"):
-        _close(getattr(c, name), getattr(p, name), f"{what}: {name}")
+        assert_twins_equal(getattr(c, name), getattr(p, name), f"{what}: {name}")
     assert c.zupt_rejected == p.zupt_rejected
     for smooth in (False, True):
         rc, rp = _pair(**kw)
         tc, tp = rc.run(em, smooth=smooth, speed=speed), rp.run(em, smooth=smooth, speed=speed)
         for name in FIELDS:
-            _close(getattr(tc, name), getattr(tp, name), f"{what}: run(smooth={smooth}) {name}")
-        _close(rc._s[:66], rp._s[:66], f"{what}: state after run")
-        _close(rc.K, rp.K, f"{what}: K after run")
+            assert_twins_equal(getattr(tc, name), getattr(tp, name), f"{what}: run(smooth={smooth}) {name}")
+        assert_twins_equal(rc._s[:66], rp._s[:66], f"{what}: state after run")
+        assert_twins_equal(rc.K, rp.K, f"{what}: K after run")
         assert rc.zupt_rejected == c.zupt_rejected
         if not smooth:                  # one C kernel for both: streaming == batch bit for bit
             np.testing.assert_array_equal(rc._s, c._s, err_msg=f"{what}: C run == C step (the whole buffer)")
@@ -155,7 +146,9 @@ def test_to_body_c_equals_python():
     for k in range(0, len(em), 7):
         d9, dv = em.delta_R[k].ravel().tolist(), em.delta_v[k].tolist()
         got = NATIVE.to_body(c._s, d9, dv)
-        assert got == gravity_kernel.to_body(p._s, d9, dv) == c.to_body_flat(d9, dv)
+        for part, py in zip(got, gravity_kernel.to_body(p._s, d9, dv), strict=True):
+            assert_twins_equal(part, py, "to_body")
+        assert got == c.to_body_flat(d9, dv)
         np.testing.assert_array_equal(np.reshape(got[0], (3, 3)), c.to_body(em.delta_R[k], em.delta_v[k])[0])
     plain = _state()
     assert NATIVE.to_body(plain, d9, dv) == (tuple(d9), tuple(dv))    # no extrinsic: unchanged
@@ -188,7 +181,7 @@ def test_full_covariance_layout_matches_the_python_index():
     em = _head(_synthetic(), 40)
     tc, tp = c.run(em), p.run(em)
     np.testing.assert_array_equal(tc.P, np.swapaxes(tc.P, 1, 2))
-    _close(tc.P, tp.P, "P")
+    assert_twins_equal(tc.P, tp.P, "P")
     assert np.all(tc.P[:, 0, 3] != 0) and np.all(tc.P[:, 1, 2] != 0)     # the cross terms are filled
 
 
@@ -204,7 +197,7 @@ def test_empty_run_and_state_arrays_set_by_the_caller():
         f.cumulative = so3.rotz(0.1)
     tc, tp = c.run(em), p.run(em)
     for name in FIELDS:
-        _close(getattr(tc, name), getattr(tp, name), name)
+        assert_twins_equal(getattr(tc, name), getattr(tp, name), name)
 
 
 # ------------------------------------------------------------------------------------- the C entry points

@@ -145,7 +145,7 @@ def test_egoframe_input_and_bad_frames_leave_the_state_unchanged(drive):
     np.testing.assert_array_equal(a.cumulative, R)
     with pytest.raises(ValueError, match="delta_R must be"):
         a.step(np.zeros(5), em.delta_v[20], 0.1)
-    # the estimators' frame check (estimator.frame_problem): also rotations that are not rotations
+    # the estimators' frame check (frame_checks.frame_problem): also rotations that are not rotations
     for d in (2.0 * np.eye(3), np.diag([1.0, 1.0, -1.0]), np.full((3, 3), np.nan)):
         with pytest.raises(ValueError, match="bad frame: delta_R is not"):
             a.step(d, em.delta_v[20], 0.1)

@@ -165,7 +165,7 @@ def test_top_level_names_resolve():
 
 
 def test_import_is_light():
-    """``import imu_ground`` and building a filter load neither scipy nor pandas (issue 12)."""
+    """``import imu_ground`` and building a filter load neither scipy nor pandas (keeps the import near numpy's)."""
     import subprocess
     import sys
     code = ("import sys, imu_ground; imu_ground.GroundNormalFilter(); imu_ground.SuspensionAwareFilter(); "

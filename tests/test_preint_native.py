@@ -1,7 +1,8 @@
 """The C preintegration kernel and streaming fast path (imu/_preint_native.c) against their Python twins.
 
-Equal bit for bit: the C kernel is the Python one term for term, compiled without FMA
-contraction. Skipped when the extension is not built (or IMU_GROUND_PURE_PYTHON=1).
+Held to the twin rule (:func:`imu_ground._native.assert_twins_equal`): the C kernel is the
+Python one term for term, compiled without FMA contraction. Skipped when the extension is not built
+(or IMU_GROUND_PURE_PYTHON=1).
 """
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ import tracemalloc
 import numpy as np
 import pytest
 
+from imu_ground._native import assert_twins_equal
 from imu_ground.imu import preint_kernel, preint_stream
 from imu_ground.imu.preint_kernel import (
     DELTAS_IDENTITY,
@@ -39,15 +41,15 @@ def _intervals(rng, n):
 
 @pytest.mark.parametrize("with_u", [True, False])
 @pytest.mark.parametrize("noise", [NOISE, (0.0, 0.0), (1e-4, 0.0)])
-def test_kernel_bit_identical_over_every_branch(with_u, noise):
+def test_kernel_equals_python_over_every_branch(with_u, noise):
     rng = np.random.default_rng(3)
     s_py = s_c = DELTAS_IDENTITY
     u_py = u_c = UNCERTAINTY_ZERO if with_u else None
     for dt, phi, f in _intervals(rng, 700):
         s_py, u_py = integrate_interval_python(s_py, u_py, dt, *phi, *f, noise)
         s_c, u_c = NATIVE.integrate_interval(s_c, u_c, dt, *phi, *f, noise)
-        assert s_c == s_py
-        assert u_c == u_py
+        assert_twins_equal(s_c, s_py, "deltas")
+        assert_twins_equal(u_c, u_py, "uncertainty")
     assert type(s_c) is tuple and len(s_c) == 11
     assert (u_c is None) == (not with_u) and (u_c is None or len(u_c) == 90)
     assert preint_kernel.integrate_interval is NATIVE.integrate_interval
@@ -96,7 +98,8 @@ def _log(n=1500, seed=0, gaps=()):
 def _assert_frames_equal(a, b):
     assert len(a) == len(b) > 0
     for fa, fb in zip(a, b):
-        assert fa._s == fb._s and fa._u == fb._u
+        assert_twins_equal(fa._s, fb._s, "deltas")
+        assert_twins_equal(fa._u, fb._u, "uncertainty")
         assert (fa.n_intervals, fa.t_start, fa.t_end, fa.valid) == (fb.n_intervals, fb.t_start, fb.t_end, fb.valid)
 
 
@@ -104,7 +107,7 @@ def _assert_frames_equal(a, b):
                                     dict(every=9), dict(frame_times="knots"), dict(frame_times="between")])
 @pytest.mark.parametrize("hold", ["midpoint", "left"])
 @pytest.mark.parametrize("uncertainty", [True, False])
-def test_streaming_fast_path_bit_identical(monkeypatch, frames, hold, uncertainty):
+def test_streaming_fast_path_equals_python(monkeypatch, frames, hold, uncertainty):
     monkeypatch.setattr(preint_stream, "integrate_interval", integrate_interval_python)
     t, gyro, accel = _log(gaps=(700, 1100))
     if "frame_times" in frames:                   # on sample times, or strictly between samples
@@ -118,7 +121,8 @@ def test_streaming_fast_path_bit_identical(monkeypatch, frames, hold, uncertaint
     _assert_frames_equal(got, ref)
     assert not all(f.valid for f in got)          # the gaps were crossed
     cur, cur_ref = sp.current, sp_ref.current
-    assert cur._s == cur_ref._s and cur.n_intervals == cur_ref.n_intervals
+    assert_twins_equal(cur._s, cur_ref._s, "current deltas")
+    assert cur.n_intervals == cur_ref.n_intervals
     got_arrays, _ = _frames(StreamingPreintegrator, t, gyro, accel, as_arrays=True, **kw)
     _assert_frames_equal(got_arrays, ref)
 

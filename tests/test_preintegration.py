@@ -10,7 +10,6 @@ import pytest
 
 from imu_ground import so3
 from imu_ground.imu.data import ImuData
-from imu_ground.imu.matrix3 import exp_and_left_jacobian
 from imu_ground.imu.preintegration import (
     FrameDeltas,
     PreintegratedImu,
@@ -19,6 +18,7 @@ from imu_ground.imu.preintegration import (
     make_frame_times,
     preintegrate,
 )
+from imu_ground.so3.component_major import exp_and_left_jacobian
 
 SG, SA = 0.01, 0.1          # noise densities used in the comparisons
 

@@ -19,8 +19,9 @@ import numpy as np
 import pytest
 
 from imu_ground import so3
+from imu_ground._native import assert_twins_equal
 from imu_ground.filters import residual
-from imu_ground.filters.estimator import BAD_DELTA_T, BAD_DELTA_V, BAD_ROTATION, frame_status
+from imu_ground.filters.frame_checks import BAD_DELTA_T, BAD_DELTA_V, BAD_ROTATION, frame_status
 from imu_ground.filters.ground import GroundNormalFilter
 from imu_ground.filters.residual import BUF_LEN, PYTHON, ResidualKernel
 from imu_ground.filters.suspension import SuspensionAwareFilter
@@ -29,7 +30,6 @@ from imu_ground.units import RENORM_EVERY
 C = residual.NATIVE
 pytestmark = pytest.mark.skipif(C is None, reason="the compiled residual kernel is not built or switched off")
 
-TOL = 1e-14          # C and Python round alike (same operation order, no FMA): identical in practice
 RGS = so3.exp_one(np.array([0.02, -0.03, 1.2]))
 CONFIGS = {
     "rotation": {},
@@ -95,17 +95,16 @@ def test_step_matches_python_frame_by_frame(name, tilted):
     d = synthetic_frames()
     q, tilt = _inputs(len(d))
     kc, kp = _pair(**CONFIGS[name])
-    worst = 0.0
     for k in range(len(d)):
         tx, ty = (float(tilt[0, k]), float(tilt[1, k])) if tilted else (None, None)
         oc = C.step(kc.buf, d[k], float(q[k]), 1e-4, tx, ty, None, 1.0)
         op = PYTHON.step(kp.buf, d[k], float(q[k]), 1e-4, tx, ty, None, 1.0)
         assert len(oc) == len(op) == (12 if CONFIGS[name].get("cumulative") else 8)
-        worst = max(worst, float(np.max(np.abs(np.subtract(oc, op)))))
-    assert worst <= TOL
-    np.testing.assert_allclose(np.array(kc.buf), np.array(kp.buf), rtol=0, atol=TOL)
+        assert_twins_equal(oc, op, f"step {k}")
+    assert_twins_equal(np.array(kc.buf), np.array(kp.buf), "state")
     assert kc.frames == kp.frames == len(d)
-    assert kc.last is not None and np.max(np.abs(np.subtract(kc.last, kp.last))) <= TOL
+    assert kc.last is not None
+    assert_twins_equal(kc.last, kp.last, "last output")
 
 
 @pytest.mark.parametrize("zero_noise", [False, True], ids=["noise", "zero process noise"])
@@ -117,8 +116,8 @@ def test_run_matches_python_and_the_stream(name, zero_noise):
     oc = kc.run(d, q, 1e-4, tilt[0], tilt[1], angles=True)
     op = kp.run(d, q, 1e-4, tilt[0], tilt[1], angles=True)
     assert oc.shape == op.shape == (len(d), kc.width)
-    np.testing.assert_allclose(oc, op, rtol=0, atol=TOL)
-    np.testing.assert_allclose(np.array(kc.buf), np.array(kp.buf), rtol=0, atol=TOL)
+    assert_twins_equal(oc, op, "run")
+    assert_twins_equal(np.array(kc.buf), np.array(kp.buf), "state")
     # streaming == batch: the same C kernel frame by frame gives the same rows, bit for bit
     ks = ResidualKernel(0.7, 0.9, 0.05, 0.002, native=True, **CONFIGS[name])
     rows = [C.step(ks.buf, d[k], float(q[k]), 1e-4, float(tilt[0, k]), float(tilt[1, k]), None, 1.0)
@@ -131,9 +130,8 @@ def test_run_without_angles_and_with_a_constant_noise():
     d = synthetic_frames(seed=6)
     kc, kp = _pair(cumulative=True)
     oc, op = kc.run(d, 3e-4, 1e-4), kp.run(d, 3e-4, 1e-4)
-    assert np.isnan(oc[:, 6:8]).all() and np.isnan(op[:, 6:8]).all()
-    np.testing.assert_allclose(oc[:, [0, 1, 2, 3, 4, 5, 8, 9, 10, 11]], op[:, [0, 1, 2, 3, 4, 5, 8, 9, 10, 11]],
-                               rtol=0, atol=TOL)
+    assert np.isnan(oc[:, 6:8]).all()
+    assert_twins_equal(oc, op, "run without angles")
     assert kc.run(d[:0], 3e-4, 1e-4).shape == (0, 12) and kc.frames == len(d)
 
 
@@ -154,7 +152,7 @@ def test_the_kernel_twin_is_the_reference_loop():
     q, tilt = _inputs(len(d), seed=9)
     kc, kp = _pair()
     rows = kp.advance(d.reshape(-1, 9).tolist(), q.tolist(), 1e-4, tilt[0].tolist(), tilt[1].tolist())
-    np.testing.assert_allclose(kc.run(d, q, 1e-4, tilt[0], tilt[1], angles=True), np.array(rows), rtol=0, atol=TOL)
+    assert_twins_equal(kc.run(d, q, 1e-4, tilt[0], tilt[1], angles=True), np.array(rows), "run against advance")
     assert len(kc.buf) == BUF_LEN == C.BUF_LEN
 
 
@@ -189,16 +187,18 @@ def test_frame_check_matches_and_a_bad_frame_leaves_the_state(kind):
     oc = C.step(kc.buf, d, 1e-4, 1e-4, None, None, dv, dt)
     op = PYTHON.step(kp.buf, d, 1e-4, 1e-4, None, None, dv, dt)
     if expected:
-        assert oc == op == expected and type(oc) is int
+        assert_twins_equal(oc, op, "status")
+        assert oc == expected and type(oc) is int
         np.testing.assert_array_equal(np.array(kc.buf), before)
     else:
-        assert isinstance(oc, tuple) and np.max(np.abs(np.subtract(oc, op))) <= TOL
+        assert isinstance(oc, tuple)
+        assert_twins_equal(oc, op, "step")
 
 
 def test_batch_check_matches_the_streaming_check(monkeypatch):
     """check_many flags exactly the frames check (and the Python frame_status) flags; the numpy fallback
-    of estimator.frame_statuses agrees on them."""
-    from imu_ground.filters import estimator
+    of frame_checks.frame_statuses agrees on them."""
+    from imu_ground.filters import frame_checks
     d = np.concatenate([synthetic_frames(seed=10)] + [np.ascontiguousarray(BAD[k][0])[None] for k in BAD])
     n = len(d)
     dv = np.zeros((n, 3))
@@ -211,11 +211,11 @@ def test_batch_check_matches_the_streaming_check(monkeypatch):
     expected = [frame_status(d[k].ravel().tolist(), dv[k].tolist(), float(dt[k])) for k in range(n)]
     assert out.tolist() == expected and bad == sum(e != 0 for e in expected) == 10
     assert [C.check(d[k], dv[k], dt[k]) for k in range(n)] == expected
-    assert estimator.frame_statuses(d, dv, dt).tolist() == expected
-    monkeypatch.setattr(estimator, "_NATIVE", None)
-    assert estimator.frame_statuses(d, dv, dt).tolist() == expected
+    assert frame_checks.frame_statuses(d, dv, dt).tolist() == expected
+    monkeypatch.setattr(frame_checks, "_NATIVE", None)
+    assert frame_checks.frame_statuses(d, dv, dt).tolist() == expected
     with pytest.raises(ValueError, match=rf"frame index {n - len(BAD)}, t = .*; 10 bad of {n}\): delta_R is not a rot"):
-        estimator.checked_frames(d, dv, dt, np.arange(n) * 0.1, "raise")
+        frame_checks.checked_frames(d, dv, dt, np.arange(n) * 0.1, "raise")
 
 
 @pytest.mark.parametrize("impl", ["C", "Python"])
@@ -336,8 +336,8 @@ def test_filters_on_kitti_equal_with_either_kernel(kitti, name, monkeypatch):
             tp = fp.run(em)
             sp = [make().step(fr) for fr in list(em.frames())[:1]]
         for field in ("normal", "pitch", "roll", "residual", "P", "x"):
-            np.testing.assert_allclose(getattr(tc, field), getattr(tp, field), rtol=0, atol=1e-12, err_msg=field)
-        np.testing.assert_allclose(sc[0].normal, sp[0].normal, rtol=0, atol=1e-15)
+            assert_twins_equal(getattr(tc, field), getattr(tp, field), field)
+        assert_twins_equal(sc[0].normal, sp[0].normal, "one step's normal")
 
 
 @pytest.mark.parametrize("name", list(FILTERS))

@@ -1,4 +1,4 @@
-"""The simulator's defaults calibrated to the real drives (issue 10.5): roughness spectrum, cross-slope
+"""The simulator's defaults calibrated to the real drives (band powers, method ranking): roughness spectrum, cross-slope
 in street curves, traffic-like speed profiles, a weighted style mix; all reproducible by seed."""
 from __future__ import annotations
 

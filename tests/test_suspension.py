@@ -276,7 +276,7 @@ def test_kitti_pitch_accuracy(kitti, kitti_valid_names, kitti_faulty_names):
     # the pure RTS smoother is *worse* than the forward filter against this (causal INS) reference
     assert stream.mean() < rts.mean() < paper.mean()
     # per drive: no drive more than 10 % worse than the paper's filter (the worst: 2011_09_26_drive_0091,
-    # slow driving where the INS reference drifts); benchmarks/tune_suspension.py prints the figures
+    # slow driving where the INS reference drifts); benchmarks/studies/tune_suspension.py prints the figures
     assert (stream / paper).max() <= 1.1 and (speed / paper).max() <= 1.1
 
 

@@ -1,17 +1,22 @@
 """The ``imu-ground`` command: ``estimate | batch | evaluate | simulate | calibrate``.
 
-One module per command (``register`` adds its parser, ``run`` does the work and
-imports the library lazily). :func:`main` is the one error handler: bad input,
+One module per command (``register`` adds its parser, ``run`` does the work; the
+library's heavy dependencies, pandas, scipy, matplotlib and the optional ones, load
+only when a command needs them). :func:`main` is the one error handler: bad input,
 options or paths never show a traceback but one line naming the file and what
 to do, and exit status 2. Run ``imu-ground COMMAND --help`` for each command's options.
 """
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import sys
 import warnings
 from collections.abc import Sequence
+
+from imu_ground._native import kernels_in_use
+from imu_ground.pipeline.output import package_version
 
 __all__ = ["COMMANDS", "build_parser", "main"]
 
@@ -26,15 +31,24 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see '{self.prog} --help')\n")
 
 
+class _VersionAction(argparse.Action):
+    """``--version``: the package version and which kernels run, on one line (argparse's own would wrap it)."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, help=None):
+        super().__init__(option_strings, dest=dest, default=default, nargs=0, help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"imu-ground {package_version()}, {kernels_in_use()}")
+        parser.exit()
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every command (help text for every option)."""
-    import importlib
-
-    from imu_ground.pipeline.output import package_version
     ap = _Parser(prog="imu-ground", description="Ground plane normal (pitch and roll of the body "
                                  "relative to the road) of a moving vehicle, frame by frame, from IMU logs or "
                                  "odometry.")
-    ap.add_argument("--version", action="version", version=f"imu-ground {package_version()}")
+    ap.add_argument("--version", action=_VersionAction,
+                    help="show the version and whether the compiled kernels or pure Python run, and exit")
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in COMMANDS:
         importlib.import_module(f"imu_ground.cli.{name}").register(sub)

@@ -5,13 +5,18 @@ Nothing heavy is imported here: each command imports the library inside its
 """
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
+
+import argparse
+
+from imu_ground.datasets import FORMATS
+from imu_ground.datasets.options import READER_OPTIONS
+from imu_ground.pipeline.estimate import POSE_FORMATS
 
 __all__ = [
     "LazyHelp",
@@ -68,17 +73,14 @@ def nonnegative_int(text: str) -> int:
 
 
 def _format_help(poses: bool) -> str:
-    from imu_ground.datasets import FORMATS
     names = sorted(FORMATS)
     if poses:
-        from imu_ground.pipeline.estimate import POSE_FORMATS
         names += sorted(POSE_FORMATS)
     return f"input format, detected when omitted: {', '.join(names)}"
 
 
 def add_reader_flags(parser: argparse.ArgumentParser, poses: bool = False) -> None:
     """One flag per entry of :data:`imu_ground.datasets.options.READER_OPTIONS` (the table owns them)."""
-    from imu_ground.datasets.options import READER_OPTIONS
     group = parser.add_argument_group("reading the log")
     for opt in READER_OPTIONS.values():
         dest = opt.name
@@ -101,7 +103,6 @@ def add_logs_command(sub, name: str, *, help: str, description: str, logs_metava
 
 def reader_options(args: argparse.Namespace) -> dict:
     """The reader flags the user set, as ``read_imu`` keywords (``format`` included)."""
-    from imu_ground.datasets.options import READER_OPTIONS
     return {name: getattr(args, name) for name in READER_OPTIONS if getattr(args, name, None) is not None}
 
 

@@ -1,6 +1,8 @@
 """``imu-ground batch LOG_OR_GLOB... -o OUTDIR``: estimate many logs on Dask, one output per log and a summary."""
 from __future__ import annotations
 
+import math
+
 import argparse
 
 from imu_ground.cli._common import (
@@ -12,6 +14,7 @@ from imu_ground.cli._common import (
     say,
 )
 from imu_ground.cli.estimate import add_method_flags, method_kwargs
+from imu_ground.pipeline.batch import run_batch
 
 __all__ = ["register", "run"]
 
@@ -40,7 +43,6 @@ def register(sub) -> None:
 
 
 def _fmt(x) -> str:
-    import math
     if isinstance(x, float):
         return "" if math.isnan(x) else f"{x:+.3f}"
     return "" if x is None else str(x)
@@ -48,7 +50,6 @@ def _fmt(x) -> str:
 
 def run(a: argparse.Namespace) -> int:
     """Run the batch, print one line per log and the totals; exit 1 when a log failed."""
-    from imu_ground.pipeline.batch import run_batch
     table = run_batch(a.logs, a.output, workers=a.workers, scheduler=a.scheduler, suffix="." + a.type,
                       progress=progress_enabled(a), cli=True, **method_kwargs(a))
     for _, r in table.iterrows():

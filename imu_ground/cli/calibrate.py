@@ -4,6 +4,10 @@ from __future__ import annotations
 import argparse
 
 from imu_ground.cli import _common as common
+from imu_ground.datasets import read_imu
+from imu_ground.filters import calibrate
+from imu_ground.pipeline.estimate import require_imu_log
+from imu_ground.pipeline.output import atomic_path, check_output_path
 
 __all__ = ["register", "run"]
 
@@ -32,10 +36,6 @@ def register(sub) -> None:
 
 def run(a: argparse.Namespace) -> int:
     """Read every log (IMU logs only), calibrate, write the file atomically."""
-    from imu_ground.datasets import read_imu
-    from imu_ground.filters import calibrate
-    from imu_ground.pipeline.estimate import require_imu_log
-    from imu_ground.pipeline.output import atomic_path, check_output_path
     opts = common.reader_options(a)
     fmt = opts.pop("format", None)
     check_output_path(a.output, a.logs, kind="txt")

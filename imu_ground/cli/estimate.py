@@ -1,9 +1,11 @@
 """``imu-ground estimate LOG``: one IMU log or pose file -> per-frame ground normals (CSV, Parquet, TUM, ROS)."""
 from __future__ import annotations
 
-import argparse
 import time
 import warnings
+from pathlib import Path
+
+import argparse
 
 from imu_ground.cli._common import (
     add_progress_flag,
@@ -14,13 +16,14 @@ from imu_ground.cli._common import (
     say,
     warn_line,
 )
+from imu_ground.pipeline.estimate import available_methods, estimate_to_files
+from imu_ground.pipeline.output import check_output_path, default_output_name, summarize_table
 
 __all__ = ["add_method_flags", "method_kwargs", "register", "run"]
 
 
 def _methods_epilog() -> str:
     """One line per method, shown under the options by ``--help``."""
-    from imu_ground.pipeline.estimate import available_methods
     methods = {"auto": (("the best for the input (default): suspension for IMU logs with an accelerometer, "
                         "filter for pose files"), False), **available_methods()}
     width = max(map(len, methods)) + 2
@@ -31,7 +34,6 @@ def _methods_epilog() -> str:
 
 
 def _method_choices() -> list[str]:
-    from imu_ground.pipeline.estimate import available_methods
     return ["auto", *available_methods()]
 
 
@@ -84,14 +86,7 @@ def register(sub) -> None:
 
 def run(a: argparse.Namespace) -> int:
     """Estimate, write the outputs (atomically, all or none) and print a three-line summary."""
-    from pathlib import Path
 
-    from imu_ground.pipeline.estimate import estimate_to_files
-    from imu_ground.pipeline.output import (
-        check_output_path,
-        default_output_name,
-        summarize_table,
-    )
     t0 = time.perf_counter()
     outputs = [check_output_path(a.output or default_output_name(a.log), [a.log])]
     kinds = [None]

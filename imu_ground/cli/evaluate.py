@@ -1,22 +1,29 @@
 """``imu-ground evaluate``: compare the methods on real (KITTI) and/or synthetic drives."""
 from __future__ import annotations
 
-import argparse
 import warnings
+from pathlib import Path
 
-from imu_ground.cli._common import (
-    LazyHelp,
-    add_progress_flag,
-    nonnegative_int,
-    progress_enabled,
-    say,
+import argparse
+import numpy as np
+
+from imu_ground.cli._common import LazyHelp, add_progress_flag, nonnegative_int, progress_enabled, say
+from imu_ground.evaluation.plots import evaluation_plots
+from imu_ground.evaluation.runner import (
+    METHODS,
+    conditions_table,
+    evaluate,
+    format_table,
+    load_real_drives,
+    summary_table,
+    synthetic_drives,
 )
+from imu_ground.pipeline.output import atomic_path, check_output_path
 
 __all__ = ["register", "run"]
 
 
 def _methods_help() -> str:
-    from imu_ground.evaluation.runner import METHODS
     lines = [f"{name}: {getattr(m, 'description', '')}" for name, m in METHODS.items()]
     return "comma-separated methods to compare (default all): " + "; ".join(lines)
 
@@ -43,7 +50,6 @@ def register(sub) -> None:
 
 
 def _check(a: argparse.Namespace) -> list:
-    from imu_ground.evaluation.runner import METHODS
     if a.real is None and not a.synthetic:
         raise ValueError("nothing to evaluate: give --real DIR (kitti_imu100 drives) and/or --synthetic N")
     methods = [m.strip() for m in a.methods.split(",") if m.strip()] if a.methods else list(METHODS)
@@ -53,7 +59,6 @@ def _check(a: argparse.Namespace) -> list:
     bad = [g for g in a.grades.split(",") if g not in ("nav", "mems", "perfect")]
     if bad:
         raise ValueError(f"--grades: unknown {', '.join(bad)}; choose from nav, mems, perfect")
-    from imu_ground.pipeline.output import check_output_path
     for option, path in (("--csv", a.csv), ("--markdown", a.markdown)):
         if path:
             check_output_path(path, option=option, kind="text")
@@ -61,25 +66,14 @@ def _check(a: argparse.Namespace) -> list:
 
 
 def _write_text(path: str, text: str) -> None:
-    from imu_ground.pipeline.output import atomic_path
     with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
 
 
 def run(a: argparse.Namespace) -> int:
     """Load the drives, run the methods, print the summary (and per-drive) tables, write the files asked for."""
-    from pathlib import Path
 
-    import numpy as np
 
-    from imu_ground.evaluation.runner import (
-        conditions_table,
-        evaluate,
-        format_table,
-        load_real_drives,
-        summary_table,
-        synthetic_drives,
-    )
     methods = _check(a)
     progress = progress_enabled(a)
     drives = []
@@ -117,7 +111,6 @@ def run(a: argparse.Namespace) -> int:
         _write_text(a.markdown, format_table(table[cols], "markdown") + "\n")
         say(f"wrote {a.markdown}")
     if a.plots:
-        from imu_ground.evaluation.plots import evaluation_plots
         for p in evaluation_plots(drives, res, tracks, Path(a.plots)):
             say(f"wrote {p}")
     return 0

@@ -1,9 +1,14 @@
 """``imu-ground simulate -o DRIVE.csv``: a synthetic drive (IMU CSV) and its exact truth (CSV)."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import argparse
 
 from imu_ground.cli._common import positive_float, say
+from imu_ground.evaluation.plots import plot_simulation
+from imu_ground.evaluation.simulate import simulate
+from imu_ground.pipeline.output import atomic_path, check_output_path
 
 __all__ = ["register", "run"]
 
@@ -28,10 +33,7 @@ def register(sub) -> None:
 
 def run(a: argparse.Namespace) -> int:
     """Simulate and write both files atomically (both or neither)."""
-    from pathlib import Path
 
-    from imu_ground.evaluation.simulate import simulate
-    from imu_ground.pipeline.output import atomic_path, check_output_path
     out = Path(a.output)
     truth = Path(a.truth) if a.truth else out.with_name(out.name.split(".")[0] + "_truth.csv")
     check_output_path(out, option="-o", kind="csv")
@@ -43,6 +45,5 @@ def run(a: argparse.Namespace) -> int:
         sim.to_csv(tmp_imu, tmp_truth)
     say(f"simulated {a.duration:g} s ({a.imu} IMU, seed {a.seed}): wrote {out} and {truth}")
     if a.plot:
-        from imu_ground.evaluation.plots import plot_simulation
         say(f"wrote {plot_simulation(sim, Path(a.plot))}")
     return 0

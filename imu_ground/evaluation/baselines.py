@@ -24,19 +24,17 @@ from __future__ import annotations
 import numpy as np
 
 from imu_ground import so3
-from imu_ground.filters.estimator import (
-    GroundEstimate,
-    GroundTrack,
-    as_egomotion,
+from imu_ground.filters.estimator import GroundEstimate, GroundTrack, as_egomotion, pitch_roll_from_normal
+from imu_ground.filters.extrinsics import Extrinsic
+from imu_ground.filters.frame_checks import (
     bad_frame_error,
     frame_problem,
     frame_problems,
     frame_where,
-    pitch_roll_from_normal,
     static_rotation,
 )
-from imu_ground.filters.extrinsics import Extrinsic
-from imu_ground.filters.rotations import cumulative_rotations, euler_zyx, twist_angle
+from imu_ground.so3 import cumulative_rotations, euler_zyx, twist_angle
+from imu_ground.units import RENORM_EVERY
 
 __all__ = ["ConstantNormal", "EulerEKF", "euler_zyx", "from_euler_zyx"]
 
@@ -132,7 +130,8 @@ class ConstantNormal(_Baseline):
                 raise bad_frame_error(problem, frame_where(self._count + k, float(em.t[k])))
         body = d if self._Rgs is None else self._Rgs @ d @ self._Rgs.T
         n = len(body)
-        cum = cumulative_rotations(body, self.cumulative, self._count) if n else np.zeros((0, 3, 3))
+        cum = (cumulative_rotations(body, self.cumulative, self._count, renorm_every=RENORM_EVERY) if n
+               else np.zeros((0, 3, 3)))
         if n:
             self.cumulative = cum[-1].copy()
             self._count += n

@@ -30,8 +30,10 @@ from typing import Any
 
 import numpy as np
 
+from imu_ground.datasets import read_kitti_imu100
 from imu_ground.evaluation.conditions import frame_signals, reference_sigma
-from imu_ground.evaluation.reference import MIN_SPEED
+from imu_ground.evaluation.reference import MIN_SPEED, check_reference, pitch_reference
+from imu_ground.evaluation.simulate import simulate_suite
 from imu_ground.filters import Extrinsic
 from imu_ground.imu import EgoMotion, ImuData, imu_to_egomotion
 from imu_ground.units import DEFAULT_FRAME_RATE
@@ -123,8 +125,6 @@ def load_real_drive(path: Path, rate: float = DEFAULT_FRAME_RATE) -> Drive:
         ``valid`` and ``reason`` from the signals alone; ``check`` holds the verdict's
         statistics; the reader's warnings are in ``egomotion.meta["reader_warnings"]``.
     """
-    from imu_ground.datasets import read_kitti_imu100
-    from imu_ground.evaluation.reference import check_reference, pitch_reference
 
     path = Path(path)
     with warnings.catch_warnings(record=True) as caught:
@@ -203,6 +203,5 @@ def synthetic_drives(n: int = 10, seed: int = 0, grades: Sequence[str] = ("nav",
     """A synthetic suite: ``n`` drives per IMU grade (see :func:`imu_ground.evaluation.simulate.simulate_suite`)."""
     from tqdm.auto import tqdm
 
-    from imu_ground.evaluation.simulate import simulate_suite
     sims = simulate_suite(n, seed=seed, grades=tuple(grades), **kw)
     return [synthetic_drive(s) for s in tqdm(sims, desc="simulating", unit="drive", disable=not progress)]

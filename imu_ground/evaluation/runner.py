@@ -31,20 +31,11 @@ from typing import Any
 import numpy as np
 
 from imu_ground.evaluation.baselines import ConstantNormal, EulerEKF
-from imu_ground.evaluation.conditions import (
-    CONDITIONS,
-    condition_masks,
-    moving_segments,
-    segment_centred,
-)
-from imu_ground.evaluation.drives import (
-    Drive,
-    load_real_drive,
-    load_real_drives,
-    synthetic_drive,
-    synthetic_drives,
-)
+from imu_ground.evaluation.conditions import CONDITIONS, condition_masks, moving_segments, segment_centred
+from imu_ground.evaluation.drives import Drive, load_real_drive, load_real_drives, synthetic_drive, synthetic_drives
 from imu_ground.evaluation.metrics import evaluate_drive
+from imu_ground.filters import GroundNormalFilter
+from imu_ground.filters.methods import METHODS as REGISTRY
 
 __all__ = [
     "EVALUATION_METHODS",
@@ -65,7 +56,7 @@ __all__ = [
 
 #: Tuned parameters of the paper's method (the GroundNormalFilter with the
 #: heading-following slow state): chosen on the real drives, see
-#: ``benchmarks/tune_paper.py``.
+#: ``benchmarks/studies/tune_paper.py``.
 TUNED = dict(Q=0.1, R=1.0, P=1.0)
 
 
@@ -94,13 +85,11 @@ class Method:
 
 def _library_methods() -> list[Method]:
     """The library's methods under their CLI names (the filters' registry)."""
-    from imu_ground.filters.methods import METHODS as REGISTRY
     return [Method(name, spec.description, spec.factory, bool(spec.smooth), bool(spec.needs_accel))
             for name, spec in REGISTRY.items()]
 
 
 def _baseline_methods() -> list[Method]:
-    from imu_ground.filters import GroundNormalFilter
     return [
         Method("naive", "constant normal (the static extrinsic)", ConstantNormal),
         Method("ekf", "standard EKF, Euler-angle state, the paper's Q and R, random walk",

@@ -2,15 +2,15 @@
 
 Module map (each imports only the ones above it, and the imu layer below):
 
-- ``rotations``: increments in any form, heading twist, ZYX Euler angles, quaternions;
 - ``design``: discrete-time filter design (band-pass, second-order response, IIR runner);
 - ``extrinsics``: static extrinsics and the calibration file format (``Calibration``);
-- ``estimator``: the estimator protocol, ``GroundEstimate``, ``GroundTrack``, ``track_table``, frame checks;
+- ``estimator``: the estimator protocol, ``GroundEstimate``, ``GroundTrack``, ``as_egomotion``;
+- ``frame_checks``: the checks of the frames an estimator is given, its ``on_invalid`` policy;
 - ``residual``: the scalar residual filter both invariant-EKF estimators run on;
 - ``invariant_ekf_kernel``, ``gravity_kernel``: the pure-Python per-frame kernels of the invariant
   EKF and of the gravity/velocity filter (references of, and fallbacks for, the C twins);
 - ``invariant_ekf``, ``gravity_velocity``: the filters the estimators are built from;
-- ``gains``: suspension gains (defaults, band-pass regression);
+- ``gains``: suspension gains (defaults, band-pass regression); ``suspension_model``: load, gains and body tilt;
 - ``ground`` (``GroundNormalFilter``), ``suspension`` (``SuspensionAwareFilter``): the estimators;
 - ``methods``: the estimators by CLI name; ``calibration``: ``calibrate`` a platform.
 
@@ -22,8 +22,7 @@ from imu_ground._lazy import lazy_exports
 
 _EXPORTS = {
     ".invariant_ekf": "InvariantEKF",
-    ".estimator": ("GroundEstimator GroundEstimate GroundTrack pitch_roll_from_normal "
-                   "track_table as_egomotion"),
+    ".estimator": "GroundEstimator GroundEstimate GroundTrack pitch_roll_from_normal as_egomotion",
     ".ground": "GroundNormalFilter",
     ".gains": "DEFAULT_GAINS GAIN_BAND bandpass_gain_regression",
     ".gravity_velocity": "GravityEstimate GravityTrack GravityVelocityFilter",
@@ -31,7 +30,7 @@ _EXPORTS = {
     ".extrinsics": ("Extrinsic load_extrinsic save_extrinsic available_extrinsics Calibration "
                     "load_calibration resolve_platform"),
     ".calibration": "calibrate",
-    ".rotations": "euler_zyx twist_angle as_rotations",
+    "imu_ground.so3": "euler_zyx twist_angle as_rotations",      # rotation helpers, re-exported from so3
     ".design": "butter_bandpass foh_filter",
 }
 __getattr__, __dir__, __all__ = lazy_exports(__name__, _EXPORTS)

@@ -4,8 +4,8 @@
  * object (an array('d'); layout: the E_* offsets below, mirrored by the _B*
  * constants of invariant_ekf.py). Every formula is the pure-Python kernel's,
  * term for term and in the same order (the extension is compiled without FMA
- * contraction), so the two agree bit for bit on every platform with a correctly
- * rounded sqrt and the same libm.
+ * contraction), so the two round alike; the equality the tests hold them to is the
+ * twin rule stated in imu_ground/_native.py.
  *
  * Entry points (METH_FASTCALL):
  *   predict(state, u, Q) -> True          u: None, (3, 3) rotation or (3,) rotation vector (rad);
@@ -47,7 +47,7 @@ enum {
     E_SIZE = 123
 };
 
-#define SMALL 1e-4   /* so3._SMALL */
+#define SMALL 1e-4   /* so3.SMALL_ANGLE */
 
 /* ---- scalar kernels (so3's *_flat and quat_* functions) ---------------------------------- */
 static inline void sym_upper(double *m)

@@ -1,7 +1,7 @@
 /* The gravity/velocity filter's per-frame kernel in C: the twin of imu_ground/filters/gravity_kernel.py.
  *
  * Same recursion (gravity_kernel._predict_update, _velocity_update), forces (step_frame) and operation
- * order term by term, compiled without FMA contraction: frame by frame bit-identical to the Python twin.
+ * order term by term, compiled without FMA contraction (equality rule: imu_ground/_native.py).
  *
  * All state lives in the caller's float64 buffer (layout: gravity_kernel's docstring;
  * indices below); this module has no mutable global state.

@@ -53,7 +53,7 @@ static int read_fixed(PyObject *obj, Py_ssize_t rows, double *dst, const char *n
 
 /* ------------------------------------------------------------------------------- frame check */
 
-/* The twin of estimator.frame_status: 0 for a good frame (NaN fails every comparison). */
+/* The twin of frame_checks.frame_status: 0 for a good frame (NaN fails every comparison). */
 static inline int frame_status(const double *r, const double *dv, double dt)
 {
     const double r00 = r[0], r01 = r[1], r02 = r[2], r10 = r[3], r11 = r[4], r12 = r[5];
@@ -372,7 +372,7 @@ done:
 
 PyDoc_STRVAR(check_doc,
 "check(d, dv, dt) -> int\n\n"
-"The frame's status (estimator.frame_status): 0 good, 1 delta_R not a rotation,\n"
+"The frame's status (frame_checks.frame_status): 0 good, 1 delta_R not a rotation,\n"
 "2 delta_v not finite, 3 delta_t not a positive number of seconds. dv may be None.");
 
 static PyObject *py_check(PyObject *self, PyObject *const *args, Py_ssize_t nargs)

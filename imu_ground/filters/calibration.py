@@ -68,7 +68,7 @@ from imu_ground.filters.estimator import as_egomotion
 from imu_ground.filters.extrinsics import Calibration, Extrinsic, load_calibration
 from imu_ground.filters.gains import DEFAULT_GAINS, GAIN_BAND, bandpass_gain_regression
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
-from imu_ground.filters.rotations import euler_zyx
+from imu_ground.so3 import euler_zyx
 
 if TYPE_CHECKING:
     from imu_ground.imu.data import ImuData

@@ -1,4 +1,4 @@
-r"""What every ground estimator shares: the protocol, its results, the output table, the frame checks.
+r"""What every ground estimator shares: the protocol, its results, and the input it accepts.
 
 Frames and signs (see the glossary of :mod:`imu_ground.so3`)
 ------------------------------------------------------------
@@ -16,43 +16,28 @@ frame ``n_b = E^T e_z = [-sin p, sin r cos p, cos p cos r]`` (:func:`pitch_roll_
 The normal in the sensor frame is ``n_s = (E R_gs)^T e_z``.
 
 Every estimator (:class:`GroundEstimator`) has ``reset()``, ``step(frame) ->``
-:class:`GroundEstimate` and ``run(egomotion, smooth=False) ->`` :class:`GroundTrack`;
-:func:`track_table` is the one output table. The scalar residual filter both
-invariant-EKF estimators run on is :class:`~imu_ground.filters.residual.ResidualKernel`.
+:class:`GroundEstimate` and ``run(egomotion, smooth=False) ->`` :class:`GroundTrack`.
+The checks of the frames they are given are in :mod:`imu_ground.filters.frame_checks`;
+the output table of a track is :func:`imu_ground.pipeline.output.track_table`. The scalar
+residual filter both invariant-EKF estimators run on is
+:class:`~imu_ground.filters.residual.ResidualKernel`.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Optional, Protocol, runtime_checkable
 
 import numpy as np
 
-from imu_ground._native import load_native
-from imu_ground.filters.rotations import as_rotations, matrix_from_quat, quat_from_matrix
+from imu_ground.imu.data import ImuData
+from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
+from imu_ground.so3 import as_rotations, matrix_from_quat
 from imu_ground.units import DEFAULT_FRAME_RATE
 
-if TYPE_CHECKING:                                   # imported lazily: the imu layer pulls in pandas
-    import pandas as pd
+if TYPE_CHECKING:
+    from imu_ground.imu.egomotion import EgoFrame
 
-    from imu_ground.imu.egomotion import EgoFrame, EgoMotion
-
-__all__ = ["GroundEstimate", "GroundTrack", "GroundEstimator", "pitch_roll_from_normal", "track_table",
-           "as_egomotion", "ON_INVALID", "ORTHO_TOL", "frame_status", "frame_problem",
-           "BAD_ROTATION", "BAD_DELTA_V", "BAD_DELTA_T", "frame_problems", "frame_statuses", "checked_frames",
-           "check_on_invalid",
-           "bad_frame_error", "checked_frame", "coerce_frame", "bad_frame", "static_rotation", "frame_where",
-           "hold_skipped"]
-
-#: What a streaming estimator does with a bad frame: raise ``ValueError`` (state untouched) or
-#: skip it and return an estimate flagged invalid.
-ON_INVALID = ("raise", "skip")
-#: Largest ``|R^T R - I|`` entry of an accepted rotation increment.
-ORTHO_TOL = 1e-6
-#: :func:`frame_status` codes of a bad frame.
-BAD_ROTATION, BAD_DELTA_V, BAD_DELTA_T = 1, 2, 3
-_NATIVE = load_native("imu_ground.filters._residual_native")     # its check/check_many twin frame_status
-_EZ3 = (0.0, 0.0, 1.0)
+__all__ = ["GroundEstimate", "GroundTrack", "GroundEstimator", "pitch_roll_from_normal", "as_egomotion"]
 
 
 def pitch_roll_from_normal(n_body):
@@ -203,10 +188,6 @@ class GroundTrack:
         tr = np.zeros(3) if translation is None else np.array(translation, dtype=float)
         return cls(dyn[:, 2, :].copy(), pitch, roll, E, dyn, P, X, cumulative, tr, t, valid, **extra)
 
-    def to_dataframe(self):
-        """The output table, :func:`track_table`."""
-        return track_table(self)
-
 
 @runtime_checkable
 class GroundEstimator(Protocol):
@@ -222,50 +203,6 @@ class GroundEstimator(Protocol):
         """Process a whole drive, continuing from the current state as ``step`` would."""
 
 
-def track_table(track: GroundTrack, max_gap_frames: int = 3) -> "pd.DataFrame":
-    """THE output table of an estimate, one row a frame.
-
-    Parameters
-    ----------
-    track : GroundTrack
-    max_gap_frames : int
-        Invalid frames in a run of more than this many consecutive invalid
-        frames (a long gap in the source) get NaN values; shorter runs keep
-        their (extrapolated) values. ``valid`` is False for all of them.
-
-    Returns
-    -------
-    pandas.DataFrame
-        Columns ``t`` (s), ``normal_x, normal_y, normal_z`` (unit normal, sensor
-        frame), ``pitch_deg`` (+ nose down), ``roll_deg`` (+ left side up),
-        ``qw, qx, qy, qz`` (residual rotation road <- body, scalar first,
-        ``qw >= 0``), ``valid`` (bool).
-    """
-    import pandas as pd
-    n = len(track)
-    q = quat_from_matrix(track.residual) if n else np.zeros((0, 4))
-    valid = np.asarray(track.valid, dtype=bool)
-    df = pd.DataFrame({"t": np.asarray(track.t, dtype=float),
-                       "normal_x": track.normal[:, 0], "normal_y": track.normal[:, 1], "normal_z": track.normal[:, 2],
-                       "pitch_deg": np.degrees(track.pitch), "roll_deg": np.degrees(track.roll),
-                       "qw": q[:, 0], "qx": q[:, 1], "qy": q[:, 2], "qz": q[:, 3], "valid": valid})
-    blank = _long_runs(~valid, max_gap_frames)
-    if blank.any():
-        df.loc[blank, df.columns[1:-1]] = np.nan
-    return df
-
-
-def _long_runs(mask: np.ndarray, longer_than: int) -> np.ndarray:
-    """Elements of ``mask`` that lie in runs of more than ``longer_than`` consecutive True."""
-    m = np.concatenate([[False], mask, [False]]).astype(np.int8)
-    edges = np.flatnonzero(np.diff(m))
-    out = np.zeros(len(mask), dtype=bool)
-    for a, b in zip(edges[::2], edges[1::2]):
-        if b - a > longer_than:
-            out[a:b] = True
-    return out
-
-
 def as_egomotion(data, rate: Optional[float] = None) -> "EgoMotion":
     """An :class:`~imu_ground.imu.egomotion.EgoMotion` from what an estimator's ``run`` accepts.
 
@@ -278,8 +215,6 @@ def as_egomotion(data, rate: Optional[float] = None) -> "EgoMotion":
     rate : float, optional
         Frame rate, Hz, for the last two; :data:`~imu_ground.units.DEFAULT_FRAME_RATE` by default.
     """
-    from imu_ground.imu.data import ImuData
-    from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
     if isinstance(data, EgoMotion):
         return data
     rate = DEFAULT_FRAME_RATE if rate is None else float(rate)
@@ -291,307 +226,3 @@ def as_egomotion(data, rate: Optional[float] = None) -> "EgoMotion":
         raise ValueError(f"expected an EgoMotion, an ImuData or rotation increments of shape (F, 3, 3), (F, 4, 4) "
                          f"or (F, 3), got {type(data).__name__} of shape {d.shape}")
     return EgoMotion.from_rotations(as_rotations(d, "delta_Rs"), rate=rate)
-
-
-# ------------------------------------------------------------------------------------------ frame checks
-def frame_status(d9, delta_v=None, delta_t: float = 1.0) -> int:
-    """What is wrong with one frame, as a code (the scalar check the streaming estimators run).
-
-    The compiled twin is ``check`` of :mod:`imu_ground.filters.residual` (same
-    comparisons, same results); :func:`frame_problem` turns a code into the message.
-
-    Parameters
-    ----------
-    d9 : sequence of 9 float
-        ``delta_R`` row-major (sensor_{k-1} <- sensor_k).
-    delta_v : sequence of 3 float, optional
-        Velocity increment, m/s.
-    delta_t : float
-        Frame duration, s.
-
-    Returns
-    -------
-    int
-        0: a good frame; :data:`BAD_ROTATION` (non-finite, not orthonormal to
-        :data:`ORTHO_TOL`, or det <= 0), :data:`BAD_DELTA_V` (not finite) or
-        :data:`BAD_DELTA_T` (not a positive finite number of seconds).
-    """
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = d9
-    lo, hi = 1.0 - ORTHO_TOL, 1.0 + ORTHO_TOL
-    if not (lo <= r00 * r00 + r10 * r10 + r20 * r20 <= hi and lo <= r01 * r01 + r11 * r11 + r21 * r21 <= hi
-            and lo <= r02 * r02 + r12 * r12 + r22 * r22 <= hi
-            and -ORTHO_TOL <= r00 * r01 + r10 * r11 + r20 * r21 <= ORTHO_TOL
-            and -ORTHO_TOL <= r00 * r02 + r10 * r12 + r20 * r22 <= ORTHO_TOL
-            and -ORTHO_TOL <= r01 * r02 + r11 * r12 + r21 * r22 <= ORTHO_TOL
-            and r00 * (r11 * r22 - r12 * r21) - r01 * (r10 * r22 - r12 * r20) + r02 * (r10 * r21 - r11 * r20) > 0.0):
-        return BAD_ROTATION                         # (NaN fails every comparison)
-    if delta_v is not None:
-        vx, vy, vz = delta_v
-        if not math.isfinite(vx + vy + vz):
-            return BAD_DELTA_V
-    if not delta_t > 0.0 or delta_t == math.inf:
-        return BAD_DELTA_T
-    return 0
-
-
-def frame_problem(d9, delta_v=None, delta_t: float = 1.0, status: Optional[int] = None) -> Optional[str]:
-    """What is wrong with one frame, or None (the message of :func:`frame_status`; the streaming
-    twin of :func:`frame_problems`).
-
-    Parameters
-    ----------
-    d9, delta_v, delta_t
-        As in :func:`frame_status`.
-    status : int, optional
-        The frame's :func:`frame_status` when already known (e.g. from the compiled check).
-    """
-    status = frame_status(d9, delta_v, delta_t) if status is None else status
-    if status == BAD_ROTATION:
-        return _rotation_message(d9)
-    if status == BAD_DELTA_V:
-        vx, vy, vz = delta_v
-        return f"delta_v is not finite ({vx}, {vy}, {vz})"
-    if status == BAD_DELTA_T:
-        return f"delta_t must be a positive number of seconds, got {delta_t}"
-    return None
-
-
-def _rotation_message(d9) -> str:
-    m = np.array(d9, dtype=float).reshape(3, 3)
-    if not np.all(np.isfinite(m)):
-        return "delta_R is not finite"
-    err = float(np.abs(m.T @ m - np.eye(3)).max())
-    return (f"delta_R is not a rotation: |R^T R - I| = {err:.3g} (tolerance {ORTHO_TOL:g}), "
-            f"det = {np.linalg.det(m):.6g} (must be +1)")
-
-
-def frame_statuses(d: np.ndarray, dv: Optional[np.ndarray] = None, dt: Optional[np.ndarray] = None) -> np.ndarray:
-    """:func:`frame_status` of every frame: the batch check.
-
-    With the compiled residual kernel, its ``check_many`` (the same comparisons
-    as the streaming check, so a batch flags exactly the frames a stream would);
-    otherwise a vectorised numpy check (``|R^T R - I|`` and ``det``).
-
-    Parameters
-    ----------
-    d : ndarray (F, 3, 3)
-        Rotation increments.
-    dv : ndarray (F, 3), optional
-        Velocity increments, m/s.
-    dt : ndarray (F,), optional
-        Frame durations, s.
-
-    Returns
-    -------
-    ndarray of uint8 (F,)
-        0 for a good frame, else :data:`BAD_ROTATION`, :data:`BAD_DELTA_V` or :data:`BAD_DELTA_T`.
-    """
-    d = np.ascontiguousarray(d, dtype=float)
-    n = len(d)
-    dv = None if dv is None else np.ascontiguousarray(dv, dtype=float)
-    dt = None if dt is None else np.ascontiguousarray(dt, dtype=float)
-    out = np.zeros(n, dtype=np.uint8)
-    if not n:
-        return out
-    if _NATIVE is not None:
-        _NATIVE.check_many(d, dv, dt, out)
-        return out
-    with np.errstate(invalid="ignore", over="ignore"):
-        err = np.abs(np.swapaxes(d, 1, 2) @ d - np.eye(3)).max(axis=(1, 2))
-        det = np.linalg.det(d)
-        if dt is not None:
-            out[~((dt > 0.0) & (dt < np.inf))] = BAD_DELTA_T
-        if dv is not None:
-            out[~np.isfinite(dv.sum(axis=1))] = BAD_DELTA_V
-        out[~((err <= ORTHO_TOL) & (det > 0.0))] = BAD_ROTATION
-    return out
-
-
-def _problem_at(k: int, status: int, d: np.ndarray, dv, dt) -> str:
-    return frame_problem(d[k].ravel().tolist(), None if dv is None else np.asarray(dv[k], dtype=float).tolist(),
-                         1.0 if dt is None else float(dt[k]), status=status)
-
-
-def frame_problems(d: np.ndarray, dv: Optional[np.ndarray] = None, dt: Optional[np.ndarray] = None) -> list:
-    """Per frame, what is wrong with it (None for a good frame); the batch twin of :func:`frame_problem`.
-
-    Parameters
-    ----------
-    d, dv, dt
-        As in :func:`frame_statuses`.
-    """
-    status = frame_statuses(d, dv, dt)
-    out: list = [None] * len(status)
-    for k in np.flatnonzero(status).tolist():
-        out[k] = _problem_at(k, int(status[k]), np.asarray(d, dtype=float), dv, dt)
-    return out
-
-
-def checked_frames(d: np.ndarray, dv: Optional[np.ndarray], dt: Optional[np.ndarray], t: np.ndarray,
-                   on_invalid: str) -> np.ndarray:
-    """Which frames of a batch an estimator's ``run`` processes (the others it skips); the first step of ``run``.
-
-    Parameters
-    ----------
-    d, dv, dt
-        As in :func:`frame_statuses`.
-    t : ndarray (F,)
-        Frame times, s (to name a bad frame).
-    on_invalid : {"raise", "skip"}
-        The estimator's policy (:data:`ON_INVALID`).
-
-    Returns
-    -------
-    ndarray of bool (F,)
-        True for a good frame.
-
-    Raises
-    ------
-    ValueError
-        A bad frame with ``on_invalid="raise"``: the first one is named, with the count.
-    """
-    status = frame_statuses(d, dv, dt)
-    good = status == 0
-    if on_invalid == "raise" and not good.all():
-        k = int(np.argmin(good))
-        problem = _problem_at(k, int(status[k]), np.asarray(d, dtype=float), dv, dt)
-        raise bad_frame_error(problem, frame_where(k, float(t[k])) + f"; {len(good) - good.sum()} bad of {len(good)}")
-    return good
-
-
-# ------------------------------------------------------------------------------------------ shared plumbing
-def check_on_invalid(on_invalid: str) -> str:
-    """``on_invalid`` validated (one of :data:`ON_INVALID`)."""
-    if on_invalid not in ON_INVALID:
-        raise ValueError(f"on_invalid must be 'raise' or 'skip', got {on_invalid!r}")
-    return on_invalid
-
-
-def bad_frame_error(problem: str, where: str) -> ValueError:
-    """The error a streaming estimator raises for a bad frame (its state untouched)."""
-    return ValueError(f"bad ego-motion frame ({where}): {problem}; the estimator's state is unchanged "
-                      f"(construct it with on_invalid='skip' to skip such frames)")
-
-
-def checked_frame(check, frame, delta_R, delta_v, delta_t: float, on_invalid: str, index: int) -> tuple | None:
-    """A streamed frame's ``delta_R`` (3x3) and ``delta_v`` (3,) as float64 arrays, if the frame passes the check.
-
-    The first step of every estimator's ``step`` on its general path: the
-    kernel's ``check`` (C or Python twin of :func:`frame_status`), after
-    :func:`coerce_frame` when the inputs are not float64 arrays already; a bad
-    frame raises or is to be skipped (:func:`bad_frame`).
-
-    Parameters
-    ----------
-    check : callable
-        ``check(delta_R, delta_v, delta_t) -> int`` (:func:`imu_ground.filters.residual.check`).
-    frame : object
-        The frame as given to ``step``; its ``t`` (s), if it has one, locates the error.
-    delta_R : array_like
-        sensor_{k-1} <- sensor_k: a rotation matrix, a 4x4 relative pose or a rotation vector, rad.
-    delta_v : array_like (3,) or None
-        Velocity increment, m/s (None: not checked).
-    delta_t : float
-        Frame duration, s.
-    on_invalid : {"raise", "skip"}
-        The estimator's policy (:data:`ON_INVALID`).
-    index : int
-        0-based index of the frame in the estimator's run, for the message.
-
-    Returns
-    -------
-    (ndarray (3, 3), ndarray (3,) or None) or None
-        None: a bad frame to skip (``on_invalid="skip"``); the caller returns
-        its current estimate flagged invalid.
-
-    Raises
-    ------
-    ValueError
-        ``delta_R`` is not one rotation, or a bad frame with ``on_invalid="raise"``.
-    """
-    d, dv = delta_R, delta_v
-    try:
-        status = check(d, dv, delta_t)
-    except (TypeError, ValueError):
-        d, dv = coerce_frame(d, dv)
-        status = check(d, dv, delta_t)
-    if status:
-        bad_frame(frame, status, d, dv, delta_t, on_invalid, index)
-        return None
-    return d, dv
-
-
-def coerce_frame(delta_R, delta_v=None) -> tuple:
-    """A streamed frame's ``delta_R`` as one C-contiguous float64 3x3 rotation and ``delta_v`` as a float64 (3,)
-    array (or None): what the kernels' ``step`` and ``check`` take (they raise TypeError/ValueError otherwise).
-
-    Parameters
-    ----------
-    delta_R : array_like
-        sensor_{k-1} <- sensor_k: a rotation matrix, a 4x4 relative pose or a
-        rotation vector, rad (:func:`~imu_ground.filters.rotations.as_rotations`).
-    delta_v : array_like (3,), optional
-        Velocity increment, m/s.
-
-    Raises
-    ------
-    ValueError
-        ``delta_R`` is not one rotation (e.g. a batch) or ``delta_v`` not 3 values.
-    """
-    d = as_rotations(delta_R)
-    if d.shape != (3, 3):
-        raise ValueError(f"delta_R must be one rotation, got shape {d.shape}")
-    dv = None if delta_v is None else np.ascontiguousarray(np.asarray(delta_v, dtype=float).reshape(3))
-    return np.ascontiguousarray(d, dtype=float), dv
-
-
-def bad_frame(frame, status: int, d: np.ndarray, dv, dt: float, on_invalid: str, index: int) -> None:
-    """A bad streamed frame (its :func:`frame_status` ``status`` > 0): raise the error, or return with
-    ``on_invalid="skip"`` (the caller then returns its current estimate flagged invalid).
-
-    Parameters
-    ----------
-    frame : object
-        The frame as given to ``step``; its ``t`` (s), if it has one, locates the error.
-    status : int
-        The frame's :func:`frame_status`.
-    d, dv, dt
-        Its ``delta_R`` (3x3), ``delta_v`` (3,) or None, ``delta_t`` (s).
-    on_invalid : {"raise", "skip"}
-    index : int
-        0-based index of the frame in the estimator's run, for the message.
-    """
-    if on_invalid == "raise":
-        dv3 = None if dv is None else np.asarray(dv, dtype=float).ravel().tolist()
-        problem = frame_problem(np.asarray(d, dtype=float).ravel().tolist(), dv3, dt, status)
-        raise bad_frame_error(problem, frame_where(index, getattr(frame, "t", math.nan)))
-
-
-def static_rotation(extrinsic) -> Optional[np.ndarray]:
-    """The extrinsic's ground <- sensor rotation, or None when it is the identity (nothing to apply)."""
-    R = extrinsic.rotation
-    return None if np.array_equal(R, np.eye(3)) else R
-
-
-def frame_where(index: int, t: float) -> str:
-    """``"frame 12 of the run, t = 1.3 s"``-style location of a frame (0-based index)."""
-    return f"frame index {index}" + ("" if math.isnan(t) else f", t = {t:.6g} s")
-
-
-def hold_skipped(values: np.ndarray, good: np.ndarray, initial: np.ndarray) -> np.ndarray:
-    """Per-frame values of the good frames spread over all frames, a skipped frame holding the previous one.
-
-    Parameters
-    ----------
-    values : ndarray (G, ...)
-        One row per good frame.
-    good : ndarray of bool (F,)
-        Which frames were processed (``G = good.sum()``).
-    initial : ndarray (...)
-        The value before the first good frame.
-    """
-    if good.all():
-        return values
-    idx = np.cumsum(good) - 1
-    padded = np.concatenate([np.asarray(initial, dtype=float)[None], values])
-    return padded[idx + 1]

@@ -37,7 +37,7 @@ from typing import Any, Optional, Union
 
 import numpy as np
 
-from imu_ground.filters.rotations import euler_zyx
+from imu_ground.so3 import euler_zyx
 from imu_ground.units import DEG
 
 __all__ = ["Extrinsic", "load_extrinsic", "save_extrinsic", "available_extrinsics", "Calibration",

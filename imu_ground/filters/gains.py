@@ -7,7 +7,7 @@ the acceleration pass the same band-pass (:data:`GAIN_BAND`): lower
 frequencies are confounded by the road (cars speed up downhill, roads bank
 into curves), higher ones by the suspension's resonance and noise. How the
 defaults were chosen, and how well they do, is in ``benchmarks/RESULTS.md``
-(``benchmarks/tune_suspension.py`` regenerates the choice).
+(``benchmarks/studies/tune_suspension.py`` regenerates the choice).
 """
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ __all__ = ["DEFAULT_GAINS", "DEFAULT_CROSS_GAIN", "GAIN_BAND", "TYPICAL_BAND_POW
 DEFAULT_GAINS = (-0.25 * DEG, 0.50 * DEG)
 #: Pitch (nose down +) per m/s^2 of *lateral* load ``u_y``, rad: a left-turn load lifts the nose.
 #: Empirical (road crown, chassis asymmetry), chosen by split-half validation on the real KITTI
-#: drives (``benchmarks/tune_suspension.py``; figures in ``benchmarks/RESULTS.md``).
+#: drives (``benchmarks/studies/tune_suspension.py``; figures in ``benchmarks/RESULTS.md``).
 DEFAULT_CROSS_GAIN = -0.05 * DEG
 #: Band of the gain regression, Hz.
 GAIN_BAND = (0.3, 1.5)

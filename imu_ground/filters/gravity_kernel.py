@@ -6,8 +6,9 @@ state in one flat buffer ``s`` (layout below: a ``list`` for this module, a floa
 from ``_gravity_native.c``) and calls :func:`step_frame` / :func:`step_sensor`
 (one frame) or :func:`run_frames` (a drive) of whichever kernel is loaded; both
 kernels run the same recursion :func:`_predict_update` in the same operation
-order: one frame at a time they agree bit for bit; over a drive to 1e-12 (this
-module's :func:`run_frames` computes the forces vectorised, :func:`body_forces`).
+order, and are held to the twin rule of :mod:`imu_ground._native` (this module's
+:func:`run_frames` computes the forces vectorised, :func:`body_forces`: they round
+differently in the last bit from the C's frame by frame).
 
 Buffer layout (indices; frames and units as in the filter's docstring)::
 
@@ -75,7 +76,7 @@ def new_state(x6, p21, r9, prm7, initialised: bool, lever=None, extrinsic9=None)
     s += [1.0 if initialised else 0.0, 0.0, 0.0, 0.0, 0.0, 0.0] + [float(v) for v in prm7]
     s += [0.0, 0.0, 0.0, 0.0] if lever is None else [1.0] + [float(v) for v in lever]
     s += [0.0] * 10 if extrinsic9 is None else [1.0] + [float(v) for v in extrinsic9]
-    s += [float(RENORM_EVERY), so3._SMALL] + [0.0] * (BUF_LEN - I_LAST)
+    s += [float(RENORM_EVERY), so3.SMALL_ANGLE] + [0.0] * (BUF_LEN - I_LAST)
     return s
 
 

@@ -18,10 +18,10 @@ from typing import NamedTuple, Optional, Sequence, Union
 
 import numpy as np
 
-from imu_ground._native import load_native
+from imu_ground import _native
 from imu_ground.filters import gravity_kernel
-from imu_ground.filters.estimator import frame_problem
 from imu_ground.filters.extrinsics import Extrinsic
+from imu_ground.filters.frame_checks import frame_problem
 from imu_ground.filters.gravity_kernel import (  # noqa: F401 (reference)
     _UPPER21,
     I_LAST,
@@ -34,14 +34,14 @@ from imu_ground.filters.gravity_kernel import (  # noqa: F401 (reference)
     new_state,
 )
 from imu_ground.filters.gravity_kernel import full_cov as _full_cov
-from imu_ground.filters.rotations import as_rotations
 from imu_ground.imu.data import ImuData
 from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
+from imu_ground.so3 import as_rotations
 
 __all__ = ["NATIVE", "GravityEstimate", "GravityTrack", "GravityVelocityFilter", "egomotion_arrays"]
 
 #: The compiled kernel module, or None (not built, or ``IMU_GROUND_PURE_PYTHON=1``): the pure-Python twin then.
-NATIVE = load_native("imu_ground.filters._gravity_native")
+NATIVE = _native.GRAVITY
 _I3 = np.eye(3)
 
 
@@ -308,7 +308,7 @@ class GravityVelocityFilter:
         ----------
         d9, dv3 : sequences of 9 and 3 floats
             ``R_{body_{k-1}<-body_k}`` row-major; gravity-free velocity increment (body_{k-1}, m/s).
-            Not checked (see :func:`imu_ground.filters.estimator.frame_problem`).
+            Not checked (see :func:`imu_ground.filters.frame_checks.frame_problem`).
         dt, stationary, valid, speed
             As in :meth:`step` (``dt`` > 0, s).
 
@@ -360,7 +360,7 @@ class GravityVelocityFilter:
         Raises
         ------
         ValueError
-            ``delta_R`` is not one rotation; a bad frame (:func:`~imu_ground.filters.estimator.frame_problem`:
+            ``delta_R`` is not one rotation; a bad frame (:func:`~imu_ground.filters.frame_checks.frame_problem`:
             not a rotation, non-finite ``delta_v``, ``delta_t`` not a positive number); the state is unchanged.
         """
         if delta_v is None:

@@ -17,11 +17,13 @@ Pipeline, per frame k
 5. dynamic extrinsic ``R_gs(k) = E_k R_gs`` (road-ground <- sensor) and the
    ground normal in the sensor frame ``n_s = R_gs(k)^T e_z``.
 
-With noise symmetric about the up axis (the defaults and the paper's) steps 2-4
-run as the scalar :class:`~imu_ground.filters.residual.ResidualKernel` (compiled when
-its C twin is built, the same numbers either way); other
-settings (the reference code's forward-axis measurement, general covariances)
-run :class:`~imu_ground.filters.invariant_ekf.InvariantEKF` frame by frame.
+Steps 2-4 run on one of two engines, chosen once from the noise settings (the
+filter's ``step``, ``run`` and filterpy-style attributes are the engine's):
+with noise symmetric about the up axis (the defaults and the paper's) the scalar
+:class:`~imu_ground.filters.residual.ResidualKernel` (``_ResidualEngine``; compiled
+when its C twin is built, the same numbers either way); with other settings (the
+reference code's forward-axis measurement, general covariances) an
+:class:`~imu_ground.filters.invariant_ekf.InvariantEKF` frame by frame (``_EkfEngine``).
 """
 from __future__ import annotations
 
@@ -30,13 +32,14 @@ from typing import Optional, Union
 import numpy as np
 
 from imu_ground import so3
-from imu_ground.filters.estimator import (GroundEstimate, GroundTrack, as_egomotion, bad_frame, check_on_invalid,
-                                          checked_frame, checked_frames, coerce_frame, hold_skipped,
-                                          pitch_roll_from_normal, static_rotation)
+from imu_ground.filters.estimator import GroundEstimate, GroundTrack, as_egomotion, pitch_roll_from_normal
 from imu_ground.filters.extrinsics import Extrinsic
+from imu_ground.filters.frame_checks import (bad_frame, check_on_invalid, checked_frame, checked_frames, coerce_frame,
+                                             hold_skipped, static_rotation)
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
-from imu_ground.filters.rotations import cumulative_rotations, matrix_from_quat, twist_angle
+from imu_ground.so3 import cumulative_rotations, matrix_from_quat, twist_angle
+from imu_ground.units import RENORM_EVERY
 
 __all__ = ["GroundNormalFilter", "GroundEstimate", "GroundTrack", "pitch_roll_from_normal"]
 
@@ -162,77 +165,26 @@ class GroundNormalFilter:
     def reset(self) -> None:
         """Back to the initial state (cumulative rotation R0, slow state R0, covariance P0)."""
         self._frames = 0
-        self._kernel = k = ResidualKernel(self._P0[0, 0], self._P0[2, 2], self._R[0, 0], self._R[2, 2],
-                                          up=self.measurement == "up", follow_heading=self.follow_heading,
-                                          Rgs=self._Rgs, cumulative=True)
-        self._kbuf, self._kstep = k.buf, k.impl.step      # the streaming fast path
-        if self._scalar:
-            self.ekf = None
-        else:
-            b = _EX if self.measurement == "forward" else _EZ
-            self.ekf = InvariantEKF(x=self.R0, P=self._P0, Q=self._Q, R=self._R, error="left", b=b)
-            self._cum = self.R0.copy()
-
-    # -- filterpy-style attributes ---------------------------------------------------------
-    @property
-    def cumulative(self) -> np.ndarray:
-        """``R_k``, world <- body (3x3)."""
-        if self.ekf is not None:
-            return self._cum
-        return self.R0 @ matrix_from_quat(np.array(self._kernel.R))
+        self._kernel = ResidualKernel(self._P0[0, 0], self._P0[2, 2], self._R[0, 0], self._R[2, 2],
+                                      up=self.measurement == "up", follow_heading=self.follow_heading,
+                                      Rgs=self._Rgs, cumulative=True)
+        self._engine = _ResidualEngine(self) if self._scalar else _EkfEngine(self)
 
     @property
-    def residual(self) -> np.ndarray:
-        """``E_k = X_k^T R_k``, road <- body (3x3)."""
-        if self.ekf is not None:
-            return self.ekf.x.T @ self._cum
-        return matrix_from_quat(np.array(self._kernel.E))
+    def ekf(self) -> Optional[InvariantEKF]:
+        """The filter object of the general path (None on the scalar path)."""
+        return self._engine.ekf
 
-    @property
-    def x(self) -> np.ndarray:
-        """Slow state X_k, world <- road (3x3)."""
-        return self.ekf.x if self.ekf is not None else self.cumulative @ self.residual.T
-
-    @property
-    def P(self) -> np.ndarray:
-        """Covariance of the slow state, body tangent space (rad^2)."""
-        if self.ekf is not None:
-            return self.ekf.P
-        return np.diag([self._kernel.a, self._kernel.a, self._kernel.c])
-
+    # -- filterpy-style attributes (the engine's) ---------------------------------------------
+    cumulative = property(lambda self: self._engine.cumulative, doc="``R_k``, world <- body (3x3).")
+    residual = property(lambda self: self._engine.residual, doc="``E_k = X_k^T R_k``, road <- body (3x3).")
+    x = property(lambda self: self._engine.x, doc="Slow state X_k, world <- road (3x3).")
+    P = property(lambda self: self._engine.P, doc="Covariance of the slow state, body tangent space (rad^2).")
     Q = property(lambda self: self._Q, doc="Process noise per frame (rad^2), as configured.")
     R = property(lambda self: self._R, doc="Measurement noise, as configured.")
-
-    @property
-    def K(self) -> np.ndarray:
-        """Last Kalman gain (3x3)."""
-        if self.ekf is not None:
-            return self.ekf.K
-        last = self._kernel.last
-        if last is None:
-            return np.zeros((3, 3))
-        if self.measurement == "up":
-            return last[0] * np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
-        return np.diag([last[0], last[0], last[1]])
-
-    @property
-    def y(self) -> np.ndarray:
-        """Last innovation (rad, or the up-axis residual)."""
-        if self.ekf is not None:
-            return self.ekf.y
-        last = self._kernel.last
-        return np.zeros(3) if last is None else np.array(last[4:7])
-
-    @property
-    def S(self) -> np.ndarray:
-        """Last innovation covariance."""
-        if self.ekf is not None:
-            return self.ekf.S
-        last = self._kernel.last
-        if last is None:
-            return np.zeros((3, 3))
-        a, c = last[2], last[3]
-        return np.diag([a, a, 0.0 if self.measurement == "up" else c]) + self._R
+    K = property(lambda self: self._engine.K, doc="Last Kalman gain (3x3).")
+    y = property(lambda self: self._engine.y, doc="Last innovation (rad, or the up-axis residual).")
+    S = property(lambda self: self._engine.S, doc="Last innovation covariance.")
 
     # -- streaming -----------------------------------------------------------------------------
     def step(self, frame) -> GroundEstimate:
@@ -258,39 +210,8 @@ class GroundNormalFilter:
             A bad frame with ``on_invalid="raise"`` (the state is unchanged).
         """
         if type(frame) is np.ndarray or not hasattr(frame, "delta_R"):
-            d, dv, dt = frame, None, 1.0
-        else:
-            d, dv, dt = frame.delta_R, frame.delta_v, frame.delta_t
-        if self.ekf is not None:
-            return self._ekf_step(frame, d, dv, dt)
-        try:
-            o = self._kstep(self._kbuf, d, self._qh, self._qv, None, None, dv, dt)
-        except (TypeError, ValueError):                 # not float64 arrays (3, 3) and (3,): coerce, retry
-            d, dv = coerce_frame(d, dv)
-            o = self._kstep(self._kbuf, d, self._qh, self._qv, None, None, dv, dt)
-        if type(o) is int:
-            bad_frame(frame, o, d, dv, dt, self.on_invalid, self._frames)
-            return GroundEstimate.of_residual(self.residual, self.P.copy(), self._Rgs, valid=False)
-        self._frames += 1
-        return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o)
-
-    def _ekf_step(self, frame, d, dv, dt: float) -> GroundEstimate:
-        """General path of :meth:`step`: the frame checked, then one frame of the InvariantEKF."""
-        checked = checked_frame(self._kernel.impl.check, frame, d, dv, dt, self.on_invalid, self._frames)
-        if checked is None:
-            return GroundEstimate.of_residual(self.residual, self.P.copy(), self._Rgs, valid=False)
-        self._frames += 1
-        return GroundEstimate.of_residual(self._ekf_frame(checked[0]), self.ekf.P.copy(), self._Rgs)
-
-    def _ekf_frame(self, d: np.ndarray) -> np.ndarray:
-        """General path: one frame of the InvariantEKF; returns the residual E (road <- body)."""
-        if self._Rgs is not None:
-            d = self._Rgs @ d @ self._Rgs.T
-        self._cum = Rk = cumulative_rotations(d[None], self._cum, self._frames - 1)[0]
-        ekf = self.ekf
-        ekf.predict(so3.rotz(float(twist_angle(d))) if self.follow_heading else None)
-        ekf.update(Rk if self.measurement == "rotation" else Rk @ ekf.b)
-        return ekf.x.T @ Rk
+            return self._engine.step(frame, frame, None, 1.0)
+        return self._engine.step(frame, frame.delta_R, frame.delta_v, frame.delta_t)
 
     # -- batch -----------------------------------------------------------------------------------
     def run(self, egomotion, smooth: bool = False) -> GroundTrack:
@@ -323,20 +244,7 @@ class GroundNormalFilter:
         good = checked_frames(d, em.delta_v, em.delta_t, em.t, self.on_invalid)
         start = (self.residual, self.P.copy(), self.cumulative)
         dg = d[good]
-        if self.ekf is None:
-            o = self._kernel.run(dg, self._qh, self._qv)
-            self._frames += len(dg)
-            E = matrix_from_quat(o[:, :4])
-            Ps = np.zeros((len(o), 3, 3))
-            Ps[:, 0, 0] = Ps[:, 1, 1] = o[:, 4]
-            Ps[:, 2, 2] = o[:, 5]
-            cum = self.R0 @ matrix_from_quat(o[:, 8:])
-        else:
-            E, Ps, cum = np.empty((len(dg), 3, 3)), np.empty((len(dg), 3, 3)), np.empty((len(dg), 3, 3))
-            for k in range(len(dg)):
-                self._frames += 1
-                E[k] = self._ekf_frame(dg[k])
-                Ps[k], cum[k] = self.ekf.P, self._cum
+        E, Ps, cum = self._engine.run(dg)
         Xs = cum @ np.swapaxes(E, 1, 2)
         if smooth and len(dg):
             Xs, Ps = self._smooth(dg, Xs, Ps)
@@ -352,3 +260,125 @@ class GroundNormalFilter:
         smoother = InvariantEKF(Q=self._Q, R=self._R, error="left")
         Xsm, Psm, _, _ = smoother.rts_smoother(Xs, Ps, us=T)
         return Xsm, Psm
+
+
+class _ResidualEngine:
+    """Steps 2-4 as the scalar :class:`~imu_ground.filters.residual.ResidualKernel` (the filter's ``_kernel``).
+
+    Exact for noise symmetric about the up axis (``Q``, ``P`` = diag(a, a, c); ``R`` too, or
+    isotropic for the up measurement): the covariance stays diag(a, a, c) and the gain acts
+    on the rotation vector alone.
+    """
+
+    ekf = None
+
+    def __init__(self, flt: GroundNormalFilter) -> None:
+        self._f, self._kernel = flt, flt._kernel
+        self._buf, self._kstep = flt._kernel.buf, flt._kernel.impl.step    # the streaming fast path
+
+    @property
+    def cumulative(self) -> np.ndarray:
+        return self._f.R0 @ matrix_from_quat(np.array(self._kernel.R))
+
+    residual = property(lambda self: self._kernel.residual_matrix())
+    x = property(lambda self: self.cumulative @ self.residual.T)
+    P = property(lambda self: self._kernel.covariance())
+
+    @property
+    def K(self) -> np.ndarray:
+        last = self._kernel.last
+        if last is None:
+            return np.zeros((3, 3))
+        if self._f.measurement == "up":
+            return last[0] * np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+        return np.diag([last[0], last[0], last[1]])
+
+    @property
+    def y(self) -> np.ndarray:
+        last = self._kernel.last
+        return np.zeros(3) if last is None else np.array(last[4:7])
+
+    @property
+    def S(self) -> np.ndarray:
+        last = self._kernel.last
+        if last is None:
+            return np.zeros((3, 3))
+        a, c = last[2], last[3]
+        return np.diag([a, a, 0.0 if self._f.measurement == "up" else c]) + self._f._R
+
+    def step(self, frame, d, dv, dt: float) -> GroundEstimate:
+        """One frame (:meth:`GroundNormalFilter.step`): the kernel checks it and advances."""
+        f = self._f
+        try:
+            o = self._kstep(self._buf, d, f._qh, f._qv, None, None, dv, dt)
+        except (TypeError, ValueError):                 # not float64 arrays (3, 3) and (3,): coerce, retry
+            d, dv = coerce_frame(d, dv)
+            o = self._kstep(self._buf, d, f._qh, f._qv, None, None, dv, dt)
+        if type(o) is int:
+            bad_frame(frame, o, d, dv, dt, f.on_invalid, f._frames)
+            return GroundEstimate.of_residual(self.residual, self.P.copy(), f._Rgs, valid=False)
+        f._frames += 1
+        return GroundEstimate(o[6], o[7], True, o, None, f._Rgs, o)
+
+    def run(self, d: np.ndarray):
+        """Checked sensor increments (N, 3, 3) -> residuals E, covariances P, cumulative rotations (each (N, 3, 3))."""
+        f = self._f
+        o = self._kernel.run(d, f._qh, f._qv)
+        f._frames += len(d)
+        Ps = np.zeros((len(o), 3, 3))
+        Ps[:, 0, 0] = Ps[:, 1, 1] = o[:, 4]
+        Ps[:, 2, 2] = o[:, 5]
+        return matrix_from_quat(o[:, :4]), Ps, f.R0 @ matrix_from_quat(o[:, 8:])
+
+
+class _EkfEngine:
+    """Steps 2-4 as a general :class:`~imu_ground.filters.invariant_ekf.InvariantEKF`, frame by frame.
+
+    For any noise (e.g. the reference code's forward-axis measurement, full covariances).
+    """
+
+    def __init__(self, flt: GroundNormalFilter) -> None:
+        self._f = flt
+        b = _EX if flt.measurement == "forward" else _EZ
+        self.ekf = InvariantEKF(x=flt.R0, P=flt._P0, Q=flt._Q, R=flt._R, error="left", b=b)
+        self.cumulative = flt.R0.copy()
+
+    @property
+    def residual(self) -> np.ndarray:
+        return self.ekf.x.T @ self.cumulative
+
+    x = property(lambda self: self.ekf.x)
+    P = property(lambda self: self.ekf.P)
+    K = property(lambda self: self.ekf.K)
+    y = property(lambda self: self.ekf.y)
+    S = property(lambda self: self.ekf.S)
+
+    def step(self, frame, d, dv, dt: float) -> GroundEstimate:
+        """One frame (:meth:`GroundNormalFilter.step`): checked by the kernel's check, then one EKF frame."""
+        f = self._f
+        checked = checked_frame(f._kernel.impl.check, frame, d, dv, dt, f.on_invalid, f._frames)
+        if checked is None:
+            return GroundEstimate.of_residual(self.residual, self.P.copy(), f._Rgs, valid=False)
+        f._frames += 1
+        return GroundEstimate.of_residual(self._frame(checked[0]), self.ekf.P.copy(), f._Rgs)
+
+    def _frame(self, d: np.ndarray) -> np.ndarray:
+        """One frame of the InvariantEKF on a checked sensor increment; returns the residual E (road <- body)."""
+        f = self._f
+        if f._Rgs is not None:
+            d = f._Rgs @ d @ f._Rgs.T
+        self.cumulative = Rk = cumulative_rotations(d[None], self.cumulative, f._frames - 1,
+                                                    renorm_every=RENORM_EVERY)[0]
+        ekf = self.ekf
+        ekf.predict(so3.rotz(float(twist_angle(d))) if f.follow_heading else None)
+        ekf.update(Rk if f.measurement == "rotation" else Rk @ ekf.b)
+        return ekf.x.T @ Rk
+
+    def run(self, d: np.ndarray):
+        """Checked sensor increments (N, 3, 3) -> residuals E, covariances P, cumulative rotations (each (N, 3, 3))."""
+        E, Ps, cum = np.empty((len(d), 3, 3)), np.empty((len(d), 3, 3)), np.empty((len(d), 3, 3))
+        for k in range(len(d)):
+            self._f._frames += 1
+            E[k] = self._frame(d[k])
+            Ps[k], cum[k] = self.ekf.P, self.cumulative
+        return E, Ps, cum

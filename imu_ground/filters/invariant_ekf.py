@@ -51,9 +51,9 @@ numpy's per-call overhead dominates, so the kernels are scalar code on row-major
 (estimate, covariance, noises, priors, posteriors, last innovation and gain) is
 one flat buffer of floats owned by the filter (layout in
 :mod:`imu_ground.filters.invariant_ekf_kernel`); predict and update run the C
-twins of ``_ekf_native.c`` on it when that extension is built (loaded through
-:func:`imu_ground._native.load_native`; the same formulas term for term, equal
-bit for bit), else the pure-Python kernels of ``invariant_ekf_kernel``, the
+twins of ``_ekf_native.c`` on it when that extension is built
+(:data:`imu_ground._native.EKF`; the same formulas term for term, equal under
+the twin rule of :mod:`imu_ground._native`), else the pure-Python kernels of ``invariant_ekf_kernel``, the
 reference (``IMU_GROUND_PURE_PYTHON=1`` selects them). The filterpy attributes
 (``x``, ``P``, ``K``, ``x_prior``, ...) are properties that build their array on
 access; ``x``, ``P``, ``Q``, ``R`` may be assigned or changed in place as in filterpy.
@@ -66,8 +66,8 @@ from typing import Union
 
 import numpy as np
 
+from imu_ground import _native
 from imu_ground import so3
-from imu_ground._native import load_native
 from imu_ground.filters import invariant_ekf_kernel as _kernel
 from imu_ground.filters.invariant_ekf_kernel import (
     B_DET,
@@ -103,9 +103,9 @@ _I3 = np.eye(3)
 _LOG2PI = math.log(2.0 * math.pi)
 
 #: The compiled kernels (imu_ground/filters/_ekf_native.c), or None: the pure-Python ones of invariant_ekf_kernel.
-_native = load_native("imu_ground.filters._ekf_native")
-if _native is not None:                 # state: an array('d'), read through a memoryview
-    _predict, _update, _fill_x, _view = _native.predict, _native.update, _native.fill_x, memoryview
+_C = _native.EKF
+if _C is not None:                      # state: an array('d'), read through a memoryview
+    _predict, _update, _fill_x, _view = _C.predict, _C.update, _C.fill_x, memoryview
 
     def _buffer(values) -> array:
         return array("d", values)

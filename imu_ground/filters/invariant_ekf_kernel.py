@@ -4,7 +4,7 @@
 one flat sequence of floats (layout: the ``B_*`` offsets below) and runs
 :func:`predict` and :func:`update` on it: these pure-Python functions, or their
 C twins in ``imu_ground/filters/_ekf_native.c`` (the same formulas term for term,
-same calling convention, equal bit for bit) when that extension is built. Here the
+same calling convention, equal under the twin rule of :mod:`imu_ground._native`) when that extension is built. Here the
 buffer is a ``list`` (slice reads and writes are the cheapest in Python); the C
 kernels take an ``array('d')``. The equations are in the module notes of
 :mod:`imu_ground.filters.invariant_ekf`; matrices are row-major 9-sequences

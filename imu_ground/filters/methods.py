@@ -14,6 +14,9 @@ import inspect
 from dataclasses import dataclass
 from typing import Any, Callable
 
+from imu_ground.filters.ground import GroundNormalFilter
+from imu_ground.filters.suspension import SuspensionAwareFilter
+
 __all__ = ["METHODS", "MethodSpec", "default_method", "estimate", "make_estimator"]
 
 
@@ -57,56 +60,33 @@ class MethodSpec:
         return self.factory(**options)
 
 
-def _ground(**options):
-    from imu_ground.filters.ground import GroundNormalFilter
-    return GroundNormalFilter(**options)
-
-
-def _paper(**options):
-    from imu_ground.filters.ground import GroundNormalFilter
-    return GroundNormalFilter.paper(**options)
-
-
-def _suspension(**options):
-    from imu_ground.filters.suspension import SuspensionAwareFilter
-    return SuspensionAwareFilter(**options)
-
-
 class _Factory:
-    """A factory whose signature is its estimator constructor's (resolved on first use: lazy imports)."""
+    """A factory with its estimator constructor's signature (so a method lists the options it takes)."""
 
-    def __init__(self, fn: Callable[..., Any], module: str, cls: str) -> None:
-        self.fn, self.module, self.cls = fn, module, cls
+    def __init__(self, fn: Callable[..., Any], cls: type) -> None:
+        self.fn = fn
+        init = inspect.signature(cls.__init__).parameters
+        self.__signature__ = inspect.Signature([p for name, p in init.items() if name != "self"])
 
     def __call__(self, **options):
         return self.fn(**options)
 
-    @property
-    def __signature__(self) -> inspect.Signature:
-        import importlib
-        init = getattr(importlib.import_module(self.module), self.cls).__init__
-        params = [p for name, p in inspect.signature(init).parameters.items() if name != "self"]
-        return inspect.Signature(params)
-
-
-_GROUND = "imu_ground.filters.ground"
-_SUSPENSION = "imu_ground.filters.suspension"
 
 #: CLI name -> method. "suspension" is the default for IMU input, "filter" for poses.
 METHODS: dict[str, MethodSpec] = {
     "suspension": MethodSpec(
         "suspension", "suspension-aware invariant EKF: road attitude plus the body's load-transfer tilt "
         "(streaming; needs an accelerometer)",
-        _Factory(_suspension, _SUSPENSION, "SuspensionAwareFilter"), True, False, True),
+        _Factory(SuspensionAwareFilter, SuspensionAwareFilter), True, False, True),
     "suspension-offline": MethodSpec(
         "suspension-offline", "suspension-aware filter with the offline smoother (zero lag; uses the future)",
-        _Factory(_suspension, _SUSPENSION, "SuspensionAwareFilter"), True, True, True),
+        _Factory(SuspensionAwareFilter, SuspensionAwareFilter), True, True, True),
     "filter": MethodSpec(
         "filter", "heading-following invariant EKF on the cumulative rotation (rotations only: any odometry)",
-        _Factory(_ground, _GROUND, "GroundNormalFilter"), False, False),
+        _Factory(GroundNormalFilter, GroundNormalFilter), False, False),
     "paper": MethodSpec(
         "paper", "the paper's method: random-walk invariant EKF, Q = 1e-2 I, R = I (Zhang et al. 2022)",
-        _Factory(_paper, _GROUND, "GroundNormalFilter"), False, False),
+        _Factory(GroundNormalFilter.paper, GroundNormalFilter), False, False),
 }
 
 

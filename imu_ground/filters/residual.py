@@ -20,7 +20,7 @@ asked, ``R`` as unit quaternions; the layout is below) and advances it with one
 kernel: :func:`step` (one frame, checked) serves the streaming ``step`` of the
 filters, :func:`run` (many frames, into an output array) their batch ``run``,
 so the two cannot drift apart. Both exist twice: compiled
-(``_residual_native.c``, loaded through :func:`imu_ground._native.load_native`)
+(``_residual_native.c``, :data:`imu_ground._native.RESIDUAL`)
 and as the pure-Python reference here (:func:`advance` is the loop), which the
 C twin is tested against and which is used when the extension is not built or
 ``IMU_GROUND_PURE_PYTHON=1``.
@@ -39,8 +39,9 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from imu_ground._native import load_native
-from imu_ground.filters.estimator import frame_status
+from imu_ground import _native
+from imu_ground.filters.frame_checks import frame_status
+from imu_ground.so3 import matrix_from_quat
 from imu_ground.units import RENORM_EVERY
 
 __all__ = ["ResidualKernel", "advance", "step", "run", "check", "BUF_LEN", "NATIVE", "PYTHON"]
@@ -68,7 +69,7 @@ def advance(buf: array, frames: Sequence[Sequence[float]], q_h: Sequence[float],
         State and parameters (module docstring); updated in place.
     frames : sequence of 9-float sequences
         Increments sensor_{k-1} <- sensor_k, row-major (already checked:
-        rotations, see :func:`~imu_ground.filters.estimator.frame_status`).
+        rotations, see :func:`~imu_ground.filters.frame_checks.frame_status`).
     q_h : sequence of float
         Horizontal process noise of each frame, rad^2 (a sequence at least as long as ``frames``).
     q_v : float
@@ -235,7 +236,7 @@ def step(buf: array, d, q_h: float, q_v: float, tilt_x: Optional[float], tilt_y:
     -------
     tuple or int
         The row ``(ew, ex, ey, ez, a, c, pitch, roll[, rw, rx, ry, rz])``, or the
-        status of :func:`~imu_ground.filters.estimator.frame_status` (> 0) of a bad frame.
+        status of :func:`~imu_ground.filters.frame_checks.frame_status` (> 0) of a bad frame.
 
     Raises
     ------
@@ -282,16 +283,20 @@ def run(buf: array, d, q_h, q_v: float, tilt_x, tilt_y, out: np.ndarray, angles:
 
 
 def check(d, dv, dt: float) -> int:
-    """The status of one frame (:func:`~imu_ground.filters.estimator.frame_status`; 0: good)."""
+    """The status of one frame (:func:`~imu_ground.filters.frame_checks.frame_status`; 0: good)."""
     dv3 = None if dv is None else _floats(dv, _SHAPE_V, "delta_v")
     return frame_status(_floats(d, _SHAPE_R, "delta_R"), dv3, dt)
 
 
 #: The pure-Python kernel (``step``, ``run``, ``check``): the reference.
 PYTHON = SimpleNamespace(step=step, run=run, check=check, BUF_LEN=BUF_LEN)
-_C = load_native("imu_ground.filters._residual_native")
-#: The kernel in use by default: the compiled twin when built (and its layout matches), else :data:`PYTHON`.
-NATIVE = _C if _C is not None and getattr(_C, "BUF_LEN", None) == BUF_LEN else None
+#: The kernel in use by default: the compiled twin (:data:`imu_ground._native.RESIDUAL`) when built, else
+#: :data:`PYTHON`.
+NATIVE = _native.RESIDUAL
+if NATIVE is not None and getattr(NATIVE, "BUF_LEN", None) != BUF_LEN:
+    raise ImportError(f"{NATIVE.__file__} is older than residual.py (its state buffer has "
+                      f"{getattr(NATIVE, 'BUF_LEN', '?')} floats, residual.py {BUF_LEN}): "
+                      f"rebuild with `pip install -e .`")
 
 
 class ResidualKernel:
@@ -358,6 +363,14 @@ class ResidualKernel:
 
     a = property(lambda self: self.buf[4], doc="Covariance about the horizontal axes, rad^2.")
     c = property(lambda self: self.buf[5], doc="Covariance about up, rad^2.")
+
+    def residual_matrix(self) -> np.ndarray:
+        """:attr:`E` as a rotation matrix (3, 3), road <- body."""
+        return matrix_from_quat(np.array(self.E))
+
+    def covariance(self) -> np.ndarray:
+        """``diag(a, a, c)`` (3, 3), rad^2: the covariance of the slow state, body tangent space."""
+        return np.diag([self.a, self.a, self.c])
     frames = property(lambda self: int(self.buf[10]), doc="Frames processed.")
 
     @property

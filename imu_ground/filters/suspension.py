@@ -15,11 +15,12 @@ Pipeline, per frame k
 1. **Gravity and velocity** (:class:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter`):
    the speed (which scales the road process noise), the gravity-compensated
    acceleration ``a`` and the specific force ``f``, frame means in the body frame.
-2. **Suspension model**: the load ``u = a + s (f - a)`` (``s = load``: the share
-   of gravity's road-plane component the springs feel, 0 to 1), optionally
-   through a second-order ``response``; the body tilt relative to the road
-   ``b_k = [k_roll u_y, k_pitch u_x + k_cross u_y, 0]`` (rotation vector: roll about x, pitch
-   about y; ``k_cross = cross_gain``, the pitch from the lateral load).
+2. **Suspension model** (:class:`~imu_ground.filters.suspension_model.SuspensionModel`): the
+   load ``u = a + s (f - a)`` (``s = load``: the share of gravity's road-plane component the
+   springs feel, 0 to 1), optionally through a second-order ``response``; the body tilt
+   relative to the road ``b_k = [k_roll u_y, k_pitch u_x + k_cross u_y, 0]`` (rotation
+   vector: roll about x, pitch about y; ``k_cross = cross_gain``, the pitch from the lateral
+   load); the gains fixed or estimated online.
 3. **Invariant EKF on SO(3)** (left error) on the road attitude ``X``: predict
    ``X <- X Rz(psi_k)`` (the road turns with the heading) with noise
    ``diag(q_k, q_k, q_yaw)``, ``q_k = (q_time + q_dist |v_k|) dt_k sigma_e^2``;
@@ -51,37 +52,28 @@ chosen and how every configuration scores on real and synthetic drives is in
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Optional, Sequence, Union
 
 import numpy as np
 
 from imu_ground import so3
 from imu_ground.filters import gravity_kernel
-from imu_ground.filters.design import IIRFilter, butter_bandpass, foh_filter
-from imu_ground.filters.estimator import (
-    GroundEstimate,
-    GroundTrack,
-    as_egomotion,
+from imu_ground.filters.estimator import GroundEstimate, GroundTrack, as_egomotion
+from imu_ground.filters.extrinsics import resolve_platform
+from imu_ground.filters.frame_checks import (
     check_on_invalid,
     checked_frame,
     checked_frames,
     hold_skipped,
     static_rotation,
 )
-from imu_ground.filters.extrinsics import resolve_platform
-from imu_ground.filters.gains import (
-    DEFAULT_CROSS_GAIN,
-    DEFAULT_GAINS,
-    GAIN_BAND,
-    TYPICAL_BAND_POWER,
-    bandpass_gain_regression,
-    tilt_angles,
-)
+from imu_ground.filters.gains import DEFAULT_CROSS_GAIN, DEFAULT_GAINS, GAIN_BAND, bandpass_gain_regression
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
-from imu_ground.filters.rotations import matrix_from_quat, twist_angle
+from imu_ground.filters.suspension_model import SuspensionModel, load_share
+from imu_ground.so3 import matrix_from_quat, twist_angle
 from imu_ground.units import DEG
 
 __all__ = [
@@ -95,7 +87,6 @@ __all__ = [
 ]
 
 _I3 = np.eye(3)
-_LOADS = {"specific_force": 1.0, "acceleration": 0.0}
 
 
 @dataclass
@@ -120,17 +111,6 @@ class SuspensionTrack(GroundTrack):
     gains: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     suspension: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     gravity: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
-
-
-def _load_share(load: Union[str, float]) -> float:
-    if isinstance(load, str):
-        if load not in _LOADS:
-            raise ValueError(f"load must be 'specific_force', 'acceleration' or a share in [0, 1], got {load!r}")
-        return _LOADS[load]
-    share = float(load)
-    if not 0.0 <= share <= 1.0:
-        raise ValueError(f"load share must be in [0, 1], got {load!r}")
-    return share
 
 
 class SuspensionAwareFilter:
@@ -201,7 +181,9 @@ class SuspensionAwareFilter:
         diag(q_time sigma_e^2, q_time sigma_e^2, q_yaw)`` (horizontal per second
         at standstill, up per frame); the process noise of the last frame is ``Q_last``.
     gains : ndarray (2,)
-        Current ``(k_pitch, k_roll)``, rad per m/s^2.
+        Current ``(k_pitch, k_roll)``, rad per m/s^2 (the model's).
+    model : SuspensionModel
+        Load, gains and tilt (:mod:`imu_ground.filters.suspension_model`).
     gravity_filter : GravityVelocityFilter
     cumulative : ndarray (3, 3)
         ``R_k``, world <- body.
@@ -238,7 +220,7 @@ class SuspensionAwareFilter:
         if not (min(self.sigma_e, self.q_yaw, self.r_yaw, self.P0) > 0 and min(self.q_time, self.q_dist) >= 0):
             raise ValueError("sigma_e, q_yaw, r_yaw and P0 must be positive; q_time and q_dist non-negative")
         self.load = load
-        self.load_share = _load_share(load)
+        self.load_share = load_share(load)
         self.response = None if response is None else (float(response[0]), float(response[1]))
         self.online_gains = bool(online_gains)
         self.gain_prior_seconds = float(gain_prior_seconds)
@@ -271,35 +253,13 @@ class SuspensionAwareFilter:
                                                     lever_arm=self.lever_arm, **self._gravity_kw)
         # both kernels compiled: the frame goes to the gravity kernel as the float64 arrays the check took
         self._arrays = k.native and self.gravity_filter.kernel is not gravity_kernel
-        self.gains = self.gains0.copy()
-        self._kp, self._kr = (float(g) for g in self.gains0)
-        self._rate = None
-        self._resp = self._bpf = None
-        self._phi = np.zeros(2)
-        self._sxx = self._sxy = None
-        self._load = (0.0, 0.0)
+        self.model = SuspensionModel(self.gains0, self.load_share, self.response, self.cross_gain,
+                                     self.online_gains, self.gain_prior_seconds, self.gain_band, self._Rgs)
         self.speed = 0.0
         self._q_last = 0.0
         self._frames = 0
         if self.frame_rate is not None:
-            self._design(self.frame_rate)
-
-    def _design(self, rate: float) -> None:
-        """Discrete-time design for frames at ``rate`` Hz (once; a later rate more than 2 % off is an error)."""
-        if self._rate is not None:
-            if abs(rate - self._rate) > 0.02 * self._rate and (self.online_gains or self.response is not None):
-                raise ValueError(f"the filter is designed for {self._rate:g} Hz frames but got {rate:g} Hz "
-                                 f"(reset() or a new filter for another frame rate)")
-            return
-        self._rate = float(rate)
-        if self.response is not None:
-            num, _, den = foh_filter(self.response[0], self.response[1], 1.0 / rate)
-            self._resp = IIRFilter(num, den, 2, steady=True)
-        if self.online_gains:
-            self._bpf = IIRFilter(*butter_bandpass(self.gain_band, rate), 4)
-            w = self.gain_prior_seconds * rate * np.asarray(TYPICAL_BAND_POWER)
-            self._sxx = w.copy()          # the sums include the prior: gains = sxy / sxx
-            self._sxy = w * self.gains0
+            self.model.design(self.frame_rate)
 
     # -- filterpy-style attributes --------------------------------------------------------------
     cumulative = property(lambda self: self.gravity_filter.cumulative,
@@ -308,24 +268,14 @@ class SuspensionAwareFilter:
                  doc="Configured process noise (horizontal rad^2/s at standstill, up rad^2 per frame).")
     R = property(lambda self: np.diag([self._r, self._r, self.r_yaw * self._r]),
                  doc="Configured measurement noise (rad^2).")
-    last_load = property(lambda self: np.array(self._load), doc="Load of the last frame (u_x, u_y), m/s^2.")
+    last_load = property(lambda self: np.array(self.model.load), doc="Load of the last frame (u_x, u_y), m/s^2.")
+    gains = property(lambda self: self.model.gains, doc="Current (k_pitch, k_roll), rad per m/s^2.")
     Q_last = property(lambda self: np.diag([self._q_last, self._q_last, self.q_yaw]),
                       doc="Process noise of the last frame's predict (rad^2).")
 
-    @property
-    def residual(self) -> np.ndarray:
-        """``E_k``, road <- body (3x3)."""
-        return matrix_from_quat(np.array(self._kernel.E))
-
-    @property
-    def x(self) -> np.ndarray:
-        """Slow road attitude X_k, world <- road (3x3)."""
-        return self.cumulative @ self.residual.T
-
-    @property
-    def P(self) -> np.ndarray:
-        """Covariance of X, body tangent space (rad^2)."""
-        return np.diag([self._kernel.a, self._kernel.a, self._kernel.c])
+    residual = property(lambda self: self._kernel.residual_matrix(), doc="``E_k``, road <- body (3x3).")
+    x = property(lambda self: self.cumulative @ self.residual.T, doc="Slow road attitude X_k, world <- road (3x3).")
+    P = property(lambda self: self._kernel.covariance(), doc="Covariance of X, body tangent space (rad^2).")
 
     x_post = x
     P_post = P
@@ -388,8 +338,8 @@ class SuspensionAwareFilter:
             return GroundEstimate.of_residual(self.residual, self.P, self._Rgs, valid=False)
         d, dv = checked
         dt = float(delta_t)
-        if self._rate is None:
-            self._design(1.0 / dt)
+        if self.model.rate is None:
+            self.model.design(1.0 / dt)
         self._frames += 1
         gf = self.gravity_filter
         sp = math.nan if speed is None else float(speed)
@@ -398,29 +348,12 @@ class SuspensionAwareFilter:
         else:
             (fx, fy, _), (ax, ay, _), v = gf.step_sensor(d.ravel().tolist(), dv.tolist(), dt, bool(stationary),
                                                          bool(valid), sp)
-        s = self.load_share
-        ux, uy = ax + s * (fx - ax), ay + s * (fy - ay)
-        if self._resp is not None:
-            ux, uy = self._resp.step(np.array([ux, uy])).tolist()
-        self._load = (ux, uy)
+        tilt_x, tilt_y = self.model.step(d, fx, fy, ax, ay)
         self.speed = speed = v if math.isnan(sp) else sp
-        kp, kr = self._kp, self._kr
-        if self.online_gains:
-            self._update_gains(d, ax, ay)
         q = (self.q_time + self.q_dist * speed) * dt * self._r
         self._q_last = q
-        o = self._kstep(self._kbuf, d, q, self.q_yaw, kr * uy, kp * ux + self.cross_gain * uy, None, 1.0)
+        o = self._kstep(self._kbuf, d, q, self.q_yaw, tilt_x, tilt_y, None, 1.0)
         return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o)
-
-    def _update_gains(self, d: np.ndarray, ax: float, ay: float) -> None:
-        """One frame of the online gain regression (the batch twin is in :meth:`_online_gains`)."""
-        db = d if self._Rgs is None else self._Rgs @ d @ self._Rgs.T
-        self._phi = self._phi + so3.log_one(db)[[1, 0]]
-        z = self._bpf.step(np.concatenate([[ax, ay], self._phi]))
-        self._sxy = self._sxy + z[:2] * z[2:]
-        self._sxx = self._sxx + z[:2] * z[:2]
-        self.gains = self._sxy / self._sxx
-        self._kp, self._kr = self.gains.tolist()
 
     # -- batch -----------------------------------------------------------------------------------
     def run(self, egomotion, smooth: bool = False, speed: Optional[np.ndarray] = None) -> SuspensionTrack:
@@ -452,7 +385,7 @@ class SuspensionAwareFilter:
         em = as_egomotion(egomotion, rate=self.frame_rate)
         n = len(em)
         good = checked_frames(em.delta_R, em.delta_v, em.delta_t, em.t, self.on_invalid)
-        self._design(float(em.rate))
+        self.model.design(float(em.rate))
         start = dict(E=self.residual, P=self.P, cum=self.cumulative.copy(), load=self.last_load,
                      speed=self.speed, gains=self.gains.copy(), gravity=self.gravity_filter.x[3:].copy())
         sub = em if good.all() else _frames_of(em, good)
@@ -466,14 +399,9 @@ class SuspensionAwareFilter:
         gt = self.gravity_filter.run(sub, smooth=smooth, speed=speed)
         if speed is not None:
             gt.speed = np.where(np.isfinite(speed), speed, gt.speed)
-        u = (gt.acceleration + self.load_share * (gt.specific_force - gt.acceleration))[:, :2]
-        if self._resp is not None:
-            u = self._resp.run(u)
+        u, ks, susp = self.model.run(gt)
         if m:
-            self._load, self.speed = tuple(u[-1].tolist()), float(gt.speed[-1])
-        ks = self._online_gains(gt) if self.online_gains and m else np.tile(self.gains, (m, 1))
-        susp = ks * u                                   # (pitch, roll) = (k_p u_x, k_r u_y) ...
-        susp[:, 0] += self.cross_gain * u[:, 1]         # ... + the pitch from the lateral load
+            self.speed = float(gt.speed[-1])
         dt = np.asarray(sub.delta_t, dtype=float)
         q = (self.q_time + self.q_dist * gt.speed) * dt * self._r
         o = self._kernel.run(sub.delta_R, q, self.q_yaw, susp[:, 1], susp[:, 0])
@@ -489,26 +417,13 @@ class SuspensionAwareFilter:
             E = np.swapaxes(Xs, 1, 2) @ cum
         held = {name: hold_skipped(v, good, start[name]) for name, v in
                 dict(E=E, P=Ps, cum=cum, load=u, speed=gt.speed, gains=ks, gravity=gt.gravity).items()}
-        susp_all = held["gains"] * held["load"]
-        susp_all[:, 0] += self.cross_gain * held["load"][:, 1]
+        susp_all = self.model.tilt(held["gains"], held["load"])
         cum_all = held["cum"]
         return SuspensionTrack.from_residuals(
             held["E"], cum_all @ np.swapaxes(held["E"], 1, 2), held["P"], cum_all, self._Rgs,
             self.extrinsic.translation, em.t, np.asarray(em.valid, dtype=bool) & good,
             load=held["load"], speed=held["speed"], gains=held["gains"], suspension=susp_all,
             gravity=held["gravity"])
-
-    def _online_gains(self, gt) -> np.ndarray:
-        """Gains used at each frame of a batch (the frame before's estimate); advances the regression."""
-        phi = self._phi + tilt_angles(gt.body_increments)
-        z = self._bpf.run(np.concatenate([gt.acceleration[:, :2], phi], axis=1))
-        sxy = self._sxy + np.cumsum(z[:, :2] * z[:, 2:], axis=0)
-        sxx = self._sxx + np.cumsum(z[:, :2] * z[:, :2], axis=0)
-        ks = np.vstack([self.gains[None], (sxy / sxx)[:-1]])
-        self._phi, self._sxy, self._sxx = phi[-1].copy(), sxy[-1].copy(), sxx[-1].copy()
-        self.gains = self._sxy / self._sxx
-        self._kp, self._kr = self.gains.tolist()
-        return ks
 
     def _smooth(self, db: np.ndarray, Xs: np.ndarray, Ps: np.ndarray, q: np.ndarray) -> np.ndarray:
         """RTS smoother on the group over the forward pass, blended with ``smoother_weight``."""
@@ -530,7 +445,6 @@ class SuspensionAwareFilter:
 
 def _frames_of(em, keep: np.ndarray):
     """The ego-motion restricted to the frames ``keep`` (same rate and metadata)."""
-    from dataclasses import replace
     return replace(em, t=em.t[keep], delta_R=em.delta_R[keep], delta_v=em.delta_v[keep], delta_t=em.delta_t[keep],
                    stationary=em.stationary[keep], valid=em.valid[keep])
 

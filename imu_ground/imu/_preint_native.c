@@ -2,7 +2,8 @@
  * front-end's per-sample fast path (imu_ground/imu/preint_stream.py).
  *
  * integrate() below is integrate_interval of preint_kernel.py, term for term and in the same
- * order (the extension is compiled without FMA contraction), so the two agree bit for bit.
+ * order (the extension is compiled without FMA contraction), so the two round alike (equality rule:
+ * imu_ground/_native.py).
  * State layouts: deltas (11 doubles) and uncertainty (90), as documented in preint_kernel.py.
  *
  * Entry points (METH_FASTCALL):
@@ -47,7 +48,7 @@ enum {
     S_SIZE = 132
 };
 
-#define SMALL_ANGLE2 1e-8   /* imu_ground.imu.matrix3.SMALL_ANGLE2 */
+#define SMALL_ANGLE2 1e-8   /* imu_ground.so3.component_major.SMALL_ANGLE2 */
 
 /* One interval (see integrate_interval in preint_kernel.py): s (11) and, unless NULL, u (90), in place.
  * Unrolled like its Python twin: every product written out entry by entry. */

@@ -27,9 +27,9 @@ import numpy as np
 
 from imu_ground import so3
 from imu_ground.imu.data import ImuData
-from imu_ground.imu.matrix3 import mm, project_if_needed, scan_products
 from imu_ground.imu.preintegration import FrameDeltas, preintegrate
 from imu_ground.imu.standstill import estimate_gyro_bias
+from imu_ground.so3.component_major import mm, project_if_needed, scan_products
 from imu_ground.units import GRAVITY
 
 __all__ = ["NavSolution", "attitude_from_accel", "dead_reckon", "dead_reckon_imu"]

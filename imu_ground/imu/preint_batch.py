@@ -20,7 +20,10 @@ from typing import Any
 import numpy as np
 
 from imu_ground.imu.data import ImuData
-from imu_ground.imu.matrix3 import (
+from imu_ground.imu.preint_frames import FrameDeltas, make_frame_times
+from imu_ground.imu.preint_measurement import compose_left, left_to_right
+from imu_ground.imu.preint_params import PreintegrationParams, gap_message
+from imu_ground.so3.component_major import (
     cross_rows,
     exp_and_left_jacobian,
     hat_times,
@@ -28,9 +31,6 @@ from imu_ground.imu.matrix3 import (
     project_if_needed,
     scan_products,
 )
-from imu_ground.imu.preint_frames import FrameDeltas, make_frame_times
-from imu_ground.imu.preint_measurement import compose_left, left_to_right
-from imu_ground.imu.preint_params import PreintegrationParams, gap_message
 
 __all__ = ["preintegrate"]
 

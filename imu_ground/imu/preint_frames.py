@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from imu_ground import so3
-from imu_ground.imu.matrix3 import project_if_needed
 from imu_ground.imu.preint_measurement import PreintegratedImu, right_to_left
 from imu_ground.imu.preint_params import ParamsView, PreintegrationParams
+from imu_ground.so3.component_major import project_if_needed
 
 __all__ = ["FrameDeltas", "first_rate_boundary", "make_frame_times"]
 

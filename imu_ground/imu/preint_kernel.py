@@ -7,8 +7,9 @@ their bias Jacobians and covariance.
 scalar Python floats (:func:`integrate_interval_python`, the reference). Numpy's per-call
 overhead dominates 3x3 operations, so the state is a flat tuple of floats, unpacked into
 locals, updated, and packed again. Its C twin (``_preint_native.c``, the same formulas term
-for term, bit-identical) serves as :func:`integrate_interval` when the extension is built
-(:func:`imu_ground._native.load_native`; ``IMU_GROUND_PURE_PYTHON=1`` selects the Python one).
+for term, equal under the twin rule of :mod:`imu_ground._native`) serves as :func:`integrate_interval`
+when the extension is built (:data:`imu_ground._native.PREINTEGRATION`; ``IMU_GROUND_PURE_PYTHON=1``
+selects the Python one).
 
 State layouts
 -------------
@@ -42,9 +43,9 @@ from __future__ import annotations
 
 from math import cos, sin, sqrt
 
+from imu_ground import _native
 from imu_ground import so3
-from imu_ground._native import load_native
-from imu_ground.imu.matrix3 import SMALL_ANGLE2
+from imu_ground.so3.component_major import SMALL_ANGLE2
 
 __all__ = [
     "DELTAS_IDENTITY",
@@ -257,9 +258,8 @@ def integrate_interval_python(s: tuple, u: tuple | None, dt: float, x: float, y:
 
 
 #: The compiled twin (``imu_ground/imu/_preint_native.c``: :func:`integrate_interval_python` term for term,
-#: bit-identical, plus the streaming front-end's per-sample fast path), or None (not built, or
-#: ``IMU_GROUND_PURE_PYTHON=1``).
-NATIVE = load_native("imu_ground.imu._preint_native")
+#: plus the streaming front-end's per-sample fast path), or None (not built, or ``IMU_GROUND_PURE_PYTHON=1``).
+NATIVE = _native.PREINTEGRATION
 #: The kernel in use: the C twin when built, else :func:`integrate_interval_python` (same signature and results).
 integrate_interval = integrate_interval_python if NATIVE is None else NATIVE.integrate_interval
 

@@ -13,7 +13,8 @@ When the C twins are built (``_preint_native.c``, see :mod:`imu_ground.imu.prein
 floats, and the C code integrates inside frames and splits the sample interval at rate or
 frame_times boundaries (returning the finished frames' states); the first sample, gaps,
 every-N boundaries and errors go through the Python code below (the reference), which
-reads and writes the same buffer around its work. Frames are equal bit for bit either way.
+reads and writes the same buffer around its work. Frames are equal either way (the twin rule of
+:mod:`imu_ground._native`).
 """
 from __future__ import annotations
 

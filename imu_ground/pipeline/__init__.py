@@ -13,7 +13,7 @@ from imu_ground._lazy import lazy_exports
 _EXPORTS = {
     ".estimate": "EstimateResult OptionError estimate_log POSE_FORMATS",
     ".output": ("OUTPUT_SUFFIXES check_output_path default_output_name result_table "
-                "summarize_table write_output write_outputs atomic_path"),
+                "track_table summarize_table write_output write_outputs atomic_path"),
     ".batch": "run_batch expand_logs",
 }
 __getattr__, __dir__, __all__ = lazy_exports(__name__, _EXPORTS)

@@ -11,12 +11,22 @@ byte: both call :func:`~imu_ground.pipeline.estimate.estimate_to_files`.
 """
 from __future__ import annotations
 
-import glob
 import os
 import warnings
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
+
+import glob
+
+from imu_ground.pipeline.estimate import check_options, estimate_to_files
+from imu_ground.pipeline.output import (
+    OUTPUT_SUFFIXES,
+    atomic_path,
+    check_output_path,
+    default_output_name,
+    summarize_table,
+)
 
 __all__ = ["SUMMARY_COLUMNS", "expand_logs", "output_names", "process_log", "run_batch"]
 
@@ -49,7 +59,6 @@ def expand_logs(patterns: Iterable[str | Path]) -> list[tuple[str, str | None]]:
 
 def output_names(logs: Sequence[str], suffix: str = ".csv") -> list[str]:
     """Output file name of each log (``<name>_ground<suffix>``), made unique with the parent folders' names."""
-    from imu_ground.pipeline.output import default_output_name
     names = [default_output_name(log, suffix) for log in logs]
     for depth in range(1, 8):
         counts: dict[str, int] = {}
@@ -65,7 +74,6 @@ def output_names(logs: Sequence[str], suffix: str = ".csv") -> list[str]:
 
 
 def _skipped_row(out: Path) -> dict[str, Any]:
-    from imu_ground.pipeline.output import summarize_table
     row: dict[str, Any] = {"status": "skipped (output exists)"}
     try:
         if out.suffix == ".csv":
@@ -91,8 +99,6 @@ def process_log(log: str, out: str | Path, options: dict, cli: bool = False) -> 
     cli : bool
         Errors with the options spelled as command-line flags.
     """
-    from imu_ground.pipeline.estimate import estimate_to_files
-    from imu_ground.pipeline.output import check_output_path, summarize_table
     out = Path(out)
     row: dict[str, Any] = {"log": log, "output": str(out)}
     if out.exists():
@@ -156,8 +162,6 @@ def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | 
     import pandas as pd
     from tqdm.auto import tqdm
 
-    from imu_ground.pipeline.estimate import check_options
-    from imu_ground.pipeline.output import OUTPUT_SUFFIXES, atomic_path
     if suffix not in OUTPUT_SUFFIXES:
         raise ValueError(f"unknown output type {suffix!r}; choose from {', '.join(OUTPUT_SUFFIXES)}")
     check_options(**{k: v for k, v in options.items() if k not in ("extrinsic", "progress")})

@@ -21,7 +21,15 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from imu_ground.datasets.options import OptionError, OptionText
+from imu_ground.datasets import detect_format, read_imu, read_poses
+from imu_ground.datasets.options import READER_OPTIONS, OptionError, OptionText
+from imu_ground.datasets.poses import detect_pose_format, moves_along_z
+from imu_ground.datasets.speed import SPEED_SOURCES, frame_speed, log_speed, read_speed
+from imu_ground.filters import Extrinsic
+from imu_ground.filters.methods import METHODS, default_method
+from imu_ground.imu import EgoMotion, imu_to_egomotion
+from imu_ground.pipeline.output import result_table, write_outputs
+from imu_ground.units import DEFAULT_FRAME_RATE
 
 __all__ = [
     "POSE_FORMATS",
@@ -65,13 +73,11 @@ class EstimateResult(NamedTuple):
 
 def available_methods() -> dict[str, tuple[str, bool]]:
     """Method name -> (one-line description, needs accelerometer data), from :data:`imu_ground.filters.methods.METHODS`."""
-    from imu_ground.filters.methods import METHODS
     return {name: (spec.description, bool(spec.needs_accel)) for name, spec in METHODS.items()}
 
 
 def resolve_method(method: str, has_accel: bool) -> str:
     """The method to run: ``"auto"`` is the best for the input; others are checked against it."""
-    from imu_ground.filters.methods import default_method
     methods = available_methods()
     if method == "auto":
         return default_method(has_accel)
@@ -87,7 +93,6 @@ def resolve_method(method: str, has_accel: bool) -> str:
 # ------------------------------------------------------------------------------------------ input kind
 def _pose_format(path: Path) -> str | None:
     """``"kitti_poses"`` or ``"tum"`` when ``path`` is an odometry pose file, else None."""
-    from imu_ground.datasets.poses import detect_pose_format
     name = detect_pose_format(path)
     return {"kitti": "kitti_poses", "tum": "tum"}.get(name) if name else None
 
@@ -164,7 +169,6 @@ def check_options(*, method: str = "auto", rate: float | None = None, Q: Any = N
 
 
 def _reader_kwargs(options: dict) -> dict:
-    from imu_ground.datasets.options import READER_OPTIONS
     unknown = sorted(set(options) - set(READER_OPTIONS))
     if unknown:
         raise TypeError(f"estimate_log() got unknown reader options {unknown}; known: {sorted(READER_OPTIONS)}")
@@ -255,7 +259,6 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
                               "use it (add --method filter, or leave it out)", "Q" if Q is not None else "R")
         frame_speeds, speed_info = _frame_speeds(speed, path, info.get("format"), imu if kind == "imu" else None,
                                                  em, name)
-        from imu_ground.filters import Extrinsic
         ext = Extrinsic.coerce(extrinsic)
         track = _run_method(name, em, ext, Q, R, frame_speeds)
         bar.update()
@@ -277,9 +280,6 @@ def _steps(progress: bool):
 
 
 def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
-    from imu_ground.datasets import detect_format, read_imu
-    from imu_ground.imu import imu_to_egomotion
-    from imu_ground.units import DEFAULT_FRAME_RATE
     fmt = detect_format(path) if fmt is None else fmt
     imu = read_imu(path, format=fmt, **reader_kw)
     imu_rate = 1.0 / float(np.median(np.diff(imu.t))) if len(imu) > 1 else float("nan")
@@ -305,9 +305,6 @@ def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
 
 
 def _poses_egomotion(path, fmt, rate, times=None, extrinsic=None):
-    from imu_ground.datasets.poses import moves_along_z, read_poses
-    from imu_ground.imu import EgoMotion
-    from imu_ground.units import DEFAULT_FRAME_RATE
     poses = read_poses(path, format=POSE_FORMATS[fmt], times=times)
     if len(poses) < 2:
         raise ValueError(f"{path}: {len(poses)} pose(s); at least 2 are needed for one frame")
@@ -341,7 +338,6 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
     Returns ``(None, "none")`` for IMU only; ``(array, description)`` otherwise. A ROS log's speed
     topic is found by its message type (``--topic`` names the IMU topic).
     """
-    from imu_ground.filters.methods import METHODS
     if speed is None or (isinstance(speed, str) and speed == "none"):
         return None, "none"
     auto = isinstance(speed, str) and speed == "auto"
@@ -356,12 +352,6 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
             raise OptionError(f"{{opt}} as an array needs one value per frame ({len(em)}), got shape {v.shape}",
                               "speed")
         return v, "given per frame"
-    from imu_ground.datasets.speed import (
-        SPEED_SOURCES,
-        frame_speed,
-        log_speed,
-        read_speed,
-    )
     if auto:
         got = log_speed(path, fmt, imu) if fmt in SPEED_SOURCES else None
         if got is None:
@@ -382,7 +372,6 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
 
 def _run_method(name: str, em, ext, Q, R, speed=None):
     """Run method ``name`` of the registry over the ego-motion (noise options and speed only when given)."""
-    from imu_ground.filters.methods import METHODS
     spec = METHODS[name]
     noise = {k: v for k, v in (("Q", Q), ("R", R)) if v is not None}
     extra = {} if speed is None else {"speed": speed}
@@ -409,7 +398,6 @@ def estimate_to_files(path: str | Path, outputs, kinds=None, **kwargs: Any):
     table : pandas.DataFrame
         The table written.
     """
-    from imu_ground.pipeline.output import result_table, write_outputs
     result = estimate_log(path, **kwargs)
     table = result_table(result)
     write_outputs(outputs, table, result.meta, kinds)

@@ -1,6 +1,6 @@
 """The one output table of an estimate and its writers, chosen by the file's suffix; every write is atomic.
 
-Table (:func:`result_table`, the filters' :func:`~imu_ground.filters.track_table`): ``t`` (s, frame
+Table (:func:`track_table` of a track, :func:`result_table` of an estimate): ``t`` (s, frame
 end), ``normal_x/y/z`` (unit ground normal, sensor frame), ``pitch_deg`` (+ nose down),
 ``roll_deg`` (+ left side up) of the body relative to the road, ``qw qx qy qz`` (residual
 rotation road <- body, scalar first) and ``valid``; frames inside a gap longer than
@@ -24,9 +24,17 @@ import tempfile
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from imu_ground._version import __version__
+from imu_ground.filters.estimator import GroundTrack
+from imu_ground.pipeline.ros_output import write_ros_output
+from imu_ground.so3 import quat_from_matrix
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = [
     "COLUMNS",
@@ -38,6 +46,7 @@ __all__ = [
     "default_output_name",
     "package_version",
     "result_table",
+    "track_table",
     "summarize_table",
     "write_csv_rows",
     "write_output",
@@ -60,9 +69,52 @@ _PathLike = str | Path
 
 
 # ------------------------------------------------------------------------------------------ table
+def track_table(track: GroundTrack, max_gap_frames: int = GAP_NAN_FRAMES) -> "pd.DataFrame":
+    """THE output table of an estimate, one row a frame.
+
+    Parameters
+    ----------
+    track : GroundTrack
+    max_gap_frames : int
+        Invalid frames in a run of more than this many consecutive invalid
+        frames (a long gap in the source) get NaN values; shorter runs keep
+        their (extrapolated) values. ``valid`` is False for all of them.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``t`` (s), ``normal_x, normal_y, normal_z`` (unit normal, sensor
+        frame), ``pitch_deg`` (+ nose down), ``roll_deg`` (+ left side up),
+        ``qw, qx, qy, qz`` (residual rotation road <- body, scalar first,
+        ``qw >= 0``), ``valid`` (bool).
+    """
+    import pandas as pd                             # heavy: only when a table is made
+    n = len(track)
+    q = quat_from_matrix(track.residual) if n else np.zeros((0, 4))
+    valid = np.asarray(track.valid, dtype=bool)
+    df = pd.DataFrame({"t": np.asarray(track.t, dtype=float),
+                       "normal_x": track.normal[:, 0], "normal_y": track.normal[:, 1], "normal_z": track.normal[:, 2],
+                       "pitch_deg": np.degrees(track.pitch), "roll_deg": np.degrees(track.roll),
+                       "qw": q[:, 0], "qx": q[:, 1], "qy": q[:, 2], "qz": q[:, 3], "valid": valid})
+    blank = _long_runs(~valid, max_gap_frames)
+    if blank.any():
+        df.loc[blank, df.columns[1:-1]] = np.nan
+    return df
+
+
+def _long_runs(mask: np.ndarray, longer_than: int) -> np.ndarray:
+    """Elements of ``mask`` that lie in runs of more than ``longer_than`` consecutive True."""
+    m = np.concatenate([[False], mask, [False]]).astype(np.int8)
+    edges = np.flatnonzero(np.diff(m))
+    out = np.zeros(len(mask), dtype=bool)
+    for a, b in zip(edges[::2], edges[1::2]):
+        if b - a > longer_than:
+            out[a:b] = True
+    return out
+
+
 def result_table(result) -> Any:
     """The output table (pandas.DataFrame, :data:`COLUMNS`) of an :class:`~imu_ground.pipeline.EstimateResult`."""
-    from imu_ground.filters import track_table
     return track_table(result.track, max_gap_frames=GAP_NAN_FRAMES)
 
 
@@ -150,7 +202,6 @@ def atomic_path(path: _PathLike) -> Iterator[Path]:
 # ------------------------------------------------------------------------------------------ writers
 def package_version() -> str:
     """The package's version (its one owner is ``imu_ground/_version.py``; pyproject reads it from there)."""
-    from imu_ground._version import __version__
     return __version__
 
 
@@ -262,15 +313,14 @@ def _write_tum(path: Path, table, meta: Mapping[str, Any]) -> None:
 
 
 def _write_ros(path: Path, table, meta: Mapping[str, Any]) -> None:
-    try:
-        from imu_ground.pipeline.ros_output import write_ros_output
-    except ImportError as e:
-        raise ValueError(f"{path}: writing {path.suffix} needs the ROS extras: pip install 'imu-ground[ros]' "
-                         f"({e})") from None
     settings = dict(meta.get("settings", {}))
     if meta.get("t0_ns") is not None:
         settings["t0_ns"] = int(meta["t0_ns"])                   # stamps line up with the recording
-    write_ros_output(path, table, frame_id=meta.get("frame_id") or "imu", settings=settings)
+    try:
+        write_ros_output(path, table, frame_id=meta.get("frame_id") or "imu", settings=settings)
+    except ImportError as e:                                     # rosbags / mcap load on first use
+        raise ValueError(f"{path}: writing {path.suffix} needs the ROS extras: pip install 'imu-ground[ros]' "
+                         f"({e})") from None
 
 
 _WRITERS = {".csv": _write_csv, ".parquet": _write_parquet, ".tum": _write_tum, ".bag": _write_ros,

@@ -293,7 +293,7 @@ def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
         without suffix (ROS 2 bag). Written exactly there; the caller renames
         for atomicity.
     table : pandas.DataFrame or mapping of arrays
-        THE output table (:func:`imu_ground.filters.track_table`): t (s),
+        THE output table (:func:`imu_ground.pipeline.output.track_table`): t (s),
         normal_x/y/z, pitch_deg, roll_deg (deg), qw, qx, qy, qz (road <- body),
         valid. Rows with ``valid`` false or a NaN are skipped.
     frame_id : str

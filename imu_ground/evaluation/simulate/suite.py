@@ -41,7 +41,7 @@ class SuiteRanges:
     Mount: misalignment std per axis (rad) and lever-arm box (m). Speed:
     probability of starting at rest.
 
-    Calibrated to the shared real KITTI drives (``benchmarks/sim_vs_real.py``): their
+    Calibrated to the shared real KITTI drives (``benchmarks/studies/sim_vs_real.py``): their
     smoothed grade varies by only ~0.3 deg within a moving stretch (median; 0.2-0.6
     interquartile, reference noise included) and changes at ~0.06 deg/s below 0.1 Hz:
     flat city streets with short rises, not long hills; their mean roll of ~1.6 deg is

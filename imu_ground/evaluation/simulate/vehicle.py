@@ -87,7 +87,7 @@ class VehicleParams:
 #: the speed moving around the style's range rather than jumping across it. Through
 #: the suspension's ~0.25 deg per m/s^2 (fitted per real drive: median 0.265) this
 #: slow speed modulation is the body's slow pitch relative to the road; the rest of
-#: the real reference's slow pitch is the INS's own error (``benchmarks/sim_vs_real.py``).
+#: the real reference's slow pitch is the INS's own error (``benchmarks/studies/sim_vs_real.py``).
 STYLES = {
     "urban": dict(speed=(4.0, 14.0), stop_p=0.08, cruise=(0.3, 3.0), accel=(0.35, 1.6), brake=(0.35, 1.9), step=5.0),
     "rural": dict(speed=(10.0, 18.0), stop_p=0.02, cruise=(0.5, 6.0), accel=(0.3, 1.3), brake=(0.3, 1.5), step=5.0),

@@ -1,4 +1,4 @@
-r"""The rotation group SO(3), and the glossary of frames and signs for the whole package.
+r"""SO(3) itself: hat/vee, exp/log and their Jacobians, projections, axis rotations, and the scalar kernels.
 
 Every function takes one element or a batch: a rotation vector of shape (3,)
 or (N, 3), a matrix of shape (3, 3) or (N, 3, 3), and returns the same leading
@@ -6,49 +6,7 @@ shape, without a Python loop over the batch. The ``*_one`` functions are the
 same formulas for one element; the ``*_flat`` functions are the scalar kernels
 of the streaming filters (a 3x3 matrix as a row-major tuple of 9 floats, a
 vector as 3 floats), a few times faster than numpy on one tiny matrix.
-
-Glossary of frames and signs (every module refers here)
--------------------------------------------------------
-Rotations: ``R_{a<-b}`` is the rotation matrix that maps a vector expressed in
-frame b into frame a, acting on column vectors: ``v_a = R_{a<-b} @ v_b``. Its
-columns are b's axes in a's coordinates; ``R_{b<-a} = R_{a<-b}.T``; they
-compose by matching inner frames, ``R_{a<-c} = R_{a<-b} @ R_{b<-c}``. In code a
-rotation named ``R_xy`` (e.g. ``R_gs``) is ``R_{x<-y}``; where a rotation
-crosses a module boundary its docstring says "a <- b".
-
-Frames (all right-handed):
-
-- ``s`` sensor: the IMU's (or camera's, or odometry's) own axes.
-- ``b`` body / ``g`` ground: the vehicle frame, FLU (x forward, y left, z up);
-  static extrinsic ``R_gs = R_{ground<-sensor}`` with the sensor position in
-  the ground frame (:class:`~imu_ground.filters.extrinsics.Extrinsic`). Without
-  an extrinsic the body frame is the sensor frame.
-- ``body_k``: the body frame at the end of frame k. Ego-motion increments are
-  ``delta_R_k = R_{body_{k-1}<-body_k}`` and the cumulative attitude is
-  ``R_k = R_{w<-body_k} = R_{k-1} @ delta_R_k`` (``R_0``, default identity).
-- ``w`` world: the gyro-integrated body frame at the start (not gravity
-  aligned); the gravity/velocity filter finds gravity in it.
-- ``r`` road: the slowly varying road-plane frame (z the road normal); the
-  ground filters' slow state is ``X_k = R_{w<-road}`` and the residual
-  ``E_k = X_k^T R_k = R_{road<-body}`` (the body's attitude on its suspension).
-
-Signs:
-
-- Rotation vector ``phi = theta * axis`` (rad), ``R = exp(hat(phi))``,
-  right-handed: ``exp(hat([0, 0, t]))`` turns x towards y.
-- Pitch and roll of the body relative to the road, from the road normal in the
-  body frame ``n_b = E^T e_z = [-sin p, sin r cos p, cos p cos r]``: pitch
-  positive = nose down (right-handed about y-left), roll positive = left side
-  up (right-handed about x-forward); KITTI's convention. Euler angles are ZYX:
-  ``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)``.
-- Gravity is stored as its reaction (what an accelerometer at rest reads):
-  +9.81 m/s^2 up; specific force ``f = a - g_vector``.
-- Perturbations: ``exp(phi + dphi) ~= exp(phi) @ exp(J_r(phi) @ dphi)``
-  ``~= exp(J_l(phi) @ dphi) @ exp(phi)`` (Chirikjian; Forster et al. 2017,
-  eq. 7-9). A left-invariant (body) error is ``X = Xhat @ Exp(xi)``, a
-  right-invariant (world) error ``X = Exp(xi) @ Xhat``.
-- Units: radians and seconds everywhere inside the library
-  (:mod:`imu_ground.units` owns the constants); degrees only at the edges.
+Conventions: the glossary of :mod:`imu_ground.so3`.
 
 The logarithm is accurate over the whole range: near the identity through
 Taylor series (angles down to 1e-300 rad), and near pi from the symmetric part
@@ -66,10 +24,11 @@ __all__ = [
     "right_jacobian_inv", "left_jacobian_inv", "project", "angle",
     "rotx", "roty", "rotz", "renormalise", "exp_one", "log_one",
     "exp_flat", "log_flat", "mul_flat", "mul_tn_flat", "mul_nt_flat", "transpose_flat", "renormalise_flat",
-    "quat_from_flat", "flat_from_quat", "quat_mul", "quat_exp", "quat_normalise", "hat_flat",
+    "quat_from_flat", "flat_from_quat", "quat_mul", "quat_exp", "quat_normalise", "hat_flat", "SMALL_ANGLE",
 ]
 
-_SMALL = 1e-4   # below this angle (rad) the Taylor series are exact to double precision
+#: Below this angle (rad) the Taylor series are exact to double precision.
+SMALL_ANGLE = 1e-4
 
 
 def hat(phi: np.ndarray) -> np.ndarray:
@@ -117,7 +76,7 @@ def vee(m: np.ndarray) -> np.ndarray:
 
 def _coefficients(theta: np.ndarray):
     """a = sin(t)/t, b = (1-cos t)/t^2, c = (t - sin t)/t^3, safe at 0."""
-    small = theta < _SMALL
+    small = theta < SMALL_ANGLE
     t = np.where(small, 1.0, theta)
     t2 = theta * theta
     a = np.where(small, 1.0 - t2 / 6.0 + t2 * t2 / 120.0, np.sin(t) / t)
@@ -337,7 +296,7 @@ def renormalise(r: np.ndarray) -> np.ndarray:
 def exp_flat(x: float, y: float, z: float) -> tuple:
     """:func:`exp` of the rotation vector ``(x, y, z)`` (rad) as a row-major 9-tuple."""
     t2 = x * x + y * y + z * z
-    if t2 < _SMALL * _SMALL:
+    if t2 < SMALL_ANGLE * SMALL_ANGLE:
         a = 1.0 - t2 / 6.0 + t2 * t2 / 120.0
         b = 0.5 - t2 / 24.0 + t2 * t2 / 720.0
     else:
@@ -360,7 +319,7 @@ def log_flat(r) -> tuple:
     s = math.sqrt(wx * wx + wy * wy + wz * wz)
     theta = math.atan2(s, c)
     if c >= -0.9:
-        if theta < _SMALL:
+        if theta < SMALL_ANGLE:
             t2 = theta * theta
             a = 1.0 - t2 / 6.0 + t2 * t2 / 120.0
         else:
@@ -460,7 +419,7 @@ def quat_mul(a, b) -> tuple:
 def quat_exp(x: float, y: float, z: float) -> tuple:
     """Unit quaternion ``(w, x, y, z)`` of the rotation vector ``(x, y, z)`` (rad)."""
     t = math.sqrt(x * x + y * y + z * z)
-    h = 0.5 - t * t / 48.0 if t < _SMALL else math.sin(0.5 * t) / t
+    h = 0.5 - t * t / 48.0 if t < SMALL_ANGLE else math.sin(0.5 * t) / t
     return math.cos(0.5 * t), h * x, h * y, h * z
 
 

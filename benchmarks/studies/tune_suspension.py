@@ -13,7 +13,7 @@ wheel speed, :mod:`imu_ground.datasets.speed`) is scored beside IMU only, with t
 per-moving-segment metric: the figures the module docstrings point to
 ``benchmarks/RESULTS.md`` for.
 
-Run: ``python benchmarks/tune_suspension.py [--data ../shared/data/kitti_imu100]``;
+Run: ``python benchmarks/studies/tune_suspension.py [--data ../shared/data/kitti_imu100]``;
 ``rows()`` returns the tables for ``benchmarks/make_results.py``.
 """
 from __future__ import annotations

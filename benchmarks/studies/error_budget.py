@@ -1,7 +1,7 @@
 """Where the real-drive pitch error is: by speed, slow against fast, shared between methods, against the reference.
 
-Issue 10 asks whether the remaining error relative to the INS reference is the
-estimator's or the reference's. The reference's pitch relative to the road
+Is the remaining error relative to the INS reference the estimator's or the
+reference's? The reference's pitch relative to the road
 takes the road grade from the INS velocities (``atan(vu / v)``), so an INS
 vertical-velocity error ``dvu`` gives a grade error ``dvu / v``: an error that
 falls as 1/speed and is the same whatever estimator is scored against it. Per
@@ -24,7 +24,7 @@ A last row gives the INS vertical velocity at standstill (speed < 0.05 m/s in
 the 100 Hz log, true value 0): its RMS, median over the drives with at least
 1 s of standstill.
 
-Run: ``python benchmarks/error_budget.py [--data ../shared/data/kitti_imu100]``;
+Run: ``python benchmarks/studies/error_budget.py [--data ../shared/data/kitti_imu100]``;
 ``rows()`` returns the table for ``benchmarks/make_results.py``.
 """
 from __future__ import annotations

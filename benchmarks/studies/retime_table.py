@@ -1,6 +1,6 @@
 """Timestamp policy ``drop`` (before) against ``retime`` (after) on the shared real drives.
 
-Run: ``python benchmarks/retime_table.py [--data ../shared/data]``.
+Run: ``python benchmarks/studies/retime_table.py [--data ../shared/data]``.
 
 For each of the 33 shared kitti_imu100 drives and the KITTI raw OXTS folder,
 read with each policy, as the evaluation loads a real drive
@@ -24,7 +24,7 @@ import numpy as np
 
 __all__ = ["POLICIES", "drive_paths", "main", "measure", "rows"]
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 SHARED = Path(os.environ.get("IMU_GROUND_SHARED_DATA", REPO.parent / "shared" / "data"))
 POLICIES = ("drop", "retime")
 

@@ -1,4 +1,4 @@
-"""Batched 3x3 matrix helpers in component-major layout, shared by the batch preintegration and dead reckoning.
+"""Batches of 3x3 rotations in component-major layout, shared by the batch preintegration and dead reckoning.
 
 Component-major means a batch of 3x3 matrices is stored as an array of shape
 ``(3, 3, ...)`` (entry ``[i, j]`` first, batch axes after), so that every
@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from imu_ground import so3
+from imu_ground.so3.group import project
 
 __all__ = [
-    "ORTHO_TOL",
+    "PROJECTION_TOL",
     "SMALL_ANGLE2",
     "cross_rows",
     "exp_and_left_jacobian",
@@ -24,10 +24,10 @@ __all__ = [
 ]
 
 #: theta^2 (rad^2) below which the Taylor series of the SO(3) coefficients are used
-#: (theta < 1e-4 rad, where they are exact to double precision; as in :mod:`imu_ground.so3`).
+#: (theta < :data:`~imu_ground.so3.group.SMALL_ANGLE`, where they are exact to double precision).
 SMALL_ANGLE2 = 1e-8
 #: A rotation whose orthonormality defect ``max |R^T R - I|`` exceeds this is projected onto SO(3).
-ORTHO_TOL = 1e-12
+PROJECTION_TOL = 1e-12
 
 
 def mm(A: np.ndarray, B: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
@@ -143,7 +143,7 @@ def exp_and_left_jacobian(x: np.ndarray, y: np.ndarray, z: np.ndarray,
 
 
 def project_if_needed(R: np.ndarray) -> np.ndarray:
-    """Project onto SO(3) the rotations whose orthonormality defect exceeds :data:`ORTHO_TOL`.
+    """Project onto SO(3) the rotations whose orthonormality defect exceeds :data:`PROJECTION_TOL`.
 
     Parameters
     ----------
@@ -152,13 +152,13 @@ def project_if_needed(R: np.ndarray) -> np.ndarray:
     Returns
     -------
     ndarray, shape (..., 3, 3)
-        ``R`` itself where it is orthonormal to ``ORTHO_TOL`` (rounding of long
+        ``R`` itself where it is orthonormal to ``PROJECTION_TOL`` (rounding of long
         products), :func:`imu_ground.so3.project` of it elsewhere.
     """
     R = np.asarray(R, dtype=float)
     E = np.swapaxes(R, -1, -2) @ R - np.eye(3)
-    bad = np.max(np.abs(E), axis=(-2, -1)) > ORTHO_TOL
+    bad = np.max(np.abs(E), axis=(-2, -1)) > PROJECTION_TOL
     if np.any(bad):
         R = R.copy()
-        R[bad] = so3.project(R[bad])
+        R[bad] = project(R[bad])
     return R

@@ -6,7 +6,7 @@ road over moving frames, means removed, averaged over the valid drives. A split-
 check (tune on one half, test on the other, 20 random splits) shows whether the
 choice carries over to drives it was not tuned on.
 
-Run: ``python benchmarks/tune_paper.py [--data ../shared/data/kitti_imu100]``;
+Run: ``python benchmarks/studies/tune_paper.py [--data ../shared/data/kitti_imu100]``;
 ``rows()`` returns the table for ``benchmarks/make_results.py``.
 """
 from __future__ import annotations
@@ -22,7 +22,7 @@ from imu_ground.evaluation.runner import load_real_drives
 from imu_ground.filters import GroundNormalFilter
 
 GRID = [1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.3, 1.0, 3.0]
-DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "kitti_imu100"
+DEFAULT_DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "kitti_imu100"
 
 
 def score(drive, Q):

@@ -1,17 +1,14 @@
-"""Rotation helpers the filters share: increments in any form, heading twist, ZYX Euler angles,
-quaternions, cumulative rotations.
+"""Rotations in other forms: increments in any form, heading twist, ZYX Euler angles, quaternions,
+cumulative rotations.
 
 Frames and signs follow the glossary of :mod:`imu_ground.so3`. Quaternions are
-scalar first, ``(w, x, y, z)``, with ``w >= 0``. These functions belong with
-:mod:`imu_ground.so3` (they are layer-free rotation algebra); they live here
-until that module takes them over, and every filter imports them from here.
+scalar first, ``(w, x, y, z)``, with ``w >= 0``.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from imu_ground import so3
-from imu_ground.units import RENORM_EVERY
+from imu_ground.so3.group import exp, exp_one, renormalise
 
 __all__ = ["as_rotations", "twist_angle", "euler_zyx", "quat_from_matrix", "matrix_from_quat",
            "cumulative_rotations"]
@@ -46,9 +43,9 @@ def as_rotations(delta_R, name: str = "delta_R") -> np.ndarray:
     if d.ndim in (2, 3) and d.shape[-2:] == (4, 4):
         return d[..., :3, :3]
     if d.shape == (3,):
-        return so3.exp_one(d)
+        return exp_one(d)
     if d.ndim == 2 and d.shape[1] == 3:
-        return so3.exp(d)
+        return exp(d)
     raise ValueError(f"{name} must be a 3x3 rotation, a 4x4 pose or a rotation vector (or a batch of them), "
                      f"got shape {d.shape}")
 
@@ -147,11 +144,11 @@ def matrix_from_quat(q: np.ndarray) -> np.ndarray:
     return out.reshape(q.shape[:-1] + (3, 3))
 
 
-def cumulative_rotations(d: np.ndarray, R0=None, count: int = 0) -> np.ndarray:
+def cumulative_rotations(d: np.ndarray, R0=None, count: int = 0, *, renorm_every: int) -> np.ndarray:
     """``R_k = R_{k-1} d_k`` (right-multiplied: increments in the moving frame), kept on SO(3).
 
-    Re-orthonormalised (:func:`imu_ground.so3.renormalise`) every
-    :data:`~imu_ground.units.RENORM_EVERY` products, counted from ``count``.
+    Re-orthonormalised (:func:`imu_ground.so3.renormalise`) every ``renorm_every``
+    products, counted from ``count``.
 
     Parameters
     ----------
@@ -161,6 +158,9 @@ def cumulative_rotations(d: np.ndarray, R0=None, count: int = 0) -> np.ndarray:
         ``R`` before the first increment (world <- body); identity by default.
     count : int
         Products already taken before ``d[0]`` (to continue a sequence).
+    renorm_every : int
+        Products between re-orthonormalisations (the filters pass
+        :data:`imu_ground.units.RENORM_EVERY`).
 
     Returns
     -------
@@ -171,7 +171,7 @@ def cumulative_rotations(d: np.ndarray, R0=None, count: int = 0) -> np.ndarray:
     R = _I3 if R0 is None else np.asarray(R0, dtype=float)
     for k in range(len(d)):
         R = R @ d[k]
-        if (count + k + 1) % RENORM_EVERY == 0:
-            R = so3.renormalise(R)
+        if (count + k + 1) % renorm_every == 0:
+            R = renormalise(R)
         out[k] = R
     return out

@@ -1,7 +1,7 @@
 """Do synthetic drives behave like the real ones? Spectra of the body motion and the ranking of the methods.
 
 Compares the simulator's suite (:func:`imu_ground.evaluation.simulate.simulate_suite`) with the
-shared real KITTI drives (``../shared/data/kitti_imu100``) on what issue 10 point 5 asks:
+shared real KITTI drives (``../shared/data/kitti_imu100``) on two criteria:
 
 1. **Power in frequency bands** (0.01-0.1, 0.1-0.5, 0.5-2, 2-5 Hz) of
 
@@ -31,7 +31,8 @@ reference to mimic); ``--exact-truth`` compares the exact truth instead.
 :class:`~imu_ground.evaluation.simulate.suite.SuiteRanges` sets what the synthetic drives are drawn
 from (for calibration experiments).
 
-Run: ``python benchmarks/sim_vs_real.py [--drives 12] [--spectra-drives 40] [--data ../shared/data/kitti_imu100]``
+Run: ``python benchmarks/studies/sim_vs_real.py [--drives 12] [--spectra-drives 40]
+[--data ../shared/data/kitti_imu100]``
 (``--no-ranking`` for the spectra only). The figures go to ``benchmarks/RESULTS.md`` only through
 ``make_results.py``; this script prints them.
 """
@@ -50,7 +51,7 @@ MIN_SPEED = 3.0
 SEGMENT_S = 100.0
 #: Shortest stretch for a band, in periods of its lower edge (see :func:`band_powers`).
 MIN_CYCLES = 0.3
-DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "kitti_imu100"
+DEFAULT_DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "kitti_imu100"
 
 #: Methods whose real errors are closer than this (relative) count as tied in the ranking.
 ORDER_TOL = 0.05
@@ -250,7 +251,7 @@ def order_agreement(real: pd.Series, synthetic: pd.Series, tol: float = ORDER_TO
 
 def rows(drives: int = 12, real_limit: int | None = None, reference_error: bool = True,
          data: Path = DEFAULT_DATA, spectra_drives: int = 40) -> list[dict[str, object]]:
-    """The criteria of issue 10.5 as table rows (``benchmark``, ``target``, ``figure``, ``unit``,
+    """The two criteria as table rows (``benchmark``, ``target``, ``figure``, ``unit``,
     ``passed``): each band's synthetic/real ratio within 1.5x, and the ranking on nav-grade
     synthetic drives (pitch, means removed) against the real drives."""
     real = real_spectra(data, real_limit)

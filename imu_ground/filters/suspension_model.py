@@ -1,0 +1,198 @@
+"""The suspension model of :class:`~imu_ground.filters.suspension.SuspensionAwareFilter`: load in, body tilt out.
+
+Step 2 of that filter's pipeline. From the frame-mean specific force ``f`` and
+gravity-compensated acceleration ``a`` (body frame FLU, m/s^2, from the
+gravity/velocity filter):
+
+- the load on the springs ``u = a + s (f - a)`` (``s``: the share of gravity's
+  road-plane component the springs feel, 0 to 1), optionally through a
+  second-order ``response`` (unit static gain);
+- the body tilt relative to the road, as the residual kernel's tilt inputs:
+  roll (left side up +) ``k_roll u_y`` about x, pitch (nose down +)
+  ``k_pitch u_x + k_cross u_y`` about y (rad);
+- the gains ``(k_pitch, k_roll)`` fixed, or estimated online by causal
+  recursive least squares of the band-passed gyro tilt on the band-passed
+  acceleration (:func:`~imu_ground.filters.gains.bandpass_gain_regression` frame
+  by frame), the prior weighted like ``gain_prior_seconds`` of typical driving.
+
+Streaming (:meth:`SuspensionModel.step`) and batch (:meth:`SuspensionModel.run`)
+give the same numbers; the discrete-time design follows the frame rate
+(:meth:`SuspensionModel.design`).
+"""
+from __future__ import annotations
+
+from typing import Optional, Sequence, Union
+
+import numpy as np
+
+from imu_ground import so3
+from imu_ground.filters.design import IIRFilter, butter_bandpass, foh_filter
+from imu_ground.filters.gains import TYPICAL_BAND_POWER, tilt_angles
+
+__all__ = ["SuspensionModel", "load_share"]
+
+_LOADS = {"specific_force": 1.0, "acceleration": 0.0}
+
+
+def load_share(load: Union[str, float]) -> float:
+    """The share ``s`` (0 to 1) of gravity's road-plane component in the load, from its name or value.
+
+    Raises
+    ------
+    ValueError
+        Not ``"specific_force"`` (1), ``"acceleration"`` (0) or a number in [0, 1].
+    """
+    if isinstance(load, str):
+        if load not in _LOADS:
+            raise ValueError(f"load must be 'specific_force', 'acceleration' or a share in [0, 1], got {load!r}")
+        return _LOADS[load]
+    share = float(load)
+    if not 0.0 <= share <= 1.0:
+        raise ValueError(f"load share must be in [0, 1], got {load!r}")
+    return share
+
+
+class SuspensionModel:
+    """Load, gains and body tilt of one filter (its state: the response, the online regression).
+
+    Parameters
+    ----------
+    gains0 : ndarray (2,)
+        ``(k_pitch, k_roll)`` at the start (the prior with ``online_gains``), rad per m/s^2.
+    load_share : float
+        ``s`` of the load ``u = a + s (f - a)``.
+    response : (float, float) or None
+        Second-order response ``(freq_hz, damping)`` of the load; None: quasi-static.
+    cross_gain : float
+        ``k_cross``: pitch per m/s^2 of lateral load, rad.
+    online_gains : bool
+        Estimate the gains online.
+    gain_prior_seconds : float
+        Weight of the prior gains, seconds of typical driving.
+    gain_band : (float, float)
+        Band of the online regression, Hz.
+    Rgs : ndarray (3, 3) or None
+        Static rotation ground <- sensor of the increments given to :meth:`step`; None: identity.
+
+    Attributes
+    ----------
+    gains : ndarray (2,)
+        Current ``(k_pitch, k_roll)``, rad per m/s^2.
+    load : (float, float)
+        Load of the last frame ``(u_x, u_y)``, m/s^2.
+    rate : float or None
+        Frame rate of the design, Hz (None before the first frame).
+    """
+
+    def __init__(self, gains0: np.ndarray, load_share: float, response: Optional[Sequence[float]],
+                 cross_gain: float, online_gains: bool, gain_prior_seconds: float,
+                 gain_band: Sequence[float], Rgs: Optional[np.ndarray]) -> None:
+        self.gains0, self.load_share, self.response = gains0, load_share, response
+        self.cross_gain, self.online_gains = cross_gain, online_gains
+        self.gain_prior_seconds, self.gain_band, self._Rgs = gain_prior_seconds, gain_band, Rgs
+        self.reset()
+
+    def reset(self) -> None:
+        """Prior gains, no design yet, zero load."""
+        self.gains = self.gains0.copy()
+        self._kp, self._kr = (float(g) for g in self.gains0)
+        self.rate = None
+        self._resp = self._bpf = None
+        self._phi = np.zeros(2)
+        self._sxx = self._sxy = None
+        self.load = (0.0, 0.0)
+
+    def design(self, rate: float) -> None:
+        """Discrete-time design for frames at ``rate`` Hz (once; a later rate more than 2 % off is an error)."""
+        if self.rate is not None:
+            if abs(rate - self.rate) > 0.02 * self.rate and (self.online_gains or self.response is not None):
+                raise ValueError(f"the filter is designed for {self.rate:g} Hz frames but got {rate:g} Hz "
+                                 f"(reset() or a new filter for another frame rate)")
+            return
+        self.rate = float(rate)
+        if self.response is not None:
+            num, _, den = foh_filter(self.response[0], self.response[1], 1.0 / rate)
+            self._resp = IIRFilter(num, den, 2, steady=True)
+        if self.online_gains:
+            self._bpf = IIRFilter(*butter_bandpass(self.gain_band, rate), 4)
+            w = self.gain_prior_seconds * rate * np.asarray(TYPICAL_BAND_POWER)
+            self._sxx = w.copy()          # the sums include the prior: gains = sxy / sxx
+            self._sxy = w * self.gains0
+
+    # -- streaming ---------------------------------------------------------------------------------
+    def step(self, d: np.ndarray, fx: float, fy: float, ax: float, ay: float) -> tuple:
+        """One frame: its load, the tilt from the gains so far, then (online) the gains updated.
+
+        Parameters
+        ----------
+        d : ndarray (3, 3)
+            The frame's sensor increment (sensor_{k-1} <- sensor_k), for the online regression.
+        fx, fy, ax, ay : float
+            Horizontal specific force and acceleration, body frame, m/s^2.
+
+        Returns
+        -------
+        tilt_x, tilt_y : float
+            Roll ``k_roll u_y`` and pitch ``k_pitch u_x + k_cross u_y``, rad (the residual kernel's tilt inputs).
+        """
+        s = self.load_share
+        ux, uy = ax + s * (fx - ax), ay + s * (fy - ay)
+        if self._resp is not None:
+            ux, uy = self._resp.step(np.array([ux, uy])).tolist()
+        self.load = (ux, uy)
+        kp, kr = self._kp, self._kr
+        if self.online_gains:
+            self._update_gains(d, ax, ay)
+        return kr * uy, kp * ux + self.cross_gain * uy
+
+    def _update_gains(self, d: np.ndarray, ax: float, ay: float) -> None:
+        """One frame of the online gain regression (the batch twin is in :meth:`_online_gains`)."""
+        db = d if self._Rgs is None else self._Rgs @ d @ self._Rgs.T
+        self._phi = self._phi + so3.log_one(db)[[1, 0]]
+        z = self._bpf.step(np.concatenate([[ax, ay], self._phi]))
+        self._sxy = self._sxy + z[:2] * z[2:]
+        self._sxx = self._sxx + z[:2] * z[:2]
+        self.gains = self._sxy / self._sxx
+        self._kp, self._kr = self.gains.tolist()
+
+    # -- batch -------------------------------------------------------------------------------------
+    def run(self, gt) -> tuple:
+        """A drive: loads, the gains used at each frame, and the tilt, continuing as :meth:`step` would.
+
+        Parameters
+        ----------
+        gt : GravityTrack
+            The gravity/velocity filter's track of the frames (``acceleration``, ``specific_force``,
+            ``body_increments``).
+
+        Returns
+        -------
+        load, gains, tilt : ndarray (N, 2)
+            ``(u_x, u_y)`` (m/s^2), ``(k_pitch, k_roll)`` and ``(pitch, roll)`` of :meth:`tilt` (rad).
+        """
+        m = len(gt.acceleration)
+        u = (gt.acceleration + self.load_share * (gt.specific_force - gt.acceleration))[:, :2]
+        if self._resp is not None:
+            u = self._resp.run(u)
+        if m:
+            self.load = tuple(u[-1].tolist())
+        ks = self._online_gains(gt) if self.online_gains and m else np.tile(self.gains, (m, 1))
+        return u, ks, self.tilt(ks, u)
+
+    def tilt(self, gains: np.ndarray, load: np.ndarray) -> np.ndarray:
+        """``(pitch, roll) = (k_pitch u_x + k_cross u_y, k_roll u_y)`` per frame, rad, (N, 2)."""
+        susp = gains * load                             # (pitch, roll) = (k_p u_x, k_r u_y) ...
+        susp[:, 0] += self.cross_gain * load[:, 1]      # ... + the pitch from the lateral load
+        return susp
+
+    def _online_gains(self, gt) -> np.ndarray:
+        """Gains used at each frame of a batch (the frame before's estimate); advances the regression."""
+        phi = self._phi + tilt_angles(gt.body_increments)
+        z = self._bpf.run(np.concatenate([gt.acceleration[:, :2], phi], axis=1))
+        sxy = self._sxy + np.cumsum(z[:, :2] * z[:, 2:], axis=0)
+        sxx = self._sxx + np.cumsum(z[:, :2] * z[:, :2], axis=0)
+        ks = np.vstack([self.gains[None], (sxy / sxx)[:-1]])
+        self._phi, self._sxy, self._sxx = phi[-1].copy(), sxy[-1].copy(), sxx[-1].copy()
+        self.gains = self._sxy / self._sxx
+        self._kp, self._kr = self.gains.tolist()
+        return ks
