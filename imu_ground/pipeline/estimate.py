@@ -14,6 +14,7 @@ Options are checked before any work, and a bad one raises :class:`OptionError`
 """
 from __future__ import annotations
 
+import json
 import math
 import warnings
 from pathlib import Path
@@ -31,6 +32,7 @@ __all__ = [
     "estimate_log",
     "estimate_to_files",
     "require_imu_log",
+    "requested_options",
     "resolve_method",
 ]
 
@@ -192,6 +194,27 @@ def _reader_kwargs(options: dict) -> dict:
     return {k: v for k, v in options.items() if v is not None and k != "format"}
 
 
+def requested_options(*, method: str = "auto", rate: float | None = None, extrinsic: Any = None, Q: Any = None,
+                      R: Any = None, speed: Any = None, **reader_options: Any) -> dict:
+    """The options of a run as the user gave them, in JSON form: what an output records as ``settings["options"]``.
+
+    Two runs with equal options write equal outputs from the same log, so ``imu-ground
+    batch`` compares this with an existing output's record to tell whether it may be kept.
+    ``format`` and None-valued reader options are left out (a detected format is the
+    same format); a speed given as an array is recorded as ``"per-frame array"``.
+    """
+    if speed is None or isinstance(speed, str) and speed == "none":
+        speed_text = "none"
+    elif isinstance(speed, (np.ndarray, list, tuple)):
+        speed_text = "per-frame array"
+    else:
+        speed_text = str(speed)
+    out = {"method": method, "rate": None if rate is None else float(rate),
+           "extrinsic": None if extrinsic is None else str(extrinsic), "Q": Q, "R": R, "speed": speed_text,
+           **{k: v for k, v in reader_options.items() if v is not None and k != "format"}}
+    return json.loads(json.dumps(out, sort_keys=True, default=str))
+
+
 def _one_line(path: str | Path, message: Any) -> str:
     text = " ".join(str(message).split())
     return text if text.startswith(str(path)) else f"{path}: {text}"
@@ -257,6 +280,8 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
     kind, fmt = detect_input(path, format)
     settings: dict = {"method": method, "rate": rate, "extrinsic": None if extrinsic is None else str(extrinsic),
                       "Q": Q, "R": R, **reader_kw}
+    settings["options"] = requested_options(method=method, rate=rate, extrinsic=extrinsic, Q=Q, R=R, speed=speed,
+                                            **reader_kw)
     bar = _steps(progress)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
