@@ -380,9 +380,17 @@ class SuspensionAwareFilter:
             A bad frame with ``on_invalid="raise"`` (the state is unchanged).
         """
         if delta_v is None:
+            if isinstance(frame, np.ndarray) or not isinstance(frame, (tuple, list)) or len(frame) < 5:
+                shape = getattr(np.asarray(frame, dtype=object), "shape", ())
+                raise ValueError("SuspensionAwareFilter.step needs an EgoFrame (delta_R, delta_v, delta_t, "
+                                 "stationary, valid) with accelerometer data, or step(delta_R, delta_v, delta_t): "
+                                 f"got {type(frame).__name__} of shape {shape} alone; a rotation alone has no "
+                                 "accelerometer data (use GroundNormalFilter for rotations only)")
             d, delta_v, delta_t, stationary, valid = frame[:5]
         else:
             d = frame
+        if delta_t is None:
+            raise ValueError("SuspensionAwareFilter.step needs the frame duration delta_t, s")
         checked = checked_frame(self._kcheck, frame, d, delta_v, delta_t, self.on_invalid, self._frames)
         if checked is None:
             return GroundEstimate.of_residual(self.residual, self.P, self._Rgs, valid=False)

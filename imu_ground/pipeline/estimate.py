@@ -23,6 +23,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 __all__ = [
+    "NAIVE",
     "POSE_FORMATS",
     "EstimateResult",
     "OptionError",
@@ -86,10 +87,21 @@ class EstimateResult(NamedTuple):
     meta: dict
 
 
+#: The baseline :func:`estimate_log` offers beside the filters' registry (as ``imu-ground evaluate`` does).
+NAIVE = "naive"
+_NAIVE_DESCRIPTION = ("constant normal: the static extrinsic alone, pitch and roll 0 relative to the road "
+                      "(the paper's naive baseline, a reference to compare with)")
+
+
 def available_methods() -> dict[str, tuple[str, bool]]:
-    """Method name -> (one-line description, needs accelerometer data), from :data:`imu_ground.filters.methods.METHODS`."""
+    """Method name -> (one-line description, needs accelerometer data).
+
+    The filters' registry (:data:`imu_ground.filters.methods.METHODS`) and ``"naive"``, the
+    constant normal of the static extrinsic (the same baseline ``imu-ground evaluate`` runs).
+    """
     from imu_ground.filters.methods import METHODS
-    return {name: (spec.description, bool(spec.needs_accel)) for name, spec in METHODS.items()}
+    return {**{name: (spec.description, bool(spec.needs_accel)) for name, spec in METHODS.items()},
+            NAIVE: (_NAIVE_DESCRIPTION, False)}
 
 
 def resolve_method(method: str, has_accel: bool) -> str:
@@ -366,7 +378,7 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
     if speed is None or (isinstance(speed, str) and speed == "none"):
         return None, "none"
     auto = isinstance(speed, str) and speed == "auto"
-    if not METHODS[method].speed_aided:
+    if method not in METHODS or not METHODS[method].speed_aided:
         if auto:
             return None, f"none (method {method} does not use a speed)"
         raise OptionError(f"{{opt}} is used by the suspension methods only, not by method {method} (leave it out)",
@@ -404,10 +416,26 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
 def _run_method(name: str, em, ext, Q, R, speed=None):
     """Run method ``name`` of the registry over the ego-motion (noise options and speed only when given)."""
     from imu_ground.filters.methods import METHODS
+    if name == NAIVE:
+        return _constant_normal_track(em, ext)
     spec = METHODS[name]
     noise = {k: v for k, v in (("Q", Q), ("R", R)) if v is not None}
     extra = {} if speed is None else {"speed": speed}
     return spec.make(extrinsic=ext, **noise).run(em, smooth=bool(spec.smooth), **extra)
+
+
+def _constant_normal_track(em, ext):
+    """The naive track: the residual road <- body is the identity on every frame (the static extrinsic's normal)."""
+    from imu_ground.filters import GroundTrack
+    from imu_ground.filters.estimator import static_rotation
+    from imu_ground.filters.rotations import cumulative_rotations
+    rgs = static_rotation(ext)
+    d = np.asarray(em.delta_R, dtype=float)
+    body = d if rgs is None else rgs @ d @ rgs.T
+    n = len(body)
+    cum = cumulative_rotations(body) if n else np.zeros((0, 3, 3))
+    return GroundTrack.from_residuals(np.tile(np.eye(3), (n, 1, 1)), cum, np.zeros((n, 3, 3)), cum, rgs,
+                                      ext.translation, t=em.t, valid=em.valid)
 
 
 def estimate_to_files(path: str | Path, outputs, kinds=None, **kwargs: Any):
