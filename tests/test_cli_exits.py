@@ -1,5 +1,4 @@
 """The command line's exits on input users produce: two outputs on one path, signals, a closed pipe, methods, rates."""
-import os
 import signal
 import subprocess
 import sys
@@ -95,3 +94,42 @@ def test_suspension_step_on_a_bare_rotation_says_what_it_needs():
     from imu_ground.filters import SuspensionAwareFilter
     with pytest.raises(ValueError, match="EgoFrame.*accelerometer"):
         SuspensionAwareFilter().step(np.eye(3))
+
+
+@pytest.fixture()
+def frd_log(tmp_path):
+    """The example drive as a z-down (FRD: x forward, y right, z down) sensor records it."""
+    d = pd.read_csv(EXAMPLE)
+    d[["wy", "wz", "ay", "az"]] *= -1
+    path = tmp_path / "frd.csv"
+    d.to_csv(path, index=False)
+    return path
+
+
+def test_a_z_down_sensor_without_extrinsic_is_refused_naming_extrinsic(frd_log, tmp_path, capsys):
+    assert main(["estimate", str(frd_log), "-o", str(tmp_path / "o.csv")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and str(frd_log) in err and "--extrinsic" in err
+    assert "deg from the up axis" in err and not (tmp_path / "o.csv").exists()
+    # with its calibration (found from the same log) it runs, and gives the FLU log's normal
+    cal = tmp_path / "frd.txt"
+    assert main(["calibrate", str(frd_log), "-o", str(cal)]) == 0
+    assert main(["estimate", str(frd_log), "--extrinsic", str(cal), "-o", str(tmp_path / "o.csv")]) == 0
+
+
+def test_a_camera_extrinsic_on_an_imu_log_is_refused(tmp_path, capsys):
+    assert main(["estimate", str(EXAMPLE), "--extrinsic", "kitti_cam0", "-o", str(tmp_path / "o.csv")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--extrinsic" in err and "kitti_cam0" in err
+
+
+def test_a_tilted_extrinsic_is_warned_with_its_angle(tmp_path, capsys):
+    from imu_ground.filters import Extrinsic
+    from imu_ground.filters.extrinsics import save_extrinsic
+    from imu_ground.pipeline.input_checks import gravity_angle
+    ext = tmp_path / "tilted.txt"
+    save_extrinsic(Extrinsic(Rotation.from_euler("x", 25, degrees=True).as_matrix()), ext)
+    assert main(["estimate", str(EXAMPLE), "--extrinsic", str(ext), "-o", str(tmp_path / "o.csv")]) == 0
+    err = capsys.readouterr().err
+    angle = gravity_angle(pd.read_csv(EXAMPLE)[["ax", "ay", "az"]].to_numpy(), str(ext))
+    assert 20 < angle < 30 and f"{angle:.1f} deg from the up axis" in err

@@ -14,7 +14,6 @@ Options are checked before any work, and a bad one raises :class:`OptionError`
 """
 from __future__ import annotations
 
-import json
 import math
 import warnings
 from pathlib import Path
@@ -22,16 +21,29 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from imu_ground.pipeline.input_checks import (
+    GRAVITY_REFUSE_DEG,
+    GRAVITY_WARN_DEG,
+    OptionError,
+    check_gravity_direction,
+    gravity_angle,
+    requested_options,
+)
+
 __all__ = [
+    "GRAVITY_REFUSE_DEG",
+    "GRAVITY_WARN_DEG",
     "NAIVE",
     "POSE_FORMATS",
     "EstimateResult",
     "OptionError",
     "available_methods",
+    "check_gravity_direction",
     "check_options",
     "detect_input",
     "estimate_log",
     "estimate_to_files",
+    "gravity_angle",
     "require_imu_log",
     "requested_options",
     "resolve_method",
@@ -39,29 +51,6 @@ __all__ = [
 
 #: ``--format`` names of the pose files :func:`estimate_log` reads, to :func:`imu_ground.datasets.read_poses` names.
 POSE_FORMATS = {"kitti_poses": "kitti", "tum": "tum"}
-
-class OptionError(ValueError):
-    """A bad option value; the message names the option as Python keyword or CLI flag.
-
-    Parameters
-    ----------
-    template : str
-        Message with ``{opt}`` where the option's name goes.
-    name : str
-        Python keyword (e.g. ``"rate"``).
-    flag : str, optional
-        CLI flag (default ``--`` + name with ``_`` as ``-``).
-    """
-
-    def __init__(self, template: str, name: str, flag: str | None = None) -> None:
-        self.template, self.name = template, name
-        self.flag = flag or "--" + name.replace("_", "-")
-        super().__init__(template.replace("{opt}", name))
-
-    def cli_message(self) -> str:
-        """The message with the option spelled as its ``imu-ground`` flag."""
-        return self.template.replace("{opt}", self.flag)
-
 
 class EstimateResult(NamedTuple):
     """What :func:`estimate_log` returns (unpacks as ``track, egomotion, meta``).
@@ -206,27 +195,6 @@ def _reader_kwargs(options: dict) -> dict:
     return {k: v for k, v in options.items() if v is not None and k != "format"}
 
 
-def requested_options(*, method: str = "auto", rate: float | None = None, extrinsic: Any = None, Q: Any = None,
-                      R: Any = None, speed: Any = None, **reader_options: Any) -> dict:
-    """The options of a run as the user gave them, in JSON form: what an output records as ``settings["options"]``.
-
-    Two runs with equal options write equal outputs from the same log, so ``imu-ground
-    batch`` compares this with an existing output's record to tell whether it may be kept.
-    ``format`` and None-valued reader options are left out (a detected format is the
-    same format); a speed given as an array is recorded as ``"per-frame array"``.
-    """
-    if speed is None or isinstance(speed, str) and speed == "none":
-        speed_text = "none"
-    elif isinstance(speed, (np.ndarray, list, tuple)):
-        speed_text = "per-frame array"
-    else:
-        speed_text = str(speed)
-    out = {"method": method, "rate": None if rate is None else float(rate),
-           "extrinsic": None if extrinsic is None else str(extrinsic), "Q": Q, "R": R, "speed": speed_text,
-           **{k: v for k, v in reader_options.items() if v is not None and k != "format"}}
-    return json.loads(json.dumps(out, sort_keys=True, default=str))
-
-
 def _one_line(path: str | Path, message: Any) -> str:
     text = " ".join(str(message).split())
     return text if text.startswith(str(path)) else f"{path}: {text}"
@@ -343,6 +311,8 @@ def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
         warnings.warn(f"{path}: the IMU's body frame is {imu.frame!r}, not FLU (x forward, y left, z up), and no "
                       "extrinsic was given: pitch and roll refer to the sensor's own axes; run 'imu-ground "
                       "calibrate' once and pass the result with --extrinsic")
+    else:
+        check_gravity_direction(imu, extrinsic, path)
     em = imu_to_egomotion(imu, rate=DEFAULT_FRAME_RATE if rate is None else rate)
     info = {"format": fmt, "imu_rate": imu_rate, "frame_id": imu.meta.get("frame_id") or "imu"}
     if imu.meta.get("t0_ns") is not None:
