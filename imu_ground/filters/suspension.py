@@ -415,7 +415,7 @@ class SuspensionAwareFilter:
         kp, kr = self._kp, self._kr
         if self.online_gains:
             self._update_gains(d, ax, ay)
-        q = (self.q_time + self.q_dist * speed) * dt * self._r
+        q = (self.q_time + self.q_dist * abs(speed)) * dt * self._r       # distance travelled, either way
         self._q_last = q
         o = self._kstep(self._kbuf, d, q, self.q_yaw, kr * uy, kp * ux + self.cross_gain * uy, None, 1.0)
         return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o)
@@ -483,7 +483,7 @@ class SuspensionAwareFilter:
         susp = ks * u                                   # (pitch, roll) = (k_p u_x, k_r u_y) ...
         susp[:, 0] += self.cross_gain * u[:, 1]         # ... + the pitch from the lateral load
         dt = np.asarray(sub.delta_t, dtype=float)
-        q = (self.q_time + self.q_dist * gt.speed) * dt * self._r
+        q = (self.q_time + self.q_dist * np.abs(gt.speed)) * dt * self._r
         o = self._kernel.run(sub.delta_R, q, self.q_yaw, susp[:, 1], susp[:, 0])
         if m:
             self._q_last = float(q[-1])

@@ -361,6 +361,7 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
         return v, "given per frame"
     from imu_ground.datasets.speed import (
         SPEED_SOURCES,
+        check_speed,
         frame_speed,
         log_speed,
         read_speed,
@@ -373,8 +374,13 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
     else:
         try:
             got = read_speed(speed, log=path, format=fmt, imu=imu)
+            t_sp, v_sp, notes = check_speed(*got, str(speed), imu)
         except (ValueError, FileNotFoundError) as e:
-            raise OptionError(f"{{opt}} {speed}: {e}", "speed") from e
+            text = str(e).removeprefix(f"{speed}: ")
+            raise OptionError(f"{{opt}} {speed}: {text}", "speed") from e
+        for note in notes:
+            warnings.warn(f"speed {note}")
+        got = (t_sp, v_sp)
         what = f"{speed}"
     v = frame_speed(*got, em.t, em.delta_t)
     if not np.isfinite(v).any():
