@@ -88,6 +88,7 @@ __all__ = [
     "DEFAULT_CROSS_GAIN",
     "DEFAULT_GAINS",
     "GAIN_BAND",
+    "MAX_MEASURED_SPEED",
     "SuspensionAwareFilter",
     "SuspensionTrack",
     "bandpass_gain_regression",
@@ -96,6 +97,8 @@ __all__ = [
 
 _I3 = np.eye(3)
 _LOADS = {"specific_force": 1.0, "acceleration": 0.0}
+#: A measured speed beyond this, m/s (or not finite), is no measurement: the frame runs on the IMU alone.
+MAX_MEASURED_SPEED = 1e3
 
 
 @dataclass
@@ -366,7 +369,8 @@ class SuspensionAwareFilter:
         valid : bool
             False for a frame integrated through a timestamp gap.
         speed : float, optional
-            Measured forward speed over the frame (wheel / CAN), m/s; None or NaN: IMU only.
+            Measured forward speed over the frame (wheel / CAN), m/s; None, NaN, infinite or beyond
+            :data:`MAX_MEASURED_SPEED`: IMU only.
 
         Returns
         -------
@@ -401,6 +405,8 @@ class SuspensionAwareFilter:
         self._frames += 1
         gf = self.gravity_filter
         sp = math.nan if speed is None else float(speed)
+        if not abs(sp) <= MAX_MEASURED_SPEED:
+            sp = math.nan                           # infinite or absurd: no measurement (NaN stays NaN)
         if self._arrays:
             (fx, fy, _), (ax, ay, _), v = gf.step_sensor(d, dv, dt, bool(stationary), bool(valid), sp)
         else:
@@ -470,6 +476,7 @@ class SuspensionAwareFilter:
             if speed.shape != (n,):
                 raise ValueError(f"speed must have one value per frame ({n}), got shape {speed.shape}")
             speed = speed[good]
+            speed = np.where(np.abs(speed) <= MAX_MEASURED_SPEED, speed, np.nan)   # as step: absurd -> none
         self._frames += m
         gt = self.gravity_filter.run(sub, smooth=smooth, speed=speed)
         if speed is not None:
