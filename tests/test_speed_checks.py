@@ -7,7 +7,6 @@ import pytest
 
 from imu_ground.cli import main
 from imu_ground.datasets import read_imu
-from imu_ground.datasets.speed import check_speed
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLE = REPO / "datasets" / "fixtures" / "example_drive.csv"
@@ -30,6 +29,7 @@ def _estimate(capsys, tmp_path, t, v):
 
 
 def test_the_simulated_speed_in_m_per_s_passes_silently(truth_speed):
+    from imu_ground.datasets.speed import check_speed
     t, v = truth_speed
     t2, v2, notes = check_speed(t, v, "speed.csv", read_imu(EXAMPLE))
     assert notes == [] and np.array_equal(v2, v) and np.array_equal(t2, t)
@@ -70,6 +70,7 @@ def test_km_per_h_and_millisecond_times_are_detected_and_converted(truth_speed, 
 
 
 def test_another_scale_is_said(truth_speed):
+    from imu_ground.datasets.speed import check_speed
     t, v = truth_speed
     _, v2, notes = check_speed(t, v * 2.0, "speed.csv", read_imu(EXAMPLE))
     assert np.array_equal(v2, v * 2.0) and len(notes) == 1 and "check its unit" in notes[0]
