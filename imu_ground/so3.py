@@ -335,7 +335,7 @@ def renormalise(r: np.ndarray) -> np.ndarray:
 # ``*_flat``: a 3x3 matrix is a row-major sequence of 9 floats.
 # ---------------------------------------------------------------------------
 def exp_flat(x: float, y: float, z: float) -> tuple:
-    """:func:`exp` of the rotation vector ``(x, y, z)`` (rad) as a row-major 9-tuple (all NaN when its angle is not finite)."""
+    """:func:`exp` of the rotation vector ``(x, y, z)`` (rad) as a row-major 9-tuple (NaN: angle not finite)."""
     t2 = x * x + y * y + z * z
     if not math.isfinite(t2):           # an infinite angle (or one whose square overflows) has no rotation
         return (math.nan,) * 9
