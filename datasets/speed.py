@@ -22,7 +22,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["SPEED_SOURCES", "frame_speed", "log_speed", "read_speed", "read_speed_file"]
+__all__ = ["MAX_REVERSE", "MAX_SPEED", "SPEED_SOURCES", "check_speed", "frame_speed", "log_speed", "read_speed",
+           "read_speed_file"]
 
 #: Log formats with a speed signal of their own, and what it is.
 SPEED_SOURCES = {
@@ -47,6 +48,114 @@ def _checked(t, v, source: str) -> tuple[np.ndarray, np.ndarray]:
     if not keep.any():
         raise ValueError(f"{source}: no finite speed sample")
     return t[keep], v[keep]
+
+
+#: Fastest plausible reversing, m/s: a car backs up at walking pace, a few m/s.
+MAX_REVERSE = 5.0
+#: Fastest plausible forward speed, m/s (360 km/h).
+MAX_SPEED = 100.0
+#: Window over which speed changes are compared with the accelerometer, s.
+UNIT_WINDOW_S = 1.0
+
+
+def _scale_against_accel(t: np.ndarray, v: np.ndarray, imu) -> tuple[float, float, int]:
+    """How many times faster the speed changes than the accelerometer's forward axis says: ``(slope, r, windows)``.
+
+    Over windows of :data:`UNIT_WINDOW_S` inside both signals, the speed's change
+    ``v(e_k+1) - v(e_k)`` is regressed on the integral of the forward specific force
+    ``a_x`` (sensor x, m/s) over the same window, both with their means removed (a
+    road grade adds ``g sin(grade)`` to ``a_x``). A speed in m/s gives a slope near 1,
+    in km/h near 3.6. NaN when fewer than 20 windows are moving (speed over 1 m/s).
+    """
+    ti = np.asarray(imu.t, dtype=float)
+    ax = np.asarray(imu.accel, dtype=float)[:, 0]
+    ok = np.isfinite(ti) & np.isfinite(ax)
+    ti, ax = ti[ok], ax[ok]
+    lo, hi = max(t[0], ti[0] if ti.size else np.inf), min(t[-1], ti[-1] if ti.size else -np.inf)
+    if ti.size < 2 or hi - lo < 20 * UNIT_WINDOW_S:
+        return float("nan"), float("nan"), 0
+    edges = np.arange(lo, hi, UNIT_WINDOW_S)
+    cum = np.concatenate([[0.0], np.cumsum(0.5 * (ax[1:] + ax[:-1]) * np.diff(ti))])
+    dv_imu = np.diff(np.interp(edges, ti, cum))
+    ve = np.interp(edges, t, v)
+    dv_speed = np.diff(ve)
+    moving = (np.abs(ve[:-1]) > 1.0) & (np.abs(ve[1:]) > 1.0)
+    if np.count_nonzero(moving) < 20:
+        return float("nan"), float("nan"), int(np.count_nonzero(moving))
+    x = dv_imu[moving] - dv_imu[moving].mean()
+    y = dv_speed[moving] - dv_speed[moving].mean()
+    sxx, syy = float(x @ x), float(y @ y)
+    if sxx <= 0 or syy <= 0:
+        return float("nan"), float("nan"), int(np.count_nonzero(moving))
+    return float(x @ y / sxx), float(x @ y / np.sqrt(sxx * syy)), int(np.count_nonzero(moving))
+
+
+def check_speed(t: np.ndarray, v: np.ndarray, source: str, imu=None) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Check a measured speed signal against what a car does and against the IMU; fix what is certain.
+
+    - times in milliseconds (the signal spans about 1000 times the IMU log): converted to s;
+    - a speed in km/h (its changes 3.6 times what the accelerometer's forward axis
+      integrates to, correlation over 0.6): converted to m/s; another scale is said;
+    - negative speeds: reversing, said; faster than :data:`MAX_REVERSE` backwards, or
+      mostly negative (a flipped sign), refused;
+    - faster than :data:`MAX_SPEED`: refused.
+
+    Parameters
+    ----------
+    t, v : ndarray (M,)
+        Times (s on the IMU's time base, increasing) and speeds (m/s), as read.
+    source : str
+        What the signal is (file or column), for messages.
+    imu : ImuData, optional
+        The log (its times and forward specific force); without it only the values are checked.
+
+    Returns
+    -------
+    t, v : ndarray
+        Converted where a conversion was certain.
+    notes : list of str
+        One line per finding (for warnings).
+
+    Raises
+    ------
+    ValueError
+        Implausible speeds: the message gives the values and what the file must hold.
+    """
+    notes: list[str] = []
+    t = np.asarray(t, dtype=float)
+    v = np.asarray(v, dtype=float)
+    if imu is not None and len(imu.t) > 1 and t.size > 1:
+        span_log = float(imu.t[-1] - imu.t[0])
+        span = float(t[-1] - t[0])
+        if span_log > 0 and 300.0 < span / span_log < 3000.0 and t[0] / 1000.0 <= imu.t[-1]:
+            t = t / 1000.0
+            notes.append(f"{source}: its times span {span:.0f} against the log's {span_log:.1f} s: taken as "
+                         "milliseconds and converted to seconds")
+    fast = float(np.max(v))
+    if fast > MAX_SPEED:
+        raise ValueError(f"{source}: speeds up to {fast:.1f}, implausible for m/s (over {MAX_SPEED:g} m/s); a speed "
+                         "file holds the forward speed in m/s (divide km/h by 3.6)")
+    neg = v < 0
+    if neg.any():
+        slow = float(v.min())
+        share = float(neg.mean())
+        if share > 0.5 or slow < -MAX_REVERSE:
+            raise ValueError(f"{source}: {100 * share:.0f}% of the speeds are negative, down to {slow:.1f} m/s; a "
+                             f"car reverses rarely and at a few m/s (at most {MAX_REVERSE:g}): is the sign flipped? "
+                             "a speed file holds the forward speed, m/s, negative only when reversing")
+        notes.append(f"{source}: {int(neg.sum())} of {v.size} speeds are negative (down to {slow:.2f} m/s): "
+                     "taken as reversing")
+    if imu is not None and getattr(imu, "accel", None) is not None:
+        k, r, n = _scale_against_accel(t, v, imu)
+        if np.isfinite(k) and r > 0.6:
+            if 2.9 < k < 4.5:
+                v = v / 3.6
+                notes.append(f"{source}: the speed changes {k:.2f} times as fast as the accelerometer says over "
+                             f"{n} s of driving: taken as km/h and converted to m/s")
+            elif not 0.6 < k < 1.6:
+                notes.append(f"{source}: the speed changes {k:.2f} times as fast as the accelerometer says over "
+                             f"{n} s of driving; a speed file holds m/s: check its unit")
+    return t, v, notes
 
 
 def read_speed_file(path: str | Path, column: str | None = None) -> tuple[np.ndarray, np.ndarray]:

@@ -34,9 +34,15 @@ def test_shared_sums_give_the_same_intervals_and_bias():
 def test_blocks_smaller_than_the_log_change_nothing(monkeypatch):
     imu = _stop_and_go()
     whole = detect_standstill(imu)
+    stationary = imu_to_egomotion(imu).stationary             # computed in one block
+    # the stops are known by construction: 0 .. 6 s and 15 .. 21 s; 10 Hz frames well inside them
+    t = imu_to_egomotion(imu).t
+    first, second, moving = (t > 0.5) & (t < 5.5), (t > 15.5) & (t < 20.5), (t > 7.0) & (t < 14.0)
+    assert first.sum() >= 45 and second.sum() >= 45 and moving.sum() >= 65
+    assert stationary[first].all() and stationary[second].all() and not stationary[moving].any()
     monkeypatch.setattr(st, "_BLOCK", 97)
     assert np.array_equal(detect_standstill(imu), whole)
-    assert np.array_equal(imu_to_egomotion(imu).stationary, imu_to_egomotion(imu).stationary)
+    assert np.array_equal(imu_to_egomotion(imu).stationary, stationary)
 
 
 def test_window_sums_give_each_windows_mean_and_std():

@@ -11,14 +11,17 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
+import threading
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 
 from imu_ground._native import kernels_in_use
 from imu_ground.pipeline.output import package_version
 
-__all__ = ["COMMANDS", "build_parser", "main"]
+__all__ = ["COMMANDS", "Terminated", "build_parser", "main"]
 
 #: Sub-command modules, in the order ``--help`` lists them.
 COMMANDS = ("estimate", "batch", "evaluate", "simulate", "calibrate")
@@ -74,21 +77,64 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
     print(f"warning: {' '.join(text.split())}", file=sys.stderr)
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM received: raised in the main thread so that every ``finally`` (temporary files) runs."""
+
+
+def _on_sigterm(signum, frame) -> None:
+    raise Terminated()
+
+
+@contextmanager
+def _sigterm_as_exception() -> Iterator[None]:
+    """Turn SIGTERM into :class:`Terminated` for the block (main thread only; the old handler comes back)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
+def _quiet_stdout() -> None:
+    """After a broken pipe on stdout (``imu-ground ... | head -1``): point stdout at the null device.
+
+    Python flushes stdout at exit, which would raise the same error again.
+    """
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):
+        pass
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``imu-ground`` console script; returns the exit status.
 
     0 success; 1 a batch in which some logs failed; 2 bad input, option or path
-    (one line on stderr: ``imu-ground COMMAND: error: ...``); 130 interrupted.
-    Set ``IMU_GROUND_DEBUG=1`` to get the traceback of an unexpected error.
+    (one line on stderr: ``imu-ground COMMAND: error: ...``); 3 an unexpected error
+    (a bug: one line, ``IMU_GROUND_DEBUG=1`` shows the traceback); 130 interrupted
+    (Ctrl-C); 143 terminated (SIGTERM); 141 the reader of stdout went away (``| head``),
+    quietly, as Unix tools do. Interrupted or terminated, no temporary or partial file is left.
     """
     args = build_parser().parse_args(argv)
     old = warnings.showwarning
     warnings.showwarning = _show_warning
     try:
-        return args.func(args)
+        with _sigterm_as_exception():
+            return args.func(args)
+    except Terminated:
+        print(f"imu-ground {args.command}: terminated", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
         print(f"imu-ground {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        _quiet_stdout()
+        return 141
     except (ValueError, OSError, ImportError) as e:
         print(f"imu-ground {args.command}: error: {_one_line(e)}", file=sys.stderr)
         return 2

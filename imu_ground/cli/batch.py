@@ -25,7 +25,8 @@ def register(sub) -> None:
         sub, "batch", help="many logs -> one output each and a summary table (Dask)",
         description="Estimate every log (paths or quoted glob patterns) on Dask: a local pool of --workers "
                     "processes, or a running cluster (--scheduler). Each output is the file 'imu-ground estimate' "
-                    "writes; a rerun skips logs whose output exists; a failing log is reported in the summary and "
+                    "writes; a rerun skips logs whose output exists with the same settings (--force replaces them); "
+                    "one file named twice is estimated once; a failing log is reported in the summary and "
                     "never stops the others.",
         logs_metavar="LOG_OR_GLOB", logs_help="IMU logs or pose files, or glob patterns in quotes (e.g. 'logs/**/*.csv.gz')",
         output_metavar="OUTDIR", output_help="output folder (created): <log name>_ground.<type> per log and summary.csv")
@@ -36,6 +37,16 @@ def register(sub) -> None:
                         "log after the other in this process)")
     b.add_argument("--scheduler", metavar="ADDRESS",
                    help="address of a running Dask scheduler (e.g. tcp://10.0.0.5:8786) instead of a local cluster")
+    b.add_argument("--tum", action="store_true",
+                   help="also write each log's dynamic extrinsic (ground <- sensor) of the valid frames as TUM "
+                        "poses, <log name>_ground.tum")
+    b.add_argument("--speed", default="none", metavar="auto|none|FILE|COLUMN",
+                   help="measured vehicle speed for the suspension methods, as for 'imu-ground estimate' "
+                        "(none by default; auto: each log's own)")
+    b.add_argument("--force", action="store_true",
+                   help="estimate every log again and replace its outputs (by default a rerun keeps the outputs "
+                        "that exist and were written with the same settings, and refuses those written with "
+                        "other settings)")
     add_method_flags(b)
     add_reader_flags(b, poses=True)
     add_progress_flag(b)
@@ -51,10 +62,13 @@ def _fmt(x) -> str:
 def run(a: argparse.Namespace) -> int:
     """Run the batch, print one line per log and the totals; exit 1 when a log failed."""
     table = run_batch(a.logs, a.output, workers=a.workers, scheduler=a.scheduler, suffix="." + a.type,
-                      progress=progress_enabled(a), cli=True, **method_kwargs(a))
+                      progress=progress_enabled(a), cli=True, force=a.force, tum=a.tum, speed=a.speed,
+                      **method_kwargs(a))
     for _, r in table.iterrows():
         if r["status"] == "failed":
             say(f"FAILED  {r['log']}: {r['error']}")
+        elif r["status"] == "duplicate":
+            say(f"duplicate {r['error']}")
         else:
             share = "" if r["valid_share"] != r["valid_share"] else f"{100 * r['valid_share']:.1f}% valid"
             frames = "" if r["frames"] != r["frames"] else f"{int(r['frames'])} frames"
@@ -63,6 +77,7 @@ def run(a: argparse.Namespace) -> int:
                 f"+- {_fmt(r['roll_std_deg'])} deg" + (f"; warnings: {r['warnings']}" if _fmt(r["warnings"]) else ""))
     failed = int((table["status"] == "failed").sum())
     done = int((table["status"] == "ok").sum())
-    say(f"{len(table)} logs: {done} estimated, {len(table) - done - failed} skipped (output exists), {failed} failed; "
-        f"wrote {a.output}/summary.csv")
+    dups = int((table["status"] == "duplicate").sum())
+    say(f"{len(table) - dups} logs: {done} estimated, {len(table) - dups - done - failed} skipped (output exists), "
+        f"{failed} failed" + (f", {dups} named twice" if dups else "") + f"; wrote {a.output}/summary.csv")
     return 1 if failed else 0

@@ -6,6 +6,7 @@ import argparse
 from imu_ground.cli import _common as common
 from imu_ground.datasets import read_imu
 from imu_ground.filters import calibrate
+from imu_ground.filters.calibration import TooLittleDataError
 from imu_ground.pipeline.estimate import require_imu_log
 from imu_ground.pipeline.output import atomic_path, check_output_path
 
@@ -46,8 +47,14 @@ def run(a: argparse.Namespace) -> int:
             imus.append(read_imu(log, format=fmt, **opts))
     with_gains = a.lever_arm is not None
     with common.warnings_as_lines():
-        cal = calibrate(imus if len(imus) > 1 else imus[0], tilt=a.tilt, gains=with_gains,
-                        lever_arm=a.lever_arm, translation=a.translation)
+        try:
+            cal = calibrate(imus if len(imus) > 1 else imus[0], tilt=a.tilt, gains=with_gains,
+                            lever_arm=a.lever_arm, translation=a.translation)
+        except TooLittleDataError as e:
+            advice = {"gains": "calibrate on a longer drive (or several logs), or leave out --lever-arm to "
+                               "calibrate the tilt alone",
+                      "tilt": "calibrate on a longer drive (or several logs), or pass --tilt all"}[e.part]
+            raise ValueError(f"{', '.join(a.logs)}: {e.base}; {advice}") from None
     with atomic_path(a.output) as tmp:
         cal.save(tmp)
     common.say(str(cal))

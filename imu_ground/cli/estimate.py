@@ -91,7 +91,11 @@ def run(a: argparse.Namespace) -> int:
     outputs = [check_output_path(a.output or default_output_name(a.log), [a.log])]
     kinds = [None]
     if a.tum:
-        outputs.append(check_output_path(a.tum, [a.log], "--tum", kind=".tum"))
+        tum = check_output_path(a.tum, [a.log], "--tum", kind=".tum")
+        if tum.resolve() == outputs[0].resolve():
+            raise ValueError(f"{tum}: given to both -o and --tum; the two outputs need two file names "
+                             f"(e.g. --tum {tum.with_suffix('.tum')})")
+        outputs.append(tum)
         kinds.append(".tum")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -10,7 +10,10 @@ from imu_ground.evaluation.plots import plot_simulation
 from imu_ground.evaluation.simulate import simulate
 from imu_ground.pipeline.output import atomic_path, check_output_path
 
-__all__ = ["register", "run"]
+__all__ = ["FRAME_RATE", "register", "run"]
+
+#: Frame rate of the truth file, Hz (the IMU rate is a whole multiple of it).
+FRAME_RATE = 10.0
 
 
 def register(sub) -> None:
@@ -24,6 +27,9 @@ def register(sub) -> None:
                    help="truth CSV (default <output>_truth.csv); angles in degrees, named *_deg (pitch_deg, "
                         "roll_deg: body relative to road, same signs as 'estimate'), rates *_deg_s")
     s.add_argument("--duration", type=positive_float, default=120.0, metavar="S", help="seconds (default 120)")
+    s.add_argument("--rate", type=positive_float, default=100.0, metavar="HZ",
+                   help="IMU sample rate, Hz (default 100); a whole multiple of the truth's 10 Hz frame rate, "
+                        "e.g. 400")
     s.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     s.add_argument("--imu", default="nav", choices=("nav", "mems", "perfect"),
                    help="IMU error grade: nav (navigation grade, default), mems, perfect (no errors)")
@@ -40,10 +46,14 @@ def run(a: argparse.Namespace) -> int:
     check_output_path(truth, option="--truth", kind="csv")
     if a.plot:
         check_output_path(a.plot, option="--plot", kind="png")
-    sim = simulate(a.duration, seed=a.seed, imu=a.imu)
+    ratio = a.rate / FRAME_RATE
+    if abs(ratio - round(ratio)) > 1e-9:
+        raise ValueError(f"--rate {a.rate:g}: the IMU rate must be a whole multiple of the truth's "
+                         f"{FRAME_RATE:g} Hz frame rate (e.g. 100, 200, 400)")
+    sim = simulate(a.duration, seed=a.seed, imu=a.imu, imu_rate=a.rate, frame_rate=FRAME_RATE)
     with atomic_path(out) as tmp_imu, atomic_path(truth) as tmp_truth:
         sim.to_csv(tmp_imu, tmp_truth)
-    say(f"simulated {a.duration:g} s ({a.imu} IMU, seed {a.seed}): wrote {out} and {truth}")
+    say(f"simulated {a.duration:g} s at {a.rate:g} Hz ({a.imu} IMU, seed {a.seed}): wrote {out} and {truth}")
     if a.plot:
         say(f"wrote {plot_simulation(sim, Path(a.plot))}")
     return 0

@@ -28,6 +28,12 @@ enum {
 enum { ST_OK = 0, ST_ROTATION = 1, ST_DELTA_V = 2, ST_DELTA_T = 3 };
 
 #define ORTHO_TOL 1e-6
+/* estimator.MAX_DELTA_V: largest |delta_v| component of an accepted frame, m/s */
+#define MAX_DELTA_V 1e6
+/* estimator.MIN_DELTA_T: shortest accepted frame, s */
+#define MIN_DELTA_T 1e-6
+/* estimator.MAX_DELTA_T: longest accepted frame, s */
+#define MAX_DELTA_T 1e6
 
 /* ------------------------------------------------------------------------------------ inputs */
 
@@ -68,9 +74,9 @@ static inline int frame_status(const double *r, const double *dv, double dt)
           && -ORTHO_TOL <= o01 && o01 <= ORTHO_TOL && -ORTHO_TOL <= o02 && o02 <= ORTHO_TOL
           && -ORTHO_TOL <= o12 && o12 <= ORTHO_TOL && det > 0.0))
         return ST_ROTATION;
-    if (dv != NULL && !isfinite(dv[0] + dv[1] + dv[2]))
+    if (dv != NULL && !(fabs(dv[0]) <= MAX_DELTA_V && fabs(dv[1]) <= MAX_DELTA_V && fabs(dv[2]) <= MAX_DELTA_V))
         return ST_DELTA_V;
-    if (!(dt > 0.0) || dt == INFINITY)
+    if (!(dt >= MIN_DELTA_T && dt <= MAX_DELTA_T))
         return ST_DELTA_T;
     return ST_OK;
 }

@@ -59,6 +59,7 @@ The calibration file format (:class:`~imu_ground.filters.extrinsics.Calibration`
 """
 from __future__ import annotations
 
+import warnings
 from typing import TYPE_CHECKING, Any, Optional, Sequence, Union
 
 import numpy as np
@@ -74,7 +75,7 @@ if TYPE_CHECKING:
     from imu_ground.imu.data import ImuData
     from imu_ground.imu.egomotion import EgoMotion
 
-__all__ = ["Calibration", "calibrate", "load_calibration"]
+__all__ = ["Calibration", "TooLittleDataError", "calibrate", "load_calibration"]
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -156,11 +157,44 @@ def _suspension_gains(egos, R, min_speed, lever_arm, band, stats: dict) -> np.nd
     return k
 
 
+def _auto_tilt_source(cruise_s: float, still_s: float, valid_s: float, min_cruise_s: float,
+                      min_standstill_s: float, min_all_s: float) -> tuple[str, str]:
+    """Where ``tilt="auto"`` takes "up" from, and why; raises when no source has enough frames."""
+    have = f"{cruise_s:.1f} s of straight constant-speed driving (cruise), {still_s:.1f} s standing still"
+    if cruise_s >= min_cruise_s:
+        return "cruise", f"{have}; cruise needs {min_cruise_s:g} s"
+    if still_s >= min_standstill_s:
+        return "standstill", f"{have}; cruise needs {min_cruise_s:g} s, so the standstills"
+    if valid_s >= min_all_s:
+        return "all", (f"{have}; cruise needs {min_cruise_s:g} s and there is no standstill, so the mean of all "
+                       f"{valid_s:.0f} s (the drive's accelerations and grades tilt it)")
+    raise TooLittleDataError(f"too little data for the tilt: {have} and {valid_s:.1f} s in all; it needs "
+                             f"{min_cruise_s:g} s of cruise, {min_standstill_s:g} s standing still, or a drive of "
+                             f"{min_all_s:g} s", "tilt", "calibrate on a longer drive, or pass tilt='all'")
+
+
+class TooLittleDataError(ValueError):
+    """The drive has too little of what a part of the calibration needs (the message says how much of which kind).
+
+    Attributes
+    ----------
+    base : str
+        What is missing and how much is needed, without advice.
+    part : {"tilt", "gains"}
+        The part of the calibration that cannot be determined.
+    """
+
+    def __init__(self, base: str, part: str, advice: str) -> None:
+        self.base, self.part = base, part
+        super().__init__(f"{base}: {advice}")
+
+
 def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "EgoMotion"]]], *, tilt: str = "auto",
               translation: Optional[Sequence[float]] = None, lever_arm: Optional[Sequence[float]] = None,
               gains: bool = True, band: Sequence[float] = GAIN_BAND, min_cruise_s: float = 20.0,
               min_speed: float = 3.0, max_yaw_rate: float = 0.02, max_accel: float = 0.15,
-              rate: Optional[float] = None) -> Calibration:
+              rate: Optional[float] = None, min_drive_s: float = 20.0, min_standstill_s: float = 1.0,
+              min_all_s: float = 60.0) -> Calibration:
     """Static sensor-to-ground extrinsic and suspension gains from a drive, or several of one platform.
 
     See the module docstring for what is observable and how each part is found.
@@ -195,6 +229,16 @@ def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "Ego
     rate : float, optional
         Frame rate for ImuData, Hz (default :data:`~imu_ground.units.DEFAULT_FRAME_RATE`);
         ego-motion keeps its own rate.
+    min_drive_s : float
+        Seconds of driving (faster than ``min_speed``) the mounting yaw and the
+        suspension gains need. With less the yaw stays the sensor's x axis
+        projected on the ground (``stats["yaw_source"]`` says why, and a
+        warning), and ``gains=True`` raises.
+    min_standstill_s : float
+        Seconds standing still for ``tilt="auto"`` to take "up" from the standstills.
+    min_all_s : float
+        Seconds of valid frames for ``tilt="auto"`` to fall back to every frame (a
+        shorter drive's accelerations would tilt "up"); with less, ``"auto"`` raises.
 
     Returns
     -------
@@ -205,7 +249,15 @@ def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "Ego
     Raises
     ------
     ValueError
-        No frames, or none of the kind ``tilt`` asks for.
+        No frames, or none of the kind ``tilt`` asks for; ``tilt="auto"`` with too
+        little of every kind; ``gains=True`` with less than ``min_drive_s`` of driving.
+        The message says how much of which kind is needed.
+
+    Warns
+    -----
+    UserWarning
+        ``tilt="auto"`` not from cruising (which source and why), and a yaw left
+        at the sensor's x axis for want of driving.
     """
     if tilt not in ("auto", "cruise", "standstill", "all"):
         raise ValueError(f"tilt must be 'auto', 'cruise', 'standstill' or 'all', got {tilt!r}")
@@ -234,16 +286,34 @@ def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "Ego
         # -- tilt
         candidates = {"cruise": up_of(fs, cruise), "standstill": up_of(fs, F["still"]), "all": up_of(fs, F["valid"])}
         cruise_s = float(dt[cruise].sum())
+        still_s, moving_s, valid_s = (float(dt[m].sum()) for m in (F["still"], moving, F["valid"]))
         if tilt == "auto":
-            src = "cruise" if cruise_s >= min_cruise_s else ("standstill" if np.any(F["still"]) else "all")
+            src, why = _auto_tilt_source(cruise_s, still_s, valid_s, min_cruise_s, min_standstill_s, min_all_s)
         else:
-            src = tilt
+            src, why = tilt, f"as asked (tilt={tilt!r})"
         if candidates[src] is None:
             raise ValueError(f"tilt={tilt!r}: the drive has no {src} frames")
         up = candidates[src]
-        fwd, yaw_src = _forward_axis(fs, up, yaw_rate, moving, max_yaw_rate, R[0])
+        if moving_s >= min_drive_s:
+            fwd, yaw_src = _forward_axis(fs, up, yaw_rate, moving, max_yaw_rate, R[0])
+        else:
+            fwd, yaw_src = None, (f"assumed (sensor x axis): {moving_s:.1f} s of driving above {min_speed:g} m/s, "
+                                  f"the yaw needs {min_drive_s:g} s with turns or speed changes")
         R = _extrinsic_from_axes(up, R[0] if fwd is None else fwd)
-    stats: dict[str, Any] = {"drives": len(egos), "frames": int(len(dt)), "tilt_source": src, "yaw_source": yaw_src,
+    if tilt == "auto" and src != "cruise":
+        warnings.warn(f"calibration: tilt ('up') from the {src} frames: {why}")
+    if fwd is None and moving_s < min_drive_s:
+        warnings.warn(f"calibration: mounting yaw not determined, the sensor's x axis is taken as forward: "
+                      f"{moving_s:.1f} s of driving above {min_speed:g} m/s; the yaw needs {min_drive_s:g} s with "
+                      "turns or speed changes")
+    if gains and moving_s < min_drive_s:
+        never = "the drive never moves: " if moving_s == 0 else ""
+        raise TooLittleDataError(f"{never}{moving_s:.1f} s of driving above {min_speed:g} m/s; the suspension "
+                                 f"gains need at least {min_drive_s:g} s of driving (over uneven road, with braking "
+                                 "and turns)", "gains", "calibrate on a longer drive, or with gains=False for the "
+                                 "tilt alone")
+    stats: dict[str, Any] = {"drives": len(egos), "frames": int(len(dt)), "tilt_source": src, "tilt_reason": why,
+                             "yaw_source": yaw_src,
                              "cruise_s": round(cruise_s, 1), "standstill_s": round(float(dt[F["still"]].sum()), 1),
                              "moving_s": round(float(dt[moving].sum()), 1)}
     for name, u in candidates.items():

@@ -71,6 +71,8 @@ class Extrinsic:
             raise ValueError(f"extrinsic rotation must be 3x3, got shape {self.rotation.shape}")
         if self.translation.shape != (3,):
             raise ValueError(f"extrinsic translation must have 3 elements, got shape {self.translation.shape}")
+        if not (np.all(np.isfinite(self.rotation)) and np.all(np.isfinite(self.translation))):
+            raise ValueError("extrinsic rotation and translation must be finite")
         err = np.abs(self.rotation.T @ self.rotation - np.eye(3)).max()
         if err > _ORTHO_TOL or np.linalg.det(self.rotation) < 0:
             raise ValueError(f"extrinsic rotation is not a rotation (|R^T R - I| = {err:.2e}, "
@@ -120,9 +122,14 @@ def _numbers(path: Path, lineno: int, key: str, text: str, count: int) -> np.nda
     if len(parts) != count:
         raise ValueError(f"{path}:{lineno}: '{key}' needs {count} numbers, got {len(parts)}")
     try:
-        return np.array([float(v) for v in parts])
+        values = np.array([float(v) for v in parts])
     except ValueError as e:
         raise ValueError(f"{path}:{lineno}: '{key}' has a value that is not a number: {e}") from None
+    if not np.all(np.isfinite(values)):
+        bad = " ".join(v for v, x in zip(parts, values) if not np.isfinite(x))
+        raise ValueError(f"{path}:{lineno}: '{key}' has a value that is not finite ({bad}); the file is "
+                         "unusable: calibrate again or fix the line")
+    return values
 
 
 def load_extrinsic(name_or_path: Union[str, Path]) -> Extrinsic:
@@ -195,10 +202,15 @@ def _gains_from_meta(ext: Extrinsic) -> Optional[np.ndarray]:
         raise ValueError(f"{ext.meta.get('source', 'extrinsic')}: 'suspension_gains' needs two numbers "
                          f"and a unit in {sorted(_GAIN_UNITS)}, got {ext.meta['suspension_gains']!r} ({unit!r})")
     try:
-        return np.array([float(p) for p in parts]) * _GAIN_UNITS[unit]
+        gains = np.array([float(p) for p in parts]) * _GAIN_UNITS[unit]
     except ValueError:
         raise ValueError(f"{ext.meta.get('source', 'extrinsic')}: 'suspension_gains' has a value that is not a "
                          f"number: {ext.meta['suspension_gains']!r}") from None
+    if not np.all(np.isfinite(gains)):
+        raise ValueError(f"{ext.meta.get('source', 'extrinsic')}: 'suspension_gains' is not finite "
+                         f"({ext.meta['suspension_gains']}): the calibration could not determine them; calibrate "
+                         "again on a drive (with --lever-arm), or delete the line to use the default gains")
+    return gains
 
 
 @dataclass
@@ -257,7 +269,7 @@ class Calibration:
         if self.gains is not None:
             kp, kr = np.degrees(self.gains)
             lines.append(f"  suspension gains: pitch {kp:+.3f}, roll {kr:+.3f} deg per m/s^2")
-        for key in ("tilt_source", "yaw_source", "cruise_s", "standstill_s", "gain_frames",
+        for key in ("tilt_source", "tilt_reason", "yaw_source", "cruise_s", "standstill_s", "moving_s", "gain_frames",
                     "pitch_gain_rejected", "roll_gain_rejected"):
             if key in self.stats:
                 lines.append(f"  {key}: {self.stats[key]}")

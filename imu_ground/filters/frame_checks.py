@@ -18,7 +18,8 @@ import numpy as np
 from imu_ground import _native
 from imu_ground.so3 import as_rotations
 
-__all__ = ["ON_INVALID", "ORTHO_TOL", "BAD_ROTATION", "BAD_DELTA_V", "BAD_DELTA_T", "frame_status", "frame_problem",
+__all__ = ["ON_INVALID", "ORTHO_TOL", "BAD_ROTATION", "BAD_DELTA_V", "BAD_DELTA_T", "MAX_DELTA_V", "MIN_DELTA_T",
+           "MAX_DELTA_T", "frame_status", "frame_problem",
            "frame_problems", "frame_statuses", "checked_frames", "check_on_invalid", "bad_frame_error",
            "checked_frame", "coerce_frame", "bad_frame", "static_rotation", "frame_where", "hold_skipped"]
 
@@ -27,6 +28,13 @@ __all__ = ["ON_INVALID", "ORTHO_TOL", "BAD_ROTATION", "BAD_DELTA_V", "BAD_DELTA_
 ON_INVALID = ("raise", "skip")
 #: Largest ``|R^T R - I|`` entry of an accepted rotation increment.
 ORTHO_TOL = 1e-6
+#: Largest ``|delta_v|`` component of an accepted frame, m/s: no vehicle's velocity changes by more within a
+#: frame, and larger values overflow the filters' squares (a frame beyond it is bad, as a non-finite one).
+MAX_DELTA_V = 1e6
+#: Shortest accepted frame, s: shorter ones are no IMU's (1 MHz) and their rates overflow the filters' squares.
+MIN_DELTA_T = 1e-6
+#: Longest accepted frame, s (11.6 days: a longer one joins two recordings; its noise terms overflow).
+MAX_DELTA_T = 1e6
 #: :func:`frame_status` codes of a bad frame.
 BAD_ROTATION, BAD_DELTA_V, BAD_DELTA_T = 1, 2, 3
 _NATIVE = _native.RESIDUAL                    # its check/check_many: the compiled twin of frame_status
@@ -51,8 +59,9 @@ def frame_status(d9, delta_v=None, delta_t: float = 1.0) -> int:
     -------
     int
         0: a good frame; :data:`BAD_ROTATION` (non-finite, not orthonormal to
-        :data:`ORTHO_TOL`, or det <= 0), :data:`BAD_DELTA_V` (not finite) or
-        :data:`BAD_DELTA_T` (not a positive finite number of seconds).
+        :data:`ORTHO_TOL`, or det <= 0), :data:`BAD_DELTA_V` (not finite, or a component
+        beyond :data:`MAX_DELTA_V`) or
+        :data:`BAD_DELTA_T` (not a number of seconds from :data:`MIN_DELTA_T` to :data:`MAX_DELTA_T`).
     """
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = d9
     lo, hi = 1.0 - ORTHO_TOL, 1.0 + ORTHO_TOL
@@ -65,9 +74,9 @@ def frame_status(d9, delta_v=None, delta_t: float = 1.0) -> int:
         return BAD_ROTATION                         # (NaN fails every comparison)
     if delta_v is not None:
         vx, vy, vz = delta_v
-        if not math.isfinite(vx + vy + vz):
-            return BAD_DELTA_V
-    if not delta_t > 0.0 or delta_t == math.inf:
+        if not (abs(vx) <= MAX_DELTA_V and abs(vy) <= MAX_DELTA_V and abs(vz) <= MAX_DELTA_V):
+            return BAD_DELTA_V                      # (NaN fails the comparison)
+    if not MIN_DELTA_T <= delta_t <= MAX_DELTA_T:
         return BAD_DELTA_T
     return 0
 
@@ -88,9 +97,10 @@ def frame_problem(d9, delta_v=None, delta_t: float = 1.0, status: Optional[int] 
         return _rotation_message(d9)
     if status == BAD_DELTA_V:
         vx, vy, vz = delta_v
-        return f"delta_v is not finite ({vx}, {vy}, {vz})"
+        return f"delta_v is not finite or beyond {MAX_DELTA_V:g} m/s ({vx}, {vy}, {vz})"
     if status == BAD_DELTA_T:
-        return f"delta_t must be a positive number of seconds, got {delta_t}"
+        return (f"delta_t must be a positive number of seconds, got {delta_t} (from {MIN_DELTA_T:g} to "
+                f"{MAX_DELTA_T:g} s)")
     return None
 
 
@@ -98,9 +108,11 @@ def _rotation_message(d9) -> str:
     m = np.array(d9, dtype=float).reshape(3, 3)
     if not np.all(np.isfinite(m)):
         return "delta_R is not finite"
-    err = float(np.abs(m.T @ m - np.eye(3)).max())
+    with np.errstate(over="ignore", invalid="ignore"):      # a huge matrix: the message says inf
+        err = float(np.abs(m.T @ m - np.eye(3)).max())
+        det = float(np.linalg.det(m))
     return (f"delta_R is not a rotation: |R^T R - I| = {err:.3g} (tolerance {ORTHO_TOL:g}), "
-            f"det = {np.linalg.det(m):.6g} (must be +1)")
+            f"det = {det:.6g} (must be +1)")
 
 
 def frame_statuses(d: np.ndarray, dv: Optional[np.ndarray] = None, dt: Optional[np.ndarray] = None) -> np.ndarray:
@@ -138,9 +150,9 @@ def frame_statuses(d: np.ndarray, dv: Optional[np.ndarray] = None, dt: Optional[
         err = np.abs(np.swapaxes(d, 1, 2) @ d - np.eye(3)).max(axis=(1, 2))
         det = np.linalg.det(d)
         if dt is not None:
-            out[~((dt > 0.0) & (dt < np.inf))] = BAD_DELTA_T
+            out[~((dt >= MIN_DELTA_T) & (dt <= MAX_DELTA_T))] = BAD_DELTA_T
         if dv is not None:
-            out[~np.isfinite(dv.sum(axis=1))] = BAD_DELTA_V
+            out[~(np.abs(dv) <= MAX_DELTA_V).all(axis=1)] = BAD_DELTA_V
         out[~((err <= ORTHO_TOL) & (det > 0.0))] = BAD_ROTATION
     return out
 

@@ -80,6 +80,7 @@ __all__ = [
     "DEFAULT_CROSS_GAIN",
     "DEFAULT_GAINS",
     "GAIN_BAND",
+    "MAX_MEASURED_SPEED",
     "SuspensionAwareFilter",
     "SuspensionTrack",
     "bandpass_gain_regression",
@@ -87,6 +88,8 @@ __all__ = [
 ]
 
 _I3 = np.eye(3)
+#: A measured speed beyond this, m/s (or not finite), is no measurement: the frame runs on the IMU alone.
+MAX_MEASURED_SPEED = 1e3
 
 
 @dataclass
@@ -316,7 +319,8 @@ class SuspensionAwareFilter:
         valid : bool
             False for a frame integrated through a timestamp gap.
         speed : float, optional
-            Measured forward speed over the frame (wheel / CAN), m/s; None or NaN: IMU only.
+            Measured forward speed over the frame (wheel / CAN), m/s; None, NaN, infinite or beyond
+            :data:`MAX_MEASURED_SPEED`: IMU only.
 
         Returns
         -------
@@ -330,9 +334,17 @@ class SuspensionAwareFilter:
             A bad frame with ``on_invalid="raise"`` (the state is unchanged).
         """
         if delta_v is None:
+            if isinstance(frame, np.ndarray) or not isinstance(frame, (tuple, list)) or len(frame) < 5:
+                shape = getattr(np.asarray(frame, dtype=object), "shape", ())
+                raise ValueError("SuspensionAwareFilter.step needs an EgoFrame (delta_R, delta_v, delta_t, "
+                                 "stationary, valid) with accelerometer data, or step(delta_R, delta_v, delta_t): "
+                                 f"got {type(frame).__name__} of shape {shape} alone; a rotation alone has no "
+                                 "accelerometer data (use GroundNormalFilter for rotations only)")
             d, delta_v, delta_t, stationary, valid = frame[:5]
         else:
             d = frame
+        if delta_t is None:
+            raise ValueError("SuspensionAwareFilter.step needs the frame duration delta_t, s")
         checked = checked_frame(self._kcheck, frame, d, delta_v, delta_t, self.on_invalid, self._frames)
         if checked is None:
             return GroundEstimate.of_residual(self.residual, self.P, self._Rgs, valid=False)
@@ -343,6 +355,8 @@ class SuspensionAwareFilter:
         self._frames += 1
         gf = self.gravity_filter
         sp = math.nan if speed is None else float(speed)
+        if not abs(sp) <= MAX_MEASURED_SPEED:
+            sp = math.nan                           # infinite or absurd: no measurement (NaN stays NaN)
         if self._arrays:
             (fx, fy, _), (ax, ay, _), v = gf.step_sensor(d, dv, dt, bool(stationary), bool(valid), sp)
         else:
@@ -350,7 +364,7 @@ class SuspensionAwareFilter:
                                                          bool(valid), sp)
         tilt_x, tilt_y = self.model.step(d, fx, fy, ax, ay)
         self.speed = speed = v if math.isnan(sp) else sp
-        q = (self.q_time + self.q_dist * speed) * dt * self._r
+        q = (self.q_time + self.q_dist * abs(speed)) * dt * self._r       # distance travelled, either way
         self._q_last = q
         o = self._kstep(self._kbuf, d, q, self.q_yaw, tilt_x, tilt_y, None, 1.0)
         return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o)
@@ -395,6 +409,7 @@ class SuspensionAwareFilter:
             if speed.shape != (n,):
                 raise ValueError(f"speed must have one value per frame ({n}), got shape {speed.shape}")
             speed = speed[good]
+            speed = np.where(np.abs(speed) <= MAX_MEASURED_SPEED, speed, np.nan)   # as step: absurd -> none
         self._frames += m
         gt = self.gravity_filter.run(sub, smooth=smooth, speed=speed)
         if speed is not None:
@@ -403,7 +418,7 @@ class SuspensionAwareFilter:
         if m:
             self.speed = float(gt.speed[-1])
         dt = np.asarray(sub.delta_t, dtype=float)
-        q = (self.q_time + self.q_dist * gt.speed) * dt * self._r
+        q = (self.q_time + self.q_dist * np.abs(gt.speed)) * dt * self._r
         o = self._kernel.run(sub.delta_R, q, self.q_yaw, susp[:, 1], susp[:, 0])
         if m:
             self._q_last = float(q[-1])

@@ -5,6 +5,8 @@
 - :mod:`imu_ground.pipeline.output`: the one output table and its writers
   (``.csv``, ``.parquet``, ``.tum``, ``.bag``/``.mcap``), all atomic.
 - :mod:`imu_ground.pipeline.batch`: :func:`run_batch`, many logs on Dask.
+- :mod:`imu_ground.pipeline.input_checks`: option errors, the gravity-direction check of
+  a log against its extrinsic, the options record an output keeps.
 
 Names are imported lazily (numpy only at package import).
 """

@@ -11,15 +11,14 @@ byte: both call :func:`~imu_ground.pipeline.estimate.estimate_to_files`.
 """
 from __future__ import annotations
 
+import glob
 import os
 import warnings
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
-import glob
-
-from imu_ground.pipeline.estimate import check_options, estimate_to_files
+from imu_ground.pipeline.estimate import OptionError, check_options, estimate_to_files, requested_options
 from imu_ground.pipeline.output import (
     OUTPUT_SUFFIXES,
     atomic_path,
@@ -28,7 +27,8 @@ from imu_ground.pipeline.output import (
     summarize_table,
 )
 
-__all__ = ["SUMMARY_COLUMNS", "expand_logs", "output_names", "process_log", "run_batch"]
+__all__ = ["SUMMARY_COLUMNS", "check_existing_outputs", "expand_logs", "output_names", "process_log", "run_batch",
+           "unique_logs"]
 
 #: Columns of the summary table, in order.
 SUMMARY_COLUMNS = ("log", "status", "format", "method", "frames", "valid_share", "pitch_mean_deg", "pitch_std_deg",
@@ -58,8 +58,14 @@ def expand_logs(patterns: Iterable[str | Path]) -> list[tuple[str, str | None]]:
 
 
 def output_names(logs: Sequence[str], suffix: str = ".csv") -> list[str]:
-    """Output file name of each log (``<name>_ground<suffix>``), made unique with the parent folders' names."""
-    names = [default_output_name(log, suffix) for log in logs]
+    """Output file name of each log (``<name>_ground<suffix>``), made unique with the parent folders' names.
+
+    Always a bare file name (never a path, never absolute), so the output lands in the
+    output folder whatever the log's path; logs that still clash (one file named twice
+    is :func:`unique_logs`' to drop) get a number: ``_2``, ``_3``...
+    """
+    base = [default_output_name(log, suffix) for log in logs]
+    names = list(base)
     for depth in range(1, 8):
         counts: dict[str, int] = {}
         for n in names:
@@ -68,9 +74,39 @@ def output_names(logs: Sequence[str], suffix: str = ".csv") -> list[str]:
         if not clash:
             break
         for i in clash:
-            parents = Path(os.path.abspath(logs[i])).parent.parts[-depth:]
-            names[i] = "_".join([*parents, default_output_name(logs[i], suffix)])
+            folder = Path(os.path.abspath(logs[i])).parent
+            parents = list(folder.parts[1:] if folder.anchor else folder.parts)[-depth:]   # never the root
+            names[i] = "_".join([*parents, base[i]])
+    seen: dict[str, int] = {}
+    for i, n in enumerate(names):
+        seen[n] = seen.get(n, 0) + 1
+        if seen[n] > 1:
+            stem, dot, ext = n.partition(".")
+            names[i] = f"{stem}_{seen[n]}{dot}{ext}"
     return names
+
+
+def unique_logs(found: Sequence[tuple[str, str | None]]) -> tuple[list[tuple[str, str | None]], dict[str, str]]:
+    """Drop the logs that name a file already listed (``a/x.csv`` and ``a/../a/x.csv``, symbolic links).
+
+    Returns
+    -------
+    kept : list of (log, error or None)
+        :func:`expand_logs`' entries, each file once (the first spelling).
+    duplicates : dict
+        Dropped spelling -> the kept spelling of the same file.
+    """
+    first: dict[str, str] = {}
+    kept: list[tuple[str, str | None]] = []
+    dup: dict[str, str] = {}
+    for log, err in found:
+        key = log if err is not None else os.path.realpath(log)
+        if key in first:
+            dup[log] = first[key]
+            continue
+        first[key] = log
+        kept.append((log, err))
+    return kept, dup
 
 
 def _skipped_row(out: Path) -> dict[str, Any]:
@@ -87,8 +123,9 @@ def _skipped_row(out: Path) -> dict[str, Any]:
     return row
 
 
-def process_log(log: str, out: str | Path, options: dict, cli: bool = False) -> dict[str, Any]:
-    """One task: estimate ``log`` into ``out`` unless ``out`` exists; one summary row, never an exception.
+def process_log(log: str, out: str | Path, options: dict, cli: bool = False, force: bool = False,
+                extra: Sequence[tuple[str | Path, str]] = ()) -> dict[str, Any]:
+    """One task: estimate ``log`` into ``out`` unless its outputs exist; one summary row, never an exception.
 
     Parameters
     ----------
@@ -98,17 +135,23 @@ def process_log(log: str, out: str | Path, options: dict, cli: bool = False) -> 
         :func:`~imu_ground.pipeline.estimate_log` keywords.
     cli : bool
         Errors with the options spelled as command-line flags.
+    force : bool
+        Estimate even when the outputs exist.
+    extra : sequence of (path, kind)
+        Further outputs of the same table (e.g. ``(".../x_ground.tum", ".tum")``).
     """
     out = Path(out)
     row: dict[str, Any] = {"log": log, "output": str(out)}
-    if out.exists():
+    paths = [out, *(Path(p) for p, _ in extra)]
+    if not force and all(p.exists() for p in paths):
         row.update(_skipped_row(out))
         return row
     try:
-        check_output_path(out, [log])
+        for p in paths:
+            check_output_path(p, [log])
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            res, table = estimate_to_files(log, [out], **options)
+            res, table = estimate_to_files(log, paths, [None, *(k for _, k in extra)], **options)
     except Exception as e:                                   # noqa: BLE001 - a failing log never stops the others
         message = e.cli_message() if cli and hasattr(e, "cli_message") else str(e)
         row.update(status="failed", error=" ".join(f"{message}".split()) or type(e).__name__)
@@ -116,6 +159,42 @@ def process_log(log: str, out: str | Path, options: dict, cli: bool = False) -> 
     row.update(status="ok", format=res.meta.get("format"), method=res.meta.get("method"),
                warnings=" | ".join(res.meta.get("warnings", [])), **summarize_table(table))
     return row
+
+
+def _settings_change(recorded: dict | None, wanted: dict) -> str | None:
+    """What differs between an output's recorded options and this run's (None: nothing, or not recorded)."""
+    if recorded is None:
+        return None                                  # a ROS bag / MCAP: no record read back; kept as before
+    have = recorded.get("options")
+    if not isinstance(have, dict):
+        return "written without a record of its options (an earlier version)"
+    diff = [f"{k} {have.get(k)!s} -> {wanted.get(k)!s}" for k in sorted(set(have) | set(wanted))
+            if have.get(k) != wanted.get(k)]
+    return ", ".join(diff) or None
+
+
+def check_existing_outputs(paths: Iterable[str | Path], options: dict) -> None:
+    """Refuse to keep outputs that were written with other options than ``options`` (``force`` replaces them).
+
+    Raises
+    ------
+    OptionError
+        Naming the first such output, what changed and ``force`` (``--force``).
+    """
+    wanted = requested_options(**{k: v for k, v in options.items() if k != "progress"})
+    changed = []
+    for p in paths:
+        p = Path(p)
+        if p.exists():
+            what = _settings_change(read_output_settings(p), wanted)
+            if what:
+                changed.append((p, what))
+    if changed:
+        p, what = changed[0]
+        more = f" ({len(changed) - 1} more outputs likewise)" if len(changed) > 1 else ""
+        raise OptionError(f"{p}: exists and was written with other settings ({what}){more}; a rerun would keep "
+                          "it: pass {opt} to estimate again and replace it, or choose another output folder",
+                          "force", "--force")
 
 
 def _client(scheduler: str):
@@ -129,7 +208,7 @@ def _client(scheduler: str):
 
 def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | None = None,
               scheduler: str | None = None, suffix: str = ".csv", progress: bool = False, cli: bool = False,
-              summary: str | None = "summary.csv", **options: Any):
+              summary: str | None = "summary.csv", force: bool = False, tum: bool = False, **options: Any):
     """Estimate every log into ``outdir`` on Dask; returns the summary table.
 
     Parameters
@@ -151,44 +230,59 @@ def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | 
         Error messages name command-line flags.
     summary : str, optional
         File name of the summary CSV in ``outdir`` (None: not written).
+    force : bool
+        Estimate every log again, replacing its outputs. Without it an existing output
+        is kept (resume) when it records the same options as this run's, and an output
+        written with other options raises :class:`~imu_ground.pipeline.estimate.OptionError`
+        before any work (naming ``--force`` from the command line).
+    tum : bool
+        Also write each log's dynamic extrinsic as TUM poses, ``<log name>_ground.tum``.
     **options
         :func:`~imu_ground.pipeline.estimate_log` keywords (method, extrinsic, rate, reader options).
 
     Returns
     -------
     pandas.DataFrame
-        :data:`SUMMARY_COLUMNS`, one row per log in input order.
+        :data:`SUMMARY_COLUMNS`, one row per log in input order, then one row (status
+        ``"duplicate"``) per path that named a file already listed.
     """
     import pandas as pd
     from tqdm.auto import tqdm
 
     if suffix not in OUTPUT_SUFFIXES:
         raise ValueError(f"unknown output type {suffix!r}; choose from {', '.join(OUTPUT_SUFFIXES)}")
-    check_options(**{k: v for k, v in options.items() if k not in ("extrinsic", "progress")})
+    check_options(**{k: v for k, v in options.items() if k not in ("extrinsic", "progress", "speed")})
     out_dir = Path(outdir)
     if out_dir.exists() and not out_dir.is_dir():
         raise ValueError(f"{out_dir}: is a file; give -o an output folder")
     out_dir.mkdir(parents=True, exist_ok=True)
-    found = expand_logs(logs)
+    found, duplicates = unique_logs(expand_logs(logs))
     names = output_names([log for log, _ in found], suffix)
+    extra_kind = ".tum" if tum and suffix != ".tum" else None
     rows: list[dict | None] = [None] * len(found)
     jobs = []
     for i, ((log, err), name) in enumerate(zip(found, names)):
         if err is not None:
             rows[i] = {"log": log, "status": "failed", "error": err}
         else:
-            jobs.append((i, log, str(out_dir / name)))
+            out = out_dir / name
+            extra = [(str(out.with_suffix(extra_kind)), extra_kind)] if extra_kind else []
+            jobs.append((i, log, str(out), extra))
+    if not force:
+        check_existing_outputs([p for _, _, out, extra in jobs for p in [out, *(e for e, _ in extra)]], options)
     bar = tqdm(total=len(found), desc="logs", unit="log", disable=not progress)
     bar.update(len(found) - len(jobs))
     if workers == 0 and not scheduler:
-        for i, log, out in jobs:
-            rows[i] = process_log(log, out, options, cli)
+        for i, log, out, extra in jobs:
+            rows[i] = process_log(log, out, options, cli, force, extra)
             bar.update()
     elif scheduler:
-        _run_on_dask(jobs, rows, options, cli, scheduler, bar)
+        _run_on_dask(jobs, rows, options, cli, force, scheduler, bar)
     else:
-        _run_local(jobs, rows, options, cli, workers, bar)
+        _run_local(jobs, rows, options, cli, force, workers, bar)
     bar.close()
+    rows += [{"log": log, "status": "duplicate", "error": f"{log}: the same file as {kept}, estimated once"}
+             for log, kept in duplicates.items()]
     table = pd.DataFrame(rows).reindex(columns=list(SUMMARY_COLUMNS))
     if summary:
         with atomic_path(out_dir / summary) as tmp:
@@ -196,7 +290,7 @@ def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | 
     return table
 
 
-def _run_local(jobs, rows, options, cli, workers, bar) -> None:
+def _run_local(jobs, rows, options, cli, force, workers, bar) -> None:
     """The logs on Dask's local process pool (``scheduler="processes"``): N worker processes, nothing to start.
 
     The local pool runs each task in a plain worker process; a ``dask.distributed``
@@ -215,20 +309,21 @@ def _run_local(jobs, rows, options, cli, workers, bar) -> None:
             bar.update()
 
     n = int(workers) if workers else (os.cpu_count() or 1)
-    tasks = [dask.delayed(process_log, pure=False)(log, out, options, cli) for _, log, out in jobs]
+    tasks = [dask.delayed(process_log, pure=False)(log, out, options, cli, force, extra)
+             for _, log, out, extra in jobs]
     with _Progress():
         results = dask.compute(*tasks, scheduler="processes", num_workers=n)
-    for (i, _, _), row in zip(jobs, results):
+    for (i, *_), row in zip(jobs, results):
         rows[i] = row
 
 
-def _run_on_dask(jobs, rows, options, cli, scheduler, bar) -> None:
+def _run_on_dask(jobs, rows, options, cli, force, scheduler, bar) -> None:
     """The logs on a running dask.distributed cluster; a worker that dies fails its log only."""
     client = _client(scheduler)
     from dask.distributed import as_completed
     try:
-        futures = {client.submit(process_log, log, out, options, cli, pure=False): (i, log)
-                   for i, log, out in jobs}
+        futures = {client.submit(process_log, log, out, options, cli, force, extra, pure=False): (i, log)
+                   for i, log, out, extra in jobs}
         for fut in as_completed(futures):
             i, log = futures[fut]
             try:

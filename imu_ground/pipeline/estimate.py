@@ -24,23 +24,38 @@ import numpy as np
 from imu_ground.datasets import detect_format, read_imu, read_poses
 from imu_ground.datasets.options import READER_OPTIONS, OptionError, OptionText
 from imu_ground.datasets.poses import detect_pose_format, moves_along_z
-from imu_ground.datasets.speed import SPEED_SOURCES, frame_speed, log_speed, read_speed
-from imu_ground.filters import Extrinsic
+from imu_ground.datasets.speed import SPEED_SOURCES, check_speed, frame_speed, log_speed, read_speed
+from imu_ground.filters import Extrinsic, GroundTrack
+from imu_ground.filters.frame_checks import static_rotation
 from imu_ground.filters.methods import METHODS, default_method
 from imu_ground.imu import EgoMotion, imu_to_egomotion
+from imu_ground.pipeline.input_checks import (
+    GRAVITY_REFUSE_DEG,
+    GRAVITY_WARN_DEG,
+    check_gravity_direction,
+    gravity_angle,
+    requested_options,
+)
 from imu_ground.pipeline.output import result_table, write_outputs
-from imu_ground.units import DEFAULT_FRAME_RATE
+from imu_ground.so3 import cumulative_rotations
+from imu_ground.units import DEFAULT_FRAME_RATE, RENORM_EVERY
 
 __all__ = [
+    "GRAVITY_REFUSE_DEG",
+    "GRAVITY_WARN_DEG",
+    "NAIVE",
     "POSE_FORMATS",
     "EstimateResult",
     "OptionError",
     "available_methods",
+    "check_gravity_direction",
     "check_options",
     "detect_input",
     "estimate_log",
     "estimate_to_files",
+    "gravity_angle",
     "require_imu_log",
+    "requested_options",
     "resolve_method",
 ]
 
@@ -71,9 +86,20 @@ class EstimateResult(NamedTuple):
     meta: dict
 
 
+#: The baseline :func:`estimate_log` offers beside the filters' registry (as ``imu-ground evaluate`` does).
+NAIVE = "naive"
+_NAIVE_DESCRIPTION = ("constant normal: the static extrinsic alone, pitch and roll 0 relative to the road "
+                      "(the paper's naive baseline, a reference to compare with)")
+
+
 def available_methods() -> dict[str, tuple[str, bool]]:
-    """Method name -> (one-line description, needs accelerometer data), from :data:`imu_ground.filters.methods.METHODS`."""
-    return {name: (spec.description, bool(spec.needs_accel)) for name, spec in METHODS.items()}
+    """Method name -> (one-line description, needs accelerometer data).
+
+    The filters' registry (:data:`imu_ground.filters.methods.METHODS`) and ``"naive"``, the
+    constant normal of the static extrinsic (the same baseline ``imu-ground evaluate`` runs).
+    """
+    return {**{name: (spec.description, bool(spec.needs_accel)) for name, spec in METHODS.items()},
+            NAIVE: (_NAIVE_DESCRIPTION, False)}
 
 
 def resolve_method(method: str, has_accel: bool) -> str:
@@ -245,6 +271,8 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
     kind, fmt = detect_input(path, format)
     settings: dict = {"method": method, "rate": rate, "extrinsic": None if extrinsic is None else str(extrinsic),
                       "Q": Q, "R": R, **reader_kw}
+    settings["options"] = requested_options(method=method, rate=rate, extrinsic=extrinsic, Q=Q, R=R, speed=speed,
+                                            **reader_kw)
     bar = _steps(progress)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -290,6 +318,8 @@ def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
         warnings.warn(f"{path}: the IMU's body frame is {imu.frame!r}, not FLU (x forward, y left, z up), and no "
                       "extrinsic was given: pitch and roll refer to the sensor's own axes; run 'imu-ground "
                       "calibrate' once and pass the result with --extrinsic")
+    else:
+        check_gravity_direction(imu, extrinsic, path)
     frame_rate = DEFAULT_FRAME_RATE if rate is None else rate
     try:
         em = imu_to_egomotion(imu, rate=frame_rate)
@@ -341,7 +371,7 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
     if speed is None or (isinstance(speed, str) and speed == "none"):
         return None, "none"
     auto = isinstance(speed, str) and speed == "auto"
-    if not METHODS[method].speed_aided:
+    if method not in METHODS or not METHODS[method].speed_aided:
         if auto:
             return None, f"none (method {method} does not use a speed)"
         raise OptionError(f"{{opt}} is used by the suspension methods only, not by method {method} (leave it out)",
@@ -360,8 +390,13 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
     else:
         try:
             got = read_speed(speed, log=path, format=fmt, imu=imu)
+            t_sp, v_sp, notes = check_speed(*got, str(speed), imu)
         except (ValueError, FileNotFoundError) as e:
-            raise OptionError(f"{{opt}} {speed}: {e}", "speed") from e
+            text = str(e).removeprefix(f"{speed}: ")
+            raise OptionError(f"{{opt}} {speed}: {text}", "speed") from e
+        for note in notes:
+            warnings.warn(f"speed {note}")
+        got = (t_sp, v_sp)
         what = f"{speed}"
     v = frame_speed(*got, em.t, em.delta_t)
     if not np.isfinite(v).any():
@@ -372,10 +407,23 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
 
 def _run_method(name: str, em, ext, Q, R, speed=None):
     """Run method ``name`` of the registry over the ego-motion (noise options and speed only when given)."""
+    if name == NAIVE:
+        return _constant_normal_track(em, ext)
     spec = METHODS[name]
     noise = {k: v for k, v in (("Q", Q), ("R", R)) if v is not None}
     extra = {} if speed is None else {"speed": speed}
     return spec.make(extrinsic=ext, **noise).run(em, smooth=bool(spec.smooth), **extra)
+
+
+def _constant_normal_track(em, ext):
+    """The naive track: the residual road <- body is the identity on every frame (the static extrinsic's normal)."""
+    rgs = static_rotation(ext)
+    d = np.asarray(em.delta_R, dtype=float)
+    body = d if rgs is None else rgs @ d @ rgs.T
+    n = len(body)
+    cum = cumulative_rotations(body, renorm_every=RENORM_EVERY) if n else np.zeros((0, 3, 3))
+    return GroundTrack.from_residuals(np.tile(np.eye(3), (n, 1, 1)), cum, np.zeros((n, 3, 3)), cum, rgs,
+                                      ext.translation, t=em.t, valid=em.valid)
 
 
 def estimate_to_files(path: str | Path, outputs, kinds=None, **kwargs: Any):

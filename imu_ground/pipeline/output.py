@@ -45,6 +45,7 @@ __all__ = [
     "check_output_path",
     "default_output_name",
     "package_version",
+    "read_output_settings",
     "result_table",
     "track_table",
     "summarize_table",
@@ -308,8 +309,10 @@ def _write_tum(path: Path, table, meta: Mapping[str, Any]) -> None:
     q_xyzw = Rotation.from_matrix(dyn).as_quat() if len(dyn) else np.zeros((0, 4))
     t = table["t"].to_numpy(dtype=float)[keep]
     rows = np.column_stack([t, np.broadcast_to(trans, (len(t), 3)), q_xyzw])
+    settings = json.dumps(meta.get("settings", {}), sort_keys=True, default=str)
     np.savetxt(path, rows, fmt="%.9f",
-               header="dynamic extrinsic ground <- sensor of the valid frames: t x y z qx qy qz qw")
+               header="dynamic extrinsic ground <- sensor of the valid frames: t x y z qx qy qz qw\n"
+                      f"settings: {settings}")
 
 
 def _write_ros(path: Path, table, meta: Mapping[str, Any]) -> None:
@@ -321,6 +324,32 @@ def _write_ros(path: Path, table, meta: Mapping[str, Any]) -> None:
     except ImportError as e:                                     # rosbags / mcap load on first use
         raise ValueError(f"{path}: writing {path.suffix} needs the ROS extras: pip install 'imu-ground[ros]' "
                          f"({e})") from None
+
+
+def read_output_settings(path: _PathLike) -> dict | None:
+    """The ``settings`` an output of this package records (CSV and TUM header, Parquet schema), or None.
+
+    None when the file has no such record (a ROS bag or MCAP, whose settings topic
+    is not read here, or a file written by something else).
+    """
+    p = Path(path)
+    suffix = p.suffix.lower()
+    try:
+        if suffix == ".parquet":
+            import pyarrow.parquet as pq
+            raw = (pq.read_schema(p).metadata or {}).get(b"imu_ground")
+            return json.loads(raw).get("settings") if raw else None
+        if suffix in (".csv", ".tum"):
+            with open(p, encoding="utf-8") as fh:
+                for line in fh:
+                    if not line.startswith("#"):
+                        break
+                    text = line.lstrip("# ").rstrip("\n")
+                    if text.startswith("settings: "):
+                        return json.loads(text[len("settings: "):])
+    except (OSError, ValueError, ImportError):
+        return None
+    return None
 
 
 _WRITERS = {".csv": _write_csv, ".parquet": _write_parquet, ".tum": _write_tum, ".bag": _write_ros,

@@ -294,8 +294,10 @@ def renormalise(r: np.ndarray) -> np.ndarray:
 # ``*_flat``: a 3x3 matrix is a row-major sequence of 9 floats.
 # ---------------------------------------------------------------------------
 def exp_flat(x: float, y: float, z: float) -> tuple:
-    """:func:`exp` of the rotation vector ``(x, y, z)`` (rad) as a row-major 9-tuple."""
+    """:func:`exp` of the rotation vector ``(x, y, z)`` (rad) as a row-major 9-tuple (NaN: angle not finite)."""
     t2 = x * x + y * y + z * z
+    if not math.isfinite(t2):           # an infinite angle (or one whose square overflows) has no rotation
+        return (math.nan,) * 9
     if t2 < SMALL_ANGLE * SMALL_ANGLE:
         a = 1.0 - t2 / 6.0 + t2 * t2 / 120.0
         b = 0.5 - t2 / 24.0 + t2 * t2 / 720.0

@@ -1,0 +1,106 @@
+"""Checks of :func:`~imu_ground.pipeline.estimate_log`'s input that need no estimate: options, axes, settings.
+
+- :class:`OptionError` (re-exported from :mod:`imu_ground.datasets.options`, the one option-error
+  class): a bad option value whose message names the option as the user spells it.
+- :func:`check_gravity_direction`: the log's mean specific force (gravity, "up")
+  against the up axis the extrinsic assigns to the sensor (ground <- sensor, third
+  row): a z-down sensor or a camera extrinsic on an IMU log is said, not estimated.
+- :func:`requested_options`: the options of a run as given, the record an output
+  keeps so that a rerun can tell whether it was made with the same settings.
+"""
+from __future__ import annotations
+
+import json
+import math
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from imu_ground.datasets.options import OptionError
+
+__all__ = ["GRAVITY_REFUSE_DEG", "GRAVITY_WARN_DEG", "OptionError", "check_gravity_direction", "gravity_angle",
+           "requested_options"]
+
+
+def requested_options(*, method: str = "auto", rate: float | None = None, extrinsic: Any = None, Q: Any = None,
+                      R: Any = None, speed: Any = None, **reader_options: Any) -> dict:
+    """The options of a run as the user gave them, in JSON form: what an output records as ``settings["options"]``.
+
+    Two runs with equal options write equal outputs from the same log, so ``imu-ground
+    batch`` compares this with an existing output's record to tell whether it may be kept.
+    ``format`` and None-valued reader options are left out (a detected format is the
+    same format); a speed given as an array is recorded as ``"per-frame array"``.
+    """
+    if speed is None or isinstance(speed, str) and speed == "none":
+        speed_text = "none"
+    elif isinstance(speed, (np.ndarray, list, tuple)):
+        speed_text = "per-frame array"
+    else:
+        speed_text = str(speed)
+    out = {"method": method, "rate": None if rate is None else float(rate),
+           "extrinsic": None if extrinsic is None else str(extrinsic), "Q": Q, "R": R, "speed": speed_text,
+           **{k: v for k, v in reader_options.items() if v is not None and k != "format"}}
+    return json.loads(json.dumps(out, sort_keys=True, default=str))
+
+
+#: Angle (deg) between the log's mean specific force and the extrinsic's up axis above which a warning is given.
+GRAVITY_WARN_DEG = 10.0
+#: Above this angle (deg) the axes do not match the extrinsic at all (a z-down sensor, a camera extrinsic): refused.
+GRAVITY_REFUSE_DEG = 60.0
+
+
+def gravity_angle(accel: np.ndarray, extrinsic: Any = None) -> float:
+    """Angle, deg, between the mean specific force of a log and the up axis the extrinsic assigns to the sensor.
+
+    At rest and on average over a drive an accelerometer reads the reaction to
+    gravity, "up"; the extrinsic (ground <- sensor) says that up is its third row
+    (the ground's z axis in sensor coordinates). NaN when the mean specific force is
+    too small to have a direction (under 1 m/s^2: no accelerometer data).
+
+    Parameters
+    ----------
+    accel : ndarray (N, 3)
+        Specific force, m/s^2, sensor frame (non-finite rows are left out).
+    extrinsic : None, str, Path, Extrinsic or ndarray (3, 3)
+        As :func:`estimate_log` takes it (None: identity, up = sensor z).
+    """
+    from imu_ground.filters import Extrinsic
+    a = np.asarray(accel, dtype=float).reshape(-1, 3)
+    a = a[np.all(np.isfinite(a), axis=1)]
+    if not len(a):
+        return float("nan")
+    f = a.mean(axis=0)
+    norm = float(np.linalg.norm(f))
+    if norm < 1.0:
+        return float("nan")
+    up = Extrinsic.coerce(extrinsic).rotation[2]
+    return float(np.degrees(np.arccos(np.clip(f @ up / norm, -1.0, 1.0))))
+
+
+def check_gravity_direction(imu, extrinsic: Any, path: str | Path) -> float:
+    """Warn, or refuse, when a log's mean specific force is not along the extrinsic's up axis.
+
+    A sensor mounted z-down (FRD) without an extrinsic, or a camera extrinsic on an IMU
+    log, turns every angle: the output would look plausible and be wrong. Above
+    :data:`GRAVITY_WARN_DEG` a warning gives the angle; above :data:`GRAVITY_REFUSE_DEG`
+    an :class:`OptionError` naming ``extrinsic`` (``--extrinsic``).
+
+    Returns
+    -------
+    float
+        The angle, deg (:func:`gravity_angle`).
+    """
+    angle = gravity_angle(imu.accel, extrinsic)
+    if not math.isfinite(angle) or angle <= GRAVITY_WARN_DEG:
+        return angle
+    given = "the identity (sensor z up; no extrinsic given)" if extrinsic is None else f"{extrinsic}"
+    what = (f"{path}: the log's mean specific force (gravity) is {angle:.1f} deg from the up axis of the extrinsic, "
+            f"{given}")
+    if angle > GRAVITY_REFUSE_DEG:
+        raise OptionError(what + ": the sensor's axes do not match it (a z-down sensor?); run 'imu-ground calibrate' "
+                          "on this log and pass the file with {opt}, or the {opt} of this sensor", "extrinsic")
+    warnings.warn(what + ": pitch and roll carry that tilt; calibrate the mounting ('imu-ground calibrate') and "
+                  "pass it with --extrinsic")
+    return angle
