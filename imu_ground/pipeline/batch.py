@@ -24,6 +24,7 @@ from imu_ground.pipeline.output import (
     atomic_path,
     check_output_path,
     default_output_name,
+    read_output_settings,
     summarize_table,
 )
 
