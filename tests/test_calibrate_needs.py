@@ -41,7 +41,7 @@ def _one_error_line(capsys) -> str:
     """The one error line on stderr (warnings, ``file: warning: ...``, may stand before it, one line each)."""
     lines = capsys.readouterr().err.strip().splitlines()
     errors = [ln for ln in lines if ": warning: " not in ln]
-    assert len(errors) == 1 and errors[0].startswith("imu-ground calibrate: error: "), lines
+    assert len(errors) == 1 and errors[0].startswith("imu-ground ") and ": error: " in errors[0], lines
     return errors[0]
 
 
