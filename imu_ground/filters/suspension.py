@@ -15,7 +15,8 @@ Pipeline, per frame k
 1. **Gravity and velocity** (:class:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter`):
    the speed (which scales the road process noise), the gravity-compensated
    acceleration ``a`` and the specific force ``f``, frame means in the body frame.
-2. **Suspension model**: the load ``u = a + s (f - a)`` (``s = load``: the share
+2. **Suspension model**: the load ``u = a + s (f - a)`` (``a_y`` from speed times yaw rate
+   where a speed is measured, ``lateral``) (``s = load``: the share
    of gravity's road-plane component the springs feel, 0 to 1), optionally
    through a second-order ``response``; the body tilt relative to the road
    ``b_k = [k_roll u_y, k_pitch u_x + k_cross u_y, 0]`` (rotation vector: roll about x, pitch
@@ -96,6 +97,7 @@ __all__ = [
 
 _I3 = np.eye(3)
 _LOADS = {"specific_force": 1.0, "acceleration": 0.0}
+_LATERAL = ("auto", "kinematic", "accelerometer")
 
 
 @dataclass
@@ -193,6 +195,13 @@ class SuspensionAwareFilter:
     cross_gain : float
         Pitch (nose down +) per m/s^2 of lateral load ``u_y``, rad
         (:data:`~imu_ground.filters.gains.DEFAULT_CROSS_GAIN`; 0 disables).
+    lateral : {"auto", "kinematic", "accelerometer"}
+        The lateral acceleration in the load ``u_y``: ``"kinematic"`` is speed times yaw rate
+        (``v psi_k / dt``, the centripetal acceleration of the path; the measured speed where
+        given, else the gravity/velocity filter's), ``"accelerometer"`` the gravity-compensated
+        accelerometer ``a_y`` (it carries every error of the gravity estimate); ``"auto"``
+        (default): kinematic on frames with a measured speed, accelerometer elsewhere (an
+        IMU-only speed estimate drifts, and speed times yaw rate with it).
 
     Attributes
     ----------
@@ -226,8 +235,11 @@ class SuspensionAwareFilter:
                  smoother_weight: float = 0.25, extrinsic=None,
                  lever_arm: Optional[Sequence[float]] = None, gravity: Optional[dict] = None,
                  R0: Optional[np.ndarray] = None, on_invalid: str = "raise",
-                 cross_gain: float = DEFAULT_CROSS_GAIN) -> None:
+                 cross_gain: float = DEFAULT_CROSS_GAIN, lateral: str = "auto") -> None:
         self.cross_gain = float(cross_gain)
+        if lateral not in _LATERAL:
+            raise ValueError(f"lateral must be one of {', '.join(_LATERAL)}, got {lateral!r}")
+        self.lateral = lateral
         self.extrinsic, file_gains = resolve_platform(extrinsic)
         if gains is None:
             gains = DEFAULT_GAINS if file_gains is None else file_gains
@@ -399,11 +411,14 @@ class SuspensionAwareFilter:
             (fx, fy, _), (ax, ay, _), v = gf.step_sensor(d.ravel().tolist(), dv.tolist(), dt, bool(stationary),
                                                          bool(valid), sp)
         s = self.load_share
+        self.speed = speed = v if math.isnan(sp) else sp
         ux, uy = ax + s * (fx - ax), ay + s * (fy - ay)
+        if self.lateral == "kinematic" or (self.lateral == "auto" and not math.isnan(sp)):
+            db = d if self._Rgs is None else self._Rgs @ np.asarray(d, dtype=float).reshape(3, 3) @ self._Rgs.T
+            uy += speed * math.atan2(db[1][0] - db[0][1], db[0][0] + db[1][1]) / dt - ay
         if self._resp is not None:
             ux, uy = self._resp.step(np.array([ux, uy])).tolist()
         self._load = (ux, uy)
-        self.speed = speed = v if math.isnan(sp) else sp
         kp, kr = self._kp, self._kr
         if self.online_gains:
             self._update_gains(d, ax, ay)
@@ -467,6 +482,11 @@ class SuspensionAwareFilter:
         if speed is not None:
             gt.speed = np.where(np.isfinite(speed), speed, gt.speed)
         u = (gt.acceleration + self.load_share * (gt.specific_force - gt.acceleration))[:, :2]
+        if self.lateral != "accelerometer" and m:
+            kin = gt.speed * twist_angle(gt.body_increments) / np.asarray(sub.delta_t, dtype=float)
+            use = np.full(m, self.lateral == "kinematic") if speed is None else \
+                (self.lateral == "kinematic") | np.isfinite(speed)
+            u[use, 1] += kin[use] - gt.acceleration[use, 1]
         if self._resp is not None:
             u = self._resp.run(u)
         if m:
