@@ -161,7 +161,8 @@ class SuspensionAwareFilter:
         Initial variance of the road attitude, units of ``sigma_e^2``.
     load : {"specific_force", "acceleration"} or float
         Share (0 to 1) of gravity's road-plane component in the load;
-        ``"acceleration"`` is 0, ``"specific_force"`` 1.
+        ``"acceleration"`` is 0, ``"specific_force"`` 1 (the default: the springs feel the
+        specific force, and the load then needs no gravity estimate; figures in ``benchmarks/RESULTS.md``).
     response : (float, float), optional
         Second-order response ``(freq_hz, damping)`` (unit static gain) applied
         to the load; None: quasi-static.
@@ -229,7 +230,7 @@ class SuspensionAwareFilter:
 
     def __init__(self, gains: Optional[Sequence[float]] = None, sigma_e: float = 0.2 * DEG,
                  q_time: float = 0.1, q_dist: float = 0.1, q_yaw: float = 1.0, r_yaw: float = 1e-6,
-                 P0: float = 1.0, load: Union[str, float] = 0.6, response: Optional[Sequence[float]] = None,
+                 P0: float = 1.0, load: Union[str, float] = 1.0, response: Optional[Sequence[float]] = None,
                  online_gains: bool = False, gain_prior_seconds: float = 60.0,
                  gain_band: Sequence[float] = GAIN_BAND, frame_rate: Optional[float] = None,
                  smoother_weight: float = 0.25, extrinsic=None,
