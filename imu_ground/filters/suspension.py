@@ -23,7 +23,7 @@ Pipeline, per frame k
    about y; ``k_cross = cross_gain``, the pitch from the lateral load).
 3. **Invariant EKF on SO(3)** (left error) on the road attitude ``X``: predict
    ``X <- X Rz(psi_k)`` (the road turns with the heading) with noise
-   ``diag(q_k, q_k, q_yaw)``, ``q_k = (q_time + q_dist |v_k|) dt_k sigma_e^2``;
+   ``diag(q_k, q_k, q_yaw)``, ``q_k = ((q_time + q_dist |v_k|) dt_k + q_turn |psi_k|) sigma_e^2``;
    update with the rotation measurement ``Z_k = R_k Exp(-b_k)``, noise
    ``diag(sigma_e^2, sigma_e^2, r_yaw sigma_e^2)``. It runs as the scalar
    :class:`~imu_ground.filters.residual.ResidualKernel` (the modelled tilt is its ``tilt_x, tilt_y``;
@@ -152,6 +152,11 @@ class SuspensionAwareFilter:
         Std of the unmodelled body motion per frame, rad (0.2 deg).
     q_time, q_dist : float
         Road process noise in units of ``sigma_e^2`` per second and per metre.
+    q_turn : float
+        Road process noise in units of ``sigma_e^2`` per radian of heading change (10): a car
+        that turns onto another road meets another bank and grade within metres, and without
+        it the road state smooths that change into the body's roll (chosen on one revisit drive,
+        held on the other; ``benchmarks/RESULTS.md``).
     q_yaw : float
         Process noise about up per frame, rad^2.
     r_yaw : float
@@ -236,7 +241,7 @@ class SuspensionAwareFilter:
                  smoother_weight: float = 0.25, extrinsic=None,
                  lever_arm: Optional[Sequence[float]] = None, gravity: Optional[dict] = None,
                  R0: Optional[np.ndarray] = None, on_invalid: str = "raise",
-                 cross_gain: float = DEFAULT_CROSS_GAIN, lateral: str = "auto") -> None:
+                 cross_gain: float = DEFAULT_CROSS_GAIN, lateral: str = "auto", q_turn: float = 10.0) -> None:
         self.cross_gain = float(cross_gain)
         if lateral not in _LATERAL:
             raise ValueError(f"lateral must be one of {', '.join(_LATERAL)}, got {lateral!r}")
@@ -246,10 +251,10 @@ class SuspensionAwareFilter:
             gains = DEFAULT_GAINS if file_gains is None else file_gains
         self.gains0 = np.array(gains, dtype=float).reshape(2)
         self.sigma_e = float(sigma_e)
-        self.q_time, self.q_dist = float(q_time), float(q_dist)
+        self.q_time, self.q_dist, self.q_turn = float(q_time), float(q_dist), float(q_turn)
         self.q_yaw, self.r_yaw, self.P0 = float(q_yaw), float(r_yaw), float(P0)
-        if not (min(self.sigma_e, self.q_yaw, self.r_yaw, self.P0) > 0 and min(self.q_time, self.q_dist) >= 0):
-            raise ValueError("sigma_e, q_yaw, r_yaw and P0 must be positive; q_time and q_dist non-negative")
+        if not (min(self.sigma_e, self.q_yaw, self.r_yaw, self.P0) > 0 and min(self.q_time, self.q_dist, self.q_turn) >= 0):
+            raise ValueError("sigma_e, q_yaw, r_yaw and P0 must be positive; q_time, q_dist and q_turn non-negative")
         self.load = load
         self.load_share = _load_share(load)
         self.response = None if response is None else (float(response[0]), float(response[1]))
@@ -414,16 +419,16 @@ class SuspensionAwareFilter:
         s = self.load_share
         self.speed = speed = v if math.isnan(sp) else sp
         ux, uy = ax + s * (fx - ax), ay + s * (fy - ay)
+        psi = _heading_change(d, self._Rgs)
         if self.lateral == "kinematic" or (self.lateral == "auto" and not math.isnan(sp)):
-            db = d if self._Rgs is None else self._Rgs @ np.asarray(d, dtype=float).reshape(3, 3) @ self._Rgs.T
-            uy += speed * math.atan2(db[1][0] - db[0][1], db[0][0] + db[1][1]) / dt - ay
+            uy += speed * psi / dt - ay
         if self._resp is not None:
             ux, uy = self._resp.step(np.array([ux, uy])).tolist()
         self._load = (ux, uy)
         kp, kr = self._kp, self._kr
         if self.online_gains:
             self._update_gains(d, ax, ay)
-        q = (self.q_time + self.q_dist * speed) * dt * self._r
+        q = ((self.q_time + self.q_dist * speed) * dt + self.q_turn * abs(psi)) * self._r
         self._q_last = q
         o = self._kstep(self._kbuf, d, q, self.q_yaw, kr * uy, kp * ux + self.cross_gain * uy, None, 1.0)
         return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o)
@@ -483,8 +488,9 @@ class SuspensionAwareFilter:
         if speed is not None:
             gt.speed = np.where(np.isfinite(speed), speed, gt.speed)
         u = (gt.acceleration + self.load_share * (gt.specific_force - gt.acceleration))[:, :2]
+        psi = twist_angle(gt.body_increments)
         if self.lateral != "accelerometer" and m:
-            kin = gt.speed * twist_angle(gt.body_increments) / np.asarray(sub.delta_t, dtype=float)
+            kin = gt.speed * psi / np.asarray(sub.delta_t, dtype=float)
             use = np.full(m, self.lateral == "kinematic") if speed is None else \
                 (self.lateral == "kinematic") | np.isfinite(speed)
             u[use, 1] += kin[use] - gt.acceleration[use, 1]
@@ -496,7 +502,7 @@ class SuspensionAwareFilter:
         susp = ks * u                                   # (pitch, roll) = (k_p u_x, k_r u_y) ...
         susp[:, 0] += self.cross_gain * u[:, 1]         # ... + the pitch from the lateral load
         dt = np.asarray(sub.delta_t, dtype=float)
-        q = (self.q_time + self.q_dist * gt.speed) * dt * self._r
+        q = ((self.q_time + self.q_dist * gt.speed) * dt + self.q_turn * np.abs(psi)) * self._r
         o = self._kernel.run(sub.delta_R, q, self.q_yaw, susp[:, 1], susp[:, 0])
         if m:
             self._q_last = float(q[-1])
@@ -547,6 +553,13 @@ class SuspensionAwareFilter:
             Ps[:] = (1.0 - w) * Ps + w * Psm
             return Xs @ so3.exp(w * so3.log(np.swapaxes(Xs, 1, 2) @ Xsm))
         return Xs
+
+
+def _heading_change(d: np.ndarray, Rgs: Optional[np.ndarray]) -> float:
+    """Twist (rad) about the ground's up axis of a sensor-frame increment ``d`` (``Rgs``: ground <- sensor)."""
+    if Rgs is not None:
+        d = Rgs @ d @ Rgs.T
+    return math.atan2(d[1, 0] - d[0, 1], d[0, 0] + d[1, 1])
 
 
 def _frames_of(em, keep: np.ndarray):
