@@ -152,12 +152,14 @@ def test_evaluate_reports_revisit_on_shared_drives(shared_data, tmp_path, capsys
     for name in REVISIT_DRIVES:
         (folder / f"{name}.csv.gz").symlink_to(shared_data / "kitti_imu100" / f"{name}.csv.gz")
     csv = tmp_path / "res.csv"
+    md = tmp_path / "summary.md"
     code = main(["evaluate", "--real", str(folder), "--methods", "suspension,naive", "--no-progress",
-                 "--csv", str(csv)])
+                 "--csv", str(csv), "--markdown", str(md)])
     out = capsys.readouterr().out
     assert code == 0
     assert "revisit" in out
     assert "reference's own uncertainty" in out
+    assert "Revisit consistency" in md.read_text() and "| pooled | suspension |" in md.read_text()
     res = pd.read_csv(csv)
     tab = revisit_table(res)
     for name in REVISIT_DRIVES:

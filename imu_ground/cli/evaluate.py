@@ -26,7 +26,9 @@ def register(sub) -> None:
     v = sub.add_parser("evaluate", help="compare methods on real and/or synthetic drives",
                        description="Error of every method against the reference (real KITTI drives: pitch relative "
                                    "to the road from the INS; synthetic drives: exact truth), like the paper's "
-                                   "Table 2. Give --real, --synthetic or both.")
+                                   "Table 2; on real drives also the pitch error by the reference's own uncertainty and, on drives "
+                                   "that pass the same place twice, the revisit consistency of pitch and roll (no "
+                                   "grade reference). Give --real, --synthetic or both.")
     v.add_argument("--real", metavar="DIR", help="folder of kitti_imu100 drives (*.csv.gz), e.g. ../shared/data/kitti_imu100")
     v.add_argument("--synthetic", type=nonnegative_int, default=0, metavar="N",
                    help="number of synthetic drives per IMU grade (default 0)")
@@ -130,7 +132,13 @@ def run(a: argparse.Namespace) -> int:
         _write_text(a.csv, res.to_csv(index=False, float_format="%.5f"))
         say(f"wrote {a.csv}")
     if a.markdown:
-        _write_text(a.markdown, format_table(table[cols], "markdown") + "\n")
+        md = format_table(table[cols], "markdown") + "\n"
+        if len(sig):
+            md += "\nPitch error by the reference's own uncertainty (deg):\n\n" + format_table(sig, "markdown") + "\n"
+        if len(rev):
+            md += ("\nRevisit consistency (mean |difference| / sqrt(2), deg):\n\n"
+                   + format_table(rev, "markdown") + "\n")
+        _write_text(a.markdown, md)
         say(f"wrote {a.markdown}")
     if a.plots:
         from imu_ground.evaluation.plots import evaluation_plots
