@@ -212,7 +212,8 @@ def main(argv=None) -> int:
     out = pd.DataFrame(rows(Path(a.data), a.drives))
     for name, g in out.groupby("table", sort=False):
         print(f"\n{name}")
-        print(g.dropna(axis=1, how="all").drop(columns="table").to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+        table = g.dropna(axis=1, how="all").drop(columns="table")
+        print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
     return 0
 
 

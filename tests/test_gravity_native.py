@@ -87,7 +87,8 @@ CONFIGS = {
     "default": {},
     "extrinsic, lever arm": dict(extrinsic=Extrinsic(so3.rotz(0.1) @ so3.roty(0.03) @ so3.rotx(-0.02),
                                                      [0.4, 0.1, 1.1]), lever_arm=[0.4, 0.1, 1.1], q_gap_g=0.0),
-    "zero noise, gravity given": dict(q_v=0.0, q_g=0.0, q_gap=0.0, q_gap_g=0.0, g0=[0.0, 0.0, 9.81], v0=[1.0, 0.0, 0.0]),
+    "zero noise, gravity given": dict(q_v=0.0, q_g=0.0, q_gap=0.0, q_gap_g=0.0, g0=[0.0, 0.0, 9.81],
+                                      v0=[1.0, 0.0, 0.0]),
     "tight gate, speed noise": dict(zupt_gate=0.5, sigma_speed=0.5, R0=so3.rotx(0.2)),
 }
 

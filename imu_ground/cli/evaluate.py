@@ -26,9 +26,9 @@ def register(sub) -> None:
     v = sub.add_parser("evaluate", help="compare methods on real and/or synthetic drives",
                        description="Error of every method against the reference (real KITTI drives: pitch relative "
                                    "to the road from the INS; synthetic drives: exact truth), like the paper's "
-                                   "Table 2; on real drives also the pitch error by the reference's own uncertainty and, on drives "
-                                   "that pass the same place twice, the revisit consistency of pitch and roll (no "
-                                   "grade reference). Give --real, --synthetic or both.")
+                                   "Table 2; on real drives also the pitch error by the reference's own uncertainty "
+                                   "and, on drives that pass the same place twice, the revisit consistency of "
+                                   "pitch and roll (no grade reference). Give --real, --synthetic or both.")
     v.add_argument("--real", metavar="DIR", help="folder of kitti_imu100 drives (*.csv.gz), e.g. ../shared/data/kitti_imu100")
     v.add_argument("--synthetic", type=nonnegative_int, default=0, metavar="N",
                    help="number of synthetic drives per IMU grade (default 0)")

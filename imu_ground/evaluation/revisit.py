@@ -244,7 +244,8 @@ def revisit_table(results):
             (("pooled", m), g) for m, g in ok.groupby("method", sort=False)]:
         n = int(g["revisit_n"].sum())
         rows.append({"drive": key[0], "method": key[1], "pairs": n,
-                     "pitch_deg": g["revisit_pitch_sum"].sum() / n * s, "roll_deg": g["revisit_roll_sum"].sum() / n * s})
+                     "pitch_deg": g["revisit_pitch_sum"].sum() / n * s,
+                     "roll_deg": g["revisit_roll_sum"].sum() / n * s})
     if not rows:
         return pd.DataFrame(columns=["pairs", "pitch_deg", "roll_deg"])
     return pd.DataFrame(rows).set_index(["drive", "method"])

@@ -182,7 +182,8 @@ class GravityVelocityFilter:
     kernel = NATIVE if NATIVE is not None else gravity_kernel
 
     def __init__(self, sigma_nhc: float = 0.3, sigma_zupt: float = 0.05, q_v: float = 0.05,
-                 q_g: float = 1e-6, q_gap: float = 1.0, q_gap_g: float = 0.1, sigma_v0: float = 30.0, sigma_g0: float = 1.0,
+                 q_g: float = 1e-6, q_gap: float = 1.0, q_gap_g: float = 0.1, sigma_v0: float = 30.0,
+                 sigma_g0: float = 1.0,
                  zupt_gate: float = 100.0, v0: Optional[Sequence[float]] = None,
                  g0: Optional[Sequence[float]] = None, extrinsic: Union[Extrinsic, np.ndarray, None] = None,
                  lever_arm: Optional[Sequence[float]] = None, R0: Optional[np.ndarray] = None,

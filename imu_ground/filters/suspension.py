@@ -253,7 +253,8 @@ class SuspensionAwareFilter:
         self.sigma_e = float(sigma_e)
         self.q_time, self.q_dist, self.q_turn = float(q_time), float(q_dist), float(q_turn)
         self.q_yaw, self.r_yaw, self.P0 = float(q_yaw), float(r_yaw), float(P0)
-        if not (min(self.sigma_e, self.q_yaw, self.r_yaw, self.P0) > 0 and min(self.q_time, self.q_dist, self.q_turn) >= 0):
+        if not (min(self.sigma_e, self.q_yaw, self.r_yaw, self.P0) > 0
+                and min(self.q_time, self.q_dist, self.q_turn) >= 0):
             raise ValueError("sigma_e, q_yaw, r_yaw and P0 must be positive; q_time, q_dist and q_turn non-negative")
         self.load = load
         self.load_share = _load_share(load)
