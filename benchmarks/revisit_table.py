@@ -9,7 +9,8 @@ This script reports:
   the evaluation and for the suspension filter in the configuration before the revisit work
   (``BEFORE``: load share 0.6, roll gain 0.5 deg/(m/s^2), accelerometer lateral load, no gravity
   noise through gaps, no road noise per heading change) and now, IMU only and with the INS
-  horizontal speed as the measured speed (``--speed auto`` on KITTI);
+  horizontal speed as the measured speed (``--speed auto`` on KITTI); and now without the road noise
+  per heading change (``q_turn=0``), the one change that trades INS-grade pitch for revisit roll;
 - ``INS-grade``: the same suspension variants on the INS-grade pitch reference of every valid
   drive (mean over drives, worst ratio to the paper's method: the guard rail, at most 1.1);
 - ``held out``: each changed setting chosen on one revisit drive and scored on the other (both
@@ -46,6 +47,8 @@ BEFORE = dict(gains=(-0.25 * DEG, 0.5 * DEG), load=0.6, lateral="accelerometer",
 VARIANTS = {
     "suspension before, IMU only": (BEFORE, False),
     "suspension before, + speed": (BEFORE, True),
+    "suspension now without q_turn, IMU only": (dict(q_turn=0.0), False),
+    "suspension now without q_turn, + speed": (dict(q_turn=0.0), True),
     "suspension now, IMU only": ({}, False),
     "suspension now, + speed (default)": ({}, True),
 }
@@ -175,7 +178,8 @@ def synthetic_rows(n: int = SYNTHETIC_DRIVES) -> list[dict]:
     ds = synthetic_drives(n, seed=0, progress=False)
     out = []
     for grade in ("nav", "mems"):
-        for label, kw in (("suspension before", BEFORE), ("suspension now", {})):
+        for label, kw in (("suspension before", BEFORE), ("suspension now without q_turn", dict(q_turn=0.0)),
+                          ("suspension now", {})):
             for smooth in (False, True):
                 p, r = [], []
                 for d in ds:
