@@ -172,3 +172,23 @@ def test_evaluate_reports_revisit_on_shared_drives(shared_data, tmp_path, capsys
     # the suspension model beats the constant normal in pitch on both drives
     for name in REVISIT_DRIVES:
         assert tab.loc[(name, "suspension"), "pitch_deg"] < tab.loc[(name, "naive"), "pitch_deg"]
+
+
+def test_sigma_table_pools_frames_per_bin():
+    from imu_ground.evaluation.runner import SIGMA_BINS, sigma_table
+    nb = len(SIGMA_BINS) - 1
+    rows = []
+    for method, err in (("a", 1.0), ("b", 2.0)):
+        for drive, n in (("d1", 10), ("d2", 30)):
+            row = {"drive": drive, "method": method, "kind": "real", "valid": True}
+            for b in range(nb):
+                k = n if b == 2 else 0                        # every frame in the third bin
+                row.update({f"sigma{b}_n": k, f"sigma{b}_sum": err * k, f"sigma{b}_ref_sum": 0.12 * k})
+            rows.append(row)
+    rows.append({"drive": "d3", "method": "a", "kind": "real", "valid": False})
+    tab = sigma_table(pd.DataFrame(rows))
+    assert len(tab) == 1                                        # empty bins are left out
+    lo, hi = SIGMA_BINS[2], SIGMA_BINS[3]
+    row = tab.loc[f"{lo:g}-{hi:g}"]
+    assert row["frames"] == 40 and row["a"] == pytest.approx(1.0) and row["b"] == pytest.approx(2.0)
+    assert row["ref_floor_deg"] == pytest.approx(math.sqrt(2 / math.pi) * 0.12)
