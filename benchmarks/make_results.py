@@ -16,7 +16,10 @@ and gyro pitch rate, and the methods' ranking, synthetic against real), and the
 real-drive error by speed, slow and fast, shared between methods and against the
 reference's own error (``error_budget.rows()``), and the timestamp policies
 ``drop`` against ``retime`` on the shared drives (``retime_table.rows()``: samples
-dropped, frames invalid, pitch error); these studies live in ``benchmarks/studies/``.
+dropped, frames invalid, pitch error), and the revisit consistency of pitch and roll on the
+drives that pass the same place twice, every method, the suspension filter before and after
+the revisit work, the settings held out (``revisit_table.rows()``); these studies live in
+``benchmarks/studies/``.
 Speed: the tables of the benchmark scripts in ``benchmarks/``, each of which exposes
 ``rows()`` returning its rows
 (``bench_filter``, ``bench_suspension``, ``bench_preintegration``, ``bench_ekf``,
@@ -51,13 +54,35 @@ SIMULATOR_CHECKS = ("sim_vs_real",)
 ERROR_BUDGET = ("error_budget",)
 #: Studies whose rows compare the readers' timestamp policies on the real drives (drop against retime).
 READER_CHECKS = ("retime_table",)
+#: Script whose rows are the revisit consistency (pitch and roll with no grade reference) and its checks.
+REVISIT = "revisit_table"
+#: Captions of the revisit script's tables, by its rows' ``table``.
+REVISIT_CAPTIONS = {
+    "revisit": "Road attitude (INS minus estimate) repeated between two passes over the same place, same "
+               "direction: mean |difference| / sqrt(2), deg, pitch / roll, per drive with revisit pairs and "
+               "pooled (pairs in the header). `suspension` is the evaluation's IMU-only default; `before` is the "
+               "suspension filter's configuration before this table existed, `now` today's; `+ speed` uses "
+               "the INS horizontal speed as the measured speed (`--speed auto`, the CLI default). The other "
+               "methods do not use what changed (gravity filter, suspension model): the same before and now.",
+    "INS-grade": "The same suspension variants against the INS-grade pitch reference on every valid drive: "
+                 "mean over drives of the per-drive mean absolute pitch error (deg), the worst drive's ratio "
+                 "to the paper's method (at most 1.1 allowed), and the error pooled over frames by the "
+                 "reference's own 1-sigma uncertainty (below 0.15 deg it can judge about 0.1 deg; above 0.25 "
+                 "it cannot).",
+    "held out": "Each changed setting chosen on one revisit drive (lowest pitch + roll there, all else at "
+                "today's defaults, with the speed) and scored on the other, and chosen on the first half (in "
+                "time) of every drive's pairs and scored on the second; the last column scores every value of "
+                "the grid on the held-out pairs.",
+    "synthetic": "The suspension filter before and now on the synthetic suite: mean absolute pitch and roll "
+                 "error, deg, exact truth, moving frames.",
+}
 #: Smaller sizes for ``--quick``, passed to a benchmark's ``rows()`` where it has the parameter.
 QUICK_KWARGS = {"frames": 20_000, "stream_frames": 5_000, "repeat": 2, "steps": 5_000, "samples": 60_000,
                 "stream_samples": 5_000, "hours": (0.1,), "n": 2, "drives": 4}
 QUICK_REAL_DRIVES = 6
 SYNTHETIC_DRIVES, QUICK_SYNTHETIC_DRIVES = 10, 2
 
-__all__ = ["accuracy_sections", "speed_sections", "main"]
+__all__ = ["accuracy_sections", "revisit_sections", "speed_sections", "main"]
 
 
 # ----------------------------------------------------------------------------- formatting
@@ -151,6 +176,31 @@ def _synthetic_section(quick: bool) -> list[str]:
             markdown(_frame_rows(summary)), "",
             "By condition (pitch, deg):", "",
             markdown(_frame_rows(conditions_table(res))), ""]
+
+
+def _revisit_pivot(rows: list[dict]) -> list[dict]:
+    """The long revisit rows (drive, method) as one row a method: ``pitch / roll`` per drive."""
+    out: dict[str, dict] = {}
+    for r in rows:
+        key = f"{r['drive']} ({r['pairs']} pairs)"
+        out.setdefault(r["method"], {"method": r["method"]})[key] = f"{_cell(r['pitch_deg'])} / {_cell(r['roll_deg'])}"
+    return list(out.values())
+
+
+def revisit_sections(quick: bool) -> list[str]:
+    """The revisit part of RESULTS.md: ``revisit_table.rows()`` as one table per kind of row."""
+    out = ["# Revisit consistency on the real drives", ""]
+    res = _run_benchmark(REVISIT, quick)
+    if res["status"] != "ok":
+        return out + [f"Skipped: `benchmarks/{REVISIT}.py` rows(): {res.get('error', res['status'])}", ""]
+    out += [f"`{REVISIT}.rows({_args(res['kwargs'])})`, {res['seconds']:.0f} s.", ""]
+    tables: dict[str, list[dict]] = {}
+    for r in res["rows"]:
+        tables.setdefault(r["table"], []).append({k: v for k, v in r.items() if k != "table"})
+    for name, rows in tables.items():
+        out += [f"## {name}", "", REVISIT_CAPTIONS.get(name, ""), "",
+                markdown(_revisit_pivot(rows) if name == "revisit" else rows), ""]
+    return out
 
 
 def accuracy_sections(data: Path, quick: bool) -> list[str]:
@@ -265,6 +315,7 @@ def main(argv: list[str] | None = None) -> int:
         lines += speed_sections(a.quick, ERROR_BUDGET, "Where the real-drive error is")
         lines += speed_sections(a.quick, SIMULATOR_CHECKS, "Simulator against the real drives")
         lines += speed_sections(a.quick, READER_CHECKS, "Timestamp policies on the real drives")
+        lines += revisit_sections(a.quick)
     if not a.no_speed:
         lines += speed_sections(a.quick)
     tmp = a.out.with_suffix(a.out.suffix + ".tmp")

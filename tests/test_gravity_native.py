@@ -77,8 +77,9 @@ def _speed(n, seed=3):
 CONFIGS = {
     "default": {},
     "extrinsic, lever arm": dict(extrinsic=Extrinsic(so3.rotz(0.1) @ so3.roty(0.03) @ so3.rotx(-0.02),
-                                                     [0.4, 0.1, 1.1]), lever_arm=[0.4, 0.1, 1.1]),
-    "zero noise, gravity given": dict(q_v=0.0, q_g=0.0, q_gap=0.0, g0=[0.0, 0.0, 9.81], v0=[1.0, 0.0, 0.0]),
+                                                     [0.4, 0.1, 1.1]), lever_arm=[0.4, 0.1, 1.1], q_gap_g=0.0),
+    "zero noise, gravity given": dict(q_v=0.0, q_g=0.0, q_gap=0.0, q_gap_g=0.0, g0=[0.0, 0.0, 9.81],
+                                      v0=[1.0, 0.0, 0.0]),
     "tight gate, speed noise": dict(zupt_gate=0.5, sigma_speed=0.5, R0=so3.rotx(0.2)),
 }
 
@@ -211,7 +212,7 @@ def _state():
 def test_argument_errors_name_the_argument():
     s = _state()
     d9, dv = np.eye(3).ravel().tolist(), [0.0, 0.0, 0.981]
-    with pytest.raises(ValueError, match="state must have 125 items"):
+    with pytest.raises(ValueError, match="state must have 126 items"):
         NATIVE.step_frame(s[:-1].copy(), d9, dv, 0.1, False, True, None)
     with pytest.raises(TypeError, match="state must hold float64"):
         NATIVE.step_frame(s.astype(np.float32), d9, dv, 0.1, False, True, None)

@@ -29,7 +29,7 @@ def _drive(n=400, seed=5):
 
 
 def _reference(em, d_body, dv_body, *, sigma_nhc=0.3, sigma_zupt=0.05, q_v=0.05, q_g=1e-6, q_gap=1.0,
-               sigma_v0=30.0, sigma_g0=1.0, gate=100.0):
+               q_gap_g=0.1, sigma_v0=30.0, sigma_g0=1.0, gate=100.0):
     """The model of the class docstring as a textbook Kalman filter on 6x6 matrices (numpy, Joseph form)."""
     x = np.zeros(6)
     P = np.diag([sigma_v0 ** 2] * 3 + [sigma_g0 ** 2] * 3)
@@ -46,7 +46,8 @@ def _reference(em, d_body, dv_body, *, sigma_nhc=0.3, sigma_zupt=0.05, q_v=0.05,
         F[:3, 3:] = -dt * np.eye(3)
         x = F @ x + np.concatenate([Rprev @ dv_body[k], np.zeros(3)])
         qv = (q_v ** 2 + (0.0 if em.valid[k] else q_gap ** 2)) * dt
-        P = F @ P @ F.T + np.diag([qv] * 3 + [q_g ** 2 * dt] * 3)
+        qg = (q_g ** 2 + (0.0 if em.valid[k] else q_gap_g ** 2)) * dt
+        P = F @ P @ F.T + np.diag([qv] * 3 + [qg] * 3)
         H = np.hstack([R.T, np.zeros((3, 3))])
         Rm = sigma_zupt ** 2 * np.eye(3)
         use_zupt = bool(em.stationary[k])

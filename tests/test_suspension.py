@@ -128,10 +128,13 @@ def test_saver_records_filterpy_attributes(mems_drive):
 def test_defaults_and_validation():
     f = SuspensionAwareFilter()
     np.testing.assert_allclose(f.gains, DEFAULT_GAINS)
-    np.testing.assert_allclose(np.degrees(f.gains), [-0.25, 0.5])
+    np.testing.assert_allclose(np.degrees(f.gains), [-0.25, 0.4])
     r = (0.2 * DEG) ** 2
     np.testing.assert_allclose(f.R, np.diag([r, r, 1e-6 * r]))
-    assert f.load == 0.6 and f.load_share == 0.6 and not f.online_gains
+    assert f.load == 1.0 and f.load_share == 1.0 and not f.online_gains
+    assert f.lateral == "auto"
+    with pytest.raises(ValueError):
+        SuspensionAwareFilter(lateral="gps")
     assert SuspensionAwareFilter(load="specific_force").load_share == 1.0
     with pytest.raises(ValueError):
         SuspensionAwareFilter(load="torque")

@@ -74,11 +74,11 @@ def register(sub) -> None:
                    help="also write the dynamic extrinsic (ground <- sensor) of the valid frames as TUM poses "
                         "(t x y z qx qy qz qw), e.g. for evo")
     add_method_flags(e)
-    e.add_argument("--speed", default="none", metavar="auto|none|FILE|COLUMN",
-                   help="measured vehicle speed for the suspension methods (speed-aided mode): none (default, IMU "
-                        "only); auto (the log's own: KITTI INS horizontal speed, nuScenes CAN pose, comma2k19 CAN, "
-                        "ROS twist/odometry); a CSV file with columns t,speed (s on the log's time base, m/s); or "
-                        "the name of a speed column of a CSV log")
+    e.add_argument("--speed", default="auto", metavar="auto|none|FILE|COLUMN",
+                   help="measured vehicle speed for the suspension methods (speed-aided mode): auto (default: the "
+                        "log's own where its format has one: KITTI INS horizontal speed, nuScenes CAN pose, comma2k19 "
+                        "CAN, ROS twist/odometry; else IMU only); none (IMU only); a CSV file with columns t,speed (s "
+                        "on the log's time base, m/s); or the name of a speed column of a CSV log")
     add_reader_flags(e, poses=True)
     add_progress_flag(e)
     e.set_defaults(func=run)

@@ -15,9 +15,11 @@ from imu_ground.evaluation.runner import (
     evaluate,
     format_table,
     load_real_drives,
+    sigma_table,
     summary_table,
     synthetic_drives,
 )
+from imu_ground.evaluation.revisit import revisit_table
 from imu_ground.pipeline.output import atomic_path, check_output_path
 
 __all__ = ["register", "run"]
@@ -33,7 +35,9 @@ def register(sub) -> None:
     v = sub.add_parser("evaluate", help="compare methods on real and/or synthetic drives",
                        description="Error of every method against the reference (real KITTI drives: pitch relative "
                                    "to the road from the INS; synthetic drives: exact truth), like the paper's "
-                                   "Table 2. Give --real, --synthetic or both.")
+                                   "Table 2; on real drives also the pitch error by the reference's own uncertainty "
+                                   "and, on drives that pass the same place twice, the revisit consistency of "
+                                   "pitch and roll (no grade reference). Give --real, --synthetic or both.")
     v.add_argument("--real", metavar="DIR", help="folder of kitti_imu100 drives (*.csv.gz), e.g. ../shared/data/kitti_imu100")
     v.add_argument("--synthetic", type=nonnegative_int, default=0, metavar="N",
                    help="number of synthetic drives per IMU grade (default 0)")
@@ -94,6 +98,20 @@ def run(a: argparse.Namespace) -> int:
         "own uncertainty; ref_share: the share of the squared error the reference alone can explain)")
     say("\nby condition (mean absolute pitch error, deg, pooled over frames):")
     say(format_table(conditions_table(res), "text"))
+    sig = sigma_table(res)
+    if len(sig):
+        say("\nreal drives, pitch error by the reference's own uncertainty (ref_sigma bins, deg; ref_floor_deg: what "
+            "a perfect estimator would score there, so the reference can judge 0.1 deg only where it is well below "
+            "0.1):")
+        say(format_table(sig, "text"))
+    rev = revisit_table(res)
+    if len(rev):
+        say("\nrevisit consistency (real drives that pass the same place twice in the same direction: the road's "
+            "attitude, INS minus estimate, must repeat; mean |difference| / sqrt(2), deg, over the pairs; no grade "
+            "reference involved):")
+        say(format_table(rev, "text"))
+    elif a.real is not None:
+        say("\nrevisit consistency: no drive passes the same place twice in the same direction")
     excluded = res[~res["valid"]].drop_duplicates("drive")
     if len(excluded):
         say("\nexcluded drives (reference not usable):")
@@ -108,7 +126,13 @@ def run(a: argparse.Namespace) -> int:
         _write_text(a.csv, res.to_csv(index=False, float_format="%.5f"))
         say(f"wrote {a.csv}")
     if a.markdown:
-        _write_text(a.markdown, format_table(table[cols], "markdown") + "\n")
+        md = format_table(table[cols], "markdown") + "\n"
+        if len(sig):
+            md += "\nPitch error by the reference's own uncertainty (deg):\n\n" + format_table(sig, "markdown") + "\n"
+        if len(rev):
+            md += ("\nRevisit consistency (mean |difference| / sqrt(2), deg):\n\n"
+                   + format_table(rev, "markdown") + "\n")
+        _write_text(a.markdown, md)
         say(f"wrote {a.markdown}")
     if a.plots:
         for p in evaluation_plots(drives, res, tracks, Path(a.plots)):

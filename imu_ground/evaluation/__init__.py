@@ -1,4 +1,4 @@
-"""Evaluation: reference, metrics, conditions, baselines, simulator, drives, plots and the runner."""
+"""Evaluation: reference, metrics, conditions, baselines, simulator, drives, plots, revisit consistency and the runner."""
 from imu_ground._lazy import lazy_exports
 
 _EXPORTS = {
@@ -15,7 +15,9 @@ _EXPORTS = {
     ".drives": "Drive load_real_drive load_real_drives synthetic_drive synthetic_drives",
     ".conditions": ("CONDITIONS frame_signals condition_masks moving_segments segment_centred "
                     "reference_sigma"),
-    ".runner": ("Method EVALUATION_METHODS METHODS TUNED run_method evaluate conditions_table "
-                "format_table summary_table"),
+    ".runner": ("Method EVALUATION_METHODS METHODS TUNED SIGMA_BINS run_method evaluate conditions_table "
+                "format_table sigma_table summary_table"),
+    ".revisit": ("RevisitPairs revisit_pairs ins_at_frames drive_revisit_pairs revisit_differences "
+                 "revisit_consistency revisit_table"),
 }
 __getattr__, __dir__, __all__ = lazy_exports(__name__, _EXPORTS)

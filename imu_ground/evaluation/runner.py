@@ -17,7 +17,13 @@ the tuned variant of the paper's filter. :func:`evaluate` runs methods over driv
   rough road; :mod:`imu_ground.evaluation.conditions`);
 - ``ref_floor``: the error a perfect estimator would show against the
   reference, from its per-frame uncertainty, and ``ref_share``, the share of
-  the mean squared error the reference alone can explain.
+  the mean squared error the reference alone can explain;
+- the pitch error by the reference's own uncertainty (bins of ``ref_sigma``,
+  :data:`SIGMA_BINS`), so a reader sees where the reference can judge a tenth
+  of a degree and where it cannot (:func:`sigma_table`);
+- on real drives that pass the same place twice, the revisit consistency of
+  pitch and roll (:mod:`imu_ground.evaluation.revisit`), a check that needs no
+  grade reference (:func:`~imu_ground.evaluation.revisit.revisit_table`).
 """
 from __future__ import annotations
 
@@ -34,6 +40,7 @@ from imu_ground.evaluation.baselines import ConstantNormal, EulerEKF
 from imu_ground.evaluation.conditions import CONDITIONS, condition_masks, moving_segments, segment_centred
 from imu_ground.evaluation.drives import Drive, load_real_drive, load_real_drives, synthetic_drive, synthetic_drives
 from imu_ground.evaluation.metrics import evaluate_drive
+from imu_ground.evaluation.revisit import drive_revisit_pairs, revisit_differences
 from imu_ground.filters import GroundNormalFilter
 from imu_ground.filters.methods import METHODS as REGISTRY
 
@@ -48,7 +55,9 @@ __all__ = [
     "format_table",
     "load_real_drive",
     "load_real_drives",
+    "SIGMA_BINS",
     "run_method",
+    "sigma_table",
     "summary_table",
     "synthetic_drive",
     "synthetic_drives",
@@ -58,6 +67,8 @@ __all__ = [
 #: heading-following slow state): chosen on the real drives, see
 #: ``benchmarks/studies/tune_paper.py``.
 TUNED = dict(Q=0.1, R=1.0, P=1.0)
+#: Edges (deg) of the bins of the reference's own 1-sigma uncertainty in :func:`sigma_table`.
+SIGMA_BINS = (0.0, 0.075, 0.1, 0.15, 0.25, 0.5, math.inf)
 
 
 @dataclass(frozen=True)
@@ -157,7 +168,20 @@ def _drive_metrics(d: Drive, track) -> dict[str, float]:
     row["ref_var_sum"] = float(np.sum(sigma * sigma))
     row["err_sq_sum"] = float(np.sum(err[use] ** 2))
     row["ref_share"] = min(row["ref_var_sum"] / row["err_sq_sum"], 1.0) if row["err_sq_sum"] > 0 else math.nan
+    bins = np.digitize(sigma, SIGMA_BINS[1:-1])
+    for b in range(len(SIGMA_BINS) - 1):
+        sel = bins == b
+        row[f"sigma{b}_n"] = int(np.count_nonzero(sel))
+        row[f"sigma{b}_sum"] = float(np.abs(err[use][sel]).sum())
+        row[f"sigma{b}_ref_sum"] = float(sigma[sel].sum())
     return row
+
+
+def _revisit_metrics(pairs, track) -> dict[str, float]:
+    """Revisit pair count and sums of |road attitude difference| (deg) of one track."""
+    dp, dr = revisit_differences(pairs, track.pitch, track.roll, track.valid)
+    return {"revisit_n": int(len(dp)), "revisit_pitch_sum": float(np.degrees(np.abs(dp)).sum()),
+            "revisit_roll_sum": float(np.degrees(np.abs(dr)).sum())}
 
 
 def evaluate(drives: Iterable[Drive], methods: Sequence[str] | None = None,
@@ -186,7 +210,12 @@ def evaluate(drives: Iterable[Drive], methods: Sequence[str] | None = None,
         ``seg_pitch_mean`` (deg) and ``seg_n``; ``cond_<key>_n`` and ``cond_<key>_sum``
         (frames and sum of absolute pitch errors, deg, per condition of
         :data:`~imu_ground.evaluation.conditions.CONDITIONS`); ``ref_floor`` (deg),
-        ``ref_share``, ``ref_var_sum`` and ``err_sq_sum`` (deg^2); ``us_per_frame``.
+        ``ref_share``, ``ref_var_sum`` and ``err_sq_sum`` (deg^2); ``us_per_frame``;
+        ``sigma<b>_n``, ``sigma<b>_sum`` and ``sigma<b>_ref_sum`` (frames, sums of absolute pitch
+        errors and of the reference's sigma, deg, per bin ``b`` of :data:`SIGMA_BINS`); on real
+        drives with a raw log, ``revisit_n``, ``revisit_pitch_sum`` and ``revisit_roll_sum``
+        (revisit pairs and sums of their absolute differences, deg; 0 pairs when the drive
+        never passes the same place twice).
     dict, only with ``keep_tracks``
     """
     import pandas as pd
@@ -199,6 +228,7 @@ def evaluate(drives: Iterable[Drive], methods: Sequence[str] | None = None,
     rows, tracks = [], {}
     bar = tqdm(total=len(drives) * len(methods), desc="evaluating", unit="run", disable=not progress)
     for d in drives:
+        pairs = drive_revisit_pairs(d) if d.valid and d.kind == "real" and d.imu is not None else None
         for m in methods:
             bar.set_postfix_str(f"{d.name} {m}", refresh=False)
             row = {"drive": d.name, "kind": d.kind, "grade": d.grade, "method": m,
@@ -207,6 +237,8 @@ def evaluate(drives: Iterable[Drive], methods: Sequence[str] | None = None,
                 track, sec = run_method(m, d)
                 row["us_per_frame"] = sec / max(len(d.egomotion), 1) * 1e6
                 row.update(_drive_metrics(d, track))
+                if pairs is not None:
+                    row.update(_revisit_metrics(pairs, track))
                 if keep_tracks:
                     tracks[(d.name, m)] = track
             rows.append(row)
@@ -289,6 +321,42 @@ def conditions_table(results, counts: bool = False):
         row["all"] = n_all if counts else float((g["pitch_mean"] * g["n"]).sum() / n_all) if n_all else np.nan
         out.append(row)
     return pd.DataFrame(out).set_index(["set", "method"])
+
+
+def sigma_table(results):
+    """Mean absolute pitch error on real drives by the reference's own uncertainty, per method.
+
+    Parameters
+    ----------
+    results : DataFrame from :func:`evaluate`.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Index: the ``ref_sigma`` bin, deg (:data:`SIGMA_BINS`; bins without frames left out);
+        columns ``frames``, ``ref_floor_deg`` (``sqrt(2/pi)`` times the bin's mean sigma: what a
+        perfect estimator would score there) and one per method: its mean absolute pitch error,
+        deg, pooled over the bin's frames. Where ``ref_floor_deg`` is near or above 0.1 deg the
+        reference cannot judge a tenth of a degree.
+    """
+    import pandas as pd
+    ok = results[results["valid"] & (results["kind"] == "real")]
+    if "sigma0_n" not in ok.columns or not len(ok):
+        return pd.DataFrame(columns=["frames", "ref_floor_deg"])
+    out = []
+    first = ok[ok["method"] == ok["method"].iloc[0]]
+    for b in range(len(SIGMA_BINS) - 1):
+        n = int(first[f"sigma{b}_n"].sum())
+        if not n:
+            continue
+        lo, hi = SIGMA_BINS[b], SIGMA_BINS[b + 1]
+        row = {"ref_sigma_deg": f"{lo:g}-{hi:g}" if math.isfinite(hi) else f">{lo:g}", "frames": n,
+               "ref_floor_deg": math.sqrt(2.0 / math.pi) * first[f"sigma{b}_ref_sum"].sum() / n}
+        for m, g in ok.groupby("method", sort=False):
+            k = g[f"sigma{b}_n"].sum()
+            row[m] = g[f"sigma{b}_sum"].sum() / k if k else np.nan
+        out.append(row)
+    return pd.DataFrame(out).set_index("ref_sigma_deg")
 
 
 def format_table(table, fmt: str = "text") -> str:

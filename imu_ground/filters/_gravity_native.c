@@ -23,7 +23,7 @@ enum {
     I_V = 0, I_G = 3, I_P = 6, I_R = 27, I_COUNT = 36, I_INIT = 37, I_WPREV = 38, I_REJECTED = 42,
     I_PRM = 43, I_LEVER = 50, I_EXTR = 54, I_RENORM = 64, I_SMALL = 65,
     I_LAST = 66, I_KIND = 67, I_K = 68, I_Y = 86, I_S = 89, I_DT = 95, I_QV = 96, I_QG = 97, I_PRIOR = 98,
-    BUF_LEN = 125
+    I_QGAPG = 125, BUF_LEN = 126
 };
 
 /* gravity_kernel.body_increment: (R d R^T, R dv) */
@@ -114,7 +114,7 @@ static inline void predict_update(double *s, const double *d, const double *dv, 
     }
     double g0 = x[3], g1 = x[4], g2 = x[5];
     x[0] = x[0] + w0 - dt * g0; x[1] = x[1] + w1 - dt * g1; x[2] = x[2] + w2 - dt * g2;
-    double qv = (valid ? prm[0] : prm[0] + prm[1]) * dt, qg = prm[2] * dt;
+    double qv = (valid ? prm[0] : prm[0] + prm[1]) * dt, qg = (valid ? prm[2] : prm[2] + s[I_QGAPG]) * dt;
     double *a = x + 6, *b = x + 12, *c = x + 21;   /* a: 00 01 02 11 12 22; b: row-major; c: as a */
     a[0] = a[0] - dt * (2.0 * b[0] - dt * c[0]) + qv;
     a[3] = a[3] - dt * (2.0 * b[4] - dt * c[3]) + qv;

@@ -19,7 +19,8 @@ Buffer layout (indices; frames and units as in the filter's docstring)::
     50 lever arm given (0/1), 51-53 lever arm (m, body)   54 extrinsic given (0/1), 55-63 R_gs row-major
     64 RENORM_EVERY   65 so3's small-angle threshold (rad)
     66 last step recorded (0/1)   67 its kind (0 constraint, 1 ZUPT, 2 speed)   68-85 K   86-88 y
-    89-94 S   95 dt   96 q_v^2 dt (+ gap)   97 q_g^2 dt   98-124 the prior (x then P's 21 entries)
+    89-94 S   95 dt   96 q_v^2 dt (+ gap)   97 q_g^2 dt (+ gap)   98-124 the prior (x then P's 21 entries)
+    125 q_gap_g^2 (gravity random walk added through a gap)
 
 Every entry is a float in both kernels (filterpy's ``Saver`` stores the buffer as an array). The
 constraint's K, y and S fill the first 12, 2 and 3 of their slots; the rest keep their values.
@@ -49,7 +50,7 @@ for _m, (_i, _j) in enumerate(_UPPER21):
     _FULL_INDEX[_i, _j] = _FULL_INDEX[_j, _i] = _m
 
 I_INIT, I_WPREV, I_REJECTED, I_PRM, I_LEVER, I_EXTR = 37, 38, 42, 43, 50, 54
-I_RENORM, I_SMALL, I_LAST, BUF_LEN = 64, 65, 66, 125
+I_RENORM, I_SMALL, I_LAST, I_QGAPG, BUF_LEN = 64, 65, 66, 125, 126
 _I_K, _I_Y, _I_S, _I_DT, _I_PRIOR = 68, 86, 89, 95, 98      # the last step's record (I_LAST + 1: its kind)
 
 
@@ -58,7 +59,7 @@ def full_cov(p21: np.ndarray) -> np.ndarray:
     return np.asarray(p21)[..., _FULL_INDEX]
 
 
-def new_state(x6, p21, r9, prm7, initialised: bool, lever=None, extrinsic9=None) -> list:
+def new_state(x6, p21, r9, prm7, initialised: bool, lever=None, extrinsic9=None, q_gap_g2: float = 0.0) -> list:
     """A fresh state buffer (list, layout of the module docstring).
 
     Parameters
@@ -71,12 +72,14 @@ def new_state(x6, p21, r9, prm7, initialised: bool, lever=None, extrinsic9=None)
         Gravity given (else taken from the first frame's specific force).
     lever, extrinsic9 : sequences of 3 and 9 floats, optional
         Lever arm (m) and ``R_gs`` (row-major); None: none.
+    q_gap_g2 : float
+        Gravity random walk added through a timestamp gap, (m/s^2)^2 per s.
     """
     s = [float(v) for v in x6] + [float(v) for v in p21] + [float(v) for v in r9] + [0.0]
     s += [1.0 if initialised else 0.0, 0.0, 0.0, 0.0, 0.0, 0.0] + [float(v) for v in prm7]
     s += [0.0, 0.0, 0.0, 0.0] if lever is None else [1.0] + [float(v) for v in lever]
     s += [0.0] * 10 if extrinsic9 is None else [1.0] + [float(v) for v in extrinsic9]
-    s += [float(RENORM_EVERY), so3.SMALL_ANGLE] + [0.0] * (BUF_LEN - I_LAST)
+    s += [float(RENORM_EVERY), so3.SMALL_ANGLE] + [0.0] * (I_QGAPG - I_LAST) + [float(q_gap_g2)]
     return s
 
 
@@ -118,6 +121,7 @@ def _predict_update(s, frames, out=None, priors=None):
     (v0, v1, v2, g0, g1, g2, a00, a01, a02, a11, a12, a22, b00, b01, b02, b10, b11, b12, b20, b21, b22,
      c00, c01, c02, c11, c12, c22, r0, r1, r2, r3, r4, r5, r6, r7, r8, count, initialised) = s[:38]
     qv2, qgap2, qg2, rz, rn, gate, rs = s[I_PRM:I_PRM + 7]
+    qgapg2 = s[I_QGAPG]
     nz = (rz, 0.0, 0.0, rz, 0.0, rz)
     rejected, last = 0, None
     for (d0, d1, d2, d3, d4, d5, d6, d7, d8), (dv0, dv1, dv2), dt, stationary, valid, speed in frames:
@@ -134,7 +138,7 @@ def _predict_update(s, frames, out=None, priors=None):
             initialised = 1.0
         v0, v1, v2 = v0 + w0 - dt * g0, v1 + w1 - dt * g1, v2 + w2 - dt * g2
         qv = (qv2 if valid else qv2 + qgap2) * dt
-        qg = qg2 * dt
+        qg = (qg2 if valid else qg2 + qgapg2) * dt
         a00, a11, a22 = (a00 - dt * (2.0 * b00 - dt * c00) + qv, a11 - dt * (2.0 * b11 - dt * c11) + qv,
                          a22 - dt * (2.0 * b22 - dt * c22) + qv)
         a01, a02, a12 = a01 - dt * (b01 + b10 - dt * c01), a02 - dt * (b02 + b20 - dt * c02), \

@@ -134,6 +134,12 @@ class GravityVelocityFilter:
         Velocity (m/s/sqrt(s), 0.05) and gravity (m/s^2/sqrt(s), 1e-6) random walks.
     q_gap : float
         Extra velocity random walk through a timestamp gap (``valid`` False), m/s/sqrt(s) (1.0).
+    q_gap_g : float
+        Extra gravity random walk through a timestamp gap, m/s^2/sqrt(s) (0.1): the rotation
+        integrated across a gap is uncertain, so is gravity in the gyro-integrated world frame
+        after it. With ``q_g`` alone (tiny) a wrong rotation across a gap biases gravity, hence
+        the accelerations, for minutes (degrees after three 1.5 s gaps on a real drive); this
+        lets the constraint re-estimate it.
     zupt_gate : float
         A standstill flag is ignored (the constraint used instead) when the predicted velocity is
         this far from zero, squared Mahalanobis distance (100: ten sigma; detectors flag cruising too).
@@ -176,7 +182,8 @@ class GravityVelocityFilter:
     kernel = NATIVE if NATIVE is not None else gravity_kernel
 
     def __init__(self, sigma_nhc: float = 0.3, sigma_zupt: float = 0.05, q_v: float = 0.05,
-                 q_g: float = 1e-6, q_gap: float = 1.0, sigma_v0: float = 30.0, sigma_g0: float = 1.0,
+                 q_g: float = 1e-6, q_gap: float = 1.0, q_gap_g: float = 0.1, sigma_v0: float = 30.0,
+                 sigma_g0: float = 1.0,
                  zupt_gate: float = 100.0, v0: Optional[Sequence[float]] = None,
                  g0: Optional[Sequence[float]] = None, extrinsic: Union[Extrinsic, np.ndarray, None] = None,
                  lever_arm: Optional[Sequence[float]] = None, R0: Optional[np.ndarray] = None,
@@ -184,7 +191,7 @@ class GravityVelocityFilter:
         if not 0 < float(sigma_speed) <= 1e3:     # (larger: no information, and S ill-conditioned)
             raise ValueError(f"sigma_speed must be in (0, 1000] m/s (no speed: leave it out), got {sigma_speed!r}")
         self.sigma_speed, self.sigma_nhc, self.sigma_zupt = float(sigma_speed), float(sigma_nhc), float(sigma_zupt)
-        self.q_v, self.q_g, self.q_gap = float(q_v), float(q_g), float(q_gap)
+        self.q_v, self.q_g, self.q_gap, self.q_gap_g = float(q_v), float(q_g), float(q_gap), float(q_gap_g)
         self.sigma_v0, self.sigma_g0 = float(sigma_v0), float(sigma_g0)
         self.zupt_gate = float(zupt_gate)
         self.extrinsic = Extrinsic.coerce(extrinsic)
@@ -207,7 +214,7 @@ class GravityVelocityFilter:
         prm = (self.q_v ** 2, self.q_gap ** 2, self.q_g ** 2, self.sigma_zupt ** 2, self.sigma_nhc ** 2,
                self.zupt_gate, self.sigma_speed ** 2)
         s = new_state(v + g, p, self.R0.ravel().tolist(), prm, self._g0 is not None, self._lever,
-                      None if self._identity_extrinsic else self._rgs9)
+                      None if self._identity_extrinsic else self._rgs9, self.q_gap_g ** 2)
         k = self.kernel
         self._s = s if k is gravity_kernel else np.array(s)   # the kernel's state buffer (gravity_kernel)
         self._step_frame, self._step_sensor, self._run_frames = k.step_frame, k.step_sensor, k.run_frames

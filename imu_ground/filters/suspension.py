@@ -16,14 +16,15 @@ Pipeline, per frame k
    the speed (which scales the road process noise), the gravity-compensated
    acceleration ``a`` and the specific force ``f``, frame means in the body frame.
 2. **Suspension model** (:class:`~imu_ground.filters.suspension_model.SuspensionModel`): the
-   load ``u = a + s (f - a)`` (``s = load``: the share of gravity's road-plane component the
+   load ``u = a + s (f - a)`` (``a_y`` from speed times yaw rate where a speed is measured,
+   ``lateral``; ``s = load``: the share of gravity's road-plane component the
    springs feel, 0 to 1), optionally through a second-order ``response``; the body tilt
    relative to the road ``b_k = [k_roll u_y, k_pitch u_x + k_cross u_y, 0]`` (rotation
    vector: roll about x, pitch about y; ``k_cross = cross_gain``, the pitch from the lateral
    load); the gains fixed or estimated online.
 3. **Invariant EKF on SO(3)** (left error) on the road attitude ``X``: predict
    ``X <- X Rz(psi_k)`` (the road turns with the heading) with noise
-   ``diag(q_k, q_k, q_yaw)``, ``q_k = (q_time + q_dist |v_k|) dt_k sigma_e^2``;
+   ``diag(q_k, q_k, q_yaw)``, ``q_k = ((q_time + q_dist |v_k|) dt_k + q_turn |psi_k|) sigma_e^2``;
    update with the rotation measurement ``Z_k = R_k Exp(-b_k)``, noise
    ``diag(sigma_e^2, sigma_e^2, r_yaw sigma_e^2)``. It runs as the scalar
    :class:`~imu_ground.filters.residual.ResidualKernel` (the modelled tilt is its ``tilt_x, tilt_y``;
@@ -90,6 +91,7 @@ __all__ = [
 _I3 = np.eye(3)
 #: A measured speed beyond this, m/s (or not finite), is no measurement: the frame runs on the IMU alone.
 MAX_MEASURED_SPEED = 1e3
+_LATERAL = ("auto", "kinematic", "accelerometer")
 
 
 @dataclass
@@ -133,6 +135,11 @@ class SuspensionAwareFilter:
         Std of the unmodelled body motion per frame, rad (0.2 deg).
     q_time, q_dist : float
         Road process noise in units of ``sigma_e^2`` per second and per metre.
+    q_turn : float
+        Road process noise in units of ``sigma_e^2`` per radian of heading change (10): a car
+        that turns onto another road meets another bank and grade within metres, and without
+        it the road state smooths that change into the body's roll (chosen on one revisit drive,
+        held on the other; ``benchmarks/RESULTS.md``).
     q_yaw : float
         Process noise about up per frame, rad^2.
     r_yaw : float
@@ -142,7 +149,8 @@ class SuspensionAwareFilter:
         Initial variance of the road attitude, units of ``sigma_e^2``.
     load : {"specific_force", "acceleration"} or float
         Share (0 to 1) of gravity's road-plane component in the load;
-        ``"acceleration"`` is 0, ``"specific_force"`` 1.
+        ``"acceleration"`` is 0, ``"specific_force"`` 1 (the default: the springs feel the
+        specific force, and the load then needs no gravity estimate; figures in ``benchmarks/RESULTS.md``).
     response : (float, float), optional
         Second-order response ``(freq_hz, damping)`` (unit static gain) applied
         to the load; None: quasi-static.
@@ -176,6 +184,13 @@ class SuspensionAwareFilter:
     cross_gain : float
         Pitch (nose down +) per m/s^2 of lateral load ``u_y``, rad
         (:data:`~imu_ground.filters.gains.DEFAULT_CROSS_GAIN`; 0 disables).
+    lateral : {"auto", "kinematic", "accelerometer"}
+        The lateral acceleration in the load ``u_y``: ``"kinematic"`` is speed times yaw rate
+        (``v psi_k / dt``, the centripetal acceleration of the path; the measured speed where
+        given, else the gravity/velocity filter's), ``"accelerometer"`` the gravity-compensated
+        accelerometer ``a_y`` (it carries every error of the gravity estimate); ``"auto"``
+        (default): kinematic on frames with a measured speed, accelerometer elsewhere (an
+        IMU-only speed estimate drifts, and speed times yaw rate with it).
 
     Attributes
     ----------
@@ -205,23 +220,27 @@ class SuspensionAwareFilter:
 
     def __init__(self, gains: Optional[Sequence[float]] = None, sigma_e: float = 0.2 * DEG,
                  q_time: float = 0.1, q_dist: float = 0.1, q_yaw: float = 1.0, r_yaw: float = 1e-6,
-                 P0: float = 1.0, load: Union[str, float] = 0.6, response: Optional[Sequence[float]] = None,
+                 P0: float = 1.0, load: Union[str, float] = 1.0, response: Optional[Sequence[float]] = None,
                  online_gains: bool = False, gain_prior_seconds: float = 60.0,
                  gain_band: Sequence[float] = GAIN_BAND, frame_rate: Optional[float] = None,
                  smoother_weight: float = 0.25, extrinsic=None,
                  lever_arm: Optional[Sequence[float]] = None, gravity: Optional[dict] = None,
                  R0: Optional[np.ndarray] = None, on_invalid: str = "raise",
-                 cross_gain: float = DEFAULT_CROSS_GAIN) -> None:
+                 cross_gain: float = DEFAULT_CROSS_GAIN, lateral: str = "auto", q_turn: float = 10.0) -> None:
         self.cross_gain = float(cross_gain)
+        if lateral not in _LATERAL:
+            raise ValueError(f"lateral must be one of {', '.join(_LATERAL)}, got {lateral!r}")
+        self.lateral = lateral
         self.extrinsic, file_gains = resolve_platform(extrinsic)
         if gains is None:
             gains = DEFAULT_GAINS if file_gains is None else file_gains
         self.gains0 = np.array(gains, dtype=float).reshape(2)
         self.sigma_e = float(sigma_e)
-        self.q_time, self.q_dist = float(q_time), float(q_dist)
+        self.q_time, self.q_dist, self.q_turn = float(q_time), float(q_dist), float(q_turn)
         self.q_yaw, self.r_yaw, self.P0 = float(q_yaw), float(r_yaw), float(P0)
-        if not (min(self.sigma_e, self.q_yaw, self.r_yaw, self.P0) > 0 and min(self.q_time, self.q_dist) >= 0):
-            raise ValueError("sigma_e, q_yaw, r_yaw and P0 must be positive; q_time and q_dist non-negative")
+        if not (min(self.sigma_e, self.q_yaw, self.r_yaw, self.P0) > 0
+                and min(self.q_time, self.q_dist, self.q_turn) >= 0):
+            raise ValueError("sigma_e, q_yaw, r_yaw and P0 must be positive; q_time, q_dist and q_turn non-negative")
         self.load = load
         self.load_share = load_share(load)
         self.response = None if response is None else (float(response[0]), float(response[1]))
@@ -362,9 +381,11 @@ class SuspensionAwareFilter:
         else:
             (fx, fy, _), (ax, ay, _), v = gf.step_sensor(d.ravel().tolist(), dv.tolist(), dt, bool(stationary),
                                                          bool(valid), sp)
-        tilt_x, tilt_y = self.model.step(d, fx, fy, ax, ay)
         self.speed = speed = v if math.isnan(sp) else sp
-        q = (self.q_time + self.q_dist * abs(speed)) * dt * self._r       # distance travelled, either way
+        psi = _heading_change(d, self._Rgs)
+        kinematic = self.lateral == "kinematic" or (self.lateral == "auto" and not math.isnan(sp))
+        tilt_x, tilt_y = self.model.step(d, fx, fy, ax, ay, speed * psi / dt if kinematic else None)
+        q = ((self.q_time + self.q_dist * abs(speed)) * dt + self.q_turn * abs(psi)) * self._r   # |v|: either way
         self._q_last = q
         o = self._kstep(self._kbuf, d, q, self.q_yaw, tilt_x, tilt_y, None, 1.0)
         return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o)
@@ -414,11 +435,17 @@ class SuspensionAwareFilter:
         gt = self.gravity_filter.run(sub, smooth=smooth, speed=speed)
         if speed is not None:
             gt.speed = np.where(np.isfinite(speed), speed, gt.speed)
-        u, ks, susp = self.model.run(gt)
+        psi = twist_angle(gt.body_increments)
+        lateral = None
+        if self.lateral != "accelerometer" and m:
+            use = np.full(m, self.lateral == "kinematic") if speed is None else \
+                (self.lateral == "kinematic") | np.isfinite(speed)
+            lateral = np.where(use, gt.speed * psi / np.asarray(sub.delta_t, dtype=float), np.nan)
+        u, ks, susp = self.model.run(gt, lateral)
         if m:
             self.speed = float(gt.speed[-1])
         dt = np.asarray(sub.delta_t, dtype=float)
-        q = (self.q_time + self.q_dist * np.abs(gt.speed)) * dt * self._r
+        q = ((self.q_time + self.q_dist * np.abs(gt.speed)) * dt + self.q_turn * np.abs(psi)) * self._r
         o = self._kernel.run(sub.delta_R, q, self.q_yaw, susp[:, 1], susp[:, 0])
         if m:
             self._q_last = float(q[-1])
@@ -456,6 +483,13 @@ class SuspensionAwareFilter:
             Ps[:] = (1.0 - w) * Ps + w * Psm
             return Xs @ so3.exp(w * so3.log(np.swapaxes(Xs, 1, 2) @ Xsm))
         return Xs
+
+
+def _heading_change(d: np.ndarray, Rgs: Optional[np.ndarray]) -> float:
+    """Twist (rad) about the ground's up axis of a sensor-frame increment ``d`` (``Rgs``: ground <- sensor)."""
+    if Rgs is not None:
+        d = Rgs @ d @ Rgs.T
+    return math.atan2(d[1, 0] - d[0, 1], d[0, 0] + d[1, 1])
 
 
 def _frames_of(em, keep: np.ndarray):

@@ -120,7 +120,8 @@ class SuspensionModel:
             self._sxy = w * self.gains0
 
     # -- streaming ---------------------------------------------------------------------------------
-    def step(self, d: np.ndarray, fx: float, fy: float, ax: float, ay: float) -> tuple:
+    def step(self, d: np.ndarray, fx: float, fy: float, ax: float, ay: float,
+             lateral: Optional[float] = None) -> tuple:
         """One frame: its load, the tilt from the gains so far, then (online) the gains updated.
 
         Parameters
@@ -129,6 +130,9 @@ class SuspensionModel:
             The frame's sensor increment (sensor_{k-1} <- sensor_k), for the online regression.
         fx, fy, ax, ay : float
             Horizontal specific force and acceleration, body frame, m/s^2.
+        lateral : float, optional
+            Lateral acceleration from kinematics (speed times yaw rate), m/s^2, in place of ``ay``
+            in the load's ``u_y``; None: the gravity/velocity filter's ``ay``.
 
         Returns
         -------
@@ -137,6 +141,8 @@ class SuspensionModel:
         """
         s = self.load_share
         ux, uy = ax + s * (fx - ax), ay + s * (fy - ay)
+        if lateral is not None:
+            uy += lateral - ay
         if self._resp is not None:
             ux, uy = self._resp.step(np.array([ux, uy])).tolist()
         self.load = (ux, uy)
@@ -156,7 +162,7 @@ class SuspensionModel:
         self._kp, self._kr = self.gains.tolist()
 
     # -- batch -------------------------------------------------------------------------------------
-    def run(self, gt) -> tuple:
+    def run(self, gt, lateral: Optional[np.ndarray] = None) -> tuple:
         """A drive: loads, the gains used at each frame, and the tilt, continuing as :meth:`step` would.
 
         Parameters
@@ -164,6 +170,9 @@ class SuspensionModel:
         gt : GravityTrack
             The gravity/velocity filter's track of the frames (``acceleration``, ``specific_force``,
             ``body_increments``).
+        lateral : ndarray (N,), optional
+            Lateral acceleration from kinematics, m/s^2, in place of ``a_y`` where finite (NaN: the
+            filter's ``a_y``), as ``lateral`` of :meth:`step`.
 
         Returns
         -------
@@ -172,6 +181,9 @@ class SuspensionModel:
         """
         m = len(gt.acceleration)
         u = (gt.acceleration + self.load_share * (gt.specific_force - gt.acceleration))[:, :2]
+        if lateral is not None:
+            use = np.isfinite(lateral)
+            u[use, 1] += lateral[use] - gt.acceleration[use, 1]
         if self._resp is not None:
             u = self._resp.run(u)
         if m:

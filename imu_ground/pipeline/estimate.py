@@ -214,7 +214,7 @@ def _one_line(path: str | Path, message: Any) -> str:
 # ------------------------------------------------------------------------------------------ estimate
 def estimate_log(path: str | Path, *, format: str | None = None, method: str = "auto",
                  extrinsic: Any = None, rate: float | None = None, Q: Any = None, R: Any = None,
-                 progress: bool = False, speed: Any = None, **reader_options: Any) -> EstimateResult:
+                 progress: bool = False, speed: Any = "auto", **reader_options: Any) -> EstimateResult:
     """Per-frame ground normals of one log: what ``imu-ground estimate`` computes.
 
     Parameters
@@ -244,7 +244,7 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
     speed : None, "none", "auto", str, Path or ndarray, optional
         Measured vehicle speed for the speed-aided mode of the suspension methods
         (:mod:`imu_ground.datasets.speed`): ``None`` / ``"none"`` IMU only;
-        ``"auto"`` the log's own speed where its format has one (else IMU only);
+        ``"auto"`` (default) the log's own speed where its format has one (else IMU only);
         a speed file (CSV ``t,speed``, s on the log's time base) or the name of a
         column of the log's table; or an array, one speed per frame (m/s). What
         was used is in ``meta["speed"]``.

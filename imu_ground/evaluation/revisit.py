@@ -1,0 +1,251 @@
+r"""Revisit consistency: the road's attitude must repeat where a drive passes the same place twice.
+
+A real drive has no road-relative roll reference, and its pitch reference
+(:mod:`imu_ground.evaluation.reference`) rests on the INS vertical velocity,
+whose noise sets a floor above the errors it is asked to judge. The INS
+*attitude* is much better (about 0.03 deg). Where a drive passes the same place
+twice in the same direction, the road's own attitude there (grade and bank
+relative to gravity, seen from a car heading the same way) is the same on both
+passes, so::
+
+    road_pitch = INS pitch - estimated pitch relative to the road
+    road_roll  = INS roll  - estimated roll relative to the road
+
+must repeat between the passes, and any difference is the estimator's error on
+one pass or the other (the static mounting offset cancels).
+
+Sign conventions: the KITTI INS pitch is positive front down and its roll
+positive left side up; the estimators' ``pitch`` (nose down +) and ``roll``
+(left side up +) of the body relative to the road use the same senses, so the
+two subtract directly. Angles in and out of the functions here are radians
+unless a name ends in ``_deg``.
+
+Pairs (:func:`revisit_pairs`): frames (10 Hz) above ``min_speed`` (3 m/s),
+positions within ``max_distance`` (1 m), headings within ``max_heading``
+(15 deg), at least ``min_separation`` (30 s) apart; every frame keeps its closest
+partner (by position) and each unordered pair counts once. The metric
+(:func:`revisit_consistency`) per angle is ``mean |difference| / sqrt(2)``: the
+per-pass error when the two passes' errors are independent and alike.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from imu_ground.evaluation.reference import MIN_SPEED, drop_out_of_order
+
+__all__ = ["RevisitPairs", "drive_revisit_pairs", "ins_at_frames", "revisit_consistency", "revisit_differences",
+           "revisit_pairs", "revisit_table"]
+
+#: Pairing thresholds: metres, radians, seconds.
+MAX_DISTANCE = 1.0
+MAX_HEADING = math.radians(15.0)
+MIN_SEPARATION = 30.0
+
+
+@dataclass(frozen=True)
+class RevisitPairs:
+    """Frame pairs on the same place, same direction, on two passes of one drive.
+
+    Attributes
+    ----------
+    i, j : ndarray of int (P,)
+        Frame indices, ``i < j`` (the earlier pass first).
+    ins_pitch, ins_roll : ndarray (F,)
+        The INS attitude at every frame, rad (KITTI convention: pitch front down +, roll left up +).
+    """
+    i: np.ndarray
+    j: np.ndarray
+    ins_pitch: np.ndarray
+    ins_roll: np.ndarray
+
+    def __len__(self) -> int:
+        return int(len(self.i))
+
+
+def _wrap(a: np.ndarray) -> np.ndarray:
+    return (a + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def revisit_pairs(t: np.ndarray, x: np.ndarray, y: np.ndarray, heading: np.ndarray, speed: np.ndarray,
+                  usable: np.ndarray | None = None, *, max_distance: float = MAX_DISTANCE,
+                  max_heading: float = MAX_HEADING, min_separation: float = MIN_SEPARATION,
+                  min_speed: float = MIN_SPEED) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs of frames on the same place in the same direction, on different passes.
+
+    Parameters
+    ----------
+    t : ndarray (F,)
+        Frame times, s.
+    x, y : ndarray (F,)
+        Horizontal position, m (any local level frame).
+    heading : ndarray (F,)
+        Heading (yaw), rad; compared modulo 2 pi.
+    speed : ndarray (F,)
+        Horizontal speed, m/s.
+    usable : ndarray of bool (F,), optional
+        Frames allowed to pair (e.g. valid ego-motion frames).
+    max_distance : float
+        Largest distance between the two frames, m.
+    max_heading : float
+        Largest heading difference, rad.
+    min_separation : float
+        Smallest time between the two frames, s.
+    min_speed : float
+        Both frames strictly faster than this, m/s.
+
+    Returns
+    -------
+    i, j : ndarray of int (P,)
+        The pairs, ``i < j``, sorted; every eligible frame with a partner keeps its
+        closest one (ties: the earliest), and a pair chosen from both ends counts once.
+    """
+    from scipy.spatial import cKDTree
+    t, x, y = (np.asarray(a, dtype=float) for a in (t, x, y))
+    heading, speed = np.asarray(heading, dtype=float), np.asarray(speed, dtype=float)
+    ok = (speed > min_speed) & np.isfinite(x) & np.isfinite(y) & np.isfinite(heading) & np.isfinite(t)
+    if usable is not None:
+        ok &= np.asarray(usable, dtype=bool)
+    idx = np.flatnonzero(ok)
+    empty = np.zeros(0, dtype=int)
+    if len(idx) < 2:
+        return empty, empty
+    pts = np.column_stack([x[idx], y[idx]])
+    tree = cKDTree(pts)
+    near = tree.query_pairs(max_distance, output_type="ndarray")       # a < b, indices into idx
+    if len(near) == 0:
+        return empty, empty
+    a, b = idx[near[:, 0]], idx[near[:, 1]]
+    keep = (np.abs(t[a] - t[b]) >= min_separation) & (np.abs(_wrap(heading[a] - heading[b])) <= max_heading)
+    a, b = a[keep], b[keep]
+    if len(a) == 0:
+        return empty, empty
+    dist = np.hypot(x[a] - x[b], y[a] - y[b])
+    # each frame's closest partner: candidates from both ends, sorted by (frame, distance, partner)
+    frame = np.concatenate([a, b])
+    partner = np.concatenate([b, a])
+    d2 = np.concatenate([dist, dist])
+    order = np.lexsort((partner, d2, frame))
+    frame, partner = frame[order], partner[order]
+    first = np.r_[True, frame[1:] != frame[:-1]]
+    lo, hi = np.minimum(frame[first], partner[first]), np.maximum(frame[first], partner[first])
+    pairs = np.unique(np.column_stack([lo, hi]), axis=0)
+    return pairs[:, 0].astype(int), pairs[:, 1].astype(int)
+
+
+def ins_at_frames(df, times: np.ndarray) -> dict[str, np.ndarray]:
+    """The INS attitude, position and speed of a ``kitti_imu100`` log at the frame times.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The log (columns ``t, roll, pitch, yaw, ve, vn, px, py``; rad, m/s, m).
+    times : ndarray (F,)
+        Frame times, s, on the log's time base.
+
+    Returns
+    -------
+    dict
+        ``pitch, roll, yaw`` (rad; KITTI convention), ``x, y`` (m), ``speed``
+        (horizontal, m/s) by linear interpolation (the yaw unwrapped first);
+        ``near`` (bool): a kept sample lies within 0.1 s of the frame.
+    """
+    d = drop_out_of_order(df)
+    ts = d["t"].to_numpy(float)
+    times = np.asarray(times, dtype=float)
+
+    def at(v: np.ndarray) -> np.ndarray:
+        return np.interp(times, ts, v)
+
+    out = {"pitch": at(d["pitch"].to_numpy(float)), "roll": at(d["roll"].to_numpy(float)),
+           "yaw": at(np.unwrap(d["yaw"].to_numpy(float))), "x": at(d["px"].to_numpy(float)),
+           "y": at(d["py"].to_numpy(float)),
+           "speed": at(np.hypot(d["ve"].to_numpy(float), d["vn"].to_numpy(float)))}
+    k = np.clip(np.searchsorted(ts, times), 1, len(ts) - 1)
+    gap = np.minimum(np.abs(times - ts[k - 1]), np.abs(ts[k] - times))
+    out["near"] = gap <= 0.1
+    return out
+
+
+def drive_revisit_pairs(drive, **thresholds) -> RevisitPairs:
+    """The revisit pairs of a real drive (:class:`~imu_ground.evaluation.drives.Drive` with its raw log).
+
+    Frames pair when the ego-motion frame is valid and a log sample lies near it;
+    ``thresholds`` go to :func:`revisit_pairs`.
+    """
+    em = drive.egomotion
+    ins = ins_at_frames(drive.imu.to_dataframe(), em.t)
+    usable = np.asarray(em.valid, dtype=bool) & ins["near"]
+    i, j = revisit_pairs(em.t, ins["x"], ins["y"], ins["yaw"], ins["speed"], usable, **thresholds)
+    return RevisitPairs(i, j, ins["pitch"], ins["roll"])
+
+
+def revisit_differences(pairs: RevisitPairs, pitch: np.ndarray, roll: np.ndarray,
+                        valid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Differences of the road attitude between the passes, rad, over the pairs both of whose frames are valid.
+
+    Parameters
+    ----------
+    pairs : RevisitPairs
+    pitch, roll : ndarray (F,)
+        Estimated body attitude relative to the road, rad (pitch nose down +, roll left up +).
+    valid : ndarray of bool (F,), optional
+        The estimator's validity per frame.
+
+    Returns
+    -------
+    d_pitch, d_roll : ndarray (P',)
+        ``road(j) - road(i)`` with ``road = INS - estimate``.
+    """
+    road_p = pairs.ins_pitch - np.asarray(pitch, dtype=float)
+    road_r = pairs.ins_roll - np.asarray(roll, dtype=float)
+    i, j = pairs.i, pairs.j
+    if valid is not None:
+        v = np.asarray(valid, dtype=bool)
+        keep = v[i] & v[j]
+        i, j = i[keep], j[keep]
+    return road_p[j] - road_p[i], road_r[j] - road_r[i]
+
+
+def revisit_consistency(d_pitch: np.ndarray, d_roll: np.ndarray) -> dict[str, float]:
+    """The metric: ``mean |difference| / sqrt(2)`` per angle, deg, and the pair count ``n``."""
+    n = int(len(d_pitch))
+    if n == 0:
+        return {"n": 0, "pitch_deg": math.nan, "roll_deg": math.nan}
+    s = math.degrees(1.0) / math.sqrt(2.0)
+    return {"n": n, "pitch_deg": float(np.mean(np.abs(d_pitch)) * s), "roll_deg": float(np.mean(np.abs(d_roll)) * s)}
+
+
+def revisit_table(results):
+    """Revisit consistency per drive and pooled over drives (pairs), per method, from :func:`~.runner.evaluate`.
+
+    Parameters
+    ----------
+    results : pandas.DataFrame
+        The evaluation's rows with ``revisit_n``, ``revisit_pitch_sum`` and ``revisit_roll_sum``
+        (sums of ``|difference|``, deg).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Index (drive, method); columns ``pairs``, ``pitch_deg``, ``roll_deg``
+        (``mean |difference| / sqrt(2)``); drive ``pooled`` sums over the drives. Empty
+        when no drive has revisit pairs.
+    """
+    import pandas as pd
+    if "revisit_n" not in results.columns:
+        return pd.DataFrame(columns=["pairs", "pitch_deg", "roll_deg"])
+    ok = results[results["valid"] & (results["revisit_n"].fillna(0) > 0)]
+    rows = []
+    s = 1.0 / math.sqrt(2.0)
+    for key, g in list(ok.groupby(["drive", "method"], sort=False)) + [
+            (("pooled", m), g) for m, g in ok.groupby("method", sort=False)]:
+        n = int(g["revisit_n"].sum())
+        rows.append({"drive": key[0], "method": key[1], "pairs": n,
+                     "pitch_deg": g["revisit_pitch_sum"].sum() / n * s,
+                     "roll_deg": g["revisit_roll_sum"].sum() / n * s})
+    if not rows:
+        return pd.DataFrame(columns=["pairs", "pitch_deg", "roll_deg"])
+    return pd.DataFrame(rows).set_index(["drive", "method"])
