@@ -40,9 +40,9 @@ def register(sub) -> None:
     b.add_argument("--tum", action="store_true",
                    help="also write each log's dynamic extrinsic (ground <- sensor) of the valid frames as TUM "
                         "poses, <log name>_ground.tum")
-    b.add_argument("--speed", default="none", metavar="auto|none|FILE|COLUMN",
+    b.add_argument("--speed", default="auto", metavar="auto|none|FILE|COLUMN",
                    help="measured vehicle speed for the suspension methods, as for 'imu-ground estimate' "
-                        "(none by default; auto: each log's own)")
+                        "(auto by default: each log's own where its format has one; none: IMU only)")
     b.add_argument("--force", action="store_true",
                    help="estimate every log again and replace its outputs (by default a rerun keeps the outputs "
                         "that exist and were written with the same settings, and refuses those written with "
