@@ -8,6 +8,7 @@ import pandas as pd
 import pytest
 
 from imu_ground.cli import build_parser, main
+from imu_ground.pipeline.output import COLUMNS
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLE = REPO / "datasets" / "fixtures" / "example_drive.csv"

@@ -30,6 +30,7 @@ import numpy as np
 
 from imu_ground._native import load_native
 from imu_ground.filters.rotations import as_rotations, matrix_from_quat, quat_from_matrix
+from imu_ground.filters.status import GAP, INVALID, OK, STATUSES, status_names, status_reason
 from imu_ground.units import DEFAULT_FRAME_RATE
 
 if TYPE_CHECKING:                                   # imported lazily: the imu layer pulls in pandas
@@ -96,16 +97,47 @@ class GroundEstimate:
     valid : bool
         False for a frame the estimator skipped (``on_invalid="skip"``): the
         values are then those of the previous frame.
+    pitch_std, roll_std : float
+        Calibrated 1-sigma of pitch and roll, rad (:mod:`imu_ground.filters.status`; NaN when unknown).
+    status : str
+        One of :data:`~imu_ground.filters.status.STATUSES`; ``status_code`` its index.
+    status_reason : str
+        Why (empty for ``ok``).
     """
-    __slots__ = ("pitch", "roll", "valid", "_q", "_E", "_Rgs", "_P")
+    __slots__ = ("pitch", "roll", "valid", "_q", "_E", "_Rgs", "_P", "status_code", "_info")
 
     # quaternion: a kernel output row (its first 4 entries, w x y z); P: a 3x3 array or the same row
     # (entries 4 and 5: diag(a, a, c))
 
     def __init__(self, pitch: float, roll: float, valid: bool = True, quaternion=None, residual=None,
-                 Rgs: Optional[np.ndarray] = None, P=None) -> None:
+                 Rgs: Optional[np.ndarray] = None, P=None, status_code: Optional[int] = None, info=None) -> None:
         self.pitch, self.roll, self.valid = pitch, roll, valid
         self._q, self._E, self._Rgs, self._P = quaternion, residual, Rgs, P
+        # info: (pitch model, roll model, a, u_x, u_y, tilt var pitch, tilt var roll, frame s, detail,
+        # convergence threshold): the 1-sigma and the reason are built on access
+        self.status_code = (OK if valid else INVALID) if status_code is None else status_code
+        self._info = info
+
+    @property
+    def pitch_std(self) -> float:
+        i = self._info
+        return math.nan if i is None else math.sqrt(i[0].variance(i[2], i[3], i[4], i[5]))
+
+    @property
+    def roll_std(self) -> float:
+        i = self._info
+        return math.nan if i is None else math.sqrt(i[1].variance(i[2], i[3], i[4], i[6]))
+
+    @property
+    def status(self) -> str:
+        return STATUSES[self.status_code]
+
+    @property
+    def status_reason(self) -> str:
+        i = self._info
+        if i is None:
+            return status_reason(self.status_code)
+        return status_reason(self.status_code, i[7], max(self.pitch_std, self.roll_std), i[8], i[9])
 
     @classmethod
     def of_residual(cls, E: np.ndarray, P: np.ndarray, Rgs: Optional[np.ndarray] = None,
@@ -158,6 +190,13 @@ class GroundTrack:
     translation : ndarray (3,)   static sensor position in the ground frame (m).
     t : ndarray (F,)             frame (end) times, s (NaN when unknown).
     valid : ndarray of bool (F,) False where the frame spans a gap in the source or was skipped.
+    pitch_std, roll_std : ndarray (F,) calibrated 1-sigma of pitch and roll, rad (NaN: unknown).
+    status : ndarray of uint8 (F,) code of :data:`~imu_ground.filters.status.STATUSES` (default: ok, or gap
+                                 where not valid).
+    status_reason : ndarray of object (F,) str, why (empty for ok).
+    road_grade, road_bank : ndarray (F,) the road's attitude relative to gravity, rad (+ uphill in the
+                                 direction of travel, + left side up; NaN: not estimated).
+    road_grade_std, road_bank_std : ndarray (F,) their 1-sigma, rad.
     """
     normal: np.ndarray
     pitch: np.ndarray
@@ -170,11 +209,28 @@ class GroundTrack:
     translation: np.ndarray = field(default_factory=lambda: np.zeros(3))
     t: Optional[np.ndarray] = None
     valid: Optional[np.ndarray] = None
+    pitch_std: Optional[np.ndarray] = None
+    roll_std: Optional[np.ndarray] = None
+    status: Optional[np.ndarray] = None
+    status_reason: Optional[np.ndarray] = None
+    road_grade: Optional[np.ndarray] = None
+    road_bank: Optional[np.ndarray] = None
+    road_grade_std: Optional[np.ndarray] = None
+    road_bank_std: Optional[np.ndarray] = None
 
     def __post_init__(self) -> None:
         n = len(self.pitch)
         self.t = np.full(n, np.nan) if self.t is None else np.asarray(self.t, dtype=float).reshape(n)
         self.valid = np.ones(n, dtype=bool) if self.valid is None else np.asarray(self.valid, dtype=bool).reshape(n)
+        for name in ("pitch_std", "roll_std", "road_grade", "road_bank", "road_grade_std", "road_bank_std"):
+            v = getattr(self, name)
+            setattr(self, name, np.full(n, np.nan) if v is None else np.asarray(v, dtype=float).reshape(n))
+        if self.status is None:
+            self.status = np.where(self.valid, OK, GAP).astype(np.uint8)
+        self.status = np.asarray(self.status, dtype=np.uint8).reshape(n)
+        if self.status_reason is None:
+            self.status_reason = np.where(self.status == GAP, "gap in the log", "").astype(object)
+        self.status_reason = np.asarray(self.status_reason, dtype=object).reshape(n)
 
     def __len__(self) -> int:
         return len(self.pitch)
@@ -239,7 +295,11 @@ def track_table(track: GroundTrack, max_gap_frames: int = 3) -> "pd.DataFrame":
         Columns ``t`` (s), ``normal_x, normal_y, normal_z`` (unit normal, sensor
         frame), ``pitch_deg`` (+ nose down), ``roll_deg`` (+ left side up),
         ``qw, qx, qy, qz`` (residual rotation road <- body, scalar first,
-        ``qw >= 0``), ``valid`` (bool).
+        ``qw >= 0``), ``valid`` (bool), ``pitch_std_deg, roll_std_deg`` (calibrated
+        1-sigma), ``road_grade_deg`` (+ uphill in the direction of travel),
+        ``road_bank_deg`` (+ left side up), ``road_grade_std_deg, road_bank_std_deg``
+        (NaN where not estimated), ``status`` (str, :data:`~imu_ground.filters.status.STATUSES`)
+        and ``status_reason`` (str).
     """
     import pandas as pd
     n = len(track)
@@ -248,11 +308,18 @@ def track_table(track: GroundTrack, max_gap_frames: int = 3) -> "pd.DataFrame":
     df = pd.DataFrame({"t": np.asarray(track.t, dtype=float),
                        "normal_x": track.normal[:, 0], "normal_y": track.normal[:, 1], "normal_z": track.normal[:, 2],
                        "pitch_deg": np.degrees(track.pitch), "roll_deg": np.degrees(track.roll),
-                       "qw": q[:, 0], "qx": q[:, 1], "qy": q[:, 2], "qz": q[:, 3], "valid": valid})
+                       "qw": q[:, 0], "qx": q[:, 1], "qy": q[:, 2], "qz": q[:, 3], "valid": valid,
+                       **{f"{name}_deg": np.degrees(getattr(track, name)) for name in _EXTRA_ANGLES},
+                       "status": status_names(track.status), "status_reason": track.status_reason})
     blank = _long_runs(~valid, max_gap_frames)
     if blank.any():
-        df.loc[blank, df.columns[1:-1]] = np.nan
+        cols = [c for c in df.columns if c not in ("t", "valid", "status", "status_reason")]
+        df.loc[blank, cols] = np.nan
     return df
+
+
+#: Angle fields of a track written to the table after ``valid``, as ``NAME_deg``.
+_EXTRA_ANGLES = ("pitch_std", "roll_std", "road_grade", "road_bank", "road_grade_std", "road_bank_std")
 
 
 def _long_runs(mask: np.ndarray, longer_than: int) -> np.ndarray:

@@ -37,12 +37,15 @@ from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
 from imu_ground.filters.rotations import cumulative_rotations, matrix_from_quat, twist_angle
+from imu_ground.filters.status import (CONVERGING, FILTER_CONVERGED_STD, FILTER_STD, GAP, OK, STANDSTILL, track_reasons,
+                                       track_statuses)
 
 __all__ = ["GroundNormalFilter", "GroundEstimate", "GroundTrack", "pitch_roll_from_normal"]
 
 _EZ = np.array([0.0, 0.0, 1.0])
 _EX = np.array([1.0, 0.0, 0.0])
 _I3 = np.eye(3)
+_CONVERGED_VAR = FILTER_CONVERGED_STD * FILTER_CONVERGED_STD
 _MEASUREMENTS = ("rotation", "up", "forward")
 
 
@@ -162,6 +165,7 @@ class GroundNormalFilter:
     def reset(self) -> None:
         """Back to the initial state (cumulative rotation R0, slow state R0, covariance P0)."""
         self._frames = 0
+        self._converged = False
         self._kernel = k = ResidualKernel(self._P0[0, 0], self._P0[2, 2], self._R[0, 0], self._R[2, 2],
                                           up=self.measurement == "up", follow_heading=self.follow_heading,
                                           Rgs=self._Rgs, cumulative=True)
@@ -272,7 +276,23 @@ class GroundNormalFilter:
             bad_frame(frame, o, d, dv, dt, self.on_invalid, self._frames)
             return GroundEstimate.of_residual(self.residual, self.P.copy(), self._Rgs, valid=False)
         self._frames += 1
-        return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o)
+        return self._estimate(frame, o[6], o[7], o, None, o, o[4], dt)
+
+    def _estimate(self, frame, pitch: float, roll: float, q, E, P, a: float, dt: float) -> GroundEstimate:
+        """The estimate of a processed frame with its 1-sigma and status (:mod:`imu_ground.filters.status`)."""
+        pm, rm = FILTER_STD
+        code = OK
+        if not self._converged:
+            if max(pm.variance(a), rm.variance(a)) <= _CONVERGED_VAR:
+                self._converged = True
+            else:
+                code = CONVERGING
+        if getattr(frame, "stationary", False):
+            code = STANDSTILL
+        if not getattr(frame, "valid", True):
+            code = GAP
+        return GroundEstimate(pitch, roll, True, q, E, self._Rgs, P, code, (pm, rm, a, 0.0, 0.0, 0.0, 0.0, dt, None,
+                                                                          FILTER_CONVERGED_STD))
 
     def _ekf_step(self, frame, d, dv, dt: float) -> GroundEstimate:
         """General path of :meth:`step`: the frame checked, then one frame of the InvariantEKF."""
@@ -280,7 +300,10 @@ class GroundNormalFilter:
         if checked is None:
             return GroundEstimate.of_residual(self.residual, self.P.copy(), self._Rgs, valid=False)
         self._frames += 1
-        return GroundEstimate.of_residual(self._ekf_frame(checked[0]), self.ekf.P.copy(), self._Rgs)
+        E = self._ekf_frame(checked[0])
+        pitch, roll = pitch_roll_from_normal(E[2])
+        return self._estimate(frame, float(pitch), float(roll), None, E, self.ekf.P.copy(),
+                              0.5 * float(self.ekf.P[0, 0] + self.ekf.P[1, 1]), dt)
 
     def _ekf_frame(self, d: np.ndarray) -> np.ndarray:
         """General path: one frame of the InvariantEKF; returns the residual E (road <- body)."""
@@ -341,9 +364,21 @@ class GroundNormalFilter:
         if smooth and len(dg):
             Xs, Ps = self._smooth(dg, Xs, Ps)
             E = np.swapaxes(Xs, 1, 2) @ cum
+        a = 0.5 * (Ps[:, 0, 0] + Ps[:, 1, 1])
         E, Ps, cum = (hold_skipped(v, good, s) for v, s in zip((E, Ps, cum), start))
+        pm, rm = FILTER_STD
+        n = len(good)
+        var_max = np.full(n, np.inf)
+        stds = np.full((n, 2), np.nan)                  # (a skipped frame has none, as in step)
+        var = np.stack([pm.variance(a), rm.variance(a)], axis=1)
+        var_max[good], stds[good] = var.max(axis=1), np.sqrt(var)
+        codes, self._converged = track_statuses(var_max, em.stationary, em.valid, good, self._converged,
+                                                converged_std=FILTER_CONVERGED_STD)
         return GroundTrack.from_residuals(E, cum @ np.swapaxes(E, 1, 2), Ps, cum, self._Rgs,
-                                          self.extrinsic.translation, em.t, np.asarray(em.valid, bool) & good)
+                                          self.extrinsic.translation, em.t, np.asarray(em.valid, bool) & good,
+                                          pitch_std=stds[:, 0], roll_std=stds[:, 1], status=codes,
+                                          status_reason=track_reasons(codes, np.sqrt(var_max), em.delta_t,
+                                                                                converged_std=FILTER_CONVERGED_STD))
 
     def _smooth(self, d: np.ndarray, Xs: np.ndarray, Ps: np.ndarray):
         """Rauch-Tung-Striebel smoother on the group over the forward pass (sensor increments ``d``)."""

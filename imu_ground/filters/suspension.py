@@ -82,6 +82,8 @@ from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
 from imu_ground.filters.rotations import matrix_from_quat, twist_angle
+from imu_ground.filters.status import (CONVERGED_STD, CONVERGING, GAP, OK, STANDSTILL, SUSPENSION_STD,
+                                       track_reasons, track_statuses)
 from imu_ground.units import DEG
 
 __all__ = [
@@ -95,6 +97,8 @@ __all__ = [
 ]
 
 _I3 = np.eye(3)
+_CONVERGED_VAR = CONVERGED_STD * CONVERGED_STD
+_I_GXX, _I_GYY = 21, 24                             # gravity kernel state: P[3, 3] and P[4, 4] (gravity_kernel)
 _LOADS = {"specific_force": 1.0, "acceleration": 0.0}
 
 
@@ -281,6 +285,7 @@ class SuspensionAwareFilter:
         self.speed = 0.0
         self._q_last = 0.0
         self._frames = 0
+        self._converged = False
         if self.frame_rate is not None:
             self._design(self.frame_rate)
 
@@ -410,7 +415,22 @@ class SuspensionAwareFilter:
         q = (self.q_time + self.q_dist * speed) * dt * self._r
         self._q_last = q
         o = self._kstep(self._kbuf, d, q, self.q_yaw, kr * uy, kp * ux + self.cross_gain * uy, None, 1.0)
-        return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o)
+        g = gf._s                                   # gravity's world-horizontal variances -> the modelled tilt
+        w = (1.0 - s) * (1.0 - s) * 0.5 * (g[_I_GXX] + g[_I_GYY])
+        info = (SUSPENSION_STD[0], SUSPENSION_STD[1], o[4], ux, uy,
+                w * (kp * kp + self.cross_gain * self.cross_gain), w * kr * kr, dt, None, CONVERGED_STD)
+        code = OK
+        if not self._converged:
+            pm, rm = SUSPENSION_STD
+            if max(pm.variance(o[4], ux, uy, info[5]), rm.variance(o[4], ux, uy, info[6])) <= _CONVERGED_VAR:
+                self._converged = True
+            else:
+                code = CONVERGING
+        if stationary:
+            code = STANDSTILL
+        if not valid:
+            code = GAP
+        return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o, code, info)
 
     def _update_gains(self, d: np.ndarray, ax: float, ay: float) -> None:
         """One frame of the online gain regression (the batch twin is in :meth:`_online_gains`)."""
@@ -487,8 +507,19 @@ class SuspensionAwareFilter:
         if smooth and m:
             Xs = self._smooth(gt.body_increments, cum @ np.swapaxes(E, 1, 2), Ps, q)
             E = np.swapaxes(Xs, 1, 2) @ cum
+        share2 = (1.0 - self.load_share) ** 2
+        sg2 = share2 * 0.5 * (gt.P[:, 3, 3] + gt.P[:, 4, 4])
+        pm, rm = SUSPENSION_STD
+        tvp = sg2 * (ks[:, 0] ** 2 + self.cross_gain ** 2)
+        var = np.stack([pm.variance(Ps[:, 0, 0], u[:, 0], u[:, 1], tvp),
+                        rm.variance(Ps[:, 0, 0], u[:, 0], u[:, 1], sg2 * ks[:, 1] ** 2)], axis=1)
         held = {name: hold_skipped(v, good, start[name]) for name, v in
                 dict(E=E, P=Ps, cum=cum, load=u, speed=gt.speed, gains=ks, gravity=gt.gravity).items()}
+        var_max = np.full(n, np.inf)
+        std_all = np.full((n, 2), np.nan)               # (a skipped frame has none, as in step)
+        var_max[good], std_all[good] = var.max(axis=1), np.sqrt(var)
+        codes, self._converged = track_statuses(var_max, em.stationary, em.valid, good, self._converged)
+        reasons = track_reasons(codes, np.sqrt(var_max), em.delta_t)
         susp_all = held["gains"] * held["load"]
         susp_all[:, 0] += self.cross_gain * held["load"][:, 1]
         cum_all = held["cum"]
@@ -496,7 +527,8 @@ class SuspensionAwareFilter:
             held["E"], cum_all @ np.swapaxes(held["E"], 1, 2), held["P"], cum_all, self._Rgs,
             self.extrinsic.translation, em.t, np.asarray(em.valid, dtype=bool) & good,
             load=held["load"], speed=held["speed"], gains=held["gains"], suspension=susp_all,
-            gravity=held["gravity"])
+            gravity=held["gravity"], pitch_std=std_all[:, 0], roll_std=std_all[:, 1], status=codes,
+            status_reason=reasons)
 
     def _online_gains(self, gt) -> np.ndarray:
         """Gains used at each frame of a batch (the frame before's estimate); advances the regression."""

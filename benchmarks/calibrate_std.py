@@ -1,0 +1,79 @@
+"""Fit the constants of the 1-sigma model of :mod:`imu_ground.filters.status` on synthetic drives.
+
+    python benchmarks/calibrate_std.py            # fit on the suite of seed 0, check on seed 1
+
+The model ``sigma^2 = c_a^2 a + (g_x u_x)^2 + (g_y u_y)^2 + f^2 + sigma_b^2`` (per angle) is
+fitted by Gaussian likelihood of the errors against the exact truth on the moving frames
+(speed above the evaluation's minimum) of ``N`` drives a grade (navigation and MEMS); the
+printed constants go into ``SUSPENSION_STD`` and ``FILTER_STD``. The coverage it reaches on
+drives it was not fitted on is reported by ``benchmarks/confidence.py`` (RESULTS.md).
+"""
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+from scipy.optimize import minimize
+
+from imu_ground.evaluation.drives import synthetic_drives
+from imu_ground.filters.gravity_velocity import GravityVelocityFilter
+from imu_ground.filters.ground import GroundNormalFilter
+from imu_ground.filters.status import AngleStd
+from imu_ground.filters.suspension import SuspensionAwareFilter
+from imu_ground.units import DEG
+
+
+def components(drives, method: str) -> dict:
+    """Per moving frame: errors (rad) and the model's inputs, pooled over ``drives``."""
+    cols: dict = {k: [] for k in ("ep", "er", "a", "ux", "uy", "tvp", "tvr")}
+    for d in drives:
+        ev = d.truth["evaluate"].to_numpy(bool)
+        if method == "suspension":
+            f = SuspensionAwareFilter(extrinsic=d.extrinsic)
+            tr = f.run(d.egomotion)
+            gp = GravityVelocityFilter(extrinsic=d.extrinsic).run(d.egomotion).P
+            sg2 = (1.0 - f.load_share) ** 2 * 0.5 * (gp[:, 3, 3] + gp[:, 4, 4])
+            ux, uy = tr.load[:, 0], tr.load[:, 1]
+            tvp, tvr = sg2 * (tr.gains[:, 0] ** 2 + f.cross_gain ** 2), sg2 * tr.gains[:, 1] ** 2
+        else:
+            tr = GroundNormalFilter(extrinsic=d.extrinsic).run(d.egomotion)
+            ux = uy = tvp = tvr = np.zeros(len(tr))
+        a = 0.5 * (tr.P[:, 0, 0] + tr.P[:, 1, 1])
+        for k, v in dict(ep=tr.pitch - d.truth["pitch"].to_numpy(), er=tr.roll - d.truth["roll"].to_numpy(),
+                         a=a, ux=ux, uy=uy, tvp=tvp, tvr=tvr).items():
+            cols[k].append(np.asarray(v, dtype=float)[ev])
+    return {k: np.concatenate(v) for k, v in cols.items()}
+
+
+def fit(c: dict, angle: str, loads: bool) -> AngleStd:
+    """Maximum-likelihood constants of one angle (``"pitch"`` or ``"roll"``)."""
+    e = c["ep" if angle == "pitch" else "er"]
+    tv = c["tvp" if angle == "pitch" else "tvr"]
+
+    def model(p):
+        ca, gx, gy, f = np.abs(p)
+        return AngleStd(ca, gx * DEG, gy * DEG, f * DEG) if loads else AngleStd(ca, 0.0, 0.0, f * DEG)
+
+    def nll(p):
+        v = model(p).variance(c["a"], c["ux"], c["uy"], tv)
+        return float(np.mean(np.log(v) + e * e / v))
+    res = minimize(nll, [0.5, 0.1, 0.1, 0.05], method="Nelder-Mead", options=dict(maxiter=6000, xatol=1e-5))
+    return model(res.x)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("-n", type=int, default=10, help="drives a grade")
+    ap.add_argument("--seed", type=int, default=0)
+    a = ap.parse_args()
+    drives = synthetic_drives(a.n, seed=a.seed, progress=False)
+    for method in ("suspension", "filter"):
+        c = components(drives, method)
+        for angle in ("pitch", "roll"):
+            m = fit(c, angle, method == "suspension")
+            print(f"{method} {angle}: AngleStd({m.cov_scale:.3g}, {m.load_x / DEG:.3g} * DEG, "
+                  f"{m.load_y / DEG:.3g} * DEG, {m.floor / DEG:.3g} * DEG)")
+
+
+if __name__ == "__main__":
+    main()
