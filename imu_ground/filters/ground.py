@@ -34,6 +34,7 @@ from imu_ground.filters.estimator import (GroundEstimate, GroundTrack, as_egomot
                                           checked_frame, checked_frames, coerce_frame, hold_skipped,
                                           pitch_roll_from_normal, static_rotation)
 from imu_ground.filters.extrinsics import Extrinsic
+from imu_ground.filters.filter_state import ground_state, load_ground_state
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
 from imu_ground.filters.rotations import cumulative_rotations, matrix_from_quat, twist_angle
@@ -237,6 +238,16 @@ class GroundNormalFilter:
             return np.zeros((3, 3))
         a, c = last[2], last[3]
         return np.diag([a, a, 0.0 if self.measurement == "up" else c]) + self._R
+
+    # -- warm start ------------------------------------------------------------------------------
+    def state_dict(self) -> dict:
+        """The state as a plain, JSON-serialisable dict (:mod:`imu_ground.imu.warm_start`): resume with
+        :meth:`load_state_dict` on a GroundNormalFilter built with the same settings."""
+        return ground_state(self)
+
+    def load_state_dict(self, state: dict) -> None:
+        """Resume from a :meth:`state_dict`; a state of another estimator, layout or settings raises ValueError."""
+        load_ground_state(self, state)
 
     # -- streaming -----------------------------------------------------------------------------
     def step(self, frame) -> GroundEstimate:

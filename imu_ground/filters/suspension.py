@@ -70,6 +70,7 @@ from imu_ground.filters.estimator import (
     static_rotation,
 )
 from imu_ground.filters.extrinsics import resolve_platform
+from imu_ground.filters.filter_state import load_suspension_state, suspension_state
 from imu_ground.filters.gains import (
     DEFAULT_CROSS_GAIN,
     DEFAULT_GAINS,
@@ -351,6 +352,16 @@ class SuspensionAwareFilter:
         """X after the last predict."""
         m = self._last(slice(7, 11), None)
         return self.x if m is None else self.cumulative @ matrix_from_quat(np.array(m)).T
+
+    # -- warm start ------------------------------------------------------------------------------
+    def state_dict(self) -> dict:
+        """The state as a plain, JSON-serialisable dict (:mod:`imu_ground.imu.warm_start`): resume with
+        :meth:`load_state_dict` on a SuspensionAwareFilter built with the same settings."""
+        return suspension_state(self)
+
+    def load_state_dict(self, state: dict) -> None:
+        """Resume from a :meth:`state_dict`; a state of another estimator, layout or settings raises ValueError."""
+        load_suspension_state(self, state)
 
     # -- streaming -------------------------------------------------------------------------------
     def step(self, frame, delta_v=None, delta_t: Optional[float] = None, stationary: bool = False,
