@@ -102,21 +102,26 @@ class GroundEstimate:
     status : str
         One of :data:`~imu_ground.filters.status.STATUSES`; ``status_code`` its index.
     status_reason : str
-        Why (empty for ``ok``).
+        Why (empty for ``ok``, or a note such as why the road is not estimated).
+    road_grade, road_bank, road_grade_std, road_bank_std : float
+        The road's attitude relative to gravity and its 1-sigma, rad (:mod:`imu_ground.filters.road`;
+        + uphill in the direction of travel, + left side up; NaN: not estimated).
     """
-    __slots__ = ("pitch", "roll", "valid", "_q", "_E", "_Rgs", "_P", "status_code", "_info")
+    __slots__ = ("pitch", "roll", "valid", "_q", "_E", "_Rgs", "_P", "status_code", "_info", "_road")
 
     # quaternion: a kernel output row (its first 4 entries, w x y z); P: a 3x3 array or the same row
     # (entries 4 and 5: diag(a, a, c))
 
     def __init__(self, pitch: float, roll: float, valid: bool = True, quaternion=None, residual=None,
-                 Rgs: Optional[np.ndarray] = None, P=None, status_code: Optional[int] = None, info=None) -> None:
+                 Rgs: Optional[np.ndarray] = None, P=None, status_code: Optional[int] = None, info=None,
+                 road=None) -> None:
         self.pitch, self.roll, self.valid = pitch, roll, valid
         self._q, self._E, self._Rgs, self._P = quaternion, residual, Rgs, P
         # info: (pitch model, roll model, a, u_x, u_y, tilt var pitch, tilt var roll, frame s, detail,
         # convergence threshold): the 1-sigma and the reason are built on access
         self.status_code = (OK if valid else INVALID) if status_code is None else status_code
         self._info = info
+        self._road = road                   # (grade, bank, gravity's variance of each), filters.road, or None
 
     @property
     def pitch_std(self) -> float:
@@ -131,6 +136,15 @@ class GroundEstimate:
     @property
     def status(self) -> str:
         return STATUSES[self.status_code]
+
+    road_grade = property(lambda self: math.nan if self._road is None else self._road[0],
+                          doc="The road's grade relative to gravity, rad, + uphill (NaN: not estimated).")
+    road_bank = property(lambda self: math.nan if self._road is None else self._road[1],
+                         doc="The road's bank relative to gravity, rad, + left side up (NaN: not estimated).")
+    road_grade_std = property(lambda self: math.nan if self._road is None else
+                              math.sqrt(self.pitch_std ** 2 + self._road[2]), doc="1-sigma of ``road_grade``, rad.")
+    road_bank_std = property(lambda self: math.nan if self._road is None else
+                             math.sqrt(self.roll_std ** 2 + self._road[3]), doc="1-sigma of ``road_bank``, rad.")
 
     @property
     def status_reason(self) -> str:

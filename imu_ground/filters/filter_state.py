@@ -123,7 +123,8 @@ def suspension_state(f) -> dict:
     st = {"frames": f._frames, "converged": f._converged, "kernel": list(f._kernel.buf),
           "gravity": _gravity_buffer(f.gravity_filter), "gains": f.gains, "rate": f._rate,
           "response": _iir(f._resp), "bandpass": _iir(f._bpf), "phi": f._phi, "sxx": f._sxx, "sxy": f._sxy,
-          "load": f._load, "speed": f.speed, "q_last": f._q_last}
+          "load": f._load, "speed": f.speed, "q_last": f._q_last,
+          "road": None if f.road_filter.gravity_filter is None else _gravity_buffer(f.road_filter.gravity_filter)}
     return pack_state("SuspensionAwareFilter", STATE_VERSION, _suspension_settings(f), st)
 
 
@@ -147,3 +148,5 @@ def load_suspension_state(f, saved) -> None:
     f._sxy = None if st["sxy"] is None else np.array(st["sxy"], dtype=float)
     f._load = tuple(float(v) for v in st["load"])
     f.speed, f._q_last = float(st["speed"]), float(st["q_last"])
+    if st["road"] is not None:
+        _load_gravity_buffer(f.road_filter.start(), st["road"])

@@ -38,6 +38,7 @@ from imu_ground.filters.filter_state import ground_state, load_ground_state
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
 from imu_ground.filters.rotations import cumulative_rotations, matrix_from_quat, twist_angle
+from imu_ground.filters.road import NO_ROAD_REASON
 from imu_ground.filters.status import (CONVERGING, FILTER_CONVERGED_STD, FILTER_STD, GAP, OK, STANDSTILL, track_reasons,
                                        track_statuses)
 
@@ -302,7 +303,7 @@ class GroundNormalFilter:
             code = STANDSTILL
         if not getattr(frame, "valid", True):
             code = GAP
-        return GroundEstimate(pitch, roll, True, q, E, self._Rgs, P, code, (pm, rm, a, 0.0, 0.0, 0.0, 0.0, dt, None,
+        return GroundEstimate(pitch, roll, True, q, E, self._Rgs, P, code, (pm, rm, a, 0.0, 0.0, 0.0, 0.0, dt, NO_ROAD_REASON,
                                                                           FILTER_CONVERGED_STD))
 
     def _ekf_step(self, frame, d, dv, dt: float) -> GroundEstimate:
@@ -388,8 +389,9 @@ class GroundNormalFilter:
         return GroundTrack.from_residuals(E, cum @ np.swapaxes(E, 1, 2), Ps, cum, self._Rgs,
                                           self.extrinsic.translation, em.t, np.asarray(em.valid, bool) & good,
                                           pitch_std=stds[:, 0], roll_std=stds[:, 1], status=codes,
-                                          status_reason=track_reasons(codes, np.sqrt(var_max), em.delta_t,
-                                                                                converged_std=FILTER_CONVERGED_STD))
+                                          status_reason=track_reasons(
+                                              codes, np.sqrt(var_max), em.delta_t, np.full(n, NO_ROAD_REASON, object),
+                                              converged_std=FILTER_CONVERGED_STD))
 
     def _smooth(self, d: np.ndarray, Xs: np.ndarray, Ps: np.ndarray):
         """Rauch-Tung-Striebel smoother on the group over the forward pass (sensor increments ``d``)."""

@@ -115,12 +115,13 @@ def status_reason(code: int, gap_seconds: float = math.nan, std: float = math.na
     std : float
         The larger 1-sigma of the frame (rad), said for ``converging``.
     detail : str, optional
-        The monitor's reason for ``degraded``, or the frame's problem for ``invalid``.
+        The monitor's reason for ``degraded``, the frame's problem for ``invalid``, or a note for
+        ``ok`` (e.g. why the road is not estimated).
     converged_std : float
         The estimator's threshold, rad, said for ``converging``.
     """
     if code == OK:
-        return ""
+        return detail or ""
     if code == CONVERGING:
         return (f"converging: 1-sigma {std / DEG:.2f} deg, not yet below {converged_std / DEG:.2f} deg "
                 f"since the start or a reset")
@@ -190,14 +191,17 @@ def track_reasons(codes: np.ndarray, std_max: np.ndarray, dt: np.ndarray,
     dt : ndarray (F,)
         Frame durations, s.
     details : ndarray of object (F,), optional
-        The monitor's reason of each ``degraded`` frame, or a bad frame's problem.
+        The monitor's reason of each ``degraded`` frame, a bad frame's problem, or an ``ok`` frame's note.
     converged_std : float
         The estimator's threshold, rad.
     """
     codes = np.asarray(codes)
     out = np.full(len(codes), "", dtype=object)
     out[codes == STANDSTILL] = status_reason(STANDSTILL)
-    for k in np.flatnonzero((codes != OK) & (codes != STANDSTILL)).tolist():
+    if details is not None:
+        ok = codes == OK
+        out[ok] = np.where(np.asarray(details, dtype=object)[ok] == None, "", details[ok])  # noqa: E711
+    for k in np.flatnonzero((codes != OK) & (codes != STANDSTILL)).tolist():   # (few frames)
         out[k] = status_reason(int(codes[k]), float(dt[k]), float(std_max[k]),
                                None if details is None else details[k], converged_std)
     return out

@@ -82,6 +82,7 @@ from imu_ground.filters.gains import (
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
+from imu_ground.filters.road import NO_SPEED_REASON, RoadFilter, road_one
 from imu_ground.filters.rotations import matrix_from_quat, twist_angle
 from imu_ground.filters.status import (CONVERGED_STD, CONVERGING, GAP, OK, STANDSTILL, SUSPENSION_STD,
                                        track_reasons, track_statuses)
@@ -287,6 +288,7 @@ class SuspensionAwareFilter:
         self._q_last = 0.0
         self._frames = 0
         self._converged = False
+        self.road_filter = RoadFilter(self.extrinsic, self.lever_arm, self._gravity_kw)
         if self.frame_rate is not None:
             self._design(self.frame_rate)
 
@@ -409,11 +411,14 @@ class SuspensionAwareFilter:
         self._frames += 1
         gf = self.gravity_filter
         sp = math.nan if speed is None else float(speed)
-        if self._arrays:
-            (fx, fy, _), (ax, ay, _), v = gf.step_sensor(d, dv, dt, bool(stationary), bool(valid), sp)
-        else:
-            (fx, fy, _), (ax, ay, _), v = gf.step_sensor(d.ravel().tolist(), dv.tolist(), dt, bool(stationary),
-                                                         bool(valid), sp)
+        if not self._arrays:
+            d9, dv3 = d.ravel().tolist(), dv.tolist()
+        (fx, fy, _), (ax, ay, _), v = gf.step_sensor(*((d, dv) if self._arrays else (d9, dv3)), dt,
+                                                     bool(stationary), bool(valid), sp)
+        road = None
+        if sp == sp or self.road_filter.gravity_filter is not None:     # the road, from the first speed on
+            road = self.road_filter.step(*((d, dv) if self._arrays else (d9, dv3)), dt, bool(stationary),
+                                         bool(valid), sp)
         s = self.load_share
         ux, uy = ax + s * (fx - ax), ay + s * (fy - ay)
         if self._resp is not None:
@@ -428,8 +433,10 @@ class SuspensionAwareFilter:
         o = self._kstep(self._kbuf, d, q, self.q_yaw, kr * uy, kp * ux + self.cross_gain * uy, None, 1.0)
         g = gf._s                                   # gravity's world-horizontal variances -> the modelled tilt
         w = (1.0 - s) * (1.0 - s) * 0.5 * (g[_I_GXX] + g[_I_GYY])
-        info = (SUSPENSION_STD[0], SUSPENSION_STD[1], o[4], ux, uy,
-                w * (kp * kp + self.cross_gain * self.cross_gain), w * kr * kr, dt, None, CONVERGED_STD)
+        if road is not None:
+            road = road_one(o, *road)
+        info = (SUSPENSION_STD[0], SUSPENSION_STD[1], o[4], ux, uy, w * (kp * kp + self.cross_gain * self.cross_gain),
+                w * kr * kr, dt, None if road is not None else NO_SPEED_REASON, CONVERGED_STD)
         code = OK
         if not self._converged:
             pm, rm = SUSPENSION_STD
@@ -441,7 +448,7 @@ class SuspensionAwareFilter:
             code = STANDSTILL
         if not valid:
             code = GAP
-        return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o, code, info)
+        return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o, code, info, road)
 
     def _update_gains(self, d: np.ndarray, ax: float, ay: float) -> None:
         """One frame of the online gain regression (the batch twin is in :meth:`_online_gains`)."""
@@ -530,7 +537,12 @@ class SuspensionAwareFilter:
         std_all = np.full((n, 2), np.nan)               # (a skipped frame has none, as in step)
         var_max[good], std_all[good] = var.max(axis=1), np.sqrt(var)
         codes, self._converged = track_statuses(var_max, em.stationary, em.valid, good, self._converged)
-        reasons = track_reasons(codes, np.sqrt(var_max), em.delta_t)
+        road = np.full((n, 4), np.nan)
+        if speed is not None or self.road_filter.gravity_filter is not None:
+            road[good] = self.road_filter.run(sub, np.full(m, np.nan) if speed is None else speed, E,
+                                              np.sqrt(var[:, 0]), np.sqrt(var[:, 1]))
+        details = np.where(np.isnan(road[:, 0]), NO_SPEED_REASON, None)
+        reasons = track_reasons(codes, np.sqrt(var_max), em.delta_t, details)
         susp_all = held["gains"] * held["load"]
         susp_all[:, 0] += self.cross_gain * held["load"][:, 1]
         cum_all = held["cum"]
@@ -539,7 +551,8 @@ class SuspensionAwareFilter:
             self.extrinsic.translation, em.t, np.asarray(em.valid, dtype=bool) & good,
             load=held["load"], speed=held["speed"], gains=held["gains"], suspension=susp_all,
             gravity=held["gravity"], pitch_std=std_all[:, 0], roll_std=std_all[:, 1], status=codes,
-            status_reason=reasons)
+            status_reason=reasons, road_grade=road[:, 0], road_bank=road[:, 1], road_grade_std=road[:, 2],
+            road_bank_std=road[:, 3])
 
     def _online_gains(self, gt) -> np.ndarray:
         """Gains used at each frame of a batch (the frame before's estimate); advances the regression."""
