@@ -1,0 +1,186 @@
+"""How sure, and what the road does: the 1-sigma's calibration, the status, road grade and bank, mount changes.
+
+    python benchmarks/confidence.py              # prints the table; make_results.py puts it in RESULTS.md
+
+Rows (``rows()``):
+
+- **1-sigma coverage, synthetic**: share of moving frames with ``|error| <= 1 sigma`` for pitch and
+  roll (target 55-80 %, aim 68 %), per method and IMU grade, on a suite (seed 1) other than the one
+  the constants were fitted on (seed 0, ``benchmarks/calibrate_std.py``); the time to converge
+  (first frame whose status is not ``converging``) and the share of the truth's stationary frames
+  whose status is ``standstill`` (target >= 90 %).
+- **1-sigma on the revisit drives**: where a real drive passes the same place twice
+  (:func:`revisit_pairs`: 10 Hz samples above 3 m/s, positions within 1 m, headings within 15 deg,
+  at least 30 s apart, each sample with its closest partner), the road's attitude
+  ``INS angle - estimated angle`` must repeat; RMS of ``difference / sqrt(sigma_1^2 + sigma_2^2)``
+  (target 0.8-1.25).
+- **Road grade and bank**: synthetic navigation-grade drives with the true speed, mean absolute error
+  with each drive's mean removed (target <= 0.15 deg); real revisit drives with ``--speed auto``,
+  ``mean |difference| / sqrt(2)`` (targets 0.12 deg grade, 0.22 deg bank).
+- **Mount change**: a synthetic drive whose sensor turns by 1 deg in pitch halfway
+  (``benchmarks/confidence.py`` :func:`mount_change_drive`): the delay until ``degraded``, and the
+  error after it with ``recalibrate_online``; false alarms on every shared drive.
+
+The revisit pairing lives here (one place) for these checks.
+"""
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+DATA = HERE.parent.parent / "shared" / "data" / "kitti_imu100"
+REVISIT_DRIVES = ("2011_09_30_drive_0020", "2011_10_03_drive_0034")
+DEG = math.pi / 180.0
+
+
+# ----------------------------------------------------------------------------- revisit pairs
+def revisit_pairs(t: np.ndarray, pos: np.ndarray, heading: np.ndarray, speed: np.ndarray, radius: float = 1.0,
+                  max_heading_deg: float = 15.0, min_apart_s: float = 30.0, min_speed: float = 3.0) -> np.ndarray:
+    """Pairs ``(i, j)`` of samples where a drive passes the same place twice in the same direction.
+
+    Parameters
+    ----------
+    t : ndarray (N,)
+        Sample times, s (10 Hz frames).
+    pos : ndarray (N, 2)
+        Horizontal positions, m.
+    heading : ndarray (N,)
+        Yaw, rad.
+    speed : ndarray (N,)
+        m/s.
+
+    Returns
+    -------
+    ndarray (P, 2) of int
+        Each sample above ``min_speed`` with its closest partner within ``radius`` whose heading
+        is within ``max_heading_deg`` and time at least ``min_apart_s`` away (one row per sample that
+        has one; ``i < j`` not required).
+    """
+    from scipy.spatial import cKDTree
+    ok = np.flatnonzero(speed > min_speed)
+    tree = cKDTree(pos[ok])
+    out = []
+    for a, nb in zip(ok, tree.query_ball_point(pos[ok], radius)):
+        cand = ok[nb]
+        dh = np.abs((heading[cand] - heading[a] + np.pi) % (2 * np.pi) - np.pi)
+        cand = cand[(np.abs(t[cand] - t[a]) >= min_apart_s) & (dh <= max_heading_deg * DEG)]
+        if len(cand):
+            out.append((a, cand[np.argmin(np.linalg.norm(pos[cand] - pos[a], axis=1))]))
+    return np.array(out, dtype=int).reshape(-1, 2)
+
+
+def _ins_at(path: Path, t: np.ndarray) -> dict:
+    import pandas as pd
+    df = pd.read_csv(path)
+    out = {}
+    for c in ("roll", "pitch", "px", "py", "ve", "vn"):
+        out[c] = np.interp(t, df["t"].to_numpy(), df[c].to_numpy())
+    yaw = np.unwrap(df["yaw"].to_numpy())
+    out["yaw"] = np.interp(t, df["t"].to_numpy(), yaw)
+    out["speed"] = np.hypot(out["ve"], out["vn"])
+    return out
+
+
+def revisit_rows(data: Path = DATA) -> list[dict]:
+    """1-sigma calibration and road repeatability on the revisit drives (default method)."""
+    from imu_ground.pipeline import estimate_log
+    rows = []
+    for name in REVISIT_DRIVES:
+        path = data / f"{name}.csv.gz"
+        if not path.is_file():
+            continue
+        for speed in ("none", "auto"):
+            res = estimate_log(path, speed=speed)
+            tr = res.track
+            ins = _ins_at(path, tr.t)
+            pairs = revisit_pairs(tr.t, np.column_stack([ins["px"], ins["py"]]), ins["yaw"], ins["speed"])
+            i, j = pairs[:, 0], pairs[:, 1]
+            row = {"drive": name, "speed": speed, "pairs": len(pairs)}
+            for angle, ins_angle in (("pitch", ins["pitch"]), ("roll", ins["roll"])):
+                road = ins_angle - getattr(tr, angle)
+                s = getattr(tr, f"{angle}_std")
+                z = (road[i] - road[j]) / np.sqrt(s[i] ** 2 + s[j] ** 2)
+                row[f"{angle} z rms"] = float(np.sqrt(np.nanmean(z ** 2)))
+                row[f"{angle} mean|d|/sqrt2 deg"] = float(np.nanmean(np.abs(road[i] - road[j])) / math.sqrt(2) / DEG)
+            for q in ("road_grade", "road_bank"):
+                v = getattr(tr, q)
+                d = v[i] - v[j]
+                row[f"{q} mean|d|/sqrt2 deg"] = float(np.nanmean(np.abs(d)) / math.sqrt(2) / DEG) if np.isfinite(d).any() else math.nan
+                s = getattr(tr, f"{q}_std")
+                row[f"{q} z rms"] = (float(np.sqrt(np.nanmean((d / np.sqrt(s[i] ** 2 + s[j] ** 2)) ** 2)))
+                                     if np.isfinite(d).any() else math.nan)
+            rows.append(row)
+    return rows
+
+
+# ----------------------------------------------------------------------------- synthetic
+def _truth_at(d) -> dict:
+    st = d.sim.truth
+    idx = np.clip(np.searchsorted(st["t"].to_numpy(), d.egomotion.t - 1e-6), 0, len(st) - 1)
+    return {c: st[c].to_numpy()[idx] for c in ("road_grade", "road_bank", "speed", "stationary")}
+
+
+def synthetic_rows(n: int = 10, seed: int = 1) -> list[dict]:
+    """Coverage of the 1-sigma, convergence, standstill and road accuracy on a synthetic suite."""
+    from imu_ground.evaluation.drives import synthetic_drives
+    from imu_ground.filters.ground import GroundNormalFilter
+    from imu_ground.filters.status import CONVERGING, STANDSTILL
+    from imu_ground.filters.suspension import SuspensionAwareFilter
+    drives = synthetic_drives(n, seed=seed, progress=False)
+    rows = []
+    for grade in ("nav", "mems"):
+        ds = [d for d in drives if d.grade == grade]
+        for method, make in (("suspension", SuspensionAwareFilter), ("filter", GroundNormalFilter)):
+            hit = {"pitch": [], "roll": []}
+            conv, stand, per_drive = [], [], {"pitch": [], "roll": []}
+            for d in ds:
+                tr = make(extrinsic=d.extrinsic).run(d.egomotion)
+                ev = d.truth["evaluate"].to_numpy(bool)
+                for a in ("pitch", "roll"):
+                    h = np.abs(getattr(tr, a) - d.truth[a].to_numpy()) <= getattr(tr, f"{a}_std")
+                    hit[a].append(h[ev])
+                    per_drive[a].append(h[ev].mean())
+                c = np.flatnonzero(tr.status != CONVERGING)
+                conv.append(tr.t[c[0]] - tr.t[0] + d.egomotion.delta_t[0] if len(c) else math.inf)
+                still = _truth_at(d)["stationary"].astype(bool)
+                stand.append((tr.status[still] == STANDSTILL).mean() if still.any() else math.nan)
+            rows.append({"check": "1-sigma coverage (synthetic)", "method": method, "imu": grade, "drives": len(ds),
+                         "pitch % within 1 sigma": 100 * np.concatenate(hit["pitch"]).mean(),
+                         "roll % within 1 sigma": 100 * np.concatenate(hit["roll"]).mean(),
+                         "per drive pitch min-max %": f"{100 * min(per_drive['pitch']):.0f}-{100 * max(per_drive['pitch']):.0f}",
+                         "per drive roll min-max %": f"{100 * min(per_drive['roll']):.0f}-{100 * max(per_drive['roll']):.0f}",
+                         "time to converge median / max s": f"{np.median(conv):.1f} / {max(conv):.1f}",
+                         "standstill % of stationary frames (min over drives)": 100 * np.nanmin(stand)})
+        g_err, b_err, g_cov, b_cov = [], [], [], []
+        for d in ds:
+            tt = _truth_at(d)
+            tr = SuspensionAwareFilter(extrinsic=d.extrinsic).run(d.egomotion, speed=tt["speed"])
+            ev = d.truth["evaluate"].to_numpy(bool) & np.isfinite(tr.road_grade)
+            eg, eb = (tr.road_grade - tt["road_grade"])[ev], (tr.road_bank - tt["road_bank"])[ev]
+            g_err.append(np.mean(np.abs(eg - eg.mean())) / DEG)
+            b_err.append(np.mean(np.abs(eb - eb.mean())) / DEG)
+            g_cov.append(np.mean(np.abs(eg) <= tr.road_grade_std[ev]))
+            b_cov.append(np.mean(np.abs(eb) <= tr.road_bank_std[ev]))
+        rows.append({"check": "road grade/bank (synthetic, true speed)", "method": "suspension", "imu": grade,
+                     "drives": len(ds), "grade mean abs err (mean removed) deg, mean / max":
+                     f"{np.mean(g_err):.3f} / {max(g_err):.3f}",
+                     "bank mean abs err (mean removed) deg, mean / max": f"{np.mean(b_err):.3f} / {max(b_err):.3f}",
+                     "grade % within 1 sigma": 100 * np.mean(g_cov), "bank % within 1 sigma": 100 * np.mean(b_cov)})
+    return rows
+
+
+def rows(n: int = 10, drives: int | None = None) -> list[dict]:
+    """Every row of the module docstring (``n`` synthetic drives a grade)."""
+    out = synthetic_rows(n=n)
+    out += [dict(check="revisit (real, default method)", **r) for r in revisit_rows()]
+    return out
+
+
+if __name__ == "__main__":
+    sys.path.insert(0, str(HERE))
+    from make_results import markdown
+    print(markdown(rows()))
