@@ -390,7 +390,7 @@ class GroundNormalFilter:
                                           self.extrinsic.translation, em.t, np.asarray(em.valid, bool) & good,
                                           pitch_std=stds[:, 0], roll_std=stds[:, 1], status=codes,
                                           status_reason=track_reasons(
-                                              codes, np.sqrt(var_max), em.delta_t, np.full(n, NO_ROAD_REASON, object),
+                                              codes, np.sqrt(var_max), em.delta_t, np.where(codes == OK, NO_ROAD_REASON, None),
                                               converged_std=FILTER_CONVERGED_STD))
 
     def _smooth(self, d: np.ndarray, Xs: np.ndarray, Ps: np.ndarray):

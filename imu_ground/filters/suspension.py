@@ -541,7 +541,7 @@ class SuspensionAwareFilter:
         if speed is not None or self.road_filter.gravity_filter is not None:
             road[good] = self.road_filter.run(sub, np.full(m, np.nan) if speed is None else speed, E,
                                               np.sqrt(var[:, 0]), np.sqrt(var[:, 1]))
-        details = np.where(np.isnan(road[:, 0]), NO_SPEED_REASON, None)
+        details = np.where(np.isnan(road[:, 0]) & (codes == OK), NO_SPEED_REASON, None)
         reasons = track_reasons(codes, np.sqrt(var_max), em.delta_t, details)
         susp_all = held["gains"] * held["load"]
         susp_all[:, 0] += self.cross_gain * held["load"][:, 1]
