@@ -17,11 +17,8 @@ Rows (``rows()``):
 - **Road grade and bank**: synthetic navigation-grade drives with the true speed, mean absolute error
   with each drive's mean removed (target <= 0.15 deg); real revisit drives with ``--speed auto``,
   ``mean |difference| / sqrt(2)`` (targets 0.12 deg grade, 0.22 deg bank).
-- **Mount change**: a synthetic drive whose sensor turns by 1 deg in pitch halfway
-  (``benchmarks/confidence.py`` :func:`mount_change_drive`): the delay until ``degraded``, and the
-  error after it with ``recalibrate_online``; false alarms on every shared drive.
-
-The revisit pairing lives here (one place) for these checks.
+The revisit pairing lives here (one place) for these checks. Rows are long-format: ``check``,
+``scope`` (method, IMU grade or drive), ``quantity``, ``figure``, ``target``, ``passed``.
 """
 from __future__ import annotations
 
@@ -62,6 +59,8 @@ def revisit_pairs(t: np.ndarray, pos: np.ndarray, heading: np.ndarray, speed: np
     """
     from scipy.spatial import cKDTree
     ok = np.flatnonzero(speed > min_speed)
+    if not len(ok):
+        return np.zeros((0, 2), dtype=int)
     tree = cKDTree(pos[ok])
     out = []
     for a, nb in zip(ok, tree.query_ball_point(pos[ok], radius)):
@@ -98,6 +97,7 @@ def revisit_rows(data: Path = DATA) -> list[dict]:
             tr = res.track
             ins = _ins_at(path, tr.t)
             pairs = revisit_pairs(tr.t, np.column_stack([ins["px"], ins["py"]]), ins["yaw"], ins["speed"])
+            pairs = pairs[pairs[:, 0] < pairs[:, 1]]          # each pass-1 sample with its closest pass-2 partner
             i, j = pairs[:, 0], pairs[:, 1]
             row = {"drive": name, "speed": speed, "pairs": len(pairs)}
             for angle, ins_angle in (("pitch", ins["pitch"]), ("roll", ins["roll"])):
@@ -128,7 +128,7 @@ def synthetic_rows(n: int = 10, seed: int = 1) -> list[dict]:
     """Coverage of the 1-sigma, convergence, standstill and road accuracy on a synthetic suite."""
     from imu_ground.evaluation.drives import synthetic_drives
     from imu_ground.filters.ground import GroundNormalFilter
-    from imu_ground.filters.status import CONVERGING, STANDSTILL
+    from imu_ground.filters.status import CONVERGED_STD, FILTER_CONVERGED_STD, STANDSTILL
     from imu_ground.filters.suspension import SuspensionAwareFilter
     drives = synthetic_drives(n, seed=seed, progress=False)
     rows = []
@@ -144,7 +144,8 @@ def synthetic_rows(n: int = 10, seed: int = 1) -> list[dict]:
                     h = np.abs(getattr(tr, a) - d.truth[a].to_numpy()) <= getattr(tr, f"{a}_std")
                     hit[a].append(h[ev])
                     per_drive[a].append(h[ev].mean())
-                c = np.flatnonzero(tr.status != CONVERGING)
+                thr = CONVERGED_STD if method == "suspension" else FILTER_CONVERGED_STD
+                c = np.flatnonzero(np.maximum(tr.pitch_std, tr.roll_std) <= thr)
                 conv.append(tr.t[c[0]] - tr.t[0] + d.egomotion.delta_t[0] if len(c) else math.inf)
                 still = _truth_at(d)["stationary"].astype(bool)
                 stand.append((tr.status[still] == STANDSTILL).mean() if still.any() else math.nan)
@@ -173,10 +174,52 @@ def synthetic_rows(n: int = 10, seed: int = 1) -> list[dict]:
     return rows
 
 
+def _long(check: str, scope: str, quantity: str, figure, target: str = "", passed=None) -> dict:
+    return {"check": check, "scope": scope, "quantity": quantity, "figure": figure, "target": target,
+            "passed": passed}
+
+
 def rows(n: int = 10, drives: int | None = None) -> list[dict]:
     """Every row of the module docstring (``n`` synthetic drives a grade)."""
-    out = synthetic_rows(n=n)
-    out += [dict(check="revisit (real, default method)", **r) for r in revisit_rows()]
+    out = []
+    for r in synthetic_rows(n=n):
+        scope = f"{r['method']}, {r['imu']}, {r['drives']} drives"
+        if r["check"].startswith("1-sigma"):
+            for a in ("pitch", "roll"):
+                v = r[f"{a} % within 1 sigma"]
+                out.append(_long("1-sigma coverage, synthetic (seed 1)", scope, f"{a}: % of moving frames within 1 sigma",
+                                 v, "55-80 (aim 68)", bool(55 <= v <= 80)))
+                out.append(_long("1-sigma coverage, synthetic (seed 1)", scope, f"{a}: per drive min-max %",
+                                 r[f"per drive {a} min-max %"]))
+            out.append(_long("convergence, synthetic", scope, "time to converge (1-sigma first <= threshold), "
+                             "median / max s", r["time to converge median / max s"]))
+            v = r["standstill % of stationary frames (min over drives)"]
+            out.append(_long("standstill, synthetic", scope, "% of the truth's stationary frames with status "
+                             "standstill (worst drive)", v, ">= 90", bool(v >= 90) if v == v else None))
+        else:
+            for q in ("grade", "bank"):
+                fig = r[f"{q} mean abs err (mean removed) deg, mean / max"]
+                mean = float(fig.split(" / ")[0])
+                out.append(_long("road, synthetic, true speed", scope, f"{q}: mean abs error (drive mean removed), "
+                                 "deg, mean / max over drives", fig, "<= 0.15 (nav)" if r["imu"] == "nav" else "",
+                                 bool(mean <= 0.15) if r["imu"] == "nav" else None))
+                out.append(_long("road, synthetic, true speed", scope, f"{q}: % within 1 sigma",
+                                 r[f"{q} % within 1 sigma"]))
+    for r in revisit_rows():
+        scope = f"{r['drive']}, --speed {r['speed']}, {r['pairs']} pairs"
+        for a in ("pitch", "roll"):
+            v = r[f"{a} z rms"]
+            out.append(_long("1-sigma, real revisit pairs", scope, f"{a}: RMS of diff / sqrt(s1^2 + s2^2)", v,
+                             "0.8-1.25", bool(0.8 <= v <= 1.25)))
+            out.append(_long("1-sigma, real revisit pairs", scope, f"{a}: mean |diff| / sqrt(2), deg",
+                             r[f"{a} mean|d|/sqrt2 deg"]))
+        if r["speed"] == "auto":
+            for q, tgt in (("road_grade", 0.12), ("road_bank", 0.22)):
+                v = r[f"{q} mean|d|/sqrt2 deg"]
+                out.append(_long("road, real revisit pairs", scope, f"{q}: mean |diff| / sqrt(2), deg", v,
+                                 f"<= {tgt}", bool(v <= tgt)))
+                out.append(_long("road, real revisit pairs", scope, f"{q}: RMS of diff / sqrt(s1^2 + s2^2)",
+                                 r[f"{q} z rms"]))
     return out
 
 

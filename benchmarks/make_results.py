@@ -45,6 +45,9 @@ SIMULATOR_CHECKS = ("sim_vs_real",)
 ERROR_BUDGET = ("error_budget",)
 #: Scripts whose rows compare the readers' timestamp policies on the real drives (issue 9: drop against retime).
 READER_CHECKS = ("retime_table",)
+#: Scripts whose rows check the 1-sigma, the status and the road's grade and bank.
+CONFIDENCE_CHECKS = ("confidence",)
+CONFIDENCE_TITLE = "How sure, and what the road does"
 #: Smaller sizes for ``--quick``, passed to a benchmark's ``rows()`` where it has the parameter.
 QUICK_KWARGS = {"frames": 20_000, "stream_frames": 5_000, "repeat": 2, "steps": 5_000, "samples": 60_000,
                 "stream_samples": 5_000, "hours": (0.1,), "n": 2, "drives": 4}
@@ -242,19 +245,42 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=OUT, help="output file (default %(default)s)")
     ap.add_argument("--no-speed", action="store_true", help="accuracy tables only")
     ap.add_argument("--no-accuracy", action="store_true", help="speed tables only")
+    ap.add_argument("--only-confidence", action="store_true",
+                    help=f"only the section '{CONFIDENCE_TITLE}', replaced in the existing file")
     a = ap.parse_args(argv)
+    if a.only_confidence:
+        return _replace_section(a.out, speed_sections(a.quick, CONFIDENCE_CHECKS, CONFIDENCE_TITLE))
     lines = _header(argv, a.quick)
     if not a.no_accuracy:
         lines += accuracy_sections(a.data, a.quick)
         lines += speed_sections(a.quick, ERROR_BUDGET, "Where the real-drive error is")
         lines += speed_sections(a.quick, SIMULATOR_CHECKS, "Simulator against the real drives")
         lines += speed_sections(a.quick, READER_CHECKS, "Timestamp policies on the real drives")
+        lines += speed_sections(a.quick, CONFIDENCE_CHECKS, CONFIDENCE_TITLE)
     if not a.no_speed:
         lines += speed_sections(a.quick)
     tmp = a.out.with_suffix(a.out.suffix + ".tmp")
     tmp.write_text("\n".join(lines).rstrip() + "\n")
     tmp.replace(a.out)
     print(f"wrote {a.out}")
+    return 0
+
+
+def _replace_section(path: Path, section: list[str]) -> int:
+    """Put ``section`` (its first line a ``# `` title) in place of the file's section of that title (or at
+    the end of the accuracy part, before ``# Speed``), leaving the rest as it is."""
+    text = path.read_text().splitlines() if path.is_file() else []
+    title = section[0]
+    if title in text:
+        i = text.index(title)
+        j = next((k for k in range(i + 1, len(text)) if text[k].startswith("# ")), len(text))
+    else:
+        i = j = text.index("# Speed") if "# Speed" in text else len(text)
+    out = text[:i] + section + text[j:]
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text("\n".join(out).rstrip() + "\n")
+    tmp.replace(path)
+    print(f"wrote {path} (section {title[2:]!r})")
     return 0
 
 
