@@ -141,6 +141,7 @@ def load_suspension_state(f, saved) -> None:
     f._frames, f._converged = int(st["frames"]), bool(st["converged"])
     f.gains = np.array(st["gains"], dtype=float)
     f._kp, f._kr = (float(g) for g in f.gains)
+    f._set_tilt_weights()
     _load_iir(f._resp, st["response"])
     _load_iir(f._bpf, st["bandpass"])
     f._phi = np.array(st["phi"], dtype=float)

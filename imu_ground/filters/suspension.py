@@ -289,8 +289,15 @@ class SuspensionAwareFilter:
         self._frames = 0
         self._converged = False
         self.road_filter = RoadFilter(self.extrinsic, self.lever_arm, self._gravity_kw)
+        self._garray = isinstance(self.gravity_filter._s, np.ndarray)
+        self._set_tilt_weights()
         if self.frame_rate is not None:
             self._design(self.frame_rate)
+
+    def _set_tilt_weights(self) -> None:
+        """Factors of the gravity variance in the modelled tilt's variance (pitch, roll), for the 1-sigma."""
+        h = 0.5 * (1.0 - self.load_share) ** 2
+        self._tilt_w = (h * (self._kp * self._kp + self.cross_gain * self.cross_gain), h * self._kr * self._kr)
 
     def _design(self, rate: float) -> None:
         """Discrete-time design for frames at ``rate`` Hz (once; a later rate more than 2 % off is an error)."""
@@ -412,13 +419,11 @@ class SuspensionAwareFilter:
         gf = self.gravity_filter
         sp = math.nan if speed is None else float(speed)
         if not self._arrays:
-            d9, dv3 = d.ravel().tolist(), dv.tolist()
-        (fx, fy, _), (ax, ay, _), v = gf.step_sensor(*((d, dv) if self._arrays else (d9, dv3)), dt,
-                                                     bool(stationary), bool(valid), sp)
+            d, dv = d.ravel().tolist(), dv.tolist()     # (the kernels' pure-Python twins take lists)
+        (fx, fy, _), (ax, ay, _), v = gf.step_sensor(d, dv, dt, bool(stationary), bool(valid), sp)
         road = None
         if sp == sp or self.road_filter.gravity_filter is not None:     # the road, from the first speed on
-            road = self.road_filter.step(*((d, dv) if self._arrays else (d9, dv3)), dt, bool(stationary),
-                                         bool(valid), sp)
+            road = self.road_filter.step(d, dv, dt, bool(stationary), bool(valid), sp)
         s = self.load_share
         ux, uy = ax + s * (fx - ax), ay + s * (fy - ay)
         if self._resp is not None:
@@ -426,17 +431,18 @@ class SuspensionAwareFilter:
         self._load = (ux, uy)
         self.speed = speed = v if math.isnan(sp) else sp
         kp, kr = self._kp, self._kr
+        wp, wr = self._tilt_w                       # (of the gains used at this frame)
         if self.online_gains:
-            self._update_gains(d, ax, ay)
+            self._update_gains(np.asarray(d, dtype=float).reshape(3, 3), ax, ay)
         q = (self.q_time + self.q_dist * speed) * dt * self._r
         self._q_last = q
         o = self._kstep(self._kbuf, d, q, self.q_yaw, kr * uy, kp * ux + self.cross_gain * uy, None, 1.0)
         g = gf._s                                   # gravity's world-horizontal variances -> the modelled tilt
-        w = (1.0 - s) * (1.0 - s) * 0.5 * (g[_I_GXX] + g[_I_GYY])
+        sg2 = g.item(_I_GXX) + g.item(_I_GYY) if self._garray else g[_I_GXX] + g[_I_GYY]
         if road is not None:
             road = road_one(o, *road)
-        info = (SUSPENSION_STD[0], SUSPENSION_STD[1], o[4], ux, uy, w * (kp * kp + self.cross_gain * self.cross_gain),
-                w * kr * kr, dt, None if road is not None else NO_SPEED_REASON, CONVERGED_STD)
+        info = (SUSPENSION_STD[0], SUSPENSION_STD[1], o[4], ux, uy, sg2 * wp, sg2 * wr, dt,
+                None if road is not None else NO_SPEED_REASON, CONVERGED_STD)
         code = OK
         if not self._converged:
             pm, rm = SUSPENSION_STD
@@ -459,6 +465,7 @@ class SuspensionAwareFilter:
         self._sxx = self._sxx + z[:2] * z[:2]
         self.gains = self._sxy / self._sxx
         self._kp, self._kr = self.gains.tolist()
+        self._set_tilt_weights()
 
     # -- batch -----------------------------------------------------------------------------------
     def run(self, egomotion, smooth: bool = False, speed: Optional[np.ndarray] = None) -> SuspensionTrack:
@@ -564,6 +571,7 @@ class SuspensionAwareFilter:
         self._phi, self._sxy, self._sxx = phi[-1].copy(), sxy[-1].copy(), sxx[-1].copy()
         self.gains = self._sxy / self._sxx
         self._kp, self._kr = self.gains.tolist()
+        self._set_tilt_weights()
         return ks
 
     def _smooth(self, db: np.ndarray, Xs: np.ndarray, Ps: np.ndarray, q: np.ndarray) -> np.ndarray:
