@@ -418,12 +418,11 @@ class SuspensionAwareFilter:
         self._frames += 1
         gf = self.gravity_filter
         sp = math.nan if speed is None else float(speed)
-        if not self._arrays:
-            d, dv = d.ravel().tolist(), dv.tolist()     # (the kernels' pure-Python twins take lists)
-        (fx, fy, _), (ax, ay, _), v = gf.step_sensor(d, dv, dt, bool(stationary), bool(valid), sp)
+        gd, gdv = (d, dv) if self._arrays else (d.ravel().tolist(), dv.tolist())   # (pure-Python twins: lists)
+        (fx, fy, _), (ax, ay, _), v = gf.step_sensor(gd, gdv, dt, bool(stationary), bool(valid), sp)
         road = None
         if sp == sp or self.road_filter.gravity_filter is not None:     # the road, from the first speed on
-            road = self.road_filter.step(d, dv, dt, bool(stationary), bool(valid), sp)
+            road = self.road_filter.step(gd, gdv, dt, bool(stationary), bool(valid), sp)
         s = self.load_share
         ux, uy = ax + s * (fx - ax), ay + s * (fy - ay)
         if self._resp is not None:
@@ -433,7 +432,7 @@ class SuspensionAwareFilter:
         kp, kr = self._kp, self._kr
         wp, wr = self._tilt_w                       # (of the gains used at this frame)
         if self.online_gains:
-            self._update_gains(np.asarray(d, dtype=float).reshape(3, 3), ax, ay)
+            self._update_gains(d, ax, ay)
         q = (self.q_time + self.q_dist * speed) * dt * self._r
         self._q_last = q
         o = self._kstep(self._kbuf, d, q, self.q_yaw, kr * uy, kp * ux + self.cross_gain * uy, None, 1.0)
