@@ -5,11 +5,14 @@ Module map (each imports only the ones above it, and the imu layer below):
 - ``rotations``: increments in any form, heading twist, ZYX Euler angles, quaternions;
 - ``design``: discrete-time filter design (band-pass, second-order response, IIR runner);
 - ``extrinsics``: static extrinsics and the calibration file format (``Calibration``);
+- ``status``: the calibrated 1-sigma of pitch and roll and the per-frame status with its reason;
 - ``estimator``: the estimator protocol, ``GroundEstimate``, ``GroundTrack``, ``track_table``, frame checks;
 - ``residual``: the scalar residual filter both invariant-EKF estimators run on;
 - ``invariant_ekf_kernel``, ``gravity_kernel``: the pure-Python per-frame kernels of the invariant
   EKF and of the gravity/velocity filter (references of, and fallbacks for, the C twins);
+- ``filter_state``: warm start (``state_dict`` / ``load_state_dict``) of the streaming filters;
 - ``invariant_ekf``, ``gravity_velocity``: the filters the estimators are built from;
+- ``road``: road grade and bank relative to gravity (a gravity/velocity filter of their own);
 - ``gains``: suspension gains (defaults, band-pass regression);
 - ``ground`` (``GroundNormalFilter``), ``suspension`` (``SuspensionAwareFilter``): the estimators;
 - ``methods``: the estimators by CLI name; ``calibration``: ``calibrate`` a platform.
@@ -31,6 +34,7 @@ _EXPORTS = {
     ".extrinsics": ("Extrinsic load_extrinsic save_extrinsic available_extrinsics Calibration "
                     "load_calibration resolve_platform"),
     ".calibration": "calibrate",
+    ".status": "STATUSES",
     ".rotations": "euler_zyx twist_angle as_rotations",
     ".design": "butter_bandpass foh_filter",
 }
