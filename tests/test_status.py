@@ -1,4 +1,5 @@
 """How sure: the calibrated 1-sigma, the per-frame status and its reason, road grade and bank, in every output."""
+import json
 import math
 from dataclasses import replace
 
@@ -200,3 +201,65 @@ def test_ros_output_has_the_std_road_and_status_topics(tmp_path, drives):
     assert got["/ground/status"][0].data.startswith(table["status"][0])
     np.testing.assert_allclose([m.vector.y for m in got["/ground/road"]], np.radians(table["road_grade_deg"]),
                                rtol=1e-12)
+
+
+# ------------------------------------------------------------------------------------------ mount changes
+def _with_speed(sim):
+    d = synthetic_drive(sim)
+    st = sim.truth
+    idx = np.clip(np.searchsorted(st["t"].to_numpy(), d.egomotion.t - 1e-6), 0, len(st) - 1)
+    return d, st["speed"].to_numpy()[idx]
+
+
+@pytest.fixture(scope="module")
+def remount_pair():
+    from imu_ground.evaluation.simulate import remounted
+    sim = simulate(duration=240.0, seed=0, imu="nav")
+    return _with_speed(sim), _with_speed(remounted(sim, 120.0, roty(1.0 * DEG)))
+
+
+def test_a_sensor_turned_by_1_deg_is_flagged_degraded_within_20_s(remount_pair):
+    from imu_ground.filters.status import DEGRADED
+    (d0, sp0), (d1, sp1) = remount_pair
+    assert not (SuspensionAwareFilter(extrinsic=d0.extrinsic).run(d0.egomotion, speed=sp0).status == DEGRADED).any()
+    tr = SuspensionAwareFilter(extrinsic=d1.extrinsic).run(d1.egomotion, speed=sp1)
+    deg = tr.status == DEGRADED
+    first = d1.egomotion.t[np.argmax(deg)]
+    assert deg.any() and 120.0 < first <= 140.0
+    assert deg[np.argmax(deg):][d1.egomotion.valid[np.argmax(deg):]].all()       # latched
+    assert "mount moved" in tr.status_reason[np.argmax(deg)]
+    f = SuspensionAwareFilter(extrinsic=d1.extrinsic)                      # the stream flags the same frames
+    es = [f.step(fr, speed=sp1[i]) for i, fr in enumerate(d1.egomotion.frames())]
+    assert [e.status_code for e in es] == tr.status.tolist()
+    assert [e.status_reason for e in es] == tr.status_reason.tolist()
+    no_speed = SuspensionAwareFilter(extrinsic=d1.extrinsic).run(d1.egomotion)     # IMU only: no monitor
+    assert not (no_speed.status == DEGRADED).any()
+
+
+def test_the_mount_monitor_resumes_from_a_saved_state(remount_pair):
+    _, (d1, sp1) = remount_pair
+    frames = list(d1.egomotion.frames())
+    whole = SuspensionAwareFilter(extrinsic=d1.extrinsic).run(d1.egomotion, speed=sp1)
+    a = SuspensionAwareFilter(extrinsic=d1.extrinsic)
+    for i in range(1250):
+        a.step(frames[i], speed=sp1[i])
+    b = SuspensionAwareFilter(extrinsic=d1.extrinsic)
+    b.load_state_dict(json.loads(json.dumps(a.state_dict())))
+    got = [b.step(frames[i], speed=sp1[i]).status_code for i in range(1250, len(frames))]
+    assert got == whole.status[1250:].tolist()
+
+
+def test_no_mount_alarm_on_the_revisit_drives(shared_data, kitti_index):
+    """The two long shared drives (the full list of drives.csv is in benchmarks/RESULTS.md)."""
+    import warnings
+
+    from imu_ground.filters.status import DEGRADED
+    from imu_ground.pipeline import estimate_log
+    for name in ("2011_09_30_drive_0020", "2011_10_03_drive_0034"):
+        if name not in set(kitti_index["drive"]):
+            continue
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            tr = estimate_log(shared_data / "kitti_imu100" / f"{name}.csv.gz", speed="auto").track
+        assert np.isfinite(tr.road_grade).mean() > 0.9
+        assert not (tr.status == DEGRADED).any(), name

@@ -104,8 +104,7 @@ def _suspension_settings(f) -> dict:
                 P0=f.P0, load=f.load_share, response=f.response, online_gains=f.online_gains,
                 gain_prior_seconds=f.gain_prior_seconds, gain_band=f.gain_band, frame_rate=f.frame_rate,
                 smoother_weight=f.smoother_weight, extrinsic=_extrinsic(f.extrinsic), lever_arm=f.lever_arm,
-                gravity=_gravity_settings(f.gravity_filter), R0=f.R0, on_invalid=f.on_invalid,
-                cross_gain=f.cross_gain)
+                gravity=dict(f._gravity_kw), R0=f.R0, on_invalid=f.on_invalid, cross_gain=f.cross_gain)
 
 
 def _iir(filt):
@@ -124,7 +123,8 @@ def suspension_state(f) -> dict:
           "gravity": _gravity_buffer(f.gravity_filter), "gains": f.gains, "rate": f._rate,
           "response": _iir(f._resp), "bandpass": _iir(f._bpf), "phi": f._phi, "sxx": f._sxx, "sxy": f._sxy,
           "load": f._load, "speed": f.speed, "q_last": f._q_last,
-          "road": None if f.road_filter.gravity_filter is None else _gravity_buffer(f.road_filter.gravity_filter)}
+          "road": None if f.road_filter.gravity_filter is None else _gravity_buffer(f.road_filter.gravity_filter),
+          "monitor": f.mount_monitor.state(), "time": f._time}
     return pack_state("SuspensionAwareFilter", STATE_VERSION, _suspension_settings(f), st)
 
 
@@ -151,3 +151,5 @@ def load_suspension_state(f, saved) -> None:
     f.speed, f._q_last = float(st["speed"]), float(st["q_last"])
     if st["road"] is not None:
         _load_gravity_buffer(f.road_filter.start(), st["road"])
+    f.mount_monitor.load(st["monitor"])
+    f._time = float(st["time"])

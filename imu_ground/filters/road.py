@@ -223,17 +223,22 @@ class RoadFilter:
 
         Returns
         -------
-        ndarray (F, 4)
+        road : ndarray (F, 4)
             Grade, bank and their 1-sigma (rad); NaN where the frame has no speed or the filter
             had not started.
+        gravity : ndarray (F, 3)
+            The filter's gravity reaction (its world frame, m/s^2) after each frame; NaN before it started.
+        cumulative : ndarray (F, 3, 3)
+            Its attitude, world <- body; NaN before it started.
         """
         from dataclasses import replace
         n = len(speed)
         out = np.full((n, 4), np.nan)
+        grav, cum = np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan)
         fin = np.isfinite(speed)
         if self.gravity_filter is None:
             if not fin.any():
-                return out
+                return out, grav, cum
             i0 = int(np.argmax(fin))
         else:
             i0 = 0
@@ -246,4 +251,5 @@ class RoadFilter:
         gs, bs = road_std(pitch_std[keep], roll_std[keep], gt.P[:, 3:, 3:], gt.gravity, gt.cumulative)
         out[keep] = np.stack([grade, bank, gs, bs], axis=1)
         out[~fin] = np.nan
-        return out
+        grav[keep], cum[keep] = gt.gravity, gt.cumulative
+        return out, grav, cum

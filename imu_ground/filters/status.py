@@ -29,11 +29,9 @@ One of :data:`STATUSES` per frame, the first that applies in this order:
 
 - ``invalid``: a bad frame the estimator skipped (``on_invalid="skip"``); the values are the previous frame's;
 - ``gap``: the frame was integrated through a timestamp gap (``valid`` False);
-- ``degraded``: a monitor of the estimate flags it (the reason says which). The code and its place
-  in this order exist for such monitors (a sensor mount that moved, for one); the estimators do
-  not raise it yet (the candidate mount-change monitors tried, on the accelerometer's gravity at
-  standstills and while cruising, could not tell a 1 deg remount from the road's grade and the
-  gravity filter's own drift);
+- ``degraded``: a monitor of the estimate flags it, the reason says which: the mount monitor
+  (:mod:`imu_ground.filters.mount_monitor`, with a measured speed) when the sensor's mount moved,
+  from then on;
 - ``standstill``: the frame ends at a standstill (the road and the body are held);
 - ``converging``: from the start (and from a reset) until ``max(pitch_std, roll_std)``
   has once been at or below :data:`CONVERGED_STD` (0.2 deg; :data:`FILTER_CONVERGED_STD` for the

@@ -82,10 +82,11 @@ from imu_ground.filters.gains import (
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
+from imu_ground.filters.mount_monitor import MountMonitor, monitor_track
 from imu_ground.filters.road import NO_SPEED_REASON, RoadFilter, road_one
 from imu_ground.filters.rotations import matrix_from_quat, twist_angle
-from imu_ground.filters.status import (CONVERGED_STD, CONVERGING, GAP, OK, STANDSTILL, SUSPENSION_STD,
-                                       track_reasons, track_statuses)
+from imu_ground.filters.status import (CONVERGED_STD, CONVERGING, DEGRADED, GAP, OK, STANDSTILL,
+                                       SUSPENSION_STD, track_reasons, track_statuses)
 from imu_ground.units import DEG
 
 __all__ = [
@@ -291,6 +292,8 @@ class SuspensionAwareFilter:
         self.road_filter = RoadFilter(self.extrinsic, self.lever_arm, self._gravity_kw)
         self._garray = isinstance(self.gravity_filter._s, np.ndarray)
         self._set_tilt_weights()
+        self.mount_monitor = MountMonitor()
+        self._time = 0.0                            # s of processed frames since the start or a reset
         if self.frame_rate is not None:
             self._design(self.frame_rate)
 
@@ -420,9 +423,14 @@ class SuspensionAwareFilter:
         sp = math.nan if speed is None else float(speed)
         gd, gdv = (d, dv) if self._arrays else (d.ravel().tolist(), dv.tolist())   # (pure-Python twins: lists)
         (fx, fy, _), (ax, ay, _), v = gf.step_sensor(gd, gdv, dt, bool(stationary), bool(valid), sp)
-        road = None
+        road = raw = None
         if sp == sp or self.road_filter.gravity_filter is not None:     # the road, from the first speed on
-            road = self.road_filter.step(gd, gdv, dt, bool(stationary), bool(valid), sp)
+            road = raw = self.road_filter.step(gd, gdv, dt, bool(stationary), bool(valid), sp)
+        self._time += dt
+        mm = self.mount_monitor
+        alarm = mm.alarm
+        if alarm is None and (raw is not None or mm._hist or mm._armed_at == mm._armed_at):
+            alarm = mm.update(self._time, None if raw is None else raw[0], bool(valid) and sp == sp)
         s = self.load_share
         ux, uy = ax + s * (fx - ax), ay + s * (fy - ay)
         if self._resp is not None:
@@ -441,7 +449,7 @@ class SuspensionAwareFilter:
         if road is not None:
             road = road_one(o, *road)
         info = (SUSPENSION_STD[0], SUSPENSION_STD[1], o[4], ux, uy, sg2 * wp, sg2 * wr, dt,
-                None if road is not None else NO_SPEED_REASON, CONVERGED_STD)
+                alarm if alarm is not None else None if road is not None else NO_SPEED_REASON, CONVERGED_STD)
         code = OK
         if not self._converged:
             pm, rm = SUSPENSION_STD
@@ -451,6 +459,8 @@ class SuspensionAwareFilter:
                 code = CONVERGING
         if stationary:
             code = STANDSTILL
+        if alarm is not None:
+            code = DEGRADED
         if not valid:
             code = GAP
         return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o, code, info, road)
@@ -542,13 +552,21 @@ class SuspensionAwareFilter:
         var_max = np.full(n, np.inf)
         std_all = np.full((n, 2), np.nan)               # (a skipped frame has none, as in step)
         var_max[good], std_all[good] = var.max(axis=1), np.sqrt(var)
-        codes, self._converged = track_statuses(var_max, em.stationary, em.valid, good, self._converged)
         road = np.full((n, 4), np.nan)
+        sp_sub = np.full(m, np.nan) if speed is None else speed
+        rg, rc = np.full((m, 3), np.nan), np.full((m, 3, 3), np.nan)
         if speed is not None or self.road_filter.gravity_filter is not None:
-            road[good] = self.road_filter.run(sub, np.full(m, np.nan) if speed is None else speed, E,
-                                              np.sqrt(var[:, 0]), np.sqrt(var[:, 1]))
-        details = np.where(np.isnan(road[:, 0]) & (codes == OK), NO_SPEED_REASON, None)
-        reasons = track_reasons(codes, np.sqrt(var_max), em.delta_t, details)
+            road[good], rg, rc = self.road_filter.run(sub, sp_sub, E, np.sqrt(var[:, 0]), np.sqrt(var[:, 1]))
+        times = np.cumsum(np.concatenate([[self._time], dt]))[1:]      # (summed as step does)
+        if m:
+            self._time = float(times[-1])
+        mm = self.mount_monitor
+        degraded = np.zeros(n, dtype=bool)
+        degraded[good] = monitor_track(mm, times, rg, np.asarray(sub.valid, dtype=bool) & np.isfinite(sp_sub))
+        codes, self._converged = track_statuses(var_max, em.stationary, em.valid, good, self._converged, degraded)
+        details = np.where(degraded, mm.alarm, np.where(np.isnan(road[:, 0]), NO_SPEED_REASON, None))
+        reasons = track_reasons(codes, np.sqrt(var_max), em.delta_t, np.where(
+            (codes == OK) | (codes == DEGRADED), details, None))
         susp_all = held["gains"] * held["load"]
         susp_all[:, 0] += self.cross_gain * held["load"][:, 1]
         cum_all = held["cum"]

@@ -183,7 +183,7 @@ def _csv_header(meta: Mapping[str, Any]) -> str:
         "relative to gravity (deg), with road_grade_std_deg and road_bank_std_deg (1-sigma), nan where "
         "not estimated (the reason in status_reason)"),
         ("status: converging (until the 1-sigma is first below its threshold), ok, standstill, gap, "
-        "degraded (reserved for monitors of the estimate, not raised yet) or invalid (a bad frame skipped); "
+        "degraded (the sensor's mount moved; needs a speed) or invalid (a bad frame skipped); "
         "status_reason: why, in words"),
     ]
     return "".join(f"# {ln}\n" for ln in lines)
