@@ -114,7 +114,8 @@ def revisit_rows(data: Path = DATA) -> list[dict]:
             for q in ("road_grade", "road_bank"):
                 v = getattr(tr, q)
                 d = v[i] - v[j]
-                row[f"{q} mean|d|/sqrt2 deg"] = float(np.nanmean(np.abs(d)) / math.sqrt(2) / DEG) if np.isfinite(d).any() else math.nan
+                some = bool(np.isfinite(d).any())
+                row[f"{q} mean|d|/sqrt2 deg"] = float(np.nanmean(np.abs(d)) / math.sqrt(2) / DEG) if some else math.nan
                 s = getattr(tr, f"{q}_std")
                 row[f"{q} z rms"] = (float(np.sqrt(np.nanmean((d / np.sqrt(s[i] ** 2 + s[j] ** 2)) ** 2)))
                                      if np.isfinite(d).any() else math.nan)
@@ -127,6 +128,10 @@ def _truth_at(d) -> dict:
     st = d.sim.truth
     idx = np.clip(np.searchsorted(st["t"].to_numpy(), d.egomotion.t - 1e-6), 0, len(st) - 1)
     return {c: st[c].to_numpy()[idx] for c in ("road_grade", "road_bank", "speed", "stationary")}
+
+
+def _span(shares) -> str:
+    return f"{100 * min(shares):.0f}-{100 * max(shares):.0f}"
 
 
 def synthetic_rows(n: int = 10, seed: int = 1) -> list[dict]:
@@ -157,8 +162,8 @@ def synthetic_rows(n: int = 10, seed: int = 1) -> list[dict]:
             rows.append({"check": "1-sigma coverage (synthetic)", "method": method, "imu": grade, "drives": len(ds),
                          "pitch % within 1 sigma": 100 * np.concatenate(hit["pitch"]).mean(),
                          "roll % within 1 sigma": 100 * np.concatenate(hit["roll"]).mean(),
-                         "per drive pitch min-max %": f"{100 * min(per_drive['pitch']):.0f}-{100 * max(per_drive['pitch']):.0f}",
-                         "per drive roll min-max %": f"{100 * min(per_drive['roll']):.0f}-{100 * max(per_drive['roll']):.0f}",
+                         "per drive pitch min-max %": _span(per_drive["pitch"]),
+                         "per drive roll min-max %": _span(per_drive["roll"]),
                          "time to converge median / max s": f"{np.median(conv):.1f} / {max(conv):.1f}",
                          "standstill % of stationary frames (min over drives)": 100 * np.nanmin(stand)})
         g_err, b_err, g_cov, b_cov = [], [], [], []
@@ -233,7 +238,8 @@ def rows(n: int = 10, drives: int | None = None) -> list[dict]:
         if r["check"].startswith("1-sigma"):
             for a in ("pitch", "roll"):
                 v = r[f"{a} % within 1 sigma"]
-                out.append(_long("1-sigma coverage, synthetic (seed 1)", scope, f"{a}: % of moving frames within 1 sigma",
+                out.append(_long("1-sigma coverage, synthetic (seed 1)", scope,
+                                 f"{a}: % of moving frames within 1 sigma",
                                  v, "55-80 (aim 68)", bool(55 <= v <= 80)))
                 out.append(_long("1-sigma coverage, synthetic (seed 1)", scope, f"{a}: per drive min-max %",
                                  r[f"per drive {a} min-max %"]))
