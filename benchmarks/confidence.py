@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -98,7 +99,9 @@ def revisit_rows(data: Path = DATA) -> list[dict]:
         if not path.is_file():
             continue
         for speed in ("none", "auto"):
-            res = estimate_log(path, speed=speed)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")             # (the readers' notes on the KITTI timestamps)
+                res = estimate_log(path, speed=speed)
             tr = res.track
             ins = _ins_at(path, tr.t)
             pairs = revisit_pairs(tr.t, np.column_stack([ins["px"], ins["py"]]), ins["yaw"], ins["speed"])
@@ -186,8 +189,6 @@ def synthetic_rows(n: int = 10, seed: int = 1) -> list[dict]:
 
 def mount_rows(n: int = 6, data: Path = DATA) -> list[dict]:
     """Detection delay of a 1 deg remount halfway through synthetic drives; false alarms."""
-    import warnings
-
     import pandas as pd
 
     from imu_ground.evaluation.drives import synthetic_drive

@@ -13,6 +13,8 @@ Module map (each imports only the ones above it, and the imu layer below):
 - ``filter_state``: warm start (``state_dict`` / ``load_state_dict``) of the streaming filters;
 - ``invariant_ekf``, ``gravity_velocity``: the filters the estimators are built from;
 - ``road``: road grade and bank relative to gravity (a gravity/velocity filter of their own);
+- ``mount_monitor``: a sensor mount that moved (status ``degraded``); ``confidence``: a batch's
+  1-sigma, road, monitor and status together;
 - ``gains``: suspension gains (defaults, band-pass regression);
 - ``ground`` (``GroundNormalFilter``), ``suspension`` (``SuspensionAwareFilter``): the estimators;
 - ``methods``: the estimators by CLI name; ``calibration``: ``calibrate`` a platform.

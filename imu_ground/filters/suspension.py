@@ -58,6 +58,7 @@ import numpy as np
 
 from imu_ground import so3
 from imu_ground.filters import gravity_kernel
+from imu_ground.filters.confidence import suspension_confidence
 from imu_ground.filters.design import IIRFilter, butter_bandpass, foh_filter
 from imu_ground.filters.estimator import (
     GroundEstimate,
@@ -82,11 +83,10 @@ from imu_ground.filters.gains import (
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
-from imu_ground.filters.mount_monitor import MountMonitor, monitor_track
+from imu_ground.filters.mount_monitor import MountMonitor
 from imu_ground.filters.road import NO_SPEED_REASON, RoadFilter, road_one
 from imu_ground.filters.rotations import matrix_from_quat, twist_angle
-from imu_ground.filters.status import (CONVERGED_STD, CONVERGING, DEGRADED, GAP, OK, STANDSTILL,
-                                       SUSPENSION_STD, track_reasons, track_statuses)
+from imu_ground.filters.status import CONVERGED_STD, CONVERGING, DEGRADED, GAP, OK, STANDSTILL, SUSPENSION_STD
 from imu_ground.units import DEG
 
 __all__ = [
@@ -541,32 +541,9 @@ class SuspensionAwareFilter:
         if smooth and m:
             Xs = self._smooth(gt.body_increments, cum @ np.swapaxes(E, 1, 2), Ps, q)
             E = np.swapaxes(Xs, 1, 2) @ cum
-        share2 = (1.0 - self.load_share) ** 2
-        sg2 = share2 * 0.5 * (gt.P[:, 3, 3] + gt.P[:, 4, 4])
-        pm, rm = SUSPENSION_STD
-        tvp = sg2 * (ks[:, 0] ** 2 + self.cross_gain ** 2)
-        var = np.stack([pm.variance(Ps[:, 0, 0], u[:, 0], u[:, 1], tvp),
-                        rm.variance(Ps[:, 0, 0], u[:, 0], u[:, 1], sg2 * ks[:, 1] ** 2)], axis=1)
         held = {name: hold_skipped(v, good, start[name]) for name, v in
                 dict(E=E, P=Ps, cum=cum, load=u, speed=gt.speed, gains=ks, gravity=gt.gravity).items()}
-        var_max = np.full(n, np.inf)
-        std_all = np.full((n, 2), np.nan)               # (a skipped frame has none, as in step)
-        var_max[good], std_all[good] = var.max(axis=1), np.sqrt(var)
-        road = np.full((n, 4), np.nan)
-        sp_sub = np.full(m, np.nan) if speed is None else speed
-        rg, rc = np.full((m, 3), np.nan), np.full((m, 3, 3), np.nan)
-        if speed is not None or self.road_filter.gravity_filter is not None:
-            road[good], rg, rc = self.road_filter.run(sub, sp_sub, E, np.sqrt(var[:, 0]), np.sqrt(var[:, 1]))
-        times = np.cumsum(np.concatenate([[self._time], dt]))[1:]      # (summed as step does)
-        if m:
-            self._time = float(times[-1])
-        mm = self.mount_monitor
-        degraded = np.zeros(n, dtype=bool)
-        degraded[good] = monitor_track(mm, times, rg, np.asarray(sub.valid, dtype=bool) & np.isfinite(sp_sub))
-        codes, self._converged = track_statuses(var_max, em.stationary, em.valid, good, self._converged, degraded)
-        details = np.where(degraded, mm.alarm, np.where(np.isnan(road[:, 0]), NO_SPEED_REASON, None))
-        reasons = track_reasons(codes, np.sqrt(var_max), em.delta_t, np.where(
-            (codes == OK) | (codes == DEGRADED), details, None))
+        extra = suspension_confidence(self, em, sub, good, Ps[:, 0, 0], u, ks, gt.P, E, speed)
         susp_all = held["gains"] * held["load"]
         susp_all[:, 0] += self.cross_gain * held["load"][:, 1]
         cum_all = held["cum"]
@@ -574,9 +551,7 @@ class SuspensionAwareFilter:
             held["E"], cum_all @ np.swapaxes(held["E"], 1, 2), held["P"], cum_all, self._Rgs,
             self.extrinsic.translation, em.t, np.asarray(em.valid, dtype=bool) & good,
             load=held["load"], speed=held["speed"], gains=held["gains"], suspension=susp_all,
-            gravity=held["gravity"], pitch_std=std_all[:, 0], roll_std=std_all[:, 1], status=codes,
-            status_reason=reasons, road_grade=road[:, 0], road_bank=road[:, 1], road_grade_std=road[:, 2],
-            road_bank_std=road[:, 3])
+            gravity=held["gravity"], **extra)
 
     def _online_gains(self, gt) -> np.ndarray:
         """Gains used at each frame of a batch (the frame before's estimate); advances the regression."""
