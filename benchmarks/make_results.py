@@ -76,6 +76,9 @@ REVISIT_CAPTIONS = {
     "synthetic": "The suspension filter before and now on the synthetic suite: mean absolute pitch and roll "
                  "error, deg, exact truth, moving frames.",
 }
+#: Scripts whose rows check the 1-sigma, the status and the road's grade and bank.
+CONFIDENCE_CHECKS = ("confidence",)
+CONFIDENCE_TITLE = "How sure, and what the road does"
 #: Smaller sizes for ``--quick``, passed to a benchmark's ``rows()`` where it has the parameter.
 QUICK_KWARGS = {"frames": 20_000, "stream_frames": 5_000, "repeat": 2, "steps": 5_000, "samples": 60_000,
                 "stream_samples": 5_000, "hours": (0.1,), "n": 2, "drives": 4}
@@ -316,6 +319,7 @@ def main(argv: list[str] | None = None) -> int:
         lines += speed_sections(a.quick, SIMULATOR_CHECKS, "Simulator against the real drives")
         lines += speed_sections(a.quick, READER_CHECKS, "Timestamp policies on the real drives")
         lines += revisit_sections(a.quick)
+        lines += speed_sections(a.quick, CONFIDENCE_CHECKS, CONFIDENCE_TITLE)
     if not a.no_speed:
         lines += speed_sections(a.quick)
     tmp = a.out.with_suffix(a.out.suffix + ".tmp")

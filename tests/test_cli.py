@@ -10,6 +10,7 @@ import pandas as pd
 import pytest
 
 from imu_ground.cli import build_parser, main
+from imu_ground.pipeline.output import COLUMNS
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLE = REPO / "datasets" / "fixtures" / "example_drive.csv"
@@ -59,8 +60,7 @@ def test_estimate_on_the_shipped_example(tmp_path, capsys):
     code, stdout, err = run(capsys, "estimate", EXAMPLE, "-o", out, "--tum", tum)
     assert code == 0, err
     df = pd.read_csv(out, comment="#")
-    assert list(df.columns) == ["t", "normal_x", "normal_y", "normal_z", "pitch_deg", "roll_deg",
-                                "qw", "qx", "qy", "qz", "valid"]
+    assert list(df.columns) == list(COLUMNS)
     assert len(df) == len(pd.read_csv(TRUTH)) - 1
     assert np.allclose(np.linalg.norm(df[["normal_x", "normal_y", "normal_z"]].to_numpy(), axis=1), 1.0)
     assert np.loadtxt(tum).shape == (len(df), 8)

@@ -8,7 +8,7 @@ import pytest
 
 from imu_ground.pipeline import estimate_log, result_table, write_output
 from imu_ground.pipeline import output as output_mod
-from imu_ground.pipeline.output import COLUMNS, write_csv_rows
+from imu_ground.pipeline.output import COLUMNS, TEXT_COLUMNS, write_csv_rows
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "datasets" / "fixtures" / "example_drive.csv"
 
@@ -33,9 +33,14 @@ def _ours(table: pd.DataFrame) -> str:
 def _awkward_table(n: int = 5000, seed: int = 0) -> pd.DataFrame:
     """The output's columns with values that stress number formatting."""
     rng = np.random.default_rng(seed)
-    data = {c: rng.standard_normal(n) * 10.0 ** rng.integers(-12, 12, n) for c in COLUMNS[:-1]}
+    data = {c: rng.standard_normal(n) * 10.0 ** rng.integers(-12, 12, n) for c in COLUMNS
+            if c not in TEXT_COLUMNS}
     table = pd.DataFrame(data)
     table["valid"] = rng.random(n) > 0.2
+    words = np.array(["ok", "", "3.2 s gap, integrated", 'a "quoted" word', "line\nbreak", "standstill"], dtype=object)
+    for c in TEXT_COLUMNS:
+        table[c] = words[rng.integers(0, len(words), n)]
+    table = table[list(COLUMNS)]
     special = [np.nan, np.inf, -np.inf, -0.0, 0.0, 5e-324, 1.7976931348623157e308, 0.1, 1e16, 123456789.5,
                -2.5e-5, 1.0000000005]
     table.iloc[:len(special), 1] = special
@@ -82,7 +87,9 @@ def test_written_file_reads_back_equal_to_the_table_at_nine_digits(tmp_path):
     back = pd.read_csv(out, comment="#")
     assert tuple(back.columns) == COLUMNS
     assert np.array_equal(back["valid"].to_numpy(), table["valid"].to_numpy().astype(int))
-    for c in COLUMNS[:-1]:
+    for c in TEXT_COLUMNS:                                          # (an empty field reads back as NaN)
+        assert back[c].fillna("").tolist() == table[c].tolist(), c
+    for c in (c for c in COLUMNS if c not in TEXT_COLUMNS + ("valid",)):
         want = np.array([float(f"{x:.9g}") for x in table[c].to_numpy()])
         assert np.array_equal(back[c].to_numpy(), want, equal_nan=True), c
         assert np.allclose(back[c].to_numpy(), table[c].to_numpy(), rtol=1e-8, atol=0, equal_nan=True), c

@@ -88,15 +88,18 @@ def test_track_table_columns_quaternion_and_long_gaps(drive):
     tr.valid[100:110] = False                        # a long one is blanked
     df = track_table(tr)
     assert list(df.columns) == ["t", "normal_x", "normal_y", "normal_z", "pitch_deg", "roll_deg",
-                                "qw", "qx", "qy", "qz", "valid"]
+                                "qw", "qx", "qy", "qz", "valid", "pitch_std_deg", "roll_std_deg", "road_grade_deg",
+                                "road_bank_deg", "road_grade_std_deg", "road_bank_std_deg", "status", "status_reason"]
     assert df["valid"].dtype == bool and df["t"].tolist() == em.t.tolist()
     ok = df["valid"].to_numpy()
     np.testing.assert_allclose(df["pitch_deg"][ok], np.degrees(tr.pitch[ok]))
     q = df[["qw", "qx", "qy", "qz"]].to_numpy()
     np.testing.assert_allclose(matrix_from_quat(q[ok]), tr.residual[ok], atol=1e-12)
     assert np.all(q[ok, 0] >= 0)
-    assert df.iloc[10:12]["pitch_deg"].notna().all() and df.iloc[100:110].drop(columns=["t", "valid"]).isna().all().all()
-    assert df.iloc[12:100].notna().all().all()
+    text = ["t", "valid", "status", "status_reason"]
+    road = ["road_grade_deg", "road_bank_deg", "road_grade_std_deg", "road_bank_std_deg"]   # (no speed: none)
+    assert df.iloc[10:12]["pitch_deg"].notna().all() and df.iloc[100:110].drop(columns=text).isna().all().all()
+    assert df.iloc[12:100].drop(columns=road).notna().all().all()
     assert imu_ground.track_table is track_table
 
 

@@ -4,12 +4,17 @@ Module map (each imports only the ones above it, and the imu layer below):
 
 - ``design``: discrete-time filter design (band-pass, second-order response, IIR runner);
 - ``extrinsics``: static extrinsics and the calibration file format (``Calibration``);
+- ``status``: the calibrated 1-sigma of pitch and roll and the per-frame status with its reason;
 - ``estimator``: the estimator protocol, ``GroundEstimate``, ``GroundTrack``, ``as_egomotion``;
 - ``frame_checks``: the checks of the frames an estimator is given, its ``on_invalid`` policy;
 - ``residual``: the scalar residual filter both invariant-EKF estimators run on;
 - ``invariant_ekf_kernel``, ``gravity_kernel``: the pure-Python per-frame kernels of the invariant
   EKF and of the gravity/velocity filter (references of, and fallbacks for, the C twins);
+- ``filter_state``: warm start (``state_dict`` / ``load_state_dict``) of the streaming filters;
 - ``invariant_ekf``, ``gravity_velocity``: the filters the estimators are built from;
+- ``road``: road grade and bank relative to gravity (a gravity/velocity filter of their own);
+- ``mount_monitor``: a sensor mount that moved (status ``degraded``); ``confidence``: a batch's
+  1-sigma, road, monitor and status together; ``filter_state``: warm start (saved states);
 - ``gains``: suspension gains (defaults, band-pass regression); ``suspension_model``: load, gains and body tilt;
 - ``ground`` (``GroundNormalFilter``), ``suspension`` (``SuspensionAwareFilter``): the estimators;
 - ``methods``: the estimators by CLI name; ``calibration``: ``calibrate`` a platform.
@@ -30,6 +35,7 @@ _EXPORTS = {
     ".extrinsics": ("Extrinsic load_extrinsic save_extrinsic available_extrinsics Calibration "
                     "load_calibration resolve_platform"),
     ".calibration": "calibrate",
+    ".status": "STATUSES",
     "imu_ground.so3": "euler_zyx twist_angle as_rotations",      # rotation helpers, re-exported from so3
     ".design": "butter_bandpass foh_filter",
 }

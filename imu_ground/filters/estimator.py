@@ -24,12 +24,14 @@ residual filter both invariant-EKF estimators run on is
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Optional, Protocol, runtime_checkable
 
 import numpy as np
 
 from imu_ground.imu.data import ImuData
+from imu_ground.filters.status import GAP, INVALID, OK, STATUSES, status_reason
 from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
 from imu_ground.so3 import as_rotations, matrix_from_quat
 from imu_ground.units import DEFAULT_FRAME_RATE
@@ -81,16 +83,61 @@ class GroundEstimate:
     valid : bool
         False for a frame the estimator skipped (``on_invalid="skip"``): the
         values are then those of the previous frame.
+    pitch_std, roll_std : float
+        Calibrated 1-sigma of pitch and roll, rad (:mod:`imu_ground.filters.status`; NaN when unknown).
+    status : str
+        One of :data:`~imu_ground.filters.status.STATUSES`; ``status_code`` its index.
+    status_reason : str
+        Why (empty for ``ok``, or a note such as why the road is not estimated).
+    road_grade, road_bank, road_grade_std, road_bank_std : float
+        The road's attitude relative to gravity and its 1-sigma, rad (:mod:`imu_ground.filters.road`;
+        + uphill in the direction of travel, + left side up; NaN: not estimated).
     """
-    __slots__ = ("pitch", "roll", "valid", "_q", "_E", "_Rgs", "_P")
+    __slots__ = ("pitch", "roll", "valid", "_q", "_E", "_Rgs", "_P", "status_code", "_info", "_road")
 
     # quaternion: a kernel output row (its first 4 entries, w x y z); P: a 3x3 array or the same row
     # (entries 4 and 5: diag(a, a, c))
 
     def __init__(self, pitch: float, roll: float, valid: bool = True, quaternion=None, residual=None,
-                 Rgs: Optional[np.ndarray] = None, P=None) -> None:
+                 Rgs: Optional[np.ndarray] = None, P=None, status_code: Optional[int] = None, info=None,
+                 road=None) -> None:
         self.pitch, self.roll, self.valid = pitch, roll, valid
         self._q, self._E, self._Rgs, self._P = quaternion, residual, Rgs, P
+        # info: (pitch model, roll model, a, u_x, u_y, tilt var pitch, tilt var roll, frame s, detail,
+        # convergence threshold): the 1-sigma and the reason are built on access
+        self.status_code = (OK if valid else INVALID) if status_code is None else status_code
+        self._info = info
+        self._road = road                   # (grade, bank, gravity's variance of each), filters.road, or None
+
+    @property
+    def pitch_std(self) -> float:
+        i = self._info
+        return math.nan if i is None else math.sqrt(i[0].variance(i[2], i[3], i[4], i[5]))
+
+    @property
+    def roll_std(self) -> float:
+        i = self._info
+        return math.nan if i is None else math.sqrt(i[1].variance(i[2], i[3], i[4], i[6]))
+
+    @property
+    def status(self) -> str:
+        return STATUSES[self.status_code]
+
+    road_grade = property(lambda self: math.nan if self._road is None else self._road[0],
+                          doc="The road's grade relative to gravity, rad, + uphill (NaN: not estimated).")
+    road_bank = property(lambda self: math.nan if self._road is None else self._road[1],
+                         doc="The road's bank relative to gravity, rad, + left side up (NaN: not estimated).")
+    road_grade_std = property(lambda self: math.nan if self._road is None else
+                              math.sqrt(self.pitch_std ** 2 + self._road[2]), doc="1-sigma of ``road_grade``, rad.")
+    road_bank_std = property(lambda self: math.nan if self._road is None else
+                             math.sqrt(self.roll_std ** 2 + self._road[3]), doc="1-sigma of ``road_bank``, rad.")
+
+    @property
+    def status_reason(self) -> str:
+        i = self._info
+        if i is None:
+            return status_reason(self.status_code)
+        return status_reason(self.status_code, i[7], max(self.pitch_std, self.roll_std), i[8], i[9])
 
     @classmethod
     def of_residual(cls, E: np.ndarray, P: np.ndarray, Rgs: Optional[np.ndarray] = None,
@@ -143,6 +190,13 @@ class GroundTrack:
     translation : ndarray (3,)   static sensor position in the ground frame (m).
     t : ndarray (F,)             frame (end) times, s (NaN when unknown).
     valid : ndarray of bool (F,) False where the frame spans a gap in the source or was skipped.
+    pitch_std, roll_std : ndarray (F,) calibrated 1-sigma of pitch and roll, rad (NaN: unknown).
+    status : ndarray of uint8 (F,) code of :data:`~imu_ground.filters.status.STATUSES` (default: ok, or gap
+                                 where not valid).
+    status_reason : ndarray of object (F,) str, why (empty for ok).
+    road_grade, road_bank : ndarray (F,) the road's attitude relative to gravity, rad (+ uphill in the
+                                 direction of travel, + left side up; NaN: not estimated).
+    road_grade_std, road_bank_std : ndarray (F,) their 1-sigma, rad.
     """
     normal: np.ndarray
     pitch: np.ndarray
@@ -155,11 +209,28 @@ class GroundTrack:
     translation: np.ndarray = field(default_factory=lambda: np.zeros(3))
     t: Optional[np.ndarray] = None
     valid: Optional[np.ndarray] = None
+    pitch_std: Optional[np.ndarray] = None
+    roll_std: Optional[np.ndarray] = None
+    status: Optional[np.ndarray] = None
+    status_reason: Optional[np.ndarray] = None
+    road_grade: Optional[np.ndarray] = None
+    road_bank: Optional[np.ndarray] = None
+    road_grade_std: Optional[np.ndarray] = None
+    road_bank_std: Optional[np.ndarray] = None
 
     def __post_init__(self) -> None:
         n = len(self.pitch)
         self.t = np.full(n, np.nan) if self.t is None else np.asarray(self.t, dtype=float).reshape(n)
         self.valid = np.ones(n, dtype=bool) if self.valid is None else np.asarray(self.valid, dtype=bool).reshape(n)
+        for name in ("pitch_std", "roll_std", "road_grade", "road_bank", "road_grade_std", "road_bank_std"):
+            v = getattr(self, name)
+            setattr(self, name, np.full(n, np.nan) if v is None else np.asarray(v, dtype=float).reshape(n))
+        if self.status is None:
+            self.status = np.where(self.valid, OK, GAP).astype(np.uint8)
+        self.status = np.asarray(self.status, dtype=np.uint8).reshape(n)
+        if self.status_reason is None:
+            self.status_reason = np.where(self.status == GAP, "gap in the log", "").astype(object)
+        self.status_reason = np.asarray(self.status_reason, dtype=object).reshape(n)
 
     def __len__(self) -> int:
         return len(self.pitch)

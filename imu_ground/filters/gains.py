@@ -24,7 +24,7 @@ __all__ = ["DEFAULT_GAINS", "DEFAULT_CROSS_GAIN", "GAIN_BAND", "TYPICAL_BAND_POW
 #: Suspension gains of the KITTI car ``(k_pitch, k_roll)``, rad per m/s^2: braking dives the nose
 #: (``k_pitch < 0``), a car rolls out of a turn (``k_roll > 0``). ``k_roll`` is the gain that makes the
 #: filter's road-relative roll repeat best where a drive passes the same place twice (chosen on one
-#: such drive, held on the other; ``benchmarks/revisit_table.py``): below the band-passed regression's
+#: such drive, held on the other; ``benchmarks/studies/revisit_table.py``): below the band-passed regression's
 #: 0.5 deg, because the filter's output adds the gyro's fast roll to the modelled tilt.
 DEFAULT_GAINS = (-0.25 * DEG, 0.40 * DEG)
 #: Pitch (nose down +) per m/s^2 of *lateral* load ``u_y``, rad: a left-turn load lifts the nose.

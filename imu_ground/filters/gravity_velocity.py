@@ -22,6 +22,7 @@ from imu_ground import _native
 from imu_ground.filters import gravity_kernel
 from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.filters.frame_checks import frame_problem
+from imu_ground.filters.filter_state import gravity_state, load_gravity_state
 from imu_ground.filters.gravity_kernel import (  # noqa: F401 (reference)
     _UPPER21,
     I_LAST,
@@ -340,6 +341,16 @@ class GravityVelocityFilter:
         if self._w.sync is not None:
             self._pull()
         return self._step_sensor(self._s, d9, dv3, dt, stationary, valid, speed)
+
+    # -- warm start ------------------------------------------------------------------------------
+    def state_dict(self) -> dict:
+        """The state as a plain, JSON-serialisable dict (:mod:`imu_ground.imu.warm_start`): resume with
+        :meth:`load_state_dict` on a GravityVelocityFilter built with the same settings."""
+        return gravity_state(self)
+
+    def load_state_dict(self, state: dict) -> None:
+        """Resume from a :meth:`state_dict`; a state of another estimator, layout or settings raises ValueError."""
+        load_gravity_state(self, state)
 
     # -- streaming ----------------------------------------------------------------------------
     def step(self, delta_R, delta_v=None, delta_t=None, stationary: bool = False,

@@ -36,8 +36,12 @@ from imu_ground.filters.estimator import GroundEstimate, GroundTrack, as_egomoti
 from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.filters.frame_checks import (bad_frame, check_on_invalid, checked_frame, checked_frames, coerce_frame,
                                              hold_skipped, static_rotation)
+from imu_ground.filters.filter_state import ground_state, load_ground_state
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
+from imu_ground.filters.road import NO_ROAD_REASON
+from imu_ground.filters.status import (CONVERGING, FILTER_CONVERGED_STD, FILTER_STD, GAP, OK, STANDSTILL, track_reasons,
+                                       track_statuses)
 from imu_ground.so3 import cumulative_rotations, matrix_from_quat, twist_angle
 from imu_ground.units import RENORM_EVERY
 
@@ -46,6 +50,7 @@ __all__ = ["GroundNormalFilter", "GroundEstimate", "GroundTrack", "pitch_roll_fr
 _EZ = np.array([0.0, 0.0, 1.0])
 _EX = np.array([1.0, 0.0, 0.0])
 _I3 = np.eye(3)
+_CONVERGED_VAR = FILTER_CONVERGED_STD * FILTER_CONVERGED_STD
 _MEASUREMENTS = ("rotation", "up", "forward")
 
 
@@ -165,6 +170,7 @@ class GroundNormalFilter:
     def reset(self) -> None:
         """Back to the initial state (cumulative rotation R0, slow state R0, covariance P0)."""
         self._frames = 0
+        self._converged = False
         self._kernel = ResidualKernel(self._P0[0, 0], self._P0[2, 2], self._R[0, 0], self._R[2, 2],
                                       up=self.measurement == "up", follow_heading=self.follow_heading,
                                       Rgs=self._Rgs, cumulative=True)
@@ -185,6 +191,16 @@ class GroundNormalFilter:
     K = property(lambda self: self._engine.K, doc="Last Kalman gain (3x3).")
     y = property(lambda self: self._engine.y, doc="Last innovation (rad, or the up-axis residual).")
     S = property(lambda self: self._engine.S, doc="Last innovation covariance.")
+
+    # -- warm start ------------------------------------------------------------------------------
+    def state_dict(self) -> dict:
+        """The state as a plain, JSON-serialisable dict (:mod:`imu_ground.imu.warm_start`): resume with
+        :meth:`load_state_dict` on a GroundNormalFilter built with the same settings."""
+        return ground_state(self)
+
+    def load_state_dict(self, state: dict) -> None:
+        """Resume from a :meth:`state_dict`; a state of another estimator, layout or settings raises ValueError."""
+        load_ground_state(self, state)
 
     # -- streaming -----------------------------------------------------------------------------
     def step(self, frame) -> GroundEstimate:
@@ -212,6 +228,26 @@ class GroundNormalFilter:
         if type(frame) is np.ndarray or not hasattr(frame, "delta_R"):
             return self._engine.step(frame, frame, None, 1.0)
         return self._engine.step(frame, frame.delta_R, frame.delta_v, frame.delta_t)
+
+    def _estimate(self, frame, pitch: float, roll: float, q, E, P, a: float, dt: float) -> GroundEstimate:
+        """The estimate of a processed frame with its 1-sigma and status (:mod:`imu_ground.filters.status`).
+
+        ``a`` is the level variance of the slow state (rad^2), ``q`` the kernel's output (or None) and
+        ``E`` the residual road <- body (or None when ``q`` holds it).
+        """
+        pm, rm = FILTER_STD
+        code = OK
+        if not self._converged:
+            if max(pm.variance(a), rm.variance(a)) <= _CONVERGED_VAR:
+                self._converged = True
+            else:
+                code = CONVERGING
+        if getattr(frame, "stationary", False):
+            code = STANDSTILL
+        if not getattr(frame, "valid", True):
+            code = GAP
+        return GroundEstimate(pitch, roll, True, q, E, self._Rgs, P, code,
+                              (pm, rm, a, 0.0, 0.0, 0.0, 0.0, dt, NO_ROAD_REASON, FILTER_CONVERGED_STD))
 
     # -- batch -----------------------------------------------------------------------------------
     def run(self, egomotion, smooth: bool = False) -> GroundTrack:
@@ -249,9 +285,23 @@ class GroundNormalFilter:
         if smooth and len(dg):
             Xs, Ps = self._smooth(dg, Xs, Ps)
             E = np.swapaxes(Xs, 1, 2) @ cum
+        a = 0.5 * (Ps[:, 0, 0] + Ps[:, 1, 1])
         E, Ps, cum = (hold_skipped(v, good, s) for v, s in zip((E, Ps, cum), start))
+        pm, rm = FILTER_STD
+        n = len(good)
+        var_max = np.full(n, np.inf)
+        stds = np.full((n, 2), np.nan)                  # (a skipped frame has none, as in step)
+        var = np.stack([pm.variance(a), rm.variance(a)], axis=1)
+        var_max[good], stds[good] = var.max(axis=1), np.sqrt(var)
+        codes, self._converged = track_statuses(var_max, em.stationary, em.valid, good, self._converged,
+                                                converged_std=FILTER_CONVERGED_STD)
         return GroundTrack.from_residuals(E, cum @ np.swapaxes(E, 1, 2), Ps, cum, self._Rgs,
-                                          self.extrinsic.translation, em.t, np.asarray(em.valid, bool) & good)
+                                          self.extrinsic.translation, em.t, np.asarray(em.valid, bool) & good,
+                                          pitch_std=stds[:, 0], roll_std=stds[:, 1], status=codes,
+                                          status_reason=track_reasons(
+                                              codes, np.sqrt(var_max), em.delta_t,
+                                              np.where(codes == OK, NO_ROAD_REASON, None),
+                                              converged_std=FILTER_CONVERGED_STD))
 
     def _smooth(self, d: np.ndarray, Xs: np.ndarray, Ps: np.ndarray):
         """Rauch-Tung-Striebel smoother on the group over the forward pass (sensor increments ``d``)."""
@@ -318,7 +368,7 @@ class _ResidualEngine:
             bad_frame(frame, o, d, dv, dt, f.on_invalid, f._frames)
             return GroundEstimate.of_residual(self.residual, self.P.copy(), f._Rgs, valid=False)
         f._frames += 1
-        return GroundEstimate(o[6], o[7], True, o, None, f._Rgs, o)
+        return f._estimate(frame, o[6], o[7], o, None, o, o[4], dt)
 
     def run(self, d: np.ndarray):
         """Checked sensor increments (N, 3, 3) -> residuals E, covariances P, cumulative rotations (each (N, 3, 3))."""
@@ -360,7 +410,10 @@ class _EkfEngine:
         if checked is None:
             return GroundEstimate.of_residual(self.residual, self.P.copy(), f._Rgs, valid=False)
         f._frames += 1
-        return GroundEstimate.of_residual(self._frame(checked[0]), self.ekf.P.copy(), f._Rgs)
+        E = self._frame(checked[0])
+        pitch, roll = pitch_roll_from_normal(E[2])
+        return f._estimate(frame, float(pitch), float(roll), None, E, self.ekf.P.copy(),
+                           0.5 * float(self.ekf.P[0, 0] + self.ekf.P[1, 1]), dt)
 
     def _frame(self, d: np.ndarray) -> np.ndarray:
         """One frame of the InvariantEKF on a checked sensor increment; returns the residual E (road <- body)."""

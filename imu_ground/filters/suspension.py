@@ -60,6 +60,7 @@ import numpy as np
 
 from imu_ground import so3
 from imu_ground.filters import gravity_kernel
+from imu_ground.filters.confidence import suspension_confidence
 from imu_ground.filters.estimator import GroundEstimate, GroundTrack, as_egomotion
 from imu_ground.filters.extrinsics import resolve_platform
 from imu_ground.filters.frame_checks import (
@@ -69,10 +70,14 @@ from imu_ground.filters.frame_checks import (
     hold_skipped,
     static_rotation,
 )
+from imu_ground.filters.filter_state import load_suspension_state, suspension_state
 from imu_ground.filters.gains import DEFAULT_CROSS_GAIN, DEFAULT_GAINS, GAIN_BAND, bandpass_gain_regression
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.filters.invariant_ekf import InvariantEKF
+from imu_ground.filters.mount_monitor import MountMonitor
 from imu_ground.filters.residual import ResidualKernel
+from imu_ground.filters.road import NO_SPEED_REASON, RoadFilter, road_one
+from imu_ground.filters.status import CONVERGED_STD, CONVERGING, DEGRADED, GAP, OK, STANDSTILL, SUSPENSION_STD
 from imu_ground.filters.suspension_model import SuspensionModel, load_share
 from imu_ground.so3 import matrix_from_quat, twist_angle
 from imu_ground.units import DEG
@@ -92,6 +97,8 @@ _I3 = np.eye(3)
 #: A measured speed beyond this, m/s (or not finite), is no measurement: the frame runs on the IMU alone.
 MAX_MEASURED_SPEED = 1e3
 _LATERAL = ("auto", "kinematic", "accelerometer")
+_CONVERGED_VAR = CONVERGED_STD * CONVERGED_STD
+_I_GXX, _I_GYY = 21, 24                             # gravity kernel state: P[3, 3] and P[4, 4] (gravity_kernel)
 
 
 @dataclass
@@ -280,6 +287,11 @@ class SuspensionAwareFilter:
         self.speed = 0.0
         self._q_last = 0.0
         self._frames = 0
+        self._converged = False
+        self.road_filter = RoadFilter(self.extrinsic, self.lever_arm, self._gravity_kw)
+        self._garray = isinstance(self.gravity_filter._s, np.ndarray)
+        self.mount_monitor = MountMonitor()
+        self._time = 0.0                            # s of processed frames since the start or a reset
         if self.frame_rate is not None:
             self.model.design(self.frame_rate)
 
@@ -318,6 +330,16 @@ class SuspensionAwareFilter:
         """X after the last predict."""
         m = self._last(slice(7, 11), None)
         return self.x if m is None else self.cumulative @ matrix_from_quat(np.array(m)).T
+
+    # -- warm start ------------------------------------------------------------------------------
+    def state_dict(self) -> dict:
+        """The state as a plain, JSON-serialisable dict (:mod:`imu_ground.imu.warm_start`): resume with
+        :meth:`load_state_dict` on a SuspensionAwareFilter built with the same settings."""
+        return suspension_state(self)
+
+    def load_state_dict(self, state: dict) -> None:
+        """Resume from a :meth:`state_dict`; a state of another estimator, layout or settings raises ValueError."""
+        load_suspension_state(self, state)
 
     # -- streaming -------------------------------------------------------------------------------
     def step(self, frame, delta_v=None, delta_t: Optional[float] = None, stationary: bool = False,
@@ -374,21 +396,46 @@ class SuspensionAwareFilter:
         self._frames += 1
         gf = self.gravity_filter
         sp = math.nan if speed is None else float(speed)
-        if not abs(sp) <= MAX_MEASURED_SPEED:
-            sp = math.nan                           # infinite or absurd: no measurement (NaN stays NaN)
-        if self._arrays:
-            (fx, fy, _), (ax, ay, _), v = gf.step_sensor(d, dv, dt, bool(stationary), bool(valid), sp)
-        else:
-            (fx, fy, _), (ax, ay, _), v = gf.step_sensor(d.ravel().tolist(), dv.tolist(), dt, bool(stationary),
-                                                         bool(valid), sp)
+        gd, gdv = (d, dv) if self._arrays else (d.ravel().tolist(), dv.tolist())   # (pure-Python twins: lists)
+        (fx, fy, _), (ax, ay, _), v = gf.step_sensor(gd, gdv, dt, bool(stationary), bool(valid), sp)
+        road = raw = None
+        if sp == sp or self.road_filter.gravity_filter is not None:     # the road, from the first speed on
+            road = raw = self.road_filter.step(gd, gdv, dt, bool(stationary), bool(valid), sp)
+        self._time += dt
+        mm = self.mount_monitor
+        alarm = mm.alarm
+        if alarm is None and (raw is not None or mm._hist or mm._armed_at == mm._armed_at):
+            alarm = mm.update(self._time, None if raw is None else raw[0], bool(valid) and sp == sp)
         self.speed = speed = v if math.isnan(sp) else sp
         psi = _heading_change(d, self._Rgs)
         kinematic = self.lateral == "kinematic" or (self.lateral == "auto" and not math.isnan(sp))
-        tilt_x, tilt_y = self.model.step(d, fx, fy, ax, ay, speed * psi / dt if kinematic else None)
+        model = self.model
+        wp, wr = model.tilt_weights                 # (of the gains used at this frame)
+        tilt_x, tilt_y = model.step(d, fx, fy, ax, ay, speed * psi / dt if kinematic else None)
+        ux, uy = model.load
         q = ((self.q_time + self.q_dist * abs(speed)) * dt + self.q_turn * abs(psi)) * self._r   # |v|: either way
         self._q_last = q
         o = self._kstep(self._kbuf, d, q, self.q_yaw, tilt_x, tilt_y, None, 1.0)
-        return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o)
+        g = gf._s                                   # gravity's world-horizontal variances -> the modelled tilt
+        sg2 = g.item(_I_GXX) + g.item(_I_GYY) if self._garray else g[_I_GXX] + g[_I_GYY]
+        if road is not None:
+            road = road_one(o, *road)
+        info = (SUSPENSION_STD[0], SUSPENSION_STD[1], o[4], ux, uy, sg2 * wp, sg2 * wr, dt,
+                alarm if alarm is not None else None if road is not None else NO_SPEED_REASON, CONVERGED_STD)
+        code = OK
+        if not self._converged:
+            pm, rm = SUSPENSION_STD
+            if max(pm.variance(o[4], ux, uy, info[5]), rm.variance(o[4], ux, uy, info[6])) <= _CONVERGED_VAR:
+                self._converged = True
+            else:
+                code = CONVERGING
+        if stationary:
+            code = STANDSTILL
+        if alarm is not None:
+            code = DEGRADED
+        if not valid:
+            code = GAP
+        return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o, code, info, road)
 
     # -- batch -----------------------------------------------------------------------------------
     def run(self, egomotion, smooth: bool = False, speed: Optional[np.ndarray] = None) -> SuspensionTrack:
@@ -459,13 +506,14 @@ class SuspensionAwareFilter:
             E = np.swapaxes(Xs, 1, 2) @ cum
         held = {name: hold_skipped(v, good, start[name]) for name, v in
                 dict(E=E, P=Ps, cum=cum, load=u, speed=gt.speed, gains=ks, gravity=gt.gravity).items()}
+        extra = suspension_confidence(self, em, sub, good, Ps[:, 0, 0], u, ks, gt.P, E, speed)
         susp_all = self.model.tilt(held["gains"], held["load"])
         cum_all = held["cum"]
         return SuspensionTrack.from_residuals(
             held["E"], cum_all @ np.swapaxes(held["E"], 1, 2), held["P"], cum_all, self._Rgs,
             self.extrinsic.translation, em.t, np.asarray(em.valid, dtype=bool) & good,
             load=held["load"], speed=held["speed"], gains=held["gains"], suspension=susp_all,
-            gravity=held["gravity"])
+            gravity=held["gravity"], **extra)
 
     def _smooth(self, db: np.ndarray, Xs: np.ndarray, Ps: np.ndarray, q: np.ndarray) -> np.ndarray:
         """RTS smoother on the group over the forward pass, blended with ``smoother_weight``."""

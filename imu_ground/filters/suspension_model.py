@@ -82,6 +82,10 @@ class SuspensionModel:
         Load of the last frame ``(u_x, u_y)``, m/s^2.
     rate : float or None
         Frame rate of the design, Hz (None before the first frame).
+    tilt_weights : (float, float)
+        Factors of the variance of gravity's horizontal components (m/s^2)^2 in the variance of the
+        modelled pitch and roll (rad^2), for the 1-sigma: ``h (k_pitch^2 + k_cross^2)`` and
+        ``h k_roll^2`` with ``h = (1 - s)^2 / 2`` (the load's share of the gravity estimate).
     """
 
     def __init__(self, gains0: np.ndarray, load_share: float, response: Optional[Sequence[float]],
@@ -101,6 +105,12 @@ class SuspensionModel:
         self._phi = np.zeros(2)
         self._sxx = self._sxy = None
         self.load = (0.0, 0.0)
+        self._set_tilt_weights()
+
+    def _set_tilt_weights(self) -> None:
+        """:attr:`tilt_weights` of the current gains."""
+        h = 0.5 * (1.0 - self.load_share) ** 2
+        self.tilt_weights = (h * (self._kp * self._kp + self.cross_gain * self.cross_gain), h * self._kr * self._kr)
 
     def design(self, rate: float) -> None:
         """Discrete-time design for frames at ``rate`` Hz (once; a later rate more than 2 % off is an error)."""
@@ -160,6 +170,7 @@ class SuspensionModel:
         self._sxx = self._sxx + z[:2] * z[:2]
         self.gains = self._sxy / self._sxx
         self._kp, self._kr = self.gains.tolist()
+        self._set_tilt_weights()
 
     # -- batch -------------------------------------------------------------------------------------
     def run(self, gt, lateral: Optional[np.ndarray] = None) -> tuple:
@@ -207,4 +218,5 @@ class SuspensionModel:
         self._phi, self._sxy, self._sxx = phi[-1].copy(), sxy[-1].copy(), sxx[-1].copy()
         self.gains = self._sxy / self._sxx
         self._kp, self._kr = self.gains.tolist()
+        self._set_tilt_weights()
         return ks

@@ -34,6 +34,7 @@ from imu_ground.imu.preint_kernel import (
 )
 from imu_ground.imu.preint_measurement import PreintegratedImu
 from imu_ground.imu.preint_params import PreintegrationParams, gap_message
+from imu_ground.imu.preint_state import load_preintegrator_state, preintegrator_state
 
 __all__ = ["StreamingPreintegrator"]
 
@@ -282,6 +283,16 @@ class StreamingPreintegrator(_NativeKernel if NATIVE is not None else _PythonKer
         self._load()
         return PreintegratedImu.from_state(self.params, *self._kernel_state(), self._n + self._mark - self._cd,
                                            self._t_start, math.nan, self._valid)
+
+    # -- warm start ---------------------------------------------------------
+    def state_dict(self) -> dict:
+        """The state as a plain, JSON-serialisable dict (:mod:`imu_ground.imu.preint_state`); resume with
+        :meth:`load_state_dict` on a preintegrator built with the same settings."""
+        return preintegrator_state(self)
+
+    def load_state_dict(self, state: dict) -> None:
+        """Resume from a :meth:`state_dict`; another kind, layout or settings raises ValueError."""
+        load_preintegrator_state(self, state)
 
     # -- boundaries ---------------------------------------------------------
     def _boundary(self, k: int) -> float:

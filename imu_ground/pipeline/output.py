@@ -3,8 +3,9 @@
 Table (:func:`track_table` of a track, :func:`result_table` of an estimate): ``t`` (s, frame
 end), ``normal_x/y/z`` (unit ground normal, sensor frame), ``pitch_deg`` (+ nose down),
 ``roll_deg`` (+ left side up) of the body relative to the road, ``qw qx qy qz`` (residual
-rotation road <- body, scalar first) and ``valid``; frames inside a gap longer than
-:data:`GAP_NAN_FRAMES` frames hold NaN.
+rotation road <- body, scalar first), ``valid``, the 1-sigma ``pitch_std_deg roll_std_deg``, the
+road's ``road_grade_deg road_bank_deg`` and their 1-sigma, ``status`` and ``status_reason``
+(:data:`UNITS`); frames inside a gap longer than :data:`GAP_NAN_FRAMES` frames hold NaN.
 
 Writers: ``.csv`` (comment header with units, method, settings and what ``valid``
 holds), ``.parquet`` (typed; units and settings in the schema metadata), ``.tum``
@@ -30,6 +31,7 @@ import numpy as np
 
 from imu_ground._version import __version__
 from imu_ground.filters.estimator import GroundTrack
+from imu_ground.filters.status import status_names
 from imu_ground.pipeline.ros_output import write_ros_output
 from imu_ground.so3 import quat_from_matrix
 
@@ -38,6 +40,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "COLUMNS",
+    "TEXT_COLUMNS",
     "GAP_NAN_FRAMES",
     "OUTPUT_SUFFIXES",
     "UNITS",
@@ -57,13 +60,22 @@ __all__ = [
 #: File suffixes :func:`write_output` knows.
 OUTPUT_SUFFIXES = (".csv", ".parquet", ".tum", ".bag", ".mcap")
 #: Columns of the output table, in order.
-COLUMNS = ("t", "normal_x", "normal_y", "normal_z", "pitch_deg", "roll_deg", "qw", "qx", "qy", "qz", "valid")
+COLUMNS = ("t", "normal_x", "normal_y", "normal_z", "pitch_deg", "roll_deg", "qw", "qx", "qy", "qz", "valid",
+           "pitch_std_deg", "roll_std_deg", "road_grade_deg", "road_bank_deg", "road_grade_std_deg",
+           "road_bank_std_deg", "status", "status_reason")
 #: Unit (and meaning) of each column.
 UNITS = {"t": "s (frame end)", "normal_x": "1 (unit normal, sensor frame)", "normal_y": "1 (unit normal, sensor frame)",
          "normal_z": "1 (unit normal, sensor frame)", "pitch_deg": "deg, + nose down, body relative to road",
          "roll_deg": "deg, + left side up, body relative to road",
          **{q: "1 (unit quaternion road <- body, scalar first)" for q in ("qw", "qx", "qy", "qz")},
-         "valid": "bool: true = from measured motion, false = frame spans a gap"}
+         "valid": "bool: true = from measured motion, false = frame spans a gap",
+         "pitch_std_deg": "deg, calibrated 1-sigma of pitch_deg", "roll_std_deg": "deg, calibrated 1-sigma of roll_deg",
+         "road_grade_deg": "deg, + uphill in the direction of travel, road relative to gravity (nan: not estimated)",
+         "road_bank_deg": "deg, + left side up, road relative to gravity (nan: not estimated)",
+         "road_grade_std_deg": "deg, 1-sigma of road_grade_deg", "road_bank_std_deg": "deg, 1-sigma of road_bank_deg",
+         "status": "str: converging, ok, standstill, gap, degraded or invalid", "status_reason": "str: why (empty: ok)"}
+#: Text columns of the table (every other column is a float, ``valid`` a bool).
+TEXT_COLUMNS = ("status", "status_reason")
 #: Runs of invalid frames longer than this are NaN in the table (shorter ones are kept, flagged).
 GAP_NAN_FRAMES = 3
 _PathLike = str | Path
@@ -87,7 +99,11 @@ def track_table(track: GroundTrack, max_gap_frames: int = GAP_NAN_FRAMES) -> "pd
         Columns ``t`` (s), ``normal_x, normal_y, normal_z`` (unit normal, sensor
         frame), ``pitch_deg`` (+ nose down), ``roll_deg`` (+ left side up),
         ``qw, qx, qy, qz`` (residual rotation road <- body, scalar first,
-        ``qw >= 0``), ``valid`` (bool).
+        ``qw >= 0``), ``valid`` (bool), ``pitch_std_deg, roll_std_deg`` (calibrated
+        1-sigma), ``road_grade_deg`` (+ uphill in the direction of travel),
+        ``road_bank_deg`` (+ left side up), ``road_grade_std_deg, road_bank_std_deg``
+        (NaN where not estimated), ``status`` (str, :data:`~imu_ground.filters.status.STATUSES`)
+        and ``status_reason`` (str).
     """
     import pandas as pd                             # heavy: only when a table is made
     n = len(track)
@@ -96,11 +112,18 @@ def track_table(track: GroundTrack, max_gap_frames: int = GAP_NAN_FRAMES) -> "pd
     df = pd.DataFrame({"t": np.asarray(track.t, dtype=float),
                        "normal_x": track.normal[:, 0], "normal_y": track.normal[:, 1], "normal_z": track.normal[:, 2],
                        "pitch_deg": np.degrees(track.pitch), "roll_deg": np.degrees(track.roll),
-                       "qw": q[:, 0], "qx": q[:, 1], "qy": q[:, 2], "qz": q[:, 3], "valid": valid})
+                       "qw": q[:, 0], "qx": q[:, 1], "qy": q[:, 2], "qz": q[:, 3], "valid": valid,
+                       **{f"{name}_deg": np.degrees(getattr(track, name)) for name in _EXTRA_ANGLES},
+                       "status": status_names(track.status), "status_reason": track.status_reason})
     blank = _long_runs(~valid, max_gap_frames)
     if blank.any():
-        df.loc[blank, df.columns[1:-1]] = np.nan
+        cols = [c for c in df.columns if c not in ("t", "valid", "status", "status_reason")]
+        df.loc[blank, cols] = np.nan
     return df
+
+
+#: Angle fields of a track written to the table after ``valid``, as ``NAME_deg``.
+_EXTRA_ANGLES = ("pitch_std", "roll_std", "road_grade", "road_bank", "road_grade_std", "road_bank_std")
 
 
 def _long_runs(mask: np.ndarray, longer_than: int) -> np.ndarray:
@@ -218,8 +241,15 @@ def _csv_header(meta: Mapping[str, Any]) -> str:
         "pitch_deg (deg, + nose down) and roll_deg (deg, + left side up) of the body relative to the road; "
         "qw, qx, qy, qz (residual rotation road <- body, unit quaternion, scalar first)"),
         ("valid: 1 = estimated from measured motion, 0 = the frame spans a timestamp gap (integrated "
-        f"through, extrapolated); inside gaps longer than {GAP_NAN_FRAMES} frames every column but t and "
-        "valid is nan"),
+        f"through, extrapolated); inside gaps longer than {GAP_NAN_FRAMES} frames every column but t, "
+        "valid, status and status_reason is nan"),
+        ("pitch_std_deg, roll_std_deg: calibrated 1-sigma (deg) of pitch_deg and roll_deg; road_grade_deg "
+        "(+ uphill in the direction of travel) and road_bank_deg (+ left side up): the road's attitude "
+        "relative to gravity (deg), with road_grade_std_deg and road_bank_std_deg (1-sigma), nan where "
+        "not estimated (the reason in status_reason)"),
+        ("status: converging (until the 1-sigma is first below its threshold), ok, standstill, gap, "
+        "degraded (the sensor's mount moved; needs a speed) or invalid (a bad frame skipped); "
+        "status_reason: why, in words"),
     ]
     return "".join(f"# {ln}\n" for ln in lines)
 
@@ -255,7 +285,8 @@ def write_csv_rows(fh, table) -> None:
         The table (its index is not written).
     """
     kinds = [table[c].dtype.kind for c in table.columns]
-    fast = (all(k in "fbiu" for k in kinds) and all(_csv_plain_name(c) for c in table.columns)
+    text = [k == "O" and all(type(v) is str for v in table[c].tolist()) for c, k in zip(table.columns, kinds)]
+    fast = (all(k in "fbiu" or t for k, t in zip(kinds, text)) and all(_csv_plain_name(c) for c in table.columns)
             and not any(k in "iu" and len(table) and int(table[c].abs().max()) >= 2 ** 53
                         for c, k in zip(table.columns, kinds)))
     if not fast:
@@ -266,13 +297,21 @@ def write_csv_rows(fh, table) -> None:
         df.to_csv(fh, index=False, float_format=CSV_FLOAT_FORMAT, na_rep="nan", lineterminator="\n")
         return
     fh.write(",".join(table.columns) + "\n")
-    values = np.empty((len(table), len(kinds)))       # integers and bools exactly (|x| < 2**53)
+    # integers and bools exactly (|x| < 2**53); text quoted as pandas (csv.QUOTE_MINIMAL) quotes it
+    values = np.empty((len(table), len(kinds)), dtype=object if any(text) else float)
     for j, c in enumerate(table.columns):
-        values[:, j] = table[c].to_numpy()
-    row = ",".join(CSV_FLOAT_FORMAT if k == "f" else "%d" for k in kinds) + "\n"
+        values[:, j] = [_csv_quoted(v) for v in table[c].tolist()] if text[j] else table[c].to_numpy()
+    row = ",".join("%s" if t else CSV_FLOAT_FORMAT if k == "f" else "%d" for k, t in zip(kinds, text)) + "\n"
     for i in range(0, len(values), CSV_BLOCK_ROWS):
         block = values[i:i + CSV_BLOCK_ROWS]
         fh.write((row * len(block)) % tuple(block.ravel().tolist()))
+
+
+def _csv_quoted(v: str) -> str:
+    """A text field as the csv module writes it with minimal quoting (pandas' default)."""
+    if any(ch in v for ch in ',"\r\n'):
+        return '"' + v.replace('"', '""') + '"'
+    return v
 
 
 def _write_csv(path: Path, table, meta: Mapping[str, Any]) -> None:
@@ -289,8 +328,8 @@ def _write_parquet(path: Path, table, meta: Mapping[str, Any]) -> None:
         raise ValueError(f"{path}: writing Parquet needs pyarrow: pip install 'imu-ground[parquet]'") from None
     df = table.reset_index(drop=True)
     df["valid"] = df["valid"].astype(bool)
-    fields = [pa.field(c, pa.bool_() if c == "valid" else pa.float64(), metadata={"unit": UNITS[c]})
-              for c in df.columns]
+    fields = [pa.field(c, pa.bool_() if c == "valid" else pa.string() if c in TEXT_COLUMNS else pa.float64(),
+                       metadata={"unit": UNITS[c]}) for c in df.columns]
     info = {k: meta.get(k) for k in ("format", "method", "method_description", "settings", "extrinsic")}
     info["units"] = UNITS
     info["gap_nan_frames"] = GAP_NAN_FRAMES

@@ -16,7 +16,16 @@ skipped):
   ``y`` = pitch of the body relative to the road, rad (signs as in the table),
   ``z`` = 0;
 - ``PREFIX/settings`` (``std_msgs/String``): the method's settings as JSON,
-  once, at the first stamp (only with ``settings``).
+  once, at the first stamp (only with ``settings``);
+- ``PREFIX/pitch_roll_std`` (``geometry_msgs/Vector3Stamped``): ``x`` = roll, ``y`` = pitch
+  1-sigma, rad, on the frames of ``pitch_roll``;
+- ``PREFIX/road`` and ``PREFIX/road_std`` (``geometry_msgs/Vector3Stamped``): ``x`` = road bank
+  (+ left side up), ``y`` = road grade (+ uphill), rad, and their 1-sigma, on the valid frames
+  where the road is estimated;
+- ``PREFIX/status`` (``std_msgs/String``): ``"status"`` or ``"status: reason"`` on *every* frame
+  (also the gaps and skipped frames: that is when it matters).
+
+The last four are written when the table has their columns (``pitch_std_deg``, ...).
 
 Pitch and roll share one ``Vector3Stamped`` (rather than two ``std_msgs/Float64``
 topics, which carry no stamp) so that each value keeps its header stamp and
@@ -50,7 +59,14 @@ ROS_OUTPUT_TOPICS: dict[str, str] = {
     "rotation": "geometry_msgs/msg/QuaternionStamped",
     "pitch_roll": "geometry_msgs/msg/Vector3Stamped",
     "settings": "std_msgs/msg/String",
+    "pitch_roll_std": "geometry_msgs/msg/Vector3Stamped",
+    "road": "geometry_msgs/msg/Vector3Stamped",
+    "road_std": "geometry_msgs/msg/Vector3Stamped",
+    "status": "std_msgs/msg/String",
 }
+#: Topics of the table's optional columns: written when the table has them.
+_OPTIONAL = {"pitch_roll_std": ("roll_std_deg", "pitch_std_deg"), "road": ("road_bank_deg", "road_grade_deg"),
+             "road_std": ("road_bank_std_deg", "road_grade_std_deg"), "status": ("status", "status_reason")}
 
 _TABLE_COLUMNS = ("t", "normal_x", "normal_y", "normal_z", "pitch_deg", "roll_deg", "qw", "qx", "qy", "qz")
 _KINDS = {".bag": "ros1", ".mcap": "mcap", "": "ros2"}
@@ -331,7 +347,7 @@ def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
     prefix = "/" + topic_prefix.strip("/") if topic_prefix.strip("/") else ""
     with RosWriter(path, storage=storage, overwrite=overwrite) as w:
         h = {k: w.add_topic(f"{prefix}/{k}", m) for k, m in ROS_OUTPUT_TOPICS.items()
-             if k != "settings" or settings is not None}
+             if k not in _OPTIONAL and (k != "settings" or settings is not None)}
         if settings is not None and len(stamps):
             text = json.dumps(dict(settings), default=str, sort_keys=True)
             w.write(h["settings"], int(stamps[0]), w.message("std_msgs/msg/String", data=text))
@@ -346,4 +362,26 @@ def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
             w.write_raw(h["normal"], ns, normal[k])
             w.write_raw(h["rotation"], ns, rotation[k])
             w.write_raw(h["pitch_roll"], ns, pitch_roll[k])
+        _write_optional(w, table, prefix, frame_id, origin)
         return dict(w.counts)
+
+
+def _write_optional(w: "RosWriter", table: Any, prefix: str, frame_id: str, origin: int) -> None:
+    """The topics of the table's optional columns (:data:`_OPTIONAL`) that it has."""
+    t = np.asarray(table["t"], dtype=float)
+    valid = np.asarray(table["valid"], dtype=bool) if "valid" in table else np.ones(len(t), dtype=bool)
+    stamps = origin + np.round(np.where(np.isfinite(t), t, 0.0) * 1e9).astype(np.int64)
+    for topic, (x, y) in _OPTIONAL.items():
+        if x not in table or y not in table:
+            continue
+        h = w.add_topic(f"{prefix}/{topic}", ROS_OUTPUT_TOPICS[topic])
+        if topic == "status":
+            for ns, st, why, ok in zip(stamps.tolist(), table[x], table[y], np.isfinite(t).tolist()):
+                if ok:
+                    w.write(h, ns, w.message("std_msgs/msg/String", data=f"{st}: {why}" if why else str(st)))
+            continue
+        xy = np.column_stack([np.asarray(table[x], dtype=float), np.asarray(table[y], dtype=float)]) * DEG
+        keep = valid & np.isfinite(t) & np.all(np.isfinite(xy), axis=1)
+        data = serialize_stamped(stamps[keep], frame_id, np.column_stack([xy[keep], np.zeros(keep.sum())]), w.ros1)
+        for ns, msg in zip(stamps[keep].tolist(), data):
+            w.write_raw(h, ns, msg)

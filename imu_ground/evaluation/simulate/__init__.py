@@ -72,6 +72,7 @@ from imu_ground.evaluation.simulate.imu_errors import (
                                                  ImuErrorModel,
                                                  imu_error_model,
 )
+from imu_ground.evaluation.simulate.remount import remounted
 from imu_ground.evaluation.simulate.road import (
                                                  ISO8608_CLASSES,
                                                  ISO8608_N0,
@@ -91,5 +92,5 @@ from imu_ground.units import GRAVITY
 __all__ = [
     "GRAVITY", "IMU_PRESETS", "ISO8608_CLASSES", "ISO8608_N0", "ROAD_PLANE_WINDOW", "TRUTH_ANGLES", "TRUTH_COLUMNS",
     "ImuErrorModel", "RoadParams", "SimResult", "SpeedParams", "VehicleParams", "imu_error_model",
-    "iso8608_psd", "road_profile", "simulate", "simulate_suite", "suspension_response",
+    "iso8608_psd", "remounted", "road_profile", "simulate", "simulate_suite", "suspension_response",
 ]

@@ -17,7 +17,7 @@ This script reports:
   ways), and chosen on the first half of every drive's pairs and scored on the second half;
 - ``synthetic``: the suspension filter before and now on the synthetic suite (exact truth).
 
-Run: ``python benchmarks/revisit_table.py [--data ../shared/data/kitti_imu100]``; ``rows()``
+Run: ``python benchmarks/studies/revisit_table.py [--data ../shared/data/kitti_imu100]``; ``rows()``
 returns the tables for ``benchmarks/make_results.py``.
 """
 from __future__ import annotations

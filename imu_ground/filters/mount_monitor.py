@@ -1,0 +1,167 @@
+r"""Mount-change detection: the measured gravity turns away from the mount's up axis faster than any drift.
+
+A sensor that is bumped or remounted makes the static extrinsic wrong. With a
+measured speed the road's gravity/velocity filter (:mod:`imu_ground.filters.road`)
+keeps gravity in its gyro-integrated world frame consistent with the
+accelerometer: the speed and the vehicle constraints pin the velocity, so the
+filter turns its gravity towards whatever turn of the accelerometer's view of
+gravity the gyro did not see. A drift of the gyro-integrated frame (gyro bias) turns
+it slowly; a remount by 1 deg turns it by 0.7-0.9 deg within 15 s (then back over
+minutes, see below). The monitor compares the gravity direction now with the one
+:data:`WINDOW` seconds before: an angle above :data:`THRESHOLD` raises the alarm
+(latched until a reset). It first measures the gyro's own drift for :data:`GATE`
+seconds and stays silent if that turns gravity by more than :data:`DRIFT_LIMIT` in a
+window (a raw consumer MEMS gyro: its bias, up to ~1 deg/s, turns the frame by
+degrees). No comparison spans a frame without a speed or a gap, nor starts within
+:data:`HOLD_OFF` seconds of the road filter's start or of such a frame (the filter
+re-converges after them). Without a speed there is no road filter and no monitor
+(the accelerometer's gravity cannot then be told from the vehicle's own acceleration
+along the road).
+
+The change itself is not re-estimated: the filter's gravity turns by most of the
+change within seconds and then turns back over minutes (the velocity constraints
+take up the rest), so neither its gravity nor its body-frame velocity keeps a
+record of the mount's new pitch accurate to 0.1 deg; re-calibrate with
+``imu-ground calibrate`` when the status says the mount moved.
+
+Measured on synthetic drives (true speed) and on the shared KITTI drives with
+``--speed auto`` in ``benchmarks/RESULTS.md`` (``benchmarks/studies/confidence.py``).
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import Optional
+
+import numpy as np
+
+from imu_ground.units import DEG
+
+__all__ = ["MountMonitor", "WINDOW", "THRESHOLD", "HOLD_OFF", "GATE", "DRIFT_LIMIT", "monitor_track"]
+
+#: Time between the two gravity directions compared, s.
+WINDOW = 15.0
+#: Angle between them that raises the alarm, rad (0.6 deg).
+THRESHOLD = 0.6 * DEG
+#: No comparison starts within this long after the road filter's start, a gap or a frame without speed, s.
+HOLD_OFF = 60.0
+#: For this long after the hold-off the monitor measures the largest turn in :data:`WINDOW` s (the gyro's
+#: drift) instead of judging, s ...
+GATE = 60.0
+#: ... and stays silent until the next hold-off if it is above this, rad (0.35 deg).
+DRIFT_LIMIT = 0.35 * DEG
+_COS_THRESHOLD = math.cos(THRESHOLD)
+
+
+def _unit(g) -> tuple:
+    n = math.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2])
+    return g[0] / n, g[1] / n, g[2] / n
+
+
+class MountMonitor:
+    """The streaming monitor of the module docstring: one :meth:`update` a frame (the batch runs the same).
+
+    Attributes
+    ----------
+    alarm : str or None
+        The reason once raised.
+    alarm_t : float
+        Time of the alarm, s (NaN before).
+    reference : tuple of 3 float or None
+        The unit gravity (world frame of the road filter) the alarm's comparison started from.
+    """
+
+    def __init__(self) -> None:
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything."""
+        self._hist: deque = deque()            # (t, unit gravity) of the last WINDOW s, once armed
+        self._armed_at = math.nan              # comparisons may start at frames after this time
+        self._drift = 0.0                      # largest turn in WINDOW s during the first GATE s once armed
+        self.alarm: Optional[str] = None
+        self.alarm_t = math.nan
+        self.reference: Optional[tuple] = None
+
+    @property
+    def active(self) -> bool:
+        """Armed, past the drift check, and the gyro's drift small enough for the monitor to judge."""
+        return (self._armed_at == self._armed_at and bool(self._hist)
+                and self._hist[-1][0] >= self._armed_at + GATE and self._drift <= DRIFT_LIMIT)
+
+    def update(self, t: float, gravity, usable: bool) -> Optional[str]:
+        """One frame.
+
+        Parameters
+        ----------
+        t : float
+            Frame end time, s.
+        gravity : sequence of 3 float or None
+            The road filter's gravity reaction (world frame) after the frame; None without a road filter.
+        usable : bool
+            The frame is valid (no gap) and has a speed.
+
+        Returns
+        -------
+        str or None
+            The alarm's reason once raised (latched), else None.
+        """
+        if self.alarm is not None:
+            return self.alarm
+        if gravity is None or not usable:
+            self._hist.clear()
+            self._armed_at = math.nan
+            return None
+        if self._armed_at != self._armed_at:          # NaN: (re)start the hold-off here
+            self._armed_at, self._drift = t + HOLD_OFF, 0.0
+        if t < self._armed_at:
+            return None
+        u = _unit(gravity)
+        h = self._hist
+        h.append((t, u))
+        while len(h) > 1 and h[1][0] <= t - WINDOW:
+            h.popleft()
+        t0, r = h[0]
+        if t0 > t - WINDOW:
+            return None
+        c = max(-1.0, min(1.0, u[0] * r[0] + u[1] * r[1] + u[2] * r[2]))
+        if t < self._armed_at + GATE:                 # the gyro's own drift, measured first
+            self._drift = max(self._drift, math.acos(c))
+            return None
+        if c < _COS_THRESHOLD and self._drift <= DRIFT_LIMIT:
+            self.alarm, self.alarm_t, self.reference = (
+                f"mount moved: the measured gravity turned {math.acos(c) / DEG:.1f} deg away from the mount's "
+                f"up axis within {WINDOW:g} s, at t = {t:.1f} s", t, r)
+        return self.alarm
+
+    def state(self) -> dict:
+        """Plain values, for a warm start."""
+        return {"hist": [[t, list(u)] for t, u in self._hist], "armed_at": self._armed_at, "drift": self._drift,
+                "alarm": self.alarm, "alarm_t": self.alarm_t,
+                "reference": None if self.reference is None else list(self.reference)}
+
+    def load(self, st: dict) -> None:
+        """Back to a :meth:`state`."""
+        self._hist = deque((float(t), tuple(float(v) for v in u)) for t, u in st["hist"])
+        self._armed_at, self._drift = float(st["armed_at"]), float(st["drift"])
+        self.alarm, self.alarm_t = st["alarm"], float(st["alarm_t"])
+        self.reference = None if st["reference"] is None else tuple(float(v) for v in st["reference"])
+
+
+def monitor_track(monitor: MountMonitor, t: np.ndarray, gravity: np.ndarray, usable: np.ndarray) -> np.ndarray:
+    """:meth:`MountMonitor.update` over a batch (frames in order); returns per frame whether the alarm is raised.
+
+    Parameters
+    ----------
+    t : ndarray (F,)
+        Frame times, s.
+    gravity : ndarray (F, 3)
+        The road filter's gravity per frame (rows of NaN: no road filter at that frame).
+    usable : ndarray of bool (F,)
+    """
+    out = np.zeros(len(t), dtype=bool)
+    g = np.asarray(gravity, dtype=float)
+    has = np.isfinite(g).all(axis=1)
+    for k in range(len(t)):
+        out[k] = monitor.update(float(t[k]), tuple(g[k].tolist()) if has[k] else None, bool(usable[k])) is not None
+    return out

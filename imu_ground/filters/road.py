@@ -1,0 +1,255 @@
+r"""The road's own attitude: grade and bank relative to gravity, from the body's attitude to gravity and to the road.
+
+Frames and signs as in :mod:`imu_ground.filters.estimator`. With ``u_b`` the up
+direction (reaction to gravity, unit) in the body frame and ``E`` (road <- body)
+the estimator's residual, the up direction in the road frame is ``u_r = E u_b``
+(exactly: level <- road = (level <- body)(body <- road)); its pitch and roll
+(:func:`~imu_ground.filters.estimator.pitch_roll_from_normal`) are the road's
+attitude relative to gravity, and
+
+- ``road_grade = -pitch(u_r)`` (+ uphill in the direction of travel: the road's nose is up),
+- ``road_bank = roll(u_r)`` (+ left side up);
+
+to first order the body's attitude to gravity minus its attitude to the road.
+
+``u_b`` comes from a gravity/velocity filter of its own
+(:class:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter` with the
+estimator's options but a gravity random walk ``q_g`` of :data:`ROAD_Q_G`: the
+gyro-integrated world frame drifts with the gyro bias, and the estimator's own
+filter, tuned for the load, holds gravity too stiffly to follow it; measured on
+the synthetic drives, ``benchmarks/studies/confidence.py``). It needs a measured speed:
+without one, the velocity the attitude is corrected with is itself unobserved
+along the road, and a slow grade cannot be told from a slow acceleration. So the
+road is estimated from the first frame with a finite speed on, and is NaN
+before and wherever the frame's speed is NaN (the status reason says so).
+
+1-sigma: ``sigma_grade^2 = sigma_pitch^2 + c^2 P_x / |g|^2 + f^2`` and the same for
+the bank with ``P_y``, ``P`` the gravity filter's covariance of gravity turned into
+the body frame; ``c`` and ``f`` (:data:`ROAD_STD`) fitted on synthetic drives like
+those of :mod:`imu_ground.filters.status`.
+"""
+from __future__ import annotations
+
+import math
+from typing import Optional
+
+import numpy as np
+
+from imu_ground.filters.estimator import pitch_roll_from_normal
+from imu_ground.filters.gravity_velocity import GravityVelocityFilter
+from imu_ground.units import DEG
+
+__all__ = ["ROAD_Q_G", "ROAD_STD", "NO_SPEED_REASON", "NO_ROAD_REASON", "RoadFilter", "road_gravity_options", "road_angles",
+           "road_angles_one", "road_one", "road_std"]
+
+#: Gravity random walk of the road's gravity/velocity filter, m/s^2/sqrt(s).
+ROAD_Q_G = 0.01
+#: ``(c, f)`` of the road's 1-sigma (module docstring): scale of the gravity term, floor (rad).
+ROAD_STD = (1.0, 0.05 * DEG)
+#: Status reason of a frame whose road is not estimated.
+NO_SPEED_REASON = "road grade and bank not estimated: no measured speed (give --speed)"
+#: Status reason of every frame of a method that cannot estimate the road (no accelerometer).
+NO_ROAD_REASON = "road grade and bank not estimated: this method has no gravity (use the suspension method and --speed)"
+
+
+def road_gravity_options(options: Optional[dict] = None) -> dict:
+    """The estimator's gravity/velocity options with the road's gravity random walk."""
+    kw = dict(options or {})
+    kw["q_g"] = ROAD_Q_G
+    return kw
+
+
+def road_angles(E: np.ndarray, gravity: np.ndarray, cumulative: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Road grade and bank (rad) per frame.
+
+    Parameters
+    ----------
+    E : ndarray (F, 3, 3)
+        Residual road <- body.
+    gravity : ndarray (F, 3)
+        Reaction to gravity in the gravity filter's world frame, m/s^2.
+    cumulative : ndarray (F, 3, 3)
+        That filter's attitude, world <- body.
+
+    Returns
+    -------
+    grade, bank : ndarray (F,)
+        + uphill in the direction of travel; + left side up.
+    """
+    ub = np.einsum("nji,nj->ni", cumulative, gravity)            # R^T g: up in the body frame
+    ur = np.einsum("nij,nj->ni", E, ub)
+    pitch, roll = pitch_roll_from_normal(ur)
+    return -pitch, roll
+
+
+def road_angles_one(q, g, R) -> tuple[float, float]:
+    """:func:`road_angles` of one frame from plain floats.
+
+    Parameters
+    ----------
+    q : sequence of 4 float
+        ``E`` as a unit quaternion (w, x, y, z).
+    g : sequence of 3 float
+        Gravity reaction, world frame.
+    R : sequence of 9 float
+        World <- body, row-major.
+    """
+    ux = R[0] * g[0] + R[3] * g[1] + R[6] * g[2]
+    uy = R[1] * g[0] + R[4] * g[1] + R[7] * g[2]
+    uz = R[2] * g[0] + R[5] * g[1] + R[8] * g[2]
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    n0 = (1 - 2 * (y * y + z * z)) * ux + 2 * (x * y - w * z) * uy + 2 * (x * z + w * y) * uz
+    n1 = 2 * (x * y + w * z) * ux + (1 - 2 * (x * x + z * z)) * uy + 2 * (y * z - w * x) * uz
+    n2 = 2 * (x * z - w * y) * ux + 2 * (y * z + w * x) * uy + (1 - 2 * (x * x + y * y)) * uz
+    return math.atan2(n0, math.hypot(n1, n2)), math.atan2(n1, n2)
+
+
+def road_std(pitch_std, roll_std, gravity_cov: np.ndarray, gravity: np.ndarray,
+             cumulative: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """1-sigma of road grade and bank (rad), module docstring.
+
+    Parameters
+    ----------
+    pitch_std, roll_std : ndarray (F,)
+        The estimator's 1-sigma of the body relative to the road, rad.
+    gravity_cov : ndarray (F, 3, 3)
+        Covariance of the gravity reaction, world frame, (m/s^2)^2.
+    gravity : ndarray (F, 3)
+        Gravity reaction, world frame, m/s^2.
+    cumulative : ndarray (F, 3, 3)
+        World <- body.
+    """
+    c, f = ROAD_STD
+    Pb = np.swapaxes(cumulative, 1, 2) @ gravity_cov @ cumulative
+    g2 = np.einsum("ni,ni->n", gravity, gravity)
+    grade = np.sqrt(pitch_std ** 2 + c * c * Pb[:, 0, 0] / g2 + f * f)
+    bank = np.sqrt(roll_std ** 2 + c * c * Pb[:, 1, 1] / g2 + f * f)
+    return grade, bank
+
+
+def road_one(q, g, R, p6) -> tuple[float, float, float, float]:
+    """Grade, bank (rad) and the gravity filter's share of their variances (rad^2) of one frame, plain floats.
+
+    Parameters
+    ----------
+    q : sequence of 4 float
+        ``E`` (road <- body) as a unit quaternion (w, x, y, z).
+    g : sequence of 3 float
+        Gravity reaction, world frame, m/s^2.
+    R : sequence of 9 float
+        World <- body, row-major.
+    p6 : sequence of 6 float
+        The gravity covariance's unique entries ``(xx, xy, xz, yy, yz, zz)``, world frame.
+
+    Returns
+    -------
+    grade, bank, var_grade, var_bank : float
+        ``var_*``: ``c^2 P_b / |g|^2 + f^2`` of the module docstring (add the estimator's pitch or roll variance).
+    """
+    grade, bank = road_angles_one(q, g, R)
+    c, f = ROAD_STD
+    r0, r1 = (R[0], R[3], R[6]), (R[1], R[4], R[7])          # body x and y axes in the world frame
+    pxx, pxy, pxz, pyy, pyz, pzz = p6
+
+    def quad(r):
+        return (r[0] * (pxx * r[0] + pxy * r[1] + pxz * r[2]) + r[1] * (pxy * r[0] + pyy * r[1] + pyz * r[2])
+                + r[2] * (pxz * r[0] + pyz * r[1] + pzz * r[2]))
+    g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
+    return grade, bank, c * c * quad(r0) / g2 + f * f, c * c * quad(r1) / g2 + f * f
+
+
+class RoadFilter:
+    """The road's gravity/velocity filter (module docstring), started at the first frame with a finite speed.
+
+    Parameters
+    ----------
+    extrinsic, lever_arm, gravity
+        The estimator's extrinsic, lever arm and gravity/velocity options (``q_g`` is replaced by
+        :data:`ROAD_Q_G`).
+
+    Attributes
+    ----------
+    gravity_filter : GravityVelocityFilter or None
+        None until the first frame with a speed.
+    """
+
+    def __init__(self, extrinsic, lever_arm=None, gravity: Optional[dict] = None) -> None:
+        self._kw = dict(road_gravity_options(gravity), extrinsic=extrinsic, lever_arm=lever_arm)
+        self.gravity_filter: Optional[GravityVelocityFilter] = None
+
+    def reset(self) -> None:
+        """Back to no road filter."""
+        self.gravity_filter = None
+
+    def start(self) -> GravityVelocityFilter:
+        """The gravity/velocity filter, created if there is none yet."""
+        if self.gravity_filter is None:
+            self.gravity_filter = GravityVelocityFilter(**self._kw)
+        return self.gravity_filter
+
+    def step(self, d, dv, dt: float, stationary: bool, valid: bool, speed: float) -> Optional[tuple]:
+        """One frame (sensor frame, as :meth:`GravityVelocityFilter.step_sensor` takes it).
+
+        Returns
+        -------
+        tuple or None
+            ``(g, R, p6)`` after the frame (plain floats, see :func:`road_one`), or None when
+            the frame has no speed (the filter still advances once started).
+        """
+        if self.gravity_filter is None:
+            if math.isnan(speed):
+                return None
+            self.start()
+        gf = self.gravity_filter
+        gf.step_sensor(d, dv, dt, stationary, valid, speed)
+        if math.isnan(speed):
+            return None
+        s = gf._s                                   # layout: gravity_kernel (g, then P's 21 entries, then R)
+        return tuple(s[3:6]), tuple(s[27:36]), (s[21], s[22], s[23], s[24], s[25], s[26])
+
+    def run(self, egomotion, speed: np.ndarray, E: np.ndarray, pitch_std: np.ndarray, roll_std: np.ndarray):
+        """The road of a batch of frames (already checked), continuing as :meth:`step` would.
+
+        Parameters
+        ----------
+        egomotion : EgoMotion
+            The frames (sensor frame).
+        speed : ndarray (F,)
+            Measured forward speed, m/s (NaN: none).
+        E : ndarray (F, 3, 3)
+            The estimator's residuals road <- body.
+        pitch_std, roll_std : ndarray (F,)
+            The estimator's 1-sigma, rad.
+
+        Returns
+        -------
+        road : ndarray (F, 4)
+            Grade, bank and their 1-sigma (rad); NaN where the frame has no speed or the filter
+            had not started.
+        gravity : ndarray (F, 3)
+            The filter's gravity reaction (its world frame, m/s^2) after each frame; NaN before it started.
+        cumulative : ndarray (F, 3, 3)
+            Its attitude, world <- body; NaN before it started.
+        """
+        from dataclasses import replace
+        n = len(speed)
+        out = np.full((n, 4), np.nan)
+        grav, cum = np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan)
+        fin = np.isfinite(speed)
+        if self.gravity_filter is None:
+            if not fin.any():
+                return out, grav, cum
+            i0 = int(np.argmax(fin))
+        else:
+            i0 = 0
+        keep = np.arange(n) >= i0
+        em = egomotion if i0 == 0 else replace(
+            egomotion, t=egomotion.t[keep], delta_R=egomotion.delta_R[keep], delta_v=egomotion.delta_v[keep],
+            delta_t=egomotion.delta_t[keep], stationary=egomotion.stationary[keep], valid=egomotion.valid[keep])
+        gt = self.start().run(em, speed=speed[keep])
+        grade, bank = road_angles(E[keep], gt.gravity, gt.cumulative)
+        gs, bs = road_std(pitch_std[keep], roll_std[keep], gt.P[:, 3:, 3:], gt.gravity, gt.cumulative)
+        out[keep] = np.stack([grade, bank, gs, bs], axis=1)
+        out[~fin] = np.nan
+        grav[keep], cum[keep] = gt.gravity, gt.cumulative
+        return out, grav, cum

@@ -1,0 +1,211 @@
+r"""How sure an estimate is: the calibrated 1-sigma of pitch and roll, and a per-frame status with its reason.
+
+1-sigma
+-------
+The residual filter's covariance of the slow road attitude is ``diag(a, a, c)``
+(rad^2, :mod:`imu_ground.filters.residual`); it knows the body's unmodelled
+motion (``sigma_e``) but not the errors of the suspension model (gains that are
+not the car's) nor the gravity estimate the load is built from. The standard
+deviation of the body-relative-to-road pitch and roll is modelled as
+
+.. math::
+
+    \sigma^2 = c_a^2\,a + (g_x u_x)^2 + (g_y u_y)^2 + f^2 + \sigma_b^2
+
+with ``u = (u_x, u_y)`` the load of the suspension model (m/s^2, body frame), ``f``
+a floor and ``sigma_b^2`` the gravity estimate's horizontal variance carried through
+the load into the modelled tilt (``(k (1 - s))^2 sigma_g^2``: ``k`` the gains, ``s``
+the load share, ``sigma_g^2`` the mean of the gravity filter's two world-horizontal
+variances). The constants (:data:`SUSPENSION_STD`, :data:`FILTER_STD`) are fitted by
+Gaussian likelihood (the suspension-aware filter; a constant, the errors' 68th percentile, for the
+invariant filter without a suspension model) on synthetic drives with exact truth
+(``benchmarks/studies/calibrate_std.py``; its coverage on other drives is in
+``benchmarks/RESULTS.md``). They hold for the default configurations; a filter with
+other noises keeps the same constants (its ``a`` still scales the first term).
+
+Status
+------
+One of :data:`STATUSES` per frame, the first that applies in this order:
+
+- ``invalid``: a bad frame the estimator skipped (``on_invalid="skip"``); the values are the previous frame's;
+- ``gap``: the frame was integrated through a timestamp gap (``valid`` False);
+- ``degraded``: a monitor of the estimate flags it, the reason says which: the mount monitor
+  (:mod:`imu_ground.filters.mount_monitor`, with a measured speed) when the sensor's mount moved,
+  from then on;
+- ``standstill``: the frame ends at a standstill (the road and the body are held);
+- ``converging``: from the start (and from a reset) until ``max(pitch_std, roll_std)``
+  has once been at or below :data:`CONVERGED_STD` (0.2 deg; :data:`FILTER_CONVERGED_STD` for the
+  invariant filter without suspension model) (latched);
+- ``ok``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from imu_ground.units import DEG
+
+__all__ = ["STATUSES", "CONVERGING", "OK", "STANDSTILL", "GAP", "DEGRADED", "INVALID", "CONVERGED_STD", "FILTER_CONVERGED_STD",
+           "AngleStd", "SUSPENSION_STD", "FILTER_STD", "status_reason", "track_statuses", "track_reasons", "status_names"]
+
+#: The statuses, indexed by their code.
+STATUSES = ("converging", "ok", "standstill", "gap", "degraded", "invalid")
+CONVERGING, OK, STANDSTILL, GAP, DEGRADED, INVALID = range(6)
+#: A frame whose larger 1-sigma (pitch or roll) is at or below this (rad, 0.2 deg) ends ``converging``
+#: (:class:`~imu_ground.filters.suspension.SuspensionAwareFilter`).
+CONVERGED_STD = 0.2 * DEG
+#: The same for :class:`~imu_ground.filters.ground.GroundNormalFilter` (rad, 0.8 deg: its roll, with no
+#: suspension model, is never better than ~0.7 deg on the synthetic drives; the threshold ends the
+#: transient of its initial covariance).
+FILTER_CONVERGED_STD = 0.8 * DEG
+
+
+@dataclass(frozen=True)
+class AngleStd:
+    """Constants of the 1-sigma model of the module docstring, one set per angle.
+
+    Attributes
+    ----------
+    cov_scale : float
+        ``c_a``: factor on the filter's standard deviation ``sqrt(a)``.
+    load_x, load_y : float
+        ``g_x, g_y``: rad per m/s^2 of forward and leftward load.
+    floor : float
+        ``f``, rad.
+    """
+    cov_scale: float
+    load_x: float
+    load_y: float
+    floor: float
+
+    def variance(self, a, load_x=0.0, load_y=0.0, tilt_var=0.0):
+        """``sigma^2`` (rad^2) of the module docstring; scalars (Python floats) or arrays alike.
+
+        Parameters
+        ----------
+        a : float or ndarray
+            The filter's horizontal variance of the road attitude, rad^2.
+        load_x, load_y : float or ndarray
+            Load of the suspension model, m/s^2, body frame.
+        tilt_var : float or ndarray
+            ``sigma_b^2``, rad^2: the gravity estimate's share through the modelled tilt.
+        """
+        gx, gy = self.load_x * load_x, self.load_y * load_y
+        return self.cov_scale * self.cov_scale * a + gx * gx + gy * gy + self.floor * self.floor + tilt_var
+
+
+#: Pitch and roll 1-sigma constants of :class:`~imu_ground.filters.suspension.SuspensionAwareFilter`.
+SUSPENSION_STD = (AngleStd(0.72, 0.106 * DEG, 0.064 * DEG, 0.0),
+                  AngleStd(1.15, 0.089 * DEG, 0.225 * DEG, 0.0))
+#: Pitch and roll 1-sigma constants of :class:`~imu_ground.filters.ground.GroundNormalFilter` (no load).
+#: Its covariance is a tuning (``R = 1 rad^2``), not an angle's uncertainty: the 1-sigma is a constant, the
+#: 68th percentile of its errors on the synthetic drives (so it is never ``converging``).
+FILTER_STD = (AngleStd(0.0, 0.0, 0.0, 0.21 * DEG), AngleStd(0.0, 0.0, 0.0, 0.33 * DEG))
+
+
+def status_reason(code: int, gap_seconds: float = math.nan, std: float = math.nan,
+                  detail: Optional[str] = None, converged_std: float = CONVERGED_STD) -> str:
+    """The short text of a status (empty for ``ok``).
+
+    Parameters
+    ----------
+    code : int
+        Index into :data:`STATUSES`.
+    gap_seconds : float
+        Duration of the frame (s), said for ``gap``.
+    std : float
+        The larger 1-sigma of the frame (rad), said for ``converging``.
+    detail : str, optional
+        The monitor's reason for ``degraded``, the frame's problem for ``invalid``, or a note for
+        ``ok`` (e.g. why the road is not estimated).
+    converged_std : float
+        The estimator's threshold, rad, said for ``converging``.
+    """
+    if code == OK:
+        return detail or ""
+    if code == CONVERGING:
+        return (f"converging: 1-sigma {std / DEG:.2f} deg, not yet below {converged_std / DEG:.2f} deg "
+                f"since the start or a reset")
+    if code == STANDSTILL:
+        return "standstill: road and body attitude held"
+    if code == GAP:
+        return f"{gap_seconds:.1f} s gap in the log, integrated through"
+    if code == INVALID:
+        return "bad ego-motion frame skipped" + (f": {detail}" if detail else "")
+    return detail or "degraded"
+
+
+def status_names(codes: np.ndarray) -> np.ndarray:
+    """The :data:`STATUSES` names of an array of codes (object array of str)."""
+    return np.asarray(STATUSES, dtype=object)[np.asarray(codes, dtype=np.intp)]
+
+
+def track_statuses(var_max: np.ndarray, stationary: np.ndarray, valid: np.ndarray, good: np.ndarray,
+                   converged: bool = False, degraded: Optional[np.ndarray] = None,
+                   converged_std: float = CONVERGED_STD) -> tuple[np.ndarray, bool]:
+    """The status code of every frame of a batch: the twin of the streaming rule (module docstring).
+
+    Parameters
+    ----------
+    var_max : ndarray (F,)
+        ``max(pitch_std, roll_std)^2`` per frame, rad^2.
+    stationary, valid : ndarray of bool (F,)
+        The frames' standstill and validity flags (as in the ego-motion).
+    good : ndarray of bool (F,)
+        False for a skipped bad frame (it neither converges nor counts).
+    converged : bool
+        Whether the estimator had converged before the first frame.
+    degraded : ndarray of bool (F,), optional
+        Frames a monitor flags.
+    converged_std : float
+        The estimator's threshold, rad (:data:`CONVERGED_STD` or :data:`FILTER_CONVERGED_STD`).
+
+    Returns
+    -------
+    codes : ndarray of uint8 (F,)
+    converged : bool
+        The latch after the last frame.
+    """
+    good = np.asarray(good, dtype=bool)
+    below = good & (np.asarray(var_max, dtype=float) <= converged_std * converged_std)
+    conv = np.logical_or.accumulate(below) | converged if len(below) else below
+    codes = np.full(len(good), OK, dtype=np.uint8)
+    codes[~conv] = CONVERGING
+    codes[np.asarray(stationary, dtype=bool)] = STANDSTILL
+    if degraded is not None:
+        codes[np.asarray(degraded, dtype=bool)] = DEGRADED
+    codes[~np.asarray(valid, dtype=bool)] = GAP
+    codes[~good] = INVALID
+    return codes, bool(conv[-1]) if len(conv) else bool(converged)
+
+
+def track_reasons(codes: np.ndarray, std_max: np.ndarray, dt: np.ndarray,
+                  details: Optional[np.ndarray] = None, converged_std: float = CONVERGED_STD) -> np.ndarray:
+    """:func:`status_reason` of every frame of a batch (object array of str).
+
+    Parameters
+    ----------
+    codes : ndarray (F,)
+        Status codes (:func:`track_statuses`).
+    std_max : ndarray (F,)
+        ``max(pitch_std, roll_std)`` per frame, rad.
+    dt : ndarray (F,)
+        Frame durations, s.
+    details : ndarray of object (F,), optional
+        The monitor's reason of each ``degraded`` frame, a bad frame's problem, or an ``ok`` frame's note.
+    converged_std : float
+        The estimator's threshold, rad.
+    """
+    codes = np.asarray(codes)
+    out = np.full(len(codes), "", dtype=object)
+    out[codes == STANDSTILL] = status_reason(STANDSTILL)
+    if details is not None:
+        ok = codes == OK
+        out[ok] = np.where(np.asarray(details, dtype=object)[ok] == None, "", details[ok])  # noqa: E711
+    for k in np.flatnonzero((codes != OK) & (codes != STANDSTILL)).tolist():   # (few frames)
+        out[k] = status_reason(int(codes[k]), float(dt[k]), float(std_max[k]),
+                               None if details is None else details[k], converged_std)
+    return out
