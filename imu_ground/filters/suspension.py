@@ -396,6 +396,8 @@ class SuspensionAwareFilter:
         self._frames += 1
         gf = self.gravity_filter
         sp = math.nan if speed is None else float(speed)
+        if not abs(sp) <= MAX_MEASURED_SPEED:
+            sp = math.nan                           # infinite or absurd: no measurement (NaN stays NaN)
         gd, gdv = (d, dv) if self._arrays else (d.ravel().tolist(), dv.tolist())   # (pure-Python twins: lists)
         (fx, fy, _), (ax, ay, _), v = gf.step_sensor(gd, gdv, dt, bool(stationary), bool(valid), sp)
         road = raw = None
