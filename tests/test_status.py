@@ -14,7 +14,7 @@ from imu_ground.filters.road import NO_SPEED_REASON, road_angles, road_angles_on
 from imu_ground.filters.status import (CONVERGED_STD, CONVERGING, GAP, INVALID, OK, STANDSTILL, STATUSES,
                                        track_statuses)
 from imu_ground.filters.suspension import SuspensionAwareFilter
-from imu_ground.pipeline.output import COLUMNS, UNITS, result_table, write_output
+from imu_ground.pipeline.output import COLUMNS, UNITS, result_table, track_table, write_output
 from imu_ground.so3 import rotx, roty
 from imu_ground.units import DEG
 
@@ -190,7 +190,7 @@ def test_ros_output_has_the_std_road_and_status_topics(tmp_path, drives):
     d = drives[0]
     sp = _truth_speed(d)["speed"].to_numpy()
     tr = SuspensionAwareFilter(extrinsic=d.extrinsic).run(d.egomotion, speed=sp)
-    table = tr.to_dataframe()
+    table = track_table(tr)
     counts = write_ros_output(tmp_path / "g.mcap", table)
     assert counts["/ground/status"] == len(table)
     assert counts["/ground/pitch_roll_std"] == counts["/ground/pitch_roll"] == counts["/ground/road"]
