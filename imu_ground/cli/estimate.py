@@ -77,6 +77,17 @@ def register(sub) -> None:
                         "only); auto (the log's own: KITTI INS horizontal speed, nuScenes CAN pose, comma2k19 CAN, "
                         "ROS twist/odometry); a CSV file with columns t,speed (s on the log's time base, m/s); or "
                         "the name of a speed column of a CSV log")
+    g = e.add_argument_group("camera (road plane in a camera's axes)")
+    g.add_argument("--camera", metavar="NAME_OR_FILE",
+                   help="a camera on the platform: kitti_cam0 .. kitti_cam3, a camera file (calib/README.md), or a "
+                        "KITTI raw calibration folder and camera index as DIR:2; the outputs gain the road plane in "
+                        "its axes, plane_a .. plane_d (ROS: a road <- camera transform topic)")
+    g.add_argument("--bev", nargs=5, type=float, metavar=("X0", "X1", "Y0", "Y1", "RES"),
+                   help="with --camera: bird's-eye grid X0..X1 m ahead, Y0..Y1 m to the left, RES m a pixel; the "
+                        "outputs gain its homography bev_h00 .. bev_h22 (bird's-eye pixel <- image pixel) per frame")
+    g.add_argument("--planes", metavar="DIR",
+                   help="with --camera: also write one KITTI object planes file per frame, DIR/000000.txt, ... "
+                        "(nan on frames that span a gap)")
     add_reader_flags(e, poses=True)
     add_progress_flag(e)
     e.set_defaults(func=run)
@@ -84,7 +95,7 @@ def register(sub) -> None:
 
 def run(a: argparse.Namespace) -> int:
     """Estimate, write the outputs (atomically, all or none) and print a three-line summary."""
-    from pathlib import Path
+    import numpy as np
 
     from imu_ground.pipeline.estimate import estimate_to_files
     from imu_ground.pipeline.output import (
@@ -98,10 +109,13 @@ def run(a: argparse.Namespace) -> int:
     if a.tum:
         outputs.append(check_output_path(a.tum, [a.log], "--tum", kind=".tum"))
         kinds.append(".tum")
+    if a.planes is not None:
+        from imu_ground.pipeline.planes import check_planes_dir
+        check_planes_dir(a.planes)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res, table = estimate_to_files(a.log, outputs, kinds, progress=progress_enabled(a), speed=a.speed,
-                                       **method_kwargs(a))
+        res, table = estimate_to_files(a.log, outputs, kinds, planes=a.planes, progress=progress_enabled(a),
+                                       speed=a.speed, camera=a.camera, bev=a.bev, **method_kwargs(a))
     for w in res.meta["warnings"]:
         warn_line(w, a.log)
     s = summarize_table(table)
@@ -115,5 +129,11 @@ def run(a: argparse.Namespace) -> int:
             f"over the {s['valid_frames']} valid frames")
     else:
         say("no valid frame: every frame spans a gap in the log")
-    say("wrote " + " and ".join(str(Path(p)) for p in outputs))
+    if res.meta.get("plane") is not None:
+        h = res.meta["plane"].height
+        say(f"camera {a.camera}: height above the road {np.nanmean(h):.3f} m (range {np.nanmin(h):.3f} .. "
+            f"{np.nanmax(h):.3f}) over the {int(np.isfinite(h).sum())} frames with a plane")
+    if a.planes is not None:
+        outputs.append(f"{len(table)} planes files in {a.planes}")
+    say("wrote " + " and ".join(str(p) for p in outputs))
     return 0
