@@ -1,4 +1,4 @@
-"""The ``imu-ground`` command: ``estimate | batch | evaluate | simulate | calibrate``.
+"""The ``imu-ground`` command: ``estimate | batch | evaluate | simulate | calibrate | preview``.
 
 One module per command (``register`` adds its parser, ``run`` does the work and
 imports the library lazily). :func:`main` is the one error handler: bad input,
@@ -16,7 +16,7 @@ from collections.abc import Sequence
 __all__ = ["COMMANDS", "build_parser", "main"]
 
 #: Sub-command modules, in the order ``--help`` lists them.
-COMMANDS = ("estimate", "batch", "evaluate", "simulate", "calibrate")
+COMMANDS = ("estimate", "batch", "evaluate", "simulate", "calibrate", "preview")
 
 
 class _Parser(argparse.ArgumentParser):

@@ -26,6 +26,8 @@ from typing import Any
 
 import numpy as np
 
+from imu_ground.so3 import rotx, roty
+
 __all__ = ["BevGrid", "GroundPlane", "range_error"]
 
 
@@ -190,6 +192,14 @@ class GroundPlane:
         return cls(camera.K, e @ ext.rotation, e @ ext.translation, camera.image_size)
 
     @classmethod
+    def from_pitch_roll(cls, camera: Any, pitch: Any, roll: Any) -> GroundPlane:
+        """The planes of ``camera`` for the body's pitch and roll relative to the road (rad; + nose down,
+        + left side up): :meth:`from_camera` with the yaw-free residual ``Ry(pitch) Rx(roll)``."""
+        p, r = np.broadcast_arrays(np.atleast_1d(np.asarray(pitch, dtype=float)),
+                                   np.atleast_1d(np.asarray(roll, dtype=float)))
+        return cls.from_camera(camera, roty(p) @ rotx(r))
+
+    @classmethod
     def from_normal(cls, K: Any, normal: Any, height: Any, rotation: Any = None, forward: Any = (0.0, 0.0, 1.0),
                     image_size: tuple[int, int] | None = None) -> GroundPlane:
         """Planes from a unit road normal (pointing up) in any frame and the camera's height above the road.
@@ -261,21 +271,32 @@ class GroundPlane:
         u, v = np.broadcast_arrays(np.asarray(u, float), np.asarray(v, float))
         return np.stack([u, v, np.ones_like(u)], axis=-1) @ self._K_inv.T          # (..., 3), z = 1
 
-    def depth(self, u: Any, v: Any) -> np.ndarray:
-        """(N, ...) depth (camera z, m) of the road point pixel ``(u, v)`` sees; NaN at or above the horizon."""
+    def _frame_rays(self, u: Any, v: Any, per_frame: bool) -> np.ndarray:
         rays = self._rays(u, v)
-        denom = np.einsum("ni,...i->n...", self.normal, rays)
+        if not per_frame:
+            return np.broadcast_to(rays, (len(self),) + rays.shape)
+        if rays.ndim < 2 or rays.shape[0] != len(self):
+            raise ValueError(f"per_frame pixels need a leading axis of {len(self)} frames, got shape {rays.shape[:-1]}")
+        return rays
+
+    def depth(self, u: Any, v: Any, per_frame: bool = False) -> np.ndarray:
+        """(N, ...) depth (camera z, m) of the road point pixel ``(u, v)`` sees; NaN at or above the horizon.
+
+        With ``per_frame``, ``u`` and ``v`` have a leading axis of ``N``: frame ``i``'s pixels for frame ``i``.
+        """
+        rays = self._frame_rays(u, v, per_frame)
+        denom = np.einsum("ni,n...i->n...", self.normal, rays)
         h = self.height.reshape((-1,) + (1,) * (denom.ndim - 1))
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(denom < 0, -h / denom, np.nan)
 
-    def point_from_pixel(self, u: Any, v: Any) -> np.ndarray:
+    def point_from_pixel(self, u: Any, v: Any, per_frame: bool = False) -> np.ndarray:
         """(N, ..., 3) road point (camera axes, m) that pixel ``(u, v)`` sees; NaN at or above the horizon."""
-        return self.depth(u, v)[..., None] * self._rays(u, v)
+        return self.depth(u, v, per_frame)[..., None] * self._frame_rays(u, v, per_frame)
 
-    def road_from_pixel(self, u: Any, v: Any) -> np.ndarray:
+    def road_from_pixel(self, u: Any, v: Any, per_frame: bool = False) -> np.ndarray:
         """(N, ..., 2) road-frame ``(X, Y)`` (m; forward, left) of the road point pixel ``(u, v)`` sees."""
-        p = self.point_from_pixel(u, v)
+        p = self.point_from_pixel(u, v, per_frame)
         shape = p.shape
         q = np.einsum("nij,nkj->nki", self.rotation[:, :2], p.reshape(len(self), -1, 3))
         q = q + self.translation[:, None, :2]

@@ -54,6 +54,10 @@ PLANES_FORMAT = "%.9e"
 def camera_plane(residual: Any, valid: Any, camera: Camera) -> GroundPlane:
     """The road plane of ``camera`` per frame: residual rotations road <- body, NaN where ``valid`` is false.
 
+    Only the residual's road normal counts (the road frame's x is the body's heading
+    projected onto the road: :meth:`GroundPlane.from_pitch_roll`), so a residual's
+    yaw, which the road plane does not have, cannot turn a bird's-eye view.
+
     Parameters
     ----------
     residual : ndarray (N, 3, 3)
@@ -61,9 +65,10 @@ def camera_plane(residual: Any, valid: Any, camera: Camera) -> GroundPlane:
     valid : ndarray of bool (N,)
     camera : Camera
     """
-    e = np.array(residual, dtype=float).reshape(-1, 3, 3)
-    e[~np.asarray(valid, dtype=bool)] = np.nan
-    return GroundPlane.from_camera(camera, e)
+    n = np.array(residual, dtype=float).reshape(-1, 3, 3)[:, 2, :]          # road normal in the body frame
+    n[~np.asarray(valid, dtype=bool)] = np.nan
+    pitch, roll = np.arctan2(-n[:, 0], np.hypot(n[:, 1], n[:, 2])), np.arctan2(n[:, 1], n[:, 2])
+    return GroundPlane.from_pitch_roll(camera, pitch, roll)
 
 
 def plane_columns(plane: GroundPlane, grid: BevGrid | None = None) -> dict[str, np.ndarray]:
