@@ -115,9 +115,9 @@ def range_error(distance: Any, dpitch: Any, droll: Any = 0.0, height: Any = 1.65
     height : array_like
         Camera height above the road, m.
     first_order : bool
-        The linearisation ``-rho (distance dpitch - lateral droll) / height`` (``rho`` the
-        true ground range) instead of the exact value; for ``lateral = 0`` it is the
-        familiar ``-distance^2 dpitch / height``.
+        The linearisation ``-(rho^2 + height^2) (distance dpitch - lateral droll) / (rho height)``
+        (``rho`` the true ground range) instead of the exact value; straight ahead and far
+        (``lateral = 0``, ``distance >> height``) it is the familiar ``-distance^2 dpitch / height``.
 
     Returns
     -------
@@ -133,7 +133,7 @@ def range_error(distance: Any, dpitch: Any, droll: Any = 0.0, height: Any = 1.65
                                             (distance, lateral, dpitch, droll, height)))
     rho = np.hypot(d, y)
     if first_order:
-        return -rho * (d * dp - y * dr) / h
+        return -(rho ** 2 + h ** 2) * (d * dp - y * dr) / (rho * h)
     n = np.stack([-np.sin(dp), np.sin(dr) * np.cos(dp), np.cos(dp) * np.cos(dr)], axis=-1)
     p = np.stack([d, y, -h], axis=-1)
     denom = np.einsum("...i,...i->...", n, p)
