@@ -84,8 +84,6 @@ def run(a: argparse.Namespace) -> int:
         from imu_ground.cli._common import warn_line
         from imu_ground.perception import load_camera
         from imu_ground.pipeline.estimate import estimate_log
-        from imu_ground.pipeline.estimate import _check_camera  # noqa: PLC2701 (the one camera check)
-        _check_camera(a.camera, None)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             res = estimate_log(a.log, camera=a.camera, extrinsic=a.extrinsic)
