@@ -37,8 +37,8 @@ def register(sub) -> None:
     p.add_argument("--bev", nargs=5, type=float, metavar=("X0", "X1", "Y0", "Y1", "RES"),
                    help="bird's-eye grid: X0..X1 m ahead, Y0..Y1 m to the left, RES m a pixel (default 5 45 -7 7 0.05)")
     p.add_argument("--seed", type=nonnegative_int, default=3, help="synthetic drive's seed (default 3)")
-    p.add_argument("--frames", type=nonnegative_int, default=30,
-                   help="synthetic drive: frames in a .gif (default 30, around the largest true pitch)")
+    p.add_argument("--frames", type=nonnegative_int, default=20,
+                   help="synthetic drive: frames in a .gif (default 20, around the largest true pitch)")
     p.set_defaults(func=run)
 
 
@@ -69,6 +69,7 @@ def _check(a: argparse.Namespace):
 def run(a: argparse.Namespace) -> int:
     """Build the preview, draw it and write it atomically; print what the picture shows."""
     import warnings
+    from pathlib import Path
 
     from imu_ground.evaluation.preview import images_preview, render_preview, synthetic_preview
     from imu_ground.pipeline.output import atomic_path
@@ -91,7 +92,8 @@ def run(a: argparse.Namespace) -> int:
             warn_line(w, a.log)
         preview = images_preview(a.images, a.times, load_camera(a.camera), res.track.t, res.meta["plane"],
                                  res.track.pitch, res.track.roll,
-                                 title=f"{a.log}, camera {a.camera}: bird's-eye views, method {res.meta['method']}")
+                                 title=f"{Path(a.log).name}, camera {a.camera}: bird's-eye views with the static "
+                                       f"and the estimated plane (method {res.meta['method']})")
     data = render_preview(preview, fmt, grid)
     with atomic_path(out) as tmp:
         tmp.write_bytes(data)

@@ -17,6 +17,7 @@ from __future__ import annotations
 import io
 import json
 import math
+import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -58,6 +59,8 @@ class Preview:
     title : str
     labels : list of str
         One caption per frame.
+    lanes : bool
+        Draw the true lane lines (``+- LANE_WIDTH / 2``) over the bird's-eye views (simulation only).
     """
     camera: Camera
     planes: dict
@@ -66,6 +69,7 @@ class Preview:
     lane_error: dict | None = None
     title: str = ""
     labels: list = field(default_factory=list)
+    lanes: bool = False
 
 
 def synthetic_preview(seed: int = 3, duration: float = 40.0, frames: int = 1, grid: BevGrid = PREVIEW_GRID,
@@ -124,7 +128,7 @@ def synthetic_preview(seed: int = 3, duration: float = 40.0, frames: int = 1, gr
 
     return Preview(cam, planes, em.t[sel], image, lane,
                    f"synthetic drive (seed {seed}), camera {cam.name}: bird's-eye views, method "
-                   f"{default_method(True)}", labels)
+                   f"{default_method(True)}", labels, lanes=True)
 
 
 def _read_times(path: Path) -> np.ndarray:
@@ -243,7 +247,7 @@ def _figure(preview: Preview, k: int, grid: BevGrid):
             bev = warp_to_bev(img, plane.from_bev(grid)[k], grid)
         a = fig.add_subplot(gs[1, j])
         a.imshow(bev, extent=(grid.y1, grid.y0, grid.x0, grid.x1), aspect="equal")
-        for y in (-lanes, lanes):
+        for y in ((-lanes, lanes) if preview.lanes else ()):
             a.axvline(y, color="red", lw=0.7, ls="--")
         a.set_title(f"bird's-eye, {what[name]}", fontsize=9)
         a.set_xlabel("left (m)")
@@ -259,7 +263,8 @@ def _figure(preview: Preview, k: int, grid: BevGrid):
         a.set_title("lane-width error (moving frames)", fontsize=9)
         a.grid(True, alpha=0.3)
         a.legend(fontsize=8)
-    fig.suptitle(preview.title + "; red dashes: the true lane lines", fontsize=10)
+    title = preview.title + ("; red dashes: the true lane lines" if preview.lanes else "")
+    fig.suptitle("\n".join(textwrap.wrap(title, width=int(13 * fig.get_figwidth()))), fontsize=10)
     return fig
 
 

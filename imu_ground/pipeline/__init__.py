@@ -5,6 +5,8 @@
 - :mod:`imu_ground.pipeline.output`: the one output table and its writers
   (``.csv``, ``.parquet``, ``.tum``, ``.bag``/``.mcap``), all atomic.
 - :mod:`imu_ground.pipeline.batch`: :func:`run_batch`, many logs on Dask.
+- :mod:`imu_ground.pipeline.planes`: with a camera, the plane columns and the KITTI
+  object ``planes`` files (:func:`write_kitti_planes`).
 
 Names are imported lazily (numpy only at package import).
 """
@@ -15,5 +17,6 @@ _EXPORTS = {
     ".output": ("OUTPUT_SUFFIXES check_output_path default_output_name result_table "
                 "summarize_table write_output write_outputs atomic_path"),
     ".batch": "run_batch expand_logs",
+    ".planes": "write_kitti_planes read_kitti_planes",
 }
 __getattr__, __dir__, __all__ = lazy_exports(__name__, _EXPORTS)
