@@ -208,10 +208,16 @@ def test_planes_files_parse_as_kittis_do(tmp_path):
             continue
         assert np.allclose(_kitti_loader(f), abcd[i], rtol=1e-8)                 # already up and unit
         assert np.allclose(read_kitti_planes(f), abcd[i], rtol=1e-8)
-    # rewriting over an existing folder replaces the files, leaves no temporary folder
+    # rewriting a shorter run replaces the folder: no stale frame, no temporary folder left
     write_kitti_planes(tmp_path / "planes", abcd[:2] * 0 + [0, -1, 0, 1.65])
     assert np.allclose(read_kitti_planes(files[0]), [0, -1, 0, 1.65])
+    assert sorted(p.name for p in (tmp_path / "planes").iterdir()) == ["000000.txt", "000001.txt"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["planes"]
+    # a folder with files of the user's is refused, untouched
+    (tmp_path / "planes" / "notes.md").write_text("mine")
+    with pytest.raises(ValueError, match="notes.md"):
+        write_kitti_planes(tmp_path / "planes", abcd)
+    assert (tmp_path / "planes" / "notes.md").read_text() == "mine"
 
 
 # ------------------------------------------------------------------------------------------ estimate

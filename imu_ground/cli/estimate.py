@@ -87,7 +87,7 @@ def register(sub) -> None:
                         "outputs gain its homography bev_h00 .. bev_h22 (bird's-eye pixel <- image pixel) per frame")
     g.add_argument("--planes", metavar="DIR",
                    help="with --camera: also write one KITTI object planes file per frame, DIR/000000.txt, ... "
-                        "(nan on frames that span a gap)")
+                        "(nan on frames that span a gap; the folder is replaced, one holding other files refused)")
     add_reader_flags(e, poses=True)
     add_progress_flag(e)
     e.set_defaults(func=run)

@@ -25,6 +25,7 @@ in the camera's axes (:meth:`GroundPlane.from_camera
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import tempfile
 from pathlib import Path
@@ -90,6 +91,10 @@ def check_planes_dir(path: str | Path, option: str = "--planes") -> Path:
     p = Path(path)
     if p.exists() and not p.is_dir():
         raise ValueError(f"{p}: is a file; give {option} a folder for the planes files")
+    foreign = _foreign_files(p)
+    if foreign:
+        raise ValueError(f"{p}: holds other files than planes files ({foreign[0].name}); give {option} a new or "
+                         "empty folder, or one of planes files only (they are replaced)")
     anc = p if p.exists() else p.parent
     while not anc.exists() and anc != anc.parent:
         anc = anc.parent
@@ -100,6 +105,13 @@ def check_planes_dir(path: str | Path, option: str = "--planes") -> Path:
     return p
 
 
+def _foreign_files(folder: Path) -> list[Path]:
+    """What a folder holds besides planes files (``%06d.txt``); empty for a missing folder."""
+    if not folder.is_dir():
+        return []
+    return sorted(p for p in folder.iterdir() if not re.fullmatch(r"[0-9]{6}\.txt", p.name))
+
+
 def _planes_text(abcd: np.ndarray) -> str:
     return "# Matrix\nWIDTH 4\nHEIGHT 1\n" + " ".join(PLANES_FORMAT % v for v in abcd) + "\n"
 
@@ -107,9 +119,10 @@ def _planes_text(abcd: np.ndarray) -> str:
 def write_kitti_planes(folder: str | Path, coefficients: Any, first_index: int = 0) -> list[Path]:
     """Write one KITTI ``planes`` file per frame, ``%06d.txt`` from ``first_index``; NaN rows as ``nan``.
 
-    All files are written into a temporary folder beside ``folder`` first; then the
-    folder is renamed into place (when it did not exist or was empty) or each file
-    is renamed over its old version, so a failure leaves no partial file.
+    All files are written into a temporary folder beside ``folder`` first, which then
+    takes the folder's place: a failure leaves no partial file, and a folder of an
+    earlier, longer run keeps no stale frames. A ``folder`` that holds anything but
+    planes files is refused (nothing of the user's is deleted).
 
     Parameters
     ----------
@@ -125,21 +138,20 @@ def write_kitti_planes(folder: str | Path, coefficients: Any, first_index: int =
     """
     abcd = np.asarray(coefficients, dtype=float).reshape(-1, 4)
     out = Path(folder)
+    check_planes_dir(out, "folder")
     out.parent.mkdir(parents=True, exist_ok=True)
     names = [f"{first_index + i:06d}.txt" for i in range(len(abcd))]
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
+    old = tmp.with_name(tmp.name + ".old")
     try:
         for name, row in zip(names, abcd):
             (tmp / name).write_text(_planes_text(row), encoding="ascii")
-        if out.is_dir() and not any(out.iterdir()):
-            out.rmdir()
-        if not out.exists():
-            os.replace(tmp, out)
-        else:
-            for name in names:
-                os.replace(tmp / name, out / name)
+        if out.exists():
+            os.replace(out, old)
+        os.replace(tmp, out)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+        shutil.rmtree(old, ignore_errors=True)
     return [out / n for n in names]
 
 
