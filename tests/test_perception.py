@@ -293,3 +293,22 @@ def test_ros_output_has_the_road_from_camera_topic(tmp_path):
     m = res.meta["plane"].matrix[valid][0]
     assert msgs[0].transform.translation.z == pytest.approx(m[2, 3])
     assert msgs[0].child_frame_id == "camera" and msgs[0].header.frame_id == "road"
+
+
+def test_gap_frames_get_nan_planes_and_keep_the_indices(tmp_path, capsys):
+    df = pd.read_csv(EXAMPLE)
+    t = df["t"].to_numpy()
+    log = tmp_path / "gap.csv"
+    df[~((t > 20.0) & (t < 23.0))].to_csv(log, index=False)
+    out, planes = tmp_path / "g.csv", tmp_path / "planes"
+    code, _, err = run(capsys, "estimate", log, "--camera", "kitti_cam2", "--planes", planes, "-o", out)
+    assert code == 0, err
+    table = pd.read_csv(out, comment="#")
+    gap = ~table["valid"].to_numpy(bool)
+    assert gap.sum() >= 20
+    got = np.array([read_kitti_planes(planes / f"{i:06d}.txt") for i in range(len(table))])
+    assert np.isnan(got[gap]).all() and np.isfinite(got[~gap]).all()
+    assert np.isnan(table.loc[gap, "plane_d"]).all()
+    # the frame after the gap is the table's row of the same index
+    i = int(np.flatnonzero(gap)[-1]) + 1
+    assert np.allclose(got[i], table.loc[i, ["plane_a", "plane_b", "plane_c", "plane_d"]].to_numpy(float), rtol=1e-8)
