@@ -9,6 +9,8 @@ Layers (each imports only from the ones above it in this list)
 - :mod:`imu_ground.datasets`: readers of IMU logs and pose files, validation.
 - :mod:`imu_ground.filters`: the invariant EKF on SO(3), the ground-normal
   estimators, extrinsics and calibration.
+- :mod:`imu_ground.perception`: cameras, the per-frame road plane in a camera's axes,
+  bird's-eye homographies.
 - :mod:`imu_ground.pipeline` and :mod:`imu_ground.evaluation` (siblings): a log or a
   fleet to files; reference, metrics, baselines, simulator, plots.
 - :mod:`imu_ground.cli`: the ``imu-ground`` command.
@@ -29,6 +31,7 @@ _EXPORTS = {
     ".filters.ground": "GroundNormalFilter",
     ".filters.suspension": "SuspensionAwareFilter",
     ".filters.extrinsics": "Extrinsic available_extrinsics load_extrinsic",
+    ".perception": "Camera GroundPlane load_camera",
     ".pipeline.estimate": "estimate_log",
     ".pipeline.output": "track_table",
 }

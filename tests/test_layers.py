@@ -1,7 +1,7 @@
 """The package's layers import only downward, and no module imports itself back through others.
 
 Layers, lowest first (see ``imu_ground/__init__.py``): foundation (``so3``,
-``units``, ``_lazy``, ``_native``) < ``imu`` < ``datasets`` < ``filters`` < ``pipeline`` and
+``units``, ``_lazy``, ``_native``) < ``imu`` < ``datasets`` < ``filters`` < ``perception`` < ``pipeline`` and
 ``evaluation`` (siblings that must not import each other) < ``cli`` < ``__main__``. Every
 ``import`` statement counts, including those inside functions (lazy imports
 hide a dependency from the import system but not from a reader).
@@ -19,7 +19,7 @@ ROOT = Path(imu_ground.__file__).resolve().parent
 DATASETS = Path(imu_ground.__file__).resolve().parent.parent / "datasets"
 
 RANK = {"_lazy": 0, "_native": 0, "_version": 0, "so3": 0, "units": 0, "imu": 1, "datasets": 2, "filters": 3,
-        "pipeline": 4, "evaluation": 4, "cli": 5, "__main__": 6}
+        "perception": 3.5, "pipeline": 4, "evaluation": 4, "cli": 5, "__main__": 6}
 #: Scripts and tests that live in package folders but are not part of the package's import graph.
 NOT_LIBRARY = ("test_", "make_fixtures", "derive_kitti")
 
@@ -155,7 +155,8 @@ def test_every_sub_package_is_packaged():
 def test_top_level_names_resolve():
     """Every lazily exported name of every package namespace imports and is what it says."""
     import importlib
-    for pkg in ("imu_ground", "imu_ground.imu", "imu_ground.filters", "imu_ground.pipeline", "imu_ground.evaluation"):
+    for pkg in ("imu_ground", "imu_ground.imu", "imu_ground.filters", "imu_ground.perception", "imu_ground.pipeline",
+                "imu_ground.evaluation"):
         mod = importlib.import_module(pkg)
         for name in mod.__all__:
             if name != "__version__":

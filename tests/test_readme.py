@@ -18,7 +18,7 @@ REPO = Path(__file__).resolve().parents[1]
 README = REPO / "README.md"
 EXAMPLE = REPO / "datasets" / "fixtures" / "example_drive.csv"
 PLACEHOLDERS = {"LOG": str(EXAMPLE), "LOG2": str(EXAMPLE)}
-OUTPUT_FLAGS = ("-o", "--output", "--tum", "--markdown", "--csv", "--plots", "--truth", "--plot")
+OUTPUT_FLAGS = ("-o", "--output", "--tum", "--markdown", "--csv", "--plots", "--truth", "--plot", "--planes")
 
 
 def readme_commands() -> list[str]:
@@ -102,6 +102,7 @@ def _cli(*args, cwd):
     ("simulate", "-o", "sim.csv"),
     ("calibrate", "LOG", "-o", "car.txt"),
     ("evaluate", "--synthetic", "1"),
+    ("preview", "-o", "bev.png"),
 ], ids=lambda a: a[0])
 def test_each_command_with_only_its_required_arguments(args, tmp_path):
     r = _cli(*[PLACEHOLDERS.get(a, a) for a in args], cwd=tmp_path)
@@ -109,7 +110,7 @@ def test_each_command_with_only_its_required_arguments(args, tmp_path):
     assert "Traceback" not in r.stderr
     made = {p.name for p in tmp_path.iterdir()}
     expected = {"estimate": "example_drive_ground.csv", "batch": "fleet", "simulate": "sim_truth.csv",
-                "calibrate": "car.txt"}.get(args[0])
+                "calibrate": "car.txt", "preview": "bev.png"}.get(args[0])
     assert expected is None or expected in made, made
 
 

@@ -1,11 +1,12 @@
 """``imu-ground estimate LOG``: one IMU log or pose file -> per-frame ground normals (CSV, Parquet, TUM, ROS)."""
 from __future__ import annotations
 
+import argparse
 import time
 import warnings
 from pathlib import Path
 
-import argparse
+import numpy as np
 
 from imu_ground.cli._common import (
     add_progress_flag,
@@ -18,6 +19,7 @@ from imu_ground.cli._common import (
 )
 from imu_ground.pipeline.estimate import available_methods, estimate_to_files
 from imu_ground.pipeline.output import check_output_path, default_output_name, summarize_table
+from imu_ground.pipeline.planes import check_planes_dir
 
 __all__ = ["add_method_flags", "method_kwargs", "register", "run"]
 
@@ -79,6 +81,17 @@ def register(sub) -> None:
                         "log's own where its format has one: KITTI INS horizontal speed, nuScenes CAN pose, comma2k19 "
                         "CAN, ROS twist/odometry; else IMU only); none (IMU only); a CSV file with columns t,speed (s "
                         "on the log's time base, m/s); or the name of a speed column of a CSV log")
+    g = e.add_argument_group("camera (road plane in a camera's axes)")
+    g.add_argument("--camera", metavar="NAME_OR_FILE",
+                   help="a camera on the platform: kitti_cam0 .. kitti_cam3, a camera file (calib/README.md), or a "
+                        "KITTI raw calibration folder and camera index as DIR:2; the outputs gain the road plane in "
+                        "its axes, plane_a .. plane_d (ROS: a road <- camera transform topic)")
+    g.add_argument("--bev", nargs=5, type=float, metavar=("X0", "X1", "Y0", "Y1", "RES"),
+                   help="with --camera: bird's-eye grid X0..X1 m ahead, Y0..Y1 m to the left, RES m a pixel; the "
+                        "outputs gain its homography bev_h00 .. bev_h22 (bird's-eye pixel <- image pixel) per frame")
+    g.add_argument("--planes", metavar="DIR",
+                   help="with --camera: also write one KITTI object planes file per frame, DIR/000000.txt, ... "
+                        "(nan on frames that span a gap; the folder is replaced, one holding other files refused)")
     add_reader_flags(e, poses=True)
     add_progress_flag(e)
     e.set_defaults(func=run)
@@ -97,10 +110,12 @@ def run(a: argparse.Namespace) -> int:
                              f"(e.g. --tum {tum.with_suffix('.tum')})")
         outputs.append(tum)
         kinds.append(".tum")
+    if a.planes is not None:
+        check_planes_dir(a.planes)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res, table = estimate_to_files(a.log, outputs, kinds, progress=progress_enabled(a), speed=a.speed,
-                                       **method_kwargs(a))
+        res, table = estimate_to_files(a.log, outputs, kinds, planes=a.planes, progress=progress_enabled(a),
+                                       speed=a.speed, camera=a.camera, bev=a.bev, **method_kwargs(a))
     for w in res.meta["warnings"]:
         warn_line(w, a.log)
     s = summarize_table(table)
@@ -115,5 +130,11 @@ def run(a: argparse.Namespace) -> int:
             f"over the {s['valid_frames']} valid frames")
     else:
         say("no valid frame: every frame spans a gap in the log")
-    say("wrote " + " and ".join(str(Path(p)) for p in outputs))
+    if res.meta.get("plane") is not None:
+        h = res.meta["plane"].height
+        say(f"camera {a.camera}: height above the road {np.nanmean(h):.3f} m (range {np.nanmin(h):.3f} .. "
+            f"{np.nanmax(h):.3f}) over the {int(np.isfinite(h).sum())} frames with a plane")
+    if a.planes is not None:
+        outputs.append(f"{len(table)} planes files in {a.planes}")
+    say("wrote " + " and ".join(str(p) for p in outputs))
     return 0

@@ -7,6 +7,8 @@
 - :mod:`imu_ground.pipeline.batch`: :func:`run_batch`, many logs on Dask.
 - :mod:`imu_ground.pipeline.input_checks`: option errors, the gravity-direction check of
   a log against its extrinsic, the options record an output keeps.
+- :mod:`imu_ground.pipeline.planes`: with a camera, the plane columns and the KITTI
+  object ``planes`` files (:func:`write_kitti_planes`).
 
 Names are imported lazily (numpy only at package import).
 """
@@ -17,5 +19,6 @@ _EXPORTS = {
     ".output": ("OUTPUT_SUFFIXES check_output_path default_output_name result_table "
                 "track_table summarize_table write_output write_outputs atomic_path"),
     ".batch": "run_batch expand_logs",
+    ".planes": "write_kitti_planes read_kitti_planes",
 }
 __getattr__, __dir__, __all__ = lazy_exports(__name__, _EXPORTS)

@@ -79,7 +79,8 @@ class EstimateResult(NamedTuple):
         (the log's, e.g. a ROS header's; else "imu"), ``t0_ns`` (the first stamp,
         ns, when the log has absolute times; the track's ``t`` starts at 0),
         ``imu_rate`` (Hz, IMU input), ``extrinsic`` (rotation ground <- sensor
-        and translation, m).
+        and translation, m); with a camera ``camera``, ``plane`` and ``bev``
+        (see :func:`estimate_log`).
     """
     track: Any
     egomotion: Any
@@ -212,9 +213,38 @@ def _one_line(path: str | Path, message: Any) -> str:
 
 
 # ------------------------------------------------------------------------------------------ estimate
+def _check_camera(camera: Any, bev: Any) -> tuple[Any, Any]:
+    """The :class:`~imu_ground.perception.Camera` and :class:`~imu_ground.perception.BevGrid` of the options
+    (None when not given); a bad one raises :class:`OptionError` naming it."""
+    if camera is None:
+        if bev is not None:
+            raise OptionError("{opt} needs a camera: add --camera NAME_OR_FILE", "bev")
+        return None, None
+    from imu_ground.perception import BevGrid, load_camera
+    try:
+        cam = load_camera(camera)
+    except (ValueError, FileNotFoundError) as e:
+        text = " ".join(str(e).split())
+        raise OptionError(f"{{opt}} {text}" if text.startswith(str(camera)) else f"{{opt}} {camera}: {text}",
+                          "camera") from e
+    if bev is None:
+        return cam, None
+    if isinstance(bev, BevGrid):
+        return cam, bev
+    try:
+        values = [float(v) for v in bev]
+        if len(values) != 5:
+            raise ValueError(f"needs 5 numbers X0 X1 Y0 Y1 RES (m), got {len(values)}")
+        return cam, BevGrid(*values)
+    except (TypeError, ValueError) as e:
+        raise OptionError(f"{{opt}} {' '.join(map(str, bev)) if isinstance(bev, (list, tuple)) else bev!r}: {e}",
+                          "bev") from e
+
+
 def estimate_log(path: str | Path, *, format: str | None = None, method: str = "auto",
                  extrinsic: Any = None, rate: float | None = None, Q: Any = None, R: Any = None,
-                 progress: bool = False, speed: Any = "auto", **reader_options: Any) -> EstimateResult:
+                 progress: bool = False, speed: Any = "auto", camera: Any = None, bev: Any = None,
+                 **reader_options: Any) -> EstimateResult:
     """Per-frame ground normals of one log: what ``imu-ground estimate`` computes.
 
     Parameters
@@ -248,6 +278,18 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
         a speed file (CSV ``t,speed``, s on the log's time base) or the name of a
         column of the log's table; or an array, one speed per frame (m/s). What
         was used is in ``meta["speed"]``.
+    camera : str, Path or Camera, optional
+        A camera on the same platform (:func:`imu_ground.perception.load_camera`:
+        ``kitti_cam0`` ... ``kitti_cam3``, a camera file, or a KITTI raw calibration
+        folder as ``"DIR:2"``); its static extrinsic is ground <- camera in the
+        ground frame of ``extrinsic``. Adds ``meta["camera"]`` (the camera as plain
+        numbers) and ``meta["plane"]``: a :class:`~imu_ground.perception.GroundPlane`
+        of every frame (road plane in camera axes, road <- camera transforms, pixel
+        queries; NaN on frames that span a gap).
+    bev : sequence of 5 floats or BevGrid, optional
+        Bird's-eye grid ``X0 X1 Y0 Y1 RES`` (m: ahead, left, metres a pixel), with a
+        camera: ``meta["bev"]`` (the :class:`~imu_ground.perception.BevGrid`); the
+        output table gains the homographies (:mod:`imu_ground.pipeline.planes`).
     **reader_options
         Entries of :data:`imu_ground.datasets.options.READER_OPTIONS`
         (``policy``, ``nonfinite``, ``gyro_unit``, ...), passed to the reader
@@ -268,6 +310,7 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
         The log cannot be read (the reader's message: file, line, option to use).
     """
     reader_kw = check_options(method=method, rate=rate, Q=Q, R=R, **reader_options)
+    cam, grid = _check_camera(camera, bev)
     kind, fmt = detect_input(path, format)
     settings: dict = {"method": method, "rate": rate, "extrinsic": None if extrinsic is None else str(extrinsic),
                       "Q": Q, "R": R, **reader_kw}
@@ -299,6 +342,12 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
             "method_description": available_methods().get(name, ("", False))[0],
             "settings": settings, "warnings": messages, "speed": speed_info,
             "extrinsic": {"rotation": ext.rotation.tolist(), "translation": ext.translation.tolist()}}
+    if cam is not None:
+        from imu_ground.pipeline.planes import camera_plane
+        settings["camera"] = str(camera if not hasattr(camera, "name") else camera.name)
+        meta.update(camera=cam.to_dict(), plane=camera_plane(track.residual, track.valid, cam), bev=grid)
+        if grid is not None:
+            settings["bev"] = [grid.x0, grid.x1, grid.y0, grid.y1, grid.res]
     return EstimateResult(track, em, meta)
 
 
@@ -426,7 +475,7 @@ def _constant_normal_track(em, ext):
                                       ext.translation, t=em.t, valid=em.valid)
 
 
-def estimate_to_files(path: str | Path, outputs, kinds=None, **kwargs: Any):
+def estimate_to_files(path: str | Path, outputs, kinds=None, planes: str | Path | None = None, **kwargs: Any):
     """:func:`estimate_log` and write its table to ``outputs`` (all or none); what the CLI and batch run.
 
     Parameters
@@ -437,6 +486,9 @@ def estimate_to_files(path: str | Path, outputs, kinds=None, **kwargs: Any):
         Output files (writer by suffix, or by ``kinds``; see
         :func:`imu_ground.pipeline.output.write_outputs`).
     kinds : sequence of str or None, optional
+    planes : str or Path, optional
+        Folder of KITTI ``planes`` files, one per frame (needs ``camera=``;
+        :func:`imu_ground.pipeline.planes.write_kitti_planes`), written before the outputs.
     **kwargs
         :func:`estimate_log`'s keywords.
 
@@ -446,7 +498,12 @@ def estimate_to_files(path: str | Path, outputs, kinds=None, **kwargs: Any):
     table : pandas.DataFrame
         The table written.
     """
+    if planes is not None and kwargs.get("camera") is None:
+        raise OptionError("{opt} needs a camera: add --camera NAME_OR_FILE", "planes")
     result = estimate_log(path, **kwargs)
     table = result_table(result)
+    if planes is not None:
+        from imu_ground.pipeline.planes import write_kitti_planes
+        write_kitti_planes(planes, result.meta["plane"].coefficients)
     write_outputs(outputs, table, result.meta, kinds)
     return result, table

@@ -32,6 +32,7 @@ import numpy as np
 from imu_ground._version import __version__
 from imu_ground.filters.estimator import GroundTrack
 from imu_ground.filters.status import status_names
+from imu_ground.pipeline.planes import PLANE_UNITS, plane_columns
 from imu_ground.pipeline.ros_output import write_ros_output
 from imu_ground.so3 import quat_from_matrix
 
@@ -138,8 +139,17 @@ def _long_runs(mask: np.ndarray, longer_than: int) -> np.ndarray:
 
 
 def result_table(result) -> Any:
-    """The output table (pandas.DataFrame, :data:`COLUMNS`) of an :class:`~imu_ground.pipeline.EstimateResult`."""
-    return track_table(result.track, max_gap_frames=GAP_NAN_FRAMES)
+    """The output table (pandas.DataFrame, :data:`COLUMNS`) of an :class:`~imu_ground.pipeline.EstimateResult`.
+
+    With a camera (``meta["plane"]``) the plane columns ``plane_a`` ... ``plane_d`` (and with a
+    bird's-eye grid ``bev_h00`` ... ``bev_h22``) come before ``valid``
+    (:mod:`imu_ground.pipeline.planes`)."""
+    table = track_table(result.track, max_gap_frames=GAP_NAN_FRAMES)
+    if result.meta.get("plane") is not None:            # with a camera: plane_a..plane_d (and bev_h00..bev_h22)
+        for name, values in plane_columns(result.meta["plane"], result.meta.get("bev")).items():
+            table[name] = values
+        table["valid"] = table.pop("valid")
+    return table
 
 
 def summarize_table(table) -> dict[str, Any]:
@@ -251,6 +261,12 @@ def _csv_header(meta: Mapping[str, Any]) -> str:
         "degraded (the sensor's mount moved; needs a speed) or invalid (a bad frame skipped); "
         "status_reason: why, in words"),
     ]
+    if meta.get("camera"):
+        lines.append(f"camera {meta['camera'].get('name')}: plane_a, plane_b, plane_c (unit road normal pointing up, "
+                     "camera axes x right, y down, z forward), plane_d (camera height above the road, m): "
+                     "a x + b y + c z + d = 0 on the road; nan on frames that span a gap"
+                     + ("; bev_h00 .. bev_h22: homography bird's-eye pixel <- image pixel, row-major"
+                        if meta.get("bev") is not None else ""))
     return "".join(f"# {ln}\n" for ln in lines)
 
 
@@ -328,9 +344,10 @@ def _write_parquet(path: Path, table, meta: Mapping[str, Any]) -> None:
         raise ValueError(f"{path}: writing Parquet needs pyarrow: pip install 'imu-ground[parquet]'") from None
     df = table.reset_index(drop=True)
     df["valid"] = df["valid"].astype(bool)
+    units = {**UNITS, **PLANE_UNITS}
     fields = [pa.field(c, pa.bool_() if c == "valid" else pa.string() if c in TEXT_COLUMNS else pa.float64(),
-                       metadata={"unit": UNITS[c]}) for c in df.columns]
-    info = {k: meta.get(k) for k in ("format", "method", "method_description", "settings", "extrinsic")}
+                       metadata={"unit": units[c]}) for c in df.columns]
+    info = {k: meta.get(k) for k in ("format", "method", "method_description", "settings", "extrinsic", "camera")}
     info["units"] = UNITS
     info["gap_nan_frames"] = GAP_NAN_FRAMES
     schema = pa.schema(fields, metadata={"imu_ground": json.dumps(info, sort_keys=True, default=str)})
@@ -359,7 +376,9 @@ def _write_ros(path: Path, table, meta: Mapping[str, Any]) -> None:
     if meta.get("t0_ns") is not None:
         settings["t0_ns"] = int(meta["t0_ns"])                   # stamps line up with the recording
     try:
-        write_ros_output(path, table, frame_id=meta.get("frame_id") or "imu", settings=settings)
+        plane = meta.get("plane")
+        write_ros_output(path, table, frame_id=meta.get("frame_id") or "imu", settings=settings,
+                         road_from_camera=None if plane is None else plane.matrix)
     except ImportError as e:                                     # rosbags / mcap load on first use
         raise ValueError(f"{path}: writing {path.suffix} needs the ROS extras: pip install 'imu-ground[ros]' "
                          f"({e})") from None

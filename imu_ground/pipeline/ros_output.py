@@ -15,6 +15,9 @@ skipped):
 - ``PREFIX/pitch_roll`` (``geometry_msgs/Vector3Stamped``): ``x`` = roll,
   ``y`` = pitch of the body relative to the road, rad (signs as in the table),
   ``z`` = 0;
+- ``PREFIX/road_from_camera`` (``geometry_msgs/TransformStamped``, only with a
+  camera): the road <- camera transform of the frame (``header.frame_id`` ``road``,
+  ``child_frame_id`` ``camera``; translation m, the camera origin in the road frame);
 - ``PREFIX/settings`` (``std_msgs/String``): the method's settings as JSON,
   once, at the first stamp (only with ``settings``);
 - ``PREFIX/pitch_roll_std`` (``geometry_msgs/Vector3Stamped``): ``x`` = roll, ``y`` = pitch
@@ -299,7 +302,8 @@ def _valid_rows(table: Any) -> dict[str, np.ndarray]:
 def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
                      settings: Mapping[str, Any] | None = None, topic_prefix: str = "/ground",
                      t0: float | None = None, t0_ns: int | None = None,
-                     storage: str = "mcap", overwrite: bool = False) -> dict[str, int]:
+                     storage: str = "mcap", overwrite: bool = False, road_from_camera: Any = None,
+                     camera_frame_id: str = "camera") -> dict[str, int]:
     """Write the per-frame ground estimate as ROS topics (see the module docstring for the topics).
 
     Parameters
@@ -332,6 +336,12 @@ def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
         Storage of a ROS 2 bag folder.
     overwrite : bool
         Replace an existing output (otherwise :class:`FileExistsError`).
+    road_from_camera : ndarray (N, 4, 4), optional
+        Per table row, the road <- camera transform
+        (:attr:`GroundPlane.matrix <imu_ground.perception.GroundPlane.matrix>`); written on
+        ``PREFIX/road_from_camera`` for the rows written on the other topics (and finite).
+    camera_frame_id : str
+        ``child_frame_id`` of those transforms.
 
     Returns
     -------
@@ -363,6 +373,9 @@ def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
             w.write_raw(h["rotation"], ns, rotation[k])
             w.write_raw(h["pitch_roll"], ns, pitch_roll[k])
         _write_optional(w, table, prefix, frame_id, origin)
+        if road_from_camera is not None:
+            _write_camera_transforms(w, f"{prefix}/road_from_camera", table, road_from_camera, origin,
+                                     camera_frame_id)
         return dict(w.counts)
 
 
@@ -385,3 +398,25 @@ def _write_optional(w: "RosWriter", table: Any, prefix: str, frame_id: str, orig
         data = serialize_stamped(stamps[keep], frame_id, np.column_stack([xy[keep], np.zeros(keep.sum())]), w.ros1)
         for ns, msg in zip(stamps[keep].tolist(), data):
             w.write_raw(h, ns, msg)
+
+
+def _write_camera_transforms(w: RosWriter, topic: str, table: Any, transforms: Any, origin: int,
+                             child: str) -> None:
+    """One ``geometry_msgs/TransformStamped`` road <- camera per valid, finite row of ``table``."""
+    from scipy.spatial.transform import Rotation
+    m = np.asarray(transforms, dtype=float).reshape(-1, 4, 4)
+    cols = np.column_stack([np.asarray(table[c], dtype=float) for c in _TABLE_COLUMNS])
+    keep = np.all(np.isfinite(cols), axis=1) & np.all(np.isfinite(m.reshape(len(m), -1)), axis=1)
+    if "valid" in table:
+        keep &= np.asarray(table["valid"], dtype=bool)
+    m = m[keep]
+    stamps = origin + np.round(np.asarray(table["t"], dtype=float)[keep] * 1e9).astype(np.int64)
+    quat = Rotation.from_matrix(m[:, :3, :3]).as_quat() if len(m) else np.zeros((0, 4))     # x y z w
+    handle = w.add_topic(topic, "geometry_msgs/msg/TransformStamped")
+    for k, ns in enumerate(stamps.tolist()):
+        tr = w.message("geometry_msgs/msg/Transform",
+                       translation=w.message("geometry_msgs/msg/Vector3", x=m[k, 0, 3], y=m[k, 1, 3], z=m[k, 2, 3]),
+                       rotation=w.message("geometry_msgs/msg/Quaternion", x=quat[k, 0], y=quat[k, 1], z=quat[k, 2],
+                                          w=quat[k, 3]))
+        w.write(handle, ns, w.message("geometry_msgs/msg/TransformStamped", header=w.header(ns, "road", k),
+                                      child_frame_id=child, transform=tr))

@@ -1,0 +1,147 @@
+"""KITTI raw calibration: the static extrinsics and the rectified cameras of one recording day.
+
+A KITTI raw calibration folder (``2011_09_26/``) holds ``calib_imu_to_velo.txt``,
+``calib_velo_to_cam.txt`` and ``calib_cam_to_cam.txt``. From them:
+
+1. The OXTS RT3003 frame is FLU and mounted level in the car; the ground frame's
+   axes are the IMU's (``R_g_imu = I``) and its origin is on the road below the IMU,
+   which is :data:`IMU_HEIGHT` up (KITTI sensor set-up, Geiger et al., IJRR 2013).
+2. ``T_velo_imu`` (imu_to_velo) and ``T_cam0_velo`` (velo_to_cam) map points of the
+   first frame into the second; ``R_rect_00`` rotates camera 0 into the rectified
+   frame shared by the four rectified cameras. Rectified camera ``i`` differs from
+   rectified camera 0 by a translation only: ``P_rect_0i = K_i [I | K_i^-1 p_i]``
+   (``p_i`` its last column), so ``T_recti_rect0 = [I | K_i^-1 p_i]``.
+3. ``T_g_cami = T_g_imu · (T_recti_rect0 · R_rect_00 · T_cam0_velo · T_velo_imu)^-1``;
+   rotations are projected onto SO(3) (the files carry 7 digits).
+
+Camera axes: x right, y down, z forward (optical axis). Intrinsics ``K_i`` are
+``P_rect_0i[:, :3]``, the image size ``S_rect_0i`` (width, height, pixels).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from imu_ground.filters.extrinsics import Extrinsic
+
+__all__ = ["IMU_HEIGHT", "KITTI_CALIB_FILES", "read_kitti_calib", "kitti_extrinsics", "kitti_rectified_cameras"]
+
+#: Height of the OXTS RT3003 above the road, metres (KITTI sensor set-up, Geiger et al. 2013, fig. 3).
+IMU_HEIGHT = 0.93
+#: The three files of a KITTI raw calibration folder.
+KITTI_CALIB_FILES = ("calib_imu_to_velo.txt", "calib_velo_to_cam.txt", "calib_cam_to_cam.txt")
+
+
+def read_kitti_calib(path: str | Path) -> dict[str, np.ndarray]:
+    """``key: numbers`` lines of a KITTI calibration file as arrays (text values such as ``calib_time`` skipped).
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"KITTI calibration file not found: {path}")
+    out = {}
+    for line in path.read_text().splitlines():
+        if ":" not in line:
+            continue
+        key, value = line.split(":", 1)
+        try:
+            out[key.strip()] = np.array([float(v) for v in value.split()])
+        except ValueError:
+            continue
+    return out
+
+
+def _rigid(r: np.ndarray, t: np.ndarray) -> np.ndarray:
+    m = np.eye(4)
+    m[:3, :3] = np.reshape(r, (3, 3))
+    m[:3, 3] = t
+    return m
+
+
+def _entry(calib: dict, key: str, size: int, path: Path) -> np.ndarray:
+    if key not in calib or calib[key].size != size:
+        raise ValueError(f"{path}: no '{key}:' line with {size} numbers (is this a KITTI raw calibration file?)")
+    return calib[key]
+
+
+def _read_folder(calib_dir: Path) -> tuple[dict, dict, dict]:
+    calib_dir = Path(calib_dir)
+    if not calib_dir.is_dir():
+        raise FileNotFoundError(f"{calib_dir}: no such KITTI raw calibration folder (it holds "
+                                f"{', '.join(KITTI_CALIB_FILES)})")
+    return tuple(read_kitti_calib(calib_dir / f) for f in KITTI_CALIB_FILES)      # type: ignore[return-value]
+
+
+def _rect0_from_imu(calib_dir: Path, iv: dict, vc: dict, cc: dict) -> np.ndarray:
+    d = Path(calib_dir)
+    t_velo_imu = _rigid(_entry(iv, "R", 9, d / KITTI_CALIB_FILES[0]), _entry(iv, "T", 3, d / KITTI_CALIB_FILES[0]))
+    t_cam0_velo = _rigid(_entry(vc, "R", 9, d / KITTI_CALIB_FILES[1]), _entry(vc, "T", 3, d / KITTI_CALIB_FILES[1]))
+    t_rect0_cam0 = _rigid(_entry(cc, "R_rect_00", 9, d / KITTI_CALIB_FILES[2]), np.zeros(3))
+    return t_rect0_cam0 @ t_cam0_velo @ t_velo_imu
+
+
+def _extrinsic(m: np.ndarray, meta: dict) -> Extrinsic:
+    u, _, vt = np.linalg.svd(m[:3, :3])
+    return Extrinsic(u @ vt, m[:3, 3], meta)
+
+
+def kitti_extrinsics(calib_dir: str | Path) -> dict[str, Extrinsic]:
+    """The IMU's and the four rectified cameras' static extrinsics (ground <- sensor) of a KITTI raw folder.
+
+    Parameters
+    ----------
+    calib_dir : str or Path
+        KITTI raw calibration folder (e.g. ``kitti_raw/2011_09_26``).
+
+    Returns
+    -------
+    dict
+        ``{"kitti_imu": ..., "kitti_cam0": ..., ..., "kitti_cam3": ...}``; rotation ground <- sensor,
+        translation the sensor origin in the ground frame (FLU, origin on the road below the IMU), m.
+    """
+    cams = kitti_rectified_cameras(calib_dir)
+    iv, _, _ = _read_folder(Path(calib_dir))
+    src = f"{Path(calib_dir).name}/calib_*.txt"
+    out = {"kitti_imu": Extrinsic(np.eye(3), np.array([0.0, 0.0, IMU_HEIGHT]),
+                                  {"platform": "kitti", "sensor": "oxts_imu (FLU)", "derived_from": src})}
+    out.update({f"kitti_cam{i}": ext for i, (ext, _, _) in cams.items()})
+    return out
+
+
+def kitti_rectified_cameras(calib_dir: str | Path) -> dict[int, tuple[Extrinsic, np.ndarray, tuple[int, int]]]:
+    """Rectified cameras 0-3 of a KITTI raw calibration folder.
+
+    Returns
+    -------
+    dict
+        Camera index -> ``(extrinsic, K, (width, height))``: extrinsic ground <- rectified camera
+        (camera axes x right, y down, z forward), ``K`` the 3x3 intrinsics (pixels), image size in pixels.
+
+    Raises
+    ------
+    FileNotFoundError
+        No such folder or file.
+    ValueError
+        A file lacks an entry the derivation needs (the message names file and key).
+    """
+    calib_dir = Path(calib_dir)
+    iv, vc, cc = _read_folder(calib_dir)
+    t_rect0_imu = _rect0_from_imu(calib_dir, iv, vc, cc)
+    t_g_imu = _rigid(np.eye(3), np.array([0.0, 0.0, IMU_HEIGHT]))
+    cc_path = calib_dir / KITTI_CALIB_FILES[2]
+    out = {}
+    for i in range(4):
+        p = _entry(cc, f"P_rect_0{i}", 12, cc_path).reshape(3, 4)
+        w, h = _entry(cc, f"S_rect_0{i}", 2, cc_path)
+        k = p[:, :3].copy()
+        t_recti_rect0 = _rigid(np.eye(3), np.linalg.solve(k, p[:, 3]))
+        t_g_cam = t_g_imu @ np.linalg.inv(t_recti_rect0 @ t_rect0_imu)
+        meta = {"platform": "kitti", "sensor": f"cam{i}_rect (x right, y down, z forward)",
+                "derived_from": f"{calib_dir.name}/calib_*.txt"}
+        out[i] = (_extrinsic(t_g_cam, meta), k, (int(round(w)), int(round(h))))
+    return out
