@@ -11,7 +11,8 @@ from imu_ground.filters.calibration import calibrate, load_calibration
 from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
 from imu_ground.filters.extrinsics import Extrinsic, load_extrinsic
 from imu_ground.evaluation.simulate import RoadParams, SpeedParams, VehicleParams, simulate
-from imu_ground.filters.suspension import SuspensionAwareFilter, estimate_suspension_aware
+from imu_ground.filters.methods import estimate_suspension_aware
+from imu_ground.filters.suspension import SuspensionAwareFilter
 
 DEG = np.pi / 180.0
 R_GS = so3.rotz(-6.0 * DEG) @ so3.roty(2.0 * DEG) @ so3.rotx(-1.5 * DEG)     # ground <- sensor

@@ -16,11 +16,11 @@ from imu_ground.evaluation.simulate import RoadParams, SpeedParams, simulate, si
 from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.filters.ground import GroundEstimate, GroundNormalFilter, GroundTrack
+from imu_ground.filters.methods import estimate_suspension_aware
 from imu_ground.filters.suspension import (
     DEFAULT_GAINS,
     SuspensionAwareFilter,
     SuspensionTrack,
-    estimate_suspension_aware,
 )
 from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
 

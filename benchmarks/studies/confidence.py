@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-DATA = HERE.parent.parent / "shared" / "data" / "kitti_imu100"
+DATA = HERE.parents[2] / "shared" / "data" / "kitti_imu100"
 REVISIT_DRIVES = ("2011_09_30_drive_0020", "2011_10_03_drive_0034")
 DEG = math.pi / 180.0
 
@@ -293,6 +293,6 @@ def rows(n: int = 10, drives: int | None = None) -> list[dict]:
 
 
 if __name__ == "__main__":
-    sys.path.insert(0, str(HERE))
+    sys.path.insert(0, str(HERE.parent))          # benchmarks/, where make_results lives
     from make_results import markdown
     print(markdown(rows()))

@@ -31,10 +31,11 @@ _EXPORTS = {
     ".ground": "GroundNormalFilter",
     ".gains": "DEFAULT_GAINS GAIN_BAND bandpass_gain_regression",
     ".gravity_velocity": "GravityEstimate GravityTrack GravityVelocityFilter",
-    ".suspension": "SuspensionAwareFilter SuspensionTrack estimate_suspension_aware",
+    ".suspension": "SuspensionAwareFilter SuspensionTrack",
     ".extrinsics": ("Extrinsic load_extrinsic save_extrinsic available_extrinsics Calibration "
                     "load_calibration resolve_platform"),
     ".calibration": "calibrate",
+    ".methods": "estimate_suspension_aware",
     ".status": "STATUSES",
     "imu_ground.so3": "euler_zyx twist_angle as_rotations",      # rotation helpers, re-exported from so3
     ".design": "butter_bandpass foh_filter",

@@ -5,7 +5,7 @@ Calibrate once per vehicle and IMU mounting, save, then run the
 
     cal = calibrate(imu)                  # ImuData or EgoMotion of a calibration drive
     cal.save("my_car.txt")                # the calib/ text format, plus a suspension_gains line
-    track = estimate_suspension_aware(egomotion, extrinsic="my_car.txt")
+    track = estimate_suspension_aware(egomotion, extrinsic="my_car.txt")   # imu_ground.filters.methods
 
 What an IMU alone can tell (and what it cannot)
 -----------------------------------------------

@@ -1,6 +1,7 @@
-"""The per-frame 'how sure' fields of a suspension-aware batch: 1-sigma, road, mount monitor, status and reason.
+"""The per-frame 'how sure' fields of the suspension-aware filter: 1-sigma, road, mount monitor, status and reason.
 
-One function, :func:`suspension_confidence`, the batch twin of what
+:func:`suspension_confidence` for a batch; its streaming twins :func:`step_road_and_monitor`
+(before the attitude update) and :func:`step_confidence` (after it), what
 :meth:`~imu_ground.filters.suspension.SuspensionAwareFilter.step` adds to each
 estimate (:mod:`imu_ground.filters.status` for the 1-sigma and the status,
 :mod:`imu_ground.filters.road` for grade and bank,
@@ -14,10 +15,97 @@ from typing import Optional
 import numpy as np
 
 from imu_ground.filters.mount_monitor import monitor_track
-from imu_ground.filters.road import NO_SPEED_REASON
-from imu_ground.filters.status import DEGRADED, OK, SUSPENSION_STD, track_reasons, track_statuses
+from imu_ground.filters.road import NO_SPEED_REASON, road_one
+from imu_ground.filters.status import (CONVERGED_STD, CONVERGING, DEGRADED, GAP, OK, STANDSTILL, SUSPENSION_STD,
+                                       track_reasons, track_statuses)
 
-__all__ = ["suspension_confidence"]
+__all__ = ["step_confidence", "step_road_and_monitor", "suspension_confidence"]
+
+_CONVERGED_VAR = CONVERGED_STD * CONVERGED_STD
+_I_GXX, _I_GYY = 21, 24                             # gravity kernel state: P[3, 3] and P[4, 4] (gravity_kernel)
+
+
+def step_road_and_monitor(f, d, dv, dt: float, stationary: bool, valid: bool, speed: float) -> tuple:
+    """One frame of the filter's road filter (from its first measured speed on) and mount monitor.
+
+    Parameters
+    ----------
+    f : SuspensionAwareFilter
+        Its ``road_filter``, ``mount_monitor`` and clock ``_time`` advance.
+    d, dv, dt, stationary, valid
+        The checked frame, as the gravity/velocity filter takes it (sensor_{k-1} <- sensor_k, m/s, s).
+    speed : float
+        Measured speed, m/s (NaN: none).
+
+    Returns
+    -------
+    road : tuple or None
+        The road filter's raw output (None before the first speed).
+    alarm : str or None
+        The mount monitor's reason once it has seen the mount move.
+    """
+    road = None
+    if speed == speed or f.road_filter.gravity_filter is not None:
+        road = f.road_filter.step(d, dv, dt, stationary, valid, speed)
+    f._time += dt
+    mm = f.mount_monitor
+    alarm = mm.alarm
+    if alarm is None and (road is not None or mm._hist or mm._armed_at == mm._armed_at):
+        alarm = mm.update(f._time, None if road is None else road[0], valid and speed == speed)
+    return road, alarm
+
+
+def step_confidence(f, o, ux: float, uy: float, wp: float, wr: float, dt: float, stationary: bool, valid: bool,
+                    road, alarm) -> tuple:
+    """The status code, the 1-sigma inputs and the road of one processed frame (the batch twin:
+    :func:`suspension_confidence`).
+
+    Parameters
+    ----------
+    f : SuspensionAwareFilter
+        Its gravity filter's covariance is read; its convergence latch ``_converged`` advances.
+    o : sequence
+        The residual kernel's output of the frame (``o[4]``: the slow state's level variance, rad^2).
+    ux, uy : float
+        The frame's load, m/s^2.
+    wp, wr : float
+        The suspension model's tilt weights of the gains used at this frame.
+    dt : float
+        Frame duration, s.
+    stationary, valid : bool
+        The frame's flags.
+    road, alarm
+        :func:`step_road_and_monitor`'s outputs.
+
+    Returns
+    -------
+    code : int
+        :data:`~imu_ground.filters.status.STATUSES` index.
+    info : tuple
+        What :class:`~imu_ground.filters.estimator.GroundEstimate` derives the 1-sigma and the reason from.
+    road : tuple or None
+        Grade and bank with their variances (:func:`~imu_ground.filters.road.road_one`), or None.
+    """
+    g = f.gravity_filter._s                         # gravity's world-horizontal variances -> the modelled tilt
+    sg2 = g.item(_I_GXX) + g.item(_I_GYY) if f._garray else g[_I_GXX] + g[_I_GYY]
+    if road is not None:
+        road = road_one(o, *road)
+    info = (SUSPENSION_STD[0], SUSPENSION_STD[1], o[4], ux, uy, sg2 * wp, sg2 * wr, dt,
+            alarm if alarm is not None else None if road is not None else NO_SPEED_REASON, CONVERGED_STD)
+    code = OK
+    if not f._converged:
+        pm, rm = SUSPENSION_STD
+        if max(pm.variance(o[4], ux, uy, info[5]), rm.variance(o[4], ux, uy, info[6])) <= _CONVERGED_VAR:
+            f._converged = True
+        else:
+            code = CONVERGING
+    if stationary:
+        code = STANDSTILL
+    if alarm is not None:
+        code = DEGRADED
+    if not valid:
+        code = GAP
+    return code, info, road
 
 
 def suspension_confidence(f, em, sub, good: np.ndarray, a: np.ndarray, load: np.ndarray, gains: np.ndarray,

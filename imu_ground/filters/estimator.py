@@ -39,7 +39,7 @@ from imu_ground.units import DEFAULT_FRAME_RATE
 if TYPE_CHECKING:
     from imu_ground.imu.egomotion import EgoFrame
 
-__all__ = ["GroundEstimate", "GroundTrack", "GroundEstimator", "pitch_roll_from_normal", "as_egomotion"]
+__all__ = ["GroundEstimate", "GroundTrack", "SuspensionTrack", "GroundEstimator", "pitch_roll_from_normal", "as_egomotion"]
 
 
 def pitch_roll_from_normal(n_body):
@@ -297,3 +297,27 @@ def as_egomotion(data, rate: Optional[float] = None) -> "EgoMotion":
         raise ValueError(f"expected an EgoMotion, an ImuData or rotation increments of shape (F, 3, 3), (F, 4, 4) "
                          f"or (F, 3), got {type(data).__name__} of shape {d.shape}")
     return EgoMotion.from_rotations(as_rotations(d, "delta_Rs"), rate=rate)
+
+
+@dataclass
+class SuspensionTrack(GroundTrack):
+    """A :class:`~imu_ground.filters.estimator.GroundTrack` plus the suspension model's inputs (F frames).
+
+    Attributes
+    ----------
+    load : ndarray (F, 2)
+        Load entering the model (``u_x``, ``u_y``), m/s^2, body frame.
+    speed : ndarray (F,)
+        Speed in the road noise, m/s: the measured speed where given, else the gravity/velocity filter's.
+    gains : ndarray (F, 2)
+        ``(k_pitch, k_roll)`` used at each frame, rad per m/s^2.
+    suspension : ndarray (F, 2)
+        Modelled tilt ``(pitch, roll) = (k_pitch u_x + cross_gain u_y, k_roll u_y)``, rad.
+    gravity : ndarray (F, 3)
+        Reaction to gravity, world frame, m/s^2.
+    """
+    load: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    speed: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    gains: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    suspension: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    gravity: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))

@@ -15,9 +15,9 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from imu_ground.filters.ground import GroundNormalFilter
-from imu_ground.filters.suspension import SuspensionAwareFilter
+from imu_ground.filters.suspension import SuspensionAwareFilter, SuspensionTrack
 
-__all__ = ["METHODS", "MethodSpec", "default_method", "estimate", "make_estimator"]
+__all__ = ["METHODS", "MethodSpec", "default_method", "estimate", "estimate_suspension_aware", "make_estimator"]
 
 
 @dataclass(frozen=True)
@@ -138,3 +138,32 @@ def estimate(egomotion, method=None, speed=None, **options):
     if not METHODS[name].speed_aided:
         raise ValueError(f"method {name!r} does not take a speed; use 'suspension' or 'suspension-offline'")
     return est.run(egomotion, smooth=METHODS[name].smooth, speed=speed)
+
+
+def estimate_suspension_aware(egomotion, extrinsic=None, smooth: bool = False, calibration=None,
+                              **params) -> SuspensionTrack:
+    """Suspension-aware ground normal of a whole drive in one call.
+
+    Parameters
+    ----------
+    egomotion : EgoMotion or ImuData
+        Per-frame ego-motion (an ImuData is preintegrated at 10 Hz, or at ``frame_rate``).
+    extrinsic : Extrinsic, ndarray (3, 3), str or Path, optional
+        Static ground <- sensor extrinsic, or a calibration file (name or path);
+        see :func:`~imu_ground.filters.extrinsics.resolve_platform`.
+    smooth : bool
+        Offline mode (forward filter and RTS smoother).
+    calibration : Calibration, optional
+        Extrinsic and gains from :func:`imu_ground.filters.calibration.calibrate`.
+    **params
+        Any :class:`SuspensionAwareFilter` parameter (these win).
+
+    Returns
+    -------
+    SuspensionTrack
+    """
+    kw: dict = {} if calibration is None else calibration.filter_kwargs()
+    if extrinsic is not None:
+        kw["extrinsic"] = extrinsic
+    kw.update(params)
+    return SuspensionAwareFilter(**kw).run(egomotion, smooth=smooth)

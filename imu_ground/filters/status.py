@@ -54,9 +54,9 @@ __all__ = ["STATUSES", "CONVERGING", "OK", "STANDSTILL", "GAP", "DEGRADED", "INV
 #: The statuses, indexed by their code.
 STATUSES = ("converging", "ok", "standstill", "gap", "degraded", "invalid")
 CONVERGING, OK, STANDSTILL, GAP, DEGRADED, INVALID = range(6)
-#: A frame whose larger 1-sigma (pitch or roll) is at or below this (rad, 0.2 deg) ends ``converging``
+#: A frame whose larger 1-sigma (pitch or roll) is at or below this (rad, 0.15 deg) ends ``converging``
 #: (:class:`~imu_ground.filters.suspension.SuspensionAwareFilter`).
-CONVERGED_STD = 0.2 * DEG
+CONVERGED_STD = 0.15 * DEG
 #: The same for :class:`~imu_ground.filters.ground.GroundNormalFilter` (rad, 0.8 deg: its roll, with no
 #: suspension model, is never better than ~0.7 deg on the synthetic drives; the threshold ends the
 #: transient of its initial covariance).
@@ -98,8 +98,8 @@ class AngleStd:
 
 
 #: Pitch and roll 1-sigma constants of :class:`~imu_ground.filters.suspension.SuspensionAwareFilter`.
-SUSPENSION_STD = (AngleStd(0.72, 0.106 * DEG, 0.064 * DEG, 0.0),
-                  AngleStd(1.15, 0.089 * DEG, 0.225 * DEG, 0.0))
+SUSPENSION_STD = (AngleStd(1.28e-05, 0.0337 * DEG, 0.0329 * DEG, 0.0797 * DEG),
+                  AngleStd(0.632, 0.00424 * DEG, 0.036 * DEG, 0.123 * DEG))
 #: Pitch and roll 1-sigma constants of :class:`~imu_ground.filters.ground.GroundNormalFilter` (no load).
 #: Its covariance is a tuning (``R = 1 rad^2``), not an angle's uncertainty: the 1-sigma is a constant, the
 #: 68th percentile of its errors on the synthetic drives (so it is never ``converging``).

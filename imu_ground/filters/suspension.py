@@ -53,15 +53,15 @@ chosen and how every configuration scores on real and synthetic drives is in
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import Optional, Sequence, Union
 
 import numpy as np
 
 from imu_ground import so3
 from imu_ground.filters import gravity_kernel
-from imu_ground.filters.confidence import suspension_confidence
-from imu_ground.filters.estimator import GroundEstimate, GroundTrack, as_egomotion
+from imu_ground.filters.confidence import step_confidence, step_road_and_monitor, suspension_confidence
+from imu_ground.filters.estimator import GroundEstimate, SuspensionTrack, as_egomotion
 from imu_ground.filters.extrinsics import resolve_platform
 from imu_ground.filters.frame_checks import (
     check_on_invalid,
@@ -76,10 +76,9 @@ from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.mount_monitor import MountMonitor
 from imu_ground.filters.residual import ResidualKernel
-from imu_ground.filters.road import NO_SPEED_REASON, RoadFilter, road_one
-from imu_ground.filters.status import CONVERGED_STD, CONVERGING, DEGRADED, GAP, OK, STANDSTILL, SUSPENSION_STD
+from imu_ground.filters.road import RoadFilter
 from imu_ground.filters.suspension_model import SuspensionModel, load_share
-from imu_ground.so3 import matrix_from_quat, twist_angle
+from imu_ground.so3 import heading_change, matrix_from_quat, twist_angle
 from imu_ground.units import DEG
 
 __all__ = [
@@ -90,39 +89,12 @@ __all__ = [
     "SuspensionAwareFilter",
     "SuspensionTrack",
     "bandpass_gain_regression",
-    "estimate_suspension_aware",
 ]
 
 _I3 = np.eye(3)
 #: A measured speed beyond this, m/s (or not finite), is no measurement: the frame runs on the IMU alone.
 MAX_MEASURED_SPEED = 1e3
 _LATERAL = ("auto", "kinematic", "accelerometer")
-_CONVERGED_VAR = CONVERGED_STD * CONVERGED_STD
-_I_GXX, _I_GYY = 21, 24                             # gravity kernel state: P[3, 3] and P[4, 4] (gravity_kernel)
-
-
-@dataclass
-class SuspensionTrack(GroundTrack):
-    """A :class:`~imu_ground.filters.estimator.GroundTrack` plus the suspension model's inputs (F frames).
-
-    Attributes
-    ----------
-    load : ndarray (F, 2)
-        Load entering the model (``u_x``, ``u_y``), m/s^2, body frame.
-    speed : ndarray (F,)
-        Speed in the road noise, m/s: the measured speed where given, else the gravity/velocity filter's.
-    gains : ndarray (F, 2)
-        ``(k_pitch, k_roll)`` used at each frame, rad per m/s^2.
-    suspension : ndarray (F, 2)
-        Modelled tilt ``(pitch, roll) = (k_pitch u_x + cross_gain u_y, k_roll u_y)``, rad.
-    gravity : ndarray (F, 3)
-        Reaction to gravity, world frame, m/s^2.
-    """
-    load: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    speed: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    gains: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    suspension: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    gravity: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
 
 class SuspensionAwareFilter:
@@ -400,16 +372,9 @@ class SuspensionAwareFilter:
             sp = math.nan                           # infinite or absurd: no measurement (NaN stays NaN)
         gd, gdv = (d, dv) if self._arrays else (d.ravel().tolist(), dv.tolist())   # (pure-Python twins: lists)
         (fx, fy, _), (ax, ay, _), v = gf.step_sensor(gd, gdv, dt, bool(stationary), bool(valid), sp)
-        road = raw = None
-        if sp == sp or self.road_filter.gravity_filter is not None:     # the road, from the first speed on
-            road = raw = self.road_filter.step(gd, gdv, dt, bool(stationary), bool(valid), sp)
-        self._time += dt
-        mm = self.mount_monitor
-        alarm = mm.alarm
-        if alarm is None and (raw is not None or mm._hist or mm._armed_at == mm._armed_at):
-            alarm = mm.update(self._time, None if raw is None else raw[0], bool(valid) and sp == sp)
+        road, alarm = step_road_and_monitor(self, gd, gdv, dt, bool(stationary), bool(valid), sp)
         self.speed = speed = v if math.isnan(sp) else sp
-        psi = _heading_change(d, self._Rgs)
+        psi = heading_change(d, self._Rgs)
         kinematic = self.lateral == "kinematic" or (self.lateral == "auto" and not math.isnan(sp))
         model = self.model
         wp, wr = model.tilt_weights                 # (of the gains used at this frame)
@@ -418,25 +383,7 @@ class SuspensionAwareFilter:
         q = ((self.q_time + self.q_dist * abs(speed)) * dt + self.q_turn * abs(psi)) * self._r   # |v|: either way
         self._q_last = q
         o = self._kstep(self._kbuf, d, q, self.q_yaw, tilt_x, tilt_y, None, 1.0)
-        g = gf._s                                   # gravity's world-horizontal variances -> the modelled tilt
-        sg2 = g.item(_I_GXX) + g.item(_I_GYY) if self._garray else g[_I_GXX] + g[_I_GYY]
-        if road is not None:
-            road = road_one(o, *road)
-        info = (SUSPENSION_STD[0], SUSPENSION_STD[1], o[4], ux, uy, sg2 * wp, sg2 * wr, dt,
-                alarm if alarm is not None else None if road is not None else NO_SPEED_REASON, CONVERGED_STD)
-        code = OK
-        if not self._converged:
-            pm, rm = SUSPENSION_STD
-            if max(pm.variance(o[4], ux, uy, info[5]), rm.variance(o[4], ux, uy, info[6])) <= _CONVERGED_VAR:
-                self._converged = True
-            else:
-                code = CONVERGING
-        if stationary:
-            code = STANDSTILL
-        if alarm is not None:
-            code = DEGRADED
-        if not valid:
-            code = GAP
+        code, info, road = step_confidence(self, o, ux, uy, wp, wr, dt, bool(stationary), bool(valid), road, alarm)
         return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o, code, info, road)
 
     # -- batch -----------------------------------------------------------------------------------
@@ -535,43 +482,7 @@ class SuspensionAwareFilter:
         return Xs
 
 
-def _heading_change(d: np.ndarray, Rgs: Optional[np.ndarray]) -> float:
-    """Twist (rad) about the ground's up axis of a sensor-frame increment ``d`` (``Rgs``: ground <- sensor)."""
-    if Rgs is not None:
-        d = Rgs @ d @ Rgs.T
-    return math.atan2(d[1, 0] - d[0, 1], d[0, 0] + d[1, 1])
-
-
 def _frames_of(em, keep: np.ndarray):
     """The ego-motion restricted to the frames ``keep`` (same rate and metadata)."""
     return replace(em, t=em.t[keep], delta_R=em.delta_R[keep], delta_v=em.delta_v[keep], delta_t=em.delta_t[keep],
                    stationary=em.stationary[keep], valid=em.valid[keep])
-
-
-def estimate_suspension_aware(egomotion, extrinsic=None, smooth: bool = False, calibration=None,
-                              **params) -> SuspensionTrack:
-    """Suspension-aware ground normal of a whole drive in one call.
-
-    Parameters
-    ----------
-    egomotion : EgoMotion or ImuData
-        Per-frame ego-motion (an ImuData is preintegrated at 10 Hz, or at ``frame_rate``).
-    extrinsic : Extrinsic, ndarray (3, 3), str or Path, optional
-        Static ground <- sensor extrinsic, or a calibration file (name or path);
-        see :func:`~imu_ground.filters.extrinsics.resolve_platform`.
-    smooth : bool
-        Offline mode (forward filter and RTS smoother).
-    calibration : Calibration, optional
-        Extrinsic and gains from :func:`imu_ground.filters.calibration.calibrate`.
-    **params
-        Any :class:`SuspensionAwareFilter` parameter (these win).
-
-    Returns
-    -------
-    SuspensionTrack
-    """
-    kw: dict = {} if calibration is None else calibration.filter_kwargs()
-    if extrinsic is not None:
-        kw["extrinsic"] = extrinsic
-    kw.update(params)
-    return SuspensionAwareFilter(**kw).run(egomotion, smooth=smooth)

@@ -37,6 +37,7 @@ from imu_ground.pipeline.input_checks import (
     requested_options,
 )
 from imu_ground.pipeline.output import result_table, write_outputs
+from imu_ground.pipeline.planes import check_camera
 from imu_ground.so3 import cumulative_rotations
 from imu_ground.units import DEFAULT_FRAME_RATE, RENORM_EVERY
 
@@ -213,34 +214,6 @@ def _one_line(path: str | Path, message: Any) -> str:
 
 
 # ------------------------------------------------------------------------------------------ estimate
-def _check_camera(camera: Any, bev: Any) -> tuple[Any, Any]:
-    """The :class:`~imu_ground.perception.Camera` and :class:`~imu_ground.perception.BevGrid` of the options
-    (None when not given); a bad one raises :class:`OptionError` naming it."""
-    if camera is None:
-        if bev is not None:
-            raise OptionError("{opt} needs a camera: add --camera NAME_OR_FILE", "bev")
-        return None, None
-    from imu_ground.perception import BevGrid, load_camera
-    try:
-        cam = load_camera(camera)
-    except (ValueError, FileNotFoundError) as e:
-        text = " ".join(str(e).split())
-        raise OptionError(f"{{opt}} {text}" if text.startswith(str(camera)) else f"{{opt}} {camera}: {text}",
-                          "camera") from e
-    if bev is None:
-        return cam, None
-    if isinstance(bev, BevGrid):
-        return cam, bev
-    try:
-        values = [float(v) for v in bev]
-        if len(values) != 5:
-            raise ValueError(f"needs 5 numbers X0 X1 Y0 Y1 RES (m), got {len(values)}")
-        return cam, BevGrid(*values)
-    except (TypeError, ValueError) as e:
-        raise OptionError(f"{{opt}} {' '.join(map(str, bev)) if isinstance(bev, (list, tuple)) else bev!r}: {e}",
-                          "bev") from e
-
-
 def estimate_log(path: str | Path, *, format: str | None = None, method: str = "auto",
                  extrinsic: Any = None, rate: float | None = None, Q: Any = None, R: Any = None,
                  progress: bool = False, speed: Any = "auto", camera: Any = None, bev: Any = None,
@@ -310,7 +283,7 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
         The log cannot be read (the reader's message: file, line, option to use).
     """
     reader_kw = check_options(method=method, rate=rate, Q=Q, R=R, **reader_options)
-    cam, grid = _check_camera(camera, bev)
+    cam, grid = check_camera(camera, bev)
     kind, fmt = detect_input(path, format)
     settings: dict = {"method": method, "rate": rate, "extrinsic": None if extrinsic is None else str(extrinsic),
                       "Q": Q, "R": R, **reader_kw}

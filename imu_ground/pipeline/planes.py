@@ -33,11 +33,13 @@ from typing import Any
 
 import numpy as np
 
+from imu_ground.datasets.options import OptionError
+from imu_ground.perception import load_camera
 from imu_ground.perception.camera import Camera
 from imu_ground.perception.plane import BevGrid, GroundPlane
 
-__all__ = ["BEV_COLUMNS", "PLANE_COLUMNS", "PLANE_UNITS", "camera_plane", "check_planes_dir", "plane_columns",
-           "read_kitti_planes", "write_kitti_planes"]
+__all__ = ["BEV_COLUMNS", "PLANE_COLUMNS", "PLANE_UNITS", "camera_plane", "check_camera", "check_planes_dir",
+           "plane_columns", "read_kitti_planes", "write_kitti_planes"]
 
 #: Plane columns of the output table with a camera.
 PLANE_COLUMNS = ("plane_a", "plane_b", "plane_c", "plane_d")
@@ -174,3 +176,37 @@ def read_kitti_planes(path: str | Path) -> np.ndarray:
     if values.size != 4:
         raise ValueError(f"{p}:4: expected 4 numbers, got {values.size}")
     return values
+
+
+def check_camera(camera: Any, bev: Any) -> tuple[Any, Any]:
+    """The :class:`~imu_ground.perception.Camera` and :class:`~imu_ground.perception.BevGrid` of
+    :func:`~imu_ground.pipeline.estimate_log`'s ``camera`` and ``bev`` options (None when not given).
+
+    Raises
+    ------
+    OptionError
+        A camera that cannot be loaded, a grid that is not 5 numbers, or a grid without a camera,
+        naming the option (``--camera`` / ``--bev`` on the command line).
+    """
+    if camera is None:
+        if bev is not None:
+            raise OptionError("{opt} needs a camera: add --camera NAME_OR_FILE", "bev")
+        return None, None
+    try:
+        cam = load_camera(camera)
+    except (ValueError, FileNotFoundError) as e:
+        text = " ".join(str(e).split())
+        raise OptionError(f"{{opt}} {text}" if text.startswith(str(camera)) else f"{{opt}} {camera}: {text}",
+                          "camera") from e
+    if bev is None:
+        return cam, None
+    if isinstance(bev, BevGrid):
+        return cam, bev
+    try:
+        values = [float(v) for v in bev]
+        if len(values) != 5:
+            raise ValueError(f"needs 5 numbers X0 X1 Y0 Y1 RES (m), got {len(values)}")
+        return cam, BevGrid(*values)
+    except (TypeError, ValueError) as e:
+        raise OptionError(f"{{opt}} {' '.join(map(str, bev)) if isinstance(bev, (list, tuple)) else bev!r}: {e}",
+                          "bev") from e

@@ -6,12 +6,16 @@ scalar first, ``(w, x, y, z)``, with ``w >= 0``.
 """
 from __future__ import annotations
 
+import math
+
+from typing import Optional
+
 import numpy as np
 
 from imu_ground.so3.group import exp, exp_one, renormalise
 
 __all__ = ["as_rotations", "twist_angle", "euler_zyx", "quat_from_matrix", "matrix_from_quat",
-           "cumulative_rotations"]
+           "cumulative_rotations", "heading_change"]
 
 _I3 = np.eye(3)
 
@@ -175,3 +179,24 @@ def cumulative_rotations(d: np.ndarray, R0=None, count: int = 0, *, renorm_every
             R = renormalise(R)
         out[k] = R
     return out
+
+
+def heading_change(d: np.ndarray, Rgs: Optional[np.ndarray] = None) -> float:
+    """Twist (rad, + counter-clockwise seen from above) about the ground's up axis of one increment.
+
+    Parameters
+    ----------
+    d : ndarray (3, 3)
+        Increment sensor_{k-1} <- sensor_k.
+    Rgs : ndarray (3, 3), optional
+        Static rotation ground <- sensor: the increment is taken in the ground frame,
+        ``Rgs d Rgs^T`` (None: the sensor is the ground frame).
+
+    Returns
+    -------
+    float
+        ``atan2(m10 - m01, m00 + m11)`` of that increment: the scalar twin of :func:`twist_angle`.
+    """
+    if Rgs is not None:
+        d = Rgs @ d @ Rgs.T
+    return math.atan2(d[1, 0] - d[0, 1], d[0, 0] + d[1, 1])
