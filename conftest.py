@@ -64,3 +64,42 @@ def kitti_drives(shared_data: Path) -> list:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return load_real_drives(shared_data / "kitti_imu100", progress=False)
+
+
+@pytest.fixture
+def cli(capsys):
+    """``cli(*args) -> (exit status, stdout, stderr)``: ``imu-ground ARGS`` run in this process.
+
+    argparse's exits (usage errors, ``--help``, ``--version``) count as the status they exit with.
+    """
+    from imu_ground.cli import main
+
+    def run(*args):
+        try:
+            code = main([str(a) for a in args])
+        except SystemExit as e:
+            code = e.code
+        out, err = capsys.readouterr()
+        return code, out, err
+    return run
+
+
+@pytest.fixture(scope="session")
+def speed_drive():
+    """``speed_drive(duration, seed, imu) -> (EgoMotion, Extrinsic, speed)``: a synthetic urban drive
+    (rough road B, stops and turns) with a misaligned mount, its 10 Hz ego-motion, the true extrinsic
+    and the true speed per frame (frame means, m/s)."""
+    from imu_ground import so3
+    from imu_ground.datasets.speed import frame_speed
+    from imu_ground.evaluation.simulate import RoadParams, SpeedParams, simulate
+    from imu_ground.filters import Extrinsic
+    from imu_ground.imu.egomotion import imu_to_egomotion
+
+    def make(duration: float, seed: int, imu: str):
+        sim = simulate(duration, seed=seed, imu=imu, road=RoadParams(roughness="B"),
+                       speed=SpeedParams(style="urban"), R_gs=so3.rotz(0.05) @ so3.roty(0.02))
+        em = imu_to_egomotion(sim.imu)
+        tr = sim.truth
+        v = frame_speed(tr["t"].to_numpy(), tr["speed"].to_numpy(), em.t, em.delta_t)
+        return em, Extrinsic(sim.R_gs), v
+    return make

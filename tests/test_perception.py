@@ -6,7 +6,6 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from imu_ground.cli import main
 from imu_ground.filters.extrinsics import Extrinsic, load_extrinsic
 from imu_ground.perception import BevGrid, Camera, GroundPlane, load_camera, range_error, save_camera
 from imu_ground.pipeline.planes import read_kitti_planes, write_kitti_planes
@@ -15,14 +14,6 @@ from imu_ground.so3 import rotx, roty, rotz
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLE = REPO / "datasets" / "fixtures" / "example_drive.csv"
 
-
-def run(capsys, *args):
-    try:
-        code = main([str(a) for a in args])
-    except SystemExit as e:
-        code = e.code
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def one_error_line(err, *words):
@@ -221,9 +212,9 @@ def test_planes_files_parse_as_kittis_do(tmp_path):
 
 
 # ------------------------------------------------------------------------------------------ estimate
-def test_estimate_with_a_camera_on_the_example(tmp_path, capsys):
+def test_estimate_with_a_camera_on_the_example(tmp_path, cli):
     out, planes = tmp_path / "g.csv", tmp_path / "planes"
-    code, stdout, err = run(capsys, "estimate", EXAMPLE, "--camera", "kitti_cam2", "--bev", 5, 45, -7, 7, 0.1,
+    code, stdout, err = cli("estimate", EXAMPLE, "--camera", "kitti_cam2", "--bev", 5, 45, -7, 7, 0.1,
                             "--planes", planes, "-o", out)
     assert code == 0, err
     df = pd.read_csv(out, comment="#")
@@ -243,26 +234,26 @@ def test_estimate_with_a_camera_on_the_example(tmp_path, capsys):
     assert "planes files" in stdout
 
 
-def test_estimate_camera_errors_are_one_line(tmp_path, capsys):
-    code, _, err = run(capsys, "estimate", EXAMPLE, "--camera", "no_cam", "-o", tmp_path / "g.csv")
+def test_estimate_camera_errors_are_one_line(tmp_path, cli):
+    code, _, err = cli("estimate", EXAMPLE, "--camera", "no_cam", "-o", tmp_path / "g.csv")
     assert code == 2 and "--camera" in one_error_line(err, "no_cam", "kitti_cam2")
-    code, _, err = run(capsys, "estimate", EXAMPLE, "--planes", tmp_path / "p", "-o", tmp_path / "g.csv")
+    code, _, err = cli("estimate", EXAMPLE, "--planes", tmp_path / "p", "-o", tmp_path / "g.csv")
     assert code == 2 and "--camera" in one_error_line(err, "--planes")
-    code, _, err = run(capsys, "estimate", EXAMPLE, "--camera", "kitti_cam2", "--bev", 5, 1, -7, 7, 0.1,
+    code, _, err = cli("estimate", EXAMPLE, "--camera", "kitti_cam2", "--bev", 5, 1, -7, 7, 0.1,
                        "-o", tmp_path / "g.csv")
     assert code == 2 and one_error_line(err, "--bev")
     (tmp_path / "file").write_text("x")
-    code, _, err = run(capsys, "estimate", EXAMPLE, "--camera", "kitti_cam2", "--planes", tmp_path / "file",
+    code, _, err = cli("estimate", EXAMPLE, "--camera", "kitti_cam2", "--planes", tmp_path / "file",
                        "-o", tmp_path / "g.csv")
     assert code == 2 and one_error_line(err, "--planes", "file")
     assert not (tmp_path / "g.csv").exists()
 
 
-def test_kitti_drive_plane_is_the_csv_normal_in_camera_2(shared_data, tmp_path, capsys):
+def test_kitti_drive_plane_is_the_csv_normal_in_camera_2(shared_data, tmp_path, cli):
     drives = pd.read_csv(shared_data / "kitti_imu100" / "drives.csv")
     log = shared_data / "kitti_imu100" / f"{drives['drive'].iloc[0]}.csv.gz"
     out = tmp_path / "d.csv"
-    code, _, err = run(capsys, "estimate", log, "--extrinsic", "kitti_imu", "--camera", "kitti_cam2", "-o", out)
+    code, _, err = cli("estimate", log, "--extrinsic", "kitti_imu", "--camera", "kitti_cam2", "-o", out)
     assert code == 0, err
     df = pd.read_csv(out, comment="#")
     ok = df["valid"].to_numpy(bool) & np.isfinite(df["plane_a"].to_numpy())
@@ -295,13 +286,13 @@ def test_ros_output_has_the_road_from_camera_topic(tmp_path):
     assert msgs[0].child_frame_id == "camera" and msgs[0].header.frame_id == "road"
 
 
-def test_gap_frames_get_nan_planes_and_keep_the_indices(tmp_path, capsys):
+def test_gap_frames_get_nan_planes_and_keep_the_indices(tmp_path, cli):
     df = pd.read_csv(EXAMPLE)
     t = df["t"].to_numpy()
     log = tmp_path / "gap.csv"
     df[~((t > 20.0) & (t < 23.0))].to_csv(log, index=False)
     out, planes = tmp_path / "g.csv", tmp_path / "planes"
-    code, _, err = run(capsys, "estimate", log, "--camera", "kitti_cam2", "--planes", planes, "-o", out)
+    code, _, err = cli("estimate", log, "--camera", "kitti_cam2", "--planes", planes, "-o", out)
     assert code == 0, err
     table = pd.read_csv(out, comment="#")
     gap = ~table["valid"].to_numpy(bool)

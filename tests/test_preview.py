@@ -5,7 +5,6 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from imu_ground.cli import main
 from imu_ground.evaluation.ground_effect import drive_ground_errors, ground_errors
 from imu_ground.evaluation.preview import PNG_KEY, read_preview_errors, synthetic_preview
 from imu_ground.perception import GroundPlane, load_camera, save_camera
@@ -13,14 +12,6 @@ from imu_ground.perception import GroundPlane, load_camera, save_camera
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLE = REPO / "datasets" / "fixtures" / "example_drive.csv"
 
-
-def run(capsys, *args):
-    try:
-        code = main([str(a) for a in args])
-    except SystemExit as e:
-        code = e.code
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def test_ground_errors_of_a_pitch_error_match_the_closed_form():
@@ -42,9 +33,9 @@ def test_ground_errors_of_a_pitch_error_match_the_closed_form():
     assert np.allclose(ratio, (d + e["dynamic"]["range"][0]) / d, rtol=2e-3)
 
 
-def test_synthetic_preview_png_shows_what_it_says(tmp_path, capsys):
+def test_synthetic_preview_png_shows_what_it_says(tmp_path, cli):
     out = tmp_path / "out" / "bev.png"
-    code, stdout, err = run(capsys, "preview", "-o", out)
+    code, stdout, err = cli("preview", "-o", out)
     assert code == 0, err
     with Image.open(out) as im:
         assert im.format == "PNG" and im.size[0] > 1000 and im.size[1] > 600
@@ -63,9 +54,9 @@ def test_synthetic_preview_png_shows_what_it_says(tmp_path, capsys):
     assert f"40 m: static {static[i40]:.3f} m, dynamic {dynamic[i40]:.3f} m" in stdout
 
 
-def test_synthetic_preview_gif_animates(tmp_path, capsys):
+def test_synthetic_preview_gif_animates(tmp_path, cli):
     out = tmp_path / "bev.gif"
-    code, _, err = run(capsys, "preview", "-o", out, "--frames", 3)
+    code, _, err = cli("preview", "-o", out, "--frames", 3)
     assert code == 0, err
     with Image.open(out) as im:
         assert im.format == "GIF" and im.n_frames == 3
@@ -96,15 +87,15 @@ def user_images(tmp_path, small_camera):
     return folder, tmp_path / "times.txt"
 
 
-def test_user_images_preview(tmp_path, capsys, small_camera, user_images):
+def test_user_images_preview(tmp_path, small_camera, user_images, cli):
     folder, times = user_images
     out = tmp_path / "mine.gif"
-    code, stdout, err = run(capsys, "preview", EXAMPLE, "--images", folder, "--times", times, "--camera",
+    code, stdout, err = cli("preview", EXAMPLE, "--images", folder, "--times", times, "--camera",
                             small_camera[0], "-o", out)
     assert code == 0, err
     with Image.open(out) as im:
         assert im.n_frames == 3
-    code, _, err = run(capsys, "preview", EXAMPLE, "--images", folder, "--times", times, "--camera",
+    code, _, err = cli("preview", EXAMPLE, "--images", folder, "--times", times, "--camera",
                        small_camera[0], "-o", tmp_path / "one.png")
     assert code == 0, err
     with Image.open(tmp_path / "one.png") as im:
@@ -117,34 +108,34 @@ def _one_line(err):
     return lines[0]
 
 
-def test_user_images_errors_name_the_file(tmp_path, capsys, small_camera, user_images):
+def test_user_images_errors_name_the_file(tmp_path, small_camera, user_images, cli):
     folder, times = user_images
     cam = str(small_camera[0])
     args = ["preview", EXAMPLE, "--images", folder, "--times", times, "--camera", cam, "-o", tmp_path / "x.png"]
     # an image of another size
     Image.new("RGB", (100, 30)).save(folder / "000001.png")
-    code, _, err = run(capsys, *args)
+    code, _, err = cli(*args)
     assert code == 2 and "000001.png" in _one_line(err) and "124x38" in err
     # an unreadable image
     (folder / "000001.png").write_bytes(b"not an image")
-    code, _, err = run(capsys, *args)
+    code, _, err = cli(*args)
     assert code == 2 and "000001.png" in _one_line(err) and "unreadable" in err
     Image.new("RGB", (124, 38)).save(folder / "000001.png")
     # a time outside the log
     times.write_text("10.0\n500.0\n11.0\n")
-    code, _, err = run(capsys, *args)
+    code, _, err = cli(*args)
     assert code == 2 and f"{times}:2" in _one_line(err) and "outside" in err
     # not a time, and counts that differ
     times.write_text("10.0\nten\n11.0\n")
-    code, _, err = run(capsys, *args)
+    code, _, err = cli(*args)
     assert code == 2 and f"{times}:2" in _one_line(err)
     times.write_text("10.0\n")
-    code, _, err = run(capsys, *args)
+    code, _, err = cli(*args)
     assert code == 2 and "1 times for 3 images" in _one_line(err)
     # a log without its images
-    code, _, err = run(capsys, "preview", EXAMPLE, "-o", tmp_path / "x.png")
+    code, _, err = cli("preview", EXAMPLE, "-o", tmp_path / "x.png")
     assert code == 2 and "--images" in _one_line(err)
-    code, _, err = run(capsys, "preview", "-o", tmp_path / "x.jpg")
+    code, _, err = cli("preview", "-o", tmp_path / "x.jpg")
     assert code == 2 and ".png or .gif" in _one_line(err)
     assert not (tmp_path / "x.png").exists()
 

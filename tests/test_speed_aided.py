@@ -6,15 +6,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from imu_ground.datasets.speed import frame_speed, log_speed, read_speed, read_speed_file
 
-from imu_ground import so3
 from imu_ground.cli import main
-from imu_ground.evaluation.simulate import RoadParams, SpeedParams, simulate
-from imu_ground.filters.extrinsics import Extrinsic
+from imu_ground.datasets.speed import frame_speed, log_speed, read_speed, read_speed_file
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.filters.suspension import SuspensionAwareFilter
-from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
+from imu_ground.imu.egomotion import EgoMotion
 from imu_ground.pipeline import estimate_log
 
 REPO = Path(__file__).resolve().parents[1]
@@ -23,14 +20,9 @@ TRUTH = REPO / "datasets" / "fixtures" / "example_drive_truth.csv"
 
 
 @pytest.fixture(scope="module")
-def drive():
+def drive(speed_drive):
     """A MEMS drive with stops and a misaligned mount, and its true speed per frame (frame means)."""
-    sim = simulate(60.0, seed=5, imu="mems", road=RoadParams(roughness="B"), speed=SpeedParams(style="urban"),
-                   R_gs=so3.rotz(0.05) @ so3.roty(0.02))
-    em = imu_to_egomotion(sim.imu)
-    tr = sim.truth
-    v = frame_speed(tr["t"].to_numpy(), tr["speed"].to_numpy(), em.t, em.delta_t)
-    return em, Extrinsic(sim.R_gs), v
+    return speed_drive(60.0, 5, "mems")
 
 
 def piece(em: EgoMotion, a: int, b: int) -> EgoMotion:

@@ -6,26 +6,18 @@ import math
 
 import numpy as np
 import pytest
-from imu_ground.datasets.speed import frame_speed
 
 from imu_ground import so3
-from imu_ground.evaluation.simulate import RoadParams, SpeedParams, simulate
-from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.filters.suspension import SuspensionAwareFilter
-from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
+from imu_ground.imu.egomotion import EgoMotion
 from imu_ground.units import DEG
 
 
 @pytest.fixture(scope="module")
-def drive():
+def drive(speed_drive):
     """A navigation-grade drive with turns and a misaligned mount, and its true speed per frame."""
-    sim = simulate(90.0, seed=3, imu="nav", road=RoadParams(roughness="B"), speed=SpeedParams(style="urban"),
-                   R_gs=so3.rotz(0.05) @ so3.roty(0.02))
-    em = imu_to_egomotion(sim.imu)
-    tr = sim.truth
-    v = frame_speed(tr["t"].to_numpy(), tr["speed"].to_numpy(), em.t, em.delta_t)
-    return em, Extrinsic(sim.R_gs), v
+    return speed_drive(90.0, 3, "nav")
 
 
 def test_lateral_load_is_speed_times_yaw_rate_where_a_speed_is_measured(drive):

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import warnings
 from pathlib import Path
 from typing import Any
@@ -20,8 +21,8 @@ import numpy as np
 
 from imu_ground.datasets.options import OptionError
 
-__all__ = ["GRAVITY_REFUSE_DEG", "GRAVITY_WARN_DEG", "OptionError", "check_gravity_direction", "gravity_angle",
-           "requested_options"]
+__all__ = ["GRAVITY_REFUSE_DEG", "GRAVITY_WARN_DEG", "OptionError", "check_creatable", "check_gravity_direction",
+           "gravity_angle", "requested_options"]
 
 
 def requested_options(*, method: str = "auto", rate: float | None = None, extrinsic: Any = None, Q: Any = None,
@@ -104,3 +105,16 @@ def check_gravity_direction(imu, extrinsic: Any, path: str | Path) -> float:
     warnings.warn(what + ": pitch and roll carry that tilt; calibrate the mounting ('imu-ground calibrate') and "
                   "pass it with --extrinsic")
     return angle
+
+
+def check_creatable(path: Path, option: str, start: Path | None = None) -> None:
+    """``path`` (a file or folder to be written) can be created: the nearest existing folder from
+    ``start`` (default: its parent) up is a writable folder; else ValueError naming ``path`` and the
+    CLI ``option`` to change."""
+    anc = path.parent if start is None else start
+    while not anc.exists() and anc != anc.parent:
+        anc = anc.parent
+    if not anc.is_dir():
+        raise ValueError(f"{path}: cannot be created because {anc} is a file, not a folder; choose another {option}")
+    if not os.access(anc, os.W_OK | os.X_OK):
+        raise ValueError(f"{path}: no permission to write in {anc}; choose another {option}")

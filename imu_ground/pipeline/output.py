@@ -32,6 +32,7 @@ import numpy as np
 from imu_ground._version import __version__
 from imu_ground.filters.estimator import GroundTrack
 from imu_ground.filters.status import status_names
+from imu_ground.pipeline.input_checks import check_creatable
 from imu_ground.pipeline.planes import PLANE_UNITS, plane_columns
 from imu_ground.pipeline.ros_output import write_ros_output
 from imu_ground.so3 import quat_from_matrix
@@ -210,13 +211,7 @@ def check_output_path(path: _PathLike, inputs: Sequence[_PathLike] = (), option:
         s = Path(src)
         if p.resolve() == s.resolve() or (p.exists() and s.exists() and os.path.samefile(p, s)):
             raise ValueError(f"{p}: is the input log; writing it would overwrite the log: choose another {option}")
-    anc = p.parent
-    while not anc.exists() and anc != anc.parent:
-        anc = anc.parent
-    if not anc.is_dir():
-        raise ValueError(f"{p}: cannot be created because {anc} is a file, not a folder; choose another {option}")
-    if not os.access(anc, os.W_OK | os.X_OK):
-        raise ValueError(f"{p}: no permission to write in {anc}; choose another {option}")
+    check_creatable(p, option)
     return p
 
 

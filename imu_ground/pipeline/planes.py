@@ -37,6 +37,7 @@ from imu_ground.datasets.options import OptionError
 from imu_ground.perception import load_camera
 from imu_ground.perception.camera import Camera
 from imu_ground.perception.plane import BevGrid, GroundPlane
+from imu_ground.pipeline.input_checks import check_creatable
 
 __all__ = ["BEV_COLUMNS", "PLANE_COLUMNS", "PLANE_UNITS", "camera_plane", "check_camera", "check_planes_dir",
            "plane_columns", "read_kitti_planes", "write_kitti_planes"]
@@ -97,13 +98,7 @@ def check_planes_dir(path: str | Path, option: str = "--planes") -> Path:
     if foreign:
         raise ValueError(f"{p}: holds other files than planes files ({foreign[0].name}); give {option} a new or "
                          "empty folder, or one of planes files only (they are replaced)")
-    anc = p if p.exists() else p.parent
-    while not anc.exists() and anc != anc.parent:
-        anc = anc.parent
-    if not anc.is_dir():
-        raise ValueError(f"{p}: cannot be created because {anc} is a file, not a folder; choose another {option}")
-    if not os.access(anc, os.W_OK | os.X_OK):
-        raise ValueError(f"{p}: no permission to write in {anc}; choose another {option}")
+    check_creatable(p, option, start=p if p.exists() else p.parent)
     return p
 
 
