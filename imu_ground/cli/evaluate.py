@@ -98,19 +98,17 @@ def run(a: argparse.Namespace) -> int:
         "own uncertainty; ref_share: the share of the squared error the reference alone can explain)")
     say("\nby condition (mean absolute pitch error, deg, pooled over frames):")
     say(format_table(conditions_table(res), "text"))
-    sig = sigma_table(res)
-    if len(sig):
-        say("\nreal drives, pitch error by the reference's own uncertainty (ref_sigma bins, deg; ref_floor_deg: what "
-            "a perfect estimator would score there, so the reference can judge 0.1 deg only where it is well below "
-            "0.1):")
-        say(format_table(sig, "text"))
-    rev = revisit_table(res)
-    if len(rev):
-        say("\nrevisit consistency (real drives that pass the same place twice in the same direction: the road's "
-            "attitude, INS minus estimate, must repeat; mean |difference| / sqrt(2), deg, over the pairs; no grade "
-            "reference involved):")
-        say(format_table(rev, "text"))
-    elif a.real is not None:
+    sig, rev = sigma_table(res), revisit_table(res)
+    for title, tab in (("real drives, pitch error by the reference's own uncertainty (ref_sigma bins, deg; "
+                        "ref_floor_deg: what a perfect estimator would score there, so the reference can judge 0.1 "
+                        "deg only where it is well below 0.1)", sig),
+                       ("revisit consistency (real drives that pass the same place twice in the same direction: "
+                        "the road's attitude, INS minus estimate, must repeat; mean |difference| / sqrt(2), deg, "
+                        "over the pairs; no grade reference involved)", rev)):
+        if len(tab):
+            say(f"\n{title}:")
+            say(format_table(tab, "text"))
+    if not len(rev) and a.real is not None:
         say("\nrevisit consistency: no drive passes the same place twice in the same direction")
     excluded = res[~res["valid"]].drop_duplicates("drive")
     if len(excluded):
