@@ -11,8 +11,14 @@ from __future__ import annotations
 
 import argparse
 import time
+import warnings
+from pathlib import Path
 
-from imu_ground.cli._common import nonnegative_int, say
+from imu_ground.cli._common import nonnegative_int, say, warn_line
+from imu_ground.evaluation.preview import PREVIEW_GRID, images_preview, render_preview, synthetic_preview
+from imu_ground.perception import BevGrid, load_camera
+from imu_ground.pipeline.estimate import estimate_log
+from imu_ground.pipeline.output import atomic_path, check_output_path
 
 __all__ = ["register", "run"]
 
@@ -43,10 +49,6 @@ def register(sub) -> None:
 
 
 def _check(a: argparse.Namespace):
-    from pathlib import Path
-
-    from imu_ground.perception import BevGrid
-    from imu_ground.pipeline.output import check_output_path
     out = Path(a.output)
     if out.suffix.lower() not in (".png", ".gif"):
         raise ValueError(f"{out}: unknown picture type {out.suffix or '(no suffix)'!r}; end the -o file name with "
@@ -58,7 +60,6 @@ def _check(a: argparse.Namespace):
     if a.log is not None and not (a.images and a.times and a.camera):
         raise ValueError(f"{a.log}: a log needs its images: add --images DIR --times FILE --camera NAME")
     if a.bev is None:
-        from imu_ground.evaluation.preview import PREVIEW_GRID
         return out, PREVIEW_GRID
     try:
         return out, BevGrid(*a.bev)
@@ -68,11 +69,7 @@ def _check(a: argparse.Namespace):
 
 def run(a: argparse.Namespace) -> int:
     """Build the preview, draw it and write it atomically; print what the picture shows."""
-    import warnings
-    from pathlib import Path
 
-    from imu_ground.evaluation.preview import images_preview, render_preview, synthetic_preview
-    from imu_ground.pipeline.output import atomic_path
     t0 = time.perf_counter()
     out, grid = _check(a)
     fmt = out.suffix.lower()[1:]
@@ -82,9 +79,6 @@ def run(a: argparse.Namespace) -> int:
             preview = synthetic_preview(seed=a.seed, frames=1 if fmt == "png" else max(a.frames, 1), grid=grid,
                                         camera=a.camera or "kitti_cam2")
     else:
-        from imu_ground.cli._common import warn_line
-        from imu_ground.perception import load_camera
-        from imu_ground.pipeline.estimate import estimate_log
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             res = estimate_log(a.log, camera=a.camera, extrinsic=a.extrinsic)

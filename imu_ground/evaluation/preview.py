@@ -25,6 +25,11 @@ from typing import Any
 import numpy as np
 
 from imu_ground.evaluation.ground_effect import LANE_WIDTH, ground_errors
+from imu_ground.evaluation.simulate import SpeedParams, simulate
+from imu_ground.evaluation.simulate.camera import render_road
+from imu_ground.filters.extrinsics import Extrinsic
+from imu_ground.filters.methods import METHODS, default_method
+from imu_ground.imu import imu_to_egomotion
 from imu_ground.perception.camera import Camera, load_camera
 from imu_ground.perception.plane import BevGrid, GroundPlane
 from imu_ground.perception.warp import warp_to_bev
@@ -91,11 +96,6 @@ def synthetic_preview(seed: int = 3, duration: float = 40.0, frames: int = 1, gr
     Preview
         With ``lane_error`` over every frame above 3 m/s.
     """
-    from imu_ground.evaluation.simulate import SpeedParams, simulate
-    from imu_ground.evaluation.simulate.camera import render_road
-    from imu_ground.filters.extrinsics import Extrinsic
-    from imu_ground.filters.methods import METHODS, default_method
-    from imu_ground.imu import imu_to_egomotion
     cam = load_camera(camera)
     sim = simulate(duration, seed=seed, imu="nav", speed=SpeedParams(style="urban"), name="preview")
     em = imu_to_egomotion(sim.imu, rate=10.0)

@@ -24,6 +24,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from imu_ground._version import __version__
+
 __all__ = ["StateError", "pack_state", "unpack_state", "plain"]
 
 
@@ -51,7 +53,6 @@ def plain(value: Any) -> Any:
 
 
 def _version() -> str:
-    from imu_ground._version import __version__
     return __version__
 
 

@@ -10,7 +10,6 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from scipy.ndimage import map_coordinates
 
 from imu_ground.perception.plane import BevGrid
 
@@ -37,6 +36,7 @@ def warp_to_bev(image: Any, from_bev: Any, grid: BevGrid, order: int = 1, fill: 
     ndarray (rows, cols) or (rows, cols, C)
         ``image``'s dtype.
     """
+    from scipy import ndimage                       # heavy (~0.2 s): loaded when a picture is warped
     img = np.asarray(image)
     h = np.asarray(from_bev, dtype=float)
     if h.shape != (3, 3):
@@ -51,7 +51,7 @@ def warp_to_bev(image: Any, from_bev: Any, grid: BevGrid, order: int = 1, fill: 
     channels = img[..., None] if img.ndim == 2 else img
     out = np.empty((rows, cols, channels.shape[2]), dtype=float)
     for k in range(channels.shape[2]):
-        out[..., k] = map_coordinates(channels[..., k].astype(float), [v, u], order=order, mode="constant",
+        out[..., k] = ndimage.map_coordinates(channels[..., k].astype(float), [v, u], order=order, mode="constant",
                                       cval=fill, prefilter=order > 1)
     if np.issubdtype(img.dtype, np.integer):
         info = np.iinfo(img.dtype)

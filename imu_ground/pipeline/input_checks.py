@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from imu_ground.datasets.options import OptionError
+from imu_ground.filters import Extrinsic
 
 __all__ = ["GRAVITY_REFUSE_DEG", "GRAVITY_WARN_DEG", "OptionError", "check_creatable", "check_gravity_direction",
            "gravity_angle", "requested_options"]
@@ -67,7 +68,6 @@ def gravity_angle(accel: np.ndarray, extrinsic: Any = None) -> float:
     extrinsic : None, str, Path, Extrinsic or ndarray (3, 3)
         As :func:`estimate_log` takes it (None: identity, up = sensor z).
     """
-    from imu_ground.filters import Extrinsic
     a = np.asarray(accel, dtype=float).reshape(-1, 3)
     a = a[np.all(np.isfinite(a), axis=1)]
     if not len(a):
