@@ -170,6 +170,12 @@ class MountRecalibrator:
         delta[2] = 0.0
         return delta, w + coef[1] * (rows[-1, 0] - t_ref)
 
+    @staticmethod
+    def restore_mount(f, Rgs: np.ndarray) -> None:
+        """Set the static rotation ``Rgs`` (ground <- sensor) on the Python side of filter ``f`` (a warm start:
+        the kernels' buffers hold it)."""
+        _set_mount_attributes(f, Rgs)
+
     def state(self) -> dict:
         """Plain values, for a warm start."""
         return {"frames": [list(r) for r in self._frames], "prev_speed": self._prev_speed,
@@ -197,7 +203,6 @@ def _set_gravity_filter(gf, Rgs: np.ndarray, D: np.ndarray, direction: np.ndarra
     s[27:36] = R.ravel().tolist()
     s[I_EXTR] = 1.0
     s[I_EXTR + 1:I_EXTR + 10] = Rgs.ravel().tolist()
-    gf._Rgs, gf._identity_extrinsic, gf._rgs9 = Rgs, False, Rgs.ravel().tolist()
 
 
 def apply_mount_change(f, delta: np.ndarray, w: np.ndarray, reference) -> None:
@@ -221,12 +226,19 @@ def apply_mount_change(f, delta: np.ndarray, w: np.ndarray, reference) -> None:
     up = so3.exp(np.asarray(w, dtype=float)) @ (np.asarray(reference, dtype=float) / np.linalg.norm(reference))
     _set_gravity_filter(road, Rgs, D, up)
     _set_gravity_filter(f.gravity_filter, Rgs, D, Rm @ Rr.T @ up)    # (its world: Rm Rr^T <- the road filter's)
-    f.road_filter._kw["extrinsic"] = Extrinsic(Rgs, f.extrinsic.translation, dict(f.extrinsic.meta))
     buf = f._kernel.buf
     buf[28] = 1.0                                                   # residual kernel: has_Rgs, then R_gs
     buf[30:39] = array_like(buf, Rgs.ravel().tolist())
-    f._Rgs = Rgs
-    f.model._Rgs = Rgs
+    _set_mount_attributes(f, Rgs)
+
+
+def _set_mount_attributes(f, Rgs: np.ndarray) -> None:
+    """The static rotation where the filter's Python objects keep it (its kernels' buffers aside)."""
+    f._Rgs = f.model._Rgs = Rgs
+    for gf in (f.gravity_filter, f.road_filter.gravity_filter):
+        if gf is not None:
+            gf._Rgs, gf._identity_extrinsic, gf._rgs9 = Rgs, False, Rgs.ravel().tolist()
+    f.road_filter._kw["extrinsic"] = Extrinsic(Rgs, f.extrinsic.translation, dict(f.extrinsic.meta))
 
 
 def array_like(buf, values: list):

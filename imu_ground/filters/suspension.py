@@ -53,7 +53,6 @@ chosen and how every configuration scores on real and synthetic drives is in
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from typing import Optional, Sequence, Union
 
 import numpy as np
@@ -67,6 +66,7 @@ from imu_ground.filters.frame_checks import (
     check_on_invalid,
     checked_frame,
     checked_frames,
+    frames_of,
     hold_skipped,
     static_rotation,
 )
@@ -172,9 +172,8 @@ class SuspensionAwareFilter:
         (default): kinematic on frames with a measured speed, accelerometer elsewhere (an
         IMU-only speed estimate drifts, and speed times yaw rate with it).
     recalibrate_online : bool
-        Re-estimate the mount after the mount monitor's alarm (frames with a measured speed;
-        :mod:`imu_ground.filters.recalibration`): the static rotation is turned by the change, the
-        status returns to ``ok`` with a note. ``run`` then steps frame by frame (no ``smooth``).
+        Re-estimate the mount after the mount monitor's alarm (:mod:`imu_ground.filters.recalibration`;
+        the status is ``ok`` again, with a note); ``run`` then steps frame by frame (no ``smooth``).
 
     Attributes
     ----------
@@ -436,7 +435,7 @@ class SuspensionAwareFilter:
         self.model.design(float(em.rate))
         start = dict(E=self.residual, P=self.P, cum=self.cumulative.copy(), load=self.last_load,
                      speed=self.speed, gains=self.gains.copy(), gravity=self.gravity_filter.x[3:].copy())
-        sub = em if good.all() else _frames_of(em, good)
+        sub = em if good.all() else frames_of(em, good)
         m = len(sub)
         if speed is not None:
             speed = np.asarray(speed, dtype=float)
@@ -498,8 +497,3 @@ class SuspensionAwareFilter:
             return Xs @ so3.exp(w * so3.log(np.swapaxes(Xs, 1, 2) @ Xsm))
         return Xs
 
-
-def _frames_of(em, keep: np.ndarray):
-    """The ego-motion restricted to the frames ``keep`` (same rate and metadata)."""
-    return replace(em, t=em.t[keep], delta_R=em.delta_R[keep], delta_v=em.delta_v[keep], delta_t=em.delta_t[keep],
-                   stationary=em.stationary[keep], valid=em.valid[keep])
