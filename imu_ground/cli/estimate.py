@@ -82,7 +82,7 @@ def register(sub) -> None:
                         "CAN, ROS twist/odometry; else IMU only); none (IMU only); a CSV file with columns t,speed (s "
                         "on the log's time base, m/s); or the name of a speed column of a CSV log")
     e.add_argument("--recalibrate-online", action="store_true",
-                   help="re-estimate the mount when the mount monitor sees it move (status degraded): 10 s of frames "
+                   help="re-estimate the mount when the mount monitor sees it move (status degraded): 15 s of frames "
                         "with a measured speed after the alarm, then the static rotation is corrected and the status "
                         "is ok again, its reason saying so (method suspension; needs --speed or the log's own)")
     g = e.add_argument_group("camera (road plane in a camera's axes)")
