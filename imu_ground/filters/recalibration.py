@@ -13,23 +13,32 @@ the turn, so the gyro-integrated attitude continues smoothly: after the change a
 ``k0``, ``R_k = W R^true_k D`` with the fixed world tilt ``W = R_{k0} D^T R_{k0}^T``. The
 gravity reaction measured in the filter's body frame is the frame-mean specific force minus
 the kinematic acceleration (``a_x = dv/dt`` from the measured speed, ``a_y = v psi / dt``,
-``a_z = 0``; the neglected terms are vertical, second order in the direction); turned into
+``a_z = 0``, less the centripetal ``(psi / dt)^2`` times the sensor's horizontal offset, the
+extrinsic's translation; the neglected terms are along the body's up axis, a tilted gravity's
+direction moves with them by their size times the tilt, and they average out over seconds: the
+mean vertical velocity is zero); turned into
 the world frame with ``R_k`` it is ``g`` before the change and ``W g`` after it, whatever the
 road's grade and however the vehicle turned. So, per usable frame (valid, with a measured
 speed now and at the frame before), the small rotation ``theta_k = u_ref x u_k`` from the
 frozen gravity direction ``u_ref`` (the road filter's, at the start of the mount monitor's
 window, before the change) to the measured one ``u_k`` (world frame) is a step
-function of time: ~0, then ``w = Log(W)``. The step's time ``k0`` is fitted (two constant
-levels, least squares) over the frames from the monitor's reference to :data:`WINDOW` s of
-usable frames after the alarm, ``w`` is the difference of the two levels (a bias of the
-measurement cancels), and the change in the body frame is ``delta = -R_{k0}^T w`` (rotation
-vector; its component about up is not observable from gravity and is left at 0).
+function of time: ~0, then ``w = Log(W)``, on top of the slow turn of the gyro-integrated
+world frame (the gyro's bias: a linear drift over the fit). Level, drift and step are fitted by
+least squares over the frames kept (from 5 s before the monitor's reference, :data:`WINDOW` s of
+usable frames after the alarm), the step's time ``k0`` searched from the reference on (the
+least residual); ``w`` is the step (a constant bias of the measurement is in the level and
+cancels), and the change in the body frame is ``delta = -R_{k0}^T w`` (rotation vector; its
+component about up is not observable from gravity and is left at 0). The attitude at ``k0``
+matters: the vehicle may have turned since the change, and the change is a rotation of the
+body axes it had then.
 
 Applying it: ``R_gs <- Exp(delta) R_gs`` in every part of the filter that turns sensor
 increments into the body frame, each gravity/velocity filter's attitude ``R_k <- R_k
 Exp(delta)^T`` (the body axes change, the world does not), its gravity set to the frozen
-direction turned by ``W`` (its own magnitude kept), the residual filter's state (road <-
-body) kept, and the mount monitor restarted (its hold-off and drift check run again).
+direction turned by ``W`` and the drift since (its own magnitude kept), the residual filter's
+state (road <- body: the suspension model and the road's adaptation keep it near the truth
+through the change) kept, and the mount monitor restarted (its hold-off and drift check run
+again). A yaw of the mount is not corrected.
 
 Measured on synthetic drives in ``benchmarks/RESULTS.md`` (``benchmarks/studies/confidence.py``).
 """
@@ -229,7 +238,7 @@ def apply_mount_change(f, delta: np.ndarray, w: np.ndarray, reference) -> None:
     _set_gravity_filter(f.gravity_filter, Rgs, D, Rm @ Rr.T @ up)    # (its world: Rm Rr^T <- the road filter's)
     buf = f._kernel.buf
     buf[28] = 1.0                                                   # residual kernel: has_Rgs, then R_gs
-    buf[30:39] = array_like(buf, Rgs.ravel().tolist())
+    buf[30:39] = _array_like(buf, Rgs.ravel().tolist())
     _set_mount_attributes(f, Rgs)
 
 
@@ -242,7 +251,7 @@ def _set_mount_attributes(f, Rgs: np.ndarray) -> None:
     f.road_filter._kw["extrinsic"] = Extrinsic(Rgs, f.extrinsic.translation, dict(f.extrinsic.meta))
 
 
-def array_like(buf, values: list):
+def _array_like(buf, values: list):
     """``values`` ready to be assigned into a slice of ``buf`` (array('d'), ndarray or list)."""
     from array import array
     return array("d", values) if isinstance(buf, array) else values
