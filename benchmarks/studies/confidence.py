@@ -20,7 +20,10 @@ Rows (``rows()``):
 - **Mount change**: synthetic drives whose sensor turns by 1 deg in pitch halfway
   (:func:`imu_ground.evaluation.simulate.remounted`), with the true speed: the delay until the
   status is ``degraded``; false alarms on the same drives unchanged and on every shared drive of
-  ``drives.csv`` with ``--speed auto``.
+  ``drives.csv`` with ``--speed auto``. With ``recalibrate_online``: the time from the alarm to the
+  re-estimation, the change estimated (truth: 1 deg pitch, 0 roll) and the error of the sensor-frame
+  normal (pitch, roll; each drive's mean over the moving frames after the re-estimation, against the
+  remounted truth), with and without the flag; re-estimations on the shared drives.
 
 The revisit pairing lives here (one place) for these checks. Rows are long-format: ``check``,
 ``scope`` (method, IMU grade or drive), ``quantity``, ``figure``, ``target``, ``passed``.
@@ -197,9 +200,10 @@ def mount_rows(n: int = 6, data: Path = DATA) -> list[dict]:
     from imu_ground.filters.suspension import SuspensionAwareFilter
     from imu_ground.pipeline import estimate_log
     from imu_ground.so3 import roty
+    from imu_ground.filters.estimator import pitch_roll_from_normal
     rows = []
     for grade in ("nav", "mems"):
-        delays, false_alarms = [], 0
+        delays, false_alarms, recal = [], 0, {"after": [], "delta": [], "err": [], "err_off": [], "false": 0}
         for seed in range(n):
             sim = simulate(duration=240.0, seed=seed, imu=grade)
             for s, changed in ((sim, False), (remounted(sim, 120.0, roty(1.0 * DEG)), True)):
@@ -207,22 +211,39 @@ def mount_rows(n: int = 6, data: Path = DATA) -> list[dict]:
                 speed = _truth_at(d)["speed"]
                 tr = SuspensionAwareFilter(extrinsic=d.extrinsic).run(d.egomotion, speed=speed)
                 deg = np.flatnonzero(tr.status == DEGRADED)
-                if changed:
-                    delays.append(d.egomotion.t[deg[0]] - 120.0 if len(deg) else math.inf)
-                else:
+                f = SuspensionAwareFilter(extrinsic=d.extrinsic, recalibrate_online=True)
+                on = f.run(d.egomotion, speed=speed)
+                if not changed:
                     false_alarms += bool(len(deg))
-        rows.append({"imu": grade, "drives": n, "delays": delays, "false_alarms": false_alarms})
-    alarms, drives = [], 0
+                    recal["false"] += f.recalibrator.count > 0
+                    continue
+                t = d.egomotion.t
+                delays.append(t[deg[0]] - 120.0 if len(deg) else math.inf)
+                if f.recalibrator.count == 0:
+                    continue
+                degon = np.flatnonzero(on.status == DEGRADED)
+                recal["after"].append(t[degon[-1] + 1] - t[degon[0]])
+                recal["delta"].append(f.recalibrator.delta[[1, 0]] / DEG)      # (pitch, roll)
+                truth = pitch_roll_from_normal(d.truth[["normal_x", "normal_y", "normal_z"]].to_numpy())
+                later = d.truth["evaluate"].to_numpy(bool) & (t > t[degon[-1] + 1])
+                for key, track in (("err", on), ("err_off", tr)):
+                    est = pitch_roll_from_normal(track.normal)
+                    recal[key].append([np.mean(est[i][later] - truth[i][later]) / DEG for i in (0, 1)])
+        rows.append({"imu": grade, "drives": n, "delays": delays, "false_alarms": false_alarms, "recal": recal})
+    alarms, recalibrated, drives = [], [], 0
     index = data / "drives.csv"
     if index.is_file():
         for name in pd.read_csv(index)["drive"]:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 tr = estimate_log(data / f"{name}.csv.gz", speed="auto").track
+                on = estimate_log(data / f"{name}.csv.gz", speed="auto", recalibrate_online=True).track
             drives += 1
             if (tr.status == DEGRADED).any():
                 alarms.append(name)
-    rows.append({"imu": "real", "drives": drives, "alarms": alarms})
+            if (on.status == DEGRADED).any() or any(r.startswith("mount re-estimated") for r in on.status_reason):
+                recalibrated.append(name)
+    rows.append({"imu": "real", "drives": drives, "alarms": alarms, "recalibrated": recalibrated})
     return rows
 
 
@@ -263,6 +284,9 @@ def rows(n: int = 10, drives: int | None = None) -> list[dict]:
             out.append(_long("mount change: false alarms", f"shared drives of drives.csv, --speed auto ({r['drives']})",
                              "drives flagged degraded", ", ".join(r["alarms"]) or "none", "none",
                              not r["alarms"]))
+            out.append(_long("mount change: online re-estimation", f"shared drives of drives.csv, --speed auto, "
+                             f"--recalibrate-online ({r['drives']})", "drives degraded or re-estimated",
+                             ", ".join(r["recalibrated"]) or "none", "none", not r["recalibrated"]))
             continue
         scope = f"suspension, {r['imu']}, {r['drives']} drives of 240 s, true speed"
         dl = np.array(r["delays"])
@@ -274,6 +298,28 @@ def rows(n: int = 10, drives: int | None = None) -> list[dict]:
                          fig, "<= 20 s (nav grade)" if nav else "", bool(found.all() and dl.max() <= 20) if nav else None))
         out.append(_long("mount change: 1 deg pitch at 120 s", scope, "false alarms on the same drives unchanged",
                          r["false_alarms"], "0", r["false_alarms"] == 0))
+        rc = r["recal"]
+        check = "mount change: online re-estimation (--recalibrate-online)"
+        out.append(_long(check, scope, "re-estimations on the same drives unchanged", rc["false"], "0",
+                         rc["false"] == 0))
+        if not rc["after"]:
+            out.append(_long(check, scope, "re-estimated drives", 0, "all (nav grade)" if nav else "",
+                             False if nav else None))
+            continue
+        after, dl, err, off = (np.array(rc[k]) for k in ("after", "delta", "err", "err_off"))
+        out.append(_long(check, scope, "re-estimated drives; time from the alarm to the re-estimation, s, "
+                         "min-max", f"{len(after)} of {len(r['delays'])}; {after.min():.1f}-{after.max():.1f}"))
+        out.append(_long(check, scope, "change estimated (truth 1 deg pitch, 0 roll), deg, pitch min-max / roll "
+                         "min-max", f"{dl[:, 0].min():.2f}-{dl[:, 0].max():.2f} / {dl[:, 1].min():+.2f}"
+                         f"..{dl[:, 1].max():+.2f}"))
+        worst = float(np.abs(err).max())
+        out.append(_long(check, scope, "sensor-frame normal after the re-estimation minus truth, deg, drive means "
+                         "pitch min..max / roll min..max", f"{err[:, 0].min():+.3f}..{err[:, 0].max():+.3f} / "
+                         f"{err[:, 1].min():+.3f}..{err[:, 1].max():+.3f}", "|mean| <= 0.1 (nav grade)" if nav else "",
+                         bool(worst <= 0.1 and len(after) == len(r["delays"])) if nav else None))
+        out.append(_long(check, scope, "the same without the flag, deg, pitch min..max / roll min..max",
+                         f"{off[:, 0].min():+.3f}..{off[:, 0].max():+.3f} / {off[:, 1].min():+.3f}.."
+                         f"{off[:, 1].max():+.3f}"))
     for r in revisit_rows():
         scope = f"{r['drive']}, --speed {r['speed']}, {r['pairs']} pairs"
         for a in ("pitch", "roll"):

@@ -81,6 +81,10 @@ def register(sub) -> None:
                         "log's own where its format has one: KITTI INS horizontal speed, nuScenes CAN pose, comma2k19 "
                         "CAN, ROS twist/odometry; else IMU only); none (IMU only); a CSV file with columns t,speed (s "
                         "on the log's time base, m/s); or the name of a speed column of a CSV log")
+    e.add_argument("--recalibrate-online", action="store_true",
+                   help="re-estimate the mount when the mount monitor sees it move (status degraded): 15 s of frames "
+                        "with a measured speed after the alarm, then the static rotation is corrected and the status "
+                        "is ok again, its reason saying so (method suspension; needs --speed or the log's own)")
     g = e.add_argument_group("camera (road plane in a camera's axes)")
     g.add_argument("--camera", metavar="NAME_OR_FILE",
                    help="a camera on the platform: kitti_cam0 .. kitti_cam3, a camera file (calib/README.md), or a "
@@ -115,7 +119,9 @@ def run(a: argparse.Namespace) -> int:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res, table = estimate_to_files(a.log, outputs, kinds, planes=a.planes, progress=progress_enabled(a),
-                                       speed=a.speed, camera=a.camera, bev=a.bev, **method_kwargs(a))
+                                       speed=a.speed, camera=a.camera, bev=a.bev,
+                                       **({"recalibrate_online": True} if a.recalibrate_online else {}),
+                                       **method_kwargs(a))
     for w in res.meta["warnings"]:
         warn_line(w, a.log)
     s = summarize_table(table)

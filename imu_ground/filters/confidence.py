@@ -90,8 +90,9 @@ def step_confidence(f, o, ux: float, uy: float, wp: float, wr: float, dt: float,
     sg2 = g.item(_I_GXX) + g.item(_I_GYY) if f._garray else g[_I_GXX] + g[_I_GYY]
     if road is not None:
         road = road_one(o, *road)
+    note = None if f.recalibrator is None else f.recalibrator.note       # (after an online re-estimation)
     info = (SUSPENSION_STD[0], SUSPENSION_STD[1], o[4], ux, uy, sg2 * wp, sg2 * wr, dt,
-            alarm if alarm is not None else None if road is not None else NO_SPEED_REASON, CONVERGED_STD)
+            alarm if alarm is not None else note if road is not None else NO_SPEED_REASON, CONVERGED_STD)
     code = OK
     if not f._converged:
         pm, rm = SUSPENSION_STD

@@ -106,7 +106,8 @@ def _suspension_settings(f) -> dict:
                 gain_prior_seconds=f.gain_prior_seconds, gain_band=f.gain_band, frame_rate=f.frame_rate,
                 smoother_weight=f.smoother_weight, extrinsic=_extrinsic(f.extrinsic), lever_arm=f.lever_arm,
                 gravity=dict(f._gravity_kw), R0=f.R0, on_invalid=f.on_invalid, cross_gain=f.cross_gain,
-                lateral=f.lateral, q_turn=f.q_turn)
+                lateral=f.lateral, q_turn=f.q_turn,
+                **({"recalibrate_online": True} if f.recalibrate_online else {}))
 
 
 def _iir(filt):
@@ -128,6 +129,9 @@ def suspension_state(f) -> dict:
           "load": m.load, "speed": f.speed, "q_last": f._q_last,
           "road": None if f.road_filter.gravity_filter is None else _gravity_buffer(f.road_filter.gravity_filter),
           "monitor": f.mount_monitor.state(), "time": f._time}
+    if f.recalibrator is not None:             # the online re-estimation: its record and the mount now
+        st["recalibrator"] = f.recalibrator.state()
+        st["mount"] = None if f._Rgs is None else f._Rgs.ravel().tolist()
     return pack_state("SuspensionAwareFilter", STATE_VERSION, _suspension_settings(f), st)
 
 
@@ -157,3 +161,7 @@ def load_suspension_state(f, saved) -> None:
         _load_gravity_buffer(f.road_filter.start(), st["road"])
     f.mount_monitor.load(st["monitor"])
     f._time = float(st["time"])
+    if f.recalibrator is not None:
+        f.recalibrator.load(st["recalibrator"])
+        if st["mount"] is not None:                 # (the kernels' buffers hold it already)
+            f.recalibrator.restore_mount(f, np.array(st["mount"], dtype=float).reshape(3, 3))

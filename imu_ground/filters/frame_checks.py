@@ -11,6 +11,7 @@ policy (:data:`ON_INVALID`) with one message format (:func:`bad_frame_error`).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Optional
 
 import numpy as np
@@ -18,7 +19,7 @@ import numpy as np
 from imu_ground import _native
 from imu_ground.so3 import as_rotations
 
-__all__ = ["ON_INVALID", "ORTHO_TOL", "BAD_ROTATION", "BAD_DELTA_V", "BAD_DELTA_T", "MAX_DELTA_V", "MIN_DELTA_T",
+__all__ = ["frames_of", "ON_INVALID", "ORTHO_TOL", "BAD_ROTATION", "BAD_DELTA_V", "BAD_DELTA_T", "MAX_DELTA_V", "MIN_DELTA_T",
            "MAX_DELTA_T", "frame_status", "frame_problem",
            "frame_problems", "frame_statuses", "checked_frames", "check_on_invalid", "bad_frame_error",
            "checked_frame", "coerce_frame", "bad_frame", "static_rotation", "frame_where", "hold_skipped"]
@@ -345,3 +346,9 @@ def hold_skipped(values: np.ndarray, good: np.ndarray, initial: np.ndarray) -> n
     idx = np.cumsum(good) - 1
     padded = np.concatenate([np.asarray(initial, dtype=float)[None], values])
     return padded[idx + 1]
+
+
+def frames_of(em, keep: np.ndarray):
+    """The ego-motion restricted to the frames ``keep`` (same rate and metadata)."""
+    return replace(em, t=em.t[keep], delta_R=em.delta_R[keep], delta_v=em.delta_v[keep], delta_t=em.delta_t[keep],
+                   stationary=em.stationary[keep], valid=em.valid[keep])

@@ -18,11 +18,12 @@ re-converges after them). Without a speed there is no road filter and no monitor
 (the accelerometer's gravity cannot then be told from the vehicle's own acceleration
 along the road).
 
-The change itself is not re-estimated: the filter's gravity turns by most of the
+The monitor does not measure the change: the filter's gravity turns by most of the
 change within seconds and then turns back over minutes (the velocity constraints
 take up the rest), so neither its gravity nor its body-frame velocity keeps a
-record of the mount's new pitch accurate to 0.1 deg; re-calibrate with
-``imu-ground calibrate`` when the status says the mount moved.
+record of the mount's new pitch accurate to 0.1 deg. Re-calibrate with
+``imu-ground calibrate`` when the status says the mount moved, or let
+:mod:`imu_ground.filters.recalibration` re-estimate it online (``recalibrate_online``).
 
 Measured on synthetic drives (true speed) and on the shared KITTI drives with
 ``--speed auto`` in ``benchmarks/RESULTS.md`` (``benchmarks/studies/confidence.py``).

@@ -31,7 +31,7 @@ One of :data:`STATUSES` per frame, the first that applies in this order:
 - ``gap``: the frame was integrated through a timestamp gap (``valid`` False);
 - ``degraded``: a monitor of the estimate flags it, the reason says which: the mount monitor
   (:mod:`imu_ground.filters.mount_monitor`, with a measured speed) when the sensor's mount moved,
-  from then on;
+  from then on (until re-estimated, :mod:`imu_ground.filters.recalibration`);
 - ``standstill``: the frame ends at a standstill (the road and the body are held);
 - ``converging``: from the start (and from a reset) until ``max(pitch_std, roll_std)``
   has once been at or below :data:`CONVERGED_STD` (0.2 deg; :data:`FILTER_CONVERGED_STD` for the

@@ -53,7 +53,6 @@ chosen and how every configuration scores on real and synthetic drives is in
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from typing import Optional, Sequence, Union
 
 import numpy as np
@@ -67,6 +66,7 @@ from imu_ground.filters.frame_checks import (
     check_on_invalid,
     checked_frame,
     checked_frames,
+    frames_of,
     hold_skipped,
     static_rotation,
 )
@@ -75,6 +75,7 @@ from imu_ground.filters.gains import DEFAULT_CROSS_GAIN, DEFAULT_GAINS, GAIN_BAN
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.mount_monitor import MountMonitor
+from imu_ground.filters.recalibration import MountRecalibrator, run_by_steps, step_recalibration
 from imu_ground.filters.residual import ResidualKernel
 from imu_ground.filters.road import RoadFilter
 from imu_ground.filters.suspension_model import SuspensionModel, load_share
@@ -170,6 +171,9 @@ class SuspensionAwareFilter:
         accelerometer ``a_y`` (it carries every error of the gravity estimate); ``"auto"``
         (default): kinematic on frames with a measured speed, accelerometer elsewhere (an
         IMU-only speed estimate drifts, and speed times yaw rate with it).
+    recalibrate_online : bool
+        Re-estimate the mount after the mount monitor's alarm (:mod:`imu_ground.filters.recalibration`;
+        the status is ``ok`` again, with a note); ``run`` then steps frame by frame (no ``smooth``).
 
     Attributes
     ----------
@@ -205,7 +209,9 @@ class SuspensionAwareFilter:
                  smoother_weight: float = 0.25, extrinsic=None,
                  lever_arm: Optional[Sequence[float]] = None, gravity: Optional[dict] = None,
                  R0: Optional[np.ndarray] = None, on_invalid: str = "raise",
-                 cross_gain: float = DEFAULT_CROSS_GAIN, lateral: str = "auto", q_turn: float = 10.0) -> None:
+                 cross_gain: float = DEFAULT_CROSS_GAIN, lateral: str = "auto", q_turn: float = 10.0,
+                 recalibrate_online: bool = False) -> None:
+        self.recalibrate_online = bool(recalibrate_online)
         self.cross_gain = float(cross_gain)
         if lateral not in _LATERAL:
             raise ValueError(f"lateral must be one of {', '.join(_LATERAL)}, got {lateral!r}")
@@ -248,6 +254,7 @@ class SuspensionAwareFilter:
     def reset(self) -> None:
         """Back to the initial state (attitude R0, prior gains, fresh gravity filter)."""
         r = self._r
+        self._Rgs = static_rotation(self.extrinsic)     # (an online re-estimation turns it)
         self._kernel = k = ResidualKernel(self.P0 * r, self.P0 * r, r, self.r_yaw * r, Rgs=self._Rgs)
         self._kbuf, self._kstep, self._kcheck = k.buf, k.impl.step, k.impl.check   # the streaming fast path
         self.gravity_filter = GravityVelocityFilter(R0=self.R0, extrinsic=self.extrinsic,
@@ -263,6 +270,7 @@ class SuspensionAwareFilter:
         self.road_filter = RoadFilter(self.extrinsic, self.lever_arm, self._gravity_kw)
         self._garray = isinstance(self.gravity_filter._s, np.ndarray)
         self.mount_monitor = MountMonitor()
+        self.recalibrator = MountRecalibrator(self.extrinsic.translation) if self.recalibrate_online else None
         self._time = 0.0                            # s of processed frames since the start or a reset
         if self.frame_rate is not None:
             self.model.design(self.frame_rate)
@@ -371,10 +379,13 @@ class SuspensionAwareFilter:
         if not abs(sp) <= MAX_MEASURED_SPEED:
             sp = math.nan                           # infinite or absurd: no measurement (NaN stays NaN)
         gd, gdv = (d, dv) if self._arrays else (d.ravel().tolist(), dv.tolist())   # (pure-Python twins: lists)
-        (fx, fy, _), (ax, ay, _), v = gf.step_sensor(gd, gdv, dt, bool(stationary), bool(valid), sp)
+        force, (ax, ay, _), v = gf.step_sensor(gd, gdv, dt, bool(stationary), bool(valid), sp)
+        fx, fy = force[0], force[1]
         road, alarm = step_road_and_monitor(self, gd, gdv, dt, bool(stationary), bool(valid), sp)
         self.speed = speed = v if math.isnan(sp) else sp
         psi = heading_change(d, self._Rgs)
+        if self.recalibrator is not None:
+            alarm = step_recalibration(self, dt, force, sp, psi, road, bool(valid), alarm)
         kinematic = self.lateral == "kinematic" or (self.lateral == "auto" and not math.isnan(sp))
         model = self.model
         wp, wr = model.tilt_weights                 # (of the gains used at this frame)
@@ -414,12 +425,17 @@ class SuspensionAwareFilter:
             a frame rate other than the one the filter is designed for.
         """
         em = as_egomotion(egomotion, rate=self.frame_rate)
+        if self.recalibrator is not None:
+            if smooth:
+                raise ValueError("online mount re-estimation (recalibrate_online) runs frame by frame: it cannot "
+                                 "be combined with the offline smoother (smooth=True)")
+            return run_by_steps(self, em, speed)
         n = len(em)
         good = checked_frames(em.delta_R, em.delta_v, em.delta_t, em.t, self.on_invalid)
         self.model.design(float(em.rate))
         start = dict(E=self.residual, P=self.P, cum=self.cumulative.copy(), load=self.last_load,
                      speed=self.speed, gains=self.gains.copy(), gravity=self.gravity_filter.x[3:].copy())
-        sub = em if good.all() else _frames_of(em, good)
+        sub = em if good.all() else frames_of(em, good)
         m = len(sub)
         if speed is not None:
             speed = np.asarray(speed, dtype=float)
@@ -481,8 +497,3 @@ class SuspensionAwareFilter:
             return Xs @ so3.exp(w * so3.log(np.swapaxes(Xs, 1, 2) @ Xsm))
         return Xs
 
-
-def _frames_of(em, keep: np.ndarray):
-    """The ego-motion restricted to the frames ``keep`` (same rate and metadata)."""
-    return replace(em, t=em.t[keep], delta_R=em.delta_R[keep], delta_v=em.delta_v[keep], delta_t=em.delta_t[keep],
-                   stationary=em.stationary[keep], valid=em.valid[keep])

@@ -217,7 +217,7 @@ def _one_line(path: str | Path, message: Any) -> str:
 def estimate_log(path: str | Path, *, format: str | None = None, method: str = "auto",
                  extrinsic: Any = None, rate: float | None = None, Q: Any = None, R: Any = None,
                  progress: bool = False, speed: Any = "auto", camera: Any = None, bev: Any = None,
-                 **reader_options: Any) -> EstimateResult:
+                 recalibrate_online: bool = False, **reader_options: Any) -> EstimateResult:
     """Per-frame ground normals of one log: what ``imu-ground estimate`` computes.
 
     Parameters
@@ -263,6 +263,9 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
         Bird's-eye grid ``X0 X1 Y0 Y1 RES`` (m: ahead, left, metres a pixel), with a
         camera: ``meta["bev"]`` (the :class:`~imu_ground.perception.BevGrid`); the
         output table gains the homographies (:mod:`imu_ground.pipeline.planes`).
+    recalibrate_online : bool
+        Re-estimate the mount when the mount monitor sees it move (the ``suspension`` method, frames
+        with a measured speed; :mod:`imu_ground.filters.recalibration`).
     **reader_options
         Entries of :data:`imu_ground.datasets.options.READER_OPTIONS`
         (``policy``, ``nonfinite``, ``gyro_unit``, ...), passed to the reader
@@ -289,6 +292,8 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
                       "Q": Q, "R": R, **reader_kw}
     settings["options"] = requested_options(method=method, rate=rate, extrinsic=extrinsic, Q=Q, R=R, speed=speed,
                                             **reader_kw)
+    if recalibrate_online:
+        settings["recalibrate_online"] = settings["options"]["recalibrate_online"] = True
     bar = _steps(progress)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -301,10 +306,14 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
         if (Q is not None or R is not None) and name not in ("filter", "paper"):
             raise OptionError(f"{{opt}} sets the noise of the filter and paper methods; method {name} does not "
                               "use it (add --method filter, or leave it out)", "Q" if Q is not None else "R")
+        if recalibrate_online and name != "suspension":
+            raise OptionError(f"{path}: {{opt}} re-estimates the mount, frame by frame, when the streaming suspension "
+                              f"method's mount monitor sees it move; method {name} cannot (use --method suspension, "
+                              "or leave it out)", "recalibrate_online")
         frame_speeds, speed_info = _frame_speeds(speed, path, info.get("format"), imu if kind == "imu" else None,
                                                  em, name)
         ext = Extrinsic.coerce(extrinsic)
-        track = _run_method(name, em, ext, Q, R, frame_speeds)
+        track = _run_method(name, em, ext, Q, R, frame_speeds, recalibrate_online)
         bar.update()
     bar.close()
     messages = list(dict.fromkeys(_one_line(path, w.message) for w in caught))
@@ -427,12 +436,15 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
     return v, f"{what} ({int(np.isfinite(v).sum())} of {len(v)} frames)"
 
 
-def _run_method(name: str, em, ext, Q, R, speed=None):
-    """Run method ``name`` of the registry over the ego-motion (noise options and speed only when given)."""
+def _run_method(name: str, em, ext, Q, R, speed=None, recalibrate_online: bool = False):
+    """Run method ``name`` of the registry over the ego-motion (noise options, speed and the online mount
+    re-estimation only when given)."""
     if name == NAIVE:
         return _constant_normal_track(em, ext)
     spec = METHODS[name]
     noise = {k: v for k, v in (("Q", Q), ("R", R)) if v is not None}
+    if recalibrate_online:
+        noise["recalibrate_online"] = True
     extra = {} if speed is None else {"speed": speed}
     return spec.make(extrinsic=ext, **noise).run(em, smooth=bool(spec.smooth), **extra)
 
