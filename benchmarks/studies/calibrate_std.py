@@ -2,6 +2,7 @@
 
     python benchmarks/studies/calibrate_std.py                 # the shipped fit: synthetic (seed 0) + both revisit drives
     python benchmarks/studies/calibrate_std.py --holdout       # also: fit on one revisit drive, check on the other
+                                                               # (rows(): the same, for make_results.py / RESULTS.md)
 
 The suspension filter's model, per angle, ``sigma^2 = c_a^2 a + (g_x u_x)^2 + (g_y u_y)^2 + (h w)^2 + f^2
 + sigma_b^2`` (``w`` the yaw rate), is fitted by minimising
@@ -171,6 +172,33 @@ def describe(m: AngleStd) -> str:
             f"{m.floor / DEG:.3g} * DEG, {m.turn / DEG:.3g} * DEG)")
 
 
+def rows(n: int = 10, seed: int = 0, weight: float = 1.0, holdout: bool = True) -> list[dict]:
+    """The fits (shipped: synthetic + every revisit drive; with ``holdout`` also each revisit drive alone)
+    with their fit-set coverage per grade and their revisit z RMS on every drive (held out or not)."""
+    drives = synthetic_drives(n, seed=seed, progress=False)
+    names = [nm for nm in REVISIT_DRIVES if (DATA / f"{nm}.csv.gz").is_file()]
+    rev = {(nm, s): revisit_components(nm, s) for nm in names for s in ("none", "auto")}
+    c = components(drives, "suspension")
+    grades = sorted(set(c["grade"]))
+    out = []
+    for label, fit_on in [("synthetic + all revisit drives (shipped)", names)] + (
+            [(f"synthetic + only {nm}", [nm]) for nm in names] if holdout and len(names) > 1 else []):
+        for angle in ("pitch", "roll"):
+            m = fit(c, angle, [r for k, r in rev.items() if k[0] in fit_on], weight)
+            row = {"method": "suspension", "fitted on": f"seed {seed}, {label}", "angle": angle, "constants": describe(m)}
+            row.update({f"fit-set {g} % within 1 sigma": 100 * coverage(m, c, angle, g) for g in grades})
+            row["revisit drives held out"] = ", ".join(nm for nm in names if nm not in fit_on) or "none"
+            row.update({f"z RMS {nm}, --speed {s}": revisit_z_rms(m, r, angle) for (nm, s), r in rev.items()})
+            out.append(row)
+    cf = components(drives, "filter")
+    for angle in ("pitch", "roll"):
+        m = fit_constant(cf, angle)
+        row = {"method": "filter", "fitted on": f"seed {seed}, synthetic", "angle": angle, "constants": describe(m)}
+        row.update({f"fit-set {g} % within 1 sigma": 100 * coverage(m, cf, angle, g) for g in grades})
+        out.append(row)
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("-n", type=int, default=10, help="synthetic drives a grade")
@@ -178,24 +206,9 @@ def main() -> None:
     ap.add_argument("--weight", type=float, default=1.0, help="weight of each revisit drive's log(z RMS)^2")
     ap.add_argument("--holdout", action="store_true", help="also fit on each revisit drive alone and check the other")
     a = ap.parse_args()
-    drives = synthetic_drives(a.n, seed=a.seed, progress=False)
-    names = [n for n in REVISIT_DRIVES if (DATA / f"{n}.csv.gz").is_file()]
-    rev = {(n, s): revisit_components(n, s) for n in names for s in ("none", "auto")}
-    c = components(drives, "suspension")
-    fits = [("all revisit drives", names)] + ([(f"only {n}", [n]) for n in names] if a.holdout else [])
-    for label, fit_on in fits:
-        print(f"-- suspension, fitted on synthetic seed {a.seed} + {label}")
-        for angle in ("pitch", "roll"):
-            m = fit(c, angle, [r for k, r in rev.items() if k[0] in fit_on], a.weight)
-            cov = ", ".join(f"{g} {100 * coverage(m, c, angle, g):.1f} %" for g in sorted(set(c["grade"])))
-            z = ", ".join(f"{n[-4:]}/{s} {revisit_z_rms(m, r, angle):.2f}" + ("" if n in fit_on else " (held out)")
-                          for (n, s), r in rev.items())
-            print(f"suspension {angle}: {describe(m)}\n    fit-set coverage {cov}; revisit z RMS {z}")
-    cf = components(drives, "filter")
-    for angle in ("pitch", "roll"):
-        m = fit_constant(cf, angle)
-        cov = ", ".join(f"{g} {100 * coverage(m, cf, angle, g):.1f} %" for g in sorted(set(cf["grade"])))
-        print(f"filter {angle}: AngleStd(0.0, 0.0, 0.0, {m.floor / DEG:.3g} * DEG); fit-set coverage {cov}")
+    for r in rows(a.n, a.seed, a.weight, a.holdout):
+        print(f"{r['method']} {r['angle']} ({r['fitted on']}): {r['constants']}")
+        print("    " + "; ".join(f"{k} {v:.2f}" for k, v in r.items() if isinstance(v, float)))
 
 
 if __name__ == "__main__":
