@@ -11,11 +11,11 @@ from imu_ground.evaluation.drives import synthetic_drive
 from imu_ground.evaluation.simulate import simulate
 from imu_ground.filters.ground import GroundNormalFilter
 from imu_ground.filters.road import NO_SPEED_REASON, road_angles, road_angles_one
-from imu_ground.filters.status import (CONVERGED_STD, CONVERGING, GAP, INVALID, OK, STANDSTILL, STATUSES,
-                                       track_statuses)
+from imu_ground.filters.status import (CONVERGED_STD, CONVERGING, GAP, INVALID, OK, SLOW_REASON, SLOW_SPEED,
+                                       STANDSTILL, STATUSES, SUSPENSION_STD, AngleStd, track_statuses)
 from imu_ground.filters.suspension import SuspensionAwareFilter
 from imu_ground.pipeline.output import COLUMNS, UNITS, result_table, track_table, write_output
-from imu_ground.so3 import rotx, roty
+from imu_ground.so3 import heading_change, rotx, roty
 from imu_ground.units import DEG
 
 
@@ -32,27 +32,64 @@ def _truth_speed(d):
     return st.iloc[idx].reset_index(drop=True)
 
 
-def test_one_sigma_is_calibrated_on_synthetic_drives(drives):
-    """55-80 % of moving frames within 1 sigma, pitch and roll (drives other than those of the fit)."""
-    for make in (SuspensionAwareFilter, GroundNormalFilter):
+@pytest.fixture(scope="module")
+def checked_suite():
+    """The suite the published 1-sigma check uses (seed 1, 10 drives a grade): not the fit's (seed 0)."""
+    from imu_ground.evaluation.drives import synthetic_drives
+    return synthetic_drives(10, seed=1, progress=False)
+
+
+@pytest.mark.parametrize("make", [SuspensionAwareFilter, GroundNormalFilter])
+def test_one_sigma_is_calibrated_on_synthetic_drives(checked_suite, make):
+    """55-80 % of moving frames within 1 sigma, pitch and roll, for each IMU grade (drives other than the fit's)."""
+    for grade in ("nav", "mems"):
         hits = {"pitch": [], "roll": []}
-        for d in drives:
+        for d in (d for d in checked_suite if d.grade == grade):
             tr = make(extrinsic=d.extrinsic).run(d.egomotion)
             ev = d.truth["evaluate"].to_numpy(bool)
             for a in hits:
                 hits[a].append((np.abs(getattr(tr, a) - d.truth[a].to_numpy()) <= getattr(tr, f"{a}_std"))[ev])
         for a, h in hits.items():
             share = np.concatenate(h).mean()
-            assert 0.55 <= share <= 0.80, (make.__name__, a, share)
+            assert 0.55 <= share <= 0.80, (make.__name__, grade, a, share)
 
 
-def test_one_sigma_follows_the_covariance_and_the_load():
-    f = SuspensionAwareFilter()
-    pm, rm = (f_ for f_ in __import__("imu_ground.filters.status", fromlist=["SUSPENSION_STD"]).SUSPENSION_STD)
-    assert pm.variance(1e-6) < pm.variance(4e-6)
-    assert rm.variance(1e-6, 0.0, 2.0) > rm.variance(1e-6, 0.0, 0.0)
-    np.testing.assert_allclose(rm.variance(np.array([1e-6, 2e-6]), 0.0, 1.0),
-                               [rm.variance(1e-6, 0.0, 1.0), rm.variance(2e-6, 0.0, 1.0)])
+def test_one_sigma_follows_the_covariance_the_load_and_the_turn():
+    m = AngleStd(0.5, 0.01 * DEG, 0.05 * DEG, 0.05 * DEG, 1.5 * DEG)
+    assert m.variance(1e-6) < m.variance(4e-6)
+    assert m.variance(1e-6, 0.0, 2.0) > m.variance(1e-6, 0.0, 0.0)
+    assert m.variance(1e-6, yaw_rate=0.3) == pytest.approx(m.variance(1e-6) + (1.5 * DEG * 0.3) ** 2, rel=1e-12)
+    np.testing.assert_allclose(m.variance(np.array([1e-6, 2e-6]), 0.0, 1.0, 0.0, np.array([0.0, 0.2])),
+                               [m.variance(1e-6, 0.0, 1.0), m.variance(2e-6, 0.0, 1.0, 0.0, 0.2)])
+    assert SUSPENSION_STD[1].turn > 0                     # the shipped roll grows in turns
+
+
+def test_the_roll_sigma_of_a_track_grows_with_the_yaw_rate(drives):
+    """Each frame's roll 1-sigma is the model's at its own yaw rate (heading change over the frame)."""
+    d = drives[0]
+    f = SuspensionAwareFilter(extrinsic=d.extrinsic)
+    tr = f.run(d.egomotion)
+    em = d.egomotion
+    w = np.array([abs(heading_change(r, f._Rgs)) for r in em.delta_R]) / em.delta_t
+    rm = SUSPENSION_STD[1]
+    base = rm.variance(0.5 * (tr.P[:, 0, 0] + tr.P[:, 1, 1]), tr.load[:, 0], tr.load[:, 1])   # (sigma_b^2 = 0 here)
+    np.testing.assert_allclose(tr.roll_std, np.sqrt(base + (rm.turn * w) ** 2), rtol=1e-9)
+    turning, straight = w > np.quantile(w, 0.9), w < np.quantile(w, 0.5)
+    assert w.max() > 0.05 and np.median(tr.roll_std[turning]) > np.median(tr.roll_std[straight])
+
+
+def test_ok_frames_below_the_slow_speed_say_so(drives):
+    d = next(d for d in drives if d.egomotion.stationary[:5].all())        # starts at rest, then pulls away
+    sp = _truth_speed(d)["speed"].to_numpy()
+    tr = SuspensionAwareFilter(extrinsic=d.extrinsic).run(d.egomotion, speed=sp)
+    ok = tr.status == OK
+    slow = ok & (sp < SLOW_SPEED)
+    assert slow.any() and (ok & ~slow).any()
+    assert (tr.status_reason[slow] == SLOW_REASON).all()
+    assert (tr.status_reason[ok & ~slow] == "").all()
+    f = SuspensionAwareFilter(extrinsic=d.extrinsic)
+    es = [f.step(fr, speed=sp[i]) for i, fr in enumerate(d.egomotion.frames())]
+    assert [e.status_reason for e in es] == tr.status_reason.tolist()
 
 
 def _spoilt(em):
@@ -150,12 +187,14 @@ def test_no_speed_no_road_and_the_reason_says_so(drives):
     tr = SuspensionAwareFilter(extrinsic=d.extrinsic).run(d.egomotion)
     assert np.isnan(tr.road_grade).all() and np.isnan(tr.road_bank_std).all()
     ok = tr.status == OK
-    assert set(tr.status_reason[ok]) == {NO_SPEED_REASON}
+    assert set(tr.status_reason[ok]) == {NO_SPEED_REASON, f"{SLOW_REASON}; {NO_SPEED_REASON}"}
+    assert (np.char.startswith(tr.status_reason[ok].astype(str), SLOW_REASON) == (tr.speed[ok] < SLOW_SPEED)).all()
     sp = _truth_speed(d)["speed"].to_numpy().copy()
     sp[:50] = np.nan                                     # the road starts at the first speed
     tr = SuspensionAwareFilter(extrinsic=d.extrinsic).run(d.egomotion, speed=sp)
     assert np.isnan(tr.road_grade[:50]).all() and np.isfinite(tr.road_grade[50:]).all()
-    assert (tr.status_reason[50:][tr.status[50:] == OK] == "").all()
+    ok = tr.status[50:] == OK
+    assert (tr.status_reason[50:][ok] == np.where(sp[50:][ok] < SLOW_SPEED, SLOW_REASON, "")).all()
     f = SuspensionAwareFilter(extrinsic=d.extrinsic)
     es = [f.step(fr, speed=sp[i]) for i, fr in enumerate(d.egomotion.frames())]
     np.testing.assert_allclose([e.road_grade for e in es], tr.road_grade, rtol=0, atol=1e-12)
@@ -263,3 +302,31 @@ def test_no_mount_alarm_on_the_revisit_drives(shared_data, kitti_index):
             tr = estimate_log(shared_data / "kitti_imu100" / f"{name}.csv.gz", speed="auto").track
         assert np.isfinite(tr.road_grade).mean() > 0.9
         assert not (tr.status == DEGRADED).any(), name
+
+
+def test_one_sigma_at_the_revisit_pairs(shared_data, kitti_index):
+    """RMS of difference / sqrt(s1^2 + s2^2) of the road attitude between two passes: in 0.8-1.25 on the drive
+    whose roll differences sit in turns (IMU only and --speed auto); never over-confident (<= 1.25) on the other,
+    where the 1-sigma is still about twice too wide (benchmarks/RESULTS.md)."""
+    import warnings
+
+    from imu_ground.evaluation.revisit import RevisitPairs, ins_at_frames, revisit_differences, revisit_pairs
+    from imu_ground.pipeline import estimate_log
+    for name, lo in (("2011_10_03_drive_0034", 0.8), ("2011_09_30_drive_0020", 0.0)):
+        if name not in set(kitti_index["drive"]):
+            continue
+        path = shared_data / "kitti_imu100" / f"{name}.csv.gz"
+        for speed in ("none", "auto"):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                res = estimate_log(path, speed=speed)
+            tr, em = res.track, res.egomotion
+            ins = ins_at_frames(pd.read_csv(path), em.t)
+            i, j = revisit_pairs(em.t, ins["x"], ins["y"], ins["yaw"], ins["speed"], em.valid & ins["near"])
+            assert len(i) > 150, (name, len(i))
+            rp = RevisitPairs(i, j, ins["pitch"], ins["roll"])
+            dp, dr = revisit_differences(rp, tr.pitch, tr.roll)
+            for a, d in (("pitch", dp), ("roll", dr)):
+                s = getattr(tr, f"{a}_std")
+                z = math.sqrt(np.mean(d * d / (s[i] ** 2 + s[j] ** 2)))
+                assert lo <= z <= 1.25, (name, speed, a, z)

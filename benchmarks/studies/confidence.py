@@ -10,8 +10,9 @@ Rows (``rows()``):
   (first frame whose status is not ``converging``) and the share of the truth's stationary frames
   whose status is ``standstill`` (target >= 90 %).
 - **1-sigma on the revisit drives**: where a real drive passes the same place twice
-  (:func:`revisit_pairs`: 10 Hz samples above 3 m/s, positions within 1 m, headings within 15 deg,
-  at least 30 s apart, each sample with its closest partner), the road's attitude
+  (the evaluation's pairing, :func:`imu_ground.evaluation.revisit.revisit_pairs`: valid 10 Hz frames
+  above 3 m/s, positions within 1 m, headings within 15 deg, at least 30 s apart, each frame with its
+  closest partner, each pair once), the road's attitude
   ``INS angle - estimated angle`` must repeat; RMS of ``difference / sqrt(sigma_1^2 + sigma_2^2)``
   (target 0.8-1.25).
 - **Road grade and bank**: synthetic navigation-grade drives with the true speed, mean absolute error
@@ -25,7 +26,7 @@ Rows (``rows()``):
   normal (pitch, roll; each drive's mean over the moving frames after the re-estimation, against the
   remounted truth), with and without the flag; re-estimations on the shared drives.
 
-The revisit pairing lives here (one place) for these checks. Rows are long-format: ``check``,
+Rows are long-format: ``check``,
 ``scope`` (method, IMU grade or drive), ``quantity``, ``figure``, ``target``, ``passed``.
 """
 from __future__ import annotations
@@ -44,53 +45,17 @@ DEG = math.pi / 180.0
 
 
 # ----------------------------------------------------------------------------- revisit pairs
-def revisit_pairs(t: np.ndarray, pos: np.ndarray, heading: np.ndarray, speed: np.ndarray, radius: float = 1.0,
-                  max_heading_deg: float = 15.0, min_apart_s: float = 30.0, min_speed: float = 3.0) -> np.ndarray:
-    """Pairs ``(i, j)`` of samples where a drive passes the same place twice in the same direction.
-
-    Parameters
-    ----------
-    t : ndarray (N,)
-        Sample times, s (10 Hz frames).
-    pos : ndarray (N, 2)
-        Horizontal positions, m.
-    heading : ndarray (N,)
-        Yaw, rad.
-    speed : ndarray (N,)
-        m/s.
-
-    Returns
-    -------
-    ndarray (P, 2) of int
-        Each sample above ``min_speed`` with its closest partner within ``radius`` whose heading
-        is within ``max_heading_deg`` and time at least ``min_apart_s`` away (one row per sample that
-        has one; ``i < j`` not required).
-    """
-    from scipy.spatial import cKDTree
-    ok = np.flatnonzero(speed > min_speed)
-    if not len(ok):
-        return np.zeros((0, 2), dtype=int)
-    tree = cKDTree(pos[ok])
-    out = []
-    for a, nb in zip(ok, tree.query_ball_point(pos[ok], radius)):
-        cand = ok[nb]
-        dh = np.abs((heading[cand] - heading[a] + np.pi) % (2 * np.pi) - np.pi)
-        cand = cand[(np.abs(t[cand] - t[a]) >= min_apart_s) & (dh <= max_heading_deg * DEG)]
-        if len(cand):
-            out.append((a, cand[np.argmin(np.linalg.norm(pos[cand] - pos[a], axis=1))]))
-    return np.array(out, dtype=int).reshape(-1, 2)
-
-
-def _ins_at(path: Path, t: np.ndarray) -> dict:
+def revisit_of(path: Path, res):
+    """The revisit pairs of a real drive's estimate (``estimate_log``'s result), by the evaluation's pairing
+    (:func:`imu_ground.evaluation.revisit.revisit_pairs`: valid frames near a log sample)."""
     import pandas as pd
-    df = pd.read_csv(path)
-    out = {}
-    for c in ("roll", "pitch", "px", "py", "ve", "vn"):
-        out[c] = np.interp(t, df["t"].to_numpy(), df[c].to_numpy())
-    yaw = np.unwrap(df["yaw"].to_numpy())
-    out["yaw"] = np.interp(t, df["t"].to_numpy(), yaw)
-    out["speed"] = np.hypot(out["ve"], out["vn"])
-    return out
+
+    from imu_ground.evaluation.revisit import RevisitPairs, ins_at_frames, revisit_pairs
+    em = res.egomotion
+    ins = ins_at_frames(pd.read_csv(path), em.t)
+    usable = np.asarray(em.valid, dtype=bool) & ins["near"]
+    i, j = revisit_pairs(em.t, ins["x"], ins["y"], ins["yaw"], ins["speed"], usable)
+    return RevisitPairs(i, j, ins["pitch"], ins["roll"])
 
 
 def revisit_rows(data: Path = DATA) -> list[dict]:
@@ -106,12 +71,10 @@ def revisit_rows(data: Path = DATA) -> list[dict]:
                 warnings.simplefilter("ignore")             # (the readers' notes on the KITTI timestamps)
                 res = estimate_log(path, speed=speed)
             tr = res.track
-            ins = _ins_at(path, tr.t)
-            pairs = revisit_pairs(tr.t, np.column_stack([ins["px"], ins["py"]]), ins["yaw"], ins["speed"])
-            pairs = pairs[pairs[:, 0] < pairs[:, 1]]          # each pass-1 sample with its closest pass-2 partner
-            i, j = pairs[:, 0], pairs[:, 1]
-            row = {"drive": name, "speed": speed, "pairs": len(pairs)}
-            for angle, ins_angle in (("pitch", ins["pitch"]), ("roll", ins["roll"])):
+            rp = revisit_of(path, res)
+            i, j = rp.i, rp.j
+            row = {"drive": name, "speed": speed, "pairs": len(rp)}
+            for angle, ins_angle in (("pitch", rp.ins_pitch), ("roll", rp.ins_roll)):
                 road = ins_angle - getattr(tr, angle)
                 s = getattr(tr, f"{angle}_std")
                 z = (road[i] - road[j]) / np.sqrt(s[i] ** 2 + s[j] ** 2)

@@ -16,8 +16,8 @@ import numpy as np
 
 from imu_ground.filters.mount_monitor import monitor_track
 from imu_ground.filters.road import NO_SPEED_REASON, road_one
-from imu_ground.filters.status import (CONVERGED_STD, CONVERGING, DEGRADED, GAP, OK, STANDSTILL, SUSPENSION_STD,
-                                       track_reasons, track_statuses)
+from imu_ground.filters.status import (CONVERGED_STD, CONVERGING, DEGRADED, GAP, OK, SLOW_SPEED, STANDSTILL,
+                                       SUSPENSION_STD, ok_note, track_reasons, track_statuses)
 
 __all__ = ["step_confidence", "step_road_and_monitor", "suspension_confidence"]
 
@@ -56,7 +56,7 @@ def step_road_and_monitor(f, d, dv, dt: float, stationary: bool, valid: bool, sp
 
 
 def step_confidence(f, o, ux: float, uy: float, wp: float, wr: float, dt: float, stationary: bool, valid: bool,
-                    road, alarm) -> tuple:
+                    road, alarm, psi: float, speed: float) -> tuple:
     """The status code, the 1-sigma inputs and the road of one processed frame (the batch twin:
     :func:`suspension_confidence`).
 
@@ -76,6 +76,10 @@ def step_confidence(f, o, ux: float, uy: float, wp: float, wr: float, dt: float,
         The frame's flags.
     road, alarm
         :func:`step_road_and_monitor`'s outputs.
+    psi : float
+        The frame's heading change about the ground's up axis, rad.
+    speed : float
+        The estimator's speed over the frame (measured, else estimated), m/s.
 
     Returns
     -------
@@ -90,13 +94,16 @@ def step_confidence(f, o, ux: float, uy: float, wp: float, wr: float, dt: float,
     sg2 = g.item(_I_GXX) + g.item(_I_GYY) if f._garray else g[_I_GXX] + g[_I_GYY]
     if road is not None:
         road = road_one(o, *road)
-    note = None if f.recalibrator is None else f.recalibrator.note       # (after an online re-estimation)
-    info = (SUSPENSION_STD[0], SUSPENSION_STD[1], o[4], ux, uy, sg2 * wp, sg2 * wr, dt,
-            alarm if alarm is not None else note if road is not None else NO_SPEED_REASON, CONVERGED_STD)
+    yaw_rate = abs(psi) / dt
+    recal = None if f.recalibrator is None else f.recalibrator.note     # (after an online re-estimation)
+    note = alarm if alarm is not None else ok_note(abs(speed) < SLOW_SPEED,
+                                                    recal if road is not None else NO_SPEED_REASON)
+    info = (SUSPENSION_STD[0], SUSPENSION_STD[1], o[4], ux, uy, sg2 * wp, sg2 * wr, dt, note, CONVERGED_STD, yaw_rate)
     code = OK
     if not f._converged:
         pm, rm = SUSPENSION_STD
-        if max(pm.variance(o[4], ux, uy, info[5]), rm.variance(o[4], ux, uy, info[6])) <= _CONVERGED_VAR:
+        if max(pm.variance(o[4], ux, uy, info[5], yaw_rate), rm.variance(o[4], ux, uy, info[6], yaw_rate)) \
+                <= _CONVERGED_VAR:
             f._converged = True
         else:
             code = CONVERGING
@@ -110,7 +117,8 @@ def step_confidence(f, o, ux: float, uy: float, wp: float, wr: float, dt: float,
 
 
 def suspension_confidence(f, em, sub, good: np.ndarray, a: np.ndarray, load: np.ndarray, gains: np.ndarray,
-                          gravity_cov: np.ndarray, E: np.ndarray, speed: Optional[np.ndarray]) -> dict:
+                          gravity_cov: np.ndarray, E: np.ndarray, speed: Optional[np.ndarray], yaw_rate: np.ndarray,
+                          speed_used: np.ndarray) -> dict:
     """The fields of a :class:`~imu_ground.filters.suspension.SuspensionTrack` that say how sure it is.
 
     Parameters
@@ -131,6 +139,10 @@ def suspension_confidence(f, em, sub, good: np.ndarray, a: np.ndarray, load: np.
         The residuals road <- body.
     speed : ndarray (G,) or None
         Measured speed per good frame, m/s.
+    yaw_rate : ndarray (G,)
+        Heading change over frame duration per good frame, rad/s (signed).
+    speed_used : ndarray (G,)
+        The estimator's speed per good frame (measured, else estimated), m/s.
 
     Returns
     -------
@@ -141,8 +153,9 @@ def suspension_confidence(f, em, sub, good: np.ndarray, a: np.ndarray, load: np.
     n, m = len(good), len(sub)
     sg2 = (1.0 - f.load_share) ** 2 * 0.5 * (gravity_cov[:, 3, 3] + gravity_cov[:, 4, 4])
     pm, rm = SUSPENSION_STD
-    var = np.stack([pm.variance(a, load[:, 0], load[:, 1], sg2 * (gains[:, 0] ** 2 + f.cross_gain ** 2)),
-                    rm.variance(a, load[:, 0], load[:, 1], sg2 * gains[:, 1] ** 2)], axis=1)
+    w = np.abs(yaw_rate)
+    var = np.stack([pm.variance(a, load[:, 0], load[:, 1], sg2 * (gains[:, 0] ** 2 + f.cross_gain ** 2), w),
+                    rm.variance(a, load[:, 0], load[:, 1], sg2 * gains[:, 1] ** 2, w)], axis=1)
     var_max = np.full(n, np.inf)
     std = np.full((n, 2), np.nan)                   # (a skipped frame has none, as in step)
     var_max[good], std[good] = var.max(axis=1), np.sqrt(var)
@@ -158,7 +171,11 @@ def suspension_confidence(f, em, sub, good: np.ndarray, a: np.ndarray, load: np.
     degraded = np.zeros(n, dtype=bool)
     degraded[good] = monitor_track(mm, times, rg, np.asarray(sub.valid, dtype=bool) & np.isfinite(sp))
     codes, f._converged = track_statuses(var_max, em.stationary, em.valid, good, f._converged, degraded)
-    details = np.where(degraded, mm.alarm, np.where(np.isnan(road[:, 0]), NO_SPEED_REASON, None))
+    slow = np.zeros(n, dtype=bool)
+    slow[good] = np.abs(speed_used) < SLOW_SPEED
+    no_road = np.isnan(road[:, 0])
+    notes = np.array([ok_note(s_, r_) for s_ in (False, True) for r_ in (None, NO_SPEED_REASON)], dtype=object)
+    details = np.where(degraded, mm.alarm, notes[2 * slow + no_road])
     reasons = track_reasons(codes, np.sqrt(var_max), em.delta_t,
                             np.where((codes == OK) | (codes == DEGRADED), details, None))
     return dict(pitch_std=std[:, 0], roll_std=std[:, 1], status=codes, status_reason=reasons, road_grade=road[:, 0],

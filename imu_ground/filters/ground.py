@@ -247,7 +247,7 @@ class GroundNormalFilter:
         if not getattr(frame, "valid", True):
             code = GAP
         return GroundEstimate(pitch, roll, True, q, E, self._Rgs, P, code,
-                              (pm, rm, a, 0.0, 0.0, 0.0, 0.0, dt, NO_ROAD_REASON, FILTER_CONVERGED_STD))
+                              (pm, rm, a, 0.0, 0.0, 0.0, 0.0, dt, NO_ROAD_REASON, FILTER_CONVERGED_STD, 0.0))
 
     # -- batch -----------------------------------------------------------------------------------
     def run(self, egomotion, smooth: bool = False) -> GroundTrack:

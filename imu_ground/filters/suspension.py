@@ -394,7 +394,8 @@ class SuspensionAwareFilter:
         q = ((self.q_time + self.q_dist * abs(speed)) * dt + self.q_turn * abs(psi)) * self._r   # |v|: either way
         self._q_last = q
         o = self._kstep(self._kbuf, d, q, self.q_yaw, tilt_x, tilt_y, None, 1.0)
-        code, info, road = step_confidence(self, o, ux, uy, wp, wr, dt, bool(stationary), bool(valid), road, alarm)
+        code, info, road = step_confidence(self, o, ux, uy, wp, wr, dt, bool(stationary), bool(valid), road, alarm,
+                                           psi, speed)
         return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o, code, info, road)
 
     # -- batch -----------------------------------------------------------------------------------
@@ -471,7 +472,7 @@ class SuspensionAwareFilter:
             E = np.swapaxes(Xs, 1, 2) @ cum
         held = {name: hold_skipped(v, good, start[name]) for name, v in
                 dict(E=E, P=Ps, cum=cum, load=u, speed=gt.speed, gains=ks, gravity=gt.gravity).items()}
-        extra = suspension_confidence(self, em, sub, good, Ps[:, 0, 0], u, ks, gt.P, E, speed)
+        extra = suspension_confidence(self, em, sub, good, Ps[:, 0, 0], u, ks, gt.P, E, speed, psi / dt, gt.speed)
         susp_all = self.model.tilt(held["gains"], held["load"])
         cum_all = held["cum"]
         return SuspensionTrack.from_residuals(
