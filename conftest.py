@@ -103,3 +103,15 @@ def speed_drive():
         v = frame_speed(tr["t"].to_numpy(), tr["speed"].to_numpy(), em.t, em.delta_t)
         return em, Extrinsic(sim.R_gs), v
     return make
+
+
+@pytest.fixture(scope="session")
+def with_true_speed():
+    """``with_true_speed(sim) -> (Drive, speed)``: the evaluation's drive of a simulation and its true
+    speed per frame (m/s), what the speed-aided and mount-change tests feed the filters."""
+    from imu_ground.evaluation.drives import synthetic_drive
+
+    def make(sim):
+        d = synthetic_drive(sim)
+        return d, d.truth["speed"].to_numpy()
+    return make

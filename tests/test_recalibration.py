@@ -13,7 +13,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from imu_ground.evaluation.drives import synthetic_drive
 from imu_ground.evaluation.simulate import remounted, simulate
 from imu_ground.filters.estimator import pitch_roll_from_normal
 from imu_ground.filters.recalibration import WINDOW
@@ -26,18 +25,11 @@ AT = 120.0
 EXAMPLE = Path(__file__).resolve().parents[1] / "datasets" / "fixtures" / "example_drive.csv"
 
 
-def _with_speed(sim):
-    d = synthetic_drive(sim)
-    st = sim.truth
-    idx = np.clip(np.searchsorted(st["t"].to_numpy(), d.egomotion.t - 1e-6), 0, len(st) - 1)
-    return d, st["speed"].to_numpy()[idx]
-
-
 @pytest.fixture(scope="module")
-def remount():
+def remount(with_true_speed):
     """A synthetic navigation-grade drive whose sensor turns by 1 deg in pitch and 0.5 deg in roll at 120 s."""
     sim = simulate(duration=240.0, seed=2, imu="nav")
-    return _with_speed(remounted(sim, AT, rotx(0.5 * DEG) @ roty(1.0 * DEG)))
+    return with_true_speed(remounted(sim, AT, rotx(0.5 * DEG) @ roty(1.0 * DEG)))
 
 
 def _normal_error(d, tr) -> np.ndarray:
@@ -99,8 +91,8 @@ def test_stream_equals_batch_and_a_warm_start_resumes_across_the_re_estimation(r
         SuspensionAwareFilter(extrinsic=d.extrinsic).load_state_dict(a.state_dict())
 
 
-def test_the_flag_changes_nothing_without_an_alarm():
-    d, sp = _with_speed(simulate(duration=240.0, seed=2, imu="nav"))
+def test_the_flag_changes_nothing_without_an_alarm(with_true_speed):
+    d, sp = with_true_speed(simulate(duration=240.0, seed=2, imu="nav"))
     plain = SuspensionAwareFilter(extrinsic=d.extrinsic).run(d.egomotion, speed=sp)
     f = SuspensionAwareFilter(extrinsic=d.extrinsic, recalibrate_online=True)
     tr = f.run(d.egomotion, speed=sp)

@@ -80,7 +80,7 @@ def test_the_roll_sigma_of_a_track_grows_with_the_yaw_rate(drives):
 
 def test_ok_frames_below_the_slow_speed_say_so(drives):
     d = next(d for d in drives if d.egomotion.stationary[:5].all())        # starts at rest, then pulls away
-    sp = _truth_speed(d)["speed"].to_numpy()
+    sp = d.truth["speed"].to_numpy()
     tr = SuspensionAwareFilter(extrinsic=d.extrinsic).run(d.egomotion, speed=sp)
     ok = tr.status == OK
     slow = ok & (sp < SLOW_SPEED)
@@ -189,7 +189,7 @@ def test_no_speed_no_road_and_the_reason_says_so(drives):
     ok = tr.status == OK
     assert set(tr.status_reason[ok]) == {NO_SPEED_REASON, f"{SLOW_REASON}; {NO_SPEED_REASON}"}
     assert (np.char.startswith(tr.status_reason[ok].astype(str), SLOW_REASON) == (tr.speed[ok] < SLOW_SPEED)).all()
-    sp = _truth_speed(d)["speed"].to_numpy().copy()
+    sp = d.truth["speed"].to_numpy().copy()
     sp[:50] = np.nan                                     # the road starts at the first speed
     tr = SuspensionAwareFilter(extrinsic=d.extrinsic).run(d.egomotion, speed=sp)
     assert np.isnan(tr.road_grade[:50]).all() and np.isfinite(tr.road_grade[50:]).all()
@@ -205,7 +205,7 @@ def test_no_speed_no_road_and_the_reason_says_so(drives):
 def test_every_column_is_documented_and_written(tmp_path, drives):
     d = drives[0]
     from imu_ground.pipeline.estimate import EstimateResult
-    tr = SuspensionAwareFilter(extrinsic=d.extrinsic).run(d.egomotion, speed=_truth_speed(d)["speed"].to_numpy())
+    tr = SuspensionAwareFilter(extrinsic=d.extrinsic).run(d.egomotion, speed=d.truth["speed"].to_numpy())
     res = EstimateResult(tr, d.egomotion, {"format": "sim", "method": "suspension", "settings": {}})
     table = result_table(res)
     assert tuple(table.columns) == COLUMNS and set(UNITS) == set(COLUMNS)
@@ -227,7 +227,7 @@ def test_ros_output_has_the_std_road_and_status_topics(tmp_path, drives):
 
     from imu_ground.pipeline.ros_output import write_ros_output
     d = drives[0]
-    sp = _truth_speed(d)["speed"].to_numpy()
+    sp = d.truth["speed"].to_numpy()
     tr = SuspensionAwareFilter(extrinsic=d.extrinsic).run(d.egomotion, speed=sp)
     table = track_table(tr)
     counts = write_ros_output(tmp_path / "g.mcap", table)
@@ -243,18 +243,11 @@ def test_ros_output_has_the_std_road_and_status_topics(tmp_path, drives):
 
 
 # ------------------------------------------------------------------------------------------ mount changes
-def _with_speed(sim):
-    d = synthetic_drive(sim)
-    st = sim.truth
-    idx = np.clip(np.searchsorted(st["t"].to_numpy(), d.egomotion.t - 1e-6), 0, len(st) - 1)
-    return d, st["speed"].to_numpy()[idx]
-
-
 @pytest.fixture(scope="module")
-def remount_pair():
+def remount_pair(with_true_speed):
     from imu_ground.evaluation.simulate import remounted
     sim = simulate(duration=240.0, seed=0, imu="nav")
-    return _with_speed(sim), _with_speed(remounted(sim, 120.0, roty(1.0 * DEG)))
+    return with_true_speed(sim), with_true_speed(remounted(sim, 120.0, roty(1.0 * DEG)))
 
 
 def test_a_sensor_turned_by_1_deg_is_flagged_degraded_within_20_s(remount_pair):
