@@ -35,9 +35,8 @@ from .report import ImuValidationWarning, MalformedFileError, warn_user
 from .skeleton import finish, register_format, with_finish_parameters
 from .unit_checks import (
     UNIT_OPTIONS,
-    detect_accel_unit,
-    detect_gyro_unit,
     detect_time_unit,
+    motion_in_si,
     raw_times,
     settle_unit,
     unit_scale,
@@ -158,12 +157,7 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
     gyro, accel = (cols.pop(k) if k in cols else np.column_stack([numeric(cols.pop(c), c, path, lines) for c in m])
                    for k, m in _STACKS.items())
     t_unit = settle_unit("time", time_unit, detect_time_unit, tval, str(path), "t")
-    g_unit = settle_unit("gyro", gyro_unit, detect_gyro_unit, gyro, str(path))
-    a_unit = settle_unit("accel", accel_unit, detect_accel_unit, accel, str(path))
-    if g_unit != "rad/s":
-        gyro = gyro * unit_scale("gyro", g_unit)
-    if a_unit not in ("m/s^2", "m/s2"):
-        accel = accel * unit_scale("accel", a_unit)
+    gyro, accel, g_unit, a_unit = motion_in_si(gyro, accel, gyro_unit, accel_unit, str(path))
     n = tval.size
     drive = drive_name(path)
     first = tval[0] if tval.dtype.kind == "i" or np.isfinite(tval[0]) else 0

@@ -32,9 +32,8 @@ from .unit_checks import (
     GYRO_UNITS,
     TIME_UNITS,
     UNIT_OPTIONS,
-    detect_accel_unit,
-    detect_gyro_unit,
     detect_time_unit,
+    motion_in_si,
     raw_times,
     settle_unit,
     unit_scale,
@@ -138,13 +137,8 @@ def map_columns(cols: Mapping[str, np.ndarray], *, time: str = "t",
     w = np.column_stack([numeric(np.asarray(cols[c]), c, source, row_lines) for c in gyro])
     a = np.column_stack([numeric(np.asarray(cols[c]), c, source, row_lines) for c in accel])
     t_unit = forced or settle_unit("time", time_unit, detect_time_unit, tval, source, time)
-    g_unit = settle_unit("gyro", gyro_unit, detect_gyro_unit, w, source)
-    a_unit = settle_unit("accel", accel_unit, detect_accel_unit, a, source)
+    w, a, g_unit, a_unit = motion_in_si(w, a, gyro_unit, accel_unit, source)
     t_scale = unit_scale("time", t_unit)
-    if GYRO_UNITS[g_unit] != 1.0:
-        w *= GYRO_UNITS[g_unit]
-    if ACCEL_UNITS[a_unit] != 1.0:
-        a *= ACCEL_UNITS[a_unit]
     first = tval[0]
     if relative_time and (tval.dtype.kind == "i" or np.isfinite(first)):
         t, t0 = (tval - first).astype(float) * t_scale, float(first) * t_scale

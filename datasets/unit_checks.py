@@ -39,6 +39,7 @@ __all__ = [
     "detect_accel_unit",
     "detect_gyro_unit",
     "detect_time_unit",
+    "motion_in_si",
     "raw_times",
     "settle_unit",
     "unit_scale",
@@ -108,6 +109,35 @@ def settle_unit(kind: str, given: str | None, detect: Callable, values: np.ndarr
     if note:
         warn_user(note, UnitsWarning, _OPTION[kind], unit)
     return unit
+
+
+def motion_in_si(gyro: np.ndarray, accel: np.ndarray, gyro_unit: str | None, accel_unit: str | None,
+                 source: str) -> tuple[np.ndarray, np.ndarray, str, str]:
+    """Angular rate and specific force converted to rad/s and m/s^2.
+
+    Each unit is the one given (checked) or the one told from the data, with one warning when it
+    converts (:func:`settle_unit`).
+
+    Parameters
+    ----------
+    gyro, accel : ndarray (N, 3)
+        Angular rate and specific force as read, body frame.
+    gyro_unit, accel_unit : str or None
+        The units given (None: told from the data).
+    source : str
+        The file, named in messages.
+
+    Returns
+    -------
+    gyro, accel : ndarray (N, 3)
+        In rad/s and m/s^2 (the arrays given when already so, new ones when converted).
+    gyro_unit, accel_unit : str
+        The units they were in.
+    """
+    g_unit = settle_unit("gyro", gyro_unit, detect_gyro_unit, gyro, source)
+    a_unit = settle_unit("accel", accel_unit, detect_accel_unit, accel, source)
+    g, a = unit_scale("gyro", g_unit), unit_scale("accel", a_unit)
+    return (gyro if g == 1.0 else gyro * g), (accel if a == 1.0 else accel * a), g_unit, a_unit
 
 
 def detect_time_unit(values: np.ndarray, source: str, column: str) -> tuple[str, str | None]:
