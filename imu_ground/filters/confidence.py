@@ -16,8 +16,8 @@ import numpy as np
 
 from imu_ground.filters.mount_monitor import monitor_track
 from imu_ground.filters.road import NO_SPEED_REASON, road_one
-from imu_ground.filters.status import (CONVERGED_STD, CONVERGING, DEGRADED, GAP, OK, SLOW_SPEED, STANDSTILL,
-                                       SUSPENSION_STD, ok_note, track_reasons, track_statuses)
+from imu_ground.filters.status import (CONVERGED_STD, DEGRADED, OK, SLOW_SPEED, SUSPENSION_STD, frame_status_code,
+                                       ok_note, track_reasons, track_statuses)
 
 __all__ = ["step_confidence", "step_road_and_monitor", "suspension_confidence"]
 
@@ -99,21 +99,11 @@ def step_confidence(f, o, ux: float, uy: float, wp: float, wr: float, dt: float,
     note = alarm if alarm is not None else ok_note(abs(speed) < SLOW_SPEED,
                                                     recal if road is not None else NO_SPEED_REASON)
     info = (SUSPENSION_STD[0], SUSPENSION_STD[1], o[4], ux, uy, sg2 * wp, sg2 * wr, dt, note, CONVERGED_STD, yaw_rate)
-    code = OK
     if not f._converged:
         pm, rm = SUSPENSION_STD
-        if max(pm.variance(o[4], ux, uy, info[5], yaw_rate), rm.variance(o[4], ux, uy, info[6], yaw_rate)) \
-                <= _CONVERGED_VAR:
-            f._converged = True
-        else:
-            code = CONVERGING
-    if stationary:
-        code = STANDSTILL
-    if alarm is not None:
-        code = DEGRADED
-    if not valid:
-        code = GAP
-    return code, info, road
+        f._converged = max(pm.variance(o[4], ux, uy, info[5], yaw_rate),
+                           rm.variance(o[4], ux, uy, info[6], yaw_rate)) <= _CONVERGED_VAR
+    return frame_status_code(f._converged, stationary, valid, alarm is not None), info, road
 
 
 def suspension_confidence(f, em, sub, good: np.ndarray, a: np.ndarray, load: np.ndarray, gains: np.ndarray,

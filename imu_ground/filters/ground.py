@@ -40,7 +40,7 @@ from imu_ground.filters.filter_state import ground_state, load_ground_state
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
 from imu_ground.filters.road import NO_ROAD_REASON
-from imu_ground.filters.status import (CONVERGING, FILTER_CONVERGED_STD, FILTER_STD, GAP, OK, STANDSTILL, track_reasons,
+from imu_ground.filters.status import (FILTER_CONVERGED_STD, FILTER_STD, OK, frame_status_code, track_reasons,
                                        track_statuses)
 from imu_ground.so3 import cumulative_rotations, matrix_from_quat, twist_angle
 from imu_ground.units import RENORM_EVERY
@@ -236,16 +236,9 @@ class GroundNormalFilter:
         ``E`` the residual road <- body (or None when ``q`` holds it).
         """
         pm, rm = FILTER_STD
-        code = OK
         if not self._converged:
-            if max(pm.variance(a), rm.variance(a)) <= _CONVERGED_VAR:
-                self._converged = True
-            else:
-                code = CONVERGING
-        if getattr(frame, "stationary", False):
-            code = STANDSTILL
-        if not getattr(frame, "valid", True):
-            code = GAP
+            self._converged = max(pm.variance(a), rm.variance(a)) <= _CONVERGED_VAR
+        code = frame_status_code(self._converged, getattr(frame, "stationary", False), getattr(frame, "valid", True))
         return GroundEstimate(pitch, roll, True, q, E, self._Rgs, P, code,
                               (pm, rm, a, 0.0, 0.0, 0.0, 0.0, dt, NO_ROAD_REASON, FILTER_CONVERGED_STD, 0.0))
 

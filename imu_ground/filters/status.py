@@ -72,7 +72,7 @@ from imu_ground.units import DEG
 
 __all__ = ["STATUSES", "CONVERGING", "OK", "STANDSTILL", "GAP", "DEGRADED", "INVALID", "CONVERGED_STD", "FILTER_CONVERGED_STD",
            "AngleStd", "SUSPENSION_STD", "FILTER_STD", "SLOW_SPEED", "SLOW_REASON", "ok_note", "status_reason",
-           "track_statuses", "track_reasons", "status_names"]
+           "frame_status_code", "track_statuses", "track_reasons", "status_names"]
 
 #: The statuses, indexed by their code.
 STATUSES = ("converging", "ok", "standstill", "gap", "degraded", "invalid")
@@ -180,6 +180,23 @@ def status_reason(code: int, gap_seconds: float = math.nan, std: float = math.na
 def status_names(codes: np.ndarray) -> np.ndarray:
     """The :data:`STATUSES` names of an array of codes (object array of str)."""
     return np.asarray(STATUSES, dtype=object)[np.asarray(codes, dtype=np.intp)]
+
+
+def frame_status_code(converged: bool, stationary: bool, valid: bool, degraded: bool = False) -> int:
+    """The status code of one processed frame: the streaming twin of :func:`track_statuses`.
+
+    ``converged`` is the estimator's latch after this frame (its larger 1-sigma has been at
+    or below its threshold once); a frame at rest is ``standstill``, one a monitor flags
+    ``degraded``, one integrated through a gap ``gap``, each overriding the ones before.
+    """
+    code = OK if converged else CONVERGING
+    if stationary:
+        code = STANDSTILL
+    if degraded:
+        code = DEGRADED
+    if not valid:
+        code = GAP
+    return code
 
 
 def track_statuses(var_max: np.ndarray, stationary: np.ndarray, valid: np.ndarray, good: np.ndarray,
