@@ -18,9 +18,6 @@ name                     compiled module                            Python twin
                                                                     :mod:`imu_ground.imu.preint_stream`
 =======================  =========================================  =========================================
 
-The numeric CSV parse (``imu_ground.datasets._csv_native``, not on the streaming
-path) is loaded by its reader through :func:`load_native`.
-
 Equality rule between twins (the one the tests check, all with
 :func:`assert_twins_equal`): every output of a C kernel equals its Python twin's
 to :data:`TWIN_RTOL` (``1e-12``) relative to ``max(1, |value|)``, with NaN and
