@@ -95,7 +95,8 @@ def check_speed(t: np.ndarray, v: np.ndarray, source: str, imu=None) -> tuple[np
 
     - times in milliseconds (the signal spans about 1000 times the IMU log): converted to s;
     - a speed in km/h (its changes 3.6 times what the accelerometer's forward axis
-      integrates to, correlation over 0.6): converted to m/s; another scale is said;
+      integrates to, correlation over 0.6): converted to m/s; another scale is said
+      (before the checks below, which then see m/s);
     - negative speeds: reversing, said; faster than :data:`MAX_REVERSE` backwards, or
       mostly negative (a flipped sign), refused;
     - faster than :data:`MAX_SPEED`: refused.
@@ -131,6 +132,17 @@ def check_speed(t: np.ndarray, v: np.ndarray, source: str, imu=None) -> tuple[np
             t = t / 1000.0
             notes.append(f"{source}: its times span {span:.0f} against the log's {span_log:.1f} s: taken as "
                          "milliseconds and converted to seconds")
+    # the unit first, so that a km/h file at highway speed is converted before the plausibility checks
+    if imu is not None and getattr(imu, "accel", None) is not None:
+        k, r, n = _scale_against_accel(t, v, imu)
+        if np.isfinite(k) and r > 0.6:
+            if 2.9 < k < 4.5:
+                v = v / 3.6
+                notes.append(f"{source}: the speed changes {k:.2f} times as fast as the accelerometer says over "
+                             f"{n} s of driving: taken as km/h and converted to m/s")
+            elif not 0.6 < k < 1.6:
+                notes.append(f"{source}: the speed changes {k:.2f} times as fast as the accelerometer says over "
+                             f"{n} s of driving; a speed file holds m/s: check its unit")
     fast = float(np.max(v))
     if fast > MAX_SPEED:
         raise ValueError(f"{source}: speeds up to {fast:.1f}, implausible for m/s (over {MAX_SPEED:g} m/s); a speed "
@@ -145,16 +157,6 @@ def check_speed(t: np.ndarray, v: np.ndarray, source: str, imu=None) -> tuple[np
                              "a speed file holds the forward speed, m/s, negative only when reversing")
         notes.append(f"{source}: {int(neg.sum())} of {v.size} speeds are negative (down to {slow:.2f} m/s): "
                      "taken as reversing")
-    if imu is not None and getattr(imu, "accel", None) is not None:
-        k, r, n = _scale_against_accel(t, v, imu)
-        if np.isfinite(k) and r > 0.6:
-            if 2.9 < k < 4.5:
-                v = v / 3.6
-                notes.append(f"{source}: the speed changes {k:.2f} times as fast as the accelerometer says over "
-                             f"{n} s of driving: taken as km/h and converted to m/s")
-            elif not 0.6 < k < 1.6:
-                notes.append(f"{source}: the speed changes {k:.2f} times as fast as the accelerometer says over "
-                             f"{n} s of driving; a speed file holds m/s: check its unit")
     return t, v, notes
 
 

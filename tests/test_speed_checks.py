@@ -74,3 +74,14 @@ def test_another_scale_is_said(truth_speed):
     t, v = truth_speed
     _, v2, notes = check_speed(t, v * 2.0, "speed.csv", read_imu(EXAMPLE))
     assert np.array_equal(v2, v * 2.0) and len(notes) == 1 and "check its unit" in notes[0]
+
+
+def test_km_per_h_at_highway_speed_is_converted_before_the_plausibility_check(truth_speed):
+    """A km/h file whose values exceed the m/s limit (100) is still told by its changes and converted."""
+    from imu_ground.datasets.speed import MAX_SPEED, check_speed
+    t, v = truth_speed
+    fast = v + 25.0                                   # the same changes at 25-35 m/s: up to ~125 km/h
+    assert (fast * 3.6).max() > MAX_SPEED
+    t2, v2, notes = check_speed(t, fast * 3.6, "speed.csv", read_imu(EXAMPLE))
+    np.testing.assert_allclose(v2, fast, rtol=1e-12)
+    assert len(notes) == 1 and "km/h" in notes[0]
