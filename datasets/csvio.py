@@ -21,9 +21,11 @@ import ctypes
 import functools
 import gzip
 import io
+import os
 import re
 import zlib
 from collections.abc import Callable, Iterator, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +37,9 @@ __all__ = ["Columns", "RowLines", "first_nonnumber", "locate_bad_lines", "numeri
 
 #: Rows per parsed chunk (bounded working memory on long logs; larger chunks parse faster).
 CHUNK_ROWS = 1 << 20
+#: Rows a thread copies at a time into a stacked (N, k) array, and the threads that copy (see :func:`_fill_stack`).
+STACK_BLOCK = 1 << 16
+STACK_THREADS = min(4, os.cpu_count() or 1)
 #: Logs of at least this many samples return the freed heap memory to the system once read.
 TRIM_SAMPLES = 1 << 20
 
@@ -266,19 +271,22 @@ def _join_columns(names: list[str], parts: dict[str, list[np.ndarray]], n: int,
     """Each column's chunks as one array (``parts`` is emptied).
 
     ``stack`` (name -> columns) puts numeric columns side by side into one
-    float64 array (N, k) under its name, written there straight from the chunks.
+    float64 array (N, k) under its name, written there straight from the chunks
+    (:func:`_fill_stack`).
     """
     into = _stack_layout(names, stack, lambda c: all(x.dtype.kind in "fiu" for x in parts[c]))
-    groups = {g: np.empty((n, sum(1 for h, _ in into.values() if h == g))) for g, _ in into.values()}
+    members: dict[str, list[str]] = {}
+    for c, (g, _) in sorted(into.items(), key=lambda item: item[1][1]):
+        members.setdefault(g, []).append(c)
     cols: Columns = {}
     for c in names:
-        chunks = parts.pop(c)
         if c in into:
-            name, j = into[c]
+            name = into[c][0]
             if name not in cols:
-                cols[name] = groups[name]
-            _fill(groups[name][:, j], chunks)
-        elif len(chunks) == 1:          # pandas' own array (read-only under copy-on-write): not copied
+                cols[name] = _fill_stack(n, [parts.pop(m) for m in members[name]])
+            continue
+        chunks = parts.pop(c)
+        if len(chunks) == 1:            # pandas' own array (read-only under copy-on-write): not copied
             cols[c] = chunks[0]
         elif all(x.dtype.kind in "fiu" for x in chunks):       # the dtype np.concatenate would give
             cols[c] = np.empty(n, dtype=functools.reduce(np.promote_types, {x.dtype for x in chunks}))
@@ -296,6 +304,38 @@ def _fill(out: np.ndarray, chunks: list[np.ndarray]) -> None:
         x = chunks.pop(0)
         out[k:k + x.size] = x
         k += x.size
+
+
+def _fill_stack(n: int, columns: list[list[np.ndarray]]) -> np.ndarray:
+    """The columns (each a list of chunks, chunk ``p`` of the same length in every column) side by side, (n, k).
+
+    Written in blocks of :data:`STACK_BLOCK` rows, all columns of a block
+    together (the block stays in cache), on up to :data:`STACK_THREADS`
+    threads: the copy is the new array's first touch, and on a virtual
+    machine the page faults of a large fresh allocation can cost more than
+    the copy itself when one thread takes them in turn
+    (``benchmarks/bench_readers.py`` measures the reader). Every value is
+    copied as it is, so the result does not depend on the threads. The chunks are
+    dropped as they are copied (memory freed early).
+    """
+    out = np.empty((n, len(columns)))
+    threads = min(STACK_THREADS, -(-n // STACK_BLOCK))
+    with contextlib.ExitStack() as scope:
+        pool = scope.enter_context(ThreadPoolExecutor(threads)) if threads > 1 else None
+        k = 0
+        while columns[0]:
+            chunk = [col.pop(0) for col in columns]
+            rows = out[k:k + chunk[0].size]
+
+            def copy(lo: int, rows: np.ndarray = rows, chunk: list[np.ndarray] = chunk) -> None:
+                for j, x in enumerate(chunk):
+                    rows[lo:lo + STACK_BLOCK, j] = x[lo:lo + STACK_BLOCK]
+
+            blocks = range(0, rows.shape[0], STACK_BLOCK)
+            list(pool.map(copy, blocks) if pool is not None else map(copy, blocks))
+            k += rows.shape[0]
+            del chunk, rows, copy
+    return out
 
 
 def first_nonnumber(values: np.ndarray) -> tuple[int, int]:

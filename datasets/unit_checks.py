@@ -156,7 +156,7 @@ def detect_time_unit(values: np.ndarray, source: str, column: str) -> tuple[str,
         Several units or none give a plausible rate (``option="time_unit"``).
     """
     v = np.asarray(values)
-    fin = v[np.isfinite(v)] if v.dtype.kind == "f" else v
+    fin = v if v.dtype.kind != "f" or np.isfinite(v).all() else v[np.isfinite(v)]   # no copy when all finite
     if fin.size < 2:
         return "s", None
     stride = max(1, (fin.size - 1) // DECIDE_SAMPLES)   # steps of evenly spread pairs of neighbours
