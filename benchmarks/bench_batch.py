@@ -6,7 +6,10 @@ The benchmark: ``n`` synthetic drives of ``minutes`` minutes each, written by
 - ``loop``: one process estimating them one after the other (what a shell loop of
   ``imu-ground estimate`` does, without paying the interpreter start each time);
 - ``batch, 1 worker`` and ``batch, 2 workers``: :func:`imu_ground.pipeline.run_batch`
-  on a local Dask cluster (cluster start-up included).
+  on Dask's local process scheduler (worker start-up included).
+
+Each run is timed in its own fresh process, as a user runs one command for a fleet:
+the imports count, the interpreter start does not.
 
 Every run writes the same files (checked: the batch outputs equal the loop's byte for
 byte). Printed: logs/s, hours of driving estimated per second, and the speed-up over
@@ -21,6 +24,8 @@ from __future__ import annotations
 
 import argparse
 import multiprocessing
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -67,6 +72,32 @@ def _batch(logs: list[Path], out: Path, workers: int) -> None:
         raise RuntimeError(f"batch: {len(failed)} logs failed, first: {failed.iloc[0]['error']}")
 
 
+def _logs_in(folder: Path) -> list[Path]:
+    """The logs :func:`write_logs` wrote into ``folder`` (not their truth files)."""
+    return sorted(folder.glob("drive[0-9][0-9][0-9][0-9].csv"))
+
+
+def _child(folder: str, out: str, workers: str) -> None:
+    """In a fresh process: the loop (``workers`` "loop") or the batch over the logs of ``folder``; prints seconds."""
+    logs = _logs_in(Path(folder))
+    t0 = time.perf_counter()
+    if workers == "loop":
+        _loop(logs, Path(out))
+    else:
+        _batch(logs, Path(out), int(workers))
+    print(time.perf_counter() - t0)
+
+
+def _timed_in_fresh_process(folder: Path, out: Path, workers: int | None) -> float:
+    """Seconds of one run in its own fresh process (as a user runs one command a fleet): the imports are
+    counted, the interpreter start is not."""
+    code = (f"import sys; sys.path.insert(0, {str(Path(__file__).resolve().parent)!r}); "
+            f"from bench_batch import _child; _child(*sys.argv[1:])")
+    done = subprocess.run([sys.executable, "-c", code, str(folder), str(out), "loop" if workers is None else str(workers)],
+                          check=True, capture_output=True, text=True)
+    return float(done.stdout.split()[-1])
+
+
 def rows(n: int = 200, minutes: float = 10.0, workers: tuple[int, ...] = (1, 2)) -> list[dict]:
     """Throughput of the loop and of ``batch`` with each number of workers.
 
@@ -91,13 +122,11 @@ def rows(n: int = 200, minutes: float = 10.0, workers: tuple[int, ...] = (1, 2))
         logs = write_logs(tmp / "logs", n, minutes)
         hours = n * minutes / 60.0
         results = []
-        runs = [("loop (estimate, one process)", lambda out: _loop(logs, out))]
-        runs += [(f"batch, {w} worker{'s' if w > 1 else ''}", lambda out, w=w: _batch(logs, out, w)) for w in workers]
-        for i, (name, fn) in enumerate(runs):
+        runs = [("loop (estimate, one process)", None)]
+        runs += [(f"batch, {w} worker{'s' if w > 1 else ''}", w) for w in workers]
+        for i, (name, w) in enumerate(runs):
             out = tmp / f"out{i}"
-            t0 = time.perf_counter()
-            fn(out)
-            results.append((name, time.perf_counter() - t0, out))
+            results.append((name, _timed_in_fresh_process(tmp / "logs", out, w), out))
         base = results[0][1]
         reference = {p.name: p.read_bytes() for p in results[0][2].glob("*_ground.csv")}
         table = []

@@ -96,3 +96,38 @@ def test_batch_on_a_running_dask_cluster(fleet, tmp_path, capsys):
     local = tmp_path / "local"
     assert main(["batch", str(fleet / "drive0.csv"), "-o", str(local), "--workers", "0"]) == 0
     assert (remote / "drive0_ground.csv").read_bytes() == (local / "drive0_ground.csv").read_bytes()
+
+
+def test_worker_start_method_forks_only_in_a_single_threaded_process(monkeypatch):
+    import multiprocessing
+    import threading
+
+    from imu_ground.pipeline import batch
+    release = threading.Event()
+    other = threading.Thread(target=release.wait)
+    other.start()
+    try:
+        assert batch._start_method() == "spawn"          # another thread could hold a lock the child inherits
+    finally:
+        release.set()
+        other.join()
+    monkeypatch.setattr(threading, "active_count", lambda: 1)
+    expected = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
+    assert batch._start_method() == expected
+
+
+@pytest.mark.parametrize("method", ["fork", "spawn"])
+def test_batch_workers_started_either_way_write_estimates_bytes(fleet, tmp_path, monkeypatch, method):
+    import multiprocessing
+
+    from imu_ground.pipeline import batch, run_batch
+    if method not in multiprocessing.get_all_start_methods():
+        pytest.skip(f"no {method} start method on this platform")
+    monkeypatch.setattr(batch, "_start_method", lambda: method)
+    logs = [fleet / "drive0.csv", fleet / "drive2.csv", fleet / "broken.csv"]
+    table = run_batch(logs, tmp_path / "out", workers=2)
+    assert list(table["status"]) == ["ok", "ok", "failed"]
+    for log in logs[:2]:
+        single = tmp_path / f"{log.stem}_single.csv"
+        assert main(["estimate", str(log), "-o", str(single)]) == 0
+        assert (tmp_path / "out" / f"{log.stem}_ground.csv").read_bytes() == single.read_bytes()

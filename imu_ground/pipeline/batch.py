@@ -11,10 +11,14 @@ byte: both call :func:`~imu_ground.pipeline.estimate.estimate_to_files`.
 """
 from __future__ import annotations
 
+import contextlib
 import glob
+import multiprocessing
 import os
+import threading
 import warnings
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -271,17 +275,20 @@ def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | 
             jobs.append((i, log, str(out), extra))
     if not force:
         check_existing_outputs([p for _, _, out, extra in jobs for p in [out, *(e for e, _ in extra)]], options)
-    bar = tqdm(total=len(found), desc="logs", unit="log", disable=not progress)
-    bar.update(len(found) - len(jobs))
-    if workers == 0 and not scheduler:
-        for i, log, out, extra in jobs:
-            rows[i] = process_log(log, out, options, cli, force, extra)
-            bar.update()
-    elif scheduler:
-        _run_on_dask(jobs, rows, options, cli, force, scheduler, bar)
-    else:
-        _run_local(jobs, rows, options, cli, force, workers, bar)
-    bar.close()
+    local = bool(jobs) and workers != 0 and not scheduler
+    # the local worker processes start before the progress bar (whose monitor thread would make forking unsafe)
+    with _local_pool(workers) if local else contextlib.nullcontext() as pool:
+        bar = tqdm(total=len(found), desc="logs", unit="log", disable=not progress)
+        bar.update(len(found) - len(jobs))
+        if pool is not None:
+            _run_local(jobs, rows, options, cli, force, pool, bar)
+        elif scheduler:
+            _run_on_dask(jobs, rows, options, cli, force, scheduler, bar)
+        else:
+            for i, log, out, extra in jobs:
+                rows[i] = process_log(log, out, options, cli, force, extra)
+                bar.update()
+        bar.close()
     rows += [{"log": log, "status": "duplicate", "error": f"{log}: the same file as {kept}, estimated once"}
              for log, kept in duplicates.items()]
     table = pd.DataFrame(rows).reindex(columns=list(SUMMARY_COLUMNS))
@@ -291,29 +298,56 @@ def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | 
     return table
 
 
-def _run_local(jobs, rows, options, cli, force, workers, bar) -> None:
-    """The logs on Dask's local process pool (``scheduler="processes"``): N worker processes, nothing to start.
+def _start_method() -> str:
+    """``"fork"`` where the platform has it and this process runs no other Python thread, else ``"spawn"``.
 
-    The local pool runs each task in a plain worker process; a ``dask.distributed``
-    worker (event loop, monitors and heartbeats beside the task thread) measured about
-    1.6 times slower on these pure-Python filters, which cost a fleet its second core.
-    Every task returns one summary row, and a failing log is a row with its error.
+    A forked worker starts at once with this process's modules imported (a
+    spawned one imports numpy, pandas and the package again, about 0.5 s a
+    worker); forking is safe only while no other thread could hold a lock
+    that the child would inherit locked.
     """
+    if "fork" in multiprocessing.get_all_start_methods() and threading.active_count() == 1:
+        return "fork"
+    return "spawn"
+
+
+@contextlib.contextmanager
+def _local_pool(workers: int | None) -> Iterator[ProcessPoolExecutor]:
+    """``workers`` (default: CPU count) worker processes, started now (see :func:`_start_method`)."""
     try:
-        import dask
-        from dask.callbacks import Callback
+        import dask  # noqa: F401  (checked here: the pool is for Dask's process scheduler)
     except ImportError:
         raise ValueError("imu-ground batch needs Dask: pip install 'imu-ground[fleet]'") from None
+    n = int(workers) if workers else (os.cpu_count() or 1)
+    with ProcessPoolExecutor(n, mp_context=multiprocessing.get_context(_start_method())) as pool:
+        pool.submit(int).result()       # a forking pool starts all its workers at the first task
+        yield pool
+
+
+def _run_local(jobs, rows, options, cli, force, pool: ProcessPoolExecutor, bar) -> None:
+    """The logs on Dask's local process scheduler over ``pool``: one task a log, handed out one at a time.
+
+    The local scheduler runs each task in a plain worker process; a ``dask.distributed``
+    worker (event loop, monitors and heartbeats beside the task thread) measured about
+    1.6 times slower on these pure-Python filters, which cost a fleet its second core.
+    A task is a whole log (tens of ms to minutes), so tasks go out one by one
+    (``chunksize=1``): batches of tasks would leave a worker idle at the end. The
+    scheduler is passed as a function, so Dask does not import ``dask.distributed`` to
+    look for a client. Every task returns one summary row, and a failing log is a row
+    with its error.
+    """
+    import dask
+    from dask.callbacks import Callback
+    from dask.multiprocessing import get as process_scheduler
 
     class _Progress(Callback):
         def _posttask(self, key, result, dsk, state, worker_id):
             bar.update()
 
-    n = int(workers) if workers else (os.cpu_count() or 1)
     tasks = [dask.delayed(process_log, pure=False)(log, out, options, cli, force, extra)
              for _, log, out, extra in jobs]
     with _Progress():
-        results = dask.compute(*tasks, scheduler="processes", num_workers=n)
+        results = dask.compute(*tasks, scheduler=process_scheduler, pool=pool, chunksize=1)
     for (i, *_), row in zip(jobs, results):
         rows[i] = row
 
