@@ -119,7 +119,7 @@ def rows(n: int = 200, minutes: float = 10.0, workers: tuple[int, ...] = (1, 2))
     with tempfile.TemporaryDirectory(prefix="imu_ground_bench_batch_") as tmp:
         tmp = Path(tmp)
         (tmp / "logs").mkdir()
-        logs = write_logs(tmp / "logs", n, minutes)
+        write_logs(tmp / "logs", n, minutes)
         hours = n * minutes / 60.0
         results = []
         runs = [("loop (estimate, one process)", None)]

@@ -315,7 +315,7 @@ def _start_method() -> str:
 def _local_pool(workers: int | None) -> Iterator[ProcessPoolExecutor]:
     """``workers`` (default: CPU count) worker processes, started now (see :func:`_start_method`)."""
     try:
-        import dask  # noqa: F401  (checked here: the pool is for Dask's process scheduler)
+        import dask.multiprocessing  # noqa: F401  (checked before any worker starts)
     except ImportError:
         raise ValueError("imu-ground batch needs Dask: pip install 'imu-ground[fleet]'") from None
     n = int(workers) if workers else (os.cpu_count() or 1)
