@@ -221,7 +221,7 @@ def rows(hours: tuple[float, ...] = (1.0, 10.0), repeat: int = 3, folder: Path |
     where = Path(tmp.name) if tmp else Path(folder)  # type: ignore[arg-type]
     compile_package()                               # fresh processes as installed: bytecode compiled
     try:
-        meas = {h: measure(h, where, repeat if h < 5 else max(1, repeat - 1), estimate) for h in hours}
+        meas = {h: measure(h, where, repeat, estimate) for h in hours}
     finally:
         if tmp:
             tmp.cleanup()

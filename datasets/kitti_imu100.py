@@ -162,7 +162,9 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
     drive = drive_name(path)
     first = tval[0] if tval.dtype.kind == "i" or np.isfinite(tval[0]) else 0
     if t_unit == "s":                   # KITTI's own files: t - t[0] as it stands
-        t = tval - first if tval.dtype.kind == "f" else (tval - first).astype(float)
+        # (a file that starts at 0, as KITTI's do, keeps the parsed array: no copy)
+        t = (tval if first == 0 and not np.signbit(first) else tval - first) if tval.dtype.kind == "f" \
+            else (tval - first).astype(float)
     else:                               # shifted before scaling (exact for integer ns)
         t = (tval - first).astype(float) * unit_scale("time", t_unit)
     t_first = float(first) * unit_scale("time", t_unit)
