@@ -25,7 +25,11 @@ the reader's share is printed beside it. :func:`rows` returns the table for
 :mod:`imu_ground.datasets.csvio`): pandas (3.1 and later) parses a plain file
 given by path in byte ranges on up to six threads, so both wall times depend
 on how busy the second core is (the 1-minute load average is printed with
-every figure). An informative figure gives pandas on one thread
+every figure). On this virtual machine the first touch of fresh memory right after a large
+parse is sometimes cheap (pages the guest has already backed) and sometimes
+about 2 ns a byte (new huge pages the host must back); ``read_imu``'s copies
+meet it and pandas' own result mostly does not, so an informative row measures
+it and lists every ``read_imu`` run. An informative figure gives pandas on one thread
 (``mode.max_threads = 1``), and an informative row splits one ``estimate`` run
 into its stages (wall and CPU seconds, RSS after each), in one fresh process.
 """
@@ -59,6 +63,15 @@ _READ = {
     "pandas 1 thread": "import pandas as pd\ntry:\n    pd.set_option('mode.max_threads', 1)\n"
                        "except Exception:\n    pass\nx = pd.read_csv(PATH); n = len(x)",
 }
+#: After a pandas parse of the log, the first touch of fresh memory the size of ``read_imu``'s two (N, 3) arrays.
+_FIRST_TOUCH = """
+import sys, time
+import numpy as np, pandas as pd
+x = pd.read_csv(sys.argv[1])
+t0 = time.perf_counter()
+y = np.ones((2 * len(x), 3))
+print(time.perf_counter() - t0, y.nbytes)
+"""
 _CHILD = """
 import resource, sys, time
 PATH = sys.argv[1]
@@ -169,12 +182,20 @@ def measure(hours: float, folder: Path, repeat: int = 3, estimate: bool = True) 
     """Median time (s) and peak RSS (bytes) of each reader, and of ``estimate``, on a ``hours`` log."""
     path = make_log(hours, folder)
     res: dict[str, float] = {"hours": hours, "mb": path.stat().st_size / 1e6, "load": _load()}
+    runs_imu: list[tuple[float, float, int, float]] = []
     for name, code in _READ.items():
         runs = [_child(code, path) for _ in range(repeat)]
+        if name == "read_imu":
+            runs_imu = runs
         res[f"{name} s"] = statistics.median(r[0] for r in runs)
         res[f"{name} rss"] = statistics.median(r[1] for r in runs)
         res[f"{name} cpu"] = statistics.median(r[3] for r in runs)
         res["samples"] = runs[0][2]
+    touch = [subprocess.run([sys.executable, "-c", _FIRST_TOUCH, str(path)], check=True, capture_output=True,
+                            text=True, cwd=REPO).stdout.split() for _ in range(repeat)]
+    res["touch s"] = [float(r[0]) for r in touch]        # type: ignore[assignment]
+    res["touch bytes"] = float(touch[0][1])
+    res["read_imu runs"] = [r[0] for r in runs_imu]        # type: ignore[assignment]
     if estimate:
         try:
             runs_e = [_estimate(path, folder) for _ in range(repeat)]
@@ -200,6 +221,20 @@ def _reader_row(h: float, m: dict[str, float]) -> dict[str, object]:
                       f"ratio {ratio:.2f} (CPU {m['read_imu cpu'] / m['pandas.read_csv cpu']:.2f}); "
                       f"pandas on 1 thread {m['pandas 1 thread s']:.2f} s; load {m['load']:.1f}",
             "passed": ratio <= 1.5 if target else None}
+
+
+def _touch_row(h: float, m: dict) -> dict[str, object]:
+    """How much fresh memory costs on this machine right after a large parse (what read_imu's copies meet)."""
+    t = sorted(m["touch s"])
+    mib = m["touch bytes"] / 2**20
+    runs = ", ".join(f"{x:.2f}" for x in sorted(m["read_imu runs"]))
+    return {"benchmark": f"read_imu, {h:g} h: first touch of fresh memory after the pandas parse",
+            "target": "informative",
+            "figure": f"{mib:,.0f} MiB (read_imu's two (N, 3) arrays) in {statistics.median(t):.3f} s median "
+                      f"({t[0]:.3f}-{t[-1]:.3f} s over {len(t)} fresh processes, "
+                      f"{1e9 * t[0] / m['touch bytes']:.2f}-{1e9 * t[-1] / m['touch bytes']:.2f} ns/B); "
+                      f"read_imu runs {runs} s",
+            "passed": None}
 
 
 def _estimate_row(h: float, m: dict[str, float]) -> dict[str, object]:
@@ -228,6 +263,8 @@ def rows(hours: tuple[float, ...] = (1.0, 10.0), repeat: int = 3, folder: Path |
     out: list[dict[str, object]] = []
     for h, m in meas.items():
         out.append(_reader_row(h, m))
+        if h >= 10.0:
+            out.append(_touch_row(h, m))
         if estimate:
             out.append(_estimate_row(h, m))
             out.append({"benchmark": f"imu-ground estimate, {h:g} h, by stage (one process)",
