@@ -302,9 +302,9 @@ def _start_method() -> str:
     """``"fork"`` where the platform has it and this process runs no other Python thread, else ``"spawn"``.
 
     A forked worker starts at once with this process's modules imported (a
-    spawned one imports numpy, pandas and the package again, about 0.5 s a
-    worker); forking is safe only while no other thread could hold a lock
-    that the child would inherit locked.
+    spawned one imports numpy, pandas and the package again: the start-up
+    ``benchmarks/bench_batch.py`` counts); forking is safe only while no other
+    thread could hold a lock that the child would inherit locked.
     """
     if "fork" in multiprocessing.get_all_start_methods() and threading.active_count() == 1:
         return "fork"
@@ -328,8 +328,8 @@ def _run_local(jobs, rows, options, cli, force, pool: ProcessPoolExecutor, bar) 
     """The logs on Dask's local process scheduler over ``pool``: one task a log, handed out one at a time.
 
     The local scheduler runs each task in a plain worker process; a ``dask.distributed``
-    worker (event loop, monitors and heartbeats beside the task thread) measured about
-    1.6 times slower on these pure-Python filters, which cost a fleet its second core.
+    worker (event loop, monitors and heartbeats beside the task thread) runs these
+    pure-Python filters markedly slower, which costs a fleet its second core.
     A task is a whole log (tens of ms to minutes), so tasks go out one by one
     (``chunksize=1``): batches of tasks would leave a worker idle at the end. The
     scheduler is passed as a function, so Dask does not import ``dask.distributed`` to
