@@ -1,6 +1,6 @@
 """Reader speed and memory on long logs: ``read_imu`` beside ``pandas.read_csv``, and ``imu-ground estimate``.
 
-Run: ``python benchmarks/bench_readers.py [--hours 1 10] [--repeat 3] [--tmp DIR]``.
+Run: ``python benchmarks/bench_readers.py [--hours 1 10] [--repeat 5] [--tmp DIR]``.
 
 The 1 h and 10 h logs are 100 Hz KITTI-format CSV files (``t,wx,...,pz``, 16
 columns) written into a temporary folder (never the repository) by tiling one
@@ -257,7 +257,7 @@ def _estimate_row(h: float, m: dict[str, float]) -> dict[str, object]:
             "passed": False if limit is not None and ok is None else ok}
 
 
-def rows(hours: tuple[float, ...] = (1.0, 10.0), repeat: int = 3, folder: Path | None = None,
+def rows(hours: tuple[float, ...] = (1.0, 10.0), repeat: int = 5, folder: Path | None = None,
          estimate: bool = True) -> list[dict[str, object]]:
     """The benchmark as table rows: ``benchmark``, ``target``, ``figure``, ``passed`` (None: informative)."""
     tmp = tempfile.TemporaryDirectory(prefix="imu_ground_bench_") if folder is None else None
@@ -291,7 +291,7 @@ def main(argv: list[str] | None = None) -> None:
     """Print target, figure and pass/fail for each row."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--hours", type=float, nargs="+", default=[1.0, 10.0])
-    ap.add_argument("--repeat", type=int, default=3, help="median of this many fresh processes")
+    ap.add_argument("--repeat", type=int, default=5, help="median of this many fresh processes")
     ap.add_argument("--tmp", type=Path, help="folder for the generated logs (kept); default a temporary one")
     ap.add_argument("--no-estimate", action="store_true", help="readers only")
     args = ap.parse_args(argv)
