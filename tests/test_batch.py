@@ -116,18 +116,32 @@ def test_worker_start_method_forks_only_in_a_single_threaded_process(monkeypatch
     assert batch._start_method() == expected
 
 
-@pytest.mark.parametrize("method", ["fork", "spawn"])
-def test_batch_workers_started_either_way_write_estimates_bytes(fleet, tmp_path, monkeypatch, method):
-    import multiprocessing
+def _estimate_bytes(log: Path, tmp_path: Path) -> bytes:
+    single = tmp_path / f"{log.stem}_single.csv"
+    assert main(["estimate", str(log), "-o", str(single)]) == 0
+    return single.read_bytes()
 
+
+def test_batch_from_a_fresh_process_forks_its_workers_and_writes_estimates_bytes(fleet, tmp_path):
+    import multiprocessing
+    import subprocess
+    import sys
+    if "fork" not in multiprocessing.get_all_start_methods():
+        pytest.skip("no fork start method on this platform")
+    code = ("import sys; from imu_ground.pipeline import batch; print(batch._start_method()); "
+            "t = batch.run_batch(sys.argv[1:3], sys.argv[3], workers=2); print(','.join(t['status']))")
+    logs = [fleet / "drive0.csv", fleet / "broken.csv"]
+    done = subprocess.run([sys.executable, "-c", code, *map(str, logs), str(tmp_path / "out")],
+                          capture_output=True, text=True, check=True)
+    assert done.stdout.split() == ["fork", "ok,failed"]      # a fresh process runs one thread: it forks
+    assert (tmp_path / "out" / "drive0_ground.csv").read_bytes() == _estimate_bytes(logs[0], tmp_path)
+
+
+def test_batch_with_spawned_workers_writes_estimates_bytes(fleet, tmp_path, monkeypatch):
     from imu_ground.pipeline import batch, run_batch
-    if method not in multiprocessing.get_all_start_methods():
-        pytest.skip(f"no {method} start method on this platform")
-    monkeypatch.setattr(batch, "_start_method", lambda: method)
+    monkeypatch.setattr(batch, "_start_method", lambda: "spawn")
     logs = [fleet / "drive0.csv", fleet / "drive2.csv", fleet / "broken.csv"]
     table = run_batch(logs, tmp_path / "out", workers=2)
     assert list(table["status"]) == ["ok", "ok", "failed"]
     for log in logs[:2]:
-        single = tmp_path / f"{log.stem}_single.csv"
-        assert main(["estimate", str(log), "-o", str(single)]) == 0
-        assert (tmp_path / "out" / f"{log.stem}_ground.csv").read_bytes() == single.read_bytes()
+        assert (tmp_path / "out" / f"{log.stem}_ground.csv").read_bytes() == _estimate_bytes(log, tmp_path)
