@@ -27,7 +27,7 @@ given by path in byte ranges on up to six threads, so both wall times depend
 on how busy the second core is (the 1-minute load average is printed with
 every figure). On this virtual machine the first touch of fresh memory right after a large
 parse is sometimes cheap (pages the guest has already backed) and sometimes
-about 2 ns a byte (new huge pages the host must back), in phases that last
+many times dearer (new huge pages the host must back), in phases that last
 longer than one run. Both readers meet it, ``read_imu`` more (it fills fresh
 arrays after the parse), so the readers take turns and meet the same phases;
 on the 10 h log an informative row measures that cost and lists every run of
