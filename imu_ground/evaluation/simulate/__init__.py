@@ -16,7 +16,8 @@ over the samples:
   specific force and position of the sensor;
 - :mod:`~imu_ground.evaluation.simulate.drive`: :func:`simulate` and
   :class:`SimResult`; :mod:`~imu_ground.evaluation.simulate.suite`:
-  :func:`simulate_suite` (varied random drives);
+  :func:`simulate_suite` (varied random drives); :mod:`~imu_ground.evaluation.simulate.second_pass`:
+  :func:`second_pass` (the same road driven again, for revisit checks with exact truth);
 - :mod:`~imu_ground.evaluation.simulate.smooth`: the closed-form smooth profiles.
 
 Conventions
@@ -81,6 +82,7 @@ from imu_ground.evaluation.simulate.road import (
                                                  iso8608_psd,
                                                  road_profile,
 )
+from imu_ground.evaluation.simulate.second_pass import second_pass
 from imu_ground.evaluation.simulate.suite import simulate_suite
 from imu_ground.evaluation.simulate.vehicle import (
                                                  SpeedParams,
@@ -92,5 +94,5 @@ from imu_ground.units import GRAVITY
 __all__ = [
     "GRAVITY", "IMU_PRESETS", "ISO8608_CLASSES", "ISO8608_N0", "ROAD_PLANE_WINDOW", "TRUTH_ANGLES", "TRUTH_COLUMNS",
     "ImuErrorModel", "RoadParams", "SimResult", "SpeedParams", "VehicleParams", "imu_error_model",
-    "iso8608_psd", "remounted", "road_profile", "simulate", "simulate_suite", "suspension_response",
+    "iso8608_psd", "remounted", "road_profile", "second_pass", "simulate", "simulate_suite", "suspension_response",
 ]

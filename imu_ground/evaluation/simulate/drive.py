@@ -48,7 +48,9 @@ __all__ = [
     "as_extrinsic",
     "check_rates",
     "clean_drive",
+    "drive_on_road",
     "finish_drive",
+    "motion_of",
     "simulate",
 ]
 
@@ -207,32 +209,63 @@ def clean_drive(duration: float, seed: int, imu_rate: float, road: RoadParams, v
     -------
     dict
         ``t``, ``gyro``, ``accel`` (noise-free samples), ``R_ws``, ``R_wr``, ``p_ws``,
-        ``v_ws``, ``truth`` (per-sample columns), ``curves``, ``road`` (roughness profile).
+        ``v_ws``, ``truth`` (per-sample columns), ``curves``, ``road`` (roughness profile),
+        ``layout`` and ``rough`` (the road, for :func:`drive_on_road`).
     """
-    ss = np.random.SeedSequence(seed)
-    rng_speed, rng_road, rng_rough, _ = (np.random.default_rng(s) for s in ss.spawn(4))
-    n_imu = int(math.floor(duration * imu_rate + 1e-9)) + 1
-    dt = 1.0 / imu_rate
-    t_imu = dt * np.arange(n_imu)
-    dt_f = dt / oversample
-    t_f = dt_f * np.arange((n_imu - 1) * oversample + 1)
-
+    rng_speed, rng_road, rng_rough, _ = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(4))
     acc_pw = speed_profile(speed, duration, rng_speed)
     t_coarse = np.linspace(0.0, duration, int(duration * 10) + 2)
     _, _, _, v_c, s_c = acc_pw(t_coarse)
     v_c = np.maximum(v_c, 0.0)
     length = float(s_c[-1]) + vehicle.wheelbase + 50.0
     kappa_pw, grade_pw, bank_pw, curves = road_layout(road, length, s_c, v_c, rng_road)
-    layout = (kappa_pw, grade_pw, bank_pw)
     l_r = vehicle.rear_axle_to_ref
     rough = road_profile(length + l_r + 20.0, road.roughness, dx=road.dx, band=road.band,
                          track=vehicle.track, coherence_decay=road.coherence_decay,
                          x0=-l_r - 10.0, rng=rng_rough, waviness=road.waviness)
+    out = drive_on_road(motion_of(acc_pw), duration, imu_rate, (kappa_pw, grade_pw, bank_pw), rough, road, vehicle,
+                        R_gs, t_gs, oversample)
+    out["curves"] = curves
+    return out
 
+
+def motion_of(acc_pw):
+    """``t -> (acceleration, speed, distance)`` (m/s^2, m/s, m) of a speed profile
+    (:func:`~imu_ground.evaluation.simulate.vehicle.speed_profile`), the speed held at or above 0."""
     def motion(t):
         a, _, _, v, s = acc_pw(t)
         return a, np.maximum(v, 0.0), s
+    return motion
 
+
+def drive_on_road(motion, duration: float, imu_rate: float, layout: tuple, rough: tuple, road: RoadParams,
+                  vehicle: VehicleParams, R_gs: np.ndarray, t_gs: np.ndarray, oversample: int) -> dict:
+    """The exact trajectory and noise-free IMU samples of a vehicle driven along a given road.
+
+    Parameters
+    ----------
+    motion : callable
+        ``t -> (a, v, s)``: longitudinal acceleration (m/s^2), speed (m/s, >= 0) and distance along
+        the road (m) at times ``t`` (s) (:func:`motion_of`).
+    duration, imu_rate : float
+        s, Hz: samples at ``k / imu_rate`` for ``k = 0 .. floor(duration * imu_rate)``.
+    layout : (curvature, grade, bank)
+        The road's profiles along the distance (:func:`~imu_ground.evaluation.simulate.road.road_layout`).
+    rough : (x, h_left, h_right)
+        Its roughness profile (:func:`~imu_ground.evaluation.simulate.road.road_profile`), m.
+    road, vehicle, R_gs, t_gs, oversample
+        As for :func:`clean_drive`.
+
+    Returns
+    -------
+    dict
+        As :func:`clean_drive` (``curves`` empty).
+    """
+    n_imu = int(math.floor(duration * imu_rate + 1e-9)) + 1
+    dt = 1.0 / imu_rate
+    t_imu = dt * np.arange(n_imu)
+    dt_f = dt / oversample
+    t_f = dt_f * np.arange((n_imu - 1) * oversample + 1)
     a_f, v_f, s_f = motion(t_f)
     body_f = body_motion(vehicle, a_f, v_f, s_f, dt_f, layout, rough)
     sub = slice(None, None, oversample)
@@ -243,16 +276,21 @@ def clean_drive(duration: float, seed: int, imu_rate: float, road: RoadParams, v
     p_ws = p_wb + np.einsum("nij,j->ni", kin["R_wb"], t_gs)
     truth = _truth_samples(kin, body, rough, s, vehicle, road, t_imu, a, v, R_gs)
     return dict(t=t_imu, gyro=kin["gyro"], accel=kin["accel"], R_ws=kin["R_ws"], R_wr=kin["R_wr"],
-                p_ws=p_ws, v_ws=kin["v_ws"], truth=truth, curves=curves,
-                road=dict(x=rough[0], h_left=rough[1], h_right=rough[2]))
+                p_ws=p_ws, v_ws=kin["v_ws"], truth=truth, curves=[],
+                road=dict(x=rough[0], h_left=rough[1], h_right=rough[2]), layout=layout, rough=rough)
 
 
 def finish_drive(clean: dict, model: ImuErrorModel, seed: int, imu_rate: float, frame_rate: float,
-                 R_gs, t_gs, params: dict, name: str) -> SimResult:
-    """Add the IMU errors of ``model`` to a clean drive and sample the truth at the frames."""
+                 R_gs, t_gs, params: dict, name: str, errors: tuple | None = None) -> SimResult:
+    """Add the IMU errors of ``model`` to a clean drive and sample the truth at the frames.
+
+    ``errors``: the ``(bias_gyro, noise_gyro, bias_accel, noise_accel)`` to add, each (N, 3) in the
+    sensor frame (rad/s, m/s^2); None: drawn by :func:`~imu_ground.evaluation.simulate.imu_errors.imu_errors`
+    from ``seed``.
+    """
     import pandas as pd
     n = clean["t"].shape[0]
-    bias_g, noise_g, bias_a, noise_a = imu_errors(model, n, imu_rate, seed)
+    bias_g, noise_g, bias_a, noise_a = imu_errors(model, n, imu_rate, seed) if errors is None else errors
     frame = "FLU" if np.allclose(R_gs, np.eye(3), atol=1e-12) else "sensor"
     meta = {"seed": seed, "imu_model": model.name, "R_gs": R_gs.tolist(), "t_gs": t_gs.tolist(),
             "simulated": True, "name": name}
