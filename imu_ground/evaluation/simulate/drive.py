@@ -1,8 +1,8 @@
 r"""One simulated drive: the road, the vehicle on it, the sensor and its errors, with exact truth.
 
 :func:`simulate` builds the clean drive (:func:`clean_drive`: speed profile, road
-layout and roughness, body motion on a fine grid, exact sensor kinematics at
-the IMU samples), then adds the IMU errors and samples the truth at the frames
+layout and roughness (:func:`drive_road`), body motion on a fine grid and exact sensor
+kinematics at the IMU samples (:func:`drive_on_road`)), then adds the IMU errors and samples the truth at the frames
 (:class:`SimResult`).
 """
 from __future__ import annotations
@@ -49,6 +49,7 @@ __all__ = [
     "check_rates",
     "clean_drive",
     "drive_on_road",
+    "drive_road",
     "finish_drive",
     "motion_of",
     "simulate",
@@ -200,17 +201,38 @@ def _truth_samples(kin, body, rough, s, vehicle: VehicleParams, road: RoadParams
 
 def clean_drive(duration: float, seed: int, imu_rate: float, road: RoadParams, vehicle: VehicleParams,
                 speed: SpeedParams, R_gs: np.ndarray, t_gs: np.ndarray, oversample: int) -> dict:
-    """The exact trajectory and noise-free IMU samples of one drive.
+    """The exact trajectory and noise-free IMU samples of one drive (:func:`drive_road`, then
+    :func:`drive_on_road`).
+
+    Returns
+    -------
+    dict
+        ``t``, ``gyro``, ``accel`` (noise-free samples), ``R_ws``, ``R_wr``, ``p_ws``,
+        ``v_ws``, ``truth`` (per-sample columns), ``curves``, ``road`` (roughness profile).
+    """
+    acc_pw, layout, curves, rough = drive_road(duration, seed, road, vehicle, speed)
+    out = drive_on_road(motion_of(acc_pw), duration, imu_rate, layout, rough, road, vehicle, R_gs, t_gs, oversample)
+    out["curves"] = curves
+    return out
+
+
+def drive_road(duration: float, seed: int, road: RoadParams, vehicle: VehicleParams, speed: SpeedParams) -> tuple:
+    """The speed profile of a drive and the road it is driven on.
 
     The speed profile, the road layout and the roughness use the first three
     children of ``SeedSequence(seed)`` (the IMU errors the fourth).
 
     Returns
     -------
-    dict
-        ``t``, ``gyro``, ``accel`` (noise-free samples), ``R_ws``, ``R_wr``, ``p_ws``,
-        ``v_ws``, ``truth`` (per-sample columns), ``curves``, ``road`` (roughness profile),
-        ``layout`` and ``rough`` (the road, for :func:`drive_on_road`).
+    acc_pw : Piecewise
+        Longitudinal acceleration in time (:func:`~imu_ground.evaluation.simulate.vehicle.speed_profile`).
+    layout : (curvature, grade, bank)
+        Profiles along the distance travelled (:func:`~imu_ground.evaluation.simulate.road.road_layout`),
+        long enough for the drive.
+    curves : list
+        The layout's curves.
+    rough : (x, h_left, h_right)
+        The roughness per wheel track, m (:func:`~imu_ground.evaluation.simulate.road.road_profile`).
     """
     rng_speed, rng_road, rng_rough, _ = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(4))
     acc_pw = speed_profile(speed, duration, rng_speed)
@@ -223,10 +245,7 @@ def clean_drive(duration: float, seed: int, imu_rate: float, road: RoadParams, v
     rough = road_profile(length + l_r + 20.0, road.roughness, dx=road.dx, band=road.band,
                          track=vehicle.track, coherence_decay=road.coherence_decay,
                          x0=-l_r - 10.0, rng=rng_rough, waviness=road.waviness)
-    out = drive_on_road(motion_of(acc_pw), duration, imu_rate, (kappa_pw, grade_pw, bank_pw), rough, road, vehicle,
-                        R_gs, t_gs, oversample)
-    out["curves"] = curves
-    return out
+    return acc_pw, (kappa_pw, grade_pw, bank_pw), curves, rough
 
 
 def motion_of(acc_pw):
@@ -277,7 +296,7 @@ def drive_on_road(motion, duration: float, imu_rate: float, layout: tuple, rough
     truth = _truth_samples(kin, body, rough, s, vehicle, road, t_imu, a, v, R_gs)
     return dict(t=t_imu, gyro=kin["gyro"], accel=kin["accel"], R_ws=kin["R_ws"], R_wr=kin["R_wr"],
                 p_ws=p_ws, v_ws=kin["v_ws"], truth=truth, curves=[],
-                road=dict(x=rough[0], h_left=rough[1], h_right=rough[2]), layout=layout, rough=rough)
+                road=dict(x=rough[0], h_left=rough[1], h_right=rough[2]))
 
 
 def finish_drive(clean: dict, model: ImuErrorModel, seed: int, imu_rate: float, frame_rate: float,

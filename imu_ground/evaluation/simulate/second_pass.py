@@ -18,11 +18,9 @@ end), with its own white noise (``noise_seed``). Frames and signs as in
 """
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 
-from imu_ground.evaluation.simulate.drive import (SimResult, as_extrinsic, clean_drive, drive_on_road, finish_drive,
+from imu_ground.evaluation.simulate.drive import (SimResult, as_extrinsic, drive_on_road, drive_road, finish_drive,
                                                   motion_of)
 from imu_ground.evaluation.simulate.imu_errors import imu_errors
 from imu_ground.evaluation.simulate.vehicle import speed_profile
@@ -78,35 +76,29 @@ def second_pass(sim: SimResult, *, speed_scale: float = 1.0, speed_seed: int | N
         raise ValueError(f"speed_scale must be > 0, got {speed_scale}")
     R_gs, t_gs = as_extrinsic(p["R_gs"], p["t_gs"])
     rate, duration = float(p["imu_rate"]), float(p["duration"])
-    first = clean_drive(duration, int(p["seed"]), rate, p["road"], p["vehicle"], p["speed"], R_gs, t_gs,
-                        int(p["oversample"]))
-    s_end = float(first["truth"]["s"][-1])
+    acc1, layout, curves, rough = drive_road(duration, int(p["seed"]), p["road"], p["vehicle"], p["speed"])
+    first_motion = motion_of(acc1)
+    s_end = float(first_motion(np.array([duration]))[2][0])
     if speed_seed is None:
-        rng_speed = np.random.default_rng(np.random.SeedSequence(int(p["seed"])).spawn(4)[0])   # (as clean_drive)
-        acc1 = speed_profile(p["speed"], duration, rng_speed)
         k = float(speed_scale)
-
-        first_motion = motion_of(acc1)
 
         def motion(t):                              # at time t the second pass is where the first was at k t
             a, v, s = first_motion(k * np.asarray(t, dtype=float))
             return k * k * a, k * v, s
         duration2 = duration / k
     else:
-        acc2 = speed_profile(p["speed"], 3.0 * duration, np.random.default_rng(int(speed_seed)))
-        motion = motion_of(acc2)
-        tc = np.arange(0.0, 3.0 * duration, 0.1)
+        motion = motion_of(speed_profile(p["speed"], duration, np.random.default_rng(int(speed_seed))))
+        tc = np.arange(0.0, duration, 0.1)
         past = np.flatnonzero(motion(tc)[2] >= s_end)
-        duration2 = min(duration, float(tc[past[0]]) if len(past) else 3.0 * duration)
-    clean = drive_on_road(motion, duration2, rate, first["layout"], first["rough"], p["road"], p["vehicle"],
-                          R_gs, t_gs, int(p["oversample"]))
-    clean["curves"] = first["curves"]
+        duration2 = float(tc[past[0]]) if len(past) else duration
+    clean = drive_on_road(motion, duration2, rate, layout, rough, p["road"], p["vehicle"], R_gs, t_gs,
+                          int(p["oversample"]))
+    clean["curves"] = curves
     n = len(clean["t"])
     nseed = int(sim.seed) + 1 if noise_seed is None else int(noise_seed)
     _, noise_g, _, noise_a = imu_errors(sim.imu_model, n, rate, nseed)
     errors = (_held(sim.bias_gyro, n), noise_g, _held(sim.bias_accel, n), noise_a)
     name = f"{sim.name}_second_pass" if sim.name else "second_pass"
-    params = dict(p, second_pass=dict(speed_scale=float(speed_scale), speed_seed=speed_seed, noise_seed=nseed))
-    out = finish_drive(clean, sim.imu_model, int(sim.seed), rate, float(p["frame_rate"]), R_gs, t_gs, params, name,
-                       errors=errors)
-    return replace(out, name=name)
+    params = dict(p, name=name, second_pass=dict(speed_scale=float(speed_scale), speed_seed=speed_seed, noise_seed=nseed))
+    return finish_drive(clean, sim.imu_model, int(sim.seed), rate, float(p["frame_rate"]), R_gs, t_gs, params, name,
+                        errors=errors)
