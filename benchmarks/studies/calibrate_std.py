@@ -32,7 +32,6 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -47,7 +46,7 @@ from imu_ground.so3 import twist_angle
 from imu_ground.units import DEG
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from confidence import DATA, REVISIT_DRIVES, revisit_of  # noqa: E402  (the sibling study: one pairing)
+from confidence import DATA, REVISIT_DRIVES, revisit_estimate  # noqa: E402  (the sibling study: one pairing)
 
 KEYS = ("a", "ux", "uy", "tvp", "tvr", "w")
 #: Coverage band (share within 1 sigma) each grade of the synthetic fit set is held in, per angle (the target
@@ -91,17 +90,12 @@ def components(drives, method: str) -> dict:
 def revisit_components(name: str, speed: str) -> dict:
     """The model's inputs at both frames of each revisit pair of a real drive (default method, ``speed``
     ``"none"`` or ``"auto"``) and the differences ``dp, dr`` of ``INS angle - estimate`` between the passes, rad."""
-    from imu_ground.pipeline import estimate_log
-    path = DATA / f"{name}.csv.gz"
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        res = estimate_log(path, speed=speed)
+    res, rp, _ = revisit_estimate(DATA / f"{name}.csv.gz", speed)
     tr, em = res.track, res.egomotion
     rot = np.asarray(res.meta["extrinsic"]["rotation"])
     f = SuspensionAwareFilter(extrinsic=rot)
     # (sigma_b^2 from the IMU-only gravity filter: it is zero with the default load share of 1)
     c = _inputs(f, tr, em, GravityVelocityFilter(extrinsic=rot).run(em).P)
-    rp = revisit_of(path, res)
     ok = np.asarray(tr.valid, dtype=bool)
     i, j = rp.i[ok[rp.i] & ok[rp.j]], rp.j[ok[rp.i] & ok[rp.j]]
     out = {k + s: v[idx] for k, v in c.items() for s, idx in (("1", i), ("2", j))}

@@ -45,33 +45,44 @@ DEG = math.pi / 180.0
 
 
 # ----------------------------------------------------------------------------- revisit pairs
-def revisit_of(path: Path, res):
-    """The revisit pairs of a real drive's estimate (``estimate_log``'s result), by the evaluation's pairing
-    (:func:`imu_ground.evaluation.revisit.revisit_pairs`: valid frames near a log sample)."""
+def revisit_estimate(path: Path, speed: str) -> tuple:
+    """The default method's estimate of a real drive (``estimate_log``, ``speed`` ``"none"`` or ``"auto"``;
+    the readers' notes on the KITTI timestamps silenced), its INS at the frames and its revisit pairs by
+    the evaluation's pairing (:func:`imu_ground.evaluation.revisit.revisit_pairs`: valid frames near a
+    log sample).
+
+    Returns
+    -------
+    res
+        ``estimate_log``'s result.
+    pairs : RevisitPairs
+    ins : dict
+        :func:`imu_ground.evaluation.revisit.ins_at_frames` of the log at the frames.
+    """
     import pandas as pd
 
     from imu_ground.evaluation.revisit import RevisitPairs, ins_at_frames, revisit_pairs
+    from imu_ground.pipeline import estimate_log
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = estimate_log(path, speed=speed)
     em = res.egomotion
     ins = ins_at_frames(pd.read_csv(path), em.t)
     usable = np.asarray(em.valid, dtype=bool) & ins["near"]
     i, j = revisit_pairs(em.t, ins["x"], ins["y"], ins["yaw"], ins["speed"], usable)
-    return RevisitPairs(i, j, ins["pitch"], ins["roll"])
+    return res, RevisitPairs(i, j, ins["pitch"], ins["roll"]), ins
 
 
 def revisit_rows(data: Path = DATA) -> list[dict]:
     """1-sigma calibration and road repeatability on the revisit drives (default method)."""
-    from imu_ground.pipeline import estimate_log
     rows = []
     for name in REVISIT_DRIVES:
         path = data / f"{name}.csv.gz"
         if not path.is_file():
             continue
         for speed in ("none", "auto"):
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")             # (the readers' notes on the KITTI timestamps)
-                res = estimate_log(path, speed=speed)
+            res, rp, _ = revisit_estimate(path, speed)
             tr = res.track
-            rp = revisit_of(path, res)
             i, j = rp.i, rp.j
             row = {"drive": name, "speed": speed, "pairs": len(rp)}
             for angle, ins_angle in (("pitch", rp.ins_pitch), ("roll", rp.ins_roll)):
@@ -93,10 +104,11 @@ def revisit_rows(data: Path = DATA) -> list[dict]:
 
 
 # ----------------------------------------------------------------------------- synthetic
-def _truth_at(d) -> dict:
+def truth_at_frames(d, columns=("road_grade", "road_bank", "speed", "stationary")) -> dict:
+    """Columns of a synthetic drive's simulated truth at its ego-motion frames (the frame ends)."""
     st = d.sim.truth
     idx = np.clip(np.searchsorted(st["t"].to_numpy(), d.egomotion.t - 1e-6), 0, len(st) - 1)
-    return {c: st[c].to_numpy()[idx] for c in ("road_grade", "road_bank", "speed", "stationary")}
+    return {c: st[c].to_numpy()[idx] for c in columns}
 
 
 def _span(shares) -> str:
@@ -126,7 +138,7 @@ def synthetic_rows(n: int = 10, seed: int = 1) -> list[dict]:
                 thr = CONVERGED_STD if method == "suspension" else FILTER_CONVERGED_STD
                 c = np.flatnonzero(np.maximum(tr.pitch_std, tr.roll_std) <= thr)
                 conv.append(tr.t[c[0]] - tr.t[0] + d.egomotion.delta_t[0] if len(c) else math.inf)
-                still = _truth_at(d)["stationary"].astype(bool)
+                still = truth_at_frames(d)["stationary"].astype(bool)
                 stand.append((tr.status[still] == STANDSTILL).mean() if still.any() else math.nan)
             rows.append({"check": "1-sigma coverage (synthetic)", "method": method, "imu": grade, "drives": len(ds),
                          "pitch % within 1 sigma": 100 * np.concatenate(hit["pitch"]).mean(),
@@ -137,7 +149,7 @@ def synthetic_rows(n: int = 10, seed: int = 1) -> list[dict]:
                          "standstill % of stationary frames (min over drives)": 100 * np.nanmin(stand)})
         g_err, b_err, g_cov, b_cov = [], [], [], []
         for d in ds:
-            tt = _truth_at(d)
+            tt = truth_at_frames(d)
             tr = SuspensionAwareFilter(extrinsic=d.extrinsic).run(d.egomotion, speed=tt["speed"])
             ev = d.truth["evaluate"].to_numpy(bool) & np.isfinite(tr.road_grade)
             eg, eb = (tr.road_grade - tt["road_grade"])[ev], (tr.road_bank - tt["road_bank"])[ev]
@@ -171,7 +183,7 @@ def mount_rows(n: int = 6, data: Path = DATA) -> list[dict]:
             sim = simulate(duration=240.0, seed=seed, imu=grade)
             for s, changed in ((sim, False), (remounted(sim, 120.0, roty(1.0 * DEG)), True)):
                 d = synthetic_drive(s)
-                speed = _truth_at(d)["speed"]
+                speed = truth_at_frames(d)["speed"]
                 tr = SuspensionAwareFilter(extrinsic=d.extrinsic).run(d.egomotion, speed=speed)
                 deg = np.flatnonzero(tr.status == DEGRADED)
                 f = SuspensionAwareFilter(extrinsic=d.extrinsic, recalibrate_online=True)

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import math
 import sys
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -35,7 +34,7 @@ from imu_ground.evaluation.simulate import second_pass, simulate_suite
 from imu_ground.filters.suspension import SuspensionAwareFilter
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from confidence import DATA, REVISIT_DRIVES, revisit_of  # noqa: E402  (the sibling study: one pairing)
+from confidence import DATA, REVISIT_DRIVES, revisit_estimate, truth_at_frames  # noqa: E402  (the sibling study: one pairing)
 
 DEG = math.pi / 180.0
 #: Second passes: label -> ``second_pass`` keywords (speed_seed: a new random profile).
@@ -49,11 +48,8 @@ def _pass(sim) -> dict:
     d = synthetic_drive(sim)
     tr = SuspensionAwareFilter(extrinsic=d.extrinsic).run(d.egomotion)
     em, truth = d.egomotion, d.truth
-    idx = np.clip(np.searchsorted(sim.truth["t"].to_numpy(), em.t - 1e-6), 0, len(sim.truth) - 1)
-    st = sim.truth.iloc[idx]
-    return dict(t=np.asarray(em.t, dtype=float), x=st["x"].to_numpy(), y=st["y"].to_numpy(),
-                heading=st["heading"].to_numpy(), speed=truth["speed"].to_numpy(),
-                usable=truth["evaluate"].to_numpy(bool) & (np.asarray(em.t) > SKIP_START),
+    return dict(t=np.asarray(em.t, dtype=float), **truth_at_frames(d, ("x", "y", "heading")),
+                speed=truth["speed"].to_numpy(), usable=truth["evaluate"].to_numpy(bool) & (np.asarray(em.t) > SKIP_START),
                 e=np.stack([tr.pitch - truth["pitch"].to_numpy(), tr.roll - truth["roll"].to_numpy()], 1),
                 std=np.stack([tr.pitch_std, tr.roll_std], 1))
 
@@ -70,21 +66,14 @@ def _pairs(a: dict, b: dict) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _real_rows() -> list[dict]:
-    """Mean |speed difference| and z RMS at the real revisit drives' pairs (default method, IMU only)."""
-    import pandas as pd
-
-    from imu_ground.evaluation.revisit import ins_at_frames
-    from imu_ground.pipeline import estimate_log
+    """Mean absolute speed difference and z RMS at the real revisit drives' pairs (default method, IMU only)."""
     out = []
     for name in REVISIT_DRIVES:
         path = DATA / f"{name}.csv.gz"
         if not path.is_file():
             continue
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")             # (the readers' notes on the KITTI timestamps)
-            res = estimate_log(path, speed="none")
-        rp, tr = revisit_of(path, res), res.track
-        v = ins_at_frames(pd.read_csv(path), res.egomotion.t)["speed"]
+        res, rp, ins = revisit_estimate(path, "none")
+        tr, v = res.track, ins["speed"]
         row = {"drive": name, "second pass": "the drive's own", "pairs": len(rp),
                "mean abs speed difference, m/s": float(np.mean(np.abs(v[rp.j] - v[rp.i])))}
         for angle, ins in (("pitch", rp.ins_pitch), ("roll", rp.ins_roll)):
