@@ -1,0 +1,228 @@
+"""Causal standstill detection and gyro bias: from the samples seen so far, one frame at a time.
+
+The whole-log detector (:mod:`imu_ground.imu.standstill`) looks at windows that start at
+each sample and so sees up to a window ahead; a live estimator cannot. Here the
+samples are summed in blocks, one per output frame (block ``k`` holds the samples
+in ``(t0 + k / rate, t0 + (k + 1) / rate]``, :func:`block_index`), and frame ``k``
+ends at a standstill when the trailing window of the ``W = round(window * rate)``
+blocks ``k - W + 1 .. k`` passes the same tests as the whole-log detector (every
+gyro axis' standard deviation at most ``gyro_std_max``, the mean rate's norm at
+most ``gyro_norm_max``, every accelerometer axis' standard deviation at most
+``accel_std_max``, the mean specific force's norm within ``accel_norm_tol`` of
+``gravity``), with every block holding samples (a gap is no standstill). Gravity's
+magnitude is fixed (:data:`~imu_ground.units.GRAVITY` by default): a causal detector
+cannot take the log's own median at rest.
+
+The gyro bias (:class:`CausalGyroBias`) is the mean rate over every block of the
+standstills seen so far (each block once), or a given bias.
+
+Sums run left to right from 0.0 in sample order (:class:`StandstillBlocks` one sample
+at a time, :func:`block_sums` over a log with ``np.bincount``, which adds in the same
+order), so the streaming and the whole-log forms agree bit for bit.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from imu_ground.units import GRAVITY
+
+__all__ = ["CausalGyroBias", "StandstillBlocks", "StandstillTests", "block_index", "block_sums", "window_standstill"]
+
+#: Rounding allowance of :func:`block_index`, in frames: a sample this close to a boundary ends the frame before it.
+_EDGE = 1e-6
+
+
+def block_index(t: float, t0: float, rate: float) -> int:
+    """The block (frame) of a sample at ``t`` (s): ``ceil((t - t0) rate - 1e-6) - 1``; -1 for the first sample."""
+    return math.ceil((t - t0) * rate - _EDGE) - 1
+
+
+class StandstillTests:
+    """The thresholds of a standstill window (those of :func:`imu_ground.imu.standstill.detect_standstill`).
+
+    Parameters
+    ----------
+    window : float
+        Trailing window, s.
+    gyro_std_max, gyro_norm_max : float
+        rad/s.
+    accel_std_max, accel_norm_tol : float
+        m/s^2.
+    gravity : float
+        Magnitude of the specific force at rest, m/s^2.
+    """
+
+    def __init__(self, window: float = 1.0, gyro_std_max: float = 0.004, gyro_norm_max: float = 0.05,
+                 accel_std_max: float = 0.04, accel_norm_tol: float = 0.15, gravity: float = GRAVITY) -> None:
+        self.window, self.gyro_std_max, self.gyro_norm_max = float(window), float(gyro_std_max), float(gyro_norm_max)
+        self.accel_std_max, self.accel_norm_tol, self.gravity = float(accel_std_max), float(accel_norm_tol), float(gravity)
+
+    def blocks(self, rate: float) -> int:
+        """Blocks in the window at ``rate`` frames a second."""
+        return max(1, int(round(self.window * rate)))
+
+
+def _passes(tests: StandstillTests, n: int, s: Sequence[float]) -> bool:
+    """Whether ``n`` samples with sums ``s`` (6 sums then 6 sums of squares) are a standstill."""
+    m = [x / n for x in s[:6]]
+    sd = [math.sqrt(max(s[6 + i] / n - m[i] * m[i], 0.0)) for i in range(6)]
+    if math.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]) > tests.gyro_norm_max:
+        return False
+    if max(sd[0], sd[1], sd[2]) > tests.gyro_std_max or max(sd[3], sd[4], sd[5]) > tests.accel_std_max:
+        return False
+    return abs(math.sqrt(m[3] * m[3] + m[4] * m[4] + m[5] * m[5]) - tests.gravity) <= tests.accel_norm_tol
+
+
+class StandstillBlocks:
+    """Per-frame sums of the samples and the trailing-window standstill test, one sample at a time.
+
+    Parameters
+    ----------
+    rate : float
+        Frame rate, Hz (one block a frame).
+    tests : StandstillTests, optional
+    """
+
+    def __init__(self, rate: float, tests: StandstillTests | None = None) -> None:
+        self.rate = float(rate)
+        self.tests = StandstillTests() if tests is None else tests
+        self.W = self.tests.blocks(self.rate)
+        self.blocks: dict[int, list] = {}       # block -> [n, 6 sums, 6 sums of squares]
+
+    def add(self, k: int, g: Sequence[float], a: Sequence[float]) -> None:
+        """Add a sample (gyro rad/s, specific force m/s^2) to block ``k``."""
+        b = self.blocks.get(k)
+        if b is None:
+            b = self.blocks[k] = [0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+        b[0] += 1
+        for i, x in enumerate((g[0], g[1], g[2], a[0], a[1], a[2])):
+            b[1 + i] += x
+            b[7 + i] += x * x
+
+    def stationary(self, k: int) -> bool:
+        """Whether frame ``k`` ends at a standstill (its trailing window of blocks passes)."""
+        if k < self.W - 1:
+            return False
+        n, s = 0, [0.0] * 12
+        for j in range(k - self.W + 1, k + 1):
+            b = self.blocks.get(j)
+            if b is None or b[0] == 0:
+                return False
+            n += b[0]
+            for i in range(12):
+                s[i] += b[1 + i]
+        return _passes(self.tests, n, s)
+
+    def done(self, k: int) -> None:
+        """Frame ``k`` is finished: forget the blocks no later frame's window holds (before ``k - W + 2``)."""
+        for old in [j for j in self.blocks if j < k - self.W + 2]:
+            del self.blocks[old]
+
+    def block(self, j: int) -> tuple[int, float, float, float]:
+        """``(n, gyro sums x, y, z)`` of block ``j`` (zeros when it holds no sample)."""
+        b = self.blocks.get(j)
+        return (0, 0.0, 0.0, 0.0) if b is None else (b[0], b[1], b[2], b[3])
+
+    def clear(self) -> None:
+        self.blocks.clear()
+
+    def state_dict(self) -> dict[str, Any]:
+        return {"blocks": [[k, *b] for k, b in sorted(self.blocks.items())]}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.blocks = {int(r[0]): [int(r[1]), *(float(x) for x in r[2:])] for r in state["blocks"]}
+
+
+def block_sums(k: np.ndarray, gyro: np.ndarray, accel: np.ndarray, n_blocks: int) -> tuple[np.ndarray, np.ndarray]:
+    """Counts (B,) and sums (12, B) of the samples of each block 0 .. B-1 (``k`` each sample's; others skipped)."""
+    keep = (k >= 0) & (k < n_blocks)
+    kk = k[keep]
+    x = np.concatenate([gyro[keep], accel[keep]], axis=1)
+    sums = np.empty((12, n_blocks))
+    for i in range(6):
+        sums[i] = np.bincount(kk, weights=x[:, i], minlength=n_blocks)
+        sums[6 + i] = np.bincount(kk, weights=x[:, i] * x[:, i], minlength=n_blocks)
+    return np.bincount(kk, minlength=n_blocks), sums
+
+
+def window_standstill(counts: np.ndarray, sums: np.ndarray, tests: StandstillTests, rate: float) -> np.ndarray:
+    """:meth:`StandstillBlocks.stationary` of every frame 0 .. B-1 at once (same sums in the same order)."""
+    B = counts.size
+    W = tests.blocks(rate)
+    out = np.zeros(B, dtype=bool)
+    if B < W:
+        return out
+    m = B - W + 1                                   # frames W-1 .. B-1
+    n = np.zeros(m, dtype=np.int64)
+    s = np.zeros((12, m))
+    full = np.ones(m, dtype=bool)
+    for j in range(W):
+        n += counts[j:j + m]
+        s += sums[:, j:j + m]
+        full &= counts[j:j + m] > 0
+    nn = np.maximum(n, 1).astype(float)
+    mean = s[:6] / nn
+    sd = np.sqrt(np.maximum(s[6:] / nn - mean * mean, 0.0))
+    gnorm = np.sqrt(mean[0] * mean[0] + mean[1] * mean[1] + mean[2] * mean[2])
+    anorm = np.sqrt(mean[3] * mean[3] + mean[4] * mean[4] + mean[5] * mean[5])
+    ok = (full & (gnorm <= tests.gyro_norm_max) & (sd[:3].max(axis=0) <= tests.gyro_std_max)
+          & (sd[3:].max(axis=0) <= tests.accel_std_max) & (np.abs(anorm - tests.gravity) <= tests.accel_norm_tol))
+    out[W - 1:] = ok
+    return out
+
+
+class CausalGyroBias:
+    """Gyro bias from the standstills seen so far, or fixed.
+
+    Parameters
+    ----------
+    bias : "auto" or sequence of 3 floats
+        ``"auto"``: the mean rate over the blocks of every standstill so far (zero before
+        the first); three floats: this bias, rad/s, never changed.
+
+    Attributes
+    ----------
+    value : tuple of 3 floats
+        The bias, rad/s, body frame.
+    n : int
+        Samples averaged (``auto``).
+    """
+
+    def __init__(self, bias: Any = "auto") -> None:
+        self.auto = isinstance(bias, str)
+        if self.auto and bias != "auto":
+            raise ValueError(f"bias_gyro must be 'auto' or 3 numbers (rad/s), got {bias!r}")
+        self.value = (0.0, 0.0, 0.0) if self.auto else tuple(float(x) for x in np.asarray(bias, float).reshape(3))
+        self.n, self.s = 0, [0.0, 0.0, 0.0]
+        self.last = -1                  # last block added
+
+    def absorb(self, k: int, W: int, block) -> None:
+        """Frame ``k`` ends at a standstill: add blocks ``max(last + 1, k - W + 1) .. k`` (``block(j)`` gives
+        ``(n, sx, sy, sz)`` of block ``j``)."""
+        if not self.auto:
+            return
+        for j in range(max(self.last + 1, k - W + 1), k + 1):
+            n, sx, sy, sz = block(j)
+            self.n += n
+            s = self.s
+            s[0] += sx
+            s[1] += sy
+            s[2] += sz
+        self.last = k
+        self.value = (self.s[0] / self.n, self.s[1] / self.n, self.s[2] / self.n)
+
+    def new_blocks(self) -> None:
+        """Block indices start again (a restart of the clock); the bias is kept."""
+        self.last = -1
+
+    def state_dict(self) -> dict[str, Any]:
+        return {"auto": self.auto, "value": list(self.value), "n": self.n, "s": list(self.s), "last": self.last}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.auto = bool(state["auto"])
+        self.value = tuple(float(x) for x in state["value"])
+        self.n, self.s, self.last = int(state["n"]), [float(x) for x in state["s"]], int(state["last"])
