@@ -1,4 +1,4 @@
-"""The ``imu-ground`` command: ``estimate | batch | evaluate | simulate | calibrate | preview``.
+"""The ``imu-ground`` command: ``estimate | stream | batch | evaluate | simulate | calibrate | preview``.
 
 One module per command (``register`` adds its parser, ``run`` does the work; the
 library's heavy dependencies, pandas, scipy, matplotlib and the optional ones, load
@@ -24,7 +24,7 @@ from imu_ground.pipeline.output import package_version
 __all__ = ["COMMANDS", "Terminated", "build_parser", "main"]
 
 #: Sub-command modules, in the order ``--help`` lists them.
-COMMANDS = ("estimate", "batch", "evaluate", "simulate", "calibrate", "preview")
+COMMANDS = ("estimate", "stream", "batch", "evaluate", "simulate", "calibrate", "preview")
 
 
 class _Parser(argparse.ArgumentParser):

@@ -55,7 +55,7 @@ from imu_ground.imu.preintegration import StreamingPreintegrator, preintegrate
 from imu_ground.imu.sample_clock import DROP, OK, RESTART, WARMUP, SampleClock
 from imu_ground.so3 import quat_from_matrix
 
-__all__ = ["LIVE_METHODS", "SPEED_WAIT", "FrameEstimate", "StreamingEstimator", "causal_track", "estimate_row"]
+__all__ = ["LIVE_METHODS", "SPEED_WAIT", "FrameEstimate", "StreamingEstimator", "causal_track", "estimate_row", "replay"]
 
 #: Methods that run live (``"auto"`` is ``"suspension"``); the offline smoother and the naive baseline do not.
 LIVE_METHODS = ("suspension", "filter", "paper")
