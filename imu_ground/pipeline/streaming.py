@@ -73,6 +73,8 @@ class FrameEstimate(GroundEstimate):
     ------------------------------------------------
     t : float
         Frame (end) time, s, on the sample clock.
+    valid : bool
+        False for a frame that spans a gap or that the filter skipped (as a track's ``valid``).
     t_start : float
         Frame start, s.
     speed : float
@@ -87,11 +89,13 @@ class FrameEstimate(GroundEstimate):
 
     @classmethod
     def of(cls, est: GroundEstimate, t: float, t_start: float, speed: float, notes: tuple,
-           camera: Any = None) -> "FrameEstimate":
-        """``est`` with the frame's times, speed, notes and camera."""
+           camera: Any = None, frame_valid: bool = True) -> "FrameEstimate":
+        """``est`` with the frame's times, speed, notes and camera; ``valid`` also False for a frame that spans
+        a gap (``frame_valid``), as in a track."""
         out = cls.__new__(cls)
         for name in GroundEstimate.__slots__:         # a value copy of the filter's estimate
             setattr(out, name, getattr(est, name))
+        out.valid = bool(est.valid and frame_valid)
         out.t, out.t_start, out.speed, out.notes = t, t_start, speed, notes
         out._camera, out._plane = camera, None
         return out
@@ -365,7 +369,8 @@ class StreamingEstimator:
                 sp.done(te)
             q.popleft()
             est = self._filter.step(ego) if v is None and not self.speed_aided else self._filter.step(ego, speed=v)
-            out.append(FrameEstimate.of(est, ego.t, ts, math.nan if v is None else v, tuple(notes), self.camera))
+            out.append(FrameEstimate.of(est, ego.t, ts, math.nan if v is None else v, tuple(notes), self.camera,
+                                        ego.valid))
         return out
 
     # -- warm start ----------------------------------------------------------------------------
