@@ -25,7 +25,7 @@ lane-width errors at 20, 40, 60 m with the static extrinsic, the default method 
 Speed: the tables of the benchmark scripts in ``benchmarks/``, each of which exposes
 ``rows()`` returning its rows
 (``bench_filter``, ``bench_suspension``, ``bench_preintegration``, ``bench_ekf``,
-``bench_gravity``, ``bench_readers``, ``bench_batch``); a script that is missing
+``bench_gravity``, ``bench_readers``, ``bench_batch``, ``bench_streaming``: the live estimator); a script that is missing
 or has no ``rows()`` is listed with a note instead. Figures are measured on
 whatever machine runs this (shared, 2 cores while others work: speed figures are
 medians but noisy).
@@ -47,7 +47,7 @@ REPO = HERE.parent
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_imu100"
 OUT = HERE / "RESULTS.md"
 BENCHMARKS = ("bench_filter", "bench_suspension", "bench_preintegration", "bench_ekf", "bench_gravity",
-              "bench_readers", "bench_batch")
+              "bench_readers", "bench_batch", "bench_streaming")
 #: Folder of the studies (accuracy, tuning and simulator checks; not speed targets).
 STUDIES = HERE / "studies"
 #: Studies whose rows check the simulator against the real drives (band powers, method ranking), not speeds.
@@ -84,7 +84,15 @@ CONFIDENCE_TITLE = "How sure, and what the road does"
 #: Scripts whose rows measure what the per-frame ground plane does for a camera (range and lane-width errors).
 PERCEPTION_CHECKS = ("bench_ground_effect",)
 #: A paragraph printed above a script's table (what it measures), by script name.
-INTROS = {"bench_ground_effect": (
+INTROS = {"bench_streaming": (
+    "Live (`imu_ground.StreamingEstimator`, `imu-ground stream`, `estimate --causal`): `push_imu` per IMU sample "
+    "(the log's speed pushed too) against the offline pipeline's cost per sample (`estimate_log` of the same log, "
+    "reading included, same process), the pure-Python kernels beside; the frame-completing call's 99th percentile "
+    "(CPU time; wall time beside); the INS-grade score and the revisit consistency of the live estimate against "
+    "the default (both with the log's speed); and per shared drive the largest and 99th-percentile |difference| "
+    "of pitch and roll, deg, between the default (whole-log gyro bias and standstills) and the live estimate, "
+    "over the whole drive and after its first 60 s (empty on drives shorter than that)."),
+    "bench_ground_effect": (
     "What the per-frame plane does for a camera with KITTI camera 2's intrinsics, height and mount "
     "(`benchmarks/bench_ground_effect.py`): mean over drives of the per-drive mean absolute ground-point range "
     "error and lane-width error (m) over the moving frames, at 20, 40 and 60 m ahead, with the static extrinsic, "
