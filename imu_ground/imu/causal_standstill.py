@@ -59,7 +59,8 @@ class StandstillTests:
     def __init__(self, window: float = 1.0, gyro_std_max: float = 0.004, gyro_norm_max: float = 0.05,
                  accel_std_max: float = 0.04, accel_norm_tol: float = 0.15, gravity: float = GRAVITY) -> None:
         self.window, self.gyro_std_max, self.gyro_norm_max = float(window), float(gyro_std_max), float(gyro_norm_max)
-        self.accel_std_max, self.accel_norm_tol, self.gravity = float(accel_std_max), float(accel_norm_tol), float(gravity)
+        self.accel_std_max, self.accel_norm_tol = float(accel_std_max), float(accel_norm_tol)
+        self.gravity = float(gravity)
 
     def blocks(self, rate: float) -> int:
         """Blocks in the window at ``rate`` frames a second."""

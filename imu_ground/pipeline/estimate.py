@@ -459,7 +459,8 @@ def speed_samples(speed, path, fmt, imu):
 
 
 def _causal_estimate(path, kind, fmt, method, rate, extrinsic, speed, Q, R, recalibrate_online, reader_kw):
-    """:func:`estimate_log` with ``causal=True``: the log read, then :func:`~imu_ground.pipeline.streaming.causal_track`.
+    """:func:`estimate_log` with ``causal=True``: the log read, then
+    :func:`~imu_ground.pipeline.streaming.causal_track`.
 
     Returns ``track, egomotion, info, method name, speed description``.
     """

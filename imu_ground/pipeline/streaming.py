@@ -52,10 +52,11 @@ from imu_ground.imu.causal_standstill import (
 )
 from imu_ground.imu.egomotion import EgoFrame, EgoMotion
 from imu_ground.imu.preintegration import StreamingPreintegrator, preintegrate
-from imu_ground.imu.sample_clock import DROP, OK, RESTART, WARMUP, SampleClock
+from imu_ground.imu.sample_clock import DROP, OK, RESTART, SampleClock
 from imu_ground.so3 import quat_from_matrix
 
-__all__ = ["LIVE_METHODS", "SPEED_WAIT", "FrameEstimate", "StreamingEstimator", "causal_track", "estimate_row", "replay"]
+__all__ = ["LIVE_METHODS", "SPEED_WAIT", "FrameEstimate", "StreamingEstimator", "causal_track", "estimate_row",
+           "replay"]
 
 #: Methods that run live (``"auto"`` is ``"suspension"``); the offline smoother and the naive baseline do not.
 LIVE_METHODS = ("suspension", "filter", "paper")
@@ -399,7 +400,8 @@ class StreamingEstimator:
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Resume from :meth:`state_dict`; another kind, version or settings raises ``OptionError`` naming ``state``."""
         if not isinstance(state, dict) or state.get("kind") != _STATE_KIND:
-            raise OptionError(f"{{opt}} is not a StreamingEstimator state (kind {state.get('kind') if isinstance(state, dict) else type(state).__name__!r})", "state")
+            kind = state.get("kind") if isinstance(state, dict) else type(state).__name__
+            raise OptionError(f"{{opt}} is not a StreamingEstimator state (kind {kind!r})", "state")
         if state.get("version") != _STATE_VERSION:
             raise OptionError(f"{{opt}} has version {state.get('version')!r}, this estimator reads {_STATE_VERSION}",
                               "state")
@@ -631,7 +633,8 @@ def _track_of(frames: list[FrameEstimate], est: StreamingEstimator):
                                        pitch_std=[f.pitch_std for f in frames], roll_std=[f.roll_std for f in frames],
                                        status=[f.status_code for f in frames],
                                        status_reason=[f.status_reason for f in frames],
-                                       road_grade=[f.road_grade for f in frames], road_bank=[f.road_bank for f in frames],
+                                       road_grade=[f.road_grade for f in frames],
+                                       road_bank=[f.road_bank for f in frames],
                                        road_grade_std=[f.road_grade_std for f in frames],
                                        road_bank_std=[f.road_bank_std for f in frames])
     em = EgoMotion(t, np.tile(np.eye(3), (n, 1, 1)), np.zeros((n, 3)), t - ts, np.zeros(n, bool),
