@@ -411,3 +411,46 @@ def test_estimate_causal_cli(cli, tmp_path):
     assert "causal" in out.read_text().split("\nt,")[0]
     code, _, err = cli("estimate", EXAMPLE, "--causal", "--method", "suspension-offline", "-o", out)
     assert code == 2 and "--method" in err
+
+
+# --------------------------------------------------------------------------- the twins, piece by piece
+def test_standstill_blocks_equal_their_vectorised_twin():
+    from imu_ground.imu.causal_standstill import StandstillBlocks, block_sums, window_standstill
+    rng = np.random.default_rng(3)
+    n, rate = 3000, 10.0
+    t = np.cumsum(np.full(n, 0.01))
+    t[1500:] += 0.5                                              # a gap: empty blocks, no standstill across
+    still = (t % 20) < 8                                         # stops of 8 s every 20 s
+    gyro = np.where(still[:, None], 1e-3 + rng.normal(0, 5e-4, (n, 3)), rng.normal(0, 0.1, (n, 3)))
+    accel = np.array([0.0, 0.0, 9.80665]) + np.where(still[:, None], rng.normal(0, 0.01, (n, 3)),
+                                                     rng.normal(0, 0.5, (n, 3)))
+    k = np.ceil((t - t[0]) * rate - 1e-6).astype(np.int64) - 1
+    B = int(k.max()) + 1
+    flags = window_standstill(*block_sums(k, gyro, accel, B), StandstillBlocks(rate).tests, rate)
+    blocks = StandstillBlocks(rate)
+    got = []
+    for i in range(n):
+        if k[i] >= 0:
+            blocks.add(int(k[i]), gyro[i].tolist(), accel[i].tolist())
+        while len(got) < k[i]:                                   # frames before this sample's block are complete
+            got.append(blocks.stationary(len(got)))
+    assert got == flags[:len(got)].tolist() and 100 < sum(got) < len(got) - 100
+
+
+def test_speed_buffer_equals_frame_speed():
+    from imu_ground.datasets.speed import frame_speed
+    from imu_ground.datasets.speed_buffer import SpeedBuffer
+    rng = np.random.default_rng(4)
+    ts = np.cumsum(rng.uniform(0.01, 0.2, 300))
+    v = 10 + np.cumsum(rng.normal(0, 0.3, 300))
+    te = np.arange(1.0, ts[-1] + 1.0, 0.1)
+    want = frame_speed(ts, v, te, np.full(te.size, 0.1))
+    buf = SpeedBuffer()
+    for x, y in zip(ts, v):
+        buf.push(float(x), float(y))
+    got = []
+    for e in te:
+        got.append(buf.mean(e - 0.1, e))
+        buf.done(e)
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+    assert np.isnan(got[-1]) and np.isfinite(got[5])
