@@ -14,7 +14,8 @@ magnitude is fixed (:data:`~imu_ground.units.GRAVITY` by default): a causal dete
 cannot take the log's own median at rest.
 
 The gyro bias (:class:`CausalGyroBias`) is the mean rate over every block of the
-standstills seen so far (each block once), or a given bias.
+standstills seen so far (each block once) in windows of ``bias_window`` (2 s, as the
+whole-log bias: a shorter stop may be creeping), or a given bias.
 
 Sums run left to right from 0.0 in sample order (:class:`StandstillBlocks` one sample
 at a time, :func:`block_sums` over a log with ``np.bincount``, which adds in the same
@@ -86,12 +87,15 @@ class StandstillBlocks:
     rate : float
         Frame rate, Hz (one block a frame).
     tests : StandstillTests, optional
+    bias_window : float
+        The window of the standstills the gyro bias is taken from, s (``Wb`` blocks).
     """
 
-    def __init__(self, rate: float, tests: StandstillTests | None = None) -> None:
+    def __init__(self, rate: float, tests: StandstillTests | None = None, bias_window: float = 2.0) -> None:
         self.rate = float(rate)
         self.tests = StandstillTests() if tests is None else tests
         self.W = self.tests.blocks(self.rate)
+        self.Wb = max(1, int(round(bias_window * self.rate)))      # the bias's window, blocks
         self.blocks: dict[int, list] = {}       # block -> [n, 6 sums, 6 sums of squares]
 
     def add(self, k: int, g: Sequence[float], a: Sequence[float]) -> None:
@@ -104,12 +108,13 @@ class StandstillBlocks:
             b[1 + i] += x
             b[7 + i] += x * x
 
-    def stationary(self, k: int) -> bool:
-        """Whether frame ``k`` ends at a standstill (its trailing window of blocks passes)."""
-        if k < self.W - 1:
+    def stationary(self, k: int, W: int | None = None) -> bool:
+        """Whether frame ``k`` ends at a standstill (its trailing window of ``W`` blocks, default :attr:`W`, passes)."""
+        W = self.W if W is None else W
+        if k < W - 1:
             return False
         n, s = 0, [0.0] * 12
-        for j in range(k - self.W + 1, k + 1):
+        for j in range(k - W + 1, k + 1):
             b = self.blocks.get(j)
             if b is None or b[0] == 0:
                 return False
@@ -119,8 +124,8 @@ class StandstillBlocks:
         return _passes(self.tests, n, s)
 
     def done(self, k: int) -> None:
-        """Frame ``k`` is finished: forget the blocks no later frame's window holds (before ``k - W + 2``)."""
-        for old in [j for j in self.blocks if j < k - self.W + 2]:
+        """Frame ``k`` is finished: forget the blocks no later frame's windows hold."""
+        for old in [j for j in self.blocks if j < k - max(self.W, self.Wb) + 2]:
             del self.blocks[old]
 
     def block(self, j: int) -> tuple[int, float, float, float]:
@@ -150,10 +155,12 @@ def block_sums(k: np.ndarray, gyro: np.ndarray, accel: np.ndarray, n_blocks: int
     return np.bincount(kk, minlength=n_blocks), sums
 
 
-def window_standstill(counts: np.ndarray, sums: np.ndarray, tests: StandstillTests, rate: float) -> np.ndarray:
-    """:meth:`StandstillBlocks.stationary` of every frame 0 .. B-1 at once (same sums in the same order)."""
+def window_standstill(counts: np.ndarray, sums: np.ndarray, tests: StandstillTests, rate: float,
+                      W: int | None = None) -> np.ndarray:
+    """:meth:`StandstillBlocks.stationary` of every frame 0 .. B-1 at once (same sums in the same order;
+    ``W`` blocks, default the tests' window)."""
     B = counts.size
-    W = tests.blocks(rate)
+    W = tests.blocks(rate) if W is None else W
     out = np.zeros(B, dtype=bool)
     if B < W:
         return out

@@ -13,7 +13,7 @@ Per sample, each piece one class:
    gaps, a clock set back by more than a gap restarts the front end).
 2. **Standstill and gyro bias** (:mod:`imu_ground.imu.causal_standstill`): a frame ends at a
    standstill when its trailing 1 s window is quiet; the bias is the mean rate over the
-   standstills seen so far (or given, or from a saved state) and applies from the next sample.
+   standstills (2 s windows) seen so far (or given, or from a saved state) and applies from the next sample.
 3. **Preintegration** (:class:`~imu_ground.imu.preintegration.StreamingPreintegrator`): frames
    at ``rate`` Hz from the first sample, gaps flagged and integrated through.
 4. **Speed over the frame** (:class:`~imu_ground.datasets.speed_buffer.SpeedBuffer`): a frame
@@ -332,8 +332,8 @@ class StreamingEstimator:
         j = round((f.t_end - self._origin) * self.rate) - 1
         blocks = self._blocks
         still = blocks.stationary(j)
-        if still:
-            self._bias.absorb(j, blocks.W, blocks.block)
+        if self._bias.auto and blocks.stationary(j, blocks.Wb):
+            self._bias.absorb(j, blocks.Wb, blocks.block)
         blocks.done(j)
         notes = self._take_notes()
         self._queue.append((EgoFrame(f.delta_R, f.delta_v, f.delta_t, still, bool(f.valid), f.t_end),
@@ -497,8 +497,9 @@ def causal_track(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, *, method: 
     counts, sums = block_sums(k, gyro, accel, B)
     tests = StandstillTests()
     still_b = window_standstill(counts, sums, tests, r)
-    W = tests.blocks(r)
+    Wb = est._blocks.Wb
     bias = est._bias
+    still_bias = window_standstill(counts, sums, tests, r, Wb) if bias.auto else np.zeros(B, dtype=bool)
     # frames and the sample that completes each (the first at or after its end boundary, less snap_tol)
     tol = 1e-9
     i_emit = np.searchsorted(t, ends - tol, side="left")
@@ -508,8 +509,8 @@ def causal_track(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, *, method: 
     bias_rows[0] = bias.value
     block = lambda j: (int(counts[j]), float(sums[0, j]), float(sums[1, j]), float(sums[2, j]))  # noqa: E731
     for j in range(n_frames):
-        if still_b[j]:
-            bias.absorb(j, W, block)
+        if still_bias[j]:
+            bias.absorb(j, Wb, block)
         bias_rows[j + 1] = bias.value
     J = np.searchsorted(i_emit, np.arange(m), side="left")         # frames emitted before sample i
     g_corr = gyro - bias_rows[J]
