@@ -137,10 +137,12 @@ class StandstillBlocks:
         self.blocks.clear()
 
     def state_dict(self) -> dict[str, Any]:
-        return {"blocks": [[k, *b] for k, b in sorted(self.blocks.items())]}
+        keys = sorted(self.blocks)
+        return {"k": keys, "n": [self.blocks[k][0] for k in keys], "sums": [self.blocks[k][1:] for k in keys]}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        self.blocks = {int(r[0]): [int(r[1]), *(float(x) for x in r[2:])] for r in state["blocks"]}
+        self.blocks = {int(k): [int(n), *(float(x) for x in s)] for k, n, s in
+                       zip(state["k"], state["n"], state["sums"])}
 
 
 def block_sums(k: np.ndarray, gyro: np.ndarray, accel: np.ndarray, n_blocks: int) -> tuple[np.ndarray, np.ndarray]:

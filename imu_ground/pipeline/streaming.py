@@ -138,6 +138,66 @@ def estimate_row(est: FrameEstimate) -> dict[str, Any]:
     return row
 
 
+# ------------------------------------------------------------------------------------------ state packing
+_PACKED = "float64_zlib_base64"
+_PACK_MIN = 8
+
+
+def _shape(x: Any) -> Any:
+    """0 for a float, the list of its items' shapes for a list of such; None for anything else."""
+    if type(x) is float:
+        return 0
+    if type(x) is list and x:
+        items = [_shape(y) for y in x]
+        return None if any(i is None for i in items) else items
+    return None
+
+
+def _leaves(x: Any, out: list) -> None:
+    if type(x) is float:
+        out.append(x)
+    else:
+        for y in x:
+            _leaves(y, out)
+
+
+def _pack(x: Any) -> Any:
+    """A list of equally shaped items of floats (at least 8 in all) as base64 of the floats' float64 bytes
+    (zlib-compressed) and the items' shape: exact, and less than half the JSON of the numbers' text;
+    everything else as it is."""
+    if type(x) is dict:
+        return {k: _pack(v) for k, v in x.items()}
+    if type(x) is list:
+        shape = _shape(x)
+        if shape is not None and all(s == shape[0] for s in shape):
+            flat: list = []
+            _leaves(x, flat)
+            if len(flat) >= _PACK_MIN:
+                import base64
+                import zlib
+                raw = zlib.compress(np.array(flat, dtype=float).tobytes(), 9)
+                return {_PACKED: base64.b64encode(raw).decode("ascii"), "n": len(x), "item": shape[0]}
+        return [_pack(v) for v in x]
+    return x
+
+
+def _build(shape: Any, it) -> Any:
+    return next(it) if shape == 0 else [_build(s, it) for s in shape]
+
+
+def _unpack(x: Any) -> Any:
+    if type(x) is dict:
+        if _PACKED in x:
+            import base64
+            import zlib
+            it = iter(np.frombuffer(zlib.decompress(base64.b64decode(x[_PACKED])), dtype=float).tolist())
+            return [_build(x["item"], it) for _ in range(int(x["n"]))]
+        return {k: _unpack(v) for k, v in x.items()}
+    if type(x) is list:
+        return [_unpack(v) for v in x]
+    return x
+
+
 # ------------------------------------------------------------------------------------------ checks
 def _number(x: Any, name: str) -> float:
     if isinstance(x, numbers.Real) and not isinstance(x, bool):
@@ -384,18 +444,19 @@ class StreamingEstimator:
 
     def state_dict(self) -> dict[str, Any]:
         """Everything (clock, preintegrator, standstill window, gyro bias, speed buffer, waiting frames, filter)
-        as a plain JSON-serialisable dict; :meth:`load_state_dict` on an estimator with the same settings resumes."""
+        as a plain JSON-serialisable dict (long lists of floats as base64 of their compressed float64 bytes, exact);
+        :meth:`load_state_dict` on an estimator with the same settings resumes."""
         queue = [[ego.delta_R.ravel().tolist(), ego.delta_v.tolist(), ego.delta_t, ego.stationary, ego.valid,
                   ego.t, ts, list(notes)] for ego, ts, notes in self._queue]
         return {"kind": _STATE_KIND, "version": _STATE_VERSION, "settings": self._settings(),
                 "clock": self._clock.state_dict(), "warm": [[t, *g, *a] for t, g, a in self._warm],
                 "origin": None if math.isnan(self._origin) else self._origin,
-                "preintegrator": None if self._pre is None else self._pre.state_dict(),
+                "preintegrator": None if self._pre is None else _pack(self._pre.state_dict()),
                 "max_gap": None if self._pre is None else self._pre.max_gap,
-                "blocks": self._blocks.state_dict(), "bias": self._bias.state_dict(),
-                "speed": self._speed.state_dict(), "queue": queue, "notes": list(self._notes),
+                "blocks": _pack(self._blocks.state_dict()), "bias": self._bias.state_dict(),
+                "speed": _pack(self._speed.state_dict()), "queue": queue, "notes": list(self._notes),
                 "skipped": self._skipped, "now": None if self._now == -math.inf else self._now,
-                "filter": self._filter.state_dict()}
+                "filter": _pack(self._filter.state_dict())}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Resume from :meth:`state_dict`; another kind, version or settings raises ``OptionError`` naming ``state``."""
@@ -419,16 +480,16 @@ class StreamingEstimator:
             if state["preintegrator"] is not None:
                 self._pre = StreamingPreintegrator(rate=self.rate, t_origin=self._origin,
                                                    max_gap=float(state["max_gap"]), on_gap="flag", uncertainty=False)
-                self._pre.load_state_dict(state["preintegrator"])
-            self._blocks.load_state_dict(state["blocks"])
+                self._pre.load_state_dict(_unpack(state["preintegrator"]))
+            self._blocks.load_state_dict(_unpack(state["blocks"]))
             self._bias.load_state_dict(state["bias"])
-            self._speed.load_state_dict(state["speed"])
+            self._speed.load_state_dict(_unpack(state["speed"]))
             self._queue = deque((EgoFrame(np.array(r[0], float).reshape(3, 3), np.array(r[1], float), float(r[2]),
                                           bool(r[3]), bool(r[4]), float(r[5])), float(r[6]), list(r[7]))
                                 for r in state["queue"])
             self._notes, self._skipped = list(state["notes"]), int(state["skipped"])
             self._now = -math.inf if state["now"] is None else float(state["now"])
-            self._filter.load_state_dict(state["filter"])
+            self._filter.load_state_dict(_unpack(state["filter"]))
         except (KeyError, TypeError, IndexError) as e:
             self.reset()
             raise OptionError(f"{{opt}} is incomplete or damaged ({type(e).__name__}: {e})", "state") from None
