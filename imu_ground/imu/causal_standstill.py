@@ -19,7 +19,8 @@ whole-log bias: a shorter stop may be creeping), or a given bias.
 
 Sums run left to right from 0.0 in sample order (:class:`StandstillBlocks` one sample
 at a time, :func:`block_sums` over a log with ``np.bincount``, which adds in the same
-order), so the streaming and the whole-log forms agree bit for bit.
+order), and a window's sums add its blocks newest first, so the streaming and the
+whole-log forms agree bit for bit.
 """
 from __future__ import annotations
 
@@ -110,18 +111,27 @@ class StandstillBlocks:
 
     def stationary(self, k: int, W: int | None = None) -> bool:
         """Whether frame ``k`` ends at a standstill (its trailing window of ``W`` blocks, default :attr:`W`, passes)."""
+        return self.windows(k, self.W if W is None else W, 0)[0]
+
+    def windows(self, k: int, W: int | None = None, Wb: int | None = None) -> tuple[bool, bool]:
+        """Whether the trailing windows of ``W`` and of ``Wb`` blocks (defaults :attr:`W`, :attr:`Wb`; 0: not
+        asked) ending at frame ``k`` pass, in one pass over the blocks (summed newest first)."""
         W = self.W if W is None else W
-        if k < W - 1:
-            return False
+        Wb = self.Wb if Wb is None else Wb
+        out = [False, False]
         n, s = 0, [0.0] * 12
-        for j in range(k - W + 1, k + 1):
-            b = self.blocks.get(j)
-            if b is None or b[0] == 0:
-                return False
+        blocks = self.blocks
+        for i in range(max(W, Wb)):
+            b = blocks.get(k - i)
+            if b is None or b[0] == 0 or k - i < 0:
+                break
             n += b[0]
-            for i in range(12):
-                s[i] += b[1 + i]
-        return _passes(self.tests, n, s)
+            s = [x + y for x, y in zip(s, b[1:])]
+            if i == W - 1:
+                out[0] = _passes(self.tests, n, s)
+            if i == Wb - 1:
+                out[1] = _passes(self.tests, n, s)
+        return out[0], out[1]
 
     def done(self, k: int) -> None:
         """Frame ``k`` is finished: forget the blocks no later frame's windows hold."""
@@ -170,10 +180,11 @@ def window_standstill(counts: np.ndarray, sums: np.ndarray, tests: StandstillTes
     n = np.zeros(m, dtype=np.int64)
     s = np.zeros((12, m))
     full = np.ones(m, dtype=bool)
-    for j in range(W):
-        n += counts[j:j + m]
-        s += sums[:, j:j + m]
-        full &= counts[j:j + m] > 0
+    for j in range(W):                              # newest block first, as StandstillBlocks.windows
+        lo = W - 1 - j
+        n += counts[lo:lo + m]
+        s += sums[:, lo:lo + m]
+        full &= counts[lo:lo + m] > 0
     nn = np.maximum(n, 1).astype(float)
     mean = s[:6] / nn
     sd = np.sqrt(np.maximum(s[6:] / nn - mean * mean, 0.0))

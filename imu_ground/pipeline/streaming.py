@@ -391,8 +391,8 @@ class StreamingEstimator:
     def _frame(self, f) -> None:
         j = round((f.t_end - self._origin) * self.rate) - 1
         blocks = self._blocks
-        still = blocks.stationary(j)
-        if self._bias.auto and blocks.stationary(j, blocks.Wb):
+        still, for_bias = blocks.windows(j, blocks.W, blocks.Wb if self._bias.auto else 0)
+        if for_bias:
             self._bias.absorb(j, blocks.Wb, blocks.block)
         blocks.done(j)
         notes = self._take_notes()
