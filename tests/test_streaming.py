@@ -454,3 +454,32 @@ def test_speed_buffer_equals_frame_speed():
         buf.done(e)
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
     assert np.isnan(got[-1]) and np.isfinite(got[5])
+
+
+def test_stream_writes_its_state_on_sigterm(tmp_path):
+    import signal
+    import time as _time
+    exe = Path(sys.executable).with_name("imu-ground")
+    state = tmp_path / "s.json"
+    p = subprocess.Popen([str(exe), "stream", "--state", str(state)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    lines = EXAMPLE.read_text().splitlines()[:400]
+    p.stdin.write("\n".join(lines) + "\n")
+    p.stdin.flush()
+    first = p.stdout.readline()                      # the header line: samples are being processed
+    assert first.startswith("t,normal_x")
+    _time.sleep(0.3)
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=30)
+    assert p.returncode == 143 and "terminated" in err
+    assert json.loads(state.read_text())["kind"] == "imu_ground.StreamingEstimator"
+
+
+def test_stream_realtime_paces_the_replay(cli, tmp_path):
+    import time as _time
+    log = tmp_path / "short.csv"
+    log.write_text("\n".join(EXAMPLE.read_text().splitlines()[:61]) + "\n")    # 0.6 s at 100 Hz
+    t0 = _time.monotonic()
+    code, out, err = cli("stream", "--replay", log, "--realtime")
+    assert code == 0, err
+    assert _time.monotonic() - t0 >= 0.55 and len(out.splitlines()) == 1 + 5

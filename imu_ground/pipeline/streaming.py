@@ -270,7 +270,7 @@ class StreamingEstimator:
     ``push_imu`` returns the frames the sample completes, in time order (usually none; a frame
     waits for its speed at most ``speed_wait``). Time ``t`` is seconds on any clock, the IMU's
     and the speed's the same one. ``state_dict`` / ``load_state_dict`` save and resume
-    everything (JSON-serialisable, a few KB); the rest of the stream is then bit-identical.
+    everything (JSON-serialisable); the rest of the stream is then bit-identical.
     """
 
     def __init__(self, method: str = "auto", extrinsic: Any = None, rate: float = 10.0, camera: Any = None, *,
