@@ -405,13 +405,7 @@ class StreamingEstimator:
         if self._skipped:
             notes.append(f"{self._skipped} non-finite IMU sample(s) skipped")
             self._skipped = 0
-        if c.dropped:
-            notes.append(f"{c.dropped} IMU sample(s) dropped (time not after the last; policy {self.policy})")
-            c.dropped = 0
-        if c.retimed:
-            notes.append(f"{c.retimed} stamp(s) retimed on the sample clock")
-            c.retimed = 0
-        return notes
+        return notes + _take_clock_notes(c, self.policy)
 
     def _decide(self, now: float) -> list[FrameEstimate]:
         out = []
@@ -600,6 +594,18 @@ def causal_track(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, *, method: 
     return track, em
 
 
+def _take_clock_notes(clock: SampleClock, policy: str) -> list[str]:
+    """What the clock did since the last call (samples dropped, stamps retimed); its counts start again."""
+    notes = []
+    if clock.dropped:
+        notes.append(f"{clock.dropped} IMU sample(s) dropped (time not after the last; policy {policy})")
+        clock.dropped = 0
+    if clock.retimed:
+        notes.append(f"{clock.retimed} stamp(s) retimed on the sample clock")
+        clock.retimed = 0
+    return notes
+
+
 def _clock_notes(est, t_in, keep, notes, i_emit) -> None:
     """Replay the clock's per-sample counts onto the frames (as the streaming notes them): a loop, but only
     for logs whose stamps were retimed or dropped."""
@@ -613,14 +619,7 @@ def _clock_notes(est, t_in, keep, notes, i_emit) -> None:
         if keep[i]:
             p = pos[i]
             while f < nf and i_emit[f] == p:
-                c = []
-                if clock.dropped:
-                    c.append(f"{clock.dropped} IMU sample(s) dropped (time not after the last; policy {est.policy})")
-                    clock.dropped = 0
-                if clock.retimed:
-                    c.append(f"{clock.retimed} stamp(s) retimed on the sample clock")
-                    clock.retimed = 0
-                notes[f] = c
+                notes[f] = _take_clock_notes(clock, est.policy)
                 f += 1
 
 
