@@ -20,9 +20,9 @@ file (:mod:`imu_ground.datasets.retime`); a live stream cannot wait for the end.
   seconds the clock jumps forward by the least offset seen (a dropout, a gap the
   preintegrator flags and integrates through). An offset of more than ``hold`` is
   a dropout at once.
-- **Restart**: a stamp more than ``max_gap`` behind the clock (a clock set back,
-  a log started again) restarts the clock (warm-up again); :meth:`push` says so and
-  the caller starts its estimate afresh.
+- **Restart**: a stamp more than ``max_gap`` before the one pushed last (a clock set
+  back, a log started again) restarts the clock (warm-up again); :meth:`push` says so
+  and the caller starts its front end afresh.
 
 Times are seconds; nothing here allocates per sample beyond Python floats.
 """
@@ -80,6 +80,7 @@ class SampleClock:
         self.t = math.nan
         self.dt = math.nan
         self._raw_max = -math.inf
+        self._raw_prev = math.nan            # the last stamp pushed
         self._steps: list[float] = []
         self._pending = math.nan            # output time when the stamps went ahead (NaN: they are not)
         self._pmin = math.inf               # the least offset since then, s
@@ -101,20 +102,20 @@ class SampleClock:
         if not self.warm:
             return self._warmup(t)
         out, dt = self.t, self.dt
-        raw_max = self._raw_max
-        if t > raw_max:
+        prev, self._raw_prev = self._raw_prev, t
+        if t < prev - self.gap_factor * dt:                 # a step back of more than a gap: the clock was set back
+            counts = (self.retimed, self.dropped, self.dropouts, self.restarts + 1)
+            self.reset()
+            self.retimed, self.dropped, self.dropouts, self.restarts = counts
+            self.last_jump = prev - t
+            self._warmup(t)
+            return RESTART, t
+        if t > self._raw_max:
             self._raw_max = t
         elif self.policy == "drop":
             self.dropped += 1
             return DROP, math.nan
         e = t - (out + dt)
-        if e < -self.gap_factor * dt - dt:                  # more than a gap behind: the clock was set back
-            counts = (self.retimed, self.dropped, self.dropouts, self.restarts + 1)
-            self.reset()
-            self.retimed, self.dropped, self.dropouts, self.restarts = counts
-            self.last_jump = out - t
-            self._warmup(t)
-            return RESTART, t
         if e > 0.5 * dt:
             if e > self.hold:                               # far ahead: a dropout at once
                 self._pending = math.nan
@@ -144,6 +145,7 @@ class SampleClock:
         return OK, out
 
     def _warmup(self, t: float) -> tuple[int, float]:
+        self._raw_prev = t
         if not t > self._raw_max:
             self.dropped += 1
             return DROP, math.nan
@@ -160,14 +162,15 @@ class SampleClock:
     # -- warm start ---------------------------------------------------------
     def state_dict(self) -> dict[str, Any]:
         """The state as plain floats and ints (JSON: non-finite floats as None)."""
-        return {"t": _f(self.t), "dt": _f(self.dt), "raw_max": _f(self._raw_max), "steps": list(self._steps),
+        return {"t": _f(self.t), "dt": _f(self.dt), "raw_max": _f(self._raw_max), "raw_prev": _f(self._raw_prev),
+                "steps": list(self._steps),
                 "pending": _f(self._pending), "pmin": _f(self._pmin),
                 "counts": [self.retimed, self.dropped, self.dropouts, self.restarts], "last_jump": self.last_jump}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Resume from :meth:`state_dict`."""
         self.t, self.dt = _g(state["t"]), _g(state["dt"])
-        self._raw_max = _g(state["raw_max"])
+        self._raw_max, self._raw_prev = _g(state["raw_max"]), _g(state["raw_prev"])
         self._steps = [float(x) for x in state["steps"]]
         self._pending, self._pmin = _g(state["pending"]), _g(state["pmin"])
         self.retimed, self.dropped, self.dropouts, self.restarts = (int(x) for x in state["counts"])
