@@ -483,3 +483,17 @@ def test_stream_realtime_paces_the_replay(cli, tmp_path):
     code, out, err = cli("stream", "--replay", log, "--realtime")
     assert code == 0, err
     assert _time.monotonic() - t0 >= 0.55 and len(out.splitlines()) == 1 + 5
+
+
+def test_camera_plane_live_equals_causal_estimate(cli, tmp_path):
+    imu, _ = _read(EXAMPLE)
+    res = _offline(EXAMPLE, camera="kitti_cam2")
+    frames = replay(StreamingEstimator(camera="kitti_cam2"), imu.t, imu.gyro, imu.accel)
+    got = np.array([f.plane for f in frames])
+    np.testing.assert_allclose(got, res.meta["plane"].coefficients, rtol=0, atol=1e-12)
+    log = tmp_path / "short.csv"
+    log.write_text("\n".join(EXAMPLE.read_text().splitlines()[:101]) + "\n")
+    code, out, err = cli("stream", "--replay", log, "--camera", "kitti_cam2")
+    assert code == 0, err
+    header = out.splitlines()[0].split(",")
+    assert header[header.index("valid") - 4:header.index("valid")] == ["plane_a", "plane_b", "plane_c", "plane_d"]
