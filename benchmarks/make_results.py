@@ -64,8 +64,10 @@ REVISIT_CAPTIONS = {
                "direction: mean |difference| / sqrt(2), deg, pitch / roll, per drive with revisit pairs and "
                "pooled (pairs in the header). `suspension` is the evaluation's IMU-only default; `before` is the "
                "suspension filter's configuration before this table existed, `now` today's; `+ speed` uses "
-               "the INS horizontal speed as the measured speed (`--speed auto`, the CLI default). The other "
-               "methods do not use what changed (gravity filter, suspension model): the same before and now.",
+               "the INS horizontal speed as the measured speed (`--speed auto`, the CLI default); `live (--causal)` "
+               "is the live estimator's (`StreamingEstimator`, `estimate --causal`: causal clock, standstills and gyro "
+               "bias) with the speed. The other methods do not use what changed (gravity filter, suspension model): "
+               "the same before and now.",
     "INS-grade": "The same suspension variants against the INS-grade pitch reference on every valid drive: "
                  "mean over drives of the per-drive mean absolute pitch error (deg), the worst drive's ratio "
                  "to the paper's method (at most 1.1 allowed), and the error pooled over frames by the "
