@@ -69,15 +69,16 @@ class StandstillTests:
         return max(1, int(round(self.window * rate)))
 
 
-def _passes(tests: StandstillTests, n: int, s: Sequence[float]) -> bool:
-    """Whether ``n`` samples with sums ``s`` (6 sums then 6 sums of squares) are a standstill."""
-    m = [x / n for x in s[:6]]
-    sd = [math.sqrt(max(s[6 + i] / n - m[i] * m[i], 0.0)) for i in range(6)]
-    if math.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]) > tests.gyro_norm_max:
-        return False
-    if max(sd[0], sd[1], sd[2]) > tests.gyro_std_max or max(sd[3], sd[4], sd[5]) > tests.accel_std_max:
-        return False
-    return abs(math.sqrt(m[3] * m[3] + m[4] * m[4] + m[5] * m[5]) - tests.gravity) <= tests.accel_norm_tol
+def _passes(tests: StandstillTests, n: int, s: Sequence[float], first: int = 0) -> bool:
+    """Whether ``n`` samples with sums ``s`` (per component: sum, then sum of squares; ``first`` 0 for the
+    gyro's three components, 3 for the specific force's) pass that sensor's standstill tests."""
+    m0, m1, m2 = s[0] / n, s[1] / n, s[2] / n
+    sd = max(math.sqrt(max(s[3] / n - m0 * m0, 0.0)), math.sqrt(max(s[4] / n - m1 * m1, 0.0)),
+             math.sqrt(max(s[5] / n - m2 * m2, 0.0)))
+    norm = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+    if first == 0:
+        return norm <= tests.gyro_norm_max and sd <= tests.gyro_std_max
+    return sd <= tests.accel_std_max and abs(norm - tests.gravity) <= tests.accel_norm_tol
 
 
 class StandstillBlocks:
@@ -115,23 +116,32 @@ class StandstillBlocks:
 
     def windows(self, k: int, W: int | None = None, Wb: int | None = None) -> tuple[bool, bool]:
         """Whether the trailing windows of ``W`` and of ``Wb`` blocks (defaults :attr:`W`, :attr:`Wb`; 0: not
-        asked) ending at frame ``k`` pass, in one pass over the blocks (summed newest first)."""
+        asked) ending at frame ``k`` pass, summed newest block first; the specific force only for a window
+        whose gyro passes (each component's sums are the same either way)."""
         W = self.W if W is None else W
         Wb = self.Wb if Wb is None else Wb
-        out = [False, False]
-        n, s = 0, [0.0] * 12
         blocks = self.blocks
-        for i in range(max(W, Wb)):
-            b = blocks.get(k - i)
-            if b is None or b[0] == 0 or k - i < 0:
+        sizes = [w for w in (W, Wb) if w > 0]
+        if not sizes or k - max(sizes) + 1 < 0 and k - min(sizes) + 1 < 0:
+            return False, False
+        result = {}
+        for first, col in ((0, 1), (3, 4)):
+            asked = [w for w in sizes if result.get(w, True)]
+            if not asked:
                 break
-            n += b[0]
-            s = [x + y for x, y in zip(s, b[1:])]
-            if i == W - 1:
-                out[0] = _passes(self.tests, n, s)
-            if i == Wb - 1:
-                out[1] = _passes(self.tests, n, s)
-        return out[0], out[1]
+            n, s = 0, [0.0] * 6
+            for i in range(max(asked)):
+                b = blocks.get(k - i)
+                if b is None or b[0] == 0 or k - i < 0:
+                    break
+                n += b[0]
+                s = [s[0] + b[col], s[1] + b[col + 1], s[2] + b[col + 2],
+                     s[3] + b[col + 6], s[4] + b[col + 7], s[5] + b[col + 8]]
+                if i + 1 in asked:
+                    result[i + 1] = _passes(self.tests, n, s, first)
+            for w in asked:
+                result.setdefault(w, False)
+        return (W > 0 and result.get(W, False)), (Wb > 0 and result.get(Wb, False))
 
     def done(self, k: int) -> None:
         """Frame ``k`` is finished: forget the blocks no later frame's windows hold."""
