@@ -67,3 +67,31 @@ def test_no_module_function_reaches_into_another_objects_private_attributes():
     found = [f"{p.relative_to(ROOT.parent)}:{line} {fn}: {expr}" for p in LIBRARY
              for fn, line, expr in private_reaches(ast.parse(p.read_text(encoding="utf-8")))]
     assert not found, "make these methods of the object they reach into:\n" + "\n".join(found)
+
+
+def _room_table() -> dict[str, tuple[set[str], set[str]]]:
+    """Layer -> the README's room table's names: those outside parentheses (modules), and all."""
+    import re
+    rows = {}
+    for line in (ROOT.parent / "README.md").read_text(encoding="utf-8").splitlines():
+        m = re.match(r"\| `imu_ground\.(\w+)` \| (.*?) \| ", line)
+        if not m:
+            continue
+        text = everything = m.group(2)
+        while re.search(r"\([^()]*\)", text):
+            text = re.sub(r"\([^()]*\)", "", text)
+        rows[m.group(1)] = set(re.findall(r"`(\w+)`", text)), set(re.findall(r"`(\w+)`", everything))
+    return rows
+
+
+@pytest.mark.parametrize("layer, complete", [("imu", True), ("filters", True), ("pipeline", True),
+                                             ("perception", True), ("datasets", False), ("evaluation", False)])
+def test_the_readme_room_table_follows_the_tree(layer, complete):
+    """Every module the table names exists; for the layers it lists whole, every module is named."""
+    base = DATASETS if layer == "datasets" else ROOT / layer
+    tree = {p.stem for p in base.glob("*.py") if not p.name.startswith(("__", *NOT_LIBRARY))}
+    tree |= {p.name for p in base.iterdir() if p.is_dir() and (p / "__init__.py").exists()}
+    named, mentioned = _room_table()[layer]
+    assert named <= tree, f"the README names modules that are not in imu_ground/{layer}: {sorted(named - tree)}"
+    if complete:
+        assert tree <= mentioned, f"modules of imu_ground/{layer} missing from the README's table: {sorted(tree - mentioned)}"
