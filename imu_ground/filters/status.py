@@ -141,106 +141,6 @@ SUSPENSION_STD = (AngleStd(0.506, 0.000885 * DEG, 0.0873 * DEG, 0.0483 * DEG, 0.
 FILTER_STD = (AngleStd(0.0, 0.0, 0.0, 0.229 * DEG), AngleStd(0.0, 0.0, 0.0, 0.361 * DEG))
 
 
-class SigmaModel:
-    """The 1-sigma model of one estimator (module docstring) and its convergence latch (its state).
-
-    Parameters
-    ----------
-    constants : (AngleStd, AngleStd)
-        Pitch and roll constants (:data:`SUSPENSION_STD` or :data:`FILTER_STD`).
-    converged_std : float
-        The latch's threshold, rad (:data:`CONVERGED_STD` or :data:`FILTER_CONVERGED_STD`).
-    load_share, cross_gain : float
-        The suspension model's ``s`` and ``k_cross`` (the gravity estimate's share, batch only).
-
-    Attributes
-    ----------
-    converged : bool
-        The larger 1-sigma has been at or below ``converged_std`` once since the start or a reset.
-    """
-
-    def __init__(self, constants=SUSPENSION_STD, converged_std: float = CONVERGED_STD, load_share: float = 1.0,
-                 cross_gain: float = 0.0) -> None:
-        self.constants, self.converged_std = constants, float(converged_std)
-        self.load_share, self.cross_gain = float(load_share), float(cross_gain)
-        self._var = self.converged_std * self.converged_std
-        self.reset()
-
-    def reset(self) -> None:
-        """Not converged."""
-        self.converged = False
-
-    def frame(self, a: float, ux: float = 0.0, uy: float = 0.0, gravity_var: float = 0.0,
-              weights: tuple = (0.0, 0.0), dt: float = math.nan, note: Optional[str] = None,
-              yaw_rate: float = 0.0) -> tuple:
-        """One frame (plain floats): advances the latch and returns what
-        :class:`~imu_ground.filters.estimator.GroundEstimate` derives the 1-sigma and the reason from.
-
-        Parameters
-        ----------
-        a : float
-            The filter's level variance of the road attitude, rad^2.
-        ux, uy : float
-            The suspension model's load, m/s^2.
-        gravity_var : float
-            The gravity estimate's two world-horizontal variances summed, (m/s^2)^2.
-        weights : (float, float)
-            The suspension model's tilt weights of the gains used at this frame.
-        dt : float
-            Frame duration, s.
-        note : str or None
-            The note of an ``ok`` frame (or the monitor's alarm).
-        yaw_rate : float
-            ``|omega|``, rad/s.
-        """
-        pm, rm = self.constants
-        info = (pm, rm, a, ux, uy, gravity_var * weights[0], gravity_var * weights[1], dt, note, self.converged_std,
-                yaw_rate)
-        if not self.converged:
-            self.converged = max(pm.variance(a, ux, uy, info[5], yaw_rate),
-                                 rm.variance(a, ux, uy, info[6], yaw_rate)) <= self._var
-        return info
-
-    def track(self, a: np.ndarray, load: Optional[np.ndarray] = None, gains: Optional[np.ndarray] = None,
-              gravity_cov: Optional[np.ndarray] = None, yaw_rate: Optional[np.ndarray] = None) -> np.ndarray:
-        """The variances (G, 2) of pitch and roll of a batch, rad^2 (the batch twin of :meth:`frame`: the same
-        :meth:`AngleStd.variance`, the gravity term grouped otherwise, equal to 1e-12 relative).
-
-        Parameters
-        ----------
-        a : ndarray (G,)
-            The filter's level variance, rad^2.
-        load, gains : ndarray (G, 2), optional
-            The suspension model's load (m/s^2) and the gains used (rad per m/s^2); None: no load.
-        gravity_cov : ndarray (G, 6, 6), optional
-            The gravity/velocity filter's covariance.
-        yaw_rate : ndarray (G,), optional
-            rad/s (signed).
-        """
-        pm, rm = self.constants
-        if load is None:
-            return np.stack([pm.variance(a), rm.variance(a)], axis=1)
-        sg2 = (1.0 - self.load_share) ** 2 * 0.5 * (gravity_cov[:, 3, 3] + gravity_cov[:, 4, 4])
-        w = np.abs(yaw_rate)
-        return np.stack([pm.variance(a, load[:, 0], load[:, 1], sg2 * (gains[:, 0] ** 2 + self.cross_gain ** 2), w),
-                         rm.variance(a, load[:, 0], load[:, 1], sg2 * gains[:, 1] ** 2, w)], axis=1)
-
-    def statuses(self, var_max: np.ndarray, stationary: np.ndarray, valid: np.ndarray, good: np.ndarray,
-                 degraded: Optional[np.ndarray] = None) -> np.ndarray:
-        """:func:`track_statuses` of a batch with this latch (advanced)."""
-        codes, self.converged = track_statuses(var_max, stationary, valid, good, self.converged, degraded,
-                                               self.converged_std)
-        return codes
-
-    def state_dict(self) -> dict:
-        """``{"converged": ...}``, for a warm start."""
-        return {"converged": self.converged}
-
-    def load_state_dict(self, state) -> None:
-        """Back to a :meth:`state_dict` (a dict or a :class:`~imu_ground.imu.warm_start.StateReader`)."""
-        self.converged = as_reader(state, "SigmaModel").bool("converged")
-
-
 def ok_note(slow: bool, road_note: Optional[str]) -> Optional[str]:
     """The note of an ``ok`` frame: :data:`SLOW_REASON` when ``slow``, then ``road_note`` (None: no note)."""
     if slow:
@@ -378,3 +278,103 @@ def track_reasons(codes: np.ndarray, std_max: np.ndarray, dt: np.ndarray,
         out[k] = status_reason(int(codes[k]), float(dt[k]), float(std_max[k]),
                                None if details is None else details[k], converged_std)
     return out
+
+
+class SigmaModel:
+    """The 1-sigma model of one estimator (module docstring) and its convergence latch (its state).
+
+    Parameters
+    ----------
+    constants : (AngleStd, AngleStd)
+        Pitch and roll constants (:data:`SUSPENSION_STD` or :data:`FILTER_STD`).
+    converged_std : float
+        The latch's threshold, rad (:data:`CONVERGED_STD` or :data:`FILTER_CONVERGED_STD`).
+    load_share, cross_gain : float
+        The suspension model's ``s`` and ``k_cross`` (the gravity estimate's share, batch only).
+
+    Attributes
+    ----------
+    converged : bool
+        The larger 1-sigma has been at or below ``converged_std`` once since the start or a reset.
+    """
+
+    def __init__(self, constants=SUSPENSION_STD, converged_std: float = CONVERGED_STD, load_share: float = 1.0,
+                 cross_gain: float = 0.0) -> None:
+        self.constants, self.converged_std = constants, float(converged_std)
+        self.load_share, self.cross_gain = float(load_share), float(cross_gain)
+        self._var = self.converged_std * self.converged_std
+        self.reset()
+
+    def reset(self) -> None:
+        """Not converged."""
+        self.converged = False
+
+    def frame(self, a: float, ux: float = 0.0, uy: float = 0.0, gravity_var: float = 0.0,
+              weights: tuple = (0.0, 0.0), dt: float = math.nan, note: Optional[str] = None,
+              yaw_rate: float = 0.0) -> tuple:
+        """One frame (plain floats): advances the latch and returns what
+        :class:`~imu_ground.filters.estimator.GroundEstimate` derives the 1-sigma and the reason from.
+
+        Parameters
+        ----------
+        a : float
+            The filter's level variance of the road attitude, rad^2.
+        ux, uy : float
+            The suspension model's load, m/s^2.
+        gravity_var : float
+            The gravity estimate's two world-horizontal variances summed, (m/s^2)^2.
+        weights : (float, float)
+            The suspension model's tilt weights of the gains used at this frame.
+        dt : float
+            Frame duration, s.
+        note : str or None
+            The note of an ``ok`` frame (or the monitor's alarm).
+        yaw_rate : float
+            ``|omega|``, rad/s.
+        """
+        pm, rm = self.constants
+        info = (pm, rm, a, ux, uy, gravity_var * weights[0], gravity_var * weights[1], dt, note, self.converged_std,
+                yaw_rate)
+        if not self.converged:
+            self.converged = max(pm.variance(a, ux, uy, info[5], yaw_rate),
+                                 rm.variance(a, ux, uy, info[6], yaw_rate)) <= self._var
+        return info
+
+    def track(self, a: np.ndarray, load: Optional[np.ndarray] = None, gains: Optional[np.ndarray] = None,
+              gravity_cov: Optional[np.ndarray] = None, yaw_rate: Optional[np.ndarray] = None) -> np.ndarray:
+        """The variances (G, 2) of pitch and roll of a batch, rad^2 (the batch twin of :meth:`frame`: the same
+        :meth:`AngleStd.variance`, the gravity term grouped otherwise, equal to 1e-12 relative).
+
+        Parameters
+        ----------
+        a : ndarray (G,)
+            The filter's level variance, rad^2.
+        load, gains : ndarray (G, 2), optional
+            The suspension model's load (m/s^2) and the gains used (rad per m/s^2); None: no load.
+        gravity_cov : ndarray (G, 6, 6), optional
+            The gravity/velocity filter's covariance.
+        yaw_rate : ndarray (G,), optional
+            rad/s (signed).
+        """
+        pm, rm = self.constants
+        if load is None:
+            return np.stack([pm.variance(a), rm.variance(a)], axis=1)
+        sg2 = (1.0 - self.load_share) ** 2 * 0.5 * (gravity_cov[:, 3, 3] + gravity_cov[:, 4, 4])
+        w = np.abs(yaw_rate)
+        return np.stack([pm.variance(a, load[:, 0], load[:, 1], sg2 * (gains[:, 0] ** 2 + self.cross_gain ** 2), w),
+                         rm.variance(a, load[:, 0], load[:, 1], sg2 * gains[:, 1] ** 2, w)], axis=1)
+
+    def statuses(self, var_max: np.ndarray, stationary: np.ndarray, valid: np.ndarray, good: np.ndarray,
+                 degraded: Optional[np.ndarray] = None) -> np.ndarray:
+        """:func:`track_statuses` of a batch with this latch (advanced)."""
+        codes, self.converged = track_statuses(var_max, stationary, valid, good, self.converged, degraded,
+                                               self.converged_std)
+        return codes
+
+    def state_dict(self) -> dict:
+        """``{"converged": ...}``, for a warm start."""
+        return {"converged": self.converged}
+
+    def load_state_dict(self, state) -> None:
+        """Back to a :meth:`state_dict` (a dict or a :class:`~imu_ground.imu.warm_start.StateReader`)."""
+        self.converged = as_reader(state, "SigmaModel").bool("converged")

@@ -45,6 +45,16 @@ RTS smoother of the linear filter, then the forward attitude filter and its
 RTS smoother on the group, blended ``X = X_f Exp(w Log(X_f^T X_s))``,
 ``w = smoother_weight``.
 
+One class holds the estimator: its state and filterpy-style attributes, the streaming
+:meth:`~SuspensionAwareFilter.step` (with the per-frame 1-sigma, road, mount monitor and status),
+the batch :meth:`~SuspensionAwareFilter.run` (their vectorised twins, equal to 1e-12), the saved
+state (:meth:`~SuspensionAwareFilter.state_dict` / ``load_state_dict``) and the online
+re-estimation of the mount. Its components keep (and save) their own state: the suspension model
+(:mod:`~imu_ground.filters.suspension_model`), the 1-sigma model (:mod:`~imu_ground.filters.status`),
+the road filter (:mod:`~imu_ground.filters.road`), the mount monitor
+(:mod:`~imu_ground.filters.mount_monitor`) and the re-estimation's record
+(:mod:`~imu_ground.filters.recalibration`).
+
 The discrete-time design (band-pass, response) follows the ego-motion's frame
 rate (:attr:`~imu_ground.imu.egomotion.EgoMotion.rate`). How the defaults were
 chosen and how every configuration scores on real and synthetic drives is in
@@ -187,6 +197,15 @@ class SuspensionAwareFilter:
         Current ``(k_pitch, k_roll)``, rad per m/s^2 (the model's).
     model : SuspensionModel
         Load, gains and tilt (:mod:`imu_ground.filters.suspension_model`).
+    sigma : SigmaModel
+        The 1-sigma of pitch and roll and its convergence latch (:mod:`imu_ground.filters.status`).
+    road_filter : RoadFilter
+        The road's grade and bank (:mod:`imu_ground.filters.road`; from the first measured speed on).
+    mount_monitor : MountMonitor
+        A mount that moved (:mod:`imu_ground.filters.mount_monitor`).
+    recalibrator : MountRecalibrator or None
+        With ``recalibrate_online``: the record and estimate of a mount change
+        (:mod:`imu_ground.filters.recalibration`).
     gravity_filter : GravityVelocityFilter
     cumulative : ndarray (3, 3)
         ``R_k``, world <- body.
