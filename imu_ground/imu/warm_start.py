@@ -117,7 +117,8 @@ def unpack_state(saved: Any, kind: str, state_version: int, settings: Mapping[st
     Raises
     ------
     StateError
-        Not a saved state, another kind, another layout, or other settings.
+        Not a saved state, another kind, a ``state_version`` that is not the layout's integer, another
+        layout, or other settings (each named, nested ones as ``gravity.q_v``, with both values).
     """
     if not isinstance(saved, Mapping) or not {"kind", "state_version", "settings", "state"} <= set(saved):
         raise StateError(f"not a saved state of {kind} (expected the dict of state_dict(), with kind, "
@@ -168,8 +169,8 @@ class StateReader:
 
     Every method takes the entry's name and raises :class:`StateError` naming it (``monitor.hist``
     for an entry of a nested part) when it is missing, of another shape or type, not finite
-    (unless ``nan=True``: NaN, the layout's "none yet", is then allowed, infinities never) or
-    larger than :data:`MAX_MAGNITUDE`.
+    (NaN, the layout's "none yet", only where the loader allows it with ``nan``; infinities only
+    with ``inf``) or larger than :data:`MAX_MAGNITUDE`.
 
     Parameters
     ----------
