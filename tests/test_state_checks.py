@@ -180,3 +180,11 @@ def test_a_settings_mismatch_names_the_field_and_both_values():
     state = SuspensionAwareFilter(extrinsic="kitti_imu").state_dict()
     with pytest.raises(StateError, match=r"extrinsic\.translation: saved \[0\.0, 0\.0, 0\.93\]"):
         SuspensionAwareFilter().load_state_dict(state)
+
+
+@pytest.mark.parametrize("entry, value", [("deltas", [0.0] * 10), ("prev", [0.0] * 6), ("_next", float("nan")),
+                                          ("_cd", -1)])
+def test_a_preintegrator_state_of_another_shape_is_refused(drive, entry, value):
+    state = _preintegrator_state(drive)
+    with pytest.raises(StateError, match=rf"entry {entry}\b"):
+        StreamingPreintegrator(rate=10.0, uncertainty=True).load_state_dict(_set(state, (entry,), value))
