@@ -497,3 +497,17 @@ def test_camera_plane_live_equals_causal_estimate(cli, tmp_path):
     assert code == 0, err
     header = out.splitlines()[0].split(",")
     assert header[header.index("valid") - 4:header.index("valid")] == ["plane_a", "plane_b", "plane_c", "plane_d"]
+
+
+def test_causal_track_of_a_log_with_nan_and_a_restart_equals_the_stream():
+    """The logs the vectorised form does not cover (non-finite samples, a clock set back) are streamed."""
+    rng = np.random.default_rng(7)
+    t = np.r_[np.arange(600) * 0.01, 2.0 + np.arange(400) * 0.01]        # set back by 4 s after 6 s
+    gyro = rng.normal(0, 0.02, (1000, 3))
+    accel = np.array([0.0, 0.0, 9.81]) + rng.normal(0, 0.2, (1000, 3))
+    gyro[300, 1] = np.nan
+    track, _ = causal_track(t, gyro, accel)
+    frames = replay(StreamingEstimator(), t, gyro, accel)
+    _assert_same(frames, track)
+    assert any("restarted" in r for r in track.status_reason)
+    assert any("non-finite IMU sample" in r for r in track.status_reason)

@@ -489,6 +489,87 @@ class StreamingEstimator:
             raise OptionError(f"{{opt}} is incomplete or damaged ({type(e).__name__}: {e})", "state") from None
 
 
+    # -- a whole log at once ---------------------------------------------------------------------
+    def run(self, t: np.ndarray, gyro: np.ndarray, accel: np.ndarray,
+            speed: tuple[np.ndarray, np.ndarray] | None = None):
+        """What this estimator, fresh, gives fed a whole log sample by sample, computed at once where the
+        choices allow (:func:`causal_track`); returns ``(track, egomotion)``. Starts from :meth:`reset`."""
+        self.reset()
+        t = np.asarray(t, dtype=float)
+        gyro = np.asarray(gyro, dtype=float).reshape(-1, 3)
+        accel = np.asarray(accel, dtype=float).reshape(-1, 3)
+        n = t.size
+        clock = self._clock
+        tout = np.empty(n)
+        codes = np.empty(n, dtype=np.int8)
+        max_gap, n_warm = math.nan, -1
+        for i, ti in enumerate(t.tolist()):
+            codes[i], tout[i] = clock.push(ti)
+            if n_warm < 0 and clock.warm:
+                n_warm, max_gap = i + 1, clock.max_gap
+        finite = np.isfinite(t) & np.isfinite(gyro).all(axis=1) & np.isfinite(accel).all(axis=1)
+        if (codes == RESTART).any() or not finite.all():
+            self.reset()                                 # (the clock above ran over the log)
+            return _replayed(self, t, gyro, accel, speed)
+        retimed_total = clock.retimed
+        keep = codes == OK
+        n_dropped = int(n - keep.sum())
+        t_in, t, gyro, accel = t, tout[keep], gyro[keep], accel[keep]
+        frontier = np.maximum.accumulate(t_in)[keep] if n else t_in
+        m = t.size
+        if n_warm < 0 or m < 2:
+            return _empty_result(self)
+        n_warm = int(np.count_nonzero(keep[:n_warm]))
+        origin, r = float(t[0]), self.rate
+        # standstill blocks and flags, bias per frame
+        k = np.ceil((t - origin) * r - 1e-6).astype(np.int64) - 1
+        ends = origin + np.arange(1, int(k.max()) + 2) / r if k.max() >= 0 else np.zeros(0)
+        B = max(int(k.max()) + 1, 0)
+        counts, sums = block_sums(k, gyro, accel, B)
+        tests = StandstillTests()
+        still_b = window_standstill(counts, sums, tests, r)
+        Wb = self._blocks.Wb
+        bias = self._bias
+        still_bias = window_standstill(counts, sums, tests, r, Wb) if bias.auto else np.zeros(B, dtype=bool)
+        # frames and the sample that completes each (the first at or after its end boundary, less snap_tol)
+        tol = 1e-9
+        i_emit = np.searchsorted(t, ends - tol, side="left")
+        n_frames = int(np.count_nonzero(i_emit < m))
+        i_emit = i_emit[:n_frames]
+        bias_rows = np.empty((n_frames + 1, 3))
+        bias_rows[0] = bias.value
+        block = lambda j: (int(counts[j]), float(sums[0, j]), float(sums[1, j]), float(sums[2, j]))  # noqa: E731
+        for j in range(n_frames):
+            if still_bias[j]:
+                bias.absorb(j, Wb, block)
+            bias_rows[j + 1] = bias.value
+        J = np.searchsorted(i_emit, np.arange(m), side="left")         # frames emitted before sample i
+        g_corr = gyro - bias_rows[J]
+        fd = preintegrate((t, g_corr, accel), rate=r, t_origin=origin, max_gap=max_gap, on_gap="flag",
+                          uncertainty=False)
+        F = len(fd.t_end)
+        te = np.asarray(fd.t_end, dtype=float)
+        still = still_b[:F]
+        em = EgoMotion(te.copy(), fd.delta_R, fd.delta_v, fd.delta_t, still, np.asarray(fd.valid, bool).copy(),
+                       np.array(bias.value), "FLU", {"causal": True, "retimed": retimed_total, "dropped": n_dropped},
+                       r, True)
+        ts = te - np.asarray(fd.delta_t, float)
+        notes = [[] for _ in range(F)]
+        if F and (retimed_total or n_dropped):       # the clock's counts go to the frame after the sample
+            _clock_notes(self, t_in, keep, notes, np.maximum(i_emit[:F], n_warm - 1))
+        v = None
+        if self.speed_aided and speed is not None and F:
+            v = _causal_speeds(speed, te, ts, i_emit[:F], frontier, t, n_warm, self.speed_wait, notes)
+        flt = self._filter
+        track = flt.run(em, speed=v) if self.speed_aided else flt.run(em)
+        if any(notes):
+            reason = track.status_reason
+            for j, nt in enumerate(notes):
+                if nt:
+                    reason[j] = "; ".join([reason[j], *nt] if reason[j] else nt)
+        return track, em
+
+
 # ------------------------------------------------------------------------------------------ offline twin
 def causal_track(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, *, method: str = "auto", extrinsic: Any = None,
                  rate: float = 10.0, speed: tuple[np.ndarray, np.ndarray] | None = None, bias_gyro: Any = "auto",
@@ -520,78 +601,7 @@ def causal_track(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, *, method: 
     """
     est = StreamingEstimator(method, extrinsic, rate, bias_gyro=bias_gyro, policy=policy, speed_wait=speed_wait,
                              recalibrate_online=recalibrate_online)
-    t = np.asarray(t, dtype=float)
-    gyro = np.asarray(gyro, dtype=float).reshape(-1, 3)
-    accel = np.asarray(accel, dtype=float).reshape(-1, 3)
-    n = t.size
-    clock = est._clock
-    tout = np.empty(n)
-    codes = np.empty(n, dtype=np.int8)
-    max_gap, n_warm = math.nan, -1
-    for i, ti in enumerate(t.tolist()):
-        codes[i], tout[i] = clock.push(ti)
-        if n_warm < 0 and clock.warm:
-            n_warm, max_gap = i + 1, clock.max_gap
-    finite = np.isfinite(t) & np.isfinite(gyro).all(axis=1) & np.isfinite(accel).all(axis=1)
-    if (codes == RESTART).any() or not finite.all():
-        return _replayed(est, t, gyro, accel, speed)
-    retimed_total = clock.retimed
-    keep = codes == OK
-    n_dropped = int(n - keep.sum())
-    t_in, t, gyro, accel = t, tout[keep], gyro[keep], accel[keep]
-    frontier = np.maximum.accumulate(t_in)[keep] if n else t_in
-    m = t.size
-    if n_warm < 0 or m < 2:
-        return _empty_result(est)
-    n_warm = int(np.count_nonzero(keep[:n_warm]))
-    origin, r = float(t[0]), est.rate
-    # standstill blocks and flags, bias per frame
-    k = np.ceil((t - origin) * r - 1e-6).astype(np.int64) - 1
-    ends = origin + np.arange(1, int(k.max()) + 2) / r if k.max() >= 0 else np.zeros(0)
-    B = max(int(k.max()) + 1, 0)
-    counts, sums = block_sums(k, gyro, accel, B)
-    tests = StandstillTests()
-    still_b = window_standstill(counts, sums, tests, r)
-    Wb = est._blocks.Wb
-    bias = est._bias
-    still_bias = window_standstill(counts, sums, tests, r, Wb) if bias.auto else np.zeros(B, dtype=bool)
-    # frames and the sample that completes each (the first at or after its end boundary, less snap_tol)
-    tol = 1e-9
-    i_emit = np.searchsorted(t, ends - tol, side="left")
-    n_frames = int(np.count_nonzero(i_emit < m))
-    i_emit = i_emit[:n_frames]
-    bias_rows = np.empty((n_frames + 1, 3))
-    bias_rows[0] = bias.value
-    block = lambda j: (int(counts[j]), float(sums[0, j]), float(sums[1, j]), float(sums[2, j]))  # noqa: E731
-    for j in range(n_frames):
-        if still_bias[j]:
-            bias.absorb(j, Wb, block)
-        bias_rows[j + 1] = bias.value
-    J = np.searchsorted(i_emit, np.arange(m), side="left")         # frames emitted before sample i
-    g_corr = gyro - bias_rows[J]
-    fd = preintegrate((t, g_corr, accel), rate=r, t_origin=origin, max_gap=max_gap, on_gap="flag",
-                      uncertainty=False)
-    F = len(fd.t_end)
-    te = np.asarray(fd.t_end, dtype=float)
-    still = still_b[:F]
-    em = EgoMotion(te.copy(), fd.delta_R, fd.delta_v, fd.delta_t, still, np.asarray(fd.valid, bool).copy(),
-                   np.array(bias.value), "FLU", {"causal": True, "retimed": retimed_total, "dropped": n_dropped},
-                   r, True)
-    ts = te - np.asarray(fd.delta_t, float)
-    notes = [[] for _ in range(F)]
-    if F and (retimed_total or n_dropped):       # the clock's counts go to the frame after the sample
-        _clock_notes(est, t_in, keep, notes, np.maximum(i_emit[:F], n_warm - 1))
-    v = None
-    if est.speed_aided and speed is not None and F:
-        v = _causal_speeds(speed, te, ts, i_emit[:F], frontier, t, n_warm, est.speed_wait, notes)
-    flt = est._filter
-    track = flt.run(em, speed=v) if est.speed_aided else flt.run(em)
-    if any(notes):
-        reason = track.status_reason
-        for j, nt in enumerate(notes):
-            if nt:
-                reason[j] = "; ".join([reason[j], *nt] if reason[j] else nt)
-    return track, em
+    return est.run(t, gyro, accel, speed)
 
 
 def _take_clock_notes(clock: SampleClock, policy: str) -> list[str]:
