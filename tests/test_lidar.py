@@ -305,3 +305,58 @@ def test_object_frames_fit_against_avod(shared_data):
         diffs.append(math.degrees(fp - ap[0]))
     # the median frame is within 0.3 deg; 000008's road changes slope ahead (see RESULTS.md): within 0.6
     assert np.median(np.abs(diffs)) < 0.3 and max(np.abs(diffs)) < 0.6
+
+
+def test_kitti_lidar_transform_puts_the_velodyne_173_m_above_the_road(shared_data):
+    day = shared_data / "kitti_raw" / "2011_09_26"
+    ext = L.lidar_transform(day)
+    # KITTI's set-up: the Velodyne 0.81 m ahead of the IMU, 0.32 m right, 1.73 m above the road (IMU 0.93 m)
+    assert np.allclose(ext.translation, [0.81, -0.32, 1.73], atol=0.02)
+    assert np.allclose(ext.rotation, L.lidar_rotation(day), atol=0)
+    # the road the Velodyne sees lies on the ground frame's z = 0 (the IMU's 0.93 m plus the Velodyne's 0.80 m)
+    pts = L.read_bin_scan(day / "2011_09_26_drive_0009_sync" / "velodyne_points" / "data" / "0000000000.bin")[:, :3]
+    n, d = L.fit_ground_plane(pts)
+    road = pts[np.abs(pts @ n + d) < 0.1]
+    road = road[(road[:, 0] > 5) & (road[:, 0] < 15) & (np.abs(road[:, 1]) < 2)]
+    assert abs(np.median((road @ ext.rotation.T + ext.translation)[:, 2])) < 0.05
+
+
+def test_preview_with_lidar_on_real_images(shared_data, cli, tmp_path):
+    """Drive 0009's images with the LiDAR plane: each view reads the LiDAR's road point; the LiDAR plane's reading
+    is the closest to the LiDAR's own distance (it is the plane the point lies on)."""
+    from imu_ground.evaluation.lidar_preview import add_lidar_plane
+    from imu_ground.evaluation.preview import images_preview
+    from imu_ground.perception import GroundPlane, load_camera
+    day = shared_data / "kitti_raw" / "2011_09_26"
+    sync = day / "2011_09_26_drive_0009_sync"
+    images, scans = tmp_path / "images", tmp_path / "scans"
+    images.mkdir()
+    scans.mkdir()
+    for k in (0, 10, 20):
+        (images / f"{k:010d}.png").symlink_to(sync / "image_02" / "data" / f"{k:010d}.png")
+        (scans / f"{k:010d}.bin").symlink_to(sync / "velodyne_points" / "data" / f"{k:010d}.bin")
+    times = np.loadtxt(sync / "frames_estimated_times.txt")[[0, 10, 20]]
+    (tmp_path / "t.txt").write_text("\n".join(map(str, times)))
+    cam = load_camera("kitti_cam2")
+    t = np.arange(0, 40) * 0.1
+    flat = GroundPlane.from_pitch_roll(cam, np.zeros(40), np.zeros(40))
+    pv = add_lidar_plane(images_preview(images, tmp_path / "t.txt", cam, t, flat), scans, day)
+    assert set(pv.planes) == {"static", "dynamic", "lidar"} and pv.marks.shape == (3, 2)
+    assert np.all(np.abs(pv.marks[:, 0] - 30.0) < 2.0) and np.all(np.abs(pv.marks[:, 1]) < 1.0)
+    read = {n: np.array([float(s.split("reads ")[1].split()[0]) for s in texts]) for n, texts in pv.readings.items()}
+    assert np.all(np.abs(read["lidar"] - pv.marks[:, 0]) < 0.5)
+    with pytest.raises(OptionError, match="3 scans for 2 images"):
+        (images / f"{20:010d}.png").unlink()
+        (tmp_path / "t.txt").write_text("\n".join(map(str, times[:2])))
+        add_lidar_plane(images_preview(images, tmp_path / "t.txt", cam, t, flat), scans, day)
+    # the command line: one PNG with the three views
+    png = tmp_path / "pv.png"
+    (scans / f"{20:010d}.bin").unlink()
+    code, out, err = cli("preview", shared_data / "kitti_imu100" / "2011_09_26_drive_0009.csv.gz", "--images", images,
+                         "--times", tmp_path / "t.txt", "--camera", "kitti_cam2", "--lidar", scans,
+                         "--lidar-extrinsic", day, "-o", png)
+    assert code == 0, err
+    assert png.stat().st_size > 50_000
+    code, _, err = cli("preview", shared_data / "kitti_imu100" / "2011_09_26_drive_0009.csv.gz", "--images", images,
+                       "--times", tmp_path / "t.txt", "--camera", "kitti_cam2", "--lidar", scans, "-o", png)
+    assert code == 2 and "--lidar-extrinsic" in err and len(err.strip().splitlines()) == 1

@@ -9,7 +9,9 @@ roll relative to the road with ``calib_imu_to_velo.txt``, against each method of
 the ``estimate`` command's default (suspension filter with the INS speed) run on the whole log, and the
 INS reference (pitch + 10 m grade, as ``evaluate --real`` uses it). Rows ``table = drive 0009``: what
 ``imu-ground evaluate --lidar`` prints, the pitch spread with its moving-block bootstrap interval
-(blocks of 5 frames, 2000 draws) and ``p_best``, the share of the draws in which the method ranks first.
+(blocks of 5 frames, 2000 draws), ``p_best``, the share of the draws in which the method ranks first among
+the methods (the INS reference is not ranked), and ``vs_best``, the interval of its spread minus the best
+method's in the same draws (a method is behind only where that interval excludes 0).
 
 ``table = object frames``: the four KITTI object-benchmark frames on shared drives
 (``kitti_object_samples``, their own calibration files). The fit against the AVOD planes (pitch and roll,
@@ -86,18 +88,22 @@ def drive_rows() -> tuple[list[dict], dict]:
     lp, lr = _fit(files)
     estimates, drive = _estimates(LOG)
     ins = drive.truth
-    estimates["INS pitch + grade (reference)"] = (ins["t"].to_numpy(), ins["pitch"].to_numpy(),
-                                                  np.zeros(len(ins)), ins["speed"].to_numpy() > 3.0)
     _, summary = L.lidar_table(estimates, t_scan, lp, lr, source=str(LOG))
+    _, ref = L.lidar_table({"INS pitch + grade (reference)": (ins["t"].to_numpy(), ins["pitch"].to_numpy(),
+                                                              np.zeros(len(ins)), ins["speed"].to_numpy() > 3.0)},
+                           t_scan, lp, lr, source=str(LOG))
     rows = []
-    for name, s in summary.iterrows():
-        ref = name.startswith("INS")
-        rows.append({"table": "drive 0009", "method": name, "scans": int(s["n"]),
-                     "angle_deg": np.nan if ref else s["angle_mean"], "pitch_offset_deg": s["pitch_offset"],
-                     "angle_centred_deg": np.nan if ref else s["angle_centred"], "pitch_spread_deg": s["pitch_spread"],
-                     "spread_lo95": s["lo95"], "spread_hi95": s["hi95"], "p_best": s["p_best"],
-                     "roll_change_spread_deg": np.nan if ref else s["roll_change_spread"],
-                     "roll_change_corr": np.nan if ref else s["roll_change_corr"]})
+    for name, s in pd.concat([summary, ref]).iterrows():
+        is_ref = name.startswith("INS")
+        row = {"table": "drive 0009", "method": name, "scans": int(s["n"])}
+        if not is_ref:
+            row.update(angle_deg=s["angle_mean"], angle_centred_deg=s["angle_centred"])
+        row.update(pitch_offset_deg=s["pitch_offset"], pitch_spread_deg=s["pitch_spread"], spread_lo95=s["lo95"],
+                   spread_hi95=s["hi95"])
+        if not is_ref:
+            row.update(p_best=s["p_best"], vs_best_lo95=s["vs_best_lo95"], vs_best_hi95=s["vs_best_hi95"],
+                       roll_change_spread_deg=s["roll_change_spread"], roll_change_corr=s["roll_change_corr"])
+        rows.append(row)
     return rows, summary["pitch_offset"].to_dict()
 
 

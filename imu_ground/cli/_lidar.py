@@ -134,12 +134,12 @@ def run_lidar(a: argparse.Namespace) -> int:
     frames, summary = L.lidar_table(estimates, t_scan[keep], lp[keep], lr[keep], source=log)
     say(f"{Path(log).name} against {truth}; deg, estimate minus LiDAR")
     cols = ["n", "angle_mean", "pitch_offset", "roll_offset", "angle_centred", "pitch_spread", "lo95", "hi95",
-            "p_best", "roll_change_spread", "roll_change_corr"]
+            "p_best", "vs_best_lo95", "vs_best_hi95", "roll_change_spread", "roll_change_corr"]
     say(format_table(summary[[c for c in cols if c in summary.columns]], "text"))
     say("(angle_mean: mean angle between the normals, the paper's metric; *_offset: mean differences (a mounting "
         "calibration removes them); angle_centred: the angle with both centred; pitch_spread: standard deviation "
         "of the pitch difference, lo95..hi95 its moving-block bootstrap interval, p_best: share of the draws in "
-        "which the method ranks first; roll as changes only: the region sees the lane's crown)")
+        "which the method ranks first, vs_best_*: the interval of its spread minus the best method's; roll as changes only: the region sees the lane's crown)")
     if a.csv:
         with atomic_path(a.csv) as tmp:
             tmp.write_text(frames.to_csv(index=False, float_format="%.5f"), encoding="utf-8")

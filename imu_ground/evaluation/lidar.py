@@ -56,7 +56,7 @@ from imu_ground.filters.extrinsics import Extrinsic, load_extrinsic
 
 __all__ = ["LIDAR_EXTRA", "ROAD_REGION", "SCAN_SUFFIXES", "RoadRegion", "bootstrap_spread", "compare_to_lidar",
            "fit_ground_plane", "fit_scans", "kitti_object_rotation", "lidar_pitch_roll", "lidar_rotation",
-           "lidar_summary", "lidar_table", "planes_pitch_roll", "planes_rotations", "plot_lidar", "read_bin_scan", "read_scan_times", "scan_files"]
+           "lidar_summary", "lidar_table", "lidar_transform", "planes_pitch_roll", "planes_rotations", "plot_lidar", "read_bin_scan", "read_scan_times", "scan_files"]
 
 #: The optional extra that installs the plane fit's dependency (scikit-learn).
 LIDAR_EXTRA = ".[lidar]"
@@ -271,21 +271,18 @@ def _rotation_of(r: Any) -> np.ndarray:
     return u @ vt
 
 
-def lidar_rotation(spec: str | Path, imu_extrinsic: Any = None) -> np.ndarray:
-    """``R_{g<-l}``: LiDAR vectors into the ground frame of the log's static extrinsic.
+def lidar_transform(spec: str | Path, imu_extrinsic: Any = None) -> Extrinsic:
+    """The LiDAR's extrinsic ground <- LiDAR (rotation ``R_{g<-l}``, translation: its origin in the ground frame, m).
 
     Parameters
     ----------
     spec : str or Path
         A KITTI raw calibration folder (holding ``calib_imu_to_velo.txt``), that file
-        itself, or an extrinsic file of the project's format (``R``: ground <- LiDAR).
+        itself, or an extrinsic file of the project's format (``R``: ground <- LiDAR, ``t``).
     imu_extrinsic : optional
         The log's static extrinsic (ground <- IMU; anything :meth:`Extrinsic.coerce`
-        takes; default identity, KITTI's ``kitti_imu``). Used with KITTI's files only.
-
-    Returns
-    -------
-    ndarray (3, 3)
+        takes). Used with KITTI's files only; default KITTI's ``kitti_imu`` (axes of the
+        IMU, origin on the road 0.93 m below it, as the shipped KITTI cameras).
 
     Raises
     ------
@@ -300,17 +297,26 @@ def lidar_rotation(spec: str | Path, imu_extrinsic: Any = None) -> np.ndarray:
     text = calib.read_text(errors="replace")
     if calib.name == "calib_imu_to_velo.txt" or ("T:" in text and "calib_time" in text):
         from imu_ground.perception.kitti_calib import read_kitti_calib
-        r = read_kitti_calib(calib).get("R")
-        if r is None or r.size != 9:
-            raise OptionError(f"{calib}: no 'R:' line with 9 numbers (a KITTI calib_imu_to_velo.txt; {{opt}})",
-                              "lidar_extrinsic")
+        c = read_kitti_calib(calib)
+        r, t = c.get("R"), c.get("T")
+        if r is None or r.size != 9 or t is None or t.size != 3:
+            raise OptionError(f"{calib}: no 'R:' line with 9 numbers and 'T:' with 3 (a KITTI calib_imu_to_velo.txt; "
+                              "{opt})", "lidar_extrinsic")
         r_velo_imu = _rotation_of(r)
-        r_g_imu = Extrinsic.coerce(imu_extrinsic).rotation
-        return r_g_imu @ r_velo_imu.T
+        g_imu = Extrinsic.coerce("kitti_imu" if imu_extrinsic is None else imu_extrinsic)
+        r_imu_velo, t_imu_velo = r_velo_imu.T, -r_velo_imu.T @ t                # x_imu = R^T (x_velo - T)
+        return Extrinsic(g_imu.rotation @ r_imu_velo, g_imu.rotation @ t_imu_velo + g_imu.translation,
+                         {"sensor": "lidar", "derived_from": str(calib)})
     try:
-        return load_extrinsic(calib).rotation
+        return load_extrinsic(calib)
     except (ValueError, FileNotFoundError) as e:
         raise OptionError(f"{{opt}} {' '.join(str(e).split())}", "lidar_extrinsic") from None
+
+
+def lidar_rotation(spec: str | Path, imu_extrinsic: Any = None) -> np.ndarray:
+    """``R_{g<-l}``: LiDAR vectors into the ground frame of the log's static extrinsic
+    (the rotation of :func:`lidar_transform`; the same arguments), (3, 3)."""
+    return lidar_transform(spec, imu_extrinsic).rotation
 
 
 def kitti_object_rotation(calib_file: str | Path, imu_extrinsic: Any = None) -> np.ndarray:
@@ -519,7 +525,7 @@ def lidar_table(estimates: dict[str, Any], t_scan: Any, lidar_pitch: Any, lidar_
         :func:`compare_to_lidar`'s columns plus ``method`` and ``scan`` (0-based).
     summary : pandas.DataFrame
         Index ``method``: :func:`lidar_summary` and, with 3 scans or more, :func:`bootstrap_spread`'s
-        ``lo95``, ``hi95`` and ``p_best`` of the pitch spread.
+        ``lo95``, ``hi95``, ``p_best``, ``vs_best_lo95`` and ``vs_best_hi95`` of the pitch spread.
     """
     parts, rows = [], {}
     for name, (t, pitch, roll, valid) in estimates.items():
@@ -531,7 +537,7 @@ def lidar_table(estimates: dict[str, Any], t_scan: Any, lidar_pitch: Any, lidar_
     summary.index.name = "method"
     if len(np.atleast_1d(t_scan)) >= 3:
         boot = bootstrap_spread({k: g["d_pitch_deg"].to_numpy() for k, g in frames.groupby("method", sort=False)})
-        summary = summary.join(boot[["lo95", "hi95", "p_best"]])
+        summary = summary.join(boot.drop(columns="spread"))
     return frames, summary
 
 
