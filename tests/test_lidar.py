@@ -360,3 +360,25 @@ def test_preview_with_lidar_on_real_images(shared_data, cli, tmp_path):
     code, _, err = cli("preview", shared_data / "kitti_imu100" / "2011_09_26_drive_0009.csv.gz", "--images", images,
                        "--times", tmp_path / "t.txt", "--camera", "kitti_cam2", "--lidar", scans, "-o", png)
     assert code == 2 and "--lidar-extrinsic" in err and len(err.strip().splitlines()) == 1
+
+
+def test_preview_frame_option_bad_uses_exit_2(cli, tmp_path):
+    code, _, err = cli("preview", "-o", tmp_path / "x.gif", "--frame", 3)
+    assert code == 2 and "--frame 3 goes with a LOG and a .png" in err and len(err.strip().splitlines()) == 1
+
+
+def test_preview_frame_picks_one_frame():
+    from imu_ground.evaluation.lidar_preview import preview_frame
+    from imu_ground.evaluation.preview import Preview
+    from imu_ground.perception import GroundPlane, load_camera
+    cam = load_camera("kitti_cam2")
+    planes = {"static": GroundPlane.from_pitch_roll(cam, np.zeros(3), np.zeros(3)),
+              "dynamic": GroundPlane.from_pitch_roll(cam, np.radians([0.1, 0.2, 0.3]), np.zeros(3))}
+    pv = Preview(cam, planes, np.array([1.0, 2.0, 3.0]), lambda k: k, labels=["a", "b", "c"],
+                 readings={"static": ["x", "y", "z"]}, marks=np.arange(6.0).reshape(3, 2))
+    one = preview_frame(pv, 2)
+    assert one.times.tolist() == [3.0] and one.labels == ["c"] and one.image(0) == 2
+    assert one.readings == {"static": ["z"]} and one.marks.tolist() == [[4.0, 5.0]]
+    assert np.allclose(one.planes["dynamic"].rotation, planes["dynamic"].rotation[2:3])
+    with pytest.raises(OptionError, match="frames 0 to 2"):
+        preview_frame(pv, 3)

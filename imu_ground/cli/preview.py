@@ -47,6 +47,8 @@ def register(sub) -> None:
     p.add_argument("--lidar-extrinsic", metavar="SPEC",
                    help="with --lidar: a KITTI raw calibration folder (calib_imu_to_velo.txt) or an extrinsic file "
                         "(R, t: ground <- LiDAR)")
+    p.add_argument("--frame", type=nonnegative_int, default=0,
+                   help="with LOG and a .png: the image to show, 0-based in name order (default 0)")
     p.add_argument("--bev", nargs=5, type=float, metavar=("X0", "X1", "Y0", "Y1", "RES"),
                    help="bird's-eye grid: X0..X1 m ahead, Y0..Y1 m to the left, RES m a pixel (default 5 45 -7 7 0.05)")
     p.add_argument("--seed", type=nonnegative_int, default=3, help="synthetic drive's seed (default 3)")
@@ -64,6 +66,8 @@ def _check(a: argparse.Namespace):
     if a.log is None and (a.images or a.times or a.extrinsic):
         raise ValueError("--images, --times and --extrinsic go with a LOG: imu-ground preview LOG --images DIR "
                          "--times FILE --camera NAME -o F")
+    if a.frame and not (a.log and out.suffix.lower() == ".png"):
+        raise ValueError(f"--frame {a.frame} goes with a LOG and a .png output (a .gif shows every frame)")
     if (a.lidar or a.lidar_extrinsic) and not (a.log and a.lidar and a.lidar_extrinsic):
         raise ValueError("--lidar DIR and --lidar-extrinsic SPEC go together, with a LOG and its images: imu-ground "
                          "preview LOG --images DIR --times FILE --camera NAME --lidar DIR --lidar-extrinsic SPEC -o F")
@@ -101,6 +105,9 @@ def run(a: argparse.Namespace) -> int:
         if a.lidar:
             from imu_ground.evaluation.lidar_preview import add_lidar_plane
             preview = add_lidar_plane(preview, a.lidar, a.lidar_extrinsic, imu_extrinsic=a.extrinsic)
+        if a.frame and fmt == "png":
+            from imu_ground.evaluation.lidar_preview import preview_frame
+            preview = preview_frame(preview, a.frame)
     data = render_preview(preview, fmt, grid)
     with atomic_path(out) as tmp:
         tmp.write_bytes(data)

@@ -22,7 +22,7 @@ from imu_ground.evaluation import lidar as L
 from imu_ground.evaluation.preview import Preview
 from imu_ground.perception.plane import GroundPlane
 
-__all__ = ["MEASURED_DISTANCE", "add_lidar_plane", "measured_point"]
+__all__ = ["MEASURED_DISTANCE", "add_lidar_plane", "measured_point", "preview_frame"]
 
 #: Distance ahead (m, ground frame) of the LiDAR road point read off each view.
 MEASURED_DISTANCE = 30.0
@@ -117,3 +117,21 @@ def add_lidar_plane(preview: Preview, scans: str | Path, spec: str | Path, imu_e
     preview.title += (f"; the LiDAR plane from {Path(scans).parent.name}/{Path(scans).name} (region {region}); "
                       f"cross: the LiDAR's road point nearest {distance:g} m ahead")
     return preview
+
+
+def preview_frame(preview: Preview, k: int) -> Preview:
+    """The preview reduced to its frame ``k`` (0-based), e.g. for a PNG of another frame than the first.
+
+    Raises
+    ------
+    OptionError
+        ``k`` outside the frames (naming ``--frame``).
+    """
+    n = len(preview.times)
+    if not 0 <= k < n:
+        raise OptionError(f"{{opt}} {k}: the preview has frames 0 to {n - 1}", "frame")
+    return Preview(preview.camera, {name: plane[k] for name, plane in preview.planes.items()},
+                   preview.times[k:k + 1], lambda _: preview.image(k), preview.lane_error, preview.title,
+                   preview.labels[k:k + 1], preview.lanes,
+                   {name: texts[k:k + 1] for name, texts in preview.readings.items()},
+                   None if preview.marks is None else preview.marks[k:k + 1])
