@@ -48,6 +48,10 @@ def check_lidar(a: argparse.Namespace) -> None:
     from imu_ground.pipeline.output import check_output_path
     if a.real is not None or a.synthetic:
         raise OptionError("--lidar goes alone: not with --real or --synthetic", "lidar")
+    other = [f for f, v in (("--plots", a.plots), ("--per-drive", a.per_drive)) if v]
+    if other:
+        raise OptionError(f"{other[0]} goes with --real or --synthetic; with --lidar: -o FILE.png plots, --csv "
+                          "writes the frames", "lidar")
     if len(a.lidar) > 2:
         raise OptionError(f"{{opt}} takes LOG and SCANS, got {len(a.lidar)} paths", "lidar")
     if (len(a.lidar) == 1) == (not a.lidar_planes):
