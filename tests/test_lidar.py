@@ -196,6 +196,7 @@ def test_evaluate_lidar_bad_inputs_exit_2_with_one_line(cli, tmp_path):
         "end the -o file name with .png": base + ["--times", times, "-o", tmp_path / "p.jpg"],
         "unknown nope": base + ["--times", times, "--methods", "nope"],
         "--plots goes with --real": base + ["--times", times, "--plots", tmp_path / "plots"],
+        "--lidar-region 30 5 -4 4: the road region needs": base + ["--times", times, "--lidar-region", 30, 5, -4, 4],
     }
     for expect, argv in cases.items():
         code, out, err = cli(*argv)

@@ -37,7 +37,7 @@ def add_lidar_flags(v: argparse.ArgumentParser) -> None:
     g.add_argument("--lidar-region", nargs=4, type=float, metavar=("X0", "X1", "Y0", "Y1"),
                    help="road region of the fit in the LiDAR's axes: X0..X1 m ahead, Y0..Y1 m to the left (default "
                         "5 30 -4 4)")
-    g.add_argument("--lidar-seed", type=int, default=0, help="RANSAC's random seed (default 0)")
+    g.add_argument("--lidar-seed", type=int, default=0, metavar="N", help="RANSAC's random seed (default 0)")
     g.add_argument("--extrinsic", metavar="NAME_OR_FILE",
                    help="with --lidar: the log's static sensor-to-ground extrinsic (as for 'imu-ground estimate')")
     g.add_argument("-o", "--plot", metavar="FILE", help="with --lidar: PNG of pitch and roll over time")

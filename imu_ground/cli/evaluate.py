@@ -26,6 +26,14 @@ from imu_ground.pipeline.output import atomic_path, check_output_path
 __all__ = ["register", "run"]
 
 
+class _WholeWordsHelp(argparse.HelpFormatter):
+    """Help lines wrapped between words only: method names such as ``suspension-offline`` stay whole."""
+
+    def _split_lines(self, text: str, width: int) -> list:
+        import textwrap
+        return textwrap.wrap(" ".join(text.split()), width, break_on_hyphens=False)
+
+
 def _methods_help() -> str:
     lines = [f"{name}: {getattr(m, 'description', '')}" for name, m in METHODS.items()]
     return "comma-separated methods to compare (default all): " + "; ".join(lines)
@@ -33,7 +41,7 @@ def _methods_help() -> str:
 
 def register(sub) -> None:
     """Add the ``evaluate`` sub-command."""
-    v = sub.add_parser("evaluate", help="compare methods on real and/or synthetic drives",
+    v = sub.add_parser("evaluate", help="compare methods on real and/or synthetic drives", formatter_class=_WholeWordsHelp,
                        description="Error of every method against the reference (real KITTI drives: pitch relative "
                                    "to the road from the INS; synthetic drives: exact truth), like the paper's "
                                    "Table 2; on real drives also the pitch error by the reference's own uncertainty "

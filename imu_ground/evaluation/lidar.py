@@ -84,8 +84,8 @@ class RoadRegion:
     def __post_init__(self) -> None:
         values = (self.x_min, self.x_max, self.y_min, self.y_max)
         if not all(math.isfinite(v) for v in values) or self.x_min >= self.x_max or self.y_min >= self.y_max:
-            raise OptionError(f"road region {' '.join(f'{v:g}' for v in values)}: needs finite X0 < X1 and "
-                              "Y0 < Y1 (m, LiDAR axes)", "region", flag="--lidar-region")
+            raise OptionError(f"{{opt}} {' '.join(f'{v:g}' for v in values)}: the road region needs finite X0 < X1 "
+                              "and Y0 < Y1 (m, LiDAR axes)", "region", flag="--lidar-region")
 
     def mask(self, points: np.ndarray) -> np.ndarray:
         """Which of the (N, 3) points lie in the box (bool (N,))."""
