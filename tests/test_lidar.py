@@ -210,6 +210,14 @@ def test_evaluate_lidar_bad_inputs_exit_2_with_one_line(cli, tmp_path):
     (empty / "0.bin").write_bytes(b"")
     code, _, err = cli("evaluate", "--lidar", EXAMPLE, empty, "--times", times, "--lidar-extrinsic", calib)
     assert code == 2 and "the scan is empty" in err and len(err.strip().splitlines()) == 1
+    far = tmp_path / "far"
+    far.mkdir()
+    sky = np.random.default_rng(0).uniform(-50, 50, (5000, 4))
+    sky[:, 0] = np.abs(sky[:, 0]) + 60.0
+    sky.astype(np.float32).tofile(far / "0.bin")
+    code, _, err = cli("evaluate", "--lidar", EXAMPLE, far, "--times", times, "--lidar-extrinsic", calib)
+    assert code == 2 and "no road in the region" in err and "--lidar-region" in err
+    assert len(err.strip().splitlines()) == 1
 
 
 def test_evaluate_lidar_without_scikit_learn_names_the_extra(cli, tmp_path, monkeypatch):
