@@ -106,11 +106,39 @@ def test_bin_reader_and_folder(tmp_path):
         L.read_bin_scan(d / "0000000002.bin")
     empty = tmp_path / "empty"
     empty.mkdir()
-    (empty / "a.pcd").write_text("x")
-    with pytest.raises(OptionError, match=r"no \.bin scan.*\.pcd files are not read"):
+    (empty / "a.txt").write_text("x")
+    with pytest.raises(OptionError, match=r"no scan \(\.bin, \.pcd, \.ply\) in the folder"):
         L.scan_files(empty)
     with pytest.raises(OptionError, match="no such folder"):
         L.scan_files(tmp_path / "missing")
+
+
+def test_pcd_and_ply_scans_read_as_written(tmp_path):
+    pytest.importorskip("plyfile")
+    pytest.importorskip("pypcd4")
+    import plyfile
+    from pypcd4 import PointCloud
+    pts = _cloud(normal_from_pitch_roll(math.radians(0.6), math.radians(-0.3)), 1.73, n=4000, clutter=False)
+    pts32 = pts.astype(np.float32)
+    PointCloud.from_xyz_points(pts32).save(tmp_path / "a.pcd")
+    vertex = np.array([tuple(r) for r in pts32], dtype=[("x", "f4"), ("y", "f4"), ("z", "f4")])
+    plyfile.PlyData([plyfile.PlyElement.describe(vertex, "vertex")]).write(str(tmp_path / "b.ply"))
+    pts32.tofile(tmp_path / "c.xyz")
+    np.column_stack([pts32, np.zeros((len(pts32), 1), np.float32)]).tofile(tmp_path / "c.bin")
+    assert [f.name for f in L.scan_files(tmp_path)] == ["a.pcd", "b.ply", "c.bin"]
+    for name in ("a.pcd", "b.ply"):
+        got = L.read_scan(tmp_path / name)
+        assert got.shape == (len(pts), 3) and np.array_equal(got, pts32.astype(float)), name
+    fits = L.fit_scans(L.scan_files(tmp_path))
+    assert np.allclose(fits[["normal_x", "normal_y", "normal_z"]].to_numpy(), fits.iloc[0][["normal_x", "normal_y",
+                                                                                             "normal_z"]].to_numpy(
+        dtype=float), atol=1e-9)
+    (tmp_path / "bad.ply").write_text("not a ply")
+    with pytest.raises(OptionError, match="bad.ply: not a readable PLY point cloud"):
+        L.read_scan(tmp_path / "bad.ply")
+    (tmp_path / "bad.pcd").write_bytes(b"\x00garbage")
+    with pytest.raises(OptionError, match="bad.pcd: not a readable PCD point cloud"):
+        L.read_scan(tmp_path / "bad.pcd")
 
 
 def test_scan_times(tmp_path):
@@ -241,11 +269,11 @@ def test_evaluate_lidar_without_scikit_learn_names_the_extra(cli, tmp_path, monk
     assert code == 2 and '.[lidar]' in err and "--lidar" in err and len(err.strip().splitlines()) == 1
 
 
-def test_the_package_import_does_not_load_scikit_learn():
+def test_the_package_import_does_not_load_the_lidar_libraries():
     import subprocess
     import sys
     code = ("import sys, imu_ground, imu_ground.evaluation, imu_ground.cli; from imu_ground.evaluation import lidar; "
-            "print(any(m.startswith('sklearn') for m in sys.modules))")
+            "print(any(m.split('.')[0] in ('sklearn', 'plyfile', 'pypcd4') for m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "False"
 

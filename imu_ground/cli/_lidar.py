@@ -24,7 +24,8 @@ def add_lidar_flags(v: argparse.ArgumentParser) -> None:
     g = v.add_argument_group("LiDAR ground truth (the paper's protocol)")
     g.add_argument("--lidar", nargs="+", metavar=("LOG", "SCANS"),
                    help="compare the methods on LOG with road planes fitted to the LiDAR scans in SCANS (a folder of "
-                        "KITTI .bin scans, e.g. a KITTI raw velodyne_points/data), or given by --lidar-planes DIR")
+                        "KITTI .bin, .pcd or .ply scans, e.g. a KITTI raw velodyne_points/data), or given by "
+                        "--lidar-planes DIR")
     g.add_argument("--times", metavar="FILE", help="with --lidar: one time a line (s, on the log's clock), one per "
                                                    "scan (or planes file) in name order")
     g.add_argument("--lidar-extrinsic", metavar="SPEC",

@@ -41,7 +41,7 @@ def register(sub) -> None:
     p.add_argument("--extrinsic", metavar="NAME_OR_FILE",
                    help="with LOG: the log's static sensor-to-ground extrinsic (as for 'imu-ground estimate')")
     p.add_argument("--lidar", metavar="DIR",
-                   help="with LOG: a folder of LiDAR scans (KITTI .bin), one per image: adds the bird's-eye view with "
+                   help="with LOG: a folder of LiDAR scans (KITTI .bin, .pcd, .ply), one per image: adds the bird's-eye view with "
                         "the plane fitted to each scan and a distance the LiDAR measured, read off every view "
                         "(needs --lidar-extrinsic and the extra .[lidar])")
     p.add_argument("--lidar-extrinsic", metavar="SPEC",

@@ -15,7 +15,9 @@ Plane fit (:func:`fit_ground_plane`)
     ``n . x + d = 0`` on the road (``d`` is the LiDAR's height above it, m). A region
     with too few points, no consensus or a plane tilted more than ``max_tilt_deg``
     from the LiDAR's z axis is "no road" (:class:`~imu_ground.datasets.options.OptionError`).
-    scikit-learn is the optional extra ``.[lidar]``, imported on first use.
+    scikit-learn is the optional extra ``.[lidar]``, imported on first use, as are the
+    readers of ``.pcd`` (pypcd4) and ``.ply`` (plyfile) scans (:func:`read_scan`; KITTI's
+    ``.bin`` is read with numpy).
 
 Frames and signs
     ``R_{g<-l}`` (:func:`lidar_rotation`) turns LiDAR vectors into the ground frame
@@ -56,12 +58,13 @@ from imu_ground.filters.extrinsics import Extrinsic, load_extrinsic
 
 __all__ = ["LIDAR_EXTRA", "ROAD_REGION", "SCAN_SUFFIXES", "RoadRegion", "bootstrap_spread", "compare_to_lidar",
            "fit_ground_plane", "fit_scans", "kitti_object_rotation", "lidar_pitch_roll", "lidar_rotation",
-           "lidar_summary", "lidar_table", "lidar_transform", "planes_pitch_roll", "planes_rotations", "plot_lidar", "read_bin_scan", "read_scan_times", "scan_files"]
+           "lidar_summary", "lidar_table", "lidar_transform", "planes_pitch_roll", "planes_rotations", "plot_lidar",
+           "read_bin_scan", "read_scan", "read_scan_times", "scan_files"]
 
-#: The optional extra that installs the plane fit's dependency (scikit-learn).
+#: The optional extra that installs the plane fit's and the readers' dependencies (scikit-learn, plyfile, pypcd4).
 LIDAR_EXTRA = ".[lidar]"
-#: Scan files read: KITTI Velodyne ``.bin`` (float32 x, y, z, reflectance).
-SCAN_SUFFIXES = (".bin",)
+#: Scan files read: KITTI Velodyne ``.bin`` (float32 x, y, z, reflectance; numpy), PCD (pypcd4), PLY (plyfile).
+SCAN_SUFFIXES = (".bin", ".pcd", ".ply")
 
 
 @dataclass(frozen=True)
@@ -216,6 +219,49 @@ def read_bin_scan(path: str | Path) -> np.ndarray:
     return raw.reshape(-1, 4).astype(float)
 
 
+def _reader(module: str):
+    import importlib
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise OptionError(f"reading this scan needs {module}: pip install -e \"{LIDAR_EXTRA}\" (then {{opt}} works)",
+                          "lidar") from None
+
+
+def read_scan(path: str | Path) -> np.ndarray:
+    """One scan's points, (N, 3) or (N, 4) float64, LiDAR axes, m: KITTI ``.bin``, ``.pcd`` or ``.ply``.
+
+    ``.bin``: :func:`read_bin_scan`. ``.pcd``: the fields ``x y z`` through pypcd4 (ASCII, binary
+    or compressed). ``.ply``: the ``vertex`` element's ``x y z`` through plyfile.
+
+    Raises
+    ------
+    OptionError
+        No such file, an unknown suffix, or a file its reader cannot read (naming the file and ``--lidar``).
+    """
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix == ".bin":
+        return read_bin_scan(p)
+    if suffix not in SCAN_SUFFIXES:
+        raise OptionError(f"{p}: unknown scan type {suffix or '(no suffix)'!r}; give {{opt}} "
+                          f"{', '.join(SCAN_SUFFIXES)} scans", "lidar")
+    if not p.is_file():
+        raise OptionError(f"{p}: no such scan file ({{opt}})", "lidar")
+    try:
+        if suffix == ".pcd":
+            cloud = _reader("pypcd4").PointCloud.from_path(p)
+            return np.asarray(cloud.numpy(("x", "y", "z")), dtype=float).reshape(-1, 3)
+        vertex = _reader("plyfile").PlyData.read(str(p))["vertex"]
+        return np.column_stack([np.asarray(vertex[k], dtype=float) for k in "xyz"]).reshape(-1, 3)
+    except OptionError:
+        raise
+    except Exception as e:                          # the third-party parsers' own errors: a file we cannot read
+        raise OptionError(f"{p}: not a readable {suffix[1:].upper()} point cloud with x y z "
+                          f"({type(e).__name__}: {' '.join(str(e).split())[:120]}); give {{opt}} another scan",
+                          "lidar") from None
+
+
 def scan_files(folder: str | Path) -> list[Path]:
     """The scans of a folder (:data:`SCAN_SUFFIXES`), in name order (a KITTI ``velodyne_points/data`` folder).
 
@@ -226,13 +272,12 @@ def scan_files(folder: str | Path) -> list[Path]:
     """
     d = Path(folder)
     if not d.is_dir():
-        raise OptionError(f"{d}: no such folder ({{opt}} LOG SCANS: SCANS is a folder of KITTI .bin scans)", "lidar")
+        raise OptionError(f"{d}: no such folder ({{opt}} LOG SCANS: SCANS is a folder of scans, "
+                          f"{', '.join(SCAN_SUFFIXES)})", "lidar")
     files = sorted(p for p in d.iterdir() if p.suffix.lower() in SCAN_SUFFIXES and p.is_file())
     if not files:
-        others = sorted(p.suffix for p in d.iterdir() if p.suffix.lower() in (".pcd", ".ply"))
-        why = (f"{others[0]} files are not read (no well-kept reader installs here): convert them to KITTI .bin, "
-               "float32 x y z reflectance") if others else "give {opt} LOG SCANS a folder of KITTI .bin scans"
-        raise OptionError(f"{d}: no .bin scan in the folder; {why}", "lidar")
+        raise OptionError(f"{d}: no scan ({', '.join(SCAN_SUFFIXES)}) in the folder; give {{opt}} LOG SCANS a "
+                          "folder of scans", "lidar")
     return files
 
 
@@ -373,7 +418,7 @@ def fit_scans(files: list[Path], region: RoadRegion = ROAD_REGION, seed: int = 0
     """
     rows = []
     for f in files:
-        normal, d, count = fit_ground_plane(read_bin_scan(f), region, seed=seed, source=str(f),
+        normal, d, count = fit_ground_plane(read_scan(f), region, seed=seed, source=str(f),
                                             return_inliers=True, **fit_options)
         rows.append({"scan": Path(f).name, "normal_x": normal[0], "normal_y": normal[1], "normal_z": normal[2],
                      "d": d, "inliers": count})

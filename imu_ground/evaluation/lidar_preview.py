@@ -64,7 +64,7 @@ def add_lidar_plane(preview: Preview, scans: str | Path, spec: str | Path, imu_e
         An image preview; its ``planes`` gain ``"lidar"``, its ``readings`` one caption per
         view and frame, its ``marks`` the measured point per frame (ground frame x, y, m).
     scans : str or Path
-        A folder of KITTI ``.bin`` scans, one per image, in the images' order.
+        A folder of scans (KITTI ``.bin``, ``.pcd``, ``.ply``), one per image, in the images' order.
     spec : str or Path
         The LiDAR's extrinsic (:func:`~imu_ground.evaluation.lidar.lidar_transform`).
     imu_extrinsic : optional
@@ -87,7 +87,7 @@ def add_lidar_plane(preview: Preview, scans: str | Path, spec: str | Path, imu_e
     cam = preview.camera
     normals, heights, marks = [], [], []
     for f in files:
-        pts = L.read_bin_scan(f)
+        pts = L.read_scan(f)
         normal, d = L.fit_ground_plane(pts, region, seed=seed, source=str(f))
         normals.append(normal)
         n_g = transform.rotation @ normal
