@@ -395,6 +395,14 @@ def test_preview_with_lidar_on_real_images(shared_data, cli, tmp_path):
                          "--lidar-extrinsic", day, "-o", png)
     assert code == 0, err
     assert png.stat().st_size > 50_000
+    gif = tmp_path / "pv.gif"
+    code, out, err = cli("preview", shared_data / "kitti_imu100" / "2011_09_26_drive_0009.csv.gz", "--images", images,
+                         "--times", tmp_path / "t.txt", "--camera", "kitti_cam2", "--lidar", scans,
+                         "--lidar-extrinsic", day, "-o", gif)
+    assert code == 0 and "(2 frames" in out, err
+    from PIL import Image
+    with Image.open(gif) as im:
+        assert im.n_frames == 2
     code, _, err = cli("preview", shared_data / "kitti_imu100" / "2011_09_26_drive_0009.csv.gz", "--images", images,
                        "--times", tmp_path / "t.txt", "--camera", "kitti_cam2", "--lidar", scans, "-o", png)
     assert code == 2 and "--lidar-extrinsic" in err and len(err.strip().splitlines()) == 1
