@@ -22,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from .rosbag_files import is_rosbag
+
 __all__ = ["MAX_REVERSE", "MAX_SPEED", "SPEED_SOURCES", "check_speed", "frame_speed", "log_speed", "read_speed",
            "read_speed_file"]
 
@@ -249,7 +251,9 @@ def log_speed(path: str | Path, format: str, imu=None, topic: str | None = None
     if format == "comma2k19":
         return _comma_speed(imu, p)
     if format == "rosbag":
-        from imu_ground.datasets.rosbag import read_rosbag_speed
+        from imu_ground.datasets.rosbag import read_rosbag_speed, speed_topics
+        if topic is None and not speed_topics(p):
+            return None          # an IMU-only recording: no twist / odometry topic
         t0_ns = None if imu is None else imu.meta.get("t0_ns")
         return _checked(*read_rosbag_speed(p, topic, t0_ns=t0_ns), str(p))
     return None
@@ -262,8 +266,8 @@ def read_speed(source: Any, *, log: str | Path | None = None, format: str | None
     Parameters
     ----------
     source : str or Path
-        A speed file (CSV ``t,speed``), a column name of the log's table, or the
-        log itself (its own speed, :func:`log_speed`).
+        A speed file (CSV ``t,speed``), a column name of the log's table (a ROS
+        log: a twist / odometry topic), or the log itself (its own speed, :func:`log_speed`).
     log : str or Path, optional
         The IMU log (for a column name); default ``source``.
     format : str, optional
@@ -290,10 +294,12 @@ def read_speed(source: Any, *, log: str | Path | None = None, format: str | None
             raise ValueError(f"{log}: a {fmt} log carries no speed signal; give a speed file (CSV t,speed) or "
                              f"the name of the log's speed column (formats with their own: {', '.join(SPEED_SOURCES)})")
         return out
+    name = str(source)
+    if format == "rosbag" or (format is None and log.exists() and is_rosbag(log)):
+        return log_speed(log, "rosbag", imu, topic=name)          # a ROS log: the name is a topic
     if imu is None:
         from imu_ground.datasets import read_imu
         imu = read_imu(log, format=format)
-    name = str(source)
     if name not in imu.extra.columns:
         raise ValueError(f"{log}: no column {name!r} for the speed (and no such file); columns besides the IMU's: "
                          f"{', '.join(map(str, imu.extra.columns)) or 'none'}")

@@ -80,7 +80,8 @@ def register(sub) -> None:
                    help="measured vehicle speed for the suspension methods (speed-aided mode): auto (default: the "
                         "log's own where its format has one: KITTI INS horizontal speed, nuScenes CAN pose, comma2k19 "
                         "CAN, ROS twist/odometry; else IMU only); none (IMU only); a CSV file with columns t,speed (s "
-                        "on the log's time base, m/s); or the name of a speed column of a CSV log")
+                        "on the log's time base, m/s); or the name of a speed column of a CSV log (of a ROS log: a twist or "
+                        "odometry topic)")
     e.add_argument("--recalibrate-online", action="store_true",
                    help="re-estimate the mount when the mount monitor sees it move (status degraded): 15 s of frames "
                         "with a measured speed after the alarm, then the static rotation is corrected and the status "
