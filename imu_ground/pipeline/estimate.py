@@ -431,6 +431,10 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
         got = (t_sp, v_sp)
         what = f"{speed}"
     v = frame_speed(*got, em.t, em.delta_t)
+    holes = int(np.count_nonzero(~np.isfinite(got[1])))
+    if holes:
+        warnings.warn(f"speed {what}: {holes} of {len(got[1])} samples have no speed (nan): not interpolated "
+                      f"across; the frames they reach run without a speed (IMU only)")
     if not np.isfinite(v).any():
         raise OptionError(f"{{opt}} {speed}: the speed's times ({got[0][0]:.3f} .. {got[0][-1]:.3f} s) do not "
                           f"cover the log's frames ({em.t[0]:.3f} .. {em.t[-1]:.3f} s)", "speed")
