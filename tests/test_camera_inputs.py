@@ -93,7 +93,7 @@ def test_broken_calibration_files_are_named(tmp_path, cli, damage, words):
 
 @pytest.mark.parametrize("suffix, words", [
     ("", ["needs the camera index", ":2"]),
-    (":-1", ["camera index '-1' is not one of", "0, 1, 2 or 3"]),
+    (":-1", ["camera index '-1' is not one of", "cameras 0 to 3"]),
     (":abc", ["camera index 'abc' is not one of"]),
     (":4", ["camera index '4' is not one of"]),
 ])

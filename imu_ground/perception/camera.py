@@ -126,8 +126,8 @@ def load_camera(spec: str | Path | Camera) -> Camera:
     if m and not Path(text).exists() and (m["index"].isdigit() or Path(m["dir"]).is_dir()):
         from imu_ground.perception.kitti_calib import kitti_rectified_cameras
         if not (m["index"].isdigit() and int(m["index"]) <= 3):
-            raise ValueError(f"{text}: camera index {m['index']!r} is not one of KITTI's rectified cameras 0, 1, 2 "
-                             f"or 3 (e.g. {m['dir']}:2)")
+            raise ValueError(f"{text}: camera index {m['index']!r} is not one of KITTI's rectified cameras 0 to 3 "
+                             f"(e.g. {m['dir']}:2)")
         ext, k, size = kitti_rectified_cameras(Path(m["dir"]))[int(m["index"])]
         return Camera(k, size, ext, name=text)
     if Path(text).is_dir():
