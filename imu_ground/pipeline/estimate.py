@@ -33,6 +33,7 @@ from imu_ground.pipeline.input_checks import (
     GRAVITY_REFUSE_DEG,
     GRAVITY_WARN_DEG,
     check_gravity_direction,
+    check_recalibration,
     gravity_angle,
     requested_options,
 )
@@ -312,6 +313,8 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
                               "or leave it out)", "recalibrate_online")
         frame_speeds, speed_info = _frame_speeds(speed, path, info.get("format"), imu if kind == "imu" else None,
                                                  em, name)
+        if recalibrate_online:
+            check_recalibration(path, frame_speeds, speed_info, em)
         ext = Extrinsic.coerce(extrinsic)
         track = _run_method(name, em, ext, Q, R, frame_speeds, recalibrate_online)
         bar.update()
