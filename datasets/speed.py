@@ -26,8 +26,8 @@ import numpy as np
 from .report import MalformedFileError
 from .rosbag_files import is_rosbag
 
-__all__ = ["MAX_REVERSE", "MAX_SPEED", "SPEED_NAMES", "SPEED_SOURCES", "TIME_NAMES", "check_speed", "frame_speed", "log_speed", "read_speed",
-           "read_speed_file"]
+__all__ = ["MAX_REVERSE", "MAX_SPEED", "SPEED_NAMES", "SPEED_SOURCES", "TIME_NAMES", "check_speed", "frame_speed",
+           "log_speed", "read_speed", "read_speed_file"]
 
 #: Log formats with a speed signal of their own, and what it is.
 SPEED_SOURCES = {
@@ -40,7 +40,7 @@ SPEED_SOURCES = {
 
 
 def _checked(t, v, source: str) -> tuple[np.ndarray, np.ndarray]:
-    """Samples with a finite time, sorted, duplicate times dropped; a NaN speed stays (a hole, see :func:`frame_speed`)."""
+    """Samples with a finite time, sorted, duplicate times dropped; a NaN speed stays (a hole: :func:`frame_speed`)."""
     t = np.asarray(t, dtype=float).ravel()
     v = np.asarray(v, dtype=float).ravel()
     if t.shape != v.shape or t.size == 0:
@@ -390,7 +390,8 @@ def frame_speed(t: np.ndarray, speed: np.ndarray, frame_t: np.ndarray, frame_dt:
 
 
 def _holes(t: np.ndarray, fin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Open intervals ``(lo, hi)``, s, sorted, between the finite neighbours of each run of NaN speeds (+-inf at the ends)."""
+    """Open intervals ``(lo, hi)``, s, sorted, between the finite neighbours of each run of NaN speeds (+-inf at
+    the ends)."""
     good = np.flatnonzero(fin)
     pos = np.unique(np.searchsorted(good, np.flatnonzero(~fin)))    # one per run: the next finite sample's rank
     lo = np.where(pos > 0, t[good[np.maximum(pos - 1, 0)]], -np.inf)

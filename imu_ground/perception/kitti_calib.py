@@ -26,7 +26,8 @@ import numpy as np
 from imu_ground.datasets.report import MalformedFileError
 from imu_ground.filters.extrinsics import Extrinsic
 
-__all__ = ["IMU_HEIGHT", "KITTI_CALIB_FILES", "KITTI_ROTATION_TOL", "read_kitti_calib", "kitti_extrinsics", "kitti_rectified_cameras"]
+__all__ = ["IMU_HEIGHT", "KITTI_CALIB_FILES", "KITTI_ROTATION_TOL", "read_kitti_calib", "kitti_extrinsics",
+           "kitti_rectified_cameras"]
 
 #: Height of the OXTS RT3003 above the road, metres (KITTI sensor set-up, Geiger et al. 2013, fig. 3).
 IMU_HEIGHT = 0.93

@@ -419,7 +419,8 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
     if auto:
         got = log_speed(path, fmt, imu) if fmt in SPEED_SOURCES else None
         if got is None:
-            why = "a ROS log without a twist or odometry topic" if fmt == "rosbag" else f"a {fmt} log has no speed signal"
+            why = ("a ROS log without a twist or odometry topic" if fmt == "rosbag"
+                   else f"a {fmt} log has no speed signal")
             return None, f"none ({why})"
         what = f"the log's {SPEED_SOURCES[fmt]}"
     else:
