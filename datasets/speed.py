@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from .options import ImuInputError
 from .report import MalformedFileError
 from .rosbag_files import is_rosbag
 
@@ -290,8 +291,13 @@ def log_speed(path: str | Path, format: str, imu=None, topic: str | None = None
         return _comma_speed(imu, p)
     if format == "rosbag":
         from imu_ground.datasets.rosbag import read_rosbag_speed, speed_topics
-        if topic is None and not speed_topics(p):
-            return None          # an IMU-only recording: no twist / odometry topic
+        if topic is None:
+            names = speed_topics(p)
+            if not names:
+                return None          # an IMU-only recording: no twist / odometry topic
+            if len(names) > 1:
+                raise ImuInputError(f"{p}: {len(names)} speed topics ({', '.join(names)}); choose one with {{hint}}",
+                                    option="speed", value=names[0], flag="--speed")
         t0_ns = None if imu is None else imu.meta.get("t0_ns")
         return _checked(*read_rosbag_speed(p, topic, t0_ns=t0_ns), str(p))
     return None

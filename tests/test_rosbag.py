@@ -528,3 +528,15 @@ def test_explicit_speed_topic_is_read_or_refused(tmp_path, csv_imu, kind, cli):
     assert code == 0, err
     # the odometry spans 0 .. 2.9 s: the 29 frames (t - 0.1, t] inside it, t = 0.1 .. 2.9 s
     assert "speed /odom (29 of 600 frames)" in out.splitlines()[0]
+
+
+def test_two_speed_topics_name_the_speed_option(tmp_path, csv_imu, cli):
+    """``--speed auto`` with two twist/odometry topics: choose one with --speed (not --topic, the IMU's)."""
+    def both(w):
+        _odometry(w, topic="/odom_a")
+        _odometry(w, topic="/odom_b")
+    path = write_bag(tmp_path / "two.bag", "ros1", csv_imu, extra=both)
+    code, _, err = cli("estimate", path, "-o", tmp_path / "o.csv")
+    assert code == 2 and "2 speed topics (/odom_a, /odom_b)" in err and "--speed /odom_a" in err, err
+    code, out, err = cli("estimate", path, "--speed", "/odom_b", "-o", tmp_path / "o.csv")
+    assert code == 0 and "speed /odom_b (29 of 600 frames)" in out, err
