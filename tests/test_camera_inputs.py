@@ -1,4 +1,4 @@
-"""Camera specs and KITTI raw calibration folders as users give them (issue 27): every bad one is one line
+"""Camera specs and KITTI raw calibration folders as users give them: every bad one is one line
 naming the file and key (or what to type), exit 2; none gives a wrong plane with exit 0."""
 from pathlib import Path
 

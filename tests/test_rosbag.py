@@ -508,7 +508,7 @@ def test_ros_output_paths(tmp_path):
 # --------------------------------------------------------------------------- --speed auto on IMU-only logs
 def test_imu_only_log_of_every_kind_runs_imu_only_by_default(bag, tmp_path, cli):
     """Default options (``--speed auto``) on a log with nothing but ``sensor_msgs/Imu``: IMU only, the reason
-    in the summary (issue 27: ROS 2 sqlite3 and MCAP bags were refused asking for a speed topic)."""
+    in the summary (every kind was refused asking for a speed topic)."""
     _, path = bag
     code, out, err = cli("estimate", path, "-o", tmp_path / "g.csv")
     assert code == 0, err

@@ -1,4 +1,4 @@
-"""A corrupt sample or a time column that does not advance is named as such (issue 27), not blamed on the
+"""A corrupt sample or a time column that does not advance is named as such, not blamed on the
 mounting or reported as an array shape."""
 from pathlib import Path
 

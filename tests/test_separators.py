@@ -1,4 +1,4 @@
-"""Tables with tabs or semicolons and decimal commas (issue 27): read as what they are, told from the file."""
+"""Tables with tabs or semicolons and decimal commas: read as what they are, told from the file."""
 import gzip
 from pathlib import Path
 

@@ -1,4 +1,4 @@
-"""Speed files as users write them (issue 27): columns found by name, unknown names refused, rows without a speed."""
+"""Speed files as users write them: columns found by name, unknown names refused, rows without a speed."""
 from pathlib import Path
 
 import numpy as np
