@@ -115,11 +115,17 @@ def test_no_alarm_and_no_re_estimation_on_the_shared_drives(shared_data, kitti_i
         assert not any(r.startswith("mount re-estimated") for r in tr.status_reason), name
 
 
-def test_cli_flag(tmp_path):
-    log = str(EXAMPLE)
-    speed = tmp_path / "speed.csv"
+def _true_speed_file(folder: Path) -> Path:
+    """The example drive's true speed as a speed file (``t,speed``)."""
+    speed = folder / "speed.csv"
     truth = np.genfromtxt(EXAMPLE.with_name("example_drive_truth.csv"), delimiter=",", names=True)
     np.savetxt(speed, np.c_[truth["t"], truth["speed"]], delimiter=",", header="t,speed", comments="")
+    return speed
+
+
+def test_cli_flag(tmp_path):
+    log = str(EXAMPLE)
+    speed = _true_speed_file(tmp_path)
     cmd = [sys.executable, "-m", "imu_ground", "estimate", log, "--recalibrate-online", "-o"]
     ok = subprocess.run(cmd + [str(tmp_path / "a.csv"), "--speed", str(speed)], capture_output=True, text=True)
     assert ok.returncode == 0, ok.stderr
@@ -144,9 +150,7 @@ def test_without_a_speed_it_is_refused_naming_speed(tmp_path, cli, speed):
 
 def test_a_log_shorter_than_the_monitor_needs_is_warned_about(tmp_path, cli):
     """The 60 s example with its true speed: the monitor judges from 120 s, so it can never act."""
-    speed = tmp_path / "speed.csv"
-    truth = np.genfromtxt(EXAMPLE.with_name("example_drive_truth.csv"), delimiter=",", names=True)
-    np.savetxt(speed, np.c_[truth["t"], truth["speed"]], delimiter=",", header="t,speed", comments="")
+    speed = _true_speed_file(tmp_path)
     code, _, err = cli("estimate", EXAMPLE, "--recalibrate-online", "--speed", speed, "-o", tmp_path / "o.csv")
     assert code == 0, err
     warning = [ln for ln in err.splitlines() if "--recalibrate-online" in ln]
