@@ -266,7 +266,9 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
         output table gains the homographies (:mod:`imu_ground.pipeline.planes`).
     recalibrate_online : bool
         Re-estimate the mount when the mount monitor sees it move (the ``suspension`` method, frames
-        with a measured speed; :mod:`imu_ground.filters.recalibration`).
+        with a measured speed; :mod:`imu_ground.filters.recalibration`). Without a measured speed an
+        :class:`OptionError` naming ``speed``; frames with a speed spanning less than the monitor's 2
+        minutes: a warning (:func:`~imu_ground.pipeline.input_checks.check_recalibration`).
     **reader_options
         Entries of :data:`imu_ground.datasets.options.READER_OPTIONS`
         (``policy``, ``nonfinite``, ``gyro_unit``, ...), passed to the reader
