@@ -5,9 +5,11 @@ the IMU samples they overlap. :class:`SpeedBuffer` keeps the few samples that
 later frames still need and gives a frame's mean speed exactly as
 :func:`~imu_ground.datasets.speed.frame_speed` defines it (the mean of the
 piecewise-linear speed over ``(t_start, t_end]``), once a sample at or after the
-frame's end has arrived (:meth:`covers`); a frame outside the samples' span has
-none (NaN). Samples that are not finite, repeat a time or come after the frames
-they belong to are counted (:attr:`rejected`), never raised on.
+frame's end has arrived (:meth:`covers`); a frame outside the finite samples' span, or
+reached by a hole (a run of NaN speeds, from the last finite sample before it to the
+first after it: nothing is interpolated across), has none (NaN). Samples with a
+non-finite time, a repeated time or that come after the frames they belong to are
+ignored and counted (:attr:`rejected`), never raised on.
 """
 from __future__ import annotations
 
@@ -45,8 +47,10 @@ class SpeedBuffer:
         self.rejected = {"nonfinite": 0, "late": 0, "repeated": 0}
 
     def push(self, t: float, v: float) -> None:
-        """One sample: time ``t`` (s, the IMU's clock) and forward speed ``v`` (m/s)."""
-        if not (math.isfinite(t) and math.isfinite(v)):
+        """One sample: time ``t`` (s, the IMU's clock) and forward speed ``v`` (m/s; NaN or infinite: a hole)."""
+        if not math.isfinite(v):
+            v = math.nan                        # a hole: the frames it reaches say "no speed" themselves
+        if not math.isfinite(t):
             self.rejected["nonfinite"] += 1
             return
         self.received = True
@@ -70,9 +74,19 @@ class SpeedBuffer:
         return bool(self.t) and self.t[-1] >= t_end
 
     def mean(self, t_start: float, t_end: float) -> float:
-        """Mean speed over ``(t_start, t_end]``, m/s; NaN unless a sample at or before
-        ``t_start`` (within 1e-9 s) and one at or after ``t_end`` have arrived."""
+        """Mean speed over ``(t_start, t_end]``, m/s; NaN unless a finite sample at or before ``t_start`` (within
+        1e-9 s) and one at or after ``t_end`` have arrived and no hole reaches the frame."""
         ts, vs = self.t, self.v
+        if any(v != v for v in vs):
+            for i, v in enumerate(vs):
+                if v == v:
+                    continue
+                lo = next((ts[j] for j in range(i - 1, -1, -1) if vs[j] == vs[j]), -math.inf)
+                hi = next((ts[j] for j in range(i + 1, len(ts)) if vs[j] == vs[j]), math.inf)
+                if lo < t_end and hi > t_start:
+                    return math.nan
+            keep = [i for i, v in enumerate(vs) if v == v]
+            ts, vs = [ts[i] for i in keep], [vs[i] for i in keep]
         if not ts or ts[0] > t_start + _EDGE or ts[-1] < t_end:
             return math.nan
         if len(ts) == 1:
@@ -101,9 +115,10 @@ class SpeedBuffer:
     def take_notes(self) -> list[str]:
         """What was rejected since the last call, one phrase each (and the counts start again)."""
         r = self.rejected
-        notes = [f"{n} {what} speed sample(s) ignored" for what, n in
-                 (("non-finite", r["nonfinite"]), ("late (after their frames)", r["late"]),
-                  ("repeated-time", r["repeated"])) if n]
+        notes = [f"{n} {what} speed sample(s) {how}" for what, how, n in
+                 (("non-finite-time", "ignored", r["nonfinite"]),
+                  ("late (after their frames)", "ignored", r["late"]),
+                  ("repeated-time", "ignored", r["repeated"])) if n]
         self.rejected = {"nonfinite": 0, "late": 0, "repeated": 0}
         return notes
 

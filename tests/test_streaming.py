@@ -260,11 +260,14 @@ def test_bad_data_each_said():
         if k == 80:
             t = 0.79                                                 # a repeated stamp (retimed)
         est.push_speed(t, math.nan if k == 120 else 5.0)
+        if k == 130:
+            est.push_speed(math.nan, 5.0)                            # a speed without a time: ignored, said
         out += est.push_imu(t, g, (0.0, 0.0, 9.81))
     reasons = " | ".join(f.status_reason for f in out)
     assert "1 non-finite IMU sample(s) skipped" in reasons
     assert "retimed on the sample clock" in reasons
-    assert "1 non-finite speed sample(s) ignored" in reasons
+    assert "no speed over this frame: IMU only" in reasons         # the NaN speed is a hole
+    assert "1 non-finite-time speed sample(s) ignored" in reasons
     assert any(f.status == "gap" for f in out)
     # the clock set back by a minute: a restart, said
     out = est.push_imu(-60.0, (0.0, 0.0, 0.0), (0.0, 0.0, 9.81))
@@ -511,3 +514,19 @@ def test_causal_track_of_a_log_with_nan_and_a_restart_equals_the_stream():
     _assert_same(frames, track)
     assert any("restarted" in r for r in track.status_reason)
     assert any("non-finite IMU sample" in r for r in track.status_reason)
+
+
+def test_speed_holes_live_as_offline():
+    """NaN speeds are holes (datasets.speed.frame_speed): the frames they reach run IMU only, live as offline."""
+    imu, _ = _read(EXAMPLE)
+    ts = imu.t[::5].copy()
+    v = 10.0 + 0.01 * np.arange(ts.size)
+    v[200:230] = np.nan
+    track, _ = causal_track(imu.t, imu.gyro, imu.accel, speed=(ts, v))
+    frames = replay(StreamingEstimator(), imu.t, imu.gyro, imu.accel, (ts, v))
+    _assert_same(frames, track)
+    got = np.array([f.speed for f in frames])
+    from imu_ground.datasets.speed import frame_speed
+    want = frame_speed(ts, v, track.t, np.full(len(track), 0.1))
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+    assert np.isnan(got).sum() >= 6 and np.isfinite(got[5:95]).all() and np.isnan(got[102:112]).all()
