@@ -131,7 +131,7 @@ SUSPENSION_STD = (AngleStd(0.552, 0.031 * DEG, 0.045 * DEG, 0.0603 * DEG, 0 * DE
                   AngleStd(0.638, 0.0228 * DEG, 0.0536 * DEG, 0.106 * DEG, 0 * DEG))
 #: Pitch and roll 1-sigma constants of :class:`~imu_ground.filters.ground.GroundNormalFilter` (no load).
 #: Its covariance is a tuning (``R = 1 rad^2``), not an angle's uncertainty: the 1-sigma is a constant, the
-#: 68th percentile of its errors on the synthetic drives (so it is never ``converging``).
+#: 70th percentile of its errors on the synthetic drives of the worse grade (so it is never ``converging``).
 FILTER_STD = (AngleStd(0.0, 0.0, 0.0, 0.226 * DEG), AngleStd(0.0, 0.0, 0.0, 0.327 * DEG))
 
 
