@@ -23,7 +23,7 @@ from imu_ground.datasets.options import OptionError
 from imu_ground.filters import Extrinsic
 
 __all__ = ["GRAVITY_REFUSE_DEG", "GRAVITY_WARN_DEG", "OptionError", "check_creatable", "check_gravity_direction",
-           "gravity_angle", "requested_options"]
+           "gravity_angle", "process_running", "requested_options"]
 
 
 def requested_options(*, method: str = "auto", rate: float | None = None, extrinsic: Any = None, Q: Any = None,
@@ -118,3 +118,18 @@ def check_creatable(path: Path, option: str, start: Path | None = None) -> None:
         raise ValueError(f"{path}: cannot be created because {anc} is a file, not a folder; choose another {option}")
     if not os.access(anc, os.W_OK | os.X_OK):
         raise ValueError(f"{path}: no permission to write in {anc}; choose another {option}")
+
+
+def process_running(pid: int) -> bool:
+    """Whether a process with id ``pid`` runs on this machine (what tells a stale lock or leftover from a live one)."""
+    if pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:                 # it runs, as another user
+        return True
+    except OSError:
+        return False
+    return True
