@@ -115,7 +115,11 @@ def run(a: argparse.Namespace) -> int:
         outputs.append(tum)
         kinds.append(".tum")
     if a.planes is not None:
-        check_planes_dir(a.planes)
+        check_planes_dir(a.planes, inputs=[a.log], outputs=outputs)
+    if a.camera is not None and outputs[0].suffix.lower() == ".tum":
+        warn_line(f"a TUM file holds poses only, not the road plane of --camera {a.camera}"
+                  + (" nor the --bev homographies" if a.bev is not None else "")
+                  + f": write it with -o {outputs[0].with_suffix('.csv')} (or .parquet, .mcap)", outputs[0])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res, table = estimate_to_files(a.log, outputs, kinds, planes=a.planes, progress=progress_enabled(a),
