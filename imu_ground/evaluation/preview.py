@@ -34,8 +34,8 @@ from imu_ground.perception.camera import Camera, load_camera
 from imu_ground.perception.plane import BevGrid, GroundPlane
 from imu_ground.perception.warp import warp_to_bev
 
-__all__ = ["PREVIEW_GRID", "PNG_KEY", "Preview", "images_preview", "read_preview_errors", "render_preview",
-           "synthetic_preview"]
+__all__ = ["DRAWN_BEV_PIXELS", "PREVIEW_GRID", "PNG_KEY", "Preview", "drawn_grid", "images_preview",
+           "read_preview_errors", "render_preview", "synthetic_preview"]
 
 #: Default bird's-eye grid: 5-45 m ahead, 7 m either side, 5 cm a pixel.
 PREVIEW_GRID = BevGrid(5.0, 45.0, -7.0, 7.0, 0.05)
@@ -44,6 +44,10 @@ PNG_KEY = "lane_width_error"
 #: Distances of the lane-width plot, m.
 PLOT_DISTANCES = np.arange(5.0, 60.01, 2.5)
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".ppm")
+#: Most pixels a side of a drawn bird's-eye view: a finer grid is drawn at the coarser resolution
+#: :func:`drawn_grid` gives (a panel of the picture is about 520 x 250 pixels, so nothing visible is
+#: lost), which bounds the preview's memory and time whatever the grid.
+DRAWN_BEV_PIXELS = 1200
 
 
 @dataclass
@@ -131,10 +135,10 @@ def synthetic_preview(seed: int = 3, duration: float = 40.0, frames: int = 1, gr
                    f"{default_method(True)}", labels, lanes=True)
 
 
-def _read_times(path: Path) -> np.ndarray:
+def _read_times(path: Path) -> tuple[np.ndarray, np.ndarray]:
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such times file (--times: one time a line, s on the log's clock)")
-    times = []
+    times, linenos = [], []
     for lineno, line in enumerate(path.read_text().splitlines(), start=1):
         text = line.split("#", 1)[0].strip()
         if not text:
@@ -146,9 +150,18 @@ def _read_times(path: Path) -> np.ndarray:
         if not math.isfinite(value):
             raise ValueError(f"{path}:{lineno}: {text!r} is not a finite time (--times)")
         times.append(value)
+        linenos.append(lineno)
     if not times:
         raise ValueError(f"{path}: no time in the file (--times: one time a line, s on the log's clock)")
-    return np.array(times)
+    return np.array(times), np.array(linenos)
+
+
+def _check_increasing(path: Path, times: np.ndarray, linenos: np.ndarray) -> None:
+    back = np.flatnonzero(np.diff(times) < 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise ValueError(f"{path}:{linenos[i]}: time {times[i]:g} s is before the one above it ({times[i - 1]:g} s); "
+                         "give --times the images' times in their name order, increasing")
 
 
 def _read_image(path: Path, camera: Camera) -> np.ndarray:
@@ -197,7 +210,7 @@ def images_preview(images: str | Path, times: str | Path, camera: str | Camera, 
     files = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
     if not files:
         raise ValueError(f"{folder}: no image ({', '.join(IMAGE_SUFFIXES)}) in the folder (--images)")
-    t_img = _read_times(times_path)
+    t_img, linenos = _read_times(times_path)
     if len(t_img) != len(files):
         raise ValueError(f"{times_path}: {len(t_img)} times for {len(files)} images in {folder}; give --times one "
                          "line per image, in the images' name order")
@@ -206,8 +219,9 @@ def images_preview(images: str | Path, times: str | Path, camera: str | Camera, 
     lo, hi = float(t[0]) - step, float(t[-1])
     bad = np.flatnonzero((t_img < lo) | (t_img > hi))
     if bad.size:
-        raise ValueError(f"{times_path}:{bad[0] + 1}: time {t_img[bad[0]]:g} s ({files[bad[0]].name}) is outside the "
+        raise ValueError(f"{times_path}:{linenos[bad[0]]}: time {t_img[bad[0]]:g} s ({files[bad[0]].name}) is outside the "
                          f"log's frames ({lo:g} .. {hi:g} s on the log's clock); give --times on the log's clock")
+    _check_increasing(times_path, t_img, linenos)
     cam = load_camera(camera)
     for f in files:
         _read_image(f, cam)                         # every image readable and of the camera's size before drawing
@@ -226,6 +240,16 @@ def images_preview(images: str | Path, times: str | Path, camera: str | Camera, 
     return Preview(cam, planes, t_img, lambda k: _read_image(files[k], cam), title=title, labels=labels)
 
 
+def drawn_grid(grid: BevGrid) -> BevGrid:
+    """The grid a bird's-eye view is drawn on: ``grid`` itself, or, when it has more than
+    :data:`DRAWN_BEV_PIXELS` pixels a side, the same extent at a resolution coarser by the smallest
+    whole factor that fits."""
+    factor = math.ceil(max(grid.shape) / DRAWN_BEV_PIXELS)
+    if factor <= 1:
+        return grid
+    return BevGrid(grid.x0, grid.x1, grid.y0, grid.y1, grid.res * factor)
+
+
 def _figure(preview: Preview, k: int, grid: BevGrid):
     from matplotlib.figure import Figure
     img = preview.image(k)
@@ -239,6 +263,7 @@ def _figure(preview: Preview, k: int, grid: BevGrid):
     ax.set_axis_off()
     what = {"static": "static extrinsic", "dynamic": "dynamic (estimate)", "truth": "truth"}
     lanes = 0.5 * LANE_WIDTH
+    grid = drawn_grid(grid)
     for j, name in enumerate(names):
         plane = preview.planes[name]
         if not np.all(np.isfinite(plane.rotation[k])):
