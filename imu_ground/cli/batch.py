@@ -72,7 +72,8 @@ def run(a: argparse.Namespace) -> int:
         else:
             share = "" if r["valid_share"] != r["valid_share"] else f"{100 * r['valid_share']:.1f}% valid"
             frames = "" if r["frames"] != r["frames"] else f"{int(r['frames'])} frames"
-            say(f"{r['status'][:7]:7s} {r['log']}: {_fmt(r['format']) or '(format not recorded)'} {frames} {share}, pitch "
+            fmt = _fmt(r["format"]) or "(format not recorded)"
+            say(f"{r['status'][:7]:7s} {r['log']}: {fmt} {frames} {share}, pitch "
                 f"{_fmt(r['pitch_mean_deg'])} +- {_fmt(r['pitch_std_deg'])} deg, roll {_fmt(r['roll_mean_deg'])} "
                 f"+- {_fmt(r['roll_std_deg'])} deg" + (f"; warnings: {r['warnings']}" if _fmt(r["warnings"]) else ""))
     failed = int((table["status"] == "failed").sum())

@@ -5,7 +5,8 @@ markings and a metric grid on the true moving road; the picture shows the camera
 view, the bird's-eye views made with the static extrinsic, with the estimate and
 with the truth, and the lane-width error against distance (static and dynamic).
 With a log: ``imu-ground preview LOG --images DIR --times FILE [--camera NAME] -o F``
-shows the user's images with the log's estimate (camera :data:`DEFAULT_CAMERA` unless given). ``-o x.gif`` animates the frames.
+shows the user's images with the log's estimate (camera :data:`DEFAULT_CAMERA` unless given).
+``-o x.gif`` animates the frames.
 """
 from __future__ import annotations
 

@@ -219,7 +219,8 @@ def images_preview(images: str | Path, times: str | Path, camera: str | Camera, 
     lo, hi = float(t[0]) - step, float(t[-1])
     bad = np.flatnonzero((t_img < lo) | (t_img > hi))
     if bad.size:
-        raise ValueError(f"{times_path}:{linenos[bad[0]]}: time {t_img[bad[0]]:g} s ({files[bad[0]].name}) is outside the "
+        i = int(bad[0])
+        raise ValueError(f"{times_path}:{linenos[i]}: time {t_img[i]:g} s ({files[i].name}) is outside the "
                          f"log's frames ({lo:g} .. {hi:g} s on the log's clock); give --times on the log's clock")
     _check_increasing(times_path, t_img, linenos)
     cam = load_camera(camera)
@@ -233,7 +234,7 @@ def images_preview(images: str | Path, times: str | Path, camera: str | Camera, 
               "dynamic": dynamic[nearest]}
     if pitch is not None and roll is not None:
         p, r = np.degrees(np.asarray(pitch)[nearest]), np.degrees(np.asarray(roll)[nearest])
-        labels = [f"{f.name}: t = {ti:.2f} s, estimate pitch {a:+.2f} deg, roll {b:+.2f} deg"
+        labels = [f"{f.name}: t = {ti:.2f} s, estimate pitch {_deg(a)} deg, roll {_deg(b)} deg"
                   for f, ti, a, b in zip(files, t_img, p, r)]
     else:
         labels = [f"{f.name}: t = {ti:.2f} s" for f, ti in zip(files, t_img)]
@@ -248,6 +249,11 @@ def drawn_grid(grid: BevGrid) -> BevGrid:
     if factor <= 1:
         return grid
     return BevGrid(grid.x0, grid.x1, grid.y0, grid.y1, grid.res * factor)
+
+
+def _deg(value: float) -> str:
+    """An angle of a caption, deg: ``nan`` (as the output table writes it) where there is no estimate."""
+    return "nan" if math.isnan(value) else f"{value:+.2f}"
 
 
 def _figure(preview: Preview, k: int, grid: BevGrid):

@@ -38,8 +38,8 @@ from imu_ground.pipeline.output import (
     summarize_table,
 )
 
-__all__ = ["LOCK_NAME", "SUMMARY_COLUMNS", "check_existing_outputs", "expand_logs", "is_own_output", "output_folder_lock",
-           "output_names", "process_log", "run_batch", "unique_logs"]
+__all__ = ["LOCK_NAME", "SUMMARY_COLUMNS", "check_existing_outputs", "expand_logs", "is_own_output",
+           "output_folder_lock", "output_names", "process_log", "run_batch", "unique_logs"]
 
 #: Columns of the summary table, in order.
 SUMMARY_COLUMNS = ("log", "status", "format", "method", "frames", "valid_share", "pitch_mean_deg", "pitch_std_deg",

@@ -47,8 +47,8 @@ from imu_ground.perception.camera import Camera
 from imu_ground.perception.plane import BevGrid, GroundPlane
 from imu_ground.pipeline.input_checks import check_creatable, process_running
 
-__all__ = ["BEV_COLUMNS", "PLANES_MARKER", "PLANE_COLUMNS", "PLANE_UNITS", "camera_plane", "check_camera", "check_planes_dir",
-           "plane_columns", "read_kitti_planes", "write_kitti_planes"]
+__all__ = ["BEV_COLUMNS", "PLANES_MARKER", "PLANE_COLUMNS", "PLANE_UNITS", "camera_plane", "check_camera",
+           "check_planes_dir", "plane_columns", "read_kitti_planes", "write_kitti_planes"]
 
 #: Plane columns of the output table with a camera.
 PLANE_COLUMNS = ("plane_a", "plane_b", "plane_c", "plane_d")
