@@ -146,3 +146,14 @@ def test_an_unwritable_planes_folder_is_named_not_the_temporary_one(tmp_path, cl
     line = _error(err, "/proc/imu_ground_planes", "--planes")
     assert ".tmp" not in line
     assert not (tmp_path / "g.csv").exists()
+
+
+def test_what_an_interrupted_output_write_left_inside_does_not_block_the_rerun(tmp_path, cli):
+    folder = tmp_path / "P"
+    code, _, err = _estimate(cli, tmp_path, folder, "-o", folder / "o.csv")
+    assert code == 0, err
+    (folder / ".o.csv.k1ll3d.tmp").mkdir()                # the output's staging folder of a killed run
+    (folder / ".o.csv.k1ll3d.tmp" / "o.csv").write_text("half")
+    code, _, err = _estimate(cli, tmp_path, folder, "-o", folder / "o.csv")
+    assert code == 0, err
+    assert not (folder / ".o.csv.k1ll3d.tmp").exists()

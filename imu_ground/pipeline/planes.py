@@ -148,13 +148,16 @@ def check_planes_dir(path: str | Path, option: str = "--planes", inputs: Sequenc
 
 def _foreign_files(folder: Path, outputs: Sequence[str | Path] = ()) -> list[Path]:
     """What of a folder's content may not be replaced: all of it without the marker, else what is neither
-    a planes file nor one of ``outputs``; empty for a missing or empty folder."""
+    a planes file, nor one of ``outputs``, nor what an interrupted write of one of them left (``.NAME.*.tmp``);
+    empty for a missing or empty folder."""
     if not folder.is_dir():
         return []
     ours = (folder / PLANES_MARKER).is_file()
     allowed = {Path(os.path.abspath(o)).resolve() for o in outputs}
+    staged = tuple(f".{Path(o).name}." for o in outputs)
     return sorted(e for e in folder.iterdir()
-                  if not (ours and (e.name == PLANES_MARKER or (_PLANES_NAME.fullmatch(e.name) and e.is_file()))
+                  if not (ours and (e.name == PLANES_MARKER or (_PLANES_NAME.fullmatch(e.name) and e.is_file())
+                                    or (e.name.startswith(staged) and e.name.endswith(".tmp") and e.is_dir()))
                           or e.resolve() in allowed))
 
 
