@@ -101,3 +101,14 @@ def test_a_tum_output_with_a_camera_says_it_holds_no_plane(tmp_path, cli):
     # without a camera, nothing to say
     code, _, err = cli("estimate", EXAMPLE, "-o", out)
     assert code == 0 and not err.strip(), err
+
+
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux's /proc (a folder nobody can write in)")
+def test_an_unwritable_output_is_named_not_its_temporary_file(tmp_path, cli):
+    for args in (("estimate", EXAMPLE, "-o", "/proc/imu_ground_x.csv"),
+                 ("estimate", EXAMPLE, "-o", tmp_path / "g.csv", "--tum", "/proc/imu_ground_x.tum")):
+        code, _, err = cli(*args)
+        lines = [ln for ln in err.splitlines() if ln.strip()]
+        assert code == 2 and len(lines) == 1 and "Traceback" not in err, err
+        assert str(args[-1]) in lines[0] and ".tmp" not in lines[0], err
+    assert not (tmp_path / "g.csv").exists()                   # all outputs or none

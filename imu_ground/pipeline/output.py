@@ -32,7 +32,7 @@ import numpy as np
 from imu_ground._version import __version__
 from imu_ground.filters.estimator import GroundTrack
 from imu_ground.filters.status import GAP, gap_run_durations, status_names, status_reason
-from imu_ground.pipeline.input_checks import check_creatable
+from imu_ground.pipeline.input_checks import OptionError, check_creatable
 from imu_ground.pipeline.planes import PLANE_UNITS, plane_columns
 from imu_ground.pipeline.ros_output import write_ros_output
 from imu_ground.so3 import quat_from_matrix
@@ -460,11 +460,21 @@ def write_outputs(paths: Sequence[_PathLike], table, meta: Mapping[str, Any],
 
 @contextmanager
 def _staged(path: Path) -> Iterator[Path]:
-    """Like :func:`atomic_path` but the caller renames (so several files can be committed together)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmpdir = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+    """Like :func:`atomic_path` but the caller renames (so several files can be committed together).
+
+    An operating-system error names ``path``, never the temporary folder.
+    """
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmpdir = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+    except OSError as e:
+        raise OptionError(f"{path}: cannot be written there ({e.strerror or e}); choose another path") from None
     try:
         yield tmpdir / path.name
+    except OSError as e:
+        if str(tmpdir) not in f"{e.filename} {e.filename2}":
+            raise
+        raise OptionError(f"{path}: could not be written ({e.strerror or e}); choose another path") from None
     finally:
         shutil.rmtree(tmpdir, ignore_errors=True)
 
