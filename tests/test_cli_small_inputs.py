@@ -19,6 +19,8 @@ EXAMPLE = REPO / "datasets" / "fixtures" / "example_drive.csv"
 _INTERRUPT_AT_IMPORT = textwrap.dedent("""
     import os, runpy, signal, sys
 
+    signal.signal(signal.SIGINT, signal.default_int_handler)   # as from a terminal (a background job ignores it)
+
     class CtrlCAtNumpy:
         def find_spec(self, name, path=None, target=None):
             if name == "numpy":
