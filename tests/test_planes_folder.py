@@ -18,19 +18,11 @@ EXAMPLE = REPO / "datasets" / "fixtures" / "example_drive.csv"
 LEVEL = [0.0, -1.0, 0.0, 1.65]
 
 
-def _error(err, *words):
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1 and "Traceback" not in err, err
-    for w in words:
-        assert w in lines[0], (w, err)
-    return lines[0]
-
-
 def _estimate(cli, tmp_path, planes, *more):
     return cli("estimate", EXAMPLE, "--camera", "kitti_cam2", "--planes", planes, *more)
 
 
-def test_a_kitti_label_or_calib_folder_is_refused_untouched(tmp_path, cli):
+def test_a_kitti_label_or_calib_folder_is_refused_untouched(tmp_path, cli, one_error):
     label = "Car 0.00 0 -1.58 587.01 173.33 614.12 200.12 1.65 1.67 3.64 -0.65 1.71 46.70 -1.59\n"
     for kind, text in (("label_2", label),
                        ("calib", "P0: 7.07e+02 0 6.04e+02 0 0 7.07e+02 1.80e+02 0 0 0 1 0\n")):
@@ -40,7 +32,7 @@ def test_a_kitti_label_or_calib_folder_is_refused_untouched(tmp_path, cli):
         (folder / "000001.txt").write_text(text)
         code, _, err = _estimate(cli, tmp_path, folder, "-o", tmp_path / "g.csv")
         assert code == 2
-        _error(err, str(folder), "000000.txt", "--planes")
+        one_error(err, str(folder), "000000.txt", "--planes")
         assert sorted(p.name for p in folder.iterdir()) == ["000000.txt", "000001.txt"]
         assert (folder / "000000.txt").read_text() == text
         with pytest.raises(ValueError, match="000000.txt"):                      # the library refuses too
@@ -49,7 +41,7 @@ def test_a_kitti_label_or_calib_folder_is_refused_untouched(tmp_path, cli):
     assert not (tmp_path / "g.csv").exists()
 
 
-def test_an_input_log_inside_the_planes_folder_is_refused(tmp_path, cli):
+def test_an_input_log_inside_the_planes_folder_is_refused(tmp_path, cli, one_error):
     folder = tmp_path / "p"
     code, _, err = _estimate(cli, tmp_path, folder, "-o", tmp_path / "g.csv")
     assert code == 0, err
@@ -58,11 +50,11 @@ def test_an_input_log_inside_the_planes_folder_is_refused(tmp_path, cli):
     code, _, err = cli("estimate", log, "--format", "table", "--camera", "kitti_cam2", "--planes", folder,
                        "-o", tmp_path / "g2.csv")
     assert code == 2
-    _error(err, str(log), "--planes")
+    one_error(err, str(log), "--planes")
     assert log.read_bytes() == EXAMPLE.read_bytes()
 
 
-def test_a_folder_this_tool_wrote_is_replaced_and_output_inside_works_on_every_rerun(tmp_path, cli):
+def test_a_folder_this_tool_wrote_is_replaced_and_output_inside_works_on_every_rerun(tmp_path, cli, one_error):
     folder = tmp_path / "P"
     for _ in range(3):                                    # the identical rerun, twice
         code, _, err = _estimate(cli, tmp_path, folder, "-o", folder / "o.csv", "--tum", folder / "o.tum")
@@ -75,7 +67,7 @@ def test_a_folder_this_tool_wrote_is_replaced_and_output_inside_works_on_every_r
     (folder / "notes.md").write_text("mine")
     code, _, err = _estimate(cli, tmp_path, folder, "-o", folder / "o.csv")
     assert code == 2
-    _error(err, "notes.md", "--planes")
+    one_error(err, "notes.md", "--planes")
     assert (folder / "notes.md").read_text() == "mine" and (folder / "o.csv").exists()
 
 
@@ -140,10 +132,10 @@ def test_a_later_run_removes_its_own_stale_leftovers_only(tmp_path):
 
 
 @pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux's /proc (a folder nobody can write in)")
-def test_an_unwritable_planes_folder_is_named_not_the_temporary_one(tmp_path, cli):
+def test_an_unwritable_planes_folder_is_named_not_the_temporary_one(tmp_path, cli, one_error):
     code, _, err = _estimate(cli, tmp_path, "/proc/imu_ground_planes", "-o", tmp_path / "g.csv")
     assert code == 2
-    line = _error(err, "/proc/imu_ground_planes", "--planes")
+    line = one_error(err, "/proc/imu_ground_planes", "--planes")
     assert ".tmp" not in line
     assert not (tmp_path / "g.csv").exists()
 

@@ -16,14 +16,6 @@ REPO = Path(__file__).resolve().parents[1]
 EXAMPLE = REPO / "datasets" / "fixtures" / "example_drive.csv"
 
 
-def _one_line(err, *words):
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1 and "Traceback" not in err, err
-    for w in words:
-        assert w in lines[0], (w, err)
-    return lines[0]
-
-
 def _small_preview(frames=1):
     """Two planes of a KITTI camera 2 at a tenth of its resolution (the grid, not the image, sets the cost)."""
     kitti = load_camera("kitti_cam2")
@@ -98,13 +90,13 @@ def test_images_without_camera_use_the_documented_default(tmp_path, kitti_images
         assert im.format == "PNG"
 
 
-def test_descending_image_times_are_refused_naming_times(tmp_path, kitti_images, cli):
+def test_descending_image_times_are_refused_naming_times(tmp_path, kitti_images, cli, one_error):
     folder, times = kitti_images
     times.write_text("# image times\n10.5\n10.0\n")
     code, _, err = cli("preview", EXAMPLE, "--images", folder, "--times", times, "--camera", "kitti_cam2",
                        "-o", tmp_path / "p.png")
     assert code == 2
-    _one_line(err, f"{times}:3", "--times")
+    one_error(err, f"{times}:3", "--times")
     assert not (tmp_path / "p.png").exists()
 
 
