@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from imu_ground.datasets.options import OptionError
 from imu_ground.evaluation.ground_effect import LANE_WIDTH, ground_errors
 from imu_ground.evaluation.simulate import SpeedParams, simulate
 from imu_ground.evaluation.simulate.camera import render_road
@@ -160,8 +161,8 @@ def _check_increasing(path: Path, times: np.ndarray, linenos: np.ndarray) -> Non
     back = np.flatnonzero(np.diff(times) < 0)
     if back.size:
         i = int(back[0]) + 1
-        raise ValueError(f"{path}:{linenos[i]}: time {times[i]:g} s is before the one above it ({times[i - 1]:g} s); "
-                         "give --times the images' times in their name order, increasing")
+        raise OptionError(f"{path}:{linenos[i]}: time {times[i]:g} s is before the one above it ({times[i - 1]:g} s); "
+                          "give {opt} the images' times in their name order, increasing", "times")
 
 
 def _read_image(path: Path, camera: Camera) -> np.ndarray:
