@@ -95,7 +95,8 @@ def register(sub) -> None:
                         "outputs gain its homography bev_h00 .. bev_h22 (bird's-eye pixel <- image pixel) per frame")
     g.add_argument("--planes", metavar="DIR",
                    help="with --camera: also write one KITTI object planes file per frame, DIR/000000.txt, ... "
-                        "(nan on frames that span a gap; the folder is replaced, one holding other files refused)")
+                        "(nan on frames that span a gap; the folder is replaced as a whole, and only a folder this "
+                        "tool wrote, marked by its .imu-ground-planes file: any other non-empty folder is refused)")
     add_reader_flags(e, poses=True)
     add_progress_flag(e)
     e.set_defaults(func=run)
