@@ -72,7 +72,7 @@ def read_comma2k19(path: str | Path, *, validate: bool = True, policy: str = "re
         or ``processed_log/IMU`` folder.
     validate : bool
         Run :func:`imu_ground.datasets.validation.validate` (default True).
-    policy : {"retime", "drop", "sort", "strict"}
+    policy : {"retime", "drop", "sort", "strict", "recorded"}
         Time-order policy of the result; the accelerometer's own times (only
         interpolated from) get ``"drop"`` under ``"retime"``.
     **validate_kw

@@ -53,7 +53,7 @@ COMMON_OPTIONS = frozenset({"policy", "nonfinite"})
 FINISH_PARAMETERS = """\
 validate : bool
     Run :func:`imu_ground.datasets.validation.validate` (default True).
-policy : {"retime", "drop", "sort", "strict"}
+policy : {"retime", "drop", "sort", "strict", "recorded"}
     Time-order policy of the validation (default ``"retime"``).
 **validate_kw
     Other options of :func:`~imu_ground.datasets.validation.validate`."""
@@ -127,7 +127,7 @@ def finish(imu: ImuData, *, validate: bool = True, policy: str = "retime", **opt
     validate : bool
         Run :func:`imu_ground.datasets.validation.validate` (default True); False
         returns ``imu`` unchanged and refuses validation options.
-    policy : {"retime", "drop", "sort", "strict"}
+    policy : {"retime", "drop", "sort", "strict", "recorded"}
         Time-order policy (default ``"retime"``).
     **options
         Other options of :func:`~imu_ground.datasets.validation.validate` (``nonfinite``, ``gaps``, ...).

@@ -236,7 +236,7 @@ def read_table(source: str | Path | pd.DataFrame, *, sep: str | None = None, dec
         fields are not comma-separated and the first data row writes its numbers so (``9,81``).
     validate : bool
         Run :func:`imu_ground.datasets.validation.validate` (default True).
-    policy : {"retime", "drop", "sort", "strict"}
+    policy : {"retime", "drop", "sort", "strict", "recorded"}
         Time-order policy of the validation.
     **kw
         Other options of :func:`~imu_ground.datasets.validation.validate`.

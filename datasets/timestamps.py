@@ -11,6 +11,12 @@
 - ``"drop"``: keep only samples later than every earlier one;
 - ``"sort"``: sort by time (stable) and drop repeated times;
 - ``"strict"``: raise.
+- ``"recorded"``: keep every sample in file order with its stamp as recorded
+  (back-steps and repeats stay; they are listed in the report, not warned about).
+  For the live front end only (``estimate --causal``, ``stream --replay``): the
+  causal :class:`~imu_ground.imu.sample_clock.SampleClock` makes the time-order
+  choices itself, sample by sample. The data is then *not* strictly increasing
+  in time, which the batch pipeline needs.
 """
 from __future__ import annotations
 
@@ -34,10 +40,10 @@ from .retime import RetimeResult, _apply_retime, _rows, retime
 __all__ = ["POLICIES", "Action", "Policy", "RetimeResult", "act", "check_gaps", "check_timestamps", "fmt_list", "gap_action",
            "order_samples", "retime"]
 
-Policy = Literal["retime", "drop", "sort", "strict"]
+Policy = Literal["retime", "drop", "sort", "strict", "recorded"]
 Action = Literal["warn", "raise", "ignore"]
 #: Time-order policies, the default first.
-POLICIES: tuple[str, ...] = ("retime", "drop", "sort", "strict")
+POLICIES: tuple[str, ...] = ("retime", "drop", "sort", "strict", "recorded")
 ACTIONS: tuple[str, ...] = ("warn", "raise", "ignore")
 
 
@@ -205,7 +211,7 @@ def check_timestamps(t: np.ndarray, policy: Policy = "retime", *, gaps: Action |
     ----------
     t : array_like, shape (N,)
         Sample times, s; must be finite.
-    policy : {"retime", "drop", "sort", "strict"}
+    policy : {"retime", "drop", "sort", "strict", "recorded"}
         See the module docstring.
     gaps : {"warn", "raise", "ignore"}, optional
         What to do about gaps; default ``"raise"`` under ``"strict"``, else ``"warn"``.
@@ -264,7 +270,7 @@ def _reverse_order_error(src: str, n: int, back: np.ndarray, policy: str) -> Imu
     Retiming cannot apply and dropping would keep a handful of samples (a
     silently wrong result): sorting is what such a log needs.
     """
-    if policy not in ("retime", "drop") or n < 3 or back.size * 2 <= n - 1:
+    if policy not in ("retime", "drop", "recorded") or n < 3 or back.size * 2 <= n - 1:
         return None
     how = "in reverse order (newest first)" if back.size == n - 1 else "mostly in reverse order"
     return ImuValidationError(f"{src}: the samples are {how}: {back.size} of {n - 1} time steps go back; "
@@ -304,6 +310,10 @@ def order_samples(t, policy, source, index, report, warn, row_lines, finite: boo
     if reverse is not None:
         report.issues.append(str(reverse))
         raise reverse
+    if policy == "recorded":            # for the causal clock: file order and stamps kept, noted in the report
+        report.issues.append(what
+                             + "; kept as recorded for the causal sample clock (policy='recorded')")
+        return None, t.copy(), steps
     # the raw steps are not used again: their array may hold the retimed ones
     new_t, dk = _apply_retime(t, index, report, steps) if policy == "retime" else (None, None)
     if new_t is not None:

@@ -19,7 +19,8 @@ What is checked, in this order
    equal is refused saying so.
 3. **Time order** (:mod:`imu_ground.datasets.timestamps`): ``policy="retime"``
    (default) puts jittered stamps back on the sample clock, ``"drop"`` keeps only
-   samples later than every earlier one, ``"sort"`` sorts, ``"strict"`` raises.
+   samples later than every earlier one, ``"sort"`` sorts, ``"strict"`` raises,
+   ``"recorded"`` keeps file order and stamps for the causal sample clock (the live front end).
 4. **Gaps**: steps longer than ``gap_threshold`` (default ``gap_factor`` times the
    median step) are listed in the report and announced with a :class:`GapWarning`.
 5. **Units**: a median step outside 1-2000 Hz, a sustained angular rate above
@@ -276,7 +277,7 @@ def validate(imu: ImuData, policy: Policy = "retime", *,
         The log (``t`` in s, ``gyro`` in rad/s, ``accel`` in m/s^2, any frame).
         ``meta["row_lines"]``, when present, maps input rows to 1-based file
         lines for the messages.
-    policy : {"retime", "drop", "sort", "strict"}
+    policy : {"retime", "drop", "sort", "strict", "recorded"}
         Unsorted/duplicate times (see :mod:`imu_ground.datasets.timestamps`);
         default ``"retime"`` (falls back to ``"drop"`` where the rate is not steady).
     nonfinite : {"raise", "drop"}
@@ -307,7 +308,7 @@ def validate(imu: ImuData, policy: Policy = "retime", *,
     Returns
     -------
     imu : ImuData
-        The cleaned log (times strictly increasing), a new object;
+        The cleaned log (times strictly increasing, except under ``"recorded"``), a new object;
         ``meta["validation"]`` holds the report.
     report : ValidationReport
 

@@ -60,20 +60,61 @@ def _offline(path, **kw):
 
 
 # --------------------------------------------------------------------------- one engine, both ways
-def test_equal_to_offline_on_every_shared_drive(shared_data, kitti_index):
-    """Every drive of drives.csv: the reader's samples (and its INS speed) streamed equal --causal; the raw
-    stamps of the CSV (jitter, back-steps, dropouts) streamed equal causal_track on the same raw stamps."""
+def _raw_kitti(path):
+    """The rows of a KITTI CSV as the file has them (pandas, file order; jitter, back-steps, repeats and
+    dropouts kept): stamps (s), gyro, accel, and the INS speed hypot(ve, vn) (m/s) at its distinct stamps."""
     import pandas as pd
+    raw = pd.read_csv(path)
+    t = raw["t"].to_numpy(float)
+    v = np.hypot(raw["ve"], raw["vn"]).to_numpy(float)
+    order = np.argsort(t, kind="stable")
+    first = np.r_[True, np.diff(t[order]) > 0]
+    return t, raw[["wx", "wy", "wz"]].to_numpy(float), raw[["ax", "ay", "az"]].to_numpy(float), \
+        (t[order][first], v[order][first])
+
+
+def test_equal_to_offline_on_every_shared_drive(shared_data, kitti_index):
+    """Every drive of drives.csv: its raw CSV rows (back-steps of about -0.05 s, repeats, dropouts) and INS
+    speed streamed equal --causal, which hands the sample clock the stamps as recorded (not retimed over
+    the whole file first)."""
+    stepped_back = 0
     for name in kitti_index["drive"]:
         path = shared_data / "kitti_imu100" / f"{name}.csv.gz"
         res = _offline(path, extrinsic="kitti_imu")
-        imu, sp = _read(path)
-        frames = replay(StreamingEstimator(extrinsic="kitti_imu"), imu.t, imu.gyro, imu.accel, sp)
+        t, gyro, accel, sp = _raw_kitti(path)
+        stepped_back += bool((np.diff(t) <= 0).any())
+        frames = replay(StreamingEstimator(extrinsic="kitti_imu"), t, gyro, accel, sp)
         _assert_same(frames, res.track)
-        raw = pd.read_csv(path, usecols=["t", "wx", "wy", "wz", "ax", "ay", "az"]).to_numpy()
-        track, _ = causal_track(raw[:, 0], raw[:, 1:4], raw[:, 4:7], extrinsic="kitti_imu", speed=sp)
-        frames = replay(StreamingEstimator(extrinsic="kitti_imu"), raw[:, 0], raw[:, 1:4], raw[:, 4:7], sp)
-        _assert_same(frames, track)
+    assert stepped_back                         # the raw stamps do step back: the test can tell
+
+
+def test_causal_refuses_whole_log_policies_and_recorded_is_live_only(shared_data):
+    """--policy drop is the live clock's; sort and strict need the whole log; 'recorded' alone is refused."""
+    from imu_ground.datasets.options import OptionError
+    from imu_ground.pipeline import estimate_log
+    path = shared_data / "kitti_imu100" / "2011_09_26_drive_0009.csv.gz"
+    res = _offline(path, extrinsic="kitti_imu", policy="drop")
+    t, gyro, accel, sp = _raw_kitti(path)
+    _assert_same(replay(StreamingEstimator(extrinsic="kitti_imu", policy="drop"), t, gyro, accel, sp), res.track)
+    for policy in ("sort", "strict"):
+        with pytest.raises(OptionError, match="whole log"):
+            _offline(path, extrinsic="kitti_imu", policy=policy)
+    with pytest.raises(OptionError, match="live front end"):
+        estimate_log(path, extrinsic="kitti_imu", policy="recorded")
+
+
+def test_stream_replay_equals_causal_on_a_drive(cli, shared_data):
+    from imu_ground.filters.status import status_names
+    path = shared_data / "kitti_imu100" / "2011_09_26_drive_0009.csv.gz"
+    code, out, err = cli("stream", "--replay", path, "--extrinsic", "kitti_imu")
+    assert code == 0, err
+    got = _csv_rows(out)
+    track = _offline(path, extrinsic="kitti_imu").track
+    assert len(got) == len(track) > 0
+    np.testing.assert_allclose(got["t"], track.t, rtol=0, atol=1e-9)
+    for name in ("pitch", "roll"):
+        np.testing.assert_allclose(got[f"{name}_deg"], np.degrees(getattr(track, name)), rtol=0, atol=TOL_DEG)
+    assert got["status"].tolist() == list(status_names(track.status))
 
 
 @pytest.mark.parametrize("which", ["nuscenes", "comma2k19"])

@@ -89,7 +89,8 @@ def register(sub) -> None:
     e.add_argument("--causal", action="store_true",
                    help="every choice from the samples before it, as live (the numbers 'imu-ground stream' and "
                         "imu_ground.StreamingEstimator give fed this log sample by sample): sample clock, "
-                        "standstills and gyro bias seen so far, each frame's speed from the samples up to it")
+                        "standstills and gyro bias seen so far, each frame's speed from the samples up to it; the "
+                        "stamps as recorded, in file order (--policy retime or drop: the live clock's policy)")
     g = e.add_argument_group("camera (road plane in a camera's axes)")
     g.add_argument("--camera", metavar="NAME_OR_FILE",
                    help="a camera on the platform: kitti_cam0 .. kitti_cam3, a camera file (calib/README.md), or a "

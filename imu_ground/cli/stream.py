@@ -5,8 +5,9 @@ pipes, a serial bridge or a demo. Standard input: a header naming ``t,wx,wy,wz,a
 (any order and case; optionally ``speed``, m/s) then one sample a line; the units are those of
 ``estimate`` (s, rad/s, m/s^2) or set by ``--time-unit``, ``--gyro-unit``, ``--accel-unit``
 (not told from the data: a stream has no future to look at). ``--replay LOG`` reads a log
-(any format ``estimate`` reads) and feeds it sample by sample, its speed (``--speed``) before
-the samples it precedes; ``--realtime`` paces it on the log's clock. Each frame is written as
+(any format ``estimate`` reads) and feeds it sample by sample with its stamps as recorded (file order,
+back-steps and repeats kept: the estimator's sample clock handles them, ``--policy`` retime or drop),
+its speed (``--speed``) before the samples it precedes; ``--realtime`` paces it on the log's clock. Each frame is written as
 soon as it is complete: a CSV line with the estimate's columns (header first), or ``--json``
 lines; flushed. ``--state FILE`` resumes from a saved state and writes it at the end, on
 SIGTERM and on Ctrl-C (atomically; a file that is not a saved state is refused, never replaced).
@@ -119,8 +120,8 @@ def _cell(v) -> str:
 def run(a: argparse.Namespace) -> int:
     from imu_ground.datasets.options import OptionError
     from imu_ground.pipeline.streaming import StreamingEstimator
-    est = StreamingEstimator(a.method, a.extrinsic, a.rate, a.camera,
-                             policy=a.policy if a.policy in ("retime", "drop") else _policy(a.policy))
+    from imu_ground.pipeline.estimate import live_policy
+    est = StreamingEstimator(a.method, a.extrinsic, a.rate, a.camera, policy=live_policy(a.policy))
     state = None if a.state is None else Path(a.state)
     if state is not None:
         if state.exists():
@@ -143,13 +144,6 @@ def run(a: argparse.Namespace) -> int:
     return 0
 
 
-def _policy(policy):
-    if policy is None:
-        return "retime"
-    from imu_ground.datasets.options import OptionError
-    raise OptionError(f"{{opt}} {policy} needs the whole log; a stream takes retime or drop", "policy")
-
-
 def _replay(est, a, out) -> None:
     import warnings
 
@@ -160,6 +154,7 @@ def _replay(est, a, out) -> None:
     from imu_ground.pipeline.estimate import speed_samples
     opts = reader_options(a)
     fmt = opts.pop("format", None)
+    opts["policy"] = "recorded"         # the stamps as recorded, in file order: the estimator's clock retimes them
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         fmt = detect_format(a.replay) if fmt is None else fmt

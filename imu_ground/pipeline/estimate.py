@@ -56,6 +56,7 @@ __all__ = [
     "estimate_log",
     "estimate_to_files",
     "gravity_angle",
+    "live_policy",
     "require_imu_log",
     "requested_options",
     "resolve_method",
@@ -275,7 +276,9 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
         :class:`~imu_ground.pipeline.streaming.StreamingEstimator` gives when fed the log sample by
         sample (:func:`~imu_ground.pipeline.streaming.causal_track`: the sample clock, the standstills
         and gyro bias seen so far, each frame's speed from the speed samples up to its decision).
-        IMU logs and the live methods only.
+        IMU logs and the live methods only. The log is read with the reader policy ``"recorded"``
+        (stamps as recorded, in file order); ``policy`` ``"retime"`` or ``"drop"`` is the sample
+        clock's (:func:`live_policy`).
     **reader_options
         Entries of :data:`imu_ground.datasets.options.READER_OPTIONS`
         (``policy``, ``nonfinite``, ``gyro_unit``, ...), passed to the reader
@@ -312,6 +315,9 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
                                                                  recalibrate_online, reader_kw)
             settings["causal"] = settings["options"]["causal"] = True
         else:
+            if reader_kw.get("policy") == "recorded":
+                raise OptionError(f"{path}: {{opt}} recorded keeps the stamps out of order, for the live front end "
+                                  "only (add --causal, or choose retime, drop, sort or strict)", "policy")
             if kind == "poses":
                 em, info = _poses_egomotion(path, fmt, rate, reader_kw.get("times"), extrinsic)
             else:
@@ -469,6 +475,23 @@ def speed_samples(speed, path, fmt, imu):
     return got, what
 
 
+def live_policy(policy: str | None) -> str:
+    """The causal sample clock's policy for the time-order option ``policy`` of a live run (``estimate --causal``,
+    ``stream``).
+
+    The live front end reads a log with the reader policy ``"recorded"`` (stamps in file order, as
+    recorded) and leaves the time order to its :class:`~imu_ground.imu.sample_clock.SampleClock`:
+    ``retime`` (the default; also for ``None`` and ``"recorded"``) or ``drop`` are honoured there;
+    ``sort`` and ``strict`` need the whole log and are refused (:class:`OptionError` naming ``policy``).
+    """
+    if policy in (None, "recorded"):
+        return "retime"
+    if policy in ("retime", "drop"):
+        return policy
+    raise OptionError(f"{{opt}} {policy} needs the whole log; the live front end (--causal, stream) takes retime "
+                      "or drop, applied sample by sample to the stamps as recorded", "policy")
+
+
 def _causal_estimate(path, kind, fmt, method, rate, extrinsic, speed, Q, R, recalibrate_online, reader_kw):
     """:func:`estimate_log` with ``causal=True``: the log read, then
     :func:`~imu_ground.pipeline.streaming.causal_track`.
@@ -486,8 +509,9 @@ def _causal_estimate(path, kind, fmt, method, rate, extrinsic, speed, Q, R, reca
     if Q is not None or R is not None:
         raise OptionError("{opt} is not a setting of the live estimator (leave it out with --causal)",
                           "Q" if Q is not None else "R")
+    clock_policy = live_policy(reader_kw.get("policy"))
     fmt = detect_format(path) if fmt is None else fmt
-    imu = read_imu(path, format=fmt, **reader_kw)
+    imu = read_imu(path, format=fmt, **{**reader_kw, "policy": "recorded"})
     check_gravity_direction(imu, extrinsic, path)
     imu_rate = 1.0 / float(np.median(np.diff(imu.t))) if len(imu) > 1 else float("nan")
     info = {"format": fmt, "imu_rate": imu_rate, "frame_id": imu.meta.get("frame_id") or "imu"}
@@ -504,7 +528,7 @@ def _causal_estimate(path, kind, fmt, method, rate, extrinsic, speed, Q, R, reca
                           "speed")
     frame_rate = DEFAULT_FRAME_RATE if rate is None else rate
     track, em = causal_track(imu.t, imu.gyro, imu.accel, method=name, extrinsic=extrinsic, rate=frame_rate,
-                             speed=signal, recalibrate_online=recalibrate_online)
+                             speed=signal, policy=clock_policy, recalibrate_online=recalibrate_online)
     if signal is not None:
         what = f"{what} (each frame's from the samples up to its decision)"
     em.meta["source"] = str(path)
