@@ -1,6 +1,7 @@
 """The live estimator: StreamingEstimator against its offline twin, warm start, bad data, misuse, the clock.
 
-The equality tests feed every shared drive (``drives.csv``) sample by sample through
+The equality tests feed every shared drive (``drives.csv``, its raw CSV rows in file order), a ROS 1
+bag, a ROS 2 sqlite3 bag, an MCAP file and the KITTI OXTS folder sample by sample through
 :class:`~imu_ground.pipeline.streaming.StreamingEstimator` in Python and compare with
 ``estimate_log(..., causal=True)`` (the vectorised :func:`~imu_ground.pipeline.streaming.causal_track`);
 with the compiled kernels that takes about 10 s for all drives (the pure-Python kernels: a few
@@ -128,6 +129,44 @@ def test_equal_to_offline_other_formats(shared_data, which):
     _assert_same(frames, res.track)
 
 
+@pytest.mark.parametrize("kind", ["sqlite3", "mcap"])
+def test_equal_to_offline_ros2_bag_and_mcap_on_recorded_stamps(tmp_path, kind):
+    """A ROS 2 sqlite3 bag and an MCAP file whose header stamps step back and repeat (the messages in
+    record order): --causal equals the stream fed the stamps as written, in message order."""
+    pytest.importorskip("rosbags")
+    imu, _ = _read(EXAMPLE)
+    raw = imu.t.copy()
+    raw[20::37] -= 0.05                                   # back-steps, as KITTI's
+    raw[31::53] = raw[30::53][:raw[31::53].size]          # repeated stamps
+    t0 = 1_700_000_000_123_456_789
+    hdr = t0 + np.round(raw * 1e9).astype(np.int64)
+    rec = t0 + np.round(imu.t * 1e9).astype(np.int64)
+    path = _write_bag(tmp_path / f"drive_{kind}", imu, hdr, rec, storage=kind)
+    res = _offline(path)
+    t = (hdr - hdr[0]) / 1e9
+    assert (np.diff(t) < 0).any() and (np.diff(t) == 0).any()
+    _assert_same(replay(StreamingEstimator(), t, imu.gyro, imu.accel), res.track)
+
+
+def test_equal_to_offline_kitti_oxts_folder(shared_data):
+    """The KITTI OXTS native folder (10 Hz packets, timestamps.txt): --causal equals the stream fed its
+    packets (wf wl wu, af al au) at the stamps of timestamps.txt, and their INS speed hypot(ve, vn)."""
+    import pandas as pd
+    from imu_ground.datasets.kitti_oxts import OXTS_FIELDS
+    folder = shared_data / "kitti_raw" / "2011_09_26" / "2011_09_26_drive_0001_sync" / "oxts"
+    res = _offline(folder)
+    ns = pd.to_datetime(pd.read_csv(folder / "timestamps.txt", header=None)[0]).to_numpy("datetime64[ns]")
+    ns = ns.astype(np.int64)
+    packets = np.array([np.loadtxt(f) for f in sorted((folder / "data").glob("*.txt"))])
+    col = {n: packets[:, i] for i, n in enumerate(OXTS_FIELDS)}
+    t = (ns - ns[0]) * 1e-9
+    gyro = np.column_stack([col[n] for n in ("wf", "wl", "wu")])
+    accel = np.column_stack([col[n] for n in ("af", "al", "au")])
+    assert "hypot(ve, vn)" in res.meta["speed"]
+    frames = replay(StreamingEstimator(), t, gyro, accel, (t, np.hypot(col["ve"], col["vn"])))
+    _assert_same(frames, res.track)
+
+
 def test_equal_to_offline_csv_and_filter_methods():
     imu, _ = _read(EXAMPLE)
     for method in ("auto", "filter", "paper"):
@@ -136,31 +175,39 @@ def test_equal_to_offline_csv_and_filter_methods():
         _assert_same(frames, res.track)
 
 
-def test_equal_to_offline_bag(tmp_path):
-    """A ROS 1 bag with IMU and a TwistStamped speed written at test time: --causal equals the stream."""
-    pytest.importorskip("rosbags")
+def _write_bag(path, imu, header_ns, record_ns, storage="mcap", twist=False):
+    """A ROS log at ``path`` (.bag: ROS 1; else a ROS 2 bag of ``storage``) with the samples of ``imu`` on
+    /imu/data at header stamps ``header_ns`` in the order of ``record_ns``; ``twist``: a TwistStamped speed
+    every 5th sample. Returns the file to read (the .mcap storage file itself for an MCAP bag)."""
     from imu_ground.pipeline.ros_output import RosWriter
-    imu, _ = _read(EXAMPLE)
-    t0 = 1_700_000_000_000_000_000
-    path = tmp_path / "drive.bag"
     vec = "geometry_msgs/msg/Vector3"
-    with RosWriter(path) as w:
+    with RosWriter(path, storage=storage) as w:
         hi = w.add_topic("/imu/data", "sensor_msgs/msg/Imu")
-        hs = w.add_topic("/vehicle/twist", "geometry_msgs/msg/TwistStamped")
-        for k, ns in enumerate((t0 + np.round(imu.t * 1e9).astype(np.int64)).tolist()):
+        hs = w.add_topic("/vehicle/twist", "geometry_msgs/msg/TwistStamped") if twist else None
+        for k, (ns, rec) in enumerate(zip(header_ns.tolist(), record_ns.tolist())):
             g, a = imu.gyro[k], imu.accel[k]
-            w.write(hi, ns, w.message(
+            w.write(hi, rec, w.message(
                 "sensor_msgs/msg/Imu", header=w.header(ns, "imu_link", k),
                 orientation=w.message("geometry_msgs/msg/Quaternion", x=0.0, y=0.0, z=0.0, w=1.0),
                 orientation_covariance=np.r_[-1.0, np.zeros(8)],
                 angular_velocity=w.message(vec, x=g[0], y=g[1], z=g[2]), angular_velocity_covariance=np.zeros(9),
                 linear_acceleration=w.message(vec, x=a[0], y=a[1], z=a[2]),
                 linear_acceleration_covariance=np.zeros(9)))
-            if k % 5 == 0:
-                twist = w.message("geometry_msgs/msg/Twist", linear=w.message(vec, x=10.0 + 0.01 * k, y=0.0, z=0.0),
-                                  angular=w.message(vec, x=0.0, y=0.0, z=0.0))
-                w.write(hs, ns, w.message("geometry_msgs/msg/TwistStamped", header=w.header(ns, "base", k),
-                                          twist=twist))
+            if twist and k % 5 == 0:
+                tw = w.message("geometry_msgs/msg/Twist", linear=w.message(vec, x=10.0 + 0.01 * k, y=0.0, z=0.0),
+                               angular=w.message(vec, x=0.0, y=0.0, z=0.0))
+                w.write(hs, rec, w.message("geometry_msgs/msg/TwistStamped", header=w.header(ns, "base", k),
+                                           twist=tw))
+    mcap = sorted(Path(path).glob("*.mcap")) if Path(path).is_dir() else []
+    return mcap[0] if mcap else Path(path)
+
+
+def test_equal_to_offline_bag(tmp_path):
+    """A ROS 1 bag with IMU and a TwistStamped speed written at test time: --causal equals the stream."""
+    pytest.importorskip("rosbags")
+    imu, _ = _read(EXAMPLE)
+    ns = 1_700_000_000_000_000_000 + np.round(imu.t * 1e9).astype(np.int64)
+    path = _write_bag(tmp_path / "drive.bag", imu, ns, ns, twist=True)
     res = _offline(path)
     assert "twist" in res.meta["speed"] or "odometry" in res.meta["speed"]
     bag_imu, sp = _read(path)
