@@ -12,7 +12,8 @@
 - ``"sort"``: sort by time (stable) and drop repeated times;
 - ``"strict"``: raise.
 - ``"recorded"``: keep every sample in file order with its stamp as recorded
-  (back-steps and repeats stay; they are listed in the report, not warned about).
+  (back-steps and repeats stay; they are listed in the report, not warned about;
+  a gap is a stamp that far past the latest one before it).
   For the live front end only (``estimate --causal``, ``stream --replay``): the
   causal :class:`~imu_ground.imu.sample_clock.SampleClock` makes the time-order
   choices itself, sample by sample. The data is then *not* strictly increasing
@@ -311,9 +312,9 @@ def order_samples(t, policy, source, index, report, warn, row_lines, finite: boo
         report.issues.append(str(reverse))
         raise reverse
     if policy == "recorded":            # for the causal clock: file order and stamps kept, noted in the report
-        report.issues.append(what
-                             + "; kept as recorded for the causal sample clock (policy='recorded')")
-        return None, t.copy(), steps
+        report.issues.append(what + "; kept as recorded for the causal sample clock (policy='recorded')")
+        # a gap is a stamp that far past the latest before it (not the recovery after a back-step)
+        return None, t.copy(), t[1:] - np.maximum.accumulate(t)[:-1]
     # the raw steps are not used again: their array may hold the retimed ones
     new_t, dk = _apply_retime(t, index, report, steps) if policy == "retime" else (None, None)
     if new_t is not None:

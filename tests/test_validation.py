@@ -109,7 +109,7 @@ def test_sort_policy_keeps_late_samples():
 
 
 def test_bad_policy_names_choices():
-    with pytest.raises(ValueError, match=r"policy='ignore'.*\['retime', 'drop', 'sort', 'strict'\]"):
+    with pytest.raises(ValueError, match=r"policy='ignore'.*\['retime', 'drop', 'sort', 'strict', 'recorded'\]"):
         validate(make_imu(regular()), policy="ignore")
     with pytest.raises(ValueError, match="nonfinite"):
         validate(make_imu(regular()), nonfinite="keep")
@@ -254,3 +254,24 @@ def test_warning_points_at_caller():
     with pytest.warns(TimestampWarning) as rec:
         validate(make_imu(t))
     assert rec[0].filename == __file__
+
+
+def test_recorded_policy_keeps_file_order_and_stamps_and_still_checks_the_rest():
+    """policy='recorded' (the live front end's read): back-steps and repeats kept as written, listed in the
+    report without a warning; a newest-first log and NaN rows are still refused."""
+    t = np.arange(200) * 0.01
+    t[50] -= 0.05
+    t[120] = t[119]
+    rng = np.random.default_rng(3)
+    gyro, accel = rng.normal(0, 0.1, (200, 3)), [0.0, 0.0, 9.81] + rng.normal(0, 0.3, (200, 3))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        out, report = validate(ImuData(t, gyro, accel), policy="recorded")
+    assert np.array_equal(out.t, t) and report.n_out == 200
+    assert report.backstep_index.tolist() == [50] and 120 in report.duplicate_index
+    assert any("kept as recorded" in x for x in report.issues)
+    with pytest.raises(ImuValidationError, match="reverse"):
+        validate(ImuData(t[::-1].copy(), gyro, accel), policy="recorded")
+    gyro[7, 1] = np.nan
+    with pytest.raises(ImuValidationError, match="nonfinite|NaN|non-finite"):
+        validate(ImuData(t, gyro, accel), policy="recorded")
