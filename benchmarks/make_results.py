@@ -25,7 +25,7 @@ lane-width errors at 20, 40, 60 m with the static extrinsic, the default method 
 Speed: the tables of the benchmark scripts in ``benchmarks/``, each of which exposes
 ``rows()`` returning its rows
 (``bench_filter``, ``bench_suspension``, ``bench_preintegration``, ``bench_ekf``,
-``bench_gravity``, ``bench_readers``, ``bench_batch``); a script that is missing
+``bench_gravity``, ``bench_readers``, ``bench_batch``, ``bench_job``); a script that is missing
 or has no ``rows()`` is listed with a note instead. Figures are measured on
 whatever machine runs this (shared, 2 cores while others work: speed figures are
 medians but noisy).
@@ -47,7 +47,7 @@ REPO = HERE.parent
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_imu100"
 OUT = HERE / "RESULTS.md"
 BENCHMARKS = ("bench_filter", "bench_suspension", "bench_preintegration", "bench_ekf", "bench_gravity",
-              "bench_readers", "bench_batch")
+              "bench_readers", "bench_batch", "bench_job")
 #: Folder of the studies (accuracy, tuning and simulator checks; not speed targets).
 STUDIES = HERE / "studies"
 #: Studies whose rows check the simulator against the real drives (band powers, method ranking), not speeds.
@@ -84,7 +84,15 @@ CONFIDENCE_TITLE = "How sure, and what the road does"
 #: Scripts whose rows measure what the per-frame ground plane does for a camera (range and lane-width errors).
 PERCEPTION_CHECKS = ("bench_ground_effect",)
 #: A paragraph printed above a script's table (what it measures), by script name.
-INTROS = {"bench_ground_effect": (
+INTROS = {"bench_job": (
+    "The whole `imu-ground estimate` on issue 30's 10 h log (shared `2011_10_03_drive_0042` tiled to 36,000 s, "
+    "written with gzip level 1, and the same log as plain CSV; its INS speed used) against `pandas.read_csv` of the "
+    "same file (`benchmarks/bench_job.py`): whole fresh processes, the cases and the competitor interleaved in each "
+    "round, medians. `before` is the code before issue 30 (commit b669bd8, a second checkout given by "
+    "`IMU_GROUND_BENCH_BEFORE`), timed in the same rounds as `after` (this commit). The machine is shared: the load "
+    "average is in each row, CPU times beside the wall times. The stage rows split one run of each into read, "
+    "standstill masks, preintegration, filter and each of its outputs, table and writer."
+), "bench_ground_effect": (
     "What the per-frame plane does for a camera with KITTI camera 2's intrinsics, height and mount "
     "(`benchmarks/bench_ground_effect.py`): mean over drives of the per-drive mean absolute ground-point range "
     "error and lane-width error (m) over the moving frames, at 20, 40 and 60 m ahead, with the static extrinsic, "
