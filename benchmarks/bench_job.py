@@ -57,32 +57,49 @@ _PANDAS = "import sys, pandas as pd; pd.read_csv(sys.argv[1])"
 
 #: The stage probe: wraps the package's functions by name (in every module that holds them), runs estimate_to_files.
 _STAGES = r"""
-import json, resource, sys, time, warnings
+import importlib, json, resource, sys, time, warnings
 warnings.simplefilter("ignore")
 log, out = sys.argv[1], sys.argv[2]
 t_start = time.perf_counter()
 import imu_ground.pipeline.estimate as est
-import imu_ground.filters.confidence, imu_ground.filters.road, imu_ground.filters.mount_monitor
-import imu_ground.filters.status, imu_ground.imu.egomotion, imu_ground.imu.standstill
+for name in ("imu_ground.filters.confidence", "imu_ground.filters.suspension", "imu_ground.filters.road",
+             "imu_ground.filters.mount_monitor", "imu_ground.filters.status", "imu_ground.imu.standstill"):
+    try:
+        importlib.import_module(name)
+    except ImportError:                 # (a module of another version)
+        pass
 stages, order = {}, []
+
+def timer(fn, label):
+    def timed(*a, **k):
+        t0, c0 = time.perf_counter(), time.process_time()
+        try:
+            return fn(*a, **k)
+        finally:
+            s = stages.setdefault(label, [0.0, 0.0, 0.0])
+            s[0] += time.perf_counter() - t0
+            s[1] += time.process_time() - c0
+            s[2] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    return timed
+
 def wrap(name, label):
-    mods = [m for k, m in list(sys.modules.items()) if k.startswith("imu_ground") and m is not None]
-    funcs = {id(getattr(m, name)): getattr(m, name) for m in mods if callable(getattr(m, name, None))}
+    # a function: every module that holds it; "Class.method": the class of the package that has it
     if label not in order:
         order.append(label)
-    for fn in funcs.values():
-        def timed(*a, __fn=fn, **k):
-            t0, c0 = time.perf_counter(), time.process_time()
-            try:
-                return __fn(*a, **k)
-            finally:
-                s = stages.setdefault(label, [0.0, 0.0, 0.0])
-                s[0] += time.perf_counter() - t0
-                s[1] += time.process_time() - c0
-                s[2] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    mods = [m for k, m in list(sys.modules.items()) if k.startswith("imu_ground") and m is not None]
+    if "." in name:
+        cls_name, meth = name.split(".")
+        for m in mods:
+            cls = getattr(m, cls_name, None)
+            if isinstance(cls, type) and meth in vars(cls) and cls.__module__ == m.__name__:
+                setattr(cls, meth, timer(vars(cls)[meth], label))
+        return
+    for fn in {id(getattr(m, name)): getattr(m, name) for m in mods if callable(getattr(m, name, None))}.values():
+        timed = timer(fn, label)
         for m in mods:
             if getattr(m, name, None) is fn:
                 setattr(m, name, timed)
+
 wrap("read_imu", "read")
 wrap("imu_to_egomotion", "ego-motion (standstill + preintegration)")
 wrap("estimate_gyro_bias", "  standstill: gyro bias")
@@ -90,21 +107,13 @@ wrap("detect_standstill", "  standstill: frame flags")
 wrap("preintegrate", "  preintegration")
 wrap("_frame_speeds", "frame speeds")
 wrap("_run_method", "filter (with its outputs)")
-wrap("suspension_confidence", "  outputs: 1-sigma, road, monitor, status")
-order.append("    road grade and bank")
-RF = imu_ground.filters.road.RoadFilter
-_run = RF.run
-def road_run(self, *a, **k):
-    t0, c0 = time.perf_counter(), time.process_time()
-    try:
-        return _run(self, *a, **k)
-    finally:
-        s = stages.setdefault("    road grade and bank", [0.0, 0.0, 0.0])
-        s[0] += time.perf_counter() - t0
-        s[1] += time.process_time() - c0
-RF.run = road_run
-wrap("monitor_track", "    mount monitor")
+wrap("suspension_confidence", "  outputs: 1-sigma, road, monitor, status")              # (before the rooms merge)
+wrap("SuspensionAwareFilter._track_confidence", "  outputs: 1-sigma, road, monitor, status")
+wrap("RoadFilter.run", "    road grade and bank")
+wrap("monitor_track", "    mount monitor")                                           # (a function, then a method)
+wrap("MountMonitor.run", "    mount monitor")
 wrap("track_statuses", "    status")
+wrap("SigmaModel.statuses", "    status")
 wrap("track_reasons", "    status")
 wrap("result_table", "table")
 wrap("write_outputs", "write")

@@ -1,4 +1,4 @@
-"""The mount monitor's vectorised batch (``monitor_track``) against its streaming twin (``MountMonitor.update``).
+"""The mount monitor's vectorised batch (``MountMonitor.run``) against its streaming twin (``MountMonitor.update``).
 
 Twin rule: the same flags, the same alarm text, and the same state after the batch (values within
 1e-12 relative), on synthetic gravity sequences built to reach every branch (hold-off, the drift gate,
@@ -11,8 +11,7 @@ import warnings
 import numpy as np
 import pytest
 
-from imu_ground.filters import confidence
-from imu_ground.filters.mount_monitor import DRIFT_LIMIT, GATE, HOLD_OFF, WINDOW, MountMonitor, monitor_track
+from imu_ground.filters.mount_monitor import DRIFT_LIMIT, GATE, HOLD_OFF, WINDOW, MountMonitor
 from imu_ground.units import DEG
 
 
@@ -24,7 +23,7 @@ def _stream(monitor: MountMonitor, t, gravity, usable) -> np.ndarray:
 
 
 def _assert_same_state(a: MountMonitor, b: MountMonitor) -> None:
-    sa, sb = json.loads(json.dumps(a.state())), json.loads(json.dumps(b.state()))
+    sa, sb = json.loads(json.dumps(a.state_dict())), json.loads(json.dumps(b.state_dict()))
     assert sa["alarm"] == sb["alarm"]
     assert len(sa["hist"]) == len(sb["hist"])
     for key in ("armed_at", "drift", "alarm_t"):
@@ -79,7 +78,7 @@ def test_batch_equals_the_stream_on_synthetic_sequences(case):
     t, g, usable = _sequence(rng, 9000, drift_rate, step_at, breaks, speeding)
     a, b = MountMonitor(), MountMonitor()
     want = _stream(a, t, g, usable)
-    got = monitor_track(b, t, g, usable)
+    got = b.run(t, g, usable)
     np.testing.assert_array_equal(got, want)
     _assert_same_state(b, a)
     if step_at is not None and drift_rate == 0.0 and breaks == 0 and step_at > HOLD_OFF + GATE + WINDOW:
@@ -102,11 +101,11 @@ def test_batches_continue_a_monitors_run_as_the_stream_does(case):
     got, lo = [], 0
     for hi in [*cuts, len(t)]:
         part = slice(lo, hi)
-        got.append(monitor_track(b, t[part], g[part], usable[part]))
+        got.append(b.run(t[part], g[part], usable[part]))
         _stream(a, t[part], g[part], usable[part])
         _assert_same_state(b, a)
         c = MountMonitor()                          # a saved state resumes the batch too
-        c.load(json.loads(json.dumps(b.state())))
+        c.load_state_dict(json.loads(json.dumps(b.state_dict())))
         _assert_same_state(c, b)
         lo = hi
     np.testing.assert_array_equal(np.concatenate(got), whole)
@@ -119,7 +118,7 @@ def test_one_frame_batches_keep_the_streams_state_at_every_frame(case):
     a, b = MountMonitor(), MountMonitor()
     for k in range(len(t)):
         part = slice(k, k + 1)
-        np.testing.assert_array_equal(monitor_track(b, t[part], g[part], usable[part]),
+        np.testing.assert_array_equal(b.run(t[part], g[part], usable[part]),
                                       _stream(a, t[part], g[part], usable[part]))
         _assert_same_state(b, a)
 
@@ -131,22 +130,24 @@ def test_empty_and_all_broken_batches_keep_the_state():
     u = np.ones(len(t), dtype=bool)
     u[-5:] = False                                  # a run through its gate, then a break: the drift is kept
     _stream(a, t, g, u)
-    monitor_track(b, t, g, u)
+    b.run(t, g, u)
     assert b._drift > 0.0
     for tt, gg, uu in ((t[:0], g[:0], u[:0]), (t + 300.0, g, ~u), (t + 600.0, g * np.nan, u)):
-        np.testing.assert_array_equal(monitor_track(b, tt, gg, uu), _stream(a, tt, gg, uu))
+        np.testing.assert_array_equal(b.run(tt, gg, uu), _stream(a, tt, gg, uu))
         _assert_same_state(b, a)
 
 
 def _recorded_monitor_inputs(monkeypatch, run) -> list:
-    """The (t, gravity, usable) every ``monitor_track`` call of the suspension filter gets during ``run()``."""
+    """The (t, gravity, usable) of every ``MountMonitor.run`` call of the suspension filter during ``run()``."""
     calls = []
+    batch = MountMonitor.run
 
     def record(monitor, t, gravity, usable):
         calls.append((np.array(t), np.array(gravity), np.array(usable)))
-        return monitor_track(monitor, t, gravity, usable)
-    monkeypatch.setattr(confidence, "monitor_track", record)
+        return batch(monitor, t, gravity, usable)
+    monkeypatch.setattr(MountMonitor, "run", record)
     run()
+    monkeypatch.setattr(MountMonitor, "run", batch)
     return calls
 
 
@@ -160,7 +161,7 @@ def test_batch_equals_the_stream_on_the_shared_drives(shared_data, kitti_index, 
         assert calls, name
         for t, g, usable in calls:
             a, b = MountMonitor(), MountMonitor()
-            np.testing.assert_array_equal(monitor_track(b, t, g, usable), _stream(a, t, g, usable), err_msg=name)
+            np.testing.assert_array_equal(b.run(t, g, usable), _stream(a, t, g, usable), err_msg=name)
             _assert_same_state(b, a)
 
 
@@ -176,5 +177,5 @@ def test_batch_equals_the_stream_on_a_simulated_remount(with_true_speed, monkeyp
         for t, g, usable in calls:
             a, b = MountMonitor(), MountMonitor()
             want = _stream(a, t, g, usable)
-            np.testing.assert_array_equal(monitor_track(b, t, g, usable), want)
+            np.testing.assert_array_equal(b.run(t, g, usable), want)
             _assert_same_state(b, a)
