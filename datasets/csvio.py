@@ -299,7 +299,10 @@ def read_delimited(path: str | Path, sep: str | None = ",", *,
     path = Path(path)
     if sep is None or decimal is None:
         open_binary(path).close()           # the missing-file and not-a-file messages
-        found = detect_dialect(path)
+        try:
+            found = detect_dialect(path)
+        except (EOFError, zlib.error, OSError, *_isal_errors()) as e:      # (a .gz that is none)
+            raise MalformedFileError(path, f"truncated or corrupt gzip file ({e})") from e
         sep, decimal = sep or found[0], decimal or found[1]
     try:
         cols, n, blank = _parse(path, sep, stack, decimal)
