@@ -13,6 +13,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from imu_ground.errors import ImuGroundError
+
 __all__ = ["READER_OPTIONS", "ImuInputError", "OptionError", "OptionMessage", "OptionText", "ReaderOption", "option_hint"]
 
 
@@ -122,7 +124,7 @@ class OptionMessage:
         return self._render(cli=True)
 
 
-class OptionError(OptionMessage, ValueError):
+class OptionError(OptionMessage, ImuGroundError):
     """A bad input or option value that an option can fix; the message names the option.
 
     The one error class for options, in the readers and in

@@ -22,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from imu_ground.errors import ImuGroundError
+
 __all__ = ["MAX_REVERSE", "MAX_SPEED", "SPEED_SOURCES", "check_speed", "frame_speed", "log_speed", "read_speed",
            "read_speed_file"]
 
@@ -39,14 +41,14 @@ def _checked(t, v, source: str) -> tuple[np.ndarray, np.ndarray]:
     t = np.asarray(t, dtype=float).ravel()
     v = np.asarray(v, dtype=float).ravel()
     if t.shape != v.shape or t.size == 0:
-        raise ValueError(f"{source}: {t.size} times but {v.size} speeds (need the same number, at least one)")
+        raise ImuGroundError(f"{source}: {t.size} times but {v.size} speeds (need the same number, at least one)")
     ok = np.isfinite(t) & np.isfinite(v)
     t, v = t[ok], v[ok]
     order = np.argsort(t, kind="stable")
     t, v = t[order], v[order]
     keep = np.concatenate([[True], np.diff(t) > 0]) if t.size else np.zeros(0, bool)
     if not keep.any():
-        raise ValueError(f"{source}: no finite speed sample")
+        raise ImuGroundError(f"{source}: no finite speed sample")
     return t[keep], v[keep]
 
 
@@ -145,16 +147,16 @@ def check_speed(t: np.ndarray, v: np.ndarray, source: str, imu=None) -> tuple[np
                              f"{n} s of driving; a speed file holds m/s: check its unit")
     fast = float(np.max(v))
     if fast > MAX_SPEED:
-        raise ValueError(f"{source}: speeds up to {fast:.1f}, implausible for m/s (over {MAX_SPEED:g} m/s); a speed "
-                         "file holds the forward speed in m/s (divide km/h by 3.6)")
+        raise ImuGroundError(f"{source}: speeds up to {fast:.1f}, implausible for m/s (over {MAX_SPEED:g} m/s); a speed "
+                             "file holds the forward speed in m/s (divide km/h by 3.6)")
     neg = v < 0
     if neg.any():
         slow = float(v.min())
         share = float(neg.mean())
         if share > 0.5 or slow < -MAX_REVERSE:
-            raise ValueError(f"{source}: {100 * share:.0f}% of the speeds are negative, down to {slow:.1f} m/s; a "
-                             f"car reverses rarely and at a few m/s (at most {MAX_REVERSE:g}): is the sign flipped? "
-                             "a speed file holds the forward speed, m/s, negative only when reversing")
+            raise ImuGroundError(f"{source}: {100 * share:.0f}% of the speeds are negative, down to {slow:.1f} m/s; a "
+                                 f"car reverses rarely and at a few m/s (at most {MAX_REVERSE:g}): is the sign flipped? "
+                                 "a speed file holds the forward speed, m/s, negative only when reversing")
         notes.append(f"{source}: {int(neg.sum())} of {v.size} speeds are negative (down to {slow:.2f} m/s): "
                      "taken as reversing")
     return t, v, notes
@@ -179,13 +181,13 @@ def read_speed_file(path: str | Path, column: str | None = None) -> tuple[np.nda
     df.columns = cols
     name = column or ("speed" if "speed" in cols else (cols[1] if len(cols) == 2 else None))
     if name is None or name not in cols:
-        raise ValueError(f"{p}: no speed column {column or 'speed'!r}; columns: {', '.join(cols)} "
-                         f"(a speed file has a header 't,speed')")
+        raise ImuGroundError(f"{p}: no speed column {column or 'speed'!r}; columns: {', '.join(cols)} "
+                             f"(a speed file has a header 't,speed')")
     tcol = "t" if "t" in cols else cols[0]
     try:
         t, v = df[tcol].to_numpy(float), df[name].to_numpy(float)
     except (TypeError, ValueError) as e:
-        raise ValueError(f"{p}: column {tcol!r} or {name!r} is not numeric ({e})") from e
+        raise ImuGroundError(f"{p}: column {tcol!r} or {name!r} is not numeric ({e})") from e
     return _checked(t, v, str(p))
 
 
@@ -287,16 +289,16 @@ def read_speed(source: Any, *, log: str | Path | None = None, format: str | None
         fmt = detect_format(log) if format is None else format
         out = log_speed(log, fmt, imu, topic)
         if out is None:
-            raise ValueError(f"{log}: a {fmt} log carries no speed signal; give a speed file (CSV t,speed) or "
-                             f"the name of the log's speed column (formats with their own: {', '.join(SPEED_SOURCES)})")
+            raise ImuGroundError(f"{log}: a {fmt} log carries no speed signal; give a speed file (CSV t,speed) or "
+                                 f"the name of the log's speed column (formats with their own: {', '.join(SPEED_SOURCES)})")
         return out
     if imu is None:
         from imu_ground.datasets import read_imu
         imu = read_imu(log, format=format)
     name = str(source)
     if name not in imu.extra.columns:
-        raise ValueError(f"{log}: no column {name!r} for the speed (and no such file); columns besides the IMU's: "
-                         f"{', '.join(map(str, imu.extra.columns)) or 'none'}")
+        raise ImuGroundError(f"{log}: no column {name!r} for the speed (and no such file); columns besides the IMU's: "
+                             f"{', '.join(map(str, imu.extra.columns)) or 'none'}")
     return _checked(imu.t, imu.extra[name].to_numpy(float), f"{log} column {name}")
 
 

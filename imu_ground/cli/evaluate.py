@@ -8,6 +8,7 @@ import argparse
 import numpy as np
 
 from imu_ground.cli._common import LazyHelp, add_progress_flag, nonnegative_int, progress_enabled, say
+from imu_ground.errors import ImuGroundError
 from imu_ground.evaluation.plots import evaluation_plots
 from imu_ground.evaluation.runner import (
     METHODS,
@@ -55,14 +56,14 @@ def register(sub) -> None:
 
 def _check(a: argparse.Namespace) -> list:
     if a.real is None and not a.synthetic:
-        raise ValueError("nothing to evaluate: give --real DIR (kitti_imu100 drives) and/or --synthetic N")
+        raise ImuGroundError("nothing to evaluate: give --real DIR (kitti_imu100 drives) and/or --synthetic N")
     methods = [m.strip() for m in a.methods.split(",") if m.strip()] if a.methods else list(METHODS)
     unknown = [m for m in methods if m not in METHODS]
     if unknown:
-        raise ValueError(f"--methods: unknown {', '.join(unknown)}; choose from {', '.join(METHODS)}")
+        raise ImuGroundError(f"--methods: unknown {', '.join(unknown)}; choose from {', '.join(METHODS)}")
     bad = [g for g in a.grades.split(",") if g not in ("nav", "mems", "perfect")]
     if bad:
-        raise ValueError(f"--grades: unknown {', '.join(bad)}; choose from nav, mems, perfect")
+        raise ImuGroundError(f"--grades: unknown {', '.join(bad)}; choose from nav, mems, perfect")
     for option, path in (("--csv", a.csv), ("--markdown", a.markdown)):
         if path:
             check_output_path(path, option=option, kind="text")

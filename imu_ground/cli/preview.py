@@ -15,6 +15,7 @@ import warnings
 from pathlib import Path
 
 from imu_ground.cli._common import nonnegative_int, say, warn_line
+from imu_ground.errors import ImuGroundError
 from imu_ground.evaluation.preview import PREVIEW_GRID, images_preview, render_preview, synthetic_preview
 from imu_ground.perception import BevGrid, load_camera
 from imu_ground.pipeline.estimate import estimate_log
@@ -51,20 +52,20 @@ def register(sub) -> None:
 def _check(a: argparse.Namespace):
     out = Path(a.output)
     if out.suffix.lower() not in (".png", ".gif"):
-        raise ValueError(f"{out}: unknown picture type {out.suffix or '(no suffix)'!r}; end the -o file name with "
-                         ".png or .gif")
+        raise ImuGroundError(f"{out}: unknown picture type {out.suffix or '(no suffix)'!r}; end the -o file name with "
+                             ".png or .gif")
     check_output_path(out, [a.log] if a.log else [], "-o", kind=".png")
     if a.log is None and (a.images or a.times or a.extrinsic):
-        raise ValueError("--images, --times and --extrinsic go with a LOG: imu-ground preview LOG --images DIR "
-                         "--times FILE --camera NAME -o F")
+        raise ImuGroundError("--images, --times and --extrinsic go with a LOG: imu-ground preview LOG --images DIR "
+                             "--times FILE --camera NAME -o F")
     if a.log is not None and not (a.images and a.times and a.camera):
-        raise ValueError(f"{a.log}: a log needs its images: add --images DIR --times FILE --camera NAME")
+        raise ImuGroundError(f"{a.log}: a log needs its images: add --images DIR --times FILE --camera NAME")
     if a.bev is None:
         return out, PREVIEW_GRID
     try:
         return out, BevGrid(*a.bev)
     except ValueError as e:
-        raise ValueError(f"--bev {' '.join(f'{v:g}' for v in a.bev)}: {e}") from None
+        raise ImuGroundError(f"--bev {' '.join(f'{v:g}' for v in a.bev)}: {e}") from None
 
 
 def run(a: argparse.Namespace) -> int:

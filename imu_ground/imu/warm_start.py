@@ -25,11 +25,12 @@ from typing import Any, Mapping
 import numpy as np
 
 from imu_ground._version import __version__
+from imu_ground.errors import ImuGroundError
 
 __all__ = ["StateError", "pack_state", "unpack_state", "plain"]
 
 
-class StateError(ValueError):
+class StateError(ImuGroundError):
     """A saved state that this object cannot load (another kind, layout or settings)."""
 
 

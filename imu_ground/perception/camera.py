@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from imu_ground.errors import ImuGroundError
 from imu_ground.filters.extrinsics import Extrinsic, available_extrinsics, load_extrinsic, save_extrinsic
 
 __all__ = ["Camera", "available_cameras", "load_camera", "save_camera"]
@@ -90,9 +91,9 @@ def _numbers(source: str, key: str, text: Any, count: int) -> np.ndarray:
     try:
         values = np.array([float(p) for p in parts])
     except ValueError:
-        raise ValueError(f"{source}: '{key}' has a value that is not a number: {text!r}") from None
+        raise ImuGroundError(f"{source}: '{key}' has a value that is not a number: {text!r}") from None
     if values.size != count:
-        raise ValueError(f"{source}: '{key}' needs {count} numbers, got {values.size}")
+        raise ImuGroundError(f"{source}: '{key}' needs {count} numbers, got {values.size}")
     return values
 
 
@@ -124,7 +125,7 @@ def load_camera(spec: str | Path | Camera) -> Camera:
         from imu_ground.perception.kitti_calib import kitti_rectified_cameras
         index = int(m["index"])
         if index > 3:
-            raise ValueError(f"{text}: KITTI has rectified cameras 0 to 3, not {index}")
+            raise ImuGroundError(f"{text}: KITTI has rectified cameras 0 to 3, not {index}")
         ext, k, size = kitti_rectified_cameras(Path(m["dir"]))[index]
         return Camera(k, size, ext, name=text)
     try:
@@ -137,19 +138,19 @@ def load_camera(spec: str | Path | Camera) -> Camera:
     source = ext.meta.get("source", text)
     missing = [k for k in ("K", "image_size") if k not in ext.meta]
     if missing:
-        raise ValueError(f"{source}: not a camera file: no {' or '.join(repr(k + ':') for k in missing)} line "
-                         "(a camera file is an extrinsic file with 'K: 9 numbers' and 'image_size: W H'; "
-                         "see calib/README.md)")
+        raise ImuGroundError(f"{source}: not a camera file: no {' or '.join(repr(k + ':') for k in missing)} line "
+                             "(a camera file is an extrinsic file with 'K: 9 numbers' and 'image_size: W H'; "
+                             "see calib/README.md)")
     k = _numbers(source, "K", ext.meta["K"], 9).reshape(3, 3)
     size = _numbers(source, "image_size", ext.meta["image_size"], 2)
     if np.any(size != np.round(size)):
-        raise ValueError(f"{source}: 'image_size' must be two whole numbers (width height), got "
-                         f"{ext.meta['image_size']!r}")
+        raise ImuGroundError(f"{source}: 'image_size' must be two whole numbers (width height), got "
+                             f"{ext.meta['image_size']!r}")
     meta = {k_: v for k_, v in ext.meta.items() if k_ not in ("K", "image_size")}
     try:
         return Camera(k, (int(size[0]), int(size[1])), Extrinsic(ext.rotation, ext.translation, meta), name=text)
     except ValueError as e:
-        raise ValueError(f"{source}: {e}") from None
+        raise ImuGroundError(f"{source}: {e}") from None
 
 
 def save_camera(camera: Camera, path: str | Path, comment: str = "") -> None:

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from imu_ground.errors import ImuGroundError
 from imu_ground.filters.extrinsics import Extrinsic
 
 __all__ = ["IMU_HEIGHT", "KITTI_CALIB_FILES", "read_kitti_calib", "kitti_extrinsics", "kitti_rectified_cameras"]
@@ -65,7 +66,7 @@ def _rigid(r: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 def _entry(calib: dict, key: str, size: int, path: Path) -> np.ndarray:
     if key not in calib or calib[key].size != size:
-        raise ValueError(f"{path}: no '{key}:' line with {size} numbers (is this a KITTI raw calibration file?)")
+        raise ImuGroundError(f"{path}: no '{key}:' line with {size} numbers (is this a KITTI raw calibration file?)")
     return calib[key]
 
 

@@ -22,6 +22,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
+from imu_ground.errors import ImuGroundError, require_extra
 from imu_ground.pipeline.estimate import OptionError, check_options, estimate_to_files, requested_options
 from imu_ground.pipeline.output import (
     OUTPUT_SUFFIXES,
@@ -204,11 +205,8 @@ def check_existing_outputs(paths: Iterable[str | Path], options: dict) -> None:
 
 def _client(scheduler: str):
     """A client of the running Dask cluster at ``scheduler``."""
-    try:
-        from dask.distributed import Client
-    except ImportError:
-        raise ValueError("imu-ground batch --scheduler needs dask.distributed: pip install 'imu-ground[fleet]'") from None
-    return Client(scheduler, timeout="10s")
+    distributed = require_extra("dask.distributed", "fleet", "imu-ground batch --scheduler")
+    return distributed.Client(scheduler, timeout="10s")
 
 
 def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | None = None,
@@ -255,11 +253,11 @@ def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | 
     from tqdm.auto import tqdm
 
     if suffix not in OUTPUT_SUFFIXES:
-        raise ValueError(f"unknown output type {suffix!r}; choose from {', '.join(OUTPUT_SUFFIXES)}")
+        raise ImuGroundError(f"unknown output type {suffix!r}; choose from {', '.join(OUTPUT_SUFFIXES)}")
     check_options(**{k: v for k, v in options.items() if k not in ("extrinsic", "progress", "speed")})
     out_dir = Path(outdir)
     if out_dir.exists() and not out_dir.is_dir():
-        raise ValueError(f"{out_dir}: is a file; give -o an output folder")
+        raise ImuGroundError(f"{out_dir}: is a file; give -o an output folder")
     out_dir.mkdir(parents=True, exist_ok=True)
     found, duplicates = unique_logs(expand_logs(logs))
     names = output_names([log for log, _ in found], suffix)
@@ -314,10 +312,7 @@ def _start_method() -> str:
 @contextlib.contextmanager
 def _local_pool(workers: int | None) -> Iterator[ProcessPoolExecutor]:
     """``workers`` (default: CPU count) worker processes, started now (see :func:`_start_method`)."""
-    try:
-        import dask.multiprocessing  # noqa: F401  (checked before any worker starts)
-    except ImportError:
-        raise ValueError("imu-ground batch needs Dask: pip install 'imu-ground[fleet]'") from None
+    require_extra("dask.multiprocessing", "fleet", "imu-ground batch")      # checked before any worker starts
     n = int(workers) if workers else (os.cpu_count() or 1)
     with ProcessPoolExecutor(n, mp_context=multiprocessing.get_context(_start_method())) as pool:
         pool.submit(int).result()       # a forking pool starts all its workers at the first task

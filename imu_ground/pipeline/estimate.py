@@ -25,6 +25,7 @@ from imu_ground.datasets import detect_format, read_imu, read_poses
 from imu_ground.datasets.options import READER_OPTIONS, OptionError, OptionText
 from imu_ground.datasets.poses import detect_pose_format, moves_along_z
 from imu_ground.datasets.speed import SPEED_SOURCES, check_speed, frame_speed, log_speed, read_speed
+from imu_ground.errors import ImuGroundError
 from imu_ground.filters import Extrinsic, GroundTrack
 from imu_ground.filters.frame_checks import static_rotation
 from imu_ground.filters.methods import METHODS, default_method
@@ -149,8 +150,8 @@ def require_imu_log(path: str | Path, format: str | None = None, what: str = "th
     """Raise a clear ``ValueError`` when ``path`` is a pose file where an IMU log is required."""
     kind, fmt = detect_input(path, format)
     if kind == "poses":
-        raise ValueError(f"{path}: this is an odometry pose file ({fmt}), but {what} needs an IMU log with "
-                         f"gyro and accelerometer (poses work with 'imu-ground estimate')")
+        raise ImuGroundError(f"{path}: this is an odometry pose file ({fmt}), but {what} needs an IMU log with "
+                             f"gyro and accelerometer (poses work with 'imu-ground estimate')")
 
 
 # ------------------------------------------------------------------------------------------ checks
@@ -354,11 +355,11 @@ def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
     frame_rate = DEFAULT_FRAME_RATE if rate is None else rate
     try:
         em = imu_to_egomotion(imu, rate=frame_rate)
-    except ValueError as e:             # too short a log: the message names the file, as every other one
+    except ImuGroundError as e:         # too short a log: the message names the file, as every other one
         if str(e).startswith(str(path)):
             raise
-        raise ValueError(f"{path}: {len(imu)} sample(s) over {imu.duration:.3g} s, too short for frames at "
-                         f"{frame_rate:g} Hz ({e})") from e
+        raise ImuGroundError(f"{path}: {len(imu)} sample(s) over {imu.duration:.3g} s, too short for frames at "
+                             f"{frame_rate:g} Hz ({e})") from e
     info = {"format": fmt, "imu_rate": imu_rate, "frame_id": imu.meta.get("frame_id") or "imu"}
     if imu.meta.get("t0_ns") is not None:
         info["t0_ns"] = int(imu.meta["t0_ns"])
@@ -368,7 +369,7 @@ def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
 def _poses_egomotion(path, fmt, rate, times=None, extrinsic=None):
     poses = read_poses(path, format=POSE_FORMATS[fmt], times=times)
     if len(poses) < 2:
-        raise ValueError(f"{path}: {len(poses)} pose(s); at least 2 are needed for one frame")
+        raise ImuGroundError(f"{path}: {len(poses)} pose(s); at least 2 are needed for one frame")
     if extrinsic is None and moves_along_z(poses):
         raise OptionError(f"{path}: camera poses (the motion is along the sensor's +z axis: x right, y down, "
                           f"z forward), whose axes are not a vehicle's; pass {{opt}} kitti_cam0 (KITTI's camera 0) "

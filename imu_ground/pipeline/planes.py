@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from imu_ground.datasets.options import OptionError
+from imu_ground.errors import ImuGroundError
 from imu_ground.perception import load_camera
 from imu_ground.perception.camera import Camera
 from imu_ground.perception.plane import BevGrid, GroundPlane
@@ -93,11 +94,11 @@ def check_planes_dir(path: str | Path, option: str = "--planes") -> Path:
     """
     p = Path(path)
     if p.exists() and not p.is_dir():
-        raise ValueError(f"{p}: is a file; give {option} a folder for the planes files")
+        raise ImuGroundError(f"{p}: is a file; give {option} a folder for the planes files")
     foreign = _foreign_files(p)
     if foreign:
-        raise ValueError(f"{p}: holds other files than planes files ({foreign[0].name}); give {option} a new or "
-                         "empty folder, or one of planes files only (they are replaced)")
+        raise ImuGroundError(f"{p}: holds other files than planes files ({foreign[0].name}); give {option} a new or "
+                             "empty folder, or one of planes files only (they are replaced)")
     check_creatable(p, option, start=p if p.exists() else p.parent)
     return p
 
@@ -163,13 +164,13 @@ def read_kitti_planes(path: str | Path) -> np.ndarray:
     p = Path(path)
     lines = p.read_text().splitlines()
     if len(lines) < 4 or lines[:3] != ["# Matrix", "WIDTH 4", "HEIGHT 1"]:
-        raise ValueError(f"{p}: not a KITTI planes file (expected '# Matrix', 'WIDTH 4', 'HEIGHT 1', 'a b c d')")
+        raise ImuGroundError(f"{p}: not a KITTI planes file (expected '# Matrix', 'WIDTH 4', 'HEIGHT 1', 'a b c d')")
     try:
         values = np.array([float(v) for v in lines[3].split()])
     except ValueError:
-        raise ValueError(f"{p}:4: the plane has a value that is not a number") from None
+        raise ImuGroundError(f"{p}:4: the plane has a value that is not a number") from None
     if values.size != 4:
-        raise ValueError(f"{p}:4: expected 4 numbers, got {values.size}")
+        raise ImuGroundError(f"{p}:4: expected 4 numbers, got {values.size}")
     return values
 
 
