@@ -3,7 +3,7 @@
 One table owns the correspondence, so that an error message can name the option
 the way the user sets it: ``gyro_unit="deg/s"`` from Python, ``--gyro-unit deg/s``
 from the command line. Readers raise :class:`ImuInputError`, the pipeline
-:class:`OptionError` (its base, a ``ValueError``), with ``option`` and ``value``
+:class:`OptionError` (its base, an :class:`~imu_ground.errors.ImuGroundError`), with ``option`` and ``value``
 set; :meth:`OptionError.cli_message` is what the command line prints. The
 readers' warnings carry the same :class:`OptionMessage`.
 """

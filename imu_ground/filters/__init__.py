@@ -16,8 +16,9 @@ Module map (each imports only the ones above it, and the imu layer below):
 - ``mount_monitor``: a sensor mount that moved (status ``degraded``); ``confidence``: a batch's
   1-sigma, road, monitor and status together; ``filter_state``: warm start (saved states);
 - ``gains``: suspension gains (defaults, band-pass regression); ``suspension_model``: load, gains and body tilt;
-- ``ground`` (``GroundNormalFilter``), ``suspension`` (``SuspensionAwareFilter``): the estimators;
-- ``methods``: the estimators by CLI name; ``calibration``: ``calibrate`` a platform.
+- ``ground`` (``GroundNormalFilter``), ``suspension`` (``SuspensionAwareFilter``),
+  ``constant_normal`` (``ConstantNormal``, the static extrinsic alone): the estimators;
+- ``methods``: the one registry of the estimators by CLI name; ``calibration``: ``calibrate`` a platform.
 
 Compiled kernels (optional, built by ``setup.py`` when a C compiler is available;
 :mod:`imu_ground._native`): ``_residual_native``, ``_gravity_native``, ``_ekf_native``,
@@ -29,6 +30,7 @@ _EXPORTS = {
     ".invariant_ekf": "InvariantEKF",
     ".estimator": "GroundEstimator GroundEstimate GroundTrack pitch_roll_from_normal as_egomotion",
     ".ground": "GroundNormalFilter",
+    ".constant_normal": "ConstantNormal",
     ".gains": "DEFAULT_GAINS GAIN_BAND bandpass_gain_regression",
     ".gravity_velocity": "GravityEstimate GravityTrack GravityVelocityFilter",
     ".suspension": "SuspensionAwareFilter SuspensionTrack",
