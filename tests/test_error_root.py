@@ -117,3 +117,47 @@ def test_a_type_error_bug_exits_3_and_a_root_error_exits_2(tmp_path, capsys, mon
     monkeypatch.setattr(estimate, "result_table", user_error)
     assert main(["estimate", str(EXAMPLE), "-o", str(tmp_path / "x.csv")]) == 2
     assert capsys.readouterr().err.strip() == "imu-ground estimate: error: some.csv: a user error"
+
+
+# ----------------------------------------------------------------------------- bad inputs that reached a bare error
+def _one_error_line(capsys) -> str:
+    err = [line for line in capsys.readouterr().err.splitlines() if "warning:" not in line]
+    assert len(err) == 1, err
+    return err[0]
+
+
+def test_a_binary_extrinsic_file_is_a_user_error_naming_it(tmp_path, capsys):
+    ext = tmp_path / "car.txt"
+    ext.write_bytes(bytes(range(256)))
+    assert main(["estimate", str(EXAMPLE), "--extrinsic", str(ext), "-o", str(tmp_path / "x.csv")]) == 2
+    line = _one_error_line(capsys)
+    assert str(ext) in line and "not a calibration file" in line
+
+
+def test_calibrating_a_log_without_gravity_names_the_log(tmp_path, capsys):
+    log = tmp_path / "dead_accel.csv"
+    t = np.arange(3000) * 0.01
+    rows = "\n".join(f"{v:.2f},0.01,0,0,0,0,0" for v in t)
+    log.write_text("t,wx,wy,wz,ax,ay,az\n" + rows + "\n")
+    assert main(["calibrate", str(log), "-o", str(tmp_path / "car.txt")]) == 2
+    line = _one_error_line(capsys)
+    assert str(log) in line and "no gravity in the accelerometer" in line
+    assert not (tmp_path / "car.txt").exists()
+
+
+def test_a_log_whose_frames_the_estimator_refuses_names_the_log(tmp_path, capsys):
+    log = tmp_path / "absurd.csv"
+    t = np.arange(500) * 0.01
+    log.write_text("t,wx,wy,wz,ax,ay,az\n" + "\n".join(f"{v:.2f},1e300,0,0,0,0,9.8" for v in t) + "\n")
+    assert main(["estimate", str(log), "-o", str(tmp_path / "x.csv")]) == 2
+    line = _one_error_line(capsys)
+    assert line.startswith(f"imu-ground estimate: error: {log}: bad ego-motion frame")
+
+
+def test_preview_with_an_empty_images_folder_is_a_user_error(tmp_path, capsys):
+    (tmp_path / "images").mkdir()
+    times = tmp_path / "times.txt"
+    times.write_text("1.0\n")
+    assert main(["preview", str(EXAMPLE), "-o", str(tmp_path / "p.png"), "--images", str(tmp_path / "images"),
+                 "--times", str(times), "--camera", "kitti_cam2"]) == 2
+    assert "no image" in _one_error_line(capsys)

@@ -56,6 +56,10 @@ def run(a: argparse.Namespace) -> int:
                                "calibrate the tilt alone",
                       "tilt": "calibrate on a longer drive (or several logs), or pass --tilt all"}[e.part]
             raise ImuGroundError(f"{', '.join(a.logs)}: {e.base}; {advice}") from None
+        except ImuGroundError as e:                 # e.g. too short a log, no gravity: name the logs
+            if hasattr(e, "cli_message"):
+                raise
+            raise ImuGroundError(f"{', '.join(a.logs)}: {e}") from None
     with atomic_path(a.output) as tmp:
         cal.save(tmp)
     common.say(str(cal))

@@ -269,7 +269,13 @@ def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "Ego
     translation = np.zeros(3) if translation is None else np.asarray(translation, dtype=float).reshape(3)
 
     def up_of(fs, mask):
-        return _unit(fs[mask].mean(axis=0)) if np.any(mask) else None
+        if not np.any(mask):
+            return None
+        mean = fs[mask].mean(axis=0)
+        if not (np.all(np.isfinite(mean)) and np.linalg.norm(mean) > 0):
+            raise ImuGroundError("no gravity in the accelerometer (its mean specific force is 0 or not finite): a "
+                                 "dead or disconnected accelerometer cannot give the sensor's tilt")
+        return _unit(mean)
 
     # provisional ground frame: up from the flagged standstills (or all frames), forward the sensor's x
     fs0 = np.concatenate([e.specific_force for e in egos])

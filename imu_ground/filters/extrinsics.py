@@ -152,15 +152,20 @@ def load_extrinsic(name_or_path: Union[str, Path]) -> Extrinsic:
     ------
     FileNotFoundError
         No such file or shipped name (the message lists the shipped names).
-    ValueError
-        Malformed line (file and line number), missing ``R``, or a matrix that
+    ImuGroundError
+        Not text, a malformed line (file and line number), missing ``R``, or a matrix that
         is not a rotation.
     """
     path = _resolve(name_or_path)
     rot = None
     trans = np.zeros(3)
     meta: dict = {"source": str(path)}
-    for lineno, raw in enumerate(path.read_text().splitlines(), start=1):
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise ImuGroundError(f"{path}: not a calibration file (not UTF-8 text: {e.reason} at byte {e.start}); "
+                             "give the file 'imu-ground calibrate' wrote, or a shipped name") from None
+    for lineno, raw in enumerate(text.splitlines(), start=1):
         line = raw.split("#", 1)[0].strip()
         if not line:
             continue

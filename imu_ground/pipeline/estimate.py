@@ -310,7 +310,12 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
         frame_speeds, speed_info = _frame_speeds(speed, path, info.get("format"), imu if kind == "imu" else None,
                                                  em, name)
         ext = Extrinsic.coerce(extrinsic)
-        track = _run_method(name, em, ext, Q, R, frame_speeds, recalibrate_online)
+        try:
+            track = _run_method(name, em, ext, Q, R, frame_speeds, recalibrate_online)
+        except ImuGroundError as e:                     # e.g. a frame the estimator refuses: name the log
+            if hasattr(e, "cli_message") or str(e).startswith(str(path)):
+                raise
+            raise ImuGroundError(f"{path}: {e}") from e
         bar.update()
     bar.close()
     messages = list(dict.fromkeys(_one_line(path, w.message) for w in caught))
