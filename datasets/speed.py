@@ -169,14 +169,18 @@ def read_speed_file(path: str | Path, column: str | None = None) -> tuple[np.nda
     ------
     FileNotFoundError
         No such file.
-    ValueError
-        No such column (the message lists the columns), non-numeric values.
+    ImuGroundError
+        Not a CSV table, no such column (the message lists the columns), non-numeric values.
     """
     import pandas as pd
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"{p}: no such speed file")
-    df = pd.read_csv(p, skipinitialspace=True)
+    try:
+        df = pd.read_csv(p, skipinitialspace=True)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as e:
+        raise ImuGroundError(f"{p}: not a speed table, a CSV file with the header 't,speed' "
+                             f"({' '.join(str(e).split())})") from e
     cols = [str(c).strip() for c in df.columns]
     df.columns = cols
     name = column or ("speed" if "speed" in cols else (cols[1] if len(cols) == 2 else None))

@@ -161,3 +161,17 @@ def test_preview_with_an_empty_images_folder_is_a_user_error(tmp_path, capsys):
     assert main(["preview", str(EXAMPLE), "-o", str(tmp_path / "p.png"), "--images", str(tmp_path / "images"),
                  "--times", str(times), "--camera", "kitti_cam2"]) == 2
     assert "no image" in _one_error_line(capsys)
+
+
+def test_a_batch_row_says_bug_for_an_unexpected_error_and_not_for_bad_input(tmp_path, monkeypatch):
+    import imu_ground.pipeline.batch as batch
+    monkeypatch.setattr(batch, "estimate_to_files", _numpy_value_error)
+    row = batch.process_log(str(EXAMPLE), tmp_path / "a.csv", {})
+    assert row["status"] == "failed" and row["error"].startswith("bug: unexpected ValueError: cannot reshape")
+
+    def user_error(*args, **kwargs):
+        raise ImuGroundError("some.csv: a user error")
+
+    monkeypatch.setattr(batch, "estimate_to_files", user_error)
+    row = batch.process_log(str(EXAMPLE), tmp_path / "b.csv", {})
+    assert row["status"] == "failed" and row["error"] == "some.csv: a user error"

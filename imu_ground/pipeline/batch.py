@@ -159,8 +159,10 @@ def process_log(log: str, out: str | Path, options: dict, cli: bool = False, for
             warnings.simplefilter("ignore")
             res, table = estimate_to_files(log, paths, [None, *(k for _, k in extra)], **options)
     except Exception as e:                                   # noqa: BLE001 - a failing log never stops the others
-        message = e.cli_message() if cli and hasattr(e, "cli_message") else str(e)
-        row.update(status="failed", error=" ".join(f"{message}".split()) or type(e).__name__)
+        message = " ".join(str(e.cli_message() if cli and hasattr(e, "cli_message") else e).split())
+        if not isinstance(e, (ImuGroundError, OSError)):              # not bad input: a bug, said so
+            message = f"bug: unexpected {type(e).__name__}: {message} (please report it)"
+        row.update(status="failed", error=message or type(e).__name__)
         return row
     row.update(status="ok", format=res.meta.get("format"), method=res.meta.get("method"),
                warnings=" | ".join(res.meta.get("warnings", [])), **summarize_table(table))

@@ -424,7 +424,7 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
         try:
             got = read_speed(speed, log=path, format=fmt, imu=imu)
             t_sp, v_sp, notes = check_speed(*got, str(speed), imu)
-        except (ValueError, FileNotFoundError) as e:
+        except (ImuGroundError, FileNotFoundError) as e:
             text = str(e).removeprefix(f"{speed}: ")
             raise OptionError(f"{{opt}} {speed}: {text}", "speed") from e
         for note in notes:

@@ -190,7 +190,7 @@ def check_camera(camera: Any, bev: Any) -> tuple[Any, Any]:
         return None, None
     try:
         cam = load_camera(camera)
-    except (ValueError, FileNotFoundError) as e:
+    except (ImuGroundError, FileNotFoundError) as e:
         text = " ".join(str(e).split())
         raise OptionError(f"{{opt}} {text}" if text.startswith(str(camera)) else f"{{opt}} {camera}: {text}",
                           "camera") from e
