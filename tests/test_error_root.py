@@ -175,3 +175,22 @@ def test_a_batch_row_says_bug_for_an_unexpected_error_and_not_for_bad_input(tmp_
     monkeypatch.setattr(batch, "estimate_to_files", user_error)
     row = batch.process_log(str(EXAMPLE), tmp_path / "b.csv", {})
     assert row["status"] == "failed" and row["error"] == "some.csv: a user error"
+
+
+def test_a_binary_file_read_as_nuscenes_is_a_user_error(tmp_path, capsys):
+    log = tmp_path / "scene-1_ms_imu.json"
+    log.write_bytes(bytes(range(256)) * 4)
+    assert main(["estimate", str(log), "--format", "nuscenes", "-o", str(tmp_path / "x.csv")]) == 2
+    assert str(log) in _one_error_line(capsys)
+
+
+def test_evaluate_on_drives_without_a_usable_reference_is_a_user_error(tmp_path, capsys):
+    import gzip
+    real = tmp_path / "real"
+    real.mkdir()
+    rows = "\n".join(f"{i * 0.01:.2f},0,0,0,0,0,9.8,0,0,0,0,0,0,0,0,0" for i in range(3000))
+    with gzip.open(real / "parked.csv.gz", "wt") as fh:
+        fh.write("t,wx,wy,wz,ax,ay,az,roll,pitch,yaw,ve,vn,vu,px,py,pz\n" + rows + "\n")
+    assert main(["evaluate", "--real", str(real), "--methods", "naive", "--no-progress"]) == 2
+    line = _one_error_line(capsys)
+    assert str(real) in line and "no drive with a usable reference" in line and "parked" in line

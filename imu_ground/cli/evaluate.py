@@ -77,8 +77,6 @@ def _write_text(path: str, text: str) -> None:
 
 def run(a: argparse.Namespace) -> int:
     """Load the drives, run the methods, print the summary (and per-drive) tables, write the files asked for."""
-
-
     methods = _check(a)
     progress = progress_enabled(a)
     drives = []
@@ -90,6 +88,9 @@ def run(a: argparse.Namespace) -> int:
         warnings.simplefilter("ignore")
         out = evaluate(drives, methods, progress=progress, keep_tracks=bool(a.plots))
     res, tracks = out if isinstance(out, tuple) else (out, {})
+    if not res["valid"].any():
+        reasons = "; ".join(f"{r['drive']}: {r['reason']}" for _, r in res.drop_duplicates("drive").iterrows())
+        raise ImuGroundError(f"{a.real}: no drive with a usable reference ({reasons})")
     table = summary_table(res)
     cols = [c for c in ("drives", "mean_deg", "median_deg", "worst_deg", "worst_ratio_to_paper", "worst_ratio_drive",
                         "seg_pitch_deg", "ref_floor_deg", "ref_share", "us_per_frame") if c in table.columns]
