@@ -121,7 +121,7 @@ def check_speed(t: np.ndarray, v: np.ndarray, source: str, imu=None) -> tuple[np
 
     Raises
     ------
-    ValueError
+    ImuGroundError
         Implausible speeds: the message gives the values and what the file must hold.
     """
     notes: list[str] = []
@@ -281,7 +281,7 @@ def read_speed(source: Any, *, log: str | Path | None = None, format: str | None
 
     Raises
     ------
-    ValueError
+    ImuGroundError
         No such column, or a log without a speed signal (the message says what to pass).
     """
     src = Path(str(source))

@@ -5,7 +5,8 @@ library's heavy dependencies, pandas, scipy, matplotlib and the optional ones, l
 only when a command needs them). :func:`main` is the one error handler: bad input,
 options or paths (:class:`~imu_ground.errors.ImuGroundError`, ``OSError``) never show a
 traceback but one line naming the file and what to do, and exit status 2; any other
-exception is a bug: one line saying so, exit status 3 (``IMU_GROUND_DEBUG=1`` adds the traceback). Run ``imu-ground COMMAND --help`` for each command's options.
+exception is a bug: one line saying so, exit status 3 (``IMU_GROUND_DEBUG=1`` adds the
+traceback). Run ``imu-ground COMMAND --help`` for each command's options.
 """
 from __future__ import annotations
 

@@ -113,7 +113,7 @@ def load_camera(spec: str | Path | Camera) -> Camera:
     ------
     FileNotFoundError
         No such file, folder or shipped name (the message lists the shipped cameras).
-    ValueError
+    ImuGroundError
         The file is not a camera (no ``K`` or ``image_size`` line) or a value is
         malformed; the message names the file.
     """

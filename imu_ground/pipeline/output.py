@@ -198,11 +198,11 @@ def check_output_path(path: _PathLike, inputs: Sequence[_PathLike] = (), option:
 
     Raises
     ------
-    ValueError
+    ImuGroundError
         Unknown suffix; the path is a folder, an input, or lies under a file;
         no permission to write there. One line, naming the path and what to do.
-        (:class:`~imu_ground.errors.ImuGroundError`; :class:`~imu_ground.errors.MissingExtraError` when
-        the writer of its type needs an extra that is not installed.)
+    MissingExtraError
+        The writer of its type needs an optional extra that is not installed.
     """
     p = Path(path)
     if p.is_dir():

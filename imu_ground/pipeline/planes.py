@@ -89,7 +89,7 @@ def check_planes_dir(path: str | Path, option: str = "--planes") -> Path:
 
     Raises
     ------
-    ValueError
+    ImuGroundError
         One line naming the path and the option.
     """
     p = Path(path)
@@ -158,7 +158,7 @@ def read_kitti_planes(path: str | Path) -> np.ndarray:
 
     Raises
     ------
-    ValueError
+    ImuGroundError
         Not in the format (the message names the file).
     """
     p = Path(path)

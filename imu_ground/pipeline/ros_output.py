@@ -83,7 +83,7 @@ def ros_output_kind(path: str | Path) -> str:
 
     Raises
     ------
-    ValueError
+    ImuGroundError
         Any other suffix; the message lists the supported ones.
     """
     p = Path(path)
