@@ -194,3 +194,16 @@ def test_evaluate_on_drives_without_a_usable_reference_is_a_user_error(tmp_path,
     assert main(["evaluate", "--real", str(real), "--methods", "naive", "--no-progress"]) == 2
     line = _one_error_line(capsys)
     assert str(real) in line and "no drive with a usable reference" in line and "parked" in line
+
+
+def test_the_command_line_raises_no_bare_value_error_for_bad_input():
+    """The CLI's own checks raise the root: a bare ValueError there would now be reported as a bug."""
+    import ast
+    cli = Path(imu_ground.__file__).resolve().parent / "cli"
+    bare = []
+    for path in sorted(cli.glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Raise) and isinstance(node.exc, ast.Call) and \
+                    getattr(node.exc.func, "id", None) in ("ValueError", "TypeError", "ImportError"):
+                bare.append(f"{path.name}:{node.lineno}")
+    assert bare == []
