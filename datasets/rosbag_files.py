@@ -92,7 +92,7 @@ class _Ros1Mcap:
         self.connections: list[_Connection] = []
 
     def open(self) -> None:
-        from mcap.reader import make_reader
+        make_reader = require_extra("mcap.reader", "ros", f"{self.path}: reading a ROS 1 MCAP file").make_reader
         from rosbags.typesys import Stores, get_types_from_msg, get_typestore
         from rosbags.typesys.msg import normalize_msgtype
 

@@ -56,22 +56,40 @@ def test_missing_extra_is_a_user_error_and_an_import_error_naming_the_extra():
     assert e.extra == "parquet" and "pip install 'imu-ground[parquet]'" in str(e) and "out.parquet" in str(e)
 
 
-def test_a_missing_pyarrow_exits_2_naming_the_file_and_the_extra(tmp_path, capsys, monkeypatch):
+def _block_imports(monkeypatch, *packages):
+    """Make ``import`` of these packages fail, as on an install without the extra."""
     real_import = builtins.__import__
 
-    def no_pyarrow(name, *args, **kwargs):
-        if name == "pyarrow" or name.startswith("pyarrow."):
+    def blocked(name, *args, **kwargs):
+        if name.split(".")[0] in packages:
             raise ModuleNotFoundError(f"No module named {name!r}", name=name)
         return real_import(name, *args, **kwargs)
 
-    for mod in [m for m in sys.modules if m == "pyarrow" or m.startswith("pyarrow.")]:
+    for mod in [m for m in sys.modules if m.split(".")[0] in packages]:
         monkeypatch.delitem(sys.modules, mod)
-    monkeypatch.setattr(builtins, "__import__", no_pyarrow)
-    out = tmp_path / "x.parquet"
+    monkeypatch.setattr(builtins, "__import__", blocked)
+
+
+@pytest.mark.parametrize("suffix, packages, extra", [(".parquet", ("pyarrow",), "parquet"),
+                                                      (".bag", ("rosbags", "mcap"), "ros"),
+                                                      (".mcap", ("rosbags", "mcap"), "ros")])
+def test_a_missing_writer_extra_exits_2_naming_the_file_and_the_extra(tmp_path, capsys, monkeypatch, suffix,
+                                                                       packages, extra):
+    _block_imports(monkeypatch, *packages)
+    out = tmp_path / f"x{suffix}"
     assert main(["estimate", str(EXAMPLE), "-o", str(out)]) == 2
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and str(out) in err and "imu-ground[parquet]" in err
+    assert len(err.splitlines()) == 1 and str(out) in err and f"imu-ground[{extra}]" in err, err
     assert not out.exists()
+
+
+def test_reading_a_ros_log_without_the_ros_extra_exits_2_naming_it(tmp_path, capsys, monkeypatch):
+    log = tmp_path / "drive.bag"
+    log.write_bytes(b"#ROSBAG V2.0\n" + bytes(200))
+    _block_imports(monkeypatch, "rosbags", "mcap")
+    assert main(["estimate", str(log), "-o", str(tmp_path / "x.csv")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and str(log) in err and "imu-ground[ros]" in err, err
 
 
 def _numpy_value_error(*args, **kwargs):

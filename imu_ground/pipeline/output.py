@@ -219,15 +219,15 @@ def check_output_path(path: _PathLike, inputs: Sequence[_PathLike] = (), option:
     return p
 
 
-#: Output suffix -> (a module its writer needs, the extra that installs it).
-_WRITER_EXTRAS = {".parquet": ("pyarrow.parquet", "parquet"), ".bag": ("rosbags.typesys", "ros"),
-                  ".mcap": ("rosbags.typesys", "ros")}
+#: Output suffix -> (the modules its writer needs, the extra that installs them).
+_WRITER_EXTRAS = {".parquet": (("pyarrow.parquet",), "parquet"), ".bag": (("rosbags.typesys",), "ros"),
+                  ".mcap": (("rosbags.typesys", "mcap.writer"), "ros")}
 
 
 def _require_writer(path: Path, kind: str) -> None:
     """Raise :class:`~imu_ground.errors.MissingExtraError` naming ``path`` when its writer's extra is missing."""
-    if kind in _WRITER_EXTRAS:
-        module, extra = _WRITER_EXTRAS[kind]
+    modules, extra = _WRITER_EXTRAS.get(kind, ((), ""))
+    for module in modules:
         require_extra(module, extra, f"{path}: writing {kind}")
 
 
