@@ -12,6 +12,8 @@ from typing import Sequence
 
 import numpy as np
 
+from imu_ground.imu.warm_start import as_reader
+
 __all__ = ["butter_bandpass", "foh_filter", "IIRFilter"]
 
 
@@ -138,3 +140,14 @@ class IIRFilter:
             self._start(u[0])
         y, self.z = lfilter(self.b, self.a, u, axis=0, zi=self.z)
         return y
+
+    def state_dict(self) -> dict:
+        """The filter's memory as plain values (``z``, ``started``), for a warm start."""
+        return {"z": self.z.tolist(), "started": self.started}
+
+    def load_state_dict(self, state) -> None:
+        """Back to a :meth:`state_dict` (a dict, or a :class:`~imu_ground.imu.warm_start.StateReader` of the
+        saved state's part); each entry checked (``z`` of this filter's shape, finite) before any is set."""
+        state = as_reader(state, "IIRFilter")
+        z = state.floats("z", self.z.shape)
+        self.z, self.started = z, state.bool("started")

@@ -79,6 +79,10 @@ class Extrinsic:
             raise ValueError(f"extrinsic rotation is not a rotation (|R^T R - I| = {err:.2e}, "
                              f"det = {np.linalg.det(self.rotation):.6f})")
 
+    def settings(self) -> dict:
+        """Rotation and translation, the settings a saved state compares (:mod:`imu_ground.imu.warm_start`)."""
+        return {"rotation": self.rotation, "translation": self.translation}
+
     @classmethod
     def coerce(cls, value) -> "Extrinsic":
         """An Extrinsic from None (identity), an Extrinsic (itself), a 3x3 rotation (ground <- sensor),

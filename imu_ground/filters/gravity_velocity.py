@@ -22,10 +22,11 @@ from imu_ground import _native
 from imu_ground.filters import gravity_kernel
 from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.filters.frame_checks import frame_problem
-from imu_ground.filters.filter_state import gravity_state, load_gravity_state
 from imu_ground.filters.gravity_kernel import (  # noqa: F401 (reference)
     _UPPER21,
+    I_EXTR,
     I_LAST,
+    I_QGAPG,
     I_REJECTED,
     I_WPREV,
     _predict_update,
@@ -37,6 +38,7 @@ from imu_ground.filters.gravity_kernel import (  # noqa: F401 (reference)
 from imu_ground.filters.gravity_kernel import full_cov as _full_cov
 from imu_ground.imu.data import ImuData
 from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
+from imu_ground.imu.warm_start import STATE_VERSION, StateReader, buffer_like, pack_state, unpack_state
 from imu_ground.so3 import as_rotations
 
 __all__ = ["NATIVE", "GravityEstimate", "GravityTrack", "GravityVelocityFilter", "egomotion_arrays"]
@@ -44,6 +46,7 @@ __all__ = ["NATIVE", "GravityEstimate", "GravityTrack", "GravityVelocityFilter",
 #: The compiled kernel module, or None (not built, or ``IMU_GROUND_PURE_PYTHON=1``): the pure-Python twin then.
 NATIVE = _native.GRAVITY
 _I3 = np.eye(3)
+_I_GXX, _I_GYY = 21, 24                 # the kernel's state: P[3, 3] and P[4, 4] (gravity_kernel's layout)
 
 
 def egomotion_arrays(ego: Union[EgoMotion, ImuData]):
@@ -343,14 +346,73 @@ class GravityVelocityFilter:
         return self._step_sensor(self._s, d9, dv3, dt, stationary, valid, speed)
 
     # -- warm start ------------------------------------------------------------------------------
+    def _settings(self) -> dict:
+        return dict(sigma_speed=self.sigma_speed, sigma_nhc=self.sigma_nhc, sigma_zupt=self.sigma_zupt, q_v=self.q_v,
+                    q_g=self.q_g, q_gap=self.q_gap, sigma_v0=self.sigma_v0, sigma_g0=self.sigma_g0,
+                    zupt_gate=self.zupt_gate, extrinsic=self.extrinsic.settings(), lever_arm=self.lever_arm,
+                    R0=self.R0, v0=self._v0, g0=self._g0)
+
+    def kernel_state(self) -> list:
+        """The kernel's whole state buffer as plain floats (:mod:`~imu_ground.filters.gravity_kernel`'s layout)."""
+        if self._w.sync is not None:
+            self._pull()
+        return [float(v) for v in self._s]
+
+    def read_kernel_state(self, reader: StateReader, name: str, optional: bool = False) -> Optional[list]:
+        """The entry ``name`` of a saved state, checked to be a buffer of this filter's layout: finite, NaN
+        only in the record of the last step (plain floats; None if ``optional`` and null)."""
+        a = reader.floats(name, (len(self._s),), nan=slice(I_LAST, I_QGAPG), optional=optional)
+        return None if a is None else a.tolist()
+
+    def load_kernel_state(self, values: list) -> None:
+        """Back to a :meth:`kernel_state` (checked by :meth:`read_kernel_state`)."""
+        self._w.sync = None
+        self._s = buffer_like(self._s, values)
+
     def state_dict(self) -> dict:
         """The state as a plain, JSON-serialisable dict (:mod:`imu_ground.imu.warm_start`): resume with
         :meth:`load_state_dict` on a GravityVelocityFilter built with the same settings."""
-        return gravity_state(self)
+        return pack_state("GravityVelocityFilter", STATE_VERSION, self._settings(), {"buffer": self.kernel_state()})
 
     def load_state_dict(self, state: dict) -> None:
-        """Resume from a :meth:`state_dict`; a state of another estimator, layout or settings raises ValueError."""
-        load_gravity_state(self, state)
+        """Resume from a :meth:`state_dict`; a state of another estimator, layout or settings, or a corrupt
+        one, raises :class:`~imu_ground.imu.warm_start.StateError` (a ValueError) naming what is wrong."""
+        st = StateReader("GravityVelocityFilter", unpack_state(state, "GravityVelocityFilter", STATE_VERSION,
+                                                               self._settings()))
+        self.load_kernel_state(self.read_kernel_state(st, "buffer"))
+
+    # -- the plain-float views the suspension-aware filter reads each frame -----------------------------
+    def horizontal_gravity_variance(self) -> float:
+        """``P[3, 3] + P[4, 4]``: the variances of gravity's two world-horizontal components, (m/s^2)^2."""
+        s = self._s
+        return s.item(_I_GXX) + s.item(_I_GYY) if type(s) is np.ndarray else s[_I_GXX] + s[_I_GYY]
+
+    def gravity_snapshot(self) -> tuple:
+        """``(g, R, p6)`` as plain floats: the gravity reaction (world frame, m/s^2), the attitude world <- body
+        (row-major 9) and the gravity covariance's unique entries ``(xx, xy, xz, yy, yz, zz)``."""
+        if self._w.sync is not None:
+            self._pull()
+        s = self._s
+        return tuple(s[3:6]), tuple(s[27:36]), (s[21], s[22], s[23], s[24], s[25], s[26])
+
+    def set_mount(self, Rgs: np.ndarray, turn: Optional[np.ndarray] = None,
+                  direction: Optional[np.ndarray] = None) -> None:
+        """A new static rotation ground <- sensor ``Rgs``; with ``turn``, the change ``D`` (body frame) applied
+        to the state: attitude ``R <- R D^T`` (the body axes turn, the world does not), gravity set along the
+        unit ``direction`` (world frame) with its magnitude kept, and the kernel's extrinsic set to ``Rgs``.
+        Without ``turn`` only the Python side is set (a warm start: the kernel's buffer holds it already)."""
+        Rgs = np.asarray(Rgs, dtype=float)
+        if turn is not None:
+            if self._w.sync is not None:
+                self._pull()
+            s = self._s
+            R = np.array(s[27:36], dtype=float).reshape(3, 3) @ np.asarray(turn, dtype=float).T
+            g = np.array(s[3:6], dtype=float)
+            s[3:6] = (np.linalg.norm(g) * np.asarray(direction, dtype=float)).tolist()
+            s[27:36] = R.ravel().tolist()
+            s[I_EXTR] = 1.0
+            s[I_EXTR + 1:I_EXTR + 10] = Rgs.ravel().tolist()
+        self._Rgs, self._identity_extrinsic, self._rgs9 = Rgs, False, Rgs.ravel().tolist()
 
     # -- streaming ----------------------------------------------------------------------------
     def step(self, delta_R, delta_v=None, delta_t=None, stationary: bool = False,

@@ -36,12 +36,11 @@ from imu_ground.filters.estimator import GroundEstimate, GroundTrack, as_egomoti
 from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.filters.frame_checks import (bad_frame, check_on_invalid, checked_frame, checked_frames, coerce_frame,
                                              hold_skipped, static_rotation)
-from imu_ground.filters.filter_state import ground_state, load_ground_state
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.residual import ResidualKernel
 from imu_ground.filters.road import NO_ROAD_REASON
-from imu_ground.filters.status import (FILTER_CONVERGED_STD, FILTER_STD, OK, frame_status_code, track_reasons,
-                                       track_statuses)
+from imu_ground.filters.status import FILTER_CONVERGED_STD, FILTER_STD, OK, SigmaModel, frame_status_code, track_reasons
+from imu_ground.imu.warm_start import STATE_VERSION, StateReader, pack_state, unpack_state
 from imu_ground.so3 import cumulative_rotations, matrix_from_quat, twist_angle
 from imu_ground.units import RENORM_EVERY
 
@@ -50,7 +49,6 @@ __all__ = ["GroundNormalFilter", "GroundEstimate", "GroundTrack", "pitch_roll_fr
 _EZ = np.array([0.0, 0.0, 1.0])
 _EX = np.array([1.0, 0.0, 0.0])
 _I3 = np.eye(3)
-_CONVERGED_VAR = FILTER_CONVERGED_STD * FILTER_CONVERGED_STD
 _MEASUREMENTS = ("rotation", "up", "forward")
 
 
@@ -170,7 +168,7 @@ class GroundNormalFilter:
     def reset(self) -> None:
         """Back to the initial state (cumulative rotation R0, slow state R0, covariance P0)."""
         self._frames = 0
-        self._converged = False
+        self.sigma = SigmaModel(FILTER_STD, FILTER_CONVERGED_STD)      # the 1-sigma and its convergence latch
         self._kernel = ResidualKernel(self._P0[0, 0], self._P0[2, 2], self._R[0, 0], self._R[2, 2],
                                       up=self.measurement == "up", follow_heading=self.follow_heading,
                                       Rgs=self._Rgs, cumulative=True)
@@ -193,14 +191,36 @@ class GroundNormalFilter:
     S = property(lambda self: self._engine.S, doc="Last innovation covariance.")
 
     # -- warm start ------------------------------------------------------------------------------
+    def _settings(self) -> dict:
+        return dict(Q=self._Q, R=self._R, P=self._P0, extrinsic=self.extrinsic.settings(),
+                    measurement=self.measurement, follow_heading=self.follow_heading, R0=self.R0,
+                    on_invalid=self.on_invalid)
+
     def state_dict(self) -> dict:
         """The state as a plain, JSON-serialisable dict (:mod:`imu_ground.imu.warm_start`): resume with
         :meth:`load_state_dict` on a GroundNormalFilter built with the same settings."""
-        return ground_state(self)
+        st = {"frames": self._frames, **self.sigma.state_dict(), "kernel": list(self._kernel.buf)}
+        if self.ekf is not None:
+            st["ekf"], st["cumulative"] = self.ekf.kernel_state(), self._engine.cumulative
+        return pack_state("GroundNormalFilter", STATE_VERSION, self._settings(), st)
 
     def load_state_dict(self, state: dict) -> None:
-        """Resume from a :meth:`state_dict`; a state of another estimator, layout or settings raises ValueError."""
-        load_ground_state(self, state)
+        """Resume from a :meth:`state_dict`; a state of another estimator, layout or settings, or a corrupt
+        one (entries not finite or of another shape), raises :class:`~imu_ground.imu.warm_start.StateError`
+        (a ValueError) naming what is wrong, and the filter is unchanged."""
+        st = StateReader("GroundNormalFilter", unpack_state(state, "GroundNormalFilter", STATE_VERSION,
+                                                            self._settings()))
+        frames, converged = st.int("frames"), st.bool("converged")
+        kernel = self._kernel.read_state(st, "kernel")
+        if self._scalar:
+            ekf = cumulative = None
+        else:
+            ekf = self.ekf.read_kernel_state(st, "ekf")
+            cumulative = st.floats("cumulative", (3, 3))
+        self.reset()
+        self._frames, self.sigma.converged = frames, converged
+        self._kernel.load(kernel)
+        self._engine.resume(ekf, cumulative)
 
     # -- streaming -----------------------------------------------------------------------------
     def step(self, frame) -> GroundEstimate:
@@ -235,12 +255,10 @@ class GroundNormalFilter:
         ``a`` is the level variance of the slow state (rad^2), ``q`` the kernel's output (or None) and
         ``E`` the residual road <- body (or None when ``q`` holds it).
         """
-        pm, rm = FILTER_STD
-        if not self._converged:
-            self._converged = max(pm.variance(a), rm.variance(a)) <= _CONVERGED_VAR
-        code = frame_status_code(self._converged, getattr(frame, "stationary", False), getattr(frame, "valid", True))
-        return GroundEstimate(pitch, roll, True, q, E, self._Rgs, P, code,
-                              (pm, rm, a, 0.0, 0.0, 0.0, 0.0, dt, NO_ROAD_REASON, FILTER_CONVERGED_STD, 0.0))
+        info = self.sigma.frame(a, dt=dt, note=NO_ROAD_REASON)
+        code = frame_status_code(self.sigma.converged, getattr(frame, "stationary", False),
+                                 getattr(frame, "valid", True))
+        return GroundEstimate(pitch, roll, True, q, E, self._Rgs, P, code, info)
 
     # -- batch -----------------------------------------------------------------------------------
     def run(self, egomotion, smooth: bool = False) -> GroundTrack:
@@ -280,14 +298,12 @@ class GroundNormalFilter:
             E = np.swapaxes(Xs, 1, 2) @ cum
         a = 0.5 * (Ps[:, 0, 0] + Ps[:, 1, 1])
         E, Ps, cum = (hold_skipped(v, good, s) for v, s in zip((E, Ps, cum), start))
-        pm, rm = FILTER_STD
         n = len(good)
         var_max = np.full(n, np.inf)
         stds = np.full((n, 2), np.nan)                  # (a skipped frame has none, as in step)
-        var = np.stack([pm.variance(a), rm.variance(a)], axis=1)
+        var = self.sigma.track(a)
         var_max[good], stds[good] = var.max(axis=1), np.sqrt(var)
-        codes, self._converged = track_statuses(var_max, em.stationary, em.valid, good, self._converged,
-                                                converged_std=FILTER_CONVERGED_STD)
+        codes = self.sigma.statuses(var_max, em.stationary, em.valid, good)
         return GroundTrack.from_residuals(E, cum @ np.swapaxes(E, 1, 2), Ps, cum, self._Rgs,
                                           self.extrinsic.translation, em.t, np.asarray(em.valid, bool) & good,
                                           pitch_std=stds[:, 0], roll_std=stds[:, 1], status=codes,
@@ -349,6 +365,10 @@ class _ResidualEngine:
         a, c = last[2], last[3]
         return np.diag([a, a, 0.0 if self._f.measurement == "up" else c]) + self._f._R
 
+    def resume(self, ekf, cumulative) -> None:
+        """After a warm start loaded the kernel's buffer: take it for the fast path (no EKF state here)."""
+        self._buf = self._kernel.buf
+
     def step(self, frame, d, dv, dt: float) -> GroundEstimate:
         """One frame (:meth:`GroundNormalFilter.step`): the kernel checks it and advances."""
         f = self._f
@@ -395,6 +415,11 @@ class _EkfEngine:
     K = property(lambda self: self.ekf.K)
     y = property(lambda self: self.ekf.y)
     S = property(lambda self: self.ekf.S)
+
+    def resume(self, ekf: list, cumulative: np.ndarray) -> None:
+        """After a warm start: the EKF's saved buffer and the cumulative rotation (world <- body)."""
+        self.ekf.load_kernel_state(ekf)
+        self.cumulative = cumulative
 
     def step(self, frame, d, dv, dt: float) -> GroundEstimate:
         """One frame (:meth:`GroundNormalFilter.step`): checked by the kernel's check, then one EKF frame."""

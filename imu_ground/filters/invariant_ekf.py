@@ -70,6 +70,7 @@ from imu_ground import _native
 from imu_ground import so3
 from imu_ground.filters import invariant_ekf_kernel as _kernel
 from imu_ground.filters.invariant_ekf_kernel import (
+    B_B,
     B_DET,
     B_K,
     B_NUP,
@@ -256,6 +257,22 @@ class InvariantEKF:
             s[B_P:B_P + 9] = _from_array(Pa)
             self._P_a = None
         self._held = self._Q_a is not None or self._R_a is not None
+
+    def kernel_state(self) -> list:
+        """The whole state buffer (the arrays handed out taken in first) as plain floats, for a warm start."""
+        self._take_held()
+        return [float(v) for v in self._s]
+
+    def read_kernel_state(self, reader, name: str) -> list:
+        """The entry ``name`` of a saved state (a :class:`~imu_ground.imu.warm_start.StateReader`), checked to
+        be a buffer of this filter's layout: finite, NaN only in the records of the last step."""
+        return reader.floats(name, (len(self._s),), nan=slice(B_XPR, B_B)).tolist()
+
+    def load_kernel_state(self, values: list) -> None:
+        """Back to a :meth:`kernel_state` (arrays handed out before are forgotten)."""
+        self._s = _buffer(values)
+        self._x_a = self._P_a = self._Q_a = self._R_a = None
+        self._x_t, self._held = b"", False
 
     @property
     def x(self) -> np.ndarray:

@@ -36,9 +36,10 @@ from typing import Optional
 
 import numpy as np
 
+from imu_ground.imu.warm_start import as_reader
 from imu_ground.units import DEG
 
-__all__ = ["MountMonitor", "WINDOW", "THRESHOLD", "HOLD_OFF", "GATE", "DRIFT_LIMIT", "monitor_track"]
+__all__ = ["MountMonitor", "WINDOW", "THRESHOLD", "HOLD_OFF", "GATE", "DRIFT_LIMIT"]
 
 #: Time between the two gravity directions compared, s.
 WINDOW = 15.0
@@ -60,7 +61,7 @@ def _unit(g) -> tuple:
 
 
 class MountMonitor:
-    """The streaming monitor of the module docstring: one :meth:`update` a frame (the batch runs the same).
+    """The monitor of the module docstring: one :meth:`update` a frame, or :meth:`run` over a batch.
 
     Attributes
     ----------
@@ -135,34 +136,44 @@ class MountMonitor:
                 f"up axis within {WINDOW:g} s, at t = {t:.1f} s", t, r)
         return self.alarm
 
-    def state(self) -> dict:
+    @property
+    def engaged(self) -> bool:
+        """Armed or holding history: it must see every frame, with or without a road filter's gravity."""
+        return bool(self._hist) or self._armed_at == self._armed_at
+
+    def state_dict(self) -> dict:
         """Plain values, for a warm start."""
         return {"hist": [[t, list(u)] for t, u in self._hist], "armed_at": self._armed_at, "drift": self._drift,
                 "alarm": self.alarm, "alarm_t": self.alarm_t,
                 "reference": None if self.reference is None else list(self.reference)}
 
-    def load(self, st: dict) -> None:
-        """Back to a :meth:`state`."""
-        self._hist = deque((float(t), tuple(float(v) for v in u)) for t, u in st["hist"])
-        self._armed_at, self._drift = float(st["armed_at"]), float(st["drift"])
-        self.alarm, self.alarm_t = st["alarm"], float(st["alarm_t"])
-        self.reference = None if st["reference"] is None else tuple(float(v) for v in st["reference"])
+    def load_state_dict(self, state) -> None:
+        """Back to a :meth:`state_dict` (a dict or a :class:`~imu_ground.imu.warm_start.StateReader`); every
+        entry checked (finite, shapes) before the monitor changes."""
+        st = as_reader(state, "MountMonitor")
+        hist = st.rows("hist", lambda r: [r[0], *r[1]], 4)
+        armed_at, drift = st.float("armed_at", nan=True), st.float("drift")
+        alarm, alarm_t, reference = st.text("alarm"), st.float("alarm_t", nan=True), st.floats("reference", (3,),
+                                                                                                optional=True)
+        self._hist = deque((float(r[0]), tuple(r[1:].tolist())) for r in hist)
+        self._armed_at, self._drift = armed_at, drift
+        self.alarm, self.alarm_t = alarm, alarm_t
+        self.reference = None if reference is None else tuple(reference.tolist())
 
+    def run(self, t: np.ndarray, gravity: np.ndarray, usable: np.ndarray) -> np.ndarray:
+        """:meth:`update` over a batch (frames in order); returns per frame whether the alarm is raised.
 
-def monitor_track(monitor: MountMonitor, t: np.ndarray, gravity: np.ndarray, usable: np.ndarray) -> np.ndarray:
-    """:meth:`MountMonitor.update` over a batch (frames in order); returns per frame whether the alarm is raised.
-
-    Parameters
-    ----------
-    t : ndarray (F,)
-        Frame times, s.
-    gravity : ndarray (F, 3)
-        The road filter's gravity per frame (rows of NaN: no road filter at that frame).
-    usable : ndarray of bool (F,)
-    """
-    out = np.zeros(len(t), dtype=bool)
-    g = np.asarray(gravity, dtype=float)
-    has = np.isfinite(g).all(axis=1)
-    for k in range(len(t)):
-        out[k] = monitor.update(float(t[k]), tuple(g[k].tolist()) if has[k] else None, bool(usable[k])) is not None
-    return out
+        Parameters
+        ----------
+        t : ndarray (F,)
+            Frame times, s.
+        gravity : ndarray (F, 3)
+            The road filter's gravity per frame (rows of NaN: no road filter at that frame).
+        usable : ndarray of bool (F,)
+        """
+        out = np.zeros(len(t), dtype=bool)
+        g = np.asarray(gravity, dtype=float)
+        has = np.isfinite(g).all(axis=1)
+        for k in range(len(t)):
+            out[k] = self.update(float(t[k]), tuple(g[k].tolist()) if has[k] else None, bool(usable[k])) is not None
+        return out

@@ -32,7 +32,8 @@ component about up is not observable from gravity and is left at 0). The attitud
 matters: the vehicle may have turned since the change, and the change is a rotation of the
 body axes it had then.
 
-Applying it: ``R_gs <- Exp(delta) R_gs`` in every part of the filter that turns sensor
+Applying it (:meth:`~imu_ground.filters.suspension.SuspensionAwareFilter`'s online re-estimation; this
+module keeps the record and the estimate): ``R_gs <- Exp(delta) R_gs`` in every part of the filter that turns sensor
 increments into the body frame, each gravity/velocity filter's attitude ``R_k <- R_k
 Exp(delta)^T`` (the body axes change, the world does not), its gravity set to the frozen
 direction turned by ``W`` and the drift since (its own magnitude kept), the residual filter's
@@ -50,14 +51,10 @@ from typing import Optional
 
 import numpy as np
 
-from imu_ground import so3
-from imu_ground.filters.estimator import SuspensionTrack
-from imu_ground.filters.extrinsics import Extrinsic
-from imu_ground.filters.frame_checks import checked_frames
 from imu_ground.filters.mount_monitor import WINDOW as MONITOR_WINDOW
+from imu_ground.imu.warm_start import as_reader
 
-__all__ = ["WINDOW", "MountRecalibrator", "apply_mount_change", "recalibrated_reason", "run_by_steps",
-           "step_recalibration"]
+__all__ = ["WINDOW", "MountRecalibrator", "recalibrated_reason"]
 
 #: Usable frames after the alarm the change is estimated from, s (15: on the synthetic navigation-grade drives the
 #: normal is then within 0.07 deg of the truth; 10 s: 0.1 deg; benchmarks/RESULTS.md has the 15 s figures).
@@ -180,153 +177,27 @@ class MountRecalibrator:
         delta[2] = 0.0
         return delta, w + coef[1] * (rows[-1, 0] - t_ref)
 
-    @staticmethod
-    def restore_mount(f, Rgs: np.ndarray) -> None:
-        """Set the static rotation ``Rgs`` (ground <- sensor) on the Python side of filter ``f`` (a warm start:
-        the kernels' buffers hold it)."""
-        _set_mount_attributes(f, Rgs)
+    def accept(self, delta: np.ndarray, t: float) -> None:
+        """Record a re-estimation applied at time ``t`` (s): :attr:`delta`, :attr:`note`, :attr:`count`; the
+        count of frames after an alarm starts over."""
+        self._after = 0.0
+        self.delta, self.note, self.count = delta, recalibrated_reason(delta, t), self.count + 1
 
-    def state(self) -> dict:
+    def state_dict(self) -> dict:
         """Plain values, for a warm start."""
         return {"frames": [list(r) for r in self._frames], "prev_speed": self._prev_speed,
                 "prev_R": None if self._prev_R is None else list(self._prev_R), "after": self._after,
                 "delta": None if self.delta is None else self.delta.tolist(), "note": self.note, "count": self.count}
 
-    def load(self, st: dict) -> None:
-        """Back to a :meth:`state`."""
-        self._frames = deque(tuple(float(v) for v in r) for r in st["frames"])
-        self._prev_speed, self._after = float(st["prev_speed"]), float(st["after"])
-        self._prev_R = None if st["prev_R"] is None else tuple(float(v) for v in st["prev_R"])
-        self.delta = None if st["delta"] is None else np.array(st["delta"], dtype=float)
-        self.note, self.count = st["note"], int(st["count"])
-
-
-def _set_gravity_filter(gf, Rgs: np.ndarray, D: np.ndarray, direction: np.ndarray) -> None:
-    """A gravity/velocity filter after the change: its extrinsic, attitude ``R D^T`` and gravity direction."""
-    from imu_ground.filters.gravity_kernel import I_EXTR
-    if gf._w.sync is not None:
-        gf._pull()
-    s = gf._s
-    R = np.array(s[27:36], dtype=float).reshape(3, 3) @ D.T
-    g = np.array(s[3:6], dtype=float)
-    s[3:6] = (np.linalg.norm(g) * direction).tolist()
-    s[27:36] = R.ravel().tolist()
-    s[I_EXTR] = 1.0
-    s[I_EXTR + 1:I_EXTR + 10] = Rgs.ravel().tolist()
-
-
-def apply_mount_change(f, delta: np.ndarray, w: np.ndarray, reference) -> None:
-    """Turn the static rotation of a :class:`~imu_ground.filters.suspension.SuspensionAwareFilter` by ``delta``.
-
-    Parameters
-    ----------
-    f : SuspensionAwareFilter
-    delta : ndarray (3,)
-        Rotation vector of the change, body frame, rad (``R_gs <- Exp(delta) R_gs``).
-    w : ndarray (3,)
-        Rotation vector of the world tilt, the road filter's world frame, rad.
-    reference : sequence of 3 float
-        The frozen gravity direction before the change (road filter's world frame).
-    """
-    D = so3.exp(np.asarray(delta, dtype=float))
-    Rgs = D @ (np.eye(3) if f._Rgs is None else f._Rgs)
-    road = f.road_filter.gravity_filter
-    Rr = np.array(road._s[27:36] if road._w.sync is None else road.cumulative, dtype=float).reshape(3, 3)
-    Rm = f.gravity_filter.cumulative.copy()
-    up = so3.exp(np.asarray(w, dtype=float)) @ (np.asarray(reference, dtype=float) / np.linalg.norm(reference))
-    _set_gravity_filter(road, Rgs, D, up)
-    _set_gravity_filter(f.gravity_filter, Rgs, D, Rm @ Rr.T @ up)    # (its world: Rm Rr^T <- the road filter's)
-    buf = f._kernel.buf
-    buf[28] = 1.0                                                   # residual kernel: has_Rgs, then R_gs
-    buf[30:39] = _array_like(buf, Rgs.ravel().tolist())
-    _set_mount_attributes(f, Rgs)
-
-
-def _set_mount_attributes(f, Rgs: np.ndarray) -> None:
-    """The static rotation where the filter's Python objects keep it (its kernels' buffers aside)."""
-    f._Rgs = f.model._Rgs = Rgs
-    for gf in (f.gravity_filter, f.road_filter.gravity_filter):
-        if gf is not None:
-            gf._Rgs, gf._identity_extrinsic, gf._rgs9 = Rgs, False, Rgs.ravel().tolist()
-    f.road_filter._kw["extrinsic"] = Extrinsic(Rgs, f.extrinsic.translation, dict(f.extrinsic.meta))
-
-
-def _array_like(buf, values: list):
-    """``values`` ready to be assigned into a slice of ``buf`` (array('d'), ndarray or list)."""
-    from array import array
-    return array("d", values) if isinstance(buf, array) else values
-
-
-def step_recalibration(f, dt: float, force, speed: float, psi: float, road, valid: bool, alarm):
-    """One frame of the online re-estimation of a :class:`~imu_ground.filters.suspension.SuspensionAwareFilter`.
-
-    Records the frame; once :data:`WINDOW` s of usable frames followed the mount monitor's alarm,
-    estimates the change, applies it (:func:`apply_mount_change`) and restarts the monitor.
-
-    Parameters
-    ----------
-    f : SuspensionAwareFilter
-        With ``recalibrate_online``; its clock ``_time`` is the frame's end.
-    dt, force, speed, psi, road, valid
-        As :meth:`MountRecalibrator.record` takes them.
-    alarm : str or None
-        The monitor's alarm of the frame.
-
-    Returns
-    -------
-    str or None
-        The alarm still standing after the frame (None once re-estimated).
-    """
-    r = f.recalibrator
-    usable = valid and road is not None
-    r.record(f._time, dt, force, speed, psi, road, valid)
-    if alarm is None:
-        return None
-    mm = f.mount_monitor
-    if not r.ready(mm.alarm_t, dt, usable):
-        return alarm
-    est = r.estimate(mm.reference, mm.alarm_t - MONITOR_WINDOW)
-    if est is None:
-        return alarm
-    delta, w = est
-    apply_mount_change(f, delta, w, mm.reference)
-    mm.reset()
-    r._after = 0.0
-    r.delta, r.note, r.count = delta, recalibrated_reason(delta, f._time), r.count + 1
-    return None
-
-
-def run_by_steps(f, em, speed: Optional[np.ndarray]) -> SuspensionTrack:
-    """``SuspensionAwareFilter.run`` frame by frame through ``step`` (what online re-estimation needs: the
-    static rotation may change within the batch); the same track fields as the vectorised run."""
-    n = len(em)
-    checked_frames(em.delta_R, em.delta_v, em.delta_t, em.t, f.on_invalid)   # (raises before any frame)
-    f.model.design(float(em.rate))
-    if speed is not None:
-        speed = np.asarray(speed, dtype=float)
-        if speed.shape != (n,):
-            raise ValueError(f"speed must have one value per frame ({n}), got shape {speed.shape}")
-    E, P, cum, Rgs = (np.zeros((n, 3, 3)) for _ in range(4))
-    load, gains, grav = np.zeros((n, 2)), np.zeros((n, 2)), np.zeros((n, 3))
-    sp, valid = np.zeros(n), np.zeros(n, dtype=bool)
-    extra = {k: np.full(n, np.nan) for k in ("pitch_std", "roll_std", "road_grade", "road_bank",
-                                               "road_grade_std", "road_bank_std")}
-    status, reasons = np.zeros(n, dtype=np.uint8), np.full(n, "", dtype=object)
-    d, dv, dts = (np.asarray(a, dtype=float) for a in (em.delta_R, em.delta_v, em.delta_t))
-    st, ok = np.asarray(em.stationary, dtype=bool), np.asarray(em.valid, dtype=bool)
-    eye = np.eye(3)
-    for k in range(n):
-        gains[k] = f.gains
-        est = f.step(d[k], dv[k], float(dts[k]), bool(st[k]), bool(ok[k]),
-                     speed=None if speed is None else float(speed[k]))
-        E[k], P[k], cum[k] = f.residual, f.P, f.cumulative
-        Rgs[k] = eye if f._Rgs is None else f._Rgs
-        load[k], sp[k], grav[k] = f.last_load, f.speed, f.gravity_filter.x[3:]
-        valid[k] = est.valid and ok[k]
-        status[k], reasons[k] = est.status_code, est.status_reason
-        for key, v in extra.items():
-            v[k] = getattr(est, key)
-    return SuspensionTrack.from_residuals(
-        E, cum @ np.swapaxes(E, 1, 2), P, cum, Rgs, f.extrinsic.translation, em.t, valid, load=load, speed=sp,
-        gains=gains, suspension=f.model.tilt(gains, load), gravity=grav, status=status, status_reason=reasons,
-        **extra)
+    def load_state_dict(self, state) -> None:
+        """Back to a :meth:`state_dict` (a dict or a :class:`~imu_ground.imu.warm_start.StateReader`); every
+        entry checked (finite, shapes) before the record changes."""
+        st = as_reader(state, "MountRecalibrator")
+        frames = st.rows("frames", list, 13)
+        prev_speed, after = st.float("prev_speed", nan=True), st.float("after")
+        prev_R, delta = st.floats("prev_R", (9,), optional=True), st.floats("delta", (3,), optional=True)
+        note, count = st.text("note"), st.int("count")
+        self._frames = deque(tuple(r) for r in frames.tolist())
+        self._prev_speed, self._after = prev_speed, after
+        self._prev_R = None if prev_R is None else tuple(prev_R.tolist())
+        self.delta, self.note, self.count = delta, note, count

@@ -346,6 +346,22 @@ class ResidualKernel:
         self.native = native is not False and NATIVE is not None
         self.buf = array("d", values) if self.native else values
 
+    def read_state(self, reader, name: str) -> list:
+        """The entry ``name`` of a saved state (a :class:`~imu_ground.imu.warm_start.StateReader`), checked to
+        be a buffer of this kernel's layout: finite, NaN only in the record of the last frame."""
+        return reader.floats(name, (len(self.buf),), nan=slice(_L_KA, _L_HAS)).tolist()
+
+    def load(self, values: Sequence[float]) -> None:
+        """A new :attr:`buf` of ``values`` (a saved state's), in the container this kernel runs on."""
+        self.buf = array("d", values) if self.native else [float(v) for v in values]
+
+    def set_mount(self, Rgs: np.ndarray) -> None:
+        """Turn sensor increments into the body frame with the static rotation ``Rgs`` (ground <- sensor) from
+        the next frame on (in place: the buffer object stays the same)."""
+        b = self.buf
+        b[_P_RH + 5] = 1.0
+        b[_P_G:_P_G + 9] = type(b)("d", Rgs.ravel().tolist()) if self.native else Rgs.ravel().tolist()
+
     @property
     def impl(self):
         """``step(buf, ...)``, ``run(buf, ...)``, ``check(...)``: the compiled twin or :data:`PYTHON`."""

@@ -36,7 +36,9 @@ from typing import Optional
 import numpy as np
 
 from imu_ground.filters.estimator import pitch_roll_from_normal
+from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
+from imu_ground.imu.warm_start import as_reader
 from imu_ground.units import DEG
 
 __all__ = ["ROAD_Q_G", "ROAD_STD", "NO_SPEED_REASON", "NO_ROAD_REASON", "RoadFilter", "road_gravity_options", "road_angles",
@@ -181,6 +183,29 @@ class RoadFilter:
         """Back to no road filter."""
         self.gravity_filter = None
 
+    def state_dict(self) -> dict:
+        """``{"road": ...}``: the gravity/velocity filter's buffer once started, else None."""
+        return {"road": None if self.gravity_filter is None else self.gravity_filter.kernel_state()}
+
+    def load_state_dict(self, state) -> None:
+        """Back to a :meth:`state_dict` (a dict or a :class:`~imu_ground.imu.warm_start.StateReader`; the buffer
+        checked before it is taken)."""
+        st = as_reader(state, "RoadFilter")
+        gf = GravityVelocityFilter(**self._kw)
+        values = gf.read_kernel_state(st, "road", optional=True)
+        self.gravity_filter = None if values is None else gf
+        if values is not None:
+            gf.load_kernel_state(values)
+
+    def set_mount(self, Rgs: np.ndarray, turn: Optional[np.ndarray] = None,
+                  direction: Optional[np.ndarray] = None) -> None:
+        """A new static rotation ground <- sensor (online re-estimation of the mount): for the filter started
+        from now on, and for the running one (:meth:`GravityVelocityFilter.set_mount`; ``direction``: the unit
+        gravity reaction after the change, this filter's world frame)."""
+        self._kw["extrinsic"] = Extrinsic(Rgs, self._kw["extrinsic"].translation, dict(self._kw["extrinsic"].meta))
+        if self.gravity_filter is not None:
+            self.gravity_filter.set_mount(Rgs, turn, direction)
+
     def start(self) -> GravityVelocityFilter:
         """The gravity/velocity filter, created if there is none yet."""
         if self.gravity_filter is None:
@@ -204,8 +229,7 @@ class RoadFilter:
         gf.step_sensor(d, dv, dt, stationary, valid, speed)
         if math.isnan(speed):
             return None
-        s = gf._s                                   # layout: gravity_kernel (g, then P's 21 entries, then R)
-        return tuple(s[3:6]), tuple(s[27:36]), (s[21], s[22], s[23], s[24], s[25], s[26])
+        return gf.gravity_snapshot()
 
     def run(self, egomotion, speed: np.ndarray, E: np.ndarray, pitch_std: np.ndarray, roll_std: np.ndarray):
         """The road of a batch of frames (already checked), continuing as :meth:`step` would.

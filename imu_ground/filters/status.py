@@ -70,10 +70,11 @@ from typing import Optional
 
 import numpy as np
 
+from imu_ground.imu.warm_start import as_reader
 from imu_ground.units import DEG
 
 __all__ = ["STATUSES", "CONVERGING", "OK", "STANDSTILL", "GAP", "DEGRADED", "INVALID", "CONVERGED_STD", "FILTER_CONVERGED_STD",
-           "AngleStd", "SUSPENSION_STD", "FILTER_STD", "SLOW_SPEED", "SLOW_REASON", "ok_note", "status_reason",
+           "AngleStd", "SigmaModel", "SUSPENSION_STD", "FILTER_STD", "SLOW_SPEED", "SLOW_REASON", "ok_note", "status_reason",
            "frame_status_code", "track_statuses", "track_reasons", "status_names"]
 
 #: The statuses, indexed by their code.
@@ -185,7 +186,7 @@ def status_names(codes: np.ndarray) -> np.ndarray:
 
 
 def frame_status_code(converged: bool, stationary: bool, valid: bool, degraded: bool = False) -> int:
-    """The status code of one processed frame: the streaming twin of :func:`track_statuses`.
+    """The status code of one processed frame (:func:`track_statuses` looks every frame of a batch up in it).
 
     ``converged`` is the estimator's latch after this frame (its larger 1-sigma has been at
     or below its threshold once); a frame at rest is ``standstill``, one a monitor flags
@@ -201,10 +202,22 @@ def frame_status_code(converged: bool, stationary: bool, valid: bool, degraded: 
     return code
 
 
+def _status_table() -> np.ndarray:
+    """:func:`frame_status_code` of every combination, indexed ``[converged, stationary, valid, degraded]``."""
+    table = np.zeros((2, 2, 2, 2), dtype=np.uint8)
+    for idx in np.ndindex(table.shape):
+        table[idx] = frame_status_code(*(bool(i) for i in idx))
+    return table
+
+
+_STATUS_TABLE = _status_table()
+
+
 def track_statuses(var_max: np.ndarray, stationary: np.ndarray, valid: np.ndarray, good: np.ndarray,
                    converged: bool = False, degraded: Optional[np.ndarray] = None,
                    converged_std: float = CONVERGED_STD) -> tuple[np.ndarray, bool]:
-    """The status code of every frame of a batch: the twin of the streaming rule (module docstring).
+    """The status code of every frame of a batch: :func:`frame_status_code` of each frame (looked up), the
+    convergence latch accumulated over the batch, and ``invalid`` for a skipped frame.
 
     Parameters
     ----------
@@ -228,16 +241,14 @@ def track_statuses(var_max: np.ndarray, stationary: np.ndarray, valid: np.ndarra
         The latch after the last frame.
     """
     good = np.asarray(good, dtype=bool)
+    n = len(good)
     below = good & (np.asarray(var_max, dtype=float) <= converged_std * converged_std)
-    conv = np.logical_or.accumulate(below) | converged if len(below) else below
-    codes = np.full(len(good), OK, dtype=np.uint8)
-    codes[~conv] = CONVERGING
-    codes[np.asarray(stationary, dtype=bool)] = STANDSTILL
-    if degraded is not None:
-        codes[np.asarray(degraded, dtype=bool)] = DEGRADED
-    codes[~np.asarray(valid, dtype=bool)] = GAP
+    conv = np.logical_or.accumulate(below) | converged if n else below
+    deg = np.zeros(n, dtype=bool) if degraded is None else np.asarray(degraded, dtype=bool)
+    codes = _STATUS_TABLE[conv.astype(np.intp), np.asarray(stationary, dtype=np.intp),
+                          np.asarray(valid, dtype=np.intp), deg.astype(np.intp)]
     codes[~good] = INVALID
-    return codes, bool(conv[-1]) if len(conv) else bool(converged)
+    return codes, bool(conv[-1]) if n else bool(converged)
 
 
 def track_reasons(codes: np.ndarray, std_max: np.ndarray, dt: np.ndarray,
@@ -267,3 +278,103 @@ def track_reasons(codes: np.ndarray, std_max: np.ndarray, dt: np.ndarray,
         out[k] = status_reason(int(codes[k]), float(dt[k]), float(std_max[k]),
                                None if details is None else details[k], converged_std)
     return out
+
+
+class SigmaModel:
+    """The 1-sigma model of one estimator (module docstring) and its convergence latch (its state).
+
+    Parameters
+    ----------
+    constants : (AngleStd, AngleStd)
+        Pitch and roll constants (:data:`SUSPENSION_STD` or :data:`FILTER_STD`).
+    converged_std : float
+        The latch's threshold, rad (:data:`CONVERGED_STD` or :data:`FILTER_CONVERGED_STD`).
+    load_share, cross_gain : float
+        The suspension model's ``s`` and ``k_cross`` (the gravity estimate's share, batch only).
+
+    Attributes
+    ----------
+    converged : bool
+        The larger 1-sigma has been at or below ``converged_std`` once since the start or a reset.
+    """
+
+    def __init__(self, constants=SUSPENSION_STD, converged_std: float = CONVERGED_STD, load_share: float = 1.0,
+                 cross_gain: float = 0.0) -> None:
+        self.constants, self.converged_std = constants, float(converged_std)
+        self.load_share, self.cross_gain = float(load_share), float(cross_gain)
+        self._var = self.converged_std * self.converged_std
+        self.reset()
+
+    def reset(self) -> None:
+        """Not converged."""
+        self.converged = False
+
+    def frame(self, a: float, ux: float = 0.0, uy: float = 0.0, gravity_var: float = 0.0,
+              weights: tuple = (0.0, 0.0), dt: float = math.nan, note: Optional[str] = None,
+              yaw_rate: float = 0.0) -> tuple:
+        """One frame (plain floats): advances the latch and returns what
+        :class:`~imu_ground.filters.estimator.GroundEstimate` derives the 1-sigma and the reason from.
+
+        Parameters
+        ----------
+        a : float
+            The filter's level variance of the road attitude, rad^2.
+        ux, uy : float
+            The suspension model's load, m/s^2.
+        gravity_var : float
+            The gravity estimate's two world-horizontal variances summed, (m/s^2)^2.
+        weights : (float, float)
+            The suspension model's tilt weights of the gains used at this frame.
+        dt : float
+            Frame duration, s.
+        note : str or None
+            The note of an ``ok`` frame (or the monitor's alarm).
+        yaw_rate : float
+            ``|omega|``, rad/s.
+        """
+        pm, rm = self.constants
+        info = (pm, rm, a, ux, uy, gravity_var * weights[0], gravity_var * weights[1], dt, note, self.converged_std,
+                yaw_rate)
+        if not self.converged:
+            self.converged = max(pm.variance(a, ux, uy, info[5], yaw_rate),
+                                 rm.variance(a, ux, uy, info[6], yaw_rate)) <= self._var
+        return info
+
+    def track(self, a: np.ndarray, load: Optional[np.ndarray] = None, gains: Optional[np.ndarray] = None,
+              gravity_cov: Optional[np.ndarray] = None, yaw_rate: Optional[np.ndarray] = None) -> np.ndarray:
+        """The variances (G, 2) of pitch and roll of a batch, rad^2 (the batch twin of :meth:`frame`: the same
+        :meth:`AngleStd.variance`, the gravity term grouped otherwise, equal to 1e-12 relative).
+
+        Parameters
+        ----------
+        a : ndarray (G,)
+            The filter's level variance, rad^2.
+        load, gains : ndarray (G, 2), optional
+            The suspension model's load (m/s^2) and the gains used (rad per m/s^2); None: no load.
+        gravity_cov : ndarray (G, 6, 6), optional
+            The gravity/velocity filter's covariance.
+        yaw_rate : ndarray (G,), optional
+            rad/s (signed).
+        """
+        pm, rm = self.constants
+        if load is None:
+            return np.stack([pm.variance(a), rm.variance(a)], axis=1)
+        sg2 = (1.0 - self.load_share) ** 2 * 0.5 * (gravity_cov[:, 3, 3] + gravity_cov[:, 4, 4])
+        w = np.abs(yaw_rate)
+        return np.stack([pm.variance(a, load[:, 0], load[:, 1], sg2 * (gains[:, 0] ** 2 + self.cross_gain ** 2), w),
+                         rm.variance(a, load[:, 0], load[:, 1], sg2 * gains[:, 1] ** 2, w)], axis=1)
+
+    def statuses(self, var_max: np.ndarray, stationary: np.ndarray, valid: np.ndarray, good: np.ndarray,
+                 degraded: Optional[np.ndarray] = None) -> np.ndarray:
+        """:func:`track_statuses` of a batch with this latch (advanced)."""
+        codes, self.converged = track_statuses(var_max, stationary, valid, good, self.converged, degraded,
+                                               self.converged_std)
+        return codes
+
+    def state_dict(self) -> dict:
+        """``{"converged": ...}``, for a warm start."""
+        return {"converged": self.converged}
+
+    def load_state_dict(self, state) -> None:
+        """Back to a :meth:`state_dict` (a dict or a :class:`~imu_ground.imu.warm_start.StateReader`)."""
+        self.converged = as_reader(state, "SigmaModel").bool("converged")

@@ -45,6 +45,16 @@ RTS smoother of the linear filter, then the forward attitude filter and its
 RTS smoother on the group, blended ``X = X_f Exp(w Log(X_f^T X_s))``,
 ``w = smoother_weight``.
 
+One class holds the estimator: its state and filterpy-style attributes, the streaming
+:meth:`~SuspensionAwareFilter.step` (with the per-frame 1-sigma, road, mount monitor and status),
+the batch :meth:`~SuspensionAwareFilter.run` (their vectorised twins, equal to 1e-12), the saved
+state (:meth:`~SuspensionAwareFilter.state_dict` / ``load_state_dict``) and the online
+re-estimation of the mount. Its components keep (and save) their own state: the suspension model
+(:mod:`~imu_ground.filters.suspension_model`), the 1-sigma model (:mod:`~imu_ground.filters.status`),
+the road filter (:mod:`~imu_ground.filters.road`), the mount monitor
+(:mod:`~imu_ground.filters.mount_monitor`) and the re-estimation's record
+(:mod:`~imu_ground.filters.recalibration`).
+
 The discrete-time design (band-pass, response) follows the ego-motion's frame
 rate (:attr:`~imu_ground.imu.egomotion.EgoMotion.rate`). How the defaults were
 chosen and how every configuration scores on real and synthetic drives is in
@@ -59,7 +69,6 @@ import numpy as np
 
 from imu_ground import so3
 from imu_ground.filters import gravity_kernel
-from imu_ground.filters.confidence import step_confidence, step_road_and_monitor, suspension_confidence
 from imu_ground.filters.estimator import GroundEstimate, SuspensionTrack, as_egomotion
 from imu_ground.filters.extrinsics import resolve_platform
 from imu_ground.filters.frame_checks import (
@@ -70,15 +79,18 @@ from imu_ground.filters.frame_checks import (
     hold_skipped,
     static_rotation,
 )
-from imu_ground.filters.filter_state import load_suspension_state, suspension_state
 from imu_ground.filters.gains import DEFAULT_CROSS_GAIN, DEFAULT_GAINS, GAIN_BAND, bandpass_gain_regression
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.filters.invariant_ekf import InvariantEKF
+from imu_ground.filters.mount_monitor import WINDOW as MONITOR_WINDOW
 from imu_ground.filters.mount_monitor import MountMonitor
-from imu_ground.filters.recalibration import MountRecalibrator, run_by_steps, step_recalibration
+from imu_ground.filters.recalibration import MountRecalibrator
 from imu_ground.filters.residual import ResidualKernel
-from imu_ground.filters.road import RoadFilter
+from imu_ground.filters.road import NO_SPEED_REASON, RoadFilter, road_one
+from imu_ground.filters.status import (CONVERGED_STD, DEGRADED, OK, SLOW_SPEED, SUSPENSION_STD, SigmaModel,
+                                       frame_status_code, ok_note, track_reasons)
 from imu_ground.filters.suspension_model import SuspensionModel, load_share
+from imu_ground.imu.warm_start import STATE_VERSION, StateError, StateReader, pack_state, unpack_state
 from imu_ground.so3 import heading_change, matrix_from_quat, twist_angle
 from imu_ground.units import DEG
 
@@ -185,6 +197,15 @@ class SuspensionAwareFilter:
         Current ``(k_pitch, k_roll)``, rad per m/s^2 (the model's).
     model : SuspensionModel
         Load, gains and tilt (:mod:`imu_ground.filters.suspension_model`).
+    sigma : SigmaModel
+        The 1-sigma of pitch and roll and its convergence latch (:mod:`imu_ground.filters.status`).
+    road_filter : RoadFilter
+        The road's grade and bank (:mod:`imu_ground.filters.road`; from the first measured speed on).
+    mount_monitor : MountMonitor
+        A mount that moved (:mod:`imu_ground.filters.mount_monitor`).
+    recalibrator : MountRecalibrator or None
+        With ``recalibrate_online``: the record and estimate of a mount change
+        (:mod:`imu_ground.filters.recalibration`).
     gravity_filter : GravityVelocityFilter
     cumulative : ndarray (3, 3)
         ``R_k``, world <- body.
@@ -263,12 +284,11 @@ class SuspensionAwareFilter:
         self._arrays = k.native and self.gravity_filter.kernel is not gravity_kernel
         self.model = SuspensionModel(self.gains0, self.load_share, self.response, self.cross_gain,
                                      self.online_gains, self.gain_prior_seconds, self.gain_band, self._Rgs)
+        self.sigma = SigmaModel(SUSPENSION_STD, CONVERGED_STD, self.load_share, self.cross_gain)
         self.speed = 0.0
         self._q_last = 0.0
         self._frames = 0
-        self._converged = False
         self.road_filter = RoadFilter(self.extrinsic, self.lever_arm, self._gravity_kw)
-        self._garray = isinstance(self.gravity_filter._s, np.ndarray)
         self.mount_monitor = MountMonitor()
         self.recalibrator = MountRecalibrator(self.extrinsic.translation) if self.recalibrate_online else None
         self._time = 0.0                            # s of processed frames since the start or a reset
@@ -312,14 +332,69 @@ class SuspensionAwareFilter:
         return self.x if m is None else self.cumulative @ matrix_from_quat(np.array(m)).T
 
     # -- warm start ------------------------------------------------------------------------------
+    def _settings(self) -> dict:
+        return dict(gains=self.gains0, sigma_e=self.sigma_e, q_time=self.q_time, q_dist=self.q_dist,
+                    q_yaw=self.q_yaw, r_yaw=self.r_yaw, P0=self.P0, load=self.load_share, response=self.response,
+                    online_gains=self.online_gains, gain_prior_seconds=self.gain_prior_seconds,
+                    gain_band=self.gain_band, frame_rate=self.frame_rate, smoother_weight=self.smoother_weight,
+                    extrinsic=self.extrinsic.settings(), lever_arm=self.lever_arm, gravity=dict(self._gravity_kw),
+                    R0=self.R0, on_invalid=self.on_invalid, cross_gain=self.cross_gain, lateral=self.lateral,
+                    q_turn=self.q_turn, **({"recalibrate_online": True} if self.recalibrate_online else {}))
+
     def state_dict(self) -> dict:
         """The state as a plain, JSON-serialisable dict (:mod:`imu_ground.imu.warm_start`): resume with
-        :meth:`load_state_dict` on a SuspensionAwareFilter built with the same settings."""
-        return suspension_state(self)
+        :meth:`load_state_dict` on a SuspensionAwareFilter built with the same settings.
+
+        The kernels' buffers (residual filter, gravity/velocity filter) are saved whole, so a resumed run
+        continues bit for bit; beside them the components' own states (the suspension model's, the 1-sigma
+        latch, the road filter's, the mount monitor's and, with ``recalibrate_online``, the re-estimation's
+        record and the mount now)."""
+        st = {"frames": self._frames, **self.sigma.state_dict(), "kernel": list(self._kernel.buf),
+              "gravity": self.gravity_filter.kernel_state(), **self.model.state_dict(), "speed": self.speed,
+              "q_last": self._q_last, **self.road_filter.state_dict(), "monitor": self.mount_monitor.state_dict(),
+              "time": self._time}
+        if self.recalibrator is not None:
+            st["recalibrator"] = self.recalibrator.state_dict()
+            st["mount"] = None if self._Rgs is None else self._Rgs.ravel().tolist()
+        return pack_state("SuspensionAwareFilter", STATE_VERSION, self._settings(), st)
 
     def load_state_dict(self, state: dict) -> None:
-        """Resume from a :meth:`state_dict`; a state of another estimator, layout or settings raises ValueError."""
-        load_suspension_state(self, state)
+        """Resume from a :meth:`state_dict`.
+
+        Raises
+        ------
+        StateError
+            (:class:`~imu_ground.imu.warm_start.StateError`, a ValueError) A state of another estimator,
+            layout or settings (naming each setting that differs), or a corrupt one: an entry that is
+            missing, of another shape, not finite where a number is needed, or beyond
+            :data:`~imu_ground.imu.warm_start.MAX_MAGNITUDE` (named). The filter is then as after :meth:`reset`.
+        """
+        st = StateReader("SuspensionAwareFilter",
+                         unpack_state(state, "SuspensionAwareFilter", STATE_VERSION, self._settings()))
+        frames, kernel = st.int("frames"), self._kernel.read_state(st, "kernel")
+        gravity = self.gravity_filter.read_kernel_state(st, "gravity")
+        speed, q_last, time = st.float("speed"), st.float("q_last"), st.float("time")
+        mount = None if self.recalibrator is None else st.floats("mount", (9,), optional=True)
+        mount = None if mount is None else mount.reshape(3, 3)
+        if mount is not None and not (np.abs(mount.T @ mount - _I3).max() < 1e-9 and np.linalg.det(mount) > 0):
+            raise st.error("mount", "is not a rotation matrix")
+        self.reset()
+        try:
+            self.model.load_state_dict(st)
+            self.sigma.load_state_dict(st)
+            self.road_filter.load_state_dict(st)
+            self.mount_monitor.load_state_dict(st.part("monitor"))
+            if self.recalibrator is not None:
+                self.recalibrator.load_state_dict(st.part("recalibrator"))
+        except StateError:
+            self.reset()
+            raise
+        self._kernel.load(kernel)
+        self._kbuf = self._kernel.buf
+        self.gravity_filter.load_kernel_state(gravity)
+        self._frames, self.speed, self._q_last, self._time = frames, speed, q_last, time
+        if mount is not None:                       # (the kernels' buffers hold it already)
+            self._set_mount(mount)
 
     # -- streaming -------------------------------------------------------------------------------
     def step(self, frame, delta_v=None, delta_t: Optional[float] = None, stationary: bool = False,
@@ -381,11 +456,19 @@ class SuspensionAwareFilter:
         gd, gdv = (d, dv) if self._arrays else (d.ravel().tolist(), dv.tolist())   # (pure-Python twins: lists)
         force, (ax, ay, _), v = gf.step_sensor(gd, gdv, dt, bool(stationary), bool(valid), sp)
         fx, fy = force[0], force[1]
-        road, alarm = step_road_and_monitor(self, gd, gdv, dt, bool(stationary), bool(valid), sp)
+        stationary, valid = bool(stationary), bool(valid)
+        road = None                                 # the road filter, from the first measured speed on
+        if sp == sp or self.road_filter.gravity_filter is not None:
+            road = self.road_filter.step(gd, gdv, dt, stationary, valid, sp)
+        self._time += dt
+        mm = self.mount_monitor
+        alarm = mm.alarm
+        if alarm is None and (road is not None or mm.engaged):
+            alarm = mm.update(self._time, None if road is None else road[0], valid and sp == sp)
         self.speed = speed = v if math.isnan(sp) else sp
         psi = heading_change(d, self._Rgs)
         if self.recalibrator is not None:
-            alarm = step_recalibration(self, dt, force, sp, psi, road, bool(valid), alarm)
+            alarm = self._recalibrate(dt, force, sp, psi, road, valid, alarm)
         kinematic = self.lateral == "kinematic" or (self.lateral == "auto" and not math.isnan(sp))
         model = self.model
         wp, wr = model.tilt_weights                 # (of the gains used at this frame)
@@ -394,8 +477,13 @@ class SuspensionAwareFilter:
         q = ((self.q_time + self.q_dist * abs(speed)) * dt + self.q_turn * abs(psi)) * self._r   # |v|: either way
         self._q_last = q
         o = self._kstep(self._kbuf, d, q, self.q_yaw, tilt_x, tilt_y, None, 1.0)
-        code, info, road = step_confidence(self, o, ux, uy, wp, wr, dt, bool(stationary), bool(valid), road, alarm,
-                                           psi, speed)
+        if road is not None:                        # grade and bank with their variances
+            road = road_one(o, *road)
+        recal = None if self.recalibrator is None else self.recalibrator.note     # (after an online re-estimation)
+        note = alarm if alarm is not None else ok_note(abs(speed) < SLOW_SPEED,
+                                                        recal if road is not None else NO_SPEED_REASON)
+        info = self.sigma.frame(o[4], ux, uy, gf.horizontal_gravity_variance(), (wp, wr), dt, note, abs(psi) / dt)
+        code = frame_status_code(self.sigma.converged, stationary, valid, alarm is not None)
         return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o, code, info, road)
 
     # -- batch -----------------------------------------------------------------------------------
@@ -430,7 +518,7 @@ class SuspensionAwareFilter:
             if smooth:
                 raise ValueError("online mount re-estimation (recalibrate_online) runs frame by frame: it cannot "
                                  "be combined with the offline smoother (smooth=True)")
-            return run_by_steps(self, em, speed)
+            return self._run_by_steps(em, speed)
         n = len(em)
         good = checked_frames(em.delta_R, em.delta_v, em.delta_t, em.t, self.on_invalid)
         self.model.design(float(em.rate))
@@ -472,7 +560,7 @@ class SuspensionAwareFilter:
             E = np.swapaxes(Xs, 1, 2) @ cum
         held = {name: hold_skipped(v, good, start[name]) for name, v in
                 dict(E=E, P=Ps, cum=cum, load=u, speed=gt.speed, gains=ks, gravity=gt.gravity).items()}
-        extra = suspension_confidence(self, em, sub, good, Ps[:, 0, 0], u, ks, gt.P, E, speed, psi / dt, gt.speed)
+        extra = self._track_confidence(em, sub, good, Ps[:, 0, 0], u, ks, gt.P, E, speed, psi / dt, gt.speed)
         susp_all = self.model.tilt(held["gains"], held["load"])
         cum_all = held["cum"]
         return SuspensionTrack.from_residuals(
@@ -498,3 +586,141 @@ class SuspensionAwareFilter:
             return Xs @ so3.exp(w * so3.log(np.swapaxes(Xs, 1, 2) @ Xsm))
         return Xs
 
+
+    def _track_confidence(self, em, sub, good: np.ndarray, a: np.ndarray, load: np.ndarray, gains: np.ndarray,
+                          gravity_cov: np.ndarray, E: np.ndarray, speed: Optional[np.ndarray], yaw_rate: np.ndarray,
+                          speed_used: np.ndarray) -> dict:
+        """The fields of a batch's track that say how sure it is (the batch twin of the end of :meth:`step`);
+        the road filter, the mount monitor, the clock and the 1-sigma latch advance as the frames would.
+
+        Parameters
+        ----------
+        em, sub : EgoMotion
+            All F frames of the batch, and its G good ones.
+        good : ndarray of bool (F,)
+            The frames processed (others were skipped).
+        a : ndarray (G,)
+            The residual filter's horizontal variance per good frame, rad^2.
+        load, gains : ndarray (G, 2)
+            The suspension model's load (m/s^2) and the gains used (rad per m/s^2) per good frame.
+        gravity_cov : ndarray (G, 6, 6)
+            The gravity/velocity filter's covariance per good frame.
+        E : ndarray (G, 3, 3)
+            The residuals road <- body.
+        speed : ndarray (G,) or None
+            Measured speed per good frame, m/s.
+        yaw_rate : ndarray (G,)
+            Heading change over frame duration per good frame, rad/s (signed).
+        speed_used : ndarray (G,)
+            The estimator's speed per good frame (measured, else estimated), m/s.
+
+        Returns
+        -------
+        dict
+            ``pitch_std``, ``roll_std`` (rad; NaN on skipped frames), ``status``, ``status_reason``,
+            ``road_grade``, ``road_bank``, ``road_grade_std``, ``road_bank_std`` (rad), each (F,).
+        """
+        n, m = len(good), len(sub)
+        var = self.sigma.track(a, load, gains, gravity_cov, yaw_rate)
+        var_max = np.full(n, np.inf)
+        std = np.full((n, 2), np.nan)                   # (a skipped frame has none, as in step)
+        var_max[good], std[good] = var.max(axis=1), np.sqrt(var)
+        road = np.full((n, 4), np.nan)
+        sp = np.full(m, np.nan) if speed is None else speed
+        rg = np.full((m, 3), np.nan)
+        if speed is not None or self.road_filter.gravity_filter is not None:
+            road[good], rg, _ = self.road_filter.run(sub, sp, E, np.sqrt(var[:, 0]), np.sqrt(var[:, 1]))
+        times = np.cumsum(np.concatenate([[self._time], np.asarray(sub.delta_t, dtype=float)]))[1:]   # (as step sums)
+        if m:
+            self._time = float(times[-1])
+        mm = self.mount_monitor
+        degraded = np.zeros(n, dtype=bool)
+        degraded[good] = mm.run(times, rg, np.asarray(sub.valid, dtype=bool) & np.isfinite(sp))
+        codes = self.sigma.statuses(var_max, em.stationary, em.valid, good, degraded)
+        slow = np.zeros(n, dtype=bool)
+        slow[good] = np.abs(speed_used) < SLOW_SPEED
+        no_road = np.isnan(road[:, 0])
+        notes = np.array([ok_note(s_, r_) for s_ in (False, True) for r_ in (None, NO_SPEED_REASON)], dtype=object)
+        details = np.where(degraded, mm.alarm, notes[2 * slow + no_road])
+        reasons = track_reasons(codes, np.sqrt(var_max), em.delta_t,
+                                np.where((codes == OK) | (codes == DEGRADED), details, None))
+        return dict(pitch_std=std[:, 0], roll_std=std[:, 1], status=codes, status_reason=reasons,
+                    road_grade=road[:, 0], road_bank=road[:, 1], road_grade_std=road[:, 2], road_bank_std=road[:, 3])
+
+    # -- online re-estimation of the mount (imu_ground.filters.recalibration) ------------------------
+    def _recalibrate(self, dt: float, force, speed: float, psi: float, road, valid: bool, alarm):
+        """One frame of the online re-estimation: records it; once :data:`~imu_ground.filters.recalibration.WINDOW`
+        s of usable frames followed the mount monitor's alarm, estimates the change, applies it and restarts
+        the monitor. Returns the alarm still standing after the frame (None once re-estimated)."""
+        r = self.recalibrator
+        r.record(self._time, dt, force, speed, psi, road, valid)
+        if alarm is None:
+            return None
+        mm = self.mount_monitor
+        if not r.ready(mm.alarm_t, dt, valid and road is not None):
+            return alarm
+        est = r.estimate(mm.reference, mm.alarm_t - MONITOR_WINDOW)
+        if est is None:
+            return alarm
+        delta, w = est
+        self._apply_mount_change(delta, w, mm.reference)
+        mm.reset()
+        r.accept(delta, self._time)
+        return None
+
+    def _apply_mount_change(self, delta: np.ndarray, w: np.ndarray, reference) -> None:
+        """Turn the static rotation by ``delta`` (rotation vector, body frame, rad: ``R_gs <- Exp(delta) R_gs``)
+        in every part that turns sensor increments into the body frame; ``w`` is the world tilt (rotation
+        vector, the road filter's world frame) and ``reference`` the frozen gravity direction before the
+        change (:mod:`imu_ground.filters.recalibration`)."""
+        D = so3.exp(np.asarray(delta, dtype=float))
+        Rgs = D @ (_I3 if self._Rgs is None else self._Rgs)
+        Rr = np.array(self.road_filter.gravity_filter.gravity_snapshot()[1], dtype=float).reshape(3, 3)
+        Rm = self.gravity_filter.cumulative.copy()
+        up = so3.exp(np.asarray(w, dtype=float)) @ (np.asarray(reference, dtype=float) / np.linalg.norm(reference))
+        self.road_filter.set_mount(Rgs, D, up)
+        self.gravity_filter.set_mount(Rgs, D, Rm @ Rr.T @ up)    # (its world: Rm Rr^T <- the road filter's)
+        self._kernel.set_mount(Rgs)
+        self._Rgs = Rgs
+        self.model.set_mount(Rgs)
+
+    def _set_mount(self, Rgs: np.ndarray) -> None:
+        """The static rotation where the Python objects keep it (a warm start: the kernels' buffers hold it)."""
+        self._Rgs = Rgs
+        self.model.set_mount(Rgs)
+        self.gravity_filter.set_mount(Rgs)
+        self.road_filter.set_mount(Rgs)
+
+    def _run_by_steps(self, em, speed: Optional[np.ndarray]) -> SuspensionTrack:
+        """:meth:`run` frame by frame through :meth:`step` (what online re-estimation needs: the static rotation
+        may change within the batch); the same track fields as the vectorised run."""
+        n = len(em)
+        checked_frames(em.delta_R, em.delta_v, em.delta_t, em.t, self.on_invalid)   # (raises before any frame)
+        self.model.design(float(em.rate))
+        if speed is not None:
+            speed = np.asarray(speed, dtype=float)
+            if speed.shape != (n,):
+                raise ValueError(f"speed must have one value per frame ({n}), got shape {speed.shape}")
+        E, P, cum, Rgs = (np.zeros((n, 3, 3)) for _ in range(4))
+        load, gains, grav = np.zeros((n, 2)), np.zeros((n, 2)), np.zeros((n, 3))
+        sp, valid = np.zeros(n), np.zeros(n, dtype=bool)
+        extra = {k: np.full(n, np.nan) for k in ("pitch_std", "roll_std", "road_grade", "road_bank",
+                                                   "road_grade_std", "road_bank_std")}
+        status, reasons = np.zeros(n, dtype=np.uint8), np.full(n, "", dtype=object)
+        d, dv, dts = (np.asarray(a, dtype=float) for a in (em.delta_R, em.delta_v, em.delta_t))
+        st, ok = np.asarray(em.stationary, dtype=bool), np.asarray(em.valid, dtype=bool)
+        for k in range(n):
+            gains[k] = self.gains
+            est = self.step(d[k], dv[k], float(dts[k]), bool(st[k]), bool(ok[k]),
+                            speed=None if speed is None else float(speed[k]))
+            E[k], P[k], cum[k] = self.residual, self.P, self.cumulative
+            Rgs[k] = _I3 if self._Rgs is None else self._Rgs
+            load[k], sp[k], grav[k] = self.last_load, self.speed, self.gravity_filter.x[3:]
+            valid[k] = est.valid and ok[k]
+            status[k], reasons[k] = est.status_code, est.status_reason
+            for key, v in extra.items():
+                v[k] = getattr(est, key)
+        return SuspensionTrack.from_residuals(
+            E, cum @ np.swapaxes(E, 1, 2), P, cum, Rgs, self.extrinsic.translation, em.t, valid, load=load,
+            speed=sp, gains=gains, suspension=self.model.tilt(gains, load), gravity=grav, status=status,
+            status_reason=reasons, **extra)

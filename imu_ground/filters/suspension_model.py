@@ -28,6 +28,7 @@ import numpy as np
 from imu_ground import so3
 from imu_ground.filters.design import IIRFilter, butter_bandpass, foh_filter
 from imu_ground.filters.gains import TYPICAL_BAND_POWER, tilt_angles
+from imu_ground.imu.warm_start import as_reader
 
 __all__ = ["SuspensionModel", "load_share"]
 
@@ -111,6 +112,42 @@ class SuspensionModel:
         """:attr:`tilt_weights` of the current gains."""
         h = 0.5 * (1.0 - self.load_share) ** 2
         self.tilt_weights = (h * (self._kp * self._kp + self.cross_gain * self.cross_gain), h * self._kr * self._kr)
+
+    def set_mount(self, Rgs: Optional[np.ndarray]) -> None:
+        """The static rotation ground <- sensor of the increments given to :meth:`step` from now on."""
+        self._Rgs = Rgs
+
+    # -- warm start --------------------------------------------------------------------------------
+    def state_dict(self) -> dict:
+        """The model's state as plain values: gains, design rate, the response's and the band-pass's
+        memories, the online regression's sums and the last load."""
+        return {"gains": self.gains.tolist(), "rate": self.rate,
+                "response": None if self._resp is None else self._resp.state_dict(),
+                "bandpass": None if self._bpf is None else self._bpf.state_dict(),
+                "phi": self._phi.tolist(), "sxx": None if self._sxx is None else self._sxx.tolist(),
+                "sxy": None if self._sxy is None else self._sxy.tolist(), "load": list(self.load)}
+
+    def load_state_dict(self, state) -> None:
+        """Back to a :meth:`state_dict` (a dict or a :class:`~imu_ground.imu.warm_start.StateReader`); every
+        entry is checked (shape, finite) before the model changes."""
+        st = as_reader(state, "SuspensionModel")
+        rate = st.float("rate", optional=True)
+        gains, phi, load = st.floats("gains", (2,)), st.floats("phi", (2,)), st.floats("load", (2,))
+        sxx, sxy = st.floats("sxx", (2,), optional=True), st.floats("sxy", (2,), optional=True)
+        if rate is not None and not rate > 0:
+            raise st.error("rate", f"is {rate!r}, expected a frame rate > 0 Hz")
+        self.reset()
+        if rate is not None:
+            self.design(rate)
+        for name, filt in (("response", self._resp), ("bandpass", self._bpf)):
+            part = st.part(name, optional=True)
+            if filt is not None and part is not None:
+                filt.load_state_dict(part)
+        self.gains = gains
+        self._kp, self._kr = (float(g) for g in gains)
+        self._set_tilt_weights()
+        self._phi, self._sxx, self._sxy = phi, sxx, sxy
+        self.load = tuple(float(v) for v in load)
 
     def design(self, rate: float) -> None:
         """Discrete-time design for frames at ``rate`` Hz (once; a later rate more than 2 % off is an error)."""

@@ -18,6 +18,8 @@ reads and writes the same buffer around its work. Frames are equal either way (t
 """
 from __future__ import annotations
 
+import dataclasses
+
 import math
 from array import array
 from collections.abc import Iterable, Sequence
@@ -34,7 +36,7 @@ from imu_ground.imu.preint_kernel import (
 )
 from imu_ground.imu.preint_measurement import PreintegratedImu
 from imu_ground.imu.preint_params import PreintegrationParams, gap_message
-from imu_ground.imu.preint_state import load_preintegrator_state, preintegrator_state
+from imu_ground.imu.warm_start import STATE_VERSION, StateError, StateReader, pack_state, unpack_state
 
 __all__ = ["StreamingPreintegrator"]
 
@@ -77,6 +79,9 @@ class _PythonKernel:
 
     def _kernel_state(self) -> tuple:
         return self._st
+
+    def _kernel_load(self, deltas: tuple, unc) -> None:
+        self._st = (deltas, unc)
 
     def _integrate(self, dt: float, x: float, y: float, z: float, fx: float, fy: float, fz: float) -> None:
         s, u = self._st
@@ -152,6 +157,13 @@ class _NativeKernel:
     def _kernel_state(self) -> tuple:
         b = self._b
         return tuple(b[0:11]), (None if self._u0 is None else tuple(b[_S_UNC:_S_PREV]))
+
+    def _kernel_load(self, deltas: tuple, unc) -> None:
+        b = self._b
+        b[0:11] = array("d", deltas)
+        if unc is not None:
+            b[_S_UNC:_S_UNC + len(unc)] = array("d", unc)
+        self._save()
 
     def _integrate(self, dt: float, x: float, y: float, z: float, fx: float, fy: float, fz: float) -> None:
         _native_integrate(self._b, dt, x, y, z, fx, fy, fz)
@@ -285,14 +297,48 @@ class StreamingPreintegrator(_NativeKernel if NATIVE is not None else _PythonKer
                                            self._t_start, math.nan, self._valid)
 
     # -- warm start ---------------------------------------------------------
+    # The state is the frame being integrated (deltas and, with ``uncertainty``, their covariance and
+    # Jacobians, as the kernel holds them) and the bookkeeping of the sample stream (last sample, next
+    # boundary, counts); the settings are the frame boundaries and the PreintegrationParams. A state saved
+    # with the compiled kernel loads into the pure-Python one and back (the same layout). A stream stopped
+    # after any sample and resumed from its state emits the frames of the uninterrupted stream.
+    _INTS = ("_n", "_cd", "_mark", "_k")
+    _FLOATS = ("_t_start", "_next", "_lim")
+
+    def _settings(self) -> dict:
+        return {"frame_times": self._times, "rate": self._rate, "every": self._every,
+                "params": dataclasses.asdict(self.params)}
+
     def state_dict(self) -> dict:
-        """The state as a plain, JSON-serialisable dict (:mod:`imu_ground.imu.preint_state`); resume with
+        """The state as a plain, JSON-serialisable dict (:mod:`imu_ground.imu.warm_start`); resume with
         :meth:`load_state_dict` on a preintegrator built with the same settings."""
-        return preintegrator_state(self)
+        self._load()                                # (compiled kernel: its buffer -> the attributes)
+        deltas, unc = self._kernel_state()
+        st = {name: getattr(self, name) for name in self._INTS + self._FLOATS}
+        st.update(_valid=self._valid, _active=self._active, _origin=self._origin, prev=self._prev, deltas=deltas,
+                  uncertainty=unc)
+        return pack_state("StreamingPreintegrator", STATE_VERSION, self._settings(), st)
 
     def load_state_dict(self, state: dict) -> None:
-        """Resume from a :meth:`state_dict`; another kind, layout or settings raises ValueError."""
-        load_preintegrator_state(self, state)
+        """Resume from a :meth:`state_dict`; another kind, layout or settings, or a corrupt state (entries
+        not finite or of another shape), raises :class:`~imu_ground.imu.warm_start.StateError` (a ValueError)
+        naming what is wrong, and the preintegrator is unchanged."""
+        st = StateReader("StreamingPreintegrator",
+                         unpack_state(state, "StreamingPreintegrator", STATE_VERSION, self._settings()))
+        ints = {name: st.int(name) for name in self._INTS}
+        floats = {"_t_start": st.float("_t_start", nan=True), "_next": st.float("_next", inf=True),
+                  "_lim": st.float("_lim", inf=True)}
+        valid, active, origin = st.bool("_valid"), st.bool("_active"), st.float("_origin", optional=True)
+        prev = st.floats("prev", (7,), optional=True)
+        deltas = st.floats("deltas", (11,))
+        unc = st.floats("uncertainty", (None,), optional=True)
+        if (unc is None) != (self._u0 is None) or (unc is not None and len(unc) != len(self._u0)):
+            raise StateError("the saved state and this preintegrator differ in uncertainty")
+        for name, v in {**ints, **floats}.items():
+            setattr(self, name, v)
+        self._valid, self._active, self._origin = valid, active, origin
+        self._prev = None if prev is None else tuple(prev.tolist())
+        self._kernel_load(tuple(deltas.tolist()), None if unc is None else tuple(unc.tolist()))
 
     # -- boundaries ---------------------------------------------------------
     def _boundary(self, k: int) -> float:
