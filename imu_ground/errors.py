@@ -14,7 +14,7 @@ that is not installed.
 """
 from __future__ import annotations
 
-import importlib
+import sys
 from types import ModuleType
 
 __all__ = ["ImuGroundError", "MissingExtraError", "require_extra"]
@@ -49,7 +49,8 @@ class MissingExtraError(ImuGroundError, ImportError):
 
     def __init__(self, what: str, module: str, extra: str) -> None:
         self.module, self.extra = module, extra
-        super().__init__(f"{what} needs {module}, which is not installed: pip install 'imu-ground[{extra}]'")
+        super().__init__(f"{what} needs {module}, which is not installed: pip install 'imu-ground[{extra}]' "
+                         f"(in a checkout: pip install -e \".[{extra}]\")")
         self.name = module
 
 
@@ -70,6 +71,7 @@ def require_extra(module: str, extra: str, what: str) -> ModuleType:
     module
     """
     try:
-        return importlib.import_module(module)
+        __import__(module)              # the import statement's hook (builtins.__import__), then the module itself
     except ImportError as e:
         raise MissingExtraError(what, module.split(".")[0], extra) from e
+    return sys.modules[module]

@@ -7,6 +7,7 @@ from pathlib import Path
 import argparse
 import numpy as np
 
+from imu_ground.cli._lidar import add_lidar_flags, run_lidar
 from imu_ground.cli._common import LazyHelp, add_progress_flag, nonnegative_int, progress_enabled, say
 from imu_ground.errors import ImuGroundError
 from imu_ground.evaluation.plots import evaluation_plots
@@ -26,6 +27,14 @@ from imu_ground.pipeline.output import atomic_path, check_output_path
 __all__ = ["register", "run"]
 
 
+class _WholeWordsHelp(argparse.HelpFormatter):
+    """Help lines wrapped between words only: method names such as ``suspension-offline`` stay whole."""
+
+    def _split_lines(self, text: str, width: int) -> list:
+        import textwrap
+        return textwrap.wrap(" ".join(text.split()), width, break_on_hyphens=False)
+
+
 def _methods_help() -> str:
     lines = [f"{name}: {getattr(m, 'description', '')}" for name, m in METHODS.items()]
     return "comma-separated methods to compare (default all): " + "; ".join(lines)
@@ -33,12 +42,13 @@ def _methods_help() -> str:
 
 def register(sub) -> None:
     """Add the ``evaluate`` sub-command."""
-    v = sub.add_parser("evaluate", help="compare methods on real and/or synthetic drives",
+    v = sub.add_parser("evaluate", help="compare methods on real and/or synthetic drives", formatter_class=_WholeWordsHelp,
                        description="Error of every method against the reference (real KITTI drives: pitch relative "
                                    "to the road from the INS; synthetic drives: exact truth), like the paper's "
                                    "Table 2; on real drives also the pitch error by the reference's own uncertainty "
                                    "and, on drives that pass the same place twice, the revisit consistency of "
-                                   "pitch and roll (no grade reference). Give --real, --synthetic or both.")
+                                   "pitch and roll (no grade reference). Give --real, --synthetic or both; or "
+                                   "--lidar LOG SCANS: the methods against road planes fitted to LiDAR scans.")
     v.add_argument("--real", metavar="DIR", help="folder of kitti_imu100 drives (*.csv.gz), e.g. ../shared/data/kitti_imu100")
     v.add_argument("--synthetic", type=nonnegative_int, default=0, metavar="N",
                    help="number of synthetic drives per IMU grade (default 0)")
@@ -50,11 +60,17 @@ def register(sub) -> None:
     v.add_argument("--csv", metavar="FILE", help="write the per-drive results as CSV")
     v.add_argument("--markdown", metavar="FILE", help="write the summary table as Markdown")
     v.add_argument("--plots", metavar="DIR", help="write PNG plots into this folder (needs matplotlib)")
+    add_lidar_flags(v)
     add_progress_flag(v)
     v.set_defaults(func=run)
 
 
 def _check(a: argparse.Namespace) -> list:
+    lidar_only = [f for f, v in (("--times", a.times), ("--lidar-extrinsic", a.lidar_extrinsic),
+                                 ("--lidar-planes", a.lidar_planes), ("--lidar-region", a.lidar_region),
+                                 ("--extrinsic", a.extrinsic), ("-o", a.plot)) if v]
+    if lidar_only:
+        raise ImuGroundError(f"{lidar_only[0]} goes with --lidar LOG SCANS")
     if a.real is None and not a.synthetic:
         raise ImuGroundError("nothing to evaluate: give --real DIR (kitti_imu100 drives) and/or --synthetic N")
     methods = [m.strip() for m in a.methods.split(",") if m.strip()] if a.methods else list(METHODS)
@@ -77,6 +93,8 @@ def _write_text(path: str, text: str) -> None:
 
 def run(a: argparse.Namespace) -> int:
     """Load the drives, run the methods, print the summary (and per-drive) tables, write the files asked for."""
+    if a.lidar:
+        return run_lidar(a)
     methods = _check(a)
     progress = progress_enabled(a)
     drives = []

@@ -41,6 +41,15 @@ def register(sub) -> None:
                         "DIR:2 (default kitti_cam2)")
     p.add_argument("--extrinsic", metavar="NAME_OR_FILE",
                    help="with LOG: the log's static sensor-to-ground extrinsic (as for 'imu-ground estimate')")
+    p.add_argument("--lidar", metavar="DIR",
+                   help="with LOG: a folder of LiDAR scans (KITTI .bin, .pcd, .ply), one per image: adds the bird's-eye view with "
+                        "the plane fitted to each scan and a distance the LiDAR measured, read off every view "
+                        "(needs --lidar-extrinsic and the extra .[lidar])")
+    p.add_argument("--lidar-extrinsic", metavar="SPEC",
+                   help="with --lidar: a KITTI raw calibration folder (calib_imu_to_velo.txt) or an extrinsic file "
+                        "(R, t: ground <- LiDAR)")
+    p.add_argument("--frame", type=nonnegative_int, default=0,
+                   help="with LOG and a .png: the image to show, 0-based in name order (default 0)")
     p.add_argument("--bev", nargs=5, type=float, metavar=("X0", "X1", "Y0", "Y1", "RES"),
                    help="bird's-eye grid: X0..X1 m ahead, Y0..Y1 m to the left, RES m a pixel (default 5 45 -7 7 0.05)")
     p.add_argument("--seed", type=nonnegative_int, default=3, help="synthetic drive's seed (default 3)")
@@ -58,6 +67,12 @@ def _check(a: argparse.Namespace):
     if a.log is None and (a.images or a.times or a.extrinsic):
         raise ImuGroundError("--images, --times and --extrinsic go with a LOG: imu-ground preview LOG --images DIR "
                              "--times FILE --camera NAME -o F")
+    if a.frame and not (a.log and out.suffix.lower() == ".png"):
+        raise ImuGroundError(f"--frame {a.frame} goes with a LOG and a .png output (a .gif shows every frame)")
+    if (a.lidar or a.lidar_extrinsic) and not (a.log and a.lidar and a.lidar_extrinsic):
+        raise ImuGroundError("--lidar DIR and --lidar-extrinsic SPEC go together, with a LOG and its images: "
+                             "imu-ground preview LOG --images DIR --times FILE --camera NAME --lidar DIR "
+                             "--lidar-extrinsic SPEC -o F")
     if a.log is not None and not (a.images and a.times and a.camera):
         raise ImuGroundError(f"{a.log}: a log needs its images: add --images DIR --times FILE --camera NAME")
     if a.bev is None:
@@ -89,6 +104,12 @@ def run(a: argparse.Namespace) -> int:
                                  res.track.pitch, res.track.roll,
                                  title=f"{Path(a.log).name}, camera {a.camera}: bird's-eye views with the static "
                                        f"and the estimated plane (method {res.meta['method']})")
+        if a.lidar:
+            from imu_ground.evaluation.lidar_preview import add_lidar_plane
+            preview = add_lidar_plane(preview, a.lidar, a.lidar_extrinsic, imu_extrinsic=a.extrinsic)
+        if a.frame and fmt == "png":
+            from imu_ground.evaluation.lidar_preview import preview_frame
+            preview = preview_frame(preview, a.frame)
     data = render_preview(preview, fmt, grid)
     with atomic_path(out) as tmp:
         tmp.write_bytes(data)

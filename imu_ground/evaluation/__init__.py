@@ -1,4 +1,4 @@
-"""Evaluation: reference, metrics, conditions, baselines, simulator, drives, plots, revisit consistency and the runner."""
+"""Evaluation: reference, metrics, conditions, baselines, simulator, drives, plots, revisit consistency, LiDAR ground truth and the runner."""
 from imu_ground._lazy import lazy_exports
 
 _EXPORTS = {
@@ -17,6 +17,9 @@ _EXPORTS = {
                     "reference_sigma"),
     ".runner": ("Method EVALUATION_METHODS METHODS TUNED SIGMA_BINS run_method evaluate conditions_table "
                 "format_table sigma_table summary_table"),
+    ".lidar": ("LIDAR_EXTRA ROAD_REGION SCAN_SUFFIXES RoadRegion bootstrap_spread compare_to_lidar fit_ground_plane "
+               "fit_scans kitti_object_rotation lidar_pitch_roll lidar_rotation lidar_summary lidar_table lidar_transform "
+               "planes_pitch_roll planes_rotations plot_lidar read_bin_scan read_scan read_scan_times scan_files"),
     ".revisit": ("RevisitPairs revisit_pairs ins_at_frames drive_revisit_pairs revisit_differences "
                  "revisit_consistency revisit_table"),
 }

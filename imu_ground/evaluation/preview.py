@@ -67,6 +67,11 @@ class Preview:
         One caption per frame.
     lanes : bool
         Draw the true lane lines (``+- LANE_WIDTH / 2``) over the bird's-eye views (simulation only).
+    readings : dict of str to list of str
+        Per plane name, one caption a frame under its bird's-eye view (a distance read off it;
+        :func:`~imu_ground.evaluation.lidar_preview.add_lidar_plane`).
+    marks : ndarray (F, 2), optional
+        Per frame, a road point ``(x, y)`` (m, ahead and left) crossed on every bird's-eye view.
     """
     camera: Camera
     planes: dict
@@ -76,6 +81,8 @@ class Preview:
     title: str = ""
     labels: list = field(default_factory=list)
     lanes: bool = False
+    readings: dict = field(default_factory=dict)
+    marks: Any = None
 
 
 def synthetic_preview(seed: int = 3, duration: float = 40.0, frames: int = 1, grid: BevGrid = PREVIEW_GRID,
@@ -230,7 +237,7 @@ def images_preview(images: str | Path, times: str | Path, camera: str | Camera, 
 def _figure(preview: Preview, k: int, grid: BevGrid):
     from matplotlib.figure import Figure
     img = preview.image(k)
-    names = [n for n in ("static", "dynamic", "truth") if n in preview.planes]
+    names = [n for n in ("static", "dynamic", "lidar", "truth") if n in preview.planes]
     panels = len(names) + (preview.lane_error is not None)
     fig = Figure(figsize=(3.2 * panels + 0.5, 9.0), dpi=100)
     gs = fig.add_gridspec(2, panels, height_ratios=[1.0, 2.6], hspace=0.25, wspace=0.3)
@@ -238,7 +245,7 @@ def _figure(preview: Preview, k: int, grid: BevGrid):
     ax.imshow(img)
     ax.set_title("camera view" + (f": {preview.labels[k]}" if preview.labels else ""), fontsize=9)
     ax.set_axis_off()
-    what = {"static": "static extrinsic", "dynamic": "dynamic (estimate)", "truth": "truth"}
+    what = {"static": "static extrinsic", "dynamic": "dynamic (estimate)", "lidar": "LiDAR plane", "truth": "truth"}
     lanes = 0.5 * LANE_WIDTH
     for j, name in enumerate(names):
         plane = preview.planes[name]
@@ -250,7 +257,10 @@ def _figure(preview: Preview, k: int, grid: BevGrid):
         a.imshow(bev, extent=(grid.y1, grid.y0, grid.x0, grid.x1), aspect="equal")
         for y in ((-lanes, lanes) if preview.lanes else ()):
             a.axvline(y, color="red", lw=0.7, ls="--")
-        a.set_title(f"bird's-eye, {what[name]}", fontsize=9)
+        if preview.marks is not None and np.all(np.isfinite(preview.marks[k])):
+            a.plot(preview.marks[k][1], preview.marks[k][0], "x", color="red", ms=9, mew=2)
+        reading = preview.readings.get(name)
+        a.set_title(f"bird's-eye, {what[name]}" + (f"\n{reading[k]}" if reading else ""), fontsize=9)
         a.set_xlabel("left (m)")
         if j == 0:
             a.set_ylabel("ahead (m)")

@@ -1,0 +1,642 @@
+r"""LiDAR ground truth, the paper's protocol: road planes fitted to scans, and the estimate against them.
+
+A road plane fitted to a LiDAR scan is an independent per-frame truth of the
+body's attitude relative to the road (Zhang et al. 2022 measure their error so).
+
+Plane fit (:func:`fit_ground_plane`)
+    The points of a road region ahead of the vehicle (:class:`RoadRegion`, in the
+    LiDAR's own axes: x forward, y left, z up; default :data:`ROAD_REGION`, 5-30 m
+    ahead, 4 m either side: the lane and its neighbours, where a wider box sees more of
+    the lane's crown and its roll flips between the crown's sides) go through RANSAC (scikit-learn's ``RANSACRegressor``:
+    the height ``z`` as a plane over ``x, y``, inliers within ``threshold`` metres),
+    then a total least-squares plane (the smallest singular vector of the centred
+    inliers) with the inliers re-chosen by their distance to it until they settle.
+    The result is the unit normal pointing up (``n_z > 0``) and ``d`` with
+    ``n . x + d = 0`` on the road (``d`` is the LiDAR's height above it, m). A region
+    with too few points, no consensus or a plane tilted more than ``max_tilt_deg``
+    from the LiDAR's z axis is "no road" (:class:`~imu_ground.datasets.options.OptionError`).
+    scikit-learn is the optional extra ``.[lidar]``, imported on first use, as are the
+    readers of ``.pcd`` (pypcd4) and ``.ply`` (plyfile) scans (:func:`read_scan`; KITTI's
+    ``.bin`` is read with numpy).
+
+Frames and signs
+    ``R_{g<-l}`` (:func:`lidar_rotation`) turns LiDAR vectors into the ground frame
+    of the log's static extrinsic (FLU, the frame the estimate's pitch and roll
+    are in): with KITTI's calibration folder ``R_{g<-l} = R_{g<-imu} R_{velo<-imu}^T``
+    (``calib_imu_to_velo.txt``'s ``R`` maps IMU points into the Velodyne frame); with
+    the project's extrinsic file format it is the file's ``R`` (ground <- LiDAR). A
+    road normal ``n_b = R_{g<-l} n_l`` in the body frame gives the body's pitch and
+    roll relative to the road (:func:`~imu_ground.filters.estimator.pitch_roll_from_normal`:
+    pitch + nose down, roll + left side up). Camera planes (a KITTI object ``planes``
+    file, rectified camera axes x right, y down, z forward) turn with ``R_{g<-cam}``
+    the same way (:func:`planes_pitch_roll`).
+
+Comparison (:func:`compare_to_lidar`, :func:`lidar_summary`)
+    Per scan: the estimate interpolated to the scan's time (on the log's clock),
+    the angle between the estimated and the LiDAR normals (the paper's metric),
+    the pitch and roll differences (estimate minus LiDAR, deg). Summaries with the
+    constant offset (a LiDAR-to-IMU calibration error is one) and without it (both
+    centred); the roll is compared as changes only, since the road region sees the
+    lane's crown (its absolute value moves with the region's width).
+    :func:`bootstrap_spread` gives each method's spread with a moving-block
+    bootstrap interval over the frames and how often each method ranks first.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from imu_ground.datasets.options import OptionError
+from imu_ground.errors import ImuGroundError, require_extra
+from imu_ground.evaluation.metrics import normal_angle, normal_from_pitch_roll
+from imu_ground.filters.estimator import pitch_roll_from_normal
+from imu_ground.filters.extrinsics import Extrinsic, load_extrinsic
+
+__all__ = ["LIDAR_EXTRA", "ROAD_REGION", "SCAN_SUFFIXES", "RoadRegion", "bootstrap_spread", "compare_to_lidar",
+           "fit_ground_plane", "fit_scans", "kitti_object_rotation", "lidar_pitch_roll", "lidar_rotation",
+           "lidar_summary", "lidar_table", "lidar_transform", "planes_pitch_roll", "planes_rotations", "plot_lidar",
+           "read_bin_scan", "read_scan", "read_scan_times", "scan_files"]
+
+#: The optional extra that installs the plane fit's and the readers' dependencies (scikit-learn, plyfile, pypcd4).
+LIDAR_EXTRA = ".[lidar]"
+#: Scan files read: KITTI Velodyne ``.bin`` (float32 x, y, z, reflectance; numpy), PCD (pypcd4), PLY (plyfile).
+SCAN_SUFFIXES = (".bin", ".pcd", ".ply")
+
+
+@dataclass(frozen=True)
+class RoadRegion:
+    """A box of the LiDAR's own axes (x forward, y left, z up; metres) where the road is fitted.
+
+    Attributes
+    ----------
+    x_min, x_max : float
+        Ahead of the LiDAR, m.
+    y_min, y_max : float
+        To the left (negative: right), m. The width decides how much of the lane's
+        crown the plane sees: its roll moves with it, its pitch hardly.
+    """
+    x_min: float = 5.0
+    x_max: float = 30.0
+    y_min: float = -4.0
+    y_max: float = 4.0
+
+    def __post_init__(self) -> None:
+        values = (self.x_min, self.x_max, self.y_min, self.y_max)
+        if not all(math.isfinite(v) for v in values) or self.x_min >= self.x_max or self.y_min >= self.y_max:
+            raise OptionError(f"{{opt}} {' '.join(f'{v:g}' for v in values)}: the road region needs finite X0 < X1 "
+                              "and Y0 < Y1 (m, LiDAR axes)", "region", flag="--lidar-region")
+
+    def mask(self, points: np.ndarray) -> np.ndarray:
+        """Which of the (N, 3) points lie in the box (bool (N,))."""
+        x, y = points[:, 0], points[:, 1]
+        return (x >= self.x_min) & (x <= self.x_max) & (y >= self.y_min) & (y <= self.y_max)
+
+    def __str__(self) -> str:
+        return f"x {self.x_min:g}..{self.x_max:g} m, y {self.y_min:g}..{self.y_max:g} m"
+
+
+#: The default road region: 5-30 m ahead, 4 m either side of the LiDAR.
+ROAD_REGION = RoadRegion()
+
+
+def _sklearn_ransac():
+    linear_model = require_extra("sklearn.linear_model", "lidar", "the LiDAR plane fit (--lidar)")
+    return linear_model.RANSACRegressor, linear_model.LinearRegression
+
+
+def _tls_plane(points: np.ndarray) -> tuple[np.ndarray, float]:
+    centre = points.mean(axis=0)
+    normal = np.linalg.svd(points - centre, full_matrices=False)[2][2]
+    normal = normal if normal[2] >= 0 else -normal
+    return normal, float(-normal @ centre)
+
+
+def fit_ground_plane(points: Any, region: RoadRegion = ROAD_REGION, threshold: float = 0.1, seed: int = 0,
+                     max_trials: int = 200, min_inliers: int = 200, max_tilt_deg: float = 15.0,
+                     source: str = "scan", return_inliers: bool = False):
+    """The road plane of one LiDAR scan: RANSAC in the road region, then least squares on the inliers.
+
+    Parameters
+    ----------
+    points : array_like (N, 3) or (N, 4)
+        Points in the LiDAR's own axes (x forward, y left, z up), m; a fourth column
+        (reflectance) is ignored.
+    region : RoadRegion
+        Where the road is looked for (default :data:`ROAD_REGION`).
+    threshold : float
+        Inlier distance to the plane, m (RANSAC's vertical residual, then the
+        perpendicular distance of the least-squares refit).
+    seed : int
+        RANSAC's random seed.
+    max_trials : int
+        RANSAC iterations.
+    min_inliers : int
+        Fewer road points than this is "no road".
+    max_tilt_deg : float
+        A plane tilted more than this from the LiDAR's z axis is not the road.
+    source : str
+        The scan's name for messages.
+    return_inliers : bool
+        Also return the number of inliers.
+
+    Returns
+    -------
+    normal : ndarray (3,)
+        Unit normal pointing up (``normal[2] > 0``), LiDAR axes.
+    d : float
+        ``normal . x + d = 0`` on the road: the LiDAR's height above it, m.
+    inliers : int
+        Only with ``return_inliers``.
+
+    Raises
+    ------
+    OptionError
+        An empty scan, no road in the region, or scikit-learn missing (the extra ``.[lidar]``).
+    """
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] not in (3, 4):
+        raise OptionError(f"{source}: points must be an (N, 3) or (N, 4) array, got shape {pts.shape} ({{opt}})",
+                          "lidar")
+    if not len(pts):
+        raise OptionError(f"{source}: the scan is empty; give {{opt}} scans with points", "lidar")
+    pts = pts[:, :3]
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    road = pts[region.mask(pts)]
+    no_road = (f"{source}: no road in the region ({region}): {{n}}; give {{opt}} scans whose LiDAR sees the "
+               "road ahead, or another region (--lidar-region)")
+    if len(road) < max(min_inliers, 3):
+        raise OptionError(no_road.replace("{n}", f"{len(road)} points there, {min_inliers} needed"), "lidar")
+    ransac, linear = _sklearn_ransac()
+    try:
+        fit = ransac(linear(), residual_threshold=threshold, max_trials=max_trials, min_samples=3,
+                     random_state=seed).fit(road[:, :2], road[:, 2])
+        inl = fit.inlier_mask_
+    except ValueError:
+        raise OptionError(no_road.replace("{n}", "RANSAC found no plane"), "lidar") from None
+    for _ in range(5):
+        if np.count_nonzero(inl) < max(min_inliers, 3):
+            break
+        normal, d = _tls_plane(road[inl])
+        again = np.abs(road @ normal + d) < threshold
+        if np.array_equal(again, inl):
+            break
+        inl = again
+    count = int(np.count_nonzero(inl))
+    if count < max(min_inliers, 3):
+        raise OptionError(no_road.replace("{n}", f"{count} points on a plane, {min_inliers} needed"), "lidar")
+    normal, d = _tls_plane(road[inl])
+    tilt = math.degrees(math.acos(min(1.0, normal[2])))
+    if tilt > max_tilt_deg:
+        raise OptionError(no_road.replace("{n}", f"the best plane is tilted {tilt:.0f} deg from the LiDAR's z "
+                                                 f"axis (at most {max_tilt_deg:g})"), "lidar")
+    return (normal, d, count) if return_inliers else (normal, d)
+
+
+# ----------------------------------------------------------------------------- reading
+def read_bin_scan(path: str | Path) -> np.ndarray:
+    """A KITTI Velodyne ``.bin`` scan: float32 ``x y z reflectance`` records as an (N, 4) float64 array.
+
+    Raises
+    ------
+    OptionError
+        Not a whole number of 16-byte records, or no such file (naming the file and ``--lidar``).
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise OptionError(f"{p}: no such scan file ({{opt}} SCANS: a folder of KITTI .bin scans)", "lidar")
+    raw = np.fromfile(p, dtype="<f4")
+    if raw.size % 4:
+        raise OptionError(f"{p}: {raw.size * 4} bytes is not a whole number of KITTI Velodyne records (16 bytes: "
+                          "float32 x y z reflectance); give {opt} KITTI .bin scans", "lidar")
+    return raw.reshape(-1, 4).astype(float)
+
+
+def _reader(module: str, path: Path):
+    return require_extra(module, "lidar", f"{path}: reading this scan (--lidar)")
+
+
+def read_scan(path: str | Path) -> np.ndarray:
+    """One scan's points, (N, 3) or (N, 4) float64, LiDAR axes, m: KITTI ``.bin``, ``.pcd`` or ``.ply``.
+
+    ``.bin``: :func:`read_bin_scan`. ``.pcd``: the fields ``x y z`` through pypcd4 (ASCII, binary
+    or compressed). ``.ply``: the ``vertex`` element's ``x y z`` through plyfile.
+
+    Raises
+    ------
+    OptionError
+        No such file, an unknown suffix, or a file its reader cannot read (naming the file and ``--lidar``).
+    """
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix == ".bin":
+        return read_bin_scan(p)
+    if suffix not in SCAN_SUFFIXES:
+        raise OptionError(f"{p}: unknown scan type {suffix or '(no suffix)'!r}; give {{opt}} "
+                          f"{', '.join(SCAN_SUFFIXES)} scans", "lidar")
+    if not p.is_file():
+        raise OptionError(f"{p}: no such scan file ({{opt}})", "lidar")
+    try:
+        if suffix == ".pcd":
+            cloud = _reader("pypcd4", p).PointCloud.from_path(p)
+            return np.asarray(cloud.numpy(("x", "y", "z")), dtype=float).reshape(-1, 3)
+        vertex = _reader("plyfile", p).PlyData.read(str(p))["vertex"]
+        return np.column_stack([np.asarray(vertex[k], dtype=float) for k in "xyz"]).reshape(-1, 3)
+    except ImuGroundError:                          # OptionError, MissingExtraError
+        raise
+    except Exception as e:                          # the third-party parsers' own errors: a file we cannot read
+        raise OptionError(f"{p}: not a readable {suffix[1:].upper()} point cloud with x y z "
+                          f"({type(e).__name__}: {' '.join(str(e).split())[:120]}); give {{opt}} another scan",
+                          "lidar") from None
+
+
+def scan_files(folder: str | Path) -> list[Path]:
+    """The scans of a folder (:data:`SCAN_SUFFIXES`), in name order (a KITTI ``velodyne_points/data`` folder).
+
+    Raises
+    ------
+    OptionError
+        No such folder, or no scan in it.
+    """
+    d = Path(folder)
+    if not d.is_dir():
+        raise OptionError(f"{d}: no such folder ({{opt}} LOG SCANS: SCANS is a folder of scans, "
+                          f"{', '.join(SCAN_SUFFIXES)})", "lidar")
+    files = sorted(p for p in d.iterdir() if p.suffix.lower() in SCAN_SUFFIXES and p.is_file())
+    if not files:
+        raise OptionError(f"{d}: no scan ({', '.join(SCAN_SUFFIXES)}) in the folder; give {{opt}} LOG SCANS a "
+                          "folder of scans", "lidar")
+    return files
+
+
+def read_scan_times(path: str | Path, count: int, what: str = "scans") -> np.ndarray:
+    """One time a line (s, on the log's clock; ``#`` starts a comment), exactly ``count`` of them.
+
+    Raises
+    ------
+    OptionError
+        No such file, a line that is not a finite number, or a count other than ``count``
+        (naming the file and ``--times``).
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise OptionError(f"{p}: no such times file ({{opt}} FILE: one time a line, s on the log's clock)", "times")
+    try:
+        t = np.atleast_1d(np.loadtxt(p, comments="#", usecols=0, ndmin=1, dtype=float))
+    except ValueError as e:
+        raise OptionError(f"{p}: not one time (s) a line ({' '.join(str(e).split())}); give {{opt}} a file of "
+                          "times", "times") from None
+    if not np.all(np.isfinite(t)):
+        raise OptionError(f"{p}:{int(np.flatnonzero(~np.isfinite(t))[0]) + 1}: a time that is not finite ({{opt}})",
+                          "times")
+    if len(t) != count:
+        raise OptionError(f"{p}: {len(t)} times for {count} {what}; give {{opt}} one time a line, one per "
+                          f"{what[:-1]} in name order", "times")
+    if np.any(np.diff(t) <= 0):
+        raise OptionError(f"{p}:{int(np.flatnonzero(np.diff(t) <= 0)[0]) + 2}: times must increase ({{opt}})",
+                          "times")
+    return t
+
+
+# ----------------------------------------------------------------------------- frames
+def _rotation_of(r: Any) -> np.ndarray:
+    u, _, vt = np.linalg.svd(np.reshape(np.asarray(r, dtype=float), (3, 3)))
+    return u @ vt
+
+
+def lidar_transform(spec: str | Path, imu_extrinsic: Any = None) -> Extrinsic:
+    """The LiDAR's extrinsic ground <- LiDAR (rotation ``R_{g<-l}``, translation: its origin in the ground frame, m).
+
+    Parameters
+    ----------
+    spec : str or Path
+        A KITTI raw calibration folder (holding ``calib_imu_to_velo.txt``), that file
+        itself, or an extrinsic file of the project's format (``R``: ground <- LiDAR, ``t``).
+    imu_extrinsic : optional
+        The log's static extrinsic (ground <- IMU; anything :meth:`Extrinsic.coerce`
+        takes). Used with KITTI's files only; default KITTI's ``kitti_imu`` (axes of the
+        IMU, origin on the road 0.93 m below it, as the shipped KITTI cameras).
+
+    Raises
+    ------
+    OptionError
+        Naming the file and ``--lidar-extrinsic``.
+    """
+    p = Path(spec)
+    calib = p / "calib_imu_to_velo.txt" if p.is_dir() else p
+    if not calib.is_file():
+        raise OptionError(f"{p}: no such file or KITTI raw calibration folder (give {{opt}} a folder holding "
+                          "calib_imu_to_velo.txt or an extrinsic file, R: ground <- LiDAR)", "lidar_extrinsic")
+    text = calib.read_text(errors="replace")
+    if calib.name == "calib_imu_to_velo.txt" or ("T:" in text and "calib_time" in text):
+        from imu_ground.perception.kitti_calib import read_kitti_calib
+        c = read_kitti_calib(calib)
+        r, t = c.get("R"), c.get("T")
+        if r is None or r.size != 9 or t is None or t.size != 3:
+            raise OptionError(f"{calib}: no 'R:' line with 9 numbers and 'T:' with 3 (a KITTI calib_imu_to_velo.txt; "
+                              "{opt})", "lidar_extrinsic")
+        r_velo_imu = _rotation_of(r)
+        g_imu = Extrinsic.coerce("kitti_imu" if imu_extrinsic is None else imu_extrinsic)
+        r_imu_velo, t_imu_velo = r_velo_imu.T, -r_velo_imu.T @ t                # x_imu = R^T (x_velo - T)
+        return Extrinsic(g_imu.rotation @ r_imu_velo, g_imu.rotation @ t_imu_velo + g_imu.translation,
+                         {"sensor": "lidar", "derived_from": str(calib)})
+    try:
+        return load_extrinsic(calib)
+    except (ImuGroundError, FileNotFoundError) as e:
+        raise OptionError(f"{{opt}} {' '.join(str(e).split())}", "lidar_extrinsic") from None
+
+
+def lidar_rotation(spec: str | Path, imu_extrinsic: Any = None) -> np.ndarray:
+    """``R_{g<-l}``: LiDAR vectors into the ground frame of the log's static extrinsic
+    (the rotation of :func:`lidar_transform`; the same arguments), (3, 3)."""
+    return lidar_transform(spec, imu_extrinsic).rotation
+
+
+def kitti_object_rotation(calib_file: str | Path, imu_extrinsic: Any = None) -> np.ndarray:
+    """``R_{g<-rect}`` of a KITTI object calibration file: rectified camera axes into the ground frame.
+
+    The file's ``R0_rect``, ``Tr_velo_to_cam`` and ``Tr_imu_to_velo`` map IMU points into
+    the rectified camera frame (``x_rect = R0 R_vc R_vi x_imu`` + translations), so
+    ``R_{g<-rect} = R_{g<-imu} (R0 R_vc R_vi)^T``.
+    """
+    from imu_ground.perception.kitti_calib import read_kitti_calib
+    p = Path(calib_file)
+    if not p.is_file():
+        raise OptionError(f"{p}: no such KITTI object calibration file ({{opt}})", "lidar_extrinsic")
+    c = read_kitti_calib(p)
+    need = {"R0_rect": 9, "Tr_velo_to_cam": 12, "Tr_imu_to_velo": 12}
+    for key, size in need.items():
+        if key not in c or c[key].size != size:
+            raise OptionError(f"{p}: no '{key}:' line with {size} numbers (a KITTI object calibration file; "
+                              "{opt})", "lidar_extrinsic")
+    r_rect_imu = (c["R0_rect"].reshape(3, 3) @ c["Tr_velo_to_cam"].reshape(3, 4)[:, :3]
+                  @ c["Tr_imu_to_velo"].reshape(3, 4)[:, :3])
+    return Extrinsic.coerce(imu_extrinsic).rotation @ _rotation_of(r_rect_imu).T
+
+
+def lidar_pitch_roll(normals: Any, rotation: Any) -> tuple[np.ndarray, np.ndarray]:
+    """The body's pitch and roll relative to the road (rad) from road normals in a sensor's axes.
+
+    Parameters
+    ----------
+    normals : array_like (N, 3) or (3,)
+        Road normals pointing up (any length), sensor axes.
+    rotation : array_like (3, 3) or (N, 3, 3)
+        Ground <- sensor (:func:`lidar_rotation`, :func:`kitti_object_rotation`).
+    """
+    n = np.asarray(normals, dtype=float)
+    nb = np.einsum("...ij,...j->...i", np.asarray(rotation, dtype=float), n)
+    nb = nb / np.linalg.norm(nb, axis=-1, keepdims=True)
+    return pitch_roll_from_normal(nb)
+
+
+def planes_pitch_roll(coefficients: Any, rotation: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Pitch and roll (rad) of KITTI ``planes`` rows ``a b c d`` (camera axes, normal pointing up)."""
+    abcd = np.asarray(coefficients, dtype=float).reshape(-1, 4)
+    return lidar_pitch_roll(abcd[:, :3], rotation)
+
+
+def fit_scans(files: list[Path], region: RoadRegion = ROAD_REGION, seed: int = 0, **fit_options) -> pd.DataFrame:
+    """:func:`fit_ground_plane` of every scan file: one row a scan.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``scan`` (file name), ``normal_x normal_y normal_z`` (LiDAR axes), ``d`` (m), ``inliers``.
+    """
+    rows = []
+    for f in files:
+        normal, d, count = fit_ground_plane(read_scan(f), region, seed=seed, source=str(f),
+                                            return_inliers=True, **fit_options)
+        rows.append({"scan": Path(f).name, "normal_x": normal[0], "normal_y": normal[1], "normal_z": normal[2],
+                     "d": d, "inliers": count})
+    return pd.DataFrame(rows)
+
+
+# ----------------------------------------------------------------------------- comparison
+def compare_to_lidar(t_scan: Any, lidar_pitch: Any, lidar_roll: Any, t: Any, pitch: Any, roll: Any,
+                     valid: Any = None, source: str = "the log") -> pd.DataFrame:
+    """Per scan: the estimate at the scan's time against the LiDAR plane.
+
+    Parameters
+    ----------
+    t_scan : array_like (S,)
+        Scan times, s, on the log's clock (the estimate's ``t``).
+    lidar_pitch, lidar_roll : array_like (S,)
+        The LiDAR planes' body pitch and roll relative to the road, rad.
+    t, pitch, roll : array_like (N,)
+        The estimate's frame times (s, the end of each frame) and angles (rad).
+    valid : array_like of bool (N,), optional
+        Frames to use (default: finite ones).
+    source : str
+        The log's name for messages.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``t``, ``lidar_pitch_deg``, ``lidar_roll_deg``, ``pitch_deg``, ``roll_deg`` (the
+        estimate, linearly interpolated between its frames), ``d_pitch_deg``,
+        ``d_roll_deg`` (estimate minus LiDAR) and ``angle_deg`` (between the normals).
+
+    Raises
+    ------
+    OptionError
+        A scan time outside the log's frames (naming ``--times``).
+    """
+    ts = np.asarray(t_scan, dtype=float)
+    t, p, r = (np.asarray(a, dtype=float) for a in (t, pitch, roll))
+    use = np.isfinite(t) & np.isfinite(p) & np.isfinite(r)
+    if valid is not None:
+        use &= np.asarray(valid, dtype=bool)
+    if np.count_nonzero(use) < 2:
+        raise OptionError(f"{source}: fewer than 2 valid frames to compare with the scans", "lidar")
+    t, p, r = t[use], p[use], r[use]
+    step = float(np.median(np.diff(t)))
+    out = np.flatnonzero((ts < t[0] - step) | (ts > t[-1]))
+    if out.size:
+        i = int(out[0])
+        raise OptionError(f"{source}: scan {i + 1}'s time {ts[i]:g} s is outside the log's frames "
+                          f"({t[0] - step:g} .. {t[-1]:g} s); give {{opt}} the scans' times on the log's clock",
+                          "times")
+    ep, er = np.interp(ts, t, p), np.interp(ts, t, r)
+    lp, lr = np.asarray(lidar_pitch, dtype=float), np.asarray(lidar_roll, dtype=float)
+    angle = normal_angle(normal_from_pitch_roll(ep, er), normal_from_pitch_roll(lp, lr))
+    deg = np.degrees
+    return pd.DataFrame({"t": ts, "lidar_pitch_deg": deg(lp), "lidar_roll_deg": deg(lr), "pitch_deg": deg(ep),
+                         "roll_deg": deg(er), "d_pitch_deg": deg(ep - lp), "d_roll_deg": deg(er - lr),
+                         "angle_deg": angle})
+
+
+def lidar_summary(frames: pd.DataFrame) -> dict[str, float]:
+    """One method's summary of :func:`compare_to_lidar`'s frames, deg.
+
+    Returns
+    -------
+    dict
+        ``n``; with the constant offset: ``angle_mean`` (mean angle between the normals),
+        ``pitch_offset`` and ``roll_offset`` (mean differences); without it (both
+        centred, the offset a mounting calibration removes): ``angle_centred`` (mean
+        angle between the centred normals), ``pitch_spread`` (sample standard deviation of
+        the pitch difference), ``pitch_mae_centred``, ``roll_change_spread`` (the same of
+        the roll difference: changes only) and ``roll_change_corr`` (correlation of the
+        estimated and the LiDAR roll).
+    """
+    dp, dr = frames["d_pitch_deg"].to_numpy(), frames["d_roll_deg"].to_numpy()
+    n = len(frames)
+    ep, er = np.radians(frames["pitch_deg"].to_numpy()), np.radians(frames["roll_deg"].to_numpy())
+    lp, lr = np.radians(frames["lidar_pitch_deg"].to_numpy()), np.radians(frames["lidar_roll_deg"].to_numpy())
+    centred = normal_angle(normal_from_pitch_roll(ep - ep.mean(), er - er.mean()),
+                           normal_from_pitch_roll(lp - lp.mean(), lr - lr.mean()))
+    ddof = 1 if n > 1 else 0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = float(np.corrcoef(er, lr)[0, 1]) if n > 2 and np.std(er) > 0 and np.std(lr) > 0 else float("nan")
+    return {"n": n, "angle_mean": float(frames["angle_deg"].mean()), "pitch_offset": float(dp.mean()),
+            "roll_offset": float(dr.mean()), "angle_centred": float(centred.mean()),
+            "pitch_spread": float(dp.std(ddof=ddof)), "pitch_mae_centred": float(np.abs(dp - dp.mean()).mean()),
+            "roll_change_spread": float(dr.std(ddof=ddof)), "roll_change_corr": corr}
+
+
+def bootstrap_spread(differences: dict[str, Any], samples: int = 2000, block: int = 5,
+                     seed: int = 0) -> pd.DataFrame:
+    """Each method's pitch spread with a moving-block bootstrap interval, and how often it ranks first.
+
+    The frames of one drive are correlated (the body's pitch moves over seconds), so
+    the resampling draws blocks of ``block`` consecutive frames; every method gets the
+    same draws (a paired comparison).
+
+    Parameters
+    ----------
+    differences : dict of str to array_like (S,)
+        Per method, the pitch difference estimate minus LiDAR per scan, deg.
+    samples : int
+        Bootstrap draws.
+    block : int
+        Frames a block.
+    seed : int
+
+    Returns
+    -------
+    pandas.DataFrame
+        Index: method. ``spread`` (sample standard deviation), ``lo95`` and ``hi95``
+        (2.5 and 97.5 % bootstrap quantiles), ``p_best`` (share of the draws in which the
+        method has the smallest spread), ``vs_best_lo95`` / ``vs_best_hi95`` (the
+        interval of its spread minus the best method's, same draws).
+    """
+    names = list(differences)
+    d = np.array([np.asarray(differences[k], dtype=float) for k in names])
+    s = d.shape[1]
+    block = max(1, min(int(block), s))
+    rng = np.random.default_rng(seed)
+    starts = rng.integers(0, s - block + 1, size=(samples, -(-s // block)))
+    idx = (starts[:, :, None] + np.arange(block)).reshape(samples, -1)[:, :s]
+    spreads = d[:, idx].std(axis=2, ddof=1)                       # (methods, samples)
+    point = d.std(axis=1, ddof=1)
+    best = int(np.argmin(point))
+    wins = np.bincount(np.argmin(spreads, axis=0), minlength=len(names)) / samples
+    rel = spreads - spreads[best]
+    return pd.DataFrame({"spread": point, "lo95": np.percentile(spreads, 2.5, axis=1),
+                         "hi95": np.percentile(spreads, 97.5, axis=1), "p_best": wins,
+                         "vs_best_lo95": np.percentile(rel, 2.5, axis=1),
+                         "vs_best_hi95": np.percentile(rel, 97.5, axis=1)}, index=pd.Index(names, name="method"))
+
+
+def lidar_table(estimates: dict[str, Any], t_scan: Any, lidar_pitch: Any, lidar_roll: Any,
+                source: str = "the log") -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Every estimate against the LiDAR planes: the frames (long) and one summary row a method.
+
+    Parameters
+    ----------
+    estimates : dict of str to tuple
+        Method name to ``(t, pitch, roll, valid)`` of its track (s, rad, rad, bool; ``valid`` may be None).
+    t_scan, lidar_pitch, lidar_roll : array_like (S,)
+        As :func:`compare_to_lidar`.
+    source : str
+
+    Returns
+    -------
+    frames : pandas.DataFrame
+        :func:`compare_to_lidar`'s columns plus ``method`` and ``scan`` (0-based).
+    summary : pandas.DataFrame
+        Index ``method``: :func:`lidar_summary` and, with 3 scans or more, :func:`bootstrap_spread`'s
+        ``lo95``, ``hi95``, ``p_best``, ``vs_best_lo95`` and ``vs_best_hi95`` of the pitch spread.
+    """
+    parts, rows = [], {}
+    for name, (t, pitch, roll, valid) in estimates.items():
+        f = compare_to_lidar(t_scan, lidar_pitch, lidar_roll, t, pitch, roll, valid, source)
+        rows[name] = lidar_summary(f)
+        parts.append(f.assign(method=name, scan=np.arange(len(f))))
+    frames = pd.concat(parts, ignore_index=True)
+    summary = pd.DataFrame.from_dict(rows, orient="index")
+    summary.index.name = "method"
+    if len(np.atleast_1d(t_scan)) >= 3:
+        boot = bootstrap_spread({k: g["d_pitch_deg"].to_numpy() for k, g in frames.groupby("method", sort=False)})
+        summary = summary.join(boot.drop(columns="spread"))
+    return frames, summary
+
+
+def planes_rotations(spec: str | Path, names: list[str], imu_extrinsic: Any = None) -> np.ndarray:
+    """``R_{g<-cam}`` for each planes file: of a camera, or of the KITTI object calibration files.
+
+    Parameters
+    ----------
+    spec : str or Path
+        A folder of KITTI object calibration files named as the planes files (one per
+        frame: ``R0_rect``, ``Tr_velo_to_cam``, ``Tr_imu_to_velo``), one such file, or a
+        camera (:func:`~imu_ground.perception.load_camera`: ``kitti_cam2``, a camera file,
+        ``DIR:2``) whose extrinsic is ground <- camera.
+    names : list of str
+        The planes files' names (``000005.txt``).
+    imu_extrinsic : optional
+        The log's static extrinsic (ground <- IMU), for the KITTI object files.
+
+    Returns
+    -------
+    ndarray (len(names), 3, 3)
+    """
+    p = Path(spec)
+    if p.is_dir() and (p / names[0]).is_file():
+        missing = [n for n in names if not (p / n).is_file()]
+        if missing:
+            raise OptionError(f"{p}: no calibration file {missing[0]} for the planes file of that name ({{opt}})",
+                              "lidar_extrinsic")
+        return np.array([kitti_object_rotation(p / n, imu_extrinsic) for n in names])
+    if p.is_file() and "R0_rect" in p.read_text(errors="replace"):
+        return np.repeat(kitti_object_rotation(p, imu_extrinsic)[None], len(names), axis=0)
+    from imu_ground.perception.camera import load_camera
+    try:
+        cam = load_camera(str(spec))
+    except (ImuGroundError, FileNotFoundError) as e:
+        raise OptionError(f"{{opt}} {spec}: not a camera nor KITTI object calibration ({' '.join(str(e).split())})",
+                          "lidar_extrinsic") from None
+    return np.repeat(cam.extrinsic.rotation[None], len(names), axis=0)
+
+
+def plot_lidar(frames: pd.DataFrame, path: str | Path, title: str = "") -> Path:
+    """Pitch and roll over time: the LiDAR planes and each method's estimate, each centred on its mean (PNG)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(10, 6.5), dpi=100)
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(2, 1, sharex=True)
+    first = frames[frames["method"] == frames["method"].iloc[0]]
+    for ax, what in zip(axes, ("pitch", "roll")):
+        lidar = first[f"lidar_{what}_deg"].to_numpy()
+        ax.plot(first["t"], lidar - lidar.mean(), "k.-", lw=2, label="LiDAR plane")
+        for name, g in frames.groupby("method", sort=False):
+            est = g[f"{what}_deg"].to_numpy()
+            spread = g[f"d_{what}_deg"].std(ddof=1) if len(g) > 1 else float("nan")
+            ax.plot(g["t"], est - est.mean(), "-", lw=1, label=f"{name} (spread {spread:.2f})")
+        ax.set_ylabel(f"{what} - mean (deg)")
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=7, ncol=2)
+    axes[0].set_title(title or "body pitch and roll relative to the road: LiDAR planes and estimates (means removed)",
+                      fontsize=9)
+    axes[1].set_xlabel("t (s, the log's clock)")
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, format="png")
+    return path
