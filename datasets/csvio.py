@@ -33,8 +33,8 @@ import numpy as np
 from imu_ground.errors import ImuGroundError
 from .report import MalformedFileError
 
-__all__ = ["Columns", "RowLines", "first_nonnumber", "locate_bad_lines", "numeric", "open_binary", "read_delimited",
-           "return_free_memory"]
+__all__ = ["Columns", "RowLines", "detect_dialect", "first_nonnumber", "locate_bad_lines", "numeric", "open_binary",
+           "read_delimited", "return_free_memory"]
 
 #: Rows per parsed chunk (bounded working memory on long logs; larger chunks parse faster).
 CHUNK_ROWS = 1 << 20
@@ -59,6 +59,54 @@ def open_binary(path: Path) -> io.BufferedIOBase:
     if name.endswith(".bz2"):
         return bz2.open(path, "rb")  # type: ignore[return-value]
     return open(path, "rb")
+
+
+#: Field separators told from a header line, in order of preference on a tie.
+SEPARATORS = (",", "\t", ";")
+#: A number written with a decimal comma (``-1,25``, ``9,81e-3``).
+_DECIMAL_COMMA = re.compile(r"^\s*[-+]?\d*,\d+([eE][-+]?\d+)?\s*$")
+
+
+def _first_lines(path: Path, count: int) -> list[str]:
+    """The first ``count`` non-blank lines (fewer in a shorter file), as text ('' for bytes that are not UTF-8)."""
+    out: list[str] = []
+    for _, ln in _iter_lines(path):
+        if ln.strip():
+            out.append(ln.decode("utf-8", "replace").rstrip("\r\n"))
+            if len(out) == count:
+                break
+    return out
+
+
+def detect_dialect(path: str | Path) -> tuple[str, str]:
+    """The field separator and decimal mark of a delimited text file with a header line.
+
+    The separator: a tab for ``.tsv`` files (also ``.tsv.gz`` / ``.tsv.bz2``); else the one of
+    :data:`SEPARATORS` that splits the header line into the most fields (a comma when none
+    does). The decimal mark: a comma when fields are not separated by commas and the first
+    data row holds a number written with a decimal comma (``9,81``) and none with a point;
+    else a point.
+
+    Returns
+    -------
+    sep, decimal : str
+    """
+    path = Path(path)
+    lines = _first_lines(path, 2)
+    name = path.name.lower()
+    if re.search(r"\.tsv(\.gz|\.bz2)?$", name):
+        sep = "\t"
+    else:
+        header = lines[0] if lines else ""
+        sep = max(SEPARATORS, key=lambda c: (header.count(c), -SEPARATORS.index(c)))
+        if not header.count(sep):
+            sep = ","
+    decimal = "."
+    if sep != "," and len(lines) > 1:
+        fields = lines[1].split(sep)
+        if any(_DECIMAL_COMMA.match(f) for f in fields) and not any("." in f for f in fields):
+            decimal = ","
+    return sep, decimal
 
 
 class RowLines:
@@ -137,7 +185,8 @@ def _drop_blank_rows(arrays: list[np.ndarray], first_row: int, blank: list[np.nd
     return arrays
 
 
-def _parse(path: Path, sep: str, stack: Mapping[str, Sequence[str]] | None) -> tuple[Columns, int, np.ndarray]:
+def _parse(path: Path, sep: str, stack: Mapping[str, Sequence[str]] | None,
+           decimal: str = ".") -> tuple[Columns, int, np.ndarray]:
     """Chunked C-engine parse: (columns, rows, blank-line positions).
 
     pandas is given the path (it decompresses ``.gz`` / ``.bz2`` itself and
@@ -156,7 +205,7 @@ def _parse(path: Path, sep: str, stack: Mapping[str, Sequence[str]] | None) -> t
     # a plain file whole (pandas parses it in byte ranges on several threads); a compressed one in chunks
     # (the decompression sets the pace, and the chunks bound the working memory)
     reader = pd.read_csv(path, sep=sep, engine="c", chunksize=CHUNK_ROWS if compression else None,
-                         skip_blank_lines=False, encoding="utf-8", compression=compression)
+                         skip_blank_lines=False, encoding="utf-8", compression=compression, decimal=decimal)
     with (reader if compression else contextlib.nullcontext([reader])) as chunks:
         for chunk in chunks:
             if not names:
@@ -181,16 +230,20 @@ def _blank_rows(blank: list[np.ndarray]) -> np.ndarray:
     return np.concatenate(blank) if blank else np.zeros(0, dtype=np.int64)
 
 
-def read_delimited(path: str | Path, sep: str = ",", *,
-                   stack: Mapping[str, Sequence[str]] | None = None) -> tuple[Columns, RowLines]:
+def read_delimited(path: str | Path, sep: str | None = ",", *,
+                   stack: Mapping[str, Sequence[str]] | None = None,
+                   decimal: str | None = ".") -> tuple[Columns, RowLines]:
     """Parse a delimited text file with a header line into named column arrays.
 
     Parameters
     ----------
     path : str or Path
         The file (``.gz`` / ``.bz2`` decompressed as a stream).
-    sep : str
-        Field separator.
+    sep : str or None
+        Field separator; None: told from the file (:func:`detect_dialect`).
+    decimal : str or None
+        Decimal mark of the numbers (``"."`` or ``","``); None: told from the file
+        (:func:`detect_dialect`).
     stack : mapping of str to sequence of str, optional
         New name -> columns to return side by side as one float64 array (N, k)
         under the new name (in their place), written there straight from the
@@ -217,8 +270,12 @@ def read_delimited(path: str | Path, sep: str = ",", *,
     """
     import pandas as pd
     path = Path(path)
+    if sep is None or decimal is None:
+        open_binary(path).close()           # the missing-file and not-a-file messages
+        found = detect_dialect(path)
+        sep, decimal = sep or found[0], decimal or found[1]
     try:
-        cols, n, blank = _parse(path, sep, stack)
+        cols, n, blank = _parse(path, sep, stack, decimal)
     except pd.errors.EmptyDataError as e:
         raise MalformedFileError(path, "file is empty") from e
     except pd.errors.ParserError as e:

@@ -59,6 +59,7 @@ __all__ = [
     "read_rosbag_poses",
     "read_rosbag_speed",
     "rosbag_topics",
+    "speed_topics",
 ]
 
 #: Message type read by :func:`read_rosbag_imu` (rosbags' ROS 2 spelling; ROS 1's ``sensor_msgs/Imu``).
@@ -298,6 +299,18 @@ def read_rosbag_poses(path: PathLike, topic: str | None = None, *, t0_ns: int | 
                                     f"{int(bad[0]) + 1} (1-based)")
     return PoseSequence(rotations=Rotation.from_quat(quat).as_matrix(), translations=_vectors(poses, "position"),
                         t=_times(ns, t0_ns), index=np.arange(len(poses)), source=str(p))
+
+
+def speed_topics(path: PathLike) -> list[str]:
+    """The topics of a ROS log that carry a speed (:data:`SPEED_TYPES`), sorted; read from the index only.
+
+    Parameters
+    ----------
+    path : str or Path
+        ROS log.
+    """
+    with _open(Path(path)) as reader:
+        return sorted({c.topic for c in reader.connections if c.msgtype in SPEED_TYPES})
 
 
 def read_rosbag_speed(path: PathLike, topic: str | None = None, *, t0_ns: int | None = None,

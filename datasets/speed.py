@@ -3,7 +3,8 @@
 Sources, by :func:`read_speed`:
 
 - a separate file: a CSV table with a time column and a speed column
-  (header ``t,speed``; the time in the IMU log's clock, s from its first sample);
+  (columns by name: ``t`` or ``time``, ``speed`` or ``v``; the time in the IMU log's clock,
+  s from its first sample; :func:`read_speed_file`);
 - a column of the IMU log's own table (a CSV table read by :func:`~imu_ground.datasets.read_imu`);
 - found in the log (:func:`log_speed`): KITTI (``kitti_imu100`` and raw OXTS) the INS
   horizontal speed ``hypot(ve, vn)`` as a stand-in for a wheel speed (never ``vu``);
@@ -24,8 +25,12 @@ import numpy as np
 
 from imu_ground.errors import ImuGroundError
 
-__all__ = ["MAX_REVERSE", "MAX_SPEED", "SPEED_SOURCES", "check_speed", "frame_speed", "log_speed", "read_speed",
-           "read_speed_file"]
+from .options import ImuInputError
+from .report import MalformedFileError
+from .rosbag_files import is_rosbag
+
+__all__ = ["MAX_REVERSE", "MAX_SPEED", "SPEED_NAMES", "SPEED_SOURCES", "TIME_NAMES", "check_speed", "frame_speed",
+           "log_speed", "read_speed", "read_speed_file"]
 
 #: Log formats with a speed signal of their own, and what it is.
 SPEED_SOURCES = {
@@ -38,18 +43,21 @@ SPEED_SOURCES = {
 
 
 def _checked(t, v, source: str) -> tuple[np.ndarray, np.ndarray]:
+    """Samples with a finite time, sorted, duplicate times dropped; a NaN speed stays (a hole: :func:`frame_speed`)."""
     t = np.asarray(t, dtype=float).ravel()
     v = np.asarray(v, dtype=float).ravel()
     if t.shape != v.shape or t.size == 0:
         raise ImuGroundError(f"{source}: {t.size} times but {v.size} speeds (need the same number, at least one)")
-    ok = np.isfinite(t) & np.isfinite(v)
+    v = np.where(np.isinf(v), np.nan, v)
+    ok = np.isfinite(t)
     t, v = t[ok], v[ok]
     order = np.argsort(t, kind="stable")
     t, v = t[order], v[order]
     keep = np.concatenate([[True], np.diff(t) > 0]) if t.size else np.zeros(0, bool)
-    if not keep.any():
+    t, v = t[keep], v[keep]
+    if not np.isfinite(v).any():
         raise ImuGroundError(f"{source}: no finite speed sample")
-    return t[keep], v[keep]
+    return t, v
 
 
 #: Fastest plausible reversing, m/s: a car backs up at walking pace, a few m/s.
@@ -69,6 +77,8 @@ def _scale_against_accel(t: np.ndarray, v: np.ndarray, imu) -> tuple[float, floa
     road grade adds ``g sin(grade)`` to ``a_x``). A speed in m/s gives a slope near 1,
     in km/h near 3.6. NaN when fewer than 20 windows are moving (speed over 1 m/s).
     """
+    fin = np.isfinite(v)
+    t, v = t[fin], v[fin]
     ti = np.asarray(imu.t, dtype=float)
     ax = np.asarray(imu.accel, dtype=float)[:, 0]
     ok = np.isfinite(ti) & np.isfinite(ax)
@@ -106,7 +116,7 @@ def check_speed(t: np.ndarray, v: np.ndarray, source: str, imu=None) -> tuple[np
     Parameters
     ----------
     t, v : ndarray (M,)
-        Times (s on the IMU's time base, increasing) and speeds (m/s), as read.
+        Times (s on the IMU's time base, increasing) and speeds (m/s, NaN where unknown), as read.
     source : str
         What the signal is (file or column), for messages.
     imu : ImuData, optional
@@ -145,32 +155,64 @@ def check_speed(t: np.ndarray, v: np.ndarray, source: str, imu=None) -> tuple[np
             elif not 0.6 < k < 1.6:
                 notes.append(f"{source}: the speed changes {k:.2f} times as fast as the accelerometer says over "
                              f"{n} s of driving; a speed file holds m/s: check its unit")
-    fast = float(np.max(v))
+    fast = float(np.nanmax(v))
     if fast > MAX_SPEED:
         raise ImuGroundError(f"{source}: speeds up to {fast:.1f}, implausible for m/s (over {MAX_SPEED:g} m/s); a speed "
                              "file holds the forward speed in m/s (divide km/h by 3.6)")
     neg = v < 0
     if neg.any():
-        slow = float(v.min())
-        share = float(neg.mean())
+        slow = float(np.nanmin(v))
+        finite = int(np.isfinite(v).sum())
+        share = float(neg.sum() / finite)
         if share > 0.5 or slow < -MAX_REVERSE:
             raise ImuGroundError(f"{source}: {100 * share:.0f}% of the speeds are negative, down to {slow:.1f} m/s; a "
                                  f"car reverses rarely and at a few m/s (at most {MAX_REVERSE:g}): is the sign flipped? "
                                  "a speed file holds the forward speed, m/s, negative only when reversing")
-        notes.append(f"{source}: {int(neg.sum())} of {v.size} speeds are negative (down to {slow:.2f} m/s): "
+        notes.append(f"{source}: {int(neg.sum())} of {finite} speeds are negative (down to {slow:.2f} m/s): "
                      "taken as reversing")
     return t, v, notes
 
 
+#: Accepted column names of a speed file (matched regardless of case): time, speed.
+TIME_NAMES = ("t", "time")
+SPEED_NAMES = ("speed", "v")
+
+
+def _named_column(p: Path, cols: list[str], names: tuple[str, ...], what: str) -> str:
+    """The one column of ``cols`` whose name is in ``names`` (regardless of case); else a one-line error."""
+    found = [c for c in cols if c.lower() in names]
+    accepted = " or ".join(repr(n) for n in names)
+    if len(found) == 1:
+        return found[0]
+    if found:
+        raise MalformedFileError(p, f"{len(found)} {what} columns ({', '.join(found)}); a speed file has one, "
+                                    f"named {accepted}")
+    raise MalformedFileError(p, f"no {what} column: the header is {','.join(cols)}; a speed file names its "
+                                f"columns {' or '.join(map(repr, TIME_NAMES))} (s) and "
+                                f"{' or '.join(map(repr, SPEED_NAMES))} (m/s), in any order and case, "
+                                "e.g. the header 't,speed'")
+
+
 def read_speed_file(path: str | Path, column: str | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """A speed table: CSV with a header, the time column (``t``, or the first) and ``column`` (default ``speed``).
+    """A speed table: a CSV file whose header names a time and a speed column.
+
+    Columns are found by name, regardless of case and order: the time ``t`` or ``time``
+    (s on the IMU log's time base), the speed ``speed`` or ``v`` (m/s; ``column``: another
+    name); other columns are ignored. Rows with a time but no speed (empty, ``nan``) are
+    kept as NaN: :func:`frame_speed` gives no speed to the frames around them.
+
+    Returns
+    -------
+    t, v : ndarray (M,)
+        s, increasing; m/s, NaN where a row has no speed.
 
     Raises
     ------
     FileNotFoundError
         No such file.
-    ImuGroundError
-        Not a CSV table, no such column (the message lists the columns), non-numeric values.
+    MalformedFileError
+        No time or speed column by those names, or two of one kind (the message gives the
+        header and the accepted names); non-numeric values.
     """
     import pandas as pd
     p = Path(path)
@@ -179,19 +221,18 @@ def read_speed_file(path: str | Path, column: str | None = None) -> tuple[np.nda
     try:
         df = pd.read_csv(p, skipinitialspace=True)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as e:
-        raise ImuGroundError(f"{p}: not a speed table, a CSV file with the header 't,speed' "
-                             f"({' '.join(str(e).split())})") from e
+        raise MalformedFileError(p, f"not a speed table, a CSV file with a header such as 't,speed' "
+                                 f"({' '.join(str(e).split())})") from e
     cols = [str(c).strip() for c in df.columns]
     df.columns = cols
-    name = column or ("speed" if "speed" in cols else (cols[1] if len(cols) == 2 else None))
-    if name is None or name not in cols:
-        raise ImuGroundError(f"{p}: no speed column {column or 'speed'!r}; columns: {', '.join(cols)} "
-                             f"(a speed file has a header 't,speed')")
-    tcol = "t" if "t" in cols else cols[0]
+    if column is not None and column not in cols:
+        raise MalformedFileError(p, f"no speed column {column!r}; columns: {', '.join(cols)}")
+    name = column or _named_column(p, cols, SPEED_NAMES, "speed")
+    tcol = _named_column(p, cols, TIME_NAMES, "time")
     try:
         t, v = df[tcol].to_numpy(float), df[name].to_numpy(float)
     except (TypeError, ValueError) as e:
-        raise ImuGroundError(f"{p}: column {tcol!r} or {name!r} is not numeric ({e})") from e
+        raise MalformedFileError(p, f"column {tcol!r} or {name!r} is not numeric ({e})") from e
     return _checked(t, v, str(p))
 
 
@@ -255,7 +296,14 @@ def log_speed(path: str | Path, format: str, imu=None, topic: str | None = None
     if format == "comma2k19":
         return _comma_speed(imu, p)
     if format == "rosbag":
-        from imu_ground.datasets.rosbag import read_rosbag_speed
+        from imu_ground.datasets.rosbag import read_rosbag_speed, speed_topics
+        if topic is None:
+            names = speed_topics(p)
+            if not names:
+                return None          # an IMU-only recording: no twist / odometry topic
+            if len(names) > 1:
+                raise ImuInputError(f"{p}: {len(names)} speed topics ({', '.join(names)}); choose one with {{hint}}",
+                                    option="speed", value=names[0], flag="--speed")
         t0_ns = None if imu is None else imu.meta.get("t0_ns")
         return _checked(*read_rosbag_speed(p, topic, t0_ns=t0_ns), str(p))
     return None
@@ -263,13 +311,13 @@ def log_speed(path: str | Path, format: str, imu=None, topic: str | None = None
 
 def read_speed(source: Any, *, log: str | Path | None = None, format: str | None = None, imu=None,
                topic: str | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """A speed signal ``(t, speed)``: t in s on the IMU's time base, speed in m/s (finite, t increasing).
+    """A speed signal ``(t, speed)``: t in s on the IMU's time base (increasing), speed in m/s (NaN where unknown).
 
     Parameters
     ----------
     source : str or Path
-        A speed file (CSV ``t,speed``), a column name of the log's table, or the
-        log itself (its own speed, :func:`log_speed`).
+        A speed file (CSV ``t,speed``: :func:`read_speed_file`), a column name of the log's table (a ROS
+        log: a twist / odometry topic), or the log itself (its own speed, :func:`log_speed`).
     log : str or Path, optional
         The IMU log (for a column name); default ``source``.
     format : str, optional
@@ -296,10 +344,12 @@ def read_speed(source: Any, *, log: str | Path | None = None, format: str | None
             raise ImuGroundError(f"{log}: a {fmt} log carries no speed signal; give a speed file (CSV t,speed) or "
                                  f"the name of the log's speed column (formats with their own: {', '.join(SPEED_SOURCES)})")
         return out
+    name = str(source)
+    if format == "rosbag" or (format is None and log.exists() and is_rosbag(log)):
+        return log_speed(log, "rosbag", imu, topic=name)          # a ROS log: the name is a topic
     if imu is None:
         from imu_ground.datasets import read_imu
         imu = read_imu(log, format=format)
-    name = str(source)
     if name not in imu.extra.columns:
         raise ImuGroundError(f"{log}: no column {name!r} for the speed (and no such file); columns besides the IMU's: "
                              f"{', '.join(map(str, imu.extra.columns)) or 'none'}")
@@ -307,15 +357,18 @@ def read_speed(source: Any, *, log: str | Path | None = None, format: str | None
 
 
 def frame_speed(t: np.ndarray, speed: np.ndarray, frame_t: np.ndarray, frame_dt: np.ndarray) -> np.ndarray:
-    """Mean speed over each frame ``(t_k - dt_k, t_k]``, m/s; NaN for frames outside the signal's span.
+    """Mean speed over each frame ``(t_k - dt_k, t_k]``, m/s; NaN for frames the signal does not cover.
 
     The mean of the piecewise-linear speed (exact integral of the linear interpolation),
-    or the interpolated value for a signal with one sample in the frame.
+    or the interpolated value for a signal with one sample in the frame. A frame is not
+    covered when it reaches outside the signal's span, or into a hole: a run of NaN
+    speeds, from the last finite sample before it to the first after it (nothing is
+    interpolated across a hole).
 
     Parameters
     ----------
     t, speed : ndarray (M,)
-        Speed samples (s, increasing; m/s).
+        Speed samples (s, increasing; m/s, NaN where unknown).
     frame_t, frame_dt : ndarray (F,)
         Frame end times and durations, s (an EgoMotion's ``t`` and ``delta_t``).
     """
@@ -323,6 +376,14 @@ def frame_speed(t: np.ndarray, speed: np.ndarray, frame_t: np.ndarray, frame_dt:
     v = np.asarray(speed, dtype=float)
     te = np.asarray(frame_t, dtype=float)
     ts = te - np.asarray(frame_dt, dtype=float)
+    fin = np.isfinite(v)
+    if not fin.any():
+        return np.full(te.shape, np.nan)
+    if not fin.all():
+        lo, hi = _holes(t, fin)
+        k = np.searchsorted(lo, te, side="left") - 1       # the last hole starting before the frame ends
+        hit = (k >= 0) & (hi[np.maximum(k, 0)] > ts)       # holes are disjoint: only that one can reach it
+        return np.where(hit, np.nan, frame_speed(t[fin], v[fin], te, te - ts))
     if t.size == 1:
         return np.where((te >= t[0]) & (ts <= t[0]), v[0], np.nan)
     cum = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
@@ -338,3 +399,13 @@ def frame_speed(t: np.ndarray, speed: np.ndarray, frame_t: np.ndarray, frame_dt:
         out = (integral(te) - integral(ts)) / (te - ts)
     inside = (ts >= t[0] - 1e-9) & (te <= t[-1] + 1e-9)
     return np.where(inside, out, np.nan)
+
+
+def _holes(t: np.ndarray, fin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Open intervals ``(lo, hi)``, s, sorted, between the finite neighbours of each run of NaN speeds (+-inf at
+    the ends)."""
+    good = np.flatnonzero(fin)
+    pos = np.unique(np.searchsorted(good, np.flatnonzero(~fin)))    # one per run: the next finite sample's rank
+    lo = np.where(pos > 0, t[good[np.maximum(pos - 1, 0)]], -np.inf)
+    hi = np.where(pos < good.size, t[good[np.minimum(pos, good.size - 1)]], np.inf)
+    return lo, hi

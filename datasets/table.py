@@ -195,8 +195,8 @@ def _split(kw: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
     return mapping, kw
 
 
-def read_table(source: str | Path | pd.DataFrame, *, sep: str = ",", validate: bool = True,
-               policy: str = "retime", **kw: Any) -> ImuData:
+def read_table(source: str | Path | pd.DataFrame, *, sep: str | None = None, decimal: str | None = None,
+               validate: bool = True, policy: str = "retime", **kw: Any) -> ImuData:
     """Read a generic IMU table (CSV file, optionally ``.gz`` / ``.bz2``, or DataFrame).
 
     Parameters
@@ -228,8 +228,13 @@ def read_table(source: str | Path | pd.DataFrame, *, sep: str = ",", validate: b
     relative_time : bool
         Shift ``t`` to start at 0 (default) and keep the first time, s, in
         ``meta["t0"]``; integer times are shifted before conversion (exact ns).
-    sep : str
-        Field separator of the text file.
+    sep : str, optional
+        Field separator of the text file; told from the file when None: a tab for
+        ``.tsv``, else whichever of ``,``, tab and ``;`` splits the header line into the
+        most fields (:func:`~imu_ground.datasets.csvio.detect_dialect`).
+    decimal : str, optional
+        Decimal mark (``"."`` or ``","``); told from the file when None: a comma when the
+        fields are not comma-separated and the first data row writes its numbers so (``9,81``).
     validate : bool
         Run :func:`imu_ground.datasets.validation.validate` (default True).
     policy : {"retime", "drop", "sort", "strict"}
@@ -259,7 +264,7 @@ def read_table(source: str | Path | pd.DataFrame, *, sep: str = ",", validate: b
     if isinstance(source, pd.DataFrame):
         return from_dataframe(source, validate=validate, policy=policy, **mapping, **options)
     path = Path(source)
-    cols, row_lines = read_delimited(path, sep)
+    cols, row_lines = read_delimited(path, sep, decimal=decimal)
     imu = map_columns(cols, source=str(path), row_lines=row_lines, **mapping)
     del cols
     return finish(imu, validate=validate, policy=policy, **options)

@@ -10,10 +10,13 @@ own on any :class:`~imu_ground.imu.data.ImuData`::
 What is checked, in this order
 ------------------------------
 1. **Empty input**: no samples raises :class:`ImuValidationError`.
-2. **Non-finite values** (NaN, inf) in ``t``, ``gyro`` or ``accel``: raise
-   (``nonfinite="raise"``, the default; the message names the columns and the
-   first rows, as 1-based file lines when the reader knows them) or drop those
-   rows with a :class:`NonFiniteWarning` (``nonfinite="drop"``).
+2. **Non-finite values** (NaN, inf) in ``t``, ``gyro`` or ``accel``, and gyro or
+   accelerometer values beyond :data:`READING_LIMIT` (no sensor reads that in any
+   unit: a corrupt sample, such as 1e308): raise (``nonfinite="raise"``, the
+   default; the message names the columns and the first rows, as 1-based file
+   lines when the reader knows them, and the time) or drop those rows with a
+   :class:`NonFiniteWarning` (``nonfinite="drop"``). A log whose timestamps are all
+   equal is refused saying so.
 3. **Time order** (:mod:`imu_ground.datasets.timestamps`): ``policy="retime"``
    (default) puts jittered stamps back on the sample clock, ``"drop"`` keeps only
    samples later than every earlier one, ``"sort"`` sorts, ``"strict"`` raises.
@@ -67,10 +70,14 @@ from .timestamps import (
 #: The readers' helpers of :mod:`~imu_ground.datasets.report` that are not re-exported here.
 _READER_HELPERS = ("row_names", "warn_user")
 # this module's own names, and the report's public ones (errors, warnings, ValidationReport)
-__all__ = ["POLICIES", "STILL_SPREAD", "check_timestamps", "validate"] + [
+__all__ = ["POLICIES", "READING_LIMIT", "STILL_SPREAD", "check_timestamps", "validate"] + [
     name for name in _report.__all__ if name not in _READER_HELPERS]
 
 _NONFINITE = ("raise", "drop")
+#: Largest magnitude of a gyro or accelerometer value that a sensor can read in any unit the readers take
+#: (rad/s or deg/s; m/s^2, g, mg or mm/s^2: a 16 g accelerometer reads 1.6e5 mm/s^2); beyond it a sample is
+#: corrupt and is treated as a non-finite one.
+READING_LIMIT = 1e6
 #: Plausible IMU sample rates, Hz.
 RATE_RANGE = (1.0, 2000.0)
 #: Spread (1st to 99th percentile, m/s^2) of the specific force on every axis below which, with every rate
@@ -153,17 +160,20 @@ def _sqrt_below(limit: float) -> float | None:
 
 def _nonfinite(imu: ImuData, report: ValidationReport, nonfinite: str, warn: bool, row_lines,
                sq_total: float) -> np.ndarray | None:
-    """Rows to keep (finite t, gyro, accel), None for all; raise or warn about the others.
+    """Rows to keep (finite t, gyro and accel within :data:`READING_LIMIT`), None for all; raise or warn about
+    the others.
 
-    ``sq_total``: the sum of the gyro and accel rows' squared norms (finite: all values are).
+    ``sq_total``: the sum of the gyro and accel rows' squared norms (finite and below the limit's square:
+    every value is finite and within the limit).
     """
     names = ["t", "wx", "wy", "wz", "ax", "ay", "az"]
     t_sum = imu.t.sum()
     with np.errstate(all="ignore"):
-        fast = np.isfinite(t_sum + sq_total)  # fast path: a sum is finite iff all terms are
-    if fast or np.isfinite(t_sum + imu.gyro.sum() + imu.accel.sum()):  # (as before, with its warnings)
-        return None
-    finite = np.column_stack([np.isfinite(imu.t), np.isfinite(imu.gyro), np.isfinite(imu.accel)])
+        # fast path: a sum is finite iff all terms are; each square is at most the sum of the squares
+        if np.isfinite(t_sum + sq_total) and sq_total <= READING_LIMIT * READING_LIMIT:
+            return None
+        finite = np.column_stack([np.isfinite(imu.t), np.abs(imu.gyro) <= READING_LIMIT,
+                                  np.abs(imu.accel) <= READING_LIMIT])
     row_ok = finite.all(axis=1)
     rows = np.flatnonzero(~row_ok)
     report.nonfinite_index = rows
@@ -180,7 +190,11 @@ def _nonfinite(imu: ImuData, report: ValidationReport, nonfinite: str, warn: boo
             parts.append(f"{nm} ({c} value(s), first {k}s {fmt_list(w, 3)})")
     r0 = int(rows[0])
     t_r0 = f"t={imu.t[r0]:.6f} s" if np.isfinite(imu.t[r0]) else "t not finite"
-    msg = (f"{src}: {rows.size} row(s) with NaN/inf: columns {', '.join(parts)}; first bad {kind} "
+    sensors = np.column_stack([imu.gyro, imu.accel])[rows]
+    huge = np.isfinite(sensors) & ~finite[rows][:, 1:]
+    what = (f"NaN/inf or a value beyond {READING_LIMIT:g} (no sensor reads that in any unit: a corrupt sample; "
+            f"largest {np.abs(sensors[huge]).max():.3g})" if huge.any() else "NaN/inf")
+    msg = (f"{src}: {rows.size} row(s) with {what}: columns {', '.join(parts)}; first bad {kind} "
            f"{where[0]} ({t_r0}); {kind}s {fmt_list(where + [None] * (rows.size - len(where)))}")
     if nonfinite == "raise":
         report.issues.append(msg)
@@ -337,6 +351,8 @@ def validate(imu: ImuData, policy: Policy = "retime", *,
     # 5. input rows kept, in output order (None: every row, in order); enough of them?
     keep = (good if keep_pos is None else good[keep_pos]) if good is not None else keep_pos
     _record_dropped(report, keep, n)
+    if report.n_out == 1 and n > 1:
+        _all_equal_times(imu.t if good is None else imu.t[good], src, report, float(imu.meta.get("t0") or 0.0))
     if report.n_out < max(min_samples, 1):
         report.issues.append(f"{src}: {report.n_out} sample(s) left after cleaning ({n} read), "
                              f"need at least {max(min_samples, 1)}")
@@ -357,6 +373,16 @@ def validate(imu: ImuData, policy: Policy = "retime", *,
     meta: dict[str, Any] = dict(imu.meta)
     meta["validation"] = report
     return ImuData(t, gyro, accel, imu.frame, extra, dict(imu.units), imu.source, meta), report
+
+
+def _all_equal_times(t: np.ndarray, src: str, report: ValidationReport, t0: float = 0.0) -> None:
+    """Raise when every (finite) timestamp is the same: the time column does not advance (``t0``: the
+    reader's shift of the times, s, added back for the message)."""
+    if t.size > 1 and np.all(t == t[0]):
+        report.issues.append(f"{src}: all {t.size} timestamps are equal (t = {t[0] + t0:.6g} s): the time column "
+                             "does not advance")
+        raise ImuValidationError(report.issues[-1] + "; is it the time column? ({hint})", option="columns",
+                                 value="t=NAME")
 
 
 def _sensors(report: ValidationReport, gyro: np.ndarray, accel: np.ndarray, rest_gyro: float, src: str,

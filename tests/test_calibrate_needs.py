@@ -8,6 +8,7 @@ import pandas as pd
 import pytest
 
 from imu_ground.cli import main
+from imu_ground.datasets import read_imu
 from imu_ground.evaluation.simulate import simulate
 from imu_ground.filters import calibrate
 
@@ -108,3 +109,24 @@ def test_calibration_files_with_non_finite_values_are_refused_on_load(tmp_path, 
         err = _one_error_line(capsys)
         assert str(path) in err and what in err and "not finite" in err
         assert not (tmp_path / "o.csv").exists()
+
+
+@pytest.mark.parametrize("flag, values", [("--lever-arm", ["nan", "0", "0.9"]), ("--lever-arm", ["0", "inf", "0.9"]),
+                                          ("--translation", ["0", "0", "inf"])])
+def test_non_finite_lever_arm_or_translation_is_refused_naming_the_flag(tmp_path, cli, flag, values):
+    """Was written as 'suspension_gains: nan nan' with exit 0."""
+    out = tmp_path / "car.txt"
+    code, _, err = cli("calibrate", EXAMPLE, "-o", out, flag, *values)
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and not out.exists(), err
+    assert f"error: {flag} must be 3 finite numbers" in lines[0]
+    with pytest.raises(ValueError, match=flag.removeprefix("--").replace("-", "_")):
+        calibrate(read_imu(EXAMPLE), **{flag.removeprefix("--").replace("-", "_"): [float(v) for v in values]})
+
+
+def test_calibrate_warnings_carry_the_file_prefix(tmp_path, cli):
+    """The example has 2.6 s of cruising: 'up' from the standstills, said as 'LOG: warning: ...'."""
+    code, _, err = cli("calibrate", EXAMPLE, "-o", tmp_path / "car.txt", "--lever-arm", "0.3", "0", "0.9")
+    assert code == 0, err
+    lines = [ln for ln in err.splitlines() if "tilt" in ln]
+    assert lines and all(ln.startswith(f"{EXAMPLE}: warning: calibration:") for ln in lines), err

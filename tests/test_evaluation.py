@@ -175,3 +175,30 @@ def test_real_drive_metrics(shared_data):
     res = evaluate(drives, ["naive"], progress=False)
     assert (res["ref_floor"] > 0).all() and ((res["ref_share"] > 0) & (res["ref_share"] <= 1)).all()
     assert (res["seg_pitch_mean"] <= res["pitch_mean"] + 0.05).all()
+
+
+def test_pooled_ref_share_is_a_share():
+    """Each drive explains at most its own squared error; the pooled share was sum(ref) / sum(err) (3.46)."""
+    import pandas as pd
+    from imu_ground.evaluation.runner import summary_table
+    rows = [dict(drive=f"d{k}", method="paper", kind="real", grade="", valid=True, pitch_mean=0.1,
+                 seg_pitch_mean=0.1, ref_floor=0.1, us_per_frame=1.0, ref_var_sum=ref, err_sq_sum=err)
+            for k, (ref, err) in enumerate([(3.46, 1.0), (1.0, 4.0)])]
+    share = summary_table(pd.DataFrame(rows)).loc[("real", "paper"), "ref_share"]
+    assert share == pytest.approx((1.0 + 1.0) / 5.0)
+
+
+def test_ref_share_of_one_short_real_drive_is_at_most_one(shared_data, tmp_path, cli):
+    """``evaluate --real`` on a folder with one 10 s drive printed ref_share 3.46."""
+    import pandas as pd
+    src = shared_data / "kitti_imu100" / "2011_09_26_drive_0009.csv.gz"
+    df = pd.read_csv(src)
+    folder = tmp_path / "short"
+    folder.mkdir()
+    df[df["t"] < 10.0].to_csv(folder / src.name, index=False)
+    code, out, err = cli("evaluate", "--real", folder, "--methods", "naive,paper,suspension")
+    assert code == 0, err
+    lines = out.splitlines()
+    head = lines[0].split()
+    shares = [float(ln.split()[head.index("ref_share")]) for ln in lines[1:4]]
+    assert all(0 < s <= 1 for s in shares), out

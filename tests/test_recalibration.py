@@ -115,10 +115,19 @@ def test_no_alarm_and_no_re_estimation_on_the_shared_drives(shared_data, kitti_i
         assert not any(r.startswith("mount re-estimated") for r in tr.status_reason), name
 
 
+def _true_speed_file(folder: Path) -> Path:
+    """The example drive's true speed as a speed file (``t,speed``)."""
+    speed = folder / "speed.csv"
+    truth = np.genfromtxt(EXAMPLE.with_name("example_drive_truth.csv"), delimiter=",", names=True)
+    np.savetxt(speed, np.c_[truth["t"], truth["speed"]], delimiter=",", header="t,speed", comments="")
+    return speed
+
+
 def test_cli_flag(tmp_path):
     log = str(EXAMPLE)
+    speed = _true_speed_file(tmp_path)
     cmd = [sys.executable, "-m", "imu_ground", "estimate", log, "--recalibrate-online", "-o"]
-    ok = subprocess.run(cmd + [str(tmp_path / "a.csv")], capture_output=True, text=True)
+    ok = subprocess.run(cmd + [str(tmp_path / "a.csv"), "--speed", str(speed)], capture_output=True, text=True)
     assert ok.returncode == 0, ok.stderr
     assert (tmp_path / "a.csv").is_file()
     for method in ("filter", "suspension-offline"):
@@ -127,3 +136,23 @@ def test_cli_flag(tmp_path):
         lines = bad.stderr.strip().splitlines()
         assert len(lines) == 1 and "--recalibrate-online" in lines[0] and log in lines[0], bad.stderr
         assert not (tmp_path / "b.csv").exists()
+
+
+@pytest.mark.parametrize("speed", ["none", "auto"])        # auto: a table log without a speed column
+def test_without_a_speed_it_is_refused_naming_speed(tmp_path, cli, speed):
+    """Was accepted silently (the help says it needs a speed), the mount never watched."""
+    out = tmp_path / "o.csv"
+    code, _, err = cli("estimate", EXAMPLE, "--recalibrate-online", "--speed", speed, "-o", out)
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and not out.exists()
+    assert str(EXAMPLE) in lines[0] and "needs a measured speed" in lines[0] and "--speed FILE" in lines[0]
+
+
+def test_a_log_shorter_than_the_monitor_needs_is_warned_about(tmp_path, cli):
+    """The 60 s example with its true speed: the monitor judges from 120 s, so it can never act."""
+    speed = _true_speed_file(tmp_path)
+    code, _, err = cli("estimate", EXAMPLE, "--recalibrate-online", "--speed", speed, "-o", tmp_path / "o.csv")
+    assert code == 0, err
+    warning = [ln for ln in err.splitlines() if "--recalibrate-online" in ln]
+    assert len(warning) == 1 and warning[0].startswith(f"{EXAMPLE}: warning:") and "cannot act" in warning[0]
+    assert "120 s" in warning[0] and "59.9 s" in warning[0]

@@ -503,3 +503,40 @@ def test_ros_output_paths(tmp_path):
     assert len(_read_topics(path)["/ground/normal"]) == 7      # 10 frames, 3 invalid
     with pytest.raises(ValueError, match="lacks column"):
         write_ros_output(tmp_path / "y.mcap", _table().drop(columns="qw"))
+
+
+# --------------------------------------------------------------------------- --speed auto on IMU-only logs
+def test_imu_only_log_of_every_kind_runs_imu_only_by_default(bag, tmp_path, cli):
+    """Default options (``--speed auto``) on a log with nothing but ``sensor_msgs/Imu``: IMU only, the reason
+    in the summary (every kind was refused asking for a speed topic)."""
+    _, path = bag
+    code, out, err = cli("estimate", path, "-o", tmp_path / "g.csv")
+    assert code == 0, err
+    assert "speed none (a ROS log without a twist or odometry topic)" in out.splitlines()[0]
+
+
+@pytest.mark.parametrize("kind", ["ros1", "ros2-sqlite3", "mcap"])
+def test_explicit_speed_topic_is_read_or_refused(tmp_path, csv_imu, kind, cli):
+    """``--speed TOPIC`` names a twist / odometry topic of the log; a missing one is refused naming --speed."""
+    (tmp_path / "a").mkdir()
+    imu_only = write_bag(_bag_path(tmp_path / "a", kind), kind, csv_imu)
+    code, _, err = cli("estimate", imu_only, "--speed", "/odom", "-o", tmp_path / "a.csv")
+    assert code == 2 and "--speed /odom" in err and "no topic '/odom'" in err and "Traceback" not in err
+    (tmp_path / "b").mkdir()
+    with_odom = write_bag(_bag_path(tmp_path / "b", kind), kind, csv_imu, extra=_odometry)
+    code, out, err = cli("estimate", with_odom, "--speed", "/odom", "-o", tmp_path / "b.csv")
+    assert code == 0, err
+    # the odometry spans 0 .. 2.9 s: the 29 frames (t - 0.1, t] inside it, t = 0.1 .. 2.9 s
+    assert "speed /odom (29 of 600 frames)" in out.splitlines()[0]
+
+
+def test_two_speed_topics_name_the_speed_option(tmp_path, csv_imu, cli):
+    """``--speed auto`` with two twist/odometry topics: choose one with --speed (not --topic, the IMU's)."""
+    def both(w):
+        _odometry(w, topic="/odom_a")
+        _odometry(w, topic="/odom_b")
+    path = write_bag(tmp_path / "two.bag", "ros1", csv_imu, extra=both)
+    code, _, err = cli("estimate", path, "-o", tmp_path / "o.csv")
+    assert code == 2 and "2 speed topics (/odom_a, /odom_b)" in err and "--speed /odom_a" in err, err
+    code, out, err = cli("estimate", path, "--speed", "/odom_b", "-o", tmp_path / "o.csv")
+    assert code == 0 and "speed /odom_b (29 of 600 frames)" in out, err

@@ -105,8 +105,8 @@ def test_speed_file_and_errors(tmp_path):
     p = tmp_path / "speed.csv"
     p.write_text("t,speed\n0.0,1.0\n0.5,nan\n1.0,2.0\n")
     t, v = read_speed_file(p)
-    np.testing.assert_array_equal(t, [0.0, 1.0])
-    np.testing.assert_array_equal(v, [1.0, 2.0])
+    np.testing.assert_array_equal(t, [0.0, 0.5, 1.0])
+    np.testing.assert_array_equal(v, [1.0, np.nan, 2.0])        # a row without a speed is a hole
     with pytest.raises(ValueError, match="no speed column 'wheel'"):
         read_speed_file(p, column="wheel")
     with pytest.raises(ValueError, match="carries no speed signal"):

@@ -1,4 +1,5 @@
-"""A measured speed as users give it: negative, implausible, in km/h, with millisecond times."""
+"""A measured speed as users give it: negative, implausible, in km/h, with millisecond times; speed files with
+columns by name in any order and case, unknown names, rows without a speed."""
 from pathlib import Path
 
 import numpy as np
@@ -7,6 +8,8 @@ import pytest
 
 from imu_ground.cli import main
 from imu_ground.datasets import read_imu
+from imu_ground.datasets.report import MalformedFileError
+from imu_ground.datasets.speed import frame_speed, read_speed_file
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLE = REPO / "datasets" / "fixtures" / "example_drive.csv"
@@ -85,3 +88,75 @@ def test_km_per_h_at_highway_speed_is_converted_before_the_plausibility_check(tr
     t2, v2, notes = check_speed(t, fast * 3.6, "speed.csv", read_imu(EXAMPLE))
     np.testing.assert_allclose(v2, fast, rtol=1e-12)
     assert len(notes) == 1 and "km/h" in notes[0]
+
+
+# ------------------------------------------------------------------------------------------ speed files
+def _pitch(path):
+    return pd.read_csv(path, comment="#")["pitch_deg"].to_numpy()
+
+
+def test_columns_are_found_by_name_in_any_order_and_case(truth_speed, tmp_path, cli):
+    """``v,time`` was read by position (time taken for the speed): a +48 deg road grade with status ok."""
+    t, v = truth_speed
+    plain, swapped = tmp_path / "plain.csv", tmp_path / "swapped.csv"
+    pd.DataFrame({"t": t, "speed": v}).to_csv(plain, index=False)
+    pd.DataFrame({"v": v, "time": t}).to_csv(swapped, index=False)
+    tv = read_speed_file(swapped)
+    np.testing.assert_array_equal(tv[0], t)
+    np.testing.assert_array_equal(tv[1], v)
+    upper = tmp_path / "upper.csv"
+    pd.DataFrame({"Speed": v, "note": "x", "TIME": t}).to_csv(upper, index=False)
+    np.testing.assert_array_equal(read_speed_file(upper)[1], v)
+    outs = []
+    for k, f in enumerate((plain, swapped)):
+        outs.append(tmp_path / f"o{k}.csv")
+        code, _, err = cli("estimate", EXAMPLE, "--speed", f, "-o", outs[-1])
+        assert code == 0, err
+    np.testing.assert_array_equal(_pitch(outs[0]), _pitch(outs[1]))
+
+
+@pytest.mark.parametrize("header", [("time_s", "speed"), ("t", "wheel"), ("a", "b"), ("t", "v", "speed")])
+def test_unknown_or_ambiguous_names_are_refused(truth_speed, tmp_path, cli, header):
+    t, v = truth_speed
+    f = tmp_path / "speed.csv"
+    pd.DataFrame({h: (t if k == 0 else v) for k, h in enumerate(header)}).to_csv(f, index=False)
+    with pytest.raises(MalformedFileError, match="speed"):
+        read_speed_file(f)
+    code, _, err = cli("estimate", EXAMPLE, "--speed", f, "-o", tmp_path / "o.csv")
+    line = err.strip().splitlines()[-1]
+    assert code == 2 and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert f"--speed {f}" in line and "'speed' or 'v'" in line
+    assert not (tmp_path / "o.csv").exists()
+
+
+def test_rows_without_a_speed_are_holes_counted_in_the_summary(truth_speed, tmp_path, cli):
+    """100 rows of nan in a 601-row 10 Hz file: it was '600 of 600 frames' (interpolated across 10 s)."""
+    t, v = truth_speed
+    v = v.copy()
+    v[100:200] = np.nan                       # t = 10.0 .. 19.9 s: the hole is (9.9, 20.0) s
+    f = tmp_path / "speed.csv"
+    pd.DataFrame({"t": t, "speed": v}).to_csv(f, index=False)
+    code, out, err = cli("estimate", EXAMPLE, "--speed", f, "-o", tmp_path / "o.csv")
+    assert code == 0, err
+    assert f"speed {f} (499 of 600 frames)" in out.splitlines()[0]           # 101 frames end in (9.9, 20.0]
+    assert "100 of 601 samples have no speed (nan)" in err and "IMU only" in err
+
+
+def test_frame_speed_leaves_holes_empty_and_the_rest_as_without_them():
+    """Independent reference: the frames that do not reach a hole get what the complete signal gives them."""
+    rng = np.random.default_rng(3)
+    t = np.cumsum(rng.uniform(0.02, 0.3, 200))
+    v = 10 + np.sin(t)
+    te = np.arange(t[0] + 0.1, t[-1], 0.1)
+    dt = np.full(te.size, 0.1)
+    full = frame_speed(t, v, te, dt)
+    holed = v.copy()
+    holed[[0, 50, 51, 52, 120, 199]] = np.nan
+    got = frame_speed(t, holed, te, dt)
+    spans = [(-np.inf, t[1]), (t[49], t[53]), (t[119], t[121]), (t[198], np.inf)]
+    reach = np.zeros(te.size, bool)
+    for lo, hi in spans:
+        reach |= (te - dt < hi) & (te > lo)
+    assert reach.any() and (~reach).any()
+    assert np.all(np.isnan(got[reach]))
+    np.testing.assert_allclose(got[~reach], full[~reach], rtol=1e-12)

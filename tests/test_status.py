@@ -61,7 +61,9 @@ def test_one_sigma_follows_the_covariance_the_load_and_the_turn():
     assert m.variance(1e-6, yaw_rate=0.3) == pytest.approx(m.variance(1e-6) + (1.5 * DEG * 0.3) ** 2, rel=1e-12)
     np.testing.assert_allclose(m.variance(np.array([1e-6, 2e-6]), 0.0, 1.0, 0.0, np.array([0.0, 0.2])),
                                [m.variance(1e-6, 0.0, 1.0), m.variance(2e-6, 0.0, 1.0, 0.0, 0.2)])
-    assert SUSPENSION_STD[1].turn > 0                     # the shipped roll grows in turns
+    # the shipped roll grows in turns through the lateral load; no yaw-rate term (calibrate_std.py: the
+    # synthetic errors' likelihood is no better with it)
+    assert SUSPENSION_STD[1].load_y > 0 and SUSPENSION_STD[1].turn == 0
 
 
 def test_the_roll_sigma_of_a_track_grows_with_the_yaw_rate(drives):
@@ -295,31 +297,3 @@ def test_no_mount_alarm_on_the_revisit_drives(shared_data, kitti_index):
             tr = estimate_log(shared_data / "kitti_imu100" / f"{name}.csv.gz", speed="auto").track
         assert np.isfinite(tr.road_grade).mean() > 0.9
         assert not (tr.status == DEGRADED).any(), name
-
-
-def test_one_sigma_at_the_revisit_pairs(shared_data, kitti_index):
-    """RMS of difference / sqrt(s1^2 + s2^2) of the road attitude between two passes: in 0.8-1.25 on the drive
-    whose roll differences sit in turns (IMU only and --speed auto); never over-confident (<= 1.25) on the other,
-    where the 1-sigma is still about twice too wide (benchmarks/RESULTS.md)."""
-    import warnings
-
-    from imu_ground.evaluation.revisit import RevisitPairs, ins_at_frames, revisit_differences, revisit_pairs
-    from imu_ground.pipeline import estimate_log
-    for name, lo in (("2011_10_03_drive_0034", 0.8), ("2011_09_30_drive_0020", 0.0)):
-        if name not in set(kitti_index["drive"]):
-            continue
-        path = shared_data / "kitti_imu100" / f"{name}.csv.gz"
-        for speed in ("none", "auto"):
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                res = estimate_log(path, speed=speed)
-            tr, em = res.track, res.egomotion
-            ins = ins_at_frames(pd.read_csv(path), em.t)
-            i, j = revisit_pairs(em.t, ins["x"], ins["y"], ins["yaw"], ins["speed"], em.valid & ins["near"])
-            assert len(i) > 150, (name, len(i))
-            rp = RevisitPairs(i, j, ins["pitch"], ins["roll"])
-            dp, dr = revisit_differences(rp, tr.pitch, tr.roll)
-            for a, d in (("pitch", dp), ("roll", dr)):
-                s = getattr(tr, f"{a}_std")
-                z = math.sqrt(np.mean(d * d / (s[i] ** 2 + s[j] ** 2)))
-                assert lo <= z <= 1.25, (name, speed, a, z)

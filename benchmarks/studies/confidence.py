@@ -5,8 +5,8 @@
 Rows (``rows()``):
 
 - **1-sigma coverage, synthetic**: share of moving frames with ``|error| <= 1 sigma`` for pitch and
-  roll (target 55-80 %, aim 68 %), per method and IMU grade, on a suite (seed 1) other than the one
-  the constants were fitted on (seed 0, ``benchmarks/studies/calibrate_std.py``); the time to converge
+  roll (target 55-80 %, aim 68 %), per method and IMU grade, on a suite (seed 1) other than the ones
+  the constants were fitted on (seeds 2-4, ``benchmarks/studies/calibrate_std.py``); the time to converge
   (first frame whose status is not ``converging``) and the share of the truth's stationary frames
   whose status is ``standstill`` (target >= 90 %).
 - **1-sigma on the revisit drives**: where a real drive passes the same place twice
@@ -14,7 +14,8 @@ Rows (``rows()``):
   above 3 m/s, positions within 1 m, headings within 15 deg, at least 30 s apart, each frame with its
   closest partner, each pair once), the road's attitude
   ``INS angle - estimated angle`` must repeat; RMS of ``difference / sqrt(sigma_1^2 + sigma_2^2)``
-  (target 0.8-1.25).
+  (a diagnostic, no target: it measures how differently the two passes were driven as much as the 1-sigma,
+  ``benchmarks/studies/synthetic_revisit.py``).
 - **Road grade and bank**: synthetic navigation-grade drives with the true speed, mean absolute error
   with each drive's mean removed (target <= 0.15 deg); real revisit drives with ``--speed auto``,
   ``mean |difference| / sqrt(2)`` (targets 0.12 deg grade, 0.22 deg bank).
@@ -299,8 +300,8 @@ def rows(n: int = 10, drives: int | None = None) -> list[dict]:
         scope = f"{r['drive']}, --speed {r['speed']}, {r['pairs']} pairs"
         for a in ("pitch", "roll"):
             v = r[f"{a} z rms"]
-            out.append(_long("1-sigma, real revisit pairs", scope, f"{a}: RMS of diff / sqrt(s1^2 + s2^2)", v,
-                             "0.8-1.25", bool(0.8 <= v <= 1.25)))
+            out.append(_long("1-sigma, real revisit pairs", scope, f"{a}: RMS of diff / sqrt(s1^2 + s2^2) "
+                             "(diagnostic)", v))
             out.append(_long("1-sigma, real revisit pairs", scope, f"{a}: mean |diff| / sqrt(2), deg",
                              r[f"{a} mean|d|/sqrt2 deg"]))
         if r["speed"] == "auto":

@@ -4,7 +4,8 @@
 
 The revisit check of the 1-sigma (``benchmarks/studies/confidence.py``) takes, where a real drive
 passes the same place twice, the RMS of ``difference / sqrt(sigma_1^2 + sigma_2^2)`` of the road's
-attitude between the passes, and asks for 0.8-1.25: as if the two passes' errors were independent.
+attitude between the passes; it asked for 0.8-1.25, as if the two passes' errors were independent (now a
+diagnostic, not a target).
 Here each drive of the synthetic suite (seed 1, held out from the 1-sigma's fit) is driven a second
 time on the same road (:func:`imu_ground.evaluation.simulate.second_pass`: the same vehicle and sensor
 biases, its own white noise), with the same speed profile, 1.1 and 1.25 times as fast at every place,

@@ -47,7 +47,7 @@ def run(a: argparse.Namespace) -> int:
         with common.warnings_as_lines(log):
             imus.append(read_imu(log, format=fmt, **opts))
     with_gains = a.lever_arm is not None
-    with common.warnings_as_lines():
+    with common.warnings_as_lines(", ".join(a.logs)):
         try:
             cal = calibrate(imus if len(imus) > 1 else imus[0], tilt=a.tilt, gains=with_gains,
                             lever_arm=a.lever_arm, translation=a.translation)

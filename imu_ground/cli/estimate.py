@@ -80,8 +80,9 @@ def register(sub) -> None:
     e.add_argument("--speed", default="auto", metavar="auto|none|FILE|COLUMN",
                    help="measured vehicle speed for the suspension methods (speed-aided mode): auto (default: the "
                         "log's own where its format has one: KITTI INS horizontal speed, nuScenes CAN pose, comma2k19 "
-                        "CAN, ROS twist/odometry; else IMU only); none (IMU only); a CSV file with columns t,speed (s "
-                        "on the log's time base, m/s); or the name of a speed column of a CSV log")
+                        "CAN, ROS twist/odometry; else IMU only); none (IMU only); a CSV file whose header names the "
+                        "columns t or time (s on the log's time base) and speed or v (m/s); or the name of a speed "
+                        "column of a CSV log (of a ROS log: a twist or odometry topic)")
     e.add_argument("--recalibrate-online", action="store_true",
                    help="re-estimate the mount when the mount monitor sees it move (status degraded): 15 s of frames "
                         "with a measured speed after the alarm, then the static rotation is corrected and the status "

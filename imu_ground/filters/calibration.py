@@ -65,6 +65,7 @@ from typing import TYPE_CHECKING, Any, Optional, Sequence, Union
 import numpy as np
 
 from imu_ground import so3
+from imu_ground.datasets.options import OptionError
 from imu_ground.errors import ImuGroundError
 from imu_ground.filters.estimator import as_egomotion
 from imu_ground.filters.extrinsics import Calibration, Extrinsic, load_calibration
@@ -190,6 +191,14 @@ class TooLittleDataError(ImuGroundError):
         super().__init__(f"{base}: {advice}")
 
 
+def _finite3(value: Sequence[float], option: str) -> np.ndarray:
+    """``value`` as 3 finite numbers (m); else an :class:`OptionError` naming ``option`` (``--lever-arm`` ...)."""
+    v = np.asarray(value, dtype=float).ravel()
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise OptionError(f"{{opt}} must be 3 finite numbers X Y Z (m), got {' '.join(f'{x:g}' for x in v)}", option)
+    return v
+
+
 def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "EgoMotion"]]], *, tilt: str = "auto",
               translation: Optional[Sequence[float]] = None, lever_arm: Optional[Sequence[float]] = None,
               gains: bool = True, band: Sequence[float] = GAIN_BAND, min_cruise_s: float = 20.0,
@@ -249,6 +258,8 @@ def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "Ego
 
     Raises
     ------
+    OptionError
+        ``translation`` or ``lever_arm`` not 3 finite numbers (names the option).
     ValueError
         No frames, or none of the kind ``tilt`` asks for; ``tilt="auto"`` with too
         little of every kind; ``gains=True`` with less than ``min_drive_s`` of driving.
@@ -266,7 +277,8 @@ def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "Ego
     egos = [as_egomotion(d, rate) for d in (data if many else [data])]
     if not egos or sum(len(e) for e in egos) < 2:
         raise ImuGroundError("calibration needs at least two frames")
-    translation = np.zeros(3) if translation is None else np.asarray(translation, dtype=float).reshape(3)
+    translation = np.zeros(3) if translation is None else _finite3(translation, "translation")
+    lever_arm = None if lever_arm is None else _finite3(lever_arm, "lever_arm")
 
     def up_of(fs, mask):
         if not np.any(mask):

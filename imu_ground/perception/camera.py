@@ -30,7 +30,7 @@ from imu_ground.filters.extrinsics import Extrinsic, available_extrinsics, load_
 
 __all__ = ["Camera", "available_cameras", "load_camera", "save_camera"]
 
-_KITTI_DIR = re.compile(r"^(?P<dir>.+):(?P<index>[0-9]+)$")
+_KITTI_DIR = re.compile(r"^(?P<dir>.+):(?P<index>[^:/\\]*)$")
 
 
 @dataclass
@@ -57,8 +57,11 @@ class Camera:
 
     def __post_init__(self) -> None:
         self.K = np.array(self.K, dtype=float)
-        if self.K.shape != (3, 3) or not np.all(np.isfinite(self.K)):
-            raise ValueError(f"camera intrinsics K must be a finite 3x3 matrix, got shape {self.K.shape}")
+        if self.K.shape != (3, 3):
+            raise ValueError(f"camera intrinsics K must be a 3x3 matrix, got shape {self.K.shape}")
+        if not np.all(np.isfinite(self.K)):
+            raise ValueError(f"camera intrinsics K has a value that is not finite "
+                             f"({' '.join(f'{v:g}' for v in self.K.ravel())})")
         if self.K[0, 0] <= 0 or self.K[1, 1] <= 0 or np.any(self.K[1:, :1] != 0) or self.K[2, 1] != 0 \
                 or self.K[2, 2] != 1:
             raise ValueError("camera intrinsics K must be [[fx, s, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0")
@@ -121,13 +124,20 @@ def load_camera(spec: str | Path | Camera) -> Camera:
         return spec
     text = str(spec)
     m = _KITTI_DIR.match(text)
-    if m and not Path(text).exists():
+    if m and not Path(text).exists() and (m["index"].isdigit() or Path(m["dir"]).is_dir()):
         from imu_ground.perception.kitti_calib import kitti_rectified_cameras
-        index = int(m["index"])
-        if index > 3:
-            raise ImuGroundError(f"{text}: KITTI has rectified cameras 0 to 3, not {index}")
-        ext, k, size = kitti_rectified_cameras(Path(m["dir"]))[index]
+        if not (m["index"].isdigit() and int(m["index"]) <= 3):
+            raise ImuGroundError(f"{text}: camera index {m['index']!r} is not one of KITTI's rectified cameras 0 "
+                                 f"to 3 (e.g. {m['dir']}:2)")
+        ext, k, size = kitti_rectified_cameras(Path(m["dir"]))[int(m["index"])]
         return Camera(k, size, ext, name=text)
+    if Path(text).is_dir():
+        from imu_ground.perception.kitti_calib import KITTI_CALIB_FILES
+        if any((Path(text) / f).is_file() for f in KITTI_CALIB_FILES):
+            raise ImuGroundError(f"{text}: a KITTI raw calibration folder needs the camera index, 0 to 3: use "
+                                 f"{text}:2 (rectified camera 2, the left colour camera)")
+        raise ImuGroundError(f"{text}: a folder, not a camera file (a camera file, calib/README.md, or a KITTI raw "
+                             "calibration folder and camera index as DIR:2)")
     try:
         ext = load_extrinsic(spec)
     except FileNotFoundError as e:

@@ -23,15 +23,19 @@ from pathlib import Path
 
 import numpy as np
 
-from imu_ground.errors import ImuGroundError
+from imu_ground.datasets.report import MalformedFileError
 from imu_ground.filters.extrinsics import Extrinsic
 
-__all__ = ["IMU_HEIGHT", "KITTI_CALIB_FILES", "read_kitti_calib", "kitti_extrinsics", "kitti_rectified_cameras"]
+__all__ = ["IMU_HEIGHT", "KITTI_CALIB_FILES", "KITTI_ROTATION_TOL", "read_kitti_calib", "kitti_extrinsics",
+           "kitti_rectified_cameras"]
 
 #: Height of the OXTS RT3003 above the road, metres (KITTI sensor set-up, Geiger et al. 2013, fig. 3).
 IMU_HEIGHT = 0.93
 #: The three files of a KITTI raw calibration folder.
 KITTI_CALIB_FILES = ("calib_imu_to_velo.txt", "calib_velo_to_cam.txt", "calib_cam_to_cam.txt")
+#: Largest ``|R^T R - I|`` of a rotation in the files: their 7 significant digits leave about 1e-7
+#: (KITTI's own files); a typo (one wrong digit, a scaled matrix) leaves 1e-3 or more.
+KITTI_ROTATION_TOL = 1e-5
 
 
 def read_kitti_calib(path: str | Path) -> dict[str, np.ndarray]:
@@ -41,12 +45,19 @@ def read_kitti_calib(path: str | Path) -> dict[str, np.ndarray]:
     ------
     FileNotFoundError
         No such file.
+    MalformedFileError
+        Not a text file.
     """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"KITTI calibration file not found: {path}")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise MalformedFileError(path, f"not a text file (byte {e.start} is not UTF-8 text); a KITTI raw "
+                                       "calibration file holds 'key: numbers' lines") from None
     out = {}
-    for line in path.read_text().splitlines():
+    for line in text.splitlines():
         if ":" not in line:
             continue
         key, value = line.split(":", 1)
@@ -66,8 +77,32 @@ def _rigid(r: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 def _entry(calib: dict, key: str, size: int, path: Path) -> np.ndarray:
     if key not in calib or calib[key].size != size:
-        raise ImuGroundError(f"{path}: no '{key}:' line with {size} numbers (is this a KITTI raw calibration file?)")
-    return calib[key]
+        raise MalformedFileError(path, f"no '{key}:' line with {size} numbers (is this a KITTI raw calibration "
+                                       "file?)")
+    value = calib[key]
+    if not np.all(np.isfinite(value)):
+        raise MalformedFileError(path, f"'{key}' has a value that is not finite ({' '.join(f'{v:g}' for v in value)})")
+    return value
+
+
+def _rotation(calib: dict, key: str, path: Path) -> np.ndarray:
+    """The 3x3 rotation of entry ``key``, checked as camera and extrinsic files are (to the files' 7 digits)."""
+    r = _entry(calib, key, 9, path).reshape(3, 3)
+    err = float(np.abs(r.T @ r - np.eye(3)).max())
+    det = float(np.linalg.det(r))
+    if err > KITTI_ROTATION_TOL or det < 0:
+        raise MalformedFileError(path, f"'{key}' is not a rotation (|R^T R - I| = {err:.2e}, det = {det:.6f}; "
+                                       f"7-digit rotations are within {KITTI_ROTATION_TOL:g}): a typo in the file?")
+    return r
+
+
+def _intrinsics(p: np.ndarray, key: str, path: Path) -> np.ndarray:
+    """``K`` of a rectified projection ``P_rect_0i`` (3x4), checked to be ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]``."""
+    k = p[:, :3].copy()
+    if k[0, 0] <= 0 or k[1, 1] <= 0 or np.any(k[1:, :1] != 0) or k[2, 1] != 0 or k[2, 2] != 1:
+        raise MalformedFileError(path, f"'{key}' does not start with intrinsics [[fx, s, cx], [0, fy, cy], "
+                                       f"[0, 0, 1]], fx, fy > 0 (got {' '.join(f'{v:g}' for v in k.ravel())})")
+    return k
 
 
 def _read_folder(calib_dir: Path) -> tuple[dict, dict, dict]:
@@ -80,9 +115,9 @@ def _read_folder(calib_dir: Path) -> tuple[dict, dict, dict]:
 
 def _rect0_from_imu(calib_dir: Path, iv: dict, vc: dict, cc: dict) -> np.ndarray:
     d = Path(calib_dir)
-    t_velo_imu = _rigid(_entry(iv, "R", 9, d / KITTI_CALIB_FILES[0]), _entry(iv, "T", 3, d / KITTI_CALIB_FILES[0]))
-    t_cam0_velo = _rigid(_entry(vc, "R", 9, d / KITTI_CALIB_FILES[1]), _entry(vc, "T", 3, d / KITTI_CALIB_FILES[1]))
-    t_rect0_cam0 = _rigid(_entry(cc, "R_rect_00", 9, d / KITTI_CALIB_FILES[2]), np.zeros(3))
+    t_velo_imu = _rigid(_rotation(iv, "R", d / KITTI_CALIB_FILES[0]), _entry(iv, "T", 3, d / KITTI_CALIB_FILES[0]))
+    t_cam0_velo = _rigid(_rotation(vc, "R", d / KITTI_CALIB_FILES[1]), _entry(vc, "T", 3, d / KITTI_CALIB_FILES[1]))
+    t_rect0_cam0 = _rigid(_rotation(cc, "R_rect_00", d / KITTI_CALIB_FILES[2]), np.zeros(3))
     return t_rect0_cam0 @ t_cam0_velo @ t_velo_imu
 
 
@@ -127,8 +162,10 @@ def kitti_rectified_cameras(calib_dir: str | Path) -> dict[int, tuple[Extrinsic,
     ------
     FileNotFoundError
         No such folder or file.
-    ValueError
-        A file lacks an entry the derivation needs (the message names file and key).
+    MalformedFileError
+        A file lacks an entry the derivation needs, or holds one that is not finite, a rotation
+        that is not one (to :data:`KITTI_ROTATION_TOL`) or intrinsics that are not; not a text
+        file (the message names file and key).
     """
     calib_dir = Path(calib_dir)
     iv, vc, cc = _read_folder(calib_dir)
@@ -139,7 +176,7 @@ def kitti_rectified_cameras(calib_dir: str | Path) -> dict[int, tuple[Extrinsic,
     for i in range(4):
         p = _entry(cc, f"P_rect_0{i}", 12, cc_path).reshape(3, 4)
         w, h = _entry(cc, f"S_rect_0{i}", 2, cc_path)
-        k = p[:, :3].copy()
+        k = _intrinsics(p, f"P_rect_0{i}", cc_path)
         t_recti_rect0 = _rigid(np.eye(3), np.linalg.solve(k, p[:, 3]))
         t_g_cam = t_g_imu @ np.linalg.inv(t_recti_rect0 @ t_rect0_imu)
         meta = {"platform": "kitti", "sensor": f"cam{i}_rect (x right, y down, z forward)",

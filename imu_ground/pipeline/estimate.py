@@ -34,6 +34,7 @@ from imu_ground.pipeline.input_checks import (
     GRAVITY_REFUSE_DEG,
     GRAVITY_WARN_DEG,
     check_gravity_direction,
+    check_recalibration,
     gravity_angle,
     requested_options,
 )
@@ -260,7 +261,9 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
         output table gains the homographies (:mod:`imu_ground.pipeline.planes`).
     recalibrate_online : bool
         Re-estimate the mount when the mount monitor sees it move (the ``suspension`` method, frames
-        with a measured speed; :mod:`imu_ground.filters.recalibration`).
+        with a measured speed; :mod:`imu_ground.filters.recalibration`). Without a measured speed an
+        :class:`OptionError` naming ``speed``; frames with a speed spanning less than the monitor's 2
+        minutes: a warning (:func:`~imu_ground.pipeline.input_checks.check_recalibration`).
     **reader_options
         Entries of :data:`imu_ground.datasets.options.READER_OPTIONS`
         (``policy``, ``nonfinite``, ``gyro_unit``, ...), passed to the reader
@@ -309,6 +312,8 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
                               "or leave it out)", "recalibrate_online")
         frame_speeds, speed_info = _frame_speeds(speed, path, info.get("format"), imu if kind == "imu" else None,
                                                  em, name)
+        if recalibrate_online:
+            check_recalibration(path, frame_speeds, speed_info, em)
         ext = Extrinsic.coerce(extrinsic)
         try:
             track = _run_method(name, em, ext, Q, R, frame_speeds, recalibrate_online)
@@ -418,7 +423,9 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
     if auto:
         got = log_speed(path, fmt, imu) if fmt in SPEED_SOURCES else None
         if got is None:
-            return None, f"none (a {fmt} log has no speed signal)"
+            why = ("a ROS log without a twist or odometry topic" if fmt == "rosbag"
+                   else f"a {fmt} log has no speed signal")
+            return None, f"none ({why})"
         what = f"the log's {SPEED_SOURCES[fmt]}"
     else:
         try:
@@ -432,6 +439,10 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
         got = (t_sp, v_sp)
         what = f"{speed}"
     v = frame_speed(*got, em.t, em.delta_t)
+    holes = int(np.count_nonzero(~np.isfinite(got[1])))
+    if holes:
+        warnings.warn(f"speed {what}: {holes} of {len(got[1])} samples have no speed (nan): not interpolated "
+                      f"across; the frames they reach run without a speed (IMU only)")
     if not np.isfinite(v).any():
         raise OptionError(f"{{opt}} {speed}: the speed's times ({got[0][0]:.3f} .. {got[0][-1]:.3f} s) do not "
                           f"cover the log's frames ({em.t[0]:.3f} .. {em.t[-1]:.3f} s)", "speed")

@@ -5,6 +5,8 @@
 - :func:`check_gravity_direction`: the log's mean specific force (gravity, "up")
   against the up axis the extrinsic assigns to the sensor (ground <- sensor, third
   row): a z-down sensor or a camera extrinsic on an IMU log is said, not estimated.
+- :func:`check_recalibration`: ``--recalibrate-online`` needs a measured speed and a log long
+  enough for the mount monitor to judge.
 - :func:`requested_options`: the options of a run as given, the record an output
   keeps so that a rerun can tell whether it was made with the same settings.
 """
@@ -24,7 +26,7 @@ from imu_ground.errors import ImuGroundError
 from imu_ground.filters import Extrinsic
 
 __all__ = ["GRAVITY_REFUSE_DEG", "GRAVITY_WARN_DEG", "OptionError", "check_creatable", "check_gravity_direction",
-           "gravity_angle", "requested_options"]
+           "check_recalibration", "gravity_angle", "requested_options"]
 
 
 def requested_options(*, method: str = "auto", rate: float | None = None, extrinsic: Any = None, Q: Any = None,
@@ -120,3 +122,40 @@ def check_creatable(path: Path, option: str, start: Path | None = None) -> None:
                              f"choose another {option}")
     if not os.access(anc, os.W_OK | os.X_OK):
         raise ImuGroundError(f"{path}: no permission to write in {anc}; choose another {option}")
+
+
+def check_recalibration(path: str | Path, speeds: np.ndarray | None, speed_info: str, em) -> None:
+    """What ``recalibrate_online`` (``--recalibrate-online``) needs: a measured speed, and a log long enough.
+
+    The mount monitor (:mod:`imu_ground.filters.mount_monitor`) runs only on frames with a
+    speed and judges from :data:`~imu_ground.filters.mount_monitor.HOLD_OFF` +
+    :data:`~imu_ground.filters.mount_monitor.GATE` seconds (2 minutes) after the first one.
+
+    Parameters
+    ----------
+    path : str or Path
+        The log (for messages).
+    speeds : ndarray (F,) or None
+        Speed per frame, m/s (NaN where unknown); None: IMU only.
+    speed_info : str
+        What the speed is (``meta["speed"]``), for the message.
+    em : EgoMotion
+        The frames (their times, s).
+
+    Raises
+    ------
+    OptionError
+        No measured speed (names ``speed``, ``--speed``).
+    """
+    from imu_ground.filters.mount_monitor import GATE, HOLD_OFF
+    have = np.zeros(len(em), bool) if speeds is None else np.isfinite(speeds)
+    if not have.any():
+        raise OptionError(f"{path}: re-estimating the mount online (recalibrate) needs a measured speed, and the run "
+                          f"has none (speed {speed_info}); give {{opt}} FILE or COLUMN, or leave out the online "
+                          "re-estimation", "speed")
+    t = np.asarray(em.t, dtype=float)[have]
+    span = float(t[-1] - t[0])
+    if span < HOLD_OFF + GATE:
+        warnings.warn(f"{path}: --recalibrate-online cannot act: the mount monitor judges from "
+                      f"{HOLD_OFF + GATE:g} s after the first frame with a speed, and the frames with a speed "
+                      f"span {span:.1f} s")
