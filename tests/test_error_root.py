@@ -163,13 +163,20 @@ def test_calibrating_a_log_without_gravity_names_the_log(tmp_path, capsys):
     assert not (tmp_path / "car.txt").exists()
 
 
-def test_a_log_whose_frames_the_estimator_refuses_names_the_log(tmp_path, capsys):
-    log = tmp_path / "absurd.csv"
-    t = np.arange(500) * 0.01
-    log.write_text("t,wx,wy,wz,ax,ay,az\n" + "\n".join(f"{v:.2f},1e300,0,0,0,0,9.8" for v in t) + "\n")
-    assert main(["estimate", str(log), "-o", str(tmp_path / "x.csv")]) == 2
+def test_a_frame_the_estimator_refuses_is_a_user_error_named_with_the_log(tmp_path, capsys, monkeypatch):
+    from imu_ground.filters import GroundNormalFilter
+    from imu_ground.filters.frame_checks import bad_frame_error
+    with pytest.raises(ImuGroundError, match="bad ego-motion frame"):
+        GroundNormalFilter().step(np.full((3, 3), np.nan))
+    import imu_ground.pipeline.estimate as estimate
+
+    def refused(*args, **kwargs):
+        raise bad_frame_error("delta_R is not finite", "frame index 0")
+
+    monkeypatch.setattr(estimate, "_run_method", refused)
+    assert main(["estimate", str(EXAMPLE), "-o", str(tmp_path / "x.csv")]) == 2
     line = _one_error_line(capsys)
-    assert line.startswith(f"imu-ground estimate: error: {log}: bad ego-motion frame")
+    assert line.startswith(f"imu-ground estimate: error: {EXAMPLE}: bad ego-motion frame")
 
 
 def test_preview_with_an_empty_images_folder_is_a_user_error(tmp_path, capsys):
