@@ -115,3 +115,15 @@ def with_true_speed():
         d = synthetic_drive(sim)
         return d, d.truth["speed"].to_numpy()
     return make
+
+
+@pytest.fixture
+def one_error():
+    """``one_error(stderr, *words) -> line``: stderr is one error line (no traceback) holding every word."""
+    def check(err: str, *words) -> str:
+        lines = [ln for ln in err.splitlines() if ln.strip()]
+        assert len(lines) == 1 and "Traceback" not in err, err
+        for w in words:
+            assert str(w) in lines[0], (w, err)
+        return lines[0]
+    return check

@@ -27,7 +27,7 @@ against road planes fitted to the shared KITTI LiDAR scans with the fit's repeat
 Speed: the tables of the benchmark scripts in ``benchmarks/``, each of which exposes
 ``rows()`` returning its rows
 (``bench_filter``, ``bench_suspension``, ``bench_preintegration``, ``bench_ekf``,
-``bench_gravity``, ``bench_readers``, ``bench_batch``); a script that is missing
+``bench_gravity``, ``bench_readers``, ``bench_batch``; ``bench_preview``: the preview's peak memory); a script that is missing
 or has no ``rows()`` is listed with a note instead. Figures are measured on
 whatever machine runs this (shared, 2 cores while others work: speed figures are
 medians but noisy).
@@ -49,7 +49,7 @@ REPO = HERE.parent
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_imu100"
 OUT = HERE / "RESULTS.md"
 BENCHMARKS = ("bench_filter", "bench_suspension", "bench_preintegration", "bench_ekf", "bench_gravity",
-              "bench_readers", "bench_batch")
+              "bench_readers", "bench_batch", "bench_preview")
 #: Folder of the studies (accuracy, tuning and simulator checks; not speed targets).
 STUDIES = HERE / "studies"
 #: Studies whose rows check the simulator against the real drives (band powers, method ranking), not speeds.

@@ -8,7 +8,8 @@ import pytest
 
 from imu_ground.filters.extrinsics import Extrinsic, load_extrinsic
 from imu_ground.perception import BevGrid, Camera, GroundPlane, load_camera, range_error, save_camera
-from imu_ground.pipeline.planes import read_kitti_planes, write_kitti_planes
+from imu_ground.pipeline.output import COLUMNS
+from imu_ground.pipeline.planes import PLANES_MARKER, read_kitti_planes, write_kitti_planes
 from imu_ground.so3 import rotx, roty, rotz
 
 REPO = Path(__file__).resolve().parents[1]
@@ -202,7 +203,7 @@ def test_planes_files_parse_as_kittis_do(tmp_path):
     # rewriting a shorter run replaces the folder: no stale frame, no temporary folder left
     write_kitti_planes(tmp_path / "planes", abcd[:2] * 0 + [0, -1, 0, 1.65])
     assert np.allclose(read_kitti_planes(files[0]), [0, -1, 0, 1.65])
-    assert sorted(p.name for p in (tmp_path / "planes").iterdir()) == ["000000.txt", "000001.txt"]
+    assert sorted(p.name for p in (tmp_path / "planes").iterdir()) == [PLANES_MARKER, "000000.txt", "000001.txt"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["planes"]
     # a folder with files of the user's is refused, untouched
     (tmp_path / "planes" / "notes.md").write_text("mine")
@@ -218,9 +219,9 @@ def test_estimate_with_a_camera_on_the_example(tmp_path, cli):
                             "--planes", planes, "-o", out)
     assert code == 0, err
     df = pd.read_csv(out, comment="#")
-    assert list(df.columns[-14:]) == ["plane_a", "plane_b", "plane_c", "plane_d",
-                                      *[f"bev_h{i}{j}" for i in range(3) for j in range(3)], "valid"]
-    files = sorted(planes.iterdir())
+    assert list(df.columns) == [*COLUMNS, "plane_a", "plane_b", "plane_c", "plane_d",       # the order stays
+                                *[f"bev_h{i}{j}" for i in range(3) for j in range(3)]]
+    files = sorted(planes.glob("*.txt"))
     assert len(files) == len(df)
     ok = df["valid"].to_numpy(bool)
     got = np.array([read_kitti_planes(f) for f in files])

@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import re
 import signal
 import sys
 import threading
@@ -21,9 +22,8 @@ import warnings
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 
-from imu_ground._native import kernels_in_use
-from imu_ground.errors import ImuGroundError
-from imu_ground.pipeline.output import package_version
+# Nothing of the library is imported at module level: the console script imports this module
+# before main() runs, and a Ctrl-C during those imports could only end in a traceback.
 
 __all__ = ["COMMANDS", "Terminated", "build_parser", "main"]
 
@@ -31,8 +31,18 @@ __all__ = ["COMMANDS", "Terminated", "build_parser", "main"]
 COMMANDS = ("estimate", "batch", "evaluate", "simulate", "calibrate", "preview")
 
 
+#: An argument that is a negative number, scientific notation included (``-1e5``, ``-.5``, ``-2.5E-3``):
+#: a value, never an option (argparse's own pattern misses the exponent form).
+_NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+
 class _Parser(argparse.ArgumentParser):
-    """argparse with usage errors as one line (``imu-ground CMD: error: ...; see --help``), exit status 2."""
+    """argparse with usage errors as one line (``imu-ground CMD: error: ...; see --help``), exit status 2,
+    and negative numbers in scientific notation read as values (``--bev 0 1e5 -1e5 1e5 1``)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = _NEGATIVE_NUMBER
 
     def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see '{self.prog} --help')\n")
@@ -45,6 +55,8 @@ class _VersionAction(argparse.Action):
         super().__init__(option_strings, dest=dest, default=default, nargs=0, help=help)
 
     def __call__(self, parser, namespace, values, option_string=None):
+        from imu_ground._native import kernels_in_use
+        from imu_ground.pipeline.output import package_version
         print(f"imu-ground {package_version()}, {kernels_in_use()}")
         parser.exit()
 
@@ -129,7 +141,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     (Ctrl-C); 143 terminated (SIGTERM); 141 the reader of stdout went away (``| head``),
     quietly, as Unix tools do. Interrupted or terminated, no temporary or partial file is left.
     """
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)          # imports every command's module: Ctrl-C may come here
+        from imu_ground.errors import ImuGroundError    # the root of the errors a user can fix (exit 2)
+    except KeyboardInterrupt:
+        print("imu-ground: interrupted", file=sys.stderr)
+        return 130
     old = warnings.showwarning
     warnings.showwarning = _show_warning
     try:

@@ -27,7 +27,9 @@ def register(sub) -> None:
                     "processes, or a running cluster (--scheduler). Each output is the file 'imu-ground estimate' "
                     "writes; a rerun skips logs whose output exists with the same settings (--force replaces them); "
                     "one file named twice is estimated once; a failing log is reported in the summary and "
-                    "never stops the others.",
+                    "never stops the others. One run at a time writes to OUTDIR (a second one exits 2 naming the "
+                    "running one; a lock left by a killed run is taken over); files this tool wrote that the "
+                    "patterns match (outputs, summary.csv) are skipped, not read as logs.",
         logs_metavar="LOG_OR_GLOB", logs_help="IMU logs or pose files, or glob patterns in quotes (e.g. 'logs/**/*.csv.gz')",
         output_metavar="OUTDIR", output_help="output folder (created): <log name>_ground.<type> per log and summary.csv")
     b.add_argument("--type", default="csv", choices=("csv", "parquet", "tum", "mcap", "bag"),
@@ -72,7 +74,8 @@ def run(a: argparse.Namespace) -> int:
         else:
             share = "" if r["valid_share"] != r["valid_share"] else f"{100 * r['valid_share']:.1f}% valid"
             frames = "" if r["frames"] != r["frames"] else f"{int(r['frames'])} frames"
-            say(f"{r['status'][:7]:7s} {r['log']}: {_fmt(r['format'])} {frames} {share}, pitch "
+            fmt = _fmt(r["format"]) or "(format not recorded)"
+            say(f"{r['status'][:7]:7s} {r['log']}: {fmt} {frames} {share}, pitch "
                 f"{_fmt(r['pitch_mean_deg'])} +- {_fmt(r['pitch_std_deg'])} deg, roll {_fmt(r['roll_mean_deg'])} "
                 f"+- {_fmt(r['roll_std_deg'])} deg" + (f"; warnings: {r['warnings']}" if _fmt(r["warnings"]) else ""))
     failed = int((table["status"] == "failed").sum())

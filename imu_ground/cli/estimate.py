@@ -97,7 +97,8 @@ def register(sub) -> None:
                         "outputs gain its homography bev_h00 .. bev_h22 (bird's-eye pixel <- image pixel) per frame")
     g.add_argument("--planes", metavar="DIR",
                    help="with --camera: also write one KITTI object planes file per frame, DIR/000000.txt, ... "
-                        "(nan on frames that span a gap; the folder is replaced, one holding other files refused)")
+                        "(nan on frames that span a gap; the folder is replaced as a whole, and only a folder this "
+                        "tool wrote, marked by its .imu-ground-planes file: any other non-empty folder is refused)")
     add_reader_flags(e, poses=True)
     add_progress_flag(e)
     e.set_defaults(func=run)
@@ -117,7 +118,11 @@ def run(a: argparse.Namespace) -> int:
         outputs.append(tum)
         kinds.append(".tum")
     if a.planes is not None:
-        check_planes_dir(a.planes)
+        check_planes_dir(a.planes, inputs=[a.log], outputs=outputs)
+    if a.camera is not None and outputs[0].suffix.lower() == ".tum":
+        warn_line(f"a TUM file holds poses only, not the road plane of --camera {a.camera}"
+                  + (" nor the --bev homographies" if a.bev is not None else "")
+                  + f": write it with -o {outputs[0].with_suffix('.csv')} (or .parquet, .mcap)", outputs[0])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res, table = estimate_to_files(a.log, outputs, kinds, planes=a.planes, progress=progress_enabled(a),

@@ -4,8 +4,9 @@ Without a log: a synthetic drive whose camera (KITTI's camera 2) sees lane
 markings and a metric grid on the true moving road; the picture shows the camera
 view, the bird's-eye views made with the static extrinsic, with the estimate and
 with the truth, and the lane-width error against distance (static and dynamic).
-With a log: ``imu-ground preview LOG --images DIR --times FILE --camera NAME -o F``
-shows the user's images with the log's estimate. ``-o x.gif`` animates the frames.
+With a log: ``imu-ground preview LOG --images DIR --times FILE [--camera NAME] -o F``
+shows the user's images with the log's estimate (camera :data:`DEFAULT_CAMERA` unless given).
+``-o x.gif`` animates the frames.
 """
 from __future__ import annotations
 
@@ -14,14 +15,26 @@ import time
 import warnings
 from pathlib import Path
 
+import numpy as np
+
 from imu_ground.cli._common import nonnegative_int, say, warn_line
 from imu_ground.errors import ImuGroundError
-from imu_ground.evaluation.preview import PREVIEW_GRID, images_preview, render_preview, synthetic_preview
+from imu_ground.evaluation.preview import (
+    DRAWN_BEV_PIXELS,
+    PREVIEW_GRID,
+    drawn_grid,
+    images_preview,
+    render_preview,
+    synthetic_preview,
+)
 from imu_ground.perception import BevGrid, load_camera
 from imu_ground.pipeline.estimate import estimate_log
-from imu_ground.pipeline.output import atomic_path, check_output_path
+from imu_ground.pipeline.output import atomic_path, check_output_path, result_table
 
-__all__ = ["register", "run"]
+__all__ = ["DEFAULT_CAMERA", "register", "run"]
+
+#: The camera when ``--camera`` is not given (KITTI's left colour camera).
+DEFAULT_CAMERA = "kitti_cam2"
 
 
 def register(sub) -> None:
@@ -73,8 +86,9 @@ def _check(a: argparse.Namespace):
         raise ImuGroundError("--lidar DIR and --lidar-extrinsic SPEC go together, with a LOG and its images: "
                              "imu-ground preview LOG --images DIR --times FILE --camera NAME --lidar DIR "
                              "--lidar-extrinsic SPEC -o F")
-    if a.log is not None and not (a.images and a.times and a.camera):
-        raise ImuGroundError(f"{a.log}: a log needs its images: add --images DIR --times FILE --camera NAME")
+    if a.log is not None and not (a.images and a.times):
+        raise ImuGroundError(f"{a.log}: a log needs its images: add --images DIR --times FILE (and --camera NAME; "
+                             f"default {DEFAULT_CAMERA})")
     if a.bev is None:
         return out, PREVIEW_GRID
     try:
@@ -93,16 +107,19 @@ def run(a: argparse.Namespace) -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             preview = synthetic_preview(seed=a.seed, frames=1 if fmt == "png" else max(a.frames, 1), grid=grid,
-                                        camera=a.camera or "kitti_cam2")
+                                        camera=a.camera or DEFAULT_CAMERA)
     else:
+        camera = a.camera or DEFAULT_CAMERA
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            res = estimate_log(a.log, camera=a.camera, extrinsic=a.extrinsic)
+            res = estimate_log(a.log, camera=camera, extrinsic=a.extrinsic)
         for w in res.meta["warnings"]:
             warn_line(w, a.log)
-        preview = images_preview(a.images, a.times, load_camera(a.camera), res.track.t, res.meta["plane"],
-                                 res.track.pitch, res.track.roll,
-                                 title=f"{Path(a.log).name}, camera {a.camera}: bird's-eye views with the static "
+        table = result_table(res)                   # the captions say what the CSV says (nan inside long gaps)
+        preview = images_preview(a.images, a.times, load_camera(camera), res.track.t, res.meta["plane"],
+                                 np.radians(table["pitch_deg"].to_numpy(float)),
+                                 np.radians(table["roll_deg"].to_numpy(float)),
+                                 title=f"{Path(a.log).name}, camera {camera}: bird's-eye views with the static "
                                        f"and the estimated plane (method {res.meta['method']})")
         if a.lidar:
             from imu_ground.evaluation.lidar_preview import add_lidar_plane
@@ -120,5 +137,8 @@ def run(a: argparse.Namespace) -> int:
             f"{le['distance_m'][i]:g} m: static {le['static'][i]:.3f} m, dynamic {le['dynamic'][i]:.3f} m"
             for i in picks))
     frames = 1 if fmt == "png" else len(preview.times)
-    say(f"wrote {out} ({frames} frame{'s' if frames > 1 else ''}, {time.perf_counter() - t0:.1f} s)")
+    drawn = drawn_grid(grid)
+    note = (f"; bird's-eye views drawn at {drawn.res:.4g} m a pixel, at most {DRAWN_BEV_PIXELS} pixels a side"
+            if drawn != grid else "")
+    say(f"wrote {out} ({frames} frame{'s' if frames > 1 else ''}, {time.perf_counter() - t0:.1f} s{note})")
     return 0

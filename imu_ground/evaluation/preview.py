@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from imu_ground.datasets.options import OptionError
 from imu_ground.errors import ImuGroundError
 from imu_ground.evaluation.ground_effect import LANE_WIDTH, ground_errors
 from imu_ground.evaluation.simulate import SpeedParams, simulate
@@ -35,8 +36,8 @@ from imu_ground.perception.camera import Camera, load_camera
 from imu_ground.perception.plane import BevGrid, GroundPlane
 from imu_ground.perception.warp import warp_to_bev
 
-__all__ = ["PREVIEW_GRID", "PNG_KEY", "Preview", "images_preview", "read_preview_errors", "render_preview",
-           "synthetic_preview"]
+__all__ = ["DRAWN_BEV_PIXELS", "PREVIEW_GRID", "PNG_KEY", "Preview", "drawn_grid", "images_preview",
+           "read_preview_errors", "render_preview", "synthetic_preview"]
 
 #: Default bird's-eye grid: 5-45 m ahead, 7 m either side, 5 cm a pixel.
 PREVIEW_GRID = BevGrid(5.0, 45.0, -7.0, 7.0, 0.05)
@@ -45,6 +46,10 @@ PNG_KEY = "lane_width_error"
 #: Distances of the lane-width plot, m.
 PLOT_DISTANCES = np.arange(5.0, 60.01, 2.5)
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".ppm")
+#: Most pixels a side of a drawn bird's-eye view: a finer grid is drawn at the coarser resolution
+#: :func:`drawn_grid` gives (a panel of the picture is about 520 x 250 pixels, so nothing visible is
+#: lost), which bounds the preview's memory and time whatever the grid.
+DRAWN_BEV_PIXELS = 1200
 
 
 @dataclass
@@ -139,10 +144,10 @@ def synthetic_preview(seed: int = 3, duration: float = 40.0, frames: int = 1, gr
                    f"{default_method(True)}", labels, lanes=True)
 
 
-def _read_times(path: Path) -> np.ndarray:
+def _read_times(path: Path) -> tuple[np.ndarray, np.ndarray]:
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such times file (--times: one time a line, s on the log's clock)")
-    times = []
+    times, linenos = [], []
     for lineno, line in enumerate(path.read_text().splitlines(), start=1):
         text = line.split("#", 1)[0].strip()
         if not text:
@@ -154,9 +159,18 @@ def _read_times(path: Path) -> np.ndarray:
         if not math.isfinite(value):
             raise ImuGroundError(f"{path}:{lineno}: {text!r} is not a finite time (--times)")
         times.append(value)
+        linenos.append(lineno)
     if not times:
         raise ImuGroundError(f"{path}: no time in the file (--times: one time a line, s on the log's clock)")
-    return np.array(times)
+    return np.array(times), np.array(linenos)
+
+
+def _check_increasing(path: Path, times: np.ndarray, linenos: np.ndarray) -> None:
+    back = np.flatnonzero(np.diff(times) < 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise OptionError(f"{path}:{linenos[i]}: time {times[i]:g} s is before the one above it ({times[i - 1]:g} s); "
+                          "give {opt} the images' times in their name order, increasing", "times")
 
 
 def _read_image(path: Path, camera: Camera) -> np.ndarray:
@@ -205,7 +219,7 @@ def images_preview(images: str | Path, times: str | Path, camera: str | Camera, 
     files = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
     if not files:
         raise ImuGroundError(f"{folder}: no image ({', '.join(IMAGE_SUFFIXES)}) in the folder (--images)")
-    t_img = _read_times(times_path)
+    t_img, linenos = _read_times(times_path)
     if len(t_img) != len(files):
         raise ImuGroundError(f"{times_path}: {len(t_img)} times for {len(files)} images in {folder}; give --times one "
                              "line per image, in the images' name order")
@@ -214,8 +228,10 @@ def images_preview(images: str | Path, times: str | Path, camera: str | Camera, 
     lo, hi = float(t[0]) - step, float(t[-1])
     bad = np.flatnonzero((t_img < lo) | (t_img > hi))
     if bad.size:
-        raise ImuGroundError(f"{times_path}:{bad[0] + 1}: time {t_img[bad[0]]:g} s ({files[bad[0]].name}) is outside the "
+        i = int(bad[0])
+        raise ImuGroundError(f"{times_path}:{linenos[i]}: time {t_img[i]:g} s ({files[i].name}) is outside the "
                              f"log's frames ({lo:g} .. {hi:g} s on the log's clock); give --times on the log's clock")
+    _check_increasing(times_path, t_img, linenos)
     cam = load_camera(camera)
     for f in files:
         _read_image(f, cam)                         # every image readable and of the camera's size before drawing
@@ -227,11 +243,26 @@ def images_preview(images: str | Path, times: str | Path, camera: str | Camera, 
               "dynamic": dynamic[nearest]}
     if pitch is not None and roll is not None:
         p, r = np.degrees(np.asarray(pitch)[nearest]), np.degrees(np.asarray(roll)[nearest])
-        labels = [f"{f.name}: t = {ti:.2f} s, estimate pitch {a:+.2f} deg, roll {b:+.2f} deg"
+        labels = [f"{f.name}: t = {ti:.2f} s, estimate pitch {_deg(a)} deg, roll {_deg(b)} deg"
                   for f, ti, a, b in zip(files, t_img, p, r)]
     else:
         labels = [f"{f.name}: t = {ti:.2f} s" for f, ti in zip(files, t_img)]
     return Preview(cam, planes, t_img, lambda k: _read_image(files[k], cam), title=title, labels=labels)
+
+
+def drawn_grid(grid: BevGrid) -> BevGrid:
+    """The grid a bird's-eye view is drawn on: ``grid`` itself, or, when it has more than
+    :data:`DRAWN_BEV_PIXELS` pixels a side, the same extent at a resolution coarser by the smallest
+    whole factor that fits."""
+    factor = math.ceil(max(grid.shape) / DRAWN_BEV_PIXELS)
+    if factor <= 1:
+        return grid
+    return BevGrid(grid.x0, grid.x1, grid.y0, grid.y1, grid.res * factor)
+
+
+def _deg(value: float) -> str:
+    """An angle of a caption, deg: ``nan`` (as the output table writes it) where there is no estimate."""
+    return "nan" if math.isnan(value) else f"{value:+.2f}"
 
 
 def _figure(preview: Preview, k: int, grid: BevGrid):
@@ -247,6 +278,7 @@ def _figure(preview: Preview, k: int, grid: BevGrid):
     ax.set_axis_off()
     what = {"static": "static extrinsic", "dynamic": "dynamic (estimate)", "lidar": "LiDAR plane", "truth": "truth"}
     lanes = 0.5 * LANE_WIDTH
+    grid = drawn_grid(grid)
     for j, name in enumerate(names):
         plane = preview.planes[name]
         if not np.all(np.isfinite(plane.rotation[k])):

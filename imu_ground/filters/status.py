@@ -69,7 +69,7 @@ from imu_ground.units import DEG
 
 __all__ = ["STATUSES", "CONVERGING", "OK", "STANDSTILL", "GAP", "DEGRADED", "INVALID", "CONVERGED_STD", "FILTER_CONVERGED_STD",
            "AngleStd", "SigmaModel", "SUSPENSION_STD", "FILTER_STD", "SLOW_SPEED", "SLOW_REASON", "ok_note", "status_reason",
-           "frame_status_code", "track_statuses", "track_reasons", "status_names"]
+           "frame_status_code", "gap_run_durations", "track_statuses", "track_reasons", "status_names"]
 
 #: The statuses, indexed by their code.
 STATUSES = ("converging", "ok", "standstill", "gap", "degraded", "invalid")
@@ -151,7 +151,8 @@ def status_reason(code: int, gap_seconds: float = math.nan, std: float = math.na
     code : int
         Index into :data:`STATUSES`.
     gap_seconds : float
-        Duration of the frame (s), said for ``gap``.
+        Duration of the gap (s), said for ``gap``: the frame's own (a stream cannot know more);
+        the output table says the whole run's (:func:`gap_run_durations`).
     std : float
         The larger 1-sigma of the frame (rad), said for ``converging``.
     detail : str, optional
@@ -243,6 +244,20 @@ def track_statuses(var_max: np.ndarray, stationary: np.ndarray, valid: np.ndarra
                           np.asarray(valid, dtype=np.intp), deg.astype(np.intp)]
     codes[~good] = INVALID
     return codes, bool(conv[-1]) if n else bool(converged)
+
+
+def gap_run_durations(gap: np.ndarray, dt: np.ndarray) -> np.ndarray:
+    """``dt`` (frame durations, s) with each run of consecutive ``gap`` frames replaced by the run's summed
+    duration: the length of the gap every frame inside it says."""
+    gap, dt = np.asarray(gap, dtype=bool), np.asarray(dt, dtype=float)
+    if not gap.any():
+        return dt
+    start = gap & ~np.concatenate([[False], gap[:-1]])
+    run = np.cumsum(start) - 1                              # run index of each gap frame
+    total = np.bincount(run[gap], weights=dt[gap])
+    out = dt.copy()
+    out[gap] = total[run[gap]]
+    return out
 
 
 def track_reasons(codes: np.ndarray, std_max: np.ndarray, dt: np.ndarray,

@@ -13,9 +13,14 @@ from __future__ import annotations
 
 import contextlib
 import glob
+import json
 import multiprocessing
 import os
+import re
+import socket
+import sys
 import threading
+import time
 import warnings
 from collections.abc import Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -24,6 +29,7 @@ from typing import Any
 
 from imu_ground.errors import ImuGroundError, require_extra
 from imu_ground.pipeline.estimate import OptionError, check_options, estimate_to_files, requested_options
+from imu_ground.pipeline.input_checks import process_running
 from imu_ground.pipeline.output import (
     OUTPUT_SUFFIXES,
     atomic_path,
@@ -33,14 +39,16 @@ from imu_ground.pipeline.output import (
     summarize_table,
 )
 
-__all__ = ["SUMMARY_COLUMNS", "check_existing_outputs", "expand_logs", "output_names", "process_log", "run_batch",
-           "unique_logs"]
+__all__ = ["LOCK_NAME", "SUMMARY_COLUMNS", "check_existing_outputs", "expand_logs", "is_own_output",
+           "output_folder_lock", "output_names", "process_log", "run_batch", "unique_logs"]
 
 #: Columns of the summary table, in order.
 SUMMARY_COLUMNS = ("log", "status", "format", "method", "frames", "valid_share", "pitch_mean_deg", "pitch_std_deg",
                    "pitch_min_deg", "pitch_max_deg", "roll_mean_deg", "roll_std_deg", "roll_min_deg", "roll_max_deg",
                    "warnings", "error", "output")
 _GLOB_CHARS = set("*?[")
+#: Lock file in a batch's output folder while a run writes there (:func:`output_folder_lock`).
+LOCK_NAME = ".imu-ground-batch.lock"
 
 
 def expand_logs(patterns: Iterable[str | Path]) -> list[tuple[str, str | None]]:
@@ -115,6 +123,47 @@ def unique_logs(found: Sequence[tuple[str, str | None]]) -> tuple[list[tuple[str
     return kept, dup
 
 
+def is_own_output(path: str | Path, out_dir: str | Path | None = None) -> bool:
+    """Whether ``path`` is a file this tool wrote (an output or a batch summary), not a log.
+
+    An output records its settings (CSV and TUM header, Parquet schema); a summary starts with
+    :data:`SUMMARY_COLUMNS`; a ROS output (whose record is not read back) is recognised by its name
+    ``*_ground.bag`` / ``*_ground.mcap`` inside ``out_dir``.
+    """
+    p = Path(path)
+    if not p.is_file():
+        return False
+    if read_output_settings(p) is not None:
+        return True
+    if p.suffix.lower() == ".csv":
+        try:
+            with open(p, encoding="utf-8", errors="replace") as fh:
+                if fh.readline().rstrip("\r\n") == ",".join(SUMMARY_COLUMNS):
+                    return True
+        except OSError:
+            return False
+    return (out_dir is not None and p.name.endswith(("_ground.bag", "_ground.mcap"))
+            and p.parent.resolve() == Path(out_dir).resolve())
+
+
+def _recorded_format_method(out: Path) -> dict[str, Any]:
+    """The format and method an existing output records (what a skipped log's summary row shows)."""
+    info: dict[str, Any] = {}
+    if out.suffix == ".csv":
+        with open(out, encoding="utf-8") as fh:
+            m = re.search(r"estimate: format (\S+), method (\S+)", fh.readline())
+        if m:
+            info = {"format": m.group(1), "method": m.group(2)}
+    elif out.suffix == ".parquet":
+        import pyarrow.parquet as pq
+        raw = (pq.read_schema(out).metadata or {}).get(b"imu_ground")
+        meta = json.loads(raw) if raw else {}
+        info = {k: meta.get(k) for k in ("format", "method")}
+    if not info.get("method"):
+        info["method"] = (read_output_settings(out) or {}).get("method")
+    return {k: v for k, v in info.items() if v}
+
+
 def _skipped_row(out: Path) -> dict[str, Any]:
     row: dict[str, Any] = {"status": "skipped (output exists)"}
     try:
@@ -124,6 +173,7 @@ def _skipped_row(out: Path) -> dict[str, Any]:
         elif out.suffix == ".parquet":
             import pandas as pd
             row.update(summarize_table(pd.read_parquet(out)))
+        row.update(_recorded_format_method(out))
     except Exception as e:                                   # noqa: BLE001 - the row reports it
         row["warnings"] = f"{out}: could not summarise the existing output ({e})"
     return row
@@ -205,6 +255,77 @@ def check_existing_outputs(paths: Iterable[str | Path], options: dict) -> None:
                           "force", "--force")
 
 
+@contextlib.contextmanager
+def output_folder_lock(out_dir: str | Path, option: str = "-o") -> Iterator[Path]:
+    """Hold the batch lock of an output folder (:data:`LOCK_NAME`) for the block; a second run is refused.
+
+    The lock file records the holder (process id, host, start time, command). A lock held by
+    a running process raises at once (no waiting); a lock file left by a process that no
+    longer runs (killed) is taken over with a warning. The lock is a kernel lock on the file
+    (``flock``), released by the system however the holder ends; where there is none, the
+    recorded process id is checked instead. The file is removed when the block ends.
+
+    Raises
+    ------
+    OptionError
+        Another run holds the lock: naming it and ``option``.
+    """
+    path = Path(out_dir) / LOCK_NAME
+    try:
+        import fcntl
+    except ImportError:                                 # not a POSIX system: the recorded process id decides
+        fcntl = None
+    for _ in range(10):
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            if fcntl is not None:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            holder = _lock_holder(fd)
+            if fcntl is None and holder and holder.get("host") == socket.gethostname() and \
+                    process_running(int(holder.get("pid", -1))):
+                raise BlockingIOError
+            if os.path.samestat(os.fstat(fd), os.stat(path)):
+                break                                   # not a file removed by its holder meanwhile
+        except BlockingIOError:
+            holder = _lock_holder(fd)
+            os.close(fd)
+            raise OptionError(f"{out_dir}: another imu-ground batch is writing to this folder ({_describe(holder)}); "
+                              "wait for it to finish or give {opt} another folder", "outdir", flag=option) from None
+        except FileNotFoundError:
+            pass
+        os.close(fd)
+    else:
+        raise OptionError(f"{path}: could not take the batch lock; give {{opt}} another folder", "outdir", flag=option)
+    if holder:
+        warnings.warn(f"{out_dir}: an earlier batch that wrote here ({_describe(holder)}) no longer runs; its lock "
+                      "is taken over (its outputs are complete or absent: writes are atomic)")
+    me = {"pid": os.getpid(), "host": socket.gethostname(),
+          "started": time.strftime("%Y-%m-%d %H:%M:%S %Z", time.localtime()), "command": " ".join(sys.argv)}
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, (json.dumps(me) + "\n").encode(), 0)
+    try:
+        yield path
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(path)
+        os.close(fd)
+
+
+def _lock_holder(fd: int) -> dict:
+    try:
+        data = os.pread(fd, 65536, 0)
+        holder = json.loads(data) if data.strip() else {}
+    except (OSError, ValueError):
+        return {"pid": "?"}
+    return holder if isinstance(holder, dict) else {"pid": "?"}
+
+
+def _describe(holder: dict) -> str:
+    return (f"pid {holder.get('pid', '?')}" + (f" on {holder['host']}" if holder.get("host") else "")
+            + (f", started {holder['started']}" if holder.get("started") else "")
+            + (f": {holder['command']}" if holder.get("command") else ""))
+
+
 def _client(scheduler: str):
     """A client of the running Dask cluster at ``scheduler``."""
     distributed = require_extra("dask.distributed", "fleet", "imu-ground batch --scheduler")
@@ -251,9 +372,6 @@ def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | 
         :data:`SUMMARY_COLUMNS`, one row per log in input order, then one row (status
         ``"duplicate"``) per path that named a file already listed.
     """
-    import pandas as pd
-    from tqdm.auto import tqdm
-
     if suffix not in OUTPUT_SUFFIXES:
         raise ImuGroundError(f"unknown output type {suffix!r}; choose from {', '.join(OUTPUT_SUFFIXES)}")
     check_options(**{k: v for k, v in options.items() if k not in ("extrinsic", "progress", "speed")})
@@ -261,7 +379,23 @@ def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | 
     if out_dir.exists() and not out_dir.is_dir():
         raise ImuGroundError(f"{out_dir}: is a file; give -o an output folder")
     out_dir.mkdir(parents=True, exist_ok=True)
-    found, duplicates = unique_logs(expand_logs(logs))
+    with output_folder_lock(out_dir, "-o" if cli else "outdir"):
+        return _run_batch_locked(logs, out_dir, workers, scheduler, suffix, progress, cli, summary, force, tum,
+                                 options)
+
+
+def _run_batch_locked(logs, out_dir: Path, workers, scheduler, suffix, progress, cli, summary, force, tum, options):
+    """:func:`run_batch` once the output folder is locked."""
+    import pandas as pd
+    from tqdm.auto import tqdm
+
+    found = expand_logs(logs)
+    own = [log for log, err in found if err is None and is_own_output(log, out_dir)]
+    if own:
+        more = f" and {len(own) - 1} more" if len(own) > 1 else ""
+        warnings.warn(f"{own[0]}{more}: written by imu-ground (outputs or a summary), not logs: skipped")
+        found = [(log, err) for log, err in found if log not in set(own)]
+    found, duplicates = unique_logs(found)
     names = output_names([log for log, _ in found], suffix)
     extra_kind = ".tum" if tum and suffix != ".tum" else None
     rows: list[dict | None] = [None] * len(found)

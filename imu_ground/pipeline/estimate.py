@@ -489,6 +489,6 @@ def estimate_to_files(path: str | Path, outputs, kinds=None, planes: str | Path 
     table = result_table(result)
     if planes is not None:
         from imu_ground.pipeline.planes import write_kitti_planes
-        write_kitti_planes(planes, result.meta["plane"].coefficients)
+        write_kitti_planes(planes, result.meta["plane"].coefficients, inputs=[path], keep=outputs)
     write_outputs(outputs, table, result.meta, kinds)
     return result, table

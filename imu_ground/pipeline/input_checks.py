@@ -26,7 +26,7 @@ from imu_ground.errors import ImuGroundError
 from imu_ground.filters import Extrinsic
 
 __all__ = ["GRAVITY_REFUSE_DEG", "GRAVITY_WARN_DEG", "OptionError", "check_creatable", "check_gravity_direction",
-           "check_recalibration", "gravity_angle", "requested_options"]
+           "check_recalibration", "gravity_angle", "process_running", "requested_options"]
 
 
 def requested_options(*, method: str = "auto", rate: float | None = None, extrinsic: Any = None, Q: Any = None,
@@ -159,3 +159,18 @@ def check_recalibration(path: str | Path, speeds: np.ndarray | None, speed_info:
         warnings.warn(f"{path}: --recalibrate-online cannot act: the mount monitor judges from "
                       f"{HOLD_OFF + GATE:g} s after the first frame with a speed, and the frames with a speed "
                       f"span {span:.1f} s")
+
+
+def process_running(pid: int) -> bool:
+    """Whether a process with id ``pid`` runs on this machine (what tells a stale lock or leftover from a live one)."""
+    if pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:                 # it runs, as another user
+        return True
+    except OSError:
+        return False
+    return True

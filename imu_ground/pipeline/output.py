@@ -32,8 +32,8 @@ import numpy as np
 from imu_ground._version import __version__
 from imu_ground.errors import ImuGroundError, MissingExtraError, require_extra
 from imu_ground.filters.estimator import GroundTrack
-from imu_ground.filters.status import status_names
-from imu_ground.pipeline.input_checks import check_creatable
+from imu_ground.filters.status import GAP, gap_run_durations, status_names, status_reason
+from imu_ground.pipeline.input_checks import OptionError, check_creatable
 from imu_ground.pipeline.planes import PLANE_UNITS, plane_columns
 from imu_ground.pipeline.ros_output import write_ros_output
 from imu_ground.so3 import quat_from_matrix
@@ -110,6 +110,7 @@ def track_table(track: GroundTrack, max_gap_frames: int = GAP_NAN_FRAMES) -> "pd
     """
     import pandas as pd                             # heavy: only when a table is made
     n = len(track)
+    reasons = _gap_reasons(np.asarray(track.status), np.asarray(track.t, dtype=float), track.status_reason)
     q = quat_from_matrix(track.residual) if n else np.zeros((0, 4))
     valid = np.asarray(track.valid, dtype=bool)
     df = pd.DataFrame({"t": np.asarray(track.t, dtype=float),
@@ -117,12 +118,26 @@ def track_table(track: GroundTrack, max_gap_frames: int = GAP_NAN_FRAMES) -> "pd
                        "pitch_deg": np.degrees(track.pitch), "roll_deg": np.degrees(track.roll),
                        "qw": q[:, 0], "qx": q[:, 1], "qy": q[:, 2], "qz": q[:, 3], "valid": valid,
                        **{f"{name}_deg": np.degrees(getattr(track, name)) for name in _EXTRA_ANGLES},
-                       "status": status_names(track.status), "status_reason": track.status_reason})
+                       "status": status_names(track.status), "status_reason": reasons})
     blank = _long_runs(~valid, max_gap_frames)
     if blank.any():
         cols = [c for c in df.columns if c not in ("t", "valid", "status", "status_reason")]
         df.loc[blank, cols] = np.nan
     return df
+
+
+def _gap_reasons(codes: np.ndarray, t: np.ndarray, reasons: np.ndarray) -> np.ndarray:
+    """The reasons with every frame of a run of ``gap`` frames saying the whole gap's length (a stream's
+    frame can say only its own)."""
+    gap = codes == GAP
+    if not gap.any():
+        return reasons
+    dt = np.diff(t, prepend=t[0] - (np.nanmedian(np.diff(t)) if len(t) > 1 else 0.0))
+    seconds = gap_run_durations(gap, dt)
+    out = np.array(reasons, dtype=object)
+    for sec in np.unique(seconds[gap]).tolist():          # one text per gap length (few)
+        out[gap & (seconds == sec)] = status_reason(GAP, sec)
+    return out
 
 
 #: Angle fields of a track written to the table after ``valid``, as ``NAME_deg``.
@@ -144,13 +159,12 @@ def result_table(result) -> Any:
     """The output table (pandas.DataFrame, :data:`COLUMNS`) of an :class:`~imu_ground.pipeline.EstimateResult`.
 
     With a camera (``meta["plane"]``) the plane columns ``plane_a`` ... ``plane_d`` (and with a
-    bird's-eye grid ``bev_h00`` ... ``bev_h22``) come before ``valid``
-    (:mod:`imu_ground.pipeline.planes`)."""
+    bird's-eye grid ``bev_h00`` ... ``bev_h22``) follow :data:`COLUMNS`, whose order stays the same
+    with or without a camera (:mod:`imu_ground.pipeline.planes`)."""
     table = track_table(result.track, max_gap_frames=GAP_NAN_FRAMES)
     if result.meta.get("plane") is not None:            # with a camera: plane_a..plane_d (and bev_h00..bev_h22)
         for name, values in plane_columns(result.meta["plane"], result.meta.get("bev")).items():
             table[name] = values
-        table["valid"] = table.pop("valid")
     return table
 
 
@@ -461,11 +475,21 @@ def write_outputs(paths: Sequence[_PathLike], table, meta: Mapping[str, Any],
 
 @contextmanager
 def _staged(path: Path) -> Iterator[Path]:
-    """Like :func:`atomic_path` but the caller renames (so several files can be committed together)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmpdir = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+    """Like :func:`atomic_path` but the caller renames (so several files can be committed together).
+
+    An operating-system error names ``path``, never the temporary folder.
+    """
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmpdir = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+    except OSError as e:
+        raise OptionError(f"{path}: cannot be written there ({e.strerror or e}); choose another path") from None
     try:
         yield tmpdir / path.name
+    except OSError as e:
+        if str(tmpdir) not in f"{e.filename} {e.filename2}":
+            raise
+        raise OptionError(f"{path}: could not be written ({e.strerror or e}); choose another path") from None
     finally:
         shutil.rmtree(tmpdir, ignore_errors=True)
 

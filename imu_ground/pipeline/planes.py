@@ -24,24 +24,32 @@ in the camera's axes (:meth:`GroundPlane.from_camera
 """
 from __future__ import annotations
 
+import contextlib
+import json
 import os
 import re
 import shutil
+import signal
+import stat
 import tempfile
+import threading
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from imu_ground._version import __version__
 from imu_ground.datasets.options import OptionError
 from imu_ground.errors import ImuGroundError
 from imu_ground.perception import load_camera
 from imu_ground.perception.camera import Camera
 from imu_ground.perception.plane import BevGrid, GroundPlane
-from imu_ground.pipeline.input_checks import check_creatable
+from imu_ground.pipeline.input_checks import check_creatable, process_running
 
-__all__ = ["BEV_COLUMNS", "PLANE_COLUMNS", "PLANE_UNITS", "camera_plane", "check_camera", "check_planes_dir",
-           "plane_columns", "read_kitti_planes", "write_kitti_planes"]
+__all__ = ["BEV_COLUMNS", "PLANES_MARKER", "PLANE_COLUMNS", "PLANE_UNITS", "camera_plane", "check_camera",
+           "check_planes_dir", "plane_columns", "read_kitti_planes", "write_kitti_planes"]
 
 #: Plane columns of the output table with a camera.
 PLANE_COLUMNS = ("plane_a", "plane_b", "plane_c", "plane_d")
@@ -84,43 +92,157 @@ def plane_columns(plane: GroundPlane, grid: BevGrid | None = None) -> dict[str, 
     return cols
 
 
-def check_planes_dir(path: str | Path, option: str = "--planes") -> Path:
-    """Check, before any work, that ``path`` can be the planes folder (absent, or a folder we may write in).
+#: Marker file in every planes folder this tool writes (written with the planes files): only a folder that holds
+#: it (and nothing but planes files and this run's own outputs) is ever replaced.
+PLANES_MARKER = ".imu-ground-planes"
+_PLANES_NAME = re.compile(r"[0-9]{6}\.txt")
+
+
+def _is_inside(path: str | Path, folder: Path) -> bool:
+    p, f = Path(os.path.abspath(path)).resolve(), Path(os.path.abspath(folder)).resolve()
+    return p == f or f in p.parents
+
+
+def check_planes_dir(path: str | Path, option: str = "--planes", inputs: Sequence[str | Path] = (),
+                     outputs: Sequence[str | Path] = ()) -> Path:
+    """Check, before any work, that ``path`` can be the planes folder.
+
+    It may be absent, empty, or a folder this tool wrote (it holds :data:`PLANES_MARKER`) with
+    nothing but planes files (``%06d.txt``) and this run's own ``outputs``; any other folder
+    (KITTI ``label_2`` or ``calib`` files, say) is refused naming one of its files, and so is a
+    folder that holds an input log.
+
+    Parameters
+    ----------
+    path : str or Path
+    option : str
+        How the user named the folder (for messages).
+    inputs : sequence of str or Path
+        The input logs, which must not lie inside the folder.
+    outputs : sequence of str or Path
+        Outputs of the same run, which may lie inside it (they are written after the planes).
 
     Raises
     ------
-    ImuGroundError
-        One line naming the path and the option.
+    OptionError
+        One line naming the path, the file and the option.
     """
-    p = Path(path)
+    p, name = Path(path), option.lstrip("-")
     if p.exists() and not p.is_dir():
-        raise ImuGroundError(f"{p}: is a file; give {option} a folder for the planes files")
-    foreign = _foreign_files(p)
+        raise OptionError(f"{p}: is a file; give {{opt}} a folder for the planes files", name, flag=option)
+    for src in inputs:
+        if _is_inside(src, p):
+            raise OptionError(f"{p}: holds the input log {src}, and the planes folder is replaced as a whole; give "
+                              "{opt} another folder", name, flag=option)
+    foreign = _foreign_files(p, outputs)
     if foreign:
-        raise ImuGroundError(f"{p}: holds other files than planes files ({foreign[0].name}); give {option} a new or "
-                             "empty folder, or one of planes files only (they are replaced)")
+        if (p / PLANES_MARKER).is_file():
+            why = f"holds {foreign[0].name}, which imu-ground did not write beside its planes files"
+        else:
+            why = (f"holds files that imu-ground did not write ({foreign[0].name}; a planes folder it wrote holds "
+                   f"its marker {PLANES_MARKER})")
+        raise OptionError(f"{p}: {why}; give {{opt}} a new or empty folder, or one an earlier {option} run "
+                          "wrote (it is replaced); nothing was changed", name, flag=option)
     check_creatable(p, option, start=p if p.exists() else p.parent)
     return p
 
 
-def _foreign_files(folder: Path) -> list[Path]:
-    """What a folder holds besides planes files (``%06d.txt``); empty for a missing folder."""
+def _foreign_files(folder: Path, outputs: Sequence[str | Path] = ()) -> list[Path]:
+    """What of a folder's content may not be replaced: all of it without the marker, else what is neither
+    a planes file, nor one of ``outputs``, nor what an interrupted write of one of them left (``.NAME.*.tmp``);
+    empty for a missing or empty folder."""
     if not folder.is_dir():
         return []
-    return sorted(p for p in folder.iterdir() if not re.fullmatch(r"[0-9]{6}\.txt", p.name))
+    ours = (folder / PLANES_MARKER).is_file()
+    allowed = {Path(os.path.abspath(o)).resolve() for o in outputs}
+    staged = tuple(f".{Path(o).name}." for o in outputs)
+    return sorted(e for e in folder.iterdir()
+                  if not (ours and (e.name == PLANES_MARKER or (_PLANES_NAME.fullmatch(e.name) and e.is_file())
+                                    or (e.name.startswith(staged) and e.name.endswith(".tmp") and e.is_dir()))
+                          or e.resolve() in allowed))
 
 
 def _planes_text(abcd: np.ndarray) -> str:
     return "# Matrix\nWIDTH 4\nHEIGHT 1\n" + " ".join(PLANES_FORMAT % v for v in abcd) + "\n"
 
 
-def write_kitti_planes(folder: str | Path, coefficients: Any, first_index: int = 0) -> list[Path]:
+@contextmanager
+def _signals_deferred() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM until the block ends, then act on the first one received as it would have.
+
+    The replacement of a planes folder (two renames and the removal of the old folder) is
+    never cut in the middle. Outside the main thread (where Python runs no signal handler) a no-op.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received: list[int] = []
+    held = (signal.SIGINT, signal.SIGTERM)
+    old = {s: signal.signal(s, lambda signum, frame: received.append(signum)) for s in held}
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, signal.SIG_DFL if h is None else h)
+        if received:
+            s = received[0]
+            if callable(old[s]):
+                old[s](s, None)
+            elif old[s] != signal.SIG_IGN:
+                signal.raise_signal(s)
+
+
+def _remove_planes_folder(folder: Path) -> None:
+    """Remove a planes folder this tool wrote, its marker last (what is left is still recognised as ours)."""
+    if not folder.is_dir():
+        return
+    for e in folder.iterdir():
+        if e.name != PLANES_MARKER:
+            shutil.rmtree(e, ignore_errors=True) if e.is_dir() and not e.is_symlink() else e.unlink(missing_ok=True)
+    (folder / PLANES_MARKER).unlink(missing_ok=True)
+    with contextlib.suppress(OSError):
+        folder.rmdir()
+
+
+def _marker_pid(folder: Path) -> int | None:
+    try:
+        return int(json.loads((folder / PLANES_MARKER).read_text(encoding="utf-8")).get("pid"))
+    except (OSError, ValueError, TypeError, AttributeError):
+        return None
+
+
+def _remove_stale_leftovers(out: Path) -> None:
+    """Remove what an interrupted earlier run left beside ``out``: ``.NAME.*.tmp`` folders of a process no
+    longer running and ``.NAME.*.tmp.old`` folders, each only when it holds :data:`PLANES_MARKER`."""
+    prefix = f".{out.name}."
+    for d in out.parent.iterdir():
+        if not (d.name.startswith(prefix) and d.name.endswith((".tmp", ".tmp.old")) and d.is_dir()
+                and (d / PLANES_MARKER).is_file()):
+            continue
+        pid = _marker_pid(d)
+        if d.name.endswith(".old") or pid is None or not process_running(pid):
+            _remove_planes_folder(d)
+
+
+def _folder_mode(out: Path) -> int:
+    """The replaced folder's permissions, or those the umask gives a new folder."""
+    if out.is_dir():
+        return stat.S_IMODE(out.stat().st_mode)
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o777 & ~mask
+
+
+def write_kitti_planes(folder: str | Path, coefficients: Any, first_index: int = 0, *,
+                       inputs: Sequence[str | Path] = (), keep: Sequence[str | Path] = ()) -> list[Path]:
     """Write one KITTI ``planes`` file per frame, ``%06d.txt`` from ``first_index``; NaN rows as ``nan``.
 
-    All files are written into a temporary folder beside ``folder`` first, which then
-    takes the folder's place: a failure leaves no partial file, and a folder of an
-    earlier, longer run keeps no stale frames. A ``folder`` that holds anything but
-    planes files is refused (nothing of the user's is deleted).
+    All files and the marker :data:`PLANES_MARKER` are written into a temporary folder beside
+    ``folder`` first, which then takes the folder's place (SIGINT and SIGTERM are held over the
+    renames and the removal of the old folder): a failure leaves no partial file, and a folder of
+    an earlier, longer run keeps no stale frames. Only a folder that :func:`check_planes_dir`
+    accepts is replaced (nothing of the user's is deleted); what an interrupted run left beside
+    it is removed. The folder gets the permissions of the one it replaces, or the umask's.
 
     Parameters
     ----------
@@ -128,28 +250,62 @@ def write_kitti_planes(folder: str | Path, coefficients: Any, first_index: int =
     coefficients : array_like (N, 4)
         ``a b c d`` per frame (:attr:`GroundPlane.coefficients`).
     first_index : int
+    inputs : sequence of str or Path
+        Input logs, which must not lie inside ``folder``.
+    keep : sequence of str or Path
+        Files of the same run inside ``folder`` (its outputs) that are carried over into the new folder.
 
     Returns
     -------
     list of Path
         The files, in frame order.
+
+    Raises
+    ------
+    OptionError
+        The folder is refused (:func:`check_planes_dir`) or cannot be written (naming ``folder``).
     """
     abcd = np.asarray(coefficients, dtype=float).reshape(-1, 4)
     out = Path(folder)
-    check_planes_dir(out, "folder")
-    out.parent.mkdir(parents=True, exist_ok=True)
+    check_planes_dir(out, "folder", inputs, keep)
     names = [f"{first_index + i:06d}.txt" for i in range(len(abcd))]
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
-    old = tmp.with_name(tmp.name + ".old")
+    tmp: Path | None = None
     try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        _remove_stale_leftovers(out)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
+        os.chmod(tmp, _folder_mode(out))
+        marker = {"written_by": f"imu-ground {__version__}", "what": "KITTI object planes files, one per frame",
+                  "frames": len(names), "pid": os.getpid()}
+        (tmp / PLANES_MARKER).write_text(json.dumps(marker) + "\n", encoding="utf-8")
         for name, row in zip(names, abcd):
             (tmp / name).write_text(_planes_text(row), encoding="ascii")
-        if out.exists():
-            os.replace(out, old)
-        os.replace(tmp, out)
+        for k in keep:
+            k = Path(k)
+            if k.is_file() and k.parent.resolve() == out.resolve():
+                try:
+                    os.link(k, tmp / k.name)
+                except OSError:
+                    shutil.copy2(k, tmp / k.name)
+        with _signals_deferred():
+            old = tmp.with_name(tmp.name + ".old")
+            replaced = out.exists()
+            if replaced:
+                os.replace(out, old)
+            try:
+                os.replace(tmp, out)
+            except OSError:
+                if replaced:
+                    os.replace(old, out)            # the old folder back: never neither
+                raise
+            _remove_planes_folder(old)
+    except OSError as e:
+        raise OptionError(f"{out}: cannot write the planes files ({e.strerror or e}); choose another {{opt}}",
+                          "planes", flag="--planes") from None
     finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-        shutil.rmtree(old, ignore_errors=True)
+        if tmp is not None:
+            with _signals_deferred():
+                _remove_planes_folder(tmp)
     return [out / n for n in names]
 
 
