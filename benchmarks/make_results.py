@@ -27,7 +27,8 @@ against road planes fitted to the shared KITTI LiDAR scans with the fit's repeat
 Speed: the tables of the benchmark scripts in ``benchmarks/``, each of which exposes
 ``rows()`` returning its rows
 (``bench_filter``, ``bench_suspension``, ``bench_preintegration``, ``bench_ekf``,
-``bench_gravity``, ``bench_readers``, ``bench_batch``; ``bench_preview``: the preview's peak memory); a script that is missing
+``bench_gravity``, ``bench_readers``, ``bench_batch``; ``bench_preview``: the preview's peak memory;
+``bench_streaming``: the live estimator); a script that is missing
 or has no ``rows()`` is listed with a note instead. Figures are measured on
 whatever machine runs this (shared, 2 cores while others work: speed figures are
 medians but noisy).
@@ -49,7 +50,7 @@ REPO = HERE.parent
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_imu100"
 OUT = HERE / "RESULTS.md"
 BENCHMARKS = ("bench_filter", "bench_suspension", "bench_preintegration", "bench_ekf", "bench_gravity",
-              "bench_readers", "bench_batch", "bench_preview")
+              "bench_readers", "bench_batch", "bench_preview", "bench_streaming")
 #: Folder of the studies (accuracy, tuning and simulator checks; not speed targets).
 STUDIES = HERE / "studies"
 #: Studies whose rows check the simulator against the real drives (band powers, method ranking), not speeds.
@@ -66,8 +67,10 @@ REVISIT_CAPTIONS = {
                "direction: mean |difference| / sqrt(2), deg, pitch / roll, per drive with revisit pairs and "
                "pooled (pairs in the header). `suspension` is the evaluation's IMU-only default; `before` is the "
                "suspension filter's configuration before this table existed, `now` today's; `+ speed` uses "
-               "the INS horizontal speed as the measured speed (`--speed auto`, the CLI default). The other "
-               "methods do not use what changed (gravity filter, suspension model): the same before and now.",
+               "the INS horizontal speed as the measured speed (`--speed auto`, the CLI default); `live (--causal)` "
+               "is the live estimator's (`StreamingEstimator`, `estimate --causal`: causal clock, standstills and gyro "
+               "bias) with the speed. The other methods do not use what changed (gravity filter, suspension model): "
+               "the same before and now.",
     "INS-grade": "The same suspension variants against the INS-grade pitch reference on every valid drive: "
                  "mean over drives of the per-drive mean absolute pitch error (deg), the worst drive's ratio "
                  "to the paper's method (at most 1.1 allowed), and the error pooled over frames by the "
@@ -88,7 +91,15 @@ PERCEPTION_CHECKS = ("bench_ground_effect",)
 #: Scripts whose rows compare the methods with road planes fitted to LiDAR scans (the paper's protocol).
 LIDAR_CHECKS = ("lidar_table",)
 #: A paragraph printed above a script's table (what it measures), by script name.
-INTROS = {"lidar_table": (
+INTROS = {"bench_streaming": (
+    "Live (`imu_ground.StreamingEstimator`, `imu-ground stream`, `estimate --causal`): `push_imu` per IMU sample "
+    "(the log's speed pushed too) against the offline pipeline's cost per sample (`estimate_log` of the same log, "
+    "reading included, same process), the pure-Python kernels beside; the frame-completing call's 99th percentile "
+    "(CPU time; wall time beside); the INS-grade score and the revisit consistency of the live estimate against "
+    "the default (both with the log's speed); and per shared drive the largest and 99th-percentile |difference| "
+    "of pitch and roll, deg, between the default (whole-log gyro bias and standstills) and the live estimate, "
+    "over the whole drive and after its first 60 s (empty on drives shorter than that)."),
+    "lidar_table": (
     "The paper's protocol on real data (`benchmarks/studies/lidar_table.py`; `imu-ground evaluate --lidar`): road "
     "planes fitted to KITTI Velodyne scans (RANSAC, then least squares on the inliers, region x 5..30 m, |y| < 4 m) "
     "against every method, deg, estimate minus LiDAR. Drive 0009 (31 scans, 3.1 s): the angle between the normals "

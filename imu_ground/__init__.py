@@ -32,7 +32,7 @@ _EXPORTS = {
     ".filters.calibration": "TooLittleDataError",
     ".imu.data": "ImuData",
     ".imu.egomotion": "EgoFrame EgoMotion imu_to_egomotion",
-    ".imu.preintegration": "preintegrate PreintegrationParams",
+    ".imu.preintegration": "preintegrate PreintegrationParams StreamingPreintegrator",
     ".datasets": "read_imu read_poses",
     ".filters.invariant_ekf": "InvariantEKF",
     ".filters.estimator": "GroundEstimator GroundEstimate GroundTrack pitch_roll_from_normal",
@@ -41,6 +41,7 @@ _EXPORTS = {
     ".filters.extrinsics": "Extrinsic available_extrinsics load_extrinsic",
     ".perception": "Camera GroundPlane load_camera",
     ".pipeline.estimate": "estimate_log",
+    ".pipeline.streaming": "StreamingEstimator",
     ".pipeline.output": "track_table",
 }
 __getattr__, __dir__, __all__ = lazy_exports(__name__, {"imu_ground._version": "__version__", **_EXPORTS})

@@ -1,4 +1,4 @@
-"""The ``imu-ground`` command: ``estimate | batch | evaluate | simulate | calibrate | preview``.
+"""The ``imu-ground`` command: ``estimate | stream | batch | evaluate | simulate | calibrate | preview``.
 
 One module per command (``register`` adds its parser, ``run`` does the work; the
 library's heavy dependencies, pandas, scipy, matplotlib and the optional ones, load
@@ -28,7 +28,7 @@ from contextlib import contextmanager
 __all__ = ["COMMANDS", "Terminated", "build_parser", "main"]
 
 #: Sub-command modules, in the order ``--help`` lists them.
-COMMANDS = ("estimate", "batch", "evaluate", "simulate", "calibrate", "preview")
+COMMANDS = ("estimate", "stream", "batch", "evaluate", "simulate", "calibrate", "preview")
 
 
 #: An argument that is a negative number, scientific notation included (``-1e5``, ``-.5``, ``-2.5E-3``):

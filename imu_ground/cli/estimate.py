@@ -87,6 +87,10 @@ def register(sub) -> None:
                    help="re-estimate the mount when the mount monitor sees it move (status degraded): 15 s of frames "
                         "with a measured speed after the alarm, then the static rotation is corrected and the status "
                         "is ok again, its reason saying so (method suspension; needs --speed or the log's own)")
+    e.add_argument("--causal", action="store_true",
+                   help="every choice from the samples before it, as live (the numbers 'imu-ground stream' and "
+                        "imu_ground.StreamingEstimator give fed this log sample by sample): sample clock, "
+                        "standstills and gyro bias seen so far, each frame's speed from the samples up to it")
     g = e.add_argument_group("camera (road plane in a camera's axes)")
     g.add_argument("--camera", metavar="NAME_OR_FILE",
                    help="a camera on the platform: kitti_cam0 .. kitti_cam3, a camera file (calib/README.md), or a "
@@ -128,6 +132,7 @@ def run(a: argparse.Namespace) -> int:
         res, table = estimate_to_files(a.log, outputs, kinds, planes=a.planes, progress=progress_enabled(a),
                                        speed=a.speed, camera=a.camera, bev=a.bev,
                                        **({"recalibrate_online": True} if a.recalibrate_online else {}),
+                                       **({"causal": True} if a.causal else {}),
                                        **method_kwargs(a))
     for w in res.meta["warnings"]:
         warn_line(w, a.log)

@@ -44,6 +44,9 @@ class MethodSpec:
         ``run(..., smooth=True)``: offline, results depend on the future.
     speed_aided : bool
         ``run(..., speed=v)`` takes a measured forward speed per frame (m/s).
+    live : bool
+        Runs live, sample by sample (:class:`~imu_ground.pipeline.streaming.StreamingEstimator`,
+        ``imu-ground stream``, ``estimate --causal``).
     """
     name: str
     description: str
@@ -51,6 +54,7 @@ class MethodSpec:
     needs_accel: bool
     smooth: bool
     speed_aided: bool = False
+    live: bool = False
 
     @property
     def options(self) -> tuple:
@@ -84,16 +88,16 @@ METHODS: dict[str, MethodSpec] = {
     "suspension": MethodSpec(
         "suspension", "suspension-aware invariant EKF: road attitude plus the body's load-transfer tilt "
         "(streaming; needs an accelerometer)",
-        _Factory(SuspensionAwareFilter, SuspensionAwareFilter), True, False, True),
+        _Factory(SuspensionAwareFilter, SuspensionAwareFilter), True, False, True, live=True),
     "suspension-offline": MethodSpec(
         "suspension-offline", "suspension-aware filter with the offline smoother (zero lag; uses the future)",
         _Factory(SuspensionAwareFilter, SuspensionAwareFilter), True, True, True),
     "filter": MethodSpec(
         "filter", "heading-following invariant EKF on the cumulative rotation (rotations only: any odometry)",
-        _Factory(GroundNormalFilter, GroundNormalFilter), False, False),
+        _Factory(GroundNormalFilter, GroundNormalFilter), False, False, live=True),
     "paper": MethodSpec(
         "paper", "the paper's method: random-walk invariant EKF, Q = 1e-2 I, R = I (Zhang et al. 2022)",
-        _Factory(GroundNormalFilter.paper, GroundNormalFilter), False, False),
+        _Factory(GroundNormalFilter.paper, GroundNormalFilter), False, False, live=True),
     "naive": MethodSpec(
         "naive", "constant normal: the static extrinsic alone, pitch and roll 0 relative to the road "
         "(the paper's naive baseline, a reference to compare with)",

@@ -90,6 +90,7 @@ from imu_ground.filters.road import NO_SPEED_REASON, RoadFilter, road_one
 from imu_ground.filters.status import (CONVERGED_STD, DEGRADED, OK, SLOW_SPEED, SUSPENSION_STD, SigmaModel,
                                        frame_status_code, ok_note, track_reasons)
 from imu_ground.filters.suspension_model import SuspensionModel, load_share
+from imu_ground.imu.egomotion import EgoFrame
 from imu_ground.imu.warm_start import STATE_VERSION, StateError, StateReader, pack_state, unpack_state
 from imu_ground.so3 import heading_change, matrix_from_quat, twist_angle
 from imu_ground.units import DEG
@@ -403,8 +404,9 @@ class SuspensionAwareFilter:
 
         Parameters
         ----------
-        frame : EgoFrame or ndarray (3, 3)
-            An :class:`~imu_ground.imu.egomotion.EgoFrame`, or its ``delta_R``
+        frame : EgoFrame, PreintegratedImu or ndarray (3, 3)
+            An :class:`~imu_ground.imu.egomotion.EgoFrame` (or a frame of the
+            :class:`~imu_ground.imu.preintegration.StreamingPreintegrator`), or its ``delta_R``
             (sensor_{k-1} <- sensor_k) followed by the other fields:
         delta_v : ndarray (3,)
             Gravity-free velocity increment, sensor frame at the frame's start, m/s.
@@ -429,6 +431,8 @@ class SuspensionAwareFilter:
         ValueError
             A bad frame with ``on_invalid="raise"`` (the state is unchanged).
         """
+        if delta_v is None and not isinstance(frame, (tuple, list, np.ndarray)) and hasattr(frame, "delta_v"):
+            frame = EgoFrame.of(frame)              # a PreintegratedImu (its delta_R, delta_v, delta_t, valid)
         if delta_v is None:
             if isinstance(frame, np.ndarray) or not isinstance(frame, (tuple, list)) or len(frame) < 5:
                 shape = getattr(np.asarray(frame, dtype=object), "shape", ())

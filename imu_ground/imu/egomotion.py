@@ -56,6 +56,13 @@ class EgoFrame(NamedTuple):
     valid: bool = True
     t: float = float("nan")
 
+    @classmethod
+    def of(cls, frame, stationary: bool = False) -> "EgoFrame":
+        """The EgoFrame of a preintegrated frame (a :class:`~imu_ground.imu.preintegration.PreintegratedImu`
+        with ``delta_R``, ``delta_v``, ``delta_t``, ``valid`` and ``t_end``)."""
+        return cls(frame.delta_R, frame.delta_v, float(frame.delta_t), bool(stationary),
+                   bool(getattr(frame, "valid", True)), float(getattr(frame, "t_end", float("nan"))))
+
 
 @dataclass
 class EgoMotion:

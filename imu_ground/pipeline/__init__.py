@@ -7,6 +7,8 @@
 - :mod:`imu_ground.pipeline.batch`: :func:`run_batch`, many logs on Dask.
 - :mod:`imu_ground.pipeline.input_checks`: option errors, the gravity-direction check of
   a log against its extrinsic, the options record an output keeps.
+- :mod:`imu_ground.pipeline.streaming`: :class:`StreamingEstimator`, live: raw samples and speed in,
+  per-frame estimates out, causal; :func:`causal_track`, its twin over a whole log (``causal=True``).
 - :mod:`imu_ground.pipeline.planes`: with a camera, the plane columns and the KITTI
   object ``planes`` files (:func:`write_kitti_planes`).
 
@@ -20,5 +22,6 @@ _EXPORTS = {
                 "track_table summarize_table write_output write_outputs atomic_path"),
     ".batch": "run_batch expand_logs",
     ".planes": "write_kitti_planes read_kitti_planes",
+    ".streaming": "StreamingEstimator FrameEstimate causal_track replay",
 }
 __getattr__, __dir__, __all__ = lazy_exports(__name__, _EXPORTS)

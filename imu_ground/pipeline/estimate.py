@@ -59,6 +59,7 @@ __all__ = [
     "require_imu_log",
     "requested_options",
     "resolve_method",
+    "speed_samples",
 ]
 
 #: ``--format`` names of the pose files :func:`estimate_log` reads, to :func:`imu_ground.datasets.read_poses` names.
@@ -213,7 +214,7 @@ def _one_line(path: str | Path, message: Any) -> str:
 def estimate_log(path: str | Path, *, format: str | None = None, method: str = "auto",
                  extrinsic: Any = None, rate: float | None = None, Q: Any = None, R: Any = None,
                  progress: bool = False, speed: Any = "auto", camera: Any = None, bev: Any = None,
-                 recalibrate_online: bool = False, **reader_options: Any) -> EstimateResult:
+                 recalibrate_online: bool = False, causal: bool = False, **reader_options: Any) -> EstimateResult:
     """Per-frame ground normals of one log: what ``imu-ground estimate`` computes.
 
     Parameters
@@ -264,6 +265,12 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
         with a measured speed; :mod:`imu_ground.filters.recalibration`). Without a measured speed an
         :class:`OptionError` naming ``speed``; frames with a speed spanning less than the monitor's 2
         minutes: a warning (:func:`~imu_ground.pipeline.input_checks.check_recalibration`).
+    causal : bool
+        Every choice from the samples before it, as live: the frames a
+        :class:`~imu_ground.pipeline.streaming.StreamingEstimator` gives when fed the log sample by
+        sample (:func:`~imu_ground.pipeline.streaming.causal_track`: the sample clock, the standstills
+        and gyro bias seen so far, each frame's speed from the speed samples up to its decision).
+        IMU logs and the live methods only.
     **reader_options
         Entries of :data:`imu_ground.datasets.options.READER_OPTIONS`
         (``policy``, ``nonfinite``, ``gyro_unit``, ...), passed to the reader
@@ -295,32 +302,37 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
     bar = _steps(progress)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        if kind == "poses":
-            em, info = _poses_egomotion(path, fmt, rate, reader_kw.get("times"), extrinsic)
+        if causal:
+            track, em, info, name, speed_info = _causal_estimate(path, kind, fmt, method, rate, extrinsic, speed, Q, R,
+                                                                 recalibrate_online, reader_kw)
+            settings["causal"] = settings["options"]["causal"] = True
         else:
-            em, info, imu = _imu_egomotion(path, fmt, rate, extrinsic, reader_kw)
-        bar.update()
-        name = resolve_method(method, em.has_accel)
-        noise = "Q" if Q is not None else "R"
-        if (Q is not None or R is not None) and noise not in METHODS[name].options:
-            takes = [m for m, spec in METHODS.items() if noise in spec.options]
-            raise OptionError(f"{{opt}} sets the noise of the {' and '.join(takes)} methods; method {name} does not "
-                              f"use it (add --method {takes[0]}, or leave it out)", noise)
-        if recalibrate_online and name != "suspension":
-            raise OptionError(f"{path}: {{opt}} re-estimates the mount, frame by frame, when the streaming suspension "
-                              f"method's mount monitor sees it move; method {name} cannot (use --method suspension, "
-                              "or leave it out)", "recalibrate_online")
-        frame_speeds, speed_info = _frame_speeds(speed, path, info.get("format"), imu if kind == "imu" else None,
-                                                 em, name)
-        if recalibrate_online:
-            check_recalibration(path, frame_speeds, speed_info, em)
+            if kind == "poses":
+                em, info = _poses_egomotion(path, fmt, rate, reader_kw.get("times"), extrinsic)
+            else:
+                em, info, imu = _imu_egomotion(path, fmt, rate, extrinsic, reader_kw)
+            bar.update()
+            name = resolve_method(method, em.has_accel)
+            noise = "Q" if Q is not None else "R"
+            if (Q is not None or R is not None) and noise not in METHODS[name].options:
+                takes = [m for m, spec in METHODS.items() if noise in spec.options]
+                raise OptionError(f"{{opt}} sets the noise of the {' and '.join(takes)} methods; method {name} does "
+                                  f"not use it (add --method {takes[0]}, or leave it out)", noise)
+            if recalibrate_online and name != "suspension":
+                raise OptionError(f"{path}: {{opt}} re-estimates the mount, frame by frame, when the streaming "
+                                  f"suspension method's mount monitor sees it move; method {name} cannot (use "
+                                  "--method suspension, or leave it out)", "recalibrate_online")
+            frame_speeds, speed_info = _frame_speeds(speed, path, info.get("format"), imu if kind == "imu" else None,
+                                                     em, name)
+            if recalibrate_online:
+                check_recalibration(path, frame_speeds, speed_info, em)
+            try:
+                track = _run_method(name, em, Extrinsic.coerce(extrinsic), Q, R, frame_speeds, recalibrate_online)
+            except ImuGroundError as e:                 # e.g. a frame the estimator refuses: name the log
+                if hasattr(e, "cli_message") or str(e).startswith(str(path)):
+                    raise
+                raise ImuGroundError(f"{path}: {e}") from e
         ext = Extrinsic.coerce(extrinsic)
-        try:
-            track = _run_method(name, em, ext, Q, R, frame_speeds, recalibrate_online)
-        except ImuGroundError as e:                     # e.g. a frame the estimator refuses: name the log
-            if hasattr(e, "cli_message") or str(e).startswith(str(path)):
-                raise
-            raise ImuGroundError(f"{path}: {e}") from e
         bar.update()
     bar.close()
     messages = list(dict.fromkeys(_one_line(path, w.message) for w in caught))
@@ -420,6 +432,24 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
             raise OptionError(f"{{opt}} as an array needs one value per frame ({len(em)}), got shape {v.shape}",
                               "speed")
         return v, "given per frame"
+    got, what = speed_samples(speed, path, fmt, imu)
+    if got is None:
+        return None, what
+    v = frame_speed(*got, em.t, em.delta_t)
+    holes = int(np.count_nonzero(~np.isfinite(got[1])))
+    if holes:
+        warnings.warn(f"speed {what}: {holes} of {len(got[1])} samples have no speed (nan): not interpolated "
+                      f"across; the frames they reach run without a speed (IMU only)")
+    if not np.isfinite(v).any():
+        raise OptionError(f"{{opt}} {speed}: the speed's times ({got[0][0]:.3f} .. {got[0][-1]:.3f} s) do not "
+                          f"cover the log's frames ({em.t[0]:.3f} .. {em.t[-1]:.3f} s)", "speed")
+    return v, f"{what} ({int(np.isfinite(v).sum())} of {len(v)} frames)"
+
+
+def speed_samples(speed, path, fmt, imu):
+    """The speed samples ``(t, v)`` (s on the log's time base, m/s) of ``speed`` (``"auto"``, a file or a column),
+    and what they are; ``(None, why)`` when ``"auto"`` finds none."""
+    auto = isinstance(speed, str) and speed == "auto"
     if auto:
         got = log_speed(path, fmt, imu) if fmt in SPEED_SOURCES else None
         if got is None:
@@ -438,15 +468,49 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
             warnings.warn(f"speed {note}")
         got = (t_sp, v_sp)
         what = f"{speed}"
-    v = frame_speed(*got, em.t, em.delta_t)
-    holes = int(np.count_nonzero(~np.isfinite(got[1])))
-    if holes:
-        warnings.warn(f"speed {what}: {holes} of {len(got[1])} samples have no speed (nan): not interpolated "
-                      f"across; the frames they reach run without a speed (IMU only)")
-    if not np.isfinite(v).any():
-        raise OptionError(f"{{opt}} {speed}: the speed's times ({got[0][0]:.3f} .. {got[0][-1]:.3f} s) do not "
-                          f"cover the log's frames ({em.t[0]:.3f} .. {em.t[-1]:.3f} s)", "speed")
-    return v, f"{what} ({int(np.isfinite(v).sum())} of {len(v)} frames)"
+    return got, what
+
+
+def _causal_estimate(path, kind, fmt, method, rate, extrinsic, speed, Q, R, recalibrate_online, reader_kw):
+    """:func:`estimate_log` with ``causal=True``: the log read, then
+    :func:`~imu_ground.pipeline.streaming.causal_track`.
+
+    Returns ``track, egomotion, info, method name, speed description``.
+    """
+    from imu_ground.pipeline.streaming import LIVE_METHODS, causal_track
+    if kind != "imu":
+        raise OptionError(f"{path}: {{opt}} runs the live front end on IMU samples; a pose file has none (leave it "
+                          "out)", "causal")
+    name = resolve_method(method, True)
+    if name not in LIVE_METHODS:
+        raise OptionError(f"{{opt}} {name} does not run live, so not with --causal; choose one of "
+                          f"{', '.join(LIVE_METHODS)} (or auto)", "method")
+    if Q is not None or R is not None:
+        raise OptionError("{opt} is not a setting of the live estimator (leave it out with --causal)",
+                          "Q" if Q is not None else "R")
+    fmt = detect_format(path) if fmt is None else fmt
+    imu = read_imu(path, format=fmt, **reader_kw)
+    check_gravity_direction(imu, extrinsic, path)
+    imu_rate = 1.0 / float(np.median(np.diff(imu.t))) if len(imu) > 1 else float("nan")
+    info = {"format": fmt, "imu_rate": imu_rate, "frame_id": imu.meta.get("frame_id") or "imu"}
+    if imu.meta.get("t0_ns") is not None:
+        info["t0_ns"] = int(imu.meta["t0_ns"])
+    signal, what = None, "none"
+    if METHODS[name].speed_aided and isinstance(speed, (np.ndarray, list, tuple)):
+        raise OptionError("{opt} per frame cannot be used live (--causal): give a speed file or column, or auto",
+                          "speed")
+    if METHODS[name].speed_aided and not (speed is None or (isinstance(speed, str) and speed == "none")):
+        signal, what = speed_samples(speed, path, fmt, imu)
+    elif speed not in (None, "none", "auto"):
+        raise OptionError(f"{{opt}} is used by the suspension methods only, not by method {name} (leave it out)",
+                          "speed")
+    frame_rate = DEFAULT_FRAME_RATE if rate is None else rate
+    track, em = causal_track(imu.t, imu.gyro, imu.accel, method=name, extrinsic=extrinsic, rate=frame_rate,
+                             speed=signal, recalibrate_online=recalibrate_online)
+    if signal is not None:
+        what = f"{what} (each frame's from the samples up to its decision)"
+    em.meta["source"] = str(path)
+    return track, em, info, name, what
 
 
 def _run_method(name: str, em, ext, Q, R, speed=None, recalibrate_online: bool = False):

@@ -1,0 +1,134 @@
+"""Speed over a frame from the speed samples received so far: the streaming form of :func:`frame_speed`.
+
+A live stream gets wheel / CAN speed samples at their own rate, before or after
+the IMU samples they overlap. :class:`SpeedBuffer` keeps the few samples that
+later frames still need and gives a frame's mean speed exactly as
+:func:`~imu_ground.datasets.speed.frame_speed` defines it (the mean of the
+piecewise-linear speed over ``(t_start, t_end]``), once a sample at or after the
+frame's end has arrived (:meth:`covers`); a frame outside the finite samples' span, or
+reached by a hole (a run of NaN speeds, from the last finite sample before it to the
+first after it: nothing is interpolated across), has none (NaN). Samples with a
+non-finite time, a repeated time or that come after the frames they belong to are
+ignored and counted (:attr:`rejected`), never raised on.
+"""
+from __future__ import annotations
+
+import bisect
+import math
+from typing import Any
+
+__all__ = ["SpeedBuffer"]
+
+#: Slack of the span test, s (as :func:`~imu_ground.datasets.speed.frame_speed`'s).
+_EDGE = 1e-9
+
+
+class SpeedBuffer:
+    """Speed samples (s, m/s) in time order, pruned as frames are done.
+
+    Attributes
+    ----------
+    t, v : list of float
+        The samples kept.
+    received : bool
+        A finite sample has arrived since construction or :meth:`clear`.
+    rejected : dict
+        ``{"nonfinite": n, "late": n, "repeated": n}`` since the last :meth:`take_notes`.
+    """
+
+    def __init__(self) -> None:
+        self.clear()
+
+    def clear(self) -> None:
+        self.t: list[float] = []
+        self.v: list[float] = []
+        self.received = False
+        self.done_until = -math.inf         # frames up to this time are decided
+        self.rejected = {"nonfinite": 0, "late": 0, "repeated": 0}
+
+    def push(self, t: float, v: float) -> None:
+        """One sample: time ``t`` (s, the IMU's clock) and forward speed ``v`` (m/s; NaN or infinite: a hole)."""
+        if not math.isfinite(v):
+            v = math.nan                        # a hole: the frames it reaches say "no speed" themselves
+        if not math.isfinite(t):
+            self.rejected["nonfinite"] += 1
+            return
+        self.received = True
+        ts = self.t
+        if t < self.done_until:
+            self.rejected["late"] += 1          # before the end of a frame already decided
+            return
+        if ts and t <= ts[-1]:
+            i = bisect.bisect_left(ts, t)
+            if i < len(ts) and ts[i] == t:
+                self.rejected["repeated"] += 1
+                return
+            ts.insert(i, t)
+            self.v.insert(i, v)
+            return
+        ts.append(t)
+        self.v.append(v)
+
+    def covers(self, t_end: float) -> bool:
+        """A sample at or after ``t_end`` (s) has arrived."""
+        return bool(self.t) and self.t[-1] >= t_end
+
+    def mean(self, t_start: float, t_end: float) -> float:
+        """Mean speed over ``(t_start, t_end]``, m/s; NaN unless a finite sample at or before ``t_start`` (within
+        1e-9 s) and one at or after ``t_end`` have arrived and no hole reaches the frame."""
+        ts, vs = self.t, self.v
+        if any(v != v for v in vs):
+            for i, v in enumerate(vs):
+                if v == v:
+                    continue
+                lo = next((ts[j] for j in range(i - 1, -1, -1) if vs[j] == vs[j]), -math.inf)
+                hi = next((ts[j] for j in range(i + 1, len(ts)) if vs[j] == vs[j]), math.inf)
+                if lo < t_end and hi > t_start:
+                    return math.nan
+            keep = [i for i, v in enumerate(vs) if v == v]
+            ts, vs = [ts[i] for i in keep], [vs[i] for i in keep]
+        if not ts or ts[0] > t_start + _EDGE or ts[-1] < t_end:
+            return math.nan
+        if len(ts) == 1:
+            return vs[0]
+        a, b = max(t_start, ts[0]), min(t_end, ts[-1])
+        i = max(bisect.bisect_right(ts, a) - 1, 0)
+        total = 0.0
+        while i < len(ts) - 1 and ts[i] < b:
+            t0, t1, v0, v1 = ts[i], ts[i + 1], vs[i], vs[i + 1]
+            lo, hi = max(a, t0), min(b, t1)
+            if hi > lo:
+                slope = (v1 - v0) / (t1 - t0)
+                total += (hi - lo) * (v0 + 0.5 * slope * ((lo - t0) + (hi - t0)))
+            i += 1
+        return total / (t_end - t_start)
+
+    def done(self, t: float) -> None:
+        """Frames up to ``t`` (s) are decided: keep only the last sample at or before it and the later ones."""
+        self.done_until = t
+        ts = self.t
+        k = bisect.bisect_right(ts, t) - 1
+        if k > 0:
+            del ts[:k]
+            del self.v[:k]
+
+    def take_notes(self) -> list[str]:
+        """What was rejected since the last call, one phrase each (and the counts start again)."""
+        r = self.rejected
+        notes = [f"{n} {what} speed sample(s) {how}" for what, how, n in
+                 (("non-finite-time", "ignored", r["nonfinite"]),
+                  ("late (after their frames)", "ignored", r["late"]),
+                  ("repeated-time", "ignored", r["repeated"])) if n]
+        self.rejected = {"nonfinite": 0, "late": 0, "repeated": 0}
+        return notes
+
+    def state_dict(self) -> dict[str, Any]:
+        return {"t": list(self.t), "v": list(self.v), "received": self.received,
+                "done_until": None if self.done_until == -math.inf else self.done_until,
+                "rejected": dict(self.rejected)}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.t, self.v = [float(x) for x in state["t"]], [float(x) for x in state["v"]]
+        self.received = bool(state["received"])
+        self.done_until = -math.inf if state["done_until"] is None else float(state["done_until"])
+        self.rejected = {k: int(n) for k, n in state["rejected"].items()}

@@ -1,0 +1,228 @@
+"""``imu-ground stream``: samples in (stdin CSV lines, or a log replayed), one line per frame out, as it completes.
+
+The command-line form of :class:`imu_ground.pipeline.streaming.StreamingEstimator`, for
+pipes, a serial bridge or a demo. Standard input: a header naming ``t,wx,wy,wz,ax,ay,az``
+(any order and case; optionally ``speed``, m/s) then one sample a line; the units are those of
+``estimate`` (s, rad/s, m/s^2) or set by ``--time-unit``, ``--gyro-unit``, ``--accel-unit``
+(not told from the data: a stream has no future to look at). ``--replay LOG`` reads a log
+(any format ``estimate`` reads) and feeds it sample by sample, its speed (``--speed``) before
+the samples it precedes; ``--realtime`` paces it on the log's clock. Each frame is written as
+soon as it is complete: a CSV line with the estimate's columns (header first), or ``--json``
+lines; flushed. ``--state FILE`` resumes from a saved state and writes it at the end, on
+SIGTERM and on Ctrl-C (atomically; a file that is not a saved state is refused, never replaced).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from imu_ground.cli._common import add_reader_flags, reader_options
+
+__all__ = ["register", "run"]
+
+_SAMPLE_COLUMNS = ("t", "wx", "wy", "wz", "ax", "ay", "az")
+
+
+def register(sub) -> None:
+    """Add the ``stream`` sub-command."""
+    p = sub.add_parser("stream", help="samples in (stdin CSV or --replay LOG), one estimate line per frame out",
+                       description="Live estimation: IMU samples (and a speed) from standard input as CSV lines, "
+                                   "or a log replayed sample by sample; one output line per frame as soon as it "
+                                   "is complete (the numbers of 'imu-ground estimate --causal').")
+    p.add_argument("--replay", metavar="LOG", help="feed this log (any format estimate reads) sample by sample "
+                                                   "instead of standard input")
+    p.add_argument("--realtime", action="store_true", help="with --replay: pace the samples on the log's clock")
+    p.add_argument("--json", action="store_true", help="one JSON object a line instead of CSV")
+    p.add_argument("--state", metavar="FILE", help="load this saved state at the start (when the file exists) and "
+                                                   "write the state there at the end, on SIGTERM and on Ctrl-C")
+    g = p.add_argument_group("estimation")
+    g.add_argument("--method", default="auto", choices=["auto", "suspension", "filter", "paper"], metavar="NAME",
+                   help="auto (suspension, default), suspension, filter or paper")
+    g.add_argument("--extrinsic", metavar="NAME_OR_FILE",
+                   help="static sensor-to-ground extrinsic (kitti_imu, or a file from 'imu-ground calibrate')")
+    g.add_argument("--rate", type=float, default=10.0, metavar="HZ", help="frame rate, Hz (default 10)")
+    g.add_argument("--camera", metavar="NAME_OR_FILE", help="a camera on the platform: lines gain plane_a .. plane_d")
+    g.add_argument("--speed", default="auto", metavar="auto|none|FILE|COLUMN",
+                   help="with --replay: the speed (as estimate's); standard input: a 'speed' column is used unless "
+                        "none")
+    add_reader_flags(p)
+    p.set_defaults(func=run)
+
+
+def _load_state(est, path: Path) -> None:
+    from imu_ground.datasets.options import OptionError
+    try:
+        text = path.read_text(encoding="utf-8")
+        state = json.loads(text)
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise OptionError(f"{path}: not a saved state of 'imu-ground stream' ({type(e).__name__}); give another "
+                          "file to {opt}", "state", flag="--state") from None
+    try:
+        est.load_state_dict(state)
+    except ValueError as e:
+        raise OptionError(f"{path}: {' '.join(str(e).split())}; give another file to {{opt}}", "state",
+                          flag="--state") from None
+
+
+def _write_state(est, path: Path) -> None:
+    """The state, atomically (a temporary file beside it, then renamed)."""
+    text = json.dumps(est.state_dict())
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or Path("."))
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+class _Writer:
+    """One line per frame on stdout, flushed: CSV (header first) or JSON."""
+
+    def __init__(self, as_json: bool) -> None:
+        self.as_json, self.header = as_json, False
+
+    def write(self, frames) -> None:
+        if not frames:
+            return
+        from imu_ground.pipeline.streaming import estimate_row
+        out = sys.stdout
+        for f in frames:
+            row = estimate_row(f)
+            if self.as_json:
+                out.write(json.dumps({k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+                                      for k, v in row.items()}) + "\n")
+                continue
+            if not self.header:
+                out.write(",".join(row) + "\n")
+                self.header = True
+            out.write(",".join(_cell(v) for v in row.values()) + "\n")
+        out.flush()
+
+
+def _cell(v) -> str:
+    if isinstance(v, bool):
+        return "1" if v else "0"
+    if isinstance(v, float):
+        return repr(v) if math.isfinite(v) else "nan"
+    text = str(v)
+    return '"' + text.replace('"', '""') + '"' if ("," in text or '"' in text) else text
+
+
+def run(a: argparse.Namespace) -> int:
+    from imu_ground.datasets.options import OptionError
+    from imu_ground.pipeline.streaming import StreamingEstimator
+    est = StreamingEstimator(a.method, a.extrinsic, a.rate, a.camera,
+                             policy=a.policy if a.policy in ("retime", "drop") else _policy(a.policy))
+    state = None if a.state is None else Path(a.state)
+    if state is not None:
+        if state.exists():
+            _load_state(est, state)
+        elif not (state.parent if str(state.parent) else Path(".")).is_dir():
+            raise OptionError(f"{state}: its folder does not exist; give a path in an existing folder to {{opt}}",
+                              "state", flag="--state")
+    if a.realtime and a.replay is None:
+        raise OptionError("{opt} paces a replayed log: add --replay LOG", "realtime", flag="--realtime")
+    out = _Writer(a.json)
+    try:
+        if a.replay is not None:
+            _replay(est, a, out)
+        else:
+            _stdin(est, a, out)
+        out.write(est.flush())
+    finally:
+        if state is not None:
+            _write_state(est, state)
+    return 0
+
+
+def _policy(policy):
+    if policy is None:
+        return "retime"
+    from imu_ground.datasets.options import OptionError
+    raise OptionError(f"{{opt}} {policy} needs the whole log; a stream takes retime or drop", "policy")
+
+
+def _replay(est, a, out) -> None:
+    import warnings
+
+    import numpy as np
+
+    from imu_ground.cli._common import warn_line
+    from imu_ground.datasets import detect_format, read_imu
+    from imu_ground.pipeline.estimate import speed_samples
+    opts = reader_options(a)
+    fmt = opts.pop("format", None)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        fmt = detect_format(a.replay) if fmt is None else fmt
+        imu = read_imu(a.replay, format=fmt, **opts)
+        sp = None
+        if est.speed_aided and a.speed != "none":
+            sp, _ = speed_samples(a.speed, a.replay, fmt, imu)
+    for w in {str(w.message): w.message for w in caught}.values():
+        warn_line(w, a.replay)
+    t = imu.t.tolist()
+    g, acc = imu.gyro.tolist(), imu.accel.tolist()
+    ts, vs = ([], []) if sp is None else (np.asarray(sp[0]).tolist(), np.asarray(sp[1]).tolist())
+    j, M = 0, len(ts)
+    start = time.monotonic()
+    for i, ti in enumerate(t):
+        if a.realtime:
+            wait = start + (ti - t[0]) - time.monotonic()
+            if wait > 0:
+                time.sleep(wait)
+        while j < M and ts[j] <= ti:
+            est.push_speed(ts[j], vs[j])
+            j += 1
+        out.write(est.push_imu(ti, g[i], acc[i]))
+    while j < M:
+        est.push_speed(ts[j], vs[j])
+        j += 1
+
+
+def _stdin(est, a, out) -> None:
+    from imu_ground.datasets.options import OptionError
+    from imu_ground.datasets.unit_checks import ACCEL_UNITS, GYRO_UNITS, TIME_UNITS
+    ks = TIME_UNITS[a.time_unit or "s"]
+    kg = GYRO_UNITS[a.gyro_unit or "rad/s"]
+    ka = ACCEL_UNITS[a.accel_unit or "m/s^2"]
+    src = sys.stdin
+    header = src.readline()
+    names = [c.strip().strip('"').lower() for c in header.strip().split(",")]
+    missing = [c for c in _SAMPLE_COLUMNS if c not in names]
+    if missing:
+        raise OptionError(f"<stdin>: the header line {header.strip()[:80]!r} does not name {', '.join(missing)}; "
+                          f"the first line names the columns: t,wx,wy,wz,ax,ay,az (and optionally speed)", None)
+    idx = [names.index(c) for c in _SAMPLE_COLUMNS]
+    i_speed = names.index("speed") if ("speed" in names and a.speed != "none") else None
+    width = len(names)
+    nan = math.nan
+    for line in src:
+        cells = line.split(",")
+        if len(cells) < width:
+            if not line.strip():
+                continue
+            cells += [""] * (width - len(cells))
+        vals = []
+        for i in idx:
+            try:
+                vals.append(float(cells[i]))
+            except ValueError:
+                vals.append(nan)           # a damaged line: a non-finite sample, skipped and said in the frame
+        t = vals[0] * ks
+        if i_speed is not None:
+            try:
+                v = float(cells[i_speed])
+            except ValueError:
+                v = nan
+            est.push_speed(t, v)
+        out.write(est.push_imu(t, (vals[1] * kg, vals[2] * kg, vals[3] * kg),
+                               (vals[4] * ka, vals[5] * ka, vals[6] * ka)))

@@ -1,0 +1,259 @@
+"""Causal standstill detection and gyro bias: from the samples seen so far, one frame at a time.
+
+The whole-log detector (:mod:`imu_ground.imu.standstill`) looks at windows that start at
+each sample and so sees up to a window ahead; a live estimator cannot. Here the
+samples are summed in blocks, one per output frame (block ``k`` holds the samples
+in ``(t0 + k / rate, t0 + (k + 1) / rate]``, :func:`block_index`), and frame ``k``
+ends at a standstill when the trailing window of the ``W = round(window * rate)``
+blocks ``k - W + 1 .. k`` passes the same tests as the whole-log detector (every
+gyro axis' standard deviation at most ``gyro_std_max``, the mean rate's norm at
+most ``gyro_norm_max``, every accelerometer axis' standard deviation at most
+``accel_std_max``, the mean specific force's norm within ``accel_norm_tol`` of
+``gravity``), with every block holding samples (a gap is no standstill). Gravity's
+magnitude is fixed (:data:`~imu_ground.units.GRAVITY` by default): a causal detector
+cannot take the log's own median at rest.
+
+The gyro bias (:class:`CausalGyroBias`) is the mean rate over every block of the
+standstills seen so far (each block once) in windows of ``bias_window`` (2 s, as the
+whole-log bias: a shorter stop may be creeping), or a given bias.
+
+Sums run left to right from 0.0 in sample order (:class:`StandstillBlocks` one sample
+at a time, :func:`block_sums` over a log with ``np.bincount``, which adds in the same
+order), and a window's sums add its blocks newest first, so the streaming and the
+whole-log forms agree bit for bit.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from imu_ground.units import GRAVITY
+
+__all__ = ["CausalGyroBias", "StandstillBlocks", "StandstillTests", "block_index", "block_sums", "window_standstill"]
+
+#: Rounding allowance of :func:`block_index`, in frames: a sample this close to a boundary ends the frame before it.
+_EDGE = 1e-6
+
+
+def block_index(t: float, t0: float, rate: float) -> int:
+    """The block (frame) of a sample at ``t`` (s): ``ceil((t - t0) rate - 1e-6) - 1``; -1 for the first sample."""
+    return math.ceil((t - t0) * rate - _EDGE) - 1
+
+
+class StandstillTests:
+    """The thresholds of a standstill window (those of :func:`imu_ground.imu.standstill.detect_standstill`).
+
+    Parameters
+    ----------
+    window : float
+        Trailing window, s.
+    gyro_std_max, gyro_norm_max : float
+        rad/s.
+    accel_std_max, accel_norm_tol : float
+        m/s^2.
+    gravity : float
+        Magnitude of the specific force at rest, m/s^2.
+    """
+
+    def __init__(self, window: float = 1.0, gyro_std_max: float = 0.004, gyro_norm_max: float = 0.05,
+                 accel_std_max: float = 0.04, accel_norm_tol: float = 0.15, gravity: float = GRAVITY) -> None:
+        self.window, self.gyro_std_max, self.gyro_norm_max = float(window), float(gyro_std_max), float(gyro_norm_max)
+        self.accel_std_max, self.accel_norm_tol = float(accel_std_max), float(accel_norm_tol)
+        self.gravity = float(gravity)
+
+    def blocks(self, rate: float) -> int:
+        """Blocks in the window at ``rate`` frames a second."""
+        return max(1, int(round(self.window * rate)))
+
+
+def _passes(tests: StandstillTests, n: int, s: Sequence[float], first: int = 0) -> bool:
+    """Whether ``n`` samples with sums ``s`` (per component: sum, then sum of squares; ``first`` 0 for the
+    gyro's three components, 3 for the specific force's) pass that sensor's standstill tests."""
+    m0, m1, m2 = s[0] / n, s[1] / n, s[2] / n
+    sd = max(math.sqrt(max(s[3] / n - m0 * m0, 0.0)), math.sqrt(max(s[4] / n - m1 * m1, 0.0)),
+             math.sqrt(max(s[5] / n - m2 * m2, 0.0)))
+    norm = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+    if first == 0:
+        return norm <= tests.gyro_norm_max and sd <= tests.gyro_std_max
+    return sd <= tests.accel_std_max and abs(norm - tests.gravity) <= tests.accel_norm_tol
+
+
+class StandstillBlocks:
+    """Per-frame sums of the samples and the trailing-window standstill test, one sample at a time.
+
+    Parameters
+    ----------
+    rate : float
+        Frame rate, Hz (one block a frame).
+    tests : StandstillTests, optional
+    bias_window : float
+        The window of the standstills the gyro bias is taken from, s (``Wb`` blocks).
+    """
+
+    def __init__(self, rate: float, tests: StandstillTests | None = None, bias_window: float = 2.0) -> None:
+        self.rate = float(rate)
+        self.tests = StandstillTests() if tests is None else tests
+        self.W = self.tests.blocks(self.rate)
+        self.Wb = max(1, int(round(bias_window * self.rate)))      # the bias's window, blocks
+        self.blocks: dict[int, list] = {}       # block -> [n, 6 sums, 6 sums of squares]
+
+    def add(self, k: int, g: Sequence[float], a: Sequence[float]) -> None:
+        """Add a sample (gyro rad/s, specific force m/s^2) to block ``k``."""
+        b = self.blocks.get(k)
+        if b is None:
+            b = self.blocks[k] = [0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+        b[0] += 1
+        for i, x in enumerate((g[0], g[1], g[2], a[0], a[1], a[2])):
+            b[1 + i] += x
+            b[7 + i] += x * x
+
+    def stationary(self, k: int, W: int | None = None) -> bool:
+        """Whether frame ``k`` ends at a standstill (its trailing window of ``W`` blocks, default :attr:`W`, passes)."""
+        return self.windows(k, self.W if W is None else W, 0)[0]
+
+    def windows(self, k: int, W: int | None = None, Wb: int | None = None) -> tuple[bool, bool]:
+        """Whether the trailing windows of ``W`` and of ``Wb`` blocks (defaults :attr:`W`, :attr:`Wb`; 0: not
+        asked) ending at frame ``k`` pass, summed newest block first; the specific force only for a window
+        whose gyro passes (each component's sums are the same either way)."""
+        W = self.W if W is None else W
+        Wb = self.Wb if Wb is None else Wb
+        blocks = self.blocks
+        sizes = [w for w in (W, Wb) if w > 0]
+        if not sizes or k - max(sizes) + 1 < 0 and k - min(sizes) + 1 < 0:
+            return False, False
+        result = {}
+        for first, col in ((0, 1), (3, 4)):
+            asked = [w for w in sizes if result.get(w, True)]
+            if not asked:
+                break
+            n, s = 0, [0.0] * 6
+            for i in range(max(asked)):
+                b = blocks.get(k - i)
+                if b is None or b[0] == 0 or k - i < 0:
+                    break
+                n += b[0]
+                s = [s[0] + b[col], s[1] + b[col + 1], s[2] + b[col + 2],
+                     s[3] + b[col + 6], s[4] + b[col + 7], s[5] + b[col + 8]]
+                if i + 1 in asked:
+                    result[i + 1] = _passes(self.tests, n, s, first)
+            for w in asked:
+                result.setdefault(w, False)
+        return (W > 0 and result.get(W, False)), (Wb > 0 and result.get(Wb, False))
+
+    def done(self, k: int) -> None:
+        """Frame ``k`` is finished: forget the blocks no later frame's windows hold."""
+        for old in [j for j in self.blocks if j < k - max(self.W, self.Wb) + 2]:
+            del self.blocks[old]
+
+    def block(self, j: int) -> tuple[int, float, float, float]:
+        """``(n, gyro sums x, y, z)`` of block ``j`` (zeros when it holds no sample)."""
+        b = self.blocks.get(j)
+        return (0, 0.0, 0.0, 0.0) if b is None else (b[0], b[1], b[2], b[3])
+
+    def clear(self) -> None:
+        self.blocks.clear()
+
+    def state_dict(self) -> dict[str, Any]:
+        keys = sorted(self.blocks)
+        return {"k": keys, "n": [self.blocks[k][0] for k in keys], "sums": [self.blocks[k][1:] for k in keys]}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.blocks = {int(k): [int(n), *(float(x) for x in s)] for k, n, s in
+                       zip(state["k"], state["n"], state["sums"])}
+
+
+def block_sums(k: np.ndarray, gyro: np.ndarray, accel: np.ndarray, n_blocks: int) -> tuple[np.ndarray, np.ndarray]:
+    """Counts (B,) and sums (12, B) of the samples of each block 0 .. B-1 (``k`` each sample's; others skipped)."""
+    keep = (k >= 0) & (k < n_blocks)
+    kk = k[keep]
+    x = np.concatenate([gyro[keep], accel[keep]], axis=1)
+    sums = np.empty((12, n_blocks))
+    for i in range(6):
+        sums[i] = np.bincount(kk, weights=x[:, i], minlength=n_blocks)
+        sums[6 + i] = np.bincount(kk, weights=x[:, i] * x[:, i], minlength=n_blocks)
+    return np.bincount(kk, minlength=n_blocks), sums
+
+
+def window_standstill(counts: np.ndarray, sums: np.ndarray, tests: StandstillTests, rate: float,
+                      W: int | None = None) -> np.ndarray:
+    """:meth:`StandstillBlocks.stationary` of every frame 0 .. B-1 at once (same sums in the same order;
+    ``W`` blocks, default the tests' window)."""
+    B = counts.size
+    W = tests.blocks(rate) if W is None else W
+    out = np.zeros(B, dtype=bool)
+    if B < W:
+        return out
+    m = B - W + 1                                   # frames W-1 .. B-1
+    n = np.zeros(m, dtype=np.int64)
+    s = np.zeros((12, m))
+    full = np.ones(m, dtype=bool)
+    for j in range(W):                              # newest block first, as StandstillBlocks.windows
+        lo = W - 1 - j
+        n += counts[lo:lo + m]
+        s += sums[:, lo:lo + m]
+        full &= counts[lo:lo + m] > 0
+    nn = np.maximum(n, 1).astype(float)
+    mean = s[:6] / nn
+    sd = np.sqrt(np.maximum(s[6:] / nn - mean * mean, 0.0))
+    gnorm = np.sqrt(mean[0] * mean[0] + mean[1] * mean[1] + mean[2] * mean[2])
+    anorm = np.sqrt(mean[3] * mean[3] + mean[4] * mean[4] + mean[5] * mean[5])
+    ok = (full & (gnorm <= tests.gyro_norm_max) & (sd[:3].max(axis=0) <= tests.gyro_std_max)
+          & (sd[3:].max(axis=0) <= tests.accel_std_max) & (np.abs(anorm - tests.gravity) <= tests.accel_norm_tol))
+    out[W - 1:] = ok
+    return out
+
+
+class CausalGyroBias:
+    """Gyro bias from the standstills seen so far, or fixed.
+
+    Parameters
+    ----------
+    bias : "auto" or sequence of 3 floats
+        ``"auto"``: the mean rate over the blocks of every standstill so far (zero before
+        the first); three floats: this bias, rad/s, never changed.
+
+    Attributes
+    ----------
+    value : tuple of 3 floats
+        The bias, rad/s, body frame.
+    n : int
+        Samples averaged (``auto``).
+    """
+
+    def __init__(self, bias: Any = "auto") -> None:
+        self.auto = isinstance(bias, str)
+        if self.auto and bias != "auto":
+            raise ValueError(f"bias_gyro must be 'auto' or 3 numbers (rad/s), got {bias!r}")
+        self.value = (0.0, 0.0, 0.0) if self.auto else tuple(float(x) for x in np.asarray(bias, float).reshape(3))
+        self.n, self.s = 0, [0.0, 0.0, 0.0]
+        self.last = -1                  # last block added
+
+    def absorb(self, k: int, W: int, block) -> None:
+        """Frame ``k`` ends at a standstill: add blocks ``max(last + 1, k - W + 1) .. k`` (``block(j)`` gives
+        ``(n, sx, sy, sz)`` of block ``j``)."""
+        if not self.auto:
+            return
+        for j in range(max(self.last + 1, k - W + 1), k + 1):
+            n, sx, sy, sz = block(j)
+            self.n += n
+            s = self.s
+            s[0] += sx
+            s[1] += sy
+            s[2] += sz
+        self.last = k
+        self.value = (self.s[0] / self.n, self.s[1] / self.n, self.s[2] / self.n)
+
+    def new_blocks(self) -> None:
+        """Block indices start again (a restart of the clock); the bias is kept."""
+        self.last = -1
+
+    def state_dict(self) -> dict[str, Any]:
+        return {"auto": self.auto, "value": list(self.value), "n": self.n, "s": list(self.s), "last": self.last}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.auto = bool(state["auto"])
+        self.value = tuple(float(x) for x in state["value"])
+        self.n, self.s, self.last = int(state["n"]), [float(x) for x in state["s"]], int(state["last"])

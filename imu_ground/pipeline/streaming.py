@@ -1,0 +1,717 @@
+"""Live: raw IMU samples and wheel speed in, per-frame ground estimates out, causal (:class:`StreamingEstimator`).
+
+The object a vehicle-side stack feeds from its driver callbacks, and its twin for
+recorded logs, :func:`causal_track` (``estimate_log(..., causal=True)``,
+``imu-ground estimate --causal``), which makes the same choices over a whole log,
+vectorised where the choices allow, and gives the same numbers (to rounding).
+
+Per sample, each piece one class:
+
+1. **Clock** (:class:`~imu_ground.imu.sample_clock.SampleClock`): raw stamps to strictly
+   increasing sample times (jitter retimed on the sample index with a running rate,
+   back-steps and repeats by the readers' ``retime`` or ``drop`` policy, dropouts kept as
+   gaps, a clock set back by more than a gap restarts the front end).
+2. **Standstill and gyro bias** (:mod:`imu_ground.imu.causal_standstill`): a frame ends at a
+   standstill when its trailing 1 s window is quiet; the bias is the mean rate over the
+   standstills (2 s windows) seen so far (or given, or from a saved state) and applies from the next sample.
+3. **Preintegration** (:class:`~imu_ground.imu.preintegration.StreamingPreintegrator`): frames
+   at ``rate`` Hz from the first sample, gaps flagged and integrated through.
+4. **Speed over the frame** (:class:`~imu_ground.datasets.speed_buffer.SpeedBuffer`): a frame
+   waits for a speed sample at or after its end, at most ``speed_wait`` seconds of IMU time
+   (:data:`SPEED_WAIT`), then runs IMU only and says so; a stream that never sent a speed does
+   not wait.
+5. **Filter**: the method's streaming ``step`` (``on_invalid="skip"``: a bad frame is skipped,
+   never raised on).
+
+Data never raise: a non-finite sample is skipped, a dropped or retimed stamp, a restart, a
+late, repeated or non-finite speed sample, each is said in the next frame's ``status_reason``.
+Misuse (a 3x3 array as ``gyro``, a string as ``t``) raises
+:class:`~imu_ground.datasets.options.OptionError` (a ``ValueError``) naming the argument.
+"""
+from __future__ import annotations
+
+import math
+import numbers
+from collections import deque
+from typing import Any
+
+import numpy as np
+
+from imu_ground.datasets.options import OptionError
+from imu_ground.datasets.speed import frame_speed
+from imu_ground.datasets.speed_buffer import SpeedBuffer
+from imu_ground.filters import Extrinsic
+from imu_ground.filters.estimator import GroundEstimate
+from imu_ground.filters.methods import METHODS
+from imu_ground.imu.causal_standstill import (
+    CausalGyroBias,
+    StandstillBlocks,
+    StandstillTests,
+    block_sums,
+    window_standstill,
+)
+from imu_ground.imu.egomotion import EgoFrame, EgoMotion
+from imu_ground.imu.preintegration import StreamingPreintegrator, preintegrate
+from imu_ground.imu.sample_clock import DROP, OK, RESTART, SampleClock
+from imu_ground.so3 import quat_from_matrix
+
+__all__ = ["LIVE_METHODS", "SPEED_WAIT", "FrameEstimate", "StreamingEstimator", "causal_track", "estimate_row",
+           "replay"]
+
+#: Methods that run live (``"auto"`` is ``"suspension"``); the offline smoother and the naive baseline do not.
+LIVE_METHODS = tuple(name for name, spec in METHODS.items() if spec.live)
+#: Longest a frame waits for a speed sample at or after its end, s of IMU time (then: IMU only, said).
+SPEED_WAIT = 0.25
+_STATE_KIND = "imu_ground.StreamingEstimator"
+_STATE_VERSION = 1
+_NO_SPEED = "no speed over this frame: IMU only"
+
+
+class FrameEstimate(GroundEstimate):
+    """A :class:`~imu_ground.filters.estimator.GroundEstimate` with its frame and what the live front end saw.
+
+    Attributes (besides those of ``GroundEstimate``)
+    ------------------------------------------------
+    t : float
+        Frame (end) time, s, on the sample clock.
+    valid : bool
+        False for a frame that spans a gap or that the filter skipped (as a track's ``valid``).
+    t_start : float
+        Frame start, s.
+    speed : float
+        Measured speed used for the frame, m/s (NaN: IMU only).
+    notes : tuple of str
+        What the front end says about the frame (skipped samples, retimed stamps, a restart,
+        speed); appended to ``status_reason``.
+    plane : ndarray (4,) or None
+        With a camera: the road plane ``a b c d`` in the camera's axes (NaN when not valid).
+    """
+    __slots__ = ("t", "t_start", "speed", "notes", "_camera", "_plane")
+
+    @classmethod
+    def of(cls, est: GroundEstimate, t: float, t_start: float, speed: float, notes: tuple,
+           camera: Any = None, frame_valid: bool = True) -> "FrameEstimate":
+        """``est`` with the frame's times, speed, notes and camera; ``valid`` also False for a frame that spans
+        a gap (``frame_valid``), as in a track."""
+        out = cls.__new__(cls)
+        for name in GroundEstimate.__slots__:         # a value copy of the filter's estimate
+            setattr(out, name, getattr(est, name))
+        out.valid = bool(est.valid and frame_valid)
+        out.t, out.t_start, out.speed, out.notes = t, t_start, speed, notes
+        out._camera, out._plane = camera, None
+        return out
+
+    @property
+    def status_reason(self) -> str:
+        base = GroundEstimate.status_reason.fget(self)
+        return "; ".join([base, *self.notes] if base else self.notes)
+
+    @property
+    def plane(self) -> np.ndarray | None:
+        if self._camera is None:
+            return None
+        if self._plane is None:
+            from imu_ground.pipeline.planes import camera_plane
+            self._plane = camera_plane(self.residual[None], [self.valid], self._camera).coefficients[0]
+        return self._plane
+
+    def __repr__(self) -> str:
+        return (f"FrameEstimate(t={self.t!r}, pitch={self.pitch!r}, roll={self.roll!r}, valid={self.valid!r}, "
+                f"status={self.status!r})")
+
+
+def estimate_row(est: FrameEstimate) -> dict[str, Any]:
+    """The output table's columns (:data:`imu_ground.pipeline.output.COLUMNS`, angles in degrees) of one estimate;
+    with a camera also ``plane_a`` ... ``plane_d`` before ``valid``."""
+    n = est.normal
+    q = quat_from_matrix(est.residual)
+    deg = math.degrees
+    row: dict[str, Any] = {"t": est.t, "normal_x": float(n[0]), "normal_y": float(n[1]), "normal_z": float(n[2]),
+                           "pitch_deg": deg(est.pitch), "roll_deg": deg(est.roll),
+                           "qw": float(q[0]), "qx": float(q[1]), "qy": float(q[2]), "qz": float(q[3])}
+    if est.plane is not None:
+        row.update(zip(("plane_a", "plane_b", "plane_c", "plane_d"), (float(x) for x in est.plane)))
+    row["valid"] = bool(est.valid)
+    for name in ("pitch_std", "roll_std", "road_grade", "road_bank", "road_grade_std", "road_bank_std"):
+        row[f"{name}_deg"] = deg(getattr(est, name))
+    row["status"], row["status_reason"] = est.status, est.status_reason
+    return row
+
+
+# ------------------------------------------------------------------------------------------ state packing
+_PACKED = "float64_zlib_base64"
+_PACK_MIN = 8
+
+
+def _shape(x: Any) -> Any:
+    """0 for a float, the list of its items' shapes for a list of such; None for anything else."""
+    if type(x) is float:
+        return 0
+    if type(x) is list and x:
+        items = [_shape(y) for y in x]
+        return None if any(i is None for i in items) else items
+    return None
+
+
+def _leaves(x: Any, out: list) -> None:
+    if type(x) is float:
+        out.append(x)
+    else:
+        for y in x:
+            _leaves(y, out)
+
+
+def _pack(x: Any) -> Any:
+    """A list of equally shaped items of floats (at least 8 in all) as base64 of the floats' float64 bytes
+    (zlib-compressed) and the items' shape: exact, and less than half the JSON of the numbers' text;
+    everything else as it is."""
+    if type(x) is dict:
+        return {k: _pack(v) for k, v in x.items()}
+    if type(x) is list:
+        shape = _shape(x)
+        if shape is not None and all(s == shape[0] for s in shape):
+            flat: list = []
+            _leaves(x, flat)
+            if len(flat) >= _PACK_MIN:
+                import base64
+                import zlib
+                raw = zlib.compress(np.array(flat, dtype=float).tobytes(), 9)
+                return {_PACKED: base64.b64encode(raw).decode("ascii"), "n": len(x), "item": shape[0]}
+        return [_pack(v) for v in x]
+    return x
+
+
+def _build(shape: Any, it) -> Any:
+    return next(it) if shape == 0 else [_build(s, it) for s in shape]
+
+
+def _unpack(x: Any) -> Any:
+    if type(x) is dict:
+        if _PACKED in x:
+            import base64
+            import zlib
+            it = iter(np.frombuffer(zlib.decompress(base64.b64decode(x[_PACKED])), dtype=float).tolist())
+            return [_build(x["item"], it) for _ in range(int(x["n"]))]
+        return {k: _unpack(v) for k, v in x.items()}
+    if type(x) is list:
+        return [_unpack(v) for v in x]
+    return x
+
+
+# ------------------------------------------------------------------------------------------ checks
+def _number(x: Any, name: str) -> float:
+    if isinstance(x, numbers.Real) and not isinstance(x, bool):
+        return float(x)
+    if isinstance(x, np.ndarray) and x.shape == () and x.dtype.kind in "fiu":
+        return float(x)
+    raise OptionError(f"{{opt}} must be a number (s or m/s), got {type(x).__name__} {x!r:.40}", name)
+
+
+def _vec3(x: Any, name: str) -> tuple:
+    if type(x) is np.ndarray:
+        if x.shape != (3,) or x.dtype.kind not in "fiu":
+            raise OptionError(f"{{opt}} must be 3 numbers, got an array of shape {x.shape} and dtype {x.dtype}", name)
+        return tuple(x.tolist())
+    try:
+        a, b, c = x
+        return (a if type(a) is float else _number(a, name), b if type(b) is float else _number(b, name),
+                c if type(c) is float else _number(c, name))
+    except (TypeError, ValueError) as e:
+        if isinstance(e, OptionError):
+            raise OptionError(f"{{opt}} must be 3 numbers, got {x!r:.60}", name) from None
+        raise OptionError(f"{{opt}} must be 3 numbers, got {type(x).__name__} {x!r:.60}", name) from None
+
+
+def _live_method(method: str) -> str:
+    name = "suspension" if method == "auto" else method
+    if name not in LIVE_METHODS:
+        raise OptionError(f"{{opt}} {method!r} does not run live; choose auto or one of {', '.join(LIVE_METHODS)}",
+                          "method")
+    return name
+
+
+def _make_filter(name: str, ext: Extrinsic, rate: float, recalibrate_online: bool):
+    kw: dict[str, Any] = {"extrinsic": ext, "on_invalid": "skip"}
+    if name == "suspension":
+        kw["frame_rate"] = rate
+        if recalibrate_online:
+            kw["recalibrate_online"] = True
+    elif recalibrate_online:
+        raise OptionError(f"{{opt}} needs the suspension method, not {name}", "recalibrate_online")
+    return METHODS[name].make(**kw)
+
+
+# ------------------------------------------------------------------------------------------ the object
+class StreamingEstimator:
+    """Raw IMU samples (and wheel speed) in, per-frame ground estimates out, causal (module docstring).
+
+    Parameters
+    ----------
+    method : str
+        ``"auto"`` (the suspension-aware filter) or one of :data:`LIVE_METHODS`.
+    extrinsic : str, Path, Extrinsic or ndarray (3, 3), optional
+        Static ground <- sensor extrinsic (a shipped name such as ``kitti_imu``, a
+        calibration file, ...; :func:`~imu_ground.filters.extrinsics.load_extrinsic`). Identity when None.
+    rate : float
+        Frame rate, Hz; frames at ``t0 + k / rate`` from the first sample.
+    camera : str, Path or Camera, optional
+        A camera on the platform: each estimate's ``plane`` is the road plane in its axes.
+    bias_gyro : "auto" or sequence of 3 floats
+        ``"auto"``: from the standstills seen so far; else this bias, rad/s.
+    policy : {"retime", "drop"}
+        Stamps that step back or repeat (:class:`~imu_ground.imu.sample_clock.SampleClock`).
+    speed_wait : float
+        Longest a frame waits for a speed sample at or after its end, s of IMU time.
+    recalibrate_online : bool
+        Re-estimate a moved mount online (suspension method).
+
+    Notes
+    -----
+    ``push_imu`` returns the frames the sample completes, in time order (usually none; a frame
+    waits for its speed at most ``speed_wait``). Time ``t`` is seconds on any clock, the IMU's
+    and the speed's the same one. ``state_dict`` / ``load_state_dict`` save and resume
+    everything (JSON-serialisable); the rest of the stream is then bit-identical.
+    """
+
+    def __init__(self, method: str = "auto", extrinsic: Any = None, rate: float = 10.0, camera: Any = None, *,
+                 bias_gyro: Any = "auto", policy: str = "retime", speed_wait: float = SPEED_WAIT,
+                 recalibrate_online: bool = False) -> None:
+        self.method = _live_method(method)
+        if not (isinstance(rate, numbers.Real) and math.isfinite(rate) and rate > 0):
+            raise OptionError(f"{{opt}} must be a positive frame rate in Hz, got {rate!r}", "rate")
+        if not (isinstance(speed_wait, numbers.Real) and speed_wait >= 0):
+            raise OptionError(f"{{opt}} must be a non-negative time in s, got {speed_wait!r}", "speed_wait")
+        self.rate, self.speed_wait = float(rate), float(speed_wait)
+        self.extrinsic = Extrinsic.coerce(extrinsic)
+        self._ext_name = None if extrinsic is None else str(getattr(extrinsic, "name", extrinsic))
+        self.camera = None
+        if camera is not None:
+            from imu_ground.pipeline.planes import check_camera
+            self.camera = check_camera(camera, None)[0]
+        self.recalibrate_online = bool(recalibrate_online)
+        self._bias_arg = bias_gyro
+        CausalGyroBias(bias_gyro)                        # checks it
+        self.policy = policy
+        self._clock = SampleClock(policy)
+        self.speed_aided = bool(METHODS[self.method].speed_aided)
+        self._filter = _make_filter(self.method, self.extrinsic, self.rate, self.recalibrate_online)
+        self.reset()
+
+    # -- state ---------------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Back to the start: clock, standstill window, gyro bias, speed, filter."""
+        self._clock.reset()
+        self._bias = CausalGyroBias(self._bias_arg)
+        self._filter.reset()
+        self._speed = SpeedBuffer()
+        self._queue: deque = deque()
+        self._notes: list[str] = []
+        self._skipped = 0
+        self._now = -math.inf
+        self._new_run()
+
+    def _new_run(self) -> None:
+        """The front end after a (re)start: no preintegrator until the clock's warm-up is over."""
+        self._pre: StreamingPreintegrator | None = None
+        self._warm: list = []
+        self._origin = math.nan
+        self._blocks = StandstillBlocks(self.rate)
+        self._bias.new_blocks()
+
+    @property
+    def bias_gyro(self) -> np.ndarray:
+        """The gyro bias in use, rad/s (body frame)."""
+        return np.array(self._bias.value)
+
+    @property
+    def filter(self):
+        """The ground estimator (its public state: ``state_dict``, settings)."""
+        return self._filter
+
+    # -- input ---------------------------------------------------------------------------------
+    def push_speed(self, t: float, speed: float) -> None:
+        """A measured forward speed (wheel / CAN), m/s, at time ``t`` (s, the IMU's clock); any rate and order."""
+        t = t if type(t) is float else _number(t, "t")
+        speed = speed if type(speed) is float else _number(speed, "speed")
+        if self.speed_aided:
+            self._speed.push(t, speed)
+
+    def push_imu(self, t: float, gyro, accel) -> list[FrameEstimate]:
+        """One IMU sample: time ``t`` (s), angular rate ``gyro`` (rad/s) and specific force ``accel`` (m/s^2),
+        body frame; returns the frames it completes (usually none), oldest first."""
+        if type(t) is not float:
+            t = _number(t, "t")
+        g = _vec3(gyro, "gyro")
+        a = _vec3(accel, "accel")
+        if not (math.isfinite(t) and math.isfinite(g[0] + g[1] + g[2] + a[0] + a[1] + a[2])):
+            self._skipped += 1
+            return []
+        code, tout = self._clock.push(t)
+        out: list[FrameEstimate] = []
+        if code != OK:
+            if code == DROP:
+                return []
+            out = self._decide(math.inf)                # RESTART: the frames so far, then start again
+            self._notes.append(f"the clock stepped back by {self._clock.last_jump:.3f} s: restarted at "
+                               f"t = {tout:.3f} s")
+            self._speed.clear()
+            self._new_run()
+        if self._pre is None:
+            self._warm.append((tout, g, a))
+            if self._clock.warm:
+                self._start()
+        else:
+            self._feed(tout, g, a)
+        self._now = tout
+        if self._queue:
+            out += self._decide(tout)
+        return out
+
+    def flush(self) -> list[FrameEstimate]:
+        """The end of the stream: the frames still waiting for a speed, decided with what has arrived."""
+        return self._decide(math.inf)
+
+    # -- the front end -------------------------------------------------------------------------
+    def _start(self) -> None:
+        warm, self._warm = self._warm, []
+        self._origin = warm[0][0]
+        self._pre = StreamingPreintegrator(rate=self.rate, t_origin=self._origin, max_gap=self._clock.max_gap,
+                                           on_gap="flag", uncertainty=False)
+        for s in warm:
+            self._feed(*s)
+
+    def _feed(self, t: float, g: tuple, a: tuple) -> None:
+        k = math.ceil((t - self._origin) * self.rate - 1e-6) - 1
+        if k >= 0:
+            self._blocks.add(k, g, a)
+        bx, by, bz = self._bias.value
+        for f in self._pre.push(t, (g[0] - bx, g[1] - by, g[2] - bz), a):
+            self._frame(f)
+
+    def _frame(self, f) -> None:
+        j = round((f.t_end - self._origin) * self.rate) - 1
+        blocks = self._blocks
+        still, for_bias = blocks.windows(j, blocks.W, blocks.Wb if self._bias.auto else 0)
+        if for_bias:
+            self._bias.absorb(j, blocks.Wb, blocks.block)
+        blocks.done(j)
+        notes = self._take_notes()
+        self._queue.append((EgoFrame(f.delta_R, f.delta_v, f.delta_t, still, bool(f.valid), f.t_end),
+                            f.t_start, notes))
+
+    def _take_notes(self) -> list[str]:
+        notes, self._notes = self._notes, []
+        c = self._clock
+        if self._skipped:
+            notes.append(f"{self._skipped} non-finite IMU sample(s) skipped")
+            self._skipped = 0
+        return notes + _take_clock_notes(c, self.policy)
+
+    def _decide(self, now: float) -> list[FrameEstimate]:
+        out = []
+        q, sp = self._queue, self._speed
+        while q:
+            ego, ts, notes = q[0]
+            v = None
+            if self.speed_aided and sp.received:
+                te = ego.t
+                if not (sp.covers(te) or now >= te + self.speed_wait):
+                    break
+                v = sp.mean(ts, te)
+                notes += sp.take_notes()
+                if math.isnan(v):
+                    notes.append(_NO_SPEED)
+                sp.done(te)
+            q.popleft()
+            est = self._filter.step(ego) if v is None and not self.speed_aided else self._filter.step(ego, speed=v)
+            out.append(FrameEstimate.of(est, ego.t, ts, math.nan if v is None else v, tuple(notes), self.camera,
+                                        ego.valid))
+        return out
+
+    # -- warm start ----------------------------------------------------------------------------
+    def _settings(self) -> dict:
+        bias = self._bias_arg if isinstance(self._bias_arg, str) else [float(x) for x in
+                                                                       np.asarray(self._bias_arg).ravel()]
+        return {"method": self.method, "rate": self.rate, "extrinsic": self.extrinsic.rotation.ravel().tolist(),
+                "bias_gyro": bias, "policy": self.policy, "speed_wait": self.speed_wait,
+                "recalibrate_online": self.recalibrate_online}
+
+    def state_dict(self) -> dict[str, Any]:
+        """Everything (clock, preintegrator, standstill window, gyro bias, speed buffer, waiting frames, filter)
+        as a plain JSON-serialisable dict (long lists of floats as base64 of their compressed float64 bytes, exact);
+        :meth:`load_state_dict` on an estimator with the same settings resumes."""
+        queue = [[ego.delta_R.ravel().tolist(), ego.delta_v.tolist(), ego.delta_t, ego.stationary, ego.valid,
+                  ego.t, ts, list(notes)] for ego, ts, notes in self._queue]
+        return {"kind": _STATE_KIND, "version": _STATE_VERSION, "settings": self._settings(),
+                "clock": self._clock.state_dict(), "warm": [[t, *g, *a] for t, g, a in self._warm],
+                "origin": None if math.isnan(self._origin) else self._origin,
+                "preintegrator": None if self._pre is None else _pack(self._pre.state_dict()),
+                "max_gap": None if self._pre is None else self._pre.max_gap,
+                "blocks": _pack(self._blocks.state_dict()), "bias": self._bias.state_dict(),
+                "speed": _pack(self._speed.state_dict()), "queue": queue, "notes": list(self._notes),
+                "skipped": self._skipped, "now": None if self._now == -math.inf else self._now,
+                "filter": _pack(self._filter.state_dict())}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Resume from :meth:`state_dict`; another kind, version or settings raises ``OptionError`` naming ``state``."""
+        if not isinstance(state, dict) or state.get("kind") != _STATE_KIND:
+            kind = state.get("kind") if isinstance(state, dict) else type(state).__name__
+            raise OptionError(f"{{opt}} is not a StreamingEstimator state (kind {kind!r})", "state")
+        if state.get("version") != _STATE_VERSION:
+            raise OptionError(f"{{opt}} has version {state.get('version')!r}, this estimator reads {_STATE_VERSION}",
+                              "state")
+        mine = self._settings()
+        theirs = state.get("settings", {})
+        differ = sorted(k for k in mine if theirs.get(k) != mine[k])
+        if differ:
+            raise OptionError(f"{{opt}} was saved with other settings ({', '.join(differ)}): "
+                              f"{', '.join(f'{k}={theirs.get(k)!r}' for k in differ)}", "state")
+        try:
+            self.reset()
+            self._clock.load_state_dict(state["clock"])
+            self._warm = [(float(r[0]), tuple(map(float, r[1:4])), tuple(map(float, r[4:7]))) for r in state["warm"]]
+            self._origin = math.nan if state["origin"] is None else float(state["origin"])
+            if state["preintegrator"] is not None:
+                self._pre = StreamingPreintegrator(rate=self.rate, t_origin=self._origin,
+                                                   max_gap=float(state["max_gap"]), on_gap="flag", uncertainty=False)
+                self._pre.load_state_dict(_unpack(state["preintegrator"]))
+            self._blocks.load_state_dict(_unpack(state["blocks"]))
+            self._bias.load_state_dict(state["bias"])
+            self._speed.load_state_dict(_unpack(state["speed"]))
+            self._queue = deque((EgoFrame(np.array(r[0], float).reshape(3, 3), np.array(r[1], float), float(r[2]),
+                                          bool(r[3]), bool(r[4]), float(r[5])), float(r[6]), list(r[7]))
+                                for r in state["queue"])
+            self._notes, self._skipped = list(state["notes"]), int(state["skipped"])
+            self._now = -math.inf if state["now"] is None else float(state["now"])
+            self._filter.load_state_dict(_unpack(state["filter"]))
+        except (KeyError, TypeError, IndexError) as e:
+            self.reset()
+            raise OptionError(f"{{opt}} is incomplete or damaged ({type(e).__name__}: {e})", "state") from None
+
+
+    # -- a whole log at once ---------------------------------------------------------------------
+    def run(self, t: np.ndarray, gyro: np.ndarray, accel: np.ndarray,
+            speed: tuple[np.ndarray, np.ndarray] | None = None):
+        """What this estimator, fresh, gives fed a whole log sample by sample, computed at once where the
+        choices allow (:func:`causal_track`); returns ``(track, egomotion)``. Starts from :meth:`reset`."""
+        self.reset()
+        t = np.asarray(t, dtype=float)
+        gyro = np.asarray(gyro, dtype=float).reshape(-1, 3)
+        accel = np.asarray(accel, dtype=float).reshape(-1, 3)
+        n = t.size
+        clock = self._clock
+        tout = np.empty(n)
+        codes = np.empty(n, dtype=np.int8)
+        max_gap, n_warm = math.nan, -1
+        for i, ti in enumerate(t.tolist()):
+            codes[i], tout[i] = clock.push(ti)
+            if n_warm < 0 and clock.warm:
+                n_warm, max_gap = i + 1, clock.max_gap
+        finite = np.isfinite(t) & np.isfinite(gyro).all(axis=1) & np.isfinite(accel).all(axis=1)
+        if (codes == RESTART).any() or not finite.all():
+            self.reset()                                 # (the clock above ran over the log)
+            return _replayed(self, t, gyro, accel, speed)
+        retimed_total = clock.retimed
+        keep = codes == OK
+        n_dropped = int(n - keep.sum())
+        t_in, t, gyro, accel = t, tout[keep], gyro[keep], accel[keep]
+        frontier = np.maximum.accumulate(t_in)[keep] if n else t_in
+        m = t.size
+        if n_warm < 0 or m < 2:
+            return _empty_result(self)
+        n_warm = int(np.count_nonzero(keep[:n_warm]))
+        origin, r = float(t[0]), self.rate
+        # standstill blocks and flags, bias per frame
+        k = np.ceil((t - origin) * r - 1e-6).astype(np.int64) - 1
+        ends = origin + np.arange(1, int(k.max()) + 2) / r if k.max() >= 0 else np.zeros(0)
+        B = max(int(k.max()) + 1, 0)
+        counts, sums = block_sums(k, gyro, accel, B)
+        tests = StandstillTests()
+        still_b = window_standstill(counts, sums, tests, r)
+        Wb = self._blocks.Wb
+        bias = self._bias
+        still_bias = window_standstill(counts, sums, tests, r, Wb) if bias.auto else np.zeros(B, dtype=bool)
+        # frames and the sample that completes each (the first at or after its end boundary, less snap_tol)
+        tol = 1e-9
+        i_emit = np.searchsorted(t, ends - tol, side="left")
+        n_frames = int(np.count_nonzero(i_emit < m))
+        i_emit = i_emit[:n_frames]
+        bias_rows = np.empty((n_frames + 1, 3))
+        bias_rows[0] = bias.value
+        block = lambda j: (int(counts[j]), float(sums[0, j]), float(sums[1, j]), float(sums[2, j]))  # noqa: E731
+        for j in range(n_frames):
+            if still_bias[j]:
+                bias.absorb(j, Wb, block)
+            bias_rows[j + 1] = bias.value
+        J = np.searchsorted(i_emit, np.arange(m), side="left")         # frames emitted before sample i
+        g_corr = gyro - bias_rows[J]
+        fd = preintegrate((t, g_corr, accel), rate=r, t_origin=origin, max_gap=max_gap, on_gap="flag",
+                          uncertainty=False)
+        F = len(fd.t_end)
+        te = np.asarray(fd.t_end, dtype=float)
+        still = still_b[:F]
+        em = EgoMotion(te.copy(), fd.delta_R, fd.delta_v, fd.delta_t, still, np.asarray(fd.valid, bool).copy(),
+                       np.array(bias.value), "FLU", {"causal": True, "retimed": retimed_total, "dropped": n_dropped},
+                       r, True)
+        ts = te - np.asarray(fd.delta_t, float)
+        notes = [[] for _ in range(F)]
+        if F and (retimed_total or n_dropped):       # the clock's counts go to the frame after the sample
+            _clock_notes(self, t_in, keep, notes, np.maximum(i_emit[:F], n_warm - 1))
+        v = None
+        if self.speed_aided and speed is not None and F:
+            v = _causal_speeds(speed, te, ts, i_emit[:F], frontier, t, n_warm, self.speed_wait, notes)
+        flt = self._filter
+        track = flt.run(em, speed=v) if self.speed_aided else flt.run(em)
+        if any(notes):
+            reason = track.status_reason
+            for j, nt in enumerate(notes):
+                if nt:
+                    reason[j] = "; ".join([reason[j], *nt] if reason[j] else nt)
+        return track, em
+
+
+# ------------------------------------------------------------------------------------------ offline twin
+def causal_track(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, *, method: str = "auto", extrinsic: Any = None,
+                 rate: float = 10.0, speed: tuple[np.ndarray, np.ndarray] | None = None, bias_gyro: Any = "auto",
+                 policy: str = "retime", speed_wait: float = SPEED_WAIT, recalibrate_online: bool = False):
+    """What a :class:`StreamingEstimator` gives for a whole log, computed at once where the choices allow.
+
+    The log is taken as a stream: IMU sample ``i`` arrives after the speed samples up to its
+    stamp, the rest of the speed before :meth:`StreamingEstimator.flush`. The clock runs sample by
+    sample (a recurrence); the standstill window, the gyro bias, the preintegration, the frames'
+    speeds and the filter run vectorised (:func:`~imu_ground.imu.preintegration.preintegrate`, the
+    filter's ``run``). A log whose clock restarts or that holds non-finite samples is fed to a
+    :class:`StreamingEstimator` instead (same result by definition).
+
+    Parameters
+    ----------
+    t, gyro, accel : ndarray (N,), (N, 3), (N, 3)
+        Stamps (s), angular rate (rad/s), specific force (m/s^2), body frame, in arrival order.
+    speed : (ndarray (M,), ndarray (M,)), optional
+        Speed samples (s on the same clock, increasing; m/s).
+    method, extrinsic, rate, bias_gyro, policy, speed_wait, recalibrate_online :
+        As :class:`StreamingEstimator`.
+
+    Returns
+    -------
+    track : GroundTrack
+        Per frame, ``status_reason`` with the front end's notes.
+    egomotion : EgoMotion
+        The frames (stationary flags of the trailing window; ``bias_gyro`` the last bias).
+    """
+    est = StreamingEstimator(method, extrinsic, rate, bias_gyro=bias_gyro, policy=policy, speed_wait=speed_wait,
+                             recalibrate_online=recalibrate_online)
+    return est.run(t, gyro, accel, speed)
+
+
+def _take_clock_notes(clock: SampleClock, policy: str) -> list[str]:
+    """What the clock did since the last call (samples dropped, stamps retimed); its counts start again."""
+    notes = []
+    if clock.dropped:
+        notes.append(f"{clock.dropped} IMU sample(s) dropped (time not after the last; policy {policy})")
+        clock.dropped = 0
+    if clock.retimed:
+        notes.append(f"{clock.retimed} stamp(s) retimed on the sample clock")
+        clock.retimed = 0
+    return notes
+
+
+def _clock_notes(est, t_in, keep, notes, i_emit) -> None:
+    """Replay the clock's per-sample counts onto the frames (as the streaming notes them): a loop, but only
+    for logs whose stamps were retimed or dropped."""
+    clock = SampleClock(est.policy)
+    pos = np.cumsum(keep) - 1                        # kept position of each input sample (or the last before)
+    f = 0
+    nf = len(i_emit)
+    for i, ti in enumerate(t_in.tolist()):
+        clock.push(ti)
+        # frames completed by this sample (a dropped sample completes none)
+        if keep[i]:
+            p = pos[i]
+            while f < nf and i_emit[f] == p:
+                notes[f] = _take_clock_notes(clock, est.policy)
+                f += 1
+
+
+def _causal_speeds(speed, te, ts, i_emit, frontier, t_out, n_warm, wait, notes) -> np.ndarray:
+    """Each frame's speed as the stream decides it (module docstring of :mod:`...streaming`, step 4)."""
+    ts_sp, v_sp = (np.asarray(x, dtype=float) for x in speed)
+    M, m, F = ts_sp.size, t_out.size, te.size
+    fs = frame_speed(ts_sp, v_sp, te, te - ts)
+    out = np.full(F, np.nan)
+    rec_i = int(np.searchsorted(frontier, ts_sp[0], side="left"))
+    jstar = np.searchsorted(ts_sp, te, side="left")
+    cov_i = np.where(jstar < M, np.searchsorted(frontier, ts_sp[np.minimum(jstar, M - 1)], side="left"), m)
+    to_i = np.searchsorted(t_out, te + wait, side="left")
+    prev = n_warm - 1
+    for j in range(F):
+        i0 = max(int(i_emit[j]), prev)
+        if i0 < rec_i:                                   # no speed received yet: IMU only, no wait
+            prev = i0
+            continue
+        d = max(i0, min(int(cov_i[j]), int(to_i[j])))
+        covered = jstar[j] < M and (d >= m or frontier[min(d, m - 1)] >= ts_sp[jstar[j]])
+        out[j] = fs[j] if covered else np.nan
+        if np.isnan(out[j]):
+            notes[j].append(_NO_SPEED)
+        prev = min(d, m)
+    return out
+
+
+def _replayed(est: StreamingEstimator, t, gyro, accel, speed):
+    """Feed the log to the streaming estimator (logs the vectorised form does not cover)."""
+    frames = replay(est, t, gyro, accel, speed)
+    return _track_of(frames, est)
+
+
+def replay(est: StreamingEstimator, t, gyro, accel, speed=None) -> list[FrameEstimate]:
+    """Feed a log to ``est`` sample by sample as a stream would bring it (the speed samples up to each IMU
+    sample's stamp before it, the rest before the flush); every frame, in order."""
+    t = np.asarray(t, dtype=float)
+    g, a = np.asarray(gyro, float).tolist(), np.asarray(accel, float).tolist()
+    out: list[FrameEstimate] = []
+    if speed is not None and est.speed_aided:
+        ts_sp, v_sp = (np.asarray(x, dtype=float).tolist() for x in speed)
+    else:
+        ts_sp, v_sp = [], []
+    j, M = 0, len(ts_sp)
+    top = -math.inf
+    push_speed, push_imu = est.push_speed, est.push_imu
+    for i, ti in enumerate(t.tolist()):
+        if ti > top:
+            top = ti
+        while j < M and ts_sp[j] <= top:
+            push_speed(ts_sp[j], v_sp[j])
+            j += 1
+        out += push_imu(ti, g[i], a[i])
+    while j < M:
+        push_speed(ts_sp[j], v_sp[j])
+        j += 1
+    return out + est.flush()
+
+
+def _track_of(frames: list[FrameEstimate], est: StreamingEstimator):
+    """A GroundTrack of streamed estimates, and their frames' EgoMotion (times, durations, flags)."""
+    from imu_ground.filters.estimator import GroundTrack
+    n = len(frames)
+    E = np.array([f.residual for f in frames]).reshape(n, 3, 3)
+    P = np.array([f.P for f in frames]).reshape(n, 3, 3)
+    t = np.array([f.t for f in frames])
+    ts = np.array([f.t_start for f in frames])
+    Rgs = None if est.extrinsic is None else est.extrinsic.rotation
+    track = GroundTrack.from_residuals(E, np.tile(np.eye(3), (n, 1, 1)), P, np.tile(np.eye(3), (n, 1, 1)), Rgs,
+                                       est.extrinsic.translation, t=t, valid=[f.valid for f in frames],
+                                       pitch_std=[f.pitch_std for f in frames], roll_std=[f.roll_std for f in frames],
+                                       status=[f.status_code for f in frames],
+                                       status_reason=[f.status_reason for f in frames],
+                                       road_grade=[f.road_grade for f in frames],
+                                       road_bank=[f.road_bank for f in frames],
+                                       road_grade_std=[f.road_grade_std for f in frames],
+                                       road_bank_std=[f.road_bank_std for f in frames])
+    em = EgoMotion(t, np.tile(np.eye(3), (n, 1, 1)), np.zeros((n, 3)), t - ts, np.zeros(n, bool),
+                   np.array([f.valid for f in frames], bool), est.bias_gyro, "FLU", {"causal": True}, est.rate, True)
+    return track, em
+
+
+def _empty_result(est: StreamingEstimator):
+    return _track_of([], est)

@@ -1,0 +1,532 @@
+"""The live estimator: StreamingEstimator against its offline twin, warm start, bad data, misuse, the clock.
+
+The equality tests feed every shared drive (``drives.csv``) sample by sample through
+:class:`~imu_ground.pipeline.streaming.StreamingEstimator` in Python and compare with
+``estimate_log(..., causal=True)`` (the vectorised :func:`~imu_ground.pipeline.streaming.causal_track`);
+with the compiled kernels that takes about 10 s for all drives (the pure-Python kernels: a few
+times longer).
+"""
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from imu_ground.pipeline.streaming import StreamingEstimator, causal_track, replay
+from imu_ground.imu.sample_clock import RESTART, SampleClock
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLE = ROOT / "datasets" / "fixtures" / "example_drive.csv"
+TOL_DEG = 1e-9
+
+
+def _read(path, **kw):
+    from imu_ground.datasets import detect_format, read_imu
+    from imu_ground.pipeline.estimate import speed_samples
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fmt = detect_format(path)
+        imu = read_imu(path, format=fmt)
+        sp = speed_samples(kw.pop("speed", "auto"), path, fmt, imu)[0]
+    return imu, sp
+
+
+def _assert_same(frames, track):
+    """Streamed frames against an offline track: same frames, times, statuses; angles to 1e-9 deg."""
+    assert len(frames) == len(track) > 0
+    t = np.array([f.t for f in frames])
+    np.testing.assert_allclose(t, track.t, rtol=0, atol=1e-9)
+    for name in ("pitch", "roll"):
+        a = np.degrees([getattr(f, name) for f in frames])
+        assert np.max(np.abs(a - np.degrees(getattr(track, name)))) <= TOL_DEG, name
+    assert [f.status_code for f in frames] == track.status.tolist()
+    assert [f.status_reason for f in frames] == list(track.status_reason)
+    assert [f.valid for f in frames] == track.valid.tolist()
+
+
+def _offline(path, **kw):
+    from imu_ground.pipeline import estimate_log
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return estimate_log(path, causal=True, **kw)
+
+
+# --------------------------------------------------------------------------- one engine, both ways
+def test_equal_to_offline_on_every_shared_drive(shared_data, kitti_index):
+    """Every drive of drives.csv: the reader's samples (and its INS speed) streamed equal --causal; the raw
+    stamps of the CSV (jitter, back-steps, dropouts) streamed equal causal_track on the same raw stamps."""
+    import pandas as pd
+    for name in kitti_index["drive"]:
+        path = shared_data / "kitti_imu100" / f"{name}.csv.gz"
+        res = _offline(path, extrinsic="kitti_imu")
+        imu, sp = _read(path)
+        frames = replay(StreamingEstimator(extrinsic="kitti_imu"), imu.t, imu.gyro, imu.accel, sp)
+        _assert_same(frames, res.track)
+        raw = pd.read_csv(path, usecols=["t", "wx", "wy", "wz", "ax", "ay", "az"]).to_numpy()
+        track, _ = causal_track(raw[:, 0], raw[:, 1:4], raw[:, 4:7], extrinsic="kitti_imu", speed=sp)
+        frames = replay(StreamingEstimator(extrinsic="kitti_imu"), raw[:, 0], raw[:, 1:4], raw[:, 4:7], sp)
+        _assert_same(frames, track)
+
+
+@pytest.mark.parametrize("which", ["nuscenes", "comma2k19"])
+def test_equal_to_offline_other_formats(shared_data, which):
+    path, ext = {"nuscenes": (shared_data / "nuscenes_can_bus" / "scene-0103_ms_imu.json", None),
+                 "comma2k19": (shared_data / "comma2k19_example", np.diag([1.0, -1.0, -1.0]))}[which]
+    res = _offline(path, extrinsic=ext)
+    imu, sp = _read(path)
+    assert sp is not None                       # both have a speed of their own
+    frames = replay(StreamingEstimator(extrinsic=ext), imu.t, imu.gyro, imu.accel, sp)
+    _assert_same(frames, res.track)
+
+
+def test_equal_to_offline_csv_and_filter_methods():
+    imu, _ = _read(EXAMPLE)
+    for method in ("auto", "filter", "paper"):
+        res = _offline(EXAMPLE, method=method)
+        frames = replay(StreamingEstimator(method), imu.t, imu.gyro, imu.accel)
+        _assert_same(frames, res.track)
+
+
+def test_equal_to_offline_bag(tmp_path):
+    """A ROS 1 bag with IMU and a TwistStamped speed written at test time: --causal equals the stream."""
+    pytest.importorskip("rosbags")
+    from imu_ground.pipeline.ros_output import RosWriter
+    imu, _ = _read(EXAMPLE)
+    t0 = 1_700_000_000_000_000_000
+    path = tmp_path / "drive.bag"
+    vec = "geometry_msgs/msg/Vector3"
+    with RosWriter(path) as w:
+        hi = w.add_topic("/imu/data", "sensor_msgs/msg/Imu")
+        hs = w.add_topic("/vehicle/twist", "geometry_msgs/msg/TwistStamped")
+        for k, ns in enumerate((t0 + np.round(imu.t * 1e9).astype(np.int64)).tolist()):
+            g, a = imu.gyro[k], imu.accel[k]
+            w.write(hi, ns, w.message(
+                "sensor_msgs/msg/Imu", header=w.header(ns, "imu_link", k),
+                orientation=w.message("geometry_msgs/msg/Quaternion", x=0.0, y=0.0, z=0.0, w=1.0),
+                orientation_covariance=np.r_[-1.0, np.zeros(8)],
+                angular_velocity=w.message(vec, x=g[0], y=g[1], z=g[2]), angular_velocity_covariance=np.zeros(9),
+                linear_acceleration=w.message(vec, x=a[0], y=a[1], z=a[2]),
+                linear_acceleration_covariance=np.zeros(9)))
+            if k % 5 == 0:
+                twist = w.message("geometry_msgs/msg/Twist", linear=w.message(vec, x=10.0 + 0.01 * k, y=0.0, z=0.0),
+                                  angular=w.message(vec, x=0.0, y=0.0, z=0.0))
+                w.write(hs, ns, w.message("geometry_msgs/msg/TwistStamped", header=w.header(ns, "base", k),
+                                          twist=twist))
+    res = _offline(path)
+    assert "twist" in res.meta["speed"] or "odometry" in res.meta["speed"]
+    bag_imu, sp = _read(path)
+    frames = replay(StreamingEstimator(), bag_imu.t, bag_imu.gyro, bag_imu.accel, sp)
+    _assert_same(frames, res.track)
+    assert np.isfinite([f.speed for f in frames[5:]]).all()
+
+
+def test_causal_close_to_default_on_drive(shared_data):
+    """Not equal (the default sees the whole log), but close: the issue's live loop stayed within 0.01 deg."""
+    from imu_ground.pipeline import estimate_log
+    path = shared_data / "kitti_imu100" / "2011_09_26_drive_0009.csv.gz"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        d = estimate_log(path, extrinsic="kitti_imu").track
+    c = _offline(path, extrinsic="kitti_imu").track
+    assert len(c) == len(d)
+    assert np.max(np.abs(np.degrees(c.pitch - d.pitch))) < 0.05
+    assert np.max(np.abs(np.degrees(c.roll - d.roll))) < 0.05
+
+
+# --------------------------------------------------------------------------- warm start
+def _kitti_or_example():
+    path = ROOT.parent / "shared" / "data" / "kitti_imu100" / "2011_09_26_drive_0009.csv.gz"
+    return (path, "kitti_imu") if path.is_file() else (EXAMPLE, None)
+
+
+def _stream_with_cut(imu, sp, ext, cut):
+    """Frames of the log streamed, stopped after sample ``cut``, saved to JSON and resumed in a new object."""
+    est = StreamingEstimator(extrinsic=ext)
+    t, g, a = imu.t.tolist(), imu.gyro.tolist(), imu.accel.tolist()
+    ts, vs = ([], []) if sp is None else (sp[0].tolist(), sp[1].tolist())
+    out, j, size = [], 0, 0
+    for i in range(len(t)):
+        while j < len(ts) and ts[j] <= t[i]:
+            est.push_speed(ts[j], vs[j])
+            j += 1
+        out += est.push_imu(t[i], g[i], a[i])
+        if i == cut:
+            text = json.dumps(est.state_dict())
+            size = len(text)
+            est = StreamingEstimator(extrinsic=ext)
+            est.load_state_dict(json.loads(text))
+    while j < len(ts):
+        est.push_speed(ts[j], vs[j])
+        j += 1
+    return out + est.flush(), size
+
+
+def test_resume_at_random_samples_is_bit_identical():
+    path, ext = _kitti_or_example()
+    imu, sp = _read(path)
+    whole = replay(StreamingEstimator(extrinsic=ext), imu.t, imu.gyro, imu.accel, sp)
+    rng = np.random.default_rng(29)
+    cuts = [3, 9, 10, *rng.integers(11, len(imu.t) - 1, 5).tolist()]   # in the warm-up, at its end, anywhere
+    for cut in cuts:
+        frames, size = _stream_with_cut(imu, sp, ext, cut)
+        assert size < 16 * 1024, (cut, size)
+        assert len(frames) == len(whole)
+        for x, y in zip(frames, whole):
+            fields = ("t", "pitch", "roll", "pitch_std", "roll_std", "road_grade", "road_bank", "speed")
+            assert np.array_equal([getattr(x, n) for n in fields], [getattr(y, n) for n in fields], equal_nan=True)
+            assert (x.status, x.status_reason, x.valid) == (y.status, y.status_reason, y.valid)
+            assert x.normal.tolist() == y.normal.tolist()
+
+
+def test_state_of_other_settings_refused():
+    est = StreamingEstimator(rate=10.0)
+    est.push_imu(0.0, (0.0, 0.0, 0.0), (0.0, 0.0, 9.81))
+    other = StreamingEstimator(rate=20.0)
+    with pytest.raises(ValueError, match="state.*rate"):
+        other.load_state_dict(est.state_dict())
+    with pytest.raises(ValueError, match="state"):
+        other.load_state_dict({"kind": "something else"})
+
+
+# --------------------------------------------------------------------------- data never raise
+def _finite_when_valid(frames):
+    for f in frames:
+        if f.valid:
+            assert np.isfinite([f.pitch, f.roll, *f.normal]).all()
+        assert isinstance(f.status_reason, str)
+
+
+@st.composite
+def _streams(draw):
+    n = draw(st.integers(30, 400))
+    seed = draw(st.integers(0, 2 ** 32 - 1))
+    rng = np.random.default_rng(seed)
+    steps = np.full(n, 0.01) + rng.normal(0, draw(st.sampled_from([0.0, 1e-4, 2e-3])), n)
+    for _ in range(draw(st.integers(0, 3))):                      # gaps up to 10 s
+        steps[rng.integers(1, n)] = draw(st.sampled_from([0.3, 1.7, 10.0]))
+    for _ in range(draw(st.integers(0, 3))):                      # back-steps and repeats
+        steps[rng.integers(1, n)] = draw(st.sampled_from([0.0, -0.05]))
+    t = 100.0 + np.cumsum(steps)
+    gyro = rng.normal(0, 0.05, (n, 3))
+    accel = np.array([0.0, 0.0, 9.81]) + rng.normal(0, 0.5, (n, 3))
+    for _ in range(draw(st.integers(0, 3))):                      # NaN and inf samples
+        gyro[rng.integers(0, n), rng.integers(0, 3)] = draw(st.sampled_from([np.nan, np.inf]))
+    if draw(st.booleans()):
+        t[rng.integers(0, n)] = np.nan
+    speed_kind = draw(st.sampled_from(["never", "on_time", "late", "shuffled", "nan"]))
+    return t, gyro, accel, speed_kind, seed
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(_streams())
+def test_random_streams_never_raise(stream):
+    t, gyro, accel, speed_kind, seed = stream
+    rng = np.random.default_rng(seed)
+    est = StreamingEstimator()
+    frames = []
+    ts = np.nan_to_num(t, nan=100.0)
+    sp = [(x, 8.0 + rng.normal()) for x in ts[::5]]
+    if speed_kind == "shuffled":
+        rng.shuffle(sp)
+    if speed_kind == "nan":
+        sp = [(x, np.nan if k % 3 else v) for k, (x, v) in enumerate(sp)]
+    lag = 0.4 if speed_kind == "late" else 0.0
+    j = 0
+    for i in range(len(t)):
+        while speed_kind != "never" and j < len(sp) and (speed_kind == "shuffled" or sp[j][0] + lag <= ts[i]):
+            est.push_speed(*sp[j])
+            j += 1
+        frames += est.push_imu(t[i], gyro[i], accel[i])
+    frames += est.flush()
+    _finite_when_valid(frames)
+    times = [f.t for f in frames]
+    assert all(b > a for a, b in zip(times, times[1:]))          # in time order (no restart: no jump back)
+
+
+def test_bad_data_each_said():
+    est = StreamingEstimator()
+    out = []
+    for k in range(300):
+        t = 0.01 * k + (10.0 if k >= 200 else 0.0)                # a 10 s gap
+        g = (math.nan, 0.0, 0.0) if k == 50 else (0.0, 0.0, 0.0)
+        if k == 80:
+            t = 0.79                                                 # a repeated stamp (retimed)
+        est.push_speed(t, math.nan if k == 120 else 5.0)
+        if k == 130:
+            est.push_speed(math.nan, 5.0)                            # a speed without a time: ignored, said
+        out += est.push_imu(t, g, (0.0, 0.0, 9.81))
+    reasons = " | ".join(f.status_reason for f in out)
+    assert "1 non-finite IMU sample(s) skipped" in reasons
+    assert "retimed on the sample clock" in reasons
+    assert "no speed over this frame: IMU only" in reasons         # the NaN speed is a hole
+    assert "1 non-finite-time speed sample(s) ignored" in reasons
+    assert any(f.status == "gap" for f in out)
+    # the clock set back by a minute: a restart, said
+    out = est.push_imu(-60.0, (0.0, 0.0, 0.0), (0.0, 0.0, 9.81))
+    for k in range(1, 30):
+        out += est.push_imu(-60.0 + 0.01 * k, (0.0, 0.0, 0.0), (0.0, 0.0, 9.81))
+    assert any("clock stepped back by" in f.status_reason and "restarted" in f.status_reason for f in out)
+
+
+def test_speed_that_never_comes_back_runs_imu_only_and_says_so():
+    est = StreamingEstimator(speed_wait=0.25)
+    out = []
+    for k in range(200):
+        t = 0.01 * k
+        if k < 50:
+            est.push_speed(t, 5.0)
+        got = est.push_imu(t, (0.0, 0.0, 0.0), (0.0, 0.0, 9.81))
+        for f in got:                                 # a frame waits at most speed_wait of IMU time
+            assert t <= f.t + 0.25 + 0.011
+        out += got
+    assert any(f.status_reason.endswith("no speed over this frame: IMU only") for f in out)
+    assert math.isfinite(out[2].speed) and math.isnan(out[-1].speed)
+
+
+def test_misuse_is_one_line_naming_the_argument():
+    est = StreamingEstimator()
+    with pytest.raises(ValueError, match="gyro") as e:
+        est.push_imu(0.0, np.eye(3), (0.0, 0.0, 9.81))
+    assert "\n" not in str(e.value)
+    with pytest.raises(ValueError, match="^t ") as e:
+        est.push_imu("0.1", (0.0, 0.0, 0.0), (0.0, 0.0, 9.81))
+    with pytest.raises(ValueError, match="accel"):
+        est.push_imu(0.0, (0.0, 0.0, 0.0), (0.0, 9.81))
+    with pytest.raises(ValueError, match="speed"):
+        est.push_speed(0.0, "fast")
+    with pytest.raises(ValueError, match="method"):
+        StreamingEstimator("suspension-offline")
+
+
+# --------------------------------------------------------------------------- the clock
+def _clock(raw):
+    c = SampleClock()
+    out = [c.push(x) for x in raw]
+    return c, np.array([o[1] for o in out]), [o[0] for o in out]
+
+
+def test_clock_retimes_kitti_jitter_without_a_gap():
+    """The OXTS extract's pattern: stamps jump 0.55 s ahead, then step back 50 ms every 6 samples."""
+    k = np.arange(600)
+    true = 0.01 * k
+    raw = true.copy()
+    ahead = np.zeros(600)
+    ahead[300:] = 0.55
+    for j in range(9):
+        ahead[306 + 6 * j:] -= 0.05
+    raw = raw + ahead + 0.0                                   # ends 0.10 s ahead: a dropout of 10 samples
+    c, out, codes = _clock(raw)
+    assert np.all(np.diff(out) > 0)
+    assert c.dropouts == 1                                    # the lasting 0.1 s, after hold = 1 s
+    np.testing.assert_allclose(out[:300], true[:300], atol=1e-9)
+    assert np.max(np.abs(np.diff(out[300:395]) - 0.01)) < 1e-3   # no gap inside the jitter
+    np.testing.assert_allclose(out[-50:], raw[-50:], atol=2e-3)
+
+
+def test_clock_long_dropout_at_once_and_restart():
+    raw = np.r_[np.arange(100) * 0.01, 0.99 + 1.6 + np.arange(50) * 0.01]
+    c, out, _ = _clock(raw)
+    assert c.dropouts == 1 and abs(out[100] - raw[100]) < 1e-12
+    code, t = c.push(raw[-1] - 5.0)
+    assert code == RESTART and t == raw[-1] - 5.0 and c.restarts == 1
+
+
+def test_clock_state_round_trip():
+    rng = np.random.default_rng(1)
+    raw = np.cumsum(0.01 + rng.normal(0, 2e-3, 300))
+    a = SampleClock()
+    for x in raw[:150]:
+        a.push(x)
+    b = SampleClock()
+    b.load_state_dict(json.loads(json.dumps(a.state_dict())))
+    assert [a.push(x) for x in raw[150:]] == [b.push(x) for x in raw[150:]]
+
+
+# --------------------------------------------------------------------------- small fixes of the issue
+def test_step_takes_a_preintegrated_frame():
+    from imu_ground import StreamingPreintegrator, SuspensionAwareFilter
+    from imu_ground.imu.egomotion import EgoFrame
+    p = StreamingPreintegrator(rate=10.0, uncertainty=False)
+    frames = []
+    for i in range(40):
+        frames += p.push(0.01 * i, (0.01, 0.002, 0.0), (0.1, 0.0, 9.81))
+    a, b = SuspensionAwareFilter(), SuspensionAwareFilter()
+    for f in frames:
+        x, y = a.step(f), b.step(EgoFrame(f.delta_R, f.delta_v, f.delta_t, False, f.valid, f.t_end))
+        assert (x.pitch, x.roll) == (y.pitch, y.roll)
+
+
+# --------------------------------------------------------------------------- command line
+def _csv_rows(text):
+    import io
+
+    import pandas as pd
+    return pd.read_csv(io.StringIO(text))
+
+
+def test_stream_stdin_equals_estimate_causal(cli, monkeypatch, tmp_path):
+    import io
+    monkeypatch.setattr(sys, "stdin", io.StringIO(EXAMPLE.read_text()))
+    state = tmp_path / "state.json"
+    code, out, err = cli("stream", "--state", state)
+    assert code == 0, err
+    got = _csv_rows(out)
+    res = _offline(EXAMPLE)
+    assert len(got) == len(res.track)
+    np.testing.assert_allclose(got["pitch_deg"], np.degrees(res.track.pitch), rtol=0, atol=1e-9)
+    assert json.loads(state.read_text())["kind"] == "imu_ground.StreamingEstimator"
+    # --json, resumed from the state: the stream's clock jumps back (the same log again), said, no error
+    monkeypatch.setattr(sys, "stdin", io.StringIO(EXAMPLE.read_text()))
+    code, out, err = cli("stream", "--json", "--state", state)
+    assert code == 0, err
+    lines = [json.loads(x) for x in out.splitlines()]
+    assert "restarted" in lines[0]["status_reason"] and set(lines[0]) >= {"t", "pitch_deg", "status"}
+
+
+def test_stream_refuses_a_state_file_it_did_not_write(cli, tmp_path):
+    state = tmp_path / "notes.txt"
+    state.write_text("my notes\n")
+    code, out, err = cli("stream", "--replay", EXAMPLE, "--state", state)
+    assert code == 2 and "--state" in err and err.count("\n") == 1
+    assert state.read_text() == "my notes\n"
+
+
+def test_stream_replay_quiet_under_head(tmp_path):
+    exe = Path(sys.executable).with_name("imu-ground")
+    r = subprocess.run(f"'{exe}' stream --replay '{EXAMPLE}' --state '{tmp_path / 's.json'}' | head -2",
+                       shell=True, capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 0 and r.stderr == "" and len(r.stdout.splitlines()) == 2
+    assert (tmp_path / "s.json").is_file()                 # the state is written when the reader goes away
+
+
+def test_estimate_causal_cli(cli, tmp_path):
+    out = tmp_path / "c.csv"
+    code, _, err = cli("estimate", EXAMPLE, "--causal", "-o", out)
+    assert code == 0, err
+    assert "causal" in out.read_text().split("\nt,")[0]
+    code, _, err = cli("estimate", EXAMPLE, "--causal", "--method", "suspension-offline", "-o", out)
+    assert code == 2 and "--method" in err
+
+
+# --------------------------------------------------------------------------- the twins, piece by piece
+def test_standstill_blocks_equal_their_vectorised_twin():
+    from imu_ground.imu.causal_standstill import StandstillBlocks, block_sums, window_standstill
+    rng = np.random.default_rng(3)
+    n, rate = 3000, 10.0
+    t = np.cumsum(np.full(n, 0.01))
+    t[1500:] += 0.5                                              # a gap: empty blocks, no standstill across
+    still = (t % 20) < 8                                         # stops of 8 s every 20 s
+    gyro = np.where(still[:, None], 1e-3 + rng.normal(0, 5e-4, (n, 3)), rng.normal(0, 0.1, (n, 3)))
+    accel = np.array([0.0, 0.0, 9.80665]) + np.where(still[:, None], rng.normal(0, 0.01, (n, 3)),
+                                                     rng.normal(0, 0.5, (n, 3)))
+    k = np.ceil((t - t[0]) * rate - 1e-6).astype(np.int64) - 1
+    B = int(k.max()) + 1
+    flags = window_standstill(*block_sums(k, gyro, accel, B), StandstillBlocks(rate).tests, rate)
+    blocks = StandstillBlocks(rate)
+    got = []
+    for i in range(n):
+        if k[i] >= 0:
+            blocks.add(int(k[i]), gyro[i].tolist(), accel[i].tolist())
+        while len(got) < k[i]:                                   # frames before this sample's block are complete
+            got.append(blocks.stationary(len(got)))
+    assert got == flags[:len(got)].tolist() and 100 < sum(got) < len(got) - 100
+
+
+def test_speed_buffer_equals_frame_speed():
+    from imu_ground.datasets.speed import frame_speed
+    from imu_ground.datasets.speed_buffer import SpeedBuffer
+    rng = np.random.default_rng(4)
+    ts = np.cumsum(rng.uniform(0.01, 0.2, 300))
+    v = 10 + np.cumsum(rng.normal(0, 0.3, 300))
+    te = np.arange(1.0, ts[-1] + 1.0, 0.1)
+    want = frame_speed(ts, v, te, np.full(te.size, 0.1))
+    buf = SpeedBuffer()
+    for x, y in zip(ts, v):
+        buf.push(float(x), float(y))
+    got = []
+    for e in te:
+        got.append(buf.mean(e - 0.1, e))
+        buf.done(e)
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+    assert np.isnan(got[-1]) and np.isfinite(got[5])
+
+
+def test_stream_writes_its_state_on_sigterm(tmp_path):
+    import signal
+    import time as _time
+    exe = Path(sys.executable).with_name("imu-ground")
+    state = tmp_path / "s.json"
+    p = subprocess.Popen([str(exe), "stream", "--state", str(state)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    lines = EXAMPLE.read_text().splitlines()[:400]
+    p.stdin.write("\n".join(lines) + "\n")
+    p.stdin.flush()
+    first = p.stdout.readline()                      # the header line: samples are being processed
+    assert first.startswith("t,normal_x")
+    _time.sleep(0.3)
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=30)
+    assert p.returncode == 143 and "terminated" in err
+    assert json.loads(state.read_text())["kind"] == "imu_ground.StreamingEstimator"
+
+
+def test_stream_realtime_paces_the_replay(cli, tmp_path):
+    import time as _time
+    log = tmp_path / "short.csv"
+    log.write_text("\n".join(EXAMPLE.read_text().splitlines()[:61]) + "\n")    # 0.6 s at 100 Hz
+    t0 = _time.monotonic()
+    code, out, err = cli("stream", "--replay", log, "--realtime")
+    assert code == 0, err
+    assert _time.monotonic() - t0 >= 0.55 and len(out.splitlines()) == 1 + 5
+
+
+def test_camera_plane_live_equals_causal_estimate(cli, tmp_path):
+    imu, _ = _read(EXAMPLE)
+    res = _offline(EXAMPLE, camera="kitti_cam2")
+    frames = replay(StreamingEstimator(camera="kitti_cam2"), imu.t, imu.gyro, imu.accel)
+    got = np.array([f.plane for f in frames])
+    np.testing.assert_allclose(got, res.meta["plane"].coefficients, rtol=0, atol=1e-12)
+    log = tmp_path / "short.csv"
+    log.write_text("\n".join(EXAMPLE.read_text().splitlines()[:101]) + "\n")
+    code, out, err = cli("stream", "--replay", log, "--camera", "kitti_cam2")
+    assert code == 0, err
+    header = out.splitlines()[0].split(",")
+    assert header[header.index("valid") - 4:header.index("valid")] == ["plane_a", "plane_b", "plane_c", "plane_d"]
+
+
+def test_causal_track_of_a_log_with_nan_and_a_restart_equals_the_stream():
+    """The logs the vectorised form does not cover (non-finite samples, a clock set back) are streamed."""
+    rng = np.random.default_rng(7)
+    t = np.r_[np.arange(600) * 0.01, 2.0 + np.arange(400) * 0.01]        # set back by 4 s after 6 s
+    gyro = rng.normal(0, 0.02, (1000, 3))
+    accel = np.array([0.0, 0.0, 9.81]) + rng.normal(0, 0.2, (1000, 3))
+    gyro[300, 1] = np.nan
+    track, _ = causal_track(t, gyro, accel)
+    frames = replay(StreamingEstimator(), t, gyro, accel)
+    _assert_same(frames, track)
+    assert any("restarted" in r for r in track.status_reason)
+    assert any("non-finite IMU sample" in r for r in track.status_reason)
+
+
+def test_speed_holes_live_as_offline():
+    """NaN speeds are holes (datasets.speed.frame_speed): the frames they reach run IMU only, live as offline."""
+    imu, _ = _read(EXAMPLE)
+    ts = imu.t[::5].copy()
+    v = 10.0 + 0.01 * np.arange(ts.size)
+    v[200:230] = np.nan
+    track, _ = causal_track(imu.t, imu.gyro, imu.accel, speed=(ts, v))
+    frames = replay(StreamingEstimator(), imu.t, imu.gyro, imu.accel, (ts, v))
+    _assert_same(frames, track)
+    got = np.array([f.speed for f in frames])
+    from imu_ground.datasets.speed import frame_speed
+    want = frame_speed(ts, v, track.t, np.full(len(track), 0.1))
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+    assert np.isnan(got).sum() >= 6 and np.isfinite(got[5:95]).all() and np.isnan(got[102:112]).all()
