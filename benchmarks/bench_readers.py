@@ -38,6 +38,7 @@ into its stages (wall and CPU seconds, RSS after each), in one fresh process.
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import statistics
 import subprocess
@@ -84,21 +85,27 @@ print(dt, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024, n, cpu)
 """
 
 
-def make_log(hours: float, folder: Path) -> Path:
-    """A ``hours`` long 100 Hz KITTI-format CSV in ``folder`` (reused when already there)."""
-    path = folder / f"kitti_{hours:g}h.csv"
+def make_log(hours: float, folder: Path, drive: Path = DRIVE, gzip_level: int | None = None) -> Path:
+    """A ``hours`` long 100 Hz KITTI-format CSV in ``folder`` (reused when already there).
+
+    ``drive`` (a shared kitti_imu100 file) is tiled, its stamps continued; with
+    ``gzip_level`` the log is written gzip-compressed at that level (``.csv.gz``).
+    """
+    stem = f"kitti_{hours:g}h" + ("" if drive == DRIVE else f"_{drive.name.split('.')[0]}")
+    path = folder / (stem + (".csv" if gzip_level is None else ".csv.gz"))
     if path.is_file():
         return path
     import gzip
-    with gzip.open(DRIVE, "rt") as f:
+    with gzip.open(drive, "rt") as f:
         header = f.readline()
         lines = f.read().splitlines()
     t = np.array([float(ln.split(",", 1)[0]) for ln in lines])
     rest = [ln.split(",", 1)[1] for ln in lines]
     n_total = round(hours * 3600 * RATE)
     span = t[-1] + 1.0 / RATE
-    tmp = path.with_suffix(".part")
-    with open(tmp, "w") as out:
+    tmp = path.with_name(path.name + ".part")
+    opener = open if gzip_level is None else functools.partial(gzip.open, compresslevel=gzip_level)
+    with opener(tmp, "wt") as out:
         out.write(header)
         k = 0
         tile = 0
@@ -134,7 +141,7 @@ em = imu_to_egomotion(imu, rate=10.0); mark('egomotion')
 spec = METHODS[default_method(True)]
 track = spec.make(extrinsic=Extrinsic.coerce(None)).run(em, smooth=bool(spec.smooth)); mark('filter')
 table = track_table(track, max_gap_frames=GAP_NAN_FRAMES); mark('table')
-with open(sys.argv[2], 'w', newline='\\n') as fh:
+with open(sys.argv[2], 'wb') as fh:
     write_csv_rows(fh, table)
 mark('csv writer')
 print('; '.join(out))

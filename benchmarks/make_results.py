@@ -27,7 +27,7 @@ against road planes fitted to the shared KITTI LiDAR scans with the fit's repeat
 Speed: the tables of the benchmark scripts in ``benchmarks/``, each of which exposes
 ``rows()`` returning its rows
 (``bench_filter``, ``bench_suspension``, ``bench_preintegration``, ``bench_ekf``,
-``bench_gravity``, ``bench_readers``, ``bench_batch``; ``bench_preview``: the preview's peak memory;
+``bench_gravity``, ``bench_readers``, ``bench_batch``, ``bench_job``; ``bench_preview``: the preview's peak memory;
 ``bench_streaming``: the live estimator); a script that is missing
 or has no ``rows()`` is listed with a note instead. Figures are measured on
 whatever machine runs this (shared, 2 cores while others work: speed figures are
@@ -50,7 +50,7 @@ REPO = HERE.parent
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_imu100"
 OUT = HERE / "RESULTS.md"
 BENCHMARKS = ("bench_filter", "bench_suspension", "bench_preintegration", "bench_ekf", "bench_gravity",
-              "bench_readers", "bench_batch", "bench_preview", "bench_streaming")
+              "bench_readers", "bench_batch", "bench_preview", "bench_streaming", "bench_job")
 #: Folder of the studies (accuracy, tuning and simulator checks; not speed targets).
 STUDIES = HERE / "studies"
 #: Studies whose rows check the simulator against the real drives (band powers, method ranking), not speeds.
@@ -99,6 +99,14 @@ INTROS = {"bench_streaming": (
     "the default (both with the log's speed); and per shared drive the largest and 99th-percentile |difference| "
     "of pitch and roll, deg, between the default (whole-log gyro bias and standstills) and the live estimate, "
     "over the whole drive and after its first 60 s (empty on drives shorter than that)."),
+    "bench_job": (
+    "The whole `imu-ground estimate` on issue 30's 10 h log (shared `2011_10_03_drive_0042` tiled to 36,000 s, "
+    "written with gzip level 1, and the same log as plain CSV; its INS speed used) against `pandas.read_csv` of the "
+    "same file (`benchmarks/bench_job.py`): whole fresh processes, the cases and the competitor interleaved in each "
+    "round, medians. `before` is the code before issue 30 (commit b669bd8, a second checkout given by "
+    "`IMU_GROUND_BENCH_BEFORE`), timed in the same rounds as `after` (this commit). The machine is shared: the load "
+    "average is in each row, CPU times beside the wall times. The stage rows split one run of each into read, "
+    "standstill masks, preintegration, filter and each of its outputs, table and writer."),
     "lidar_table": (
     "The paper's protocol on real data (`benchmarks/studies/lidar_table.py`; `imu-ground evaluate --lidar`): road "
     "planes fitted to KITTI Velodyne scans (RANSAC, then least squares on the inliers, region x 5..30 m, |y| < 4 m) "

@@ -61,7 +61,7 @@ def _unit(g) -> tuple:
 
 
 class MountMonitor:
-    """The monitor of the module docstring: one :meth:`update` a frame, or :meth:`run` over a batch.
+    """The monitor of the module docstring: one :meth:`update` a frame, or :meth:`run` over a batch (vectorised).
 
     Attributes
     ----------
@@ -161,19 +161,110 @@ class MountMonitor:
         self.reference = None if reference is None else tuple(reference.tolist())
 
     def run(self, t: np.ndarray, gravity: np.ndarray, usable: np.ndarray) -> np.ndarray:
-        """:meth:`update` over a batch (frames in order); returns per frame whether the alarm is raised.
+        """:meth:`update` over a batch (frames in order), vectorised; per frame whether the alarm is raised.
+
+        The twin of calling ``update`` frame by frame (same flags, same state after the batch, the
+        same floating-point operations on every compared value): the frames that use the road filter
+        form runs between breaks (a frame without gravity or not usable); in a run armed at ``A`` (its
+        first time plus :data:`HOLD_OFF`, or the monitor's own arming when the batch continues its run)
+        the frames from ``A`` on enter the history, and each is compared with the last history entry at
+        least :data:`WINDOW` s older (the one ``update``'s deque holds first). The drift of a run is the
+        largest angle of its first :data:`GATE` s, ``acos`` of the smallest cosine (``acos`` decreases).
 
         Parameters
         ----------
         t : ndarray (F,)
-            Frame times, s.
+            Frame times, s, non-decreasing.
         gravity : ndarray (F, 3)
             The road filter's gravity per frame (rows of NaN: no road filter at that frame).
         usable : ndarray of bool (F,)
+
+        Returns
+        -------
+        ndarray of bool (F,)
         """
-        out = np.zeros(len(t), dtype=bool)
-        g = np.asarray(gravity, dtype=float)
-        has = np.isfinite(g).all(axis=1)
-        for k in range(len(t)):
-            out[k] = self.update(float(t[k]), tuple(g[k].tolist()) if has[k] else None, bool(usable[k])) is not None
+        t = np.asarray(t, dtype=float)
+        n = len(t)
+        out = np.zeros(n, dtype=bool)
+        if self.alarm is not None:
+            out[:] = True
+            return out
+        if n == 0:
+            return out
+        g = np.asarray(gravity, dtype=float).reshape(n, 3)
+        on = np.isfinite(g).all(axis=1) & np.asarray(usable, dtype=bool)
+        # runs of frames in use: run r spans frames [first[r], last[r]]
+        edges = np.flatnonzero(np.diff(np.concatenate([[False], on, [False]]).astype(np.int8)))
+        first, last = edges[0::2], edges[1::2] - 1
+        carried = bool(first.size) and first[0] == 0 and self._armed_at == self._armed_at
+        armed = t[first] + HOLD_OFF
+        if carried:
+            armed[0] = self._armed_at
+        run_of = np.cumsum(np.concatenate([[0], np.diff(on.astype(np.int8)) == 1]))[on]   # run of each used frame
+        run_of -= run_of[0] if run_of.size else 0
+        used = np.flatnonzero(on)
+        hist = used[t[used] >= armed[run_of]]                # frames appended to the history, in order
+        hrun = np.searchsorted(first, hist, side="right") - 1
+        # the history as arrays: the carried entries (if this batch continues the monitor's run), then the frames
+        old = self._hist if carried else ()
+        m0 = len(old)
+        ht = np.concatenate([[e[0] for e in old], t[hist]]) if m0 else t[hist]
+        gx, gy, gz = g[hist, 0], g[hist, 1], g[hist, 2]
+        norm = np.sqrt(gx * gx + gy * gy + gz * gz)          # as _unit
+        hu = np.stack([gx / norm, gy / norm, gz / norm], axis=1)
+        if m0:
+            hu = np.concatenate([np.array([e[1] for e in old], dtype=float).reshape(m0, 3), hu])
+        hr = np.concatenate([np.zeros(m0, dtype=np.intp), hrun])
+        start = np.searchsorted(hr, np.arange(len(first)), side="left")    # first history entry of each run
+        k = np.arange(m0, len(ht))                                          # entries of this batch
+        ref = np.searchsorted(ht, ht[k] - WINDOW, side="right") - 1         # last entry at least WINDOW s older
+        has_ref = ref >= start[hr[k]]
+        ref = np.where(has_ref, ref, start[hr[k]])
+        u, r = hu[k], hu[ref]
+        c = np.clip(u[:, 0] * r[:, 0] + u[:, 1] * r[:, 1] + u[:, 2] * r[:, 2], -1.0, 1.0)
+        gate_end = armed[hr[k]] + GATE
+        gating = has_ref & (ht[k] < gate_end)
+        # the drift of each run: the largest angle of its gate (acos of the smallest cosine), from 0 or the carried one
+        low = np.full(len(first), np.inf)
+        np.minimum.at(low, hr[k][gating], c[gating])
+        drift = np.zeros(len(first))
+        if carried:
+            drift[0] = self._drift
+        for j in np.flatnonzero(low < np.inf).tolist():          # (one a run, not a frame)
+            drift[j] = max(drift[j], math.acos(float(low[j])))
+        judge = has_ref & ~gating & (c < _COS_THRESHOLD) & (drift[hr[k]] <= DRIFT_LIMIT)
+        hit = np.flatnonzero(judge)
+        if hit.size:
+            a = int(hit[0])
+            frame, j, end = int(hist[a]), int(hr[m0 + a]), m0 + a
+            out[frame:] = True
+            ca = float(c[a])
+            self.alarm, self.alarm_t, self.reference = (
+                f"mount moved: the measured gravity turned {math.acos(ca) / DEG:.1f} deg away from the mount's "
+                f"up axis within {WINDOW:g} s, at t = {float(t[frame]):.1f} s", float(t[frame]),
+                tuple(hu[ref[a]].tolist()))
+        else:
+            frame = n - 1
+            j = len(first) - 1 if on[-1] else -1
+            end = len(ht) - 1
+        self._set_batch_state(t, ht, hu, hr, start, j, end, armed, drift, frame, on)
         return out
+
+    def _set_batch_state(self, t, ht, hu, hr, start, j: int, end: int, armed, drift, frame: int, on) -> None:
+        """The state after ``frame`` of :meth:`run` (``j``: that frame's run, -1 for a break)."""
+        if j < 0:                                   # the last frame was a break: history cleared, drift kept
+            self._hist.clear()
+            self._armed_at = math.nan
+            runs = np.flatnonzero(np.diff(np.concatenate([[False], on[:frame + 1]]).astype(np.int8)) == 1)
+            if runs.size:                           # the drift of the last run before it (else unchanged)
+                self._drift = float(drift[len(runs) - 1])
+            return
+        self._armed_at = float(armed[j])
+        self._drift = float(drift[j])
+        lo = int(start[j])
+        if end < lo or hr[end] != j or ht[end] > t[frame]:           # nothing of this run entered the history yet
+            self._hist = deque()
+            return
+        keep = int(np.searchsorted(ht[:end + 1], ht[end] - WINDOW, side="right")) - 1
+        lo = max(lo, keep)
+        self._hist = deque((float(ht[i]), tuple(hu[i].tolist())) for i in range(lo, end + 1))

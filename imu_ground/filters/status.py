@@ -283,9 +283,19 @@ def track_reasons(codes: np.ndarray, std_max: np.ndarray, dt: np.ndarray,
     if details is not None:
         ok = codes == OK
         out[ok] = np.where(np.asarray(details, dtype=object)[ok] == None, "", details[ok])  # noqa: E711
-    for k in np.flatnonzero((codes != OK) & (codes != STANDSTILL)).tolist():   # (few frames)
-        out[k] = status_reason(int(codes[k]), float(dt[k]), float(std_max[k]),
-                               None if details is None else details[k], converged_std)
+    # degraded (every frame after a mount alarm) and invalid: elementwise on the details, as status_reason says
+    detail = np.full(len(codes), None, dtype=object) if details is None else np.asarray(details, dtype=object)
+    for code, base in ((DEGRADED, None), (INVALID, status_reason(INVALID))):
+        k = np.flatnonzero(codes == code)
+        if k.size:
+            d = detail[k]
+            empty = (d == None) | (d == "")                                      # noqa: E711
+            if base is None:
+                out[k] = np.where(empty, status_reason(DEGRADED), d)
+            else:
+                out[k] = np.where(empty, base, base + ": " + np.where(empty, "", d))
+    for k in np.flatnonzero((codes == CONVERGING) | (codes == GAP)).tolist():   # (few frames: the start, gaps)
+        out[k] = status_reason(int(codes[k]), float(dt[k]), float(std_max[k]), detail[k], converged_std)
     return out
 
 

@@ -38,6 +38,19 @@ __all__ = ["preintegrate"]
 _CHUNK = 1 << 15         # intervals per vectorised chunk (cache-sized temporaries)
 
 
+def _running_sum(x: np.ndarray, axis: int) -> np.ndarray:
+    """``np.cumsum(x, axis)`` along a short axis (a block's intervals): one vectorised add over the blocks per step.
+
+    The same additions in the same order as ``cumsum`` (equal to the bit), without its per-lane
+    loop over a strided axis, which is several times slower on these shapes.
+    """
+    out = np.array(x, dtype=float)
+    v = np.moveaxis(out, axis, 0)
+    for k in range(1, v.shape[0]):
+        v[k] += v[k - 1]
+    return out
+
+
 def _blocks_kernel(dt: np.ndarray, w: np.ndarray, f: np.ndarray, qg: float, qa: float,
                    uncertainty: bool = True) -> tuple:
     """Preintegrate padded blocks of intervals in closed form, left-error form.
@@ -74,13 +87,13 @@ def _blocks_kernel(dt: np.ndarray, w: np.ndarray, f: np.ndarray, qg: float, qa: 
     for i in range(3):
         c[i] = Rk[i, 0] * fd[0] + Rk[i, 1] * fd[1] + Rk[i, 2] * fd[2]
     del fd
-    V = np.cumsum(c, axis=1)                                # delta_v after interval k
+    V = _running_sum(c, 1)                                  # delta_v after interval k
     Vb = np.empty_like(V)                                   # ... and before
     Vb[:, 0] = 0.0
     Vb[:, 1:] = V[:, :-1]
-    Pp = np.cumsum(dt * (Vb + 0.5 * c), axis=1)             # delta_p after interval k
+    Pp = _running_sum(dt * (Vb + 0.5 * c), 1)               # delta_p after interval k
     del Vb, c
-    e = np.cumsum(dt, axis=0)                               # end time of interval k
+    e = _running_sum(dt, 0)                                 # end time of interval k
     T = e[-1].copy()
     Rn = np.ascontiguousarray(P[:, :, -1].transpose(2, 0, 1))
     vn = np.ascontiguousarray(V[:, -1].T)

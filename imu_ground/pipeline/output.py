@@ -295,69 +295,56 @@ def _csv_header(meta: Mapping[str, Any]) -> str:
     return "".join(f"# {ln}\n" for ln in lines)
 
 
-#: Rows formatted per ``%`` operation by :func:`write_csv_rows` (bounded text in memory).
-CSV_BLOCK_ROWS = 4096
-#: Number format of the CSV's float columns (9 significant digits; NaN as ``nan``).
-CSV_FLOAT_FORMAT = "%.9g"
-
-
-def _csv_plain_name(name: Any) -> bool:
-    """A column name pandas writes unquoted (no separator, quote, space or line break)."""
-    return isinstance(name, str) and not any(ch in name for ch in ',"\r\n ') and name != ""
-
-
 def write_csv_rows(fh, table) -> None:
-    """Write ``table``'s header line and rows as CSV text to ``fh``, byte for byte what pandas writes.
+    """Write ``table``'s header line and rows as CSV to ``fh``, through pyarrow's CSV writer (pandas' without it).
 
-    The text equals ``table.to_csv(fh, index=False, float_format="%.9g",
-    na_rep="nan", lineterminator="\\n")`` with bool columns as 0/1: float
-    columns with :data:`CSV_FLOAT_FORMAT` (NaN as ``nan``, infinities as
-    ``inf``/``-inf``), bool and integer columns as integers. Rows are
-    formatted :data:`CSV_BLOCK_ROWS` at a time by one ``%`` operation on a
-    flat tuple of the block's values instead of pandas' per-value formatter.
-    Tables this fast path does not cover (other column types, names that would
-    need quoting, integers beyond 2**53) go through pandas itself.
+    Every number is written with the shortest text that reads back as the same double (the file
+    reads back equal to the table), NaN as ``nan``, infinities as ``inf``/``-inf``, bool columns
+    as 0/1; text fields are quoted (``"``, doubled inside), the header names only where they need it.
+    pyarrow (the ``parquet`` extra) formats the rows in C++; without it pandas' ``to_csv`` writes
+    them (the same values; numbers may be spelt differently, e.g. ``1.5e-05`` for ``0.000015``).
 
     Parameters
     ----------
-    fh : text file
-        Open for writing (``newline="\\n"``).
+    fh : binary file
+        Open for writing.
     table : pandas.DataFrame
         The table (its index is not written).
     """
-    kinds = [table[c].dtype.kind for c in table.columns]
-    text = [k == "O" and all(type(v) is str for v in table[c].tolist()) for c, k in zip(table.columns, kinds)]
-    fast = (all(k in "fbiu" or t for k, t in zip(kinds, text)) and all(_csv_plain_name(c) for c in table.columns)
-            and not any(k in "iu" and len(table) and int(table[c].abs().max()) >= 2 ** 53
-                        for c, k in zip(table.columns, kinds)))
-    if not fast:
-        df = table.copy()
-        for c, k in zip(table.columns, kinds):
-            if k == "b":
-                df[c] = df[c].astype(np.int8)
-        df.to_csv(fh, index=False, float_format=CSV_FLOAT_FORMAT, na_rep="nan", lineterminator="\n")
+    fh.write((",".join(_csv_quoted(str(c)) for c in table.columns) + "\n").encode("utf-8"))
+    if not len(table.columns):
         return
-    fh.write(",".join(table.columns) + "\n")
-    # integers and bools exactly (|x| < 2**53); text quoted as pandas (csv.QUOTE_MINIMAL) quotes it
-    values = np.empty((len(table), len(kinds)), dtype=object if any(text) else float)
-    for j, c in enumerate(table.columns):
-        values[:, j] = [_csv_quoted(v) for v in table[c].tolist()] if text[j] else table[c].to_numpy()
-    row = ",".join("%s" if t else CSV_FLOAT_FORMAT if k == "f" else "%d" for k, t in zip(kinds, text)) + "\n"
-    for i in range(0, len(values), CSV_BLOCK_ROWS):
-        block = values[i:i + CSV_BLOCK_ROWS]
-        fh.write((row * len(block)) % tuple(block.ravel().tolist()))
+    df = table.reset_index(drop=True)
+    for c in df.columns[[k == "b" for k in df.dtypes.map(lambda d: d.kind)]]:
+        df[c] = df[c].astype(np.int8)
+    try:
+        pa, pacsv = _pyarrow_csv()
+        # column by column from numpy (NaN stays a number, written nan; pandas' conversion would make it empty)
+        rows = pa.table([pa.array(df[c].to_numpy() if df[c].dtype.kind in "fiu" else df[c].to_numpy(dtype=object))
+                         for c in df.columns], names=[f"c{j}" for j in range(len(df.columns))])
+    except (ImportError, ValueError, TypeError):        # no pyarrow, or columns it cannot type (ArrowInvalid ...)
+        df.to_csv(fh, header=False, index=False, na_rep="nan", lineterminator="\n", encoding="utf-8")
+        return
+    pacsv.write_csv(rows, fh, pacsv.WriteOptions(include_header=False, quoting_style="needed"))
+
+
+def _pyarrow_csv():
+    """``(pyarrow, pyarrow.csv)``; ImportError without pyarrow."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+    return pa, pacsv
 
 
 def _csv_quoted(v: str) -> str:
-    """A text field as the csv module writes it with minimal quoting (pandas' default)."""
-    if any(ch in v for ch in ',"\r\n'):
+    """A header name as the csv module writes it with minimal quoting."""
+    if any(ch in v for ch in ',"\r\n') or v == "":
         return '"' + v.replace('"', '""') + '"'
     return v
 
 
 def _write_csv(path: Path, table, meta: Mapping[str, Any]) -> None:
-    with open(path, "w", encoding="utf-8", newline="\n") as fh:
-        fh.write(_csv_header(meta))
+    with open(path, "wb") as fh:
+        fh.write(_csv_header(meta).encode("utf-8"))
         write_csv_rows(fh, table)
 
 
