@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from imu_ground.errors import ImuGroundError
 from .report import MalformedFileError
 
 __all__ = ["Columns", "RowLines", "detect_dialect", "first_nonnumber", "locate_bad_lines", "numeric", "open_binary",
@@ -448,6 +449,6 @@ def numeric(values: np.ndarray, column: str, where: str | Path,
         what = f"column {column!r}: {values[r]!r} is not a number ({count} such value(s) in this column)"
         if row_lines is not None:
             raise MalformedFileError(where, what, line=int(row_lines(np.array([r]))[0]))
-        raise ValueError(f"{where}: {what.replace(':', f', row {r}:', 1)}")
+        raise ImuGroundError(f"{where}: {what.replace(':', f', row {r}:', 1)}")
     import pandas as pd
     return pd.to_numeric(pd.Series(values), errors="coerce").to_numpy(dtype=float)

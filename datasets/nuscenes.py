@@ -121,6 +121,8 @@ def read_nuscenes_imu(path: str | Path, *, scene: str | None = None, validate: b
     except json.JSONDecodeError as e:
         raise MalformedFileError(p, f"not valid JSON: {e.msg} (column {e.colno}; truncated file?)",
                                  line=e.lineno) from e
+    except UnicodeDecodeError as e:
+        raise MalformedFileError(p, f"not a JSON text file (not UTF-8: {e.reason} at byte {e.start})") from e
     if not isinstance(records, list):
         raise MalformedFileError(p, f"expected a JSON list of messages, got {type(records).__name__}")
     if not records:

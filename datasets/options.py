@@ -3,7 +3,7 @@
 One table owns the correspondence, so that an error message can name the option
 the way the user sets it: ``gyro_unit="deg/s"`` from Python, ``--gyro-unit deg/s``
 from the command line. Readers raise :class:`ImuInputError`, the pipeline
-:class:`OptionError` (its base, a ``ValueError``), with ``option`` and ``value``
+:class:`OptionError` (its base, an :class:`~imu_ground.errors.ImuGroundError`), with ``option`` and ``value``
 set; :meth:`OptionError.cli_message` is what the command line prints. The
 readers' warnings carry the same :class:`OptionMessage`.
 """
@@ -12,6 +12,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
+
+from imu_ground.errors import ImuGroundError
 
 __all__ = ["READER_OPTIONS", "ImuInputError", "OptionError", "OptionMessage", "OptionText", "ReaderOption", "option_hint"]
 
@@ -122,7 +124,7 @@ class OptionMessage:
         return self._render(cli=True)
 
 
-class OptionError(OptionMessage, ValueError):
+class OptionError(OptionMessage, ImuGroundError):
     """A bad input or option value that an option can fix; the message names the option.
 
     The one error class for options, in the readers and in

@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from imu_ground.errors import ImuGroundError
+
 __all__ = [
     "PoseSequence",
     "detect_pose_format",
@@ -105,21 +107,23 @@ def _load_table(path: Path, widths: tuple[int, ...]) -> np.ndarray:
         parts = line.replace(",", " ").split()
         if width is None:
             if len(parts) not in widths:
-                raise ValueError(f"{path}:{lineno}: expected {' or '.join(map(str, widths))} numbers, got {len(parts)}")
+                raise ImuGroundError(f"{path}:{lineno}: expected {' or '.join(map(str, widths))} numbers, "
+                                     f"got {len(parts)}")
             width = len(parts)
         elif len(parts) != width:
-            raise ValueError(f"{path}:{lineno}: expected {width} numbers like the first line, got {len(parts)} "
-                             f"(truncated or malformed line)")
+            raise ImuGroundError(f"{path}:{lineno}: expected {width} numbers like the first line, got {len(parts)} "
+                                 f"(truncated or malformed line)")
         try:
             rows.append([float(v) for v in parts])
         except ValueError:
-            raise ValueError(f"{path}:{lineno}: not a number in {raw.strip()!r}") from None
+            raise ImuGroundError(f"{path}:{lineno}: not a number in {raw.strip()!r}") from None
     if not rows:
-        raise ValueError(f"{path}: no poses (empty file)")
+        raise ImuGroundError(f"{path}: no poses (empty file)")
     data = np.array(rows)
     bad = ~np.all(np.isfinite(data), axis=1)
     if bad.any():
-        raise ValueError(f"{path}: {bad.sum()} lines with NaN or inf values, first at pose {np.flatnonzero(bad)[0]}")
+        raise ImuGroundError(f"{path}: {bad.sum()} lines with NaN or inf values, "
+                             f"first at pose {np.flatnonzero(bad)[0]}")
     return data
 
 
@@ -129,8 +133,8 @@ def _check_rotations(path: Path, r: np.ndarray, lines: np.ndarray) -> np.ndarray
     bad = (err > _ORTHO_TOL) | (det < 0)
     if bad.any():
         i = np.flatnonzero(bad)[0]
-        raise ValueError(f"{path}: {bad.sum()} poses are not rotations (first at line {lines[i]}: "
-                         f"|R^T R - I| = {err[i]:.2e}, det = {det[i]:.4f})")
+        raise ImuGroundError(f"{path}: {bad.sum()} poses are not rotations (first at line {lines[i]}: "
+                             f"|R^T R - I| = {err[i]:.2e}, det = {det[i]:.4f})")
     from scipy.spatial.transform import Rotation
     return Rotation.from_matrix(r).as_matrix()      # nearest rotation, float64
 
@@ -223,13 +227,13 @@ def read_pose_times(path: str | Path, frames: np.ndarray, source: str | Path = "
     times = _load_table(path, (1,))[:, 0]
     frames = np.asarray(frames, dtype=np.int64)
     if frames.size and (frames.min() < 0 or frames.max() >= times.size):
-        raise ValueError(f"{source}: {times.size} time(s) in {path} but the poses need frames "
-                         f"{int(frames.min())}..{int(frames.max())} (is it the times file of this sequence?)")
+        raise ImuGroundError(f"{source}: {times.size} time(s) in {path} but the poses need frames "
+                             f"{int(frames.min())}..{int(frames.max())} (is it the times file of this sequence?)")
     t = times[frames]
     if np.any(np.diff(t) <= 0):
         i = int(np.flatnonzero(np.diff(t) <= 0)[0])
-        raise ValueError(f"{path}: times not strictly increasing at line {frames[i + 1] + 1} "
-                         f"({t[i]!r} then {t[i + 1]!r})")
+        raise ImuGroundError(f"{path}: times not strictly increasing at line {frames[i + 1] + 1} "
+                             f"({t[i]!r} then {t[i + 1]!r})")
     return t
 
 
@@ -282,13 +286,13 @@ def read_kitti_poses(path: str | Path, times: str | Path | None = None) -> PoseS
     if data.shape[1] == 13:
         index = data[:, 0]
         if np.any(index != np.round(index)):
-            raise ValueError(f"{path}: the 13-column format needs an integer frame index in the first column")
+            raise ImuGroundError(f"{path}: the 13-column format needs an integer frame index in the first column")
         index = index.astype(np.int64)
         d = np.diff(index)
         if np.any(d <= 0):
             i = np.flatnonzero(d <= 0)[0]
-            raise ValueError(f"{path}: frame indices are not strictly increasing at line {i + 2} "
-                             f"({index[i]} then {index[i + 1]})")
+            raise ImuGroundError(f"{path}: frame indices are not strictly increasing at line {i + 2} "
+                                 f"({index[i]} then {index[i + 1]})")
         data = data[:, 1:]
     else:
         index = np.arange(len(data))
@@ -329,13 +333,13 @@ def read_tum_poses(path: str | Path) -> PoseSequence:
     if np.any(d <= 0):
         bad = np.flatnonzero(d <= 0)
         kind = "duplicate" if np.all(d[bad] == 0) else "unsorted or duplicate"
-        raise ValueError(f"{path}: {bad.size} {kind} timestamps, first at pose {bad[0] + 1} "
-                         f"(t = {t[bad[0]]!r} then {t[bad[0] + 1]!r})")
+        raise ImuGroundError(f"{path}: {bad.size} {kind} timestamps, first at pose {bad[0] + 1} "
+                             f"(t = {t[bad[0]]!r} then {t[bad[0] + 1]!r})")
     q = data[:, 4:8]
     norm = np.linalg.norm(q, axis=1)
     if np.any(np.abs(norm - 1.0) > 1e-2):
         i = np.flatnonzero(np.abs(norm - 1.0) > 1e-2)[0]
-        raise ValueError(f"{path}: quaternion at pose {i} has norm {norm[i]:.4f}, expected 1 (order qx qy qz qw)")
+        raise ImuGroundError(f"{path}: quaternion at pose {i} has norm {norm[i]:.4f}, expected 1 (order qx qy qz qw)")
     from scipy.spatial.transform import Rotation
     rot = Rotation.from_quat(q).as_matrix()
     return PoseSequence(rot, data[:, 1:4].copy(), t, np.arange(len(t)), str(path), "the TUM file's own times")
@@ -361,16 +365,16 @@ def read_poses(path: str | Path, format: str | None = None, times: str | Path | 
         n = len(first.split("#", 1)[0].replace(",", " ").split())
         format = {8: "tum", 12: "kitti", 13: "kitti"}.get(n)
         if format is None:
-            raise ValueError(f"{path}: cannot tell the pose format from a first line of {n} numbers "
-                             f"(KITTI has 12 or 13, TUM has 8)")
+            raise ImuGroundError(f"{path}: cannot tell the pose format from a first line of {n} numbers "
+                                 f"(KITTI has 12 or 13, TUM has 8)")
     if format == "kitti":
         return read_kitti_poses(path, times)
     if format == "tum":
         if times is not None:
-            raise ValueError(f"{path}: a TUM pose file carries its own times; a times file ({times}) is for "
-                             "KITTI pose files")
+            raise ImuGroundError(f"{path}: a TUM pose file carries its own times; a times file ({times}) is for "
+                                 "KITTI pose files")
         return read_tum_poses(path)
-    raise ValueError(f"unknown pose format {format!r}: use 'kitti' or 'tum'")
+    raise ImuGroundError(f"unknown pose format {format!r}: use 'kitti' or 'tum'")
 
 
 def write_tum_poses(path: str | Path, t: np.ndarray, rotations: np.ndarray,

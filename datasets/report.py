@@ -16,6 +16,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from imu_ground.errors import ImuGroundError
 from imu_ground.units import GRAVITY
 
 from .options import ImuInputError, OptionMessage
@@ -48,7 +49,7 @@ class ImuValidationError(ImuInputError):
     """An IMU log failed a check whose policy is to raise; ``option`` names the fix, if any."""
 
 
-class MalformedFileError(ValueError):
+class MalformedFileError(ImuGroundError):
     """A log file cannot be parsed: empty, truncated, wrong field count, not a number.
 
     Attributes

@@ -19,6 +19,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from imu_ground.errors import ImuGroundError, require_extra
 from .options import ImuInputError
 from .report import MalformedFileError
 
@@ -91,7 +92,7 @@ class _Ros1Mcap:
         self.connections: list[_Connection] = []
 
     def open(self) -> None:
-        from mcap.reader import make_reader
+        make_reader = require_extra("mcap.reader", "ros", f"{self.path}: reading a ROS 1 MCAP file").make_reader
         from rosbags.typesys import Stores, get_types_from_msg, get_typestore
         from rosbags.typesys.msg import normalize_msgtype
 
@@ -132,18 +133,16 @@ class _Ros1Mcap:
 @contextmanager
 def _open(path: PathLike) -> Iterator[Any]:
     """An open ``rosbags.highlevel.AnyReader``; unreadable files raise :class:`MalformedFileError` naming them."""
-    try:
-        from rosbags.highlevel import AnyReader
-        from rosbags.typesys import Stores, get_typestore
-    except ImportError as e:
-        raise ImportError(f"{path}: reading ROS logs needs rosbags: pip install 'imu-ground[ros]' ({e})") from e
+    AnyReader = require_extra("rosbags.highlevel", "ros", f"{path}: reading ROS logs").AnyReader
+    typesys = require_extra("rosbags.typesys", "ros", f"{path}: reading ROS logs")
+    Stores, get_typestore = typesys.Stores, typesys.get_typestore
 
     p = Path(path)
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such file or folder")
     if not is_rosbag(p):
-        raise ValueError(f"{p}: not a ROS log (expected a .bag or .mcap file, or a ROS 2 bag folder with "
-                         f"metadata.yaml)")
+        raise ImuGroundError(f"{p}: not a ROS log (expected a .bag or .mcap file, or a ROS 2 bag folder with "
+                             f"metadata.yaml)")
     errors = _read_errors()
     try:
         if p.is_file() and p.suffix.lower() == ".mcap" and _mcap_profile(p) == "ros1":

@@ -23,6 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from imu_ground.errors import ImuGroundError
+
 from .options import ImuInputError
 from .report import MalformedFileError
 from .rosbag_files import is_rosbag
@@ -45,7 +47,7 @@ def _checked(t, v, source: str) -> tuple[np.ndarray, np.ndarray]:
     t = np.asarray(t, dtype=float).ravel()
     v = np.asarray(v, dtype=float).ravel()
     if t.shape != v.shape or t.size == 0:
-        raise ValueError(f"{source}: {t.size} times but {v.size} speeds (need the same number, at least one)")
+        raise ImuGroundError(f"{source}: {t.size} times but {v.size} speeds (need the same number, at least one)")
     v = np.where(np.isinf(v), np.nan, v)
     ok = np.isfinite(t)
     t, v = t[ok], v[ok]
@@ -54,7 +56,7 @@ def _checked(t, v, source: str) -> tuple[np.ndarray, np.ndarray]:
     keep = np.concatenate([[True], np.diff(t) > 0]) if t.size else np.zeros(0, bool)
     t, v = t[keep], v[keep]
     if not np.isfinite(v).any():
-        raise ValueError(f"{source}: no finite speed sample")
+        raise ImuGroundError(f"{source}: no finite speed sample")
     return t, v
 
 
@@ -129,7 +131,7 @@ def check_speed(t: np.ndarray, v: np.ndarray, source: str, imu=None) -> tuple[np
 
     Raises
     ------
-    ValueError
+    ImuGroundError
         Implausible speeds: the message gives the values and what the file must hold.
     """
     notes: list[str] = []
@@ -155,17 +157,17 @@ def check_speed(t: np.ndarray, v: np.ndarray, source: str, imu=None) -> tuple[np
                              f"{n} s of driving; a speed file holds m/s: check its unit")
     fast = float(np.nanmax(v))
     if fast > MAX_SPEED:
-        raise ValueError(f"{source}: speeds up to {fast:.1f}, implausible for m/s (over {MAX_SPEED:g} m/s); a speed "
-                         "file holds the forward speed in m/s (divide km/h by 3.6)")
+        raise ImuGroundError(f"{source}: speeds up to {fast:.1f}, implausible for m/s (over {MAX_SPEED:g} m/s); a speed "
+                             "file holds the forward speed in m/s (divide km/h by 3.6)")
     neg = v < 0
     if neg.any():
         slow = float(np.nanmin(v))
         finite = int(np.isfinite(v).sum())
         share = float(neg.sum() / finite)
         if share > 0.5 or slow < -MAX_REVERSE:
-            raise ValueError(f"{source}: {100 * share:.0f}% of the speeds are negative, down to {slow:.1f} m/s; a "
-                             f"car reverses rarely and at a few m/s (at most {MAX_REVERSE:g}): is the sign flipped? "
-                             "a speed file holds the forward speed, m/s, negative only when reversing")
+            raise ImuGroundError(f"{source}: {100 * share:.0f}% of the speeds are negative, down to {slow:.1f} m/s; a "
+                                 f"car reverses rarely and at a few m/s (at most {MAX_REVERSE:g}): is the sign flipped? "
+                                 "a speed file holds the forward speed, m/s, negative only when reversing")
         notes.append(f"{source}: {int(neg.sum())} of {finite} speeds are negative (down to {slow:.2f} m/s): "
                      "taken as reversing")
     return t, v, notes
@@ -216,7 +218,11 @@ def read_speed_file(path: str | Path, column: str | None = None) -> tuple[np.nda
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"{p}: no such speed file")
-    df = pd.read_csv(p, skipinitialspace=True)
+    try:
+        df = pd.read_csv(p, skipinitialspace=True)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as e:
+        raise MalformedFileError(p, f"not a speed table, a CSV file with a header such as 't,speed' "
+                                 f"({' '.join(str(e).split())})") from e
     cols = [str(c).strip() for c in df.columns]
     df.columns = cols
     if column is not None and column not in cols:
@@ -323,7 +329,7 @@ def read_speed(source: Any, *, log: str | Path | None = None, format: str | None
 
     Raises
     ------
-    ValueError
+    ImuGroundError
         No such column, or a log without a speed signal (the message says what to pass).
     """
     src = Path(str(source))
@@ -335,8 +341,8 @@ def read_speed(source: Any, *, log: str | Path | None = None, format: str | None
         fmt = detect_format(log) if format is None else format
         out = log_speed(log, fmt, imu, topic)
         if out is None:
-            raise ValueError(f"{log}: a {fmt} log carries no speed signal; give a speed file (CSV t,speed) or "
-                             f"the name of the log's speed column (formats with their own: {', '.join(SPEED_SOURCES)})")
+            raise ImuGroundError(f"{log}: a {fmt} log carries no speed signal; give a speed file (CSV t,speed) or "
+                                 f"the name of the log's speed column (formats with their own: {', '.join(SPEED_SOURCES)})")
         return out
     name = str(source)
     if format == "rosbag" or (format is None and log.exists() and is_rosbag(log)):
@@ -345,8 +351,8 @@ def read_speed(source: Any, *, log: str | Path | None = None, format: str | None
         from imu_ground.datasets import read_imu
         imu = read_imu(log, format=format)
     if name not in imu.extra.columns:
-        raise ValueError(f"{log}: no column {name!r} for the speed (and no such file); columns besides the IMU's: "
-                         f"{', '.join(map(str, imu.extra.columns)) or 'none'}")
+        raise ImuGroundError(f"{log}: no column {name!r} for the speed (and no such file); columns besides the IMU's: "
+                             f"{', '.join(map(str, imu.extra.columns)) or 'none'}")
     return _checked(imu.t, imu.extra[name].to_numpy(float), f"{log} column {name}")
 
 

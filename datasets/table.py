@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from imu_ground.errors import require_extra
 from imu_ground.imu.data import ImuData
 
 from .csvio import Columns, numeric, read_delimited
@@ -288,8 +289,8 @@ def read_parquet_table(path: str | Path, *, validate: bool = True, policy: str =
     MalformedFileError
         Not a readable Parquet file.
     """
-    import pyarrow.parquet as pq
     path = Path(path)
+    pq = require_extra("pyarrow.parquet", "parquet", f"{path}: reading Parquet")
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such file")
     try:

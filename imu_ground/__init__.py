@@ -2,8 +2,9 @@
 
 Layers (each imports only from the ones above it in this list)
 ----------------------------------------------------------------
-- :mod:`imu_ground.so3`, :mod:`imu_ground.units`: rotations (and the glossary of
-  frames and signs), constants and units.
+- :mod:`imu_ground.so3`, :mod:`imu_ground.units`, :mod:`imu_ground.errors`: rotations (and the
+  glossary of frames and signs), constants and units, the root of the user errors
+  (:class:`ImuGroundError`).
 - :mod:`imu_ground.imu`: the IMU log container, standstills, preintegration,
   per-frame ego-motion.
 - :mod:`imu_ground.datasets`: readers of IMU logs and pose files, validation.
@@ -22,6 +23,13 @@ from imu_ground._lazy import lazy_exports
 from imu_ground._version import __version__ as __version__
 
 _EXPORTS = {
+    ".errors": "ImuGroundError MissingExtraError",
+    ".datasets.options": "OptionError ImuInputError",
+    ".datasets.report": "ImuValidationError MalformedFileError",
+    ".datasets.skeleton": "UnknownFormatError PoseFileError",
+    ".datasets.kitti_oxts": "MissingPacketsError",
+    ".imu.warm_start": "StateError",
+    ".filters.calibration": "TooLittleDataError",
     ".imu.data": "ImuData",
     ".imu.egomotion": "EgoFrame EgoMotion imu_to_egomotion",
     ".imu.preintegration": "preintegrate PreintegrationParams StreamingPreintegrator",

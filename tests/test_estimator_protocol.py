@@ -113,7 +113,7 @@ def test_streaming_import_loads_neither_scipy_nor_pandas():
 # ----------------------------------------------------------------------------- methods
 def test_method_registry(drive):
     _, em = drive
-    assert list(METHODS) == ["suspension", "suspension-offline", "filter", "paper"]
+    assert list(METHODS) == ["suspension", "suspension-offline", "filter", "paper", "naive"]
     assert default_method(True) == "suspension" and default_method(False) == "filter"
     for name, spec in METHODS.items():
         assert spec.name == name and spec.description and "\n" not in spec.description
@@ -125,6 +125,9 @@ def test_method_registry(drive):
     np.testing.assert_array_equal(estimate(poses).pitch, GroundNormalFilter().run(em).pitch)
     with pytest.raises(ValueError, match="needs accelerometer data"):
         estimate(poses, "suspension")
+    naive = estimate(poses, "naive")                        # the constant normal: a method like the others
+    np.testing.assert_array_equal(naive.residual, np.tile(np.eye(3), (len(em), 1, 1)))
+    np.testing.assert_array_equal(naive.pitch, 0.0)
 
 
 def test_methods_reject_options_they_do_not_use_and_bad_noise():

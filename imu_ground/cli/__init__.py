@@ -3,8 +3,10 @@
 One module per command (``register`` adds its parser, ``run`` does the work; the
 library's heavy dependencies, pandas, scipy, matplotlib and the optional ones, load
 only when a command needs them). :func:`main` is the one error handler: bad input,
-options or paths never show a traceback but one line naming the file and what
-to do, and exit status 2. Run ``imu-ground COMMAND --help`` for each command's options.
+options or paths (:class:`~imu_ground.errors.ImuGroundError`, ``OSError``) never show a
+traceback but one line naming the file and what to do, and exit status 2; any other
+exception is a bug: one line saying so, exit status 3 (``IMU_GROUND_DEBUG=1`` adds the
+traceback). Run ``imu-ground COMMAND --help`` for each command's options.
 """
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ import re
 import signal
 import sys
 import threading
+import traceback
 import warnings
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -124,6 +127,11 @@ def _quiet_stdout() -> None:
         pass
 
 
+def _debug() -> bool:
+    """``IMU_GROUND_DEBUG`` is set (and not ``0``): an unexpected error shows its traceback."""
+    return os.environ.get("IMU_GROUND_DEBUG", "").strip() not in ("", "0")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``imu-ground`` console script; returns the exit status.
 
@@ -135,6 +143,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     try:
         args = build_parser().parse_args(argv)          # imports every command's module: Ctrl-C may come here
+        from imu_ground.errors import ImuGroundError    # the root of the errors a user can fix (exit 2)
     except KeyboardInterrupt:
         print("imu-ground: interrupted", file=sys.stderr)
         return 130
@@ -152,13 +161,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:
         _quiet_stdout()
         return 141
-    except (ValueError, OSError, ImportError) as e:
+    except (ImuGroundError, OSError) as e:
         print(f"imu-ground {args.command}: error: {_one_line(e)}", file=sys.stderr)
         return 2
     except Exception as e:
-        if os.environ.get("IMU_GROUND_DEBUG"):
-            raise
-        print(f"imu-ground {args.command}: unexpected error: {type(e).__name__}: {_one_line(e)} (please report it; "
+        if _debug():
+            traceback.print_exc(file=sys.stderr)
+        print(f"imu-ground {args.command}: bug: unexpected {type(e).__name__}: {_one_line(e)} (please report it; "
               f"IMU_GROUND_DEBUG=1 shows the traceback)", file=sys.stderr)
         return 3
     finally:

@@ -15,6 +15,7 @@ import numpy as np
 
 from imu_ground.cli._common import say, warn_line
 from imu_ground.datasets.options import OptionError
+from imu_ground.errors import ImuGroundError
 
 __all__ = ["add_lidar_flags", "check_lidar", "run_lidar"]
 
@@ -96,7 +97,7 @@ def _truth(a: argparse.Namespace, ext) -> tuple[list, np.ndarray, np.ndarray, st
     for f in files:
         try:
             abcd.append(read_kitti_planes(f))
-        except ValueError as e:
+        except ImuGroundError as e:
             raise OptionError(f"{' '.join(str(e).split())} ({{opt}})", "lidar_planes") from None
     lp, lr = L.planes_pitch_roll(np.array(abcd), L.planes_rotations(a.lidar_extrinsic, [f.name for f in files],
                                                                      ext))

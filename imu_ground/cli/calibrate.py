@@ -5,6 +5,7 @@ import argparse
 
 from imu_ground.cli import _common as common
 from imu_ground.datasets import read_imu
+from imu_ground.errors import ImuGroundError
 from imu_ground.filters import calibrate
 from imu_ground.filters.calibration import TooLittleDataError
 from imu_ground.pipeline.estimate import require_imu_log
@@ -54,7 +55,11 @@ def run(a: argparse.Namespace) -> int:
             advice = {"gains": "calibrate on a longer drive (or several logs), or leave out --lever-arm to "
                                "calibrate the tilt alone",
                       "tilt": "calibrate on a longer drive (or several logs), or pass --tilt all"}[e.part]
-            raise ValueError(f"{', '.join(a.logs)}: {e.base}; {advice}") from None
+            raise ImuGroundError(f"{', '.join(a.logs)}: {e.base}; {advice}") from None
+        except ImuGroundError as e:                 # e.g. too short a log, no gravity: name the logs
+            if hasattr(e, "cli_message"):
+                raise
+            raise ImuGroundError(f"{', '.join(a.logs)}: {e}") from None
     with atomic_path(a.output) as tmp:
         cal.save(tmp)
     common.say(str(cal))

@@ -17,6 +17,7 @@ from imu_ground.cli._common import (
     say,
     warn_line,
 )
+from imu_ground.errors import ImuGroundError
 from imu_ground.pipeline.estimate import available_methods, estimate_to_files
 from imu_ground.pipeline.output import check_output_path, default_output_name, summarize_table
 from imu_ground.pipeline.planes import check_planes_dir
@@ -117,8 +118,8 @@ def run(a: argparse.Namespace) -> int:
     if a.tum:
         tum = check_output_path(a.tum, [a.log], "--tum", kind=".tum")
         if tum.resolve() == outputs[0].resolve():
-            raise ValueError(f"{tum}: given to both -o and --tum; the two outputs need two file names "
-                             f"(e.g. --tum {tum.with_suffix('.tum')})")
+            raise ImuGroundError(f"{tum}: given to both -o and --tum; the two outputs need two file names "
+                                 f"(e.g. --tum {tum.with_suffix('.tum')})")
         outputs.append(tum)
         kinds.append(".tum")
     if a.planes is not None:

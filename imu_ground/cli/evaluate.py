@@ -9,6 +9,7 @@ import numpy as np
 
 from imu_ground.cli._lidar import add_lidar_flags, run_lidar
 from imu_ground.cli._common import LazyHelp, add_progress_flag, nonnegative_int, progress_enabled, say
+from imu_ground.errors import ImuGroundError
 from imu_ground.evaluation.plots import evaluation_plots
 from imu_ground.evaluation.runner import (
     METHODS,
@@ -69,16 +70,16 @@ def _check(a: argparse.Namespace) -> list:
                                  ("--lidar-planes", a.lidar_planes), ("--lidar-region", a.lidar_region),
                                  ("--extrinsic", a.extrinsic), ("-o", a.plot)) if v]
     if lidar_only:
-        raise ValueError(f"{lidar_only[0]} goes with --lidar LOG SCANS")
+        raise ImuGroundError(f"{lidar_only[0]} goes with --lidar LOG SCANS")
     if a.real is None and not a.synthetic:
-        raise ValueError("nothing to evaluate: give --real DIR (kitti_imu100 drives) and/or --synthetic N")
+        raise ImuGroundError("nothing to evaluate: give --real DIR (kitti_imu100 drives) and/or --synthetic N")
     methods = [m.strip() for m in a.methods.split(",") if m.strip()] if a.methods else list(METHODS)
     unknown = [m for m in methods if m not in METHODS]
     if unknown:
-        raise ValueError(f"--methods: unknown {', '.join(unknown)}; choose from {', '.join(METHODS)}")
+        raise ImuGroundError(f"--methods: unknown {', '.join(unknown)}; choose from {', '.join(METHODS)}")
     bad = [g for g in a.grades.split(",") if g not in ("nav", "mems", "perfect")]
     if bad:
-        raise ValueError(f"--grades: unknown {', '.join(bad)}; choose from nav, mems, perfect")
+        raise ImuGroundError(f"--grades: unknown {', '.join(bad)}; choose from nav, mems, perfect")
     for option, path in (("--csv", a.csv), ("--markdown", a.markdown)):
         if path:
             check_output_path(path, option=option, kind="text")
@@ -105,6 +106,9 @@ def run(a: argparse.Namespace) -> int:
         warnings.simplefilter("ignore")
         out = evaluate(drives, methods, progress=progress, keep_tracks=bool(a.plots))
     res, tracks = out if isinstance(out, tuple) else (out, {})
+    if not res["valid"].any():
+        reasons = "; ".join(f"{r['drive']}: {r['reason']}" for _, r in res.drop_duplicates("drive").iterrows())
+        raise ImuGroundError(f"{a.real}: no drive with a usable reference ({reasons})")
     table = summary_table(res)
     cols = [c for c in ("drives", "mean_deg", "median_deg", "worst_deg", "worst_ratio_to_paper", "worst_ratio_drive",
                         "seg_pitch_deg", "ref_floor_deg", "ref_share", "us_per_frame") if c in table.columns]

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from imu_ground.cli._common import nonnegative_int, say, warn_line
+from imu_ground.errors import ImuGroundError
 from imu_ground.evaluation.preview import (
     DRAWN_BEV_PIXELS,
     PREVIEW_GRID,
@@ -73,26 +74,27 @@ def register(sub) -> None:
 def _check(a: argparse.Namespace):
     out = Path(a.output)
     if out.suffix.lower() not in (".png", ".gif"):
-        raise ValueError(f"{out}: unknown picture type {out.suffix or '(no suffix)'!r}; end the -o file name with "
-                         ".png or .gif")
+        raise ImuGroundError(f"{out}: unknown picture type {out.suffix or '(no suffix)'!r}; end the -o file name with "
+                             ".png or .gif")
     check_output_path(out, [a.log] if a.log else [], "-o", kind=".png")
     if a.log is None and (a.images or a.times or a.extrinsic):
-        raise ValueError("--images, --times and --extrinsic go with a LOG: imu-ground preview LOG --images DIR "
-                         "--times FILE --camera NAME -o F")
+        raise ImuGroundError("--images, --times and --extrinsic go with a LOG: imu-ground preview LOG --images DIR "
+                             "--times FILE --camera NAME -o F")
     if a.frame and not (a.log and out.suffix.lower() == ".png"):
-        raise ValueError(f"--frame {a.frame} goes with a LOG and a .png output (a .gif shows every frame)")
+        raise ImuGroundError(f"--frame {a.frame} goes with a LOG and a .png output (a .gif shows every frame)")
     if (a.lidar or a.lidar_extrinsic) and not (a.log and a.lidar and a.lidar_extrinsic):
-        raise ValueError("--lidar DIR and --lidar-extrinsic SPEC go together, with a LOG and its images: imu-ground "
-                         "preview LOG --images DIR --times FILE --camera NAME --lidar DIR --lidar-extrinsic SPEC -o F")
+        raise ImuGroundError("--lidar DIR and --lidar-extrinsic SPEC go together, with a LOG and its images: "
+                             "imu-ground preview LOG --images DIR --times FILE --camera NAME --lidar DIR "
+                             "--lidar-extrinsic SPEC -o F")
     if a.log is not None and not (a.images and a.times):
-        raise ValueError(f"{a.log}: a log needs its images: add --images DIR --times FILE (and --camera NAME; "
-                         f"default {DEFAULT_CAMERA})")
+        raise ImuGroundError(f"{a.log}: a log needs its images: add --images DIR --times FILE (and --camera NAME; "
+                             f"default {DEFAULT_CAMERA})")
     if a.bev is None:
         return out, PREVIEW_GRID
     try:
         return out, BevGrid(*a.bev)
     except ValueError as e:
-        raise ValueError(f"--bev {' '.join(f'{v:g}' for v in a.bev)}: {e}") from None
+        raise ImuGroundError(f"--bev {' '.join(f'{v:g}' for v in a.bev)}: {e}") from None
 
 
 def run(a: argparse.Namespace) -> int:

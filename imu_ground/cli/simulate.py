@@ -6,6 +6,7 @@ from pathlib import Path
 import argparse
 
 from imu_ground.cli._common import positive_float, say
+from imu_ground.errors import ImuGroundError
 from imu_ground.evaluation.plots import plot_simulation
 from imu_ground.evaluation.simulate import simulate
 from imu_ground.pipeline.output import atomic_path, check_output_path
@@ -48,8 +49,8 @@ def run(a: argparse.Namespace) -> int:
         check_output_path(a.plot, option="--plot", kind="png")
     ratio = a.rate / FRAME_RATE
     if abs(ratio - round(ratio)) > 1e-9:
-        raise ValueError(f"--rate {a.rate:g}: the IMU rate must be a whole multiple of the truth's "
-                         f"{FRAME_RATE:g} Hz frame rate (e.g. 100, 200, 400)")
+        raise ImuGroundError(f"--rate {a.rate:g}: the IMU rate must be a whole multiple of the truth's "
+                             f"{FRAME_RATE:g} Hz frame rate (e.g. 100, 200, 400)")
     sim = simulate(a.duration, seed=a.seed, imu=a.imu, imu_rate=a.rate, frame_rate=FRAME_RATE)
     with atomic_path(out) as tmp_imu, atomic_path(truth) as tmp_truth:
         sim.to_csv(tmp_imu, tmp_truth)

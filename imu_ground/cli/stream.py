@@ -64,9 +64,10 @@ def _load_state(est, path: Path) -> None:
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
         raise OptionError(f"{path}: not a saved state of 'imu-ground stream' ({type(e).__name__}); give another "
                           "file to {opt}", "state", flag="--state") from None
+    from imu_ground.errors import ImuGroundError
     try:
         est.load_state_dict(state)
-    except ValueError as e:
+    except ImuGroundError as e:                     # StateError: another estimator's, settings' or a corrupt state
         raise OptionError(f"{path}: {' '.join(str(e).split())}; give another file to {{opt}}", "state",
                           flag="--state") from None
 

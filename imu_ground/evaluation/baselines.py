@@ -1,6 +1,8 @@
-r"""Baselines to compare the ground normal filters against, on the estimator protocol.
+r"""The evaluation's research baselines, on the estimator protocol.
 
-- :class:`ConstantNormal`: the static extrinsic alone (the paper's "naive").
+- :class:`ConstantNormal`: the static extrinsic alone (the paper's "naive"); a method of
+  the registry (``imu-ground estimate --method naive``), defined in
+  :mod:`imu_ground.filters.constant_normal` and re-exported here.
 - :class:`EulerEKF`: a standard EKF on filterpy's
   :class:`~filterpy.kalman.ExtendedKalmanFilter` whose state is the ZYX Euler
   angles ``(roll, pitch, yaw)`` of the slow road attitude ``X`` (world <- road,
@@ -24,17 +26,9 @@ from __future__ import annotations
 import numpy as np
 
 from imu_ground import so3
-from imu_ground.filters.estimator import GroundEstimate, GroundTrack, as_egomotion, pitch_roll_from_normal
-from imu_ground.filters.extrinsics import Extrinsic
-from imu_ground.filters.frame_checks import (
-    bad_frame_error,
-    frame_problem,
-    frame_problems,
-    frame_where,
-    static_rotation,
-)
-from imu_ground.so3 import cumulative_rotations, euler_zyx, twist_angle
-from imu_ground.units import RENORM_EVERY
+from imu_ground.filters.constant_normal import BaselineEstimator, ConstantNormal
+from imu_ground.filters.estimator import GroundEstimate, GroundTrack
+from imu_ground.so3 import euler_zyx, twist_angle
 
 __all__ = ["ConstantNormal", "EulerEKF", "euler_zyx", "from_euler_zyx"]
 
@@ -49,98 +43,7 @@ def _wrap(a: np.ndarray) -> np.ndarray:
     return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
-class _Baseline:
-    """The protocol's plumbing both baselines share: extrinsic, frame checks, ``run`` over ``step``."""
-
-    def __init__(self, extrinsic: Extrinsic | np.ndarray | None) -> None:
-        self.extrinsic = Extrinsic.coerce(extrinsic)
-        self._Rgs = static_rotation(self.extrinsic)
-        self._count = 0
-        self.cumulative = np.eye(3)
-
-    def _body_increment(self, frame) -> np.ndarray:
-        """``R_gs delta_R R_gs^T`` of a frame (an EgoFrame or a bare 3x3 rotation), checked."""
-        d = np.asarray(getattr(frame, "delta_R", frame), dtype=float)
-        dt = float(getattr(frame, "delta_t", 1.0))
-        problem = frame_problem(d.ravel().tolist(), None, dt) if d.shape == (3, 3) else \
-            f"delta_R must be 3x3, got shape {d.shape}"
-        if problem:
-            raise bad_frame_error(problem, frame_where(self._count, float(getattr(frame, "t", np.nan))))
-        self._count += 1
-        return d if self._Rgs is None else self._Rgs @ d @ self._Rgs.T
-
-    def _estimate(self, E: np.ndarray, P: np.ndarray) -> GroundEstimate:
-        pitch, roll = pitch_roll_from_normal(E[2])
-        return GroundEstimate(float(pitch), float(roll), True, residual=E, Rgs=self._Rgs, P=P)
-
-    #: Whether ``run(..., smooth=True)`` is allowed (it changes nothing for a constant estimate).
-    _smooth_ok = False
-
-    def run(self, egomotion, smooth: bool = False) -> GroundTrack:
-        """Process a drive (continuing from the current state, as ``step`` would).
-
-        Parameters
-        ----------
-        egomotion : EgoMotion, ImuData or ndarray (F, 3, 3) / (F, 3)
-            Frames in the sensor frame (see :func:`~imu_ground.filters.estimator.as_egomotion`).
-        smooth : bool
-            Offline smoothing: the baselines have none (:class:`ConstantNormal` accepts
-            it and changes nothing, :class:`EulerEKF` refuses it).
-        """
-        if smooth and not self._smooth_ok:
-            raise ValueError(f"{type(self).__name__} has no offline smoother: run it with smooth=False")
-        return self._run(as_egomotion(egomotion))
-
-
-class ConstantNormal(_Baseline):
-    """The static extrinsic alone: the normal never moves (the paper's "naive").
-
-    Parameters
-    ----------
-    extrinsic : Extrinsic or ndarray (3, 3), optional
-        Static sensor-to-ground extrinsic (ground <- sensor); identity by default.
-    """
-
-    def __init__(self, extrinsic: Extrinsic | np.ndarray | None = None) -> None:
-        super().__init__(extrinsic)
-
-    def reset(self) -> None:
-        """Back to the start (cumulative rotation the identity)."""
-        self.cumulative = np.eye(3)
-        self._count = 0
-
-    def step(self, frame) -> GroundEstimate:
-        """One frame: the residual is the identity (normal = static normal).
-
-        Parameters
-        ----------
-        frame : EgoFrame or ndarray (3, 3)
-            ``delta_R`` sensor_{k-1} <- sensor_k (only the cumulative rotation uses it).
-        """
-        self.cumulative = self.cumulative @ self._body_increment(frame)
-        return self._estimate(np.eye(3), np.zeros((3, 3)))
-
-    _smooth_ok = True
-
-    def _run(self, em) -> GroundTrack:
-        """The whole drive at once (vectorised)."""
-        d = np.asarray(em.delta_R, dtype=float)
-        for k, problem in enumerate(frame_problems(d, None, np.asarray(em.delta_t, dtype=float))):
-            if problem:
-                raise bad_frame_error(problem, frame_where(self._count + k, float(em.t[k])))
-        body = d if self._Rgs is None else self._Rgs @ d @ self._Rgs.T
-        n = len(body)
-        cum = (cumulative_rotations(body, self.cumulative, self._count, renorm_every=RENORM_EVERY) if n
-               else np.zeros((0, 3, 3)))
-        if n:
-            self.cumulative = cum[-1].copy()
-            self._count += n
-        E = np.tile(np.eye(3), (n, 1, 1))
-        return GroundTrack.from_residuals(E, cum, np.zeros((n, 3, 3)), cum, self._Rgs,
-                                          self.extrinsic.translation, t=em.t, valid=em.valid)
-
-
-class EulerEKF(_Baseline):
+class EulerEKF(BaselineEstimator):
     """Standard EKF baseline with an Euler-angle state, on filterpy.
 
     Parameters

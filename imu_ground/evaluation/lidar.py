@@ -52,6 +52,7 @@ import numpy as np
 import pandas as pd
 
 from imu_ground.datasets.options import OptionError
+from imu_ground.errors import ImuGroundError, require_extra
 from imu_ground.evaluation.metrics import normal_angle, normal_from_pitch_roll
 from imu_ground.filters.estimator import pitch_roll_from_normal
 from imu_ground.filters.extrinsics import Extrinsic, load_extrinsic
@@ -104,12 +105,8 @@ ROAD_REGION = RoadRegion()
 
 
 def _sklearn_ransac():
-    try:
-        from sklearn.linear_model import LinearRegression, RANSACRegressor
-    except ImportError:
-        raise OptionError("the LiDAR plane fit needs scikit-learn: pip install -e \"" + LIDAR_EXTRA + "\" "
-                          "(then {opt} works)", "lidar") from None
-    return RANSACRegressor, LinearRegression
+    linear_model = require_extra("sklearn.linear_model", "lidar", "the LiDAR plane fit (--lidar)")
+    return linear_model.RANSACRegressor, linear_model.LinearRegression
 
 
 def _tls_plane(points: np.ndarray) -> tuple[np.ndarray, float]:
@@ -219,13 +216,8 @@ def read_bin_scan(path: str | Path) -> np.ndarray:
     return raw.reshape(-1, 4).astype(float)
 
 
-def _reader(module: str):
-    import importlib
-    try:
-        return importlib.import_module(module)
-    except ImportError:
-        raise OptionError(f"reading this scan needs {module}: pip install -e \"{LIDAR_EXTRA}\" (then {{opt}} works)",
-                          "lidar") from None
+def _reader(module: str, path: Path):
+    return require_extra(module, "lidar", f"{path}: reading this scan (--lidar)")
 
 
 def read_scan(path: str | Path) -> np.ndarray:
@@ -250,11 +242,11 @@ def read_scan(path: str | Path) -> np.ndarray:
         raise OptionError(f"{p}: no such scan file ({{opt}})", "lidar")
     try:
         if suffix == ".pcd":
-            cloud = _reader("pypcd4").PointCloud.from_path(p)
+            cloud = _reader("pypcd4", p).PointCloud.from_path(p)
             return np.asarray(cloud.numpy(("x", "y", "z")), dtype=float).reshape(-1, 3)
-        vertex = _reader("plyfile").PlyData.read(str(p))["vertex"]
+        vertex = _reader("plyfile", p).PlyData.read(str(p))["vertex"]
         return np.column_stack([np.asarray(vertex[k], dtype=float) for k in "xyz"]).reshape(-1, 3)
-    except OptionError:
+    except ImuGroundError:                          # OptionError, MissingExtraError
         raise
     except Exception as e:                          # the third-party parsers' own errors: a file we cannot read
         raise OptionError(f"{p}: not a readable {suffix[1:].upper()} point cloud with x y z "
@@ -354,7 +346,7 @@ def lidar_transform(spec: str | Path, imu_extrinsic: Any = None) -> Extrinsic:
                          {"sensor": "lidar", "derived_from": str(calib)})
     try:
         return load_extrinsic(calib)
-    except (ValueError, FileNotFoundError) as e:
+    except (ImuGroundError, FileNotFoundError) as e:
         raise OptionError(f"{{opt}} {' '.join(str(e).split())}", "lidar_extrinsic") from None
 
 
@@ -617,7 +609,7 @@ def planes_rotations(spec: str | Path, names: list[str], imu_extrinsic: Any = No
     from imu_ground.perception.camera import load_camera
     try:
         cam = load_camera(str(spec))
-    except (ValueError, FileNotFoundError) as e:
+    except (ImuGroundError, FileNotFoundError) as e:
         raise OptionError(f"{{opt}} {spec}: not a camera nor KITTI object calibration ({' '.join(str(e).split())})",
                           "lidar_extrinsic") from None
     return np.repeat(cam.extrinsic.rotation[None], len(names), axis=0)

@@ -15,16 +15,14 @@ from typing import Iterable, Optional, Sequence
 import numpy as np
 import pandas as pd
 
+from imu_ground.errors import require_extra
 from imu_ground.evaluation.metrics import normal_angle
 
 __all__ = ["plot_pitch_over_time", "plot_error_distribution", "plot_simulation", "evaluation_plots"]
 
 
 def _plt():
-    try:
-        import matplotlib
-    except ImportError as e:        # pragma: no cover - depends on the environment
-        raise ImportError("plots need matplotlib: pip install 'imu-ground[plot]'") from e
+    matplotlib = require_extra("matplotlib", "plot", "plots")
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     return plt

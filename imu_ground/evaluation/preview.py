@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from imu_ground.datasets.options import OptionError
+from imu_ground.errors import ImuGroundError
 from imu_ground.evaluation.ground_effect import LANE_WIDTH, ground_errors
 from imu_ground.evaluation.simulate import SpeedParams, simulate
 from imu_ground.evaluation.simulate.camera import render_road
@@ -154,13 +155,13 @@ def _read_times(path: Path) -> tuple[np.ndarray, np.ndarray]:
         try:
             value = float(text.split()[0].rstrip(","))
         except ValueError:
-            raise ValueError(f"{path}:{lineno}: {text!r} is not a time in seconds (--times: one time a line)") from None
+            raise ImuGroundError(f"{path}:{lineno}: {text!r} is not a time in seconds (--times: one time a line)") from None
         if not math.isfinite(value):
-            raise ValueError(f"{path}:{lineno}: {text!r} is not a finite time (--times)")
+            raise ImuGroundError(f"{path}:{lineno}: {text!r} is not a finite time (--times)")
         times.append(value)
         linenos.append(lineno)
     if not times:
-        raise ValueError(f"{path}: no time in the file (--times: one time a line, s on the log's clock)")
+        raise ImuGroundError(f"{path}: no time in the file (--times: one time a line, s on the log's clock)")
     return np.array(times), np.array(linenos)
 
 
@@ -178,11 +179,11 @@ def _read_image(path: Path, camera: Camera) -> np.ndarray:
         with Image.open(path) as im:
             img = np.asarray(im.convert("RGB"))
     except (UnidentifiedImageError, OSError, ValueError) as e:
-        raise ValueError(f"{path}: unreadable image ({' '.join(str(e).split())}); give --images a folder of "
-                         f"PNG or JPEG files") from None
+        raise ImuGroundError(f"{path}: unreadable image ({' '.join(str(e).split())}); give --images a folder of "
+                             f"PNG or JPEG files") from None
     if (img.shape[1], img.shape[0]) != tuple(camera.image_size):
-        raise ValueError(f"{path}: image is {img.shape[1]}x{img.shape[0]} pixels but camera {camera.name} is "
-                         f"{camera.image_size[0]}x{camera.image_size[1]}; give --camera the camera that took it")
+        raise ImuGroundError(f"{path}: image is {img.shape[1]}x{img.shape[0]} pixels but camera {camera.name} is "
+                             f"{camera.image_size[0]}x{camera.image_size[1]}; give --camera the camera that took it")
     return img
 
 
@@ -217,19 +218,19 @@ def images_preview(images: str | Path, times: str | Path, camera: str | Camera, 
         raise FileNotFoundError(f"{folder}: no such folder (--images: the folder of the camera's images)")
     files = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
     if not files:
-        raise ValueError(f"{folder}: no image ({', '.join(IMAGE_SUFFIXES)}) in the folder (--images)")
+        raise ImuGroundError(f"{folder}: no image ({', '.join(IMAGE_SUFFIXES)}) in the folder (--images)")
     t_img, linenos = _read_times(times_path)
     if len(t_img) != len(files):
-        raise ValueError(f"{times_path}: {len(t_img)} times for {len(files)} images in {folder}; give --times one "
-                         "line per image, in the images' name order")
+        raise ImuGroundError(f"{times_path}: {len(t_img)} times for {len(files)} images in {folder}; give --times one "
+                             "line per image, in the images' name order")
     t = np.asarray(t, dtype=float)
     step = float(np.nanmedian(np.diff(t))) if len(t) > 1 else 0.1
     lo, hi = float(t[0]) - step, float(t[-1])
     bad = np.flatnonzero((t_img < lo) | (t_img > hi))
     if bad.size:
         i = int(bad[0])
-        raise ValueError(f"{times_path}:{linenos[i]}: time {t_img[i]:g} s ({files[i].name}) is outside the "
-                         f"log's frames ({lo:g} .. {hi:g} s on the log's clock); give --times on the log's clock")
+        raise ImuGroundError(f"{times_path}:{linenos[i]}: time {t_img[i]:g} s ({files[i].name}) is outside the "
+                             f"log's frames ({lo:g} .. {hi:g} s on the log's clock); give --times on the log's clock")
     _check_increasing(times_path, t_img, linenos)
     cam = load_camera(camera)
     for f in files:
@@ -344,5 +345,5 @@ def read_preview_errors(path: str | Path) -> dict:
     with Image.open(path) as im:
         text = im.text.get(PNG_KEY) if hasattr(im, "text") else None
     if text is None:
-        raise ValueError(f"{path}: no {PNG_KEY!r} text in the PNG (not a synthetic imu-ground preview)")
+        raise ImuGroundError(f"{path}: no {PNG_KEY!r} text in the PNG (not a synthetic imu-ground preview)")
     return json.loads(text)

@@ -83,6 +83,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from imu_ground.errors import ImuGroundError
+
 __all__ = [
     "WINDOW_M",
     "MIN_SPEED",
@@ -289,7 +291,7 @@ class Reference:
 def _check_columns(df: pd.DataFrame) -> None:
     missing = [c for c in _REQUIRED if c not in df.columns]
     if missing:
-        raise ValueError(f"drive data lacks column(s) {missing}; needs {list(_REQUIRED)}")
+        raise ImuGroundError(f"drive data lacks column(s) {missing}; needs {list(_REQUIRED)}")
 
 
 def pitch_reference(df: pd.DataFrame, times: np.ndarray | None = None, *,
@@ -326,7 +328,7 @@ def pitch_reference(df: pd.DataFrame, times: np.ndarray | None = None, *,
     d = drop_out_of_order(df)
     t = d["t"].to_numpy(dtype=float)
     if t.size == 0:
-        raise ValueError("drive data has no samples")
+        raise ImuGroundError("drive data has no samples")
     ve, vn, vu = (d[c].to_numpy(dtype=float) for c in ("ve", "vn", "vu"))
     speed = np.hypot(ve, vn)
     s = travelled_distance(t, speed)

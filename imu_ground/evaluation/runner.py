@@ -4,9 +4,10 @@ Every method is a constructor of an estimator that follows the estimator
 protocol (:class:`~imu_ground.filters.estimator.GroundEstimator`): it is built with
 the drive's extrinsic (``factory(extrinsic=...)``) and run over the drive's
 ego-motion (``run(egomotion, smooth)``). :data:`EVALUATION_METHODS` lists them:
-the library's methods under their CLI names (the registry
-:data:`imu_ground.filters.methods.METHODS`, when present) plus the baselines and
-the tuned variant of the paper's filter. :func:`evaluate` runs methods over drives
+the library's methods under their CLI names (the one registry,
+:data:`imu_ground.filters.methods.METHODS`, the constant normal ``naive`` included)
+plus the evaluation's own research baselines (standard EKF, the reference code's
+variant and the tuned variant of the paper's filter). :func:`evaluate` runs methods over drives
 (:mod:`imu_ground.evaluation.drives`) and reports per drive and method:
 
 - the error statistics over the evaluated frames (valid, moving), pitch for
@@ -32,19 +33,19 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
 from functools import partial
 from typing import Any
 
 import numpy as np
 
-from imu_ground.evaluation.baselines import ConstantNormal, EulerEKF
+from imu_ground.evaluation.baselines import EulerEKF
 from imu_ground.evaluation.conditions import CONDITIONS, condition_masks, moving_segments, segment_centred
 from imu_ground.evaluation.drives import Drive, load_real_drive, load_real_drives, synthetic_drive, synthetic_drives
 from imu_ground.evaluation.metrics import evaluate_drive
 from imu_ground.evaluation.revisit import drive_revisit_pairs, revisit_differences
 from imu_ground.filters import GroundNormalFilter
-from imu_ground.filters.methods import METHODS as REGISTRY
+from imu_ground.datasets.options import OptionError
+from imu_ground.filters.methods import METHODS as REGISTRY, MethodSpec
 
 __all__ = [
     "EVALUATION_METHODS",
@@ -73,57 +74,33 @@ TUNED = dict(Q=0.1, R=1.0, P=1.0)
 SIGMA_BINS = (0.0, 0.075, 0.1, 0.15, 0.25, 0.5, math.inf)
 
 
-@dataclass(frozen=True)
-class Method:
-    """One method of the evaluation: a constructor and how to run it.
-
-    Attributes
-    ----------
-    name : str
-        The name in tables and on the command line (``--methods``).
-    description : str
-    factory : callable
-        ``factory(extrinsic=Extrinsic) -> GroundEstimator``.
-    smooth : bool
-        Run offline (``run(egomotion, smooth=True)``).
-    needs_accel : bool
-        Needs accelerometer data in the ego-motion.
-    """
-    name: str
-    description: str
-    factory: Callable[..., Any]
-    smooth: bool = False
-    needs_accel: bool = False
+#: One method of the evaluation: the registry's :class:`~imu_ground.filters.methods.MethodSpec`
+#: (name, description, ``factory(extrinsic=...)``, needs_accel, smooth).
+Method = MethodSpec
 
 
-def _library_methods() -> list[Method]:
-    """The library's methods under their CLI names (the filters' registry)."""
-    return [Method(name, spec.description, spec.factory, bool(spec.smooth), bool(spec.needs_accel))
-            for name, spec in REGISTRY.items()]
-
-
-def _baseline_methods() -> list[Method]:
+def _research_baselines() -> list[MethodSpec]:
+    """The methods the evaluation adds to the registry: research baselines, not offered by ``estimate``."""
     return [
-        Method("naive", "constant normal (the static extrinsic)", ConstantNormal),
-        Method("ekf", "standard EKF, Euler-angle state, the paper's Q and R, random walk",
-               partial(EulerEKF, Q=1e-2, R=1.0, P=1.0, follow_heading=False)),
-        Method("paper-code", "the reference code's variant: forward axis observed only",
-               GroundNormalFilter.reference_code),
-        Method("paper-tuned", "invariant EKF, heading-following, Q tuned on the real drives",
-               partial(GroundNormalFilter, **TUNED)),
+        MethodSpec("ekf", "standard EKF, Euler-angle state, the paper's Q and R, random walk",
+                   partial(EulerEKF, Q=1e-2, R=1.0, P=1.0, follow_heading=False), False, False),
+        MethodSpec("paper-code", "the reference code's variant: forward axis observed only",
+                   GroundNormalFilter.reference_code, False, False),
+        MethodSpec("paper-tuned", "invariant EKF, heading-following, Q tuned on the real drives",
+                   partial(GroundNormalFilter, **TUNED), False, False),
     ]
 
 
 #: Every method of the evaluation, in report order.
-EVALUATION_METHODS: tuple[Method, ...] = tuple(_library_methods() + _baseline_methods())
+EVALUATION_METHODS: tuple[MethodSpec, ...] = (*REGISTRY.values(), *_research_baselines())
 #: The same by name.
-METHODS: dict[str, Method] = {m.name: m for m in EVALUATION_METHODS}
+METHODS: dict[str, MethodSpec] = {m.name: m for m in EVALUATION_METHODS}
 
 
 def run_method(name: str, drive: Drive):
     """Run one method on one drive; returns the track and the seconds it took."""
     if name not in METHODS:
-        raise ValueError(f"unknown method {name!r}; choose from {', '.join(METHODS)}")
+        raise OptionError(f"unknown method {name!r}; choose from {', '.join(METHODS)}", "methods")
     m = METHODS[name]
     t0 = time.perf_counter()
     track = m.factory(extrinsic=drive.extrinsic).run(drive.egomotion, smooth=m.smooth)
@@ -226,7 +203,7 @@ def evaluate(drives: Iterable[Drive], methods: Sequence[str] | None = None,
     methods = list(METHODS) if methods is None else list(methods)
     for m in methods:
         if m not in METHODS:
-            raise ValueError(f"unknown method {m!r}; choose from {', '.join(METHODS)}")
+            raise OptionError(f"unknown method {m!r}; choose from {', '.join(METHODS)}", "methods")
     rows, tracks = [], {}
     bar = tqdm(total=len(drives) * len(methods), desc="evaluating", unit="run", disable=not progress)
     for d in drives:

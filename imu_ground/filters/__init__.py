@@ -19,8 +19,9 @@ Module map (each imports only the ones above it, and the imu layer below):
 - ``ground`` (``GroundNormalFilter``), ``suspension`` (``SuspensionAwareFilter``): the estimators, each one
   class with its state, step, batch run, saved state (``state_dict`` / ``load_state_dict``, the format of
   :mod:`imu_ground.imu.warm_start`) and, for the suspension-aware filter, its online re-estimation of the
-  mount; each component keeps and saves its own state;
-- ``methods``: the estimators by CLI name; ``calibration``: ``calibrate`` a platform.
+  mount; each component keeps and saves its own state; ``constant_normal`` (``ConstantNormal``, the
+  static extrinsic alone);
+- ``methods``: the one registry of the estimators by CLI name; ``calibration``: ``calibrate`` a platform.
 
 Compiled kernels (optional, built by ``setup.py`` when a C compiler is available;
 :mod:`imu_ground._native`): ``_residual_native``, ``_gravity_native``, ``_ekf_native``,
@@ -32,6 +33,7 @@ _EXPORTS = {
     ".invariant_ekf": "InvariantEKF",
     ".estimator": "GroundEstimator GroundEstimate GroundTrack pitch_roll_from_normal as_egomotion",
     ".ground": "GroundNormalFilter",
+    ".constant_normal": "ConstantNormal",
     ".gains": "DEFAULT_GAINS GAIN_BAND bandpass_gain_regression",
     ".gravity_velocity": "GravityEstimate GravityTrack GravityVelocityFilter",
     ".suspension": "SuspensionAwareFilter SuspensionTrack",

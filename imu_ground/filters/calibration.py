@@ -66,6 +66,7 @@ import numpy as np
 
 from imu_ground import so3
 from imu_ground.datasets.options import OptionError
+from imu_ground.errors import ImuGroundError
 from imu_ground.filters.estimator import as_egomotion
 from imu_ground.filters.extrinsics import Calibration, Extrinsic, load_calibration
 from imu_ground.filters.gains import DEFAULT_GAINS, GAIN_BAND, bandpass_gain_regression
@@ -174,7 +175,7 @@ def _auto_tilt_source(cruise_s: float, still_s: float, valid_s: float, min_cruis
                              f"{min_all_s:g} s", "tilt", "calibrate on a longer drive, or pass tilt='all'")
 
 
-class TooLittleDataError(ValueError):
+class TooLittleDataError(ImuGroundError):
     """The drive has too little of what a part of the calibration needs (the message says how much of which kind).
 
     Attributes
@@ -271,16 +272,22 @@ def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "Ego
         at the sensor's x axis for want of driving.
     """
     if tilt not in ("auto", "cruise", "standstill", "all"):
-        raise ValueError(f"tilt must be 'auto', 'cruise', 'standstill' or 'all', got {tilt!r}")
+        raise ImuGroundError(f"tilt must be 'auto', 'cruise', 'standstill' or 'all', got {tilt!r}")
     many = isinstance(data, (list, tuple))
     egos = [as_egomotion(d, rate) for d in (data if many else [data])]
     if not egos or sum(len(e) for e in egos) < 2:
-        raise ValueError("calibration needs at least two frames")
+        raise ImuGroundError("calibration needs at least two frames")
     translation = np.zeros(3) if translation is None else _finite3(translation, "translation")
     lever_arm = None if lever_arm is None else _finite3(lever_arm, "lever_arm")
 
     def up_of(fs, mask):
-        return _unit(fs[mask].mean(axis=0)) if np.any(mask) else None
+        if not np.any(mask):
+            return None
+        mean = fs[mask].mean(axis=0)
+        if not (np.all(np.isfinite(mean)) and np.linalg.norm(mean) > 0):
+            raise ImuGroundError("no gravity in the accelerometer (its mean specific force is 0 or not finite): a "
+                                 "dead or disconnected accelerometer cannot give the sensor's tilt")
+        return _unit(mean)
 
     # provisional ground frame: up from the flagged standstills (or all frames), forward the sensor's x
     fs0 = np.concatenate([e.specific_force for e in egos])
@@ -288,7 +295,7 @@ def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "Ego
     s0 = np.concatenate([np.asarray(e.stationary, dtype=bool) for e in egos]) & v0
     up = up_of(fs0, s0) if np.any(s0) else up_of(fs0, v0)
     if up is None:
-        raise ValueError("no valid frames to calibrate from")
+        raise ImuGroundError("no valid frames to calibrate from")
     R = _extrinsic_from_axes(up, np.array([1.0, 0.0, 0.0]) if abs(up[0]) < 0.9 else np.array([0.0, 1.0, 0.0]))
     for _ in range(2):           # the speed and acceleration need the ground frame: iterate once
         F, _, _ = _pooled_frames(egos, R, min_speed)
@@ -304,7 +311,7 @@ def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "Ego
         else:
             src, why = tilt, f"as asked (tilt={tilt!r})"
         if candidates[src] is None:
-            raise ValueError(f"tilt={tilt!r}: the drive has no {src} frames")
+            raise ImuGroundError(f"tilt={tilt!r}: the drive has no {src} frames")
         up = candidates[src]
         if moving_s >= min_drive_s:
             fwd, yaw_src = _forward_axis(fs, up, yaw_rate, moving, max_yaw_rate, R[0])

@@ -37,6 +37,7 @@ from typing import Any, Optional, Union
 
 import numpy as np
 
+from imu_ground.errors import ImuGroundError
 from imu_ground.so3 import euler_zyx
 from imu_ground.units import DEG
 
@@ -124,15 +125,15 @@ def _resolve(name_or_path: Union[str, Path]) -> Path:
 def _numbers(path: Path, lineno: int, key: str, text: str, count: int) -> np.ndarray:
     parts = text.split()
     if len(parts) != count:
-        raise ValueError(f"{path}:{lineno}: '{key}' needs {count} numbers, got {len(parts)}")
+        raise ImuGroundError(f"{path}:{lineno}: '{key}' needs {count} numbers, got {len(parts)}")
     try:
         values = np.array([float(v) for v in parts])
     except ValueError as e:
-        raise ValueError(f"{path}:{lineno}: '{key}' has a value that is not a number: {e}") from None
+        raise ImuGroundError(f"{path}:{lineno}: '{key}' has a value that is not a number: {e}") from None
     if not np.all(np.isfinite(values)):
         bad = " ".join(v for v, x in zip(parts, values) if not np.isfinite(x))
-        raise ValueError(f"{path}:{lineno}: '{key}' has a value that is not finite ({bad}); the file is "
-                         "unusable: calibrate again or fix the line")
+        raise ImuGroundError(f"{path}:{lineno}: '{key}' has a value that is not finite ({bad}); the file is "
+                             "unusable: calibrate again or fix the line")
     return values
 
 
@@ -155,20 +156,25 @@ def load_extrinsic(name_or_path: Union[str, Path]) -> Extrinsic:
     ------
     FileNotFoundError
         No such file or shipped name (the message lists the shipped names).
-    ValueError
-        Malformed line (file and line number), missing ``R``, or a matrix that
+    ImuGroundError
+        Not text, a malformed line (file and line number), missing ``R``, or a matrix that
         is not a rotation.
     """
     path = _resolve(name_or_path)
     rot = None
     trans = np.zeros(3)
     meta: dict = {"source": str(path)}
-    for lineno, raw in enumerate(path.read_text().splitlines(), start=1):
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise ImuGroundError(f"{path}: not a calibration file (not UTF-8 text: {e.reason} at byte {e.start}); "
+                             "give the file 'imu-ground calibrate' wrote, or a shipped name") from None
+    for lineno, raw in enumerate(text.splitlines(), start=1):
         line = raw.split("#", 1)[0].strip()
         if not line:
             continue
         if ":" not in line:
-            raise ValueError(f"{path}:{lineno}: expected 'key: value', got {raw.strip()!r}")
+            raise ImuGroundError(f"{path}:{lineno}: expected 'key: value', got {raw.strip()!r}")
         key, value = (s.strip() for s in line.split(":", 1))
         if key == "R":
             rot = _numbers(path, lineno, key, value, 9).reshape(3, 3)
@@ -178,11 +184,11 @@ def load_extrinsic(name_or_path: Union[str, Path]) -> Extrinsic:
         else:
             meta[key] = value
     if rot is None:
-        raise ValueError(f"{path}: no 'R:' line (the ground <- sensor rotation, 9 numbers row-major)")
+        raise ImuGroundError(f"{path}: no 'R:' line (the ground <- sensor rotation, 9 numbers row-major)")
     try:
         return Extrinsic(rot, trans, meta)
     except ValueError as e:
-        raise ValueError(f"{path}:{rot_line}: {e}") from None
+        raise ImuGroundError(f"{path}:{rot_line}: {e}") from None
 
 
 def save_extrinsic(ext: Extrinsic, path: Union[str, Path], comment: str = "") -> None:
@@ -203,17 +209,17 @@ def _gains_from_meta(ext: Extrinsic) -> Optional[np.ndarray]:
     parts = str(ext.meta["suspension_gains"]).split()
     unit = str(ext.meta.get("suspension_gains_unit", "rad per m/s^2")).strip()
     if len(parts) != 2 or unit not in _GAIN_UNITS:
-        raise ValueError(f"{ext.meta.get('source', 'extrinsic')}: 'suspension_gains' needs two numbers "
-                         f"and a unit in {sorted(_GAIN_UNITS)}, got {ext.meta['suspension_gains']!r} ({unit!r})")
+        raise ImuGroundError(f"{ext.meta.get('source', 'extrinsic')}: 'suspension_gains' needs two numbers "
+                             f"and a unit in {sorted(_GAIN_UNITS)}, got {ext.meta['suspension_gains']!r} ({unit!r})")
     try:
         gains = np.array([float(p) for p in parts]) * _GAIN_UNITS[unit]
     except ValueError:
-        raise ValueError(f"{ext.meta.get('source', 'extrinsic')}: 'suspension_gains' has a value that is not a "
-                         f"number: {ext.meta['suspension_gains']!r}") from None
+        raise ImuGroundError(f"{ext.meta.get('source', 'extrinsic')}: 'suspension_gains' has a value that is not a "
+                             f"number: {ext.meta['suspension_gains']!r}") from None
     if not np.all(np.isfinite(gains)):
-        raise ValueError(f"{ext.meta.get('source', 'extrinsic')}: 'suspension_gains' is not finite "
-                         f"({ext.meta['suspension_gains']}): the calibration could not determine them; calibrate "
-                         "again on a drive (with --lever-arm), or delete the line to use the default gains")
+        raise ImuGroundError(f"{ext.meta.get('source', 'extrinsic')}: 'suspension_gains' is not finite "
+                             f"({ext.meta['suspension_gains']}): the calibration could not determine them; calibrate "
+                             "again on a drive (with --lever-arm), or delete the line to use the default gains")
     return gains
 
 

@@ -17,6 +17,7 @@ from typing import Optional
 import numpy as np
 
 from imu_ground import _native
+from imu_ground.errors import ImuGroundError
 from imu_ground.so3 import as_rotations
 
 __all__ = ["frames_of", "ON_INVALID", "ORTHO_TOL", "BAD_ROTATION", "BAD_DELTA_V", "BAD_DELTA_T", "MAX_DELTA_V", "MIN_DELTA_T",
@@ -218,10 +219,10 @@ def check_on_invalid(on_invalid: str) -> str:
     return on_invalid
 
 
-def bad_frame_error(problem: str, where: str) -> ValueError:
-    """The error a streaming estimator raises for a bad frame (its state untouched)."""
-    return ValueError(f"bad ego-motion frame ({where}): {problem}; the estimator's state is unchanged "
-                      f"(construct it with on_invalid='skip' to skip such frames)")
+def bad_frame_error(problem: str, where: str) -> ImuGroundError:
+    """The error a streaming estimator raises for a bad frame (its state untouched): bad input data."""
+    return ImuGroundError(f"bad ego-motion frame ({where}): {problem}; the estimator's state is unchanged "
+                          f"(construct it with on_invalid='skip' to skip such frames)")
 
 
 def checked_frame(check, frame, delta_R, delta_v, delta_t: float, on_invalid: str, index: int) -> tuple | None:

@@ -1,8 +1,12 @@
-"""The ground estimators by name: what ``imu-ground estimate --method NAME`` and the evaluation run.
+"""The ground estimators by name, the one registry: what ``imu-ground estimate --method NAME`` and the evaluation run.
 
 :data:`METHODS` maps a CLI name to a :class:`MethodSpec` (one-line description,
-factory, whether it needs an accelerometer, whether it smooths offline);
-:func:`default_method` picks the method for an input; :func:`estimate` runs one.
+factory, whether it needs an accelerometer, whether it smooths offline). Adding a
+method is one entry here: ``imu-ground estimate --method`` and ``batch`` take their
+choices and ``--help`` lines from it, :func:`imu_ground.pipeline.estimate_log` runs
+it, and the evaluation (:mod:`imu_ground.evaluation.runner`) compares it, adding only
+its own research baselines. :func:`default_method` picks the method for an input;
+:func:`estimate` runs one.
 A method accepts exactly the options of its estimator's constructor: anything
 else (e.g. ``Q``/``R`` for the suspension methods, whose noise is set by
 ``sigma_e``, ``q_time`` and ``q_dist``) is rejected with a message that lists
@@ -14,6 +18,8 @@ import inspect
 from dataclasses import dataclass
 from typing import Any, Callable
 
+from imu_ground.datasets.options import OptionError
+from imu_ground.filters.constant_normal import ConstantNormal
 from imu_ground.filters.ground import GroundNormalFilter
 from imu_ground.filters.suspension import SuspensionAwareFilter, SuspensionTrack
 
@@ -38,6 +44,9 @@ class MethodSpec:
         ``run(..., smooth=True)``: offline, results depend on the future.
     speed_aided : bool
         ``run(..., speed=v)`` takes a measured forward speed per frame (m/s).
+    live : bool
+        Runs live, sample by sample (:class:`~imu_ground.pipeline.streaming.StreamingEstimator`,
+        ``imu-ground stream``, ``estimate --causal``).
     """
     name: str
     description: str
@@ -45,6 +54,7 @@ class MethodSpec:
     needs_accel: bool
     smooth: bool
     speed_aided: bool = False
+    live: bool = False
 
     @property
     def options(self) -> tuple:
@@ -52,11 +62,11 @@ class MethodSpec:
         return tuple(p for p in inspect.signature(self.factory).parameters if p != "self")
 
     def make(self, **options):
-        """The estimator with these options; unknown options raise ``ValueError`` naming the accepted ones."""
+        """The estimator with these options; unknown options raise :class:`OptionError` naming the accepted ones."""
         unknown = sorted(set(options) - set(self.options))
         if unknown:
-            raise ValueError(f"method {self.name!r} does not take option(s) {', '.join(unknown)}; "
-                             f"it takes: {', '.join(self.options)}")
+            raise OptionError(f"method {self.name!r} does not take option(s) {', '.join(unknown)}; "
+                              f"it takes: {', '.join(self.options)}", unknown[0])
         return self.factory(**options)
 
 
@@ -72,21 +82,26 @@ class _Factory:
         return self.fn(**options)
 
 
-#: CLI name -> method. "suspension" is the default for IMU input, "filter" for poses.
+#: CLI name -> method, in the order ``--help`` lists them. "suspension" is the default for IMU input,
+#: "filter" for poses; "naive" is the baseline the others are compared with.
 METHODS: dict[str, MethodSpec] = {
     "suspension": MethodSpec(
         "suspension", "suspension-aware invariant EKF: road attitude plus the body's load-transfer tilt "
         "(streaming; needs an accelerometer)",
-        _Factory(SuspensionAwareFilter, SuspensionAwareFilter), True, False, True),
+        _Factory(SuspensionAwareFilter, SuspensionAwareFilter), True, False, True, live=True),
     "suspension-offline": MethodSpec(
         "suspension-offline", "suspension-aware filter with the offline smoother (zero lag; uses the future)",
         _Factory(SuspensionAwareFilter, SuspensionAwareFilter), True, True, True),
     "filter": MethodSpec(
         "filter", "heading-following invariant EKF on the cumulative rotation (rotations only: any odometry)",
-        _Factory(GroundNormalFilter, GroundNormalFilter), False, False),
+        _Factory(GroundNormalFilter, GroundNormalFilter), False, False, live=True),
     "paper": MethodSpec(
         "paper", "the paper's method: random-walk invariant EKF, Q = 1e-2 I, R = I (Zhang et al. 2022)",
-        _Factory(GroundNormalFilter.paper, GroundNormalFilter), False, False),
+        _Factory(GroundNormalFilter.paper, GroundNormalFilter), False, False, live=True),
+    "naive": MethodSpec(
+        "naive", "constant normal: the static extrinsic alone, pitch and roll 0 relative to the road "
+        "(the paper's naive baseline, a reference to compare with)",
+        _Factory(ConstantNormal, ConstantNormal), False, False),
 }
 
 
@@ -98,7 +113,7 @@ def default_method(has_accel: bool) -> str:
 def make_estimator(name: str, **options):
     """The estimator of method ``name`` with ``options`` (:meth:`MethodSpec.make`)."""
     if name not in METHODS:
-        raise ValueError(f"unknown method {name!r}; choose from {', '.join(METHODS)}")
+        raise OptionError(f"unknown {{opt}} {name!r}; choose from {', '.join(METHODS)}", "method")
     return METHODS[name].make(**options)
 
 
@@ -123,20 +138,22 @@ def estimate(egomotion, method=None, speed=None, **options):
 
     Raises
     ------
-    ValueError
+    OptionError
         Unknown method or option, or a method that needs an accelerometer on
-        input without one.
+        input without one (an :class:`~imu_ground.errors.ImuGroundError`).
     """
     has_accel = bool(getattr(egomotion, "has_accel", True))
     name = default_method(has_accel) if method is None else method
     est = make_estimator(name, **options)
     if METHODS[name].needs_accel and not has_accel:
-        raise ValueError(f"method {name!r} needs accelerometer data and this input has none (rotations or poses "
-                         f"only); use 'filter' or 'paper'")
+        without = ", ".join(repr(m) for m, spec in METHODS.items() if not spec.needs_accel)
+        raise OptionError(f"{{opt}} {name!r} needs accelerometer data and this input has none (rotations or poses "
+                          f"only); use one of {without}", "method")
     if speed is None:
         return est.run(egomotion, smooth=METHODS[name].smooth)
     if not METHODS[name].speed_aided:
-        raise ValueError(f"method {name!r} does not take a speed; use 'suspension' or 'suspension-offline'")
+        aided = ", ".join(repr(m) for m, spec in METHODS.items() if spec.speed_aided)
+        raise OptionError(f"method {name!r} does not take a speed; use one of {aided}", "speed")
     return est.run(egomotion, smooth=METHODS[name].smooth, speed=speed)
 
 

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from imu_ground.errors import ImuGroundError
 from imu_ground.imu.data import ImuData
 from imu_ground.imu.preint_frames import FrameDeltas, make_frame_times
 from imu_ground.imu.preint_measurement import compose_left, left_to_right
@@ -188,7 +189,7 @@ def _merge_blocks(res: tuple, block_frame: np.ndarray, n_frames: int) -> tuple:
 
 def _validate_times(t: np.ndarray) -> None:
     if t.ndim != 1 or t.size < 2:
-        raise ValueError(f"need at least 2 samples, got t of shape {t.shape}")
+        raise ImuGroundError(f"need at least 2 samples, got t of shape {t.shape}")
     if not np.all(np.isfinite(t)):
         raise ValueError("IMU timestamps contain NaN or inf")
     d = np.diff(t)
@@ -226,7 +227,7 @@ def _boundaries(t: np.ndarray, frame_times: Any, rate: float | None, every: int 
             raise ValueError("give frame_times or rate/every, not both")
         T = np.asarray(frame_times, dtype=float).reshape(-1)
     if T.size < 2:
-        raise ValueError(f"need at least 2 frame boundaries inside the log, got {T.size}")
+        raise ImuGroundError(f"need at least 2 frame boundaries inside the log, got {T.size}")
     if not np.all(np.diff(T) > 2 * snap_tol):
         raise ValueError("frame_times must be strictly increasing (by more than 2 * snap_tol)")
     if T[0] < t[0] - snap_tol or T[-1] > t[-1] + snap_tol:

@@ -29,6 +29,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from imu_ground._version import __version__
+from imu_ground.errors import ImuGroundError
 
 __all__ = ["MAX_MAGNITUDE", "STATE_VERSION", "StateError", "StateReader", "as_reader", "buffer_like", "pack_state",
            "plain", "unpack_state"]
@@ -40,7 +41,7 @@ STATE_VERSION = 1
 MAX_MAGNITUDE = 1e100
 
 
-class StateError(ValueError):
+class StateError(ImuGroundError):
     """A saved state that this object cannot load (another kind, layout or settings)."""
 
 

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from imu_ground.errors import ImuGroundError
 from imu_ground.filters.extrinsics import Extrinsic, available_extrinsics, load_extrinsic, save_extrinsic
 
 __all__ = ["Camera", "available_cameras", "load_camera", "save_camera"]
@@ -93,9 +94,9 @@ def _numbers(source: str, key: str, text: Any, count: int) -> np.ndarray:
     try:
         values = np.array([float(p) for p in parts])
     except ValueError:
-        raise ValueError(f"{source}: '{key}' has a value that is not a number: {text!r}") from None
+        raise ImuGroundError(f"{source}: '{key}' has a value that is not a number: {text!r}") from None
     if values.size != count:
-        raise ValueError(f"{source}: '{key}' needs {count} numbers, got {values.size}")
+        raise ImuGroundError(f"{source}: '{key}' needs {count} numbers, got {values.size}")
     return values
 
 
@@ -115,7 +116,7 @@ def load_camera(spec: str | Path | Camera) -> Camera:
     ------
     FileNotFoundError
         No such file, folder or shipped name (the message lists the shipped cameras).
-    ValueError
+    ImuGroundError
         The file is not a camera (no ``K`` or ``image_size`` line) or a value is
         malformed; the message names the file.
     """
@@ -126,17 +127,17 @@ def load_camera(spec: str | Path | Camera) -> Camera:
     if m and not Path(text).exists() and (m["index"].isdigit() or Path(m["dir"]).is_dir()):
         from imu_ground.perception.kitti_calib import kitti_rectified_cameras
         if not (m["index"].isdigit() and int(m["index"]) <= 3):
-            raise ValueError(f"{text}: camera index {m['index']!r} is not one of KITTI's rectified cameras 0 to 3 "
-                             f"(e.g. {m['dir']}:2)")
+            raise ImuGroundError(f"{text}: camera index {m['index']!r} is not one of KITTI's rectified cameras 0 "
+                                 f"to 3 (e.g. {m['dir']}:2)")
         ext, k, size = kitti_rectified_cameras(Path(m["dir"]))[int(m["index"])]
         return Camera(k, size, ext, name=text)
     if Path(text).is_dir():
         from imu_ground.perception.kitti_calib import KITTI_CALIB_FILES
         if any((Path(text) / f).is_file() for f in KITTI_CALIB_FILES):
-            raise ValueError(f"{text}: a KITTI raw calibration folder needs the camera index, 0 to 3: use {text}:2 "
-                             "(rectified camera 2, the left colour camera)")
-        raise ValueError(f"{text}: a folder, not a camera file (a camera file, calib/README.md, or a KITTI raw "
-                         "calibration folder and camera index as DIR:2)")
+            raise ImuGroundError(f"{text}: a KITTI raw calibration folder needs the camera index, 0 to 3: use "
+                                 f"{text}:2 (rectified camera 2, the left colour camera)")
+        raise ImuGroundError(f"{text}: a folder, not a camera file (a camera file, calib/README.md, or a KITTI raw "
+                             "calibration folder and camera index as DIR:2)")
     try:
         ext = load_extrinsic(spec)
     except FileNotFoundError as e:
@@ -147,19 +148,19 @@ def load_camera(spec: str | Path | Camera) -> Camera:
     source = ext.meta.get("source", text)
     missing = [k for k in ("K", "image_size") if k not in ext.meta]
     if missing:
-        raise ValueError(f"{source}: not a camera file: no {' or '.join(repr(k + ':') for k in missing)} line "
-                         "(a camera file is an extrinsic file with 'K: 9 numbers' and 'image_size: W H'; "
-                         "see calib/README.md)")
+        raise ImuGroundError(f"{source}: not a camera file: no {' or '.join(repr(k + ':') for k in missing)} line "
+                             "(a camera file is an extrinsic file with 'K: 9 numbers' and 'image_size: W H'; "
+                             "see calib/README.md)")
     k = _numbers(source, "K", ext.meta["K"], 9).reshape(3, 3)
     size = _numbers(source, "image_size", ext.meta["image_size"], 2)
     if np.any(size != np.round(size)):
-        raise ValueError(f"{source}: 'image_size' must be two whole numbers (width height), got "
-                         f"{ext.meta['image_size']!r}")
+        raise ImuGroundError(f"{source}: 'image_size' must be two whole numbers (width height), got "
+                             f"{ext.meta['image_size']!r}")
     meta = {k_: v for k_, v in ext.meta.items() if k_ not in ("K", "image_size")}
     try:
         return Camera(k, (int(size[0]), int(size[1])), Extrinsic(ext.rotation, ext.translation, meta), name=text)
     except ValueError as e:
-        raise ValueError(f"{source}: {e}") from None
+        raise ImuGroundError(f"{source}: {e}") from None
 
 
 def save_camera(camera: Camera, path: str | Path, comment: str = "") -> None:

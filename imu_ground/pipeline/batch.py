@@ -27,6 +27,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
+from imu_ground.errors import ImuGroundError, require_extra
 from imu_ground.pipeline.estimate import OptionError, check_options, estimate_to_files, requested_options
 from imu_ground.pipeline.input_checks import process_running
 from imu_ground.pipeline.output import (
@@ -208,8 +209,10 @@ def process_log(log: str, out: str | Path, options: dict, cli: bool = False, for
             warnings.simplefilter("ignore")
             res, table = estimate_to_files(log, paths, [None, *(k for _, k in extra)], **options)
     except Exception as e:                                   # noqa: BLE001 - a failing log never stops the others
-        message = e.cli_message() if cli and hasattr(e, "cli_message") else str(e)
-        row.update(status="failed", error=" ".join(f"{message}".split()) or type(e).__name__)
+        message = " ".join(str(e.cli_message() if cli and hasattr(e, "cli_message") else e).split())
+        if not isinstance(e, (ImuGroundError, OSError)):              # not bad input: a bug, said so
+            message = f"bug: unexpected {type(e).__name__}: {message} (please report it)"
+        row.update(status="failed", error=message or type(e).__name__)
         return row
     row.update(status="ok", format=res.meta.get("format"), method=res.meta.get("method"),
                warnings=" | ".join(res.meta.get("warnings", [])), **summarize_table(table))
@@ -325,11 +328,8 @@ def _describe(holder: dict) -> str:
 
 def _client(scheduler: str):
     """A client of the running Dask cluster at ``scheduler``."""
-    try:
-        from dask.distributed import Client
-    except ImportError:
-        raise ValueError("imu-ground batch --scheduler needs dask.distributed: pip install 'imu-ground[fleet]'") from None
-    return Client(scheduler, timeout="10s")
+    distributed = require_extra("dask.distributed", "fleet", "imu-ground batch --scheduler")
+    return distributed.Client(scheduler, timeout="10s")
 
 
 def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | None = None,
@@ -373,11 +373,11 @@ def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | 
         ``"duplicate"``) per path that named a file already listed.
     """
     if suffix not in OUTPUT_SUFFIXES:
-        raise ValueError(f"unknown output type {suffix!r}; choose from {', '.join(OUTPUT_SUFFIXES)}")
+        raise ImuGroundError(f"unknown output type {suffix!r}; choose from {', '.join(OUTPUT_SUFFIXES)}")
     check_options(**{k: v for k, v in options.items() if k not in ("extrinsic", "progress", "speed")})
     out_dir = Path(outdir)
     if out_dir.exists() and not out_dir.is_dir():
-        raise ValueError(f"{out_dir}: is a file; give -o an output folder")
+        raise ImuGroundError(f"{out_dir}: is a file; give -o an output folder")
     out_dir.mkdir(parents=True, exist_ok=True)
     with output_folder_lock(out_dir, "-o" if cli else "outdir"):
         return _run_batch_locked(logs, out_dir, workers, scheduler, suffix, progress, cli, summary, force, tum,
@@ -448,10 +448,7 @@ def _start_method() -> str:
 @contextlib.contextmanager
 def _local_pool(workers: int | None) -> Iterator[ProcessPoolExecutor]:
     """``workers`` (default: CPU count) worker processes, started now (see :func:`_start_method`)."""
-    try:
-        import dask.multiprocessing  # noqa: F401  (checked before any worker starts)
-    except ImportError:
-        raise ValueError("imu-ground batch needs Dask: pip install 'imu-ground[fleet]'") from None
+    require_extra("dask.multiprocessing", "fleet", "imu-ground batch")      # checked before any worker starts
     n = int(workers) if workers else (os.cpu_count() or 1)
     with ProcessPoolExecutor(n, mp_context=multiprocessing.get_context(_start_method())) as pool:
         pool.submit(int).result()       # a forking pool starts all its workers at the first task

@@ -7,8 +7,9 @@ picks the best for the input: the suspension-aware filter when the log has an
 accelerometer, the invariant filter (``"filter"``) for poses.
 
 Options are checked before any work, and a bad one raises
-:class:`~imu_ground.datasets.options.OptionError` (a ``ValueError``, the one
-option error of the package, the readers' base too) whose message names the
+:class:`~imu_ground.datasets.options.OptionError` (an
+:class:`~imu_ground.errors.ImuGroundError`, the one option error of the package, the
+readers' base too) whose message names the
 option as the user spells it: ``rate`` from Python, ``--rate`` from the
 command line (:meth:`~imu_ground.datasets.options.OptionMessage.cli_message`).
 """
@@ -25,8 +26,8 @@ from imu_ground.datasets import detect_format, read_imu, read_poses
 from imu_ground.datasets.options import READER_OPTIONS, OptionError, OptionText
 from imu_ground.datasets.poses import detect_pose_format, moves_along_z
 from imu_ground.datasets.speed import SPEED_SOURCES, check_speed, frame_speed, log_speed, read_speed
-from imu_ground.filters import Extrinsic, GroundTrack
-from imu_ground.filters.frame_checks import static_rotation
+from imu_ground.errors import ImuGroundError
+from imu_ground.filters import Extrinsic
 from imu_ground.filters.methods import METHODS, default_method
 from imu_ground.imu import EgoMotion, imu_to_egomotion
 from imu_ground.pipeline.input_checks import (
@@ -39,8 +40,7 @@ from imu_ground.pipeline.input_checks import (
 )
 from imu_ground.pipeline.output import result_table, write_outputs
 from imu_ground.pipeline.planes import check_camera
-from imu_ground.so3 import cumulative_rotations
-from imu_ground.units import DEFAULT_FRAME_RATE, RENORM_EVERY
+from imu_ground.units import DEFAULT_FRAME_RATE
 
 __all__ = [
     "GRAVITY_REFUSE_DEG",
@@ -91,20 +91,14 @@ class EstimateResult(NamedTuple):
     meta: dict
 
 
-#: The baseline :func:`estimate_log` offers beside the filters' registry (as ``imu-ground evaluate`` does).
+#: The constant normal of the static extrinsic (a method of the registry, the baseline ``imu-ground evaluate`` runs).
 NAIVE = "naive"
-_NAIVE_DESCRIPTION = ("constant normal: the static extrinsic alone, pitch and roll 0 relative to the road "
-                      "(the paper's naive baseline, a reference to compare with)")
 
 
 def available_methods() -> dict[str, tuple[str, bool]]:
-    """Method name -> (one-line description, needs accelerometer data).
-
-    The filters' registry (:data:`imu_ground.filters.methods.METHODS`) and ``"naive"``, the
-    constant normal of the static extrinsic (the same baseline ``imu-ground evaluate`` runs).
-    """
-    return {**{name: (spec.description, bool(spec.needs_accel)) for name, spec in METHODS.items()},
-            NAIVE: (_NAIVE_DESCRIPTION, False)}
+    """Method name -> (one-line description, needs accelerometer data): the registry,
+    :data:`imu_ground.filters.methods.METHODS`, in its order."""
+    return {name: (spec.description, bool(spec.needs_accel)) for name, spec in METHODS.items()}
 
 
 def resolve_method(method: str, has_accel: bool) -> str:
@@ -149,11 +143,12 @@ def detect_input(path: str | Path, format: str | None = None) -> tuple[str, str 
 
 
 def require_imu_log(path: str | Path, format: str | None = None, what: str = "this command") -> None:
-    """Raise a clear ``ValueError`` when ``path`` is a pose file where an IMU log is required."""
+    """Raise a clear :class:`~imu_ground.errors.ImuGroundError` when ``path`` is a pose file where an IMU log is
+    required."""
     kind, fmt = detect_input(path, format)
     if kind == "poses":
-        raise ValueError(f"{path}: this is an odometry pose file ({fmt}), but {what} needs an IMU log with "
-                         f"gyro and accelerometer (poses work with 'imu-ground estimate')")
+        raise ImuGroundError(f"{path}: this is an odometry pose file ({fmt}), but {what} needs an IMU log with "
+                             f"gyro and accelerometer (poses work with 'imu-ground estimate')")
 
 
 # ------------------------------------------------------------------------------------------ checks
@@ -295,7 +290,7 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
         No such log.
     OptionError
         A bad option (message names it).
-    ValueError
+    ImuGroundError
         The log cannot be read (the reader's message: file, line, option to use).
     """
     reader_kw = check_options(method=method, rate=rate, Q=Q, R=R, **reader_options)
@@ -324,9 +319,11 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
                 em, info, imu = _imu_egomotion(path, fmt, rate, extrinsic, reader_kw)
             bar.update()
             name = resolve_method(method, em.has_accel)
-            if (Q is not None or R is not None) and name not in ("filter", "paper"):
-                raise OptionError(f"{{opt}} sets the noise of the filter and paper methods; method {name} does not "
-                                  "use it (add --method filter, or leave it out)", "Q" if Q is not None else "R")
+            noise = "Q" if Q is not None else "R"
+            if (Q is not None or R is not None) and noise not in METHODS[name].options:
+                takes = [m for m, spec in METHODS.items() if noise in spec.options]
+                raise OptionError(f"{{opt}} sets the noise of the {' and '.join(takes)} methods; method {name} does "
+                                  f"not use it (add --method {takes[0]}, or leave it out)", noise)
             if recalibrate_online and name != "suspension":
                 raise OptionError(f"{path}: {{opt}} re-estimates the mount, frame by frame, when the streaming "
                                   f"suspension method's mount monitor sees it move; method {name} cannot (use "
@@ -335,7 +332,12 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
                                                      em, name)
             if recalibrate_online:
                 check_recalibration(path, frame_speeds, speed_info, em)
-            track = _run_method(name, em, Extrinsic.coerce(extrinsic), Q, R, frame_speeds, recalibrate_online)
+            try:
+                track = _run_method(name, em, Extrinsic.coerce(extrinsic), Q, R, frame_speeds, recalibrate_online)
+            except ImuGroundError as e:                 # e.g. a frame the estimator refuses: name the log
+                if hasattr(e, "cli_message") or str(e).startswith(str(path)):
+                    raise
+                raise ImuGroundError(f"{path}: {e}") from e
         ext = Extrinsic.coerce(extrinsic)
         bar.update()
     bar.close()
@@ -377,11 +379,11 @@ def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
     frame_rate = DEFAULT_FRAME_RATE if rate is None else rate
     try:
         em = imu_to_egomotion(imu, rate=frame_rate)
-    except ValueError as e:             # too short a log: the message names the file, as every other one
+    except ImuGroundError as e:         # too short a log: the message names the file, as every other one
         if str(e).startswith(str(path)):
             raise
-        raise ValueError(f"{path}: {len(imu)} sample(s) over {imu.duration:.3g} s, too short for frames at "
-                         f"{frame_rate:g} Hz ({e})") from e
+        raise ImuGroundError(f"{path}: {len(imu)} sample(s) over {imu.duration:.3g} s, too short for frames at "
+                             f"{frame_rate:g} Hz ({e})") from e
     info = {"format": fmt, "imu_rate": imu_rate, "frame_id": imu.meta.get("frame_id") or "imu"}
     if imu.meta.get("t0_ns") is not None:
         info["t0_ns"] = int(imu.meta["t0_ns"])
@@ -391,7 +393,7 @@ def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
 def _poses_egomotion(path, fmt, rate, times=None, extrinsic=None):
     poses = read_poses(path, format=POSE_FORMATS[fmt], times=times)
     if len(poses) < 2:
-        raise ValueError(f"{path}: {len(poses)} pose(s); at least 2 are needed for one frame")
+        raise ImuGroundError(f"{path}: {len(poses)} pose(s); at least 2 are needed for one frame")
     if extrinsic is None and moves_along_z(poses):
         raise OptionError(f"{path}: camera poses (the motion is along the sensor's +z axis: x right, y down, "
                           f"z forward), whose axes are not a vehicle's; pass {{opt}} kitti_cam0 (KITTI's camera 0) "
@@ -465,7 +467,7 @@ def speed_samples(speed, path, fmt, imu):
         try:
             got = read_speed(speed, log=path, format=fmt, imu=imu)
             t_sp, v_sp, notes = check_speed(*got, str(speed), imu)
-        except (ValueError, FileNotFoundError) as e:
+        except (ImuGroundError, FileNotFoundError) as e:
             text = str(e).removeprefix(f"{speed}: ")
             raise OptionError(f"{{opt}} {speed}: {text}", "speed") from e
         for note in notes:
@@ -538,25 +540,12 @@ def _causal_estimate(path, kind, fmt, method, rate, extrinsic, speed, Q, R, reca
 def _run_method(name: str, em, ext, Q, R, speed=None, recalibrate_online: bool = False):
     """Run method ``name`` of the registry over the ego-motion (noise options, speed and the online mount
     re-estimation only when given)."""
-    if name == NAIVE:
-        return _constant_normal_track(em, ext)
     spec = METHODS[name]
     noise = {k: v for k, v in (("Q", Q), ("R", R)) if v is not None}
     if recalibrate_online:
         noise["recalibrate_online"] = True
     extra = {} if speed is None else {"speed": speed}
     return spec.make(extrinsic=ext, **noise).run(em, smooth=bool(spec.smooth), **extra)
-
-
-def _constant_normal_track(em, ext):
-    """The naive track: the residual road <- body is the identity on every frame (the static extrinsic's normal)."""
-    rgs = static_rotation(ext)
-    d = np.asarray(em.delta_R, dtype=float)
-    body = d if rgs is None else rgs @ d @ rgs.T
-    n = len(body)
-    cum = cumulative_rotations(body, renorm_every=RENORM_EVERY) if n else np.zeros((0, 3, 3))
-    return GroundTrack.from_residuals(np.tile(np.eye(3), (n, 1, 1)), cum, np.zeros((n, 3, 3)), cum, rgs,
-                                      ext.translation, t=em.t, valid=em.valid)
 
 
 def estimate_to_files(path: str | Path, outputs, kinds=None, planes: str | Path | None = None, **kwargs: Any):

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from imu_ground.datasets.options import OptionError
+from imu_ground.errors import ImuGroundError
 from imu_ground.filters import Extrinsic
 
 __all__ = ["GRAVITY_REFUSE_DEG", "GRAVITY_WARN_DEG", "OptionError", "check_creatable", "check_gravity_direction",
@@ -117,9 +118,10 @@ def check_creatable(path: Path, option: str, start: Path | None = None) -> None:
     while not anc.exists() and anc != anc.parent:
         anc = anc.parent
     if not anc.is_dir():
-        raise ValueError(f"{path}: cannot be created because {anc} is a file, not a folder; choose another {option}")
+        raise ImuGroundError(f"{path}: cannot be created because {anc} is a file, not a folder; "
+                             f"choose another {option}")
     if not os.access(anc, os.W_OK | os.X_OK):
-        raise ValueError(f"{path}: no permission to write in {anc}; choose another {option}")
+        raise ImuGroundError(f"{path}: no permission to write in {anc}; choose another {option}")
 
 
 def check_recalibration(path: str | Path, speeds: np.ndarray | None, speed_info: str, em) -> None:

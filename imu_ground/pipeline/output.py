@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from imu_ground._version import __version__
+from imu_ground.errors import ImuGroundError, MissingExtraError, require_extra
 from imu_ground.filters.estimator import GroundTrack
 from imu_ground.filters.status import GAP, gap_run_durations, status_names, status_reason
 from imu_ground.pipeline.input_checks import OptionError, check_creatable
@@ -211,22 +212,37 @@ def check_output_path(path: _PathLike, inputs: Sequence[_PathLike] = (), option:
 
     Raises
     ------
-    ValueError
+    ImuGroundError
         Unknown suffix; the path is a folder, an input, or lies under a file;
         no permission to write there. One line, naming the path and what to do.
+    MissingExtraError
+        The writer of its type needs an optional extra that is not installed.
     """
     p = Path(path)
     if p.is_dir():
-        raise ValueError(f"{p}: is a folder; give {option} a file name, e.g. {p / 'ground.csv'}")
+        raise ImuGroundError(f"{p}: is a folder; give {option} a file name, e.g. {p / 'ground.csv'}")
     if kind is None and p.suffix.lower() not in OUTPUT_SUFFIXES:
-        raise ValueError(f"{p}: unknown output type {p.suffix or '(no suffix)'!r}; end the {option} file name "
-                         f"with {', '.join(OUTPUT_SUFFIXES)}")
+        raise ImuGroundError(f"{p}: unknown output type {p.suffix or '(no suffix)'!r}; end the {option} file name "
+                             f"with {', '.join(OUTPUT_SUFFIXES)}")
     for src in inputs:
         s = Path(src)
         if p.resolve() == s.resolve() or (p.exists() and s.exists() and os.path.samefile(p, s)):
-            raise ValueError(f"{p}: is the input log; writing it would overwrite the log: choose another {option}")
+            raise ImuGroundError(f"{p}: is the input log; writing it would overwrite the log: choose another {option}")
     check_creatable(p, option)
+    _require_writer(p, kind or p.suffix.lower())
     return p
+
+
+#: Output suffix -> (the modules its writer needs, the extra that installs them).
+_WRITER_EXTRAS = {".parquet": (("pyarrow.parquet",), "parquet"), ".bag": (("rosbags.typesys",), "ros"),
+                  ".mcap": (("rosbags.typesys", "mcap.writer"), "ros")}
+
+
+def _require_writer(path: Path, kind: str) -> None:
+    """Raise :class:`~imu_ground.errors.MissingExtraError` naming ``path`` when its writer's extra is missing."""
+    modules, extra = _WRITER_EXTRAS.get(kind, ((), ""))
+    for module in modules:
+        require_extra(module, extra, f"{path}: writing {kind}")
 
 
 @contextmanager
@@ -333,11 +349,8 @@ def _write_csv(path: Path, table, meta: Mapping[str, Any]) -> None:
 
 
 def _write_parquet(path: Path, table, meta: Mapping[str, Any]) -> None:
-    try:
-        import pyarrow as pa
-        import pyarrow.parquet as pq
-    except ImportError:
-        raise ValueError(f"{path}: writing Parquet needs pyarrow: pip install 'imu-ground[parquet]'") from None
+    pa = require_extra("pyarrow", "parquet", f"{path}: writing Parquet")
+    pq = require_extra("pyarrow.parquet", "parquet", f"{path}: writing Parquet")
     df = table.reset_index(drop=True)
     df["valid"] = df["valid"].astype(bool)
     units = {**UNITS, **PLANE_UNITS}
@@ -376,8 +389,9 @@ def _write_ros(path: Path, table, meta: Mapping[str, Any]) -> None:
         write_ros_output(path, table, frame_id=meta.get("frame_id") or "imu", settings=settings,
                          road_from_camera=None if plane is None else plane.matrix)
     except ImportError as e:                                     # rosbags / mcap load on first use
-        raise ValueError(f"{path}: writing {path.suffix} needs the ROS extras: pip install 'imu-ground[ros]' "
-                         f"({e})") from None
+        if isinstance(e, MissingExtraError):
+            raise
+        raise MissingExtraError(f"{path}: writing {path.suffix}", (e.name or "rosbags").split(".")[0], "ros") from e
 
 
 def read_output_settings(path: _PathLike) -> dict | None:
@@ -435,7 +449,8 @@ def write_outputs(paths: Sequence[_PathLike], table, meta: Mapping[str, Any],
     kinds = [k or p.suffix.lower() for p, k in zip(out, kinds or [None] * len(out))]
     for p, k in zip(out, kinds):
         if k not in _WRITERS:
-            raise ValueError(f"{p}: unknown output type {k!r}; use {', '.join(OUTPUT_SUFFIXES)}")
+            raise ImuGroundError(f"{p}: unknown output type {k!r}; use {', '.join(OUTPUT_SUFFIXES)}")
+        _require_writer(p, k)
     with ExitStack() as stack:
         temps = [stack.enter_context(_staged(p)) for p in out]
         for k, tmp in zip(kinds, temps):

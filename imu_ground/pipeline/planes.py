@@ -42,6 +42,7 @@ import numpy as np
 
 from imu_ground._version import __version__
 from imu_ground.datasets.options import OptionError
+from imu_ground.errors import ImuGroundError
 from imu_ground.perception import load_camera
 from imu_ground.perception.camera import Camera
 from imu_ground.perception.plane import BevGrid, GroundPlane
@@ -313,19 +314,19 @@ def read_kitti_planes(path: str | Path) -> np.ndarray:
 
     Raises
     ------
-    ValueError
+    ImuGroundError
         Not in the format (the message names the file).
     """
     p = Path(path)
     lines = p.read_text().splitlines()
     if len(lines) < 4 or lines[:3] != ["# Matrix", "WIDTH 4", "HEIGHT 1"]:
-        raise ValueError(f"{p}: not a KITTI planes file (expected '# Matrix', 'WIDTH 4', 'HEIGHT 1', 'a b c d')")
+        raise ImuGroundError(f"{p}: not a KITTI planes file (expected '# Matrix', 'WIDTH 4', 'HEIGHT 1', 'a b c d')")
     try:
         values = np.array([float(v) for v in lines[3].split()])
     except ValueError:
-        raise ValueError(f"{p}:4: the plane has a value that is not a number") from None
+        raise ImuGroundError(f"{p}:4: the plane has a value that is not a number") from None
     if values.size != 4:
-        raise ValueError(f"{p}:4: expected 4 numbers, got {values.size}")
+        raise ImuGroundError(f"{p}:4: expected 4 numbers, got {values.size}")
     return values
 
 
@@ -345,7 +346,7 @@ def check_camera(camera: Any, bev: Any) -> tuple[Any, Any]:
         return None, None
     try:
         cam = load_camera(camera)
-    except (ValueError, FileNotFoundError) as e:
+    except (ImuGroundError, FileNotFoundError) as e:
         text = " ".join(str(e).split())
         raise OptionError(f"{{opt}} {text}" if text.startswith(str(camera)) else f"{{opt}} {camera}: {text}",
                           "camera") from e

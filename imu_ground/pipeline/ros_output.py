@@ -49,6 +49,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from imu_ground.errors import ImuGroundError
 from imu_ground.units import DEG
 
 if TYPE_CHECKING:
@@ -82,7 +83,7 @@ def ros_output_kind(path: str | Path) -> str:
 
     Raises
     ------
-    ValueError
+    ImuGroundError
         Any other suffix; the message lists the supported ones.
     """
     p = Path(path)
@@ -90,8 +91,8 @@ def ros_output_kind(path: str | Path) -> str:
         return "ros2"
     kind = _KINDS.get(p.suffix.lower())
     if kind is None:
-        raise ValueError(f"{p}: cannot write ROS output with suffix {p.suffix!r}: use .bag (ROS 1), "
-                         f".mcap (MCAP, ROS 2 messages) or a folder name without suffix (ROS 2 bag)")
+        raise ImuGroundError(f"{p}: cannot write ROS output with suffix {p.suffix!r}: use .bag (ROS 1), "
+                             f".mcap (MCAP, ROS 2 messages) or a folder name without suffix (ROS 2 bag)")
     return kind
 
 
@@ -193,7 +194,7 @@ class RosWriter:
         """A ``std_msgs/Header`` with stamp ``stamp_ns`` (ns since the clock's epoch, >= 0)."""
         stamp_ns = int(stamp_ns)
         if stamp_ns < 0:
-            raise ValueError(f"{self.path}: negative ROS stamp {stamp_ns} ns; pass t0/t0_ns (the log's start time)")
+            raise ImuGroundError(f"{self.path}: negative ROS stamp {stamp_ns} ns; pass t0/t0_ns (the log's start time)")
         t = self.message("builtin_interfaces/msg/Time", sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
         if self.ros1:
             return self.message("std_msgs/msg/Header", seq=seq, stamp=t, frame_id=frame_id)
@@ -352,8 +353,8 @@ def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
     origin = _stamp_origin(t0, t0_ns, settings)
     stamps = origin + np.round(rows["t"] * 1e9).astype(np.int64)
     if len(stamps) and stamps.min() < 0:
-        raise ValueError(f"{path}: negative ROS stamps (first valid t = {rows['t'][0]:g} s); pass t0 or t0_ns, "
-                         f"the log's start time")
+        raise ImuGroundError(f"{path}: negative ROS stamps (first valid t = {rows['t'][0]:g} s); pass t0 or t0_ns, "
+                             f"the log's start time")
     prefix = "/" + topic_prefix.strip("/") if topic_prefix.strip("/") else ""
     with RosWriter(path, storage=storage, overwrite=overwrite) as w:
         h = {k: w.add_topic(f"{prefix}/{k}", m) for k, m in ROS_OUTPUT_TOPICS.items()

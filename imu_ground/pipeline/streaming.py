@@ -59,7 +59,7 @@ __all__ = ["LIVE_METHODS", "SPEED_WAIT", "FrameEstimate", "StreamingEstimator", 
            "replay"]
 
 #: Methods that run live (``"auto"`` is ``"suspension"``); the offline smoother and the naive baseline do not.
-LIVE_METHODS = ("suspension", "filter", "paper")
+LIVE_METHODS = tuple(name for name, spec in METHODS.items() if spec.live)
 #: Longest a frame waits for a speed sample at or after its end, s of IMU time (then: IMU only, said).
 SPEED_WAIT = 0.25
 _STATE_KIND = "imu_ground.StreamingEstimator"
