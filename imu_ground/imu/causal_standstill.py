@@ -105,10 +105,20 @@ class StandstillBlocks:
         b = self.blocks.get(k)
         if b is None:
             b = self.blocks[k] = [0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
-        b[0] += 1
-        for i, x in enumerate((g[0], g[1], g[2], a[0], a[1], a[2])):
-            b[1 + i] += x
-            b[7 + i] += x * x
+        g0, g1, g2, a0, a1, a2 = g[0], g[1], g[2], a[0], a[1], a[2]
+        b[0] += 1                               # unrolled: this runs once a sample on the live path
+        b[1] += g0
+        b[2] += g1
+        b[3] += g2
+        b[4] += a0
+        b[5] += a1
+        b[6] += a2
+        b[7] += g0 * g0
+        b[8] += g1 * g1
+        b[9] += g2 * g2
+        b[10] += a0 * a0
+        b[11] += a1 * a1
+        b[12] += a2 * a2
 
     def stationary(self, k: int, W: int | None = None) -> bool:
         """Whether frame ``k`` ends at a standstill (its trailing window of ``W`` blocks, default :attr:`W`, passes)."""

@@ -200,6 +200,8 @@ def _unpack(x: Any) -> Any:
 
 # ------------------------------------------------------------------------------------------ checks
 def _number(x: Any, name: str) -> float:
+    if isinstance(x, float):                         # float and numpy.float64 (a float subclass): the common case
+        return float(x)
     if isinstance(x, numbers.Real) and not isinstance(x, bool):
         return float(x)
     if isinstance(x, np.ndarray) and x.shape == () and x.dtype.kind in "fiu":
