@@ -118,6 +118,7 @@ def test_evaluate_without_a_data_source_says_what_to_give(tmp_path):
     r = _cli("evaluate", cwd=tmp_path)
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert "--real" in r.stderr and "--synthetic" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert "--lidar" in r.stderr                    # the third source, LiDAR road planes
 
 
 def test_console_script(tmp_path):

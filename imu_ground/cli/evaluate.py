@@ -72,7 +72,8 @@ def _check(a: argparse.Namespace) -> list:
     if lidar_only:
         raise ImuGroundError(f"{lidar_only[0]} goes with --lidar LOG SCANS")
     if a.real is None and not a.synthetic:
-        raise ImuGroundError("nothing to evaluate: give --real DIR (kitti_imu100 drives) and/or --synthetic N")
+        raise ImuGroundError("nothing to evaluate: give --real DIR (kitti_imu100 drives) and/or --synthetic N, or "
+                             "--lidar LOG SCANS (LiDAR road planes)")
     methods = [m.strip() for m in a.methods.split(",") if m.strip()] if a.methods else list(METHODS)
     unknown = [m for m in methods if m not in METHODS]
     if unknown:
