@@ -1,6 +1,5 @@
 """The 1-sigma's calibration: the shipped constants are the study's, the study's fit recovers a known model,
 its suites are reproducible, and the shipped 1-sigma covers a fixed synthetic drive's errors as it should."""
-import re
 import sys
 from pathlib import Path
 

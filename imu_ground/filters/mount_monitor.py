@@ -193,9 +193,9 @@ class MountMonitor:
             return out
         g = np.asarray(gravity, dtype=float).reshape(n, 3)
         on = np.isfinite(g).all(axis=1) & np.asarray(usable, dtype=bool)
-        # runs of frames in use: run r spans frames [first[r], last[r]]
+        # runs of frames in use: run r starts at frame first[r]
         edges = np.flatnonzero(np.diff(np.concatenate([[False], on, [False]]).astype(np.int8)))
-        first, last = edges[0::2], edges[1::2] - 1
+        first = edges[0::2]
         carried = bool(first.size) and first[0] == 0 and self._armed_at == self._armed_at
         armed = t[first] + HOLD_OFF
         if carried:
