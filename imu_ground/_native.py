@@ -16,6 +16,8 @@ name                     compiled module                            Python twin
 :data:`EKF`              ``imu_ground.filters._ekf_native``         :mod:`imu_ground.filters.invariant_ekf_kernel`
 :data:`PREINTEGRATION`   ``imu_ground.imu._preint_native``          :mod:`imu_ground.imu.preint_kernel`,
                                                                     :mod:`imu_ground.imu.preint_stream`
+:data:`STANDSTILL`       ``imu_ground.imu._standstill_native``      :mod:`imu_ground.imu.standstill` (a batch
+                                                                    pass over the whole log, not streaming)
 =======================  =========================================  =========================================
 
 Equality rule between twins (the one the tests check, all with
@@ -47,7 +49,7 @@ from typing import Any, Dict, Optional
 import numpy as np
 
 __all__ = ["load_native", "native_kernels", "kernels_in_use", "PURE_PYTHON_ENV", "REQUIRE_NATIVE_ENV",
-           "RESIDUAL", "GRAVITY", "EKF", "PREINTEGRATION", "STREAMING_KERNELS", "TWIN_RTOL", "assert_twins_equal"]
+           "RESIDUAL", "GRAVITY", "EKF", "PREINTEGRATION", "STANDSTILL", "STREAMING_KERNELS", "TWIN_RTOL", "assert_twins_equal"]
 
 PURE_PYTHON_ENV = "IMU_GROUND_PURE_PYTHON"
 REQUIRE_NATIVE_ENV = "IMU_GROUND_REQUIRE_NATIVE"
@@ -91,6 +93,8 @@ EKF = load_native("imu_ground.filters._ekf_native")
 PREINTEGRATION = load_native("imu_ground.imu._preint_native")
 #: Their dotted names, in the order above.
 STREAMING_KERNELS = tuple(_LOADED)
+#: The compiled twin of the standstill window statistics (a whole-log batch pass; module or None).
+STANDSTILL = load_native("imu_ground.imu._standstill_native")
 
 
 def native_kernels() -> Dict[str, bool]:

@@ -24,8 +24,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
+
 import numpy as np
 
+from imu_ground._native import STANDSTILL as _NATIVE
 from imu_ground.imu.data import ImuData
 
 __all__ = ["GyroBiasEstimate", "WindowSums", "detect_standstill", "estimate_gyro_bias"]
@@ -100,6 +103,11 @@ class WindowSums:
         self.mean = np.concatenate([imu.gyro.mean(axis=0), imu.accel.mean(axis=0)])[:, None]
         self.c1 = np.empty((6, n + 1))
         self.c2 = np.empty((6, n + 1))
+        if _NATIVE is not None and n:     # the compiled twin: the same additions in the same order
+            _NATIVE.window_sums(np.ascontiguousarray(imu.gyro, dtype=float),
+                                np.ascontiguousarray(imu.accel, dtype=float),
+                                np.ascontiguousarray(self.mean[:, 0]), self.c1, self.c2)
+            return
         self.c1[:, 0] = 0.0
         self.c2[:, 0] = 0.0
         # block by block: each block's running sums start from the previous block's last one, so every
@@ -170,12 +178,19 @@ def _standstill_mask(imu: ImuData, window: float, gyro_std_max: float, gyro_norm
         raise ValueError(f"sums were computed for a log of {sums.n} samples, this one has {n}")
     # window of sample i: samples i .. end[i]-1 with t < t[i] + window, plus the
     # first sample at or after t[i] + window so that it spans >= window seconds
-    last = np.searchsorted(t, t + window, side="left")     # first index with t >= t_i + window
-    ok = last < n
-    end = np.minimum(last + 1, n)
-    gaps = np.concatenate([[0], np.cumsum(np.diff(t) > max_gap)])
-    no_gap = gaps[end - 1] == gaps
-    quiet, norm = _quiet_windows(sums, end, ok & no_gap, gyro_std_max, gyro_norm_max, accel_std_max)
+    native = _NATIVE is not None and math.isfinite(window) and window >= 0
+    if native:                          # the compiled twin: the same windows, sums and tests in one pass
+        quiet, norm, end = np.empty(n, dtype=bool), np.empty(n), np.empty(n, dtype=np.int64)
+        _NATIVE.quiet_windows(np.ascontiguousarray(t), sums.c1, sums.c2, np.ascontiguousarray(sums.mean[:, 0]),
+                              float(window), float(max_gap), float(gyro_std_max), float(gyro_norm_max),
+                              float(accel_std_max), quiet, norm, end)
+    else:
+        last = np.searchsorted(t, t + window, side="left")     # first index with t >= t_i + window
+        ok = last < n
+        end = np.minimum(last + 1, n)
+        gaps = np.concatenate([[0], np.cumsum(np.diff(t) > max_gap)])
+        no_gap = gaps[end - 1] == gaps
+        quiet, norm = _quiet_windows(sums, end, ok & no_gap, gyro_std_max, gyro_norm_max, accel_std_max)
     if gravity is None:
         # the log's own |f| at rest: an accelerometer bias or scale error moves it
         # away from 9.81 (0.2 m/s^2 is common for MEMS) and must not hide the stops
@@ -183,6 +198,10 @@ def _standstill_mask(imu: ImuData, window: float, gyro_std_max: float, gyro_norm
             return np.zeros(n, dtype=bool)
         gravity = float(np.median(norm[quiet]))
     good = quiet & (np.abs(norm - gravity) <= accel_norm_tol)
+    if native:
+        mask = np.empty(n, dtype=bool)
+        _NATIVE.window_union(good, end, mask)
+        return mask
     # union of the good windows [i, end[i]) : difference array
     gi = np.flatnonzero(good)
     d = np.bincount(gi, minlength=n + 1) - np.bincount(end[gi], minlength=n + 1)
