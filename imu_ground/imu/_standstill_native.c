@@ -3,13 +3,15 @@
  *
  * Entry points (METH_FASTCALL), each releasing the GIL over its loop:
  *   window_sums(gyro, accel, mean, c1, c2)              WindowSums.__init__'s cumulative sums
- *   quiet_windows(t, c1, c2, mean, window, max_gap, gyro_std_max, gyro_norm_max, accel_std_max,
+ *   quiet_windows(t, gyro, accel, mean, window, max_gap, gyro_std_max, gyro_norm_max, accel_std_max,
  *                 quiet, norm, end)                    _standstill_mask's windows and _quiet_windows
  *   window_union(good, end, mask)                       the union of the good windows [i, end[i])
  *
  * Each is its numpy twin term for term and in the same operation order (compiled without FMA
  * contraction), so the sums, the means and norms and hence the masks equal the twin's to the bit:
- * a cumulative sum adds the centred samples one after the other as numpy.cumsum does; a window's
+ * a cumulative sum adds the centred samples one after the other as numpy.cumsum does (quiet_windows
+ * carries two such running sums, at the windows' starts and ends, instead of the (6, N + 1) arrays:
+ * the same values without their memory); a window's
  * end is numpy.searchsorted(t, t + window, "left") found by a forward sweep (t strictly
  * increasing, so t + window never decreases); NaN propagates as through numpy.maximum.
  * Shapes: gyro and accel (N, 3) C-contiguous float64 (rad/s, m/s^2, body frame); mean 6 doubles
@@ -88,25 +90,43 @@ fail:
     return NULL;
 }
 
-/* Mean (without the log's mean) and variance of row r over samples [a, e), as WindowSums.stats. */
-static inline void stats(const double *c1, const double *c2, Py_ssize_t stride, int r, Py_ssize_t a, Py_ssize_t e,
-                         double *m, double *var)
+/* Running sums of the centred samples and of their squares up to (not including) sample `at`, advanced one
+   sample at a time: the additions of WindowSums' cumulative sums in their order, so s1[r] equals c1[r, at]. */
+typedef struct {
+    Py_ssize_t at;
+    double s1[6], s2[6];
+} running;
+
+static inline void advance(running *p, Py_ssize_t to, const double *gyro, const double *accel, const double *mean)
 {
-    double cnt = (double)(e - a);
+    for (; p->at < to; p->at++) {
+        const double *g = gyro + 3 * p->at, *f = accel + 3 * p->at;
+        for (int r = 0; r < 6; r++) {
+            const double d = (r < 3 ? g[r] : f[r - 3]) - mean[r];
+            p->s1[r] = p->s1[r] + d;
+            p->s2[r] = p->s2[r] + d * d;
+        }
+    }
+}
+
+/* Mean (with the log's mean added back) and standard deviation of component r over the samples [a.at, e.at),
+   as WindowSums.stats: count max(e - a, 1); variance max(., 0) (NaN stays NaN, as through numpy.maximum). */
+static inline void stats(const running *a, const running *e, int r, const double *mean, double *m, double *std)
+{
+    double cnt = (double)(e->at - a->at);
     if (!(cnt >= 1.0))
         cnt = 1.0;
-    const double *r1 = c1 + stride * r, *r2 = c2 + stride * r;
-    const double mm = (r1[e] - r1[a]) / cnt;
-    double vv = (r2[e] - r2[a]) / cnt - mm * mm;
-    if (vv < 0.0)                          /* numpy.maximum(vv, 0.0): NaN stays NaN */
+    const double mm = (e->s1[r] - a->s1[r]) / cnt;
+    double vv = (e->s2[r] - a->s2[r]) / cnt - mm * mm;
+    if (vv < 0.0)
         vv = 0.0;
-    *m = mm;
-    *var = vv;
+    *m = mm + mean[r];
+    *std = sqrt(vv);
 }
 
 static PyObject *quiet_windows(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (!ig_check_nargs(nargs, 12, 12, "quiet_windows", "t, c1, c2, mean, window, max_gap, gyro_std_max, "
+    if (!ig_check_nargs(nargs, 12, 12, "quiet_windows", "t, gyro, accel, mean, window, max_gap, gyro_std_max, "
                         "gyro_norm_max, accel_std_max, quiet, norm, end"))
         return NULL;
     double lim[5];                         /* window, max_gap, gyro_std_max, gyro_norm_max, accel_std_max */
@@ -118,16 +138,16 @@ static PyObject *quiet_windows(PyObject *self, PyObject *const *args, Py_ssize_t
     const Py_buffer *v = ig_take(&vs, args[0], "t", -1, 0, 'd');
     if (!v)
         return NULL;
-    const Py_ssize_t n = v->len / 8, stride = n + 1;
-    const double *t = v->buf, *c1, *c2, *mean;
+    const Py_ssize_t n = v->len / 8;
+    const double *t = v->buf, *gyro, *accel, *mean;
     double *norm;
     unsigned char *quiet;
-    if (!(v = ig_take(&vs, args[1], "c1", 6 * stride, 0, 'd')))
+    if (!(v = ig_take(&vs, args[1], "gyro", 3 * n, 0, 'd')))
         goto fail;
-    c1 = v->buf;
-    if (!(v = ig_take(&vs, args[2], "c2", 6 * stride, 0, 'd')))
+    gyro = v->buf;
+    if (!(v = ig_take(&vs, args[2], "accel", 3 * n, 0, 'd')))
         goto fail;
-    c2 = v->buf;
+    accel = v->buf;
     if (!(v = ig_take(&vs, args[3], "mean", 6, 0, 'd')))
         goto fail;
     mean = v->buf;
@@ -143,6 +163,7 @@ static PyObject *quiet_windows(PyObject *self, PyObject *const *args, Py_ssize_t
     const double window = lim[0], max_gap = lim[1], gyro_std_max = lim[2], gyro_norm_max = lim[3],
                  accel_std_max = lim[4];
     Py_BEGIN_ALLOW_THREADS
+    running lo = {0}, hi = {0};            /* the sums up to the window's start and up to its end */
     Py_ssize_t last = 0;                   /* numpy.searchsorted(t, t[i] + window, "left") */
     Py_ssize_t gap = -1;                   /* first step j >= i longer than max_gap (n - 1: none) */
     for (Py_ssize_t i = 0; i < n; i++) {
@@ -162,20 +183,20 @@ static PyObject *quiet_windows(PyObject *self, PyObject *const *args, Py_ssize_t
         }
         if (!(last < n) || gap < e - 1)    /* past the log's end, or a gap inside */
             continue;
-        double m[3], var[3];
+        advance(&lo, i, gyro, accel, mean);
+        advance(&hi, e, gyro, accel, mean);
+        double m[3], sd[3];
         int ok = 1;
         for (int r = 0; r < 3; r++) {
-            stats(c1, c2, stride, r, i, e, &m[r], &var[r]);
-            m[r] = m[r] + mean[r];
-            ok = ok && sqrt(var[r]) <= gyro_std_max;
+            stats(&lo, &hi, r, mean, &m[r], &sd[r]);
+            ok = ok && sd[r] <= gyro_std_max;
         }
         if (!(sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]) <= gyro_norm_max) || !ok)
             continue;
         int q = 1;
         for (int r = 0; r < 3; r++) {
-            stats(c1, c2, stride, 3 + r, i, e, &m[r], &var[r]);
-            m[r] = m[r] + mean[3 + r];
-            q = q && sqrt(var[r]) <= accel_std_max;
+            stats(&lo, &hi, 3 + r, mean, &m[r], &sd[r]);
+            q = q && sd[r] <= accel_std_max;
         }
         quiet[i] = (unsigned char)q;
         norm[i] = sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]);
@@ -228,7 +249,7 @@ static PyMethodDef methods[] = {
      "window_sums(gyro, accel, mean, c1, c2) -> None: WindowSums' cumulative sums of the centred samples and of\n"
      "their squares into c1 and c2 (6, N + 1)."},
     {"quiet_windows", IG_FASTCALL(quiet_windows), METH_FASTCALL,
-     "quiet_windows(t, c1, c2, mean, window, max_gap, gyro_std_max, gyro_norm_max, accel_std_max, quiet, norm,\n"
+     "quiet_windows(t, gyro, accel, mean, window, max_gap, gyro_std_max, gyro_norm_max, accel_std_max, quiet, norm,\n"
      "end) -> None: every sample's window end, whether it passes the rate and variance tests, and the norm of\n"
      "its mean specific force where the rate passes (standstill._quiet_windows)."},
     {"window_union", IG_FASTCALL(window_union), METH_FASTCALL,

@@ -93,36 +93,62 @@ class WindowSums:
     ----------
     mean : ndarray, shape (6, 1)
         Mean gyro (rad/s) then specific force (m/s^2) over the log.
+    gyro, accel : ndarray, shape (N, 3)
+        The log's gyro and specific force (C-contiguous; the log's own arrays where they are).
     c1, c2 : ndarray, shape (6, N + 1)
         ``c1[:, k]`` sum of the first ``k`` centred samples, ``c2[:, k]`` of their squares.
+        Where the compiled kernel runs, computed on first use only: the kernel's
+        window tests carry the same running sums at each window's start and end
+        instead (equal values, without the arrays' memory).
     """
 
     def __init__(self, imu: ImuData) -> None:
         n = len(imu)
         self.n = n
         self.mean = np.concatenate([imu.gyro.mean(axis=0), imu.accel.mean(axis=0)])[:, None]
-        self.c1 = np.empty((6, n + 1))
-        self.c2 = np.empty((6, n + 1))
+        self.gyro = np.ascontiguousarray(imu.gyro, dtype=float)
+        self.accel = np.ascontiguousarray(imu.accel, dtype=float)
+        self._c: tuple[np.ndarray, np.ndarray] | None = None
+        if _NATIVE is None:
+            self._c = self._sums()
+
+    @property
+    def c1(self) -> np.ndarray:
+        """Cumulative sums of the centred samples, (6, N + 1)."""
+        if self._c is None:
+            self._c = self._sums()
+        return self._c[0]
+
+    @property
+    def c2(self) -> np.ndarray:
+        """Cumulative sums of the squared centred samples, (6, N + 1)."""
+        if self._c is None:
+            self._c = self._sums()
+        return self._c[1]
+
+    def _sums(self) -> tuple[np.ndarray, np.ndarray]:
+        n = self.n
+        c1 = np.empty((6, n + 1))
+        c2 = np.empty((6, n + 1))
         if _NATIVE is not None and n:     # the compiled twin: the same additions in the same order
-            _NATIVE.window_sums(np.ascontiguousarray(imu.gyro, dtype=float),
-                                np.ascontiguousarray(imu.accel, dtype=float),
-                                np.ascontiguousarray(self.mean[:, 0]), self.c1, self.c2)
-            return
-        self.c1[:, 0] = 0.0
-        self.c2[:, 0] = 0.0
+            _NATIVE.window_sums(self.gyro, self.accel, np.ascontiguousarray(self.mean[:, 0]), c1, c2)
+            return c1, c2
+        c1[:, 0] = 0.0
+        c2[:, 0] = 0.0
         # block by block: each block's running sums start from the previous block's last one, so every
         # entry is the same sequence of additions as one cumulative sum over the whole log
         buf = np.empty((6, min(_BLOCK, n) + 1))
         for a in range(0, n, _BLOCK):
             b = min(a + _BLOCK, n)
             x = buf[:, :b - a + 1]
-            np.subtract(imu.gyro[a:b].T, self.mean[:3], out=x[:3, 1:])
-            np.subtract(imu.accel[a:b].T, self.mean[3:], out=x[3:, 1:])
-            x[:, 0] = self.c1[:, a]
-            np.cumsum(x, axis=1, out=self.c1[:, a:b + 1])
+            np.subtract(self.gyro[a:b].T, self.mean[:3], out=x[:3, 1:])
+            np.subtract(self.accel[a:b].T, self.mean[3:], out=x[3:, 1:])
+            x[:, 0] = c1[:, a]
+            np.cumsum(x, axis=1, out=c1[:, a:b + 1])
             np.multiply(x[:, 1:], x[:, 1:], out=x[:, 1:])
-            x[:, 0] = self.c2[:, a]
-            np.cumsum(x, axis=1, out=self.c2[:, a:b + 1])
+            x[:, 0] = c2[:, a]
+            np.cumsum(x, axis=1, out=c2[:, a:b + 1])
+        return c1, c2
 
     def stats(self, start: np.ndarray, end: np.ndarray, rows: slice = slice(0, 6)) -> tuple[np.ndarray, np.ndarray]:
         """Mean and standard deviation over samples ``[start[j], end[j])`` of the components ``rows``.
@@ -181,7 +207,7 @@ def _standstill_mask(imu: ImuData, window: float, gyro_std_max: float, gyro_norm
     native = _NATIVE is not None and math.isfinite(window) and window >= 0
     if native:                          # the compiled twin: the same windows, sums and tests in one pass
         quiet, norm, end = np.empty(n, dtype=bool), np.empty(n), np.empty(n, dtype=np.int64)
-        _NATIVE.quiet_windows(np.ascontiguousarray(t), sums.c1, sums.c2, np.ascontiguousarray(sums.mean[:, 0]),
+        _NATIVE.quiet_windows(np.ascontiguousarray(t), sums.gyro, sums.accel, np.ascontiguousarray(sums.mean[:, 0]),
                               float(window), float(max_gap), float(gyro_std_max), float(gyro_norm_max),
                               float(accel_std_max), quiet, norm, end)
     else:
