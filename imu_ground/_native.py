@@ -18,6 +18,8 @@ name                     compiled module                            Python twin
                                                                     :mod:`imu_ground.imu.preint_stream`
 :data:`STANDSTILL`       ``imu_ground.imu._standstill_native``      :mod:`imu_ground.imu.standstill` (a batch
                                                                     pass over the whole log, not streaming)
+:data:`PREINT_BATCH`     ``imu_ground.imu._preint_batch_native``    :mod:`imu_ground.imu.preint_batch` without
+                                                                    uncertainty (a batch pass, not streaming)
 =======================  =========================================  =========================================
 
 Equality rule between twins (the one the tests check, all with
@@ -49,7 +51,7 @@ from typing import Any, Dict, Optional
 import numpy as np
 
 __all__ = ["load_native", "native_kernels", "kernels_in_use", "PURE_PYTHON_ENV", "REQUIRE_NATIVE_ENV",
-           "RESIDUAL", "GRAVITY", "EKF", "PREINTEGRATION", "STANDSTILL", "STREAMING_KERNELS", "TWIN_RTOL", "assert_twins_equal"]
+           "RESIDUAL", "GRAVITY", "EKF", "PREINTEGRATION", "STANDSTILL", "PREINT_BATCH", "STREAMING_KERNELS", "TWIN_RTOL", "assert_twins_equal"]
 
 PURE_PYTHON_ENV = "IMU_GROUND_PURE_PYTHON"
 REQUIRE_NATIVE_ENV = "IMU_GROUND_REQUIRE_NATIVE"
@@ -95,6 +97,8 @@ PREINTEGRATION = load_native("imu_ground.imu._preint_native")
 STREAMING_KERNELS = tuple(_LOADED)
 #: The compiled twin of the standstill window statistics (a whole-log batch pass; module or None).
 STANDSTILL = load_native("imu_ground.imu._standstill_native")
+#: The compiled twin of the batch preintegration's blocks without uncertainty (a whole-log pass; module or None).
+PREINT_BATCH = load_native("imu_ground.imu._preint_batch_native")
 
 
 def native_kernels() -> Dict[str, bool]:

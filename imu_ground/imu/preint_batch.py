@@ -11,6 +11,11 @@ into blocks that are merged with the associative composition
 :func:`~imu_ground.imu.preint_measurement.compose_left` (a log-depth tree).
 The knots, held values and gap rules are those of the module docstring of
 :mod:`imu_ground.imu.preintegration`, as in the streaming front-end.
+
+Without uncertainty (the whole job's path) the blocks run in a compiled kernel
+where it is built (``imu/_preint_batch_native.c``, chosen in :mod:`imu_ground._native`):
+the same padded blocks, formulas and operation order as :func:`_blocks_kernel`,
+equal to it to the bit; the numpy code is its twin.
 """
 from __future__ import annotations
 
@@ -19,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from imu_ground._native import PREINT_BATCH as _NATIVE
 from imu_ground.errors import ImuGroundError
 from imu_ground.imu.data import ImuData
 from imu_ground.imu.preint_frames import FrameDeltas, make_frame_times
@@ -305,6 +311,12 @@ def _integrate_frames(dt: np.ndarray, kv: np.ndarray, b: np.ndarray, par: Preint
     stop = np.minimum(start + Lb, b[1:][block_frame])
     bias = np.concatenate([np.asarray(par.bias_gyro, dtype=float),
                            np.asarray(par.bias_accel, dtype=float)])[:, None, None]
+    if _NATIVE is not None and not par.uncertainty:      # the compiled twin: the same blocks, padding and order
+        res = (np.empty(nbt), np.empty((nbt, 3, 3)), np.empty((nbt, 3)), np.empty((nbt, 3)), None, None)
+        rows = kv if kv.strides[1] == kv.itemsize else np.ascontiguousarray(kv)     # (a column slice is fine)
+        _NATIVE.blocks(np.ascontiguousarray(dt), rows, start.astype(np.int64), stop.astype(np.int64), Lb,
+                       np.ascontiguousarray(bias[:, 0, 0]), par.hold == "midpoint", *res[:4])
+        return _merge_blocks(res, block_frame, nfr)
     qg, qa = par.gyro_noise_density ** 2, par.accel_noise_density ** 2
     # chunks of about _CHUNK intervals keep the temporaries in cache (a loop over groups of frames)
     step = max(1, _CHUNK // Lb)

@@ -1,0 +1,248 @@
+/*
+ * C twin of the batch preintegration's block kernel without uncertainty (imu/preint_batch.py:
+ * _integrate_frames' padded blocks and _blocks_kernel with uncertainty=False), a whole-log pass.
+ *
+ * Entry point (METH_FASTCALL), releasing the GIL over its loop:
+ *   blocks(dt, kv, start, stop, lanes, bias, midpoint, T, R, v, p)
+ *
+ * dt (K,) interval lengths, s; kv (6, K + 1) gyro (rad/s) then specific force (m/s^2) at the knots,
+ * component-major (rows contiguous, any row stride), bias not removed; start and stop (B,) int64: block b integrates intervals
+ * [start[b], stop[b]), padded to `lanes` intervals of zero length; bias 6 doubles (gyro then
+ * accelerometer); midpoint: held value the knots' mean (True) or the left knot's (False).
+ * Out (B blocks): T (B,) the block's length, s; R (B, 3, 3) delta_R = R_{start<-end}; v, p (B, 3)
+ * delta_v (m/s) and delta_p (m) in the block's start body frame.
+ *
+ * Term for term the numpy twin, in its operation order, padding included (compiled without FMA
+ * contraction): the fused Exp of component_major.exp_and_left_jacobian, the Hillis-Steele product
+ * scan of component_major.scan_products over all `lanes` lanes (its bracketing depends on the
+ * lane count, so the padding lanes take part as there: identities), running sums lane after lane.
+ * So the outputs equal the twin's to the bit where libm's sin is numpy's (the twin rule holds anyway).
+ */
+#include "_native_util.h"
+
+#include <stdint.h>
+#include <stdlib.h>
+
+/* component_major.SMALL_ANGLE2: theta^2 below which the series are used. */
+#define SMALL_ANGLE2 1e-8
+
+/* A C-contiguous buffer of n int64 values into view: 0, or -1 with an exception set. */
+static int get_int64(PyObject *obj, Py_buffer *view, const char *name, Py_ssize_t n)
+{
+    if (PyObject_GetBuffer(obj, view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
+        PyErr_Clear();
+        PyErr_Format(PyExc_TypeError, "%s must be a C-contiguous buffer of int64, got %.100s", name,
+                     Py_TYPE(obj)->tp_name);
+        return -1;
+    }
+    if (view->itemsize != 8 || !(ig_is_format(view->format, 'q') || ig_is_format(view->format, 'l'))
+        || view->len / 8 != n) {
+        PyErr_Format(PyExc_ValueError, "%s must hold %zd int64 values, got buffer format '%s' of %zd bytes", name, n,
+                     view->format ? view->format : "B", view->len);
+        PyBuffer_Release(view);
+        return -1;
+    }
+    return 0;
+}
+
+/* A (6, n) float64 buffer whose rows are contiguous (a column slice of a wider array is fine) into view,
+   its row stride (in doubles) into *stride: 0, or -1 with an exception set. */
+static int get_rows(PyObject *obj, Py_buffer *view, const char *name, Py_ssize_t n, Py_ssize_t *stride)
+{
+    if (PyObject_GetBuffer(obj, view, PyBUF_STRIDES | PyBUF_FORMAT) < 0) {
+        PyErr_Clear();
+        PyErr_Format(PyExc_TypeError, "%s must be a buffer of float64, got %.100s", name, Py_TYPE(obj)->tp_name);
+        return -1;
+    }
+    if (view->ndim != 2 || view->itemsize != 8 || !ig_is_format(view->format, 'd') || view->shape[0] != 6
+        || view->shape[1] != n || view->strides[1] != 8 || view->strides[0] % 8 != 0 || view->strides[0] < 8 * n) {
+        PyErr_Format(PyExc_ValueError, "%s must be a (6, %zd) float64 array with contiguous rows", name, n);
+        PyBuffer_Release(view);
+        return -1;
+    }
+    *stride = view->strides[0] / 8;
+    return 0;
+}
+
+/* component_major.exp_and_left_jacobian(x, y, z, jacobian=False)'s Exp, row-major into o. */
+static inline void exp_cm(double x, double y, double z, double *o)
+{
+    const double xx = x * x, yy = y * y, zz = z * z;
+    const double t2 = xx + yy + zz;
+    double a, b;
+    if (t2 < SMALL_ANGLE2) {
+        const double tts = t2 * t2;
+        a = 1.0 - t2 / 6.0 + tts / 120.0;
+        b = 0.5 - t2 / 24.0 + tts / 720.0;
+    } else {
+        const double th = sqrt(t2), hs = sin(0.5 * th);
+        a = sin(th) / th;
+        b = 2.0 * hs * hs / t2;
+    }
+    const double xy = x * y, xz = x * z, yz = y * z;
+    const double bxy = b * xy, bxz = b * xz, byz = b * yz, ax = a * x, ay = a * y, az = a * z;
+    o[0] = 1.0 - b * (yy + zz);
+    o[4] = 1.0 - b * (xx + zz);
+    o[8] = 1.0 - b * (xx + yy);
+    o[1] = bxy - az;
+    o[3] = bxy + az;
+    o[2] = bxz + ay;
+    o[6] = bxz - ay;
+    o[5] = byz - ax;
+    o[7] = byz + ax;
+}
+
+/* component_major.mm for one pair: o = a @ b, each entry ((a_i0 b_0j + a_i1 b_1j) + a_i2 b_2j). */
+static inline void mm(const double *a, const double *b, double *o)
+{
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            double s = a[3 * i] * b[j];
+            s += a[3 * i + 1] * b[3 + j];
+            s += a[3 * i + 2] * b[6 + j];
+            o[3 * i + j] = s;
+        }
+}
+
+static PyObject *blocks(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (!ig_check_nargs(nargs, 11, 11, "blocks", "dt, kv, start, stop, lanes, bias, midpoint, T, R, v, p"))
+        return NULL;
+    const Py_ssize_t lanes = PyLong_AsSsize_t(args[4]);
+    if (lanes == -1 && PyErr_Occurred())
+        return NULL;
+    if (lanes < 1) {
+        PyErr_SetString(PyExc_ValueError, "lanes must be at least 1");
+        return NULL;
+    }
+    const int midpoint = PyObject_IsTrue(args[6]);
+    if (midpoint < 0)
+        return NULL;
+    double bias[6];
+    if (ig_read_floats(args[5], bias, 6, "bias") < 0)
+        return NULL;
+    ig_views vs = {0};
+    Py_buffer startv, stopv, kvv;
+    int held = 0;                          /* own views held: 1 kv, 2 and start, 3 and stop */
+    PyObject *result = NULL;
+    double *work = NULL;
+    const Py_buffer *v = ig_take(&vs, args[0], "dt", -1, 0, 'd');
+    if (!v)
+        return NULL;
+    const Py_ssize_t K = v->len / 8;
+    const double *dt = v->buf, *kv;
+    double *To, *Ro, *vo, *po;
+    Py_ssize_t stride;
+    if (get_rows(args[1], &kvv, "kv", K + 1, &stride) < 0)
+        goto done;
+    held = 1;
+    kv = kvv.buf;
+    if (!(v = ig_take(&vs, args[7], "T", -1, 1, 'd')))
+        goto done;
+    To = v->buf;
+    const Py_ssize_t B = v->len / 8;
+    if (!(v = ig_take(&vs, args[8], "R", 9 * B, 1, 'd')))
+        goto done;
+    Ro = v->buf;
+    if (!(v = ig_take(&vs, args[9], "v", 3 * B, 1, 'd')))
+        goto done;
+    vo = v->buf;
+    if (!(v = ig_take(&vs, args[10], "p", 3 * B, 1, 'd')))
+        goto done;
+    po = v->buf;
+    if (get_int64(args[2], &startv, "start", B) < 0)
+        goto done;
+    held = 2;
+    if (get_int64(args[3], &stopv, "stop", B) < 0)
+        goto done;
+    held = 3;
+    const int64_t *start = startv.buf, *stop = stopv.buf;
+    for (Py_ssize_t b = 0; b < B; b++)
+        if (start[b] < 0 || stop[b] < start[b] || stop[b] - start[b] > lanes || stop[b] > K) {
+            PyErr_Format(PyExc_ValueError, "block %zd: intervals [%lld, %lld) outside [0, %zd) or over %zd lanes", b,
+                         (long long)start[b], (long long)stop[b], K, lanes);
+            goto done;
+        }
+    /* per lane: P, Q (9 each: the scan's two rounds), h (6: held values), d (1) */
+    work = malloc((size_t)lanes * 25 * sizeof(double));
+    if (work == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    Py_BEGIN_ALLOW_THREADS
+    double *P = work, *Q = work + 9 * lanes, *H = work + 18 * lanes, *D = work + 24 * lanes;
+    for (Py_ssize_t b = 0; b < B; b++) {
+        const Py_ssize_t m = (Py_ssize_t)(stop[b] - start[b]);
+        for (Py_ssize_t k = 0; k < lanes; k++) {
+            double *h = H + 6 * k;
+            if (k < m) {
+                const Py_ssize_t j = (Py_ssize_t)start[b] + k;
+                D[k] = dt[j];
+                for (int r = 0; r < 6; r++) {
+                    const double *row = kv + stride * r;
+                    h[r] = (midpoint ? (row[j] + row[j + 1]) * 0.5 : row[j]) - bias[r];
+                }
+            } else {                       /* padding: zero length, values 0 - bias */
+                D[k] = 0.0;
+                for (int r = 0; r < 6; r++)
+                    h[r] = 0.0 - bias[r];
+            }
+            exp_cm(h[0] * D[k], h[1] * D[k], h[2] * D[k], P + 9 * k);
+        }
+        for (Py_ssize_t d = 1; d < lanes; d *= 2) {      /* scan_products: Q[k] = P[k - d] @ P[k] for k >= d */
+            memcpy(Q, P, (size_t)d * 9 * sizeof(double));
+            for (Py_ssize_t k = d; k < lanes; k++)
+                mm(P + 9 * (k - d), P + 9 * k, Q + 9 * k);
+            double *x = P;
+            P = Q;
+            Q = x;
+        }
+        /* delta_v, delta_p and time after each lane; Rk = delta_R before lane k (identity, then P[k - 1]) */
+        double V[3] = {0.0, 0.0, 0.0}, Pp[3] = {0.0, 0.0, 0.0}, e = 0.0;
+        static const double I3[9] = {1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0};
+        for (Py_ssize_t k = 0; k < lanes; k++) {
+            const double *Rk = k ? P + 9 * (k - 1) : I3, *h = H + 6 * k, dk = D[k];
+            const double f0 = h[3] * dk, f1 = h[4] * dk, f2 = h[5] * dk;
+            for (int i = 0; i < 3; i++) {
+                const double c = Rk[3 * i] * f0 + Rk[3 * i + 1] * f1 + Rk[3 * i + 2] * f2;
+                const double vb = V[i];
+                V[i] = k ? vb + c : c;
+                const double q = dk * (vb + 0.5 * c);
+                Pp[i] = k ? Pp[i] + q : q;
+            }
+            e = k ? e + dk : dk;
+        }
+        To[b] = e;
+        memcpy(Ro + 9 * b, P + 9 * (lanes - 1), 9 * sizeof(double));
+        memcpy(vo + 3 * b, V, 3 * sizeof(double));
+        memcpy(po + 3 * b, Pp, 3 * sizeof(double));
+        P = work;                          /* (the rounds swapped the halves) */
+        Q = work + 9 * lanes;
+    }
+    Py_END_ALLOW_THREADS
+    result = Py_NewRef(Py_None);
+done:
+    free(work);
+    if (held >= 3)
+        PyBuffer_Release(&stopv);
+    if (held >= 2)
+        PyBuffer_Release(&startv);
+    if (held >= 1)
+        PyBuffer_Release(&kvv);
+    ig_release(&vs);
+    return result;
+}
+
+static PyMethodDef methods[] = {
+    {"blocks", IG_FASTCALL(blocks), METH_FASTCALL,
+     "blocks(dt, kv, start, stop, lanes, bias, midpoint, T, R, v, p) -> None: each padded block's (T, delta_R,\n"
+     "delta_v, delta_p) into T, R, v, p (preint_batch._blocks_kernel without uncertainty)."},
+    {NULL, NULL, 0, NULL}};
+
+PyMODINIT_FUNC PyInit__preint_batch_native(void)
+{
+    static struct PyModuleDef def = {.m_base = PyModuleDef_HEAD_INIT, .m_name = "_preint_batch_native", .m_size = -1,
+        .m_methods = methods, .m_doc = "C twin of the batch preintegration without uncertainty (see "
+                                       "imu_ground.imu.preint_batch)."};
+    return PyModule_Create(&def);
+}
