@@ -72,10 +72,14 @@ def gravity_angle(accel: np.ndarray, extrinsic: Any = None) -> float:
         As :func:`estimate_log` takes it (None: identity, up = sensor z).
     """
     a = np.asarray(accel, dtype=float).reshape(-1, 3)
-    a = a[np.all(np.isfinite(a), axis=1)]
-    if not len(a):
-        return float("nan")
-    f = a.mean(axis=0)
+    # a finite mean of every row: every row is finite (a NaN or inf would carry into the sum), so it is the
+    # mean of the finite rows as computed below (the same array, the same sums) without their copy
+    f = a.mean(axis=0) if len(a) and a.flags.c_contiguous else np.full(3, np.nan)
+    if not np.all(np.isfinite(f)):
+        a = a[np.all(np.isfinite(a), axis=1)]
+        if not len(a):
+            return float("nan")
+        f = a.mean(axis=0)
     norm = float(np.linalg.norm(f))
     if norm < 1.0:
         return float("nan")
