@@ -117,3 +117,15 @@ def test_written_file_reads_back_equal_to_the_table(tmp_path, writer):
     back = pd.read_csv(out, comment="#", keep_default_na=False, na_values=["nan"])
     assert tuple(back.columns) == COLUMNS
     _assert_reads_back_equal(back, table)
+
+
+@pytest.mark.parametrize("parts", [2, 3, 4])
+def test_rows_formatted_in_blocks_on_threads_are_the_bytes_of_one_call(monkeypatch, parts):
+    pytest.importorskip("pyarrow")
+    table = _awkward_table(4099, seed=parts)
+    monkeypatch.setattr(output_mod, "CSV_PARALLEL_ROWS", 10**9)          # one call, one thread
+    whole = _text(table)
+    monkeypatch.setattr(output_mod, "CSV_PARALLEL_ROWS", 100)
+    monkeypatch.setattr(output_mod, "CSV_PARTS", parts)
+    assert _text(table) == whole
+    _assert_reads_back_equal(_read_back(whole), table)

@@ -325,7 +325,38 @@ def write_csv_rows(fh, table) -> None:
     except (ImportError, ValueError, TypeError):        # no pyarrow, or columns it cannot type (ArrowInvalid ...)
         df.to_csv(fh, header=False, index=False, na_rep="nan", lineterminator="\n", encoding="utf-8")
         return
-    pacsv.write_csv(rows, fh, pacsv.WriteOptions(include_header=False, quoting_style="needed"))
+    _write_row_blocks(pa, pacsv, rows, fh, pacsv.WriteOptions(include_header=False, quoting_style="needed"))
+
+
+#: Tables of at least this many rows are formatted in :data:`CSV_PARTS` row blocks on as many threads.
+CSV_PARALLEL_ROWS = 1 << 16
+CSV_PARTS = max(1, min(4, os.cpu_count() or 1))
+
+
+def _write_row_blocks(pa: Any, pacsv: Any, rows: Any, fh: Any, options: Any) -> None:
+    """``pyarrow.csv.write_csv(rows, fh, options)`` (no header), long tables formatted on several threads.
+
+    Each block of rows is formatted into an Arrow buffer of its own (pyarrow releases the GIL
+    while it formats) and the buffers are written in order: the rows are formatted one by one,
+    so the bytes are those of one call on the whole table.
+    """
+    n = rows.num_rows
+    parts = CSV_PARTS if n >= CSV_PARALLEL_ROWS else 1
+    if parts == 1:
+        pacsv.write_csv(rows, fh, options)
+        return
+    bounds = [n * k // parts for k in range(parts + 1)]
+
+    def block(k: int) -> Any:
+        sink = pa.BufferOutputStream()
+        pacsv.write_csv(rows.slice(bounds[k], bounds[k + 1] - bounds[k]), sink, options)
+        return sink.getvalue()
+
+    from concurrent.futures import ThreadPoolExecutor
+    with ThreadPoolExecutor(parts) as pool:
+        for buf in pool.map(block, range(parts)):
+            fh.write(buf)
+            del buf
 
 
 def _pyarrow_csv():
