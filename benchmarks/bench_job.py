@@ -145,9 +145,14 @@ def _load() -> float:
 
 
 def _source(python: str) -> Path:
-    """The checkout whose ``imu_ground`` this interpreter imports (the working folder of its runs)."""
+    """The checkout whose ``imu_ground`` this interpreter imports (the working folder of its runs).
+
+    Asked from the file system's root: from a checkout's folder ``python -c`` would import that
+    checkout's package (the folder comes first on ``sys.path``), whatever the interpreter installs.
+    """
     out = subprocess.run([python, "-c", "import imu_ground, pathlib; print(pathlib.Path(imu_ground.__file__)"
-                                        ".resolve().parents[1])"], capture_output=True, text=True, check=True)
+                                        ".resolve().parents[1])"], capture_output=True, text=True, check=True,
+                         cwd=Path(REPO.anchor))
     return Path(out.stdout.strip())
 
 
