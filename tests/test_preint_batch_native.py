@@ -97,7 +97,12 @@ def test_the_kernel_against_a_plain_sequential_product():
     start, stop = np.array([0, 16, 30], dtype=np.int64), np.array([16, 30, 40], dtype=np.int64)
     T, R, v, p = np.empty(3), np.empty((3, 3, 3)), np.empty((3, 3)), np.empty((3, 3))
     bias = np.array([0.01, 0.02, -0.01, 0.1, -0.1, 0.0])
-    NATIVE.blocks(dt, kv, start, stop, lanes, bias, True, T, R, v, p)
+    # the knots as 44 samples with knots 5, 17 and 33 inserted as boundaries (values in yb), from knot 2 on
+    ins = np.array([5, 17, 33])
+    samples = np.delete(np.hstack([np.zeros((6, 2)), kv, np.zeros((6, 1))]), ins + 2, axis=1)
+    ki = ins + 2 - np.arange(3)
+    NATIVE.blocks(dt, np.ascontiguousarray(samples[:3].T), np.ascontiguousarray(samples[3:].T), ki.astype(np.int64),
+                  np.ascontiguousarray(kv[:, ins]), 2, start, stop, lanes, bias, True, T, R, v, p)
     for b in range(3):
         Rk, vk, pk = np.eye(3), np.zeros(3), np.zeros(3)
         for j in range(start[b], stop[b]):
@@ -113,14 +118,17 @@ def test_the_kernel_against_a_plain_sequential_product():
 
 
 def test_bad_blocks_are_refused():
-    dt, kv = np.full(10, 0.01), np.zeros((6, 11))
+    dt, x, none = np.full(10, 0.01), np.zeros((11, 3)), np.zeros(0, dtype=np.int64)
     out = (np.empty(1), np.empty((1, 3, 3)), np.empty((1, 3)), np.empty((1, 3)))
     with pytest.raises(ValueError, match="block 0: intervals"):
-        NATIVE.blocks(dt, kv, np.array([0]), np.array([12]), 16, np.zeros(6), True, *out)
+        NATIVE.blocks(dt, x, x, none, np.zeros((6, 0)), 0, np.array([0]), np.array([12]), 16, np.zeros(6), True, *out)
     with pytest.raises(ValueError, match="block 0: intervals"):
-        NATIVE.blocks(dt, kv, np.array([0]), np.array([9]), 4, np.zeros(6), True, *out)
-    with pytest.raises(ValueError, match="kv must be a"):
-        NATIVE.blocks(dt, np.zeros((6, 10)), np.array([0]), np.array([9]), 16, np.zeros(6), True, *out)
+        NATIVE.blocks(dt, x, x, none, np.zeros((6, 0)), 0, np.array([0]), np.array([9]), 4, np.zeros(6), True, *out)
+    with pytest.raises(ValueError, match="knots \\[1, 11\\] outside the 11 samples"):
+        NATIVE.blocks(dt, x, x, none, np.zeros((6, 0)), 1, np.array([0]), np.array([9]), 16, np.zeros(6), True, *out)
+    with pytest.raises(ValueError, match="ki must be sorted sample indices"):
+        NATIVE.blocks(dt, x, x, np.array([3, 2]), np.zeros((6, 2)), 0, np.array([0]), np.array([9]), 16,
+                      np.zeros(6), True, *out)
 
 
 def test_every_shared_drive_gives_the_twins_frames(monkeypatch, shared_data, kitti_index):

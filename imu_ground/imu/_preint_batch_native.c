@@ -3,12 +3,16 @@
  * _integrate_frames' padded blocks and _blocks_kernel with uncertainty=False), a whole-log pass.
  *
  * Entry point (METH_FASTCALL), releasing the GIL over its loop:
- *   blocks(dt, kv, start, stop, lanes, bias, midpoint, T, R, v, p)
+ *   blocks(dt, gyro, accel, ki, yb, j0, start, stop, lanes, bias, midpoint, T, R, v, p)
  *
- * dt (K,) interval lengths, s; kv (6, K + 1) gyro (rad/s) then specific force (m/s^2) at the knots,
- * component-major (rows contiguous, any row stride), bias not removed; start and stop (B,) int64: block b integrates intervals
- * [start[b], stop[b]), padded to `lanes` intervals of zero length; bias 6 doubles (gyro then
- * accelerometer); midpoint: held value the knots' mean (True) or the left knot's (False).
+ * dt (K,) knot interval lengths, s. The knots are the samples, gyro and accel (N, 3) C-contiguous
+ * (rad/s, m/s^2, body frame), with M frame boundaries inserted between samples: boundary i before
+ * sample ki[i] (M,) int64, sorted, as numpy.insert puts it, its values yb (6, M) (gyro then
+ * specific force); knot j of dt is knot j0 + j of that sequence (preint_batch._knots; the
+ * values are read where they are, not copied into a (6, K + 1) array). start and stop (B,)
+ * int64: block b integrates intervals [start[b], stop[b]), padded to `lanes` intervals of zero
+ * length; bias 6 doubles (gyro then accelerometer); midpoint: held value the knots' mean (True)
+ * or the left knot's (False).
  * Out (B blocks): T (B,) the block's length, s; R (B, 3, 3) delta_R = R_{start<-end}; v, p (B, 3)
  * delta_v (m/s) and delta_p (m) in the block's start body frame.
  *
@@ -42,25 +46,6 @@ static int get_int64(PyObject *obj, Py_buffer *view, const char *name, Py_ssize_
         PyBuffer_Release(view);
         return -1;
     }
-    return 0;
-}
-
-/* A (6, n) float64 buffer whose rows are contiguous (a column slice of a wider array is fine) into view,
-   its row stride (in doubles) into *stride: 0, or -1 with an exception set. */
-static int get_rows(PyObject *obj, Py_buffer *view, const char *name, Py_ssize_t n, Py_ssize_t *stride)
-{
-    if (PyObject_GetBuffer(obj, view, PyBUF_STRIDES | PyBUF_FORMAT) < 0) {
-        PyErr_Clear();
-        PyErr_Format(PyExc_TypeError, "%s must be a buffer of float64, got %.100s", name, Py_TYPE(obj)->tp_name);
-        return -1;
-    }
-    if (view->ndim != 2 || view->itemsize != 8 || !ig_is_format(view->format, 'd') || view->shape[0] != 6
-        || view->shape[1] != n || view->strides[1] != 8 || view->strides[0] % 8 != 0 || view->strides[0] < 8 * n) {
-        PyErr_Format(PyExc_ValueError, "%s must be a (6, %zd) float64 array with contiguous rows", name, n);
-        PyBuffer_Release(view);
-        return -1;
-    }
-    *stride = view->strides[0] / 8;
     return 0;
 }
 
@@ -104,9 +89,41 @@ static inline void mm(const double *a, const double *b, double *o)
         }
 }
 
+/* The knots: samples with boundaries inserted (see the header). */
+typedef struct {
+    const double *gyro, *accel, *yb;
+    const int64_t *ki;
+    Py_ssize_t n, m, j0;
+    Py_ssize_t at;                         /* boundaries placed before the last knot looked up */
+} knots;
+
+/* The 6 values of knot j (of dt's numbering) into o; cheapest when j never decreases from call to call. */
+static inline void knot(knots *k, Py_ssize_t j, double *o)
+{
+    const Py_ssize_t g = j + k->j0;        /* position in the sequence with the boundaries inserted */
+    while (k->at > 0 && k->ki[k->at - 1] + (k->at - 1) >= g)
+        k->at--;
+    while (k->at < k->m && k->ki[k->at] + k->at < g)
+        k->at++;
+    if (k->at < k->m && k->ki[k->at] + k->at == g) {
+        for (int r = 0; r < 6; r++)
+            o[r] = k->yb[k->m * r + k->at];
+        return;
+    }
+    const Py_ssize_t s = g - k->at;
+    memcpy(o, k->gyro + 3 * s, 3 * sizeof(double));
+    memcpy(o + 3, k->accel + 3 * s, 3 * sizeof(double));
+}
+
 static PyObject *blocks(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
-    if (!ig_check_nargs(nargs, 11, 11, "blocks", "dt, kv, start, stop, lanes, bias, midpoint, T, R, v, p"))
+    if (!ig_check_nargs(nargs, 15, 15, "blocks", "dt, gyro, accel, ki, yb, j0, start, stop, lanes, bias, midpoint, "
+                        "T, R, v, p"))
+        return NULL;
+    /* the arguments after the knots' (ki, yb, j0) keep their order: shift by 4 */
+    args += 4;
+    const Py_ssize_t j0 = PyLong_AsSsize_t(args[1]);
+    if (j0 == -1 && PyErr_Occurred())
         return NULL;
     const Py_ssize_t lanes = PyLong_AsSsize_t(args[4]);
     if (lanes == -1 && PyErr_Occurred())
@@ -121,22 +138,49 @@ static PyObject *blocks(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     double bias[6];
     if (ig_read_floats(args[5], bias, 6, "bias") < 0)
         return NULL;
+    PyObject *const *in = args - 4;        /* dt, gyro, accel, ki, yb */
     ig_views vs = {0};
-    Py_buffer startv, stopv, kvv;
-    int held = 0;                          /* own views held: 1 kv, 2 and start, 3 and stop */
+    Py_buffer startv, stopv, kiv;
+    int held = 0;                          /* own views held: 1 ki, 2 and start, 3 and stop */
     PyObject *result = NULL;
     double *work = NULL;
-    const Py_buffer *v = ig_take(&vs, args[0], "dt", -1, 0, 'd');
+    knots kn = {0};
+    const Py_buffer *v = ig_take(&vs, in[0], "dt", -1, 0, 'd');
     if (!v)
         return NULL;
     const Py_ssize_t K = v->len / 8;
-    const double *dt = v->buf, *kv;
+    const double *dt = v->buf;
     double *To, *Ro, *vo, *po;
-    Py_ssize_t stride;
-    if (get_rows(args[1], &kvv, "kv", K + 1, &stride) < 0)
+    if (!(v = ig_take(&vs, in[1], "gyro", -1, 0, 'd')))
+        goto done;
+    kn.gyro = v->buf;
+    kn.n = v->len / 24;
+    if (!(v = ig_take(&vs, in[2], "accel", 3 * kn.n, 0, 'd')))
+        goto done;
+    kn.accel = v->buf;
+    if (PyObject_GetBuffer(in[3], &kiv, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0)
         goto done;
     held = 1;
-    kv = kvv.buf;
+    if (kiv.itemsize != 8 || !(ig_is_format(kiv.format, 'q') || ig_is_format(kiv.format, 'l'))) {
+        PyErr_SetString(PyExc_TypeError, "ki must be a C-contiguous buffer of int64");
+        goto done;
+    }
+    kn.ki = kiv.buf;
+    kn.m = kiv.len / 8;
+    if (!(v = ig_take(&vs, in[4], "yb", 6 * kn.m, 0, 'd')))
+        goto done;
+    kn.yb = v->buf;
+    kn.j0 = j0;
+    for (Py_ssize_t i = 0; i < kn.m; i++)
+        if (kn.ki[i] < 1 || kn.ki[i] >= kn.n || (i && kn.ki[i] < kn.ki[i - 1])) {
+            PyErr_Format(PyExc_ValueError, "ki must be sorted sample indices in [1, %zd)", kn.n);
+            goto done;
+        }
+    if (j0 < 0 || j0 + K + 1 > kn.n + kn.m) {
+        PyErr_Format(PyExc_ValueError, "knots [%zd, %zd] outside the %zd samples and %zd boundaries", j0, j0 + K,
+                     kn.n, kn.m);
+        goto done;
+    }
     if (!(v = ig_take(&vs, args[7], "T", -1, 1, 'd')))
         goto done;
     To = v->buf;
@@ -178,10 +222,12 @@ static PyObject *blocks(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
             if (k < m) {
                 const Py_ssize_t j = (Py_ssize_t)start[b] + k;
                 D[k] = dt[j];
-                for (int r = 0; r < 6; r++) {
-                    const double *row = kv + stride * r;
-                    h[r] = (midpoint ? (row[j] + row[j + 1]) * 0.5 : row[j]) - bias[r];
-                }
+                double a[6], c[6];
+                knot(&kn, j, a);
+                if (midpoint)
+                    knot(&kn, j + 1, c);
+                for (int r = 0; r < 6; r++)
+                    h[r] = (midpoint ? (a[r] + c[r]) * 0.5 : a[r]) - bias[r];
             } else {                       /* padding: zero length, values 0 - bias */
                 D[k] = 0.0;
                 for (int r = 0; r < 6; r++)
@@ -228,15 +274,15 @@ done:
     if (held >= 2)
         PyBuffer_Release(&startv);
     if (held >= 1)
-        PyBuffer_Release(&kvv);
+        PyBuffer_Release(&kiv);
     ig_release(&vs);
     return result;
 }
 
 static PyMethodDef methods[] = {
     {"blocks", IG_FASTCALL(blocks), METH_FASTCALL,
-     "blocks(dt, kv, start, stop, lanes, bias, midpoint, T, R, v, p) -> None: each padded block's (T, delta_R,\n"
-     "delta_v, delta_p) into T, R, v, p (preint_batch._blocks_kernel without uncertainty)."},
+     "blocks(dt, gyro, accel, ki, yb, j0, start, stop, lanes, bias, midpoint, T, R, v, p) -> None: each padded\n"
+     "block's (T, delta_R, delta_v, delta_p) into T, R, v, p (preint_batch._blocks_kernel without uncertainty)."},
     {NULL, NULL, 0, NULL}};
 
 PyMODINIT_FUNC PyInit__preint_batch_native(void)

@@ -242,14 +242,17 @@ def _boundaries(t: np.ndarray, frame_times: Any, rate: float | None, every: int 
     return T
 
 
-def _knots(t: np.ndarray, y: np.ndarray, T: np.ndarray, par: PreintegrationParams) -> tuple:
+def _knots(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, T: np.ndarray, par: PreintegrationParams,
+           values: bool = True) -> tuple:
     """Integration intervals: the samples plus the boundaries that fall between samples.
 
-    ``y`` is component-major (6, N): gyro then accel. Returns ``(dt, kv, b,
-    valid)``: interval lengths (K,), the values at the knots (6, K + 1) (bias
-    not removed; a view), the knot index of each boundary relative to the first (F + 1,),
-    and the per-frame validity (F,) after the gap rule (raises for
-    ``on_gap="raise"``).
+    Returns ``(dt, kv, b, valid, inserted)``: interval lengths (K,), the values at
+    the knots, component-major (6, K + 1): gyro then accel, bias not removed (a
+    view; None unless ``values``), the knot index of each boundary relative to the
+    first (F + 1,), the per-frame validity (F,) after the gap rule (raises for
+    ``on_gap="raise"``), and ``inserted = (ki, yb, j0)``: the boundaries put between
+    samples (before sample ``ki``, values ``yb`` (6, M)) and the first knot's index,
+    from which the compiled kernel reads the knots' values without ``kv``.
     """
     n = t.size
     k = np.searchsorted(t, T)                       # t[k-1] < T <= t[k]
@@ -262,13 +265,14 @@ def _knots(t: np.ndarray, y: np.ndarray, T: np.ndarray, par: PreintegrationParam
     ins = ~snapped
     ki = k[ins]
     Ti = T[ins]
-    if par.hold == "midpoint":
-        wgt = (Ti - t[ki - 1]) / (t[ki] - t[ki - 1])
-        yb = y[:, ki - 1] + (y[:, ki] - y[:, ki - 1]) * wgt
-    else:
-        yb = y[:, ki - 1]
+    yb = np.empty((6, ki.size))                     # component-major: gyro then accel, as the knots
+    for rows, x in ((slice(0, 3), gyro), (slice(3, 6), accel)):
+        if par.hold == "midpoint":
+            wgt = (Ti - t[ki - 1]) / (t[ki] - t[ki - 1])
+            yb[rows] = (x[ki - 1] + (x[ki] - x[ki - 1]) * wgt[:, None]).T
+        else:
+            yb[rows] = x[ki - 1].T
     kt = np.insert(t, ki, Ti)
-    ky = np.insert(y, ki, yb, axis=1)
     b = np.searchsorted(kt, np.where(snapped, t[near], T))     # knot index of each boundary
     if np.any(np.diff(b) <= 0):
         raise ValueError("two frame boundaries fall on the same sample; frames must be longer "
@@ -288,13 +292,22 @@ def _knots(t: np.ndarray, y: np.ndarray, T: np.ndarray, par: PreintegrationParam
             raise ValueError(gap_message(float(t[g]), float(t[g + 1] - t[g]), par.max_gap))
         frame_of = np.repeat(np.arange(nfr), np.diff(b))
         valid[np.unique(frame_of[is_gap])] = False
-    return dt, ky[:, j0:j1 + 1], b - j0, valid
+    kv = None
+    if values:
+        y = np.empty((6, t.size))
+        y[0:3] = gyro.T
+        y[3:6] = accel.T
+        kv = np.insert(y, ki, yb, axis=1)[:, j0:j1 + 1]
+    return dt, kv, b - j0, valid, (ki, yb, j0)
 
 
-def _integrate_frames(dt: np.ndarray, kv: np.ndarray, b: np.ndarray, par: PreintegrationParams) -> tuple:
+def _integrate_frames(dt: np.ndarray, kv: np.ndarray | None, b: np.ndarray, par: PreintegrationParams,
+                      samples: tuple | None = None) -> tuple:
     """Left-form (T, R, v, p, J, S) per frame: frames cut into padded blocks, chunked kernel, merge.
 
-    ``kv`` holds the values at the knots, component-major (6, K + 1). The
+    ``kv`` holds the values at the knots, component-major (6, K + 1) (None: the
+    compiled kernel reads them from ``samples = (gyro, accel, (ki, yb, j0))``, the
+    samples and :func:`_knots`' inserted boundaries). The
     padded blocks and their held values (the knots' mean for ``"midpoint"``,
     the left knot's value for ``"left"``) are made chunk by chunk, so every
     temporary stays cache-sized whatever the log's length.
@@ -311,10 +324,11 @@ def _integrate_frames(dt: np.ndarray, kv: np.ndarray, b: np.ndarray, par: Preint
     stop = np.minimum(start + Lb, b[1:][block_frame])
     bias = np.concatenate([np.asarray(par.bias_gyro, dtype=float),
                            np.asarray(par.bias_accel, dtype=float)])[:, None, None]
-    if _NATIVE is not None and not par.uncertainty:      # the compiled twin: the same blocks, padding and order
+    if kv is None:                      # the compiled twin: the same blocks, padding and order
+        gyro, accel, (ki, yb, j0) = samples  # type: ignore[misc]
         res = (np.empty(nbt), np.empty((nbt, 3, 3)), np.empty((nbt, 3)), np.empty((nbt, 3)), None, None)
-        rows = kv if kv.strides[1] == kv.itemsize else np.ascontiguousarray(kv)     # (a column slice is fine)
-        _NATIVE.blocks(np.ascontiguousarray(dt), rows, start.astype(np.int64), stop.astype(np.int64), Lb,
+        _NATIVE.blocks(np.ascontiguousarray(dt), gyro, accel, ki.astype(np.int64), np.ascontiguousarray(yb),
+                       int(j0), start.astype(np.int64), stop.astype(np.int64), Lb,
                        np.ascontiguousarray(bias[:, 0, 0]), par.hold == "midpoint", *res[:4])
         return _merge_blocks(res, block_frame, nfr)
     qg, qa = par.gyro_noise_density ** 2, par.accel_noise_density ** 2
@@ -379,12 +393,11 @@ def preintegrate(imu: ImuData | tuple[np.ndarray, np.ndarray, np.ndarray],
     par = PreintegrationParams.coerce(params, **options)
     t, gyro, accel = _inputs(imu)
     T = _boundaries(t, frame_times, rate, every, t_origin, par.snap_tol)
-    y = np.empty((6, t.size))                       # component-major: gyro then accel
-    y[0:3] = gyro.T
-    y[3:6] = accel.T
-    dt, kv, b, valid = _knots(t, y, T, par)
-    del y
-    Tn, Rn, vn, pn, Jn, Sn = _integrate_frames(dt, kv, b, par)
+    native = _NATIVE is not None and not par.uncertainty
+    if native:
+        gyro, accel = np.ascontiguousarray(gyro), np.ascontiguousarray(accel)
+    dt, kv, b, valid, inserted = _knots(t, gyro, accel, T, par, values=not native)
+    Tn, Rn, vn, pn, Jn, Sn = _integrate_frames(dt, kv, b, par, (gyro, accel, inserted))
     Rn = project_if_needed(Rn)
     names = ("d_R_d_bg", "d_v_d_bg", "d_p_d_bg", "d_v_d_ba", "d_p_d_ba")
     if par.uncertainty:
