@@ -279,19 +279,25 @@ def _knots(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, T: np.ndarray, pa
                          "than the snapping tolerance")
     j0, j1 = int(b[0]), int(b[-1])
     dt = np.diff(kt[j0:j1 + 1])
-    # gaps, on the original sample intervals: knot j lies in sample interval (samples up to it) - 1
+    # gaps, on the original sample intervals: sample interval s holds the knot intervals from sample s's
+    # knot to sample s + 1's (sample s is knot s + the boundaries inserted before it); a frame that holds
+    # one of those knot intervals is invalid
     nfr = T.size - 1
-    is_sample = np.ones(kt.size, dtype=np.int64)
-    is_sample[ki + np.arange(ki.size)] = 0          # where np.insert put the boundaries
-    orig = np.cumsum(is_sample)[j0:j1] - 1           # sample interval of each knot interval
-    is_gap = (np.diff(t) > par.max_gap)[orig]
     valid = np.ones(nfr, dtype=bool)
-    if np.any(is_gap):
-        if par.on_gap == "raise":
-            g = int(orig[np.flatnonzero(is_gap)[0]])
-            raise ValueError(gap_message(float(t[g]), float(t[g + 1] - t[g]), par.max_gap))
-        frame_of = np.repeat(np.arange(nfr), np.diff(b))
-        valid[np.unique(frame_of[is_gap])] = False
+    gaps = np.flatnonzero(np.diff(t) > par.max_gap)
+    if gaps.size:
+        first = gaps + np.searchsorted(ki, gaps, side="right")              # knot of sample s
+        last = gaps + 1 + np.searchsorted(ki, gaps + 1, side="right")       # knot of sample s + 1
+        lo, hi = np.maximum(first, j0), np.minimum(last, j1)
+        inside = lo < hi                                                     # knot intervals [lo, hi) used
+        if np.any(inside):
+            if par.on_gap == "raise":
+                g = int(gaps[inside][0])
+                raise ValueError(gap_message(float(t[g]), float(t[g + 1] - t[g]), par.max_gap))
+            f0 = np.searchsorted(b, lo[inside], side="right") - 1          # frames of the first and the last
+            f1 = np.searchsorted(b, hi[inside] - 1, side="right") - 1       # knot interval of each gap
+            hit = np.bincount(f0, minlength=nfr + 1) - np.bincount(f1 + 1, minlength=nfr + 1)
+            valid &= np.cumsum(hit)[:nfr] == 0
     kv = None
     if values:
         y = np.empty((6, t.size))
