@@ -242,6 +242,27 @@ static inline int ig_get_buffer(PyObject *obj, Py_buffer *view, const char *name
     return 0;
 }
 
+/* A C-contiguous buffer of `n` int64 values (n < 0: any number), writable if asked, into view: 0 with the
+   view held (release it), or -1 with an exception set and nothing held (TypeError: no such buffer;
+   ValueError: another type or count). */
+static inline int ig_get_int64(PyObject *obj, Py_buffer *view, const char *name, Py_ssize_t n, int writable)
+{
+    if (PyObject_GetBuffer(obj, view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0)) < 0) {
+        PyErr_Clear();
+        PyErr_Format(PyExc_TypeError, "%s must be a C-contiguous %sbuffer of int64, got %.100s", name,
+                     writable ? "writable " : "", Py_TYPE(obj)->tp_name);
+        return -1;
+    }
+    if (view->itemsize != 8 || !(ig_is_format(view->format, 'q') || ig_is_format(view->format, 'l'))
+        || (n >= 0 && view->len / 8 != n)) {
+        PyErr_Format(PyExc_ValueError, "%s must hold %zd int64 values, got buffer format '%s' of %zd bytes", name, n,
+                     view->format ? view->format : "B", view->len);
+        PyBuffer_Release(view);
+        return -1;
+    }
+    return 0;
+}
+
 /* The buffers a many-buffer entry point holds: taken one by one with ig_take, all released
    by one ig_release on every path out (start with ig_views vs = {0}). */
 enum { IG_MAX_VIEWS = 16 };

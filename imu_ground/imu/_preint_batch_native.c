@@ -30,25 +30,6 @@
 /* component_major.SMALL_ANGLE2: theta^2 below which the series are used. */
 #define SMALL_ANGLE2 1e-8
 
-/* A C-contiguous buffer of n int64 values into view: 0, or -1 with an exception set. */
-static int get_int64(PyObject *obj, Py_buffer *view, const char *name, Py_ssize_t n)
-{
-    if (PyObject_GetBuffer(obj, view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
-        PyErr_Clear();
-        PyErr_Format(PyExc_TypeError, "%s must be a C-contiguous buffer of int64, got %.100s", name,
-                     Py_TYPE(obj)->tp_name);
-        return -1;
-    }
-    if (view->itemsize != 8 || !(ig_is_format(view->format, 'q') || ig_is_format(view->format, 'l'))
-        || view->len / 8 != n) {
-        PyErr_Format(PyExc_ValueError, "%s must hold %zd int64 values, got buffer format '%s' of %zd bytes", name, n,
-                     view->format ? view->format : "B", view->len);
-        PyBuffer_Release(view);
-        return -1;
-    }
-    return 0;
-}
-
 /* component_major.exp_and_left_jacobian(x, y, z, jacobian=False)'s Exp, row-major into o. */
 static inline void exp_cm(double x, double y, double z, double *o)
 {
@@ -158,13 +139,9 @@ static PyObject *blocks(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     if (!(v = ig_take(&vs, in[2], "accel", 3 * kn.n, 0, 'd')))
         goto done;
     kn.accel = v->buf;
-    if (PyObject_GetBuffer(in[3], &kiv, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0)
+    if (ig_get_int64(in[3], &kiv, "ki", -1, 0) < 0)
         goto done;
     held = 1;
-    if (kiv.itemsize != 8 || !(ig_is_format(kiv.format, 'q') || ig_is_format(kiv.format, 'l'))) {
-        PyErr_SetString(PyExc_TypeError, "ki must be a C-contiguous buffer of int64");
-        goto done;
-    }
     kn.ki = kiv.buf;
     kn.m = kiv.len / 8;
     if (!(v = ig_take(&vs, in[4], "yb", 6 * kn.m, 0, 'd')))
@@ -194,10 +171,10 @@ static PyObject *blocks(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     if (!(v = ig_take(&vs, args[10], "p", 3 * B, 1, 'd')))
         goto done;
     po = v->buf;
-    if (get_int64(args[2], &startv, "start", B) < 0)
+    if (ig_get_int64(args[2], &startv, "start", B, 0) < 0)
         goto done;
     held = 2;
-    if (get_int64(args[3], &stopv, "stop", B) < 0)
+    if (ig_get_int64(args[3], &stopv, "stop", B, 0) < 0)
         goto done;
     held = 3;
     const int64_t *start = startv.buf, *stop = stopv.buf;

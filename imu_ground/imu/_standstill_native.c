@@ -22,25 +22,6 @@
 
 #include <stdint.h>
 
-/* A C-contiguous buffer of n int64 values (writable if asked) into view: 0, or -1 with an exception set. */
-static int get_int64(PyObject *obj, Py_buffer *view, const char *name, Py_ssize_t n, int writable)
-{
-    if (PyObject_GetBuffer(obj, view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0)) < 0) {
-        PyErr_Clear();
-        PyErr_Format(PyExc_TypeError, "%s must be a C-contiguous %sbuffer of int64, got %.100s", name,
-                     writable ? "writable " : "", Py_TYPE(obj)->tp_name);
-        return -1;
-    }
-    if (view->itemsize != 8 || !(ig_is_format(view->format, 'q') || ig_is_format(view->format, 'l'))
-        || view->len / 8 != n) {
-        PyErr_Format(PyExc_ValueError, "%s must hold %zd int64 values, got buffer format '%s' of %zd bytes", name, n,
-                     view->format ? view->format : "B", view->len);
-        PyBuffer_Release(view);
-        return -1;
-    }
-    return 0;
-}
-
 static PyObject *window_sums(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     if (!ig_check_nargs(nargs, 5, 5, "window_sums", "gyro, accel, mean, c1, c2"))
@@ -157,7 +138,7 @@ static PyObject *quiet_windows(PyObject *self, PyObject *const *args, Py_ssize_t
     if (!(v = ig_take(&vs, args[10], "norm", n, 1, 'd')))
         goto fail;
     norm = v->buf;
-    if (get_int64(args[11], &endv, "end", n, 1) < 0)
+    if (ig_get_int64(args[11], &endv, "end", n, 1) < 0)
         goto fail;
     int64_t *end = endv.buf;
     const double window = lim[0], max_gap = lim[1], gyro_std_max = lim[2], gyro_norm_max = lim[3],
@@ -226,7 +207,7 @@ static PyObject *window_union(PyObject *self, PyObject *const *args, Py_ssize_t 
         return NULL;
     }
     unsigned char *mask = v->buf;
-    if (get_int64(args[1], &endv, "end", n, 0) < 0) {
+    if (ig_get_int64(args[1], &endv, "end", n, 0) < 0) {
         ig_release(&vs);
         return NULL;
     }
