@@ -22,9 +22,8 @@ is a real stop); noisier sensors (phones) need looser limits.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
