@@ -1,4 +1,4 @@
-"""Where a synthetic drive's error offset and error scale come from, and why the roll offset of a MEMS drive
+"""Where a synthetic drive's error offset and error scale come from, and how much of a MEMS drive's roll offset
 cannot be told from the data: the per-drive part of the 1-sigma (``DriveStatistics`` in
 :mod:`imu_ground.filters.status`).
 
@@ -13,12 +13,13 @@ about the angle's axis, the road's roughness
 the mean load ``u`` and the RMS body rate of the moving frames). Rows: the share of the offsets' variance each
 explains (R^2 of a line through the drives) and the correlation of the spread with each.
 
-Part 2, the roll offset is not observable: one drive simulated twice, on a road with the crown at the two ends
+Part 2, part of the roll offset is not observable: one drive simulated twice, on a road with the crown at the two ends
 of the suites' range, the second with the lateral accelerometer bias that gives it the first one's mean lateral
-specific force (the same MEMS errors otherwise). The two logs differ by less than the sensor's noise; the
-estimates (and any 1-sigma computed from the logs) are the same to that; the truth is not: the body rolls on the
-crown by the car's gain, so the two drives' roll offsets differ. The last row gives the scale factors on a common
-1-sigma that keep both drives within 50-85 %: none, when the offsets differ by more than the scatter allows.
+specific force (the same MEMS errors otherwise). The two logs differ by less than the sensor's noise (the crown
+differs on the straights only: superelevated curves are the same); the estimated rolls' mean difference is nil; the
+truth's is not: the body rolls on the crown by the car's gain, so the two drives' roll offsets differ. The last column gives the scale factors on a common
+1-sigma that keep both drives within 50-85 % (none would mean that no 1-sigma computed from the data meets the
+per-drive target on both).
 """
 from __future__ import annotations
 
