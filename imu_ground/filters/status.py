@@ -350,6 +350,7 @@ class DriveStatistics:
     """
 
     def __init__(self) -> None:
+        self._rgs, self._rgs_rows = None, None
         self.reset()
 
     def reset(self) -> None:
@@ -358,23 +359,31 @@ class DriveStatistics:
 
     @staticmethod
     def _rates(d, Rgs):
-        """Ground-frame roll and pitch rate times ``dt`` (rad) of rotation increments ``d`` ((3, 3) or (N, 3, 3))."""
-        vx = 0.5 * (d[..., 2, 1] - d[..., 1, 2])
-        vy = 0.5 * (d[..., 0, 2] - d[..., 2, 0])
+        """Ground-frame roll and pitch rate times ``dt`` (rad) of rotation increments ``d`` ((N, 3, 3))."""
+        vx = 0.5 * (d[:, 2, 1] - d[:, 1, 2])
+        vy = 0.5 * (d[:, 0, 2] - d[:, 2, 0])
         if Rgs is None:
             return vx, vy
-        vz = 0.5 * (d[..., 1, 0] - d[..., 0, 1])
+        vz = 0.5 * (d[:, 1, 0] - d[:, 0, 1])
         r = np.asarray(Rgs, dtype=float)
         return (r[0, 0] * vx + r[0, 1] * vy + r[0, 2] * vz, r[1, 0] * vx + r[1, 1] * vy + r[1, 2] * vz)
 
     def update(self, d: np.ndarray, dt: float, speed: float, stationary: bool, valid: bool, ux: float, uy: float,
                Rgs: Optional[np.ndarray] = None) -> None:
         """One frame: ``d`` its rotation increment (sensor frame, 3x3), ``dt`` s, ``speed`` m/s, ``ux, uy`` the
-        suspension model's load (m/s^2); ``Rgs`` ground <- sensor (None: the identity)."""
+        suspension model's load (m/s^2); ``Rgs`` ground <- sensor (None: the identity). The arithmetic of
+        :meth:`run` on plain floats (the same operations in the same order)."""
         if not valid or stationary or not abs(speed) >= SLOW_SPEED:
             return
-        vx, vy = self._rates(d, Rgs)
-        wx, wy = float(vx) / dt, float(vy) / dt
+        m = np.asarray(d, dtype=float).ravel().tolist()
+        vx, vy = 0.5 * (m[7] - m[5]), 0.5 * (m[2] - m[6])
+        if Rgs is not None:
+            if Rgs is not self._rgs:                # (the rows of the mount, kept while it is the same object)
+                self._rgs, self._rgs_rows = Rgs, np.asarray(Rgs, dtype=float)[:2].tolist()
+            (r00, r01, r02), (r10, r11, r12) = self._rgs_rows
+            vz = 0.5 * (m[3] - m[1])
+            vx, vy = r00 * vx + r01 * vy + r02 * vz, r10 * vx + r11 * vy + r12 * vz
+        wx, wy = vx / dt, vy / dt
         s = self.state
         s[0] += dt
         s[1] += dt * ux
