@@ -258,3 +258,14 @@ def test_causal_output_records_the_recorded_policy(cli, tmp_path):
     head = [line for line in out.read_text().splitlines() if line.startswith("# settings:")][0]
     settings = json.loads(head.split(":", 1)[1])
     assert settings["policy"] == "recorded" and settings["clock_policy"] == "retime"
+
+
+def test_frame_estimate_copies_every_slot_of_the_filters_estimate():
+    """FrameEstimate.of copies GroundEstimate's slots one by one (no loop: it runs once a frame): every one."""
+    from imu_ground.filters.estimator import GroundEstimate
+    est = GroundEstimate.__new__(GroundEstimate)
+    for i, name in enumerate(GroundEstimate.__slots__):
+        setattr(est, name, f"value {i}" if name != "valid" else True)
+    out = streaming.FrameEstimate.of(est, 1.0, 0.9, math.nan, ())
+    assert [getattr(out, name) for name in GroundEstimate.__slots__] == \
+        [getattr(est, name) for name in GroundEstimate.__slots__]

@@ -104,9 +104,9 @@ class FrameEstimate(GroundEstimate):
            camera: Any = None, frame_valid: bool = True) -> "FrameEstimate":
         """``est`` with the frame's times, speed, notes and camera; ``valid`` also False for a frame that spans
         a gap (``frame_valid``), as in a track."""
-        out = cls.__new__(cls)
-        for name in GroundEstimate.__slots__:         # a value copy of the filter's estimate
-            setattr(out, name, getattr(est, name))
+        out = cls.__new__(cls)                       # a value copy of the filter's estimate (its __slots__)
+        out.pitch, out.roll, out._q, out._E, out._Rgs, out._P = est.pitch, est.roll, est._q, est._E, est._Rgs, est._P
+        out.status_code, out._info, out._road = est.status_code, est._info, est._road
         out.valid = bool(est.valid and frame_valid)
         out.t, out.t_start, out.speed, out.notes = t, t_start, speed, notes
         out._camera, out._plane = camera, None
@@ -391,7 +391,9 @@ class StreamingEstimator:
         """The compiled step finished frames (``r``: their states) or left the preintegration to Python
         (``r``: the sample's time out of the clock)."""
         fb = self._fb
-        self._clock.from_buffer(fb)
+        counts = fb[11] or fb[12]                       # the clock's retimed and dropped counts, for the notes
+        if counts:                                      # (zero in the buffer: zero in the clock object too)
+            self._clock.from_buffer(fb)
         if type(r) is float:
             frames = self._pre.push(r, gyro, accel)
         else:
@@ -399,7 +401,9 @@ class StreamingEstimator:
             frames = [_from_state(par, *f) for f in r]
         for f in frames:
             self._frame(f)
-        self._front_out()
+        if counts:
+            fb[11], fb[12] = self._clock.retimed, self._clock.dropped
+        fb[_F_OPEN_K] = self._blocks.open_k
         self._now = now = fb[0]
         return self._decide(now) if self._queue else []
 
