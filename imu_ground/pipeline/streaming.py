@@ -486,7 +486,8 @@ class StreamingEstimator:
             v = None
             if self.speed_aided and sp.received:
                 te = ego.t
-                if not (sp.covers(te) or now >= te + self.speed_wait):
+                kept = sp.t                             # (sp.covers(te), inlined: this runs every sample a frame waits)
+                if not ((kept and kept[-1] >= te) or now >= te + self.speed_wait):
                     break
                 v = sp.mean(ts, te)
                 notes += sp.take_notes()
