@@ -120,6 +120,10 @@ static PyObject *py_push(PyObject *self, PyObject *const *args, Py_ssize_t nargs
     const double k = ceil((out - b[F_ORIGIN]) * b[F_RATE] - EDGE) - 1.0;
     Py_buffer bv;
     double *blk = NULL;
+    if (!(fabs(k) < 4503599627370496.0)) {             /* |k| >= 2^52 (or NaN): not exact as a double, Python */
+        PyBuffer_Release(&fv);
+        Py_RETURN_NONE;
+    }
     if (k >= 0.0) {
         if (!(k == b[F_OPEN_K]) || args[1] == Py_None) {   /* a new block: the caller opens it, calls again */
             PyBuffer_Release(&fv);
