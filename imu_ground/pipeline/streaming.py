@@ -23,6 +23,13 @@ Per sample, each piece one class:
 5. **Filter**: the method's streaming ``step`` (``on_invalid="skip"``: a bad frame is skipped,
    never raised on).
 
+Compiled (``imu/_front_native.c``, chosen in :mod:`imu_ground._native`): in the steady state steps 1-3 are
+one C call a sample (the clock's state in a buffer, the open standstill block's sums written in
+place, the compiled preintegration step called from C), the standstill windows one C call a frame;
+a sample that starts a block has Python open the block, then the C call again; every other case
+(warm-up, a restart, non-finite values, arguments other than Python floats in lists or tuples, the
+preintegrator's gaps) runs the Python code, the reference, with the same results bit for bit.
+
 Data never raise: a non-finite sample is skipped, a dropped or retimed stamp, a restart, a
 late, repeated or non-finite speed sample, each is said in the next frame's ``status_reason``.
 Misuse (a 3x3 array as ``gyro``, a string as ``t``) raises
@@ -74,7 +81,7 @@ _NO_SPEED = "no speed over this frame: IMU only"
 _FRONT = FRONT if _PREINT_NATIVE is not None else None
 _front_push = None if _FRONT is None else _FRONT.push
 _preint_push = None if _PREINT_NATIVE is None else _PREINT_NATIVE.push
-_F_ORIGIN, _F_RATE, _F_OPEN_K, _F_SIZE = 14, 15, 16, 17
+_F_T, _F_RETIMED, _F_DROPPED, _F_ORIGIN, _F_RATE, _F_OPEN_K, _F_SIZE = 0, 11, 12, 14, 15, 16, 17
 _from_state = PreintegratedImu.from_state
 
 
@@ -374,7 +381,7 @@ class StreamingEstimator:
                 self._fb[_F_OPEN_K] = r
                 r = _front_push(self._fb, self._blocks.open, _preint_push, self._pb, self._ptb, t, gyro, accel)
             if r is True:
-                self._now = now = self._fb[0]
+                self._now = now = self._fb[_F_T]
                 return self._decide(now) if self._queue else []
             if r is not None:
                 return [] if r is False else self._fast_frames(r, gyro, accel)
@@ -391,7 +398,7 @@ class StreamingEstimator:
         """The compiled step finished frames (``r``: their states) or left the preintegration to Python
         (``r``: the sample's time out of the clock)."""
         fb = self._fb
-        counts = fb[11] or fb[12]                       # the clock's retimed and dropped counts, for the notes
+        counts = fb[_F_RETIMED] or fb[_F_DROPPED]       # the clock's counts, for the notes
         if counts:                                      # (zero in the buffer: zero in the clock object too)
             self._clock.from_buffer(fb)
         if type(r) is float:
@@ -402,9 +409,9 @@ class StreamingEstimator:
         for f in frames:
             self._frame(f)
         if counts:
-            fb[11], fb[12] = self._clock.retimed, self._clock.dropped
+            fb[_F_RETIMED], fb[_F_DROPPED] = self._clock.retimed, self._clock.dropped
         fb[_F_OPEN_K] = self._blocks.open_k
-        self._now = now = fb[0]
+        self._now = now = fb[_F_T]
         return self._decide(now) if self._queue else []
 
     def _push_python(self, t: float, gyro, accel) -> list[FrameEstimate]:
