@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from imu_ground._native import FRONT
 from imu_ground.imu import causal_standstill
@@ -269,3 +271,31 @@ def test_frame_estimate_copies_every_slot_of_the_filters_estimate():
     out = streaming.FrameEstimate.of(est, 1.0, 0.9, math.nan, ())
     assert [getattr(out, name) for name in GroundEstimate.__slots__] == \
         [getattr(est, name) for name in GroundEstimate.__slots__]
+
+
+@native
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), jitter=st.floats(0.0, 0.008), p_back=st.floats(0.0, 0.2),
+       p_nan=st.floats(0.0, 0.05), gap=st.floats(0.0, 2.0), policy=st.sampled_from(["retime", "drop"]),
+       speed_step=st.sampled_from([1, 5, 10]))
+def test_compiled_front_equals_python_on_random_streams(seed, jitter, p_back, p_nan, gap, policy, speed_step):
+    rng = np.random.default_rng(seed)
+    n = 600
+    t = np.arange(n) * 0.01 + rng.normal(0, jitter + 1e-12, n)
+    back = rng.random(n) < p_back
+    t[back] -= rng.uniform(0, 0.05, back.sum())
+    t[n // 2:] += gap
+    g = rng.normal(0, 0.02, (n, 3)) + 1e-3
+    a = np.array([0.0, 0.0, 9.80665]) + rng.normal(0, 0.05, (n, 3))
+    g[rng.random(n) < p_nan, 0] = np.nan
+    ts = np.arange(0.0, t.max(), 0.01 * speed_step)
+    sp = (ts, 5.0 + np.sin(ts))
+    results = []
+    for front in (streaming._FRONT, None):
+        saved = streaming._FRONT, causal_standstill._FRONT
+        streaming._FRONT, causal_standstill._FRONT = front, (front and saved[1])
+        try:
+            results.append(_run(t, g, a, sp, policy=policy)[0])
+        finally:
+            streaming._FRONT, causal_standstill._FRONT = saved
+    _same(*results)
