@@ -16,6 +16,9 @@ name                     compiled module                            Python twin
 :data:`EKF`              ``imu_ground.filters._ekf_native``         :mod:`imu_ground.filters.invariant_ekf_kernel`
 :data:`PREINTEGRATION`   ``imu_ground.imu._preint_native``          :mod:`imu_ground.imu.preint_kernel`,
                                                                     :mod:`imu_ground.imu.preint_stream`
+:data:`FRONT`            ``imu_ground.imu._front_native``           ``StreamingEstimator.push_imu``'s Python
+                                                                    path (:mod:`imu_ground.imu.sample_clock`,
+                                                                    :mod:`imu_ground.imu.causal_standstill`)
 :data:`STANDSTILL`       ``imu_ground.imu._standstill_native``      :mod:`imu_ground.imu.standstill` (a batch
                                                                     pass over the whole log, not streaming)
 :data:`PREINT_BATCH`     ``imu_ground.imu._preint_batch_native``    :mod:`imu_ground.imu.preint_batch` without
@@ -51,7 +54,8 @@ from typing import Any, Dict, Optional
 import numpy as np
 
 __all__ = ["load_native", "native_kernels", "kernels_in_use", "PURE_PYTHON_ENV", "REQUIRE_NATIVE_ENV",
-           "RESIDUAL", "GRAVITY", "EKF", "PREINTEGRATION", "STANDSTILL", "PREINT_BATCH", "STREAMING_KERNELS", "TWIN_RTOL", "assert_twins_equal"]
+           "RESIDUAL", "GRAVITY", "EKF", "PREINTEGRATION", "FRONT", "STANDSTILL", "PREINT_BATCH", "STREAMING_KERNELS",
+           "TWIN_RTOL", "assert_twins_equal"]
 
 PURE_PYTHON_ENV = "IMU_GROUND_PURE_PYTHON"
 REQUIRE_NATIVE_ENV = "IMU_GROUND_REQUIRE_NATIVE"
@@ -93,6 +97,7 @@ RESIDUAL = load_native("imu_ground.filters._residual_native")
 GRAVITY = load_native("imu_ground.filters._gravity_native")
 EKF = load_native("imu_ground.filters._ekf_native")
 PREINTEGRATION = load_native("imu_ground.imu._preint_native")
+FRONT = load_native("imu_ground.imu._front_native")
 #: Their dotted names, in the order above.
 STREAMING_KERNELS = tuple(_LOADED)
 #: The compiled twin of the standstill window statistics (a whole-log batch pass; module or None).
