@@ -468,8 +468,10 @@ def speed_samples(speed, path, fmt, imu):
             got = read_speed(speed, log=path, format=fmt, imu=imu)
             t_sp, v_sp, notes = check_speed(*got, str(speed), imu)
         except (ImuGroundError, FileNotFoundError) as e:
-            text = str(e).removeprefix(f"{speed}: ")
-            raise OptionError(f"{{opt}} {speed}: {text}", "speed") from e
+            text = str(e)
+            rest = text.removeprefix(str(speed))      # the file named once: '--speed FILE[, line N]: ...'
+            text = rest if rest.startswith((": ", ", line ")) else f": {text}"
+            raise OptionError(f"{{opt}} {speed}{text}", "speed") from e
         for note in notes:
             warnings.warn(f"speed {note}")
         got = (t_sp, v_sp)
