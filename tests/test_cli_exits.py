@@ -90,6 +90,32 @@ def test_simulate_rate(tmp_path, capsys):
     assert len(err.splitlines()) == 1 and "--rate 95" in err
 
 
+
+@pytest.mark.parametrize("args, said", [
+    (["--duration", "1e7"], "--duration 1e+07: over the simulator's longest drive, 3600 s"),   # ran without end
+    (["--duration", "0.05"], "--duration 0.05: shorter than one frame"),                       # one sample, exit 0
+    (["--duration", "3600", "--rate", "200"], "--duration 3600 at 200 Hz: 720000 IMU samples"),
+    (["--rate", "1e6", "--duration", "1"], "--rate 1e+06: over the simulator's highest IMU rate"),
+    (["--duration", "nan"], "argument --duration"),
+    (["--rate", "-100"], "argument --rate"),
+    (["--seed", "-1"], "argument --seed: must be >= 0"),                                      # exit 3: numpy's error
+])
+def test_simulate_refuses_out_of_bounds_flags_in_one_line(tmp_path, cli, args, said):
+    out = tmp_path / "s.csv"
+    code, _, err = cli("simulate", "-o", out, *args)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and said in err, err
+    assert not out.exists() and not (tmp_path / "s_truth.csv").exists()
+
+
+@pytest.mark.parametrize("args, said", [
+    (["--synthetic", "101"], "--synthetic 101: a suite has 0 to 100 drives"),
+    (["--synthetic", "1", "--grades", "nav,mems,nav"], "--grades: nav given twice"),   # counted twice in the summary
+    (["--synthetic", "1", "--seed", "-2"], "argument --seed: must be >= 0"),
+])
+def test_evaluate_refuses_out_of_bounds_synthetic_suites_in_one_line(cli, args, said):
+    code, _, err = cli("evaluate", *args)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and said in err, err
+
 def test_suspension_step_on_a_bare_rotation_says_what_it_needs():
     from imu_ground.filters import SuspensionAwareFilter
     with pytest.raises(ValueError, match="EgoFrame.*accelerometer"):

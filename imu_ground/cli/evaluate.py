@@ -22,6 +22,7 @@ from imu_ground.evaluation.runner import (
     synthetic_drives,
 )
 from imu_ground.evaluation.revisit import revisit_table
+from imu_ground.evaluation.simulate.suite import MAX_SUITE_DRIVES, check_suite_size
 from imu_ground.pipeline.output import atomic_path, check_output_path
 
 __all__ = ["register", "run"]
@@ -51,10 +52,11 @@ def register(sub) -> None:
                                    "--lidar LOG SCANS: the methods against road planes fitted to LiDAR scans.")
     v.add_argument("--real", metavar="DIR", help="folder of kitti_imu100 drives (*.csv.gz), e.g. ../shared/data/kitti_imu100")
     v.add_argument("--synthetic", type=nonnegative_int, default=0, metavar="N",
-                   help="number of synthetic drives per IMU grade (default 0)")
+                   help=f"number of synthetic drives per IMU grade (default 0, at most {MAX_SUITE_DRIVES})")
     v.add_argument("--grades", default="nav,mems", metavar="LIST",
                    help="comma-separated IMU grades of the synthetic drives: nav, mems, perfect (default nav,mems)")
-    v.add_argument("--seed", type=int, default=0, help="random seed of the synthetic drives (default 0)")
+    v.add_argument("--seed", type=nonnegative_int, default=0,
+                   help="random seed of the synthetic drives, a whole number >= 0 (default 0)")
     v.add_argument("--methods", metavar="LIST", help=LazyHelp(_methods_help))
     v.add_argument("--per-drive", action="store_true", help="also print the per-drive error table")
     v.add_argument("--csv", metavar="FILE", help="write the per-drive results as CSV")
@@ -78,9 +80,15 @@ def _check(a: argparse.Namespace) -> list:
     unknown = [m for m in methods if m not in METHODS]
     if unknown:
         raise ImuGroundError(f"--methods: unknown {', '.join(unknown)}; choose from {', '.join(METHODS)}")
-    bad = [g for g in a.grades.split(",") if g not in ("nav", "mems", "perfect")]
+    grades = a.grades.split(",")
+    bad = [g for g in grades if g not in ("nav", "mems", "perfect")]
     if bad:
         raise ImuGroundError(f"--grades: unknown {', '.join(bad)}; choose from nav, mems, perfect")
+    twice = sorted({g for g in grades if grades.count(g) > 1})
+    if twice:
+        raise ImuGroundError(f"--grades: {', '.join(twice)} given twice; each grade once (its drives would count "
+                             "twice in the summary)")
+    check_suite_size(a.synthetic)
     for option, path in (("--csv", a.csv), ("--markdown", a.markdown)):
         if path:
             check_output_path(path, option=option, kind="text")
