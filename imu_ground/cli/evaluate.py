@@ -124,7 +124,7 @@ def run(a: argparse.Namespace) -> int:
     say(format_table(table[cols], "text"))
     say("(mean_deg: per-drive mean absolute error averaged over drives; seg_pitch_deg: the same with the mean "
         "removed per moving segment; ref_floor_deg: what a perfect estimator would score against the reference's "
-        "own uncertainty; ref_share: the share of the squared error the reference alone can explain, "
+        "own uncertainty, each drive at most the method's own error; ref_share: the share of the squared error the reference alone can explain, "
         "each drive at most all of its own)")
     say("\nby condition (mean absolute pitch error, deg, pooled over frames):")
     say(format_table(conditions_table(res), "text"))
