@@ -111,10 +111,23 @@ def test_simulate_refuses_out_of_bounds_flags_in_one_line(tmp_path, cli, args, s
     (["--synthetic", "101"], "--synthetic 101: a suite has 0 to 100 drives"),
     (["--synthetic", "1", "--grades", "nav,mems,nav"], "--grades: nav given twice"),   # counted twice in the summary
     (["--synthetic", "1", "--seed", "-2"], "argument --seed: must be >= 0"),
+    (["--synthetic", "1", "--methods", "naive,naive"], "--methods: naive given twice"),  # 'drives 2' of one drive
+    (["--real", EXAMPLE], f"--real {EXAMPLE}: is a file"),                              # said 'folder not found'
+    (["--synthetic", "1", "--plots", EXAMPLE], f"{EXAMPLE}: is a file; give --plots a folder"),  # 'File exists', late
 ])
-def test_evaluate_refuses_out_of_bounds_synthetic_suites_in_one_line(cli, args, said):
+def test_evaluate_refuses_bad_suites_and_paths_in_one_line(cli, args, said):
     code, _, err = cli("evaluate", *args)
     assert code == 2 and len(err.strip().splitlines()) == 1 and said in err, err
+
+
+def test_evaluate_refuses_a_method_given_twice_in_the_library():
+    from imu_ground.datasets.options import OptionError
+    from imu_ground.evaluation.runner import check_methods, evaluate
+    with pytest.raises(OptionError, match="naive given twice"):
+        evaluate([], ["naive", "paper", "naive"], progress=False)
+    with pytest.raises(OptionError, match="unknown kalman"):
+        check_methods(["kalman"])
+    assert check_methods(["paper", "naive"]) == ["paper", "naive"]
 
 def test_suspension_step_on_a_bare_rotation_says_what_it_needs():
     from imu_ground.filters import SuspensionAwareFilter

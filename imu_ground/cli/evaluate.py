@@ -13,6 +13,7 @@ from imu_ground.errors import ImuGroundError
 from imu_ground.evaluation.plots import evaluation_plots
 from imu_ground.evaluation.runner import (
     METHODS,
+    check_methods,
     conditions_table,
     evaluate,
     format_table,
@@ -23,6 +24,7 @@ from imu_ground.evaluation.runner import (
 )
 from imu_ground.evaluation.revisit import revisit_table
 from imu_ground.evaluation.simulate.suite import MAX_SUITE_DRIVES, check_suite_size
+from imu_ground.pipeline.input_checks import check_creatable
 from imu_ground.pipeline.output import atomic_path, check_output_path
 
 __all__ = ["register", "run"]
@@ -76,10 +78,15 @@ def _check(a: argparse.Namespace) -> list:
     if a.real is None and not a.synthetic:
         raise ImuGroundError("nothing to evaluate: give --real DIR (kitti_imu100 drives) and/or --synthetic N, or "
                              "--lidar LOG SCANS (LiDAR road planes)")
-    methods = [m.strip() for m in a.methods.split(",") if m.strip()] if a.methods else list(METHODS)
-    unknown = [m for m in methods if m not in METHODS]
-    if unknown:
-        raise ImuGroundError(f"--methods: unknown {', '.join(unknown)}; choose from {', '.join(METHODS)}")
+    methods = check_methods([m.strip() for m in a.methods.split(",") if m.strip()]) if a.methods else list(METHODS)
+    if a.real is not None and not Path(a.real).is_dir():
+        raise ImuGroundError(f"--real {a.real}: {'is a file' if Path(a.real).exists() else 'no such folder'}; give "
+                             "--real the folder of kitti_imu100 drives (*.csv.gz)")
+    if a.plots:
+        plots = Path(a.plots)
+        if plots.exists() and not plots.is_dir():
+            raise ImuGroundError(f"{plots}: is a file; give --plots a folder (created if missing)")
+        check_creatable(plots, "--plots")
     grades = a.grades.split(",")
     bad = [g for g in grades if g not in ("nav", "mems", "perfect")]
     if bad:

@@ -53,6 +53,7 @@ __all__ = [
     "TUNED",
     "Drive",
     "Method",
+    "check_methods",
     "conditions_table",
     "evaluate",
     "format_table",
@@ -176,6 +177,26 @@ def _revisit_metrics(pairs, track) -> dict[str, float]:
             "revisit_roll_sum": float(np.degrees(np.abs(dr)).sum())}
 
 
+def check_methods(methods: Iterable[str]) -> list[str]:
+    """The method names of an evaluation, checked: each a key of :data:`METHODS`, each once.
+
+    Raises
+    ------
+    OptionError
+        An unknown name, or one given twice (its rows would count twice in every table), naming
+        ``methods`` (``--methods``).
+    """
+    methods = list(methods)
+    unknown = [m for m in methods if m not in METHODS]
+    if unknown:
+        raise OptionError(f"{{opt}}: unknown {', '.join(map(str, unknown))}; choose from {', '.join(METHODS)}",
+                          "methods")
+    twice = sorted({m for m in methods if methods.count(m) > 1})
+    if twice:
+        raise OptionError(f"{{opt}}: {', '.join(twice)} given twice; each method once (its rows would count twice)",
+                          "methods")
+    return methods
+
 def evaluate(drives: Iterable[Drive], methods: Sequence[str] | None = None,
              progress: bool = True, keep_tracks: bool = False):
     """Run methods over drives and summarise the errors per drive.
@@ -213,10 +234,7 @@ def evaluate(drives: Iterable[Drive], methods: Sequence[str] | None = None,
     import pandas as pd
     from tqdm.auto import tqdm
     drives = list(drives)
-    methods = list(METHODS) if methods is None else list(methods)
-    for m in methods:
-        if m not in METHODS:
-            raise OptionError(f"unknown method {m!r}; choose from {', '.join(METHODS)}", "methods")
+    methods = list(METHODS) if methods is None else check_methods(methods)
     rows, tracks = [], {}
     bar = tqdm(total=len(drives) * len(methods), desc="evaluating", unit="run", disable=not progress)
     for d in drives:
