@@ -172,3 +172,21 @@ def test_a_tilted_extrinsic_is_warned_with_its_angle(tmp_path, capsys):
     err = capsys.readouterr().err
     angle = gravity_angle(pd.read_csv(EXAMPLE)[["ax", "ay", "az"]].to_numpy(), str(ext))
     assert 20 < angle < 30 and f"{angle:.1f} deg from the up axis" in err
+
+
+@pytest.mark.parametrize("args", [["estimate", EXAMPLE, "--causal", "--rate", "200", "-o", "OUT"],
+                                  ["stream", "--replay", EXAMPLE, "--rate", "200"],
+                                  ["stream", "--replay", EXAMPLE, "--rate", "1e9"]])
+def test_live_runs_refuse_a_frame_rate_above_the_logs_as_the_batch_run_does(tmp_path, cli, args):
+    """``--causal`` and ``stream --replay`` made 200 Hz frames of a 100 Hz log (1e9 Hz: no end); the batch run refused."""
+    out = tmp_path / "o.csv"
+    code, stdout, err = cli(*[out if x == "OUT" else x for x in args])
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "--rate" in err and "above the IMU's own sample rate of 100 Hz" in err and stdout == ""
+    assert not out.exists()
+
+
+def test_preview_of_a_missing_log_says_it_is_missing(tmp_path, cli):
+    """It said the log needs its images."""
+    code, _, err = cli("preview", tmp_path / "nope.csv", "-o", tmp_path / "p.png")
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "nope.csv: no such file" in err, err
