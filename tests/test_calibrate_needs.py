@@ -124,6 +124,16 @@ def test_non_finite_lever_arm_or_translation_is_refused_naming_the_flag(tmp_path
         calibrate(read_imu(EXAMPLE), **{flag.removeprefix("--").replace("-", "_"): [float(v) for v in values]})
 
 
+
+@pytest.mark.parametrize("flag, values", [("--lever-arm", ["300", "0", "900"]), ("--translation", ["0", "-1e9", "1"])])
+def test_a_lever_arm_or_translation_far_beyond_a_vehicle_is_refused(tmp_path, cli, flag, values):
+    """Millimetres given for metres (300 0 900) were taken as a 0.9 km lever arm, exit 0."""
+    out = tmp_path / "car.txt"
+    code, _, err = cli("calibrate", EXAMPLE, "-o", out, flag, *values)
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and not out.exists(), err
+    assert f"error: {flag} {' '.join(f'{float(v):g}' for v in values)}: over 50 m" in lines[0]
+
 def test_calibrate_warnings_carry_the_file_prefix(tmp_path, cli):
     """The example has 2.6 s of cruising: 'up' from the standstills, said as 'LOG: warning: ...'."""
     code, _, err = cli("calibrate", EXAMPLE, "-o", tmp_path / "car.txt", "--lever-arm", "0.3", "0", "0.9")
