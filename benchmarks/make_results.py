@@ -93,8 +93,10 @@ LIDAR_CHECKS = ("lidar_table",)
 #: A paragraph printed above a script's table (what it measures), by script name.
 INTROS = {"bench_streaming": (
     "Live (`imu_ground.StreamingEstimator`, `imu-ground stream`, `estimate --causal`): `push_imu` per IMU sample "
-    "(the log's speed pushed too) against the offline pipeline's cost per sample (`estimate_log` of the same log, "
-    "reading included, same process), the pure-Python kernels beside; the frame-completing call's 99th percentile "
+    "(the log's speed pushed too, at its 100 Hz or every tenth sample; the time of those `push_speed` calls alone "
+    "taken out and given in rows of its own, per speed sample) against the offline pipeline's cost per sample "
+    "(`estimate_log` of the same log, reading included, same process), the pure-Python kernels beside, the load "
+    "average during the run in each row; the frame-completing call's 99th percentile "
     "(CPU time; wall time beside); the INS-grade score and the revisit consistency of the live estimate against "
     "the default (both with the log's speed); and per shared drive the largest and 99th-percentile |difference| "
     "of pitch and roll, deg, between the default (whole-log gyro bias and standstills) and the live estimate, "

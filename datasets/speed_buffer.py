@@ -48,6 +48,11 @@ class SpeedBuffer:
 
     def push(self, t: float, v: float) -> None:
         """One sample: time ``t`` (s, the IMU's clock) and forward speed ``v`` (m/s; NaN or infinite: a hole)."""
+        ts = self.t
+        if ts and t - t == 0.0 and v - v == 0.0 and t > ts[-1] and t >= self.done_until:
+            ts.append(t)                        # the usual case: finite, after the others
+            self.v.append(v)
+            return
         if not math.isfinite(v):
             v = math.nan                        # a hole: the frames it reaches say "no speed" themselves
         if not math.isfinite(t):
@@ -77,7 +82,8 @@ class SpeedBuffer:
         """Mean speed over ``(t_start, t_end]``, m/s; NaN unless a finite sample at or before ``t_start`` (within
         1e-9 s) and one at or after ``t_end`` have arrived and no hole reaches the frame."""
         ts, vs = self.t, self.v
-        if any(v != v for v in vs):
+        total = sum(vs)
+        if total != total:                      # a hole (NaN) among them (or an overflow: checked the same)
             for i, v in enumerate(vs):
                 if v == v:
                     continue
@@ -91,12 +97,15 @@ class SpeedBuffer:
             return math.nan
         if len(ts) == 1:
             return vs[0]
-        a, b = max(t_start, ts[0]), min(t_end, ts[-1])
+        a = ts[0] if ts[0] > t_start else t_start     # max(t_start, ts[0]), min(t_end, ts[-1])
+        b = ts[-1] if ts[-1] < t_end else t_end
         i = max(bisect.bisect_right(ts, a) - 1, 0)
         total = 0.0
-        while i < len(ts) - 1 and ts[i] < b:
+        last = len(ts) - 1
+        while i < last and ts[i] < b:
             t0, t1, v0, v1 = ts[i], ts[i + 1], vs[i], vs[i + 1]
-            lo, hi = max(a, t0), min(b, t1)
+            lo = t0 if t0 > a else a                   # max(a, t0), min(b, t1)
+            hi = t1 if t1 < b else b
             if hi > lo:
                 slope = (v1 - v0) / (t1 - t0)
                 total += (hi - lo) * (v0 + 0.5 * slope * ((lo - t0) + (hi - t0)))
@@ -115,6 +124,8 @@ class SpeedBuffer:
     def take_notes(self) -> list[str]:
         """What was rejected since the last call, one phrase each (and the counts start again)."""
         r = self.rejected
+        if not (r["nonfinite"] or r["late"] or r["repeated"]):
+            return []
         notes = [f"{n} {what} speed sample(s) {how}" for what, how, n in
                  (("non-finite-time", "ignored", r["nonfinite"]),
                   ("late (after their frames)", "ignored", r["late"]),

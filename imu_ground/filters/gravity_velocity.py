@@ -393,6 +393,9 @@ class GravityVelocityFilter:
         if self._w.sync is not None:
             self._pull()
         s = self._s
+        if type(s) is np.ndarray:                   # (the compiled kernel's buffer: Python floats, not numpy's)
+            s = s[3:36].tolist()
+            return tuple(s[0:3]), tuple(s[24:33]), tuple(s[18:24])
         return tuple(s[3:6]), tuple(s[27:36]), (s[21], s[22], s[23], s[24], s[25], s[26])
 
     def set_mount(self, Rgs: np.ndarray, turn: Optional[np.ndarray] = None,

@@ -25,17 +25,20 @@ whole-log forms agree bit for bit.
 from __future__ import annotations
 
 import math
+from array import array
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
+from imu_ground._native import FRONT as _FRONT
 from imu_ground.units import GRAVITY
 
 __all__ = ["CausalGyroBias", "StandstillBlocks", "StandstillTests", "block_index", "block_sums", "window_standstill"]
 
 #: Rounding allowance of :func:`block_index`, in frames: a sample this close to a boundary ends the frame before it.
 _EDGE = 1e-6
+_EMPTY_BLOCK = bytes(13 * 8)
 
 
 def block_index(t: float, t0: float, rate: float) -> int:
@@ -98,15 +101,17 @@ class StandstillBlocks:
         self.tests = StandstillTests() if tests is None else tests
         self.W = self.tests.blocks(self.rate)
         self.Wb = max(1, int(round(bias_window * self.rate)))      # the bias's window, blocks
-        self.blocks: dict[int, list] = {}       # block -> [n, 6 sums, 6 sums of squares]
+        t = self.tests                          # (as the compiled windows reads them)
+        self._thresholds = (t.gyro_std_max, t.gyro_norm_max, t.accel_std_max, t.accel_norm_tol, t.gravity)
+        self.blocks: dict[int, array] = {}      # block -> float64 [n, 6 sums, 6 sums of squares]
+        self.open: array | None = None          # the block of the last sample added (compiled kernels sum into it)
+        self.open_k = -1                        # its index (-1: none)
 
     def add(self, k: int, g: Sequence[float], a: Sequence[float]) -> None:
         """Add a sample (gyro rad/s, specific force m/s^2) to block ``k``."""
-        b = self.blocks.get(k)
-        if b is None:
-            b = self.blocks[k] = [0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+        b = self.open if k == self.open_k else self.open_block(k)
         g0, g1, g2, a0, a1, a2 = g[0], g[1], g[2], a[0], a[1], a[2]
-        b[0] += 1                               # unrolled: this runs once a sample on the live path
+        b[0] += 1.0                             # unrolled: this runs once a sample on the live path
         b[1] += g0
         b[2] += g1
         b[3] += g2
@@ -127,7 +132,16 @@ class StandstillBlocks:
     def windows(self, k: int, W: int | None = None, Wb: int | None = None) -> tuple[bool, bool]:
         """Whether the trailing windows of ``W`` and of ``Wb`` blocks (defaults :attr:`W`, :attr:`Wb`; 0: not
         asked) ending at frame ``k`` pass, summed newest block first; the specific force only for a window
-        whose gyro passes (each component's sums are the same either way)."""
+        whose gyro passes (each component's sums are the same either way). Compiled when
+        ``imu/_front_native.c`` is built (:meth:`windows_python` is its twin, the reference)."""
+        W = self.W if W is None else W
+        Wb = self.Wb if Wb is None else Wb
+        if _FRONT is not None:
+            return _FRONT.windows(self.blocks, k, W, Wb, self._thresholds)
+        return self.windows_python(k, W, Wb)
+
+    def windows_python(self, k: int, W: int | None = None, Wb: int | None = None) -> tuple[bool, bool]:
+        """:meth:`windows` in Python."""
         W = self.W if W is None else W
         Wb = self.Wb if Wb is None else Wb
         blocks = self.blocks
@@ -155,24 +169,41 @@ class StandstillBlocks:
 
     def done(self, k: int) -> None:
         """Frame ``k`` is finished: forget the blocks no later frame's windows hold."""
-        for old in [j for j in self.blocks if j < k - max(self.W, self.Wb) + 2]:
-            del self.blocks[old]
+        cut = k - max(self.W, self.Wb) + 2
+        blocks = self.blocks
+        if blocks and min(blocks) < cut:
+            for old in [j for j in blocks if j < cut]:
+                del blocks[old]
+        if self.open_k < cut:
+            self.open, self.open_k = None, -1
 
     def block(self, j: int) -> tuple[int, float, float, float]:
         """``(n, gyro sums x, y, z)`` of block ``j`` (zeros when it holds no sample)."""
         b = self.blocks.get(j)
-        return (0, 0.0, 0.0, 0.0) if b is None else (b[0], b[1], b[2], b[3])
+        return (0, 0.0, 0.0, 0.0) if b is None else (int(b[0]), b[1], b[2], b[3])
+
+    def open_block(self, k: int) -> array:
+        """Block ``k`` (a new, empty one unless it holds samples) becomes the one samples are summed into."""
+        b = self.blocks.get(k)
+        if b is None:
+            b = self.blocks[k] = array("d", _EMPTY_BLOCK)
+        self.open, self.open_k = b, k
+        return b
 
     def clear(self) -> None:
         self.blocks.clear()
+        self.open, self.open_k = None, -1
 
     def state_dict(self) -> dict[str, Any]:
         keys = sorted(self.blocks)
-        return {"k": keys, "n": [self.blocks[k][0] for k in keys], "sums": [self.blocks[k][1:] for k in keys]}
+        return {"k": keys, "n": [int(self.blocks[k][0]) for k in keys],
+                "sums": [self.blocks[k][1:].tolist() for k in keys]}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        self.blocks = {int(k): [int(n), *(float(x) for x in s)] for k, n, s in
+        self.blocks = {int(k): array("d", [int(n), *(float(x) for x in s)]) for k, n, s in
                        zip(state["k"], state["n"], state["sums"])}
+        self.open_k = max(self.blocks, default=-1)      # samples come in time order: the last block is open
+        self.open = self.blocks.get(self.open_k)
 
 
 def block_sums(k: np.ndarray, gyro: np.ndarray, accel: np.ndarray, n_blocks: int) -> tuple[np.ndarray, np.ndarray]:

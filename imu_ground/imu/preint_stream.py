@@ -289,6 +289,15 @@ class StreamingPreintegrator(_NativeKernel if NATIVE is not None else _PythonKer
     on_gap = property(lambda self: self.params.on_gap, doc="``'raise'`` or ``'flag'``.")
     snap_tol = property(lambda self: self.params.snap_tol, doc="Boundary snapping tolerance, s.")
 
+    def set_gyro_bias(self, bx: float, by: float, bz: float) -> None:
+        """Remove this gyro bias (rad/s, body frame) from the samples from the next one on, in place of
+        ``params.bias``'s (a live estimate that changes as the stream goes; the accelerometer's stays). Not part
+        of :meth:`state_dict`: the caller that sets it sets it again after a :meth:`load_state_dict`."""
+        self._bias = (float(bx), float(by), float(bz), *self._bias[3:])
+        b = getattr(self, "_b", None)
+        if b is not None:                           # (the compiled kernel reads its copy in the buffer)
+            b[_S_BIAS:_S_BIAS + 3] = array("d", self._bias[:3])
+
     @property
     def current(self) -> PreintegratedImu:
         """A snapshot of the frame being integrated (``t_end`` nan)."""

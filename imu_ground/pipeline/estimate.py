@@ -310,6 +310,8 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
             track, em, info, name, speed_info = _causal_estimate(path, kind, fmt, method, rate, extrinsic, speed, Q, R,
                                                                  recalibrate_online, reader_kw)
             settings["causal"] = settings["options"]["causal"] = True
+            # the log is read with its stamps as recorded; the live clock applies the time-order policy
+            settings.update(policy="recorded", clock_policy=live_policy(reader_kw.get("policy")))
         else:
             if reader_kw.get("policy") == "recorded":
                 raise OptionError(f"{path}: {{opt}} recorded keeps the stamps out of order, for the live front end "

@@ -23,6 +23,13 @@ Per sample, each piece one class:
 5. **Filter**: the method's streaming ``step`` (``on_invalid="skip"``: a bad frame is skipped,
    never raised on).
 
+Compiled (``imu/_front_native.c``, chosen in :mod:`imu_ground._native`): in the steady state steps 1-3 are
+one C call a sample (the clock's state in a buffer, the open standstill block's sums written in
+place, the compiled preintegration step called from C), the standstill windows one C call a frame;
+a sample that starts a block has Python open the block, then the C call again; every other case
+(warm-up, a restart, non-finite values, arguments other than Python floats in lists or tuples, the
+preintegrator's gaps) runs the Python code, the reference, with the same results bit for bit.
+
 Data never raise: a non-finite sample is skipped, a dropped or retimed stamp, a restart, a
 late, repeated or non-finite speed sample, each is said in the next frame's ``status_reason``.
 Misuse (a 3x3 array as ``gyro``, a string as ``t``) raises
@@ -32,11 +39,13 @@ from __future__ import annotations
 
 import math
 import numbers
+from array import array
 from collections import deque
 from typing import Any
 
 import numpy as np
 
+from imu_ground._native import FRONT
 from imu_ground.datasets.options import OptionError
 from imu_ground.datasets.speed import frame_speed
 from imu_ground.datasets.speed_buffer import SpeedBuffer
@@ -51,6 +60,8 @@ from imu_ground.imu.causal_standstill import (
     window_standstill,
 )
 from imu_ground.imu.egomotion import EgoFrame, EgoMotion
+from imu_ground.imu.preint_kernel import NATIVE as _PREINT_NATIVE
+from imu_ground.imu.preint_measurement import PreintegratedImu
 from imu_ground.imu.preintegration import StreamingPreintegrator, preintegrate
 from imu_ground.imu.sample_clock import DROP, OK, RESTART, SampleClock
 from imu_ground.so3 import quat_from_matrix
@@ -65,6 +76,13 @@ SPEED_WAIT = 0.25
 _STATE_KIND = "imu_ground.StreamingEstimator"
 _STATE_VERSION = 1
 _NO_SPEED = "no speed over this frame: IMU only"
+# The compiled front end (imu/_front_native.c): one call a sample in the steady state, with the compiled
+# preintegrator; its state buffer's layout (F_*: the clock's, SampleClock.to_buffer, then these).
+_FRONT = FRONT if _PREINT_NATIVE is not None else None
+_front_push = None if _FRONT is None else _FRONT.push
+_preint_push = None if _PREINT_NATIVE is None else _PREINT_NATIVE.push
+_F_T, _F_RETIMED, _F_DROPPED, _F_ORIGIN, _F_RATE, _F_OPEN_K, _F_SIZE = 0, 11, 12, 14, 15, 16, 17
+_from_state = PreintegratedImu.from_state
 
 
 class FrameEstimate(GroundEstimate):
@@ -93,9 +111,9 @@ class FrameEstimate(GroundEstimate):
            camera: Any = None, frame_valid: bool = True) -> "FrameEstimate":
         """``est`` with the frame's times, speed, notes and camera; ``valid`` also False for a frame that spans
         a gap (``frame_valid``), as in a track."""
-        out = cls.__new__(cls)
-        for name in GroundEstimate.__slots__:         # a value copy of the filter's estimate
-            setattr(out, name, getattr(est, name))
+        out = cls.__new__(cls)                       # a value copy of the filter's estimate (its __slots__)
+        out.pitch, out.roll, out._q, out._E, out._Rgs, out._P = est.pitch, est.roll, est._q, est._E, est._Rgs, est._P
+        out.status_code, out._info, out._road = est.status_code, est._info, est._road
         out.valid = bool(est.valid and frame_valid)
         out.t, out.t_start, out.speed, out.notes = t, t_start, speed, notes
         out._camera, out._plane = camera, None
@@ -310,7 +328,10 @@ class StreamingEstimator:
         self._notes: list[str] = []
         self._skipped = 0
         self._now = -math.inf
+        self._fb = None if _FRONT is None else array("d", bytes(8 * _F_SIZE))
+        self._fast = False
         self._new_run()
+        self._front_out()
 
     def _new_run(self) -> None:
         """The front end after a (re)start: no preintegrator until the clock's warm-up is over."""
@@ -319,6 +340,18 @@ class StreamingEstimator:
         self._origin = math.nan
         self._blocks = StandstillBlocks(self.rate)
         self._bias.new_blocks()
+
+    def _front_out(self) -> None:
+        """The Python front end's state -> the compiled one's buffer (after any Python step; no-op without it)."""
+        fb = self._fb
+        if fb is None:
+            return
+        self._clock.to_buffer(fb)
+        fb[_F_ORIGIN], fb[_F_RATE], fb[_F_OPEN_K] = self._origin, self.rate, float(self._blocks.open_k)
+        pre = self._pre
+        self._fast = pre is not None
+        if pre is not None:
+            self._pb, self._ptb = pre._b, pre._tb
 
     @property
     def bias_gyro(self) -> np.ndarray:
@@ -341,6 +374,48 @@ class StreamingEstimator:
     def push_imu(self, t: float, gyro, accel) -> list[FrameEstimate]:
         """One IMU sample: time ``t`` (s), angular rate ``gyro`` (rad/s) and specific force ``accel`` (m/s^2),
         body frame; returns the frames it completes (usually none), oldest first."""
+        if self._fast:                                  # the compiled steady state (imu/_front_native.c)
+            r = _front_push(self._fb, self._blocks.open, _preint_push, self._pb, self._ptb, t, gyro, accel)
+            if type(r) is int:                          # the first sample of a block: open it, again
+                self._blocks.open_block(r)
+                self._fb[_F_OPEN_K] = r
+                r = _front_push(self._fb, self._blocks.open, _preint_push, self._pb, self._ptb, t, gyro, accel)
+            if r is True:
+                self._now = now = self._fb[_F_T]
+                return self._decide(now) if self._queue else []
+            if r is not None:
+                return [] if r is False else self._fast_frames(r, gyro, accel)
+        fb = self._fb
+        if fb is None:
+            return self._push_python(t, gyro, accel)
+        self._clock.from_buffer(fb)
+        try:
+            return self._push_python(t, gyro, accel)
+        finally:
+            self._front_out()
+
+    def _fast_frames(self, r, gyro, accel) -> list[FrameEstimate]:
+        """The compiled step finished frames (``r``: their states) or left the preintegration to Python
+        (``r``: the sample's time out of the clock)."""
+        fb = self._fb
+        counts = fb[_F_RETIMED] or fb[_F_DROPPED]       # the clock's counts, for the notes
+        if counts:                                      # (zero in the buffer: zero in the clock object too)
+            self._clock.from_buffer(fb)
+        if type(r) is float:
+            frames = self._pre.push(r, gyro, accel)
+        else:
+            par = self._pre.params
+            frames = [_from_state(par, *f) for f in r]
+        for f in frames:
+            self._frame(f)
+        if counts:
+            fb[_F_RETIMED], fb[_F_DROPPED] = self._clock.retimed, self._clock.dropped
+        fb[_F_OPEN_K] = self._blocks.open_k
+        self._now = now = fb[_F_T]
+        return self._decide(now) if self._queue else []
+
+    def _push_python(self, t: float, gyro, accel) -> list[FrameEstimate]:
+        """:meth:`push_imu` in Python: the reference of the compiled step, and every case it does not take."""
         if type(t) is not float:
             t = _number(t, "t")
         g = _vec3(gyro, "gyro")
@@ -379,6 +454,7 @@ class StreamingEstimator:
         self._origin = warm[0][0]
         self._pre = StreamingPreintegrator(rate=self.rate, t_origin=self._origin, max_gap=self._clock.max_gap,
                                            on_gap="flag", uncertainty=False)
+        self._pre.set_gyro_bias(*self._bias.value)     # the preintegrator removes the causal bias
         for s in warm:
             self._feed(*s)
 
@@ -386,8 +462,7 @@ class StreamingEstimator:
         k = math.ceil((t - self._origin) * self.rate - 1e-6) - 1
         if k >= 0:
             self._blocks.add(k, g, a)
-        bx, by, bz = self._bias.value
-        for f in self._pre.push(t, (g[0] - bx, g[1] - by, g[2] - bz), a):
+        for f in self._pre.push(t, g, a):
             self._frame(f)
 
     def _frame(self, f) -> None:
@@ -396,6 +471,7 @@ class StreamingEstimator:
         still, for_bias = blocks.windows(j, blocks.W, blocks.Wb if self._bias.auto else 0)
         if for_bias:
             self._bias.absorb(j, blocks.Wb, blocks.block)
+            self._pre.set_gyro_bias(*self._bias.value)  # from the next sample on
         blocks.done(j)
         notes = self._take_notes()
         self._queue.append((EgoFrame(f.delta_R, f.delta_v, f.delta_t, still, bool(f.valid), f.t_end),
@@ -417,7 +493,8 @@ class StreamingEstimator:
             v = None
             if self.speed_aided and sp.received:
                 te = ego.t
-                if not (sp.covers(te) or now >= te + self.speed_wait):
+                kept = sp.t                             # (sp.covers(te), inlined: this runs every sample a frame waits)
+                if not ((kept and kept[-1] >= te) or now >= te + self.speed_wait):
                     break
                 v = sp.mean(ts, te)
                 notes += sp.take_notes()
@@ -442,6 +519,8 @@ class StreamingEstimator:
         """Everything (clock, preintegrator, standstill window, gyro bias, speed buffer, waiting frames, filter)
         as a plain JSON-serialisable dict (long lists of floats as base64 of their compressed float64 bytes, exact);
         :meth:`load_state_dict` on an estimator with the same settings resumes."""
+        if self._fb is not None:
+            self._clock.from_buffer(self._fb)
         queue = [[ego.delta_R.ravel().tolist(), ego.delta_v.tolist(), ego.delta_t, ego.stationary, ego.valid,
                   ego.t, ts, list(notes)] for ego, ts, notes in self._queue]
         return {"kind": _STATE_KIND, "version": _STATE_VERSION, "settings": self._settings(),
@@ -479,6 +558,8 @@ class StreamingEstimator:
                 self._pre.load_state_dict(_unpack(state["preintegrator"]))
             self._blocks.load_state_dict(_unpack(state["blocks"]))
             self._bias.load_state_dict(state["bias"])
+            if self._pre is not None:
+                self._pre.set_gyro_bias(*self._bias.value)
             self._speed.load_state_dict(_unpack(state["speed"]))
             self._queue = deque((EgoFrame(np.array(r[0], float).reshape(3, 3), np.array(r[1], float), float(r[2]),
                                           bool(r[3]), bool(r[4]), float(r[5])), float(r[6]), list(r[7]))
@@ -486,6 +567,7 @@ class StreamingEstimator:
             self._notes, self._skipped = list(state["notes"]), int(state["skipped"])
             self._now = -math.inf if state["now"] is None else float(state["now"])
             self._filter.load_state_dict(_unpack(state["filter"]))
+            self._front_out()
         except (KeyError, TypeError, IndexError) as e:
             self.reset()
             raise OptionError(f"{{opt}} is incomplete or damaged ({type(e).__name__}: {e})", "state") from None
