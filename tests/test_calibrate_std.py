@@ -8,7 +8,7 @@ import pytest
 
 from imu_ground.evaluation.drives import synthetic_drive
 from imu_ground.evaluation.simulate import simulate_suite
-from imu_ground.filters.status import FILTER_STD, SUSPENSION_STD, AngleStd
+from imu_ground.filters.status import DRIVE_PRIOR_SECONDS, FILTER_STD, SUSPENSION_STD, AngleStd
 from imu_ground.filters.suspension import SuspensionAwareFilter
 from imu_ground.units import DEG
 
@@ -49,12 +49,17 @@ def _known_components(model: AngleStd, n: int = 8000, drives: int = 8, seed: int
              tvp=np.zeros(n), tvr=np.zeros(n), w=np.abs(rng.normal(0.0, 0.08, n)),
              drive=np.repeat(np.arange(drives), n // drives))
     c["grade"] = np.where(c["drive"] % 2 == 0, "nav", "mems").astype(object)
+    # the drive statistics: each drive its own roughness and mean load, accumulated over 0.1 s frames
+    rate, mean = rng.uniform(0.5, 2.0, drives) * DEG, rng.normal(0.1, 0.3, drives)
+    c["t"] = 0.1 * (np.arange(n) % (n // drives) + 1)
+    c["sx"] = c["sy"] = mean[c["drive"]] * c["t"]
+    c["rx2"] = c["ry2"] = rate[c["drive"]] ** 2 * c["t"]
     c["ep"] = rng.normal(0.0, 1.0, n) * np.sqrt(study._variance(model, c, "pitch"))
     return c
 
 
 def test_the_fit_recovers_a_known_model():
-    truth = AngleStd(0.5, 0.02 * DEG, 0.05 * DEG, 0.06 * DEG, 0.8 * DEG)
+    truth = AngleStd(0.5, 0.02 * DEG, 0.05 * DEG, 0.06 * DEG, 0.8 * DEG, 0.05, 0.2 * DEG, 0.1)
     c = _known_components(truth)
     m = study.fit(c, "pitch")
     s_true, s_fit = (np.sqrt(study._variance(x, c, "pitch")) for x in (truth, m))
@@ -96,3 +101,20 @@ def test_the_shipped_one_sigma_covers_a_fixed_drive(fixed_drive, angle):
     assert ev.sum() > 1000
     assert passes(1.0), np.mean(err <= std)
     assert not passes(2.0) and not passes(0.5), (np.mean(err <= 2 * std), np.mean(err <= 0.5 * std))
+
+
+def test_the_drive_terms_enter_the_studys_variance_as_the_filter_computes_them():
+    """The study's variance of a frame is :meth:`AngleStd.variance` of its inputs with the drive terms of its
+    running state (:meth:`DriveStatistics.terms`), and its scores count what they say."""
+    m = AngleStd(0.5, 0.02 * DEG, 0.05 * DEG, 0.06 * DEG, 0.0, 0.05, 0.2 * DEG, 0.1)
+    c = _known_components(m, n=400, drives=4)
+    T = c["t"] + DRIVE_PRIOR_SECONDS
+    for angle, tv, rate, s in (("pitch", "tvp", "ry2", "sx"), ("roll", "tvr", "rx2", "sy")):
+        want = (m.variance(c["a"], c["ux"], c["uy"], c[tv], c["w"]) + 0.05 ** 2 * c[rate] / T
+                + (0.2 * DEG * (c[s] - 0.1 * c["t"]) / T) ** 2)
+        np.testing.assert_allclose(study._variance(m, c, angle), want, rtol=1e-12)
+    e = np.sqrt(study._variance(m, c, "pitch"))
+    c["ep"] = np.where(c["drive"] == 0, 2.0, 0.5) * e          # drive 0 outside its 1-sigma, the others inside
+    assert study.coverage(m, c, "pitch") == 0.75
+    np.testing.assert_array_equal(study.drive_coverage(m, c, "pitch", "nav"), [0.0, 1.0])
+    np.testing.assert_array_equal(study._drive_shares(study._hits(m, c, "pitch"), c), [0.0, 1.0, 1.0, 1.0])

@@ -12,7 +12,8 @@ from imu_ground.evaluation.simulate import simulate
 from imu_ground.filters.ground import GroundNormalFilter
 from imu_ground.filters.road import NO_SPEED_REASON, road_angles, road_angles_one
 from imu_ground.filters.status import (CONVERGED_STD, CONVERGING, GAP, INVALID, OK, SLOW_REASON, SLOW_SPEED,
-                                       STANDSTILL, STATUSES, SUSPENSION_STD, AngleStd, track_statuses)
+                                       STANDSTILL, STATUSES, SUSPENSION_STD, AngleStd, DriveStatistics,
+                                       track_statuses)
 from imu_ground.filters.suspension import SuspensionAwareFilter
 from imu_ground.pipeline.output import COLUMNS, UNITS, result_table, track_table, write_output
 from imu_ground.so3 import heading_change, rotx, roty
@@ -74,7 +75,10 @@ def test_the_roll_sigma_of_a_track_grows_with_the_yaw_rate(drives):
     em = d.egomotion
     w = np.array([abs(heading_change(r, f._Rgs)) for r in em.delta_R]) / em.delta_t
     rm = SUSPENSION_STD[1]
-    base = rm.variance(0.5 * (tr.P[:, 0, 0] + tr.P[:, 1, 1]), tr.load[:, 0], tr.load[:, 1])   # (sigma_b^2 = 0 here)
+    drive = DriveStatistics().run(em.delta_R, em.delta_t, tr.speed, em.stationary, em.valid, tr.load, f._Rgs)
+    _, _, rate_ms, offset = DriveStatistics.terms(drive, SUSPENSION_STD[0], rm)
+    base = rm.variance(0.5 * (tr.P[:, 0, 0] + tr.P[:, 1, 1]), tr.load[:, 0], tr.load[:, 1],   # (sigma_b^2 = 0 here)
+                       rate_ms=rate_ms, load_offset=offset)
     np.testing.assert_allclose(tr.roll_std, np.sqrt(base + (rm.turn * w) ** 2), rtol=1e-9)
     turning, straight = w > np.quantile(w, 0.9), w < np.quantile(w, 0.5)
     assert w.max() > 0.05 and np.median(tr.roll_std[turning]) > np.median(tr.roll_std[straight])
@@ -126,7 +130,8 @@ def test_every_status_and_its_reason_stream_equals_batch(drives, make):
 def test_converging_until_the_threshold_and_again_after_a_reset():
     sim = simulate(duration=30.0, seed=2, imu="nav")
     em = replace(sim_em := synthetic_drive(sim).egomotion, stationary=np.zeros(len(sim_em), dtype=bool))
-    f = SuspensionAwareFilter(P0=25.0)                           # a wide prior: 1 deg
+    # a wide prior and a loose body (sigma_e 0.5 deg): the first frames' 1-sigma is above the threshold
+    f = SuspensionAwareFilter(P0=25.0, sigma_e=0.5 * DEG)
     tr = f.run(em)
     conv = tr.status == CONVERGING
     assert conv[0] and not conv[-1]

@@ -104,7 +104,8 @@ class GroundEstimate:
         self.pitch, self.roll, self.valid = pitch, roll, valid
         self._q, self._E, self._Rgs, self._P = quaternion, residual, Rgs, P
         # info: (pitch model, roll model, a, u_x, u_y, tilt var pitch, tilt var roll, frame s, detail,
-        # convergence threshold, yaw rate rad/s): the 1-sigma and the reason are built on access
+        # convergence threshold, yaw rate rad/s, drive terms (rate_ms_p, load_offset_x, rate_ms_r, load_offset_y)):
+        # the 1-sigma and the reason are built on access
         self.status_code = (OK if valid else INVALID) if status_code is None else status_code
         self._info = info
         self._road = road                   # (grade, bank, gravity's variance of each), filters.road, or None
@@ -112,12 +113,12 @@ class GroundEstimate:
     @property
     def pitch_std(self) -> float:
         i = self._info
-        return math.nan if i is None else math.sqrt(i[0].variance(i[2], i[3], i[4], i[5], i[10]))
+        return math.nan if i is None else math.sqrt(i[0].variance(i[2], i[3], i[4], i[5], i[10], *i[11][:2]))
 
     @property
     def roll_std(self) -> float:
         i = self._info
-        return math.nan if i is None else math.sqrt(i[1].variance(i[2], i[3], i[4], i[6], i[10]))
+        return math.nan if i is None else math.sqrt(i[1].variance(i[2], i[3], i[4], i[6], i[10], *i[11][2:]))
 
     @property
     def status(self) -> str:

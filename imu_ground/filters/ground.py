@@ -210,7 +210,9 @@ class GroundNormalFilter:
         (a ValueError) naming what is wrong, and the filter is unchanged."""
         st = StateReader("GroundNormalFilter", unpack_state(state, "GroundNormalFilter", STATE_VERSION,
                                                             self._settings()))
-        frames, converged = st.int("frames"), st.bool("converged")
+        frames = st.int("frames")
+        sigma = SigmaModel(FILTER_STD, FILTER_CONVERGED_STD)           # (read before anything changes)
+        sigma.load_state_dict(st)
         kernel = self._kernel.read_state(st, "kernel")
         if self._scalar:
             ekf = cumulative = None
@@ -218,7 +220,7 @@ class GroundNormalFilter:
             ekf = self.ekf.read_kernel_state(st, "ekf")
             cumulative = st.floats("cumulative", (3, 3))
         self.reset()
-        self._frames, self.sigma.converged = frames, converged
+        self._frames, self.sigma = frames, sigma
         self._kernel.load(kernel)
         self._engine.resume(ekf, cumulative)
 

@@ -10,7 +10,7 @@ standard deviation of the body-relative-to-road pitch and roll is modelled as
 
 .. math::
 
-    \sigma^2 = c_a^2\,a + (g_x u_x)^2 + (g_y u_y)^2 + (h\,\omega)^2 + f^2 + \sigma_b^2
+    \sigma^2 = c_a^2\,a + (g_x u_x)^2 + (g_y u_y)^2 + (h\,\omega)^2 + f^2 + \sigma_b^2 + (r\,\rho)^2 + (m\,d)^2
 
 with ``u = (u_x, u_y)`` the load of the suspension model (m/s^2, body frame), ``omega``
 the frame's yaw rate (rad/s: the heading change about the ground's up axis over the frame
@@ -21,12 +21,24 @@ estimate's horizontal variance carried through the load into the modelled tilt
 (``(k (1 - s))^2 sigma_g^2``: ``k`` the gains, ``s`` the load share, ``sigma_g^2`` the mean of
 the gravity filter's two world-horizontal variances).
 
+The last two are the drive terms (:class:`DriveStatistics`: running, causal, from the IMU alone, the same in a
+stream and a batch, kept in the saved state). ``rho`` is the RMS body rate about the angle's axis (pitch rate for
+pitch, roll rate for roll, rad/s) over the moving frames so far, ``r`` its weight (rad per rad/s): a rough road
+makes larger errors all drive long, which no per-frame input shows. ``d`` is the mean load along the angle's
+axis so far (``u_x`` for pitch, ``u_y`` for roll) off a centre ``c`` (m/s^2), ``m`` its weight (rad per m/s^2):
+an accelerometer bias ``b`` enters the load and tilts the modelled body by ``k b`` for the whole drive, an offset
+of the drive's errors. Its mean load is the bias plus the road's mean grade or crown and the mean acceleration;
+the bias cannot be told from a crown from the data (``benchmarks/studies/drive_offset.py``), so the term widens
+the 1-sigma by the size of the likely offset and corrects nothing. Both carry :data:`DRIVE_PRIOR_SECONDS` of
+prior (zero rate, the centre), so they grow in over the first minute of driving.
+
 The constants (:data:`SUSPENSION_STD`) are fitted by ``benchmarks/studies/calibrate_std.py`` on
 synthetic drives with exact truth only (navigation and MEMS grade, 300-600 s, several seeds): the
-Gaussian likelihood of the errors, with each grade's share within 1 sigma held at 62-76 % and that of
+Gaussian likelihood of the errors, with each grade's share within 1 sigma held at 62-76 %, that of
 each quarter of the frames by their 1-sigma at 58-80 % (as right where it is large as where it is
-small). The yaw-rate term ``h`` is zero: fitted with it, the synthetic errors' likelihood is no better
-(and the turning frames' 1-sigma too wide), so the roll is least sure in turns through the lateral load.
+small) and that of each drive at 55-82 %. The yaw-rate term ``h`` ships only where it makes the synthetic errors'
+likelihood better: not for roll (its turning frames' 1-sigma would be too wide; the roll is least sure in turns
+through the lateral load), a negligible one for pitch.
 ``benchmarks/RESULTS.md`` has the coverage on held-out seeds, pooled and per drive, and, as a
 diagnostic only, the revisit check of the real drives that pass the same place twice, which measures
 how differently the passes were driven as much as the 1-sigma
@@ -68,8 +80,9 @@ from imu_ground.imu.warm_start import as_reader
 from imu_ground.units import DEG
 
 __all__ = ["STATUSES", "CONVERGING", "OK", "STANDSTILL", "GAP", "DEGRADED", "INVALID", "CONVERGED_STD", "FILTER_CONVERGED_STD",
-           "AngleStd", "SigmaModel", "SUSPENSION_STD", "FILTER_STD", "SLOW_SPEED", "SLOW_REASON", "ok_note", "status_reason",
-           "frame_status_code", "gap_run_durations", "track_statuses", "track_reasons", "status_names"]
+           "AngleStd", "DriveStatistics", "DRIVE_PRIOR_SECONDS", "SigmaModel", "SUSPENSION_STD", "FILTER_STD",
+           "SLOW_SPEED", "SLOW_REASON", "ok_note", "status_reason", "frame_status_code", "gap_run_durations",
+           "track_statuses", "track_reasons", "status_names"]
 
 #: The statuses, indexed by their code.
 STATUSES = ("converging", "ok", "standstill", "gap", "degraded", "invalid")
@@ -101,14 +114,23 @@ class AngleStd:
         ``f``, rad.
     turn : float
         ``h``: rad per rad/s of yaw rate.
+    rough : float
+        ``r``: rad per rad/s of the drive's RMS body rate about this angle's axis (:class:`DriveStatistics`).
+    drive_load : float
+        ``m``: rad per m/s^2 of the drive's mean load off ``load_center`` along this angle's load axis.
+    load_center : float
+        ``c``: the mean load the drive term is measured from, m/s^2.
     """
     cov_scale: float
     load_x: float
     load_y: float
     floor: float
     turn: float = 0.0
+    rough: float = 0.0
+    drive_load: float = 0.0
+    load_center: float = 0.0
 
-    def variance(self, a, load_x=0.0, load_y=0.0, tilt_var=0.0, yaw_rate=0.0):
+    def variance(self, a, load_x=0.0, load_y=0.0, tilt_var=0.0, yaw_rate=0.0, rate_ms=0.0, load_offset=0.0):
         """``sigma^2`` (rad^2) of the module docstring; scalars (Python floats) or arrays alike.
 
         Parameters
@@ -121,14 +143,21 @@ class AngleStd:
             ``sigma_b^2``, rad^2: the gravity estimate's share through the modelled tilt.
         yaw_rate : float or ndarray
             ``omega``, rad/s (its sign does not matter).
+        rate_ms : float or ndarray
+            ``rho^2``: the drive's mean square body rate about this angle's axis so far, (rad/s)^2
+            (:meth:`DriveStatistics.terms`).
+        load_offset : float or ndarray
+            ``d``: the drive's mean load so far off :attr:`load_center`, m/s^2 (:meth:`DriveStatistics.terms`).
         """
-        gx, gy, h = self.load_x * load_x, self.load_y * load_y, self.turn * yaw_rate
-        return self.cov_scale * self.cov_scale * a + gx * gx + gy * gy + h * h + self.floor * self.floor + tilt_var
+        gx, gy, h, m = self.load_x * load_x, self.load_y * load_y, self.turn * yaw_rate, self.drive_load * load_offset
+        return (self.cov_scale * self.cov_scale * a + gx * gx + gy * gy + h * h + self.floor * self.floor + tilt_var
+                + self.rough * self.rough * rate_ms + m * m)
 
 
 #: Pitch and roll 1-sigma constants of :class:`~imu_ground.filters.suspension.SuspensionAwareFilter`.
-SUSPENSION_STD = (AngleStd(0.552, 0.031 * DEG, 0.045 * DEG, 0.0603 * DEG, 0 * DEG),
-                  AngleStd(0.638, 0.0228 * DEG, 0.0536 * DEG, 0.106 * DEG, 0 * DEG))
+SUSPENSION_STD = (AngleStd(0.192, 0.0145 * DEG, 0.0545 * DEG, 0.00605 * DEG, 0.00329 * DEG, 0.0799, 0.342 * DEG,
+                           0.00256),
+                  AngleStd(0.424, 0.0387 * DEG, 0.0489 * DEG, 0.0327 * DEG, 0 * DEG, 0.0761, 0.482 * DEG, 0.182))
 #: Pitch and roll 1-sigma constants of :class:`~imu_ground.filters.ground.GroundNormalFilter` (no load).
 #: Its covariance is a tuning (``R = 1 rad^2``), not an angle's uncertainty: the 1-sigma is a constant, the
 #: 70th percentile of its errors on the synthetic drives of the worse grade (so it is never ``converging``).
@@ -298,6 +327,110 @@ def track_reasons(codes: np.ndarray, std_max: np.ndarray, dt: np.ndarray,
         out[k] = status_reason(int(codes[k]), float(dt[k]), float(std_max[k]), detail[k], converged_std)
     return out
 
+#: Prior weight of the drive statistics, s of moving frames at zero body rate and at the load centre
+#: (:class:`DriveStatistics`): the drive terms grow in as the drive shows its road and its accelerometer.
+DRIVE_PRIOR_SECONDS = 30.0
+
+
+class DriveStatistics:
+    r"""Running statistics of the drive so far that the per-frame inputs of the 1-sigma do not see: the road's
+    roughness (the mean square body pitch and roll rate) and the mean load (the accelerometer's offset plus the
+    mean grade and crown), over the moving frames (valid, not at a standstill, the estimator's speed at or above
+    :data:`SLOW_SPEED`), weighted by their durations. Causal and IMU-only (the speed is the measured one where
+    given, else the estimator's own), one formula in :meth:`update` (a frame) and :meth:`run` (a batch).
+
+    The body rates are the frame's rotation ``D`` (sensor increment) as the rate vector
+    ``vee((D - D^T) / 2) / dt`` turned into the ground frame (``R_gs``): x the roll rate, y the pitch rate, rad/s.
+
+    Attributes
+    ----------
+    state : list of 5 float
+        ``[t, S_ux, S_uy, S_wx2, S_wy2]``: moving seconds, and the sums over the moving frames of ``dt u_x``,
+        ``dt u_y`` (m), ``dt w_x^2``, ``dt w_y^2`` (rad^2/s).
+    """
+
+    def __init__(self) -> None:
+        self._rgs, self._rgs_rows = None, None
+        self.reset()
+
+    def reset(self) -> None:
+        """No moving frame yet."""
+        self.state = [0.0, 0.0, 0.0, 0.0, 0.0]
+
+    @staticmethod
+    def _rates(d, Rgs):
+        """Ground-frame roll and pitch rate times ``dt`` (rad) of rotation increments ``d`` ((N, 3, 3))."""
+        vx = 0.5 * (d[:, 2, 1] - d[:, 1, 2])
+        vy = 0.5 * (d[:, 0, 2] - d[:, 2, 0])
+        if Rgs is None:
+            return vx, vy
+        vz = 0.5 * (d[:, 1, 0] - d[:, 0, 1])
+        r = np.asarray(Rgs, dtype=float)
+        return (r[0, 0] * vx + r[0, 1] * vy + r[0, 2] * vz, r[1, 0] * vx + r[1, 1] * vy + r[1, 2] * vz)
+
+    def update(self, d: np.ndarray, dt: float, speed: float, stationary: bool, valid: bool, ux: float, uy: float,
+               Rgs: Optional[np.ndarray] = None) -> None:
+        """One frame: ``d`` its rotation increment (sensor frame, 3x3), ``dt`` s, ``speed`` m/s, ``ux, uy`` the
+        suspension model's load (m/s^2); ``Rgs`` ground <- sensor (None: the identity). The arithmetic of
+        :meth:`run` on plain floats (the same operations in the same order)."""
+        if not valid or stationary or not abs(speed) >= SLOW_SPEED:
+            return
+        m = np.asarray(d, dtype=float).ravel().tolist()
+        vx, vy = 0.5 * (m[7] - m[5]), 0.5 * (m[2] - m[6])
+        if Rgs is not None:
+            if Rgs is not self._rgs:                # (the rows of the mount, kept while it is the same object)
+                self._rgs, self._rgs_rows = Rgs, np.asarray(Rgs, dtype=float)[:2].tolist()
+            (r00, r01, r02), (r10, r11, r12) = self._rgs_rows
+            vz = 0.5 * (m[3] - m[1])
+            vx, vy = r00 * vx + r01 * vy + r02 * vz, r10 * vx + r11 * vy + r12 * vz
+        wx, wy = vx / dt, vy / dt
+        s = self.state
+        s[0] += dt
+        s[1] += dt * ux
+        s[2] += dt * uy
+        s[3] += dt * wx * wx
+        s[4] += dt * wy * wy
+
+    def run(self, delta_R: np.ndarray, dt: np.ndarray, speed: np.ndarray, stationary: np.ndarray,
+            valid: np.ndarray, load: np.ndarray, Rgs: Optional[np.ndarray] = None) -> np.ndarray:
+        """The batch twin of :meth:`update` (the same arithmetic, sums accumulated in the same order): the state
+        after each of the N frames, (N, 5), and :attr:`state` advanced to the last.
+
+        Parameters
+        ----------
+        delta_R : ndarray (N, 3, 3)
+        dt, speed : ndarray (N,)
+            s, m/s.
+        stationary, valid : ndarray of bool (N,)
+        load : ndarray (N, 2)
+            m/s^2.
+        Rgs : ndarray (3, 3), optional
+        """
+        dt = np.asarray(dt, dtype=float)
+        moving = np.asarray(valid, dtype=bool) & ~np.asarray(stationary, dtype=bool) & \
+            (np.abs(np.asarray(speed, dtype=float)) >= SLOW_SPEED)
+        w = np.where(moving, dt, 0.0)
+        vx, vy = self._rates(np.asarray(delta_R, dtype=float), Rgs)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            wx, wy = np.where(moving, vx / dt, 0.0), np.where(moving, vy / dt, 0.0)
+        load = np.asarray(load, dtype=float)
+        parts = (w, w * load[:, 0], w * load[:, 1], w * wx * wx, w * wy * wy)
+        out = np.empty((len(dt), 5))
+        for k, x in enumerate(parts):
+            out[:, k] = np.cumsum(np.concatenate([[self.state[k]], x]))[1:]
+        if len(dt):
+            self.state = out[-1].tolist()
+        return out
+
+    @staticmethod
+    def terms(state, pitch: AngleStd, roll: AngleStd) -> tuple:
+        """``(rho_p^2, d_x, rho_r^2, d_y)`` of :meth:`AngleStd.variance` from a state (5 floats, or arrays
+        (..., 5) alike): the mean square pitch and roll rates, (rad/s)^2, and the mean loads off the models'
+        ``load_center``, m/s^2, each with :data:`DRIVE_PRIOR_SECONDS` of prior (zero rate, the centre)."""
+        t, sx, sy, rx2, ry2 = (state[..., k] for k in range(5)) if isinstance(state, np.ndarray) else state
+        T = t + DRIVE_PRIOR_SECONDS
+        return ry2 / T, (sx - pitch.load_center * t) / T, rx2 / T, (sy - roll.load_center * t) / T
+
 
 class SigmaModel:
     """The 1-sigma model of one estimator (module docstring) and its convergence latch (its state).
@@ -315,6 +448,8 @@ class SigmaModel:
     ----------
     converged : bool
         The larger 1-sigma has been at or below ``converged_std`` once since the start or a reset.
+    drive : DriveStatistics
+        The drive so far (the estimator advances it before each frame's :meth:`frame`).
     """
 
     def __init__(self, constants=SUSPENSION_STD, converged_std: float = CONVERGED_STD, load_share: float = 1.0,
@@ -322,11 +457,13 @@ class SigmaModel:
         self.constants, self.converged_std = constants, float(converged_std)
         self.load_share, self.cross_gain = float(load_share), float(cross_gain)
         self._var = self.converged_std * self.converged_std
+        self.drive = DriveStatistics()
         self.reset()
 
     def reset(self) -> None:
-        """Not converged."""
+        """Not converged, no drive seen."""
         self.converged = False
+        self.drive.reset()
 
     def frame(self, a: float, ux: float = 0.0, uy: float = 0.0, gravity_var: float = 0.0,
               weights: tuple = (0.0, 0.0), dt: float = math.nan, note: Optional[str] = None,
@@ -352,15 +489,17 @@ class SigmaModel:
             ``|omega|``, rad/s.
         """
         pm, rm = self.constants
+        dr = DriveStatistics.terms(self.drive.state, pm, rm)
         info = (pm, rm, a, ux, uy, gravity_var * weights[0], gravity_var * weights[1], dt, note, self.converged_std,
-                yaw_rate)
+                yaw_rate, dr)
         if not self.converged:
-            self.converged = max(pm.variance(a, ux, uy, info[5], yaw_rate),
-                                 rm.variance(a, ux, uy, info[6], yaw_rate)) <= self._var
+            self.converged = max(pm.variance(a, ux, uy, info[5], yaw_rate, dr[0], dr[1]),
+                                 rm.variance(a, ux, uy, info[6], yaw_rate, dr[2], dr[3])) <= self._var
         return info
 
     def track(self, a: np.ndarray, load: Optional[np.ndarray] = None, gains: Optional[np.ndarray] = None,
-              gravity_cov: Optional[np.ndarray] = None, yaw_rate: Optional[np.ndarray] = None) -> np.ndarray:
+              gravity_cov: Optional[np.ndarray] = None, yaw_rate: Optional[np.ndarray] = None,
+              drive: Optional[np.ndarray] = None) -> np.ndarray:
         """The variances (G, 2) of pitch and roll of a batch, rad^2 (the batch twin of :meth:`frame`: the same
         :meth:`AngleStd.variance`, the gravity term grouped otherwise, equal to 1e-12 relative).
 
@@ -374,14 +513,19 @@ class SigmaModel:
             The gravity/velocity filter's covariance.
         yaw_rate : ndarray (G,), optional
             rad/s (signed).
+        drive : ndarray (G, 5), optional
+            :attr:`drive`'s state after each frame (:meth:`DriveStatistics.run`); None: its state now, for all.
         """
         pm, rm = self.constants
+        rp, dx, rr, dy = DriveStatistics.terms(self.drive.state if drive is None else drive, pm, rm)
         if load is None:
-            return np.stack([pm.variance(a), rm.variance(a)], axis=1)
+            return np.stack([pm.variance(a, rate_ms=rp, load_offset=dx), rm.variance(a, rate_ms=rr, load_offset=dy)],
+                            axis=1)
         sg2 = (1.0 - self.load_share) ** 2 * 0.5 * (gravity_cov[:, 3, 3] + gravity_cov[:, 4, 4])
         w = np.abs(yaw_rate)
-        return np.stack([pm.variance(a, load[:, 0], load[:, 1], sg2 * (gains[:, 0] ** 2 + self.cross_gain ** 2), w),
-                         rm.variance(a, load[:, 0], load[:, 1], sg2 * gains[:, 1] ** 2, w)], axis=1)
+        return np.stack([pm.variance(a, load[:, 0], load[:, 1], sg2 * (gains[:, 0] ** 2 + self.cross_gain ** 2), w,
+                                     rp, dx),
+                         rm.variance(a, load[:, 0], load[:, 1], sg2 * gains[:, 1] ** 2, w, rr, dy)], axis=1)
 
     def statuses(self, var_max: np.ndarray, stationary: np.ndarray, valid: np.ndarray, good: np.ndarray,
                  degraded: Optional[np.ndarray] = None) -> np.ndarray:
@@ -391,9 +535,14 @@ class SigmaModel:
         return codes
 
     def state_dict(self) -> dict:
-        """``{"converged": ...}``, for a warm start."""
-        return {"converged": self.converged}
+        """``{"converged": ..., "drive": [5 floats]}``, for a warm start."""
+        return {"converged": self.converged, "drive": list(self.drive.state)}
 
     def load_state_dict(self, state) -> None:
-        """Back to a :meth:`state_dict` (a dict or a :class:`~imu_ground.imu.warm_start.StateReader`)."""
-        self.converged = as_reader(state, "SigmaModel").bool("converged")
+        """Back to a :meth:`state_dict` (a dict or a :class:`~imu_ground.imu.warm_start.StateReader`; a state
+        saved before the drive statistics existed resumes with none seen)."""
+        st = as_reader(state, "SigmaModel")
+        converged = st.bool("converged")
+        drive = st.floats("drive", (5,)) if st.has("drive") else None
+        self.converged = converged
+        self.drive.state = [0.0] * 5 if drive is None else [float(v) for v in drive]

@@ -486,6 +486,7 @@ class SuspensionAwareFilter:
         recal = None if self.recalibrator is None else self.recalibrator.note     # (after an online re-estimation)
         note = alarm if alarm is not None else ok_note(abs(speed) < SLOW_SPEED,
                                                         recal if road is not None else NO_SPEED_REASON)
+        self.sigma.drive.update(d, dt, speed, stationary, valid, ux, uy, self._Rgs)
         info = self.sigma.frame(o[4], ux, uy, gf.horizontal_gravity_variance(), (wp, wr), dt, note, abs(psi) / dt)
         code = frame_status_code(self.sigma.converged, stationary, valid, alarm is not None)
         return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o, code, info, road)
@@ -625,7 +626,8 @@ class SuspensionAwareFilter:
             ``road_grade``, ``road_bank``, ``road_grade_std``, ``road_bank_std`` (rad), each (F,).
         """
         n, m = len(good), len(sub)
-        var = self.sigma.track(a, load, gains, gravity_cov, yaw_rate)
+        drive = self.sigma.drive.run(sub.delta_R, sub.delta_t, speed_used, sub.stationary, sub.valid, load, self._Rgs)
+        var = self.sigma.track(a, load, gains, gravity_cov, yaw_rate, drive)
         var_max = np.full(n, np.inf)
         std = np.full((n, 2), np.nan)                   # (a skipped frame has none, as in step)
         var_max[good], std[good] = var.max(axis=1), np.sqrt(var)
