@@ -234,7 +234,7 @@ def _real_section(data: Path, quick: bool) -> list[str]:
            "the paper's method's on the same drive). `seg_pitch_deg`: the same with the means removed per moving "
            "segment (between stops). `ref_floor_deg`: what a perfect estimator would score against this "
            f"reference (INS vertical-velocity noise {cond.INS_VU_NOISE} m/s over the speed, pitch noise "
-           f"{math.degrees(cond.INS_PITCH_NOISE):.2f} deg); `ref_share`: share of the method's mean squared "
+           f"{math.degrees(cond.INS_PITCH_NOISE):.2f} deg), each drive at most the method's own error; `ref_share`: share of the method's mean squared "
            "error the reference's own uncertainty can explain, each drive at most all of its own (on most drives "
            "the suspension method's error is below what this reference model allows for). `us_per_frame`: batch "
            "run time.", "",

@@ -28,6 +28,8 @@ import numpy as np
 
 from imu_ground.errors import ImuGroundError
 
+from .options import ImuInputError
+
 __all__ = [
     "PoseSequence",
     "detect_pose_format",
@@ -205,7 +207,8 @@ def detect_pose_format(path: str | Path) -> str | None:
     return None
 
 
-def read_pose_times(path: str | Path, frames: np.ndarray, source: str | Path = "") -> np.ndarray:
+def read_pose_times(path: str | Path, frames: np.ndarray, source: str | Path = "", *,
+                    every_line: bool = False) -> np.ndarray:
     """The times, s, of KITTI pose frames from the benchmark's ``times.txt`` (one time a line).
 
     Parameters
@@ -216,19 +219,35 @@ def read_pose_times(path: str | Path, frames: np.ndarray, source: str | Path = "
         Line of the times file (0-based) of each pose.
     source : str or Path
         The pose file (named in messages).
+    every_line : bool
+        The poses are one per line of the times file (a pose file without a frame index, such as
+        the benchmark's ``poses/XX.txt``): the two files must have as many lines. A file with a
+        frame index (ORB-SLAM2's) may skip frames, at its start (initialisation) or its end (lost
+        tracking), so only its frames must be in the times file.
 
     Raises
     ------
-    FileNotFoundError, ValueError
-        No such file; not one number a line; too few lines for the frames;
-        times not strictly increasing over the frames.
+    FileNotFoundError
+        No such file.
+    ImuInputError
+        Another sequence's times file, by the counts: fewer lines than the frames need, or (with
+        ``every_line``) not one line per pose. The message names both files and the ``times`` option.
+        Same-length sequences of the benchmark (01, 06 and 07 have 1101 frames each, all about
+        9.65 Hz) cannot be told apart by their times.
+    ImuGroundError
+        Not one number a line; times not strictly increasing over the frames.
     """
     path = Path(path)
     times = _load_table(path, (1,))[:, 0]
     frames = np.asarray(frames, dtype=np.int64)
+    if every_line and times.size != frames.size:
+        raise ImuInputError(f"{source}: {frames.size} poses but {times.size} times in {path}; a pose file without a "
+                            "frame index has one pose per line of its sequence's times file ({opt}: the times file "
+                            "of this sequence, times/XX.txt for poses/XX.txt)", option="times")
     if frames.size and (frames.min() < 0 or frames.max() >= times.size):
-        raise ImuGroundError(f"{source}: {times.size} time(s) in {path} but the poses need frames "
-                             f"{int(frames.min())}..{int(frames.max())} (is it the times file of this sequence?)")
+        raise ImuInputError(f"{source}: {times.size} time(s) in {path} but the poses need frames "
+                            f"{int(frames.min())}..{int(frames.max())} ({{opt}}: the times file of this sequence)",
+                            option="times")
     t = times[frames]
     if np.any(np.diff(t) <= 0):
         i = int(np.flatnonzero(np.diff(t) <= 0)[0])
@@ -264,9 +283,10 @@ def read_kitti_poses(path: str | Path, times: str | Path | None = None) -> PoseS
         ORB-SLAM2's output (frame index, then 12 numbers).
     times : str or Path, optional
         The sequence's ``times.txt`` (one time a line, s; ``--times`` on the
-        command line). Pose ``k`` takes line ``k``; with a frame index column,
-        the index counts the lines from 1 (from 0 when an index 0 is present).
-        Without it ``t`` is None (frames are timed by the caller's rate).
+        command line). Pose ``k`` takes line ``k`` (and the file must have one
+        line per pose); with a frame index column, the index counts the lines
+        from 1 (from 0 when an index 0 is present). Without it ``t`` is None
+        (frames are timed by the caller's rate).
 
     Returns
     -------
@@ -279,11 +299,13 @@ def read_kitti_poses(path: str | Path, times: str | Path | None = None) -> PoseS
     FileNotFoundError, ValueError
         Missing file; malformed, truncated or non-numeric line (with its line
         number); NaN; matrices that are not rotations; frame indices that are
-        not strictly increasing.
+        not strictly increasing; a times file of another length
+        (:func:`read_pose_times`).
     """
     path = Path(path)
     data = _load_table(path, (12, 13))
-    if data.shape[1] == 13:
+    indexed = data.shape[1] == 13
+    if indexed:
         index = data[:, 0]
         if np.any(index != np.round(index)):
             raise ImuGroundError(f"{path}: the 13-column format needs an integer frame index in the first column")
@@ -302,7 +324,7 @@ def read_kitti_poses(path: str | Path, times: str | Path | None = None) -> PoseS
     if times is not None:
         frames = np.arange(len(m)) if index[0] == 0 and np.array_equal(index, np.arange(len(m))) else \
             index - (0 if index.min() == 0 else 1)
-        t = read_pose_times(times, frames, path)
+        t = read_pose_times(times, frames, path, every_line=not indexed)
         clock = f"KITTI times file {times}"
     return PoseSequence(rot, m[:, :, 3].copy(), t, index, str(path), clock)
 

@@ -212,7 +212,8 @@ def read_speed_file(path: str | Path, column: str | None = None) -> tuple[np.nda
         No such file.
     MalformedFileError
         No time or speed column by those names, or two of one kind (the message gives the
-        header and the accepted names); non-numeric values.
+        header and the accepted names); non-numeric values; a row without a time, or times that
+        step back or repeat (the message gives the first such line: nothing is sorted or dropped).
     """
     import pandas as pd
     p = Path(path)
@@ -233,7 +234,43 @@ def read_speed_file(path: str | Path, column: str | None = None) -> tuple[np.nda
         t, v = df[tcol].to_numpy(float), df[name].to_numpy(float)
     except (TypeError, ValueError) as e:
         raise MalformedFileError(p, f"column {tcol!r} or {name!r} is not numeric ({e})") from e
+    _check_time_order(p, t, tcol)
     return _checked(t, v, str(p))
+
+
+def _data_lines(p: Path) -> np.ndarray:
+    """1-based file lines of the data rows as pandas reads them (the first non-blank line is the header, blank
+    lines are skipped)."""
+    with open(p, encoding="utf-8", errors="replace") as f:
+        lines = [k for k, text in enumerate(f, start=1) if text.strip()]
+    return np.asarray(lines[1:], dtype=np.int64)
+
+
+def _check_time_order(p: Path, t: np.ndarray, tcol: str) -> None:
+    """Refuse a speed file with a row without a finite time, or whose times do not increase from row to row.
+
+    A speed file is a table the user wrote, not a sensor's stamps: a time that steps back or
+    repeats is a mistake in it (two files joined, a column of another file), not jitter to
+    retime. Nothing is sorted or dropped in silence: the message names the first bad line.
+    """
+    bad = np.flatnonzero(~np.isfinite(t))
+    if bad.size:
+        line = int(_data_lines(p)[bad[0]])
+        raise MalformedFileError(p, f"no time in column {tcol!r} ({bad.size} row(s) without one); every row of a "
+                                 "speed file has a time, s", line=line)
+    steps = np.diff(t)
+    back = np.flatnonzero(steps <= 0)
+    if not back.size:
+        return
+    k = int(back[0]) + 1
+    lines = _data_lines(p)
+    n_back, n_rep = int(np.count_nonzero(steps < 0)), int(np.count_nonzero(steps == 0))
+    what = "repeats" if steps[k - 1] == 0 else "goes back from"
+    counts = " and ".join(x for x in (f"{n_back} step(s) back" if n_back else "",
+                                      f"{n_rep} repeated time(s)" if n_rep else "") if x)
+    raise MalformedFileError(p, f"the time {t[k]:.6g} s {what} {t[k - 1]:.6g} s on line {int(lines[k - 1])} "
+                             f"({counts} in {t.size} rows); a speed file's times increase from row to row: "
+                             "sort it by time and remove repeated rows", line=int(lines[k]))
 
 
 def _imu_t0(imu) -> float:

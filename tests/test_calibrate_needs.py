@@ -111,18 +111,22 @@ def test_calibration_files_with_non_finite_values_are_refused_on_load(tmp_path, 
         assert not (tmp_path / "o.csv").exists()
 
 
-@pytest.mark.parametrize("flag, values", [("--lever-arm", ["nan", "0", "0.9"]), ("--lever-arm", ["0", "inf", "0.9"]),
-                                          ("--translation", ["0", "0", "inf"])])
-def test_non_finite_lever_arm_or_translation_is_refused_naming_the_flag(tmp_path, cli, flag, values):
+@pytest.mark.parametrize("flag, values, said", [
+    ("--lever-arm", ["nan", "0", "0.9"], "must be 3 finite numbers"),
+    ("--lever-arm", ["0", "inf", "0.9"], "must be 3 finite numbers"),
+    ("--translation", ["0", "0", "inf"], "must be 3 finite numbers"),
+    ("--lever-arm", ["300", "0", "900"], "300 0 900: over 50 m"),      # mm for m: a 0.9 km lever arm, exit 0
+    ("--translation", ["0", "-1e9", "1"], "0 -1e+09 1: over 50 m"),
+])
+def test_non_finite_or_far_lever_arm_or_translation_is_refused_naming_the_flag(tmp_path, cli, flag, values, said):
     """Was written as 'suspension_gains: nan nan' with exit 0."""
     out = tmp_path / "car.txt"
     code, _, err = cli("calibrate", EXAMPLE, "-o", out, flag, *values)
     lines = err.strip().splitlines()
     assert code == 2 and len(lines) == 1 and not out.exists(), err
-    assert f"error: {flag} must be 3 finite numbers" in lines[0]
+    assert f"error: {flag} {said}" in lines[0]
     with pytest.raises(ValueError, match=flag.removeprefix("--").replace("-", "_")):
         calibrate(read_imu(EXAMPLE), **{flag.removeprefix("--").replace("-", "_"): [float(v) for v in values]})
-
 
 def test_calibrate_warnings_carry_the_file_prefix(tmp_path, cli):
     """The example has 2.6 s of cruising: 'up' from the standstills, said as 'LOG: warning: ...'."""

@@ -90,6 +90,45 @@ def test_simulate_rate(tmp_path, capsys):
     assert len(err.splitlines()) == 1 and "--rate 95" in err
 
 
+
+@pytest.mark.parametrize("args, said", [
+    (["--duration", "1e7"], "--duration 1e+07: over the simulator's longest drive, 3600 s"),   # ran without end
+    (["--duration", "0.05"], "--duration 0.05: shorter than one frame"),                       # one sample, exit 0
+    (["--duration", "3600", "--rate", "200"], "--duration 3600 at 200 Hz: 720000 IMU samples"),
+    (["--rate", "1e6", "--duration", "1"], "--rate 1e+06: over the simulator's highest IMU rate"),
+    (["--duration", "nan"], "argument --duration"),
+    (["--rate", "-100"], "argument --rate"),
+    (["--seed", "-1"], "argument --seed: must be >= 0"),                                      # exit 3: numpy's error
+])
+def test_simulate_refuses_out_of_bounds_flags_in_one_line(tmp_path, cli, args, said):
+    out = tmp_path / "s.csv"
+    code, _, err = cli("simulate", "-o", out, *args)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and said in err, err
+    assert not out.exists() and not (tmp_path / "s_truth.csv").exists()
+
+
+@pytest.mark.parametrize("args, said", [
+    (["--synthetic", "101"], "--synthetic 101: a suite has 0 to 100 drives"),
+    (["--synthetic", "1", "--grades", "nav,mems,nav"], "--grades: nav given twice"),   # counted twice in the summary
+    (["--synthetic", "1", "--seed", "-2"], "argument --seed: must be >= 0"),
+    (["--synthetic", "1", "--methods", "naive,naive"], "--methods: naive given twice"),  # 'drives 2' of one drive
+    (["--real", EXAMPLE], f"--real {EXAMPLE}: is a file"),                              # said 'folder not found'
+    (["--synthetic", "1", "--plots", EXAMPLE], f"{EXAMPLE}: is a file; give --plots a folder"),  # 'File exists', late
+])
+def test_evaluate_refuses_bad_suites_and_paths_in_one_line(cli, args, said):
+    code, _, err = cli("evaluate", *args)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and said in err, err
+
+
+def test_evaluate_refuses_a_method_given_twice_in_the_library():
+    from imu_ground.datasets.options import OptionError
+    from imu_ground.evaluation.runner import check_methods, evaluate
+    with pytest.raises(OptionError, match="naive given twice"):
+        evaluate([], ["naive", "paper", "naive"], progress=False)
+    with pytest.raises(OptionError, match="unknown kalman"):
+        check_methods(["kalman"])
+    assert check_methods(["paper", "naive"]) == ["paper", "naive"]
+
 def test_suspension_step_on_a_bare_rotation_says_what_it_needs():
     from imu_ground.filters import SuspensionAwareFilter
     with pytest.raises(ValueError, match="EgoFrame.*accelerometer"):
@@ -133,3 +172,21 @@ def test_a_tilted_extrinsic_is_warned_with_its_angle(tmp_path, capsys):
     err = capsys.readouterr().err
     angle = gravity_angle(pd.read_csv(EXAMPLE)[["ax", "ay", "az"]].to_numpy(), str(ext))
     assert 20 < angle < 30 and f"{angle:.1f} deg from the up axis" in err
+
+
+@pytest.mark.parametrize("args", [["estimate", EXAMPLE, "--causal", "--rate", "200", "-o", "OUT"],
+                                  ["stream", "--replay", EXAMPLE, "--rate", "200"],
+                                  ["stream", "--replay", EXAMPLE, "--rate", "1e9"]])
+def test_live_runs_refuse_a_frame_rate_above_the_logs_as_the_batch_run_does(tmp_path, cli, args):
+    """``--causal`` and ``stream --replay`` made 200 Hz frames of a 100 Hz log (1e9 Hz: no end); the batch run refused."""
+    out = tmp_path / "o.csv"
+    code, stdout, err = cli(*[out if x == "OUT" else x for x in args])
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "--rate" in err and "above the IMU's own sample rate of 100 Hz" in err and stdout == ""
+    assert not out.exists()
+
+
+def test_preview_of_a_missing_log_says_it_is_missing(tmp_path, cli):
+    """It said the log needs its images."""
+    code, _, err = cli("preview", tmp_path / "nope.csv", "-o", tmp_path / "p.png")
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "nope.csv: no such file" in err, err

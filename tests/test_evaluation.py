@@ -188,7 +188,7 @@ def test_pooled_ref_share_is_a_share():
     assert share == pytest.approx((1.0 + 1.0) / 5.0)
 
 
-def test_ref_share_of_one_short_real_drive_is_at_most_one(shared_data, tmp_path, cli):
+def test_ref_share_and_floor_of_one_short_real_drive_are_bounded(shared_data, tmp_path, cli):
     """``evaluate --real`` on a folder with one 10 s drive printed ref_share 3.46."""
     import pandas as pd
     src = shared_data / "kitti_imu100" / "2011_09_26_drive_0009.csv.gz"
@@ -202,3 +202,31 @@ def test_ref_share_of_one_short_real_drive_is_at_most_one(shared_data, tmp_path,
     head = lines[0].split()
     shares = [float(ln.split()[head.index("ref_share")]) for ln in lines[1:4]]
     assert all(0 < s <= 1 for s in shares), out
+    # the floor of a perfect estimator was 0.129 deg, above every method's error (0.08-0.11 deg)
+    for ln in lines[1:4]:
+        cells = ln.split()
+        assert 0 < float(cells[head.index("ref_floor_deg")]) <= float(cells[head.index("mean_deg")]), out
+
+
+@pytest.mark.parametrize("sigma_deg, c_deg", [(0.5, 0.1), (0.05, 0.2)])
+def test_ref_floor_is_the_normal_floor_at_most_the_drives_own_error(sigma_deg, c_deg):
+    """Closed form: the track is the reference +-c alternately (|error| = c exactly with the mean removed), the
+    reference's 1-sigma is constant: the floor is min(sqrt(2/pi) sigma, c); it was sqrt(2/pi) sigma (0.399 > 0.1)."""
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from imu_ground.evaluation.runner import _drive_metrics
+    n = 200
+    t = 0.1 * np.arange(n)
+    pitch = 0.02 * np.sin(0.3 * t)
+    zeros = np.zeros(n)
+    truth = pd.DataFrame({"t": t, "pitch": pitch, "roll": np.nan, "speed": 10.0, "acc_long": zeros,
+                          "yaw_rate": zeros, "pitch_rate_hf": zeros, "evaluate": True,
+                          "ref_sigma": np.radians(sigma_deg)})
+    drive = SimpleNamespace(truth=truth, has_roll=False, remove_mean=True)
+    track = SimpleNamespace(pitch=pitch + np.radians(c_deg) * (-1.0) ** np.arange(n), roll=zeros,
+                            valid=np.ones(n, bool))
+    row = _drive_metrics(drive, track)
+    assert row["pitch_mean"] == pytest.approx(c_deg, rel=1e-9)
+    assert row["ref_floor"] == pytest.approx(min(math.sqrt(2.0 / math.pi) * sigma_deg, c_deg), rel=1e-9)

@@ -250,6 +250,41 @@ def test_kitti_pose_times_file_sets_the_clock(tmp_path, capsys):
     assert code == 2 and "short.txt" in error_line(err)
 
 
+
+def test_a_kitti_times_file_of_another_length_is_refused_naming_both_files(tmp_path, capsys):
+    """A longer times file (another sequence's) was accepted: its first lines timed the poses (exit 0)."""
+    R, p = _trajectory(60, np.array([0.0, 0.0, 1.0]))
+    kitti = _write_kitti(tmp_path / "00.txt", R, p)
+    times = np.arange(100) * 0.1037
+    np.savetxt(tmp_path / "other.txt", times, fmt="%.6e")
+    with pytest.raises(ImuInputError, match="60 poses but 100 times") as got:
+        read_poses(kitti, times=tmp_path / "other.txt")
+    assert got.value.option == "times"
+    code, _, err = run(capsys, "estimate", kitti, "--extrinsic", "kitti_cam0", "--times", tmp_path / "other.txt",
+                       "-o", tmp_path / "o.csv")
+    line = error_line(err)
+    assert code == 2 and str(kitti) in line and str(tmp_path / "other.txt") in line and "--times" in line
+    assert not (tmp_path / "o.csv").exists()
+    # a file with a frame index may skip frames (ORB-SLAM2's): only its frames need times
+    indexed = tmp_path / "orb.txt"
+    rows = np.loadtxt(kitti)[5:]
+    np.savetxt(indexed, np.column_stack([np.arange(6, 61), rows]), fmt=["%d"] + ["%.12e"] * 12)
+    np.testing.assert_allclose(read_poses(indexed, times=tmp_path / "other.txt").t, times[5:60], rtol=1e-6)
+
+
+def test_real_kitti_poses_take_only_their_own_sequences_times(shared_data):
+    """No false alarm on the benchmark's files; every other sequence's times of another length refused."""
+    odo = shared_data / "kitti_odometry"
+    names = sorted(f.name for f in (odo / "poses").glob("*.txt") if (odo / "times" / f.name).is_file())
+    lines = {n: sum(1 for ln in (odo / "times" / n).read_text().splitlines() if ln.strip()) for n in names}
+    for n in names:
+        assert len(read_poses(odo / "poses" / n, times=odo / "times" / n).t) == lines[n]
+    n = min(names, key=lines.get)                 # the shortest: the others are longer times files
+    for other in names:
+        if lines[other] != lines[n]:
+            with pytest.raises(ImuInputError, match="times"):
+                read_poses(odo / "poses" / n, times=odo / "times" / other)
+
 def test_real_kitti_times_file(shared_data):
     odo = shared_data / "kitti_odometry"
     poses = read_poses(odo / "poses" / "00.txt", times=odo / "times" / "00.txt")

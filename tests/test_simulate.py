@@ -88,7 +88,7 @@ def test_deterministic_for_a_seed():
 def test_bad_arguments():
     with pytest.raises(ValueError, match="preset"):
         simulate(10.0, imu="tactical")
-    with pytest.raises(ValueError, match="whole number"):
+    with pytest.raises(ValueError, match="whole multiple"):
         simulate(10.0, imu_rate=100.0, frame_rate=30.0)
     with pytest.raises(ValueError, match="rotation"):
         simulate(10.0, R_gs=np.diag([1.0, 1.0, -1.0]))
@@ -453,3 +453,32 @@ def test_example_fixture_content():
     assert truth["stationary"].iloc[0] == 1 and truth["stationary"].sum() < len(truth) / 2
     n = truth[["normal_x", "normal_y", "normal_z"]].to_numpy()
     np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-9)
+
+
+@pytest.mark.parametrize("kw, option", [
+    ({"duration": float("nan")}, "duration"), ({"duration": float("inf")}, "duration"),
+    ({"duration": 1e7}, "duration"), ({"duration": 0.01}, "duration"), ({"duration": 1800.0, "imu_rate": 400.0}, "duration"),
+    ({"imu_rate": 2000.0}, "imu_rate"), ({"imu_rate": float("nan")}, "imu_rate"), ({"seed": -1}, "seed"),
+])
+def test_simulate_refuses_out_of_bounds_arguments_before_any_work(kw, option):
+    """NaN passed the old ``duration <= 0`` test, 1e7 s ran without end, a negative seed was numpy's bare ValueError."""
+    from imu_ground.datasets.options import OptionError
+    with pytest.raises(OptionError) as got:
+        simulate(**kw)
+    assert got.value.option == option
+
+
+def test_the_bounds_hold_their_own_limits():
+    from imu_ground.evaluation.simulate.drive import MAX_DURATION_S, MAX_IMU_RATE_HZ, MAX_IMU_SAMPLES, check_rates
+    assert check_rates(MAX_DURATION_S, MAX_IMU_SAMPLES / MAX_DURATION_S, 10.0, None) == 10
+    assert check_rates(MAX_IMU_SAMPLES / MAX_IMU_RATE_HZ, MAX_IMU_RATE_HZ, 10.0, None) == 1
+    assert check_rates(0.1, 100.0, 10.0, None) == 10                  # one frame: the shortest drive
+
+
+def test_a_suite_refuses_more_drives_than_its_bound():
+    from imu_ground.datasets.options import OptionError
+    from imu_ground.evaluation.simulate.suite import MAX_SUITE_DRIVES
+    for n in (-1, MAX_SUITE_DRIVES + 1, 2.5):
+        with pytest.raises(OptionError, match="drives per IMU grade"):
+            simulate_suite(n)
+    assert simulate_suite(0) == []

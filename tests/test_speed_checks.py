@@ -1,5 +1,6 @@
 """A measured speed as users give it: negative, implausible, in km/h, with millisecond times; speed files with
 columns by name in any order and case, unknown names, rows without a speed."""
+import re
 from pathlib import Path
 
 import numpy as np
@@ -128,6 +129,52 @@ def test_unknown_or_ambiguous_names_are_refused(truth_speed, tmp_path, cli, head
     assert f"--speed {f}" in line and "'speed' or 'v'" in line
     assert not (tmp_path / "o.csv").exists()
 
+
+
+def _speed_lines(t, v, blank_after=None):
+    rows = [f"{a:.2f},{b:.4f}" for a, b in zip(t, v)]
+    if blank_after is not None:
+        rows.insert(blank_after, "")                  # a blank line: skipped, but it moves the line numbers on
+    return "t,speed\n" + "\n".join(rows) + "\n"
+
+
+@pytest.mark.parametrize("case, line, words", [
+    ("back", 103, "9.8 s goes back from 9.9 s on line 101"),       # a blank line 102 lies between them
+    ("repeat", 103, "9.9 s repeats 9.9 s on line 101"),
+    ("reversed", 3, "600 step(s) back"),
+    ("no time", 103, "no time in column 't'"),
+])
+def test_a_speed_file_whose_times_do_not_increase_is_refused_naming_the_line(truth_speed, tmp_path, cli, case,
+                                                                             line, words):
+    """Times that stepped back, repeated or were missing were sorted, deduplicated or dropped in silence (exit 0)."""
+    t, v = truth_speed
+    t = np.round(t, 2)
+    if case in ("back", "repeat"):
+        t = t.copy()
+        t[100] = t[98 if case == "back" else 99]
+    elif case == "reversed":
+        t, v = t[::-1], v[::-1]
+    f = tmp_path / "speed.csv"
+    text = _speed_lines(t, v, blank_after=None if case == "reversed" else 100)
+    if case == "no time":
+        text = text.replace("\n10.00,", "\n,")
+    f.write_text(text)
+    with pytest.raises(MalformedFileError, match=re.escape(words)) as got:
+        read_speed_file(f)
+    assert got.value.line == line
+    out = tmp_path / "o.csv"
+    code, _, err = cli("estimate", EXAMPLE, "--speed", f, "-o", out)
+    assert code == 2 and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert f"--speed {f}, line {line}: " in err and words in err and not out.exists()
+
+
+def test_a_speed_file_with_increasing_times_and_blank_lines_is_read_as_before(truth_speed, tmp_path):
+    t, v = truth_speed
+    f = tmp_path / "speed.csv"
+    f.write_text(_speed_lines(t, v, blank_after=100))
+    got_t, got_v = read_speed_file(f)
+    np.testing.assert_allclose(got_t, t, atol=5e-3)
+    np.testing.assert_allclose(got_v, v, atol=5e-5)
 
 def test_rows_without_a_speed_are_holes_counted_in_the_summary(truth_speed, tmp_path, cli):
     """100 rows of nan in a 601-row 10 Hz file: it was '600 of 600 frames' (interpolated across 10 s)."""

@@ -13,6 +13,7 @@ from imu_ground.errors import ImuGroundError
 from imu_ground.evaluation.plots import evaluation_plots
 from imu_ground.evaluation.runner import (
     METHODS,
+    check_methods,
     conditions_table,
     evaluate,
     format_table,
@@ -22,6 +23,8 @@ from imu_ground.evaluation.runner import (
     synthetic_drives,
 )
 from imu_ground.evaluation.revisit import revisit_table
+from imu_ground.evaluation.simulate.suite import MAX_SUITE_DRIVES, check_suite_size
+from imu_ground.pipeline.input_checks import check_creatable
 from imu_ground.pipeline.output import atomic_path, check_output_path
 
 __all__ = ["register", "run"]
@@ -51,10 +54,11 @@ def register(sub) -> None:
                                    "--lidar LOG SCANS: the methods against road planes fitted to LiDAR scans.")
     v.add_argument("--real", metavar="DIR", help="folder of kitti_imu100 drives (*.csv.gz), e.g. ../shared/data/kitti_imu100")
     v.add_argument("--synthetic", type=nonnegative_int, default=0, metavar="N",
-                   help="number of synthetic drives per IMU grade (default 0)")
+                   help=f"number of synthetic drives per IMU grade (default 0, at most {MAX_SUITE_DRIVES})")
     v.add_argument("--grades", default="nav,mems", metavar="LIST",
                    help="comma-separated IMU grades of the synthetic drives: nav, mems, perfect (default nav,mems)")
-    v.add_argument("--seed", type=int, default=0, help="random seed of the synthetic drives (default 0)")
+    v.add_argument("--seed", type=nonnegative_int, default=0,
+                   help="random seed of the synthetic drives, a whole number >= 0 (default 0)")
     v.add_argument("--methods", metavar="LIST", help=LazyHelp(_methods_help))
     v.add_argument("--per-drive", action="store_true", help="also print the per-drive error table")
     v.add_argument("--csv", metavar="FILE", help="write the per-drive results as CSV")
@@ -74,13 +78,24 @@ def _check(a: argparse.Namespace) -> list:
     if a.real is None and not a.synthetic:
         raise ImuGroundError("nothing to evaluate: give --real DIR (kitti_imu100 drives) and/or --synthetic N, or "
                              "--lidar LOG SCANS (LiDAR road planes)")
-    methods = [m.strip() for m in a.methods.split(",") if m.strip()] if a.methods else list(METHODS)
-    unknown = [m for m in methods if m not in METHODS]
-    if unknown:
-        raise ImuGroundError(f"--methods: unknown {', '.join(unknown)}; choose from {', '.join(METHODS)}")
-    bad = [g for g in a.grades.split(",") if g not in ("nav", "mems", "perfect")]
+    methods = check_methods([m.strip() for m in a.methods.split(",") if m.strip()]) if a.methods else list(METHODS)
+    if a.real is not None and not Path(a.real).is_dir():
+        raise ImuGroundError(f"--real {a.real}: {'is a file' if Path(a.real).exists() else 'no such folder'}; give "
+                             "--real the folder of kitti_imu100 drives (*.csv.gz)")
+    if a.plots:
+        plots = Path(a.plots)
+        if plots.exists() and not plots.is_dir():
+            raise ImuGroundError(f"{plots}: is a file; give --plots a folder (created if missing)")
+        check_creatable(plots, "--plots")
+    grades = a.grades.split(",")
+    bad = [g for g in grades if g not in ("nav", "mems", "perfect")]
     if bad:
         raise ImuGroundError(f"--grades: unknown {', '.join(bad)}; choose from nav, mems, perfect")
+    twice = sorted({g for g in grades if grades.count(g) > 1})
+    if twice:
+        raise ImuGroundError(f"--grades: {', '.join(twice)} given twice; each grade once (its drives would count "
+                             "twice in the summary)")
+    check_suite_size(a.synthetic)
     for option, path in (("--csv", a.csv), ("--markdown", a.markdown)):
         if path:
             check_output_path(path, option=option, kind="text")
@@ -116,7 +131,7 @@ def run(a: argparse.Namespace) -> int:
     say(format_table(table[cols], "text"))
     say("(mean_deg: per-drive mean absolute error averaged over drives; seg_pitch_deg: the same with the mean "
         "removed per moving segment; ref_floor_deg: what a perfect estimator would score against the reference's "
-        "own uncertainty; ref_share: the share of the squared error the reference alone can explain, "
+        "own uncertainty, each drive at most the method's own error; ref_share: the share of the squared error the reference alone can explain, "
         "each drive at most all of its own)")
     say("\nby condition (mean absolute pitch error, deg, pooled over frames):")
     say(format_table(conditions_table(res), "text"))

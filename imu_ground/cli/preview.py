@@ -86,6 +86,8 @@ def _check(a: argparse.Namespace):
         raise ImuGroundError("--lidar DIR and --lidar-extrinsic SPEC go together, with a LOG and its images: "
                              "imu-ground preview LOG --images DIR --times FILE --camera NAME --lidar DIR "
                              "--lidar-extrinsic SPEC -o F")
+    if a.log is not None and not Path(a.log).exists():
+        raise ImuGroundError(f"{a.log}: no such file or folder (LOG: the IMU log or pose file whose estimate to show)")
     if a.log is not None and not (a.images and a.times):
         raise ImuGroundError(f"{a.log}: a log needs its images: add --images DIR --times FILE (and --camera NAME; "
                              f"default {DEFAULT_CAMERA})")

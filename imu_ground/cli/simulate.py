@@ -5,10 +5,10 @@ from pathlib import Path
 
 import argparse
 
-from imu_ground.cli._common import positive_float, say
-from imu_ground.errors import ImuGroundError
+from imu_ground.cli._common import nonnegative_int, positive_float, say
 from imu_ground.evaluation.plots import plot_simulation
 from imu_ground.evaluation.simulate import simulate
+from imu_ground.evaluation.simulate.drive import MAX_DURATION_S, MAX_IMU_RATE_HZ, MAX_IMU_SAMPLES
 from imu_ground.pipeline.output import atomic_path, check_output_path
 
 __all__ = ["FRAME_RATE", "register", "run"]
@@ -27,11 +27,13 @@ def register(sub) -> None:
     s.add_argument("--truth", metavar="FILE",
                    help="truth CSV (default <output>_truth.csv); angles in degrees, named *_deg (pitch_deg, "
                         "roll_deg: body relative to road, same signs as 'estimate'), rates *_deg_s")
-    s.add_argument("--duration", type=positive_float, default=120.0, metavar="S", help="seconds (default 120)")
+    s.add_argument("--duration", type=positive_float, default=120.0, metavar="S",
+                   help=f"seconds (default 120), {1 / FRAME_RATE:g} to {MAX_DURATION_S:g}; with --rate at most "
+                        f"{MAX_IMU_SAMPLES} IMU samples (an hour at 100 Hz)")
     s.add_argument("--rate", type=positive_float, default=100.0, metavar="HZ",
-                   help="IMU sample rate, Hz (default 100); a whole multiple of the truth's 10 Hz frame rate, "
-                        "e.g. 400")
-    s.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+                   help=f"IMU sample rate, Hz (default 100, at most {MAX_IMU_RATE_HZ:g}); a whole multiple of the "
+                        "truth's 10 Hz frame rate, e.g. 400")
+    s.add_argument("--seed", type=nonnegative_int, default=0, help="random seed, a whole number >= 0 (default 0)")
     s.add_argument("--imu", default="nav", choices=("nav", "mems", "perfect"),
                    help="IMU error grade: nav (navigation grade, default), mems, perfect (no errors)")
     s.add_argument("--plot", metavar="PNG", help="also write a picture of the road and body motion (needs matplotlib)")
@@ -47,10 +49,6 @@ def run(a: argparse.Namespace) -> int:
     check_output_path(truth, option="--truth", kind="csv")
     if a.plot:
         check_output_path(a.plot, option="--plot", kind="png")
-    ratio = a.rate / FRAME_RATE
-    if abs(ratio - round(ratio)) > 1e-9:
-        raise ImuGroundError(f"--rate {a.rate:g}: the IMU rate must be a whole multiple of the truth's "
-                             f"{FRAME_RATE:g} Hz frame rate (e.g. 100, 200, 400)")
     sim = simulate(a.duration, seed=a.seed, imu=a.imu, imu_rate=a.rate, frame_rate=FRAME_RATE)
     with atomic_path(out) as tmp_imu, atomic_path(truth) as tmp_truth:
         sim.to_csv(tmp_imu, tmp_truth)

@@ -152,7 +152,7 @@ def _replay(est, a, out) -> None:
 
     from imu_ground.cli._common import warn_line
     from imu_ground.datasets import detect_format, read_imu
-    from imu_ground.pipeline.estimate import speed_samples
+    from imu_ground.pipeline.estimate import check_frame_rate, speed_samples
     opts = reader_options(a)
     fmt = opts.pop("format", None)
     opts["policy"] = "recorded"         # the stamps as recorded, in file order: the estimator's clock retimes them
@@ -160,6 +160,7 @@ def _replay(est, a, out) -> None:
         warnings.simplefilter("always")
         fmt = detect_format(a.replay) if fmt is None else fmt
         imu = read_imu(a.replay, format=fmt, **opts)
+        check_frame_rate(a.rate, imu.t, a.replay)
         sp = None
         if est.speed_aided and a.speed != "none":
             sp, _ = speed_samples(a.speed, a.replay, fmt, imu)

@@ -54,7 +54,10 @@ OXTS RT3003 datasheet, 1 sigma). The 10 m grade window does not average the
 ``vu`` error away: it is slow (correlated over many seconds), not white. A
 perfect estimator would then score ``sqrt(2 / pi) * sigma_ref`` in mean absolute
 error (``ref_floor``), and ``mean(sigma_ref^2) / mean(error^2)`` is the share of a
-method's mean squared error the reference alone can explain (``ref_share``).
+method's mean squared error the reference alone can explain (``ref_share``). Both are
+per drive at most all of the method's error (a floor at most its mean absolute error, a
+share at most 1): on a short drive the slow ``vu`` error is nearly constant and goes with
+the removed mean, so the model overstates what the reference adds there.
 Synthetic drives have an exact truth: ``sigma_ref = 0``.
 """
 from __future__ import annotations

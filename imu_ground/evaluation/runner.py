@@ -17,7 +17,8 @@ variant and the tuned variant of the paper's filter). :func:`evaluate` runs meth
 - the pitch error by condition (speed bins, turning, braking, near a stop,
   rough road; :mod:`imu_ground.evaluation.conditions`);
 - ``ref_floor``: the error a perfect estimator would show against the
-  reference, from its per-frame uncertainty, and ``ref_share``, the share of
+  reference, from its per-frame uncertainty (at most the method's own error on
+  the drive, as ``ref_share`` is at most 1), and ``ref_share``, the share of
   the mean squared error the reference alone can explain (0..1: a drive whose
   reference variance exceeds its error, e.g. a short one whose slow reference
   error goes with the removed mean, is all explained);
@@ -52,6 +53,7 @@ __all__ = [
     "TUNED",
     "Drive",
     "Method",
+    "check_methods",
     "conditions_table",
     "evaluate",
     "format_table",
@@ -114,6 +116,19 @@ def _centred(x: np.ndarray, use: np.ndarray) -> np.ndarray:
     return x - x[use].mean() if np.any(use) else x
 
 
+def _ref_floor(sigma: np.ndarray, err: np.ndarray) -> float:
+    """What a perfect estimator would score on one drive against a reference of 1-sigma ``sigma``, deg.
+
+    ``sqrt(2/pi) * mean(sigma)`` (the mean absolute value of a zero-mean normal error), at most
+    the method's own mean absolute error ``mean(|err|)`` on the drive: on a short drive the
+    reference's slow error is nearly constant and goes with the removed mean, so the modelled
+    floor can exceed what is measured, and the drive's error is then all the reference's (as
+    ``ref_share`` is capped at 1). NaN without frames.
+    """
+    if not sigma.size:
+        return math.nan
+    return float(min(math.sqrt(2.0 / math.pi) * sigma.mean(), np.abs(err).mean()))
+
 def _drive_metrics(d: Drive, track) -> dict[str, float]:
     """All per-drive numbers of one track (see the module docstring); angles in deg."""
     tr = d.truth
@@ -142,7 +157,7 @@ def _drive_metrics(d: Drive, track) -> dict[str, float]:
         row[f"cond_{key}_n"] = int(np.count_nonzero(sel))
         row[f"cond_{key}_sum"] = float(np.abs(err[sel]).sum())
     sigma = np.degrees(tr["ref_sigma"].to_numpy(float))[use]
-    row["ref_floor"] = float(math.sqrt(2.0 / math.pi) * sigma.mean()) if sigma.size else math.nan
+    row["ref_floor"] = _ref_floor(sigma, err[use])
     row["ref_var_sum"] = float(np.sum(sigma * sigma))
     row["err_sq_sum"] = float(np.sum(err[use] ** 2))
     row["ref_share"] = min(row["ref_var_sum"] / row["err_sq_sum"], 1.0) if row["err_sq_sum"] > 0 else math.nan
@@ -161,6 +176,26 @@ def _revisit_metrics(pairs, track) -> dict[str, float]:
     return {"revisit_n": int(len(dp)), "revisit_pitch_sum": float(np.degrees(np.abs(dp)).sum()),
             "revisit_roll_sum": float(np.degrees(np.abs(dr)).sum())}
 
+
+def check_methods(methods: Iterable[str]) -> list[str]:
+    """The method names of an evaluation, checked: each a key of :data:`METHODS`, each once.
+
+    Raises
+    ------
+    OptionError
+        An unknown name, or one given twice (its rows would count twice in every table), naming
+        ``methods`` (``--methods``).
+    """
+    methods = list(methods)
+    unknown = [m for m in methods if m not in METHODS]
+    if unknown:
+        raise OptionError(f"{{opt}}: unknown {', '.join(map(str, unknown))}; choose from {', '.join(METHODS)}",
+                          "methods")
+    twice = sorted({m for m in methods if methods.count(m) > 1})
+    if twice:
+        raise OptionError(f"{{opt}}: {', '.join(twice)} given twice; each method once (its rows would count twice)",
+                          "methods")
+    return methods
 
 def evaluate(drives: Iterable[Drive], methods: Sequence[str] | None = None,
              progress: bool = True, keep_tracks: bool = False):
@@ -199,10 +234,7 @@ def evaluate(drives: Iterable[Drive], methods: Sequence[str] | None = None,
     import pandas as pd
     from tqdm.auto import tqdm
     drives = list(drives)
-    methods = list(METHODS) if methods is None else list(methods)
-    for m in methods:
-        if m not in METHODS:
-            raise OptionError(f"unknown method {m!r}; choose from {', '.join(METHODS)}", "methods")
+    methods = list(METHODS) if methods is None else check_methods(methods)
     rows, tracks = [], {}
     bar = tqdm(total=len(drives) * len(methods), desc="evaluating", unit="run", disable=not progress)
     for d in drives:
@@ -262,7 +294,7 @@ def summary_table(results, quantity: str | None = None):
         Index (set, method); columns drives, mean_deg (mean over valid drives of
         the per-drive mean absolute error), median_deg, worst_deg / worst_drive,
         worst ratio to the paper's method, seg_pitch_deg (mean over drives of the
-        per-segment metric), ref_floor_deg (mean over drives), ref_share (pooled
+        per-segment metric), ref_floor_deg (mean over drives, each at most the method's error), ref_share (pooled
         over frames, each drive explaining at most its own error: 0..1), us_per_frame.
     """
     import pandas as pd

@@ -77,7 +77,7 @@ if TYPE_CHECKING:
     from imu_ground.imu.data import ImuData
     from imu_ground.imu.egomotion import EgoMotion
 
-__all__ = ["Calibration", "TooLittleDataError", "calibrate", "load_calibration"]
+__all__ = ["MAX_OFFSET_M", "Calibration", "TooLittleDataError", "calibrate", "load_calibration"]
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -191,11 +191,20 @@ class TooLittleDataError(ImuGroundError):
         super().__init__(f"{base}: {advice}")
 
 
+#: Largest sensor offset a calibration takes, m per axis (``translation``, ``lever_arm``): a vehicle's sensor is
+#: metres from its centre; more is a unit mistake (mm for m).
+MAX_OFFSET_M = 50.0
+
+
 def _finite3(value: Sequence[float], option: str) -> np.ndarray:
-    """``value`` as 3 finite numbers (m); else an :class:`OptionError` naming ``option`` (``--lever-arm`` ...)."""
+    """``value`` as 3 finite numbers (m), each within :data:`MAX_OFFSET_M`; else an :class:`OptionError` naming
+    ``option`` (``--lever-arm`` ...)."""
     v = np.asarray(value, dtype=float).ravel()
     if v.shape != (3,) or not np.all(np.isfinite(v)):
         raise OptionError(f"{{opt}} must be 3 finite numbers X Y Z (m), got {' '.join(f'{x:g}' for x in v)}", option)
+    if np.any(np.abs(v) > MAX_OFFSET_M):
+        raise OptionError(f"{{opt}} {' '.join(f'{x:g}' for x in v)}: over {MAX_OFFSET_M:g} m from the vehicle's "
+                          "centre; the offsets are in metres (divide millimetres by 1000)", option)
     return v
 
 

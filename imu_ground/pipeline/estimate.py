@@ -50,6 +50,7 @@ __all__ = [
     "EstimateResult",
     "OptionError",
     "available_methods",
+    "check_frame_rate",
     "check_gravity_direction",
     "check_options",
     "detect_input",
@@ -365,13 +366,22 @@ def _steps(progress: bool):
     return tqdm(total=2, desc="estimate", unit="step", disable=not progress, leave=False)
 
 
-def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
-    fmt = detect_format(path) if fmt is None else fmt
-    imu = read_imu(path, format=fmt, **reader_kw)
-    imu_rate = 1.0 / float(np.median(np.diff(imu.t))) if len(imu) > 1 else float("nan")
+def check_frame_rate(rate: float | None, t: np.ndarray, path) -> float:
+    """The IMU's sample rate, Hz (``1 / median step`` of the times ``t``, s; NaN under two samples), checked
+    against the frame rate ``rate`` (Hz, None: the default): a frame rate above it is an :class:`OptionError`
+    naming ``rate`` (``--rate``), in the batch, the causal (``--causal``) and the replayed (``stream --replay``)
+    runs alike."""
+    t = np.asarray(t, dtype=float)
+    imu_rate = 1.0 / float(np.median(np.diff(t))) if t.size > 1 else float("nan")
     if rate is not None and math.isfinite(imu_rate) and rate > imu_rate * (1 + 1e-6):
         raise OptionError(f"{{opt}} {rate:g} Hz is above the IMU's own sample rate of {imu_rate:.4g} Hz in "
                           f"{path}; choose a frame rate of at most {imu_rate:.4g} Hz", "rate")
+    return imu_rate
+
+def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
+    fmt = detect_format(path) if fmt is None else fmt
+    imu = read_imu(path, format=fmt, **reader_kw)
+    imu_rate = check_frame_rate(rate, imu.t, path)
     if imu.frame != "FLU" and extrinsic is None:
         warnings.warn(f"{path}: the IMU's body frame is {imu.frame!r}, not FLU (x forward, y left, z up), and no "
                       "extrinsic was given: pitch and roll refer to the sensor's own axes; run 'imu-ground "
@@ -470,8 +480,10 @@ def speed_samples(speed, path, fmt, imu):
             got = read_speed(speed, log=path, format=fmt, imu=imu)
             t_sp, v_sp, notes = check_speed(*got, str(speed), imu)
         except (ImuGroundError, FileNotFoundError) as e:
-            text = str(e).removeprefix(f"{speed}: ")
-            raise OptionError(f"{{opt}} {speed}: {text}", "speed") from e
+            text = str(e)
+            rest = text.removeprefix(str(speed))      # the file named once: '--speed FILE[, line N]: ...'
+            text = rest if rest.startswith((": ", ", line ")) else f": {text}"
+            raise OptionError(f"{{opt}} {speed}{text}", "speed") from e
         for note in notes:
             warnings.warn(f"speed {note}")
         got = (t_sp, v_sp)
@@ -516,8 +528,8 @@ def _causal_estimate(path, kind, fmt, method, rate, extrinsic, speed, Q, R, reca
     clock_policy = live_policy(reader_kw.get("policy"))
     fmt = detect_format(path) if fmt is None else fmt
     imu = read_imu(path, format=fmt, **{**reader_kw, "policy": "recorded"})
+    imu_rate = check_frame_rate(rate, imu.t, path)
     check_gravity_direction(imu, extrinsic, path)
-    imu_rate = 1.0 / float(np.median(np.diff(imu.t))) if len(imu) > 1 else float("nan")
     info = {"format": fmt, "imu_rate": imu_rate, "frame_id": imu.meta.get("frame_id") or "imu"}
     if imu.meta.get("t0_ns") is not None:
         info["t0_ns"] = int(imu.meta["t0_ns"])

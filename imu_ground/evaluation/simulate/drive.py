@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from imu_ground import so3
+from imu_ground.datasets.options import OptionError
 from imu_ground.evaluation.simulate.imu_errors import (
     ImuErrorModel,
     imu_error_model,
@@ -42,11 +43,15 @@ if TYPE_CHECKING:
     import pandas as pd
 
 __all__ = [
+    "MAX_DURATION_S",
+    "MAX_IMU_RATE_HZ",
+    "MAX_IMU_SAMPLES",
     "TRUTH_ANGLES",
     "TRUTH_COLUMNS",
     "SimResult",
     "as_extrinsic",
     "check_rates",
+    "check_seed",
     "clean_drive",
     "drive_on_road",
     "drive_road",
@@ -158,19 +163,59 @@ def as_extrinsic(R_gs, t_gs):
     return r, t
 
 
+#: Longest simulated drive, s (one hour).
+MAX_DURATION_S = 3600.0
+#: Highest simulated IMU rate, Hz.
+MAX_IMU_RATE_HZ = 1000.0
+#: Most IMU samples of one simulated drive, ``duration * imu_rate``: an hour at 100 Hz. Time and memory grow in
+#: proportion to the samples (and to the suspension's fine grid of at least 1 kHz), so the bound keeps one drive
+#: within an ordinary machine's memory; longer studies simulate several drives (seeds).
+MAX_IMU_SAMPLES = 360_000
+
+
+def _finite_positive(value) -> bool:
+    try:
+        return math.isfinite(value) and value > 0
+    except TypeError:
+        return False
+
+
 def check_rates(duration, imu_rate, frame_rate, oversample) -> int:
-    """Check durations and rates; the fine-grid factor (default: the smallest giving >= 1 kHz)."""
-    if duration <= 0:
-        raise ValueError("duration must be > 0")
-    if imu_rate <= 0 or frame_rate <= 0:
-        raise ValueError("rates must be > 0")
+    """Check a drive's duration and rates; the fine-grid factor (default: the smallest giving >= 1 kHz).
+
+    Raises
+    ------
+    OptionError
+        Not a finite number > 0; a drive shorter than one truth frame (``1 / frame_rate``); a
+        rate that is not a whole multiple of the frame rate; over :data:`MAX_DURATION_S`,
+        :data:`MAX_IMU_RATE_HZ` or :data:`MAX_IMU_SAMPLES` (the message names ``duration``, or
+        ``imu_rate``, whose command-line flag is ``--rate``).
+    """
+    for value, name, flag in ((imu_rate, "imu_rate", "--rate"), (frame_rate, "frame_rate", None),
+                              (duration, "duration", None)):
+        if not _finite_positive(value):
+            raise OptionError(f"{{opt}} {value}: must be a finite number > 0", name, flag=flag)
     ratio = imu_rate / frame_rate
     if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
-        raise ValueError(f"imu_rate / frame_rate must be a whole number, got {ratio}")
+        raise OptionError(f"{{opt}} {imu_rate:g}: the IMU rate must be a whole multiple of the truth's "
+                          f"{frame_rate:g} Hz frame rate (e.g. 100, 200, 400)", "imu_rate", flag="--rate")
+    if imu_rate > MAX_IMU_RATE_HZ:
+        raise OptionError(f"{{opt}} {imu_rate:g}: over the simulator's highest IMU rate, {MAX_IMU_RATE_HZ:g} Hz",
+                          "imu_rate", flag="--rate")
+    if duration < 1.0 / frame_rate:
+        raise OptionError(f"{{opt}} {duration:g}: shorter than one frame of the truth ({1.0 / frame_rate:g} s at "
+                          f"{frame_rate:g} Hz)", "duration")
+    if duration > MAX_DURATION_S:
+        raise OptionError(f"{{opt}} {duration:g}: over the simulator's longest drive, {MAX_DURATION_S:g} s (one "
+                          "hour); for more, simulate several drives (other seeds)", "duration")
+    if duration * imu_rate > MAX_IMU_SAMPLES:
+        raise OptionError(f"{{opt}} {duration:g} at {imu_rate:g} Hz: {duration * imu_rate:.0f} IMU samples, over the "
+                          f"simulator's {MAX_IMU_SAMPLES} (an hour at 100 Hz); shorten the drive or lower the rate "
+                          f"(at {imu_rate:g} Hz at most {MAX_IMU_SAMPLES / imu_rate:g} s)", "duration")
     if oversample is None:
         oversample = max(1, int(math.ceil(1000.0 / imu_rate - 1e-9)))
     if int(oversample) < 1:
-        raise ValueError("oversample must be >= 1")
+        raise OptionError(f"{{opt}} {oversample}: must be >= 1", "oversample")
     return int(oversample)
 
 
@@ -198,6 +243,17 @@ def _truth_samples(kin, body, rough, s, vehicle: VehicleParams, road: RoadParams
         "road_grade": al_t, "road_bank": bk_t,
     }
 
+
+def check_seed(seed) -> int:
+    """A random seed as an int; a seed that is not a whole number >= 0 (NumPy's seeds are) is an
+    :class:`OptionError` naming ``seed``."""
+    try:
+        value = int(seed)
+    except (TypeError, ValueError):
+        value = -1
+    if value < 0 or value != seed:
+        raise OptionError(f"{{opt}} {seed}: a seed is a whole number >= 0", "seed")
+    return value
 
 def clean_drive(duration: float, seed: int, imu_rate: float, road: RoadParams, vehicle: VehicleParams,
                 speed: SpeedParams, R_gs: np.ndarray, t_gs: np.ndarray, oversample: int) -> dict:
@@ -372,7 +428,7 @@ def simulate(duration: float = 120.0, seed: int = 0, imu: str | ImuErrorModel | 
     speed = speed or SpeedParams()
     r, t = as_extrinsic(R_gs, t_gs)
     model = imu_error_model(imu)
-    seed = int(seed)
+    seed = check_seed(seed)
     clean = clean_drive(float(duration), seed, float(imu_rate), road, vehicle, speed, r, t, oversample)
     params = dict(duration=float(duration), seed=seed, imu=model, imu_rate=float(imu_rate),
                   frame_rate=float(frame_rate), road=road, vehicle=vehicle, speed=speed,

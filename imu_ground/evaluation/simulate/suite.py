@@ -10,16 +10,18 @@ from imu_ground.evaluation.simulate.drive import (
     SimResult,
     as_extrinsic,
     check_rates,
+    check_seed,
     clean_drive,
     finish_drive,
 )
+from imu_ground.datasets.options import OptionError
 from imu_ground.evaluation.simulate.imu_errors import ImuErrorModel, imu_error_model
 from imu_ground.evaluation.simulate.road import ISO8608_CLASSES, RoadParams
 from imu_ground.evaluation.simulate.vehicle import SpeedParams, VehicleParams
 from imu_ground.so3 import rotx, roty, rotz
 from imu_ground.units import DEG
 
-__all__ = ["STYLE_MIX", "SuiteRanges", "random_drive", "simulate_suite"]
+__all__ = ["MAX_SUITE_DRIVES", "STYLE_MIX", "SuiteRanges", "check_suite_size", "random_drive", "simulate_suite"]
 
 #: Share of each driving style in a suite, like the shared real KITTI drives: mostly
 #: city and residential streets (about 9 m/s on average while moving), some country
@@ -106,6 +108,23 @@ def random_drive(rng: np.random.Generator, duration_range, roughness_classes, st
     return dict(duration=duration, road=road, vehicle=vehicle, speed=speed, R_gs=r_gs, t_gs=t_gs)
 
 
+#: Most drives of a suite per IMU grade (every drive is held in memory, with its truth, until the suite returns).
+MAX_SUITE_DRIVES = 100
+
+
+def check_suite_size(n) -> int:
+    """The number of drives of a suite per grade, checked: a whole number from 0 to :data:`MAX_SUITE_DRIVES`.
+
+    Raises
+    ------
+    OptionError
+        Otherwise, naming ``n`` (the command line's ``--synthetic``).
+    """
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 0 <= n <= MAX_SUITE_DRIVES:
+        raise OptionError(f"{{opt}} {n}: a suite has 0 to {MAX_SUITE_DRIVES} drives per IMU grade (all are held "
+                          "in memory); for more, run several suites with other seeds", "n", flag="--synthetic")
+    return int(n)
+
 def simulate_suite(n: int, seed: int = 0, grades: Sequence[str | ImuErrorModel] = ("nav", "mems"), *,
                    duration_range: tuple[float, float] = (60.0, 180.0),
                    roughness_classes: Sequence[str] | None = None,
@@ -125,8 +144,8 @@ def simulate_suite(n: int, seed: int = 0, grades: Sequence[str | ImuErrorModel] 
     named ``"drive{i:03d}_{grade}"``; ``simulate(**result.params)`` reproduces any one.
     ``ranges`` (:class:`SuiteRanges`) sets what each drive is drawn from.
     """
-    if n < 0:
-        raise ValueError("n must be >= 0")
+    check_suite_size(n)
+    seed = check_seed(seed)
     oversample = check_rates(max(duration_range), imu_rate, frame_rate, None)
     models = [imu_error_model(g) for g in grades]
     results: list[SimResult] = []
