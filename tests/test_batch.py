@@ -145,3 +145,19 @@ def test_batch_with_spawned_workers_writes_estimates_bytes(fleet, tmp_path, monk
     assert list(table["status"]) == ["ok", "ok", "failed"]
     for log in logs[:2]:
         assert (tmp_path / "out" / f"{log.stem}_ground.csv").read_bytes() == _estimate_bytes(log, tmp_path)
+
+
+def test_local_pool_never_starts_more_workers_than_logs_or_four_a_core(monkeypatch):
+    """``--workers 100000`` once started 4,000 processes and exhausted the memory: capped now."""
+    import os
+    import warnings
+
+    from imu_ground.pipeline import batch
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                      # fewer logs than workers: capped without a word
+        with batch._local_pool(100000, 2) as pool:
+            assert pool._max_workers == 2
+    monkeypatch.setattr(os, "cpu_count", lambda: 1)
+    with pytest.warns(UserWarning, match=r"--workers 10 capped to 4 \(4 a CPU core of 1"):
+        with batch._local_pool(10, 50, cli=True) as pool:
+            assert pool._max_workers == batch.WORKERS_PER_CORE == 4

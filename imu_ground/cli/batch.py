@@ -35,8 +35,8 @@ def register(sub) -> None:
     b.add_argument("--type", default="csv", choices=("csv", "parquet", "tum", "mcap", "bag"),
                    help="output file type of every log (default csv)")
     b.add_argument("--workers", type=nonnegative_int, metavar="N",
-                   help="worker processes of the local Dask cluster (default: CPU count; 0: no Dask, one "
-                        "log after the other in this process)")
+                   help="worker processes of the local Dask cluster (default: CPU count; never more than the "
+                        "logs, nor than 4 a CPU core; 0: no Dask, one log after the other in this process)")
     b.add_argument("--scheduler", metavar="ADDRESS",
                    help="address of a running Dask scheduler (e.g. tcp://10.0.0.5:8786) instead of a local cluster")
     b.add_argument("--tum", action="store_true",

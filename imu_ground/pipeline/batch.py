@@ -39,7 +39,7 @@ from imu_ground.pipeline.output import (
     summarize_table,
 )
 
-__all__ = ["LOCK_NAME", "SUMMARY_COLUMNS", "check_existing_outputs", "expand_logs", "is_own_output",
+__all__ = ["LOCK_NAME", "WORKERS_PER_CORE", "SUMMARY_COLUMNS", "check_existing_outputs", "expand_logs", "is_own_output",
            "output_folder_lock", "output_names", "process_log", "run_batch", "unique_logs"]
 
 #: Columns of the summary table, in order.
@@ -49,6 +49,8 @@ SUMMARY_COLUMNS = ("log", "status", "format", "method", "frames", "valid_share",
 _GLOB_CHARS = set("*?[")
 #: Lock file in a batch's output folder while a run writes there (:func:`output_folder_lock`).
 LOCK_NAME = ".imu-ground-batch.lock"
+#: At most this many local worker processes a CPU core (``--workers`` above it is capped, with a warning).
+WORKERS_PER_CORE = 4
 
 
 def expand_logs(patterns: Iterable[str | Path]) -> list[tuple[str, str | None]]:
@@ -411,7 +413,7 @@ def _run_batch_locked(logs, out_dir: Path, workers, scheduler, suffix, progress,
         check_existing_outputs([p for _, _, out, extra in jobs for p in [out, *(e for e, _ in extra)]], options)
     local = bool(jobs) and workers != 0 and not scheduler
     # the local worker processes start before the progress bar (whose monitor thread would make forking unsafe)
-    with _local_pool(workers) if local else contextlib.nullcontext() as pool:
+    with _local_pool(workers, len(jobs), cli) if local else contextlib.nullcontext() as pool:
         bar = tqdm(total=len(found), desc="logs", unit="log", disable=not progress)
         bar.update(len(found) - len(jobs))
         if pool is not None:
@@ -446,10 +448,20 @@ def _start_method() -> str:
 
 
 @contextlib.contextmanager
-def _local_pool(workers: int | None) -> Iterator[ProcessPoolExecutor]:
-    """``workers`` (default: CPU count) worker processes, started now (see :func:`_start_method`)."""
+def _local_pool(workers: int | None, n_logs: int, cli: bool = False) -> Iterator[ProcessPoolExecutor]:
+    """``workers`` (default: CPU count) worker processes, started now (see :func:`_start_method`).
+
+    Never more workers than logs, nor more than :data:`WORKERS_PER_CORE` a CPU core (each worker
+    holds a whole log in memory: thousands of them exhaust any machine); the cap is warned about.
+    """
     require_extra("dask.multiprocessing", "fleet", "imu-ground batch")      # checked before any worker starts
-    n = int(workers) if workers else (os.cpu_count() or 1)
+    cores = os.cpu_count() or 1
+    n = min(int(workers) if workers else cores, max(1, n_logs))
+    if n > WORKERS_PER_CORE * cores:
+        limit = WORKERS_PER_CORE * cores
+        warnings.warn(f"{'--workers' if cli else 'workers'} {n} capped to {limit} ({WORKERS_PER_CORE} a CPU core "
+                      f"of {cores}: each worker holds a whole log in memory)", stacklevel=3)
+        n = limit
     with ProcessPoolExecutor(n, mp_context=multiprocessing.get_context(_start_method())) as pool:
         pool.submit(int).result()       # a forking pool starts all its workers at the first task
         yield pool
