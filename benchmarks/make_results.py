@@ -2,9 +2,10 @@
 
 Regenerate with::
 
-    python benchmarks/make_results.py            # full: 31 real drives, 10 synthetic drives a grade, all benchmarks
+    python benchmarks/make_results.py            # full: the valid real drives of drives.csv, 10 synthetic drives a grade, all benchmarks
     python benchmarks/make_results.py --quick    # fast subset (a few drives, small benchmark sizes)
     python benchmarks/make_results.py --only bench_readers   # rewrite that script's section only
+    python benchmarks/make_results.py --only accuracy        # rewrite the accuracy part only
 
 Accuracy: the evaluation (:mod:`imu_ground.evaluation`) of every method on the
 shared real KITTI drives (``../shared/data/kitti_imu100``; pitch relative to the
@@ -61,6 +62,8 @@ ERROR_BUDGET = ("error_budget",)
 READER_CHECKS = ("retime_table",)
 #: Script whose rows are the revisit consistency (pitch and roll with no grade reference) and its checks.
 REVISIT = "revisit_table"
+#: ``--only accuracy`` rewrites the accuracy part (real and synthetic drives, every method).
+ACCURACY = "accuracy"
 #: Captions of the revisit script's tables, by its rows' ``table``.
 REVISIT_CAPTIONS = {
     "revisit": "Road attitude (INS minus estimate) repeated between two passes over the same place, same "
@@ -408,10 +411,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-speed", action="store_true", help="accuracy tables only")
     ap.add_argument("--no-accuracy", action="store_true", help="speed tables only")
     ap.add_argument("--only", nargs="+", metavar="SCRIPT",
-                    help="rerun these benchmark scripts and replace their sections of the existing file")
+                    help="rerun these benchmark scripts and replace their sections of the existing file "
+                         f"({ACCURACY!r}: the accuracy part)")
     a = ap.parse_args(argv)
     if a.only:
-        return _rewrite_sections(a.out, a.only, a.quick, argv)
+        return _rewrite_sections(a.out, a.only, a.quick, argv, a.data)
     lines = _header(argv, a.quick)
     if not a.no_accuracy:
         lines += accuracy_sections(a.data, a.quick)
@@ -431,13 +435,14 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _rewrite_sections(out: Path, names: list[str], quick: bool, argv: list[str]) -> int:
-    """Replace the ``## NAME`` sections of ``out`` by a fresh run of those scripts (the rest is kept)."""
+def _rewrite_sections(out: Path, names: list[str], quick: bool, argv: list[str], data: Path = DEFAULT_DATA) -> int:
+    """Replace the ``## NAME`` sections of ``out`` by a fresh run of those scripts (the rest is kept);
+    ``accuracy`` (:data:`ACCURACY`) and :data:`REVISIT` rewrite their whole parts."""
     text = out.read_text().splitlines()
     commit = _header(argv, quick)[4]
     for name in names:
-        if name == REVISIT:                                 # a part of its own, several "## " tables
-            fresh = revisit_sections(quick)
+        if name in (REVISIT, ACCURACY):                     # a part of its own, several "## " tables
+            fresh = revisit_sections(quick) if name == REVISIT else accuracy_sections(data, quick)
             fresh.insert(2, f"Part rewritten alone (`python benchmarks/make_results.py {' '.join(argv)}`): "
                             f"{commit[0].lower()}{commit[1:]}")
             fresh.insert(3, "")
