@@ -21,7 +21,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from imu_ground.pipeline.streaming import StreamingEstimator, causal_track, replay
+from imu_ground.datasets.options import OptionError
+from imu_ground.pipeline.streaming import MAX_FRAME_RATE, StreamingEstimator, causal_track, replay
 from imu_ground.imu.sample_clock import RESTART, SampleClock
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -477,6 +478,19 @@ def test_stream_stdin_equals_estimate_causal(cli, monkeypatch, tmp_path):
     assert code == 0, err
     lines = [json.loads(x) for x in out.splitlines()]
     assert "restarted" in lines[0]["status_reason"] and set(lines[0]) >= {"t", "pitch_deg", "status"}
+
+
+def test_stream_from_stdin_refuses_a_frame_rate_it_cannot_run(cli, monkeypatch):
+    """``stream --rate 1e9`` on standard input (IMU rate unknown up front) ran forever: refused now."""
+    import io
+    monkeypatch.setattr(sys, "stdin", io.StringIO(EXAMPLE.read_text()))
+    code, out, err = cli("stream", "--rate", "1e9")
+    assert code == 2 and out == ""
+    assert "--rate 1e+09 Hz is above the live path's highest frame rate of 1000 Hz" in err
+    assert len(err.strip().splitlines()) == 1
+    with pytest.raises(OptionError, match="highest frame rate"):
+        StreamingEstimator(rate=MAX_FRAME_RATE * 1.01)
+    StreamingEstimator(rate=MAX_FRAME_RATE)
 
 
 def test_stream_refuses_a_state_file_it_did_not_write(cli, tmp_path):

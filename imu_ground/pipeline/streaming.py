@@ -66,13 +66,16 @@ from imu_ground.imu.preintegration import StreamingPreintegrator, preintegrate
 from imu_ground.imu.sample_clock import DROP, OK, RESTART, SampleClock
 from imu_ground.so3 import quat_from_matrix
 
-__all__ = ["LIVE_METHODS", "SPEED_WAIT", "FrameEstimate", "StreamingEstimator", "causal_track", "estimate_row",
+__all__ = ["LIVE_METHODS", "MAX_FRAME_RATE", "SPEED_WAIT", "FrameEstimate", "StreamingEstimator", "causal_track", "estimate_row",
            "replay"]
 
 #: Methods that run live (``"auto"`` is ``"suspension"``); the offline smoother and the naive baseline do not.
 LIVE_METHODS = tuple(name for name, spec in METHODS.items() if spec.live)
 #: Longest a frame waits for a speed sample at or after its end, s of IMU time (then: IMU only, said).
 SPEED_WAIT = 0.25
+#: The highest frame rate, Hz, a :class:`StreamingEstimator` takes (its IMU's rate is not known before the
+#: samples come; a frame rate far above it would make millions of empty frames a sample).
+MAX_FRAME_RATE = 1000.0
 _STATE_KIND = "imu_ground.StreamingEstimator"
 _STATE_VERSION = 1
 _NO_SPEED = "no speed over this frame: IMU only"
@@ -299,6 +302,9 @@ class StreamingEstimator:
         self.method = _live_method(method)
         if not (isinstance(rate, numbers.Real) and math.isfinite(rate) and rate > 0):
             raise OptionError(f"{{opt}} must be a positive frame rate in Hz, got {rate!r}", "rate")
+        if rate > MAX_FRAME_RATE:
+            raise OptionError(f"{{opt}} {rate:g} Hz is above the live path's highest frame rate of "
+                              f"{MAX_FRAME_RATE:g} Hz", "rate")
         if not (isinstance(speed_wait, numbers.Real) and speed_wait >= 0):
             raise OptionError(f"{{opt}} must be a non-negative time in s, got {speed_wait!r}", "speed_wait")
         self.rate, self.speed_wait = float(rate), float(speed_wait)
