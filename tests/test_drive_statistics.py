@@ -117,3 +117,24 @@ def test_the_shipped_drive_terms_widen_the_1_sigma_of_a_biased_accelerometer():
     tb, _, syb = fb.sigma.drive.state[:3]
     assert syb / tb - sy / t == pytest.approx(bias, abs=0.02)             # the drive's mean load took the bias
     assert b.roll_std[-1] > 1.3 * a.roll_std[-1]
+
+
+def test_drive_terms_widen_the_1_sigma_but_do_not_hold_the_status_at_converging():
+    """Ten minutes of a large mean load keep the roll 1-sigma above the convergence threshold; the latch compares
+    the 1-sigma without the drive terms, so a converged filter is ``ok`` (the whole of KITTI's
+    2011_10_03_drive_0042, 20 min, was ``converging``), frame by frame and in a batch alike."""
+    from imu_ground.filters.status import CONVERGED_STD, CONVERGING, OK
+    pm, rm = SUSPENSION_STD
+    sm = SigmaModel()
+    sm.drive.state = [600.0, 600.0 * pm.load_center, 600.0 * (rm.load_center + 3.0), 0.0, 0.0]
+    a = np.array([1e-8, 1e-8])                                      # the filter's own variance: converged
+    info = sm.frame(float(a[0]))
+    wide = np.sqrt(sm.track(a, drive=np.array([sm.drive.state] * 2)))
+    assert wide[0, 1] > CONVERGED_STD and wide[0, 1] == pytest.approx(
+        np.sqrt(rm.variance(1e-8, rate_ms=0.0, load_offset=3.0 * 600.0 / (600.0 + DRIVE_PRIOR_SECONDS))), rel=1e-12)
+    assert sm.converged and info[11][3] > 2.0                       # latched, the drive term itself kept
+    latch = sm.latch_variance(a)
+    assert np.all(latch <= CONVERGED_STD ** 2)
+    fresh = SigmaModel()
+    codes = fresh.statuses(latch, np.zeros(2, bool), np.ones(2, bool), np.ones(2, bool))
+    assert list(codes) == [OK, OK] and CONVERGING not in codes

@@ -447,7 +447,8 @@ class SigmaModel:
     Attributes
     ----------
     converged : bool
-        The larger 1-sigma has been at or below ``converged_std`` once since the start or a reset.
+        The larger 1-sigma without the drive terms (:meth:`latch_variance`) has been at or below
+        ``converged_std`` once since the start or a reset.
     drive : DriveStatistics
         The drive so far (the estimator advances it before each frame's :meth:`frame`).
     """
@@ -492,9 +493,9 @@ class SigmaModel:
         dr = DriveStatistics.terms(self.drive.state, pm, rm)
         info = (pm, rm, a, ux, uy, gravity_var * weights[0], gravity_var * weights[1], dt, note, self.converged_std,
                 yaw_rate, dr)
-        if not self.converged:
-            self.converged = max(pm.variance(a, ux, uy, info[5], yaw_rate, dr[0], dr[1]),
-                                 rm.variance(a, ux, uy, info[6], yaw_rate, dr[2], dr[3])) <= self._var
+        if not self.converged:                  # the latch: without the drive terms (see :meth:`latch_variance`)
+            self.converged = max(pm.variance(a, ux, uy, info[5], yaw_rate),
+                                 rm.variance(a, ux, uy, info[6], yaw_rate)) <= self._var
         return info
 
     def track(self, a: np.ndarray, load: Optional[np.ndarray] = None, gains: Optional[np.ndarray] = None,
@@ -526,6 +527,14 @@ class SigmaModel:
         return np.stack([pm.variance(a, load[:, 0], load[:, 1], sg2 * (gains[:, 0] ** 2 + self.cross_gain ** 2), w,
                                      rp, dx),
                          rm.variance(a, load[:, 0], load[:, 1], sg2 * gains[:, 1] ** 2, w, rr, dy)], axis=1)
+
+    def latch_variance(self, a: np.ndarray, load: Optional[np.ndarray] = None, gains: Optional[np.ndarray] = None,
+                       gravity_cov: Optional[np.ndarray] = None, yaw_rate: Optional[np.ndarray] = None) -> np.ndarray:
+        """The larger of pitch's and roll's variance of each frame of a batch without the drive terms, rad^2
+        ((G,), arguments of :meth:`track`): what the convergence latch compares with ``converged_std``, in
+        :meth:`frame` and :meth:`statuses` alike. The drive's roughness and mean load do not shrink as the
+        filter converges; a drive whose terms stay large is uncertain, not converging."""
+        return self.track(a, load, gains, gravity_cov, yaw_rate, np.zeros((len(a), 5))).max(axis=1)
 
     def statuses(self, var_max: np.ndarray, stationary: np.ndarray, valid: np.ndarray, good: np.ndarray,
                  degraded: Optional[np.ndarray] = None) -> np.ndarray:

@@ -642,7 +642,9 @@ class SuspensionAwareFilter:
         mm = self.mount_monitor
         degraded = np.zeros(n, dtype=bool)
         degraded[good] = mm.run(times, rg, np.asarray(sub.valid, dtype=bool) & np.isfinite(sp))
-        codes = self.sigma.statuses(var_max, em.stationary, em.valid, good, degraded)
+        latch = np.full(n, np.inf)
+        latch[good] = self.sigma.latch_variance(a, load, gains, gravity_cov, yaw_rate)
+        codes = self.sigma.statuses(latch, em.stationary, em.valid, good, degraded)
         slow = np.zeros(n, dtype=bool)
         slow[good] = np.abs(speed_used) < SLOW_SPEED
         no_road = np.isnan(road[:, 0])
