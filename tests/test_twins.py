@@ -118,3 +118,40 @@ def test_mount_monitor_run_equals_update_frame_by_frame(turn_at):
     assert got.tolist() == want
     assert json.dumps(batch.state_dict()) == json.dumps(m.state_dict())
     assert got.any() == (turn_at is not None)
+
+
+def test_road_pass_in_a_second_thread_gives_the_same_track(speed_drive, monkeypatch):
+    """A long batch runs the road's gravity pass in a second thread: the track is bit for bit the one run in
+    turn, over two batches (the second starts without a speed: the running road filter goes on through it)."""
+    import threading
+
+    import imu_ground.filters.suspension as susp
+    from imu_ground.filters.frame_checks import frames_of
+    from imu_ground.filters.road import RoadFilter
+    em, ext, v = speed_drive(60.0, 3, "mems")
+    v = v.copy()
+    v[150:200] = np.nan
+    v[len(em) // 2:len(em) // 2 + 20] = np.nan
+    first = np.arange(len(em)) < len(em) // 2
+    half = int(first.sum())
+    threads = []
+    original = RoadFilter.gravity_pass
+
+    def recorded(self, *a, **k):
+        threads.append(threading.current_thread() is threading.main_thread())
+        return original(self, *a, **k)
+    monkeypatch.setattr(RoadFilter, "gravity_pass", recorded)
+    tracks = {}
+    for frames in (10 ** 9, 1):
+        monkeypatch.setattr(susp, "ROAD_THREAD_FRAMES", frames)
+        f = SuspensionAwareFilter(extrinsic=ext)
+        tracks[frames] = [f.run(frames_of(em, first), speed=v[:half]), f.run(frames_of(em, ~first), speed=v[half:])]
+    assert threads == [True, True, False, False]
+    for a, b in zip(*tracks.values()):
+        for name in ("pitch", "roll", "pitch_std", "roll_std", "road_grade", "road_bank", "road_grade_std",
+                     "road_bank_std", "status", "status_reason"):
+            x, y = np.asarray(getattr(a, name)), np.asarray(getattr(b, name))
+            assert x.dtype == y.dtype
+            assert x.tolist() == y.tolist() if x.dtype == object else x.tobytes() == y.tobytes()
+    second = tracks[1][1].road_grade
+    assert np.isnan(second[:20]).all() and np.isfinite(second[20:]).all()

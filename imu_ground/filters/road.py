@@ -37,7 +37,7 @@ import numpy as np
 
 from imu_ground.filters.estimator import pitch_roll_from_normal
 from imu_ground.filters.extrinsics import Extrinsic
-from imu_ground.filters.gravity_velocity import GravityVelocityFilter
+from imu_ground.filters.gravity_velocity import GravityTrack, GravityVelocityFilter
 from imu_ground.imu.warm_start import as_reader
 from imu_ground.units import DEG
 
@@ -231,7 +231,43 @@ class RoadFilter:
             return None
         return gf.gravity_snapshot()
 
-    def run(self, egomotion, speed: np.ndarray, E: np.ndarray, pitch_std: np.ndarray, roll_std: np.ndarray):
+    def gravity_pass(self, egomotion, speed: np.ndarray) -> Optional[tuple[np.ndarray, GravityTrack]]:
+        """The first half of :meth:`run`: the gravity/velocity filter over a batch of frames (already checked),
+        started at the first frame with a speed unless it runs already. It touches this object's own state
+        only, so it may run in another thread while the estimator's other filters run (the compiled kernel
+        releases the GIL).
+
+        Parameters
+        ----------
+        egomotion : EgoMotion
+            The frames (sensor frame).
+        speed : ndarray (F,)
+            Measured forward speed, m/s (NaN: none).
+
+        Returns
+        -------
+        (keep, track) or None
+            ``keep``: bool (F,), the frames from the filter's start on; ``track``: its
+            :class:`~imu_ground.filters.gravity_velocity.GravityTrack` over them. None when it does
+            not start (no frame with a speed).
+        """
+        from dataclasses import replace
+        n = len(speed)
+        if self.gravity_filter is None:
+            fin = np.isfinite(speed)
+            if not fin.any():
+                return None
+            i0 = int(np.argmax(fin))
+        else:
+            i0 = 0
+        keep = np.arange(n) >= i0
+        em = egomotion if i0 == 0 else replace(
+            egomotion, t=egomotion.t[keep], delta_R=egomotion.delta_R[keep], delta_v=egomotion.delta_v[keep],
+            delta_t=egomotion.delta_t[keep], stationary=egomotion.stationary[keep], valid=egomotion.valid[keep])
+        return keep, self.start().run(em, speed=speed[keep])
+
+    def run(self, egomotion, speed: np.ndarray, E: np.ndarray, pitch_std: np.ndarray, roll_std: np.ndarray,
+            gravity_pass=None):
         """The road of a batch of frames (already checked), continuing as :meth:`step` would.
 
         Parameters
@@ -244,6 +280,9 @@ class RoadFilter:
             The estimator's residuals road <- body.
         pitch_std, roll_std : ndarray (F,)
             The estimator's 1-sigma, rad.
+        gravity_pass : callable, optional
+            Returns :meth:`gravity_pass` of these frames, already run (e.g. a
+            ``concurrent.futures.Future``'s ``result``); by default it runs here.
 
         Returns
         -------
@@ -255,25 +294,16 @@ class RoadFilter:
         cumulative : ndarray (F, 3, 3)
             Its attitude, world <- body; NaN before it started.
         """
-        from dataclasses import replace
         n = len(speed)
         out = np.full((n, 4), np.nan)
         grav, cum = np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan)
-        fin = np.isfinite(speed)
-        if self.gravity_filter is None:
-            if not fin.any():
-                return out, grav, cum
-            i0 = int(np.argmax(fin))
-        else:
-            i0 = 0
-        keep = np.arange(n) >= i0
-        em = egomotion if i0 == 0 else replace(
-            egomotion, t=egomotion.t[keep], delta_R=egomotion.delta_R[keep], delta_v=egomotion.delta_v[keep],
-            delta_t=egomotion.delta_t[keep], stationary=egomotion.stationary[keep], valid=egomotion.valid[keep])
-        gt = self.start().run(em, speed=speed[keep])
+        done = self.gravity_pass(egomotion, speed) if gravity_pass is None else gravity_pass()
+        if done is None:
+            return out, grav, cum
+        keep, gt = done
         grade, bank = road_angles(E[keep], gt.gravity, gt.cumulative)
         gs, bs = road_std(pitch_std[keep], roll_std[keep], gt.P[:, 3:, 3:], gt.gravity, gt.cumulative)
         out[keep] = np.stack([grade, bank, gs, bs], axis=1)
-        out[~fin] = np.nan
+        out[~np.isfinite(speed)] = np.nan
         grav[keep], cum[keep] = gt.gravity, gt.cumulative
         return out, grav, cum

@@ -63,6 +63,8 @@ chosen and how every configuration scores on real and synthetic drives is in
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
 from typing import Optional, Sequence, Union
 
 import numpy as np
@@ -100,6 +102,7 @@ __all__ = [
     "DEFAULT_GAINS",
     "GAIN_BAND",
     "MAX_MEASURED_SPEED",
+    "ROAD_THREAD_FRAMES",
     "SuspensionAwareFilter",
     "SuspensionTrack",
     "bandpass_gain_regression",
@@ -108,6 +111,9 @@ __all__ = [
 _I3 = np.eye(3)
 #: A measured speed beyond this, m/s (or not finite), is no measurement: the frame runs on the IMU alone.
 MAX_MEASURED_SPEED = 1e3
+#: Frames of a batch from which :meth:`SuspensionAwareFilter.run` runs the road's gravity pass in a second thread
+#: (on a short batch a thread's start costs about what the overlap saves).
+ROAD_THREAD_FRAMES = 2000
 _LATERAL = ("auto", "kinematic", "accelerometer")
 
 
@@ -538,6 +544,19 @@ class SuspensionAwareFilter:
             speed = speed[good]
             speed = np.where(np.abs(speed) <= MAX_MEASURED_SPEED, speed, np.nan)   # as step: absurd -> none
         self._frames += m
+        # The road's own gravity/velocity pass depends on nothing computed below: on a long batch it runs in a
+        # second thread beside the estimator's (both compiled kernels release the GIL); the same numbers.
+        road = speed is not None or self.road_filter.gravity_filter is not None
+        sp = np.full(m, np.nan) if speed is None else speed
+        with ThreadPoolExecutor(1) if road and m >= ROAD_THREAD_FRAMES else nullcontext() as pool:
+            road_pass = pool.submit(self.road_filter.gravity_pass, sub, sp).result if pool else None
+            return self._run_filters(em, sub, good, start, speed, smooth, road, road_pass)
+
+    def _run_filters(self, em, sub, good: np.ndarray, start: dict, speed: Optional[np.ndarray], smooth: bool,
+                     road: bool, road_pass) -> SuspensionTrack:
+        """The rest of :meth:`run` on the good frames ``sub`` (``road``: the road is estimated; ``road_pass``: its
+        gravity pass, already started, or None to run it in turn)."""
+        m = len(sub)
         gt = self.gravity_filter.run(sub, smooth=smooth, speed=speed)
         if speed is not None:
             gt.speed = np.where(np.isfinite(speed), speed, gt.speed)
@@ -565,7 +584,8 @@ class SuspensionAwareFilter:
             E = np.swapaxes(Xs, 1, 2) @ cum
         held = {name: hold_skipped(v, good, start[name]) for name, v in
                 dict(E=E, P=Ps, cum=cum, load=u, speed=gt.speed, gains=ks, gravity=gt.gravity).items()}
-        extra = self._track_confidence(em, sub, good, Ps[:, 0, 0], u, ks, gt.P, E, speed, psi / dt, gt.speed)
+        extra = self._track_confidence(em, sub, good, Ps[:, 0, 0], u, ks, gt.P, E, speed, psi / dt, gt.speed, road,
+                                       road_pass)
         susp_all = self.model.tilt(held["gains"], held["load"])
         cum_all = held["cum"]
         return SuspensionTrack.from_residuals(
@@ -594,7 +614,7 @@ class SuspensionAwareFilter:
 
     def _track_confidence(self, em, sub, good: np.ndarray, a: np.ndarray, load: np.ndarray, gains: np.ndarray,
                           gravity_cov: np.ndarray, E: np.ndarray, speed: Optional[np.ndarray], yaw_rate: np.ndarray,
-                          speed_used: np.ndarray) -> dict:
+                          speed_used: np.ndarray, road_on: bool, road_pass=None) -> dict:
         """The fields of a batch's track that say how sure it is (the batch twin of the end of :meth:`step`);
         the road filter, the mount monitor, the clock and the 1-sigma latch advance as the frames would.
 
@@ -618,6 +638,10 @@ class SuspensionAwareFilter:
             Heading change over frame duration per good frame, rad/s (signed).
         speed_used : ndarray (G,)
             The estimator's speed per good frame (measured, else estimated), m/s.
+        road_on : bool
+            The road is estimated (a measured speed, or the road filter ran before this batch).
+        road_pass : callable, optional
+            The road filter's gravity pass, already started (:meth:`RoadFilter.run`'s ``gravity_pass``).
 
         Returns
         -------
@@ -634,8 +658,8 @@ class SuspensionAwareFilter:
         road = np.full((n, 4), np.nan)
         sp = np.full(m, np.nan) if speed is None else speed
         rg = np.full((m, 3), np.nan)
-        if speed is not None or self.road_filter.gravity_filter is not None:
-            road[good], rg, _ = self.road_filter.run(sub, sp, E, np.sqrt(var[:, 0]), np.sqrt(var[:, 1]))
+        if road_on:
+            road[good], rg, _ = self.road_filter.run(sub, sp, E, np.sqrt(var[:, 0]), np.sqrt(var[:, 1]), road_pass)
         times = np.cumsum(np.concatenate([[self._time], np.asarray(sub.delta_t, dtype=float)]))[1:]   # (as step sums)
         if m:
             self._time = float(times[-1])
