@@ -112,6 +112,8 @@ def test_simulate_refuses_out_of_bounds_flags_in_one_line(tmp_path, cli, args, s
     (["--synthetic", "1", "--grades", "nav,mems,nav"], "--grades: nav given twice"),   # counted twice in the summary
     (["--synthetic", "1", "--seed", "-2"], "argument --seed: must be >= 0"),
     (["--synthetic", "1", "--methods", "naive,naive"], "--methods: naive given twice"),  # 'drives 2' of one drive
+    (["--synthetic", "1", "--methods", ""], "--methods: names no method"),                 # ran every method
+    (["--synthetic", "1", "--methods", " , "], "--methods: names no method"),
     (["--real", EXAMPLE], f"--real {EXAMPLE}: is a file"),                              # said 'folder not found'
     (["--synthetic", "1", "--plots", EXAMPLE], f"{EXAMPLE}: is a file; give --plots a folder"),  # 'File exists', late
 ])
@@ -128,6 +130,8 @@ def test_evaluate_refuses_a_method_given_twice_in_the_library():
     with pytest.raises(OptionError, match="unknown kalman"):
         check_methods(["kalman"])
     assert check_methods(["paper", "naive"]) == ["paper", "naive"]
+    with pytest.raises(OptionError, match="names no method"):
+        check_methods([])
 
 def test_suspension_step_on_a_bare_rotation_says_what_it_needs():
     from imu_ground.filters import SuspensionAwareFilter

@@ -223,6 +223,7 @@ def test_evaluate_lidar_bad_inputs_exit_2_with_one_line(cli, tmp_path):
                            "--lidar-extrinsic", calib],
         "end the -o file name with .png": base + ["--times", times, "-o", tmp_path / "p.jpg"],
         "unknown nope": base + ["--times", times, "--methods", "nope"],
+        "--methods: names no method": base + ["--times", times, "--methods", ""],
         "--plots goes with --real": base + ["--times", times, "--plots", tmp_path / "plots"],
         "--lidar-region 30 5 -4 4: the road region needs": base + ["--times", times, "--lidar-region", 30, 5, -4, 4],
     }

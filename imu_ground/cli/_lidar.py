@@ -113,7 +113,8 @@ def run_lidar(a: argparse.Namespace) -> int:
     from imu_ground.pipeline.output import atomic_path
 
     check_lidar(a)
-    methods = check_methods([m.strip() for m in a.methods.split(",") if m.strip()]) if a.methods else list(METHODS)
+    methods = list(METHODS) if a.methods is None else check_methods([m.strip() for m in a.methods.split(",")
+                                                                     if m.strip()])
     log = a.lidar[0]
     ext = Extrinsic.coerce(a.extrinsic)
     files, lp, lr, truth = _truth(a, ext)

@@ -78,7 +78,8 @@ def _check(a: argparse.Namespace) -> list:
     if a.real is None and not a.synthetic:
         raise ImuGroundError("nothing to evaluate: give --real DIR (kitti_imu100 drives) and/or --synthetic N, or "
                              "--lidar LOG SCANS (LiDAR road planes)")
-    methods = check_methods([m.strip() for m in a.methods.split(",") if m.strip()]) if a.methods else list(METHODS)
+    methods = list(METHODS) if a.methods is None else check_methods([m.strip() for m in a.methods.split(",")
+                                                                     if m.strip()])
     if a.real is not None and not Path(a.real).is_dir():
         raise ImuGroundError(f"--real {a.real}: {'is a file' if Path(a.real).exists() else 'no such folder'}; give "
                              "--real the folder of kitti_imu100 drives (*.csv.gz)")

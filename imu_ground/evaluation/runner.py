@@ -183,10 +183,13 @@ def check_methods(methods: Iterable[str]) -> list[str]:
     Raises
     ------
     OptionError
-        An unknown name, or one given twice (its rows would count twice in every table), naming
-        ``methods`` (``--methods``).
+        No name, an unknown name, or one given twice (its rows would count twice in every table),
+        naming ``methods`` (``--methods``).
     """
     methods = list(methods)
+    if not methods:
+        raise OptionError(f"{{opt}}: names no method; choose from {', '.join(METHODS)} (comma-separated), or leave "
+                          "it out for all", "methods")
     unknown = [m for m in methods if m not in METHODS]
     if unknown:
         raise OptionError(f"{{opt}}: unknown {', '.join(map(str, unknown))}; choose from {', '.join(METHODS)}",
