@@ -167,3 +167,20 @@ def test_the_bird_s_eye_images_show_the_lane_widths_the_geometry_gives():
         e = ground_errors(pv.planes["truth"], plane, dists)
         expected = np.interp(24.0, dists + e["range"][0], 3.5 + e["lane_width"][0])
         assert left - right == pytest.approx(expected, abs=0.05), name
+
+
+def test_synthetic_preview_says_when_the_drive_has_fewer_frames_than_asked(tmp_path, cli, monkeypatch, small_camera):
+    """--frames beyond the synthetic drive's frames gives them all and says so (it said only the count); a drive
+    too short to reach 3 m/s has no lane-width errors (it was a bug exit)."""
+    import functools
+
+    import imu_ground.cli.preview as command
+    monkeypatch.setattr(command, "synthetic_preview", functools.partial(command.synthetic_preview, duration=2.0))
+    out, camera = tmp_path / "bev.gif", small_camera[0]
+    code, said, err = cli("preview", "-o", out, "--frames", 30, "--bev", 5, 45, -7, 7, 1, "--camera", camera)
+    assert code == 0, err
+    with Image.open(out) as im:
+        n = im.n_frames
+    assert n < 30 and f"({n} frames" in said and f"--frames 30: the synthetic drive has {n}" in said, said
+    code, said, err = cli("preview", "-o", out, "--frames", 3, "--bev", 5, 45, -7, 7, 1, "--camera", camera)
+    assert code == 0 and "the synthetic drive has" not in said, said

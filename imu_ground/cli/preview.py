@@ -142,5 +142,7 @@ def run(a: argparse.Namespace) -> int:
     drawn = drawn_grid(grid)
     note = (f"; bird's-eye views drawn at {drawn.res:.4g} m a pixel, at most {DRAWN_BEV_PIXELS} pixels a side"
             if drawn != grid else "")
+    if a.log is None and fmt != "png" and frames < a.frames:
+        note += f"; --frames {a.frames}: the synthetic drive has {frames}"
     say(f"wrote {out} ({frames} frame{'s' if frames > 1 else ''}, {time.perf_counter() - t0:.1f} s{note})")
     return 0

@@ -107,7 +107,7 @@ def synthetic_preview(seed: int = 3, duration: float = 40.0, frames: int = 1, gr
     Returns
     -------
     Preview
-        With ``lane_error`` over every frame above 3 m/s.
+        With ``lane_error`` over every frame above 3 m/s (None if no frame is).
     """
     cam = load_camera(camera)
     sim = simulate(duration, seed=seed, imu="nav", speed=SpeedParams(style="urban"), name="preview")
@@ -122,8 +122,8 @@ def synthetic_preview(seed: int = 3, duration: float = 40.0, frames: int = 1, gr
     planes = {"static": GroundPlane.from_pitch_roll(cam, np.zeros(n), np.zeros(n)),
               "dynamic": GroundPlane.from_pitch_roll(cam, track.pitch, track.roll),
               "truth": GroundPlane.from_pitch_roll(cam, truth["pitch"].to_numpy(), truth["roll"].to_numpy())}
-    lane = {"distance_m": PLOT_DISTANCES.tolist()}
-    for name in ("static", "dynamic"):
+    lane = {"distance_m": PLOT_DISTANCES.tolist()} if moving.any() else None     # (none: a drive too short to move)
+    for name in ("static", "dynamic") if lane else ():
         err = ground_errors(planes["truth"][moving], planes[name][moving], PLOT_DISTANCES, LANE_WIDTH)
         lane[name] = np.nanmean(np.abs(err["lane_width"]), axis=0).tolist()
     pitch = np.where(moving, np.abs(truth["pitch"].to_numpy()), -1.0)
