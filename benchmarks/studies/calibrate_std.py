@@ -17,7 +17,7 @@ DriveStatistics`), is fitted by minimising, over the fit suites,
 
 - the mean Gaussian negative log-likelihood of the errors against the exact truth, plus
 - ``10^4 (max(0, lo - c_g)^2 + max(0, c_g - hi)^2)`` for each grade ``g``, ``c_g`` the share of its errors
-  within 1 sigma (``lo, hi``: :data:`COVERAGE_BAND`, a margin inside the 55-80 % target), plus
+  within 1 sigma (``lo, hi``: :data:`COVERAGE_BAND`, around the 68 % aim inside the 55-80 % target), plus
 - the same for each quarter of the frames by their own 1-sigma (``lo, hi``: :data:`QUARTER_BAND`): the
   1-sigma must be as right where it is large (turns, loads, the start) as where it is small, plus
 - with the drive terms, :data:`DRIVE_WEIGHT` times the same for each fit drive's share (``lo, hi``:
@@ -72,8 +72,10 @@ _DRIVE = ("t", "sx", "sy", "rx2", "ry2")         # DriveStatistics.state, in its
 FIT_SEEDS, HELD_OUT_SEEDS = (2, 3, 4), (5, 6, 7)
 #: Drives a grade in each suite, and their duration range, s.
 DRIVES_PER_GRADE, DURATION = 8, (300.0, 600.0)
-#: Band (share within 1 sigma) each grade of the fit suites is held in, pooled (the target: 55-80 %, aim 68 %).
-COVERAGE_BAND = (0.62, 0.76)
+#: Band (share within 1 sigma) each grade of the fit suites is held in, pooled: the aim (68 %) +- 4 points (the
+#: target is 55-80 %). With 62-76 % the likelihood took navigation-grade pitch to the band's top (76 % pooled), and
+#: on other suites its smoother drives over 85 % (``drive_offset.py``, part 4).
+COVERAGE_BAND = (0.64, 0.72)
 #: Band of the share within 1 sigma of each quarter of the fit frames by their 1-sigma (pooled over grades).
 QUARTER_BAND = (0.58, 0.80)
 #: The per-drive target band (scored on the held-out drives).

@@ -155,9 +155,9 @@ class AngleStd:
 
 
 #: Pitch and roll 1-sigma constants of :class:`~imu_ground.filters.suspension.SuspensionAwareFilter`.
-SUSPENSION_STD = (AngleStd(0.192, 0.0145 * DEG, 0.0545 * DEG, 0.00605 * DEG, 0.00329 * DEG, 0.0799, 0.342 * DEG,
-                           0.00256),
-                  AngleStd(0.424, 0.0387 * DEG, 0.0489 * DEG, 0.0327 * DEG, 0 * DEG, 0.0761, 0.482 * DEG, 0.182))
+SUSPENSION_STD = (AngleStd(0.0416, 0.0221 * DEG, 0.0259 * DEG, 0.0129 * DEG, 0.00785 * DEG, 0.0763, 0.362 * DEG,
+                           0.0018),
+                  AngleStd(0.395, 0.0262 * DEG, 0.0563 * DEG, 0.0396 * DEG, 0 * DEG, 0.0754, 0.488 * DEG, 0.177))
 #: Pitch and roll 1-sigma constants of :class:`~imu_ground.filters.ground.GroundNormalFilter` (no load).
 #: Its covariance is a tuning (``R = 1 rad^2``), not an angle's uncertainty: the 1-sigma is a constant, the
 #: 70th percentile of its errors on the synthetic drives of the worse grade (so it is never ``converging``).
