@@ -23,7 +23,10 @@ The stages (one fresh process per case and version, informative): read (``read_i
 standstill masks and gyro bias, preintegration, the frame speeds, the filter proper, then its
 outputs (1-sigma, road grade and bank, mount monitor, status), the table, the writer; wall and
 CPU seconds of each, and the peak RSS after each top-level stage. Stages are timed by wrapping
-the package's own functions by name, so the same probe times an older checkout.
+the package's own functions by name, so the same probe times an older checkout. A row per case
+sets the job's CPU time (the timed runs' median) beside the room the target leaves on this
+machine's cores (1.5x pandas' wall time, times the cores), and the work after the read beside the
+allowed wall time alone.
 :func:`rows` returns the table for ``benchmarks/make_results.py``.
 """
 from __future__ import annotations
@@ -110,6 +113,7 @@ wrap("_run_method", "filter (with its outputs)")
 wrap("suspension_confidence", "  outputs: 1-sigma, road, monitor, status")              # (before the rooms merge)
 wrap("SuspensionAwareFilter._track_confidence", "  outputs: 1-sigma, road, monitor, status")
 wrap("RoadFilter.run", "    road grade and bank")
+wrap("RoadFilter.gravity_pass", "    road: its gravity pass (a second thread on long batches, overlapped)")
 wrap("monitor_track", "    mount monitor")                                           # (a function, then a method)
 wrap("MountMonitor.run", "    mount monitor")
 wrap("track_statuses", "    status")
@@ -238,6 +242,20 @@ def rows(hours: float | tuple[float, ...] = 10.0, repeat: int = 3, folder: Path 
                                   f"(CPU {pc:.2f}), {pm:,.0f} MiB; ratio {rt:.2f} wall (CPU {ec / pc:.2f}), "
                                   f"{rm:.2f} RSS; runs {walls} s, pandas {theirs} s; {load}",
                         "passed": bool(rt <= LIMIT and rm <= LIMIT)})
+    ncpu = os.cpu_count() or 1
+    for case, _, _ in CASES:                            # the room the target leaves, against the job's work
+        pt = _median(m["runs"][(case, "pandas")], 0)
+        ec = _median(m["runs"][(case, "after")], 1)
+        st = m["stages"][(case, "after")]
+        read = st["stages"]["read"][1] if "stages" in st and "read" in st["stages"] else float("nan")
+        allowed = LIMIT * pt
+        out.append({"benchmark": f"imu-ground estimate, {hours:g} h, {case}: its work against the target's room",
+                    "target": "informative", "passed": None,
+                    "figure": f"the target allows {LIMIT:g} x {pt:.2f} = {allowed:.2f} s wall, {ncpu * allowed:.2f} "
+                              f"CPU s on this machine's {ncpu} cores; the job used {ec:.2f} CPU s "
+                              f"({ec / (ncpu * allowed):.2f}x that room); the read alone {read:.2f} CPU s, the rest "
+                              f"(ego-motion, filters and outputs, table, writer) {ec - read:.2f} CPU s: "
+                              f"{(ec - read) / allowed:.2f}x the allowed wall time"})
     for case, _, _ in CASES:
         for version in sorted(versions, reverse=True):
             label = "" if len(versions) == 1 else f" ({version})"
