@@ -13,7 +13,9 @@ the imports count, the interpreter start does not.
 
 Every run writes the same files (checked: the batch outputs equal the loop's byte for
 byte). Printed: logs/s, hours of driving estimated per second, and the speed-up over
-the loop; target: 2 workers >= 1.7x the loop. Run::
+the loop; target: 2 workers >= 1.7x the loop. An informative row starts two plain loops
+together, each over every other log (fresh processes, no Dask): the speed-up two processes
+get on this machine's two cores at all, the ceiling of the 2-worker figure. Run::
 
     python benchmarks/bench_batch.py                 # 200 logs of 10 minutes
     python benchmarks/bench_batch.py --n 40          # fewer logs
@@ -78,11 +80,14 @@ def _logs_in(folder: Path) -> list[Path]:
 
 
 def _child(folder: str, out: str, workers: str) -> None:
-    """In a fresh process: the loop (``workers`` "loop") or the batch over the logs of ``folder``; prints seconds."""
+    """In a fresh process: the loop (``workers`` "loop"), the loop over every other log (``"half0"``, ``"half1"``)
+    or the batch over the logs of ``folder``; prints seconds."""
     logs = _logs_in(Path(folder))
     t0 = time.perf_counter()
     if workers == "loop":
         _loop(logs, Path(out))
+    elif workers.startswith("half"):
+        _loop(logs[int(workers[4:])::2], Path(out))
     else:
         _batch(logs, Path(out), int(workers))
     print(time.perf_counter() - t0)
@@ -96,6 +101,22 @@ def _timed_in_fresh_process(folder: Path, out: Path, workers: int | None) -> flo
     done = subprocess.run([sys.executable, "-c", code, str(folder), str(out), "loop" if workers is None else str(workers)],
                           check=True, capture_output=True, text=True)
     return float(done.stdout.split()[-1])
+
+
+def _two_loops_side_by_side(folder: Path, out: Path) -> float:
+    """Seconds until both of two fresh processes, started together, have each looped over every other log (no
+    Dask, no pool): what two processes on this machine's cores can do, the ceiling of the 2-worker speed-up."""
+    code = (f"import sys; sys.path.insert(0, {str(Path(__file__).resolve().parent)!r}); "
+            f"from bench_batch import _child; _child(*sys.argv[1:])")
+    procs = [subprocess.Popen([sys.executable, "-c", code, str(folder), str(out / f"half{k}"), f"half{k}"],
+                              stdout=subprocess.PIPE, text=True) for k in (0, 1)]
+    times = []
+    for p in procs:
+        stdout, _ = p.communicate()
+        if p.returncode != 0:
+            raise RuntimeError("a side-by-side loop failed")
+        times.append(float(stdout.split()[-1]))
+    return max(times)
 
 
 def rows(n: int = 200, minutes: float = 10.0, workers: tuple[int, ...] = (1, 2)) -> list[dict]:
@@ -127,11 +148,16 @@ def rows(n: int = 200, minutes: float = 10.0, workers: tuple[int, ...] = (1, 2))
         for i, (name, w) in enumerate(runs):
             out = tmp / f"out{i}"
             results.append((name, _timed_in_fresh_process(tmp / "logs", out, w), out))
+        side = tmp / "side"
+        side.mkdir()
+        results.append(("two loops side by side, every other log each (no Dask: the machine's ceiling)",
+                        _two_loops_side_by_side(tmp / "logs", side), side))
         base = results[0][1]
         reference = {p.name: p.read_bytes() for p in results[0][2].glob("*_ground.csv")}
         table = []
         for name, sec, out in results:
-            same = all((out / k).read_bytes() == v for k, v in reference.items())
+            made = {p.name: p for p in out.rglob("*_ground.csv")}
+            same = made.keys() == reference.keys() and all(made[k].read_bytes() == v for k, v in reference.items())
             row = {"run": name, "logs": n, "seconds": sec, "logs_per_s": n / sec, "driving_h_per_s": hours / sec,
                    "speedup_vs_loop": base / sec, "outputs_identical": same}
             if name.startswith("batch, 2 "):
