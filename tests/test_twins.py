@@ -130,6 +130,7 @@ def test_road_pass_in_a_second_thread_gives_the_same_track(speed_drive, monkeypa
     from imu_ground.filters.road import RoadFilter
     em, ext, v = speed_drive(60.0, 3, "mems")
     v = v.copy()
+    v[:10] = np.nan                                       # the road starts at frame 10
     v[150:200] = np.nan
     v[len(em) // 2:len(em) // 2 + 20] = np.nan
     first = np.arange(len(em)) < len(em) // 2
@@ -153,5 +154,6 @@ def test_road_pass_in_a_second_thread_gives_the_same_track(speed_drive, monkeypa
             x, y = np.asarray(getattr(a, name)), np.asarray(getattr(b, name))
             assert x.dtype == y.dtype
             assert x.tolist() == y.tolist() if x.dtype == object else x.tobytes() == y.tobytes()
-    second = tracks[1][1].road_grade
+    first, second = tracks[1][0].road_grade, tracks[1][1].road_grade
+    assert np.isnan(first[:10]).all() and np.isfinite(first[10:150]).all()
     assert np.isnan(second[:20]).all() and np.isfinite(second[20:]).all()

@@ -37,6 +37,7 @@ import numpy as np
 
 from imu_ground.filters.estimator import pitch_roll_from_normal
 from imu_ground.filters.extrinsics import Extrinsic
+from imu_ground.filters.frame_checks import frames_of
 from imu_ground.filters.gravity_velocity import GravityTrack, GravityVelocityFilter
 from imu_ground.imu.warm_start import as_reader
 from imu_ground.units import DEG
@@ -251,7 +252,6 @@ class RoadFilter:
             :class:`~imu_ground.filters.gravity_velocity.GravityTrack` over them. None when it does
             not start (no frame with a speed).
         """
-        from dataclasses import replace
         n = len(speed)
         if self.gravity_filter is None:
             fin = np.isfinite(speed)
@@ -261,9 +261,7 @@ class RoadFilter:
         else:
             i0 = 0
         keep = np.arange(n) >= i0
-        em = egomotion if i0 == 0 else replace(
-            egomotion, t=egomotion.t[keep], delta_R=egomotion.delta_R[keep], delta_v=egomotion.delta_v[keep],
-            delta_t=egomotion.delta_t[keep], stationary=egomotion.stationary[keep], valid=egomotion.valid[keep])
+        em = egomotion if i0 == 0 else frames_of(egomotion, keep)
         return keep, self.start().run(em, speed=speed[keep])
 
     def run(self, egomotion, speed: np.ndarray, E: np.ndarray, pitch_std: np.ndarray, roll_std: np.ndarray,
