@@ -107,14 +107,13 @@ def _truth(a: argparse.Namespace, ext) -> tuple[list, np.ndarray, np.ndarray, st
 def run_lidar(a: argparse.Namespace) -> int:
     """Fit (or read) the LiDAR planes, run the methods, print the table; write the plot and files asked for."""
     from imu_ground.evaluation import lidar as L
-    from imu_ground.evaluation.runner import METHODS, check_methods, format_table
+    from imu_ground.evaluation.runner import METHODS, format_table, methods_from_list
     from imu_ground.filters import Extrinsic
     from imu_ground.pipeline.estimate import estimate_log
     from imu_ground.pipeline.output import atomic_path
 
     check_lidar(a)
-    methods = list(METHODS) if a.methods is None else check_methods([m.strip() for m in a.methods.split(",")
-                                                                     if m.strip()])
+    methods = methods_from_list(a.methods)
     log = a.lidar[0]
     ext = Extrinsic.coerce(a.extrinsic)
     files, lp, lr, truth = _truth(a, ext)

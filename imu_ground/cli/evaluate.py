@@ -13,11 +13,11 @@ from imu_ground.errors import ImuGroundError
 from imu_ground.evaluation.plots import evaluation_plots
 from imu_ground.evaluation.runner import (
     METHODS,
-    check_methods,
     conditions_table,
     evaluate,
     format_table,
     load_real_drives,
+    methods_from_list,
     sigma_table,
     summary_table,
     synthetic_drives,
@@ -78,8 +78,7 @@ def _check(a: argparse.Namespace) -> list:
     if a.real is None and not a.synthetic:
         raise ImuGroundError("nothing to evaluate: give --real DIR (kitti_imu100 drives) and/or --synthetic N, or "
                              "--lidar LOG SCANS (LiDAR road planes)")
-    methods = list(METHODS) if a.methods is None else check_methods([m.strip() for m in a.methods.split(",")
-                                                                     if m.strip()])
+    methods = methods_from_list(a.methods)
     if a.real is not None and not Path(a.real).is_dir():
         raise ImuGroundError(f"--real {a.real}: {'is a file' if Path(a.real).exists() else 'no such folder'}; give "
                              "--real the folder of kitti_imu100 drives (*.csv.gz)")

@@ -54,6 +54,7 @@ __all__ = [
     "Drive",
     "Method",
     "check_methods",
+    "methods_from_list",
     "conditions_table",
     "evaluate",
     "format_table",
@@ -199,6 +200,14 @@ def check_methods(methods: Iterable[str]) -> list[str]:
         raise OptionError(f"{{opt}}: {', '.join(twice)} given twice; each method once (its rows would count twice)",
                           "methods")
     return methods
+
+def methods_from_list(text: str | None) -> list[str]:
+    """The methods a comma-separated list names (``--methods``), checked (:func:`check_methods`); None: all of
+    :data:`METHODS`. Blanks around and between the names are ignored; a list naming none is refused."""
+    if text is None:
+        return list(METHODS)
+    return check_methods([m.strip() for m in text.split(",") if m.strip()])
+
 
 def evaluate(drives: Iterable[Drive], methods: Sequence[str] | None = None,
              progress: bool = True, keep_tracks: bool = False):
