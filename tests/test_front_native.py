@@ -121,6 +121,22 @@ def test_compiled_front_equals_python_on_messy_streams(seed, policy, monkeypatch
 
 
 @native
+def test_compiled_front_equals_python_over_a_clock_set_forward(monkeypatch):
+    """A stamp 5,000 s ahead (a clock set forward, more than MAX_GAP_FRAMES frames): the compiled step hands the
+    dropout to Python, which restarts the front end; both paths give the same frames, and no gap frames."""
+    t, g, a, _ = _messy_stream(3)
+    t = t.copy()
+    t[2300:] += 5000.0
+    fast, est_c = _run(t, g, a)
+    _python_front(monkeypatch)
+    slow, est_p = _run(t, g, a)
+    _same(fast, slow)
+    assert json.dumps(est_c.state_dict()) == json.dumps(est_p.state_dict())
+    assert 200 < len(fast) < 400                          # 5,000 s of gap frames would be 50,000 more
+    assert sum("the clock jumped forward by 5000." in k[10] for k in fast) == 1
+
+
+@native
 def test_compiled_front_takes_odd_argument_types_through_python(monkeypatch):
     """Integers, numpy rows and numpy scalars go to the Python path (its checks), with the same frames."""
     t, g, a, _ = _messy_stream(5)

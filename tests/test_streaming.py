@@ -365,6 +365,42 @@ def test_bad_data_each_said():
     assert any("clock stepped back by" in f.status_reason and "restarted" in f.status_reason for f in out)
 
 
+def test_a_clock_set_forward_restarts_rather_than_filling_the_gap():
+    """A stamp more than MAX_GAP_FRAMES frames ahead (a clock set forward by time sync) restarts the front end,
+    said in the next frame; it made a gap frame for every 0.1 s of the jump (a day: 864,000 frames from one push,
+    minutes and gigabytes). A gap below the limit is still integrated through. The whole-log twin gives the
+    same frames."""
+    from imu_ground.pipeline.streaming import MAX_GAP_FRAMES
+    half, over = 0.5 * MAX_GAP_FRAMES / 10.0, 1.5 * MAX_GAP_FRAMES / 10.0           # s, at 10 Hz frames
+    t = np.r_[np.arange(2000) * 0.01, 20.0 + half + np.arange(500) * 0.01, 25.0 + half + over + np.arange(500) * 0.01]
+    g, a = np.zeros((t.size, 3)), np.tile([0.0, 0.0, 9.81], (t.size, 1))
+    est = StreamingEstimator()
+    frames = replay(est, t, g, a)
+    reasons = [f.status_reason for f in frames]
+    assert sum("jumped forward by" in r and "restarted" in r for r in reasons) == 1
+    assert any("gap in the log" in r for r in reasons)                       # the half-limit gap: a gap
+    assert MAX_GAP_FRAMES / 2 < len(frames) < MAX_GAP_FRAMES / 2 + 400
+    track, _ = StreamingEstimator().run(t, g, a)
+    assert len(track) == len(frames) and track.status_reason.tolist() == reasons
+
+
+def test_stamps_not_in_seconds_are_skipped_and_said():
+    """Nanosecond stamps taken for seconds (a 100 Hz IMU stepping by 1e7 'seconds'): no frame, one note with the
+    count, no memory blown up (it raised MemoryError in the preintegrator); once the stamps are seconds the
+    stream goes on, and the first frame says what was skipped. The whole-log twin gives the same."""
+    t = np.r_[1.6e18 + np.arange(3000) * 1e7, 100.0 + np.arange(300) * 0.01]
+    g, a = np.zeros((t.size, 3)), np.tile([0.0, 0.0, 9.81], (t.size, 1))
+    est = StreamingEstimator()
+    assert replay(est, t[:3000], g[:3000], a[:3000]) == []
+    frames = replay(est, t[3000:], g[3000:], a[3000:])
+    assert 20 < len(frames) < 31
+    assert "IMU stamps step by 1e+07 s" in frames[0].status_reason
+    assert "not in seconds" in frames[0].status_reason and "IMU samples skipped: 3000" in frames[0].status_reason
+    assert all("IMU stamps" not in f.status_reason for f in frames[1:])
+    track, _ = StreamingEstimator().run(t, g, a)
+    assert track.status_reason.tolist() == [f.status_reason for f in frames]
+
+
 def test_speed_that_never_comes_back_runs_imu_only_and_says_so():
     est = StreamingEstimator(speed_wait=0.25)
     out = []

@@ -87,10 +87,10 @@ static PyObject *py_push(PyObject *self, PyObject *const *args, Py_ssize_t nargs
     }
     double e = t - (out + dt);
     if (e > 0.5 * dt) {
-        if (e > b[F_HOLD]) {                            /* far ahead: a dropout at once */
-            pending = NAN;
-            dropouts = 1;
-            out = t;
+        if (e > b[F_HOLD]) {                            /* far ahead: a dropout at once, or a restart
+                                                           (SampleClock.max_jump): Python */
+            PyBuffer_Release(&fv);
+            Py_RETURN_NONE;
         } else {
             if (isnan(pending)) {
                 pending = out;

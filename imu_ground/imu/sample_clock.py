@@ -21,8 +21,10 @@ file (:mod:`imu_ground.datasets.retime`); a live stream cannot wait for the end.
   preintegrator flags and integrates through). An offset of more than ``hold`` is
   a dropout at once.
 - **Restart**: a stamp more than ``max_gap`` before the one pushed last (a clock set
-  back, a log started again) restarts the clock (warm-up again); :meth:`push` says so
-  and the caller starts its front end afresh.
+  back, a log started again), or more than ``max_jump`` after it (a clock set forward:
+  integrating through such a gap would make a gap frame for every frame period of it),
+  restarts the clock (warm-up again); :meth:`push` says so and the caller starts its
+  front end afresh.
 
 Times are seconds; nothing here allocates per sample beyond Python floats.
 """
@@ -55,6 +57,9 @@ class SampleClock:
         how far back a stamp may be before the clock restarts.
     alpha, beta : float
         Phase and period gains of the loop (per sample).
+    max_jump : float
+        Longest step forward of the stamps (from the one pushed last) that is a dropout, s;
+        a longer one restarts the clock (default: none does).
 
     Attributes
     ----------
@@ -68,11 +73,12 @@ class SampleClock:
     """
 
     def __init__(self, policy: str = "retime", hold: float = 1.0, gap_factor: float = 10.0,
-                 alpha: float = 0.02, beta: float = 1e-4) -> None:
+                 alpha: float = 0.02, beta: float = 1e-4, max_jump: float = math.inf) -> None:
         if policy not in _POLICIES:
             raise ValueError(f"policy must be one of {', '.join(_POLICIES)} for a stream (sort and strict need the "
                              f"whole log), got {policy!r}")
         self.policy, self.hold, self.gap_factor = policy, float(hold), float(gap_factor)
+        self.max_jump = float(max_jump)
         self.alpha, self.beta = float(alpha), float(beta)
         self.reset()
 
@@ -86,7 +92,7 @@ class SampleClock:
         self._pending = math.nan            # output time when the stamps went ahead (NaN: they are not)
         self._pmin = math.inf               # the least offset since then, s
         self.retimed = self.dropped = self.dropouts = self.restarts = 0
-        self.last_jump = 0.0                # the last restart's step back, s
+        self.last_jump = 0.0                # the last restart's step back, s (negative: a step forward)
 
     @property
     def max_gap(self) -> float:
@@ -104,7 +110,7 @@ class SampleClock:
             return self._warmup(t)
         out, dt = self.t, self.dt
         prev, self._raw_prev = self._raw_prev, t
-        if t < prev - self.gap_factor * dt:                 # a step back of more than a gap: the clock was set back
+        if t < prev - self.gap_factor * dt or t > prev + self.max_jump:     # the clock was set back or forward
             counts = (self.retimed, self.dropped, self.dropouts, self.restarts + 1)
             self.reset()
             self.retimed, self.dropped, self.dropouts, self.restarts = counts

@@ -10,7 +10,9 @@ Per sample, each piece one class:
 1. **Clock** (:class:`~imu_ground.imu.sample_clock.SampleClock`): raw stamps to strictly
    increasing sample times (jitter retimed on the sample index with a running rate,
    back-steps and repeats by the readers' ``retime`` or ``drop`` policy, dropouts kept as
-   gaps, a clock set back by more than a gap restarts the front end).
+   gaps, a clock set back by more than a gap or forward by more than :data:`MAX_GAP_FRAMES`
+   frames restarts the front end; a warm-up whose sample period is longer than
+   :data:`MAX_SAMPLE_PERIOD`, stamps not in seconds, is skipped and said).
 2. **Standstill and gyro bias** (:mod:`imu_ground.imu.causal_standstill`): a frame ends at a
    standstill when its trailing 1 s window is quiet; the bias is the mean rate over the
    standstills (2 s windows) seen so far (or given, or from a saved state) and applies from the next sample.
@@ -27,8 +29,8 @@ Compiled (``imu/_front_native.c``, chosen in :mod:`imu_ground._native`): in the 
 one C call a sample (the clock's state in a buffer, the open standstill block's sums written in
 place, the compiled preintegration step called from C), the standstill windows one C call a frame;
 a sample that starts a block has Python open the block, then the C call again; every other case
-(warm-up, a restart, non-finite values, arguments other than Python floats in lists or tuples, the
-preintegrator's gaps) runs the Python code, the reference, with the same results bit for bit.
+(warm-up, a restart, a dropout, non-finite values, arguments other than Python floats in lists or tuples,
+the preintegrator's gaps) runs the Python code, the reference, with the same results bit for bit.
 
 Data never raise: a non-finite sample is skipped, a dropped or retimed stamp, a restart, a
 late, repeated or non-finite speed sample, each is said in the next frame's ``status_reason``.
@@ -66,7 +68,7 @@ from imu_ground.imu.preintegration import StreamingPreintegrator, preintegrate
 from imu_ground.imu.sample_clock import DROP, OK, RESTART, SampleClock
 from imu_ground.so3 import quat_from_matrix
 
-__all__ = ["LIVE_METHODS", "MAX_FRAME_RATE", "SPEED_WAIT", "FrameEstimate", "StreamingEstimator", "causal_track", "estimate_row",
+__all__ = ["LIVE_METHODS", "MAX_FRAME_RATE", "MAX_GAP_FRAMES", "MAX_SAMPLE_PERIOD", "SPEED_WAIT", "FrameEstimate", "StreamingEstimator", "causal_track", "estimate_row",
            "replay"]
 
 #: Methods that run live (``"auto"`` is ``"suspension"``); the offline smoother and the naive baseline do not.
@@ -76,6 +78,14 @@ SPEED_WAIT = 0.25
 #: The highest frame rate, Hz, a :class:`StreamingEstimator` takes (its IMU's rate is not known before the
 #: samples come; a frame rate far above it would make millions of empty frames a sample).
 MAX_FRAME_RATE = 1000.0
+#: A forward step of the stamps longer than this many frame periods restarts the front end (as a step back does)
+#: instead of being integrated through as a gap: one gap frame a period would hold the stream for minutes and
+#: its memory (a clock set forward by a day at 10 Hz: 864,000 frames from one sample).
+MAX_GAP_FRAMES = 36_000
+#: A warm-up whose sample period is longer than this, s, is not an IMU's: stamps not in seconds (ns, us or ms
+#: taken for s); its samples are skipped and said.
+MAX_SAMPLE_PERIOD = 1.0
+_SLOW_NOTE = "IMU stamps step by "
 _STATE_KIND = "imu_ground.StreamingEstimator"
 _STATE_VERSION = 1
 _NO_SPEED = "no speed over this frame: IMU only"
@@ -318,7 +328,7 @@ class StreamingEstimator:
         self._bias_arg = bias_gyro
         CausalGyroBias(bias_gyro)                        # checks it
         self.policy = policy
-        self._clock = SampleClock(policy)
+        self._clock = SampleClock(policy, max_jump=MAX_GAP_FRAMES / self.rate)
         self.speed_aided = bool(METHODS[self.method].speed_aided)
         self._filter = _make_filter(self.method, self.extrinsic, self.rate, self.recalibrate_online)
         self.reset()
@@ -435,14 +445,18 @@ class StreamingEstimator:
             if code == DROP:
                 return []
             out = self._decide(math.inf)                # RESTART: the frames so far, then start again
-            self._notes.append(f"the clock stepped back by {self._clock.last_jump:.3f} s: restarted at "
-                               f"t = {tout:.3f} s")
+            jump = self._clock.last_jump
+            self._notes.append(f"the clock {'stepped back' if jump > 0 else 'jumped forward'} by {abs(jump):.3f} s: "
+                               f"restarted at t = {tout:.3f} s")
             self._speed.clear()
             self._new_run()
         if self._pre is None:
             self._warm.append((tout, g, a))
             if self._clock.warm:
-                self._start()
+                if self._clock.dt > MAX_SAMPLE_PERIOD:
+                    self._slow_warmup()
+                else:
+                    self._start()
         else:
             self._feed(tout, g, a)
         self._now = tout
@@ -455,6 +469,18 @@ class StreamingEstimator:
         return self._decide(math.inf)
 
     # -- the front end -------------------------------------------------------------------------
+    def _slow_warmup(self) -> None:
+        """The warm-up's sample period is longer than :data:`MAX_SAMPLE_PERIOD`: stamps not in seconds. The
+        samples are skipped and said in one note (its count kept up), and the clock warms up again on the next
+        samples."""
+        n, dt = len(self._warm), self._clock.dt
+        if self._notes and self._notes[-1].startswith(_SLOW_NOTE):
+            n += int(self._notes.pop().rsplit(": ", 1)[1].split()[0])
+        self._notes.append(f"{_SLOW_NOTE}{dt:.3g} s, more than {MAX_SAMPLE_PERIOD:g} s: stamps not in seconds "
+                           f"(ns, us, ms)? IMU samples skipped: {n}")
+        self._clock.reset()
+        self._warm = []
+
     def _start(self) -> None:
         warm, self._warm = self._warm, []
         self._origin = warm[0][0]
@@ -593,12 +619,14 @@ class StreamingEstimator:
         tout = np.empty(n)
         codes = np.empty(n, dtype=np.int8)
         max_gap, n_warm = math.nan, -1
+        slow = False
         for i, ti in enumerate(t.tolist()):
             codes[i], tout[i] = clock.push(ti)
             if n_warm < 0 and clock.warm:
                 n_warm, max_gap = i + 1, clock.max_gap
+                slow = clock.dt > MAX_SAMPLE_PERIOD
         finite = np.isfinite(t) & np.isfinite(gyro).all(axis=1) & np.isfinite(accel).all(axis=1)
-        if (codes == RESTART).any() or not finite.all():
+        if (codes == RESTART).any() or not finite.all() or slow:
             self.reset()                                 # (the clock above ran over the log)
             return _replayed(self, t, gyro, accel, speed)
         retimed_total = clock.retimed
@@ -709,7 +737,7 @@ def _take_clock_notes(clock: SampleClock, policy: str) -> list[str]:
 def _clock_notes(est, t_in, keep, notes, i_emit) -> None:
     """Replay the clock's per-sample counts onto the frames (as the streaming notes them): a loop, but only
     for logs whose stamps were retimed or dropped."""
-    clock = SampleClock(est.policy)
+    clock = SampleClock(est.policy, max_jump=MAX_GAP_FRAMES / est.rate)
     pos = np.cumsum(keep) - 1                        # kept position of each input sample (or the last before)
     f = 0
     nf = len(i_emit)
