@@ -399,6 +399,13 @@ def test_stamps_not_in_seconds_are_skipped_and_said():
     assert all("IMU stamps" not in f.status_reason for f in frames[1:])
     track, _ = StreamingEstimator().run(t, g, a)
     assert track.status_reason.tolist() == [f.status_reason for f in frames]
+    first = StreamingEstimator()                            # saved halfway through the skipping, resumed
+    replay(first, t[:1500], g[:1500], a[:1500])
+    resumed = StreamingEstimator()
+    resumed.load_state_dict(json.loads(json.dumps(first.state_dict())))
+    again = replay(resumed, t[1500:], g[1500:], a[1500:])
+    fields = ("t", "pitch", "roll", "pitch_std", "roll_std", "status", "status_reason", "valid")
+    assert [[getattr(f, n) for n in fields] for f in again] == [[getattr(f, n) for n in fields] for f in frames]
 
 
 def test_speed_that_never_comes_back_runs_imu_only_and_says_so():

@@ -68,8 +68,8 @@ from imu_ground.imu.preintegration import StreamingPreintegrator, preintegrate
 from imu_ground.imu.sample_clock import DROP, OK, RESTART, SampleClock
 from imu_ground.so3 import quat_from_matrix
 
-__all__ = ["LIVE_METHODS", "MAX_FRAME_RATE", "MAX_GAP_FRAMES", "MAX_SAMPLE_PERIOD", "SPEED_WAIT", "FrameEstimate", "StreamingEstimator", "causal_track", "estimate_row",
-           "replay"]
+__all__ = ["LIVE_METHODS", "MAX_FRAME_RATE", "MAX_GAP_FRAMES", "MAX_SAMPLE_PERIOD", "SPEED_WAIT", "FrameEstimate",
+           "StreamingEstimator", "causal_track", "estimate_row", "replay"]
 
 #: Methods that run live (``"auto"`` is ``"suspension"``); the offline smoother and the naive baseline do not.
 LIVE_METHODS = tuple(name for name, spec in METHODS.items() if spec.live)
@@ -85,7 +85,6 @@ MAX_GAP_FRAMES = 36_000
 #: A warm-up whose sample period is longer than this, s, is not an IMU's: stamps not in seconds (ns, us or ms
 #: taken for s); its samples are skipped and said.
 MAX_SAMPLE_PERIOD = 1.0
-_SLOW_NOTE = "IMU stamps step by "
 _STATE_KIND = "imu_ground.StreamingEstimator"
 _STATE_VERSION = 1
 _NO_SPEED = "no speed over this frame: IMU only"
@@ -343,6 +342,7 @@ class StreamingEstimator:
         self._queue: deque = deque()
         self._notes: list[str] = []
         self._skipped = 0
+        self._slow = [0, 0.0]                           # samples of too slow warm-ups skipped, the last one's period
         self._now = -math.inf
         self._fb = None if _FRONT is None else array("d", bytes(8 * _F_SIZE))
         self._fast = False
@@ -471,13 +471,9 @@ class StreamingEstimator:
     # -- the front end -------------------------------------------------------------------------
     def _slow_warmup(self) -> None:
         """The warm-up's sample period is longer than :data:`MAX_SAMPLE_PERIOD`: stamps not in seconds. The
-        samples are skipped and said in one note (its count kept up), and the clock warms up again on the next
-        samples."""
-        n, dt = len(self._warm), self._clock.dt
-        if self._notes and self._notes[-1].startswith(_SLOW_NOTE):
-            n += int(self._notes.pop().rsplit(": ", 1)[1].split()[0])
-        self._notes.append(f"{_SLOW_NOTE}{dt:.3g} s, more than {MAX_SAMPLE_PERIOD:g} s: stamps not in seconds "
-                           f"(ns, us, ms)? IMU samples skipped: {n}")
+        samples are skipped and counted (said in the next frame's notes), and the clock warms up again on the
+        next samples."""
+        self._slow = [self._slow[0] + len(self._warm), self._clock.dt]
         self._clock.reset()
         self._warm = []
 
@@ -515,6 +511,10 @@ class StreamingEstimator:
         if self._skipped:
             notes.append(f"{self._skipped} non-finite IMU sample(s) skipped")
             self._skipped = 0
+        if self._slow[0]:
+            notes.append(f"IMU stamps step by {self._slow[1]:.3g} s, more than {MAX_SAMPLE_PERIOD:g} s: stamps not in "
+                         f"seconds (ns, us, ms)? IMU samples skipped: {self._slow[0]}")
+            self._slow = [0, 0.0]
         return notes + _take_clock_notes(c, self.policy)
 
     def _decide(self, now: float) -> list[FrameEstimate]:
@@ -562,7 +562,7 @@ class StreamingEstimator:
                 "max_gap": None if self._pre is None else self._pre.max_gap,
                 "blocks": _pack(self._blocks.state_dict()), "bias": self._bias.state_dict(),
                 "speed": _pack(self._speed.state_dict()), "queue": queue, "notes": list(self._notes),
-                "skipped": self._skipped, "now": None if self._now == -math.inf else self._now,
+                "skipped": self._skipped, "slow_warmups": list(self._slow), "now": None if self._now == -math.inf else self._now,
                 "filter": _pack(self._filter.state_dict())}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -597,6 +597,8 @@ class StreamingEstimator:
                                           bool(r[3]), bool(r[4]), float(r[5])), float(r[6]), list(r[7]))
                                 for r in state["queue"])
             self._notes, self._skipped = list(state["notes"]), int(state["skipped"])
+            slow = state.get("slow_warmups", (0, 0.0))          # (older states: none)
+            self._slow = [int(slow[0]), float(slow[1])]
             self._now = -math.inf if state["now"] is None else float(state["now"])
             self._filter.load_state_dict(_unpack(state["filter"]))
             self._front_out()
