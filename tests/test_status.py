@@ -2,6 +2,7 @@
 import json
 import math
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -87,13 +88,17 @@ def test_the_roll_sigma_of_a_track_grows_with_the_yaw_rate(drives):
 def test_ok_frames_below_the_slow_speed_say_so(drives):
     d = next(d for d in drives if d.egomotion.stationary[:5].all())        # starts at rest, then pulls away
     sp = d.truth["speed"].to_numpy()
-    tr = SuspensionAwareFilter(extrinsic=d.extrinsic).run(d.egomotion, speed=sp)
+    def early():                   # (the latch without its wait for moving time: the pull-away frames are ok)
+        f = SuspensionAwareFilter(extrinsic=d.extrinsic)
+        f.sigma.min_moving_seconds = 0.0
+        return f
+    tr = early().run(d.egomotion, speed=sp)
     ok = tr.status == OK
     slow = ok & (sp < SLOW_SPEED)
     assert slow.any() and (ok & ~slow).any()
     assert (tr.status_reason[slow] == SLOW_REASON).all()
     assert (tr.status_reason[ok & ~slow] == "").all()
-    f = SuspensionAwareFilter(extrinsic=d.extrinsic)
+    f = early()
     es = [f.step(fr, speed=sp[i]) for i, fr in enumerate(d.egomotion.frames())]
     assert [e.status_reason for e in es] == tr.status_reason.tolist()
 
@@ -302,3 +307,21 @@ def test_no_mount_alarm_on_the_revisit_drives(shared_data, kitti_index):
             tr = estimate_log(shared_data / "kitti_imu100" / f"{name}.csv.gz", speed="auto").track
         assert np.isfinite(tr.road_grade).mean() > 0.9
         assert not (tr.status == DEGRADED).any(), name
+
+
+def test_ok_only_after_the_latch_has_seen_its_moving_time():
+    """The shipped example drive (exact truth): no frame is ``ok`` before CONVERGED_MOVING_SECONDS of moving
+    frames (the first seconds' 1-sigma is too small, the drive terms not yet grown in), and the converging
+    reason says what it waits for (the stream's statuses equal the batch's:
+    test_every_status_and_its_reason_stream_equals_batch)."""
+    from imu_ground.filters.status import CONVERGED_MOVING_SECONDS
+    from imu_ground.pipeline.estimate import estimate_log
+    res = estimate_log(Path(__file__).resolve().parents[1] / "datasets" / "fixtures" / "example_drive.csv")
+    tr, em = res.track, res.egomotion
+    counted = np.asarray(tr.valid, bool) & ~np.asarray(em.stationary, bool) & (np.abs(tr.speed) >= SLOW_SPEED)
+    moving_seconds = np.cumsum(np.where(counted, em.delta_t, 0.0))
+    ok = np.flatnonzero(tr.status == OK)
+    assert ok.size and moving_seconds[ok[0]] >= CONVERGED_MOVING_SECONDS
+    early = (tr.status == CONVERGING) & counted
+    assert early.any()
+    assert all(f"after {CONVERGED_MOVING_SECONDS:.0f} s of driving" in r for r in tr.status_reason[early])

@@ -104,7 +104,8 @@ class GroundEstimate:
         self.pitch, self.roll, self.valid = pitch, roll, valid
         self._q, self._E, self._Rgs, self._P = quaternion, residual, Rgs, P
         # info: (pitch model, roll model, a, u_x, u_y, tilt var pitch, tilt var roll, frame s, detail,
-        # convergence threshold, yaw rate rad/s, drive terms (rate_ms_p, load_offset_x, rate_ms_r, load_offset_y)):
+        # convergence threshold, yaw rate rad/s, drive terms (rate_ms_p, load_offset_x, rate_ms_r, load_offset_y),
+        # moving seconds the latch waits for):
         # the 1-sigma and the reason are built on access
         self.status_code = (OK if valid else INVALID) if status_code is None else status_code
         self._info = info
@@ -138,7 +139,7 @@ class GroundEstimate:
         i = self._info
         if i is None:
             return status_reason(self.status_code)
-        return status_reason(self.status_code, i[7], max(self.pitch_std, self.roll_std), i[8], i[9])
+        return status_reason(self.status_code, i[7], max(self.pitch_std, self.roll_std), i[8], i[9], i[12])
 
     @classmethod
     def of_residual(cls, E: np.ndarray, P: np.ndarray, Rgs: Optional[np.ndarray] = None,

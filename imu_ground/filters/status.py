@@ -61,7 +61,11 @@ One of :data:`STATUSES` per frame, the first that applies in this order:
 - ``standstill``: the frame ends at a standstill (the road and the body are held);
 - ``converging``: from the start (and from a reset) until ``max(pitch_std, roll_std)``
   has once been at or below :data:`CONVERGED_STD` (0.15 deg; :data:`FILTER_CONVERGED_STD` for the
-  invariant filter without suspension model) (latched);
+  invariant filter without suspension model) with at least :data:`CONVERGED_MOVING_SECONDS` of moving
+  frames seen (latched; the suspension filter only): before that the drive terms of the 1-sigma have not
+  yet grown in and too few of the first moving frames' errors fall within their 1-sigma
+  (``benchmarks/studies/convergence_time.py`` chooses the time on synthetic fit suites with exact truth and
+  scores it on held-out ones; the figures are in ``benchmarks/RESULTS.md``);
 - ``ok``; its reason is empty or a note (:func:`ok_note`): :data:`SLOW_REASON` below
   :data:`SLOW_SPEED` (the estimator's speed: measured, else its own estimate), where the body's
   tilt (stopping, starting, steering at walking pace) is no longer well separated from the
@@ -80,6 +84,7 @@ from imu_ground.imu.warm_start import as_reader
 from imu_ground.units import DEG
 
 __all__ = ["STATUSES", "CONVERGING", "OK", "STANDSTILL", "GAP", "DEGRADED", "INVALID", "CONVERGED_STD", "FILTER_CONVERGED_STD",
+           "CONVERGED_MOVING_SECONDS",
            "AngleStd", "DriveStatistics", "DRIVE_PRIOR_SECONDS", "SigmaModel", "SUSPENSION_STD", "FILTER_STD",
            "SLOW_SPEED", "SLOW_REASON", "ok_note", "status_reason", "frame_status_code", "gap_run_durations",
            "track_statuses", "track_reasons", "status_names"]
@@ -94,6 +99,11 @@ CONVERGED_STD = 0.15 * DEG
 #: suspension model, is never better than ~0.7 deg on the synthetic drives; the threshold ends the
 #: transient of its initial covariance).
 FILTER_CONVERGED_STD = 0.8 * DEG
+#: Seconds of moving frames (:class:`DriveStatistics`: valid, not at a standstill, at or above :data:`SLOW_SPEED`)
+#: the suspension filter's latch waits for besides its 1-sigma threshold: the shortest after which at least half of the
+#: first ok frames' errors fall within their 1-sigma on the synthetic fit suites, each grade, angle and speed mode
+#: (``benchmarks/studies/convergence_time.py``; its held-out scores are in ``benchmarks/RESULTS.md``).
+CONVERGED_MOVING_SECONDS = 10.0
 #: Below this speed (m/s; the evaluation's moving-frame threshold) an ``ok`` frame carries :data:`SLOW_REASON`.
 SLOW_SPEED = 3.0
 #: The note of an ``ok`` frame slower than :data:`SLOW_SPEED`.
@@ -172,7 +182,8 @@ def ok_note(slow: bool, road_note: Optional[str]) -> Optional[str]:
 
 
 def status_reason(code: int, gap_seconds: float = math.nan, std: float = math.nan,
-                  detail: Optional[str] = None, converged_std: float = CONVERGED_STD) -> str:
+                  detail: Optional[str] = None, converged_std: float = CONVERGED_STD,
+                  moving_seconds: float = 0.0) -> str:
     """The short text of a status (empty for ``ok``).
 
     Parameters
@@ -189,10 +200,15 @@ def status_reason(code: int, gap_seconds: float = math.nan, std: float = math.na
         ``ok`` (e.g. why the road is not estimated).
     converged_std : float
         The estimator's threshold, rad, said for ``converging``.
+    moving_seconds : float
+        The seconds of moving frames the estimator's latch also waits for (0: none), said for ``converging``.
     """
     if code == OK:
         return detail or ""
     if code == CONVERGING:
+        if moving_seconds > 0:
+            return (f"converging: 1-sigma {std / DEG:.2f} deg; ok once at or below {converged_std / DEG:.2f} deg "
+                    f"after {moving_seconds:.0f} s of driving above {SLOW_SPEED:.0f} m/s since the start or a reset")
         return (f"converging: 1-sigma {std / DEG:.2f} deg, not yet below {converged_std / DEG:.2f} deg "
                 f"since the start or a reset")
     if code == STANDSTILL:
@@ -290,7 +306,8 @@ def gap_run_durations(gap: np.ndarray, dt: np.ndarray) -> np.ndarray:
 
 
 def track_reasons(codes: np.ndarray, std_max: np.ndarray, dt: np.ndarray,
-                  details: Optional[np.ndarray] = None, converged_std: float = CONVERGED_STD) -> np.ndarray:
+                  details: Optional[np.ndarray] = None, converged_std: float = CONVERGED_STD,
+                  moving_seconds: float = 0.0) -> np.ndarray:
     """:func:`status_reason` of every frame of a batch (object array of str).
 
     Parameters
@@ -305,6 +322,8 @@ def track_reasons(codes: np.ndarray, std_max: np.ndarray, dt: np.ndarray,
         The monitor's reason of each ``degraded`` frame, a bad frame's problem, or an ``ok`` frame's note.
     converged_std : float
         The estimator's threshold, rad.
+    moving_seconds : float
+        The moving time its latch also waits for, s (:func:`status_reason`).
     """
     codes = np.asarray(codes)
     out = np.full(len(codes), "", dtype=object)
@@ -324,7 +343,8 @@ def track_reasons(codes: np.ndarray, std_max: np.ndarray, dt: np.ndarray,
             else:
                 out[k] = np.where(empty, base, base + ": " + np.where(empty, "", d))
     for k in np.flatnonzero((codes == CONVERGING) | (codes == GAP)).tolist():   # (few frames: the start, gaps)
-        out[k] = status_reason(int(codes[k]), float(dt[k]), float(std_max[k]), detail[k], converged_std)
+        out[k] = status_reason(int(codes[k]), float(dt[k]), float(std_max[k]), detail[k], converged_std,
+                               moving_seconds)
     return out
 
 #: Prior weight of the drive statistics, s of moving frames at zero body rate and at the load centre
@@ -443,19 +463,24 @@ class SigmaModel:
         The latch's threshold, rad (:data:`CONVERGED_STD` or :data:`FILTER_CONVERGED_STD`).
     load_share, cross_gain : float
         The suspension model's ``s`` and ``k_cross`` (the gravity estimate's share, batch only).
+    min_moving_seconds : float
+        The moving time (s, :attr:`DriveStatistics.state`'s first entry) the latch also waits for
+        (:data:`CONVERGED_MOVING_SECONDS` for the suspension filter; 0: none).
 
     Attributes
     ----------
     converged : bool
         The larger 1-sigma without the drive terms (:meth:`latch_variance`) has been at or below
-        ``converged_std`` once since the start or a reset.
+        ``converged_std`` once since the start or a reset, at a frame with at least ``min_moving_seconds``
+        of moving frames seen.
     drive : DriveStatistics
         The drive so far (the estimator advances it before each frame's :meth:`frame`).
     """
 
     def __init__(self, constants=SUSPENSION_STD, converged_std: float = CONVERGED_STD, load_share: float = 1.0,
-                 cross_gain: float = 0.0) -> None:
+                 cross_gain: float = 0.0, min_moving_seconds: float = 0.0) -> None:
         self.constants, self.converged_std = constants, float(converged_std)
+        self.min_moving_seconds = float(min_moving_seconds)
         self.load_share, self.cross_gain = float(load_share), float(cross_gain)
         self._var = self.converged_std * self.converged_std
         self.drive = DriveStatistics()
@@ -492,8 +517,9 @@ class SigmaModel:
         pm, rm = self.constants
         dr = DriveStatistics.terms(self.drive.state, pm, rm)
         info = (pm, rm, a, ux, uy, gravity_var * weights[0], gravity_var * weights[1], dt, note, self.converged_std,
-                yaw_rate, dr)
-        if not self.converged:                  # the latch: without the drive terms (see :meth:`latch_variance`)
+                yaw_rate, dr, self.min_moving_seconds)
+        if not self.converged and self.drive.state[0] >= self.min_moving_seconds:
+            # the latch: without the drive terms (see :meth:`latch_variance`)
             self.converged = max(pm.variance(a, ux, uy, info[5], yaw_rate),
                                  rm.variance(a, ux, uy, info[6], yaw_rate)) <= self._var
         return info
@@ -529,12 +555,18 @@ class SigmaModel:
                          rm.variance(a, load[:, 0], load[:, 1], sg2 * gains[:, 1] ** 2, w, rr, dy)], axis=1)
 
     def latch_variance(self, a: np.ndarray, load: Optional[np.ndarray] = None, gains: Optional[np.ndarray] = None,
-                       gravity_cov: Optional[np.ndarray] = None, yaw_rate: Optional[np.ndarray] = None) -> np.ndarray:
+                       gravity_cov: Optional[np.ndarray] = None, yaw_rate: Optional[np.ndarray] = None,
+                       moving: Optional[np.ndarray] = None) -> np.ndarray:
         """The larger of pitch's and roll's variance of each frame of a batch without the drive terms, rad^2
         ((G,), arguments of :meth:`track`): what the convergence latch compares with ``converged_std``, in
         :meth:`frame` and :meth:`statuses` alike. The drive's roughness and mean load do not shrink as the
-        filter converges; a drive whose terms stay large is uncertain, not converging."""
-        return self.track(a, load, gains, gravity_cov, yaw_rate, np.zeros((len(a), 5))).max(axis=1)
+        filter converges; a drive whose terms stay large is uncertain, not converging. ``moving`` (G,): the
+        moving seconds seen after each frame (:meth:`DriveStatistics.run`'s first column); a frame with fewer
+        than ``min_moving_seconds`` gets inf (it cannot close the latch)."""
+        var = self.track(a, load, gains, gravity_cov, yaw_rate, np.zeros((len(a), 5))).max(axis=1)
+        if moving is not None and self.min_moving_seconds > 0:
+            var[np.asarray(moving, dtype=float) < self.min_moving_seconds] = np.inf
+        return var
 
     def statuses(self, var_max: np.ndarray, stationary: np.ndarray, valid: np.ndarray, good: np.ndarray,
                  degraded: Optional[np.ndarray] = None) -> np.ndarray:

@@ -89,7 +89,7 @@ from imu_ground.filters.mount_monitor import MountMonitor
 from imu_ground.filters.recalibration import MountRecalibrator
 from imu_ground.filters.residual import ResidualKernel
 from imu_ground.filters.road import NO_SPEED_REASON, RoadFilter, road_one
-from imu_ground.filters.status import (CONVERGED_STD, DEGRADED, OK, SLOW_SPEED, SUSPENSION_STD, SigmaModel,
+from imu_ground.filters.status import (CONVERGED_MOVING_SECONDS, CONVERGED_STD, DEGRADED, OK, SLOW_SPEED, SUSPENSION_STD, SigmaModel,
                                        frame_status_code, ok_note, track_reasons)
 from imu_ground.filters.suspension_model import SuspensionModel, load_share
 from imu_ground.imu.egomotion import EgoFrame
@@ -291,7 +291,8 @@ class SuspensionAwareFilter:
         self._arrays = k.native and self.gravity_filter.kernel is not gravity_kernel
         self.model = SuspensionModel(self.gains0, self.load_share, self.response, self.cross_gain,
                                      self.online_gains, self.gain_prior_seconds, self.gain_band, self._Rgs)
-        self.sigma = SigmaModel(SUSPENSION_STD, CONVERGED_STD, self.load_share, self.cross_gain)
+        self.sigma = SigmaModel(SUSPENSION_STD, CONVERGED_STD, self.load_share, self.cross_gain,
+                                CONVERGED_MOVING_SECONDS)
         self.speed = 0.0
         self._q_last = 0.0
         self._frames = 0
@@ -667,7 +668,7 @@ class SuspensionAwareFilter:
         degraded = np.zeros(n, dtype=bool)
         degraded[good] = mm.run(times, rg, np.asarray(sub.valid, dtype=bool) & np.isfinite(sp))
         latch = np.full(n, np.inf)
-        latch[good] = self.sigma.latch_variance(a, load, gains, gravity_cov, yaw_rate)
+        latch[good] = self.sigma.latch_variance(a, load, gains, gravity_cov, yaw_rate, drive[:, 0])
         codes = self.sigma.statuses(latch, em.stationary, em.valid, good, degraded)
         slow = np.zeros(n, dtype=bool)
         slow[good] = np.abs(speed_used) < SLOW_SPEED
@@ -675,7 +676,8 @@ class SuspensionAwareFilter:
         notes = np.array([ok_note(s_, r_) for s_ in (False, True) for r_ in (None, NO_SPEED_REASON)], dtype=object)
         details = np.where(degraded, mm.alarm, notes[2 * slow + no_road])
         reasons = track_reasons(codes, np.sqrt(var_max), em.delta_t,
-                                np.where((codes == OK) | (codes == DEGRADED), details, None))
+                                np.where((codes == OK) | (codes == DEGRADED), details, None),
+                                moving_seconds=self.sigma.min_moving_seconds)
         return dict(pitch_std=std[:, 0], roll_std=std[:, 1], status=codes, status_reason=reasons,
                     road_grade=road[:, 0], road_bank=road[:, 1], road_grade_std=road[:, 2], road_bank_std=road[:, 3])
 
