@@ -87,7 +87,7 @@ REVISIT_CAPTIONS = {
                  "error, deg, exact truth, moving frames.",
 }
 #: Scripts whose rows check the 1-sigma, the status and the road's grade and bank.
-CONFIDENCE_CHECKS = ("confidence", "calibrate_std", "drive_offset", "synthetic_revisit", "convergence_time")
+CONFIDENCE_CHECKS = ("confidence", "calibrate_std", "drive_offset", "synthetic_revisit", "convergence_time", "real_coverage")
 CONFIDENCE_TITLE = "How sure, and what the road does"
 #: Scripts whose rows measure what the per-frame ground plane does for a camera (range and lane-width errors).
 PERCEPTION_CHECKS = ("bench_ground_effect",)
@@ -182,6 +182,12 @@ INTROS = {"bench_streaming": (
     "target's floor) for each grade, angle and speed mode; seeds 5-6 are held out. MEMS-grade IMU-only pitch stays "
     "below 55 % for every wait up to 45 s: the 1-sigma of that case is too small all drive long, not only at the "
     "start."
+), "real_coverage": (
+    "The 1-sigma on real truth (`benchmarks/studies/real_coverage.py`): the default estimate's pitch error against "
+    "the INS-grade reference on every valid shared drive, within its 1-sigma alone and within the 1-sigma and the "
+    "reference's own (`reference_sigma`) together, per drive and pooled; the LiDAR rows, where present, against road "
+    "planes with the fit's frame-to-frame noise added. The two INS columns bracket what a calibrated 1-sigma would "
+    "show: the reference's error is as large as the estimate's."
 ), "synthetic_revisit": (
     "The revisit check of the 1-sigma with exact truth (`benchmarks/studies/synthetic_revisit.py`): each drive of "
     "the synthetic suite of seed 1 driven a second time on the same road by the same sensor "
