@@ -18,17 +18,39 @@ skipped):
 - ``PREFIX/road_from_camera`` (``geometry_msgs/TransformStamped``, only with a
   camera): the road <- camera transform of the frame (``header.frame_id`` ``road``,
   ``child_frame_id`` ``camera``; translation m, the camera origin in the road frame);
-- ``PREFIX/settings`` (``std_msgs/String``): the method's settings as JSON,
-  once, at the first stamp (only with ``settings``);
+- ``/tf`` (``tf2_msgs/TFMessage``, not prefixed: where Foxglove's 3D panel and RViz look): per
+  written frame the transform road -> sensor, ``header.frame_id`` ``road`` (``road_frame_id``),
+  ``child_frame_id`` the IMU's ``frame_id``; its rotation is the dynamic extrinsic road-ground <-
+  sensor (the table's residual road <- body times the static extrinsic ground <- sensor:
+  ``R = R(q) R_gs``, what a ``.tum`` output holds), so that ``R^T e_z`` is the table's normal, and
+  its translation the static extrinsic's (the sensor's origin in the ground frame, m). With a camera
+  the road -> camera transform (below) is in the same message. A recording whose own tf tree already
+  gives the IMU's frame a parent (e.g. ``base_link``) has two parents for it when both are played:
+  pass another ``frame_id`` (e.g. ``imu_link_road``) to keep them apart;
+- ``PREFIX/pose`` (``geometry_msgs/PoseWithCovarianceStamped``): the same transform as a pose of the
+  sensor in the road frame (``header.frame_id`` ``road``; position m, orientation road-ground <-
+  sensor) with the 1-sigma in its covariance (6 x 6 row-major, x y z then rotations about the road
+  frame's x y z axes): ``[21]`` = roll variance, ``[28]`` = pitch variance, rad^2 (``roll_std_deg``,
+  ``pitch_std_deg`` squared, in rad); every other entry is 0: not estimated (the position is the
+  static calibration, the rotation about z follows the vehicle's heading by construction), not
+  known exactly. Only where the table has the 1-sigma columns and they are finite;
+- settings: the method's settings as JSON (only with ``settings``): in an ``.mcap`` file the
+  metadata record ``imu_ground`` (``settings``: the JSON, ``version``: the package's;
+  :func:`read_mcap_settings`), in a ROS 1 bag or ROS 2 bag folder the topic ``PREFIX/settings``
+  (``std_msgs/String``), once, at the first stamp;
 - ``PREFIX/pitch_roll_std`` (``geometry_msgs/Vector3Stamped``): ``x`` = roll, ``y`` = pitch
   1-sigma, rad, on the frames of ``pitch_roll``;
 - ``PREFIX/road`` and ``PREFIX/road_std`` (``geometry_msgs/Vector3Stamped``): ``x`` = road bank
   (+ left side up), ``y`` = road grade (+ uphill), rad, and their 1-sigma, on the valid frames
   where the road is estimated;
-- ``PREFIX/status`` (``std_msgs/String``): ``"status"`` or ``"status: reason"`` on *every* frame
-  (also the gaps and skipped frames: that is when it matters).
+- ``PREFIX/status`` (``diagnostic_msgs/DiagnosticArray``, Foxglove's Diagnostics panel: choose this
+  topic) on *every* frame (also the gaps and skipped frames: that is when it matters): one
+  ``DiagnosticStatus`` named ``imu-ground PREFIX``, ``hardware_id`` the ``frame_id``, ``level`` by
+  status (:data:`DIAGNOSTIC_LEVELS`: ok and standstill OK, converging WARN, degraded and invalid
+  ERROR, gap STALE), ``message`` ``"status"`` or ``"status: reason"`` (what the ``std_msgs/String``
+  of earlier versions held), ``values`` the status, reason, pitch, roll and 1-sigma (deg) as text.
 
-The last four are written when the table has their columns (``pitch_std_deg``, ...).
+The last four and ``PREFIX/pose`` are written when the table has their columns (``pitch_std_deg``, ...).
 
 Pitch and roll share one ``Vector3Stamped`` (rather than two ``std_msgs/Float64``
 topics, which carry no stamp) so that each value keeps its header stamp and
@@ -55,22 +77,29 @@ from imu_ground.units import DEG
 if TYPE_CHECKING:
     from typing_extensions import Self
 
-__all__ = ["ROS_OUTPUT_TOPICS", "RosWriter", "ros_output_kind", "serialize_stamped", "write_ros_output"]
+__all__ = ["DIAGNOSTIC_LEVELS", "MCAP_METADATA_NAME", "ROS_OUTPUT_TOPICS", "RosWriter", "read_mcap_settings",
+           "ros_output_kind", "serialize_stamped", "write_ros_output"]
 
-#: Topic suffix -> message type (ROS 2 spelling) of what :func:`write_ros_output` writes.
+#: Topic suffix -> message type (ROS 2 spelling) of what :func:`write_ros_output` writes (``tf``: on ``/tf``).
 ROS_OUTPUT_TOPICS: dict[str, str] = {
     "normal": "geometry_msgs/msg/Vector3Stamped",
     "rotation": "geometry_msgs/msg/QuaternionStamped",
     "pitch_roll": "geometry_msgs/msg/Vector3Stamped",
+    "tf": "tf2_msgs/msg/TFMessage",
     "settings": "std_msgs/msg/String",
+    "pose": "geometry_msgs/msg/PoseWithCovarianceStamped",
     "pitch_roll_std": "geometry_msgs/msg/Vector3Stamped",
     "road": "geometry_msgs/msg/Vector3Stamped",
     "road_std": "geometry_msgs/msg/Vector3Stamped",
-    "status": "std_msgs/msg/String",
+    "status": "diagnostic_msgs/msg/DiagnosticArray",
 }
 #: Topics of the table's optional columns: written when the table has them.
 _OPTIONAL = {"pitch_roll_std": ("roll_std_deg", "pitch_std_deg"), "road": ("road_bank_deg", "road_grade_deg"),
              "road_std": ("road_bank_std_deg", "road_grade_std_deg"), "status": ("status", "status_reason")}
+#: ``diagnostic_msgs/DiagnosticStatus`` level of each status (0 OK, 1 WARN, 2 ERROR, 3 STALE).
+DIAGNOSTIC_LEVELS = {"ok": 0, "standstill": 0, "converging": 1, "degraded": 2, "invalid": 2, "gap": 3}
+#: Name of the MCAP metadata record holding the settings.
+MCAP_METADATA_NAME = "imu_ground"
 
 _TABLE_COLUMNS = ("t", "normal_x", "normal_y", "normal_z", "pitch_deg", "roll_deg", "qw", "qx", "qy", "qz")
 _KINDS = {".bag": "ros1", ".mcap": "mcap", "": "ros2"}
@@ -94,6 +123,18 @@ def ros_output_kind(path: str | Path) -> str:
         raise ImuGroundError(f"{p}: cannot write ROS output with suffix {p.suffix!r}: use .bag (ROS 1), "
                              f".mcap (MCAP, ROS 2 messages) or a folder name without suffix (ROS 2 bag)")
     return kind
+
+
+#: Standard messages a type store may lack (rosbags' ROS 1 Noetic store has no tf2_msgs), by their definition.
+_STANDARD_DEFINITIONS = {"tf2_msgs/msg/TFMessage": "geometry_msgs/TransformStamped[] transforms"}
+
+
+def _register_missing(typestore: Any) -> None:
+    """Add :data:`_STANDARD_DEFINITIONS` missing from ``typestore`` (the ROS 1 md5 sums come out as ROS's)."""
+    from rosbags.typesys import get_types_from_msg
+    for name, text in _STANDARD_DEFINITIONS.items():
+        if name not in typestore.types:
+            typestore.register(get_types_from_msg(text, name))
 
 
 class RosWriter:
@@ -130,6 +171,7 @@ class RosWriter:
             _remove_existing(self.path, overwrite)
         self.ros1 = self.kind == "ros1"
         self.typestore = get_typestore(Stores.ROS1_NOETIC if self.ros1 else Stores.ROS2_HUMBLE)
+        _register_missing(self.typestore)
         self._writer: Any = None
         self._file: Any = None
         self._schemas: dict[str, int] = {}
@@ -171,6 +213,18 @@ class RosWriter:
         else:
             self._writer.close()
         self._writer = None
+
+    def add_metadata(self, name: str, data: Mapping[str, str]) -> None:
+        """Write an MCAP metadata record ``name`` (str -> str); only an ``.mcap`` file has them.
+
+        Raises
+        ------
+        ValueError
+            For a ROS 1 bag or a ROS 2 bag folder.
+        """
+        if self.kind != "mcap":
+            raise ValueError(f"{self.path}: only an .mcap file holds metadata records, not a {self.kind} log")
+        self._writer.add_metadata(name=name, data={str(k): str(v) for k, v in data.items()})
 
     # -- messages -------------------------------------------------------------------------
     def add_topic(self, topic: str, msgtype: str) -> Any:
@@ -289,7 +343,8 @@ def _stamp_origin(t0: float | None, t0_ns: int | None, settings: Mapping[str, An
 
 
 def _valid_rows(table: Any) -> dict[str, np.ndarray]:
-    """The table's columns (float arrays) restricted to valid rows with finite values."""
+    """The table's columns (float arrays) restricted to valid rows with finite values, and ``row``: their
+    positions in the table."""
     missing = [c for c in _TABLE_COLUMNS if c not in table]
     if missing:
         raise ValueError(f"the output table lacks column(s) {missing}; expected {list(_TABLE_COLUMNS)} and valid")
@@ -297,14 +352,33 @@ def _valid_rows(table: Any) -> dict[str, np.ndarray]:
     keep = np.all(np.isfinite(np.column_stack(list(cols.values()))), axis=1)
     if "valid" in table:
         keep &= np.asarray(table["valid"], dtype=bool)
-    return {c: v[keep] for c, v in cols.items()}
+    return {**{c: v[keep] for c, v in cols.items()}, "row": np.flatnonzero(keep)}
+
+
+def read_mcap_settings(path: str | Path) -> dict | None:
+    """The settings :func:`write_ros_output` recorded in an ``.mcap`` file (its metadata record), or None.
+
+    None when the file has no :data:`MCAP_METADATA_NAME` record with settings (or cannot be read as MCAP).
+    """
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+    try:
+        with open(path, "rb") as fh:
+            for record in make_reader(fh).iter_metadata():
+                if record.name == MCAP_METADATA_NAME and "settings" in record.metadata:
+                    got = json.loads(record.metadata["settings"])
+                    return got if isinstance(got, dict) else None
+    except (McapError, OSError, ValueError, EOFError):
+        return None
+    return None
 
 
 def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
                      settings: Mapping[str, Any] | None = None, topic_prefix: str = "/ground",
                      t0: float | None = None, t0_ns: int | None = None,
                      storage: str = "mcap", overwrite: bool = False, road_from_camera: Any = None,
-                     camera_frame_id: str = "camera") -> dict[str, int]:
+                     camera_frame_id: str = "camera", extrinsic: Any = None,
+                     road_frame_id: str = "road") -> dict[str, int]:
     """Write the per-frame ground estimate as ROS topics (see the module docstring for the topics).
 
     Parameters
@@ -322,8 +396,8 @@ def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
         ``meta["frame_id"]`` for a ROS input).
     settings : mapping, optional
         The method's settings (JSON-serialisable; others are written with
-        ``str``), written once on ``PREFIX/settings``. Its ``t0_ns`` / ``t0``
-        entries are used when the arguments are not given.
+        ``str``): an ``.mcap`` file's metadata record, else once on ``PREFIX/settings``.
+        Its ``t0_ns`` / ``t0`` entries are used when the arguments are not given.
     topic_prefix : str
         Namespace of the topics.
     t0, t0_ns : optional
@@ -343,6 +417,15 @@ def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
         ``PREFIX/road_from_camera`` for the rows written on the other topics (and finite).
     camera_frame_id : str
         ``child_frame_id`` of those transforms.
+    extrinsic : mapping or Extrinsic, optional
+        The static extrinsic of the estimate: ``rotation`` (3 x 3, ground <- sensor) and
+        ``translation`` (m, the sensor's origin in the ground frame), as
+        :class:`~imu_ground.pipeline.EstimateResult` ``meta["extrinsic"]`` (or an
+        :class:`~imu_ground.filters.Extrinsic`). Default: identity, at the origin. Makes the
+        ``/tf`` and ``PREFIX/pose`` transforms road -> sensor.
+    road_frame_id : str
+        The road frame's id: ``header.frame_id`` of ``/tf``, ``PREFIX/pose`` and
+        ``PREFIX/road_from_camera``.
 
     Returns
     -------
@@ -356,12 +439,18 @@ def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
         raise ImuGroundError(f"{path}: negative ROS stamps (first valid t = {rows['t'][0]:g} s); pass t0 or t0_ns, "
                              f"the log's start time")
     prefix = "/" + topic_prefix.strip("/") if topic_prefix.strip("/") else ""
+    r_gs, trans = _static_extrinsic(extrinsic)
     with RosWriter(path, storage=storage, overwrite=overwrite) as w:
-        h = {k: w.add_topic(f"{prefix}/{k}", m) for k, m in ROS_OUTPUT_TOPICS.items()
-             if k not in _OPTIONAL and (k != "settings" or settings is not None)}
-        if settings is not None and len(stamps):
+        h = {k: w.add_topic(f"{prefix}/{k}", ROS_OUTPUT_TOPICS[k]) for k in ("normal", "rotation", "pitch_roll")}
+        if settings is not None:
             text = json.dumps(dict(settings), default=str, sort_keys=True)
-            w.write(h["settings"], int(stamps[0]), w.message("std_msgs/msg/String", data=text))
+            if w.kind == "mcap":
+                from imu_ground._version import __version__
+                w.add_metadata(MCAP_METADATA_NAME, {"settings": text, "version": __version__})
+            else:
+                h["settings"] = w.add_topic(f"{prefix}/settings", ROS_OUTPUT_TOPICS["settings"])
+                if len(stamps):
+                    w.write(h["settings"], int(stamps[0]), w.message("std_msgs/msg/String", data=text))
         ros1 = w.ros1
         normal = serialize_stamped(stamps, frame_id, np.column_stack(
             [rows["normal_x"], rows["normal_y"], rows["normal_z"]]), ros1)
@@ -373,11 +462,71 @@ def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
             w.write_raw(h["normal"], ns, normal[k])
             w.write_raw(h["rotation"], ns, rotation[k])
             w.write_raw(h["pitch_roll"], ns, pitch_roll[k])
-        _write_optional(w, table, prefix, frame_id, origin)
+        camera = None
         if road_from_camera is not None:
-            _write_camera_transforms(w, f"{prefix}/road_from_camera", table, road_from_camera, origin,
-                                     camera_frame_id)
+            camera = _write_camera_transforms(w, f"{prefix}/road_from_camera", table, road_from_camera, origin,
+                                              camera_frame_id, road_frame_id)
+        _write_road_from_sensor(w, rows, stamps, r_gs, trans, road_frame_id, frame_id, camera,
+                                _table_std(table), prefix)
+        _write_optional(w, table, prefix, frame_id, origin)
         return dict(w.counts)
+
+
+def _static_extrinsic(extrinsic: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``(rotation ground <- sensor, translation m)`` of ``extrinsic`` (mapping, Extrinsic or None)."""
+    if extrinsic is None:
+        return np.eye(3), np.zeros(3)
+    get = extrinsic.get if isinstance(extrinsic, Mapping) else lambda k, d=None: getattr(extrinsic, k, d)
+    rot = np.asarray(get("rotation", np.eye(3)) if get("rotation") is not None else np.eye(3), dtype=float)
+    trans = np.asarray(get("translation") if get("translation") is not None else np.zeros(3), dtype=float)
+    return rot.reshape(3, 3), trans.reshape(3)
+
+
+def _table_std(table: Any) -> np.ndarray | None:
+    """``(F, 2)`` roll and pitch 1-sigma of every table row, rad; None without the columns."""
+    if "roll_std_deg" not in table or "pitch_std_deg" not in table:
+        return None
+    return np.column_stack([np.asarray(table["roll_std_deg"], dtype=float),
+                            np.asarray(table["pitch_std_deg"], dtype=float)]) * DEG
+
+
+def _write_road_from_sensor(w: RosWriter, rows: dict[str, np.ndarray], stamps: np.ndarray, r_gs: np.ndarray,
+                            trans: np.ndarray, road: str, sensor: str, camera: dict[int, Any] | None,
+                            std: np.ndarray | None, prefix: str) -> None:
+    """``/tf`` (road -> sensor, and road -> camera) and ``PREFIX/pose`` (with the 1-sigma) of the written rows.
+
+    ``rows`` are the valid finite rows (:func:`_valid_rows`, with their table index ``row``), ``stamps`` their
+    stamps (ns); ``camera`` the camera transforms by table index; ``std`` every table row's roll and pitch
+    1-sigma (rad).
+    """
+    from scipy.spatial.transform import Rotation
+    q = np.column_stack([rows["qw"], rows["qx"], rows["qy"], rows["qz"]])
+    # the dynamic extrinsic road-ground <- sensor: the residual road <- body after the static ground <- sensor
+    quat = ((Rotation.from_quat(q, scalar_first=True) * Rotation.from_matrix(r_gs)).as_quat()
+            if len(q) else np.zeros((0, 4)))                                                     # x y z w
+    vec, qua = "geometry_msgs/msg/Vector3", "geometry_msgs/msg/Quaternion"
+    h_tf = w.add_topic("/tf", ROS_OUTPUT_TOPICS["tf"])
+    h_pose = w.add_topic(f"{prefix}/pose", ROS_OUTPUT_TOPICS["pose"]) if std is not None else None
+    index = rows["row"].astype(int).tolist()
+    for k, ns in enumerate(stamps.tolist()):
+        rot = w.message(qua, x=quat[k, 0], y=quat[k, 1], z=quat[k, 2], w=quat[k, 3])
+        tr = w.message("geometry_msgs/msg/Transform", translation=w.message(vec, x=trans[0], y=trans[1], z=trans[2]),
+                       rotation=rot)
+        transforms = [w.message("geometry_msgs/msg/TransformStamped", header=w.header(ns, road, k),
+                                child_frame_id=sensor, transform=tr)]
+        if camera is not None and index[k] in camera:
+            transforms.append(camera[index[k]])
+        w.write(h_tf, ns, w.message("tf2_msgs/msg/TFMessage", transforms=transforms))
+        if h_pose is None or not np.all(np.isfinite(std[index[k]])):
+            continue
+        cov = np.zeros(36)
+        cov[21], cov[28] = std[index[k]] ** 2                              # roll about x, pitch about y, rad^2
+        pose = w.message("geometry_msgs/msg/Pose",
+                         position=w.message("geometry_msgs/msg/Point", x=trans[0], y=trans[1], z=trans[2]),
+                         orientation=rot)
+        w.write(h_pose, ns, w.message("geometry_msgs/msg/PoseWithCovarianceStamped", header=w.header(ns, road, k),
+                                      pose=w.message("geometry_msgs/msg/PoseWithCovariance", pose=pose,
+                                                     covariance=cov)))
 
 
 def _write_optional(w: "RosWriter", table: Any, prefix: str, frame_id: str, origin: int) -> None:
@@ -390,9 +539,7 @@ def _write_optional(w: "RosWriter", table: Any, prefix: str, frame_id: str, orig
             continue
         h = w.add_topic(f"{prefix}/{topic}", ROS_OUTPUT_TOPICS[topic])
         if topic == "status":
-            for ns, st, why, ok in zip(stamps.tolist(), table[x], table[y], np.isfinite(t).tolist()):
-                if ok:
-                    w.write(h, ns, w.message("std_msgs/msg/String", data=f"{st}: {why}" if why else str(st)))
+            _write_diagnostics(w, h, table, stamps, np.isfinite(t), prefix, frame_id)
             continue
         xy = np.column_stack([np.asarray(table[x], dtype=float), np.asarray(table[y], dtype=float)]) * DEG
         keep = valid & np.isfinite(t) & np.all(np.isfinite(xy), axis=1)
@@ -401,9 +548,30 @@ def _write_optional(w: "RosWriter", table: Any, prefix: str, frame_id: str, orig
             w.write_raw(h, ns, msg)
 
 
+def _write_diagnostics(w: RosWriter, handle: Any, table: Any, stamps: np.ndarray, keep: np.ndarray, prefix: str,
+                       frame_id: str) -> None:
+    """One ``diagnostic_msgs/DiagnosticArray`` per row of ``table`` with ``keep`` (a finite ``t``)."""
+    n = len(stamps)
+    cols = {c: (np.asarray(table[c], dtype=float) if c in table else np.full(n, np.nan))
+            for c in ("pitch_deg", "roll_deg", "pitch_std_deg", "roll_std_deg")}
+    name = f"imu-ground {prefix}".rstrip()
+    kv = "diagnostic_msgs/msg/KeyValue"
+    for k, (ns, st, why) in enumerate(zip(stamps.tolist(), table["status"], table["status_reason"])):
+        if not keep[k]:
+            continue
+        st, why = str(st), str(why) if why is not None else ""
+        values = [w.message(kv, key="status", value=st), w.message(kv, key="reason", value=why),
+                  *(w.message(kv, key=c, value=f"{cols[c][k]:.6g}") for c in cols)]
+        status = w.message("diagnostic_msgs/msg/DiagnosticStatus", level=DIAGNOSTIC_LEVELS.get(st, 1), name=name,
+                           message=f"{st}: {why}" if why else st, hardware_id=frame_id, values=values)
+        w.write(handle, ns, w.message("diagnostic_msgs/msg/DiagnosticArray", header=w.header(ns, frame_id, k),
+                                      status=[status]))
+
+
 def _write_camera_transforms(w: RosWriter, topic: str, table: Any, transforms: Any, origin: int,
-                             child: str) -> None:
-    """One ``geometry_msgs/TransformStamped`` road <- camera per valid, finite row of ``table``."""
+                             child: str, road: str = "road") -> dict[int, Any]:
+    """One ``geometry_msgs/TransformStamped`` road <- camera per valid, finite row of ``table``; returns them by
+    table row (for ``/tf``)."""
     from scipy.spatial.transform import Rotation
     m = np.asarray(transforms, dtype=float).reshape(-1, 4, 4)
     cols = np.column_stack([np.asarray(table[c], dtype=float) for c in _TABLE_COLUMNS])
@@ -414,10 +582,13 @@ def _write_camera_transforms(w: RosWriter, topic: str, table: Any, transforms: A
     stamps = origin + np.round(np.asarray(table["t"], dtype=float)[keep] * 1e9).astype(np.int64)
     quat = Rotation.from_matrix(m[:, :3, :3]).as_quat() if len(m) else np.zeros((0, 4))     # x y z w
     handle = w.add_topic(topic, "geometry_msgs/msg/TransformStamped")
-    for k, ns in enumerate(stamps.tolist()):
+    out = {}
+    for k, (ns, row) in enumerate(zip(stamps.tolist(), np.flatnonzero(keep).tolist())):
         tr = w.message("geometry_msgs/msg/Transform",
                        translation=w.message("geometry_msgs/msg/Vector3", x=m[k, 0, 3], y=m[k, 1, 3], z=m[k, 2, 3]),
                        rotation=w.message("geometry_msgs/msg/Quaternion", x=quat[k, 0], y=quat[k, 1], z=quat[k, 2],
                                           w=quat[k, 3]))
-        w.write(handle, ns, w.message("geometry_msgs/msg/TransformStamped", header=w.header(ns, "road", k),
-                                      child_frame_id=child, transform=tr))
+        out[row] = w.message("geometry_msgs/msg/TransformStamped", header=w.header(ns, road, k),
+                             child_frame_id=child, transform=tr)
+        w.write(handle, ns, out[row])
+    return out
