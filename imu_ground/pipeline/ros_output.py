@@ -48,7 +48,7 @@ skipped):
   ``DiagnosticStatus`` named ``imu-ground PREFIX``, ``hardware_id`` the ``frame_id``, ``level`` by
   status (:data:`DIAGNOSTIC_LEVELS`: ok and standstill OK, converging WARN, degraded and invalid
   ERROR, gap STALE), ``message`` ``"status"`` or ``"status: reason"`` (what the ``std_msgs/String``
-  of earlier versions held), ``values`` the status, reason, pitch, roll and 1-sigma (deg) as text.
+  of earlier versions held), ``values`` the keys ``status`` and ``reason``.
 
 The last four and ``PREFIX/pose`` are written when the table has their columns (``pitch_std_deg``, ...).
 
@@ -65,7 +65,7 @@ from __future__ import annotations
 
 import json
 import shutil
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -254,13 +254,77 @@ class RosWriter:
             return self.message("std_msgs/msg/Header", seq=seq, stamp=t, frame_id=frame_id)
         return self.message("std_msgs/msg/Header", stamp=t, frame_id=frame_id)
 
-    def write(self, handle: Any, stamp_ns: int, msg: Any) -> None:
-        """Write ``msg`` on the topic of ``handle`` with record (log) time ``stamp_ns``."""
+    def serialize(self, msg: Any) -> bytes:
+        """``msg`` serialised for this log (ROS 1 for ``.bag``, CDR otherwise)."""
         msgtype = msg.__msgtype__
         if self.ros1:
-            self.write_raw(handle, stamp_ns, self.typestore.serialize_ros1(msg, msgtype))
-        else:
-            self.write_raw(handle, stamp_ns, self.typestore.serialize_cdr(msg, msgtype))
+            return bytes(self.typestore.serialize_ros1(msg, msgtype))
+        return bytes(self.typestore.serialize_cdr(msg, msgtype))
+
+    def serialize_many(self, build: Callable[..., Any], stamps_ns: np.ndarray,
+                       values: Mapping[str, np.ndarray] | None = None) -> list[bytes]:
+        """N messages of one layout at once: one serialised by rosbags, the others patched in with numpy.
+
+        ``build(stamp_ns, seq, **doubles)`` makes one message; every header in it must be
+        ``self.header(stamp_ns, ..., seq)``, every other field the same for all N messages
+        but the float64 fields given by ``doubles`` (so that all N share the byte layout:
+        the same strings and array lengths). It is called once, with sentinel values,
+        whose bytes show where each message's stamps (and ROS 1 ``seq`` = the row index)
+        and doubles go.
+
+        Parameters
+        ----------
+        build : callable
+        stamps_ns : ndarray (N,) of int64
+            Header stamps, ns (>= 0).
+        values : mapping of str to ndarray (N,), optional
+            The doubles of each message, by ``build``'s keyword.
+
+        Returns
+        -------
+        list of bytes
+            One serialised message per stamp, equal to serialising ``build(stamp, k, **row k)``.
+        """
+        stamps = np.asarray(stamps_ns, dtype=np.int64)
+        values = dict(values or {})
+        n = len(stamps)
+        sec, nsec, seq = 0x5EC05EC0, 0x3A5EC0DE, 0x5E0C5E0C          # sentinels (nsec < 1e9)
+        marks = {k: float.fromhex(f"0x1.5ec0{i:04x}a53c7p-900") for i, k in enumerate(values)}
+        template = self.serialize(build(sec * 10**9 + nsec, seq, **marks))
+        raw = np.frombuffer(template, dtype=np.uint8)
+        buf = np.tile(raw, (n, 1))
+
+        def offsets(pattern: bytes) -> list[int]:
+            found, at = [], template.find(pattern)
+            while at >= 0:
+                found.append(at)
+                at = template.find(pattern, at + 1)
+            return found
+
+        def put(at: int, column: np.ndarray, dtype: str) -> None:
+            data = np.ascontiguousarray(column, dtype=dtype)
+            buf[:, at:at + data.itemsize] = data.view(np.uint8).reshape(n, data.itemsize)
+
+        stamp_at = offsets(np.array([sec, nsec], dtype="<u4").tobytes())
+        if not stamp_at:
+            raise ValueError("build() made no header with the stamp it was given")
+        for at in stamp_at:
+            put(at, stamps // 1_000_000_000, "<u4")
+            put(at + 4, stamps % 1_000_000_000, "<u4")
+        if self.ros1:
+            for at in offsets(np.array([seq], dtype="<u4").tobytes()):
+                put(at, np.arange(n), "<u4")
+        for key, mark in marks.items():
+            at = offsets(np.array([mark], dtype="<f8").tobytes())
+            if len(at) != 1:
+                raise ValueError(f"build() must put the double {key!r} in exactly one field, not {len(at)}")
+            put(at[0], values[key], "<f8")
+        whole, size = buf.tobytes(), len(template)
+        return [whole[i * size:(i + 1) * size] for i in range(n)]
+
+    def write(self, handle: Any, stamp_ns: int, msg: Any) -> None:
+        """Write ``msg`` on the topic of ``handle`` with record (log) time ``stamp_ns``."""
+        self.write_raw(handle, stamp_ns, self.serialize(msg))
 
     def write_raw(self, handle: Any, stamp_ns: int, data: bytes | memoryview) -> None:
         """Write an already serialised message (ROS 1 for ``.bag``, CDR otherwise)."""
@@ -491,42 +555,77 @@ def _table_std(table: Any) -> np.ndarray | None:
 
 
 def _write_road_from_sensor(w: RosWriter, rows: dict[str, np.ndarray], stamps: np.ndarray, r_gs: np.ndarray,
-                            trans: np.ndarray, road: str, sensor: str, camera: dict[int, Any] | None,
+                            trans: np.ndarray, road: str, sensor: str, camera: dict[str, Any] | None,
                             std: np.ndarray | None, prefix: str) -> None:
     """``/tf`` (road -> sensor, and road -> camera) and ``PREFIX/pose`` (with the 1-sigma) of the written rows.
 
     ``rows`` are the valid finite rows (:func:`_valid_rows`, with their table index ``row``), ``stamps`` their
-    stamps (ns); ``camera`` the camera transforms by table index; ``std`` every table row's roll and pitch
-    1-sigma (rad).
+    stamps (ns); ``camera`` the camera transforms (translation xyz, m, and quaternion xyzw) by table index;
+    ``std`` every table row's roll and pitch 1-sigma (rad).
     """
     from scipy.spatial.transform import Rotation
     q = np.column_stack([rows["qw"], rows["qx"], rows["qy"], rows["qz"]])
     # the dynamic extrinsic road-ground <- sensor: the residual road <- body after the static ground <- sensor
     quat = ((Rotation.from_quat(q, scalar_first=True) * Rotation.from_matrix(r_gs)).as_quat()
             if len(q) else np.zeros((0, 4)))                                                     # x y z w
-    vec, qua = "geometry_msgs/msg/Vector3", "geometry_msgs/msg/Quaternion"
-    h_tf = w.add_topic("/tf", ROS_OUTPUT_TOPICS["tf"])
-    h_pose = w.add_topic(f"{prefix}/pose", ROS_OUTPUT_TOPICS["pose"]) if std is not None else None
-    index = rows["row"].astype(int).tolist()
-    for k, ns in enumerate(stamps.tolist()):
-        rot = w.message(qua, x=quat[k, 0], y=quat[k, 1], z=quat[k, 2], w=quat[k, 3])
-        tr = w.message("geometry_msgs/msg/Transform", translation=w.message(vec, x=trans[0], y=trans[1], z=trans[2]),
-                       rotation=rot)
-        transforms = [w.message("geometry_msgs/msg/TransformStamped", header=w.header(ns, road, k),
-                                child_frame_id=sensor, transform=tr)]
-        if camera is not None and index[k] in camera:
-            transforms.append(camera[index[k]])
-        w.write(h_tf, ns, w.message("tf2_msgs/msg/TFMessage", transforms=transforms))
-        if h_pose is None or not np.all(np.isfinite(std[index[k]])):
+    rot = {f"q{c}": quat[:, i] for i, c in enumerate("xyzw")}
+    index = rows["row"].astype(int)
+
+    def transform(ns: int, seq: int, parent: str, child: str, tx: float, ty: float, tz: float, qx: float,
+                  qy: float, qz: float, qw: float) -> Any:
+        return w.message("geometry_msgs/msg/TransformStamped", header=w.header(ns, parent, seq), child_frame_id=child,
+                         transform=w.message("geometry_msgs/msg/Transform",
+                                             translation=w.message("geometry_msgs/msg/Vector3", x=tx, y=ty, z=tz),
+                                             rotation=w.message("geometry_msgs/msg/Quaternion", x=qx, y=qy, z=qz,
+                                                                w=qw)))
+
+    def tf(ns: int, seq: int, **v: float) -> Any:
+        items = [transform(ns, seq, road, sensor, *trans, v["qx"], v["qy"], v["qz"], v["qw"])]
+        if "cx" in v:
+            items.append(transform(ns, seq, road, camera_child, *(v[f"c{c}"] for c in ("x", "y", "z", "qx", "qy",
+                                                                                      "qz", "qw"))))
+        return w.message("tf2_msgs/msg/TFMessage", transforms=items)
+
+    camera_child = ""
+    with_camera = np.zeros(len(index), dtype=bool)
+    cam = np.zeros((len(index), 7))
+    if camera:
+        camera_child = camera["child"]
+        with_camera = np.isin(index, camera["rows"])
+        at = np.searchsorted(camera["rows"], index[with_camera])
+        cam[with_camera] = camera["values"][at]
+    messages: list[bytes | None] = [None] * len(index)
+    for group in (with_camera, ~with_camera):
+        if not group.any():
             continue
-        cov = np.zeros(36)
-        cov[21], cov[28] = std[index[k]] ** 2                              # roll about x, pitch about y, rad^2
-        pose = w.message("geometry_msgs/msg/Pose",
-                         position=w.message("geometry_msgs/msg/Point", x=trans[0], y=trans[1], z=trans[2]),
-                         orientation=rot)
-        w.write(h_pose, ns, w.message("geometry_msgs/msg/PoseWithCovarianceStamped", header=w.header(ns, road, k),
-                                      pose=w.message("geometry_msgs/msg/PoseWithCovariance", pose=pose,
-                                                     covariance=cov)))
+        extra = {f"c{c}": cam[group, i] for i, c in enumerate(("x", "y", "z", "qx", "qy", "qz", "qw"))} \
+            if group is with_camera else {}
+        for k, data in zip(np.flatnonzero(group).tolist(),
+                           w.serialize_many(tf, stamps[group], {**{c: v[group] for c, v in rot.items()}, **extra})):
+            messages[k] = data
+    h_tf = w.add_topic("/tf", ROS_OUTPUT_TOPICS["tf"])
+    for ns, data in zip(stamps.tolist(), messages):
+        w.write_raw(h_tf, ns, data)
+    if std is None:
+        return
+    sd = std[index]
+    keep = np.all(np.isfinite(sd), axis=1)
+
+    def pose(ns: int, seq: int, qx: float, qy: float, qz: float, qw: float, roll: float, pitch: float) -> Any:
+        cov = [0.0] * 36
+        cov[21], cov[28] = roll, pitch                                   # rad^2 about the road's x and y axes
+        return w.message("geometry_msgs/msg/PoseWithCovarianceStamped", header=w.header(ns, road, seq),
+                         pose=w.message("geometry_msgs/msg/PoseWithCovariance", covariance=np.array(cov),
+                                        pose=w.message("geometry_msgs/msg/Pose",
+                                                       position=w.message("geometry_msgs/msg/Point", x=trans[0],
+                                                                          y=trans[1], z=trans[2]),
+                                                       orientation=w.message("geometry_msgs/msg/Quaternion", x=qx,
+                                                                             y=qy, z=qz, w=qw))))
+    h_pose = w.add_topic(f"{prefix}/pose", ROS_OUTPUT_TOPICS["pose"])
+    data = w.serialize_many(pose, stamps[keep], {**{c: v[keep] for c, v in rot.items()},
+                                                 "roll": sd[keep, 0] ** 2, "pitch": sd[keep, 1] ** 2})
+    for ns, msg in zip(stamps[keep].tolist(), data):
+        w.write_raw(h_pose, ns, msg)
 
 
 def _write_optional(w: "RosWriter", table: Any, prefix: str, frame_id: str, origin: int) -> None:
@@ -551,27 +650,31 @@ def _write_optional(w: "RosWriter", table: Any, prefix: str, frame_id: str, orig
 def _write_diagnostics(w: RosWriter, handle: Any, table: Any, stamps: np.ndarray, keep: np.ndarray, prefix: str,
                        frame_id: str) -> None:
     """One ``diagnostic_msgs/DiagnosticArray`` per row of ``table`` with ``keep`` (a finite ``t``)."""
-    n = len(stamps)
-    cols = {c: (np.asarray(table[c], dtype=float) if c in table else np.full(n, np.nan))
-            for c in ("pitch_deg", "roll_deg", "pitch_std_deg", "roll_std_deg")}
     name = f"imu-ground {prefix}".rstrip()
-    kv = "diagnostic_msgs/msg/KeyValue"
-    for k, (ns, st, why) in enumerate(zip(stamps.tolist(), table["status"], table["status_reason"])):
-        if not keep[k]:
-            continue
-        st, why = str(st), str(why) if why is not None else ""
-        values = [w.message(kv, key="status", value=st), w.message(kv, key="reason", value=why),
-                  *(w.message(kv, key=c, value=f"{cols[c][k]:.6g}") for c in cols)]
-        status = w.message("diagnostic_msgs/msg/DiagnosticStatus", level=DIAGNOSTIC_LEVELS.get(st, 1), name=name,
-                           message=f"{st}: {why}" if why else st, hardware_id=frame_id, values=values)
-        w.write(handle, ns, w.message("diagnostic_msgs/msg/DiagnosticArray", header=w.header(ns, frame_id, k),
-                                      status=[status]))
+    texts = [(str(st), "" if why is None else str(why)) for st, why in zip(table["status"], table["status_reason"])]
+    rows = np.flatnonzero(keep)
+    messages: dict[int, bytes] = {}
+    groups: dict[tuple[str, str], list[int]] = {}
+    for k in rows.tolist():
+        groups.setdefault(texts[k], []).append(k)
+    for (st, why), ks in groups.items():                  # few distinct texts: one layout each
+        def build(ns: int, seq: int, st: str = st, why: str = why) -> Any:
+            kv = "diagnostic_msgs/msg/KeyValue"
+            status = w.message("diagnostic_msgs/msg/DiagnosticStatus", level=DIAGNOSTIC_LEVELS.get(st, 1),
+                               name=name, message=f"{st}: {why}" if why else st, hardware_id=frame_id,
+                               values=[w.message(kv, key="status", value=st), w.message(kv, key="reason", value=why)])
+            return w.message("diagnostic_msgs/msg/DiagnosticArray", header=w.header(ns, frame_id, seq),
+                             status=[status])
+        messages.update(zip(ks, w.serialize_many(build, stamps[ks])))
+    for k in rows.tolist():
+        w.write_raw(handle, int(stamps[k]), messages[k])
 
 
 def _write_camera_transforms(w: RosWriter, topic: str, table: Any, transforms: Any, origin: int,
-                             child: str, road: str = "road") -> dict[int, Any]:
-    """One ``geometry_msgs/TransformStamped`` road <- camera per valid, finite row of ``table``; returns them by
-    table row (for ``/tf``)."""
+                             child: str, road: str = "road") -> dict[str, Any]:
+    """One ``geometry_msgs/TransformStamped`` road <- camera per valid, finite row of ``table``; returns them for
+    ``/tf``: ``child``, ``rows`` (their table rows, increasing) and ``values`` (per row translation xyz, m, and
+    quaternion xyzw)."""
     from scipy.spatial.transform import Rotation
     m = np.asarray(transforms, dtype=float).reshape(-1, 4, 4)
     cols = np.column_stack([np.asarray(table[c], dtype=float) for c in _TABLE_COLUMNS])
@@ -582,13 +685,11 @@ def _write_camera_transforms(w: RosWriter, topic: str, table: Any, transforms: A
     stamps = origin + np.round(np.asarray(table["t"], dtype=float)[keep] * 1e9).astype(np.int64)
     quat = Rotation.from_matrix(m[:, :3, :3]).as_quat() if len(m) else np.zeros((0, 4))     # x y z w
     handle = w.add_topic(topic, "geometry_msgs/msg/TransformStamped")
-    out = {}
-    for k, (ns, row) in enumerate(zip(stamps.tolist(), np.flatnonzero(keep).tolist())):
+    for k, ns in enumerate(stamps.tolist()):
         tr = w.message("geometry_msgs/msg/Transform",
                        translation=w.message("geometry_msgs/msg/Vector3", x=m[k, 0, 3], y=m[k, 1, 3], z=m[k, 2, 3]),
                        rotation=w.message("geometry_msgs/msg/Quaternion", x=quat[k, 0], y=quat[k, 1], z=quat[k, 2],
                                           w=quat[k, 3]))
-        out[row] = w.message("geometry_msgs/msg/TransformStamped", header=w.header(ns, road, k),
-                             child_frame_id=child, transform=tr)
-        w.write(handle, ns, out[row])
-    return out
+        w.write(handle, ns, w.message("geometry_msgs/msg/TransformStamped", header=w.header(ns, road, k),
+                                      child_frame_id=child, transform=tr))
+    return {"child": child, "rows": np.flatnonzero(keep), "values": np.column_stack([m[:, :3, 3], quat])}
