@@ -19,8 +19,9 @@ skipped):
   camera): the road <- camera transform of the frame (``header.frame_id`` ``road``,
   ``child_frame_id`` ``camera``; translation m, the camera origin in the road frame);
 - ``/tf`` (``tf2_msgs/TFMessage``, not prefixed: where Foxglove's 3D panel and RViz look): per
-  written frame the transform road -> sensor, ``header.frame_id`` ``road`` (``road_frame_id``),
-  ``child_frame_id`` the IMU's ``frame_id``; its rotation is the dynamic extrinsic road-ground <-
+  written frame the transform road -> sensor, ``header.frame_id`` ``road`` (``road_frame_id``: the
+  road plane under the vehicle, z its normal, x along the vehicle's heading; it travels with the
+  vehicle), ``child_frame_id`` the IMU's ``frame_id``; its rotation is the dynamic extrinsic road-ground <-
   sensor (the table's residual road <- body times the static extrinsic ground <- sensor:
   ``R = R(q) R_gs``, what a ``.tum`` output holds), so that ``R^T e_z`` is the table's normal, and
   its translation the static extrinsic's (the sensor's origin in the ground frame, m). With a camera
