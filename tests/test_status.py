@@ -249,7 +249,7 @@ def test_ros_output_has_the_std_road_and_status_topics(tmp_path, drives):
         got = {}
         for conn, _, raw in reader.messages():
             got.setdefault(conn.topic, []).append(reader.deserialize(raw, conn.msgtype))
-    assert got["/ground/status"][0].data.startswith(table["status"][0])
+    assert got["/ground/status"][0].status[0].message.startswith(table["status"][0])
     np.testing.assert_allclose([m.vector.y for m in got["/ground/road"]], np.radians(table["road_grade_deg"]),
                                rtol=1e-12)
 

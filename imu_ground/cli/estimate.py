@@ -21,6 +21,7 @@ from imu_ground.errors import ImuGroundError
 from imu_ground.pipeline.estimate import available_methods, estimate_to_files
 from imu_ground.pipeline.output import check_output_path, default_output_name, summarize_table
 from imu_ground.pipeline.planes import check_planes_dir
+from imu_ground.pipeline.plot import check_plot_path
 
 __all__ = ["add_method_flags", "method_kwargs", "register", "run"]
 
@@ -76,6 +77,9 @@ def register(sub) -> None:
     e.add_argument("--tum", metavar="FILE",
                    help="also write the dynamic extrinsic (ground <- sensor) of the valid frames as TUM poses "
                         "(t x y z qx qy qz qw), e.g. for evo")
+    e.add_argument("--plot", metavar="FILE",
+                   help="also draw the estimate: pitch and roll over time with their 1-sigma band, the status as "
+                        "shading and the speed the estimate used; .png, .pdf or .svg")
     add_method_flags(e)
     e.add_argument("--speed", default="auto", metavar="auto|none|FILE|COLUMN",
                    help="measured vehicle speed for the suspension methods (speed-aided mode): auto (default: the "
@@ -113,6 +117,11 @@ def run(a: argparse.Namespace) -> int:
     """Estimate, write the outputs (atomically, all or none) and print a three-line summary."""
 
     t0 = time.perf_counter()
+    if a.plot:                                          # first: -o x.png --plot x.png is one mistake, not two
+        for flag, other in (("-o", a.output or default_output_name(a.log)), ("--tum", a.tum)):
+            if other and Path(other).resolve() == Path(a.plot).resolve():
+                raise ImuGroundError(f"{a.plot}: given to both {flag} and --plot; the two outputs need two file "
+                                     f"names (e.g. --plot {Path(a.plot).stem}_plot.png)")
     outputs = [check_output_path(a.output or default_output_name(a.log), [a.log])]
     kinds = [None]
     if a.tum:
@@ -122,6 +131,10 @@ def run(a: argparse.Namespace) -> int:
                                  f"(e.g. --tum {tum.with_suffix('.tum')})")
         outputs.append(tum)
         kinds.append(".tum")
+    if a.plot:
+        plot = check_output_path(check_plot_path(a.plot), [a.log], "--plot", kind=".png")
+        outputs.append(plot)
+        kinds.append(plot.suffix.lower())
     if a.planes is not None:
         check_planes_dir(a.planes, inputs=[a.log], outputs=outputs)
     if a.camera is not None and outputs[0].suffix.lower() == ".tum":

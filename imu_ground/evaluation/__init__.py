@@ -11,7 +11,8 @@ _EXPORTS = {
     ".simulate": ("GRAVITY ISO8608_N0 ISO8608_CLASSES ImuErrorModel IMU_PRESETS imu_error_model "
                   "VehicleParams RoadParams SpeedParams SimResult simulate simulate_suite "
                   "road_profile suspension_response iso8608_psd TRUTH_COLUMNS TRUTH_ANGLES ROAD_PLANE_WINDOW"),
-    ".plots": "plot_pitch_over_time plot_error_distribution plot_simulation evaluation_plots",
+    ".plots": ("plot_pitch_over_time plot_error_distribution plot_simulation evaluation_plots "
+               "pitch_over_time_figure error_distribution_figure"),
     ".drives": "Drive load_real_drive load_real_drives synthetic_drive synthetic_drives",
     ".conditions": ("CONDITIONS frame_signals condition_masks moving_segments segment_centred "
                     "reference_sigma"),

@@ -1,6 +1,7 @@
 """Plots for evaluations and simulations (PNG, matplotlib: ``pip install imu-ground[plot]``).
 
-- :func:`plot_pitch_over_time`: estimated pitch of each method against the reference.
+- :func:`plot_pitch_over_time`: estimated pitch (and roll) of each method against the reference, the
+  :data:`HIGHLIGHTED` methods apart from the others, the default's 1-sigma band.
 - :func:`plot_error_distribution`: per-frame error histogram and CDF per method.
 - :func:`plot_simulation`: the synthetic road (top view, grade and bank) and the body motion.
 - :func:`evaluation_plots`: all of the above for an evaluation run.
@@ -17,8 +18,10 @@ import pandas as pd
 
 from imu_ground.errors import require_extra
 from imu_ground.evaluation.metrics import normal_angle
+from imu_ground.evaluation.reference import MIN_SPEED
 
-__all__ = ["plot_pitch_over_time", "plot_error_distribution", "plot_simulation", "evaluation_plots"]
+__all__ = ["HIGHLIGHTED", "SAME_RMS_DEG", "error_distribution_figure", "evaluation_plots", "pitch_over_time_figure",
+           "plot_error_distribution", "plot_pitch_over_time", "plot_simulation"]
 
 
 def _plt():
@@ -39,73 +42,188 @@ def _frame_errors(drive, track) -> np.ndarray:
     return np.abs(np.degrees(est - ref))
 
 
+#: Methods drawn bold in the pitch and roll panels, the first that is there being the default with its 1-sigma
+#: band (``estimate``'s default for an IMU log, the paper's method, the static extrinsic alone); the others
+#: have a panel of their own.
+HIGHLIGHTED = ("suspension", "paper", "naive")
+_LINESTYLES = ("-", "--", "-.", ":")
+
+
+def _method_styles(methods: Sequence[str]) -> dict[str, dict]:
+    """A colour and line style per method, the same in every picture of a run (highlighted: bold, solid)."""
+    from imu_ground.evaluation.runner import METHODS
+    order = list(dict.fromkeys([*METHODS, *methods]))
+    styles = {}
+    for name in methods:
+        k = order.index(name)
+        bold = name in HIGHLIGHTED
+        styles[name] = {"color": f"C{k % 10}", "ls": "-" if bold else _LINESTYLES[k % len(_LINESTYLES)],
+                        "lw": 1.5 if bold else 1.0}
+    return styles
+
+
+def _split_methods(methods: Sequence[str]) -> tuple[list[str], list[str]]:
+    """``(highlighted, others)`` of ``methods``, the highlighted in :data:`HIGHLIGHTED` order."""
+    bold = [m for m in HIGHLIGHTED if m in methods]
+    return bold, [m for m in methods if m not in bold]
+
+
+#: Two methods whose pitch differs by less than this RMS (deg, scored frames) lie on each other in a picture:
+#: the later one's legend says so.
+SAME_RMS_DEG = 0.01
+
+
+def _overlap_labels(drive, tracks: dict, names: Sequence[str], centred, m: np.ndarray) -> dict[str, str]:
+    """Legend label per method: its name, and the earlier method it lies on (pitch within :data:`SAME_RMS_DEG`)."""
+    labels, drawn = {}, []
+    for name in names:
+        p = np.degrees(centred(np.asarray(tracks[name].pitch, dtype=float)))[m]
+        labels[name] = name
+        for other, q in drawn:
+            ok = np.isfinite(p) & np.isfinite(q)
+            if ok.any() and (rms := float(np.sqrt(np.mean((p[ok] - q[ok]) ** 2)))) < SAME_RMS_DEG:
+                labels[name] = f"{name} (on {other}: {rms:.3f} deg RMS apart)"
+                break
+        drawn.append((name, p))
+    return labels
+
+
 def plot_pitch_over_time(drive, tracks: dict, path: Path, methods: Optional[Sequence[str]] = None) -> Path:
-    """Pitch relative to the road over time: reference and each method's estimate.
+    """Write :func:`pitch_over_time_figure` as a PNG to ``path``; returns ``path``."""
+    plt = _plt()
+    fig = pitch_over_time_figure(drive, tracks, methods)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def pitch_over_time_figure(drive, tracks: dict, methods: Optional[Sequence[str]] = None):
+    """Pitch (and roll, where the truth has it) relative to the road over time: reference and estimates.
+
+    Panels, on one time axis: pitch of the reference, the :data:`HIGHLIGHTED` methods there
+    (the first, the default, with its 1-sigma band); roll likewise where the truth has a
+    roll (synthetic drives); pitch of every other method (each its own colour and line
+    style; one within :data:`SAME_RMS_DEG` of an earlier one says so in the legend); the speed with the line of :data:`~imu_ground.evaluation.reference.MIN_SPEED` (m/s), below
+    which frames are not scored.
+    Real drives (``drive.remove_mean``) show estimates and reference less their means over
+    the scored frames. Angles in deg, pitch + nose down, roll + left side up; legends sit
+    right of the panels, off the curves.
 
     Parameters
     ----------
     drive : imu_ground.evaluation.runner.Drive
     tracks : dict
         ``{method: GroundTrack}`` for this drive.
-    path : Path
-        PNG to write.
+    methods : sequence of str, optional
+        The methods to draw, in order (default: every key of ``tracks``).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Its axes, top to bottom: pitch, roll (with a roll truth), other methods (when there are), speed.
     """
     plt = _plt()
+    names = [m for m in (methods or list(tracks)) if m in tracks]
+    bold, others = _split_methods(names)
+    styles = _method_styles(names)
     t = drive.egomotion.t
     m = drive.truth["evaluate"].to_numpy()
-    ref = drive.truth["pitch"].to_numpy()
-    fig, axes = plt.subplots(2, 1, figsize=(11, 6), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
-    ax = axes[0]
-    off = ref[m].mean() if drive.remove_mean and m.any() else 0.0
-    ax.plot(t, np.degrees(np.where(m, ref - off, np.nan)), color="k", lw=2.0, label="reference")
-    for name in methods or list(tracks):
-        tr = tracks[name]
-        est = tr.pitch - (tr.pitch[m].mean() if drive.remove_mean and m.any() else 0.0)
-        ax.plot(t, np.degrees(est), lw=1.0, label=name)
-    ax.set_ylabel("pitch rel. road (deg, + nose down)")
-    ax.set_title(f"{drive.name} ({drive.kind}, {drive.grade})" +
-                 (": estimate and reference mean-removed" if drive.remove_mean else ""))
-    ax.legend(loc="upper right", ncol=3, fontsize=8)
+    angles = ["pitch", *(["roll"] if drive.has_roll else [])]
+    panels = [*angles, *(["others"] if others else []), "speed"]
+    ratios = {"pitch": 3, "roll": 3, "others": 3, "speed": 1.3}
+    fig, axes = plt.subplots(len(panels), 1, figsize=(13, 2.4 * sum(ratios[p] for p in panels) / 3 + 0.8),
+                             sharex=True, gridspec_kw={"height_ratios": [ratios[p] for p in panels]})
+    ax_of = dict(zip(panels, axes))
+
+    def centred(x: np.ndarray) -> np.ndarray:
+        return x - (np.nanmean(x[m]) if drive.remove_mean and m.any() else 0.0)
+
+    label = _overlap_labels(drive, tracks, [*bold, *others], centred, m)
+    sign = {"pitch": "+ nose down", "roll": "+ left side up"}
+    for what in angles:
+        ax = ax_of[what]
+        ref = drive.truth[what].to_numpy()
+        ax.plot(t, np.degrees(np.where(m, centred(ref), np.nan)), color="k", lw=2.0, label="reference")
+        for k, name in enumerate(bold):
+            est = centred(np.asarray(getattr(tracks[name], what), dtype=float))
+            std = getattr(tracks[name], f"{what}_std", None)
+            if k == 0 and std is not None and np.isfinite(std).any():
+                ax.fill_between(t, np.degrees(est - std), np.degrees(est + std), color=styles[name]["color"],
+                                alpha=0.2, lw=0, label=f"{name} 1-sigma")
+            ax.plot(t, np.degrees(est), label=label[name] + (" (default)" if k == 0 and name == HIGHLIGHTED[0] else ""),
+                    **styles[name])
+        ax.set_ylabel(f"{what} rel. road\n(deg, {sign[what]})")
+    if others:
+        ax = ax_of["others"]
+        ax.plot(t, np.degrees(np.where(m, centred(drive.truth["pitch"].to_numpy()), np.nan)), color="k", lw=2.0,
+                label="reference")
+        for name in others:
+            ax.plot(t, np.degrees(centred(np.asarray(tracks[name].pitch, dtype=float))), label=label[name],
+                    **styles[name])
+        ax.set_ylabel("pitch rel. road\n(deg, other methods)")
+    for p in panels[:-1]:
+        ax_of[p].legend(loc="upper left", bbox_to_anchor=(1.005, 1.0), fontsize=8, frameon=False)
+        ax_of[p].grid(alpha=0.3)
+    ax = ax_of["speed"]
+    ax.plot(t, drive.truth["speed"].to_numpy(), color="tab:gray", label="speed")
+    ax.axhline(MIN_SPEED, color="tab:red", lw=0.8, ls="--",
+               label=f"{MIN_SPEED:g} m/s: slower frames\nnot scored")
+    ax.set_ylabel("speed (m/s)")
+    ax.set_xlabel("time (s)")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.005, 1.0), fontsize=8, frameon=False)
     ax.grid(alpha=0.3)
-    axes[1].plot(t, drive.truth["speed"].to_numpy(), color="tab:gray")
-    axes[1].axhline(3.0, color="tab:red", lw=0.8, ls="--")
-    axes[1].set_ylabel("speed (m/s)")
-    axes[1].set_xlabel("time (s)")
-    axes[1].grid(alpha=0.3)
+    axes[0].set_title(f"{drive.name} ({drive.kind}, {drive.grade})" +
+                      (": estimates and reference less their means" if drive.remove_mean else ""))
     fig.tight_layout()
+    return fig
+
+
+def plot_error_distribution(errors: dict, path: Path, title: str = "") -> Path:
+    """Write :func:`error_distribution_figure` as a PNG to ``path``; returns ``path``."""
+    plt = _plt()
+    fig = error_distribution_figure(errors, title)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return Path(path)
 
 
-def plot_error_distribution(errors: dict, path: Path, title: str = "") -> Path:
-    """Histogram and empirical CDF of per-frame absolute errors (deg), one curve per method."""
+def error_distribution_figure(errors: dict, title: str = ""):
+    """Histogram and empirical CDF of per-frame absolute errors (deg), ``errors`` by method (a Figure).
+
+    The histogram (a density, 1/deg) shows the :data:`HIGHLIGHTED` methods there (every method when
+    none is), the CDF every method: the highlighted bold, the others thinner, each in its own colour
+    and line style (the same as in :func:`plot_pitch_over_time`).
+    """
     plt = _plt()
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
+    styles = _method_styles(list(errors))
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(13, 4.5))
     allv = np.concatenate([v for v in errors.values() if len(v)]) if errors else np.zeros(1)
     hi = np.percentile(allv, 99) if allv.size else 1.0
     bins = np.linspace(0.0, max(hi, 1e-3), 60)
+    bold = _split_methods(list(errors))[0] or list(errors)
     for name, e in errors.items():
         e = np.asarray(e)
         if not len(e):
             continue
-        a1.hist(np.clip(e, 0, bins[-1]), bins=bins, histtype="step", lw=1.3, density=True,
-                label=f"{name} (mean {e.mean():.3f})")
+        if name in bold:
+            a1.hist(np.clip(e, 0, bins[-1]), bins=bins, histtype="step", density=True, color=styles[name]["color"],
+                    lw=styles[name]["lw"] + 0.3, label=name)
         s = np.sort(e)
-        a2.plot(s, np.arange(1, len(s) + 1) / len(s), lw=1.3, label=name)
+        a2.plot(s, np.arange(1, len(s) + 1) / len(s), label=f"{name} (mean {e.mean():.3f} deg)", **styles[name])
     a1.set_xlabel("absolute error (deg; the last bin holds the top 1%)")
-    a1.set_ylabel("density")
-    a1.legend(fontsize=8)
+    a1.set_ylabel("density (1/deg)")
+    a1.set_title("histogram: " + ", ".join(bold) + ("; every method in the CDF" if len(bold) < len(errors) else ""),
+                 fontsize=9)
+    a1.legend(fontsize=8, loc="upper right")
+    a1.grid(alpha=0.3)
     a2.set_xlabel("absolute error (deg)")
     a2.set_ylabel("fraction of frames")
     a2.set_xlim(0, bins[-1])
     a2.grid(alpha=0.3)
-    a2.legend(fontsize=8, loc="lower right")
+    a2.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return Path(path)
+    return fig
 
 
 def plot_simulation(sim, path: Path) -> Path:

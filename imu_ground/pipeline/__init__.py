@@ -9,6 +9,8 @@
   a log against its extrinsic, the options record an output keeps.
 - :mod:`imu_ground.pipeline.streaming`: :class:`StreamingEstimator`, live: raw samples and speed in,
   per-frame estimates out, causal; :func:`causal_track`, its twin over a whole log (``causal=True``).
+- :mod:`imu_ground.pipeline.plot`: :func:`plot_estimate`, the picture of one estimate
+  (``estimate --plot``): pitch and roll with their 1-sigma, the status, the speed.
 - :mod:`imu_ground.pipeline.planes`: with a camera, the plane columns and the KITTI
   object ``planes`` files (:func:`write_kitti_planes`).
 
@@ -22,6 +24,7 @@ _EXPORTS = {
                 "track_table summarize_table write_output write_outputs atomic_path"),
     ".batch": "run_batch expand_logs",
     ".planes": "write_kitti_planes read_kitti_planes",
+    ".plot": "PLOT_SUFFIXES estimate_figure plot_estimate",
     ".streaming": "StreamingEstimator FrameEstimate causal_track replay",
 }
 __getattr__, __dir__, __all__ = lazy_exports(__name__, _EXPORTS)

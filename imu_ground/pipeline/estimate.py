@@ -84,8 +84,9 @@ class EstimateResult(NamedTuple):
         (the log's, e.g. a ROS header's; else "imu"), ``t0_ns`` (the first stamp,
         ns, when the log has absolute times; the track's ``t`` starts at 0),
         ``imu_rate`` (Hz, IMU input), ``extrinsic`` (rotation ground <- sensor
-        and translation, m); with a camera ``camera``, ``plane`` and ``bev``
-        (see :func:`estimate_log`).
+        and translation, m), ``frame_speed`` (the measured speed the method used, m/s per
+        frame, NaN where unknown; None without one: ``speed`` says why); with a camera
+        ``camera``, ``plane`` and ``bev`` (see :func:`estimate_log`).
     """
     track: Any
     egomotion: Any
@@ -306,9 +307,11 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
     bar = _steps(progress)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
+        frame_speeds = None
         if causal:
             track, em, info, name, speed_info = _causal_estimate(path, kind, fmt, method, rate, extrinsic, speed, Q, R,
                                                                  recalibrate_online, reader_kw)
+            frame_speeds = info.pop("frame_speed")
             settings["causal"] = settings["options"]["causal"] = True
             # the log is read with its stamps as recorded; the live clock applies the time-order policy
             settings.update(policy="recorded", clock_policy=live_policy(reader_kw.get("policy")))
@@ -350,7 +353,7 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
     settings.update(method=name, rate=float(em.rate), speed=speed_info)
     meta = {"source": str(path), "kind": kind, **info, "method": name,
             "method_description": available_methods().get(name, ("", False))[0],
-            "settings": settings, "warnings": messages, "speed": speed_info,
+            "settings": settings, "warnings": messages, "speed": speed_info, "frame_speed": frame_speeds,
             "extrinsic": {"rotation": ext.rotation.tolist(), "translation": ext.translation.tolist()}}
     if cam is not None:
         from imu_ground.pipeline.planes import camera_plane
@@ -545,8 +548,10 @@ def _causal_estimate(path, kind, fmt, method, rate, extrinsic, speed, Q, R, reca
     frame_rate = DEFAULT_FRAME_RATE if rate is None else rate
     track, em = causal_track(imu.t, imu.gyro, imu.accel, method=name, extrinsic=extrinsic, rate=frame_rate,
                              speed=signal, policy=clock_policy, recalibrate_online=recalibrate_online)
+    info["frame_speed"] = None
     if signal is not None:
         what = f"{what} (each frame's from the samples up to its decision)"
+        info["frame_speed"] = frame_speed(*signal, em.t, em.delta_t)     # the frames' mean speed, for pictures
     em.meta["source"] = str(path)
     return track, em, info, name, what
 

@@ -10,7 +10,8 @@ road's ``road_grade_deg road_bank_deg`` and their 1-sigma, ``status`` and ``stat
 Writers: ``.csv`` (comment header with units, method, settings and what ``valid``
 holds), ``.parquet`` (typed; units and settings in the schema metadata), ``.tum``
 (dynamic extrinsic ground <- sensor of the valid frames, for evo), ``.bag``/``.mcap``
-(ROS topics, :mod:`imu_ground.pipeline.ros_output`).
+(ROS topics, :mod:`imu_ground.pipeline.ros_output`); a picture (``.png``, ``.pdf``, ``.svg``:
+:func:`imu_ground.pipeline.plot.plot_estimate`) when asked for by its kind.
 
 Atomic: each file is written to a temporary folder beside its destination and
 renamed into place only when every requested file has been written, so a
@@ -35,6 +36,7 @@ from imu_ground.filters.estimator import GroundTrack
 from imu_ground.filters.status import GAP, gap_run_durations, status_names, status_reason
 from imu_ground.pipeline.input_checks import OptionError, check_creatable
 from imu_ground.pipeline.planes import PLANE_UNITS, plane_columns
+from imu_ground.pipeline.plot import PLOT_SUFFIXES, plot_estimate
 from imu_ground.pipeline.ros_output import write_ros_output
 from imu_ground.so3 import quat_from_matrix
 
@@ -418,7 +420,7 @@ def _write_ros(path: Path, table, meta: Mapping[str, Any]) -> None:
     try:
         plane = meta.get("plane")
         write_ros_output(path, table, frame_id=meta.get("frame_id") or "imu", settings=settings,
-                         road_from_camera=None if plane is None else plane.matrix)
+                         road_from_camera=None if plane is None else plane.matrix, extrinsic=meta.get("extrinsic"))
     except ImportError as e:                                     # rosbags / mcap load on first use
         if isinstance(e, MissingExtraError):
             raise
@@ -426,14 +428,18 @@ def _write_ros(path: Path, table, meta: Mapping[str, Any]) -> None:
 
 
 def read_output_settings(path: _PathLike) -> dict | None:
-    """The ``settings`` an output of this package records (CSV and TUM header, Parquet schema), or None.
+    """The ``settings`` an output of this package records (CSV and TUM header, Parquet schema, MCAP
+    metadata record), or None.
 
-    None when the file has no such record (a ROS bag or MCAP, whose settings topic
-    is not read here, or a file written by something else).
+    None when the file has no such record (a ROS bag, whose settings topic is not read
+    here, or a file written by something else).
     """
     p = Path(path)
     suffix = p.suffix.lower()
     try:
+        if suffix == ".mcap":
+            from imu_ground.pipeline.ros_output import read_mcap_settings
+            return read_mcap_settings(p)
         if suffix == ".parquet":
             import pyarrow.parquet as pq
             raw = (pq.read_schema(p).metadata or {}).get(b"imu_ground")
@@ -451,8 +457,15 @@ def read_output_settings(path: _PathLike) -> dict | None:
     return None
 
 
+def _write_plot(path: Path, table, meta: Mapping[str, Any]) -> None:
+    source = Path(str(meta.get("source", "")).rstrip("/\\")).name
+    t_label = f"t (s, frame end, on {meta['clock']})" if meta.get("clock") else "t (s, frame end, the log's time base)"
+    plot_estimate(table, path, speed=meta.get("frame_speed"), speed_note=str(meta.get("speed") or ""),
+                  title=f"{source or 'estimate'}: method {meta.get('method')}", time_label=t_label)
+
+
 _WRITERS = {".csv": _write_csv, ".parquet": _write_parquet, ".tum": _write_tum, ".bag": _write_ros,
-            ".mcap": _write_ros}
+            ".mcap": _write_ros, **{suffix: _write_plot for suffix in PLOT_SUFFIXES}}
 
 
 def write_outputs(paths: Sequence[_PathLike], table, meta: Mapping[str, Any],
@@ -465,7 +478,8 @@ def write_outputs(paths: Sequence[_PathLike], table, meta: Mapping[str, Any],
         Destinations (checked with :func:`check_output_path` first is advised).
     kinds : sequence of str or None, optional
         Writer per path (a suffix of :data:`OUTPUT_SUFFIXES`, e.g. ``".tum"`` for a
-        TUM file named ``.txt``); None: from the path's suffix.
+        TUM file named ``.txt``, or of :data:`~imu_ground.pipeline.plot.PLOT_SUFFIXES` for a
+        picture of the estimate, whose speed is ``meta["frame_speed"]``); None: from the path's suffix.
     table : pandas.DataFrame
         :func:`result_table`'s columns.
     meta : mapping

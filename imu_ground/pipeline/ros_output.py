@@ -18,17 +18,40 @@ skipped):
 - ``PREFIX/road_from_camera`` (``geometry_msgs/TransformStamped``, only with a
   camera): the road <- camera transform of the frame (``header.frame_id`` ``road``,
   ``child_frame_id`` ``camera``; translation m, the camera origin in the road frame);
-- ``PREFIX/settings`` (``std_msgs/String``): the method's settings as JSON,
-  once, at the first stamp (only with ``settings``);
+- ``/tf`` (``tf2_msgs/TFMessage``, not prefixed: where Foxglove's 3D panel and RViz look): per
+  written frame the transform road -> sensor, ``header.frame_id`` ``road`` (``road_frame_id``: the
+  road plane under the vehicle, z its normal, x along the vehicle's heading; it travels with the
+  vehicle), ``child_frame_id`` the IMU's ``frame_id``; its rotation is the dynamic extrinsic road-ground <-
+  sensor (the table's residual road <- body times the static extrinsic ground <- sensor:
+  ``R = R(q) R_gs``, what a ``.tum`` output holds), so that ``R^T e_z`` is the table's normal, and
+  its translation the static extrinsic's (the sensor's origin in the ground frame, m). With a camera
+  the road -> camera transform (below) is in the same message. A recording whose own tf tree already
+  gives the IMU's frame a parent (e.g. ``base_link``) has two parents for it when both are played:
+  pass another ``frame_id`` (e.g. ``imu_link_road``) to keep them apart;
+- ``PREFIX/pose`` (``geometry_msgs/PoseWithCovarianceStamped``): the same transform as a pose of the
+  sensor in the road frame (``header.frame_id`` ``road``; position m, orientation road-ground <-
+  sensor) with the 1-sigma in its covariance (6 x 6 row-major, x y z then rotations about the road
+  frame's x y z axes): ``[21]`` = roll variance, ``[28]`` = pitch variance, rad^2 (``roll_std_deg``,
+  ``pitch_std_deg`` squared, in rad); every other entry is 0: not estimated (the position is the
+  static calibration, the rotation about z follows the vehicle's heading by construction), not
+  known exactly. Only where the table has the 1-sigma columns and they are finite;
+- settings: the method's settings as JSON (only with ``settings``): in an ``.mcap`` file the
+  metadata record ``imu_ground`` (``settings``: the JSON, ``version``: the package's;
+  :func:`read_mcap_settings`), in a ROS 1 bag or ROS 2 bag folder the topic ``PREFIX/settings``
+  (``std_msgs/String``), once, at the first stamp;
 - ``PREFIX/pitch_roll_std`` (``geometry_msgs/Vector3Stamped``): ``x`` = roll, ``y`` = pitch
   1-sigma, rad, on the frames of ``pitch_roll``;
 - ``PREFIX/road`` and ``PREFIX/road_std`` (``geometry_msgs/Vector3Stamped``): ``x`` = road bank
   (+ left side up), ``y`` = road grade (+ uphill), rad, and their 1-sigma, on the valid frames
   where the road is estimated;
-- ``PREFIX/status`` (``std_msgs/String``): ``"status"`` or ``"status: reason"`` on *every* frame
-  (also the gaps and skipped frames: that is when it matters).
+- ``PREFIX/status`` (``diagnostic_msgs/DiagnosticArray``, Foxglove's Diagnostics panel: choose this
+  topic) on *every* frame (also the gaps and skipped frames: that is when it matters): one
+  ``DiagnosticStatus`` named ``imu-ground PREFIX``, ``hardware_id`` the ``frame_id``, ``level`` by
+  status (:data:`DIAGNOSTIC_LEVELS`: ok and standstill OK, converging WARN, degraded and invalid
+  ERROR, gap STALE), ``message`` ``"status"`` or ``"status: reason"`` (what the ``std_msgs/String``
+  of earlier versions held), ``values`` the keys ``status`` and ``reason``.
 
-The last four are written when the table has their columns (``pitch_std_deg``, ...).
+The last four and ``PREFIX/pose`` are written when the table has their columns (``pitch_std_deg``, ...).
 
 Pitch and roll share one ``Vector3Stamped`` (rather than two ``std_msgs/Float64``
 topics, which carry no stamp) so that each value keeps its header stamp and
@@ -43,7 +66,7 @@ from __future__ import annotations
 
 import json
 import shutil
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -55,22 +78,29 @@ from imu_ground.units import DEG
 if TYPE_CHECKING:
     from typing_extensions import Self
 
-__all__ = ["ROS_OUTPUT_TOPICS", "RosWriter", "ros_output_kind", "serialize_stamped", "write_ros_output"]
+__all__ = ["DIAGNOSTIC_LEVELS", "MCAP_METADATA_NAME", "ROS_OUTPUT_TOPICS", "RosWriter", "read_mcap_settings",
+           "ros_output_kind", "serialize_stamped", "write_ros_output"]
 
-#: Topic suffix -> message type (ROS 2 spelling) of what :func:`write_ros_output` writes.
+#: Topic suffix -> message type (ROS 2 spelling) of what :func:`write_ros_output` writes (``tf``: on ``/tf``).
 ROS_OUTPUT_TOPICS: dict[str, str] = {
     "normal": "geometry_msgs/msg/Vector3Stamped",
     "rotation": "geometry_msgs/msg/QuaternionStamped",
     "pitch_roll": "geometry_msgs/msg/Vector3Stamped",
+    "tf": "tf2_msgs/msg/TFMessage",
     "settings": "std_msgs/msg/String",
+    "pose": "geometry_msgs/msg/PoseWithCovarianceStamped",
     "pitch_roll_std": "geometry_msgs/msg/Vector3Stamped",
     "road": "geometry_msgs/msg/Vector3Stamped",
     "road_std": "geometry_msgs/msg/Vector3Stamped",
-    "status": "std_msgs/msg/String",
+    "status": "diagnostic_msgs/msg/DiagnosticArray",
 }
 #: Topics of the table's optional columns: written when the table has them.
 _OPTIONAL = {"pitch_roll_std": ("roll_std_deg", "pitch_std_deg"), "road": ("road_bank_deg", "road_grade_deg"),
              "road_std": ("road_bank_std_deg", "road_grade_std_deg"), "status": ("status", "status_reason")}
+#: ``diagnostic_msgs/DiagnosticStatus`` level of each status (0 OK, 1 WARN, 2 ERROR, 3 STALE).
+DIAGNOSTIC_LEVELS = {"ok": 0, "standstill": 0, "converging": 1, "degraded": 2, "invalid": 2, "gap": 3}
+#: Name of the MCAP metadata record holding the settings.
+MCAP_METADATA_NAME = "imu_ground"
 
 _TABLE_COLUMNS = ("t", "normal_x", "normal_y", "normal_z", "pitch_deg", "roll_deg", "qw", "qx", "qy", "qz")
 _KINDS = {".bag": "ros1", ".mcap": "mcap", "": "ros2"}
@@ -94,6 +124,18 @@ def ros_output_kind(path: str | Path) -> str:
         raise ImuGroundError(f"{p}: cannot write ROS output with suffix {p.suffix!r}: use .bag (ROS 1), "
                              f".mcap (MCAP, ROS 2 messages) or a folder name without suffix (ROS 2 bag)")
     return kind
+
+
+#: Standard messages a type store may lack (rosbags' ROS 1 Noetic store has no tf2_msgs), by their definition.
+_STANDARD_DEFINITIONS = {"tf2_msgs/msg/TFMessage": "geometry_msgs/TransformStamped[] transforms"}
+
+
+def _register_missing(typestore: Any) -> None:
+    """Add :data:`_STANDARD_DEFINITIONS` missing from ``typestore`` (the ROS 1 md5 sums come out as ROS's)."""
+    from rosbags.typesys import get_types_from_msg
+    for name, text in _STANDARD_DEFINITIONS.items():
+        if name not in typestore.types:
+            typestore.register(get_types_from_msg(text, name))
 
 
 class RosWriter:
@@ -130,6 +172,7 @@ class RosWriter:
             _remove_existing(self.path, overwrite)
         self.ros1 = self.kind == "ros1"
         self.typestore = get_typestore(Stores.ROS1_NOETIC if self.ros1 else Stores.ROS2_HUMBLE)
+        _register_missing(self.typestore)
         self._writer: Any = None
         self._file: Any = None
         self._schemas: dict[str, int] = {}
@@ -172,6 +215,18 @@ class RosWriter:
             self._writer.close()
         self._writer = None
 
+    def add_metadata(self, name: str, data: Mapping[str, str]) -> None:
+        """Write an MCAP metadata record ``name`` (str -> str); only an ``.mcap`` file has them.
+
+        Raises
+        ------
+        ValueError
+            For a ROS 1 bag or a ROS 2 bag folder.
+        """
+        if self.kind != "mcap":
+            raise ValueError(f"{self.path}: only an .mcap file holds metadata records, not a {self.kind} log")
+        self._writer.add_metadata(name=name, data={str(k): str(v) for k, v in data.items()})
+
     # -- messages -------------------------------------------------------------------------
     def add_topic(self, topic: str, msgtype: str) -> Any:
         """Register ``topic`` of type ``msgtype`` (ROS 2 spelling, ``pkg/msg/Name``); returns its handle."""
@@ -200,13 +255,77 @@ class RosWriter:
             return self.message("std_msgs/msg/Header", seq=seq, stamp=t, frame_id=frame_id)
         return self.message("std_msgs/msg/Header", stamp=t, frame_id=frame_id)
 
-    def write(self, handle: Any, stamp_ns: int, msg: Any) -> None:
-        """Write ``msg`` on the topic of ``handle`` with record (log) time ``stamp_ns``."""
+    def serialize(self, msg: Any) -> bytes:
+        """``msg`` serialised for this log (ROS 1 for ``.bag``, CDR otherwise)."""
         msgtype = msg.__msgtype__
         if self.ros1:
-            self.write_raw(handle, stamp_ns, self.typestore.serialize_ros1(msg, msgtype))
-        else:
-            self.write_raw(handle, stamp_ns, self.typestore.serialize_cdr(msg, msgtype))
+            return bytes(self.typestore.serialize_ros1(msg, msgtype))
+        return bytes(self.typestore.serialize_cdr(msg, msgtype))
+
+    def serialize_many(self, build: Callable[..., Any], stamps_ns: np.ndarray,
+                       values: Mapping[str, np.ndarray] | None = None) -> list[bytes]:
+        """N messages of one layout at once: one serialised by rosbags, the others patched in with numpy.
+
+        ``build(stamp_ns, seq, **doubles)`` makes one message; every header in it must be
+        ``self.header(stamp_ns, ..., seq)``, every other field the same for all N messages
+        but the float64 fields given by ``doubles`` (so that all N share the byte layout:
+        the same strings and array lengths). It is called once, with sentinel values,
+        whose bytes show where each message's stamps (and ROS 1 ``seq`` = the row index)
+        and doubles go.
+
+        Parameters
+        ----------
+        build : callable
+        stamps_ns : ndarray (N,) of int64
+            Header stamps, ns (>= 0).
+        values : mapping of str to ndarray (N,), optional
+            The doubles of each message, by ``build``'s keyword.
+
+        Returns
+        -------
+        list of bytes
+            One serialised message per stamp, equal to serialising ``build(stamp, k, **row k)``.
+        """
+        stamps = np.asarray(stamps_ns, dtype=np.int64)
+        values = dict(values or {})
+        n = len(stamps)
+        sec, nsec, seq = 0x5EC05EC0, 0x3A5EC0DE, 0x5E0C5E0C          # sentinels (nsec < 1e9)
+        marks = {k: float.fromhex(f"0x1.5ec0{i:04x}a53c7p-900") for i, k in enumerate(values)}
+        template = self.serialize(build(sec * 10**9 + nsec, seq, **marks))
+        raw = np.frombuffer(template, dtype=np.uint8)
+        buf = np.tile(raw, (n, 1))
+
+        def offsets(pattern: bytes) -> list[int]:
+            found, at = [], template.find(pattern)
+            while at >= 0:
+                found.append(at)
+                at = template.find(pattern, at + 1)
+            return found
+
+        def put(at: int, column: np.ndarray, dtype: str) -> None:
+            data = np.ascontiguousarray(column, dtype=dtype)
+            buf[:, at:at + data.itemsize] = data.view(np.uint8).reshape(n, data.itemsize)
+
+        stamp_at = offsets(np.array([sec, nsec], dtype="<u4").tobytes())
+        if not stamp_at:
+            raise ValueError("build() made no header with the stamp it was given")
+        for at in stamp_at:
+            put(at, stamps // 1_000_000_000, "<u4")
+            put(at + 4, stamps % 1_000_000_000, "<u4")
+        if self.ros1:
+            for at in offsets(np.array([seq], dtype="<u4").tobytes()):
+                put(at, np.arange(n), "<u4")
+        for key, mark in marks.items():
+            at = offsets(np.array([mark], dtype="<f8").tobytes())
+            if len(at) != 1:
+                raise ValueError(f"build() must put the double {key!r} in exactly one field, not {len(at)}")
+            put(at[0], values[key], "<f8")
+        whole, size = buf.tobytes(), len(template)
+        return [whole[i * size:(i + 1) * size] for i in range(n)]
+
+    def write(self, handle: Any, stamp_ns: int, msg: Any) -> None:
+        """Write ``msg`` on the topic of ``handle`` with record (log) time ``stamp_ns``."""
+        self.write_raw(handle, stamp_ns, self.serialize(msg))
 
     def write_raw(self, handle: Any, stamp_ns: int, data: bytes | memoryview) -> None:
         """Write an already serialised message (ROS 1 for ``.bag``, CDR otherwise)."""
@@ -289,7 +408,8 @@ def _stamp_origin(t0: float | None, t0_ns: int | None, settings: Mapping[str, An
 
 
 def _valid_rows(table: Any) -> dict[str, np.ndarray]:
-    """The table's columns (float arrays) restricted to valid rows with finite values."""
+    """The table's columns (float arrays) restricted to valid rows with finite values, and ``row``: their
+    positions in the table."""
     missing = [c for c in _TABLE_COLUMNS if c not in table]
     if missing:
         raise ValueError(f"the output table lacks column(s) {missing}; expected {list(_TABLE_COLUMNS)} and valid")
@@ -297,14 +417,33 @@ def _valid_rows(table: Any) -> dict[str, np.ndarray]:
     keep = np.all(np.isfinite(np.column_stack(list(cols.values()))), axis=1)
     if "valid" in table:
         keep &= np.asarray(table["valid"], dtype=bool)
-    return {c: v[keep] for c, v in cols.items()}
+    return {**{c: v[keep] for c, v in cols.items()}, "row": np.flatnonzero(keep)}
+
+
+def read_mcap_settings(path: str | Path) -> dict | None:
+    """The settings :func:`write_ros_output` recorded in an ``.mcap`` file (its metadata record), or None.
+
+    None when the file has no :data:`MCAP_METADATA_NAME` record with settings (or cannot be read as MCAP).
+    """
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+    try:
+        with open(path, "rb") as fh:
+            for record in make_reader(fh).iter_metadata():
+                if record.name == MCAP_METADATA_NAME and "settings" in record.metadata:
+                    got = json.loads(record.metadata["settings"])
+                    return got if isinstance(got, dict) else None
+    except (McapError, OSError, ValueError, EOFError):
+        return None
+    return None
 
 
 def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
                      settings: Mapping[str, Any] | None = None, topic_prefix: str = "/ground",
                      t0: float | None = None, t0_ns: int | None = None,
                      storage: str = "mcap", overwrite: bool = False, road_from_camera: Any = None,
-                     camera_frame_id: str = "camera") -> dict[str, int]:
+                     camera_frame_id: str = "camera", extrinsic: Any = None,
+                     road_frame_id: str = "road") -> dict[str, int]:
     """Write the per-frame ground estimate as ROS topics (see the module docstring for the topics).
 
     Parameters
@@ -322,8 +461,8 @@ def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
         ``meta["frame_id"]`` for a ROS input).
     settings : mapping, optional
         The method's settings (JSON-serialisable; others are written with
-        ``str``), written once on ``PREFIX/settings``. Its ``t0_ns`` / ``t0``
-        entries are used when the arguments are not given.
+        ``str``): an ``.mcap`` file's metadata record, else once on ``PREFIX/settings``.
+        Its ``t0_ns`` / ``t0`` entries are used when the arguments are not given.
     topic_prefix : str
         Namespace of the topics.
     t0, t0_ns : optional
@@ -343,6 +482,15 @@ def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
         ``PREFIX/road_from_camera`` for the rows written on the other topics (and finite).
     camera_frame_id : str
         ``child_frame_id`` of those transforms.
+    extrinsic : mapping or Extrinsic, optional
+        The static extrinsic of the estimate: ``rotation`` (3 x 3, ground <- sensor) and
+        ``translation`` (m, the sensor's origin in the ground frame), as
+        :class:`~imu_ground.pipeline.EstimateResult` ``meta["extrinsic"]`` (or an
+        :class:`~imu_ground.filters.Extrinsic`). Default: identity, at the origin. Makes the
+        ``/tf`` and ``PREFIX/pose`` transforms road -> sensor.
+    road_frame_id : str
+        The road frame's id: ``header.frame_id`` of ``/tf``, ``PREFIX/pose`` and
+        ``PREFIX/road_from_camera``.
 
     Returns
     -------
@@ -356,12 +504,18 @@ def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
         raise ImuGroundError(f"{path}: negative ROS stamps (first valid t = {rows['t'][0]:g} s); pass t0 or t0_ns, "
                              f"the log's start time")
     prefix = "/" + topic_prefix.strip("/") if topic_prefix.strip("/") else ""
+    r_gs, trans = _static_extrinsic(extrinsic)
     with RosWriter(path, storage=storage, overwrite=overwrite) as w:
-        h = {k: w.add_topic(f"{prefix}/{k}", m) for k, m in ROS_OUTPUT_TOPICS.items()
-             if k not in _OPTIONAL and (k != "settings" or settings is not None)}
-        if settings is not None and len(stamps):
+        h = {k: w.add_topic(f"{prefix}/{k}", ROS_OUTPUT_TOPICS[k]) for k in ("normal", "rotation", "pitch_roll")}
+        if settings is not None:
             text = json.dumps(dict(settings), default=str, sort_keys=True)
-            w.write(h["settings"], int(stamps[0]), w.message("std_msgs/msg/String", data=text))
+            if w.kind == "mcap":
+                from imu_ground._version import __version__
+                w.add_metadata(MCAP_METADATA_NAME, {"settings": text, "version": __version__})
+            else:
+                h["settings"] = w.add_topic(f"{prefix}/settings", ROS_OUTPUT_TOPICS["settings"])
+                if len(stamps):
+                    w.write(h["settings"], int(stamps[0]), w.message("std_msgs/msg/String", data=text))
         ros1 = w.ros1
         normal = serialize_stamped(stamps, frame_id, np.column_stack(
             [rows["normal_x"], rows["normal_y"], rows["normal_z"]]), ros1)
@@ -373,11 +527,106 @@ def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
             w.write_raw(h["normal"], ns, normal[k])
             w.write_raw(h["rotation"], ns, rotation[k])
             w.write_raw(h["pitch_roll"], ns, pitch_roll[k])
-        _write_optional(w, table, prefix, frame_id, origin)
+        camera = None
         if road_from_camera is not None:
-            _write_camera_transforms(w, f"{prefix}/road_from_camera", table, road_from_camera, origin,
-                                     camera_frame_id)
+            camera = _write_camera_transforms(w, f"{prefix}/road_from_camera", table, road_from_camera, origin,
+                                              camera_frame_id, road_frame_id)
+        _write_road_from_sensor(w, rows, stamps, r_gs, trans, road_frame_id, frame_id, camera,
+                                _table_std(table), prefix)
+        _write_optional(w, table, prefix, frame_id, origin)
         return dict(w.counts)
+
+
+def _static_extrinsic(extrinsic: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``(rotation ground <- sensor, translation m)`` of ``extrinsic`` (mapping, Extrinsic or None)."""
+    if extrinsic is None:
+        return np.eye(3), np.zeros(3)
+    get = extrinsic.get if isinstance(extrinsic, Mapping) else lambda k, d=None: getattr(extrinsic, k, d)
+    rot = np.asarray(get("rotation", np.eye(3)) if get("rotation") is not None else np.eye(3), dtype=float)
+    trans = np.asarray(get("translation") if get("translation") is not None else np.zeros(3), dtype=float)
+    return rot.reshape(3, 3), trans.reshape(3)
+
+
+def _table_std(table: Any) -> np.ndarray | None:
+    """``(F, 2)`` roll and pitch 1-sigma of every table row, rad; None without the columns."""
+    if "roll_std_deg" not in table or "pitch_std_deg" not in table:
+        return None
+    return np.column_stack([np.asarray(table["roll_std_deg"], dtype=float),
+                            np.asarray(table["pitch_std_deg"], dtype=float)]) * DEG
+
+
+def _write_road_from_sensor(w: RosWriter, rows: dict[str, np.ndarray], stamps: np.ndarray, r_gs: np.ndarray,
+                            trans: np.ndarray, road: str, sensor: str, camera: dict[str, Any] | None,
+                            std: np.ndarray | None, prefix: str) -> None:
+    """``/tf`` (road -> sensor, and road -> camera) and ``PREFIX/pose`` (with the 1-sigma) of the written rows.
+
+    ``rows`` are the valid finite rows (:func:`_valid_rows`, with their table index ``row``), ``stamps`` their
+    stamps (ns); ``camera`` the camera transforms (translation xyz, m, and quaternion xyzw) by table index;
+    ``std`` every table row's roll and pitch 1-sigma (rad).
+    """
+    from scipy.spatial.transform import Rotation
+    q = np.column_stack([rows["qw"], rows["qx"], rows["qy"], rows["qz"]])
+    # the dynamic extrinsic road-ground <- sensor: the residual road <- body after the static ground <- sensor
+    quat = ((Rotation.from_quat(q, scalar_first=True) * Rotation.from_matrix(r_gs)).as_quat()
+            if len(q) else np.zeros((0, 4)))                                                     # x y z w
+    rot = {f"q{c}": quat[:, i] for i, c in enumerate("xyzw")}
+    index = rows["row"].astype(int)
+
+    def transform(ns: int, seq: int, parent: str, child: str, tx: float, ty: float, tz: float, qx: float,
+                  qy: float, qz: float, qw: float) -> Any:
+        return w.message("geometry_msgs/msg/TransformStamped", header=w.header(ns, parent, seq), child_frame_id=child,
+                         transform=w.message("geometry_msgs/msg/Transform",
+                                             translation=w.message("geometry_msgs/msg/Vector3", x=tx, y=ty, z=tz),
+                                             rotation=w.message("geometry_msgs/msg/Quaternion", x=qx, y=qy, z=qz,
+                                                                w=qw)))
+
+    def tf(ns: int, seq: int, **v: float) -> Any:
+        items = [transform(ns, seq, road, sensor, *trans, v["qx"], v["qy"], v["qz"], v["qw"])]
+        if "cx" in v:
+            items.append(transform(ns, seq, road, camera_child, *(v[f"c{c}"] for c in ("x", "y", "z", "qx", "qy",
+                                                                                      "qz", "qw"))))
+        return w.message("tf2_msgs/msg/TFMessage", transforms=items)
+
+    camera_child = ""
+    with_camera = np.zeros(len(index), dtype=bool)
+    cam = np.zeros((len(index), 7))
+    if camera:
+        camera_child = camera["child"]
+        with_camera = np.isin(index, camera["rows"])
+        at = np.searchsorted(camera["rows"], index[with_camera])
+        cam[with_camera] = camera["values"][at]
+    messages: list[bytes | None] = [None] * len(index)
+    for group in (with_camera, ~with_camera):
+        if not group.any():
+            continue
+        extra = {f"c{c}": cam[group, i] for i, c in enumerate(("x", "y", "z", "qx", "qy", "qz", "qw"))} \
+            if group is with_camera else {}
+        for k, data in zip(np.flatnonzero(group).tolist(),
+                           w.serialize_many(tf, stamps[group], {**{c: v[group] for c, v in rot.items()}, **extra})):
+            messages[k] = data
+    h_tf = w.add_topic("/tf", ROS_OUTPUT_TOPICS["tf"])
+    for ns, data in zip(stamps.tolist(), messages):
+        w.write_raw(h_tf, ns, data)
+    if std is None:
+        return
+    sd = std[index]
+    keep = np.all(np.isfinite(sd), axis=1)
+
+    def pose(ns: int, seq: int, qx: float, qy: float, qz: float, qw: float, roll: float, pitch: float) -> Any:
+        cov = [0.0] * 36
+        cov[21], cov[28] = roll, pitch                                   # rad^2 about the road's x and y axes
+        return w.message("geometry_msgs/msg/PoseWithCovarianceStamped", header=w.header(ns, road, seq),
+                         pose=w.message("geometry_msgs/msg/PoseWithCovariance", covariance=np.array(cov),
+                                        pose=w.message("geometry_msgs/msg/Pose",
+                                                       position=w.message("geometry_msgs/msg/Point", x=trans[0],
+                                                                          y=trans[1], z=trans[2]),
+                                                       orientation=w.message("geometry_msgs/msg/Quaternion", x=qx,
+                                                                             y=qy, z=qz, w=qw))))
+    h_pose = w.add_topic(f"{prefix}/pose", ROS_OUTPUT_TOPICS["pose"])
+    data = w.serialize_many(pose, stamps[keep], {**{c: v[keep] for c, v in rot.items()},
+                                                 "roll": sd[keep, 0] ** 2, "pitch": sd[keep, 1] ** 2})
+    for ns, msg in zip(stamps[keep].tolist(), data):
+        w.write_raw(h_pose, ns, msg)
 
 
 def _write_optional(w: "RosWriter", table: Any, prefix: str, frame_id: str, origin: int) -> None:
@@ -390,9 +639,7 @@ def _write_optional(w: "RosWriter", table: Any, prefix: str, frame_id: str, orig
             continue
         h = w.add_topic(f"{prefix}/{topic}", ROS_OUTPUT_TOPICS[topic])
         if topic == "status":
-            for ns, st, why, ok in zip(stamps.tolist(), table[x], table[y], np.isfinite(t).tolist()):
-                if ok:
-                    w.write(h, ns, w.message("std_msgs/msg/String", data=f"{st}: {why}" if why else str(st)))
+            _write_diagnostics(w, h, table, stamps, np.isfinite(t), prefix, frame_id)
             continue
         xy = np.column_stack([np.asarray(table[x], dtype=float), np.asarray(table[y], dtype=float)]) * DEG
         keep = valid & np.isfinite(t) & np.all(np.isfinite(xy), axis=1)
@@ -401,9 +648,34 @@ def _write_optional(w: "RosWriter", table: Any, prefix: str, frame_id: str, orig
             w.write_raw(h, ns, msg)
 
 
+def _write_diagnostics(w: RosWriter, handle: Any, table: Any, stamps: np.ndarray, keep: np.ndarray, prefix: str,
+                       frame_id: str) -> None:
+    """One ``diagnostic_msgs/DiagnosticArray`` per row of ``table`` with ``keep`` (a finite ``t``)."""
+    name = f"imu-ground {prefix}".rstrip()
+    texts = [(str(st), "" if why is None else str(why)) for st, why in zip(table["status"], table["status_reason"])]
+    rows = np.flatnonzero(keep)
+    messages: dict[int, bytes] = {}
+    groups: dict[tuple[str, str], list[int]] = {}
+    for k in rows.tolist():
+        groups.setdefault(texts[k], []).append(k)
+    for (st, why), ks in groups.items():                  # few distinct texts: one layout each
+        def build(ns: int, seq: int, st: str = st, why: str = why) -> Any:
+            kv = "diagnostic_msgs/msg/KeyValue"
+            status = w.message("diagnostic_msgs/msg/DiagnosticStatus", level=DIAGNOSTIC_LEVELS.get(st, 1),
+                               name=name, message=f"{st}: {why}" if why else st, hardware_id=frame_id,
+                               values=[w.message(kv, key="status", value=st), w.message(kv, key="reason", value=why)])
+            return w.message("diagnostic_msgs/msg/DiagnosticArray", header=w.header(ns, frame_id, seq),
+                             status=[status])
+        messages.update(zip(ks, w.serialize_many(build, stamps[ks])))
+    for k in rows.tolist():
+        w.write_raw(handle, int(stamps[k]), messages[k])
+
+
 def _write_camera_transforms(w: RosWriter, topic: str, table: Any, transforms: Any, origin: int,
-                             child: str) -> None:
-    """One ``geometry_msgs/TransformStamped`` road <- camera per valid, finite row of ``table``."""
+                             child: str, road: str = "road") -> dict[str, Any]:
+    """One ``geometry_msgs/TransformStamped`` road <- camera per valid, finite row of ``table``; returns them for
+    ``/tf``: ``child``, ``rows`` (their table rows, increasing) and ``values`` (per row translation xyz, m, and
+    quaternion xyzw)."""
     from scipy.spatial.transform import Rotation
     m = np.asarray(transforms, dtype=float).reshape(-1, 4, 4)
     cols = np.column_stack([np.asarray(table[c], dtype=float) for c in _TABLE_COLUMNS])
@@ -419,5 +691,6 @@ def _write_camera_transforms(w: RosWriter, topic: str, table: Any, transforms: A
                        translation=w.message("geometry_msgs/msg/Vector3", x=m[k, 0, 3], y=m[k, 1, 3], z=m[k, 2, 3]),
                        rotation=w.message("geometry_msgs/msg/Quaternion", x=quat[k, 0], y=quat[k, 1], z=quat[k, 2],
                                           w=quat[k, 3]))
-        w.write(handle, ns, w.message("geometry_msgs/msg/TransformStamped", header=w.header(ns, "road", k),
+        w.write(handle, ns, w.message("geometry_msgs/msg/TransformStamped", header=w.header(ns, road, k),
                                       child_frame_id=child, transform=tr))
+    return {"child": child, "rows": np.flatnonzero(keep), "values": np.column_stack([m[:, :3, 3], quat])}
