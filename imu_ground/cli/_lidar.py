@@ -53,9 +53,9 @@ def add_lidar_flags(v: argparse.ArgumentParser) -> None:
                         "methods on LOG with road planes fitted to the LiDAR scans in SCANS (a folder of KITTI .bin, "
                         ".pcd or .ply scans) at --times, or given by --lidar-planes DIR")
     g.add_argument("--log", action="append", metavar="FILE",
-                   help="with --lidar DRIVE_DIR: a log of the same drive to use instead of its oxts/ (e.g. the "
-                        "100 Hz kitti_imu100 CSV; its clock from drives.csv beside it), paired with the DRIVE_DIR of "
-                        "the same drive name; once per drive")
+                   help="with --lidar DRIVE_DIR: a log of the same drive to use instead of its oxts/: the 100 Hz "
+                        "kitti_imu100 CSV (its clock from t0_seconds_of_day of drives.csv beside it) or a KITTI OXTS "
+                        "folder (its stamps); paired with the DRIVE_DIR of the same drive name, once per drive")
     g.add_argument("--lidar-fit", choices=FITS, default="auto",
                    help="the road's points: Patchwork++ ground points (pypatchworkpp) or RANSAC, then least squares; "
                         "auto (default): Patchwork++ where installed, else RANSAC; all: RANSAC and Patchwork++, each "
@@ -87,8 +87,12 @@ def add_lidar_flags(v: argparse.ArgumentParser) -> None:
 
 
 def _drive_form(a: argparse.Namespace) -> bool:
+    """The ``DRIVE_DIR`` form: the first path is a KITTI raw sync folder (``oxts/`` and ``velodyne_points/``), or,
+    without ``--times`` and ``--lidar-planes``, every path is a folder holding ``oxts/`` (then told what is missing)."""
     from imu_ground.evaluation.lidar_kitti import is_kitti_sync_folder
-    return is_kitti_sync_folder(a.lidar[0])
+    if is_kitti_sync_folder(a.lidar[0]):
+        return True
+    return not a.times and not a.lidar_planes and all((Path(p) / "oxts").is_dir() for p in a.lidar)
 
 
 def _region_arg(a: argparse.Namespace):
@@ -298,6 +302,9 @@ def _pair_logs(folders: list, logs: list | None) -> dict:
                               "paired with the DRIVE_DIR of the same drive name", "log")
         if name in out:
             raise OptionError(f"{p}: a second {{opt}} for drive {name} (one log a drive)", "log")
+        if p.is_file():                                  # its clock before any work (a folder has its OXTS stamps)
+            from imu_ground.evaluation.lidar_kitti import log_clock
+            log_clock(p)
         out[name] = p
     return out
 
@@ -331,6 +338,20 @@ def _scans_used(t_scan: np.ndarray, tr, min_speed: float) -> tuple[np.ndarray, l
         else:
             notes.append(f"the default has no speed: --lidar-min-speed {min_speed:g} not applied")
     return keep, notes
+
+
+def _drive_checked(folder: Any, lidar_extrinsic: Any = None):
+    """The folder's :class:`~imu_ground.evaluation.lidar_kitti.KittiLidarDrive` and its calibration, checked."""
+    from imu_ground.evaluation import lidar_kitti as K
+    drive = K.read_kitti_lidar_drive(folder)
+    calib = lidar_extrinsic or drive.calibration
+    if calib is None:
+        raise OptionError(f"{drive.folder.parent}: no calib_imu_to_velo.txt beside {drive.folder.name}; give "
+                          "{opt} SPEC (a KITTI raw calibration folder or an extrinsic file)", "lidar_extrinsic")
+    if len(drive.files) < 2:
+        raise OptionError(f"{drive.folder}: {len(drive.files)} scan in velodyne_points/data; {{opt}} DRIVE_DIR "
+                          "compares 2 or more a drive (their spreads)", "lidar")
+    return drive, calib
 
 
 def lidar_drives_report(folders: list, logs: dict | None = None, methods: list | None = None, fit: str = "auto",
@@ -390,11 +411,7 @@ def lidar_drives_report(folders: list, logs: dict | None = None, methods: list |
     per_fit: dict = {_fit_name(g, r): {"drives": [], "frames": []} for g, r in pairs}
     all_frames = []
     for folder in folders:
-        drive = K.read_kitti_lidar_drive(folder)
-        calib = lidar_extrinsic or drive.calibration
-        if calib is None:
-            raise OptionError(f"{drive.folder.parent}: no calib_imu_to_velo.txt beside {drive.folder.name}; give "
-                              "{opt} SPEC (a KITTI raw calibration folder or an extrinsic file)", "lidar_extrinsic")
+        drive, calib = _drive_checked(folder, lidar_extrinsic)
         log = logs.get(drive.name, drive.folder)
         total = len(drive.files)
         if max_scans is not None and max_scans < total:
@@ -497,7 +514,7 @@ def _table(methods: dict):
 
 def check_lidar_drives(a: argparse.Namespace) -> dict:
     """Option checks of the ``DRIVE_DIR`` form before any work; the ``--log`` files by drive name."""
-    from imu_ground.evaluation.lidar_kitti import is_kitti_sync_folder
+    from imu_ground.evaluation.lidar_kitti import check_sync_folder
     from imu_ground.pipeline.output import check_output_path
     _check_common(a)
     for f, v in (("--times", a.times), ("--lidar-planes", a.lidar_planes)):
@@ -505,9 +522,8 @@ def check_lidar_drives(a: argparse.Namespace) -> dict:
             raise OptionError(f"{a.lidar[0]}: {f} goes with --lidar LOG SCANS; a KITTI raw DRIVE_DIR has its scans' "
                               "times (velodyne_points/timestamps.txt, else the OXTS stamps)", "lidar")
     for d in a.lidar:
-        if not is_kitti_sync_folder(d):
-            raise OptionError(f"{d}: not a KITTI raw sync folder (no oxts/ and velodyne_points/); {{opt}} takes "
-                              f"DRIVE_DIRs only after {a.lidar[0]}, or LOG SCANS", "lidar")
+        check_sync_folder(d)
+        _drive_checked(d, a.lidar_extrinsic)
     if len(set(map(str, map(Path, a.lidar)))) != len(a.lidar):
         raise OptionError("{opt}: a DRIVE_DIR given twice (its scans would count twice in the pooled spreads)",
                           "lidar")
@@ -519,6 +535,9 @@ def check_lidar_drives(a: argparse.Namespace) -> dict:
     inputs = [*a.lidar, *(a.log or [])]
     if a.plot:
         check_output_path(a.plot, inputs, "-o", kind=".png")
+    if a.json and Path(a.json).is_dir():
+        raise OptionError(f"{a.json}: is a folder; give {{opt}} a file name, e.g. {Path(a.json) / 'lidar.json'}",
+                          "json")
     for option, path in (("--csv", a.csv), ("--markdown", a.markdown), ("--json", a.json)):
         if path:
             check_output_path(path, inputs, option=option, kind="text")

@@ -59,7 +59,8 @@ from imu_ground.filters.extrinsics import Extrinsic, load_extrinsic
 
 __all__ = ["GROUND_FITS", "LIDAR_EXTRA", "PATCHWORK_MODULE", "ROAD_REGION", "SCAN_SUFFIXES", "PathRegion", "RoadRegion",
            "bootstrap_spread", "compare_to_lidar", "fit_ground_plane", "fit_scans", "kitti_object_rotation",
-           "lidar_pitch_roll", "lidar_rotation", "lidar_summary", "lidar_table", "lidar_transform", "path_region",
+           "lidar_figure", "lidar_pitch_roll", "lidar_rotation", "lidar_summary", "lidar_table", "lidar_transform",
+           "path_region",
            "patchwork_available", "patchwork_ground", "planes_pitch_roll", "planes_rotations", "plot_lidar",
            "read_bin_scan", "read_scan", "read_scan_times", "scan_files"]
 
@@ -793,8 +794,16 @@ def planes_rotations(spec: str | Path, names: list[str], imu_extrinsic: Any = No
 def plot_lidar(frames: pd.DataFrame, path: str | Path, title: str = "") -> Path:
     """Pitch and roll over time: the LiDAR planes and each method's estimate, each centred on its mean (PNG).
 
-    The legend (each method with its spread, deg) sits below the two panels, off the curves.
+    The legend (each method with its pitch and roll spreads, deg) sits below the two panels, off the
+    curves (:func:`lidar_figure`).
     """
+    path = Path(path)
+    lidar_figure(frames, title).savefig(path, format="png")
+    return path
+
+
+def lidar_figure(frames: pd.DataFrame, title: str = ""):
+    """The matplotlib ``Figure`` of :func:`plot_lidar` (:func:`lidar_table`'s frames; deg over the log's clock, s)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     fig = Figure(figsize=(10, 6.5), dpi=100)
@@ -819,6 +828,4 @@ def plot_lidar(frames: pd.DataFrame, path: str | Path, title: str = "") -> Path:
     rows = -(-len(labels) // ncol)
     fig.legend(handles, labels, loc="lower center", ncol=ncol, fontsize=7, frameon=False)
     fig.tight_layout(rect=(0.0, 0.01 + 0.03 * rows, 1.0, 1.0))           # the legend below the axes, not on the curves
-    path = Path(path)
-    fig.savefig(path, format="png")
-    return path
+    return fig

@@ -51,7 +51,7 @@ from imu_ground.datasets.options import OptionError
 from imu_ground.evaluation.lidar import PathRegion, bootstrap_spread, lidar_summary, path_region, scan_files
 from imu_ground.filters.extrinsics import Extrinsic
 
-__all__ = ["EARTH_RADIUS_M", "KittiLidarDrive", "drive_path_regions", "drive_summary", "find_lidar_drives",
+__all__ = ["EARTH_RADIUS_M", "KittiLidarDrive", "check_sync_folder", "drive_path_regions", "drive_summary", "find_lidar_drives",
            "fit_noise", "is_kitti_sync_folder", "log_clock", "oxts_track", "pooled_summary",
            "read_kitti_lidar_drive", "scan_times_on_log"]
 
@@ -102,6 +102,19 @@ def is_kitti_sync_folder(path: str | Path) -> bool:
     return p.is_dir() and (p / "oxts").is_dir() and (p / "velodyne_points").is_dir()
 
 
+def check_sync_folder(path: str | Path) -> Path:
+    """``path`` as a KITTI raw sync folder, or an :class:`OptionError` naming what is missing and ``--lidar``."""
+    d = Path(path)
+    if not d.is_dir():
+        raise OptionError(f"{d}: {'is a file' if d.exists() else 'no such folder'} ({{opt}} DRIVE_DIR: a KITTI raw "
+                          "sync folder with oxts/ and velodyne_points/)", "lidar")
+    for sub in ("oxts", "velodyne_points"):
+        if not (d / sub).is_dir():
+            raise OptionError(f"{d}: no {sub}/ folder; give {{opt}} DRIVE_DIR a KITTI raw sync folder (oxts/, "
+                              "velodyne_points/data/*.bin), or --lidar LOG SCANS --times FILE", "lidar")
+    return d
+
+
 def find_lidar_drives(root: str | Path) -> list[Path]:
     """The KITTI raw sync folders under ``root`` (any depth) that have ``velodyne_points`` and ``oxts``, by name."""
     return sorted({p.parent for p in Path(root).rglob("velodyne_points") if is_kitti_sync_folder(p.parent)})
@@ -125,14 +138,7 @@ def read_kitti_lidar_drive(folder: str | Path) -> KittiLidarDrive:
         Not a sync folder (no ``oxts/`` or ``velodyne_points/``), no scans, scan names
         that are not frame numbers, or fewer stamps than frames (naming the path and ``--lidar``).
     """
-    d = Path(folder)
-    if not d.is_dir():
-        raise OptionError(f"{d}: no such folder ({{opt}} DRIVE_DIR: a KITTI raw sync folder with oxts/ and "
-                          "velodyne_points/)", "lidar")
-    for sub in ("oxts", "velodyne_points"):
-        if not (d / sub).is_dir():
-            raise OptionError(f"{d}: no {sub}/ folder; give {{opt}} DRIVE_DIR a KITTI raw sync folder (oxts/, "
-                              "velodyne_points/data/*.bin), or --lidar LOG SCANS --times FILE", "lidar")
+    d = check_sync_folder(folder)
     files = scan_files(d / "velodyne_points" / "data")
     if not all(f.stem.isdigit() for f in files):
         bad = next(f for f in files if not f.stem.isdigit())
