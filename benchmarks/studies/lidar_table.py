@@ -180,6 +180,8 @@ KEY_METHODS = ("naive", "paper", "default")
 
 
 def _cell(pair: tuple[float, float]) -> str:
+    if not any(np.isfinite(v) for v in pair):
+        return ""
     return " / ".join("" if not np.isfinite(v) else f"{v:.3f}" for v in pair)
 
 
@@ -217,7 +219,9 @@ def lidar_drive_rows() -> list[dict]:
             except ImuGroundError as e:
                 out.append({"table": "LiDAR drives", "drive": name.replace("2011_09_26_drive_", ""), "input": label,
                             "fit": "skipped", "scans": len(L.scan_files(folder / "velodyne_points" / "data")),
-                            "naive": " ".join(str(e).split())[:160]})
+                            "naive": "skipped: " + " ".join((e.cli_message() if hasattr(e, "cli_message")
+                                                             else str(e)).split()).replace(str(DATA),
+                                                                                           "../shared/data")})
                 continue
             for fit, block in report["fits"].items():
                 d = block["drives"][0]

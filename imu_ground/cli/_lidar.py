@@ -62,7 +62,7 @@ def add_lidar_flags(v: argparse.ArgumentParser) -> None:
                         "in the box and along the driven path, and how the ranking holds across them (drive form)")
     g.add_argument("--lidar-min-speed", type=float, metavar="M/S",
                    help=f"with --lidar DRIVE_DIR: leave out the scans where the log's speed is below this "
-                        f"(default {MIN_SPEED:g} m/s; LOG SCANS: 0)")
+                        f"(default {MIN_SPEED:g} m/s; the LOG SCANS form compares every scan)")
     g.add_argument("--lidar-scans", type=int, metavar="N",
                    help="with --lidar DRIVE_DIR: the first N scans of each drive only (a quick look)")
     g.add_argument("--json", metavar="FILE",
@@ -76,14 +76,16 @@ def add_lidar_flags(v: argparse.ArgumentParser) -> None:
     g.add_argument("--lidar-planes", metavar="DIR",
                    help="with --lidar LOG: compare with the KITTI planes files in DIR (a b c d, camera axes; e.g. AVOD's "
                         "or 'estimate --planes' output) instead of fitting scans")
-    g.add_argument("--lidar-region", nargs="+", metavar="X0 X1 Y0 Y1 | path",
-                   help="road region of the fit in the LiDAR's axes: X0..X1 m ahead, Y0..Y1 m to the left (default "
+    g.add_argument("--lidar-region", nargs="+", metavar="REGION",
+                   help="road region of the fit: X0 X1 Y0 Y1, the box X0..X1 m ahead, Y0..Y1 m to the left in the "
+                        "LiDAR's axes (default "
                         "5 30 -4 4, a straight box); 'path' (drive form): the points within 1.5 m of the vehicle's "
                         "future OXTS track, 3-32 m ahead, so turns do not fit the kerb")
     g.add_argument("--lidar-seed", type=int, default=0, metavar="N", help="RANSAC's random seed (default 0)")
     g.add_argument("--extrinsic", metavar="NAME_OR_FILE",
                    help="with --lidar: the log's static sensor-to-ground extrinsic (as for 'imu-ground estimate')")
-    g.add_argument("-o", "--plot", metavar="FILE", help="with --lidar: PNG of pitch and roll over time")
+    g.add_argument("-o", "--plot", metavar="FILE", help="with --lidar: PNG of pitch and roll over time (several "
+                                                         "DRIVE_DIRs: one a drive, FILE's name + _DRIVE.png)")
 
 
 def _drive_form(a: argparse.Namespace) -> bool:
@@ -544,6 +546,17 @@ def check_lidar_drives(a: argparse.Namespace) -> dict:
     return _pair_logs(a.lidar, a.log)
 
 
+def _plain(v: Any) -> Any:
+    """JSON-ready: a float that is not finite becomes null (standard JSON has no NaN)."""
+    if isinstance(v, dict):
+        return {k: _plain(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
+    if isinstance(v, float) and not np.isfinite(v):
+        return None
+    return v
+
+
 def run_lidar_drives(a: argparse.Namespace) -> int:
     """``--lidar DRIVE_DIR ...``: per drive and pooled tables, the ranking across fits; JSON, CSV, plots."""
     from imu_ground.evaluation import lidar as L
@@ -588,7 +601,7 @@ def run_lidar_drives(a: argparse.Namespace) -> int:
             say(f"  {key}: " + "; ".join(parts))
     if a.json:
         with atomic_path(a.json) as tmp:
-            tmp.write_text(json.dumps(report, indent=1, allow_nan=True) + "\n", encoding="utf-8")
+            tmp.write_text(json.dumps(_plain(report), indent=1, allow_nan=False) + "\n", encoding="utf-8")
         say(f"wrote {a.json}")
     if a.csv:
         with atomic_path(a.csv) as tmp:
