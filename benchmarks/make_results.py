@@ -113,6 +113,18 @@ INTROS = {"bench_streaming": (
     "average is in each row, CPU times beside the wall times. The stage rows split one run of each into read, "
     "standstill masks, preintegration, filter and each of its outputs, table and writer."),
     "lidar_table": (
+    "LiDAR drives: `imu-ground evaluate --lidar DRIVE_DIR --lidar-fit all` (the product's own code, "
+    "`lidar_drives_report`) on every KITTI raw sync folder under `kitti_raw` with `velodyne_points` and `oxts` "
+    "(found from the folders), each from its own 10 Hz `oxts/` and, where `kitti_imu100` has the drive, from that "
+    "100 Hz CSV too (`--log`, the same scans on its clock); per fit (RANSAC or Patchwork++ ground points, in the box "
+    "x 5..30 m, |y| < 4 m, or along the driven path: within 1.5 m of the future OXTS track, 3-32 m ahead) each "
+    "method's `pitch / roll` spread (deg, standard deviation of estimate minus LiDAR, each method's offset removed; "
+    "`default` is what `imu-ground estimate` runs with its defaults on that input, `suspension` the same filter "
+    "IMU only), the fit's frame-to-frame noise, and pooled over the 10 Hz drives (each drive's offset removed). "
+    "Scans outside the log's frames or below 0.5 m/s are left out (`scans` counts those compared). LiDAR ranking: "
+    "the order of `naive`, `paper` and `default` per fit, and whether it (and that of every method) is the same "
+    "under every fit. The tables after: the earlier protocol on drive 0009 (the CSV with the older scan-time "
+    "estimate), the object frames and the fit's repeatability. "
     "The paper's protocol on real data (`benchmarks/studies/lidar_table.py`; `imu-ground evaluate --lidar`): road "
     "planes fitted to KITTI Velodyne scans (RANSAC, then least squares on the inliers, region x 5..30 m, |y| < 4 m) "
     "against every method, deg, estimate minus LiDAR. Drive 0009 (31 scans, 3.1 s): the angle between the normals "

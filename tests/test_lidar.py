@@ -266,15 +266,45 @@ def test_evaluate_lidar_without_scikit_learn_names_the_extra(cli, tmp_path, monk
     (tmp_path / "t.txt").write_text("1.0\n")
     (tmp_path / "calib_imu_to_velo.txt").write_text("R: 1 0 0 0 1 0 0 0 1\nT: 0 0 0\n")
     code, _, err = cli("evaluate", "--lidar", EXAMPLE, scans, "--times", tmp_path / "t.txt", "--lidar-extrinsic",
-                       tmp_path)
+                       tmp_path, "--lidar-fit", "ransac")
     assert code == 2 and '.[lidar]' in err and "--lidar" in err and len(err.strip().splitlines()) == 1
+
+
+def test_lidar_fit_auto_falls_back_to_ransac_without_patchwork_and_says_so(cli, tmp_path, monkeypatch):
+    import builtins
+    import importlib.util
+    real_import, real_find = builtins.__import__, importlib.util.find_spec
+
+    def no_patchwork(name, *args, **kw):
+        if name.startswith("pypatchworkpp"):
+            raise ImportError("No module named 'pypatchworkpp'")
+        return real_import(name, *args, **kw)
+
+    monkeypatch.setattr(builtins, "__import__", no_patchwork)
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "pypatchworkpp"
+                        else real_find(name, *a))
+    monkeypatch.setattr(L, "_PATCHWORK", {})
+    scans = tmp_path / "scans"
+    scans.mkdir()
+    for i in range(3):
+        np.column_stack([_cloud([0, 0, 1], 1.73, n=3000, clutter=False, seed=i), np.zeros(3000)]).astype(
+            np.float32).tofile(scans / f"{i}.bin")
+    (tmp_path / "t.txt").write_text("10.0\n10.5\n11.0\n")
+    (tmp_path / "calib_imu_to_velo.txt").write_text("R: 1 0 0 0 1 0 0 0 1\nT: 0 0 0\n")
+    base = ["evaluate", "--lidar", EXAMPLE, scans, "--times", tmp_path / "t.txt", "--lidar-extrinsic", tmp_path,
+            "--methods", "naive"]
+    code, out, err = cli(*base)
+    assert code == 0, err
+    assert "pypatchworkpp is not installed" in out and "RANSAC" in out
+    code, _, err = cli(*base, "--lidar-fit", "patchwork")
+    assert code == 2 and ".[lidar]" in err and "--lidar-fit patchwork" in err and len(err.strip().splitlines()) == 1
 
 
 def test_the_package_import_does_not_load_the_lidar_libraries():
     import subprocess
     import sys
     code = ("import sys, imu_ground, imu_ground.evaluation, imu_ground.cli; from imu_ground.evaluation import lidar; "
-            "print(any(m.split('.')[0] in ('sklearn', 'plyfile', 'pypcd4') for m in sys.modules))")
+            "print(any(m.split('.')[0] in ('sklearn', 'plyfile', 'pypcd4', 'pypatchworkpp') for m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "False"
 

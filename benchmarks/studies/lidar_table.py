@@ -2,6 +2,18 @@
 
     python benchmarks/studies/lidar_table.py       # prints the tables; make_results.py puts them in RESULTS.md
 
+``table = LiDAR drives``: what ``imu-ground evaluate --lidar DRIVE_DIR ... --lidar-fit all`` measures
+(:func:`imu_ground.cli._lidar.lidar_drives_report`, the product's own code), on every KITTI raw sync folder
+under ``kitti_raw`` that has ``velodyne_points`` and ``oxts`` (found from the folders; one that cannot be
+compared, e.g. a single scan, is a row saying why), each read from its own 10 Hz ``oxts/`` and, where
+``kitti_imu100`` has the same drive, also from that 100 Hz CSV (``--log``, same scans); per fit (RANSAC or
+Patchwork++ ground points, in the straight box or along the driven path), each method's pitch and roll
+spreads (deg, ``pitch / roll``: standard deviation of estimate minus LiDAR, each method's offset removed;
+``default`` is ``estimate``'s default on that input), the fit's frame-to-frame noise, and rows pooled over
+the 10 Hz drives (each drive's offset removed). ``table = LiDAR ranking``: per drive, input and pooled, the
+order of ``naive``, ``paper`` and ``default`` by pitch and by roll spread under each fit, and whether the
+order of every method is the same under all fits.
+
 Drive 2011_09_26_drive_0009, its first 31 Velodyne scans (``kitti_raw/.../velodyne_points``), times
 from ``frames_estimated_times.txt`` (on the IMU log's clock, +-0.05 s): the road plane of each scan
 (:func:`imu_ground.evaluation.fit_ground_plane`, default region and seed) turned into the body's pitch and
@@ -163,12 +175,94 @@ def repeatability_rows() -> list[dict]:
     return rows
 
 
+#: The methods whose spreads the LiDAR drives table shows first (the rest follow in the registry's order).
+KEY_METHODS = ("naive", "paper", "default")
+
+
+def _cell(pair: tuple[float, float]) -> str:
+    if not any(np.isfinite(v) for v in pair):
+        return ""
+    return " / ".join("" if not np.isfinite(v) else f"{v:.3f}" for v in pair)
+
+
+def _drive_row(d: dict, fit: str, label: str) -> dict:
+    methods = d["methods"]
+    names = [m for m in KEY_METHODS if m in methods] + [m for m in methods if m not in KEY_METHODS]
+    row = {"table": "LiDAR drives", "drive": d["drive"].replace("2011_09_26_drive_", ""), "input": label,
+           "fit": fit, "scans": d["scans"]}
+    row.update({m: _cell((methods[m]["pitch_spread_deg"], methods[m]["roll_spread_deg"])) for m in names})
+    row["fit_noise"] = _cell((d["fit_noise_pitch_deg"], d["fit_noise_roll_deg"]))
+    return row
+
+
+def _order(methods: dict, what: str) -> str:
+    key = [m for m in sorted(methods, key=lambda m: methods[m][f"{what}_spread_deg"]) if m in KEY_METHODS]
+    return " < ".join(key)
+
+
+def lidar_drive_rows() -> list[dict]:
+    """Every shared LiDAR drive (both inputs of a drive with a 100 Hz CSV), per fit, and pooled; the ranking."""
+    from imu_ground.cli._lidar import lidar_drives_report
+    from imu_ground.errors import ImuGroundError
+    from imu_ground.evaluation import lidar_kitti as K
+    folders = K.find_lidar_drives(DATA / "kitti_raw")
+    out, ranking, pooled_frames = [], [], {}
+    for folder in folders:
+        name = folder.name[:-5] if folder.name.endswith("_sync") else folder.name
+        csv = DATA / "kitti_imu100" / f"{name}.csv.gz"
+        inputs = [("10 Hz oxts/", None)] + ([("100 Hz CSV (--log)", csv)] if csv.is_file() else [])
+        for label, log in inputs:
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    report, frames = lidar_drives_report([folder], {name: log} if log else None, fit="all")
+            except ImuGroundError as e:
+                out.append({"table": "LiDAR drives", "drive": name.replace("2011_09_26_drive_", ""), "input": label,
+                            "fit": "skipped", "scans": len(L.scan_files(folder / "velodyne_points" / "data")),
+                            "naive": "skipped: " + " ".join((e.cli_message() if hasattr(e, "cli_message")
+                                                             else str(e)).split()).replace(str(DATA),
+                                                                                           "../shared/data")})
+                continue
+            for fit, block in report["fits"].items():
+                d = block["drives"][0]
+                out.append(_drive_row(d, fit, label))
+                if log is None:
+                    pooled_frames.setdefault(fit, []).append(frames[frames["fit"] == fit])
+            for fit, block in report["fits"].items():
+                m = block["drives"][0]["methods"]
+                ranking.append({"table": "LiDAR ranking", "drive": name.replace("2011_09_26_drive_", ""),
+                                "input": label, "fit": fit, "pitch": _order(m, "pitch"), "roll": _order(m, "roll")})
+            r = report["ranking"][name]
+            ranking.append({"table": "LiDAR ranking", "drive": name.replace("2011_09_26_drive_", ""), "input": label,
+                            "fit": "same order under every fit", "pitch": r["pitch"]["holds_default_paper_naive"],
+                            "roll": r["roll"]["holds_default_paper_naive"], "all methods, pitch": r["pitch"]["holds"],
+                            "all methods, roll": r["roll"]["holds"]})
+    orders = {"pitch": set(), "roll": set()}
+    for fit, parts in pooled_frames.items():
+        if len(parts) < 2:
+            continue
+        methods = K.pooled_summary(parts)
+        d = {"drive": f"pooled ({len(parts)} drives)", "scans": int(sum(len(p[p['method'] == 'default'])
+                                                                        for p in parts)),
+             "fit_noise_pitch_deg": float("nan"), "fit_noise_roll_deg": float("nan"), "methods": methods}
+        out.append(_drive_row(d, fit, "10 Hz oxts/"))
+        ranking.append({"table": "LiDAR ranking", "drive": d["drive"], "input": "10 Hz oxts/", "fit": fit,
+                        "pitch": _order(methods, "pitch"), "roll": _order(methods, "roll")})
+        for what in orders:
+            orders[what].add(_order(methods, what))
+    if orders["pitch"]:
+        ranking.append({"table": "LiDAR ranking", "drive": "pooled", "input": "10 Hz oxts/",
+                        "fit": "same order under every fit", "pitch": len(orders["pitch"]) == 1,
+                        "roll": len(orders["roll"]) == 1})
+    return out + ranking
+
+
 def rows() -> list[dict]:
-    """The three tables of the module docstring (column ``table``)."""
+    """The tables of the module docstring (column ``table``)."""
     if not SYNC.is_dir():
         return [{"table": "drive 0009", "method": f"skipped: {SYNC} not found"}]
     drive, offsets = drive_rows()
-    return drive + object_rows(offsets) + repeatability_rows()
+    return lidar_drive_rows() + drive + object_rows(offsets) + repeatability_rows()
 
 
 def main() -> None:

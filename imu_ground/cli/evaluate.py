@@ -51,7 +51,9 @@ def register(sub) -> None:
                                    "Table 2; on real drives also the pitch error by the reference's own uncertainty "
                                    "and, on drives that pass the same place twice, the revisit consistency of "
                                    "pitch and roll (no grade reference). Give --real, --synthetic or both; or "
-                                   "--lidar LOG SCANS: the methods against road planes fitted to LiDAR scans.")
+                                   "--lidar DRIVE_DIR ... (KITTI raw sync "
+                                   "folders) or --lidar LOG SCANS: the methods against road planes fitted to LiDAR "
+                                   "scans.")
     v.add_argument("--real", metavar="DIR", help="folder of kitti_imu100 drives (*.csv.gz), e.g. ../shared/data/kitti_imu100")
     v.add_argument("--synthetic", type=nonnegative_int, default=0, metavar="N",
                    help=f"number of synthetic drives per IMU grade (default 0, at most {MAX_SUITE_DRIVES})")
@@ -72,9 +74,12 @@ def register(sub) -> None:
 def _check(a: argparse.Namespace) -> list:
     lidar_only = [f for f, v in (("--times", a.times), ("--lidar-extrinsic", a.lidar_extrinsic),
                                  ("--lidar-planes", a.lidar_planes), ("--lidar-region", a.lidar_region),
-                                 ("--extrinsic", a.extrinsic), ("-o", a.plot)) if v]
+                                 ("--extrinsic", a.extrinsic), ("-o", a.plot), ("--log", a.log),
+                                 ("--json", a.json), ("--lidar-scans", a.lidar_scans),
+                                 ("--lidar-min-speed", a.lidar_min_speed),
+                                 ("--lidar-fit", a.lidar_fit != "auto")) if v]
     if lidar_only:
-        raise ImuGroundError(f"{lidar_only[0]} goes with --lidar LOG SCANS")
+        raise ImuGroundError(f"{lidar_only[0]} goes with --lidar (DRIVE_DIR ..., or LOG SCANS)")
     if a.real is None and not a.synthetic:
         raise ImuGroundError("nothing to evaluate: give --real DIR (kitti_imu100 drives) and/or --synthetic N, or "
                              "--lidar LOG SCANS (LiDAR road planes)")

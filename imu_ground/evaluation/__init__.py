@@ -18,10 +18,14 @@ _EXPORTS = {
                     "reference_sigma"),
     ".runner": ("Method EVALUATION_METHODS METHODS TUNED SIGMA_BINS run_method evaluate conditions_table "
                 "format_table sigma_table summary_table"),
-    ".lidar": ("LIDAR_EXTRA ROAD_REGION SCAN_SUFFIXES RoadRegion bootstrap_spread compare_to_lidar fit_ground_plane "
-               "fit_scans kitti_object_rotation lidar_pitch_roll lidar_rotation lidar_summary lidar_table lidar_transform "
+    ".lidar": ("GROUND_FITS LIDAR_EXTRA PATCHWORK_MODULE ROAD_REGION SCAN_SUFFIXES PathRegion RoadRegion bootstrap_spread "
+               "compare_to_lidar fit_ground_plane fit_scans kitti_object_rotation lidar_figure lidar_pitch_roll lidar_rotation "
+               "lidar_summary lidar_table lidar_transform path_region patchwork_available patchwork_ground "
                "planes_pitch_roll planes_rotations plot_lidar read_bin_scan read_scan read_scan_times scan_files"),
     ".revisit": ("RevisitPairs revisit_pairs ins_at_frames drive_revisit_pairs revisit_differences "
                  "revisit_consistency revisit_table"),
+    ".lidar_kitti": ("KittiLidarDrive check_sync_folder drive_path_regions drive_summary find_lidar_drives fit_noise "
+                     "is_kitti_sync_folder log_clock oxts_track pooled_summary read_kitti_lidar_drive "
+                     "scan_times_on_log"),
 }
 __getattr__, __dir__, __all__ = lazy_exports(__name__, _EXPORTS)

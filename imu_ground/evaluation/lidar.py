@@ -57,9 +57,11 @@ from imu_ground.evaluation.metrics import normal_angle, normal_from_pitch_roll
 from imu_ground.filters.estimator import pitch_roll_from_normal
 from imu_ground.filters.extrinsics import Extrinsic, load_extrinsic
 
-__all__ = ["LIDAR_EXTRA", "ROAD_REGION", "SCAN_SUFFIXES", "RoadRegion", "bootstrap_spread", "compare_to_lidar",
-           "fit_ground_plane", "fit_scans", "kitti_object_rotation", "lidar_pitch_roll", "lidar_rotation",
-           "lidar_summary", "lidar_table", "lidar_transform", "planes_pitch_roll", "planes_rotations", "plot_lidar",
+__all__ = ["GROUND_FITS", "LIDAR_EXTRA", "PATCHWORK_MODULE", "ROAD_REGION", "SCAN_SUFFIXES", "PathRegion", "RoadRegion",
+           "bootstrap_spread", "compare_to_lidar", "fit_ground_plane", "fit_scans", "kitti_object_rotation",
+           "lidar_figure", "lidar_pitch_roll", "lidar_rotation", "lidar_summary", "lidar_table", "lidar_transform",
+           "path_region",
+           "patchwork_available", "patchwork_ground", "planes_pitch_roll", "planes_rotations", "plot_lidar",
            "read_bin_scan", "read_scan", "read_scan_times", "scan_files"]
 
 #: The optional extra that installs the plane fit's and the readers' dependencies (scikit-learn, plyfile, pypcd4).
@@ -102,6 +104,153 @@ class RoadRegion:
 
 #: The default road region: 5-30 m ahead, 4 m either side of the LiDAR.
 ROAD_REGION = RoadRegion()
+#: Ground-point choices of the plane fit (:func:`fit_ground_plane`'s ``ground``).
+GROUND_FITS = ("ransac", "patchwork")
+#: The Patchwork++ package (the extra ``.[lidar]``).
+PATCHWORK_MODULE = "pypatchworkpp"
+
+
+class PathRegion:
+    """The road along the driven path: points within ``half_width`` of the vehicle's future track, ahead of it.
+
+    A straight box leaves the road in a turn and fits the kerb; this region follows
+    the road the vehicle is about to drive on. The track is given in the LiDAR's own
+    axes (x forward, y left, z up) at the scan's time (:func:`path_region`).
+
+    Parameters
+    ----------
+    xy : array_like (M, 2)
+        The future track (the IMU's positions from the scan's time on), LiDAR x and y, m,
+        in driving order.
+    half_width : float
+        Points within this horizontal distance of the track, m (default 1.5).
+    ahead : tuple of float
+        Their distance along the track from its point nearest the LiDAR, m (default 3 to 32).
+    step : float
+        The track is resampled every ``step`` m along its length.
+    """
+
+    def __init__(self, xy: Any, half_width: float = 1.5, ahead: tuple[float, float] = (3.0, 32.0),
+                 step: float = 0.25) -> None:
+        xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+        xy = xy[np.all(np.isfinite(xy), axis=1)]
+        if len(xy) < 2 or not (half_width > 0 and 0 <= ahead[0] < ahead[1]):
+            raise OptionError("{opt} path: the driven path needs a track of 2 points or more, a positive width "
+                              "and 0 <= ahead min < max", "region", flag="--lidar-region")
+        s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+        grid = np.arange(0.0, s[-1] + step / 2, step)
+        self.xy = np.column_stack([np.interp(grid, s, xy[:, 0]), np.interp(grid, s, xy[:, 1])])
+        self.along = grid - grid[int(np.argmin(np.hypot(*self.xy.T)))]
+        self.half_width, self.ahead = float(half_width), (float(ahead[0]), float(ahead[1]))
+
+    def mask(self, points: np.ndarray) -> np.ndarray:
+        """Which of the (N, 3) points lie along the path (bool (N,))."""
+        from scipy.spatial import cKDTree
+        keep = (self.along >= self.ahead[0] - self.half_width) & (self.along <= self.ahead[1] + self.half_width)
+        if not keep.any():
+            return np.zeros(len(points), dtype=bool)
+        dist, idx = cKDTree(self.xy[keep]).query(points[:, :2], distance_upper_bound=self.half_width)
+        near = np.isfinite(dist)
+        along = np.full(len(points), np.nan)
+        along[near] = self.along[keep][idx[near]]
+        with np.errstate(invalid="ignore"):
+            return near & (along >= self.ahead[0]) & (along <= self.ahead[1])
+
+    def __str__(self) -> str:
+        return f"the driven path: within {self.half_width:g} m of the track, {self.ahead[0]:g}..{self.ahead[1]:g} m ahead"
+
+
+def path_region(t_scan: float, t: Any, positions: Any, rotations: Any, lidar_from_body: Extrinsic,
+                half_width: float = 1.5, ahead: tuple[float, float] = (3.0, 32.0)) -> PathRegion:
+    """The :class:`PathRegion` of one scan from the vehicle's track.
+
+    Parameters
+    ----------
+    t_scan : float
+        The scan's time, s, on the track's clock.
+    t : array_like (N,)
+        The track's times, s (increasing).
+    positions : array_like (N, 3)
+        The body's (IMU's) positions in a world frame (e.g. east, north, up), m.
+    rotations : array_like (N, 3, 3)
+        World <- body at each time.
+    lidar_from_body : Extrinsic
+        LiDAR <- body: ``x_lidar = R x_body + t`` (KITTI's ``calib_imu_to_velo.txt``).
+    half_width, ahead
+        As :class:`PathRegion`.
+
+    Notes
+    -----
+    Where the track ends (or the vehicle stands) before ``ahead[1]`` metres, it is
+    continued straight along its last direction (at a standstill: the body's x axis).
+    """
+    t = np.asarray(t, dtype=float)
+    pos = np.asarray(positions, dtype=float)
+    rot = np.asarray(rotations, dtype=float)
+    i = int(np.clip(np.searchsorted(t, t_scan), 0, len(t) - 1))
+    p0 = np.array([np.interp(t_scan, t, pos[:, k]) for k in range(3)])
+    future = np.vstack([p0, pos[t > t_scan]])
+    body = (future - p0) @ rot[i]                                   # rows: R_{w<-b}^T (p - p0)
+    xy = (body @ lidar_from_body.rotation.T + lidar_from_body.translation)[:, :2]
+    steps = np.hypot(*np.diff(xy, axis=0).T)
+    length = float(steps.sum())
+    if length < ahead[1] + half_width + 1.0:
+        moving = np.flatnonzero(steps > 0.05)
+        direction = (xy[moving[-1] + 1] - xy[moving[-1]]) if moving.size else (lidar_from_body.rotation @ [1, 0, 0])[:2]
+        direction = direction / np.linalg.norm(direction)
+        xy = np.vstack([xy, xy[-1] + direction * (ahead[1] + half_width + 1.0 - length)])
+    return PathRegion(xy, half_width, ahead)
+
+
+_PATCHWORK: dict = {}
+
+
+def _quiet(make, *args):
+    """``make(*args)`` with the process's stdout (file descriptor 1) closed to C++'s own prints."""
+    import os
+    import sys
+    sys.stdout.flush()
+    saved, null = os.dup(1), os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, 1)
+        return make(*args)
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+        os.close(null)
+
+
+def patchwork_ground(points: np.ndarray, sensor_height: float = 1.73) -> np.ndarray:
+    """Patchwork++'s ground points of a whole scan (bool (N,)), LiDAR axes (x forward, y left, z up), m.
+
+    ``pypatchworkpp`` (the extra ``.[lidar]``) with its default parameters but the
+    sensor's height above the road (KITTI's Velodyne: 1.73 m) and no console output.
+
+    Raises
+    ------
+    MissingExtraError
+        ``pypatchworkpp`` is not installed (naming ``.[lidar]`` and ``--lidar-fit``).
+    """
+    key = float(sensor_height)
+    if key not in _PATCHWORK:
+        pw = require_extra(PATCHWORK_MODULE, "lidar", "Patchwork++ ground points (--lidar-fit patchwork)")
+        params = pw.Parameters()
+        params.verbose = False
+        params.sensor_height = key
+        _PATCHWORK[key] = _quiet(pw.patchworkpp, params)
+    seg = _PATCHWORK[key]
+    pts = np.asarray(points, dtype=float)
+    cloud = np.column_stack([pts[:, :3], pts[:, 3] if pts.shape[1] > 3 else np.zeros(len(pts))])
+    seg.estimateGround(np.ascontiguousarray(cloud, dtype=np.float32))          # (N, 4) x y z intensity
+    mask = np.zeros(len(pts), dtype=bool)
+    mask[np.asarray(seg.getGroundIndices(), dtype=int).ravel()] = True
+    return mask
+
+
+def patchwork_available() -> bool:
+    """Whether ``pypatchworkpp`` imports (the ``auto`` fit uses Patchwork++ then, RANSAC otherwise)."""
+    import importlib.util
+    return importlib.util.find_spec(PATCHWORK_MODULE) is not None
 
 
 def _sklearn_ransac():
@@ -116,18 +265,19 @@ def _tls_plane(points: np.ndarray) -> tuple[np.ndarray, float]:
     return normal, float(-normal @ centre)
 
 
-def fit_ground_plane(points: Any, region: RoadRegion = ROAD_REGION, threshold: float = 0.1, seed: int = 0,
+def fit_ground_plane(points: Any, region: Any = ROAD_REGION, threshold: float = 0.1, seed: int = 0,
                      max_trials: int = 200, min_inliers: int = 200, max_tilt_deg: float = 15.0,
-                     source: str = "scan", return_inliers: bool = False):
-    """The road plane of one LiDAR scan: RANSAC in the road region, then least squares on the inliers.
+                     source: str = "scan", return_inliers: bool = False, ground: str = "ransac"):
+    """The road plane of one LiDAR scan: RANSAC (or Patchwork++) in the road region, then least squares on the inliers.
 
     Parameters
     ----------
     points : array_like (N, 3) or (N, 4)
         Points in the LiDAR's own axes (x forward, y left, z up), m; a fourth column
         (reflectance) is ignored.
-    region : RoadRegion
-        Where the road is looked for (default :data:`ROAD_REGION`).
+    region : RoadRegion or PathRegion
+        Where the road is looked for (default :data:`ROAD_REGION`): a box, or the
+        driven path (:class:`PathRegion`); anything with ``mask(points)``.
     threshold : float
         Inlier distance to the plane, m (RANSAC's vertical residual, then the
         perpendicular distance of the least-squares refit).
@@ -143,6 +293,11 @@ def fit_ground_plane(points: Any, region: RoadRegion = ROAD_REGION, threshold: f
         The scan's name for messages.
     return_inliers : bool
         Also return the number of inliers.
+    ground : {"ransac", "patchwork"}
+        How the road's points are first chosen: ``"ransac"`` (scikit-learn's
+        ``RANSACRegressor`` on the region's points) or ``"patchwork"`` (Patchwork++'s
+        ground points of the whole scan, ``pypatchworkpp``, kept where they lie in the
+        region; :func:`patchwork_ground`). Either way the least-squares refit follows.
 
     Returns
     -------
@@ -164,20 +319,29 @@ def fit_ground_plane(points: Any, region: RoadRegion = ROAD_REGION, threshold: f
                           "lidar")
     if not len(pts):
         raise OptionError(f"{source}: the scan is empty; give {{opt}} scans with points", "lidar")
-    pts = pts[:, :3]
-    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    full = pts[np.all(np.isfinite(pts[:, :3]), axis=1)]
+    pts = full[:, :3]
     road = pts[region.mask(pts)]
     no_road = (f"{source}: no road in the region ({region}): {{n}}; give {{opt}} scans whose LiDAR sees the "
                "road ahead, or another region (--lidar-region)")
     if len(road) < max(min_inliers, 3):
         raise OptionError(no_road.replace("{n}", f"{len(road)} points there, {min_inliers} needed"), "lidar")
-    ransac, linear = _sklearn_ransac()
-    try:
-        fit = ransac(linear(), residual_threshold=threshold, max_trials=max_trials, min_samples=3,
-                     random_state=seed).fit(road[:, :2], road[:, 2])
-        inl = fit.inlier_mask_
-    except ValueError:
-        raise OptionError(no_road.replace("{n}", "RANSAC found no plane"), "lidar") from None
+    if ground == "patchwork":
+        road = pts[region.mask(pts) & patchwork_ground(full)]
+        if len(road) < max(min_inliers, 3):
+            raise OptionError(no_road.replace("{n}", f"{len(road)} Patchwork++ ground points there, {min_inliers} "
+                                                     "needed"), "lidar")
+        inl = np.ones(len(road), dtype=bool)
+    elif ground == "ransac":
+        ransac, linear = _sklearn_ransac()
+        try:
+            fit = ransac(linear(), residual_threshold=threshold, max_trials=max_trials, min_samples=3,
+                         random_state=seed).fit(road[:, :2], road[:, 2])
+            inl = fit.inlier_mask_
+        except ValueError:
+            raise OptionError(no_road.replace("{n}", "RANSAC found no plane"), "lidar") from None
+    else:
+        raise OptionError(f"{{opt}} {ground}: choose ransac or patchwork", "lidar_fit")
     for _ in range(5):
         if np.count_nonzero(inl) < max(min_inliers, 3):
             break
@@ -400,8 +564,19 @@ def planes_pitch_roll(coefficients: Any, rotation: Any) -> tuple[np.ndarray, np.
     return lidar_pitch_roll(abcd[:, :3], rotation)
 
 
-def fit_scans(files: list[Path], region: RoadRegion = ROAD_REGION, seed: int = 0, **fit_options) -> pd.DataFrame:
+def fit_scans(files: list[Path], region: Any = ROAD_REGION, seed: int = 0, **fit_options) -> pd.DataFrame:
     """:func:`fit_ground_plane` of every scan file: one row a scan.
+
+    Parameters
+    ----------
+    files : list of Path
+        Scan files (:func:`read_scan`).
+    region : RoadRegion, PathRegion or list of them
+        One region for every scan, or one per scan (a :class:`PathRegion` follows each scan's track).
+    seed : int
+        RANSAC's random seed.
+    **fit_options
+        Passed to :func:`fit_ground_plane` (``threshold``, ``ground``, ...).
 
     Returns
     -------
@@ -409,8 +584,9 @@ def fit_scans(files: list[Path], region: RoadRegion = ROAD_REGION, seed: int = 0
         ``scan`` (file name), ``normal_x normal_y normal_z`` (LiDAR axes), ``d`` (m), ``inliers``.
     """
     rows = []
-    for f in files:
-        normal, d, count = fit_ground_plane(read_scan(f), region, seed=seed, source=str(f),
+    regions = region if isinstance(region, (list, tuple)) else [region] * len(files)
+    for f, reg in zip(files, regions):
+        normal, d, count = fit_ground_plane(read_scan(f), reg, seed=seed, source=str(f),
                                             return_inliers=True, **fit_options)
         rows.append({"scan": Path(f).name, "normal_x": normal[0], "normal_y": normal[1], "normal_z": normal[2],
                      "d": d, "inliers": count})
@@ -616,7 +792,18 @@ def planes_rotations(spec: str | Path, names: list[str], imu_extrinsic: Any = No
 
 
 def plot_lidar(frames: pd.DataFrame, path: str | Path, title: str = "") -> Path:
-    """Pitch and roll over time: the LiDAR planes and each method's estimate, each centred on its mean (PNG)."""
+    """Pitch and roll over time: the LiDAR planes and each method's estimate, each centred on its mean (PNG).
+
+    The legend (each method with its pitch and roll spreads, deg) sits below the two panels, off the
+    curves (:func:`lidar_figure`).
+    """
+    path = Path(path)
+    lidar_figure(frames, title).savefig(path, format="png")
+    return path
+
+
+def lidar_figure(frames: pd.DataFrame, title: str = ""):
+    """The matplotlib ``Figure`` of :func:`plot_lidar` (:func:`lidar_table`'s frames; deg over the log's clock, s)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     fig = Figure(figsize=(10, 6.5), dpi=100)
@@ -628,15 +815,17 @@ def plot_lidar(frames: pd.DataFrame, path: str | Path, title: str = "") -> Path:
         ax.plot(first["t"], lidar - lidar.mean(), "k.-", lw=2, label="LiDAR plane")
         for name, g in frames.groupby("method", sort=False):
             est = g[f"{what}_deg"].to_numpy()
-            spread = g[f"d_{what}_deg"].std(ddof=1) if len(g) > 1 else float("nan")
-            ax.plot(g["t"], est - est.mean(), "-", lw=1, label=f"{name} (spread {spread:.2f})")
+            spread = [g[f"d_{w}_deg"].std(ddof=1) if len(g) > 1 else float("nan") for w in ("pitch", "roll")]
+            ax.plot(g["t"], est - est.mean(), "-", lw=1,
+                    label=f"{name} (spread: pitch {spread[0]:.2f}, roll {spread[1]:.2f} deg)")
         ax.set_ylabel(f"{what} - mean (deg)")
         ax.grid(True, alpha=0.3)
-    axes[0].legend(fontsize=7, ncol=2)
     axes[0].set_title(title or "body pitch and roll relative to the road: LiDAR planes and estimates (means removed)",
                       fontsize=9)
     axes[1].set_xlabel("t (s, the log's clock)")
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, format="png")
-    return path
+    handles, labels = axes[0].get_legend_handles_labels()
+    ncol = min(3, len(labels))
+    rows = -(-len(labels) // ncol)
+    fig.legend(handles, labels, loc="lower center", ncol=ncol, fontsize=7, frameon=False)
+    fig.tight_layout(rect=(0.0, 0.01 + 0.03 * rows, 1.0, 1.0))           # the legend below the axes, not on the curves
+    return fig
