@@ -1,0 +1,72 @@
+"""The documentation site builds with warnings as errors, and its API reference covers every public module.
+
+``mkdocs build --strict`` (``mkdocs.yml`` at the root, the API pages ``docs/api/*.md`` rendered from the
+docstrings by mkdocstrings' Python handler, NumPy style): a docstring griffe cannot parse, a page missing
+from the navigation or a broken link fails the build. Skipped without mkdocs (``pip install -e ".[docs]"``;
+the ``test`` extra installs it, so ``.ci/run`` builds the docs).
+"""
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+API = REPO / "docs" / "api"
+
+
+def _public_modules() -> set[str]:
+    """Dotted names of the library's modules that declare ``__all__`` (not private, not tests, not scripts)."""
+    roots = {"imu_ground": REPO / "imu_ground", "imu_ground.datasets": REPO / "datasets"}
+    names = set()
+    for package, folder in roots.items():
+        for path in folder.rglob("*.py"):
+            rel = path.relative_to(folder).with_suffix("").parts
+            if package == "imu_ground" and rel[0] == "datasets":
+                continue
+            if any(p.startswith("_") and p != "__init__" for p in rel) or rel[-1].startswith("test_") \
+                    or rel[-1] in ("make_fixtures", "__main__") or rel[0] == "cli":
+                continue
+            if not re.search(r"^__all__\b|^__getattr__, __dir__, __all__", path.read_text(encoding="utf-8"), re.M):
+                continue
+            parts = rel[:-1] if rel[-1] == "__init__" else rel
+            names.add(".".join((package, *parts)))
+    return names
+
+
+def _documented() -> set[str]:
+    return {m for page in API.glob("*.md")
+            for m in re.findall(r"^::: ([\w.]+)", page.read_text(encoding="utf-8"), flags=re.M)}
+
+
+def test_every_public_module_has_an_api_entry():
+    modules = _public_modules()
+    assert {"imu_ground.pipeline.estimate", "imu_ground.datasets.table", "imu_ground.filters.suspension"} <= modules
+    missing = modules - _documented()
+    assert not missing, f"add these to a page of docs/api/: {sorted(missing)}"
+    assert not _documented() - modules, "docs/api names modules that do not exist or have no __all__"
+
+
+def test_every_docs_page_is_in_the_navigation():
+    nav = (REPO / "mkdocs.yml").read_text(encoding="utf-8")
+    pages = {p.relative_to(REPO / "docs").as_posix() for p in (REPO / "docs").rglob("*.md")}
+    assert pages and all(p in nav for p in pages), sorted(p for p in pages if p not in nav)
+
+
+def test_the_docs_build_strict(tmp_path):
+    pytest.importorskip("mkdocs", reason="needs mkdocs: pip install -e '.[docs]'")
+    pytest.importorskip("mkdocstrings_handlers.python", reason="needs mkdocstrings[python]: pip install -e '.[docs]'")
+    site = tmp_path / "site"
+    r = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--config-file", str(REPO / "mkdocs.yml"),
+                        "--site-dir", str(site)], cwd=tmp_path, capture_output=True, text=True, timeout=900,
+                       check=False)
+    log = r.stdout + r.stderr
+    assert r.returncode == 0, log
+    assert "WARNING" not in log, log
+    pipeline = (site / "api" / "pipeline" / "index.html").read_text(encoding="utf-8")
+    assert "estimate_log" in pipeline and "StreamingEstimator" in pipeline
+    readers = (site / "api" / "datasets" / "index.html").read_text(encoding="utf-8")
+    assert "{finish_parameters}" not in readers and ":func:" not in readers     # the readers' shared options
+    assert (site / "results" / "index.html").is_file()                         # benchmarks/RESULTS.md as a page
+    assert not (site / "hooks.py").exists()
