@@ -70,3 +70,24 @@ def test_the_docs_build_strict(tmp_path):
     assert "{finish_parameters}" not in readers and ":func:" not in readers     # the readers' shared options
     assert (site / "results" / "index.html").is_file()                         # benchmarks/RESULTS.md as a page
     assert not (site / "hooks.py").exists()
+
+
+@pytest.mark.shared
+def test_the_recalibrate_online_example_does_what_the_page_says(shared_data):
+    """docs/commands.md: on 2011_09_30_drive_0034 (127 s with a speed) the monitor runs, raises no alarm, and the
+    output equals the run without the flag; the page's command names that drive."""
+    import numpy as np
+
+    from imu_ground.pipeline import estimate_log, result_table
+    drive = "2011_09_30_drive_0034.csv.gz"
+    assert f"kitti_imu100/{drive} --recalibrate-online" in (REPO / "docs" / "commands.md").read_text(encoding="utf-8")
+    log = shared_data / "kitti_imu100" / drive
+    if not log.is_file():
+        pytest.skip(f"{log} is absent")
+    with_flag = result_table(estimate_log(log, recalibrate_online=True))
+    without = result_table(estimate_log(log))
+    assert (with_flag["t"].iloc[-1] - with_flag["t"].iloc[0]) > 120.0          # long enough for the monitor to act
+    assert not with_flag["status_reason"].astype(str).str.contains("re-estimated|cannot act").any()
+    assert (with_flag["status"] != "degraded").all()
+    numbers = with_flag.select_dtypes("number").columns
+    assert np.allclose(with_flag[numbers], without[numbers], rtol=0, atol=1e-9, equal_nan=True)
