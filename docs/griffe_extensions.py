@@ -6,6 +6,9 @@
   same decorator to the docstring it read.
 - Sphinx roles (``:func:`~imu_ground.pipeline.estimate_log```) become inline code (``estimate_log``, the
   name Sphinx shows), which Markdown would otherwise print with the role's colons.
+- A parameter typed by its choices (``time_unit : {"s", "ms"}, optional``) shows the signature's default:
+  griffe takes the first choice for the default (numpydoc's convention), and the project's docstrings list
+  the choices in their own order, with ``None`` (told from the data) as the default.
 """
 from __future__ import annotations
 
@@ -40,3 +43,22 @@ class SphinxDocstrings(griffe.Extension):
             holder.__doc__ = text
             text = with_finish_parameters(holder).__doc__ or text
         obj.docstring.value = plain_roles(text)
+        if isinstance(obj, griffe.Function) and "{" in text:
+            signature_defaults(obj)
+
+
+#: A parameter line typed by its choices: ``name : {"a", "b"}`` (griffe's default is then the first, ``"a"``).
+CHOICES_LINE = re.compile(r"^\s*(\**\w+)\s*:\s*\{([^}]*)\}", flags=re.M)
+
+
+def signature_defaults(func: griffe.Function) -> None:
+    """Parse ``func``'s docstring now and give each parameter typed by choices the signature's default."""
+    first = {name.lstrip("*"): choices.split(",", 1)[0].strip()
+             for name, choices in CHOICES_LINE.findall(func.docstring.value)}
+    for section in func.docstring.parsed:
+        if section.kind not in (griffe.DocstringSectionKind.parameters, griffe.DocstringSectionKind.other_parameters):
+            continue
+        for param in section.value:
+            name = param.name.lstrip("*")
+            if name in first and param.value == first[name]:        # the default griffe took from the choices
+                param.value = func.parameters[name].default if name in func.parameters else None

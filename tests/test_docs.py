@@ -91,3 +91,25 @@ def test_the_recalibrate_online_example_does_what_the_page_says(shared_data):
     assert (with_flag["status"] != "degraded").all()
     numbers = with_flag.select_dtypes("number").columns
     assert np.allclose(with_flag[numbers], without[numbers], rtol=0, atol=1e-9, equal_nan=True)
+
+
+def test_the_api_reference_reads_the_docstrings_as_help_does(tmp_path):
+    """The griffe extension: the readers' shared options expanded, Sphinx roles as code, choices with the
+    signature's default (griffe alone shows ``"s"`` for ``time_unit``, whose default is None)."""
+    griffe = pytest.importorskip("griffe", reason="needs mkdocstrings[python]: pip install -e '.[docs]'")
+    sys.path.insert(0, str(REPO / "docs"))
+    try:
+        import griffe_extensions
+        import hooks
+    finally:
+        sys.path.remove(str(REPO / "docs"))
+    stage = hooks.package_tree(REPO, tmp_path)
+    loader = griffe.GriffeLoader(search_paths=[str(stage)], docstring_parser="numpy",
+                                 extensions=griffe.load_extensions(griffe_extensions.SphinxDocstrings))
+    reader = loader.load("imu_ground.datasets.kitti_imu100")["read_kitti_imu100"]
+    assert "{finish_parameters}" not in reader.docstring.value and ":func:" not in reader.docstring.value
+    params = {p.name: p.value for s in reader.docstring.parsed if s.kind.value == "parameters" for p in s.value}
+    assert params["time_unit"] == "None" and params["policy"] == "'retime'" and "validate" in params
+    table = loader.load("imu_ground.datasets.table")["read_table"]           # its column options: **kw, not arguments
+    other = [p.name for s in table.docstring.parsed if s.kind.value == "other parameters" for p in s.value]
+    assert {"columns", "time_unit", "relative_time"} <= set(other)
