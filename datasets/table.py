@@ -203,6 +203,23 @@ def read_table(source: str | Path | pd.DataFrame, *, sep: str | None = None, dec
     ----------
     source : str, Path or pandas.DataFrame
         A delimited text file with a header line, or a DataFrame.
+    sep : str, optional
+        Field separator of the text file; told from the file when None: a tab for
+        ``.tsv``, else whichever of ``,``, tab and ``;`` splits the header line into the
+        most fields (:func:`~imu_ground.datasets.csvio.detect_dialect`).
+    decimal : str, optional
+        Decimal mark (``"."`` or ``","``); told from the file when None: a comma when the
+        fields are not comma-separated and the first data row writes its numbers so (``9,81``).
+    validate : bool
+        Run :func:`imu_ground.datasets.validation.validate` (default True).
+    policy : {"retime", "drop", "sort", "strict", "recorded"}
+        Time-order policy of the validation.
+    **kw
+        The column map and units (Other Parameters, below) and the other options of
+        :func:`~imu_ground.datasets.validation.validate`.
+
+    Other Parameters
+    ----------------
     columns : str or dict, optional
         Which column holds what, ``"t=timestamp,wx=gyro_x,..."`` or
         ``{"t": "timestamp", ...}`` (keys of :data:`QUANTITIES`; the ones not
@@ -228,19 +245,6 @@ def read_table(source: str | Path | pd.DataFrame, *, sep: str | None = None, dec
     relative_time : bool
         Shift ``t`` to start at 0 (default) and keep the first time, s, in
         ``meta["t0"]``; integer times are shifted before conversion (exact ns).
-    sep : str, optional
-        Field separator of the text file; told from the file when None: a tab for
-        ``.tsv``, else whichever of ``,``, tab and ``;`` splits the header line into the
-        most fields (:func:`~imu_ground.datasets.csvio.detect_dialect`).
-    decimal : str, optional
-        Decimal mark (``"."`` or ``","``); told from the file when None: a comma when the
-        fields are not comma-separated and the first data row writes its numbers so (``9,81``).
-    validate : bool
-        Run :func:`imu_ground.datasets.validation.validate` (default True).
-    policy : {"retime", "drop", "sort", "strict", "recorded"}
-        Time-order policy of the validation.
-    **kw
-        Other options of :func:`~imu_ground.datasets.validation.validate`.
 
     Returns
     -------

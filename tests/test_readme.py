@@ -1,8 +1,10 @@
-"""Every ``imu-ground`` line of the README, verbatim, and each sub-command with only its required arguments.
+"""Every ``imu-ground`` line of the README and of the ``docs/`` pages, verbatim, and each sub-command with only its
+required arguments.
 
-Placeholders: ``LOG`` (and ``LOG2``) is the shipped example drive; ``../shared/data`` is the
-real recordings (lines that use them skip when they are absent). Lines run in a fresh folder
-in which ``datasets`` points at the repository's, so outputs land in that folder's ``out/``.
+``../shared/data`` is the real recordings (lines that use them skip when they are absent); the examples name
+real files, no placeholder (``LOG``, ``LOG2`` stand for the shipped example drive in the required-arguments
+runs only). Lines run in a fresh folder in which ``datasets`` points at the repository's, so outputs land in
+that folder's ``out/``; the README's lines first, then each page's in name order, each in its page's order.
 """
 import re
 import shlex
@@ -16,14 +18,16 @@ from imu_ground.cli import main
 
 REPO = Path(__file__).resolve().parents[1]
 README = REPO / "README.md"
+#: The reference pages (the API pages hold no commands); a page without a command adds none.
+PAGES = [README, *sorted((REPO / "docs").glob("*.md"))]
 EXAMPLE = REPO / "datasets" / "fixtures" / "example_drive.csv"
 PLACEHOLDERS = {"LOG": str(EXAMPLE), "LOG2": str(EXAMPLE)}
 OUTPUT_FLAGS = ("-o", "--output", "--tum", "--markdown", "--csv", "--plots", "--truth", "--plot", "--planes")
 
 
-def readme_commands() -> list[str]:
-    """``imu-ground ...`` commands of the README's bash blocks (after ``&&`` too), comments removed."""
-    blocks = re.findall(r"```bash\n(.*?)```", README.read_text(encoding="utf-8"), flags=re.DOTALL)
+def readme_commands(page: Path = README) -> list[str]:
+    """``imu-ground ...`` commands of a page's bash blocks (after ``&&`` too), comments removed."""
+    blocks = re.findall(r"```bash\n(.*?)```", page.read_text(encoding="utf-8"), flags=re.DOTALL)
     commands = []
     for block in blocks:
         for line in block.splitlines():
@@ -35,6 +39,10 @@ def readme_commands() -> list[str]:
 
 
 COMMANDS = readme_commands()
+#: (page, command) for the README and every docs page, in run order.
+PAGE_COMMANDS = [(page.relative_to(REPO).as_posix(), c) for page in PAGES for c in readme_commands(page)]
+#: The same, each command once (where it is first shown): a line the README and a page both show runs once.
+RUN_COMMANDS = [pc for i, pc in enumerate(PAGE_COMMANDS) if pc[1] not in {c for _, c in PAGE_COMMANDS[:i]}]
 
 
 def _argv(command: str, shared: Path | None) -> list[str]:
@@ -67,8 +75,16 @@ def test_the_readme_has_the_commands():
     assert {c.split()[1] for c in COMMANDS} >= {"estimate", "batch", "evaluate", "simulate", "calibrate"}
 
 
-@pytest.mark.parametrize("command", COMMANDS)
-def test_readme_command_verbatim(command, workdir, request, capsys):
+def test_the_pages_show_every_command_and_no_placeholder():
+    """The README and docs pages together show every sub-command, each example with real files."""
+    assert {c.split()[1] for _, c in PAGE_COMMANDS} >= {"estimate", "batch", "evaluate", "simulate", "calibrate",
+                                                         "stream", "preview"}
+    placeholders = [f"{page}: {c}" for page, c in PAGE_COMMANDS if set(shlex.split(c)) & set(PLACEHOLDERS)]
+    assert not placeholders, "name a shipped or shared file instead of a placeholder:\n" + "\n".join(placeholders)
+
+
+@pytest.mark.parametrize("page, command", RUN_COMMANDS, ids=[f"{p}: {c}" for p, c in RUN_COMMANDS])
+def test_readme_command_verbatim(page, command, workdir, request, capsys):
     shared = None
     if "../shared/data" in command:
         shared = request.getfixturevalue("shared_data")
@@ -80,7 +96,7 @@ def test_readme_command_verbatim(command, workdir, request, capsys):
 
 
 def test_readme_outputs_go_to_one_ignored_folder():
-    for command in COMMANDS:
+    for _, command in PAGE_COMMANDS:
         words = shlex.split(command)
         for i, w in enumerate(words[:-1]):
             if w in OUTPUT_FLAGS:

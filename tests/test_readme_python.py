@@ -1,4 +1,4 @@
-"""The README's Python blocks run as written (real-data lines skip without ../shared/data)."""
+"""The Python blocks of the README and the ``docs/`` pages run as written (real-data lines skip without ../shared/data)."""
 import ast
 import re
 from pathlib import Path
@@ -7,23 +7,27 @@ import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-BLOCKS = re.findall(r"```python\n(.*?)```", (REPO / "README.md").read_text(encoding="utf-8"), flags=re.DOTALL)
+PAGES = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
+#: (page, index on the page, code) of every Python block.
+PAGE_BLOCKS = [(page.relative_to(REPO).as_posix(), i, b) for page in PAGES for i, b in
+               enumerate(re.findall(r"```python\n(.*?)```", page.read_text(encoding="utf-8"), flags=re.DOTALL))]
+BLOCKS = [b for page, _, b in PAGE_BLOCKS if page == "README.md"]
 
 
-@pytest.mark.parametrize("index", [pytest.param(i, marks=[pytest.mark.shared] if "../shared/data" in b else [])
-                                   for i, b in enumerate(BLOCKS)])
-def test_readme_python_block_runs(index, tmp_path, monkeypatch, request):
-    code = BLOCKS[index]
+@pytest.mark.parametrize("page, index, code", [
+    pytest.param(p, i, b, marks=[pytest.mark.shared] if "../shared/data" in b else [], id=f"{p} block {i}")
+    for p, i, b in PAGE_BLOCKS])
+def test_readme_python_block_runs(page, index, code, tmp_path, monkeypatch, request):
     if "../shared/data" in code:
         shared = request.getfixturevalue("shared_data")
         code = code.replace("../shared/data", str(shared))
     code = code.replace('"datasets/', f'"{REPO}/datasets/')
     monkeypatch.chdir(tmp_path)
     namespace: dict = {}
-    exec(compile(code, f"README.md python block {index}", "exec"), namespace)
+    exec(compile(code, f"{page} python block {index}", "exec"), namespace)
     # what the block says it makes, checked against things it does not compute itself
     for name in _assigned_names(code):
-        assert namespace.get(name) is not None, f"README block {index}: {name} is None"
+        assert namespace.get(name) is not None, f"{page} block {index}: {name} is None"
     for written in re.findall(r'write_output\(\s*"([^"]+)"', code):
         assert (tmp_path / written).is_file() and (tmp_path / written).stat().st_size > 0, written
     if "result" in namespace and "table" in namespace:
@@ -48,3 +52,4 @@ def _assigned_names(code: str) -> list[str]:
 
 def test_readme_has_python_blocks():
     assert len(BLOCKS) >= 2
+    assert {p for p, _, _ in PAGE_BLOCKS} >= {"docs/library.md", "docs/live.md", "docs/camera.md"}

@@ -70,10 +70,10 @@ def test_no_module_function_reaches_into_another_objects_private_attributes():
 
 
 def _room_table() -> dict[str, tuple[set[str], set[str]]]:
-    """Layer -> the README's room table's names: those outside parentheses (modules), and all."""
+    """Layer -> the room table's names (docs/library.md): those outside parentheses (modules), and all."""
     import re
     rows = {}
-    for line in (ROOT.parent / "README.md").read_text(encoding="utf-8").splitlines():
+    for line in (ROOT.parent / "docs" / "library.md").read_text(encoding="utf-8").splitlines():
         m = re.match(r"\| `imu_ground\.(\w+)` \| (.*?) \| ", line)
         if not m:
             continue
@@ -92,6 +92,6 @@ def test_the_readme_room_table_follows_the_tree(layer, complete):
     tree = {p.stem for p in base.glob("*.py") if not p.name.startswith(("__", *NOT_LIBRARY))}
     tree |= {p.name for p in base.iterdir() if p.is_dir() and (p / "__init__.py").exists()}
     named, mentioned = _room_table()[layer]
-    assert named <= tree, f"the README names modules that are not in imu_ground/{layer}: {sorted(named - tree)}"
+    assert named <= tree, f"docs/library.md names modules that are not in imu_ground/{layer}: {sorted(named - tree)}"
     if complete:
-        assert tree <= mentioned, f"modules of imu_ground/{layer} missing from the README's table: {sorted(tree - mentioned)}"
+        assert tree <= mentioned, f"modules of imu_ground/{layer} missing from docs/library.md's table: {sorted(tree - mentioned)}"
