@@ -341,6 +341,8 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
                 if hasattr(e, "cli_message") or str(e).startswith(str(path)):
                     raise
                 raise ImuGroundError(f"{path}: {e}") from e
+            if kind == "imu":
+                _note_segments(track, em, imu)
         ext = Extrinsic.coerce(extrinsic)
         bar.update()
     bar.close()
@@ -389,17 +391,55 @@ def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
     else:
         check_gravity_direction(imu, extrinsic, path)
     frame_rate = DEFAULT_FRAME_RATE if rate is None else rate
+    from imu_ground.pipeline.streaming import MAX_GAP_FRAMES
     try:
-        em = imu_to_egomotion(imu, rate=frame_rate)
+        em = imu_to_egomotion(imu, rate=frame_rate, segment_gap=MAX_GAP_FRAMES / frame_rate)
     except ImuGroundError as e:         # too short a log: the message names the file, as every other one
         if str(e).startswith(str(path)):
             raise
         raise ImuGroundError(f"{path}: {len(imu)} sample(s) over {imu.duration:.3g} s, too short for frames at "
                              f"{frame_rate:g} Hz ({e})") from e
+    _warn_segments(path, imu, em, frame_rate, MAX_GAP_FRAMES)
     info = {"format": fmt, "imu_rate": imu_rate, "frame_id": imu.meta.get("frame_id") or "imu"}
     if imu.meta.get("t0_ns") is not None:
         info["t0_ns"] = int(imu.meta["t0_ns"])
     return em, info, imu
+
+
+def _segment_note(imu, i: int) -> str:
+    """What the first frame after a new segment's start (``i``: the sample before the step) says."""
+    return (f"the stamps jump forward by {imu.t[i + 1] - imu.t[i]:.3f} s: a new segment from "
+            f"t = {imu.t[i + 1]:.3f} s")
+
+
+def _warn_segments(path, imu, em, rate: float, max_frames: int) -> None:
+    """A warning for each step of the stamps longer than the live limit, where the frames start again (a new
+    segment, :func:`~imu_ground.imu.imu_to_egomotion`'s ``segment_gap``), naming its line and time."""
+    cuts = em.meta.get("segment_cuts") or []
+    if not cuts:
+        return
+    from imu_ground.datasets.report import row_names
+    report = imu.meta.get("validation")
+    where = []
+    for i in cuts:
+        k = np.flatnonzero(report.gap_out_index == i) if report is not None else np.zeros(0, int)
+        kind, rows = row_names(report.gap_index[k[:1]], imu.meta.get("row_lines")) if k.size else ("sample", [i])
+        where.append(f"after {kind} {rows[0]} (t = {imu.t[i]:.3f} s) {_segment_note(imu, i)}")
+    warnings.warn(f"{path}: {len(cuts)} step(s) of the stamps longer than the live limit of {max_frames} frames "
+                  f"({max_frames / rate:g} s at {rate:g} Hz) start a new segment each, as live (no frame across "
+                  f"them; the first frame after says so): " + "; ".join(where[:5])
+                  + (f"; ... ({len(where) - 5} more)" if len(where) > 5 else ""))
+
+
+def _note_segments(track, em, imu) -> None:
+    """The first frame of each new segment says where it starts (its ``status_reason``), as live."""
+    cuts = em.meta.get("segment_cuts") or []
+    reason = track.status_reason
+    for i in cuts:
+        j = int(np.searchsorted(em.t, imu.t[i + 1], side="right"))
+        if j < len(reason):
+            note = _segment_note(imu, i)
+            reason[j] = f"{reason[j]}; {note}" if reason[j] else note
 
 
 def _poses_egomotion(path, fmt, rate, times=None, extrinsic=None):
