@@ -61,3 +61,36 @@ def test_a_gap_under_the_limit_is_integrated_through_as_before(tmp_path):
     # with a limit under the gap, the frames start again after it: those of each half alone
     c = imu_to_egomotion(imu, rate=10.0, segment_gap=10.0)
     assert c.meta["segment_cuts"] == [len(df) // 2 - 1] and c.valid.all() and len(c) == len(a) - 301
+
+
+# ------------------------------------------------------------------------------------------ 10, 13. forced units
+@pytest.mark.parametrize("scale, unit, given", [(1e9, "ns", "s"), (1e3, "ms", "s"), (1e6, "us", "ms")])
+def test_a_forced_time_unit_that_makes_the_log_absurd_is_refused_naming_the_flag(tmp_path, capsys, scale, unit,
+                                                                                 given):
+    """Before: ns read as s tried to allocate 4.37 TiB (exit 3); ms as s made 600,000 frames of 10 s (1 GB)."""
+    df = _example()
+    df["t"] = (1.7e18 * (unit == "ns") + df["t"] * scale).round().astype("int64")
+    path = tmp_path / f"{unit}.csv"
+    df.to_csv(path, index=False)
+    assert main(["estimate", str(path), "--time-unit", given, "-o", str(tmp_path / "o.csv")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"--time-unit {given}" in err and f"--time-unit {unit}" in err
+    assert not (tmp_path / "o.csv").exists()
+    assert main(["estimate", str(path), "--time-unit", unit, "-o", str(tmp_path / "o.csv")]) == 0
+
+
+def test_a_forced_gyro_unit_the_data_contradict_is_warned_as_the_accel_unit_is(tmp_path, capsys):
+    """Before: --accel-unit g on m/s^2 data was warned about, --gyro-unit deg/s on rad/s data was not."""
+    for flag in (["--accel-unit", "g"], ["--gyro-unit", "deg/s"]):
+        assert main(["estimate", str(EXAMPLE), *flag, "-o", str(tmp_path / "o.csv")]) == 0
+        err = capsys.readouterr().err
+        assert "warning" in err, flag
+    assert "--gyro-unit deg/s given, but the data read as rad/s" in err
+    df = _example()
+    df[["wx", "wy", "wz"]] = np.degrees(df[["wx", "wy", "wz"]]) * 40      # turns a car makes, in deg/s
+    path = tmp_path / "deg.csv"
+    df.to_csv(path, index=False)
+    assert main(["estimate", str(path), "--gyro-unit", "rad/s", "-o", str(tmp_path / "o.csv")]) == 0
+    assert "--gyro-unit rad/s given, but the data read as deg/s" in capsys.readouterr().err
+    assert main(["estimate", str(path), "--gyro-unit", "deg/s", "-o", str(tmp_path / "o.csv")]) == 0
+    assert "given, but" not in capsys.readouterr().err
