@@ -94,3 +94,78 @@ def test_a_forced_gyro_unit_the_data_contradict_is_warned_as_the_accel_unit_is(t
     assert "--gyro-unit rad/s given, but the data read as deg/s" in capsys.readouterr().err
     assert main(["estimate", str(path), "--gyro-unit", "deg/s", "-o", str(tmp_path / "o.csv")]) == 0
     assert "given, but" not in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------------------------------ 11. outputs over inputs
+def _lidar_args(shared: Path) -> list:
+    d = shared / "kitti_raw" / "2011_09_26"
+    drive = d / "2011_09_26_drive_0009_sync"
+    return ["evaluate", "--lidar", str(drive / "oxts"), str(drive / "velodyne_points" / "data"),
+            "--lidar-extrinsic", str(d)]
+
+
+CASES = {  # name: (arguments with {dir}, the file given twice, the two flags the message names)
+    "speed": (["estimate", str(EXAMPLE), "--speed", "{dir}/S.csv", "-o", "{dir}/S.csv"], "S.csv", ("--speed", "-o")),
+    "extrinsic": (["estimate", str(EXAMPLE), "--extrinsic", "{dir}/out/my_car.txt", "--tum", "{dir}/out/my_car.txt"],
+                  "out/my_car.txt", ("--extrinsic", "--tum")),
+    "two outputs": (["estimate", str(EXAMPLE), "-o", "{dir}/a.csv", "--tum", "{dir}/./a.csv"], "a.csv",
+                    ("-o", "--tum")),
+    "preview": (["preview", str(EXAMPLE), "--images", "{dir}", "--times", "{dir}/T.png", "-o", "{dir}/T.png"],
+                "T.png", ("--times", "-o")),
+    "simulate": (["simulate", "-o", "{dir}/sim.csv", "--truth", "{dir}/sim.csv", "--duration", "1"], "sim.csv",
+                 ("-o", "--truth")),
+    "evaluate": (["evaluate", "--synthetic", "1", "--csv", "{dir}/r.csv", "--markdown", "{dir}/r.csv"], "r.csv",
+                 ("--csv", "--markdown")),
+    "stream": (["stream", "--replay", str(EXAMPLE), "--speed", "{dir}/S.csv", "--state", "{dir}/S.csv"], "S.csv",
+               ("--speed", "--state")),
+    "batch": (["batch", str(EXAMPLE), "-o", "{dir}/out", "--workers", "0", "--speed", "{dir}/out/summary.csv"],
+              "out/summary.csv", ("--speed", "-o")),
+}
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_no_output_replaces_an_input_or_another_output(tmp_path, capsys, case):
+    """Before: only the log was protected; each of these replaced the file (or lost one output), exit 0."""
+    args, given, flags = CASES[case]
+    (tmp_path / "out").mkdir()
+    target = tmp_path / given
+    target.write_text("t,speed\n0,5\n60,5\n" if given.endswith(".csv") else "keep\n")
+    before = target.read_bytes()
+    assert main([a.replace("{dir}", str(tmp_path)) for a in args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"given to both {flags[0]}" in err and f"and {flags[1]}" in err, err
+    assert target.read_bytes() == before
+
+
+@pytest.mark.parametrize("outputs, flags", [(["--csv", "{times}"], ("--times", "--csv")),
+                                            (["--csv", "{dir}/X.png", "-o", "{dir}/X.png"], ("-o", "--csv"))])
+def test_evaluate_lidar_writes_over_no_input_nor_its_other_output(shared_data, tmp_path, capsys, outputs, flags):
+    times = tmp_path / "T.txt"
+    times.write_text("keep\n")
+    outputs = [o.replace("{times}", str(times)).replace("{dir}", str(tmp_path)) for o in outputs]
+    assert main([*_lidar_args(shared_data), "--times", str(times), *outputs]) == 2
+    err = capsys.readouterr().err
+    assert f"given to both {flags[0]}" in err and f"and {flags[1]}" in err and times.read_text() == "keep\n"
+    assert not (tmp_path / "X.png").exists()
+
+
+# ------------------------------------------------------------------------------------------ 12. a user's files in -o
+@pytest.mark.parametrize("name", ["summary.csv", "example_drive_ground.csv"])
+@pytest.mark.parametrize("force", [False, True])
+def test_batch_writes_over_no_file_in_its_folder_that_it_did_not_write(tmp_path, capsys, name, force):
+    """Before: a user's summary.csv was replaced without a word; a user's example_drive_ground.csv made its log
+    'skipped (output exists)' and was summarised as an estimate."""
+    out = tmp_path / "out"
+    out.mkdir()
+    mine = out / name
+    mine.write_text("my notes\n")
+    args = ["batch", str(EXAMPLE), "-o", str(out), "--workers", "0", *(["--force"] if force else [])]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"{mine}: exists and imu-ground did not write it" in err and "-o" in err
+    assert mine.read_text() == "my notes\n" and sorted(p.name for p in out.iterdir()) == [name]
+    mine.unlink()
+    assert main(args) == 0                          # its own outputs: kept on a rerun, replaced with --force
+    capsys.readouterr()
+    assert main(args) == 0
+    assert ("1 estimated" if force else "1 skipped") in capsys.readouterr().out.splitlines()[-1]

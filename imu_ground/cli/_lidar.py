@@ -47,7 +47,8 @@ def add_lidar_flags(v: argparse.ArgumentParser) -> None:
 
 def check_lidar(a: argparse.Namespace) -> None:
     """Option checks before any work (one line each, naming the flag)."""
-    from imu_ground.pipeline.output import check_output_path
+    from imu_ground.cli._common import input_paths
+    from imu_ground.pipeline.output import check_output_path, check_run_paths
     if a.real is not None or a.synthetic:
         raise OptionError("--lidar goes alone: not with --real or --synthetic", "lidar")
     other = [f for f, v in (("--plots", a.plots), ("--per-drive", a.per_drive)) if v]
@@ -73,6 +74,8 @@ def check_lidar(a: argparse.Namespace) -> None:
     for option, path in (("--csv", a.csv), ("--markdown", a.markdown)):
         if path:
             check_output_path(path, [a.lidar[0]], option=option, kind="text")
+    inputs = [("--lidar LOG", a.lidar[0]), *(("--lidar SCANS", s) for s in a.lidar[1:]), *input_paths(a)]
+    check_run_paths([("-o", a.plot), ("--csv", a.csv), ("--markdown", a.markdown)], inputs)
 
 
 def _truth(a: argparse.Namespace, ext) -> tuple[list, np.ndarray, np.ndarray, str]:

@@ -49,10 +49,12 @@ __all__ = [
     "UNITS",
     "atomic_path",
     "check_output_path",
+    "check_run_paths",
     "default_output_name",
     "package_version",
     "read_output_settings",
     "result_table",
+    "same_file",
     "track_table",
     "summarize_table",
     "write_csv_rows",
@@ -225,12 +227,55 @@ def check_output_path(path: _PathLike, inputs: Sequence[_PathLike] = (), option:
         raise ImuGroundError(f"{p}: unknown output type {p.suffix or '(no suffix)'!r}; end the {option} file name "
                              f"with {', '.join(OUTPUT_SUFFIXES)}")
     for src in inputs:
-        s = Path(src)
-        if p.resolve() == s.resolve() or (p.exists() and s.exists() and os.path.samefile(p, s)):
+        if same_file(p, src):
             raise ImuGroundError(f"{p}: is the input log; writing it would overwrite the log: choose another {option}")
     check_creatable(p, option)
     _require_writer(p, kind or p.suffix.lower())
     return p
+
+
+def same_file(a: _PathLike, b: _PathLike) -> bool:
+    """Whether paths ``a`` and ``b`` name one file: the same resolved path (symbolic links, ``..``), or, both
+    existing, the same file (:func:`os.path.samefile`: hard links, other spellings)."""
+    pa, pb = Path(a), Path(b)
+    if pa.resolve() == pb.resolve():
+        return True
+    try:
+        return pa.exists() and pb.exists() and os.path.samefile(pa, pb)
+    except OSError:
+        return False
+
+
+def check_run_paths(outputs: Sequence[tuple[str, _PathLike | None]],
+                    inputs: Sequence[tuple[str, _PathLike | None]] = ()) -> None:
+    """The one check of a run's paths, before any work: no output is a file the user named as an input, and no
+    two outputs share a path (every ``imu-ground`` command calls it).
+
+    Parameters
+    ----------
+    outputs : sequence of (flag, path)
+        Every file or folder the run writes, with the flag that names it (``"-o"``, ``"--tum"``,
+        ``"--state"``); None entries are left out.
+    inputs : sequence of (flag, path)
+        Every input the user named (``"LOG"``, ``"--speed"``, ``"--extrinsic"``, ``"--times"``, ...):
+        a path, or a value that is not one (``auto``, a shipped name, a column), which then names no
+        output either; None entries are left out.
+
+    Raises
+    ------
+    ImuGroundError
+        One line naming the path and both flags (exit 2 from the command line).
+    """
+    outs = [(flag, Path(path)) for flag, path in outputs if path is not None]
+    for flag, path in outs:
+        for in_flag, src in inputs:
+            if src is not None and str(src) != "" and same_file(path, src):
+                raise ImuGroundError(f"{path}: given to both {in_flag} (an input) and {flag}; writing it would "
+                                     f"replace the input: choose another {flag}")
+    for i, (a, pa) in enumerate(outs):
+        for b, pb in outs[i + 1:]:
+            if same_file(pa, pb):
+                raise ImuGroundError(f"{pb}: given to both {a} and {b}; the two outputs need two file names")
 
 
 #: Output suffix -> (the modules its writer needs, the extra that installs them).
