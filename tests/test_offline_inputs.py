@@ -169,3 +169,18 @@ def test_batch_writes_over_no_file_in_its_folder_that_it_did_not_write(tmp_path,
     capsys.readouterr()
     assert main(args) == 0
     assert ("1 estimated" if force else "1 skipped") in capsys.readouterr().out.splitlines()[-1]
+
+
+# ------------------------------------------------------------------------------------------ 13. a speed off the clock
+@pytest.mark.parametrize("run", [["estimate", str(EXAMPLE)], ["estimate", str(EXAMPLE), "--causal"],
+                                 ["stream", "--replay", str(EXAMPLE)]])
+def test_a_speed_off_the_logs_clock_is_refused_by_every_run(tmp_path, capsys, run):
+    """Before: refused by estimate, silently unused (IMU only, exit 0) by --causal and stream --replay."""
+    speed = tmp_path / "speed.csv"
+    speed.write_text("t,speed\n1000,5\n1060,5\n")                # the log spans 0 .. 60 s
+    out = ["-o", str(tmp_path / "o.csv")] if run[0] == "estimate" else []
+    assert main([*run, "--speed", str(speed), *out]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip()
+    assert len(err.splitlines()) == 1 and f"--speed {speed}" in err and "do not cover the log's" in err
+    assert captured.out == "" and not (tmp_path / "o.csv").exists()

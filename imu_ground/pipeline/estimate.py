@@ -499,8 +499,7 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
         warnings.warn(f"speed {what}: {holes} of {len(got[1])} samples have no speed (nan): not interpolated "
                       f"across; the frames they reach run without a speed (IMU only)")
     if not np.isfinite(v).any():
-        raise OptionError(f"{{opt}} {speed}: the speed's times ({got[0][0]:.3f} .. {got[0][-1]:.3f} s) do not "
-                          f"cover the log's frames ({em.t[0]:.3f} .. {em.t[-1]:.3f} s)", "speed")
+        _refuse_speed_clock(speed, got[0], float(em.t[0]), float(em.t[-1]), "frames")
     return v, f"{what} ({int(np.isfinite(v).sum())} of {len(v)} frames)"
 
 
@@ -528,7 +527,18 @@ def speed_samples(speed, path, fmt, imu):
             warnings.warn(f"speed {note}")
         got = (t_sp, v_sp)
         what = f"{speed}"
+        t = np.asarray(imu.t, dtype=float) if imu is not None and len(imu) else None
+        if t is not None and len(t_sp) and (float(t_sp[-1]) < float(t.min()) or float(t_sp[0]) > float(t.max())):
+            _refuse_speed_clock(speed, t_sp, float(t.min()), float(t.max()), "samples")
     return got, what
+
+
+def _refuse_speed_clock(speed, t_speed, lo: float, hi: float, what: str) -> None:
+    """The speed given is off the log's clock: an :class:`OptionError` naming ``speed`` (``--speed``), in the
+    offline, the causal (``--causal``) and the replayed (``stream --replay``) runs alike."""
+    raise OptionError(f"{{opt}} {speed}: the speed's times ({t_speed[0]:.3f} .. {t_speed[-1]:.3f} s) do not cover "
+                      f"the log's {what} ({lo:.3f} .. {hi:.3f} s): not on the log's clock (the times are s on the "
+                      "log's time base)", "speed")
 
 
 def live_policy(policy: str | None) -> str:
