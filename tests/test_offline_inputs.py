@@ -42,6 +42,12 @@ def test_a_gap_past_the_live_limit_starts_a_new_segment_as_live(jump_log, tmp_pa
     assert "a new segment from t = 4030.000 s" in after["status_reason"].iloc[0]
     assert main(["estimate", str(path), "--causal", "-o", str(causal)]) == 0
     assert np.array_equal(table["t"].to_numpy(), pd.read_csv(causal, comment="#")["t"].to_numpy())
+    from imu_ground.datasets import read_imu
+    from imu_ground.imu import imu_to_egomotion
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        em = imu_to_egomotion(read_imu(path))       # the library's front end too (calibrate, a filter's run)
+    assert np.array_equal(em.t, table["t"].to_numpy())
 
 
 def test_a_gap_under_the_limit_is_integrated_through_as_before(tmp_path):
@@ -56,10 +62,10 @@ def test_a_gap_under_the_limit_is_integrated_through_as_before(tmp_path):
         warnings.simplefilter("ignore")
         imu = read_imu(path)
     assert segment_frame_times(imu.t, 10.0, 3600.0) is None
-    a, b = imu_to_egomotion(imu, rate=10.0), imu_to_egomotion(imu, rate=10.0, segment_gap=3600.0)
+    a, b = imu_to_egomotion(imu, rate=10.0, max_gap_frames=None), imu_to_egomotion(imu, rate=10.0)
     assert len(a) == len(b) and (~a.valid).sum() == 301 and np.array_equal(a.delta_R, b.delta_R)
     # with a limit under the gap, the frames start again after it: those of each half alone
-    c = imu_to_egomotion(imu, rate=10.0, segment_gap=10.0)
+    c = imu_to_egomotion(imu, rate=10.0, max_gap_frames=100)                 # 10 s
     assert c.meta["segment_cuts"] == [len(df) // 2 - 1] and c.valid.all() and len(c) == len(a) - 301
 
 

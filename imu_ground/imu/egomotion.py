@@ -26,7 +26,7 @@ from imu_ground.imu.data import ImuData
 from imu_ground.imu.preint_frames import segment_frame_times
 from imu_ground.imu.preintegration import preintegrate
 from imu_ground.imu.standstill import WindowSums, detect_standstill, estimate_gyro_bias
-from imu_ground.units import DEFAULT_FRAME_RATE
+from imu_ground.units import DEFAULT_FRAME_RATE, MAX_GAP_FRAMES
 
 __all__ = ["EgoFrame", "EgoMotion", "imu_to_egomotion"]
 
@@ -171,7 +171,7 @@ class EgoMotion:
 
 def imu_to_egomotion(imu: ImuData, rate: float = DEFAULT_FRAME_RATE, *, frame_times: np.ndarray | None = None,
                      bias_gyro: str | Sequence[float] | None = "auto", max_gap: float | None = None,
-                     standstill_window: float = 1.0, segment_gap: float | None = None) -> EgoMotion:
+                     standstill_window: float = 1.0, max_gap_frames: int | None = MAX_GAP_FRAMES) -> EgoMotion:
     """Preintegrate an IMU log into frames.
 
     Parameters
@@ -191,13 +191,13 @@ def imu_to_egomotion(imu: ImuData, rate: float = DEFAULT_FRAME_RATE, *, frame_ti
         10 times the median sample step (0.1 s at 100 Hz, 1 s at 10 Hz).
     standstill_window : float
         Shortest standstill (s) used for the per-frame ``stationary`` flags.
-    segment_gap : float, optional
-        A sample step longer than this (s) starts a new segment, as the live front end's clock
-        restarts (:data:`~imu_ground.pipeline.streaming.MAX_GAP_FRAMES` frame periods in
-        ``imu-ground estimate``): the frames start again at the first sample after it, on its own
+    max_gap_frames : int, optional
+        A sample step longer than this many frame periods (default
+        :data:`~imu_ground.units.MAX_GAP_FRAMES`, an hour at 10 Hz) starts a new segment, as the live
+        front end's clock restarts: the frames start again at the first sample after it, on its own
         grid, and none spans the step (its gap frames would grow with the step, not with the log).
-        ``meta["segment_cuts"]``: the sample index before each such step. Default: none (gaps
-        of any length are integrated through, one invalid frame a period). Not with ``frame_times``.
+        ``meta["segment_cuts"]``: the sample index before each such step. None: gaps of any length
+        are integrated through, one invalid frame a period. Not with ``frame_times``.
 
     Returns
     -------
@@ -223,7 +223,8 @@ def imu_to_egomotion(imu: ImuData, rate: float = DEFAULT_FRAME_RATE, *, frame_ti
     else:
         bg = np.asarray(bias_gyro, dtype=float).reshape(3)
     segments = None
-    if frame_times is None and segment_gap is not None and len(imu) > 1:
+    if frame_times is None and max_gap_frames is not None and len(imu) > 1:
+        segment_gap = max_gap_frames / rate
         segments = segment_frame_times(imu.t, rate, segment_gap)
     if segments is not None:
         T, in_frame, cuts = segments

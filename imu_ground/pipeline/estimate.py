@@ -40,7 +40,7 @@ from imu_ground.pipeline.input_checks import (
 )
 from imu_ground.pipeline.output import result_table, write_outputs
 from imu_ground.pipeline.planes import check_camera
-from imu_ground.units import DEFAULT_FRAME_RATE
+from imu_ground.units import DEFAULT_FRAME_RATE, MAX_GAP_FRAMES
 
 __all__ = [
     "GRAVITY_REFUSE_DEG",
@@ -391,9 +391,8 @@ def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
     else:
         check_gravity_direction(imu, extrinsic, path)
     frame_rate = DEFAULT_FRAME_RATE if rate is None else rate
-    from imu_ground.pipeline.streaming import MAX_GAP_FRAMES
     try:
-        em = imu_to_egomotion(imu, rate=frame_rate, segment_gap=MAX_GAP_FRAMES / frame_rate)
+        em = imu_to_egomotion(imu, rate=frame_rate)
     except ImuGroundError as e:         # too short a log: the message names the file, as every other one
         if str(e).startswith(str(path)):
             raise
@@ -414,7 +413,7 @@ def _segment_note(imu, i: int) -> str:
 
 def _warn_segments(path, imu, em, rate: float, max_frames: int) -> None:
     """A warning for each step of the stamps longer than the live limit, where the frames start again (a new
-    segment, :func:`~imu_ground.imu.imu_to_egomotion`'s ``segment_gap``), naming its line and time."""
+    segment, :func:`~imu_ground.imu.imu_to_egomotion`'s ``max_gap_frames``), naming its line and time."""
     cuts = em.meta.get("segment_cuts") or []
     if not cuts:
         return
