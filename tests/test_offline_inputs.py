@@ -1,4 +1,4 @@
-"""Offline runs on inputs a user gives by mistake (issue 38): gaps past the live limit, forced units that make
+"""Offline runs on inputs a user gives by mistake: gaps past the live limit, forced units that make
 a log absurd, outputs over inputs or over files the tool did not write, a speed off the log's clock."""
 import warnings
 from pathlib import Path

@@ -113,7 +113,7 @@ def test_ambiguous_or_implausible_time_names_the_option(tmp_path, example, step,
 
 def test_explicit_wrong_time_unit_is_refused(tmp_path, example):
     """A unit given that makes the log absurd (0.1 Hz: a frame grid of 10 s steps) is refused naming the option
-    (issue 38; it was a warning, then 600,000 frames)."""
+    (it was a warning, then 600,000 frames)."""
     df = example.copy()
     df["t"] = np.round(df["t"] * 1000.0, 6)
     with pytest.raises(ImuInputError, match=r"time_unit s makes .* 0.1 Hz, no IMU's rate.*milliseconds") as e:

@@ -237,19 +237,25 @@ def check_output_path(path: _PathLike, inputs: Sequence[_PathLike] = (), option:
 def same_file(a: _PathLike, b: _PathLike) -> bool:
     """Whether paths ``a`` and ``b`` name one file: the same resolved path (symbolic links, ``..``), or, both
     existing, the same file (:func:`os.path.samefile`: hard links, other spellings)."""
-    pa, pb = Path(a), Path(b)
-    if pa.resolve() == pb.resolve():
-        return True
+    return bool(_file_keys(a) & _file_keys(b))
+
+
+def _file_keys(path: _PathLike) -> set:
+    """What names a file: its resolved path and, when it exists, its device and inode."""
+    p = Path(path)
+    keys: set = {str(p.resolve())}
     try:
-        return pa.exists() and pb.exists() and os.path.samefile(pa, pb)
+        st = p.stat()
+        keys.add((st.st_dev, st.st_ino))
     except OSError:
-        return False
+        pass
+    return keys
 
 
 def check_run_paths(outputs: Sequence[tuple[str, _PathLike | None]],
                     inputs: Sequence[tuple[str, _PathLike | None]] = ()) -> None:
     """The one check of a run's paths, before any work: no output is a file the user named as an input, and no
-    two outputs share a path (every ``imu-ground`` command calls it).
+    two outputs share a path (every ``imu-ground`` command calls it; :func:`same_file` decides, in one pass).
 
     Parameters
     ----------
@@ -259,23 +265,31 @@ def check_run_paths(outputs: Sequence[tuple[str, _PathLike | None]],
     inputs : sequence of (flag, path)
         Every input the user named (``"LOG"``, ``"--speed"``, ``"--extrinsic"``, ``"--times"``, ...):
         a path, or a value that is not one (``auto``, a shipped name, a column), which then names no
-        output either; None entries are left out.
+        output either; None and empty entries are left out.
 
     Raises
     ------
     ImuGroundError
         One line naming the path and both flags (exit 2 from the command line).
     """
-    outs = [(flag, Path(path)) for flag, path in outputs if path is not None]
-    for flag, path in outs:
-        for in_flag, src in inputs:
-            if src is not None and str(src) != "" and same_file(path, src):
-                raise ImuGroundError(f"{path}: given to both {in_flag} (an input) and {flag}; writing it would "
+    given: dict = {}
+    for flag, src in inputs:
+        if src is not None and str(src) != "":
+            for key in _file_keys(src):
+                given.setdefault(key, flag)
+    written: dict = {}
+    for flag, path in outputs:
+        if path is None:
+            continue
+        keys = _file_keys(path)
+        for key in keys:
+            if key in given:
+                raise ImuGroundError(f"{path}: given to both {given[key]} (an input) and {flag}; writing it would "
                                      f"replace the input: choose another {flag}")
-    for i, (a, pa) in enumerate(outs):
-        for b, pb in outs[i + 1:]:
-            if same_file(pa, pb):
-                raise ImuGroundError(f"{pb}: given to both {a} and {b}; the two outputs need two file names")
+            if key in written:
+                raise ImuGroundError(f"{path}: given to both {written[key]} and {flag}; the two outputs need two "
+                                     "file names")
+        written.update(dict.fromkeys(keys, flag))
 
 
 #: Output suffix -> (the modules its writer needs, the extra that installs them).
