@@ -1,5 +1,6 @@
 """Offline runs on inputs a user gives by mistake: gaps past the live limit, forced units that make
 a log absurd, outputs over inputs or over files the tool did not write, a speed off the log's clock."""
+import os
 import warnings
 from pathlib import Path
 
@@ -190,3 +191,20 @@ def test_a_speed_off_the_logs_clock_is_refused_by_every_run(tmp_path, capsys, ru
     err = captured.err.strip()
     assert len(err.splitlines()) == 1 and f"--speed {speed}" in err and "do not cover the log's" in err
     assert captured.out == "" and not (tmp_path / "o.csv").exists()
+
+
+def test_the_same_file_under_another_name_is_the_same_file(tmp_path):
+    """A hard link, a symbolic link and a spelling with '..' name the input as well as its own path does."""
+    from imu_ground.errors import ImuGroundError
+    from imu_ground.pipeline.output import check_run_paths
+    speed = tmp_path / "S.csv"
+    speed.write_text("t,speed\n")
+    (tmp_path / "sub").mkdir()
+    os.link(speed, tmp_path / "hard.csv")
+    (tmp_path / "soft.csv").symlink_to(speed)
+    for other in ("hard.csv", "soft.csv", "sub/../S.csv"):
+        with pytest.raises(ImuGroundError, match="given to both --speed"):
+            check_run_paths([("-o", tmp_path / other)], [("--speed", str(speed)), ("--extrinsic", "kitti_imu")])
+        with pytest.raises(ImuGroundError, match="given to both -o and --tum"):
+            check_run_paths([("-o", speed), ("--tum", tmp_path / other)])
+    check_run_paths([("-o", tmp_path / "new.csv"), ("--tum", tmp_path / "new.tum")], [("--speed", "auto")])
