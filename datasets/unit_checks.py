@@ -104,11 +104,47 @@ def settle_unit(kind: str, given: str | None, detect: Callable, values: np.ndarr
     """
     if given is not None:
         unit_scale(kind, given)
+        _check_given(kind, given, detect, values, *args)
         return given
     unit, note = detect(values, *args)
     if note:
         warn_user(note, UnitsWarning, _OPTION[kind], unit)
     return unit
+
+
+def _check_given(kind: str, given: str, detect: Callable, values: np.ndarray, source: str, *args: Any) -> None:
+    """A unit given that the data contradict: time that gives no IMU rate is refused (the log would be absurd:
+    a frame grid of years); a gyro unit the data read otherwise is warned about (the accelerometer's is caught by
+    the validation's specific-force check)."""
+    opt = f"{{opt}} {given}"
+    if kind == "time":
+        step = _median_step(values)
+        if step is None:
+            return
+        rate = 1.0 / (step * TIME_UNITS[given])
+        if RATE_RANGE[0] <= rate <= RATE_RANGE[1]:
+            return
+        try:
+            unit, _ = detect(values, source, *args)
+            other = f"read from the data, the unit is {_NAMES.get(unit, unit)} ({1.0 / (step * TIME_UNITS[unit]):.6g} Hz): " \
+                    f"pass {{opt}} {unit} or leave it out"
+        except ImuInputError:
+            other = "give the unit of the time column, or leave it out to tell it from the data"
+        raise ImuInputError(f"{source}: {opt} makes the median time step {step * TIME_UNITS[given]:.6g} s, "
+                            f"{rate:.3g} Hz, no IMU's rate ({RATE_RANGE[0]:g}-{RATE_RANGE[1]:g} Hz); {other}",
+                            option="time_unit")
+    if kind == "gyro":
+        try:
+            unit, _ = detect(values, source, *args)
+        except ImuInputError:                   # the data cannot tell: the unit given decides
+            return
+        q = _gyro_p99(values)
+        if unit != given and q == q:
+            seen = ("no car turns that fast in rad/s" if unit == "deg/s" else
+                    f"{q * DEG:.3g} rad/s in deg/s, a car that hardly turns")
+            warn_user(f"{source}: {opt} given, but the data read as {unit}: 1 % of the samples turn faster than "
+                      f"{q:.3g} in the file's unit ({seen}); check the unit (leave {{opt}} out to tell it from "
+                      "the data)", UnitsWarning, "gyro_unit")
 
 
 def motion_in_si(gyro: np.ndarray, accel: np.ndarray, gyro_unit: str | None, accel_unit: str | None,
@@ -140,6 +176,19 @@ def motion_in_si(gyro: np.ndarray, accel: np.ndarray, gyro_unit: str | None, acc
     return (gyro if g == 1.0 else gyro * g), (accel if a == 1.0 else accel * a), g_unit, a_unit
 
 
+def _median_step(values: np.ndarray) -> float | None:
+    """The median positive step of raw times (in their own unit), over evenly spread pairs of neighbours;
+    None under two finite times or without a positive step."""
+    v = np.asarray(values)
+    fin = v if v.dtype.kind != "f" or np.isfinite(v).all() else v[np.isfinite(v)]   # no copy when all finite
+    if fin.size < 2:
+        return None
+    stride = max(1, (fin.size - 1) // DECIDE_SAMPLES)   # steps of evenly spread pairs of neighbours
+    steps = fin[1::stride] - fin[:-1:stride]
+    steps = steps[steps > 0]
+    return median(steps) if steps.size else None
+
+
 def detect_time_unit(values: np.ndarray, source: str, column: str) -> tuple[str, str | None]:
     """Unit of a time column from its median step and magnitude: ``(unit, warning or None)``.
 
@@ -156,15 +205,10 @@ def detect_time_unit(values: np.ndarray, source: str, column: str) -> tuple[str,
         Several units or none give a plausible rate (``option="time_unit"``).
     """
     v = np.asarray(values)
+    step = _median_step(v)
+    if step is None:
+        return "s", None
     fin = v if v.dtype.kind != "f" or np.isfinite(v).all() else v[np.isfinite(v)]   # no copy when all finite
-    if fin.size < 2:
-        return "s", None
-    stride = max(1, (fin.size - 1) // DECIDE_SAMPLES)   # steps of evenly spread pairs of neighbours
-    steps = fin[1::stride] - fin[:-1:stride]
-    steps = steps[steps > 0]
-    if not steps.size:
-        return "s", None
-    step = median(steps)
     first = float(abs(fin[0]))
     units = ("s", "ms", "us", "ns")
     rate_ok = [u for u in units if RATE_RANGE[0] <= 1.0 / (step * TIME_UNITS[u]) <= RATE_RANGE[1]]
@@ -195,14 +239,8 @@ def detect_gyro_unit(gyro: np.ndarray, source: str) -> tuple[str, str | None]:
     ImuInputError
         The magnitude is between what a car does in rad/s and what deg/s shows (``option="gyro_unit"``).
     """
-    w = _spread(np.asarray(gyro, dtype=float))
-    with np.errstate(over="ignore"):
-        norms = np.linalg.norm(w[np.isfinite(w).all(axis=1)], axis=1)
-    norms = norms[np.isfinite(norms)]          # (a norm of huge values overflows: left to the validation)
-    if not norms.size:
-        return "rad/s", None
-    q = float(np.percentile(norms, 99))
-    if q <= GYRO_RAD_SURE:
+    q = _gyro_p99(gyro)
+    if q != q or q <= GYRO_RAD_SURE:
         return "rad/s", None
     if q > GYRO_DEG_SURE:
         return "deg/s", (f"{source}: gyro read as deg/s from the data: 1 % of the samples turn faster than "
@@ -210,6 +248,15 @@ def detect_gyro_unit(gyro: np.ndarray, source: str) -> tuple[str, str | None]:
     raise ImuInputError(f"{source}: cannot tell the gyro unit: 1 % of the samples turn faster than {q:.3g} "
                         f"(fast for a car in rad/s, slow in deg/s); pass {{hint}} or gyro_unit='rad/s'",
                         option="gyro_unit", value="deg/s")
+
+
+def _gyro_p99(gyro: np.ndarray) -> float:
+    """The 99th percentile of the rate magnitude, in the file's unit (NaN without a finite sample)."""
+    w = _spread(np.asarray(gyro, dtype=float))
+    with np.errstate(over="ignore"):
+        norms = np.linalg.norm(w[np.isfinite(w).all(axis=1)], axis=1)
+    norms = norms[np.isfinite(norms)]          # (a norm of huge values overflows: left to the validation)
+    return float(np.percentile(norms, 99)) if norms.size else float("nan")
 
 
 def detect_accel_unit(accel: np.ndarray, source: str) -> tuple[str, str | None]:

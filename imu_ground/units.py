@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["GRAVITY", "DEG", "DEFAULT_FRAME_RATE", "RENORM_EVERY"]
+__all__ = ["GRAVITY", "DEG", "DEFAULT_FRAME_RATE", "MAX_GAP_FRAMES", "RENORM_EVERY"]
 
 #: Standard gravity, m/s^2 (ISO 80000-3; the magnitude of "1 g").
 GRAVITY: float = 9.80665
@@ -20,6 +20,13 @@ DEG: float = math.pi / 180.0
 #: front-end (:func:`imu_ground.imu.egomotion.imu_to_egomotion`) uses it; every
 #: estimator reads the rate from the ego-motion it is given.
 DEFAULT_FRAME_RATE: float = 10.0
+
+#: A forward step of the stamps longer than this many frame periods starts the frames again (a new segment:
+#: the live front end restarts, :mod:`imu_ground.pipeline.streaming`; offline, no frame spans it,
+#: :func:`imu_ground.imu.egomotion.imu_to_egomotion`) instead of being integrated through as a gap: one gap
+#: frame a period would hold the stream for minutes and memory grow with the gap, not with the log (a clock
+#: set forward by a day at 10 Hz: 864,000 frames from one sample). An hour at 10 Hz.
+MAX_GAP_FRAMES: int = 36_000
 
 #: Frames between re-orthonormalisations of a cumulative rotation product:
 #: the rounding error of 64 products of orthonormal 3x3 matrices stays near

@@ -111,11 +111,14 @@ def test_ambiguous_or_implausible_time_names_the_option(tmp_path, example, step,
     assert "--time-unit" in e.value.cli_message()
 
 
-def test_explicit_wrong_time_unit_is_flagged(tmp_path, example):
+def test_explicit_wrong_time_unit_is_refused(tmp_path, example):
+    """A unit given that makes the log absurd (0.1 Hz: a frame grid of 10 s steps) is refused naming the option
+    (it was a warning, then 600,000 frames)."""
     df = example.copy()
     df["t"] = np.round(df["t"] * 1000.0, 6)
-    with pytest.warns(UnitsWarning, match=r"outside the plausible IMU rates.*time_unit"):
+    with pytest.raises(ImuInputError, match=r"time_unit s makes .* 0.1 Hz, no IMU's rate.*milliseconds") as e:
         read_imu(write(df, tmp_path / "ms.csv"), time_unit="s")
+    assert e.value.option == "time_unit" and "--time-unit ms" in e.value.cli_message()
 
 
 def test_every_suggested_option_is_a_reader_option(tmp_path, example):

@@ -19,9 +19,11 @@ from imu_ground.datasets.options import READER_OPTIONS
 from imu_ground.pipeline.estimate import POSE_FORMATS
 
 __all__ = [
+    "INPUT_FLAGS",
     "LazyHelp",
     "add_progress_flag",
     "add_reader_flags",
+    "input_paths",
     "nonnegative_int",
     "positive_float",
     "progress_enabled",
@@ -104,6 +106,27 @@ def add_logs_command(sub, name: str, *, help: str, description: str, logs_metava
 def reader_options(args: argparse.Namespace) -> dict:
     """The reader flags the user set, as ``read_imu`` keywords (``format`` included)."""
     return {name: getattr(args, name) for name in READER_OPTIONS if getattr(args, name, None) is not None}
+
+
+#: The flags of a command that name an input file (besides its positional logs): what no output may replace.
+INPUT_FLAGS = {"speed": "--speed", "extrinsic": "--extrinsic", "times": "--times", "camera": "--camera",
+               "replay": "--replay", "images": "--images", "lidar_extrinsic": "--lidar-extrinsic",
+               "lidar_planes": "--lidar-planes", "real": "--real"}
+
+
+def input_paths(args: argparse.Namespace, logs: str = "log") -> list[tuple[str, Any]]:
+    """``(flag, path)`` of every input the user named: the positional ``logs`` (``LOG``) and the
+    :data:`INPUT_FLAGS` set (a camera's ``DIR:2`` as its folder); for
+    :func:`~imu_ground.pipeline.output.check_run_paths`."""
+    given = getattr(args, logs, None)
+    out = [("LOG", p) for p in ([given] if isinstance(given, str) else given or [])]
+    for name, flag in INPUT_FLAGS.items():
+        value = getattr(args, name, None)
+        if isinstance(value, str) and name == "camera" and ":" in value:
+            value = value.rsplit(":", 1)[0]
+        if isinstance(value, str):
+            out.append((flag, value))
+    return out
 
 
 def add_progress_flag(parser: argparse.ArgumentParser) -> None:

@@ -131,7 +131,8 @@ def _check_common(a: argparse.Namespace) -> None:
 
 def check_lidar(a: argparse.Namespace) -> None:
     """Option checks of the ``LOG SCANS`` form before any work (one line each, naming the flag)."""
-    from imu_ground.pipeline.output import check_output_path
+    from imu_ground.cli._common import input_paths
+    from imu_ground.pipeline.output import check_output_path, check_run_paths
     _check_common(a)
     drive_only = [f for f, v in (("--log", a.log), ("--json", a.json), ("--lidar-scans", a.lidar_scans),
                                  ("--lidar-min-speed", a.lidar_min_speed),
@@ -158,6 +159,8 @@ def check_lidar(a: argparse.Namespace) -> None:
     for option, path in (("--csv", a.csv), ("--markdown", a.markdown)):
         if path:
             check_output_path(path, [a.lidar[0]], option=option, kind="text")
+    inputs = [("--lidar LOG", a.lidar[0]), *(("--lidar SCANS", s) for s in a.lidar[1:]), *input_paths(a)]
+    check_run_paths([("-o", a.plot), ("--csv", a.csv), ("--markdown", a.markdown)], inputs)
 
 
 def _truth(a: argparse.Namespace, ext) -> tuple[list, np.ndarray, np.ndarray, str]:
@@ -516,8 +519,9 @@ def _table(methods: dict):
 
 def check_lidar_drives(a: argparse.Namespace) -> dict:
     """Option checks of the ``DRIVE_DIR`` form before any work; the ``--log`` files by drive name."""
+    from imu_ground.cli._common import input_paths
     from imu_ground.evaluation.lidar_kitti import check_sync_folder
-    from imu_ground.pipeline.output import check_output_path
+    from imu_ground.pipeline.output import check_output_path, check_run_paths
     _check_common(a)
     for f, v in (("--times", a.times), ("--lidar-planes", a.lidar_planes)):
         if v:
@@ -543,6 +547,8 @@ def check_lidar_drives(a: argparse.Namespace) -> dict:
     for option, path in (("--csv", a.csv), ("--markdown", a.markdown), ("--json", a.json)):
         if path:
             check_output_path(path, inputs, option=option, kind="text")
+    named = [*(("--lidar DRIVE_DIR", d) for d in a.lidar), *(("--log", f) for f in a.log or []), *input_paths(a)]
+    check_run_paths([("-o", a.plot), ("--csv", a.csv), ("--markdown", a.markdown), ("--json", a.json)], named)
     return _pair_logs(a.lidar, a.log)
 
 

@@ -9,7 +9,7 @@ from imu_ground.errors import ImuGroundError
 from imu_ground.filters import calibrate
 from imu_ground.filters.calibration import TooLittleDataError
 from imu_ground.pipeline.estimate import require_imu_log
-from imu_ground.pipeline.output import atomic_path, check_output_path
+from imu_ground.pipeline.output import atomic_path, check_output_path, check_run_paths
 
 __all__ = ["register", "run"]
 
@@ -41,6 +41,7 @@ def run(a: argparse.Namespace) -> int:
     opts = common.reader_options(a)
     fmt = opts.pop("format", None)
     check_output_path(a.output, a.logs, kind="txt")
+    check_run_paths([("-o", a.output)], common.input_paths(a, "logs"))
     imus = []
     for log in a.logs:
         require_imu_log(log, fmt, "'imu-ground calibrate'")

@@ -11,6 +11,7 @@ import numpy as np
 from imu_ground.cli._common import (
     add_progress_flag,
     add_reader_flags,
+    input_paths,
     positive_float,
     progress_enabled,
     reader_options,
@@ -19,7 +20,7 @@ from imu_ground.cli._common import (
 )
 from imu_ground.errors import ImuGroundError
 from imu_ground.pipeline.estimate import available_methods, estimate_to_files
-from imu_ground.pipeline.output import check_output_path, default_output_name, summarize_table
+from imu_ground.pipeline.output import check_output_path, check_run_paths, default_output_name, summarize_table
 from imu_ground.pipeline.planes import check_planes_dir
 from imu_ground.pipeline.plot import check_plot_path
 
@@ -125,18 +126,18 @@ def run(a: argparse.Namespace) -> int:
     outputs = [check_output_path(a.output or default_output_name(a.log), [a.log])]
     kinds = [None]
     if a.tum:
-        tum = check_output_path(a.tum, [a.log], "--tum", kind=".tum")
-        if tum.resolve() == outputs[0].resolve():
-            raise ImuGroundError(f"{tum}: given to both -o and --tum; the two outputs need two file names "
-                                 f"(e.g. --tum {tum.with_suffix('.tum')})")
-        outputs.append(tum)
+        outputs.append(check_output_path(a.tum, [a.log], "--tum", kind=".tum"))
         kinds.append(".tum")
+    flags = ["-o", "--tum"][:len(outputs)]
     if a.plot:
         plot = check_output_path(check_plot_path(a.plot), [a.log], "--plot", kind=".png")
         outputs.append(plot)
         kinds.append(plot.suffix.lower())
+        flags.append("--plot")
+    inputs = input_paths(a)
+    check_run_paths(list(zip(flags, outputs)) + [("--planes", a.planes)], inputs)
     if a.planes is not None:
-        check_planes_dir(a.planes, inputs=[a.log], outputs=outputs)
+        check_planes_dir(a.planes, inputs=[p for _, p in inputs if p is not None], outputs=outputs)
     if a.camera is not None and outputs[0].suffix.lower() == ".tum":
         warn_line(f"a TUM file holds poses only, not the road plane of --camera {a.camera}"
                   + (" nor the --bev homographies" if a.bev is not None else "")

@@ -8,7 +8,7 @@ import argparse
 import numpy as np
 
 from imu_ground.cli._lidar import add_lidar_flags, run_lidar
-from imu_ground.cli._common import LazyHelp, add_progress_flag, nonnegative_int, progress_enabled, say
+from imu_ground.cli._common import LazyHelp, add_progress_flag, input_paths, nonnegative_int, progress_enabled, say
 from imu_ground.errors import ImuGroundError
 from imu_ground.evaluation.plots import evaluation_plots
 from imu_ground.evaluation.runner import (
@@ -25,7 +25,7 @@ from imu_ground.evaluation.runner import (
 from imu_ground.evaluation.revisit import revisit_table
 from imu_ground.evaluation.simulate.suite import MAX_SUITE_DRIVES, check_suite_size
 from imu_ground.pipeline.input_checks import check_creatable
-from imu_ground.pipeline.output import atomic_path, check_output_path
+from imu_ground.pipeline.output import atomic_path, check_output_path, check_run_paths
 
 __all__ = ["register", "run"]
 
@@ -104,6 +104,7 @@ def _check(a: argparse.Namespace) -> list:
     for option, path in (("--csv", a.csv), ("--markdown", a.markdown)):
         if path:
             check_output_path(path, option=option, kind="text")
+    check_run_paths([("--csv", a.csv), ("--markdown", a.markdown), ("--plots", a.plots)], input_paths(a))
     return methods
 
 

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from imu_ground.cli._common import nonnegative_int, say, warn_line
+from imu_ground.cli._common import input_paths, nonnegative_int, say, warn_line
 from imu_ground.errors import ImuGroundError
 from imu_ground.evaluation.preview import (
     DRAWN_BEV_PIXELS,
@@ -29,7 +29,7 @@ from imu_ground.evaluation.preview import (
 )
 from imu_ground.perception import BevGrid, load_camera
 from imu_ground.pipeline.estimate import estimate_log
-from imu_ground.pipeline.output import atomic_path, check_output_path, result_table
+from imu_ground.pipeline.output import atomic_path, check_output_path, check_run_paths, result_table
 
 __all__ = ["DEFAULT_CAMERA", "register", "run"]
 
@@ -77,6 +77,8 @@ def _check(a: argparse.Namespace):
         raise ImuGroundError(f"{out}: unknown picture type {out.suffix or '(no suffix)'!r}; end the -o file name with "
                              ".png or .gif")
     check_output_path(out, [a.log] if a.log else [], "-o", kind=".png")
+    inputs = input_paths(a) + [("--lidar", a.lidar)]
+    check_run_paths([("-o", out)], inputs)
     if a.log is None and (a.images or a.times or a.extrinsic):
         raise ImuGroundError("--images, --times and --extrinsic go with a LOG: imu-ground preview LOG --images DIR "
                              "--times FILE --camera NAME -o F")

@@ -9,7 +9,7 @@ from imu_ground.cli._common import nonnegative_int, positive_float, say
 from imu_ground.evaluation.plots import plot_simulation
 from imu_ground.evaluation.simulate import simulate
 from imu_ground.evaluation.simulate.drive import MAX_DURATION_S, MAX_IMU_RATE_HZ, MAX_IMU_SAMPLES
-from imu_ground.pipeline.output import atomic_path, check_output_path
+from imu_ground.pipeline.output import atomic_path, check_output_path, check_run_paths
 
 __all__ = ["FRAME_RATE", "register", "run"]
 
@@ -49,6 +49,7 @@ def run(a: argparse.Namespace) -> int:
     check_output_path(truth, option="--truth", kind="csv")
     if a.plot:
         check_output_path(a.plot, option="--plot", kind="png")
+    check_run_paths([("-o", out), ("--truth" if a.truth else "-o (its _truth.csv)", truth), ("--plot", a.plot)])
     sim = simulate(a.duration, seed=a.seed, imu=a.imu, imu_rate=a.rate, frame_rate=FRAME_RATE)
     with atomic_path(out) as tmp_imu, atomic_path(truth) as tmp_truth:
         sim.to_csv(tmp_imu, tmp_truth)

@@ -23,7 +23,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from imu_ground.cli._common import add_reader_flags, reader_options
+from imu_ground.cli._common import add_reader_flags, input_paths, reader_options
 
 __all__ = ["register", "run"]
 
@@ -124,6 +124,8 @@ def run(a: argparse.Namespace) -> int:
     from imu_ground.pipeline.estimate import live_policy
     est = StreamingEstimator(a.method, a.extrinsic, a.rate, a.camera, policy=live_policy(a.policy))
     state = None if a.state is None else Path(a.state)
+    from imu_ground.pipeline.output import check_run_paths
+    check_run_paths([("--state", state)], input_paths(a))      # the state's own file is its input and output
     if state is not None:
         if state.exists():
             _load_state(est, state)

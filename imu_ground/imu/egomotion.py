@@ -16,15 +16,17 @@ increment in the body frame at the frame's start (m/s). ``t`` holds the frame
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
 
+from imu_ground.errors import ImuGroundError
 from imu_ground.imu.data import ImuData
+from imu_ground.imu.preint_frames import segment_frame_times
 from imu_ground.imu.preintegration import preintegrate
 from imu_ground.imu.standstill import WindowSums, detect_standstill, estimate_gyro_bias
-from imu_ground.units import DEFAULT_FRAME_RATE
+from imu_ground.units import DEFAULT_FRAME_RATE, MAX_GAP_FRAMES
 
 __all__ = ["EgoFrame", "EgoMotion", "imu_to_egomotion"]
 
@@ -169,7 +171,7 @@ class EgoMotion:
 
 def imu_to_egomotion(imu: ImuData, rate: float = DEFAULT_FRAME_RATE, *, frame_times: np.ndarray | None = None,
                      bias_gyro: str | Sequence[float] | None = "auto", max_gap: float | None = None,
-                     standstill_window: float = 1.0) -> EgoMotion:
+                     standstill_window: float = 1.0, max_gap_frames: int | None = MAX_GAP_FRAMES) -> EgoMotion:
     """Preintegrate an IMU log into frames.
 
     Parameters
@@ -189,6 +191,13 @@ def imu_to_egomotion(imu: ImuData, rate: float = DEFAULT_FRAME_RATE, *, frame_ti
         10 times the median sample step (0.1 s at 100 Hz, 1 s at 10 Hz).
     standstill_window : float
         Shortest standstill (s) used for the per-frame ``stationary`` flags.
+    max_gap_frames : int, optional
+        A sample step longer than this many frame periods (default
+        :data:`~imu_ground.units.MAX_GAP_FRAMES`, an hour at 10 Hz) starts a new segment, as the live
+        front end's clock restarts: the frames start again at the first sample after it, on its own
+        grid, and none spans the step (its gap frames would grow with the step, not with the log).
+        ``meta["segment_cuts"]``: the sample index before each such step. None: gaps of any length
+        are integrated through, one invalid frame a period. Not with ``frame_times``.
 
     Returns
     -------
@@ -213,7 +222,19 @@ def imu_to_egomotion(imu: ImuData, rate: float = DEFAULT_FRAME_RATE, *, frame_ti
         bg = np.zeros(3)
     else:
         bg = np.asarray(bias_gyro, dtype=float).reshape(3)
-    if frame_times is None:
+    segments = None
+    if frame_times is None and max_gap_frames is not None and len(imu) > 1:
+        segment_gap = max_gap_frames / rate
+        segments = segment_frame_times(imu.t, rate, segment_gap)
+    if segments is not None:
+        T, in_frame, cuts = segments
+        fd = preintegrate(imu, T, bias_gyro=bg, max_gap=max_gap, on_gap="flag", uncertainty=False)
+        if not in_frame.any():
+            raise ImuGroundError(f"no frame at {rate:g} Hz: each of the {cuts.size + 1} segments between steps of "
+                                 f"more than {segment_gap:g} s is shorter than a frame")
+        fd = _frames_only(fd, in_frame)
+        meta["segment_cuts"] = cuts.tolist()
+    elif frame_times is None:
         fd = preintegrate(imu, rate=rate, bias_gyro=bg, max_gap=max_gap, on_gap="flag", uncertainty=False)
     else:
         fd = preintegrate(imu, np.asarray(frame_times, dtype=float), bias_gyro=bg, max_gap=max_gap,
@@ -233,3 +254,10 @@ def imu_to_egomotion(imu: ImuData, rate: float = DEFAULT_FRAME_RATE, *, frame_ti
         rate = 1.0 / float(np.median(np.diff(ft))) if len(ft) > 1 else rate
     return EgoMotion(te.copy(), fd.delta_R, fd.delta_v, fd.delta_t, stationary, fd.valid.copy(),
                      bg, imu.frame, meta, float(rate), True)
+
+
+def _frames_only(fd, keep: np.ndarray):
+    """The frames ``keep`` of a :class:`~imu_ground.imu.preint_frames.FrameDeltas` (those the ego-motion uses)."""
+    arrays = {name: getattr(fd, name)[keep] for name in ("t_start", "t_end", "delta_t", "delta_R", "delta_v",
+                                                        "delta_p", "valid", "n_intervals")}
+    return replace(fd, **arrays)

@@ -18,7 +18,7 @@ from imu_ground.imu.preint_measurement import PreintegratedImu, right_to_left
 from imu_ground.imu.preint_params import ParamsView, PreintegrationParams
 from imu_ground.so3.component_major import project_if_needed
 
-__all__ = ["FrameDeltas", "first_rate_boundary", "make_frame_times"]
+__all__ = ["FrameDeltas", "first_rate_boundary", "make_frame_times", "segment_frame_times"]
 
 
 def first_rate_boundary(t_first: float, rate: float, origin: float, snap_tol: float) -> int:
@@ -70,6 +70,46 @@ def make_frame_times(t: np.ndarray, *, rate: float | None = None, every: int | N
     kmax = math.floor((t[-1] + snap_tol - origin) * rate) + 1
     T = origin + np.arange(kmin, kmax + 1) / rate
     return T[(T >= t[0] - snap_tol) & (T <= t[-1] + snap_tol)]
+
+
+def segment_frame_times(t: np.ndarray, rate: float, segment_gap: float,
+                        snap_tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Frame boundaries at ``rate`` Hz that start again after every step of ``t`` longer than ``segment_gap``.
+
+    Each segment (the samples between two such steps) gets the boundaries
+    :func:`make_frame_times` gives it alone (from its first sample); the span from a
+    segment's last boundary to the next one's first belongs to no frame, as the tail of a log.
+
+    Parameters
+    ----------
+    t : ndarray, shape (N,)
+        Sample times, s, strictly increasing.
+    rate : float
+        Frames per second.
+    segment_gap : float
+        A step longer than this, s, starts a new segment.
+    snap_tol : float
+        As :func:`make_frame_times`.
+
+    Returns
+    -------
+    (T, frames, cuts) or None
+        None when no step is longer than ``segment_gap`` (the boundaries are those of
+        :func:`make_frame_times`); else the boundaries ``T`` (F + 1,), which of the
+        ``F`` intervals between them are frames (bool, False across a cut), and the
+        sample index before each cut (int).
+    """
+    t = np.asarray(t, dtype=float)
+    cuts = np.flatnonzero(np.diff(t) > segment_gap)
+    if not cuts.size:
+        return None
+    starts = np.concatenate([[0], cuts + 1])
+    stops = np.concatenate([cuts + 1, [t.size]])
+    parts = [make_frame_times(t[a:b], rate=rate, snap_tol=snap_tol) for a, b in zip(starts, stops)]
+    T = np.concatenate(parts)
+    frames = np.ones(max(T.size - 1, 0), dtype=bool)
+    frames[np.cumsum([p.size for p in parts[:-1]]) - 1] = False    # last boundary of a segment -> first of the next
+    return T, frames, cuts
 
 
 @dataclass

@@ -34,6 +34,7 @@ from imu_ground.pipeline.output import (
     OUTPUT_SUFFIXES,
     atomic_path,
     check_output_path,
+    check_run_paths,
     default_output_name,
     read_output_settings,
     summarize_table,
@@ -409,8 +410,10 @@ def _run_batch_locked(logs, out_dir: Path, workers, scheduler, suffix, progress,
             out = out_dir / name
             extra = [(str(out.with_suffix(extra_kind)), extra_kind)] if extra_kind else []
             jobs.append((i, log, str(out), extra))
+    planned = [Path(p) for _, _, out, extra in jobs for p in [out, *(e for e, _ in extra)]]
+    _check_batch_paths(out_dir, planned + ([out_dir / summary] if summary else []), options, cli)
     if not force:
-        check_existing_outputs([p for _, _, out, extra in jobs for p in [out, *(e for e, _ in extra)]], options)
+        check_existing_outputs(planned, options)
     local = bool(jobs) and workers != 0 and not scheduler
     # the local worker processes start before the progress bar (whose monitor thread would make forking unsafe)
     with _local_pool(workers, len(jobs), cli) if local else contextlib.nullcontext() as pool:
@@ -432,6 +435,28 @@ def _run_batch_locked(logs, out_dir: Path, workers, scheduler, suffix, progress,
         with atomic_path(out_dir / summary) as tmp:
             table.to_csv(tmp, index=False, float_format="%.6g")
     return table
+
+
+def _check_batch_paths(out_dir: Path, planned: Sequence[Path], options: dict, cli: bool) -> None:
+    """Before any work: no output of the run is an input file the user named (:func:`check_run_paths`), and
+    none would replace a file in the output folder that this tool did not write (:func:`is_own_output`: a
+    user's ``summary.csv`` or ``x_ground.csv`` is the user's, kept, never summarised as an earlier output).
+
+    Raises
+    ------
+    OptionError
+        Naming the file and ``-o`` (``outdir``).
+    """
+    flag = (lambda name: "--" + name.replace("_", "-")) if cli else (lambda name: name)
+    check_run_paths([("-o" if cli else "outdir", p) for p in planned],
+                    [(flag(k), options.get(k)) for k in ("speed", "extrinsic", "times")
+                     if isinstance(options.get(k), (str, Path))])
+    foreign = [p for p in planned if p.exists() and not is_own_output(p, out_dir)]
+    if foreign:
+        more = f" (and {len(foreign) - 1} more: {', '.join(p.name for p in foreign[1:4])})" if len(foreign) > 1 else ""
+        raise OptionError(f"{foreign[0]}: exists and imu-ground did not write it (it holds no record of an "
+                          f"imu-ground run){more}; the batch would replace it: move it away or give {{opt}} another "
+                          "output folder; nothing was changed", "outdir", flag="-o" if cli else None)
 
 
 def _start_method() -> str:

@@ -40,7 +40,7 @@ from imu_ground.pipeline.input_checks import (
 )
 from imu_ground.pipeline.output import result_table, write_outputs
 from imu_ground.pipeline.planes import check_camera
-from imu_ground.units import DEFAULT_FRAME_RATE
+from imu_ground.units import DEFAULT_FRAME_RATE, MAX_GAP_FRAMES
 
 __all__ = [
     "GRAVITY_REFUSE_DEG",
@@ -344,6 +344,8 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
                 if hasattr(e, "cli_message") or str(e).startswith(str(path)):
                     raise
                 raise ImuGroundError(f"{path}: {e}") from e
+            if kind == "imu":
+                _note_segments(track, em, imu)
         ext = Extrinsic.coerce(extrinsic)
         bar.update()
     bar.close()
@@ -399,10 +401,47 @@ def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
             raise
         raise ImuGroundError(f"{path}: {len(imu)} sample(s) over {imu.duration:.3g} s, too short for frames at "
                              f"{frame_rate:g} Hz ({e})") from e
+    _warn_segments(path, imu, em, frame_rate, MAX_GAP_FRAMES)
     info = {"format": fmt, "imu_rate": imu_rate, "frame_id": imu.meta.get("frame_id") or "imu"}
     if imu.meta.get("t0_ns") is not None:
         info["t0_ns"] = int(imu.meta["t0_ns"])
     return em, info, imu
+
+
+def _segment_note(imu, i: int) -> str:
+    """What the first frame after a new segment's start (``i``: the sample before the step) says."""
+    return (f"the stamps jump forward by {imu.t[i + 1] - imu.t[i]:.3f} s: a new segment from "
+            f"t = {imu.t[i + 1]:.3f} s")
+
+
+def _warn_segments(path, imu, em, rate: float, max_frames: int) -> None:
+    """A warning for each step of the stamps longer than the live limit, where the frames start again (a new
+    segment, :func:`~imu_ground.imu.imu_to_egomotion`'s ``max_gap_frames``), naming its line and time."""
+    cuts = em.meta.get("segment_cuts") or []
+    if not cuts:
+        return
+    from imu_ground.datasets.report import row_names
+    report = imu.meta.get("validation")
+    where = []
+    for i in cuts:
+        k = np.flatnonzero(report.gap_out_index == i) if report is not None else np.zeros(0, int)
+        kind, rows = row_names(report.gap_index[k[:1]], imu.meta.get("row_lines")) if k.size else ("sample", [i])
+        where.append(f"after {kind} {rows[0]} (t = {imu.t[i]:.3f} s) {_segment_note(imu, i)}")
+    warnings.warn(f"{path}: {len(cuts)} step(s) of the stamps longer than the live limit of {max_frames} frames "
+                  f"({max_frames / rate:g} s at {rate:g} Hz) start a new segment each, as live (no frame across "
+                  f"them; the first frame after says so): " + "; ".join(where[:5])
+                  + (f"; ... ({len(where) - 5} more)" if len(where) > 5 else ""))
+
+
+def _note_segments(track, em, imu) -> None:
+    """The first frame of each new segment says where it starts (its ``status_reason``), as live."""
+    cuts = em.meta.get("segment_cuts") or []
+    reason = track.status_reason
+    for i in cuts:
+        j = int(np.searchsorted(em.t, imu.t[i + 1], side="right"))
+        if j < len(reason):
+            note = _segment_note(imu, i)
+            reason[j] = f"{reason[j]}; {note}" if reason[j] else note
 
 
 def _poses_egomotion(path, fmt, rate, times=None, extrinsic=None):
@@ -462,8 +501,7 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
         warnings.warn(f"speed {what}: {holes} of {len(got[1])} samples have no speed (nan): not interpolated "
                       f"across; the frames they reach run without a speed (IMU only)")
     if not np.isfinite(v).any():
-        raise OptionError(f"{{opt}} {speed}: the speed's times ({got[0][0]:.3f} .. {got[0][-1]:.3f} s) do not "
-                          f"cover the log's frames ({em.t[0]:.3f} .. {em.t[-1]:.3f} s)", "speed")
+        _refuse_speed_clock(speed, got[0], float(em.t[0]), float(em.t[-1]), "frames")
     return v, f"{what} ({int(np.isfinite(v).sum())} of {len(v)} frames)"
 
 
@@ -491,7 +529,18 @@ def speed_samples(speed, path, fmt, imu):
             warnings.warn(f"speed {note}")
         got = (t_sp, v_sp)
         what = f"{speed}"
+        t = np.asarray(imu.t, dtype=float) if imu is not None and len(imu) else None
+        if t is not None and len(t_sp) and (float(t_sp[-1]) < float(t.min()) or float(t_sp[0]) > float(t.max())):
+            _refuse_speed_clock(speed, t_sp, float(t.min()), float(t.max()), "samples")
     return got, what
+
+
+def _refuse_speed_clock(speed, t_speed, lo: float, hi: float, what: str) -> None:
+    """The speed given is off the log's clock: an :class:`OptionError` naming ``speed`` (``--speed``), in the
+    offline, the causal (``--causal``) and the replayed (``stream --replay``) runs alike."""
+    raise OptionError(f"{{opt}} {speed}: the speed's times ({t_speed[0]:.3f} .. {t_speed[-1]:.3f} s) do not cover "
+                      f"the log's {what} ({lo:.3f} .. {hi:.3f} s): not on the log's clock (the times are s on the "
+                      "log's time base)", "speed")
 
 
 def live_policy(policy: str | None) -> str:

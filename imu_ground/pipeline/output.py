@@ -51,10 +51,12 @@ __all__ = [
     "UNITS",
     "atomic_path",
     "check_output_path",
+    "check_run_paths",
     "default_output_name",
     "package_version",
     "read_output_settings",
     "result_table",
+    "same_file",
     "track_table",
     "summarize_table",
     "write_csv_rows",
@@ -227,12 +229,69 @@ def check_output_path(path: _PathLike, inputs: Sequence[_PathLike] = (), option:
         raise ImuGroundError(f"{p}: unknown output type {p.suffix or '(no suffix)'!r}; end the {option} file name "
                              f"with {', '.join(OUTPUT_SUFFIXES)}")
     for src in inputs:
-        s = Path(src)
-        if p.resolve() == s.resolve() or (p.exists() and s.exists() and os.path.samefile(p, s)):
+        if same_file(p, src):
             raise ImuGroundError(f"{p}: is the input log; writing it would overwrite the log: choose another {option}")
     check_creatable(p, option)
     _require_writer(p, kind or p.suffix.lower())
     return p
+
+
+def same_file(a: _PathLike, b: _PathLike) -> bool:
+    """Whether paths ``a`` and ``b`` name one file: the same resolved path (symbolic links, ``..``), or, both
+    existing, the same file (:func:`os.path.samefile`: hard links, other spellings)."""
+    return bool(_file_keys(a) & _file_keys(b))
+
+
+def _file_keys(path: _PathLike) -> set:
+    """What names a file: its resolved path and, when it exists, its device and inode."""
+    p = Path(path)
+    keys: set = {str(p.resolve())}
+    try:
+        st = p.stat()
+        keys.add((st.st_dev, st.st_ino))
+    except OSError:
+        pass
+    return keys
+
+
+def check_run_paths(outputs: Sequence[tuple[str, _PathLike | None]],
+                    inputs: Sequence[tuple[str, _PathLike | None]] = ()) -> None:
+    """The one check of a run's paths, before any work: no output is a file the user named as an input, and no
+    two outputs share a path (every ``imu-ground`` command calls it; :func:`same_file` decides, in one pass).
+
+    Parameters
+    ----------
+    outputs : sequence of (flag, path)
+        Every file or folder the run writes, with the flag that names it (``"-o"``, ``"--tum"``,
+        ``"--state"``); None entries are left out.
+    inputs : sequence of (flag, path)
+        Every input the user named (``"LOG"``, ``"--speed"``, ``"--extrinsic"``, ``"--times"``, ...):
+        a path, or a value that is not one (``auto``, a shipped name, a column), which then names no
+        output either; None and empty entries are left out.
+
+    Raises
+    ------
+    ImuGroundError
+        One line naming the path and both flags (exit 2 from the command line).
+    """
+    given: dict = {}
+    for flag, src in inputs:
+        if src is not None and str(src) != "":
+            for key in _file_keys(src):
+                given.setdefault(key, flag)
+    written: dict = {}
+    for flag, path in outputs:
+        if path is None:
+            continue
+        keys = _file_keys(path)
+        for key in keys:
+            if key in given:
+                raise ImuGroundError(f"{path}: given to both {given[key]} (an input) and {flag}; writing it would "
+                                     f"replace the input: choose another {flag}")
+            if key in written:
+                raise ImuGroundError(f"{path}: given to both {written[key]} and {flag}; the two outputs need two "
+                                     "file names")
+        written.update(dict.fromkeys(keys, flag))
 
 
 #: Output suffix -> (the modules its writer needs, the extra that installs them).

@@ -132,7 +132,7 @@ def check_planes_dir(path: str | Path, option: str = "--planes", inputs: Sequenc
         raise OptionError(f"{p}: is a file; give {{opt}} a folder for the planes files", name, flag=option)
     for src in inputs:
         if _is_inside(src, p):
-            raise OptionError(f"{p}: holds the input log {src}, and the planes folder is replaced as a whole; give "
+            raise OptionError(f"{p}: holds the input {src}, and the planes folder is replaced as a whole; give "
                               "{opt} another folder", name, flag=option)
     foreign = _foreign_files(p, outputs)
     if foreign:

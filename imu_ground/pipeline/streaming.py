@@ -67,6 +67,7 @@ from imu_ground.imu.preint_measurement import PreintegratedImu
 from imu_ground.imu.preintegration import StreamingPreintegrator, preintegrate
 from imu_ground.imu.sample_clock import DROP, OK, RESTART, SampleClock
 from imu_ground.so3 import quat_from_matrix
+from imu_ground.units import MAX_GAP_FRAMES        # a forward step longer than this restarts the front end
 
 __all__ = ["LIVE_METHODS", "MAX_FRAME_RATE", "MAX_GAP_FRAMES", "MAX_SAMPLE_PERIOD", "SPEED_WAIT", "FrameEstimate",
            "StreamingEstimator", "causal_track", "estimate_row", "replay"]
@@ -78,10 +79,6 @@ SPEED_WAIT = 0.25
 #: The highest frame rate, Hz, a :class:`StreamingEstimator` takes (its IMU's rate is not known before the
 #: samples come; a frame rate far above it would make millions of empty frames a sample).
 MAX_FRAME_RATE = 1000.0
-#: A forward step of the stamps longer than this many frame periods restarts the front end (as a step back does)
-#: instead of being integrated through as a gap: one gap frame a period would hold the stream for minutes and
-#: its memory (a clock set forward by a day at 10 Hz: 864,000 frames from one sample).
-MAX_GAP_FRAMES = 36_000
 #: A warm-up whose sample period is longer than this, s, is not an IMU's: stamps not in seconds (ns, us or ms
 #: taken for s); its samples are skipped and said.
 MAX_SAMPLE_PERIOD = 1.0
