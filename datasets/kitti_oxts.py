@@ -6,9 +6,13 @@ Layout of a drive::
     <drive>/oxts/dataformat.txt    names and units of the 30 fields (optional)
     <drive>/oxts/data/0000000000.txt ...   one packet per file, 30 numbers
 
-The angular rate is taken from ``wf, wl, wu`` and the specific force from
-``af, al, au`` (forward, left, up: the ``"FLU"`` body frame); all 30 fields are
-kept in ``extra`` with their units.
+The angular rate is taken from ``wx, wy, wz`` and the specific force from
+``ax, ay, az``: the vehicle body's axes (x front, y left, z top: the ``"FLU"`` body frame), the axes of
+the 100 Hz ``extract`` logs. ``wf, wl, wu`` and ``af, al, au`` are not body axes: OXTS gives them in the
+frame of the heading parallel to the earth's surface (``dataformat.txt``: "vf: forward velocity, i.e.
+parallel to earth-surface"), so they carry no gravity tilt (``ay - al`` is ``g sin(roll)`` packet by
+packet); read as the IMU they would hide the body's pitch and roll from the accelerometer. All 30 fields
+are kept in ``extra`` with their units.
 """
 from __future__ import annotations
 
@@ -49,13 +53,13 @@ OXTS_UNITS: dict[str, str] = {
     "pos_accuracy": "m", "vel_accuracy": "m/s", "navstat": "-", "numsats": "-",
     "posmode": "-", "velmode": "-", "orimode": "-"}
 
-_GYRO = ("wf", "wl", "wu")
+_GYRO = ("wx", "wy", "wz")             # body axes (module docstring)
 
 
 class MissingPacketsError(ImuInputError, FileNotFoundError):
     """Packet files listed in ``timestamps.txt`` are missing (the message names ``allow_missing``)."""
 
-_ACCEL = ("af", "al", "au")
+_ACCEL = ("ax", "ay", "az")            # body axes (module docstring)
 _LINE = re.compile(r"^\s*([A-Za-z_]\w*)\s*:\s*(.*?)\s*$")
 
 
@@ -233,8 +237,8 @@ def read_kitti_oxts(path: str | Path, *, allow_missing: bool = False, validate: 
     -------
     ImuData
         ``t`` in s from the first timestamp (computed from integer nanoseconds);
-        ``gyro`` = (wf, wl, wu) rad/s and ``accel`` = (af, al, au) m/s^2 in
-        ``"FLU"`` (x forward, y left, z up); ``extra`` = all 30 fields (names from
+        ``gyro`` = (wx, wy, wz) rad/s and ``accel`` = (ax, ay, az) m/s^2 in
+        ``"FLU"`` (the body's x forward, y left, z up); ``extra`` = all 30 fields (names from
         ``dataformat.txt`` when present) with their ``units``.  ``meta``:
         ``format``, ``drive``, ``t0`` (first timestamp as s since 1970 of the
         written clock, float), ``t0_ns`` (same, exact int), ``t0_iso``,

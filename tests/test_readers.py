@@ -47,11 +47,15 @@ class TestKittiOxtsReal:
         assert imu.t[1] == pytest.approx(0.109958171, abs=1e-12)
         assert imu.meta["t0_iso"] == "2011-09-26T13:02:25.964389445"
         assert imu.meta["t0_ns"] % 1_000_000_000 == 964389445
-        # gyro = (wf, wl, wu), accel = (af, al, au); all 30 fields kept
+        # gyro = (wx, wy, wz), accel = (ax, ay, az): the body's axes; all 30 fields kept
         assert list(imu.extra.columns) == list(OXTS_FIELDS)  # dataformat.txt's 2nd "ay" fixed to "az"
         assert any("'ay' a second time" in n for n in imu.meta["notes"])
-        np.testing.assert_array_equal(imu.gyro, imu.extra[["wf", "wl", "wu"]].to_numpy())
-        np.testing.assert_array_equal(imu.accel, imu.extra[["af", "al", "au"]].to_numpy())
+        np.testing.assert_array_equal(imu.gyro, imu.extra[["wx", "wy", "wz"]].to_numpy())
+        np.testing.assert_array_equal(imu.accel, imu.extra[["ax", "ay", "az"]].to_numpy())
+        # the body axes see gravity tilted by the INS roll (af, al, au are levelled: they do not)
+        x = imu.extra
+        tilt = 9.81 * np.sin(x["roll"].to_numpy()) * np.cos(x["pitch"].to_numpy())
+        np.testing.assert_allclose(imu.accel[:, 1] - x["al"].to_numpy(), tilt, atol=0.05)
         assert imu.units["wf"] == "rad/s" and imu.units["au"] == "m/s^2" and imu.units["lat"] == "deg"
         assert imu.units["pos_accuracy"] == "m" and imu.units["navstat"] == "-"
         assert 9.5 < imu.accel[:, 2].mean() < 10.1
@@ -360,8 +364,8 @@ def test_oxts_synthetic_standard_fields(tmp_path):
     imu = read_kitti_oxts(drive)
     assert len(imu) == 5 and list(imu.extra.columns) == list(OXTS_FIELDS)
     np.testing.assert_allclose(imu.t, np.arange(5) * 0.1, atol=1e-12)
-    assert imu.gyro[0] == pytest.approx([0.0089, -0.0225, -0.0188])
-    assert imu.accel[0] == pytest.approx([-0.3, -0.3, 10.2])
+    assert imu.gyro[0] == pytest.approx([0.009, -0.023, -0.017])          # wx wy wz (body), not wf wl wu
+    assert imu.accel[0] == pytest.approx([-0.4, 0.04, 10.2])              # ax ay az (body), not af al au
     assert imu.meta["fields_source"].startswith("standard")
     assert imu.meta["t0_iso"] == "2011-09-26T13:02:25.000000123"
 

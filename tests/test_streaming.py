@@ -151,7 +151,7 @@ def test_equal_to_offline_ros2_bag_and_mcap_on_recorded_stamps(tmp_path, kind):
 
 def test_equal_to_offline_kitti_oxts_folder(shared_data):
     """The KITTI OXTS native folder (10 Hz packets, timestamps.txt): --causal equals the stream fed its
-    packets (wf wl wu, af al au) at the stamps of timestamps.txt, and their INS speed hypot(ve, vn)."""
+    packets (wx wy wz, ax ay az: body axes) at the stamps of timestamps.txt, and their INS speed hypot(ve, vn)."""
     import pandas as pd
     from imu_ground.datasets.kitti_oxts import OXTS_FIELDS
     folder = shared_data / "kitti_raw" / "2011_09_26" / "2011_09_26_drive_0001_sync" / "oxts"
@@ -161,8 +161,8 @@ def test_equal_to_offline_kitti_oxts_folder(shared_data):
     packets = np.array([np.loadtxt(f) for f in sorted((folder / "data").glob("*.txt"))])
     col = {n: packets[:, i] for i, n in enumerate(OXTS_FIELDS)}
     t = (ns - ns[0]) * 1e-9
-    gyro = np.column_stack([col[n] for n in ("wf", "wl", "wu")])
-    accel = np.column_stack([col[n] for n in ("af", "al", "au")])
+    gyro = np.column_stack([col[n] for n in ("wx", "wy", "wz")])
+    accel = np.column_stack([col[n] for n in ("ax", "ay", "az")])
     assert "hypot(ve, vn)" in res.meta["speed"]
     frames = replay(StreamingEstimator(), t, gyro, accel, (t, np.hypot(col["ve"], col["vn"])))
     _assert_same(frames, res.track)
