@@ -11,9 +11,9 @@ estimate minus LiDAR, each method's constant offset removed; deg) of ``naive``, 
 ``timestamps.txt`` where there is one (drive 0048), else the OXTS stamps, on the log's clock
 (from the first OXTS stamp; a scan before the log's first frame or after its last is taken there); drive 0052 only
 the scans above 0.5 m/s (INS horizontal speed). The fit: :func:`imu_ground.evaluation.fit_ground_plane`
-(RANSAC + least squares, x 5-30 m, |y| < 4 m, seed 0). ``(10 Hz, body axes)``: the same folder read
-with the IMU's own axes (``wx wy wz``, ``ax ay az``, as the 100 Hz CSV has them) instead of the reader's
-``wf wl wu``, ``af al au`` (the INS's levelled frame). ``pitch/paper`` is the pitch spread over
+(RANSAC + least squares, x 5-30 m, |y| < 4 m, seed 0). The folder's IMU is the body's axes (``wx wy wz``,
+``ax ay az``, as the 100 Hz CSV has them; before commit 17f6145 the reader took ``wf wl wu``, ``af al au``,
+the INS's levelled frame). ``pitch/paper`` is the pitch spread over
 the paper's (target <= 0.9) with its 95 % paired moving-block bootstrap interval (blocks of 5 scans, 2000 draws),
 ``roll/paper`` likewise (target <= 1).
 
@@ -43,13 +43,11 @@ import argparse
 import math
 import sys
 import warnings
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from imu_ground.datasets import kitti_oxts
 from imu_ground.datasets.speed import frame_speed, log_speed
 from imu_ground.evaluation import lidar as L
 from imu_ground.evaluation.reference import pitch_reference
@@ -110,8 +108,6 @@ def lidar_cases() -> list[dict]:
         velo = sync / "velodyne_points" / "timestamps.txt"
         t_scan = (_stamps(velo) if velo.is_file() else oxts[:len(files)]) - oxts[0]
         out.append(dict(label=f"{drive} (10 Hz)", drive=drive, log=sync, files=files, t=t_scan))
-        out.append(dict(label=f"{drive} (10 Hz, body axes)", drive=drive, log=sync, files=files, t=t_scan,
-                        body_axes=True))
         if drive == "0009":
             csv = IMU100 / "2011_09_26_drive_0009.csv.gz"
             out.append(dict(label="0009 (100 Hz CSV)", drive=drive, log=csv, files=files,
@@ -135,22 +131,9 @@ def _fit(files) -> tuple[np.ndarray, np.ndarray]:
     return L.lidar_pitch_roll(fits[["normal_x", "normal_y", "normal_z"]].to_numpy(), L.lidar_rotation(DAY))
 
 
-@contextmanager
-def _body_axes(on: bool):
-    """With ``on``: the KITTI OXTS folder reader takes the IMU's own axes ``wx wy wz`` / ``ax ay az`` instead of
-    its ``wf wl wu`` / ``af al au`` (the INS's levelled frame: ``ay - al = g sin(roll)`` on every packet)."""
-    saved = kitti_oxts._GYRO, kitti_oxts._ACCEL
-    if on:
-        kitti_oxts._GYRO, kitti_oxts._ACCEL = ("wx", "wy", "wz"), ("ax", "ay", "az")
-    try:
-        yield
-    finally:
-        kitti_oxts._GYRO, kitti_oxts._ACCEL = saved
-
-
 def prepare(case: dict) -> dict:
     """The case with its LiDAR pitch and roll, the default's estimate, the ego-motion and the frame speeds."""
-    with warnings.catch_warnings(), _body_axes(case.get("body_axes", False)):
+    with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = estimate_log(case["log"])
         live = estimate_log(case["log"], causal=True).track
@@ -327,8 +310,6 @@ def road_ahead_rows(prepared: list[dict]) -> list[dict]:
     """
     out = []
     for p in prepared:
-        if p.get("body_axes"):
-            continue
         ins = p["ins"]
         ref = pitch_reference(ins, ins["t"].to_numpy(), min_speed=0.0)
         s_scan = np.interp(p["t"], ref.t, ref.distance)
@@ -344,7 +325,7 @@ def k_pitch_rows(prepared: list[dict], drives: list | None = None) -> list[dict]
     """The ``k_pitch`` rows: the pitch gain (deg per m/s^2 of forward load; all else the default's) on the
     LiDAR cases (pitch spread over the paper's) and on the kept measures."""
     variants = {f"k_pitch {k:g}": dict(gains=(k / DEG, DEFAULT_GAINS[1])) for k in K_PITCH}
-    lid, _ = lidar_rows([p for p in prepared if not p.get("body_axes")], variants)
+    lid, _ = lidar_rows(prepared, variants)
     kept = {r["method"]: r for r in kept_rows(variants, causal=False, drives=drives)}
     out = []
     for label in variants:
@@ -364,7 +345,7 @@ def rows(kept: bool = True, variants: dict = VARIANTS, search: int = SEARCH) -> 
     lid, exc = lidar_rows(prepared, variants)
     out = lid + exc + road_ahead_rows(prepared)
     if search:
-        out += search_rows([p for p in prepared if not p.get("body_axes")], search)
+        out += search_rows(prepared, search)
     if kept and IMU100.is_dir():
         drives = valid_drives()
         out += kept_rows(variants, drives=drives) + k_pitch_rows(prepared, drives)

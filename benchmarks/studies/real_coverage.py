@@ -13,6 +13,16 @@ what a perfect reference would show) and within ``sqrt(sigma^2 + sigma_ref^2)`` 
 that model overstates on short drives, :mod:`imu_ground.evaluation.conditions`), per drive and pooled. Which of
 the two a calibrated 1-sigma should meet depends on the reference's error model: the table shows how far apart they
 are, which is why the shipped constants stay fitted on synthetic truth.
+
+LiDAR (``table = LiDAR``): every KITTI raw sync folder with scans under ``kitti_raw``
+(:func:`~imu_ground.evaluation.lidar_kitti.find_lidar_drives`), ``estimate``'s default on its ``oxts/`` folder
+against the road plane of each scan (RANSAC and least squares in the default box, the scans where the estimate's
+speed is at least 0.5 m/s), each drive's offset removed from pitch and roll: the share within the 1-sigma alone
+and within ``sqrt(sigma^2 + n^2)``, ``n`` the fit's frame-to-frame noise on that drive
+(:func:`~imu_ground.evaluation.lidar_kitti.fit_noise`). The LiDAR plane is the road 5-30 m ahead, not the road
+under the car (``benchmarks/studies/lidar_default.py``, road ahead): a change of grade ahead is an error here that
+no causal estimate can avoid. ``converging_pct``: the share of the scans whose frame the status calls
+``converging`` (the shared scans are of the first seconds of their drives).
 """
 from __future__ import annotations
 
@@ -23,11 +33,17 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from imu_ground.evaluation import lidar as L
+from imu_ground.evaluation import lidar_kitti as K
 from imu_ground.evaluation.drives import load_real_drive
+from imu_ground.filters.status import CONVERGING
 from imu_ground.pipeline.estimate import estimate_log
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
 KITTI = DATA / "kitti_imu100"
+RAW = DATA / "kitti_raw"
+#: Scans where the default's speed is below this are left out, m/s (as ``evaluate --lidar DRIVE_DIR``).
+LIDAR_MIN_SPEED = 0.5
 
 
 def _drive_paths() -> list[Path]:
@@ -69,11 +85,59 @@ def ins_rows() -> list[dict]:
     return out
 
 
+def lidar_rows() -> list[dict]:
+    """Per LiDAR drive and pooled: shares of |pitch| and |roll| differences within sigma, and within
+    sqrt(sigma^2 + fit noise^2), %."""
+    out, pooled = [], np.zeros(5)
+    for folder in K.find_lidar_drives(RAW):
+        drive = K.read_kitti_lidar_drive(folder)
+        if len(drive.files) < 4 or drive.calibration is None:
+            continue
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res = estimate_log(folder / "oxts")
+        tr = res.track
+        t = K.scan_times_on_log(drive, K.log_clock(folder / "oxts", res.meta.get("t0_ns")))
+        fits = L.fit_scans(drive.files, ground="ransac")
+        lp, lr = L.lidar_pitch_roll(fits[["normal_x", "normal_y", "normal_z"]].to_numpy(),
+                                    L.lidar_rotation(drive.calibration))
+        ok = np.isfinite(tr.pitch) & np.isfinite(tr.pitch_std) & np.asarray(tr.valid, bool)
+        keep = (t >= tr.t[ok][0]) & (t <= tr.t[ok][-1]) & (np.interp(t, tr.t, tr.speed) >= LIDAR_MIN_SPEED)
+        if keep.sum() < 4:
+            continue
+        at = {k: np.interp(t[keep], tr.t[ok], getattr(tr, k)[ok]) for k in ("pitch", "roll", "pitch_std", "roll_std")}
+        dp, dr = at["pitch"] - lp[keep], at["roll"] - lr[keep]
+        dp, dr = np.abs(dp - dp.mean()), np.abs(dr - dr.mean())
+        noise = K.fit_noise(np.degrees(lp[keep]), np.degrees(lr[keep]))
+        n_p, n_r = np.radians(noise["fit_noise_pitch_deg"]), np.radians(noise["fit_noise_roll_deg"])
+        counts = (keep.sum(), np.sum(dp <= at["pitch_std"]), np.sum(dp <= np.hypot(at["pitch_std"], n_p)),
+                  np.sum(dr <= at["roll_std"]), np.sum(dr <= np.hypot(at["roll_std"], n_r)))
+        pooled += counts
+        frame = np.clip(np.searchsorted(tr.t, t[keep]), 0, len(tr.t) - 1)         # the frame each scan ends in
+        converging = 100.0 * float(np.mean(tr.status[frame] == CONVERGING))
+        out.append({"table": "LiDAR", "drive": drive.name, "scans": int(counts[0]), "converging_pct": converging,
+                    "pitch_within_sigma_pct": 100.0 * counts[1] / counts[0],
+                    "pitch_within_sigma_and_fit_pct": 100.0 * counts[2] / counts[0],
+                    "roll_within_sigma_pct": 100.0 * counts[3] / counts[0],
+                    "roll_within_sigma_and_fit_pct": 100.0 * counts[4] / counts[0],
+                    "median_sigma_pitch_deg": float(np.degrees(np.median(at["pitch_std"]))),
+                    "median_sigma_roll_deg": float(np.degrees(np.median(at["roll_std"]))),
+                    "fit_noise_pitch_deg": noise["fit_noise_pitch_deg"],
+                    "fit_noise_roll_deg": noise["fit_noise_roll_deg"]})
+    if pooled[0]:
+        out.append({"table": "LiDAR", "drive": f"pooled ({len(out)} drives)", "scans": int(pooled[0]),
+                    "pitch_within_sigma_pct": 100.0 * pooled[1] / pooled[0],
+                    "pitch_within_sigma_and_fit_pct": 100.0 * pooled[2] / pooled[0],
+                    "roll_within_sigma_pct": 100.0 * pooled[3] / pooled[0],
+                    "roll_within_sigma_and_fit_pct": 100.0 * pooled[4] / pooled[0]})
+    return out
+
+
 def rows() -> list[dict]:
     """The tables of the module docstring (column ``table``)."""
     if not KITTI.is_dir():
         return [{"table": "INS", "drive": f"skipped: {KITTI} not found"}]
-    return ins_rows()
+    return ins_rows() + (lidar_rows() if RAW.is_dir() else [])
 
 
 def main() -> int:
