@@ -77,7 +77,7 @@ def rows() -> list[dict]:
             for grade in ("nav", "mems"):
                 g = [d for d in drives if d.grade == grade]
                 scored = [_scores(d, _track(d, with_speed, 0.0)) for d in g]
-                for lo, hi in zip(BINS[:-1], BINS[1:]):
+                for lo, hi in zip(BINS[:-1], BINS[1:], strict=True):
                     n = cp = cr = 0
                     for moving, mt, p, r, _ in scored:
                         k = moving & (mt >= lo) & (mt < hi)
