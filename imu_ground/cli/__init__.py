@@ -132,6 +132,26 @@ def _debug() -> bool:
     return os.environ.get("IMU_GROUND_DEBUG", "").strip() not in ("", "0")
 
 
+#: Options whose values are addresses, not files (``tcp://`` of a Dask scheduler).
+_NOT_PATHS = ("scheduler",)
+
+
+def _check_urls(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """Refuse, before any work, a URL given as a path that the command cannot use: ``memory://`` (another
+    process's memory), or a protocol whose filesystem package is missing (named)."""
+    from imu_ground.datasets.storage import StorageError, cli_refusal
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[args.command]
+    for action in sub._actions:
+        if action.dest in _NOT_PATHS:
+            continue
+        value = getattr(args, action.dest, None)
+        flag = action.option_strings[0] if action.option_strings else str(action.metavar or action.dest.upper())
+        for v in value if isinstance(value, list) else [value]:
+            reason = cli_refusal(v, flag) if isinstance(v, str) else None
+            if reason:
+                raise StorageError(reason)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``imu-ground`` console script; returns the exit status.
 
@@ -142,7 +162,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     quietly, as Unix tools do. Interrupted or terminated, no temporary or partial file is left.
     """
     try:
-        args = build_parser().parse_args(argv)          # imports every command's module: Ctrl-C may come here
+        parser = build_parser()
+        args = parser.parse_args(argv)                  # imports every command's module: Ctrl-C may come here
         from imu_ground.errors import ImuGroundError    # the root of the errors a user can fix (exit 2)
     except KeyboardInterrupt:
         print("imu-ground: interrupted", file=sys.stderr)
@@ -151,6 +172,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     warnings.showwarning = _show_warning
     try:
         with _sigterm_as_exception():
+            _check_urls(parser, args)
             return args.func(args)
     except Terminated:
         print(f"imu-ground {args.command}: terminated", file=sys.stderr)

@@ -17,6 +17,7 @@ from imu_ground.cli._common import (
     say,
     warn_line,
 )
+from imu_ground.datasets.storage import is_url, with_suffix
 from imu_ground.errors import ImuGroundError
 from imu_ground.pipeline.estimate import available_methods, estimate_to_files
 from imu_ground.pipeline.output import check_output_path, default_output_name, summarize_table
@@ -117,17 +118,17 @@ def run(a: argparse.Namespace) -> int:
     kinds = [None]
     if a.tum:
         tum = check_output_path(a.tum, [a.log], "--tum", kind=".tum")
-        if tum.resolve() == outputs[0].resolve():
+        if str(tum) == str(outputs[0]) or not is_url(tum) and tum.resolve() == outputs[0].resolve():
             raise ImuGroundError(f"{tum}: given to both -o and --tum; the two outputs need two file names "
-                                 f"(e.g. --tum {tum.with_suffix('.tum')})")
+                                 f"(e.g. --tum {with_suffix(tum, '.tum')})")
         outputs.append(tum)
         kinds.append(".tum")
     if a.planes is not None:
         check_planes_dir(a.planes, inputs=[a.log], outputs=outputs)
-    if a.camera is not None and outputs[0].suffix.lower() == ".tum":
+    if a.camera is not None and Path(str(outputs[0])).suffix.lower() == ".tum":
         warn_line(f"a TUM file holds poses only, not the road plane of --camera {a.camera}"
                   + (" nor the --bev homographies" if a.bev is not None else "")
-                  + f": write it with -o {outputs[0].with_suffix('.csv')} (or .parquet, .mcap)", outputs[0])
+                  + f": write it with -o {with_suffix(outputs[0], '.csv')} (or .parquet, .mcap)", outputs[0])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res, table = estimate_to_files(a.log, outputs, kinds, planes=a.planes, progress=progress_enabled(a),
