@@ -39,8 +39,8 @@ from imu_ground.errors import ImuGroundError
 
 from .options import OptionText
 
-__all__ = ["MissingFilesystemError", "StorageError", "cli_refusal", "exists", "filesystem", "glob", "is_file_object",
-           "is_url", "join", "local_input", "local_name", "open_file", "put_file", "reads_sources", "relabel", "rename", "source_label", "staged_outputs", "url_name",
+__all__ = ["MissingFilesystemError", "StorageError", "check_bucket", "cli_refusal", "exists", "filesystem", "glob", "is_file_object",
+           "is_url", "join", "local_input", "local_name", "open_file", "put_file", "reads_sources", "relabel", "rename", "source_label", "staged_folder", "staged_outputs", "url_name",
            "url_parts", "with_suffix", "write_bytes"]
 
 _F = TypeVar("_F", bound=Callable[..., Any])
@@ -207,6 +207,21 @@ def write_bytes(url: str, data: bytes) -> None:
         Path(local).write_bytes(data)
 
 
+def check_bucket(url: str, option: str) -> None:
+    """Raise :class:`StorageError` naming ``option`` when ``url``'s bucket (object stores) does not exist,
+    before any work (a prefix inside it needs no creating)."""
+    if _protocol(url) not in _FLAT or _protocol(url) == "memory":
+        return
+    fs, p = filesystem(url)
+    bucket = p.split("/", 1)[0]
+    try:
+        found = fs.exists(bucket)
+    except (OSError, ValueError):       # e.g. no permission to look: the write will say
+        return
+    if not found:
+        raise StorageError(f"{url}: no such bucket {bucket!r}; choose another {option}")
+
+
 def put_file(local: str | Path, url: str) -> None:
     """Upload the local file to ``url`` in one piece (an object store's PUT: whole or absent).
 
@@ -245,6 +260,24 @@ def staged_outputs(paths: Sequence[Any]) -> Iterator[list[Any]]:
         for url, p in zip(paths, local):
             if is_url(url):
                 put_file(p, url)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+@contextmanager
+def staged_folder(path: Any) -> Iterator[Any]:
+    """A folder to write files into: a local path as it is; for a URL a temporary folder whose files are
+    uploaded (each in one piece, :func:`put_file`) to ``URL/<name>`` when the block succeeds."""
+    path = local_name(path)
+    if not is_url(path):
+        yield path
+        return
+    tmp = Path(tempfile.mkdtemp(prefix="imu-ground-out-"))
+    try:
+        yield tmp
+        for f in sorted(tmp.rglob("*")):
+            if f.is_file():
+                put_file(f, str(join(path, f.relative_to(tmp).as_posix())))
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 

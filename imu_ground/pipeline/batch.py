@@ -434,6 +434,7 @@ def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | 
         fs, key = storage.filesystem(out_dir)
         if fs.isfile(key):
             raise ImuGroundError(f"{out_dir}: is a file; give -o an output folder")
+        storage.check_bucket(out_dir, "-o" if cli else "outdir")
         return _run_batch_locked(found, out_dir.rstrip("/"), workers, scheduler, suffix, progress, cli, summary,
                                  force, tum, options)
     out_dir = Path(out_dir)

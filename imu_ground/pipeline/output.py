@@ -253,6 +253,7 @@ def _check_output_url(url: str, inputs: Sequence[_PathLike], option: str, kind: 
         raise ImuGroundError(f"{url}: is the input log; writing it would overwrite the log: choose another {option}")
     if fs.isdir(p):
         raise ImuGroundError(f"{url}: is a folder; give {option} a file name, e.g. {storage.join(url, 'ground.csv')}")
+    storage.check_bucket(url, option)
     _require_writer(url, kind or suffix)        # type: ignore[arg-type]
     return url
 
