@@ -8,6 +8,11 @@ output that exists is complete (writes are atomic), so a rerun skips it (resume)
 
 The output of a log is the file ``imu-ground estimate LOG -o OUT`` writes, byte for
 byte: both call :func:`~imu_ground.pipeline.estimate.estimate_to_files`.
+
+Logs, patterns and the output folder may be fsspec URLs (:mod:`imu_ground.datasets.storage`).
+An output folder at a URL (``s3://bucket/out``) has no lock and no rename: each output is
+uploaded whole by the worker that made it, then the log's record (:func:`record_path`), which a
+rerun needs to skip the log; the summary is uploaded once at the end (``docs/storage.md``).
 """
 from __future__ import annotations
 
