@@ -257,7 +257,7 @@ def staged_outputs(paths: Sequence[Any]) -> Iterator[list[Any]]:
             if isinstance(p, Path) and p.is_relative_to(tmp):
                 p.parent.mkdir()
         yield local
-        for url, p in zip(paths, local):
+        for url, p in zip(paths, local, strict=True):
             if is_url(url):
                 put_file(p, url)
     finally:
@@ -379,7 +379,7 @@ def relabel(data: Any, old: str, new: str) -> Any:
             x[:] = [walk(v, seen) for v in x]
         elif isinstance(x, tuple):
             items = [walk(v, seen) for v in x]
-            return x if all(a is b for a, b in zip(items, x)) else type(x)(*items) if hasattr(x, "_fields") \
+            return x if all(a is b for a, b in zip(items, x, strict=True)) else type(x)(*items) if hasattr(x, "_fields") \
                 else tuple(items)
         else:
             rename(x, old, new)

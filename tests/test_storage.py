@@ -8,7 +8,6 @@ endpoint (moto's server on 127.0.0.1, started here).
 import gzip
 import io
 import json
-import os
 from pathlib import Path
 
 import numpy as np
