@@ -235,3 +235,11 @@ def test_batch_against_local_s3_endpoint(cli, s3_endpoint, tmp_path):
     assert code == 2 and "no such bucket 'nobucket'" in err
     code, out, err = cli("estimate", "s3://fleet/logs/none.csv")
     assert code == 2 and "s3://fleet/logs/none.csv: no such file or folder" in err
+
+
+def test_cli_planes_folder_url_is_refused_before_any_work(cli, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = cli("estimate", EXAMPLE, "--camera", "kitti_cam2", "--planes", "s3://bucket/planes",
+                         "-o", tmp_path / "y.csv")
+    assert code == 2 and "give --planes a local folder" in err
+    assert list(tmp_path.iterdir()) == []                      # no folder "s3:"
