@@ -237,6 +237,24 @@ def test_batch_against_local_s3_endpoint(cli, s3_endpoint, tmp_path):
     assert code == 2 and "s3://fleet/logs/none.csv: no such file or folder" in err
 
 
+def test_batch_on_a_dask_cluster_writes_through_fsspec(cli, s3_endpoint, tmp_path):
+    """--scheduler with an output URL: the worker uploads the output and its record, the client the summary."""
+    import logging
+
+    pytest.importorskip("dask.distributed")
+    from dask.distributed import LocalCluster
+    fs = s3_endpoint
+    fs.pipe("fleet/logs/day2/b.csv", EXAMPLE.read_bytes())
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None,
+                      silence_logs=logging.ERROR) as cluster:
+        code, out, err = cli("batch", "s3://fleet/logs/day2/*.csv", "-o", "s3://fleet/cluster",
+                             "--scheduler", cluster.scheduler_address)
+    assert code == 0, err
+    assert cli("estimate", EXAMPLE, "-o", tmp_path / "single.csv")[0] == 0
+    assert fs.cat("fleet/cluster/b_ground.csv") == (tmp_path / "single.csv").read_bytes()
+    assert fs.exists(f"fleet/cluster/{RECORD_FOLDER}/b_ground.csv.json") and fs.exists("fleet/cluster/summary.csv")
+
+
 def test_cli_planes_folder_url_is_refused_before_any_work(cli, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     code, out, err = cli("estimate", EXAMPLE, "--camera", "kitti_cam2", "--planes", "s3://bucket/planes",
