@@ -439,6 +439,9 @@ def _renamed(old: str, new: str) -> Iterator[None]:
         rename(e, old, new)
         raise
     finally:
-        for w in caught:
+        seen = set()
+        for w in caught:            # each once (recorded with "always": a reader's repeats would all come back)
             message = rename(w.message, old, new) if isinstance(w.message, Warning) else _swap(w.message, old, new)
-            warnings.warn_explicit(message, w.category, w.filename, w.lineno)
+            if (w.category, str(message), w.filename, w.lineno) not in seen:
+                seen.add((w.category, str(message), w.filename, w.lineno))
+                warnings.warn_explicit(message, w.category, w.filename, w.lineno)

@@ -63,6 +63,16 @@ def test_read_imu_on_memory_urls_equals_the_local_read_and_names_the_url(memfs):
     assert str(e.value).startswith("memory://logs/bad.csv, line 101:") and e.value.path == "memory://logs/bad.csv"
 
 
+def test_warnings_of_a_memory_log_name_its_url_once(memfs):
+    lines = EXAMPLE.read_text().splitlines(keepends=True)
+    memfs.pipe("/logs/gap.csv", "".join(lines[:2000] + lines[2300:]).encode())      # a 3 s gap
+    with pytest.warns(UserWarning) as caught:
+        read_imu("memory://logs/gap.csv")
+    texts = [str(w.message) for w in caught]
+    assert any(t.startswith("memory://logs/gap.csv: ") and "gap" in t for t in texts)
+    assert not any("imu-ground-in-" in t for t in texts) and len(texts) == len(set(texts))
+
+
 def test_read_imu_on_open_file_objects_binary_text_and_nameless_gzip():
     local = read_imu(EXAMPLE)
     with open(EXAMPLE, "rb") as fh:
