@@ -39,9 +39,10 @@ from imu_ground.errors import ImuGroundError
 
 from .options import OptionText
 
-__all__ = ["MissingFilesystemError", "StorageError", "check_bucket", "cli_refusal", "exists", "filesystem", "glob", "is_file_object",
-           "is_url", "join", "local_input", "local_name", "open_file", "put_file", "reads_sources", "relabel", "rename", "source_label", "staged_folder", "staged_outputs", "url_name",
-           "url_parts", "with_suffix", "write_bytes"]
+__all__ = ["MissingFilesystemError", "StorageError", "check_bucket", "cli_refusal", "exists", "filesystem", "glob",
+           "is_file_object", "is_url", "join", "local_input", "local_name", "open_file", "put_file", "reads_sources",
+           "relabel", "rename", "source_label", "staged_folder", "staged_outputs", "url_name", "url_parts",
+           "with_suffix", "write_bytes"]
 
 _F = TypeVar("_F", bound=Callable[..., Any])
 
@@ -72,7 +73,7 @@ class MissingFilesystemError(StorageError, ImportError):
 
 def is_file_object(source: Any) -> bool:
     """Whether ``source`` is an open file object (has ``read``), not a path or URL."""
-    return hasattr(source, "read") and not isinstance(source, (str, os.PathLike))
+    return callable(getattr(source, "read", None)) and not isinstance(source, (str, os.PathLike))
 
 
 def local_name(path: Any) -> Any:
