@@ -380,8 +380,9 @@ def relabel(data: Any, old: str, new: str) -> Any:
             x[:] = [walk(v, seen) for v in x]
         elif isinstance(x, tuple):
             items = [walk(v, seen) for v in x]
-            return x if all(a is b for a, b in zip(items, x, strict=True)) else type(x)(*items) if hasattr(x, "_fields") \
-                else tuple(items)
+            if all(a is b for a, b in zip(items, x, strict=True)):
+                return x
+            return type(x)(*items) if hasattr(x, "_fields") else tuple(items)     # a NamedTuple keeps its type
         else:
             rename(x, old, new)
             if isinstance(getattr(x, "meta", None), dict):
