@@ -271,3 +271,17 @@ def test_cli_planes_folder_url_is_refused_before_any_work(cli, tmp_path, monkeyp
                          "-o", tmp_path / "y.csv")
     assert code == 2 and "give --planes a local folder" in err
     assert list(tmp_path.iterdir()) == []                      # no folder "s3:"
+
+
+def test_cli_names_a_missing_filesystem_package_before_any_work(cli, tmp_path, monkeypatch):
+    from fsspec.registry import known_implementations
+    package = known_implementations["gs"]["class"].split(".")[0]
+    try:
+        __import__(package)
+        pytest.skip(f"{package} is installed here")
+    except ImportError:
+        pass
+    monkeypatch.chdir(tmp_path)
+    code, out, err = cli("estimate", EXAMPLE, "-o", "gs://bucket/y.csv")
+    assert code == 2 and f"gs://bucket/y.csv: gs:// needs {package}: pip install {package}" in err
+    assert out == "" and list(tmp_path.iterdir()) == []
