@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import functools
 import os
+import posixpath
 import re
 import shutil
 import tempfile
@@ -234,7 +235,7 @@ def put_file(local: str | Path, url: str) -> None:
     fs, p = filesystem(url)
     try:
         if _protocol(url) not in _FLAT:
-            fs.makedirs(fs._parent(p), exist_ok=True)
+            fs.makedirs(posixpath.dirname(p), exist_ok=True)
         fs.put_file(str(local), p)
     except (OSError, ValueError) as e:          # s3fs: FileNotFoundError for a missing bucket, PermissionError ...
         if isinstance(e, ImuGroundError):

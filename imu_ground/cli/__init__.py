@@ -47,6 +47,26 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see '{self.prog} --help')\n")
 
+    def refuse_urls(self, args: argparse.Namespace) -> None:
+        """Refuse, before any work, a URL given as a path that the command cannot use: ``memory://`` (another
+        process's memory), or a protocol whose filesystem package is missing (named)."""
+        from imu_ground.datasets.storage import StorageError, cli_refusal
+        for action in self._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                action.choices[args.command].refuse_urls(args)
+            if action.dest in _NOT_PATHS:
+                continue
+            value = getattr(args, action.dest, None)
+            flag = action.option_strings[0] if action.option_strings else str(action.metavar or action.dest.upper())
+            for v in value if isinstance(value, list) else [value]:
+                reason = cli_refusal(v, flag) if isinstance(v, str) else None
+                if reason:
+                    raise StorageError(reason)
+
+
+#: Options whose values are addresses, not files (``tcp://`` of a Dask scheduler), and the sub-command's name.
+_NOT_PATHS = ("scheduler", "command")
+
 
 class _VersionAction(argparse.Action):
     """``--version``: the package version and which kernels run, on one line (argparse's own would wrap it)."""
@@ -132,26 +152,6 @@ def _debug() -> bool:
     return os.environ.get("IMU_GROUND_DEBUG", "").strip() not in ("", "0")
 
 
-#: Options whose values are addresses, not files (``tcp://`` of a Dask scheduler).
-_NOT_PATHS = ("scheduler",)
-
-
-def _check_urls(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
-    """Refuse, before any work, a URL given as a path that the command cannot use: ``memory://`` (another
-    process's memory), or a protocol whose filesystem package is missing (named)."""
-    from imu_ground.datasets.storage import StorageError, cli_refusal
-    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[args.command]
-    for action in sub._actions:
-        if action.dest in _NOT_PATHS:
-            continue
-        value = getattr(args, action.dest, None)
-        flag = action.option_strings[0] if action.option_strings else str(action.metavar or action.dest.upper())
-        for v in value if isinstance(value, list) else [value]:
-            reason = cli_refusal(v, flag) if isinstance(v, str) else None
-            if reason:
-                raise StorageError(reason)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``imu-ground`` console script; returns the exit status.
 
@@ -172,7 +172,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     warnings.showwarning = _show_warning
     try:
         with _sigterm_as_exception():
-            _check_urls(parser, args)
+            parser.refuse_urls(args)
             return args.func(args)
     except Terminated:
         print(f"imu-ground {args.command}: terminated", file=sys.stderr)
