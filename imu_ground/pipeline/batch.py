@@ -435,7 +435,7 @@ def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | 
     if in_memory and (workers != 0 or scheduler):
         raise OptionError(f"{in_memory[0]}: memory:// is the memory of this process, which worker processes do "
                           "not share: pass {opt}=0 (one log after the other in this process)", "workers")
-    if storage.is_url(out_dir):         # object storage: no folder, no lock (see the README's batch section)
+    if storage.is_url(out_dir):         # object storage: no folder, no lock (docs/storage.md)
         fs, key = storage.filesystem(out_dir)
         if fs.isfile(key):
             raise ImuGroundError(f"{out_dir}: is a file; give -o an output folder")
@@ -452,7 +452,7 @@ def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | 
 
 
 def _run_batch_locked(logs, out_dir: Path, workers, scheduler, suffix, progress, cli, summary, force, tum, options):
-    """:func:`run_batch` once the output folder is locked."""
+    """:func:`run_batch` once the output folder is locked (a local folder) or checked (a URL)."""
     import pandas as pd
     from tqdm.auto import tqdm
 
