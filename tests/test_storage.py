@@ -206,7 +206,9 @@ def s3_endpoint(monkeypatch):
            "AWS_ENDPOINT_URL": f"http://{host}:{port}", "AWS_EC2_METADATA_DISABLED": "true"}
     for k, v in env.items():
         monkeypatch.setenv(k, v)
-    import s3fs
+    import urllib.request
+    urllib.request.urlopen(urllib.request.Request(f"http://{host}:{port}/moto-api/reset", method="POST")).close()
+    import s3fs                         # (moto's state is the process's: another test's buckets are reset above)
     s3fs.S3FileSystem.clear_instance_cache()
     fs = s3fs.S3FileSystem()
     fs.mkdir("fleet")
