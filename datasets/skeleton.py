@@ -22,10 +22,11 @@ import textwrap
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import IO, TYPE_CHECKING, Any, TypeVar
 
 from imu_ground.imu.data import ImuData
 
+from . import storage
 from .options import READER_OPTIONS, ImuInputError
 
 if TYPE_CHECKING:
@@ -167,8 +168,11 @@ def _ordered() -> list[FormatSpec]:
     return sorted(FORMATS.values(), key=lambda s: s.priority)
 
 
-def detect_format(path: str | Path | pd.DataFrame) -> str:
+@storage.reads_sources
+def detect_format(path: str | Path | pd.DataFrame | IO) -> str:
     """Name of the format of ``path`` (a key of :data:`FORMATS`), asking each format's probe.
+
+    ``path`` is what :func:`read_imu` takes (a URL or file object is copied to a local file first).
 
     Raises
     ------
@@ -209,13 +213,16 @@ def _resolve(path: Any, format: str | None) -> FormatSpec:
     return FORMATS[fmt]
 
 
-def read_imu(path: str | Path | pd.DataFrame, format: str | None = None, **kw: Any) -> ImuData:
+@storage.reads_sources
+def read_imu(path: str | Path | pd.DataFrame | IO, format: str | None = None, **kw: Any) -> ImuData:
     """Read an IMU log of any registered format.
 
     Parameters
     ----------
-    path : str, Path or pandas.DataFrame
-        File or folder (see :func:`detect_format`), or a DataFrame (``table``).
+    path : str, Path, pandas.DataFrame or file object
+        File or folder (see :func:`detect_format`), an fsspec URL of one (``s3://bucket/x.csv.gz``,
+        ``memory://...``, ``file://...``; :mod:`~imu_ground.datasets.storage`), an open file object
+        (binary or text; the format from its name, else its first bytes), or a DataFrame (``table``).
     format : str, optional
         A key of :data:`FORMATS` or :data:`ALIASES`; detected from ``path`` when omitted.
     **kw
@@ -236,6 +243,8 @@ def read_imu(path: str | Path | pd.DataFrame, format: str | None = None, **kw: A
         The format cannot be detected, or ``format`` is not known.
     ImuInputError
         A reader option that does not apply to the format (named).
+    MissingFilesystemError
+        A URL whose filesystem package (``s3fs`` ...) is not installed.
     """
     spec = _resolve(path, format)
     for name in [k for k in kw if k in READER_OPTIONS]:

@@ -27,6 +27,7 @@ _EXPORTS = {
     ".datasets.options": "OptionError ImuInputError",
     ".datasets.report": "ImuValidationError MalformedFileError",
     ".datasets.skeleton": "UnknownFormatError PoseFileError",
+    ".datasets.storage": "StorageError MissingFilesystemError",
     ".datasets.kitti_oxts": "MissingPacketsError",
     ".imu.warm_start": "StateError",
     ".filters.calibration": "TooLittleDataError",

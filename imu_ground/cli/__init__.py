@@ -47,6 +47,26 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see '{self.prog} --help')\n")
 
+    def refuse_urls(self, args: argparse.Namespace) -> None:
+        """Refuse, before any work, a URL given as a path that the command cannot use: ``memory://`` (another
+        process's memory), or a protocol whose filesystem package is missing (named)."""
+        from imu_ground.datasets.storage import StorageError, cli_refusal
+        for action in self._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                action.choices[args.command].refuse_urls(args)
+            if action.dest in _NOT_PATHS:
+                continue
+            value = getattr(args, action.dest, None)
+            flag = action.option_strings[0] if action.option_strings else str(action.metavar or action.dest.upper())
+            for v in value if isinstance(value, list) else [value]:
+                reason = cli_refusal(v, flag) if isinstance(v, str) else None
+                if reason:
+                    raise StorageError(reason)
+
+
+#: Options whose values are addresses, not files (``tcp://`` of a Dask scheduler), and the sub-command's name.
+_NOT_PATHS = ("scheduler", "command")
+
 
 class _VersionAction(argparse.Action):
     """``--version``: the package version and which kernels run, on one line (argparse's own would wrap it)."""
@@ -142,7 +162,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     quietly, as Unix tools do. Interrupted or terminated, no temporary or partial file is left.
     """
     try:
-        args = build_parser().parse_args(argv)          # imports every command's module: Ctrl-C may come here
+        parser = build_parser()
+        args = parser.parse_args(argv)                  # imports every command's module: Ctrl-C may come here
         from imu_ground.errors import ImuGroundError    # the root of the errors a user can fix (exit 2)
     except KeyboardInterrupt:
         print("imu-ground: interrupted", file=sys.stderr)
@@ -151,6 +172,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     warnings.showwarning = _show_warning
     try:
         with _sigterm_as_exception():
+            parser.refuse_urls(args)
             return args.func(args)
     except Terminated:
         print(f"imu-ground {args.command}: terminated", file=sys.stderr)

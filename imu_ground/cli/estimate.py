@@ -18,6 +18,7 @@ from imu_ground.cli._common import (
     say,
     warn_line,
 )
+from imu_ground.datasets.storage import is_url, with_suffix
 from imu_ground.errors import ImuGroundError
 from imu_ground.pipeline.estimate import available_methods, estimate_to_files
 from imu_ground.pipeline.output import check_output_path, check_run_paths, default_output_name, summarize_table
@@ -132,16 +133,16 @@ def run(a: argparse.Namespace) -> int:
     if a.plot:
         plot = check_output_path(check_plot_path(a.plot), [a.log], "--plot", kind=".png")
         outputs.append(plot)
-        kinds.append(plot.suffix.lower())
+        kinds.append(Path(str(plot)).suffix.lower())
         flags.append("--plot")
     inputs = input_paths(a)
     check_run_paths(list(zip(flags, outputs)) + [("--planes", a.planes)], inputs)
     if a.planes is not None:
         check_planes_dir(a.planes, inputs=[p for _, p in inputs if p is not None], outputs=outputs)
-    if a.camera is not None and outputs[0].suffix.lower() == ".tum":
+    if a.camera is not None and Path(str(outputs[0])).suffix.lower() == ".tum":
         warn_line(f"a TUM file holds poses only, not the road plane of --camera {a.camera}"
                   + (" nor the --bev homographies" if a.bev is not None else "")
-                  + f": write it with -o {outputs[0].with_suffix('.csv')} (or .parquet, .mcap)", outputs[0])
+                  + f": write it with -o {with_suffix(outputs[0], '.csv')} (or .parquet, .mcap)", outputs[0])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res, table = estimate_to_files(a.log, outputs, kinds, planes=a.planes, progress=progress_enabled(a),

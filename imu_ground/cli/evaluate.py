@@ -9,6 +9,7 @@ import numpy as np
 
 from imu_ground.cli._lidar import add_lidar_flags, run_lidar
 from imu_ground.cli._common import LazyHelp, add_progress_flag, input_paths, nonnegative_int, progress_enabled, say
+from imu_ground.datasets.storage import is_url, join, local_input, local_name, staged_folder
 from imu_ground.errors import ImuGroundError
 from imu_ground.evaluation.plots import evaluation_plots
 from imu_ground.evaluation.runner import (
@@ -84,11 +85,11 @@ def _check(a: argparse.Namespace) -> list:
         raise ImuGroundError("nothing to evaluate: give --real DIR (kitti_imu100 drives) and/or --synthetic N, or "
                              "--lidar LOG SCANS (LiDAR road planes)")
     methods = methods_from_list(a.methods)
-    if a.real is not None and not Path(a.real).is_dir():
+    if a.real is not None and not is_url(a.real) and not Path(local_name(a.real)).is_dir():
         raise ImuGroundError(f"--real {a.real}: {'is a file' if Path(a.real).exists() else 'no such folder'}; give "
                              "--real the folder of kitti_imu100 drives (*.csv.gz)")
-    if a.plots:
-        plots = Path(a.plots)
+    if a.plots and not is_url(a.plots):
+        plots = Path(local_name(a.plots))
         if plots.exists() and not plots.is_dir():
             raise ImuGroundError(f"{plots}: is a file; give --plots a folder (created if missing)")
         check_creatable(plots, "--plots")
@@ -121,7 +122,8 @@ def run(a: argparse.Namespace) -> int:
     progress = progress_enabled(a)
     drives = []
     if a.real is not None:
-        drives += load_real_drives(Path(a.real), progress=progress)
+        with local_input(a.real) as real:          # a URL: the folder copied here first
+            drives += load_real_drives(Path(real), progress=progress)
     if a.synthetic:
         drives += synthetic_drives(a.synthetic, seed=a.seed, grades=a.grades.split(","), progress=progress)
     with warnings.catch_warnings():
@@ -176,6 +178,8 @@ def run(a: argparse.Namespace) -> int:
         _write_text(a.markdown, md)
         say(f"wrote {a.markdown}")
     if a.plots:
-        for p in evaluation_plots(drives, res, tracks, Path(a.plots)):
-            say(f"wrote {p}")
+        with staged_folder(a.plots) as folder:     # a URL: written here, then uploaded
+            written = list(evaluation_plots(drives, res, tracks, Path(folder)))
+        for p in written:
+            say(f"wrote {join(a.plots, Path(p).name) if is_url(a.plots) else p}")
     return 0

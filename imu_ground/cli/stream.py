@@ -154,18 +154,20 @@ def _replay(est, a, out) -> None:
 
     from imu_ground.cli._common import warn_line
     from imu_ground.datasets import detect_format, read_imu
+    from imu_ground.datasets.storage import local_input
     from imu_ground.pipeline.estimate import check_frame_rate, speed_samples
     opts = reader_options(a)
     fmt = opts.pop("format", None)
     opts["policy"] = "recorded"         # the stamps as recorded, in file order: the estimator's clock retimes them
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        fmt = detect_format(a.replay) if fmt is None else fmt
-        imu = read_imu(a.replay, format=fmt, **opts)
-        check_frame_rate(a.rate, imu.t, a.replay)
-        sp = None
-        if est.speed_aided and a.speed != "none":
-            sp, _ = speed_samples(a.speed, a.replay, fmt, imu)
+        with local_input(a.replay) as log:     # a URL (s3://...): one local copy, messages naming the URL
+            fmt = detect_format(log) if fmt is None else fmt
+            imu = read_imu(log, format=fmt, **opts)
+            check_frame_rate(a.rate, imu.t, log)
+            sp = None
+            if est.speed_aided and a.speed != "none":
+                sp, _ = speed_samples(a.speed, log, fmt, imu)
     for w in {str(w.message): w.message for w in caught}.values():
         warn_line(w, a.replay)
     t = imu.t.tolist()

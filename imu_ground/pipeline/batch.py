@@ -8,6 +8,11 @@ output that exists is complete (writes are atomic), so a rerun skips it (resume)
 
 The output of a log is the file ``imu-ground estimate LOG -o OUT`` writes, byte for
 byte: both call :func:`~imu_ground.pipeline.estimate.estimate_to_files`.
+
+Logs, patterns and the output folder may be fsspec URLs (:mod:`imu_ground.datasets.storage`).
+An output folder at a URL (``s3://bucket/out``) has no lock and no rename: each output is
+uploaded whole by the worker that made it, then the log's record (:func:`record_path`), which a
+rerun needs to skip the log; the summary is uploaded once at the end (``docs/storage.md``).
 """
 from __future__ import annotations
 
@@ -27,6 +32,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
+from imu_ground.datasets import storage
 from imu_ground.errors import ImuGroundError, require_extra
 from imu_ground.pipeline.estimate import OptionError, check_options, estimate_to_files, requested_options
 from imu_ground.pipeline.input_checks import process_running
@@ -48,6 +54,8 @@ SUMMARY_COLUMNS = ("log", "status", "format", "method", "frames", "valid_share",
                    "pitch_min_deg", "pitch_max_deg", "roll_mean_deg", "roll_std_deg", "roll_min_deg", "roll_max_deg",
                    "warnings", "error", "output")
 _GLOB_CHARS = set("*?[")
+#: Folder (key prefix) of the records of a batch whose output folder is a URL (:func:`record_path`).
+RECORD_FOLDER = ".imu-ground-batch"
 #: Lock file in a batch's output folder while a run writes there (:func:`output_folder_lock`).
 LOCK_NAME = ".imu-ground-batch.lock"
 #: At most this many local worker processes a CPU core (``--workers`` above it is capped, with a warning).
@@ -58,13 +66,16 @@ def expand_logs(patterns: Iterable[str | Path]) -> list[tuple[str, str | None]]:
     """Logs named by paths and glob patterns, in order, each once: ``(log, error or None)``.
 
     A pattern that matches nothing gives ``(pattern, "no file matches ...")``; a
-    plain path is kept as given (a missing one fails when it is read).
+    plain path is kept as given (a missing one fails when it is read). A URL pattern
+    (``s3://bucket/logs/**/*.csv.gz``, ``file:///data/*.csv``) is expanded by its fsspec
+    filesystem, its matches spelt as URLs of the same protocol.
     """
     out: dict[str, str | None] = {}
     for pat in patterns:
         pat = str(pat)
-        if _GLOB_CHARS & set(pat) and not Path(pat).exists():
-            matches = sorted(glob.glob(pat, recursive=True))
+        url = storage.is_url(pat) or storage.local_name(pat) != pat
+        if _GLOB_CHARS & set(pat) and not (storage.exists(pat) if url else Path(pat).exists()):
+            matches = storage.glob(pat) if url else sorted(glob.glob(pat, recursive=True))
             if not matches:
                 out.setdefault(pat, f"{pat}: no file matches this pattern")
             for m in matches:
@@ -91,8 +102,11 @@ def output_names(logs: Sequence[str], suffix: str = ".csv") -> list[str]:
         if not clash:
             break
         for i in clash:
-            folder = Path(os.path.abspath(logs[i])).parent
-            parents = list(folder.parts[1:] if folder.anchor else folder.parts)[-depth:]   # never the root
+            if storage.is_url(logs[i]):
+                parents = list(storage.url_parts(logs[i]))[-depth:]
+            else:
+                folder = Path(os.path.abspath(storage.local_name(logs[i]))).parent
+                parents = list(folder.parts[1:] if folder.anchor else folder.parts)[-depth:]   # never the root
             names[i] = "_".join([*parents, base[i]])
     seen: dict[str, int] = {}
     for i, n in enumerate(names):
@@ -117,7 +131,7 @@ def unique_logs(found: Sequence[tuple[str, str | None]]) -> tuple[list[tuple[str
     kept: list[tuple[str, str | None]] = []
     dup: dict[str, str] = {}
     for log, err in found:
-        key = log if err is not None else os.path.realpath(log)
+        key = log if err is not None or storage.is_url(log) else os.path.realpath(storage.local_name(log))
         if key in first:
             dup[log] = first[key]
             continue
@@ -131,22 +145,27 @@ def is_own_output(path: str | Path, out_dir: str | Path | None = None) -> bool:
 
     An output records its settings (CSV and TUM header, Parquet schema); a summary starts with
     :data:`SUMMARY_COLUMNS`; a ROS output (whose record is not read back) is recognised by its name
-    ``*_ground.bag`` / ``*_ground.mcap`` inside ``out_dir``.
+    ``*_ground.bag`` / ``*_ground.mcap`` inside ``out_dir``. A URL is read through its filesystem.
     """
-    p = Path(path)
-    if not p.is_file():
+    url = storage.local_name(path)
+    remote = storage.is_url(url)
+    p = Path(storage.url_name(url) if remote else url)
+    if not remote and not p.is_file():
         return False
-    if read_output_settings(p) is not None:
+    if read_output_settings(url if remote else p) is not None:
         return True
     if p.suffix.lower() == ".csv":
         try:
-            with open(p, encoding="utf-8", errors="replace") as fh:
+            with storage.open_file(url if remote else p, "r", errors="replace") as fh:
                 if fh.readline().rstrip("\r\n") == ",".join(SUMMARY_COLUMNS):
                     return True
-        except OSError:
+        except (OSError, ValueError):
             return False
-    return (out_dir is not None and p.name.endswith(("_ground.bag", "_ground.mcap"))
-            and p.parent.resolve() == Path(out_dir).resolve())
+    if out_dir is None or not p.name.endswith(("_ground.bag", "_ground.mcap")):
+        return False
+    if remote:
+        return str(url).rsplit("/", 1)[0] == str(storage.local_name(out_dir)).rstrip("/")
+    return p.parent.resolve() == Path(out_dir).resolve()
 
 
 def _recorded_format_method(out: Path) -> dict[str, Any]:
@@ -199,11 +218,12 @@ def process_log(log: str, out: str | Path, options: dict, cli: bool = False, for
     extra : sequence of (path, kind)
         Further outputs of the same table (e.g. ``(".../x_ground.tum", ".tum")``).
     """
-    out = Path(out)
+    out = _as_path(out)
     row: dict[str, Any] = {"log": log, "output": str(out)}
-    paths = [out, *(Path(p) for p, _ in extra)]
-    if not force and all(p.exists() for p in paths):
-        row.update(_skipped_row(out))
+    paths = [out, *(_as_path(p) for p, _ in extra)]
+    record = record_path(out) if isinstance(out, str) else None
+    if not force and all(storage.exists(p) for p in paths) and (record is None or storage.exists(record)):
+        row.update(_skipped_row(out) if record is None else _recorded_row(record))
         return row
     try:
         for p in paths:
@@ -211,14 +231,46 @@ def process_log(log: str, out: str | Path, options: dict, cli: bool = False, for
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             res, table = estimate_to_files(log, paths, [None, *(k for _, k in extra)], **options)
+        done = {**row, "status": "ok", "format": res.meta.get("format"), "method": res.meta.get("method"),
+                **summarize_table(table)}
+        if record is not None:          # after every output: the record says they are all complete
+            storage.write_bytes(record, json.dumps({"outputs": [str(p) for p in paths], "row": done}).encode())
     except Exception as e:                                   # noqa: BLE001 - a failing log never stops the others
         message = " ".join(str(e.cli_message() if cli and hasattr(e, "cli_message") else e).split())
         if not isinstance(e, (ImuGroundError, OSError)):              # not bad input: a bug, said so
             message = f"bug: unexpected {type(e).__name__}: {message} (please report it)"
         row.update(status="failed", error=message or type(e).__name__)
         return row
-    row.update(status="ok", format=res.meta.get("format"), method=res.meta.get("method"),
-               warnings=" | ".join(res.meta.get("warnings", [])), **summarize_table(table))
+    row.update(done, warnings=" | ".join(res.meta.get("warnings", [])))
+    return row
+
+
+def _as_path(path: str | Path) -> str | Path:
+    """A local path as a Path, a URL as it is (``file://`` URLs are local paths)."""
+    path = storage.local_name(path)
+    return path if storage.is_url(path) else Path(path)
+
+
+def record_path(out: str) -> str:
+    """The record object of a batch output at a URL: ``OUTDIR/.imu-ground-batch/<output name>.json``.
+
+    Written after all the outputs of the log (each uploaded whole): a log whose record exists is
+    complete, and its record holds its summary row (what a resumed run shows without reading
+    the output back).
+    """
+    return str(storage.join(out.rsplit("/", 1)[0], f"{RECORD_FOLDER}/{storage.url_name(out)}.json"))
+
+
+def _recorded_row(record: str) -> dict[str, Any]:
+    """The summary row of a skipped log whose outputs are at URLs, from its record."""
+    row: dict[str, Any] = {"status": "skipped (output exists)"}
+    try:
+        with storage.open_file(record, "rb") as fh:
+            done = json.load(fh)["row"]
+        row.update({k: done.get(k) for k in SUMMARY_COLUMNS if k not in ("log", "status", "error", "output",
+                                                                           "warnings")})
+    except Exception as e:                                   # noqa: BLE001 - the row reports it
+        row["warnings"] = f"{record}: could not read the record of the existing output ({e})"
     return row
 
 
@@ -245,8 +297,8 @@ def check_existing_outputs(paths: Iterable[str | Path], options: dict) -> None:
     wanted = requested_options(**{k: v for k, v in options.items() if k != "progress"})
     changed = []
     for p in paths:
-        p = Path(p)
-        if p.exists():
+        p = _as_path(p)
+        if storage.exists(p):
             what = _settings_change(read_output_settings(p), wanted)
             if what:
                 changed.append((p, what))
@@ -378,17 +430,30 @@ def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | 
     if suffix not in OUTPUT_SUFFIXES:
         raise ImuGroundError(f"unknown output type {suffix!r}; choose from {', '.join(OUTPUT_SUFFIXES)}")
     check_options(**{k: v for k, v in options.items() if k not in ("extrinsic", "progress", "speed")})
-    out_dir = Path(outdir)
+    found = [str(p) for p in ([logs] if isinstance(logs, (str, Path)) else logs)]
+    out_dir = storage.local_name(str(outdir))
+    in_memory = [p for p in [out_dir, *found] if storage.is_url(p) and p.lower().startswith("memory://")]
+    if in_memory and (workers != 0 or scheduler):
+        raise OptionError(f"{in_memory[0]}: memory:// is the memory of this process, which worker processes do "
+                          "not share: pass {opt}=0 (one log after the other in this process)", "workers")
+    if storage.is_url(out_dir):         # object storage: no folder, no lock (docs/storage.md)
+        fs, key = storage.filesystem(out_dir)
+        if fs.isfile(key):
+            raise ImuGroundError(f"{out_dir}: is a file; give -o an output folder")
+        storage.check_bucket(out_dir, "-o" if cli else "outdir")
+        return _run_batch_locked(found, out_dir.rstrip("/"), workers, scheduler, suffix, progress, cli, summary,
+                                 force, tum, options)
+    out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise ImuGroundError(f"{out_dir}: is a file; give -o an output folder")
     out_dir.mkdir(parents=True, exist_ok=True)
     with output_folder_lock(out_dir, "-o" if cli else "outdir"):
-        return _run_batch_locked(logs, out_dir, workers, scheduler, suffix, progress, cli, summary, force, tum,
+        return _run_batch_locked(found, out_dir, workers, scheduler, suffix, progress, cli, summary, force, tum,
                                  options)
 
 
 def _run_batch_locked(logs, out_dir: Path, workers, scheduler, suffix, progress, cli, summary, force, tum, options):
-    """:func:`run_batch` once the output folder is locked."""
+    """:func:`run_batch` once the output folder is locked (a local folder) or checked (a URL)."""
     import pandas as pd
     from tqdm.auto import tqdm
 
@@ -407,8 +472,8 @@ def _run_batch_locked(logs, out_dir: Path, workers, scheduler, suffix, progress,
         if err is not None:
             rows[i] = {"log": log, "status": "failed", "error": err}
         else:
-            out = out_dir / name
-            extra = [(str(out.with_suffix(extra_kind)), extra_kind)] if extra_kind else []
+            out = storage.join(out_dir, name)
+            extra = [(str(storage.with_suffix(out, extra_kind)), extra_kind)] if extra_kind else []
             jobs.append((i, log, str(out), extra))
     planned = [Path(p) for _, _, out, extra in jobs for p in [out, *(e for e, _ in extra)]]
     _check_batch_paths(out_dir, planned + ([out_dir / summary] if summary else []), options, cli)
@@ -432,7 +497,7 @@ def _run_batch_locked(logs, out_dir: Path, workers, scheduler, suffix, progress,
              for log, kept in duplicates.items()]
     table = pd.DataFrame(rows).reindex(columns=list(SUMMARY_COLUMNS))
     if summary:
-        with atomic_path(out_dir / summary) as tmp:
+        with atomic_path(storage.join(out_dir, summary)) as tmp:
             table.to_csv(tmp, index=False, float_format="%.6g")
     return table
 

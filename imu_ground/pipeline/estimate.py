@@ -18,14 +18,16 @@ from __future__ import annotations
 import math
 import warnings
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import IO, Any, NamedTuple
 
 import numpy as np
 
 from imu_ground.datasets import detect_format, read_imu, read_poses
 from imu_ground.datasets.options import READER_OPTIONS, OptionError, OptionText
 from imu_ground.datasets.poses import detect_pose_format, moves_along_z
+from imu_ground.datasets.report import warn_user
 from imu_ground.datasets.speed import SPEED_SOURCES, check_speed, frame_speed, log_speed, read_speed
+from imu_ground.datasets.storage import reads_sources
 from imu_ground.errors import ImuGroundError
 from imu_ground.filters import Extrinsic
 from imu_ground.filters.methods import METHODS, default_method
@@ -214,7 +216,8 @@ def _one_line(path: str | Path, message: Any) -> str:
 
 
 # ------------------------------------------------------------------------------------------ estimate
-def estimate_log(path: str | Path, *, format: str | None = None, method: str = "auto",
+@reads_sources
+def estimate_log(path: str | Path | IO, *, format: str | None = None, method: str = "auto",
                  extrinsic: Any = None, rate: float | None = None, Q: Any = None, R: Any = None,
                  progress: bool = False, speed: Any = "auto", camera: Any = None, bev: Any = None,
                  recalibrate_online: bool = False, causal: bool = False, **reader_options: Any) -> EstimateResult:
@@ -222,9 +225,10 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
 
     Parameters
     ----------
-    path : str or Path
+    path : str, Path or file object
         IMU log (any format of :func:`imu_ground.datasets.read_imu`) or pose file
-        (KITTI odometry, TUM; detected from the content).
+        (KITTI odometry, TUM; detected from the content); an fsspec URL of one
+        (``s3://``, ``memory://``, ``file://``: :mod:`imu_ground.datasets.storage`) or an open file object.
     format : str, optional
         Input format: a reader's name, or ``"kitti_poses"`` / ``"tum"``; detected when None.
     method : str
@@ -351,7 +355,7 @@ def estimate_log(path: str | Path, *, format: str | None = None, method: str = "
     bar.close()
     messages = list(dict.fromkeys(_one_line(path, w.message) for w in caught))
     for m in messages:
-        warnings.warn(m, UserWarning, stacklevel=2)
+        warn_user(m, UserWarning)           # the caller's line (past the reads_sources wrapper)
     settings.update(method=name, rate=float(em.rate), speed=speed_info)
     meta = {"source": str(path), "kind": kind, **info, "method": name,
             "method_description": available_methods().get(name, ("", False))[0],

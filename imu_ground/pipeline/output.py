@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from imu_ground._version import __version__
+from imu_ground.datasets import storage
 from imu_ground.errors import ImuGroundError, MissingExtraError, require_extra
 from imu_ground.filters.estimator import GroundTrack
 from imu_ground.filters.status import GAP, gap_run_durations, status_names, status_reason
@@ -221,7 +222,15 @@ def check_output_path(path: _PathLike, inputs: Sequence[_PathLike] = (), option:
         no permission to write there. One line, naming the path and what to do.
     MissingExtraError
         The writer of its type needs an optional extra that is not installed.
+    MissingFilesystemError
+        A URL whose filesystem package (``s3fs`` ...) is not installed.
+
+    A URL (``s3://...``: :mod:`imu_ground.datasets.storage`) is checked for its type,
+    its filesystem and the inputs, and returned as it is (a string).
     """
+    path = storage.local_name(path)
+    if storage.is_url(path):
+        return _check_output_url(path, inputs, option, kind)
     p = Path(path)
     if p.is_dir():
         raise ImuGroundError(f"{p}: is a folder; give {option} a file name, e.g. {p / 'ground.csv'}")
@@ -229,7 +238,7 @@ def check_output_path(path: _PathLike, inputs: Sequence[_PathLike] = (), option:
         raise ImuGroundError(f"{p}: unknown output type {p.suffix or '(no suffix)'!r}; end the {option} file name "
                              f"with {', '.join(OUTPUT_SUFFIXES)}")
     for src in inputs:
-        if same_file(p, src):
+        if same_file(p, storage.local_name(src)):
             raise ImuGroundError(f"{p}: is the input log; writing it would overwrite the log: choose another {option}")
     check_creatable(p, option)
     _require_writer(p, kind or p.suffix.lower())
@@ -294,6 +303,22 @@ def check_run_paths(outputs: Sequence[tuple[str, _PathLike | None]],
         written.update(dict.fromkeys(keys, flag))
 
 
+def _check_output_url(url: str, inputs: Sequence[_PathLike], option: str, kind: str | None) -> Any:
+    """:func:`check_output_path` of a URL (no folder to create, no permission to test before writing)."""
+    fs, p = storage.filesystem(url)
+    suffix = Path(storage.url_name(url)).suffix.lower()
+    if kind is None and suffix not in OUTPUT_SUFFIXES:
+        raise ImuGroundError(f"{url}: unknown output type {suffix or '(no suffix)'!r}; end the {option} file name "
+                             f"with {', '.join(OUTPUT_SUFFIXES)}")
+    if any(str(storage.local_name(s)).rstrip("/") == url.rstrip("/") for s in inputs):
+        raise ImuGroundError(f"{url}: is the input log; writing it would overwrite the log: choose another {option}")
+    if fs.isdir(p):
+        raise ImuGroundError(f"{url}: is a folder; give {option} a file name, e.g. {storage.join(url, 'ground.csv')}")
+    storage.check_bucket(url, option)
+    _require_writer(url, kind or suffix)        # type: ignore[arg-type]
+    return url
+
+
 #: Output suffix -> (the modules its writer needs, the extra that installs them).
 _WRITER_EXTRAS = {".parquet": (("pyarrow.parquet",), "parquet"), ".bag": (("rosbags.typesys",), "ros"),
                   ".mcap": (("rosbags.typesys", "mcap.writer"), "ros")}
@@ -311,8 +336,14 @@ def atomic_path(path: _PathLike) -> Iterator[Path]:
     """Temporary path beside ``path`` (same folder, same name); renamed onto ``path`` when the block succeeds.
 
     The parent folders are created. On an exception nothing is left behind and
-    an existing ``path`` is untouched.
+    an existing ``path`` is untouched. A URL's temporary file is local, uploaded
+    in one piece when the block succeeds (:func:`~imu_ground.datasets.storage.staged_outputs`).
     """
+    path = storage.local_name(path)
+    if storage.is_url(path):
+        with storage.staged_outputs([path]) as (tmp,):
+            yield tmp
+        return
     p = Path(path)
     with _staged(p) as tmp:
         yield tmp
@@ -493,18 +524,19 @@ def read_output_settings(path: _PathLike) -> dict | None:
     None when the file has no such record (a ROS bag, whose settings topic is not read
     here, or a file written by something else).
     """
-    p = Path(path)
-    suffix = p.suffix.lower()
+    p = storage.local_name(path)
+    suffix = Path(storage.url_name(p) if storage.is_url(p) else p).suffix.lower()
     try:
         if suffix == ".mcap":
             from imu_ground.pipeline.ros_output import read_mcap_settings
             return read_mcap_settings(p)
         if suffix == ".parquet":
             import pyarrow.parquet as pq
-            raw = (pq.read_schema(p).metadata or {}).get(b"imu_ground")
+            with storage.open_file(p, "rb") as src:
+                raw = (pq.read_schema(src).metadata or {}).get(b"imu_ground")
             return json.loads(raw).get("settings") if raw else None
         if suffix in (".csv", ".tum"):
-            with open(p, encoding="utf-8") as fh:
+            with storage.open_file(p, "r") as fh:
                 for line in fh:
                     if not line.startswith("#"):
                         break
@@ -548,7 +580,14 @@ def write_outputs(paths: Sequence[_PathLike], table, meta: Mapping[str, Any],
     Returns
     -------
     list of Path
+        (A URL, ``s3://...``, stays a string: it is written locally, then uploaded in one piece,
+        :func:`~imu_ground.datasets.storage.staged_outputs`.)
     """
+    paths = [storage.local_name(p) for p in paths]
+    if any(storage.is_url(p) for p in paths):
+        with storage.staged_outputs(paths) as local:
+            write_outputs(local, table, meta, kinds)
+        return [p if storage.is_url(p) else Path(p) for p in paths]
     out = [Path(p) for p in paths]
     kinds = [k or p.suffix.lower() for p, k in zip(out, kinds or [None] * len(out))]
     for p, k in zip(out, kinds):

@@ -42,6 +42,7 @@ import numpy as np
 
 from imu_ground._version import __version__
 from imu_ground.datasets.options import OptionError
+from imu_ground.datasets.storage import is_url, local_name
 from imu_ground.errors import ImuGroundError
 from imu_ground.perception import load_camera
 from imu_ground.perception.camera import Camera
@@ -127,7 +128,11 @@ def check_planes_dir(path: str | Path, option: str = "--planes", inputs: Sequenc
     OptionError
         One line naming the path, the file and the option.
     """
-    p, name = Path(path), option.lstrip("-")
+    path, name = local_name(path), option.lstrip("-")
+    if is_url(path):
+        raise OptionError(f"{path}: the planes folder is replaced as a whole, by a rename object storage does not "
+                          "have; give {opt} a local folder (and copy it up afterwards)", name, flag=option)
+    p = Path(path)
     if p.exists() and not p.is_dir():
         raise OptionError(f"{p}: is a file; give {{opt}} a folder for the planes files", name, flag=option)
     for src in inputs:
