@@ -475,8 +475,8 @@ def _run_batch_locked(logs, out_dir: Path, workers, scheduler, suffix, progress,
             out = storage.join(out_dir, name)
             extra = [(str(storage.with_suffix(out, extra_kind)), extra_kind)] if extra_kind else []
             jobs.append((i, log, str(out), extra))
-    planned = [Path(p) for _, _, out, extra in jobs for p in [out, *(e for e, _ in extra)]]
-    _check_batch_paths(out_dir, planned + ([out_dir / summary] if summary else []), options, cli)
+    planned = [p for _, _, out, extra in jobs for p in [out, *(e for e, _ in extra)]]     # local paths or URLs
+    _check_batch_paths(out_dir, planned + ([str(storage.join(out_dir, summary))] if summary else []), options, cli)
     if not force:
         check_existing_outputs(planned, options)
     local = bool(jobs) and workers != 0 and not scheduler
@@ -502,7 +502,7 @@ def _run_batch_locked(logs, out_dir: Path, workers, scheduler, suffix, progress,
     return table
 
 
-def _check_batch_paths(out_dir: Path, planned: Sequence[Path], options: dict, cli: bool) -> None:
+def _check_batch_paths(out_dir: str | Path, planned: Sequence[str | Path], options: dict, cli: bool) -> None:
     """Before any work: no output of the run is an input file the user named (:func:`check_run_paths`), and
     none would replace a file in the output folder that this tool did not write (:func:`is_own_output`: a
     user's ``summary.csv`` or ``x_ground.csv`` is the user's, kept, never summarised as an earlier output).
@@ -516,9 +516,10 @@ def _check_batch_paths(out_dir: Path, planned: Sequence[Path], options: dict, cl
     check_run_paths([("-o" if cli else "outdir", p) for p in planned],
                     [(flag(k), options.get(k)) for k in ("speed", "extrinsic", "times")
                      if isinstance(options.get(k), (str, Path))])
-    foreign = [p for p in planned if p.exists() and not is_own_output(p, out_dir)]
+    foreign = [p for p in planned if storage.exists(p) and not is_own_output(p, out_dir)]
     if foreign:
-        more = f" (and {len(foreign) - 1} more: {', '.join(p.name for p in foreign[1:4])})" if len(foreign) > 1 else ""
+        names = ", ".join(str(p).replace("\\", "/").rsplit("/", 1)[-1] for p in foreign[1:4])
+        more = f" (and {len(foreign) - 1} more: {names})" if len(foreign) > 1 else ""
         raise OptionError(f"{foreign[0]}: exists and imu-ground did not write it (it holds no record of an "
                           f"imu-ground run){more}; the batch would replace it: move it away or give {{opt}} another "
                           "output folder; nothing was changed", "outdir", flag="-o" if cli else None)
