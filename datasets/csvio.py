@@ -241,7 +241,7 @@ def _parse(path: Path, sep: str, stack: Mapping[str, Sequence[str]] | None,
                     parts = {c: [] for c in names}
                 arrays = _drop_blank_rows([chunk[col].to_numpy() for col in chunk.columns], raw_rows, blank)
                 suspect = suspect or bool(pd.isna(arrays[-1]).any())  # a short line leaves NaN at the end
-                for c, x in zip(names, arrays):
+                for c, x in zip(names, arrays, strict=True):
                     parts[c].append(x)
                 n += arrays[0].size
                 raw_rows += len(chunk)

@@ -283,7 +283,7 @@ class ValidationReport:
     def gaps(self) -> list[Gap]:
         """The gaps as a list of :class:`Gap` (index, out_index, t_start, length)."""
         return [Gap(int(i), int(j), float(s), float(g)) for i, j, s, g in
-                zip(self.gap_index, self.gap_out_index, self.gap_start, self.gap_length)]
+                zip(self.gap_index, self.gap_out_index, self.gap_start, self.gap_length, strict=True)]
 
     @property
     def ok(self) -> bool:

@@ -266,7 +266,7 @@ def _retime(t: np.ndarray, index: np.ndarray | None, window_s: float, min_inlier
         np.compress(fit, t, out=dtt)
     else:                                                # the runs between outliers, copied whole
         p = 0
-        for a, b in zip(*(r.tolist() for r in _kept_runs(n, outl))):
+        for a, b in zip(*(r.tolist() for r in _kept_runs(n, outl)), strict=True):
             dk[p:p + b - a] = clock.kblock(a, b)
             dtt[p:p + b - a] = t[a:b]
             p += b - a

@@ -130,7 +130,7 @@ def _ooo_dup(t: np.ndarray, steps: np.ndarray, back: np.ndarray, zero: np.ndarra
     first = hit.argmax(axis=1)
     found = hit[np.arange(back.size), first].tolist()
     stretch, stops, end = [], [], 0
-    for i, (b, j) in enumerate(zip(back.tolist(), first.tolist())):
+    for i, (b, j) in enumerate(zip(back.tolist(), first.tolist(), strict=True)):
         if b >= end:                       # not within the stretch of an earlier backstep
             end = b + j if found[i] else _stretch_end(t, b, float(top[i]))
             stretch.append(i)

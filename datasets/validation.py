@@ -45,12 +45,16 @@ from imu_ground.imu.data import ImuData
 
 from . import report as _report
 from .order_stats import median
-from .report import *  # re-exports the report's public names (errors, warnings, ValidationReport)
-from .report import (
+from .report import (  # the report's public names are re-exported (errors, warnings, ValidationReport)
     STANDARD_GRAVITY,
+    Gap as Gap,
+    GapWarning as GapWarning,
     ImuValidationError,
+    ImuValidationWarning as ImuValidationWarning,
+    MalformedFileError as MalformedFileError,
     NonFiniteWarning,
     SensorWarning,
+    TimestampWarning as TimestampWarning,
     UnitsWarning,
     ValidationReport,
     row_names,
@@ -182,10 +186,10 @@ def _nonfinite(imu: ImuData, report: ValidationReport, nonfinite: str, warn: boo
         return None
     src = imu.source or "<ImuData>"
     counts = (~finite).sum(axis=0)
-    report.nonfinite_columns = {nm: int(c) for nm, c in zip(names, counts) if c}
+    report.nonfinite_columns = {nm: int(c) for nm, c in zip(names, counts, strict=True) if c}
     kind, where = row_names(rows[:5], row_lines)
     parts = []
-    for j, (nm, c) in enumerate(zip(names, counts)):
+    for j, (nm, c) in enumerate(zip(names, counts, strict=True)):
         if c:
             k, w = row_names(np.flatnonzero(~finite[:, j])[:3], row_lines)
             parts.append(f"{nm} ({c} value(s), first {k}s {fmt_list(w, 3)})")

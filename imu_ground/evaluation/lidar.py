@@ -623,7 +623,7 @@ def plot_lidar(frames: pd.DataFrame, path: str | Path, title: str = "") -> Path:
     FigureCanvasAgg(fig)
     axes = fig.subplots(2, 1, sharex=True)
     first = frames[frames["method"] == frames["method"].iloc[0]]
-    for ax, what in zip(axes, ("pitch", "roll")):
+    for ax, what in zip(axes, ("pitch", "roll"), strict=True):
         lidar = first[f"lidar_{what}_deg"].to_numpy()
         ax.plot(first["t"], lidar - lidar.mean(), "k.-", lw=2, label="LiDAR plane")
         for name, g in frames.groupby("method", sort=False):

@@ -244,9 +244,9 @@ def images_preview(images: str | Path, times: str | Path, camera: str | Camera, 
     if pitch is not None and roll is not None:
         p, r = np.degrees(np.asarray(pitch)[nearest]), np.degrees(np.asarray(roll)[nearest])
         labels = [f"{f.name}: t = {ti:.2f} s, estimate pitch {_deg(a)} deg, roll {_deg(b)} deg"
-                  for f, ti, a, b in zip(files, t_img, p, r)]
+                  for f, ti, a, b in zip(files, t_img, p, r, strict=True)]
     else:
-        labels = [f"{f.name}: t = {ti:.2f} s" for f, ti in zip(files, t_img)]
+        labels = [f"{f.name}: t = {ti:.2f} s" for f, ti in zip(files, t_img, strict=True)]
     return Preview(cam, planes, t_img, lambda k: _read_image(files[k], cam), title=title, labels=labels)
 
 

@@ -59,13 +59,13 @@ The calibration file format (:class:`~imu_ground.filters.extrinsics.Calibration`
 """
 from __future__ import annotations
 
-import warnings
 from typing import TYPE_CHECKING, Any, Optional, Sequence, Union
 
 import numpy as np
 
 from imu_ground import so3
 from imu_ground.datasets.options import OptionError
+from imu_ground.datasets.report import warn_user
 from imu_ground.errors import ImuGroundError
 from imu_ground.filters.estimator import as_egomotion
 from imu_ground.filters.extrinsics import Calibration, Extrinsic, load_calibration
@@ -138,7 +138,7 @@ def _suspension_gains(egos, R, min_speed, lever_arm, band, stats: dict) -> np.nd
     """Pooled band-pass gain regression in the ground frame of ``R`` (rad per m/s^2); notes go to ``stats``."""
     _, tracks, movings = _pooled_frames(egos, R, min_speed, lever_arm)
     sxy, sxx = np.zeros(2), np.zeros(2)
-    for em, gt, mv in zip(egos, tracks, movings):
+    for em, gt, mv in zip(egos, tracks, movings, strict=True):
         if len(em) < 2:
             continue
         _, a, b = bandpass_gain_regression(gt.body_increments, gt.acceleration, band=band,
@@ -329,11 +329,11 @@ def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "Ego
                                   f"the yaw needs {min_drive_s:g} s with turns or speed changes")
         R = _extrinsic_from_axes(up, R[0] if fwd is None else fwd)
     if tilt == "auto" and src != "cruise":
-        warnings.warn(f"calibration: tilt ('up') from the {src} frames: {why}")
+        warn_user(f"calibration: tilt ('up') from the {src} frames: {why}", UserWarning)
     if fwd is None and moving_s < min_drive_s:
-        warnings.warn(f"calibration: mounting yaw not determined, the sensor's x axis is taken as forward: "
+        warn_user(f"calibration: mounting yaw not determined, the sensor's x axis is taken as forward: "
                       f"{moving_s:.1f} s of driving above {min_speed:g} m/s; the yaw needs {min_drive_s:g} s with "
-                      "turns or speed changes")
+                      "turns or speed changes", UserWarning)
     if gains and moving_s < min_drive_s:
         never = "the drive never moves: " if moving_s == 0 else ""
         raise TooLittleDataError(f"{never}{moving_s:.1f} s of driving above {min_speed:g} m/s; the suspension "

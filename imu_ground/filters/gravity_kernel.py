@@ -364,7 +364,7 @@ def run_frames(s: list, d, dv, dt, stationary, valid, speed, v_out, g_out, p_out
         body_out[...] = d
     sp = [math.nan] * n if speed is None else np.asarray(speed, dtype=float).tolist()
     frames = list(zip(np.reshape(d, (n, 9)).tolist(), np.asarray(dv).tolist(), np.asarray(dt).tolist(),
-                      np.asarray(stationary).tolist(), np.asarray(valid).tolist(), sp))
+                      np.asarray(stationary).tolist(), np.asarray(valid).tolist(), sp, strict=True))
     r_start, w_prev = s[27:36], s[I_WPREV:I_WPREV + 4]
     out, pri = array("d"), (array("d") if priors is not None else None)
     last = _predict_update(s, frames, out, pri)

@@ -299,7 +299,7 @@ class GroundNormalFilter:
             Xs, Ps = self._smooth(dg, Xs, Ps)
             E = np.swapaxes(Xs, 1, 2) @ cum
         a = 0.5 * (Ps[:, 0, 0] + Ps[:, 1, 1])
-        E, Ps, cum = (hold_skipped(v, good, s) for v, s in zip((E, Ps, cum), start))
+        E, Ps, cum = (hold_skipped(v, good, s) for v, s in zip((E, Ps, cum), start, strict=True))
         n = len(good)
         var_max = np.full(n, np.inf)
         stds = np.full((n, 2), np.nan)                  # (a skipped frame has none, as in step)

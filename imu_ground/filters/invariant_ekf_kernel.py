@@ -274,12 +274,12 @@ def _update_general(s: list, shape, zl, r):
             H = tuple(-v for v in hat_flat(*xb))
             Rn = r
         PHT = mul_nt_flat(P, H)
-        S = tuple(m + n for m, n in zip(_sym_upper(mul_flat(H, PHT)), _sym_upper(Rn)))
+        S = tuple(m + n for m, n in zip(_sym_upper(mul_flat(H, PHT)), _sym_upper(Rn), strict=True))
         SI, detS = _inv_flat(S)
         K = mul_flat(PHT, SI)
         KH = mul_flat(K, H)
-        IKH = tuple(i - kh for i, kh in zip(_I9, KH))           # Joseph form
-        Pn = tuple(m + n for m, n in zip(_congruence(IKH, P), _congruence(K, Rn)))
+        IKH = tuple(i - kh for i, kh in zip(_I9, KH, strict=True))           # Joseph form
+        Pn = tuple(m + n for m, n in zip(_congruence(IKH, P), _congruence(K, Rn), strict=True))
     else:
         raise ValueError(f"z must be a 3x3 rotation or a unit vector of shape (3,), got {shape}")
     y0, y1, y2 = y

@@ -201,7 +201,7 @@ class StandstillBlocks:
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.blocks = {int(k): array("d", [int(n), *(float(x) for x in s)]) for k, n, s in
-                       zip(state["k"], state["n"], state["sums"])}
+                       zip(state["k"], state["n"], state["sums"], strict=True)}
         self.open_k = max(self.blocks, default=-1)      # samples come in time order: the last block is open
         self.open = self.blocks.get(self.open_k)
 

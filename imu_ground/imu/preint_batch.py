@@ -175,17 +175,17 @@ def _merge_blocks(res: tuple, block_frame: np.ndarray, n_frames: int) -> tuple:
 
     ident = (np.float64(0.0), np.eye(3), np.zeros(3), np.zeros(3), np.zeros((9, 6)), np.zeros((9, 9)))
     m = 6 if res[4] is not None else 4          # without covariance and Jacobians: 4 entries
-    cur = [pad(x, i) for x, i in zip(res[:m], ident)]
+    cur = [pad(x, i) for x, i in zip(res[:m], ident, strict=False)]
     while cur[0].shape[1] > 1:
         if cur[0].shape[1] % 2:
             cur = [np.concatenate([x, np.broadcast_to(i, (x.shape[0], 1) + i.shape)], axis=1)
-                   for x, i in zip(cur, ident)]
+                   for x, i in zip(cur, ident, strict=False)]
         a = tuple(x[:, 0::2] for x in cur) + (None, None) * (m == 4)
         b = tuple(x[:, 1::2] for x in cur) + (None, None) * (m == 4)
         cur = list(compose_left(a, b))[:m]
     out = []
     single = counts == 1
-    for x, c in zip(res[:m], cur):
+    for x, c in zip(res[:m], cur, strict=True):
         o = np.empty((n_frames,) + x.shape[1:])
         o[single] = x[first[single]]
         o[multi] = c[:, 0]
@@ -409,7 +409,7 @@ def preintegrate(imu: ImuData | tuple[np.ndarray, np.ndarray, np.ndarray],
     if par.uncertainty:
         Jr, Sr = left_to_right(Rn, Jn, Sn)
         blocks = ((0, 0), (3, 0), (6, 0), (3, 3), (6, 3))
-        jac = {k: Jr[:, r:r + 3, c:c + 3].copy() for k, (r, c) in zip(names, blocks)}
+        jac = {k: Jr[:, r:r + 3, c:c + 3].copy() for k, (r, c) in zip(names, blocks, strict=True)}
     else:
         Sr, jac = None, dict.fromkeys(names)
     return FrameDeltas(

@@ -159,7 +159,9 @@ class FrameDeltas(ParamsView):
         self._need_uncertainty()
         dbg = np.broadcast_to(np.asarray(bias_gyro, dtype=float) - self.bias_gyro, (len(self), 3))
         dba = np.broadcast_to(np.asarray(bias_accel, dtype=float) - self.bias_accel, (len(self), 3))
-        mv = lambda M, x: np.einsum("fij,fj->fi", M, x)
+
+        def mv(M: np.ndarray, x: np.ndarray) -> np.ndarray:
+            return np.einsum("fij,fj->fi", M, x)
         R = self.delta_R @ so3.exp(mv(self.d_R_d_bg, dbg))
         v = self.delta_v + mv(self.d_v_d_bg, dbg) + mv(self.d_v_d_ba, dba)
         p = self.delta_p + mv(self.d_p_d_bg, dbg) + mv(self.d_p_d_ba, dba)

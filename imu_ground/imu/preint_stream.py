@@ -257,7 +257,7 @@ class StreamingPreintegrator(_NativeKernel if NATIVE is not None else _PythonKer
         self._times = None
         if frame_times is not None:
             self._times = np.asarray(list(frame_times), dtype=float).reshape(-1).tolist()
-            if any(not (b - a > 2 * par.snap_tol) for a, b in zip(self._times, self._times[1:])):
+            if any(not (b - a > 2 * par.snap_tol) for a, b in zip(self._times, self._times[1:], strict=False)):
                 raise ValueError("frame_times must be strictly increasing (by more than 2 * snap_tol)")
         if rate is not None and not rate > 0:
             raise ValueError(f"rate must be > 0, got {rate}")

@@ -99,7 +99,7 @@ def _same(a: Any, b: Any) -> bool:
     if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
         return True
     if isinstance(a, list) and isinstance(b, list):
-        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
     if isinstance(a, dict) and isinstance(b, dict):
         return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
     return a == b
@@ -212,7 +212,7 @@ class StateReader:
         except (TypeError, ValueError):
             raise self.error(name, f"is not numbers of shape {_shape_text(shape)} (got {_short(v)})") from None
         if isinstance(v, (bool, str)) or a.dtype != float or a.ndim != len(shape) or any(
-                want is not None and got != want for got, want in zip(a.shape, shape)):
+                want is not None and got != want for got, want in zip(a.shape, shape, strict=True)):
             raise self.error(name, f"has shape {a.shape}, expected {_shape_text(shape)}")
         nan_ok = np.zeros(a.shape, dtype=bool)
         nan_ok[nan if isinstance(nan, slice) else ...] = bool(nan)

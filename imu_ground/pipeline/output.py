@@ -149,7 +149,7 @@ def _long_runs(mask: np.ndarray, longer_than: int) -> np.ndarray:
     m = np.concatenate([[False], mask, [False]]).astype(np.int8)
     edges = np.flatnonzero(np.diff(m))
     out = np.zeros(len(mask), dtype=bool)
-    for a, b in zip(edges[::2], edges[1::2]):
+    for a, b in zip(edges[::2], edges[1::2], strict=False):
         if b - a > longer_than:
             out[a:b] = True
     return out
@@ -477,16 +477,16 @@ def write_outputs(paths: Sequence[_PathLike], table, meta: Mapping[str, Any],
     list of Path
     """
     out = [Path(p) for p in paths]
-    kinds = [k or p.suffix.lower() for p, k in zip(out, kinds or [None] * len(out))]
-    for p, k in zip(out, kinds):
+    kinds = [k or p.suffix.lower() for p, k in zip(out, kinds or [None] * len(out), strict=True)]
+    for p, k in zip(out, kinds, strict=True):
         if k not in _WRITERS:
             raise ImuGroundError(f"{p}: unknown output type {k!r}; use {', '.join(OUTPUT_SUFFIXES)}")
         _require_writer(p, k)
     with ExitStack() as stack:
         temps = [stack.enter_context(_staged(p)) for p in out]
-        for k, tmp in zip(kinds, temps):
+        for k, tmp in zip(kinds, temps, strict=True):
             _WRITERS[k](tmp, table, meta)
-        for p, tmp in zip(out, temps):
+        for p, tmp in zip(out, temps, strict=True):
             os.replace(tmp, p)
     return out
 

@@ -86,9 +86,9 @@ def camera_plane(residual: Any, valid: Any, camera: Camera) -> GroundPlane:
 
 def plane_columns(plane: GroundPlane, grid: BevGrid | None = None) -> dict[str, np.ndarray]:
     """The table columns of a plane: :data:`PLANE_COLUMNS`, and :data:`BEV_COLUMNS` when ``grid`` is given."""
-    cols = dict(zip(PLANE_COLUMNS, plane.coefficients.T))
+    cols = dict(zip(PLANE_COLUMNS, plane.coefficients.T, strict=True))
     if grid is not None:
-        cols.update(zip(BEV_COLUMNS, plane.to_bev(grid).reshape(-1, 9).T))
+        cols.update(zip(BEV_COLUMNS, plane.to_bev(grid).reshape(-1, 9).T, strict=True))
     return cols
 
 
@@ -278,7 +278,7 @@ def write_kitti_planes(folder: str | Path, coefficients: Any, first_index: int =
         marker = {"written_by": f"imu-ground {__version__}", "what": "KITTI object planes files, one per frame",
                   "frames": len(names), "pid": os.getpid()}
         (tmp / PLANES_MARKER).write_text(json.dumps(marker) + "\n", encoding="utf-8")
-        for name, row in zip(names, abcd):
+        for name, row in zip(names, abcd, strict=True):
             (tmp / name).write_text(_planes_text(row), encoding="ascii")
         for k in keep:
             k = Path(k)

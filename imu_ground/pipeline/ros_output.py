@@ -390,14 +390,14 @@ def _write_optional(w: "RosWriter", table: Any, prefix: str, frame_id: str, orig
             continue
         h = w.add_topic(f"{prefix}/{topic}", ROS_OUTPUT_TOPICS[topic])
         if topic == "status":
-            for ns, st, why, ok in zip(stamps.tolist(), table[x], table[y], np.isfinite(t).tolist()):
+            for ns, st, why, ok in zip(stamps.tolist(), table[x], table[y], np.isfinite(t).tolist(), strict=True):
                 if ok:
                     w.write(h, ns, w.message("std_msgs/msg/String", data=f"{st}: {why}" if why else str(st)))
             continue
         xy = np.column_stack([np.asarray(table[x], dtype=float), np.asarray(table[y], dtype=float)]) * DEG
         keep = valid & np.isfinite(t) & np.all(np.isfinite(xy), axis=1)
         data = serialize_stamped(stamps[keep], frame_id, np.column_stack([xy[keep], np.zeros(keep.sum())]), w.ros1)
-        for ns, msg in zip(stamps[keep].tolist(), data):
+        for ns, msg in zip(stamps[keep].tolist(), data, strict=True):
             w.write_raw(h, ns, msg)
 
 

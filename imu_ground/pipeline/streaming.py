@@ -160,7 +160,7 @@ def estimate_row(est: FrameEstimate) -> dict[str, Any]:
                            "pitch_deg": deg(est.pitch), "roll_deg": deg(est.roll),
                            "qw": float(q[0]), "qx": float(q[1]), "qy": float(q[2]), "qz": float(q[3])}
     if est.plane is not None:
-        row.update(zip(("plane_a", "plane_b", "plane_c", "plane_d"), (float(x) for x in est.plane)))
+        row.update(zip(("plane_a", "plane_b", "plane_c", "plane_d"), (float(x) for x in est.plane), strict=True))
     row["valid"] = bool(est.valid)
     for name in ("pitch_std", "roll_std", "road_grade", "road_bank", "road_grade_std", "road_bank_std"):
         row[f"{name}_deg"] = deg(getattr(est, name))

@@ -285,10 +285,10 @@ def _load_transfer(vehicle: VehicleParams, a_f, v_f, s_f, layout):
     """Road-frame specific force ``(f_x, f_y)`` of the reference point (m/s^2) at the fine grid."""
     kappa_pw, grade_pw, bank_pw = layout
     al, al_s, _, _, _ = grade_pw(s_f)
-    bk, bk_s, _, _, _ = bank_pw(s_f)
+    bk = bank_pw(s_f)[0]
     kap = kappa_pw(s_f)[0]
     th_r = -al
-    psi_d, th_d, ph_d = kap * v_f, -al_s * v_f, bk_s * v_f
+    psi_d, th_d = kap * v_f, -al_s * v_f          # the yaw rate about the road's z holds no roll rate
     w_rz = -np.sin(bk) * th_d + np.cos(bk) * np.cos(th_r) * psi_d
     f_x = a_f.copy()
     f_y = v_f * w_rz
