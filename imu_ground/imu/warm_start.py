@@ -23,6 +23,7 @@ run (the tests check 1e-12; the kernels' buffers are restored bit for bit).
 """
 from __future__ import annotations
 
+import builtins
 import math
 from typing import Any, Mapping
 
@@ -232,14 +233,14 @@ class StateReader:
         a = self.floats(name, (), nan=nan, optional=optional, inf=inf)
         return None if a is None else float(a)
 
-    def int(self, name: str, minimum: int = 0) -> int:
+    def int(self, name: str, minimum: builtins.int = 0) -> builtins.int:
         """One integer at least ``minimum``."""
         v = self._get(name)
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < minimum or abs(v) > MAX_MAGNITUDE:
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < minimum or abs(int(v)) > MAX_MAGNITUDE:
             raise self.error(name, f"is {_short(v)}, expected an integer >= {minimum}")
         return int(v)
 
-    def bool(self, name: str) -> bool:
+    def bool(self, name: str) -> builtins.bool:
         """One bool."""
         v = self._get(name)
         if not isinstance(v, (bool, np.bool_)):
@@ -253,7 +254,7 @@ class StateReader:
             raise self.error(name, f"is {_short(v)}, expected a text or null")
         return v
 
-    def rows(self, name: str, flatten, width: int, nan: bool = False) -> np.ndarray:
+    def rows(self, name: str, flatten, width: builtins.int, nan: builtins.bool = False) -> np.ndarray:
         """A list of records, each made a row of ``width`` floats by ``flatten`` (e.g. ``[t, [x, y, z]]`` ->
         ``[t, x, y, z]``), checked as :meth:`floats` (n, width)."""
         v = self._get(name)
@@ -267,7 +268,7 @@ class StateReader:
             return np.zeros((0, width))
         return StateReader(self.kind, {name: flat}, self.prefix).floats(name, (None, width), nan=nan).reshape(-1, width)
 
-    def part(self, name: str, optional: bool = False) -> Any:
+    def part(self, name: str, optional: builtins.bool = False) -> Any:
         """The reader of a nested dict entry; None if ``optional`` and null."""
         v = self._get(name)
         if v is None and optional:
