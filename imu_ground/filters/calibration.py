@@ -283,11 +283,11 @@ def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "Ego
     if tilt not in ("auto", "cruise", "standstill", "all"):
         raise ImuGroundError(f"tilt must be 'auto', 'cruise', 'standstill' or 'all', got {tilt!r}")
     many = isinstance(data, (list, tuple))
-    egos = [as_egomotion(d, rate) for d in (data if many else [data])]
+    egos = [as_egomotion(d, rate) for d in (data if isinstance(data, (list, tuple)) else [data])]
     if not egos or sum(len(e) for e in egos) < 2:
         raise ImuGroundError("calibration needs at least two frames")
-    translation = np.zeros(3) if translation is None else _finite3(translation, "translation")
-    lever_arm = None if lever_arm is None else _finite3(lever_arm, "lever_arm")
+    t_gs = np.zeros(3) if translation is None else _finite3(translation, "translation")
+    lever = None if lever_arm is None else _finite3(lever_arm, "lever_arm")
 
     def up_of(fs, mask):
         if not np.any(mask):
@@ -348,6 +348,6 @@ def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "Ego
         if u is not None:
             r, p, _ = np.degrees(euler_zyx(_extrinsic_from_axes(u, R[0])))
             stats[f"tilt_{name}_deg"] = (round(float(p), 4), round(float(r), 4))
-    k = _suspension_gains(egos, R, min_speed, lever_arm, band, stats) if gains else None
+    k = _suspension_gains(egos, R, min_speed, lever, band, stats) if gains else None
     meta = {"calibrated_by": "imu_ground.filters.calibration.calibrate", "tilt_source": src, "yaw_source": yaw_src}
-    return Calibration(Extrinsic(R, translation, meta), k, stats)
+    return Calibration(Extrinsic(R, t_gs, meta), k, stats)

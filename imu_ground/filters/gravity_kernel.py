@@ -376,7 +376,8 @@ def run_frames(s: list, d, dv, dt, stationary, valid, speed, v_out, g_out, p_out
     cum_out[...] = rows[:, 27:].reshape(n, 3, 3)
     speed_out[...] = np.linalg.norm(rows[:, :3], axis=1)
     if priors is not None:
-        priors[...] = np.frombuffer(pri, dtype=float).reshape(n, 27)
+        assert pri is not None                  # made with priors
+        priors[...] = np.frombuffer(pri, dtype=np.float64).reshape(n, 27)
     lever = s[I_LEVER + 1:I_LEVER + 4] if s[I_LEVER] else None
     f, acc, w_last = body_forces(d, dv, dt, g_out, np.reshape(r_start, (3, 3)), cum_out, lever,
                                  w_prev[1:] if w_prev[0] else None)

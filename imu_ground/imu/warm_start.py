@@ -201,7 +201,8 @@ class StateReader:
         """Whether the entry is there and not None."""
         return isinstance(self.state, Mapping) and self.state.get(name) is not None
 
-    def floats(self, name: str, shape: tuple, nan: bool = False, optional: bool = False, inf: bool = False) -> Any:
+    def floats(self, name: str, shape: tuple, nan: bool | slice = False, optional: bool = False,
+               inf: bool = False) -> Any:
         """A float array of ``shape`` (``None`` in it: any length on that axis); None if ``optional`` and null.
         ``nan``: NaN allowed (everywhere, or in a slice of a 1-d entry: a record of the last step);
         ``inf``: infinities allowed (a boundary not yet set)."""
