@@ -277,7 +277,7 @@ def output_folder_lock(out_dir: str | Path, option: str = "-o") -> Iterator[Path
     try:
         import fcntl
     except ImportError:                                 # not a POSIX system: the recorded process id decides
-        fcntl = None
+        fcntl = None  # type: ignore[assignment]  # (mypy takes the module as always there)
     for _ in range(10):
         fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
         try:
@@ -422,8 +422,8 @@ def _run_batch_locked(logs, out_dir: Path, workers, scheduler, suffix, progress,
         elif scheduler:
             _run_on_dask(jobs, rows, options, cli, force, scheduler, bar)
         else:
-            for i, log, out, extra in jobs:
-                rows[i] = process_log(log, out, options, cli, force, extra)
+            for i, log, out_name, extra in jobs:
+                rows[i] = process_log(log, out_name, options, cli, force, extra)
                 bar.update()
         bar.close()
     rows += [{"log": log, "status": "duplicate", "error": f"{log}: the same file as {kept}, estimated once"}

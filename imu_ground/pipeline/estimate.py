@@ -454,7 +454,7 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
     got, what = speed_samples(speed, path, fmt, imu)
     if got is None:
         return None, what
-    v = frame_speed(*got, em.t, em.delta_t)
+    v = frame_speed(got[0], got[1], em.t, em.delta_t)
     holes = int(np.count_nonzero(~np.isfinite(got[1])))
     if holes:
         warn_user(f"speed {what}: {holes} of {len(got[1])} samples have no speed (nan): not interpolated "

@@ -110,6 +110,7 @@ def track_table(track: GroundTrack, max_gap_frames: int = GAP_NAN_FRAMES) -> "pd
     """
     import pandas as pd                             # heavy: only when a table is made
     n = len(track)
+    assert track.status is not None and track.status_reason is not None     # (filled in by GroundTrack)
     reasons = _gap_reasons(np.asarray(track.status), np.asarray(track.t, dtype=float), track.status_reason)
     q = quat_from_matrix(track.residual) if n else np.zeros((0, 4))
     valid = np.asarray(track.valid, dtype=bool)
@@ -477,14 +478,14 @@ def write_outputs(paths: Sequence[_PathLike], table, meta: Mapping[str, Any],
     list of Path
     """
     out = [Path(p) for p in paths]
-    kinds = [k or p.suffix.lower() for p, k in zip(out, kinds or [None] * len(out), strict=True)]
-    for p, k in zip(out, kinds, strict=True):
+    suffixes = [k or p.suffix.lower() for p, k in zip(out, kinds or [None] * len(out), strict=True)]
+    for p, k in zip(out, suffixes, strict=True):
         if k not in _WRITERS:
             raise ImuGroundError(f"{p}: unknown output type {k!r}; use {', '.join(OUTPUT_SUFFIXES)}")
         _require_writer(p, k)
     with ExitStack() as stack:
         temps = [stack.enter_context(_staged(p)) for p in out]
-        for k, tmp in zip(kinds, temps, strict=True):
+        for k, tmp in zip(suffixes, temps, strict=True):
             _WRITERS[k](tmp, table, meta)
         for p, tmp in zip(out, temps, strict=True):
             os.replace(tmp, p)

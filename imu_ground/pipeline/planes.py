@@ -185,11 +185,12 @@ def _signals_deferred() -> Iterator[None]:
         for s, h in old.items():
             signal.signal(s, signal.SIG_DFL if h is None else h)
         if received:
-            s = received[0]
-            if callable(old[s]):
-                old[s](s, None)
-            elif old[s] != signal.SIG_IGN:
-                signal.raise_signal(s)
+            first = signal.Signals(received[0])
+            handler = old[first]
+            if callable(handler):
+                handler(first, None)
+            elif handler != signal.SIG_IGN:
+                signal.raise_signal(first)
 
 
 def _remove_planes_folder(folder: Path) -> None:
