@@ -113,7 +113,7 @@ def run(a: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     outputs = [check_output_path(a.output or default_output_name(a.log), [a.log])]
-    kinds = [None]
+    kinds: list[str | None] = [None]
     if a.tum:
         tum = check_output_path(a.tum, [a.log], "--tum", kind=".tum")
         if tum.resolve() == outputs[0].resolve():
@@ -152,7 +152,8 @@ def run(a: argparse.Namespace) -> int:
         h = res.meta["plane"].height
         say(f"camera {a.camera}: height above the road {np.nanmean(h):.3f} m (range {np.nanmin(h):.3f} .. "
             f"{np.nanmax(h):.3f}) over the {int(np.isfinite(h).sum())} frames with a plane")
+    wrote = [str(p) for p in outputs]
     if a.planes is not None:
-        outputs.append(f"{len(table)} planes files in {a.planes}")
-    say("wrote " + " and ".join(str(p) for p in outputs))
+        wrote.append(f"{len(table)} planes files in {a.planes}")
+    say("wrote " + " and ".join(wrote))
     return 0
