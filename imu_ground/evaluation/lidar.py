@@ -573,7 +573,7 @@ def lidar_table(estimates: dict[str, Any], t_scan: Any, lidar_pitch: Any, lidar_
     summary = pd.DataFrame.from_dict(rows, orient="index")
     summary.index.name = "method"
     if len(np.atleast_1d(t_scan)) >= 3:
-        boot = bootstrap_spread({k: g["d_pitch_deg"].to_numpy() for k, g in frames.groupby("method", sort=False)})
+        boot = bootstrap_spread({str(k): g["d_pitch_deg"].to_numpy() for k, g in frames.groupby("method", sort=False)})
         summary = summary.join(boot.drop(columns="spread"))
     return frames, summary
 

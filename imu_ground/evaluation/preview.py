@@ -124,6 +124,7 @@ def synthetic_preview(seed: int = 3, duration: float = 40.0, frames: int = 1, gr
               "truth": GroundPlane.from_pitch_roll(cam, truth["pitch"].to_numpy(), truth["roll"].to_numpy())}
     lane = {"distance_m": PLOT_DISTANCES.tolist()} if moving.any() else None     # (none: a drive too short to move)
     for name in ("static", "dynamic") if lane else ():
+        assert lane is not None
         err = ground_errors(planes["truth"][moving], planes[name][moving], PLOT_DISTANCES, LANE_WIDTH)
         lane[name] = np.nanmean(np.abs(err["lane_width"]), axis=0).tolist()
     pitch = np.where(moving, np.abs(truth["pitch"].to_numpy()), -1.0)
