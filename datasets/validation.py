@@ -249,7 +249,7 @@ def _units(report, t, gyro, accel, stats, keep, units, src, gyro_limit, gyro_min
     report.accel_norm_at_rest = at_rest
     g = STANDARD_GRAVITY
     if abs(med - g) > accel_tol:
-        where = "at rest" if at_rest else "over all samples"
+        basis = "at rest" if at_rest else "over all samples"
         value = None
         if abs(med - 1.0) < 0.2:
             why, value = "looks like units of g (pass {hint})", "g"
@@ -261,7 +261,7 @@ def _units(report, t, gyro, accel, stats, keep, units, src, gyro_limit, gyro_min
             why = "looks like units of mm/s^2"
         else:
             why = "check the accelerometer units and scale"
-        act(units, f"{src}: median specific-force magnitude {where} is {med:.4g} m/s^2, expected about "
+        act(units, f"{src}: median specific-force magnitude {basis} is {med:.4g} m/s^2, expected about "
                    f"{g:.4g} (1 g) +- {accel_tol:g}: {why}", UnitsWarning, report,
             option="accel_unit" if value else None, value=value)
 
@@ -374,7 +374,7 @@ def validate(imu: ImuData, policy: Policy = "retime", *,
     _sensors(report, gyro, accel, rest_gyro, src, "ignore" if units == "ignore" else "warn")
 
     # 8. the cleaned log, the report in its meta
-    extra = imu.extra if same or not len(imu.extra) else imu.extra.iloc[keep].reset_index(drop=True)
+    extra = imu.extra if same or keep is None or not len(imu.extra) else imu.extra.iloc[keep].reset_index(drop=True)
     meta: dict[str, Any] = dict(imu.meta)
     meta["validation"] = report
     return ImuData(t, gyro, accel, imu.frame, extra, dict(imu.units), imu.source, meta), report
