@@ -282,7 +282,6 @@ def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "Ego
     """
     if tilt not in ("auto", "cruise", "standstill", "all"):
         raise ImuGroundError(f"tilt must be 'auto', 'cruise', 'standstill' or 'all', got {tilt!r}")
-    many = isinstance(data, (list, tuple))
     egos = [as_egomotion(d, rate) for d in (data if isinstance(data, (list, tuple)) else [data])]
     if not egos or sum(len(e) for e in egos) < 2:
         raise ImuGroundError("calibration needs at least two frames")
