@@ -78,7 +78,7 @@ def kernels_in_use(*names: str) -> str:
     (short names of ``imu_ground.filters._<name>_native``) the imported modules use."""
     used = native_kernels()
     kinds = ["C" if used.get(f"imu_ground.filters._{n}_native") else "Python" for n in names]
-    return kinds[0] if len(set(kinds)) == 1 else ", ".join(f"{n} {k}" for n, k in zip(names, kinds))
+    return kinds[0] if len(set(kinds)) == 1 else ", ".join(f"{n} {k}" for n, k in zip(names, kinds, strict=True))
 
 
 def python_figures(script: str, timings: Callable[..., Dict[str, float]], frames: int, stream_frames: int,

@@ -31,6 +31,7 @@ import zlib
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+from typing import Any, Literal
 
 import numpy as np
 
@@ -57,7 +58,7 @@ def _isal_errors() -> tuple[type[BaseException], ...]:
         from isal.isal_zlib import error
     except ImportError:
         return ()
-    return (error,)
+    return (error,)  # type: ignore[return-value]  # (isal's stub declares the error class an instance)
 
 
 def open_gzip(path: Path) -> io.BufferedIOBase:
@@ -66,8 +67,8 @@ def open_gzip(path: Path) -> io.BufferedIOBase:
     try:
         from isal import igzip_threaded
     except ImportError:
-        return gzip.open(path, "rb")  # type: ignore[return-value]
-    return igzip_threaded.open(path, "rb", threads=1)  # type: ignore[no-any-return]
+        return gzip.open(path, "rb")
+    return igzip_threaded.open(path, "rb", threads=1)
 
 
 def open_binary(path: Path) -> io.BufferedIOBase:
@@ -78,9 +79,9 @@ def open_binary(path: Path) -> io.BufferedIOBase:
         raise MalformedFileError(path, "is not a file")
     name = path.name.lower()
     if name.endswith(".gz"):
-        return gzip.open(path, "rb")  # type: ignore[return-value]
+        return gzip.open(path, "rb")
     if name.endswith(".bz2"):
-        return bz2.open(path, "rb")  # type: ignore[return-value]
+        return bz2.open(path, "rb")
     return open(path, "rb")
 
 
@@ -224,14 +225,16 @@ def _parse(path: Path, sep: str, stack: Mapping[str, Sequence[str]] | None,
     raw_rows = 0
     blank: list[np.ndarray] = []
     suspect = False
-    compression = {".gz": "gzip", ".bz2": "bz2"}.get(path.suffix.lower())
+    compressions: dict[str, Literal["gzip", "bz2"]] = {".gz": "gzip", ".bz2": "bz2"}
+    compression = compressions.get(path.suffix.lower())
     # a plain file whole (pandas parses it in byte ranges on several threads); a compressed one in chunks
     # (the decompression sets the pace, and the chunks bound the working memory); gzip through open_gzip
     source = open_gzip(path) if compression == "gzip" else path
     with contextlib.ExitStack() as scope:
         if source is not path:
-            scope.enter_context(source)     # type: ignore[arg-type]
-        reader = pd.read_csv(source, sep=sep, engine="c", chunksize=CHUNK_ROWS if compression else None,
+            scope.enter_context(source)
+        # chunks (a TextFileReader) when compressed, else the DataFrame: which one, the stubs' overloads cannot tell
+        reader: Any = pd.read_csv(source, sep=sep, engine="c", chunksize=CHUNK_ROWS if compression else None,
                              skip_blank_lines=False, encoding="utf-8", decimal=decimal,
                              compression=None if source is not path else compression)
         with (reader if compression else contextlib.nullcontext([reader])) as chunks:
@@ -241,7 +244,7 @@ def _parse(path: Path, sep: str, stack: Mapping[str, Sequence[str]] | None,
                     parts = {c: [] for c in names}
                 arrays = _drop_blank_rows([chunk[col].to_numpy() for col in chunk.columns], raw_rows, blank)
                 suspect = suspect or bool(pd.isna(arrays[-1]).any())  # a short line leaves NaN at the end
-                for c, x in zip(names, arrays):
+                for c, x in zip(names, arrays, strict=True):
                     parts[c].append(x)
                 n += arrays[0].size
                 raw_rows += len(chunk)
@@ -302,7 +305,7 @@ def read_delimited(path: str | Path, sep: str | None = ",", *,
         open_binary(path).close()           # the missing-file and not-a-file messages
         try:
             found = detect_dialect(path)
-        except (EOFError, zlib.error, OSError, *_isal_errors()) as e:      # (a .gz that is none)
+        except (EOFError, zlib.error, OSError, *_isal_errors()) as e:  # type: ignore[misc]  # (a .gz that is none; mypy: no starred except tuple)
             raise MalformedFileError(path, f"truncated or corrupt gzip file ({e})") from e
         sep, decimal = sep or found[0], decimal or found[1]
     try:
@@ -312,13 +315,13 @@ def read_delimited(path: str | Path, sep: str | None = ",", *,
     except pd.errors.ParserError as e:
         try:                            # (a corrupt gzip stream may first show as lines of the wrong length)
             err = locate_bad_lines(path, sep)
-        except (EOFError, gzip.BadGzipFile, zlib.error, *_isal_errors()) as z:
+        except (EOFError, gzip.BadGzipFile, zlib.error, *_isal_errors()) as z:  # type: ignore[misc]  # (mypy: no starred except tuple)
             raise MalformedFileError(path, f"truncated or corrupt gzip file ({z})") from e
         if err is not None:
             raise err from None
         m = re.search(r"line (\d+)", str(e))
         raise MalformedFileError(path, f"cannot parse: {e}", line=int(m.group(1)) if m else None) from e
-    except (EOFError, gzip.BadGzipFile, zlib.error, OSError, *_isal_errors()) as e:
+    except (EOFError, gzip.BadGzipFile, zlib.error, OSError, *_isal_errors()) as e:  # type: ignore[misc]  # (mypy: no starred except tuple)
         if isinstance(e, FileNotFoundError):
             raise
         raise MalformedFileError(path, f"truncated or corrupt gzip file ({e})") from e

@@ -188,7 +188,9 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
         index = read_drives_index(index_path)
         meta["drives_csv"] = str(index_path)
         if drive in index.index:
+            import pandas as pd                 # (loaded by read_drives_index)
             row = index.loc[drive]
+            assert isinstance(row, pd.Series)   # drives.csv names each drive once
             meta["t0"] = float(row["t0_seconds_of_day"]) + t_first
             meta["t0_clock"] = "seconds of the day (drives.csv t0_seconds_of_day)"
             meta["expected_samples"] = int(row["samples"])

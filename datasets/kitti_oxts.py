@@ -200,7 +200,7 @@ def _read_packets(files: list[Path], n_fields: int) -> np.ndarray:
     try:
         values = np.array(flat, dtype=float)
     except ValueError:
-        for f, tok in zip(files, tokens):  # error path only: find the file
+        for f, tok in zip(files, tokens, strict=True):  # error path only: find the file
             try:
                 np.array(tok, dtype=float)
             except ValueError:
@@ -270,7 +270,7 @@ def read_kitti_oxts(path: str | Path, *, allow_missing: bool = False, validate: 
     files = sorted(data_dir.glob("*.txt"))
     stems = [f.stem for f in files]
     if not all(s.isdigit() for s in stems):
-        bad = next(f for f, s in zip(files, stems) if not s.isdigit())
+        bad = next(f for f, s in zip(files, stems, strict=True) if not s.isdigit())
         raise MalformedFileError(bad, "unexpected file name in data/ (expected 0000000000.txt ...)")
     number = np.array([int(s) for s in stems], dtype=np.int64)
     n_ts = ts.size

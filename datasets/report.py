@@ -8,6 +8,7 @@ has to count its own stack depth.
 from __future__ import annotations
 
 import sys
+import types
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -113,7 +114,8 @@ def warn_user(message: str, category: type[Warning] = ImuValidationWarning, opti
     option, value : optional
         The reader option (and value) the text names (ImuValidationWarning subclasses).
     """
-    level, frame = 1, sys._getframe(1)
+    level = 1
+    frame: types.FrameType | None = sys._getframe(1)
     while frame is not None and frame.f_code.co_filename.startswith(_PACKAGE_DIRS):
         frame, level = frame.f_back, level + 1
     if issubclass(category, ImuValidationWarning):
@@ -146,7 +148,7 @@ class Gap(NamedTuple):
         Time to the next kept sample, s.
     """
 
-    index: int
+    index: int  # type: ignore[assignment]  # (the public field's name hides tuple.index)
     out_index: int
     t_start: float
     length: float
@@ -283,7 +285,7 @@ class ValidationReport:
     def gaps(self) -> list[Gap]:
         """The gaps as a list of :class:`Gap` (index, out_index, t_start, length)."""
         return [Gap(int(i), int(j), float(s), float(g)) for i, j, s, g in
-                zip(self.gap_index, self.gap_out_index, self.gap_start, self.gap_length)]
+                zip(self.gap_index, self.gap_out_index, self.gap_start, self.gap_length, strict=True)]
 
     @property
     def ok(self) -> bool:

@@ -260,13 +260,13 @@ def _retime(t: np.ndarray, index: np.ndarray | None, window_s: float, min_inlier
     if not ok.all() or outl.size > n >> 6 or k is not None:
         fit = np.ones(n, dtype=bool)
         fit[outl] = False
-        for s_ in np.flatnonzero(~ok):
+        for s_ in np.flatnonzero(~ok).tolist():
             fit[bounds[s_]:bounds[s_ + 1]] = False
         np.compress(fit, np.arange(n, dtype=float) if k is None else k, out=dk)
         np.compress(fit, t, out=dtt)
     else:                                                # the runs between outliers, copied whole
         p = 0
-        for a, b in zip(*(r.tolist() for r in _kept_runs(n, outl))):
+        for a, b in zip(*(r.tolist() for r in _kept_runs(n, outl)), strict=True):
             dk[p:p + b - a] = clock.kblock(a, b)
             dtt[p:p + b - a] = t[a:b]
             p += b - a
@@ -289,7 +289,7 @@ def _retime(t: np.ndarray, index: np.ndarray | None, window_s: float, min_inlier
     if not (slope > 0 and 1.0 <= 1.0 / slope <= 1e5):
         return RetimeResult(None, 1.0 / dt, none, "no steady positive rate"), None
     icpt = tm - slope * km
-    for s_ in np.flatnonzero(cf == 0):  # tiny stretches: their median
+    for s_ in np.flatnonzero(cf == 0).tolist():  # tiny stretches: their median
         a_, b_ = bounds[s_], bounds[s_ + 1]
         icpt[s_] = float(np.median(t[a_:b_] - slope * clock.kblock(a_, b_)))
     # block by block: the clock (slope k + the stretch's intercept), its steps, its shift from the stamps, and

@@ -170,7 +170,7 @@ def _topic_rates(reader: Any, connections: Sequence[Any]) -> dict[str, float]:
     for topic, ts in times.items():
         d = np.diff(np.sort(np.asarray(ts, dtype=np.int64)))
         d = d[d > 0]
-        out[topic] = float(1e9 / np.median(d)) if d.size else float("nan")
+        out[topic] = 1e9 / float(np.median(d)) if d.size else float("nan")
     return out
 
 

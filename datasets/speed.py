@@ -383,7 +383,9 @@ def read_speed(source: Any, *, log: str | Path | None = None, format: str | None
         return out
     name = str(source)
     if format == "rosbag" or (format is None and log.exists() and is_rosbag(log)):
-        return log_speed(log, "rosbag", imu, topic=name)          # a ROS log: the name is a topic
+        got = log_speed(log, "rosbag", imu, topic=name)          # a ROS log: the name is a topic
+        assert got is not None                                    # (a ROS log has speeds: a missing topic raises)
+        return got
     if imu is None:
         from imu_ground.datasets import read_imu
         imu = read_imu(log, format=format)

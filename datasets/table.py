@@ -128,7 +128,7 @@ def map_columns(cols: Mapping[str, np.ndarray], *, time: str = "t",
     needed = [time, *gyro, *accel]
     missing = [c for c in needed if c not in cols]
     if missing:
-        hint = ",".join(f"{q}=NAME" for q, c in zip(QUANTITIES, needed) if c not in cols)
+        hint = ",".join(f"{q}=NAME" for q, c in zip(QUANTITIES, needed, strict=True) if c not in cols)
         raise ImuInputError(f"{source}: column(s) {missing} not found; available: {list(map(str, cols))}; say "
                             f"which column holds what with {{hint}}", option="columns", value=hint)
     n = len(cols[time])

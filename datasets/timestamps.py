@@ -22,7 +22,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Literal
+from typing import Literal, cast
 
 import numpy as np
 
@@ -130,7 +130,7 @@ def _ooo_dup(t: np.ndarray, steps: np.ndarray, back: np.ndarray, zero: np.ndarra
     first = hit.argmax(axis=1)
     found = hit[np.arange(back.size), first].tolist()
     stretch, stops, end = [], [], 0
-    for i, (b, j) in enumerate(zip(back.tolist(), first.tolist())):
+    for i, (b, j) in enumerate(zip(back.tolist(), first.tolist(), strict=True)):
         if b >= end:                       # not within the stretch of an earlier backstep
             end = b + j if found[i] else _stretch_end(t, b, float(top[i]))
             stretch.append(i)
@@ -138,7 +138,8 @@ def _ooo_dup(t: np.ndarray, steps: np.ndarray, back: np.ndarray, zero: np.ndarra
     sel, start, stop = np.array(stretch), back[stretch], np.array(stops)
     span = stop - start
     short = span <= 16
-    ooo, dup = [], []
+    ooo: list[np.ndarray] = []
+    dup: list[np.ndarray] = []
     if short.any():                        # positions of the short stretches, row by row: in order
         w, tp = win[sel[short]], top[sel[short], None]
         inside = np.arange(16) < span[short, None]
@@ -258,11 +259,11 @@ def check_timestamps(t: np.ndarray, policy: Policy = "retime", *, gaps: Action |
     return (np.arange(t_out.size) if keep is None else keep), t_out, report
 
 
-def gap_action(gaps: str | None, policy: str, warn: bool) -> str:
+def gap_action(gaps: str | None, policy: str, warn: bool) -> Action:
     """The gap action asked for, or the default (``"raise"`` under ``"strict"``, else ``"warn"``), checked."""
     gaps = gaps if gaps is not None else ("raise" if policy == "strict" else "warn")
     check_choice("gaps", gaps, ACTIONS)
-    return "ignore" if not warn and gaps == "warn" else gaps
+    return "ignore" if not warn and gaps == "warn" else cast(Action, gaps)     # (a checked choice)
 
 
 def _reverse_order_error(src: str, n: int, back: np.ndarray, policy: str) -> ImuValidationError | None:
@@ -325,6 +326,7 @@ def order_samples(t, policy, source, index, report, warn, row_lines, finite: boo
                f"max shift {report.retime_shift_max:.4g} s, RMS {report.retime_shift_rms:.4g} s; "
                f"{gaps_kept} (policy='retime', report in meta['validation'])")
         act("warn" if warn else "ignore", msg, TimestampWarning, report)
+        assert dk is not None                       # retimed: the steps too
         return None, new_t, dk
     if policy == "sort":
         report.reordered = bool(ooo.size)

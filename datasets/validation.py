@@ -45,12 +45,16 @@ from imu_ground.imu.data import ImuData
 
 from . import report as _report
 from .order_stats import median
-from .report import *  # re-exports the report's public names (errors, warnings, ValidationReport)
-from .report import (
+from .report import (  # the report's public names are re-exported (errors, warnings, ValidationReport)
     STANDARD_GRAVITY,
+    Gap as Gap,
+    GapWarning as GapWarning,
     ImuValidationError,
+    ImuValidationWarning as ImuValidationWarning,
+    MalformedFileError as MalformedFileError,
     NonFiniteWarning,
     SensorWarning,
+    TimestampWarning as TimestampWarning,
     UnitsWarning,
     ValidationReport,
     row_names,
@@ -182,10 +186,10 @@ def _nonfinite(imu: ImuData, report: ValidationReport, nonfinite: str, warn: boo
         return None
     src = imu.source or "<ImuData>"
     counts = (~finite).sum(axis=0)
-    report.nonfinite_columns = {nm: int(c) for nm, c in zip(names, counts) if c}
+    report.nonfinite_columns = {nm: int(c) for nm, c in zip(names, counts, strict=True) if c}
     kind, where = row_names(rows[:5], row_lines)
     parts = []
-    for j, (nm, c) in enumerate(zip(names, counts)):
+    for j, (nm, c) in enumerate(zip(names, counts, strict=True)):
         if c:
             k, w = row_names(np.flatnonzero(~finite[:, j])[:3], row_lines)
             parts.append(f"{nm} ({c} value(s), first {k}s {fmt_list(w, 3)})")
@@ -245,7 +249,7 @@ def _units(report, t, gyro, accel, stats, keep, units, src, gyro_limit, gyro_min
     report.accel_norm_at_rest = at_rest
     g = STANDARD_GRAVITY
     if abs(med - g) > accel_tol:
-        where = "at rest" if at_rest else "over all samples"
+        basis = "at rest" if at_rest else "over all samples"
         value = None
         if abs(med - 1.0) < 0.2:
             why, value = "looks like units of g (pass {hint})", "g"
@@ -257,7 +261,7 @@ def _units(report, t, gyro, accel, stats, keep, units, src, gyro_limit, gyro_min
             why = "looks like units of mm/s^2"
         else:
             why = "check the accelerometer units and scale"
-        act(units, f"{src}: median specific-force magnitude {where} is {med:.4g} m/s^2, expected about "
+        act(units, f"{src}: median specific-force magnitude {basis} is {med:.4g} m/s^2, expected about "
                    f"{g:.4g} (1 g) +- {accel_tol:g}: {why}", UnitsWarning, report,
             option="accel_unit" if value else None, value=value)
 
@@ -370,7 +374,7 @@ def validate(imu: ImuData, policy: Policy = "retime", *,
     _sensors(report, gyro, accel, rest_gyro, src, "ignore" if units == "ignore" else "warn")
 
     # 8. the cleaned log, the report in its meta
-    extra = imu.extra if same or not len(imu.extra) else imu.extra.iloc[keep].reset_index(drop=True)
+    extra = imu.extra if same or keep is None or not len(imu.extra) else imu.extra.iloc[keep].reset_index(drop=True)
     meta: dict[str, Any] = dict(imu.meta)
     meta["validation"] = report
     return ImuData(t, gyro, accel, imu.frame, extra, dict(imu.units), imu.source, meta), report

@@ -23,7 +23,7 @@ def _study_table() -> list[dict]:
     part = text.split("## calibrate_std", 1)[1].split("\n## ", 1)[0]
     lines = [ln for ln in part.splitlines() if ln.startswith("|")]
     head = [c.strip() for c in lines[0].strip("|").split("|")]
-    return [dict(zip(head, (c.strip() for c in ln.strip("|").split("|")))) for ln in lines[2:]]
+    return [dict(zip(head, (c.strip() for c in ln.strip("|").split("|")), strict=True)) for ln in lines[2:]]
 
 
 @pytest.mark.parametrize("method, shipped", [("suspension", SUSPENSION_STD), ("filter", FILTER_STD)])
@@ -75,7 +75,7 @@ def test_the_studys_suites_are_reproducible_and_cached(tmp_path):
     c = study.suite(9, n=1, duration=(20.0, 20.0), cache="")                 # simulated again
     for x, y in ((a, b), (a, c)):
         assert [d.name for d in x] == [d.name for d in y] == ["drive000_nav", "drive000_mems"]
-        for dx, dy in zip(x, y):
+        for dx, dy in zip(x, y, strict=True):
             np.testing.assert_array_equal(dx.egomotion.delta_R, dy.egomotion.delta_R)
             np.testing.assert_array_equal(dx.truth["pitch"].to_numpy(), dy.truth["pitch"].to_numpy())
 

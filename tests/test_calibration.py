@@ -153,8 +153,9 @@ def test_kitti_platform_self_calibration(kitti_drives, kitti_valid_names):
     # yaw comes out at -1.8 deg although the INS puts its x axis within 0.3 deg of the direction of
     # travel (see the report)
     assert np.degrees(so3.angle(c.rotation)) < 2.5
-    score = lambda f: np.mean([evaluate_drive(f(em), truth["pitch"].to_numpy(), mask=truth["evaluate"].to_numpy(),
-                                              remove_mean=True)["pitch"]["mean"] for em, truth in drives])
+    def score(f):
+        return np.mean([evaluate_drive(f(em), truth["pitch"].to_numpy(), mask=truth["evaluate"].to_numpy(),
+                                       remove_mean=True)["pitch"]["mean"] for em, truth in drives])
     calibrated = score(lambda em: SuspensionAwareFilter.from_calibration(c).run(em).pitch)
     paper = score(lambda em: GroundNormalFilter.paper().run(em.delta_R).pitch)
     assert calibrated < 0.7 * paper                              # against the published method, same drives

@@ -39,7 +39,7 @@ ATTRIBUTES = ("x", "P", "x_prior", "P_prior", "x_post", "P_post", "y", "K", "S",
 HALF_TURNS = [np.diag(d) for d in ([1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0])]
 
 
-def _pair(x0=np.eye(3), P=np.eye(3), Q=Q_DIAG, R=np.diag([1.0, 0.5, 2.0]), left=True, b=(0.0, 0.0, 1.0)):
+def _pair(x0=np.eye(3), P=np.eye(3), Q=Q_DIAG, R=np.diag([1.0, 0.5, 2.0]), left=True, b=(0.0, 0.0, 1.0)):  # noqa: B008 (read-only defaults, never modified)
     s = new_state(so3.quat_from_flat(x0.ravel().tolist()), P.ravel().tolist(), Q.ravel().tolist(),
                   R.ravel().tolist(), list(b), left, 100)
     s[B_X:B_X + 9] = x0.ravel().tolist()

@@ -40,8 +40,8 @@ def _frames_key(frames):
 def _same(a, b):
     """Equal lists of frame keys, NaN equal to NaN."""
     assert len(a) == len(b)
-    for x, y in zip(a, b):
-        assert all(u == v or (isinstance(u, float) and math.isnan(u) and math.isnan(v)) for u, v in zip(x, y)), (x, y)
+    for x, y in zip(a, b, strict=True):
+        assert all(u == v or (isinstance(u, float) and math.isnan(u) and math.isnan(v)) for u, v in zip(x, y, strict=True)), (x, y)
 
 
 def _python_front(monkeypatch):
@@ -74,7 +74,7 @@ def test_compiled_front_equals_python_on_the_timed_drive(shared_data, kitti_inde
             sp = speed_samples("auto", path, fmt, imu)[0]
         calls = []
         real = streaming._front_push
-        monkeypatch.setattr(streaming, "_front_push", lambda *x: calls.append(1) or real(*x))
+        monkeypatch.setattr(streaming, "_front_push", lambda *x: calls.append(1) or real(*x))  # noqa: B023 (called within this iteration)
         fast, est_c = _run(imu.t, imu.gyro, imu.accel, sp)
         monkeypatch.undo()
         assert len(calls) >= 0.9 * len(imu.t)
@@ -186,7 +186,7 @@ def replay_part(est, t, g, a, sp, upto=math.inf, after=-math.inf, final=False):
     ts, vs = sp[0].tolist(), sp[1].tolist()
     j = int(np.searchsorted(sp[0], after, side="right"))
     top, out = after, []
-    for ti, gi, ai in zip(t.tolist(), g.tolist(), a.tolist()):
+    for ti, gi, ai in zip(t.tolist(), g.tolist(), a.tolist(), strict=True):
         top = max(top, ti)
         while j < len(ts) and ts[j] <= top:
             est.push_speed(ts[j], vs[j])

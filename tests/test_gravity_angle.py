@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 from imu_ground.pipeline.input_checks import gravity_angle
 
 
-def _reference(a: np.ndarray, up=np.array([0.0, 0.0, 1.0])) -> float:
+def _reference(a: np.ndarray, up=np.array([0.0, 0.0, 1.0])) -> float:  # noqa: B008 (read-only defaults, never modified)
     a = a[np.all(np.isfinite(a), axis=1)]
     f = a.mean(axis=0)
     return float(np.degrees(np.arccos(np.clip(f @ up / np.linalg.norm(f), -1.0, 1.0))))

@@ -124,7 +124,7 @@ def test_public_building_blocks(drive):
     tr = GravityVelocityFilter(extrinsic=ext).run_body(d, dv, em.delta_t, em.stationary, em.valid)
     np.testing.assert_allclose(tr.velocity, GravityVelocityFilter(extrinsic=ext).run(em).velocity, atol=0)
     assert all(np.array_equal(p, q) for p, q in zip(egomotion_arrays(em), (em.delta_R, em.delta_v, em.delta_t,
-                                                                            em.stationary, em.valid)))
+                                                                            em.stationary, em.valid), strict=True))
 
 
 def test_egoframe_input_and_bad_frames_leave_the_state_unchanged(drive):

@@ -175,7 +175,7 @@ def test_hours_of_steps_stay_orthonormal_and_positive_definite():
     assert np.linalg.det(f.x) == pytest.approx(1.0, abs=1e-13)
 
 
-def _reference_step(x, P, u, z, Q, R, error, b=np.array([0.0, 0.0, 1.0])):
+def _reference_step(x, P, u, z, Q, R, error, b=np.array([0.0, 0.0, 1.0])):  # noqa: B008 (read-only defaults, never modified)
     """The module's equations in numpy, Joseph form throughout (an independent reference)."""
     x = x @ u
     if error == "left":
@@ -203,7 +203,7 @@ def test_scalar_kernels_match_the_numpy_equations(error, measure):
     Q, R = np.diag([1e-2, 2e-2, 5e-3]), np.array([[1.0, 0.1, 0.0], [0.1, 0.5, 0.05], [0.0, 0.05, 2.0]])
     f = InvariantEKF(x=so3.exp([0.3, -0.2, 1.0]), P=np.diag([0.5, 0.3, 0.2]), Q=Q, R=R, error=error)
     x, P = f.x.copy(), f.P.copy()
-    for k in range(RENORM_EVERY - 1):                  # before the first renormalisation
+    for _ in range(RENORM_EVERY - 1):                  # before the first renormalisation
         u = so3.exp(rng.normal(scale=0.05, size=3))
         z = so3.exp(rng.normal(scale=0.5, size=3)) if measure == "rotation" else \
             so3.exp(rng.normal(scale=0.2, size=3)) @ np.array([0.0, 0.0, 1.0])

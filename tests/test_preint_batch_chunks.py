@@ -62,7 +62,7 @@ def _valid_by_knot_intervals(t, T, snap_tol, max_gap):
     kt_all = sorted([(x, 1, i) for i, x in enumerate(t)] + [(x, 0, -1) for kind, x in bounds if kind == "insert"])
     sample_of_knot = []
     last = -1
-    for x, is_s, i in kt_all:
+    for _x, is_s, i in kt_all:
         if is_s:
             last = i
         sample_of_knot.append(last)

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from imu_ground import _native
-from imu_ground.imu import ImuData, imu_to_egomotion
+from imu_ground.imu import imu_to_egomotion
 from imu_ground.imu import preint_batch as pb
 
 NATIVE = _native.PREINT_BATCH

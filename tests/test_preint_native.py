@@ -97,7 +97,7 @@ def _log(n=1500, seed=0, gaps=()):
 
 def _assert_frames_equal(a, b):
     assert len(a) == len(b) > 0
-    for fa, fb in zip(a, b):
+    for fa, fb in zip(a, b, strict=True):
         assert_twins_equal(fa._s, fb._s, "deltas")
         assert_twins_equal(fa._u, fb._u, "uncertainty")
         assert (fa.n_intervals, fa.t_start, fa.t_end, fa.valid) == (fb.n_intervals, fb.t_start, fb.t_end, fb.valid)

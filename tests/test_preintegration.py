@@ -62,13 +62,13 @@ def assert_same(frames: list[PreintegratedImu], fd: FrameDeltas, tol=1e-12):
         np.testing.assert_allclose(f.covariance, C, rtol=0, atol=tol * max(np.abs(C).max(), 1e-300))
 
 
-def forster_reference(dts, ws, fs, bg=np.zeros(3), ba=np.zeros(3), sg=0.0, sa=0.0):
+def forster_reference(dts, ws, fs, bg=np.zeros(3), ba=np.zeros(3), sg=0.0, sa=0.0):  # noqa: B008 (read-only defaults, never modified)
     """Textbook Forster recursion (right error, 9x9 A Sigma A^T + B Q B^T, appendix Jacobians)."""
     R, v, p = np.eye(3), np.zeros(3), np.zeros(3)
     S = np.zeros((9, 9))
     dRg = np.zeros((3, 3))
     dVg, dVa, dPg, dPa = (np.zeros((3, 3)) for _ in range(4))
-    for dt, w, f in zip(dts, ws, fs):
+    for dt, w, f in zip(dts, ws, fs, strict=True):
         w = np.asarray(w) - bg
         f = np.asarray(f) - ba
         dR = so3.exp(w * dt)
@@ -140,7 +140,7 @@ def test_value_type_integrate_reset_copy():
     dts = rng.uniform(0.005, 0.02, 50)
     ws, fs = rng.normal(0, 1, (50, 3)), rng.normal(0, 3, (50, 3))
     pim = PreintegratedImu(bias_gyro=[0.01, 0.0, -0.02], gyro_noise_density=SG, accel_noise_density=SA)
-    for dt, w, f in zip(dts, ws, fs):
+    for dt, w, f in zip(dts, ws, fs, strict=True):
         pim.integrate(dt, w, f)                  # numpy rows accepted
     R, v, p, S, J = forster_reference(dts, ws, fs, np.array([0.01, 0.0, -0.02]), np.zeros(3), SG, SA)
     assert pim.n_intervals == 50 and pim.delta_t == pytest.approx(dts.sum(), rel=1e-15)
@@ -352,7 +352,7 @@ def test_streaming_accepts_tuples_lists_and_arrays():
         for i in range(len(t)):
             out += sp.push(np.float64(t[i]), conv(gyro[i]), conv(accel[i]))
         assert len(out) == len(ref)
-        for a, b in zip(out, ref):
+        for a, b in zip(out, ref, strict=True):
             np.testing.assert_array_equal(a.delta_R, b.delta_R)
             np.testing.assert_array_equal(a.delta_p, b.delta_p)
 
@@ -572,13 +572,13 @@ def test_streaming_deltas_only_matches_batch_and_refuses_covariance():
         a += full.push(t[i], w[i], f[i])
         b += lean.push(t[i], w[i], f[i])
     assert len(a) == len(b) > 10
-    for i, (x, y) in enumerate(zip(a, b)):
+    for i, (x, y) in enumerate(zip(a, b, strict=True)):
         assert np.allclose(y.delta_R, ref.delta_R[i], atol=1e-14)
         assert np.allclose(y.delta_v, x.delta_v, atol=1e-13) and np.allclose(y.delta_p, x.delta_p, atol=1e-13)
     with pytest.raises(ValueError, match="uncertainty=False"):
-        b[0].covariance
+        _ = b[0].covariance
     with pytest.raises(ValueError, match="uncertainty=False"):
-        b[0].d_R_d_bg
+        _ = b[0].d_R_d_bg
 
 
 # ---------------------------------------------------------------------------
@@ -713,7 +713,7 @@ def test_streaming_copies_and_pickles_continue_identically(frames):
     copies = [copy.deepcopy(sp), pickle.loads(pickle.dumps(sp))]
     outs = [[], [], []]
     for i in range(150, 300):
-        for out, s in zip(outs, [sp, *copies]):
+        for out, s in zip(outs, [sp, *copies], strict=True):
             out += s.push(t[i], gyro[i].tolist(), accel[i].tolist())
     assert len(outs[0]) > 5
     for other in outs[1:]:

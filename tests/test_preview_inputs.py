@@ -41,7 +41,7 @@ def test_a_fine_grid_is_drawn_in_bounded_memory():
     fine = BevGrid(5.0, 45.0, -7.0, 7.0, 0.01)                  # 4000 x 1400 pixels: 5.6 M
     assert drawn_grid(fine).shape == (1000, 350) and drawn_grid(fine).res == pytest.approx(0.04)
     for fmt in ("png", "gif"):
-        peak = _peak_bytes(lambda: render_preview(_small_preview(2), fmt, fine))
+        peak = _peak_bytes(lambda: render_preview(_small_preview(2), fmt, fine))  # noqa: B023 (called within this iteration)
         assert peak < 150e6, (fmt, peak / 1e6)                  # was 0.7 GB a panel: the warp's temporaries
     # the largest grid drawn at full size (a square of DRAWN_BEV_PIXELS a side) stays well under 1 GB; the
     # largest grid BevGrid accepts (49.6 M pixels) is drawn coarser, within that square
@@ -120,7 +120,7 @@ def test_captions_inside_a_gap_say_nan_as_the_csv_does(tmp_path, kitti_images, c
     assert code == 0, err
     table = pd.read_csv(tmp_path / "g.csv", comment="#")
     t = table["t"].to_numpy()
-    for label, ti in zip(labels, (25.0, 35.0)):
+    for label, ti in zip(labels, (25.0, 35.0), strict=True):
         row = table.iloc[int(np.argmin(np.abs(t - ti)))]
         if np.isnan(row["pitch_deg"]):
             assert "pitch nan deg, roll nan deg" in label, label

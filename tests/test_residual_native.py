@@ -64,7 +64,7 @@ def synthetic_frames(n: int = 3 * RENORM_EVERY + 7, seed: int = 0) -> np.ndarray
 def _trace_branches(d: np.ndarray) -> set:
     tr = np.trace(d, axis1=1, axis2=2)
     out = set()
-    for r, t in zip(d, tr):
+    for r, t in zip(d, tr, strict=True):
         out.add("trace" if t > 0 else ("x" if r[0, 0] >= r[1, 1] and r[0, 0] >= r[2, 2] else
                                        "y" if r[1, 1] >= r[2, 2] else "z"))
     return out

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -37,7 +36,8 @@ def _loop_track(seed: int = 0):
     return t, x, y, heading, speed
 
 
-def _brute_force(t, x, y, heading, speed, max_distance=1.0, max_heading=math.radians(15), min_sep=30.0):
+def _brute_force(t, x, y, heading, speed, max_distance=1.0, max_heading=math.radians(15),  # noqa: B008 (a float)
+                 min_sep=30.0):
     n = len(t)
     best = {}
     for i in range(n):
@@ -61,7 +61,7 @@ def test_pairs_match_brute_force():
     i, j = revisit_pairs(t, x, y, heading, speed)
     expected = _brute_force(t, x, y, heading, speed)
     assert len(expected) > 100                      # the loop's second lap pairs with its first
-    assert list(zip(i.tolist(), j.tolist())) == expected
+    assert list(zip(i.tolist(), j.tolist(), strict=True)) == expected
     # the backwards leg (opposite heading) and the stop pair with nothing
     assert np.all(j < 800) and np.all(i < 800)
     assert np.all(t[j] - t[i] >= 30.0)

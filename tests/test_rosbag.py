@@ -485,7 +485,7 @@ def test_serialize_stamped_equals_rosbags(frame_id, ros1):
         for i, ns in enumerate(stamps.tolist()):
             t = ts.types["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
             hdr = ts.types["std_msgs/msg/Header"](**({"seq": i} if ros1 else {}), stamp=t, frame_id=frame_id)
-            body = ts.types[msgtype.replace("Stamped", "")](**dict(zip(names, values[i])))
+            body = ts.types[msgtype.replace("Stamped", "")](**dict(zip(names, values[i], strict=True)))
             msg = ts.types[msgtype](header=hdr, **{field: body})
             assert got[i] == bytes(serialize(msg, msgtype)), (msgtype, i)
 

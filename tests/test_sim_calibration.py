@@ -55,7 +55,7 @@ def test_style_mix_weights_and_reproducible_by_seed():
     a = simulate_suite(6, seed=3, grades=("nav",), duration_range=(10.0, 20.0), styles={"urban": 1.0, "highway": 0.0})
     assert {r.params["speed"].style for r in a} == {"urban"}
     b = simulate_suite(6, seed=3, grades=("nav",), duration_range=(10.0, 20.0), styles={"urban": 1.0, "highway": 0.0})
-    for ra, rb in zip(a, b):
+    for ra, rb in zip(a, b, strict=True):
         np.testing.assert_array_equal(ra.imu.gyro, rb.imu.gyro)
     one = simulate(30.0, seed=9)
     np.testing.assert_array_equal(one.imu.accel, simulate(30.0, seed=9).imu.accel)

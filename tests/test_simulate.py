@@ -214,7 +214,7 @@ def test_suspension_natural_frequency_from_impulse_response(freq, damping):
     f_d = freq * math.sqrt(1.0 - damping**2)
     assert 1.0 / period == pytest.approx(f_d, rel=0.01)
     # damping from the decay of successive peaks of the same sign
-    peaks = np.array([np.abs(y[a:b]).max() for a, b in zip(crossings[:-1], crossings[1:])])
+    peaks = np.array([np.abs(y[a:b]).max() for a, b in zip(crossings[:-1], crossings[1:], strict=True)])
     delta = np.log(peaks[0] / peaks[2])                  # one full period apart
     zeta = delta / math.sqrt(4 * math.pi**2 + delta**2)
     assert zeta == pytest.approx(damping, rel=0.03)
@@ -374,7 +374,7 @@ def test_stops_measure_only_gravity_and_noise(urban_drive):
     st = tr["stationary"].to_numpy()
     assert st.any() and (~st).any()
     edges = np.flatnonzero(np.diff(np.r_[0, st.astype(int), 0]))
-    stops = list(zip(edges[::2], edges[1::2]))
+    stops = list(zip(edges[::2], edges[1::2], strict=False))
     assert len(stops) >= 2                               # initial rest + at least one stop
     t = r.imu.t
     for a, b in stops:

@@ -29,7 +29,7 @@ def test_exp_matches_scipy_batch_and_single():
     phi = _phis()
     ref = Rotation.from_rotvec(phi).as_matrix()
     assert np.abs(so3.exp(phi) - ref).max() < 1e-15
-    for p, r in zip(phi, ref):
+    for p, r in zip(phi, ref, strict=True):
         assert np.abs(so3.exp(p) - r).max() < 1e-15
         assert np.abs(so3.exp_one(p) - r).max() < 1e-15
 

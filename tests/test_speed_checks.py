@@ -132,7 +132,7 @@ def test_unknown_or_ambiguous_names_are_refused(truth_speed, tmp_path, cli, head
 
 
 def _speed_lines(t, v, blank_after=None):
-    rows = [f"{a:.2f},{b:.4f}" for a, b in zip(t, v)]
+    rows = [f"{a:.2f},{b:.4f}" for a, b in zip(t, v, strict=True)]
     if blank_after is not None:
         rows.insert(blank_after, "")                  # a blank line: skipped, but it moves the line numbers on
     return "t,speed\n" + "\n".join(rows) + "\n"

@@ -15,7 +15,7 @@ def test_track_reasons_equal_status_reason_of_every_frame():
     words = np.array([None, "", "mount moved: 0.9 deg", "NaN in delta_R", "road: no speed"], dtype=object)
     details = words[rng.integers(0, len(words), n)]
     got = track_reasons(codes, std, dt, details)
-    want = [status_reason(int(c), float(g), float(s), d) for c, g, s, d in zip(codes, dt, std, details)]
+    want = [status_reason(int(c), float(g), float(s), d) for c, g, s, d in zip(codes, dt, std, details, strict=True)]
     assert got.tolist() == want
     got = track_reasons(codes, std, dt)                                 # no details at all
-    assert got.tolist() == [status_reason(int(c), float(g), float(s)) for c, g, s in zip(codes, dt, std)]
+    assert got.tolist() == [status_reason(int(c), float(g), float(s)) for c, g, s in zip(codes, dt, std, strict=True)]

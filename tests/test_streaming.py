@@ -185,7 +185,7 @@ def _write_bag(path, imu, header_ns, record_ns, storage="mcap", twist=False):
     with RosWriter(path, storage=storage) as w:
         hi = w.add_topic("/imu/data", "sensor_msgs/msg/Imu")
         hs = w.add_topic("/vehicle/twist", "geometry_msgs/msg/TwistStamped") if twist else None
-        for k, (ns, rec) in enumerate(zip(header_ns.tolist(), record_ns.tolist())):
+        for k, (ns, rec) in enumerate(zip(header_ns.tolist(), record_ns.tolist(), strict=True)):
             g, a = imu.gyro[k], imu.accel[k]
             w.write(hi, rec, w.message(
                 "sensor_msgs/msg/Imu", header=w.header(ns, "imu_link", k),
@@ -268,7 +268,7 @@ def test_resume_at_random_samples_is_bit_identical():
         frames, size = _stream_with_cut(imu, sp, ext, cut)
         assert size < 16 * 1024, (cut, size)
         assert len(frames) == len(whole)
-        for x, y in zip(frames, whole):
+        for x, y in zip(frames, whole, strict=True):
             fields = ("t", "pitch", "roll", "pitch_std", "roll_std", "road_grade", "road_bank", "speed")
             assert np.array_equal([getattr(x, n) for n in fields], [getattr(y, n) for n in fields], equal_nan=True)
             assert (x.status, x.status_reason, x.valid) == (y.status, y.status_reason, y.valid)
@@ -337,7 +337,7 @@ def test_random_streams_never_raise(stream):
     frames += est.flush()
     _finite_when_valid(frames)
     times = [f.t for f in frames]
-    assert all(b > a for a, b in zip(times, times[1:]))          # in time order (no restart: no jump back)
+    assert all(b > a for a, b in zip(times, times[1:], strict=False))          # in time order (no restart: no jump back)
 
 
 def test_bad_data_each_said():
@@ -594,7 +594,7 @@ def test_speed_buffer_equals_frame_speed():
     te = np.arange(1.0, ts[-1] + 1.0, 0.1)
     want = frame_speed(ts, v, te, np.full(te.size, 0.1))
     buf = SpeedBuffer()
-    for x, y in zip(ts, v):
+    for x, y in zip(ts, v, strict=True):
         buf.push(float(x), float(y))
     got = []
     for e in te:

@@ -148,7 +148,7 @@ def test_road_pass_in_a_second_thread_gives_the_same_track(speed_drive, monkeypa
         f = SuspensionAwareFilter(extrinsic=ext)
         tracks[frames] = [f.run(frames_of(em, first), speed=v[:half]), f.run(frames_of(em, ~first), speed=v[half:])]
     assert threads == [True, True, False, False]
-    for a, b in zip(*tracks.values()):
+    for a, b in zip(*tracks.values(), strict=True):
         for name in ("pitch", "roll", "pitch_std", "roll_std", "road_grade", "road_bank", "road_grade_std",
                      "road_bank_std", "status", "status_reason"):
             x, y = np.asarray(getattr(a, name)), np.asarray(getattr(b, name))

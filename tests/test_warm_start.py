@@ -88,7 +88,7 @@ def test_gravity_velocity_filter_resumes(drive):
 def test_preintegrator_resumes_between_any_two_samples(drive, kw, j):
     sim, _ = drive
     imu = sim.imu
-    rows = list(zip(imu.t.tolist(), imu.gyro.tolist(), imu.accel.tolist()))[:1500]
+    rows = list(zip(imu.t.tolist(), imu.gyro.tolist(), imu.accel.tolist(), strict=True))[:1500]
 
     def frames(p, part):
         return [f for s in part for f in p.push(*s)]
@@ -99,7 +99,7 @@ def test_preintegrator_resumes_between_any_two_samples(drive, kw, j):
     q.load_state_dict(_through_json(p.state_dict()))
     got = head + frames(q, rows[j:])
     assert len(got) == len(want) > 10
-    for a, b in zip(got, want):
+    for a, b in zip(got, want, strict=True):
         np.testing.assert_allclose(a.delta_R, b.delta_R, rtol=0, atol=1e-12)
         np.testing.assert_allclose(a.delta_v, b.delta_v, rtol=0, atol=1e-12)
         assert (a.t_start, a.t_end, a.valid) == (b.t_start, b.t_end, b.valid)

@@ -112,7 +112,7 @@ def source_rows(table: list[dict]) -> list[dict]:
     rows = []
     for g in ("nav", "mems"):
         t = [r for r in table if r["grade"] == g]
-        col = lambda k: np.array([r[k] for r in t], dtype=float)          # noqa: E731
+        col = lambda k: np.array([r[k] for r in t], dtype=float)          # noqa: E731, B023 (used in this iteration)
         for a, ax in (("pitch", "x"), ("roll", "y")):
             off, spread = col(f"{a} offset"), col(f"{a} spread")
             seen = col(f"mean_u{ax}")
@@ -143,7 +143,7 @@ def twin_drives(crowns=TWIN_CROWNS, duration=TWIN_DURATION, seed=TWIN_SEED):
     errors = imu_errors(model, cleans[0]["t"].shape[0], IMU_RATE, seed)
     shift = np.mean(cleans[0]["accel"][:, 1] - cleans[1]["accel"][:, 1])
     out = []
-    for k, (cr, clean) in enumerate(zip(crowns, cleans)):
+    for k, (cr, clean) in enumerate(zip(crowns, cleans, strict=True)):
         bg, ng, ba, na = (e.copy() for e in errors)
         if k:
             ba[:, 1] += shift
@@ -162,7 +162,7 @@ def twin_rows(crowns=TWIN_CROWNS, duration=TWIN_DURATION, seed=TWIN_SEED) -> lis
     ev = drives[0].truth["evaluate"].to_numpy(bool) & drives[1].truth["evaluate"].to_numpy(bool)
     f = [np.asarray(d.imu.accel, dtype=float) for d in drives]
     noise = imu_error_model("mems").accel_noise_std(IMU_RATE)
-    err = [tr.roll - d.truth["roll"].to_numpy() for tr, d in zip(tracks, drives)]
+    err = [tr.roll - d.truth["roll"].to_numpy() for tr, d in zip(tracks, drives, strict=True)]
     truth = [d.truth["roll"].to_numpy()[ev] for d in drives]
     std = tracks[0].roll_std
     scales = np.round(np.arange(0.5, 4.0001, 0.05), 2)

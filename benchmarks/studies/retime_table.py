@@ -93,7 +93,7 @@ def rows(data: Path = SHARED) -> list[dict[str, object]]:
         common = _common_error(before, after)
         table.append({"drive": before["drive"], "samples": before["samples"],
                       "common drop": common[0], "common retime": common[1],
-                      **{f"{k} {p}": m[k] for p, m in zip(POLICIES, (before, after))
+                      **{f"{k} {p}": m[k] for p, m in zip(POLICIES, (before, after), strict=True)
                          for k in ("dropped", "invalid", "gaps", "pitch_err")},
                       "shift_max": after["shift_max"], "shift_rms": after["shift_rms"],
                       "ref_valid": before["ref_valid"]})

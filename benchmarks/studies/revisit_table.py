@@ -137,19 +137,19 @@ def ins_grade_rows(ds: list, speeds: dict) -> list[dict]:
         s = np.concatenate([p[1] for p in pairs])
         b = np.digitize(s, SIGMA_EDGES[1:-1])
         return {(f"sigma {lo:g}-{hi:g} deg" if math.isfinite(hi) else f"sigma > {lo:g} deg"):
-                float(e[b == k].mean()) for k, (lo, hi) in enumerate(zip(SIGMA_EDGES[:-1], SIGMA_EDGES[1:]))}
+                float(e[b == k].mean()) for k, (lo, hi) in enumerate(zip(SIGMA_EDGES[:-1], SIGMA_EDGES[1:], strict=True))}
 
     tracks = [GroundNormalFilter.paper(extrinsic=d.extrinsic).run(d.egomotion) for d in ds]
-    paper = np.array([score(d, t) for d, t in zip(ds, tracks)])
+    paper = np.array([score(d, t) for d, t in zip(ds, tracks, strict=True)])
     out = [dict(table="INS-grade", method="paper", drives=len(ds), mean_deg=float(paper.mean()),
-                **binned([_frame_errors(d, t) for d, t in zip(ds, tracks)]))]
+                **binned([_frame_errors(d, t) for d, t in zip(ds, tracks, strict=True)]))]
     for label, (kw, sp) in VARIANTS.items():
         tracks = [_suspension(d, kw, sp, speeds) for d in ds]
-        e = np.array([score(d, t) for d, t in zip(ds, tracks)])
+        e = np.array([score(d, t) for d, t in zip(ds, tracks, strict=True)])
         r = e / paper
         out.append(dict(table="INS-grade", method=label, drives=len(ds), mean_deg=float(e.mean()),
                         worst_ratio_to_paper=float(r.max()), worst_drive=ds[int(r.argmax())].name,
-                        **binned([_frame_errors(d, t) for d, t in zip(ds, tracks)])))
+                        **binned([_frame_errors(d, t) for d, t in zip(ds, tracks, strict=True)])))
     return out
 
 
@@ -170,13 +170,14 @@ def held_out_rows(rev: list, pairs: dict, speeds: dict) -> list[dict]:
             m = revisit_consistency(dp, dr)
             return m["pitch_deg"], m["roll_deg"]
 
-        schemes = [(f"chosen on {a.name}, scored on {b.name}", lambda x, a=a: [res[(a.name, x)]],
-                    lambda x, b=b: [res[(b.name, x)]]) for a in rev for b in rev if a is not b]
-        half = lambda v, first: (v[0][: len(v[0]) // 2], v[1][: len(v[1]) // 2]) if first else \
-            (v[0][len(v[0]) // 2:], v[1][len(v[1]) // 2:])
+        schemes = [(f"chosen on {a.name}, scored on {b.name}", lambda x, a=a: [res[(a.name, x)]],  # noqa: B023 (used in this iteration)
+                    lambda x, b=b: [res[(b.name, x)]]) for a in rev for b in rev if a is not b]  # noqa: B023 (used in this iteration)
+        def half(v, first):
+            return (v[0][: len(v[0]) // 2], v[1][: len(v[1]) // 2]) if first else \
+                (v[0][len(v[0]) // 2:], v[1][len(v[1]) // 2:])
         schemes.append(("chosen on the first half of each drive's pairs, scored on the second",
-                        lambda x: [half(res[(d.name, x)], True) for d in rev],
-                        lambda x: [half(res[(d.name, x)], False) for d in rev]))
+                        lambda x: [half(res[(d.name, x)], True) for d in rev],  # noqa: B023 (used in this iteration)
+                        lambda x: [half(res[(d.name, x)], False) for d in rev]))  # noqa: B023 (used in this iteration)
         for label, train, test in schemes:
             tr = {x: metric(train(x)) for x in grid}
             best = min(grid, key=lambda x: sum(tr[x]))

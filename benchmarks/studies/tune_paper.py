@@ -52,7 +52,7 @@ def rows(data: Path = DEFAULT_DATA, drives: int = 0) -> list[dict]:
     ds = valid_drives(data, drives)
     table = np.array([[score(d, q) for q in GRID] for d in ds])      # drives x grid
     mean = table.mean(axis=0)
-    out = [dict(Q=q, R=1.0, drives=len(ds), mean_deg=float(m)) for q, m in zip(GRID, mean)]
+    out = [dict(Q=q, R=1.0, drives=len(ds), mean_deg=float(m)) for q, m in zip(GRID, mean, strict=True)]
     rng = np.random.default_rng(0)
     picks, tests, papers = [], [], []
     i_paper = GRID.index(1e-2)

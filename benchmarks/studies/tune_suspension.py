@@ -112,7 +112,7 @@ def rows(data: Path = DEFAULT_DATA, drives: int = 0) -> list[dict]:
 def _grid(ds, speeds) -> tuple[np.ndarray, np.ndarray]:
     """Per-drive scores (drives x CROSS_GAINS): drive-mean removed and per moving segment."""
     err, seg = np.zeros((len(ds), len(CROSS_GAINS))), np.zeros((len(ds), len(CROSS_GAINS)))
-    for i, (d, v) in enumerate(zip(ds, speeds)):
+    for i, (d, v) in enumerate(zip(ds, speeds, strict=True)):
         for j, c in enumerate(CROSS_GAINS):
             tr = SuspensionAwareFilter(extrinsic=d.extrinsic, cross_gain=c * DEG).run(d.egomotion, speed=v)
             err[i, j], seg[i, j] = score(d, tr), segment_score(d, tr)

@@ -36,6 +36,7 @@ __all__ = [
 
 class LazyHelp(str):
     """Help text computed only when ``--help`` prints it (lists that need a library import)."""
+    _fn: Callable[[], str]
 
     def __new__(cls, fn: Callable[[], str]) -> LazyHelp:
         obj = super().__new__(cls, "(listed by --help)")
@@ -145,7 +146,7 @@ def say(text: str) -> None:
     print(text, flush=True)
 
 
-def warn_line(message: str, file: Any = None) -> None:
+def warn_line(message: Warning | str, file: Any = None) -> None:
     """A warning as one line on stderr, ``file: warning: message`` (no Python source line; options as CLI flags)."""
     text = " ".join((message.cli_message() if hasattr(message, "cli_message") else str(message)).split())
     prefix = f"{file}: " if file is not None else ""

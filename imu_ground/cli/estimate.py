@@ -4,7 +4,6 @@ from __future__ import annotations
 import argparse
 import time
 import warnings
-from pathlib import Path
 
 import numpy as np
 
@@ -125,7 +124,7 @@ def run(a: argparse.Namespace) -> int:
                 raise ImuGroundError(f"{a.plot}: given to both {flag} and --plot; the two outputs need two file "
                                      f"names (e.g. --plot {Path(a.plot).stem}_plot.png)")
     outputs = [check_output_path(a.output or default_output_name(a.log), [a.log])]
-    kinds = [None]
+    kinds: list[str | None] = [None]
     if a.tum:
         outputs.append(check_output_path(a.tum, [a.log], "--tum", kind=".tum"))
         kinds.append(".tum")
@@ -168,7 +167,8 @@ def run(a: argparse.Namespace) -> int:
         h = res.meta["plane"].height
         say(f"camera {a.camera}: height above the road {np.nanmean(h):.3f} m (range {np.nanmin(h):.3f} .. "
             f"{np.nanmax(h):.3f}) over the {int(np.isfinite(h).sum())} frames with a plane")
+    wrote = [str(p) for p in outputs]
     if a.planes is not None:
-        outputs.append(f"{len(table)} planes files in {a.planes}")
-    say("wrote " + " and ".join(str(p) for p in outputs))
+        wrote.append(f"{len(table)} planes files in {a.planes}")
+    say("wrote " + " and ".join(wrote))
     return 0

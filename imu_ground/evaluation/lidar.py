@@ -749,7 +749,7 @@ def lidar_table(estimates: dict[str, Any], t_scan: Any, lidar_pitch: Any, lidar_
     summary = pd.DataFrame.from_dict(rows, orient="index")
     summary.index.name = "method"
     if len(np.atleast_1d(t_scan)) >= 3:
-        boot = bootstrap_spread({k: g["d_pitch_deg"].to_numpy() for k, g in frames.groupby("method", sort=False)})
+        boot = bootstrap_spread({str(k): g["d_pitch_deg"].to_numpy() for k, g in frames.groupby("method", sort=False)})
         summary = summary.join(boot.drop(columns="spread"))
     return frames, summary
 
@@ -810,7 +810,7 @@ def lidar_figure(frames: pd.DataFrame, title: str = ""):
     FigureCanvasAgg(fig)
     axes = fig.subplots(2, 1, sharex=True)
     first = frames[frames["method"] == frames["method"].iloc[0]]
-    for ax, what in zip(axes, ("pitch", "roll")):
+    for ax, what in zip(axes, ("pitch", "roll"), strict=True):
         lidar = first[f"lidar_{what}_deg"].to_numpy()
         ax.plot(first["t"], lidar - lidar.mean(), "k.-", lw=2, label="LiDAR plane")
         for name, g in frames.groupby("method", sort=False):

@@ -85,20 +85,20 @@ def add_lidar_plane(preview: Preview, scans: str | Path, spec: str | Path, imu_e
                           "image, in the images' order", "lidar")
     transform = L.lidar_transform(spec, imu_extrinsic)
     cam = preview.camera
-    normals, heights, marks = [], [], []
+    normals, heights, measured = [], [], []
     for f in files:
         pts = L.read_scan(f)
         normal, d = L.fit_ground_plane(pts, region, seed=seed, source=str(f))
         normals.append(normal)
         n_g = transform.rotation @ normal
         heights.append(d - n_g @ transform.translation)        # the ground origin's height above the measured road
-        marks.append(measured_point(pts, normal, d, transform, distance))
+        measured.append(measured_point(pts, normal, d, transform, distance))
     pitch, roll = L.lidar_pitch_roll(np.array(normals), transform.rotation)
     # the measured plane: its attitude, and its height (the camera is as much higher above it as the ground origin)
     tilted = GroundPlane.from_pitch_roll(cam, pitch, roll)
     lifted = tilted.translation + np.outer(heights, [0.0, 0.0, 1.0])
     preview.planes["lidar"] = GroundPlane(cam.K, tilted.rotation, lifted, cam.image_size)
-    marks = np.array(marks)
+    marks = np.array(measured)
     # the measured point's pixel, through the static extrinsics (camera and LiDAR both fixed on the body)
     ext = cam.extrinsic
     in_cam = (marks - ext.translation) @ ext.rotation                # R^T (x_g - t), row-wise

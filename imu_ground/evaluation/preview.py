@@ -124,6 +124,7 @@ def synthetic_preview(seed: int = 3, duration: float = 40.0, frames: int = 1, gr
               "truth": GroundPlane.from_pitch_roll(cam, truth["pitch"].to_numpy(), truth["roll"].to_numpy())}
     lane = {"distance_m": PLOT_DISTANCES.tolist()} if moving.any() else None     # (none: a drive too short to move)
     for name in ("static", "dynamic") if lane else ():
+        assert lane is not None
         err = ground_errors(planes["truth"][moving], planes[name][moving], PLOT_DISTANCES, LANE_WIDTH)
         lane[name] = np.nanmean(np.abs(err["lane_width"]), axis=0).tolist()
     pitch = np.where(moving, np.abs(truth["pitch"].to_numpy()), -1.0)
@@ -244,9 +245,9 @@ def images_preview(images: str | Path, times: str | Path, camera: str | Camera, 
     if pitch is not None and roll is not None:
         p, r = np.degrees(np.asarray(pitch)[nearest]), np.degrees(np.asarray(roll)[nearest])
         labels = [f"{f.name}: t = {ti:.2f} s, estimate pitch {_deg(a)} deg, roll {_deg(b)} deg"
-                  for f, ti, a, b in zip(files, t_img, p, r)]
+                  for f, ti, a, b in zip(files, t_img, p, r, strict=True)]
     else:
-        labels = [f"{f.name}: t = {ti:.2f} s" for f, ti in zip(files, t_img)]
+        labels = [f"{f.name}: t = {ti:.2f} s" for f, ti in zip(files, t_img, strict=True)]
     return Preview(cam, planes, t_img, lambda k: _read_image(files[k], cam), title=title, labels=labels)
 
 

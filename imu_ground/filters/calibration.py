@@ -59,13 +59,13 @@ The calibration file format (:class:`~imu_ground.filters.extrinsics.Calibration`
 """
 from __future__ import annotations
 
-import warnings
 from typing import TYPE_CHECKING, Any, Optional, Sequence, Union
 
 import numpy as np
 
 from imu_ground import so3
 from imu_ground.datasets.options import OptionError
+from imu_ground.datasets.report import warn_user
 from imu_ground.errors import ImuGroundError
 from imu_ground.filters.estimator import as_egomotion
 from imu_ground.filters.extrinsics import Calibration, Extrinsic, load_calibration
@@ -138,7 +138,7 @@ def _suspension_gains(egos, R, min_speed, lever_arm, band, stats: dict) -> np.nd
     """Pooled band-pass gain regression in the ground frame of ``R`` (rad per m/s^2); notes go to ``stats``."""
     _, tracks, movings = _pooled_frames(egos, R, min_speed, lever_arm)
     sxy, sxx = np.zeros(2), np.zeros(2)
-    for em, gt, mv in zip(egos, tracks, movings):
+    for em, gt, mv in zip(egos, tracks, movings, strict=True):
         if len(em) < 2:
             continue
         _, a, b = bandpass_gain_regression(gt.body_increments, gt.acceleration, band=band,
@@ -282,12 +282,11 @@ def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "Ego
     """
     if tilt not in ("auto", "cruise", "standstill", "all"):
         raise ImuGroundError(f"tilt must be 'auto', 'cruise', 'standstill' or 'all', got {tilt!r}")
-    many = isinstance(data, (list, tuple))
-    egos = [as_egomotion(d, rate) for d in (data if many else [data])]
+    egos = [as_egomotion(d, rate) for d in (data if isinstance(data, (list, tuple)) else [data])]
     if not egos or sum(len(e) for e in egos) < 2:
         raise ImuGroundError("calibration needs at least two frames")
-    translation = np.zeros(3) if translation is None else _finite3(translation, "translation")
-    lever_arm = None if lever_arm is None else _finite3(lever_arm, "lever_arm")
+    t_gs = np.zeros(3) if translation is None else _finite3(translation, "translation")
+    lever = None if lever_arm is None else _finite3(lever_arm, "lever_arm")
 
     def up_of(fs, mask):
         if not np.any(mask):
@@ -329,11 +328,11 @@ def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "Ego
                                   f"the yaw needs {min_drive_s:g} s with turns or speed changes")
         R = _extrinsic_from_axes(up, R[0] if fwd is None else fwd)
     if tilt == "auto" and src != "cruise":
-        warnings.warn(f"calibration: tilt ('up') from the {src} frames: {why}")
+        warn_user(f"calibration: tilt ('up') from the {src} frames: {why}", UserWarning)
     if fwd is None and moving_s < min_drive_s:
-        warnings.warn(f"calibration: mounting yaw not determined, the sensor's x axis is taken as forward: "
+        warn_user(f"calibration: mounting yaw not determined, the sensor's x axis is taken as forward: "
                       f"{moving_s:.1f} s of driving above {min_speed:g} m/s; the yaw needs {min_drive_s:g} s with "
-                      "turns or speed changes")
+                      "turns or speed changes", UserWarning)
     if gains and moving_s < min_drive_s:
         never = "the drive never moves: " if moving_s == 0 else ""
         raise TooLittleDataError(f"{never}{moving_s:.1f} s of driving above {min_speed:g} m/s; the suspension "
@@ -348,6 +347,6 @@ def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "Ego
         if u is not None:
             r, p, _ = np.degrees(euler_zyx(_extrinsic_from_axes(u, R[0])))
             stats[f"tilt_{name}_deg"] = (round(float(p), 4), round(float(r), 4))
-    k = _suspension_gains(egos, R, min_speed, lever_arm, band, stats) if gains else None
+    k = _suspension_gains(egos, R, min_speed, lever, band, stats) if gains else None
     meta = {"calibrated_by": "imu_ground.filters.calibration.calibrate", "tilt_source": src, "yaw_source": yaw_src}
-    return Calibration(Extrinsic(R, translation, meta), k, stats)
+    return Calibration(Extrinsic(R, t_gs, meta), k, stats)

@@ -13,6 +13,8 @@ non-finite, ``delta_t <= 0``) raises ``ValueError`` and leaves the state as it w
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from imu_ground.filters.estimator import GroundEstimate, GroundTrack, as_egomotion, pitch_roll_from_normal
@@ -24,6 +26,7 @@ from imu_ground.filters.frame_checks import (
     frame_where,
     static_rotation,
 )
+from imu_ground.imu.egomotion import EgoMotion
 from imu_ground.so3 import cumulative_rotations
 from imu_ground.units import RENORM_EVERY
 
@@ -59,6 +62,8 @@ class BaselineEstimator:
 
     #: Whether ``run(..., smooth=True)`` is allowed (it changes nothing for a constant estimate).
     _smooth_ok = False
+    #: The whole drive at once (each estimator's own; :meth:`run` checks the input first).
+    _run: Callable[[EgoMotion], GroundTrack]
 
     def run(self, egomotion, smooth: bool = False) -> GroundTrack:
         """Process a drive (continuing from the current state, as ``step`` would).

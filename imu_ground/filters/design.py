@@ -17,7 +17,7 @@ from imu_ground.imu.warm_start import as_reader
 __all__ = ["butter_bandpass", "foh_filter", "IIRFilter"]
 
 
-def butter_bandpass(band: Sequence[float], rate: float, order: int = 2):
+def butter_bandpass(band: Sequence[float], rate: float, order: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """Butterworth band-pass ``(b, a)`` for a signal sampled at ``rate``.
 
     Parameters

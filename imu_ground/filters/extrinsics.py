@@ -131,7 +131,7 @@ def _numbers(path: Path, lineno: int, key: str, text: str, count: int) -> np.nda
     except ValueError as e:
         raise ImuGroundError(f"{path}:{lineno}: '{key}' has a value that is not a number: {e}") from None
     if not np.all(np.isfinite(values)):
-        bad = " ".join(v for v, x in zip(parts, values) if not np.isfinite(x))
+        bad = " ".join(v for v, x in zip(parts, values, strict=True) if not np.isfinite(x))
         raise ImuGroundError(f"{path}:{lineno}: '{key}' has a value that is not finite ({bad}); the file is "
                              "unusable: calibrate again or fix the line")
     return values

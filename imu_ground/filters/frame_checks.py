@@ -159,7 +159,7 @@ def frame_statuses(d: np.ndarray, dv: Optional[np.ndarray] = None, dt: Optional[
     return out
 
 
-def _problem_at(k: int, status: int, d: np.ndarray, dv, dt) -> str:
+def _problem_at(k: int, status: int, d: np.ndarray, dv, dt) -> Optional[str]:
     return frame_problem(d[k].ravel().tolist(), None if dv is None else np.asarray(dv[k], dtype=float).tolist(),
                          1.0 if dt is None else float(dt[k]), status=status)
 
@@ -207,6 +207,7 @@ def checked_frames(d: np.ndarray, dv: Optional[np.ndarray], dt: Optional[np.ndar
     if on_invalid == "raise" and not good.all():
         k = int(np.argmin(good))
         problem = _problem_at(k, int(status[k]), np.asarray(d, dtype=float), dv, dt)
+        assert problem is not None          # the frame's status is not OK
         raise bad_frame_error(problem, frame_where(k, float(t[k])) + f"; {len(good) - good.sum()} bad of {len(good)}")
     return good
 
@@ -316,6 +317,7 @@ def bad_frame(frame, status: int, d: np.ndarray, dv, dt: float, on_invalid: str,
     if on_invalid == "raise":
         dv3 = None if dv is None else np.asarray(dv, dtype=float).ravel().tolist()
         problem = frame_problem(np.asarray(d, dtype=float).ravel().tolist(), dv3, dt, status)
+        assert problem is not None          # called for a frame whose status is not OK
         raise bad_frame_error(problem, frame_where(index, getattr(frame, "t", math.nan)))
 
 

@@ -364,7 +364,7 @@ def run_frames(s: list, d, dv, dt, stationary, valid, speed, v_out, g_out, p_out
         body_out[...] = d
     sp = [math.nan] * n if speed is None else np.asarray(speed, dtype=float).tolist()
     frames = list(zip(np.reshape(d, (n, 9)).tolist(), np.asarray(dv).tolist(), np.asarray(dt).tolist(),
-                      np.asarray(stationary).tolist(), np.asarray(valid).tolist(), sp))
+                      np.asarray(stationary).tolist(), np.asarray(valid).tolist(), sp, strict=True))
     r_start, w_prev = s[27:36], s[I_WPREV:I_WPREV + 4]
     out, pri = array("d"), (array("d") if priors is not None else None)
     last = _predict_update(s, frames, out, pri)
@@ -376,7 +376,8 @@ def run_frames(s: list, d, dv, dt, stationary, valid, speed, v_out, g_out, p_out
     cum_out[...] = rows[:, 27:].reshape(n, 3, 3)
     speed_out[...] = np.linalg.norm(rows[:, :3], axis=1)
     if priors is not None:
-        priors[...] = np.frombuffer(pri, dtype=float).reshape(n, 27)
+        assert pri is not None                  # made with priors
+        priors[...] = np.frombuffer(pri, dtype=np.float64).reshape(n, 27)
     lever = s[I_LEVER + 1:I_LEVER + 4] if s[I_LEVER] else None
     f, acc, w_last = body_forces(d, dv, dt, g_out, np.reshape(r_start, (3, 3)), cum_out, lever,
                                  w_prev[1:] if w_prev[0] else None)

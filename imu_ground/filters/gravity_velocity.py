@@ -190,7 +190,7 @@ class GravityVelocityFilter:
                  sigma_g0: float = 1.0,
                  zupt_gate: float = 100.0, v0: Optional[Sequence[float]] = None,
                  g0: Optional[Sequence[float]] = None, extrinsic: Union[Extrinsic, np.ndarray, None] = None,
-                 lever_arm: Optional[Sequence[float]] = None, R0: Optional[np.ndarray] = None,
+                 lever_arm: Optional[Union[Sequence[float], np.ndarray]] = None, R0: Optional[np.ndarray] = None,
                  sigma_speed: float = 0.1) -> None:
         if not 0 < float(sigma_speed) <= 1e3:     # (larger: no information, and S ill-conditioned)
             raise ValueError(f"sigma_speed must be in (0, 1000] m/s (no speed: leave it out), got {sigma_speed!r}")
@@ -379,7 +379,9 @@ class GravityVelocityFilter:
         one, raises :class:`~imu_ground.imu.warm_start.StateError` (a ValueError) naming what is wrong."""
         st = StateReader("GravityVelocityFilter", unpack_state(state, "GravityVelocityFilter", STATE_VERSION,
                                                                self._settings()))
-        self.load_kernel_state(self.read_kernel_state(st, "buffer"))
+        buffer = self.read_kernel_state(st, "buffer")
+        assert buffer is not None                   # not optional
+        self.load_kernel_state(buffer)
 
     # -- the plain-float views the suspension-aware filter reads each frame -----------------------------
     def horizontal_gravity_variance(self) -> float:
@@ -511,6 +513,7 @@ class GravityVelocityFilter:
         if sensor:
             d, dv = body, (self.to_body(d, dv)[1] if smooth else None)
         if smooth and n:
+            assert priors is not None
             xs, P = _rts(np.hstack([v, g]), P, priors[:, :6], _full_cov(priors[:, 6:27]), dt)
             v, g = xs[:, :3].copy(), xs[:, 3:].copy()
             f, acc, _ = body_forces(d, dv, dt, g, r_start, cum, self._lever, w_prev[1:] if w_prev[0] else None)

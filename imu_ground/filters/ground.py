@@ -27,7 +27,7 @@ reference code's forward-axis measurement, general covariances) an
 """
 from __future__ import annotations
 
-from typing import Optional, Union
+from typing import Any, Optional, Union
 
 import numpy as np
 
@@ -148,7 +148,7 @@ class GroundNormalFilter:
         ``Q = 1e-2 I``, ``R = I``, ``P0 = I``, one predict and update a frame;
         rotations accumulated in the correct order. Keyword arguments override.
         """
-        kw = dict(Q=1e-2, R=1.0, P=1.0, measurement="rotation", follow_heading=False)
+        kw: dict[str, Any] = dict(Q=1e-2, R=1.0, P=1.0, measurement="rotation", follow_heading=False)
         kw.update(kwargs)
         return cls(**kw)
 
@@ -161,7 +161,7 @@ class GroundNormalFilter:
         axis), so roll about it is never corrected. Its accumulation-order
         error is not reproduced.
         """
-        kw = dict(Q=1e-2, R=1.0, P=1.0, measurement="forward", follow_heading=False)
+        kw: dict[str, Any] = dict(Q=1e-2, R=1.0, P=1.0, measurement="forward", follow_heading=False)
         kw.update(kwargs)
         return cls(**kw)
 
@@ -217,6 +217,7 @@ class GroundNormalFilter:
         if self._scalar:
             ekf = cumulative = None
         else:
+            assert self.ekf is not None             # not scalar
             ekf = self.ekf.read_kernel_state(st, "ekf")
             cumulative = st.floats("cumulative", (3, 3))
         self.reset()
@@ -299,7 +300,7 @@ class GroundNormalFilter:
             Xs, Ps = self._smooth(dg, Xs, Ps)
             E = np.swapaxes(Xs, 1, 2) @ cum
         a = 0.5 * (Ps[:, 0, 0] + Ps[:, 1, 1])
-        E, Ps, cum = (hold_skipped(v, good, s) for v, s in zip((E, Ps, cum), start))
+        E, Ps, cum = (hold_skipped(v, good, s) for v, s in zip((E, Ps, cum), start, strict=True))
         n = len(good)
         var_max = np.full(n, np.inf)
         stds = np.full((n, 2), np.nan)                  # (a skipped frame has none, as in step)
@@ -311,7 +312,7 @@ class GroundNormalFilter:
                                           pitch_std=stds[:, 0], roll_std=stds[:, 1], status=codes,
                                           status_reason=track_reasons(
                                               codes, np.sqrt(var_max), em.delta_t,
-                                              np.where(codes == OK, NO_ROAD_REASON, None),
+                                              np.where(codes == OK, NO_ROAD_REASON, np.array(None, dtype=object)),
                                               converged_std=FILTER_CONVERGED_STD))
 
     def _smooth(self, d: np.ndarray, Xs: np.ndarray, Ps: np.ndarray):
@@ -418,8 +419,9 @@ class _EkfEngine:
     y = property(lambda self: self.ekf.y)
     S = property(lambda self: self.ekf.S)
 
-    def resume(self, ekf: list, cumulative: np.ndarray) -> None:
+    def resume(self, ekf: Optional[list], cumulative: Optional[np.ndarray]) -> None:
         """After a warm start: the EKF's saved buffer and the cumulative rotation (world <- body)."""
+        assert ekf is not None and cumulative is not None      # both are in an EKF filter's state
         self.ekf.load_kernel_state(ekf)
         self.cumulative = cumulative
 

@@ -114,12 +114,13 @@ if _C is not None:                      # state: an array('d'), read through a m
     def _from_array(a: np.ndarray) -> array:
         return array("d", a.tobytes())
 else:                                   # state: a list
-    _predict, _update, _fill_x, _buffer = _kernel.predict, _kernel.update, state_x, list
+    # (mypy takes one type per name, the compiled kernels' above: here the state is a list, not an array)
+    _predict, _update, _fill_x, _buffer = _kernel.predict, _kernel.update, state_x, list  # type: ignore[assignment]
 
-    def _view(s: list) -> list:
+    def _view(s: list) -> list:  # type: ignore[misc]
         return s
 
-    def _from_array(a: np.ndarray) -> list:
+    def _from_array(a: np.ndarray) -> list:  # type: ignore[misc]
         return a.ravel().tolist()
 
 
@@ -240,7 +241,8 @@ class InvariantEKF:
         self._s[B_X:B_X + 9] = _buffer(xt)       # x as given (the quaternion is its Shepperd conversion)
         self._s[B_XV] = 1.0
         self._x_t = b""                          # bytes of x as last handed out or assigned
-        self._x_a = self._P_a = self._Q_a = self._R_a = None     # arrays handed out (see _state_property)
+        self._x_a: np.ndarray | None = None      # arrays handed out (see _state_property)
+        self._P_a = self._Q_a = self._R_a = None
         self._held = False                       # any of them not None
 
     def _take_held(self) -> None:

@@ -211,15 +211,15 @@ def predict(s: list, u, Q: np.ndarray | None) -> bool:
     """``InvariantEKF.predict`` on the state ``s``: increment ``u`` (None, (3, 3) or a rotation vector (3,),
     rad), process noise ``Q`` ((3, 3) array; None: the state's). Returns True (the C twin's "done")."""
     P = s[B_P:B_P + 9]
-    q = s[B_Q:B_Q + 4]
-    qn = s[B_QN:B_QN + 9] if Q is None else Q.ravel().tolist()
+    q: list | tuple = s[B_Q:B_Q + 4]
+    qn: list | tuple = s[B_QN:B_QN + 9] if Q is None else Q.ravel().tolist()
     if u is None:
         U = None
     elif type(u) is np.ndarray and u.shape == (3, 3):
         U = u.ravel().tolist()
     else:
         U = flat_rotation(u)
-    x = None
+    x: list | tuple | None = None
     if U is not None:
         q = quat_mul(q, quat_from_flat(U))
         if s[B_LEFT]:                   # P <- U^T P U + Q
@@ -265,7 +265,7 @@ def _update_general(s: list, shape, zl, r):
             x0, x1, x2, x3, x4, x5, x6, x7, x8 = x
             y = (x0 * z0 + x3 * z1 + x6 * z2 - b0, x1 * z0 + x4 * z1 + x7 * z2 - b1,
                  x2 * z0 + x5 * z1 + x8 * z2 - b2)
-            H = s[B_HB:B_HB + 9]
+            H: list | tuple = s[B_HB:B_HB + 9]
             Rn = _congruence((x0, x3, x6, x1, x4, x7, x2, x5, x8), r)
         else:
             xb = (x[0] * b0 + x[1] * b1 + x[2] * b2, x[3] * b0 + x[4] * b1 + x[5] * b2,
@@ -274,12 +274,12 @@ def _update_general(s: list, shape, zl, r):
             H = tuple(-v for v in hat_flat(*xb))
             Rn = r
         PHT = mul_nt_flat(P, H)
-        S = tuple(m + n for m, n in zip(_sym_upper(mul_flat(H, PHT)), _sym_upper(Rn)))
+        S = tuple(m + n for m, n in zip(_sym_upper(mul_flat(H, PHT)), _sym_upper(Rn), strict=True))
         SI, detS = _inv_flat(S)
         K = mul_flat(PHT, SI)
         KH = mul_flat(K, H)
-        IKH = tuple(i - kh for i, kh in zip(_I9, KH))           # Joseph form
-        Pn = tuple(m + n for m, n in zip(_congruence(IKH, P), _congruence(K, Rn)))
+        IKH = tuple(i - kh for i, kh in zip(_I9, KH, strict=True))           # Joseph form
+        Pn = tuple(m + n for m, n in zip(_congruence(IKH, P), _congruence(K, Rn), strict=True))
     else:
         raise ValueError(f"z must be a 3x3 rotation or a unit vector of shape (3,), got {shape}")
     y0, y1, y2 = y

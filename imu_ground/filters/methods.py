@@ -73,7 +73,7 @@ class MethodSpec:
 class _Factory:
     """A factory with its estimator constructor's signature (so a method lists the options it takes)."""
 
-    def __init__(self, fn: Callable[..., Any], cls: type) -> None:
+    def __init__(self, fn: Callable[..., Any], cls: type[Any]) -> None:
         self.fn = fn
         init = inspect.signature(cls.__init__).parameters
         self.__signature__ = inspect.Signature([p for name, p in init.items() if name != "self"])

@@ -161,8 +161,8 @@ class MountRecalibrator:
         m = rows[:, 1:4]
         theta = np.cross(ref, m) / np.linalg.norm(m, axis=1).mean()   # u_ref -> u_k, small angle, world frame
         t = rows[:, 0] - rows[-1, 0]
-        best = (np.inf, 0, None)
-        for k0 in np.flatnonzero((rows[:, 0] >= t_ref) & (np.arange(n) >= 5) & (np.arange(n) <= n - 5)):
+        best: tuple[float, int, np.ndarray | None] = (np.inf, 0, None)
+        for k0 in np.flatnonzero((rows[:, 0] >= t_ref) & (np.arange(n) >= 5) & (np.arange(n) <= n - 5)).tolist():
             A = np.column_stack([np.ones(n), t, np.arange(n) >= k0])      # level, the world frame's drift, step
             coef, res, _, _ = np.linalg.lstsq(A, theta, rcond=None)
             sse = float(res.sum()) if len(res) else float(((A @ coef - theta) ** 2).sum())

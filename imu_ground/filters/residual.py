@@ -33,6 +33,7 @@ follow_heading cumulative has_Rgs renorm_every``; ``[30:39]`` ``R_gs`` row-major
 from __future__ import annotations
 
 from array import array
+from collections.abc import MutableSequence
 from math import atan2, cos, nan, sin, sqrt
 from types import SimpleNamespace
 from typing import Optional, Sequence
@@ -52,7 +53,7 @@ _F64 = np.dtype(np.float64)
 BUF_LEN = 39
 
 
-def advance(buf: array, frames: Sequence[Sequence[float]], q_h: Sequence[float], q_v: float,
+def advance(buf: MutableSequence[float], frames: Sequence[Sequence[float]], q_h: Sequence[float], q_v: float,
             tilt_x: Optional[Sequence[float]] = None, tilt_y: Optional[Sequence[float]] = None,
             angles: bool = True) -> list:
     """Advance the filter in ``buf`` over frames: the pure-Python reference loop (unrolled, hence its length).
@@ -92,7 +93,7 @@ def advance(buf: array, frames: Sequence[Sequence[float]], q_h: Sequence[float],
     if g:
         g00, g01, g02, g10, g11, g12, g20, g21, g22 = buf[_P_G:BUF_LEN]
     tilt = tilt_x is not None and not up
-    out = []
+    out: list[tuple] = []
     append = out.append
     pitch = roll = nan
     for k in range(len(frames)):
@@ -147,6 +148,7 @@ def advance(buf: array, frames: Sequence[Sequence[float]], q_h: Sequence[float],
             gx, gy, gz = -ka * yy, ka * yx, 0.0
         else:
             if tilt:                            # M = E^- Exp(-b), b = (bx, by, 0)
+                assert tilt_x is not None and tilt_y is not None
                 bx, by = tilt_x[k], tilt_y[k]
                 bn = sqrt(bx * bx + by * by)
                 hb = 0.5 - bn * bn / 48.0 if bn < 1e-4 else sin(0.5 * bn) / bn
@@ -344,7 +346,7 @@ class ResidualKernel:
         if native is True and NATIVE is None:
             raise ImportError("the compiled residual kernel is not built (or IMU_GROUND_PURE_PYTHON is set)")
         self.native = native is not False and NATIVE is not None
-        self.buf = array("d", values) if self.native else values
+        self.buf: MutableSequence[float] = array("d", values) if self.native else values
 
     def read_state(self, reader, name: str) -> list:
         """The entry ``name`` of a saved state (a :class:`~imu_ground.imu.warm_start.StateReader`), checked to
@@ -360,7 +362,7 @@ class ResidualKernel:
         the next frame on (in place: the buffer object stays the same)."""
         b = self.buf
         b[_P_RH + 5] = 1.0
-        b[_P_G:_P_G + 9] = type(b)("d", Rgs.ravel().tolist()) if self.native else Rgs.ravel().tolist()
+        b[_P_G:_P_G + 9] = array("d", Rgs.ravel().tolist()) if self.native else Rgs.ravel().tolist()
 
     @property
     def impl(self):

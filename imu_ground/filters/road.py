@@ -227,6 +227,7 @@ class RoadFilter:
                 return None
             self.start()
         gf = self.gravity_filter
+        assert gf is not None                   # started
         gf.step_sensor(d, dv, dt, stationary, valid, speed)
         if math.isnan(speed):
             return None

@@ -76,7 +76,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Optional
+from typing import Any, Optional
 
 import numpy as np
 
@@ -342,8 +342,8 @@ def track_reasons(codes: np.ndarray, std_max: np.ndarray, dt: np.ndarray,
                 out[k] = np.where(empty, status_reason(DEGRADED), d)
             else:
                 out[k] = np.where(empty, base, base + ": " + np.where(empty, "", d))
-    for k in np.flatnonzero((codes == CONVERGING) | (codes == GAP)).tolist():   # (few frames: the start, gaps)
-        out[k] = status_reason(int(codes[k]), float(dt[k]), float(std_max[k]), detail[k], converged_std,
+    for i in np.flatnonzero((codes == CONVERGING) | (codes == GAP)).tolist():   # (few frames: the start, gaps)
+        out[i] = status_reason(int(codes[i]), float(dt[i]), float(std_max[i]), detail[i], converged_std,
                                moving_seconds)
     return out
 
@@ -370,7 +370,8 @@ class DriveStatistics:
     """
 
     def __init__(self) -> None:
-        self._rgs, self._rgs_rows = None, None
+        self._rgs: Any = None
+        self._rgs_rows: list = []               # the first two rows of _rgs, once it is set
         self.reset()
 
     def reset(self) -> None:
@@ -548,6 +549,7 @@ class SigmaModel:
         if load is None:
             return np.stack([pm.variance(a, rate_ms=rp, load_offset=dx), rm.variance(a, rate_ms=rr, load_offset=dy)],
                             axis=1)
+        assert gains is not None and gravity_cov is not None and yaw_rate is not None     # given with a load
         sg2 = (1.0 - self.load_share) ** 2 * 0.5 * (gravity_cov[:, 3, 3] + gravity_cov[:, 4, 4])
         w = np.abs(yaw_rate)
         return np.stack([pm.variance(a, load[:, 0], load[:, 1], sg2 * (gains[:, 0] ** 2 + self.cross_gain ** 2), w,

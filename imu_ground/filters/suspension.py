@@ -322,7 +322,7 @@ class SuspensionAwareFilter:
     x_post = x
     P_post = P
 
-    def _last(self, i: int, default):
+    def _last(self, i: int | slice, default):
         last = self._kernel.last
         return default if last is None else last[i]
 
@@ -381,6 +381,7 @@ class SuspensionAwareFilter:
                          unpack_state(state, "SuspensionAwareFilter", STATE_VERSION, self._settings()))
         frames, kernel = st.int("frames"), self._kernel.read_state(st, "kernel")
         gravity = self.gravity_filter.read_kernel_state(st, "gravity")
+        assert gravity is not None                  # not optional
         speed, q_last, time = st.float("speed"), st.float("q_last"), st.float("time")
         mount = None if self.recalibrator is None else st.floats("mount", (9,), optional=True)
         mount = None if mount is None else mount.reshape(3, 3)
@@ -676,7 +677,7 @@ class SuspensionAwareFilter:
         notes = np.array([ok_note(s_, r_) for s_ in (False, True) for r_ in (None, NO_SPEED_REASON)], dtype=object)
         details = np.where(degraded, mm.alarm, notes[2 * slow + no_road])
         reasons = track_reasons(codes, np.sqrt(var_max), em.delta_t,
-                                np.where((codes == OK) | (codes == DEGRADED), details, None),
+                                np.where((codes == OK) | (codes == DEGRADED), details, np.array(None, dtype=object)),
                                 moving_seconds=self.sigma.min_moving_seconds)
         return dict(pitch_std=std[:, 0], roll_std=std[:, 1], status=codes, status_reason=reasons,
                     road_grade=road[:, 0], road_bank=road[:, 1], road_grade_std=road[:, 2], road_bank_std=road[:, 3])
@@ -687,6 +688,7 @@ class SuspensionAwareFilter:
         s of usable frames followed the mount monitor's alarm, estimates the change, applies it and restarts
         the monitor. Returns the alarm still standing after the frame (None once re-estimated)."""
         r = self.recalibrator
+        assert r is not None                    # recalibrate_online
         r.record(self._time, dt, force, speed, psi, road, valid)
         if alarm is None:
             return None
@@ -709,7 +711,9 @@ class SuspensionAwareFilter:
         change (:mod:`imu_ground.filters.recalibration`)."""
         D = so3.exp(np.asarray(delta, dtype=float))
         Rgs = D @ (_I3 if self._Rgs is None else self._Rgs)
-        Rr = np.array(self.road_filter.gravity_filter.gravity_snapshot()[1], dtype=float).reshape(3, 3)
+        gf = self.road_filter.gravity_filter
+        assert gf is not None                   # the mount changed while driving: the road filter runs
+        Rr = np.array(gf.gravity_snapshot()[1], dtype=float).reshape(3, 3)
         Rm = self.gravity_filter.cumulative.copy()
         up = so3.exp(np.asarray(w, dtype=float)) @ (np.asarray(reference, dtype=float) / np.linalg.norm(reference))
         self.road_filter.set_mount(Rgs, D, up)

@@ -101,11 +101,13 @@ class SuspensionModel:
         """Prior gains, no design yet, zero load."""
         self.gains = self.gains0.copy()
         self._kp, self._kr = (float(g) for g in self.gains0)
-        self.rate = None
-        self._resp = self._bpf = None
+        self.rate: Optional[float] = None
+        self._resp: Optional[IIRFilter] = None
+        self._bpf: Optional[IIRFilter] = None
         self._phi = np.zeros(2)
-        self._sxx = self._sxy = None
-        self.load = (0.0, 0.0)
+        self._sxx: Optional[np.ndarray] = None
+        self._sxy: Optional[np.ndarray] = None
+        self.load: tuple[float, ...] = (0.0, 0.0)
         self._set_tilt_weights()
 
     def _set_tilt_weights(self) -> None:
@@ -200,6 +202,7 @@ class SuspensionModel:
 
     def _update_gains(self, d: np.ndarray, ax: float, ay: float) -> None:
         """One frame of the online gain regression (the batch twin is in :meth:`_online_gains`)."""
+        assert self._bpf is not None and self._sxx is not None and self._sxy is not None  # designed, online gains
         db = d if self._Rgs is None else self._Rgs @ d @ self._Rgs.T
         self._phi = self._phi + so3.log_one(db)[[1, 0]]
         z = self._bpf.step(np.concatenate([[ax, ay], self._phi]))
@@ -247,6 +250,7 @@ class SuspensionModel:
 
     def _online_gains(self, gt) -> np.ndarray:
         """Gains used at each frame of a batch (the frame before's estimate); advances the regression."""
+        assert self._bpf is not None and self._sxx is not None and self._sxy is not None  # designed, online gains
         phi = self._phi + tilt_angles(gt.body_increments)
         z = self._bpf.run(np.concatenate([gt.acceleration[:, :2], phi], axis=1))
         sxy = self._sxy + np.cumsum(z[:, :2] * z[:, 2:], axis=0)

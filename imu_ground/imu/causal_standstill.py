@@ -110,6 +110,7 @@ class StandstillBlocks:
     def add(self, k: int, g: Sequence[float], a: Sequence[float]) -> None:
         """Add a sample (gyro rad/s, specific force m/s^2) to block ``k``."""
         b = self.open if k == self.open_k else self.open_block(k)
+        assert b is not None                    # open_k names the open block
         g0, g1, g2, a0, a1, a2 = g[0], g[1], g[2], a[0], a[1], a[2]
         b[0] += 1.0                             # unrolled: this runs once a sample on the live path
         b[1] += g0
@@ -148,7 +149,7 @@ class StandstillBlocks:
         sizes = [w for w in (W, Wb) if w > 0]
         if not sizes or k - max(sizes) + 1 < 0 and k - min(sizes) + 1 < 0:
             return False, False
-        result = {}
+        result: dict[int, bool] = {}
         for first, col in ((0, 1), (3, 4)):
             asked = [w for w in sizes if result.get(w, True)]
             if not asked:
@@ -201,7 +202,7 @@ class StandstillBlocks:
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.blocks = {int(k): array("d", [int(n), *(float(x) for x in s)]) for k, n, s in
-                       zip(state["k"], state["n"], state["sums"])}
+                       zip(state["k"], state["n"], state["sums"], strict=True)}
         self.open_k = max(self.blocks, default=-1)      # samples come in time order: the last block is open
         self.open = self.blocks.get(self.open_k)
 

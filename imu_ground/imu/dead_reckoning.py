@@ -214,10 +214,12 @@ def dead_reckon_imu(imu: ImuData, *, rate: float | None = None, every: int | Non
     if isinstance(bias_gyro, str):
         if bias_gyro != "standstill":
             raise ValueError(f"bias_gyro must be an array, 'standstill' or None, got {bias_gyro!r}")
+        assert est is not None              # need_est
         bg = est.bias
     else:
         bg = np.zeros(3) if bias_gyro is None else np.asarray(bias_gyro, dtype=float)
     if R0 is None:
+        assert est is not None              # need_est
         if not est.found or est.intervals[0, 0] > imu.t[0] + 1.0:
             raise ValueError("the log does not start at rest (no standstill within 1 s of its "
                              "start); give the initial attitude R0")

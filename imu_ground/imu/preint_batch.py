@@ -106,6 +106,7 @@ def _blocks_kernel(dt: np.ndarray, w: np.ndarray, f: np.ndarray, qg: float, qa: 
     pn = np.ascontiguousarray(Pp[:, -1].T)
     if not uncertainty:
         return T, Rn, vn, pn, None, None
+    assert Jl is not None                                  # jacobian=uncertainty
     Uo = mm(Rk, Jl)                                        # U / dt
     del Jl, P
     U = Uo * dt
@@ -173,19 +174,19 @@ def _merge_blocks(res: tuple, block_frame: np.ndarray, n_frames: int) -> tuple:
         out[row, col] = x[sel]
         return out
 
-    ident = (np.float64(0.0), np.eye(3), np.zeros(3), np.zeros(3), np.zeros((9, 6)), np.zeros((9, 9)))
+    ident: tuple[np.ndarray | np.float64, ...] = (np.float64(0.0), np.eye(3), np.zeros(3), np.zeros(3), np.zeros((9, 6)), np.zeros((9, 9)))
     m = 6 if res[4] is not None else 4          # without covariance and Jacobians: 4 entries
-    cur = [pad(x, i) for x, i in zip(res[:m], ident)]
+    cur = [pad(x, i) for x, i in zip(res[:m], ident, strict=False)]
     while cur[0].shape[1] > 1:
         if cur[0].shape[1] % 2:
             cur = [np.concatenate([x, np.broadcast_to(i, (x.shape[0], 1) + i.shape)], axis=1)
-                   for x, i in zip(cur, ident)]
+                   for x, i in zip(cur, ident, strict=False)]
         a = tuple(x[:, 0::2] for x in cur) + (None, None) * (m == 4)
         b = tuple(x[:, 1::2] for x in cur) + (None, None) * (m == 4)
         cur = list(compose_left(a, b))[:m]
     out = []
     single = counts == 1
-    for x, c in zip(res[:m], cur):
+    for x, c in zip(res[:m], cur, strict=True):
         o = np.empty((n_frames,) + x.shape[1:])
         o[single] = x[first[single]]
         o[multi] = c[:, 0]
@@ -331,8 +332,10 @@ def _integrate_frames(dt: np.ndarray, kv: np.ndarray | None, b: np.ndarray, par:
     bias = np.concatenate([np.asarray(par.bias_gyro, dtype=float),
                            np.asarray(par.bias_accel, dtype=float)])[:, None, None]
     if kv is None:                      # the compiled twin: the same blocks, padding and order
+        assert _NATIVE is not None
         gyro, accel, (ki, yb, j0) = samples  # type: ignore[misc]
-        res = (np.empty(nbt), np.empty((nbt, 3, 3)), np.empty((nbt, 3)), np.empty((nbt, 3)), None, None)
+        res: tuple[np.ndarray | None, ...] = (np.empty(nbt), np.empty((nbt, 3, 3)), np.empty((nbt, 3)),
+                                              np.empty((nbt, 3)), None, None)
         _NATIVE.blocks(np.ascontiguousarray(dt), gyro, accel, ki.astype(np.int64), np.ascontiguousarray(yb),
                        int(j0), start.astype(np.int64), stop.astype(np.int64), Lb,
                        np.ascontiguousarray(bias[:, 0, 0]), par.hold == "midpoint", *res[:4])
@@ -406,10 +409,11 @@ def preintegrate(imu: ImuData | tuple[np.ndarray, np.ndarray, np.ndarray],
     Tn, Rn, vn, pn, Jn, Sn = _integrate_frames(dt, kv, b, par, (gyro, accel, inserted))
     Rn = project_if_needed(Rn)
     names = ("d_R_d_bg", "d_v_d_bg", "d_p_d_bg", "d_v_d_ba", "d_p_d_ba")
+    jac: dict[str, np.ndarray | None]
     if par.uncertainty:
         Jr, Sr = left_to_right(Rn, Jn, Sn)
         blocks = ((0, 0), (3, 0), (6, 0), (3, 3), (6, 3))
-        jac = {k: Jr[:, r:r + 3, c:c + 3].copy() for k, (r, c) in zip(names, blocks)}
+        jac = {k: Jr[:, r:r + 3, c:c + 3].copy() for k, (r, c) in zip(names, blocks, strict=True)}
     else:
         Sr, jac = None, dict.fromkeys(names)
     return FrameDeltas(

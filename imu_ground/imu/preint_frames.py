@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 
 from imu_ground import so3
 from imu_ground.imu.preint_measurement import PreintegratedImu, right_to_left
@@ -63,6 +64,7 @@ def make_frame_times(t: np.ndarray, *, rate: float | None = None, every: int | N
         if int(every) < 1:
             raise ValueError(f"every must be >= 1, got {every}")
         return t[::int(every)].copy()
+    assert rate is not None                 # exactly one of rate and every
     if not rate > 0:
         raise ValueError(f"rate must be > 0, got {rate}")
     origin = float(t[0]) if t_origin is None else float(t_origin)
@@ -178,7 +180,7 @@ class FrameDeltas(ParamsView):
         J[:, 6:9, 3:6] = self.d_p_d_ba
         return J
 
-    def corrected(self, bias_gyro: np.ndarray, bias_accel: np.ndarray
+    def corrected(self, bias_gyro: npt.ArrayLike, bias_accel: npt.ArrayLike
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """First-order bias update of every frame's deltas, without re-integration.
 
@@ -199,7 +201,9 @@ class FrameDeltas(ParamsView):
         self._need_uncertainty()
         dbg = np.broadcast_to(np.asarray(bias_gyro, dtype=float) - self.bias_gyro, (len(self), 3))
         dba = np.broadcast_to(np.asarray(bias_accel, dtype=float) - self.bias_accel, (len(self), 3))
-        mv = lambda M, x: np.einsum("fij,fj->fi", M, x)
+
+        def mv(M, x):
+            return np.einsum("fij,fj->fi", M, x)
         R = self.delta_R @ so3.exp(mv(self.d_R_d_bg, dbg))
         v = self.delta_v + mv(self.d_v_d_bg, dbg) + mv(self.d_v_d_ba, dba)
         p = self.delta_p + mv(self.d_p_d_bg, dbg) + mv(self.d_p_d_ba, dba)
@@ -208,6 +212,7 @@ class FrameDeltas(ParamsView):
     def frame(self, i: int) -> PreintegratedImu:
         """Frame ``i`` as a :class:`~imu_ground.imu.preint_measurement.PreintegratedImu` (e.g. to combine frames)."""
         self._need_uncertainty()
+        assert self.covariance is not None
         J, S = right_to_left(self.delta_R[i], self.bias_jacobian[i], self.covariance[i])
         return PreintegratedImu.from_arrays(
             self.params, self.delta_t[i], self.delta_R[i], self.delta_v[i], self.delta_p[i], J, S,

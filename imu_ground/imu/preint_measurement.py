@@ -153,6 +153,7 @@ class PreintegratedImu(ParamsView):
     """
 
     __slots__ = ("_right_cache", "_s", "_u", "n_intervals", "params", "t_end", "t_start", "valid")
+    _right_cache: tuple | None              # (the uncertainty it is of, J, S) of :meth:`_right`
 
     def __init__(self, params: PreintegrationParams | None = None, **options: Any) -> None:
         self.params = PreintegrationParams.coerce(params, **options)
@@ -282,6 +283,7 @@ class PreintegratedImu(ParamsView):
         if cache is None or cache[0] is not self._u:
             if self._u is None:
                 self._left_arrays()         # raises the uncertainty=False error
+            assert self._u is not None
             a = np.array(self._u + (0.0,))
             K = _I9.copy()
             K[0:3, 0:3] = np.array(rotation_from_quaternion(self._s[1:5])).reshape(3, 3).T

@@ -22,8 +22,8 @@ import dataclasses
 
 import math
 from array import array
-from collections.abc import Iterable, Sequence
-from typing import Any
+from collections.abc import Callable, Iterable, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -69,7 +69,26 @@ _PUSH_DOC = """Add one sample; return the frames finished by it (usually none, o
 """
 
 
-class _PythonKernel:
+class _KernelAttributes:
+    """What the kernels read of :class:`StreamingPreintegrator` (set in its ``__init__``), for type checkers."""
+    params: PreintegrationParams
+    _u0: tuple | None
+    _noise: tuple[float, float]
+    _bias: tuple[float, ...]
+    _prev: tuple | None
+    _lim: float
+    _max_gap: float
+    _tol: float
+    _cd: int
+    _midpoint: bool
+    _every: int | None
+    _rate: float | None
+    _times: list | None
+    _origin: float | None
+    _push_slow: Callable[[float, Sequence[float], Sequence[float]], tuple[PreintegratedImu, ...]]
+
+
+class _PythonKernel(_KernelAttributes):
     """The kernel state as tuples ``self._st = (deltas, uncertainty)``, the pure-Python fast path."""
 
     def _kernel_reset(self) -> None:
@@ -77,7 +96,7 @@ class _PythonKernel:
 
     _kernel_init = _kernel_reset
 
-    def _kernel_state(self) -> tuple:
+    def _kernel_state(self) -> tuple[tuple, tuple | None]:
         return self._st
 
     def _kernel_load(self, deltas: tuple, unc) -> None:
@@ -101,6 +120,7 @@ class _PythonKernel:
         # fast path: inside a frame (_lim is -inf before the first sample and outside frames),
         # no boundary, no gap, not an every-N sample; else _push_slow
         if t < self._lim:
+            assert prev is not None             # _lim is -inf until the first sample
             h = t - prev[0]
             if 0.0 < h <= self._max_gap:
                 cd = self._cd - 1
@@ -128,7 +148,7 @@ class _PythonKernel:
     push.__doc__ = _PUSH_DOC
 
 
-class _NativeKernel:
+class _NativeKernel(_KernelAttributes):
     """The kernel state and the per-sample bookkeeping in one buffer ``self._b`` (array('d'), layout
     ``_S_*``), run by ``_preint_native.push``: inside frames, and across rate / frame_times boundaries
     without a gap (it returns the finished frames' raw states). The rest (first sample, gaps,
@@ -154,7 +174,7 @@ class _NativeKernel:
         else:
             self._b[0:_S_PREV] = _STATE_ZERO_ARRAY
 
-    def _kernel_state(self) -> tuple:
+    def _kernel_state(self) -> tuple[tuple, tuple | None]:
         b = self._b
         return tuple(b[0:11]), (None if self._u0 is None else tuple(b[_S_UNC:_S_PREV]))
 
@@ -211,7 +231,13 @@ if NATIVE is not None:
     _STATE_ZERO_ARRAY = array("d", DELTAS_IDENTITY + UNCERTAINTY_ZERO)
 
 
-class StreamingPreintegrator(_NativeKernel if NATIVE is not None else _PythonKernel):
+if TYPE_CHECKING:          # a type checker takes no base chosen at import time; each kernel is checked on its own
+    _Kernel = _PythonKernel
+else:
+    _Kernel = _NativeKernel if NATIVE is not None else _PythonKernel
+
+
+class StreamingPreintegrator(_Kernel):
     """Sample-by-sample front-end: emits a finished :class:`PreintegratedImu` per frame.
 
     Frames are given by explicit boundary times, a frame rate, or a sample
@@ -257,7 +283,7 @@ class StreamingPreintegrator(_NativeKernel if NATIVE is not None else _PythonKer
         self._times = None
         if frame_times is not None:
             self._times = np.asarray(list(frame_times), dtype=float).reshape(-1).tolist()
-            if any(not (b - a > 2 * par.snap_tol) for a, b in zip(self._times, self._times[1:])):
+            if any(not (b - a > 2 * par.snap_tol) for a, b in zip(self._times, self._times[1:], strict=False)):
                 raise ValueError("frame_times must be strictly increasing (by more than 2 * snap_tol)")
         if rate is not None and not rate > 0:
             raise ValueError(f"rate must be > 0, got {rate}")
@@ -341,7 +367,7 @@ class StreamingPreintegrator(_NativeKernel if NATIVE is not None else _PythonKer
         prev = st.floats("prev", (7,), optional=True)
         deltas = st.floats("deltas", (11,))
         unc = st.floats("uncertainty", (None,), optional=True)
-        if (unc is None) != (self._u0 is None) or (unc is not None and len(unc) != len(self._u0)):
+        if (unc is None) != (self._u0 is None) or (unc is not None and self._u0 is not None and len(unc) != len(self._u0)):
             raise StateError("the saved state and this preintegrator differ in uncertainty")
         for name, v in {**ints, **floats}.items():
             setattr(self, name, v)
@@ -354,6 +380,7 @@ class StreamingPreintegrator(_NativeKernel if NATIVE is not None else _PythonKer
         if self._times is not None:
             return self._times[k] if k < len(self._times) else _INF
         if self._rate is not None:
+            assert self._origin is not None         # set with the first sample at the latest
             return self._origin + k / self._rate
         return _INF     # every-N boundaries are counted in samples
 

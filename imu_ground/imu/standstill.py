@@ -205,6 +205,7 @@ def _standstill_mask(imu: ImuData, window: float, gyro_std_max: float, gyro_norm
     # first sample at or after t[i] + window so that it spans >= window seconds
     native = _NATIVE is not None and math.isfinite(window) and window >= 0
     if native:                          # the compiled twin: the same windows, sums and tests in one pass
+        assert _NATIVE is not None
         quiet, norm, end = np.empty(n, dtype=bool), np.empty(n), np.empty(n, dtype=np.int64)
         _NATIVE.quiet_windows(np.ascontiguousarray(t), sums.gyro, sums.accel, np.ascontiguousarray(sums.mean[:, 0]),
                               float(window), float(max_gap), float(gyro_std_max), float(gyro_norm_max),
@@ -224,6 +225,7 @@ def _standstill_mask(imu: ImuData, window: float, gyro_std_max: float, gyro_norm
         gravity = float(np.median(norm[quiet]))
     good = quiet & (np.abs(norm - gravity) <= accel_norm_tol)
     if native:
+        assert _NATIVE is not None
         mask = np.empty(n, dtype=bool)
         _NATIVE.window_union(good, end, mask)
         return mask

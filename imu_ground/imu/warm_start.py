@@ -23,6 +23,7 @@ run (the tests check 1e-12; the kernels' buffers are restored bit for bit).
 """
 from __future__ import annotations
 
+import builtins
 import math
 from typing import Any, Mapping
 
@@ -99,7 +100,7 @@ def _same(a: Any, b: Any) -> bool:
     if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
         return True
     if isinstance(a, list) and isinstance(b, list):
-        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
     if isinstance(a, dict) and isinstance(b, dict):
         return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
     return a == b
@@ -200,7 +201,8 @@ class StateReader:
         """Whether the entry is there and not None."""
         return isinstance(self.state, Mapping) and self.state.get(name) is not None
 
-    def floats(self, name: str, shape: tuple, nan: bool = False, optional: bool = False, inf: bool = False) -> Any:
+    def floats(self, name: str, shape: tuple, nan: bool | slice = False, optional: bool = False,
+               inf: bool = False) -> Any:
         """A float array of ``shape`` (``None`` in it: any length on that axis); None if ``optional`` and null.
         ``nan``: NaN allowed (everywhere, or in a slice of a 1-d entry: a record of the last step);
         ``inf``: infinities allowed (a boundary not yet set)."""
@@ -212,7 +214,7 @@ class StateReader:
         except (TypeError, ValueError):
             raise self.error(name, f"is not numbers of shape {_shape_text(shape)} (got {_short(v)})") from None
         if isinstance(v, (bool, str)) or a.dtype != float or a.ndim != len(shape) or any(
-                want is not None and got != want for got, want in zip(a.shape, shape)):
+                want is not None and got != want for got, want in zip(a.shape, shape, strict=True)):
             raise self.error(name, f"has shape {a.shape}, expected {_shape_text(shape)}")
         nan_ok = np.zeros(a.shape, dtype=bool)
         nan_ok[nan if isinstance(nan, slice) else ...] = bool(nan)
@@ -232,14 +234,14 @@ class StateReader:
         a = self.floats(name, (), nan=nan, optional=optional, inf=inf)
         return None if a is None else float(a)
 
-    def int(self, name: str, minimum: int = 0) -> int:
+    def int(self, name: str, minimum: builtins.int = 0) -> builtins.int:
         """One integer at least ``minimum``."""
         v = self._get(name)
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < minimum or abs(v) > MAX_MAGNITUDE:
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < minimum or abs(int(v)) > MAX_MAGNITUDE:
             raise self.error(name, f"is {_short(v)}, expected an integer >= {minimum}")
         return int(v)
 
-    def bool(self, name: str) -> bool:
+    def bool(self, name: str) -> builtins.bool:
         """One bool."""
         v = self._get(name)
         if not isinstance(v, (bool, np.bool_)):
@@ -253,7 +255,7 @@ class StateReader:
             raise self.error(name, f"is {_short(v)}, expected a text or null")
         return v
 
-    def rows(self, name: str, flatten, width: int, nan: bool = False) -> np.ndarray:
+    def rows(self, name: str, flatten, width: builtins.int, nan: builtins.bool = False) -> np.ndarray:
         """A list of records, each made a row of ``width`` floats by ``flatten`` (e.g. ``[t, [x, y, z]]`` ->
         ``[t, x, y, z]``), checked as :meth:`floats` (n, width)."""
         v = self._get(name)
@@ -267,7 +269,7 @@ class StateReader:
             return np.zeros((0, width))
         return StateReader(self.kind, {name: flat}, self.prefix).floats(name, (None, width), nan=nan).reshape(-1, width)
 
-    def part(self, name: str, optional: bool = False) -> Any:
+    def part(self, name: str, optional: builtins.bool = False) -> Any:
         """The reader of a nested dict entry; None if ``optional`` and null."""
         v = self._get(name)
         if v is None and optional:

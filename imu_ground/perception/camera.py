@@ -152,13 +152,13 @@ def load_camera(spec: str | Path | Camera) -> Camera:
                              "(a camera file is an extrinsic file with 'K: 9 numbers' and 'image_size: W H'; "
                              "see calib/README.md)")
     k = _numbers(source, "K", ext.meta["K"], 9).reshape(3, 3)
-    size = _numbers(source, "image_size", ext.meta["image_size"], 2)
-    if np.any(size != np.round(size)):
+    wh = _numbers(source, "image_size", ext.meta["image_size"], 2)
+    if np.any(wh != np.round(wh)):
         raise ImuGroundError(f"{source}: 'image_size' must be two whole numbers (width height), got "
                              f"{ext.meta['image_size']!r}")
     meta = {k_: v for k_, v in ext.meta.items() if k_ not in ("K", "image_size")}
     try:
-        return Camera(k, (int(size[0]), int(size[1])), Extrinsic(ext.rotation, ext.translation, meta), name=text)
+        return Camera(k, (int(wh[0]), int(wh[1])), Extrinsic(ext.rotation, ext.translation, meta), name=text)
     except ValueError as e:
         raise ImuGroundError(f"{source}: {e}") from None
 

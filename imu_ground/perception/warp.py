@@ -7,7 +7,7 @@ bird's-eye pixels whose road point is behind the camera or outside the image get
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -16,7 +16,8 @@ from imu_ground.perception.plane import BevGrid
 __all__ = ["warp_to_bev"]
 
 
-def warp_to_bev(image: Any, from_bev: Any, grid: BevGrid, order: int = 1, fill: float = 0.0) -> np.ndarray:
+def warp_to_bev(image: Any, from_bev: Any, grid: BevGrid, order: Literal[0, 1, 2, 3, 4, 5] = 1,
+                fill: float = 0.0) -> np.ndarray:
     """Resample ``image`` onto the bird's-eye grid.
 
     Parameters
@@ -26,7 +27,7 @@ def warp_to_bev(image: Any, from_bev: Any, grid: BevGrid, order: int = 1, fill: 
     from_bev : array_like (3, 3)
         Homography image pixel ``(u, v, 1)`` <- bird's-eye pixel ``(col, row, 1)``, one frame's.
     grid : BevGrid
-    order : int
+    order : {0, 1, 2, 3, 4, 5}
         Spline order of :func:`scipy.ndimage.map_coordinates` (1: bilinear).
     fill : float
         Value outside the image or behind the camera.

@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from imu_ground.datasets import storage
+from imu_ground.datasets.report import warn_user
 from imu_ground.errors import ImuGroundError, require_extra
 from imu_ground.pipeline.estimate import OptionError, check_options, estimate_to_files, requested_options
 from imu_ground.pipeline.input_checks import process_running
@@ -329,7 +330,7 @@ def output_folder_lock(out_dir: str | Path, option: str = "-o") -> Iterator[Path
     try:
         import fcntl
     except ImportError:                                 # not a POSIX system: the recorded process id decides
-        fcntl = None
+        fcntl = None  # type: ignore[assignment]  # (mypy takes the module as always there)
     for _ in range(10):
         fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
         try:
@@ -352,8 +353,8 @@ def output_folder_lock(out_dir: str | Path, option: str = "-o") -> Iterator[Path
     else:
         raise OptionError(f"{path}: could not take the batch lock; give {{opt}} another folder", "outdir", flag=option)
     if holder:
-        warnings.warn(f"{out_dir}: an earlier batch that wrote here ({_describe(holder)}) no longer runs; its lock "
-                      "is taken over (its outputs are complete or absent: writes are atomic)")
+        warn_user(f"{out_dir}: an earlier batch that wrote here ({_describe(holder)}) no longer runs; its lock "
+                      "is taken over (its outputs are complete or absent: writes are atomic)", UserWarning)
     me = {"pid": os.getpid(), "host": socket.gethostname(),
           "started": time.strftime("%Y-%m-%d %H:%M:%S %Z", time.localtime()), "command": " ".join(sys.argv)}
     os.ftruncate(fd, 0)
@@ -461,14 +462,14 @@ def _run_batch_locked(logs, out_dir: Path, workers, scheduler, suffix, progress,
     own = [log for log, err in found if err is None and is_own_output(log, out_dir)]
     if own:
         more = f" and {len(own) - 1} more" if len(own) > 1 else ""
-        warnings.warn(f"{own[0]}{more}: written by imu-ground (outputs or a summary), not logs: skipped")
+        warn_user(f"{own[0]}{more}: written by imu-ground (outputs or a summary), not logs: skipped", UserWarning)
         found = [(log, err) for log, err in found if log not in set(own)]
     found, duplicates = unique_logs(found)
     names = output_names([log for log, _ in found], suffix)
     extra_kind = ".tum" if tum and suffix != ".tum" else None
     rows: list[dict | None] = [None] * len(found)
     jobs = []
-    for i, ((log, err), name) in enumerate(zip(found, names)):
+    for i, ((log, err), name) in enumerate(zip(found, names, strict=True)):
         if err is not None:
             rows[i] = {"log": log, "status": "failed", "error": err}
         else:
@@ -489,8 +490,8 @@ def _run_batch_locked(logs, out_dir: Path, workers, scheduler, suffix, progress,
         elif scheduler:
             _run_on_dask(jobs, rows, options, cli, force, scheduler, bar)
         else:
-            for i, log, out, extra in jobs:
-                rows[i] = process_log(log, out, options, cli, force, extra)
+            for i, log, out_name, extra in jobs:
+                rows[i] = process_log(log, out_name, options, cli, force, extra)
                 bar.update()
         bar.close()
     rows += [{"log": log, "status": "duplicate", "error": f"{log}: the same file as {kept}, estimated once"}
@@ -582,7 +583,7 @@ def _run_local(jobs, rows, options, cli, force, pool: ProcessPoolExecutor, bar) 
              for _, log, out, extra in jobs]
     with _Progress():
         results = dask.compute(*tasks, scheduler=process_scheduler, pool=pool, chunksize=1)
-    for (i, *_), row in zip(jobs, results):
+    for (i, *_), row in zip(jobs, results, strict=True):
         rows[i] = row
 
 

@@ -392,9 +392,9 @@ def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
     imu = read_imu(path, format=fmt, **reader_kw)
     imu_rate = check_frame_rate(rate, imu.t, path)
     if imu.frame != "FLU" and extrinsic is None:
-        warnings.warn(f"{path}: the IMU's body frame is {imu.frame!r}, not FLU (x forward, y left, z up), and no "
+        warn_user(f"{path}: the IMU's body frame is {imu.frame!r}, not FLU (x forward, y left, z up), and no "
                       "extrinsic was given: pitch and roll refer to the sensor's own axes; run 'imu-ground "
-                      "calibrate' once and pass the result with --extrinsic")
+                      "calibrate' once and pass the result with --extrinsic", UserWarning)
     else:
         check_gravity_direction(imu, extrinsic, path)
     frame_rate = DEFAULT_FRAME_RATE if rate is None else rate
@@ -461,16 +461,16 @@ def _poses_egomotion(path, fmt, rate, times=None, extrinsic=None):
         t = poses.t[1:]
         clock = poses.clock
         if rate is not None:
-            warnings.warn(f"{path}: the poses carry their own times ({clock}); --rate {rate:g} is not used "
-                          "(one frame per pose)")
+            warn_user(f"{path}: the poses carry their own times ({clock}); --rate {rate:g} is not used "
+                          "(one frame per pose)", UserWarning)
             rate = None
     else:
         clock = f"frame index / {DEFAULT_FRAME_RATE if rate is None else rate:g} Hz (no times)"
         if fmt == "kitti_poses":
-            warnings.warn(f"{path}: a KITTI pose file has no times: frames are timed as index / "
+            warn_user(f"{path}: a KITTI pose file has no times: frames are timed as index / "
                           f"{DEFAULT_FRAME_RATE if rate is None else rate:g} Hz, but KITTI's cameras run at about "
                           "9.65 Hz (t drifts by seconds over a sequence); pass --times with the sequence's "
-                          "times.txt")
+                          "times.txt", UserWarning)
     em = EgoMotion.from_rotations(poses.relative_rotations(), t=t, rate=rate,
                                   meta={"source": str(path), "format": fmt})
     return em, {"format": fmt, "frame_id": "camera" if fmt == "kitti_poses" else "sensor", "clock": clock}
@@ -499,11 +499,11 @@ def _frame_speeds(speed, path, fmt, imu, em, method: str):
     got, what = speed_samples(speed, path, fmt, imu)
     if got is None:
         return None, what
-    v = frame_speed(*got, em.t, em.delta_t)
+    v = frame_speed(got[0], got[1], em.t, em.delta_t)
     holes = int(np.count_nonzero(~np.isfinite(got[1])))
     if holes:
-        warnings.warn(f"speed {what}: {holes} of {len(got[1])} samples have no speed (nan): not interpolated "
-                      f"across; the frames they reach run without a speed (IMU only)")
+        warn_user(f"speed {what}: {holes} of {len(got[1])} samples have no speed (nan): not interpolated "
+                      f"across; the frames they reach run without a speed (IMU only)", UserWarning)
     if not np.isfinite(v).any():
         _refuse_speed_clock(speed, got[0], float(em.t[0]), float(em.t[-1]), "frames")
     return v, f"{what} ({int(np.isfinite(v).sum())} of {len(v)} frames)"
@@ -530,7 +530,7 @@ def speed_samples(speed, path, fmt, imu):
             text = rest if rest.startswith((": ", ", line ")) else f": {text}"
             raise OptionError(f"{{opt}} {speed}{text}", "speed") from e
         for note in notes:
-            warnings.warn(f"speed {note}")
+            warn_user(f"speed {note}", UserWarning)
         got = (t_sp, v_sp)
         what = f"{speed}"
         t = np.asarray(imu.t, dtype=float) if imu is not None and len(imu) else None

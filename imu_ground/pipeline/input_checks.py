@@ -15,13 +15,13 @@ from __future__ import annotations
 import json
 import math
 import os
-import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from imu_ground.datasets.options import OptionError
+from imu_ground.datasets.report import warn_user
 from imu_ground.errors import ImuGroundError
 from imu_ground.filters import Extrinsic
 
@@ -109,8 +109,8 @@ def check_gravity_direction(imu, extrinsic: Any, path: str | Path) -> float:
     if angle > GRAVITY_REFUSE_DEG:
         raise OptionError(what + ": the sensor's axes do not match it (a z-down sensor?); run 'imu-ground calibrate' "
                           "on this log and pass the file with {opt}, or the {opt} of this sensor", "extrinsic")
-    warnings.warn(what + ": pitch and roll carry that tilt; calibrate the mounting ('imu-ground calibrate') and "
-                  "pass it with --extrinsic")
+    warn_user(what + ": pitch and roll carry that tilt; calibrate the mounting ('imu-ground calibrate') and "
+                  "pass it with --extrinsic", UserWarning)
     return angle
 
 
@@ -160,9 +160,9 @@ def check_recalibration(path: str | Path, speeds: np.ndarray | None, speed_info:
     t = np.asarray(em.t, dtype=float)[have]
     span = float(t[-1] - t[0])
     if span < HOLD_OFF + GATE:
-        warnings.warn(f"{path}: --recalibrate-online cannot act: the mount monitor judges from "
+        warn_user(f"{path}: --recalibrate-online cannot act: the mount monitor judges from "
                       f"{HOLD_OFF + GATE:g} s after the first frame with a speed, and the frames with a speed "
-                      f"span {span:.1f} s")
+                      f"span {span:.1f} s", UserWarning)
 
 
 def process_running(pid: int) -> bool:

@@ -115,6 +115,7 @@ def track_table(track: GroundTrack, max_gap_frames: int = GAP_NAN_FRAMES) -> "pd
     """
     import pandas as pd                             # heavy: only when a table is made
     n = len(track)
+    assert track.status is not None and track.status_reason is not None     # (filled in by GroundTrack)
     reasons = _gap_reasons(np.asarray(track.status), np.asarray(track.t, dtype=float), track.status_reason)
     q = quat_from_matrix(track.residual) if n else np.zeros((0, 4))
     valid = np.asarray(track.valid, dtype=bool)
@@ -154,7 +155,7 @@ def _long_runs(mask: np.ndarray, longer_than: int) -> np.ndarray:
     m = np.concatenate([[False], mask, [False]]).astype(np.int8)
     edges = np.flatnonzero(np.diff(m))
     out = np.zeros(len(mask), dtype=bool)
-    for a, b in zip(edges[::2], edges[1::2]):
+    for a, b in zip(edges[::2], edges[1::2], strict=False):
         if b - a > longer_than:
             out[a:b] = True
     return out
@@ -589,16 +590,16 @@ def write_outputs(paths: Sequence[_PathLike], table, meta: Mapping[str, Any],
             write_outputs(local, table, meta, kinds)
         return [p if storage.is_url(p) else Path(p) for p in paths]
     out = [Path(p) for p in paths]
-    kinds = [k or p.suffix.lower() for p, k in zip(out, kinds or [None] * len(out))]
-    for p, k in zip(out, kinds):
+    suffixes = [k or p.suffix.lower() for p, k in zip(out, kinds or [None] * len(out), strict=True)]
+    for p, k in zip(out, suffixes, strict=True):
         if k not in _WRITERS:
             raise ImuGroundError(f"{p}: unknown output type {k!r}; use {', '.join(OUTPUT_SUFFIXES)}")
         _require_writer(p, k)
     with ExitStack() as stack:
         temps = [stack.enter_context(_staged(p)) for p in out]
-        for k, tmp in zip(kinds, temps):
+        for k, tmp in zip(suffixes, temps, strict=True):
             _WRITERS[k](tmp, table, meta)
-        for p, tmp in zip(out, temps):
+        for p, tmp in zip(out, temps, strict=True):
             os.replace(tmp, p)
     return out
 

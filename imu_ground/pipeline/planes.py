@@ -87,9 +87,9 @@ def camera_plane(residual: Any, valid: Any, camera: Camera) -> GroundPlane:
 
 def plane_columns(plane: GroundPlane, grid: BevGrid | None = None) -> dict[str, np.ndarray]:
     """The table columns of a plane: :data:`PLANE_COLUMNS`, and :data:`BEV_COLUMNS` when ``grid`` is given."""
-    cols = dict(zip(PLANE_COLUMNS, plane.coefficients.T))
+    cols = dict(zip(PLANE_COLUMNS, plane.coefficients.T, strict=True))
     if grid is not None:
-        cols.update(zip(BEV_COLUMNS, plane.to_bev(grid).reshape(-1, 9).T))
+        cols.update(zip(BEV_COLUMNS, plane.to_bev(grid).reshape(-1, 9).T, strict=True))
     return cols
 
 
@@ -190,11 +190,12 @@ def _signals_deferred() -> Iterator[None]:
         for s, h in old.items():
             signal.signal(s, signal.SIG_DFL if h is None else h)
         if received:
-            s = received[0]
-            if callable(old[s]):
-                old[s](s, None)
-            elif old[s] != signal.SIG_IGN:
-                signal.raise_signal(s)
+            first = signal.Signals(received[0])
+            handler = old[first]
+            if callable(handler):
+                handler(first, None)
+            elif handler != signal.SIG_IGN:
+                signal.raise_signal(first)
 
 
 def _remove_planes_folder(folder: Path) -> None:
@@ -283,7 +284,7 @@ def write_kitti_planes(folder: str | Path, coefficients: Any, first_index: int =
         marker = {"written_by": f"imu-ground {__version__}", "what": "KITTI object planes files, one per frame",
                   "frames": len(names), "pid": os.getpid()}
         (tmp / PLANES_MARKER).write_text(json.dumps(marker) + "\n", encoding="utf-8")
-        for name, row in zip(names, abcd):
+        for name, row in zip(names, abcd, strict=True):
             (tmp / name).write_text(_planes_text(row), encoding="ascii")
         for k in keep:
             k = Path(k)

@@ -644,7 +644,7 @@ def _write_optional(w: "RosWriter", table: Any, prefix: str, frame_id: str, orig
         xy = np.column_stack([np.asarray(table[x], dtype=float), np.asarray(table[y], dtype=float)]) * DEG
         keep = valid & np.isfinite(t) & np.all(np.isfinite(xy), axis=1)
         data = serialize_stamped(stamps[keep], frame_id, np.column_stack([xy[keep], np.zeros(keep.sum())]), w.ros1)
-        for ns, msg in zip(stamps[keep].tolist(), data):
+        for ns, msg in zip(stamps[keep].tolist(), data, strict=True):
             w.write_raw(h, ns, msg)
 
 

@@ -88,8 +88,8 @@ _NO_SPEED = "no speed over this frame: IMU only"
 # The compiled front end (imu/_front_native.c): one call a sample in the steady state, with the compiled
 # preintegrator; its state buffer's layout (F_*: the clock's, SampleClock.to_buffer, then these).
 _FRONT = FRONT if _PREINT_NATIVE is not None else None
-_front_push = None if _FRONT is None else _FRONT.push
-_preint_push = None if _PREINT_NATIVE is None else _PREINT_NATIVE.push
+_front_push: Any = None if _FRONT is None else _FRONT.push       # (the compiled modules' functions: untyped)
+_preint_push: Any = None if _PREINT_NATIVE is None else _PREINT_NATIVE.push
 _F_T, _F_RETIMED, _F_DROPPED, _F_ORIGIN, _F_RATE, _F_OPEN_K, _F_SIZE = 0, 11, 12, 14, 15, 16, 17
 _from_state = PreintegratedImu.from_state
 
@@ -114,6 +114,12 @@ class FrameEstimate(GroundEstimate):
         With a camera: the road plane ``a b c d`` in the camera's axes (NaN when not valid).
     """
     __slots__ = ("t", "t_start", "speed", "notes", "_camera", "_plane")
+    t: float
+    t_start: float
+    speed: float
+    notes: tuple
+    _camera: Any
+    _plane: np.ndarray | None
 
     @classmethod
     def of(cls, est: GroundEstimate, t: float, t_start: float, speed: float, notes: tuple,
@@ -130,7 +136,7 @@ class FrameEstimate(GroundEstimate):
 
     @property
     def status_reason(self) -> str:
-        base = GroundEstimate.status_reason.fget(self)
+        base = super().status_reason
         return "; ".join([base, *self.notes] if base else self.notes)
 
     @property
@@ -157,7 +163,7 @@ def estimate_row(est: FrameEstimate) -> dict[str, Any]:
                            "pitch_deg": deg(est.pitch), "roll_deg": deg(est.roll),
                            "qw": float(q[0]), "qx": float(q[1]), "qy": float(q[2]), "qz": float(q[3])}
     if est.plane is not None:
-        row.update(zip(("plane_a", "plane_b", "plane_c", "plane_d"), (float(x) for x in est.plane)))
+        row.update(zip(("plane_a", "plane_b", "plane_c", "plane_d"), (float(x) for x in est.plane), strict=True))
     row["valid"] = bool(est.valid)
     for name in ("pitch_std", "roll_std", "road_grade", "road_bank", "road_grade_std", "road_bank_std"):
         row[f"{name}_deg"] = deg(getattr(est, name))
@@ -301,6 +307,18 @@ class StreamingEstimator:
     and the speed's the same one. ``state_dict`` / ``load_state_dict`` save and resume
     everything (JSON-serialisable); the rest of the stream is then bit-identical.
     """
+    # the settings and parts (set in __init__), declared for type checkers
+    method: str
+    rate: float
+    speed_wait: float
+    extrinsic: Extrinsic
+    camera: Any
+    recalibrate_online: bool
+    policy: str
+    speed_aided: bool
+    _bias_arg: Any
+    _clock: SampleClock
+    _filter: Any                        # the method's estimator (METHODS[method].make)
 
     def __init__(self, method: str = "auto", extrinsic: Any = None, rate: float = 10.0, camera: Any = None, *,
                  bias_gyro: Any = "auto", policy: str = "retime", speed_wait: float = SPEED_WAIT,
@@ -364,7 +382,8 @@ class StreamingEstimator:
         pre = self._pre
         self._fast = pre is not None
         if pre is not None:
-            self._pb, self._ptb = pre._b, pre._tb
+            # (with the compiled front end the preintegrator is the compiled one; type checkers see the Python one)
+            self._pb, self._ptb = pre._b, pre._tb  # type: ignore[attr-defined]
 
     @property
     def bias_gyro(self) -> np.ndarray:
@@ -388,6 +407,7 @@ class StreamingEstimator:
         """One IMU sample: time ``t`` (s), angular rate ``gyro`` (rad/s) and specific force ``accel`` (m/s^2),
         body frame; returns the frames it completes (usually none), oldest first."""
         if self._fast:                                  # the compiled steady state (imu/_front_native.c)
+            assert self._fb is not None                 # _fast: the compiled front end is there
             r = _front_push(self._fb, self._blocks.open, _preint_push, self._pb, self._ptb, t, gyro, accel)
             if type(r) is int:                          # the first sample of a block: open it, again
                 self._blocks.open_block(r)
@@ -411,9 +431,11 @@ class StreamingEstimator:
         """The compiled step finished frames (``r``: their states) or left the preintegration to Python
         (``r``: the sample's time out of the clock)."""
         fb = self._fb
+        assert fb is not None and self._pre is not None     # the compiled front end, warmed up
         counts = fb[_F_RETIMED] or fb[_F_DROPPED]       # the clock's counts, for the notes
         if counts:                                      # (zero in the buffer: zero in the clock object too)
             self._clock.from_buffer(fb)
+        frames: list[PreintegratedImu] | tuple[PreintegratedImu, ...]
         if type(r) is float:
             frames = self._pre.push(r, gyro, accel)
         else:
@@ -487,6 +509,7 @@ class StreamingEstimator:
         k = math.ceil((t - self._origin) * self.rate - 1e-6) - 1
         if k >= 0:
             self._blocks.add(k, g, a)
+        assert self._pre is not None                    # after the warm-up
         for f in self._pre.push(t, g, a):
             self._frame(f)
 
@@ -496,6 +519,7 @@ class StreamingEstimator:
         still, for_bias = blocks.windows(j, blocks.W, blocks.Wb if self._bias.auto else 0)
         if for_bias:
             self._bias.absorb(j, blocks.Wb, blocks.block)
+            assert self._pre is not None                # a frame came from it
             self._pre.set_gyro_bias(*self._bias.value)  # from the next sample on
         blocks.done(j)
         notes = self._take_notes()
@@ -671,7 +695,7 @@ class StreamingEstimator:
                        np.array(bias.value), "FLU", {"causal": True, "retimed": retimed_total, "dropped": n_dropped},
                        r, True)
         ts = te - np.asarray(fd.delta_t, float)
-        notes = [[] for _ in range(F)]
+        notes: list[list[str]] = [[] for _ in range(F)]
         if F and (retimed_total or n_dropped):       # the clock's counts go to the frame after the sample
             _clock_notes(self, t_in, keep, notes, np.maximum(i_emit[:F], n_warm - 1))
         v = None

@@ -121,7 +121,7 @@ def exp_and_left_jacobian(x: np.ndarray, y: np.ndarray, z: np.ndarray,
         tts = t2s * t2s
         A[small] = 1.0 - t2s / 6.0 + tts / 120.0
         B[small] = 0.5 - t2s / 24.0 + tts / 720.0
-        if jacobian:
+        if C is not None:
             C[small] = 1.0 / 6.0 - t2s / 120.0 + tts / 5040.0
     xy, xz, yz = x * y, x * z, y * z
     out = []

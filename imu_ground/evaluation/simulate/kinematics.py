@@ -50,7 +50,7 @@ def chain(axes: str, q, qd, qdd):
     c = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
     w = np.zeros((n, 3))
     wd = np.zeros((n, 3))
-    for ax, qi, qdi, qddi in reversed(list(zip(axes, q, qd, qdd))):
+    for ax, qi, qdi, qddi in reversed(list(zip(axes, q, qd, qdd, strict=True))):
         ui = c[:, _AXIS_INDEX[ax], :]                 # (C^T a)_k = C[a, k]
         wd += ui * qddi[:, None] + qdi[:, None] * np.cross(ui, w)
         w += ui * qdi[:, None]

@@ -291,7 +291,7 @@ def _grade_profile(p: RoadParams, length: float, rng: np.random.Generator) -> Pi
     g_rand = float(np.clip(rng.normal(0.0, p.grade_std), -p.grade_max, p.grade_max)) if p.grade_std > 0 else 0.0
     g0 = g_rand if p.grade0 is None else float(p.grade0)
     if p.grade_plan is not None:
-        grades = [tuple(map(float, g)) for g in p.grade_plan]
+        grades = [(float(s0), float(w), float(g)) for s0, w, g in p.grade_plan]
     elif p.grade_std > 0:
         s = rng.uniform(*p.grade_segment) * rng.uniform(0.1, 1.0)
         while s < length:

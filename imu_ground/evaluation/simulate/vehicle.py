@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -88,7 +89,7 @@ class VehicleParams:
 #: the suspension's ~0.25 deg per m/s^2 (fitted per real drive: median 0.265) this
 #: slow speed modulation is the body's slow pitch relative to the road; the rest of
 #: the real reference's slow pitch is the INS's own error (``benchmarks/studies/sim_vs_real.py``).
-STYLES = {
+STYLES: dict[str, dict[str, Any]] = {
     "urban": dict(speed=(4.0, 14.0), stop_p=0.08, cruise=(0.3, 3.0), accel=(0.35, 1.6), brake=(0.35, 1.9), step=5.0),
     "rural": dict(speed=(10.0, 18.0), stop_p=0.02, cruise=(0.5, 6.0), accel=(0.3, 1.3), brake=(0.3, 1.5), step=5.0),
     "highway": dict(speed=(18.0, 28.0), stop_p=0.0, cruise=(2.0, 12.0), accel=(0.2, 0.9), brake=(0.2, 1.1), step=5.0),
@@ -143,6 +144,7 @@ def _planned_speed(p: SpeedParams) -> Piecewise:
     phases: list[tuple[float, float]] = []
     v = float(p.v_start)
     ramp = float(np.mean(p.ramp_time))
+    assert p.plan is not None                   # a planned speed
     for target, accel, hold in p.plan:
         if target < 0:
             raise ValueError("speeds in the plan must be >= 0")
@@ -285,10 +287,10 @@ def _load_transfer(vehicle: VehicleParams, a_f, v_f, s_f, layout):
     """Road-frame specific force ``(f_x, f_y)`` of the reference point (m/s^2) at the fine grid."""
     kappa_pw, grade_pw, bank_pw = layout
     al, al_s, _, _, _ = grade_pw(s_f)
-    bk, bk_s, _, _, _ = bank_pw(s_f)
+    bk = bank_pw(s_f)[0]
     kap = kappa_pw(s_f)[0]
     th_r = -al
-    psi_d, th_d, ph_d = kap * v_f, -al_s * v_f, bk_s * v_f
+    psi_d, th_d = kap * v_f, -al_s * v_f          # the yaw rate about the road's z holds no roll rate
     w_rz = -np.sin(bk) * th_d + np.cos(bk) * np.cos(th_r) * psi_d
     f_x = a_f.copy()
     f_y = v_f * w_rz
