@@ -105,7 +105,7 @@ def test_pose_carries_the_one_sigma_as_covariance(tmp_path, estimate, kind):
     assert {m.header.frame_id for _, m in pose} == {"road"}
     assert [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for _, m in pose] == [ns for ns, _ in pose]
     tf = got["/tf"]
-    for (_, p), (_, t) in zip(pose[:: 50], tf[:: 50]):
+    for (_, p), (_, t) in zip(pose[:: 50], tf[:: 50], strict=True):
         r = t.transforms[0].transform.rotation
         assert (p.pose.pose.orientation.x, p.pose.pose.orientation.w) == (r.x, r.w)
         assert p.pose.pose.position.z == t.transforms[0].transform.translation.z
@@ -133,7 +133,7 @@ def test_status_is_a_diagnostic_array_with_the_level_of_each_status(tmp_path, ki
     got = _read(path)["/ground/status"]
     shown = table[np.isfinite(table["t"])]
     assert len(got) == len(shown) == len(table) - 1             # every frame with a time, also the gaps
-    for (_, msg), (_, row) in zip(got, shown.iterrows()):
+    for (_, msg), (_, row) in zip(got, shown.iterrows(), strict=True):
         (st,) = msg.status
         assert st.level == LEVELS[row["status"]], row["status"]
         assert st.message == (f"{row['status']}: {row['status_reason']}" if row["status_reason"] else row["status"])
@@ -208,7 +208,7 @@ def test_tf_holds_the_camera_beside_the_sensor(tmp_path):
     cam = _read(tmp_path / "g.mcap")["/ground/road_from_camera"]
     assert len(tf) == len(cam) == table["valid"].sum()
     assert {tuple(x.child_frame_id for x in m.transforms) for _, m in tf} == {(res.meta["frame_id"], "camera")}
-    for (_, m), (_, c) in zip(tf, cam):
+    for (_, m), (_, c) in zip(tf, cam, strict=True):
         x = m.transforms[1]
         assert x.header.stamp == c.header.stamp and x.header.frame_id == c.header.frame_id == "road"
         assert (x.transform.translation.z, x.transform.rotation.x) == (c.transform.translation.z,

@@ -32,7 +32,6 @@ from imu_ground.datasets.validation import MalformedFileError, TimestampWarning
 
 from imu_ground.pipeline.output import read_output_settings
 from imu_ground.pipeline.ros_output import (
-    DIAGNOSTIC_LEVELS,
     RosWriter,
     read_mcap_settings,
     ros_output_kind,

@@ -430,7 +430,7 @@ def lidar_drives_report(folders: list, logs: dict | None = None, methods: list |
             left_out.insert(0, f"the first {max_scans} of {total} scans (--lidar-scans)")
         ground_from_lidar = L.lidar_transform(calib, ext)
         lidar_from_imu = _lidar_from_imu(ground_from_lidar, ext)
-        files = [f for f, k in zip(drive.files, keep) if k]
+        files = [f for f, k in zip(drive.files, keep, strict=True) if k]
         kept = np.flatnonzero(keep)
         path_regions = None
         for ground, reg in pairs:
@@ -440,7 +440,7 @@ def lidar_drives_report(folders: list, logs: dict | None = None, methods: list |
                 path_regions = [regs[i] for i in kept]
             regions = path_regions if reg == "path" else [reg] * len(files)
             normals, ok = [], []
-            for f, r in zip(files, regions):
+            for f, r in zip(files, regions, strict=True):
                 try:
                     fits = L.fit_scans([f], r, seed=seed, ground=ground)
                 except OptionError as e:                       # no road in this scan's region: left out, said so

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import time
 import warnings
+from pathlib import Path
 
 import numpy as np
 
@@ -17,7 +18,7 @@ from imu_ground.cli._common import (
     say,
     warn_line,
 )
-from imu_ground.datasets.storage import is_url, with_suffix
+from imu_ground.datasets.storage import with_suffix
 from imu_ground.errors import ImuGroundError
 from imu_ground.pipeline.estimate import available_methods, estimate_to_files
 from imu_ground.pipeline.output import check_output_path, check_run_paths, default_output_name, summarize_table
@@ -135,7 +136,7 @@ def run(a: argparse.Namespace) -> int:
         kinds.append(Path(str(plot)).suffix.lower())
         flags.append("--plot")
     inputs = input_paths(a)
-    check_run_paths(list(zip(flags, outputs)) + [("--planes", a.planes)], inputs)
+    check_run_paths(list(zip(flags, outputs, strict=True)) + [("--planes", a.planes)], inputs)
     if a.planes is not None:
         check_planes_dir(a.planes, inputs=[p for _, p in inputs if p is not None], outputs=outputs)
     if a.camera is not None and Path(str(outputs[0])).suffix.lower() == ".tum":

@@ -585,7 +585,7 @@ def fit_scans(files: list[Path], region: Any = ROAD_REGION, seed: int = 0, **fit
     """
     rows = []
     regions = region if isinstance(region, (list, tuple)) else [region] * len(files)
-    for f, reg in zip(files, regions):
+    for f, reg in zip(files, regions, strict=True):
         normal, d, count = fit_ground_plane(read_scan(f), reg, seed=seed, source=str(f),
                                             return_inliers=True, **fit_options)
         rows.append({"scan": Path(f).name, "normal_x": normal[0], "normal_y": normal[1], "normal_z": normal[2],

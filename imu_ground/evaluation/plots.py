@@ -133,7 +133,7 @@ def pitch_over_time_figure(drive, tracks: dict, methods: Optional[Sequence[str]]
     ratios = {"pitch": 3, "roll": 3, "others": 3, "speed": 1.3}
     fig, axes = plt.subplots(len(panels), 1, figsize=(13, 2.4 * sum(ratios[p] for p in panels) / 3 + 0.8),
                              sharex=True, gridspec_kw={"height_ratios": [ratios[p] for p in panels]})
-    ax_of = dict(zip(panels, axes))
+    ax_of = dict(zip(panels, axes, strict=True))
 
     def centred(x: np.ndarray) -> np.ndarray:
         return x - (np.nanmean(x[m]) if drive.remove_mean and m.any() else 0.0)

@@ -107,7 +107,7 @@ def segment_frame_times(t: np.ndarray, rate: float, segment_gap: float,
         return None
     starts = np.concatenate([[0], cuts + 1])
     stops = np.concatenate([cuts + 1, [t.size]])
-    parts = [make_frame_times(t[a:b], rate=rate, snap_tol=snap_tol) for a, b in zip(starts, stops)]
+    parts = [make_frame_times(t[a:b], rate=rate, snap_tol=snap_tol) for a, b in zip(starts, stops, strict=True)]
     T = np.concatenate(parts)
     frames = np.ones(max(T.size - 1, 0), dtype=bool)
     frames[np.cumsum([p.size for p in parts[:-1]]) - 1] = False    # last boundary of a segment -> first of the next

@@ -431,10 +431,10 @@ def _warn_segments(path, imu, em, rate: float, max_frames: int) -> None:
         k = np.flatnonzero(report.gap_out_index == i) if report is not None else np.zeros(0, int)
         kind, rows = row_names(report.gap_index[k[:1]], imu.meta.get("row_lines")) if k.size else ("sample", [i])
         where.append(f"after {kind} {rows[0]} (t = {imu.t[i]:.3f} s) {_segment_note(imu, i)}")
-    warnings.warn(f"{path}: {len(cuts)} step(s) of the stamps longer than the live limit of {max_frames} frames "
-                  f"({max_frames / rate:g} s at {rate:g} Hz) start a new segment each, as live (no frame across "
-                  f"them; the first frame after says so): " + "; ".join(where[:5])
-                  + (f"; ... ({len(where) - 5} more)" if len(where) > 5 else ""))
+    warn_user(f"{path}: {len(cuts)} step(s) of the stamps longer than the live limit of {max_frames} frames "
+              f"({max_frames / rate:g} s at {rate:g} Hz) start a new segment each, as live (no frame across "
+              f"them; the first frame after says so): " + "; ".join(where[:5])
+              + (f"; ... ({len(where) - 5} more)" if len(where) > 5 else ""), UserWarning)
 
 
 def _note_segments(track, em, imu) -> None:

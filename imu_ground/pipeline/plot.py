@@ -52,7 +52,7 @@ def _runs(values: np.ndarray) -> list[tuple[int, int]]:
         return []
     change = np.flatnonzero(values[1:] != values[:-1]) + 1
     starts = np.concatenate([[0], change])
-    return list(zip(starts.tolist(), np.concatenate([change, [len(values)]]).tolist()))
+    return list(zip(starts.tolist(), np.concatenate([change, [len(values)]]).tolist(), strict=True))
 
 
 def plot_estimate(table: Any, path: str | Path, *, speed: Any = None, speed_note: str = "", title: str = "",
@@ -113,7 +113,7 @@ def estimate_figure(table: Any, *, speed: Any = None, speed_note: str = "", titl
     step = float(np.nanmedian(np.diff(t))) if n > 1 else 0.1
     edges = np.concatenate([t[:1] - step, t])
     shown: dict[str, str] = {}
-    for ax, name, sign_text in zip(axes, ("pitch", "roll"), ("+ nose down", "+ left side up")):
+    for ax, name, sign_text in zip(axes, ("pitch", "roll"), ("+ nose down", "+ left side up"), strict=True):
         y = np.asarray(table[f"{name}_deg"], dtype=float)
         for a, b in _runs(status):
             colour = STATUS_COLOURS.get(str(status[a]), "#dddddd")

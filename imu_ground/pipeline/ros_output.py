@@ -602,10 +602,11 @@ def _write_road_from_sensor(w: RosWriter, rows: dict[str, np.ndarray], stamps: n
         extra = {f"c{c}": cam[group, i] for i, c in enumerate(("x", "y", "z", "qx", "qy", "qz", "qw"))} \
             if group is with_camera else {}
         for k, data in zip(np.flatnonzero(group).tolist(),
-                           w.serialize_many(tf, stamps[group], {**{c: v[group] for c, v in rot.items()}, **extra})):
+                           w.serialize_many(tf, stamps[group], {**{c: v[group] for c, v in rot.items()}, **extra}),
+                           strict=True):
             messages[k] = data
     h_tf = w.add_topic("/tf", ROS_OUTPUT_TOPICS["tf"])
-    for ns, data in zip(stamps.tolist(), messages):
+    for ns, data in zip(stamps.tolist(), messages, strict=True):
         w.write_raw(h_tf, ns, data)
     if std is None:
         return
@@ -625,7 +626,7 @@ def _write_road_from_sensor(w: RosWriter, rows: dict[str, np.ndarray], stamps: n
     h_pose = w.add_topic(f"{prefix}/pose", ROS_OUTPUT_TOPICS["pose"])
     data = w.serialize_many(pose, stamps[keep], {**{c: v[keep] for c, v in rot.items()},
                                                  "roll": sd[keep, 0] ** 2, "pitch": sd[keep, 1] ** 2})
-    for ns, msg in zip(stamps[keep].tolist(), data):
+    for ns, msg in zip(stamps[keep].tolist(), data, strict=True):
         w.write_raw(h_pose, ns, msg)
 
 
@@ -652,7 +653,7 @@ def _write_diagnostics(w: RosWriter, handle: Any, table: Any, stamps: np.ndarray
                        frame_id: str) -> None:
     """One ``diagnostic_msgs/DiagnosticArray`` per row of ``table`` with ``keep`` (a finite ``t``)."""
     name = f"imu-ground {prefix}".rstrip()
-    texts = [(str(st), "" if why is None else str(why)) for st, why in zip(table["status"], table["status_reason"])]
+    texts = [(str(st), "" if why is None else str(why)) for st, why in zip(table["status"], table["status_reason"], strict=True)]
     rows = np.flatnonzero(keep)
     messages: dict[int, bytes] = {}
     groups: dict[tuple[str, str], list[int]] = {}
@@ -666,7 +667,7 @@ def _write_diagnostics(w: RosWriter, handle: Any, table: Any, stamps: np.ndarray
                                values=[w.message(kv, key="status", value=st), w.message(kv, key="reason", value=why)])
             return w.message("diagnostic_msgs/msg/DiagnosticArray", header=w.header(ns, frame_id, seq),
                              status=[status])
-        messages.update(zip(ks, w.serialize_many(build, stamps[ks])))
+        messages.update(zip(ks, w.serialize_many(build, stamps[ks]), strict=True))
     for k in rows.tolist():
         w.write_raw(handle, int(stamps[k]), messages[k])
 
