@@ -34,7 +34,7 @@ import warnings
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path, PurePosixPath
-from typing import IO, Any, TypeVar
+from typing import IO, Any, TypeGuard, TypeVar
 
 from imu_ground.errors import ImuGroundError
 
@@ -85,7 +85,7 @@ def local_name(path: Any) -> Any:
     return path
 
 
-def is_url(path: Any) -> bool:
+def is_url(path: Any) -> TypeGuard[str]:
     """Whether ``path`` is an fsspec URL that is not a local file (``file://`` is one: see :func:`local_name`)."""
     return isinstance(path, str) and _URL.match(path) is not None and path[:7].lower() != "file://"
 
@@ -200,7 +200,7 @@ def open_file(path: Any, mode: str = "rb", **kwargs: Any) -> IO:
     if not is_url(path):
         return open(path, mode, **kwargs)       # noqa: SIM115 (the caller closes it)
     fs, p = filesystem(path)
-    return fs.open(p, mode, **kwargs)       # type: ignore[no-any-return]
+    return fs.open(p, mode, **kwargs)
 
 
 def write_bytes(url: str, data: bytes) -> None:

@@ -81,7 +81,7 @@ class _VersionAction(argparse.Action):
         parser.exit()
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> _Parser:
     """The argument parser of every command (help text for every option)."""
     ap = _Parser(prog="imu-ground", description="Ground plane normal (pitch and roll of the body "
                                  "relative to the road) of a moving vehicle, frame by frame, from IMU logs or "

@@ -439,17 +439,18 @@ def lidar_drives_report(folders: list, logs: dict | None = None, methods: list |
                 regs = K.drive_path_regions(drive, lidar_from_imu)
                 path_regions = [regs[i] for i in kept]
             regions = path_regions if reg == "path" else [reg] * len(files)
-            normals, ok = [], []
+            assert regions is not None                         # the path's regions are made above
+            normals, fitted = [], []
             for f, r in zip(files, regions, strict=True):
                 try:
                     fits = L.fit_scans([f], r, seed=seed, ground=ground)
                 except OptionError as e:                       # no road in this scan's region: left out, said so
                     note(drive.name, f"{name}: {' '.join(str(e).split())}: left out")
-                    ok.append(False)
+                    fitted.append(False)
                     continue
                 normals.append(fits[["normal_x", "normal_y", "normal_z"]].to_numpy()[0])
-                ok.append(True)
-            ok = np.array(ok, dtype=bool)
+                fitted.append(True)
+            ok = np.array(fitted, dtype=bool)
             if ok.sum() < 2:
                 raise OptionError(f"{drive.folder}: {int(ok.sum())} scan(s) to compare ({'; '.join(left_out) or 'none left out'}); "
                                   "{opt} needs 2 or more a drive", "lidar")

@@ -150,6 +150,7 @@ class PathRegion:
         if not keep.any():
             return np.zeros(len(points), dtype=bool)
         dist, idx = cKDTree(self.xy[keep]).query(points[:, :2], distance_upper_bound=self.half_width)
+        assert isinstance(idx, np.ndarray)          # one index per point of a 2-D query
         near = np.isfinite(dist)
         along = np.full(len(points), np.nan)
         along[near] = self.along[keep][idx[near]]

@@ -184,7 +184,7 @@ def log_clock(path: str | Path, t0_ns: int | None = None) -> tuple[str, int | fl
         drives = read_drives_index(index)
         name = drive_name(p)
         if name in drives.index:
-            return "day_s", float(drives.loc[name, "t0_seconds_of_day"])
+            return "day_s", float(drives["t0_seconds_of_day"].loc[name])
     raise OptionError(f"{p}: the log's start on the scans' clock is unknown (no absolute stamps, and no drives.csv "
                       "beside it listing the drive's t0_seconds_of_day); give {opt} a kitti_imu100 CSV of the drive "
                       "with its drives.csv, or leave it out to read the folder's oxts/", "log")
@@ -277,8 +277,8 @@ def _bootstrap(diffs: dict[str, np.ndarray], prefix: str, rows: dict[str, dict])
         return
     b = bootstrap_spread(diffs)
     for name, r in b.iterrows():
-        rows[name].update({f"{prefix}_spread_lo95": float(r["lo95"]), f"{prefix}_spread_hi95": float(r["hi95"]),
-                           f"p_best_{prefix}": float(r["p_best"])})
+        rows[str(name)].update({f"{prefix}_spread_lo95": float(r["lo95"]), f"{prefix}_spread_hi95": float(r["hi95"]),
+                                f"p_best_{prefix}": float(r["p_best"])})
 
 
 def drive_summary(frames: pd.DataFrame) -> dict[str, dict[str, float]]:
@@ -300,12 +300,12 @@ def drive_summary(frames: pd.DataFrame) -> dict[str, dict[str, float]]:
     rows: dict[str, dict] = {}
     for name, g in frames.groupby("method", sort=False):
         s = lidar_summary(g)
-        rows[name] = {"scans": int(s["n"]), "pitch_spread_deg": s["pitch_spread"],
-                      "roll_spread_deg": s["roll_change_spread"], "angle_mean_deg": s["angle_mean"],
-                      "angle_centred_deg": s["angle_centred"], "pitch_offset_deg": s["pitch_offset"],
-                      "roll_offset_deg": s["roll_offset"]}
+        rows[str(name)] = {"scans": int(s["n"]), "pitch_spread_deg": s["pitch_spread"],
+                           "roll_spread_deg": s["roll_change_spread"], "angle_mean_deg": s["angle_mean"],
+                           "angle_centred_deg": s["angle_centred"], "pitch_offset_deg": s["pitch_offset"],
+                           "roll_offset_deg": s["roll_offset"]}
     for what in ("pitch", "roll"):
-        _bootstrap({k: g[f"d_{what}_deg"].to_numpy() for k, g in frames.groupby("method", sort=False)}, what, rows)
+        _bootstrap({str(k): g[f"d_{what}_deg"].to_numpy() for k, g in frames.groupby("method", sort=False)}, what, rows)
     return rows
 
 
@@ -316,12 +316,12 @@ def pooled_summary(per_drive: list[pd.DataFrame]) -> dict[str, dict[str, float]]
     the bootstrap draws blocks within the concatenated centred differences. The
     angles are scan-weighted means of the drives'.
     """
-    parts = {}
+    parts: dict[str, list[pd.DataFrame]] = {}
     rows: dict[str, dict] = {}
     count = {}
     for frames in per_drive:
         for name, g in frames.groupby("method", sort=False):
-            parts.setdefault(name, []).append(g)
+            parts.setdefault(str(name), []).append(g)
     for name, groups in parts.items():
         n = sum(len(g) for g in groups)
         dof = n - len(groups)

@@ -75,7 +75,8 @@ SAME_RMS_DEG = 0.01
 
 def _overlap_labels(drive, tracks: dict, names: Sequence[str], centred, m: np.ndarray) -> dict[str, str]:
     """Legend label per method: its name, and the earlier method it lies on (pitch within :data:`SAME_RMS_DEG`)."""
-    labels, drawn = {}, []
+    labels: dict[str, str] = {}
+    drawn: list[tuple[str, np.ndarray]] = []
     for name in names:
         p = np.degrees(centred(np.asarray(tracks[name].pitch, dtype=float)))[m]
         labels[name] = name

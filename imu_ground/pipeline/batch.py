@@ -224,7 +224,7 @@ def process_log(log: str, out: str | Path, options: dict, cli: bool = False, for
     paths = [out, *(_as_path(p) for p, _ in extra)]
     record = record_path(out) if isinstance(out, str) else None
     if not force and all(storage.exists(p) for p in paths) and (record is None or storage.exists(record)):
-        row.update(_skipped_row(out) if record is None else _recorded_row(record))
+        row.update(_skipped_row(Path(out)) if record is None else _recorded_row(record))
         return row
     try:
         for p in paths:
@@ -453,7 +453,7 @@ def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | 
                                  options)
 
 
-def _run_batch_locked(logs, out_dir: Path, workers, scheduler, suffix, progress, cli, summary, force, tum, options):
+def _run_batch_locked(logs, out_dir: Path | str, workers, scheduler, suffix, progress, cli, summary, force, tum, options):
     """:func:`run_batch` once the output folder is locked (a local folder) or checked (a URL)."""
     import pandas as pd
     from tqdm.auto import tqdm

@@ -16,6 +16,7 @@ command line (:meth:`~imu_ground.datasets.options.OptionMessage.cli_message`).
 from __future__ import annotations
 
 import math
+import os
 import warnings
 from pathlib import Path
 from typing import IO, Any, NamedTuple
@@ -301,6 +302,7 @@ def estimate_log(path: str | Path | IO, *, format: str | None = None, method: st
     """
     reader_kw = check_options(method=method, rate=rate, Q=Q, R=R, **reader_options)
     cam, grid = check_camera(camera, bev)
+    assert isinstance(path, (str, os.PathLike))         # reads_sources hands a URL or file object on as a local copy
     kind, fmt = detect_input(path, format)
     settings: dict = {"method": method, "rate": rate, "extrinsic": None if extrinsic is None else str(extrinsic),
                       "Q": Q, "R": R, **reader_kw}

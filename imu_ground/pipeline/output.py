@@ -561,7 +561,7 @@ _WRITERS = {".csv": _write_csv, ".parquet": _write_parquet, ".tum": _write_tum, 
 
 
 def write_outputs(paths: Sequence[_PathLike], table, meta: Mapping[str, Any],
-                  kinds: Sequence[str | None] | None = None) -> list[Path]:
+                  kinds: Sequence[str | None] | None = None) -> Sequence[Path | str]:
     """Write ``table`` to every path (writer by suffix); all appear together or none does.
 
     Parameters
@@ -580,7 +580,7 @@ def write_outputs(paths: Sequence[_PathLike], table, meta: Mapping[str, Any],
 
     Returns
     -------
-    list of Path
+    list of Path or str
         (A URL, ``s3://...``, stays a string: it is written locally, then uploaded in one piece,
         :func:`~imu_ground.datasets.storage.staged_outputs`.)
     """
@@ -625,6 +625,7 @@ def _staged(path: Path) -> Iterator[Path]:
         shutil.rmtree(tmpdir, ignore_errors=True)
 
 
-def write_output(path: _PathLike, table, meta: Mapping[str, Any], extra: Sequence[_PathLike] | None = None) -> Path:
+def write_output(path: _PathLike, table, meta: Mapping[str, Any],
+                 extra: Sequence[_PathLike] | None = None) -> Path | str:
     """Write one output (and optional ``extra`` ones, all or none); returns its path."""
     return write_outputs([path, *(extra or ())], table, meta)[0]

@@ -316,10 +316,10 @@ class RosWriter:
             for at in offsets(np.array([seq], dtype="<u4").tobytes()):
                 put(at, np.arange(n), "<u4")
         for key, mark in marks.items():
-            at = offsets(np.array([mark], dtype="<f8").tobytes())
-            if len(at) != 1:
-                raise ValueError(f"build() must put the double {key!r} in exactly one field, not {len(at)}")
-            put(at[0], values[key], "<f8")
+            found = offsets(np.array([mark], dtype="<f8").tobytes())
+            if len(found) != 1:
+                raise ValueError(f"build() must put the double {key!r} in exactly one field, not {len(found)}")
+            put(found[0], values[key], "<f8")
         whole, size = buf.tobytes(), len(template)
         return [whole[i * size:(i + 1) * size] for i in range(n)]
 
@@ -581,7 +581,7 @@ def _write_road_from_sensor(w: RosWriter, rows: dict[str, np.ndarray], stamps: n
                                                                 w=qw)))
 
     def tf(ns: int, seq: int, **v: float) -> Any:
-        items = [transform(ns, seq, road, sensor, *trans, v["qx"], v["qy"], v["qz"], v["qw"])]
+        items = [transform(ns, seq, road, sensor, trans[0], trans[1], trans[2], v["qx"], v["qy"], v["qz"], v["qw"])]
         if "cx" in v:
             items.append(transform(ns, seq, road, camera_child, *(v[f"c{c}"] for c in ("x", "y", "z", "qx", "qy",
                                                                                       "qz", "qw"))))
@@ -606,8 +606,9 @@ def _write_road_from_sensor(w: RosWriter, rows: dict[str, np.ndarray], stamps: n
                            strict=True):
             messages[k] = data
     h_tf = w.add_topic("/tf", ROS_OUTPUT_TOPICS["tf"])
-    for ns, data in zip(stamps.tolist(), messages, strict=True):
-        w.write_raw(h_tf, ns, data)
+    for ns, message in zip(stamps.tolist(), messages, strict=True):
+        assert message is not None                  # the two groups cover every row
+        w.write_raw(h_tf, ns, message)
     if std is None:
         return
     sd = std[index]
@@ -624,9 +625,9 @@ def _write_road_from_sensor(w: RosWriter, rows: dict[str, np.ndarray], stamps: n
                                                        orientation=w.message("geometry_msgs/msg/Quaternion", x=qx,
                                                                              y=qy, z=qz, w=qw))))
     h_pose = w.add_topic(f"{prefix}/pose", ROS_OUTPUT_TOPICS["pose"])
-    data = w.serialize_many(pose, stamps[keep], {**{c: v[keep] for c, v in rot.items()},
-                                                 "roll": sd[keep, 0] ** 2, "pitch": sd[keep, 1] ** 2})
-    for ns, msg in zip(stamps[keep].tolist(), data, strict=True):
+    poses = w.serialize_many(pose, stamps[keep], {**{c: v[keep] for c, v in rot.items()},
+                                                  "roll": sd[keep, 0] ** 2, "pitch": sd[keep, 1] ** 2})
+    for ns, msg in zip(stamps[keep].tolist(), poses, strict=True):
         w.write_raw(h_pose, ns, msg)
 
 
