@@ -121,6 +121,12 @@ class SpeedBuffer:
             del ts[:k]
             del self.v[:k]
 
+    def rescale(self, factor: float) -> None:
+        """The times were in another unit: each multiplied by ``factor`` (to seconds)."""
+        self.t = [x * factor for x in self.t]
+        if math.isfinite(self.done_until):
+            self.done_until *= factor
+
     def take_notes(self) -> list[str]:
         """What was rejected since the last call, one phrase each (and the counts start again)."""
         r = self.rejected

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import subprocess
 import sys
 import warnings
@@ -384,17 +385,17 @@ def test_a_clock_set_forward_restarts_rather_than_filling_the_gap():
     assert len(track) == len(frames) and track.status_reason.tolist() == reasons
 
 
-def test_stamps_not_in_seconds_are_skipped_and_said():
-    """Nanosecond stamps taken for seconds (a 100 Hz IMU stepping by 1e7 'seconds'): no frame, one note with the
+def test_stamps_no_unit_explains_are_skipped_and_said():
+    """Stamps no time unit makes an IMU's (stepping by 1e12: 0.001 Hz even in ns): no frame, one note with the
     count, no memory blown up (it raised MemoryError in the preintegrator); once the stamps are seconds the
     stream goes on, and the first frame says what was skipped. The whole-log twin gives the same."""
-    t = np.r_[1.6e18 + np.arange(3000) * 1e7, 100.0 + np.arange(300) * 0.01]
+    t = np.r_[5e13 + np.arange(3000) * 1e12, 100.0 + np.arange(300) * 0.01]
     g, a = np.zeros((t.size, 3)), np.tile([0.0, 0.0, 9.81], (t.size, 1))
     est = StreamingEstimator()
     assert replay(est, t[:3000], g[:3000], a[:3000]) == []
     frames = replay(est, t[3000:], g[3000:], a[3000:])
     assert 20 < len(frames) < 31
-    assert "IMU stamps step by 1e+07 s" in frames[0].status_reason
+    assert "IMU stamps step by 1e+12 s" in frames[0].status_reason
     assert "not in seconds" in frames[0].status_reason and "IMU samples skipped: 3000" in frames[0].status_reason
     assert all("IMU stamps" not in f.status_reason for f in frames[1:])
     track, _ = StreamingEstimator().run(t, g, a)
@@ -406,6 +407,112 @@ def test_stamps_not_in_seconds_are_skipped_and_said():
     again = replay(resumed, t[1500:], g[1500:], a[1500:])
     fields = ("t", "pitch", "roll", "pitch_std", "roll_std", "status", "status_reason", "valid")
     assert [[getattr(f, n) for n in fields] for f in again] == [[getattr(f, n) for n in fields] for f in frames]
+
+
+FIELDS = ("t", "t_start", "pitch", "roll", "pitch_std", "roll_std", "road_grade", "road_bank", "speed", "valid",
+          "status")
+
+
+def _keys(frames, fields=FIELDS):
+    return [tuple(getattr(f, n) for n in fields) for f in frames]
+
+
+def _drive_rows(n=6000, seed=3):
+    """100 Hz samples of a drive (the example log's, repeated), stamps in seconds from an epoch-sized start, and
+    a 10 Hz speed."""
+    from imu_ground.datasets import read_imu
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        imu = read_imu(EXAMPLE)
+    reps = -(-n // len(imu.t))
+    g, a = np.tile(imu.gyro, (reps, 1))[:n], np.tile(imu.accel, (reps, 1))[:n]
+    rng = np.random.default_rng(seed)
+    t = 1.7e9 + np.arange(n) * 0.01 + rng.normal(0, 1e-4, n)
+    ts = 1.7e9 + np.arange(0.0, n * 0.01, 0.1)
+    return t, g, a, (ts, 8.0 + np.sin(ts / 7.0))
+
+
+def _gaps_in_output(frames):
+    t = [f.t for f in frames]
+    return max(b - a for a, b in zip(t, t[1:]))
+
+
+@pytest.mark.parametrize("bad", [1.7e18, 3600.0, 5e4], ids=["ns", "hour-ahead", "half-day-ahead"])
+def test_a_lone_bad_stamp_is_a_bad_sample_not_a_new_clock(bad):
+    """Issue 38, case 1: one sample stamped in nanoseconds, or one an hour or more ahead, silenced the stream for
+    the rest of the drive (the clock restarted at it, and every later stamp was before it). Now the sample is
+    dropped, the next frame says so, the frames go on every 0.1 s (never a step back), and the twin agrees."""
+    t, g, a, sp = _drive_rows(3000)
+    t = t.copy()
+    t[1500] = bad if bad > 1e10 else t[1500] + bad
+    frames = replay(StreamingEstimator(), t, g, a, sp)
+    clean = replay(StreamingEstimator(), np.delete(t, 1500), np.delete(g, 1500, 0), np.delete(a, 1500, 0), sp)
+    assert len(frames) == len(clean) >= 290
+    assert _gaps_in_output(frames) < 0.1 + 1e-6
+    said = [f for f in frames if "stamp far off the clock" in f.status_reason]
+    assert len(said) == 1 and abs(said[0].t - t[1499]) < 0.11
+    assert "a bad stamp, not a new clock" in said[0].status_reason
+    track, _ = StreamingEstimator().run(t, g, a, sp)
+    assert track.status_reason.tolist() == [f.status_reason for f in frames]
+    np.testing.assert_allclose(track.roll, [f.roll for f in frames], rtol=0, atol=1e-12)   # (to rounding)
+
+
+def test_a_real_clock_change_restarts_and_estimates_resume_within_2_s():
+    """Several agreeing stamps an hour and a half ahead are a new clock: a restart, said, and frames again within
+    2 s of stream time; a clock set back likewise."""
+    t, g, a, _ = _drive_rows(4000)
+    t = t.copy()
+    t[1500:] += 5400.0
+    t[3000:] -= 9000.0
+    frames = replay(StreamingEstimator(), t, g, a)
+    reasons = [f.status_reason for f in frames]
+    assert sum("jumped forward by 5400." in r and "restarted" in r for r in reasons) == 1
+    assert sum("stepped back by 8999.9" in r and "restarted" in r for r in reasons) == 1
+    assert not any("a bad stamp" in r for r in reasons)
+    assert sum("2 IMU sample(s) dropped while the change of the clock was confirmed" in r for r in reasons) == 2
+    for word, i in (("jumped forward", 1500), ("stepped back", 3000)):     # the first frame of the new clock
+        first = next(f for f in frames if word in f.status_reason)
+        assert 0 < first.t - t[i] < 2.0
+    assert len(frames) > 370
+
+
+def test_one_sample_10_s_ahead_makes_no_gap_frames_and_time_never_steps_back():
+    """Issue 38, case 3: one sample 10 s ahead made 101 gap frames, then a restart with time stepping back
+    (39.9 -> 39.1 s). Now: a bad sample, said; no gap frame; the output's time only moves forward."""
+    t, g, a, sp = _drive_rows(4000)
+    t = t.copy()
+    t[3000] += 10.0
+    frames = replay(StreamingEstimator(), t, g, a, sp)
+    times = [f.t for f in frames]
+    assert all(y > x for x, y in zip(times, times[1:]))
+    assert not any(f.status == "gap" for f in frames)
+    assert 395 <= len(frames) <= 401
+    assert sum(bool(re.search(r"the last (9\.99\d*|10) s ahead\), a bad stamp", f.status_reason)) for f in frames) == 1
+
+
+@pytest.mark.parametrize("unit, scale", [("ns", 1e9), ("us", 1e6), ("ms", 1e3)])
+def test_a_stream_stamped_in_ns_us_or_ms_gives_the_frames_of_seconds(unit, scale):
+    """Issue 38, case 2: a whole stream stamped in ns or ms gave 0 frames, silently. The unit is told from the
+    data at the warm-up (as the readers do), said in the first frame, and the frames are the seconds run's: the
+    IMU stamps and the speed's given in that unit."""
+    t, g, a, sp = _drive_rows(2000)
+    t_s = (t * scale) / scale                           # the stamps the unit's run turns into seconds
+    sec = replay(StreamingEstimator(), (t * scale) * (1 / scale), g, a, (sp[0] * scale * (1 / scale), sp[1]))
+    est = StreamingEstimator()
+    got = replay(est, t * scale, g, a, (sp[0] * scale, sp[1]))
+    assert len(got) == len(sec) > 150 and t_s.size
+    assert _keys(got) == _keys(sec)
+    names = {"ns": "nanoseconds", "us": "microseconds", "ms": "milliseconds"}
+    assert f"IMU stamps read as {names[unit]} from the data" in got[0].status_reason
+    assert [f.status_reason for f in got[1:]] == [f.status_reason for f in sec[1:]]
+    track, _ = StreamingEstimator().run(t * scale, g, a, (sp[0] * scale, sp[1]))
+    assert track.status_reason.tolist() == [f.status_reason for f in got]
+    resumed = StreamingEstimator()                      # the unit is in the saved state
+    head = replay(est := StreamingEstimator(), t[:700] * scale, g[:700], a[:700])
+    resumed.load_state_dict(json.loads(json.dumps(est.state_dict())))
+    tail = replay(resumed, t[700:] * scale, g[700:], a[700:])
+    whole = replay(StreamingEstimator(), t * scale, g, a)
+    assert _keys(head + tail) == _keys(whole)
 
 
 def test_speed_that_never_comes_back_runs_imu_only_and_says_so():
@@ -463,12 +570,20 @@ def test_clock_retimes_kitti_jitter_without_a_gap():
     np.testing.assert_allclose(out[-50:], raw[-50:], atol=2e-3)
 
 
-def test_clock_long_dropout_at_once_and_restart():
+def test_clock_long_dropout_confirmed_and_restart():
+    """A stamp 1.6 s ahead is a bad one until CONFIRM agreeing stamps make it a dropout (the first ones dropped, then
+    the clock on the stamps); a lone stamp 5 s back is dropped, CONFIRM of them restart the clock."""
+    from imu_ground.imu.sample_clock import CONFIRM, DROP
     raw = np.r_[np.arange(100) * 0.01, 0.99 + 1.6 + np.arange(50) * 0.01]
-    c, out, _ = _clock(raw)
-    assert c.dropouts == 1 and abs(out[100] - raw[100]) < 1e-12
-    code, t = c.push(raw[-1] - 5.0)
-    assert code == RESTART and t == raw[-1] - 5.0 and c.restarts == 1
+    c, out, codes = _clock(raw)
+    assert c.dropouts == 1 and codes[100:100 + CONFIRM - 1] == [DROP] * (CONFIRM - 1)
+    assert abs(out[100 + CONFIRM - 1] - raw[100 + CONFIRM - 1]) < 1e-12 and c.confirming == CONFIRM - 1
+    assert c.bad == 0
+    assert c.push(raw[-1] - 5.0)[0] == DROP and c.bad == 1            # a lone stamp back: a bad one
+    assert c.push(raw[-1] + 0.01)[0] == 0 and c.restarts == 0
+    for k in range(CONFIRM):
+        code, t = c.push(raw[-1] - 5.0 + 0.01 * k)
+    assert code == RESTART and t == raw[-1] - 5.0 + 0.01 * (CONFIRM - 1) and c.restarts == 1
 
 
 def test_clock_state_round_trip():

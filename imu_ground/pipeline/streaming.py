@@ -211,21 +211,68 @@ def _pack(x: Any) -> Any:
     return x
 
 
+#: The most floats a packed list of a saved state may hold (a state is some 9 KB; this bounds what a corrupt
+#: or hostile one inflates to: 8 MB).
+MAX_PACKED_FLOATS = 1_000_000
+
+
+def _size(shape: Any) -> int:
+    return 1 if shape == 0 else sum(_size(s) for s in shape)
+
+
 def _build(shape: Any, it) -> Any:
     return next(it) if shape == 0 else [_build(s, it) for s in shape]
 
 
-def _unpack(x: Any) -> Any:
+def _unpack(x: Any, name: str = "state") -> Any:
+    """:func:`_pack` undone; a packed list that is garbled, truncated, of another size than it says or larger than
+    :data:`MAX_PACKED_FLOATS` raises :class:`~imu_ground.imu.warm_start.StateError` naming entry ``name``."""
     if type(x) is dict:
         if _PACKED in x:
-            import base64
-            import zlib
-            it = iter(np.frombuffer(zlib.decompress(base64.b64decode(x[_PACKED])), dtype=float).tolist())
-            return [_build(x["item"], it) for _ in range(int(x["n"]))]
-        return {k: _unpack(v) for k, v in x.items()}
+            return _unpacked(x, name)
+        return {k: _unpack(v, f"{name}.{k}") for k, v in x.items()}
     if type(x) is list:
-        return [_unpack(v) for v in x]
+        return [_unpack(v, name) for v in x]
     return x
+
+
+def _valid_shape(shape: Any, depth: int = 0) -> bool:
+    if shape == 0 and type(shape) is int:
+        return True
+    return type(shape) is list and 0 < len(shape) <= MAX_PACKED_FLOATS and depth < 4 and \
+        all(_valid_shape(s, depth + 1) for s in shape)
+
+
+def _unpacked(x: dict, name: str) -> list:
+    import base64
+    import binascii
+    import zlib
+
+    from imu_ground.imu.warm_start import StateError
+
+    def bad(problem: str) -> StateError:
+        return StateError(f"this StreamingEstimator state is corrupt: its entry {name} {problem}; save the state "
+                          f"again with state_dict() or start afresh")
+    text, n, item = x.get(_PACKED), x.get("n"), x.get("item")
+    if type(text) is not str or type(n) is not int or not 0 < n <= MAX_PACKED_FLOATS or not _valid_shape(item):
+        raise bad("is not a packed list (its text, count or item shape is missing or of another type)")
+    want = n * _size(item)
+    if want > MAX_PACKED_FLOATS:
+        raise bad(f"says it holds {want} numbers, more than a saved state's {MAX_PACKED_FLOATS}")
+    if len(text) > 12 * want + 1024:                 # (the base64 of zlib of 8 bytes a float is less than this)
+        raise bad(f"is {len(text)} characters long for {want} numbers")
+    try:
+        raw = base64.b64decode(text, validate=True)
+        d = zlib.decompressobj()
+        data = d.decompress(raw, 8 * want + 1)
+        complete = d.eof and not d.unconsumed_tail
+    except (binascii.Error, zlib.error, ValueError) as e:
+        raise bad(f"is garbled ({type(e).__name__}: {e})") from None
+    if not complete or len(data) != 8 * want:
+        raise bad(f"holds {len(data) // 8}{'' if complete else ' or more'} numbers where it says {want} "
+                  f"(truncated or garbled)")
+    it = iter(np.frombuffer(data, dtype=float).tolist())
+    return [_build(item, it) for _ in range(n)]
 
 
 # ------------------------------------------------------------------------------------------ checks
@@ -296,6 +343,10 @@ class StreamingEstimator:
         Longest a frame waits for a speed sample at or after its end, s of IMU time.
     recalibrate_online : bool
         Re-estimate a moved mount online (suspension method).
+    time_unit : {None, "s", "ms", "us", "ns"}
+        The unit of the stamps ``t`` (IMU and speed). None: told from the data at each warm-up of the
+        clock, as the readers do (:func:`~imu_ground.datasets.unit_checks.detect_time_unit`: the rate and
+        epoch-sized values), said in the next frame; the frames are then those of the stamps in seconds.
 
     Notes
     -----
@@ -307,8 +358,14 @@ class StreamingEstimator:
 
     def __init__(self, method: str = "auto", extrinsic: Any = None, rate: float = 10.0, camera: Any = None, *,
                  bias_gyro: Any = "auto", policy: str = "retime", speed_wait: float = SPEED_WAIT,
-                 recalibrate_online: bool = False) -> None:
+                 recalibrate_online: bool = False, time_unit: str | None = None) -> None:
         self.method = _live_method(method)
+        if time_unit is not None:
+            from imu_ground.datasets.unit_checks import unit_scale
+            self._tscale0 = unit_scale("time", time_unit)
+        else:
+            self._tscale0 = 1.0
+        self.time_unit = time_unit
         if not (isinstance(rate, numbers.Real) and math.isfinite(rate) and rate > 0):
             raise OptionError(f"{{opt}} must be a positive frame rate in Hz, got {rate!r}", "rate")
         if rate > MAX_FRAME_RATE:
@@ -336,6 +393,8 @@ class StreamingEstimator:
     def reset(self) -> None:
         """Back to the start: clock, standstill window, gyro bias, speed, filter."""
         self._clock.reset()
+        self._tscale = self._tscale0                    # seconds per unit of the stamps given
+        self._scaled = self._tscale != 1.0
         self._bias = CausalGyroBias(self._bias_arg)
         self._filter.reset()
         self._speed = SpeedBuffer()
@@ -365,7 +424,7 @@ class StreamingEstimator:
         self._clock.to_buffer(fb)
         fb[_F_ORIGIN], fb[_F_RATE], fb[_F_OPEN_K] = self._origin, self.rate, float(self._blocks.open_k)
         pre = self._pre
-        self._fast = pre is not None
+        self._fast = pre is not None and not self._clock.suspect    # (far-off stamps pending: Python decides)
         if pre is not None:
             self._pb, self._ptb = pre._b, pre._tb
 
@@ -384,12 +443,16 @@ class StreamingEstimator:
         """A measured forward speed (wheel / CAN), m/s, at time ``t`` (s, the IMU's clock); any rate and order."""
         t = t if type(t) is float else _number(t, "t")
         speed = speed if type(speed) is float else _number(speed, "speed")
+        if self._scaled:
+            t *= self._tscale
         if self.speed_aided:
             self._speed.push(t, speed)
 
     def push_imu(self, t: float, gyro, accel) -> list[FrameEstimate]:
         """One IMU sample: time ``t`` (s), angular rate ``gyro`` (rad/s) and specific force ``accel`` (m/s^2),
         body frame; returns the frames it completes (usually none), oldest first."""
+        if self._scaled:                                # stamps not in seconds (told at the warm-up): to seconds
+            t = (t if type(t) is float else _number(t, "t")) * self._tscale
         if self._fast:                                  # the compiled steady state (imu/_front_native.c)
             r = _front_push(self._fb, self._blocks.open, _preint_push, self._pb, self._ptb, t, gyro, accel)
             if type(r) is int:                          # the first sample of a block: open it, again
@@ -453,10 +516,7 @@ class StreamingEstimator:
         if self._pre is None:
             self._warm.append((tout, g, a))
             if self._clock.warm:
-                if self._clock.dt > MAX_SAMPLE_PERIOD:
-                    self._slow_warmup()
-                else:
-                    self._start()
+                self._end_warmup()
         else:
             self._feed(tout, g, a)
         self._now = tout
@@ -469,6 +529,50 @@ class StreamingEstimator:
         return self._decide(math.inf)
 
     # -- the front end -------------------------------------------------------------------------
+    def _end_warmup(self) -> None:
+        """The clock's warm-up is over: the stamps' unit told from its samples (a new one: the warm-up again on
+        seconds), then the frames start, or a warm-up still too slow for an IMU is skipped."""
+        found = self._stamp_unit([w[0] / self._tscale for w in self._warm])
+        if found is not None and found[0] != self._tscale:
+            self._rescale(*found)
+        if self._clock.dt > MAX_SAMPLE_PERIOD:
+            self._slow_warmup()
+        else:
+            self._start()
+
+    def _stamp_unit(self, raw: list) -> tuple[float, str] | None:
+        """``(factor to seconds, note)`` of the stamps ``raw`` (as given) told from the data as the readers do
+        (:func:`~imu_ground.datasets.unit_checks.detect_time_unit`); None with ``time_unit`` given or when the
+        data cannot tell."""
+        if self.time_unit is not None:
+            return None
+        from imu_ground.datasets.unit_checks import TIME_UNITS, detect_time_unit
+        from imu_ground.errors import ImuGroundError
+        try:
+            unit, note = detect_time_unit(np.array(raw), "IMU stream", "t")
+        except ImuGroundError:
+            return None
+        scale = TIME_UNITS[unit]
+        if note is None:
+            note = "IMU stamps in seconds again (told from the data)"
+        else:
+            note = note.split(" (pass")[0].replace("IMU stream: time column 't' read", "IMU stamps read") + \
+                ": converted to seconds (pass time_unit to say so)"
+        return scale, note
+
+    def _rescale(self, scale: float, note: str) -> None:
+        """The stamps are in another unit (``scale`` s each): the warm-up's samples again on seconds, the speed
+        samples kept too, and said in the next frame."""
+        factor = scale / self._tscale
+        self._tscale, self._scaled = scale, scale != 1.0
+        clock = self._clock
+        clock.reset(keep_counts=True)
+        warm, self._warm = self._warm, []
+        for tw, g, a in warm:
+            self._warm.append((clock.push(tw * factor)[1], g, a))
+        self._speed.rescale(factor)
+        self._notes.append(note)
+
     def _slow_warmup(self) -> None:
         """The warm-up's sample period is longer than :data:`MAX_SAMPLE_PERIOD`: stamps not in seconds. The
         samples are skipped and counted (said in the next frame's notes), and the clock warms up again on the
@@ -545,7 +649,7 @@ class StreamingEstimator:
                                                                        np.asarray(self._bias_arg).ravel()]
         return {"method": self.method, "rate": self.rate, "extrinsic": self.extrinsic.rotation.ravel().tolist(),
                 "bias_gyro": bias, "policy": self.policy, "speed_wait": self.speed_wait,
-                "recalibrate_online": self.recalibrate_online}
+                "recalibrate_online": self.recalibrate_online, "time_unit": self.time_unit}
 
     def state_dict(self) -> dict[str, Any]:
         """Everything (clock, preintegrator, standstill window, gyro bias, speed buffer, waiting frames, filter)
@@ -563,49 +667,34 @@ class StreamingEstimator:
                 "blocks": _pack(self._blocks.state_dict()), "bias": self._bias.state_dict(),
                 "speed": _pack(self._speed.state_dict()), "queue": queue, "notes": list(self._notes),
                 "skipped": self._skipped, "slow_warmups": list(self._slow), "now": None if self._now == -math.inf else self._now,
-                "filter": _pack(self._filter.state_dict())}
+                "time_scale": self._tscale, "filter": _pack(self._filter.state_dict())}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Resume from :meth:`state_dict`; another kind, version or settings raises ``OptionError`` naming ``state``."""
+        """Resume from :meth:`state_dict`.
+
+        The whole state is read and checked before anything changes: a refused state leaves the estimator
+        as it was. Another kind, version or settings raises ``OptionError`` naming ``state``; a corrupt or
+        out-of-range entry (a number not finite or out of its range, a packed list garbled, truncated or
+        inflating beyond its size, a record of another layout) raises
+        :class:`~imu_ground.imu.warm_start.StateError` naming the entry (``clock.dt``, ``filter``, ...).
+        """
         if not isinstance(state, dict) or state.get("kind") != _STATE_KIND:
             kind = state.get("kind") if isinstance(state, dict) else type(state).__name__
-            raise OptionError(f"{{opt}} is not a StreamingEstimator state (kind {kind!r})", "state")
+            raise OptionError(f"{{opt}} is not a StreamingEstimator state (kind {kind!r:.60})", "state")
         if state.get("version") != _STATE_VERSION:
-            raise OptionError(f"{{opt}} has version {state.get('version')!r}, this estimator reads {_STATE_VERSION}",
-                              "state")
+            raise OptionError(f"{{opt}} has version {state.get('version')!r:.40}, this estimator reads "
+                              f"{_STATE_VERSION}", "state")
         mine = self._settings()
         theirs = state.get("settings", {})
+        theirs = theirs if isinstance(theirs, dict) else {}
         differ = sorted(k for k in mine if theirs.get(k) != mine[k])
         if differ:
             raise OptionError(f"{{opt}} was saved with other settings ({', '.join(differ)}): "
-                              f"{', '.join(f'{k}={theirs.get(k)!r}' for k in differ)}", "state")
-        try:
-            self.reset()
-            self._clock.load_state_dict(state["clock"])
-            self._warm = [(float(r[0]), tuple(map(float, r[1:4])), tuple(map(float, r[4:7]))) for r in state["warm"]]
-            self._origin = math.nan if state["origin"] is None else float(state["origin"])
-            if state["preintegrator"] is not None:
-                self._pre = StreamingPreintegrator(rate=self.rate, t_origin=self._origin,
-                                                   max_gap=float(state["max_gap"]), on_gap="flag", uncertainty=False)
-                self._pre.load_state_dict(_unpack(state["preintegrator"]))
-            self._blocks.load_state_dict(_unpack(state["blocks"]))
-            self._bias.load_state_dict(state["bias"])
-            if self._pre is not None:
-                self._pre.set_gyro_bias(*self._bias.value)
-            self._speed.load_state_dict(_unpack(state["speed"]))
-            self._queue = deque((EgoFrame(np.array(r[0], float).reshape(3, 3), np.array(r[1], float), float(r[2]),
-                                          bool(r[3]), bool(r[4]), float(r[5])), float(r[6]), list(r[7]))
-                                for r in state["queue"])
-            self._notes, self._skipped = list(state["notes"]), int(state["skipped"])
-            slow = state.get("slow_warmups", (0, 0.0))          # (older states: none)
-            self._slow = [int(slow[0]), float(slow[1])]
-            self._now = -math.inf if state["now"] is None else float(state["now"])
-            self._filter.load_state_dict(_unpack(state["filter"]))
-            self._front_out()
-        except (KeyError, TypeError, IndexError) as e:
-            self.reset()
-            raise OptionError(f"{{opt}} is incomplete or damaged ({type(e).__name__}: {e})", "state") from None
-
+                              f"{', '.join(f'{k}={theirs.get(k)!r:.60}' for k in differ)}", "state")
+        parts = _read_state(self, state)                # every entry checked: raises before anything changes
+        self.__dict__.update(parts)
+        self._fb = None if _FRONT is None else array("d", bytes(8 * _F_SIZE))
+        self._front_out()
 
     # -- a whole log at once ---------------------------------------------------------------------
     def run(self, t: np.ndarray, gyro: np.ndarray, accel: np.ndarray,
@@ -613,7 +702,9 @@ class StreamingEstimator:
         """What this estimator, fresh, gives fed a whole log sample by sample, computed at once where the
         choices allow (:func:`causal_track`); returns ``(track, egomotion)``. Starts from :meth:`reset`."""
         self.reset()
-        t = np.asarray(t, dtype=float)
+        t = t_given = np.asarray(t, dtype=float)
+        if self._scaled:
+            t = t * self._tscale
         gyro = np.asarray(gyro, dtype=float).reshape(-1, 3)
         accel = np.asarray(accel, dtype=float).reshape(-1, 3)
         n = t.size
@@ -626,11 +717,12 @@ class StreamingEstimator:
             codes[i], tout[i] = clock.push(ti)
             if n_warm < 0 and clock.warm:
                 n_warm, max_gap = i + 1, clock.max_gap
-                slow = clock.dt > MAX_SAMPLE_PERIOD
+                found = self._stamp_unit((t[:n_warm][codes[:n_warm] == OK] / self._tscale).tolist())
+                slow = clock.dt > MAX_SAMPLE_PERIOD or (found is not None and found[0] != self._tscale)
         finite = np.isfinite(t) & np.isfinite(gyro).all(axis=1) & np.isfinite(accel).all(axis=1)
         if (codes == RESTART).any() or not finite.all() or slow:
-            self.reset()                                 # (the clock above ran over the log)
-            return _replayed(self, t, gyro, accel, speed)
+            self.reset()                                 # (the clock above ran over the log; stamps as given)
+            return _replayed(self, t_given, gyro, accel, speed)
         retimed_total = clock.retimed
         keep = codes == OK
         n_dropped = int(n - keep.sum())
@@ -690,6 +782,170 @@ class StreamingEstimator:
         return track, em
 
 
+# ------------------------------------------------------------------------------------------ a saved state, read
+#: The largest gyro bias a saved state may hold, rad/s (57 deg/s: far beyond any IMU's).
+MAX_GYRO_BIAS = 1.0
+#: The most records a list of a saved state (waiting frames, speed samples, blocks, notes) may hold.
+MAX_RECORDS = 100_000
+
+
+def _read_state(est: StreamingEstimator, state: dict) -> dict[str, Any]:
+    """Every entry of ``state`` checked and built into new objects: the attributes of ``est`` to set (nothing
+    of ``est`` changes here); a corrupt entry raises :class:`~imu_ground.imu.warm_start.StateError` naming it."""
+    from imu_ground.datasets.unit_checks import TIME_UNITS
+    from imu_ground.imu.sample_clock import CONFIRM, WARMUP
+    from imu_ground.imu.warm_start import StateError, StateReader
+    r = StateReader("StreamingEstimator", state)
+
+    def records(name: str, value: Any, limit: int = MAX_RECORDS) -> list:
+        if not isinstance(value, list):
+            raise r.error(name, f"is {type(value).__name__}, expected a list")
+        if len(value) > limit:
+            raise r.error(name, f"holds {len(value)} records, more than {limit}")
+        return value
+
+    def loaded(name: str, obj: Any, value: Any) -> Any:
+        try:
+            obj.load_state_dict(value)
+        except StateError as e:
+            raise StateError(f"this StreamingEstimator state is corrupt in its entry {name}: {e}") from None
+        except (KeyError, TypeError, ValueError, IndexError, AttributeError) as e:
+            raise r.error(name, f"is damaged ({type(e).__name__}: {str(e)[:80]})") from None
+        return obj
+
+    out: dict[str, Any] = {}
+    # the clock
+    c = r.part("clock")
+
+    def stamp(name: str, nan: bool = True, inf: bool = False) -> float:
+        v = c._get(name)
+        if v in ("inf", "-inf") and inf:
+            return math.inf if v == "inf" else -math.inf
+        return math.nan if v is None and nan else c.float(name)
+
+    clock = SampleClock(est.policy, max_jump=MAX_GAP_FRAMES / est.rate)
+    clock.t, clock.dt = stamp("t"), stamp("dt")
+    if not (math.isnan(clock.dt) or 1e-6 <= clock.dt <= MAX_SAMPLE_PERIOD):
+        raise c.error("dt", f"is {clock.dt!r}, expected NaN (a warm-up) or a sample period of 1e-6 to "
+                            f"{MAX_SAMPLE_PERIOD:g} s")
+    clock._raw_max, clock._raw_prev = stamp("raw_max", inf=True), stamp("raw_prev")
+    steps = c.floats("steps", (None,))
+    if len(steps) >= WARMUP or (steps <= 0).any():
+        raise c.error("steps", f"holds {len(steps)} steps (expected fewer than {WARMUP}, each positive)")
+    clock._steps = steps.tolist()
+    clock._pending, clock._pmin = stamp("pending"), stamp("pmin", inf=True)
+    counts = c._get("counts")
+    if not (isinstance(counts, list) and len(counts) == 4):
+        raise c.error("counts", f"is {counts!r:.60}, expected 4 counts")
+    cr = StateReader("StreamingEstimator", {str(i): x for i, x in enumerate(counts)}, "clock.counts.")
+    clock.retimed, clock.dropped, clock.dropouts, clock.restarts = (cr.int(str(i)) for i in range(4))
+    clock.last_jump = c.float("last_jump")
+    if c.has("bad"):
+        bad = c.floats("bad", (3,))
+        if bad[0] < 0 or bad[2] < 0 or bad[0] != int(bad[0]) or bad[2] != int(bad[2]):
+            raise c.error("bad", f"holds {bad.tolist()!r}, expected counts (integers >= 0) and an offset")
+        clock.bad, clock.bad_offset, clock.confirming = int(bad[0]), float(bad[1]), int(bad[2])
+    if c.has("suspect"):
+        sus = c._get("suspect")
+        if not (isinstance(sus, list) and len(sus) == 2 and type(sus[1]) is int and 0 <= sus[1] < CONFIRM
+                and (sus[0] is None or (isinstance(sus[0], float) and math.isfinite(sus[0])))):
+            raise c.error("suspect", f"is {sus!r:.60}, expected [a stamp or null, a count below {CONFIRM}]")
+        clock._sus_t, clock._sus_n = (math.nan if sus[0] is None else sus[0]), sus[1]
+    out["_clock"] = clock
+    # the stamps' unit
+    scale = r.float("time_scale") if r.has("time_scale") else 1.0
+    if scale not in TIME_UNITS.values() or (est.time_unit is not None and scale != est._tscale0):
+        raise r.error("time_scale", f"is {scale!r}, expected one of {sorted(set(TIME_UNITS.values()))}"
+                                    f"{'' if est.time_unit is None else ' (that of time_unit)'}")
+    out["_tscale"], out["_scaled"] = scale, scale != 1.0
+    # warm-up, origin, preintegrator
+    warm = r.rows("warm", lambda x: [float(v) for v in x] if len(x) == 7 else [], 7)
+    if len(warm) > WARMUP:
+        raise r.error("warm", f"holds {len(warm)} samples, more than the warm-up's {WARMUP}")
+    out["_warm"] = [(float(w[0]), tuple(w[1:4].tolist()), tuple(w[4:7].tolist())) for w in warm]
+    origin = r.float("origin", optional=True)
+    out["_origin"] = math.nan if origin is None else origin
+    pre = None
+    if r.has("preintegrator"):
+        if origin is None or math.isnan(clock.dt):
+            raise r.error("preintegrator", "is there without an origin and a warm clock")
+        max_gap = r.float("max_gap")
+        if not 0 < max_gap <= clock.gap_factor * MAX_SAMPLE_PERIOD:
+            raise r.error("max_gap", f"is {max_gap!r}, expected a positive time of at most "
+                                     f"{clock.gap_factor * MAX_SAMPLE_PERIOD:g} s")
+        pre = StreamingPreintegrator(rate=est.rate, t_origin=origin, max_gap=max_gap, on_gap="flag",
+                                     uncertainty=False)
+        loaded("preintegrator", pre, _unpack(state["preintegrator"], "preintegrator"))
+        last = pre._prev[0] if pre._prev is not None else clock.t
+        if not (abs(clock.t - last) <= max_gap and abs(pre._next - clock.t) <= 2.0 / est.rate + max_gap):
+            raise r.error("clock.t", f"is {clock.t!r}, off the preintegrator's last sample ({last!r}) and next "
+                                     f"frame end ({pre._next!r})")
+    out["_pre"] = pre
+    # standstill blocks and the gyro bias
+    bl = StateReader("StreamingEstimator", _unpack(r._get("blocks"), "blocks"), "blocks.")
+    keys = records("blocks.k", bl._get("k"))
+    ns = bl.floats("n", (len(keys),))
+    sums = bl.floats("sums", (len(keys), 12)) if keys else np.zeros((0, 12))
+    if any(type(k) is not int for k in keys) or (ns < 0).any() or (ns != np.round(ns)).any():
+        raise bl.error("k", "holds keys or counts that are not integers >= 0")
+    blocks = StandstillBlocks(est.rate)
+    blocks.load_state_dict({"k": keys, "n": ns.astype(int).tolist(), "sums": sums.tolist()})
+    out["_blocks"] = blocks
+    br = r.part("bias")
+    bias = CausalGyroBias(est._bias_arg)
+    value = br.floats("value", (3,))
+    if br.bool("auto") != bias.auto or (not bias.auto and value.tolist() != list(bias.value)):
+        raise br.error("auto", "differs from this estimator's bias_gyro")
+    if np.abs(value).max() > MAX_GYRO_BIAS:
+        raise br.error("value", f"holds {value.tolist()!r} rad/s, more than a gyro bias can be ({MAX_GYRO_BIAS:g})")
+    bias.value, bias.n, bias.s, bias.last = tuple(value.tolist()), br.int("n"), br.floats("s", (3,)).tolist(), \
+        br.int("last", minimum=-1)
+    out["_bias"] = bias
+    if pre is not None:
+        pre.set_gyro_bias(*bias.value)                  # (not in the preintegrator's state: the causal bias)
+    # speed
+    sr = StateReader("StreamingEstimator", _unpack(r._get("speed"), "speed"), "speed.")
+    ts = sr.floats("t", (len(records("speed.t", sr._get("t"))),))
+    vs = sr.floats("v", (len(ts),), nan=True)
+    if (np.diff(ts) <= 0).any():
+        raise sr.error("t", "is not increasing")
+    sp = SpeedBuffer()
+    sp.t, sp.v, sp.received = ts.tolist(), vs.tolist(), sr.bool("received")
+    done = sr.float("done_until", optional=True)
+    sp.done_until = -math.inf if done is None else done
+    rej = sr.part("rejected")
+    sp.rejected = {k: rej.int(k) for k in ("nonfinite", "late", "repeated")}
+    out["_speed"] = sp
+    # the frames waiting, notes, counts
+    queue = deque()
+    for i, q in enumerate(records("queue", r._get("queue"))):
+        name = f"queue[{i}]"
+        if not (isinstance(q, list) and len(q) == 8 and isinstance(q[3], bool) and isinstance(q[4], bool)
+                and isinstance(q[7], list) and all(isinstance(x, str) for x in q[7])):
+            raise r.error(name, "is a record of another layout")
+        qr = StateReader("StreamingEstimator", {"delta_R": q[0], "delta_v": q[1], "times": [q[2], q[5], q[6]]},
+                         f"{name}.")
+        queue.append((EgoFrame(qr.floats("delta_R", (9,)).reshape(3, 3), qr.floats("delta_v", (3,)),
+                               float(qr.floats("times", (3,))[0]), q[3], q[4], float(q[5])), float(q[6]), list(q[7])))
+    out["_queue"] = queue
+    notes = records("notes", r._get("notes"), 1000)
+    if not all(isinstance(x, str) and len(x) <= 1000 for x in notes):
+        raise r.error("notes", "holds something other than short texts")
+    out["_notes"], out["_skipped"] = list(notes), r.int("skipped")
+    if r.has("slow_warmups"):                           # (older states: none)
+        slow = r.floats("slow_warmups", (2,))
+        if slow[0] < 0 or slow[0] != int(slow[0]) or slow[1] < 0:
+            raise r.error("slow_warmups", f"holds {slow.tolist()!r}, expected a count and a period")
+        out["_slow"] = [int(slow[0]), float(slow[1])]
+    else:
+        out["_slow"] = [0, 0.0]
+    now = r.float("now", optional=True)
+    out["_now"] = -math.inf if now is None else now
+    flt = _make_filter(est.method, est.extrinsic, est.rate, est.recalibrate_online)
+    out["_filter"] = loaded("filter", flt, _unpack(r._get("filter"), "filter"))
+    return out
+
+
 # ------------------------------------------------------------------------------------------ offline twin
 def causal_track(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, *, method: str = "auto", extrinsic: Any = None,
                  rate: float = 10.0, speed: tuple[np.ndarray, np.ndarray] | None = None, bias_gyro: Any = "auto",
@@ -725,8 +981,17 @@ def causal_track(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, *, method: 
 
 
 def _take_clock_notes(clock: SampleClock, policy: str) -> list[str]:
-    """What the clock did since the last call (samples dropped, stamps retimed); its counts start again."""
+    """What the clock did since the last call (bad stamps, samples dropped, stamps retimed); its counts start
+    again."""
     notes = []
+    if clock.bad:
+        off = clock.bad_offset
+        notes.append(f"{clock.bad} IMU sample(s) dropped: stamp far off the clock (the last {abs(off):.6g} s "
+                     f"{'ahead' if off > 0 else 'behind'}), a bad stamp, not a new clock")
+        clock.bad = 0
+    if clock.confirming:
+        notes.append(f"{clock.confirming} IMU sample(s) dropped while the change of the clock was confirmed")
+        clock.confirming = 0
     if clock.dropped:
         notes.append(f"{clock.dropped} IMU sample(s) dropped (time not after the last; policy {policy})")
         clock.dropped = 0
