@@ -790,3 +790,108 @@ def test_speed_holes_live_as_offline():
     want = frame_speed(ts, v, track.t, np.full(len(track), 0.1))
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
     assert np.isnan(got).sum() >= 6 and np.isfinite(got[5:95]).all() and np.isnan(got[102:112]).all()
+
+
+# --------------------------------------------------------------------------- stream: what estimate reads (issue 38)
+def _example_text(time_scale=1.0, bom=False, speed_column=False):
+    """The example log as CSV text: stamps in another unit from an epoch-sized start, a BOM, a speed column (the
+    example's truth)."""
+    import pandas as pd
+    df = pd.read_csv(EXAMPLE)
+    if speed_column:
+        truth = pd.read_csv(EXAMPLE.with_name("example_drive_truth.csv"))
+        df["speed"] = np.interp(df["t"], truth["t"], truth["speed"])
+    if time_scale != 1.0:
+        df["t"] = np.round(1.7e9 * time_scale + df["t"] * time_scale).astype(np.int64)
+    return ("\ufeff" if bom else "") + df.to_csv(index=False)
+
+
+def test_stream_stdin_reads_a_bom_and_epoch_ns_stamps(cli, monkeypatch):
+    """Issue 38, cases 2 and 8: a UTF-8 byte-order mark on standard input was exit 2 (estimate reads it); epoch-ns
+    stamps gave exit 0 and no line, nothing on stderr. Now both give the frames, the ns ones those of the same
+    stamps in seconds, the unit said in the first frame."""
+    import io
+    monkeypatch.setattr(sys, "stdin", io.StringIO(_example_text(bom=True)))
+    code, out, err = cli("stream")
+    assert code == 0, err
+    plain = _csv_rows(out)
+    assert len(plain) > 50
+    monkeypatch.setattr(sys, "stdin", io.StringIO(_example_text(time_scale=1e9)))
+    code, out, err = cli("stream")
+    assert code == 0, err
+    ns = _csv_rows(out)
+    assert abs(len(ns) - len(plain)) <= 1                 # (the last frame's end: ns stamps rounded to float64)
+    assert "read as nanoseconds" in ns["status_reason"].iloc[0]
+    n = min(len(ns), len(plain))
+    np.testing.assert_allclose(ns["t"][:n] - 1.7e9, plain["t"][:n], rtol=0, atol=1e-5)
+    np.testing.assert_allclose(ns["roll_deg"][:n], plain["roll_deg"][:n], rtol=0, atol=1e-3)
+
+
+def test_stream_stdin_speed_file_is_used_and_a_missing_one_refused(cli, monkeypatch, tmp_path):
+    """Issue 38, case 8: --speed FILE with standard input was ignored without a word (a missing file too). Now the
+    file's speed is merged by time (the frames those of the speed as a column) and a missing file is exit 2
+    naming --speed."""
+    import io
+
+    import pandas as pd
+    text = _example_text(speed_column=True)
+    monkeypatch.setattr(sys, "stdin", io.StringIO(text))
+    code, out, err = cli("stream")
+    assert code == 0, err
+    with_column = _csv_rows(out)
+    assert np.isfinite(with_column["road_grade_deg"]).sum() > 100     # (the speed is used)
+    speed = tmp_path / "speed.csv"
+    pd.read_csv(io.StringIO(text))[["t", "speed"]].to_csv(speed, index=False)
+    monkeypatch.setattr(sys, "stdin", io.StringIO(_example_text(speed_column=False)))
+    code, out, err = cli("stream", "--speed", speed)
+    assert code == 0, err
+    from_file = _csv_rows(out)
+    assert len(from_file) == len(with_column)
+    np.testing.assert_allclose(from_file["roll_deg"], with_column["roll_deg"], rtol=0, atol=1e-6)
+    monkeypatch.setattr(sys, "stdin", io.StringIO(_example_text(speed_column=False)))
+    code, out, err = cli("stream", "--speed", tmp_path / "missing.csv")
+    assert code == 2 and "--speed" in err and len(err.strip().splitlines()) == 1
+
+
+def test_stream_stdin_names_damaged_lines(cli, monkeypatch):
+    """Issue 38, case 8: garbage lines were only counted as "non-finite IMU samples"; now each is said on stderr with
+    its line number (and still skipped)."""
+    import io
+    lines = _example_text().splitlines()
+    lines[5] = "garbage," + lines[5].split(",", 1)[1]
+    lines[40] = lines[40].replace(",", ",x", 1)
+    monkeypatch.setattr(sys, "stdin", io.StringIO("\n".join(lines) + "\n"))
+    code, out, err = cli("stream")
+    assert code == 0, err
+    assert "<stdin>: warning: line 6: column t is 'garbage', not a number: sample skipped" in err
+    assert "line 41: column wx" in err
+    assert "non-finite IMU sample(s) skipped" in out
+
+
+def test_stream_replay_with_state_resumes_where_it_left_off(cli, tmp_path):
+    """Issue 38, case 8: `--replay LOG --state` fed the log from 0 again (the clock stepped back: a restart). The
+    state file now says how far the replay got; the next run on the same log resumes there, and the two runs'
+    lines are the one run's."""
+    import signal
+    state = tmp_path / "state.json"
+    code, out, err = cli("stream", "--replay", EXAMPLE)
+    assert code == 0, err
+    whole = _csv_rows(out)
+    proc = subprocess.Popen([sys.executable, "-m", "imu_ground", "stream", "--replay", str(EXAMPLE), "--realtime",
+                             "--state", str(state)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            cwd=ROOT)
+    head = [proc.stdout.readline() for _ in range(4)]     # the header and 3 frames: samples are being fed
+    assert head[0].startswith("t,normal_x")
+    proc.send_signal(signal.SIGTERM)
+    rest, first_err = proc.communicate(timeout=60)
+    first_out = "".join(head) + rest
+    first = _csv_rows(first_out) if first_out.strip() else None
+    assert json.loads(state.read_text())["stream_replay"]["samples"] > 0, first_err
+    code, out, err = cli("stream", "--replay", EXAMPLE, "--state", state)
+    assert code == 0, err
+    second = _csv_rows(out)
+    n1 = 0 if first is None else len(first)
+    assert n1 + len(second) == len(whole)
+    assert not any("restarted" in r for r in second["status_reason"])
+    np.testing.assert_allclose(second["t"], whole["t"].iloc[n1:], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(second["roll_deg"], whole["roll_deg"].iloc[n1:], rtol=0, atol=1e-9)

@@ -867,8 +867,10 @@ def _read_state(est: StreamingEstimator, state: dict) -> dict[str, Any]:
     out["_origin"] = math.nan if origin is None else origin
     pre = None
     if r.has("preintegrator"):
-        if origin is None or math.isnan(clock.dt):
-            raise r.error("preintegrator", "is there without an origin and a warm clock")
+        if math.isnan(clock.dt):
+            raise c.error("dt", "is NaN (a warm-up) where the frames have started (a preintegrator is saved)")
+        if origin is None:
+            raise r.error("origin", "is null where the frames have started (a preintegrator is saved)")
         max_gap = r.float("max_gap")
         if not 0 < max_gap <= clock.gap_factor * MAX_SAMPLE_PERIOD:
             raise r.error("max_gap", f"is {max_gap!r}, expected a positive time of at most "
