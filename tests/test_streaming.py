@@ -895,3 +895,52 @@ def test_stream_replay_with_state_resumes_where_it_left_off(cli, tmp_path):
     assert not any("restarted" in r for r in second["status_reason"])
     np.testing.assert_allclose(second["t"], whole["t"].iloc[n1:], rtol=0, atol=1e-9)
     np.testing.assert_allclose(second["roll_deg"], whole["roll_deg"].iloc[n1:], rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("late", [0.16, 0.4])
+def test_a_late_speed_is_waited_for_as_long_as_its_latency_needs(late):
+    """Issue 38, case 5: a 10 Hz speed 0.16 s late or more made every frame run IMU only (roll 0.16-0.18 deg off)
+    with status ok and the reason "too slow ... below 3 m/s" at 8-14 m/s. Now the frames wait as long as the
+    measured latency needs (said once): they get the speed, and equal the frames of the speed on time."""
+    t, g, a, sp = _drive_rows(4000)
+    ts, vs = sp
+
+    def run(lag):
+        est, out, j = StreamingEstimator(), [], 0
+        for i in range(len(t)):
+            while j < len(ts) and ts[j] + lag <= t[i]:
+                est.push_speed(ts[j], vs[j])
+                j += 1
+            out += est.push_imu(t[i], g[i], a[i])
+        while j < len(ts):
+            est.push_speed(ts[j], vs[j])
+            j += 1
+        return out + est.flush()
+    on_time, late_run = run(0.0), run(late)
+    assert len(late_run) == len(on_time)
+    assert np.isfinite([f.speed for f in late_run[20:-1]]).all()    # (the last frame is past the last speed)
+    fields = ("t", "speed", "status")               # (the first two frames, before a latency is measured, differ)
+    assert _keys(late_run[20:], fields) == _keys(on_time[20:], fields)
+    for name in ("pitch", "roll"):
+        diff = np.degrees([getattr(x, name) - getattr(y, name) for x, y in zip(late_run[20:], on_time[20:])])
+        assert np.abs(diff).max() < 1e-3
+    said = [f.status_reason for f in late_run if "after their stamps: frames wait up to" in f.status_reason]
+    assert 1 <= len(said) <= 3
+    assert not any("too slow" in f.status_reason for f in late_run[20:] if f.speed > 3.0)
+
+
+def test_a_speed_later_than_the_longest_wait_says_so():
+    """A speed 3 s late: frames wait MAX_SPEED_WAIT at most (the stream is never held longer), then run IMU only
+    and the reason says how late the speed comes and how long they waited."""
+    from imu_ground.pipeline.streaming import MAX_SPEED_WAIT
+    t, g, a, (ts, vs) = _drive_rows(3000)
+    est, out, j = StreamingEstimator(), [], 0
+    for i in range(len(t)):
+        while j < len(ts) and ts[j] + 3.0 <= t[i]:
+            est.push_speed(ts[j], vs[j])
+            j += 1
+        got = est.push_imu(t[i], g[i], a[i])
+        assert all(t[i] - f.t <= MAX_SPEED_WAIT + 0.02 for f in got)
+        out += got
+    reasons = [f.status_reason for f in out[100:]]
+    assert all(f"waited {MAX_SPEED_WAIT:.2f} s; speed samples arrive up to 3." in r for r in reasons)

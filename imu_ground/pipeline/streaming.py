@@ -68,13 +68,22 @@ from imu_ground.imu.preintegration import StreamingPreintegrator, preintegrate
 from imu_ground.imu.sample_clock import DROP, OK, RESTART, SampleClock
 from imu_ground.so3 import quat_from_matrix
 
-__all__ = ["LIVE_METHODS", "MAX_FRAME_RATE", "MAX_GAP_FRAMES", "MAX_SAMPLE_PERIOD", "SPEED_WAIT", "FrameEstimate",
+__all__ = ["LIVE_METHODS", "MAX_FRAME_RATE", "MAX_GAP_FRAMES", "MAX_SAMPLE_PERIOD", "MAX_SPEED_WAIT", "SPEED_WAIT",
+           "FrameEstimate",
            "StreamingEstimator", "causal_track", "estimate_row", "replay"]
 
 #: Methods that run live (``"auto"`` is ``"suspension"``); the offline smoother and the naive baseline do not.
 LIVE_METHODS = tuple(name for name, spec in METHODS.items() if spec.live)
-#: Longest a frame waits for a speed sample at or after its end, s of IMU time (then: IMU only, said).
+#: Least time a frame waits for a speed sample at or after its end, s of IMU time (then: IMU only, said); a speed
+#: that arrives later after its stamps (measured) makes frames wait as long as it needs, at most
+#: :data:`MAX_SPEED_WAIT`.
 SPEED_WAIT = 0.25
+#: Longest a frame waits for a late speed, s of IMU time (or ``speed_wait`` when that is longer).
+MAX_SPEED_WAIT = 1.0
+#: Speed samples whose latency and period set the wait (the last ones).
+_LATENCY_SAMPLES = 20
+#: Allowance over the measured latency and period, s (the sample that finds the speed arrived comes after it).
+_WAIT_MARGIN = 0.02
 #: The highest frame rate, Hz, a :class:`StreamingEstimator` takes (its IMU's rate is not known before the
 #: samples come; a frame rate far above it would make millions of empty frames a sample).
 MAX_FRAME_RATE = 1000.0
@@ -320,6 +329,65 @@ def _make_filter(name: str, ext: Extrinsic, rate: float, recalibrate_online: boo
     return METHODS[name].make(**kw)
 
 
+# ------------------------------------------------------------------------------------------ a late speed
+class _SpeedLatency:
+    """How long frames wait for their speed: ``speed_wait``, or as long as the measured latency needs.
+
+    Each speed sample's latency is the IMU time it arrived at less its stamp (s); a frame ending at
+    ``te`` has its speed once a sample stamped at or after ``te`` has arrived: one period of the speed
+    after ``te`` plus the latency. The wait is the largest latency of the last :data:`_LATENCY_SAMPLES`
+    samples plus their median period (and :data:`_WAIT_MARGIN`), at least ``speed_wait`` and at most
+    :data:`MAX_SPEED_WAIT` (or ``speed_wait`` when longer).
+    """
+
+    def __init__(self, least: float) -> None:
+        self.least, self.most = least, max(least, MAX_SPEED_WAIT)
+        self.wait = self.said = least
+        self.lags: deque = deque(maxlen=_LATENCY_SAMPLES)
+        self.steps: deque = deque(maxlen=_LATENCY_SAMPLES)
+        self.last = math.nan                            # the last speed stamp
+
+    def arrived(self, t: float, now: float) -> str | None:
+        """A speed sample stamped ``t`` arrived at IMU time ``now`` (s); a note when the wait changed."""
+        if not (t - t == 0.0 and now > -math.inf):
+            return None
+        step, self.last = t - self.last, t
+        if step > 0:
+            self.steps.append(step)
+        lag = now - t
+        self.lags.append(lag if lag > 0.0 else 0.0)
+        if not self.steps:
+            return None
+        steps = sorted(self.steps)
+        need = max(self.lags) + steps[len(steps) // 2] + _WAIT_MARGIN
+        wait = self.least if need <= self.least else (need if need < self.most else self.most)
+        self.wait = wait
+        if abs(wait - self.said) <= 0.02:               # (said again when it changes by more)
+            return None
+        self.said = wait
+        return (f"speed samples arrive up to {max(self.lags):.2f} s after their stamps: frames wait up to "
+                f"{wait:.2f} s for them" + (" (the most they wait)" if wait == self.most else ""))
+
+    def timed_out(self) -> str:
+        return (f"{_NO_SPEED} (waited {self.wait:.2f} s; speed samples arrive up to "
+                f"{max(self.lags, default=0.0):.2f} s after their stamps)")
+
+    def state_dict(self) -> list:
+        return [self.wait, self.said, list(self.lags), list(self.steps), None if math.isnan(self.last) else self.last]
+
+    def load_state_dict(self, state: Any) -> None:
+        wait, said, lags, steps, last = state
+        vals = [wait, said, *lags, *steps] + ([] if last is None else [last])
+        if not (all(type(x) is float and math.isfinite(x) for x in vals) and self.least <= wait <= self.most
+                and len(lags) <= _LATENCY_SAMPLES and len(steps) <= _LATENCY_SAMPLES
+                and min(lags + steps, default=0.0) >= 0.0):
+            raise ValueError("not a speed latency record")
+        self.wait, self.said = wait, said
+        self.lags.extend(lags)
+        self.steps.extend(steps)
+        self.last = math.nan if last is None else last
+
+
 # ------------------------------------------------------------------------------------------ the object
 class StreamingEstimator:
     """Raw IMU samples (and wheel speed) in, per-frame ground estimates out, causal (module docstring).
@@ -398,6 +466,7 @@ class StreamingEstimator:
         self._bias = CausalGyroBias(self._bias_arg)
         self._filter.reset()
         self._speed = SpeedBuffer()
+        self._latency = _SpeedLatency(self.speed_wait)
         self._queue: deque = deque()
         self._notes: list[str] = []
         self._skipped = 0
@@ -447,6 +516,9 @@ class StreamingEstimator:
             t *= self._tscale
         if self.speed_aided:
             self._speed.push(t, speed)
+            note = self._latency.arrived(t, self._now)
+            if note is not None:
+                self._notes.append(note)
 
     def push_imu(self, t: float, gyro, accel) -> list[FrameEstimate]:
         """One IMU sample: time ``t`` (s), angular rate ``gyro`` (rad/s) and specific force ``accel`` (m/s^2),
@@ -512,11 +584,14 @@ class StreamingEstimator:
             self._notes.append(f"the clock {'stepped back' if jump > 0 else 'jumped forward'} by {abs(jump):.3f} s: "
                                f"restarted at t = {tout:.3f} s")
             self._speed.clear()
+            self._latency = _SpeedLatency(self.speed_wait)
             self._new_run()
         if self._pre is None:
             self._warm.append((tout, g, a))
             if self._clock.warm:
                 self._end_warmup()
+                if self._pre is not None:
+                    tout = self._clock.t                # (on seconds, when the unit was told)
         else:
             self._feed(tout, g, a)
         self._now = tout
@@ -571,6 +646,7 @@ class StreamingEstimator:
         for tw, g, a in warm:
             self._warm.append((clock.push(tw * factor)[1], g, a))
         self._speed.rescale(factor)
+        self._latency = _SpeedLatency(self.speed_wait)  # (latencies measured in the other unit)
         self._notes.append(note)
 
     def _slow_warmup(self) -> None:
@@ -630,12 +706,13 @@ class StreamingEstimator:
             if self.speed_aided and sp.received:
                 te = ego.t
                 kept = sp.t                             # (sp.covers(te), inlined: this runs every sample a frame waits)
-                if not ((kept and kept[-1] >= te) or now >= te + self.speed_wait):
+                wait = self._latency.wait
+                if not ((kept and kept[-1] >= te) or now >= te + wait):
                     break
                 v = sp.mean(ts, te)
                 notes += sp.take_notes()
                 if math.isnan(v):
-                    notes.append(_NO_SPEED)
+                    notes.append(_NO_SPEED if wait == self.speed_wait else self._latency.timed_out())
                 sp.done(te)
             q.popleft()
             est = self._filter.step(ego) if v is None and not self.speed_aided else self._filter.step(ego, speed=v)
@@ -667,7 +744,8 @@ class StreamingEstimator:
                 "blocks": _pack(self._blocks.state_dict()), "bias": self._bias.state_dict(),
                 "speed": _pack(self._speed.state_dict()), "queue": queue, "notes": list(self._notes),
                 "skipped": self._skipped, "slow_warmups": list(self._slow), "now": None if self._now == -math.inf else self._now,
-                "time_scale": self._tscale, "filter": _pack(self._filter.state_dict())}
+                "time_scale": self._tscale, "speed_latency": self._latency.state_dict(),
+                "filter": _pack(self._filter.state_dict())}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Resume from :meth:`state_dict`.
@@ -707,6 +785,7 @@ class StreamingEstimator:
             t = t * self._tscale
         gyro = np.asarray(gyro, dtype=float).reshape(-1, 3)
         accel = np.asarray(accel, dtype=float).reshape(-1, 3)
+        gyro_in, accel_in = gyro, accel
         n = t.size
         clock = self._clock
         tout = np.empty(n)
@@ -722,7 +801,7 @@ class StreamingEstimator:
         finite = np.isfinite(t) & np.isfinite(gyro).all(axis=1) & np.isfinite(accel).all(axis=1)
         if (codes == RESTART).any() or not finite.all() or slow:
             self.reset()                                 # (the clock above ran over the log; stamps as given)
-            return _replayed(self, t_given, gyro, accel, speed)
+            return _replayed(self, t_given, gyro_in, accel_in, speed)
         retimed_total = clock.retimed
         keep = codes == OK
         n_dropped = int(n - keep.sum())
@@ -770,6 +849,9 @@ class StreamingEstimator:
         if F and (retimed_total or n_dropped):       # the clock's counts go to the frame after the sample
             _clock_notes(self, t_in, keep, notes, np.maximum(i_emit[:F], n_warm - 1))
         v = None
+        if self.speed_aided and speed is not None and F and _wait_may_grow(self, speed, t, frontier):
+            self.reset()                                 # a late speed's wait: as the stream decides it
+            return _replayed(self, t_given, gyro_in, accel_in, speed)
         if self.speed_aided and speed is not None and F:
             v = _causal_speeds(speed, te, ts, i_emit[:F], frontier, t, n_warm, self.speed_wait, notes)
         flt = self._filter
@@ -918,6 +1000,13 @@ def _read_state(est: StreamingEstimator, state: dict) -> dict[str, Any]:
     rej = sr.part("rejected")
     sp.rejected = {k: rej.int(k) for k in ("nonfinite", "late", "repeated")}
     out["_speed"] = sp
+    latency = _SpeedLatency(est.speed_wait)
+    if r.has("speed_latency"):                          # (older states: none)
+        try:
+            latency.load_state_dict(r._get("speed_latency"))
+        except (ValueError, TypeError) as e:
+            raise r.error("speed_latency", f"is not [wait, said, latencies, periods, last stamp] ({e})") from None
+    out["_latency"] = latency
     # the frames waiting, notes, counts
     queue = deque()
     for i, q in enumerate(records("queue", r._get("queue"))):
@@ -1018,6 +1107,16 @@ def _clock_notes(est, t_in, keep, notes, i_emit) -> None:
             while f < nf and i_emit[f] == p:
                 notes[f] = _take_clock_notes(clock, est.policy)
                 f += 1
+
+
+def _wait_may_grow(est: StreamingEstimator, speed, t_out: np.ndarray, frontier: np.ndarray) -> bool:
+    """Whether a stream of this log could wait longer than ``speed_wait`` for a speed (:class:`_SpeedLatency`):
+    the speed's longest period plus the most the sample clock's times run ahead of the stamps, with the margin."""
+    ts = np.asarray(speed[0], dtype=float)
+    ts = ts[np.isfinite(ts)]
+    step = float(np.diff(ts).max()) if ts.size > 1 else 0.0
+    ahead = float(np.max(t_out - frontier)) if t_out.size else 0.0
+    return step + max(ahead, 0.0) + _WAIT_MARGIN > est.speed_wait
 
 
 def _causal_speeds(speed, te, ts, i_emit, frontier, t_out, n_warm, wait, notes) -> np.ndarray:
