@@ -944,3 +944,61 @@ def test_a_speed_later_than_the_longest_wait_says_so():
         out += got
     reasons = [f.status_reason for f in out[100:]]
     assert all(f"waited {MAX_SPEED_WAIT:.2f} s; speed samples arrive up to 3." in r for r in reasons)
+
+
+# --------------------------------------------------------------------------- the live object never goes silent
+@st.composite
+def _glitchy_streams(draw):
+    """100 Hz streams (stamps in s, ms, us or ns) with lone bad stamps (ns among them, an hour, 10 s ahead, far
+    back), real gaps, NaN samples and a 10 Hz speed on time, late or absent."""
+    n = draw(st.integers(300, 1500))
+    seed = draw(st.integers(0, 2 ** 32 - 1))
+    rng = np.random.default_rng(seed)
+    steps = np.full(n, 0.01) + rng.normal(0, draw(st.sampled_from([0.0, 1e-4, 2e-3])), n)
+    for _ in range(draw(st.integers(0, 2))):                      # real gaps
+        steps[rng.integers(20, n)] = draw(st.sampled_from([0.3, 1.7, 10.0]))
+    true = 1.7e9 + np.cumsum(steps)                               # the stream's time, s
+    unit = draw(st.sampled_from([1.0, 1e3, 1e6, 1e9]))
+    t = true * unit
+    bad = {}
+    for _ in range(draw(st.integers(0, 4))):                      # lone bad stamps
+        i = int(rng.integers(1, n))
+        kind = draw(st.sampled_from(["ns", "hour", "10s", "back", "nan"]))
+        bad[i] = kind
+        t[i] = {"ns": 1.7e18, "hour": t[i] + 3600.0 * unit, "10s": t[i] + 10.0 * unit,
+                "back": t[i] - 500.0 * unit, "nan": np.nan}[kind]
+    gyro = rng.normal(0, 0.05, (n, 3))
+    accel = np.array([0.0, 0.0, 9.81]) + rng.normal(0, 0.5, (n, 3))
+    for _ in range(draw(st.integers(0, 3))):                      # NaN and inf samples
+        gyro[rng.integers(0, n), rng.integers(0, 3)] = draw(st.sampled_from([np.nan, np.inf]))
+    lag = draw(st.sampled_from([None, 0.0, 0.2, 0.5]))
+    return true, t, gyro, accel, unit, lag, seed
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(_glitchy_streams())
+def test_the_live_object_never_goes_silent(stream):
+    """Issue 38, "Done when": fed streams with glitches (lone bad stamps, stamps in another unit, gaps, late speed,
+    NaN), the live object never raises, is never silent for more than 2 s of stream time, gives its frames in time
+    order, never NaN with valid."""
+    true, t, gyro, accel, unit, lag, seed = stream
+    rng = np.random.default_rng(seed)
+    est = StreamingEstimator()
+    ts = true[::10]
+    sp = ts + 0.0, 8.0 + rng.normal(0, 0.3, ts.size)
+    frames, j, last_emit, silent = [], 0, 0, 0
+    for i in range(len(t)):
+        while lag is not None and j < ts.size and sp[0][j] + lag <= true[i]:
+            est.push_speed(sp[0][j] * unit, sp[1][j])
+            j += 1
+        got = est.push_imu(t[i], gyro[i], accel[i])
+        if got:
+            last_emit = i
+        silent = max(silent, i - last_emit)
+        frames += got
+    frames += est.flush()
+    assert silent * 0.01 <= 2.0                                   # samples since the last frame, at 100 Hz
+    _finite_when_valid(frames)
+    times = [f.t for f in frames]
+    assert all(b > a for a, b in zip(times, times[1:]))
+    assert len(frames) >= 0.9 * (true[-1] - true[0]) * 10 - 25
