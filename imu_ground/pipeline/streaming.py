@@ -388,6 +388,101 @@ class _SpeedLatency:
         self.last = math.nan if last is None else last
 
 
+# ------------------------------------------------------------------------------------------ the speed's unit
+class _SpeedUnit:
+    """m/s or km/h, told from the data as :func:`~imu_ground.datasets.speed.check_speed` tells a speed file's unit.
+
+    Over windows of :data:`~imu_ground.datasets.speed.UNIT_WINDOW_S` (whole frames), the speed's change
+    (frame speeds at the windows' ends) is regressed on the forward specific force integrated over the
+    window (the frames' ``delta_v`` x, m/s), both means removed, over the windows where the speed is over
+    1 m/s at both ends; after 20 such windows a slope of 2.9-4.5 with a correlation over 0.6 is km/h, a
+    slope of 0.6-1.6 is m/s (then no more checks); the check gives up (m/s) after :data:`_UNIT_MAX_WINDOWS`.
+    While it is open the filter's state at the first frame with a speed and the frames since are kept
+    (:meth:`rerun`: the filter runs again over them with the speed converted).
+    """
+
+    def __init__(self, rate: float) -> None:
+        from imu_ground.datasets.speed import UNIT_WINDOW_S
+        self.W = max(1, int(round(UNIT_WINDOW_S * rate)))
+        self.open, self.started = True, False
+        self.k, self.dv, self.v0 = 0, 0.0, math.nan     # frames in the window, its sum of dv, the speed before it
+        self.n, self.s = 0, [0.0] * 5                   # windows; sums x, y, xx, yy, xy
+        self.slope = math.nan
+        self.snapshot: dict | None = None               # the filter's state at the first speed, the frames since
+        self.frames: list = []
+
+    def frame(self, dvx: float, v: float, flt: Any, ego: Any) -> bool:
+        """One frame (its forward delta-v, m/s, and speed); True when the speed is told to be km/h now."""
+        if not self.started:                            # (from the first frame with a speed)
+            if v != v:
+                return False
+            self.started = True
+            self.snapshot = {} if flt is None else flt.state_dict()
+        if self.snapshot is not None:
+            self.frames.append((ego, v))
+        self.dv += dvx
+        self.k += 1
+        if self.k < self.W:
+            return False
+        x, v0, self.v0, self.k, self.dv = self.dv, self.v0, v, 0, 0.0
+        if not (abs(v0) > 1.0 and abs(v) > 1.0):
+            return False
+        y, s = v - v0, self.s
+        self.n += 1
+        s[0] += x
+        s[1] += y
+        s[2] += x * x
+        s[3] += y * y
+        s[4] += x * y
+        if self.n < 20:
+            return False
+        n = self.n
+        sxx, syy, sxy = s[2] - s[0] * s[0] / n, s[3] - s[1] * s[1] / n, s[4] - s[0] * s[1] / n
+        if sxx > 0 and syy > 0 and sxy / math.sqrt(sxx * syy) > 0.6:
+            self.slope = k = sxy / sxx
+            if 2.9 < k < 4.5:
+                self.open = False
+                return True
+            if 0.6 < k < 1.6:
+                self._close()
+                return False
+        if self.n >= _UNIT_MAX_WINDOWS:
+            self._close()
+        return False
+
+    def _close(self) -> None:
+        self.open, self.snapshot, self.frames = False, None, []
+
+    def rerun(self, flt: Any, k: float) -> int:
+        """The filter back at the first speed, then over the frames since with their speeds times ``k``; the
+        frames run again (-1: none kept, a resumed state)."""
+        snapshot, frames = self.snapshot, self.frames[:-1]      # (the last: the frame being decided)
+        self._close()
+        if snapshot is None:
+            return -1
+        flt.load_state_dict(snapshot)
+        for ego, v in frames:
+            flt.step(ego, speed=v * k)
+        return len(frames)
+
+    def state_dict(self) -> list:
+        return [self.open, self.started, self.k, self.dv, None if math.isnan(self.v0) else self.v0, self.n,
+                list(self.s)]
+
+    def load_state_dict(self, state: Any) -> None:
+        open_, started, k, dv, v0, n, s = state
+        vals = [dv, *s] + ([] if v0 is None else [v0])
+        if not (type(open_) is bool and type(started) is bool and type(k) is int and 0 <= k < self.W and type(n) is int and 0 <= n
+                and len(s) == 5 and all(type(x) is float and math.isfinite(x) for x in vals)):
+            raise ValueError("not a speed unit record")
+        self.open, self.started, self.k, self.dv, self.n, self.s = open_, started, k, dv, n, s
+        self.v0 = math.nan if v0 is None else v0
+
+
+#: Windows after which the live speed-unit check gives up (the speed is then taken as m/s).
+_UNIT_MAX_WINDOWS = 300
+
+
 # ------------------------------------------------------------------------------------------ the object
 class StreamingEstimator:
     """Raw IMU samples (and wheel speed) in, per-frame ground estimates out, causal (module docstring).
@@ -467,6 +562,8 @@ class StreamingEstimator:
         self._filter.reset()
         self._speed = SpeedBuffer()
         self._latency = _SpeedLatency(self.speed_wait)
+        self._vunit = _SpeedUnit(self.rate)
+        self._vscale = 1.0                              # m/s per unit of the speeds given (1 / 3.6: km/h)
         self._queue: deque = deque()
         self._notes: list[str] = []
         self._skipped = 0
@@ -515,7 +612,7 @@ class StreamingEstimator:
         if self._scaled:
             t *= self._tscale
         if self.speed_aided:
-            self._speed.push(t, speed)
+            self._speed.push(t, speed if self._vscale == 1.0 else speed * self._vscale)
             note = self._latency.arrived(t, self._now)
             if note is not None:
                 self._notes.append(note)
@@ -649,6 +746,21 @@ class StreamingEstimator:
         self._latency = _SpeedLatency(self.speed_wait)  # (latencies measured in the other unit)
         self._notes.append(note)
 
+    def _kmh(self, notes: list) -> float:
+        """The speed is in km/h (told by :class:`_SpeedUnit`): it and the speeds kept are converted from now on,
+        the filter runs again over the frames since its first speed with them (when it can), said; returns
+        the factor."""
+        unit, k = self._vunit, 1.0 / 3.6
+        self._vscale = k
+        sp = self._speed
+        sp.v = [x * k for x in sp.v]
+        again = unit.rerun(self._filter, k)
+        notes.append(f"speed read as km/h from the data: it changes {unit.slope:.2f} times as fast as the "
+                     f"accelerometer says over {unit.n} s of driving; converted to m/s"
+                     + (f" (the filter run again over the {again} frames since its first speed)" if again >= 0
+                        else " from here on"))
+        return k
+
     def _slow_warmup(self) -> None:
         """The warm-up's sample period is longer than :data:`MAX_SAMPLE_PERIOD`: stamps not in seconds. The
         samples are skipped and counted (said in the next frame's notes), and the clock warms up again on the
@@ -714,6 +826,10 @@ class StreamingEstimator:
                 if math.isnan(v):
                     notes.append(_NO_SPEED if wait == self.speed_wait else self._latency.timed_out())
                 sp.done(te)
+                unit = self._vunit
+                if unit.open:                           # the speed's unit not told yet (m/s or km/h)
+                    if unit.frame(float(ego.delta_v[0]), v, self._filter, ego):
+                        v = self._kmh(notes) * v
             q.popleft()
             est = self._filter.step(ego) if v is None and not self.speed_aided else self._filter.step(ego, speed=v)
             out.append(FrameEstimate.of(est, ego.t, ts, math.nan if v is None else v, tuple(notes), self.camera,
@@ -745,6 +861,7 @@ class StreamingEstimator:
                 "speed": _pack(self._speed.state_dict()), "queue": queue, "notes": list(self._notes),
                 "skipped": self._skipped, "slow_warmups": list(self._slow), "now": None if self._now == -math.inf else self._now,
                 "time_scale": self._tscale, "speed_latency": self._latency.state_dict(),
+                "speed_unit": [self._vscale, self._vunit.state_dict()],
                 "filter": _pack(self._filter.state_dict())}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -854,6 +971,9 @@ class StreamingEstimator:
             return _replayed(self, t_given, gyro_in, accel_in, speed)
         if self.speed_aided and speed is not None and F:
             v = _causal_speeds(speed, te, ts, i_emit[:F], frontier, t, n_warm, self.speed_wait, notes)
+        if v is not None and _tells_kmh(self.rate, em.delta_v[:, 0], v):
+            self.reset()                                 # a speed in km/h: as the stream converts it
+            return _replayed(self, t_given, gyro_in, accel_in, speed)
         flt = self._filter
         track = flt.run(em, speed=v) if self.speed_aided else flt.run(em)
         if any(notes):
@@ -1007,6 +1127,17 @@ def _read_state(est: StreamingEstimator, state: dict) -> dict[str, Any]:
         except (ValueError, TypeError) as e:
             raise r.error("speed_latency", f"is not [wait, said, latencies, periods, last stamp] ({e})") from None
     out["_latency"] = latency
+    vunit = _SpeedUnit(est.rate)
+    vscale = 1.0
+    if r.has("speed_unit"):                             # (older states: none)
+        try:
+            vscale, rec = r._get("speed_unit")
+            if vscale not in (1.0, 1.0 / 3.6):
+                raise ValueError(f"scale {vscale!r}")
+            vunit.load_state_dict(rec)
+        except (ValueError, TypeError) as e:
+            raise r.error("speed_unit", f"is not [scale, check] ({e})") from None
+    out["_vunit"], out["_vscale"] = vunit, vscale
     # the frames waiting, notes, counts
     queue = deque()
     for i, q in enumerate(records("queue", r._get("queue"))):
@@ -1107,6 +1238,18 @@ def _clock_notes(est, t_in, keep, notes, i_emit) -> None:
             while f < nf and i_emit[f] == p:
                 notes[f] = _take_clock_notes(clock, est.policy)
                 f += 1
+
+
+def _tells_kmh(rate: float, dvx: np.ndarray, v: np.ndarray) -> bool:
+    """Whether the stream's :class:`_SpeedUnit` tells these frames' speeds (frames with a speed on) to be km/h."""
+    unit = _SpeedUnit(rate)
+    fin = np.flatnonzero(v == v)
+    for dx, vj in zip(dvx[fin[0]:].tolist() if fin.size else [], v[fin[0]:].tolist() if fin.size else []):
+        if unit.frame(dx, vj, None, None):
+            return True
+        if not unit.open:
+            return False
+    return False
 
 
 def _wait_may_grow(est: StreamingEstimator, speed, t_out: np.ndarray, frontier: np.ndarray) -> bool:
