@@ -231,6 +231,26 @@ def test_causal_close_to_default_on_drive(shared_data):
     assert np.max(np.abs(np.degrees(c.roll - d.roll))) < 0.05
 
 
+@pytest.mark.parametrize("name", ["2011_09_30_drive_0034", "2011_09_30_drive_0027"])
+def test_causal_standstill_finds_the_stops_from_their_start(shared_data, kitti_index, name):
+    """Issue 38, case 7: the causal detector found far fewer standstill frames than the offline one (51 against
+    132 on a drive kept aside; here 12 of 41 and 40 of 50): a trailing window of 1 s flags a stop only after its
+    first second. The quiet frames leading into a passing window are now flagged too (held until it passes, at
+    most 0.9 s): nearly every frame the offline detector flags, none it does not; live and --causal alike."""
+    if name not in set(kitti_index["drive"]):
+        pytest.skip(f"{name} not in drives.csv")
+    from imu_ground.pipeline import estimate_log
+    path = shared_data / "kitti_imu100" / f"{name}.csv.gz"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        d = estimate_log(path, extrinsic="kitti_imu").egomotion.stationary
+    c = _offline(path, extrinsic="kitti_imu").egomotion.stationary
+    n = min(len(d), len(c))
+    d, c = np.asarray(d[:n], bool), np.asarray(c[:n], bool)
+    assert d.sum() >= 20
+    assert (c & d).sum() >= 0.9 * d.sum() and not (c & ~d).any()
+
+
 # --------------------------------------------------------------------------- warm start
 def _kitti_or_example():
     path = ROOT.parent / "shared" / "data" / "kitti_imu100" / "2011_09_26_drive_0009.csv.gz"
@@ -361,7 +381,7 @@ def test_bad_data_each_said():
     assert any(f.status == "gap" for f in out)
     # the clock set back by a minute: a restart, said
     out = est.push_imu(-60.0, (0.0, 0.0, 0.0), (0.0, 0.0, 9.81))
-    for k in range(1, 30):
+    for k in range(1, 150):                                        # (the new run's first frames: a stop's start)
         out += est.push_imu(-60.0 + 0.01 * k, (0.0, 0.0, 0.0), (0.0, 0.0, 9.81))
     assert any("clock stepped back by" in f.status_reason and "restarted" in f.status_reason for f in out)
 
@@ -508,7 +528,8 @@ def test_a_stream_stamped_in_ns_us_or_ms_gives_the_frames_of_seconds(unit, scale
     track, _ = StreamingEstimator().run(t * scale, g, a, (sp[0] * scale, sp[1]))
     assert track.status_reason.tolist() == [f.status_reason for f in got]
     resumed = StreamingEstimator()                      # the unit is in the saved state
-    head = replay(est := StreamingEstimator(), t[:700] * scale, g[:700], a[:700])
+    est = StreamingEstimator()                          # (not replay: its flush ends the stream)
+    head = [f for i in range(700) for f in est.push_imu(t[i] * scale, g[i], a[i])]
     resumed.load_state_dict(json.loads(json.dumps(est.state_dict())))
     tail = replay(resumed, t[700:] * scale, g[700:], a[700:])
     whole = replay(StreamingEstimator(), t * scale, g, a)
@@ -523,8 +544,8 @@ def test_speed_that_never_comes_back_runs_imu_only_and_says_so():
         if k < 50:
             est.push_speed(t, 5.0)
         got = est.push_imu(t, (0.0, 0.0, 0.0), (0.0, 0.0, 9.81))
-        for f in got:                                 # a frame waits at most speed_wait of IMU time
-            assert t <= f.t + 0.25 + 0.011
+        for f in got:                                 # a frame waits at most speed_wait of IMU time (the first
+            assert t <= f.t + max(0.25, 0.9) + 0.011   # frames of a stop: held until its window passes, 0.9 s)
         out += got
     assert any(f.status_reason.endswith("no speed over this frame: IMU only") for f in out)
     assert math.isfinite(out[2].speed) and math.isnan(out[-1].speed)
@@ -880,7 +901,8 @@ def test_stream_replay_with_state_resumes_where_it_left_off(cli, tmp_path):
     proc = subprocess.Popen([sys.executable, "-m", "imu_ground", "stream", "--replay", str(EXAMPLE), "--realtime",
                              "--state", str(state)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             cwd=ROOT)
-    head = [proc.stdout.readline() for _ in range(4)]     # the header and 3 frames: samples are being fed
+    head = [proc.stdout.readline() for _ in range(14)]    # the header and 13 frames (after the first stop's
+    # start, held and written at once): samples are being fed, paced
     assert head[0].startswith("t,normal_x")
     proc.send_signal(signal.SIGTERM)
     rest, first_err = proc.communicate(timeout=60)
@@ -923,7 +945,7 @@ def test_a_late_speed_is_waited_for_as_long_as_its_latency_needs(late):
     assert _keys(late_run[20:], fields) == _keys(on_time[20:], fields)
     for name in ("pitch", "roll"):
         diff = np.degrees([getattr(x, name) - getattr(y, name) for x, y in zip(late_run[20:], on_time[20:])])
-        assert np.abs(diff).max() < 1e-3
+        assert np.abs(diff).max() < 0.05                # (the road filter starts a frame later: its first speed)
     said = [f.status_reason for f in late_run if "after their stamps: frames wait up to" in f.status_reason]
     assert 1 <= len(said) <= 3
     assert not any("too slow" in f.status_reason for f in late_run[20:] if f.speed > 3.0)
@@ -1001,7 +1023,10 @@ def test_the_live_object_never_goes_silent(stream):
     _finite_when_valid(frames)
     times = [f.t for f in frames]
     assert all(b > a for a, b in zip(times, times[1:]))
-    assert len(frames) >= 0.9 * (true[-1] - true[0]) * 10 - 25
+    assert len(frames) >= 0.9 * (true[-1] - true[0]) * 10 - 25, (unit, lag, np.flatnonzero(np.diff(true) > 0.1),
+                                                                 np.diff(true)[np.diff(true) > 0.1],
+                                                                 np.flatnonzero(~np.isclose(t, true * unit)),
+                                                                 [f.status_reason[-60:] for f in frames[-3:]])
 
 
 def test_a_speed_in_kmh_is_told_from_the_data_and_the_frames_are_the_m_s_run(shared_data, kitti_index):
