@@ -10,18 +10,23 @@ Per sample, each piece one class:
 1. **Clock** (:class:`~imu_ground.imu.sample_clock.SampleClock`): raw stamps to strictly
    increasing sample times (jitter retimed on the sample index with a running rate,
    back-steps and repeats by the readers' ``retime`` or ``drop`` policy, dropouts kept as
-   gaps, a clock set back by more than a gap or forward by more than :data:`MAX_GAP_FRAMES`
-   frames restarts the front end; a warm-up whose sample period is longer than
-   :data:`MAX_SAMPLE_PERIOD`, stamps not in seconds, is skipped and said).
+   gaps; one stamp far off the clock is a bad sample, dropped and said; three agreeing ones are a
+   new clock: a dropout, or, set back by more than a gap or forward by more than
+   :data:`MAX_GAP_FRAMES` frames, a restart of the front end). The stamps' unit (s, ms, us, ns) is
+   told from each warm-up as the readers tell it and said (``time_unit`` gives it); a warm-up no
+   unit makes an IMU's (a period over :data:`MAX_SAMPLE_PERIOD`) is skipped and said.
 2. **Standstill and gyro bias** (:mod:`imu_ground.imu.causal_standstill`): a frame ends at a
-   standstill when its trailing 1 s window is quiet; the bias is the mean rate over the
+   standstill when its trailing 1 s window is quiet, or when it is quiet alone and leads into such a
+   window (the first frames of a stop: held until that window passes, at most 0.9 s); the bias is the mean rate over the
    standstills (2 s windows) seen so far (or given, or from a saved state) and applies from the next sample.
 3. **Preintegration** (:class:`~imu_ground.imu.preintegration.StreamingPreintegrator`): frames
    at ``rate`` Hz from the first sample, gaps flagged and integrated through.
 4. **Speed over the frame** (:class:`~imu_ground.datasets.speed_buffer.SpeedBuffer`): a frame
-   waits for a speed sample at or after its end, at most ``speed_wait`` seconds of IMU time
-   (:data:`SPEED_WAIT`), then runs IMU only and says so; a stream that never sent a speed does
-   not wait.
+   waits for a speed sample at or after its end, ``speed_wait`` seconds of IMU time
+   (:data:`SPEED_WAIT`) or as long as the speed's measured latency needs (at most
+   :data:`MAX_SPEED_WAIT`), then runs IMU only and says so; a stream that never sent a speed does
+   not wait. A speed in km/h is told from the data as the readers tell it (its changes against the
+   accelerometer), said, and converted (the filter run again from its first speed).
 5. **Filter**: the method's streaming ``step`` (``on_invalid="skip"``: a bad frame is skipped,
    never raised on).
 
@@ -346,26 +351,32 @@ class _SpeedLatency:
         self.lags: deque = deque(maxlen=_LATENCY_SAMPLES)
         self.steps: deque = deque(maxlen=_LATENCY_SAMPLES)
         self.last = math.nan                            # the last speed stamp
+        self.lag, self.count = -1.0, 0                  # the largest latency when the wait was worked out; since
 
     def arrived(self, t: float, now: float) -> str | None:
-        """A speed sample stamped ``t`` arrived at IMU time ``now`` (s); a note when the wait changed."""
+        """A speed sample stamped ``t`` arrived at IMU time ``now`` (s); a note when the wait changed. The wait is
+        worked out again every tenth sample, or at once for a latency larger than the last worked out."""
         if not (t - t == 0.0 and now > -math.inf):
             return None
         step, self.last = t - self.last, t
         if step > 0:
             self.steps.append(step)
         lag = now - t
-        self.lags.append(lag if lag > 0.0 else 0.0)
-        if not self.steps:
+        lag = lag if lag > 0.0 else 0.0
+        self.lags.append(lag)
+        self.count += 1
+        if not (lag > self.lag or self.count >= 10) or not self.steps:
             return None
+        self.count = 0
+        self.lag = lag_max = max(self.lags)
         steps = sorted(self.steps)
-        need = max(self.lags) + steps[len(steps) // 2] + _WAIT_MARGIN
+        need = lag_max + steps[len(steps) // 2] + _WAIT_MARGIN
         wait = self.least if need <= self.least else (need if need < self.most else self.most)
         self.wait = wait
         if abs(wait - self.said) <= 0.02:               # (said again when it changes by more)
             return None
         self.said = wait
-        return (f"speed samples arrive up to {max(self.lags):.2f} s after their stamps: frames wait up to "
+        return (f"speed samples arrive up to {lag_max:.2f} s after their stamps: frames wait up to "
                 f"{wait:.2f} s for them" + (" (the most they wait)" if wait == self.most else ""))
 
     def timed_out(self) -> str:
@@ -373,10 +384,14 @@ class _SpeedLatency:
                 f"{max(self.lags, default=0.0):.2f} s after their stamps)")
 
     def state_dict(self) -> list:
-        return [self.wait, self.said, list(self.lags), list(self.steps), None if math.isnan(self.last) else self.last]
+        return [self.wait, self.said, list(self.lags), list(self.steps), None if math.isnan(self.last) else self.last,
+                self.lag, self.count]
 
     def load_state_dict(self, state: Any) -> None:
-        wait, said, lags, steps, last = state
+        wait, said, lags, steps, last, lag, count = state
+        if not (type(lag) is float and math.isfinite(lag) and type(count) is int and 0 <= count < 10):
+            raise ValueError("not a speed latency record")
+        self.lag, self.count = lag, count
         vals = [wait, said, *lags, *steps] + ([] if last is None else [last])
         if not (all(type(x) is float and math.isfinite(x) for x in vals) and self.least <= wait <= self.most
                 and len(lags) <= _LATENCY_SAMPLES and len(steps) <= _LATENCY_SAMPLES
