@@ -41,6 +41,8 @@ import math
 from array import array
 from typing import Any
 
+import numpy as np
+
 __all__ = ["CONFIRM", "DROP", "OK", "RESTART", "WARMUP", "SampleClock"]
 
 #: Samples of the warm-up: their median step is the first sample period.
@@ -207,7 +209,8 @@ class SampleClock:
         if not t > self._raw_max:
             # before the warm-up's latest stamp: dropped; CONFIRM agreeing ones in a row start the warm-up again
             # (its latest stamp was a bad one far ahead)
-            self._sus_n = self._sus_n + 1 if (self._sus_n > 0 and 0.0 < t - self._sus_t <= self.hold) else 1
+            # (agreeing: increasing; the unit of the stamps is not known yet)
+            self._sus_n = self._sus_n + 1 if (self._sus_n > 0 and t > self._sus_t) else 1
             self._sus_t = t
             if self._sus_n >= CONFIRM:
                 jump = self._raw_max - t
@@ -263,6 +266,66 @@ class SampleClock:
                                                       int(state["bad"][2])) if "bad" in state else (0, 0.0, 0)
         self._sus_t, self._sus_n = (_g(state["suspect"][0]), int(state["suspect"][1])) if "suspect" in state \
             else (math.nan, 0)
+
+    def take_notes(self) -> list[str]:
+        """What the clock did since the last call (bad stamps, samples dropped, stamps retimed), one phrase each
+        for a frame's ``status_reason``; those counts start again."""
+        notes = []
+        if self.bad:
+            off = self.bad_offset
+            notes.append(f"{self.bad} IMU sample(s) dropped: stamp far off the clock (the last {abs(off):.6g} s "
+                         f"{'ahead' if off > 0 else 'behind'}), a bad stamp, not a new clock")
+            self.bad = 0
+        if self.confirming:
+            notes.append(f"{self.confirming} IMU sample(s) dropped while the change of the clock was confirmed")
+            self.confirming = 0
+        if self.dropped:
+            notes.append(f"{self.dropped} IMU sample(s) dropped (time not after the last; policy {self.policy})")
+            self.dropped = 0
+        if self.retimed:
+            notes.append(f"{self.retimed} stamp(s) retimed on the sample clock")
+            self.retimed = 0
+        return notes
+
+    def load_checked(self, c: Any, max_period: float) -> None:
+        """Resume from a saved :meth:`state_dict` read through ``c`` (a :class:`~imu_ground.imu.warm_start.StateReader`
+        of it), every entry checked: a corrupt or out-of-range one raises
+        :class:`~imu_ground.imu.warm_start.StateError` naming it (``clock.dt`` NaN where it must be a period of
+        1e-6 to ``max_period`` s, a stamp beyond the readers' magnitude, counts not integers ...)."""
+        from imu_ground.imu.warm_start import StateReader
+
+        def stamp(name: str, nan: bool = True, inf: bool = False) -> float:
+            v = c.state.get(name) if isinstance(c.state, dict) else None
+            if v in ("inf", "-inf") and inf:
+                return math.inf if v == "inf" else -math.inf
+            return math.nan if v is None and nan and name in c.state else c.float(name)
+
+        t, dt = stamp("t"), stamp("dt")
+        if not (math.isnan(dt) or 1e-6 <= dt <= max_period):
+            raise c.error("dt", f"is {dt!r}, expected NaN (a warm-up) or a sample period of 1e-6 to {max_period:g} s")
+        raw_max, raw_prev = stamp("raw_max", inf=True), stamp("raw_prev")
+        steps = c.floats("steps", (None,))
+        if len(steps) >= WARMUP or (steps <= 0).any():
+            raise c.error("steps", f"holds {len(steps)} steps (expected fewer than {WARMUP}, each positive)")
+        pending, pmin = stamp("pending"), stamp("pmin", inf=True)
+        counts = c.state.get("counts")
+        if not (isinstance(counts, list) and len(counts) == 4):
+            raise c.error("counts", f"is {counts!r:.60}, expected 4 counts")
+        cr = StateReader(c.kind, {str(i): x for i, x in enumerate(counts)}, f"{c.prefix}counts.")
+        counts = [cr.int(str(i)) for i in range(4)]
+        last_jump = c.float("last_jump")
+        bad = c.floats("bad", (3,)) if c.has("bad") else np.zeros(3)
+        if bad[0] < 0 or bad[2] < 0 or bad[0] != int(bad[0]) or bad[2] != int(bad[2]):
+            raise c.error("bad", f"holds {bad.tolist()!r}, expected counts (integers >= 0) and an offset")
+        sus = c.state.get("suspect") if c.has("suspect") else [None, 0]
+        if not (isinstance(sus, list) and len(sus) == 2 and type(sus[1]) is int and 0 <= sus[1] < CONFIRM
+                and (sus[0] is None or (isinstance(sus[0], float) and math.isfinite(sus[0])))):
+            raise c.error("suspect", f"is {sus!r:.60}, expected [a stamp or null, a count below {CONFIRM}]")
+        self.t, self.dt, self._raw_max, self._raw_prev, self._steps = t, dt, raw_max, raw_prev, steps.tolist()
+        self._pending, self._pmin, self.last_jump = pending, pmin, last_jump
+        self.retimed, self.dropped, self.dropouts, self.restarts = counts
+        self.bad, self.bad_offset, self.confirming = int(bad[0]), float(bad[1]), int(bad[2])
+        self._sus_t, self._sus_n = (math.nan if sus[0] is None else sus[0]), sus[1]
 
 
 def _f(x: float) -> float | str | None:

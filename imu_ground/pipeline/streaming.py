@@ -54,7 +54,6 @@ import numpy as np
 
 from imu_ground._native import FRONT
 from imu_ground.datasets.options import OptionError
-from imu_ground.datasets.speed import frame_speed
 from imu_ground.datasets.speed_buffer import SpeedBuffer
 from imu_ground.filters import Extrinsic
 from imu_ground.filters.estimator import GroundEstimate
@@ -64,6 +63,7 @@ from imu_ground.imu.causal_standstill import (
     StandstillBlocks,
     StandstillTests,
     block_sums,
+    stop_starts,
     window_standstill,
 )
 from imu_ground.imu.egomotion import EgoFrame, EgoMotion
@@ -71,6 +71,9 @@ from imu_ground.imu.preint_kernel import NATIVE as _PREINT_NATIVE
 from imu_ground.imu.preint_measurement import PreintegratedImu
 from imu_ground.imu.preintegration import StreamingPreintegrator, preintegrate
 from imu_ground.imu.sample_clock import DROP, OK, RESTART, SampleClock
+from imu_ground.pipeline.live_speed import (MAX_SPEED_WAIT, NO_SPEED, SpeedLatency, SpeedUnit, causal_speeds,
+                                            tells_kmh, wait_may_grow)
+from imu_ground.pipeline.live_state import MAX_RECORDS, pack, unpack
 from imu_ground.so3 import quat_from_matrix
 
 __all__ = ["LIVE_METHODS", "MAX_FRAME_RATE", "MAX_GAP_FRAMES", "MAX_SAMPLE_PERIOD", "MAX_SPEED_WAIT", "SPEED_WAIT",
@@ -81,14 +84,8 @@ __all__ = ["LIVE_METHODS", "MAX_FRAME_RATE", "MAX_GAP_FRAMES", "MAX_SAMPLE_PERIO
 LIVE_METHODS = tuple(name for name, spec in METHODS.items() if spec.live)
 #: Least time a frame waits for a speed sample at or after its end, s of IMU time (then: IMU only, said); a speed
 #: that arrives later after its stamps (measured) makes frames wait as long as it needs, at most
-#: :data:`MAX_SPEED_WAIT`.
+#: :data:`~imu_ground.pipeline.live_speed.MAX_SPEED_WAIT`.
 SPEED_WAIT = 0.25
-#: Longest a frame waits for a late speed, s of IMU time (or ``speed_wait`` when that is longer).
-MAX_SPEED_WAIT = 1.0
-#: Speed samples whose latency and period set the wait (the last ones).
-_LATENCY_SAMPLES = 20
-#: Allowance over the measured latency and period, s (the sample that finds the speed arrived comes after it).
-_WAIT_MARGIN = 0.02
 #: The highest frame rate, Hz, a :class:`StreamingEstimator` takes (its IMU's rate is not known before the
 #: samples come; a frame rate far above it would make millions of empty frames a sample).
 MAX_FRAME_RATE = 1000.0
@@ -101,7 +98,8 @@ MAX_GAP_FRAMES = 36_000
 MAX_SAMPLE_PERIOD = 1.0
 _STATE_KIND = "imu_ground.StreamingEstimator"
 _STATE_VERSION = 1
-_NO_SPEED = "no speed over this frame: IMU only"
+_NO_SPEED = NO_SPEED
+_UNDECIDED = "undecided"                                # a frame's speed not decided yet
 # The compiled front end (imu/_front_native.c): one call a sample in the steady state, with the compiled
 # preintegrator; its state buffer's layout (F_*: the clock's, SampleClock.to_buffer, then these).
 _FRONT = FRONT if _PREINT_NATIVE is not None else None
@@ -182,113 +180,6 @@ def estimate_row(est: FrameEstimate) -> dict[str, Any]:
     return row
 
 
-# ------------------------------------------------------------------------------------------ state packing
-_PACKED = "float64_zlib_base64"
-_PACK_MIN = 8
-
-
-def _shape(x: Any) -> Any:
-    """0 for a float, the list of its items' shapes for a list of such; None for anything else."""
-    if type(x) is float:
-        return 0
-    if type(x) is list and x:
-        items = [_shape(y) for y in x]
-        return None if any(i is None for i in items) else items
-    return None
-
-
-def _leaves(x: Any, out: list) -> None:
-    if type(x) is float:
-        out.append(x)
-    else:
-        for y in x:
-            _leaves(y, out)
-
-
-def _pack(x: Any) -> Any:
-    """A list of equally shaped items of floats (at least 8 in all) as base64 of the floats' float64 bytes
-    (zlib-compressed) and the items' shape: exact, and less than half the JSON of the numbers' text;
-    everything else as it is."""
-    if type(x) is dict:
-        return {k: _pack(v) for k, v in x.items()}
-    if type(x) is list:
-        shape = _shape(x)
-        if shape is not None and all(s == shape[0] for s in shape):
-            flat: list = []
-            _leaves(x, flat)
-            if len(flat) >= _PACK_MIN:
-                import base64
-                import zlib
-                raw = zlib.compress(np.array(flat, dtype=float).tobytes(), 9)
-                return {_PACKED: base64.b64encode(raw).decode("ascii"), "n": len(x), "item": shape[0]}
-        return [_pack(v) for v in x]
-    return x
-
-
-#: The most floats a packed list of a saved state may hold (a state is some 9 KB; this bounds what a corrupt
-#: or hostile one inflates to: 8 MB).
-MAX_PACKED_FLOATS = 1_000_000
-
-
-def _size(shape: Any) -> int:
-    return 1 if shape == 0 else sum(_size(s) for s in shape)
-
-
-def _build(shape: Any, it) -> Any:
-    return next(it) if shape == 0 else [_build(s, it) for s in shape]
-
-
-def _unpack(x: Any, name: str = "state") -> Any:
-    """:func:`_pack` undone; a packed list that is garbled, truncated, of another size than it says or larger than
-    :data:`MAX_PACKED_FLOATS` raises :class:`~imu_ground.imu.warm_start.StateError` naming entry ``name``."""
-    if type(x) is dict:
-        if _PACKED in x:
-            return _unpacked(x, name)
-        return {k: _unpack(v, f"{name}.{k}") for k, v in x.items()}
-    if type(x) is list:
-        return [_unpack(v, name) for v in x]
-    return x
-
-
-def _valid_shape(shape: Any, depth: int = 0) -> bool:
-    if shape == 0 and type(shape) is int:
-        return True
-    return type(shape) is list and 0 < len(shape) <= MAX_PACKED_FLOATS and depth < 4 and \
-        all(_valid_shape(s, depth + 1) for s in shape)
-
-
-def _unpacked(x: dict, name: str) -> list:
-    import base64
-    import binascii
-    import zlib
-
-    from imu_ground.imu.warm_start import StateError
-
-    def bad(problem: str) -> StateError:
-        return StateError(f"this StreamingEstimator state is corrupt: its entry {name} {problem}; save the state "
-                          f"again with state_dict() or start afresh")
-    text, n, item = x.get(_PACKED), x.get("n"), x.get("item")
-    if type(text) is not str or type(n) is not int or not 0 < n <= MAX_PACKED_FLOATS or not _valid_shape(item):
-        raise bad("is not a packed list (its text, count or item shape is missing or of another type)")
-    want = n * _size(item)
-    if want > MAX_PACKED_FLOATS:
-        raise bad(f"says it holds {want} numbers, more than a saved state's {MAX_PACKED_FLOATS}")
-    if len(text) > 12 * want + 1024:                 # (the base64 of zlib of 8 bytes a float is less than this)
-        raise bad(f"is {len(text)} characters long for {want} numbers")
-    try:
-        raw = base64.b64decode(text, validate=True)
-        d = zlib.decompressobj()
-        data = d.decompress(raw, 8 * want + 1)
-        complete = d.eof and not d.unconsumed_tail
-    except (binascii.Error, zlib.error, ValueError) as e:
-        raise bad(f"is garbled ({type(e).__name__}: {e})") from None
-    if not complete or len(data) != 8 * want:
-        raise bad(f"holds {len(data) // 8}{'' if complete else ' or more'} numbers where it says {want} "
-                  f"(truncated or garbled)")
-    it = iter(np.frombuffer(data, dtype=float).tolist())
-    return [_build(item, it) for _ in range(n)]
-
-
 # ------------------------------------------------------------------------------------------ checks
 def _number(x: Any, name: str) -> float:
     if isinstance(x, float):                         # float and numpy.float64 (a float subclass): the common case
@@ -332,170 +223,6 @@ def _make_filter(name: str, ext: Extrinsic, rate: float, recalibrate_online: boo
     elif recalibrate_online:
         raise OptionError(f"{{opt}} needs the suspension method, not {name}", "recalibrate_online")
     return METHODS[name].make(**kw)
-
-
-# ------------------------------------------------------------------------------------------ a late speed
-class _SpeedLatency:
-    """How long frames wait for their speed: ``speed_wait``, or as long as the measured latency needs.
-
-    Each speed sample's latency is the IMU time it arrived at less its stamp (s); a frame ending at
-    ``te`` has its speed once a sample stamped at or after ``te`` has arrived: one period of the speed
-    after ``te`` plus the latency. The wait is the largest latency of the last :data:`_LATENCY_SAMPLES`
-    samples plus their median period (and :data:`_WAIT_MARGIN`), at least ``speed_wait`` and at most
-    :data:`MAX_SPEED_WAIT` (or ``speed_wait`` when longer).
-    """
-
-    def __init__(self, least: float) -> None:
-        self.least, self.most = least, max(least, MAX_SPEED_WAIT)
-        self.wait = self.said = least
-        self.lags: deque = deque(maxlen=_LATENCY_SAMPLES)
-        self.steps: deque = deque(maxlen=_LATENCY_SAMPLES)
-        self.last = math.nan                            # the last speed stamp
-        self.lag, self.count = -1.0, 0                  # the largest latency when the wait was worked out; since
-
-    def arrived(self, t: float, now: float) -> str | None:
-        """A speed sample stamped ``t`` arrived at IMU time ``now`` (s); a note when the wait changed. The wait is
-        worked out again every tenth sample, or at once for a latency larger than the last worked out."""
-        if not (t - t == 0.0 and now > -math.inf):
-            return None
-        step, self.last = t - self.last, t
-        if step > 0:
-            self.steps.append(step)
-        lag = now - t
-        lag = lag if lag > 0.0 else 0.0
-        self.lags.append(lag)
-        self.count += 1
-        if not (lag > self.lag or self.count >= 10) or not self.steps:
-            return None
-        self.count = 0
-        self.lag = lag_max = max(self.lags)
-        steps = sorted(self.steps)
-        need = lag_max + steps[len(steps) // 2] + _WAIT_MARGIN
-        wait = self.least if need <= self.least else (need if need < self.most else self.most)
-        self.wait = wait
-        if abs(wait - self.said) <= 0.02:               # (said again when it changes by more)
-            return None
-        self.said = wait
-        return (f"speed samples arrive up to {lag_max:.2f} s after their stamps: frames wait up to "
-                f"{wait:.2f} s for them" + (" (the most they wait)" if wait == self.most else ""))
-
-    def timed_out(self) -> str:
-        return (f"{_NO_SPEED} (waited {self.wait:.2f} s; speed samples arrive up to "
-                f"{max(self.lags, default=0.0):.2f} s after their stamps)")
-
-    def state_dict(self) -> list:
-        return [self.wait, self.said, list(self.lags), list(self.steps), None if math.isnan(self.last) else self.last,
-                self.lag, self.count]
-
-    def load_state_dict(self, state: Any) -> None:
-        wait, said, lags, steps, last, lag, count = state
-        if not (type(lag) is float and math.isfinite(lag) and type(count) is int and 0 <= count < 10):
-            raise ValueError("not a speed latency record")
-        self.lag, self.count = lag, count
-        vals = [wait, said, *lags, *steps] + ([] if last is None else [last])
-        if not (all(type(x) is float and math.isfinite(x) for x in vals) and self.least <= wait <= self.most
-                and len(lags) <= _LATENCY_SAMPLES and len(steps) <= _LATENCY_SAMPLES
-                and min(lags + steps, default=0.0) >= 0.0):
-            raise ValueError("not a speed latency record")
-        self.wait, self.said = wait, said
-        self.lags.extend(lags)
-        self.steps.extend(steps)
-        self.last = math.nan if last is None else last
-
-
-# ------------------------------------------------------------------------------------------ the speed's unit
-class _SpeedUnit:
-    """m/s or km/h, told from the data as :func:`~imu_ground.datasets.speed.check_speed` tells a speed file's unit.
-
-    Over windows of :data:`~imu_ground.datasets.speed.UNIT_WINDOW_S` (whole frames), the speed's change
-    (frame speeds at the windows' ends) is regressed on the forward specific force integrated over the
-    window (the frames' ``delta_v`` x, m/s), both means removed, over the windows where the speed is over
-    1 m/s at both ends; after 20 such windows a slope of 2.9-4.5 with a correlation over 0.6 is km/h, a
-    slope of 0.6-1.6 is m/s (then no more checks); the check gives up (m/s) after :data:`_UNIT_MAX_WINDOWS`.
-    While it is open the filter's state at the first frame with a speed and the frames since are kept
-    (:meth:`rerun`: the filter runs again over them with the speed converted).
-    """
-
-    def __init__(self, rate: float) -> None:
-        from imu_ground.datasets.speed import UNIT_WINDOW_S
-        self.W = max(1, int(round(UNIT_WINDOW_S * rate)))
-        self.open, self.started = True, False
-        self.k, self.dv, self.v0 = 0, 0.0, math.nan     # frames in the window, its sum of dv, the speed before it
-        self.n, self.s = 0, [0.0] * 5                   # windows; sums x, y, xx, yy, xy
-        self.slope = math.nan
-        self.snapshot: dict | None = None               # the filter's state at the first speed, the frames since
-        self.frames: list = []
-
-    def frame(self, dvx: float, v: float, flt: Any, ego: Any) -> bool:
-        """One frame (its forward delta-v, m/s, and speed); True when the speed is told to be km/h now."""
-        if not self.started:                            # (from the first frame with a speed)
-            if v != v:
-                return False
-            self.started = True
-            self.snapshot = {} if flt is None else flt.state_dict()
-        if self.snapshot is not None:
-            self.frames.append((ego, v))
-        self.dv += dvx
-        self.k += 1
-        if self.k < self.W:
-            return False
-        x, v0, self.v0, self.k, self.dv = self.dv, self.v0, v, 0, 0.0
-        if not (abs(v0) > 1.0 and abs(v) > 1.0):
-            return False
-        y, s = v - v0, self.s
-        self.n += 1
-        s[0] += x
-        s[1] += y
-        s[2] += x * x
-        s[3] += y * y
-        s[4] += x * y
-        if self.n < 20:
-            return False
-        n = self.n
-        sxx, syy, sxy = s[2] - s[0] * s[0] / n, s[3] - s[1] * s[1] / n, s[4] - s[0] * s[1] / n
-        if sxx > 0 and syy > 0 and sxy / math.sqrt(sxx * syy) > 0.6:
-            self.slope = k = sxy / sxx
-            if 2.9 < k < 4.5:
-                self.open = False
-                return True
-            if 0.6 < k < 1.6:
-                self._close()
-                return False
-        if self.n >= _UNIT_MAX_WINDOWS:
-            self._close()
-        return False
-
-    def _close(self) -> None:
-        self.open, self.snapshot, self.frames = False, None, []
-
-    def rerun(self, flt: Any, k: float) -> int:
-        """The filter back at the first speed, then over the frames since with their speeds times ``k``; the
-        frames run again (-1: none kept, a resumed state)."""
-        snapshot, frames = self.snapshot, self.frames[:-1]      # (the last: the frame being decided)
-        self._close()
-        if snapshot is None:
-            return -1
-        flt.load_state_dict(snapshot)
-        for ego, v in frames:
-            flt.step(ego, speed=v * k)
-        return len(frames)
-
-    def state_dict(self) -> list:
-        return [self.open, self.started, self.k, self.dv, None if math.isnan(self.v0) else self.v0, self.n,
-                list(self.s)]
-
-    def load_state_dict(self, state: Any) -> None:
-        open_, started, k, dv, v0, n, s = state
-        vals = [dv, *s] + ([] if v0 is None else [v0])
-        if not (type(open_) is bool and type(started) is bool and type(k) is int and 0 <= k < self.W and type(n) is int and 0 <= n
-                and len(s) == 5 and all(type(x) is float and math.isfinite(x) for x in vals)):
-            raise ValueError("not a speed unit record")
-        self.open, self.started, self.k, self.dv, self.n, self.s = open_, started, k, dv, n, s
-        self.v0 = math.nan if v0 is None else v0
-
-
-#: Windows after which the live speed-unit check gives up (the speed is then taken as m/s).
-_UNIT_MAX_WINDOWS = 300
 
 
 # ------------------------------------------------------------------------------------------ the object
@@ -576,10 +303,11 @@ class StreamingEstimator:
         self._bias = CausalGyroBias(self._bias_arg)
         self._filter.reset()
         self._speed = SpeedBuffer()
-        self._latency = _SpeedLatency(self.speed_wait)
-        self._vunit = _SpeedUnit(self.rate)
+        self._latency = SpeedLatency(self.speed_wait)
+        self._vunit = SpeedUnit(self.rate)
         self._vscale = 1.0                              # m/s per unit of the speeds given (1 / 3.6: km/h)
-        self._queue: deque = deque()
+        self._queue: deque = deque()                   # frames: [ego, t_start, notes, speed, held, scale, index]
+        self._hold: deque = deque()                    # those held at a possible start of a stop
         self._notes: list[str] = []
         self._skipped = 0
         self._slow = [0, 0.0]                           # samples of too slow warm-ups skipped, the last one's period
@@ -691,12 +419,13 @@ class StreamingEstimator:
         if code != OK:
             if code == DROP:
                 return []
+            self._release()
             out = self._decide(math.inf)                # RESTART: the frames so far, then start again
             jump = self._clock.last_jump
             self._notes.append(f"the clock {'stepped back' if jump > 0 else 'jumped forward'} by {abs(jump):.3f} s: "
                                f"restarted at t = {tout:.3f} s")
             self._speed.clear()
-            self._latency = _SpeedLatency(self.speed_wait)
+            self._latency = SpeedLatency(self.speed_wait)
             self._new_run()
         if self._pre is None:
             self._warm.append((tout, g, a))
@@ -712,7 +441,9 @@ class StreamingEstimator:
         return out
 
     def flush(self) -> list[FrameEstimate]:
-        """The end of the stream: the frames still waiting for a speed, decided with what has arrived."""
+        """The end of the stream: the frames still waiting for a speed, decided with what has arrived (those held at
+        a possible start of a stop: moving)."""
+        self._release()
         return self._decide(math.inf)
 
     # -- the front end -------------------------------------------------------------------------
@@ -758,11 +489,11 @@ class StreamingEstimator:
         for tw, g, a in warm:
             self._warm.append((clock.push(tw * factor)[1], g, a))
         self._speed.rescale(factor)
-        self._latency = _SpeedLatency(self.speed_wait)  # (latencies measured in the other unit)
+        self._latency = SpeedLatency(self.speed_wait)  # (latencies measured in the other unit)
         self._notes.append(note)
 
     def _kmh(self, notes: list) -> float:
-        """The speed is in km/h (told by :class:`_SpeedUnit`): it and the speeds kept are converted from now on,
+        """The speed is in km/h (told by :class:`~imu_ground.pipeline.live_speed.SpeedUnit`): it and the speeds kept are converted from now on,
         the filter runs again over the frames since its first speed with them (when it can), said; returns
         the factor."""
         unit, k = self._vunit, 1.0 / 3.6
@@ -804,13 +535,31 @@ class StreamingEstimator:
         j = round((f.t_end - self._origin) * self.rate) - 1
         blocks = self._blocks
         still, for_bias = blocks.windows(j, blocks.W, blocks.Wb if self._bias.auto else 0)
+        quiet = False if still else blocks.windows(j, 1, 0)[0]
         if for_bias:
             self._bias.absorb(j, blocks.Wb, blocks.block)
             self._pre.set_gyro_bias(*self._bias.value)  # from the next sample on
         blocks.done(j)
-        notes = self._take_notes()
-        self._queue.append((EgoFrame(f.delta_R, f.delta_v, f.delta_t, still, bool(f.valid), f.t_end),
-                            f.t_start, notes))
+        entry = [EgoFrame(f.delta_R, f.delta_v, f.delta_t, still, bool(f.valid), f.t_end), f.t_start,
+                 self._take_notes(), _UNDECIDED, quiet, 1.0, j]
+        hold = self._hold
+        if still:                                       # a stop: the quiet frames before it were at rest too
+            for e in hold:
+                e[0], e[4] = e[0]._replace(stationary=True), False
+            hold.clear()
+        elif not quiet:
+            self._release()
+        else:                                           # perhaps the start of a stop: held (at most W - 1 frames)
+            hold.append(entry)
+        while hold and hold[0][6] <= j - (blocks.W - 1):
+            hold.popleft()[4] = False                   # no stop within its window: moving
+        self._queue.append(entry)
+
+    def _release(self) -> None:
+        """The frames held at a possible start of a stop go on as moving."""
+        for e in self._hold:
+            e[4] = False
+        self._hold.clear()
 
     def _take_notes(self) -> list[str]:
         notes, self._notes = self._notes, []
@@ -822,30 +571,39 @@ class StreamingEstimator:
             notes.append(f"IMU stamps step by {self._slow[1]:.3g} s, more than {MAX_SAMPLE_PERIOD:g} s: stamps not in "
                          f"seconds (ns, us, ms)? IMU samples skipped: {self._slow[0]}")
             self._slow = [0, 0.0]
-        return notes + _take_clock_notes(c, self.policy)
+        return notes + c.take_notes()
 
     def _decide(self, now: float) -> list[FrameEstimate]:
-        out = []
+        """The frames' speeds in order, as their speed comes (or their wait ends); then the filter over the
+        frames from the oldest on, up to one held at a possible start of a stop."""
         q, sp = self._queue, self._speed
-        while q:
-            ego, ts, notes = q[0]
-            v = None
-            if self.speed_aided and sp.received:
-                te = ego.t
-                kept = sp.t                             # (sp.covers(te), inlined: this runs every sample a frame waits)
-                wait = self._latency.wait
-                if not ((kept and kept[-1] >= te) or now >= te + wait):
-                    break
-                v = sp.mean(ts, te)
-                notes += sp.take_notes()
-                if math.isnan(v):
-                    notes.append(_NO_SPEED if wait == self.speed_wait else self._latency.timed_out())
-                sp.done(te)
+        for e in q:
+            if e[3] is not _UNDECIDED:
+                continue
+            if not (self.speed_aided and sp.received):
+                e[3] = None
+                continue
+            ego, ts, notes = e[0], e[1], e[2]
+            te = ego.t
+            kept = sp.t                                 # (sp.covers(te), inlined: this runs every sample a frame waits)
+            wait = self._latency.wait
+            if not ((kept and kept[-1] >= te) or now >= te + wait):
+                break
+            v = sp.mean(ts, te)
+            notes += sp.take_notes()
+            if math.isnan(v):
+                notes.append(_NO_SPEED if wait == self.speed_wait else self._latency.timed_out())
+            sp.done(te)
+            e[3], e[5] = v, self._vscale
+        out = []
+        while q and q[0][3] is not _UNDECIDED and not q[0][4]:
+            ego, ts, notes, v, _, scale, _ = q.popleft()
+            if v is not None:
+                if scale != self._vscale:              # (decided before the speed was told to be km/h)
+                    v = v * (self._vscale / scale)
                 unit = self._vunit
-                if unit.open:                           # the speed's unit not told yet (m/s or km/h)
-                    if unit.frame(float(ego.delta_v[0]), v, self._filter, ego):
-                        v = self._kmh(notes) * v
-            q.popleft()
+                if unit.open and unit.frame(float(ego.delta_v[0]), v, self._filter, ego):
+                    v = self._kmh(notes) * v           # the speed's unit told now: km/h
             est = self._filter.step(ego) if v is None and not self.speed_aided else self._filter.step(ego, speed=v)
             out.append(FrameEstimate.of(est, ego.t, ts, math.nan if v is None else v, tuple(notes), self.camera,
                                         ego.valid))
@@ -866,18 +624,18 @@ class StreamingEstimator:
         if self._fb is not None:
             self._clock.from_buffer(self._fb)
         queue = [[ego.delta_R.ravel().tolist(), ego.delta_v.tolist(), ego.delta_t, ego.stationary, ego.valid,
-                  ego.t, ts, list(notes)] for ego, ts, notes in self._queue]
+                  ego.t, ts, list(notes), v, held, scale, j] for ego, ts, notes, v, held, scale, j in self._queue]
         return {"kind": _STATE_KIND, "version": _STATE_VERSION, "settings": self._settings(),
                 "clock": self._clock.state_dict(), "warm": [[t, *g, *a] for t, g, a in self._warm],
                 "origin": None if math.isnan(self._origin) else self._origin,
-                "preintegrator": None if self._pre is None else _pack(self._pre.state_dict()),
+                "preintegrator": None if self._pre is None else pack(self._pre.state_dict()),
                 "max_gap": None if self._pre is None else self._pre.max_gap,
-                "blocks": _pack(self._blocks.state_dict()), "bias": self._bias.state_dict(),
-                "speed": _pack(self._speed.state_dict()), "queue": queue, "notes": list(self._notes),
+                "blocks": pack(self._blocks.state_dict()), "bias": self._bias.state_dict(),
+                "speed": pack(self._speed.state_dict()), "queue": queue, "notes": list(self._notes),
                 "skipped": self._skipped, "slow_warmups": list(self._slow), "now": None if self._now == -math.inf else self._now,
                 "time_scale": self._tscale, "speed_latency": self._latency.state_dict(),
                 "speed_unit": [self._vscale, self._vunit.state_dict()],
-                "filter": _pack(self._filter.state_dict())}
+                "filter": pack(self._filter.state_dict())}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Resume from :meth:`state_dict`.
@@ -901,10 +659,137 @@ class StreamingEstimator:
         if differ:
             raise OptionError(f"{{opt}} was saved with other settings ({', '.join(differ)}): "
                               f"{', '.join(f'{k}={theirs.get(k)!r:.60}' for k in differ)}", "state")
-        parts = _read_state(self, state)                # every entry checked: raises before anything changes
+        parts = self._read_state(state)                # every entry checked: raises before anything changes
         self.__dict__.update(parts)
         self._fb = None if _FRONT is None else array("d", bytes(8 * _F_SIZE))
         self._front_out()
+
+    def _read_state(self, state: dict) -> dict[str, Any]:
+        """Every entry of ``state`` checked and built into new objects: the attributes to set (nothing of the
+        estimator changes here); a corrupt entry raises :class:`~imu_ground.imu.warm_start.StateError` naming it."""
+        from imu_ground.datasets.unit_checks import TIME_UNITS
+        from imu_ground.imu.sample_clock import CONFIRM, WARMUP
+        from imu_ground.imu.warm_start import StateError, StateReader
+        r = StateReader("StreamingEstimator", state)
+
+        def records(name: str, value: Any, limit: int = MAX_RECORDS) -> list:
+            if not isinstance(value, list):
+                raise r.error(name, f"is {type(value).__name__}, expected a list")
+            if len(value) > limit:
+                raise r.error(name, f"holds {len(value)} records, more than {limit}")
+            return value
+
+        def loaded(name: str, obj: Any, value: Any) -> Any:
+            try:
+                obj.load_state_dict(value)
+            except StateError as e:
+                raise StateError(f"this StreamingEstimator state is corrupt in its entry {name}: {e}") from None
+            except (KeyError, TypeError, ValueError, IndexError, AttributeError) as e:
+                raise r.error(name, f"is damaged ({type(e).__name__}: {str(e)[:80]})") from None
+            return obj
+
+        out: dict[str, Any] = {}
+        clock = SampleClock(self.policy, max_jump=MAX_GAP_FRAMES / self.rate)
+        clock.load_checked(r.part("clock"), MAX_SAMPLE_PERIOD)
+        out["_clock"] = clock
+        # the stamps' unit
+        scale = r.float("time_scale") if r.has("time_scale") else 1.0
+        if scale not in TIME_UNITS.values() or (self.time_unit is not None and scale != self._tscale0):
+            raise r.error("time_scale", f"is {scale!r}, expected one of {sorted(set(TIME_UNITS.values()))}"
+                                        f"{'' if self.time_unit is None else ' (that of time_unit)'}")
+        out["_tscale"], out["_scaled"] = scale, scale != 1.0
+        # warm-up, origin, preintegrator
+        warm = r.rows("warm", lambda x: [float(v) for v in x] if len(x) == 7 else [], 7)
+        if len(warm) > WARMUP:
+            raise r.error("warm", f"holds {len(warm)} samples, more than the warm-up's {WARMUP}")
+        out["_warm"] = [(float(w[0]), tuple(w[1:4].tolist()), tuple(w[4:7].tolist())) for w in warm]
+        origin = r.float("origin", optional=True)
+        out["_origin"] = math.nan if origin is None else origin
+        pre = None
+        if r.has("preintegrator"):
+            if math.isnan(clock.dt):
+                raise r.error("clock.dt", "is NaN (a warm-up) where the frames have started (a preintegrator is saved)")
+            if origin is None:
+                raise r.error("origin", "is null where the frames have started (a preintegrator is saved)")
+            max_gap = r.float("max_gap")
+            if not 0 < max_gap <= clock.gap_factor * MAX_SAMPLE_PERIOD:
+                raise r.error("max_gap", f"is {max_gap!r}, expected a positive time of at most "
+                                         f"{clock.gap_factor * MAX_SAMPLE_PERIOD:g} s")
+            pre = StreamingPreintegrator(rate=self.rate, t_origin=origin, max_gap=max_gap, on_gap="flag",
+                                         uncertainty=False)
+            loaded("preintegrator", pre, unpack(state["preintegrator"], "preintegrator"))
+            last = pre._prev[0] if pre._prev is not None else clock.t
+            if not (abs(clock.t - last) <= max_gap and abs(pre._next - clock.t) <= 2.0 / self.rate + max_gap):
+                raise r.error("clock.t", f"is {clock.t!r}, off the preintegrator's last sample ({last!r}) and next "
+                                         f"frame end ({pre._next!r})")
+        out["_pre"] = pre
+        # standstill blocks and the gyro bias
+        out["_blocks"] = blocks = StandstillBlocks(self.rate)
+        blocks.load_checked(StateReader("StreamingEstimator", unpack(r.state.get("blocks"), "blocks"), "blocks."),
+                            MAX_RECORDS)
+        out["_bias"] = bias = CausalGyroBias(self._bias_arg)
+        bias.load_checked(r.part("bias"))
+        if pre is not None:
+            pre.set_gyro_bias(*bias.value)                  # (not in the preintegrator's state: the causal bias)
+        # speed
+        out["_speed"] = sp = SpeedBuffer()
+        sp.load_checked(StateReader("StreamingEstimator", unpack(r.state.get("speed"), "speed"), "speed."), MAX_RECORDS)
+        latency = SpeedLatency(self.speed_wait)
+        if r.has("speed_latency"):                          # (older states: none)
+            try:
+                latency.load_state_dict(r.state.get("speed_latency"))
+            except (ValueError, TypeError) as e:
+                raise r.error("speed_latency", f"is not [wait, said, latencies, periods, last stamp] ({e})") from None
+        out["_latency"] = latency
+        vunit = SpeedUnit(self.rate)
+        vscale = 1.0
+        if r.has("speed_unit"):                             # (older states: none)
+            try:
+                vscale, rec = r.state.get("speed_unit")
+                if vscale not in (1.0, 1.0 / 3.6):
+                    raise ValueError(f"scale {vscale!r}")
+                vunit.load_state_dict(rec)
+            except (ValueError, TypeError) as e:
+                raise r.error("speed_unit", f"is not [scale, check] ({e})") from None
+        out["_vunit"], out["_vscale"] = vunit, vscale
+        # the frames waiting, notes, counts
+        queue, hold = deque(), deque()
+        for i, q in enumerate(records("queue", r.state.get("queue"))):
+            name = f"queue[{i}]"
+            if not (isinstance(q, list) and len(q) in (8, 12) and isinstance(q[3], bool) and isinstance(q[4], bool)
+                    and isinstance(q[7], list) and all(isinstance(x, str) for x in q[7])):
+                raise r.error(name, "is a record of another layout")
+            v, held, scale, j = q[8:] if len(q) == 12 else (_UNDECIDED, False, 1.0, -1)   # (older states: 8)
+            v = _UNDECIDED if v == _UNDECIDED else v   # (the marker itself: compared by identity)
+            if not ((v is None or v is _UNDECIDED or type(v) is float) and type(held) is bool
+                    and scale in (1.0, 1 / 3.6) and type(j) is int):
+                raise r.error(name, "is a record of another layout (its speed, hold, scale or index)")
+            qr = StateReader("StreamingEstimator", {"delta_R": q[0], "delta_v": q[1], "times": [q[2], q[5], q[6]]},
+                             f"{name}.")
+            e = [EgoFrame(qr.floats("delta_R", (9,)).reshape(3, 3), qr.floats("delta_v", (3,)),
+                          float(qr.floats("times", (3,))[0]), q[3], q[4], float(q[5])), float(q[6]), list(q[7]),
+                 v, held, scale, j]
+            queue.append(e)
+            if held:
+                hold.append(e)
+        out["_hold"] = hold
+        out["_queue"] = queue
+        notes = records("notes", r.state.get("notes"), 1000)
+        if not all(isinstance(x, str) and len(x) <= 1000 for x in notes):
+            raise r.error("notes", "holds something other than short texts")
+        out["_notes"], out["_skipped"] = list(notes), r.int("skipped")
+        if r.has("slow_warmups"):                           # (older states: none)
+            slow = r.floats("slow_warmups", (2,))
+            if slow[0] < 0 or slow[0] != int(slow[0]) or slow[1] < 0:
+                raise r.error("slow_warmups", f"holds {slow.tolist()!r}, expected a count and a period")
+            out["_slow"] = [int(slow[0]), float(slow[1])]
+        else:
+            out["_slow"] = [0, 0.0]
+        now = r.float("now", optional=True)
+        out["_now"] = -math.inf if now is None else now
+        flt = _make_filter(self.method, self.extrinsic, self.rate, self.recalibrate_online)
+        out["_filter"] = loaded("filter", flt, unpack(r.state.get("filter"), "filter"))
+        return out
 
     # -- a whole log at once ---------------------------------------------------------------------
     def run(self, t: np.ndarray, gyro: np.ndarray, accel: np.ndarray,
@@ -950,7 +835,8 @@ class StreamingEstimator:
         B = max(int(k.max()) + 1, 0)
         counts, sums = block_sums(k, gyro, accel, B)
         tests = StandstillTests()
-        still_b = window_standstill(counts, sums, tests, r)
+        still_b = stop_starts(window_standstill(counts, sums, tests, r), window_standstill(counts, sums, tests, r, 1),
+                              tests.blocks(r))
         Wb = self._blocks.Wb
         bias = self._bias
         still_bias = window_standstill(counts, sums, tests, r, Wb) if bias.auto else np.zeros(B, dtype=bool)
@@ -981,12 +867,12 @@ class StreamingEstimator:
         if F and (retimed_total or n_dropped):       # the clock's counts go to the frame after the sample
             _clock_notes(self, t_in, keep, notes, np.maximum(i_emit[:F], n_warm - 1))
         v = None
-        if self.speed_aided and speed is not None and F and _wait_may_grow(self, speed, t, frontier):
+        if self.speed_aided and speed is not None and F and wait_may_grow(self.speed_wait, speed, t, frontier):
             self.reset()                                 # a late speed's wait: as the stream decides it
             return _replayed(self, t_given, gyro_in, accel_in, speed)
         if self.speed_aided and speed is not None and F:
-            v = _causal_speeds(speed, te, ts, i_emit[:F], frontier, t, n_warm, self.speed_wait, notes)
-        if v is not None and _tells_kmh(self.rate, em.delta_v[:, 0], v):
+            v = causal_speeds(speed, te, ts, i_emit[:F], frontier, t, n_warm, self.speed_wait, notes)
+        if v is not None and tells_kmh(self.rate, em.delta_v[:, 0], v):
             self.reset()                                 # a speed in km/h: as the stream converts it
             return _replayed(self, t_given, gyro_in, accel_in, speed)
         flt = self._filter
@@ -998,189 +884,6 @@ class StreamingEstimator:
                     reason[j] = "; ".join([reason[j], *nt] if reason[j] else nt)
         return track, em
 
-
-# ------------------------------------------------------------------------------------------ a saved state, read
-#: The largest gyro bias a saved state may hold, rad/s (57 deg/s: far beyond any IMU's).
-MAX_GYRO_BIAS = 1.0
-#: The most records a list of a saved state (waiting frames, speed samples, blocks, notes) may hold.
-MAX_RECORDS = 100_000
-
-
-def _read_state(est: StreamingEstimator, state: dict) -> dict[str, Any]:
-    """Every entry of ``state`` checked and built into new objects: the attributes of ``est`` to set (nothing
-    of ``est`` changes here); a corrupt entry raises :class:`~imu_ground.imu.warm_start.StateError` naming it."""
-    from imu_ground.datasets.unit_checks import TIME_UNITS
-    from imu_ground.imu.sample_clock import CONFIRM, WARMUP
-    from imu_ground.imu.warm_start import StateError, StateReader
-    r = StateReader("StreamingEstimator", state)
-
-    def records(name: str, value: Any, limit: int = MAX_RECORDS) -> list:
-        if not isinstance(value, list):
-            raise r.error(name, f"is {type(value).__name__}, expected a list")
-        if len(value) > limit:
-            raise r.error(name, f"holds {len(value)} records, more than {limit}")
-        return value
-
-    def loaded(name: str, obj: Any, value: Any) -> Any:
-        try:
-            obj.load_state_dict(value)
-        except StateError as e:
-            raise StateError(f"this StreamingEstimator state is corrupt in its entry {name}: {e}") from None
-        except (KeyError, TypeError, ValueError, IndexError, AttributeError) as e:
-            raise r.error(name, f"is damaged ({type(e).__name__}: {str(e)[:80]})") from None
-        return obj
-
-    out: dict[str, Any] = {}
-    # the clock
-    c = r.part("clock")
-
-    def stamp(name: str, nan: bool = True, inf: bool = False) -> float:
-        v = c._get(name)
-        if v in ("inf", "-inf") and inf:
-            return math.inf if v == "inf" else -math.inf
-        return math.nan if v is None and nan else c.float(name)
-
-    clock = SampleClock(est.policy, max_jump=MAX_GAP_FRAMES / est.rate)
-    clock.t, clock.dt = stamp("t"), stamp("dt")
-    if not (math.isnan(clock.dt) or 1e-6 <= clock.dt <= MAX_SAMPLE_PERIOD):
-        raise c.error("dt", f"is {clock.dt!r}, expected NaN (a warm-up) or a sample period of 1e-6 to "
-                            f"{MAX_SAMPLE_PERIOD:g} s")
-    clock._raw_max, clock._raw_prev = stamp("raw_max", inf=True), stamp("raw_prev")
-    steps = c.floats("steps", (None,))
-    if len(steps) >= WARMUP or (steps <= 0).any():
-        raise c.error("steps", f"holds {len(steps)} steps (expected fewer than {WARMUP}, each positive)")
-    clock._steps = steps.tolist()
-    clock._pending, clock._pmin = stamp("pending"), stamp("pmin", inf=True)
-    counts = c._get("counts")
-    if not (isinstance(counts, list) and len(counts) == 4):
-        raise c.error("counts", f"is {counts!r:.60}, expected 4 counts")
-    cr = StateReader("StreamingEstimator", {str(i): x for i, x in enumerate(counts)}, "clock.counts.")
-    clock.retimed, clock.dropped, clock.dropouts, clock.restarts = (cr.int(str(i)) for i in range(4))
-    clock.last_jump = c.float("last_jump")
-    if c.has("bad"):
-        bad = c.floats("bad", (3,))
-        if bad[0] < 0 or bad[2] < 0 or bad[0] != int(bad[0]) or bad[2] != int(bad[2]):
-            raise c.error("bad", f"holds {bad.tolist()!r}, expected counts (integers >= 0) and an offset")
-        clock.bad, clock.bad_offset, clock.confirming = int(bad[0]), float(bad[1]), int(bad[2])
-    if c.has("suspect"):
-        sus = c._get("suspect")
-        if not (isinstance(sus, list) and len(sus) == 2 and type(sus[1]) is int and 0 <= sus[1] < CONFIRM
-                and (sus[0] is None or (isinstance(sus[0], float) and math.isfinite(sus[0])))):
-            raise c.error("suspect", f"is {sus!r:.60}, expected [a stamp or null, a count below {CONFIRM}]")
-        clock._sus_t, clock._sus_n = (math.nan if sus[0] is None else sus[0]), sus[1]
-    out["_clock"] = clock
-    # the stamps' unit
-    scale = r.float("time_scale") if r.has("time_scale") else 1.0
-    if scale not in TIME_UNITS.values() or (est.time_unit is not None and scale != est._tscale0):
-        raise r.error("time_scale", f"is {scale!r}, expected one of {sorted(set(TIME_UNITS.values()))}"
-                                    f"{'' if est.time_unit is None else ' (that of time_unit)'}")
-    out["_tscale"], out["_scaled"] = scale, scale != 1.0
-    # warm-up, origin, preintegrator
-    warm = r.rows("warm", lambda x: [float(v) for v in x] if len(x) == 7 else [], 7)
-    if len(warm) > WARMUP:
-        raise r.error("warm", f"holds {len(warm)} samples, more than the warm-up's {WARMUP}")
-    out["_warm"] = [(float(w[0]), tuple(w[1:4].tolist()), tuple(w[4:7].tolist())) for w in warm]
-    origin = r.float("origin", optional=True)
-    out["_origin"] = math.nan if origin is None else origin
-    pre = None
-    if r.has("preintegrator"):
-        if math.isnan(clock.dt):
-            raise c.error("dt", "is NaN (a warm-up) where the frames have started (a preintegrator is saved)")
-        if origin is None:
-            raise r.error("origin", "is null where the frames have started (a preintegrator is saved)")
-        max_gap = r.float("max_gap")
-        if not 0 < max_gap <= clock.gap_factor * MAX_SAMPLE_PERIOD:
-            raise r.error("max_gap", f"is {max_gap!r}, expected a positive time of at most "
-                                     f"{clock.gap_factor * MAX_SAMPLE_PERIOD:g} s")
-        pre = StreamingPreintegrator(rate=est.rate, t_origin=origin, max_gap=max_gap, on_gap="flag",
-                                     uncertainty=False)
-        loaded("preintegrator", pre, _unpack(state["preintegrator"], "preintegrator"))
-        last = pre._prev[0] if pre._prev is not None else clock.t
-        if not (abs(clock.t - last) <= max_gap and abs(pre._next - clock.t) <= 2.0 / est.rate + max_gap):
-            raise r.error("clock.t", f"is {clock.t!r}, off the preintegrator's last sample ({last!r}) and next "
-                                     f"frame end ({pre._next!r})")
-    out["_pre"] = pre
-    # standstill blocks and the gyro bias
-    bl = StateReader("StreamingEstimator", _unpack(r._get("blocks"), "blocks"), "blocks.")
-    keys = records("blocks.k", bl._get("k"))
-    ns = bl.floats("n", (len(keys),))
-    sums = bl.floats("sums", (len(keys), 12)) if keys else np.zeros((0, 12))
-    if any(type(k) is not int for k in keys) or (ns < 0).any() or (ns != np.round(ns)).any():
-        raise bl.error("k", "holds keys or counts that are not integers >= 0")
-    blocks = StandstillBlocks(est.rate)
-    blocks.load_state_dict({"k": keys, "n": ns.astype(int).tolist(), "sums": sums.tolist()})
-    out["_blocks"] = blocks
-    br = r.part("bias")
-    bias = CausalGyroBias(est._bias_arg)
-    value = br.floats("value", (3,))
-    if br.bool("auto") != bias.auto or (not bias.auto and value.tolist() != list(bias.value)):
-        raise br.error("auto", "differs from this estimator's bias_gyro")
-    if np.abs(value).max() > MAX_GYRO_BIAS:
-        raise br.error("value", f"holds {value.tolist()!r} rad/s, more than a gyro bias can be ({MAX_GYRO_BIAS:g})")
-    bias.value, bias.n, bias.s, bias.last = tuple(value.tolist()), br.int("n"), br.floats("s", (3,)).tolist(), \
-        br.int("last", minimum=-1)
-    out["_bias"] = bias
-    if pre is not None:
-        pre.set_gyro_bias(*bias.value)                  # (not in the preintegrator's state: the causal bias)
-    # speed
-    sr = StateReader("StreamingEstimator", _unpack(r._get("speed"), "speed"), "speed.")
-    ts = sr.floats("t", (len(records("speed.t", sr._get("t"))),))
-    vs = sr.floats("v", (len(ts),), nan=True)
-    if (np.diff(ts) <= 0).any():
-        raise sr.error("t", "is not increasing")
-    sp = SpeedBuffer()
-    sp.t, sp.v, sp.received = ts.tolist(), vs.tolist(), sr.bool("received")
-    done = sr.float("done_until", optional=True)
-    sp.done_until = -math.inf if done is None else done
-    rej = sr.part("rejected")
-    sp.rejected = {k: rej.int(k) for k in ("nonfinite", "late", "repeated")}
-    out["_speed"] = sp
-    latency = _SpeedLatency(est.speed_wait)
-    if r.has("speed_latency"):                          # (older states: none)
-        try:
-            latency.load_state_dict(r._get("speed_latency"))
-        except (ValueError, TypeError) as e:
-            raise r.error("speed_latency", f"is not [wait, said, latencies, periods, last stamp] ({e})") from None
-    out["_latency"] = latency
-    vunit = _SpeedUnit(est.rate)
-    vscale = 1.0
-    if r.has("speed_unit"):                             # (older states: none)
-        try:
-            vscale, rec = r._get("speed_unit")
-            if vscale not in (1.0, 1.0 / 3.6):
-                raise ValueError(f"scale {vscale!r}")
-            vunit.load_state_dict(rec)
-        except (ValueError, TypeError) as e:
-            raise r.error("speed_unit", f"is not [scale, check] ({e})") from None
-    out["_vunit"], out["_vscale"] = vunit, vscale
-    # the frames waiting, notes, counts
-    queue = deque()
-    for i, q in enumerate(records("queue", r._get("queue"))):
-        name = f"queue[{i}]"
-        if not (isinstance(q, list) and len(q) == 8 and isinstance(q[3], bool) and isinstance(q[4], bool)
-                and isinstance(q[7], list) and all(isinstance(x, str) for x in q[7])):
-            raise r.error(name, "is a record of another layout")
-        qr = StateReader("StreamingEstimator", {"delta_R": q[0], "delta_v": q[1], "times": [q[2], q[5], q[6]]},
-                         f"{name}.")
-        queue.append((EgoFrame(qr.floats("delta_R", (9,)).reshape(3, 3), qr.floats("delta_v", (3,)),
-                               float(qr.floats("times", (3,))[0]), q[3], q[4], float(q[5])), float(q[6]), list(q[7])))
-    out["_queue"] = queue
-    notes = records("notes", r._get("notes"), 1000)
-    if not all(isinstance(x, str) and len(x) <= 1000 for x in notes):
-        raise r.error("notes", "holds something other than short texts")
-    out["_notes"], out["_skipped"] = list(notes), r.int("skipped")
-    if r.has("slow_warmups"):                           # (older states: none)
-        slow = r.floats("slow_warmups", (2,))
-        if slow[0] < 0 or slow[0] != int(slow[0]) or slow[1] < 0:
-            raise r.error("slow_warmups", f"holds {slow.tolist()!r}, expected a count and a period")
-        out["_slow"] = [int(slow[0]), float(slow[1])]
-    else:
-        out["_slow"] = [0, 0.0]
-    now = r.float("now", optional=True)
-    out["_now"] = -math.inf if now is None else now
-    flt = _make_filter(est.method, est.extrinsic, est.rate, est.recalibrate_online)
-    out["_filter"] = loaded("filter", flt, _unpack(r._get("filter"), "filter"))
-    return out
 
 
 # ------------------------------------------------------------------------------------------ offline twin
@@ -1217,27 +920,6 @@ def causal_track(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, *, method: 
     return est.run(t, gyro, accel, speed)
 
 
-def _take_clock_notes(clock: SampleClock, policy: str) -> list[str]:
-    """What the clock did since the last call (bad stamps, samples dropped, stamps retimed); its counts start
-    again."""
-    notes = []
-    if clock.bad:
-        off = clock.bad_offset
-        notes.append(f"{clock.bad} IMU sample(s) dropped: stamp far off the clock (the last {abs(off):.6g} s "
-                     f"{'ahead' if off > 0 else 'behind'}), a bad stamp, not a new clock")
-        clock.bad = 0
-    if clock.confirming:
-        notes.append(f"{clock.confirming} IMU sample(s) dropped while the change of the clock was confirmed")
-        clock.confirming = 0
-    if clock.dropped:
-        notes.append(f"{clock.dropped} IMU sample(s) dropped (time not after the last; policy {policy})")
-        clock.dropped = 0
-    if clock.retimed:
-        notes.append(f"{clock.retimed} stamp(s) retimed on the sample clock")
-        clock.retimed = 0
-    return notes
-
-
 def _clock_notes(est, t_in, keep, notes, i_emit) -> None:
     """Replay the clock's per-sample counts onto the frames (as the streaming notes them): a loop, but only
     for logs whose stamps were retimed or dropped."""
@@ -1251,55 +933,8 @@ def _clock_notes(est, t_in, keep, notes, i_emit) -> None:
         if keep[i]:
             p = pos[i]
             while f < nf and i_emit[f] == p:
-                notes[f] = _take_clock_notes(clock, est.policy)
+                notes[f] = clock.take_notes()
                 f += 1
-
-
-def _tells_kmh(rate: float, dvx: np.ndarray, v: np.ndarray) -> bool:
-    """Whether the stream's :class:`_SpeedUnit` tells these frames' speeds (frames with a speed on) to be km/h."""
-    unit = _SpeedUnit(rate)
-    fin = np.flatnonzero(v == v)
-    for dx, vj in zip(dvx[fin[0]:].tolist() if fin.size else [], v[fin[0]:].tolist() if fin.size else []):
-        if unit.frame(dx, vj, None, None):
-            return True
-        if not unit.open:
-            return False
-    return False
-
-
-def _wait_may_grow(est: StreamingEstimator, speed, t_out: np.ndarray, frontier: np.ndarray) -> bool:
-    """Whether a stream of this log could wait longer than ``speed_wait`` for a speed (:class:`_SpeedLatency`):
-    the speed's longest period plus the most the sample clock's times run ahead of the stamps, with the margin."""
-    ts = np.asarray(speed[0], dtype=float)
-    ts = ts[np.isfinite(ts)]
-    step = float(np.diff(ts).max()) if ts.size > 1 else 0.0
-    ahead = float(np.max(t_out - frontier)) if t_out.size else 0.0
-    return step + max(ahead, 0.0) + _WAIT_MARGIN > est.speed_wait
-
-
-def _causal_speeds(speed, te, ts, i_emit, frontier, t_out, n_warm, wait, notes) -> np.ndarray:
-    """Each frame's speed as the stream decides it (module docstring of :mod:`...streaming`, step 4)."""
-    ts_sp, v_sp = (np.asarray(x, dtype=float) for x in speed)
-    M, m, F = ts_sp.size, t_out.size, te.size
-    fs = frame_speed(ts_sp, v_sp, te, te - ts)
-    out = np.full(F, np.nan)
-    rec_i = int(np.searchsorted(frontier, ts_sp[0], side="left"))
-    jstar = np.searchsorted(ts_sp, te, side="left")
-    cov_i = np.where(jstar < M, np.searchsorted(frontier, ts_sp[np.minimum(jstar, M - 1)], side="left"), m)
-    to_i = np.searchsorted(t_out, te + wait, side="left")
-    prev = n_warm - 1
-    for j in range(F):
-        i0 = max(int(i_emit[j]), prev)
-        if i0 < rec_i:                                   # no speed received yet: IMU only, no wait
-            prev = i0
-            continue
-        d = max(i0, min(int(cov_i[j]), int(to_i[j])))
-        covered = jstar[j] < M and (d >= m or frontier[min(d, m - 1)] >= ts_sp[jstar[j]])
-        out[j] = fs[j] if covered else np.nan
-        if np.isnan(out[j]):
-            notes[j].append(_NO_SPEED)
-        prev = min(d, m)
-    return out
 
 
 def _replayed(est: StreamingEstimator, t, gyro, accel, speed):
