@@ -45,18 +45,21 @@ class SpeedLatency:
         self.lag, self.count = -1.0, 0                  # the largest latency when the wait was worked out; since
 
     def arrived(self, t: float, now: float) -> str | None:
-        """A speed sample stamped ``t`` arrived at IMU time ``now`` (s); a note when the wait changed. The wait is
-        worked out again every tenth sample, or at once for a latency larger than the last worked out."""
+        """A speed sample stamped ``t`` arrived at IMU time ``now`` (s); a note when the wait changed. Every tenth
+        sample's latency and period are kept (and any sample's larger than the largest kept), and the wait is
+        worked out again with them."""
         if not (t - t == 0.0 and now > -math.inf):
             return None
         step, self.last = t - self.last, t
+        lag = now - t
+        self.count += 1
+        if not (lag > self.lag or self.count >= 10):    # (the usual call: nothing more)
+            return None
+        lag = lag if lag > 0.0 else 0.0
         if step > 0:
             self.steps.append(step)
-        lag = now - t
-        lag = lag if lag > 0.0 else 0.0
         self.lags.append(lag)
-        self.count += 1
-        if not (lag > self.lag or self.count >= 10) or not self.steps:
+        if not self.steps:
             return None
         self.count = 0
         self.lag = lag_max = max(self.lags)

@@ -373,7 +373,8 @@ class StreamingEstimator:
                 r = _front_push(self._fb, self._blocks.open, _preint_push, self._pb, self._ptb, t, gyro, accel)
             if r is True:
                 self._now = now = self._fb[_F_T]
-                return self._decide(now) if self._queue else []
+                q = self._queue                         # (frames whose speed is decided, held at a stop's start,
+                return self._decide(now) if q and (q[-1][3] is _UNDECIDED or not q[0][4]) else []   # wait)
             if r is not None:
                 return [] if r is False else self._fast_frames(r, gyro, accel)
         fb = self._fb
@@ -403,7 +404,8 @@ class StreamingEstimator:
             fb[_F_RETIMED], fb[_F_DROPPED] = self._clock.retimed, self._clock.dropped
         fb[_F_OPEN_K] = self._blocks.open_k
         self._now = now = fb[_F_T]
-        return self._decide(now) if self._queue else []
+        q = self._queue
+        return self._decide(now) if q and (q[-1][3] is _UNDECIDED or not q[0][4]) else []
 
     def _push_python(self, t: float, gyro, accel) -> list[FrameEstimate]:
         """:meth:`push_imu` in Python: the reference of the compiled step, and every case it does not take."""
