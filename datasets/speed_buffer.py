@@ -17,6 +17,8 @@ import bisect
 import math
 from typing import Any
 
+import numpy as np
+
 __all__ = ["SpeedBuffer"]
 
 #: Slack of the span test, s (as :func:`~imu_ground.datasets.speed.frame_speed`'s).
@@ -121,6 +123,12 @@ class SpeedBuffer:
             del ts[:k]
             del self.v[:k]
 
+    def rescale(self, factor: float) -> None:
+        """The times were in another unit: each multiplied by ``factor`` (to seconds)."""
+        self.t = [x * factor for x in self.t]
+        if math.isfinite(self.done_until):
+            self.done_until *= factor
+
     def take_notes(self) -> list[str]:
         """What was rejected since the last call, one phrase each (and the counts start again)."""
         r = self.rejected
@@ -137,6 +145,23 @@ class SpeedBuffer:
         return {"t": list(self.t), "v": list(self.v), "received": self.received,
                 "done_until": None if self.done_until == -math.inf else self.done_until,
                 "rejected": dict(self.rejected)}
+
+    def load_checked(self, r: Any, limit: int) -> None:
+        """Resume from a saved :meth:`state_dict` read through ``r`` (a :class:`~imu_ground.imu.warm_start.StateReader`),
+        checked: at most ``limit`` samples, finite increasing times, speeds (NaN: holes), the counts integers;
+        else :class:`~imu_ground.imu.warm_start.StateError` naming the entry."""
+        times = r.state.get("t") if isinstance(r.state, dict) else None
+        if not isinstance(times, list) or len(times) > limit:
+            raise r.error("t", f"is not a list of at most {limit} times")
+        ts = r.floats("t", (len(times),))
+        vs = r.floats("v", (len(ts),), nan=True)
+        if (np.diff(ts) <= 0).any():
+            raise r.error("t", "is not increasing")
+        received, done = r.bool("received"), r.float("done_until", optional=True)
+        rej = r.part("rejected")
+        self.rejected = {k: rej.int(k) for k in ("nonfinite", "late", "repeated")}
+        self.t, self.v, self.received = ts.tolist(), vs.tolist(), received
+        self.done_until = -math.inf if done is None else done
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.t, self.v = [float(x) for x in state["t"]], [float(x) for x in state["v"]]

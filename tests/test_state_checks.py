@@ -188,3 +188,117 @@ def test_a_preintegrator_state_of_another_shape_is_refused(drive, entry, value):
     state = _preintegrator_state(drive)
     with pytest.raises(StateError, match=rf"entry {entry}\b"):
         StreamingPreintegrator(rate=10.0, uncertainty=True).load_state_dict(_set(state, (entry,), value))
+
+
+# --------------------------------------------------------------------------- the live estimator's state
+def _live_state():
+    """A StreamingEstimator halfway through a drive with a speed (its state through JSON), and the rest."""
+    from imu_ground.pipeline.streaming import StreamingEstimator
+    sim = simulate(duration=20.0, seed=8, imu="mems", R_gs=np.eye(3))
+    imu = sim.imu
+    t, g, a = imu.t.tolist(), imu.gyro.tolist(), imu.accel.tolist()
+    est = StreamingEstimator()
+    half = len(t) // 2
+    for i in range(half):
+        est.push_speed(t[i], 8.0)
+        est.push_imu(t[i], g[i], a[i])
+    return est, json.loads(json.dumps(est.state_dict())), (t[half:], g[half:], a[half:])
+
+
+def _rest(est, rest):
+    out = []
+    for ti, gi, ai in zip(*rest):
+        est.push_speed(ti, 8.0)
+        out += est.push_imu(ti, gi, ai)
+    return [(f.t, f.pitch, f.roll, f.status_reason) for f in out + est.flush()]
+
+
+def _edit(state, path, value):
+    out = json.loads(json.dumps(state))
+    node = out
+    for p in path[:-1]:
+        node = node[p]
+    node[path[-1]] = value(node[path[-1]]) if callable(value) else value
+    return out
+
+
+def _garble(packed):
+    text = packed["float64_zlib_base64"]
+    i = len(text) // 2
+    return {**packed, "float64_zlib_base64": text[:i] + ("A" if text[i] != "A" else "B") + text[i + 1:]}
+
+
+def _short_by_3(packed):
+    import base64
+    import zlib
+    raw = np.frombuffer(zlib.decompress(base64.b64decode(packed["float64_zlib_base64"])), dtype=float)[:-3]
+    return {**packed, "float64_zlib_base64": base64.b64encode(zlib.compress(raw.tobytes())).decode()}
+
+
+def _bomb(packed):
+    """Half a megabyte of base64 that inflates to 400 MiB of zeros."""
+    import base64
+    import zlib
+    z = zlib.compressobj(9)
+    chunk = bytes(1 << 20)
+    raw = b"".join(z.compress(chunk) for _ in range(400)) + z.flush()
+    return {**packed, "float64_zlib_base64": base64.b64encode(raw).decode()}
+
+
+LIVE_CORRUPT = {
+    "clock.dt NaN": (("clock", "dt"), None, r"clock\.dt"),
+    "clock.dt negative": (("clock", "dt"), -0.01, r"clock\.dt"),
+    "clock.t 1e308": (("clock", "t"), 1e308, r"clock\.t"),
+    "clock.counts NaN": (("clock", "counts"), lambda c: [c[0], float("nan"), *c[2:]], r"clock\.counts"),
+    "gyro bias 1000 rad/s": (("bias", "value"), [1000.0, 0.0, 0.0], r"bias\.value"),
+    "filter garbled": (("filter", "state", "kernel"), _garble, r"filter\.state\.kernel"),
+    "filter truncated": (("filter", "state", "kernel", "float64_zlib_base64"), lambda x: x[:len(x) // 2],
+                         r"filter\.state\.kernel"),
+    "filter 3 floats short": (("filter", "state", "kernel"), _short_by_3, r"filter\.state\.kernel"),
+    "preintegrator inflating": (("preintegrator", "state", "deltas"), _bomb, r"preintegrator\.state\.deltas"),
+    "blocks garbled": (("blocks", "sums"), _garble, r"blocks\.sums"),
+    "queue record": (("queue",), [[1, 2, 3]], r"queue\[0\]"),
+    "speed received not a bool": (("speed", "received"), "yes", r"speed\.received"),
+}
+
+
+@pytest.mark.parametrize("case", list(LIVE_CORRUPT))
+def test_a_corrupt_live_state_is_refused_naming_the_entry_and_changes_nothing(case):
+    """Issue 38, case 6: a failed load left the estimator half overwritten (the next good sample raised "IMU
+    timestamps must be strictly increasing"); garbled, truncated or short payloads raised zlib.error,
+    binascii.Error or StopIteration; NaN or negative clock.dt, clock.t 1e308 and a 1000 rad/s bias loaded; a
+    0.5 MB payload inflated to 400 MiB. Each is now a StateError (of the package's error root) naming the entry,
+    quickly, and the estimator goes on as if no load had been tried."""
+    import time
+
+    from imu_ground.errors import ImuGroundError
+    from imu_ground.pipeline.streaming import StreamingEstimator
+    est, state, rest = _live_state()
+    path, value, name = LIVE_CORRUPT[case]
+    if path[0] in ("filter", "preintegrator", "blocks") and "float64_zlib_base64" not in json.dumps(
+            _edit(state, path[:-1], lambda x: x)[path[0]]):
+        pytest.skip("not packed")
+    bad = _edit(state, path, value)
+    twin = StreamingEstimator()
+    twin.load_state_dict(json.loads(json.dumps(state)))
+    start = time.perf_counter()
+    with pytest.raises(StateError, match=name) as err:
+        est.load_state_dict(bad)
+    assert time.perf_counter() - start < 2.0
+    assert isinstance(err.value, ImuGroundError) and "\n" not in str(err.value)
+    assert _rest(est, rest) == _rest(twin, rest)
+
+
+def test_stream_state_corrupt_is_exit_2_one_line(cli, tmp_path):
+    """A --state file with NaN in clock.counts was exit 3 (a bug's traceback); now exit 2, one line naming it."""
+    est, state, _ = _live_state()
+    bad = _edit(state, ("clock", "counts"), lambda c: [c[0], float("nan"), *c[2:]])
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps(bad))
+    from pathlib import Path
+    example = Path(__file__).resolve().parent.parent / "datasets" / "fixtures" / "example_drive.csv"
+    code, out, err = cli("stream", "--replay", example, "--state", path)
+    assert code == 2, err
+    lines = [x for x in err.splitlines() if x.strip()]
+    assert len(lines) == 1 and "clock.counts" in lines[0] and "--state" in lines[0]
+    assert json.loads(path.read_text()) == json.loads(json.dumps(bad))     # the file given is not replaced

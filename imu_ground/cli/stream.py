@@ -2,15 +2,19 @@
 
 The command-line form of :class:`imu_ground.pipeline.streaming.StreamingEstimator`, for
 pipes, a serial bridge or a demo. Standard input: a header naming ``t,wx,wy,wz,ax,ay,az``
-(any order and case; optionally ``speed``, m/s) then one sample a line; the units are those of
-``estimate`` (s, rad/s, m/s^2) or set by ``--time-unit``, ``--gyro-unit``, ``--accel-unit``
-(not told from the data: a stream has no future to look at). ``--replay LOG`` reads a log
+(any order and case, a UTF-8 byte-order mark read as ``estimate`` reads it; optionally ``speed``,
+m/s, or ``--speed COLUMN`` / ``--speed FILE``) then one sample a line; a line whose numbers do not
+parse is said on stderr with its line number and skipped. The units are s, rad/s, m/s^2 or set by
+``--time-unit``, ``--gyro-unit``, ``--accel-unit``; without ``--time-unit`` the stamps' unit (s, ms,
+us, ns) is told from the first samples by the estimator, and said. ``--replay LOG`` reads a log
 (any format ``estimate`` reads) and feeds it sample by sample with its stamps as recorded (file order,
 back-steps and repeats kept: the estimator's sample clock handles them, ``--policy`` retime or drop),
 its speed (``--speed``) before the samples it precedes; ``--realtime`` paces it on the log's clock. Each frame is written as
 soon as it is complete: a CSV line with the estimate's columns (header first), or ``--json``
 lines; flushed. ``--state FILE`` resumes from a saved state and writes it at the end, on
-SIGTERM and on Ctrl-C (atomically; a file that is not a saved state is refused, never replaced).
+SIGTERM and on Ctrl-C (atomically; a file that is not a saved state is refused, never replaced);
+with ``--replay`` the state also holds how far into the log it got (the log's name, its samples fed),
+and a run on the same log resumes there instead of feeding the log from its start.
 """
 from __future__ import annotations
 
@@ -50,18 +54,27 @@ def register(sub) -> None:
     g.add_argument("--rate", type=float, default=10.0, metavar="HZ", help="frame rate, Hz (default 10)")
     g.add_argument("--camera", metavar="NAME_OR_FILE", help="a camera on the platform: lines gain plane_a .. plane_d")
     g.add_argument("--speed", default="auto", metavar="auto|none|FILE|COLUMN",
-                   help="with --replay: the speed (as estimate's); standard input: a 'speed' column is used unless "
-                        "none")
+                   help="the speed (as estimate's): with --replay the log's or this; standard input: a 'speed' "
+                        "column (auto), another column named, a speed FILE (merged by time), or none")
     add_reader_flags(p)
     p.set_defaults(func=run)
 
 
-def _load_state(est, path: Path) -> None:
+#: The largest state file ``--state`` reads, bytes (a state is some 10 KB).
+MAX_STATE_BYTES = 16 * 1024 * 1024
+
+
+def _load_state(est, path: Path) -> dict:
+    """Load the saved state into ``est``; returns where a replay got to (``{}`` for none)."""
     from imu_ground.datasets.options import OptionError
     try:
+        if path.stat().st_size > MAX_STATE_BYTES:
+            raise OptionError(f"{path}: {path.stat().st_size} bytes, larger than a saved state of 'imu-ground "
+                              f"stream' can be ({MAX_STATE_BYTES} bytes); give another file to {{opt}}", "state",
+                              flag="--state")
         text = path.read_text(encoding="utf-8")
         state = json.loads(text)
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as e:
         raise OptionError(f"{path}: not a saved state of 'imu-ground stream' ({type(e).__name__}); give another "
                           "file to {opt}", "state", flag="--state") from None
     from imu_ground.errors import ImuGroundError
@@ -70,11 +83,30 @@ def _load_state(est, path: Path) -> None:
     except ImuGroundError as e:                     # StateError: another estimator's, settings' or a corrupt state
         raise OptionError(f"{path}: {' '.join(str(e).split())}; give another file to {{opt}}", "state",
                           flag="--state") from None
+    where = state.get(_REPLAY_KEY)
+    return where if isinstance(where, dict) else {}
 
 
-def _write_state(est, path: Path) -> None:
-    """The state, atomically (a temporary file beside it, then renamed)."""
-    text = json.dumps(est.state_dict())
+#: The key of a state file that says how far a ``--replay`` got (beside the estimator's state).
+_REPLAY_KEY = "stream_replay"
+
+
+class _Position:
+    """How far a replay got: the log, its samples and speed samples fed."""
+
+    def __init__(self, log: str | None = None) -> None:
+        self.log, self.samples, self.speeds = log, 0, 0
+
+    def as_dict(self) -> dict | None:
+        return None if self.log is None else {"log": self.log, "samples": self.samples, "speeds": self.speeds}
+
+
+def _write_state(est, path: Path, where: dict | None = None) -> None:
+    """The state (and where a replay got to), atomically (a temporary file beside it, then renamed)."""
+    state = est.state_dict()
+    if where is not None:
+        state[_REPLAY_KEY] = where
+    text = json.dumps(state)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or Path("."))
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as f:
@@ -126,28 +158,30 @@ def run(a: argparse.Namespace) -> int:
     state = None if a.state is None else Path(a.state)
     from imu_ground.pipeline.output import check_run_paths
     check_run_paths([("--state", state)], input_paths(a))      # the state's own file is its input and output
+    where: dict = {}
     if state is not None:
         if state.exists():
-            _load_state(est, state)
+            where = _load_state(est, state)
         elif not (state.parent if str(state.parent) else Path(".")).is_dir():
             raise OptionError(f"{state}: its folder does not exist; give a path in an existing folder to {{opt}}",
                               "state", flag="--state")
     if a.realtime and a.replay is None:
         raise OptionError("{opt} paces a replayed log: add --replay LOG", "realtime", flag="--realtime")
     out = _Writer(a.json)
+    pos = _Position(None if a.replay is None else str(Path(a.replay).resolve()))
     try:
         if a.replay is not None:
-            _replay(est, a, out)
+            _replay(est, a, out, where, pos)
         else:
             _stdin(est, a, out)
         out.write(est.flush())
     finally:
         if state is not None:
-            _write_state(est, state)
+            _write_state(est, state, pos.as_dict())
     return 0
 
 
-def _replay(est, a, out) -> None:
+def _replay(est, a, out, where: dict, pos: _Position) -> None:
     import warnings
 
     import numpy as np
@@ -155,6 +189,7 @@ def _replay(est, a, out) -> None:
     from imu_ground.cli._common import warn_line
     from imu_ground.datasets import detect_format, read_imu
     from imu_ground.datasets.storage import local_input
+    from imu_ground.datasets.options import OptionError
     from imu_ground.pipeline.estimate import check_frame_rate, speed_samples
     opts = reader_options(a)
     fmt = opts.pop("format", None)
@@ -174,51 +209,84 @@ def _replay(est, a, out) -> None:
     g, acc = imu.gyro.tolist(), imu.accel.tolist()
     ts, vs = ([], []) if sp is None else (np.asarray(sp[0]).tolist(), np.asarray(sp[1]).tolist())
     j, M = 0, len(ts)
+    first = 0
+    if where:                                       # the state was saved replaying a log
+        n, m = where.get("samples"), where.get("speeds")
+        if where.get("log") != pos.log:
+            warn_line(f"the state given to --state was saved replaying {where.get('log')!r}, not this log: "
+                      f"this log is fed from its start", a.replay)
+        elif not (type(n) is int and type(m) is int and 0 <= n <= len(t) and 0 <= m <= M):
+            raise OptionError(f"{a.state}: says the replay got to sample {n!r:.20} and speed sample {m!r:.20} of a "
+                              f"log of {len(t)} and {M}: not this log's state; give another file to {{opt}}",
+                              "state", flag="--state")
+        else:
+            first, j = n, m
+    pos.samples, pos.speeds = first, j
     start = time.monotonic()
-    for i, ti in enumerate(t):
+    for i in range(first, len(t)):
+        ti = t[i]
         if a.realtime:
-            wait = start + (ti - t[0]) - time.monotonic()
+            wait = start + (ti - t[first]) - time.monotonic()
             if wait > 0:
                 time.sleep(wait)
         while j < M and ts[j] <= ti:
             est.push_speed(ts[j], vs[j])
             j += 1
-        out.write(est.push_imu(ti, g[i], acc[i]))
+            pos.speeds = j
+        frames = est.push_imu(ti, g[i], acc[i])
+        pos.samples = i + 1
+        out.write(frames)
     while j < M:
         est.push_speed(ts[j], vs[j])
         j += 1
+        pos.speeds = j
 
 
 def _stdin(est, a, out) -> None:
+    from imu_ground.cli._common import warn_line
     from imu_ground.datasets.options import OptionError
     from imu_ground.datasets.unit_checks import ACCEL_UNITS, GYRO_UNITS, TIME_UNITS
     ks = TIME_UNITS[a.time_unit or "s"]
     kg = GYRO_UNITS[a.gyro_unit or "rad/s"]
     ka = ACCEL_UNITS[a.accel_unit or "m/s^2"]
     src = sys.stdin
-    header = src.readline()
+    header = src.readline().lstrip("\ufeff")          # a UTF-8 byte-order mark, as estimate reads it
     names = [c.strip().strip('"').lower() for c in header.strip().split(",")]
     missing = [c for c in _SAMPLE_COLUMNS if c not in names]
     if missing:
         raise OptionError(f"<stdin>: the header line {header.strip()[:80]!r} does not name {', '.join(missing)}; "
                           f"the first line names the columns: t,wx,wy,wz,ax,ay,az (and optionally speed)", None)
     idx = [names.index(c) for c in _SAMPLE_COLUMNS]
-    i_speed = names.index("speed") if ("speed" in names and a.speed != "none") else None
+    i_speed, file_speed = _stdin_speed(a, names, est)
     width = len(names)
     nan = math.nan
-    for line in src:
+    fs_t, fs_v = file_speed
+    j, M = 0, len(fs_t)
+    bad_lines = 0
+    for lineno, line in enumerate(src, start=2):
         cells = line.split(",")
         if len(cells) < width:
             if not line.strip():
                 continue
             cells += [""] * (width - len(cells))
         vals = []
-        for i in idx:
+        bad = None
+        for c, i in zip(_SAMPLE_COLUMNS, idx):
             try:
                 vals.append(float(cells[i]))
             except ValueError:
                 vals.append(nan)           # a damaged line: a non-finite sample, skipped and said in the frame
+                bad = bad or (c, cells[i].strip())
+        if bad is not None:
+            bad_lines += 1
+            if bad_lines <= _BAD_LINES_SAID:
+                more = "" if bad_lines < _BAD_LINES_SAID else f" (the first {_BAD_LINES_SAID}; later ones not said)"
+                warn_line(f"line {lineno}: column {bad[0]} is {bad[1][:40]!r}, not a number: sample skipped{more}",
+                          "<stdin>")
         t = vals[0] * ks
+        while j < M and fs_t[j] <= t:
+            est.push_speed(fs_t[j], fs_v[j])
+            j += 1
         if i_speed is not None:
             try:
                 v = float(cells[i_speed])
@@ -227,3 +295,40 @@ def _stdin(est, a, out) -> None:
             est.push_speed(t, v)
         out.write(est.push_imu(t, (vals[1] * kg, vals[2] * kg, vals[3] * kg),
                                (vals[4] * ka, vals[5] * ka, vals[6] * ka)))
+    while j < M:
+        est.push_speed(fs_t[j], fs_v[j])
+        j += 1
+
+
+#: How many damaged lines of standard input are said one by one.
+_BAD_LINES_SAID = 10
+
+
+def _stdin_speed(a, names: list[str], est) -> tuple[int | None, tuple[list, list]]:
+    """The speed of a stream on standard input: ``(column index or None, (times, speeds) of a speed file)``.
+
+    ``auto``: a ``speed`` column when the header has one; ``none``: no speed; a name of the header's
+    columns: that column; else a speed file (:func:`~imu_ground.datasets.speed.read_speed_file`, checked as
+    estimate checks it), merged by time; a missing file is an error naming ``--speed``."""
+    from imu_ground.cli._common import warn_line
+    from imu_ground.datasets.options import OptionError
+    choice = a.speed
+    if choice == "none":
+        return None, ([], [])
+    if not est.speed_aided and choice != "auto":
+        warn_line(f"--speed {choice}: method {est.method} takes no speed: ignored", "<stdin>")
+        return None, ([], [])
+    if choice == "auto":
+        return (names.index("speed") if "speed" in names else None), ([], [])
+    if choice.lower() in names:
+        return names.index(choice.lower()), ([], [])
+    p = Path(choice)
+    if not p.is_file():
+        raise OptionError(f"{choice}: neither a column of the header on standard input ({', '.join(names)}) nor a "
+                          f"speed file; give a column, a file, auto or none to {{opt}}", "speed", flag="--speed")
+    from imu_ground.datasets.speed import check_speed, read_speed_file
+    ts, vs = read_speed_file(p)
+    ts, vs, notes = check_speed(ts, vs, str(p))
+    for note in notes:
+        warn_line(note, p)
+    return None, (ts.tolist(), vs.tolist())

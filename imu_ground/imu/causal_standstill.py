@@ -34,11 +34,14 @@ import numpy as np
 from imu_ground._native import FRONT as _FRONT
 from imu_ground.units import GRAVITY
 
-__all__ = ["CausalGyroBias", "StandstillBlocks", "StandstillTests", "block_index", "block_sums", "window_standstill"]
+__all__ = ["MAX_GYRO_BIAS", "CausalGyroBias", "StandstillBlocks", "StandstillTests", "block_index", "block_sums",
+           "stop_starts", "window_standstill"]
 
 #: Rounding allowance of :func:`block_index`, in frames: a sample this close to a boundary ends the frame before it.
 _EDGE = 1e-6
 _EMPTY_BLOCK = bytes(13 * 8)
+#: The largest gyro bias a saved state may hold, rad/s (57 deg/s: far beyond any IMU's).
+MAX_GYRO_BIAS = 1.0
 
 
 def block_index(t: float, t0: float, rate: float) -> int:
@@ -200,6 +203,19 @@ class StandstillBlocks:
         return {"k": keys, "n": [int(self.blocks[k][0]) for k in keys],
                 "sums": [self.blocks[k][1:].tolist() for k in keys]}
 
+    def load_checked(self, r: Any, limit: int) -> None:
+        """Resume from a saved :meth:`state_dict` read through ``r`` (a :class:`~imu_ground.imu.warm_start.StateReader`),
+        checked: at most ``limit`` blocks, integer keys and counts, 12 finite sums each; else
+        :class:`~imu_ground.imu.warm_start.StateError` naming the entry."""
+        keys = r.state.get("k") if isinstance(r.state, dict) else None
+        if not isinstance(keys, list) or len(keys) > limit:
+            raise r.error("k", f"is not a list of at most {limit} block indices")
+        ns = r.floats("n", (len(keys),))
+        sums = r.floats("sums", (len(keys), 12)) if keys else np.zeros((0, 12))
+        if any(type(k) is not int for k in keys) or (ns < 0).any() or (ns != np.round(ns)).any():
+            raise r.error("k", "holds keys or counts that are not integers >= 0")
+        self.load_state_dict({"k": keys, "n": ns.astype(int).tolist(), "sums": sums.tolist()})
+
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.blocks = {int(k): array("d", [int(n), *(float(x) for x in s)]) for k, n, s in
                        zip(state["k"], state["n"], state["sums"], strict=True)}
@@ -245,6 +261,32 @@ def window_standstill(counts: np.ndarray, sums: np.ndarray, tests: StandstillTes
     ok = (full & (gnorm <= tests.gyro_norm_max) & (sd[:3].max(axis=0) <= tests.gyro_std_max)
           & (sd[3:].max(axis=0) <= tests.accel_std_max) & (np.abs(anorm - tests.gravity) <= tests.accel_norm_tol))
     out[W - 1:] = ok
+    return out
+
+
+def stop_starts(still: np.ndarray, quiet: np.ndarray, W: int) -> np.ndarray:
+    """The standstill flags with the start of each stop: frame ``j`` is also at rest when its own block is quiet
+    (passes the tests alone) and so is every block up to a frame ``k <= j + W - 1`` whose trailing window passes
+    (``still``): the first ``W - 1`` frames of a stop, which a trailing window of ``W`` blocks cannot flag yet.
+    Live, such frames are held (at most ``W - 1`` frames) until that window passes or cannot any more.
+
+    Parameters
+    ----------
+    still, quiet : ndarray (B,) of bool
+        Per frame: the trailing window passes (:func:`window_standstill`), the frame's block alone does (``W=1``).
+    W : int
+        Blocks of the trailing window.
+    """
+    out = np.asarray(still, dtype=bool).copy()
+    nxt = math.inf                                  # the next frame whose window passes, through quiet frames
+    for j in range(out.size - 1, -1, -1):
+        if out[j]:
+            nxt = j
+        elif quiet[j]:
+            if nxt - j <= W - 1:
+                out[j] = True
+        else:
+            nxt = math.inf
     return out
 
 
@@ -294,6 +336,18 @@ class CausalGyroBias:
 
     def state_dict(self) -> dict[str, Any]:
         return {"auto": self.auto, "value": list(self.value), "n": self.n, "s": list(self.s), "last": self.last}
+
+    def load_checked(self, r: Any) -> None:
+        """Resume from a saved :meth:`state_dict` read through ``r`` (a :class:`~imu_ground.imu.warm_start.StateReader`),
+        checked: the same kind (auto or this bias), a bias of at most :data:`MAX_GYRO_BIAS`; else
+        :class:`~imu_ground.imu.warm_start.StateError` naming the entry."""
+        value = r.floats("value", (3,))
+        if r.bool("auto") != self.auto or (not self.auto and value.tolist() != list(self.value)):
+            raise r.error("auto", "differs from this estimator's bias_gyro")
+        if np.abs(value).max() > MAX_GYRO_BIAS:
+            raise r.error("value", f"holds {value.tolist()!r} rad/s, more than a gyro bias can be ({MAX_GYRO_BIAS:g})")
+        self.value, self.n, self.s = tuple(value.tolist()), r.int("n"), r.floats("s", (3,)).tolist()
+        self.last = r.int("last", minimum=-1)
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.auto = bool(state["auto"])

@@ -20,11 +20,18 @@ file (:mod:`imu_ground.datasets.retime`); a live stream cannot wait for the end.
   seconds the clock jumps forward by the least offset seen (a dropout, a gap the
   preintegrator flags and integrates through). An offset of more than ``hold`` is
   a dropout at once.
-- **Restart**: a stamp more than ``max_gap`` before the one pushed last (a clock set
-  back, a log started again), or more than ``max_jump`` after it (a clock set forward:
-  integrating through such a gap would make a gap frame for every frame period of it),
-  restarts the clock (warm-up again); :meth:`push` says so and the caller starts its
-  front end afresh.
+- **Stamps far off** (more than ``max_gap`` before the last accepted stamp, or more than
+  ``hold`` ahead of the clock): one such stamp is a bad sample, not a new clock (a
+  nanosecond stamp among seconds, a driver's glitch): it is dropped (:data:`DROP`, counted
+  in :attr:`SampleClock.bad`) and the clock goes on. Only :data:`CONFIRM` consecutive far-off
+  stamps that agree with each other (each within ``max_gap`` of the one before) are a real
+  change of the clock, taken at the last of them: ahead by at most ``max_jump``, a dropout
+  (a gap the preintegrator flags); further ahead (a clock set forward: integrating through
+  would make a gap frame for every frame period of it) or back (a clock set back, a log
+  started again), a **restart** of the clock (warm-up again); :meth:`push` says so and the
+  caller starts its front end afresh. The warm-up likewise starts again when
+  :data:`CONFIRM` agreeing stamps in a row come before its latest one (a far-ahead stamp
+  among the first samples).
 
 Times are seconds; nothing here allocates per sample beyond Python floats.
 """
@@ -34,13 +41,18 @@ import math
 from array import array
 from typing import Any
 
-__all__ = ["DROP", "OK", "RESTART", "WARMUP", "SampleClock"]
+import numpy as np
+
+__all__ = ["CONFIRM", "DROP", "OK", "RESTART", "WARMUP", "SampleClock"]
 
 #: Samples of the warm-up: their median step is the first sample period.
 WARMUP = 10
+#: Consecutive far-off stamps, agreeing with each other, that make a real change of the clock (fewer: bad stamps).
+CONFIRM = 3
 #: What :meth:`SampleClock.push` says about a sample.
 OK, DROP, RESTART = 0, 1, 2
 _POLICIES = ("retime", "drop")
+_COUNTS = ("retimed", "dropped", "dropouts", "restarts", "bad", "bad_offset", "confirming")
 
 
 class SampleClock:
@@ -70,6 +82,13 @@ class SampleClock:
     retimed, dropped, dropouts, restarts : int
         Samples moved by more than half a period, samples dropped, dropouts inserted,
         restarts, since construction or :meth:`reset`.
+    bad : int
+        Samples dropped for a stamp far off the clock (a lone bad stamp, or one of the first
+        :data:`CONFIRM` - 1 of a change of the clock).
+    bad_offset : float
+        The last such stamp's offset from the clock, s (positive: ahead).
+    confirming : int
+        Samples dropped while a change of the clock was confirmed (the first :data:`CONFIRM` - 1 of it).
     """
 
     def __init__(self, policy: str = "retime", hold: float = 1.0, gap_factor: float = 10.0,
@@ -82,8 +101,9 @@ class SampleClock:
         self.alpha, self.beta = float(alpha), float(beta)
         self.reset()
 
-    def reset(self) -> None:
-        """Back to the warm-up."""
+    def reset(self, keep_counts: bool = False) -> None:
+        """Back to the warm-up (``keep_counts``: the counts of what was done so far are kept)."""
+        counts = [getattr(self, k) for k in _COUNTS] if keep_counts else None
         self.t = math.nan
         self.dt = math.nan
         self._raw_max = -math.inf
@@ -91,8 +111,20 @@ class SampleClock:
         self._steps: list[float] = []
         self._pending = math.nan            # output time when the stamps went ahead (NaN: they are not)
         self._pmin = math.inf               # the least offset since then, s
-        self.retimed = self.dropped = self.dropouts = self.restarts = 0
+        self.retimed = self.dropped = self.dropouts = self.restarts = self.bad = 0
+        self.bad_offset = 0.0
+        self.confirming = 0                 # samples dropped while a change of the clock was confirmed
         self.last_jump = 0.0                # the last restart's step back, s (negative: a step forward)
+        self._sus_t = math.nan              # the last of the far-off stamps in a row (NaN: none)
+        self._sus_n = 0                     # how many agree so far
+        if counts is not None:
+            for k, v in zip(_COUNTS, counts):
+                setattr(self, k, v)
+
+    @property
+    def suspect(self) -> bool:
+        """Far-off stamps are pending (the next stamp decides whether they were bad or a new clock)."""
+        return self._sus_n > 0
 
     @property
     def max_gap(self) -> float:
@@ -109,26 +141,18 @@ class SampleClock:
         if not self.warm:
             return self._warmup(t)
         out, dt = self.t, self.dt
-        prev, self._raw_prev = self._raw_prev, t
-        if t < prev - self.gap_factor * dt or t > prev + self.max_jump:     # the clock was set back or forward
-            counts = (self.retimed, self.dropped, self.dropouts, self.restarts + 1)
-            self.reset()
-            self.retimed, self.dropped, self.dropouts, self.restarts = counts
-            self.last_jump = prev - t
-            self._warmup(t)
-            return RESTART, t
+        prev = self._raw_prev
+        e = t - (out + dt)
+        if t < prev - self.gap_factor * dt or e > self.hold:    # far off: a bad stamp, or a new clock
+            return self._far_off(t, prev, e)
+        self._sus_n = 0
+        self._raw_prev = t
         if t > self._raw_max:
             self._raw_max = t
         elif self.policy == "drop":
             self.dropped += 1
             return DROP, math.nan
-        e = t - (out + dt)
         if e > 0.5 * dt:
-            if e > self.hold:                               # far ahead: a dropout at once
-                self._pending = math.nan
-                self.dropouts += 1
-                self.t = t
-                return OK, t
             if math.isnan(self._pending):
                 self._pending, self._pmin = out, e
             elif e < self._pmin:
@@ -151,11 +175,53 @@ class SampleClock:
         self.t = out
         return OK, out
 
+    def _agrees(self, t: float, max_gap: float) -> bool:
+        """``t`` continues the far-off stamps pending (within ``max_gap`` of the last)."""
+        return self._sus_n > 0 and abs(t - self._sus_t) <= max_gap
+
+    def _far_off(self, t: float, prev: float, e: float) -> tuple[int, float]:
+        """A stamp far off the clock: dropped as bad, unless it is the :data:`CONFIRM`-th of agreeing ones."""
+        self._sus_n = self._sus_n + 1 if self._agrees(t, self.gap_factor * self.dt) else 1
+        self._sus_t = t
+        if self._sus_n < CONFIRM:
+            self.bad += 1
+            self.bad_offset = e if e > 0 else t - prev
+            return DROP, math.nan
+        self._sus_n = 0
+        self.bad = max(self.bad - (CONFIRM - 1), 0)         # the first of them: not bad stamps, a change of clock
+        self.confirming += CONFIRM - 1
+        if t < prev or t > prev + self.max_jump:            # the clock was set back or forward: start again
+            self.reset(keep_counts=True)
+            self.restarts += 1
+            self.last_jump = prev - t
+            self._warmup(t)
+            return RESTART, t
+        self._pending = math.nan                            # far ahead for CONFIRM samples: a dropout
+        self.dropouts += 1
+        self._raw_prev = t
+        if t > self._raw_max:
+            self._raw_max = t
+        self.t = t
+        return OK, t
+
     def _warmup(self, t: float) -> tuple[int, float]:
         self._raw_prev = t
         if not t > self._raw_max:
+            # before the warm-up's latest stamp: dropped; CONFIRM agreeing ones in a row start the warm-up again
+            # (its latest stamp was a bad one far ahead)
+            # (agreeing: increasing; the unit of the stamps is not known yet)
+            self._sus_n = self._sus_n + 1 if (self._sus_n > 0 and t > self._sus_t) else 1
+            self._sus_t = t
+            if self._sus_n >= CONFIRM:
+                jump = self._raw_max - t
+                self.reset(keep_counts=True)
+                self.restarts += 1
+                self.last_jump = jump
+                self._warmup(t)
+                return RESTART, t
             self.dropped += 1
             return DROP, math.nan
+        self._sus_n = 0
         if self._raw_max > -math.inf:
             self._steps.append(t - self._raw_max)
         self._raw_max = self.t = t
@@ -185,7 +251,8 @@ class SampleClock:
         return {"t": _f(self.t), "dt": _f(self.dt), "raw_max": _f(self._raw_max), "raw_prev": _f(self._raw_prev),
                 "steps": list(self._steps),
                 "pending": _f(self._pending), "pmin": _f(self._pmin),
-                "counts": [self.retimed, self.dropped, self.dropouts, self.restarts], "last_jump": self.last_jump}
+                "counts": [self.retimed, self.dropped, self.dropouts, self.restarts], "last_jump": self.last_jump,
+                "bad": [self.bad, self.bad_offset, self.confirming], "suspect": [_f(self._sus_t), self._sus_n]}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Resume from :meth:`state_dict`."""
@@ -195,6 +262,70 @@ class SampleClock:
         self._pending, self._pmin = _g(state["pending"]), _g(state["pmin"])
         self.retimed, self.dropped, self.dropouts, self.restarts = (int(x) for x in state["counts"])
         self.last_jump = float(state["last_jump"])
+        self.bad, self.bad_offset, self.confirming = (int(state["bad"][0]), float(state["bad"][1]),
+                                                      int(state["bad"][2])) if "bad" in state else (0, 0.0, 0)
+        self._sus_t, self._sus_n = (_g(state["suspect"][0]), int(state["suspect"][1])) if "suspect" in state \
+            else (math.nan, 0)
+
+    def take_notes(self) -> list[str]:
+        """What the clock did since the last call (bad stamps, samples dropped, stamps retimed), one phrase each
+        for a frame's ``status_reason``; those counts start again."""
+        notes = []
+        if self.bad:
+            off = self.bad_offset
+            notes.append(f"{self.bad} IMU sample(s) dropped: stamp far off the clock (the last {abs(off):.6g} s "
+                         f"{'ahead' if off > 0 else 'behind'}), a bad stamp, not a new clock")
+            self.bad = 0
+        if self.confirming:
+            notes.append(f"{self.confirming} IMU sample(s) dropped while the change of the clock was confirmed")
+            self.confirming = 0
+        if self.dropped:
+            notes.append(f"{self.dropped} IMU sample(s) dropped (time not after the last; policy {self.policy})")
+            self.dropped = 0
+        if self.retimed:
+            notes.append(f"{self.retimed} stamp(s) retimed on the sample clock")
+            self.retimed = 0
+        return notes
+
+    def load_checked(self, c: Any, max_period: float) -> None:
+        """Resume from a saved :meth:`state_dict` read through ``c`` (a :class:`~imu_ground.imu.warm_start.StateReader`
+        of it), every entry checked: a corrupt or out-of-range one raises
+        :class:`~imu_ground.imu.warm_start.StateError` naming it (``clock.dt`` NaN where it must be a period of
+        1e-6 to ``max_period`` s, a stamp beyond the readers' magnitude, counts not integers ...)."""
+        from imu_ground.imu.warm_start import StateReader
+
+        def stamp(name: str, nan: bool = True, inf: bool = False) -> float:
+            v = c.state.get(name) if isinstance(c.state, dict) else None
+            if v in ("inf", "-inf") and inf:
+                return math.inf if v == "inf" else -math.inf
+            return math.nan if v is None and nan and name in c.state else c.float(name)
+
+        t, dt = stamp("t"), stamp("dt")
+        if not (math.isnan(dt) or 1e-6 <= dt <= max_period):
+            raise c.error("dt", f"is {dt!r}, expected NaN (a warm-up) or a sample period of 1e-6 to {max_period:g} s")
+        raw_max, raw_prev = stamp("raw_max", inf=True), stamp("raw_prev")
+        steps = c.floats("steps", (None,))
+        if len(steps) >= WARMUP or (steps <= 0).any():
+            raise c.error("steps", f"holds {len(steps)} steps (expected fewer than {WARMUP}, each positive)")
+        pending, pmin = stamp("pending"), stamp("pmin", inf=True)
+        counts = c.state.get("counts")
+        if not (isinstance(counts, list) and len(counts) == 4):
+            raise c.error("counts", f"is {counts!r:.60}, expected 4 counts")
+        cr = StateReader(c.kind, {str(i): x for i, x in enumerate(counts)}, f"{c.prefix}counts.")
+        counts = [cr.int(str(i)) for i in range(4)]
+        last_jump = c.float("last_jump")
+        bad = c.floats("bad", (3,)) if c.has("bad") else np.zeros(3)
+        if bad[0] < 0 or bad[2] < 0 or bad[0] != int(bad[0]) or bad[2] != int(bad[2]):
+            raise c.error("bad", f"holds {bad.tolist()!r}, expected counts (integers >= 0) and an offset")
+        sus = c.state.get("suspect") if c.has("suspect") else [None, 0]
+        if not (isinstance(sus, list) and len(sus) == 2 and type(sus[1]) is int and 0 <= sus[1] < CONFIRM
+                and (sus[0] is None or (isinstance(sus[0], float) and math.isfinite(sus[0])))):
+            raise c.error("suspect", f"is {sus!r:.60}, expected [a stamp or null, a count below {CONFIRM}]")
+        self.t, self.dt, self._raw_max, self._raw_prev, self._steps = t, dt, raw_max, raw_prev, steps.tolist()
+        self._pending, self._pmin, self.last_jump = pending, pmin, last_jump
+        self.retimed, self.dropped, self.dropouts, self.restarts = counts
+        self.bad, self.bad_offset, self.confirming = int(bad[0]), float(bad[1]), int(bad[2])
+        self._sus_t, self._sus_n = (math.nan if sus[0] is None else sus[0]), sus[1]
 
 
 def _f(x: float) -> float | str | None:

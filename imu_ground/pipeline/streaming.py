@@ -10,18 +10,23 @@ Per sample, each piece one class:
 1. **Clock** (:class:`~imu_ground.imu.sample_clock.SampleClock`): raw stamps to strictly
    increasing sample times (jitter retimed on the sample index with a running rate,
    back-steps and repeats by the readers' ``retime`` or ``drop`` policy, dropouts kept as
-   gaps, a clock set back by more than a gap or forward by more than :data:`MAX_GAP_FRAMES`
-   frames restarts the front end; a warm-up whose sample period is longer than
-   :data:`MAX_SAMPLE_PERIOD`, stamps not in seconds, is skipped and said).
+   gaps; one stamp far off the clock is a bad sample, dropped and said; three agreeing ones are a
+   new clock: a dropout, or, set back by more than a gap or forward by more than
+   :data:`MAX_GAP_FRAMES` frames, a restart of the front end). The stamps' unit (s, ms, us, ns) is
+   told from each warm-up as the readers tell it and said (``time_unit`` gives it); a warm-up no
+   unit makes an IMU's (a period over :data:`MAX_SAMPLE_PERIOD`) is skipped and said.
 2. **Standstill and gyro bias** (:mod:`imu_ground.imu.causal_standstill`): a frame ends at a
-   standstill when its trailing 1 s window is quiet; the bias is the mean rate over the
+   standstill when its trailing 1 s window is quiet, or when it is quiet alone and leads into such a
+   window (the first frames of a stop: held until that window passes, at most 0.9 s); the bias is the mean rate over the
    standstills (2 s windows) seen so far (or given, or from a saved state) and applies from the next sample.
 3. **Preintegration** (:class:`~imu_ground.imu.preintegration.StreamingPreintegrator`): frames
    at ``rate`` Hz from the first sample, gaps flagged and integrated through.
 4. **Speed over the frame** (:class:`~imu_ground.datasets.speed_buffer.SpeedBuffer`): a frame
-   waits for a speed sample at or after its end, at most ``speed_wait`` seconds of IMU time
-   (:data:`SPEED_WAIT`), then runs IMU only and says so; a stream that never sent a speed does
-   not wait.
+   waits for a speed sample at or after its end, ``speed_wait`` seconds of IMU time
+   (:data:`SPEED_WAIT`) or as long as the speed's measured latency needs (at most
+   :data:`MAX_SPEED_WAIT`), then runs IMU only and says so; a stream that never sent a speed does
+   not wait. A speed in km/h is told from the data as the readers tell it (its changes against the
+   accelerometer), said, and converted (the filter run again from its first speed).
 5. **Filter**: the method's streaming ``step`` (``on_invalid="skip"``: a bad frame is skipped,
    never raised on).
 
@@ -49,7 +54,6 @@ import numpy as np
 
 from imu_ground._native import FRONT
 from imu_ground.datasets.options import OptionError
-from imu_ground.datasets.speed import frame_speed
 from imu_ground.datasets.speed_buffer import SpeedBuffer
 from imu_ground.filters import Extrinsic
 from imu_ground.filters.estimator import GroundEstimate
@@ -59,6 +63,7 @@ from imu_ground.imu.causal_standstill import (
     StandstillBlocks,
     StandstillTests,
     block_sums,
+    stop_starts,
     window_standstill,
 )
 from imu_ground.imu.egomotion import EgoFrame, EgoMotion
@@ -66,15 +71,21 @@ from imu_ground.imu.preint_kernel import NATIVE as _PREINT_NATIVE
 from imu_ground.imu.preint_measurement import PreintegratedImu
 from imu_ground.imu.preintegration import StreamingPreintegrator, preintegrate
 from imu_ground.imu.sample_clock import DROP, OK, RESTART, SampleClock
+from imu_ground.pipeline.live_speed import (MAX_SPEED_WAIT, NO_SPEED, SpeedLatency, SpeedUnit, causal_speeds,
+                                            tells_kmh, wait_may_grow)
+from imu_ground.pipeline.live_state import MAX_RECORDS, pack, unpack
 from imu_ground.so3 import quat_from_matrix
 from imu_ground.units import MAX_GAP_FRAMES        # a forward step longer than this restarts the front end
 
-__all__ = ["LIVE_METHODS", "MAX_FRAME_RATE", "MAX_GAP_FRAMES", "MAX_SAMPLE_PERIOD", "SPEED_WAIT", "FrameEstimate",
+__all__ = ["LIVE_METHODS", "MAX_FRAME_RATE", "MAX_GAP_FRAMES", "MAX_SAMPLE_PERIOD", "MAX_SPEED_WAIT", "SPEED_WAIT",
+           "FrameEstimate",
            "StreamingEstimator", "causal_track", "estimate_row", "replay"]
 
 #: Methods that run live (``"auto"`` is ``"suspension"``); the offline smoother and the naive baseline do not.
 LIVE_METHODS = tuple(name for name, spec in METHODS.items() if spec.live)
-#: Longest a frame waits for a speed sample at or after its end, s of IMU time (then: IMU only, said).
+#: Least time a frame waits for a speed sample at or after its end, s of IMU time (then: IMU only, said); a speed
+#: that arrives later after its stamps (measured) makes frames wait as long as it needs, at most
+#: :data:`~imu_ground.pipeline.live_speed.MAX_SPEED_WAIT`.
 SPEED_WAIT = 0.25
 #: The highest frame rate, Hz, a :class:`StreamingEstimator` takes (its IMU's rate is not known before the
 #: samples come; a frame rate far above it would make millions of empty frames a sample).
@@ -84,7 +95,8 @@ MAX_FRAME_RATE = 1000.0
 MAX_SAMPLE_PERIOD = 1.0
 _STATE_KIND = "imu_ground.StreamingEstimator"
 _STATE_VERSION = 1
-_NO_SPEED = "no speed over this frame: IMU only"
+_NO_SPEED = NO_SPEED
+_UNDECIDED = "undecided"                                # a frame's speed not decided yet
 # The compiled front end (imu/_front_native.c): one call a sample in the steady state, with the compiled
 # preintegrator; its state buffer's layout (F_*: the clock's, SampleClock.to_buffer, then these).
 _FRONT = FRONT if _PREINT_NATIVE is not None else None
@@ -171,66 +183,6 @@ def estimate_row(est: FrameEstimate) -> dict[str, Any]:
     return row
 
 
-# ------------------------------------------------------------------------------------------ state packing
-_PACKED = "float64_zlib_base64"
-_PACK_MIN = 8
-
-
-def _shape(x: Any) -> Any:
-    """0 for a float, the list of its items' shapes for a list of such; None for anything else."""
-    if type(x) is float:
-        return 0
-    if type(x) is list and x:
-        items = [_shape(y) for y in x]
-        return None if any(i is None for i in items) else items
-    return None
-
-
-def _leaves(x: Any, out: list) -> None:
-    if type(x) is float:
-        out.append(x)
-    else:
-        for y in x:
-            _leaves(y, out)
-
-
-def _pack(x: Any) -> Any:
-    """A list of equally shaped items of floats (at least 8 in all) as base64 of the floats' float64 bytes
-    (zlib-compressed) and the items' shape: exact, and less than half the JSON of the numbers' text;
-    everything else as it is."""
-    if type(x) is dict:
-        return {k: _pack(v) for k, v in x.items()}
-    if type(x) is list:
-        shape = _shape(x)
-        if shape is not None and all(s == shape[0] for s in shape):
-            flat: list = []
-            _leaves(x, flat)
-            if len(flat) >= _PACK_MIN:
-                import base64
-                import zlib
-                raw = zlib.compress(np.array(flat, dtype=float).tobytes(), 9)
-                return {_PACKED: base64.b64encode(raw).decode("ascii"), "n": len(x), "item": shape[0]}
-        return [_pack(v) for v in x]
-    return x
-
-
-def _build(shape: Any, it) -> Any:
-    return next(it) if shape == 0 else [_build(s, it) for s in shape]
-
-
-def _unpack(x: Any) -> Any:
-    if type(x) is dict:
-        if _PACKED in x:
-            import base64
-            import zlib
-            it = iter(np.frombuffer(zlib.decompress(base64.b64decode(x[_PACKED])), dtype=float).tolist())
-            return [_build(x["item"], it) for _ in range(int(x["n"]))]
-        return {k: _unpack(v) for k, v in x.items()}
-    if type(x) is list:
-        return [_unpack(v) for v in x]
-    return x
-
-
 # ------------------------------------------------------------------------------------------ checks
 def _number(x: Any, name: str) -> float:
     if isinstance(x, float):                         # float and numpy.float64 (a float subclass): the common case
@@ -299,6 +251,10 @@ class StreamingEstimator:
         Longest a frame waits for a speed sample at or after its end, s of IMU time.
     recalibrate_online : bool
         Re-estimate a moved mount online (suspension method).
+    time_unit : {None, "s", "ms", "us", "ns"}
+        The unit of the stamps ``t`` (IMU and speed). None: told from the data at each warm-up of the
+        clock, as the readers do (:func:`~imu_ground.datasets.unit_checks.detect_time_unit`: the rate and
+        epoch-sized values), said in the next frame; the frames are then those of the stamps in seconds.
 
     Notes
     -----
@@ -322,8 +278,14 @@ class StreamingEstimator:
 
     def __init__(self, method: str = "auto", extrinsic: Any = None, rate: float = 10.0, camera: Any = None, *,
                  bias_gyro: Any = "auto", policy: str = "retime", speed_wait: float = SPEED_WAIT,
-                 recalibrate_online: bool = False) -> None:
+                 recalibrate_online: bool = False, time_unit: str | None = None) -> None:
         self.method = _live_method(method)
+        if time_unit is not None:
+            from imu_ground.datasets.unit_checks import unit_scale
+            self._tscale0 = unit_scale("time", time_unit)
+        else:
+            self._tscale0 = 1.0
+        self.time_unit = time_unit
         if not (isinstance(rate, numbers.Real) and math.isfinite(rate) and rate > 0):
             raise OptionError(f"{{opt}} must be a positive frame rate in Hz, got {rate!r}", "rate")
         if rate > MAX_FRAME_RATE:
@@ -351,10 +313,16 @@ class StreamingEstimator:
     def reset(self) -> None:
         """Back to the start: clock, standstill window, gyro bias, speed, filter."""
         self._clock.reset()
+        self._tscale = self._tscale0                    # seconds per unit of the stamps given
+        self._scaled = self._tscale != 1.0
         self._bias = CausalGyroBias(self._bias_arg)
         self._filter.reset()
         self._speed = SpeedBuffer()
-        self._queue: deque = deque()
+        self._latency = SpeedLatency(self.speed_wait)
+        self._vunit = SpeedUnit(self.rate)
+        self._vscale = 1.0                              # m/s per unit of the speeds given (1 / 3.6: km/h)
+        self._queue: deque = deque()                   # frames: [ego, t_start, notes, speed, held, scale, index]
+        self._hold: deque = deque()                    # those held at a possible start of a stop
         self._notes: list[str] = []
         self._skipped = 0
         self._slow = [0, 0.0]                           # samples of too slow warm-ups skipped, the last one's period
@@ -380,7 +348,7 @@ class StreamingEstimator:
         self._clock.to_buffer(fb)
         fb[_F_ORIGIN], fb[_F_RATE], fb[_F_OPEN_K] = self._origin, self.rate, float(self._blocks.open_k)
         pre = self._pre
-        self._fast = pre is not None
+        self._fast = pre is not None and not self._clock.suspect    # (far-off stamps pending: Python decides)
         if pre is not None:
             # (with the compiled front end the preintegrator is the compiled one; type checkers see the Python one)
             self._pb, self._ptb = pre._b, pre._tb  # type: ignore[attr-defined]
@@ -400,12 +368,19 @@ class StreamingEstimator:
         """A measured forward speed (wheel / CAN), m/s, at time ``t`` (s, the IMU's clock); any rate and order."""
         t = t if type(t) is float else _number(t, "t")
         speed = speed if type(speed) is float else _number(speed, "speed")
+        if self._scaled:
+            t *= self._tscale
         if self.speed_aided:
-            self._speed.push(t, speed)
+            self._speed.push(t, speed if self._vscale == 1.0 else speed * self._vscale)
+            note = self._latency.arrived(t, self._now)
+            if note is not None:
+                self._notes.append(note)
 
     def push_imu(self, t: float, gyro, accel) -> list[FrameEstimate]:
         """One IMU sample: time ``t`` (s), angular rate ``gyro`` (rad/s) and specific force ``accel`` (m/s^2),
         body frame; returns the frames it completes (usually none), oldest first."""
+        if self._scaled:                                # stamps not in seconds (told at the warm-up): to seconds
+            t = (t if type(t) is float else _number(t, "t")) * self._tscale
         if self._fast:                                  # the compiled steady state (imu/_front_native.c)
             assert self._fb is not None                 # _fast: the compiled front end is there
             r = _front_push(self._fb, self._blocks.open, _preint_push, self._pb, self._ptb, t, gyro, accel)
@@ -415,7 +390,8 @@ class StreamingEstimator:
                 r = _front_push(self._fb, self._blocks.open, _preint_push, self._pb, self._ptb, t, gyro, accel)
             if r is True:
                 self._now = now = self._fb[_F_T]
-                return self._decide(now) if self._queue else []
+                q = self._queue                         # (frames whose speed is decided, held at a stop's start,
+                return self._decide(now) if q and (q[-1][3] is _UNDECIDED or not q[0][4]) else []   # wait)
             if r is not None:
                 return [] if r is False else self._fast_frames(r, gyro, accel)
         fb = self._fb
@@ -447,7 +423,8 @@ class StreamingEstimator:
             fb[_F_RETIMED], fb[_F_DROPPED] = self._clock.retimed, self._clock.dropped
         fb[_F_OPEN_K] = self._blocks.open_k
         self._now = now = fb[_F_T]
-        return self._decide(now) if self._queue else []
+        q = self._queue
+        return self._decide(now) if q and (q[-1][3] is _UNDECIDED or not q[0][4]) else []
 
     def _push_python(self, t: float, gyro, accel) -> list[FrameEstimate]:
         """:meth:`push_imu` in Python: the reference of the compiled step, and every case it does not take."""
@@ -463,19 +440,20 @@ class StreamingEstimator:
         if code != OK:
             if code == DROP:
                 return []
+            self._release()
             out = self._decide(math.inf)                # RESTART: the frames so far, then start again
             jump = self._clock.last_jump
             self._notes.append(f"the clock {'stepped back' if jump > 0 else 'jumped forward'} by {abs(jump):.3f} s: "
                                f"restarted at t = {tout:.3f} s")
             self._speed.clear()
+            self._latency = SpeedLatency(self.speed_wait)
             self._new_run()
         if self._pre is None:
             self._warm.append((tout, g, a))
             if self._clock.warm:
-                if self._clock.dt > MAX_SAMPLE_PERIOD:
-                    self._slow_warmup()
-                else:
-                    self._start()
+                self._end_warmup()
+                if self._pre is not None:
+                    tout = self._clock.t                # (on seconds, when the unit was told)
         else:
             self._feed(tout, g, a)
         self._now = tout
@@ -484,10 +462,72 @@ class StreamingEstimator:
         return out
 
     def flush(self) -> list[FrameEstimate]:
-        """The end of the stream: the frames still waiting for a speed, decided with what has arrived."""
+        """The end of the stream: the frames still waiting for a speed, decided with what has arrived (those held at
+        a possible start of a stop: moving)."""
+        self._release()
         return self._decide(math.inf)
 
     # -- the front end -------------------------------------------------------------------------
+    def _end_warmup(self) -> None:
+        """The clock's warm-up is over: the stamps' unit told from its samples (a new one: the warm-up again on
+        seconds), then the frames start, or a warm-up still too slow for an IMU is skipped."""
+        found = self._stamp_unit([w[0] / self._tscale for w in self._warm])
+        if found is not None and found[0] != self._tscale:
+            self._rescale(*found)
+        if self._clock.dt > MAX_SAMPLE_PERIOD:
+            self._slow_warmup()
+        else:
+            self._start()
+
+    def _stamp_unit(self, raw: list) -> tuple[float, str] | None:
+        """``(factor to seconds, note)`` of the stamps ``raw`` (as given) told from the data as the readers do
+        (:func:`~imu_ground.datasets.unit_checks.detect_time_unit`); None with ``time_unit`` given or when the
+        data cannot tell."""
+        if self.time_unit is not None:
+            return None
+        from imu_ground.datasets.unit_checks import TIME_UNITS, detect_time_unit
+        from imu_ground.errors import ImuGroundError
+        try:
+            unit, note = detect_time_unit(np.array(raw), "IMU stream", "t")
+        except ImuGroundError:
+            return None
+        scale = TIME_UNITS[unit]
+        if note is None:
+            note = "IMU stamps in seconds again (told from the data)"
+        else:
+            note = note.split(" (pass")[0].replace("IMU stream: time column 't' read", "IMU stamps read") + \
+                ": converted to seconds (pass time_unit to say so)"
+        return scale, note
+
+    def _rescale(self, scale: float, note: str) -> None:
+        """The stamps are in another unit (``scale`` s each): the warm-up's samples again on seconds, the speed
+        samples kept too, and said in the next frame."""
+        factor = scale / self._tscale
+        self._tscale, self._scaled = scale, scale != 1.0
+        clock = self._clock
+        clock.reset(keep_counts=True)
+        warm, self._warm = self._warm, []
+        for tw, g, a in warm:
+            self._warm.append((clock.push(tw * factor)[1], g, a))
+        self._speed.rescale(factor)
+        self._latency = SpeedLatency(self.speed_wait)  # (latencies measured in the other unit)
+        self._notes.append(note)
+
+    def _kmh(self, notes: list) -> float:
+        """The speed is in km/h (told by :class:`~imu_ground.pipeline.live_speed.SpeedUnit`): it and the speeds kept are converted from now on,
+        the filter runs again over the frames since its first speed with them (when it can), said; returns
+        the factor."""
+        unit, k = self._vunit, 1.0 / 3.6
+        self._vscale = k
+        sp = self._speed
+        sp.v = [x * k for x in sp.v]
+        again = unit.rerun(self._filter, k)
+        notes.append(f"speed read as km/h from the data: it changes {unit.slope:.2f} times as fast as the "
+                     f"accelerometer says over {unit.n} s of driving; converted to m/s"
+                     + (f" (the filter run again over the {again} frames since its first speed)" if again >= 0
+                        else " from here on"))
+        return k
+
     def _slow_warmup(self) -> None:
         """The warm-up's sample period is longer than :data:`MAX_SAMPLE_PERIOD`: stamps not in seconds. The
         samples are skipped and counted (said in the next frame's notes), and the clock warms up again on the
@@ -517,14 +557,32 @@ class StreamingEstimator:
         j = round((f.t_end - self._origin) * self.rate) - 1
         blocks = self._blocks
         still, for_bias = blocks.windows(j, blocks.W, blocks.Wb if self._bias.auto else 0)
+        quiet = False if still else blocks.windows(j, 1, 0)[0]
         if for_bias:
             self._bias.absorb(j, blocks.Wb, blocks.block)
             assert self._pre is not None                # a frame came from it
             self._pre.set_gyro_bias(*self._bias.value)  # from the next sample on
         blocks.done(j)
-        notes = self._take_notes()
-        self._queue.append((EgoFrame(f.delta_R, f.delta_v, f.delta_t, still, bool(f.valid), f.t_end),
-                            f.t_start, notes))
+        entry = [EgoFrame(f.delta_R, f.delta_v, f.delta_t, still, bool(f.valid), f.t_end), f.t_start,
+                 self._take_notes(), _UNDECIDED, quiet, 1.0, j]
+        hold = self._hold
+        if still:                                       # a stop: the quiet frames before it were at rest too
+            for e in hold:
+                e[0], e[4] = e[0]._replace(stationary=True), False
+            hold.clear()
+        elif not quiet:
+            self._release()
+        else:                                           # perhaps the start of a stop: held (at most W - 1 frames)
+            hold.append(entry)
+        while hold and hold[0][6] <= j - (blocks.W - 1):
+            hold.popleft()[4] = False                   # no stop within its window: moving
+        self._queue.append(entry)
+
+    def _release(self) -> None:
+        """The frames held at a possible start of a stop go on as moving."""
+        for e in self._hold:
+            e[4] = False
+        self._hold.clear()
 
     def _take_notes(self) -> list[str]:
         notes, self._notes = self._notes, []
@@ -536,25 +594,39 @@ class StreamingEstimator:
             notes.append(f"IMU stamps step by {self._slow[1]:.3g} s, more than {MAX_SAMPLE_PERIOD:g} s: stamps not in "
                          f"seconds (ns, us, ms)? IMU samples skipped: {self._slow[0]}")
             self._slow = [0, 0.0]
-        return notes + _take_clock_notes(c, self.policy)
+        return notes + c.take_notes()
 
     def _decide(self, now: float) -> list[FrameEstimate]:
-        out = []
+        """The frames' speeds in order, as their speed comes (or their wait ends); then the filter over the
+        frames from the oldest on, up to one held at a possible start of a stop."""
         q, sp = self._queue, self._speed
-        while q:
-            ego, ts, notes = q[0]
-            v = None
-            if self.speed_aided and sp.received:
-                te = ego.t
-                kept = sp.t                             # (sp.covers(te), inlined: this runs every sample a frame waits)
-                if not ((kept and kept[-1] >= te) or now >= te + self.speed_wait):
-                    break
-                v = sp.mean(ts, te)
-                notes += sp.take_notes()
-                if math.isnan(v):
-                    notes.append(_NO_SPEED)
-                sp.done(te)
-            q.popleft()
+        for e in q:
+            if e[3] is not _UNDECIDED:
+                continue
+            if not (self.speed_aided and sp.received):
+                e[3] = None
+                continue
+            ego, ts, notes = e[0], e[1], e[2]
+            te = ego.t
+            kept = sp.t                                 # (sp.covers(te), inlined: this runs every sample a frame waits)
+            wait = self._latency.wait
+            if not ((kept and kept[-1] >= te) or now >= te + wait):
+                break
+            v = sp.mean(ts, te)
+            notes += sp.take_notes()
+            if math.isnan(v):
+                notes.append(_NO_SPEED if wait == self.speed_wait else self._latency.timed_out())
+            sp.done(te)
+            e[3], e[5] = v, self._vscale
+        out = []
+        while q and q[0][3] is not _UNDECIDED and not q[0][4]:
+            ego, ts, notes, v, _, scale, _ = q.popleft()
+            if v is not None:
+                if scale != self._vscale:              # (decided before the speed was told to be km/h)
+                    v = v * (self._vscale / scale)
+                unit = self._vunit
+                if unit.open and unit.frame(float(ego.delta_v[0]), v, self._filter, ego):
+                    v = self._kmh(notes) * v           # the speed's unit told now: km/h
             est = self._filter.step(ego) if v is None and not self.speed_aided else self._filter.step(ego, speed=v)
             out.append(FrameEstimate.of(est, ego.t, ts, math.nan if v is None else v, tuple(notes), self.camera,
                                         ego.valid))
@@ -566,7 +638,7 @@ class StreamingEstimator:
                                                                        np.asarray(self._bias_arg).ravel()]
         return {"method": self.method, "rate": self.rate, "extrinsic": self.extrinsic.rotation.ravel().tolist(),
                 "bias_gyro": bias, "policy": self.policy, "speed_wait": self.speed_wait,
-                "recalibrate_online": self.recalibrate_online}
+                "recalibrate_online": self.recalibrate_online, "time_unit": self.time_unit}
 
     def state_dict(self) -> dict[str, Any]:
         """Everything (clock, preintegrator, standstill window, gyro bias, speed buffer, waiting frames, filter)
@@ -575,58 +647,172 @@ class StreamingEstimator:
         if self._fb is not None:
             self._clock.from_buffer(self._fb)
         queue = [[ego.delta_R.ravel().tolist(), ego.delta_v.tolist(), ego.delta_t, ego.stationary, ego.valid,
-                  ego.t, ts, list(notes)] for ego, ts, notes in self._queue]
+                  ego.t, ts, list(notes), v, held, scale, j] for ego, ts, notes, v, held, scale, j in self._queue]
         return {"kind": _STATE_KIND, "version": _STATE_VERSION, "settings": self._settings(),
                 "clock": self._clock.state_dict(), "warm": [[t, *g, *a] for t, g, a in self._warm],
                 "origin": None if math.isnan(self._origin) else self._origin,
-                "preintegrator": None if self._pre is None else _pack(self._pre.state_dict()),
+                "preintegrator": None if self._pre is None else pack(self._pre.state_dict()),
                 "max_gap": None if self._pre is None else self._pre.max_gap,
-                "blocks": _pack(self._blocks.state_dict()), "bias": self._bias.state_dict(),
-                "speed": _pack(self._speed.state_dict()), "queue": queue, "notes": list(self._notes),
+                "blocks": pack(self._blocks.state_dict()), "bias": self._bias.state_dict(),
+                "speed": pack(self._speed.state_dict()), "queue": queue, "notes": list(self._notes),
                 "skipped": self._skipped, "slow_warmups": list(self._slow), "now": None if self._now == -math.inf else self._now,
-                "filter": _pack(self._filter.state_dict())}
+                "time_scale": self._tscale, "speed_latency": self._latency.state_dict(),
+                "speed_unit": [self._vscale, self._vunit.state_dict()],
+                "filter": pack(self._filter.state_dict())}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Resume from :meth:`state_dict`; another kind, version or settings raises ``OptionError`` naming ``state``."""
+        """Resume from :meth:`state_dict`.
+
+        The whole state is read and checked before anything changes: a refused state leaves the estimator
+        as it was. Another kind, version or settings raises ``OptionError`` naming ``state``; a corrupt or
+        out-of-range entry (a number not finite or out of its range, a packed list garbled, truncated or
+        inflating beyond its size, a record of another layout) raises
+        :class:`~imu_ground.imu.warm_start.StateError` naming the entry (``clock.dt``, ``filter``, ...).
+        """
         if not isinstance(state, dict) or state.get("kind") != _STATE_KIND:
             kind = state.get("kind") if isinstance(state, dict) else type(state).__name__
-            raise OptionError(f"{{opt}} is not a StreamingEstimator state (kind {kind!r})", "state")
+            raise OptionError(f"{{opt}} is not a StreamingEstimator state (kind {kind!r:.60})", "state")
         if state.get("version") != _STATE_VERSION:
-            raise OptionError(f"{{opt}} has version {state.get('version')!r}, this estimator reads {_STATE_VERSION}",
-                              "state")
+            raise OptionError(f"{{opt}} has version {state.get('version')!r:.40}, this estimator reads "
+                              f"{_STATE_VERSION}", "state")
         mine = self._settings()
         theirs = state.get("settings", {})
+        theirs = theirs if isinstance(theirs, dict) else {}
         differ = sorted(k for k in mine if theirs.get(k) != mine[k])
         if differ:
             raise OptionError(f"{{opt}} was saved with other settings ({', '.join(differ)}): "
-                              f"{', '.join(f'{k}={theirs.get(k)!r}' for k in differ)}", "state")
-        try:
-            self.reset()
-            self._clock.load_state_dict(state["clock"])
-            self._warm = [(float(r[0]), tuple(map(float, r[1:4])), tuple(map(float, r[4:7]))) for r in state["warm"]]
-            self._origin = math.nan if state["origin"] is None else float(state["origin"])
-            if state["preintegrator"] is not None:
-                self._pre = StreamingPreintegrator(rate=self.rate, t_origin=self._origin,
-                                                   max_gap=float(state["max_gap"]), on_gap="flag", uncertainty=False)
-                self._pre.load_state_dict(_unpack(state["preintegrator"]))
-            self._blocks.load_state_dict(_unpack(state["blocks"]))
-            self._bias.load_state_dict(state["bias"])
-            if self._pre is not None:
-                self._pre.set_gyro_bias(*self._bias.value)
-            self._speed.load_state_dict(_unpack(state["speed"]))
-            self._queue = deque((EgoFrame(np.array(r[0], float).reshape(3, 3), np.array(r[1], float), float(r[2]),
-                                          bool(r[3]), bool(r[4]), float(r[5])), float(r[6]), list(r[7]))
-                                for r in state["queue"])
-            self._notes, self._skipped = list(state["notes"]), int(state["skipped"])
-            slow = state.get("slow_warmups", (0, 0.0))          # (older states: none)
-            self._slow = [int(slow[0]), float(slow[1])]
-            self._now = -math.inf if state["now"] is None else float(state["now"])
-            self._filter.load_state_dict(_unpack(state["filter"]))
-            self._front_out()
-        except (KeyError, TypeError, IndexError) as e:
-            self.reset()
-            raise OptionError(f"{{opt}} is incomplete or damaged ({type(e).__name__}: {e})", "state") from None
+                              f"{', '.join(f'{k}={theirs.get(k)!r:.60}' for k in differ)}", "state")
+        parts = self._read_state(state)                # every entry checked: raises before anything changes
+        self.__dict__.update(parts)
+        self._fb = None if _FRONT is None else array("d", bytes(8 * _F_SIZE))
+        self._front_out()
 
+    def _read_state(self, state: dict) -> dict[str, Any]:
+        """Every entry of ``state`` checked and built into new objects: the attributes to set (nothing of the
+        estimator changes here); a corrupt entry raises :class:`~imu_ground.imu.warm_start.StateError` naming it."""
+        from imu_ground.datasets.unit_checks import TIME_UNITS
+        from imu_ground.imu.sample_clock import CONFIRM, WARMUP
+        from imu_ground.imu.warm_start import StateError, StateReader
+        r = StateReader("StreamingEstimator", state)
+
+        def records(name: str, value: Any, limit: int = MAX_RECORDS) -> list:
+            if not isinstance(value, list):
+                raise r.error(name, f"is {type(value).__name__}, expected a list")
+            if len(value) > limit:
+                raise r.error(name, f"holds {len(value)} records, more than {limit}")
+            return value
+
+        def loaded(name: str, obj: Any, value: Any) -> Any:
+            try:
+                obj.load_state_dict(value)
+            except StateError as e:
+                raise StateError(f"this StreamingEstimator state is corrupt in its entry {name}: {e}") from None
+            except (KeyError, TypeError, ValueError, IndexError, AttributeError) as e:
+                raise r.error(name, f"is damaged ({type(e).__name__}: {str(e)[:80]})") from None
+            return obj
+
+        out: dict[str, Any] = {}
+        clock = SampleClock(self.policy, max_jump=MAX_GAP_FRAMES / self.rate)
+        clock.load_checked(r.part("clock"), MAX_SAMPLE_PERIOD)
+        out["_clock"] = clock
+        # the stamps' unit
+        scale = r.float("time_scale") if r.has("time_scale") else 1.0
+        if scale not in TIME_UNITS.values() or (self.time_unit is not None and scale != self._tscale0):
+            raise r.error("time_scale", f"is {scale!r}, expected one of {sorted(set(TIME_UNITS.values()))}"
+                                        f"{'' if self.time_unit is None else ' (that of time_unit)'}")
+        out["_tscale"], out["_scaled"] = scale, scale != 1.0
+        # warm-up, origin, preintegrator
+        warm = r.rows("warm", lambda x: [float(v) for v in x] if len(x) == 7 else [], 7)
+        if len(warm) > WARMUP:
+            raise r.error("warm", f"holds {len(warm)} samples, more than the warm-up's {WARMUP}")
+        out["_warm"] = [(float(w[0]), tuple(w[1:4].tolist()), tuple(w[4:7].tolist())) for w in warm]
+        origin = r.float("origin", optional=True)
+        out["_origin"] = math.nan if origin is None else origin
+        pre = None
+        if r.has("preintegrator"):
+            if math.isnan(clock.dt):
+                raise r.error("clock.dt", "is NaN (a warm-up) where the frames have started (a preintegrator is saved)")
+            if origin is None:
+                raise r.error("origin", "is null where the frames have started (a preintegrator is saved)")
+            max_gap = r.float("max_gap")
+            if not 0 < max_gap <= clock.gap_factor * MAX_SAMPLE_PERIOD:
+                raise r.error("max_gap", f"is {max_gap!r}, expected a positive time of at most "
+                                         f"{clock.gap_factor * MAX_SAMPLE_PERIOD:g} s")
+            pre = StreamingPreintegrator(rate=self.rate, t_origin=origin, max_gap=max_gap, on_gap="flag",
+                                         uncertainty=False)
+            loaded("preintegrator", pre, unpack(state["preintegrator"], "preintegrator"))
+            last = pre._prev[0] if pre._prev is not None else clock.t
+            if not (abs(clock.t - last) <= max_gap and abs(pre._next - clock.t) <= 2.0 / self.rate + max_gap):
+                raise r.error("clock.t", f"is {clock.t!r}, off the preintegrator's last sample ({last!r}) and next "
+                                         f"frame end ({pre._next!r})")
+        out["_pre"] = pre
+        # standstill blocks and the gyro bias
+        out["_blocks"] = blocks = StandstillBlocks(self.rate)
+        blocks.load_checked(StateReader("StreamingEstimator", unpack(r.state.get("blocks"), "blocks"), "blocks."),
+                            MAX_RECORDS)
+        out["_bias"] = bias = CausalGyroBias(self._bias_arg)
+        bias.load_checked(r.part("bias"))
+        if pre is not None:
+            pre.set_gyro_bias(*bias.value)                  # (not in the preintegrator's state: the causal bias)
+        # speed
+        out["_speed"] = sp = SpeedBuffer()
+        sp.load_checked(StateReader("StreamingEstimator", unpack(r.state.get("speed"), "speed"), "speed."), MAX_RECORDS)
+        latency = SpeedLatency(self.speed_wait)
+        if r.has("speed_latency"):                          # (older states: none)
+            try:
+                latency.load_state_dict(r.state.get("speed_latency"))
+            except (ValueError, TypeError) as e:
+                raise r.error("speed_latency", f"is not [wait, said, latencies, periods, last stamp] ({e})") from None
+        out["_latency"] = latency
+        vunit = SpeedUnit(self.rate)
+        vscale = 1.0
+        if r.has("speed_unit"):                             # (older states: none)
+            try:
+                vscale, rec = r.state.get("speed_unit")
+                if vscale not in (1.0, 1.0 / 3.6):
+                    raise ValueError(f"scale {vscale!r}")
+                vunit.load_state_dict(rec)
+            except (ValueError, TypeError) as e:
+                raise r.error("speed_unit", f"is not [scale, check] ({e})") from None
+        out["_vunit"], out["_vscale"] = vunit, vscale
+        # the frames waiting, notes, counts
+        queue, hold = deque(), deque()
+        for i, q in enumerate(records("queue", r.state.get("queue"))):
+            name = f"queue[{i}]"
+            if not (isinstance(q, list) and len(q) in (8, 12) and isinstance(q[3], bool) and isinstance(q[4], bool)
+                    and isinstance(q[7], list) and all(isinstance(x, str) for x in q[7])):
+                raise r.error(name, "is a record of another layout")
+            v, held, scale, j = q[8:] if len(q) == 12 else (_UNDECIDED, False, 1.0, -1)   # (older states: 8)
+            v = _UNDECIDED if v == _UNDECIDED else v   # (the marker itself: compared by identity)
+            if not ((v is None or v is _UNDECIDED or type(v) is float) and type(held) is bool
+                    and scale in (1.0, 1 / 3.6) and type(j) is int):
+                raise r.error(name, "is a record of another layout (its speed, hold, scale or index)")
+            qr = StateReader("StreamingEstimator", {"delta_R": q[0], "delta_v": q[1], "times": [q[2], q[5], q[6]]},
+                             f"{name}.")
+            e = [EgoFrame(qr.floats("delta_R", (9,)).reshape(3, 3), qr.floats("delta_v", (3,)),
+                          float(qr.floats("times", (3,))[0]), q[3], q[4], float(q[5])), float(q[6]), list(q[7]),
+                 v, held, scale, j]
+            queue.append(e)
+            if held:
+                hold.append(e)
+        out["_hold"] = hold
+        out["_queue"] = queue
+        notes = records("notes", r.state.get("notes"), 1000)
+        if not all(isinstance(x, str) and len(x) <= 1000 for x in notes):
+            raise r.error("notes", "holds something other than short texts")
+        out["_notes"], out["_skipped"] = list(notes), r.int("skipped")
+        if r.has("slow_warmups"):                           # (older states: none)
+            slow = r.floats("slow_warmups", (2,))
+            if slow[0] < 0 or slow[0] != int(slow[0]) or slow[1] < 0:
+                raise r.error("slow_warmups", f"holds {slow.tolist()!r}, expected a count and a period")
+            out["_slow"] = [int(slow[0]), float(slow[1])]
+        else:
+            out["_slow"] = [0, 0.0]
+        now = r.float("now", optional=True)
+        out["_now"] = -math.inf if now is None else now
+        flt = _make_filter(self.method, self.extrinsic, self.rate, self.recalibrate_online)
+        out["_filter"] = loaded("filter", flt, unpack(r.state.get("filter"), "filter"))
+        return out
 
     # -- a whole log at once ---------------------------------------------------------------------
     def run(self, t: np.ndarray, gyro: np.ndarray, accel: np.ndarray,
@@ -634,9 +820,12 @@ class StreamingEstimator:
         """What this estimator, fresh, gives fed a whole log sample by sample, computed at once where the
         choices allow (:func:`causal_track`); returns ``(track, egomotion)``. Starts from :meth:`reset`."""
         self.reset()
-        t = np.asarray(t, dtype=float)
+        t = t_given = np.asarray(t, dtype=float)
+        if self._scaled:
+            t = t * self._tscale
         gyro = np.asarray(gyro, dtype=float).reshape(-1, 3)
         accel = np.asarray(accel, dtype=float).reshape(-1, 3)
+        gyro_in, accel_in = gyro, accel
         n = t.size
         clock = self._clock
         tout = np.empty(n)
@@ -647,11 +836,12 @@ class StreamingEstimator:
             codes[i], tout[i] = clock.push(ti)
             if n_warm < 0 and clock.warm:
                 n_warm, max_gap = i + 1, clock.max_gap
-                slow = clock.dt > MAX_SAMPLE_PERIOD
+                found = self._stamp_unit((t[:n_warm][codes[:n_warm] == OK] / self._tscale).tolist())
+                slow = clock.dt > MAX_SAMPLE_PERIOD or (found is not None and found[0] != self._tscale)
         finite = np.isfinite(t) & np.isfinite(gyro).all(axis=1) & np.isfinite(accel).all(axis=1)
         if (codes == RESTART).any() or not finite.all() or slow:
-            self.reset()                                 # (the clock above ran over the log)
-            return _replayed(self, t, gyro, accel, speed)
+            self.reset()                                 # (the clock above ran over the log; stamps as given)
+            return _replayed(self, t_given, gyro_in, accel_in, speed)
         retimed_total = clock.retimed
         keep = codes == OK
         n_dropped = int(n - keep.sum())
@@ -668,7 +858,8 @@ class StreamingEstimator:
         B = max(int(k.max()) + 1, 0)
         counts, sums = block_sums(k, gyro, accel, B)
         tests = StandstillTests()
-        still_b = window_standstill(counts, sums, tests, r)
+        still_b = stop_starts(window_standstill(counts, sums, tests, r), window_standstill(counts, sums, tests, r, 1),
+                              tests.blocks(r))
         Wb = self._blocks.Wb
         bias = self._bias
         still_bias = window_standstill(counts, sums, tests, r, Wb) if bias.auto else np.zeros(B, dtype=bool)
@@ -699,8 +890,14 @@ class StreamingEstimator:
         if F and (retimed_total or n_dropped):       # the clock's counts go to the frame after the sample
             _clock_notes(self, t_in, keep, notes, np.maximum(i_emit[:F], n_warm - 1))
         v = None
+        if self.speed_aided and speed is not None and F and wait_may_grow(self.speed_wait, speed, t, frontier):
+            self.reset()                                 # a late speed's wait: as the stream decides it
+            return _replayed(self, t_given, gyro_in, accel_in, speed)
         if self.speed_aided and speed is not None and F:
-            v = _causal_speeds(speed, te, ts, i_emit[:F], frontier, t, n_warm, self.speed_wait, notes)
+            v = causal_speeds(speed, te, ts, i_emit[:F], frontier, t, n_warm, self.speed_wait, notes)
+        if v is not None and tells_kmh(self.rate, em.delta_v[:, 0], v):
+            self.reset()                                 # a speed in km/h: as the stream converts it
+            return _replayed(self, t_given, gyro_in, accel_in, speed)
         flt = self._filter
         track = flt.run(em, speed=v) if self.speed_aided else flt.run(em)
         if any(notes):
@@ -709,6 +906,7 @@ class StreamingEstimator:
                 if nt:
                     reason[j] = "; ".join([reason[j], *nt] if reason[j] else nt)
         return track, em
+
 
 
 # ------------------------------------------------------------------------------------------ offline twin
@@ -745,18 +943,6 @@ def causal_track(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, *, method: 
     return est.run(t, gyro, accel, speed)
 
 
-def _take_clock_notes(clock: SampleClock, policy: str) -> list[str]:
-    """What the clock did since the last call (samples dropped, stamps retimed); its counts start again."""
-    notes = []
-    if clock.dropped:
-        notes.append(f"{clock.dropped} IMU sample(s) dropped (time not after the last; policy {policy})")
-        clock.dropped = 0
-    if clock.retimed:
-        notes.append(f"{clock.retimed} stamp(s) retimed on the sample clock")
-        clock.retimed = 0
-    return notes
-
-
 def _clock_notes(est, t_in, keep, notes, i_emit) -> None:
     """Replay the clock's per-sample counts onto the frames (as the streaming notes them): a loop, but only
     for logs whose stamps were retimed or dropped."""
@@ -770,33 +956,8 @@ def _clock_notes(est, t_in, keep, notes, i_emit) -> None:
         if keep[i]:
             p = pos[i]
             while f < nf and i_emit[f] == p:
-                notes[f] = _take_clock_notes(clock, est.policy)
+                notes[f] = clock.take_notes()
                 f += 1
-
-
-def _causal_speeds(speed, te, ts, i_emit, frontier, t_out, n_warm, wait, notes) -> np.ndarray:
-    """Each frame's speed as the stream decides it (module docstring of :mod:`...streaming`, step 4)."""
-    ts_sp, v_sp = (np.asarray(x, dtype=float) for x in speed)
-    M, m, F = ts_sp.size, t_out.size, te.size
-    fs = frame_speed(ts_sp, v_sp, te, te - ts)
-    out = np.full(F, np.nan)
-    rec_i = int(np.searchsorted(frontier, ts_sp[0], side="left"))
-    jstar = np.searchsorted(ts_sp, te, side="left")
-    cov_i = np.where(jstar < M, np.searchsorted(frontier, ts_sp[np.minimum(jstar, M - 1)], side="left"), m)
-    to_i = np.searchsorted(t_out, te + wait, side="left")
-    prev = n_warm - 1
-    for j in range(F):
-        i0 = max(int(i_emit[j]), prev)
-        if i0 < rec_i:                                   # no speed received yet: IMU only, no wait
-            prev = i0
-            continue
-        d = max(i0, min(int(cov_i[j]), int(to_i[j])))
-        covered = jstar[j] < M and (d >= m or frontier[min(d, m - 1)] >= ts_sp[jstar[j]])
-        out[j] = fs[j] if covered else np.nan
-        if np.isnan(out[j]):
-            notes[j].append(_NO_SPEED)
-        prev = min(d, m)
-    return out
 
 
 def _replayed(est: StreamingEstimator, t, gyro, accel, speed):
