@@ -207,7 +207,7 @@ def _live_state():
 
 def _rest(est, rest):
     out = []
-    for ti, gi, ai in zip(*rest):
+    for ti, gi, ai in zip(*rest, strict=True):
         est.push_speed(ti, 8.0)
         out += est.push_imu(ti, gi, ai)
     return [(f.t, f.pitch, f.roll, f.status_reason) for f in out + est.flush()]

@@ -454,7 +454,7 @@ def _drive_rows(n=6000, seed=3):
 
 def _gaps_in_output(frames):
     t = [f.t for f in frames]
-    return max(b - a for a, b in zip(t, t[1:]))
+    return max(b - a for a, b in zip(t, t[1:], strict=False))
 
 
 @pytest.mark.parametrize("bad", [1.7e18, 3600.0, 5e4], ids=["ns", "hour-ahead", "half-day-ahead"])
@@ -504,7 +504,7 @@ def test_one_sample_10_s_ahead_makes_no_gap_frames_and_time_never_steps_back():
     t[3000] += 10.0
     frames = replay(StreamingEstimator(), t, g, a, sp)
     times = [f.t for f in frames]
-    assert all(y > x for x, y in zip(times, times[1:]))
+    assert all(y > x for x, y in zip(times, times[1:], strict=False))
     assert not any(f.status == "gap" for f in frames)
     assert 395 <= len(frames) <= 401
     assert sum(bool(re.search(r"the last (9\.99\d*|10) s ahead\), a bad stamp", f.status_reason)) for f in frames) == 1
@@ -944,7 +944,7 @@ def test_a_late_speed_is_waited_for_as_long_as_its_latency_needs(late):
     fields = ("t", "speed", "status")               # (the first two frames, before a latency is measured, differ)
     assert _keys(late_run[20:], fields) == _keys(on_time[20:], fields)
     for name in ("pitch", "roll"):
-        diff = np.degrees([getattr(x, name) - getattr(y, name) for x, y in zip(late_run[20:], on_time[20:])])
+        diff = np.degrees([getattr(x, name) - getattr(y, name) for x, y in zip(late_run[20:], on_time[20:], strict=False)])
         assert np.abs(diff).max() < 0.05                # (the road filter starts a frame later: its first speed)
     said = [f.status_reason for f in late_run if "after their stamps: frames wait up to" in f.status_reason]
     assert 1 <= len(said) <= 3
@@ -1022,7 +1022,7 @@ def test_the_live_object_never_goes_silent(stream):
     assert silent * 0.01 <= 2.0                                   # samples since the last frame, at 100 Hz
     _finite_when_valid(frames)
     times = [f.t for f in frames]
-    assert all(b > a for a, b in zip(times, times[1:]))
+    assert all(b > a for a, b in zip(times, times[1:], strict=False))
     assert len(frames) >= 0.9 * (true[-1] - true[0]) * 10 - 25, (unit, lag, np.flatnonzero(np.diff(true) > 0.1),
                                                                  np.diff(true)[np.diff(true) > 0.1],
                                                                  np.flatnonzero(~np.isclose(t, true * unit)),
@@ -1045,7 +1045,7 @@ def test_a_speed_in_kmh_is_told_from_the_data_and_the_frames_are_the_m_s_run(sha
     assert "filter run again" in kmh[k].status_reason
     assert k < len(kmh) - 50
     for name_ in ("pitch", "roll"):
-        diff = np.degrees([getattr(x, name_) - getattr(y, name_) for x, y in zip(kmh[k:], ms[k:])])
+        diff = np.degrees([getattr(x, name_) - getattr(y, name_) for x, y in zip(kmh[k:], ms[k:], strict=False)])
         assert np.abs(diff).max() < 1e-9, name_
     np.testing.assert_allclose([f.speed for f in kmh[k:]], [f.speed for f in ms[k:]], rtol=1e-12, atol=0)
     track, _ = StreamingEstimator(extrinsic="kitti_imu").run(t, gyro, accel, (ts, v * 3.6))

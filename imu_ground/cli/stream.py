@@ -271,7 +271,7 @@ def _stdin(est, a, out) -> None:
             cells += [""] * (width - len(cells))
         vals = []
         bad = None
-        for c, i in zip(_SAMPLE_COLUMNS, idx):
+        for c, i in zip(_SAMPLE_COLUMNS, idx, strict=True):
             try:
                 vals.append(float(cells[i]))
             except ValueError:

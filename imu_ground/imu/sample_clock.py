@@ -118,7 +118,7 @@ class SampleClock:
         self._sus_t = math.nan              # the last of the far-off stamps in a row (NaN: none)
         self._sus_n = 0                     # how many agree so far
         if counts is not None:
-            for k, v in zip(_COUNTS, counts):
+            for k, v in zip(_COUNTS, counts, strict=True):
                 setattr(self, k, v)
 
     @property

@@ -195,7 +195,7 @@ def tells_kmh(rate: float, dvx: np.ndarray, v: np.ndarray) -> bool:
     """Whether the stream's :class:`SpeedUnit` tells these frames' speeds (frames with a speed on) to be km/h."""
     unit = SpeedUnit(rate)
     fin = np.flatnonzero(v == v)
-    for dx, vj in zip(dvx[fin[0]:].tolist() if fin.size else [], v[fin[0]:].tolist() if fin.size else []):
+    for dx, vj in zip(dvx[fin[0]:].tolist() if fin.size else [], v[fin[0]:].tolist() if fin.size else [], strict=True):
         if unit.frame(dx, vj, None, None):
             return True
         if not unit.open:

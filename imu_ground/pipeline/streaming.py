@@ -691,7 +691,7 @@ class StreamingEstimator:
         """Every entry of ``state`` checked and built into new objects: the attributes to set (nothing of the
         estimator changes here); a corrupt entry raises :class:`~imu_ground.imu.warm_start.StateError` naming it."""
         from imu_ground.datasets.unit_checks import TIME_UNITS
-        from imu_ground.imu.sample_clock import CONFIRM, WARMUP
+        from imu_ground.imu.sample_clock import WARMUP
         from imu_ground.imu.warm_start import StateError, StateReader
         r = StateReader("StreamingEstimator", state)
 
@@ -768,7 +768,7 @@ class StreamingEstimator:
         vscale = 1.0
         if r.has("speed_unit"):                             # (older states: none)
             try:
-                vscale, rec = r.state.get("speed_unit")
+                vscale, rec = r.state["speed_unit"]
                 if vscale not in (1.0, 1.0 / 3.6):
                     raise ValueError(f"scale {vscale!r}")
                 vunit.load_state_dict(rec)
@@ -776,7 +776,8 @@ class StreamingEstimator:
                 raise r.error("speed_unit", f"is not [scale, check] ({e})") from None
         out["_vunit"], out["_vscale"] = vunit, vscale
         # the frames waiting, notes, counts
-        queue, hold = deque(), deque()
+        queue: deque[list] = deque()
+        hold: deque[list] = deque()
         for i, q in enumerate(records("queue", r.state.get("queue"))):
             name = f"queue[{i}]"
             if not (isinstance(q, list) and len(q) in (8, 12) and isinstance(q[3], bool) and isinstance(q[4], bool)
@@ -789,12 +790,12 @@ class StreamingEstimator:
                 raise r.error(name, "is a record of another layout (its speed, hold, scale or index)")
             qr = StateReader("StreamingEstimator", {"delta_R": q[0], "delta_v": q[1], "times": [q[2], q[5], q[6]]},
                              f"{name}.")
-            e = [EgoFrame(qr.floats("delta_R", (9,)).reshape(3, 3), qr.floats("delta_v", (3,)),
-                          float(qr.floats("times", (3,))[0]), q[3], q[4], float(q[5])), float(q[6]), list(q[7]),
-                 v, held, scale, j]
-            queue.append(e)
+            entry = [EgoFrame(qr.floats("delta_R", (9,)).reshape(3, 3), qr.floats("delta_v", (3,)),
+                              float(qr.floats("times", (3,))[0]), q[3], q[4], float(q[5])), float(q[6]), list(q[7]),
+                     v, held, scale, j]
+            queue.append(entry)
             if held:
-                hold.append(e)
+                hold.append(entry)
         out["_hold"] = hold
         out["_queue"] = queue
         notes = records("notes", r.state.get("notes"), 1000)
