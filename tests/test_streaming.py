@@ -1050,3 +1050,21 @@ def test_a_speed_in_kmh_is_told_from_the_data_and_the_frames_are_the_m_s_run(sha
     np.testing.assert_allclose([f.speed for f in kmh[k:]], [f.speed for f in ms[k:]], rtol=1e-12, atol=0)
     track, _ = StreamingEstimator(extrinsic="kitti_imu").run(t, gyro, accel, (ts, v * 3.6))
     assert track.status_reason.tolist() == [f.status_reason for f in kmh]
+
+
+def test_an_hour_ahead_stamp_in_the_warm_up_is_a_bad_sample():
+    """A far-ahead stamp as the last of the warm-up's samples (found by the property above): it completed the
+    warm-up, the front end integrated an hour of gap frames up to it, then restarted an hour back (output time
+    stepped back). Now it is dropped as a bad sample and said; the frames go on in order, none a gap."""
+    n = 400
+    t = 1.7e9 + 0.01 * np.arange(1, n + 1)
+    t[9] += 3600.0
+    est = StreamingEstimator()
+    frames = []
+    for i in range(n):
+        frames += est.push_imu(t[i], [0.0, 0.0, 0.0], [0.0, 0.0, 9.81])
+    frames += est.flush()
+    times = np.array([f.t for f in frames])
+    assert len(frames) < 50 and np.all(np.diff(times) > 0) and times[-1] < 1.7e9 + 5
+    assert not any(f.status == "gap" for f in frames)
+    assert any("dropped" in f.status_reason for f in frames[:3])

@@ -31,7 +31,8 @@ file (:mod:`imu_ground.datasets.retime`); a live stream cannot wait for the end.
   started again), a **restart** of the clock (warm-up again); :meth:`push` says so and the
   caller starts its front end afresh. The warm-up likewise starts again when
   :data:`CONFIRM` agreeing stamps in a row come before its latest one (a far-ahead stamp
-  among the first samples).
+  among the first samples), and a warm-up stamp far ahead of the warm-up's own steps
+  (:data:`WARMUP_FAR_STEPS` times their median) is a bad sample unless :data:`CONFIRM` agree.
 
 Times are seconds; nothing here allocates per sample beyond Python floats.
 """
@@ -47,6 +48,11 @@ __all__ = ["CONFIRM", "DROP", "OK", "RESTART", "WARMUP", "SampleClock"]
 
 #: Samples of the warm-up: their median step is the first sample period.
 WARMUP = 10
+#: A warm-up stamp more than this many times the median step so far ahead of the latest (once
+#: :data:`WARMUP_FAR_AFTER` steps are known) is far off: a bad sample unless :data:`CONFIRM` agree (an hour-ahead
+#: stamp among the first samples would otherwise be integrated through as an hour of gap frames).
+WARMUP_FAR_STEPS = 1000.0
+WARMUP_FAR_AFTER = 3
 #: Consecutive far-off stamps, agreeing with each other, that make a real change of the clock (fewer: bad stamps).
 CONFIRM = 3
 #: What :meth:`SampleClock.push` says about a sample.
@@ -220,6 +226,23 @@ class SampleClock:
                 self._warmup(t)
                 return RESTART, t
             self.dropped += 1
+            return DROP, math.nan
+        if len(self._steps) >= WARMUP_FAR_AFTER and t - self._raw_max > WARMUP_FAR_STEPS * sorted(self._steps)[
+                len(self._steps) // 2]:
+            # far ahead of the warm-up's steps (its unit not known yet: relative to them): a bad stamp, unless it
+            # is the CONFIRM-th of agreeing ones (each within as many steps of the one before): then a new clock
+            step = WARMUP_FAR_STEPS * sorted(self._steps)[len(self._steps) // 2]
+            self._sus_n = self._sus_n + 1 if (self._sus_n > 0 and 0 < t - self._sus_t <= step) else 1
+            self._sus_t = t
+            if self._sus_n >= CONFIRM:
+                jump = self._raw_max - t
+                self.reset(keep_counts=True)
+                self.restarts += 1
+                self.last_jump = jump
+                self._warmup(t)
+                return RESTART, t
+            self.bad += 1
+            self.bad_offset = t - self._raw_max
             return DROP, math.nan
         self._sus_n = 0
         if self._raw_max > -math.inf:

@@ -71,6 +71,7 @@ from imu_ground.imu.preint_kernel import NATIVE as _PREINT_NATIVE
 from imu_ground.imu.preint_measurement import PreintegratedImu
 from imu_ground.imu.preintegration import StreamingPreintegrator, preintegrate
 from imu_ground.imu.sample_clock import DROP, OK, RESTART, SampleClock
+from imu_ground.pipeline.live_replay import frames_track, replay, replayed_track
 from imu_ground.pipeline.live_speed import (MAX_SPEED_WAIT, NO_SPEED, SpeedLatency, SpeedUnit, causal_speeds,
                                             tells_kmh, wait_may_grow)
 from imu_ground.pipeline.live_state import MAX_RECORDS, pack, unpack
@@ -842,7 +843,7 @@ class StreamingEstimator:
         finite = np.isfinite(t) & np.isfinite(gyro).all(axis=1) & np.isfinite(accel).all(axis=1)
         if (codes == RESTART).any() or not finite.all() or slow:
             self.reset()                                 # (the clock above ran over the log; stamps as given)
-            return _replayed(self, t_given, gyro_in, accel_in, speed)
+            return replayed_track(self, t_given, gyro_in, accel_in, speed)
         retimed_total = clock.retimed
         keep = codes == OK
         n_dropped = int(n - keep.sum())
@@ -850,7 +851,7 @@ class StreamingEstimator:
         frontier = np.maximum.accumulate(t_in)[keep] if n else t_in
         m = t.size
         if n_warm < 0 or m < 2:
-            return _empty_result(self)
+            return frames_track([], self)
         n_warm = int(np.count_nonzero(keep[:n_warm]))
         origin, r = float(t[0]), self.rate
         # standstill blocks and flags, bias per frame
@@ -893,12 +894,12 @@ class StreamingEstimator:
         v = None
         if self.speed_aided and speed is not None and F and wait_may_grow(self.speed_wait, speed, t, frontier):
             self.reset()                                 # a late speed's wait: as the stream decides it
-            return _replayed(self, t_given, gyro_in, accel_in, speed)
+            return replayed_track(self, t_given, gyro_in, accel_in, speed)
         if self.speed_aided and speed is not None and F:
             v = causal_speeds(speed, te, ts, i_emit[:F], frontier, t, n_warm, self.speed_wait, notes)
         if v is not None and tells_kmh(self.rate, em.delta_v[:, 0], v):
             self.reset()                                 # a speed in km/h: as the stream converts it
-            return _replayed(self, t_given, gyro_in, accel_in, speed)
+            return replayed_track(self, t_given, gyro_in, accel_in, speed)
         flt = self._filter
         track = flt.run(em, speed=v) if self.speed_aided else flt.run(em)
         if any(notes):
@@ -907,7 +908,6 @@ class StreamingEstimator:
                 if nt:
                     reason[j] = "; ".join([reason[j], *nt] if reason[j] else nt)
         return track, em
-
 
 
 # ------------------------------------------------------------------------------------------ offline twin
@@ -959,62 +959,3 @@ def _clock_notes(est, t_in, keep, notes, i_emit) -> None:
             while f < nf and i_emit[f] == p:
                 notes[f] = clock.take_notes()
                 f += 1
-
-
-def _replayed(est: StreamingEstimator, t, gyro, accel, speed):
-    """Feed the log to the streaming estimator (logs the vectorised form does not cover)."""
-    frames = replay(est, t, gyro, accel, speed)
-    return _track_of(frames, est)
-
-
-def replay(est: StreamingEstimator, t, gyro, accel, speed=None) -> list[FrameEstimate]:
-    """Feed a log to ``est`` sample by sample as a stream would bring it (the speed samples up to each IMU
-    sample's stamp before it, the rest before the flush); every frame, in order."""
-    t = np.asarray(t, dtype=float)
-    g, a = np.asarray(gyro, float).tolist(), np.asarray(accel, float).tolist()
-    out: list[FrameEstimate] = []
-    if speed is not None and est.speed_aided:
-        ts_sp, v_sp = (np.asarray(x, dtype=float).tolist() for x in speed)
-    else:
-        ts_sp, v_sp = [], []
-    j, M = 0, len(ts_sp)
-    top = -math.inf
-    push_speed, push_imu = est.push_speed, est.push_imu
-    for i, ti in enumerate(t.tolist()):
-        if ti > top:
-            top = ti
-        while j < M and ts_sp[j] <= top:
-            push_speed(ts_sp[j], v_sp[j])
-            j += 1
-        out += push_imu(ti, g[i], a[i])
-    while j < M:
-        push_speed(ts_sp[j], v_sp[j])
-        j += 1
-    return out + est.flush()
-
-
-def _track_of(frames: list[FrameEstimate], est: StreamingEstimator):
-    """A GroundTrack of streamed estimates, and their frames' EgoMotion (times, durations, flags)."""
-    from imu_ground.filters.estimator import GroundTrack
-    n = len(frames)
-    E = np.array([f.residual for f in frames]).reshape(n, 3, 3)
-    P = np.array([f.P for f in frames]).reshape(n, 3, 3)
-    t = np.array([f.t for f in frames])
-    ts = np.array([f.t_start for f in frames])
-    Rgs = None if est.extrinsic is None else est.extrinsic.rotation
-    track = GroundTrack.from_residuals(E, np.tile(np.eye(3), (n, 1, 1)), P, np.tile(np.eye(3), (n, 1, 1)), Rgs,
-                                       est.extrinsic.translation, t=t, valid=[f.valid for f in frames],
-                                       pitch_std=[f.pitch_std for f in frames], roll_std=[f.roll_std for f in frames],
-                                       status=[f.status_code for f in frames],
-                                       status_reason=[f.status_reason for f in frames],
-                                       road_grade=[f.road_grade for f in frames],
-                                       road_bank=[f.road_bank for f in frames],
-                                       road_grade_std=[f.road_grade_std for f in frames],
-                                       road_bank_std=[f.road_bank_std for f in frames])
-    em = EgoMotion(t, np.tile(np.eye(3), (n, 1, 1)), np.zeros((n, 3)), t - ts, np.zeros(n, bool),
-                   np.array([f.valid for f in frames], bool), est.bias_gyro, "FLU", {"causal": True}, est.rate, True)
-    return track, em
-
-
-def _empty_result(est: StreamingEstimator):
-    return _track_of([], est)

@@ -1,0 +1,73 @@
+"""A log replayed through the live object (:class:`~imu_ground.pipeline.streaming.StreamingEstimator`) sample by
+sample, and the track of the frames it gives: what :meth:`StreamingEstimator.run` falls back to for logs its
+vectorised form does not cover (a clock that restarts, non-finite samples), and what the tests compare the
+vectorised form with."""
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from imu_ground.imu.egomotion import EgoMotion
+
+if TYPE_CHECKING:
+    from imu_ground.pipeline.streaming import FrameEstimate, StreamingEstimator
+
+__all__ = ["frames_track", "replay", "replayed_track"]
+
+
+def replayed_track(est: "StreamingEstimator", t, gyro, accel, speed) -> tuple:
+    """Feed the log to the streaming estimator (logs the vectorised form does not cover)."""
+    frames = replay(est, t, gyro, accel, speed)
+    return frames_track(frames, est)
+
+
+def replay(est: "StreamingEstimator", t, gyro, accel, speed=None) -> list["FrameEstimate"]:
+    """Feed a log to ``est`` sample by sample as a stream would bring it (the speed samples up to each IMU
+    sample's stamp before it, the rest before the flush); every frame, in order."""
+    t = np.asarray(t, dtype=float)
+    g, a = np.asarray(gyro, float).tolist(), np.asarray(accel, float).tolist()
+    out: list["FrameEstimate"] = []
+    if speed is not None and est.speed_aided:
+        ts_sp, v_sp = (np.asarray(x, dtype=float).tolist() for x in speed)
+    else:
+        ts_sp, v_sp = [], []
+    j, M = 0, len(ts_sp)
+    top = -math.inf
+    push_speed, push_imu = est.push_speed, est.push_imu
+    for i, ti in enumerate(t.tolist()):
+        if ti > top:
+            top = ti
+        while j < M and ts_sp[j] <= top:
+            push_speed(ts_sp[j], v_sp[j])
+            j += 1
+        out += push_imu(ti, g[i], a[i])
+    while j < M:
+        push_speed(ts_sp[j], v_sp[j])
+        j += 1
+    return out + est.flush()
+
+
+def frames_track(frames: list["FrameEstimate"], est: "StreamingEstimator") -> tuple:
+    """A GroundTrack of streamed estimates (``est``'s extrinsic: road <- sensor), and their frames' EgoMotion
+    (times in s, durations, flags; no rotations: identities)."""
+    from imu_ground.filters.estimator import GroundTrack
+    n = len(frames)
+    E = np.array([f.residual for f in frames]).reshape(n, 3, 3)
+    P = np.array([f.P for f in frames]).reshape(n, 3, 3)
+    t = np.array([f.t for f in frames])
+    ts = np.array([f.t_start for f in frames])
+    Rgs = None if est.extrinsic is None else est.extrinsic.rotation
+    track = GroundTrack.from_residuals(E, np.tile(np.eye(3), (n, 1, 1)), P, np.tile(np.eye(3), (n, 1, 1)), Rgs,
+                                       est.extrinsic.translation, t=t, valid=[f.valid for f in frames],
+                                       pitch_std=[f.pitch_std for f in frames], roll_std=[f.roll_std for f in frames],
+                                       status=[f.status_code for f in frames],
+                                       status_reason=[f.status_reason for f in frames],
+                                       road_grade=[f.road_grade for f in frames],
+                                       road_bank=[f.road_bank for f in frames],
+                                       road_grade_std=[f.road_grade_std for f in frames],
+                                       road_bank_std=[f.road_bank_std for f in frames])
+    em = EgoMotion(t, np.tile(np.eye(3), (n, 1, 1)), np.zeros((n, 3)), t - ts, np.zeros(n, bool),
+                   np.array([f.valid for f in frames], bool), est.bias_gyro, "FLU", {"causal": True}, est.rate, True)
+    return track, em
