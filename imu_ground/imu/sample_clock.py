@@ -210,37 +210,38 @@ class SampleClock:
         self.t = t
         return OK, t
 
+    def _suspect(self, t: float, agrees: bool) -> bool:
+        """One more warm-up stamp off the warm-up (``agrees``: with the one before it); True at the CONFIRM-th."""
+        self._sus_n = self._sus_n + 1 if (self._sus_n > 0 and agrees) else 1
+        self._sus_t = t
+        return self._sus_n >= CONFIRM
+
+    def _warm_again(self, t: float) -> tuple[int, float]:
+        """CONFIRM agreeing stamps off the warm-up: a new clock, warmed up again from ``t`` (a restart)."""
+        jump = self._raw_max - t
+        self.reset(keep_counts=True)
+        self.restarts += 1
+        self.last_jump = jump
+        self._warmup(t)
+        return RESTART, t
+
     def _warmup(self, t: float) -> tuple[int, float]:
         self._raw_prev = t
         if not t > self._raw_max:
             # before the warm-up's latest stamp: dropped; CONFIRM agreeing ones in a row start the warm-up again
             # (its latest stamp was a bad one far ahead)
             # (agreeing: increasing; the unit of the stamps is not known yet)
-            self._sus_n = self._sus_n + 1 if (self._sus_n > 0 and t > self._sus_t) else 1
-            self._sus_t = t
-            if self._sus_n >= CONFIRM:
-                jump = self._raw_max - t
-                self.reset(keep_counts=True)
-                self.restarts += 1
-                self.last_jump = jump
-                self._warmup(t)
-                return RESTART, t
+            if self._suspect(t, t > self._sus_t):
+                return self._warm_again(t)
             self.dropped += 1
             return DROP, math.nan
-        if len(self._steps) >= WARMUP_FAR_AFTER and t - self._raw_max > WARMUP_FAR_STEPS * sorted(self._steps)[
-                len(self._steps) // 2]:
+        far = WARMUP_FAR_STEPS * sorted(self._steps)[len(self._steps) // 2] if len(self._steps) >= WARMUP_FAR_AFTER \
+            else math.inf
+        if t - self._raw_max > far:
             # far ahead of the warm-up's steps (its unit not known yet: relative to them): a bad stamp, unless it
             # is the CONFIRM-th of agreeing ones (each within as many steps of the one before): then a new clock
-            step = WARMUP_FAR_STEPS * sorted(self._steps)[len(self._steps) // 2]
-            self._sus_n = self._sus_n + 1 if (self._sus_n > 0 and 0 < t - self._sus_t <= step) else 1
-            self._sus_t = t
-            if self._sus_n >= CONFIRM:
-                jump = self._raw_max - t
-                self.reset(keep_counts=True)
-                self.restarts += 1
-                self.last_jump = jump
-                self._warmup(t)
-                return RESTART, t
+            if self._suspect(t, 0 < t - self._sus_t <= far):
+                return self._warm_again(t)
             self.bad += 1
             self.bad_offset = t - self._raw_max
             return DROP, math.nan
