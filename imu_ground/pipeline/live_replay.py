@@ -5,30 +5,28 @@ vectorised form with."""
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 
 from imu_ground.imu.egomotion import EgoMotion
 
-if TYPE_CHECKING:
-    from imu_ground.pipeline.streaming import FrameEstimate, StreamingEstimator
-
 __all__ = ["frames_track", "replay", "replayed_track"]
 
 
-def replayed_track(est: "StreamingEstimator", t, gyro, accel, speed) -> tuple:
+def replayed_track(est: Any, t, gyro, accel, speed) -> tuple:
     """Feed the log to the streaming estimator (logs the vectorised form does not cover)."""
     frames = replay(est, t, gyro, accel, speed)
     return frames_track(frames, est)
 
 
-def replay(est: "StreamingEstimator", t, gyro, accel, speed=None) -> list["FrameEstimate"]:
-    """Feed a log to ``est`` sample by sample as a stream would bring it (the speed samples up to each IMU
+def replay(est: Any, t, gyro, accel, speed=None) -> list:
+    """Feed a log to ``est`` (a :class:`~imu_ground.pipeline.streaming.StreamingEstimator`; not imported here, which
+    imports this module) sample by sample as a stream would bring it (the speed samples up to each IMU
     sample's stamp before it, the rest before the flush); every frame, in order."""
     t = np.asarray(t, dtype=float)
     g, a = np.asarray(gyro, float).tolist(), np.asarray(accel, float).tolist()
-    out: list["FrameEstimate"] = []
+    out: list = []
     if speed is not None and est.speed_aided:
         ts_sp, v_sp = (np.asarray(x, dtype=float).tolist() for x in speed)
     else:
@@ -49,7 +47,7 @@ def replay(est: "StreamingEstimator", t, gyro, accel, speed=None) -> list["Frame
     return out + est.flush()
 
 
-def frames_track(frames: list["FrameEstimate"], est: "StreamingEstimator") -> tuple:
+def frames_track(frames: list, est: Any) -> tuple:
     """A GroundTrack of streamed estimates (``est``'s extrinsic: road <- sensor), and their frames' EgoMotion
     (times in s, durations, flags; no rotations: identities)."""
     from imu_ground.filters.estimator import GroundTrack
