@@ -16,6 +16,21 @@ SHARED_DATA = Path(os.environ.get("IMU_GROUND_SHARED_DATA", REPO.parent / "share
 
 
 @pytest.fixture(scope="session")
+def read_ros_topics():
+    """A reader of ROS outputs for the tests: ``read(path)`` gives every message of a bag or MCAP as
+    ``(record ns, message)`` lists by topic, deserialised with rosbags' reader (an independent reader of what the
+    package wrote)."""
+    def read(path: Path) -> dict[str, list]:
+        from rosbags.highlevel import AnyReader
+        out: dict[str, list] = {}
+        with AnyReader([Path(path)]) as reader:
+            for conn, ns, raw in reader.messages():
+                out.setdefault(conn.topic, []).append((ns, reader.deserialize(raw, conn.msgtype)))
+        return out
+    return read
+
+
+@pytest.fixture(scope="session")
 def shared_data() -> Path:
     """Path of ../shared/data; skips the test when the folder is not there."""
     if not SHARED_DATA.is_dir():

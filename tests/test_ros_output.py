@@ -32,16 +32,6 @@ def estimate(request):
     return res, result_table(res)
 
 
-def _read(path: Path) -> dict[str, list]:
-    """Every message as (record ns, message), by topic, with rosbags' reader."""
-    from rosbags.highlevel import AnyReader
-    out: dict[str, list] = {}
-    with AnyReader([path]) as reader:
-        for conn, ns, raw in reader.messages():
-            out.setdefault(conn.topic, []).append((ns, reader.deserialize(raw, conn.msgtype)))
-    return out
-
-
 def _written(table: pd.DataFrame) -> pd.DataFrame:
     """The rows the per-frame topics carry: valid, finite."""
     cols = ["t", "normal_x", "normal_y", "normal_z", "pitch_deg", "roll_deg", "qw", "qx", "qy", "qz"]
@@ -55,14 +45,14 @@ def _quat_matrix(x, y, z, w) -> np.ndarray:
 
 
 @pytest.mark.parametrize("kind", list(NAMES))
-def test_tf_is_road_to_sensor_and_its_rotation_the_dynamic_extrinsic(tmp_path, estimate, kind):
+def test_tf_is_road_to_sensor_and_its_rotation_the_dynamic_extrinsic(tmp_path, estimate, kind, read_ros_topics):
     """``/tf``: parent road, child the IMU's frame; ``R^T e_z`` is the table's normal (the sign check), the
     quaternion the table's (identity extrinsic) and a ``.tum`` output's, the translation the extrinsic's."""
     res, table = estimate
     path = tmp_path / NAMES[kind]
     write_ros_output(path, table, frame_id="imu_link", extrinsic=res.meta["extrinsic"], t0_ns=T0_NS,
                      storage="sqlite3" if kind == "ros2-sqlite3" else "mcap")
-    tf = _read(path)["/tf"]
+    tf = read_ros_topics(path)["/tf"]
     rows = _written(table)
     assert len(tf) == len(rows) > 100
     assert [ns for ns, _ in tf] == (T0_NS + np.round(rows["t"].to_numpy() * 1e9).astype(np.int64)).tolist()
@@ -88,11 +78,11 @@ def test_tf_is_road_to_sensor_and_its_rotation_the_dynamic_extrinsic(tmp_path, e
 
 
 @pytest.mark.parametrize("kind", ["ros1", "mcap"])
-def test_pose_carries_the_one_sigma_as_covariance(tmp_path, estimate, kind):
+def test_pose_carries_the_one_sigma_as_covariance(tmp_path, estimate, kind, read_ros_topics):
     res, table = estimate
     path = tmp_path / NAMES[kind]
     counts = write_ros_output(path, table, extrinsic=res.meta["extrinsic"])
-    got = _read(path)
+    got = read_ros_topics(path)
     rows = _written(table)
     pose = got["/ground/pose"]
     assert counts["/ground/pose"] == len(pose) == len(rows)
@@ -126,11 +116,11 @@ def _status_table() -> pd.DataFrame:
 
 
 @pytest.mark.parametrize("kind", list(NAMES))
-def test_status_is_a_diagnostic_array_with_the_level_of_each_status(tmp_path, kind):
+def test_status_is_a_diagnostic_array_with_the_level_of_each_status(tmp_path, kind, read_ros_topics):
     table = _status_table()
     path = tmp_path / NAMES[kind]
     write_ros_output(path, table, frame_id="imu_link", storage="sqlite3" if kind == "ros2-sqlite3" else "mcap")
-    got = _read(path)["/ground/status"]
+    got = read_ros_topics(path)["/ground/status"]
     shown = table[np.isfinite(table["t"])]
     assert len(got) == len(shown) == len(table) - 1             # every frame with a time, also the gaps
     for (_, msg), (_, row) in zip(got, shown.iterrows(), strict=True):
@@ -200,12 +190,12 @@ def test_ros1_tf_message_has_ros_own_definition(tmp_path):
     assert conns["/ground/status"].digest == "60810da900de1dd6ddd437c3503511da"  # diagnostic_msgs/DiagnosticArray
 
 
-def test_tf_holds_the_camera_beside_the_sensor(tmp_path):
+def test_tf_holds_the_camera_beside_the_sensor(tmp_path, read_ros_topics):
     res = estimate_log(EXAMPLE, camera="kitti_cam2")
     table = result_table(res)
     write_outputs([tmp_path / "g.mcap"], table, res.meta)
-    tf = _read(tmp_path / "g.mcap")["/tf"]
-    cam = _read(tmp_path / "g.mcap")["/ground/road_from_camera"]
+    tf = read_ros_topics(tmp_path / "g.mcap")["/tf"]
+    cam = read_ros_topics(tmp_path / "g.mcap")["/ground/road_from_camera"]
     assert len(tf) == len(cam) == table["valid"].sum()
     assert {tuple(x.child_frame_id for x in m.transforms) for _, m in tf} == {(res.meta["frame_id"], "camera")}
     for (_, m), (_, c) in zip(tf, cam, strict=True):
@@ -215,11 +205,11 @@ def test_tf_holds_the_camera_beside_the_sensor(tmp_path):
                                                                         c.transform.rotation.x)
 
 
-def test_bag_outputs_keep_the_settings_topic(tmp_path):
+def test_bag_outputs_keep_the_settings_topic(tmp_path, read_ros_topics):
     """A ROS 1 bag and a ROS 2 bag folder have no metadata record: the settings stay a topic."""
     for name in ("g.bag", "g_ros2"):
         write_ros_output(tmp_path / name, _status_table(), settings={"method": "paper"})
-        got = _read(tmp_path / name)
+        got = read_ros_topics(tmp_path / name)
         assert [m.data for _, m in got["/ground/settings"]] == ['{"method": "paper"}']
     assert read_output_settings(tmp_path / "g.bag") is None
 

@@ -402,19 +402,8 @@ def _table(n: int = 40):
     return df
 
 
-def _read_topics(path: Path) -> dict[str, list]:
-    """Every message of a log as (record ns, message), by topic, with rosbags' reader."""
-    from rosbags.highlevel import AnyReader
-
-    out: dict[str, list] = {}
-    with AnyReader([path]) as reader:
-        for conn, ns, raw in reader.messages():
-            out.setdefault(conn.topic, []).append((ns, reader.deserialize(raw, conn.msgtype)))
-    return out
-
-
 @pytest.mark.parametrize("name", ["est.bag", "est.mcap", "est_ros2"])
-def test_ros_output_round_trip(tmp_path, name):
+def test_ros_output_round_trip(tmp_path, name, read_ros_topics):
     table = _table()
     path = tmp_path / name
     counts = write_ros_output(path, table, frame_id="imu_link", settings={"method": "suspension"},
@@ -424,7 +413,7 @@ def test_ros_output_round_trip(tmp_path, name):
     mcap = name.endswith(".mcap")          # an .mcap file keeps the settings in a metadata record, not a topic
     assert counts == {"/ground/normal": len(rows), "/ground/rotation": len(rows), "/ground/pitch_roll": len(rows),
                       "/tf": len(rows), **({} if mcap else {"/ground/settings": 1})}
-    got = _read_topics(path)
+    got = read_ros_topics(path)
     stamps = T0_NS + np.round(rows["t"].to_numpy() * 1e9).astype(np.int64)
     for topic in ("/ground/normal", "/ground/rotation", "/ground/pitch_roll"):
         msgs = got[topic]
@@ -446,7 +435,7 @@ def test_ros_output_round_trip(tmp_path, name):
         assert '"method": "suspension"' in got["/ground/settings"][0][1].data
 
 
-def test_ros_output_of_a_bag_estimate_lines_up_with_the_recording(tmp_path, csv_imu):
+def test_ros_output_of_a_bag_estimate_lines_up_with_the_recording(tmp_path, csv_imu, read_ros_topics):
     """Estimate a bag, write it with the bag's t0_ns: the output stamps fall on the recording's clock."""
     import pandas as pd
 
@@ -463,7 +452,7 @@ def test_ros_output_of_a_bag_estimate_lines_up_with_the_recording(tmp_path, csv_
                           "qz": q[:, 3], "valid": em.valid})
     out = tmp_path / "out.mcap"
     write_ros_output(out, table, frame_id=imu.meta["frame_id"], settings={"t0_ns": imu.meta["t0_ns"]})
-    normals = _read_topics(out)["/ground/normal"]
+    normals = read_ros_topics(out)["/ground/normal"]
     assert normals[0][0] == T0_NS + round(float(em.t[em.valid][0]) * 1e9)
     assert T0_NS < normals[-1][0] <= T0_NS + round(float(csv_imu.t[-1]) * 1e9)
 
@@ -497,7 +486,7 @@ def test_negative_stamps_need_t0(tmp_path):
     write_ros_output(tmp_path / "neg.mcap", table, t0=100.0)
 
 
-def test_ros_output_paths(tmp_path):
+def test_ros_output_paths(tmp_path, read_ros_topics):
     assert ros_output_kind("a.bag") == "ros1" and ros_output_kind("a.mcap") == "mcap"
     assert ros_output_kind(tmp_path / "folder") == "ros2"
     with pytest.raises(ValueError, match=r"\.csv.*use \.bag"):
@@ -507,7 +496,7 @@ def test_ros_output_paths(tmp_path):
     with pytest.raises(FileExistsError, match="x.mcap"):
         write_ros_output(path, _table())
     write_ros_output(path, _table(10), overwrite=True)
-    assert len(_read_topics(path)["/ground/normal"]) == 7      # 10 frames, 3 invalid
+    assert len(read_ros_topics(path)["/ground/normal"]) == 7      # 10 frames, 3 invalid
     with pytest.raises(ValueError, match="lacks column"):
         write_ros_output(tmp_path / "y.mcap", _table().drop(columns="qw"))
 
