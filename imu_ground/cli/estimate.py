@@ -19,7 +19,6 @@ from imu_ground.cli._common import (
     warn_line,
 )
 from imu_ground.datasets.storage import with_suffix
-from imu_ground.errors import ImuGroundError
 from imu_ground.pipeline.estimate import available_methods, estimate_to_files
 from imu_ground.pipeline.output import check_output_path, check_run_paths, default_output_name, summarize_table
 from imu_ground.pipeline.planes import check_planes_dir
@@ -119,24 +118,20 @@ def run(a: argparse.Namespace) -> int:
     """Estimate, write the outputs (atomically, all or none) and print a three-line summary."""
 
     t0 = time.perf_counter()
-    if a.plot:                                          # first: -o x.png --plot x.png is one mistake, not two
-        for flag, other in (("-o", a.output or default_output_name(a.log)), ("--tum", a.tum)):
-            if other and Path(other).resolve() == Path(a.plot).resolve():
-                raise ImuGroundError(f"{a.plot}: given to both {flag} and --plot; the two outputs need two file "
-                                     f"names (e.g. --plot {Path(a.plot).stem}_plot.png)")
+    named = [("-o", a.output or default_output_name(a.log)), ("--tum", a.tum), ("--plot", a.plot),
+             ("--planes", a.planes)]
+    check_run_paths(named)          # first, on the paths as given: -o x.png --plot x.png is one mistake, not two
     outputs = [check_output_path(a.output or default_output_name(a.log), [a.log])]
     kinds: list[str | None] = [None]
     if a.tum:
         outputs.append(check_output_path(a.tum, [a.log], "--tum", kind=".tum"))
         kinds.append(".tum")
-    flags = ["-o", "--tum"][:len(outputs)]
     if a.plot:
         plot = check_output_path(check_plot_path(a.plot), [a.log], "--plot", kind=".png")
         outputs.append(plot)
         kinds.append(Path(str(plot)).suffix.lower())
-        flags.append("--plot")
     inputs = input_paths(a)
-    check_run_paths(list(zip(flags, outputs, strict=True)) + [("--planes", a.planes)], inputs)
+    check_run_paths(named, inputs)  # then each output against the inputs (after the log's own check, which says so)
     if a.planes is not None:
         check_planes_dir(a.planes, inputs=[p for _, p in inputs if p is not None], outputs=outputs)
     if a.camera is not None and Path(str(outputs[0])).suffix.lower() == ".tum":
