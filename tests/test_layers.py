@@ -18,7 +18,7 @@ import imu_ground
 ROOT = Path(imu_ground.__file__).resolve().parent
 DATASETS = Path(imu_ground.__file__).resolve().parent.parent / "datasets"
 
-RANK = {"_lazy": 0, "_native": 0, "_version": 0, "errors": 0, "so3": 0, "units": 0, "imu": 1, "datasets": 2,
+RANK = {"_lazy": 0, "_jit": 0, "_native": 0, "_version": 0, "errors": 0, "so3": 0, "units": 0, "imu": 1, "datasets": 2,
         "filters": 3, "perception": 3.5, "pipeline": 4, "evaluation": 4, "cli": 5, "__main__": 6}
 #: Scripts and tests that live in package folders but are not part of the package's import graph.
 NOT_LIBRARY = ("test_", "make_fixtures", "derive_kitti")
