@@ -199,7 +199,10 @@ INTROS = {"bench_streaming": (
     "the INS-grade reference on every valid shared drive, within its 1-sigma alone and within the 1-sigma and the "
     "reference's own (`reference_sigma`) together, per drive and pooled; the LiDAR rows, where present, against road "
     "planes with the fit's frame-to-frame noise added. The two INS columns bracket what a calibrated 1-sigma would "
-    "show: the reference's error is as large as the estimate's."
+    "show: the reference's error is as large as the estimate's. `sigma_scale` (pooled rows): the factor on the "
+    "1-sigma that maximises the Gaussian likelihood of the pooled errors with the truth's own noise added, and the "
+    "share within the 1-sigma so scaled: the INS asks for about 1 (the shipped constants), the LiDAR scans (all in "
+    "their drives' first seconds, `converging`, and of the road ahead) for several times more."
 ), "synthetic_revisit": (
     "The revisit check of the 1-sigma with exact truth (`benchmarks/studies/synthetic_revisit.py`): each drive of "
     "the synthetic suite of seed 1 driven a second time on the same road by the same sensor "
