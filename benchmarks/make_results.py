@@ -92,7 +92,7 @@ CONFIDENCE_TITLE = "How sure, and what the road does"
 #: Scripts whose rows measure what the per-frame ground plane does for a camera (range and lane-width errors).
 PERCEPTION_CHECKS = ("bench_ground_effect",)
 #: Scripts whose rows compare the methods with road planes fitted to LiDAR scans (the paper's protocol).
-LIDAR_CHECKS = ("lidar_table",)
+LIDAR_CHECKS = ("lidar_table", "lidar_default")
 #: A paragraph printed above a script's table (what it measures), by script name.
 INTROS = {"bench_streaming": (
     "Live (`imu_ground.StreamingEstimator`, `imu-ground stream`, `estimate --causal`): `push_imu` per IMU sample "
@@ -194,6 +194,13 @@ INTROS = {"bench_streaming": (
     "target's floor) for each grade, angle and speed mode; seeds 5-6 are held out. MEMS-grade IMU-only pitch stays "
     "below 55 % for every wait up to 45 s: the 1-sigma of that case is too small all drive long, not only at the "
     "start."
+), "lidar_default": (
+    "The default against the paper's method on LiDAR truth, and the measures it must keep (issue 36, part 2; "
+    "`benchmarks/studies/lidar_default.py`, whose docstring defines each table): per LiDAR case the pitch and roll "
+    "spreads of the methods and suspension variants with `pitch/paper` (target <= 0.9) and its paired bootstrap "
+    "interval; how much of the LiDAR's pitch excursions each follows; how far ahead the LiDAR's road lies; the "
+    "default with the grade change ahead added (from the INS, an exact trajectory, or from its own road grade), "
+    "where the log goes on that far; the kept measures (revisit, INS-grade, live); the load's pitch gain on both."
 ), "real_coverage": (
     "The 1-sigma on real truth (`benchmarks/studies/real_coverage.py`): the default estimate's pitch error against "
     "the INS-grade reference on every valid shared drive, within its 1-sigma alone and within the 1-sigma and the "

@@ -27,6 +27,11 @@ squares through the origin): 1 follows the body's pitch excursions in full, 0.5 
 
 ``road ahead``: how far ahead of the car the LiDAR's road lies (:func:`road_ahead_rows`).
 
+``ahead correction``: the default's pitch spread over the paper's once the grade change between the road under
+the car and the road ``D`` m ahead is added (:func:`ahead_correction_rows`), with the INS's grade (smoothed over
+10 m, as the INS reference) and with the estimate's own ``road_grade`` (smoothed over ``w`` m of travel), and the
+share of the scans whose road ``D`` m ahead is still in the log.
+
 ``search``: the bound on tuning (:func:`search_rows`): random configurations of every parameter of
 the suspension filter that shapes pitch and roll, chosen on the LiDAR cases themselves, the best five by
 the worst pitch ratio and how many meet the targets.
@@ -70,6 +75,9 @@ DEG = 180.0 / math.pi
 MIN_SPEED = 0.5
 #: Distances ahead of the car (m) of the ``road ahead`` table.
 AHEAD = (-10.0, -5.0, 0.0, 5.0, 10.0, 15.0, 20.0)
+#: Distances ahead (m) and smoothing windows of the estimate's own grade (m) of the ``ahead correction`` table.
+AHEAD_CORRECTION = (10.0, 15.0)
+OWN_GRADE_WINDOWS = (20.0, 40.0, 80.0)
 #: Pitch gains (deg per m/s^2) of the ``k_pitch`` table (the default: -0.25).
 K_PITCH = (-0.5, -0.25, -0.1, 0.0, 0.1, 0.25)
 #: Random configurations of the in-sample search (:func:`search_rows`).
@@ -321,6 +329,47 @@ def road_ahead_rows(prepared: list[dict]) -> list[dict]:
     return out
 
 
+def _distance_mean(s: np.ndarray, x: np.ndarray, window: float) -> np.ndarray:
+    """``x`` (samples at travelled distances ``s``, m) averaged over a centred ``window`` m of travel, at ``s``."""
+    grid = np.arange(s[0], s[-1] + 0.25, 0.25)
+    n = max(1, int(window / 0.25))
+    padded = np.pad(np.interp(grid, s, x), (n // 2, n - 1 - n // 2), mode="edge")
+    return np.interp(s, grid, np.convolve(padded, np.ones(n) / n, mode="valid"))
+
+
+def ahead_correction_rows(prepared: list[dict]) -> list[dict]:
+    """The ``ahead correction`` rows: the default with ``grade(s + D) - grade(s)`` added to its pitch (the LiDAR's
+    plane is the road ahead: body relative to it = body relative to the road under the car + the grade change
+    ahead; signs as the INS reference's), the grade from the INS (an exact trajectory: a check of that model) or
+    the estimate's own ``road_grade``; where the road ``D`` m ahead is past the log's end, the log's last grade."""
+    out = []
+    for p in prepared:
+        tr, em = p["res"].track, p["em"]
+        paper = GroundNormalFilter.paper().run(em)
+        s = np.concatenate([[0.0], np.cumsum(0.5 * (tr.speed[1:] + tr.speed[:-1]) * np.diff(tr.t))])
+        ins = p["ins"]
+        ref = pitch_reference(ins, ins["t"].to_numpy(), min_speed=0.0)
+        s_ins = np.interp(tr.t, ref.t, ref.distance)
+        est = {"paper": (paper.t, paper.pitch, paper.roll, paper.valid), "default": (tr.t, tr.pitch, tr.roll, tr.valid)}
+        ok = np.isfinite(tr.road_grade)
+        for d in AHEAD_CORRECTION:
+            ins_change = np.interp(s_ins + d, ref.distance, ref.grade) - np.interp(s_ins, ref.distance, ref.grade)
+            est[f"INS grade, D {d:g} m"] = (tr.t, tr.pitch + ins_change, tr.roll, tr.valid)
+            for w in OWN_GRADE_WINDOWS:
+                own = _distance_mean(s[ok], tr.road_grade[ok], w)
+                change = np.interp(s + d, s[ok], own) - np.interp(s, s[ok], own)
+                est[f"own grade over {w:g} m, D {d:g} m"] = (tr.t, tr.pitch + change, tr.roll, tr.valid)
+        _, summary = L.lidar_table(est, p["t"], p["lp"], p["lr"], source=str(p["log"]))
+        s_scan = np.interp(p["t"], tr.t, s)
+        row = dict(table="ahead correction", case=p["label"],
+                   **{f"scans with {d:g} m of log ahead, %": 100.0 * float(np.mean(s_scan + d <= s[-1]))
+                      for d in AHEAD_CORRECTION})
+        row.update({f"{name}: pitch/paper": r["pitch_spread"] / summary.loc["paper", "pitch_spread"]
+                    for name, r in summary.iterrows() if name != "paper"})
+        out.append(row)
+    return out
+
+
 def k_pitch_rows(prepared: list[dict], drives: list | None = None) -> list[dict]:
     """The ``k_pitch`` rows: the pitch gain (deg per m/s^2 of forward load; all else the default's) on the
     LiDAR cases (pitch spread over the paper's) and on the kept measures."""
@@ -336,14 +385,15 @@ def k_pitch_rows(prepared: list[dict], drives: list | None = None) -> list[dict]
     return out
 
 
-def rows(kept: bool = True, variants: dict = VARIANTS, search: int = SEARCH) -> list[dict]:
-    """Every table of the module docstring (column ``table``; ``search``: configurations of the search)."""
+def rows(kept: bool = True, variants: dict = VARIANTS, search: int = 0) -> list[dict]:
+    """Every table of the module docstring (column ``table``; ``search``: configurations of the search, none by
+    default: RESULTS.md has the other tables, ``--search`` prints the bound)."""
     cases = lidar_cases()
     if not cases:
         return [dict(table="lidar", case=f"skipped: {DAY} not found")]
     prepared = [prepare(c) for c in cases]
     lid, exc = lidar_rows(prepared, variants)
-    out = lid + exc + road_ahead_rows(prepared)
+    out = lid + exc + road_ahead_rows(prepared) + ahead_correction_rows(prepared)
     if search:
         out += search_rows(prepared, search)
     if kept and IMU100.is_dir():

@@ -98,7 +98,7 @@ def ins_rows() -> list[dict]:
                     "median_sigma_deg": float(np.degrees(np.median(s))),
                     "median_ref_sigma_deg": float(np.degrees(np.median(r)))})
     if pooled[0]:
-        k, share = sigma_scale(*(np.concatenate(c) for c in zip(*errors)))
+        k, share = sigma_scale(*(np.concatenate(c) for c in zip(*errors, strict=True)))
         out.append({"table": "INS", "drive": f"pooled ({len(out)} drives)", "frames": int(pooled[0]),
                     "pitch_within_sigma_pct": 100.0 * pooled[1] / pooled[0],
                     "pitch_within_sigma_and_ref_pct": 100.0 * pooled[2] / pooled[0],
@@ -155,7 +155,7 @@ def lidar_rows() -> list[dict]:
                     "roll_within_sigma_pct": 100.0 * pooled[3] / pooled[0],
                     "roll_within_sigma_and_fit_pct": 100.0 * pooled[4] / pooled[0]})
         for angle, parts in errors.items():
-            k, share = sigma_scale(*(np.concatenate(c) for c in zip(*parts)))
+            k, share = sigma_scale(*(np.concatenate(c) for c in zip(*parts, strict=True)))
             out[-1].update({f"{angle}_sigma_scale": k, f"{angle}_within_at_scale_pct": share})
     return out
 
