@@ -15,7 +15,8 @@ A foundation module: it imports nothing of the package.
 from __future__ import annotations
 
 import os
-from typing import Any, Callable, TypeVar
+from types import ModuleType
+from typing import Any, Callable, Optional, TypeVar, cast
 
 __all__ = ["njit", "JIT_ENABLED", "DISABLE_JIT_ENV"]
 
@@ -24,6 +25,7 @@ DISABLE_JIT_ENV = "NUMBA_DISABLE_JIT"
 
 F = TypeVar("F", bound=Callable[..., Any])
 
+_numba: Optional[ModuleType]
 try:                                            # pragma: no cover - which branch runs depends on the install
     import numba as _numba
 except ImportError:                             # pragma: no cover
@@ -52,6 +54,6 @@ def njit(function: F) -> F:
         numba's dispatcher (same call signature), or ``function`` itself when
         :data:`JIT_ENABLED` is False.
     """
-    if not JIT_ENABLED:
+    if not JIT_ENABLED or _numba is None:
         return function
-    return _numba.njit(cache=True, nogil=True)(function)  # type: ignore[no-any-return,union-attr]
+    return cast(F, _numba.njit(cache=True, nogil=True)(function))
