@@ -28,6 +28,7 @@ import time
 from pathlib import Path
 
 from imu_ground.cli._common import add_reader_flags, input_paths, reader_options
+from imu_ground.filters.methods import default_method, live_methods
 
 __all__ = ["register", "run"]
 
@@ -47,8 +48,9 @@ def register(sub) -> None:
     p.add_argument("--state", metavar="FILE", help="load this saved state at the start (when the file exists) and "
                                                    "write the state there at the end, on SIGTERM and on Ctrl-C")
     g = p.add_argument_group("estimation")
-    g.add_argument("--method", default="auto", choices=["auto", "suspension", "filter", "paper"], metavar="NAME",
-                   help="auto (suspension, default), suspension, filter or paper")
+    live = live_methods()
+    g.add_argument("--method", default="auto", choices=["auto", *live], metavar="NAME",
+                   help=f"auto ({default_method(True)}, default), {', '.join(live[:-1])} or {live[-1]}")
     g.add_argument("--extrinsic", metavar="NAME_OR_FILE",
                    help="static sensor-to-ground extrinsic (kitti_imu, or a file from 'imu-ground calibrate')")
     g.add_argument("--rate", type=float, default=10.0, metavar="HZ", help="frame rate, Hz (default 10)")

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from functools import partial
 
 import numpy as np
@@ -93,10 +93,43 @@ def _research_baselines() -> list[MethodSpec]:
     ]
 
 
-#: Every method of the evaluation, in report order.
-EVALUATION_METHODS: tuple[MethodSpec, ...] = (*REGISTRY.values(), *_research_baselines())
+_BASELINES: tuple[MethodSpec, ...] = tuple(_research_baselines())
+
+
+class _EvaluationMethods(Sequence):
+    """The registry's methods then the research baselines, read from the registry at each use (a view)."""
+
+    def _all(self) -> tuple[MethodSpec, ...]:
+        return (*REGISTRY.values(), *_BASELINES)
+
+    def __getitem__(self, i):
+        return self._all()[i]
+
+    def __len__(self) -> int:
+        return len(REGISTRY) + len(_BASELINES)
+
+
+class _MethodsByName(Mapping):
+    """:data:`EVALUATION_METHODS` by name (a view of the registry, like it)."""
+
+    def __getitem__(self, name: str) -> MethodSpec:
+        for m in EVALUATION_METHODS:
+            if m.name == name:
+                return m
+        raise KeyError(name)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter([m.name for m in EVALUATION_METHODS])
+
+    def __len__(self) -> int:
+        return len(EVALUATION_METHODS)
+
+
+#: Every method of the evaluation, in report order: the registry's
+#: (:data:`imu_ground.filters.methods.METHODS`, as it is now) then the research baselines.
+EVALUATION_METHODS: Sequence[MethodSpec] = _EvaluationMethods()
 #: The same by name.
-METHODS: dict[str, MethodSpec] = {m.name: m for m in EVALUATION_METHODS}
+METHODS: Mapping[str, MethodSpec] = _MethodsByName()
 
 
 def run_method(name: str, drive: Drive):
