@@ -121,6 +121,16 @@ def test_no_import_cycle():
     assert not cycles, "import cycles: " + "; ".join(" -> ".join(c) for c in cycles)
 
 
+def test_the_errors_import_nothing_of_the_package_and_the_filters_not_the_readers():
+    """Errors and warnings are foundation: ``imu_ground.errors`` imports no package module, and
+    ``filters/`` raises its errors without importing :mod:`imu_ground.datasets`."""
+    edges = _edges_cache()
+    assert not edges["imu_ground.errors"], sorted(edges["imu_ground.errors"])
+    readers = sorted(f"{m} -> {t}" for m, ts in edges.items() if m.startswith("imu_ground.filters")
+                     for t in ts if t.startswith("imu_ground.datasets"))
+    assert not readers, readers
+
+
 def test_the_checker_sees_an_upward_import(tmp_path):
     """The walk is not vacuous: a lazy upward import inside a function is found."""
     src = "def f():\n    from imu_ground.cli import main\n    return main\n"

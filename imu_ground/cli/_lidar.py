@@ -29,8 +29,7 @@ from typing import Any
 import numpy as np
 
 from imu_ground.cli._common import say, warn_line
-from imu_ground.datasets.options import OptionError
-from imu_ground.errors import ImuGroundError
+from imu_ground.errors import ImuGroundError, OptionError
 
 __all__ = ["DEFAULT_ROW", "FITS", "add_lidar_flags", "check_lidar", "lidar_drives_report", "run_lidar"]
 

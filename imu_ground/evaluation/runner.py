@@ -44,7 +44,7 @@ from imu_ground.evaluation.drives import Drive, load_real_drive, load_real_drive
 from imu_ground.evaluation.metrics import evaluate_drive
 from imu_ground.evaluation.revisit import drive_revisit_pairs, revisit_differences
 from imu_ground.filters import GroundNormalFilter
-from imu_ground.datasets.options import OptionError
+from imu_ground.errors import OptionError
 from imu_ground.filters.methods import METHODS as REGISTRY, MethodSpec
 
 __all__ = [

@@ -20,7 +20,7 @@ import inspect
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from imu_ground.datasets.options import OptionError
+from imu_ground.errors import OptionError
 from imu_ground.filters.constant_normal import ConstantNormal
 from imu_ground.filters.ground import GroundNormalFilter
 from imu_ground.filters.suspension import SuspensionAwareFilter, SuspensionTrack

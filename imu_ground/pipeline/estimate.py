@@ -24,12 +24,11 @@ from typing import IO, Any, NamedTuple
 import numpy as np
 
 from imu_ground.datasets import detect_format, read_imu, read_poses
-from imu_ground.datasets.options import READER_OPTIONS, OptionError, OptionText
+from imu_ground.errors import ImuGroundError, OptionError, warn_user
+from imu_ground.datasets.options import READER_OPTIONS, OptionText
 from imu_ground.datasets.poses import detect_pose_format, moves_along_z
-from imu_ground.datasets.report import warn_user
 from imu_ground.datasets.speed import SPEED_SOURCES, check_speed, frame_speed, log_speed, read_speed
 from imu_ground.datasets.storage import reads_sources
-from imu_ground.errors import ImuGroundError
 from imu_ground.filters import Extrinsic
 from imu_ground.filters.methods import METHODS, default_method, live_methods, recalibrating_methods
 from imu_ground.imu import EgoMotion, imu_to_egomotion

@@ -53,7 +53,7 @@ from typing import Any
 import numpy as np
 
 from imu_ground._native import FRONT
-from imu_ground.datasets.options import OptionError
+from imu_ground.errors import OptionError
 from imu_ground.datasets.speed_buffer import SpeedBuffer
 from imu_ground.filters import Extrinsic
 from imu_ground.filters.estimator import GroundEstimate
