@@ -7,9 +7,9 @@ Layers (each imports only from the ones above it in this list)
   (:class:`ImuGroundError`, :class:`ImuGroundWarning`).
 - :mod:`imu_ground.imu`: the IMU log container, standstills, preintegration,
   per-frame ego-motion.
-- :mod:`imu_ground.datasets`: readers of IMU logs and pose files, validation.
-- :mod:`imu_ground.filters`: the invariant EKF on SO(3), the ground-normal
-  estimators, extrinsics and calibration.
+- :mod:`imu_ground.datasets` and :mod:`imu_ground.filters` (siblings): readers of IMU logs and
+  pose files, validation; the invariant EKF on SO(3), the ground-normal estimators,
+  extrinsics and calibration.
 - :mod:`imu_ground.perception`: cameras, the per-frame road plane in a camera's axes,
   bird's-eye homographies.
 - :mod:`imu_ground.pipeline` and :mod:`imu_ground.evaluation` (siblings): a log or a

@@ -19,7 +19,7 @@ DATASETS = ROOT.parent / "datasets"
 #: The most lines a library module may have.
 MAX_LINES = 1000
 #: Scripts that live in package folders but are not library modules.
-NOT_LIBRARY = ("test_", "make_fixtures", "derive_kitti")
+NOT_LIBRARY = ("test_", "derive_kitti")
 
 
 def _library() -> list[Path]:
