@@ -141,9 +141,7 @@ class FrameEstimate(GroundEstimate):
            camera: Any = None, frame_valid: bool = True) -> "FrameEstimate":
         """``est`` with the frame's times, speed, notes and camera; ``valid`` also False for a frame that spans
         a gap (``frame_valid``), as in a track."""
-        out = cls.__new__(cls)                       # a value copy of the filter's estimate (its __slots__)
-        out.pitch, out.roll, out._q, out._E, out._Rgs, out._P = est.pitch, est.roll, est._q, est._E, est._Rgs, est._P
-        out.status_code, out._info, out._road = est.status_code, est._info, est._road
+        out = cls.copy_of(est)                       # a value copy of the filter's estimate (its __slots__)
         out.valid = bool(est.valid and frame_valid)
         out.t, out.t_start, out.speed, out.notes = t, t_start, speed, notes
         out._camera, out._plane = camera, None
