@@ -67,3 +67,11 @@ def test_a_registered_live_method_runs_live_and_offline(dummy, tmp_path):
         out = tmp_path / f"out{len(extra)}.csv"
         assert main(["estimate", str(EXAMPLE), "--method", dummy.name, *extra, "-o", str(out)]) == 0
         assert out.is_file()
+
+
+def test_the_reports_references_come_from_the_registry(monkeypatch):
+    from imu_ground.evaluation.plots import HIGHLIGHTED
+    assert HIGHLIGHTED == ("suspension", "paper", "naive")          # the default, then the registry's references
+    spec = MethodSpec("dummy-ref", "a reference", GroundNormalFilter, False, False, reference=True)
+    monkeypatch.setitem(registry.METHODS, spec.name, spec)
+    assert registry.reference_methods() == ("paper", "naive", "dummy-ref")

@@ -26,7 +26,7 @@ from imu_ground.filters.ground import GroundNormalFilter
 from imu_ground.filters.suspension import SuspensionAwareFilter, SuspensionTrack
 
 __all__ = ["METHODS", "MethodSpec", "default_method", "estimate", "estimate_suspension_aware", "live_methods",
-           "make_estimator", "recalibrating_methods"]
+           "make_estimator", "recalibrating_methods", "reference_methods"]
 
 
 @dataclass(frozen=True)
@@ -50,6 +50,9 @@ class MethodSpec:
     live : bool
         Runs live, sample by sample (:class:`~imu_ground.pipeline.streaming.StreamingEstimator`,
         ``imu-ground stream``, ``estimate --causal``).
+    reference : bool
+        A reference the reports compare every method with and draw bold beside the default
+        (the paper's method, the naive baseline): :func:`reference_methods`.
     """
     name: str
     description: str
@@ -58,6 +61,7 @@ class MethodSpec:
     smooth: bool
     speed_aided: bool = False
     live: bool = False
+    reference: bool = False
 
     @property
     def options(self) -> tuple:
@@ -100,11 +104,11 @@ METHODS: dict[str, MethodSpec] = {
         _Factory(GroundNormalFilter, GroundNormalFilter), False, False, live=True),
     "paper": MethodSpec(
         "paper", "the paper's method: random-walk invariant EKF, Q = 1e-2 I, R = I (Zhang et al. 2022)",
-        _Factory(GroundNormalFilter.paper, GroundNormalFilter), False, False, live=True),
+        _Factory(GroundNormalFilter.paper, GroundNormalFilter), False, False, live=True, reference=True),
     "naive": MethodSpec(
         "naive", "constant normal: the static extrinsic alone, pitch and roll 0 relative to the road "
         "(the paper's naive baseline, a reference to compare with)",
-        _Factory(ConstantNormal, ConstantNormal), False, False),
+        _Factory(ConstantNormal, ConstantNormal), False, False, reference=True),
 }
 
 
@@ -116,6 +120,11 @@ def default_method(has_accel: bool) -> str:
 def live_methods() -> tuple[str, ...]:
     """Names of the methods that run live (:attr:`MethodSpec.live`), in the registry's order."""
     return tuple(name for name, spec in METHODS.items() if spec.live)
+
+
+def reference_methods() -> tuple[str, ...]:
+    """Names of the methods the reports compare every other with (:attr:`MethodSpec.reference`), in order."""
+    return tuple(name for name, spec in METHODS.items() if spec.reference)
 
 
 def recalibrating_methods() -> tuple[str, ...]:
