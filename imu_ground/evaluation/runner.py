@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence, ValuesView
 from functools import partial
 
 import numpy as np
@@ -96,40 +96,27 @@ def _research_baselines() -> list[MethodSpec]:
 _BASELINES: tuple[MethodSpec, ...] = tuple(_research_baselines())
 
 
-class _EvaluationMethods(Sequence):
-    """The registry's methods then the research baselines, read from the registry at each use (a view)."""
-
-    def _all(self) -> tuple[MethodSpec, ...]:
-        return (*REGISTRY.values(), *_BASELINES)
-
-    def __getitem__(self, i):
-        return self._all()[i]
-
-    def __len__(self) -> int:
-        return len(REGISTRY) + len(_BASELINES)
-
-
 class _MethodsByName(Mapping):
-    """:data:`EVALUATION_METHODS` by name (a view of the registry, like it)."""
+    """The registry's methods then the research baselines, by name: a view, read from the registry at each use."""
+
+    def _all(self) -> dict[str, MethodSpec]:
+        return {m.name: m for m in (*REGISTRY.values(), *_BASELINES)}
 
     def __getitem__(self, name: str) -> MethodSpec:
-        for m in EVALUATION_METHODS:
-            if m.name == name:
-                return m
-        raise KeyError(name)
+        return self._all()[name]
 
     def __iter__(self) -> Iterator[str]:
-        return iter([m.name for m in EVALUATION_METHODS])
+        return iter(self._all())
 
     def __len__(self) -> int:
-        return len(EVALUATION_METHODS)
+        return len(self._all())
 
 
-#: Every method of the evaluation, in report order: the registry's
+#: Every method of the evaluation by name, in report order: the registry's
 #: (:data:`imu_ground.filters.methods.METHODS`, as it is now) then the research baselines.
-EVALUATION_METHODS: Sequence[MethodSpec] = _EvaluationMethods()
-#: The same by name.
 METHODS: Mapping[str, MethodSpec] = _MethodsByName()
+#: The same methods (a view of :data:`METHODS`).
+EVALUATION_METHODS: ValuesView[MethodSpec] = METHODS.values()
 
 
 def run_method(name: str, drive: Drive):
