@@ -23,6 +23,8 @@ in ``meta["validation"]``. Pose files (KITTI odometry, TUM) are read by
 """
 from __future__ import annotations
 
+from imu_ground.errors import ImuInputError, OptionError, PoseFileError, UnknownFormatError
+
 from . import comma2k19 as _comma2k19  # noqa: F401  (each import registers its format)
 from . import kitti_oxts as _kitti_oxts  # noqa: F401
 from . import nuscenes as _nuscenes  # noqa: F401
@@ -31,7 +33,7 @@ from .kitti_imu100 import COLUMNS as KITTI_IMU100_COLUMNS
 from .kitti_imu100 import read_drives_index, read_kitti_imu100
 from .kitti_oxts import read_kitti_oxts
 from .nuscenes import read_nuscenes_imu
-from .options import READER_OPTIONS, ImuInputError, OptionError
+from .options import READER_OPTIONS
 from .poses import (
                     PoseSequence,
                     detect_pose_format,
@@ -41,15 +43,7 @@ from .poses import (
                     relative_rotations,
                     write_tum_poses,
 )
-from .skeleton import (
-                    FORMATS,
-                    PoseFileError,
-                    UnknownFormatError,
-                    detect_format,
-                    finish,
-                    read_imu,
-                    register_format,
-)
+from .skeleton import FORMATS, detect_format, finish, read_imu, register_format
 from .table import from_dataframe, read_parquet_table, read_table
 
 __all__ = [

@@ -21,7 +21,7 @@ import numpy as np
 
 from imu_ground.imu.data import ImuData
 
-from .report import ImuValidationWarning, MalformedFileError, warn_user
+from imu_ground.errors import ImuValidationWarning, MalformedFileError, warn_user
 from .skeleton import finish, register_format
 from .timestamps import check_timestamps
 

@@ -35,8 +35,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from imu_ground.errors import ImuGroundError
-from .report import MalformedFileError
+from imu_ground.errors import ImuGroundError, MalformedFileError
 
 __all__ = ["Columns", "RowLines", "detect_dialect", "first_nonnumber", "locate_bad_lines", "numeric", "open_binary",
            "open_gzip", "read_delimited", "return_free_memory"]

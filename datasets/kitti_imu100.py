@@ -28,10 +28,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from imu_ground.errors import ImuValidationWarning, MalformedFileError, warn_user
 from imu_ground.imu.data import ImuData
 
 from .csvio import numeric, open_binary, read_delimited
-from .report import ImuValidationWarning, MalformedFileError, warn_user
 from .skeleton import finish, register_format, with_finish_parameters
 from .unit_checks import (
     UNIT_OPTIONS,

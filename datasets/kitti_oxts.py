@@ -23,10 +23,9 @@ from typing import Any
 
 import numpy as np
 
+from imu_ground.errors import ImuValidationWarning, MalformedFileError, MissingPacketsError, warn_user
 from imu_ground.imu.data import ImuData
 
-from .options import ImuInputError
-from .report import ImuValidationWarning, MalformedFileError, warn_user
 from .skeleton import finish, register_format, with_finish_parameters
 
 __all__ = [
@@ -55,9 +54,6 @@ OXTS_UNITS: dict[str, str] = {
 
 _GYRO = ("wx", "wy", "wz")             # body axes (module docstring)
 
-
-class MissingPacketsError(ImuInputError, FileNotFoundError):
-    """Packet files listed in ``timestamps.txt`` are missing (the message names ``allow_missing``)."""
 
 _ACCEL = ("ax", "ay", "az")            # body axes (module docstring)
 _LINE = re.compile(r"^\s*([A-Za-z_]\w*)\s*:\s*(.*?)\s*$")

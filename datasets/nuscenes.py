@@ -15,8 +15,7 @@ import numpy as np
 
 from imu_ground.imu.data import ImuData
 
-from .options import ImuInputError
-from .report import MalformedFileError
+from imu_ground.errors import ImuInputError, MalformedFileError
 from .skeleton import finish, register_format, with_finish_parameters
 
 if TYPE_CHECKING:

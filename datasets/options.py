@@ -2,10 +2,12 @@
 
 One table owns the correspondence, so that an error message can name the option
 the way the user sets it: ``gyro_unit="deg/s"`` from Python, ``--gyro-unit deg/s``
-from the command line. Readers raise :class:`ImuInputError`, the pipeline
-:class:`OptionError` (its base, an :class:`~imu_ground.errors.ImuGroundError`), with ``option`` and ``value``
-set; :meth:`OptionError.cli_message` is what the command line prints. The
-readers' warnings carry the same :class:`OptionMessage`.
+from the command line. Readers raise :class:`~imu_ground.errors.ImuInputError`, the pipeline
+:class:`~imu_ground.errors.OptionError` (its base, an :class:`~imu_ground.errors.ImuGroundError`), with
+``option`` and ``value`` set; :meth:`~imu_ground.errors.OptionError.cli_message` is what the command line
+prints. The readers' warnings carry the same :class:`~imu_ground.errors.OptionMessage`. Those classes live
+in :mod:`imu_ground.errors` (the foundation layer) and are importable from here too; this table fills
+their :data:`~imu_ground.errors.CLI_FLAGS`.
 """
 from __future__ import annotations
 
@@ -13,7 +15,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from imu_ground.errors import ImuGroundError
+from imu_ground.errors import CLI_FLAGS, ImuInputError, OptionError, OptionMessage, option_hint
 
 __all__ = ["READER_OPTIONS", "ImuInputError", "OptionError", "OptionMessage", "OptionText", "ReaderOption", "option_hint"]
 
@@ -57,100 +59,8 @@ READER_OPTIONS: dict[str, ReaderOption] = {o.name: o for o in (
 )}
 
 
-def option_hint(name: str, value: Any = None, cli: bool = False) -> str:
-    """How to set option ``name`` (to ``value``) from Python or, with ``cli``, from the command line."""
-    opt = READER_OPTIONS.get(name)
-    if cli and opt is not None:
-        if isinstance(value, bool) or value is None:
-            return opt.flag
-        return f"{opt.flag} {value}"
-    if value is None:
-        return f"{name}=..."
-    return f"{name}={value!r}"
-
-
-class OptionMessage:
-    """A message template that names an option, in Python or CLI spelling: the one option-message rule.
-
-    Two placeholders: ``{hint}`` is how to set the option (``gyro_unit='deg/s'``
-    / ``--gyro-unit deg/s``, with :attr:`value` when given), ``{opt}`` the
-    option's bare name (``rate`` / ``--rate``). ``str()`` of the exception or
-    warning carries the Python spelling; :meth:`cli_message` is what the command
-    line prints.
-
-    Attributes
-    ----------
-    template : str
-        The text with ``{hint}`` and/or ``{opt}`` where the option goes.
-    option : str or None
-        The Python keyword (a key of :data:`READER_OPTIONS`, or another option such as ``rate``).
-    value : optional
-        The option value to suggest.
-    flag : str or None
-        The CLI flag when it is not the READER_OPTIONS one or ``--`` + the keyword with ``-`` for ``_``.
-    """
-
-    template: str
-    option: str | None
-    value: Any
-    flag: str | None = None
-
-    @property
-    def name(self) -> str | None:
-        """The option's Python keyword (None: no option)."""
-        return self.option
-
-    def cli_flag(self) -> str:
-        """The option's ``imu-ground`` flag."""
-        if self.flag:
-            return self.flag
-        if self.option in READER_OPTIONS:
-            return READER_OPTIONS[self.option].flag
-        return "--" + str(self.option).replace("_", "-")
-
-    def _render(self, cli: bool) -> str:
-        text = self.template
-        if "{opt}" in text and self.option is not None:
-            text = text.replace("{opt}", self.cli_flag() if cli else self.option)
-        if self.option is None or "{hint}" not in text:
-            return text.replace("{hint}", "the matching option")
-        if cli and self.flag:
-            return text.replace("{hint}", self.flag if self.value is None or isinstance(self.value, bool)
-                                else f"{self.flag} {self.value}")
-        return text.replace("{hint}", option_hint(self.option, self.value, cli))
-
-    def cli_message(self) -> str:
-        """The message with the option spelled as its ``imu-ground`` flag."""
-        return self._render(cli=True)
-
-
-class OptionError(OptionMessage, ImuGroundError):
-    """A bad input or option value that an option can fix; the message names the option.
-
-    The one error class for options, in the readers and in
-    :func:`imu_ground.pipeline.estimate_log` alike.
-
-    Parameters
-    ----------
-    message : str
-        What is wrong, naming the file (and 1-based line where there is one). It
-        may contain ``{hint}`` / ``{opt}`` (see :class:`OptionMessage`).
-    option : str, optional
-        The option that fixes it (Python keyword).
-    value : optional
-        The option value to suggest.
-    flag : str, optional
-        Its CLI flag, when not derived from the keyword.
-    """
-
-    def __init__(self, message: str, option: str | None = None, value: Any = None, *,
-                 flag: str | None = None) -> None:
-        self.template, self.option, self.value, self.flag = message, option, value, flag
-        super().__init__(self._render(cli=False))
-
-
-class ImuInputError(OptionError):
-    """Bad input to a reader that an option can fix (an :class:`OptionError` raised by :mod:`imu_ground.datasets`)."""
+#: The CLI flags of the reader options, for the hints of every :class:`OptionMessage`.
+CLI_FLAGS.update({o.name: o.flag for o in READER_OPTIONS.values()})
 
 
 class OptionText(str):

@@ -26,9 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from imu_ground.errors import ImuGroundError
+from imu_ground.errors import ImuGroundError, ImuInputError
 
-from .options import ImuInputError
 
 __all__ = [
     "PoseSequence",

@@ -1,4 +1,5 @@
-"""What the readers' checks report: errors, warnings and the validation report.
+"""What the readers' checks report: the validation report (its errors and warnings live in
+:mod:`imu_ground.errors` and are importable from here too).
 
 The lowest room of :mod:`imu_ground.datasets`: every reader and check imports
 from here, nothing here imports a reader. Warnings are attributed to the user's
@@ -7,20 +8,24 @@ has to count its own stack depth.
 """
 from __future__ import annotations
 
-import sys
-import types
-import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
 
-from imu_ground.errors import ImuGroundError
+from imu_ground.errors import (
+    GapWarning,
+    ImuValidationError,
+    ImuValidationWarning,
+    MalformedFileError,
+    NonFiniteWarning,
+    SensorWarning,
+    TimestampWarning,
+    UnitsWarning,
+    warn_user,
+)
 from imu_ground.units import GRAVITY
-
-from .options import ImuInputError, OptionMessage
 
 __all__ = [
     "STANDARD_GRAVITY",
@@ -40,88 +45,6 @@ __all__ = [
 
 #: Standard gravity, m/s^2 (the one owner is :data:`imu_ground.units.GRAVITY`).
 STANDARD_GRAVITY = GRAVITY
-
-_PACKAGE_DIRS = tuple(str(Path(p).resolve()) for p in (
-    Path(__file__).parent, Path(__file__).parent.parent / "imu_ground"))
-
-
-# --------------------------------------------------------------------------- errors
-class ImuValidationError(ImuInputError):
-    """An IMU log failed a check whose policy is to raise; ``option`` names the fix, if any."""
-
-
-class MalformedFileError(ImuGroundError):
-    """A log file cannot be parsed: empty, truncated, wrong field count, not a number.
-
-    Attributes
-    ----------
-    path : str
-        The file.
-    line : int or None
-        1-based line number of the first bad line, when there is one.
-    """
-
-    def __init__(self, path: str | Path, message: str, line: int | None = None) -> None:
-        self.path = str(path)
-        self.line = line
-        where = f"{self.path}, line {line}" if line is not None else self.path
-        super().__init__(f"{where}: {message}")
-
-
-class ImuValidationWarning(OptionMessage, UserWarning):
-    """Base class of every warning issued by the readers and :func:`validate`.
-
-    Like :class:`~imu_ground.datasets.options.ImuInputError`, the text may name a
-    reader option (``{hint}``); :meth:`cli_message` spells it as the CLI flag.
-    """
-
-    def __init__(self, message: str = "", option: str | None = None, value: Any = None) -> None:
-        self.template, self.option, self.value = message, option, value
-        super().__init__(self._render(cli=False))
-
-
-class TimestampWarning(ImuValidationWarning):
-    """Samples were retimed, dropped or reordered because of unsorted or duplicate times."""
-
-
-class GapWarning(ImuValidationWarning):
-    """The log has steps much longer than its usual sample period."""
-
-
-class NonFiniteWarning(ImuValidationWarning):
-    """Rows with NaN or inf were dropped (``nonfinite="drop"``)."""
-
-
-class UnitsWarning(ImuValidationWarning):
-    """Units were detected from the data and converted, or magnitudes look wrong."""
-
-
-class SensorWarning(ImuValidationWarning):
-    """A sensor reads what a working one does not: a dead gyro, a stuck accelerometer, or no motion at all."""
-
-
-def warn_user(message: str, category: type[Warning] = ImuValidationWarning, option: str | None = None,
-              value: Any = None) -> None:
-    """Issue a warning attributed to the first caller outside imu_ground (the user's line).
-
-    Parameters
-    ----------
-    message : str
-        The text, naming the file (and 1-based line where there is one); may hold
-        ``{hint}`` for ``option``.
-    category : Warning subclass
-        The warning class.
-    option, value : optional
-        The reader option (and value) the text names (ImuValidationWarning subclasses).
-    """
-    level = 1
-    frame: types.FrameType | None = sys._getframe(1)
-    while frame is not None and frame.f_code.co_filename.startswith(_PACKAGE_DIRS):
-        frame, level = frame.f_back, level + 1
-    if issubclass(category, ImuValidationWarning):
-        warnings.warn(category(message, option, value), stacklevel=level + 1)
-    else:
-        warnings.warn(message, category, stacklevel=level + 1)
 
 
 def row_names(rows: np.ndarray, row_lines: Callable[[np.ndarray], np.ndarray] | None) -> tuple[str, list[int]]:

@@ -38,7 +38,7 @@ import numpy as np
 
 from imu_ground.imu.data import ImuData
 
-from .report import MalformedFileError, TimestampWarning, warn_user
+from imu_ground.errors import MalformedFileError, TimestampWarning, warn_user
 from .rosbag_files import (
     PathLike,
     _choose,

@@ -19,9 +19,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from imu_ground.errors import ImuGroundError, require_extra
-from .options import ImuInputError
-from .report import MalformedFileError
+from imu_ground.errors import ImuGroundError, ImuInputError, MalformedFileError, require_extra
 
 __all__ = ["is_rosbag", "rosbag_topics"]
 

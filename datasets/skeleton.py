@@ -24,10 +24,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any, TypeVar
 
+from imu_ground.errors import ImuInputError, PoseFileError, UnknownFormatError
 from imu_ground.imu.data import ImuData
 
 from . import storage
-from .options import READER_OPTIONS, ImuInputError
+from .options import READER_OPTIONS
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -97,14 +98,6 @@ FORMATS: dict[str, FormatSpec] = {}
 ALIASES: dict[str, str] = {"csv": "table", "oxts": "kitti_oxts", "kitti": "kitti_oxts",
                            "nuscenes_can_bus": "nuscenes", "ms_imu": "nuscenes", "comma": "comma2k19",
                            "bag": "rosbag", "mcap": "rosbag", "ros": "rosbag"}
-
-
-class UnknownFormatError(ImuInputError):
-    """:func:`detect_format` cannot tell which reader a path needs (the message names ``format``)."""
-
-
-class PoseFileError(UnknownFormatError):
-    """An IMU log was asked for, but the path is a pose file (KITTI odometry or TUM)."""
 
 
 def register_format(name: str, probe: Callable[[Path], bool], reader: Callable[..., ImuData],

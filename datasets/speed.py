@@ -23,10 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from imu_ground.errors import ImuGroundError
+from imu_ground.errors import ImuGroundError, ImuInputError, MalformedFileError
 
-from .options import ImuInputError
-from .report import MalformedFileError
 from .rosbag_files import is_rosbag
 
 __all__ = ["MAX_REVERSE", "MAX_SPEED", "SPEED_NAMES", "SPEED_SOURCES", "TIME_NAMES", "check_speed", "frame_speed",

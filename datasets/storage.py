@@ -36,7 +36,7 @@ from contextlib import contextmanager
 from pathlib import Path, PurePosixPath
 from typing import IO, Any, TypeGuard, TypeVar
 
-from imu_ground.errors import ImuGroundError
+from imu_ground.errors import ImuGroundError, MissingFilesystemError, StorageError
 
 from .options import OptionText
 
@@ -51,25 +51,6 @@ _F = TypeVar("_F", bound=Callable[..., Any])
 _URL = re.compile(r"^([A-Za-z][A-Za-z0-9+.\-]+)(::[A-Za-z][A-Za-z0-9+.\-]+)*://")
 #: Protocols whose "folders" are key prefixes (no folder to create before writing a file).
 _FLAT = ("s3", "s3a", "gs", "gcs", "az", "abfs", "abfss", "adl", "memory", "oss", "r2")
-
-
-class StorageError(ImuGroundError):
-    """A URL that cannot be used: an unknown protocol, or ``memory://`` on the command line."""
-
-
-class MissingFilesystemError(StorageError, ImportError):
-    """The filesystem package of a URL's protocol is not installed (the message names it).
-
-    Attributes
-    ----------
-    protocol, package : str
-    """
-
-    def __init__(self, url: str, protocol: str, package: str) -> None:
-        self.protocol, self.package = protocol, package
-        extra = " (or pip install 'imu-ground[s3]')" if package == "s3fs" else ""
-        super().__init__(f"{url}: {protocol}:// needs {package}: pip install {package}{extra}")
-        self.name = package
 
 
 def is_file_object(source: Any) -> bool:

@@ -21,12 +21,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from imu_ground.errors import require_extra
+from imu_ground.errors import ImuInputError, MalformedFileError, require_extra
 from imu_ground.imu.data import ImuData
 
 from .csvio import Columns, numeric, read_delimited
-from .options import ImuInputError
-from .report import MalformedFileError
 from .skeleton import finish, register_format
 from .unit_checks import (
     ACCEL_UNITS,

@@ -26,16 +26,9 @@ from typing import Literal, cast
 
 import numpy as np
 
-from .options import option_hint
+from imu_ground.errors import GapWarning, ImuValidationError, TimestampWarning, option_hint, warn_user
 from .order_stats import median
-from .report import (
-    GapWarning,
-    ImuValidationError,
-    TimestampWarning,
-    ValidationReport,
-    row_names,
-    warn_user,
-)
+from .report import ValidationReport, row_names
 from .retime import RetimeResult, _apply_retime, _rows, retime
 
 __all__ = ["POLICIES", "Action", "Policy", "RetimeResult", "act", "check_gaps", "check_timestamps", "fmt_list", "gap_action",

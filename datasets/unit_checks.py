@@ -25,12 +25,11 @@ from typing import Any
 
 import numpy as np
 
+from imu_ground.errors import ImuInputError, UnitsWarning, warn_user
 from imu_ground.units import DEG, GRAVITY
 
 from .csvio import numeric
-from .options import ImuInputError
 from .order_stats import median
-from .report import UnitsWarning, warn_user
 
 __all__ = [
     "ACCEL_UNITS",

@@ -41,13 +41,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from imu_ground.imu.data import ImuData
-
-from . import report as _report
-from .order_stats import median
-from .report import (  # the report's public names are re-exported (errors, warnings, ValidationReport)
-    STANDARD_GRAVITY,
-    Gap as Gap,
+from imu_ground.errors import (  # the readers' errors and warnings are re-exported, like the report's names
     GapWarning as GapWarning,
     ImuValidationError,
     ImuValidationWarning as ImuValidationWarning,
@@ -56,6 +50,14 @@ from .report import (  # the report's public names are re-exported (errors, warn
     SensorWarning,
     TimestampWarning as TimestampWarning,
     UnitsWarning,
+)
+from imu_ground.imu.data import ImuData
+
+from . import report as _report
+from .order_stats import median
+from .report import (  # the report's public names are re-exported (ValidationReport)
+    STANDARD_GRAVITY,
+    Gap as Gap,
     ValidationReport,
     row_names,
 )

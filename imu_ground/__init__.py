@@ -3,13 +3,13 @@
 Layers (each imports only from the ones above it in this list)
 ----------------------------------------------------------------
 - :mod:`imu_ground.so3`, :mod:`imu_ground.units`, :mod:`imu_ground.errors`: rotations (and the
-  glossary of frames and signs), constants and units, the root of the user errors
-  (:class:`ImuGroundError`).
+  glossary of frames and signs), constants and units, the errors and warnings under their roots
+  (:class:`ImuGroundError`, :class:`ImuGroundWarning`).
 - :mod:`imu_ground.imu`: the IMU log container, standstills, preintegration,
   per-frame ego-motion.
-- :mod:`imu_ground.datasets`: readers of IMU logs and pose files, validation.
-- :mod:`imu_ground.filters`: the invariant EKF on SO(3), the ground-normal
-  estimators, extrinsics and calibration.
+- :mod:`imu_ground.datasets` and :mod:`imu_ground.filters` (siblings): readers of IMU logs and
+  pose files, validation; the invariant EKF on SO(3), the ground-normal estimators,
+  extrinsics and calibration.
 - :mod:`imu_ground.perception`: cameras, the per-frame road plane in a camera's axes,
   bird's-eye homographies.
 - :mod:`imu_ground.pipeline` and :mod:`imu_ground.evaluation` (siblings): a log or a
@@ -23,12 +23,8 @@ from imu_ground._lazy import lazy_exports
 from imu_ground._version import __version__ as __version__
 
 _EXPORTS = {
-    ".errors": "ImuGroundError MissingExtraError",
-    ".datasets.options": "OptionError ImuInputError",
-    ".datasets.report": "ImuValidationError MalformedFileError",
-    ".datasets.skeleton": "UnknownFormatError PoseFileError",
-    ".datasets.storage": "StorageError MissingFilesystemError",
-    ".datasets.kitti_oxts": "MissingPacketsError",
+    ".errors": "ImuGroundError MissingExtraError OptionError ImuInputError ImuValidationError MalformedFileError "
+               "UnknownFormatError PoseFileError StorageError MissingFilesystemError MissingPacketsError ImuGroundWarning",
     ".imu.warm_start": "StateError",
     ".filters.calibration": "TooLittleDataError",
     ".imu.data": "ImuData",

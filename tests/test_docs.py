@@ -26,7 +26,7 @@ def _public_modules() -> set[str]:
             if package == "imu_ground" and rel[0] == "datasets":
                 continue
             if any(p.startswith("_") and p != "__init__" for p in rel) or rel[-1].startswith("test_") \
-                    or rel[-1] in ("make_fixtures", "__main__") or rel[0] == "cli":
+                    or rel[-1] == "__main__" or rel[0] == "cli":
                 continue
             if not re.search(r"^__all__\b|^__getattr__, __dir__, __all__", path.read_text(encoding="utf-8"), re.M):
                 continue

@@ -19,7 +19,7 @@ DATASETS = ROOT.parent / "datasets"
 #: The most lines a library module may have.
 MAX_LINES = 1000
 #: Scripts that live in package folders but are not library modules.
-NOT_LIBRARY = ("test_", "make_fixtures", "derive_kitti")
+NOT_LIBRARY = ("test_", "derive_kitti")
 
 
 def _library() -> list[Path]:
@@ -95,3 +95,26 @@ def test_the_readme_room_table_follows_the_tree(layer, complete):
     assert named <= tree, f"docs/library.md names modules that are not in imu_ground/{layer}: {sorted(named - tree)}"
     if complete:
         assert tree <= mentioned, f"modules of imu_ground/{layer} missing from docs/library.md's table: {sorted(tree - mentioned)}"
+
+
+#: Reads of another object's private attributes the pipeline still makes: the live preintegrator's buffers and
+#: its last sample / next frame end (owned by ``imu_ground/imu/preint_stream.py``, whose rewrite is under way;
+#: give it read-only properties there, then empty this list). ``_replace`` is a named tuple's public method.
+PIPELINE_REACHES_LEFT = {("streaming.py", "pre._b"), ("streaming.py", "pre._tb"), ("streaming.py", "pre._prev"),
+                         ("streaming.py", "pre._next")}
+
+
+def test_the_pipeline_reads_no_private_attribute_of_another_object():
+    """``x._name`` read anywhere in ``pipeline/`` (methods included) where ``x`` is not ``self``/``cls`` or a
+    module: the owning class gives what is read (e.g. :meth:`GroundEstimate.copy_of`)."""
+    found = set()
+    for path in sorted((ROOT / "pipeline").glob("*.py")):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        modules = {(a.asname or a.name).split(".")[0] for n in ast.walk(tree)
+                   if isinstance(n, (ast.Import, ast.ImportFrom)) for a in n.names}
+        for node in ast.walk(tree):
+            if (isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Load) and node.attr.startswith("_")
+                    and not node.attr.startswith("__") and node.attr != "_replace"
+                    and not (isinstance(node.value, ast.Name) and node.value.id in modules | {"self", "cls"})):
+                found.add((path.name, ast.unparse(node)))
+    assert found <= PIPELINE_REACHES_LEFT, sorted(found - PIPELINE_REACHES_LEFT)

@@ -426,11 +426,11 @@ def test_suite_varied_and_reproducible():
 
 # --------------------------------------------------------------------------- shipped example
 def test_example_fixture_regenerates(tmp_path):
-    from imu_ground.datasets.make_fixtures import EXAMPLE_SEED, FIXTURES, write_example
+    from imu_ground.evaluation.simulate.fixtures import EXAMPLE_SEED, FIXTURES, write_example
     paths = write_example(tmp_path)
     for kind in ("imu", "truth"):
         shipped = FIXTURES / paths[kind].name
-        assert shipped.is_file(), f"missing fixture {shipped}: run python -m imu_ground.datasets.make_fixtures"
+        assert shipped.is_file(), f"missing fixture {shipped}: run python -m imu_ground.evaluation.simulate.fixtures"
         new, old = pd.read_csv(paths[kind]), pd.read_csv(shipped)
         assert list(new.columns) == list(old.columns)
         assert new.shape == old.shape
@@ -443,7 +443,7 @@ def test_example_fixture_regenerates(tmp_path):
 
 
 def test_example_fixture_content():
-    from imu_ground.datasets.make_fixtures import FIXTURES
+    from imu_ground.evaluation.simulate.fixtures import FIXTURES
     imu = pd.read_csv(FIXTURES / "example_drive.csv")
     truth = pd.read_csv(FIXTURES / "example_drive_truth.csv")
     assert list(imu.columns) == ["t", "wx", "wy", "wz", "ax", "ay", "az"]

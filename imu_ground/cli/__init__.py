@@ -50,7 +50,8 @@ class _Parser(argparse.ArgumentParser):
     def refuse_urls(self, args: argparse.Namespace) -> None:
         """Refuse, before any work, a URL given as a path that the command cannot use: ``memory://`` (another
         process's memory), or a protocol whose filesystem package is missing (named)."""
-        from imu_ground.datasets.storage import StorageError, cli_refusal
+        from imu_ground.errors import StorageError
+        from imu_ground.datasets.storage import cli_refusal
         for action in self._actions:
             if isinstance(action, argparse._SubParsersAction):
                 action.choices[args.command].refuse_urls(args)

@@ -29,8 +29,8 @@ from typing import Any
 import numpy as np
 
 from imu_ground.cli._common import say, warn_line
-from imu_ground.datasets.options import OptionError
-from imu_ground.errors import ImuGroundError
+from imu_ground.errors import ImuGroundError, OptionError
+from imu_ground.filters.methods import reference_methods
 
 __all__ = ["DEFAULT_ROW", "FITS", "add_lidar_flags", "check_lidar", "lidar_drives_report", "run_lidar"]
 
@@ -496,7 +496,7 @@ def _ranking(fits: dict) -> dict:
             for fit in names:
                 methods = fits[fit]["pooled"]["methods"] if key == "pooled" else fits[fit]["drives"][i]["methods"]
                 orders[fit] = _order(methods, f"{what}_spread_deg")
-            three = {fit: [m for m in o if m in (DEFAULT_ROW, "paper", "naive")] for fit, o in orders.items()}
+            three = {fit: [m for m in o if m in (DEFAULT_ROW, *reference_methods())] for fit, o in orders.items()}
             entry[what] = {"order": orders, "holds": len({tuple(o) for o in orders.values()}) == 1,
                            "holds_default_paper_naive": len({tuple(o) for o in three.values()}) == 1}
         out[key] = entry
@@ -601,7 +601,7 @@ def run_lidar_drives(a: argparse.Namespace) -> int:
             parts = []
             for what in ("pitch", "roll"):
                 e = entry[what]
-                three = next(iter({tuple(m for m in o if m in (DEFAULT_ROW, "paper", "naive"))
+                three = next(iter({tuple(m for m in o if m in (DEFAULT_ROW, *reference_methods()))
                                    for o in e["order"].values()}))
                 parts.append(f"{what} {' < '.join(three) if e['holds_default_paper_naive'] else 'order differs'}"
                              f" ({'same' if e['holds'] else 'not the same'} order of all methods)")

@@ -19,6 +19,7 @@ from imu_ground.cli._common import (
     warn_line,
 )
 from imu_ground.datasets.storage import with_suffix
+from imu_ground.filters.methods import default_method
 from imu_ground.pipeline.estimate import available_methods, estimate_to_files
 from imu_ground.pipeline.output import check_output_path, check_run_paths, default_output_name, summarize_table
 from imu_ground.pipeline.planes import check_planes_dir
@@ -29,8 +30,8 @@ __all__ = ["add_method_flags", "method_kwargs", "register", "run"]
 
 def _methods_epilog() -> str:
     """One line per method, shown under the options by ``--help``."""
-    methods = {"auto": (("the best for the input (default): suspension for IMU logs with an accelerometer, "
-                        "filter for pose files"), False), **available_methods()}
+    methods = {"auto": ((f"the best for the input (default): {default_method(True)} for IMU logs with an "
+                         f"accelerometer, {default_method(False)} for pose files"), False), **available_methods()}
     width = max(map(len, methods)) + 2
     lines = ["methods (--method):"]
     for name, (desc, _) in methods.items():

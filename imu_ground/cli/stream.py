@@ -28,6 +28,7 @@ import time
 from pathlib import Path
 
 from imu_ground.cli._common import add_reader_flags, input_paths, reader_options
+from imu_ground.filters.methods import default_method, live_methods
 
 __all__ = ["register", "run"]
 
@@ -47,8 +48,9 @@ def register(sub) -> None:
     p.add_argument("--state", metavar="FILE", help="load this saved state at the start (when the file exists) and "
                                                    "write the state there at the end, on SIGTERM and on Ctrl-C")
     g = p.add_argument_group("estimation")
-    g.add_argument("--method", default="auto", choices=["auto", "suspension", "filter", "paper"], metavar="NAME",
-                   help="auto (suspension, default), suspension, filter or paper")
+    live = live_methods()
+    g.add_argument("--method", default="auto", choices=["auto", *live], metavar="NAME",
+                   help=f"auto ({default_method(True)}, default), {', '.join(live[:-1])} or {live[-1]}")
     g.add_argument("--extrinsic", metavar="NAME_OR_FILE",
                    help="static sensor-to-ground extrinsic (kitti_imu, or a file from 'imu-ground calibrate')")
     g.add_argument("--rate", type=float, default=10.0, metavar="HZ", help="frame rate, Hz (default 10)")
@@ -66,7 +68,7 @@ MAX_STATE_BYTES = 16 * 1024 * 1024
 
 def _load_state(est, path: Path) -> dict:
     """Load the saved state into ``est``; returns where a replay got to (``{}`` for none)."""
-    from imu_ground.datasets.options import OptionError
+    from imu_ground.errors import OptionError
     try:
         if path.stat().st_size > MAX_STATE_BYTES:
             raise OptionError(f"{path}: {path.stat().st_size} bytes, larger than a saved state of 'imu-ground "
@@ -151,7 +153,7 @@ def _cell(v) -> str:
 
 
 def run(a: argparse.Namespace) -> int:
-    from imu_ground.datasets.options import OptionError
+    from imu_ground.errors import OptionError
     from imu_ground.pipeline.streaming import StreamingEstimator
     from imu_ground.pipeline.estimate import live_policy
     est = StreamingEstimator(a.method, a.extrinsic, a.rate, a.camera, policy=live_policy(a.policy))
@@ -189,7 +191,7 @@ def _replay(est, a, out, where: dict, pos: _Position) -> None:
     from imu_ground.cli._common import warn_line
     from imu_ground.datasets import detect_format, read_imu
     from imu_ground.datasets.storage import local_input
-    from imu_ground.datasets.options import OptionError
+    from imu_ground.errors import OptionError
     from imu_ground.pipeline.estimate import check_frame_rate, speed_samples
     opts = reader_options(a)
     fmt = opts.pop("format", None)
@@ -244,7 +246,7 @@ def _replay(est, a, out, where: dict, pos: _Position) -> None:
 
 def _stdin(est, a, out) -> None:
     from imu_ground.cli._common import warn_line
-    from imu_ground.datasets.options import OptionError
+    from imu_ground.errors import OptionError
     from imu_ground.datasets.unit_checks import ACCEL_UNITS, GYRO_UNITS, TIME_UNITS
     ks = TIME_UNITS[a.time_unit or "s"]
     kg = GYRO_UNITS[a.gyro_unit or "rad/s"]
@@ -311,7 +313,7 @@ def _stdin_speed(a, names: list[str], est) -> tuple[int | None, tuple[list, list
     columns: that column; else a speed file (:func:`~imu_ground.datasets.speed.read_speed_file`, checked as
     estimate checks it), merged by time; a missing file is an error naming ``--speed``."""
     from imu_ground.cli._common import warn_line
-    from imu_ground.datasets.options import OptionError
+    from imu_ground.errors import OptionError
     choice = a.speed
     if choice == "none":
         return None, ([], [])

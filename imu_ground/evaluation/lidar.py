@@ -51,8 +51,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from imu_ground.datasets.options import OptionError
-from imu_ground.errors import ImuGroundError, require_extra
+from imu_ground.errors import ImuGroundError, OptionError, require_extra
 from imu_ground.evaluation.metrics import normal_angle, normal_from_pitch_roll
 from imu_ground.filters.estimator import pitch_roll_from_normal
 from imu_ground.filters.extrinsics import Extrinsic, load_extrinsic

@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from imu_ground.datasets.options import OptionError
+from imu_ground.errors import OptionError
 from imu_ground.evaluation.lidar import PathRegion, bootstrap_spread, lidar_summary, path_region, scan_files
 from imu_ground.filters.extrinsics import Extrinsic
 

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from imu_ground.datasets.options import OptionError
+from imu_ground.errors import OptionError
 from imu_ground.evaluation import lidar as L
 from imu_ground.evaluation.preview import Preview
 from imu_ground.perception.plane import GroundPlane

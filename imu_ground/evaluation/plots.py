@@ -19,6 +19,7 @@ import pandas as pd
 from imu_ground.errors import require_extra
 from imu_ground.evaluation.metrics import normal_angle
 from imu_ground.evaluation.reference import MIN_SPEED
+from imu_ground.filters.methods import default_method, reference_methods
 
 __all__ = ["HIGHLIGHTED", "SAME_RMS_DEG", "error_distribution_figure", "evaluation_plots", "pitch_over_time_figure",
            "plot_error_distribution", "plot_pitch_over_time", "plot_simulation"]
@@ -45,7 +46,7 @@ def _frame_errors(drive, track) -> np.ndarray:
 #: Methods drawn bold in the pitch and roll panels, the first that is there being the default with its 1-sigma
 #: band (``estimate``'s default for an IMU log, the paper's method, the static extrinsic alone); the others
 #: have a panel of their own.
-HIGHLIGHTED = ("suspension", "paper", "naive")
+HIGHLIGHTED = (default_method(True), *reference_methods())
 _LINESTYLES = ("-", "--", "-.", ":")
 
 

@@ -24,8 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from imu_ground.datasets.options import OptionError
-from imu_ground.errors import ImuGroundError
+from imu_ground.errors import ImuGroundError, OptionError
 from imu_ground.evaluation.ground_effect import LANE_WIDTH, ground_errors
 from imu_ground.evaluation.simulate import SpeedParams, simulate
 from imu_ground.evaluation.simulate.camera import render_road

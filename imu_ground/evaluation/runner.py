@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence, ValuesView
 from functools import partial
 
 import numpy as np
@@ -44,7 +44,7 @@ from imu_ground.evaluation.drives import Drive, load_real_drive, load_real_drive
 from imu_ground.evaluation.metrics import evaluate_drive
 from imu_ground.evaluation.revisit import drive_revisit_pairs, revisit_differences
 from imu_ground.filters import GroundNormalFilter
-from imu_ground.datasets.options import OptionError
+from imu_ground.errors import OptionError
 from imu_ground.filters.methods import METHODS as REGISTRY, MethodSpec
 
 __all__ = [
@@ -93,10 +93,30 @@ def _research_baselines() -> list[MethodSpec]:
     ]
 
 
-#: Every method of the evaluation, in report order.
-EVALUATION_METHODS: tuple[MethodSpec, ...] = (*REGISTRY.values(), *_research_baselines())
-#: The same by name.
-METHODS: dict[str, MethodSpec] = {m.name: m for m in EVALUATION_METHODS}
+_BASELINES: tuple[MethodSpec, ...] = tuple(_research_baselines())
+
+
+class _MethodsByName(Mapping):
+    """The registry's methods then the research baselines, by name: a view, read from the registry at each use."""
+
+    def _all(self) -> dict[str, MethodSpec]:
+        return {m.name: m for m in (*REGISTRY.values(), *_BASELINES)}
+
+    def __getitem__(self, name: str) -> MethodSpec:
+        return self._all()[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._all())
+
+    def __len__(self) -> int:
+        return len(self._all())
+
+
+#: Every method of the evaluation by name, in report order: the registry's
+#: (:data:`imu_ground.filters.methods.METHODS`, as it is now) then the research baselines.
+METHODS: Mapping[str, MethodSpec] = _MethodsByName()
+#: The same methods (a view of :data:`METHODS`).
+EVALUATION_METHODS: ValuesView[MethodSpec] = METHODS.values()
 
 
 def run_method(name: str, drive: Drive):

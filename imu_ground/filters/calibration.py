@@ -64,9 +64,7 @@ from typing import TYPE_CHECKING, Any, Optional, Sequence, Union
 import numpy as np
 
 from imu_ground import so3
-from imu_ground.datasets.options import OptionError
-from imu_ground.datasets.report import warn_user
-from imu_ground.errors import ImuGroundError
+from imu_ground.errors import ImuGroundError, OptionError, warn_user
 from imu_ground.filters.estimator import as_egomotion
 from imu_ground.filters.extrinsics import Calibration, Extrinsic, load_calibration
 from imu_ground.filters.gains import DEFAULT_GAINS, GAIN_BAND, bandpass_gain_regression

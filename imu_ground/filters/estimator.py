@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Optional, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Optional, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 
@@ -60,6 +60,9 @@ def pitch_roll_from_normal(n_body):
     pitch = np.arctan2(-n[..., 0], np.hypot(n[..., 1], n[..., 2]))
     roll = np.arctan2(n[..., 1], n[..., 2])
     return pitch, roll
+
+
+_Estimate = TypeVar("_Estimate", bound="GroundEstimate")
 
 
 class GroundEstimate:
@@ -140,6 +143,15 @@ class GroundEstimate:
         if i is None:
             return status_reason(self.status_code)
         return status_reason(self.status_code, i[7], max(self.pitch_std, self.roll_std), i[8], i[9], i[12])
+
+    @classmethod
+    def copy_of(cls: type[_Estimate], est: GroundEstimate) -> _Estimate:
+        """A value copy of ``est`` as a ``cls`` (a subclass then sets its own fields): its pitch, roll, flag,
+        status and the data its arrays, 1-sigma and road are built from on access."""
+        out = cls.__new__(cls)
+        out.pitch, out.roll, out.valid, out.status_code = est.pitch, est.roll, est.valid, est.status_code
+        out._q, out._E, out._Rgs, out._P, out._info, out._road = est._q, est._E, est._Rgs, est._P, est._info, est._road
+        return out
 
     @classmethod
     def of_residual(cls, E: np.ndarray, P: np.ndarray, Rgs: Optional[np.ndarray] = None,

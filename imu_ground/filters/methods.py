@@ -3,9 +3,11 @@
 :data:`METHODS` maps a CLI name to a :class:`MethodSpec` (one-line description,
 factory, whether it needs an accelerometer, whether it smooths offline). Adding a
 method is one entry here: ``imu-ground estimate --method`` and ``batch`` take their
-choices and ``--help`` lines from it, :func:`imu_ground.pipeline.estimate_log` runs
-it, and the evaluation (:mod:`imu_ground.evaluation.runner`) compares it, adding only
-its own research baselines. :func:`default_method` picks the method for an input;
+choices and ``--help`` lines from it, ``imu-ground stream --method`` (and
+:class:`~imu_ground.pipeline.streaming.StreamingEstimator`, ``estimate --causal``) its
+:func:`live_methods`, :func:`imu_ground.pipeline.estimate_log` runs it, and the
+evaluation (:mod:`imu_ground.evaluation.runner`) compares it, adding only its own
+research baselines. :func:`default_method` picks the method for an input;
 :func:`estimate` runs one.
 A method accepts exactly the options of its estimator's constructor: anything
 else (e.g. ``Q``/``R`` for the suspension methods, whose noise is set by
@@ -18,12 +20,13 @@ import inspect
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from imu_ground.datasets.options import OptionError
+from imu_ground.errors import OptionError
 from imu_ground.filters.constant_normal import ConstantNormal
 from imu_ground.filters.ground import GroundNormalFilter
 from imu_ground.filters.suspension import SuspensionAwareFilter, SuspensionTrack
 
-__all__ = ["METHODS", "MethodSpec", "default_method", "estimate", "estimate_suspension_aware", "make_estimator"]
+__all__ = ["METHODS", "MethodSpec", "default_method", "estimate", "estimate_suspension_aware", "live_methods",
+           "make_estimator", "recalibrating_methods", "reference_methods"]
 
 
 @dataclass(frozen=True)
@@ -47,6 +50,9 @@ class MethodSpec:
     live : bool
         Runs live, sample by sample (:class:`~imu_ground.pipeline.streaming.StreamingEstimator`,
         ``imu-ground stream``, ``estimate --causal``).
+    reference : bool
+        A reference the reports compare every method with and draw bold beside the default
+        (the paper's method, the naive baseline): :func:`reference_methods`.
     """
     name: str
     description: str
@@ -55,6 +61,7 @@ class MethodSpec:
     smooth: bool
     speed_aided: bool = False
     live: bool = False
+    reference: bool = False
 
     @property
     def options(self) -> tuple:
@@ -97,17 +104,32 @@ METHODS: dict[str, MethodSpec] = {
         _Factory(GroundNormalFilter, GroundNormalFilter), False, False, live=True),
     "paper": MethodSpec(
         "paper", "the paper's method: random-walk invariant EKF, Q = 1e-2 I, R = I (Zhang et al. 2022)",
-        _Factory(GroundNormalFilter.paper, GroundNormalFilter), False, False, live=True),
+        _Factory(GroundNormalFilter.paper, GroundNormalFilter), False, False, live=True, reference=True),
     "naive": MethodSpec(
         "naive", "constant normal: the static extrinsic alone, pitch and roll 0 relative to the road "
         "(the paper's naive baseline, a reference to compare with)",
-        _Factory(ConstantNormal, ConstantNormal), False, False),
+        _Factory(ConstantNormal, ConstantNormal), False, False, reference=True),
 }
 
 
 def default_method(has_accel: bool) -> str:
     """The method to use by default: ``"suspension"`` with an accelerometer, ``"filter"`` without (poses)."""
     return "suspension" if has_accel else "filter"
+
+
+def live_methods() -> tuple[str, ...]:
+    """Names of the methods that run live (:attr:`MethodSpec.live`), in the registry's order."""
+    return tuple(name for name, spec in METHODS.items() if spec.live)
+
+
+def reference_methods() -> tuple[str, ...]:
+    """Names of the methods the reports compare every other with (:attr:`MethodSpec.reference`), in order."""
+    return tuple(name for name, spec in METHODS.items() if spec.reference)
+
+
+def recalibrating_methods() -> tuple[str, ...]:
+    """Names of the live methods that re-estimate the mount online (their estimator takes ``recalibrate_online``)."""
+    return tuple(name for name, spec in METHODS.items() if spec.live and "recalibrate_online" in spec.options)
 
 
 def make_estimator(name: str, **options):

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from imu_ground.datasets.report import MalformedFileError
+from imu_ground.errors import MalformedFileError
 from imu_ground.filters.extrinsics import Extrinsic
 
 __all__ = ["IMU_HEIGHT", "KITTI_CALIB_FILES", "KITTI_ROTATION_TOL", "read_kitti_calib", "kitti_extrinsics",

@@ -33,8 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from imu_ground.datasets import storage
-from imu_ground.datasets.report import warn_user
-from imu_ground.errors import ImuGroundError, require_extra
+from imu_ground.errors import ImuGroundError, require_extra, warn_user
 from imu_ground.pipeline.estimate import OptionError, check_options, estimate_to_files, requested_options
 from imu_ground.pipeline.input_checks import process_running
 from imu_ground.pipeline.output import (

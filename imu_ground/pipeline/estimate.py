@@ -24,14 +24,13 @@ from typing import IO, Any, NamedTuple
 import numpy as np
 
 from imu_ground.datasets import detect_format, read_imu, read_poses
-from imu_ground.datasets.options import READER_OPTIONS, OptionError, OptionText
+from imu_ground.errors import ImuGroundError, OptionError, warn_user
+from imu_ground.datasets.options import READER_OPTIONS, OptionText
 from imu_ground.datasets.poses import detect_pose_format, moves_along_z
-from imu_ground.datasets.report import warn_user
 from imu_ground.datasets.speed import SPEED_SOURCES, check_speed, frame_speed, log_speed, read_speed
 from imu_ground.datasets.storage import reads_sources
-from imu_ground.errors import ImuGroundError
 from imu_ground.filters import Extrinsic
-from imu_ground.filters.methods import METHODS, default_method
+from imu_ground.filters.methods import METHODS, default_method, live_methods, recalibrating_methods
 from imu_ground.imu import EgoMotion, imu_to_egomotion
 from imu_ground.pipeline.input_checks import (
     GRAVITY_REFUSE_DEG,
@@ -336,10 +335,10 @@ def estimate_log(path: str | Path | IO, *, format: str | None = None, method: st
                 takes = [m for m, spec in METHODS.items() if noise in spec.options]
                 raise OptionError(f"{{opt}} sets the noise of the {' and '.join(takes)} methods; method {name} does "
                                   f"not use it (add --method {takes[0]}, or leave it out)", noise)
-            if recalibrate_online and name != "suspension":
+            if recalibrate_online and name not in recalibrating_methods():
                 raise OptionError(f"{path}: {{opt}} re-estimates the mount, frame by frame, when the streaming "
                                   f"suspension method's mount monitor sees it move; method {name} cannot (use "
-                                  "--method suspension, or leave it out)", "recalibrate_online")
+                                  f"--method {recalibrating_methods()[0]}, or leave it out)", "recalibrate_online")
             frame_speeds, speed_info = _frame_speeds(speed, path, info.get("format"), imu if kind == "imu" else None,
                                                      em, name)
             if recalibrate_online:
@@ -572,14 +571,14 @@ def _causal_estimate(path, kind, fmt, method, rate, extrinsic, speed, Q, R, reca
 
     Returns ``track, egomotion, info, method name, speed description``.
     """
-    from imu_ground.pipeline.streaming import LIVE_METHODS, causal_track
+    from imu_ground.pipeline.streaming import causal_track
     if kind != "imu":
         raise OptionError(f"{path}: {{opt}} runs the live front end on IMU samples; a pose file has none (leave it "
                           "out)", "causal")
     name = resolve_method(method, True)
-    if name not in LIVE_METHODS:
+    if name not in live_methods():
         raise OptionError(f"{{opt}} {name} does not run live, so not with --causal; choose one of "
-                          f"{', '.join(LIVE_METHODS)} (or auto)", "method")
+                          f"{', '.join(live_methods())} (or auto)", "method")
     if Q is not None or R is not None:
         raise OptionError("{opt} is not a setting of the live estimator (leave it out with --causal)",
                           "Q" if Q is not None else "R")

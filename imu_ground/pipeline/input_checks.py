@@ -20,9 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from imu_ground.datasets.options import OptionError
-from imu_ground.datasets.report import warn_user
-from imu_ground.errors import ImuGroundError
+from imu_ground.errors import ImuGroundError, OptionError, warn_user
 from imu_ground.filters import Extrinsic
 
 __all__ = ["GRAVITY_REFUSE_DEG", "GRAVITY_WARN_DEG", "OptionError", "check_creatable", "check_gravity_direction",

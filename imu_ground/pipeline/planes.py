@@ -41,9 +41,8 @@ from typing import Any
 import numpy as np
 
 from imu_ground._version import __version__
-from imu_ground.datasets.options import OptionError
+from imu_ground.errors import ImuGroundError, OptionError
 from imu_ground.datasets.storage import is_url, local_name
-from imu_ground.errors import ImuGroundError
 from imu_ground.perception import load_camera
 from imu_ground.perception.camera import Camera
 from imu_ground.perception.plane import BevGrid, GroundPlane

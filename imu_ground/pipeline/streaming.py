@@ -53,11 +53,11 @@ from typing import Any
 import numpy as np
 
 from imu_ground._native import FRONT
-from imu_ground.datasets.options import OptionError
+from imu_ground.errors import OptionError
 from imu_ground.datasets.speed_buffer import SpeedBuffer
 from imu_ground.filters import Extrinsic
 from imu_ground.filters.estimator import GroundEstimate
-from imu_ground.filters.methods import METHODS
+from imu_ground.filters.methods import METHODS, default_method, live_methods, recalibrating_methods
 from imu_ground.imu.causal_standstill import (
     CausalGyroBias,
     StandstillBlocks,
@@ -83,7 +83,9 @@ __all__ = ["LIVE_METHODS", "MAX_FRAME_RATE", "MAX_GAP_FRAMES", "MAX_SAMPLE_PERIO
            "StreamingEstimator", "causal_track", "estimate_row", "replay"]
 
 #: Methods that run live (``"auto"`` is ``"suspension"``); the offline smoother and the naive baseline do not.
-LIVE_METHODS = tuple(name for name, spec in METHODS.items() if spec.live)
+#: The registry's :func:`~imu_ground.filters.methods.live_methods` when this module was imported (the checks
+#: ask the registry itself, so a method registered later runs live too).
+LIVE_METHODS = live_methods()
 #: Least time a frame waits for a speed sample at or after its end, s of IMU time (then: IMU only, said); a speed
 #: that arrives later after its stamps (measured) makes frames wait as long as it needs, at most
 #: :data:`~imu_ground.pipeline.live_speed.MAX_SPEED_WAIT`.
@@ -139,9 +141,7 @@ class FrameEstimate(GroundEstimate):
            camera: Any = None, frame_valid: bool = True) -> "FrameEstimate":
         """``est`` with the frame's times, speed, notes and camera; ``valid`` also False for a frame that spans
         a gap (``frame_valid``), as in a track."""
-        out = cls.__new__(cls)                       # a value copy of the filter's estimate (its __slots__)
-        out.pitch, out.roll, out._q, out._E, out._Rgs, out._P = est.pitch, est.roll, est._q, est._E, est._Rgs, est._P
-        out.status_code, out._info, out._road = est.status_code, est._info, est._road
+        out = cls.copy_of(est)                       # a value copy of the filter's estimate (its __slots__)
         out.valid = bool(est.valid and frame_valid)
         out.t, out.t_start, out.speed, out.notes = t, t_start, speed, notes
         out._camera, out._plane = camera, None
@@ -211,22 +211,25 @@ def _vec3(x: Any, name: str) -> tuple:
 
 
 def _live_method(method: str) -> str:
-    name = "suspension" if method == "auto" else method
-    if name not in LIVE_METHODS:
-        raise OptionError(f"{{opt}} {method!r} does not run live; choose auto or one of {', '.join(LIVE_METHODS)}",
+    name = default_method(True) if method == "auto" else method
+    live = live_methods()
+    if name not in live:
+        raise OptionError(f"{{opt}} {method!r} does not run live; choose auto or one of {', '.join(live)}",
                           "method")
     return name
 
 
 def _make_filter(name: str, ext: Extrinsic, rate: float, recalibrate_online: bool):
     kw: dict[str, Any] = {"extrinsic": ext, "on_invalid": "skip"}
-    if name == "suspension":
+    spec = METHODS[name]
+    if "frame_rate" in spec.options:
         kw["frame_rate"] = rate
-        if recalibrate_online:
-            kw["recalibrate_online"] = True
-    elif recalibrate_online:
-        raise OptionError(f"{{opt}} needs the suspension method, not {name}", "recalibrate_online")
-    return METHODS[name].make(**kw)
+    if recalibrate_online:
+        if name not in recalibrating_methods():
+            raise OptionError(f"{{opt}} needs the {' or '.join(recalibrating_methods())} method, not {name}",
+                              "recalibrate_online")
+        kw["recalibrate_online"] = True
+    return spec.make(**kw)
 
 
 # ------------------------------------------------------------------------------------------ the object

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from imu_ground import so3
-from imu_ground.datasets.options import OptionError
+from imu_ground.errors import OptionError
 from imu_ground.evaluation.simulate.imu_errors import (
     ImuErrorModel,
     imu_error_model,

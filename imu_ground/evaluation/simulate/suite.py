@@ -14,7 +14,7 @@ from imu_ground.evaluation.simulate.drive import (
     clean_drive,
     finish_drive,
 )
-from imu_ground.datasets.options import OptionError
+from imu_ground.errors import OptionError
 from imu_ground.evaluation.simulate.imu_errors import ImuErrorModel, imu_error_model
 from imu_ground.evaluation.simulate.road import ISO8608_CLASSES, RoadParams
 from imu_ground.evaluation.simulate.vehicle import SpeedParams, VehicleParams

@@ -1,10 +1,10 @@
-"""Regenerate the shipped synthetic example drive in ``datasets/fixtures/``.
+"""The shipped synthetic example drive in ``datasets/fixtures/``, made by the simulator, and the script that regenerates it.
 
 The files are a pure function of the seed below, so running this again gives the
 same numbers (and, on the same platform and library versions, the same bytes)::
 
-    python -m imu_ground.datasets.make_fixtures            # or: python datasets/make_fixtures.py
-    python -m imu_ground.datasets.make_fixtures --out /tmp/check
+    python -m imu_ground.evaluation.simulate.fixtures            # into the readers' fixtures folder
+    python -m imu_ground.evaluation.simulate.fixtures --out /tmp/check
 
 Files
 -----
@@ -30,11 +30,17 @@ import json
 from dataclasses import asdict
 from pathlib import Path
 
+import imu_ground.datasets
 from imu_ground.evaluation.simulate import RoadParams, SimResult, SpeedParams, simulate
 
-FIXTURES = Path(__file__).resolve().parent / "fixtures"
+__all__ = ["EXAMPLE_NAME", "EXAMPLE_SEED", "FIXTURES", "FLOAT_FORMAT", "example_drive", "main", "write_example"]
+
+#: The readers' fixtures folder (``datasets/fixtures`` in a checkout), where the example drive ships.
+FIXTURES = Path(imu_ground.datasets.__file__).resolve().parent / "fixtures"
+#: The example drive's file names (``NAME.csv``, ``NAME_truth.csv``, ``NAME_meta.json``) and its seed.
 EXAMPLE_NAME = "example_drive"
 EXAMPLE_SEED = 2024
+#: How the CSV files write a number.
 FLOAT_FORMAT = "%.10g"
 
 
@@ -49,7 +55,7 @@ def _meta(result: SimResult) -> dict:
     p = result.params
     return {
         "name": result.name,
-        "generator": "python -m imu_ground.datasets.make_fixtures",
+        "generator": "python -m imu_ground.evaluation.simulate.fixtures",
         "seed": result.seed,
         "duration_s": p["duration"],
         "imu_rate_hz": p["imu_rate"],
@@ -83,6 +89,7 @@ def write_example(out_dir: str | Path = FIXTURES) -> dict[str, Path]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Write the example drive (``--out DIR``, default :data:`FIXTURES`) and print its files; returns 0."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default=str(FIXTURES), help="output folder (default: %(default)s)")
     args = parser.parse_args(argv)
