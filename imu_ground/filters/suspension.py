@@ -284,11 +284,11 @@ class SuspensionAwareFilter:
         r = self._r
         self._Rgs = static_rotation(self.extrinsic)     # (an online re-estimation turns it)
         self._kernel = k = ResidualKernel(self.P0 * r, self.P0 * r, r, self.r_yaw * r, Rgs=self._Rgs)
-        self._kbuf, self._kstep, self._kcheck = k.buf, k.impl.step, k.impl.check   # the streaming fast path
+        self._kbuf, self._kstep, self._kcheck = k.buf, k.step, k.check   # the streaming fast path
         self.gravity_filter = GravityVelocityFilter(R0=self.R0, extrinsic=self.extrinsic,
                                                     lever_arm=self.lever_arm, **self._gravity_kw)
         # both kernels compiled: the frame goes to the gravity kernel as the float64 arrays the check took
-        self._arrays = k.native and self.gravity_filter.kernel is not gravity_kernel
+        self._arrays = self.gravity_filter.kernel is not gravity_kernel
         self.model = SuspensionModel(self.gains0, self.load_share, self.response, self.cross_gain,
                                      self.online_gains, self.gain_prior_seconds, self.gain_band, self._Rgs)
         self.sigma = SigmaModel(SUSPENSION_STD, CONVERGED_STD, self.load_share, self.cross_gain,
