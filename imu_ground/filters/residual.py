@@ -314,6 +314,20 @@ def check_many(d: np.ndarray, dv: Optional[np.ndarray], dt: Optional[np.ndarray]
     statuses_of(d, dv, dt, out)
 
 
+_LOADED: list = []
+
+
+def _load_compiled() -> None:
+    """Call the compiled step once per process, on a scratch buffer: numba's first call (its typing and the
+    cached machine code, a fraction of a second) then happens when the first filter is built, not at the
+    first frame of a live stream."""
+    if not _LOADED:
+        _LOADED.append(True)
+        scratch = np.array([1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0] + [0.0] * 12
+                           + [1.0, 1.0, 0.0, 1.0, 0.0, 0.0, float(RENORM_EVERY)] + [0.0] * 9)
+        step(scratch, np.eye(3), 0.0, 0.0, None, None, _NO_DV, 1.0)
+
+
 class ResidualKernel:
     """State ``(E, a, c[, R])`` of the residual filter in one buffer, and the kernel that advances it.
 
@@ -351,6 +365,7 @@ class ResidualKernel:
                   + [float(r_h), float(r_v), float(bool(up)), float(bool(follow_heading)),
                      float(bool(cumulative)), float(Rgs is not None), float(RENORM_EVERY)] + g)
         self.buf = np.array(values)
+        _load_compiled()
 
     def read_state(self, reader, name: str) -> list:
         """The entry ``name`` of a saved state (a :class:`~imu_ground.imu.warm_start.StateReader`), checked to

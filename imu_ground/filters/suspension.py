@@ -70,7 +70,6 @@ from typing import Optional, Sequence, Union
 import numpy as np
 
 from imu_ground import so3
-from imu_ground.filters import gravity_kernel
 from imu_ground.filters.estimator import GroundEstimate, SuspensionTrack, as_egomotion
 from imu_ground.filters.extrinsics import resolve_platform
 from imu_ground.filters.frame_checks import (
@@ -287,8 +286,6 @@ class SuspensionAwareFilter:
         self._kbuf, self._kstep, self._kcheck = k.buf, k.step, k.check   # the streaming fast path
         self.gravity_filter = GravityVelocityFilter(R0=self.R0, extrinsic=self.extrinsic,
                                                     lever_arm=self.lever_arm, **self._gravity_kw)
-        # both kernels compiled: the frame goes to the gravity kernel as the float64 arrays the check took
-        self._arrays = self.gravity_filter.kernel is not gravity_kernel
         self.model = SuspensionModel(self.gains0, self.load_share, self.response, self.cross_gain,
                                      self.online_gains, self.gain_prior_seconds, self.gain_band, self._Rgs)
         self.sigma = SigmaModel(SUSPENSION_STD, CONVERGED_STD, self.load_share, self.cross_gain,
@@ -465,13 +462,12 @@ class SuspensionAwareFilter:
         sp = math.nan if speed is None else float(speed)
         if not abs(sp) <= MAX_MEASURED_SPEED:
             sp = math.nan                           # infinite or absurd: no measurement (NaN stays NaN)
-        gd, gdv = (d, dv) if self._arrays else (d.ravel().tolist(), dv.tolist())   # (pure-Python twins: lists)
-        force, (ax, ay, _), v = gf.step_sensor(gd, gdv, dt, bool(stationary), bool(valid), sp)
+        force, (ax, ay, _), v = gf.step_sensor(d, dv, dt, bool(stationary), bool(valid), sp)
         fx, fy = force[0], force[1]
         stationary, valid = bool(stationary), bool(valid)
         road = None                                 # the road filter, from the first measured speed on
         if sp == sp or self.road_filter.gravity_filter is not None:
-            road = self.road_filter.step(gd, gdv, dt, stationary, valid, sp)
+            road = self.road_filter.step(d, dv, dt, stationary, valid, sp)
         self._time += dt
         mm = self.mount_monitor
         alarm = mm.alarm
