@@ -24,6 +24,7 @@ DISABLE_JIT_ENV = "NUMBA_DISABLE_JIT"
 
 F = TypeVar("F", bound=Callable[..., Any])
 
+_numba: Any
 try:                                            # pragma: no cover - which branch runs depends on the install
     import numba as _numba
 except ImportError:                             # pragma: no cover
@@ -54,7 +55,8 @@ def njit(function: F) -> F:
     """
     if not JIT_ENABLED:
         return function
-    return _numba.njit(cache=True, nogil=True)(function)  # type: ignore[no-any-return,union-attr]
+    compiled: F = _numba.njit(cache=True, nogil=True)(function)
+    return compiled
 
 
 def jitable(function: F) -> F:
@@ -78,4 +80,5 @@ def jitable(function: F) -> F:
     if not JIT_ENABLED:
         return function
     from numba.extending import register_jitable
-    return register_jitable(function)  # type: ignore[no-any-return]
+    registered: F = register_jitable(function)
+    return registered

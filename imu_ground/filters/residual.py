@@ -260,7 +260,7 @@ def step(buf: np.ndarray, d, q_h: float, q_v: float, tilt_x: Optional[float], ti
     has_dv = dv is not None
     dv = _checked(dv, _SHAPE_V, "delta_v") if has_dv else _NO_DV
     tilt = tilt_x is not None
-    status, row = _step(buf, d, float(q_h), float(q_v), tilt, float(tilt_x) if tilt else 0.0,
+    status, row = _step(buf, d, float(q_h), float(q_v), tilt, 0.0 if tilt_x is None else float(tilt_x),
                         0.0 if tilt_y is None else float(tilt_y), has_dv, dv, float(dt))
     return status if status else row
 

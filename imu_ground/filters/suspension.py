@@ -27,8 +27,7 @@ Pipeline, per frame k
    ``diag(q_k, q_k, q_yaw)``, ``q_k = ((q_time + q_dist |v_k|) dt_k + q_turn |psi_k|) sigma_e^2``;
    update with the rotation measurement ``Z_k = R_k Exp(-b_k)``, noise
    ``diag(sigma_e^2, sigma_e^2, r_yaw sigma_e^2)``. It runs as the scalar
-   :class:`~imu_ground.filters.residual.ResidualKernel` (the modelled tilt is its ``tilt_x, tilt_y``;
-   compiled when the C twin is built).
+   :class:`~imu_ground.filters.residual.ResidualKernel` (the modelled tilt is its ``tilt_x, tilt_y``).
 4. **Output** ``E_k = X_k^T R_k``: the modelled tilt plus the unmodelled fast body motion.
 
 Speed-aided mode (``run(..., speed=v)``, ``step(frame, speed=v_k)``): a measured forward
