@@ -49,6 +49,7 @@ I_INIT, I_WPREV, I_REJECTED, I_PRM, I_LEVER, I_EXTR = 37, 38, 42, 43, 50, 54
 I_RENORM, I_SMALL, I_LAST, I_QGAPG, BUF_LEN = 64, 65, 66, 125, 126
 _I_K, _I_Y, _I_S, _I_DT, _I_PRIOR = 68, 86, 89, 95, 98      # the last step's record (I_LAST + 1: its kind)
 _ZERO18 = (0.0,) * 18
+_F64 = np.dtype(np.float64)
 for _helper in (exp_flat, log_flat, mul_flat, mul_nt_flat, renormalise_flat, so3.transpose_flat):
     jitable(_helper)                    # so3's scalar kernels, compiled into the bodies below that call them
 
@@ -318,13 +319,21 @@ def frame(s, d9, dv3, dt, stationary, valid, speed, sensor):
     return (f0, f1, f2, a0, a1, a2, sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2])), d9, dv3
 
 
+@njit
+def _frame_of_arrays(s, d, dv, dt, stationary, valid, speed, sensor):
+    """:func:`frame` of ``d`` (9,) and ``dv`` (3,) float64 arrays: the forces and ``|v|``."""
+    o, _, _ = frame(s, (d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7], d[8]), (dv[0], dv[1], dv[2]), dt,
+                    stationary, valid, speed, sensor)
+    return o
+
+
 def _step(s: np.ndarray, d9, dv3, dt: float, stationary: bool, valid: bool, speed, out, sensor: bool):
     if not dt > 0.0:
         raise ValueError(f"dt must be > 0 s, got {dt!r}")
-    d = np.ascontiguousarray(d9, dtype=float).reshape(9)
-    dv = np.ascontiguousarray(dv3, dtype=float).reshape(3)
-    o, _, _ = frame(s, (d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7], d[8]), (dv[0], dv[1], dv[2]), float(dt),
-                    bool(stationary), bool(valid), math.nan if speed is None else float(speed), sensor)
+    d = d9.reshape(9) if type(d9) is np.ndarray and d9.dtype == _F64 else np.array(d9, dtype=float).reshape(9)
+    dv = dv3 if type(dv3) is np.ndarray and dv3.dtype == _F64 else np.array(dv3, dtype=float)
+    o = _frame_of_arrays(s, d, dv.reshape(3), float(dt), bool(stationary), bool(valid),
+                         math.nan if speed is None else float(speed), sensor)
     if out is None:
         return o[0:3], o[3:6], o[6]
     out[0:6] = s[0:6]
