@@ -321,24 +321,27 @@ def frame(s, d9, dv3, dt, stationary, valid, speed, sensor):
 
 @njit
 def _frame_of_arrays(s, d, dv, dt, stationary, valid, speed, sensor):
-    """:func:`frame` of ``d`` (9,) and ``dv`` (3,) float64 arrays: the forces and ``|v|``."""
-    o, _, _ = frame(s, (d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7], d[8]), (dv[0], dv[1], dv[2]), dt,
-                    stationary, valid, speed, sensor)
-    return o
+    """:func:`frame` of ``d`` (3, 3) or (9,) and ``dv`` (3,) float64 arrays: ``(f, a, |v|)``."""
+    d = d.reshape(9)
+    (f0, f1, f2, a0, a1, a2, sp), _, _ = frame(s, (d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7], d[8]),
+                                               (dv[0], dv[1], dv[2]), dt, stationary, valid, speed, sensor)
+    return (f0, f1, f2), (a0, a1, a2), sp
 
 
 def _step(s: np.ndarray, d9, dv3, dt: float, stationary: bool, valid: bool, speed, out, sensor: bool):
     if not dt > 0.0:
         raise ValueError(f"dt must be > 0 s, got {dt!r}")
-    d = d9.reshape(9) if type(d9) is np.ndarray and d9.dtype == _F64 else np.array(d9, dtype=float).reshape(9)
-    dv = dv3 if type(dv3) is np.ndarray and dv3.dtype == _F64 else np.array(dv3, dtype=float)
-    o = _frame_of_arrays(s, d, dv.reshape(3), float(dt), bool(stationary), bool(valid),
-                         math.nan if speed is None else float(speed), sensor)
+    if type(d9) is not np.ndarray or d9.dtype != _F64 or not d9.flags.c_contiguous:
+        d9 = np.array(d9, dtype=float)
+    if type(dv3) is not np.ndarray or dv3.dtype != _F64 or dv3.ndim != 1:
+        dv3 = np.array(dv3, dtype=float).reshape(3)
+    f, a, sp = _frame_of_arrays(s, d9, dv3, float(dt), stationary, valid, math.nan if speed is None else speed,
+                                sensor)
     if out is None:
-        return o[0:3], o[3:6], o[6]
+        return f, a, sp
     out[0:6] = s[0:6]
-    out[6:9], out[9:12] = o[3:6], o[0:3]
-    return o[6]
+    out[6:9], out[9:12] = a, f
+    return sp
 
 
 def step_frame(s: np.ndarray, d9, dv3, dt: float, stationary: bool, valid: bool, speed: float, out=None):

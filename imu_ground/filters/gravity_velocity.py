@@ -444,8 +444,8 @@ class GravityVelocityFilter:
             if delta_R.shape != (3, 3):
                 raise ValueError(f"delta_R must be one rotation, got shape {delta_R.shape}")
         d9 = delta_R.ravel().tolist()
-        dv = (delta_v if type(delta_v) is np.ndarray and delta_v.shape == (3,) else
-              np.asarray(delta_v, dtype=float).reshape(3)).tolist()
+        dva = np.asarray(delta_v, dtype=float).reshape(3)
+        dv = dva.tolist()
         dt = float(delta_t)
         problem = frame_problem(d9, dv, dt)
         if problem is not None:
@@ -453,7 +453,7 @@ class GravityVelocityFilter:
         if self._w.sync is not None:
             self._pull()
         e = np.empty(12)                                    # [v, g, acceleration, specific force]: four views
-        speed = self._step_sensor(self._s, d9, dv, dt, stationary, valid, speed, e)
+        speed = self._step_sensor(self._s, delta_R, dva, dt, stationary, valid, speed, e)
         return GravityEstimate(e[0:3], e[3:6], e[6:9], e[9:12], speed)
 
     # -- batch -------------------------------------------------------------------------------
