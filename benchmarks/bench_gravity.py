@@ -3,8 +3,7 @@
 Input: a synthetic drive (``imu_ground.evaluation.simulate``, nav-grade IMU,
 standstills included) preintegrated into 10 Hz frames and tiled to ``--frames``
 frames, sensor frame of a tilted mount with a lever arm (the suspension filter's
-configuration). Timed with the compiled kernel (``_gravity_native``) and, in the
-same run, with the pure-Python kernel (``gravity_kernel``, informative):
+configuration). Timed with the kernel (``gravity_kernel``, compiled by numba):
 
 - ``step``: the public streaming call (3x3 and 3-vector arrays, frame check);
 - ``step_body``: the plain-float fast path as ``SuspensionAwareFilter.step`` calls
@@ -12,8 +11,8 @@ same run, with the pure-Python kernel (``gravity_kernel``, informative):
 - ``run``: the whole drive (median of the repeats).
 
 Streaming figures are the median over >= 5 repeats of the per-frame mean; p99
-over every timed call. The run checks that streaming equals batch and that the
-two kernels agree, and prints the largest differences. The suspension filter's
+over every timed call. The run checks that streaming equals batch and prints the
+largest difference. The suspension filter's
 batch rate, which the gravity run bounds, is printed for information.
 
 Run: ``python benchmarks/bench_gravity.py [--frames N] [--stream-frames N] [--repeat R]``.
@@ -33,7 +32,7 @@ from imu_ground._native import PURE_PYTHON_ENV
 from imu_ground.evaluation.simulate import simulate
 from imu_ground.filters import gravity_kernel
 from imu_ground.filters.extrinsics import Extrinsic
-from imu_ground.filters.gravity_velocity import NATIVE, GravityVelocityFilter
+from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
 
 __all__ = ["rows", "main"]
@@ -45,7 +44,7 @@ STEP_TARGET_US = 4.0
 STEP_BODY_TARGET_US = 2.0
 RUN_TARGET_US = 1.0
 P99_FACTOR = 3.0
-KERNELS = {"C": NATIVE, "pure Python": gravity_kernel}
+KERNELS = {"compiled": gravity_kernel}
 
 
 def _frames(n: int) -> EgoMotion:
@@ -156,7 +155,7 @@ def rows(frames: int = 100_000, stream_frames: int = 20_000, repeat: int = 5) ->
             out.append(_row(f"GravityVelocityFilter ({label} kernel)", f"built ({PURE_PYTHON_ENV} set)" if off
                             else "built", float("nan"), "", passed=None if off else False))
             continue
-        timed = label == "C"
+        timed = label == "compiled"
         for name, make in callers.items():
             mean, p99, cpu = (v * 1e6 for v in _time_stream(make, kernel, n, repeat))
             target = f"<= {targets[name]:g} us, p99 <= {P99_FACTOR:g}x median" if timed else "informative"
@@ -166,13 +165,9 @@ def rows(frames: int = 100_000, stream_frames: int = 20_000, repeat: int = 5) ->
         out.append(_row(f"GravityVelocityFilter.run ({label})",
                         f"<= {RUN_TARGET_US:g} us/frame" if timed else "informative", run_us, "us/frame",
                         passed=bool(run_us <= RUN_TARGET_US) if timed else None, cpu=run_cpu))
-    kernel = NATIVE if NATIVE is not None else gravity_kernel
-    diff = _differences(em, min(n, 5000), kernel)
+    diff = _differences(em, min(n, 5000), gravity_kernel)
     out.append(_row("GravityVelocityFilter streaming == batch", "<= 1e-12 (m/s, m/s^2)", diff["stream"],
                     "max abs diff", passed=bool(diff["stream"] <= 1e-12)))
-    if NATIVE is not None:
-        out.append(_row("GravityVelocityFilter C == pure Python (run)", "<= 1e-12 (m/s, m/s^2, P)",
-                        diff["kernels"], "max abs diff", passed=bool(diff["kernels"] <= 1e-12)))
     try:
         from imu_ground.filters.suspension import SuspensionAwareFilter
     except ImportError:

@@ -18,7 +18,7 @@ import os
 from types import ModuleType
 from typing import Any, Callable, Optional, TypeVar, cast
 
-__all__ = ["njit", "JIT_ENABLED", "DISABLE_JIT_ENV"]
+__all__ = ["njit", "jitable", "JIT_ENABLED", "DISABLE_JIT_ENV"]
 
 #: numba's own environment switch: set to 1 before the first import, every :func:`njit` body runs interpreted.
 DISABLE_JIT_ENV = "NUMBA_DISABLE_JIT"
@@ -57,3 +57,28 @@ def njit(function: F) -> F:
     if not JIT_ENABLED or _numba is None:
         return function
     return cast(F, _numba.njit(cache=True, nogil=True)(function))
+
+
+def jitable(function: F) -> F:
+    """Make ``function`` callable from :func:`njit` bodies, compiled into them, and leave it plain Python otherwise.
+
+    For small helpers shared by compiled bodies and by plain Python callers (e.g. the
+    scalar rotation kernels of :mod:`imu_ground.so3`): a Python caller gets the function
+    itself (no dispatch), a compiled body inlines its compiled form (numba's
+    ``register_jitable``). The same rules for the body as :func:`njit`.
+
+    Parameters
+    ----------
+    function : callable
+        The one body of the helper.
+
+    Returns
+    -------
+    callable
+        ``function`` itself.
+    """
+    if not JIT_ENABLED:
+        return function
+    from numba.extending import register_jitable
+    registered: F = register_jitable(function)
+    return registered

@@ -10,9 +10,6 @@ from here and fall back to their Python twin when it is None:
 =======================  =========================================  =========================================
 name                     compiled module                            Python twin
 =======================  =========================================  =========================================
-:data:`RESIDUAL`         ``imu_ground.filters._residual_native``    :mod:`imu_ground.filters.residual`, and
-                                                                    :mod:`imu_ground.filters.frame_checks`
-:data:`GRAVITY`          ``imu_ground.filters._gravity_native``     :mod:`imu_ground.filters.gravity_kernel`
 :data:`EKF`              ``imu_ground.filters._ekf_native``         :mod:`imu_ground.filters.invariant_ekf_kernel`
 :data:`PREINTEGRATION`   ``imu_ground.imu._preint_native``          :mod:`imu_ground.imu.preint_kernel`,
                                                                     :mod:`imu_ground.imu.preint_stream`
@@ -30,9 +27,8 @@ Equality rule between twins (the one the tests check, all with
 to :data:`TWIN_RTOL` (``1e-12``) relative to ``max(1, |value|)``, with NaN and
 infinities in the same places and integers and flags exactly equal. Most paths
 agree bit for bit (the C is the Python formula term for term, compiled without
-FMA contraction), but the vectorised numpy steps of some Python batch paths
-(e.g. the frame-mean forces of ``gravity_kernel.run_frames``) round differently
-in the last bit, so the rule promised is the tolerance.
+FMA contraction), but vectorised numpy steps of a Python batch path may round differently in the
+last bit, so the rule promised is the tolerance.
 
 Environment
 -----------
@@ -54,7 +50,7 @@ from typing import Any, Dict, Optional
 import numpy as np
 
 __all__ = ["load_native", "native_kernels", "kernels_in_use", "PURE_PYTHON_ENV", "REQUIRE_NATIVE_ENV",
-           "RESIDUAL", "GRAVITY", "EKF", "PREINTEGRATION", "FRONT", "STANDSTILL", "PREINT_BATCH", "STREAMING_KERNELS",
+           "EKF", "PREINTEGRATION", "FRONT", "STANDSTILL", "PREINT_BATCH", "STREAMING_KERNELS",
            "TWIN_RTOL", "assert_twins_equal"]
 
 PURE_PYTHON_ENV = "IMU_GROUND_PURE_PYTHON"
@@ -74,7 +70,7 @@ def load_native(name: str) -> Optional[ModuleType]:
     Parameters
     ----------
     name : str
-        Dotted module name, e.g. ``"imu_ground.filters._residual_native"``.
+        Dotted module name, e.g. ``"imu_ground.filters._ekf_native"``.
 
     Returns
     -------
@@ -93,8 +89,6 @@ def load_native(name: str) -> Optional[ModuleType]:
 
 
 #: The compiled twins of the streaming path (module or None), each imported once, here.
-RESIDUAL = load_native("imu_ground.filters._residual_native")
-GRAVITY = load_native("imu_ground.filters._gravity_native")
 EKF = load_native("imu_ground.filters._ekf_native")
 PREINTEGRATION = load_native("imu_ground.imu._preint_native")
 FRONT = load_native("imu_ground.imu._front_native")

@@ -9,8 +9,8 @@ Module map (each imports only the ones above it, and the imu layer below):
 - ``estimator``: the estimator protocol, ``GroundEstimate``, ``GroundTrack``, ``as_egomotion``;
 - ``frame_checks``: the checks of the frames an estimator is given, its ``on_invalid`` policy;
 - ``residual``: the scalar residual filter both invariant-EKF estimators run on;
-- ``invariant_ekf_kernel``, ``gravity_kernel``: the pure-Python per-frame kernels of the invariant
-  EKF and of the gravity/velocity filter (references of, and fallbacks for, the C twins);
+- ``invariant_ekf_kernel``, ``gravity_kernel``: the per-frame kernels of the invariant EKF and of the
+  gravity/velocity filter;
 - ``invariant_ekf``, ``gravity_velocity``: the filters the estimators are built from;
 - ``road``: road grade and bank relative to gravity (a gravity/velocity filter of their own);
 - ``mount_monitor``: a sensor mount that moved (status ``degraded``); ``recalibration``: the record and
@@ -23,9 +23,9 @@ Module map (each imports only the ones above it, and the imu layer below):
   static extrinsic alone);
 - ``methods``: the one registry of the estimators by CLI name; ``calibration``: ``calibrate`` a platform.
 
-Compiled kernels (optional, built by ``setup.py`` when a C compiler is available;
-:mod:`imu_ground._native`): ``_residual_native``, ``_gravity_native``, ``_ekf_native``,
-each the C twin of a pure-Python kernel above, tested equal to it.
+The loops of ``frame_checks``, ``residual`` and ``gravity_kernel`` are written once and compiled by numba
+(:mod:`imu_ground._jit`); the invariant EKF's predict/update still has a C twin, ``_ekf_native``
+(optional, built by ``setup.py`` when a C compiler is available; :mod:`imu_ground._native`).
 """
 from imu_ground._lazy import lazy_exports
 

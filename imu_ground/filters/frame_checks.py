@@ -1,10 +1,10 @@
 """Checks of the frames a streaming estimator is given, and what it does with a bad one.
 
 A frame is an ego-motion increment: ``delta_R`` (sensor_{k-1} <- sensor_k, a
-rotation), ``delta_v`` (m/s, sensor frame, optional) and ``delta_t`` (s). The scalar
-check :func:`frame_status` has a compiled twin (``check``/``check_many`` of
-:data:`imu_ground._native.RESIDUAL`, run by the estimators' kernels); the array
-checks (:func:`frame_statuses`, :func:`checked_frames`) serve the batch ``run``;
+rotation), ``delta_v`` (m/s, sensor frame, optional) and ``delta_t`` (s). The check
+of one frame is one compiled body, :func:`status_of` (:func:`frame_status` on sequences),
+run by the estimators' kernels on every streamed frame and, over a whole batch, by
+:func:`frame_statuses` (:func:`checked_frames` serves the batch ``run``);
 :func:`checked_frame` / :func:`bad_frame` apply the estimators' ``on_invalid``
 policy (:data:`ON_INVALID`) with one message format (:func:`bad_frame_error`).
 """
@@ -16,12 +16,12 @@ from typing import Optional
 
 import numpy as np
 
-from imu_ground import _native
+from imu_ground._jit import njit
 from imu_ground.errors import ImuGroundError
 from imu_ground.so3 import as_rotations
 
 __all__ = ["frames_of", "ON_INVALID", "ORTHO_TOL", "BAD_ROTATION", "BAD_DELTA_V", "BAD_DELTA_T", "MAX_DELTA_V", "MIN_DELTA_T",
-           "MAX_DELTA_T", "frame_status", "frame_problem",
+           "MAX_DELTA_T", "status_of", "statuses_of", "frame_status", "frame_problem",
            "frame_problems", "frame_statuses", "checked_frames", "check_on_invalid", "bad_frame_error",
            "checked_frame", "coerce_frame", "bad_frame", "static_rotation", "frame_where", "hold_skipped"]
 
@@ -39,14 +39,47 @@ MIN_DELTA_T = 1e-6
 MAX_DELTA_T = 1e6
 #: :func:`frame_status` codes of a bad frame.
 BAD_ROTATION, BAD_DELTA_V, BAD_DELTA_T = 1, 2, 3
-_NATIVE = _native.RESIDUAL                    # its check/check_many: the compiled twin of frame_status
+@njit
+def status_of(d, has_dv, dv, delta_t):
+    """:func:`frame_status` of ``d`` (ndarray (3, 3) float64), ``dv`` (ndarray (3,), read when ``has_dv``) and
+    ``delta_t`` (float, s): the one compiled check of a frame."""
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = (d[0, 0], d[0, 1], d[0, 2], d[1, 0], d[1, 1], d[1, 2],
+                                                   d[2, 0], d[2, 1], d[2, 2])
+    lo, hi = 1.0 - ORTHO_TOL, 1.0 + ORTHO_TOL
+    if not (lo <= r00 * r00 + r10 * r10 + r20 * r20 <= hi and lo <= r01 * r01 + r11 * r11 + r21 * r21 <= hi
+            and lo <= r02 * r02 + r12 * r12 + r22 * r22 <= hi
+            and -ORTHO_TOL <= r00 * r01 + r10 * r11 + r20 * r21 <= ORTHO_TOL
+            and -ORTHO_TOL <= r00 * r02 + r10 * r12 + r20 * r22 <= ORTHO_TOL
+            and -ORTHO_TOL <= r01 * r02 + r11 * r12 + r21 * r22 <= ORTHO_TOL
+            and r00 * (r11 * r22 - r12 * r21) - r01 * (r10 * r22 - r12 * r20) + r02 * (r10 * r21 - r11 * r20) > 0.0):
+        return BAD_ROTATION                         # (NaN fails every comparison)
+    if has_dv and not (abs(dv[0]) <= MAX_DELTA_V and abs(dv[1]) <= MAX_DELTA_V and abs(dv[2]) <= MAX_DELTA_V):
+        return BAD_DELTA_V                          # (NaN fails the comparison)
+    if not MIN_DELTA_T <= delta_t <= MAX_DELTA_T:
+        return BAD_DELTA_T
+    return 0
+
+
+@njit
+def _statuses(d, has_dv, dv, has_dt, dt, out):
+    for k in range(d.shape[0]):
+        out[k] = status_of(d[k], has_dv, dv[k] if has_dv else dv[0], dt[k] if has_dt else 1.0)
+
+
+_NO_FRAMES = np.zeros((1, 3))
+
+
+def statuses_of(d: np.ndarray, dv: Optional[np.ndarray], dt: Optional[np.ndarray], out: np.ndarray) -> None:
+    """:func:`status_of` of every frame into ``out`` (uint8 (F,)); ``d`` (F, 3, 3), ``dv`` (F, 3), ``dt``
+    (F,) float64, C-contiguous (``dv``, ``dt``: None when not checked)."""
+    _statuses(d, dv is not None, _NO_FRAMES if dv is None else dv, dt is not None,
+              _NO_FRAMES[0] if dt is None else dt, out)
 
 
 def frame_status(d9, delta_v=None, delta_t: float = 1.0) -> int:
-    """What is wrong with one frame, as a code (the scalar check the streaming estimators run).
+    """What is wrong with one frame, as a code (the check the streaming estimators run: :func:`status_of`).
 
-    The compiled twin is ``check`` of :mod:`imu_ground.filters.residual` (same
-    comparisons, same results); :func:`frame_problem` turns a code into the message.
+    :func:`frame_problem` turns a code into the message.
 
     Parameters
     ----------
@@ -65,27 +98,14 @@ def frame_status(d9, delta_v=None, delta_t: float = 1.0) -> int:
         beyond :data:`MAX_DELTA_V`) or
         :data:`BAD_DELTA_T` (not a number of seconds from :data:`MIN_DELTA_T` to :data:`MAX_DELTA_T`).
     """
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = d9
-    lo, hi = 1.0 - ORTHO_TOL, 1.0 + ORTHO_TOL
-    if not (lo <= r00 * r00 + r10 * r10 + r20 * r20 <= hi and lo <= r01 * r01 + r11 * r11 + r21 * r21 <= hi
-            and lo <= r02 * r02 + r12 * r12 + r22 * r22 <= hi
-            and -ORTHO_TOL <= r00 * r01 + r10 * r11 + r20 * r21 <= ORTHO_TOL
-            and -ORTHO_TOL <= r00 * r02 + r10 * r12 + r20 * r22 <= ORTHO_TOL
-            and -ORTHO_TOL <= r01 * r02 + r11 * r12 + r21 * r22 <= ORTHO_TOL
-            and r00 * (r11 * r22 - r12 * r21) - r01 * (r10 * r22 - r12 * r20) + r02 * (r10 * r21 - r11 * r20) > 0.0):
-        return BAD_ROTATION                         # (NaN fails every comparison)
-    if delta_v is not None:
-        vx, vy, vz = delta_v
-        if not (abs(vx) <= MAX_DELTA_V and abs(vy) <= MAX_DELTA_V and abs(vz) <= MAX_DELTA_V):
-            return BAD_DELTA_V                      # (NaN fails the comparison)
-    if not MIN_DELTA_T <= delta_t <= MAX_DELTA_T:
-        return BAD_DELTA_T
-    return 0
+    d = np.array(d9, dtype=float).reshape(3, 3)
+    dv = _NO_FRAMES[0] if delta_v is None else np.array(delta_v, dtype=float).reshape(3)
+    return int(status_of(d, delta_v is not None, dv, float(delta_t)))
 
 
 def frame_problem(d9, delta_v=None, delta_t: float = 1.0, status: Optional[int] = None) -> Optional[str]:
-    """What is wrong with one frame, or None (the message of :func:`frame_status`; the streaming
-    twin of :func:`frame_problems`).
+    """What is wrong with one frame, or None (the message of :func:`frame_status`; one frame of
+    :func:`frame_problems`).
 
     Parameters
     ----------
@@ -118,11 +138,8 @@ def _rotation_message(d9) -> str:
 
 
 def frame_statuses(d: np.ndarray, dv: Optional[np.ndarray] = None, dt: Optional[np.ndarray] = None) -> np.ndarray:
-    """:func:`frame_status` of every frame: the batch check.
-
-    With the compiled residual kernel, its ``check_many`` (the same comparisons
-    as the streaming check, so a batch flags exactly the frames a stream would);
-    otherwise a vectorised numpy check (``|R^T R - I|`` and ``det``).
+    """:func:`frame_status` of every frame: the batch check (:func:`status_of` on each frame, so a batch
+    flags exactly the frames a stream would).
 
     Parameters
     ----------
@@ -145,17 +162,7 @@ def frame_statuses(d: np.ndarray, dv: Optional[np.ndarray] = None, dt: Optional[
     out = np.zeros(n, dtype=np.uint8)
     if not n:
         return out
-    if _NATIVE is not None:
-        _NATIVE.check_many(d, dv, dt, out)
-        return out
-    with np.errstate(invalid="ignore", over="ignore"):
-        err = np.abs(np.swapaxes(d, 1, 2) @ d - np.eye(3)).max(axis=(1, 2))
-        det = np.linalg.det(d)
-        if dt is not None:
-            out[~((dt >= MIN_DELTA_T) & (dt <= MAX_DELTA_T))] = BAD_DELTA_T
-        if dv is not None:
-            out[~(np.abs(dv) <= MAX_DELTA_V).all(axis=1)] = BAD_DELTA_V
-        out[~((err <= ORTHO_TOL) & (det > 0.0))] = BAD_ROTATION
+    statuses_of(d, dv, dt, out)
     return out
 
 
@@ -165,7 +172,7 @@ def _problem_at(k: int, status: int, d: np.ndarray, dv, dt) -> Optional[str]:
 
 
 def frame_problems(d: np.ndarray, dv: Optional[np.ndarray] = None, dt: Optional[np.ndarray] = None) -> list:
-    """Per frame, what is wrong with it (None for a good frame); the batch twin of :func:`frame_problem`.
+    """Per frame, what is wrong with it (None for a good frame); :func:`frame_problem` of every frame.
 
     Parameters
     ----------
@@ -230,7 +237,7 @@ def checked_frame(check, frame, delta_R, delta_v, delta_t: float, on_invalid: st
     """A streamed frame's ``delta_R`` (3x3) and ``delta_v`` (3,) as float64 arrays, if the frame passes the check.
 
     The first step of every estimator's ``step`` on its general path: the
-    kernel's ``check`` (C or Python twin of :func:`frame_status`), after
+    kernel's ``check`` (:func:`status_of`), after
     :func:`coerce_frame` when the inputs are not float64 arrays already; a bad
     frame raises or is to be skipped (:func:`bad_frame`).
 

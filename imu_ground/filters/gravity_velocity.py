@@ -5,10 +5,9 @@ gyro-integrated body frame at the start (``R0 = R_{w<-body_0}``), body ``b`` FLU
 (x forward, y left, z up), gravity stored as its reaction (+9.81 m/s^2 up at rest).
 
 One per-frame kernel serves :meth:`GravityVelocityFilter.step` and ``run``, so the
-two cannot drift: the compiled ``imu_ground.filters._gravity_native`` when it is
-built, else its pure-Python twin :mod:`imu_ground.filters.gravity_kernel` (the
-reference, :func:`_predict_update`: unrolled arithmetic on the 21 unique
-covariance entries); the filter's whole state is the kernel's flat buffer.
+two cannot drift: :mod:`imu_ground.filters.gravity_kernel` (unrolled arithmetic on the
+21 unique covariance entries, compiled by :func:`imu_ground._jit.njit`); the filter's
+whole state is the kernel's flat buffer.
 """
 from __future__ import annotations
 
@@ -18,19 +17,16 @@ from typing import NamedTuple, Optional, Sequence, Union
 
 import numpy as np
 
-from imu_ground import _native
 from imu_ground.filters import gravity_kernel
 from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.filters.frame_checks import frame_problem
-from imu_ground.filters.gravity_kernel import (  # noqa: F401 (reference)
+from imu_ground.filters.gravity_kernel import (
     _UPPER21,
     I_EXTR,
     I_LAST,
     I_QGAPG,
     I_REJECTED,
     I_WPREV,
-    _predict_update,
-    _velocity_update,
     body_forces,
     body_increments,
     new_state,
@@ -41,10 +37,8 @@ from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
 from imu_ground.imu.warm_start import STATE_VERSION, StateReader, buffer_like, pack_state, unpack_state
 from imu_ground.so3 import as_rotations
 
-__all__ = ["NATIVE", "GravityEstimate", "GravityTrack", "GravityVelocityFilter", "egomotion_arrays"]
+__all__ = ["GravityEstimate", "GravityTrack", "GravityVelocityFilter", "egomotion_arrays"]
 
-#: The compiled kernel module, or None (not built, or ``IMU_GROUND_PURE_PYTHON=1``): the pure-Python twin then.
-NATIVE = _native.GRAVITY
 _I3 = np.eye(3)
 _I_GXX, _I_GYY = 21, 24                 # the kernel's state: P[3, 3] and P[4, 4] (gravity_kernel's layout)
 
@@ -173,8 +167,7 @@ class GravityVelocityFilter:
     zupt_rejected : int
         Standstill flags overruled by the gate so far.
     kernel : module
-        The per-frame kernel (class attribute): :data:`NATIVE` when built, else
-        :mod:`~imu_ground.filters.gravity_kernel`; set it on an instance and :meth:`reset` to compare them.
+        The per-frame kernel (class attribute): :mod:`~imu_ground.filters.gravity_kernel`.
 
     Notes
     -----
@@ -183,7 +176,7 @@ class GravityVelocityFilter:
     :meth:`run_body`, :func:`egomotion_arrays`.
     """
 
-    kernel = NATIVE if NATIVE is not None else gravity_kernel
+    kernel = gravity_kernel
 
     def __init__(self, sigma_nhc: float = 0.3, sigma_zupt: float = 0.05, q_v: float = 0.05,
                  q_g: float = 1e-6, q_gap: float = 1.0, q_gap_g: float = 0.1, sigma_v0: float = 30.0,
@@ -220,7 +213,7 @@ class GravityVelocityFilter:
         s = new_state(v + g, p, self.R0.ravel().tolist(), prm, self._g0 is not None, self._lever,
                       None if self._identity_extrinsic else self._rgs9, self.q_gap_g ** 2)
         k = self.kernel
-        self._s = s if k is gravity_kernel else np.array(s)   # the kernel's state buffer (gravity_kernel)
+        self._s = np.array(s)                   # the kernel's state buffer (gravity_kernel)
         self._step_frame, self._step_sensor, self._run_frames = k.step_frame, k.step_sensor, k.run_frames
         self._to_body = k.to_body
         # arrays handed out by x / P / cumulative (_pull): one object for filterpy's Saver
@@ -263,14 +256,13 @@ class GravityVelocityFilter:
     def _last_step(self):
         """``(kind, K, y, S, dt, qv, qg, prior)`` of the last frame (kind 0 constraint, 1 ZUPT, 2 speed)."""
         s = self._s
-        if s[I_LAST]:                           # (layout: gravity_kernel; a list or an array of floats)
-            last = s[I_LAST:I_LAST + 59]
-            last = last if type(last) is list else last.tolist()
+        if s[I_LAST]:                           # (layout: gravity_kernel)
+            last = s[I_LAST:I_LAST + 59].tolist()
             kind = int(last[1])
             nk, ny, ns = (18, 3, 6) if kind else (12, 2, 3)
             return (kind, tuple(last[2:2 + nk]), tuple(last[20:20 + ny]), tuple(last[23:23 + ns]), *last[29:32],
                     tuple(last[32:59]))
-        return (0, (0.0,) * 12, (0.0, 0.0), (0.0,) * 3, 0.0, 0.0, 0.0, tuple(s[:27]))
+        return (0, (0.0,) * 12, (0.0, 0.0), (0.0,) * 3, 0.0, 0.0, 0.0, tuple(s[:27].tolist()))
 
     def _update_matrices(self):
         """``H, R, K, y, S`` of the last update in body axes (forward row/column zero for the NHC)."""
@@ -387,18 +379,15 @@ class GravityVelocityFilter:
     def horizontal_gravity_variance(self) -> float:
         """``P[3, 3] + P[4, 4]``: the variances of gravity's two world-horizontal components, (m/s^2)^2."""
         s = self._s
-        return s.item(_I_GXX) + s.item(_I_GYY) if type(s) is np.ndarray else s[_I_GXX] + s[_I_GYY]
+        return s.item(_I_GXX) + s.item(_I_GYY)
 
     def gravity_snapshot(self) -> tuple:
         """``(g, R, p6)`` as plain floats: the gravity reaction (world frame, m/s^2), the attitude world <- body
         (row-major 9) and the gravity covariance's unique entries ``(xx, xy, xz, yy, yz, zz)``."""
         if self._w.sync is not None:
             self._pull()
-        s = self._s
-        if type(s) is np.ndarray:                   # (the compiled kernel's buffer: Python floats, not numpy's)
-            s = s[3:36].tolist()
-            return tuple(s[0:3]), tuple(s[24:33]), tuple(s[18:24])
-        return tuple(s[3:6]), tuple(s[27:36]), (s[21], s[22], s[23], s[24], s[25], s[26])
+        s = self._s[3:36].tolist()                  # (Python floats, not numpy's)
+        return tuple(s[0:3]), tuple(s[24:33]), tuple(s[18:24])
 
     def set_mount(self, Rgs: np.ndarray, turn: Optional[np.ndarray] = None,
                   direction: Optional[np.ndarray] = None) -> None:
@@ -455,8 +444,8 @@ class GravityVelocityFilter:
             if delta_R.shape != (3, 3):
                 raise ValueError(f"delta_R must be one rotation, got shape {delta_R.shape}")
         d9 = delta_R.ravel().tolist()
-        dv = (delta_v if type(delta_v) is np.ndarray and delta_v.shape == (3,) else
-              np.asarray(delta_v, dtype=float).reshape(3)).tolist()
+        dva = np.asarray(delta_v, dtype=float).reshape(3)
+        dv = dva.tolist()
         dt = float(delta_t)
         problem = frame_problem(d9, dv, dt)
         if problem is not None:
@@ -464,7 +453,7 @@ class GravityVelocityFilter:
         if self._w.sync is not None:
             self._pull()
         e = np.empty(12)                                    # [v, g, acceleration, specific force]: four views
-        speed = self._step_sensor(self._s, d9, dv, dt, stationary, valid, speed, e)
+        speed = self._step_sensor(self._s, delta_R, dva, dt, stationary, valid, speed, e)
         return GravityEstimate(e[0:3], e[3:6], e[6:9], e[9:12], speed)
 
     # -- batch -------------------------------------------------------------------------------

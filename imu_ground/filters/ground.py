@@ -20,8 +20,8 @@ Pipeline, per frame k
 Steps 2-4 run on one of two engines, chosen once from the noise settings (the
 filter's ``step``, ``run`` and filterpy-style attributes are the engine's):
 with noise symmetric about the up axis (the defaults and the paper's) the scalar
-:class:`~imu_ground.filters.residual.ResidualKernel` (``_ResidualEngine``; compiled
-when its C twin is built, the same numbers either way); with other settings (the
+:class:`~imu_ground.filters.residual.ResidualKernel` (``_ResidualEngine``; compiled by
+:func:`imu_ground._jit.njit`); with other settings (the
 reference code's forward-axis measurement, general covariances) an
 :class:`~imu_ground.filters.invariant_ekf.InvariantEKF` frame by frame (``_EkfEngine``).
 """
@@ -336,7 +336,7 @@ class _ResidualEngine:
 
     def __init__(self, flt: GroundNormalFilter) -> None:
         self._f, self._kernel = flt, flt._kernel
-        self._buf, self._kstep = flt._kernel.buf, flt._kernel.impl.step    # the streaming fast path
+        self._buf, self._kstep = flt._kernel.buf, flt._kernel.step    # the streaming fast path
 
     @property
     def cumulative(self) -> np.ndarray:
@@ -428,7 +428,7 @@ class _EkfEngine:
     def step(self, frame, d, dv, dt: float) -> GroundEstimate:
         """One frame (:meth:`GroundNormalFilter.step`): checked by the kernel's check, then one EKF frame."""
         f = self._f
-        checked = checked_frame(f._kernel.impl.check, frame, d, dv, dt, f.on_invalid, f._frames)
+        checked = checked_frame(f._kernel.check, frame, d, dv, dt, f.on_invalid, f._frames)
         if checked is None:
             return GroundEstimate.of_residual(self.residual, self.P.copy(), f._Rgs, valid=False)
         f._frames += 1

@@ -27,8 +27,7 @@ Pipeline, per frame k
    ``diag(q_k, q_k, q_yaw)``, ``q_k = ((q_time + q_dist |v_k|) dt_k + q_turn |psi_k|) sigma_e^2``;
    update with the rotation measurement ``Z_k = R_k Exp(-b_k)``, noise
    ``diag(sigma_e^2, sigma_e^2, r_yaw sigma_e^2)``. It runs as the scalar
-   :class:`~imu_ground.filters.residual.ResidualKernel` (the modelled tilt is its ``tilt_x, tilt_y``;
-   compiled when the C twin is built).
+   :class:`~imu_ground.filters.residual.ResidualKernel` (the modelled tilt is its ``tilt_x, tilt_y``).
 4. **Output** ``E_k = X_k^T R_k``: the modelled tilt plus the unmodelled fast body motion.
 
 Speed-aided mode (``run(..., speed=v)``, ``step(frame, speed=v_k)``): a measured forward
@@ -70,7 +69,6 @@ from typing import Optional, Sequence, Union
 import numpy as np
 
 from imu_ground import so3
-from imu_ground.filters import gravity_kernel
 from imu_ground.filters.estimator import GroundEstimate, SuspensionTrack, as_egomotion
 from imu_ground.filters.extrinsics import resolve_platform
 from imu_ground.filters.frame_checks import (
@@ -284,11 +282,9 @@ class SuspensionAwareFilter:
         r = self._r
         self._Rgs = static_rotation(self.extrinsic)     # (an online re-estimation turns it)
         self._kernel = k = ResidualKernel(self.P0 * r, self.P0 * r, r, self.r_yaw * r, Rgs=self._Rgs)
-        self._kbuf, self._kstep, self._kcheck = k.buf, k.impl.step, k.impl.check   # the streaming fast path
+        self._kbuf, self._kstep, self._kcheck = k.buf, k.step, k.check   # the streaming fast path
         self.gravity_filter = GravityVelocityFilter(R0=self.R0, extrinsic=self.extrinsic,
                                                     lever_arm=self.lever_arm, **self._gravity_kw)
-        # both kernels compiled: the frame goes to the gravity kernel as the float64 arrays the check took
-        self._arrays = k.native and self.gravity_filter.kernel is not gravity_kernel
         self.model = SuspensionModel(self.gains0, self.load_share, self.response, self.cross_gain,
                                      self.online_gains, self.gain_prior_seconds, self.gain_band, self._Rgs)
         self.sigma = SigmaModel(SUSPENSION_STD, CONVERGED_STD, self.load_share, self.cross_gain,
@@ -465,13 +461,12 @@ class SuspensionAwareFilter:
         sp = math.nan if speed is None else float(speed)
         if not abs(sp) <= MAX_MEASURED_SPEED:
             sp = math.nan                           # infinite or absurd: no measurement (NaN stays NaN)
-        gd, gdv = (d, dv) if self._arrays else (d.ravel().tolist(), dv.tolist())   # (pure-Python twins: lists)
-        force, (ax, ay, _), v = gf.step_sensor(gd, gdv, dt, bool(stationary), bool(valid), sp)
+        force, (ax, ay, _), v = gf.step_sensor(d, dv, dt, bool(stationary), bool(valid), sp)
         fx, fy = force[0], force[1]
         stationary, valid = bool(stationary), bool(valid)
         road = None                                 # the road filter, from the first measured speed on
         if sp == sp or self.road_filter.gravity_filter is not None:
-            road = self.road_filter.step(gd, gdv, dt, stationary, valid, sp)
+            road = self.road_filter.step(d, dv, dt, stationary, valid, sp)
         self._time += dt
         mm = self.mount_monitor
         alarm = mm.alarm

@@ -297,7 +297,7 @@ def exp_flat(x: float, y: float, z: float) -> tuple:
     """:func:`exp` of the rotation vector ``(x, y, z)`` (rad) as a row-major 9-tuple (NaN: angle not finite)."""
     t2 = x * x + y * y + z * z
     if not math.isfinite(t2):           # an infinite angle (or one whose square overflows) has no rotation
-        return (math.nan,) * 9
+        return (math.nan, math.nan, math.nan, math.nan, math.nan, math.nan, math.nan, math.nan, math.nan)
     if t2 < SMALL_ANGLE * SMALL_ANGLE:
         a = 1.0 - t2 / 6.0 + t2 * t2 / 120.0
         b = 0.5 - t2 / 24.0 + t2 * t2 / 720.0
@@ -332,7 +332,8 @@ def log_flat(r) -> tuple:
     cols = (((r00 - c) / d, 0.5 * (r10 + r01) / d, 0.5 * (r20 + r02) / d),
             (0.5 * (r01 + r10) / d, (r11 - c) / d, 0.5 * (r21 + r12) / d),
             (0.5 * (r02 + r20) / d, 0.5 * (r12 + r21) / d, (r22 - c) / d))
-    j = max(range(3), key=lambda i: cols[i][i])
+    j = 1 if cols[1][1] > cols[0][0] else 0                     # the largest diagonal entry (the first of ties)
+    j = 2 if cols[2][2] > cols[j][j] else j
     ux, uy, uz = cols[j]
     n = math.sqrt(ux * ux + uy * uy + uz * uz)
     sign = -1.0 if (ux * wx + uy * wy + uz * wz) < 0 else 1.0

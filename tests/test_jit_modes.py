@@ -1,0 +1,132 @@
+"""The loops written once and compiled by numba (:mod:`imu_ground._jit`) give the same numbers interpreted.
+
+Each case of :data:`CASES` is a function of this module returning a dict of arrays. The test
+runs every case here (compiled, the normal run) and once more in one child process with
+``NUMBA_DISABLE_JIT=1`` (every :func:`~imu_ground._jit.njit` body then runs as plain Python), and
+checks the two equal to 1e-12 relative to ``max(1, |value|)``, NaN in the same places. To add a
+subset: write a small function (a few hundred frames: the interpreted run is slow) and add its
+name to :data:`CASES`.
+"""
+from __future__ import annotations
+
+import importlib.util
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from imu_ground import _jit, so3
+
+RTOL = 1e-12
+
+
+def _frames(n: int = 300, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    d = so3.exp(rng.normal(scale=[0.004, 0.004, 0.03], size=(n, 3)))
+    d[7] = so3.exp_one(np.array([2.9, 0.1, 0.2]))              # an off-trace Shepperd branch
+    d[11] = np.diag([1.0, -1.0, -1.0])                          # a half turn without twist
+    return np.ascontiguousarray(d)
+
+
+def residual_kernel() -> dict:
+    """The residual kernel's batch (with tilt, extrinsic, cumulative rotation) and its checked steps."""
+    from imu_ground.filters import residual
+    from imu_ground.filters.residual import ResidualKernel
+    d = _frames()
+    rng = np.random.default_rng(1)
+    q, tilt = rng.uniform(1e-6, 1e-3, len(d)), rng.normal(scale=0.01, size=(2, len(d)))
+    k = ResidualKernel(0.7, 0.9, 0.05, 0.002, Rgs=so3.exp_one(np.array([0.02, -0.03, 1.2])), cumulative=True)
+    run = k.run(d, q, 1e-4, tilt[0], tilt[1], angles=True)
+    s = ResidualKernel(0.7, 0.9, 0.05, 0.002, up=True)
+    steps = np.array([residual.step(s.buf, d[i], float(q[i]), 1e-4, None, None, None, 0.1) for i in range(len(d))])
+    return {"run": run, "buf": k.buf, "steps": steps, "up buf": s.buf}
+
+
+def frame_checks() -> dict:
+    """The batch frame check on good and bad frames."""
+    from imu_ground.filters.frame_checks import frame_statuses
+    d = _frames(60)
+    d[3] *= 1.001
+    d[5, 0, 0] = np.nan
+    dv = np.zeros((len(d), 3))
+    dv[8, 1] = np.inf
+    dt = np.full(len(d), 0.1)
+    dt[9] = 0.0
+    return {"status": frame_statuses(d, dv, dt).astype(float)}
+
+
+def ground_filter() -> dict:
+    """GroundNormalFilter's stream and batch on a short drive."""
+    from imu_ground.filters.ground import GroundNormalFilter
+    d = _frames(200, seed=2)
+    f = GroundNormalFilter()
+    steps = np.array([[e.pitch, e.roll, e.pitch_std] for e in (f.step(x) for x in d)])
+    tr = GroundNormalFilter().run(d)
+    return {"steps": steps, "pitch": tr.pitch, "roll": tr.roll, "P": tr.P}
+
+
+def suspension_filter() -> dict:
+    """SuspensionAwareFilter's batch and a few steps on a short simulated drive."""
+    from imu_ground.evaluation.simulate import simulate
+    from imu_ground.filters.suspension import SuspensionAwareFilter
+    from imu_ground.imu.egomotion import imu_to_egomotion
+    em = imu_to_egomotion(simulate(20.0, seed=3, imu="mems").imu)
+    tr = SuspensionAwareFilter().run(em)
+    f = SuspensionAwareFilter()
+    steps = np.array([[e.pitch, e.roll] for e in (f.step(em.frame_at(k)) for k in range(40))])
+    return {"pitch": tr.pitch, "roll": tr.roll, "steps": steps}
+
+
+#: The cases run both ways (names of functions of this module returning a dict of arrays).
+CASES = ["residual_kernel", "frame_checks", "ground_filter", "suspension_filter"]
+
+_CHILD = """
+import importlib.util, sys
+import numpy as np
+spec = importlib.util.spec_from_file_location("jit_cases", sys.argv[1])
+mod = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(mod)
+from imu_ground import _jit
+assert not _jit.JIT_ENABLED, "NUMBA_DISABLE_JIT=1 did not switch the compiled bodies off"
+out = {}
+for name in sys.argv[3:]:
+    for key, value in getattr(mod, name)().items():
+        out[name + "/" + key] = np.asarray(value, dtype=float)
+np.savez(sys.argv[2], **out)
+"""
+
+
+@pytest.fixture(scope="module")
+def interpreted(tmp_path_factory) -> dict:
+    """Every case's arrays computed in a child process with the bodies interpreted."""
+    path = tmp_path_factory.mktemp("jit") / "interpreted.npz"
+    env = dict(os.environ, **{_jit.DISABLE_JIT_ENV: "1"})
+    proc = subprocess.run([sys.executable, "-c", _CHILD, str(Path(__file__).resolve()), str(path), *CASES],
+                          env=env, capture_output=True, text=True, check=False)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    with np.load(path) as z:
+        return {k: z[k] for k in z.files}
+
+
+def test_numba_compiles_the_bodies_in_the_normal_run():
+    if importlib.util.find_spec("numba") is None or os.environ.get(_jit.DISABLE_JIT_ENV, "") not in ("", "0"):
+        pytest.skip("numba is not installed or switched off: the bodies run interpreted")
+    assert _jit.JIT_ENABLED
+    from imu_ground.filters import residual
+    assert hasattr(residual.frame, "signatures")            # a numba dispatcher, not the plain function
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_interpreted_equals_compiled(name, interpreted):
+    compiled = getattr(sys.modules[__name__], name)()
+    assert compiled
+    for key, value in compiled.items():
+        a, b = np.asarray(value, dtype=float), interpreted[f"{name}/{key}"]
+        assert a.shape == b.shape, key
+        assert (np.isnan(a) == np.isnan(b)).all(), key
+        ok = ~np.isnan(b)
+        err = np.abs(a[ok] - b[ok]) / np.maximum(1.0, np.abs(b[ok]))
+        assert err.max(initial=0.0) <= RTOL, f"{name}/{key}: compiled and interpreted differ by {err.max():.3g}"
