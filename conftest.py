@@ -142,3 +142,23 @@ def one_error():
             assert str(w) in lines[0], (w, err)
         return lines[0]
     return check
+
+
+@pytest.fixture
+def heavy_modules_loaded():
+    """``run(code) -> list``: the heavy modules (scipy and its submodules, pandas, matplotlib, tqdm) that
+    ``code`` (after ``import imu_ground``, numpy as ``np``) loads in a fresh process beyond those numba brings
+    itself (numba imports a part of scipy, and scipy.linalg once it compiles or loads a first function: a trivial
+    one is compiled first when the compiled bodies are in use)."""
+    import subprocess
+    import sys
+
+    def run(code: str) -> list:
+        child = ("import sys; import numpy as np; from imu_ground import _jit; "
+                 "_jit.JIT_ENABLED and __import__('numba').njit(lambda: 0)(); base = set(sys.modules); "
+                 f"import imu_ground; {code}; "
+                 "print(sorted(m for m in set(sys.modules) - base "
+                 "if m.split('.')[0] in ('scipy', 'pandas', 'matplotlib', 'tqdm')))")
+        out = subprocess.run([sys.executable, "-c", child], capture_output=True, text=True, check=True).stdout
+        return eval(out.strip().splitlines()[-1])
+    return run

@@ -22,8 +22,10 @@ import argparse
 import json
 import math
 import os
+import signal
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -152,6 +154,44 @@ def _cell(v) -> str:
     return '"' + text.replace('"', '""') + '"' if ("," in text or '"' in text) else text
 
 
+class _WholeSamples:
+    """SIGTERM and Ctrl-C while a sample is pushed and its frames written: held until both are done, then raised.
+
+    Raised at any other moment (waiting for a line on standard input), they stop at once. Either way the saved
+    state, the samples counted and the frames written agree: a resumed run repeats no frame and loses none.
+    Signals are only caught in the main thread (elsewhere this does nothing).
+    """
+
+    def __init__(self) -> None:
+        self.busy = False
+        self.pending: BaseException | None = None
+        self._old: dict = {}
+
+    def _on_signal(self, signum, frame) -> None:
+        from imu_ground.cli import Terminated
+        exc: BaseException = Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+        if not self.busy:
+            raise exc
+        self.pending = exc
+
+    def done(self) -> None:
+        """The sample's frames are written and counted: raise a signal held meanwhile."""
+        self.busy = False
+        if self.pending is not None:
+            exc, self.pending = self.pending, None
+            raise exc
+
+    def __enter__(self) -> "_WholeSamples":
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGTERM, signal.SIGINT):
+                self._old[sig] = signal.signal(sig, self._on_signal)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+
+
 def run(a: argparse.Namespace) -> int:
     from imu_ground.errors import OptionError
     from imu_ground.pipeline.streaming import StreamingEstimator
@@ -225,19 +265,21 @@ def _replay(est, a, out, where: dict, pos: _Position) -> None:
             first, j = n, m
     pos.samples, pos.speeds = first, j
     start = time.monotonic()
-    for i in range(first, len(t)):
-        ti = t[i]
-        if a.realtime:
-            wait = start + (ti - t[first]) - time.monotonic()
-            if wait > 0:
-                time.sleep(wait)
-        while j < M and ts[j] <= ti:
-            est.push_speed(ts[j], vs[j])
-            j += 1
-            pos.speeds = j
-        frames = est.push_imu(ti, g[i], acc[i])
-        pos.samples = i + 1
-        out.write(frames)
+    with _WholeSamples() as whole:
+        for i in range(first, len(t)):
+            ti = t[i]
+            if a.realtime:
+                wait = start + (ti - t[first]) - time.monotonic()
+                if wait > 0:
+                    time.sleep(wait)
+            whole.busy = True
+            while j < M and ts[j] <= ti:
+                est.push_speed(ts[j], vs[j])
+                j += 1
+                pos.speeds = j
+            out.write(est.push_imu(ti, g[i], acc[i]))
+            pos.samples = i + 1
+            whole.done()
     while j < M:
         est.push_speed(ts[j], vs[j])
         j += 1
@@ -245,7 +287,6 @@ def _replay(est, a, out, where: dict, pos: _Position) -> None:
 
 
 def _stdin(est, a, out) -> None:
-    from imu_ground.cli._common import warn_line
     from imu_ground.errors import OptionError
     from imu_ground.datasets.unit_checks import ACCEL_UNITS, GYRO_UNITS, TIME_UNITS
     ks = TIME_UNITS[a.time_unit or "s"]
@@ -260,9 +301,24 @@ def _stdin(est, a, out) -> None:
                           f"the first line names the columns: t,wx,wy,wz,ax,ay,az (and optionally speed)", None)
     idx = [names.index(c) for c in _SAMPLE_COLUMNS]
     i_speed, file_speed = _stdin_speed(a, names, est)
+    fs_t, fs_v = file_speed
+    with _WholeSamples() as whole:
+        j = _stdin_lines(est, out, src, names, idx, (ks, kg, ka), (i_speed, fs_t, fs_v), whole)
+    M = len(fs_t)
+    while j < M:
+        est.push_speed(fs_t[j], fs_v[j])
+        j += 1
+
+
+def _stdin_lines(est, out, src, names: list[str], idx: list[int], units: tuple, speed: tuple,
+                 whole: _WholeSamples) -> int:
+    """The lines of standard input, each a sample pushed (with its speed) and its frames written, whole; returns
+    how many samples of the speed file were pushed."""
+    from imu_ground.cli._common import warn_line
+    ks, kg, ka = units
+    i_speed, fs_t, fs_v = speed
     width = len(names)
     nan = math.nan
-    fs_t, fs_v = file_speed
     j, M = 0, len(fs_t)
     bad_lines = 0
     for lineno, line in enumerate(src, start=2):
@@ -286,6 +342,7 @@ def _stdin(est, a, out) -> None:
                 warn_line(f"line {lineno}: column {bad[0]} is {bad[1][:40]!r}, not a number: sample skipped{more}",
                           "<stdin>")
         t = vals[0] * ks
+        whole.busy = True
         while j < M and fs_t[j] <= t:
             est.push_speed(fs_t[j], fs_v[j])
             j += 1
@@ -297,9 +354,8 @@ def _stdin(est, a, out) -> None:
             est.push_speed(t, v)
         out.write(est.push_imu(t, (vals[1] * kg, vals[2] * kg, vals[3] * kg),
                                (vals[4] * ka, vals[5] * ka, vals[6] * ka)))
-    while j < M:
-        est.push_speed(fs_t[j], fs_v[j])
-        j += 1
+        whole.done()
+    return j
 
 
 #: How many damaged lines of standard input are said one by one.
