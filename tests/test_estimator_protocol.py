@@ -2,8 +2,6 @@
 output table, the method registry, the frame rate taken from the ego-motion, the shared rotation helpers."""
 from __future__ import annotations
 
-import subprocess
-import sys
 
 import numpy as np
 import pytest
