@@ -12,10 +12,10 @@ into blocks that are merged with the associative composition
 The knots, held values and gap rules are those of the module docstring of
 :mod:`imu_ground.imu.preintegration`, as in the streaming front-end.
 
-Without uncertainty (the whole job's path) the blocks run in a compiled kernel
-where it is built (``imu/_preint_batch_native.c``, chosen in :mod:`imu_ground._native`):
-the same padded blocks, formulas and operation order as :func:`_blocks_kernel`,
-equal to it to the bit; the numpy code is its twin.
+Without uncertainty (the whole job's path) the blocks run in one compiled loop
+(:func:`_blocks_deltas`, through :mod:`imu_ground._jit`): the same padded blocks and
+formulas as :func:`_blocks_kernel`'s deltas, reading the knots' values where they are
+instead of the vectorised temporaries.
 """
 from __future__ import annotations
 
@@ -24,13 +24,14 @@ from typing import Any
 
 import numpy as np
 
-from imu_ground._native import PREINT_BATCH as _NATIVE
+from imu_ground._jit import njit
 from imu_ground.errors import ImuGroundError
 from imu_ground.imu.data import ImuData
 from imu_ground.imu.preint_frames import FrameDeltas, make_frame_times
 from imu_ground.imu.preint_measurement import compose_left, left_to_right
 from imu_ground.imu.preint_params import PreintegrationParams, gap_message
 from imu_ground.so3.component_major import (
+    SMALL_ANGLE2,
     cross_rows,
     exp_and_left_jacobian,
     hat_times,
@@ -153,6 +154,125 @@ def _blocks_kernel(dt: np.ndarray, w: np.ndarray, f: np.ndarray, qg: float, qa: 
         S[:, 6 + i3, 3 + i3] += s1[:, None]
         S[:, 6 + i3, 6 + i3] += s2[:, None]
     return T, Rn, vn, pn, J, 0.5 * (S + S.transpose(0, 2, 1))
+
+
+@njit
+def _knot(gyro: np.ndarray, accel: np.ndarray, ki: np.ndarray, yb: np.ndarray, g: int, at: int,
+          o: np.ndarray) -> int:
+    """The 6 values of knot ``g`` (position in the samples with the boundaries inserted, see :func:`_knots`)
+    into ``o``; ``at`` is the number of boundaries before the knot looked up last (returned updated: cheapest
+    when ``g`` never decreases from call to call)."""
+    m = ki.size
+    while at > 0 and ki[at - 1] + (at - 1) >= g:
+        at -= 1
+    while at < m and ki[at] + at < g:
+        at += 1
+    if at < m and ki[at] + at == g:
+        for r in range(6):
+            o[r] = yb[r, at]
+        return at
+    s = g - at
+    for r in range(3):
+        o[r] = gyro[s, r]
+        o[3 + r] = accel[s, r]
+    return at
+
+
+@njit
+def _blocks_deltas(dt: np.ndarray, gyro: np.ndarray, accel: np.ndarray, ki: np.ndarray, yb: np.ndarray, j0: int,
+                   start: np.ndarray, stop: np.ndarray, lanes: int, bias: np.ndarray, midpoint: bool,
+                   To: np.ndarray, Ro: np.ndarray, vo: np.ndarray, po: np.ndarray) -> None:
+    """Each padded block's deltas (:func:`_blocks_kernel` without uncertainty), one block at a time.
+
+    Block ``b`` integrates the knot intervals ``[start[b], stop[b])`` of ``dt`` (s), padded to
+    ``lanes`` intervals of zero length; knot ``j`` of ``dt`` is knot ``j0 + j`` of the samples
+    ``gyro``, ``accel`` (N, 3; rad/s, m/s^2, body frame) with the boundaries ``yb`` (6, M) inserted
+    before samples ``ki`` (:func:`_knots`). Held value: the two knots' mean (``midpoint``) or the
+    left knot's, less ``bias`` (6). Out: ``To`` (B,) s, ``Ro`` (B, 3, 3) ``R_{start<-end}``, ``vo``
+    and ``po`` (B, 3) m/s and m in the block's start body frame. As :func:`_blocks_kernel`: the
+    Exp of :func:`~imu_ground.so3.component_major.exp_and_left_jacobian`, the Hillis-Steele product
+    scan of :func:`~imu_ground.so3.component_major.scan_products` over all ``lanes`` lanes (the
+    padding takes part, as identities), running sums lane after lane.
+    """
+    P = np.empty((lanes, 3, 3))
+    Q = np.empty((lanes, 3, 3))
+    H = np.empty((lanes, 6))
+    D = np.empty(lanes)
+    a = np.empty(6)
+    c = np.empty(6)
+    V = np.zeros(3)
+    Pp = np.zeros(3)
+    I3 = np.eye(3)
+    at = 0
+    for b in range(start.size):
+        m = stop[b] - start[b]
+        for k in range(lanes):
+            if k < m:
+                j = start[b] + k
+                D[k] = dt[j]
+                at = _knot(gyro, accel, ki, yb, j0 + j, at, a)
+                if midpoint:
+                    at = _knot(gyro, accel, ki, yb, j0 + j + 1, at, c)
+                    for r in range(6):
+                        H[k, r] = (a[r] + c[r]) * 0.5 - bias[r]
+                else:
+                    for r in range(6):
+                        H[k, r] = a[r] - bias[r]
+            else:                       # padding: zero length, values 0 - bias
+                D[k] = 0.0
+                for r in range(6):
+                    H[k, r] = 0.0 - bias[r]
+            dk = D[k]
+            x, y, z = H[k, 0] * dk, H[k, 1] * dk, H[k, 2] * dk
+            xx, yy, zz = x * x, y * y, z * z
+            t2 = xx + yy + zz
+            if t2 < SMALL_ANGLE2:
+                tts = t2 * t2
+                sa = 1.0 - t2 / 6.0 + tts / 120.0
+                sb = 0.5 - t2 / 24.0 + tts / 720.0
+            else:
+                th = math.sqrt(t2)
+                hs = math.sin(0.5 * th)
+                sa = math.sin(th) / th
+                sb = 2.0 * hs * hs / t2
+            bxy, bxz, byz = sb * (x * y), sb * (x * z), sb * (y * z)
+            P[k, 0, 0] = 1.0 - sb * (yy + zz)
+            P[k, 1, 1] = 1.0 - sb * (xx + zz)
+            P[k, 2, 2] = 1.0 - sb * (xx + yy)
+            P[k, 0, 1] = bxy - sa * z
+            P[k, 1, 0] = bxy + sa * z
+            P[k, 0, 2] = bxz + sa * y
+            P[k, 2, 0] = bxz - sa * y
+            P[k, 1, 2] = byz - sa * x
+            P[k, 2, 1] = byz + sa * x
+        d = 1
+        while d < lanes:                # scan_products: Q[k] = P[k - d] @ P[k] for k >= d
+            Q[:d] = P[:d]
+            for k in range(d, lanes):
+                for i in range(3):
+                    for jj in range(3):
+                        Q[k, i, jj] = (P[k - d, i, 0] * P[k, 0, jj] + P[k - d, i, 1] * P[k, 1, jj]) \
+                            + P[k - d, i, 2] * P[k, 2, jj]
+            P, Q = Q, P
+            d *= 2
+        # delta_v, delta_p and time after each lane; Rk = delta_R before lane k (identity, then P[k - 1])
+        e = 0.0
+        for k in range(lanes):
+            Rk = I3 if k == 0 else P[k - 1]
+            dk = D[k]
+            f0, f1, f2 = H[k, 3] * dk, H[k, 4] * dk, H[k, 5] * dk
+            for i in range(3):
+                ci = Rk[i, 0] * f0 + Rk[i, 1] * f1 + Rk[i, 2] * f2
+                vb = V[i]
+                V[i] = vb + ci if k else ci
+                q = dk * (vb + 0.5 * ci)
+                Pp[i] = Pp[i] + q if k else q
+            e = e + dk if k else dk
+        To[b] = e
+        Ro[b] = P[lanes - 1]
+        vo[b] = V
+        po[b] = Pp
+        V[:] = 0.0
 
 
 def _merge_blocks(res: tuple, block_frame: np.ndarray, n_frames: int) -> tuple:
@@ -331,12 +451,11 @@ def _integrate_frames(dt: np.ndarray, kv: np.ndarray | None, b: np.ndarray, par:
     stop = np.minimum(start + Lb, b[1:][block_frame])
     bias = np.concatenate([np.asarray(par.bias_gyro, dtype=float),
                            np.asarray(par.bias_accel, dtype=float)])[:, None, None]
-    if kv is None:                      # the compiled twin: the same blocks, padding and order
-        assert _NATIVE is not None
+    if kv is None:                      # deltas only: the compiled loop over the same blocks
         gyro, accel, (ki, yb, j0) = samples  # type: ignore[misc]
         res: tuple[np.ndarray | None, ...] = (np.empty(nbt), np.empty((nbt, 3, 3)), np.empty((nbt, 3)),
                                               np.empty((nbt, 3)), None, None)
-        _NATIVE.blocks(np.ascontiguousarray(dt), gyro, accel, ki.astype(np.int64), np.ascontiguousarray(yb),
+        _blocks_deltas(np.ascontiguousarray(dt), gyro, accel, ki.astype(np.int64), np.ascontiguousarray(yb),
                        int(j0), start.astype(np.int64), stop.astype(np.int64), Lb,
                        np.ascontiguousarray(bias[:, 0, 0]), par.hold == "midpoint", *res[:4])
         return _merge_blocks(res, block_frame, nfr)
@@ -402,10 +521,9 @@ def preintegrate(imu: ImuData | tuple[np.ndarray, np.ndarray, np.ndarray],
     par = PreintegrationParams.coerce(params, **options)
     t, gyro, accel = _inputs(imu)
     T = _boundaries(t, frame_times, rate, every, t_origin, par.snap_tol)
-    native = _NATIVE is not None and not par.uncertainty
-    if native:
+    if not par.uncertainty:
         gyro, accel = np.ascontiguousarray(gyro), np.ascontiguousarray(accel)
-    dt, kv, b, valid, inserted = _knots(t, gyro, accel, T, par, values=not native)
+    dt, kv, b, valid, inserted = _knots(t, gyro, accel, T, par, values=par.uncertainty)
     Tn, Rn, vn, pn, Jn, Sn = _integrate_frames(dt, kv, b, par, (gyro, accel, inserted))
     Rn = project_if_needed(Rn)
     names = ("d_R_d_bg", "d_v_d_bg", "d_p_d_bg", "d_v_d_ba", "d_p_d_ba")
