@@ -14,11 +14,6 @@ name                     compiled module                            Python twin
                                                                     :mod:`imu_ground.filters.frame_checks`
 :data:`GRAVITY`          ``imu_ground.filters._gravity_native``     :mod:`imu_ground.filters.gravity_kernel`
 :data:`EKF`              ``imu_ground.filters._ekf_native``         :mod:`imu_ground.filters.invariant_ekf_kernel`
-:data:`PREINTEGRATION`   ``imu_ground.imu._preint_native``          :mod:`imu_ground.imu.preint_kernel`,
-                                                                    :mod:`imu_ground.imu.preint_stream`
-:data:`FRONT`            ``imu_ground.imu._front_native``           ``StreamingEstimator.push_imu``'s Python
-                                                                    path (:mod:`imu_ground.imu.sample_clock`,
-                                                                    :mod:`imu_ground.imu.causal_standstill`)
 =======================  =========================================  =========================================
 
 Equality rule between twins (the one the tests check, all with
@@ -50,7 +45,7 @@ from typing import Any, Dict, Optional
 import numpy as np
 
 __all__ = ["load_native", "native_kernels", "kernels_in_use", "PURE_PYTHON_ENV", "REQUIRE_NATIVE_ENV",
-           "RESIDUAL", "GRAVITY", "EKF", "PREINTEGRATION", "FRONT", "STREAMING_KERNELS",
+           "RESIDUAL", "GRAVITY", "EKF", "STREAMING_KERNELS",
            "TWIN_RTOL", "assert_twins_equal"]
 
 PURE_PYTHON_ENV = "IMU_GROUND_PURE_PYTHON"
@@ -92,8 +87,6 @@ def load_native(name: str) -> Optional[ModuleType]:
 RESIDUAL = load_native("imu_ground.filters._residual_native")
 GRAVITY = load_native("imu_ground.filters._gravity_native")
 EKF = load_native("imu_ground.filters._ekf_native")
-PREINTEGRATION = load_native("imu_ground.imu._preint_native")
-FRONT = load_native("imu_ground.imu._front_native")
 #: Their dotted names, in the order above.
 STREAMING_KERNELS = tuple(_LOADED)
 

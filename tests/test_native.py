@@ -68,11 +68,9 @@ def test_every_kernel_is_built_and_loads(src):
 
 def test_the_kernel_owners_take_the_one_loaded_twin():
     from imu_ground.filters import frame_checks, gravity_velocity, invariant_ekf, residual
-    from imu_ground.imu import preint_kernel
     assert residual.NATIVE is _native.RESIDUAL and frame_checks._NATIVE is _native.RESIDUAL
     assert gravity_velocity.NATIVE is _native.GRAVITY
     assert invariant_ekf._C is _native.EKF
-    assert preint_kernel.NATIVE is _native.PREINTEGRATION
 
 
 def test_pure_python_switch_turns_every_kernel_off():

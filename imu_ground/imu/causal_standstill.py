@@ -31,7 +31,6 @@ from typing import Any
 
 import numpy as np
 
-from imu_ground._native import FRONT as _FRONT
 from imu_ground.units import GRAVITY
 
 __all__ = ["MAX_GYRO_BIAS", "CausalGyroBias", "StandstillBlocks", "StandstillTests", "block_index", "block_sums",
@@ -104,10 +103,8 @@ class StandstillBlocks:
         self.tests = StandstillTests() if tests is None else tests
         self.W = self.tests.blocks(self.rate)
         self.Wb = max(1, int(round(bias_window * self.rate)))      # the bias's window, blocks
-        t = self.tests                          # (as the compiled windows reads them)
-        self._thresholds = (t.gyro_std_max, t.gyro_norm_max, t.accel_std_max, t.accel_norm_tol, t.gravity)
         self.blocks: dict[int, array] = {}      # block -> float64 [n, 6 sums, 6 sums of squares]
-        self.open: array | None = None          # the block of the last sample added (compiled kernels sum into it)
+        self.open: array | None = None          # the block of the last sample added
         self.open_k = -1                        # its index (-1: none)
 
     def add(self, k: int, g: Sequence[float], a: Sequence[float]) -> None:
@@ -136,16 +133,7 @@ class StandstillBlocks:
     def windows(self, k: int, W: int | None = None, Wb: int | None = None) -> tuple[bool, bool]:
         """Whether the trailing windows of ``W`` and of ``Wb`` blocks (defaults :attr:`W`, :attr:`Wb`; 0: not
         asked) ending at frame ``k`` pass, summed newest block first; the specific force only for a window
-        whose gyro passes (each component's sums are the same either way). Compiled when
-        ``imu/_front_native.c`` is built (:meth:`windows_python` is its twin, the reference)."""
-        W = self.W if W is None else W
-        Wb = self.Wb if Wb is None else Wb
-        if _FRONT is not None:
-            return _FRONT.windows(self.blocks, k, W, Wb, self._thresholds)
-        return self.windows_python(k, W, Wb)
-
-    def windows_python(self, k: int, W: int | None = None, Wb: int | None = None) -> tuple[bool, bool]:
-        """:meth:`windows` in Python."""
+        whose gyro passes (each component's sums are the same either way)."""
         W = self.W if W is None else W
         Wb = self.Wb if Wb is None else Wb
         blocks = self.blocks

@@ -453,12 +453,11 @@ def _integrate_frames(dt: np.ndarray, kv: np.ndarray | None, b: np.ndarray, par:
                            np.asarray(par.bias_accel, dtype=float)])[:, None, None]
     if kv is None:                      # deltas only: the compiled loop over the same blocks
         gyro, accel, (ki, yb, j0) = samples  # type: ignore[misc]
-        res: tuple[np.ndarray | None, ...] = (np.empty(nbt), np.empty((nbt, 3, 3)), np.empty((nbt, 3)),
-                                              np.empty((nbt, 3)), None, None)
+        To, Ro, vo, po = np.empty(nbt), np.empty((nbt, 3, 3)), np.empty((nbt, 3)), np.empty((nbt, 3))
         _blocks_deltas(np.ascontiguousarray(dt), gyro, accel, ki.astype(np.int64), np.ascontiguousarray(yb),
                        int(j0), start.astype(np.int64), stop.astype(np.int64), Lb,
-                       np.ascontiguousarray(bias[:, 0, 0]), par.hold == "midpoint", *res[:4])
-        return _merge_blocks(res, block_frame, nfr)
+                       np.ascontiguousarray(bias[:, 0, 0]), par.hold == "midpoint", To, Ro, vo, po)
+        return _merge_blocks((To, Ro, vo, po, None, None), block_frame, nfr)
     qg, qa = par.gyro_noise_density ** 2, par.accel_noise_density ** 2
     # chunks of about _CHUNK intervals keep the temporaries in cache (a loop over groups of frames)
     step = max(1, _CHUNK // Lb)

@@ -39,7 +39,6 @@ Times are seconds; nothing here allocates per sample beyond Python floats.
 from __future__ import annotations
 
 import math
-from array import array
 from typing import Any
 
 import numpy as np
@@ -255,19 +254,6 @@ class SampleClock:
             self.dt = s[m] if len(s) % 2 else 0.5 * (s[m - 1] + s[m])
             self._steps = []
         return OK, t
-
-    # -- the compiled twin's buffer --------------------------------------------
-    def to_buffer(self, b) -> None:
-        """Write the state and settings into ``b[0:14]`` (a float64 buffer, the layout ``F_*`` of
-        ``imu/_front_native.c``), where the compiled ``push`` runs on them; :meth:`from_buffer` reads them back."""
-        b[0:14] = array("d", (self.t, self.dt, self._raw_max, self._raw_prev, self._pending, self._pmin, self.hold,
-                              self.gap_factor, self.alpha, self.beta, 1.0 if self.policy == "drop" else 0.0,
-                              self.retimed, self.dropped, self.dropouts))
-
-    def from_buffer(self, b) -> None:
-        """The state the compiled ``push`` left in ``b`` (:meth:`to_buffer`)."""
-        (self.t, self.dt, self._raw_max, self._raw_prev, self._pending, self._pmin) = b[0:6]
-        self.retimed, self.dropped, self.dropouts = int(b[11]), int(b[12]), int(b[13])
 
     # -- warm start ---------------------------------------------------------
     def state_dict(self) -> dict[str, Any]:

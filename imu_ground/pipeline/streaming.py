@@ -30,12 +30,8 @@ Per sample, each piece one class:
 5. **Filter**: the method's streaming ``step`` (``on_invalid="skip"``: a bad frame is skipped,
    never raised on).
 
-Compiled (``imu/_front_native.c``, chosen in :mod:`imu_ground._native`): in the steady state steps 1-3 are
-one C call a sample (the clock's state in a buffer, the open standstill block's sums written in
-place, the compiled preintegration step called from C), the standstill windows one C call a frame;
-a sample that starts a block has Python open the block, then the C call again; every other case
-(warm-up, a restart, a dropout, non-finite values, arguments other than Python floats in lists or tuples,
-the preintegrator's gaps) runs the Python code, the reference, with the same results bit for bit.
+Steps 1-3 run per sample in Python around one compiled call, the preintegration step
+(:class:`~imu_ground.imu.preint_stream.StreamingPreintegrator`, through :mod:`imu_ground._jit`).
 
 Data never raise: a non-finite sample is skipped, a dropped or retimed stamp, a restart, a
 late, repeated or non-finite speed sample, each is said in the next frame's ``status_reason``.
@@ -46,13 +42,11 @@ from __future__ import annotations
 
 import math
 import numbers
-from array import array
 from collections import deque
 from typing import Any
 
 import numpy as np
 
-from imu_ground._native import FRONT
 from imu_ground.datasets.options import OptionError
 from imu_ground.datasets.speed_buffer import SpeedBuffer
 from imu_ground.filters import Extrinsic
@@ -67,7 +61,6 @@ from imu_ground.imu.causal_standstill import (
     window_standstill,
 )
 from imu_ground.imu.egomotion import EgoFrame, EgoMotion
-from imu_ground.imu.preint_kernel import NATIVE as _PREINT_NATIVE
 from imu_ground.imu.preint_measurement import PreintegratedImu
 from imu_ground.imu.preintegration import StreamingPreintegrator, preintegrate
 from imu_ground.imu.sample_clock import DROP, OK, RESTART, SampleClock
@@ -98,12 +91,6 @@ _STATE_KIND = "imu_ground.StreamingEstimator"
 _STATE_VERSION = 1
 _NO_SPEED = NO_SPEED
 _UNDECIDED = "undecided"                                # a frame's speed not decided yet
-# The compiled front end (imu/_front_native.c): one call a sample in the steady state, with the compiled
-# preintegrator; its state buffer's layout (F_*: the clock's, SampleClock.to_buffer, then these).
-_FRONT = FRONT if _PREINT_NATIVE is not None else None
-_front_push: Any = None if _FRONT is None else _FRONT.push       # (the compiled modules' functions: untyped)
-_preint_push: Any = None if _PREINT_NATIVE is None else _PREINT_NATIVE.push
-_F_T, _F_RETIMED, _F_DROPPED, _F_ORIGIN, _F_RATE, _F_OPEN_K, _F_SIZE = 0, 11, 12, 14, 15, 16, 17
 _from_state = PreintegratedImu.from_state
 
 
@@ -328,10 +315,7 @@ class StreamingEstimator:
         self._skipped = 0
         self._slow = [0, 0.0]                           # samples of too slow warm-ups skipped, the last one's period
         self._now = -math.inf
-        self._fb = None if _FRONT is None else array("d", bytes(8 * _F_SIZE))
-        self._fast = False
         self._new_run()
-        self._front_out()
 
     def _new_run(self) -> None:
         """The front end after a (re)start: no preintegrator until the clock's warm-up is over."""
@@ -340,19 +324,6 @@ class StreamingEstimator:
         self._origin = math.nan
         self._blocks = StandstillBlocks(self.rate)
         self._bias.new_blocks()
-
-    def _front_out(self) -> None:
-        """The Python front end's state -> the compiled one's buffer (after any Python step; no-op without it)."""
-        fb = self._fb
-        if fb is None:
-            return
-        self._clock.to_buffer(fb)
-        fb[_F_ORIGIN], fb[_F_RATE], fb[_F_OPEN_K] = self._origin, self.rate, float(self._blocks.open_k)
-        pre = self._pre
-        self._fast = pre is not None and not self._clock.suspect    # (far-off stamps pending: Python decides)
-        if pre is not None:
-            # (with the compiled front end the preintegrator is the compiled one; type checkers see the Python one)
-            self._pb, self._ptb = pre._b, pre._tb  # type: ignore[attr-defined]
 
     @property
     def bias_gyro(self) -> np.ndarray:
@@ -382,53 +353,6 @@ class StreamingEstimator:
         body frame; returns the frames it completes (usually none), oldest first."""
         if self._scaled:                                # stamps not in seconds (told at the warm-up): to seconds
             t = (t if type(t) is float else _number(t, "t")) * self._tscale
-        if self._fast:                                  # the compiled steady state (imu/_front_native.c)
-            assert self._fb is not None                 # _fast: the compiled front end is there
-            r = _front_push(self._fb, self._blocks.open, _preint_push, self._pb, self._ptb, t, gyro, accel)
-            if type(r) is int:                          # the first sample of a block: open it, again
-                self._blocks.open_block(r)
-                self._fb[_F_OPEN_K] = r
-                r = _front_push(self._fb, self._blocks.open, _preint_push, self._pb, self._ptb, t, gyro, accel)
-            if r is True:
-                self._now = now = self._fb[_F_T]
-                q = self._queue                         # (frames whose speed is decided, held at a stop's start,
-                return self._decide(now) if q and (q[-1][3] is _UNDECIDED or not q[0][4]) else []   # wait)
-            if r is not None:
-                return [] if r is False else self._fast_frames(r, gyro, accel)
-        fb = self._fb
-        if fb is None:
-            return self._push_python(t, gyro, accel)
-        self._clock.from_buffer(fb)
-        try:
-            return self._push_python(t, gyro, accel)
-        finally:
-            self._front_out()
-
-    def _fast_frames(self, r, gyro, accel) -> list[FrameEstimate]:
-        """The compiled step finished frames (``r``: their states) or left the preintegration to Python
-        (``r``: the sample's time out of the clock)."""
-        fb = self._fb
-        assert fb is not None and self._pre is not None     # the compiled front end, warmed up
-        counts = fb[_F_RETIMED] or fb[_F_DROPPED]       # the clock's counts, for the notes
-        if counts:                                      # (zero in the buffer: zero in the clock object too)
-            self._clock.from_buffer(fb)
-        frames: list[PreintegratedImu] | tuple[PreintegratedImu, ...]
-        if type(r) is float:
-            frames = self._pre.push(r, gyro, accel)
-        else:
-            par = self._pre.params
-            frames = [_from_state(par, *f) for f in r]
-        for f in frames:
-            self._frame(f)
-        if counts:
-            fb[_F_RETIMED], fb[_F_DROPPED] = self._clock.retimed, self._clock.dropped
-        fb[_F_OPEN_K] = self._blocks.open_k
-        self._now = now = fb[_F_T]
-        q = self._queue
-        return self._decide(now) if q and (q[-1][3] is _UNDECIDED or not q[0][4]) else []
-
-    def _push_python(self, t: float, gyro, accel) -> list[FrameEstimate]:
-        """:meth:`push_imu` in Python: the reference of the compiled step, and every case it does not take."""
         if type(t) is not float:
             t = _number(t, "t")
         g = _vec3(gyro, "gyro")
@@ -645,8 +569,6 @@ class StreamingEstimator:
         """Everything (clock, preintegrator, standstill window, gyro bias, speed buffer, waiting frames, filter)
         as a plain JSON-serialisable dict (long lists of floats as base64 of their compressed float64 bytes, exact);
         :meth:`load_state_dict` on an estimator with the same settings resumes."""
-        if self._fb is not None:
-            self._clock.from_buffer(self._fb)
         queue = [[ego.delta_R.ravel().tolist(), ego.delta_v.tolist(), ego.delta_t, ego.stationary, ego.valid,
                   ego.t, ts, list(notes), v, held, scale, j] for ego, ts, notes, v, held, scale, j in self._queue]
         return {"kind": _STATE_KIND, "version": _STATE_VERSION, "settings": self._settings(),
@@ -685,8 +607,6 @@ class StreamingEstimator:
                               f"{', '.join(f'{k}={theirs.get(k)!r:.60}' for k in differ)}", "state")
         parts = self._read_state(state)                # every entry checked: raises before anything changes
         self.__dict__.update(parts)
-        self._fb = None if _FRONT is None else array("d", bytes(8 * _F_SIZE))
-        self._front_out()
 
     def _read_state(self, state: dict) -> dict[str, Any]:
         """Every entry of ``state`` checked and built into new objects: the attributes to set (nothing of the
