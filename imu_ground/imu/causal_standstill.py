@@ -25,12 +25,12 @@ whole-log forms agree bit for bit.
 from __future__ import annotations
 
 import math
-from array import array
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
+from imu_ground._jit import njit
 from imu_ground.units import GRAVITY
 
 __all__ = ["MAX_GYRO_BIAS", "CausalGyroBias", "StandstillBlocks", "StandstillTests", "block_index", "block_sums",
@@ -38,9 +38,28 @@ __all__ = ["MAX_GYRO_BIAS", "CausalGyroBias", "StandstillBlocks", "StandstillTes
 
 #: Rounding allowance of :func:`block_index`, in frames: a sample this close to a boundary ends the frame before it.
 _EDGE = 1e-6
-_EMPTY_BLOCK = bytes(13 * 8)
+#: Floats of a block: the sample count, 6 sums (gyro rad/s, then specific force m/s^2), their 6 sums of squares.
+BLOCK_SIZE = 13
 #: The largest gyro bias a saved state may hold, rad/s (57 deg/s: far beyond any IMU's).
 MAX_GYRO_BIAS = 1.0
+
+
+@njit
+def add_sample(b: np.ndarray, g0: float, g1: float, g2: float, a0: float, a1: float, a2: float) -> None:
+    """Sum one sample (gyro rad/s, specific force m/s^2) into the block ``b`` (:data:`BLOCK_SIZE` floats)."""
+    b[0] += 1.0
+    b[1] += g0
+    b[2] += g1
+    b[3] += g2
+    b[4] += a0
+    b[5] += a1
+    b[6] += a2
+    b[7] += g0 * g0
+    b[8] += g1 * g1
+    b[9] += g2 * g2
+    b[10] += a0 * a0
+    b[11] += a1 * a1
+    b[12] += a2 * a2
 
 
 def block_index(t: float, t0: float, rate: float) -> int:
@@ -103,28 +122,15 @@ class StandstillBlocks:
         self.tests = StandstillTests() if tests is None else tests
         self.W = self.tests.blocks(self.rate)
         self.Wb = max(1, int(round(bias_window * self.rate)))      # the bias's window, blocks
-        self.blocks: dict[int, array] = {}      # block -> float64 [n, 6 sums, 6 sums of squares]
-        self.open: array | None = None          # the block of the last sample added
+        self.blocks: dict[int, np.ndarray] = {}     # block -> float64 [n, 6 sums, 6 sums of squares]
+        self.open: np.ndarray | None = None         # the block of the last sample added
         self.open_k = -1                        # its index (-1: none)
 
     def add(self, k: int, g: Sequence[float], a: Sequence[float]) -> None:
         """Add a sample (gyro rad/s, specific force m/s^2) to block ``k``."""
         b = self.open if k == self.open_k else self.open_block(k)
         assert b is not None                    # open_k names the open block
-        g0, g1, g2, a0, a1, a2 = g[0], g[1], g[2], a[0], a[1], a[2]
-        b[0] += 1.0                             # unrolled: this runs once a sample on the live path
-        b[1] += g0
-        b[2] += g1
-        b[3] += g2
-        b[4] += a0
-        b[5] += a1
-        b[6] += a2
-        b[7] += g0 * g0
-        b[8] += g1 * g1
-        b[9] += g2 * g2
-        b[10] += a0 * a0
-        b[11] += a1 * a1
-        b[12] += a2 * a2
+        add_sample(b, g[0], g[1], g[2], a[0], a[1], a[2])
 
     def stationary(self, k: int, W: int | None = None) -> bool:
         """Whether frame ``k`` ends at a standstill (its trailing window of ``W`` blocks, default :attr:`W`, passes)."""
@@ -147,9 +153,10 @@ class StandstillBlocks:
                 break
             n, s = 0, [0.0] * 6
             for i in range(max(asked)):
-                b = blocks.get(k - i)
-                if b is None or b[0] == 0 or k - i < 0:
+                block = blocks.get(k - i)
+                if block is None or block[0] == 0 or k - i < 0:
                     break
+                b = block.tolist()
                 n += b[0]
                 s = [s[0] + b[col], s[1] + b[col + 1], s[2] + b[col + 2],
                      s[3] + b[col + 6], s[4] + b[col + 7], s[5] + b[col + 8]]
@@ -172,13 +179,16 @@ class StandstillBlocks:
     def block(self, j: int) -> tuple[int, float, float, float]:
         """``(n, gyro sums x, y, z)`` of block ``j`` (zeros when it holds no sample)."""
         b = self.blocks.get(j)
-        return (0, 0.0, 0.0, 0.0) if b is None else (int(b[0]), b[1], b[2], b[3])
+        if b is None:
+            return 0, 0.0, 0.0, 0.0
+        n, x, y, z = b[0:4].tolist()
+        return int(n), x, y, z
 
-    def open_block(self, k: int) -> array:
+    def open_block(self, k: int) -> np.ndarray:
         """Block ``k`` (a new, empty one unless it holds samples) becomes the one samples are summed into."""
         b = self.blocks.get(k)
         if b is None:
-            b = self.blocks[k] = array("d", _EMPTY_BLOCK)
+            b = self.blocks[k] = np.zeros(BLOCK_SIZE)
         self.open, self.open_k = b, k
         return b
 
@@ -205,7 +215,7 @@ class StandstillBlocks:
         self.load_state_dict({"k": keys, "n": ns.astype(int).tolist(), "sums": sums.tolist()})
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        self.blocks = {int(k): array("d", [int(n), *(float(x) for x in s)]) for k, n, s in
+        self.blocks = {int(k): np.array([int(n), *(float(x) for x in s)]) for k, n, s in
                        zip(state["k"], state["n"], state["sums"], strict=True)}
         self.open_k = max(self.blocks, default=-1)      # samples come in time order: the last block is open
         self.open = self.blocks.get(self.open_k)

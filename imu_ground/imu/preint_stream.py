@@ -7,7 +7,7 @@ integrates each interval with the same scalar kernel as
 :class:`~imu_ground.imu.preint_measurement.PreintegratedImu`
 (:func:`~imu_ground.imu.preint_kernel.integrate`).
 
-``push`` is one compiled call per sample (:func:`_push`, through :mod:`imu_ground._jit`):
+``push`` is one compiled call per sample (:func:`push_step`, through :mod:`imu_ground._jit`):
 the state and the bookkeeping live in one float64 buffer (layout ``_S_*``); the compiled
 step integrates inside frames and splits the sample interval at rate or frame_times
 boundaries (writing the finished frames' states to a second buffer); the first sample,
@@ -97,8 +97,8 @@ def _cross_boundary(b: np.ndarray, times: np.ndarray, out: np.ndarray, nout: int
 
 
 @njit
-def _push(b: np.ndarray, times: np.ndarray, out: np.ndarray, t: float, wx: float, wy: float, wz: float,
-          ax: float, ay: float, az: float) -> int:
+def push_step(b: np.ndarray, times: np.ndarray, out: np.ndarray, t: float, wx: float, wy: float, wz: float,
+              ax: float, ay: float, az: float) -> int:
     """:meth:`StreamingPreintegrator.push` on the state buffer ``b``, where it takes the sample.
 
     Returns 0 when the sample was integrated inside a frame (no boundary, no gap, not an every-N
@@ -319,14 +319,14 @@ class StreamingPreintegrator:
         try:
             wx, wy, wz = gyro
             ax, ay, az = accel
-            done = _push(self._b, self._tb, self._out, float(t), float(wx), float(wy), float(wz),
+            done = push_step(self._b, self._tb, self._out, float(t), float(wx), float(wy), float(wz),
                          float(ax), float(ay), float(az))
         except (TypeError, ValueError):         # not three numbers each: the Python path says so
             done = -1
         if done == 0:
             return ()
         if done > 0:                            # boundaries crossed: the finished frames' states
-            return self._finished(done)
+            return self.finished_frames(done)
         if isinstance(gyro, np.ndarray):
             gyro = gyro.tolist()
         if isinstance(accel, np.ndarray):
@@ -336,8 +336,14 @@ class StreamingPreintegrator:
         self._save()
         return out
 
-    def _finished(self, n: int) -> tuple[PreintegratedImu, ...]:
-        """The frames of the first ``n`` rows of the frames buffer."""
+    @property
+    def step_buffers(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(state, frame_times, frames)``: the float64 buffers :func:`push_step` runs on (for a caller that
+        runs it inside its own compiled step); a positive answer of it is read with :meth:`finished_frames`."""
+        return self._b, self._tb, self._out
+
+    def finished_frames(self, n: int) -> tuple[PreintegratedImu, ...]:
+        """The ``n`` frames :func:`push_step` just finished (the first ``n`` rows of the frames buffer)."""
         par, unc = self.params, self._u0 is not None
         frames = []
         for row in self._out[:n].tolist():

@@ -30,8 +30,10 @@ Per sample, each piece one class:
 5. **Filter**: the method's streaming ``step`` (``on_invalid="skip"``: a bad frame is skipped,
    never raised on).
 
-Steps 1-3 run per sample in Python around one compiled call, the preintegration step
-(:class:`~imu_ground.imu.preint_stream.StreamingPreintegrator`, through :mod:`imu_ground._jit`).
+After the warm-up, steps 1-3 are one compiled call a sample (:func:`_front_step`, through
+:mod:`imu_ground._jit`: the clock's step, the sum into the open standstill block, the
+preintegration step, each the one body its own object runs); a sample that starts a block,
+a stamp far off the clock and the preintegrator's gaps go on in Python.
 
 Data never raise: a non-finite sample is skipped, a dropped or retimed stamp, a restart, a
 late, repeated or non-finite speed sample, each is said in the next frame's ``status_reason``.
@@ -52,18 +54,22 @@ from imu_ground.datasets.speed_buffer import SpeedBuffer
 from imu_ground.filters import Extrinsic
 from imu_ground.filters.estimator import GroundEstimate
 from imu_ground.filters.methods import METHODS
+from imu_ground._jit import njit
 from imu_ground.imu.causal_standstill import (
+    BLOCK_SIZE,
     CausalGyroBias,
     StandstillBlocks,
     StandstillTests,
+    add_sample,
     block_sums,
     stop_starts,
     window_standstill,
 )
 from imu_ground.imu.egomotion import EgoFrame, EgoMotion
 from imu_ground.imu.preint_measurement import PreintegratedImu
+from imu_ground.imu.preint_stream import push_step
 from imu_ground.imu.preintegration import StreamingPreintegrator, preintegrate
-from imu_ground.imu.sample_clock import DROP, OK, RESTART, SampleClock
+from imu_ground.imu.sample_clock import DROP, FAR, OK, RESTART, SampleClock, clock_step
 from imu_ground.pipeline.live_replay import frames_track, replay, replayed_track
 from imu_ground.pipeline.live_speed import (MAX_SPEED_WAIT, NO_SPEED, SpeedLatency, SpeedUnit, causal_speeds,
                                             tells_kmh, wait_may_grow)
@@ -92,6 +98,36 @@ _STATE_VERSION = 1
 _NO_SPEED = NO_SPEED
 _UNDECIDED = "undecided"                                # a frame's speed not decided yet
 _from_state = PreintegratedImu.from_state
+# _front_step's answers beside push_step's (0: integrated, n > 0: frames finished, -1: its Python path to run)
+_NOT_TAKEN, _DROPPED, _NEW_BLOCK = -4, -3, -2
+_NO_BLOCK = np.zeros(BLOCK_SIZE)
+
+
+@njit
+def _front_step(clock: np.ndarray, block: np.ndarray, open_k: int, pre: np.ndarray, times: np.ndarray,
+                frames: np.ndarray, origin: float, rate: float, t: float, g0: float, g1: float, g2: float,
+                a0: float, a1: float, a2: float) -> int:
+    """Steps 1-3 of one sample after the warm-up: the clock's step (:func:`~imu_ground.imu.sample_clock.clock_step`),
+    the sum into the open standstill block ``block`` (index ``open_k``;
+    :func:`~imu_ground.imu.causal_standstill.add_sample`), the preintegration step
+    (:func:`~imu_ground.imu.preint_stream.push_step`, its answer returned). Before the preintegration:
+    :data:`_NOT_TAKEN` (a non-finite value or a stamp far off the clock: nothing changed), :data:`_DROPPED`
+    (the clock dropped the sample), :data:`_NEW_BLOCK` (the sample opens another block: the clock's step done,
+    the rest to run in Python)."""
+    if not (math.isfinite(t) and math.isfinite(g0 + g1 + g2 + a0 + a1 + a2)):
+        return _NOT_TAKEN
+    code = clock_step(clock, t)
+    if code == FAR:
+        return _NOT_TAKEN
+    if code == DROP:
+        return _DROPPED
+    tout = clock[0]
+    k = math.ceil((tout - origin) * rate - 1e-6) - 1
+    if k >= 0:
+        if k != open_k:
+            return _NEW_BLOCK
+        add_sample(block, g0, g1, g2, a0, a1, a2)
+    return push_step(pre, times, frames, tout, g0, g1, g2, a0, a1, a2)
 
 
 class FrameEstimate(GroundEstimate):
@@ -357,6 +393,24 @@ class StreamingEstimator:
             t = _number(t, "t")
         g = _vec3(gyro, "gyro")
         a = _vec3(accel, "accel")
+        pre = self._pre
+        if pre is not None:                             # after the warm-up: one compiled step
+            blocks = self._blocks
+            b, times, frames = pre.step_buffers
+            r = _front_step(self._clock.buffer, _NO_BLOCK if blocks.open is None else blocks.open, blocks.open_k,
+                            b, times, frames, self._origin, self.rate, t, g[0], g[1], g[2], a[0], a[1], a[2])
+            if r != _NOT_TAKEN:
+                if r == _DROPPED:
+                    return []
+                tout = self._clock.t
+                if r == _NEW_BLOCK:
+                    self._feed(tout, g, a)
+                elif r != 0:
+                    for f in (pre.push(tout, g, a) if r < 0 else pre.finished_frames(r)):
+                        self._frame(f)
+                self._now = tout
+                q = self._queue                         # (frames whose speed is decided, held at a stop's start,
+                return self._decide(tout) if q and (q[-1][3] is _UNDECIDED or not q[0][4]) else []   # wait)
         if not (math.isfinite(t) and math.isfinite(g[0] + g[1] + g[2] + a[0] + a[1] + a[2])):
             self._skipped += 1
             return []
