@@ -99,3 +99,47 @@ def test_frame_estimate_copies_every_slot_of_the_filters_estimate():
     out = streaming.FrameEstimate.of(est, 1.0, 0.9, math.nan, ())
     assert [getattr(out, name) for name in GroundEstimate.__slots__] == \
         [getattr(est, name) for name in GroundEstimate.__slots__]
+
+
+def _direct_windows(samples, k, W, tests):
+    """Whether the trailing window of W blocks ending at k passes, straight from the samples (numpy, no sums)."""
+    rows = []
+    for j in range(k, k - W, -1):
+        if j < 0 or not samples.get(j):
+            return False
+        rows += samples[j]
+    g = np.array([r[0] for r in rows])
+    a = np.array([r[1] for r in rows])
+    return bool(np.linalg.norm(g.mean(0)) <= tests.gyro_norm_max and g.std(0).max() <= tests.gyro_std_max
+                and a.std(0).max() <= tests.accel_std_max
+                and abs(np.linalg.norm(a.mean(0)) - tests.gravity) <= tests.accel_norm_tol)
+
+
+def test_standstill_windows_match_the_samples_and_the_ring_grows_past_a_jump():
+    from imu_ground.imu.causal_standstill import StandstillBlocks
+    rng = np.random.default_rng(2)
+    bl = StandstillBlocks(10.0)                          # 1 s and 2 s windows: W = 10, Wb = 20 blocks
+    r0 = bl.ring.shape[0]
+    ks = list(range(40)) + list(range(40 + 3 * r0, 40 + 3 * r0 + 30))   # a jump onto the rows still held
+    samples: dict = {}
+    for k in ks:
+        moving = 15 <= k < 18 or k == ks[-5]
+        for _ in range(int(rng.integers(1, 4))):
+            g = rng.normal(0, 0.05 if moving else 1e-3, 3) + 0.001
+            a = rng.normal(0, 0.5 if moving else 5e-3, 3) + [0.0, 0.0, 9.81]
+            bl.add(k, g.tolist(), a.tolist())
+            samples.setdefault(k, []).append((g, a))
+    assert bl.ring.shape[0] > r0                         # grown, nothing lost
+    assert sorted(bl.blocks) == ks
+    passed = set()
+    for k in range(-2, ks[-1] + 2):
+        for W in (1, 5, 10, 20):
+            got = bl.windows(k, W, W)
+            assert got == (_direct_windows(samples, k, W, bl.tests),) * 2, (k, W)
+            passed |= {W} if got[0] else set()
+    assert passed == {1, 5, 10, 20}                      # the tests pass somewhere and fail elsewhere (moving)
+    copy = StandstillBlocks(10.0)
+    copy.load_state_dict(json.loads(json.dumps(bl.state_dict())))
+    assert all(copy.windows(k) == bl.windows(k) for k in ks) and copy.open_k == bl.open_k == ks[-1]
+    bl.done(ks[-1])
+    assert min(bl.blocks) == ks[-1] - 20 + 2

@@ -56,7 +56,6 @@ from imu_ground.filters.estimator import GroundEstimate
 from imu_ground.filters.methods import METHODS
 from imu_ground._jit import njit
 from imu_ground.imu.causal_standstill import (
-    BLOCK_SIZE,
     CausalGyroBias,
     StandstillBlocks,
     StandstillTests,
@@ -100,15 +99,14 @@ _UNDECIDED = "undecided"                                # a frame's speed not de
 _from_state = PreintegratedImu.from_state
 # _front_step's answers beside push_step's (0: integrated, n > 0: frames finished, -1: its Python path to run)
 _NOT_TAKEN, _DROPPED, _NEW_BLOCK = -4, -3, -2
-_NO_BLOCK = np.zeros(BLOCK_SIZE)
 
 
 @njit
-def _front_step(clock: np.ndarray, block: np.ndarray, open_k: int, pre: np.ndarray, times: np.ndarray,
+def _front_step(clock: np.ndarray, blocks: np.ndarray, open_k: int, pre: np.ndarray, times: np.ndarray,
                 frames: np.ndarray, origin: float, rate: float, t: float, g0: float, g1: float, g2: float,
                 a0: float, a1: float, a2: float) -> int:
     """Steps 1-3 of one sample after the warm-up: the clock's step (:func:`~imu_ground.imu.sample_clock.clock_step`),
-    the sum into the open standstill block ``block`` (index ``open_k``;
+    the sum into the open standstill block ``open_k`` (of the blocks' ring,
     :func:`~imu_ground.imu.causal_standstill.add_sample`), the preintegration step
     (:func:`~imu_ground.imu.preint_stream.push_step`, its answer returned). Before the preintegration:
     :data:`_NOT_TAKEN` (a non-finite value or a stamp far off the clock: nothing changed), :data:`_DROPPED`
@@ -126,7 +124,7 @@ def _front_step(clock: np.ndarray, block: np.ndarray, open_k: int, pre: np.ndarr
     if k >= 0:
         if k != open_k:
             return _NEW_BLOCK
-        add_sample(block, g0, g1, g2, a0, a1, a2)
+        add_sample(blocks[k % blocks.shape[0]], g0, g1, g2, a0, a1, a2)
     return push_step(pre, times, frames, tout, g0, g1, g2, a0, a1, a2)
 
 
@@ -397,7 +395,7 @@ class StreamingEstimator:
         if pre is not None:                             # after the warm-up: one compiled step
             blocks = self._blocks
             b, times, frames = pre.step_buffers
-            r = _front_step(self._clock.buffer, _NO_BLOCK if blocks.open is None else blocks.open, blocks.open_k,
+            r = _front_step(self._clock.buffer, blocks.ring, blocks.open_k,
                             b, times, frames, self._origin, self.rate, t, g[0], g[1], g[2], a[0], a[1], a[2])
             if r != _NOT_TAKEN:
                 if r == _DROPPED:
