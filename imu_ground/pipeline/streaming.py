@@ -1,6 +1,6 @@
 """Live: raw IMU samples and wheel speed in, per-frame ground estimates out, causal (:class:`StreamingEstimator`).
 
-The object a vehicle-side stack feeds from its driver callbacks, and its twin for
+The object a vehicle-side stack feeds from its driver callbacks, and its counterpart for
 recorded logs, :func:`causal_track` (``estimate_log(..., causal=True)``,
 ``imu-ground estimate --causal``), which makes the same choices over a whole log,
 vectorised where the choices allow, and gives the same numbers (to rounding).
@@ -882,7 +882,7 @@ class StreamingEstimator:
         return track, em
 
 
-# ------------------------------------------------------------------------------------------ offline twin
+# ------------------------------------------------------------------------------------ offline counterpart
 def causal_track(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, *, method: str = "auto", extrinsic: Any = None,
                  rate: float = 10.0, speed: tuple[np.ndarray, np.ndarray] | None = None, bias_gyro: Any = "auto",
                  policy: str = "retime", speed_wait: float = SPEED_WAIT, recalibrate_online: bool = False):
