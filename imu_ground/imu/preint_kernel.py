@@ -120,17 +120,22 @@ def integrate(s: np.ndarray, u: np.ndarray, dt: float, x: float, y: float, z: fl
     c1 = fy + qw * ty + qz * tx - qx * tz
     c2 = fz + qw * tz + qx * ty - qy * tx
     if u.size:
-        (h00, h01, h02, h10, h11, h12, h20, h21, h22,                 # 0:9    Th
-         g00, g01, g02, g10, g11, g12, g20, g21, g22,                 # 9:18   Vg
-         m00, m01, m02, m10, m11, m12, m20, m21, m22,                 # 18:27  Mg
-         a00, a01, a02, a10, a11, a12, a20, a21, a22,                 # 27:36  Va
-         b00, b01, b02, b10, b11, b12, b20, b21, b22,                 # 36:45  Ma
-         rr00, rr01, rr02, rr11, rr12, rr22,                          # 45:51  rr
-         rv00, rv01, rv02, rv10, rv11, rv12, rv20, rv21, rv22,        # 51:60  rv
-         rq00, rq01, rq02, rq10, rq11, rq12, rq20, rq21, rq22,        # 60:69  rq
-         vv00, vv01, vv02, vv11, vv12, vv22,                          # 69:75  vv
-         vq00, vq01, vq02, vq10, vq11, vq12, vq20, vq21, vq22,        # 75:84  vq
-         qq00, qq01, qq02, qq11, qq12, qq22) = u                      # 84:90  qq
+        # the 90 floats (layout in the module docstring), entry by entry
+        h00, h01, h02, h10, h11, h12 = u[0], u[1], u[2], u[3], u[4], u[5]
+        h20, h21, h22, g00, g01, g02 = u[6], u[7], u[8], u[9], u[10], u[11]
+        g10, g11, g12, g20, g21, g22 = u[12], u[13], u[14], u[15], u[16], u[17]
+        m00, m01, m02, m10, m11, m12 = u[18], u[19], u[20], u[21], u[22], u[23]
+        m20, m21, m22, a00, a01, a02 = u[24], u[25], u[26], u[27], u[28], u[29]
+        a10, a11, a12, a20, a21, a22 = u[30], u[31], u[32], u[33], u[34], u[35]
+        b00, b01, b02, b10, b11, b12 = u[36], u[37], u[38], u[39], u[40], u[41]
+        b20, b21, b22, rr00, rr01, rr02 = u[42], u[43], u[44], u[45], u[46], u[47]
+        rr11, rr12, rr22, rv00, rv01, rv02 = u[48], u[49], u[50], u[51], u[52], u[53]
+        rv10, rv11, rv12, rv20, rv21, rv22 = u[54], u[55], u[56], u[57], u[58], u[59]
+        rq00, rq01, rq02, rq10, rq11, rq12 = u[60], u[61], u[62], u[63], u[64], u[65]
+        rq20, rq21, rq22, vv00, vv01, vv02 = u[66], u[67], u[68], u[69], u[70], u[71]
+        vv11, vv12, vv22, vq00, vq01, vq02 = u[72], u[73], u[74], u[75], u[76], u[77]
+        vq10, vq11, vq12, vq20, vq21, vq22 = u[78], u[79], u[80], u[81], u[82], u[83]
+        qq00, qq01, qq02, qq11, qq12, qq22 = u[84], u[85], u[86], u[87], u[88], u[89]
         if t2 < SMALL_ANGLE2:
             B = 0.5 - t2 / 24.0 + t2 * t2 / 720.0
             C = 1.0 / 6.0 - t2 / 120.0 + t2 * t2 / 5040.0
@@ -232,19 +237,22 @@ def integrate(s: np.ndarray, u: np.ndarray, dt: float, x: float, y: float, z: fl
             ws0, ws1 = w1 * s0, w1 * s1
             rr00, rr11, rr22 = rr00 + (w0 + ws0 * s0), rr11 + (w0 + ws1 * s1), rr22 + (w0 + w1 * s2 * s2)
             rr01, rr02, rr12 = rr01 + ws0 * s1, rr02 + ws0 * s2, rr12 + ws1 * s2
-        out = (h00, h01, h02, h10, h11, h12, h20, h21, h22,
-             g00, g01, g02, g10, g11, g12, g20, g21, g22,
-             m00, m01, m02, m10, m11, m12, m20, m21, m22,
-             a00, a01, a02, a10, a11, a12, a20, a21, a22,
-             b00, b01, b02, b10, b11, b12, b20, b21, b22,
-             rr00, rr01, rr02, rr11, rr12, rr22,
-             rv00, rv01, rv02, rv10, rv11, rv12, rv20, rv21, rv22,
-             rq00, rq01, rq02, rq10, rq11, rq12, rq20, rq21, rq22,
-             vv00, vv01, vv02, vv11, vv12, vv22,
-             vq00, vq01, vq02, vq10, vq11, vq12, vq20, vq21, vq22,
-             qq00, qq01, qq02, qq11, qq12, qq22)
-        for i in range(90):
-            u[i] = out[i]
+        # write back (entry by entry: no tuple of 90 floats in the compiled code)
+        u[0], u[1], u[2], u[3], u[4], u[5] = h00, h01, h02, h10, h11, h12
+        u[6], u[7], u[8], u[9], u[10], u[11] = h20, h21, h22, g00, g01, g02
+        u[12], u[13], u[14], u[15], u[16], u[17] = g10, g11, g12, g20, g21, g22
+        u[18], u[19], u[20], u[21], u[22], u[23] = m00, m01, m02, m10, m11, m12
+        u[24], u[25], u[26], u[27], u[28], u[29] = m20, m21, m22, a00, a01, a02
+        u[30], u[31], u[32], u[33], u[34], u[35] = a10, a11, a12, a20, a21, a22
+        u[36], u[37], u[38], u[39], u[40], u[41] = b00, b01, b02, b10, b11, b12
+        u[42], u[43], u[44], u[45], u[46], u[47] = b20, b21, b22, rr00, rr01, rr02
+        u[48], u[49], u[50], u[51], u[52], u[53] = rr11, rr12, rr22, rv00, rv01, rv02
+        u[54], u[55], u[56], u[57], u[58], u[59] = rv10, rv11, rv12, rv20, rv21, rv22
+        u[60], u[61], u[62], u[63], u[64], u[65] = rq00, rq01, rq02, rq10, rq11, rq12
+        u[66], u[67], u[68], u[69], u[70], u[71] = rq20, rq21, rq22, vv00, vv01, vv02
+        u[72], u[73], u[74], u[75], u[76], u[77] = vv11, vv12, vv22, vq00, vq01, vq02
+        u[78], u[79], u[80], u[81], u[82], u[83] = vq10, vq11, vq12, vq20, vq21, vq22
+        u[84], u[85], u[86], u[87], u[88], u[89] = qq00, qq01, qq02, qq11, qq12, qq22
     # --- deltas: p += dt (v + c/2), v += c, q = q_k (x) (ch, k phi)
     dx, dy, dz = k * x, k * y, k * z
     s[0] = T + dt

@@ -49,17 +49,22 @@ _from_state = PreintegratedImu.from_state
 
 
 @njit
+def _integrate(b: np.ndarray, dt: float, x: float, y: float, z: float, fx: float, fy: float, fz: float) -> None:
+    """:func:`~imu_ground.imu.preint_kernel.integrate` on the state buffer (its one call site here)."""
+    u = b[_S_UNC:_S_PREV] if b[_S_UNCERTAINTY] != 0.0 else b[_S_UNC:_S_UNC]
+    integrate(b[0:_S_UNC], u, dt, x, y, z, fx, fy, fz, b[_S_NOISE], b[_S_NOISE + 1])
+
+
+@njit
 def _integrate_piece(b: np.ndarray, dt: float, ka: np.ndarray, kb: np.ndarray) -> None:
     """One piece of length ``dt`` (s) between knots with bias-free values ``ka`` and ``kb`` (6: rad/s, m/s^2):
     held at their mean (midpoint) or at ``ka`` (left)."""
-    u = b[_S_UNC:_S_PREV] if b[_S_UNCERTAINTY] != 0.0 else b[_S_UNC:_S_UNC]
     if b[_S_MIDPOINT] != 0.0:
         hh = 0.5 * dt
-        integrate(b[0:_S_UNC], u, dt, (ka[0] + kb[0]) * hh, (ka[1] + kb[1]) * hh, (ka[2] + kb[2]) * hh,
-                  (ka[3] + kb[3]) * hh, (ka[4] + kb[4]) * hh, (ka[5] + kb[5]) * hh, b[_S_NOISE], b[_S_NOISE + 1])
+        _integrate(b, dt, (ka[0] + kb[0]) * hh, (ka[1] + kb[1]) * hh, (ka[2] + kb[2]) * hh,
+                   (ka[3] + kb[3]) * hh, (ka[4] + kb[4]) * hh, (ka[5] + kb[5]) * hh)
     else:
-        integrate(b[0:_S_UNC], u, dt, ka[0] * dt, ka[1] * dt, ka[2] * dt, ka[3] * dt, ka[4] * dt, ka[5] * dt,
-                  b[_S_NOISE], b[_S_NOISE + 1])
+        _integrate(b, dt, ka[0] * dt, ka[1] * dt, ka[2] * dt, ka[3] * dt, ka[4] * dt, ka[5] * dt)
 
 
 @njit
@@ -120,14 +125,12 @@ def push_step(b: np.ndarray, times: np.ndarray, out: np.ndarray, t: float, wx: f
             b[_S_PREV + 6]
         b[_S_PREV], b[_S_PREV + 1], b[_S_PREV + 2], b[_S_PREV + 3] = t, wx, wy, wz
         b[_S_PREV + 4], b[_S_PREV + 5], b[_S_PREV + 6] = ax, ay, az
-        u = b[_S_UNC:_S_PREV] if b[_S_UNCERTAINTY] != 0.0 else b[_S_UNC:_S_UNC]
         if b[_S_MIDPOINT] != 0.0:               # mean of the two samples, the 1/2 folded into dt
             hh = 0.5 * h
-            integrate(b[0:_S_UNC], u, h, (gx + wx) * hh, (gy + wy) * hh, (gz + wz) * hh,
-                      (fx + ax) * hh, (fy + ay) * hh, (fz + az) * hh, b[_S_NOISE], b[_S_NOISE + 1])
+            _integrate(b, h, (gx + wx) * hh, (gy + wy) * hh, (gz + wz) * hh, (fx + ax) * hh, (fy + ay) * hh,
+                       (fz + az) * hh)
         else:                                   # the left sample's value
-            integrate(b[0:_S_UNC], u, h, gx * h, gy * h, gz * h, fx * h, fy * h, fz * h,
-                      b[_S_NOISE], b[_S_NOISE + 1])
+            _integrate(b, h, gx * h, gy * h, gz * h, fx * h, fy * h, fz * h)
         return 0
     if not (b[_S_MODE] != 0.0 and b[_S_ACTIVE] != 0.0 and 0.0 < h <= b[_S_MAXGAP]):
         return -1
@@ -275,9 +278,7 @@ class StreamingPreintegrator:
         self._save()
 
     def _integrate(self, dt: float, x: float, y: float, z: float, fx: float, fy: float, fz: float) -> None:
-        b = self._b                             # (views taken here: a copy of the preintegrator copies b alone)
-        integrate(b[0:_S_UNC], b[_S_UNC:_S_PREV] if self._u0 is not None else b[_S_UNC:_S_UNC], dt, x, y, z,
-                  fx, fy, fz, *self._noise)
+        _integrate(self._b, dt, x, y, z, fx, fy, fz)
 
     def _load(self) -> None:
         """Buffer -> attributes: what the compiled push changes."""
