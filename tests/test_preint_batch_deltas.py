@@ -1,4 +1,4 @@
-"""The batch preintegration's compiled deltas-only loop (imu/preint_batch.py ``_blocks_deltas``).
+"""The batch preintegration's deltas-only loop (imu/preint_batch.py ``_frames_deltas``): the streaming kernel.
 
 ``preintegrate(..., uncertainty=False)`` runs the compiled loop over padded blocks; with
 ``uncertainty=True`` the vectorised numpy blocks (``_blocks_kernel``) give the same deltas with
@@ -12,6 +12,8 @@ import numpy as np
 import pytest
 
 from imu_ground.imu import preint_batch as pb
+from imu_ground.imu.preint_stream import StreamingPreintegrator
+from imu_ground.so3.conversions import matrix_from_quat
 
 FIELDS = ("t_start", "t_end", "delta_t", "delta_R", "delta_v", "delta_p", "valid", "n_intervals")
 
@@ -80,19 +82,20 @@ def test_the_kernel_against_a_plain_sequential_product():
     """An independent reference: each block's delta_R, delta_v, delta_p by a plain loop (equal to rounding)."""
     from scipy.spatial.transform import Rotation
     rng = np.random.default_rng(1)
-    K, lanes = 40, 16
+    K = 40
     dt = rng.uniform(0.005, 0.015, K)
     kv = np.vstack([rng.normal(0, 0.5, (3, K + 1)), rng.normal(0, 2.0, (3, K + 1))])
-    start, stop = np.array([0, 16, 30], dtype=np.int64), np.array([16, 30, 40], dtype=np.int64)
-    T, R, v, p = np.empty(3), np.empty((3, 3, 3)), np.empty((3, 3)), np.empty((3, 3))
+    start, stop = np.array([0, 16, 30]), np.array([16, 30, 40])
     bias = np.array([0.01, 0.02, -0.01, 0.1, -0.1, 0.0])
     # the knots as 44 samples with knots 5, 17 and 33 inserted as boundaries (values in yb), from knot 2 on
     ins = np.array([5, 17, 33])
     samples = np.delete(np.hstack([np.zeros((6, 2)), kv, np.zeros((6, 1))]), ins + 2, axis=1)
     ki = ins + 2 - np.arange(3)
-    pb._blocks_deltas(dt, np.ascontiguousarray(samples[:3].T), np.ascontiguousarray(samples[3:].T),
-                      ki.astype(np.int64), np.ascontiguousarray(kv[:, ins]), 2, start, stop, lanes, bias, True,
-                      T, R, v, p)
+    d = np.empty((3, 11))
+    pb._frames_deltas(dt, np.ascontiguousarray(samples[:3].T), np.ascontiguousarray(samples[3:].T),
+                      ki.astype(np.int64), np.ascontiguousarray(kv[:, ins]), 2, np.array([0, 16, 30, 40]), bias, True,
+                      d)
+    T, R, v, p = d[:, 0], matrix_from_quat(d[:, 1:5]), d[:, 5:8], d[:, 8:11]
     for b in range(3):
         Rk, vk, pk = np.eye(3), np.zeros(3), np.zeros(3)
         for j in range(start[b], stop[b]):
@@ -105,3 +108,22 @@ def test_the_kernel_against_a_plain_sequential_product():
         np.testing.assert_allclose(R[b], Rk, rtol=0, atol=1e-14)
         np.testing.assert_allclose(v[b], vk, rtol=0, atol=1e-13)
         np.testing.assert_allclose(p[b], pk, rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("hold", ["midpoint", "left"])
+def test_the_batch_deltas_are_the_streaming_frames(hold):
+    """Frames on samples (every N): the batch runs the streaming kernel over the same intervals, so the two agree
+    to the bit but for the rotation matrix's normalisation (numpy's norm against math.sqrt)."""
+    t, gyro, accel = _log(3, n=2000)
+    kw = dict(hold=hold, on_gap="flag", max_gap=0.1, bias_gyro=[0.01, -0.02, 0.005], bias_accel=[0.1, 0.0, -0.05])
+    fd = pb.preintegrate((t, gyro, accel), every=9, uncertainty=False, **kw)
+    sp = StreamingPreintegrator(every=9, uncertainty=False, **kw)
+    frames = [f for i in range(t.size) for f in sp.push(t[i], gyro[i].tolist(), accel[i].tolist())]
+    n = fd.delta_t.size
+    assert n > 200 and len(frames) >= n
+    frames = frames[:n]
+    assert np.array_equal(fd.delta_v, [f.delta_v for f in frames])
+    assert np.array_equal(fd.delta_p, [f.delta_p for f in frames])
+    assert np.array_equal(fd.delta_t, [f.delta_t for f in frames])
+    assert np.array_equal(fd.valid, [f.valid for f in frames])
+    np.testing.assert_allclose(fd.delta_R, [f.delta_R for f in frames], rtol=0, atol=4e-16)

@@ -12,10 +12,10 @@ into blocks that are merged with the associative composition
 The knots, held values and gap rules are those of the module docstring of
 :mod:`imu_ground.imu.preintegration`, as in the streaming front-end.
 
-Without uncertainty (the whole job's path) the blocks run in one compiled loop
-(:func:`_blocks_deltas`, through :mod:`imu_ground._jit`): the same padded blocks and
-formulas as :func:`_blocks_kernel`'s deltas, reading the knots' values where they are
-instead of the vectorised temporaries.
+Without uncertainty (the whole job's path) each frame's deltas are those of the
+streaming front-end: its kernel (:func:`~imu_ground.imu.preint_kernel.integrate`)
+run over the frame's knots in one compiled loop (:func:`_frames_deltas`, through
+:mod:`imu_ground._jit`), reading the knots' values where they are.
 """
 from __future__ import annotations
 
@@ -28,10 +28,11 @@ from imu_ground._jit import njit
 from imu_ground.errors import ImuGroundError
 from imu_ground.imu.data import ImuData
 from imu_ground.imu.preint_frames import FrameDeltas, make_frame_times
+from imu_ground.imu.preint_kernel import integrate
 from imu_ground.imu.preint_measurement import compose_left, left_to_right
 from imu_ground.imu.preint_params import PreintegrationParams, gap_message
+from imu_ground.so3.conversions import matrix_from_quat
 from imu_ground.so3.component_major import (
-    SMALL_ANGLE2,
     cross_rows,
     exp_and_left_jacobian,
     hat_times,
@@ -58,8 +59,7 @@ def _running_sum(x: np.ndarray, axis: int) -> np.ndarray:
     return out
 
 
-def _blocks_kernel(dt: np.ndarray, w: np.ndarray, f: np.ndarray, qg: float, qa: float,
-                   uncertainty: bool = True) -> tuple:
+def _blocks_kernel(dt: np.ndarray, w: np.ndarray, f: np.ndarray, qg: float, qa: float) -> tuple:
     """Preintegrate padded blocks of intervals in closed form, left-error form.
 
     Parameters are component-major, interval index before block index (so that
@@ -78,11 +78,10 @@ def _blocks_kernel(dt: np.ndarray, w: np.ndarray, f: np.ndarray, qg: float, qa: 
       (rotation rows) and the isotropic accelerometer terms.
 
     Returns (T, R, v, p, J, S) with shapes (B,), (B,3,3), (B,3), (B,3), (B,9,6), (B,9,9);
-    J and S are None when ``uncertainty`` is False.
     """
     L, nb = dt.shape
     phi = w * dt
-    E, Jl = exp_and_left_jacobian(phi[0], phi[1], phi[2], jacobian=uncertainty)
+    E, Jl = exp_and_left_jacobian(phi[0], phi[1], phi[2], jacobian=True)
     del phi
     P = scan_products(E)                                   # delta_R after interval k
     del E
@@ -105,9 +104,7 @@ def _blocks_kernel(dt: np.ndarray, w: np.ndarray, f: np.ndarray, qg: float, qa: 
     Rn = np.ascontiguousarray(P[:, :, -1].transpose(2, 0, 1))
     vn = np.ascontiguousarray(V[:, -1].T)
     pn = np.ascontiguousarray(Pp[:, -1].T)
-    if not uncertainty:
-        return T, Rn, vn, pn, None, None
-    assert Jl is not None                                  # jacobian=uncertainty
+    assert Jl is not None                                  # jacobian=True
     Uo = mm(Rk, Jl)                                        # U / dt
     del Jl, P
     U = Uo * dt
@@ -179,100 +176,41 @@ def _knot(gyro: np.ndarray, accel: np.ndarray, ki: np.ndarray, yb: np.ndarray, g
 
 
 @njit
-def _blocks_deltas(dt: np.ndarray, gyro: np.ndarray, accel: np.ndarray, ki: np.ndarray, yb: np.ndarray, j0: int,
-                   start: np.ndarray, stop: np.ndarray, lanes: int, bias: np.ndarray, midpoint: bool,
-                   To: np.ndarray, Ro: np.ndarray, vo: np.ndarray, po: np.ndarray) -> None:
-    """Each padded block's deltas (:func:`_blocks_kernel` without uncertainty), one block at a time.
+def _frames_deltas(dt: np.ndarray, gyro: np.ndarray, accel: np.ndarray, ki: np.ndarray, yb: np.ndarray, j0: int,
+                   b: np.ndarray, bias: np.ndarray, midpoint: bool, out: np.ndarray) -> None:
+    """Each frame's deltas by the streaming front-end's kernel (:func:`~imu_ground.imu.preint_kernel.integrate`),
+    interval after interval, as :class:`~imu_ground.imu.preint_stream.StreamingPreintegrator` integrates them.
 
-    Block ``b`` integrates the knot intervals ``[start[b], stop[b])`` of ``dt`` (s), padded to
-    ``lanes`` intervals of zero length; knot ``j`` of ``dt`` is knot ``j0 + j`` of the samples
-    ``gyro``, ``accel`` (N, 3; rad/s, m/s^2, body frame) with the boundaries ``yb`` (6, M) inserted
-    before samples ``ki`` (:func:`_knots`). Held value: the two knots' mean (``midpoint``) or the
-    left knot's, less ``bias`` (6). Out: ``To`` (B,) s, ``Ro`` (B, 3, 3) ``R_{start<-end}``, ``vo``
-    and ``po`` (B, 3) m/s and m in the block's start body frame. As :func:`_blocks_kernel`: the
-    Exp of :func:`~imu_ground.so3.component_major.exp_and_left_jacobian`, the Hillis-Steele product
-    scan of :func:`~imu_ground.so3.component_major.scan_products` over all ``lanes`` lanes (the
-    padding takes part, as identities), running sums lane after lane.
+    Frame ``f`` integrates the knot intervals ``[b[f], b[f + 1])`` of ``dt`` (s); knot ``j`` of ``dt`` is
+    knot ``j0 + j`` of the samples ``gyro``, ``accel`` (N, 3; rad/s, m/s^2, body frame) with the boundaries
+    ``yb`` (6, M) inserted before samples ``ki`` (:func:`_knots`). Held value, less ``bias`` (6): the two
+    knots' mean (``midpoint``) or the left knot's. Out: ``out[f]`` the 11 floats of the deltas
+    (layout in :mod:`imu_ground.imu.preint_kernel`).
     """
-    P = np.empty((lanes, 3, 3))
-    Q = np.empty((lanes, 3, 3))
-    H = np.empty((lanes, 6))
-    D = np.empty(lanes)
+    s = np.empty(11)
+    none = np.zeros(0)
     a = np.empty(6)
     c = np.empty(6)
-    V = np.zeros(3)
-    Pp = np.zeros(3)
-    I3 = np.eye(3)
     at = 0
-    for b in range(start.size):
-        m = stop[b] - start[b]
-        for k in range(lanes):
-            if k < m:
-                j = start[b] + k
-                D[k] = dt[j]
-                at = _knot(gyro, accel, ki, yb, j0 + j, at, a)
-                if midpoint:
-                    at = _knot(gyro, accel, ki, yb, j0 + j + 1, at, c)
-                    for r in range(6):
-                        H[k, r] = (a[r] + c[r]) * 0.5 - bias[r]
-                else:
-                    for r in range(6):
-                        H[k, r] = a[r] - bias[r]
-            else:                       # padding: zero length, values 0 - bias
-                D[k] = 0.0
-                for r in range(6):
-                    H[k, r] = 0.0 - bias[r]
-            dk = D[k]
-            x, y, z = H[k, 0] * dk, H[k, 1] * dk, H[k, 2] * dk
-            xx, yy, zz = x * x, y * y, z * z
-            t2 = xx + yy + zz
-            if t2 < SMALL_ANGLE2:
-                tts = t2 * t2
-                sa = 1.0 - t2 / 6.0 + tts / 120.0
-                sb = 0.5 - t2 / 24.0 + tts / 720.0
-            else:
-                th = math.sqrt(t2)
-                hs = math.sin(0.5 * th)
-                sa = math.sin(th) / th
-                sb = 2.0 * hs * hs / t2
-            bxy, bxz, byz = sb * (x * y), sb * (x * z), sb * (y * z)
-            P[k, 0, 0] = 1.0 - sb * (yy + zz)
-            P[k, 1, 1] = 1.0 - sb * (xx + zz)
-            P[k, 2, 2] = 1.0 - sb * (xx + yy)
-            P[k, 0, 1] = bxy - sa * z
-            P[k, 1, 0] = bxy + sa * z
-            P[k, 0, 2] = bxz + sa * y
-            P[k, 2, 0] = bxz - sa * y
-            P[k, 1, 2] = byz - sa * x
-            P[k, 2, 1] = byz + sa * x
-        d = 1
-        while d < lanes:                # scan_products: Q[k] = P[k - d] @ P[k] for k >= d
-            Q[:d] = P[:d]
-            for k in range(d, lanes):
-                for i in range(3):
-                    for jj in range(3):
-                        Q[k, i, jj] = (P[k - d, i, 0] * P[k, 0, jj] + P[k - d, i, 1] * P[k, 1, jj]) \
-                            + P[k - d, i, 2] * P[k, 2, jj]
-            P, Q = Q, P
-            d *= 2
-        # delta_v, delta_p and time after each lane; Rk = delta_R before lane k (identity, then P[k - 1])
-        e = 0.0
-        for k in range(lanes):
-            Rk = I3 if k == 0 else P[k - 1]
-            dk = D[k]
-            f0, f1, f2 = H[k, 3] * dk, H[k, 4] * dk, H[k, 5] * dk
-            for i in range(3):
-                ci = Rk[i, 0] * f0 + Rk[i, 1] * f1 + Rk[i, 2] * f2
-                vb = V[i]
-                V[i] = vb + ci if k else ci
-                q = dk * (vb + 0.5 * ci)
-                Pp[i] = Pp[i] + q if k else q
-            e = e + dk if k else dk
-        To[b] = e
-        Ro[b] = P[lanes - 1]
-        vo[b] = V
-        po[b] = Pp
-        V[:] = 0.0
+    for f in range(b.size - 1):
+        s[:] = 0.0
+        s[1] = 1.0                              # identity quaternion
+        at = _knot(gyro, accel, ki, yb, j0 + b[f], at, a)
+        for r in range(6):
+            a[r] = a[r] - bias[r]
+        for j in range(b[f], b[f + 1]):
+            at = _knot(gyro, accel, ki, yb, j0 + j + 1, at, c)
+            for r in range(6):
+                c[r] = c[r] - bias[r]
+            h = dt[j]
+            if midpoint:                        # mean of the two knots, the 1/2 folded into dt
+                hh = 0.5 * h
+                integrate(s, none, h, (a[0] + c[0]) * hh, (a[1] + c[1]) * hh, (a[2] + c[2]) * hh,
+                          (a[3] + c[3]) * hh, (a[4] + c[4]) * hh, (a[5] + c[5]) * hh, 0.0, 0.0)
+            else:                               # the left knot's value
+                integrate(s, none, h, a[0] * h, a[1] * h, a[2] * h, a[3] * h, a[4] * h, a[5] * h, 0.0, 0.0)
+            a[:] = c
+        out[f] = s
 
 
 def _merge_blocks(res: tuple, block_frame: np.ndarray, n_frames: int) -> tuple:
@@ -295,23 +233,22 @@ def _merge_blocks(res: tuple, block_frame: np.ndarray, n_frames: int) -> tuple:
         return out
 
     ident: tuple[np.ndarray | np.float64, ...] = (np.float64(0.0), np.eye(3), np.zeros(3), np.zeros(3), np.zeros((9, 6)), np.zeros((9, 9)))
-    m = 6 if res[4] is not None else 4          # without covariance and Jacobians: 4 entries
-    cur = [pad(x, i) for x, i in zip(res[:m], ident, strict=False)]
+    cur = [pad(x, i) for x, i in zip(res, ident, strict=True)]
     while cur[0].shape[1] > 1:
         if cur[0].shape[1] % 2:
             cur = [np.concatenate([x, np.broadcast_to(i, (x.shape[0], 1) + i.shape)], axis=1)
                    for x, i in zip(cur, ident, strict=False)]
-        a = tuple(x[:, 0::2] for x in cur) + (None, None) * (m == 4)
-        b = tuple(x[:, 1::2] for x in cur) + (None, None) * (m == 4)
-        cur = list(compose_left(a, b))[:m]
+        a = tuple(x[:, 0::2] for x in cur)
+        b = tuple(x[:, 1::2] for x in cur)
+        cur = list(compose_left(a, b))
     out = []
     single = counts == 1
-    for x, c in zip(res[:m], cur, strict=True):
+    for x, c in zip(res, cur, strict=True):
         o = np.empty((n_frames,) + x.shape[1:])
         o[single] = x[first[single]]
         o[multi] = c[:, 0]
         out.append(o)
-    return tuple(out) + (None, None) * (m == 4)
+    return tuple(out)
 
 
 def _validate_times(t: np.ndarray) -> None:
@@ -440,6 +377,13 @@ def _integrate_frames(dt: np.ndarray, kv: np.ndarray | None, b: np.ndarray, par:
     temporary stays cache-sized whatever the log's length.
     """
     nfr = b.size - 1
+    bias = np.concatenate([np.asarray(par.bias_gyro, dtype=float), np.asarray(par.bias_accel, dtype=float)])
+    if kv is None:                      # deltas only: the streaming kernel, compiled, over each frame
+        gyro, accel, (ki, yb, j0) = samples  # type: ignore[misc]
+        d = np.empty((nfr, 11))
+        _frames_deltas(np.ascontiguousarray(dt), gyro, accel, ki.astype(np.int64), np.ascontiguousarray(yb),
+                       int(j0), b.astype(np.int64), bias, par.hold == "midpoint", d)
+        return d[:, 0], matrix_from_quat(d[:, 1:5]), d[:, 5:8].copy(), d[:, 8:11].copy(), None, None
     nint = np.diff(b)
     Lb = int(min(nint.max(), max(16, 2 * math.ceil(dt.size / nfr))))
     nblk = -(-nint // Lb)
@@ -449,15 +393,7 @@ def _integrate_frames(dt: np.ndarray, kv: np.ndarray | None, b: np.ndarray, par:
     blk_in_frame = np.arange(nbt) - np.repeat(first_blk, nblk)
     start = b[:-1][block_frame] + Lb * blk_in_frame
     stop = np.minimum(start + Lb, b[1:][block_frame])
-    bias = np.concatenate([np.asarray(par.bias_gyro, dtype=float),
-                           np.asarray(par.bias_accel, dtype=float)])[:, None, None]
-    if kv is None:                      # deltas only: the compiled loop over the same blocks
-        gyro, accel, (ki, yb, j0) = samples  # type: ignore[misc]
-        To, Ro, vo, po = np.empty(nbt), np.empty((nbt, 3, 3)), np.empty((nbt, 3)), np.empty((nbt, 3))
-        _blocks_deltas(np.ascontiguousarray(dt), gyro, accel, ki.astype(np.int64), np.ascontiguousarray(yb),
-                       int(j0), start.astype(np.int64), stop.astype(np.int64), Lb,
-                       np.ascontiguousarray(bias[:, 0, 0]), par.hold == "midpoint", To, Ro, vo, po)
-        return _merge_blocks((To, Ro, vo, po, None, None), block_frame, nfr)
+    bias = bias[:, None, None]
     qg, qa = par.gyro_noise_density ** 2, par.accel_noise_density ** 2
     # chunks of about _CHUNK intervals keep the temporaries in cache (a loop over groups of frames)
     step = max(1, _CHUNK // Lb)
@@ -475,8 +411,8 @@ def _integrate_frames(dt: np.ndarray, kv: np.ndarray | None, b: np.ndarray, par:
             hp = kv[:, idx]
         hp[:, pad] = 0.0
         hp -= bias
-        parts.append(_blocks_kernel(dtp, hp[0:3], hp[3:6], qg, qa, par.uncertainty))
-    res = tuple(np.concatenate([r[j] for r in parts]) if par.uncertainty or j < 4 else None for j in range(6))
+        parts.append(_blocks_kernel(dtp, hp[0:3], hp[3:6], qg, qa))
+    res = tuple(np.concatenate([r[j] for r in parts]) for j in range(6))
     return _merge_blocks(res, block_frame, nfr)
 
 
