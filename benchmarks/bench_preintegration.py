@@ -13,9 +13,9 @@
 Figures are medians over ``--repeat`` (>= 5) runs of wall-clock time; the CPU
 time is printed too (steadier on a shared machine). The run checks that the
 streaming frames equal the batch ones. The streaming figures are those of the kernels in
-use (the C twins of ``imu_ground/imu/_preint_native.c`` when built); the pure-Python
-kernels' figures are printed too (informative), measured by this script in a child process
-with ``IMU_GROUND_PURE_PYTHON=1`` right after. Run: ``python benchmarks/bench_preintegration.py``.
+use (compiled by numba, :mod:`imu_ground._jit`); the interpreted kernels' figures are
+printed too (informative), measured by this script in a child process with
+``NUMBA_DISABLE_JIT=1`` right after. Run: ``python benchmarks/bench_preintegration.py``.
 :func:`rows` returns the table for ``benchmarks/make_results.py``.
 """
 from __future__ import annotations
@@ -31,7 +31,7 @@ from collections.abc import Callable
 import numpy as np
 
 from imu_ground._native import PURE_PYTHON_ENV
-from imu_ground.imu.preint_kernel import NATIVE
+from imu_ground._jit import DISABLE_JIT_ENV, JIT_ENABLED
 from imu_ground.imu.preintegration import (
     PreintegrationParams,
     StreamingPreintegrator,
@@ -151,7 +151,7 @@ def _stream_only(samples: int, repeat: int) -> dict[str, float]:
 
 def _python_figures(samples: int, repeat: int) -> dict[str, float]:
     """:func:`_stream_only` of the pure-Python kernels, in a child process (``IMU_GROUND_PURE_PYTHON=1``)."""
-    env = dict(os.environ, **{PURE_PYTHON_ENV: "1"})
+    env = dict(os.environ, **{PURE_PYTHON_ENV: "1", DISABLE_JIT_ENV: "1"})
     out = subprocess.run([sys.executable, __file__, "--stream-json", "--stream-samples", str(samples),
                           "--repeat", str(repeat)], env=env, capture_output=True, text=True, check=True).stdout
     return json.loads(out.strip().splitlines()[-1])
@@ -160,7 +160,7 @@ def _python_figures(samples: int, repeat: int) -> dict[str, float]:
 def _row(benchmark: str, target: str, figure: float, cpu: float, unit: str, limit: float | None,
          competitor: tuple[float, float] = (float("nan"), float("nan")), agreement: float = float("nan")) -> dict:
     return {"benchmark": benchmark, "target": target, "figure": figure, "cpu": cpu, "unit": unit,
-            "kernel": "Python" if NATIVE is None else "C", "python": float("nan"), "competitor": competitor[0],
+            "kernel": "numba" if JIT_ENABLED else "Python", "python": float("nan"), "competitor": competitor[0],
             "competitor_cpu": competitor[1], "agreement": agreement,
             "passed": None if limit is None else bool(figure <= limit)}
 
@@ -193,7 +193,7 @@ def rows(samples: int = 360_000, stream_samples: int = 20_000, repeat: int = 5) 
     res = _median_times(fns, repeat)
     nan2 = (float("nan"), float("nan"))
     g_us = (res["gtsam"][0] / m * 1e6, res["gtsam"][1] / m * 1e6) if have_gtsam else nan2
-    py = _python_figures(m, repeat) if NATIVE is not None else {n: res[n][0] / m * 1e6 for n, *_ in _CASES}
+    py = _python_figures(m, repeat) if JIT_ENABLED else {n: res[n][0] / m * 1e6 for n, *_ in _CASES}
     out = []
     for name, _, _, limit in _CASES:
         wall, cpu, frames = res[name]

@@ -7,8 +7,8 @@ estimates are from the default whole-log ones (targets: :data:`_TARGETS`).
   samples it precedes (at its 100 Hz, and every tenth sample: a 10 Hz wheel speed); ``push_imu``'s
   figure is the whole stream's time less that of the same ``push_speed`` calls alone (into a fresh
   estimator), per IMU sample, and ``push_speed``'s is that per speed sample (both informative but
-  the first). The pure-Python kernels' ``push_imu`` figure is printed too (a child process with
-  ``IMU_GROUND_PURE_PYTHON=1``), informative;
+  the first). The interpreted kernels' ``push_imu`` figure is printed too (a child process with
+  ``NUMBA_DISABLE_JIT=1``), informative;
 - latency: from a frame's last sample to its estimate (the ``push_imu`` call that returns it):
   target 99th percentile <= 200 us of the call's CPU (thread) time; the wall-clock percentile is
   printed beside it (on a shared, loaded machine the scheduler's preemptions put a few ms into
@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from imu_ground._native import PURE_PYTHON_ENV
-from imu_ground.imu.preint_kernel import NATIVE
+from imu_ground._jit import DISABLE_JIT_ENV, JIT_ENABLED
 
 __all__ = ["main", "rows"]
 
@@ -116,7 +116,7 @@ def _python_figure(path: Path, repeat: int) -> float:
     code = (f"import sys, json; sys.path.insert(0, {str(HERE)!r}); import bench_streaming as b; "
             f"from pathlib import Path; r = b._stream_times(Path({str(path)!r}), {repeat}); "
             "print(json.dumps((r['total'] - r['speed']) / r['n'] * 1e6))")
-    env = dict(os.environ, **{PURE_PYTHON_ENV: "1"})
+    env = dict(os.environ, **{PURE_PYTHON_ENV: "1", DISABLE_JIT_ENV: "1"})
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
     return float(out.stdout.strip().splitlines()[-1])
 
@@ -143,7 +143,7 @@ def speed_rows(repeat: int = 9, data: Path = DATA) -> list[dict]:
     per = float(np.median([s["total"] - s["speed"] for s, _ in rounds])) / n * 1e6
     per10 = (r10["total"] - r10["speed"]) / n * 1e6
     ratio = per / off
-    py = _python_figure(path, max(1, repeat // 2)) if NATIVE is not None else per
+    py = _python_figure(path, max(1, repeat // 2)) if JIT_ENABLED else per
     cpu, lat = r100["cpu"], r100["lat"]
     p99 = float(np.percentile(cpu, 99)) * 1e6
     return [dict(benchmark=f"push_imu per IMU sample ({SPEED_DRIVE}, {n} samples; its 100 Hz speed pushed too, "

@@ -11,15 +11,6 @@ from here and fall back to their Python twin when it is None:
 name                     compiled module                            Python twin
 =======================  =========================================  =========================================
 :data:`EKF`              ``imu_ground.filters._ekf_native``         :mod:`imu_ground.filters.invariant_ekf_kernel`
-:data:`PREINTEGRATION`   ``imu_ground.imu._preint_native``          :mod:`imu_ground.imu.preint_kernel`,
-                                                                    :mod:`imu_ground.imu.preint_stream`
-:data:`FRONT`            ``imu_ground.imu._front_native``           ``StreamingEstimator.push_imu``'s Python
-                                                                    path (:mod:`imu_ground.imu.sample_clock`,
-                                                                    :mod:`imu_ground.imu.causal_standstill`)
-:data:`STANDSTILL`       ``imu_ground.imu._standstill_native``      :mod:`imu_ground.imu.standstill` (a batch
-                                                                    pass over the whole log, not streaming)
-:data:`PREINT_BATCH`     ``imu_ground.imu._preint_batch_native``    :mod:`imu_ground.imu.preint_batch` without
-                                                                    uncertainty (a batch pass, not streaming)
 =======================  =========================================  =========================================
 
 Equality rule between twins (the one the tests check, all with
@@ -50,7 +41,7 @@ from typing import Any, Dict, Optional
 import numpy as np
 
 __all__ = ["load_native", "native_kernels", "kernels_in_use", "PURE_PYTHON_ENV", "REQUIRE_NATIVE_ENV",
-           "EKF", "PREINTEGRATION", "FRONT", "STANDSTILL", "PREINT_BATCH", "STREAMING_KERNELS",
+           "EKF", "STREAMING_KERNELS",
            "TWIN_RTOL", "assert_twins_equal"]
 
 PURE_PYTHON_ENV = "IMU_GROUND_PURE_PYTHON"
@@ -90,14 +81,8 @@ def load_native(name: str) -> Optional[ModuleType]:
 
 #: The compiled twins of the streaming path (module or None), each imported once, here.
 EKF = load_native("imu_ground.filters._ekf_native")
-PREINTEGRATION = load_native("imu_ground.imu._preint_native")
-FRONT = load_native("imu_ground.imu._front_native")
 #: Their dotted names, in the order above.
 STREAMING_KERNELS = tuple(_LOADED)
-#: The compiled twin of the standstill window statistics (a whole-log batch pass; module or None).
-STANDSTILL = load_native("imu_ground.imu._standstill_native")
-#: The compiled twin of the batch preintegration's blocks without uncertainty (a whole-log pass; module or None).
-PREINT_BATCH = load_native("imu_ground.imu._preint_batch_native")
 
 
 def native_kernels() -> Dict[str, bool]:

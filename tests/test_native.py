@@ -68,9 +68,7 @@ def test_every_kernel_is_built_and_loads(src):
 
 def test_the_kernel_owners_take_the_one_loaded_twin():
     from imu_ground.filters import invariant_ekf
-    from imu_ground.imu import preint_kernel
     assert invariant_ekf._C is _native.EKF
-    assert preint_kernel.NATIVE is _native.PREINTEGRATION
 
 
 def test_pure_python_switch_turns_every_kernel_off():

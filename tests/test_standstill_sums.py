@@ -31,18 +31,14 @@ def test_shared_sums_give_the_same_intervals_and_bias():
     assert e1.found and np.array_equal(e1.bias, e2.bias) and np.array_equal(e1.intervals, e2.intervals)
 
 
-def test_blocks_smaller_than_the_log_change_nothing(monkeypatch):
+def test_the_stops_are_found_and_the_drive_is_not():
     imu = _stop_and_go()
-    whole = detect_standstill(imu)
     stationary = imu_to_egomotion(imu).stationary             # computed in one block
     # the stops are known by construction: 0 .. 6 s and 15 .. 21 s; 10 Hz frames well inside them
     t = imu_to_egomotion(imu).t
     first, second, moving = (t > 0.5) & (t < 5.5), (t > 15.5) & (t < 20.5), (t > 7.0) & (t < 14.0)
     assert first.sum() >= 45 and second.sum() >= 45 and moving.sum() >= 65
     assert stationary[first].all() and stationary[second].all() and not stationary[moving].any()
-    monkeypatch.setattr(st, "_BLOCK", 97)
-    assert np.array_equal(detect_standstill(imu), whole)
-    assert np.array_equal(imu_to_egomotion(imu).stationary, stationary)
 
 
 def test_window_sums_give_each_windows_mean_and_std():
@@ -60,3 +56,56 @@ def test_sums_of_another_log_are_refused():
     other = WindowSums(_stop_and_go(100, 100))
     with pytest.raises(ValueError, match="sums were computed for a log of 300 samples"):
         detect_standstill(imu, sums=other)
+
+
+def _drive(seed: int, n: int = 6000) -> ImuData:
+    """100 Hz with jittered stamps, gaps (0.2-2 s), stops on a slope, slow turns and moving stretches."""
+    rng = np.random.default_rng(seed)
+    dt = np.full(n - 1, 0.01) + rng.normal(0.0, 5e-4, n - 1)
+    dt[rng.choice(n - 1, 6, replace=False)] = rng.uniform(0.2, 2.0, 6)
+    t = 1000.0 + np.concatenate([[0.0], np.cumsum(dt)])
+    gyro = rng.normal(0.0, 1e-3, (n, 3)) + np.array([0.002, -0.001, 0.003])
+    accel = rng.normal(0.0, 5e-3, (n, 3)) + np.array([0.3, -0.2, 9.80])
+    moving = np.zeros(n, dtype=bool)
+    for a in rng.choice(n - 400, 8, replace=False):
+        moving[a:a + rng.integers(50, 400)] = True
+    gyro[moving] += rng.normal(0.0, 0.05, (moving.sum(), 3))
+    accel[moving] += rng.normal(0.0, 0.5, (moving.sum(), 3))
+    turn = slice(n // 3, n // 3 + 300)
+    gyro[turn, 2] += 0.08                                   # a steady turn: quiet but rotating
+    return ImuData(t, gyro, accel)
+
+
+def test_the_kernels_match_numpy_one_window_at_a_time():
+    """Each output of the window pass beside a direct numpy computation of the same window (no shared code)."""
+    imu = _drive(7, 1500)
+    t, n = imu.t, len(imu)
+    sums = st.WindowSums(imu)
+    quiet, norm, end = np.empty(n, dtype=bool), np.empty(n), np.empty(n, dtype=np.int64)
+    st._quiet_windows(t, sums.gyro, sums.accel, np.ascontiguousarray(sums.mean[:, 0]), 1.0, 0.1, 0.004, 0.05,
+                         0.04, quiet, norm, end)
+    x = np.hstack([imu.gyro, imu.accel])
+    for i in range(0, n, 7):
+        last = int(np.searchsorted(t, t[i] + 1.0))
+        assert end[i] == min(last + 1, n)
+        usable = last < n and not np.any(np.diff(t[i:end[i]]) > 0.1)
+        w = x[i:end[i]]
+        rate_ok = usable and np.linalg.norm(w[:, :3].mean(0)) <= 0.05 and np.all(w[:, :3].std(0) <= 0.004)
+        near_edge = usable and abs(np.linalg.norm(w[:, :3].mean(0)) - 0.05) < 1e-9
+        if not near_edge:
+            assert quiet[i] == (rate_ok and bool(np.all(w[:, 3:].std(0) <= 0.04)))
+            assert np.isnan(norm[i]) == (not rate_ok)
+        if rate_ok:
+            assert norm[i] == pytest.approx(np.linalg.norm(w[:, 3:].mean(0)), rel=1e-12)
+    good = quiet & (np.arange(n) % 3 == 0)
+    mask = np.empty(n, dtype=bool)
+    st._window_union(good, end, mask)
+    direct = np.zeros(n, dtype=bool)
+    for i in np.flatnonzero(good):
+        direct[i:end[i]] = True
+    assert np.array_equal(mask, direct)
+
+
+def test_a_negative_window_is_refused():
+    with pytest.raises(ValueError, match="standstill window must be >= 0 s"):
+        detect_standstill(_stop_and_go(100, 100), window=-1.0)

@@ -25,13 +25,12 @@ whole-log forms agree bit for bit.
 from __future__ import annotations
 
 import math
-from array import array
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
-from imu_ground._native import FRONT as _FRONT
+from imu_ground._jit import njit
 from imu_ground.units import GRAVITY
 
 __all__ = ["MAX_GYRO_BIAS", "CausalGyroBias", "StandstillBlocks", "StandstillTests", "block_index", "block_sums",
@@ -39,9 +38,29 @@ __all__ = ["MAX_GYRO_BIAS", "CausalGyroBias", "StandstillBlocks", "StandstillTes
 
 #: Rounding allowance of :func:`block_index`, in frames: a sample this close to a boundary ends the frame before it.
 _EDGE = 1e-6
-_EMPTY_BLOCK = bytes(13 * 8)
+_FREE = np.iinfo(np.int64).min            # a free row of the blocks' ring
+#: Floats of a block: the sample count, 6 sums (gyro rad/s, then specific force m/s^2), their 6 sums of squares.
+BLOCK_SIZE = 13
 #: The largest gyro bias a saved state may hold, rad/s (57 deg/s: far beyond any IMU's).
 MAX_GYRO_BIAS = 1.0
+
+
+@njit
+def add_sample(b: np.ndarray, g0: float, g1: float, g2: float, a0: float, a1: float, a2: float) -> None:
+    """Sum one sample (gyro rad/s, specific force m/s^2) into the block ``b`` (:data:`BLOCK_SIZE` floats)."""
+    b[0] += 1.0
+    b[1] += g0
+    b[2] += g1
+    b[3] += g2
+    b[4] += a0
+    b[5] += a1
+    b[6] += a2
+    b[7] += g0 * g0
+    b[8] += g1 * g1
+    b[9] += g2 * g2
+    b[10] += a0 * a0
+    b[11] += a1 * a1
+    b[12] += a2 * a2
 
 
 def block_index(t: float, t0: float, rate: float) -> int:
@@ -75,16 +94,70 @@ class StandstillTests:
         return max(1, int(round(self.window * rate)))
 
 
-def _passes(tests: StandstillTests, n: int, s: Sequence[float], first: int = 0) -> bool:
-    """Whether ``n`` samples with sums ``s`` (per component: sum, then sum of squares; ``first`` 0 for the
-    gyro's three components, 3 for the specific force's) pass that sensor's standstill tests."""
-    m0, m1, m2 = s[0] / n, s[1] / n, s[2] / n
-    sd = max(math.sqrt(max(s[3] / n - m0 * m0, 0.0)), math.sqrt(max(s[4] / n - m1 * m1, 0.0)),
-             math.sqrt(max(s[5] / n - m2 * m2, 0.0)))
+@njit
+def _passes(n: float, s0: float, s1: float, s2: float, q0: float, q1: float, q2: float, std_max: float,
+            norm_max: float, gravity: float, norm_tol: float, gyro: bool) -> bool:
+    """Whether ``n`` samples with sums ``s`` and sums of squares ``q`` (one sensor's three components) pass
+    that sensor's standstill tests: the gyro's (``gyro``: largest standard deviation at most ``std_max``,
+    the mean's norm at most ``norm_max``) or the specific force's (the norm within ``norm_tol`` of ``gravity``)."""
+    m0, m1, m2 = s0 / n, s1 / n, s2 / n
+    v0, v1, v2 = q0 / n - m0 * m0, q1 / n - m1 * m1, q2 / n - m2 * m2
+    sd = math.sqrt(v0 if not v0 < 0.0 else 0.0)
+    sd1, sd2 = math.sqrt(v1 if not v1 < 0.0 else 0.0), math.sqrt(v2 if not v2 < 0.0 else 0.0)
+    if sd1 > sd:
+        sd = sd1
+    if sd2 > sd:
+        sd = sd2
     norm = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
-    if first == 0:
-        return norm <= tests.gyro_norm_max and sd <= tests.gyro_std_max
-    return sd <= tests.accel_std_max and abs(norm - tests.gravity) <= tests.accel_norm_tol
+    if gyro:
+        return norm <= norm_max and sd <= std_max
+    return sd <= std_max and abs(norm - gravity) <= norm_tol
+
+
+@njit
+def _windows(ring: np.ndarray, keys: np.ndarray, k: int, W: int, Wb: int, thresholds: np.ndarray) -> int:
+    """:meth:`StandstillBlocks.windows` on the blocks' ring (bit 0: the ``W`` window passes, bit 1: ``Wb``'s)."""
+    if W <= 0 and Wb <= 0:
+        return 0
+    top = W if W > Wb else Wb
+    low = Wb if W <= 0 else (W if Wb <= 0 or W < Wb else Wb)
+    if k - top + 1 < 0 and k - low + 1 < 0:
+        return 0
+    R = ring.shape[0]
+    res_w, res_b = W > 0, Wb > 0                # (asked and not failed so far)
+    for first in (0, 3):
+        if not (res_w or res_b):
+            break
+        col = first + 1
+        ask_w, ask_b = res_w, res_b
+        res_w = res_b = False
+        n = 0.0
+        s0 = s1 = s2 = q0 = q1 = q2 = 0.0
+        top = W if ask_w and (not ask_b or W > Wb) else Wb
+        for i in range(top):
+            j = k - i
+            slot = j % R
+            if j < 0 or keys[slot] != j or ring[slot, 0] == 0.0:
+                break
+            n += ring[slot, 0]
+            s0, s1, s2 = s0 + ring[slot, col], s1 + ring[slot, col + 1], s2 + ring[slot, col + 2]
+            q0, q1, q2 = q0 + ring[slot, col + 6], q1 + ring[slot, col + 7], q2 + ring[slot, col + 8]
+            if (ask_w and i + 1 == W) or (ask_b and i + 1 == Wb):
+                ok = _passes(n, s0, s1, s2, q0, q1, q2, thresholds[first], thresholds[first + 1], thresholds[5],
+                             thresholds[4], first == 0)
+                if ask_w and i + 1 == W:
+                    res_w = ok
+                if ask_b and i + 1 == Wb:
+                    res_b = ok
+    return (1 if res_w else 0) + (2 if res_b else 0)
+
+
+@njit
+def _forget(keys: np.ndarray, cut: int) -> None:
+    """Free the ring's slots of the blocks before ``cut``."""
+    for i in range(keys.size):
+        if keys[i] < cut:
+            keys[i] = _FREE
 
 
 class StandstillBlocks:
@@ -104,30 +177,24 @@ class StandstillBlocks:
         self.tests = StandstillTests() if tests is None else tests
         self.W = self.tests.blocks(self.rate)
         self.Wb = max(1, int(round(bias_window * self.rate)))      # the bias's window, blocks
-        t = self.tests                          # (as the compiled windows reads them)
-        self._thresholds = (t.gyro_std_max, t.gyro_norm_max, t.accel_std_max, t.accel_norm_tol, t.gravity)
-        self.blocks: dict[int, array] = {}      # block -> float64 [n, 6 sums, 6 sums of squares]
-        self.open: array | None = None          # the block of the last sample added (compiled kernels sum into it)
-        self.open_k = -1                        # its index (-1: none)
+        t = self.tests                          # (in the order _windows reads them)
+        self._thresholds = np.array([t.gyro_std_max, t.gyro_norm_max, 0.0, t.accel_std_max, t.accel_norm_tol,
+                                     t.gravity])
+        # the blocks held: block j in row j % R of the ring (its index in keys; _FREE: the row is free)
+        self.ring = np.zeros((2 * max(self.W, self.Wb) + 4, BLOCK_SIZE))
+        self._keys = np.full(self.ring.shape[0], _FREE, dtype=np.int64)
+        self.open_k = -1                        # the block of the last sample added (-1: none)
+
+    @property
+    def blocks(self) -> dict[int, np.ndarray]:
+        """Block index -> a copy of its float64 sums ``[n, 6 sums, 6 sums of squares]``, every block held."""
+        return {int(j): self.ring[i].copy() for i, j in enumerate(self._keys.tolist()) if j != _FREE}
 
     def add(self, k: int, g: Sequence[float], a: Sequence[float]) -> None:
         """Add a sample (gyro rad/s, specific force m/s^2) to block ``k``."""
-        b = self.open if k == self.open_k else self.open_block(k)
-        assert b is not None                    # open_k names the open block
-        g0, g1, g2, a0, a1, a2 = g[0], g[1], g[2], a[0], a[1], a[2]
-        b[0] += 1.0                             # unrolled: this runs once a sample on the live path
-        b[1] += g0
-        b[2] += g1
-        b[3] += g2
-        b[4] += a0
-        b[5] += a1
-        b[6] += a2
-        b[7] += g0 * g0
-        b[8] += g1 * g1
-        b[9] += g2 * g2
-        b[10] += a0 * a0
-        b[11] += a1 * a1
-        b[12] += a2 * a2
+        if k != self.open_k:
+            self.open_block(k)
+        add_sample(self.ring[k % self.ring.shape[0]], g[0], g[1], g[2], a[0], a[1], a[2])
 
     def stationary(self, k: int, W: int | None = None) -> bool:
         """Whether frame ``k`` ends at a standstill (its trailing window of ``W`` blocks, default :attr:`W`, passes)."""
@@ -136,72 +203,52 @@ class StandstillBlocks:
     def windows(self, k: int, W: int | None = None, Wb: int | None = None) -> tuple[bool, bool]:
         """Whether the trailing windows of ``W`` and of ``Wb`` blocks (defaults :attr:`W`, :attr:`Wb`; 0: not
         asked) ending at frame ``k`` pass, summed newest block first; the specific force only for a window
-        whose gyro passes (each component's sums are the same either way). Compiled when
-        ``imu/_front_native.c`` is built (:meth:`windows_python` is its twin, the reference)."""
-        W = self.W if W is None else W
-        Wb = self.Wb if Wb is None else Wb
-        if _FRONT is not None:
-            return _FRONT.windows(self.blocks, k, W, Wb, self._thresholds)
-        return self.windows_python(k, W, Wb)
-
-    def windows_python(self, k: int, W: int | None = None, Wb: int | None = None) -> tuple[bool, bool]:
-        """:meth:`windows` in Python."""
-        W = self.W if W is None else W
-        Wb = self.Wb if Wb is None else Wb
-        blocks = self.blocks
-        sizes = [w for w in (W, Wb) if w > 0]
-        if not sizes or k - max(sizes) + 1 < 0 and k - min(sizes) + 1 < 0:
-            return False, False
-        result: dict[int, bool] = {}
-        for first, col in ((0, 1), (3, 4)):
-            asked = [w for w in sizes if result.get(w, True)]
-            if not asked:
-                break
-            n, s = 0, [0.0] * 6
-            for i in range(max(asked)):
-                b = blocks.get(k - i)
-                if b is None or b[0] == 0 or k - i < 0:
-                    break
-                n += b[0]
-                s = [s[0] + b[col], s[1] + b[col + 1], s[2] + b[col + 2],
-                     s[3] + b[col + 6], s[4] + b[col + 7], s[5] + b[col + 8]]
-                if i + 1 in asked:
-                    result[i + 1] = _passes(self.tests, n, s, first)
-            for w in asked:
-                result.setdefault(w, False)
-        return (W > 0 and result.get(W, False)), (Wb > 0 and result.get(Wb, False))
+        whose gyro passes (each component's sums are the same either way)."""
+        r = _windows(self.ring, self._keys, k, self.W if W is None else W, self.Wb if Wb is None else Wb,
+                     self._thresholds)
+        return r & 1 != 0, r & 2 != 0
 
     def done(self, k: int) -> None:
         """Frame ``k`` is finished: forget the blocks no later frame's windows hold."""
         cut = k - max(self.W, self.Wb) + 2
-        blocks = self.blocks
-        if blocks and min(blocks) < cut:
-            for old in [j for j in blocks if j < cut]:
-                del blocks[old]
+        _forget(self._keys, cut)
         if self.open_k < cut:
-            self.open, self.open_k = None, -1
+            self.open_k = -1
 
     def block(self, j: int) -> tuple[int, float, float, float]:
         """``(n, gyro sums x, y, z)`` of block ``j`` (zeros when it holds no sample)."""
-        b = self.blocks.get(j)
-        return (0, 0.0, 0.0, 0.0) if b is None else (int(b[0]), b[1], b[2], b[3])
+        i = j % self.ring.shape[0]
+        if self._keys[i] != j:
+            return 0, 0.0, 0.0, 0.0
+        n, x, y, z = self.ring[i, 0:4].tolist()
+        return int(n), x, y, z
 
-    def open_block(self, k: int) -> array:
+    def open_block(self, k: int) -> np.ndarray:
         """Block ``k`` (a new, empty one unless it holds samples) becomes the one samples are summed into."""
-        b = self.blocks.get(k)
-        if b is None:
-            b = self.blocks[k] = array("d", _EMPTY_BLOCK)
-        self.open, self.open_k = b, k
-        return b
+        R = self.ring.shape[0]
+        if self._keys[k % R] not in (k, _FREE):     # its row holds another block: a larger ring
+            held = self.blocks
+            R *= 2
+            while len({j % R for j in [*held, k]}) <= len(held):
+                R *= 2
+            self.ring, self._keys = np.zeros((R, BLOCK_SIZE)), np.full(R, _FREE, dtype=np.int64)
+            for j, row in held.items():
+                self.ring[j % R], self._keys[j % R] = row, j
+        i = k % R
+        if self._keys[i] != k:
+            self.ring[i] = 0.0
+            self._keys[i] = k
+        self.open_k = k
+        return self.ring[i]
 
     def clear(self) -> None:
-        self.blocks.clear()
-        self.open, self.open_k = None, -1
+        self._keys[:] = _FREE
+        self.open_k = -1
 
     def state_dict(self) -> dict[str, Any]:
-        keys = sorted(self.blocks)
-        return {"k": keys, "n": [int(self.blocks[k][0]) for k in keys],
-                "sums": [self.blocks[k][1:].tolist() for k in keys]}
+        blocks = self.blocks
+        keys = sorted(blocks)
+        return {"k": keys, "n": [int(blocks[k][0]) for k in keys], "sums": [blocks[k][1:].tolist() for k in keys]}
 
     def load_checked(self, r: Any, limit: int) -> None:
         """Resume from a saved :meth:`state_dict` read through ``r`` (a :class:`~imu_ground.imu.warm_start.StateReader`),
@@ -217,10 +264,10 @@ class StandstillBlocks:
         self.load_state_dict({"k": keys, "n": ns.astype(int).tolist(), "sums": sums.tolist()})
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        self.blocks = {int(k): array("d", [int(n), *(float(x) for x in s)]) for k, n, s in
-                       zip(state["k"], state["n"], state["sums"], strict=True)}
-        self.open_k = max(self.blocks, default=-1)      # samples come in time order: the last block is open
-        self.open = self.blocks.get(self.open_k)
+        self.clear()
+        for k, n, s in zip(state["k"], state["n"], state["sums"], strict=True):
+            self.open_block(int(k))[:] = [int(n), *(float(x) for x in s)]
+        self.open_k = max((int(k) for k in state["k"]), default=-1)   # samples come in time order: the last is open
 
 
 def block_sums(k: np.ndarray, gyro: np.ndarray, accel: np.ndarray, n_blocks: int) -> tuple[np.ndarray, np.ndarray]:

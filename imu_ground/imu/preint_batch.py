@@ -12,10 +12,10 @@ into blocks that are merged with the associative composition
 The knots, held values and gap rules are those of the module docstring of
 :mod:`imu_ground.imu.preintegration`, as in the streaming front-end.
 
-Without uncertainty (the whole job's path) the blocks run in a compiled kernel
-where it is built (``imu/_preint_batch_native.c``, chosen in :mod:`imu_ground._native`):
-the same padded blocks, formulas and operation order as :func:`_blocks_kernel`,
-equal to it to the bit; the numpy code is its twin.
+Without uncertainty (the whole job's path) each frame's deltas are those of the
+streaming front-end: its kernel (:func:`~imu_ground.imu.preint_kernel.integrate`)
+run over the frame's knots in one compiled loop (:func:`_frames_deltas`, through
+:mod:`imu_ground._jit`), reading the knots' values where they are.
 """
 from __future__ import annotations
 
@@ -24,12 +24,14 @@ from typing import Any
 
 import numpy as np
 
-from imu_ground._native import PREINT_BATCH as _NATIVE
+from imu_ground._jit import njit
 from imu_ground.errors import ImuGroundError
 from imu_ground.imu.data import ImuData
 from imu_ground.imu.preint_frames import FrameDeltas, make_frame_times
+from imu_ground.imu.preint_kernel import integrate
 from imu_ground.imu.preint_measurement import compose_left, left_to_right
 from imu_ground.imu.preint_params import PreintegrationParams, gap_message
+from imu_ground.so3.conversions import matrix_from_quat
 from imu_ground.so3.component_major import (
     cross_rows,
     exp_and_left_jacobian,
@@ -57,8 +59,7 @@ def _running_sum(x: np.ndarray, axis: int) -> np.ndarray:
     return out
 
 
-def _blocks_kernel(dt: np.ndarray, w: np.ndarray, f: np.ndarray, qg: float, qa: float,
-                   uncertainty: bool = True) -> tuple:
+def _blocks_kernel(dt: np.ndarray, w: np.ndarray, f: np.ndarray, qg: float, qa: float) -> tuple:
     """Preintegrate padded blocks of intervals in closed form, left-error form.
 
     Parameters are component-major, interval index before block index (so that
@@ -77,11 +78,10 @@ def _blocks_kernel(dt: np.ndarray, w: np.ndarray, f: np.ndarray, qg: float, qa: 
       (rotation rows) and the isotropic accelerometer terms.
 
     Returns (T, R, v, p, J, S) with shapes (B,), (B,3,3), (B,3), (B,3), (B,9,6), (B,9,9);
-    J and S are None when ``uncertainty`` is False.
     """
     L, nb = dt.shape
     phi = w * dt
-    E, Jl = exp_and_left_jacobian(phi[0], phi[1], phi[2], jacobian=uncertainty)
+    E, Jl = exp_and_left_jacobian(phi[0], phi[1], phi[2], jacobian=True)
     del phi
     P = scan_products(E)                                   # delta_R after interval k
     del E
@@ -104,9 +104,7 @@ def _blocks_kernel(dt: np.ndarray, w: np.ndarray, f: np.ndarray, qg: float, qa: 
     Rn = np.ascontiguousarray(P[:, :, -1].transpose(2, 0, 1))
     vn = np.ascontiguousarray(V[:, -1].T)
     pn = np.ascontiguousarray(Pp[:, -1].T)
-    if not uncertainty:
-        return T, Rn, vn, pn, None, None
-    assert Jl is not None                                  # jacobian=uncertainty
+    assert Jl is not None                                  # jacobian=True
     Uo = mm(Rk, Jl)                                        # U / dt
     del Jl, P
     U = Uo * dt
@@ -155,6 +153,66 @@ def _blocks_kernel(dt: np.ndarray, w: np.ndarray, f: np.ndarray, qg: float, qa: 
     return T, Rn, vn, pn, J, 0.5 * (S + S.transpose(0, 2, 1))
 
 
+@njit
+def _knot(gyro: np.ndarray, accel: np.ndarray, ki: np.ndarray, yb: np.ndarray, g: int, at: int,
+          o: np.ndarray) -> int:
+    """The 6 values of knot ``g`` (position in the samples with the boundaries inserted, see :func:`_knots`)
+    into ``o``; ``at`` is the number of boundaries before the knot looked up last (returned updated: cheapest
+    when ``g`` never decreases from call to call)."""
+    m = ki.size
+    while at > 0 and ki[at - 1] + (at - 1) >= g:
+        at -= 1
+    while at < m and ki[at] + at < g:
+        at += 1
+    if at < m and ki[at] + at == g:
+        for r in range(6):
+            o[r] = yb[r, at]
+        return at
+    s = g - at
+    for r in range(3):
+        o[r] = gyro[s, r]
+        o[3 + r] = accel[s, r]
+    return at
+
+
+@njit
+def _frames_deltas(dt: np.ndarray, gyro: np.ndarray, accel: np.ndarray, ki: np.ndarray, yb: np.ndarray, j0: int,
+                   b: np.ndarray, bias: np.ndarray, midpoint: bool, out: np.ndarray) -> None:
+    """Each frame's deltas by the streaming front-end's kernel (:func:`~imu_ground.imu.preint_kernel.integrate`),
+    interval after interval, as :class:`~imu_ground.imu.preint_stream.StreamingPreintegrator` integrates them.
+
+    Frame ``f`` integrates the knot intervals ``[b[f], b[f + 1])`` of ``dt`` (s); knot ``j`` of ``dt`` is
+    knot ``j0 + j`` of the samples ``gyro``, ``accel`` (N, 3; rad/s, m/s^2, body frame) with the boundaries
+    ``yb`` (6, M) inserted before samples ``ki`` (:func:`_knots`). Held value, less ``bias`` (6): the two
+    knots' mean (``midpoint``) or the left knot's. Out: ``out[f]`` the 11 floats of the deltas
+    (layout in :mod:`imu_ground.imu.preint_kernel`).
+    """
+    s = np.empty(11)
+    none = np.zeros(0)
+    a = np.empty(6)
+    c = np.empty(6)
+    at = 0
+    for f in range(b.size - 1):
+        s[:] = 0.0
+        s[1] = 1.0                              # identity quaternion
+        at = _knot(gyro, accel, ki, yb, j0 + b[f], at, a)
+        for r in range(6):
+            a[r] = a[r] - bias[r]
+        for j in range(b[f], b[f + 1]):
+            at = _knot(gyro, accel, ki, yb, j0 + j + 1, at, c)
+            for r in range(6):
+                c[r] = c[r] - bias[r]
+            h = dt[j]
+            if midpoint:                        # mean of the two knots, the 1/2 folded into dt
+                hh = 0.5 * h
+                integrate(s, none, h, (a[0] + c[0]) * hh, (a[1] + c[1]) * hh, (a[2] + c[2]) * hh,
+                          (a[3] + c[3]) * hh, (a[4] + c[4]) * hh, (a[5] + c[5]) * hh, 0.0, 0.0)
+            else:                               # the left knot's value
+                integrate(s, none, h, a[0] * h, a[1] * h, a[2] * h, a[3] * h, a[4] * h, a[5] * h, 0.0, 0.0)
+            a[:] = c
+        out[f] = s
+
+
 def _merge_blocks(res: tuple, block_frame: np.ndarray, n_frames: int) -> tuple:
     """Merge consecutive blocks of the same frame with a log-depth tree of compositions."""
     counts = np.bincount(block_frame, minlength=n_frames)
@@ -175,23 +233,22 @@ def _merge_blocks(res: tuple, block_frame: np.ndarray, n_frames: int) -> tuple:
         return out
 
     ident: tuple[np.ndarray | np.float64, ...] = (np.float64(0.0), np.eye(3), np.zeros(3), np.zeros(3), np.zeros((9, 6)), np.zeros((9, 9)))
-    m = 6 if res[4] is not None else 4          # without covariance and Jacobians: 4 entries
-    cur = [pad(x, i) for x, i in zip(res[:m], ident, strict=False)]
+    cur = [pad(x, i) for x, i in zip(res, ident, strict=True)]
     while cur[0].shape[1] > 1:
         if cur[0].shape[1] % 2:
             cur = [np.concatenate([x, np.broadcast_to(i, (x.shape[0], 1) + i.shape)], axis=1)
                    for x, i in zip(cur, ident, strict=False)]
-        a = tuple(x[:, 0::2] for x in cur) + (None, None) * (m == 4)
-        b = tuple(x[:, 1::2] for x in cur) + (None, None) * (m == 4)
-        cur = list(compose_left(a, b))[:m]
+        a = tuple(x[:, 0::2] for x in cur)
+        b = tuple(x[:, 1::2] for x in cur)
+        cur = list(compose_left(a, b))
     out = []
     single = counts == 1
-    for x, c in zip(res[:m], cur, strict=True):
+    for x, c in zip(res, cur, strict=True):
         o = np.empty((n_frames,) + x.shape[1:])
         o[single] = x[first[single]]
         o[multi] = c[:, 0]
         out.append(o)
-    return tuple(out) + (None, None) * (m == 4)
+    return tuple(out)
 
 
 def _validate_times(t: np.ndarray) -> None:
@@ -320,6 +377,13 @@ def _integrate_frames(dt: np.ndarray, kv: np.ndarray | None, b: np.ndarray, par:
     temporary stays cache-sized whatever the log's length.
     """
     nfr = b.size - 1
+    bias = np.concatenate([np.asarray(par.bias_gyro, dtype=float), np.asarray(par.bias_accel, dtype=float)])
+    if kv is None:                      # deltas only: the streaming kernel, compiled, over each frame
+        gyro, accel, (ki, yb, j0) = samples  # type: ignore[misc]
+        d = np.empty((nfr, 11))
+        _frames_deltas(np.ascontiguousarray(dt), gyro, accel, ki.astype(np.int64), np.ascontiguousarray(yb),
+                       int(j0), b.astype(np.int64), bias, par.hold == "midpoint", d)
+        return d[:, 0], matrix_from_quat(d[:, 1:5]), d[:, 5:8].copy(), d[:, 8:11].copy(), None, None
     nint = np.diff(b)
     Lb = int(min(nint.max(), max(16, 2 * math.ceil(dt.size / nfr))))
     nblk = -(-nint // Lb)
@@ -329,17 +393,7 @@ def _integrate_frames(dt: np.ndarray, kv: np.ndarray | None, b: np.ndarray, par:
     blk_in_frame = np.arange(nbt) - np.repeat(first_blk, nblk)
     start = b[:-1][block_frame] + Lb * blk_in_frame
     stop = np.minimum(start + Lb, b[1:][block_frame])
-    bias = np.concatenate([np.asarray(par.bias_gyro, dtype=float),
-                           np.asarray(par.bias_accel, dtype=float)])[:, None, None]
-    if kv is None:                      # the compiled twin: the same blocks, padding and order
-        assert _NATIVE is not None
-        gyro, accel, (ki, yb, j0) = samples  # type: ignore[misc]
-        res: tuple[np.ndarray | None, ...] = (np.empty(nbt), np.empty((nbt, 3, 3)), np.empty((nbt, 3)),
-                                              np.empty((nbt, 3)), None, None)
-        _NATIVE.blocks(np.ascontiguousarray(dt), gyro, accel, ki.astype(np.int64), np.ascontiguousarray(yb),
-                       int(j0), start.astype(np.int64), stop.astype(np.int64), Lb,
-                       np.ascontiguousarray(bias[:, 0, 0]), par.hold == "midpoint", *res[:4])
-        return _merge_blocks(res, block_frame, nfr)
+    bias = bias[:, None, None]
     qg, qa = par.gyro_noise_density ** 2, par.accel_noise_density ** 2
     # chunks of about _CHUNK intervals keep the temporaries in cache (a loop over groups of frames)
     step = max(1, _CHUNK // Lb)
@@ -357,8 +411,8 @@ def _integrate_frames(dt: np.ndarray, kv: np.ndarray | None, b: np.ndarray, par:
             hp = kv[:, idx]
         hp[:, pad] = 0.0
         hp -= bias
-        parts.append(_blocks_kernel(dtp, hp[0:3], hp[3:6], qg, qa, par.uncertainty))
-    res = tuple(np.concatenate([r[j] for r in parts]) if par.uncertainty or j < 4 else None for j in range(6))
+        parts.append(_blocks_kernel(dtp, hp[0:3], hp[3:6], qg, qa))
+    res = tuple(np.concatenate([r[j] for r in parts]) for j in range(6))
     return _merge_blocks(res, block_frame, nfr)
 
 
@@ -402,10 +456,9 @@ def preintegrate(imu: ImuData | tuple[np.ndarray, np.ndarray, np.ndarray],
     par = PreintegrationParams.coerce(params, **options)
     t, gyro, accel = _inputs(imu)
     T = _boundaries(t, frame_times, rate, every, t_origin, par.snap_tol)
-    native = _NATIVE is not None and not par.uncertainty
-    if native:
+    if not par.uncertainty:
         gyro, accel = np.ascontiguousarray(gyro), np.ascontiguousarray(accel)
-    dt, kv, b, valid, inserted = _knots(t, gyro, accel, T, par, values=not native)
+    dt, kv, b, valid, inserted = _knots(t, gyro, accel, T, par, values=par.uncertainty)
     Tn, Rn, vn, pn, Jn, Sn = _integrate_frames(dt, kv, b, par, (gyro, accel, inserted))
     Rn = project_if_needed(Rn)
     names = ("d_R_d_bg", "d_v_d_bg", "d_p_d_bg", "d_v_d_ba", "d_p_d_ba")

@@ -1,15 +1,12 @@
 """The scalar kinematics of one integration interval, written once: deltas, and optionally
 their bias Jacobians and covariance.
 
-:func:`integrate_interval` is the hot path of the streaming preintegration and of
+:func:`integrate` is the hot path of the streaming preintegration and of
 :class:`~imu_ground.imu.preint_measurement.PreintegratedImu`: Forster's recursion
-(Forster, Carlone, Dellaert, Scaramuzza, IEEE T-RO 2017, Sec. VI and appendix) in
-scalar Python floats (:func:`integrate_interval_python`, the reference). Numpy's per-call
-overhead dominates 3x3 operations, so the state is a flat tuple of floats, unpacked into
-locals, updated, and packed again. Its C twin (``_preint_native.c``, the same formulas term
-for term, equal under the twin rule of :mod:`imu_ground._native`) serves as :func:`integrate_interval`
-when the extension is built (:data:`imu_ground._native.PREINTEGRATION`; ``IMU_GROUND_PURE_PYTHON=1``
-selects the Python one).
+(Forster, Carlone, Dellaert, Scaramuzza, IEEE T-RO 2017, Sec. VI and appendix) on
+scalar floats, compiled through :mod:`imu_ground._jit` (interpreted with
+``NUMBA_DISABLE_JIT=1``). The state is a flat float64 array, unpacked into locals,
+updated, and written back; :func:`integrate_interval` is the same on tuples.
 
 State layouts
 -------------
@@ -43,16 +40,17 @@ from __future__ import annotations
 
 from math import cos, sin, sqrt
 
-from imu_ground import _native
+import numpy as np
+
 from imu_ground import so3
+from imu_ground._jit import njit
 from imu_ground.so3.component_major import SMALL_ANGLE2
 
 __all__ = [
     "DELTAS_IDENTITY",
-    "NATIVE",
     "UNCERTAINTY_ZERO",
+    "integrate",
     "integrate_interval",
-    "integrate_interval_python",
     "quaternion_from_rotation",
     "rotation_from_quaternion",
 ]
@@ -61,10 +59,12 @@ __all__ = [
 DELTAS_IDENTITY: tuple = (0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 #: Bias Jacobians and covariance of an empty interval (all zero).
 UNCERTAINTY_ZERO: tuple = (0.0,) * 90
+_NO_UNCERTAINTY = np.zeros(0)
 
 
-def integrate_interval_python(s: tuple, u: tuple | None, dt: float, x: float, y: float, z: float,
-                       fx: float, fy: float, fz: float, noise: tuple[float, float]) -> tuple[tuple, tuple | None]:
+@njit
+def integrate(s: np.ndarray, u: np.ndarray, dt: float, x: float, y: float, z: float,
+              fx: float, fy: float, fz: float, qg: float, qa: float) -> None:
     """Add one interval of held rate and specific force to preintegrated deltas (unrolled).
 
     Unrolled kernel: every 3x3 product, cross product and symmetric update is
@@ -77,7 +77,7 @@ def integrate_interval_python(s: tuple, u: tuple | None, dt: float, x: float, y:
 
     - deltas: ``p += dt (v + c/2)``, ``v += c``, ``R = R_k Exp(phi)`` as the
       quaternion product ``q_k (x) (cos(th/2), sin(th/2) phi / th)``;
-    - when ``u`` is given, first the bias Jacobians
+    - when ``u`` is not empty, first the bias Jacobians
       (``Vg -= hat(c) Th``, ``Mg += mid hat(c) Th``, ``Th -= R_k Jl(phi) dt``,
       ``Va -= R_k dt``, ``Ma += mid R_k dt``) and the covariance: with
       ``u_k = hat(c) dtheta - n_a`` the errors move as ``dv' = dv - u_k``,
@@ -87,24 +87,20 @@ def integrate_interval_python(s: tuple, u: tuple | None, dt: float, x: float, y:
 
     Parameters
     ----------
-    s : tuple of 11 floats
-        Deltas so far (module docstring).
-    u : tuple of 90 floats, or None
-        Bias Jacobians and covariance so far, or None to integrate the deltas only.
+    s : ndarray, shape (11,)
+        Deltas so far (module docstring), updated in place.
+    u : ndarray, shape (90,) or (0,)
+        Bias Jacobians and covariance so far (module docstring), updated in place;
+        empty to integrate the deltas only.
     dt : float
         Interval length, s (> 0).
     x, y, z : float
         Rotation increment ``phi = (w - b_g) dt``, rad, body frame.
     fx, fy, fz : float
         Velocity increment ``(a - b_a) dt`` before rotation, m/s, body frame.
-    noise : (float, float)
-        ``(q_g, q_a)``: squared gyro and accelerometer noise densities
-        (``PreintegrationParams.noise``); used only with ``u``.
-
-    Returns
-    -------
-    (deltas, uncertainty)
-        The new state; ``uncertainty`` is None when ``u`` was.
+    qg, qa : float
+        Squared gyro and accelerometer noise densities (``PreintegrationParams.noise``);
+        used only with ``u``.
     """
     T, qw, qx, qy, qz, v0, v1, v2, p0, p1, p2 = s
     xx, yy, zz = x * x, y * y, z * z
@@ -123,18 +119,23 @@ def integrate_interval_python(s: tuple, u: tuple | None, dt: float, x: float, y:
     c0 = fx + qw * tx + qy * tz - qz * ty
     c1 = fy + qw * ty + qz * tx - qx * tz
     c2 = fz + qw * tz + qx * ty - qy * tx
-    if u is not None:
-        (h00, h01, h02, h10, h11, h12, h20, h21, h22,                 # 0:9    Th
-         g00, g01, g02, g10, g11, g12, g20, g21, g22,                 # 9:18   Vg
-         m00, m01, m02, m10, m11, m12, m20, m21, m22,                 # 18:27  Mg
-         a00, a01, a02, a10, a11, a12, a20, a21, a22,                 # 27:36  Va
-         b00, b01, b02, b10, b11, b12, b20, b21, b22,                 # 36:45  Ma
-         rr00, rr01, rr02, rr11, rr12, rr22,                          # 45:51  rr
-         rv00, rv01, rv02, rv10, rv11, rv12, rv20, rv21, rv22,        # 51:60  rv
-         rq00, rq01, rq02, rq10, rq11, rq12, rq20, rq21, rq22,        # 60:69  rq
-         vv00, vv01, vv02, vv11, vv12, vv22,                          # 69:75  vv
-         vq00, vq01, vq02, vq10, vq11, vq12, vq20, vq21, vq22,        # 75:84  vq
-         qq00, qq01, qq02, qq11, qq12, qq22) = u                      # 84:90  qq
+    if u.size:
+        # the 90 floats (layout in the module docstring), entry by entry
+        h00, h01, h02, h10, h11, h12 = u[0], u[1], u[2], u[3], u[4], u[5]
+        h20, h21, h22, g00, g01, g02 = u[6], u[7], u[8], u[9], u[10], u[11]
+        g10, g11, g12, g20, g21, g22 = u[12], u[13], u[14], u[15], u[16], u[17]
+        m00, m01, m02, m10, m11, m12 = u[18], u[19], u[20], u[21], u[22], u[23]
+        m20, m21, m22, a00, a01, a02 = u[24], u[25], u[26], u[27], u[28], u[29]
+        a10, a11, a12, a20, a21, a22 = u[30], u[31], u[32], u[33], u[34], u[35]
+        b00, b01, b02, b10, b11, b12 = u[36], u[37], u[38], u[39], u[40], u[41]
+        b20, b21, b22, rr00, rr01, rr02 = u[42], u[43], u[44], u[45], u[46], u[47]
+        rr11, rr12, rr22, rv00, rv01, rv02 = u[48], u[49], u[50], u[51], u[52], u[53]
+        rv10, rv11, rv12, rv20, rv21, rv22 = u[54], u[55], u[56], u[57], u[58], u[59]
+        rq00, rq01, rq02, rq10, rq11, rq12 = u[60], u[61], u[62], u[63], u[64], u[65]
+        rq20, rq21, rq22, vv00, vv01, vv02 = u[66], u[67], u[68], u[69], u[70], u[71]
+        vv11, vv12, vv22, vq00, vq01, vq02 = u[72], u[73], u[74], u[75], u[76], u[77]
+        vq10, vq11, vq12, vq20, vq21, vq22 = u[78], u[79], u[80], u[81], u[82], u[83]
+        qq00, qq01, qq02, qq11, qq12, qq22 = u[84], u[85], u[86], u[87], u[88], u[89]
         if t2 < SMALL_ANGLE2:
             B = 0.5 - t2 / 24.0 + t2 * t2 / 720.0
             C = 1.0 / 6.0 - t2 / 120.0 + t2 * t2 / 5040.0
@@ -149,7 +150,6 @@ def integrate_interval_python(s: tuple, u: tuple | None, dt: float, x: float, y:
         r00, r01, r02 = 1.0 - yy2 - zz2, xy2 - wz2, xz2 + wy2
         r10, r11, r12 = xy2 + wz2, 1.0 - xx2 - zz2, yz2 - wx2
         r20, r21, r22 = xz2 - wy2, yz2 + wx2, 1.0 - xx2 - yy2
-        qg, qa = noise
         mid = T + 0.5 * dt
         # --- gyro-bias Jacobians: H = hat(c) Th; Vg -= H; Mg += mid H; Th -= delta_R_k Jl dt.
         # Row by row, H (and D below) reused so that each row's floats are freed at once (faster).
@@ -237,31 +237,45 @@ def integrate_interval_python(s: tuple, u: tuple | None, dt: float, x: float, y:
             ws0, ws1 = w1 * s0, w1 * s1
             rr00, rr11, rr22 = rr00 + (w0 + ws0 * s0), rr11 + (w0 + ws1 * s1), rr22 + (w0 + w1 * s2 * s2)
             rr01, rr02, rr12 = rr01 + ws0 * s1, rr02 + ws0 * s2, rr12 + ws1 * s2
-        u = (h00, h01, h02, h10, h11, h12, h20, h21, h22,
-             g00, g01, g02, g10, g11, g12, g20, g21, g22,
-             m00, m01, m02, m10, m11, m12, m20, m21, m22,
-             a00, a01, a02, a10, a11, a12, a20, a21, a22,
-             b00, b01, b02, b10, b11, b12, b20, b21, b22,
-             rr00, rr01, rr02, rr11, rr12, rr22,
-             rv00, rv01, rv02, rv10, rv11, rv12, rv20, rv21, rv22,
-             rq00, rq01, rq02, rq10, rq11, rq12, rq20, rq21, rq22,
-             vv00, vv01, vv02, vv11, vv12, vv22,
-             vq00, vq01, vq02, vq10, vq11, vq12, vq20, vq21, vq22,
-             qq00, qq01, qq02, qq11, qq12, qq22)
+        # write back (entry by entry: no tuple of 90 floats in the compiled code)
+        u[0], u[1], u[2], u[3], u[4], u[5] = h00, h01, h02, h10, h11, h12
+        u[6], u[7], u[8], u[9], u[10], u[11] = h20, h21, h22, g00, g01, g02
+        u[12], u[13], u[14], u[15], u[16], u[17] = g10, g11, g12, g20, g21, g22
+        u[18], u[19], u[20], u[21], u[22], u[23] = m00, m01, m02, m10, m11, m12
+        u[24], u[25], u[26], u[27], u[28], u[29] = m20, m21, m22, a00, a01, a02
+        u[30], u[31], u[32], u[33], u[34], u[35] = a10, a11, a12, a20, a21, a22
+        u[36], u[37], u[38], u[39], u[40], u[41] = b00, b01, b02, b10, b11, b12
+        u[42], u[43], u[44], u[45], u[46], u[47] = b20, b21, b22, rr00, rr01, rr02
+        u[48], u[49], u[50], u[51], u[52], u[53] = rr11, rr12, rr22, rv00, rv01, rv02
+        u[54], u[55], u[56], u[57], u[58], u[59] = rv10, rv11, rv12, rv20, rv21, rv22
+        u[60], u[61], u[62], u[63], u[64], u[65] = rq00, rq01, rq02, rq10, rq11, rq12
+        u[66], u[67], u[68], u[69], u[70], u[71] = rq20, rq21, rq22, vv00, vv01, vv02
+        u[72], u[73], u[74], u[75], u[76], u[77] = vv11, vv12, vv22, vq00, vq01, vq02
+        u[78], u[79], u[80], u[81], u[82], u[83] = vq10, vq11, vq12, vq20, vq21, vq22
+        u[84], u[85], u[86], u[87], u[88], u[89] = qq00, qq01, qq02, qq11, qq12, qq22
     # --- deltas: p += dt (v + c/2), v += c, q = q_k (x) (ch, k phi)
     dx, dy, dz = k * x, k * y, k * z
-    return (T + dt,
-            qw * ch - qx * dx - qy * dy - qz * dz, qw * dx + qx * ch + qy * dz - qz * dy,
-            qw * dy - qx * dz + qy * ch + qz * dx, qw * dz + qx * dy - qy * dx + qz * ch,
-            v0 + c0, v1 + c1, v2 + c2,
-            p0 + dt * (v0 + 0.5 * c0), p1 + dt * (v1 + 0.5 * c1), p2 + dt * (v2 + 0.5 * c2)), u
+    s[0] = T + dt
+    s[1] = qw * ch - qx * dx - qy * dy - qz * dz
+    s[2] = qw * dx + qx * ch + qy * dz - qz * dy
+    s[3] = qw * dy - qx * dz + qy * ch + qz * dx
+    s[4] = qw * dz + qx * dy - qy * dx + qz * ch
+    s[5], s[6], s[7] = v0 + c0, v1 + c1, v2 + c2
+    s[8], s[9], s[10] = p0 + dt * (v0 + 0.5 * c0), p1 + dt * (v1 + 0.5 * c1), p2 + dt * (v2 + 0.5 * c2)
 
 
-#: The compiled twin (``imu_ground/imu/_preint_native.c``: :func:`integrate_interval_python` term for term,
-#: plus the streaming front-end's per-sample fast path), or None (not built, or ``IMU_GROUND_PURE_PYTHON=1``).
-NATIVE = _native.PREINTEGRATION
-#: The kernel in use: the C twin when built, else :func:`integrate_interval_python` (same signature and results).
-integrate_interval = integrate_interval_python if NATIVE is None else NATIVE.integrate_interval
+def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float, z: float,
+                       fx: float, fy: float, fz: float, noise: tuple[float, float]) -> tuple[tuple, tuple | None]:
+    """:func:`integrate` on tuples: the new ``(deltas, uncertainty)`` (``uncertainty`` None when ``u`` is).
+
+    For callers that keep the state as tuples (:class:`~imu_ground.imu.preint_measurement.PreintegratedImu`);
+    the streaming front-end runs :func:`integrate` on its state buffer.
+    """
+    sa = np.array(s, dtype=float)
+    ua = _NO_UNCERTAINTY if u is None else np.array(u, dtype=float)
+    integrate(sa, ua, float(dt), float(x), float(y), float(z), float(fx), float(fy), float(fz),
+              float(noise[0]), float(noise[1]))
+    return tuple(sa.tolist()), (None if u is None else tuple(ua.tolist()))
 
 
 def rotation_from_quaternion(q: tuple) -> tuple:

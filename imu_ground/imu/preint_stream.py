@@ -5,239 +5,178 @@
 boundary splitting and gap rule, see :mod:`imu_ground.imu.preintegration`) and
 integrates each interval with the same scalar kernel as
 :class:`~imu_ground.imu.preint_measurement.PreintegratedImu`
-(:func:`~imu_ground.imu.preint_kernel.integrate_interval`). The per-sample path
-touches only Python floats and tuples: no numpy, no object per sample.
+(:func:`~imu_ground.imu.preint_kernel.integrate`).
 
-When the C twins are built (``_preint_native.c``, see :mod:`imu_ground.imu.preint_kernel`),
-``push`` is one C call per sample: the state and the bookkeeping live in one buffer of
-floats, and the C code integrates inside frames and splits the sample interval at rate or
-frame_times boundaries (returning the finished frames' states); the first sample, gaps,
-every-N boundaries and errors go through the Python code below (the reference), which
-reads and writes the same buffer around its work. Frames are equal either way (the twin rule of
-:mod:`imu_ground._native`).
+``push`` is one compiled call per sample (:func:`push_step`, through :mod:`imu_ground._jit`):
+the state and the bookkeeping live in one float64 buffer (layout ``_S_*``); the compiled
+step integrates inside frames and splits the sample interval at rate or frame_times
+boundaries (writing the finished frames' states to a second buffer); the first sample,
+gaps, every-N boundaries and errors go through :meth:`StreamingPreintegrator._push_slow`
+on the attributes, which reads and writes the same buffer around its work.
 """
 from __future__ import annotations
 
 import dataclasses
-
 import math
-from array import array
-from collections.abc import Callable, Iterable, Sequence
-from typing import TYPE_CHECKING, Any
+from collections.abc import Iterable, Sequence
+from typing import Any
 
 import numpy as np
 
+from imu_ground._jit import njit
 from imu_ground.imu.preint_frames import first_rate_boundary
-from imu_ground.imu.preint_kernel import (
-    DELTAS_IDENTITY,
-    NATIVE,
-    UNCERTAINTY_ZERO,
-    integrate_interval,
-)
+from imu_ground.imu.preint_kernel import DELTAS_IDENTITY, UNCERTAINTY_ZERO, integrate
 from imu_ground.imu.preint_measurement import PreintegratedImu
 from imu_ground.imu.preint_params import PreintegrationParams, gap_message
 from imu_ground.imu.warm_start import STATE_VERSION, StateError, StateReader, pack_state, unpack_state
 
 __all__ = ["StreamingPreintegrator"]
 
-_ndarray = np.ndarray
 _INF = math.inf
 
-# Streaming state buffer of the C push (offsets in floats: the S_* enum of _preint_native.c)
+# The state buffer (offsets in floats): deltas (11) and uncertainty (90), then the bookkeeping
 _S_UNC, _S_PREV, _S_LIM, _S_MAXGAP, _S_CD, _S_BIAS, _S_NOISE, _S_MIDPOINT, _S_UNCERTAINTY = (
     11, 101, 108, 109, 110, 111, 117, 119, 120)
-_S_K, _S_NEXT, _S_TOL, _S_MODE, _S_RATE, _S_ORIGIN, _S_SIZE = 121, 122, 128, 129, 130, 131, 132
-# (_S_NEXT .. _S_TOL: next boundary, active, n, mark, t_start, valid)
+_S_K, _S_NEXT, _S_ACTIVE, _S_N, _S_MARK, _S_TSTART, _S_VALID = 121, 122, 123, 124, 125, 126, 127
+_S_TOL, _S_MODE, _S_RATE, _S_ORIGIN, _S_SIZE = 128, 129, 130, 131, 132
+# (_S_PREV: t, gyro (3), accel (3) of the last sample, bias removed; _S_MODE: boundaries every-N 0, rate 1,
+# frame_times 2; _S_N: intervals integrated by the boundary path in this frame; _S_MARK: _S_CD at its start)
+# A finished frame's row of the frames buffer: deltas, uncertainty, then these
+_O_N, _O_TSTART, _O_TEND, _O_VALID, _O_SIZE = 101, 102, 103, 104, 105
+#: Frames one compiled push can finish (more: the Python path).
+_O_ROWS = 16
 _from_state = PreintegratedImu.from_state
 
-_PUSH_DOC = """Add one sample; return the frames finished by it (usually none, or one).
 
-    Parameters
-    ----------
-    t : float
-        Sample time, s (strictly increasing).
-    gyro : sequence of 3 floats
-        Angular rate, rad/s, body frame.
-    accel : sequence of 3 floats
-        Specific force, m/s^2, body frame.
-
-    Returns
-    -------
-    tuple of PreintegratedImu
-        Finished frames (usually an empty tuple), each with ``t_start``,
-        ``t_end``, ``valid``; ``delta_R`` of each is ``R_{start<-end}``.
-"""
+@njit
+def _integrate(b: np.ndarray, dt: float, x: float, y: float, z: float, fx: float, fy: float, fz: float) -> None:
+    """:func:`~imu_ground.imu.preint_kernel.integrate` on the state buffer (its one call site here)."""
+    u = b[_S_UNC:_S_PREV] if b[_S_UNCERTAINTY] != 0.0 else b[_S_UNC:_S_UNC]
+    integrate(b[0:_S_UNC], u, dt, x, y, z, fx, fy, fz, b[_S_NOISE], b[_S_NOISE + 1])
 
 
-class _KernelAttributes:
-    """What the kernels read of :class:`StreamingPreintegrator` (set in its ``__init__``), for type checkers."""
-    params: PreintegrationParams
-    _u0: tuple | None
-    _noise: tuple[float, float]
-    _bias: tuple[float, ...]
-    _prev: tuple | None
-    _lim: float
-    _max_gap: float
-    _tol: float
-    _cd: int
-    _midpoint: bool
-    _every: int | None
-    _rate: float | None
-    _times: list | None
-    _origin: float | None
-    _push_slow: Callable[[float, Sequence[float], Sequence[float]], tuple[PreintegratedImu, ...]]
+@njit
+def _integrate_piece(b: np.ndarray, dt: float, ka: np.ndarray, kb: np.ndarray) -> None:
+    """One piece of length ``dt`` (s) between knots with bias-free values ``ka`` and ``kb`` (6: rad/s, m/s^2):
+    held at their mean (midpoint) or at ``ka`` (left)."""
+    if b[_S_MIDPOINT] != 0.0:
+        hh = 0.5 * dt
+        _integrate(b, dt, (ka[0] + kb[0]) * hh, (ka[1] + kb[1]) * hh, (ka[2] + kb[2]) * hh,
+                   (ka[3] + kb[3]) * hh, (ka[4] + kb[4]) * hh, (ka[5] + kb[5]) * hh)
+    else:
+        _integrate(b, dt, ka[0] * dt, ka[1] * dt, ka[2] * dt, ka[3] * dt, ka[4] * dt, ka[5] * dt)
 
 
-class _PythonKernel(_KernelAttributes):
-    """The kernel state as tuples ``self._st = (deltas, uncertainty)``, the pure-Python fast path."""
-
-    def _kernel_reset(self) -> None:
-        self._st = (DELTAS_IDENTITY, self._u0)
-
-    _kernel_init = _kernel_reset
-
-    def _kernel_state(self) -> tuple[tuple, tuple | None]:
-        return self._st
-
-    def _kernel_load(self, deltas: tuple, unc) -> None:
-        self._st = (deltas, unc)
-
-    def _integrate(self, dt: float, x: float, y: float, z: float, fx: float, fy: float, fz: float) -> None:
-        s, u = self._st
-        self._st = integrate_interval(s, u, dt, x, y, z, fx, fy, fz, self._noise)
-
-    def _load(self) -> None:
-        """Nothing to do: the fast path keeps its state in the attributes."""
-
-    def push(self, t: float, gyro: Sequence[float], accel: Sequence[float]) -> tuple[PreintegratedImu, ...]:
-        if type(t) is not float:
-            t = float(t)
-        if type(gyro) is _ndarray:
-            gyro = gyro.tolist()
-        if type(accel) is _ndarray:
-            accel = accel.tolist()
-        prev = self._prev
-        # fast path: inside a frame (_lim is -inf before the first sample and outside frames),
-        # no boundary, no gap, not an every-N sample; else _push_slow
-        if t < self._lim:
-            assert prev is not None             # _lim is -inf until the first sample
-            h = t - prev[0]
-            if 0.0 < h <= self._max_gap:
-                cd = self._cd - 1
-                if cd:
-                    self._cd = cd
-                    bgx, bgy, bgz, bax, bay, baz = self._bias
-                    wx, wy, wz = gyro
-                    ax, ay, az = accel
-                    wx, wy, wz = wx - bgx, wy - bgy, wz - bgz
-                    ax, ay, az = ax - bax, ay - bay, az - baz
-                    self._prev = (t, wx, wy, wz, ax, ay, az)
-                    _, gx, gy, gz, fx, fy, fz = prev
-                    s, u = self._st
-                    if self._midpoint:      # mean of the two samples, the 1/2 folded into dt
-                        hh = 0.5 * h
-                        self._st = integrate_interval(s, u, h, (gx + wx) * hh, (gy + wy) * hh, (gz + wz) * hh,
-                                                      (fx + ax) * hh, (fy + ay) * hh, (fz + az) * hh, self._noise)
-                    else:                   # the left sample's value
-                        self._st = integrate_interval(s, u, h, gx * h, gy * h, gz * h, fx * h, fy * h, fz * h,
-                                                      self._noise)
-                    return ()
-        return self._push_slow(t, gyro, accel)
+@njit
+def _boundary_after(b: np.ndarray, times: np.ndarray, k: float) -> float:
+    """Time of boundary ``k`` (rate or frame_times mode), s; inf past the last frame time."""
+    if b[_S_MODE] == 2.0:
+        return times[int(k)] if k < times.size else math.inf
+    return b[_S_ORIGIN] + k / b[_S_RATE]
 
 
-    push.__doc__ = _PUSH_DOC
+@njit
+def _cross_boundary(b: np.ndarray, times: np.ndarray, out: np.ndarray, nout: int, tb: float) -> int:
+    """A boundary at ``tb`` (rate or frame_times): the running frame's state into row ``nout`` of ``out``,
+    the next frame started; returns the rows written so far."""
+    if b[_S_ACTIVE] != 0.0:
+        out[nout, 0:_S_PREV] = b[0:_S_PREV]
+        out[nout, _O_N] = b[_S_N] + b[_S_MARK] - b[_S_CD]
+        out[nout, _O_TSTART] = b[_S_TSTART]
+        out[nout, _O_TEND] = tb
+        out[nout, _O_VALID] = b[_S_VALID]
+        nout += 1
+    k = b[_S_K] + 1.0
+    nxt = _boundary_after(b, times, k)
+    b[_S_K] = k
+    b[_S_NEXT] = nxt
+    b[_S_ACTIVE] = 1.0 if nxt != math.inf else 0.0
+    b[_S_LIM] = nxt - b[_S_TOL] if nxt != math.inf else -math.inf
+    b[0:_S_PREV] = 0.0
+    b[1] = 1.0                                  # identity quaternion
+    b[_S_N] = 0.0
+    b[_S_MARK] = b[_S_CD]
+    b[_S_TSTART] = tb
+    b[_S_VALID] = 1.0
+    return nout
 
 
-class _NativeKernel(_KernelAttributes):
-    """The kernel state and the per-sample bookkeeping in one buffer ``self._b`` (array('d'), layout
-    ``_S_*``), run by ``_preint_native.push``: inside frames, and across rate / frame_times boundaries
-    without a gap (it returns the finished frames' raw states). The rest (first sample, gaps,
-    every-N boundaries, errors) runs in Python on the attributes, taken from the buffer before it
-    (:meth:`_load`) and put back after (:meth:`_save`)."""
+@njit
+def push_step(b: np.ndarray, times: np.ndarray, out: np.ndarray, t: float, wx: float, wy: float, wz: float,
+              ax: float, ay: float, az: float) -> int:
+    """:meth:`StreamingPreintegrator.push` on the state buffer ``b``, where it takes the sample.
 
-    def _kernel_init(self) -> None:
-        b = self._b = array("d", bytes(8 * _S_SIZE))
-        b[0:11] = _DELTAS_IDENTITY_ARRAY
-        b[_S_MAXGAP], b[_S_TOL] = self._max_gap, self._tol
-        b[_S_BIAS:_S_BIAS + 6] = array("d", self._bias)
-        b[_S_NOISE:_S_NOISE + 2] = array("d", self._noise)
-        b[_S_MIDPOINT] = 1.0 if self._midpoint else 0.0
-        b[_S_UNCERTAINTY] = 0.0 if self._u0 is None else 1.0
-        b[_S_MODE] = 0.0 if self._every is not None else (1.0 if self._rate is not None else 2.0)
-        b[_S_RATE] = self._rate or 0.0
-        self._tb = array("d", self._times or ())
-        self._save()
-
-    def _kernel_reset(self) -> None:
-        if self._u0 is None:
-            self._b[0:_S_UNC] = _DELTAS_IDENTITY_ARRAY
+    Returns 0 when the sample was integrated inside a frame (no boundary, no gap, not an every-N
+    sample), the number of frames it finished (their states in the rows of ``out``) when it crossed
+    rate or frame_times boundaries without a gap (split there, midpoint values interpolated, as
+    :meth:`StreamingPreintegrator._push_slow`), and -1, the buffer untouched, for everything else
+    (first sample, gaps, every-N boundaries, errors: the Python path's).
+    """
+    t0 = b[_S_PREV]
+    h = t - t0
+    if t < b[_S_LIM]:                           # inside a frame (_S_LIM is -inf before the first sample)
+        cd = b[_S_CD] - 1.0
+        if not (0.0 < h <= b[_S_MAXGAP] and cd != 0.0):
+            return -1
+        b[_S_CD] = cd
+        wx, wy, wz = wx - b[_S_BIAS], wy - b[_S_BIAS + 1], wz - b[_S_BIAS + 2]
+        ax, ay, az = ax - b[_S_BIAS + 3], ay - b[_S_BIAS + 4], az - b[_S_BIAS + 5]
+        gx, gy, gz, fx, fy, fz = b[_S_PREV + 1], b[_S_PREV + 2], b[_S_PREV + 3], b[_S_PREV + 4], b[_S_PREV + 5], \
+            b[_S_PREV + 6]
+        b[_S_PREV], b[_S_PREV + 1], b[_S_PREV + 2], b[_S_PREV + 3] = t, wx, wy, wz
+        b[_S_PREV + 4], b[_S_PREV + 5], b[_S_PREV + 6] = ax, ay, az
+        if b[_S_MIDPOINT] != 0.0:               # mean of the two samples, the 1/2 folded into dt
+            hh = 0.5 * h
+            _integrate(b, h, (gx + wx) * hh, (gy + wy) * hh, (gz + wz) * hh, (fx + ax) * hh, (fy + ay) * hh,
+                       (fz + az) * hh)
+        else:                                   # the left sample's value
+            _integrate(b, h, gx * h, gy * h, gz * h, fx * h, fy * h, fz * h)
+        return 0
+    if not (b[_S_MODE] != 0.0 and b[_S_ACTIVE] != 0.0 and 0.0 < h <= b[_S_MAXGAP]):
+        return -1
+    # boundaries inside (t0, t - tol], no gap: count them first (more than out holds: the Python path's)
+    tol = b[_S_TOL]
+    nxt, k, rows = b[_S_NEXT], b[_S_K], 0
+    while nxt < t - tol:
+        rows += 1
+        k += 1.0
+        nxt = _boundary_after(b, times, k)
+    if abs(nxt - t) <= tol:
+        rows += 1
+    if rows > out.shape[0]:
+        return -1
+    k1 = np.empty(6)
+    k1[0], k1[1], k1[2] = wx - b[_S_BIAS], wy - b[_S_BIAS + 1], wz - b[_S_BIAS + 2]
+    k1[3], k1[4], k1[5] = ax - b[_S_BIAS + 3], ay - b[_S_BIAS + 4], az - b[_S_BIAS + 5]
+    pv = b[_S_PREV + 1:_S_PREV + 7].copy()
+    k0 = pv.copy()
+    kb = np.empty(6)
+    b[_S_PREV] = t
+    b[_S_PREV + 1:_S_PREV + 7] = k1
+    tk, nout = t0, 0
+    while b[_S_NEXT] < t - tol:
+        tb = b[_S_NEXT]
+        if b[_S_MIDPOINT] != 0.0:
+            wgt = (tb - t0) / h
+            for i in range(6):
+                kb[i] = pv[i] + (k1[i] - pv[i]) * wgt
         else:
-            self._b[0:_S_PREV] = _STATE_ZERO_ARRAY
-
-    def _kernel_state(self) -> tuple[tuple, tuple | None]:
-        b = self._b
-        return tuple(b[0:11]), (None if self._u0 is None else tuple(b[_S_UNC:_S_PREV]))
-
-    def _kernel_load(self, deltas: tuple, unc) -> None:
-        b = self._b
-        b[0:11] = array("d", deltas)
-        if unc is not None:
-            b[_S_UNC:_S_UNC + len(unc)] = array("d", unc)
-        self._save()
-
-    def _integrate(self, dt: float, x: float, y: float, z: float, fx: float, fy: float, fz: float) -> None:
-        _native_integrate(self._b, dt, x, y, z, fx, fy, fz)
-
-    def _load(self) -> None:
-        """Buffer -> attributes: what the C push changes."""
-        b = self._b
-        if self._prev is not None:
-            self._prev = tuple(b[_S_PREV:_S_LIM])
-        (self._lim, self._cd, self._k, self._next, active, self._n, self._mark, self._t_start,
-         valid) = b[_S_LIM], int(b[_S_CD]), int(b[_S_K]), *b[_S_NEXT:_S_TOL]
-        self._active, self._valid, self._n, self._mark = active != 0.0, valid != 0.0, int(self._n), int(self._mark)
-
-    def _save(self) -> None:
-        """Attributes -> buffer: what the Python slow path changes and the C push reads."""
-        b = self._b
-        if self._prev is not None:
-            b[_S_PREV:_S_LIM] = array("d", self._prev)
-        b[_S_LIM], b[_S_CD] = self._lim, float(self._cd)
-        b[_S_K:_S_TOL] = array("d", (self._k, self._next, self._active, self._n, self._mark, self._t_start,
-                                      self._valid))
-        b[_S_ORIGIN] = math.nan if self._origin is None else self._origin
-
-    def push(self, t: float, gyro: Sequence[float], accel: Sequence[float]) -> tuple[PreintegratedImu, ...]:
-        done = _native_push(self._b, self._tb, t, gyro, accel)
-        if done is True:
-            return ()
-        if done is not False:                  # boundaries crossed in C: the finished frames' states
-            par = self.params
-            return tuple([_from_state(par, *f) for f in done])
-        if type(gyro) is _ndarray:
-            gyro = gyro.tolist()
-        if type(accel) is _ndarray:
-            accel = accel.tolist()
-        self._load()
-        out = self._push_slow(float(t), gyro, accel)
-        self._save()
-        return out
-    push.__doc__ = _PUSH_DOC
+            kb[:] = k0
+        if b[_S_ACTIVE] != 0.0:
+            _integrate_piece(b, tb - tk, k0, kb)
+            b[_S_N] += 1.0
+        nout = _cross_boundary(b, times, out, nout, tb)
+        tk = tb
+        k0[:] = kb
+    if b[_S_ACTIVE] != 0.0:
+        _integrate_piece(b, t - tk, k0, k1)
+        b[_S_N] += 1.0
+    if abs(b[_S_NEXT] - t) <= tol:
+        nout = _cross_boundary(b, times, out, nout, b[_S_NEXT])
+    return nout
 
 
-if NATIVE is not None:
-    _native_push, _native_integrate = NATIVE.push, NATIVE.integrate
-    _DELTAS_IDENTITY_ARRAY = array("d", DELTAS_IDENTITY)
-    _STATE_ZERO_ARRAY = array("d", DELTAS_IDENTITY + UNCERTAINTY_ZERO)
-
-
-if TYPE_CHECKING:          # a type checker takes no base chosen at import time; each kernel is checked on its own
-    _Kernel = _PythonKernel
-else:
-    _Kernel = _NativeKernel if NATIVE is not None else _PythonKernel
-
-
-class StreamingPreintegrator(_Kernel):
+class StreamingPreintegrator:
     """Sample-by-sample front-end: emits a finished :class:`PreintegratedImu` per frame.
 
     Frames are given by explicit boundary times, a frame rate, or a sample
@@ -309,6 +248,110 @@ class StreamingPreintegrator(_Kernel):
         self._active = False                # inside a frame
         self._kernel_init()                 # kernel state: (deltas, uncertainty)
 
+    # -- the state buffer -------------------------------------------------------
+    def _kernel_init(self) -> None:
+        b = self._b = np.zeros(_S_SIZE)
+        b[0:11] = DELTAS_IDENTITY
+        b[_S_MAXGAP], b[_S_TOL] = self._max_gap, self._tol
+        b[_S_BIAS:_S_BIAS + 6] = self._bias
+        b[_S_NOISE:_S_NOISE + 2] = self._noise
+        b[_S_MIDPOINT] = 1.0 if self._midpoint else 0.0
+        b[_S_UNCERTAINTY] = 0.0 if self._u0 is None else 1.0
+        b[_S_MODE] = 0.0 if self._every is not None else (1.0 if self._rate is not None else 2.0)
+        b[_S_RATE] = self._rate or 0.0
+        self._tb = np.array(self._times or (), dtype=float)
+        self._out = np.zeros((_O_ROWS, _O_SIZE))
+        self._save()
+
+    def _kernel_reset(self) -> None:
+        self._b[0:_S_PREV] = 0.0
+        self._b[1] = 1.0                    # identity quaternion
+
+    def _kernel_state(self) -> tuple[tuple, tuple | None]:
+        b = self._b
+        return tuple(b[0:_S_UNC].tolist()), (None if self._u0 is None else tuple(b[_S_UNC:_S_PREV].tolist()))
+
+    def _kernel_load(self, deltas: tuple, unc) -> None:
+        self._b[0:11] = deltas
+        if unc is not None:
+            self._b[_S_UNC:_S_UNC + len(unc)] = unc
+        self._save()
+
+    def _integrate(self, dt: float, x: float, y: float, z: float, fx: float, fy: float, fz: float) -> None:
+        _integrate(self._b, dt, x, y, z, fx, fy, fz)
+
+    def _load(self) -> None:
+        """Buffer -> attributes: what the compiled push changes."""
+        b = self._b
+        if self._prev is not None:
+            self._prev = tuple(b[_S_PREV:_S_LIM].tolist())
+        self._lim, cd = float(b[_S_LIM]), b[_S_CD]
+        k, self._next, active, n, mark, self._t_start, valid = b[_S_K:_S_TOL].tolist()
+        self._cd, self._k, self._n, self._mark = int(cd), int(k), int(n), int(mark)
+        self._active, self._valid = active != 0.0, valid != 0.0
+
+    def _save(self) -> None:
+        """Attributes -> buffer: what the Python slow path changes and the compiled push reads."""
+        b = self._b
+        if self._prev is not None:
+            b[_S_PREV:_S_LIM] = self._prev
+        b[_S_LIM], b[_S_CD] = self._lim, float(self._cd)
+        b[_S_K:_S_TOL] = (self._k, self._next, self._active, self._n, self._mark, self._t_start, self._valid)
+        b[_S_ORIGIN] = math.nan if self._origin is None else self._origin
+
+    def push(self, t: float, gyro: Sequence[float], accel: Sequence[float]) -> tuple[PreintegratedImu, ...]:
+        """Add one sample; return the frames finished by it (usually none, or one).
+
+        Parameters
+        ----------
+        t : float
+            Sample time, s (strictly increasing).
+        gyro : sequence of 3 floats
+            Angular rate, rad/s, body frame.
+        accel : sequence of 3 floats
+            Specific force, m/s^2, body frame.
+
+        Returns
+        -------
+        tuple of PreintegratedImu
+            Finished frames (usually an empty tuple), each with ``t_start``,
+            ``t_end``, ``valid``; ``delta_R`` of each is ``R_{start<-end}``.
+        """
+        try:
+            wx, wy, wz = gyro
+            ax, ay, az = accel
+            done = push_step(self._b, self._tb, self._out, float(t), float(wx), float(wy), float(wz),
+                         float(ax), float(ay), float(az))
+        except (TypeError, ValueError):         # not three numbers each: the Python path says so
+            done = -1
+        if done == 0:
+            return ()
+        if done > 0:                            # boundaries crossed: the finished frames' states
+            return self.finished_frames(done)
+        if isinstance(gyro, np.ndarray):
+            gyro = gyro.tolist()
+        if isinstance(accel, np.ndarray):
+            accel = accel.tolist()
+        self._load()
+        out = self._push_slow(float(t), gyro, accel)
+        self._save()
+        return out
+
+    @property
+    def step_buffers(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(state, frame_times, frames)``: the float64 buffers :func:`push_step` runs on (for a caller that
+        runs it inside its own compiled step); a positive answer of it is read with :meth:`finished_frames`."""
+        return self._b, self._tb, self._out
+
+    def finished_frames(self, n: int) -> tuple[PreintegratedImu, ...]:
+        """The ``n`` frames :func:`push_step` just finished (the first ``n`` rows of the frames buffer)."""
+        par, unc = self.params, self._u0 is not None
+        frames = []
+        for row in self._out[:n].tolist():
+            frames.append(_from_state(par, tuple(row[0:_S_UNC]), tuple(row[_S_UNC:_S_PREV]) if unc else None,
+                                      int(row[_O_N]), row[_O_TSTART], row[_O_TEND], row[_O_VALID] != 0.0))
+        return tuple(frames)
+
     # settings, read-only views of params
     hold = property(lambda self: self.params.hold, doc="``'midpoint'`` or ``'left'``.")
     max_gap = property(lambda self: self.params.max_gap, doc="Longest sample step, s, that is not a gap.")
@@ -320,9 +363,7 @@ class StreamingPreintegrator(_Kernel):
         ``params.bias``'s (a live estimate that changes as the stream goes; the accelerometer's stays). Not part
         of :meth:`state_dict`: the caller that sets it sets it again after a :meth:`load_state_dict`."""
         self._bias = (float(bx), float(by), float(bz), *self._bias[3:])
-        b = getattr(self, "_b", None)
-        if b is not None:                           # (the compiled kernel reads its copy in the buffer)
-            b[_S_BIAS:_S_BIAS + 3] = array("d", self._bias[:3])
+        self._b[_S_BIAS:_S_BIAS + 3] = self._bias[:3]       # (the compiled push reads its copy in the buffer)
 
     @property
     def current(self) -> PreintegratedImu:
@@ -334,8 +375,7 @@ class StreamingPreintegrator(_Kernel):
     # -- warm start ---------------------------------------------------------
     # The state is the frame being integrated (deltas and, with ``uncertainty``, their covariance and
     # Jacobians, as the kernel holds them) and the bookkeeping of the sample stream (last sample, next
-    # boundary, counts); the settings are the frame boundaries and the PreintegrationParams. A state saved
-    # with the compiled kernel loads into the pure-Python one and back (the same layout). A stream stopped
+    # boundary, counts); the settings are the frame boundaries and the PreintegrationParams. A stream stopped
     # after any sample and resumed from its state emits the frames of the uninterrupted stream.
     _INTS = ("_n", "_cd", "_mark", "_k")
     _FLOATS = ("_t_start", "_next", "_lim")
@@ -347,7 +387,7 @@ class StreamingPreintegrator(_Kernel):
     def state_dict(self) -> dict:
         """The state as a plain, JSON-serialisable dict (:mod:`imu_ground.imu.warm_start`); resume with
         :meth:`load_state_dict` on a preintegrator built with the same settings."""
-        self._load()                                # (compiled kernel: its buffer -> the attributes)
+        self._load()                                # (the buffer -> the attributes)
         deltas, unc = self._kernel_state()
         st = {name: getattr(self, name) for name in self._INTS + self._FLOATS}
         st.update(_valid=self._valid, _active=self._active, _origin=self._origin, prev=self._prev, deltas=deltas,

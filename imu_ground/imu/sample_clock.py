@@ -39,12 +39,13 @@ Times are seconds; nothing here allocates per sample beyond Python floats.
 from __future__ import annotations
 
 import math
-from array import array
 from typing import Any
 
 import numpy as np
 
-__all__ = ["CONFIRM", "DROP", "OK", "RESTART", "WARMUP", "SampleClock"]
+from imu_ground._jit import njit
+
+__all__ = ["CONFIRM", "DROP", "FAR", "OK", "RESTART", "WARMUP", "SampleClock", "clock_step"]
 
 #: Samples of the warm-up: their median step is the first sample period.
 WARMUP = 10
@@ -59,6 +60,61 @@ CONFIRM = 3
 OK, DROP, RESTART = 0, 1, 2
 _POLICIES = ("retime", "drop")
 _COUNTS = ("retimed", "dropped", "dropouts", "restarts", "bad", "bad_offset", "confirming")
+#: :func:`clock_step`'s answer for a stamp far off the clock (nothing changed: :meth:`SampleClock.push` decides).
+FAR = -1
+# The clock's state and settings in one float64 buffer (SampleClock._c), where the compiled step runs on them
+(_C_T, _C_DT, _C_RAW_MAX, _C_RAW_PREV, _C_PENDING, _C_PMIN, _C_RETIMED, _C_DROPPED, _C_DROPOUTS, _C_SUS_N, _C_HOLD,
+ _C_GAP_FACTOR, _C_ALPHA, _C_BETA, _C_DROP_POLICY, _C_SIZE) = range(16)
+
+
+@njit
+def clock_step(c: np.ndarray, t: float) -> int:
+    """One raw stamp ``t`` (finite, s) after the warm-up, on the clock buffer ``c``: :data:`OK` (the output
+    time in ``c[0]``), :data:`DROP`, or :data:`FAR` (far off the clock, a bad stamp or a new clock: nothing
+    changed, :meth:`SampleClock.push` decides)."""
+    out, dt = c[_C_T], c[_C_DT]
+    hold = c[_C_HOLD]
+    e = t - (out + dt)
+    if t < c[_C_RAW_PREV] - c[_C_GAP_FACTOR] * dt or e > hold:
+        return FAR
+    c[_C_SUS_N] = 0.0
+    c[_C_RAW_PREV] = t
+    if t > c[_C_RAW_MAX]:
+        c[_C_RAW_MAX] = t
+    elif c[_C_DROP_POLICY] != 0.0:
+        c[_C_DROPPED] += 1.0
+        return DROP
+    if e > 0.5 * dt:
+        if math.isnan(c[_C_PENDING]):
+            c[_C_PENDING], c[_C_PMIN] = out, e
+        elif e < c[_C_PMIN]:
+            c[_C_PMIN] = e
+        if out + dt - c[_C_PENDING] >= hold:                # ahead for hold seconds: a dropout
+            out = out + dt + c[_C_PMIN]
+            c[_C_PENDING] = math.nan
+            c[_C_DROPOUTS] += 1.0
+        else:
+            out = out + dt
+            c[_C_RETIMED] += 1.0
+        c[_C_T] = out
+        return OK
+    c[_C_PENDING] = math.nan
+    if e < -0.5 * dt:
+        e = -0.5 * dt
+        c[_C_RETIMED] += 1.0
+    c[_C_T] = out + dt + c[_C_ALPHA] * e
+    c[_C_DT] = dt + c[_C_BETA] * e
+    return OK
+
+
+def _slot(i: int, kind: type = float, doc: str | None = None) -> Any:
+    """An attribute kept in the clock buffer at ``i`` (read back as ``kind``)."""
+    def get(self: SampleClock) -> Any:
+        return kind(self._c[i])
+
+    def put(self: SampleClock, v: Any) -> None:
+        self._c[i] = v
+    return property(get, put, doc=doc)
 
 
 class SampleClock:
@@ -97,12 +153,29 @@ class SampleClock:
         Samples dropped while a change of the clock was confirmed (the first :data:`CONFIRM` - 1 of it).
     """
 
+    t = _slot(_C_T)
+    dt = _slot(_C_DT)
+    _raw_max = _slot(_C_RAW_MAX)
+    _raw_prev = _slot(_C_RAW_PREV)          # the last stamp pushed
+    _pending = _slot(_C_PENDING)            # output time when the stamps went ahead (NaN: they are not)
+    _pmin = _slot(_C_PMIN)                  # the least offset since then, s
+    retimed = _slot(_C_RETIMED, int)
+    dropped = _slot(_C_DROPPED, int)
+    dropouts = _slot(_C_DROPOUTS, int)
+    _sus_n = _slot(_C_SUS_N, int)           # far-off stamps in a row that agree so far
+    hold = _slot(_C_HOLD)
+    gap_factor = _slot(_C_GAP_FACTOR)
+    alpha = _slot(_C_ALPHA)
+    beta = _slot(_C_BETA)
+
     def __init__(self, policy: str = "retime", hold: float = 1.0, gap_factor: float = 10.0,
                  alpha: float = 0.02, beta: float = 1e-4, max_jump: float = math.inf) -> None:
+        self._c = np.zeros(_C_SIZE)
         if policy not in _POLICIES:
             raise ValueError(f"policy must be one of {', '.join(_POLICIES)} for a stream (sort and strict need the "
                              f"whole log), got {policy!r}")
         self.policy, self.hold, self.gap_factor = policy, float(hold), float(gap_factor)
+        self._c[_C_DROP_POLICY] = 1.0 if policy == "drop" else 0.0
         self.max_jump = float(max_jump)
         self.alpha, self.beta = float(alpha), float(beta)
         self.reset()
@@ -128,6 +201,11 @@ class SampleClock:
                 setattr(self, k, v)
 
     @property
+    def buffer(self) -> np.ndarray:
+        """The state and settings :func:`clock_step` runs on (float64), for a caller's own compiled step."""
+        return self._c
+
+    @property
     def suspect(self) -> bool:
         """Far-off stamps are pending (the next stamp decides whether they were bad or a new clock)."""
         return self._sus_n > 0
@@ -146,40 +224,10 @@ class SampleClock:
         """One raw stamp (finite, s) -> ``(OK, t_out)``, ``(DROP, nan)`` or ``(RESTART, t_out)``."""
         if not self.warm:
             return self._warmup(t)
-        out, dt = self.t, self.dt
-        prev = self._raw_prev
-        e = t - (out + dt)
-        if t < prev - self.gap_factor * dt or e > self.hold:    # far off: a bad stamp, or a new clock
-            return self._far_off(t, prev, e)
-        self._sus_n = 0
-        self._raw_prev = t
-        if t > self._raw_max:
-            self._raw_max = t
-        elif self.policy == "drop":
-            self.dropped += 1
-            return DROP, math.nan
-        if e > 0.5 * dt:
-            if math.isnan(self._pending):
-                self._pending, self._pmin = out, e
-            elif e < self._pmin:
-                self._pmin = e
-            if out + dt - self._pending >= self.hold:       # ahead for hold seconds: a dropout
-                out = out + dt + self._pmin
-                self._pending = math.nan
-                self.dropouts += 1
-            else:
-                out = out + dt
-                self.retimed += 1
-            self.t = out
-            return OK, out
-        self._pending = math.nan
-        if e < -0.5 * dt:
-            e = -0.5 * dt
-            self.retimed += 1
-        out = out + dt + self.alpha * e
-        self.dt = dt + self.beta * e
-        self.t = out
-        return OK, out
+        code = clock_step(self._c, t)
+        if code == FAR:
+            return self._far_off(t, self._raw_prev, t - (self.t + self.dt))
+        return (OK, self.t) if code == OK else (DROP, math.nan)
 
     def _agrees(self, t: float, max_gap: float) -> bool:
         """``t`` continues the far-off stamps pending (within ``max_gap`` of the last)."""
@@ -255,19 +303,6 @@ class SampleClock:
             self.dt = s[m] if len(s) % 2 else 0.5 * (s[m - 1] + s[m])
             self._steps = []
         return OK, t
-
-    # -- the compiled twin's buffer --------------------------------------------
-    def to_buffer(self, b) -> None:
-        """Write the state and settings into ``b[0:14]`` (a float64 buffer, the layout ``F_*`` of
-        ``imu/_front_native.c``), where the compiled ``push`` runs on them; :meth:`from_buffer` reads them back."""
-        b[0:14] = array("d", (self.t, self.dt, self._raw_max, self._raw_prev, self._pending, self._pmin, self.hold,
-                              self.gap_factor, self.alpha, self.beta, 1.0 if self.policy == "drop" else 0.0,
-                              self.retimed, self.dropped, self.dropouts))
-
-    def from_buffer(self, b) -> None:
-        """The state the compiled ``push`` left in ``b`` (:meth:`to_buffer`)."""
-        (self.t, self.dt, self._raw_max, self._raw_prev, self._pending, self._pmin) = b[0:6]
-        self.retimed, self.dropped, self.dropouts = int(b[11]), int(b[12]), int(b[13])
 
     # -- warm start ---------------------------------------------------------
     def state_dict(self) -> dict[str, Any]:

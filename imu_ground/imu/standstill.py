@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imu_ground._native import STANDSTILL as _NATIVE
+from imu_ground._jit import njit
 from imu_ground.imu.data import ImuData
 
 __all__ = ["GyroBiasEstimate", "WindowSums", "detect_standstill", "estimate_gyro_bias"]
@@ -71,8 +71,22 @@ class GyroBiasEstimate:
         return self.intervals.shape[0] > 0
 
 
-#: Samples per block of the window statistics (bounded, cache-sized temporaries on long logs).
-_BLOCK = 1 << 15
+@njit
+def _window_sums(gyro: np.ndarray, accel: np.ndarray, mean: np.ndarray, c1: np.ndarray, c2: np.ndarray) -> None:
+    """Cumulative sums of the centred samples and of their squares into ``c1``, ``c2`` (6, N + 1), a row at a time."""
+    n = gyro.shape[0]
+    for j in range(6):
+        m = mean[j]
+        s1 = 0.0
+        s2 = 0.0
+        c1[j, 0] = 0.0
+        c2[j, 0] = 0.0
+        for k in range(n):
+            d = (gyro[k, j] if j < 3 else accel[k, j - 3]) - m
+            s1 = s1 + d
+            s2 = s2 + d * d
+            c1[j, k + 1] = s1
+            c2[j, k + 1] = s2
 
 
 class WindowSums:
@@ -95,10 +109,10 @@ class WindowSums:
     gyro, accel : ndarray, shape (N, 3)
         The log's gyro and specific force (C-contiguous; the log's own arrays where they are).
     c1, c2 : ndarray, shape (6, N + 1)
-        ``c1[:, k]`` sum of the first ``k`` centred samples, ``c2[:, k]`` of their squares.
-        Where the compiled kernel runs, computed on first use only: the kernel's
-        window tests carry the same running sums at each window's start and end
-        instead (equal values, without the arrays' memory).
+        ``c1[:, k]`` sum of the first ``k`` centred samples, ``c2[:, k]`` of their squares,
+        computed on first use only: the window tests of :func:`detect_standstill` carry the
+        same running sums at each window's start and end instead (equal values, without the
+        arrays' memory).
     """
 
     def __init__(self, imu: ImuData) -> None:
@@ -108,46 +122,23 @@ class WindowSums:
         self.gyro = np.ascontiguousarray(imu.gyro, dtype=float)
         self.accel = np.ascontiguousarray(imu.accel, dtype=float)
         self._c: tuple[np.ndarray, np.ndarray] | None = None
-        if _NATIVE is None:
-            self._c = self._sums()
 
     @property
     def c1(self) -> np.ndarray:
         """Cumulative sums of the centred samples, (6, N + 1)."""
-        if self._c is None:
-            self._c = self._sums()
-        return self._c[0]
+        return self._sums()[0]
 
     @property
     def c2(self) -> np.ndarray:
         """Cumulative sums of the squared centred samples, (6, N + 1)."""
-        if self._c is None:
-            self._c = self._sums()
-        return self._c[1]
+        return self._sums()[1]
 
     def _sums(self) -> tuple[np.ndarray, np.ndarray]:
-        n = self.n
-        c1 = np.empty((6, n + 1))
-        c2 = np.empty((6, n + 1))
-        if _NATIVE is not None and n:     # the compiled twin: the same additions in the same order
-            _NATIVE.window_sums(self.gyro, self.accel, np.ascontiguousarray(self.mean[:, 0]), c1, c2)
-            return c1, c2
-        c1[:, 0] = 0.0
-        c2[:, 0] = 0.0
-        # block by block: each block's running sums start from the previous block's last one, so every
-        # entry is the same sequence of additions as one cumulative sum over the whole log
-        buf = np.empty((6, min(_BLOCK, n) + 1))
-        for a in range(0, n, _BLOCK):
-            b = min(a + _BLOCK, n)
-            x = buf[:, :b - a + 1]
-            np.subtract(self.gyro[a:b].T, self.mean[:3], out=x[:3, 1:])
-            np.subtract(self.accel[a:b].T, self.mean[3:], out=x[3:, 1:])
-            x[:, 0] = c1[:, a]
-            np.cumsum(x, axis=1, out=c1[:, a:b + 1])
-            np.multiply(x[:, 1:], x[:, 1:], out=x[:, 1:])
-            x[:, 0] = c2[:, a]
-            np.cumsum(x, axis=1, out=c2[:, a:b + 1])
-        return c1, c2
+        if self._c is None:
+            c1, c2 = np.empty((6, self.n + 1)), np.empty((6, self.n + 1))
+            _window_sums(self.gyro, self.accel, np.ascontiguousarray(self.mean[:, 0]), c1, c2)
+            self._c = c1, c2
+        return self._c
 
     def stats(self, start: np.ndarray, end: np.ndarray, rows: slice = slice(0, 6)) -> tuple[np.ndarray, np.ndarray]:
         """Mean and standard deviation over samples ``[start[j], end[j])`` of the components ``rows``.
@@ -162,30 +153,84 @@ class WindowSums:
         return m + self.mean[rows], np.sqrt(var)
 
 
-def _norm3(x: np.ndarray) -> np.ndarray:
-    """Euclidean norm of the columns of a (3, N) array (as ``np.linalg.norm`` of its rows: same sum order)."""
-    return np.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+@njit
+def _advance(s1: np.ndarray, s2: np.ndarray, at: int, to: int, gyro: np.ndarray, accel: np.ndarray,
+             mean: np.ndarray) -> int:
+    """Running sums ``s1``, ``s2`` (6) of the centred samples and their squares, from sample ``at`` up to ``to``:
+    the additions of :class:`WindowSums` in their order, so ``s1[r]`` equals ``c1[r, to]``. Returns ``max(at, to)``."""
+    while at < to:
+        for r in range(6):
+            d = (gyro[at, r] if r < 3 else accel[at, r - 3]) - mean[r]
+            s1[r] = s1[r] + d
+            s2[r] = s2[r] + d * d
+        at += 1
+    return at
 
 
-def _quiet_windows(sums: WindowSums, end: np.ndarray, usable: np.ndarray, gyro_std_max: float,
-                   gyro_norm_max: float, accel_std_max: float) -> tuple[np.ndarray, np.ndarray]:
-    """Windows passing the rate and variance tests, and the mean specific-force norm (m/s^2) of those.
+@njit
+def _quiet_windows(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, mean: np.ndarray, window: float,
+                   max_gap: float, gyro_std_max: float, gyro_norm_max: float, accel_std_max: float,
+                   quiet: np.ndarray, norm: np.ndarray, end: np.ndarray) -> None:
+    """Every sample's window end, whether its window passes the rate and variance tests, and its mean
+    specific-force norm (m/s^2; NaN where the rate test fails): one forward pass.
 
-    The specific force's statistics are computed only for the windows whose
-    rate passes (the norm is NaN elsewhere; only quiet windows use it).
+    The window of sample ``i`` is samples ``i .. end[i] - 1`` with ``t < t[i] + window`` plus the first
+    sample at or after ``t[i] + window`` (so that it spans at least ``window`` s); a window that runs past
+    the log's end or holds a step longer than ``max_gap`` is not quiet. Mean and standard deviation per
+    axis as :meth:`WindowSums.stats` (count ``max(end - i, 1)``, variance floored at 0), from running
+    sums at the window's start and end (``t`` strictly increasing, so both only move forward).
     """
-    n = end.size
-    quiet = np.zeros(n, dtype=bool)
-    norm = np.full(n, np.nan)
-    for lo in range(0, n, _BLOCK):
-        hi = min(lo + _BLOCK, n)
-        i, e = np.arange(lo, hi), end[lo:hi]
-        gm, gs = sums.stats(i, e, slice(0, 3))
-        k = np.flatnonzero(usable[lo:hi] & (_norm3(gm) <= gyro_norm_max) & np.all(gs <= gyro_std_max, axis=0))
-        am, as_ = sums.stats(i[k], e[k], slice(3, 6))
-        quiet[lo + k] = np.all(as_ <= accel_std_max, axis=0)
-        norm[lo + k] = _norm3(am)
-    return quiet, norm
+    n = t.size
+    lo1, lo2, hi1, hi2 = np.zeros(6), np.zeros(6), np.zeros(6), np.zeros(6)
+    lo_at = 0
+    hi_at = 0
+    m = np.empty(6)
+    sd = np.empty(6)
+    last = 0                            # first index with t >= t[i] + window
+    gap = -1                            # first step j >= i longer than max_gap (n - 1: none)
+    for i in range(n):
+        until = t[i] + window
+        if last < i:
+            last = i
+        while last < n and t[last] < until:
+            last += 1
+        e = last + 1 if last + 1 < n else n
+        end[i] = e
+        quiet[i] = False
+        norm[i] = np.nan
+        if gap < i:
+            gap = i
+            while gap < n - 1 and not t[gap + 1] - t[gap] > max_gap:
+                gap += 1
+        if not last < n or gap < e - 1:         # past the log's end, or a gap inside
+            continue
+        lo_at = _advance(lo1, lo2, lo_at, i, gyro, accel, mean)
+        hi_at = _advance(hi1, hi2, hi_at, e, gyro, accel, mean)
+        cnt = float(hi_at - lo_at)
+        if not cnt >= 1.0:
+            cnt = 1.0
+        for r in range(6):
+            mm = (hi1[r] - lo1[r]) / cnt
+            vv = (hi2[r] - lo2[r]) / cnt - mm * mm
+            if vv < 0.0:
+                vv = 0.0
+            m[r] = mm + mean[r]
+            sd[r] = math.sqrt(vv)
+        if not (math.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]) <= gyro_norm_max
+                and sd[0] <= gyro_std_max and sd[1] <= gyro_std_max and sd[2] <= gyro_std_max):
+            continue
+        quiet[i] = sd[3] <= accel_std_max and sd[4] <= accel_std_max and sd[5] <= accel_std_max
+        norm[i] = math.sqrt(m[3] * m[3] + m[4] * m[4] + m[5] * m[5])
+
+
+@njit
+def _window_union(good: np.ndarray, end: np.ndarray, mask: np.ndarray) -> None:
+    """``mask`` = the union of the windows ``[i, end[i])`` of the good samples (ends never decrease)."""
+    cover = 0                           # samples before this one are covered by a good window
+    for i in range(good.size):
+        if good[i] and end[i] > cover:
+            cover = end[i]
+        mask[i] = cover > i
 
 
 def _standstill_mask(imu: ImuData, window: float, gyro_std_max: float, gyro_norm_max: float,
@@ -201,22 +246,12 @@ def _standstill_mask(imu: ImuData, window: float, gyro_std_max: float, gyro_norm
         sums = WindowSums(imu)
     elif sums.n != n:
         raise ValueError(f"sums were computed for a log of {sums.n} samples, this one has {n}")
-    # window of sample i: samples i .. end[i]-1 with t < t[i] + window, plus the
-    # first sample at or after t[i] + window so that it spans >= window seconds
-    native = _NATIVE is not None and math.isfinite(window) and window >= 0
-    if native:                          # the compiled twin: the same windows, sums and tests in one pass
-        assert _NATIVE is not None
-        quiet, norm, end = np.empty(n, dtype=bool), np.empty(n), np.empty(n, dtype=np.int64)
-        _NATIVE.quiet_windows(np.ascontiguousarray(t), sums.gyro, sums.accel, np.ascontiguousarray(sums.mean[:, 0]),
-                              float(window), float(max_gap), float(gyro_std_max), float(gyro_norm_max),
-                              float(accel_std_max), quiet, norm, end)
-    else:
-        last = np.searchsorted(t, t + window, side="left")     # first index with t >= t_i + window
-        ok = last < n
-        end = np.minimum(last + 1, n)
-        gaps = np.concatenate([[0], np.cumsum(np.diff(t) > max_gap)])
-        no_gap = gaps[end - 1] == gaps
-        quiet, norm = _quiet_windows(sums, end, ok & no_gap, gyro_std_max, gyro_norm_max, accel_std_max)
+    if not window >= 0.0:
+        raise ValueError(f"the standstill window must be >= 0 s, got {window!r}")
+    quiet, norm, end = np.empty(n, dtype=bool), np.empty(n), np.empty(n, dtype=np.int64)
+    _quiet_windows(np.ascontiguousarray(t), sums.gyro, sums.accel, np.ascontiguousarray(sums.mean[:, 0]),
+                   float(window), float(max_gap), float(gyro_std_max), float(gyro_norm_max), float(accel_std_max),
+                   quiet, norm, end)
     if gravity is None:
         # the log's own |f| at rest: an accelerometer bias or scale error moves it
         # away from 9.81 (0.2 m/s^2 is common for MEMS) and must not hide the stops
@@ -224,15 +259,9 @@ def _standstill_mask(imu: ImuData, window: float, gyro_std_max: float, gyro_norm
             return np.zeros(n, dtype=bool)
         gravity = float(np.median(norm[quiet]))
     good = quiet & (np.abs(norm - gravity) <= accel_norm_tol)
-    if native:
-        assert _NATIVE is not None
-        mask = np.empty(n, dtype=bool)
-        _NATIVE.window_union(good, end, mask)
-        return mask
-    # union of the good windows [i, end[i]) : difference array
-    gi = np.flatnonzero(good)
-    d = np.bincount(gi, minlength=n + 1) - np.bincount(end[gi], minlength=n + 1)
-    return np.cumsum(d[:-1]) > 0
+    mask = np.empty(n, dtype=bool)
+    _window_union(good, end, mask)
+    return mask
 
 
 def _runs(mask: np.ndarray) -> np.ndarray:
@@ -245,7 +274,7 @@ def detect_standstill(imu: ImuData, *, window: float = 2.0, gyro_std_max: float 
                       gyro_norm_max: float = 0.05, accel_std_max: float = 0.04,
                       accel_norm_tol: float = 0.15, gravity: float | None = None,
                       max_gap: float = 0.1, sums: WindowSums | None = None) -> np.ndarray:
-    """Standstill intervals of a log (vectorised, no loop over samples).
+    """Standstill intervals of a log (one compiled pass over the samples).
 
     Parameters
     ----------

@@ -1,6 +1,6 @@
 """Live: raw IMU samples and wheel speed in, per-frame ground estimates out, causal (:class:`StreamingEstimator`).
 
-The object a vehicle-side stack feeds from its driver callbacks, and its twin for
+The object a vehicle-side stack feeds from its driver callbacks, and its counterpart for
 recorded logs, :func:`causal_track` (``estimate_log(..., causal=True)``,
 ``imu-ground estimate --causal``), which makes the same choices over a whole log,
 vectorised where the choices allow, and gives the same numbers (to rounding).
@@ -30,12 +30,10 @@ Per sample, each piece one class:
 5. **Filter**: the method's streaming ``step`` (``on_invalid="skip"``: a bad frame is skipped,
    never raised on).
 
-Compiled (``imu/_front_native.c``, chosen in :mod:`imu_ground._native`): in the steady state steps 1-3 are
-one C call a sample (the clock's state in a buffer, the open standstill block's sums written in
-place, the compiled preintegration step called from C), the standstill windows one C call a frame;
-a sample that starts a block has Python open the block, then the C call again; every other case
-(warm-up, a restart, a dropout, non-finite values, arguments other than Python floats in lists or tuples,
-the preintegrator's gaps) runs the Python code, the reference, with the same results bit for bit.
+After the warm-up, steps 1-3 are one compiled call a sample (:func:`_front_step`, through
+:mod:`imu_ground._jit`: the clock's step, the sum into the open standstill block, the
+preintegration step, each the one body its own object runs); a sample that starts a block,
+a stamp far off the clock and the preintegrator's gaps go on in Python.
 
 Data never raise: a non-finite sample is skipped, a dropped or retimed stamp, a restart, a
 late, repeated or non-finite speed sample, each is said in the next frame's ``status_reason``.
@@ -46,13 +44,12 @@ from __future__ import annotations
 
 import math
 import numbers
-from array import array
 from collections import deque
 from typing import Any
 
 import numpy as np
 
-from imu_ground._native import FRONT
+from imu_ground._jit import njit
 from imu_ground.errors import OptionError
 from imu_ground.datasets.speed_buffer import SpeedBuffer
 from imu_ground.filters import Extrinsic
@@ -62,15 +59,16 @@ from imu_ground.imu.causal_standstill import (
     CausalGyroBias,
     StandstillBlocks,
     StandstillTests,
+    add_sample,
     block_sums,
     stop_starts,
     window_standstill,
 )
 from imu_ground.imu.egomotion import EgoFrame, EgoMotion
-from imu_ground.imu.preint_kernel import NATIVE as _PREINT_NATIVE
 from imu_ground.imu.preint_measurement import PreintegratedImu
+from imu_ground.imu.preint_stream import push_step
 from imu_ground.imu.preintegration import StreamingPreintegrator, preintegrate
-from imu_ground.imu.sample_clock import DROP, OK, RESTART, SampleClock
+from imu_ground.imu.sample_clock import DROP, FAR, OK, RESTART, SampleClock, clock_step
 from imu_ground.pipeline.live_replay import frames_track, replay, replayed_track
 from imu_ground.pipeline.live_speed import (MAX_SPEED_WAIT, NO_SPEED, SpeedLatency, SpeedUnit, causal_speeds,
                                             tells_kmh, wait_may_grow)
@@ -100,13 +98,36 @@ _STATE_KIND = "imu_ground.StreamingEstimator"
 _STATE_VERSION = 1
 _NO_SPEED = NO_SPEED
 _UNDECIDED = "undecided"                                # a frame's speed not decided yet
-# The compiled front end (imu/_front_native.c): one call a sample in the steady state, with the compiled
-# preintegrator; its state buffer's layout (F_*: the clock's, SampleClock.to_buffer, then these).
-_FRONT = FRONT if _PREINT_NATIVE is not None else None
-_front_push: Any = None if _FRONT is None else _FRONT.push       # (the compiled modules' functions: untyped)
-_preint_push: Any = None if _PREINT_NATIVE is None else _PREINT_NATIVE.push
-_F_T, _F_RETIMED, _F_DROPPED, _F_ORIGIN, _F_RATE, _F_OPEN_K, _F_SIZE = 0, 11, 12, 14, 15, 16, 17
 _from_state = PreintegratedImu.from_state
+# _front_step's answers beside push_step's (0: integrated, n > 0: frames finished, -1: its Python path to run)
+_NOT_TAKEN, _DROPPED, _NEW_BLOCK = -4, -3, -2
+
+
+@njit
+def _front_step(clock: np.ndarray, blocks: np.ndarray, open_k: int, pre: np.ndarray, times: np.ndarray,
+                frames: np.ndarray, origin: float, rate: float, t: float, g0: float, g1: float, g2: float,
+                a0: float, a1: float, a2: float) -> int:
+    """Steps 1-3 of one sample after the warm-up: the clock's step (:func:`~imu_ground.imu.sample_clock.clock_step`),
+    the sum into the open standstill block ``open_k`` (of the blocks' ring,
+    :func:`~imu_ground.imu.causal_standstill.add_sample`), the preintegration step
+    (:func:`~imu_ground.imu.preint_stream.push_step`, its answer returned). Before the preintegration:
+    :data:`_NOT_TAKEN` (a non-finite value or a stamp far off the clock: nothing changed), :data:`_DROPPED`
+    (the clock dropped the sample), :data:`_NEW_BLOCK` (the sample opens another block: the clock's step done,
+    the rest to run in Python)."""
+    if not (math.isfinite(t) and math.isfinite(g0 + g1 + g2 + a0 + a1 + a2)):
+        return _NOT_TAKEN
+    code = clock_step(clock, t)
+    if code == FAR:
+        return _NOT_TAKEN
+    if code == DROP:
+        return _DROPPED
+    tout = clock[0]
+    k = math.ceil((tout - origin) * rate - 1e-6) - 1
+    if k >= 0:
+        if k != open_k:
+            return _NEW_BLOCK
+        add_sample(blocks[k % blocks.shape[0]], g0, g1, g2, a0, a1, a2)
+    return push_step(pre, times, frames, tout, g0, g1, g2, a0, a1, a2)
 
 
 class FrameEstimate(GroundEstimate):
@@ -331,10 +352,7 @@ class StreamingEstimator:
         self._skipped = 0
         self._slow = [0, 0.0]                           # samples of too slow warm-ups skipped, the last one's period
         self._now = -math.inf
-        self._fb = None if _FRONT is None else array("d", bytes(8 * _F_SIZE))
-        self._fast = False
         self._new_run()
-        self._front_out()
 
     def _new_run(self) -> None:
         """The front end after a (re)start: no preintegrator until the clock's warm-up is over."""
@@ -343,19 +361,6 @@ class StreamingEstimator:
         self._origin = math.nan
         self._blocks = StandstillBlocks(self.rate)
         self._bias.new_blocks()
-
-    def _front_out(self) -> None:
-        """The Python front end's state -> the compiled one's buffer (after any Python step; no-op without it)."""
-        fb = self._fb
-        if fb is None:
-            return
-        self._clock.to_buffer(fb)
-        fb[_F_ORIGIN], fb[_F_RATE], fb[_F_OPEN_K] = self._origin, self.rate, float(self._blocks.open_k)
-        pre = self._pre
-        self._fast = pre is not None and not self._clock.suspect    # (far-off stamps pending: Python decides)
-        if pre is not None:
-            # (with the compiled front end the preintegrator is the compiled one; type checkers see the Python one)
-            self._pb, self._ptb = pre._b, pre._tb  # type: ignore[attr-defined]
 
     @property
     def bias_gyro(self) -> np.ndarray:
@@ -385,57 +390,28 @@ class StreamingEstimator:
         body frame; returns the frames it completes (usually none), oldest first."""
         if self._scaled:                                # stamps not in seconds (told at the warm-up): to seconds
             t = (t if type(t) is float else _number(t, "t")) * self._tscale
-        if self._fast:                                  # the compiled steady state (imu/_front_native.c)
-            assert self._fb is not None                 # _fast: the compiled front end is there
-            r = _front_push(self._fb, self._blocks.open, _preint_push, self._pb, self._ptb, t, gyro, accel)
-            if type(r) is int:                          # the first sample of a block: open it, again
-                self._blocks.open_block(r)
-                self._fb[_F_OPEN_K] = r
-                r = _front_push(self._fb, self._blocks.open, _preint_push, self._pb, self._ptb, t, gyro, accel)
-            if r is True:
-                self._now = now = self._fb[_F_T]
-                q = self._queue                         # (frames whose speed is decided, held at a stop's start,
-                return self._decide(now) if q and (q[-1][3] is _UNDECIDED or not q[0][4]) else []   # wait)
-            if r is not None:
-                return [] if r is False else self._fast_frames(r, gyro, accel)
-        fb = self._fb
-        if fb is None:
-            return self._push_python(t, gyro, accel)
-        self._clock.from_buffer(fb)
-        try:
-            return self._push_python(t, gyro, accel)
-        finally:
-            self._front_out()
-
-    def _fast_frames(self, r, gyro, accel) -> list[FrameEstimate]:
-        """The compiled step finished frames (``r``: their states) or left the preintegration to Python
-        (``r``: the sample's time out of the clock)."""
-        fb = self._fb
-        assert fb is not None and self._pre is not None     # the compiled front end, warmed up
-        counts = fb[_F_RETIMED] or fb[_F_DROPPED]       # the clock's counts, for the notes
-        if counts:                                      # (zero in the buffer: zero in the clock object too)
-            self._clock.from_buffer(fb)
-        frames: list[PreintegratedImu] | tuple[PreintegratedImu, ...]
-        if type(r) is float:
-            frames = self._pre.push(r, gyro, accel)
-        else:
-            par = self._pre.params
-            frames = [_from_state(par, *f) for f in r]
-        for f in frames:
-            self._frame(f)
-        if counts:
-            fb[_F_RETIMED], fb[_F_DROPPED] = self._clock.retimed, self._clock.dropped
-        fb[_F_OPEN_K] = self._blocks.open_k
-        self._now = now = fb[_F_T]
-        q = self._queue
-        return self._decide(now) if q and (q[-1][3] is _UNDECIDED or not q[0][4]) else []
-
-    def _push_python(self, t: float, gyro, accel) -> list[FrameEstimate]:
-        """:meth:`push_imu` in Python: the reference of the compiled step, and every case it does not take."""
         if type(t) is not float:
             t = _number(t, "t")
         g = _vec3(gyro, "gyro")
         a = _vec3(accel, "accel")
+        pre = self._pre
+        if pre is not None:                             # after the warm-up: one compiled step
+            blocks = self._blocks
+            b, times, frames = pre.step_buffers
+            r = _front_step(self._clock.buffer, blocks.ring, blocks.open_k,
+                            b, times, frames, self._origin, self.rate, t, g[0], g[1], g[2], a[0], a[1], a[2])
+            if r != _NOT_TAKEN:
+                if r == _DROPPED:
+                    return []
+                tout = self._clock.t
+                if r == _NEW_BLOCK:
+                    self._feed(tout, g, a)
+                elif r != 0:
+                    for f in (pre.push(tout, g, a) if r < 0 else pre.finished_frames(r)):
+                        self._frame(f)
+                self._now = tout
+                q = self._queue                         # (frames whose speed is decided, held at a stop's start,
+                return self._decide(tout) if q and (q[-1][3] is _UNDECIDED or not q[0][4]) else []   # wait)
         if not (math.isfinite(t) and math.isfinite(g[0] + g[1] + g[2] + a[0] + a[1] + a[2])):
             self._skipped += 1
             return []
@@ -648,8 +624,6 @@ class StreamingEstimator:
         """Everything (clock, preintegrator, standstill window, gyro bias, speed buffer, waiting frames, filter)
         as a plain JSON-serialisable dict (long lists of floats as base64 of their compressed float64 bytes, exact);
         :meth:`load_state_dict` on an estimator with the same settings resumes."""
-        if self._fb is not None:
-            self._clock.from_buffer(self._fb)
         queue = [[ego.delta_R.ravel().tolist(), ego.delta_v.tolist(), ego.delta_t, ego.stationary, ego.valid,
                   ego.t, ts, list(notes), v, held, scale, j] for ego, ts, notes, v, held, scale, j in self._queue]
         return {"kind": _STATE_KIND, "version": _STATE_VERSION, "settings": self._settings(),
@@ -688,8 +662,6 @@ class StreamingEstimator:
                               f"{', '.join(f'{k}={theirs.get(k)!r:.60}' for k in differ)}", "state")
         parts = self._read_state(state)                # every entry checked: raises before anything changes
         self.__dict__.update(parts)
-        self._fb = None if _FRONT is None else array("d", bytes(8 * _F_SIZE))
-        self._front_out()
 
     def _read_state(self, state: dict) -> dict[str, Any]:
         """Every entry of ``state`` checked and built into new objects: the attributes to set (nothing of the
@@ -913,7 +885,7 @@ class StreamingEstimator:
         return track, em
 
 
-# ------------------------------------------------------------------------------------------ offline twin
+# ------------------------------------------------------------------------------------ offline counterpart
 def causal_track(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, *, method: str = "auto", extrinsic: Any = None,
                  rate: float = 10.0, speed: tuple[np.ndarray, np.ndarray] | None = None, bias_gyro: Any = "auto",
                  policy: str = "retime", speed_wait: float = SPEED_WAIT, recalibrate_online: bool = False):
