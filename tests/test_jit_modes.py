@@ -80,8 +80,63 @@ def suspension_filter() -> dict:
     return {"pitch": tr.pitch, "roll": tr.roll, "steps": steps}
 
 
+def imu_bodies() -> dict:
+    """The IMU side and the live front step: standstill windows and intervals, the batch preintegration's deltas,
+    the interval kernel with its covariance and bias Jacobians, the streaming preintegrator's frames, the sample
+    clock and the live estimator's frames over the example drive."""
+    import warnings
+    from imu_ground.imu import ImuData, preint_kernel
+    from imu_ground.imu.preint_batch import preintegrate
+    from imu_ground.imu.preint_stream import StreamingPreintegrator
+    from imu_ground.imu.sample_clock import SampleClock
+    from imu_ground.imu.standstill import WindowSums, estimate_gyro_bias
+    from imu_ground.datasets import read_imu
+    from imu_ground.pipeline.streaming import StreamingEstimator, replay
+
+    rng = np.random.default_rng(5)
+    n = 3000
+    t = 10.0 + np.cumsum(0.01 * (1 + 0.1 * rng.uniform(-1, 1, n)))
+    t[1500:] += 0.4                                              # a gap
+    gyro = rng.normal(0, 1e-3, (n, 3)) + [0.002, -0.001, 0.003]
+    accel = rng.normal(0, 5e-3, (n, 3)) + [0.1, -0.2, 9.8]
+    gyro[800:1900] += 0.4 * np.sin(t[800:1900, None] * [1.3, 0.7, 2.1])
+    accel[800:1900] += rng.normal(0, 0.5, (1100, 3))
+    out: dict = {}
+    imu = ImuData(t, gyro, accel)
+    est = estimate_gyro_bias(imu, window=1.0)
+    out.update(bias=est.bias, intervals=est.intervals, c1=WindowSums(imu).c1)
+    for hold in ("midpoint", "left"):
+        fd = preintegrate(imu, rate=10.0, hold=hold, on_gap="flag", max_gap=0.1, uncertainty=False)
+        out.update({f"batch_{hold}_R": fd.delta_R, f"batch_{hold}_v": fd.delta_v, f"batch_{hold}_p": fd.delta_p,
+                    f"batch_{hold}_valid": fd.valid})
+    s, u = preint_kernel.DELTAS_IDENTITY, preint_kernel.UNCERTAINTY_ZERO
+    for i in range(200):
+        phi = rng.normal(size=3) * (0.0, 1e-9, 1e-3, 0.5, 3.0)[i % 5]
+        s, u = preint_kernel.integrate_interval(s, u, 0.01, *phi, *rng.normal(size=3), (1e-4, 1e-2))
+    out.update(kernel_s=np.array(s), kernel_u=np.array(u))
+    for unc in (False, True):
+        sp = StreamingPreintegrator(rate=7.0, max_gap=0.1, on_gap="flag", uncertainty=unc, bias_gyro=[0.01, 0.0, -0.01])
+        frames = [f for i in range(n) for f in sp.push(t[i], gyro[i].tolist(), accel[i].tolist())]
+        out[f"stream_{unc}_s"] = np.array([f._s for f in frames])
+        out[f"stream_{unc}_n"] = np.array([(f.n_intervals, f.valid, f.t_end) for f in frames])
+        if unc:
+            out["stream_u"] = np.array([f._u for f in frames])
+    clock = SampleClock("retime")
+    tj = t + rng.normal(0, 0.003, n)
+    tj[2000:2005] -= 0.05                                         # stamps stepping back
+    out["clock"] = np.array([clock.push(x) for x in tj.tolist()])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        log = read_imu(Path(__file__).resolve().parents[1] / "datasets" / "fixtures" / "example_drive.csv")
+    live = StreamingEstimator(extrinsic="kitti_imu")
+    fr = replay(live, log.t, log.gyro, log.accel)
+    out["live"] = np.array([(f.t, f.pitch, f.roll, f.pitch_std, f.valid, f.status_code) for f in fr])
+    assert out["intervals"].shape[0] >= 2 and out["live"].shape[0] > 100     # something to compare
+    return out
+
+
 #: The cases run both ways (names of functions of this module returning a dict of arrays).
-CASES = ["residual_kernel", "frame_checks", "ground_filter", "suspension_filter"]
+CASES = ["residual_kernel", "frame_checks", "ground_filter", "suspension_filter", "imu_bodies"]
 
 _CHILD = """
 import importlib.util, sys

@@ -999,8 +999,9 @@ def _glitchy_streams(draw):
     seed = draw(st.integers(0, 2 ** 32 - 1))
     rng = np.random.default_rng(seed)
     steps = np.full(n, 0.01) + rng.normal(0, draw(st.sampled_from([0.0, 1e-4, 2e-3])), n)
-    for _ in range(draw(st.integers(0, 2))):                      # real gaps
-        steps[rng.integers(20, n)] = draw(st.sampled_from([0.3, 1.7, 10.0]))
+    for _ in range(draw(st.integers(0, 2))):                      # real gaps, each with samples after it to
+        # confirm the clock across it (CONFIRM agreeing stamps; 2 stamps 10 s ahead at the end are bad samples)
+        steps[rng.integers(20, n - 10)] = draw(st.sampled_from([0.3, 1.7, 10.0]))
     true = 1.7e9 + np.cumsum(steps)                               # the stream's time, s
     unit = draw(st.sampled_from([1.0, 1e3, 1e6, 1e9]))
     t = true * unit
