@@ -15,7 +15,7 @@
   (back-steps and repeats stay; they are listed in the report, not warned about;
   a gap is a stamp that far past the latest one before it).
   For the live front end only (``estimate --causal``, ``stream --replay``): the
-  causal :class:`~imu_ground.imu.sample_clock.SampleClock` makes the time-order
+  causal :class:`~imu_ground.imu.live.sample_clock.SampleClock` makes the time-order
   choices itself, sample by sample. The data is then *not* strictly increasing
   in time, which the batch pipeline needs.
 """

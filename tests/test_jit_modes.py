@@ -87,8 +87,8 @@ def imu_bodies() -> dict:
     import warnings
     from imu_ground.imu import ImuData, preint_kernel
     from imu_ground.imu.preint_batch import preintegrate
-    from imu_ground.imu.preint_stream import StreamingPreintegrator
-    from imu_ground.imu.sample_clock import SampleClock
+    from imu_ground.imu.live.preint_stream import StreamingPreintegrator
+    from imu_ground.imu.live.sample_clock import SampleClock
     from imu_ground.imu.standstill import WindowSums, estimate_gyro_bias
     from imu_ground.datasets import read_imu
     from imu_ground.pipeline.streaming import StreamingEstimator, replay

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from imu_ground.imu.preint_stream import StreamingPreintegrator
+from imu_ground.imu.live.preint_stream import StreamingPreintegrator
 from imu_ground.pipeline import streaming
 from imu_ground.pipeline.streaming import StreamingEstimator, replay
 
@@ -116,7 +116,7 @@ def _direct_windows(samples, k, W, tests):
 
 
 def test_standstill_windows_match_the_samples_and_the_ring_grows_past_a_jump():
-    from imu_ground.imu.causal_standstill import StandstillBlocks
+    from imu_ground.imu.live.causal_standstill import StandstillBlocks
     rng = np.random.default_rng(2)
     bl = StandstillBlocks(10.0)                          # 1 s and 2 s windows: W = 10, Wb = 20 blocks
     r0 = bl.ring.shape[0]

@@ -44,7 +44,7 @@ def test_a_gap_past_the_live_limit_starts_a_new_segment_as_live(jump_log, tmp_pa
     assert main(["estimate", str(path), "--causal", "-o", str(causal)]) == 0
     t, live_t = table["t"].to_numpy(), pd.read_csv(causal, comment="#")["t"].to_numpy()
     assert np.array_equal(t[t < 4000], live_t[live_t < 4000])
-    # after the jump the live clock first confirms the new clock on agreeing stamps (imu.sample_clock.CONFIRM) and
+    # after the jump the live clock first confirms the new clock on agreeing stamps (imu.live.sample_clock.CONFIRM) and
     # warms up again, so its new frame grid starts a few samples later: within one frame of the offline one's
     t_after, live_after = t[t > 4000], live_t[live_t > 4000]
     assert abs(len(t_after) - len(live_after)) <= 1 and 0 <= live_after[0] - t_after[0] < 0.1

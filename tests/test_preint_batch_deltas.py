@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from imu_ground.imu import preint_batch as pb
-from imu_ground.imu.preint_stream import StreamingPreintegrator
+from imu_ground.imu.live.preint_stream import StreamingPreintegrator
 from imu_ground.so3.conversions import matrix_from_quat
 
 FIELDS = ("t_start", "t_end", "delta_t", "delta_R", "delta_v", "delta_p", "valid", "n_intervals")

@@ -98,7 +98,7 @@ def test_the_readme_room_table_follows_the_tree(layer, complete):
 
 
 #: Reads of another object's private attributes the pipeline still makes: the live preintegrator's buffers and
-#: its last sample / next frame end (owned by ``imu_ground/imu/preint_stream.py``, whose rewrite is under way;
+#: its last sample / next frame end (owned by ``imu_ground/imu/live/preint_stream.py``, whose rewrite is under way;
 #: give it read-only properties there, then empty this list). ``_replace`` is a named tuple's public method.
 PIPELINE_REACHES_LEFT = {("streaming.py", "pre._b"), ("streaming.py", "pre._tb"), ("streaming.py", "pre._prev"),
                          ("streaming.py", "pre._next")}

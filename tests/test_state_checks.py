@@ -10,7 +10,7 @@ from imu_ground.filters.ground import GroundNormalFilter
 from imu_ground.filters.gravity_velocity import GravityVelocityFilter
 from imu_ground.filters.suspension import SuspensionAwareFilter
 from imu_ground.imu.egomotion import imu_to_egomotion
-from imu_ground.imu.preint_stream import StreamingPreintegrator
+from imu_ground.imu.live.preint_stream import StreamingPreintegrator
 from imu_ground.imu.warm_start import StateError
 
 MAKERS = {

@@ -24,7 +24,7 @@ from hypothesis import strategies as st
 
 from imu_ground.datasets.options import OptionError
 from imu_ground.pipeline.streaming import MAX_FRAME_RATE, StreamingEstimator, causal_track, replay
-from imu_ground.imu.sample_clock import RESTART, SampleClock
+from imu_ground.imu.live.sample_clock import RESTART, SampleClock
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "datasets" / "fixtures" / "example_drive.csv"
@@ -594,7 +594,7 @@ def test_clock_retimes_kitti_jitter_without_a_gap():
 def test_clock_long_dropout_confirmed_and_restart():
     """A stamp 1.6 s ahead is a bad one until CONFIRM agreeing stamps make it a dropout (the first ones dropped, then
     the clock on the stamps); a lone stamp 5 s back is dropped, CONFIRM of them restart the clock."""
-    from imu_ground.imu.sample_clock import CONFIRM, DROP
+    from imu_ground.imu.live.sample_clock import CONFIRM, DROP
     raw = np.r_[np.arange(100) * 0.01, 0.99 + 1.6 + np.arange(50) * 0.01]
     c, out, codes = _clock(raw)
     assert c.dropouts == 1 and codes[100:100 + CONFIRM - 1] == [DROP] * (CONFIRM - 1)
@@ -699,7 +699,7 @@ def test_estimate_causal_cli(cli, tmp_path):
 
 # --------------------------------------------------------------------------- the twins, piece by piece
 def test_standstill_blocks_equal_their_vectorised_twin():
-    from imu_ground.imu.causal_standstill import StandstillBlocks, block_sums, window_standstill
+    from imu_ground.imu.live.causal_standstill import StandstillBlocks, block_sums, window_standstill
     rng = np.random.default_rng(3)
     n, rate = 3000, 10.0
     t = np.cumsum(np.full(n, 0.01))
@@ -723,7 +723,7 @@ def test_standstill_blocks_equal_their_vectorised_twin():
 
 def test_speed_buffer_equals_frame_speed():
     from imu_ground.datasets.speed import frame_speed
-    from imu_ground.datasets.speed_buffer import SpeedBuffer
+    from imu_ground.imu.live.speed_buffer import SpeedBuffer
     rng = np.random.default_rng(4)
     ts = np.cumsum(rng.uniform(0.01, 0.2, 300))
     v = 10 + np.cumsum(rng.normal(0, 0.3, 300))

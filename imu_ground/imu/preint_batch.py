@@ -179,7 +179,7 @@ def _knot(gyro: np.ndarray, accel: np.ndarray, ki: np.ndarray, yb: np.ndarray, g
 def _frames_deltas(dt: np.ndarray, gyro: np.ndarray, accel: np.ndarray, ki: np.ndarray, yb: np.ndarray, j0: int,
                    b: np.ndarray, bias: np.ndarray, midpoint: bool, out: np.ndarray) -> None:
     """Each frame's deltas by the streaming front-end's kernel (:func:`~imu_ground.imu.preint_kernel.integrate`),
-    interval after interval, as :class:`~imu_ground.imu.preint_stream.StreamingPreintegrator` integrates them.
+    interval after interval, as :class:`~imu_ground.imu.live.preint_stream.StreamingPreintegrator` integrates them.
 
     Frame ``f`` integrates the knot intervals ``[b[f], b[f + 1])`` of ``dt`` (s); knot ``j`` of ``dt`` is
     knot ``j0 + j`` of the samples ``gyro``, ``accel`` (N, 3; rad/s, m/s^2, body frame) with the boundaries

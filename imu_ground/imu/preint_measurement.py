@@ -144,7 +144,7 @@ class PreintegratedImu(ParamsView):
     params : PreintegrationParams
     t_start, t_end : float
         Times of the interval this object summarises, s (``nan`` unless set by
-        :class:`~imu_ground.imu.preint_stream.StreamingPreintegrator` or
+        :class:`~imu_ground.imu.live.preint_stream.StreamingPreintegrator` or
         :meth:`FrameDeltas.frame <imu_ground.imu.preint_batch.FrameDeltas.frame>`).
     valid : bool
         False when the interval spans a timestamp gap longer than ``max_gap``.

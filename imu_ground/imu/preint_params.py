@@ -6,7 +6,7 @@ integrated with (the linearisation point), gravity (used only when a
 preintegrated measurement predicts a navigation state), and how a sampled
 signal is cut into integration intervals (hold, gaps, snapping). The batch
 :func:`~imu_ground.imu.preint_batch.preintegrate`, the streaming
-:class:`~imu_ground.imu.preint_stream.StreamingPreintegrator` and the value type
+:class:`~imu_ground.imu.live.preint_stream.StreamingPreintegrator` and the value type
 :class:`~imu_ground.imu.preint_measurement.PreintegratedImu` all take one.
 """
 from __future__ import annotations

@@ -79,7 +79,7 @@ This module is the public face; the pieces are small modules, as GTSAM has them:
 - :mod:`~imu_ground.imu.preint_frames`: :func:`make_frame_times`, :class:`FrameDeltas`.
 - :mod:`~imu_ground.imu.preint_batch`: :func:`preintegrate`, the vectorised
   closed form over a whole log.
-- :mod:`~imu_ground.imu.preint_stream`: :class:`StreamingPreintegrator`.
+- :mod:`~imu_ground.imu.live.preint_stream`: :class:`StreamingPreintegrator`.
 """
 from __future__ import annotations
 
@@ -87,7 +87,7 @@ from imu_ground.imu.preint_batch import preintegrate
 from imu_ground.imu.preint_frames import FrameDeltas, make_frame_times
 from imu_ground.imu.preint_measurement import PreintegratedImu
 from imu_ground.imu.preint_params import PreintegrationParams
-from imu_ground.imu.preint_stream import StreamingPreintegrator
+from imu_ground.imu.live.preint_stream import StreamingPreintegrator
 
 __all__ = [
     "FrameDeltas",

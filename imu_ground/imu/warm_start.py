@@ -1,6 +1,6 @@
 """Warm start: a streaming object's state as a plain dict, and back.
 
-Every streaming estimator (and :class:`~imu_ground.imu.preint_stream.StreamingPreintegrator`)
+Every streaming estimator (and :class:`~imu_ground.imu.live.preint_stream.StreamingPreintegrator`)
 has ``state_dict()`` and ``load_state_dict(state)``. A state is a dict of plain
 Python values (floats, ints, bools, strings, None and lists of them), so
 ``json.dumps`` writes it and ``json.loads`` gives it back unchanged (floats

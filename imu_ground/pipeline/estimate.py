@@ -553,7 +553,7 @@ def live_policy(policy: str | None) -> str:
     ``stream``).
 
     The live front end reads a log with the reader policy ``"recorded"`` (stamps in file order, as
-    recorded) and leaves the time order to its :class:`~imu_ground.imu.sample_clock.SampleClock`:
+    recorded) and leaves the time order to its :class:`~imu_ground.imu.live.sample_clock.SampleClock`:
     ``retime`` (the default; also for ``None`` and ``"recorded"``) or ``drop`` are honoured there;
     ``sort`` and ``strict`` need the whole log and are refused (:class:`OptionError` naming ``policy``).
     """

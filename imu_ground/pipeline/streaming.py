@@ -7,7 +7,7 @@ vectorised where the choices allow, and gives the same numbers (to rounding).
 
 Per sample, each piece one class:
 
-1. **Clock** (:class:`~imu_ground.imu.sample_clock.SampleClock`): raw stamps to strictly
+1. **Clock** (:class:`~imu_ground.imu.live.sample_clock.SampleClock`): raw stamps to strictly
    increasing sample times (jitter retimed on the sample index with a running rate,
    back-steps and repeats by the readers' ``retime`` or ``drop`` policy, dropouts kept as
    gaps; one stamp far off the clock is a bad sample, dropped and said; three agreeing ones are a
@@ -15,13 +15,13 @@ Per sample, each piece one class:
    :data:`MAX_GAP_FRAMES` frames, a restart of the front end). The stamps' unit (s, ms, us, ns) is
    told from each warm-up as the readers tell it and said (``time_unit`` gives it); a warm-up no
    unit makes an IMU's (a period over :data:`MAX_SAMPLE_PERIOD`) is skipped and said.
-2. **Standstill and gyro bias** (:mod:`imu_ground.imu.causal_standstill`): a frame ends at a
+2. **Standstill and gyro bias** (:mod:`imu_ground.imu.live.causal_standstill`): a frame ends at a
    standstill when its trailing 1 s window is quiet, or when it is quiet alone and leads into such a
    window (the first frames of a stop: held until that window passes, at most 0.9 s); the bias is the mean rate over the
    standstills (2 s windows) seen so far (or given, or from a saved state) and applies from the next sample.
 3. **Preintegration** (:class:`~imu_ground.imu.preintegration.StreamingPreintegrator`): frames
    at ``rate`` Hz from the first sample, gaps flagged and integrated through.
-4. **Speed over the frame** (:class:`~imu_ground.datasets.speed_buffer.SpeedBuffer`): a frame
+4. **Speed over the frame** (:class:`~imu_ground.imu.live.speed_buffer.SpeedBuffer`): a frame
    waits for a speed sample at or after its end, ``speed_wait`` seconds of IMU time
    (:data:`SPEED_WAIT`) or as long as the speed's measured latency needs (at most
    :data:`MAX_SPEED_WAIT`), then runs IMU only and says so; a stream that never sent a speed does
@@ -51,11 +51,11 @@ import numpy as np
 
 from imu_ground._jit import njit
 from imu_ground.errors import OptionError
-from imu_ground.datasets.speed_buffer import SpeedBuffer
+from imu_ground.imu.live.speed_buffer import SpeedBuffer
 from imu_ground.filters import Extrinsic
 from imu_ground.filters.estimator import GroundEstimate
 from imu_ground.filters.methods import METHODS, default_method, live_methods, recalibrating_methods
-from imu_ground.imu.causal_standstill import (
+from imu_ground.imu.live.causal_standstill import (
     CausalGyroBias,
     StandstillBlocks,
     StandstillTests,
@@ -66,9 +66,9 @@ from imu_ground.imu.causal_standstill import (
 )
 from imu_ground.imu.egomotion import EgoFrame, EgoMotion
 from imu_ground.imu.preint_measurement import PreintegratedImu
-from imu_ground.imu.preint_stream import push_step
+from imu_ground.imu.live.preint_stream import push_step
 from imu_ground.imu.preintegration import StreamingPreintegrator, preintegrate
-from imu_ground.imu.sample_clock import DROP, FAR, OK, RESTART, SampleClock, clock_step
+from imu_ground.imu.live.sample_clock import DROP, FAR, OK, RESTART, SampleClock, clock_step
 from imu_ground.pipeline.live_replay import frames_track, replay, replayed_track
 from imu_ground.pipeline.live_speed import (MAX_SPEED_WAIT, NO_SPEED, SpeedLatency, SpeedUnit, causal_speeds,
                                             tells_kmh, wait_may_grow)
@@ -107,10 +107,10 @@ _NOT_TAKEN, _DROPPED, _NEW_BLOCK = -4, -3, -2
 def _front_step(clock: np.ndarray, blocks: np.ndarray, open_k: int, pre: np.ndarray, times: np.ndarray,
                 frames: np.ndarray, origin: float, rate: float, t: float, g0: float, g1: float, g2: float,
                 a0: float, a1: float, a2: float) -> int:
-    """Steps 1-3 of one sample after the warm-up: the clock's step (:func:`~imu_ground.imu.sample_clock.clock_step`),
+    """Steps 1-3 of one sample after the warm-up: the clock's step (:func:`~imu_ground.imu.live.sample_clock.clock_step`),
     the sum into the open standstill block ``open_k`` (of the blocks' ring,
-    :func:`~imu_ground.imu.causal_standstill.add_sample`), the preintegration step
-    (:func:`~imu_ground.imu.preint_stream.push_step`, its answer returned). Before the preintegration:
+    :func:`~imu_ground.imu.live.causal_standstill.add_sample`), the preintegration step
+    (:func:`~imu_ground.imu.live.preint_stream.push_step`, its answer returned). Before the preintegration:
     :data:`_NOT_TAKEN` (a non-finite value or a stamp far off the clock: nothing changed), :data:`_DROPPED`
     (the clock dropped the sample), :data:`_NEW_BLOCK` (the sample opens another block: the clock's step done,
     the rest to run in Python)."""
@@ -271,7 +271,7 @@ class StreamingEstimator:
     bias_gyro : "auto" or sequence of 3 floats
         ``"auto"``: from the standstills seen so far; else this bias, rad/s.
     policy : {"retime", "drop"}
-        Stamps that step back or repeat (:class:`~imu_ground.imu.sample_clock.SampleClock`).
+        Stamps that step back or repeat (:class:`~imu_ground.imu.live.sample_clock.SampleClock`).
     speed_wait : float
         Longest a frame waits for a speed sample at or after its end, s of IMU time.
     recalibrate_online : bool
@@ -667,7 +667,7 @@ class StreamingEstimator:
         """Every entry of ``state`` checked and built into new objects: the attributes to set (nothing of the
         estimator changes here); a corrupt entry raises :class:`~imu_ground.imu.warm_start.StateError` naming it."""
         from imu_ground.datasets.unit_checks import TIME_UNITS
-        from imu_ground.imu.sample_clock import WARMUP
+        from imu_ground.imu.live.sample_clock import WARMUP
         from imu_ground.imu.warm_start import StateError, StateReader
         r = StateReader("StreamingEstimator", state)
 
