@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Optional, Protocol, TypeVar, runtime_checkable
 import numpy as np
 
 from imu_ground.imu.data import ImuData
-from imu_ground.filters.status import GAP, INVALID, OK, STATUSES, status_reason
+from imu_ground.filters.status import GAP, INVALID, OK, STATUSES, frame_reason, frame_std, status_reason
 from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
 from imu_ground.so3 import as_rotations, matrix_from_quat
 from imu_ground.units import DEFAULT_FRAME_RATE
@@ -106,23 +106,18 @@ class GroundEstimate:
                  road=None) -> None:
         self.pitch, self.roll, self.valid = pitch, roll, valid
         self._q, self._E, self._Rgs, self._P = quaternion, residual, Rgs, P
-        # info: (pitch model, roll model, a, u_x, u_y, tilt var pitch, tilt var roll, frame s, detail,
-        # convergence threshold, yaw rate rad/s, drive terms (rate_ms_p, load_offset_x, rate_ms_r, load_offset_y),
-        # moving seconds the latch waits for):
-        # the 1-sigma and the reason are built on access
+        # info: the frame's 1-sigma inputs (SigmaModel.frame), read on access by status.frame_std / frame_reason
         self.status_code = (OK if valid else INVALID) if status_code is None else status_code
         self._info = info
         self._road = road                   # (grade, bank, gravity's variance of each), filters.road, or None
 
     @property
     def pitch_std(self) -> float:
-        i = self._info
-        return math.nan if i is None else math.sqrt(i[0].variance(i[2], i[3], i[4], i[5], i[10], *i[11][:2]))
+        return math.nan if self._info is None else frame_std(self._info, 0)
 
     @property
     def roll_std(self) -> float:
-        i = self._info
-        return math.nan if i is None else math.sqrt(i[1].variance(i[2], i[3], i[4], i[6], i[10], *i[11][2:]))
+        return math.nan if self._info is None else frame_std(self._info, 1)
 
     @property
     def status(self) -> str:
@@ -139,10 +134,9 @@ class GroundEstimate:
 
     @property
     def status_reason(self) -> str:
-        i = self._info
-        if i is None:
+        if self._info is None:
             return status_reason(self.status_code)
-        return status_reason(self.status_code, i[7], max(self.pitch_std, self.roll_std), i[8], i[9], i[12])
+        return frame_reason(self._info, self.status_code, max(self.pitch_std, self.roll_std))
 
     @classmethod
     def copy_of(cls: type[_Estimate], est: GroundEstimate) -> _Estimate:

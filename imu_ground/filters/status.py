@@ -85,7 +85,7 @@ from imu_ground.units import DEG
 
 __all__ = ["STATUSES", "CONVERGING", "OK", "STANDSTILL", "GAP", "DEGRADED", "INVALID", "CONVERGED_STD", "FILTER_CONVERGED_STD",
            "CONVERGED_MOVING_SECONDS",
-           "AngleStd", "DriveStatistics", "DRIVE_PRIOR_SECONDS", "SigmaModel", "SUSPENSION_STD", "FILTER_STD",
+           "AngleStd", "DriveStatistics", "DRIVE_PRIOR_SECONDS", "SigmaModel", "frame_std", "frame_reason", "SUSPENSION_STD", "FILTER_STD",
            "SLOW_SPEED", "SLOW_REASON", "ok_note", "status_reason", "frame_status_code", "gap_run_durations",
            "track_statuses", "track_reasons", "status_names"]
 
@@ -453,6 +453,17 @@ class DriveStatistics:
         return ry2 / T, (sx - pitch.load_center * t) / T, rx2 / T, (sy - roll.load_center * t) / T
 
 
+def frame_std(info: tuple, angle: int) -> float:
+    """The 1-sigma (rad) of pitch (``angle`` 0) or roll (1) of a frame's :meth:`SigmaModel.frame` inputs."""
+    model, drive = info[angle], info[11][2 * angle:2 * angle + 2]
+    return math.sqrt(model.variance(info[2], info[3], info[4], info[5 + angle], info[10], *drive))
+
+
+def frame_reason(info: tuple, status_code: int, std: float) -> str:
+    """The status reason of a frame's :meth:`SigmaModel.frame` inputs with its status and larger 1-sigma (rad)."""
+    return status_reason(status_code, info[7], std, info[8], info[9], info[12])
+
+
 class SigmaModel:
     """The 1-sigma model of one estimator (module docstring) and its convergence latch (its state).
 
@@ -495,8 +506,9 @@ class SigmaModel:
     def frame(self, a: float, ux: float = 0.0, uy: float = 0.0, gravity_var: float = 0.0,
               weights: tuple = (0.0, 0.0), dt: float = math.nan, note: Optional[str] = None,
               yaw_rate: float = 0.0) -> tuple:
-        """One frame (plain floats): advances the latch and returns what
-        :class:`~imu_ground.filters.estimator.GroundEstimate` derives the 1-sigma and the reason from.
+        """One frame (plain floats): advances the latch and returns the frame's 1-sigma inputs, which
+        :class:`~imu_ground.filters.estimator.GroundEstimate` keeps and reads on access with :func:`frame_std`
+        and :func:`frame_reason` (a plain tuple: built every frame, read only when asked for).
 
         Parameters
         ----------
@@ -514,6 +526,13 @@ class SigmaModel:
             The note of an ``ok`` frame (or the monitor's alarm).
         yaw_rate : float
             ``|omega|``, rad/s.
+
+        Returns
+        -------
+        tuple
+            ``(pitch model, roll model, a, u_x, u_y, tilt variance pitch, tilt variance roll, frame s, note,
+            convergence threshold, yaw rate, drive terms (rate_ms_p, load_offset_x, rate_ms_r, load_offset_y),
+            moving seconds the latch waits for)``: read by :func:`frame_std` and :func:`frame_reason` only.
         """
         pm, rm = self.constants
         dr = DriveStatistics.terms(self.drive.state, pm, rm)
