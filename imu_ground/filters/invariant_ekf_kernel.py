@@ -381,21 +381,23 @@ def _array(a) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=float)
 
 
+def _argument(v, error: str) -> tuple[np.ndarray, int]:
+    """An increment or a measurement as the compiled bodies take it, and its kind: 0 (None), 9 ((3, 3)) or 3
+    ((3,)); any other shape is the ValueError ``error`` naming it."""
+    if v is None:
+        return _NONE, 0
+    a = _array(v)
+    if a.shape == (3, 3):
+        return a, 9
+    if a.shape == (3,):
+        return a, 3
+    raise ValueError(f"{error}, got {a.shape}")
+
+
 def predict(s: np.ndarray, u, Q: np.ndarray | None) -> None:
     """``InvariantEKF.predict`` on the state ``s``: increment ``u`` (None, (3, 3) or a rotation vector (3,),
     rad), process noise ``Q`` ((3, 3) array; None: the state's). Raises ValueError naming a bad ``u``."""
-    if u is None:
-        a, kind = _NONE, 0
-    else:
-        a = _array(u)
-        shape = a.shape
-        if shape == (3, 3):
-            kind = 9
-        elif shape == (3,):
-            kind = 3
-        else:
-            raise ValueError("rotation increment must be a 3x3 matrix or a rotation vector of shape (3,), "
-                             f"got {shape}")
+    a, kind = _argument(u, "rotation increment must be a 3x3 matrix or a rotation vector of shape (3,)")
     if Q is None:
         _predict(s, a, kind, _NONE, True)
     else:
@@ -406,17 +408,7 @@ def update(s: np.ndarray, z, R: np.ndarray | None) -> None:
     """``InvariantEKF.update`` on the state ``s``: ``z`` None (skip), a (3, 3) rotation or a (3,) direction;
     noise ``R`` ((3, 3) array; None: the state's). Raises LinAlgError for a singular ``S`` (naming its
     determinant) and ValueError naming a bad ``z``; the state is then unchanged."""
-    if z is None:
-        a, n = _NONE, 0
-    else:
-        a = _array(z)
-        shape = a.shape
-        if shape == (3, 3):
-            n = 9
-        elif shape == (3,):
-            n = 3
-        else:
-            raise ValueError(f"z must be a 3x3 rotation or a unit vector of shape (3,), got {shape}")
+    a, n = _argument(z, "z must be a 3x3 rotation or a unit vector of shape (3,)")
     done, det = _update(s, a, n, _NONE, True) if R is None else _update(s, a, n, _array(R), False)
     if not done:
         raise np.linalg.LinAlgError(f"innovation covariance is singular (det = {det})")
