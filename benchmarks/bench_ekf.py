@@ -17,10 +17,9 @@ per-step mean, the p99 over every individually timed step. GTSAM's update is
 called with ``performReset=False``: its default transports the covariance
 through the correction's Jacobian, which ours (like the paper's filter and
 filterpy's) does not do; with it off the two agree to rounding. The run also checks that the two filters give
-the same states and covariances. The figure is that of the kernels in use (the C twins of
-``imu_ground/filters/_ekf_native.c`` when built); the pure-Python kernels' figure is printed
-too (informative), measured by this script in a child process with ``IMU_GROUND_PURE_PYTHON=1``
-right after. Run: ``python benchmarks/bench_ekf.py``. :func:`rows` returns the table for
+the same states and covariances. The figure is that of the kernels compiled by numba
+(:mod:`imu_ground.filters.invariant_ekf_kernel`); the interpreted body's figure is printed too
+(informative), measured by this script in a child process with ``NUMBA_DISABLE_JIT=1`` right after. Run: ``python benchmarks/bench_ekf.py``. :func:`rows` returns the table for
 ``benchmarks/make_results.py``.
 """
 from __future__ import annotations
@@ -36,8 +35,7 @@ from collections.abc import Callable
 import numpy as np
 
 from imu_ground import so3
-from imu_ground._native import PURE_PYTHON_ENV
-from imu_ground.filters import invariant_ekf
+from imu_ground._jit import DISABLE_JIT_ENV, JIT_ENABLED
 from imu_ground.filters.invariant_ekf import InvariantEKF
 
 __all__ = ["main", "rows"]
@@ -140,10 +138,10 @@ def _ours_only(steps: int, repeat: int) -> dict[str, float]:
 
 
 def _python_figures(steps: int, repeat: int) -> dict[str, float]:
-    """:func:`_ours_only` of the pure-Python kernels, measured in a child process (``IMU_GROUND_PURE_PYTHON=1``)."""
-    if invariant_ekf._native is None:
+    """:func:`_ours_only` with the bodies interpreted, measured in a child process (``NUMBA_DISABLE_JIT=1``)."""
+    if not JIT_ENABLED:
         return _ours_only(steps, repeat)
-    env = dict(os.environ, **{PURE_PYTHON_ENV: "1"})
+    env = dict(os.environ, **{DISABLE_JIT_ENV: "1"})
     out = subprocess.run([sys.executable, __file__, "--ours-json", "--steps", str(steps), "--repeat", str(repeat)],
                          env=env, capture_output=True, text=True, check=True).stdout
     return json.loads(out.strip().splitlines()[-1])
@@ -156,11 +154,11 @@ def rows(steps: int = 20_000, repeat: int = 7) -> list[dict]:
     -------
     list of dict
         Keys ``benchmark``, ``target``, ``figure`` (our median with the kernels in use), ``unit`` ("us"),
-        ``p99`` (us), ``kernel`` ("C" or "Python"), ``python`` (the pure-Python kernels' median, us,
+        ``p99`` (us), ``kernel`` ("numba" or "Python"), ``python`` (the interpreted body's median, us,
         informative), ``competitor`` (GTSAM median, us), ``competitor_p99``, ``agreement`` (max abs
         difference of X and P), ``passed``.
     """
-    kernel = "Python" if invariant_ekf._native is None else "C"
+    kernel = "numba" if JIT_ENABLED else "Python"
     us, zs_rot, zs_dir = _data(steps)
     try:
         import gtsam  # noqa: F401

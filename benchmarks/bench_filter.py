@@ -9,9 +9,9 @@ equals batch. Import: ``python -c "import imu_ground; imu_ground.GroundNormalFil
 fresh processes against ``python -c "import numpy"`` (medians), and that neither scipy nor
 pandas is loaded.
 
-The figures are those of the kernel in use (the C twin ``imu_ground/filters/_residual_native.c``
-when built); the pure-Python kernel's figures (column ``python``, informative) are measured by
-this script in a child process with ``IMU_GROUND_PURE_PYTHON=1`` right after.
+The figures are those of the kernel compiled by numba (:mod:`imu_ground._jit`); the interpreted
+body's figures (column ``python``, informative) are measured by this script in a child process
+with ``NUMBA_DISABLE_JIT=1`` right after.
 
 Run: ``python benchmarks/bench_filter.py [--frames N] [--stream-frames N] [--repeat R]``.
 :func:`rows` returns the table for ``benchmarks/make_results.py``.
@@ -28,7 +28,7 @@ from typing import Callable, Dict, List
 
 import numpy as np
 
-from imu_ground._native import PURE_PYTHON_ENV, native_kernels
+from imu_ground._jit import DISABLE_JIT_ENV, JIT_ENABLED
 from imu_ground.evaluation.simulate import simulate
 from imu_ground.filters.ground import GroundNormalFilter
 from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
@@ -36,7 +36,7 @@ from imu_ground.imu.egomotion import EgoMotion, imu_to_egomotion
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from _bytecode import compile_package  # noqa: E402
 
-__all__ = ["rows", "main", "tiled_drive", "head_of", "time_steps", "run_fps", "kernels_in_use", "python_figures",
+__all__ = ["rows", "main", "tiled_drive", "head_of", "time_steps", "run_fps", "kernel_mode", "python_figures",
            "print_rows", "run_cli"]
 
 STEP_TARGET_US = 4.0
@@ -73,21 +73,18 @@ def run_fps(make: Callable[[], object], em: EgoMotion, repeat: int, **kw) -> flo
     return float(np.median(fps))
 
 
-def kernels_in_use(*names: str) -> str:
-    """``"C"``, ``"Python"`` or a mix (``"residual C, gravity Python"``) of the compiled kernels ``names``
-    (short names of ``imu_ground.filters._<name>_native``) the imported modules use."""
-    used = native_kernels()
-    kinds = ["C" if used.get(f"imu_ground.filters._{n}_native") else "Python" for n in names]
-    return kinds[0] if len(set(kinds)) == 1 else ", ".join(f"{n} {k}" for n, k in zip(names, kinds, strict=True))
+def kernel_mode() -> str:
+    """``"numba"`` when the loops run compiled (:data:`imu_ground._jit.JIT_ENABLED`), else ``"Python"``."""
+    return "numba" if JIT_ENABLED else "Python"
 
 
 def python_figures(script: str, timings: Callable[..., Dict[str, float]], frames: int, stream_frames: int,
                    repeat: int) -> Dict[str, float]:
-    """``timings(frames, stream_frames, repeat)`` with the pure-Python kernels: in a child process running
-    ``script --timings-json`` with ``IMU_GROUND_PURE_PYTHON=1`` (in this process when no C kernel is in use)."""
-    if not any(native_kernels().values()):
+    """``timings(frames, stream_frames, repeat)`` with the loops interpreted: in a child process running
+    ``script --timings-json`` with ``NUMBA_DISABLE_JIT=1`` (in this process when they are interpreted here)."""
+    if not JIT_ENABLED:
         return timings(frames, stream_frames, repeat)
-    env = dict(os.environ, **{PURE_PYTHON_ENV: "1"})
+    env = dict(os.environ, **{DISABLE_JIT_ENV: "1"})
     out = subprocess.run([sys.executable, script, "--timings-json", "--frames", str(frames), "--stream-frames",
                           str(stream_frames), "--repeat", str(repeat)], env=env, capture_output=True, text=True,
                          check=True).stdout
@@ -150,7 +147,7 @@ def rows(frames: int = 100_000, stream_frames: int = 20_000, repeat: int = 5) ->
     -------
     list of dict
         Keys ``benchmark``, ``target``, ``figure`` (wall, the kernel in use), ``unit``, ``p99`` (where
-        timed per call), ``cpu`` (process CPU time per call, where timed), ``kernel`` ("C" or "Python"),
+        timed per call), ``cpu`` (process CPU time per call, where timed), ``kernel`` ("numba" or "Python"),
         ``python`` (the pure-Python kernel's figure, informative), ``passed`` (None: informative).
     """
     repeat = max(5, repeat)
@@ -166,7 +163,7 @@ def rows(frames: int = 100_000, stream_frames: int = 20_000, repeat: int = 5) ->
     t_numpy, _ = _fresh_process_seconds("import numpy", repeat)
     t_ours, light = _fresh_process_seconds(IMPORT_CODE, repeat)
     py = python_figures(__file__, timings, frames, stream_frames, repeat)
-    kernel, nan = kernels_in_use("residual"), float("nan")
+    kernel, nan = kernel_mode(), float("nan")
     return [
         dict(benchmark="GroundNormalFilter.step(EgoFrame)", target=f"<= {STEP_TARGET_US:g} us, p99 <= {P99_FACTOR:g}x "
              "median", figure=t["step"], unit="us", p99=t["step_p99"], cpu=t["step_cpu"], kernel=kernel,

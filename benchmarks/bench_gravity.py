@@ -28,7 +28,7 @@ from typing import Callable, Dict, List
 import numpy as np
 
 from imu_ground import so3
-from imu_ground._native import PURE_PYTHON_ENV
+from imu_ground._jit import DISABLE_JIT_ENV
 from imu_ground.evaluation.simulate import simulate
 from imu_ground.filters import gravity_kernel
 from imu_ground.filters.extrinsics import Extrinsic
@@ -151,8 +151,8 @@ def rows(frames: int = 100_000, stream_frames: int = 20_000, repeat: int = 5) ->
     out = []
     for label, kernel in KERNELS.items():
         if kernel is None:                  # a failure unless switched off on purpose
-            off = os.environ.get(PURE_PYTHON_ENV, "") not in ("", "0")
-            out.append(_row(f"GravityVelocityFilter ({label} kernel)", f"built ({PURE_PYTHON_ENV} set)" if off
+            off = os.environ.get(DISABLE_JIT_ENV, "") not in ("", "0")
+            out.append(_row(f"GravityVelocityFilter ({label} kernel)", f"built ({DISABLE_JIT_ENV} set)" if off
                             else "built", float("nan"), "", passed=None if off else False))
             continue
         timed = label == "compiled"

@@ -30,7 +30,6 @@ from collections.abc import Callable
 
 import numpy as np
 
-from imu_ground._native import PURE_PYTHON_ENV
 from imu_ground._jit import DISABLE_JIT_ENV, JIT_ENABLED
 from imu_ground.imu.preintegration import (
     PreintegrationParams,
@@ -150,8 +149,8 @@ def _stream_only(samples: int, repeat: int) -> dict[str, float]:
 
 
 def _python_figures(samples: int, repeat: int) -> dict[str, float]:
-    """:func:`_stream_only` of the pure-Python kernels, in a child process (``IMU_GROUND_PURE_PYTHON=1``)."""
-    env = dict(os.environ, **{PURE_PYTHON_ENV: "1", DISABLE_JIT_ENV: "1"})
+    """:func:`_stream_only` with the bodies interpreted, in a child process (``NUMBA_DISABLE_JIT=1``)."""
+    env = dict(os.environ, **{DISABLE_JIT_ENV: "1"})
     out = subprocess.run([sys.executable, __file__, "--stream-json", "--stream-samples", str(samples),
                           "--repeat", str(repeat)], env=env, capture_output=True, text=True, check=True).stdout
     return json.loads(out.strip().splitlines()[-1])

@@ -37,7 +37,6 @@ from pathlib import Path
 
 import numpy as np
 
-from imu_ground._native import PURE_PYTHON_ENV
 from imu_ground._jit import DISABLE_JIT_ENV, JIT_ENABLED
 
 __all__ = ["main", "rows"]
@@ -116,7 +115,7 @@ def _python_figure(path: Path, repeat: int) -> float:
     code = (f"import sys, json; sys.path.insert(0, {str(HERE)!r}); import bench_streaming as b; "
             f"from pathlib import Path; r = b._stream_times(Path({str(path)!r}), {repeat}); "
             "print(json.dumps((r['total'] - r['speed']) / r['n'] * 1e6))")
-    env = dict(os.environ, **{PURE_PYTHON_ENV: "1", DISABLE_JIT_ENV: "1"})
+    env = dict(os.environ, **{DISABLE_JIT_ENV: "1"})
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
     return float(out.stdout.strip().splitlines()[-1])
 

@@ -8,9 +8,9 @@ same run, and ``run`` once more with the gravity filter's result precomputed, so
 kernel and the plumbing around it) is visible. Batch: ``run``
 over the whole drive (median of the repeats). The run checks that streaming equals batch.
 
-The figures are those of the kernels in use (the C twins ``imu_ground/filters/_residual_native.c``
-and ``_gravity_native.c`` when built); the pure-Python kernels' figures (column ``python``,
-informative) are measured by this script in a child process with ``IMU_GROUND_PURE_PYTHON=1``.
+The figures are those of the kernels compiled by numba (:mod:`imu_ground._jit`); the interpreted
+bodies' figures (column ``python``, informative) are measured by this script in a child process
+with ``NUMBA_DISABLE_JIT=1``.
 
 Run: ``python benchmarks/bench_suspension.py [--frames N] [--stream-frames N] [--repeat R]``.
 :func:`rows` returns the table for ``benchmarks/make_results.py``.
@@ -32,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_filter import (  # noqa: E402
     P99_FACTOR,
     head_of,
-    kernels_in_use,
+    kernel_mode,
     python_figures,
     run_cli,
     run_fps,
@@ -97,7 +97,7 @@ def rows(frames: int = 100_000, stream_frames: int = 20_000, repeat: int = 5) ->
     -------
     list of dict
         Keys ``benchmark``, ``target``, ``figure`` (the kernels in use), ``unit``, ``p99``, ``cpu``,
-        ``kernel`` ("C", "Python" or a mix), ``python`` (the pure-Python kernels' figure, informative),
+        ``kernel`` ("numba" or "Python"), ``python`` (the pure-Python kernels' figure, informative),
         ``passed`` (None: informative).
     """
     repeat = max(5, repeat)
@@ -112,7 +112,7 @@ def rows(frames: int = 100_000, stream_frames: int = 20_000, repeat: int = 5) ->
     diff = max(np.abs(np.array([e.normal for e in est]) - tb.normal).max(),
                np.abs(np.array([e.pitch for e in est]) - tb.pitch).max())
     py = python_figures(__file__, timings, frames, stream_frames, repeat)
-    kernel, nan = kernels_in_use("residual", "gravity"), float("nan")
+    kernel, nan = kernel_mode(), float("nan")
 
     rows_ = [
         dict(benchmark="SuspensionAwareFilter.step(EgoFrame)", target=f"<= {STEP_TARGET_US:g} us, p99 <= "

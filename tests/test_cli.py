@@ -225,18 +225,17 @@ def test_real_kitti_odometry_poses(shared_data, tmp_path, cli):
 def test_version_and_python_dash_m(cli):
     from importlib.metadata import version
 
-    from imu_ground._native import PURE_PYTHON_ENV, STREAMING_KERNELS, native_kernels
+    from imu_ground._jit import DISABLE_JIT_ENV, JIT_ENABLED
     __version__ = version("imu-ground")
-    built = all(native_kernels()[name] for name in STREAMING_KERNELS)
-    kernels = "compiled kernels" if built else "pure Python kernels"
+    mode = "loops compiled by numba" if JIT_ENABLED else "loops interpreted"
     code, out, _ = cli("--version")
-    assert code == 0 and out.strip().startswith(f"imu-ground {__version__}, {kernels}")
+    assert code == 0 and out.strip().startswith(f"imu-ground {__version__}, {mode}")
     r = subprocess.run([sys.executable, "-m", "imu_ground", "--version"], capture_output=True, text=True, check=False)
     assert r.returncode == 0 and r.stdout.strip() == out.strip()
-    # the switch is reported: the version line tells which kernels run
+    # the switch is reported: the version line tells how the loops run
     r = subprocess.run([sys.executable, "-m", "imu_ground", "--version"], capture_output=True, text=True, check=False,
-                       env={**os.environ, PURE_PYTHON_ENV: "1"})
-    assert r.stdout.strip() == f"imu-ground {__version__}, pure Python kernels: {PURE_PYTHON_ENV} is set"
+                       env={**os.environ, DISABLE_JIT_ENV: "1"})
+    assert r.stdout.strip() == f"imu-ground {__version__}, loops interpreted: {DISABLE_JIT_ENV} is set"
 
 
 def _subparsers(parser):

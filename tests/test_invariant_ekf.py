@@ -292,7 +292,7 @@ def test_bad_inputs_are_named():
 
 
 def test_copies_and_pickles_continue_identically():
-    """The state buffer (C or Python kernels) is copied with the filter: copies go on alone, equal."""
+    """The state buffer is copied with the filter: copies go on alone, equal."""
     import copy
     import pickle
     f = InvariantEKF(P=0.3, Q=np.diag([1e-2, 2e-2, 5e-3]), R=0.5, error="right")
@@ -306,3 +306,63 @@ def test_copies_and_pickles_continue_identically():
     g.update(so3.roty(0.3))                              # g alone moves on
     assert np.array_equal(f.P, h.P) and np.array_equal(f.x, h.x) and np.array_equal(f.K, h.K)
     assert not np.array_equal(f.P, g.P)
+
+
+@pytest.mark.parametrize("error", ["left", "right"])
+@pytest.mark.parametrize("z", [so3.exp([0.1, 0.2, 0.3]), np.array([0.0, 0.6, 0.8])])
+def test_singular_innovation_raises_and_leaves_the_state_unchanged(error, z):
+    f = InvariantEKF(P=0.0, Q=0.0, R=0.0, error=error)
+    f.predict(so3.rotx(0.1))
+    _ = f.x                                             # (the rotation matrix cached: what a direction update reads)
+    before = f.kernel_state()
+    with pytest.raises(np.linalg.LinAlgError, match=r"innovation covariance is singular \(det = 0\.0\)"):
+        f.update(z)
+    assert np.array_equal(np.array(f.kernel_state()), np.array(before), equal_nan=True)
+
+
+@pytest.mark.parametrize("error", ["left", "right"])
+def test_every_argument_form_gives_the_float64_result(error):
+    """Lists, ints, float32, Fortran order and scalars are taken as the float64 arrays they stand for."""
+    kw = dict(x=so3.exp([0.3, -0.2, 1.0]), P=0.4, Q=np.diag([1e-2, 2e-2, 5e-3]), R=np.diag([1.0, 0.5, 2.0]),
+              error=error)
+    f, g = InvariantEKF(**kw), InvariantEKF(**kw)
+    u, z, d = so3.rotz(0.4), so3.exp([0.2, 0.1, -0.3]), np.array([0.0, 0.6, 0.8])
+    f.predict(u.tolist(), Q=1e-3)
+    g.predict(u, Q=1e-3 * np.eye(3))
+    f.update(np.asfortranarray(z), R=np.asfortranarray(0.5 * np.eye(3)))
+    g.update(z, R=0.5)
+    f.predict([0.01, 0.02, 0.03])
+    g.predict(np.array([0.01, 0.02, 0.03]))
+    f.update(np.eye(3, dtype=int))
+    g.update(np.eye(3))
+    f.update(d.astype(np.float32))
+    g.update(d.astype(np.float32).astype(float))
+    f.update(None)
+    g.update(None)
+    assert np.array_equal(np.array(f.kernel_state()), np.array(g.kernel_state()), equal_nan=True)
+
+
+def test_no_leaks_over_many_calls():
+    """1e5 predict/update pairs allocate nothing that stays; the inputs' refcounts are unchanged."""
+    import gc
+    import sys
+    import tracemalloc
+    f = InvariantEKF(P=1.0, Q=np.diag([1e-2, 2e-2, 5e-3]), R=0.5)
+    u, zr, zd = so3.exp([0.01, -0.02, 0.03]), so3.exp([0.1, 0.2, -0.1]), np.array([0.0, 0.6, 0.8])
+    refs = [sys.getrefcount(o) for o in (u, zr, zd, f._s)]
+    predict, update = f.predict, f.update
+    for k in range(2000):
+        predict(u)
+        update(zr if k % 2 else zd)
+    gc.collect()
+    tracemalloc.start()
+    base = tracemalloc.get_traced_memory()[0]
+    for k in range(100_000):
+        predict(u)
+        update(zr if k % 2 else zd)
+    gc.collect()
+    grown = tracemalloc.get_traced_memory()[0] - base
+    tracemalloc.stop()
+    assert grown < 16 * 1024, grown
+    assert [sys.getrefcount(o) for o in (u, zr, zd, f._s)] == refs
+    assert np.array_equal(f.P, f.P.T) and np.isfinite(f.kernel_state()[97])

@@ -136,7 +136,35 @@ def imu_bodies() -> dict:
 
 
 #: The cases run both ways (names of functions of this module returning a dict of arrays).
-CASES = ["residual_kernel", "frame_checks", "ground_filter", "suspension_filter", "imu_bodies"]
+def invariant_ekf() -> dict:
+    """InvariantEKF, left and right error: every increment and measurement kind, a skipped and a singular update."""
+    from imu_ground.filters.invariant_ekf import InvariantEKF
+    d = _frames(40, seed=4)
+    rng = np.random.default_rng(5)
+    out = {}
+    for error in ("left", "right"):
+        f = InvariantEKF(x=so3.exp_one(np.array([0.3, -0.2, 1.0])), P=0.4, Q=np.diag([1e-2, 2e-2, 5e-3]),
+                         R=np.array([[1.0, 0.1, 0.0], [0.1, 0.5, 0.05], [0.0, 0.05, 2.0]]), error=error)
+        states = []
+        for k in range(len(d)):
+            f.predict(d[k] if k % 3 else (None if k % 2 else so3.log(d[k])), Q=None if k % 4 else 1e-3)
+            z = so3.exp_one(rng.normal(scale=0.3, size=3))
+            f.update(None if k % 7 == 6 else (z if k % 2 else np.ascontiguousarray(z[:, 2])),
+                     R=None if k % 5 else 0.3)
+            states.append(f.kernel_state())
+        g = InvariantEKF(P=0.0, Q=0.0, R=0.0, error=error)
+        g.predict(d[1])
+        for z in (d[2], np.array([0.0, 0.6, 0.8])):
+            try:
+                g.update(z)
+            except np.linalg.LinAlgError:
+                states.append(g.kernel_state())
+        assert len(states) == len(d) + 2, "a singular update did not raise"
+        out[error] = np.array(states)
+    return out
+
+
+CASES = ["residual_kernel", "frame_checks", "ground_filter", "suspension_filter", "imu_bodies", "invariant_ekf"]
 
 _CHILD = """
 import importlib.util, sys

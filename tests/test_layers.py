@@ -1,7 +1,7 @@
 """The package's layers import only downward, and no module imports itself back through others.
 
 Layers, lowest first (see ``imu_ground/__init__.py``): foundation (``so3``,
-``units``, ``errors``, ``_lazy``, ``_native``) < ``imu`` < ``datasets`` and ``filters`` (siblings: the readers and the
+``units``, ``errors``, ``_lazy``, ``_jit``) < ``imu`` < ``datasets`` and ``filters`` (siblings: the readers and the
 estimators do not import each other) < ``perception`` < ``pipeline`` and ``evaluation`` (siblings too) < ``cli`` < ``__main__``. Every
 ``import`` statement counts, including those inside functions (lazy imports
 hide a dependency from the import system but not from a reader).
@@ -18,7 +18,7 @@ import imu_ground
 ROOT = Path(imu_ground.__file__).resolve().parent
 DATASETS = Path(imu_ground.__file__).resolve().parent.parent / "datasets"
 
-RANK = {"_lazy": 0, "_jit": 0, "_native": 0, "_version": 0, "errors": 0, "so3": 0, "units": 0, "imu": 1, "datasets": 2,
+RANK = {"_lazy": 0, "_jit": 0, "_version": 0, "errors": 0, "so3": 0, "units": 0, "imu": 1, "datasets": 2,
         "filters": 2, "perception": 3.5, "pipeline": 4, "evaluation": 4, "cli": 5, "__main__": 6}
 #: Scripts and tests that live in package folders but are not part of the package's import graph.
 NOT_LIBRARY = ("test_", "derive_kitti")

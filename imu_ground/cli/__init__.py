@@ -70,15 +70,22 @@ _NOT_PATHS = ("scheduler", "command")
 
 
 class _VersionAction(argparse.Action):
-    """``--version``: the package version and which kernels run, on one line (argparse's own would wrap it)."""
+    """``--version``: the package version and whether the loops run compiled or interpreted, on one line (argparse's
+    own would wrap it)."""
 
     def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, help=None):
         super().__init__(option_strings, dest=dest, default=default, nargs=0, help=help)
 
     def __call__(self, parser, namespace, values, option_string=None):
-        from imu_ground._native import kernels_in_use
+        from imu_ground import _jit
         from imu_ground.pipeline.output import package_version
-        print(f"imu-ground {package_version()}, {kernels_in_use()}")
+        if _jit.JIT_ENABLED:
+            mode = "loops compiled by numba"
+        elif os.environ.get(_jit.DISABLE_JIT_ENV, "") not in ("", "0"):
+            mode = f"loops interpreted: {_jit.DISABLE_JIT_ENV} is set"
+        else:
+            mode = "loops interpreted: numba is not installed"
+        print(f"imu-ground {package_version()}, {mode}")
         parser.exit()
 
 
@@ -88,7 +95,7 @@ def build_parser() -> _Parser:
                                  "relative to the road) of a moving vehicle, frame by frame, from IMU logs or "
                                  "odometry.")
     ap.add_argument("--version", action=_VersionAction,
-                    help="show the version and whether the compiled kernels or pure Python run, and exit")
+                    help="show the version and whether the loops run compiled by numba or interpreted, and exit")
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in COMMANDS:
         importlib.import_module(f"imu_ground.cli.{name}").register(sub)

@@ -23,9 +23,8 @@ Module map (each imports only the ones above it, and the imu layer below):
   static extrinsic alone);
 - ``methods``: the one registry of the estimators by CLI name; ``calibration``: ``calibrate`` a platform.
 
-The loops of ``frame_checks``, ``residual`` and ``gravity_kernel`` are written once and compiled by numba
-(:mod:`imu_ground._jit`); the invariant EKF's predict/update still has a C twin, ``_ekf_native``
-(optional, built by ``setup.py`` when a C compiler is available; :mod:`imu_ground._native`).
+The loops of ``frame_checks``, ``residual``, ``gravity_kernel`` and ``invariant_ekf_kernel`` are written
+once and compiled by numba (:mod:`imu_ground._jit`).
 """
 from imu_ground._lazy import lazy_exports
 

@@ -49,24 +49,20 @@ Implementation: one predict/update touches a handful of 3x3 matrices, where
 numpy's per-call overhead dominates, so the kernels are scalar code on row-major
 9-sequences and the rotation is held as a unit quaternion. The whole state
 (estimate, covariance, noises, priors, posteriors, last innovation and gain) is
-one flat buffer of floats owned by the filter (layout in
-:mod:`imu_ground.filters.invariant_ekf_kernel`); predict and update run the C
-twins of ``_ekf_native.c`` on it when that extension is built
-(:data:`imu_ground._native.EKF`; the same formulas term for term, equal under
-the twin rule of :mod:`imu_ground._native`), else the pure-Python kernels of ``invariant_ekf_kernel``, the
-reference (``IMU_GROUND_PURE_PYTHON=1`` selects them). The filterpy attributes
+one float64 array owned by the filter (layout and kernels in
+:mod:`imu_ground.filters.invariant_ekf_kernel`: thin Python wrappers that sort the
+arguments and raise the errors around one body per step, compiled by numba through
+:func:`imu_ground._jit.njit`). The filterpy attributes
 (``x``, ``P``, ``K``, ``x_prior``, ...) are properties that build their array on
 access; ``x``, ``P``, ``Q``, ``R`` may be assigned or changed in place as in filterpy.
 """
 from __future__ import annotations
 
 import math
-from array import array
 from typing import Union
 
 import numpy as np
 
-from imu_ground import _native
 from imu_ground import so3
 from imu_ground.filters import invariant_ekf_kernel as _kernel
 from imu_ground.filters.invariant_ekf_kernel import (
@@ -90,9 +86,9 @@ from imu_ground.filters.invariant_ekf_kernel import (
     B_Z,
     B_ZN,
     check_cov,
+    fill_x,
     flat_rotation,
     new_state,
-    state_x,
 )
 from imu_ground.so3 import flat_from_quat, quat_from_flat
 from imu_ground.units import RENORM_EVERY
@@ -103,41 +99,8 @@ ArrayLike = Union[np.ndarray, list, tuple]
 _I3 = np.eye(3)
 _LOG2PI = math.log(2.0 * math.pi)
 
-#: The compiled kernels (imu_ground/filters/_ekf_native.c), or None: the pure-Python ones of invariant_ekf_kernel.
-_C = _native.EKF
-if _C is not None:                      # state: an array('d'), read through a memoryview
-    _predict, _update, _fill_x, _view = _C.predict, _C.update, _C.fill_x, memoryview
-
-    def _buffer(values) -> array:
-        return array("d", values)
-
-    def _from_array(a: np.ndarray) -> array:
-        return array("d", a.tobytes())
-else:                                   # state: a list
-    # (mypy takes one type per name, the compiled kernels' above: here the state is a list, not an array)
-    _predict, _update, _fill_x, _buffer = _kernel.predict, _kernel.update, state_x, list  # type: ignore[assignment]
-
-    def _view(s: list) -> list:  # type: ignore[misc]
-        return s
-
-    def _from_array(a: np.ndarray) -> list:  # type: ignore[misc]
-        return a.ravel().tolist()
-
-
 def _matrix(t) -> np.ndarray:
     return np.array(t).reshape(3, 3)
-
-
-def _coerce(v, what: str) -> np.ndarray | None:
-    """An increment (``what="u"``) or measurement (``"z"``) as the C kernels take it, or the named error."""
-    if v is None:
-        return None
-    a = np.ascontiguousarray(v, dtype=float)
-    if a.shape not in ((3, 3), (3,)):
-        if what == "u":
-            flat_rotation(a)            # raises the named error
-        raise ValueError(f"z must be a 3x3 rotation or a unit vector of shape (3,), got {a.shape}")
-    return a
 
 
 def _state_property(name: str, start: int, doc: str) -> property:
@@ -149,7 +112,7 @@ def _state_property(name: str, start: int, doc: str) -> property:
     def get(self):
         a = self.__dict__[cache]
         if a is None:
-            a = self.__dict__[cache] = _matrix(_view(self._s)[start:start + 9])
+            a = self.__dict__[cache] = _matrix(self._s[start:start + 9])
             self._held = True
         return a
 
@@ -158,7 +121,7 @@ def _state_property(name: str, start: int, doc: str) -> property:
         if a.shape != (3, 3):
             raise ValueError(f"{name} must be a 3x3 matrix, got shape {a.shape}")
         self.__dict__[cache] = a if a.flags.c_contiguous else np.ascontiguousarray(a)
-        self._s[start:start + 9] = _from_array(a)
+        self._s[start:start + 9] = a.ravel()
         self._held = True
 
     return property(get, set_, doc=doc)
@@ -170,12 +133,12 @@ def _output_property(name: str, start: int, doc: str, shape=(3, 3), rotation: bo
     size = 4 if rotation else int(np.prod(shape))
 
     def get(self):
-        t = _view(self._s)[start:start + size]
+        t = self._s[start:start + size].tolist()
         return np.array(flat_from_quat(t) if rotation else t).reshape(shape)
 
     def set_(self, value):
         t = np.asarray(value, dtype=float).reshape(shape).ravel().tolist()
-        self._s[start:start + size] = _buffer(quat_from_flat(t) if rotation else t)
+        self._s[start:start + size] = quat_from_flat(t) if rotation else t
 
     return property(get, set_, doc=doc)
 
@@ -236,9 +199,9 @@ class InvariantEKF:
         self.b = b
         xt = tuple(x.ravel().tolist())
         # the whole state, one flat buffer (layout: invariant_ekf_kernel); what the kernels read and write
-        self._s = _buffer(new_state(quat_from_flat(xt), P.ravel().tolist(), Q.ravel().tolist(),
-                                    R.ravel().tolist(), b.tolist(), self._left, RENORM_EVERY))
-        self._s[B_X:B_X + 9] = _buffer(xt)       # x as given (the quaternion is its Shepperd conversion)
+        self._s = new_state(quat_from_flat(xt), P.ravel().tolist(), Q.ravel().tolist(),
+                                    R.ravel().tolist(), b.tolist(), self._left, RENORM_EVERY)
+        self._s[B_X:B_X + 9] = xt       # x as given (the quaternion is its Shepperd conversion)
         self._s[B_XV] = 1.0
         self._x_t = b""                          # bytes of x as last handed out or assigned
         self._x_a: np.ndarray | None = None      # arrays handed out (see _state_property)
@@ -251,19 +214,19 @@ class InvariantEKF:
         if xa is not None:
             if xa.tobytes() != self._x_t:       # changed in place since handed out
                 xl = xa.ravel().tolist()
-                s[B_X:B_X + 9] = _buffer(xl)
+                s[B_X:B_X + 9] = xl
                 s[B_XV] = 1.0
-                s[B_Q:B_Q + 4] = _buffer(quat_from_flat(xl))
+                s[B_Q:B_Q + 4] = quat_from_flat(xl)
             self._x_a = None
         if Pa is not None:
-            s[B_P:B_P + 9] = _from_array(Pa)
+            s[B_P:B_P + 9] = Pa.ravel()
             self._P_a = None
         self._held = self._Q_a is not None or self._R_a is not None
 
     def kernel_state(self) -> list:
         """The whole state buffer (the arrays handed out taken in first) as plain floats, for a warm start."""
         self._take_held()
-        return [float(v) for v in self._s]
+        return self._s.tolist()
 
     def read_kernel_state(self, reader, name: str) -> list:
         """The entry ``name`` of a saved state (a :class:`~imu_ground.imu.warm_start.StateReader`), checked to
@@ -272,7 +235,7 @@ class InvariantEKF:
 
     def load_kernel_state(self, values: list) -> None:
         """Back to a :meth:`kernel_state` (arrays handed out before are forgotten)."""
-        self._s = _buffer(values)
+        self._s = np.array(values, dtype=float)
         self._x_a = self._P_a = self._Q_a = self._R_a = None
         self._x_t, self._held = b"", False
 
@@ -281,8 +244,8 @@ class InvariantEKF:
         """Current rotation, world <- body (3x3)."""
         a = self._x_a
         if a is None:
-            _fill_x(self._s)
-            a = self._x_a = _matrix(_view(self._s)[B_X:B_X + 9])
+            fill_x(self._s)
+            a = self._x_a = _matrix(self._s[B_X:B_X + 9])
             self._x_t = a.tobytes()
             self._held = True
         return a
@@ -294,9 +257,9 @@ class InvariantEKF:
             raise ValueError(f"x must be a 3x3 matrix, got shape {a.shape}")
         s = self._s
         xt = a.ravel().tolist()
-        s[B_X:B_X + 9] = _buffer(xt)
+        s[B_X:B_X + 9] = xt
         s[B_XV] = 1.0
-        s[B_Q:B_Q + 4] = _buffer(quat_from_flat(xt))
+        s[B_Q:B_Q + 4] = quat_from_flat(xt)
         self._x_a, self._x_t = a, a.tobytes()
         self._held = True
 
@@ -317,7 +280,7 @@ class InvariantEKF:
     def z(self) -> np.ndarray | None:
         """Last measurement, (3, 3) rotation or (3,) direction; None after a skipped update."""
         n = int(self._s[B_ZN])
-        return None if n == 0 else np.array(_view(self._s)[B_Z:B_Z + n]).reshape((3, 3) if n == 9 else (3,))
+        return None if n == 0 else self._s[B_Z:B_Z + n].copy().reshape((3, 3) if n == 9 else (3,))
 
     @z.setter
     def z(self, value) -> None:
@@ -327,7 +290,7 @@ class InvariantEKF:
         t = np.asarray(value, dtype=float).ravel().tolist()
         if len(t) not in (3, 9):
             raise ValueError(f"z must be a 3x3 rotation or a unit vector of shape (3,), got {len(t)} values")
-        self._s[B_Z:B_Z + len(t)] = _buffer(t)
+        self._s[B_Z:B_Z + len(t)] = t
         self._s[B_ZN] = float(len(t))
 
     @property
@@ -337,15 +300,15 @@ class InvariantEKF:
 
     # -- filterpy-style derived quantities ---------------------------------
     def _ysiy(self) -> float:
-        y0, y1, y2 = self._s[B_Y:B_Y + 3]
-        s = self._s[B_SI:B_SI + 9]
+        y0, y1, y2 = self._s[B_Y:B_Y + 3].tolist()
+        s = self._s[B_SI:B_SI + 9].tolist()
         return (y0 * (s[0] * y0 + s[1] * y1 + s[2] * y2) + y1 * (s[3] * y0 + s[4] * y1 + s[5] * y2)
                 + y2 * (s[6] * y0 + s[7] * y1 + s[8] * y2))
 
     @property
     def log_likelihood(self) -> float:
         """Log-likelihood of the last innovation under N(0, S) (computed on access)."""
-        det = self._s[B_DET]
+        det = float(self._s[B_DET])
         if math.isnan(det):
             return math.log(1e-300)                       # filterpy's value before any update
         return -0.5 * (self._ysiy() + math.log(det) + 3 * _LOG2PI)
@@ -375,8 +338,7 @@ class InvariantEKF:
         if self._held:
             self._take_held()
         Q = self._Q_a if Q is None else check_cov("Q", Q)
-        if not _predict(self._s, u, Q):         # the C kernel takes float64 C-contiguous arrays only
-            _predict(self._s, _coerce(u, "u"), None if Q is None else np.ascontiguousarray(Q))
+        _kernel.predict(self._s, u, Q)
 
     def update(self, z: ArrayLike | None, R: float | ArrayLike | None = None) -> None:
         """Correct with a rotation or a direction measurement.
@@ -392,12 +354,7 @@ class InvariantEKF:
         if self._held:
             self._take_held()
         R = self._R_a if R is None else check_cov("R", R)
-        done = _update(self._s, z, R)
-        if done is not True:
-            if done is False:                   # the C kernel takes float64 C-contiguous arrays only
-                done = _update(self._s, _coerce(z, "z"), None if R is None else np.ascontiguousarray(R))
-            if done is not True:                # the C kernel's det S of a singular S (state unchanged)
-                raise np.linalg.LinAlgError(f"innovation covariance is singular (det = {done})")
+        _kernel.update(self._s, z, R)
 
     # -- batch -----------------------------------------------------------------
     def batch_filter(self, zs, us=None, Rs=None, Qs=None, saver=None):

@@ -1,13 +1,15 @@
-"""The InvariantEKF's predict/update kernels in pure Python, on the filter's flat state buffer.
+"""The InvariantEKF's predict/update kernels, on the filter's flat float64 state buffer: one body, compiled by numba.
 
 :class:`~imu_ground.filters.invariant_ekf.InvariantEKF` keeps its whole state in
-one flat sequence of floats (layout: the ``B_*`` offsets below) and runs
-:func:`predict` and :func:`update` on it: these pure-Python functions, or their
-C twins in ``imu_ground/filters/_ekf_native.c`` (the same formulas term for term,
-same calling convention, equal under the twin rule of :mod:`imu_ground._native`) when that extension is built. Here the
-buffer is a ``list`` (slice reads and writes are the cheapest in Python); the C
-kernels take an ``array('d')``. The equations are in the module notes of
-:mod:`imu_ground.filters.invariant_ekf`; matrices are row-major 9-sequences
+one float64 array (layout: the ``B_*`` offsets below) and runs :func:`predict`
+and :func:`update` on it. Those are thin Python wrappers: they sort the
+arguments by kind (no increment, a (3, 3) matrix or a rotation vector; a (3, 3)
+or (3,) measurement; the state's noise or a given one) and raise the errors,
+and the arithmetic runs in one body per step, compiled by
+:func:`imu_ground._jit.njit` (interpreted with ``NUMBA_DISABLE_JIT=1``), which
+reports a singular innovation covariance by its determinant instead of raising
+and then leaves the state unchanged. The equations are in the module notes of
+:mod:`imu_ground.filters.invariant_ekf`; matrices are row-major 9-tuples
 (:func:`imu_ground.so3.mul_flat` and friends), rotations unit quaternions
 ``(w, x, y, z)``.
 """
@@ -17,6 +19,7 @@ import math
 
 import numpy as np
 
+from imu_ground._jit import jitable, njit
 from imu_ground.so3 import (
     exp_flat,
     flat_from_quat,
@@ -56,15 +59,14 @@ __all__ = [
     "B_ZN",
     "STATE_SIZE",
     "check_cov",
+    "fill_x",
     "flat_rotation",
     "new_state",
     "predict",
-    "state_x",
     "update",
 ]
 
-# State buffer layout (offsets in floats; the E_* enum of _ekf_native.c). The Python kernels write
-# neighbours in one slice: q and P, x_prior and P_prior, x_post and P_post, and y .. det S are adjacent.
+# State buffer layout (offsets in floats).
 B_Q, B_P, B_QN, B_RN = 0, 4, 13, 22           # quaternion of x (4), P, Q, R (9 each)
 B_X, B_XV = 31, 40                             # x as a matrix (cache) and its validity flag
 B_XPR, B_PPR, B_XPO, B_PPO = 41, 45, 54, 58    # x_prior (quaternion), P_prior, x_post, P_post
@@ -76,14 +78,19 @@ STATE_SIZE = 123
 
 _I3 = np.eye(3)
 _I9 = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
-_ZERO9 = (0.0,) * 9
+_ZERO9 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 _ZERO3 = (0.0, 0.0, 0.0)
+_NONE = np.zeros(0)                            # the array argument of a kind "none" (no increment, the state's noise)
+_F64 = np.dtype(np.float64)
+for _helper in (exp_flat, flat_from_quat, hat_flat, log_flat, mul_flat, mul_nt_flat, quat_exp, quat_from_flat,
+                quat_mul, quat_normalise, transpose_flat):
+    jitable(_helper)                    # so3's scalar kernels, compiled into the bodies below that call them
 
 
-def new_state(q, P, Q, R, b, left: bool, renorm_every: int) -> list:
-    """A state buffer (list of STATE_SIZE floats): quaternion ``q`` (4), ``P``, ``Q``, ``R`` (row-major 9),
+def new_state(q, P, Q, R, b, left: bool, renorm_every: int) -> np.ndarray:
+    """A state buffer (float64, STATE_SIZE): quaternion ``q`` (4), ``P``, ``Q``, ``R`` (row-major 9),
     body axis ``b`` (3), error kind and renormalisation period; no update yet (``det S`` nan)."""
-    s = [0.0] * STATE_SIZE
+    s = np.zeros(STATE_SIZE)
     s[B_Q:B_Q + 4] = q
     s[B_P:B_P + 9] = P
     s[B_QN:B_QN + 9] = Q
@@ -120,7 +127,34 @@ def check_cov(name: str, m) -> np.ndarray:
     return np.ascontiguousarray(m)
 
 
-def _congruence(a, p, q=_ZERO9) -> tuple:
+@jitable
+def _get9(a, i):
+    """``a[i:i + 9]`` as a tuple."""
+    return a[i], a[i + 1], a[i + 2], a[i + 3], a[i + 4], a[i + 5], a[i + 6], a[i + 7], a[i + 8]
+
+
+@jitable
+def _get4(a, i):
+    """``a[i:i + 4]`` as a tuple."""
+    return a[i], a[i + 1], a[i + 2], a[i + 3]
+
+
+@jitable
+def _put(s, i, t):
+    """``s[i:i + len(t)] = t``."""
+    for k in range(len(t)):
+        s[i + k] = t[k]
+
+
+@jitable
+def _add9(a, b):
+    """Sum of two 9-tuples."""
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3], a[4] + b[4], a[5] + b[5], a[6] + b[6],
+            a[7] + b[7], a[8] + b[8])
+
+
+@jitable
+def _congruence(a, p, q):
     """``A P A^T + Q`` for symmetric ``P`` and ``Q`` (upper triangle computed, lower mirrored), 9-tuples."""
     a0, a1, a2, a3, a4, a5, a6, a7, a8 = a
     m0, m1, m2, m3, m4, m5, m6, m7, m8 = mul_flat(a, p)
@@ -133,28 +167,27 @@ def _congruence(a, p, q=_ZERO9) -> tuple:
     return c00, c01, c02, c01, c11, c12, c02, c12, c22
 
 
-def _sym_upper(m) -> tuple:
+@jitable
+def _sym_upper(m):
     """The symmetric matrix of the upper triangle of ``m`` (row-major 9-tuple)."""
     return m[0], m[1], m[2], m[1], m[4], m[5], m[2], m[5], m[8]
 
 
-def _singular(det: float) -> np.linalg.LinAlgError:
-    return np.linalg.LinAlgError(f"innovation covariance is singular (det = {det})")
-
-
+@jitable
 def _inv_flat(m):
-    """Inverse (row-major 9-tuple) and determinant of a 3x3 matrix by cofactors."""
+    """Inverse (row-major 9-tuple) and determinant of a 3x3 matrix by cofactors, and whether it is regular."""
     a, b, c, d, e, f, g, h, i = m
     A, B, C = e * i - f * h, f * g - d * i, d * h - e * g
     det = a * A + b * B + c * C
     if det == 0.0 or not math.isfinite(det):
-        raise _singular(det)
+        return _ZERO9, det, False
     r = 1.0 / det
     return (A * r, (c * h - b * i) * r, (b * f - c * e) * r,
             B * r, (a * i - c * g) * r, (c * d - a * f) * r,
-            C * r, (b * g - a * h) * r, (a * e - b * d) * r), det
+            C * r, (b * g - a * h) * r, (a * e - b * d) * r), det, True
 
 
+@jitable
 def _update_rotation_left(q, P, z, r):
     """Left-error update with a rotation measurement, unrolled (H = I; the state a unit quaternion).
 
@@ -162,7 +195,7 @@ def _update_rotation_left(q, P, z, r):
     ``conj(q) q_z``, accurate up to pi), ``S = P + R``, ``S^-1`` by symmetric
     cofactors, ``K = P S^-1``, ``q <- q Exp(K y)`` and ``P <- K R`` (upper
     triangle, mirrored); matrices are row-major 9-tuples. Returns ``q, P, y, K,
-    S, SI, det S``.
+    S, SI, det S`` and False for a singular ``S`` (then only ``det S`` is meaningful).
     """
     qw, qx, qy, qz = q
     zw, zx, zy, zz = quat_from_flat(z)
@@ -173,18 +206,21 @@ def _update_rotation_left(q, P, z, r):
     vn = math.sqrt(ax * ax + ay * ay + az * az)
     f = 2.0 * math.atan2(vn, aw) / vn if vn > 0.0 else 2.0
     y0, y1, y2 = ax * f, ay * f, az * f
+    y = (y0, y1, y2)
     p0, p1, p2, _, p4, p5, _, _, p8 = P
     r0, r1, r2, _, r4, r5, _, _, r8 = r
     s0, s1, s2, s4, s5, s8 = p0 + r0, p1 + r1, p2 + r2, p4 + r4, p5 + r5, p8 + r8
+    S = (s0, s1, s2, s1, s4, s5, s2, s5, s8)
     i00, i01, i02 = s4 * s8 - s5 * s5, s2 * s5 - s1 * s8, s1 * s5 - s2 * s4
     det = s0 * i00 + s1 * i01 + s2 * i02
     if det == 0.0 or not math.isfinite(det):
-        raise _singular(det)
+        return q, P, y, _ZERO9, S, _ZERO9, det, False
     d = 1.0 / det
     i00, i01, i02 = i00 * d, i01 * d, i02 * d
     i11, i12, i22 = (s0 * s8 - s2 * s2) * d, (s1 * s2 - s0 * s5) * d, (s0 * s4 - s1 * s1) * d
     SI = (i00, i01, i02, i01, i11, i12, i02, i12, i22)
-    K = k0, k1, k2, k3, k4, k5, k6, k7, k8 = mul_flat(P, SI)
+    K = mul_flat(P, SI)
+    k0, k1, k2, k3, k4, k5, k6, k7, k8 = K
     if r1 == 0.0 and r2 == 0.0 and r5 == 0.0:   # diagonal R (the same numbers, without the zero terms)
         n01, n02, n12 = k1 * r4, k2 * r8, k5 * r8
         Pn = (k0 * r0, n01, n02, n01, k4 * r4, n12, n02, n12, k8 * r8)
@@ -195,126 +231,184 @@ def _update_rotation_left(q, P, z, r):
         Pn = (k0 * r0 + k1 * r1 + k2 * r2, n01, n02, n01, k3 * r1 + k4 * r4 + k5 * r5, n12,
               n02, n12, k6 * r2 + k7 * r5 + k8 * r8)
     e = quat_exp(k0 * y0 + k1 * y1 + k2 * y2, k3 * y0 + k4 * y1 + k5 * y2, k6 * y0 + k7 * y1 + k8 * y2)
-    return (quat_mul(q, e),
-            Pn, (y0, y1, y2), K, (s0, s1, s2, s1, s4, s5, s2, s5, s8), SI, det)
+    return quat_mul(q, e), Pn, y, K, S, SI, det, True
 
 
-def state_x(s: list) -> list:
-    """The state's rotation as a row-major 9-list: the cached matrix, else built from the quaternion (and cached)."""
-    if not s[B_XV]:
-        s[B_X:B_X + 9] = flat_from_quat(s[B_Q:B_Q + 4])
+@njit
+def fill_x(s):
+    """Fill the state's cached rotation matrix (row-major at ``B_X``) from its quaternion, unless valid."""
+    if s[B_XV] == 0.0:
+        _put(s, B_X, flat_from_quat(_get4(s, B_Q)))
         s[B_XV] = 1.0
-    return s[B_X:B_X + 9]
 
 
-def predict(s: list, u, Q: np.ndarray | None) -> bool:
-    """``InvariantEKF.predict`` on the state ``s``: increment ``u`` (None, (3, 3) or a rotation vector (3,),
-    rad), process noise ``Q`` ((3, 3) array; None: the state's). Returns True (the C twin's "done")."""
-    P = s[B_P:B_P + 9]
-    q: list | tuple = s[B_Q:B_Q + 4]
-    qn: list | tuple = s[B_QN:B_QN + 9] if Q is None else Q.ravel().tolist()
-    if u is None:
-        U = None
-    elif type(u) is np.ndarray and u.shape == (3, 3):
-        U = u.ravel().tolist()
-    else:
-        U = flat_rotation(u)
-    x: list | tuple | None = None
-    if U is not None:
+@njit
+def _predict(s, u, kind, qm, own_q):
+    """One predict on ``s``: ``kind`` 0 no increment, 9 ``u`` a (3, 3) matrix, 3 a rotation vector (rad);
+    ``qm`` (3, 3) the process noise unless ``own_q`` (then the state's)."""
+    P = _get9(s, B_P)
+    q = _get4(s, B_Q)
+    qn = _get9(s, B_QN) if own_q else _get9(qm.ravel(), 0)
+    left = s[B_LEFT] != 0.0
+    have_x = False
+    x = _ZERO9
+    if kind != 0:
+        uf = u.ravel()
+        U = _get9(uf, 0) if kind == 9 else exp_flat(uf[0], uf[1], uf[2])
         q = quat_mul(q, quat_from_flat(U))
-        if s[B_LEFT]:                   # P <- U^T P U + Q
-            s[B_Q:B_P + 9] = s[B_XPR:B_PPR + 9] = q + _congruence(transpose_flat(U), P, qn)   # q, P adjacent
+        if left:                        # P <- U^T P U + Q
+            Pn = _congruence(transpose_flat(U), P, qn)
+            _put(s, B_Q, q)
+            _put(s, B_P, Pn)
+            _put(s, B_XPR, q)
+            _put(s, B_PPR, Pn)
             s[B_XV] = 0.0
-            return True
-    elif s[B_XV]:
-        x = s[B_X:B_X + 9]
-    if not s[B_LEFT]:                   # P <- P + A Q A^T, A = x U
-        x = flat_from_quat(q) if x is None else x
-        qn = _congruence(x, qn)
+            return
+    elif s[B_XV] != 0.0:
+        x = _get9(s, B_X)
+        have_x = True
+    if not left:                        # P <- P + A Q A^T, A = x U
+        if not have_x:
+            x = flat_from_quat(q)
+            have_x = True
+        qn = _congruence(x, qn, _ZERO9)
     p0, p1, p2, _, p4, p5, _, _, p8 = P
     q0, q1, q2, _, q4, q5, _, _, q8 = qn
     a, b, c = p1 + q1, p2 + q2, p5 + q5
-    s[B_Q:B_P + 9] = s[B_XPR:B_PPR + 9] = (*q, p0 + q0, a, b, a, p4 + q4, c, b, c, p8 + q8)
-    if x is not None:
-        s[B_X:B_X + 9] = x
+    Pn = (p0 + q0, a, b, a, p4 + q4, c, b, c, p8 + q8)
+    _put(s, B_Q, q)
+    _put(s, B_P, Pn)
+    _put(s, B_XPR, q)
+    _put(s, B_PPR, Pn)
+    if have_x:
+        _put(s, B_X, x)
         s[B_XV] = 1.0
-    elif U is not None:
+    elif kind != 0:
         s[B_XV] = 0.0
-    return True
 
 
-def _update_general(s: list, shape, zl, r):
-    """The right-error rotation update and both direction updates (matrices as 9-tuples)."""
-    x = state_x(s)
-    P = s[B_P:B_P + 9]
-    left = s[B_LEFT]
-    if shape == (3, 3):                 # H = I: K = P S^-1, P <- (I - K) P = K Rn (information form)
-        y = log_flat(mul_nt_flat(zl, x))
-        Rn = _congruence(x, r)
+@jitable
+def _update_general(s, n, zf, r):
+    """The right-error rotation update (``n`` 9) and both direction updates (``n`` 3; matrices as 9-tuples)."""
+    fill_x(s)
+    x = _get9(s, B_X)
+    P = _get9(s, B_P)
+    left = s[B_LEFT] != 0.0
+    if n == 9:                          # H = I: K = P S^-1, P <- (I - K) P = K Rn (information form)
+        y = log_flat(mul_nt_flat(_get9(zf, 0), x))
+        Rn = _congruence(x, r, _ZERO9)
         p0, p1, p2, _, p4, p5, _, _, p8 = P
         r0, r1, r2, _, r4, r5, _, _, r8 = Rn
         a, b, c = p1 + r1, p2 + r2, p5 + r5
         S = (p0 + r0, a, b, a, p4 + r4, c, b, c, p8 + r8)
-        SI, detS = _inv_flat(S)
+        SI, detS, ok = _inv_flat(S)
         K = mul_flat(P, SI)
         Pn = _sym_upper(mul_flat(K, Rn))
-    elif shape == (3,):
-        z0, z1, z2 = zl
-        b0, b1, b2 = s[B_B:B_B + 3]
+    else:
+        z0, z1, z2 = zf[0], zf[1], zf[2]
+        b0, b1, b2 = s[B_B], s[B_B + 1], s[B_B + 2]
         if left:
             x0, x1, x2, x3, x4, x5, x6, x7, x8 = x
             y = (x0 * z0 + x3 * z1 + x6 * z2 - b0, x1 * z0 + x4 * z1 + x7 * z2 - b1,
                  x2 * z0 + x5 * z1 + x8 * z2 - b2)
-            H: list | tuple = s[B_HB:B_HB + 9]
-            Rn = _congruence((x0, x3, x6, x1, x4, x7, x2, x5, x8), r)
+            H = _get9(s, B_HB)
+            Rn = _congruence((x0, x3, x6, x1, x4, x7, x2, x5, x8), r, _ZERO9)
         else:
-            xb = (x[0] * b0 + x[1] * b1 + x[2] * b2, x[3] * b0 + x[4] * b1 + x[5] * b2,
-                  x[6] * b0 + x[7] * b1 + x[8] * b2)
-            y = (z0 - xb[0], z1 - xb[1], z2 - xb[2])
-            H = tuple(-v for v in hat_flat(*xb))
+            xb0, xb1, xb2 = (x[0] * b0 + x[1] * b1 + x[2] * b2, x[3] * b0 + x[4] * b1 + x[5] * b2,
+                             x[6] * b0 + x[7] * b1 + x[8] * b2)
+            y = (z0 - xb0, z1 - xb1, z2 - xb2)
+            h = hat_flat(xb0, xb1, xb2)
+            H = (-h[0], -h[1], -h[2], -h[3], -h[4], -h[5], -h[6], -h[7], -h[8])
             Rn = r
         PHT = mul_nt_flat(P, H)
-        S = tuple(m + n for m, n in zip(_sym_upper(mul_flat(H, PHT)), _sym_upper(Rn), strict=True))
-        SI, detS = _inv_flat(S)
+        S = _add9(_sym_upper(mul_flat(H, PHT)), _sym_upper(Rn))
+        SI, detS, ok = _inv_flat(S)
         K = mul_flat(PHT, SI)
-        KH = mul_flat(K, H)
-        IKH = tuple(i - kh for i, kh in zip(_I9, KH, strict=True))           # Joseph form
-        Pn = tuple(m + n for m, n in zip(_congruence(IKH, P), _congruence(K, Rn), strict=True))
-    else:
-        raise ValueError(f"z must be a 3x3 rotation or a unit vector of shape (3,), got {shape}")
+        kh = mul_flat(K, H)
+        IKH = (1.0 - kh[0], 0.0 - kh[1], 0.0 - kh[2], 0.0 - kh[3], 1.0 - kh[4], 0.0 - kh[5],
+               0.0 - kh[6], 0.0 - kh[7], 1.0 - kh[8])                       # Joseph form
+        Pn = _add9(_congruence(IKH, P, _ZERO9), _congruence(K, Rn, _ZERO9))
     y0, y1, y2 = y
     k0, k1, k2, k3, k4, k5, k6, k7, k8 = K
     e = quat_exp(k0 * y0 + k1 * y1 + k2 * y2, k3 * y0 + k4 * y1 + k5 * y2, k6 * y0 + k7 * y1 + k8 * y2)
-    q = s[B_Q:B_Q + 4]
-    return quat_mul(q, e) if left else quat_mul(e, q), Pn, y, K, S, SI, detS
+    q = _get4(s, B_Q)
+    return quat_mul(q, e) if left else quat_mul(e, q), Pn, y, K, S, SI, detS, ok
 
 
-def update(s: list, z, R: np.ndarray | None) -> bool:
-    """``InvariantEKF.update`` on the state ``s``: ``z`` None (skip), a (3, 3) rotation or a (3,) direction;
-    noise ``R`` ((3, 3) array; None: the state's). Returns True; raises LinAlgError for a singular ``S``
-    (the C twin returns ``det S`` instead) and ValueError naming a bad ``z``; the state is then unchanged."""
-    if z is None:
+@njit
+def _update(s, z, n, rm, own_r):
+    """One update on ``s``: ``n`` 0 none (skip), 9 ``z`` a (3, 3) rotation, 3 a (3,) direction; ``rm`` (3, 3)
+    the noise unless ``own_r`` (then the state's). Returns ``(done, det S)``: not done for a singular ``S``,
+    the state then unchanged."""
+    if n == 0:
         s[B_ZN] = 0.0
-        s[B_XPO:B_XPO + 4] = s[B_Q:B_Q + 4]
-        s[B_PPO:B_PPO + 9] = s[B_P:B_P + 9]
-        s[B_Y:B_Y + 3] = _ZERO3
-        return True
-    r = s[B_RN:B_RN + 9] if R is None else R.ravel().tolist()
-    if type(z) is not np.ndarray:
-        z = np.asarray(z, dtype=float)
-    shape = z.shape
-    zl = z.ravel().tolist()
-    if shape == (3, 3) and s[B_LEFT]:           # the usual case
-        q, Pn, y, K, S, SI, detS = _update_rotation_left(s[B_Q:B_Q + 4], s[B_P:B_P + 9], zl, r)
+        _put(s, B_XPO, _get4(s, B_Q))
+        _put(s, B_PPO, _get9(s, B_P))
+        _put(s, B_Y, _ZERO3)
+        return True, s[B_DET]
+    r = _get9(s, B_RN) if own_r else _get9(rm.ravel(), 0)
+    zf = z.ravel()
+    if n == 9 and s[B_LEFT] != 0.0:             # the usual case
+        q, Pn, y, K, S, SI, detS, ok = _update_rotation_left(_get4(s, B_Q), _get9(s, B_P), _get9(zf, 0), r)
     else:
-        q, Pn, y, K, S, SI, detS = _update_general(s, shape, zl, r)
-    n = s[B_NUP] + 1.0
-    s[B_NUP] = n
-    if n % s[B_RENORM] == 0.0:
+        q, Pn, y, K, S, SI, detS, ok = _update_general(s, n, zf, r)
+    if not ok:
+        return False, detS
+    m = s[B_NUP] + 1.0
+    s[B_NUP] = m
+    if m % s[B_RENORM] == 0.0:
         q = quat_normalise(q)
-    s[B_Q:B_P + 9] = s[B_XPO:B_PPO + 9] = (*q, *Pn)        # adjacent in the layout
+    _put(s, B_Q, q)
+    _put(s, B_P, Pn)
+    _put(s, B_XPO, q)
+    _put(s, B_PPO, Pn)
     s[B_XV] = 0.0
-    s[B_Z:B_Z + len(zl)] = zl
-    s[B_ZN] = float(len(zl))
-    s[B_Y:B_DET + 1] = (*y, *K, *S, *SI, detS)            # y, K, S, SI, det S adjacent
-    return True
+    for k in range(n):
+        s[B_Z + k] = zf[k]
+    s[B_ZN] = float(n)
+    _put(s, B_Y, y)
+    _put(s, B_K, K)
+    _put(s, B_S, S)
+    _put(s, B_SI, SI)
+    s[B_DET] = detS
+    return True, detS
+
+
+def _array(a) -> np.ndarray:
+    """``a`` as the compiled bodies take it: a C-contiguous float64 array."""
+    if type(a) is np.ndarray and a.dtype == _F64 and a.flags.c_contiguous:
+        return a
+    return np.ascontiguousarray(a, dtype=float)
+
+
+def _argument(v, error: str) -> tuple[np.ndarray, int]:
+    """An increment or a measurement as the compiled bodies take it, and its kind: 0 (None), 9 ((3, 3)) or 3
+    ((3,)); any other shape is the ValueError ``error`` naming it."""
+    if v is None:
+        return _NONE, 0
+    a = _array(v)
+    if a.shape == (3, 3):
+        return a, 9
+    if a.shape == (3,):
+        return a, 3
+    raise ValueError(f"{error}, got {a.shape}")
+
+
+def predict(s: np.ndarray, u, Q: np.ndarray | None) -> None:
+    """``InvariantEKF.predict`` on the state ``s``: increment ``u`` (None, (3, 3) or a rotation vector (3,),
+    rad), process noise ``Q`` ((3, 3) array; None: the state's). Raises ValueError naming a bad ``u``."""
+    a, kind = _argument(u, "rotation increment must be a 3x3 matrix or a rotation vector of shape (3,)")
+    if Q is None:
+        _predict(s, a, kind, _NONE, True)
+    else:
+        _predict(s, a, kind, _array(Q), False)
+
+
+def update(s: np.ndarray, z, R: np.ndarray | None) -> None:
+    """``InvariantEKF.update`` on the state ``s``: ``z`` None (skip), a (3, 3) rotation or a (3,) direction;
+    noise ``R`` ((3, 3) array; None: the state's). Raises LinAlgError for a singular ``S`` (naming its
+    determinant) and ValueError naming a bad ``z``; the state is then unchanged."""
+    a, n = _argument(z, "z must be a 3x3 rotation or a unit vector of shape (3,)")
+    done, det = _update(s, a, n, _NONE, True) if R is None else _update(s, a, n, _array(R), False)
+    if not done:
+        raise np.linalg.LinAlgError(f"innovation covariance is singular (det = {det})")

@@ -1,7 +1,7 @@
 r"""The rotation group SO(3): every rotation formula of the package, and the glossary of frames and signs.
 
-One home for rotation code (the compiled kernels' twins of these formulas are in
-``imu_ground/_native_util.h``), in three submodules, every public name re-exported here:
+One home for rotation code (the compiled loops call its ``*_flat`` scalar kernels, compiled into
+them by numba: :func:`imu_ground._jit.jitable`), in three submodules, every public name re-exported here:
 
 - :mod:`imu_ground.so3.group`: hat/vee, exp/log, Jacobians, projection, axis rotations
   (one element or a batch), and the ``*_flat`` scalar kernels of the streaming filters;
