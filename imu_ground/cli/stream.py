@@ -287,6 +287,7 @@ def _replay(est, a, out, where: dict, pos: _Position) -> None:
 
 
 def _stdin(est, a, out) -> None:
+    from imu_ground.cli._common import warn_line
     from imu_ground.errors import OptionError
     from imu_ground.datasets.unit_checks import ACCEL_UNITS, GYRO_UNITS, TIME_UNITS
     ks = TIME_UNITS[a.time_unit or "s"]
@@ -301,61 +302,49 @@ def _stdin(est, a, out) -> None:
                           f"the first line names the columns: t,wx,wy,wz,ax,ay,az (and optionally speed)", None)
     idx = [names.index(c) for c in _SAMPLE_COLUMNS]
     i_speed, file_speed = _stdin_speed(a, names, est)
+    width = len(names)
+    nan = math.nan
     fs_t, fs_v = file_speed
+    j, M = 0, len(fs_t)
+    bad_lines = 0
     with _WholeSamples() as whole:
-        j = _stdin_lines(est, out, src, names, idx, (ks, kg, ka), (i_speed, fs_t, fs_v), whole)
-    M = len(fs_t)
+        for lineno, line in enumerate(src, start=2):
+            cells = line.split(",")
+            if len(cells) < width:
+                if not line.strip():
+                    continue
+                cells += [""] * (width - len(cells))
+            vals = []
+            bad = None
+            for c, i in zip(_SAMPLE_COLUMNS, idx, strict=True):
+                try:
+                    vals.append(float(cells[i]))
+                except ValueError:
+                    vals.append(nan)           # a damaged line: a non-finite sample, skipped and said in the frame
+                    bad = bad or (c, cells[i].strip())
+            if bad is not None:
+                bad_lines += 1
+                if bad_lines <= _BAD_LINES_SAID:
+                    more = "" if bad_lines < _BAD_LINES_SAID else f" (the first {_BAD_LINES_SAID}; later ones not said)"
+                    warn_line(f"line {lineno}: column {bad[0]} is {bad[1][:40]!r}, not a number: sample skipped{more}",
+                              "<stdin>")
+            t = vals[0] * ks
+            whole.busy = True
+            while j < M and fs_t[j] <= t:
+                est.push_speed(fs_t[j], fs_v[j])
+                j += 1
+            if i_speed is not None:
+                try:
+                    v = float(cells[i_speed])
+                except ValueError:
+                    v = nan
+                est.push_speed(t, v)
+            out.write(est.push_imu(t, (vals[1] * kg, vals[2] * kg, vals[3] * kg),
+                                   (vals[4] * ka, vals[5] * ka, vals[6] * ka)))
+            whole.done()
     while j < M:
         est.push_speed(fs_t[j], fs_v[j])
         j += 1
-
-
-def _stdin_lines(est, out, src, names: list[str], idx: list[int], units: tuple, speed: tuple,
-                 whole: _WholeSamples) -> int:
-    """The lines of standard input, each a sample pushed (with its speed) and its frames written, whole; returns
-    how many samples of the speed file were pushed."""
-    from imu_ground.cli._common import warn_line
-    ks, kg, ka = units
-    i_speed, fs_t, fs_v = speed
-    width = len(names)
-    nan = math.nan
-    j, M = 0, len(fs_t)
-    bad_lines = 0
-    for lineno, line in enumerate(src, start=2):
-        cells = line.split(",")
-        if len(cells) < width:
-            if not line.strip():
-                continue
-            cells += [""] * (width - len(cells))
-        vals = []
-        bad = None
-        for c, i in zip(_SAMPLE_COLUMNS, idx, strict=True):
-            try:
-                vals.append(float(cells[i]))
-            except ValueError:
-                vals.append(nan)           # a damaged line: a non-finite sample, skipped and said in the frame
-                bad = bad or (c, cells[i].strip())
-        if bad is not None:
-            bad_lines += 1
-            if bad_lines <= _BAD_LINES_SAID:
-                more = "" if bad_lines < _BAD_LINES_SAID else f" (the first {_BAD_LINES_SAID}; later ones not said)"
-                warn_line(f"line {lineno}: column {bad[0]} is {bad[1][:40]!r}, not a number: sample skipped{more}",
-                          "<stdin>")
-        t = vals[0] * ks
-        whole.busy = True
-        while j < M and fs_t[j] <= t:
-            est.push_speed(fs_t[j], fs_v[j])
-            j += 1
-        if i_speed is not None:
-            try:
-                v = float(cells[i_speed])
-            except ValueError:
-                v = nan
-            est.push_speed(t, v)
-        out.write(est.push_imu(t, (vals[1] * kg, vals[2] * kg, vals[3] * kg),
-                               (vals[4] * ka, vals[5] * ka, vals[6] * ka)))
-        whole.done()
-    return j
 
 
 #: How many damaged lines of standard input are said one by one.
