@@ -29,7 +29,8 @@ squares through the origin): 1 follows the body's pitch excursions in full, 0.5 
 
 ``ahead correction``: the default's pitch spread over the paper's once the grade change between the road under
 the car and the road ``D`` m ahead is added (:func:`ahead_correction_rows`), with the INS's grade (smoothed over
-10 m, as the INS reference) and with the estimate's own ``road_grade`` (smoothed over ``w`` m of travel), and the
+10 m, as the INS reference) and with the estimate's own ``road_grade`` (smoothed over ``w`` m of travel as the
+INS reference smooths its grade, :func:`~imu_ground.evaluation.reference.smoothed_grade`), and the
 share of the scans whose road ``D`` m ahead is still in the log.
 
 ``search``: the bound on tuning (:func:`search_rows`): random configurations of every parameter of
@@ -55,7 +56,7 @@ import pandas as pd
 
 from imu_ground.datasets.speed import frame_speed, log_speed
 from imu_ground.evaluation import lidar as L
-from imu_ground.evaluation.reference import pitch_reference
+from imu_ground.evaluation.reference import pitch_reference, smoothed_grade, travelled_distance
 from imu_ground.evaluation.revisit import drive_revisit_pairs, revisit_consistency, revisit_differences
 from imu_ground.filters import GroundNormalFilter, SuspensionAwareFilter
 from imu_ground.filters.constant_normal import ConstantNormal
@@ -329,14 +330,6 @@ def road_ahead_rows(prepared: list[dict]) -> list[dict]:
     return out
 
 
-def _distance_mean(s: np.ndarray, x: np.ndarray, window: float) -> np.ndarray:
-    """``x`` (samples at travelled distances ``s``, m) averaged over a centred ``window`` m of travel, at ``s``."""
-    grid = np.arange(s[0], s[-1] + 0.25, 0.25)
-    n = max(1, int(window / 0.25))
-    padded = np.pad(np.interp(grid, s, x), (n // 2, n - 1 - n // 2), mode="edge")
-    return np.interp(s, grid, np.convolve(padded, np.ones(n) / n, mode="valid"))
-
-
 def ahead_correction_rows(prepared: list[dict]) -> list[dict]:
     """The ``ahead correction`` rows: the default with ``grade(s + D) - grade(s)`` added to its pitch (the LiDAR's
     plane is the road ahead: body relative to it = body relative to the road under the car + the grade change
@@ -346,7 +339,7 @@ def ahead_correction_rows(prepared: list[dict]) -> list[dict]:
     for p in prepared:
         tr, em = p["res"].track, p["em"]
         paper = GroundNormalFilter.paper().run(em)
-        s = np.concatenate([[0.0], np.cumsum(0.5 * (tr.speed[1:] + tr.speed[:-1]) * np.diff(tr.t))])
+        s = travelled_distance(tr.t, tr.speed)
         ins = p["ins"]
         ref = pitch_reference(ins, ins["t"].to_numpy(), min_speed=0.0)
         s_ins = np.interp(tr.t, ref.t, ref.distance)
@@ -356,7 +349,7 @@ def ahead_correction_rows(prepared: list[dict]) -> list[dict]:
             ins_change = np.interp(s_ins + d, ref.distance, ref.grade) - np.interp(s_ins, ref.distance, ref.grade)
             est[f"INS grade, D {d:g} m"] = (tr.t, tr.pitch + ins_change, tr.roll, tr.valid)
             for w in OWN_GRADE_WINDOWS:
-                own = _distance_mean(s[ok], tr.road_grade[ok], w)
+                own = smoothed_grade(s[ok], tr.road_grade[ok], w)
                 change = np.interp(s + d, s[ok], own) - np.interp(s, s[ok], own)
                 est[f"own grade over {w:g} m, D {d:g} m"] = (tr.t, tr.pitch + change, tr.roll, tr.valid)
         _, summary = L.lidar_table(est, p["t"], p["lp"], p["lr"], source=str(p["log"]))
