@@ -6,6 +6,7 @@ marker cannot be forgotten on a real-data test.
 """
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 
@@ -157,8 +158,8 @@ def heavy_modules_loaded():
         child = ("import sys; import numpy as np; from imu_ground import _jit; "
                  "_jit.JIT_ENABLED and __import__('numba').njit(lambda: 0)(); base = set(sys.modules); "
                  f"import imu_ground; {code}; "
-                 "print(sorted(m for m in set(sys.modules) - base "
-                 "if m.split('.')[0] in ('scipy', 'pandas', 'matplotlib', 'tqdm')))")
+                 "import json; print(json.dumps(sorted(m for m in set(sys.modules) - base "
+                 "if m.split('.')[0] in ('scipy', 'pandas', 'matplotlib', 'tqdm'))))")
         out = subprocess.run([sys.executable, "-c", child], capture_output=True, text=True, check=True).stdout
-        return eval(out.strip().splitlines()[-1])
+        return json.loads(out.strip().splitlines()[-1])
     return run
