@@ -1,45 +1,30 @@
 r"""LiDAR ground truth, the paper's protocol: road planes fitted to scans, and the estimate against them.
 
-A road plane fitted to a LiDAR scan is an independent per-frame truth of the
-body's attitude relative to the road (Zhang et al. 2022 measure their error so).
-
 Plane fit (:func:`fit_ground_plane`)
-    The points of a road region ahead of the vehicle (:class:`RoadRegion`, in the
-    LiDAR's own axes: x forward, y left, z up; default :data:`ROAD_REGION`, 5-30 m
-    ahead, 4 m either side: the lane and its neighbours, where a wider box sees more of
-    the lane's crown and its roll flips between the crown's sides) go through RANSAC (scikit-learn's ``RANSACRegressor``:
-    the height ``z`` as a plane over ``x, y``, inliers within ``threshold`` metres),
-    then a total least-squares plane (the smallest singular vector of the centred
-    inliers) with the inliers re-chosen by their distance to it until they settle.
-    The result is the unit normal pointing up (``n_z > 0``) and ``d`` with
-    ``n . x + d = 0`` on the road (``d`` is the LiDAR's height above it, m). A region
-    with too few points, no consensus or a plane tilted more than ``max_tilt_deg``
-    from the LiDAR's z axis is "no road" (:class:`~imu_ground.datasets.options.OptionError`).
-    scikit-learn is the optional extra ``.[lidar]``, imported on first use, as are the
-    readers of ``.pcd`` (pypcd4) and ``.ply`` (plyfile) scans (:func:`read_scan`; KITTI's
-    ``.bin`` is read with numpy).
+    The points of a road region (:class:`RoadRegion`, a box in the LiDAR's axes x
+    forward, y left, z up; or :class:`PathRegion`, the driven path) are chosen by
+    RANSAC (scikit-learn, the height over ``x, y``) or Patchwork++, then refitted by
+    total least squares (the smallest singular vector of the centred inliers), the
+    inliers re-chosen by their distance until they settle. Result: the unit normal
+    pointing up and ``d`` with ``n . x + d = 0`` on the road (the LiDAR's height, m).
+    Too few points, no consensus or a plane tilted more than ``max_tilt_deg`` is
+    "no road" (:class:`~imu_ground.errors.OptionError`). The extra ``.[lidar]``
+    brings scikit-learn, pypatchworkpp and the ``.pcd``/``.ply`` readers.
 
 Frames and signs
-    ``R_{g<-l}`` (:func:`lidar_rotation`) turns LiDAR vectors into the ground frame
-    of the log's static extrinsic (FLU, the frame the estimate's pitch and roll
-    are in): with KITTI's calibration folder ``R_{g<-l} = R_{g<-imu} R_{velo<-imu}^T``
-    (``calib_imu_to_velo.txt``'s ``R`` maps IMU points into the Velodyne frame); with
-    the project's extrinsic file format it is the file's ``R`` (ground <- LiDAR). A
-    road normal ``n_b = R_{g<-l} n_l`` in the body frame gives the body's pitch and
-    roll relative to the road (:func:`~imu_ground.filters.estimator.pitch_roll_from_normal`:
-    pitch + nose down, roll + left side up). Camera planes (a KITTI object ``planes``
-    file, rectified camera axes x right, y down, z forward) turn with ``R_{g<-cam}``
-    the same way (:func:`planes_pitch_roll`).
+    ``R_{g<-l}`` (:func:`lidar_rotation`) turns LiDAR vectors into the ground frame of
+    the log's static extrinsic (FLU): with KITTI's calibration ``R_{g<-l} = R_{g<-imu}
+    R_{velo<-imu}^T``, with the project's extrinsic file its ``R``. A road normal
+    ``n_b = R_{g<-l} n_l`` gives the body's pitch and roll relative to the road
+    (:func:`~imu_ground.filters.estimator.pitch_roll_from_normal`: pitch + nose down,
+    roll + left side up). Camera planes (KITTI ``planes`` files, rectified camera
+    axes) turn with ``R_{g<-cam}`` the same way (:func:`planes_pitch_roll`).
 
-Comparison (:func:`compare_to_lidar`, :func:`lidar_summary`)
-    Per scan: the estimate interpolated to the scan's time (on the log's clock),
-    the angle between the estimated and the LiDAR normals (the paper's metric),
-    the pitch and roll differences (estimate minus LiDAR, deg). Summaries with the
-    constant offset (a LiDAR-to-IMU calibration error is one) and without it (both
-    centred); the roll is compared as changes only, since the road region sees the
-    lane's crown (its absolute value moves with the region's width).
-    :func:`bootstrap_spread` gives each method's spread with a moving-block
-    bootstrap interval over the frames and how often each method ranks first.
+Comparison (:func:`compare_to_lidar`, :func:`lidar_summary`, :func:`bootstrap_spread`)
+    Per scan, the estimate interpolated to the scan's time against the plane: the
+    angle between the normals (the paper's metric) and the pitch and roll differences
+    (estimate minus LiDAR, deg), with the constant offset and without it; the roll as
+    changes only (the region sees the lane's crown).
 """
 from __future__ import annotations
 
@@ -71,15 +56,14 @@ SCAN_SUFFIXES = (".bin", ".pcd", ".ply")
 
 @dataclass(frozen=True)
 class RoadRegion:
-    """A box of the LiDAR's own axes (x forward, y left, z up; metres) where the road is fitted.
+    """A box of the LiDAR's own axes (x forward, y left, z up) where the road is fitted.
 
     Attributes
     ----------
     x_min, x_max : float
         Ahead of the LiDAR, m.
     y_min, y_max : float
-        To the left (negative: right), m. The width decides how much of the lane's
-        crown the plane sees: its roll moves with it, its pitch hardly.
+        To the left (negative: right), m.
     """
     x_min: float = 5.0
     x_max: float = 30.0
@@ -112,15 +96,12 @@ PATCHWORK_MODULE = "pypatchworkpp"
 class PathRegion:
     """The road along the driven path: points within ``half_width`` of the vehicle's future track, ahead of it.
 
-    A straight box leaves the road in a turn and fits the kerb; this region follows
-    the road the vehicle is about to drive on. The track is given in the LiDAR's own
-    axes (x forward, y left, z up) at the scan's time (:func:`path_region`).
+    The track is in the LiDAR's axes at the scan's time (:func:`path_region`).
 
     Parameters
     ----------
     xy : array_like (M, 2)
-        The future track (the IMU's positions from the scan's time on), LiDAR x and y, m,
-        in driving order.
+        The future track, LiDAR x and y, m, in driving order.
     half_width : float
         Points within this horizontal distance of the track, m (default 1.5).
     ahead : tuple of float
@@ -221,10 +202,7 @@ def _quiet(make, *args):
 
 
 def patchwork_ground(points: np.ndarray, sensor_height: float = 1.73) -> np.ndarray:
-    """Patchwork++'s ground points of a whole scan (bool (N,)), LiDAR axes (x forward, y left, z up), m.
-
-    ``pypatchworkpp`` (the extra ``.[lidar]``) with its default parameters but the
-    sensor's height above the road (KITTI's Velodyne: 1.73 m) and no console output.
+    """Patchwork++'s ground points of a whole scan (bool (N,)), LiDAR axes, m; its defaults but the sensor height.
 
     Raises
     ------
@@ -253,11 +231,6 @@ def patchwork_available() -> bool:
     return importlib.util.find_spec(PATCHWORK_MODULE) is not None
 
 
-def _sklearn_ransac():
-    linear_model = require_extra("sklearn.linear_model", "lidar", "the LiDAR plane fit (--lidar)")
-    return linear_model.RANSACRegressor, linear_model.LinearRegression
-
-
 def _tls_plane(points: np.ndarray) -> tuple[np.ndarray, float]:
     centre = points.mean(axis=0)
     normal = np.linalg.svd(points - centre, full_matrices=False)[2][2]
@@ -273,14 +246,11 @@ def fit_ground_plane(points: Any, region: Any = ROAD_REGION, threshold: float = 
     Parameters
     ----------
     points : array_like (N, 3) or (N, 4)
-        Points in the LiDAR's own axes (x forward, y left, z up), m; a fourth column
-        (reflectance) is ignored.
+        Points in the LiDAR's axes, m; a fourth column (reflectance) is ignored.
     region : RoadRegion or PathRegion
-        Where the road is looked for (default :data:`ROAD_REGION`): a box, or the
-        driven path (:class:`PathRegion`); anything with ``mask(points)``.
+        Where the road is looked for; anything with ``mask(points)``.
     threshold : float
-        Inlier distance to the plane, m (RANSAC's vertical residual, then the
-        perpendicular distance of the least-squares refit).
+        Inlier distance to the plane, m (RANSAC's vertical residual, then the refit's perpendicular one).
     seed : int
         RANSAC's random seed.
     max_trials : int
@@ -294,10 +264,8 @@ def fit_ground_plane(points: Any, region: Any = ROAD_REGION, threshold: float = 
     return_inliers : bool
         Also return the number of inliers.
     ground : {"ransac", "patchwork"}
-        How the road's points are first chosen: ``"ransac"`` (scikit-learn's
-        ``RANSACRegressor`` on the region's points) or ``"patchwork"`` (Patchwork++'s
-        ground points of the whole scan, ``pypatchworkpp``, kept where they lie in the
-        region; :func:`patchwork_ground`). Either way the least-squares refit follows.
+        How the road's points are first chosen: RANSAC on the region's points, or
+        :func:`patchwork_ground` of the whole scan kept in the region.
 
     Returns
     -------
@@ -333,9 +301,9 @@ def fit_ground_plane(points: Any, region: Any = ROAD_REGION, threshold: float = 
                                                      "needed"), "lidar")
         inl = np.ones(len(road), dtype=bool)
     elif ground == "ransac":
-        ransac, linear = _sklearn_ransac()
+        lm = require_extra("sklearn.linear_model", "lidar", "the LiDAR plane fit (--lidar)")
         try:
-            fit = ransac(linear(), residual_threshold=threshold, max_trials=max_trials, min_samples=3,
+            fit = lm.RANSACRegressor(lm.LinearRegression(), residual_threshold=threshold, max_trials=max_trials, min_samples=3,
                          random_state=seed).fit(road[:, :2], road[:, 2])
             inl = fit.inlier_mask_
         except ValueError:
@@ -380,15 +348,10 @@ def read_bin_scan(path: str | Path) -> np.ndarray:
     return raw.reshape(-1, 4).astype(float)
 
 
-def _reader(module: str, path: Path):
-    return require_extra(module, "lidar", f"{path}: reading this scan (--lidar)")
-
-
 def read_scan(path: str | Path) -> np.ndarray:
     """One scan's points, (N, 3) or (N, 4) float64, LiDAR axes, m: KITTI ``.bin``, ``.pcd`` or ``.ply``.
 
-    ``.bin``: :func:`read_bin_scan`. ``.pcd``: the fields ``x y z`` through pypcd4 (ASCII, binary
-    or compressed). ``.ply``: the ``vertex`` element's ``x y z`` through plyfile.
+    ``.bin``: :func:`read_bin_scan`; ``.pcd``: ``x y z`` through pypcd4; ``.ply``: the ``vertex`` ``x y z`` (plyfile).
 
     Raises
     ------
@@ -404,14 +367,13 @@ def read_scan(path: str | Path) -> np.ndarray:
                           f"{', '.join(SCAN_SUFFIXES)} scans", "lidar")
     if not p.is_file():
         raise OptionError(f"{p}: no such scan file ({{opt}})", "lidar")
+    reader = require_extra("pypcd4" if suffix == ".pcd" else "plyfile", "lidar", f"{p}: reading this scan (--lidar)")
     try:
         if suffix == ".pcd":
-            cloud = _reader("pypcd4", p).PointCloud.from_path(p)
+            cloud = reader.PointCloud.from_path(p)
             return np.asarray(cloud.numpy(("x", "y", "z")), dtype=float).reshape(-1, 3)
-        vertex = _reader("plyfile", p).PlyData.read(str(p))["vertex"]
+        vertex = reader.PlyData.read(str(p))["vertex"]
         return np.column_stack([np.asarray(vertex[k], dtype=float) for k in "xyz"]).reshape(-1, 3)
-    except ImuGroundError:                          # OptionError, MissingExtraError
-        raise
     except Exception as e:                          # the third-party parsers' own errors: a file we cannot read
         raise OptionError(f"{p}: not a readable {suffix[1:].upper()} point cloud with x y z "
                           f"({type(e).__name__}: {' '.join(str(e).split())[:120]}); give {{opt}} another scan",
@@ -478,12 +440,10 @@ def lidar_transform(spec: str | Path, imu_extrinsic: Any = None) -> Extrinsic:
     Parameters
     ----------
     spec : str or Path
-        A KITTI raw calibration folder (holding ``calib_imu_to_velo.txt``), that file
-        itself, or an extrinsic file of the project's format (``R``: ground <- LiDAR, ``t``).
+        A KITTI raw calibration folder (holding ``calib_imu_to_velo.txt``), that file,
+        or an extrinsic file of the project's format (``R``: ground <- LiDAR, ``t``).
     imu_extrinsic : optional
-        The log's static extrinsic (ground <- IMU; anything :meth:`Extrinsic.coerce`
-        takes). Used with KITTI's files only; default KITTI's ``kitti_imu`` (axes of the
-        IMU, origin on the road 0.93 m below it, as the shipped KITTI cameras).
+        The log's static extrinsic (ground <- IMU), with KITTI's files only; default ``kitti_imu``.
 
     Raises
     ------
@@ -521,12 +481,7 @@ def lidar_rotation(spec: str | Path, imu_extrinsic: Any = None) -> np.ndarray:
 
 
 def kitti_object_rotation(calib_file: str | Path, imu_extrinsic: Any = None) -> np.ndarray:
-    """``R_{g<-rect}`` of a KITTI object calibration file: rectified camera axes into the ground frame.
-
-    The file's ``R0_rect``, ``Tr_velo_to_cam`` and ``Tr_imu_to_velo`` map IMU points into
-    the rectified camera frame (``x_rect = R0 R_vc R_vi x_imu`` + translations), so
-    ``R_{g<-rect} = R_{g<-imu} (R0 R_vc R_vi)^T``.
-    """
+    """``R_{g<-rect} = R_{g<-imu} (R0 R_vc R_vi)^T`` of a KITTI object calibration file (rectified camera axes)."""
     from imu_ground.perception.kitti_calib import read_kitti_calib
     p = Path(calib_file)
     if not p.is_file():
@@ -653,13 +608,9 @@ def lidar_summary(frames: pd.DataFrame) -> dict[str, float]:
     Returns
     -------
     dict
-        ``n``; with the constant offset: ``angle_mean`` (mean angle between the normals),
-        ``pitch_offset`` and ``roll_offset`` (mean differences); without it (both
-        centred, the offset a mounting calibration removes): ``angle_centred`` (mean
-        angle between the centred normals), ``pitch_spread`` (sample standard deviation of
-        the pitch difference), ``pitch_mae_centred``, ``roll_change_spread`` (the same of
-        the roll difference: changes only) and ``roll_change_corr`` (correlation of the
-        estimated and the LiDAR roll).
+        ``n``, ``angle_mean``, ``pitch_offset``, ``roll_offset`` (with the offset);
+        ``angle_centred``, ``pitch_spread`` (sample std), ``pitch_mae_centred``,
+        ``roll_change_spread``, ``roll_change_corr`` (both centred).
     """
     dp, dr = frames["d_pitch_deg"].to_numpy(), frames["d_roll_deg"].to_numpy()
     n = len(frames)
@@ -680,9 +631,8 @@ def bootstrap_spread(differences: dict[str, Any], samples: int = 2000, block: in
                      seed: int = 0) -> pd.DataFrame:
     """Each method's pitch spread with a moving-block bootstrap interval, and how often it ranks first.
 
-    The frames of one drive are correlated (the body's pitch moves over seconds), so
-    the resampling draws blocks of ``block`` consecutive frames; every method gets the
-    same draws (a paired comparison).
+    Blocks of ``block`` consecutive frames (the frames are correlated), the same draws
+    for every method (paired).
 
     Parameters
     ----------
@@ -760,10 +710,8 @@ def planes_rotations(spec: str | Path, names: list[str], imu_extrinsic: Any = No
     Parameters
     ----------
     spec : str or Path
-        A folder of KITTI object calibration files named as the planes files (one per
-        frame: ``R0_rect``, ``Tr_velo_to_cam``, ``Tr_imu_to_velo``), one such file, or a
-        camera (:func:`~imu_ground.perception.load_camera`: ``kitti_cam2``, a camera file,
-        ``DIR:2``) whose extrinsic is ground <- camera.
+        A folder of KITTI object calibration files named as the planes files, one such
+        file, or a camera (:func:`~imu_ground.perception.load_camera`).
     names : list of str
         The planes files' names (``000005.txt``).
     imu_extrinsic : optional
@@ -792,11 +740,7 @@ def planes_rotations(spec: str | Path, names: list[str], imu_extrinsic: Any = No
 
 
 def plot_lidar(frames: pd.DataFrame, path: str | Path, title: str = "") -> Path:
-    """Pitch and roll over time: the LiDAR planes and each method's estimate, each centred on its mean (PNG).
-
-    The legend (each method with its pitch and roll spreads, deg) sits below the two panels, off the
-    curves (:func:`lidar_figure`).
-    """
+    """Pitch and roll over time: the LiDAR planes and each method's estimate, each centred on its mean (PNG)."""
     path = Path(path)
     lidar_figure(frames, title).savefig(path, format="png")
     return path

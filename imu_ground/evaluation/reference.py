@@ -1,79 +1,33 @@
-r"""Reference pitch relative to the road on real drives (KITTI OXTS at 100 Hz).
-
-No per-frame LiDAR road plane is available for the real recordings, so the
-reference for the ground normal is built from the GPS/INS (OXTS RT3003)
-solution that comes with every ``kitti_imu100`` drive::
+r"""Reference pitch relative to the road on real drives (KITTI OXTS at 100 Hz), from the GPS/INS solution::
 
     pitch_rel_road(t) = pitch(t) + grade(t),   grade = atan2(vu, hypot(ve, vn))
 
-Conventions (KITTI's): pitch positive = nose down; the grade is positive
-uphill. On an uphill road a car on its wheels pitches nose up by the grade
-(pitch = -grade), so ``pitch + grade`` is the body's pitch relative to the road
-tangent, nose down positive -- the quantity a ground-normal estimator reports.
-Roll relative to the road is *not* observable from these signals (the road's
-cross-slope is unknown), so only pitch has a real-data reference.
+KITTI's signs: pitch + nose down, grade + uphill (a car on an uphill road pitches
+nose up by the grade, so ``pitch + grade`` is its pitch relative to the road). Roll
+relative to the road is not observable (the cross-slope is unknown): pitch only.
 
-How the reference is built (every choice, and why)
---------------------------------------------------
-1. **Time order.** The OXTS extract timestamps step backwards by about 0.05 s
-   at times. Only samples later than every earlier sample are kept (the same
-   rule as ``imu_ground.datasets.validation``'s ``policy="drop"``); data already cleaned
-   that way passes unchanged. Gaps (over 1 s on two drives) are kept: nothing
-   is interpolated across them (see 5).
-2. **Travelled distance** ``s`` is the trapezoidal integral of the horizontal
-   speed ``hypot(ve, vn)`` over time, not the positions ``px, py``: the
-   positions jump by decimetres to metres when the GPS fix changes, the
-   velocity does not.
-3. **Grade smoothing over 10 m of travel** (``window_m=10``). The raw grade is
-   noisy (OXTS ``vu`` noise of a few cm/s is 0.5 deg of grade at 3 m/s) and
-   the road plane under a car spans its wheelbase (about 2.7 m). The grade is
-   averaged over a centred window of ``window_m`` metres of *distance*, each
-   sample weighted by the distance it covers::
+Construction
+------------
+1. Samples not later than every earlier one are dropped (:func:`drop_out_of_order`);
+   gaps are kept, never interpolated across.
+2. Travelled distance: trapezoidal integral of ``hypot(ve, vn)`` (the positions jump
+   with the GPS fix, the velocity does not).
+3. The grade is averaged over a centred window of ``window_m`` metres of distance,
+   moving samples only (:func:`smoothed_grade`)::
 
        grade_s(s) = [G(s + w/2) - G(s - w/2)] / [W(s + w/2) - W(s - w/2)]
-       G(s) = integral of grade ds,  W(s) = integral of ds  (moving samples only)
+       G(s) = integral of grade ds,  W(s) = integral of ds
 
-   computed with cumulative sums and ``np.interp`` (vectorised, O(N)). Only
-   samples above ``min_speed`` enter the average: below it ``atan2(vu, v)``
-   is noise, and weighting by distance already gives stops no weight. The
-   window is thus the same stretch of road at any speed. (Averaging all
-   samples by distance instead gives a noisier reference: the constant
-   normal's error against it rises.)
-   10 m is a few wheelbases: enough to average the noise (about 0.5 s of
-   data at 20 m/s, 3 s at 3 m/s), short against the length of vertical
-   curves on roads (radii of hundreds of metres: a 10 m centred mean of a
-   linearly varying grade is unbiased, and a 500 m crest changes the grade
-   by only 1.1 deg over the window). Near the start and end of a drive, and
-   next to stops, the window is truncated to the moving distance available
-   (one-sided there).
-4. **Moving frames only** (``min_speed=3`` m/s). Below 3 m/s the grade is ill
-   defined (``vu / v`` with a small ``v``) and the body's pitch is dominated by
-   stopping and starting; frames at or below it are not valid.
-5. **Frames.** The reference is evaluated at the estimator's frame times
-   (default: a 10 Hz grid from the first sample, :func:`frame_times`) by linear
-   interpolation of the 100 Hz series. A frame farther than ``max_gap``
-   (0.1 s) from the nearest kept sample lies inside a data gap and is not
-   valid.
-6. **Mean removal.** The drive mean of ``pitch + grade`` over the valid frames
-   is subtracted (and returned as ``offset``). That mean is the static
-   mounting offset between the IMU/INS and the car body (plus the car's static
-   stance), which a calibration removes and which the OXTS attitude cannot
-   tell apart from the road; an estimator's output is compared after removing
-   its own mean (see :mod:`imu_ground.evaluation.metrics`).
+   truncated (one-sided) at the drive's ends and next to stops.
+4. Frames at or below ``min_speed`` are not valid (``vu / v`` is noise there).
+5. Evaluated at the frame times (default :func:`frame_times`) by linear
+   interpolation; a frame farther than ``max_gap`` from a sample is not valid.
+6. The drive mean of ``pitch + grade`` over the valid frames (the static mounting
+   offset) is removed and returned as ``offset``.
 
-Known limitation
-----------------
-The reference's slow part is only as good as the INS vertical velocity: a
-``vu`` bias of 0.1 m/s is 1.4 deg of grade at 4 m/s. On a few good drives
-(2011_09_26_drive_0022, _0019, _0091) ``pitch + grade`` drifts by 1-3 deg
-over tens of seconds at low speed, which no suspension moves a car by; every
-estimator inherits that error floor.
-
-Faulty drives
--------------
-:func:`check_reference` decides from the data alone whether the reference of
-a drive can be trusted (no list of drive names is consulted). See its
-docstring for the criteria and thresholds.
+The reference is only as good as the INS vertical velocity (a 0.1 m/s ``vu`` bias is
+1.4 deg of grade at 4 m/s). :func:`check_reference` decides from the data alone
+(no list of drives) whether a drive's reference can be trusted.
 """
 from __future__ import annotations
 
@@ -113,11 +67,7 @@ _REQUIRED = ("t", "pitch", "ve", "vn", "vu")
 
 
 def drop_out_of_order(df: pd.DataFrame) -> pd.DataFrame:
-    """Keep only the rows whose time is later than every earlier row's.
-
-    The OXTS extract timestamps sometimes step back by about 0.05 s; those
-    samples (and exact repeats of a time) are dropped, everything else is kept
-    in its order. Idempotent: cleaned data comes back unchanged.
+    """Keep only the rows whose time is later than every earlier row's (repeats dropped; idempotent).
 
     Parameters
     ----------
@@ -146,7 +96,7 @@ def frame_times(t: np.ndarray, rate: float = FRAME_RATE) -> np.ndarray:
     t : array_like, shape (N,)
         Sample times, s (any order; only the min and max are used).
     rate : float
-        Frames per second (10 Hz, the rate of the camera frames of the paper).
+        Frames per second.
 
     Returns
     -------
@@ -176,25 +126,19 @@ def travelled_distance(t: np.ndarray, speed: np.ndarray) -> np.ndarray:
     ndarray, shape (N,)
         Starts at 0, non-decreasing for non-negative speed.
     """
+    from scipy.integrate import cumulative_trapezoid
     t = np.asarray(t, dtype=float)
-    v = np.asarray(speed, dtype=float)
-    s = np.zeros_like(t)
-    if t.size > 1:
-        s[1:] = np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))
-    return s
+    return cumulative_trapezoid(np.asarray(speed, dtype=float), t, initial=0.0) if t.size > 1 else np.zeros_like(t)
 
 
 def smoothed_grade(s: np.ndarray, grade: np.ndarray, window_m: float = WINDOW_M,
                    use: np.ndarray | None = None) -> np.ndarray:
     """Distance-weighted centred moving average of the grade over ``window_m`` metres.
 
-    Each segment between consecutive samples contributes its mean grade times
-    its length, if both its ends are in ``use``; the average over
-    ``[s - w/2, s + w/2]`` (clipped to the drive) is the sum of those
-    contributions divided by the used length in the window. Both sums come
-    from cumulative sums evaluated with ``np.interp`` (vectorised, exact for
-    partial segments at the window ends). Where the window holds no used
-    length the raw grade is returned.
+    Each segment between samples whose ends are both in ``use`` contributes its mean
+    grade times its length; the window ``[s - w/2, s + w/2]`` (clipped to the drive)
+    is read off cumulative sums with ``np.interp`` (exact for partial segments).
+    Where the window holds no used length the raw grade is returned.
 
     Parameters
     ----------
@@ -205,9 +149,7 @@ def smoothed_grade(s: np.ndarray, grade: np.ndarray, window_m: float = WINDOW_M,
     window_m : float
         Full window length, m.
     use : array_like of bool, shape (N,), optional
-        Samples allowed in the average (default all). :func:`pitch_reference`
-        passes the moving samples: below ``min_speed`` ``atan2(vu, v)`` is
-        noise (a 2 cm/s ``vu`` error is 1 deg of grade at 1 m/s).
+        Samples allowed in the average (default all; :func:`pitch_reference`: the moving ones).
 
     Returns
     -------
@@ -227,8 +169,6 @@ def smoothed_grade(s: np.ndarray, grade: np.ndarray, window_m: float = WINDOW_M,
     half = 0.5 * window_m
     lo = np.clip(s - half, s[0], s[-1])
     hi = np.clip(s + half, s[0], s[-1])
-    # The cumulative sums only change where s does, so interpolating them on
-    # the non-decreasing s is well defined even across stops (repeated s).
     num = np.interp(hi, s, big_g) - np.interp(lo, s, big_g)
     den = np.interp(hi, s, big_w) - np.interp(lo, s, big_w)
     out = g.copy()
@@ -239,31 +179,24 @@ def smoothed_grade(s: np.ndarray, grade: np.ndarray, window_m: float = WINDOW_M,
 
 @dataclass
 class Reference:
-    """Reference pitch relative to the road at frame times.
+    """Reference pitch relative to the road at frame times (rad unless said).
 
     Attributes
     ----------
     t : ndarray, shape (M,)
         Frame times, s.
     pitch_rel_road : ndarray, shape (M,)
-        ``pitch + grade - offset``, rad, nose down positive. Defined on every
-        frame (NaN only where there is no data), to be used where ``valid``.
+        ``pitch + grade - offset``, nose down positive; NaN only without data, used where ``valid``.
     valid : ndarray of bool, shape (M,)
         Moving (speed above ``min_speed``) and not inside a data gap.
-    pitch : ndarray
-        OXTS pitch at the frames, rad.
-    grade : ndarray
-        Smoothed road grade at the frames, rad, uphill positive.
-    speed : ndarray
-        Horizontal speed at the frames, m/s.
-    distance : ndarray
-        Travelled distance at the frames, m.
+    pitch, grade : ndarray
+        OXTS pitch and smoothed road grade (uphill positive) at the frames.
+    speed, distance : ndarray
+        Horizontal speed (m/s) and travelled distance (m) at the frames.
     offset : float
-        The mean of ``pitch + grade`` over the valid frames that was removed,
-        rad (NaN when no frame is valid).
+        The removed mean of ``pitch + grade`` over the valid frames (NaN when none is valid).
     params : dict
-        ``window_m``, ``min_speed``, ``max_gap``, number of samples dropped for
-        time order.
+        ``window_m``, ``min_speed``, ``max_gap``, ``dropped_out_of_order``.
     """
 
     t: np.ndarray
@@ -275,23 +208,6 @@ class Reference:
     distance: np.ndarray
     offset: float
     params: dict[str, Any] = field(default_factory=dict)
-
-    @property
-    def n_valid(self) -> int:
-        """Number of valid frames."""
-        return int(np.count_nonzero(self.valid))
-
-    def to_frame(self) -> pd.DataFrame:
-        """All per-frame arrays as one DataFrame (angles in rad)."""
-        return pd.DataFrame({"t": self.t, "pitch_rel_road": self.pitch_rel_road,
-                             "valid": self.valid, "pitch": self.pitch, "grade": self.grade,
-                             "speed": self.speed, "distance": self.distance})
-
-
-def _check_columns(df: pd.DataFrame) -> None:
-    missing = [c for c in _REQUIRED if c not in df.columns]
-    if missing:
-        raise ImuGroundError(f"drive data lacks column(s) {missing}; needs {list(_REQUIRED)}")
 
 
 def pitch_reference(df: pd.DataFrame, times: np.ndarray | None = None, *,
@@ -309,12 +225,11 @@ def pitch_reference(df: pd.DataFrame, times: np.ndarray | None = None, *,
         Frame times, s, on the same clock as ``df.t``. Default: the 10 Hz grid
         of :func:`frame_times`.
     window_m : float
-        Length of the centred distance window of the grade average, m (10).
+        Length of the centred distance window of the grade average, m.
     min_speed : float
-        Frames with horizontal speed at or below it are not valid, m/s (3).
+        Frames with horizontal speed at or below it are not valid, m/s.
     max_gap : float
-        A frame farther than this from the nearest sample is in a gap and not
-        valid, s (0.1: one frame period).
+        A frame farther than this from the nearest sample is in a gap and not valid, s.
     rate : float
         Frame rate of the default grid, Hz.
 
@@ -323,7 +238,9 @@ def pitch_reference(df: pd.DataFrame, times: np.ndarray | None = None, *,
     Reference
         See the module docstring for the construction.
     """
-    _check_columns(df)
+    missing = [c for c in _REQUIRED if c not in df.columns]
+    if missing:
+        raise ImuGroundError(f"drive data lacks column(s) {missing}; needs {list(_REQUIRED)}")
     n_raw = len(df)
     d = drop_out_of_order(df)
     t = d["t"].to_numpy(dtype=float)
@@ -337,7 +254,6 @@ def pitch_reference(df: pd.DataFrame, times: np.ndarray | None = None, *,
 
     tf = frame_times(t, rate) if times is None else np.asarray(times, dtype=float)
     inside = (tf >= t[0]) & (tf <= t[-1])
-    # distance to the nearest sample, for gaps
     j = np.clip(np.searchsorted(t, tf), 1, max(t.size - 1, 1))
     if t.size > 1:
         near = np.minimum(np.abs(tf - t[j - 1]), np.abs(t[j] - tf))
@@ -365,11 +281,11 @@ class ReferenceCheck:
     Attributes
     ----------
     valid : bool
-        True when the reference can be used for evaluation.
+        Whether the reference can be used.
     reasons : list of str
-        One human-readable sentence per failed criterion (empty when valid).
+        One sentence per failed criterion.
     stats : dict
-        The numbers the verdict was based on.
+        The numbers behind the verdict.
     """
 
     valid: bool
@@ -385,20 +301,11 @@ class ReferenceCheck:
         return self.valid
 
 
-#: Steepest smoothed grade accepted on a moving frame, deg. Public roads stay
-#: below about 20 deg (36 %: the steepest streets in the world); the 30 good
-#: KITTI drives stay below 8 deg (car-park ramps), the faulty drive 0093 shows
-#: 25-50 deg for half a minute (``vu`` stuck near -6.5 m/s).
+#: Steepest smoothed grade accepted on a moving frame, deg (public roads stay below about 20).
 MAX_GRADE_DEG = 20.0
-#: Largest body pitch relative to the road accepted on a moving frame, deg
-#: (after mean removal). Suspension pitch is within about +-2 deg even under
-#: hard braking; a kerb or a ramp transition adds a little for a moment (the
-#: good drives stay below 4.3 deg). 10 deg can only come from an INS fault.
+#: Largest body pitch relative to the road accepted on a moving frame (mean removed), deg: beyond, an INS fault.
 MAX_PITCH_REL_ROAD_DEG = 10.0
-#: Fewest valid (moving) frames for a drive to be evaluated: 50 frames = 5 s
-#: at 10 Hz, the shortest span over which a per-drive mean (the mounting
-#: offset) and per-drive error statistics mean anything. The good drives with
-#: the least motion have 61 (2011_09_26_drive_0057) and 74 (0018) frames.
+#: Fewest valid (moving) frames for a drive to be evaluated (5 s at 10 Hz).
 MIN_MOVING_FRAMES = 50
 
 
@@ -409,48 +316,30 @@ def check_reference(df: pd.DataFrame, ref: Reference | None = None, *,
                     **reference_kwargs: Any) -> ReferenceCheck:
     """Decide from the data alone whether a drive's pitch reference is usable.
 
-    No list of drive names is used. A drive fails when any of these holds:
+    A drive fails when any of these holds:
 
-    1. **Too little motion**: fewer than ``min_moving_frames`` valid frames
-       (speed above ``min_speed``, default 50 frames = 5 s at 10 Hz). Without
-       motion there is no grade and no pitch relative to the road to compare.
-    2. **Impossible road grade**: on some valid frame the smoothed grade
-       ``atan2(vu, hypot(ve, vn))`` exceeds ``max_grade_deg`` (20 deg) in
-       magnitude. This is what vertical-velocity faults of the INS look like:
-       several m/s of ``vu`` at a few m/s of horizontal speed.
+    1. **Too little motion**: fewer than ``min_moving_frames`` valid frames.
+    2. **Impossible road grade**: on some valid frame the smoothed grade exceeds
+       ``max_grade_deg`` in magnitude (an INS vertical-velocity fault).
     3. **Impossible body pitch relative to the road**: some valid frame has
-       ``|pitch + grade - offset|`` above ``max_pitch_rel_road_deg`` (10 deg).
-       A car body follows the road within a couple of degrees, so a vertical
-       velocity that disagrees with the INS pitch by this much is a fault of
-       one of them; either way the reference is wrong.
-
-    On the 33 ``kitti_imu100`` drives this flags 2011_09_26_drive_0093 (``vu``
-    stuck near -6.5 m/s for 30 s: 49 deg "grades", 31 deg "pitch relative to
-    the road") and 2011_09_28_drive_0039 (parked: top speed 0.26 m/s). The
-    data README also lists 2011_09_28_drive_0002 for lack of motion, but its
-    data pass every check: 81 moving frames (73 m, braking from 11.7 m/s to a
-    stop), INS pitch, velocity and IMU mutually consistent. Two drives the
-    README counts as valid move less (2011_09_26_drive_0057: 61 frames, 48 m;
-    _0018: 74 frames, 51 m), so no motion threshold flags 0002 alone:
-    ``min_moving_frames=82`` flags 0002, 0057 and 0018 together.
+       ``|pitch + grade - offset|`` above ``max_pitch_rel_road_deg`` (INS pitch and
+       vertical velocity disagree).
 
     Parameters
     ----------
     df : pandas.DataFrame
         The drive (as for :func:`pitch_reference`).
     ref : Reference, optional
-        Its reference, if already computed (otherwise computed here with
-        ``reference_kwargs``).
+        Its reference, if already computed (otherwise computed here with ``reference_kwargs``).
     max_grade_deg, max_pitch_rel_road_deg, min_moving_frames
-        Thresholds, see above and the module constants for their rationale.
+        Thresholds (deg, deg, frames).
     **reference_kwargs
         Passed to :func:`pitch_reference` (``window_m``, ``min_speed``, ...).
 
     Returns
     -------
     ReferenceCheck
-        ``valid``, ``reasons`` (one sentence per failed criterion; joined in
-        ``.reason``) and ``stats``: ``n_frames``, ``n_moving_frames``,
+        ``valid``, ``reasons`` (joined in ``.reason``) and ``stats``: ``n_frames``, ``n_moving_frames``,
         ``moving_distance_m``, ``max_speed``, ``max_abs_vu``,
         ``max_abs_grade_deg``, ``max_abs_pitch_rel_road_deg``, ``offset_deg``.
     """
