@@ -131,8 +131,6 @@ def _check_common(a: argparse.Namespace) -> None:
 
 def check_lidar(a: argparse.Namespace) -> None:
     """Option checks of the ``LOG SCANS`` form before any work (one line each, naming the flag)."""
-    from imu_ground.cli._common import input_paths
-    from imu_ground.pipeline.output import check_output_path, check_run_paths
     _check_common(a)
     drive_only = [f for f, v in (("--log", a.log), ("--json", a.json), ("--lidar-scans", a.lidar_scans),
                                  ("--lidar-min-speed", a.lidar_min_speed),
@@ -154,13 +152,38 @@ def check_lidar(a: argparse.Namespace) -> None:
                           "(with --lidar-planes: the planes' camera or KITTI object calibration folder)",
                           "lidar_extrinsic")
     _region_arg(a)
+    _check_outputs(a, [a.lidar[0]], [("--lidar LOG", a.lidar[0]), *(("--lidar SCANS", s) for s in a.lidar[1:])])
+
+
+def _check_outputs(a: argparse.Namespace, inputs: list, named: list, extra: tuple = ()) -> None:
+    """The output files (``-o``, ``--csv``, ``--markdown`` and ``extra``) writable and none an input."""
+    from imu_ground.cli._common import input_paths
+    from imu_ground.pipeline.output import check_output_path, check_run_paths
     if a.plot:
-        check_output_path(a.plot, [a.lidar[0]], "-o", kind=".png")
-    for option, path in (("--csv", a.csv), ("--markdown", a.markdown)):
+        check_output_path(a.plot, inputs, "-o", kind=".png")
+    texts = [("--csv", a.csv), ("--markdown", a.markdown), *extra]
+    for option, path in texts:
         if path:
-            check_output_path(path, [a.lidar[0]], option=option, kind="text")
-    inputs = [("--lidar LOG", a.lidar[0]), *(("--lidar SCANS", s) for s in a.lidar[1:]), *input_paths(a)]
-    check_run_paths([("-o", a.plot), ("--csv", a.csv), ("--markdown", a.markdown)], inputs)
+            check_output_path(path, inputs, option=option, kind="text")
+    check_run_paths([("-o", a.plot), *texts], [*named, *input_paths(a)])
+
+
+def _write(path: str, text: str) -> None:
+    """``text`` written to ``path`` whole (or not at all), then said."""
+    from imu_ground.pipeline.output import atomic_path
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    say(f"wrote {path}")
+
+
+def _plot(path: str | Path, frames: Any, name: str) -> None:
+    """The pitch and roll plot of ``frames`` (:func:`~imu_ground.evaluation.lidar.plot_lidar`) written to ``path``."""
+    from imu_ground.evaluation.lidar import plot_lidar
+    from imu_ground.pipeline.output import atomic_path
+    with atomic_path(path) as tmp:
+        plot_lidar(frames, tmp, title=f"{name}: pitch and roll relative to the road, LiDAR planes and estimates "
+                                      "(means removed)")
+    say(f"wrote {path}")
 
 
 def _truth(a: argparse.Namespace, ext) -> tuple[list, np.ndarray, np.ndarray, str]:
@@ -238,7 +261,6 @@ def run_lidar(a: argparse.Namespace) -> int:
     from imu_ground.evaluation import lidar as L
     from imu_ground.evaluation.runner import format_table, methods_from_list
     from imu_ground.filters import Extrinsic
-    from imu_ground.pipeline.output import atomic_path
 
     if _drive_form(a):
         return run_lidar_drives(a)
@@ -262,18 +284,11 @@ def run_lidar(a: argparse.Namespace) -> int:
         "of the pitch difference, lo95..hi95 its moving-block bootstrap interval, p_best: share of the draws in "
         "which the method ranks first, vs_best_*: the interval of its spread minus the best method's; roll as changes only: the region sees the lane's crown)")
     if a.csv:
-        with atomic_path(a.csv) as tmp:
-            tmp.write_text(frames.to_csv(index=False, float_format="%.5f"), encoding="utf-8")
-        say(f"wrote {a.csv}")
+        _write(a.csv, frames.to_csv(index=False, float_format="%.5f"))
     if a.markdown:
-        with atomic_path(a.markdown) as tmp:
-            tmp.write_text(format_table(summary, "markdown") + "\n", encoding="utf-8")
-        say(f"wrote {a.markdown}")
+        _write(a.markdown, format_table(summary, "markdown") + "\n")
     if a.plot:
-        with atomic_path(a.plot) as tmp:
-            L.plot_lidar(frames, tmp, title=f"{Path(log).name}: pitch and roll relative to the road, LiDAR planes "
-                                             "and estimates (means removed)")
-        say(f"wrote {a.plot}")
+        _plot(a.plot, frames, Path(log).name)
     return 0
 
 
@@ -370,23 +385,13 @@ def lidar_drives_report(folders: list, logs: dict | None = None, methods: list |
     folders : list of str or Path
         KITTI raw sync folders (:func:`~imu_ground.evaluation.lidar_kitti.read_kitti_lidar_drive`).
     logs : dict, optional
-        Drive name -> a log of that drive to estimate instead of its ``oxts/`` folder.
+        Drive name -> a log of that drive to estimate instead of its ``oxts/`` folder (``--log``).
     methods : list of str, optional
         Methods of ``evaluate --real`` beside the default (row :data:`DEFAULT_ROW`); default all.
-    fit : {"auto", "ransac", "patchwork", "all"}
-        As ``--lidar-fit``.
-    region : RoadRegion or "path", optional
-        The box (default :data:`~imu_ground.evaluation.lidar.ROAD_REGION`) or the driven path.
-    extrinsic : optional
-        The log's static extrinsic (``--extrinsic``; ``estimate``'s default: identity).
-    lidar_extrinsic : optional
-        The LiDAR's calibration (``--lidar-extrinsic``); default each folder's parent.
-    min_speed : float
-        Scans where the default's speed is below this (m/s) are left out.
-    max_scans : int, optional
-        The first N scans of each drive only.
-    seed : int
-        RANSAC's seed.
+    fit, region, extrinsic, lidar_extrinsic, min_speed (m/s), max_scans, seed
+        As ``--lidar-fit``, ``--lidar-region`` (a RoadRegion or ``"path"``), ``--extrinsic``,
+        ``--lidar-extrinsic`` (default each folder's parent), ``--lidar-min-speed``,
+        ``--lidar-scans``, ``--lidar-seed``.
     on_note : callable, optional
         Called with ``(drive, text)`` for what is left out or chosen.
 
@@ -520,9 +525,7 @@ def _table(methods: dict):
 
 def check_lidar_drives(a: argparse.Namespace) -> dict:
     """Option checks of the ``DRIVE_DIR`` form before any work; the ``--log`` files by drive name."""
-    from imu_ground.cli._common import input_paths
     from imu_ground.evaluation.lidar_kitti import check_sync_folder
-    from imu_ground.pipeline.output import check_output_path, check_run_paths
     _check_common(a)
     for f, v in (("--times", a.times), ("--lidar-planes", a.lidar_planes)):
         if v:
@@ -539,17 +542,12 @@ def check_lidar_drives(a: argparse.Namespace) -> dict:
         from imu_ground.errors import require_extra
         from imu_ground.evaluation.lidar import PATCHWORK_MODULE
         require_extra(PATCHWORK_MODULE, "lidar", "Patchwork++ ground points (--lidar-fit patchwork)")
-    inputs = [*a.lidar, *(a.log or [])]
-    if a.plot:
-        check_output_path(a.plot, inputs, "-o", kind=".png")
     if a.json and Path(a.json).is_dir():
         raise OptionError(f"{a.json}: is a folder; give {{opt}} a file name, e.g. {Path(a.json) / 'lidar.json'}",
                           "json")
-    for option, path in (("--csv", a.csv), ("--markdown", a.markdown), ("--json", a.json)):
-        if path:
-            check_output_path(path, inputs, option=option, kind="text")
-    named = [*(("--lidar DRIVE_DIR", d) for d in a.lidar), *(("--log", f) for f in a.log or []), *input_paths(a)]
-    check_run_paths([("-o", a.plot), ("--csv", a.csv), ("--markdown", a.markdown), ("--json", a.json)], named)
+    _check_outputs(a, [*a.lidar, *(a.log or [])],
+                   [*(("--lidar DRIVE_DIR", d) for d in a.lidar), *(("--log", f) for f in a.log or [])],
+                   (("--json", a.json),))
     return _pair_logs(a.lidar, a.log)
 
 
@@ -566,9 +564,7 @@ def _plain(v: Any) -> Any:
 
 def run_lidar_drives(a: argparse.Namespace) -> int:
     """``--lidar DRIVE_DIR ...``: per drive and pooled tables, the ranking across fits; JSON, CSV, plots."""
-    from imu_ground.evaluation import lidar as L
     from imu_ground.evaluation.runner import format_table, methods_from_list
-    from imu_ground.pipeline.output import atomic_path
     logs = check_lidar_drives(a)
     methods = methods_from_list(a.methods)
     region = _region_arg(a)
@@ -607,13 +603,9 @@ def run_lidar_drives(a: argparse.Namespace) -> int:
                              f" ({'same' if e['holds'] else 'not the same'} order of all methods)")
             say(f"  {key}: " + "; ".join(parts))
     if a.json:
-        with atomic_path(a.json) as tmp:
-            tmp.write_text(json.dumps(_plain(report), indent=1, allow_nan=False) + "\n", encoding="utf-8")
-        say(f"wrote {a.json}")
+        _write(a.json, json.dumps(_plain(report), indent=1, allow_nan=False) + "\n")
     if a.csv:
-        with atomic_path(a.csv) as tmp:
-            tmp.write_text(frames.to_csv(index=False, float_format="%.5f"), encoding="utf-8")
-        say(f"wrote {a.csv}")
+        _write(a.csv, frames.to_csv(index=False, float_format="%.5f"))
     if a.markdown:
         parts = []
         for fit, block in report["fits"].items():
@@ -621,17 +613,11 @@ def run_lidar_drives(a: argparse.Namespace) -> int:
                 parts.append(f"{d['drive']} ({fit}, {d['scans']} scans):\n\n" + format_table(_table(d["methods"]),
                                                                                               "markdown"))
             parts.append(f"pooled ({fit}):\n\n" + format_table(_table(block["pooled"]["methods"]), "markdown"))
-        with atomic_path(a.markdown) as tmp:
-            tmp.write_text("\n\n".join(parts) + "\n", encoding="utf-8")
-        say(f"wrote {a.markdown}")
+        _write(a.markdown, "\n\n".join(parts) + "\n")
     if a.plot:
         first = report["fit"]
         drives = list(dict.fromkeys(frames["drive"]))
         for drive in drives:
             out = Path(a.plot) if len(drives) == 1 else Path(a.plot).with_name(f"{Path(a.plot).stem}_{drive}.png")
-            sub = frames[(frames["drive"] == drive) & (frames["fit"] == first)]
-            with atomic_path(out) as tmp:
-                L.plot_lidar(sub, tmp, title=f"{drive} [{first}]: pitch and roll relative to the road, LiDAR planes "
-                                             "and estimates (means removed)")
-            say(f"wrote {out}")
+            _plot(out, frames[(frames["drive"] == drive) & (frames["fit"] == first)], f"{drive} [{first}]")
     return 0

@@ -13,15 +13,8 @@ from imu_ground.datasets.storage import is_url, join, local_input, local_name, s
 from imu_ground.errors import ImuGroundError
 from imu_ground.evaluation.plots import evaluation_plots
 from imu_ground.evaluation.runner import (
-    METHODS,
-    conditions_table,
-    evaluate,
-    format_table,
-    load_real_drives,
-    methods_from_list,
-    sigma_table,
-    summary_table,
-    synthetic_drives,
+    METHODS, conditions_table, evaluate, format_table, load_real_drives, methods_from_list, sigma_table, summary_table,
+    synthetic_drives
 )
 from imu_ground.evaluation.revisit import revisit_table
 from imu_ground.evaluation.simulate.suite import MAX_SUITE_DRIVES, check_suite_size

@@ -2,63 +2,38 @@ r"""Where the error is: driving conditions per frame, moving segments, and the r
 
 Conditions (:func:`frame_signals`, :func:`condition_masks`)
 -----------------------------------------------------------
-Every condition is defined from signals that real and synthetic drives both
-have, per frame:
+From signals real and synthetic drives both have, per frame: ``speed`` (m/s, the
+reference's horizontal speed); ``acc_long`` (m/s^2, its central difference over
+``+-ACC_WINDOW_S / 2``); ``yaw_rate`` (rad/s, from the ego-motion,
+``log(R_gs delta_R R_gs^T)_z / delta_t``); ``pitch_rate_hf`` (rad/s, the RMS over a
+centred ``ROUGH_WINDOW_S`` window of the body pitch rate minus its moving mean: road
+roughness). A frame can be in several; all are restricted to the evaluated frames:
 
-- ``speed`` (m/s): the reference's horizontal speed (GPS/INS on real drives,
-  the simulation's truth on synthetic ones);
-- ``acc_long`` (m/s^2): its time derivative, a central difference over
-  ``+-ACC_WINDOW_S / 2`` (1 s in all), so that single-frame jitter of the INS
-  speed does not count as braking;
-- ``yaw_rate`` (rad/s): the rotation of the body about its z axis per frame,
-  from the ego-motion (``log(R_gs delta_R R_gs^T)_z / delta_t``);
-- ``pitch_rate_hf`` (rad/s): the RMS over a centred ``ROUGH_WINDOW_S`` window of
-  the body pitch rate from the ego-motion minus its centred moving mean over
-  the same window: the body shaking above about 1 Hz, i.e. road roughness.
-
-The conditions (a frame can be in several; all are further restricted to the
-evaluated frames of the drive, i.e. valid and moving above 3 m/s):
-
-============  ==============================================================
-``speed_3_6``  ``3 < speed <= 6``
-``speed_6_12`` ``6 < speed <= 12``
-``speed_o..``  ``speed > 12`` (``speed_over_12``)
-``turning``    ``|yaw_rate| > TURN_YAW_RATE`` (0.1 rad/s = 5.7 deg/s: a 90 deg
-               turn in 16 s or less)
-``braking``    ``acc_long < -BRAKE_DECEL`` (1 m/s^2)
-``near_stop``  within ``NEAR_STOP_S`` (3 s) before or after a frame with
-               ``speed < STOP_SPEED`` (0.5 m/s)
-``rough``      ``pitch_rate_hf > ROUGH_PITCH_RATE`` (1.1 deg/s: the upper quartile
-               of the evaluated frames of the 31 shared real drives)
-============  ==============================================================
+==================  ==============================================================
+``speed_3_6``        ``3 < speed <= 6``
+``speed_6_12``       ``6 < speed <= 12``
+``speed_over_12``    ``speed > 12``
+``turning``          ``|yaw_rate| > TURN_YAW_RATE``
+``braking``          ``acc_long < -BRAKE_DECEL``
+``near_stop``        within ``NEAR_STOP_S`` of a frame with ``speed < STOP_SPEED``
+``rough``            ``pitch_rate_hf > ROUGH_PITCH_RATE``
+==================  ==============================================================
 
 Moving segments (:func:`moving_segments`, :func:`segment_centred`)
 ------------------------------------------------------------------
-A moving segment is a maximal run of frames between two stops (``speed <
-STOP_SPEED``), data gaps (invalid frames) included in the run. The
-per-segment metric removes the mean of the estimate and of the reference per
-segment (over its evaluated frames) instead of per drive: what is left is the
-error within a stretch of driving, without the slow offsets that change from
-one stop to the next. Segments with fewer than ``MIN_SEGMENT_FRAMES`` evaluated
-frames (3 s at 10 Hz) are left out of this metric.
+Maximal runs of frames between stops (``speed < STOP_SPEED``), gaps included. The
+per-segment metric removes the means of estimate and reference per segment instead
+of per drive; segments with fewer than ``MIN_SEGMENT_FRAMES`` evaluated frames are
+left out.
 
 Reference uncertainty (:func:`reference_sigma`)
 -----------------------------------------------
-The real-data reference is ``pitch + atan(vu / v)`` from the INS. An error
-``e_vu`` of the vertical velocity is an error ``e_vu / v`` of the grade (rad), so
-the reference's uncertainty per frame is
-``sigma_ref = sqrt((INS_VU_NOISE / v)^2 + INS_PITCH_NOISE^2)`` with the INS's
-vertical-velocity noise 0.03 m/s (the level of the slow ``vu`` errors seen on
-the KITTI drives: 0.4 deg of grade at 4 m/s) and its pitch noise 0.03 deg (the
-OXTS RT3003 datasheet, 1 sigma). The 10 m grade window does not average the
-``vu`` error away: it is slow (correlated over many seconds), not white. A
-perfect estimator would then score ``sqrt(2 / pi) * sigma_ref`` in mean absolute
-error (``ref_floor``), and ``mean(sigma_ref^2) / mean(error^2)`` is the share of a
-method's mean squared error the reference alone can explain (``ref_share``). Both are
-per drive at most all of the method's error (a floor at most its mean absolute error, a
-share at most 1): on a short drive the slow ``vu`` error is nearly constant and goes with
-the removed mean, so the model overstates what the reference adds there.
-Synthetic drives have an exact truth: ``sigma_ref = 0``.
+``sigma_ref = sqrt((INS_VU_NOISE / v)^2 + INS_PITCH_NOISE^2)`` (a vertical-velocity
+error ``e_vu`` is a grade error ``e_vu / v``; it is slow, so the grade window does not
+average it away). A perfect estimator would score ``sqrt(2 / pi) * sigma_ref`` in mean
+absolute error (``ref_floor``); ``mean(sigma_ref^2) / mean(error^2)`` is the share of a
+method's squared error the reference alone explains (``ref_share``); per drive both
+are capped at the method's own error. Synthetic drives: ``sigma_ref = 0``.
 """
 from __future__ import annotations
 
@@ -70,23 +45,9 @@ from imu_ground import so3
 from imu_ground.units import DEG
 
 __all__ = [
-    "ACC_WINDOW_S",
-    "BRAKE_DECEL",
-    "CONDITIONS",
-    "INS_PITCH_NOISE",
-    "INS_VU_NOISE",
-    "MIN_SEGMENT_FRAMES",
-    "NEAR_STOP_S",
-    "ROUGH_PITCH_RATE",
-    "ROUGH_WINDOW_S",
-    "SPEED_BINS",
-    "STOP_SPEED",
-    "TURN_YAW_RATE",
-    "condition_masks",
-    "frame_signals",
-    "moving_segments",
-    "reference_sigma",
-    "segment_centred",
+    "ACC_WINDOW_S", "BRAKE_DECEL", "CONDITIONS", "INS_PITCH_NOISE", "INS_VU_NOISE", "MIN_SEGMENT_FRAMES", "NEAR_STOP_S",
+    "ROUGH_PITCH_RATE", "ROUGH_WINDOW_S", "SPEED_BINS", "STOP_SPEED", "TURN_YAW_RATE", "condition_masks",
+    "frame_signals", "moving_segments", "reference_sigma", "segment_centred"
 ]
 
 #: Speed bins, m/s: (key, low, high), low exclusive, high inclusive.

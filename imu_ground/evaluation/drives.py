@@ -1,24 +1,17 @@
 """Drives with ground truth for the evaluation: real KITTI drives and synthetic ones.
 
-A :class:`Drive` holds one drive's ego-motion (IMU preintegrated into frames),
-its static extrinsic and its truth at the frames. :func:`load_real_drive` and
-:func:`load_real_drives` are THE loaders of the real ``kitti_imu100`` drives
-(tests, benchmarks and the CLI use them): the reader, the reference
-(:func:`~imu_ground.evaluation.reference.pitch_reference`) and its verdict from
-the signals alone (:func:`~imu_ground.evaluation.reference.check_reference`; no
-list of drive names is consulted).
+A :class:`Drive` holds one drive's ego-motion, static extrinsic and truth at the
+frames. :func:`load_real_drive` and :func:`load_real_drives` are the loaders of the
+real ``kitti_imu100`` drives: the reader, the reference
+(:func:`~imu_ground.evaluation.reference.pitch_reference`) and its verdict
+(:func:`~imu_ground.evaluation.reference.check_reference`).
 
-Protocols
----------
-- Real drives: the truth is the body pitch relative to the road from the OXTS
-  GPS/INS, pitch only, on moving frames (speed > 3 m/s) that are valid in the
-  ego-motion, with the means of estimate and reference removed per drive (the
-  static mounting offset a calibration removes). Each frame carries the
-  reference's uncertainty (:func:`~imu_ground.evaluation.conditions.reference_sigma`).
-  Drives whose reference is faulty are reported, not averaged.
-- Synthetic drives: exact truth of the normal in the sensor frame, pitch and
-  roll; valid frames with speed > 3 m/s; nothing removed. Every method gets the
-  true static extrinsic (as a calibration would give).
+- Real drives: pitch only, on moving frames valid in the ego-motion, means removed
+  per drive; each frame carries the reference's 1-sigma
+  (:func:`~imu_ground.evaluation.conditions.reference_sigma`); faulty drives are
+  reported, not averaged.
+- Synthetic drives: exact truth, pitch and roll, moving frames, nothing removed;
+  every method gets the true static extrinsic.
 """
 from __future__ import annotations
 
@@ -31,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from imu_ground.datasets import read_kitti_imu100
+from imu_ground.datasets.kitti_imu100 import drive_name
 from imu_ground.evaluation.conditions import frame_signals, reference_sigma
 from imu_ground.evaluation.reference import MIN_SPEED, check_reference, pitch_reference
 from imu_ground.evaluation.simulate import simulate_suite
@@ -57,11 +51,9 @@ class Drive:
     extrinsic : Extrinsic
         Static sensor-to-ground extrinsic given to every method.
     truth : pandas.DataFrame
-        Per frame (aligned with ``egomotion.t``): ``t`` (s), ``pitch`` (rad), ``roll``
-        (rad, NaN when unknown), ``normal_x/y/z`` (sensor frame, NaN when unknown),
-        ``speed`` (m/s), ``evaluate`` (bool: valid moving frames that count),
-        ``ref_sigma`` (rad, 1 sigma of the reference; 0 for an exact truth) and the
-        condition signals ``acc_long`` (m/s^2), ``yaw_rate``, ``pitch_rate_hf`` (rad/s)
+        Per frame: ``t`` (s), ``pitch``, ``roll`` (rad, NaN when unknown), ``normal_x/y/z``
+        (sensor frame, NaN when unknown), ``speed`` (m/s), ``evaluate`` (the frames that
+        count), ``ref_sigma`` (rad, 0 for an exact truth) and the condition signals
         (:func:`~imu_ground.evaluation.conditions.frame_signals`).
     remove_mean : bool
         Centre estimate and truth per drive before the errors (real protocol).
@@ -69,11 +61,11 @@ class Drive:
         False when the truth is unusable; ``reason`` says why.
     reason : str
     imu : ImuData, optional
-        The raw log (kept for plots).
+        The raw log.
     sim : SimResult, optional
-        The simulation a synthetic drive came from (kept for plots).
+        The simulation a synthetic drive came from.
     check : ReferenceCheck, optional
-        The verdict on a real drive's reference, with its statistics.
+        The verdict on a real drive's reference.
     """
     name: str
     kind: str
@@ -102,11 +94,6 @@ def _truth_frame(em: EgoMotion, ext: Extrinsic, columns: dict):
         if key != "speed":
             truth[key] = value
     return truth
-
-
-def drive_name(path: Path) -> str:
-    """The drive name of a ``kitti_imu100`` file: ``.../2011_09_26_drive_0001.csv.gz`` -> ``2011_09_26_drive_0001``."""
-    return Path(path).name.split(".")[0]
 
 
 def load_real_drive(path: Path, rate: float = DEFAULT_FRAME_RATE) -> Drive:
@@ -184,7 +171,6 @@ def synthetic_drive(sim, rate: float = DEFAULT_FRAME_RATE) -> Drive:
     """A :class:`Drive` from a :class:`~imu_ground.evaluation.simulate.SimResult` (exact truth)."""
     em = imu_to_egomotion(sim.imu, rate=rate)
     tr = sim.truth
-    # truth frames are at multiples of 1/rate from t=0, as are the frame ends
     idx = np.clip(np.searchsorted(tr["t"].to_numpy(), em.t - 1e-6), 0, len(tr) - 1)
     if np.abs(tr["t"].to_numpy()[idx] - em.t).max() > 1e-6:
         raise ValueError(f"{sim.name}: truth frames do not line up with the IMU frames")

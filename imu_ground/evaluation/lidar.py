@@ -40,13 +40,14 @@ from imu_ground.errors import ImuGroundError, OptionError, require_extra
 from imu_ground.evaluation.metrics import normal_angle, normal_from_pitch_roll
 from imu_ground.filters.estimator import pitch_roll_from_normal
 from imu_ground.filters.extrinsics import Extrinsic, load_extrinsic
+from imu_ground.so3 import project
 
 __all__ = ["GROUND_FITS", "LIDAR_EXTRA", "PATCHWORK_MODULE", "ROAD_REGION", "SCAN_SUFFIXES", "PathRegion", "RoadRegion",
            "bootstrap_spread", "compare_to_lidar", "fit_ground_plane", "fit_scans", "kitti_object_rotation",
            "lidar_figure", "lidar_pitch_roll", "lidar_rotation", "lidar_summary", "lidar_table", "lidar_transform",
            "path_region",
            "patchwork_available", "patchwork_ground", "planes_pitch_roll", "planes_rotations", "plot_lidar",
-           "read_bin_scan", "read_scan", "read_scan_times", "scan_files"]
+           "read_bin_scan", "read_scan", "read_scan_times", "read_times", "scan_files"]
 
 #: The optional extra that installs the plane fit's and the readers' dependencies (scikit-learn, plyfile, pypcd4).
 LIDAR_EXTRA = ".[lidar]"
@@ -399,41 +400,55 @@ def scan_files(folder: str | Path) -> list[Path]:
     return files
 
 
-def read_scan_times(path: str | Path, count: int, what: str = "scans") -> np.ndarray:
-    """One time a line (s, on the log's clock; ``#`` starts a comment), exactly ``count`` of them.
+def read_times(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """One time a line (s, on the log's clock; ``#`` starts a comment) and each time's 1-based line number.
 
     Raises
     ------
     OptionError
-        No such file, a line that is not a finite number, or a count other than ``count``
-        (naming the file and ``--times``).
+        No such file, no time, or a line that is not a finite number (naming the file, the line and ``--times``).
     """
     p = Path(path)
     if not p.is_file():
         raise OptionError(f"{p}: no such times file ({{opt}} FILE: one time a line, s on the log's clock)", "times")
-    try:
-        t = np.atleast_1d(np.loadtxt(p, comments="#", usecols=0, ndmin=1, dtype=float))
-    except ValueError as e:
-        raise OptionError(f"{p}: not one time (s) a line ({' '.join(str(e).split())}); give {{opt}} a file of "
-                          "times", "times") from None
-    if not np.all(np.isfinite(t)):
-        raise OptionError(f"{p}:{int(np.flatnonzero(~np.isfinite(t))[0]) + 1}: a time that is not finite ({{opt}})",
-                          "times")
+    times, lines = [], []
+    for lineno, line in enumerate(p.read_text(errors="replace").splitlines(), start=1):
+        text = line.split("#", 1)[0].strip()
+        if not text:
+            continue
+        try:
+            value = float(text.split()[0].rstrip(","))
+        except ValueError:
+            raise OptionError(f"{p}:{lineno}: {text!r} is not one time (s) a line; give {{opt}} a file of times",
+                              "times") from None
+        if not math.isfinite(value):
+            raise OptionError(f"{p}:{lineno}: {text!r}: a time that is not finite ({{opt}})", "times")
+        times.append(value)
+        lines.append(lineno)
+    if not times:
+        raise OptionError(f"{p}: no time in the file ({{opt}}: one time a line, s on the log's clock)", "times")
+    return np.array(times), np.array(lines)
+
+
+def read_scan_times(path: str | Path, count: int, what: str = "scans") -> np.ndarray:
+    """:func:`read_times`, exactly ``count`` of them, increasing.
+
+    Raises
+    ------
+    OptionError
+        As :func:`read_times`, or a count other than ``count``, or times that do not increase (naming ``--times``).
+    """
+    t, lines = read_times(path)
     if len(t) != count:
-        raise OptionError(f"{p}: {len(t)} times for {count} {what}; give {{opt}} one time a line, one per "
+        raise OptionError(f"{path}: {len(t)} times for {count} {what}; give {{opt}} one time a line, one per "
                           f"{what[:-1]} in name order", "times")
-    if np.any(np.diff(t) <= 0):
-        raise OptionError(f"{p}:{int(np.flatnonzero(np.diff(t) <= 0)[0]) + 2}: times must increase ({{opt}})",
-                          "times")
+    back = np.flatnonzero(np.diff(t) <= 0)
+    if back.size:
+        raise OptionError(f"{path}:{lines[back[0] + 1]}: times must increase ({{opt}})", "times")
     return t
 
 
 # ----------------------------------------------------------------------------- frames
-def _rotation_of(r: Any) -> np.ndarray:
-    u, _, vt = np.linalg.svd(np.reshape(np.asarray(r, dtype=float), (3, 3)))
-    return u @ vt
-
-
 def lidar_transform(spec: str | Path, imu_extrinsic: Any = None) -> Extrinsic:
     """The LiDAR's extrinsic ground <- LiDAR (rotation ``R_{g<-l}``, translation: its origin in the ground frame, m).
 
@@ -463,7 +478,7 @@ def lidar_transform(spec: str | Path, imu_extrinsic: Any = None) -> Extrinsic:
         if r is None or r.size != 9 or t is None or t.size != 3:
             raise OptionError(f"{calib}: no 'R:' line with 9 numbers and 'T:' with 3 (a KITTI calib_imu_to_velo.txt; "
                               "{opt})", "lidar_extrinsic")
-        r_velo_imu = _rotation_of(r)
+        r_velo_imu = project(np.reshape(r, (3, 3)))
         g_imu = Extrinsic.coerce("kitti_imu" if imu_extrinsic is None else imu_extrinsic)
         r_imu_velo, t_imu_velo = r_velo_imu.T, -r_velo_imu.T @ t                # x_imu = R^T (x_velo - T)
         return Extrinsic(g_imu.rotation @ r_imu_velo, g_imu.rotation @ t_imu_velo + g_imu.translation,
@@ -494,7 +509,7 @@ def kitti_object_rotation(calib_file: str | Path, imu_extrinsic: Any = None) -> 
                               "{opt})", "lidar_extrinsic")
     r_rect_imu = (c["R0_rect"].reshape(3, 3) @ c["Tr_velo_to_cam"].reshape(3, 4)[:, :3]
                   @ c["Tr_imu_to_velo"].reshape(3, 4)[:, :3])
-    return Extrinsic.coerce(imu_extrinsic).rotation @ _rotation_of(r_rect_imu).T
+    return Extrinsic.coerce(imu_extrinsic).rotation @ project(r_rect_imu).T
 
 
 def lidar_pitch_roll(normals: Any, rotation: Any) -> tuple[np.ndarray, np.ndarray]:

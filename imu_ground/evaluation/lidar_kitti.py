@@ -1,41 +1,26 @@
 r"""KITTI raw sync folders as LiDAR ground truth: the scans, their times, the driven path, per-drive summaries.
 
-A KITTI raw *sync* folder (``2011_09_26_drive_0009_sync``) holds everything the
-paper's protocol needs (:func:`read_kitti_lidar_drive`):
+A sync folder (:func:`read_kitti_lidar_drive`) holds ``oxts/`` (the 10 Hz OXTS log
+and the vehicle's track), ``velodyne_points/data/*.bin`` (the scans, named by frame
+number) and ``velodyne_points/timestamps.txt`` (else the OXTS stamp of the same
+frame, said in :attr:`KittiLidarDrive.times_source`); ``calib_imu_to_velo.txt`` in
+the parent folder.
 
-- ``oxts/``: the drive's 10 Hz OXTS log (the IMU log ``imu-ground estimate`` reads from
-  the folder itself; its clock starts at the first OXTS stamp) and the vehicle's
-  track (latitude, longitude, altitude, roll, pitch, yaw) for the driven-path region;
-- ``velodyne_points/data/*.bin``: the scans, named by their sync frame number;
-- ``velodyne_points/timestamps.txt``: each scan's time; without it, the OXTS stamp
-  of the same sync frame (about 0.015 s from the scan's where both exist), said so in
-  :attr:`KittiLidarDrive.times_source`;
-- the calibration ``calib_imu_to_velo.txt`` in the parent (day) folder.
-
-Clocks
-    The stamps are KITTI's as written (local time, no zone). On a log read from the
-    folder's ``oxts/`` (or any log whose reader gives ``t0_ns``, its first stamp) a
-    scan is at ``(stamp - t0_ns) * 1e-9`` s. On a ``kitti_imu100`` CSV of the same
-    drive (100 Hz) the log's clock starts at ``t0_seconds_of_day`` of ``drives.csv``
-    beside it, so a scan is at its stamp's seconds of the day minus that
-    (:func:`log_clock`, :func:`scan_times_on_log`).
+Clocks (:func:`log_clock`, :func:`scan_times_on_log`)
+    On a log with absolute stamps (``t0_ns``) a scan is at ``(stamp - t0_ns) * 1e-9``
+    s; on a ``kitti_imu100`` CSV at its stamp's seconds of the day minus
+    ``t0_seconds_of_day`` of the ``drives.csv`` beside it.
 
 Driven path (:func:`drive_path_regions`)
-    OXTS latitude and longitude on KITTI's Mercator projection (the devkit's
-    ``latToScale`` / ``latlonToMercator``), altitude up, and the attitude
-    ``R_{w<-imu} = R_z(yaw) R_y(pitch) R_x(roll)``; the future track at each scan turned
-    into the LiDAR's axes with ``calib_imu_to_velo.txt`` (``x_velo = R x_imu + T``):
-    :class:`~imu_ground.evaluation.lidar.PathRegion`.
+    OXTS latitude and longitude on KITTI's Mercator projection (the devkit's), altitude
+    up, attitude ``R_{w<-imu} = R_z(yaw) R_y(pitch) R_x(roll)``; each scan's future
+    track in the LiDAR's axes: :class:`~imu_ground.evaluation.lidar.PathRegion`.
 
 Summaries (:func:`drive_summary`, :func:`pooled_summary`)
-    Per method, deg, estimate minus LiDAR: the pitch and roll spreads (sample standard
-    deviation of the difference, each method's constant offset removed) with their
-    moving-block bootstrap intervals, the angle between the normals (with and
-    without the offset), the offsets; pooled over drives, each drive's difference
-    centred on its own mean (the spread a per-drive mounting calibration leaves),
-    the degrees of freedom one a drive. The fit's own repeatability: the
-    frame-to-frame noise of the LiDAR pitch and roll (standard deviation of the
-    second difference / sqrt(6)).
+    Per method, deg, estimate minus LiDAR: pitch and roll spreads (sample std, offset
+    removed) with moving-block bootstrap intervals, the angles, the offsets; pooled,
+    each drive centred on its own mean (one degree of freedom a drive).
+    :func:`fit_noise`: the fit's own frame-to-frame noise.
 """
 from __future__ import annotations
 
@@ -50,6 +35,7 @@ import pandas as pd
 from imu_ground.errors import OptionError
 from imu_ground.evaluation.lidar import PathRegion, bootstrap_spread, lidar_summary, path_region, scan_files
 from imu_ground.filters.extrinsics import Extrinsic
+from imu_ground.so3 import rotx, roty, rotz
 
 __all__ = ["EARTH_RADIUS_M", "KittiLidarDrive", "check_sync_folder", "drive_path_regions", "drive_summary", "find_lidar_drives",
            "fit_noise", "is_kitti_sync_folder", "log_clock", "oxts_track", "pooled_summary",
@@ -199,24 +185,6 @@ def scan_times_on_log(drive: KittiLidarDrive, clock: tuple[str, float]) -> np.nd
     return (drive.stamps_ns % day).astype(float) * 1e-9 - start
 
 
-def _rz(a):
-    c, s = np.cos(a), np.sin(a)
-    z, o = np.zeros_like(a), np.ones_like(a)
-    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
-
-
-def _ry(a):
-    c, s = np.cos(a), np.sin(a)
-    z, o = np.zeros_like(a), np.ones_like(a)
-    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1), np.stack([-s, z, c], -1)], -2)
-
-
-def _rx(a):
-    c, s = np.cos(a), np.sin(a)
-    z, o = np.zeros_like(a), np.ones_like(a)
-    return np.stack([np.stack([o, z, z], -1), np.stack([z, c, -s], -1), np.stack([z, s, c], -1)], -2)
-
-
 def oxts_track(drive: KittiLidarDrive) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The vehicle's track from the folder's OXTS packets, on the OXTS clock (s from the first stamp).
 
@@ -238,7 +206,7 @@ def oxts_track(drive: KittiLidarDrive) -> tuple[np.ndarray, np.ndarray, np.ndarr
     east = scale * EARTH_RADIUS_M * lon
     north = scale * EARTH_RADIUS_M * np.log(np.tan(math.pi / 4 + lat / 2))
     pos = np.column_stack([east - east[0], north - north[0], x["alt"].to_numpy() - x["alt"].to_numpy()[0]])
-    rot = _rz(x["yaw"].to_numpy()) @ _ry(x["pitch"].to_numpy()) @ _rx(x["roll"].to_numpy())
+    rot = rotz(x["yaw"].to_numpy()) @ roty(x["pitch"].to_numpy()) @ rotx(x["roll"].to_numpy())
     return np.asarray(imu.t, dtype=float), pos, rot
 
 

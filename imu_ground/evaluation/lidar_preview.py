@@ -1,14 +1,9 @@
 """The LiDAR plane in a bird's-eye preview of real images, and a distance the LiDAR measured read off each view.
 
-:func:`add_lidar_plane` takes an image preview
-(:func:`~imu_ground.evaluation.preview.images_preview`) and one LiDAR scan per image:
-it adds the plane fitted to each scan (:func:`~imu_ground.evaluation.lidar.fit_ground_plane`:
-its attitude and its height, which the IMU's planes do not have: they keep the camera's static
-height) as a third bird's-eye view (``"lidar"``), and reads a measured distance off every view:
-the road point the LiDAR measured nearest to ``distance`` m straight ahead (an inlier
-of the fit, in the ground frame) is projected into the image with the static
-extrinsics; each plane then says how far ahead that pixel is. The view whose reading
-matches the LiDAR's own distance puts the image's road where it is.
+:func:`add_lidar_plane` adds the plane fitted to each image's scan (attitude and height)
+as a bird's-eye view ``"lidar"``, and projects the LiDAR's road point nearest ``distance``
+m ahead into the image with the static extrinsics: each view says how far ahead that
+pixel is, the right one what the LiDAR measured.
 """
 from __future__ import annotations
 
@@ -42,8 +37,7 @@ def measured_point(points: np.ndarray, normal: np.ndarray, d: float, transform: 
         Ground <- LiDAR (:func:`~imu_ground.evaluation.lidar.lidar_transform`).
     distance : float
     threshold : float
-        Road points: within this of the plane, m. At grazing angles a point's height moves
-        its reading by ``distance / camera height`` times as much (2 cm: 0.35 m at 30 m).
+        Road points: within this of the plane, m.
     """
     pts = np.asarray(points, dtype=float)[:, :3]
     road = pts[np.abs(pts @ normal + d) < threshold]
@@ -61,10 +55,9 @@ def add_lidar_plane(preview: Preview, scans: str | Path, spec: str | Path, imu_e
     Parameters
     ----------
     preview : Preview
-        An image preview; its ``planes`` gain ``"lidar"``, its ``readings`` one caption per
-        view and frame, its ``marks`` the measured point per frame (ground frame x, y, m).
+        An image preview; gains ``planes["lidar"]``, ``readings`` and ``marks`` (ground x, y, m).
     scans : str or Path
-        A folder of scans (KITTI ``.bin``, ``.pcd``, ``.ply``), one per image, in the images' order.
+        A folder of scans, one per image, in the images' order.
     spec : str or Path
         The LiDAR's extrinsic (:func:`~imu_ground.evaluation.lidar.lidar_transform`).
     imu_extrinsic : optional
@@ -94,12 +87,10 @@ def add_lidar_plane(preview: Preview, scans: str | Path, spec: str | Path, imu_e
         heights.append(d - n_g @ transform.translation)        # the ground origin's height above the measured road
         measured.append(measured_point(pts, normal, d, transform, distance))
     pitch, roll = L.lidar_pitch_roll(np.array(normals), transform.rotation)
-    # the measured plane: its attitude, and its height (the camera is as much higher above it as the ground origin)
     tilted = GroundPlane.from_pitch_roll(cam, pitch, roll)
     lifted = tilted.translation + np.outer(heights, [0.0, 0.0, 1.0])
     preview.planes["lidar"] = GroundPlane(cam.K, tilted.rotation, lifted, cam.image_size)
     marks = np.array(measured)
-    # the measured point's pixel, through the static extrinsics (camera and LiDAR both fixed on the body)
     ext = cam.extrinsic
     in_cam = (marks - ext.translation) @ ext.rotation                # R^T (x_g - t), row-wise
     with np.errstate(invalid="ignore", divide="ignore"):

@@ -1,42 +1,23 @@
-r"""Error metrics for ground-normal estimates: per frame and per drive.
+r"""Error metrics for ground-normal estimates, per frame and per drive: pitch and roll in rad, errors in deg.
 
-Angles in, degrees out
-----------------------
-Every function takes pitch and roll in **radians** (the library's unit) and
-reports errors in **degrees** (the unit results are read in).
-
-Conventions: pitch and roll are those of the vehicle body relative to the road
-plane, KITTI's: pitch positive = nose down, roll positive = left side up, body
-attitude relative to the road ``Ry(pitch) @ Rx(roll)`` (the road's heading is
-irrelevant to its normal). The road normal expressed in the body frame (FLU)
-is then ``n = (Ry(pitch) Rx(roll))^T e_z = (-sin p, sin r cos p, cos r cos p)``.
+Pitch and roll are the body's relative to the road (KITTI's: pitch + nose down,
+roll + left side up, attitude ``Ry(pitch) @ Rx(roll)``); the road normal in the body
+frame (FLU) is ``n = (-sin p, sin r cos p, cos r cos p)``.
 
 Per frame (:func:`frame_errors`)
-    * ``angle``: angle between the estimated and the true unit normals, deg,
-      in [0, 180], from ``atan2(|n1 x n2|, n1 . n2)`` (accurate for tiny
-      angles, where ``acos`` of the dot product loses half the digits);
-    * ``pitch``, ``roll``: signed errors, estimate minus truth, deg, wrapped to
-      (-180, 180].
+    ``angle`` between the normals, deg, in [0, 180] (``atan2(|n1 x n2|, n1 . n2)``,
+    accurate for tiny angles); ``pitch``, ``roll``: estimate minus truth, deg,
+    wrapped to (-180, 180].
 
 Per drive (:func:`summarize`, :func:`evaluate_drive`)
-    over the frames of a mask (e.g. moving frames, speed > 3 m/s): ``n``,
-    ``mean``, ``median``, ``rms``, ``p95`` (95th percentile) of the *absolute*
-    errors, and ``bias`` (mean of the signed error; for the angle, which has no
-    sign, it equals ``mean``).
+    Over the masked frames: ``n``, ``mean``, ``median``, ``rms``, ``p95`` of the
+    absolute errors and ``bias`` (mean signed error; the angle's equals ``mean``).
 
-The real-data protocol: mean removal
-------------------------------------
-On real drives the reference is ``pitch + grade`` of the GPS/INS, whose drive
-mean is the static mounting offset between the INS and the car body (plus the
-car's static stance). An IMU-only estimator has its own constant offset (the
-IMU's mounting on the body). Both are what a one-off extrinsic calibration
-removes, and neither says anything about how well the *motion* of the ground
-normal is tracked. So with ``remove_mean=True`` the estimate and the reference
-are each replaced by their deviation from their own mean over the evaluated
-(masked, finite) frames before the errors are computed; pitch and roll are
-centred separately and the normals rebuilt from the centred angles. The
-constant estimate "always level" then scores the spread of the reference
-itself. Synthetic data with an exact truth use ``remove_mean=False``.
+Mean removal (``remove_mean=True``, the real-data protocol)
+    The estimate and the reference are each centred on their own mean over the
+    evaluated frames (pitch and roll separately, the normals rebuilt from the
+    centred angles): the static mounting offsets a calibration removes. Synthetic
+    drives with an exact truth use ``remove_mean=False``.
 """
 from __future__ import annotations
 
@@ -46,13 +27,8 @@ import numpy as np
 import pandas as pd
 
 __all__ = [
-    "normal_from_pitch_roll",
-    "normal_angle",
-    "wrap_angle",
-    "frame_errors",
-    "summarize",
-    "evaluate_drive",
-    "per_drive_table",
+    "normal_from_pitch_roll", "normal_angle", "wrap_angle", "frame_errors", "summarize", "evaluate_drive",
+    "per_drive_table"
 ]
 
 

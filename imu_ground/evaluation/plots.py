@@ -102,14 +102,11 @@ def plot_pitch_over_time(drive, tracks: dict, path: Path, methods: Optional[Sequ
 def pitch_over_time_figure(drive, tracks: dict, methods: Optional[Sequence[str]] = None):
     """Pitch (and roll, where the truth has it) relative to the road over time: reference and estimates.
 
-    Panels, on one time axis: pitch of the reference, the :data:`HIGHLIGHTED` methods there
-    (the first, the default, with its 1-sigma band); roll likewise where the truth has a
-    roll (synthetic drives); pitch of every other method (each its own colour and line
-    style; one within :data:`SAME_RMS_DEG` of an earlier one says so in the legend); the speed with the line of :data:`~imu_ground.evaluation.reference.MIN_SPEED` (m/s), below
-    which frames are not scored.
-    Real drives (``drive.remove_mean``) show estimates and reference less their means over
-    the scored frames. Angles in deg, pitch + nose down, roll + left side up; legends sit
-    right of the panels, off the curves.
+    Panels on one time axis: pitch of the reference and the :data:`HIGHLIGHTED` methods (the
+    default with its 1-sigma band); roll likewise (synthetic drives); every other method's
+    pitch (one within :data:`SAME_RMS_DEG` of an earlier one says so); the speed with
+    :data:`~imu_ground.evaluation.reference.MIN_SPEED`. Real drives show estimates and
+    reference less their means over the scored frames. Deg, pitch + nose down, roll + left up.
 
     Parameters
     ----------

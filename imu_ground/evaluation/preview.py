@@ -1,16 +1,11 @@
 """Bird's-eye previews: what the static and the dynamic ground plane do to an inverse perspective image.
 
-:func:`synthetic_preview` simulates a drive whose camera (KITTI's camera 2:
-height, intrinsics and mount) sees lane markings and a metric grid on the true
-moving road (:func:`~imu_ground.evaluation.simulate.camera.render_road`), runs
-the default estimation method on the drive's IMU and returns, per frame, the
-camera image's planes (static extrinsic, estimate, truth) and the lane-width
-error against distance over the drive's moving frames.
-:func:`images_preview` does the same for a user's images and an estimate of their
-log (no truth). :func:`render_preview` draws one picture per frame (camera view,
-the bird's-eye views, the lane-width plot) with matplotlib: a PNG (one frame; the
-plotted lane-width errors are stored in its ``lane_width_error`` text chunk as
-JSON) or an animated GIF (Pillow).
+:func:`synthetic_preview`: a simulated drive seen by a KITTI camera (lane markings and a
+grid on the true road, :func:`~imu_ground.evaluation.simulate.camera.render_road`), the
+default method's planes beside the static and the true ones, and the lane-width error
+against distance. :func:`images_preview`: a user's images with an estimate of their log.
+:func:`render_preview`: one picture a frame (matplotlib), a PNG (the lane-width errors as
+JSON in its :data:`PNG_KEY` text chunk) or an animated GIF (Pillow).
 """
 from __future__ import annotations
 
@@ -26,6 +21,7 @@ import numpy as np
 
 from imu_ground.errors import ImuGroundError, OptionError
 from imu_ground.evaluation.ground_effect import LANE_WIDTH, ground_errors
+from imu_ground.evaluation.lidar import read_times
 from imu_ground.evaluation.simulate import SpeedParams, simulate
 from imu_ground.evaluation.simulate.camera import render_road
 from imu_ground.filters.extrinsics import Extrinsic
@@ -45,9 +41,7 @@ PNG_KEY = "lane_width_error"
 #: Distances of the lane-width plot, m.
 PLOT_DISTANCES = np.arange(5.0, 60.01, 2.5)
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".ppm")
-#: Most pixels a side of a drawn bird's-eye view: a finer grid is drawn at the coarser resolution
-#: :func:`drawn_grid` gives (a panel of the picture is about 520 x 250 pixels, so nothing visible is
-#: lost), which bounds the preview's memory and time whatever the grid.
+#: Most pixels a side of a drawn bird's-eye view (:func:`drawn_grid`): bounds memory and time whatever the grid.
 DRAWN_BEV_PIXELS = 1200
 
 
@@ -72,8 +66,7 @@ class Preview:
     lanes : bool
         Draw the true lane lines (``+- LANE_WIDTH / 2``) over the bird's-eye views (simulation only).
     readings : dict of str to list of str
-        Per plane name, one caption a frame under its bird's-eye view (a distance read off it;
-        :func:`~imu_ground.evaluation.lidar_preview.add_lidar_plane`).
+        Per plane name, one caption a frame (:func:`~imu_ground.evaluation.lidar_preview.add_lidar_plane`).
     marks : ndarray (F, 2), optional
         Per frame, a road point ``(x, y)`` (m, ahead and left) crossed on every bird's-eye view.
     """
@@ -98,8 +91,7 @@ def synthetic_preview(seed: int = 3, duration: float = 40.0, frames: int = 1, gr
     seed, duration : int, float
         The drive (:func:`~imu_ground.evaluation.simulate.simulate`, urban style, navigation-grade IMU).
     frames : int
-        Frames to show, centred on the moving frame with the largest true pitch of the
-        body relative to the road (the static extrinsic's worst moment).
+        Frames to show, centred on the moving frame with the largest true pitch.
     grid : BevGrid
     camera : str or Camera
 
@@ -142,27 +134,6 @@ def synthetic_preview(seed: int = 3, duration: float = 40.0, frames: int = 1, gr
     return Preview(cam, planes, em.t[sel], image, lane,
                    f"synthetic drive (seed {seed}), camera {cam.name}: bird's-eye views, method "
                    f"{default_method(True)}", labels, lanes=True)
-
-
-def _read_times(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such times file (--times: one time a line, s on the log's clock)")
-    times, linenos = [], []
-    for lineno, line in enumerate(path.read_text().splitlines(), start=1):
-        text = line.split("#", 1)[0].strip()
-        if not text:
-            continue
-        try:
-            value = float(text.split()[0].rstrip(","))
-        except ValueError:
-            raise ImuGroundError(f"{path}:{lineno}: {text!r} is not a time in seconds (--times: one time a line)") from None
-        if not math.isfinite(value):
-            raise ImuGroundError(f"{path}:{lineno}: {text!r} is not a finite time (--times)")
-        times.append(value)
-        linenos.append(lineno)
-    if not times:
-        raise ImuGroundError(f"{path}: no time in the file (--times: one time a line, s on the log's clock)")
-    return np.array(times), np.array(linenos)
 
 
 def _check_increasing(path: Path, times: np.ndarray, linenos: np.ndarray) -> None:
@@ -209,9 +180,8 @@ def images_preview(images: str | Path, times: str | Path, camera: str | Camera, 
 
     Raises
     ------
-    ValueError, FileNotFoundError
-        One line naming the file: unreadable or wrong-size image, time outside the
-        log, counts that differ.
+    ImuGroundError, FileNotFoundError
+        One line naming the file: unreadable or wrong-size image, a bad times file, counts that differ.
     """
     folder, times_path = Path(images), Path(times)
     if not folder.is_dir():
@@ -219,7 +189,7 @@ def images_preview(images: str | Path, times: str | Path, camera: str | Camera, 
     files = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
     if not files:
         raise ImuGroundError(f"{folder}: no image ({', '.join(IMAGE_SUFFIXES)}) in the folder (--images)")
-    t_img, linenos = _read_times(times_path)
+    t_img, linenos = read_times(times_path)
     if len(t_img) != len(files):
         raise ImuGroundError(f"{times_path}: {len(t_img)} times for {len(files)} images in {folder}; give --times one "
                              "line per image, in the images' name order")

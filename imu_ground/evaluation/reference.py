@@ -40,20 +40,9 @@ import pandas as pd
 from imu_ground.errors import ImuGroundError
 
 __all__ = [
-    "WINDOW_M",
-    "MIN_SPEED",
-    "FRAME_RATE",
-    "MAX_GRADE_DEG",
-    "MAX_PITCH_REL_ROAD_DEG",
-    "MIN_MOVING_FRAMES",
-    "Reference",
-    "ReferenceCheck",
-    "drop_out_of_order",
-    "frame_times",
-    "travelled_distance",
-    "smoothed_grade",
-    "pitch_reference",
-    "check_reference",
+    "WINDOW_M", "MIN_SPEED", "FRAME_RATE", "MAX_GRADE_DEG", "MAX_PITCH_REL_ROAD_DEG", "MIN_MOVING_FRAMES", "Reference",
+    "ReferenceCheck", "drop_out_of_order", "frame_times", "travelled_distance", "smoothed_grade", "pitch_reference",
+    "check_reference", "sample_gap"
 ]
 
 #: Length of the centred distance window over which the grade is averaged, m.
@@ -128,7 +117,7 @@ def travelled_distance(t: np.ndarray, speed: np.ndarray) -> np.ndarray:
     """
     from scipy.integrate import cumulative_trapezoid
     t = np.asarray(t, dtype=float)
-    return cumulative_trapezoid(np.asarray(speed, dtype=float), t, initial=0.0) if t.size > 1 else np.zeros_like(t)
+    return cumulative_trapezoid(np.asarray(speed, dtype=float), t, initial=0) if t.size > 1 else np.zeros_like(t)
 
 
 def smoothed_grade(s: np.ndarray, grade: np.ndarray, window_m: float = WINDOW_M,
@@ -175,6 +164,14 @@ def smoothed_grade(s: np.ndarray, grade: np.ndarray, window_m: float = WINDOW_M,
     ok = den > 1e-6
     out[ok] = num[ok] / den[ok]
     return out
+
+
+def sample_gap(t: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """Distance from each of ``times`` to the nearest of the increasing sample times ``t`` (non-empty), s."""
+    if t.size < 2:
+        return np.abs(times - t[0])
+    j = np.clip(np.searchsorted(t, times), 1, t.size - 1)
+    return np.minimum(np.abs(times - t[j - 1]), np.abs(t[j] - times))
 
 
 @dataclass
@@ -254,11 +251,7 @@ def pitch_reference(df: pd.DataFrame, times: np.ndarray | None = None, *,
 
     tf = frame_times(t, rate) if times is None else np.asarray(times, dtype=float)
     inside = (tf >= t[0]) & (tf <= t[-1])
-    j = np.clip(np.searchsorted(t, tf), 1, max(t.size - 1, 1))
-    if t.size > 1:
-        near = np.minimum(np.abs(tf - t[j - 1]), np.abs(t[j] - tf))
-    else:
-        near = np.abs(tf - t[0])
+    near = sample_gap(t, tf)
     nan = np.nan
     f_pitch = np.interp(tf, t, pitch, left=nan, right=nan)
     f_grade = np.interp(tf, t, grade_s, left=nan, right=nan)

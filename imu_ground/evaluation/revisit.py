@@ -1,31 +1,21 @@
 r"""Revisit consistency: the road's attitude must repeat where a drive passes the same place twice.
 
-A real drive has no road-relative roll reference, and its pitch reference
-(:mod:`imu_ground.evaluation.reference`) rests on the INS vertical velocity,
-whose noise sets a floor above the errors it is asked to judge. The INS
-*attitude* is much better (about 0.03 deg). Where a drive passes the same place
-twice in the same direction, the road's own attitude there (grade and bank
-relative to gravity, seen from a car heading the same way) is the same on both
-passes, so::
+Where a drive passes the same place twice in the same direction, the road's own
+attitude there is the same on both passes, so::
 
     road_pitch = INS pitch - estimated pitch relative to the road
     road_roll  = INS roll  - estimated roll relative to the road
 
-must repeat between the passes, and any difference is the estimator's error on
-one pass or the other (the static mounting offset cancels).
+must repeat; a difference is the estimator's error (the mounting offset cancels).
+This needs no grade reference and checks roll too. The INS and the estimators
+share signs (pitch + nose down, roll + left side up). Angles in rad unless a name
+ends in ``_deg``.
 
-Sign conventions: the KITTI INS pitch is positive front down and its roll
-positive left side up; the estimators' ``pitch`` (nose down +) and ``roll``
-(left side up +) of the body relative to the road use the same senses, so the
-two subtract directly. Angles in and out of the functions here are radians
-unless a name ends in ``_deg``.
-
-Pairs (:func:`revisit_pairs`): frames (10 Hz) above ``min_speed`` (3 m/s),
-positions within ``max_distance`` (1 m), headings within ``max_heading``
-(15 deg), at least ``min_separation`` (30 s) apart; every frame keeps its closest
-partner (by position) and each unordered pair counts once. The metric
-(:func:`revisit_consistency`) per angle is ``mean |difference| / sqrt(2)``: the
-per-pass error when the two passes' errors are independent and alike.
+Pairs (:func:`revisit_pairs`): frames above ``min_speed``, within ``max_distance``
+and ``max_heading`` of each other, at least ``min_separation`` apart; each frame
+keeps its closest partner, each unordered pair once. The metric
+(:func:`revisit_consistency`) is ``mean |difference| / sqrt(2)``: the per-pass error
+of two independent, alike passes.
 """
 from __future__ import annotations
 
@@ -34,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imu_ground.evaluation.reference import MIN_SPEED, drop_out_of_order
+from imu_ground.evaluation.reference import MIN_SPEED, drop_out_of_order, sample_gap
 
 __all__ = ["RevisitPairs", "drive_revisit_pairs", "ins_at_frames", "revisit_consistency", "revisit_differences",
            "revisit_pairs", "revisit_table"]
@@ -163,9 +153,7 @@ def ins_at_frames(df, times: np.ndarray) -> dict[str, np.ndarray]:
            "yaw": at(np.unwrap(d["yaw"].to_numpy(float))), "x": at(d["px"].to_numpy(float)),
            "y": at(d["py"].to_numpy(float)),
            "speed": at(np.hypot(d["ve"].to_numpy(float), d["vn"].to_numpy(float)))}
-    k = np.clip(np.searchsorted(ts, times), 1, len(ts) - 1)
-    gap = np.minimum(np.abs(times - ts[k - 1]), np.abs(ts[k] - times))
-    out["near"] = gap <= 0.1
+    out["near"] = sample_gap(ts, times) <= 0.1
     return out
 
 

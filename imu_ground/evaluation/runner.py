@@ -1,33 +1,15 @@
 """Compare ground-normal methods on drives with ground truth: real KITTI and synthetic.
 
-Every method is a constructor of an estimator that follows the estimator
-protocol (:class:`~imu_ground.filters.estimator.GroundEstimator`): it is built with
-the drive's extrinsic (``factory(extrinsic=...)``) and run over the drive's
-ego-motion (``run(egomotion, smooth)``). :data:`EVALUATION_METHODS` lists them:
-the library's methods under their CLI names (the one registry,
-:data:`imu_ground.filters.methods.METHODS`, the constant normal ``naive`` included)
-plus the evaluation's own research baselines (standard EKF, the reference code's
-variant and the tuned variant of the paper's filter). :func:`evaluate` runs methods over drives
-(:mod:`imu_ground.evaluation.drives`) and reports per drive and method:
-
-- the error statistics over the evaluated frames (valid, moving), pitch for
-  every drive, roll and the normal angle where the truth has them;
-- ``seg_pitch_mean``: the mean absolute pitch error with the means removed per
-  moving segment (between stops) instead of per drive;
-- the pitch error by condition (speed bins, turning, braking, near a stop,
-  rough road; :mod:`imu_ground.evaluation.conditions`);
-- ``ref_floor``: the error a perfect estimator would show against the
-  reference, from its per-frame uncertainty (at most the method's own error on
-  the drive, as ``ref_share`` is at most 1), and ``ref_share``, the share of
-  the mean squared error the reference alone can explain (0..1: a drive whose
-  reference variance exceeds its error, e.g. a short one whose slow reference
-  error goes with the removed mean, is all explained);
-- the pitch error by the reference's own uncertainty (bins of ``ref_sigma``,
-  :data:`SIGMA_BINS`), so a reader sees where the reference can judge a tenth
-  of a degree and where it cannot (:func:`sigma_table`);
-- on real drives that pass the same place twice, the revisit consistency of
-  pitch and roll (:mod:`imu_ground.evaluation.revisit`), a check that needs no
-  grade reference (:func:`~imu_ground.evaluation.revisit.revisit_table`).
+Every method is a :class:`~imu_ground.filters.methods.MethodSpec` (built with the
+drive's extrinsic, run over its ego-motion). :data:`METHODS`: the registry's
+(:data:`imu_ground.filters.methods.METHODS`) then the evaluation's research
+baselines. :func:`evaluate` runs methods over drives
+(:mod:`imu_ground.evaluation.drives`) and reports per drive and method the error
+statistics (pitch; roll and the normal angle where the truth has them), the
+per-segment metric, the error by condition (:mod:`~imu_ground.evaluation.conditions`),
+``ref_floor`` and ``ref_share`` (what the reference's own uncertainty explains), the
+error by that uncertainty (:func:`sigma_table`) and, on real drives passing a place
+twice, the revisit consistency (:mod:`imu_ground.evaluation.revisit`).
 """
 from __future__ import annotations
 
@@ -48,24 +30,9 @@ from imu_ground.errors import OptionError
 from imu_ground.filters.methods import METHODS as REGISTRY, MethodSpec
 
 __all__ = [
-    "EVALUATION_METHODS",
-    "METHODS",
-    "TUNED",
-    "Drive",
-    "Method",
-    "check_methods",
-    "methods_from_list",
-    "conditions_table",
-    "evaluate",
-    "format_table",
-    "load_real_drive",
-    "load_real_drives",
-    "SIGMA_BINS",
-    "run_method",
-    "sigma_table",
-    "summary_table",
-    "synthetic_drive",
-    "synthetic_drives",
+    "EVALUATION_METHODS", "METHODS", "TUNED", "Drive", "Method", "check_methods", "methods_from_list",
+    "conditions_table", "evaluate", "format_table", "load_real_drive", "load_real_drives", "SIGMA_BINS", "run_method",
+    "sigma_table", "summary_table", "synthetic_drive", "synthetic_drives"
 ]
 
 #: Tuned parameters of the paper's method (the GroundNormalFilter with the

@@ -25,6 +25,7 @@ import numpy as np
 
 from imu_ground.errors import MalformedFileError
 from imu_ground.filters.extrinsics import Extrinsic
+from imu_ground.so3 import project
 
 __all__ = ["IMU_HEIGHT", "KITTI_CALIB_FILES", "KITTI_ROTATION_TOL", "read_kitti_calib", "kitti_extrinsics",
            "kitti_rectified_cameras"]
@@ -121,11 +122,6 @@ def _rect0_from_imu(calib_dir: Path, iv: dict, vc: dict, cc: dict) -> np.ndarray
     return t_rect0_cam0 @ t_cam0_velo @ t_velo_imu
 
 
-def _extrinsic(m: np.ndarray, meta: dict) -> Extrinsic:
-    u, _, vt = np.linalg.svd(m[:3, :3])
-    return Extrinsic(u @ vt, m[:3, 3], meta)
-
-
 def kitti_extrinsics(calib_dir: str | Path) -> dict[str, Extrinsic]:
     """The IMU's and the four rectified cameras' static extrinsics (ground <- sensor) of a KITTI raw folder.
 
@@ -181,5 +177,5 @@ def kitti_rectified_cameras(calib_dir: str | Path) -> dict[int, tuple[Extrinsic,
         t_g_cam = t_g_imu @ np.linalg.inv(t_recti_rect0 @ t_rect0_imu)
         meta = {"platform": "kitti", "sensor": f"cam{i}_rect (x right, y down, z forward)",
                 "derived_from": f"{calib_dir.name}/calib_*.txt"}
-        out[i] = (_extrinsic(t_g_cam, meta), k, (int(round(w)), int(round(h))))
+        out[i] = (Extrinsic(project(t_g_cam[:3, :3]), t_g_cam[:3, 3], meta), k, (int(round(w)), int(round(h))))
     return out

@@ -2,22 +2,16 @@ r"""The road plane seen by a camera, frame by frame: :class:`GroundPlane`, and t
 
 Frames and signs
 ----------------
-- **Camera** axes: x right, y down, z forward (optical axis); pixel ``(u, v)``
-  sees the ray ``K^-1 (u, v, 1)``, whose z component is 1, so a point's depth is
-  its distance along that ray's scale.
-- **Road** frame ``r``: x forward along the road, y left, z up along the road
-  normal, origin on the road surface. With :meth:`GroundPlane.from_camera` it is
-  the estimate's road frame: origin below the vehicle's reference point (the ground
-  frame's origin), ``R_rc = E · R_gc`` and ``t_rc = E · t_gc`` with ``E`` the
-  residual rotation road <- body of the estimate and ``(R_gc, t_gc)`` the
-  camera's static extrinsic (ground <- camera). The static extrinsic is ``E = I``.
-- **Plane** in camera axes: ``n · X + d = 0`` with ``n`` the unit road normal
-  pointing up (about ``(0, -1, 0)`` for a level forward camera) and ``d`` the
-  camera's height above the road, m (about 1.65 on KITTI); these four numbers are
-  the KITTI object ``planes`` files' ``a b c d``.
+- **Camera** axes: x right, y down, z forward; pixel ``(u, v)`` sees the ray
+  ``K^-1 (u, v, 1)`` (z component 1: a point's depth is the ray's scale).
+- **Road** frame ``r``: x forward, y left, z up along the road normal, origin on the
+  road. With :meth:`GroundPlane.from_camera`: ``R_rc = E · R_gc``, ``t_rc = E · t_gc``
+  with ``E`` the estimate's residual rotation road <- body and ``(R_gc, t_gc)`` the
+  camera's static extrinsic (ground <- camera); the static extrinsic is ``E = I``.
+- **Plane** in camera axes: ``n · X + d = 0``, ``n`` the unit road normal pointing up,
+  ``d`` the camera's height above the road, m (KITTI ``planes`` files' ``a b c d``).
 
-Everything is batch-first: a :class:`GroundPlane` holds ``N`` frames and every
-query returns a leading axis of ``N``.
+Batch-first: a :class:`GroundPlane` holds ``N`` frames, every query a leading axis of ``N``.
 """
 from __future__ import annotations
 
@@ -98,13 +92,10 @@ def range_error(distance: Any, dpitch: Any, droll: Any = 0.0, height: Any = 1.65
                 first_order: bool = False) -> np.ndarray:
     r"""How far a ground point's estimated range moves when the road plane is off by ``dpitch``, ``droll``.
 
-    A camera ``height`` m above a flat road sees the road point ``distance`` m ahead
-    and ``lateral`` m to the left of the point below it. Intersecting the pixel's ray
-    with a plane through the same point below the camera but tilted by the errors
-    (estimated minus true pitch, + nose down, and roll, + left side up, of the body
-    relative to the road, rad) gives another point; the result is its ground range
-    (distance from the point below the camera, measured in the tilted plane) minus
-    the true one, m. NaN where the ray misses the tilted plane (at or above its horizon).
+    The ray to the road point ``distance`` m ahead and ``lateral`` m left of the point
+    below a camera ``height`` m up, intersected with the plane through that point tilted
+    by the errors (estimated minus true pitch, + nose down, and roll, + left side up,
+    rad): its ground range in the tilted plane minus the true one, m; NaN above the horizon.
 
     Parameters
     ----------
@@ -116,18 +107,12 @@ def range_error(distance: Any, dpitch: Any, droll: Any = 0.0, height: Any = 1.65
         Camera height above the road, m.
     first_order : bool
         The linearisation ``-(rho^2 + height^2) (distance dpitch - lateral droll) / (rho height)``
-        (``rho`` the true ground range) instead of the exact value; straight ahead and far
-        (``lateral = 0``, ``distance >> height``) it is the familiar ``-distance^2 dpitch / height``.
+        (``rho`` the true ground range; far ahead ``-distance^2 dpitch / height``).
 
     Returns
     -------
     ndarray
         Broadcast shape of the inputs, m; negative: the point looks closer than it is.
-
-    Examples
-    --------
-    0.5 deg pitch error, 50 m ahead, camera 1.65 m up: about -13.2 m to first order;
-    exact -10.5 m for +0.5 deg and +18.0 m for -0.5 deg.
     """
     d, y, dp, dr, h = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in
                                             (distance, lateral, dpitch, droll, height)))
@@ -155,12 +140,7 @@ class GroundPlane:
     translation : array_like (N, 3) or (3,)
         The camera origin in the road frame, m (its z: the camera's height above the road).
     image_size : tuple of int, optional
-        ``(width, height)``, pixels (informative; queries do not clip to it).
-
-    Notes
-    -----
-    Frames with NaN in their rotation or translation (e.g. gaps in an estimate) give
-    NaN everywhere.
+        ``(width, height)``, pixels (queries do not clip to it). Frames with NaN give NaN.
     """
 
     def __init__(self, K: Any, rotation: Any, translation: Any, image_size: tuple[int, int] | None = None) -> None:
@@ -184,8 +164,7 @@ class GroundPlane:
         camera : Camera
             Intrinsics and static extrinsic ground <- camera (:class:`~imu_ground.perception.Camera`).
         residual : array_like (N, 3, 3) or (3, 3), optional
-            Per-frame rotation road <- body of an estimate (its track's ``residual``; the
-            quaternion ``qw qx qy qz`` of the output table); identity when None.
+            Per-frame rotation road <- body of an estimate (its track's ``residual``); identity when None.
         """
         e = np.eye(3)[None] if residual is None else _batch(residual, (3, 3), "residual")
         ext = camera.extrinsic
@@ -215,8 +194,7 @@ class GroundPlane:
         rotation : array_like (3, 3) or (N, 3, 3), optional
             Camera <- ``F`` rotation; None when the normal is already in camera axes.
         forward : array_like (3,)
-            Camera-axes direction whose projection onto the road is the road frame's x
-            (default the optical axis). The road frame's origin is the point below the camera.
+            Camera-axes direction projected onto the road as its x (origin below the camera).
         image_size : tuple of int, optional
         """
         n = _batch(normal, (3,), "normal")

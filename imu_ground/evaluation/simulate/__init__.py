@@ -1,24 +1,12 @@
 r"""Synthetic drives with exact ground truth: a vehicle on a rough road, and its IMU.
 
-A drive is built from small value types, one module each, every step vectorised
-over the samples:
-
-- :mod:`~imu_ground.evaluation.simulate.road`: :class:`RoadParams`, the road as a
-  function of the distance travelled (curvature, grade, cross-slope) and its
-  ISO 8608 roughness per wheel track;
-- :mod:`~imu_ground.evaluation.simulate.vehicle`: :class:`VehicleParams` and
-  :class:`SpeedParams`, the speed profile in time and the body's pitch, roll and
-  heave on its suspension (three second-order systems driven by the road under
-  the wheels and by the longitudinal and lateral specific force);
-- :mod:`~imu_ground.evaluation.simulate.imu_errors`: :class:`ImuErrorModel` and
-  its presets (white noise, bias random walk, turn-on bias);
-- :mod:`~imu_ground.evaluation.simulate.kinematics`: exact attitude, angular rate,
-  specific force and position of the sensor;
-- :mod:`~imu_ground.evaluation.simulate.drive`: :func:`simulate` and
-  :class:`SimResult`; :mod:`~imu_ground.evaluation.simulate.suite`:
-  :func:`simulate_suite` (varied random drives); :mod:`~imu_ground.evaluation.simulate.second_pass`:
-  :func:`second_pass` (the same road driven again, for revisit checks with exact truth);
-- :mod:`~imu_ground.evaluation.simulate.smooth`: the closed-form smooth profiles.
+Modules: :mod:`~imu_ground.evaluation.simulate.road` (:class:`RoadParams`: layout and
+ISO 8608 roughness), :mod:`~imu_ground.evaluation.simulate.vehicle` (:class:`VehicleParams`,
+:class:`SpeedParams`: speed profile and suspension), :mod:`~imu_ground.evaluation.simulate.imu_errors`
+(:class:`ImuErrorModel`), :mod:`~imu_ground.evaluation.simulate.kinematics` (exact sensor
+motion), :mod:`~imu_ground.evaluation.simulate.drive` (:func:`simulate`, :class:`SimResult`),
+:mod:`~imu_ground.evaluation.simulate.suite` (:func:`simulate_suite`),
+:mod:`~imu_ground.evaluation.simulate.second_pass` (:func:`second_pass`: the same road again).
 
 Conventions
 -----------
@@ -50,45 +38,21 @@ Frames and signs as in the glossary of :mod:`imu_ground.so3`; specifically:
 
 Exactness
 ---------
-Every rotation and its first two time derivatives are closed-form: the speed
-profile, curvature, grade and bank are made of septic (C^3) smooth steps (with
-their integrals: speed, distance, heading), and the three suspension systems
-are discretised exactly for a first-order-hold input on a fine time grid
-(default 1 kHz), which gives their state exactly at the grid points and the
-angular acceleration from the differential equation. The angular rate comes
-from the Euler-angle rates through the kinematic chain, the specific force from
-the analytic acceleration of the sensor (road path, heave and the lever arm
-with the body's angular rate and acceleration). The positions are the
-Gauss-Legendre (3-point) integral of the analytic velocity. So noise-free
+Every rotation and its first two time derivatives are closed-form (septic smooth-step
+profiles and their integrals, :mod:`~imu_ground.evaluation.simulate.smooth`); the
+suspension is discretised exactly for a first-order-hold input on a fine grid; the
+positions are the 3-point Gauss-Legendre integral of the analytic velocity. Noise-free
 samples are the exact derivatives of the truth trajectory.
 """
-from imu_ground.evaluation.simulate.drive import (
-                                                 TRUTH_ANGLES,
-                                                 TRUTH_COLUMNS,
-                                                 SimResult,
-                                                 simulate,
-)
-from imu_ground.evaluation.simulate.imu_errors import (
-                                                 IMU_PRESETS,
-                                                 ImuErrorModel,
-                                                 imu_error_model,
-)
+from imu_ground.evaluation.simulate.drive import TRUTH_ANGLES, TRUTH_COLUMNS, SimResult, simulate
+from imu_ground.evaluation.simulate.imu_errors import IMU_PRESETS, ImuErrorModel, imu_error_model
 from imu_ground.evaluation.simulate.remount import remounted
 from imu_ground.evaluation.simulate.road import (
-                                                 ISO8608_CLASSES,
-                                                 ISO8608_N0,
-                                                 ROAD_PLANE_WINDOW,
-                                                 RoadParams,
-                                                 iso8608_psd,
-                                                 road_profile,
+    ISO8608_CLASSES, ISO8608_N0, ROAD_PLANE_WINDOW, RoadParams, iso8608_psd, road_profile
 )
 from imu_ground.evaluation.simulate.second_pass import second_pass
 from imu_ground.evaluation.simulate.suite import simulate_suite
-from imu_ground.evaluation.simulate.vehicle import (
-                                                 SpeedParams,
-                                                 VehicleParams,
-                                                 suspension_response,
-)
+from imu_ground.evaluation.simulate.vehicle import SpeedParams, VehicleParams, suspension_response
 from imu_ground.units import GRAVITY
 
 __all__ = [

@@ -15,49 +15,19 @@ import numpy as np
 
 from imu_ground import so3
 from imu_ground.errors import OptionError
-from imu_ground.evaluation.simulate.imu_errors import (
-    ImuErrorModel,
-    imu_error_model,
-    imu_errors,
-)
-from imu_ground.evaluation.simulate.kinematics import (
-    quat_wxyz,
-    road_positions,
-    sensor_kinematics,
-)
-from imu_ground.evaluation.simulate.road import (
-    RoadParams,
-    road_layout,
-    road_profile,
-    rough_plane,
-)
-from imu_ground.evaluation.simulate.vehicle import (
-    SpeedParams,
-    VehicleParams,
-    body_motion,
-    speed_profile,
-)
+from imu_ground.evaluation.simulate.imu_errors import ImuErrorModel, imu_error_model, imu_errors
+from imu_ground.evaluation.simulate.kinematics import quat_wxyz, road_positions, sensor_kinematics
+from imu_ground.evaluation.simulate.road import RoadParams, road_layout, road_profile, rough_plane
+from imu_ground.evaluation.simulate.vehicle import SpeedParams, VehicleParams, body_motion, speed_profile
 from imu_ground.imu.data import ImuData
 
 if TYPE_CHECKING:
     import pandas as pd
 
 __all__ = [
-    "MAX_DURATION_S",
-    "MAX_IMU_RATE_HZ",
-    "MAX_IMU_SAMPLES",
-    "TRUTH_ANGLES",
-    "TRUTH_COLUMNS",
-    "SimResult",
-    "as_extrinsic",
-    "check_rates",
-    "check_seed",
-    "clean_drive",
-    "drive_on_road",
-    "drive_road",
-    "finish_drive",
-    "motion_of",
-    "simulate",
+    "MAX_DURATION_S", "MAX_IMU_RATE_HZ", "MAX_IMU_SAMPLES", "TRUTH_ANGLES", "TRUTH_COLUMNS", "SimResult",
+    "as_extrinsic", "check_rates", "check_seed", "clean_drive", "drive_on_road", "drive_road", "finish_drive",
+    "motion_of", "simulate"
 ]
 
 TRUTH_COLUMNS = (

@@ -1,30 +1,10 @@
 r"""IMU errors of the simulator: white noise, bias random walk and turn-on bias per axis.
 
-Presets (one sigma, per axis; white noise std at rate ``fs`` is ``density * sqrt(fs)``)
--------------------------------------------------------------------------------------
-``"nav"`` (navigation-grade GPS/INS like KITTI's OXTS RT3003):
-    gyro noise 0.0025 deg/s/sqrt(Hz) (0.15 deg/sqrt(h); OXTS RT3000-series
-    datasheets quote an ARW of 0.2 deg/sqrt(h); KITTI raw 100 Hz OXTS data at standstill,
-    engine running, shows 0.021-0.031 deg/s per sample, i.e. 0.002-0.003
-    deg/s/sqrt(Hz)), gyro in-run bias instability 2 deg/h (datasheet) as a
-    random walk of 2 deg/h per 100 s, turn-on gyro bias 10 deg/h (stationary
-    KITTI means are 5-40 deg/h, Earth rate included); accelerometer noise
-    0.0008 m/s^2/sqrt(Hz) (~80 ug/sqrt(Hz); KITTI standstill 0.006-0.010 m/s^2 per
-    sample at 100 Hz), bias random walk 1e-5 m/s^3/sqrt(Hz) (10 ug per 100 s),
-    turn-on 0.005 m/s^2 (0.5 mg).
-``"mems"`` (phone / consumer MEMS, Bosch BMI160 / InvenSense MPU-6500 class):
-    gyro noise 0.007 deg/s/sqrt(Hz) (BMI160 datasheet typ.; MPU-6500 0.01), bias
-    random walk 1 deg/h per sqrt(s) (10 deg/h of wander over 100 s, the order of
-    consumer-MEMS in-run bias instability), turn-on gyro bias 1 deg/s (BMI160 zero-rate
-    offset +-3 deg/s typ. before offset compensation; phones' bias calibration leaves
-    ~0.1-1 deg/s); accelerometer noise 180 ug/sqrt(Hz) (BMI160 typ.; MPU-6500 300
-    ug/sqrt(Hz)), bias random walk 1e-4 m/s^3/sqrt(Hz) (0.1 mg per 100 s), turn-on
-    0.2 m/s^2 (~20 mg; BMI160 zero-g offset +-40 mg typ.).
-``"perfect"``: no error at all.
-
-Both real presets are the sensor's own errors: vibration of a phone holder or an
-engine above the body's own motion is not in them (pass a model with larger
-densities, e.g. :meth:`ImuErrorModel.scaled`, to emulate it).
+Presets (:data:`IMU_PRESETS`, one sigma per axis; white noise std at rate ``fs`` is
+``density * sqrt(fs)``): ``"nav"``, a navigation-grade GPS/INS like KITTI's OXTS RT3003
+(its datasheet); ``"mems"``, a consumer MEMS IMU of the Bosch BMI160 / InvenSense
+MPU-6500 class (their datasheets); ``"perfect"``, no error. They are the sensor's own
+errors: vibration of a holder or an engine is not in them (:meth:`ImuErrorModel.scaled`).
 """
 from __future__ import annotations
 
@@ -90,7 +70,6 @@ class ImuErrorModel:
 
 
 IMU_PRESETS: dict[str, ImuErrorModel] = {
-    # Sources and reasoning in the module docstring.
     "nav": ImuErrorModel(
         name="nav",
         gyro_noise_density=0.0025 * DEG,             # 0.15 deg/sqrt(h)

@@ -1,38 +1,19 @@
-r"""The simulated road: layout along the distance travelled, and its roughness.
+r"""The simulated road: layout along the distance travelled ``s`` (m), and its roughness.
 
-A road is a function of the distance travelled ``s`` (m):
+Layout (:func:`road_layout`): horizontal curvature (1/m, > 0 turning left; the
+heading follows), grade (rad, uphill +), cross-slope (rad, left edge higher +: the
+crown on straights and in curves driven below ``superelevation_speed``,
+superelevation above it).
 
-- horizontal **curvature** (straights, curves with smooth transitions; the
-  heading follows), 1/m, > 0 turning left;
-- **grade** (vertical curves between constant grades), rad, uphill positive;
-- **cross-slope** (crown on straights, superelevation in curves driven above
-  ``superelevation_speed``, 50 km/h: urban streets and intersections keep their
-  crown through the turn, as urban design guides such as Germany's RASt 06 keep
-  the 2.5 % cross-fall), rad, > 0 when the left edge is higher;
-- a random **roughness** profile per wheel track after ISO 8608.
+Roughness (:func:`road_profile`): ISO 8608 displacement PSD ``G_d(n) = G_d(n0) (n /
+n0)^-w``, ``n0 = 0.1`` cycles/m, classes A-D (:data:`ISO8608_CLASSES`, m^3); the
+waviness ``w`` is 2 above ``n0`` and :data:`LONG_WAVINESS` below it by default (a
+two-slope fit; ``waviness=(2, 2)`` is ISO 8608's simplified spectrum), in the band
+``0.011 <= n <= 2.83`` cycles/m. The two wheel tracks are Gaussian profiles with the
+coherence ``exp(-k n B)`` (``B`` the track width, ``k = coherence_decay``).
 
-Road roughness
---------------
-ISO 8608: displacement PSD ``G_d(n) = G_d(n0) (n / n0)^-w``, ``n0 = 0.1``
-cycles/m, class A ``16e-6``, B ``64e-6``, C ``256e-6``, D ``1024e-6`` m^3 (the
-geometric means of the classes). The waviness ``w`` is ISO 8608's 2 above ``n0``
-(wavelengths under 10 m) and :data:`LONG_WAVINESS` (2.5) below it by default:
-measured roads depart from the single slope at long wavelengths (two-slope fits
-such as Dodds & Robson's), and the real KITTI drives' 10 m-smoothed grade
-carries about twice the power at 18-90 m wavelengths (0.1-0.5 Hz at their ~9 m/s)
-that the single slope extrapolates from the body's 0.5-5 Hz motion
-(``waviness=(2, 2)`` gives ISO 8608's simplified spectrum). The band is ``0.011 <= n <= 2.83`` cycles/m
-(wavelengths 0.35 m to 90 m; the upper edge stands in for the tyre's
-enveloping of shorter wavelengths). The left and right wheel tracks are two
-Gaussian profiles with that PSD and the coherence ``c(n) = exp(-k n B)`` (``B``
-the track width, ``k = coherence_decay``, default 4: 0.77 at 25 m wavelength,
-0.08 at 2 m), so long waves lift both wheels together and short ones roll the
-body.
-
-The road plane of the truth is the macro road plus the roughness smoothed over
-:data:`ROAD_PLANE_WINDOW` metres (:func:`rough_plane`): undulations longer than
-that are road geometry (what a camera sees and what the real-data reference
-keeps in its 10 m grade), shorter ones shake the body.
+The truth's road plane is the macro road plus the roughness smoothed over
+:data:`ROAD_PLANE_WINDOW` metres (:func:`rough_plane`); shorter undulations shake the body.
 """
 from __future__ import annotations
 
@@ -46,15 +27,8 @@ from imu_ground.evaluation.simulate.smooth import Piecewise
 from imu_ground.units import DEG, GRAVITY
 
 __all__ = [
-    "ISO8608_CLASSES",
-    "ISO8608_N0",
-    "ROAD_PLANE_WINDOW",
-    "LONG_WAVINESS",
-    "RoadParams",
-    "iso8608_psd",
-    "road_layout",
-    "road_profile",
-    "rough_plane",
+    "ISO8608_CLASSES", "ISO8608_N0", "ROAD_PLANE_WINDOW", "LONG_WAVINESS", "RoadParams", "iso8608_psd", "road_layout",
+    "road_profile", "rough_plane"
 ]
 
 ISO8608_N0 = 0.1                       # cycles/m

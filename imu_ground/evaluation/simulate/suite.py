@@ -7,12 +7,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from imu_ground.evaluation.simulate.drive import (
-    SimResult,
-    as_extrinsic,
-    check_rates,
-    check_seed,
-    clean_drive,
-    finish_drive,
+    SimResult, as_extrinsic, check_rates, check_seed, clean_drive, finish_drive
 )
 from imu_ground.errors import OptionError
 from imu_ground.evaluation.simulate.imu_errors import ImuErrorModel, imu_error_model
@@ -23,9 +18,7 @@ from imu_ground.units import DEG
 
 __all__ = ["MAX_SUITE_DRIVES", "STYLE_MIX", "SuiteRanges", "check_suite_size", "random_drive", "simulate_suite"]
 
-#: Share of each driving style in a suite, like the shared real KITTI drives: mostly
-#: city and residential streets (about 9 m/s on average while moving), some country
-#: road, one motorway drive in 31.
+#: Share of each driving style in a suite, like the shared real KITTI drives.
 STYLE_MIX = {"urban": 0.4, "mixed": 0.3, "rural": 0.2, "highway": 0.1}
 
 
@@ -43,12 +36,7 @@ class SuiteRanges:
     Mount: misalignment std per axis (rad) and lever-arm box (m). Speed:
     probability of starting at rest.
 
-    Calibrated to the shared real KITTI drives (``benchmarks/studies/sim_vs_real.py``): their
-    smoothed grade varies by only ~0.3 deg within a moving stretch (median; 0.2-0.6
-    interquartile, reference noise included) and changes at ~0.06 deg/s below 0.1 Hz:
-    flat city streets with short rises, not long hills; their mean roll of ~1.6 deg is
-    a 2.5-3 % crown (with the mount); their gyro pitch rate peaks at 1.3-1.5 Hz,
-    broader than a lightly damped 1.1 Hz pitch mode.
+    Calibrated to the shared real KITTI drives (``benchmarks/studies/sim_vs_real.py``).
     """
 
     roughness_level: tuple[float, float] = (ISO8608_CLASSES["B"], ISO8608_CLASSES["C"])

@@ -1,33 +1,20 @@
 r"""The simulated vehicle: speed profile in time, and the body on its suspension.
 
 Speed
------
-A speed profile in time (cruising, accelerating, braking, stops) made of
-smooth-step phases of the longitudinal acceleration (:func:`speed_profile`):
-speed and distance are its closed-form integrals, and stops are exact (speed
-exactly 0, no creeping).
+    Smooth-step phases of the longitudinal acceleration (:func:`speed_profile`);
+    speed and distance are closed-form integrals, stops exact.
 
 Suspension
-----------
-``x'' + 2 zeta w x' + w^2 x = w^2 (r(t) + l(t)) + 2 zeta w r'(t)`` for pitch,
-roll and heave (unit static gain), with ``r`` the road input, transmitted by the
-springs and, through its velocity, by the dampers (the base-excited quarter car
-``(c s + k) / (m s^2 + c s + k)``: above the body's resonance the road's motion
-falls off as ``1/f``, not ``1/f^2``, which is what the real drives' body pitch at
-2-5 Hz shows; ``VehicleParams.damper_road_input=False`` drops it), and ``l`` the
-load: for pitch ``-K_pitch * f_x``, for roll ``+K_roll * f_y`` (``f`` the specific
-force of the reference point in the road frame: acceleration and, with ``gravity_load_transfer``, the components
-of gravity along the grade and the cross-slope). Braking (``f_x < 0``) thus
-pitches the nose down, ``pitch = K_pitch * deceleration`` once the transient
-has died out; a left turn (``f_y > 0``) rolls the body to the right, i.e. raises
-its left side relative to the road (positive roll). Road inputs: pitch
-``-(h_front - h_rear) / wheelbase`` (track-averaged); roll
-``(h_left - h_right) / track`` (axle-averaged); heave the height of the wheel
-plane under the reference point. The three systems are discretised exactly for
-a first-order-hold input (:func:`suspension_response`, with the filter design of
-:func:`imu_ground.filters.design.foh_filter`); the damper's share is the
-response's own derivative, exact too (the road rate is the profile's slope under
-each wheel times the speed).
+    ``x'' + 2 zeta w x' + w^2 x = w^2 (r(t) + l(t)) + 2 zeta w r'(t)`` for pitch, roll
+    and heave (unit static gain): ``r`` the road input through springs and dampers
+    (the base-excited quarter car; ``VehicleParams.damper_road_input=False`` drops
+    the damper term), ``l`` the load: pitch ``-K_pitch * f_x``, roll ``+K_roll * f_y``
+    (``f`` the specific force of the reference point in the road frame; with
+    ``gravity_load_transfer`` also gravity along the grade and cross-slope): braking
+    pitches the nose down, a left turn raises the left side. Road inputs: pitch
+    ``-(h_front - h_rear) / wheelbase``, roll ``(h_left - h_right) / track``, heave the
+    wheel plane under the reference point. Discretised exactly for a first-order-hold
+    input (:func:`suspension_response`, :func:`imu_ground.filters.design.foh_filter`).
 """
 from __future__ import annotations
 
@@ -43,13 +30,7 @@ from imu_ground.filters.design import foh_filter
 from imu_ground.units import DEG, GRAVITY
 
 __all__ = [
-    "STOP_BRAKE",
-    "STYLES",
-    "SpeedParams",
-    "VehicleParams",
-    "body_motion",
-    "speed_profile",
-    "suspension_response",
+    "STOP_BRAKE", "STYLES", "SpeedParams", "VehicleParams", "body_motion", "speed_profile", "suspension_response"
 ]
 
 
