@@ -32,7 +32,7 @@ from imu_ground.cli._common import say, warn_line
 from imu_ground.errors import ImuGroundError, OptionError
 from imu_ground.filters.methods import reference_methods
 
-__all__ = ["DEFAULT_ROW", "FITS", "add_lidar_flags", "check_lidar", "lidar_drives_report", "run_lidar"]
+__all__ = ["DEFAULT_ROW", "FITS", "add_lidar_flags", "check_lidar", "lidar_drives_report", "run_lidar", "write_said"]
 
 #: The name of ``estimate``'s default (method auto, speed auto) among the methods of the drive form.
 DEFAULT_ROW = "default"
@@ -168,7 +168,7 @@ def _check_outputs(a: argparse.Namespace, inputs: list, named: list, extra: tupl
     check_run_paths([("-o", a.plot), *texts], [*named, *input_paths(a)])
 
 
-def _write(path: str, text: str) -> None:
+def write_said(path: str, text: str) -> None:
     """``text`` written to ``path`` whole (or not at all), then said."""
     from imu_ground.pipeline.output import atomic_path
     with atomic_path(path) as tmp:
@@ -284,9 +284,9 @@ def run_lidar(a: argparse.Namespace) -> int:
         "of the pitch difference, lo95..hi95 its moving-block bootstrap interval, p_best: share of the draws in "
         "which the method ranks first, vs_best_*: the interval of its spread minus the best method's; roll as changes only: the region sees the lane's crown)")
     if a.csv:
-        _write(a.csv, frames.to_csv(index=False, float_format="%.5f"))
+        write_said(a.csv, frames.to_csv(index=False, float_format="%.5f"))
     if a.markdown:
-        _write(a.markdown, format_table(summary, "markdown") + "\n")
+        write_said(a.markdown, format_table(summary, "markdown") + "\n")
     if a.plot:
         _plot(a.plot, frames, Path(log).name)
     return 0
@@ -603,9 +603,9 @@ def run_lidar_drives(a: argparse.Namespace) -> int:
                              f" ({'same' if e['holds'] else 'not the same'} order of all methods)")
             say(f"  {key}: " + "; ".join(parts))
     if a.json:
-        _write(a.json, json.dumps(_plain(report), indent=1, allow_nan=False) + "\n")
+        write_said(a.json, json.dumps(_plain(report), indent=1, allow_nan=False) + "\n")
     if a.csv:
-        _write(a.csv, frames.to_csv(index=False, float_format="%.5f"))
+        write_said(a.csv, frames.to_csv(index=False, float_format="%.5f"))
     if a.markdown:
         parts = []
         for fit, block in report["fits"].items():
@@ -613,7 +613,7 @@ def run_lidar_drives(a: argparse.Namespace) -> int:
                 parts.append(f"{d['drive']} ({fit}, {d['scans']} scans):\n\n" + format_table(_table(d["methods"]),
                                                                                               "markdown"))
             parts.append(f"pooled ({fit}):\n\n" + format_table(_table(block["pooled"]["methods"]), "markdown"))
-        _write(a.markdown, "\n\n".join(parts) + "\n")
+        write_said(a.markdown, "\n\n".join(parts) + "\n")
     if a.plot:
         first = report["fit"]
         drives = list(dict.fromkeys(frames["drive"]))

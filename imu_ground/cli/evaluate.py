@@ -7,7 +7,7 @@ from pathlib import Path
 import argparse
 import numpy as np
 
-from imu_ground.cli._lidar import add_lidar_flags, run_lidar
+from imu_ground.cli._lidar import add_lidar_flags, run_lidar, write_said
 from imu_ground.cli._common import LazyHelp, add_progress_flag, input_paths, nonnegative_int, progress_enabled, say
 from imu_ground.datasets.storage import is_url, join, local_input, local_name, staged_folder
 from imu_ground.errors import ImuGroundError
@@ -19,7 +19,7 @@ from imu_ground.evaluation.runner import (
 from imu_ground.evaluation.revisit import revisit_table
 from imu_ground.evaluation.simulate.suite import MAX_SUITE_DRIVES, check_suite_size
 from imu_ground.pipeline.input_checks import check_creatable
-from imu_ground.pipeline.output import atomic_path, check_output_path, check_run_paths
+from imu_ground.pipeline.output import check_output_path, check_run_paths
 
 __all__ = ["register", "run"]
 
@@ -102,11 +102,6 @@ def _check(a: argparse.Namespace) -> list:
     return methods
 
 
-def _write_text(path: str, text: str) -> None:
-    with atomic_path(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
-
-
 def run(a: argparse.Namespace) -> int:
     """Load the drives, run the methods, print the summary (and per-drive) tables, write the files asked for."""
     if a.lidar:
@@ -159,8 +154,7 @@ def run(a: argparse.Namespace) -> int:
         say("\nper drive (mean absolute error, deg: pitch for real drives, normal angle for synthetic):")
         say(format_table(per[[m for m in methods if m in per.columns]], "text"))
     if a.csv:
-        _write_text(a.csv, res.to_csv(index=False, float_format="%.5f"))
-        say(f"wrote {a.csv}")
+        write_said(a.csv, res.to_csv(index=False, float_format="%.5f"))
     if a.markdown:
         md = format_table(table[cols], "markdown") + "\n"
         if len(sig):
@@ -168,8 +162,7 @@ def run(a: argparse.Namespace) -> int:
         if len(rev):
             md += ("\nRevisit consistency (mean |difference| / sqrt(2), deg):\n\n"
                    + format_table(rev, "markdown") + "\n")
-        _write_text(a.markdown, md)
-        say(f"wrote {a.markdown}")
+        write_said(a.markdown, md)
     if a.plots:
         with staged_folder(a.plots) as folder:     # a URL: written here, then uploaded
             written = list(evaluation_plots(drives, res, tracks, Path(folder)))

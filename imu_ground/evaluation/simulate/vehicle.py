@@ -59,17 +59,8 @@ class VehicleParams:
 
 #: Driving styles: speed range (m/s), probability of a stop at each change,
 #: cruise duration (s) between changes, acceleration and braking magnitudes (m/s^2)
-#: and the largest speed change of one manoeuvre (m/s).
-#:
-#: Calibrated to the shared real KITTI drives (city, residential, country road and
-#: one motorway; ~9 m/s on average while moving): drivers there change speed every
-#: ~8 s (holds between speed changes of median 1.2 s, 90 % under 6 s), by a median
-#: of 1.6 m/s (accelerating) and 2.9 m/s (braking), at mean accelerations of
-#: 0.5-0.6 m/s^2 over 3-5 s (peaks 90 % under 1.8 and 2.1 m/s^2). Traffic keeps
-#: the speed moving around the style's range rather than jumping across it. Through
-#: the suspension's ~0.25 deg per m/s^2 (fitted per real drive: median 0.265) this
-#: slow speed modulation is the body's slow pitch relative to the road; the rest of
-#: the real reference's slow pitch is the INS's own error (``benchmarks/studies/sim_vs_real.py``).
+#: and the largest speed change of one manoeuvre (m/s); calibrated to the shared real KITTI drives
+#: (``benchmarks/studies/sim_vs_real.py``).
 STYLES: dict[str, dict[str, Any]] = {
     "urban": dict(speed=(4.0, 14.0), stop_p=0.08, cruise=(0.3, 3.0), accel=(0.35, 1.6), brake=(0.35, 1.9), step=5.0),
     "rural": dict(speed=(10.0, 18.0), stop_p=0.02, cruise=(0.5, 6.0), accel=(0.3, 1.3), brake=(0.3, 1.5), step=5.0),
@@ -248,14 +239,8 @@ def _road_inputs(vehicle: VehicleParams, s_f, v_f, rough):
 
 
 def _base_excited(road, road_rate, load, dt_f: float, freq: float, damping: float, damper: bool = True):
-    """One suspension mode driven by the road through spring and damper, and by a load.
-
-    ``x'' + 2 zeta w x' + w^2 x = w^2 (road + load) + 2 zeta w road'``: the damper
-    transmits the road's velocity (the base-excited quarter car, ``(c s + k) / (m s^2
-    + c s + k)``), the load (load transfer, a force) only through the spring's static
-    gain. By linearity, with ``y`` the response of the plain system to the road,
-    ``x = y + (2 zeta / w) y' + x_load``. ``damper=False``: the road through the spring only.
-    """
+    """One suspension mode (module docstring): by linearity ``x = y + (2 zeta / w) y' + x_load``, ``y`` the
+    plain response to the road (``damper=False``: without the ``y'`` term)."""
     y, yd, ydd = suspension_response(road, dt_f, freq, damping)
     x_l, xd_l, xdd_l = suspension_response(load, dt_f, freq, damping)
     w = 2.0 * math.pi * freq
