@@ -3,20 +3,14 @@
 Two forms, told apart by the first path:
 
 - ``--lidar DRIVE_DIR [DRIVE_DIR ...]``: KITTI raw sync folders as they come
-  (:mod:`imu_ground.evaluation.lidar_kitti`): ``oxts/`` is the IMU log (or ``--log FILE``,
-  a 100 Hz log of the same drive, paired with its folder by the drive's name), the
-  scans' times from ``velodyne_points/timestamps.txt`` (else the OXTS stamps), the
-  calibration from the parent folder (or ``--lidar-extrinsic``); per drive and pooled,
-  per fit (``--lidar-fit``, ``--lidar-region``), ``--json`` writes it all
-  (:func:`lidar_drives_report`);
+  (:mod:`imu_ground.evaluation.lidar_kitti`; ``--log FILE`` a log of the same drive instead
+  of ``oxts/``), per drive and pooled, per fit (:func:`lidar_drives_report`);
 - ``--lidar LOG SCANS --times FILE --lidar-extrinsic SPEC`` (or ``--lidar LOG
   --lidar-planes DIR``): one log, any scans, times given.
 
-The log is read and estimated once (:func:`~imu_ground.pipeline.estimate_log`, the
-``estimate`` command's default: the row ``default`` in the drive form, ``estimate
-(METHOD)`` in the other); the methods of ``evaluate --real`` run on the same frames;
-each is compared with the LiDAR planes at the scans' times
-(:mod:`imu_ground.evaluation.lidar`).
+The log is estimated once (:func:`~imu_ground.pipeline.estimate_log`, ``estimate``'s
+defaults: the row ``default``, or ``estimate (METHOD)``); the methods of ``evaluate
+--real`` run on the same frames; each is compared with the planes at the scans' times.
 """
 from __future__ import annotations
 
@@ -89,8 +83,8 @@ def add_lidar_flags(v: argparse.ArgumentParser) -> None:
 
 
 def _drive_form(a: argparse.Namespace) -> bool:
-    """The ``DRIVE_DIR`` form: the first path is a KITTI raw sync folder (``oxts/`` and ``velodyne_points/``), or,
-    without ``--times`` and ``--lidar-planes``, every path is a folder holding ``oxts/`` (then told what is missing)."""
+    """The ``DRIVE_DIR`` form: the first path is a KITTI raw sync folder, or (without ``--times`` and
+    ``--lidar-planes``) every path holds ``oxts/``."""
     from imu_ground.evaluation.lidar_kitti import is_kitti_sync_folder
     if is_kitti_sync_folder(a.lidar[0]):
         return True
@@ -424,15 +418,14 @@ def lidar_drives_report(folders: list, logs: dict | None = None, methods: list |
         drive, calib = _drive_checked(folder, lidar_extrinsic)
         log = logs.get(drive.name, drive.folder)
         total = len(drive.files)
-        if max_scans is not None and max_scans < total:
+        cut = max_scans is not None and max_scans < total
+        if cut:
             drive.files, drive.frames, drive.stamps_ns = (drive.files[:max_scans], drive.frames[:max_scans],
                                                           drive.stamps_ns[:max_scans])
         res, estimates = _estimates(log, methods, extrinsic, DEFAULT_ROW)
-        clock = K.log_clock(log, res.meta.get("t0_ns"))
-        t_scan = K.scan_times_on_log(drive, clock)
+        t_scan = K.scan_times_on_log(drive, K.log_clock(log, res.meta.get("t0_ns")))
         keep, left_out = _scans_used(t_scan, res.track, min_speed)
-        if max_scans is not None and max_scans < total:
-            left_out.insert(0, f"the first {max_scans} of {total} scans (--lidar-scans)")
+        left_out[:0] = [f"the first {max_scans} of {total} scans (--lidar-scans)"] if cut else []
         ground_from_lidar = L.lidar_transform(calib, ext)
         lidar_from_imu = _lidar_from_imu(ground_from_lidar, ext)
         files = [f for f, k in zip(drive.files, keep, strict=True) if k]
@@ -448,12 +441,12 @@ def lidar_drives_report(folders: list, logs: dict | None = None, methods: list |
             normals, fitted = [], []
             for f, r in zip(files, regions, strict=True):
                 try:
-                    fits = L.fit_scans([f], r, seed=seed, ground=ground)
+                    normal, _ = L.fit_ground_plane(L.read_scan(f), r, seed=seed, source=str(f), ground=ground)
                 except OptionError as e:                       # no road in this scan's region: left out, said so
                     note(drive.name, f"{name}: {' '.join(str(e).split())}: left out")
                     fitted.append(False)
                     continue
-                normals.append(fits[["normal_x", "normal_y", "normal_z"]].to_numpy()[0])
+                normals.append(normal)
                 fitted.append(True)
             ok = np.array(fitted, dtype=bool)
             if ok.sum() < 2:

@@ -79,15 +79,8 @@ CONDITIONS = {"speed_3_6": "3-6 m/s", "speed_6_12": "6-12 m/s", "speed_over_12":
 
 def _centred_mean(x: np.ndarray, half: int) -> np.ndarray:
     """Centred moving mean over ``2 half + 1`` samples, windows truncated at the ends, NaN ignored."""
-    ok = np.isfinite(x)
-    c = np.concatenate([[0.0], np.cumsum(np.where(ok, x, 0.0))])
-    n = np.concatenate([[0], np.cumsum(ok)])
-    idx = np.arange(x.size)
-    lo = np.clip(idx - half, 0, x.size)
-    hi = np.clip(idx + half + 1, 0, x.size)
-    cnt = n[hi] - n[lo]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(cnt > 0, (c[hi] - c[lo]) / np.maximum(cnt, 1), np.nan)
+    import pandas as pd
+    return pd.Series(x).rolling(2 * half + 1, center=True, min_periods=1).mean().to_numpy()
 
 
 def frame_signals(egomotion, extrinsic_rotation: np.ndarray, speed: np.ndarray) -> dict[str, np.ndarray]:

@@ -1,19 +1,11 @@
 """What a plane error does to perception: ground-point range and lane-width errors of a camera.
 
-A ground point seen by the camera is found by intersecting its pixel's ray with
-the road plane the camera believes in. :func:`ground_errors` takes the true
-planes and the believed ones (static extrinsic, or an estimate) of the same frames,
-projects true road points into the image through the truth and back through the
-belief, and measures how far they land:
-
-- **range error** at ``X`` m ahead: the estimated forward distance (road frame) of
-  the road point straight ahead of the vehicle at ``X`` m, minus ``X``;
-- **lane-width error** at ``X`` m: the estimated distance between the two lane
-  lines ``Y = +- lane_width / 2`` at ``X`` m, minus ``lane_width``.
-
-:func:`drive_ground_errors` does this for a synthetic drive and an estimate's track
-(static = the camera's static extrinsic, dynamic = the estimate, truth = the
-simulator's body pitch and roll relative to the road).
+:func:`ground_errors` projects true road points into the image through the true plane
+and back through the believed one (static extrinsic, or an estimate): the **range
+error** at ``X`` m is the believed forward distance of the point straight ahead at ``X``
+minus ``X``; the **lane-width error** the believed distance between the lane lines
+``Y = +- lane_width / 2`` minus ``lane_width``. :func:`drive_ground_errors` does it for a
+drive's static, estimated and true planes.
 """
 from __future__ import annotations
 

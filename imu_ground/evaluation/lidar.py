@@ -150,21 +150,13 @@ def path_region(t_scan: float, t: Any, positions: Any, rotations: Any, lidar_fro
     ----------
     t_scan : float
         The scan's time, s, on the track's clock.
-    t : array_like (N,)
-        The track's times, s (increasing).
-    positions : array_like (N, 3)
-        The body's (IMU's) positions in a world frame (e.g. east, north, up), m.
-    rotations : array_like (N, 3, 3)
-        World <- body at each time.
+    t, positions, rotations : array_like (N,), (N, 3), (N, 3, 3)
+        The track: increasing times (s), the body's positions in a world frame (m) and world <- body.
     lidar_from_body : Extrinsic
-        LiDAR <- body: ``x_lidar = R x_body + t`` (KITTI's ``calib_imu_to_velo.txt``).
+        LiDAR <- body: ``x_lidar = R x_body + t``.
     half_width, ahead
-        As :class:`PathRegion`.
-
-    Notes
-    -----
-    Where the track ends (or the vehicle stands) before ``ahead[1]`` metres, it is
-    continued straight along its last direction (at a standstill: the body's x axis).
+        As :class:`PathRegion`. A track shorter than ``ahead[1]`` is continued straight along
+        its last direction (at a standstill: the body's x axis).
     """
     t = np.asarray(t, dtype=float)
     pos = np.asarray(positions, dtype=float)
@@ -542,11 +534,9 @@ def fit_scans(files: list[Path], region: Any = ROAD_REGION, seed: int = 0, **fit
     files : list of Path
         Scan files (:func:`read_scan`).
     region : RoadRegion, PathRegion or list of them
-        One region for every scan, or one per scan (a :class:`PathRegion` follows each scan's track).
-    seed : int
-        RANSAC's random seed.
-    **fit_options
-        Passed to :func:`fit_ground_plane` (``threshold``, ``ground``, ...).
+        One region for every scan, or one per scan.
+    seed, **fit_options
+        As :func:`fit_ground_plane`.
 
     Returns
     -------
@@ -571,22 +561,19 @@ def compare_to_lidar(t_scan: Any, lidar_pitch: Any, lidar_roll: Any, t: Any, pit
     Parameters
     ----------
     t_scan : array_like (S,)
-        Scan times, s, on the log's clock (the estimate's ``t``).
+        Scan times, s, on the log's clock.
     lidar_pitch, lidar_roll : array_like (S,)
         The LiDAR planes' body pitch and roll relative to the road, rad.
-    t, pitch, roll : array_like (N,)
-        The estimate's frame times (s, the end of each frame) and angles (rad).
-    valid : array_like of bool (N,), optional
-        Frames to use (default: finite ones).
+    t, pitch, roll, valid : array_like (N,)
+        The estimate's frame times (s), angles (rad) and valid frames (default: finite ones).
     source : str
         The log's name for messages.
 
     Returns
     -------
     pandas.DataFrame
-        ``t``, ``lidar_pitch_deg``, ``lidar_roll_deg``, ``pitch_deg``, ``roll_deg`` (the
-        estimate, linearly interpolated between its frames), ``d_pitch_deg``,
-        ``d_roll_deg`` (estimate minus LiDAR) and ``angle_deg`` (between the normals).
+        ``t``, ``lidar_pitch_deg``, ``lidar_roll_deg``, ``pitch_deg``, ``roll_deg`` (the estimate,
+        interpolated), ``d_pitch_deg``, ``d_roll_deg`` (estimate minus LiDAR), ``angle_deg``.
 
     Raises
     ------
@@ -652,20 +639,16 @@ def bootstrap_spread(differences: dict[str, Any], samples: int = 2000, block: in
     Parameters
     ----------
     differences : dict of str to array_like (S,)
-        Per method, the pitch difference estimate minus LiDAR per scan, deg.
-    samples : int
-        Bootstrap draws.
-    block : int
-        Frames a block.
-    seed : int
+        Per method, the difference estimate minus LiDAR per scan, deg.
+    samples, block, seed : int
+        Bootstrap draws, frames a block, the seed.
 
     Returns
     -------
     pandas.DataFrame
-        Index: method. ``spread`` (sample standard deviation), ``lo95`` and ``hi95``
-        (2.5 and 97.5 % bootstrap quantiles), ``p_best`` (share of the draws in which the
-        method has the smallest spread), ``vs_best_lo95`` / ``vs_best_hi95`` (the
-        interval of its spread minus the best method's, same draws).
+        Index: method. ``spread`` (sample std), ``lo95``, ``hi95`` (bootstrap quantiles),
+        ``p_best`` (share of the draws it ranks first), ``vs_best_lo95``, ``vs_best_hi95``
+        (its spread minus the best method's).
     """
     names = list(differences)
     d = np.array([np.asarray(differences[k], dtype=float) for k in names])

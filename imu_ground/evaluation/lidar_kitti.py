@@ -56,21 +56,18 @@ class KittiLidarDrive:
     Attributes
     ----------
     name : str
-        The drive (``2011_09_26_drive_0009``: the folder's name without ``_sync``).
+        The drive (the folder's name without ``_sync``).
     folder : Path
-        The sync folder.
     files : list of Path
-        The scans (``velodyne_points/data``), in name order.
+        The scans, in name order.
     frames : ndarray of int (S,)
-        Their sync frame numbers (the file names).
-    stamps_ns : ndarray of int64 (S,)
-        Each scan's time, ns since 1970 of KITTI's written (local) clock.
+        Their sync frame numbers.
+    stamps_ns, oxts_ns : ndarray of int64
+        Each scan's and each OXTS packet's time, ns since 1970 of KITTI's written (local) clock.
     times_source : str
-        Where the times come from (the Velodyne's ``timestamps.txt``, or the OXTS stamps).
+        Where the scans' times come from.
     calibration : Path or None
-        The folder holding ``calib_imu_to_velo.txt`` (the parent folder), None when absent.
-    oxts_ns : ndarray of int64
-        The OXTS stamps (ns), one per packet.
+        The folder holding ``calib_imu_to_velo.txt``.
     """
     name: str
     folder: Path
@@ -298,8 +295,7 @@ def pooled_summary(per_drive: list[pd.DataFrame]) -> dict[str, dict[str, float]]
             c = np.concatenate([g[f"d_{what}_deg"].to_numpy() - g[f"d_{what}_deg"].mean() for g in groups])
             row[f"{what}_spread_deg"] = float(np.sqrt(np.sum(c ** 2) / dof)) if dof > 0 else float("nan")
             count[(name, what)] = c
-        for key, col in (("angle_mean_deg", "angle_deg"),):
-            row[key] = float(np.mean(np.concatenate([g[col].to_numpy() for g in groups])))
+        row["angle_mean_deg"] = float(np.mean(np.concatenate([g["angle_deg"].to_numpy() for g in groups])))
         row["angle_centred_deg"] = float(np.average([lidar_summary(g)["angle_centred"] for g in groups],
                                                     weights=[len(g) for g in groups]))
         rows[name] = row

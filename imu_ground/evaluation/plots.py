@@ -90,13 +90,16 @@ def _overlap_labels(drive, tracks: dict, names: Sequence[str], centred, m: np.nd
     return labels
 
 
+def _save(fig, path: Path) -> Path:
+    """``fig`` written as a PNG to ``path`` and closed; returns ``path``."""
+    fig.savefig(path, dpi=110)
+    _plt().close(fig)
+    return Path(path)
+
+
 def plot_pitch_over_time(drive, tracks: dict, path: Path, methods: Optional[Sequence[str]] = None) -> Path:
     """Write :func:`pitch_over_time_figure` as a PNG to ``path``; returns ``path``."""
-    plt = _plt()
-    fig = pitch_over_time_figure(drive, tracks, methods)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return Path(path)
+    return _save(pitch_over_time_figure(drive, tracks, methods), path)
 
 
 def pitch_over_time_figure(drive, tracks: dict, methods: Optional[Sequence[str]] = None):
@@ -179,11 +182,7 @@ def pitch_over_time_figure(drive, tracks: dict, methods: Optional[Sequence[str]]
 
 def plot_error_distribution(errors: dict, path: Path, title: str = "") -> Path:
     """Write :func:`error_distribution_figure` as a PNG to ``path``; returns ``path``."""
-    plt = _plt()
-    fig = error_distribution_figure(errors, title)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return Path(path)
+    return _save(error_distribution_figure(errors, title), path)
 
 
 def error_distribution_figure(errors: dict, title: str = ""):
@@ -274,9 +273,7 @@ def plot_simulation(sim, path: Path) -> Path:
     ax.legend(h1 + h2, l1 + l2, fontsize=8, ncol=4, loc="upper right")
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return Path(path)
+    return _save(fig, path)
 
 
 def evaluation_plots(drives: Iterable, results: pd.DataFrame, tracks: dict, folder: Path,

@@ -105,14 +105,7 @@ def _centred(x: np.ndarray, use: np.ndarray) -> np.ndarray:
 
 
 def _ref_floor(sigma: np.ndarray, err: np.ndarray) -> float:
-    """What a perfect estimator would score on one drive against a reference of 1-sigma ``sigma``, deg.
-
-    ``sqrt(2/pi) * mean(sigma)`` (the mean absolute value of a zero-mean normal error), at most
-    the method's own mean absolute error ``mean(|err|)`` on the drive: on a short drive the
-    reference's slow error is nearly constant and goes with the removed mean, so the modelled
-    floor can exceed what is measured, and the drive's error is then all the reference's (as
-    ``ref_share`` is capped at 1). NaN without frames.
-    """
+    """``sqrt(2/pi) * mean(sigma)``, at most ``mean(|err|)`` (:mod:`~imu_ground.evaluation.conditions`), deg."""
     if not sigma.size:
         return math.nan
     return float(min(math.sqrt(2.0 / math.pi) * sigma.mean(), np.abs(err).mean()))
@@ -198,10 +191,7 @@ def methods_from_list(text: str | None) -> list[str]:
 
 def evaluate(drives: Iterable[Drive], methods: Sequence[str] | None = None,
              progress: bool = True, keep_tracks: bool = False):
-    """Run methods over drives and summarise the errors per drive.
-
-    Only valid frames count: frames the ego-motion or the estimator flags invalid
-    are left out, as are frames where the truth is not defined (below 3 m/s).
+    """Run methods over drives and summarise the errors per drive (valid frames where the truth is defined).
 
     Parameters
     ----------
@@ -265,13 +255,7 @@ def _sets(results):
 
 
 def _pooled_ref_share(g) -> float:
-    """The share of the drives' pooled squared pitch error the reference can explain, 0..1.
-
-    Each drive explains at most its own squared error: on a short drive the reference's
-    modelled variance can exceed the error measured with the drive's mean removed (its
-    slow vertical-velocity error is then nearly constant and goes with the mean), and
-    that drive counts as fully explained (as its per-drive ``ref_share``, capped at 1).
-    """
+    """The share of the drives' pooled squared pitch error the reference can explain (each drive's capped), 0..1."""
     err = g["err_sq_sum"].to_numpy(float)
     total = float(err.sum())
     return float(np.minimum(g["ref_var_sum"].to_numpy(float), err).sum() / total) if total > 0 else math.nan

@@ -1,16 +1,11 @@
 """A camera's view of the simulated road: lane markings and a metric grid on the true, moving road plane.
 
-:func:`render_road` ray-casts every pixel of a (rectified pinhole) camera onto
-the true road plane of one frame (:class:`~imu_ground.perception.GroundPlane`,
-e.g. from the simulator's body pitch and roll relative to the road) and paints
-the road point it hits: asphalt, solid white lane lines at ``Y = +- lane_width/2``,
-dashed ones one lane further out, grass beyond the road, and a metric grid (thin lines every metre
-across the road's width and every 5 m along it) that scrolls with the distance
-travelled. Pixels that see no road (above the horizon, or beyond ``max_range``)
-are sky. Each pixel is the mean of ``supersample`` x ``supersample`` rays.
-
-The road ahead is the local plane at the vehicle (grade changes and curves ahead
-are not drawn), which is exactly what a per-frame ground plane describes.
+:func:`render_road` ray-casts every pixel onto one frame's true road plane
+(:class:`~imu_ground.perception.GroundPlane`) and paints what it hits: asphalt, solid
+lane lines at ``Y = +- lane_width/2``, dashed ones a lane further out, grass beyond, and
+a metric grid that scrolls with the distance travelled; sky above the horizon or beyond
+``max_range``. Each pixel is the mean of ``supersample`` x ``supersample`` rays. The road
+ahead is the local plane at the vehicle (what a per-frame ground plane describes).
 """
 from __future__ import annotations
 

@@ -1,20 +1,12 @@
 """The same road driven a second time: what a revisit check sees when the truth is exact.
 
-:func:`second_pass` drives the road of a simulated drive again, from its start, with the
-same vehicle and the same sensor (its biases), and a speed profile of choice:
-
-- ``speed_scale=k`` (default 1): the first pass's profile at ``k`` times the speed at
-  every place (``v_2(s) = k v_1(s)``, accelerations ``k^2`` times; the pass lasts
-  ``duration / k``); with ``k = 1`` the same manoeuvre, only the sensor noise differs;
-- ``speed_seed``: a new random profile of the drive's driving style, drawn from that
-  seed, until it has covered the first pass's distance (or the first pass's duration).
-
-The road (curvature, grade, cross-slope, roughness per wheel track) is the first pass's
-as a function of the distance travelled ``s``, so frames of the two passes with the same
-``s`` (truth column) are on the same place, heading the same way. The sensor keeps the
-first pass's bias path, sample by sample (held at its last value past the first pass's
-end), with its own white noise (``noise_seed``). Frames and signs as in
-:mod:`imu_ground.evaluation.simulate`.
+:func:`second_pass` drives the road of a simulated drive again from its start, with the
+same vehicle and sensor, at ``speed_scale`` times the first pass's speed at every place
+(``v_2(s) = k v_1(s)``; ``k = 1``: only the noise differs) or with a new random profile
+of the drive's style (``speed_seed``). The road is a function of the distance ``s``, so
+frames of both passes with the same ``s`` are on the same place, heading the same way.
+The sensor keeps the first pass's bias path sample by sample (held past its end), with
+its own white noise (``noise_seed``).
 """
 from __future__ import annotations
 
