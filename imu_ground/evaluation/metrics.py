@@ -83,15 +83,12 @@ def frame_errors(est_pitch, true_pitch, est_roll=None, true_roll=None) -> pd.Dat
     ----------
     est_pitch, true_pitch : array_like, shape (N,), rad
     est_roll, true_roll : array_like, shape (N,), rad, optional
-        Both or neither. Without roll (real data: the road's cross-slope is
-        unknown) only the pitch error is returned.
+        Both or neither (without: the pitch error only).
 
     Returns
     -------
     pandas.DataFrame
-        Columns ``pitch`` (signed, estimate - truth, deg) and, with roll,
-        ``roll`` (signed, deg) and ``angle`` (between the normals, deg). NaN
-        inputs give NaN errors.
+        ``pitch`` and, with roll, ``roll`` and ``angle`` (module docstring), deg; NaN in, NaN out.
     """
     ep = np.asarray(est_pitch, dtype=float)
     tp = np.asarray(true_pitch, dtype=float)
@@ -118,15 +115,13 @@ def summarize(errors, mask=None) -> dict[str, float]:
     errors : array_like, shape (N,)
         Signed (or unsigned) errors, deg.
     mask : array_like of bool, shape (N,), optional
-        Frames to use (default all). Non-finite errors are left out as well and
-        counted in ``n_nonfinite``.
+        Frames to use (default all); non-finite errors are left out and counted in ``n_nonfinite``.
 
     Returns
     -------
     dict
-        ``n`` (frames used), ``mean``, ``median``, ``rms``, ``p95`` (95th
-        percentile, linear interpolation) of ``|errors|``, ``bias`` (mean of
-        the signed errors), ``n_nonfinite``. All NaN when no frame is used.
+        ``n``, ``mean``, ``median``, ``rms``, ``p95`` (linear interpolation) of ``|errors|``,
+        ``bias``, ``n_nonfinite``; NaN when no frame is used.
     """
     e = np.asarray(errors, dtype=float)
     m = np.ones(e.shape, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
@@ -154,18 +149,14 @@ def evaluate_drive(est_pitch, true_pitch, est_roll=None, true_roll=None, mask=No
     est_pitch, true_pitch : array_like, shape (N,), rad
     est_roll, true_roll : array_like, shape (N,), rad, optional
     mask : array_like of bool, shape (N,), optional
-        Frames evaluated, e.g. ``Reference.valid`` (moving, speed > 3 m/s).
-        Frames where any given input is not finite are left out too.
+        Frames evaluated (e.g. ``Reference.valid``); frames with a non-finite input are left out too.
     remove_mean : bool
-        The real-data protocol (module docstring): centre the estimate and the
-        truth on their own means over the evaluated frames, pitch and roll
-        separately, before computing the errors.
+        The real-data protocol (module docstring).
 
     Returns
     -------
     dict
-        ``{"pitch": summary, "roll": summary, "angle": summary}`` (the last two
-        only with roll), each as returned by :func:`summarize`.
+        ``{"pitch": ..., "roll": ..., "angle": ...}`` (the last two only with roll), each :func:`summarize`'s.
     """
     arrays = [np.asarray(est_pitch, dtype=float), np.asarray(true_pitch, dtype=float)]
     with_roll = est_roll is not None or true_roll is not None
@@ -206,9 +197,7 @@ def per_drive_table(per_drive: Mapping[str, Mapping[str, Any]], quantity: str = 
     Returns
     -------
     pandas.DataFrame
-        One row per drive (index: drive name) plus a last row ``"mean over
-        drives"`` (each statistic averaged over drives with frames; ``n``
-        summed). Every drive counts once, whatever its length.
+        One row per drive plus ``"mean over drives"`` (each drive once; ``n`` summed).
     """
     rows = {name: dict(res[quantity]) for name, res in per_drive.items()}
     table = pd.DataFrame.from_dict(rows, orient="index")

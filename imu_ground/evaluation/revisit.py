@@ -67,24 +67,14 @@ def revisit_pairs(t: np.ndarray, x: np.ndarray, y: np.ndarray, heading: np.ndarr
 
     Parameters
     ----------
-    t : ndarray (F,)
-        Frame times, s.
-    x, y : ndarray (F,)
-        Horizontal position, m (any local level frame).
-    heading : ndarray (F,)
-        Heading (yaw), rad; compared modulo 2 pi.
-    speed : ndarray (F,)
-        Horizontal speed, m/s.
+    t, x, y, heading, speed : ndarray (F,)
+        Frame times (s), horizontal position (m, any local level frame), heading (rad,
+        compared modulo 2 pi) and horizontal speed (m/s).
     usable : ndarray of bool (F,), optional
         Frames allowed to pair (e.g. valid ego-motion frames).
-    max_distance : float
-        Largest distance between the two frames, m.
-    max_heading : float
-        Largest heading difference, rad.
-    min_separation : float
-        Smallest time between the two frames, s.
-    min_speed : float
-        Both frames strictly faster than this, m/s.
+    max_distance, max_heading, min_separation, min_speed : float
+        Largest distance (m) and heading difference (rad) of a pair, smallest time between
+        its frames (s); both frames strictly faster than ``min_speed`` (m/s).
 
     Returns
     -------
