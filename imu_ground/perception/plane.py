@@ -29,8 +29,7 @@ __all__ = ["BevGrid", "GroundPlane", "range_error"]
 class BevGrid:
     """A bird's-eye (inverse perspective) grid on the road: ``x0..x1`` ahead, ``y0..y1`` to the left, ``res`` m a pixel.
 
-    The image has ``rows = round((x1 - x0) / res)`` and ``cols = round((y1 - y0) / res)``;
-    forward is up and left is left: the centre of pixel ``(col, row)`` is the road point
+    Forward is up, left is left: pixel ``(col, row)``'s centre is the road point
     ``X = x1 - (row + 0.5) res``, ``Y = y1 - (col + 0.5) res`` (m, road frame).
     """
     x0: float
@@ -258,10 +257,8 @@ class GroundPlane:
         return rays
 
     def depth(self, u: Any, v: Any, per_frame: bool = False) -> np.ndarray:
-        """(N, ...) depth (camera z, m) of the road point pixel ``(u, v)`` sees; NaN at or above the horizon.
-
-        With ``per_frame``, ``u`` and ``v`` have a leading axis of ``N``: frame ``i``'s pixels for frame ``i``.
-        """
+        """(N, ...) depth (camera z, m) of the road point pixel ``(u, v)`` sees; NaN at or above the horizon
+        (``per_frame``: ``u`` and ``v`` lead with ``N``, frame ``i``'s pixels for frame ``i``)."""
         rays = self._frame_rays(u, v, per_frame)
         denom = np.einsum("ni,n...i->n...", self.normal, rays)
         h = self.height.reshape((-1,) + (1,) * (denom.ndim - 1))

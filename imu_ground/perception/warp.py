@@ -1,10 +1,6 @@
-"""Bird's-eye (inverse perspective) images: an image resampled onto a :class:`~imu_ground.perception.BevGrid`.
-
-The warp follows the homography image pixel <- bird's-eye pixel
-(:meth:`GroundPlane.from_bev <imu_ground.perception.GroundPlane.from_bev>`) and
-samples with :func:`scipy.ndimage.map_coordinates` (bilinear by default);
-bird's-eye pixels whose road point is behind the camera or outside the image get ``fill``.
-"""
+"""Bird's-eye (inverse perspective) images: an image resampled onto a :class:`~imu_ground.perception.BevGrid`
+through the homography image pixel <- bird's-eye pixel (:meth:`GroundPlane.from_bev
+<imu_ground.perception.GroundPlane.from_bev>`) with :func:`scipy.ndimage.map_coordinates`."""
 from __future__ import annotations
 
 from typing import Any, Literal

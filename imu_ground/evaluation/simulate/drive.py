@@ -243,20 +243,16 @@ def clean_drive(duration: float, seed: int, imu_rate: float, road: RoadParams, v
 
 
 def drive_road(duration: float, seed: int, road: RoadParams, vehicle: VehicleParams, speed: SpeedParams) -> tuple:
-    """The speed profile of a drive and the road it is driven on.
-
-    The speed profile, the road layout and the roughness use the first three
-    children of ``SeedSequence(seed)`` (the IMU errors the fourth).
+    """The speed profile of a drive and the road it is driven on (the first three children of
+    ``SeedSequence(seed)``; the IMU errors use the fourth).
 
     Returns
     -------
     acc_pw : Piecewise
         Longitudinal acceleration in time (:func:`~imu_ground.evaluation.simulate.vehicle.speed_profile`).
     layout : (curvature, grade, bank)
-        Profiles along the distance travelled (:func:`~imu_ground.evaluation.simulate.road.road_layout`),
-        long enough for the drive.
+        Profiles along the distance (:func:`~imu_ground.evaluation.simulate.road.road_layout`).
     curves : list
-        The layout's curves.
     rough : (x, h_left, h_right)
         The roughness per wheel track, m (:func:`~imu_ground.evaluation.simulate.road.road_profile`).
     """
@@ -290,14 +286,11 @@ def drive_on_road(motion, duration: float, imu_rate: float, layout: tuple, rough
     Parameters
     ----------
     motion : callable
-        ``t -> (a, v, s)``: longitudinal acceleration (m/s^2), speed (m/s, >= 0) and distance along
-        the road (m) at times ``t`` (s) (:func:`motion_of`).
+        ``t -> (a, v, s)``: acceleration (m/s^2), speed (m/s, >= 0), distance (m) at ``t`` (s) (:func:`motion_of`).
     duration, imu_rate : float
         s, Hz: samples at ``k / imu_rate`` for ``k = 0 .. floor(duration * imu_rate)``.
-    layout : (curvature, grade, bank)
-        The road's profiles along the distance (:func:`~imu_ground.evaluation.simulate.road.road_layout`).
-    rough : (x, h_left, h_right)
-        Its roughness profile (:func:`~imu_ground.evaluation.simulate.road.road_profile`), m.
+    layout, rough
+        As :func:`drive_road` returns them.
     road, vehicle, R_gs, t_gs, oversample
         As for :func:`clean_drive`.
 
@@ -372,14 +365,12 @@ def simulate(duration: float = 120.0, seed: int = 0, imu: str | ImuErrorModel | 
     duration : float
         Seconds; the IMU has ``floor(duration * imu_rate) + 1`` samples from t = 0.
     seed : int
-        Everything random (speed profile, road layout, roughness, IMU errors) follows
-        from it; the IMU errors use their own stream, so the same seed with another
-        ``imu`` gives the same trajectory.
+        Everything random follows from it; the IMU errors have their own stream (the same
+        seed with another ``imu`` gives the same trajectory).
     imu : str or ImuErrorModel or None
         ``"nav"``, ``"mems"``, ``"perfect"`` (no error), or a model.
     imu_rate, frame_rate : float
-        Hz; ``imu_rate / frame_rate`` must be a whole number (truth frames fall on
-        IMU samples, the first at t = 0).
+        Hz; ``imu_rate / frame_rate`` a whole number (truth frames on IMU samples from t = 0).
     road, vehicle, speed : RoadParams, VehicleParams, SpeedParams
         Defaults when ``None``.
     R_gs, t_gs : array_like

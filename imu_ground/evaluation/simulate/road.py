@@ -44,15 +44,11 @@ LONG_WAVINESS = 2.5
 class RoadParams:
     """The road: roughness, grades, cross-slope, curves.
 
-    ``roughness``: ISO 8608 class letter (``"A"``-``"D"``), a level ``G_d(n0)`` in m^3,
-    or ``None`` for a smooth road. Grades and cross-slopes are rise over run.
-    Explicit plans replace the random layout:
-
-    - ``curve_plan``: ``[(s_start, transition, arc, curvature), ...]`` (m, m, m, 1/m;
-      curvature > 0 turns left); curvature ramps up over ``transition`` from
-      ``s_start``, holds over ``arc``, ramps down over ``transition``.
-    - ``grade_plan``: ``[(s_start, transition, grade), ...]``: the grade moves to
-      ``grade`` over ``transition`` metres from ``s_start``.
+    ``roughness``: ISO 8608 class letter, a level ``G_d(n0)`` in m^3, or ``None`` (smooth).
+    Grades and cross-slopes are rise over run. Explicit plans replace the random layout:
+    ``curve_plan`` ``[(s_start, transition, arc, curvature), ...]`` (m, m, m, 1/m; > 0 left:
+    ramp up over ``transition``, hold over ``arc``, ramp down) and ``grade_plan``
+    ``[(s_start, transition, grade), ...]`` (to ``grade`` over ``transition`` m).
     """
 
     roughness: str | float | None = "B"
@@ -294,16 +290,14 @@ def road_layout(p: RoadParams, length: float, s_grid, v_grid, rng: np.random.Gen
     length : float
         Metres of road needed.
     s_grid, v_grid : ndarray
-        Distance (m) and speed (m/s) of the drive on a coarse time grid: curves are
-        sized so that the lateral acceleration at the speed driven there is in
-        ``p.lat_accel``, and banked for it.
+        Distance (m) and speed (m/s) on a coarse time grid: curves are sized and banked
+        for ``p.lat_accel`` at the speed driven there.
     rng : numpy Generator
 
     Returns
     -------
     curvature, grade, bank : Piecewise
-        Functions of s (m): curvature (1/m; its first integral is the heading,
-        rad), grade angle (rad), bank angle (rad).
+        Functions of s (m): curvature (1/m; its integral the heading, rad), grade and bank (rad).
     curves : list of (s_start, transition, arc, curvature)
     """
     if p.curve_plan is not None:
