@@ -1,8 +1,7 @@
 """The live estimator's speed: how long frames wait for a late one (:class:`SpeedLatency`), and whether it is in
 m/s or km/h (:class:`SpeedUnit`), told from the data as the readers tell a speed file's unit.
 
-Used by :class:`~imu_ground.pipeline.streaming.StreamingEstimator` and its whole-log twin
-(:func:`tells_kmh`, :func:`wait_may_grow`: the logs the twin replays sample by sample).
+Used by :class:`~imu_ground.pipeline.streaming.StreamingEstimator`.
 """
 from __future__ import annotations
 
@@ -10,11 +9,7 @@ import math
 from collections import deque
 from typing import Any
 
-import numpy as np
-
-from imu_ground.datasets.speed import frame_speed
-
-__all__ = ["MAX_SPEED_WAIT", "NO_SPEED", "SpeedLatency", "SpeedUnit", "causal_speeds", "tells_kmh", "wait_may_grow"]
+__all__ = ["MAX_SPEED_WAIT", "NO_SPEED", "SpeedLatency", "SpeedUnit"]
 
 #: Longest a frame waits for a late speed, s of IMU time (or ``speed_wait`` when that is longer).
 MAX_SPEED_WAIT = 1.0
@@ -189,50 +184,3 @@ class SpeedUnit:
 
 #: Windows after which the live speed-unit check gives up (the speed is then taken as m/s).
 _UNIT_MAX_WINDOWS = 300
-
-
-def tells_kmh(rate: float, dvx: np.ndarray, v: np.ndarray) -> bool:
-    """Whether the stream's :class:`SpeedUnit` tells these frames' speeds (frames with a speed on) to be km/h."""
-    unit = SpeedUnit(rate)
-    fin = np.flatnonzero(v == v)
-    for dx, vj in zip(dvx[fin[0]:].tolist() if fin.size else [], v[fin[0]:].tolist() if fin.size else [], strict=True):
-        if unit.frame(dx, vj, None, None):
-            return True
-        if not unit.open:
-            return False
-    return False
-
-
-def wait_may_grow(speed_wait: float, speed, t_out: np.ndarray, frontier: np.ndarray) -> bool:
-    """Whether a stream of this log could wait longer than ``speed_wait`` for a speed (:class:`SpeedLatency`):
-    the speed's longest period plus the most the sample clock's times run ahead of the stamps, with the margin."""
-    ts = np.asarray(speed[0], dtype=float)
-    ts = ts[np.isfinite(ts)]
-    step = float(np.diff(ts).max()) if ts.size > 1 else 0.0
-    ahead = float(np.max(t_out - frontier)) if t_out.size else 0.0
-    return step + max(ahead, 0.0) + _WAIT_MARGIN > speed_wait
-
-
-def causal_speeds(speed, te, ts, i_emit, frontier, t_out, n_warm, wait, notes) -> np.ndarray:
-    """Each frame's speed as the stream decides it (module docstring of :mod:`~imu_ground.pipeline.streaming`, step 4)."""
-    ts_sp, v_sp = (np.asarray(x, dtype=float) for x in speed)
-    M, m, F = ts_sp.size, t_out.size, te.size
-    fs = frame_speed(ts_sp, v_sp, te, te - ts)
-    out = np.full(F, np.nan)
-    rec_i = int(np.searchsorted(frontier, ts_sp[0], side="left"))
-    jstar = np.searchsorted(ts_sp, te, side="left")
-    cov_i = np.where(jstar < M, np.searchsorted(frontier, ts_sp[np.minimum(jstar, M - 1)], side="left"), m)
-    to_i = np.searchsorted(t_out, te + wait, side="left")
-    prev = n_warm - 1
-    for j in range(F):
-        i0 = max(int(i_emit[j]), prev)
-        if i0 < rec_i:                                   # no speed received yet: IMU only, no wait
-            prev = i0
-            continue
-        d = max(i0, min(int(cov_i[j]), int(to_i[j])))
-        covered = jstar[j] < M and (d >= m or frontier[min(d, m - 1)] >= ts_sp[jstar[j]])
-        out[j] = fs[j] if covered else np.nan
-        if np.isnan(out[j]):
-            notes[j].append(NO_SPEED)
-        prev = min(d, m)
-    return out

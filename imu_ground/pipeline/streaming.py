@@ -2,8 +2,7 @@
 
 The object a vehicle-side stack feeds from its driver callbacks, and its counterpart for
 recorded logs, :func:`causal_track` (``estimate_log(..., causal=True)``,
-``imu-ground estimate --causal``), which makes the same choices over a whole log,
-vectorised where the choices allow, and gives the same numbers (to rounding).
+``imu-ground estimate --causal``): the same object fed the log sample by sample.
 
 Per sample, each piece one class:
 
@@ -55,23 +54,13 @@ from imu_ground.imu.live.speed_buffer import SpeedBuffer
 from imu_ground.filters import Extrinsic
 from imu_ground.filters.estimator import GroundEstimate
 from imu_ground.filters.methods import METHODS, default_method, live_methods, recalibrating_methods
-from imu_ground.imu.live.causal_standstill import (
-    CausalGyroBias,
-    StandstillBlocks,
-    StandstillTests,
-    add_sample,
-    block_sums,
-    stop_starts,
-    window_standstill,
-)
-from imu_ground.imu.egomotion import EgoFrame, EgoMotion
-from imu_ground.imu.preint_measurement import PreintegratedImu
+from imu_ground.imu.live.causal_standstill import CausalGyroBias, StandstillBlocks, add_sample
+from imu_ground.imu.egomotion import EgoFrame
 from imu_ground.imu.live.preint_stream import push_step
-from imu_ground.imu.preintegration import StreamingPreintegrator, preintegrate
-from imu_ground.imu.live.sample_clock import DROP, FAR, OK, RESTART, SampleClock, clock_step
-from imu_ground.pipeline.live_replay import frames_track, replay, replayed_track
-from imu_ground.pipeline.live_speed import (MAX_SPEED_WAIT, NO_SPEED, SpeedLatency, SpeedUnit, causal_speeds,
-                                            tells_kmh, wait_may_grow)
+from imu_ground.imu.preintegration import StreamingPreintegrator
+from imu_ground.imu.live.sample_clock import DROP, FAR, OK, SampleClock, clock_step
+from imu_ground.pipeline.live_replay import frames_track, replay
+from imu_ground.pipeline.live_speed import MAX_SPEED_WAIT, NO_SPEED, SpeedLatency, SpeedUnit
 from imu_ground.pipeline.live_state import MAX_RECORDS, pack, unpack
 from imu_ground.so3 import quat_from_matrix
 from imu_ground.units import MAX_GAP_FRAMES        # a forward step longer than this restarts the front end
@@ -98,7 +87,6 @@ _STATE_KIND = "imu_ground.StreamingEstimator"
 _STATE_VERSION = 1
 _NO_SPEED = NO_SPEED
 _UNDECIDED = "undecided"                                # a frame's speed not decided yet
-_from_state = PreintegratedImu.from_state
 # _front_step's answers beside push_step's (0: integrated, n > 0: frames finished, -1: its Python path to run)
 _NOT_TAKEN, _DROPPED, _NEW_BLOCK = -4, -3, -2
 
@@ -332,6 +320,7 @@ class StreamingEstimator:
         self._clock = SampleClock(policy, max_jump=MAX_GAP_FRAMES / self.rate)
         self.speed_aided = bool(METHODS[self.method].speed_aided)
         self._filter = _make_filter(self.method, self.extrinsic, self.rate, self.recalibrate_online)
+        self._egos: list | None = None                  # the frames stepped, kept by run
         self.reset()
 
     # -- state ---------------------------------------------------------------------------------
@@ -608,6 +597,8 @@ class StreamingEstimator:
                 if unit.open and unit.frame(float(ego.delta_v[0]), v, self._filter, ego):
                     v = self._kmh(notes) * v           # the speed's unit told now: km/h
             est = self._filter.step(ego) if v is None and not self.speed_aided else self._filter.step(ego, speed=v)
+            if self._egos is not None:
+                self._egos.append(ego)
             out.append(FrameEstimate.of(est, ego.t, ts, math.nan if v is None else v, tuple(notes), self.camera,
                                         ego.valid))
         return out
@@ -794,109 +785,24 @@ class StreamingEstimator:
     # -- a whole log at once ---------------------------------------------------------------------
     def run(self, t: np.ndarray, gyro: np.ndarray, accel: np.ndarray,
             speed: tuple[np.ndarray, np.ndarray] | None = None):
-        """What this estimator, fresh, gives fed a whole log sample by sample, computed at once where the
-        choices allow (:func:`causal_track`); returns ``(track, egomotion)``. Starts from :meth:`reset`."""
+        """This estimator, from :meth:`reset`, fed a whole log sample by sample (:func:`replay`): ``(track,
+        egomotion)``, the frames as the filter stepped them."""
         self.reset()
-        t = t_given = np.asarray(t, dtype=float)
-        if self._scaled:
-            t = t * self._tscale
-        gyro = np.asarray(gyro, dtype=float).reshape(-1, 3)
-        accel = np.asarray(accel, dtype=float).reshape(-1, 3)
-        gyro_in, accel_in = gyro, accel
-        n = t.size
-        clock = self._clock
-        tout = np.empty(n)
-        codes = np.empty(n, dtype=np.int8)
-        max_gap, n_warm = math.nan, -1
-        slow = False
-        for i, ti in enumerate(t.tolist()):
-            codes[i], tout[i] = clock.push(ti)
-            if n_warm < 0 and clock.warm:
-                n_warm, max_gap = i + 1, clock.max_gap
-                found = self._stamp_unit((t[:n_warm][codes[:n_warm] == OK] / self._tscale).tolist())
-                slow = clock.dt > MAX_SAMPLE_PERIOD or (found is not None and found[0] != self._tscale)
-        finite = np.isfinite(t) & np.isfinite(gyro).all(axis=1) & np.isfinite(accel).all(axis=1)
-        if (codes == RESTART).any() or not finite.all() or slow:
-            self.reset()                                 # (the clock above ran over the log; stamps as given)
-            return replayed_track(self, t_given, gyro_in, accel_in, speed)
-        retimed_total = clock.retimed
-        keep = codes == OK
-        n_dropped = int(n - keep.sum())
-        t_in, t, gyro, accel = t, tout[keep], gyro[keep], accel[keep]
-        frontier = np.maximum.accumulate(t_in)[keep] if n else t_in
-        m = t.size
-        if n_warm < 0 or m < 2:
-            return frames_track([], self)
-        n_warm = int(np.count_nonzero(keep[:n_warm]))
-        origin, r = float(t[0]), self.rate
-        # standstill blocks and flags, bias per frame
-        k = np.ceil((t - origin) * r - 1e-6).astype(np.int64) - 1
-        ends = origin + np.arange(1, int(k.max()) + 2) / r if k.max() >= 0 else np.zeros(0)
-        B = max(int(k.max()) + 1, 0)
-        counts, sums = block_sums(k, gyro, accel, B)
-        tests = StandstillTests()
-        still_b = stop_starts(window_standstill(counts, sums, tests, r), window_standstill(counts, sums, tests, r, 1),
-                              tests.blocks(r))
-        Wb = self._blocks.Wb
-        bias = self._bias
-        still_bias = window_standstill(counts, sums, tests, r, Wb) if bias.auto else np.zeros(B, dtype=bool)
-        # frames and the sample that completes each (the first at or after its end boundary, less snap_tol)
-        tol = 1e-9
-        i_emit = np.searchsorted(t, ends - tol, side="left")
-        n_frames = int(np.count_nonzero(i_emit < m))
-        i_emit = i_emit[:n_frames]
-        bias_rows = np.empty((n_frames + 1, 3))
-        bias_rows[0] = bias.value
-        block = lambda j: (int(counts[j]), float(sums[0, j]), float(sums[1, j]), float(sums[2, j]))  # noqa: E731
-        for j in range(n_frames):
-            if still_bias[j]:
-                bias.absorb(j, Wb, block)
-            bias_rows[j + 1] = bias.value
-        J = np.searchsorted(i_emit, np.arange(m), side="left")         # frames emitted before sample i
-        g_corr = gyro - bias_rows[J]
-        fd = preintegrate((t, g_corr, accel), rate=r, t_origin=origin, max_gap=max_gap, on_gap="flag",
-                          uncertainty=False)
-        F = len(fd.t_end)
-        te = np.asarray(fd.t_end, dtype=float)
-        still = still_b[:F]
-        em = EgoMotion(te.copy(), fd.delta_R, fd.delta_v, fd.delta_t, still, np.asarray(fd.valid, bool).copy(),
-                       np.array(bias.value), "FLU", {"causal": True, "retimed": retimed_total, "dropped": n_dropped},
-                       r, True)
-        ts = te - np.asarray(fd.delta_t, float)
-        notes: list[list[str]] = [[] for _ in range(F)]
-        if F and (retimed_total or n_dropped):       # the clock's counts go to the frame after the sample
-            _clock_notes(self, t_in, keep, notes, np.maximum(i_emit[:F], n_warm - 1))
-        v = None
-        if self.speed_aided and speed is not None and F and wait_may_grow(self.speed_wait, speed, t, frontier):
-            self.reset()                                 # a late speed's wait: as the stream decides it
-            return replayed_track(self, t_given, gyro_in, accel_in, speed)
-        if self.speed_aided and speed is not None and F:
-            v = causal_speeds(speed, te, ts, i_emit[:F], frontier, t, n_warm, self.speed_wait, notes)
-        if v is not None and tells_kmh(self.rate, em.delta_v[:, 0], v):
-            self.reset()                                 # a speed in km/h: as the stream converts it
-            return replayed_track(self, t_given, gyro_in, accel_in, speed)
-        flt = self._filter
-        track = flt.run(em, speed=v) if self.speed_aided else flt.run(em)
-        if any(notes):
-            reason = track.status_reason
-            for j, nt in enumerate(notes):
-                if nt:
-                    reason[j] = "; ".join([reason[j], *nt] if reason[j] else nt)
-        return track, em
+        self._egos = []
+        try:
+            frames = replay(self, t, gyro, accel, speed)
+            return frames_track(frames, self, self._egos)
+        finally:
+            self._egos = None
 
 
 # ------------------------------------------------------------------------------------ offline counterpart
 def causal_track(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, *, method: str = "auto", extrinsic: Any = None,
                  rate: float = 10.0, speed: tuple[np.ndarray, np.ndarray] | None = None, bias_gyro: Any = "auto",
                  policy: str = "retime", speed_wait: float = SPEED_WAIT, recalibrate_online: bool = False):
-    """What a :class:`StreamingEstimator` gives for a whole log, computed at once where the choices allow.
-
-    The log is taken as a stream: IMU sample ``i`` arrives after the speed samples up to its
-    stamp, the rest of the speed before :meth:`StreamingEstimator.flush`. The clock runs sample by
-    sample (a recurrence); the standstill window, the gyro bias, the preintegration, the frames'
-    speeds and the filter run vectorised (:func:`~imu_ground.imu.preintegration.preintegrate`, the
-    filter's ``run``). A log whose clock restarts or that holds non-finite samples is fed to a
-    :class:`StreamingEstimator` instead (same result by definition).
+    """What a :class:`StreamingEstimator` gives for a whole log: the log fed to it sample by sample as a stream
+    (IMU sample ``i`` after the speed samples up to its stamp, the rest before
+    :meth:`StreamingEstimator.flush`; :meth:`StreamingEstimator.run`).
 
     Parameters
     ----------
@@ -912,25 +818,8 @@ def causal_track(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, *, method: 
     track : GroundTrack
         Per frame, ``status_reason`` with the front end's notes.
     egomotion : EgoMotion
-        The frames (stationary flags of the trailing window; ``bias_gyro`` the last bias).
+        The frames as the filter stepped them (stationary flags of the trailing window; ``bias_gyro`` the last bias).
     """
     est = StreamingEstimator(method, extrinsic, rate, bias_gyro=bias_gyro, policy=policy, speed_wait=speed_wait,
                              recalibrate_online=recalibrate_online)
     return est.run(t, gyro, accel, speed)
-
-
-def _clock_notes(est, t_in, keep, notes, i_emit) -> None:
-    """Replay the clock's per-sample counts onto the frames (as the streaming notes them): a loop, but only
-    for logs whose stamps were retimed or dropped."""
-    clock = SampleClock(est.policy, max_jump=MAX_GAP_FRAMES / est.rate)
-    pos = np.cumsum(keep) - 1                        # kept position of each input sample (or the last before)
-    f = 0
-    nf = len(i_emit)
-    for i, ti in enumerate(t_in.tolist()):
-        clock.push(ti)
-        # frames completed by this sample (a dropped sample completes none)
-        if keep[i]:
-            p = pos[i]
-            while f < nf and i_emit[f] == p:
-                notes[f] = clock.take_notes()
-                f += 1
