@@ -1,43 +1,36 @@
 """Live: raw IMU samples and wheel speed in, per-frame ground estimates out, causal (:class:`StreamingEstimator`).
 
-The object a vehicle-side stack feeds from its driver callbacks, and its counterpart for
-recorded logs, :func:`causal_track` (``estimate_log(..., causal=True)``,
-``imu-ground estimate --causal``): the same object fed the log sample by sample.
-
+The object a vehicle-side stack feeds from its driver callbacks; :func:`causal_track`
+(``estimate_log(..., causal=True)``, ``imu-ground estimate --causal``) feeds it a recorded log.
 Per sample, each piece one class:
 
 1. **Clock** (:class:`~imu_ground.imu.live.sample_clock.SampleClock`): raw stamps to strictly
-   increasing sample times (jitter retimed on the sample index with a running rate,
-   back-steps and repeats by the readers' ``retime`` or ``drop`` policy, dropouts kept as
-   gaps; one stamp far off the clock is a bad sample, dropped and said; three agreeing ones are a
-   new clock: a dropout, or, set back by more than a gap or forward by more than
-   :data:`MAX_GAP_FRAMES` frames, a restart of the front end). The stamps' unit (s, ms, us, ns) is
-   told from each warm-up as the readers tell it and said (``time_unit`` gives it); a warm-up no
-   unit makes an IMU's (a period over :data:`MAX_SAMPLE_PERIOD`) is skipped and said.
+   increasing sample times (jitter retimed, back-steps and repeats by the ``retime`` or ``drop``
+   policy, dropouts kept as gaps; one stamp far off the clock is a bad sample, dropped and said; three
+   agreeing ones are a new clock: a dropout, or a restart when set back by more than a gap or forward
+   by more than :data:`MAX_GAP_FRAMES` frames). The stamps' unit (s, ms, us, ns) is told from each
+   warm-up as the readers tell it (``time_unit`` gives it); a warm-up whose period is over
+   :data:`MAX_SAMPLE_PERIOD` is skipped. Each is said.
 2. **Standstill and gyro bias** (:mod:`imu_ground.imu.live.causal_standstill`): a frame ends at a
    standstill when its trailing 1 s window is quiet, or when it is quiet alone and leads into such a
-   window (the first frames of a stop: held until that window passes, at most 0.9 s); the bias is the mean rate over the
-   standstills (2 s windows) seen so far (or given, or from a saved state) and applies from the next sample.
+   window (held until that window passes, at most 0.9 s); the bias is the mean rate over the 2 s
+   standstill windows seen so far (or given, or from a saved state), applied from the next sample.
 3. **Preintegration** (:class:`~imu_ground.imu.preintegration.StreamingPreintegrator`): frames
    at ``rate`` Hz from the first sample, gaps flagged and integrated through.
 4. **Speed over the frame** (:class:`~imu_ground.imu.live.speed_buffer.SpeedBuffer`): a frame
-   waits for a speed sample at or after its end, ``speed_wait`` seconds of IMU time
-   (:data:`SPEED_WAIT`) or as long as the speed's measured latency needs (at most
-   :data:`MAX_SPEED_WAIT`), then runs IMU only and says so; a stream that never sent a speed does
-   not wait. A speed in km/h is told from the data as the readers tell it (its changes against the
-   accelerometer), said, and converted (the filter run again from its first speed).
-5. **Filter**: the method's streaming ``step`` (``on_invalid="skip"``: a bad frame is skipped,
-   never raised on).
+   waits for a speed sample at or after its end, :data:`SPEED_WAIT` s of IMU time or as long as the
+   speed's measured latency needs (at most :data:`MAX_SPEED_WAIT`), then runs IMU only and says so;
+   a stream that never sent a speed does not wait. A speed in km/h is told from the data
+   (:class:`~imu_ground.pipeline.live_speed.SpeedUnit`), said and converted.
+5. **Filter**: the method's streaming ``step`` (``on_invalid="skip"``).
 
-After the warm-up, steps 1-3 are one compiled call a sample (:func:`_front_step`, through
-:mod:`imu_ground._jit`: the clock's step, the sum into the open standstill block, the
-preintegration step, each the one body its own object runs); a sample that starts a block,
-a stamp far off the clock and the preintegrator's gaps go on in Python.
+After the warm-up, steps 1-3 are one compiled call a sample (:func:`_front_step`: the bodies the
+clock, the standstill blocks and the preintegrator run themselves); a sample that opens a block, a
+stamp far off the clock and the preintegrator's gaps go on in Python.
 
-Data never raise: a non-finite sample is skipped, a dropped or retimed stamp, a restart, a
-late, repeated or non-finite speed sample, each is said in the next frame's ``status_reason``.
-Misuse (a 3x3 array as ``gyro``, a string as ``t``) raises
-:class:`~imu_ground.datasets.options.OptionError` (a ``ValueError``) naming the argument.
+Data never raise: a non-finite sample, a dropped or retimed stamp, a restart, a late, repeated or
+non-finite speed sample, each is said in the next frame's ``status_reason``. Misuse (a 3x3 array as
+``gyro``, a string as ``t``) raises :class:`~imu_ground.errors.OptionError` naming the argument.
 """
 from __future__ import annotations
 
@@ -69,23 +62,17 @@ __all__ = ["LIVE_METHODS", "MAX_FRAME_RATE", "MAX_GAP_FRAMES", "MAX_SAMPLE_PERIO
            "FrameEstimate",
            "StreamingEstimator", "causal_track", "estimate_row", "replay"]
 
-#: Methods that run live (``"auto"`` is ``"suspension"``); the offline smoother and the naive baseline do not.
-#: The registry's :func:`~imu_ground.filters.methods.live_methods` when this module was imported (the checks
-#: ask the registry itself, so a method registered later runs live too).
+#: Methods that run live (``"auto"`` is ``"suspension"``): the registry's
+#: :func:`~imu_ground.filters.methods.live_methods` at import (the checks ask the registry itself).
 LIVE_METHODS = live_methods()
-#: Least time a frame waits for a speed sample at or after its end, s of IMU time (then: IMU only, said); a speed
-#: that arrives later after its stamps (measured) makes frames wait as long as it needs, at most
-#: :data:`~imu_ground.pipeline.live_speed.MAX_SPEED_WAIT`.
+#: Least time a frame waits for a speed sample at or after its end, s of IMU time (module docstring, step 4).
 SPEED_WAIT = 0.25
-#: The highest frame rate, Hz, a :class:`StreamingEstimator` takes (its IMU's rate is not known before the
-#: samples come; a frame rate far above it would make millions of empty frames a sample).
+#: The highest frame rate, Hz (the IMU's rate is not known before the samples come).
 MAX_FRAME_RATE = 1000.0
-#: A warm-up whose sample period is longer than this, s, is not an IMU's: stamps not in seconds (ns, us or ms
-#: taken for s); its samples are skipped and said.
+#: A warm-up whose sample period is longer than this, s, is not an IMU's (stamps not in seconds): skipped, said.
 MAX_SAMPLE_PERIOD = 1.0
 _STATE_KIND = "imu_ground.StreamingEstimator"
 _STATE_VERSION = 1
-_NO_SPEED = NO_SPEED
 _UNDECIDED = "undecided"                                # a frame's speed not decided yet
 # _front_step's answers beside push_step's (0: integrated, n > 0: frames finished, -1: its Python path to run)
 _NOT_TAKEN, _DROPPED, _NEW_BLOCK = -4, -3, -2
@@ -95,13 +82,9 @@ _NOT_TAKEN, _DROPPED, _NEW_BLOCK = -4, -3, -2
 def _front_step(clock: np.ndarray, blocks: np.ndarray, open_k: int, pre: np.ndarray, times: np.ndarray,
                 frames: np.ndarray, origin: float, rate: float, t: float, g0: float, g1: float, g2: float,
                 a0: float, a1: float, a2: float) -> int:
-    """Steps 1-3 of one sample after the warm-up: the clock's step (:func:`~imu_ground.imu.live.sample_clock.clock_step`),
-    the sum into the open standstill block ``open_k`` (of the blocks' ring,
-    :func:`~imu_ground.imu.live.causal_standstill.add_sample`), the preintegration step
-    (:func:`~imu_ground.imu.live.preint_stream.push_step`, its answer returned). Before the preintegration:
-    :data:`_NOT_TAKEN` (a non-finite value or a stamp far off the clock: nothing changed), :data:`_DROPPED`
-    (the clock dropped the sample), :data:`_NEW_BLOCK` (the sample opens another block: the clock's step done,
-    the rest to run in Python)."""
+    """Steps 1-3 of one sample after the warm-up (``clock_step``, ``add_sample`` into block ``open_k``, ``push_step``,
+    whose answer is returned); before the preintegration: :data:`_NOT_TAKEN` (non-finite or far off the clock:
+    nothing changed), :data:`_DROPPED`, :data:`_NEW_BLOCK` (the clock's step done, the rest in Python)."""
     if not (math.isfinite(t) and math.isfinite(g0 + g1 + g2 + a0 + a1 + a2)):
         return _NOT_TAKEN
     code = clock_step(clock, t)
@@ -584,7 +567,7 @@ class StreamingEstimator:
             v = sp.mean(ts, te)
             notes += sp.take_notes()
             if math.isnan(v):
-                notes.append(_NO_SPEED if wait == self.speed_wait else self._latency.timed_out())
+                notes.append(NO_SPEED if wait == self.speed_wait else self._latency.timed_out())
             sp.done(te)
             e[3], e[5] = v, self._vscale
         out = []
