@@ -421,35 +421,32 @@ class StreamingEstimator:
 
     # -- the front end -------------------------------------------------------------------------
     def _end_warmup(self) -> None:
-        """The clock's warm-up is over: the stamps' unit told from its samples (a new one: the warm-up again on
-        seconds), then the frames start, or a warm-up still too slow for an IMU is skipped."""
-        found = self._stamp_unit([w[0] / self._tscale for w in self._warm])
-        if found is not None and found[0] != self._tscale:
-            self._rescale(*found)
+        """The clock's warm-up is over: the stamps' unit told from its samples as the readers tell it
+        (:func:`~imu_ground.datasets.unit_checks.detect_time_unit`; a new one: the warm-up again on seconds), then
+        the frames start; a warm-up still slower than :data:`MAX_SAMPLE_PERIOD` is skipped, counted, said."""
+        if self.time_unit is None:
+            from imu_ground.datasets.unit_checks import TIME_UNITS, detect_time_unit
+            from imu_ground.errors import ImuGroundError
+            try:
+                unit, note = detect_time_unit(np.array([w[0] / self._tscale for w in self._warm]), "IMU stream", "t")
+            except ImuGroundError:
+                unit = None
+            if unit is not None and TIME_UNITS[unit] != self._tscale:
+                self._rescale(TIME_UNITS[unit], "IMU stamps in seconds again (told from the data)" if note is None else
+                              note.split(" (pass")[0].replace("IMU stream: time column 't' read", "IMU stamps read")
+                              + ": converted to seconds (pass time_unit to say so)")
         if self._clock.dt > MAX_SAMPLE_PERIOD:
-            self._slow_warmup()
-        else:
-            self._start()
-
-    def _stamp_unit(self, raw: list) -> tuple[float, str] | None:
-        """``(factor to seconds, note)`` of the stamps ``raw`` (as given) told from the data as the readers do
-        (:func:`~imu_ground.datasets.unit_checks.detect_time_unit`); None with ``time_unit`` given or when the
-        data cannot tell."""
-        if self.time_unit is not None:
-            return None
-        from imu_ground.datasets.unit_checks import TIME_UNITS, detect_time_unit
-        from imu_ground.errors import ImuGroundError
-        try:
-            unit, note = detect_time_unit(np.array(raw), "IMU stream", "t")
-        except ImuGroundError:
-            return None
-        scale = TIME_UNITS[unit]
-        if note is None:
-            note = "IMU stamps in seconds again (told from the data)"
-        else:
-            note = note.split(" (pass")[0].replace("IMU stream: time column 't' read", "IMU stamps read") + \
-                ": converted to seconds (pass time_unit to say so)"
-        return scale, note
+            self._slow = [self._slow[0] + len(self._warm), self._clock.dt]
+            self._clock.reset()
+            self._warm = []
+            return
+        warm, self._warm = self._warm, []
+        self._origin = warm[0][0]
+        self._pre = StreamingPreintegrator(rate=self.rate, t_origin=self._origin, max_gap=self._clock.max_gap,
+                                           on_gap="flag", uncertainty=False)
+        self._pre.set_gyro_bias(*self._bias.value)     # the preintegrator removes the causal bias
+        for w in warm:
+            self._feed(*w)
 
     def _rescale(self, scale: float, note: str) -> None:
         """The stamps are in another unit (``scale`` s each): the warm-up's samples again on seconds, the speed
@@ -466,9 +463,8 @@ class StreamingEstimator:
         self._notes.append(note)
 
     def _kmh(self, notes: list) -> float:
-        """The speed is in km/h (told by :class:`~imu_ground.pipeline.live_speed.SpeedUnit`): it and the speeds kept are converted from now on,
-        the filter runs again over the frames since its first speed with them (when it can), said; returns
-        the factor."""
+        """The speed is in km/h (:class:`~imu_ground.pipeline.live_speed.SpeedUnit`): converted from now on, the filter
+        run again over the frames since its first speed (when it can), said; returns the factor."""
         unit, k = self._vunit, 1.0 / 3.6
         self._vscale = k
         sp = self._speed
@@ -479,23 +475,6 @@ class StreamingEstimator:
                      + (f" (the filter run again over the {again} frames since its first speed)" if again >= 0
                         else " from here on"))
         return k
-
-    def _slow_warmup(self) -> None:
-        """The warm-up's sample period is longer than :data:`MAX_SAMPLE_PERIOD`: stamps not in seconds. The
-        samples are skipped and counted (said in the next frame's notes), and the clock warms up again on the
-        next samples."""
-        self._slow = [self._slow[0] + len(self._warm), self._clock.dt]
-        self._clock.reset()
-        self._warm = []
-
-    def _start(self) -> None:
-        warm, self._warm = self._warm, []
-        self._origin = warm[0][0]
-        self._pre = StreamingPreintegrator(rate=self.rate, t_origin=self._origin, max_gap=self._clock.max_gap,
-                                           on_gap="flag", uncertainty=False)
-        self._pre.set_gyro_bias(*self._bias.value)     # the preintegrator removes the causal bias
-        for s in warm:
-            self._feed(*s)
 
     def _feed(self, t: float, g: tuple, a: tuple) -> None:
         k = math.ceil((t - self._origin) * self.rate - 1e-6) - 1
