@@ -1,23 +1,16 @@
 """A vehicle speed signal (wheel / CAN speed) for the speed-aided estimators, and its resampling to frames.
 
-Sources, by :func:`read_speed`:
-
-- a separate file: a CSV table with a time column and a speed column
-  (columns by name: ``t`` or ``time``, ``speed`` or ``v``; the time in the IMU log's clock,
-  s from its first sample; :func:`read_speed_file`);
-- a column of the IMU log's own table (a CSV table read by :func:`~imu_ground.datasets.read_imu`);
-- found in the log (:func:`log_speed`): KITTI (``kitti_imu100`` and raw OXTS) the INS
-  horizontal speed ``hypot(ve, vn)`` as a stand-in for a wheel speed (never ``vu``);
-  nuScenes CAN bus the ``vel`` of the scene's ``pose.json`` beside its ``ms_imu.json``
-  (forward speed, ego frame); comma2k19 ``processed_log/CAN/speed``; ROS bags and MCAP a
-  twist or odometry topic (:func:`~imu_ground.datasets.rosbag.read_rosbag_speed`).
-
-Times are seconds on the IMU's time base (``ImuData.t``: from the log's first IMU sample),
-so :func:`frame_speed` can average the speed over each frame of the ego-motion.
+Sources (:func:`read_speed`): a CSV file ``t,speed`` (:func:`read_speed_file`); a column of the
+IMU log's own table; or the log's own signal (:func:`log_speed`): KITTI the INS horizontal speed
+``hypot(ve, vn)`` as a stand-in for a wheel speed, nuScenes CAN bus the ``vel`` of the scene's
+``pose.json``, comma2k19 ``processed_log/CAN/speed``, ROS bags and MCAP a twist or odometry topic.
+Times are seconds on the IMU's time base (``ImuData.t``), so :func:`frame_speed` averages the speed
+over each frame of the ego-motion.
 """
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +21,7 @@ from imu_ground.errors import ImuGroundError, ImuInputError, MalformedFileError
 from .rosbag_files import is_rosbag
 
 __all__ = ["MAX_REVERSE", "MAX_SPEED", "SPEED_NAMES", "SPEED_SOURCES", "TIME_NAMES", "check_speed", "frame_speed",
-           "log_speed", "read_speed", "read_speed_file"]
+           "log_speed", "read_speed", "read_speed_file", "speed_unit"]
 
 #: Log formats with a speed signal of their own, and what it is.
 SPEED_SOURCES = {
@@ -66,15 +59,29 @@ MAX_SPEED = 100.0
 UNIT_WINDOW_S = 1.0
 
 
-def _scale_against_accel(t: np.ndarray, v: np.ndarray, imu) -> tuple[float, float, int]:
-    """How many times faster the speed changes than the accelerometer's forward axis says: ``(slope, r, windows)``.
+def speed_unit(n: int, sums: Any) -> tuple[str | None, float]:
+    """The speed's unit told from ``n`` windows of its changes ``y`` (m/s or km/h) against the accelerometer's ``x``
+    (m/s): the least-squares slope and correlation of ``y`` on ``x``, means removed (a grade adds ``g sin(grade)``
+    to ``a_x``), from the sums ``(x, y, xx, yy, xy)``.
 
-    Over windows of :data:`UNIT_WINDOW_S` inside both signals, the speed's change
-    ``v(e_k+1) - v(e_k)`` is regressed on the integral of the forward specific force
-    ``a_x`` (sensor x, m/s) over the same window, both with their means removed (a
-    road grade adds ``g sin(grade)`` to ``a_x``). A speed in m/s gives a slope near 1,
-    in km/h near 3.6. NaN when fewer than 20 windows are moving (speed over 1 m/s).
+    Returns ``(unit, slope)``: ``"km/h"`` for a slope of 2.9-4.5, ``"m/s"`` for 0.6-1.6, ``"other"`` for another,
+    each with a correlation over 0.6; ``None`` (and NaN) when the windows cannot tell (under 20, or no correlation).
+    :func:`check_speed` sums a whole signal, the live :class:`~imu_ground.pipeline.live_speed.SpeedUnit` frame by
+    frame.
     """
+    if n < 20:
+        return None, math.nan
+    sx, sy, sxx, syy, sxy = sums
+    cxx, cyy, cxy = sxx - sx * sx / n, syy - sy * sy / n, sxy - sx * sy / n
+    if not (cxx > 0 and cyy > 0 and cxy / math.sqrt(cxx * cyy) > 0.6):
+        return None, math.nan
+    k = cxy / cxx
+    return ("km/h" if 2.9 < k < 4.5 else "m/s" if 0.6 < k < 1.6 else "other"), k
+
+
+def _scale_against_accel(t: np.ndarray, v: np.ndarray, imu) -> tuple[str | None, float, int]:
+    """:func:`speed_unit` of the signal over windows of :data:`UNIT_WINDOW_S` moving over 1 m/s at both ends (the
+    forward specific force integrated over each): ``(unit, slope, windows)``."""
     fin = np.isfinite(v)
     t, v = t[fin], v[fin]
     ti = np.asarray(imu.t, dtype=float)
@@ -83,33 +90,25 @@ def _scale_against_accel(t: np.ndarray, v: np.ndarray, imu) -> tuple[float, floa
     ti, ax = ti[ok], ax[ok]
     lo, hi = max(t[0], ti[0] if ti.size else np.inf), min(t[-1], ti[-1] if ti.size else -np.inf)
     if ti.size < 2 or hi - lo < 20 * UNIT_WINDOW_S:
-        return float("nan"), float("nan"), 0
+        return None, math.nan, 0
     edges = np.arange(lo, hi, UNIT_WINDOW_S)
     cum = np.concatenate([[0.0], np.cumsum(0.5 * (ax[1:] + ax[:-1]) * np.diff(ti))])
     dv_imu = np.diff(np.interp(edges, ti, cum))
     ve = np.interp(edges, t, v)
     dv_speed = np.diff(ve)
     moving = (np.abs(ve[:-1]) > 1.0) & (np.abs(ve[1:]) > 1.0)
-    if np.count_nonzero(moving) < 20:
-        return float("nan"), float("nan"), int(np.count_nonzero(moving))
-    x = dv_imu[moving] - dv_imu[moving].mean()
-    y = dv_speed[moving] - dv_speed[moving].mean()
-    sxx, syy = float(x @ x), float(y @ y)
-    if sxx <= 0 or syy <= 0:
-        return float("nan"), float("nan"), int(np.count_nonzero(moving))
-    return float(x @ y / sxx), float(x @ y / np.sqrt(sxx * syy)), int(np.count_nonzero(moving))
+    x, y = dv_imu[moving], dv_speed[moving]
+    n = int(x.size)
+    return (*speed_unit(n, [float(x.sum()), float(y.sum()), float(x @ x), float(y @ y), float(x @ y)]), n)
 
 
 def check_speed(t: np.ndarray, v: np.ndarray, source: str, imu=None) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """Check a measured speed signal against what a car does and against the IMU; fix what is certain.
 
-    - times in milliseconds (the signal spans about 1000 times the IMU log): converted to s;
-    - a speed in km/h (its changes 3.6 times what the accelerometer's forward axis
-      integrates to, correlation over 0.6): converted to m/s; another scale is said
-      (before the checks below, which then see m/s);
-    - negative speeds: reversing, said; faster than :data:`MAX_REVERSE` backwards, or
-      mostly negative (a flipped sign), refused;
-    - faster than :data:`MAX_SPEED`: refused.
+    Times in milliseconds (spanning about 1000 times the log): converted to s. A speed in km/h
+    (:func:`_scale_against_accel` slope 2.9-4.5, correlation over 0.6): converted to m/s, another
+    scale said. Negative speeds: reversing, said; faster than :data:`MAX_REVERSE` backwards or mostly
+    negative (a flipped sign), refused; faster than :data:`MAX_SPEED`: refused.
 
     Parameters
     ----------
@@ -144,15 +143,14 @@ def check_speed(t: np.ndarray, v: np.ndarray, source: str, imu=None) -> tuple[np
                          "milliseconds and converted to seconds")
     # the unit first, so that a km/h file at highway speed is converted before the plausibility checks
     if imu is not None and getattr(imu, "accel", None) is not None:
-        k, r, n = _scale_against_accel(t, v, imu)
-        if np.isfinite(k) and r > 0.6:
-            if 2.9 < k < 4.5:
-                v = v / 3.6
-                notes.append(f"{source}: the speed changes {k:.2f} times as fast as the accelerometer says over "
-                             f"{n} s of driving: taken as km/h and converted to m/s")
-            elif not 0.6 < k < 1.6:
-                notes.append(f"{source}: the speed changes {k:.2f} times as fast as the accelerometer says over "
-                             f"{n} s of driving; a speed file holds m/s: check its unit")
+        unit, k, n = _scale_against_accel(t, v, imu)
+        if unit == "km/h":
+            v = v / 3.6
+            notes.append(f"{source}: the speed changes {k:.2f} times as fast as the accelerometer says over "
+                         f"{n} s of driving: taken as km/h and converted to m/s")
+        elif unit == "other":
+            notes.append(f"{source}: the speed changes {k:.2f} times as fast as the accelerometer says over "
+                         f"{n} s of driving; a speed file holds m/s: check its unit")
     fast = float(np.nanmax(v))
     if fast > MAX_SPEED:
         raise ImuGroundError(f"{source}: speeds up to {fast:.1f}, implausible for m/s (over {MAX_SPEED:g} m/s); a speed "
@@ -192,12 +190,8 @@ def _named_column(p: Path, cols: list[str], names: tuple[str, ...], what: str) -
 
 
 def read_speed_file(path: str | Path, column: str | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """A speed table: a CSV file whose header names a time and a speed column.
-
-    Columns are found by name, regardless of case and order: the time ``t`` or ``time``
-    (s on the IMU log's time base), the speed ``speed`` or ``v`` (m/s; ``column``: another
-    name); other columns are ignored. Rows with a time but no speed (empty, ``nan``) are
-    kept as NaN: :func:`frame_speed` gives no speed to the frames around them.
+    """A speed table: a CSV file whose header names a time (``t``, ``time``; s on the IMU log's time base) and a
+    speed (``speed``, ``v``, or ``column``; m/s) column, in any case and order; rows without a speed are NaN.
 
     Returns
     -------
@@ -237,20 +231,15 @@ def read_speed_file(path: str | Path, column: str | None = None) -> tuple[np.nda
 
 
 def _data_lines(p: Path) -> np.ndarray:
-    """1-based file lines of the data rows as pandas reads them (the first non-blank line is the header, blank
-    lines are skipped)."""
+    """1-based file lines of the data rows as pandas reads them (after the header, blank lines skipped)."""
     with open(p, encoding="utf-8", errors="replace") as f:
         lines = [k for k, text in enumerate(f, start=1) if text.strip()]
     return np.asarray(lines[1:], dtype=np.int64)
 
 
 def _check_time_order(p: Path, t: np.ndarray, tcol: str) -> None:
-    """Refuse a speed file with a row without a finite time, or whose times do not increase from row to row.
-
-    A speed file is a table the user wrote, not a sensor's stamps: a time that steps back or
-    repeats is a mistake in it (two files joined, a column of another file), not jitter to
-    retime. Nothing is sorted or dropped in silence: the message names the first bad line.
-    """
+    """Refuse a speed file with a row without a finite time or times that do not increase (a table the user wrote,
+    not jitter to retime): the message names the first bad line."""
     bad = np.flatnonzero(~np.isfinite(t))
     if bad.size:
         line = int(_data_lines(p)[bad[0]])
@@ -310,8 +299,7 @@ def log_speed(path: str | Path, format: str, imu=None, topic: str | None = None
     format : str
         Its format (a :func:`~imu_ground.datasets.detect_format` name).
     imu : ImuData, optional
-        The log as read (its ``t0`` / ``t0_ns`` and, for KITTI, its ``ve, vn`` columns);
-        read when needed and not given.
+        The log as read (read when needed and not given).
     topic : str, optional
         ROS: the twist / odometry topic.
     """
@@ -394,13 +382,9 @@ def read_speed(source: Any, *, log: str | Path | None = None, format: str | None
 
 
 def frame_speed(t: np.ndarray, speed: np.ndarray, frame_t: np.ndarray, frame_dt: np.ndarray) -> np.ndarray:
-    """Mean speed over each frame ``(t_k - dt_k, t_k]``, m/s; NaN for frames the signal does not cover.
-
-    The mean of the piecewise-linear speed (exact integral of the linear interpolation),
-    or the interpolated value for a signal with one sample in the frame. A frame is not
-    covered when it reaches outside the signal's span, or into a hole: a run of NaN
-    speeds, from the last finite sample before it to the first after it (nothing is
-    interpolated across a hole).
+    """Mean speed over each frame ``(t_k - dt_k, t_k]``, m/s: the exact mean of the piecewise-linear speed; NaN for a
+    frame outside the signal's span or reached by a hole (a run of NaN speeds, from the last finite sample before
+    it to the first after it: nothing is interpolated across).
 
     Parameters
     ----------
@@ -439,8 +423,7 @@ def frame_speed(t: np.ndarray, speed: np.ndarray, frame_t: np.ndarray, frame_dt:
 
 
 def _holes(t: np.ndarray, fin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Open intervals ``(lo, hi)``, s, sorted, between the finite neighbours of each run of NaN speeds (+-inf at
-    the ends)."""
+    """Open intervals ``(lo, hi)``, s, between the finite neighbours of each run of NaN speeds (+-inf at the ends)."""
     good = np.flatnonzero(fin)
     pos = np.unique(np.searchsorted(good, np.flatnonzero(~fin)))    # one per run: the next finite sample's rank
     lo = np.where(pos > 0, t[good[np.maximum(pos - 1, 0)]], -np.inf)

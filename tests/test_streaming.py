@@ -1,9 +1,9 @@
-"""The live estimator: StreamingEstimator against its offline twin, warm start, bad data, misuse, the clock.
+"""The live estimator: StreamingEstimator against ``estimate --causal``, warm start, bad data, misuse, the clock.
 
 The equality tests feed every shared drive (``drives.csv``, its raw CSV rows in file order), a ROS 1
 bag, a ROS 2 sqlite3 bag, an MCAP file and the KITTI OXTS folder sample by sample through
 :class:`~imu_ground.pipeline.streaming.StreamingEstimator` in Python and compare with
-``estimate_log(..., causal=True)`` (the vectorised :func:`~imu_ground.pipeline.streaming.causal_track`);
+``estimate_log(..., causal=True)`` (:func:`~imu_ground.pipeline.streaming.causal_track`, the log as read);
 with the compiled kernels that takes about 10 s for all drives (the pure-Python kernels: a few
 times longer).
 """

@@ -1,20 +1,16 @@
 """``imu-ground stream``: samples in (stdin CSV lines, or a log replayed), one line per frame out, as it completes.
 
-The command-line form of :class:`imu_ground.pipeline.streaming.StreamingEstimator`, for
-pipes, a serial bridge or a demo. Standard input: a header naming ``t,wx,wy,wz,ax,ay,az``
-(any order and case, a UTF-8 byte-order mark read as ``estimate`` reads it; optionally ``speed``,
-m/s, or ``--speed COLUMN`` / ``--speed FILE``) then one sample a line; a line whose numbers do not
-parse is said on stderr with its line number and skipped. The units are s, rad/s, m/s^2 or set by
-``--time-unit``, ``--gyro-unit``, ``--accel-unit``; without ``--time-unit`` the stamps' unit (s, ms,
-us, ns) is told from the first samples by the estimator, and said. ``--replay LOG`` reads a log
-(any format ``estimate`` reads) and feeds it sample by sample with its stamps as recorded (file order,
-back-steps and repeats kept: the estimator's sample clock handles them, ``--policy`` retime or drop),
-its speed (``--speed``) before the samples it precedes; ``--realtime`` paces it on the log's clock. Each frame is written as
-soon as it is complete: a CSV line with the estimate's columns (header first), or ``--json``
-lines; flushed. ``--state FILE`` resumes from a saved state and writes it at the end, on
-SIGTERM and on Ctrl-C (atomically; a file that is not a saved state is refused, never replaced);
-with ``--replay`` the state also holds how far into the log it got (the log's name, its samples fed),
-and a run on the same log resumes there instead of feeding the log from its start.
+The command-line form of :class:`imu_ground.pipeline.streaming.StreamingEstimator`. Standard input:
+a header naming ``t,wx,wy,wz,ax,ay,az`` (any order and case; optionally ``speed``, m/s, or ``--speed
+COLUMN`` / ``--speed FILE``) then one sample a line (a line that does not parse: said with its number,
+skipped); units s, rad/s, m/s^2 or ``--time-unit``, ``--gyro-unit``, ``--accel-unit`` (without
+``--time-unit`` the estimator tells the stamps' unit and says so). ``--replay LOG`` feeds a log sample by
+sample with its stamps as recorded (the sample clock handles back-steps and repeats, ``--policy``), its
+speed before the samples it precedes; ``--realtime`` paces it on the log's clock. Each frame is written
+(and flushed) as soon as it is complete: a CSV line (header first) or ``--json`` lines. ``--state FILE``
+resumes from a saved state and writes it at the end, on SIGTERM and on Ctrl-C (atomically; a file that
+is not a saved state is refused, never replaced); with ``--replay`` it also holds how far into the log
+it got, and a run on the same log resumes there.
 """
 from __future__ import annotations
 
@@ -155,12 +151,9 @@ def _cell(v) -> str:
 
 
 class _WholeSamples:
-    """SIGTERM and Ctrl-C while a sample is pushed and its frames written: held until both are done, then raised.
-
-    Raised at any other moment (waiting for a line on standard input), they stop at once. Either way the saved
-    state, the samples counted and the frames written agree: a resumed run repeats no frame and loses none.
-    Signals are only caught in the main thread (elsewhere this does nothing).
-    """
+    """SIGTERM and Ctrl-C while a sample is pushed and its frames written: held until both are done, then raised
+    (at any other moment at once), so that the saved state, the samples counted and the frames written agree.
+    Caught in the main thread only."""
 
     def __init__(self) -> None:
         self.busy = False
@@ -352,11 +345,8 @@ _BAD_LINES_SAID = 10
 
 
 def _stdin_speed(a, names: list[str], est) -> tuple[int | None, tuple[list, list]]:
-    """The speed of a stream on standard input: ``(column index or None, (times, speeds) of a speed file)``.
-
-    ``auto``: a ``speed`` column when the header has one; ``none``: no speed; a name of the header's
-    columns: that column; else a speed file (:func:`~imu_ground.datasets.speed.read_speed_file`, checked as
-    estimate checks it), merged by time; a missing file is an error naming ``--speed``."""
+    """The speed of a stream on standard input: ``(column index or None, (times, speeds) of a speed file)``: ``auto``
+    a ``speed`` column if any, ``none``, a column of the header, or a speed file (checked as estimate checks it)."""
     from imu_ground.cli._common import warn_line
     from imu_ground.errors import OptionError
     choice = a.speed

@@ -8,7 +8,7 @@
 - :mod:`imu_ground.pipeline.input_checks`: option errors, the gravity-direction check of
   a log against its extrinsic, the options record an output keeps.
 - :mod:`imu_ground.pipeline.streaming`: :class:`StreamingEstimator`, live: raw samples and speed in,
-  per-frame estimates out, causal; :func:`causal_track`, its twin over a whole log (``causal=True``).
+  per-frame estimates out, causal; :func:`causal_track`, the same object fed a whole log (``causal=True``).
 - :mod:`imu_ground.pipeline.plot`: :func:`plot_estimate`, the picture of one estimate
   (``estimate --plot``): pitch and roll with their 1-sigma, the status, the speed.
 - :mod:`imu_ground.pipeline.planes`: with a camera, the plane columns and the KITTI

@@ -1,17 +1,10 @@
 """One log in, per-frame ground normals out: :func:`estimate_log`, the library form of ``imu-ground estimate``.
 
-The input is an IMU log of any format :func:`imu_ground.datasets.read_imu` reads,
-or an odometry pose file (KITTI odometry ``poses/00.txt``, TUM ``t x y z qx qy qz qw``).
-The method is one of the registry's (:func:`available_methods`); ``"auto"``
-picks the best for the input: the suspension-aware filter when the log has an
-accelerometer, the invariant filter (``"filter"``) for poses.
-
-Options are checked before any work, and a bad one raises
-:class:`~imu_ground.datasets.options.OptionError` (an
-:class:`~imu_ground.errors.ImuGroundError`, the one option error of the package, the
-readers' base too) whose message names the
-option as the user spells it: ``rate`` from Python, ``--rate`` from the
-command line (:meth:`~imu_ground.datasets.options.OptionMessage.cli_message`).
+The input is an IMU log of any format :func:`imu_ground.datasets.read_imu` reads, or an odometry
+pose file (KITTI odometry ``poses/00.txt``, TUM ``t x y z qx qy qz qw``); the method one of the
+registry's (:func:`available_methods`). Options are checked before any work; a bad one raises
+:class:`~imu_ground.errors.OptionError` naming the option as the user spells it (``rate`` from
+Python, ``--rate`` from the command line).
 """
 from __future__ import annotations
 
@@ -120,12 +113,6 @@ def resolve_method(method: str, has_accel: bool) -> str:
 
 
 # ------------------------------------------------------------------------------------------ input kind
-def _pose_format(path: Path) -> str | None:
-    """``"kitti_poses"`` or ``"tum"`` when ``path`` is an odometry pose file, else None."""
-    name = detect_pose_format(path)
-    return {"kitti": "kitti_poses", "tum": "tum"}.get(name) if name else None
-
-
 def detect_input(path: str | Path, format: str | None = None) -> tuple[str, str | None]:
     """What ``path`` is: ``("poses", "kitti_poses" | "tum")`` or ``("imu", format or None)``.
 
@@ -139,11 +126,8 @@ def detect_input(path: str | Path, format: str | None = None) -> tuple[str, str 
         return "poses", format
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such file or folder")
-    if format is None:
-        pose = _pose_format(p)
-        if pose is not None:
-            return "poses", pose
-    return "imu", format
+    pose = {"kitti": "kitti_poses", "tum": "tum"}.get(detect_pose_format(p) or "") if format is None else None
+    return ("poses", pose) if pose is not None else ("imu", format)
 
 
 def require_imu_log(path: str | Path, format: str | None = None, what: str = "this command") -> None:
@@ -180,7 +164,7 @@ def _check_rate(rate: float | None) -> float | None:
 
 def check_options(*, method: str = "auto", rate: float | None = None, Q: Any = None, R: Any = None,
                   **reader_options: Any) -> dict:
-    """Check :func:`estimate_log`'s options without reading anything; returns the reader keywords to pass.
+    """:func:`estimate_log`'s options checked without reading anything; returns the reader keywords to pass.
 
     Raises
     ------
@@ -189,9 +173,8 @@ def check_options(*, method: str = "auto", rate: float | None = None, Q: Any = N
     TypeError
         A reader option that :data:`~imu_ground.datasets.options.READER_OPTIONS` does not have.
     """
-    if method != "auto" and method not in available_methods():
-        raise OptionError(f"unknown {{opt}} {method!r}; choose auto or one of {', '.join(available_methods())}",
-                          "method")
+    if method != "auto":
+        resolve_method(method, True)
     _check_rate(rate)
     _check_positive(Q, "Q", "process noise, rad^2 per frame")
     _check_positive(R, "R", "measurement noise")
@@ -206,7 +189,7 @@ def _reader_kwargs(options: dict) -> dict:
 
 
 def _one_line(path: str | Path, message: Any) -> str:
-    """One line naming the file; a message that names an option keeps its CLI spelling (:class:`OptionText`)."""
+    """One line naming the file (a message naming an option keeps its CLI spelling)."""
     def line(text: str) -> str:
         text = " ".join(str(text).split())
         return text if text.startswith(str(path)) else f"{path}: {text}"
@@ -377,10 +360,8 @@ def _steps(progress: bool):
 
 
 def check_frame_rate(rate: float | None, t: np.ndarray, path) -> float:
-    """The IMU's sample rate, Hz (``1 / median step`` of the times ``t``, s; NaN under two samples), checked
-    against the frame rate ``rate`` (Hz, None: the default): a frame rate above it is an :class:`OptionError`
-    naming ``rate`` (``--rate``), in the batch, the causal (``--causal``) and the replayed (``stream --replay``)
-    runs alike."""
+    """The IMU's sample rate, Hz (``1 / median step`` of the times ``t``, s; NaN under two samples); a frame rate
+    ``rate`` (Hz, None: the default) above it is an :class:`OptionError` naming ``rate``."""
     t = np.asarray(t, dtype=float)
     imu_rate = 1.0 / float(np.median(np.diff(t))) if t.size > 1 else float("nan")
     if rate is not None and math.isfinite(imu_rate) and rate > imu_rate * (1 + 1e-6):
@@ -388,10 +369,18 @@ def check_frame_rate(rate: float | None, t: np.ndarray, path) -> float:
                           f"{path}; choose a frame rate of at most {imu_rate:.4g} Hz", "rate")
     return imu_rate
 
-def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
+def _read_log(path, fmt, rate, reader_kw):
+    """The IMU log read and its frame rate checked: ``(imu, info)`` (format, IMU rate, frame id, ``t0_ns``)."""
     fmt = detect_format(path) if fmt is None else fmt
     imu = read_imu(path, format=fmt, **reader_kw)
-    imu_rate = check_frame_rate(rate, imu.t, path)
+    info = {"format": fmt, "imu_rate": check_frame_rate(rate, imu.t, path), "frame_id": imu.meta.get("frame_id") or "imu"}
+    if imu.meta.get("t0_ns") is not None:
+        info["t0_ns"] = int(imu.meta["t0_ns"])
+    return imu, info
+
+
+def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
+    imu, info = _read_log(path, fmt, rate, reader_kw)
     if imu.frame != "FLU" and extrinsic is None:
         warn_user(f"{path}: the IMU's body frame is {imu.frame!r}, not FLU (x forward, y left, z up), and no "
                       "extrinsic was given: pitch and roll refer to the sensor's own axes; run 'imu-ground "
@@ -407,21 +396,17 @@ def _imu_egomotion(path, fmt, rate, extrinsic, reader_kw):
         raise ImuGroundError(f"{path}: {len(imu)} sample(s) over {imu.duration:.3g} s, too short for frames at "
                              f"{frame_rate:g} Hz ({e})") from e
     _warn_segments(path, imu, em, frame_rate, MAX_GAP_FRAMES)
-    info = {"format": fmt, "imu_rate": imu_rate, "frame_id": imu.meta.get("frame_id") or "imu"}
-    if imu.meta.get("t0_ns") is not None:
-        info["t0_ns"] = int(imu.meta["t0_ns"])
     return em, info, imu
 
 
 def _segment_note(imu, i: int) -> str:
-    """What the first frame after a new segment's start (``i``: the sample before the step) says."""
+    """What the first frame after a new segment (``i``: the sample before the step) says."""
     return (f"the stamps jump forward by {imu.t[i + 1] - imu.t[i]:.3f} s: a new segment from "
             f"t = {imu.t[i + 1]:.3f} s")
 
 
 def _warn_segments(path, imu, em, rate: float, max_frames: int) -> None:
-    """A warning for each step of the stamps longer than the live limit, where the frames start again (a new
-    segment, :func:`~imu_ground.imu.imu_to_egomotion`'s ``max_gap_frames``), naming its line and time."""
+    """A warning naming each step of the stamps longer than the live limit (a new segment of frames)."""
     cuts = em.meta.get("segment_cuts") or []
     if not cuts:
         return
@@ -439,7 +424,7 @@ def _warn_segments(path, imu, em, rate: float, max_frames: int) -> None:
 
 
 def _note_segments(track, em, imu) -> None:
-    """The first frame of each new segment says where it starts (its ``status_reason``), as live."""
+    """The first frame of each new segment says so in its ``status_reason``, as live."""
     cuts = em.meta.get("segment_cuts") or []
     reason = track.status_reason
     for i in cuts:
@@ -478,11 +463,8 @@ def _poses_egomotion(path, fmt, rate, times=None, extrinsic=None):
 
 
 def _frame_speeds(speed, path, fmt, imu, em, method: str):
-    """Per-frame speeds (m/s, NaN where unknown) for :func:`estimate_log`'s ``speed``, and what they are.
-
-    Returns ``(None, "none")`` for IMU only; ``(array, description)`` otherwise. A ROS log's speed
-    topic is found by its message type (``--topic`` names the IMU topic).
-    """
+    """Per-frame speeds (m/s, NaN where unknown) for :func:`estimate_log`'s ``speed`` and what they are (``(None,
+    "none")``: IMU only)."""
     if speed is None or (isinstance(speed, str) and speed == "none"):
         return None, "none"
     auto = isinstance(speed, str) and speed == "auto"
@@ -541,21 +523,19 @@ def speed_samples(speed, path, fmt, imu):
 
 
 def _refuse_speed_clock(speed, t_speed, lo: float, hi: float, what: str) -> None:
-    """The speed given is off the log's clock: an :class:`OptionError` naming ``speed`` (``--speed``), in the
-    offline, the causal (``--causal``) and the replayed (``stream --replay``) runs alike."""
+    """The speed given is off the log's clock: an :class:`OptionError` naming ``speed``."""
     raise OptionError(f"{{opt}} {speed}: the speed's times ({t_speed[0]:.3f} .. {t_speed[-1]:.3f} s) do not cover "
                       f"the log's {what} ({lo:.3f} .. {hi:.3f} s): not on the log's clock (the times are s on the "
                       "log's time base)", "speed")
 
 
 def live_policy(policy: str | None) -> str:
-    """The causal sample clock's policy for the time-order option ``policy`` of a live run (``estimate --causal``,
-    ``stream``).
+    """The live sample clock's policy for the time-order option ``policy`` (``estimate --causal``, ``stream``).
 
-    The live front end reads a log with the reader policy ``"recorded"`` (stamps in file order, as
-    recorded) and leaves the time order to its :class:`~imu_ground.imu.live.sample_clock.SampleClock`:
-    ``retime`` (the default; also for ``None`` and ``"recorded"``) or ``drop`` are honoured there;
-    ``sort`` and ``strict`` need the whole log and are refused (:class:`OptionError` naming ``policy``).
+    The live front end reads a log with the reader policy ``"recorded"`` (stamps in file order) and
+    leaves the time order to its :class:`~imu_ground.imu.live.sample_clock.SampleClock`: ``retime``
+    (also for None and ``"recorded"``) or ``drop``; ``sort`` and ``strict`` need the whole log
+    (:class:`OptionError` naming ``policy``).
     """
     if policy in (None, "recorded"):
         return "retime"
@@ -566,11 +546,8 @@ def live_policy(policy: str | None) -> str:
 
 
 def _causal_estimate(path, kind, fmt, method, rate, extrinsic, speed, Q, R, recalibrate_online, reader_kw):
-    """:func:`estimate_log` with ``causal=True``: the log read, then
-    :func:`~imu_ground.pipeline.streaming.causal_track`.
-
-    Returns ``track, egomotion, info, method name, speed description``.
-    """
+    """:func:`estimate_log` with ``causal=True`` (:func:`~imu_ground.pipeline.streaming.causal_track`): ``track,
+    egomotion, info, method name, speed description``."""
     from imu_ground.pipeline.streaming import causal_track
     if kind != "imu":
         raise OptionError(f"{path}: {{opt}} runs the live front end on IMU samples; a pose file has none (leave it "
@@ -583,13 +560,9 @@ def _causal_estimate(path, kind, fmt, method, rate, extrinsic, speed, Q, R, reca
         raise OptionError("{opt} is not a setting of the live estimator (leave it out with --causal)",
                           "Q" if Q is not None else "R")
     clock_policy = live_policy(reader_kw.get("policy"))
-    fmt = detect_format(path) if fmt is None else fmt
-    imu = read_imu(path, format=fmt, **{**reader_kw, "policy": "recorded"})
-    imu_rate = check_frame_rate(rate, imu.t, path)
+    imu, info = _read_log(path, fmt, rate, {**reader_kw, "policy": "recorded"})
+    fmt = info["format"]
     check_gravity_direction(imu, extrinsic, path)
-    info = {"format": fmt, "imu_rate": imu_rate, "frame_id": imu.meta.get("frame_id") or "imu"}
-    if imu.meta.get("t0_ns") is not None:
-        info["t0_ns"] = int(imu.meta["t0_ns"])
     signal, what = None, "none"
     if METHODS[name].speed_aided and isinstance(speed, (np.ndarray, list, tuple)):
         raise OptionError("{opt} per frame cannot be used live (--causal): give a speed file or column, or auto",
@@ -611,8 +584,7 @@ def _causal_estimate(path, kind, fmt, method, rate, extrinsic, speed, Q, R, reca
 
 
 def _run_method(name: str, em, ext, Q, R, speed=None, recalibrate_online: bool = False):
-    """Run method ``name`` of the registry over the ego-motion (noise options, speed and the online mount
-    re-estimation only when given)."""
+    """Method ``name`` of the registry run over the ego-motion (the options only when given)."""
     spec = METHODS[name]
     noise = {k: v for k, v in (("Q", Q), ("R", R)) if v is not None}
     if recalibrate_online:

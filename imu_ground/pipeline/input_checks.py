@@ -1,15 +1,5 @@
-"""Checks of :func:`~imu_ground.pipeline.estimate_log`'s input that need no estimate: options, axes, settings.
-
-- :class:`OptionError` (re-exported from :mod:`imu_ground.datasets.options`, the one option-error
-  class): a bad option value whose message names the option as the user spells it.
-- :func:`check_gravity_direction`: the log's mean specific force (gravity, "up")
-  against the up axis the extrinsic assigns to the sensor (ground <- sensor, third
-  row): a z-down sensor or a camera extrinsic on an IMU log is said, not estimated.
-- :func:`check_recalibration`: ``--recalibrate-online`` needs a measured speed and a log long
-  enough for the mount monitor to judge.
-- :func:`requested_options`: the options of a run as given, the record an output
-  keeps so that a rerun can tell whether it was made with the same settings.
-"""
+"""Checks of :func:`~imu_ground.pipeline.estimate_log`'s input that need no estimate: options, axes, settings,
+output paths (:class:`OptionError` re-exported from :mod:`imu_ground.errors`)."""
 from __future__ import annotations
 
 import json
@@ -29,12 +19,9 @@ __all__ = ["GRAVITY_REFUSE_DEG", "GRAVITY_WARN_DEG", "OptionError", "check_creat
 
 def requested_options(*, method: str = "auto", rate: float | None = None, extrinsic: Any = None, Q: Any = None,
                       R: Any = None, speed: Any = None, **reader_options: Any) -> dict:
-    """The options of a run as the user gave them, in JSON form: what an output records as ``settings["options"]``.
-
-    Two runs with equal options write equal outputs from the same log, so ``imu-ground
-    batch`` compares this with an existing output's record to tell whether it may be kept.
-    ``format`` and None-valued reader options are left out (a detected format is the
-    same format); a speed given as an array is recorded as ``"per-frame array"``.
+    """The options of a run as the user gave them, in JSON form: what an output records as ``settings["options"]``
+    (``imu-ground batch`` compares it to tell whether an output may be kept). ``format`` and None-valued reader
+    options are left out; a speed given as an array is recorded as ``"per-frame array"``.
     """
     if speed is None or isinstance(speed, str) and speed == "none":
         speed_text = "none"
@@ -55,12 +42,8 @@ GRAVITY_REFUSE_DEG = 60.0
 
 
 def gravity_angle(accel: np.ndarray, extrinsic: Any = None) -> float:
-    """Angle, deg, between the mean specific force of a log and the up axis the extrinsic assigns to the sensor.
-
-    At rest and on average over a drive an accelerometer reads the reaction to
-    gravity, "up"; the extrinsic (ground <- sensor) says that up is its third row
-    (the ground's z axis in sensor coordinates). NaN when the mean specific force is
-    too small to have a direction (under 1 m/s^2: no accelerometer data).
+    """Angle, deg, between the mean specific force of a log ("up" on average over a drive) and the up axis the
+    extrinsic (ground <- sensor) assigns to the sensor, its third row; NaN under 1 m/s^2 (no accelerometer data).
 
     Parameters
     ----------
@@ -70,8 +53,7 @@ def gravity_angle(accel: np.ndarray, extrinsic: Any = None) -> float:
         As :func:`estimate_log` takes it (None: identity, up = sensor z).
     """
     a = np.asarray(accel, dtype=float).reshape(-1, 3)
-    # a finite mean of every row: every row is finite (a NaN or inf would carry into the sum), so it is the
-    # mean of the finite rows as computed below (the same array, the same sums) without their copy
+    # a finite mean of all rows is the mean of the finite rows (the same sums) without their copy
     f = a.mean(axis=0) if len(a) and a.flags.c_contiguous else np.full(3, np.nan)
     if not np.all(np.isfinite(f)):
         a = a[np.all(np.isfinite(a), axis=1)]
@@ -86,12 +68,9 @@ def gravity_angle(accel: np.ndarray, extrinsic: Any = None) -> float:
 
 
 def check_gravity_direction(imu, extrinsic: Any, path: str | Path) -> float:
-    """Warn, or refuse, when a log's mean specific force is not along the extrinsic's up axis.
-
-    A sensor mounted z-down (FRD) without an extrinsic, or a camera extrinsic on an IMU
-    log, turns every angle: the output would look plausible and be wrong. Above
-    :data:`GRAVITY_WARN_DEG` a warning gives the angle; above :data:`GRAVITY_REFUSE_DEG`
-    an :class:`OptionError` naming ``extrinsic`` (``--extrinsic``).
+    """Warn (above :data:`GRAVITY_WARN_DEG`), or refuse (above :data:`GRAVITY_REFUSE_DEG`, an :class:`OptionError`
+    naming ``extrinsic``), when a log's mean specific force is not along the extrinsic's up axis (a z-down
+    sensor, a camera extrinsic on an IMU log: every angle turned).
 
     Returns
     -------
@@ -113,9 +92,8 @@ def check_gravity_direction(imu, extrinsic: Any, path: str | Path) -> float:
 
 
 def check_creatable(path: Path, option: str, start: Path | None = None) -> None:
-    """``path`` (a file or folder to be written) can be created: the nearest existing folder from
-    ``start`` (default: its parent) up is a writable folder; else ValueError naming ``path`` and the
-    CLI ``option`` to change."""
+    """``path`` (a file or folder to be written) can be created: the nearest existing folder from ``start`` (default:
+    its parent) up is writable; else an ImuGroundError naming ``path`` and the CLI ``option`` to change."""
     anc = path.parent if start is None else start
     while not anc.exists() and anc != anc.parent:
         anc = anc.parent
@@ -127,11 +105,9 @@ def check_creatable(path: Path, option: str, start: Path | None = None) -> None:
 
 
 def check_recalibration(path: str | Path, speeds: np.ndarray | None, speed_info: str, em) -> None:
-    """What ``recalibrate_online`` (``--recalibrate-online``) needs: a measured speed, and a log long enough.
-
-    The mount monitor (:mod:`imu_ground.filters.mount_monitor`) runs only on frames with a
-    speed and judges from :data:`~imu_ground.filters.mount_monitor.HOLD_OFF` +
-    :data:`~imu_ground.filters.mount_monitor.GATE` seconds (2 minutes) after the first one.
+    """What ``recalibrate_online`` needs: a measured speed, and frames with one spanning the mount monitor's
+    :data:`~imu_ground.filters.mount_monitor.HOLD_OFF` + :data:`~imu_ground.filters.mount_monitor.GATE` s (else
+    a warning).
 
     Parameters
     ----------

@@ -1,7 +1,5 @@
 """A log replayed through the live object (:class:`~imu_ground.pipeline.streaming.StreamingEstimator`) sample by
-sample, and the track of the frames it gives: what :meth:`StreamingEstimator.run` falls back to for logs its
-vectorised form does not cover (a clock that restarts, non-finite samples), and what the tests compare the
-vectorised form with."""
+sample, and the track of the frames it gives (:meth:`StreamingEstimator.run`, ``estimate --causal``)."""
 from __future__ import annotations
 
 import math
@@ -11,13 +9,7 @@ import numpy as np
 
 from imu_ground.imu.egomotion import EgoMotion
 
-__all__ = ["frames_track", "replay", "replayed_track"]
-
-
-def replayed_track(est: Any, t, gyro, accel, speed) -> tuple:
-    """Feed the log to the streaming estimator (logs the vectorised form does not cover)."""
-    frames = replay(est, t, gyro, accel, speed)
-    return frames_track(frames, est)
+__all__ = ["frames_track", "replay"]
 
 
 def replay(est: Any, t, gyro, accel, speed=None) -> list:
@@ -47,9 +39,9 @@ def replay(est: Any, t, gyro, accel, speed=None) -> list:
     return out + est.flush()
 
 
-def frames_track(frames: list, est: Any) -> tuple:
-    """A GroundTrack of streamed estimates (``est``'s extrinsic: road <- sensor), and their frames' EgoMotion
-    (times in s, durations, flags; no rotations: identities)."""
+def frames_track(frames: list, est: Any, egos: list | None = None) -> tuple:
+    """A GroundTrack of streamed estimates (``est``'s extrinsic: road <- sensor), and the EgoMotion of their frames
+    ``egos`` (:class:`~imu_ground.imu.egomotion.EgoFrame`; None: times, durations and flags alone, identities)."""
     from imu_ground.filters.estimator import GroundTrack
     n = len(frames)
     E = np.array([f.residual for f in frames]).reshape(n, 3, 3)
@@ -66,6 +58,12 @@ def frames_track(frames: list, est: Any) -> tuple:
                                        road_bank=[f.road_bank for f in frames],
                                        road_grade_std=[f.road_grade_std for f in frames],
                                        road_bank_std=[f.road_bank_std for f in frames])
-    em = EgoMotion(t, np.tile(np.eye(3), (n, 1, 1)), np.zeros((n, 3)), t - ts, np.zeros(n, bool),
-                   np.array([f.valid for f in frames], bool), est.bias_gyro, "FLU", {"causal": True}, est.rate, True)
+    if egos is None:
+        dR, dv, dt, still, valid = np.tile(np.eye(3), (n, 1, 1)), np.zeros((n, 3)), t - ts, np.zeros(n, bool), \
+            np.array([f.valid for f in frames], bool)
+    else:
+        dR, dv = np.array([e.delta_R for e in egos]).reshape(n, 3, 3), np.array([e.delta_v for e in egos]).reshape(n, 3)
+        dt, still = np.array([e.delta_t for e in egos], float), np.array([e.stationary for e in egos], bool)
+        valid = np.array([e.valid for e in egos], bool)
+    em = EgoMotion(t, dR, dv, dt, still, valid, est.bias_gyro, "FLU", {"causal": True}, est.rate, True)
     return track, em

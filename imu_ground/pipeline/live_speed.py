@@ -1,20 +1,14 @@
 """The live estimator's speed: how long frames wait for a late one (:class:`SpeedLatency`), and whether it is in
-m/s or km/h (:class:`SpeedUnit`), told from the data as the readers tell a speed file's unit.
-
-Used by :class:`~imu_ground.pipeline.streaming.StreamingEstimator` and its whole-log twin
-(:func:`tells_kmh`, :func:`wait_may_grow`: the logs the twin replays sample by sample).
-"""
+m/s or km/h (:class:`SpeedUnit`)."""
 from __future__ import annotations
 
 import math
 from collections import deque
 from typing import Any
 
-import numpy as np
+from imu_ground.datasets.speed import UNIT_WINDOW_S, speed_unit
 
-from imu_ground.datasets.speed import frame_speed
-
-__all__ = ["MAX_SPEED_WAIT", "NO_SPEED", "SpeedLatency", "SpeedUnit", "causal_speeds", "tells_kmh", "wait_may_grow"]
+__all__ = ["MAX_SPEED_WAIT", "NO_SPEED", "SpeedLatency", "SpeedUnit"]
 
 #: Longest a frame waits for a late speed, s of IMU time (or ``speed_wait`` when that is longer).
 MAX_SPEED_WAIT = 1.0
@@ -27,14 +21,9 @@ NO_SPEED = "no speed over this frame: IMU only"
 
 
 class SpeedLatency:
-    """How long frames wait for their speed: ``speed_wait``, or as long as the measured latency needs.
-
-    Each speed sample's latency is the IMU time it arrived at less its stamp (s); a frame ending at
-    ``te`` has its speed once a sample stamped at or after ``te`` has arrived: one period of the speed
-    after ``te`` plus the latency. The wait is the largest latency of the last :data:`_LATENCY_SAMPLES`
-    samples plus their median period (and :data:`_WAIT_MARGIN`), at least ``speed_wait`` and at most
-    :data:`MAX_SPEED_WAIT` (or ``speed_wait`` when longer).
-    """
+    """How long frames wait for their speed: the largest latency (IMU time of arrival less stamp, s) of the last
+    :data:`_LATENCY_SAMPLES` speed samples plus their median period and :data:`_WAIT_MARGIN`, at least ``least``
+    (``speed_wait``) and at most :data:`MAX_SPEED_WAIT` (or ``least`` when longer)."""
 
     def __init__(self, least: float) -> None:
         self.least, self.most = least, max(least, MAX_SPEED_WAIT)
@@ -45,9 +34,8 @@ class SpeedLatency:
         self.lag, self.count = -1.0, 0                  # the largest latency when the wait was worked out; since
 
     def arrived(self, t: float, now: float) -> str | None:
-        """A speed sample stamped ``t`` arrived at IMU time ``now`` (s); a note when the wait changed. Every tenth
-        sample's latency and period are kept (and any sample's larger than the largest kept), and the wait is
-        worked out again with them."""
+        """A speed sample stamped ``t`` arrived at IMU time ``now`` (s); a note when the wait changed (worked out again
+        every tenth sample, or at a latency over the largest kept)."""
         if not (t - t == 0.0 and now > -math.inf):
             return None
         step, self.last = t - self.last, t
@@ -100,17 +88,13 @@ class SpeedLatency:
 class SpeedUnit:
     """m/s or km/h, told from the data as :func:`~imu_ground.datasets.speed.check_speed` tells a speed file's unit.
 
-    Over windows of :data:`~imu_ground.datasets.speed.UNIT_WINDOW_S` (whole frames), the speed's change
-    (frame speeds at the windows' ends) is regressed on the forward specific force integrated over the
-    window (the frames' ``delta_v`` x, m/s), both means removed, over the windows where the speed is over
-    1 m/s at both ends; after 20 such windows a slope of 2.9-4.5 with a correlation over 0.6 is km/h, a
-    slope of 0.6-1.6 is m/s (then no more checks); the check gives up (m/s) after :data:`_UNIT_MAX_WINDOWS`.
-    While it is open the filter's state at the first frame with a speed and the frames since are kept
-    (:meth:`rerun`: the filter runs again over them with the speed converted).
+    :func:`~imu_ground.datasets.speed.speed_unit` over windows of whole frames (the frames' ``delta_v`` x
+    against the change of their speeds), summed frame by frame: km/h ends the check with True, m/s (or
+    :data:`_UNIT_MAX_WINDOWS` windows) ends it. While it is open the filter's state at the first
+    frame with a speed and the frames since are kept (:meth:`rerun`).
     """
 
     def __init__(self, rate: float) -> None:
-        from imu_ground.datasets.speed import UNIT_WINDOW_S
         self.W = max(1, int(round(UNIT_WINDOW_S * rate)))
         self.open, self.started = True, False
         self.k, self.dv, self.v0 = 0, 0.0, math.nan     # frames in the window, its sum of dv, the speed before it
@@ -142,19 +126,13 @@ class SpeedUnit:
         s[2] += x * x
         s[3] += y * y
         s[4] += x * y
-        if self.n < 20:
-            return False
-        n = self.n
-        sxx, syy, sxy = s[2] - s[0] * s[0] / n, s[3] - s[1] * s[1] / n, s[4] - s[0] * s[1] / n
-        if sxx > 0 and syy > 0 and sxy / math.sqrt(sxx * syy) > 0.6:
-            self.slope = k = sxy / sxx
-            if 2.9 < k < 4.5:
-                self.open = False
-                return True
-            if 0.6 < k < 1.6:
-                self._close()
-                return False
-        if self.n >= _UNIT_MAX_WINDOWS:
+        unit, k = speed_unit(self.n, s)
+        if unit is not None:
+            self.slope = k
+        if unit == "km/h":
+            self.open = False
+            return True
+        if unit == "m/s" or self.n >= _UNIT_MAX_WINDOWS:
             self._close()
         return False
 
@@ -162,8 +140,8 @@ class SpeedUnit:
         self.open, self.snapshot, self.frames = False, None, []
 
     def rerun(self, flt: Any, k: float) -> int:
-        """The filter back at the first speed, then over the frames since with their speeds times ``k``; the
-        frames run again (-1: none kept, a resumed state)."""
+        """The filter back at the first speed, then run over the frames since with their speeds times ``k``; how
+        many (-1: none kept, a resumed state)."""
         snapshot, frames = self.snapshot, self.frames[:-1]      # (the last: the frame being decided)
         self._close()
         if snapshot is None:
@@ -189,50 +167,3 @@ class SpeedUnit:
 
 #: Windows after which the live speed-unit check gives up (the speed is then taken as m/s).
 _UNIT_MAX_WINDOWS = 300
-
-
-def tells_kmh(rate: float, dvx: np.ndarray, v: np.ndarray) -> bool:
-    """Whether the stream's :class:`SpeedUnit` tells these frames' speeds (frames with a speed on) to be km/h."""
-    unit = SpeedUnit(rate)
-    fin = np.flatnonzero(v == v)
-    for dx, vj in zip(dvx[fin[0]:].tolist() if fin.size else [], v[fin[0]:].tolist() if fin.size else [], strict=True):
-        if unit.frame(dx, vj, None, None):
-            return True
-        if not unit.open:
-            return False
-    return False
-
-
-def wait_may_grow(speed_wait: float, speed, t_out: np.ndarray, frontier: np.ndarray) -> bool:
-    """Whether a stream of this log could wait longer than ``speed_wait`` for a speed (:class:`SpeedLatency`):
-    the speed's longest period plus the most the sample clock's times run ahead of the stamps, with the margin."""
-    ts = np.asarray(speed[0], dtype=float)
-    ts = ts[np.isfinite(ts)]
-    step = float(np.diff(ts).max()) if ts.size > 1 else 0.0
-    ahead = float(np.max(t_out - frontier)) if t_out.size else 0.0
-    return step + max(ahead, 0.0) + _WAIT_MARGIN > speed_wait
-
-
-def causal_speeds(speed, te, ts, i_emit, frontier, t_out, n_warm, wait, notes) -> np.ndarray:
-    """Each frame's speed as the stream decides it (module docstring of :mod:`~imu_ground.pipeline.streaming`, step 4)."""
-    ts_sp, v_sp = (np.asarray(x, dtype=float) for x in speed)
-    M, m, F = ts_sp.size, t_out.size, te.size
-    fs = frame_speed(ts_sp, v_sp, te, te - ts)
-    out = np.full(F, np.nan)
-    rec_i = int(np.searchsorted(frontier, ts_sp[0], side="left"))
-    jstar = np.searchsorted(ts_sp, te, side="left")
-    cov_i = np.where(jstar < M, np.searchsorted(frontier, ts_sp[np.minimum(jstar, M - 1)], side="left"), m)
-    to_i = np.searchsorted(t_out, te + wait, side="left")
-    prev = n_warm - 1
-    for j in range(F):
-        i0 = max(int(i_emit[j]), prev)
-        if i0 < rec_i:                                   # no speed received yet: IMU only, no wait
-            prev = i0
-            continue
-        d = max(i0, min(int(cov_i[j]), int(to_i[j])))
-        covered = jstar[j] < M and (d >= m or frontier[min(d, m - 1)] >= ts_sp[jstar[j]])
-        out[j] = fs[j] if covered else np.nan
-        if np.isnan(out[j]):
-            notes[j].append(NO_SPEED)
-        prev = min(d, m)
-    return out

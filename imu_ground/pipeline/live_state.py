@@ -1,11 +1,8 @@
 """A live estimator's saved state packed: long lists of floats as base64 of their compressed float64 bytes, and back.
 
 :func:`pack` writes a list of equally shaped items of floats (at least 8 in all) as
-``{"float64_zlib_base64": text, "n": items, "item": shape}``: exact, and less than half the JSON
-of the numbers' text. :func:`unpack` reads it back with bounds: a packed list that is garbled,
-truncated, of another size than it says, or larger than :data:`MAX_PACKED_FLOATS` (inflated with
-``zlib.decompressobj`` up to the size it says, never more) raises
-:class:`~imu_ground.imu.warm_start.StateError` naming the entry.
+``{"float64_zlib_base64": text, "n": items, "item": shape}``; :func:`unpack` reads it back with
+bounds (inflated up to the size it says, never more).
 """
 from __future__ import annotations
 
@@ -41,9 +38,7 @@ def _leaves(x: Any, out: list) -> None:
 
 
 def pack(x: Any) -> Any:
-    """A list of equally shaped items of floats (at least 8 in all) as base64 of the floats' float64 bytes
-    (zlib-compressed) and the items' shape: exact, and less than half the JSON of the numbers' text;
-    everything else as it is."""
+    """``x`` with each list of equally shaped items of floats (at least 8 in all) packed (module docstring)."""
     if type(x) is dict:
         return {k: pack(v) for k, v in x.items()}
     if type(x) is list:
@@ -60,8 +55,7 @@ def pack(x: Any) -> Any:
     return x
 
 
-#: The most floats a packed list of a saved state may hold (a state is some 9 KB; this bounds what a corrupt
-#: or hostile one inflates to: 8 MB).
+#: The most floats a packed list of a saved state may hold (bounds what a corrupt one inflates to: 8 MB).
 MAX_PACKED_FLOATS = 1_000_000
 
 

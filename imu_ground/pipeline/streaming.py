@@ -1,44 +1,36 @@
 """Live: raw IMU samples and wheel speed in, per-frame ground estimates out, causal (:class:`StreamingEstimator`).
 
-The object a vehicle-side stack feeds from its driver callbacks, and its counterpart for
-recorded logs, :func:`causal_track` (``estimate_log(..., causal=True)``,
-``imu-ground estimate --causal``), which makes the same choices over a whole log,
-vectorised where the choices allow, and gives the same numbers (to rounding).
-
+The object a vehicle-side stack feeds from its driver callbacks; :func:`causal_track`
+(``estimate_log(..., causal=True)``, ``imu-ground estimate --causal``) feeds it a recorded log.
 Per sample, each piece one class:
 
 1. **Clock** (:class:`~imu_ground.imu.live.sample_clock.SampleClock`): raw stamps to strictly
-   increasing sample times (jitter retimed on the sample index with a running rate,
-   back-steps and repeats by the readers' ``retime`` or ``drop`` policy, dropouts kept as
-   gaps; one stamp far off the clock is a bad sample, dropped and said; three agreeing ones are a
-   new clock: a dropout, or, set back by more than a gap or forward by more than
-   :data:`MAX_GAP_FRAMES` frames, a restart of the front end). The stamps' unit (s, ms, us, ns) is
-   told from each warm-up as the readers tell it and said (``time_unit`` gives it); a warm-up no
-   unit makes an IMU's (a period over :data:`MAX_SAMPLE_PERIOD`) is skipped and said.
+   increasing sample times (jitter retimed, back-steps and repeats by the ``retime`` or ``drop``
+   policy, dropouts kept as gaps; one stamp far off the clock is a bad sample, dropped and said; three
+   agreeing ones are a new clock: a dropout, or a restart when set back by more than a gap or forward
+   by more than :data:`MAX_GAP_FRAMES` frames). The stamps' unit (s, ms, us, ns) is told from each
+   warm-up as the readers tell it (``time_unit`` gives it); a warm-up whose period is over
+   :data:`MAX_SAMPLE_PERIOD` is skipped. Each is said.
 2. **Standstill and gyro bias** (:mod:`imu_ground.imu.live.causal_standstill`): a frame ends at a
    standstill when its trailing 1 s window is quiet, or when it is quiet alone and leads into such a
-   window (the first frames of a stop: held until that window passes, at most 0.9 s); the bias is the mean rate over the
-   standstills (2 s windows) seen so far (or given, or from a saved state) and applies from the next sample.
+   window (held until that window passes, at most 0.9 s); the bias is the mean rate over the 2 s
+   standstill windows seen so far (or given, or from a saved state), applied from the next sample.
 3. **Preintegration** (:class:`~imu_ground.imu.preintegration.StreamingPreintegrator`): frames
    at ``rate`` Hz from the first sample, gaps flagged and integrated through.
 4. **Speed over the frame** (:class:`~imu_ground.imu.live.speed_buffer.SpeedBuffer`): a frame
-   waits for a speed sample at or after its end, ``speed_wait`` seconds of IMU time
-   (:data:`SPEED_WAIT`) or as long as the speed's measured latency needs (at most
-   :data:`MAX_SPEED_WAIT`), then runs IMU only and says so; a stream that never sent a speed does
-   not wait. A speed in km/h is told from the data as the readers tell it (its changes against the
-   accelerometer), said, and converted (the filter run again from its first speed).
-5. **Filter**: the method's streaming ``step`` (``on_invalid="skip"``: a bad frame is skipped,
-   never raised on).
+   waits for a speed sample at or after its end, :data:`SPEED_WAIT` s of IMU time or as long as the
+   speed's measured latency needs (at most :data:`MAX_SPEED_WAIT`), then runs IMU only and says so;
+   a stream that never sent a speed does not wait. A speed in km/h is told from the data
+   (:class:`~imu_ground.pipeline.live_speed.SpeedUnit`), said and converted.
+5. **Filter**: the method's streaming ``step`` (``on_invalid="skip"``).
 
-After the warm-up, steps 1-3 are one compiled call a sample (:func:`_front_step`, through
-:mod:`imu_ground._jit`: the clock's step, the sum into the open standstill block, the
-preintegration step, each the one body its own object runs); a sample that starts a block,
-a stamp far off the clock and the preintegrator's gaps go on in Python.
+After the warm-up, steps 1-3 are one compiled call a sample (:func:`_front_step`: the bodies the
+clock, the standstill blocks and the preintegrator run themselves); a sample that opens a block, a
+stamp far off the clock and the preintegrator's gaps go on in Python.
 
-Data never raise: a non-finite sample is skipped, a dropped or retimed stamp, a restart, a
-late, repeated or non-finite speed sample, each is said in the next frame's ``status_reason``.
-Misuse (a 3x3 array as ``gyro``, a string as ``t``) raises
-:class:`~imu_ground.datasets.options.OptionError` (a ``ValueError``) naming the argument.
+Data never raise: a non-finite sample, a dropped or retimed stamp, a restart, a late, repeated or
+non-finite speed sample, each is said in the next frame's ``status_reason``. Misuse (a 3x3 array as
+``gyro``, a string as ``t``) raises :class:`~imu_ground.errors.OptionError` naming the argument.
 """
 from __future__ import annotations
 
@@ -55,23 +47,13 @@ from imu_ground.imu.live.speed_buffer import SpeedBuffer
 from imu_ground.filters import Extrinsic
 from imu_ground.filters.estimator import GroundEstimate
 from imu_ground.filters.methods import METHODS, default_method, live_methods, recalibrating_methods
-from imu_ground.imu.live.causal_standstill import (
-    CausalGyroBias,
-    StandstillBlocks,
-    StandstillTests,
-    add_sample,
-    block_sums,
-    stop_starts,
-    window_standstill,
-)
-from imu_ground.imu.egomotion import EgoFrame, EgoMotion
-from imu_ground.imu.preint_measurement import PreintegratedImu
+from imu_ground.imu.live.causal_standstill import CausalGyroBias, StandstillBlocks, add_sample
+from imu_ground.imu.egomotion import EgoFrame
 from imu_ground.imu.live.preint_stream import push_step
-from imu_ground.imu.preintegration import StreamingPreintegrator, preintegrate
-from imu_ground.imu.live.sample_clock import DROP, FAR, OK, RESTART, SampleClock, clock_step
-from imu_ground.pipeline.live_replay import frames_track, replay, replayed_track
-from imu_ground.pipeline.live_speed import (MAX_SPEED_WAIT, NO_SPEED, SpeedLatency, SpeedUnit, causal_speeds,
-                                            tells_kmh, wait_may_grow)
+from imu_ground.imu.preintegration import StreamingPreintegrator
+from imu_ground.imu.live.sample_clock import DROP, FAR, OK, SampleClock, clock_step
+from imu_ground.pipeline.live_replay import frames_track, replay
+from imu_ground.pipeline.live_speed import MAX_SPEED_WAIT, NO_SPEED, SpeedLatency, SpeedUnit
 from imu_ground.pipeline.live_state import MAX_RECORDS, pack, unpack
 from imu_ground.so3 import quat_from_matrix
 from imu_ground.units import MAX_GAP_FRAMES        # a forward step longer than this restarts the front end
@@ -80,25 +62,18 @@ __all__ = ["LIVE_METHODS", "MAX_FRAME_RATE", "MAX_GAP_FRAMES", "MAX_SAMPLE_PERIO
            "FrameEstimate",
            "StreamingEstimator", "causal_track", "estimate_row", "replay"]
 
-#: Methods that run live (``"auto"`` is ``"suspension"``); the offline smoother and the naive baseline do not.
-#: The registry's :func:`~imu_ground.filters.methods.live_methods` when this module was imported (the checks
-#: ask the registry itself, so a method registered later runs live too).
+#: Methods that run live (``"auto"`` is ``"suspension"``): the registry's
+#: :func:`~imu_ground.filters.methods.live_methods` at import (the checks ask the registry itself).
 LIVE_METHODS = live_methods()
-#: Least time a frame waits for a speed sample at or after its end, s of IMU time (then: IMU only, said); a speed
-#: that arrives later after its stamps (measured) makes frames wait as long as it needs, at most
-#: :data:`~imu_ground.pipeline.live_speed.MAX_SPEED_WAIT`.
+#: Least time a frame waits for a speed sample at or after its end, s of IMU time (module docstring, step 4).
 SPEED_WAIT = 0.25
-#: The highest frame rate, Hz, a :class:`StreamingEstimator` takes (its IMU's rate is not known before the
-#: samples come; a frame rate far above it would make millions of empty frames a sample).
+#: The highest frame rate, Hz (the IMU's rate is not known before the samples come).
 MAX_FRAME_RATE = 1000.0
-#: A warm-up whose sample period is longer than this, s, is not an IMU's: stamps not in seconds (ns, us or ms
-#: taken for s); its samples are skipped and said.
+#: A warm-up whose sample period is longer than this, s, is not an IMU's (stamps not in seconds): skipped, said.
 MAX_SAMPLE_PERIOD = 1.0
 _STATE_KIND = "imu_ground.StreamingEstimator"
 _STATE_VERSION = 1
-_NO_SPEED = NO_SPEED
 _UNDECIDED = "undecided"                                # a frame's speed not decided yet
-_from_state = PreintegratedImu.from_state
 # _front_step's answers beside push_step's (0: integrated, n > 0: frames finished, -1: its Python path to run)
 _NOT_TAKEN, _DROPPED, _NEW_BLOCK = -4, -3, -2
 
@@ -107,13 +82,9 @@ _NOT_TAKEN, _DROPPED, _NEW_BLOCK = -4, -3, -2
 def _front_step(clock: np.ndarray, blocks: np.ndarray, open_k: int, pre: np.ndarray, times: np.ndarray,
                 frames: np.ndarray, origin: float, rate: float, t: float, g0: float, g1: float, g2: float,
                 a0: float, a1: float, a2: float) -> int:
-    """Steps 1-3 of one sample after the warm-up: the clock's step (:func:`~imu_ground.imu.live.sample_clock.clock_step`),
-    the sum into the open standstill block ``open_k`` (of the blocks' ring,
-    :func:`~imu_ground.imu.live.causal_standstill.add_sample`), the preintegration step
-    (:func:`~imu_ground.imu.live.preint_stream.push_step`, its answer returned). Before the preintegration:
-    :data:`_NOT_TAKEN` (a non-finite value or a stamp far off the clock: nothing changed), :data:`_DROPPED`
-    (the clock dropped the sample), :data:`_NEW_BLOCK` (the sample opens another block: the clock's step done,
-    the rest to run in Python)."""
+    """Steps 1-3 of one sample after the warm-up (``clock_step``, ``add_sample`` into block ``open_k``, ``push_step``,
+    whose answer is returned); before the preintegration: :data:`_NOT_TAKEN` (non-finite or far off the clock:
+    nothing changed), :data:`_DROPPED`, :data:`_NEW_BLOCK` (the clock's step done, the rest in Python)."""
     if not (math.isfinite(t) and math.isfinite(g0 + g1 + g2 + a0 + a1 + a2)):
         return _NOT_TAKEN
     code = clock_step(clock, t)
@@ -332,6 +303,7 @@ class StreamingEstimator:
         self._clock = SampleClock(policy, max_jump=MAX_GAP_FRAMES / self.rate)
         self.speed_aided = bool(METHODS[self.method].speed_aided)
         self._filter = _make_filter(self.method, self.extrinsic, self.rate, self.recalibrate_online)
+        self._egos: list | None = None                  # the frames stepped, kept by run
         self.reset()
 
     # -- state ---------------------------------------------------------------------------------
@@ -449,35 +421,32 @@ class StreamingEstimator:
 
     # -- the front end -------------------------------------------------------------------------
     def _end_warmup(self) -> None:
-        """The clock's warm-up is over: the stamps' unit told from its samples (a new one: the warm-up again on
-        seconds), then the frames start, or a warm-up still too slow for an IMU is skipped."""
-        found = self._stamp_unit([w[0] / self._tscale for w in self._warm])
-        if found is not None and found[0] != self._tscale:
-            self._rescale(*found)
+        """The clock's warm-up is over: the stamps' unit told from its samples as the readers tell it
+        (:func:`~imu_ground.datasets.unit_checks.detect_time_unit`; a new one: the warm-up again on seconds), then
+        the frames start; a warm-up still slower than :data:`MAX_SAMPLE_PERIOD` is skipped, counted, said."""
+        if self.time_unit is None:
+            from imu_ground.datasets.unit_checks import TIME_UNITS, detect_time_unit
+            from imu_ground.errors import ImuGroundError
+            try:
+                unit, note = detect_time_unit(np.array([w[0] / self._tscale for w in self._warm]), "IMU stream", "t")
+            except ImuGroundError:
+                unit = None
+            if unit is not None and TIME_UNITS[unit] != self._tscale:
+                self._rescale(TIME_UNITS[unit], "IMU stamps in seconds again (told from the data)" if note is None else
+                              note.split(" (pass")[0].replace("IMU stream: time column 't' read", "IMU stamps read")
+                              + ": converted to seconds (pass time_unit to say so)")
         if self._clock.dt > MAX_SAMPLE_PERIOD:
-            self._slow_warmup()
-        else:
-            self._start()
-
-    def _stamp_unit(self, raw: list) -> tuple[float, str] | None:
-        """``(factor to seconds, note)`` of the stamps ``raw`` (as given) told from the data as the readers do
-        (:func:`~imu_ground.datasets.unit_checks.detect_time_unit`); None with ``time_unit`` given or when the
-        data cannot tell."""
-        if self.time_unit is not None:
-            return None
-        from imu_ground.datasets.unit_checks import TIME_UNITS, detect_time_unit
-        from imu_ground.errors import ImuGroundError
-        try:
-            unit, note = detect_time_unit(np.array(raw), "IMU stream", "t")
-        except ImuGroundError:
-            return None
-        scale = TIME_UNITS[unit]
-        if note is None:
-            note = "IMU stamps in seconds again (told from the data)"
-        else:
-            note = note.split(" (pass")[0].replace("IMU stream: time column 't' read", "IMU stamps read") + \
-                ": converted to seconds (pass time_unit to say so)"
-        return scale, note
+            self._slow = [self._slow[0] + len(self._warm), self._clock.dt]
+            self._clock.reset()
+            self._warm = []
+            return
+        warm, self._warm = self._warm, []
+        self._origin = warm[0][0]
+        self._pre = StreamingPreintegrator(rate=self.rate, t_origin=self._origin, max_gap=self._clock.max_gap,
+                                           on_gap="flag", uncertainty=False)
+        self._pre.set_gyro_bias(*self._bias.value)     # the preintegrator removes the causal bias
+        for w in warm:
+            self._feed(*w)
 
     def _rescale(self, scale: float, note: str) -> None:
         """The stamps are in another unit (``scale`` s each): the warm-up's samples again on seconds, the speed
@@ -494,9 +463,8 @@ class StreamingEstimator:
         self._notes.append(note)
 
     def _kmh(self, notes: list) -> float:
-        """The speed is in km/h (told by :class:`~imu_ground.pipeline.live_speed.SpeedUnit`): it and the speeds kept are converted from now on,
-        the filter runs again over the frames since its first speed with them (when it can), said; returns
-        the factor."""
+        """The speed is in km/h (:class:`~imu_ground.pipeline.live_speed.SpeedUnit`): converted from now on, the filter
+        run again over the frames since its first speed (when it can), said; returns the factor."""
         unit, k = self._vunit, 1.0 / 3.6
         self._vscale = k
         sp = self._speed
@@ -507,23 +475,6 @@ class StreamingEstimator:
                      + (f" (the filter run again over the {again} frames since its first speed)" if again >= 0
                         else " from here on"))
         return k
-
-    def _slow_warmup(self) -> None:
-        """The warm-up's sample period is longer than :data:`MAX_SAMPLE_PERIOD`: stamps not in seconds. The
-        samples are skipped and counted (said in the next frame's notes), and the clock warms up again on the
-        next samples."""
-        self._slow = [self._slow[0] + len(self._warm), self._clock.dt]
-        self._clock.reset()
-        self._warm = []
-
-    def _start(self) -> None:
-        warm, self._warm = self._warm, []
-        self._origin = warm[0][0]
-        self._pre = StreamingPreintegrator(rate=self.rate, t_origin=self._origin, max_gap=self._clock.max_gap,
-                                           on_gap="flag", uncertainty=False)
-        self._pre.set_gyro_bias(*self._bias.value)     # the preintegrator removes the causal bias
-        for s in warm:
-            self._feed(*s)
 
     def _feed(self, t: float, g: tuple, a: tuple) -> None:
         k = math.ceil((t - self._origin) * self.rate - 1e-6) - 1
@@ -595,7 +546,7 @@ class StreamingEstimator:
             v = sp.mean(ts, te)
             notes += sp.take_notes()
             if math.isnan(v):
-                notes.append(_NO_SPEED if wait == self.speed_wait else self._latency.timed_out())
+                notes.append(NO_SPEED if wait == self.speed_wait else self._latency.timed_out())
             sp.done(te)
             e[3], e[5] = v, self._vscale
         out = []
@@ -608,6 +559,8 @@ class StreamingEstimator:
                 if unit.open and unit.frame(float(ego.delta_v[0]), v, self._filter, ego):
                     v = self._kmh(notes) * v           # the speed's unit told now: km/h
             est = self._filter.step(ego) if v is None and not self.speed_aided else self._filter.step(ego, speed=v)
+            if self._egos is not None:
+                self._egos.append(ego)
             out.append(FrameEstimate.of(est, ego.t, ts, math.nan if v is None else v, tuple(notes), self.camera,
                                         ego.valid))
         return out
@@ -794,109 +747,24 @@ class StreamingEstimator:
     # -- a whole log at once ---------------------------------------------------------------------
     def run(self, t: np.ndarray, gyro: np.ndarray, accel: np.ndarray,
             speed: tuple[np.ndarray, np.ndarray] | None = None):
-        """What this estimator, fresh, gives fed a whole log sample by sample, computed at once where the
-        choices allow (:func:`causal_track`); returns ``(track, egomotion)``. Starts from :meth:`reset`."""
+        """This estimator, from :meth:`reset`, fed a whole log sample by sample (:func:`replay`): ``(track,
+        egomotion)``, the frames as the filter stepped them."""
         self.reset()
-        t = t_given = np.asarray(t, dtype=float)
-        if self._scaled:
-            t = t * self._tscale
-        gyro = np.asarray(gyro, dtype=float).reshape(-1, 3)
-        accel = np.asarray(accel, dtype=float).reshape(-1, 3)
-        gyro_in, accel_in = gyro, accel
-        n = t.size
-        clock = self._clock
-        tout = np.empty(n)
-        codes = np.empty(n, dtype=np.int8)
-        max_gap, n_warm = math.nan, -1
-        slow = False
-        for i, ti in enumerate(t.tolist()):
-            codes[i], tout[i] = clock.push(ti)
-            if n_warm < 0 and clock.warm:
-                n_warm, max_gap = i + 1, clock.max_gap
-                found = self._stamp_unit((t[:n_warm][codes[:n_warm] == OK] / self._tscale).tolist())
-                slow = clock.dt > MAX_SAMPLE_PERIOD or (found is not None and found[0] != self._tscale)
-        finite = np.isfinite(t) & np.isfinite(gyro).all(axis=1) & np.isfinite(accel).all(axis=1)
-        if (codes == RESTART).any() or not finite.all() or slow:
-            self.reset()                                 # (the clock above ran over the log; stamps as given)
-            return replayed_track(self, t_given, gyro_in, accel_in, speed)
-        retimed_total = clock.retimed
-        keep = codes == OK
-        n_dropped = int(n - keep.sum())
-        t_in, t, gyro, accel = t, tout[keep], gyro[keep], accel[keep]
-        frontier = np.maximum.accumulate(t_in)[keep] if n else t_in
-        m = t.size
-        if n_warm < 0 or m < 2:
-            return frames_track([], self)
-        n_warm = int(np.count_nonzero(keep[:n_warm]))
-        origin, r = float(t[0]), self.rate
-        # standstill blocks and flags, bias per frame
-        k = np.ceil((t - origin) * r - 1e-6).astype(np.int64) - 1
-        ends = origin + np.arange(1, int(k.max()) + 2) / r if k.max() >= 0 else np.zeros(0)
-        B = max(int(k.max()) + 1, 0)
-        counts, sums = block_sums(k, gyro, accel, B)
-        tests = StandstillTests()
-        still_b = stop_starts(window_standstill(counts, sums, tests, r), window_standstill(counts, sums, tests, r, 1),
-                              tests.blocks(r))
-        Wb = self._blocks.Wb
-        bias = self._bias
-        still_bias = window_standstill(counts, sums, tests, r, Wb) if bias.auto else np.zeros(B, dtype=bool)
-        # frames and the sample that completes each (the first at or after its end boundary, less snap_tol)
-        tol = 1e-9
-        i_emit = np.searchsorted(t, ends - tol, side="left")
-        n_frames = int(np.count_nonzero(i_emit < m))
-        i_emit = i_emit[:n_frames]
-        bias_rows = np.empty((n_frames + 1, 3))
-        bias_rows[0] = bias.value
-        block = lambda j: (int(counts[j]), float(sums[0, j]), float(sums[1, j]), float(sums[2, j]))  # noqa: E731
-        for j in range(n_frames):
-            if still_bias[j]:
-                bias.absorb(j, Wb, block)
-            bias_rows[j + 1] = bias.value
-        J = np.searchsorted(i_emit, np.arange(m), side="left")         # frames emitted before sample i
-        g_corr = gyro - bias_rows[J]
-        fd = preintegrate((t, g_corr, accel), rate=r, t_origin=origin, max_gap=max_gap, on_gap="flag",
-                          uncertainty=False)
-        F = len(fd.t_end)
-        te = np.asarray(fd.t_end, dtype=float)
-        still = still_b[:F]
-        em = EgoMotion(te.copy(), fd.delta_R, fd.delta_v, fd.delta_t, still, np.asarray(fd.valid, bool).copy(),
-                       np.array(bias.value), "FLU", {"causal": True, "retimed": retimed_total, "dropped": n_dropped},
-                       r, True)
-        ts = te - np.asarray(fd.delta_t, float)
-        notes: list[list[str]] = [[] for _ in range(F)]
-        if F and (retimed_total or n_dropped):       # the clock's counts go to the frame after the sample
-            _clock_notes(self, t_in, keep, notes, np.maximum(i_emit[:F], n_warm - 1))
-        v = None
-        if self.speed_aided and speed is not None and F and wait_may_grow(self.speed_wait, speed, t, frontier):
-            self.reset()                                 # a late speed's wait: as the stream decides it
-            return replayed_track(self, t_given, gyro_in, accel_in, speed)
-        if self.speed_aided and speed is not None and F:
-            v = causal_speeds(speed, te, ts, i_emit[:F], frontier, t, n_warm, self.speed_wait, notes)
-        if v is not None and tells_kmh(self.rate, em.delta_v[:, 0], v):
-            self.reset()                                 # a speed in km/h: as the stream converts it
-            return replayed_track(self, t_given, gyro_in, accel_in, speed)
-        flt = self._filter
-        track = flt.run(em, speed=v) if self.speed_aided else flt.run(em)
-        if any(notes):
-            reason = track.status_reason
-            for j, nt in enumerate(notes):
-                if nt:
-                    reason[j] = "; ".join([reason[j], *nt] if reason[j] else nt)
-        return track, em
+        self._egos = []
+        try:
+            frames = replay(self, t, gyro, accel, speed)
+            return frames_track(frames, self, self._egos)
+        finally:
+            self._egos = None
 
 
 # ------------------------------------------------------------------------------------ offline counterpart
 def causal_track(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, *, method: str = "auto", extrinsic: Any = None,
                  rate: float = 10.0, speed: tuple[np.ndarray, np.ndarray] | None = None, bias_gyro: Any = "auto",
                  policy: str = "retime", speed_wait: float = SPEED_WAIT, recalibrate_online: bool = False):
-    """What a :class:`StreamingEstimator` gives for a whole log, computed at once where the choices allow.
-
-    The log is taken as a stream: IMU sample ``i`` arrives after the speed samples up to its
-    stamp, the rest of the speed before :meth:`StreamingEstimator.flush`. The clock runs sample by
-    sample (a recurrence); the standstill window, the gyro bias, the preintegration, the frames'
-    speeds and the filter run vectorised (:func:`~imu_ground.imu.preintegration.preintegrate`, the
-    filter's ``run``). A log whose clock restarts or that holds non-finite samples is fed to a
-    :class:`StreamingEstimator` instead (same result by definition).
+    """What a :class:`StreamingEstimator` gives for a whole log: the log fed to it sample by sample as a stream
+    (IMU sample ``i`` after the speed samples up to its stamp, the rest before
+    :meth:`StreamingEstimator.flush`; :meth:`StreamingEstimator.run`).
 
     Parameters
     ----------
@@ -912,25 +780,8 @@ def causal_track(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, *, method: 
     track : GroundTrack
         Per frame, ``status_reason`` with the front end's notes.
     egomotion : EgoMotion
-        The frames (stationary flags of the trailing window; ``bias_gyro`` the last bias).
+        The frames as the filter stepped them (stationary flags of the trailing window; ``bias_gyro`` the last bias).
     """
     est = StreamingEstimator(method, extrinsic, rate, bias_gyro=bias_gyro, policy=policy, speed_wait=speed_wait,
                              recalibrate_online=recalibrate_online)
     return est.run(t, gyro, accel, speed)
-
-
-def _clock_notes(est, t_in, keep, notes, i_emit) -> None:
-    """Replay the clock's per-sample counts onto the frames (as the streaming notes them): a loop, but only
-    for logs whose stamps were retimed or dropped."""
-    clock = SampleClock(est.policy, max_jump=MAX_GAP_FRAMES / est.rate)
-    pos = np.cumsum(keep) - 1                        # kept position of each input sample (or the last before)
-    f = 0
-    nf = len(i_emit)
-    for i, ti in enumerate(t_in.tolist()):
-        clock.push(ti)
-        # frames completed by this sample (a dropped sample completes none)
-        if keep[i]:
-            p = pos[i]
-            while f < nf and i_emit[f] == p:
-                notes[f] = clock.take_notes()
-                f += 1

@@ -1,15 +1,9 @@
-"""Speed over a frame from the speed samples received so far: the streaming form of :func:`frame_speed`.
+"""Speed over a frame from the speed samples received so far (:class:`SpeedBuffer`).
 
-A live stream gets wheel / CAN speed samples at their own rate, before or after
-the IMU samples they overlap. :class:`SpeedBuffer` keeps the few samples that
-later frames still need and gives a frame's mean speed exactly as
-:func:`~imu_ground.datasets.speed.frame_speed` defines it (the mean of the
-piecewise-linear speed over ``(t_start, t_end]``), once a sample at or after the
-frame's end has arrived (:meth:`covers`); a frame outside the finite samples' span, or
-reached by a hole (a run of NaN speeds, from the last finite sample before it to the
-first after it: nothing is interpolated across), has none (NaN). Samples with a
-non-finite time, a repeated time or that come after the frames they belong to are
-ignored and counted (:attr:`rejected`), never raised on.
+Keeps the few samples later frames still need and gives a frame's mean speed as
+:func:`~imu_ground.datasets.speed.frame_speed` defines it (its definition, holes included), once a
+sample at or after the frame's end has arrived (:meth:`covers`). Samples with a non-finite or
+repeated time, or after the frames they belong to, are ignored and counted (:attr:`rejected`).
 """
 from __future__ import annotations
 
@@ -56,12 +50,11 @@ class SpeedBuffer:
             self.v.append(v)
             return
         if not math.isfinite(v):
-            v = math.nan                        # a hole: the frames it reaches say "no speed" themselves
+            v = math.nan                        # a hole
         if not math.isfinite(t):
             self.rejected["nonfinite"] += 1
             return
         self.received = True
-        ts = self.t
         if t < self.done_until:
             self.rejected["late"] += 1          # before the end of a frame already decided
             return
@@ -147,9 +140,8 @@ class SpeedBuffer:
                 "rejected": dict(self.rejected)}
 
     def load_checked(self, r: Any, limit: int) -> None:
-        """Resume from a saved :meth:`state_dict` read through ``r`` (a :class:`~imu_ground.imu.warm_start.StateReader`),
-        checked: at most ``limit`` samples, finite increasing times, speeds (NaN: holes), the counts integers;
-        else :class:`~imu_ground.imu.warm_start.StateError` naming the entry."""
+        """Resume from a :meth:`state_dict` read through ``r`` (a :class:`~imu_ground.imu.warm_start.StateReader`),
+        checked (at most ``limit`` samples, increasing times); else a ``StateError`` naming the entry."""
         times = r.state.get("t") if isinstance(r.state, dict) else None
         if not isinstance(times, list) or len(times) > limit:
             raise r.error("t", f"is not a list of at most {limit} times")
