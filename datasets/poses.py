@@ -399,7 +399,7 @@ def read_poses(path: str | Path, format: str | None = None, times: str | Path | 
 
 
 def write_tum_poses(path: str | Path, t: np.ndarray, rotations: np.ndarray,
-                    translations: np.ndarray | None = None) -> None:
+                    translations: np.ndarray | None = None, header: str = "t x y z qx qy qz qw") -> None:
     """Write a TUM trajectory (``t x y z qx qy qz qw``), readable by evo.
 
     Parameters
@@ -407,10 +407,11 @@ def write_tum_poses(path: str | Path, t: np.ndarray, rotations: np.ndarray,
     t : ndarray (N,), seconds.
     rotations : ndarray (N, 3, 3), world <- sensor (or any a <- b the caller documents).
     translations : ndarray (N, 3), metres; zeros by default.
+    header : str
+        The comment at the top (``# `` before each line).
     """
     from scipy.spatial.transform import Rotation
     t = np.asarray(t, dtype=float)
-    q = Rotation.from_matrix(rotations).as_quat()
+    q = Rotation.from_matrix(rotations).as_quat() if len(t) else np.zeros((0, 4))
     p = np.zeros((len(t), 3)) if translations is None else np.broadcast_to(translations, (len(t), 3))
-    np.savetxt(path, np.column_stack([t, p, q]), fmt="%.9f", header="t x y z qx qy qz qw")
-
+    np.savetxt(path, np.column_stack([t, p, q]), fmt="%.9f", header=header)

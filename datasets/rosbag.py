@@ -48,7 +48,7 @@ from .rosbag_files import (
     is_rosbag,
     rosbag_topics,
 )
-from .validation import validate as _validate
+from .skeleton import finish, with_finish_parameters
 
 __all__ = [
     "IMU_TYPE",
@@ -180,6 +180,7 @@ def _axes(frame_id: str) -> str:
     return "RDF" if "optical" in frame_id else "FLU"
 
 
+@with_finish_parameters
 def read_rosbag_imu(path: PathLike, *, topic: str | None = None, time_source: str = "header",
                     stamp_tolerance: float = 0.1, validate: bool = True, policy: str = "retime",
                     **options: Any) -> ImuData:
@@ -195,15 +196,7 @@ def read_rosbag_imu(path: PathLike, *, topic: str | None = None, time_source: st
         Header stamps (default) or the recorder's receive times.
     stamp_tolerance : float
         Disagreement, s, between header and record times beyond which a warning is issued.
-    validate : bool
-        Check and clean the log as every reader does
-        (:func:`imu_ground.datasets.validation.validate`, as
-        :func:`imu_ground.datasets.skeleton.finish` does).
-    policy : str
-        Time-order policy of the validation (``"retime"``, ``"drop"``, ``"sort"``, ``"strict"``), as
-        for every reader (:func:`imu_ground.datasets.skeleton.finish`).
-    **options
-        Other options of the validation (``nonfinite``, ``gap_factor``, ...).
+    {finish_parameters}
 
     Returns
     -------
@@ -240,12 +233,7 @@ def read_rosbag_imu(path: PathLike, *, topic: str | None = None, time_source: st
             "time_source": used, "record_t0_ns": int(rec[0])}
     imu = ImuData((ns - ns[0]) / 1e9, d[:, 13:16], d[:, 25:28], _axes(frame_id), extra,
                   {c: "1" for c in extra.columns}, str(p), meta)
-    # what skeleton.finish does (skeleton imports this module lazily: importing finish back would be a cycle)
-    if not validate:
-        if options:
-            raise TypeError(f"validation options {sorted(options)} given with validate=False")
-        return imu
-    return _validate(imu, policy, **options)[0]  # type: ignore[arg-type]
+    return finish(imu, validate=validate, policy=policy, **options)
 
 
 def _times(ns: np.ndarray, t0_ns: int | None) -> np.ndarray:

@@ -32,6 +32,7 @@ import numpy as np
 
 from imu_ground._version import __version__
 from imu_ground.datasets import storage
+from imu_ground.datasets.poses import write_tum_poses
 from imu_ground.errors import ImuGroundError, MissingExtraError, require_extra
 from imu_ground.filters.estimator import GroundTrack
 from imu_ground.filters.status import GAP, gap_run_durations, status_names, status_reason
@@ -490,18 +491,14 @@ def _write_parquet(path: Path, table, meta: Mapping[str, Any]) -> None:
 def _write_tum(path: Path, table, meta: Mapping[str, Any]) -> None:
     from scipy.spatial.transform import Rotation
     ext = meta.get("extrinsic") or {}
-    r_gs = np.asarray(ext.get("rotation", np.eye(3)), dtype=float)
-    trans = np.asarray(ext.get("translation", np.zeros(3)), dtype=float)
     q = table[["qw", "qx", "qy", "qz"]].to_numpy(dtype=float)
     keep = table["valid"].to_numpy(dtype=bool) & np.all(np.isfinite(q), axis=1)
-    dyn = Rotation.from_quat(q[keep], scalar_first=True).as_matrix() @ r_gs     # road-ground <- sensor
-    q_xyzw = Rotation.from_matrix(dyn).as_quat() if len(dyn) else np.zeros((0, 4))
-    t = table["t"].to_numpy(dtype=float)[keep]
-    rows = np.column_stack([t, np.broadcast_to(trans, (len(t), 3)), q_xyzw])
+    dyn = Rotation.from_quat(q[keep], scalar_first=True).as_matrix() @ np.asarray(ext.get("rotation", np.eye(3)),
+                                                                                  dtype=float)
     settings = json.dumps(meta.get("settings", {}), sort_keys=True, default=str)
-    np.savetxt(path, rows, fmt="%.9f",
-               header="dynamic extrinsic ground <- sensor of the valid frames: t x y z qx qy qz qw\n"
-                      f"settings: {settings}")
+    write_tum_poses(path, table["t"].to_numpy(dtype=float)[keep], dyn,   # road-ground <- sensor
+                    np.asarray(ext.get("translation", np.zeros(3)), dtype=float),
+                    header=f"dynamic extrinsic ground <- sensor of the valid frames: t x y z qx qy qz qw\nsettings: {settings}")
 
 
 def _write_ros(path: Path, table, meta: Mapping[str, Any]) -> None:
