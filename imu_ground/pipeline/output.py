@@ -205,7 +205,9 @@ def check_output_path(path: _PathLike, inputs: Sequence[_PathLike] = (), option:
     Parameters
     ----------
     path : str or Path
-        Output file; its suffix picks the writer (:data:`OUTPUT_SUFFIXES`).
+        Output file; its suffix picks the writer (:data:`OUTPUT_SUFFIXES`). A URL
+        (:mod:`imu_ground.datasets.storage`) is checked for its type, filesystem, bucket and the
+        inputs, and returned as it is (a string).
     inputs : sequence of str or Path
         Input logs, which an output must never overwrite.
     option : str
@@ -220,30 +222,31 @@ def check_output_path(path: _PathLike, inputs: Sequence[_PathLike] = (), option:
     Raises
     ------
     ImuGroundError
-        Unknown suffix; the path is a folder, an input, or lies under a file;
-        no permission to write there. One line, naming the path and what to do.
+        Unknown suffix; the path is a folder, an input, or lies under a file; no permission to
+        write there. One line, naming the path and what to do.
     MissingExtraError
         The writer of its type needs an optional extra that is not installed.
     MissingFilesystemError
         A URL whose filesystem package (``s3fs`` ...) is not installed.
-
-    A URL (``s3://...``: :mod:`imu_ground.datasets.storage`) is checked for its type,
-    its filesystem and the inputs, and returned as it is (a string).
     """
     path = storage.local_name(path)
-    if storage.is_url(path):
-        return _check_output_url(path, inputs, option, kind)
-    p = Path(path)
-    if p.is_dir():
-        raise ImuGroundError(f"{p}: is a folder; give {option} a file name, e.g. {p / 'ground.csv'}")
-    if kind is None and p.suffix.lower() not in OUTPUT_SUFFIXES:
-        raise ImuGroundError(f"{p}: unknown output type {p.suffix or '(no suffix)'!r}; end the {option} file name "
+    url = storage.is_url(path)
+    p: Any = path if url else Path(path)
+    fs, key = storage.filesystem(path) if url else (None, None)
+    if fs.isdir(key) if url else p.is_dir():
+        raise ImuGroundError(f"{p}: is a folder; give {option} a file name, e.g. {storage.join(p, 'ground.csv')}")
+    suffix = Path(storage.url_name(path) if url else p).suffix.lower()
+    if kind is None and suffix not in OUTPUT_SUFFIXES:
+        raise ImuGroundError(f"{p}: unknown output type {suffix or '(no suffix)'!r}; end the {option} file name "
                              f"with {', '.join(OUTPUT_SUFFIXES)}")
-    for src in inputs:
-        if same_file(p, storage.local_name(src)):
+    for src in map(storage.local_name, inputs):
+        if str(src).rstrip("/") == path.rstrip("/") if url else same_file(p, src):
             raise ImuGroundError(f"{p}: is the input log; writing it would overwrite the log: choose another {option}")
-    check_creatable(p, option)
-    _require_writer(p, kind or p.suffix.lower())
+    if url:
+        storage.check_bucket(path, option)
+    else:
+        check_creatable(p, option)
+    _require_writer(p, kind or suffix)
     return p
 
 
@@ -303,22 +306,6 @@ def check_run_paths(outputs: Sequence[tuple[str, _PathLike | None]],
                 raise ImuGroundError(f"{path}: given to both {written[key]} and {flag}; the two outputs need two "
                                      "file names")
         written.update(dict.fromkeys(keys, flag))
-
-
-def _check_output_url(url: str, inputs: Sequence[_PathLike], option: str, kind: str | None) -> Any:
-    """:func:`check_output_path` of a URL (no folder to create, no permission to test before writing)."""
-    fs, p = storage.filesystem(url)
-    suffix = Path(storage.url_name(url)).suffix.lower()
-    if kind is None and suffix not in OUTPUT_SUFFIXES:
-        raise ImuGroundError(f"{url}: unknown output type {suffix or '(no suffix)'!r}; end the {option} file name "
-                             f"with {', '.join(OUTPUT_SUFFIXES)}")
-    if any(str(storage.local_name(s)).rstrip("/") == url.rstrip("/") for s in inputs):
-        raise ImuGroundError(f"{url}: is the input log; writing it would overwrite the log: choose another {option}")
-    if fs.isdir(p):
-        raise ImuGroundError(f"{url}: is a folder; give {option} a file name, e.g. {storage.join(url, 'ground.csv')}")
-    storage.check_bucket(url, option)
-    _require_writer(url, kind or suffix)        # type: ignore[arg-type]
-    return url
 
 
 #: Output suffix -> (the modules its writer needs, the extra that installs them).
