@@ -183,7 +183,7 @@ def _axes(frame_id: str) -> str:
 @with_finish_parameters
 def read_rosbag_imu(path: PathLike, *, topic: str | None = None, time_source: str = "header",
                     stamp_tolerance: float = 0.1, validate: bool = True, policy: str = "retime",
-                    **options: Any) -> ImuData:
+                    **validate_kw: Any) -> ImuData:
     """Read the ``sensor_msgs/Imu`` messages of a ROS log.
 
     Parameters
@@ -233,7 +233,7 @@ def read_rosbag_imu(path: PathLike, *, topic: str | None = None, time_source: st
             "time_source": used, "record_t0_ns": int(rec[0])}
     imu = ImuData((ns - ns[0]) / 1e9, d[:, 13:16], d[:, 25:28], _axes(frame_id), extra,
                   {c: "1" for c in extra.columns}, str(p), meta)
-    return finish(imu, validate=validate, policy=policy, **options)
+    return finish(imu, validate=validate, policy=policy, **validate_kw)
 
 
 def _times(ns: np.ndarray, t0_ns: int | None) -> np.ndarray:

@@ -29,6 +29,7 @@ from imu_ground.imu.data import ImuData
 
 from . import storage
 from .options import READER_OPTIONS
+from .rosbag_files import is_rosbag
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -259,19 +260,11 @@ def read_imu(path: str | Path | pd.DataFrame | IO, format: str | None = None, **
 
 
 # --------------------------------------------------------------------------- lazy formats
-def _is_rosbag(p: Path) -> bool:
-    if p.is_dir():
-        return (p / "metadata.yaml").is_file()
-    return p.suffix.lower() in (".bag", ".mcap")
-
-
 def _read_rosbag(path: Any, **kw: Any) -> ImuData:
-    from .rosbag import (
-        read_rosbag_imu,  # imported only when a bag is read (rosbags is optional)
-    )
+    from .rosbag import read_rosbag_imu  # imported only when a bag is read (rosbags is optional)
     return read_rosbag_imu(path, **kw)
 
 
-register_format("rosbag", _is_rosbag, _read_rosbag,
+register_format("rosbag", is_rosbag, _read_rosbag,
                 "ROS 1 *.bag, *.mcap, or a ROS 2 bag folder with metadata.yaml (sensor_msgs/Imu)",
                 priority=35, options=("topic",))
