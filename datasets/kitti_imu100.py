@@ -33,14 +33,7 @@ from imu_ground.imu.data import ImuData
 
 from .csvio import numeric, open_binary, read_delimited
 from .skeleton import finish, register_format, with_finish_parameters
-from .unit_checks import (
-    UNIT_OPTIONS,
-    detect_time_unit,
-    motion_in_si,
-    raw_times,
-    settle_unit,
-    unit_scale,
-)
+from .unit_checks import (UNIT_OPTIONS, detect_time_unit, motion_in_si, raw_times, settle_unit, unit_scale)
 
 if TYPE_CHECKING:
     import pandas as pd

@@ -29,17 +29,8 @@ import numpy as np
 from imu_ground.errors import ImuGroundError, ImuInputError
 
 
-__all__ = [
-    "PoseSequence",
-    "detect_pose_format",
-    "moves_along_z",
-    "read_kitti_poses",
-    "read_pose_times",
-    "read_poses",
-    "read_tum_poses",
-    "relative_rotations",
-    "write_tum_poses",
-]
+__all__ = ["PoseSequence", "detect_pose_format", "moves_along_z", "read_kitti_poses", "read_pose_times", "read_poses",
+           "read_tum_poses", "relative_rotations", "write_tum_poses"]
 
 _ORTHO_TOL = 1e-3      # text files carry 6-17 digits; worse than this is not a rotation
 

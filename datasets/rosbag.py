@@ -39,28 +39,11 @@ import numpy as np
 from imu_ground.imu.data import ImuData
 
 from imu_ground.errors import MalformedFileError, TimestampWarning, warn_user
-from .rosbag_files import (
-    PathLike,
-    _choose,
-    _messages,
-    _open,
-    _raw_messages,
-    is_rosbag,
-    rosbag_topics,
-)
+from .rosbag_files import (PathLike, _choose, _messages, _open, _raw_messages, is_rosbag, rosbag_topics)
 from .skeleton import finish, with_finish_parameters
 
-__all__ = [
-    "IMU_TYPE",
-    "POSE_TYPES",
-    "SPEED_TYPES",
-    "is_rosbag",
-    "read_rosbag_imu",
-    "read_rosbag_poses",
-    "read_rosbag_speed",
-    "rosbag_topics",
-    "speed_topics",
-]
+__all__ = ["IMU_TYPE", "POSE_TYPES", "SPEED_TYPES", "is_rosbag", "read_rosbag_imu", "read_rosbag_poses",
+           "read_rosbag_speed", "rosbag_topics", "speed_topics"]
 
 #: Message type read by :func:`read_rosbag_imu` (rosbags' ROS 2 spelling; ROS 1's ``sensor_msgs/Imu``).
 IMU_TYPE = "sensor_msgs/msg/Imu"

@@ -34,19 +34,8 @@ from .rosbag_files import is_rosbag
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = [
-    "ALIASES",
-    "FINISH_PARAMETERS",
-    "FORMATS",
-    "FormatSpec",
-    "PoseFileError",
-    "UnknownFormatError",
-    "detect_format",
-    "finish",
-    "read_imu",
-    "register_format",
-    "with_finish_parameters",
-]
+__all__ = ["ALIASES", "FINISH_PARAMETERS", "FORMATS", "FormatSpec", "PoseFileError", "UnknownFormatError",
+           "detect_format", "finish", "read_imu", "register_format", "with_finish_parameters"]
 
 #: Options every reader takes (they go to :func:`finish`).
 COMMON_OPTIONS = frozenset({"policy", "nonfinite"})

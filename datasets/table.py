@@ -26,34 +26,14 @@ from imu_ground.imu.data import ImuData
 
 from .csvio import Columns, numeric, read_delimited
 from .skeleton import finish, register_format, with_finish_parameters
-from .unit_checks import (
-    ACCEL_UNITS,
-    GYRO_UNITS,
-    TIME_UNITS,
-    UNIT_OPTIONS,
-    detect_time_unit,
-    motion_in_si,
-    raw_times,
-    settle_unit,
-    unit_scale,
-)
+from .unit_checks import (ACCEL_UNITS, GYRO_UNITS, TIME_UNITS, UNIT_OPTIONS, detect_time_unit, motion_in_si, raw_times,
+                          settle_unit, unit_scale)
 
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = [
-    "ACCEL_UNITS",
-    "GYRO_UNITS",
-    "PARQUET_SUFFIXES",
-    "TABLE_SUFFIXES",
-    "TIME_UNITS",
-    "from_dataframe",
-    "map_columns",
-    "parse_columns",
-    "read_parquet_table",
-    "read_table",
-    "unit_scale",
-]
+__all__ = ["ACCEL_UNITS", "GYRO_UNITS", "PARQUET_SUFFIXES", "TABLE_SUFFIXES", "TIME_UNITS", "from_dataframe",
+           "map_columns", "parse_columns", "read_parquet_table", "read_table", "unit_scale"]
 
 #: File names read as delimited text tables.
 TABLE_SUFFIXES = (".csv", ".csv.gz", ".txt", ".tsv", ".csv.bz2", ".txt.gz", ".tsv.gz")

@@ -31,18 +31,8 @@ from imu_ground.units import DEG, GRAVITY
 from .csvio import numeric
 from .order_stats import median
 
-__all__ = [
-    "ACCEL_UNITS",
-    "GYRO_UNITS",
-    "TIME_UNITS",
-    "detect_accel_unit",
-    "detect_gyro_unit",
-    "detect_time_unit",
-    "motion_in_si",
-    "raw_times",
-    "settle_unit",
-    "unit_scale",
-]
+__all__ = ["ACCEL_UNITS", "GYRO_UNITS", "TIME_UNITS", "detect_accel_unit", "detect_gyro_unit", "detect_time_unit",
+           "motion_in_si", "raw_times", "settle_unit", "unit_scale"]
 
 #: Time units, to seconds.
 TIME_UNITS: dict[str, float] = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9}

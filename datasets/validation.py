@@ -61,18 +61,8 @@ from .report import (  # the report's public names are re-exported (ValidationRe
     ValidationReport,
     row_names,
 )
-from .timestamps import (
-    POLICIES,
-    Action,
-    Policy,
-    act,
-    check_choice,
-    check_gaps,
-    check_timestamps,
-    fmt_list,
-    gap_action,
-    order_samples,
-)
+from .timestamps import (POLICIES, Action, Policy, act, check_choice, check_gaps, check_timestamps, fmt_list,
+                         gap_action, order_samples)
 
 #: The readers' helpers of :mod:`~imu_ground.datasets.report` that are not re-exported here.
 _READER_HELPERS = ("row_names", "warn_user")
