@@ -1,32 +1,19 @@
 """ROS logs: ``sensor_msgs/Imu``, poses and speeds from ROS 1 bags, ROS 2 bags and MCAP files.
 
-Read with `rosbags <https://gitlab.com/ternaris/rosbags>`_ (pure Python, the
-``ros`` extra), imported only when a function here is called. What is read:
+Read with `rosbags <https://gitlab.com/ternaris/rosbags>`_ (the ``ros`` extra, imported only when a
+function here is called): a ROS 1 bag (``*.bag``), a ROS 2 bag folder (``metadata.yaml``, ``*.db3`` or
+``*.mcap`` storage), a plain MCAP file of ROS 2 (CDR) messages or of ROS 1 messages (profile ``ros1``,
+as ``mcap convert x.bag`` writes: read with the ``mcap`` package, deserialised by rosbags).
 
-- a ROS 1 bag (``*.bag``);
-- a ROS 2 bag folder (``metadata.yaml`` and ``*.db3`` or ``*.mcap`` storage);
-- a plain MCAP file (``*.mcap``) with ROS 2 (CDR) messages, or with ROS 1
-  messages (profile ``ros1``, as ``mcap convert x.bag`` writes; read with the
-  ``mcap`` package, which rosbags does not cover, and deserialised by rosbags).
+Times: the header stamps (``time_source="header"``, the sensor's clock) by default, the record times
+with ``time_source="record"``; one :class:`~imu_ground.errors.TimestampWarning` when the two disagree
+(median or spread of record - header beyond ``stamp_tolerance``); all-zero header stamps fall back to
+the record times, with a warning. ``ImuData.t`` starts at 0; ``meta["t0_ns"]`` (int, ns) and
+``meta["t0"]`` (s) hold the first stamp (``t0_ns + round(t * 1e9)`` is the original). Poses and speeds
+are in s since ``t0_ns`` when given (the IMU's ``meta["t0_ns"]``), else since the epoch.
 
-Times
------
-Message times are the header stamps (``time_source="header"``, the sensor's
-clock) by default; the bag's record times (when the recorder received the
-message) with ``time_source="record"``. When the two disagree (the median of
-record - header beyond ``stamp_tolerance``, or the spread of that difference
-beyond it), one :class:`~imu_ground.datasets.validation.TimestampWarning` says so;
-header stamps that are all zero fall back to the record times, also with a
-warning. ``ImuData.t`` starts at 0; ``meta["t0_ns"]`` (int, ns) and ``meta["t0"]``
-(s) hold the first stamp, so ``t0_ns + round(t * 1e9)`` is the original stamp.
-Poses and speeds are returned on the same clock: seconds since ``t0_ns`` when it
-is given (pass the IMU's ``meta["t0_ns"]`` to line them up), else since the epoch.
-
-Frames
-------
-ROS body frames are x forward, y left, z up (REP 103), so ``ImuData.frame`` is
-``"FLU"``, except for an ``*optical*`` frame_id (z forward, x right, y down:
-``"RDF"``); the message's ``frame_id`` itself is in ``meta["frame_id"]``.
+Frames: REP 103 body axes (x forward, y left, z up), ``ImuData.frame`` ``"FLU"``, or ``"RDF"`` for an
+``*optical*`` frame_id; the message's ``frame_id`` is in ``meta["frame_id"]``.
 """
 from __future__ import annotations
 
@@ -61,18 +48,11 @@ _IMU_DOUBLES = 37
 
 
 def _imu_columns(raws: Sequence[bytes], ros1: bool) -> tuple[np.ndarray, str, np.ndarray] | None:
-    """Decode serialised ``sensor_msgs/Imu`` messages of one length with numpy (no per-message Python).
-
-    Spells out the two wire formats: ROS 1 (``seq, sec, nsec: uint32``, frame_id as
-    uint32 length + bytes, then the 37 float64 unaligned) and ROS 2 little-endian
-    CDR (4-byte encapsulation header, ``sec: int32, nanosec: uint32``, frame_id as
-    uint32 length + bytes + NUL, padding to 8, then the 37 float64).
-
-    Returns
-    -------
-    (header stamps ns (N,), frame_id, doubles (N, 37)), or None when the messages
-    differ in length or are big-endian CDR (then the caller deserialises each).
-    """
+    """Decode serialised ``sensor_msgs/Imu`` messages of one length with numpy (no per-message Python):
+    ROS 1 (``seq, sec, nsec: uint32``, frame_id as uint32 length + bytes, 37 float64 unaligned) or
+    little-endian CDR (4-byte encapsulation, ``sec: int32, nanosec: uint32``, frame_id + NUL, padding to
+    8, 37 float64). ``(stamps ns (N,), frame_id, doubles (N, 37))``, or None when the messages differ in
+    length or are big-endian CDR (then each is deserialised)."""
     size = len(raws[0])
     if size < 16 or any(len(r) != size for r in raws):
         return None
