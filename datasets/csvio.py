@@ -32,7 +32,7 @@ __all__ = ["Columns", "RowLines", "detect_dialect", "first_nonnumber", "locate_b
 
 #: Rows per parsed chunk (bounded working memory on long logs; larger chunks parse faster).
 CHUNK_ROWS = 1 << 20
-#: Rows a thread copies at a time from a parsed chunk, and the threads that copy (see :func:`_join_columns`).
+#: Rows a thread copies at a time into a stacked (N, k) array, and the threads that copy (see :func:`_fill_stack`).
 STACK_BLOCK = 1 << 16
 STACK_THREADS = min(4, os.cpu_count() or 1)
 #: Logs of at least this many samples return the freed heap memory to the system once read.
@@ -342,51 +342,74 @@ def _stack_layout(names: list[str], stack: Mapping[str, Sequence[str]] | None,
 
 def _join_columns(names: list[str], parts: dict[str, list[np.ndarray]], n: int,
                   stack: Mapping[str, Sequence[str]] | None = None) -> Columns:
-    """Each column's chunks as one array, ``stack``'s (name -> columns) side by side in one float64 (n, k) array.
+    """Each column's chunks as one array (``parts`` is emptied).
 
-    A column of one chunk is pandas' own array (read-only under copy-on-write: not copied). The
-    others are copied chunk after chunk, every column of a chunk together, and the chunk is dropped
-    once copied (its frame's memory freed before the next: the peak is the result and one chunk).
-    A chunk is copied in blocks of :data:`STACK_BLOCK` rows on up to :data:`STACK_THREADS` threads:
-    the copy is the new arrays' first touch, whose page faults one thread would take in turn
-    (``benchmarks/bench_readers.py``); every value is copied as it is, whatever the threads.
+    ``stack`` (name -> columns) puts numeric columns side by side into one
+    float64 array (N, k) under its name, written there straight from the chunks
+    (:func:`_fill_stack`).
     """
     into = _stack_layout(names, stack, lambda c: all(x.dtype.kind in "fiu" for x in parts[c]))
+    members: dict[str, list[str]] = {}
+    for c, (g, _) in sorted(into.items(), key=lambda item: item[1][1]):
+        members.setdefault(g, []).append(c)
     cols: Columns = {}
-    targets: dict[str, np.ndarray] = {}             # column -> where its chunks are copied
     for c in names:
-        chunks = parts[c]
         if c in into:
-            name, j = into[c]
+            name = into[c][0]
             if name not in cols:
-                cols[name] = np.empty((n, sum(1 for g, _ in into.values() if g == name)))
-            targets[c] = cols[name][:, j]
-        elif len(chunks) == 1:
+                cols[name] = _fill_stack(n, [parts.pop(m) for m in members[name]])
+            continue
+        chunks = parts.pop(c)
+        if len(chunks) == 1:            # pandas' own array (read-only under copy-on-write): not copied
             cols[c] = chunks[0]
         elif all(x.dtype.kind in "fiu" for x in chunks):       # the dtype np.concatenate would give
-            cols[c] = targets[c] = np.empty(n, dtype=functools.reduce(np.promote_types, {x.dtype for x in chunks}))
+            cols[c] = np.empty(n, dtype=functools.reduce(np.promote_types, {x.dtype for x in chunks}))
+            _fill(cols[c], chunks)
         else:
             cols[c] = np.concatenate(chunks)
-    with contextlib.ExitStack() as scope:
-        threads = min(STACK_THREADS, -(-n // STACK_BLOCK))
-        pool = scope.enter_context(ThreadPoolExecutor(threads)) if threads > 1 and targets else None
-        k = 0
-        for p in range(len(parts[names[0]]) if names else 0):
-            chunk = {c: parts[c][p] for c in targets}
-            size = parts[names[0]][p].shape[0]
-
-            def copy(lo: int, k: int = k, chunk: dict[str, np.ndarray] = chunk) -> None:
-                for c, x in chunk.items():
-                    targets[c][k + lo:k + lo + STACK_BLOCK] = x[lo:lo + STACK_BLOCK]
-
-            blocks = range(0, size, STACK_BLOCK)
-            list(pool.map(copy, blocks) if pool is not None else map(copy, blocks))
-            for c in names:
-                parts[c][p] = None              # type: ignore[call-overload]  # (the chunk dropped)
-            k += size
-            del chunk, copy
-    parts.clear()
+        del chunks
     return cols
+
+
+def _fill(out: np.ndarray, chunks: list[np.ndarray]) -> None:
+    """Copy the chunks one after the other into ``out`` (the list is emptied as it goes: memory freed early)."""
+    k = 0
+    while chunks:
+        x = chunks.pop(0)
+        out[k:k + x.size] = x
+        k += x.size
+
+
+def _fill_stack(n: int, columns: list[list[np.ndarray]]) -> np.ndarray:
+    """The columns (each a list of chunks, chunk ``p`` of the same length in every column) side by side, (n, k).
+
+    Written in blocks of :data:`STACK_BLOCK` rows, all columns of a block
+    together (the block stays in cache), on up to :data:`STACK_THREADS`
+    threads: the copy is the new array's first touch, and on a virtual
+    machine the page faults of a large fresh allocation can cost more than
+    the copy itself when one thread takes them in turn
+    (``benchmarks/bench_readers.py`` measures the reader). Every value is
+    copied as it is, so the result does not depend on the threads. The chunks are
+    dropped as they are copied (memory freed early).
+    """
+    out = np.empty((n, len(columns)))
+    threads = min(STACK_THREADS, -(-n // STACK_BLOCK))
+    with contextlib.ExitStack() as scope:
+        pool = scope.enter_context(ThreadPoolExecutor(threads)) if threads > 1 else None
+        k = 0
+        while columns[0]:
+            chunk = [col.pop(0) for col in columns]
+            rows = out[k:k + chunk[0].size]
+
+            def copy(lo: int, rows: np.ndarray = rows, chunk: list[np.ndarray] = chunk) -> None:
+                for j, x in enumerate(chunk):
+                    rows[lo:lo + STACK_BLOCK, j] = x[lo:lo + STACK_BLOCK]
+
+            blocks = range(0, rows.shape[0], STACK_BLOCK)
+            list(pool.map(copy, blocks) if pool is not None else map(copy, blocks))
+            k += rows.shape[0]
+            del chunk, rows, copy
+    return out
 
 
 def first_nonnumber(values: np.ndarray) -> tuple[int, int]:
