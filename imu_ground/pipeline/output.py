@@ -205,21 +205,22 @@ def check_output_path(path: _PathLike, inputs: Sequence[_PathLike] = (), option:
     MissingFilesystemError
         A URL whose filesystem package (``s3fs`` ...) is not installed.
     """
-    path = storage.local_name(path)
-    url = storage.is_url(path)
-    p: Any = path if url else Path(path)
-    fs, key = storage.filesystem(path) if url else (None, None)
+    target: Any = storage.local_name(path)
+    url = storage.is_url(target)
+    p: Any = target if url else Path(target)
+    located: tuple[Any, str] = storage.filesystem(target) if url else (None, "")
+    fs, key = located
     if fs.isdir(key) if url else p.is_dir():
         raise ImuGroundError(f"{p}: is a folder; give {option} a file name, e.g. {storage.join(p, 'ground.csv')}")
-    suffix = Path(storage.url_name(path) if url else p).suffix.lower()
+    suffix = Path(storage.url_name(target) if url else p).suffix.lower()
     if kind is None and suffix not in OUTPUT_SUFFIXES:
         raise ImuGroundError(f"{p}: unknown output type {suffix or '(no suffix)'!r}; end the {option} file name "
                              f"with {', '.join(OUTPUT_SUFFIXES)}")
     for src in map(storage.local_name, inputs):
-        if str(src).rstrip("/") == path.rstrip("/") if url else same_file(p, src):
+        if str(src).rstrip("/") == target.rstrip("/") if url else same_file(p, src):
             raise ImuGroundError(f"{p}: is the input log; writing it would overwrite the log: choose another {option}")
     if url:
-        storage.check_bucket(path, option)
+        storage.check_bucket(target, option)
     else:
         check_creatable(p, option)
     _require_writer(p, kind or suffix)

@@ -553,7 +553,7 @@ def _write_road_from_sensor(w: RosWriter, rows: dict[str, np.ndarray], stamps: n
     camera_child = camera["child"] if camera else ""
 
     def tf(ns: int, seq: int, **v: float) -> Any:
-        items = [_transform(w, ns, seq, road, sensor, *trans, v["qx"], v["qy"], v["qz"], v["qw"])]
+        items = [_transform(w, ns, seq, road, sensor, trans[0], trans[1], trans[2], v["qx"], v["qy"], v["qz"], v["qw"])]
         if "ctx" in v:
             items.append(_transform(w, ns, seq, road, camera_child, *(v[f"c{c}"] for c in _TRANSFORM_KEYS)))
         return w.message("tf2_msgs/msg/TFMessage", transforms=items)
