@@ -28,6 +28,7 @@ from imu_ground.errors import ImuInputError, OptionError, PoseFileError, Unknown
 from . import comma2k19 as _comma2k19  # noqa: F401  (each import registers its format)
 from . import kitti_oxts as _kitti_oxts  # noqa: F401
 from . import nuscenes as _nuscenes  # noqa: F401
+from . import rosbag as _rosbag  # noqa: F401  (rosbags itself loads when a bag is read)
 from .comma2k19 import read_comma2k19
 from .kitti_imu100 import COLUMNS as KITTI_IMU100_COLUMNS
 from .kitti_imu100 import read_drives_index, read_kitti_imu100

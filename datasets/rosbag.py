@@ -27,7 +27,7 @@ from imu_ground.imu.data import ImuData
 
 from imu_ground.errors import MalformedFileError, TimestampWarning, warn_user
 from .rosbag_files import (PathLike, _choose, _messages, _open, _raw_messages, is_rosbag, rosbag_topics)
-from .skeleton import finish, with_finish_parameters
+from .skeleton import finish, register_format, with_finish_parameters
 
 __all__ = ["IMU_TYPE", "POSE_TYPES", "SPEED_TYPES", "is_rosbag", "read_rosbag_imu", "read_rosbag_poses",
            "read_rosbag_speed", "rosbag_topics", "speed_topics"]
@@ -289,3 +289,8 @@ def read_rosbag_speed(path: PathLike, topic: str | None = None, *, t0_ns: int | 
     v = _vectors(twists, "linear")
     speed = v[:, 0] if msgtype == "nav_msgs/msg/Odometry" else np.linalg.norm(v, axis=1)
     return _times(ns, t0_ns), speed
+
+
+register_format("rosbag", is_rosbag, read_rosbag_imu,
+                "ROS 1 *.bag, *.mcap, or a ROS 2 bag folder with metadata.yaml (sensor_msgs/Imu)",
+                priority=35, options=("topic",))

@@ -24,7 +24,6 @@ from imu_ground.imu.data import ImuData
 
 from . import storage
 from .options import READER_OPTIONS
-from .rosbag_files import is_rosbag
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -240,14 +239,3 @@ def read_imu(path: str | Path | pd.DataFrame | IO, format: str | None = None, **
         raise TypeError(f"read_imu() got an unexpected keyword argument {bad.group(1)!r} for {spec.name} logs "
                         f"(reader options: {', '.join(sorted(COMMON_OPTIONS | spec.options))}; see "
                         f"help(imu_ground.datasets.{spec.reader.__name__}))") from None
-
-
-# --------------------------------------------------------------------------- lazy formats
-def _read_rosbag(path: Any, **kw: Any) -> ImuData:
-    from .rosbag import read_rosbag_imu  # imported only when a bag is read (rosbags is optional)
-    return read_rosbag_imu(path, **kw)
-
-
-register_format("rosbag", is_rosbag, _read_rosbag,
-                "ROS 1 *.bag, *.mcap, or a ROS 2 bag folder with metadata.yaml (sensor_msgs/Imu)",
-                priority=35, options=("topic",))
