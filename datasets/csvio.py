@@ -1,21 +1,11 @@
 """Delimited text files: one parse through pandas' C engine, in chunks; bad lines found only on failure.
 
-:func:`read_delimited` hands the file to :func:`pandas.read_csv` (C engine,
-``.gz`` / ``.bz2`` decompressed on the fly) and takes the columns chunk by
-chunk, so the working memory grows with the parsed columns, not with the text.
-Only when the parse fails or looks suspicious (a short line fills the last
-column with NaN) does :func:`locate_bad_lines` walk the file line by line to
-name the first bad line (1-based file line).
-
-A ``.gz`` file is decompressed by python-isal's igzip in a background thread when that
-optional package is installed (``pip install -e ".[fast]"``: the same bytes, the CRC checked,
-decompression beside the parse), else by the standard :mod:`gzip` module (pandas' own).
-
-``pyarrow.csv`` was measured as the alternative: it gives the same doubles
-(every value of the shared kitti_imu100 drives and of a 1 h log), but it is
-not faster than pandas' threaded parse on the 10 h benchmark log (same peak
-memory), and a second parser would bring its own error texts: pandas alone
-owns every message.
+:func:`read_delimited` hands the file to :func:`pandas.read_csv` (C engine, ``.bz2``
+decompressed by pandas, ``.gz`` by :func:`open_gzip`) and takes the columns chunk by chunk, so
+the working memory grows with the parsed columns, not with the text. Only when the parse fails
+or looks suspicious (a short line fills the last column with NaN) does :func:`locate_bad_lines`
+walk the file to name the first bad line (1-based file line). pandas alone owns every parse
+message.
 """
 from __future__ import annotations
 
@@ -61,8 +51,8 @@ def _isal_errors() -> tuple[type[BaseException], ...]:
 
 
 def open_gzip(path: Path) -> io.BufferedIOBase:
-    """A ``.gz`` file's decompressed bytes: python-isal's igzip, decompressing in a thread of its own, when installed
-    (the optional ``fast`` extra), else the standard :mod:`gzip` module; the same bytes either way."""
+    """A ``.gz`` file's decompressed bytes: python-isal's igzip in a thread of its own when installed (the ``fast``
+    extra: the same bytes, the CRC checked, decompression beside the parse), else the standard :mod:`gzip`."""
     try:
         from isal import igzip_threaded
     except ImportError:
@@ -160,10 +150,8 @@ def _iter_lines(path: Path) -> Iterator[tuple[int, bytes]]:
 
 
 def locate_bad_lines(path: Path, sep: str = ",") -> MalformedFileError | None:
-    """The error for the first line whose field count differs from the header's (None: all agree).
-
-    Walks the whole file once (failure path only), so the message counts every bad line.
-    """
+    """The error for the first line whose field count differs from the header's (None: all agree); walks the
+    whole file once (failure path only), so the message counts every bad line."""
     sep_b = sep.encode()
     numbers: list[int] = []
     counts: list[int] = []
@@ -210,12 +198,7 @@ def _drop_blank_rows(arrays: list[np.ndarray], first_row: int, blank: list[np.nd
 
 def _parse(path: Path, sep: str, stack: Mapping[str, Sequence[str]] | None,
            decimal: str = ".") -> tuple[Columns, int, np.ndarray]:
-    """Chunked C-engine parse: (columns, rows, blank-line positions).
-
-    pandas is given the path (it decompresses ``.bz2`` itself and reads a plain
-    file in byte ranges on several threads) or, for ``.gz``, :func:`open_gzip`'s
-    stream; each chunk's columns are kept and joined at the end.
-    """
+    """Chunked C-engine parse: (columns, rows, blank-line positions); the chunks joined by :func:`_join_columns`."""
     import pandas as pd
     open_binary(path).close()           # the missing-file and not-a-file messages
     names: list[str] = []
@@ -335,12 +318,9 @@ def read_delimited(path: str | Path, sep: str | None = ",", *,
 def return_free_memory() -> None:
     """Give the C heap's free pages back to the system (glibc ``malloc_trim``; nothing elsewhere).
 
-    A long parse and its validation free about as much as they keep (the
-    chunks' frames, the checks' temporaries); glibc keeps such memory in its
-    heaps (one per parsing thread), where the arrays allocated
-    later cannot always reuse it, so the peak RSS of the whole run would carry
-    it. :func:`~imu_ground.datasets.skeleton.finish` calls this after reading a
-    long log.
+    A long parse and its validation free about as much as they keep, in glibc heaps (one per
+    parsing thread) that later arrays cannot always reuse; :func:`~imu_ground.datasets.skeleton.finish`
+    calls this after reading a long log.
     """
     try:
         ctypes.CDLL(None).malloc_trim(0)

@@ -1,25 +1,16 @@
 """KITTI raw 100 Hz OXTS logs ("extract" data) stored as one CSV per drive.
 
-Each ``<drive>.csv`` or ``<drive>.csv.gz`` has the columns
-``t,wx,wy,wz,ax,ay,az,roll,pitch,yaw,ve,vn,vu,px,py,pz``:
+Each ``<drive>.csv`` or ``<drive>.csv.gz`` has the columns :data:`COLUMNS`: ``t`` (s since the
+drive's first sample; ``drives.csv`` beside the files gives the start as seconds of the day and the
+sample count), ``wx,wy,wz`` (rad/s) and ``ax,ay,az`` (specific force, m/s^2, about +9.81 on z at rest)
+in FLU (x forward, y left, z up), and kept in ``extra`` ``roll,pitch,yaw`` (rad), ``ve,vn,vu`` (m/s,
+east/north/up), ``px,py,pz`` (m, east/north/up from the first sample). Files of other tools in this
+layout may hold other units: told from the data as for CSV tables (:mod:`imu_ground.datasets.unit_checks`)
+unless ``time_unit``, ``gyro_unit``, ``accel_unit`` say them.
 
-- ``t``: s since the drive's first sample; ``drives.csv`` beside the files gives
-  the start as seconds of the day (``t0_seconds_of_day``) and the sample count;
-- ``wx,wy,wz``: angular rate about x forward, y left, z up (FLU), rad/s;
-- ``ax,ay,az``: specific force along x, y, z, m/s^2 (about +9.81 on z at rest);
-- ``roll,pitch,yaw`` (rad), ``ve,vn,vu`` (m/s, east/north/up), ``px,py,pz`` (m,
-  east/north/up from the first sample): kept in ``extra``.
-
-Files written by other tools in the same layout may hold the gyro in deg/s,
-the accelerometer in g, or times in ms or epoch ns: as for CSV tables
-(:mod:`imu_ground.datasets.unit_checks`), the units are told from the data
-(one warning per conversion) unless ``time_unit``, ``gyro_unit``,
-``accel_unit`` (``--time-unit``, ...) say them.
-
-The raw extract timestamps jitter (a step forward, then back by about 0.05 s)
-while the samples keep a steady 100 Hz, and have real dropouts over 1 s; the
-validation run by the reader (policy ``"retime"`` by default) puts the samples
-back on the sample clock, keeps the dropouts as gaps and reports both.
+The raw extract stamps jitter (a step forward, then back by about 0.05 s) while the samples keep a
+steady 100 Hz, with real dropouts over 1 s: the default validation (``"retime"``) puts the samples back
+on the sample clock, keeps the dropouts as gaps and reports both.
 """
 from __future__ import annotations
 
@@ -33,14 +24,7 @@ from imu_ground.imu.data import ImuData
 
 from .csvio import numeric, open_binary, read_delimited
 from .skeleton import finish, register_format, with_finish_parameters
-from .unit_checks import (
-    UNIT_OPTIONS,
-    detect_time_unit,
-    motion_in_si,
-    raw_times,
-    settle_unit,
-    unit_scale,
-)
+from .unit_checks import (UNIT_OPTIONS, detect_time_unit, motion_in_si, raw_times, settle_unit, unit_scale)
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -68,12 +52,8 @@ def drive_name(path: str | Path) -> str:
 
 
 def read_drives_index(path: str | Path) -> pd.DataFrame:
-    """Read ``drives.csv``: one row per drive, columns ``drive, t0_seconds_of_day, samples``.
-
-    Parameters
-    ----------
-    path : str or Path
-        The ``drives.csv`` file, or the folder holding it.
+    """Read ``drives.csv`` (the file, or the folder holding it): one row per drive, columns ``drive,
+    t0_seconds_of_day, samples``.
 
     Returns
     -------
@@ -112,35 +92,31 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
     path : str or Path
         The drive's ``.csv`` / ``.csv.gz`` file.
     drives_csv : str, Path, bool or None
-        The ``drives.csv`` index giving the drive's start time; ``None`` (default)
-        uses the one beside ``path`` if there is one, ``False`` ignores it.
+        The ``drives.csv`` index giving the drive's start time; None (default): the one beside
+        ``path`` if there is one; False: ignored.
     time_unit : {"s", "ms", "us", "ns"}, optional
-        Unit of ``t``; told from the data when omitted (seconds for KITTI's own files).
     gyro_unit : {"rad/s", "deg/s"}, optional
-        Unit of ``wx, wy, wz``; told from the data when omitted.
     accel_unit : {"m/s^2", "g"}, optional
-        Unit of ``ax, ay, az``; told from the data when omitted.
+        Units of ``t``, ``wx, wy, wz`` and ``ax, ay, az``; told from the data when omitted.
     {finish_parameters}
 
     Returns
     -------
     ImuData
-        ``t`` s from the first sample, ``gyro`` rad/s and ``accel`` m/s^2 in
-        ``"FLU"`` (x forward, y left, z up); ``extra`` holds roll, pitch, yaw
-        (rad), ve, vn, vu (m/s), px, py, pz (m).  ``meta``: ``format``, ``drive``,
-        ``t0`` (start, seconds of the day, when ``drives.csv`` lists the drive, else
-        0.0), ``t0_clock``, ``expected_samples``, ``source_units`` (the file's
-        time, gyro and accel units, given or told from the data) and ``validation``.
+        ``t`` s from the first sample, ``gyro`` rad/s and ``accel`` m/s^2 in ``"FLU"``; ``extra`` the
+        other columns. ``meta``: ``format``, ``drive``, ``t0`` (start, seconds of the day when
+        ``drives.csv`` lists the drive, else 0.0), ``t0_clock``, ``expected_samples``,
+        ``source_units`` and ``validation``.
 
     Raises
     ------
     FileNotFoundError
         ``path`` (or an explicitly given ``drives_csv``) does not exist.
     MalformedFileError
-        Empty or truncated file, wrong columns, a line with the wrong number of
-        fields or a non-number (the message names the file and line).
+        Empty or truncated file, wrong columns, a line with the wrong number of fields or a
+        non-number (naming the file and line).
     ImuInputError
-        Unknown unit, or units the data cannot decide (the message names the option).
+        Unknown unit, or units the data cannot decide (naming the option).
     """
     import pandas as pd
     for kind, unit in (("time", time_unit), ("gyro", gyro_unit), ("accel", accel_unit)):

@@ -28,15 +28,8 @@ from imu_ground.imu.data import ImuData
 
 from .skeleton import finish, register_format, with_finish_parameters
 
-__all__ = [
-    "OXTS_FIELDS",
-    "OXTS_UNITS",
-    "MissingPacketsError",
-    "find_oxts_dir",
-    "read_kitti_oxts",
-    "read_oxts_dataformat",
-    "read_oxts_timestamps",
-]
+__all__ = ["OXTS_FIELDS", "OXTS_UNITS", "MissingPacketsError", "find_oxts_dir", "read_kitti_oxts",
+           "read_oxts_dataformat", "read_oxts_timestamps"]
 
 #: The 30 OXTS fields of KITTI raw, in file order (KITTI devkit).
 OXTS_FIELDS: tuple[str, ...] = (

@@ -29,17 +29,8 @@ import numpy as np
 from imu_ground.errors import ImuGroundError, ImuInputError
 
 
-__all__ = [
-    "PoseSequence",
-    "detect_pose_format",
-    "moves_along_z",
-    "read_kitti_poses",
-    "read_pose_times",
-    "read_poses",
-    "read_tum_poses",
-    "relative_rotations",
-    "write_tum_poses",
-]
+__all__ = ["PoseSequence", "detect_pose_format", "moves_along_z", "read_kitti_poses", "read_pose_times", "read_poses",
+           "read_tum_poses", "relative_rotations", "write_tum_poses"]
 
 _ORTHO_TOL = 1e-3      # text files carry 6-17 digits; worse than this is not a rotation
 
@@ -219,20 +210,17 @@ def read_pose_times(path: str | Path, frames: np.ndarray, source: str | Path = "
     source : str or Path
         The pose file (named in messages).
     every_line : bool
-        The poses are one per line of the times file (a pose file without a frame index, such as
-        the benchmark's ``poses/XX.txt``): the two files must have as many lines. A file with a
-        frame index (ORB-SLAM2's) may skip frames, at its start (initialisation) or its end (lost
-        tracking), so only its frames must be in the times file.
+        One pose per line of the times file (a pose file without a frame index, as ``poses/XX.txt``):
+        both files must have as many lines. With a frame index (ORB-SLAM2's, which may skip frames at
+        its start or end) only its frames must be in the times file.
 
     Raises
     ------
     FileNotFoundError
         No such file.
     ImuInputError
-        Another sequence's times file, by the counts: fewer lines than the frames need, or (with
-        ``every_line``) not one line per pose. The message names both files and the ``times`` option.
-        Same-length sequences of the benchmark (01, 06 and 07 have 1101 frames each, all about
-        9.65 Hz) cannot be told apart by their times.
+        Another sequence's times file, by the counts (too few lines, or with ``every_line`` not one a
+        pose), naming both files and ``times``; same-length sequences (01, 06, 07) cannot be told apart.
     ImuGroundError
         Not one number a line; times not strictly increasing over the frames.
     """
@@ -278,28 +266,24 @@ def read_kitti_poses(path: str | Path, times: str | Path | None = None) -> PoseS
     Parameters
     ----------
     path : str or Path
-        Text file, e.g. ``poses/XX.txt`` of the odometry benchmark (12 numbers) or
-        ORB-SLAM2's output (frame index, then 12 numbers).
+        E.g. ``poses/XX.txt`` of the odometry benchmark (12 numbers) or ORB-SLAM2's output (frame
+        index, then 12).
     times : str or Path, optional
-        The sequence's ``times.txt`` (one time a line, s; ``--times`` on the
-        command line). Pose ``k`` takes line ``k`` (and the file must have one
-        line per pose); with a frame index column, the index counts the lines
-        from 1 (from 0 when an index 0 is present). Without it ``t`` is None
-        (frames are timed by the caller's rate).
+        The sequence's ``times.txt`` (one time a line, s; ``--times``): pose ``k`` takes line ``k`` (one
+        line per pose), or with a frame index the index counts lines from 1 (from 0 when an index 0 is
+        present). Without it ``t`` is None (frames timed by the caller's rate).
 
     Returns
     -------
     PoseSequence
-        world <- sensor_k rotations (the first camera frame is the world frame
-        in KITTI's files), translations in metres, frame indices.
+        world <- sensor_k rotations (the first camera frame is the world frame), translations m, frame
+        indices.
 
     Raises
     ------
     FileNotFoundError, ValueError
-        Missing file; malformed, truncated or non-numeric line (with its line
-        number); NaN; matrices that are not rotations; frame indices that are
-        not strictly increasing; a times file of another length
-        (:func:`read_pose_times`).
+        Missing file; malformed, truncated or non-numeric line (its number); NaN; matrices that are not
+        rotations; frame indices not strictly increasing; a times file of another length.
     """
     path = Path(path)
     data = _load_table(path, (12, 13))
@@ -399,7 +383,7 @@ def read_poses(path: str | Path, format: str | None = None, times: str | Path | 
 
 
 def write_tum_poses(path: str | Path, t: np.ndarray, rotations: np.ndarray,
-                    translations: np.ndarray | None = None) -> None:
+                    translations: np.ndarray | None = None, header: str = "t x y z qx qy qz qw") -> None:
     """Write a TUM trajectory (``t x y z qx qy qz qw``), readable by evo.
 
     Parameters
@@ -407,10 +391,11 @@ def write_tum_poses(path: str | Path, t: np.ndarray, rotations: np.ndarray,
     t : ndarray (N,), seconds.
     rotations : ndarray (N, 3, 3), world <- sensor (or any a <- b the caller documents).
     translations : ndarray (N, 3), metres; zeros by default.
+    header : str
+        The comment at the top (``# `` before each line).
     """
     from scipy.spatial.transform import Rotation
     t = np.asarray(t, dtype=float)
-    q = Rotation.from_matrix(rotations).as_quat()
+    q = Rotation.from_matrix(rotations).as_quat() if len(t) else np.zeros((0, 4))
     p = np.zeros((len(t), 3)) if translations is None else np.broadcast_to(translations, (len(t), 3))
-    np.savetxt(path, np.column_stack([t, p, q]), fmt="%.9f", header="t x y z qx qy qz qw")
-
+    np.savetxt(path, np.column_stack([t, p, q]), fmt="%.9f", header=header)

@@ -14,34 +14,13 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from imu_ground.errors import (
-    GapWarning,
-    ImuValidationError,
-    ImuValidationWarning,
-    MalformedFileError,
-    NonFiniteWarning,
-    SensorWarning,
-    TimestampWarning,
-    UnitsWarning,
-    warn_user,
-)
+from imu_ground.errors import (GapWarning, ImuValidationError, ImuValidationWarning, MalformedFileError,
+                               NonFiniteWarning, SensorWarning, TimestampWarning, UnitsWarning, warn_user)
 from imu_ground.units import GRAVITY
 
-__all__ = [
-    "STANDARD_GRAVITY",
-    "Gap",
-    "GapWarning",
-    "ImuValidationError",
-    "ImuValidationWarning",
-    "MalformedFileError",
-    "NonFiniteWarning",
-    "SensorWarning",
-    "TimestampWarning",
-    "UnitsWarning",
-    "ValidationReport",
-    "row_names",
-    "warn_user",
-]
+__all__ = ["STANDARD_GRAVITY", "Gap", "GapWarning", "ImuValidationError", "ImuValidationWarning", "MalformedFileError",
+           "NonFiniteWarning", "SensorWarning", "TimestampWarning", "UnitsWarning", "ValidationReport", "row_names",
+           "warn_user"]
 
 #: Standard gravity, m/s^2 (the one owner is :data:`imu_ground.units.GRAVITY`).
 STANDARD_GRAVITY = GRAVITY

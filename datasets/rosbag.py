@@ -1,32 +1,19 @@
 """ROS logs: ``sensor_msgs/Imu``, poses and speeds from ROS 1 bags, ROS 2 bags and MCAP files.
 
-Read with `rosbags <https://gitlab.com/ternaris/rosbags>`_ (pure Python, the
-``ros`` extra), imported only when a function here is called. What is read:
+Read with `rosbags <https://gitlab.com/ternaris/rosbags>`_ (the ``ros`` extra, imported only when a
+function here is called): a ROS 1 bag (``*.bag``), a ROS 2 bag folder (``metadata.yaml``, ``*.db3`` or
+``*.mcap`` storage), a plain MCAP file of ROS 2 (CDR) messages or of ROS 1 messages (profile ``ros1``,
+as ``mcap convert x.bag`` writes: read with the ``mcap`` package, deserialised by rosbags).
 
-- a ROS 1 bag (``*.bag``);
-- a ROS 2 bag folder (``metadata.yaml`` and ``*.db3`` or ``*.mcap`` storage);
-- a plain MCAP file (``*.mcap``) with ROS 2 (CDR) messages, or with ROS 1
-  messages (profile ``ros1``, as ``mcap convert x.bag`` writes; read with the
-  ``mcap`` package, which rosbags does not cover, and deserialised by rosbags).
+Times: the header stamps (``time_source="header"``, the sensor's clock) by default, the record times
+with ``time_source="record"``; one :class:`~imu_ground.errors.TimestampWarning` when the two disagree
+(median or spread of record - header beyond ``stamp_tolerance``); all-zero header stamps fall back to
+the record times, with a warning. ``ImuData.t`` starts at 0; ``meta["t0_ns"]`` (int, ns) and
+``meta["t0"]`` (s) hold the first stamp (``t0_ns + round(t * 1e9)`` is the original). Poses and speeds
+are in s since ``t0_ns`` when given (the IMU's ``meta["t0_ns"]``), else since the epoch.
 
-Times
------
-Message times are the header stamps (``time_source="header"``, the sensor's
-clock) by default; the bag's record times (when the recorder received the
-message) with ``time_source="record"``. When the two disagree (the median of
-record - header beyond ``stamp_tolerance``, or the spread of that difference
-beyond it), one :class:`~imu_ground.datasets.validation.TimestampWarning` says so;
-header stamps that are all zero fall back to the record times, also with a
-warning. ``ImuData.t`` starts at 0; ``meta["t0_ns"]`` (int, ns) and ``meta["t0"]``
-(s) hold the first stamp, so ``t0_ns + round(t * 1e9)`` is the original stamp.
-Poses and speeds are returned on the same clock: seconds since ``t0_ns`` when it
-is given (pass the IMU's ``meta["t0_ns"]`` to line them up), else since the epoch.
-
-Frames
-------
-ROS body frames are x forward, y left, z up (REP 103), so ``ImuData.frame`` is
-``"FLU"``, except for an ``*optical*`` frame_id (z forward, x right, y down:
-``"RDF"``); the message's ``frame_id`` itself is in ``meta["frame_id"]``.
+Frames: REP 103 body axes (x forward, y left, z up), ``ImuData.frame`` ``"FLU"``, or ``"RDF"`` for an
+``*optical*`` frame_id; the message's ``frame_id`` is in ``meta["frame_id"]``.
 """
 from __future__ import annotations
 
@@ -39,28 +26,11 @@ import numpy as np
 from imu_ground.imu.data import ImuData
 
 from imu_ground.errors import MalformedFileError, TimestampWarning, warn_user
-from .rosbag_files import (
-    PathLike,
-    _choose,
-    _messages,
-    _open,
-    _raw_messages,
-    is_rosbag,
-    rosbag_topics,
-)
-from .validation import validate as _validate
+from .rosbag_files import (PathLike, _choose, _messages, _open, _raw_messages, is_rosbag, rosbag_topics)
+from .skeleton import finish, register_format, with_finish_parameters
 
-__all__ = [
-    "IMU_TYPE",
-    "POSE_TYPES",
-    "SPEED_TYPES",
-    "is_rosbag",
-    "read_rosbag_imu",
-    "read_rosbag_poses",
-    "read_rosbag_speed",
-    "rosbag_topics",
-    "speed_topics",
-]
+__all__ = ["IMU_TYPE", "POSE_TYPES", "SPEED_TYPES", "is_rosbag", "read_rosbag_imu", "read_rosbag_poses",
+           "read_rosbag_speed", "rosbag_topics", "speed_topics"]
 
 #: Message type read by :func:`read_rosbag_imu` (rosbags' ROS 2 spelling; ROS 1's ``sensor_msgs/Imu``).
 IMU_TYPE = "sensor_msgs/msg/Imu"
@@ -78,18 +48,11 @@ _IMU_DOUBLES = 37
 
 
 def _imu_columns(raws: Sequence[bytes], ros1: bool) -> tuple[np.ndarray, str, np.ndarray] | None:
-    """Decode serialised ``sensor_msgs/Imu`` messages of one length with numpy (no per-message Python).
-
-    Spells out the two wire formats: ROS 1 (``seq, sec, nsec: uint32``, frame_id as
-    uint32 length + bytes, then the 37 float64 unaligned) and ROS 2 little-endian
-    CDR (4-byte encapsulation header, ``sec: int32, nanosec: uint32``, frame_id as
-    uint32 length + bytes + NUL, padding to 8, then the 37 float64).
-
-    Returns
-    -------
-    (header stamps ns (N,), frame_id, doubles (N, 37)), or None when the messages
-    differ in length or are big-endian CDR (then the caller deserialises each).
-    """
+    """Decode serialised ``sensor_msgs/Imu`` messages of one length with numpy (no per-message Python):
+    ROS 1 (``seq, sec, nsec: uint32``, frame_id as uint32 length + bytes, 37 float64 unaligned) or
+    little-endian CDR (4-byte encapsulation, ``sec: int32, nanosec: uint32``, frame_id + NUL, padding to
+    8, 37 float64). ``(stamps ns (N,), frame_id, doubles (N, 37))``, or None when the messages differ in
+    length or are big-endian CDR (then each is deserialised)."""
     size = len(raws[0])
     if size < 16 or any(len(r) != size for r in raws):
         return None
@@ -180,9 +143,10 @@ def _axes(frame_id: str) -> str:
     return "RDF" if "optical" in frame_id else "FLU"
 
 
+@with_finish_parameters
 def read_rosbag_imu(path: PathLike, *, topic: str | None = None, time_source: str = "header",
                     stamp_tolerance: float = 0.1, validate: bool = True, policy: str = "retime",
-                    **options: Any) -> ImuData:
+                    **validate_kw: Any) -> ImuData:
     """Read the ``sensor_msgs/Imu`` messages of a ROS log.
 
     Parameters
@@ -195,15 +159,7 @@ def read_rosbag_imu(path: PathLike, *, topic: str | None = None, time_source: st
         Header stamps (default) or the recorder's receive times.
     stamp_tolerance : float
         Disagreement, s, between header and record times beyond which a warning is issued.
-    validate : bool
-        Check and clean the log as every reader does
-        (:func:`imu_ground.datasets.validation.validate`, as
-        :func:`imu_ground.datasets.skeleton.finish` does).
-    policy : str
-        Time-order policy of the validation (``"retime"``, ``"drop"``, ``"sort"``, ``"strict"``), as
-        for every reader (:func:`imu_ground.datasets.skeleton.finish`).
-    **options
-        Other options of the validation (``nonfinite``, ``gap_factor``, ...).
+    {finish_parameters}
 
     Returns
     -------
@@ -240,12 +196,7 @@ def read_rosbag_imu(path: PathLike, *, topic: str | None = None, time_source: st
             "time_source": used, "record_t0_ns": int(rec[0])}
     imu = ImuData((ns - ns[0]) / 1e9, d[:, 13:16], d[:, 25:28], _axes(frame_id), extra,
                   {c: "1" for c in extra.columns}, str(p), meta)
-    # what skeleton.finish does (skeleton imports this module lazily: importing finish back would be a cycle)
-    if not validate:
-        if options:
-            raise TypeError(f"validation options {sorted(options)} given with validate=False")
-        return imu
-    return _validate(imu, policy, **options)[0]  # type: ignore[arg-type]
+    return finish(imu, validate=validate, policy=policy, **validate_kw)
 
 
 def _times(ns: np.ndarray, t0_ns: int | None) -> np.ndarray:
@@ -338,3 +289,8 @@ def read_rosbag_speed(path: PathLike, topic: str | None = None, *, t0_ns: int | 
     v = _vectors(twists, "linear")
     speed = v[:, 0] if msgtype == "nav_msgs/msg/Odometry" else np.linalg.norm(v, axis=1)
     return _times(ns, t0_ns), speed
+
+
+register_format("rosbag", is_rosbag, read_rosbag_imu,
+                "ROS 1 *.bag, *.mcap, or a ROS 2 bag folder with metadata.yaml (sensor_msgs/Imu)",
+                priority=35, options=("topic",))

@@ -1,19 +1,14 @@
 """The one reader skeleton: open, decompress, parse, map columns, convert units, validate, report.
 
-Each format registers here (:func:`register_format`) a *probe* (does this path
-look like my format?) and its own parsing (the reader). The shared steps live in
-one place each:
+Each format registers a *probe* (does this path look like my format?) and its reader
+(:func:`register_format`). The shared steps live once each: open / decompress / parse text in
+:mod:`~imu_ground.datasets.csvio`; columns and units (told from the data when not given) in
+:mod:`~imu_ground.datasets.table` and :mod:`~imu_ground.datasets.unit_checks`; validation and its
+report in :func:`finish`, every reader's last step (``meta["validation"]``).
 
-- open / decompress / parse text: :mod:`imu_ground.datasets.csvio`;
-- map columns and convert units (told from the data when not given):
-  :mod:`imu_ground.datasets.table`, :mod:`imu_ground.datasets.unit_checks`;
-- validate and report: :func:`finish`, which every reader (including the ROS
-  bag reader) calls last, and which stores the report in ``meta["validation"]``.
-
-:func:`detect_format` asks the probes in priority order; :func:`read_imu` picks
-the reader, passes the reader options it accepts (:data:`~imu_ground.datasets.options.READER_OPTIONS`)
-and names an option that does not apply. A pose file handed to either gets a
-:class:`PoseFileError` saying so.
+:func:`detect_format` asks the probes in priority order; :func:`read_imu` picks the reader, passes the
+reader options it accepts (:data:`~imu_ground.datasets.options.READER_OPTIONS`) and names one that does
+not apply. A pose file handed to either gets a :class:`PoseFileError` saying so.
 """
 from __future__ import annotations
 
@@ -33,19 +28,8 @@ from .options import READER_OPTIONS
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = [
-    "ALIASES",
-    "FINISH_PARAMETERS",
-    "FORMATS",
-    "FormatSpec",
-    "PoseFileError",
-    "UnknownFormatError",
-    "detect_format",
-    "finish",
-    "read_imu",
-    "register_format",
-    "with_finish_parameters",
-]
+__all__ = ["ALIASES", "FINISH_PARAMETERS", "FORMATS", "FormatSpec", "PoseFileError", "UnknownFormatError",
+           "detect_format", "finish", "read_imu", "register_format", "with_finish_parameters"]
 
 #: Options every reader takes (they go to :func:`finish`).
 COMMON_OPTIONS = frozenset({"policy", "nonfinite"})
@@ -119,12 +103,12 @@ def finish(imu: ImuData, *, validate: bool = True, policy: str = "retime", **opt
     imu : ImuData
         As parsed, in ImuData units (``meta["row_lines"]`` may map rows to file lines).
     validate : bool
-        Run :func:`imu_ground.datasets.validation.validate` (default True); False
-        returns ``imu`` unchanged and refuses validation options.
+        Run :func:`imu_ground.datasets.validation.validate` (default True); False returns ``imu``
+        unchanged and refuses validation options.
     policy : {"retime", "drop", "sort", "strict", "recorded"}
         Time-order policy (default ``"retime"``).
     **options
-        Other options of :func:`~imu_ground.datasets.validation.validate` (``nonfinite``, ``gaps``, ...).
+        Other options of :func:`~imu_ground.datasets.validation.validate`.
 
     Returns
     -------
@@ -213,15 +197,14 @@ def read_imu(path: str | Path | pd.DataFrame | IO, format: str | None = None, **
     Parameters
     ----------
     path : str, Path, pandas.DataFrame or file object
-        File or folder (see :func:`detect_format`), an fsspec URL of one (``s3://bucket/x.csv.gz``,
-        ``memory://...``, ``file://...``; :mod:`~imu_ground.datasets.storage`), an open file object
-        (binary or text; the format from its name, else its first bytes), or a DataFrame (``table``).
+        File or folder (:func:`detect_format`), an fsspec URL of one (``s3://bucket/x.csv.gz``,
+        ``memory://...``, ``file://...``), an open file object (binary or text; the format from its
+        name, else its first bytes), or a DataFrame (``table``).
     format : str, optional
         A key of :data:`FORMATS` or :data:`ALIASES`; detected from ``path`` when omitted.
     **kw
-        Reader options (``policy``, ``nonfinite``, ``time_unit``, ``gyro_unit``,
-        ``accel_unit``, ``topic``, ``allow_missing``; None means "not set") and
-        reader-specific keywords (the column map of :func:`read_table`, ...).
+        Reader options (:data:`~imu_ground.datasets.options.READER_OPTIONS`; None means "not set")
+        and reader-specific keywords (the column map of :func:`read_table`, ...).
 
     Returns
     -------
@@ -256,22 +239,3 @@ def read_imu(path: str | Path | pd.DataFrame | IO, format: str | None = None, **
         raise TypeError(f"read_imu() got an unexpected keyword argument {bad.group(1)!r} for {spec.name} logs "
                         f"(reader options: {', '.join(sorted(COMMON_OPTIONS | spec.options))}; see "
                         f"help(imu_ground.datasets.{spec.reader.__name__}))") from None
-
-
-# --------------------------------------------------------------------------- lazy formats
-def _is_rosbag(p: Path) -> bool:
-    if p.is_dir():
-        return (p / "metadata.yaml").is_file()
-    return p.suffix.lower() in (".bag", ".mcap")
-
-
-def _read_rosbag(path: Any, **kw: Any) -> ImuData:
-    from .rosbag import (
-        read_rosbag_imu,  # imported only when a bag is read (rosbags is optional)
-    )
-    return read_rosbag_imu(path, **kw)
-
-
-register_format("rosbag", _is_rosbag, _read_rosbag,
-                "ROS 1 *.bag, *.mcap, or a ROS 2 bag folder with metadata.yaml (sensor_msgs/Imu)",
-                priority=35, options=("topic",))

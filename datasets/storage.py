@@ -1,26 +1,20 @@
 """Where a log or an output lives: a local path, or an fsspec URL (``s3://``, ``gs://``, ``memory://`` ...).
 
-The one place that tells the two apart (:func:`is_url`). A local path (``str`` or
-``Path``, and ``file://`` URLs, which :func:`local_name` turns into one) keeps the
-package's own code paths: readers on the file, outputs written to a temporary
-folder beside the destination and renamed into place, the batch lock. A URL
-goes through `fsspec <https://filesystem-spec.readthedocs.io>`_:
+The one place that tells the two apart (:func:`is_url`). A local path (``str``, ``Path``, or a
+``file://`` URL, :func:`local_name`) keeps the package's own code paths (readers on the file, outputs
+staged beside the destination and renamed into place, the batch lock). A URL goes through
+`fsspec <https://filesystem-spec.readthedocs.io>`_:
 
-- reading (:func:`local_input`): the file or folder is copied into a temporary
-  folder and read there by the same readers (every format, folders included);
-  messages and ``source`` fields name the URL, never the copy. An open binary or
-  text file object is read the same way (written to a temporary file first);
-- writing (:func:`staged_outputs`, :func:`put_file`): each output is written whole
-  to a local temporary file, then uploaded in one piece (an object store's PUT: the
-  object appears complete or not at all; there is no rename, and no lock);
+- reading (:func:`local_input`): the file or folder (or an open file object) is copied into a
+  temporary folder and read there by the same readers; messages and ``source`` fields name the URL;
+- writing (:func:`staged_outputs`, :func:`put_file`): each output is written whole to a local
+  temporary file, then uploaded in one piece (an object store's PUT: complete or absent; no rename,
+  no lock);
 - listing (:func:`glob`, :func:`exists`).
 
-The filesystem of a protocol comes with its own package (``s3fs`` for ``s3://``,
-``gcsfs`` for ``gs://`` ...); a missing one is a :class:`MissingFilesystemError`
-naming it. Credentials, endpoints and other storage options are the
-filesystem's own: environment variables (``AWS_ACCESS_KEY_ID``,
-``AWS_ENDPOINT_URL`` ... for ``s3fs`` through botocore) or fsspec's configuration
-(``FSSPEC_S3_ENDPOINT_URL`` ..., ``fsspec.config.conf``).
+A protocol's filesystem comes with its own package (``s3fs``, ``gcsfs`` ...; a missing one is a
+:class:`MissingFilesystemError` naming it); credentials and endpoints are the filesystem's own
+(``AWS_ACCESS_KEY_ID``, ``AWS_ENDPOINT_URL`` ..., or ``fsspec.config.conf``).
 """
 from __future__ import annotations
 
@@ -101,12 +95,8 @@ def filesystem(url: str) -> tuple[Any, str]:
 
 
 def cli_refusal(value: str, flag: str) -> str | None:
-    """Why the command line cannot take ``value`` for ``flag`` (None: it can).
-
-    ``memory://`` is the memory of the process that writes it: another process (the
-    command) sees none of it. A URL whose filesystem package is missing is named
-    before any work.
-    """
+    """Why the command line cannot take ``value`` for ``flag`` (None: it can): ``memory://`` (the memory of
+    another process), or a URL whose filesystem package is missing, named before any work."""
     if not is_url(value):
         return None
     if _protocol(value) == "memory":
@@ -228,10 +218,9 @@ def put_file(local: str | Path, url: str) -> None:
 def staged_outputs(paths: Sequence[Any]) -> Iterator[list[Any]]:
     """Local stand-ins for ``paths``: a URL's is a temporary file (same name), uploaded when the block succeeds.
 
-    Local paths are given back as they are (their writer stages them beside themselves). The
-    URLs are uploaded one after the other, in order, each in one piece: on an object store an
-    output is whole or absent, but of several outputs the first may exist without the last
-    when an upload fails.
+    Local paths are given back as they are (their writer stages them). The URLs are uploaded in
+    order, each in one piece: of several outputs the first may exist without the last when an upload
+    fails.
     """
     tmp = Path(tempfile.mkdtemp(prefix="imu-ground-out-"))
     try:
@@ -297,18 +286,18 @@ def local_input(source: Any, label: str | None = None) -> Iterator[Any]:
     Parameters
     ----------
     source : str, Path, file object or anything else
-        A local path or ``file://`` URL (given back, the ``file://`` URL as its path); an fsspec URL
-        (the file or folder is copied into a temporary folder, removed when the block ends); an open
-        file object, binary or text (its remaining content copied likewise, named as the file object is,
-        else by its first bytes: ``.gz``, ``.bz2``, Parquet, ROS bag, MCAP, else ``log.csv``). Anything
-        else (a DataFrame) is given back.
+        A local path or ``file://`` URL (given back as its path); an fsspec URL (the file or folder
+        copied into a temporary folder, removed when the block ends); an open file object, binary or
+        text (its remaining content copied, named as the file object is, else by its first bytes:
+        ``.gz``, ``.bz2``, Parquet, ROS bag, MCAP, else ``log.csv``). Anything else (a DataFrame) is
+        given back.
     label : str, optional
         How messages name a copied source (default: the URL, or the file object's name).
 
     Yields
     ------
-    The local path (or ``source``). Inside the block, messages of exceptions and warnings that
-    name the copy name the source instead.
+    The local path (or ``source``); inside the block, exceptions and warnings that name the copy
+    name the source instead.
 
     Raises
     ------

@@ -25,35 +25,15 @@ from imu_ground.errors import ImuInputError, MalformedFileError, require_extra
 from imu_ground.imu.data import ImuData
 
 from .csvio import Columns, numeric, read_delimited
-from .skeleton import finish, register_format
-from .unit_checks import (
-    ACCEL_UNITS,
-    GYRO_UNITS,
-    TIME_UNITS,
-    UNIT_OPTIONS,
-    detect_time_unit,
-    motion_in_si,
-    raw_times,
-    settle_unit,
-    unit_scale,
-)
+from .skeleton import finish, register_format, with_finish_parameters
+from .unit_checks import (ACCEL_UNITS, GYRO_UNITS, TIME_UNITS, UNIT_OPTIONS, detect_time_unit, motion_in_si, raw_times,
+                          settle_unit, unit_scale)
 
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = [
-    "ACCEL_UNITS",
-    "GYRO_UNITS",
-    "PARQUET_SUFFIXES",
-    "TABLE_SUFFIXES",
-    "TIME_UNITS",
-    "from_dataframe",
-    "map_columns",
-    "parse_columns",
-    "read_parquet_table",
-    "read_table",
-    "unit_scale",
-]
+__all__ = ["ACCEL_UNITS", "GYRO_UNITS", "PARQUET_SUFFIXES", "TABLE_SUFFIXES", "TIME_UNITS", "from_dataframe",
+           "map_columns", "parse_columns", "read_parquet_table", "read_table", "unit_scale"]
 
 #: File names read as delimited text tables.
 TABLE_SUFFIXES = (".csv", ".csv.gz", ".txt", ".tsv", ".csv.bz2", ".txt.gz", ".tsv.gz")
@@ -193,8 +173,9 @@ def _split(kw: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
     return mapping, kw
 
 
+@with_finish_parameters
 def read_table(source: str | Path | pd.DataFrame, *, sep: str | None = None, decimal: str | None = None,
-               validate: bool = True, policy: str = "retime", **kw: Any) -> ImuData:
+               validate: bool = True, policy: str = "retime", **validate_kw: Any) -> ImuData:
     """Read a generic IMU table (CSV file, optionally ``.gz`` / ``.bz2``, or DataFrame).
 
     Parameters
@@ -202,67 +183,54 @@ def read_table(source: str | Path | pd.DataFrame, *, sep: str | None = None, dec
     source : str, Path or pandas.DataFrame
         A delimited text file with a header line, or a DataFrame.
     sep : str, optional
-        Field separator of the text file; told from the file when None: a tab for
-        ``.tsv``, else whichever of ``,``, tab and ``;`` splits the header line into the
-        most fields (:func:`~imu_ground.datasets.csvio.detect_dialect`).
+        Field separator; None: a tab for ``.tsv``, else whichever of ``,``, tab and ``;`` splits the
+        header into the most fields (:func:`~imu_ground.datasets.csvio.detect_dialect`).
     decimal : str, optional
-        Decimal mark (``"."`` or ``","``); told from the file when None: a comma when the
-        fields are not comma-separated and the first data row writes its numbers so (``9,81``).
-    validate : bool
-        Run :func:`imu_ground.datasets.validation.validate` (default True).
-    policy : {"retime", "drop", "sort", "strict", "recorded"}
-        Time-order policy of the validation.
-    **kw
-        The column map and units (Other Parameters, below) and the other options of
-        :func:`~imu_ground.datasets.validation.validate`.
+        Decimal mark (``"."`` or ``","``); None: a comma when the fields are not comma-separated and
+        the first data row writes its numbers so (``9,81``).
+    {finish_parameters}
 
     Other Parameters
     ----------------
     columns : str or dict, optional
-        Which column holds what, ``"t=timestamp,wx=gyro_x,..."`` or
-        ``{"t": "timestamp", ...}`` (keys of :data:`QUANTITIES`; the ones not
-        given keep their default names). ``--columns`` on the command line.
-        Column names are matched regardless of case (``T``, ``WX`` ...).
+        Which column holds what, ``"t=timestamp,wx=gyro_x,..."`` or ``{"t": "timestamp", ...}`` (keys
+        of :data:`QUANTITIES`; the others keep their default names; ``--columns``). Names are matched
+        regardless of case.
     time : str
-        Name of the time column (numbers, or a datetime column), default ``"t"``.
-    gyro : tuple of 3 str
-        Angular-rate columns about the body x, y, z axes (default ``wx, wy, wz``).
-    accel : tuple of 3 str
-        Specific-force columns along the body x, y, z axes (default ``ax, ay, az``;
-        what the accelerometer measures: +1 g on the up axis at rest).
+        Time column (numbers, or a datetime column), default ``"t"``.
+    gyro, accel : tuple of 3 str
+        Angular-rate columns about, and specific-force columns along, the body x, y, z axes
+        (default ``wx, wy, wz`` and ``ax, ay, az``; +1 g on the up axis at rest).
     time_unit : {"s", "ms", "us", "µs", "ns"}, optional
-        Unit of the time column; told from the data when omitted.
     gyro_unit : {"rad/s", "deg/s"}, optional
-        Unit of the angular-rate columns; told from the data when omitted.
     accel_unit : {"m/s^2", "m/s2", "g"}, optional
-        Unit of the specific-force columns (g = 9.80665 m/s^2); told from the data when omitted.
+        Units of those columns (g = 9.80665 m/s^2); told from the data when omitted.
     frame : str
         Name of the body frame of the columns (default ``"FLU"``); nothing is rotated.
     extra_units : dict, optional
         Units of the other columns (kept in ``extra``), default ``"unknown"``.
     relative_time : bool
-        Shift ``t`` to start at 0 (default) and keep the first time, s, in
-        ``meta["t0"]``; integer times are shifted before conversion (exact ns).
+        Shift ``t`` to start at 0 (default), the first time, s, in ``meta["t0"]``; integer times
+        are shifted before conversion (exact ns).
 
     Returns
     -------
     ImuData
-        ``t`` s, ``gyro`` rad/s, ``accel`` m/s^2 in ``frame``; other columns in
-        ``extra``; ``meta["source_units"]`` and ``meta["detected_units"]`` record the conversion.
+        ``t`` s, ``gyro`` rad/s, ``accel`` m/s^2 in ``frame``; other columns in ``extra``;
+        ``meta["source_units"]`` and ``meta["detected_units"]`` record the conversion.
 
     Raises
     ------
     FileNotFoundError
         The file does not exist.
     MalformedFileError
-        Empty file, a line with the wrong number of fields, or a non-number in a
-        time/gyro/accel column (the message names the file and 1-based line).
+        Empty file, a line with the wrong number of fields, or a non-number in a time/gyro/accel
+        column (naming the file and 1-based line).
     ImuInputError
-        Unknown unit, units the data cannot decide, or a missing column (the
-        message names the option: ``time_unit``..., ``columns``).
+        Unknown unit, units the data cannot decide, or a missing column (naming the option).
     """
     import pandas as pd
-    mapping, options = _split(kw)
+    mapping, options = _split(validate_kw)
     if isinstance(source, pd.DataFrame):
         return from_dataframe(source, validate=validate, policy=policy, **mapping, **options)
     path = Path(source)
@@ -272,17 +240,17 @@ def read_table(source: str | Path | pd.DataFrame, *, sep: str | None = None, dec
     return finish(imu, validate=validate, policy=policy, **options)
 
 
+@with_finish_parameters
 def read_parquet_table(path: str | Path, *, validate: bool = True, policy: str = "retime",
-                       **kw: Any) -> ImuData:
+                       **validate_kw: Any) -> ImuData:
     """Read a Parquet IMU table (pyarrow) through the same column mapping as :func:`read_table`.
 
     Parameters
     ----------
     path : str or Path
         The ``.parquet`` file. Rows are numbered from 0 in messages (Parquet has no lines).
-    **kw
-        ``time``, ``gyro``, ``accel``, units, ``frame``, ... as in :func:`read_table`,
-        and the validation options.
+    {finish_parameters}
+        (and ``time``, ``gyro``, ``accel``, the units, ``frame``, ... as in :func:`read_table`)
 
     Raises
     ------
@@ -301,7 +269,7 @@ def read_parquet_table(path: str | Path, *, validate: bool = True, policy: str =
         raise MalformedFileError(path, f"not a readable Parquet file ({e})") from e
     cols: Columns = {name: table.column(name).to_numpy() for name in table.column_names}
     del table
-    mapping, options = _split(kw)
+    mapping, options = _split(validate_kw)
     imu = map_columns(cols, source=str(path), **mapping)
     imu.meta["format"] = "parquet"
     return finish(imu, validate=validate, policy=policy, **options)

@@ -31,18 +31,8 @@ from imu_ground.units import DEG, GRAVITY
 from .csvio import numeric
 from .order_stats import median
 
-__all__ = [
-    "ACCEL_UNITS",
-    "GYRO_UNITS",
-    "TIME_UNITS",
-    "detect_accel_unit",
-    "detect_gyro_unit",
-    "detect_time_unit",
-    "motion_in_si",
-    "raw_times",
-    "settle_unit",
-    "unit_scale",
-]
+__all__ = ["ACCEL_UNITS", "GYRO_UNITS", "TIME_UNITS", "detect_accel_unit", "detect_gyro_unit", "detect_time_unit",
+           "motion_in_si", "raw_times", "settle_unit", "unit_scale"]
 
 #: Time units, to seconds.
 TIME_UNITS: dict[str, float] = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9}
@@ -58,7 +48,8 @@ _NAMES = {"s": "seconds", "ms": "milliseconds", "us": "microseconds", "ns": "nan
 
 #: Rows (evenly spread) on which a long log's units are decided.
 DECIDE_SAMPLES = 200_000
-RATE_RANGE = (1.0, 2000.0)          # plausible IMU rates, Hz
+#: Plausible IMU sample rates, Hz (the time unit's test here, the validation's rate check).
+RATE_RANGE = (1.0, 2000.0)
 EPOCH_RANGE = (3.15e8, 4.1e9)       # 1980 .. 2100, s since 1970
 GYRO_DEG_SURE = 2.0                 # 99th percentile |w| above this (rad/s): deg/s
 GYRO_RAD_SURE = 1.0                 # ... below this: rad/s; between: ask
@@ -112,9 +103,8 @@ def settle_unit(kind: str, given: str | None, detect: Callable, values: np.ndarr
 
 
 def _check_given(kind: str, given: str, detect: Callable, values: np.ndarray, source: str, *args: Any) -> None:
-    """A unit given that the data contradict: time that gives no IMU rate is refused (the log would be absurd:
-    a frame grid of years); a gyro unit the data read otherwise is warned about (the accelerometer's is caught by
-    the validation's specific-force check)."""
+    """A given unit the data contradict: a time unit that gives no IMU rate is refused; a gyro unit the data
+    read otherwise is warned about (the accelerometer's: the validation's specific-force check)."""
     opt = f"{{opt}} {given}"
     if kind == "time":
         step = _median_step(values)
@@ -148,24 +138,15 @@ def _check_given(kind: str, given: str, detect: Callable, values: np.ndarray, so
 
 def motion_in_si(gyro: np.ndarray, accel: np.ndarray, gyro_unit: str | None, accel_unit: str | None,
                  source: str) -> tuple[np.ndarray, np.ndarray, str, str]:
-    """Angular rate and specific force converted to rad/s and m/s^2.
+    """Angular rate and specific force (N, 3), body frame, converted to rad/s and m/s^2.
 
-    Each unit is the one given (checked) or the one told from the data, with one warning when it
-    converts (:func:`settle_unit`).
-
-    Parameters
-    ----------
-    gyro, accel : ndarray (N, 3)
-        Angular rate and specific force as read, body frame.
-    gyro_unit, accel_unit : str or None
-        The units given (None: told from the data).
-    source : str
-        The file, named in messages.
+    Each unit is the one given (checked) or told from the data, with one warning when it converts
+    (:func:`settle_unit`); ``source`` is the file named in messages.
 
     Returns
     -------
     gyro, accel : ndarray (N, 3)
-        In rad/s and m/s^2 (the arrays given when already so, new ones when converted).
+        In rad/s and m/s^2 (the arrays given when already so).
     gyro_unit, accel_unit : str
         The units they were in.
     """
@@ -176,8 +157,8 @@ def motion_in_si(gyro: np.ndarray, accel: np.ndarray, gyro_unit: str | None, acc
 
 
 def _median_step(values: np.ndarray) -> float | None:
-    """The median positive step of raw times (in their own unit), over evenly spread pairs of neighbours;
-    None under two finite times or without a positive step."""
+    """The median positive step of raw times (their own unit) over evenly spread neighbour pairs; None under two
+    finite times or without a positive step."""
     v = np.asarray(values)
     fin = v if v.dtype.kind != "f" or np.isfinite(v).all() else v[np.isfinite(v)]   # no copy when all finite
     if fin.size < 2:

@@ -55,24 +55,15 @@ from imu_ground.imu.data import ImuData
 
 from . import report as _report
 from .order_stats import median
+from .unit_checks import RATE_RANGE
 from .report import (  # the report's public names are re-exported (ValidationReport)
     STANDARD_GRAVITY,
     Gap as Gap,
     ValidationReport,
     row_names,
 )
-from .timestamps import (
-    POLICIES,
-    Action,
-    Policy,
-    act,
-    check_choice,
-    check_gaps,
-    check_timestamps,
-    fmt_list,
-    gap_action,
-    order_samples,
-)
+from .timestamps import (POLICIES, Action, Policy, act, check_choice, check_gaps, check_timestamps, fmt_list,
+                         gap_action, order_samples)
 
 #: The readers' helpers of :mod:`~imu_ground.datasets.report` that are not re-exported here.
 _READER_HELPERS = ("row_names", "warn_user")
@@ -85,8 +76,6 @@ _NONFINITE = ("raise", "drop")
 #: (rad/s or deg/s; m/s^2, g, mg or mm/s^2: a 16 g accelerometer reads 1.6e5 mm/s^2); beyond it a sample is
 #: corrupt and is treated as a non-finite one.
 READING_LIMIT = 1e6
-#: Plausible IMU sample rates, Hz.
-RATE_RANGE = (1.0, 2000.0)
 #: Spread (1st to 99th percentile, m/s^2) of the specific force on every axis below which, with every rate
 #: below ``rest_gyro``, a log never moves: a moving car brakes, accelerates or meets bumps beyond it.
 STILL_SPREAD = 0.5

@@ -18,20 +18,8 @@ from imu_ground.datasets import FORMATS
 from imu_ground.datasets.options import READER_OPTIONS
 from imu_ground.pipeline.estimate import POSE_FORMATS
 
-__all__ = [
-    "INPUT_FLAGS",
-    "LazyHelp",
-    "add_progress_flag",
-    "add_reader_flags",
-    "input_paths",
-    "nonnegative_int",
-    "positive_float",
-    "progress_enabled",
-    "reader_options",
-    "say",
-    "warn_line",
-    "warnings_as_lines",
-]
+__all__ = ["INPUT_FLAGS", "LazyHelp", "add_progress_flag", "add_reader_flags", "input_paths", "nonnegative_int",
+           "positive_float", "progress_enabled", "reader_options", "say", "warn_line", "warnings_as_lines"]
 
 
 class LazyHelp(str):

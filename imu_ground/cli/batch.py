@@ -5,14 +5,8 @@ import math
 
 import argparse
 
-from imu_ground.cli._common import (
-    add_logs_command,
-    add_progress_flag,
-    add_reader_flags,
-    nonnegative_int,
-    progress_enabled,
-    say,
-)
+from imu_ground.cli._common import (add_logs_command, add_progress_flag, add_reader_flags, nonnegative_int,
+                                    progress_enabled, say)
 from imu_ground.cli.estimate import add_method_flags, method_kwargs
 from imu_ground.pipeline.batch import run_batch
 

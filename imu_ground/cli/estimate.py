@@ -8,16 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from imu_ground.cli._common import (
-    add_progress_flag,
-    add_reader_flags,
-    input_paths,
-    positive_float,
-    progress_enabled,
-    reader_options,
-    say,
-    warn_line,
-)
+from imu_ground.cli._common import (add_progress_flag, add_reader_flags, input_paths, positive_float, progress_enabled,
+                                    reader_options, say, warn_line)
 from imu_ground.datasets.storage import with_suffix
 from imu_ground.filters.methods import default_method
 from imu_ground.pipeline.estimate import available_methods, estimate_to_files

@@ -19,14 +19,8 @@ import numpy as np
 
 from imu_ground.cli._common import input_paths, nonnegative_int, say, warn_line
 from imu_ground.errors import ImuGroundError
-from imu_ground.evaluation.preview import (
-    DRAWN_BEV_PIXELS,
-    PREVIEW_GRID,
-    drawn_grid,
-    images_preview,
-    render_preview,
-    synthetic_preview,
-)
+from imu_ground.evaluation.preview import (DRAWN_BEV_PIXELS, PREVIEW_GRID, drawn_grid, images_preview, render_preview,
+                                           synthetic_preview)
 from imu_ground.perception import BevGrid, load_camera
 from imu_ground.pipeline.estimate import estimate_log
 from imu_ground.pipeline.output import atomic_path, check_output_path, check_run_paths, result_table

@@ -36,15 +36,8 @@ from imu_ground.datasets import storage
 from imu_ground.errors import ImuGroundError, require_extra, warn_user
 from imu_ground.pipeline.estimate import OptionError, check_options, estimate_to_files, requested_options
 from imu_ground.pipeline.input_checks import process_running
-from imu_ground.pipeline.output import (
-    OUTPUT_SUFFIXES,
-    atomic_path,
-    check_output_path,
-    check_run_paths,
-    default_output_name,
-    read_output_settings,
-    summarize_table,
-)
+from imu_ground.pipeline.output import (OUTPUT_SUFFIXES, atomic_path, check_output_path, check_run_paths,
+                                        default_output_name, read_output_settings, summarize_table)
 
 __all__ = ["LOCK_NAME", "WORKERS_PER_CORE", "SUMMARY_COLUMNS", "check_existing_outputs", "expand_logs", "is_own_output",
            "output_folder_lock", "output_names", "process_log", "run_batch", "unique_logs"]
@@ -65,10 +58,9 @@ WORKERS_PER_CORE = 4
 def expand_logs(patterns: Iterable[str | Path]) -> list[tuple[str, str | None]]:
     """Logs named by paths and glob patterns, in order, each once: ``(log, error or None)``.
 
-    A pattern that matches nothing gives ``(pattern, "no file matches ...")``; a
-    plain path is kept as given (a missing one fails when it is read). A URL pattern
-    (``s3://bucket/logs/**/*.csv.gz``, ``file:///data/*.csv``) is expanded by its fsspec
-    filesystem, its matches spelt as URLs of the same protocol.
+    A pattern that matches nothing gives ``(pattern, "no file matches ...")``; a plain path is kept as
+    given (a missing one fails when read). A URL pattern (``s3://bucket/logs/**/*.csv.gz``) is expanded
+    by its fsspec filesystem, its matches spelt as URLs of the same protocol.
     """
     out: dict[str, str | None] = {}
     for pat in patterns:
@@ -88,9 +80,8 @@ def expand_logs(patterns: Iterable[str | Path]) -> list[tuple[str, str | None]]:
 def output_names(logs: Sequence[str], suffix: str = ".csv") -> list[str]:
     """Output file name of each log (``<name>_ground<suffix>``), made unique with the parent folders' names.
 
-    Always a bare file name (never a path, never absolute), so the output lands in the
-    output folder whatever the log's path; logs that still clash (one file named twice
-    is :func:`unique_logs`' to drop) get a number: ``_2``, ``_3``...
+    Always a bare file name, so the output lands in the output folder whatever the log's path; names
+    that still clash get a number: ``_2``, ``_3``...
     """
     base = [default_output_name(log, suffix) for log in logs]
     names = list(base)
@@ -143,8 +134,8 @@ def unique_logs(found: Sequence[tuple[str, str | None]]) -> tuple[list[tuple[str
 def is_own_output(path: str | Path, out_dir: str | Path | None = None) -> bool:
     """Whether ``path`` is a file this tool wrote (an output or a batch summary), not a log.
 
-    An output records its settings (CSV and TUM header, Parquet schema); a summary starts with
-    :data:`SUMMARY_COLUMNS`; a ROS output (whose record is not read back) is recognised by its name
+    An output records its settings (CSV and TUM header, Parquet schema, MCAP metadata); a summary
+    starts with :data:`SUMMARY_COLUMNS`; a ROS bag output is recognised by its name
     ``*_ground.bag`` / ``*_ground.mcap`` inside ``out_dir``. A URL is read through its filesystem.
     """
     url = storage.local_name(path)
@@ -252,12 +243,8 @@ def _as_path(path: str | Path) -> str | Path:
 
 
 def record_path(out: str) -> str:
-    """The record object of a batch output at a URL: ``OUTDIR/.imu-ground-batch/<output name>.json``.
-
-    Written after all the outputs of the log (each uploaded whole): a log whose record exists is
-    complete, and its record holds its summary row (what a resumed run shows without reading
-    the output back).
-    """
+    """The record object of a batch output at a URL, ``OUTDIR/.imu-ground-batch/<output name>.json``: written
+    after all the log's outputs, it says they are complete and holds the log's summary row."""
     return str(storage.join(out.rsplit("/", 1)[0], f"{RECORD_FOLDER}/{storage.url_name(out)}.json"))
 
 
@@ -314,11 +301,10 @@ def check_existing_outputs(paths: Iterable[str | Path], options: dict) -> None:
 def output_folder_lock(out_dir: str | Path, option: str = "-o") -> Iterator[Path]:
     """Hold the batch lock of an output folder (:data:`LOCK_NAME`) for the block; a second run is refused.
 
-    The lock file records the holder (process id, host, start time, command). A lock held by
-    a running process raises at once (no waiting); a lock file left by a process that no
-    longer runs (killed) is taken over with a warning. The lock is a kernel lock on the file
-    (``flock``), released by the system however the holder ends; where there is none, the
-    recorded process id is checked instead. The file is removed when the block ends.
+    The lock file records the holder (process id, host, start time, command) and is a kernel lock
+    (``flock``), released however the holder ends (without ``flock``, the recorded process id decides).
+    A running holder raises at once; a file left by a process that no longer runs is taken over with a
+    warning. The file is removed when the block ends.
 
     Raises
     ------
@@ -503,15 +489,9 @@ def _run_batch_locked(logs, out_dir: Path | str, workers, scheduler, suffix, pro
 
 
 def _check_batch_paths(out_dir: str | Path, planned: Sequence[str | Path], options: dict, cli: bool) -> None:
-    """Before any work: no output of the run is an input file the user named (:func:`check_run_paths`), and
-    none would replace a file in the output folder that this tool did not write (:func:`is_own_output`: a
-    user's ``summary.csv`` or ``x_ground.csv`` is the user's, kept, never summarised as an earlier output).
-
-    Raises
-    ------
-    OptionError
-        Naming the file and ``-o`` (``outdir``).
-    """
+    """Before any work: no output is an input the user named (:func:`check_run_paths`), and none would replace
+    a file in the output folder that this tool did not write (:func:`is_own_output`); raises
+    :class:`OptionError` naming the file and ``-o`` (``outdir``)."""
     flag = (lambda name: "--" + name.replace("_", "-")) if cli else (lambda name: name)
     check_run_paths([("-o" if cli else "outdir", p) for p in planned],
                     [(flag(k), options.get(k)) for k in ("speed", "extrinsic", "times")
@@ -526,13 +506,9 @@ def _check_batch_paths(out_dir: str | Path, planned: Sequence[str | Path], optio
 
 
 def _start_method() -> str:
-    """``"fork"`` where the platform has it and this process runs no other Python thread, else ``"spawn"``.
-
-    A forked worker starts at once with this process's modules imported (a
-    spawned one imports numpy, pandas and the package again: the start-up
-    ``benchmarks/bench_batch.py`` counts); forking is safe only while no other
-    thread could hold a lock that the child would inherit locked.
-    """
+    """``"fork"`` where the platform has it and this process runs no other Python thread (a forked worker
+    starts with the modules imported; forking is safe only while no other thread could hold a lock), else
+    ``"spawn"``."""
     if "fork" in multiprocessing.get_all_start_methods() and threading.active_count() == 1:
         return "fork"
     return "spawn"
@@ -540,11 +516,8 @@ def _start_method() -> str:
 
 @contextlib.contextmanager
 def _local_pool(workers: int | None, n_logs: int, cli: bool = False) -> Iterator[ProcessPoolExecutor]:
-    """``workers`` (default: CPU count) worker processes, started now (see :func:`_start_method`).
-
-    Never more workers than logs, nor more than :data:`WORKERS_PER_CORE` a CPU core (each worker
-    holds a whole log in memory: thousands of them exhaust any machine); the cap is warned about.
-    """
+    """``workers`` (default: CPU count) worker processes, started now (:func:`_start_method`); never more than
+    logs, nor than :data:`WORKERS_PER_CORE` a CPU core (each holds a whole log in memory; the cap is warned about)."""
     require_extra("dask.multiprocessing", "fleet", "imu-ground batch")      # checked before any worker starts
     cores = os.cpu_count() or 1
     n = min(int(workers) if workers else cores, max(1, n_logs))
@@ -559,17 +532,9 @@ def _local_pool(workers: int | None, n_logs: int, cli: bool = False) -> Iterator
 
 
 def _run_local(jobs, rows, options, cli, force, pool: ProcessPoolExecutor, bar) -> None:
-    """The logs on Dask's local process scheduler over ``pool``: one task a log, handed out one at a time.
-
-    The local scheduler runs each task in a plain worker process; a ``dask.distributed``
-    worker (event loop, monitors and heartbeats beside the task thread) runs these
-    pure-Python filters markedly slower, which costs a fleet its second core.
-    A task is a whole log (tens of ms to minutes), so tasks go out one by one
-    (``chunksize=1``): batches of tasks would leave a worker idle at the end. The
-    scheduler is passed as a function, so Dask does not import ``dask.distributed`` to
-    look for a client. Every task returns one summary row, and a failing log is a row
-    with its error.
-    """
+    """The logs on Dask's local process scheduler over ``pool``, one task a log handed out one at a time
+    (``chunksize=1``); the scheduler passed as a function, so Dask does not look for a ``dask.distributed``
+    client (whose worker runs these filters markedly slower)."""
     import dask
     from dask.callbacks import Callback
     from dask.multiprocessing import get as process_scheduler

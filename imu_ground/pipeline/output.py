@@ -32,6 +32,7 @@ import numpy as np
 
 from imu_ground._version import __version__
 from imu_ground.datasets import storage
+from imu_ground.datasets.poses import write_tum_poses
 from imu_ground.errors import ImuGroundError, MissingExtraError, require_extra
 from imu_ground.filters.estimator import GroundTrack
 from imu_ground.filters.status import GAP, gap_run_durations, status_names, status_reason
@@ -44,26 +45,9 @@ from imu_ground.so3 import quat_from_matrix
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = [
-    "COLUMNS",
-    "TEXT_COLUMNS",
-    "GAP_NAN_FRAMES",
-    "OUTPUT_SUFFIXES",
-    "UNITS",
-    "atomic_path",
-    "check_output_path",
-    "check_run_paths",
-    "default_output_name",
-    "package_version",
-    "read_output_settings",
-    "result_table",
-    "same_file",
-    "track_table",
-    "summarize_table",
-    "write_csv_rows",
-    "write_output",
-    "write_outputs",
-]
+__all__ = ["COLUMNS", "TEXT_COLUMNS", "GAP_NAN_FRAMES", "OUTPUT_SUFFIXES", "UNITS", "atomic_path", "check_output_path",
+           "check_run_paths", "default_output_name", "package_version", "read_output_settings", "result_table",
+           "same_file", "track_table", "summarize_table", "write_csv_rows", "write_output", "write_outputs"]
 
 #: File suffixes :func:`write_output` knows.
 OUTPUT_SUFFIXES = (".csv", ".parquet", ".tum", ".bag", ".mcap")
@@ -91,27 +75,20 @@ _PathLike = str | Path
 
 # ------------------------------------------------------------------------------------------ table
 def track_table(track: GroundTrack, max_gap_frames: int = GAP_NAN_FRAMES) -> "pd.DataFrame":
-    """THE output table of an estimate, one row a frame.
+    """THE output table of an estimate, one row a frame (the columns, units and signs: the module docstring,
+    :data:`UNITS`; ``qw >= 0``; ``status`` one of :data:`~imu_ground.filters.status.STATUSES`).
 
     Parameters
     ----------
     track : GroundTrack
     max_gap_frames : int
-        Invalid frames in a run of more than this many consecutive invalid
-        frames (a long gap in the source) get NaN values; shorter runs keep
-        their (extrapolated) values. ``valid`` is False for all of them.
+        Invalid frames in a run of more than this many consecutive invalid frames (a long gap in the
+        source) get NaN values; shorter runs keep their (extrapolated) values. ``valid`` is False for all.
 
     Returns
     -------
     pandas.DataFrame
-        Columns ``t`` (s), ``normal_x, normal_y, normal_z`` (unit normal, sensor
-        frame), ``pitch_deg`` (+ nose down), ``roll_deg`` (+ left side up),
-        ``qw, qx, qy, qz`` (residual rotation road <- body, scalar first,
-        ``qw >= 0``), ``valid`` (bool), ``pitch_std_deg, roll_std_deg`` (calibrated
-        1-sigma), ``road_grade_deg`` (+ uphill in the direction of travel),
-        ``road_bank_deg`` (+ left side up), ``road_grade_std_deg, road_bank_std_deg``
-        (NaN where not estimated), ``status`` (str, :data:`~imu_ground.filters.status.STATUSES`)
-        and ``status_reason`` (str).
+        :data:`COLUMNS`.
     """
     import pandas as pd                             # heavy: only when a table is made
     n = len(track)
@@ -204,7 +181,9 @@ def check_output_path(path: _PathLike, inputs: Sequence[_PathLike] = (), option:
     Parameters
     ----------
     path : str or Path
-        Output file; its suffix picks the writer (:data:`OUTPUT_SUFFIXES`).
+        Output file; its suffix picks the writer (:data:`OUTPUT_SUFFIXES`). A URL
+        (:mod:`imu_ground.datasets.storage`) is checked for its type, filesystem, bucket and the
+        inputs, and returned as it is (a string).
     inputs : sequence of str or Path
         Input logs, which an output must never overwrite.
     option : str
@@ -219,30 +198,32 @@ def check_output_path(path: _PathLike, inputs: Sequence[_PathLike] = (), option:
     Raises
     ------
     ImuGroundError
-        Unknown suffix; the path is a folder, an input, or lies under a file;
-        no permission to write there. One line, naming the path and what to do.
+        Unknown suffix; the path is a folder, an input, or lies under a file; no permission to
+        write there. One line, naming the path and what to do.
     MissingExtraError
         The writer of its type needs an optional extra that is not installed.
     MissingFilesystemError
         A URL whose filesystem package (``s3fs`` ...) is not installed.
-
-    A URL (``s3://...``: :mod:`imu_ground.datasets.storage`) is checked for its type,
-    its filesystem and the inputs, and returned as it is (a string).
     """
-    path = storage.local_name(path)
-    if storage.is_url(path):
-        return _check_output_url(path, inputs, option, kind)
-    p = Path(path)
-    if p.is_dir():
-        raise ImuGroundError(f"{p}: is a folder; give {option} a file name, e.g. {p / 'ground.csv'}")
-    if kind is None and p.suffix.lower() not in OUTPUT_SUFFIXES:
-        raise ImuGroundError(f"{p}: unknown output type {p.suffix or '(no suffix)'!r}; end the {option} file name "
+    target: Any = storage.local_name(path)
+    url = storage.is_url(target)
+    p: Any = target if url else Path(target)
+    located: tuple[Any, str] = storage.filesystem(target) if url else (None, "")
+    fs, key = located
+    if fs.isdir(key) if url else p.is_dir():
+        raise ImuGroundError(f"{p}: is a folder; give {option} a file name, e.g. {storage.join(p, 'ground.csv')}")
+    suffix = Path(storage.url_name(target) if url else p).suffix.lower()
+    if kind is None and suffix not in OUTPUT_SUFFIXES:
+        raise ImuGroundError(f"{p}: unknown output type {suffix or '(no suffix)'!r}; end the {option} file name "
                              f"with {', '.join(OUTPUT_SUFFIXES)}")
-    for src in inputs:
-        if same_file(p, storage.local_name(src)):
+    for src in map(storage.local_name, inputs):
+        if str(src).rstrip("/") == target.rstrip("/") if url else same_file(p, src):
             raise ImuGroundError(f"{p}: is the input log; writing it would overwrite the log: choose another {option}")
-    check_creatable(p, option)
-    _require_writer(p, kind or p.suffix.lower())
+    if url:
+        storage.check_bucket(target, option)
+    else:
+        check_creatable(p, option)
+    _require_writer(p, kind or suffix)
     return p
 
 
@@ -267,17 +248,15 @@ def _file_keys(path: _PathLike) -> set:
 def check_run_paths(outputs: Sequence[tuple[str, _PathLike | None]],
                     inputs: Sequence[tuple[str, _PathLike | None]] = ()) -> None:
     """The one check of a run's paths, before any work: no output is a file the user named as an input, and no
-    two outputs share a path (every ``imu-ground`` command calls it; :func:`same_file` decides, in one pass).
+    two outputs share a path (:func:`same_file` decides; every ``imu-ground`` command calls it).
 
     Parameters
     ----------
     outputs : sequence of (flag, path)
-        Every file or folder the run writes, with the flag that names it (``"-o"``, ``"--tum"``,
-        ``"--state"``); None entries are left out.
+        Every file or folder the run writes, with the flag naming it (``"-o"``, ``"--tum"``, ...); None left out.
     inputs : sequence of (flag, path)
-        Every input the user named (``"LOG"``, ``"--speed"``, ``"--extrinsic"``, ``"--times"``, ...):
-        a path, or a value that is not one (``auto``, a shipped name, a column), which then names no
-        output either; None and empty entries are left out.
+        Every input the user named (``"LOG"``, ``"--speed"``, ...): a path, or a value that is not one
+        (``auto``, a shipped name), which then names no output either; None and empty left out.
 
     Raises
     ------
@@ -304,22 +283,6 @@ def check_run_paths(outputs: Sequence[tuple[str, _PathLike | None]],
         written.update(dict.fromkeys(keys, flag))
 
 
-def _check_output_url(url: str, inputs: Sequence[_PathLike], option: str, kind: str | None) -> Any:
-    """:func:`check_output_path` of a URL (no folder to create, no permission to test before writing)."""
-    fs, p = storage.filesystem(url)
-    suffix = Path(storage.url_name(url)).suffix.lower()
-    if kind is None and suffix not in OUTPUT_SUFFIXES:
-        raise ImuGroundError(f"{url}: unknown output type {suffix or '(no suffix)'!r}; end the {option} file name "
-                             f"with {', '.join(OUTPUT_SUFFIXES)}")
-    if any(str(storage.local_name(s)).rstrip("/") == url.rstrip("/") for s in inputs):
-        raise ImuGroundError(f"{url}: is the input log; writing it would overwrite the log: choose another {option}")
-    if fs.isdir(p):
-        raise ImuGroundError(f"{url}: is a folder; give {option} a file name, e.g. {storage.join(url, 'ground.csv')}")
-    storage.check_bucket(url, option)
-    _require_writer(url, kind or suffix)        # type: ignore[arg-type]
-    return url
-
-
 #: Output suffix -> (the modules its writer needs, the extra that installs them).
 _WRITER_EXTRAS = {".parquet": (("pyarrow.parquet",), "parquet"), ".bag": (("rosbags.typesys",), "ros"),
                   ".mcap": (("rosbags.typesys", "mcap.writer"), "ros")}
@@ -334,11 +297,11 @@ def _require_writer(path: Path, kind: str) -> None:
 
 @contextmanager
 def atomic_path(path: _PathLike) -> Iterator[Path]:
-    """Temporary path beside ``path`` (same folder, same name); renamed onto ``path`` when the block succeeds.
+    """Temporary path beside ``path`` (same folder, same name), renamed onto it when the block succeeds.
 
-    The parent folders are created. On an exception nothing is left behind and
-    an existing ``path`` is untouched. A URL's temporary file is local, uploaded
-    in one piece when the block succeeds (:func:`~imu_ground.datasets.storage.staged_outputs`).
+    The parent folders are created; on an exception nothing is left behind and an existing ``path`` is
+    untouched. A URL's temporary file is local, uploaded in one piece
+    (:func:`~imu_ground.datasets.storage.staged_outputs`).
     """
     path = storage.local_name(path)
     if storage.is_url(path):
@@ -389,20 +352,12 @@ def _csv_header(meta: Mapping[str, Any]) -> str:
 
 
 def write_csv_rows(fh, table) -> None:
-    """Write ``table``'s header line and rows as CSV to ``fh``, through pyarrow's CSV writer (pandas' without it).
+    """Write ``table``'s header line and rows as CSV to ``fh`` (binary, open for writing; the index not written).
 
-    Every number is written with the shortest text that reads back as the same double (the file
-    reads back equal to the table), NaN as ``nan``, infinities as ``inf``/``-inf``, bool columns
-    as 0/1; text fields are quoted (``"``, doubled inside), the header names only where they need it.
-    pyarrow (the ``parquet`` extra) formats the rows in C++; without it pandas' ``to_csv`` writes
-    them (the same values; numbers may be spelt differently, e.g. ``1.5e-05`` for ``0.000015``).
-
-    Parameters
-    ----------
-    fh : binary file
-        Open for writing.
-    table : pandas.DataFrame
-        The table (its index is not written).
+    Through pyarrow's CSV writer (the ``parquet`` extra; pandas' ``to_csv`` without it, the same
+    values, numbers maybe spelt otherwise): every number the shortest text that reads back as the same
+    double, NaN as ``nan``, infinities as ``inf``/``-inf``, bools as 0/1; text quoted (``"`` doubled),
+    header names only where they need it.
     """
     fh.write((",".join(_csv_quoted(str(c)) for c in table.columns) + "\n").encode("utf-8"))
     if not len(table.columns):
@@ -427,12 +382,8 @@ CSV_PARTS = max(1, min(4, os.cpu_count() or 1))
 
 
 def _write_row_blocks(pa: Any, pacsv: Any, rows: Any, fh: Any, options: Any) -> None:
-    """``pyarrow.csv.write_csv(rows, fh, options)`` (no header), long tables formatted on several threads.
-
-    Each block of rows is formatted into an Arrow buffer of its own (pyarrow releases the GIL
-    while it formats) and the buffers are written in order: the rows are formatted one by one,
-    so the bytes are those of one call on the whole table.
-    """
+    """``pyarrow.csv.write_csv(rows, fh, options)`` (no header); a long table's row blocks formatted on several
+    threads (pyarrow releases the GIL), each into a buffer of its own, written in order: the bytes of one call."""
     n = rows.num_rows
     parts = CSV_PARTS if n >= CSV_PARALLEL_ROWS else 1
     if parts == 1:
@@ -490,18 +441,14 @@ def _write_parquet(path: Path, table, meta: Mapping[str, Any]) -> None:
 def _write_tum(path: Path, table, meta: Mapping[str, Any]) -> None:
     from scipy.spatial.transform import Rotation
     ext = meta.get("extrinsic") or {}
-    r_gs = np.asarray(ext.get("rotation", np.eye(3)), dtype=float)
-    trans = np.asarray(ext.get("translation", np.zeros(3)), dtype=float)
     q = table[["qw", "qx", "qy", "qz"]].to_numpy(dtype=float)
     keep = table["valid"].to_numpy(dtype=bool) & np.all(np.isfinite(q), axis=1)
-    dyn = Rotation.from_quat(q[keep], scalar_first=True).as_matrix() @ r_gs     # road-ground <- sensor
-    q_xyzw = Rotation.from_matrix(dyn).as_quat() if len(dyn) else np.zeros((0, 4))
-    t = table["t"].to_numpy(dtype=float)[keep]
-    rows = np.column_stack([t, np.broadcast_to(trans, (len(t), 3)), q_xyzw])
+    dyn = Rotation.from_quat(q[keep], scalar_first=True).as_matrix() @ np.asarray(ext.get("rotation", np.eye(3)),
+                                                                                  dtype=float)
     settings = json.dumps(meta.get("settings", {}), sort_keys=True, default=str)
-    np.savetxt(path, rows, fmt="%.9f",
-               header="dynamic extrinsic ground <- sensor of the valid frames: t x y z qx qy qz qw\n"
-                      f"settings: {settings}")
+    write_tum_poses(path, table["t"].to_numpy(dtype=float)[keep], dyn,   # road-ground <- sensor
+                    np.asarray(ext.get("translation", np.zeros(3)), dtype=float),
+                    header=f"dynamic extrinsic ground <- sensor of the valid frames: t x y z qx qy qz qw\nsettings: {settings}")
 
 
 def _write_ros(path: Path, table, meta: Mapping[str, Any]) -> None:
@@ -519,12 +466,8 @@ def _write_ros(path: Path, table, meta: Mapping[str, Any]) -> None:
 
 
 def read_output_settings(path: _PathLike) -> dict | None:
-    """The ``settings`` an output of this package records (CSV and TUM header, Parquet schema, MCAP
-    metadata record), or None.
-
-    None when the file has no such record (a ROS bag, whose settings topic is not read
-    here, or a file written by something else).
-    """
+    """The ``settings`` an output of this package records (CSV and TUM header, Parquet schema, MCAP metadata
+    record), or None (a ROS bag, whose settings topic is not read here, or a file written by something else)."""
     p = storage.local_name(path)
     suffix = Path(storage.url_name(p) if storage.is_url(p) else p).suffix.lower()
     try:
@@ -562,27 +505,24 @@ _WRITERS = {".csv": _write_csv, ".parquet": _write_parquet, ".tum": _write_tum, 
 
 def write_outputs(paths: Sequence[_PathLike], table, meta: Mapping[str, Any],
                   kinds: Sequence[str | None] | None = None) -> Sequence[Path | str]:
-    """Write ``table`` to every path (writer by suffix); all appear together or none does.
+    """Write ``table`` (:func:`result_table`'s columns) to every path; all appear together or none does.
 
     Parameters
     ----------
     paths : sequence of str or Path
-        Destinations (checked with :func:`check_output_path` first is advised).
-    kinds : sequence of str or None, optional
-        Writer per path (a suffix of :data:`OUTPUT_SUFFIXES`, e.g. ``".tum"`` for a
-        TUM file named ``.txt``, or of :data:`~imu_ground.pipeline.plot.PLOT_SUFFIXES` for a
-        picture of the estimate, whose speed is ``meta["frame_speed"]``); None: from the path's suffix.
+        Destinations (best checked with :func:`check_output_path` first). A URL stays a string: written
+        locally, then uploaded in one piece (:func:`~imu_ground.datasets.storage.staged_outputs`).
     table : pandas.DataFrame
-        :func:`result_table`'s columns.
     meta : mapping
-        :class:`~imu_ground.pipeline.EstimateResult` ``meta`` (format, method,
-        settings, extrinsic, frame_id).
+        :class:`~imu_ground.pipeline.EstimateResult` ``meta`` (format, method, settings, extrinsic, frame_id;
+        ``frame_speed`` for a picture).
+    kinds : sequence of str or None, optional
+        Writer per path, a suffix of :data:`OUTPUT_SUFFIXES` (``".tum"`` for a TUM file named ``.txt``) or of
+        :data:`~imu_ground.pipeline.plot.PLOT_SUFFIXES`; None: from the path's suffix.
 
     Returns
     -------
     list of Path or str
-        (A URL, ``s3://...``, stays a string: it is written locally, then uploaded in one piece,
-        :func:`~imu_ground.datasets.storage.staged_outputs`.)
     """
     paths = [storage.local_name(p) for p in paths]
     if any(storage.is_url(p) for p in paths):

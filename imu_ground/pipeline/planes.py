@@ -67,9 +67,8 @@ PLANES_FORMAT = "%.9e"
 def camera_plane(residual: Any, valid: Any, camera: Camera) -> GroundPlane:
     """The road plane of ``camera`` per frame: residual rotations road <- body, NaN where ``valid`` is false.
 
-    Only the residual's road normal counts (the road frame's x is the body's heading
-    projected onto the road: :meth:`GroundPlane.from_pitch_roll`), so a residual's
-    yaw, which the road plane does not have, cannot turn a bird's-eye view.
+    Only the residual's road normal counts (:meth:`GroundPlane.from_pitch_roll`), so a residual's yaw
+    cannot turn a bird's-eye view.
 
     Parameters
     ----------
@@ -107,10 +106,9 @@ def check_planes_dir(path: str | Path, option: str = "--planes", inputs: Sequenc
                      outputs: Sequence[str | Path] = ()) -> Path:
     """Check, before any work, that ``path`` can be the planes folder.
 
-    It may be absent, empty, or a folder this tool wrote (it holds :data:`PLANES_MARKER`) with
-    nothing but planes files (``%06d.txt``) and this run's own ``outputs``; any other folder
-    (KITTI ``label_2`` or ``calib`` files, say) is refused naming one of its files, and so is a
-    folder that holds an input log.
+    It may be absent, empty, or a folder this tool wrote (holding :data:`PLANES_MARKER`) with nothing
+    but planes files (``%06d.txt``) and this run's own outputs; any other folder is refused naming one
+    of its files, and so is a folder holding an input log.
 
     Parameters
     ----------
@@ -172,11 +170,8 @@ def _planes_text(abcd: np.ndarray) -> str:
 
 @contextmanager
 def _signals_deferred() -> Iterator[None]:
-    """Hold SIGINT and SIGTERM until the block ends, then act on the first one received as it would have.
-
-    The replacement of a planes folder (two renames and the removal of the old folder) is
-    never cut in the middle. Outside the main thread (where Python runs no signal handler) a no-op.
-    """
+    """Hold SIGINT and SIGTERM until the block ends, then act on the first one received (a no-op outside the
+    main thread, where Python runs no signal handler)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -242,12 +237,11 @@ def write_kitti_planes(folder: str | Path, coefficients: Any, first_index: int =
                        inputs: Sequence[str | Path] = (), keep: Sequence[str | Path] = ()) -> list[Path]:
     """Write one KITTI ``planes`` file per frame, ``%06d.txt`` from ``first_index``; NaN rows as ``nan``.
 
-    All files and the marker :data:`PLANES_MARKER` are written into a temporary folder beside
-    ``folder`` first, which then takes the folder's place (SIGINT and SIGTERM are held over the
-    renames and the removal of the old folder): a failure leaves no partial file, and a folder of
-    an earlier, longer run keeps no stale frames. Only a folder that :func:`check_planes_dir`
-    accepts is replaced (nothing of the user's is deleted); what an interrupted run left beside
-    it is removed. The folder gets the permissions of the one it replaces, or the umask's.
+    The files and :data:`PLANES_MARKER` go to a temporary folder beside ``folder``, which then takes
+    its place (SIGINT and SIGTERM held over the renames and the old folder's removal): no partial file,
+    no stale frames of a longer earlier run. Only a folder :func:`check_planes_dir` accepts is replaced;
+    what an interrupted run left beside it is removed; the permissions are the replaced folder's, or
+    the umask's.
 
     Parameters
     ----------
@@ -258,7 +252,7 @@ def write_kitti_planes(folder: str | Path, coefficients: Any, first_index: int =
     inputs : sequence of str or Path
         Input logs, which must not lie inside ``folder``.
     keep : sequence of str or Path
-        Files of the same run inside ``folder`` (its outputs) that are carried over into the new folder.
+        This run's outputs inside ``folder``, carried over into the new folder.
 
     Returns
     -------

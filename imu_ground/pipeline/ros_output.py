@@ -1,72 +1,44 @@
 """The ground estimate as ROS topics: a ROS 1 bag, a ROS 2 bag folder or an MCAP file.
 
-The result plays in Foxglove or RViz next to the recording it came from: the
-header stamps are the recording's own clock (see ``t0`` / ``t0_ns`` below) and
-the ``frame_id`` is the IMU's.
+It plays in Foxglove or RViz beside the recording: header stamps are the recording's clock
+(``t0`` / ``t0_ns``), ``frame_id`` the IMU's. One message per valid, finite frame of the output
+table (``PREFIX`` is ``topic_prefix``, default ``/ground``):
 
-Topics written (``PREFIX`` is ``topic_prefix``, default ``/ground``), one
-message per valid frame of the output table (invalid frames and rows with NaN are
-skipped):
+- ``PREFIX/normal`` (``Vector3Stamped``): unit ground normal, body frame;
+- ``PREFIX/rotation`` (``QuaternionStamped``): residual rotation road <- body (the table's q);
+- ``PREFIX/pitch_roll`` (``Vector3Stamped``): ``x`` roll, ``y`` pitch of the body relative to the
+  road, rad (the table's signs), ``z`` 0 (one stamped message keeps the stamp and frame_id; plot
+  ``PREFIX/pitch_roll.vector.y`` for pitch);
+- ``PREFIX/road_from_camera`` (``TransformStamped``, with a camera): road <- camera, ``frame_id``
+  ``road``, ``child_frame_id`` ``camera``, translation m (the camera origin in the road frame);
+- ``/tf`` (``tf2_msgs/TFMessage``, not prefixed): road -> sensor, ``frame_id`` ``road``
+  (``road_frame_id``: the road plane under the vehicle, z its normal, x along the heading),
+  ``child_frame_id`` the IMU's; rotation the dynamic extrinsic road-ground <- sensor
+  ``R = R(q) R_gs`` (what ``.tum`` holds; ``R^T e_z`` is the normal), translation the static
+  extrinsic's (m); with a camera also road -> camera. A recording whose tf tree already gives the
+  IMU's frame a parent gets two parents: pass another ``frame_id`` (e.g. ``imu_link_road``);
+- ``PREFIX/pose`` (``PoseWithCovarianceStamped``): the same transform as a pose in the road frame,
+  covariance (6 x 6 row-major, x y z then rotations about the road's x y z) ``[21]`` roll and
+  ``[28]`` pitch variance, rad^2, every other entry 0 (not estimated); where the 1-sigma is finite;
+- settings (with ``settings``): the JSON in an ``.mcap`` metadata record ``imu_ground``
+  (``settings``, ``version``; :func:`read_mcap_settings`), else once on ``PREFIX/settings``
+  (``std_msgs/String``) at the first stamp;
+- ``PREFIX/pitch_roll_std``, ``PREFIX/road`` (``x`` bank, + left side up; ``y`` grade, + uphill)
+  and ``PREFIX/road_std`` (``Vector3Stamped``, rad), where estimated;
+- ``PREFIX/status`` (``diagnostic_msgs/DiagnosticArray``) on *every* frame: one status named
+  ``imu-ground PREFIX``, ``hardware_id`` the ``frame_id``, ``level`` :data:`DIAGNOSTIC_LEVELS`,
+  ``message`` ``"status"`` or ``"status: reason"``, ``values`` ``status`` and ``reason``.
 
-- ``PREFIX/normal`` (``geometry_msgs/Vector3Stamped``): unit ground normal in
-  the body frame (``frame_id``), dimensionless;
-- ``PREFIX/rotation`` (``geometry_msgs/QuaternionStamped``): residual rotation
-  road <- body (the table's qw, qx, qy, qz);
-- ``PREFIX/pitch_roll`` (``geometry_msgs/Vector3Stamped``): ``x`` = roll,
-  ``y`` = pitch of the body relative to the road, rad (signs as in the table),
-  ``z`` = 0;
-- ``PREFIX/road_from_camera`` (``geometry_msgs/TransformStamped``, only with a
-  camera): the road <- camera transform of the frame (``header.frame_id`` ``road``,
-  ``child_frame_id`` ``camera``; translation m, the camera origin in the road frame);
-- ``/tf`` (``tf2_msgs/TFMessage``, not prefixed: where Foxglove's 3D panel and RViz look): per
-  written frame the transform road -> sensor, ``header.frame_id`` ``road`` (``road_frame_id``: the
-  road plane under the vehicle, z its normal, x along the vehicle's heading; it travels with the
-  vehicle), ``child_frame_id`` the IMU's ``frame_id``; its rotation is the dynamic extrinsic road-ground <-
-  sensor (the table's residual road <- body times the static extrinsic ground <- sensor:
-  ``R = R(q) R_gs``, what a ``.tum`` output holds), so that ``R^T e_z`` is the table's normal, and
-  its translation the static extrinsic's (the sensor's origin in the ground frame, m). With a camera
-  the road -> camera transform (below) is in the same message. A recording whose own tf tree already
-  gives the IMU's frame a parent (e.g. ``base_link``) has two parents for it when both are played:
-  pass another ``frame_id`` (e.g. ``imu_link_road``) to keep them apart;
-- ``PREFIX/pose`` (``geometry_msgs/PoseWithCovarianceStamped``): the same transform as a pose of the
-  sensor in the road frame (``header.frame_id`` ``road``; position m, orientation road-ground <-
-  sensor) with the 1-sigma in its covariance (6 x 6 row-major, x y z then rotations about the road
-  frame's x y z axes): ``[21]`` = roll variance, ``[28]`` = pitch variance, rad^2 (``roll_std_deg``,
-  ``pitch_std_deg`` squared, in rad); every other entry is 0: not estimated (the position is the
-  static calibration, the rotation about z follows the vehicle's heading by construction), not
-  known exactly. Only where the table has the 1-sigma columns and they are finite;
-- settings: the method's settings as JSON (only with ``settings``): in an ``.mcap`` file the
-  metadata record ``imu_ground`` (``settings``: the JSON, ``version``: the package's;
-  :func:`read_mcap_settings`), in a ROS 1 bag or ROS 2 bag folder the topic ``PREFIX/settings``
-  (``std_msgs/String``), once, at the first stamp;
-- ``PREFIX/pitch_roll_std`` (``geometry_msgs/Vector3Stamped``): ``x`` = roll, ``y`` = pitch
-  1-sigma, rad, on the frames of ``pitch_roll``;
-- ``PREFIX/road`` and ``PREFIX/road_std`` (``geometry_msgs/Vector3Stamped``): ``x`` = road bank
-  (+ left side up), ``y`` = road grade (+ uphill), rad, and their 1-sigma, on the valid frames
-  where the road is estimated;
-- ``PREFIX/status`` (``diagnostic_msgs/DiagnosticArray``, Foxglove's Diagnostics panel: choose this
-  topic) on *every* frame (also the gaps and skipped frames: that is when it matters): one
-  ``DiagnosticStatus`` named ``imu-ground PREFIX``, ``hardware_id`` the ``frame_id``, ``level`` by
-  status (:data:`DIAGNOSTIC_LEVELS`: ok and standstill OK, converging WARN, degraded and invalid
-  ERROR, gap STALE), ``message`` ``"status"`` or ``"status: reason"`` (what the ``std_msgs/String``
-  of earlier versions held), ``values`` the keys ``status`` and ``reason``.
-
-The last four and ``PREFIX/pose`` are written when the table has their columns (``pitch_std_deg``, ...).
-
-Pitch and roll share one ``Vector3Stamped`` (rather than two ``std_msgs/Float64``
-topics, which carry no stamp) so that each value keeps its header stamp and
-``frame_id``; in Foxglove plot ``PREFIX/pitch_roll.vector.y`` for pitch.
-
-Container from the path: ``.bag`` = ROS 1 bag (ROS 1 serialisation), ``.mcap`` =
-one MCAP file (ROS 2 CDR messages, ``ros2msg`` schemas), a path without suffix =
-ROS 2 bag folder (``metadata.yaml`` + one storage file, MCAP by default,
-``storage="sqlite3"`` for a ``.db3``).
+The last four and ``PREFIX/pose`` only when the table has their columns. Container from the
+path: ``.bag`` ROS 1, ``.mcap`` one MCAP file (CDR, ``ros2msg`` schemas), no suffix a ROS 2 bag
+folder (MCAP storage, ``storage="sqlite3"`` for ``.db3``).
 """
 from __future__ import annotations
 
+import functools
 import json
 import shutil
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -138,20 +110,110 @@ def _register_missing(typestore: Any) -> None:
             typestore.register(get_types_from_msg(text, name))
 
 
-class RosWriter:
+class _Serializer:
+    """Messages of one ROS version (``ros1``: ROS 1 Noetic, else ROS 2 Humble) built and serialised by rosbags."""
+
+    path: Any = "ROS output"
+
+    def __init__(self, ros1: bool) -> None:
+        from rosbags.typesys import Stores, get_typestore
+        self.ros1 = ros1
+        self.typestore = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+        _register_missing(self.typestore)
+
+    def message(self, msgtype: str, **fields: Any) -> Any:
+        """A message object of ``msgtype`` from this writer's type store (ROS 1 or ROS 2)."""
+        return self.typestore.types[msgtype](**fields)
+
+    def header(self, stamp_ns: int, frame_id: str, seq: int = 0) -> Any:
+        """A ``std_msgs/Header`` with stamp ``stamp_ns`` (ns since the clock's epoch, >= 0)."""
+        stamp_ns = int(stamp_ns)
+        if stamp_ns < 0:
+            raise ImuGroundError(f"{self.path}: negative ROS stamp {stamp_ns} ns; pass t0/t0_ns (the log's start time)")
+        t = self.message("builtin_interfaces/msg/Time", sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
+        if self.ros1:
+            return self.message("std_msgs/msg/Header", seq=seq, stamp=t, frame_id=frame_id)
+        return self.message("std_msgs/msg/Header", stamp=t, frame_id=frame_id)
+
+    def serialize(self, msg: Any) -> bytes:
+        """``msg`` serialised for this log (ROS 1 for ``.bag``, CDR otherwise)."""
+        msgtype = msg.__msgtype__
+        if self.ros1:
+            return bytes(self.typestore.serialize_ros1(msg, msgtype))
+        return bytes(self.typestore.serialize_cdr(msg, msgtype))
+
+    def serialize_many(self, build: Callable[..., Any], stamps_ns: np.ndarray,
+                       values: Mapping[str, np.ndarray] | None = None) -> list[bytes]:
+        """N messages of one layout at once: one serialised by rosbags, the others patched in with numpy.
+
+        ``build(stamp_ns, seq, **doubles)`` makes one message whose headers are all
+        ``self.header(stamp_ns, ..., seq)`` and whose other fields are the same for all N (the
+        same byte layout) but the float64 ``doubles``; called once with sentinels, whose bytes
+        show where each message's stamps (ROS 1 ``seq``: the row index) and doubles go.
+
+        Parameters
+        ----------
+        build : callable
+        stamps_ns : ndarray (N,) of int64
+            Header stamps, ns (>= 0).
+        values : mapping of str to ndarray (N,), optional
+            The doubles of each message, by ``build``'s keyword.
+
+        Returns
+        -------
+        list of bytes
+            One serialised message per stamp, equal to serialising ``build(stamp, k, **row k)``.
+        """
+        stamps = np.asarray(stamps_ns, dtype=np.int64)
+        values = dict(values or {})
+        n = len(stamps)
+        sec, nsec, seq = 0x5EC05EC0, 0x3A5EC0DE, 0x5E0C5E0C          # sentinels (nsec < 1e9)
+        marks = {k: float.fromhex(f"0x1.5ec0{i:04x}a53c7p-900") for i, k in enumerate(values)}
+        template = self.serialize(build(sec * 10**9 + nsec, seq, **marks))
+        raw = np.frombuffer(template, dtype=np.uint8)
+        buf = np.tile(raw, (n, 1))
+
+        def offsets(pattern: bytes) -> list[int]:
+            found, at = [], template.find(pattern)
+            while at >= 0:
+                found.append(at)
+                at = template.find(pattern, at + 1)
+            return found
+
+        def put(at: int, column: np.ndarray, dtype: str) -> None:
+            data = np.ascontiguousarray(column, dtype=dtype)
+            buf[:, at:at + data.itemsize] = data.view(np.uint8).reshape(n, data.itemsize)
+
+        stamp_at = offsets(np.array([sec, nsec], dtype="<u4").tobytes())
+        if not stamp_at:
+            raise ValueError("build() made no header with the stamp it was given")
+        for at in stamp_at:
+            put(at, stamps // 1_000_000_000, "<u4")
+            put(at + 4, stamps % 1_000_000_000, "<u4")
+        if self.ros1:
+            for at in offsets(np.array([seq], dtype="<u4").tobytes()):
+                put(at, np.arange(n), "<u4")
+        for key, mark in marks.items():
+            found = offsets(np.array([mark], dtype="<f8").tobytes())
+            if len(found) != 1:
+                raise ValueError(f"build() must put the double {key!r} in exactly one field, not {len(found)}")
+            put(found[0], values[key], "<f8")
+        whole, size = buf.tobytes(), len(template)
+        return [whole[i * size:(i + 1) * size] for i in range(n)]
+
+
+class RosWriter(_Serializer):
     """One ROS log being written, whatever the container; a context manager.
 
     Parameters
     ----------
     path : str or Path
-        Output path; the container follows from it (:func:`ros_output_kind`).
-        Written exactly there (nothing renamed); it must not exist unless
-        ``overwrite``.
+        Output path; the container follows from it (:func:`ros_output_kind`). Written exactly there
+        (nothing renamed); it must not exist unless ``overwrite``.
     storage : {"mcap", "sqlite3"}
         Storage of a ROS 2 bag folder (ignored for ``.bag`` and ``.mcap``).
     overwrite : bool
-        Remove an existing file, or an existing ROS 2 bag folder (one with a
-        ``metadata.yaml``), first.
+        Remove an existing file, or an existing ROS 2 bag folder (one with a ``metadata.yaml``), first.
 
     Examples
     --------
@@ -161,8 +223,6 @@ class RosWriter:
     """
 
     def __init__(self, path: str | Path, *, storage: str = "mcap", overwrite: bool = False) -> None:
-        from rosbags.typesys import Stores, get_typestore
-
         self.path = Path(path)
         self.kind = ros_output_kind(self.path)
         if storage not in ("mcap", "sqlite3"):
@@ -170,9 +230,7 @@ class RosWriter:
         self.storage = storage
         if self.path.exists():
             _remove_existing(self.path, overwrite)
-        self.ros1 = self.kind == "ros1"
-        self.typestore = get_typestore(Stores.ROS1_NOETIC if self.ros1 else Stores.ROS2_HUMBLE)
-        _register_missing(self.typestore)
+        super().__init__(self.kind == "ros1")
         self._writer: Any = None
         self._file: Any = None
         self._schemas: dict[str, int] = {}
@@ -241,88 +299,6 @@ class RosWriter:
                                                 schema_id=self._schemas[msgtype])
         return channel, topic
 
-    def message(self, msgtype: str, **fields: Any) -> Any:
-        """A message object of ``msgtype`` from this writer's type store (ROS 1 or ROS 2)."""
-        return self.typestore.types[msgtype](**fields)
-
-    def header(self, stamp_ns: int, frame_id: str, seq: int = 0) -> Any:
-        """A ``std_msgs/Header`` with stamp ``stamp_ns`` (ns since the clock's epoch, >= 0)."""
-        stamp_ns = int(stamp_ns)
-        if stamp_ns < 0:
-            raise ImuGroundError(f"{self.path}: negative ROS stamp {stamp_ns} ns; pass t0/t0_ns (the log's start time)")
-        t = self.message("builtin_interfaces/msg/Time", sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
-        if self.ros1:
-            return self.message("std_msgs/msg/Header", seq=seq, stamp=t, frame_id=frame_id)
-        return self.message("std_msgs/msg/Header", stamp=t, frame_id=frame_id)
-
-    def serialize(self, msg: Any) -> bytes:
-        """``msg`` serialised for this log (ROS 1 for ``.bag``, CDR otherwise)."""
-        msgtype = msg.__msgtype__
-        if self.ros1:
-            return bytes(self.typestore.serialize_ros1(msg, msgtype))
-        return bytes(self.typestore.serialize_cdr(msg, msgtype))
-
-    def serialize_many(self, build: Callable[..., Any], stamps_ns: np.ndarray,
-                       values: Mapping[str, np.ndarray] | None = None) -> list[bytes]:
-        """N messages of one layout at once: one serialised by rosbags, the others patched in with numpy.
-
-        ``build(stamp_ns, seq, **doubles)`` makes one message; every header in it must be
-        ``self.header(stamp_ns, ..., seq)``, every other field the same for all N messages
-        but the float64 fields given by ``doubles`` (so that all N share the byte layout:
-        the same strings and array lengths). It is called once, with sentinel values,
-        whose bytes show where each message's stamps (and ROS 1 ``seq`` = the row index)
-        and doubles go.
-
-        Parameters
-        ----------
-        build : callable
-        stamps_ns : ndarray (N,) of int64
-            Header stamps, ns (>= 0).
-        values : mapping of str to ndarray (N,), optional
-            The doubles of each message, by ``build``'s keyword.
-
-        Returns
-        -------
-        list of bytes
-            One serialised message per stamp, equal to serialising ``build(stamp, k, **row k)``.
-        """
-        stamps = np.asarray(stamps_ns, dtype=np.int64)
-        values = dict(values or {})
-        n = len(stamps)
-        sec, nsec, seq = 0x5EC05EC0, 0x3A5EC0DE, 0x5E0C5E0C          # sentinels (nsec < 1e9)
-        marks = {k: float.fromhex(f"0x1.5ec0{i:04x}a53c7p-900") for i, k in enumerate(values)}
-        template = self.serialize(build(sec * 10**9 + nsec, seq, **marks))
-        raw = np.frombuffer(template, dtype=np.uint8)
-        buf = np.tile(raw, (n, 1))
-
-        def offsets(pattern: bytes) -> list[int]:
-            found, at = [], template.find(pattern)
-            while at >= 0:
-                found.append(at)
-                at = template.find(pattern, at + 1)
-            return found
-
-        def put(at: int, column: np.ndarray, dtype: str) -> None:
-            data = np.ascontiguousarray(column, dtype=dtype)
-            buf[:, at:at + data.itemsize] = data.view(np.uint8).reshape(n, data.itemsize)
-
-        stamp_at = offsets(np.array([sec, nsec], dtype="<u4").tobytes())
-        if not stamp_at:
-            raise ValueError("build() made no header with the stamp it was given")
-        for at in stamp_at:
-            put(at, stamps // 1_000_000_000, "<u4")
-            put(at + 4, stamps % 1_000_000_000, "<u4")
-        if self.ros1:
-            for at in offsets(np.array([seq], dtype="<u4").tobytes()):
-                put(at, np.arange(n), "<u4")
-        for key, mark in marks.items():
-            found = offsets(np.array([mark], dtype="<f8").tobytes())
-            if len(found) != 1:
-                raise ValueError(f"build() must put the double {key!r} in exactly one field, not {len(found)}")
-            put(found[0], values[key], "<f8")
-        whole, size = buf.tobytes(), len(template)
-        return [whole[i * size:(i + 1) * size] for i in range(n)]
-
     def write(self, handle: Any, stamp_ns: int, msg: Any) -> None:
         """Write ``msg`` on the topic of ``handle`` with record (log) time ``stamp_ns``."""
         self.write_raw(handle, stamp_ns, self.serialize(msg))
@@ -338,15 +314,16 @@ class RosWriter:
         self.counts[topic] += 1
 
 
-def serialize_stamped(stamps_ns: np.ndarray, frame_id: str, values: np.ndarray, ros1: bool) -> list[bytes]:
-    """Serialise N messages ``std_msgs/Header header`` + K float64 at once (numpy, no per-message Python).
+@functools.cache
+def _serializer(ros1: bool) -> _Serializer:
+    return _Serializer(ros1)
 
-    Covers ``geometry_msgs/Vector3Stamped`` (K = 3: x, y, z) and
-    ``geometry_msgs/QuaternionStamped`` (K = 4: x, y, z, w). Spells out the two
-    wire formats: ROS 1 (``seq, sec, nsec: uint32``, frame_id as uint32 length +
-    bytes, then the doubles, no padding; ``seq`` = row index) and ROS 2 CDR
-    little-endian (encapsulation ``00 01 00 00``, ``sec: int32, nanosec: uint32``,
-    frame_id as uint32 length + bytes + NUL, zero padding to 8, the doubles).
+
+def serialize_stamped(stamps_ns: np.ndarray, frame_id: str, values: np.ndarray, ros1: bool) -> list[bytes]:
+    """Serialise N ``geometry_msgs/Vector3Stamped`` (K = 3: x, y, z) or ``QuaternionStamped`` (K = 4: x, y, z, w).
+
+    Built and serialised by rosbags once, the other messages patched in with numpy
+    (:meth:`RosWriter.serialize_many`); ROS 1 ``seq`` is the row index.
 
     Parameters
     ----------
@@ -364,26 +341,16 @@ def serialize_stamped(stamps_ns: np.ndarray, frame_id: str, values: np.ndarray, 
     list of bytes
         One serialised message per row.
     """
-    name = frame_id.encode()
-    values = np.ascontiguousarray(values, dtype="<f8")
-    n, k = values.shape
-    if ros1:
-        text, start = name, 16 + len(name)
-    else:
-        text = name + b"\x00"
-        start = 4 + -(-(12 + len(text)) // 8) * 8
-    size = start + 8 * k
-    buf = np.zeros((n, size), dtype=np.uint8)
-    head = np.zeros((n, 4), dtype="<u4")
-    head[:, 0] = np.arange(n) if ros1 else 0x100          # ROS 1: seq; CDR: bytes 00 01 00 00
-    head[:, 1] = stamps_ns // 1_000_000_000
-    head[:, 2] = stamps_ns % 1_000_000_000
-    head[:, 3] = len(text)
-    buf[:, :16] = head.view(np.uint8)
-    buf[:, 16:16 + len(text)] = np.frombuffer(text, dtype=np.uint8)
-    buf[:, start:] = values.view(np.uint8).reshape(n, 8 * k)
-    whole = buf.tobytes()
-    return [whole[i * size:(i + 1) * size] for i in range(n)]
+    s = _serializer(ros1)
+    values = np.asarray(values, dtype=float)
+    names = "xyzw"[:values.shape[1]]
+    kind, field = ("Vector3", "vector") if len(names) == 3 else ("Quaternion", "quaternion")
+
+    def build(ns: int, seq: int, **v: float) -> Any:
+        return s.message(f"geometry_msgs/msg/{kind}Stamped", header=s.header(ns, frame_id, seq),
+                         **{field: s.message(f"geometry_msgs/msg/{kind}", **v)})
+
+    return s.serialize_many(build, stamps_ns, {c: values[:, j] for j, c in enumerate(names)})
 
 
 def _remove_existing(path: Path, overwrite: bool) -> None:
@@ -516,20 +483,16 @@ def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
                 h["settings"] = w.add_topic(f"{prefix}/settings", ROS_OUTPUT_TOPICS["settings"])
                 if len(stamps):
                     w.write(h["settings"], int(stamps[0]), w.message("std_msgs/msg/String", data=text))
-        ros1 = w.ros1
-        normal = serialize_stamped(stamps, frame_id, np.column_stack(
-            [rows["normal_x"], rows["normal_y"], rows["normal_z"]]), ros1)
-        rotation = serialize_stamped(stamps, frame_id, np.column_stack(
-            [rows["qx"], rows["qy"], rows["qz"], rows["qw"]]), ros1)
-        pitch_roll = serialize_stamped(stamps, frame_id, np.column_stack(
-            [rows["roll_deg"] * DEG, rows["pitch_deg"] * DEG, np.zeros(len(stamps))]), ros1)
+        data = [serialize_stamped(stamps, frame_id, np.column_stack([rows[c] for c in cols]), w.ros1)
+                for cols in (("normal_x", "normal_y", "normal_z"), ("qx", "qy", "qz", "qw"))]
+        data.append(serialize_stamped(stamps, frame_id, np.column_stack(
+            [rows["roll_deg"] * DEG, rows["pitch_deg"] * DEG, np.zeros(len(stamps))]), w.ros1))
         for k, ns in enumerate(stamps.tolist()):
-            w.write_raw(h["normal"], ns, normal[k])
-            w.write_raw(h["rotation"], ns, rotation[k])
-            w.write_raw(h["pitch_roll"], ns, pitch_roll[k])
+            for topic, msgs in zip(("normal", "rotation", "pitch_roll"), data, strict=True):
+                w.write_raw(h[topic], ns, msgs[k])
         camera = None
         if road_from_camera is not None:
-            camera = _write_camera_transforms(w, f"{prefix}/road_from_camera", table, road_from_camera, origin,
+            camera = _write_camera_transforms(w, f"{prefix}/road_from_camera", rows, stamps, road_from_camera,
                                               camera_frame_id, road_frame_id)
         _write_road_from_sensor(w, rows, stamps, r_gs, trans, road_frame_id, frame_id, camera,
                                 _table_std(table), prefix)
@@ -555,14 +518,30 @@ def _table_std(table: Any) -> np.ndarray | None:
                             np.asarray(table["pitch_std_deg"], dtype=float)]) * DEG
 
 
+def _write_raw_all(w: RosWriter, handle: Any, stamps: np.ndarray, messages: Sequence[bytes]) -> None:
+    for ns, msg in zip(stamps.tolist(), messages, strict=True):
+        w.write_raw(handle, ns, msg)
+
+
+def _transform(w: _Serializer, ns: int, seq: int, parent: str, child: str, tx: float, ty: float, tz: float,
+               qx: float, qy: float, qz: float, qw: float) -> Any:
+    """A ``geometry_msgs/TransformStamped`` parent <- child (translation m, quaternion x y z w)."""
+    return w.message("geometry_msgs/msg/TransformStamped", header=w.header(ns, parent, seq), child_frame_id=child,
+                     transform=w.message("geometry_msgs/msg/Transform",
+                                         translation=w.message("geometry_msgs/msg/Vector3", x=tx, y=ty, z=tz),
+                                         rotation=w.message("geometry_msgs/msg/Quaternion", x=qx, y=qy, z=qz, w=qw)))
+
+
+_TRANSFORM_KEYS = ("tx", "ty", "tz", "qx", "qy", "qz", "qw")
+
+
 def _write_road_from_sensor(w: RosWriter, rows: dict[str, np.ndarray], stamps: np.ndarray, r_gs: np.ndarray,
                             trans: np.ndarray, road: str, sensor: str, camera: dict[str, Any] | None,
                             std: np.ndarray | None, prefix: str) -> None:
     """``/tf`` (road -> sensor, and road -> camera) and ``PREFIX/pose`` (with the 1-sigma) of the written rows.
 
-    ``rows`` are the valid finite rows (:func:`_valid_rows`, with their table index ``row``), ``stamps`` their
-    stamps (ns); ``camera`` the camera transforms (translation xyz, m, and quaternion xyzw) by table index;
-    ``std`` every table row's roll and pitch 1-sigma (rad).
+    ``rows``: :func:`_valid_rows`; ``camera``: :func:`_write_camera_transforms`' transforms by table row;
+    ``std``: every table row's roll and pitch 1-sigma, rad.
     """
     from scipy.spatial.transform import Rotation
     q = np.column_stack([rows["qw"], rows["qx"], rows["qy"], rows["qz"]])
@@ -571,67 +550,46 @@ def _write_road_from_sensor(w: RosWriter, rows: dict[str, np.ndarray], stamps: n
             if len(q) else np.zeros((0, 4)))                                                     # x y z w
     rot = {f"q{c}": quat[:, i] for i, c in enumerate("xyzw")}
     index = rows["row"].astype(int)
-
-    def transform(ns: int, seq: int, parent: str, child: str, tx: float, ty: float, tz: float, qx: float,
-                  qy: float, qz: float, qw: float) -> Any:
-        return w.message("geometry_msgs/msg/TransformStamped", header=w.header(ns, parent, seq), child_frame_id=child,
-                         transform=w.message("geometry_msgs/msg/Transform",
-                                             translation=w.message("geometry_msgs/msg/Vector3", x=tx, y=ty, z=tz),
-                                             rotation=w.message("geometry_msgs/msg/Quaternion", x=qx, y=qy, z=qz,
-                                                                w=qw)))
+    camera_child = camera["child"] if camera else ""
 
     def tf(ns: int, seq: int, **v: float) -> Any:
-        items = [transform(ns, seq, road, sensor, trans[0], trans[1], trans[2], v["qx"], v["qy"], v["qz"], v["qw"])]
-        if "cx" in v:
-            items.append(transform(ns, seq, road, camera_child, *(v[f"c{c}"] for c in ("x", "y", "z", "qx", "qy",
-                                                                                      "qz", "qw"))))
+        items = [_transform(w, ns, seq, road, sensor, trans[0], trans[1], trans[2], v["qx"], v["qy"], v["qz"], v["qw"])]
+        if "ctx" in v:
+            items.append(_transform(w, ns, seq, road, camera_child, *(v[f"c{c}"] for c in _TRANSFORM_KEYS)))
         return w.message("tf2_msgs/msg/TFMessage", transforms=items)
 
-    camera_child = ""
-    with_camera = np.zeros(len(index), dtype=bool)
-    cam = np.zeros((len(index), 7))
-    if camera:
-        camera_child = camera["child"]
-        with_camera = np.isin(index, camera["rows"])
-        at = np.searchsorted(camera["rows"], index[with_camera])
-        cam[with_camera] = camera["values"][at]
-    messages: list[bytes | None] = [None] * len(index)
+    with_camera = np.isin(index, camera["rows"]) if camera else np.zeros(len(index), dtype=bool)
+    messages: list[bytes] = [b""] * len(index)
     for group in (with_camera, ~with_camera):
-        if not group.any():
-            continue
-        extra = {f"c{c}": cam[group, i] for i, c in enumerate(("x", "y", "z", "qx", "qy", "qz", "qw"))} \
-            if group is with_camera else {}
-        for k, data in zip(np.flatnonzero(group).tolist(),
-                           w.serialize_many(tf, stamps[group], {**{c: v[group] for c, v in rot.items()}, **extra}),
-                           strict=True):
-            messages[k] = data
-    h_tf = w.add_topic("/tf", ROS_OUTPUT_TOPICS["tf"])
-    for ns, message in zip(stamps.tolist(), messages, strict=True):
-        assert message is not None                  # the two groups cover every row
-        w.write_raw(h_tf, ns, message)
+        values = {c: v[group] for c, v in rot.items()}
+        if group is with_camera and group.any():
+            at = np.searchsorted(camera["rows"], index[group])              # type: ignore[index]
+            values.update({f"c{c}": camera["values"][at, i] for i, c in enumerate(_TRANSFORM_KEYS)})  # type: ignore[index]
+        if group.any():
+            for k, data in zip(np.flatnonzero(group).tolist(), w.serialize_many(tf, stamps[group], values), strict=True):
+                messages[k] = data
+    _write_raw_all(w, w.add_topic("/tf", ROS_OUTPUT_TOPICS["tf"]), stamps, messages)
     if std is None:
         return
     sd = std[index]
     keep = np.all(np.isfinite(sd), axis=1)
 
     def pose(ns: int, seq: int, qx: float, qy: float, qz: float, qw: float, roll: float, pitch: float) -> Any:
-        cov = [0.0] * 36
+        cov = np.zeros(36)
         cov[21], cov[28] = roll, pitch                                   # rad^2 about the road's x and y axes
         return w.message("geometry_msgs/msg/PoseWithCovarianceStamped", header=w.header(ns, road, seq),
-                         pose=w.message("geometry_msgs/msg/PoseWithCovariance", covariance=np.array(cov),
+                         pose=w.message("geometry_msgs/msg/PoseWithCovariance", covariance=cov,
                                         pose=w.message("geometry_msgs/msg/Pose",
                                                        position=w.message("geometry_msgs/msg/Point", x=trans[0],
                                                                           y=trans[1], z=trans[2]),
                                                        orientation=w.message("geometry_msgs/msg/Quaternion", x=qx,
                                                                              y=qy, z=qz, w=qw))))
-    h_pose = w.add_topic(f"{prefix}/pose", ROS_OUTPUT_TOPICS["pose"])
     poses = w.serialize_many(pose, stamps[keep], {**{c: v[keep] for c, v in rot.items()},
                                                   "roll": sd[keep, 0] ** 2, "pitch": sd[keep, 1] ** 2})
-    for ns, msg in zip(stamps[keep].tolist(), poses, strict=True):
-        w.write_raw(h_pose, ns, msg)
+    _write_raw_all(w, w.add_topic(f"{prefix}/pose", ROS_OUTPUT_TOPICS["pose"]), stamps[keep], poses)
 
 
-def _write_optional(w: "RosWriter", table: Any, prefix: str, frame_id: str, origin: int) -> None:
+def _write_optional(w: RosWriter, table: Any, prefix: str, frame_id: str, origin: int) -> None:
     """The topics of the table's optional columns (:data:`_OPTIONAL`) that it has."""
     t = np.asarray(table["t"], dtype=float)
     valid = np.asarray(table["valid"], dtype=bool) if "valid" in table else np.ones(len(t), dtype=bool)
@@ -645,9 +603,8 @@ def _write_optional(w: "RosWriter", table: Any, prefix: str, frame_id: str, orig
             continue
         xy = np.column_stack([np.asarray(table[x], dtype=float), np.asarray(table[y], dtype=float)]) * DEG
         keep = valid & np.isfinite(t) & np.all(np.isfinite(xy), axis=1)
-        data = serialize_stamped(stamps[keep], frame_id, np.column_stack([xy[keep], np.zeros(keep.sum())]), w.ros1)
-        for ns, msg in zip(stamps[keep].tolist(), data, strict=True):
-            w.write_raw(h, ns, msg)
+        _write_raw_all(w, h, stamps[keep], serialize_stamped(
+            stamps[keep], frame_id, np.column_stack([xy[keep], np.zeros(keep.sum())]), w.ros1))
 
 
 def _write_diagnostics(w: RosWriter, handle: Any, table: Any, stamps: np.ndarray, keep: np.ndarray, prefix: str,
@@ -669,30 +626,24 @@ def _write_diagnostics(w: RosWriter, handle: Any, table: Any, stamps: np.ndarray
             return w.message("diagnostic_msgs/msg/DiagnosticArray", header=w.header(ns, frame_id, seq),
                              status=[status])
         messages.update(zip(ks, w.serialize_many(build, stamps[ks]), strict=True))
-    for k in rows.tolist():
-        w.write_raw(handle, int(stamps[k]), messages[k])
+    _write_raw_all(w, handle, stamps[rows], [messages[k] for k in rows.tolist()])
 
 
-def _write_camera_transforms(w: RosWriter, topic: str, table: Any, transforms: Any, origin: int,
-                             child: str, road: str = "road") -> dict[str, Any]:
-    """One ``geometry_msgs/TransformStamped`` road <- camera per valid, finite row of ``table``; returns them for
-    ``/tf``: ``child``, ``rows`` (their table rows, increasing) and ``values`` (per row translation xyz, m, and
-    quaternion xyzw)."""
+def _write_camera_transforms(w: RosWriter, topic: str, rows: dict[str, np.ndarray], stamps: np.ndarray,
+                             transforms: Any, child: str, road: str = "road") -> dict[str, Any]:
+    """``geometry_msgs/TransformStamped`` road <- camera on the written rows (``rows``, ``stamps``) whose transform
+    is finite; returns them for ``/tf``: ``child``, ``rows`` (table rows, increasing) and ``values`` (translation
+    xyz, m, and quaternion xyzw per row)."""
     from scipy.spatial.transform import Rotation
-    m = np.asarray(transforms, dtype=float).reshape(-1, 4, 4)
-    cols = np.column_stack([np.asarray(table[c], dtype=float) for c in _TABLE_COLUMNS])
-    keep = np.all(np.isfinite(cols), axis=1) & np.all(np.isfinite(m.reshape(len(m), -1)), axis=1)
-    if "valid" in table:
-        keep &= np.asarray(table["valid"], dtype=bool)
+    m = np.asarray(transforms, dtype=float).reshape(-1, 4, 4)[rows["row"]]
+    keep = np.all(np.isfinite(m.reshape(len(m), -1)), axis=1)
     m = m[keep]
-    stamps = origin + np.round(np.asarray(table["t"], dtype=float)[keep] * 1e9).astype(np.int64)
     quat = Rotation.from_matrix(m[:, :3, :3]).as_quat() if len(m) else np.zeros((0, 4))     # x y z w
-    handle = w.add_topic(topic, "geometry_msgs/msg/TransformStamped")
-    for k, ns in enumerate(stamps.tolist()):
-        tr = w.message("geometry_msgs/msg/Transform",
-                       translation=w.message("geometry_msgs/msg/Vector3", x=m[k, 0, 3], y=m[k, 1, 3], z=m[k, 2, 3]),
-                       rotation=w.message("geometry_msgs/msg/Quaternion", x=quat[k, 0], y=quat[k, 1], z=quat[k, 2],
-                                          w=quat[k, 3]))
-        w.write(handle, ns, w.message("geometry_msgs/msg/TransformStamped", header=w.header(ns, road, k),
-                                      child_frame_id=child, transform=tr))
-    return {"child": child, "rows": np.flatnonzero(keep), "values": np.column_stack([m[:, :3, 3], quat])}
+    values = np.column_stack([m[:, :3, 3], quat])
+
+    def build(ns: int, seq: int, **v: float) -> Any:
+        return _transform(w, ns, seq, road, child, *(v[c] for c in _TRANSFORM_KEYS))
+
+    messages = w.serialize_many(build, stamps[keep], {c: values[:, i] for i, c in enumerate(_TRANSFORM_KEYS)})
+    _write_raw_all(w, w.add_topic(topic, "geometry_msgs/msg/TransformStamped"), stamps[keep], messages)
+    return {"child": child, "rows": rows["row"][keep], "values": values}
