@@ -31,6 +31,8 @@ from typing import Any
 import numpy as np
 
 from imu_ground._jit import njit
+from imu_ground.imu.standstill import (ACCEL_NORM_TOL, ACCEL_STD_MAX, GYRO_NORM_MAX, GYRO_STD_MAX, WINDOW,
+                                       window_test)
 from imu_ground.units import GRAVITY
 
 __all__ = ["MAX_GYRO_BIAS", "CausalGyroBias", "StandstillBlocks", "StandstillTests", "block_index", "block_sums",
@@ -69,7 +71,7 @@ def block_index(t: float, t0: float, rate: float) -> int:
 
 
 class StandstillTests:
-    """The thresholds of a standstill window (those of :func:`imu_ground.imu.standstill.detect_standstill`).
+    """The thresholds of a standstill window (the defaults of :func:`imu_ground.imu.standstill.detect_standstill`).
 
     Parameters
     ----------
@@ -83,8 +85,9 @@ class StandstillTests:
         Magnitude of the specific force at rest, m/s^2.
     """
 
-    def __init__(self, window: float = 1.0, gyro_std_max: float = 0.004, gyro_norm_max: float = 0.05,
-                 accel_std_max: float = 0.04, accel_norm_tol: float = 0.15, gravity: float = GRAVITY) -> None:
+    def __init__(self, window: float = 1.0, gyro_std_max: float = GYRO_STD_MAX, gyro_norm_max: float = GYRO_NORM_MAX,
+                 accel_std_max: float = ACCEL_STD_MAX, accel_norm_tol: float = ACCEL_NORM_TOL,
+                 gravity: float = GRAVITY) -> None:
         self.window, self.gyro_std_max, self.gyro_norm_max = float(window), float(gyro_std_max), float(gyro_norm_max)
         self.accel_std_max, self.accel_norm_tol = float(accel_std_max), float(accel_norm_tol)
         self.gravity = float(gravity)
@@ -93,63 +96,33 @@ class StandstillTests:
         """Blocks in the window at ``rate`` frames a second."""
         return max(1, int(round(self.window * rate)))
 
-
-@njit
-def _passes(n: float, s0: float, s1: float, s2: float, q0: float, q1: float, q2: float, std_max: float,
-            norm_max: float, gravity: float, norm_tol: float, gyro: bool) -> bool:
-    """Whether ``n`` samples with sums ``s`` and sums of squares ``q`` (one sensor's three components) pass
-    that sensor's standstill tests: the gyro's (``gyro``: largest standard deviation at most ``std_max``,
-    the mean's norm at most ``norm_max``) or the specific force's (the norm within ``norm_tol`` of ``gravity``)."""
-    m0, m1, m2 = s0 / n, s1 / n, s2 / n
-    v0, v1, v2 = q0 / n - m0 * m0, q1 / n - m1 * m1, q2 / n - m2 * m2
-    sd = math.sqrt(v0 if not v0 < 0.0 else 0.0)
-    sd1, sd2 = math.sqrt(v1 if not v1 < 0.0 else 0.0), math.sqrt(v2 if not v2 < 0.0 else 0.0)
-    if sd1 > sd:
-        sd = sd1
-    if sd2 > sd:
-        sd = sd2
-    norm = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
-    if gyro:
-        return norm <= norm_max and sd <= std_max
-    return sd <= std_max and abs(norm - gravity) <= norm_tol
+    def array(self) -> np.ndarray:
+        """The thresholds in the order :func:`_windows` reads them."""
+        return np.array([self.gyro_std_max, self.gyro_norm_max, self.accel_std_max, self.accel_norm_tol,
+                         self.gravity])
 
 
 @njit
 def _windows(ring: np.ndarray, keys: np.ndarray, k: int, W: int, Wb: int, thresholds: np.ndarray) -> int:
     """:meth:`StandstillBlocks.windows` on the blocks' ring (bit 0: the ``W`` window passes, bit 1: ``Wb``'s)."""
-    if W <= 0 and Wb <= 0:
-        return 0
-    top = W if W > Wb else Wb
-    low = Wb if W <= 0 else (W if Wb <= 0 or W < Wb else Wb)
-    if k - top + 1 < 0 and k - low + 1 < 0:
-        return 0
     R = ring.shape[0]
-    res_w, res_b = W > 0, Wb > 0                # (asked and not failed so far)
-    for first in (0, 3):
-        if not (res_w or res_b):
+    s, q, zero, m, sd = np.zeros(6), np.zeros(6), np.zeros(6), np.empty(6), np.empty(6)
+    n = 0.0
+    res = 0
+    for i in range(W if W > Wb else Wb):
+        j = k - i
+        slot = j % R
+        if j < 0 or keys[slot] != j or ring[slot, 0] == 0.0:
             break
-        col = first + 1
-        ask_w, ask_b = res_w, res_b
-        res_w = res_b = False
-        n = 0.0
-        s0 = s1 = s2 = q0 = q1 = q2 = 0.0
-        top = W if ask_w and (not ask_b or W > Wb) else Wb
-        for i in range(top):
-            j = k - i
-            slot = j % R
-            if j < 0 or keys[slot] != j or ring[slot, 0] == 0.0:
-                break
-            n += ring[slot, 0]
-            s0, s1, s2 = s0 + ring[slot, col], s1 + ring[slot, col + 1], s2 + ring[slot, col + 2]
-            q0, q1, q2 = q0 + ring[slot, col + 6], q1 + ring[slot, col + 7], q2 + ring[slot, col + 8]
-            if (ask_w and i + 1 == W) or (ask_b and i + 1 == Wb):
-                ok = _passes(n, s0, s1, s2, q0, q1, q2, thresholds[first], thresholds[first + 1], thresholds[5],
-                             thresholds[4], first == 0)
-                if ask_w and i + 1 == W:
-                    res_w = ok
-                if ask_b and i + 1 == Wb:
-                    res_b = ok
-    return (1 if res_w else 0) + (2 if res_b else 0)
+        n += ring[slot, 0]
+        for c in range(6):
+            s[c] += ring[slot, 1 + c]
+            q[c] += ring[slot, 7 + c]
+        if i + 1 == W or i + 1 == Wb:
+            norm = window_test(n, s, q, zero, m, sd, thresholds[0], thresholds[1], thresholds[2])
+            if abs(norm - thresholds[4]) <= thresholds[3]:
+                res |= (1 if i + 1 == W else 0) | (2 if i + 1 == Wb else 0)
+    return res
 
 
 @njit
@@ -172,14 +145,12 @@ class StandstillBlocks:
         The window of the standstills the gyro bias is taken from, s (``Wb`` blocks).
     """
 
-    def __init__(self, rate: float, tests: StandstillTests | None = None, bias_window: float = 2.0) -> None:
+    def __init__(self, rate: float, tests: StandstillTests | None = None, bias_window: float = WINDOW) -> None:
         self.rate = float(rate)
         self.tests = StandstillTests() if tests is None else tests
         self.W = self.tests.blocks(self.rate)
         self.Wb = max(1, int(round(bias_window * self.rate)))      # the bias's window, blocks
-        t = self.tests                          # (in the order _windows reads them)
-        self._thresholds = np.array([t.gyro_std_max, t.gyro_norm_max, 0.0, t.accel_std_max, t.accel_norm_tol,
-                                     t.gravity])
+        self._thresholds = self.tests.array()
         # the blocks held: block j in row j % R of the ring (its index in keys; _FREE: the row is free)
         self.ring = np.zeros((2 * max(self.W, self.Wb) + 4, BLOCK_SIZE))
         self._keys = np.full(self.ring.shape[0], _FREE, dtype=np.int64)
@@ -284,30 +255,20 @@ def block_sums(k: np.ndarray, gyro: np.ndarray, accel: np.ndarray, n_blocks: int
 
 def window_standstill(counts: np.ndarray, sums: np.ndarray, tests: StandstillTests, rate: float,
                       W: int | None = None) -> np.ndarray:
-    """:meth:`StandstillBlocks.stationary` of every frame 0 .. B-1 at once (same sums in the same order;
-    ``W`` blocks, default the tests' window)."""
-    B = counts.size
-    W = tests.blocks(rate) if W is None else W
-    out = np.zeros(B, dtype=bool)
-    if B < W:
-        return out
-    m = B - W + 1                                   # frames W-1 .. B-1
-    n = np.zeros(m, dtype=np.int64)
-    s = np.zeros((12, m))
-    full = np.ones(m, dtype=bool)
-    for j in range(W):                              # newest block first, as StandstillBlocks.windows
-        lo = W - 1 - j
-        n += counts[lo:lo + m]
-        s += sums[:, lo:lo + m]
-        full &= counts[lo:lo + m] > 0
-    nn = np.maximum(n, 1).astype(float)
-    mean = s[:6] / nn
-    sd = np.sqrt(np.maximum(s[6:] / nn - mean * mean, 0.0))
-    gnorm = np.sqrt(mean[0] * mean[0] + mean[1] * mean[1] + mean[2] * mean[2])
-    anorm = np.sqrt(mean[3] * mean[3] + mean[4] * mean[4] + mean[5] * mean[5])
-    ok = (full & (gnorm <= tests.gyro_norm_max) & (sd[:3].max(axis=0) <= tests.gyro_std_max)
-          & (sd[3:].max(axis=0) <= tests.accel_std_max) & (np.abs(anorm - tests.gravity) <= tests.accel_norm_tol))
-    out[W - 1:] = ok
+    """:meth:`StandstillBlocks.stationary` of every frame 0 .. B-1 (its compiled body on the blocks of
+    :func:`block_sums`; ``W`` blocks, default the tests' window)."""
+    ring = np.concatenate([counts[:, None].astype(float), sums.T], axis=1)
+    return _all_windows(ring, tests.blocks(rate) if W is None else W, tests.array())
+
+
+@njit
+def _all_windows(ring: np.ndarray, W: int, thresholds: np.ndarray) -> np.ndarray:
+    """:func:`_windows` of the ``W`` window at every block of ``ring`` (block ``j`` in row ``j``)."""
+    B = ring.shape[0]
+    keys = np.arange(B)
+    out = np.zeros(B, dtype=np.bool_)
+    for k in range(B):
+        out[k] = _windows(ring, keys, k, W, 0, thresholds) & 1 != 0
     return out
 
 
