@@ -115,25 +115,12 @@ def _advance(s1: np.ndarray, s2: np.ndarray, at: int, to: int, gyro: np.ndarray,
     return at
 
 
-@njit
-def _window_sums(gyro: np.ndarray, accel: np.ndarray, mean: np.ndarray, c1: np.ndarray, c2: np.ndarray) -> None:
-    """Cumulative sums of the centred samples and of their squares into ``c1``, ``c2`` (6, N + 1)."""
-    s1, s2 = np.zeros(6), np.zeros(6)
-    c1[:, 0] = 0.0
-    c2[:, 0] = 0.0
-    for k in range(gyro.shape[0]):
-        _advance(s1, s2, k, k + 1, gyro, accel, mean)
-        c1[:, k + 1] = s1
-        c2[:, k + 1] = s2
-
-
 class WindowSums:
     """Cumulative sums of a log's centred gyro and specific force and of their squares.
 
-    What :func:`detect_standstill` and :func:`estimate_gyro_bias` derive every
-    window's mean and standard deviation from; they do not depend on the window
-    length, so one instance serves several calls on the same log (pass it as
-    ``sums``). Component-major, so that every operation runs along contiguous rows.
+    Every window's mean and standard deviation follow from them, whatever the window's length, so one
+    instance serves several calls of :func:`detect_standstill` and :func:`estimate_gyro_bias` on the same
+    log (pass it as ``sums``). Component-major (every operation runs along contiguous rows).
 
     Parameters
     ----------
@@ -147,10 +134,8 @@ class WindowSums:
     gyro, accel : ndarray, shape (N, 3)
         The log's gyro and specific force (C-contiguous; the log's own arrays where they are).
     c1, c2 : ndarray, shape (6, N + 1)
-        ``c1[:, k]`` sum of the first ``k`` centred samples, ``c2[:, k]`` of their squares,
-        computed on first use only: the window tests of :func:`detect_standstill` carry the
-        same running sums at each window's start and end instead (equal values, without the
-        arrays' memory).
+        ``c1[:, k]`` sum of the first ``k`` centred samples, ``c2[:, k]`` of their squares, computed on first
+        use only (the window pass carries the same running sums at each window's start and end instead).
     """
 
     def __init__(self, imu: ImuData) -> None:
@@ -172,9 +157,11 @@ class WindowSums:
         return self._sums()[1]
 
     def _sums(self) -> tuple[np.ndarray, np.ndarray]:
-        if self._c is None:
-            c1, c2 = np.empty((6, self.n + 1)), np.empty((6, self.n + 1))
-            _window_sums(self.gyro, self.accel, np.ascontiguousarray(self.mean[:, 0]), c1, c2)
+        if self._c is None:                     # running sums, left to right: _advance's additions
+            d = np.concatenate([self.gyro, self.accel], axis=1).T - self.mean
+            c1, c2 = np.zeros((6, self.n + 1)), np.zeros((6, self.n + 1))
+            np.cumsum(d, axis=1, out=c1[:, 1:])
+            np.cumsum(d * d, axis=1, out=c2[:, 1:])
             self._c = c1, c2
         return self._c
 
@@ -277,10 +264,11 @@ def _standstill_mask(imu: ImuData, window: float, gyro_std_max: float, gyro_norm
     return mask
 
 
-def _runs(mask: np.ndarray) -> np.ndarray:
-    m = np.concatenate([[False], mask, [False]]).astype(np.int8)
-    dm = np.diff(m)
-    return np.stack([np.flatnonzero(dm == 1), np.flatnonzero(dm == -1)], axis=1)   # [start, stop)
+def _intervals(t: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """``[start, end]`` times (s) of the runs of ``mask``, (K, 2)."""
+    dm = np.diff(np.concatenate([[False], mask, [False]]).astype(np.int8))
+    start, stop = np.flatnonzero(dm == 1), np.flatnonzero(dm == -1)
+    return np.stack([t[start], t[stop - 1]], axis=1) if start.size else np.zeros((0, 2))
 
 
 def detect_standstill(imu: ImuData, *, window: float = WINDOW, gyro_std_max: float = GYRO_STD_MAX,
@@ -322,9 +310,7 @@ def detect_standstill(imu: ImuData, *, window: float = WINDOW, gyro_std_max: flo
     """
     mask = _standstill_mask(imu, window, gyro_std_max, gyro_norm_max, accel_std_max,
                             accel_norm_tol, gravity, max_gap, sums)
-    r = _runs(mask)
-    t = np.asarray(imu.t, dtype=float)
-    return np.stack([t[r[:, 0]], t[r[:, 1] - 1]], axis=1) if r.size else np.zeros((0, 2))
+    return _intervals(np.asarray(imu.t, dtype=float), mask)
 
 
 def estimate_gyro_bias(imu: ImuData, *, window: float = WINDOW, gyro_std_max: float = GYRO_STD_MAX,
@@ -348,9 +334,8 @@ def estimate_gyro_bias(imu: ImuData, *, window: float = WINDOW, gyro_std_max: fl
     """
     mask = _standstill_mask(imu, window, gyro_std_max, gyro_norm_max, accel_std_max,
                             accel_norm_tol, gravity, max_gap, sums)
-    r = _runs(mask)
-    t = np.asarray(imu.t, dtype=float)
-    k = r.shape[0]
+    intervals = _intervals(np.asarray(imu.t, dtype=float), mask)
+    k = intervals.shape[0]
     if k == 0:
         nan3 = np.full(3, np.nan)
         return GyroBiasEstimate(np.zeros(3), np.full(3, np.inf), np.zeros((0, 2)), nan3,
@@ -364,5 +349,4 @@ def estimate_gyro_bias(imu: ImuData, *, window: float = WINDOW, gyro_std_max: fl
     accel_mean = np.stack([np.bincount(seg, weights=imu.accel[mask, j], minlength=k)
                            for j in range(3)], axis=1) / counts[:, None]
     grav = -accel_mean / np.linalg.norm(accel_mean, axis=1, keepdims=True)
-    intervals = np.stack([t[r[:, 0]], t[r[:, 1] - 1]], axis=1)
     return GyroBiasEstimate(bias, bias_std, intervals, grav[0].copy(), grav, accel_mean, int(g.shape[0]))

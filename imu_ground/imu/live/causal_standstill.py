@@ -1,26 +1,22 @@
 """Causal standstill detection and gyro bias: from the samples seen so far, one frame at a time.
 
-The whole-log detector (:mod:`imu_ground.imu.standstill`) looks at windows that start at
-each sample and so sees up to a window ahead; a live estimator cannot. Here the
-samples are summed in blocks, one per output frame (block ``k`` holds the samples
-in ``(t0 + k / rate, t0 + (k + 1) / rate]``, :func:`block_index`), and frame ``k``
-ends at a standstill when the trailing window of the ``W = round(window * rate)``
-blocks ``k - W + 1 .. k`` passes the same tests as the whole-log detector (every
-gyro axis' standard deviation at most ``gyro_std_max``, the mean rate's norm at
-most ``gyro_norm_max``, every accelerometer axis' standard deviation at most
-``accel_std_max``, the mean specific force's norm within ``accel_norm_tol`` of
-``gravity``), with every block holding samples (a gap is no standstill). Gravity's
-magnitude is fixed (:data:`~imu_ground.units.GRAVITY` by default): a causal detector
-cannot take the log's own median at rest.
+The whole-log detector (:mod:`imu_ground.imu.standstill`) looks at windows that start at each sample and
+so sees up to a window ahead; a live estimator cannot. Here the samples are summed in blocks, one per
+output frame (block ``k`` holds the samples in ``(t0 + k / rate, t0 + (k + 1) / rate]``,
+:func:`block_index`), and frame ``k`` ends at a standstill when the trailing window of the
+``W = round(window * rate)`` blocks ``k - W + 1 .. k`` passes the whole-log detector's still test
+(:func:`~imu_ground.imu.standstill.window_test`, the same body) with every block holding samples (a gap
+is no standstill). Gravity's magnitude is fixed (:data:`~imu_ground.units.GRAVITY` by default): a causal
+detector cannot take the log's own median at rest.
 
-The gyro bias (:class:`CausalGyroBias`) is the mean rate over every block of the
-standstills seen so far (each block once) in windows of ``bias_window`` (2 s, as the
-whole-log bias: a shorter stop may be creeping), or a given bias.
+The gyro bias (:class:`CausalGyroBias`) is the mean rate over every block of the standstills seen so far
+(each block once) in windows of ``bias_window`` (2 s, as the whole-log bias: a shorter stop may be
+creeping), or a given bias.
 
-Sums run left to right from 0.0 in sample order (:class:`StandstillBlocks` one sample
-at a time, :func:`block_sums` over a log with ``np.bincount``, which adds in the same
-order), and a window's sums add its blocks newest first, so the streaming and the
-whole-log forms agree bit for bit.
+Sums run left to right from 0.0 in sample order (:class:`StandstillBlocks` one sample at a time,
+:func:`block_sums` over a log with ``np.bincount``, which adds in the same order), and a window's sums
+add its blocks newest first, in one compiled body for the live ring and a whole log
+(:func:`window_standstill`), so the streaming and the whole-log forms agree bit for bit.
 """
 from __future__ import annotations
 
@@ -173,8 +169,7 @@ class StandstillBlocks:
 
     def windows(self, k: int, W: int | None = None, Wb: int | None = None) -> tuple[bool, bool]:
         """Whether the trailing windows of ``W`` and of ``Wb`` blocks (defaults :attr:`W`, :attr:`Wb`; 0: not
-        asked) ending at frame ``k`` pass, summed newest block first; the specific force only for a window
-        whose gyro passes (each component's sums are the same either way)."""
+        asked) ending at frame ``k`` pass, summed newest block first."""
         r = _windows(self.ring, self._keys, k, self.W if W is None else W, self.Wb if Wb is None else Wb,
                      self._thresholds)
         return r & 1 != 0, r & 2 != 0
@@ -242,15 +237,20 @@ class StandstillBlocks:
 
 
 def block_sums(k: np.ndarray, gyro: np.ndarray, accel: np.ndarray, n_blocks: int) -> tuple[np.ndarray, np.ndarray]:
-    """Counts (B,) and sums (12, B) of the samples of each block 0 .. B-1 (``k`` each sample's; others skipped)."""
-    keep = (k >= 0) & (k < n_blocks)
-    kk = k[keep]
-    x = np.concatenate([gyro[keep], accel[keep]], axis=1)
-    sums = np.empty((12, n_blocks))
-    for i in range(6):
-        sums[i] = np.bincount(kk, weights=x[:, i], minlength=n_blocks)
-        sums[6 + i] = np.bincount(kk, weights=x[:, i] * x[:, i], minlength=n_blocks)
-    return np.bincount(kk, minlength=n_blocks), sums
+    """Counts (B,) and sums (12, B) of the samples of each block 0 .. B-1 (``k`` each sample's; others skipped):
+    :func:`add_sample` over the log."""
+    ring = np.zeros((n_blocks, BLOCK_SIZE))
+    _add_all(ring, np.asarray(k, dtype=np.int64), np.ascontiguousarray(gyro, dtype=float),
+             np.ascontiguousarray(accel, dtype=float))
+    return ring[:, 0].astype(np.int64), ring[:, 1:].T
+
+
+@njit
+def _add_all(ring: np.ndarray, k: np.ndarray, gyro: np.ndarray, accel: np.ndarray) -> None:
+    """:func:`add_sample` of every sample into its block's row (block ``k[i]``, if one of the rows)."""
+    for i in range(k.size):
+        if 0 <= k[i] < ring.shape[0]:
+            add_sample(ring[k[i]], gyro[i, 0], gyro[i, 1], gyro[i, 2], accel[i, 0], accel[i, 1], accel[i, 2])
 
 
 def window_standstill(counts: np.ndarray, sums: np.ndarray, tests: StandstillTests, rate: float,
@@ -358,6 +358,7 @@ class CausalGyroBias:
         self.last = r.int("last", minimum=-1)
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        self.auto = bool(state["auto"])
-        self.value = tuple(float(x) for x in state["value"])
-        self.n, self.s, self.last = int(state["n"]), [float(x) for x in state["s"]], int(state["last"])
+        """Resume from :meth:`state_dict`, of either kind (checked as :meth:`load_checked`)."""
+        from imu_ground.imu.warm_start import StateReader
+        self.auto, self.value = bool(state["auto"]), tuple(state["value"])
+        self.load_checked(StateReader("CausalGyroBias", state))
