@@ -1,14 +1,15 @@
 """Order statistics of whole logs: the exact median without a full partition, running medians near events.
 
 :func:`median` gives the value ``np.median`` gives (the checks and the
-validation take medians of whole logs); :func:`_running_median` the centred
+validation take medians of whole logs); :func:`_medians_near` the centred
 running medians (pandas' rolling median) the retiming needs near the clock's
 jumps only (:mod:`~imu_ground.datasets.retime`).
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
-import pandas as pd
 
 __all__ = ["BLOCK", "median"]
 
@@ -81,6 +82,26 @@ def _near(events: np.ndarray, h: int, n: int) -> np.ndarray:
     return np.repeat(lo - np.concatenate([[0], np.cumsum(lens)[:-1]]), lens) + np.arange(int(lens.sum()))
 
 
+def _medians_near(values: Callable[[np.ndarray], np.ndarray], n: int, near: np.ndarray, w: int) -> np.ndarray:
+    """Centred running medians over ``w`` (odd) samples at positions ``near`` (edges padded with the end values):
+    pandas' rolling median over the runs of ``near`` with their margins (a window holding NaN: NaN).
+
+    ``values(idx)`` gives the series at positions ``idx``; only the samples
+    within ``w // 2`` of a position in ``near`` are asked for.
+    """
+    h = w // 2
+    brk = np.flatnonzero(np.diff(near) != 1) + 1
+    lo = near[np.concatenate([[0], brk])]
+    length = np.diff(np.concatenate([[0], brk, [near.size]]))
+    piece = length + 2 * h                      # each run of positions with its windows' margins
+    offset = np.concatenate([[0], np.cumsum(piece)[:-1]])
+    idx = np.repeat(lo - h - offset, piece) + np.arange(int(piece.sum()))
+    xs = values(np.clip(idx, 0, n - 1))         # clipping pads the ends with the end values
+    at = near + np.repeat(offset - lo, length)  # each window's first value in xs
+    import pandas as pd                         # (imported by the readers already)
+    return pd.Series(xs).rolling(w).median().to_numpy()[at + w - 1]     # (each window's last value)
+
+
 def _running_median(x: np.ndarray, w: int, events: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Centred running median over ``w`` (odd) samples (edges padded with the end values), and where it differs.
 
@@ -92,15 +113,6 @@ def _running_median(x: np.ndarray, w: int, events: np.ndarray) -> tuple[np.ndarr
     out = x.copy()
     if not events.size:
         return out, events
-    h = w // 2
-    near = _near(events, h, x.size)
-    brk = np.flatnonzero(np.diff(near) != 1) + 1
-    lo = near[np.concatenate([[0], brk])]
-    length = np.diff(np.concatenate([[0], brk, [near.size]]))
-    piece = length + 2 * h                      # each run of positions with its windows' margins
-    offset = np.concatenate([[0], np.cumsum(piece)[:-1]])
-    idx = np.repeat(lo - h - offset, piece) + np.arange(int(piece.sum()))
-    xs = x[np.clip(idx, 0, x.size - 1)]         # clipping pads the ends with the end values
-    med = pd.Series(xs).rolling(w).median().to_numpy()     # (the window ending at each value)
-    out[near] = med[near + np.repeat(offset - lo, length) + 2 * h]
+    near = _near(events, w // 2, x.size)
+    out[near] = _medians_near(x.__getitem__, x.size, near, w)
     return out, near

@@ -66,6 +66,10 @@ def act(action: str, message: str, category: type[Warning], report: ValidationRe
         warn_user(message, category, option, value)
 
 
+#: Backsteps up to which :func:`_ooo_dup` follows each one instead of a running maximum of the log.
+_LOCAL_BACKSTEPS = 2048
+
+
 # --------------------------------------------------------------------------- check
 def _order_message(src, t, rows, back, steps, ooo, dup, row_lines) -> str:
     parts = []
@@ -81,14 +85,76 @@ def _order_message(src, t, rows, back, steps, ooo, dup, row_lines) -> str:
     return " and ".join(parts)
 
 
-def _order(t: np.ndarray, steps: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Positions after a backward step, and those earlier than (out of order) and equal to (duplicates)
-    the latest time before them."""
-    back = np.flatnonzero(steps < 0) + 1
+def _stretch_end(t: np.ndarray, b: int, top: float) -> int:
+    """The first position from ``b`` on with a time later than ``top`` (``t.size`` if none)."""
+    lo, span = b, 16
+    while lo < t.size:
+        hit = t[lo:lo + span] > top
+        j = int(hit.argmax())
+        if hit[j]:
+            return lo + j
+        lo, span = lo + span, span * 4
+    return t.size
+
+
+def _ooo_dup(t: np.ndarray, steps: np.ndarray, back: np.ndarray, zero: np.ndarray,
+             finite: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Positions earlier than (out of order) and equal to (duplicates) the latest time before them.
+
+    ``back``, ``zero``: positions after a backward and a zero step; ``finite``:
+    ``t`` is known to be finite. The latest time before ``i`` is ``t[i - 1]``
+    except from a backward step until the stamps pass the time before it again:
+    with few backsteps only these stretches are looked at (at once while they
+    end within 16 samples), else (or with non-finite times) the running maximum
+    of the log is formed.
+    """
     if not back.size:
-        return back, back, np.flatnonzero(steps == 0) + 1
-    prev_max = np.maximum.accumulate(t)[:-1]
-    return back, np.flatnonzero(t[1:] < prev_max) + 1, np.flatnonzero(t[1:] == prev_max) + 1
+        return back[:0], zero
+    if not finite:
+        with np.errstate(all="ignore"):
+            finite = bool(np.isfinite(np.add.reduce(steps)))  # all finite (or inf - inf: the slow way too)
+    if back.size > _LOCAL_BACKSTEPS or not finite:
+        prev_max = np.maximum.accumulate(t)[:-1]
+        return np.flatnonzero(t[1:] < prev_max) + 1, np.flatnonzero(t[1:] == prev_max) + 1
+    n = t.size
+    top = t[back - 1]                      # the latest time before a backstep that starts a stretch
+    win = t[np.minimum(back[:, None] + np.arange(16), n - 1)]
+    hit = win > top[:, None]
+    first = hit.argmax(axis=1)
+    found = hit[np.arange(back.size), first].tolist()
+    stretch, stops, end = [], [], 0
+    for i, (b, j) in enumerate(zip(back.tolist(), first.tolist(), strict=True)):
+        if b >= end:                       # not within the stretch of an earlier backstep
+            end = b + j if found[i] else _stretch_end(t, b, float(top[i]))
+            stretch.append(i)
+            stops.append(end)
+    sel, start, stop = np.array(stretch), back[stretch], np.array(stops)
+    span = stop - start
+    short = span <= 16
+    ooo: list[np.ndarray] = []
+    dup: list[np.ndarray] = []
+    if short.any():                        # positions of the short stretches, row by row: in order
+        w, tp = win[sel[short]], top[sel[short], None]
+        inside = np.arange(16) < span[short, None]
+        for part, mask in ((ooo, w < tp), (dup, w == tp)):
+            r, c = np.nonzero(mask & inside)
+            part.append(start[short][r] + c)
+    for i in np.flatnonzero(~short).tolist():
+        seg = t[start[i]:stop[i]]
+        ooo.append(np.flatnonzero(seg < top[sel[i]]) + start[i])
+        dup.append(np.flatnonzero(seg == top[sel[i]]) + start[i])
+    j = np.searchsorted(start, zero, side="right") - 1   # a repeated time outside the stretches: a duplicate
+    dup.append(zero[(j < 0) | (zero >= stop[np.maximum(j, 0)])])
+    return np.sort(np.concatenate(ooo)), np.sort(np.concatenate(dup))
+
+
+def _order(t: np.ndarray, steps: np.ndarray, finite: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Positions after a backward step, and those earlier than (out of order) and equal to (duplicates)
+    the latest time before them (``finite``: ``t`` is known to be finite)."""
+    cand = np.flatnonzero(steps <= 0)
+    neg = steps[cand] < 0
+    back = cand[neg] + 1
+    return (back, *_ooo_dup(t, steps, back, cand[~neg] + 1, finite))
 
 
 def _gaps(tk, dk, out_rows, report, gaps, gap_factor, gap_threshold, src, row_lines) -> None:
@@ -189,10 +255,11 @@ def _reverse_order_error(src: str, n: int, back: np.ndarray, policy: str) -> Imu
                               f"pass {{hint}} to sort them by time", option="policy", value="sort")
 
 
-def order_samples(t, policy, source, index, report, warn, row_lines) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
+def order_samples(t, policy, source, index, report, warn, row_lines, finite: bool = False,
+                  ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
     """Apply the time-order policy: (positions kept in output order or None for all, their times, their steps).
 
-    Fills the report's order fields; warns (or raises under ``"strict"``)
+    ``finite``: the times are known to be finite (validated). Fills the report's order fields; warns (or raises under ``"strict"``)
     naming the first out-of-order and duplicate samples.
     """
 
@@ -203,7 +270,7 @@ def order_samples(t, policy, source, index, report, warn, row_lines) -> tuple[np
     src = source or "<timestamps>"
     n = t.size
     steps = t[1:] - t[:-1]
-    back, ooo, dup = _order(t, steps)
+    back, ooo, dup = _order(t, steps, finite)
     keep: np.ndarray | None = None
     if policy == "sort":                # stable, without the repeated times
         order = np.argsort(t, kind="stable")
@@ -231,7 +298,8 @@ def order_samples(t, policy, source, index, report, warn, row_lines) -> tuple[np
         report.issues.append(what + "; kept as recorded for the causal sample clock (policy='recorded')")
         # a gap is a stamp that far past the latest before it (not the recovery after a back-step)
         return None, t.copy(), t[1:] - np.maximum.accumulate(t)[:-1]
-    new_t, dk = _apply_retime(t, index, report) if policy == "retime" else (None, None)
+    # the raw steps are not used again: their array may hold the retimed ones
+    new_t, dk = _apply_retime(t, index, report, steps) if policy == "retime" else (None, None)
     if new_t is not None:
         kind, where = row_names(report.retime_dropout_index, row_lines)
         gaps_kept = f"{len(where)} dropout(s) kept as gaps (before {kind}s {fmt_list(where)})" if where \

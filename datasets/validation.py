@@ -350,7 +350,7 @@ def validate(imu: ImuData, policy: Policy = "retime", *,
 
     # 3. time order under the policy (the times left are finite): positions of those rows kept, new times
     keep_pos, t, steps = order_samples(imu.t if good is None else imu.t[good], policy, src, good, report, warn,
-                                       row_lines)
+                                       row_lines, finite=True)
 
     # 4. gaps in the ordered times
     check_gaps(t, steps, keep_pos, good, report, gaps, gap_factor, gap_threshold, src, row_lines)
