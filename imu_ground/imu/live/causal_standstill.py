@@ -99,10 +99,14 @@ class StandstillTests:
 
 
 @njit
-def _windows(ring: np.ndarray, keys: np.ndarray, k: int, W: int, Wb: int, thresholds: np.ndarray) -> int:
-    """:meth:`StandstillBlocks.windows` on the blocks' ring (bit 0: the ``W`` window passes, bit 1: ``Wb``'s)."""
+def _windows(ring: np.ndarray, keys: np.ndarray, k: int, W: int, Wb: int, thresholds: np.ndarray,
+             work: np.ndarray) -> int:
+    """:meth:`StandstillBlocks.windows` on the blocks' ring (bit 0: the ``W`` window passes, bit 1: ``Wb``'s;
+    ``work``: (5, 6) scratch, its row 2 zeros)."""
     R = ring.shape[0]
-    s, q, zero, m, sd = np.zeros(6), np.zeros(6), np.zeros(6), np.empty(6), np.empty(6)
+    s, q, zero, m, sd = work[0], work[1], work[2], work[3], work[4]
+    s[:] = 0.0
+    q[:] = 0.0
     n = 0.0
     res = 0
     for i in range(W if W > Wb else Wb):
@@ -147,6 +151,7 @@ class StandstillBlocks:
         self.W = self.tests.blocks(self.rate)
         self.Wb = max(1, int(round(bias_window * self.rate)))      # the bias's window, blocks
         self._thresholds = self.tests.array()
+        self._work = np.zeros((5, 6))
         # the blocks held: block j in row j % R of the ring (its index in keys; _FREE: the row is free)
         self.ring = np.zeros((2 * max(self.W, self.Wb) + 4, BLOCK_SIZE))
         self._keys = np.full(self.ring.shape[0], _FREE, dtype=np.int64)
@@ -171,7 +176,7 @@ class StandstillBlocks:
         """Whether the trailing windows of ``W`` and of ``Wb`` blocks (defaults :attr:`W`, :attr:`Wb`; 0: not
         asked) ending at frame ``k`` pass, summed newest block first."""
         r = _windows(self.ring, self._keys, k, self.W if W is None else W, self.Wb if Wb is None else Wb,
-                     self._thresholds)
+                     self._thresholds, self._work)
         return r & 1 != 0, r & 2 != 0
 
     def done(self, k: int) -> None:
@@ -267,8 +272,9 @@ def _all_windows(ring: np.ndarray, W: int, thresholds: np.ndarray) -> np.ndarray
     B = ring.shape[0]
     keys = np.arange(B)
     out = np.zeros(B, dtype=np.bool_)
+    work = np.zeros((5, 6))
     for k in range(B):
-        out[k] = _windows(ring, keys, k, W, 0, thresholds) & 1 != 0
+        out[k] = _windows(ring, keys, k, W, 0, thresholds, work) & 1 != 0
     return out
 
 
