@@ -2,8 +2,8 @@
 
 :func:`median` gives the value ``np.median`` gives (the checks and the
 validation take medians of whole logs); :func:`_medians_near` the centred
-running medians the retiming needs near the clock's jumps only
-(:mod:`~imu_ground.datasets.retime`).
+running medians (pandas' rolling median) the retiming needs near the clock's
+jumps only (:mod:`~imu_ground.datasets.retime`).
 """
 from __future__ import annotations
 
@@ -15,8 +15,6 @@ __all__ = ["BLOCK", "median"]
 
 #: Values per block of a pass over a whole log (a few such blocks stay in the CPU cache).
 BLOCK = 1 << 15
-#: Consecutive windows sharing one partition in :func:`_window_medians`.
-_GROUP = 12
 
 
 def median(x: np.ndarray, sqrt: bool = False) -> float:
@@ -84,50 +82,9 @@ def _near(events: np.ndarray, h: int, n: int) -> np.ndarray:
     return np.repeat(lo - np.concatenate([[0], np.cumsum(lens)[:-1]]), lens) + np.arange(int(lens.sum()))
 
 
-def _window_medians(xs: np.ndarray, q: np.ndarray, w: int) -> np.ndarray:
-    """Medians of ``xs[p:p + w]`` (``w`` odd) for the window starts ``q`` (increasing).
-
-    Consecutive starts share a partition: for ``S`` windows ``q0 .. q0+S-1`` the
-    ``w - S + 1`` samples common to all (the core ``C``) hold the median of each
-    window between their ranks ``h+1-S`` and ``h`` (0-based, ``h = w // 2``): the
-    window adds only ``S - 1`` samples ``E`` to ``C``. Clamping every value to
-    that band (a monotone map, which commutes with order statistics) shows the
-    window's median is the ``S``-th smallest of ``band + E``, ``2S - 1``
-    values. The result is the same order statistic ``np.median`` returns.
-    """
-    h = w // 2
-    out = np.empty(q.size)
-    if not q.size:
-        return out
-    brk = np.flatnonzero(np.diff(q) != 1) + 1
-    run_lo = q[np.concatenate([[0], brk])]
-    run_len = np.diff(np.concatenate([[0], brk, [q.size]]))
-    s = min(_GROUP, h + 1, int(run_len.min()))
-    if s < 2 or np.isnan(xs).any():             # short runs (or NaN, which np.median returns): window by window
-        win = np.lib.stride_tricks.sliding_window_view(xs, w)
-        for i in range(0, q.size, 4096):        # cache-sized batches, whatever the log's length
-            out[i:i + 4096] = np.median(win[q[i:i + 4096]], axis=1, overwrite_input=True)
-        return out
-    ng = -(-run_len // s)                       # groups of s windows per run, the last one ending the run
-    first = np.repeat(np.cumsum(ng) - ng, ng)
-    g0 = np.minimum(np.repeat(run_lo, ng) + s * (np.arange(int(ng.sum())) - first),
-                    np.repeat(run_lo + run_len - s, ng))
-    view = np.lib.stride_tricks.sliding_window_view
-    core = view(xs, w - s + 1)[g0 + s - 1]      # a gathered copy, (G, w - s + 1)
-    core.partition(h, axis=1)                   # (one rank at a time: much faster than two at once)
-    band = core[:, :h + 1]
-    band.partition(h + 1 - s, axis=1)
-    band = band[:, h + 1 - s:]                  # ranks h+1-s .. h of the core, any order
-    pool = np.concatenate([view(xs, s - 1)[g0], view(xs, s - 1)[g0 + w]], axis=1)  # E of window i: pool[i:i+s-1]
-    z = np.concatenate([np.broadcast_to(band[:, None, :], (g0.size, s, s)),
-                        view(pool, s - 1, axis=1)[:, :s]], axis=2)
-    z.partition(s - 1, axis=2)
-    out[np.searchsorted(q, (g0[:, None] + np.arange(s)).ravel())] = z[:, :, s - 1].ravel()
-    return out
-
-
 def _medians_near(values: Callable[[np.ndarray], np.ndarray], n: int, near: np.ndarray, w: int) -> np.ndarray:
-    """Centred running medians over ``w`` samples at positions ``near`` (edges padded with the end values).
+    """Centred running medians over ``w`` (odd) samples at positions ``near`` (edges padded with the end values):
+    pandas' rolling median over the runs of ``near`` with their margins (a window holding NaN: NaN).
 
     ``values(idx)`` gives the series at positions ``idx``; only the samples
     within ``w // 2`` of a position in ``near`` are asked for.
@@ -140,7 +97,9 @@ def _medians_near(values: Callable[[np.ndarray], np.ndarray], n: int, near: np.n
     offset = np.concatenate([[0], np.cumsum(piece)[:-1]])
     idx = np.repeat(lo - h - offset, piece) + np.arange(int(piece.sum()))
     xs = values(np.clip(idx, 0, n - 1))         # clipping pads the ends with the end values
-    return _window_medians(xs, near + np.repeat(offset - lo, length), w)
+    at = near + np.repeat(offset - lo, length)  # each window's first value in xs
+    import pandas as pd                         # (imported by the readers already)
+    return pd.Series(xs).rolling(w).median().to_numpy()[at + w - 1]     # (each window's last value)
 
 
 def _running_median(x: np.ndarray, w: int, events: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

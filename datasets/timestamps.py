@@ -148,30 +148,13 @@ def _ooo_dup(t: np.ndarray, steps: np.ndarray, back: np.ndarray, zero: np.ndarra
     return np.sort(np.concatenate(ooo)), np.sort(np.concatenate(dup))
 
 
-def _order(t: np.ndarray, policy: str, steps: np.ndarray, finite: bool = False):
-    """(backsteps, out-of-order, duplicates, keep) positions under ``policy`` (not retime).
-
-    ``keep`` is None under ``"drop"`` (see :func:`_kept`); ``finite``: ``t`` is known to be finite.
-    """
+def _order(t: np.ndarray, steps: np.ndarray, finite: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Positions after a backward step, and those earlier than (out of order) and equal to (duplicates)
+    the latest time before them (``finite``: ``t`` is known to be finite)."""
     cand = np.flatnonzero(steps <= 0)
     neg = steps[cand] < 0
     back = cand[neg] + 1
-    ooo, dup = _ooo_dup(t, steps, back, cand[~neg] + 1, finite)
-    if policy == "sort":
-        order = np.argsort(t, kind="stable")
-        ts = t[order]
-        first = np.ones(t.size, dtype=bool)
-        first[1:] = ts[1:] != ts[:-1]
-        return back, ooo, np.sort(order[~first]), order[first]
-    return back, ooo, dup, None
-
-
-def _kept(n: int, ooo: np.ndarray, dup: np.ndarray) -> np.ndarray:
-    """Positions kept under ``"drop"``: all but the out-of-order and duplicate ones."""
-    bad = np.zeros(n, dtype=bool)
-    bad[ooo] = True
-    bad[dup] = True
-    return np.flatnonzero(~bad)
+    return (back, *_ooo_dup(t, steps, back, cand[~neg] + 1, finite))
 
 
 def _gaps(tk, dk, out_rows, report, gaps, gap_factor, gap_threshold, src, row_lines) -> None:
@@ -272,13 +255,12 @@ def _reverse_order_error(src: str, n: int, back: np.ndarray, policy: str) -> Imu
                               f"pass {{hint}} to sort them by time", option="policy", value="sort")
 
 
-def order_samples(t, policy, source, index, report, warn, row_lines, finite: bool = False
+def order_samples(t, policy, source, index, report, warn, row_lines, finite: bool = False,
                   ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
     """Apply the time-order policy: (positions kept in output order or None for all, their times, their steps).
 
-    ``finite``: the times are known to be finite (validated). Fills the
-    report's order fields; warns (or raises under ``"strict"``) naming the
-    first out-of-order and duplicate samples.
+    ``finite``: the times are known to be finite (validated). Fills the report's order fields; warns (or raises under ``"strict"``)
+    naming the first out-of-order and duplicate samples.
     """
 
     def rows(pos: np.ndarray) -> np.ndarray:
@@ -288,13 +270,20 @@ def order_samples(t, policy, source, index, report, warn, row_lines, finite: boo
     src = source or "<timestamps>"
     n = t.size
     steps = t[1:] - t[:-1]
-    back, ooo, dup, keep = _order(t, "sort" if policy == "sort" else "drop", steps, finite)
+    back, ooo, dup = _order(t, steps, finite)
+    keep: np.ndarray | None = None
+    if policy == "sort":                # stable, without the repeated times
+        order = np.argsort(t, kind="stable")
+        ts = t[order]
+        first = np.ones(n, dtype=bool)
+        first[1:] = ts[1:] != ts[:-1]
+        dup, keep = np.sort(order[~first]), order[first]
     report.backstep_index = rows(back)
     report.backstep_size = steps[back - 1]
     report.out_of_order_index = rows(ooo)
     report.duplicate_index = rows(dup)
     if not (ooo.size or dup.size):      # nothing out of order: every sample kept, in order
-        return (keep if policy == "sort" else None), t.copy(), steps
+        return keep, t.copy(), steps
     what = f"{src}: " + _order_message(src, t, rows, back, steps, ooo, dup, row_lines)
     if policy == "strict":
         msg = f"{src}: timestamps not strictly increasing: {what[len(src) + 2:]}"
@@ -325,10 +314,10 @@ def order_samples(t, policy, source, index, report, warn, row_lines, finite: boo
         report.reordered = bool(ooo.size)
         acts = (["sorted by time"] if ooo.size else []) + \
             ([f"dropped {dup.size} repeated time(s)"] if dup.size else [])
-        msg = (f"{what}; {' and '.join(acts)}, {keep.size} of {n} samples kept "
+        msg = (f"{what}; {' and '.join(acts)}, {n - dup.size} of {n} samples kept "
                f"(policy='sort', report in meta['validation'])")
     else:
-        keep = _kept(n, ooo, dup)
+        keep = np.delete(np.arange(n), np.concatenate([ooo, dup]))    # all but the out-of-order and duplicates
         why = f" (not retimed: {report.retime_note})" if policy == "retime" else ""
         msg = (f"{what}; dropped {n - keep.size} of {n} samples{why} "
                f"(policy={policy!r}, report in meta['validation'])")

@@ -30,7 +30,37 @@ import numpy as np
 from imu_ground._jit import njit
 from imu_ground.imu.data import ImuData
 
-__all__ = ["GyroBiasEstimate", "WindowSums", "detect_standstill", "estimate_gyro_bias"]
+__all__ = ["ACCEL_NORM_TOL", "ACCEL_STD_MAX", "GYRO_NORM_MAX", "GYRO_STD_MAX", "WINDOW", "GyroBiasEstimate",
+           "WindowSums", "detect_standstill", "estimate_gyro_bias", "window_test"]
+
+#: The default thresholds of a standstill window (also the causal detector's,
+#: :mod:`imu_ground.imu.live.causal_standstill`): rad/s, rad/s, m/s^2, m/s^2.
+GYRO_STD_MAX, GYRO_NORM_MAX, ACCEL_STD_MAX, ACCEL_NORM_TOL = 0.004, 0.05, 0.04, 0.15
+#: Shortest standstill, s: the whole-log detector's window and the causal gyro bias's.
+WINDOW = 2.0
+
+
+@njit
+def window_test(n: float, s: np.ndarray, q: np.ndarray, mean: np.ndarray, m: np.ndarray, sd: np.ndarray,
+                gyro_std_max: float, gyro_norm_max: float, accel_std_max: float) -> float:
+    """The still test of one window (module docstring): its mean specific force's norm (m/s^2) when it passes the
+    rate and variance tests, else NaN (the gravity test is the caller's: ``|norm - gravity| <= accel_norm_tol``).
+
+    ``n`` samples with sums ``s`` (6: gyro rad/s, then specific force m/s^2) of the samples less ``mean`` and ``q``
+    of their squares; the window's mean and standard deviation (variance floored at 0) go into ``m`` and ``sd``.
+    """
+    for r in range(6):
+        mm = s[r] / n
+        vv = q[r] / n - mm * mm
+        if vv < 0.0:
+            vv = 0.0
+        m[r] = mm + mean[r]
+        sd[r] = math.sqrt(vv)
+    if not (math.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]) <= gyro_norm_max
+            and sd[0] <= gyro_std_max and sd[1] <= gyro_std_max and sd[2] <= gyro_std_max
+            and sd[3] <= accel_std_max and sd[4] <= accel_std_max and sd[5] <= accel_std_max):
+        return math.nan
+    return math.sqrt(m[3] * m[3] + m[4] * m[4] + m[5] * m[5])
 
 
 @dataclass
@@ -72,30 +102,25 @@ class GyroBiasEstimate:
 
 
 @njit
-def _window_sums(gyro: np.ndarray, accel: np.ndarray, mean: np.ndarray, c1: np.ndarray, c2: np.ndarray) -> None:
-    """Cumulative sums of the centred samples and of their squares into ``c1``, ``c2`` (6, N + 1), a row at a time."""
-    n = gyro.shape[0]
-    for j in range(6):
-        m = mean[j]
-        s1 = 0.0
-        s2 = 0.0
-        c1[j, 0] = 0.0
-        c2[j, 0] = 0.0
-        for k in range(n):
-            d = (gyro[k, j] if j < 3 else accel[k, j - 3]) - m
-            s1 = s1 + d
-            s2 = s2 + d * d
-            c1[j, k + 1] = s1
-            c2[j, k + 1] = s2
+def _advance(s1: np.ndarray, s2: np.ndarray, at: int, to: int, gyro: np.ndarray, accel: np.ndarray,
+             mean: np.ndarray) -> int:
+    """Running sums ``s1``, ``s2`` (6) of the centred samples and their squares, from sample ``at`` up to ``to``
+    (``s1[r]`` is then :class:`WindowSums`' ``c1[r, to]``). Returns ``max(at, to)``."""
+    while at < to:
+        for r in range(6):
+            d = (gyro[at, r] if r < 3 else accel[at, r - 3]) - mean[r]
+            s1[r] = s1[r] + d
+            s2[r] = s2[r] + d * d
+        at += 1
+    return at
 
 
 class WindowSums:
     """Cumulative sums of a log's centred gyro and specific force and of their squares.
 
-    What :func:`detect_standstill` and :func:`estimate_gyro_bias` derive every
-    window's mean and standard deviation from; they do not depend on the window
-    length, so one instance serves several calls on the same log (pass it as
-    ``sums``). Component-major, so that every operation runs along contiguous rows.
+    Every window's mean and standard deviation follow from them, whatever the window's length, so one
+    instance serves several calls of :func:`detect_standstill` and :func:`estimate_gyro_bias` on the same
+    log (pass it as ``sums``). Component-major (every operation runs along contiguous rows).
 
     Parameters
     ----------
@@ -109,10 +134,8 @@ class WindowSums:
     gyro, accel : ndarray, shape (N, 3)
         The log's gyro and specific force (C-contiguous; the log's own arrays where they are).
     c1, c2 : ndarray, shape (6, N + 1)
-        ``c1[:, k]`` sum of the first ``k`` centred samples, ``c2[:, k]`` of their squares,
-        computed on first use only: the window tests of :func:`detect_standstill` carry the
-        same running sums at each window's start and end instead (equal values, without the
-        arrays' memory).
+        ``c1[:, k]`` sum of the first ``k`` centred samples, ``c2[:, k]`` of their squares, computed on first
+        use only (the window pass carries the same running sums at each window's start and end instead).
     """
 
     def __init__(self, imu: ImuData) -> None:
@@ -134,9 +157,11 @@ class WindowSums:
         return self._sums()[1]
 
     def _sums(self) -> tuple[np.ndarray, np.ndarray]:
-        if self._c is None:
-            c1, c2 = np.empty((6, self.n + 1)), np.empty((6, self.n + 1))
-            _window_sums(self.gyro, self.accel, np.ascontiguousarray(self.mean[:, 0]), c1, c2)
+        if self._c is None:                     # running sums, left to right: _advance's additions
+            d = np.concatenate([self.gyro, self.accel], axis=1).T - self.mean
+            c1, c2 = np.zeros((6, self.n + 1)), np.zeros((6, self.n + 1))
+            np.cumsum(d, axis=1, out=c1[:, 1:])
+            np.cumsum(d * d, axis=1, out=c2[:, 1:])
             self._c = c1, c2
         return self._c
 
@@ -154,38 +179,21 @@ class WindowSums:
 
 
 @njit
-def _advance(s1: np.ndarray, s2: np.ndarray, at: int, to: int, gyro: np.ndarray, accel: np.ndarray,
-             mean: np.ndarray) -> int:
-    """Running sums ``s1``, ``s2`` (6) of the centred samples and their squares, from sample ``at`` up to ``to``:
-    the additions of :class:`WindowSums` in their order, so ``s1[r]`` equals ``c1[r, to]``. Returns ``max(at, to)``."""
-    while at < to:
-        for r in range(6):
-            d = (gyro[at, r] if r < 3 else accel[at, r - 3]) - mean[r]
-            s1[r] = s1[r] + d
-            s2[r] = s2[r] + d * d
-        at += 1
-    return at
-
-
-@njit
 def _quiet_windows(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, mean: np.ndarray, window: float,
                    max_gap: float, gyro_std_max: float, gyro_norm_max: float, accel_std_max: float,
-                   quiet: np.ndarray, norm: np.ndarray, end: np.ndarray) -> None:
-    """Every sample's window end, whether its window passes the rate and variance tests, and its mean
-    specific-force norm (m/s^2; NaN where the rate test fails): one forward pass.
+                   norm: np.ndarray, end: np.ndarray) -> None:
+    """Every sample's window end and :func:`window_test` of its window (NaN: not quiet): one forward pass.
 
     The window of sample ``i`` is samples ``i .. end[i] - 1`` with ``t < t[i] + window`` plus the first
     sample at or after ``t[i] + window`` (so that it spans at least ``window`` s); a window that runs past
-    the log's end or holds a step longer than ``max_gap`` is not quiet. Mean and standard deviation per
-    axis as :meth:`WindowSums.stats` (count ``max(end - i, 1)``, variance floored at 0), from running
-    sums at the window's start and end (``t`` strictly increasing, so both only move forward).
+    the log's end or holds a step longer than ``max_gap`` is not quiet. The sums are running sums at the
+    window's start and end (``t`` strictly increasing, so both only move forward).
     """
     n = t.size
     lo1, lo2, hi1, hi2 = np.zeros(6), np.zeros(6), np.zeros(6), np.zeros(6)
     lo_at = 0
     hi_at = 0
-    m = np.empty(6)
-    sd = np.empty(6)
+    m, sd, s, q = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
     last = 0                            # first index with t >= t[i] + window
     gap = -1                            # first step j >= i longer than max_gap (n - 1: none)
     for i in range(n):
@@ -196,7 +204,6 @@ def _quiet_windows(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, mean: np.
             last += 1
         e = last + 1 if last + 1 < n else n
         end[i] = e
-        quiet[i] = False
         norm[i] = np.nan
         if gap < i:
             gap = i
@@ -210,17 +217,9 @@ def _quiet_windows(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, mean: np.
         if not cnt >= 1.0:
             cnt = 1.0
         for r in range(6):
-            mm = (hi1[r] - lo1[r]) / cnt
-            vv = (hi2[r] - lo2[r]) / cnt - mm * mm
-            if vv < 0.0:
-                vv = 0.0
-            m[r] = mm + mean[r]
-            sd[r] = math.sqrt(vv)
-        if not (math.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]) <= gyro_norm_max
-                and sd[0] <= gyro_std_max and sd[1] <= gyro_std_max and sd[2] <= gyro_std_max):
-            continue
-        quiet[i] = sd[3] <= accel_std_max and sd[4] <= accel_std_max and sd[5] <= accel_std_max
-        norm[i] = math.sqrt(m[3] * m[3] + m[4] * m[4] + m[5] * m[5])
+            s[r] = hi1[r] - lo1[r]
+            q[r] = hi2[r] - lo2[r]
+        norm[i] = window_test(cnt, s, q, mean, m, sd, gyro_std_max, gyro_norm_max, accel_std_max)
 
 
 @njit
@@ -248,10 +247,11 @@ def _standstill_mask(imu: ImuData, window: float, gyro_std_max: float, gyro_norm
         raise ValueError(f"sums were computed for a log of {sums.n} samples, this one has {n}")
     if not window >= 0.0:
         raise ValueError(f"the standstill window must be >= 0 s, got {window!r}")
-    quiet, norm, end = np.empty(n, dtype=bool), np.empty(n), np.empty(n, dtype=np.int64)
+    norm, end = np.empty(n), np.empty(n, dtype=np.int64)
     _quiet_windows(np.ascontiguousarray(t), sums.gyro, sums.accel, np.ascontiguousarray(sums.mean[:, 0]),
                    float(window), float(max_gap), float(gyro_std_max), float(gyro_norm_max), float(accel_std_max),
-                   quiet, norm, end)
+                   norm, end)
+    quiet = ~np.isnan(norm)
     if gravity is None:
         # the log's own |f| at rest: an accelerometer bias or scale error moves it
         # away from 9.81 (0.2 m/s^2 is common for MEMS) and must not hide the stops
@@ -264,15 +264,16 @@ def _standstill_mask(imu: ImuData, window: float, gyro_std_max: float, gyro_norm
     return mask
 
 
-def _runs(mask: np.ndarray) -> np.ndarray:
-    m = np.concatenate([[False], mask, [False]]).astype(np.int8)
-    dm = np.diff(m)
-    return np.stack([np.flatnonzero(dm == 1), np.flatnonzero(dm == -1)], axis=1)   # [start, stop)
+def _intervals(t: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """``[start, end]`` times (s) of the runs of ``mask``, (K, 2)."""
+    dm = np.diff(np.concatenate([[False], mask, [False]]).astype(np.int8))
+    start, stop = np.flatnonzero(dm == 1), np.flatnonzero(dm == -1)
+    return np.stack([t[start], t[stop - 1]], axis=1) if start.size else np.zeros((0, 2))
 
 
-def detect_standstill(imu: ImuData, *, window: float = 2.0, gyro_std_max: float = 0.004,
-                      gyro_norm_max: float = 0.05, accel_std_max: float = 0.04,
-                      accel_norm_tol: float = 0.15, gravity: float | None = None,
+def detect_standstill(imu: ImuData, *, window: float = WINDOW, gyro_std_max: float = GYRO_STD_MAX,
+                      gyro_norm_max: float = GYRO_NORM_MAX, accel_std_max: float = ACCEL_STD_MAX,
+                      accel_norm_tol: float = ACCEL_NORM_TOL, gravity: float | None = None,
                       max_gap: float = 0.1, sums: WindowSums | None = None) -> np.ndarray:
     """Standstill intervals of a log (one compiled pass over the samples).
 
@@ -309,14 +310,12 @@ def detect_standstill(imu: ImuData, *, window: float = 2.0, gyro_std_max: float 
     """
     mask = _standstill_mask(imu, window, gyro_std_max, gyro_norm_max, accel_std_max,
                             accel_norm_tol, gravity, max_gap, sums)
-    r = _runs(mask)
-    t = np.asarray(imu.t, dtype=float)
-    return np.stack([t[r[:, 0]], t[r[:, 1] - 1]], axis=1) if r.size else np.zeros((0, 2))
+    return _intervals(np.asarray(imu.t, dtype=float), mask)
 
 
-def estimate_gyro_bias(imu: ImuData, *, window: float = 2.0, gyro_std_max: float = 0.004,
-                       gyro_norm_max: float = 0.05, accel_std_max: float = 0.04,
-                       accel_norm_tol: float = 0.15, gravity: float | None = None,
+def estimate_gyro_bias(imu: ImuData, *, window: float = WINDOW, gyro_std_max: float = GYRO_STD_MAX,
+                       gyro_norm_max: float = GYRO_NORM_MAX, accel_std_max: float = ACCEL_STD_MAX,
+                       accel_norm_tol: float = ACCEL_NORM_TOL, gravity: float | None = None,
                        max_gap: float = 0.1, sums: WindowSums | None = None) -> GyroBiasEstimate:
     """Gyro bias and gravity direction from the standstill periods of a log.
 
@@ -335,9 +334,8 @@ def estimate_gyro_bias(imu: ImuData, *, window: float = 2.0, gyro_std_max: float
     """
     mask = _standstill_mask(imu, window, gyro_std_max, gyro_norm_max, accel_std_max,
                             accel_norm_tol, gravity, max_gap, sums)
-    r = _runs(mask)
-    t = np.asarray(imu.t, dtype=float)
-    k = r.shape[0]
+    intervals = _intervals(np.asarray(imu.t, dtype=float), mask)
+    k = intervals.shape[0]
     if k == 0:
         nan3 = np.full(3, np.nan)
         return GyroBiasEstimate(np.zeros(3), np.full(3, np.inf), np.zeros((0, 2)), nan3,
@@ -351,5 +349,4 @@ def estimate_gyro_bias(imu: ImuData, *, window: float = 2.0, gyro_std_max: float
     accel_mean = np.stack([np.bincount(seg, weights=imu.accel[mask, j], minlength=k)
                            for j in range(3)], axis=1) / counts[:, None]
     grav = -accel_mean / np.linalg.norm(accel_mean, axis=1, keepdims=True)
-    intervals = np.stack([t[r[:, 0]], t[r[:, 1] - 1]], axis=1)
     return GyroBiasEstimate(bias, bias_std, intervals, grav[0].copy(), grav, accel_mean, int(g.shape[0]))

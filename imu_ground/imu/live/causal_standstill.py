@@ -1,26 +1,22 @@
 """Causal standstill detection and gyro bias: from the samples seen so far, one frame at a time.
 
-The whole-log detector (:mod:`imu_ground.imu.standstill`) looks at windows that start at
-each sample and so sees up to a window ahead; a live estimator cannot. Here the
-samples are summed in blocks, one per output frame (block ``k`` holds the samples
-in ``(t0 + k / rate, t0 + (k + 1) / rate]``, :func:`block_index`), and frame ``k``
-ends at a standstill when the trailing window of the ``W = round(window * rate)``
-blocks ``k - W + 1 .. k`` passes the same tests as the whole-log detector (every
-gyro axis' standard deviation at most ``gyro_std_max``, the mean rate's norm at
-most ``gyro_norm_max``, every accelerometer axis' standard deviation at most
-``accel_std_max``, the mean specific force's norm within ``accel_norm_tol`` of
-``gravity``), with every block holding samples (a gap is no standstill). Gravity's
-magnitude is fixed (:data:`~imu_ground.units.GRAVITY` by default): a causal detector
-cannot take the log's own median at rest.
+The whole-log detector (:mod:`imu_ground.imu.standstill`) looks at windows that start at each sample and
+so sees up to a window ahead; a live estimator cannot. Here the samples are summed in blocks, one per
+output frame (block ``k`` holds the samples in ``(t0 + k / rate, t0 + (k + 1) / rate]``,
+:func:`block_index`), and frame ``k`` ends at a standstill when the trailing window of the
+``W = round(window * rate)`` blocks ``k - W + 1 .. k`` passes the whole-log detector's still test
+(:func:`~imu_ground.imu.standstill.window_test`, the same body) with every block holding samples (a gap
+is no standstill). Gravity's magnitude is fixed (:data:`~imu_ground.units.GRAVITY` by default): a causal
+detector cannot take the log's own median at rest.
 
-The gyro bias (:class:`CausalGyroBias`) is the mean rate over every block of the
-standstills seen so far (each block once) in windows of ``bias_window`` (2 s, as the
-whole-log bias: a shorter stop may be creeping), or a given bias.
+The gyro bias (:class:`CausalGyroBias`) is the mean rate over every block of the standstills seen so far
+(each block once) in windows of ``bias_window`` (2 s, as the whole-log bias: a shorter stop may be
+creeping), or a given bias.
 
-Sums run left to right from 0.0 in sample order (:class:`StandstillBlocks` one sample
-at a time, :func:`block_sums` over a log with ``np.bincount``, which adds in the same
-order), and a window's sums add its blocks newest first, so the streaming and the
-whole-log forms agree bit for bit.
+Sums run left to right from 0.0 in sample order (:class:`StandstillBlocks` one sample at a time,
+:func:`block_sums` over a log with ``np.bincount``, which adds in the same order), and a window's sums
+add its blocks newest first, in one compiled body for the live ring and a whole log
+(:func:`window_standstill`), so the streaming and the whole-log forms agree bit for bit.
 """
 from __future__ import annotations
 
@@ -31,6 +27,8 @@ from typing import Any
 import numpy as np
 
 from imu_ground._jit import njit
+from imu_ground.imu.standstill import (ACCEL_NORM_TOL, ACCEL_STD_MAX, GYRO_NORM_MAX, GYRO_STD_MAX, WINDOW,
+                                       window_test)
 from imu_ground.units import GRAVITY
 
 __all__ = ["MAX_GYRO_BIAS", "CausalGyroBias", "StandstillBlocks", "StandstillTests", "block_index", "block_sums",
@@ -69,7 +67,7 @@ def block_index(t: float, t0: float, rate: float) -> int:
 
 
 class StandstillTests:
-    """The thresholds of a standstill window (those of :func:`imu_ground.imu.standstill.detect_standstill`).
+    """The thresholds of a standstill window (the defaults of :func:`imu_ground.imu.standstill.detect_standstill`).
 
     Parameters
     ----------
@@ -83,8 +81,9 @@ class StandstillTests:
         Magnitude of the specific force at rest, m/s^2.
     """
 
-    def __init__(self, window: float = 1.0, gyro_std_max: float = 0.004, gyro_norm_max: float = 0.05,
-                 accel_std_max: float = 0.04, accel_norm_tol: float = 0.15, gravity: float = GRAVITY) -> None:
+    def __init__(self, window: float = 1.0, gyro_std_max: float = GYRO_STD_MAX, gyro_norm_max: float = GYRO_NORM_MAX,
+                 accel_std_max: float = ACCEL_STD_MAX, accel_norm_tol: float = ACCEL_NORM_TOL,
+                 gravity: float = GRAVITY) -> None:
         self.window, self.gyro_std_max, self.gyro_norm_max = float(window), float(gyro_std_max), float(gyro_norm_max)
         self.accel_std_max, self.accel_norm_tol = float(accel_std_max), float(accel_norm_tol)
         self.gravity = float(gravity)
@@ -93,63 +92,37 @@ class StandstillTests:
         """Blocks in the window at ``rate`` frames a second."""
         return max(1, int(round(self.window * rate)))
 
-
-@njit
-def _passes(n: float, s0: float, s1: float, s2: float, q0: float, q1: float, q2: float, std_max: float,
-            norm_max: float, gravity: float, norm_tol: float, gyro: bool) -> bool:
-    """Whether ``n`` samples with sums ``s`` and sums of squares ``q`` (one sensor's three components) pass
-    that sensor's standstill tests: the gyro's (``gyro``: largest standard deviation at most ``std_max``,
-    the mean's norm at most ``norm_max``) or the specific force's (the norm within ``norm_tol`` of ``gravity``)."""
-    m0, m1, m2 = s0 / n, s1 / n, s2 / n
-    v0, v1, v2 = q0 / n - m0 * m0, q1 / n - m1 * m1, q2 / n - m2 * m2
-    sd = math.sqrt(v0 if not v0 < 0.0 else 0.0)
-    sd1, sd2 = math.sqrt(v1 if not v1 < 0.0 else 0.0), math.sqrt(v2 if not v2 < 0.0 else 0.0)
-    if sd1 > sd:
-        sd = sd1
-    if sd2 > sd:
-        sd = sd2
-    norm = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
-    if gyro:
-        return norm <= norm_max and sd <= std_max
-    return sd <= std_max and abs(norm - gravity) <= norm_tol
+    def array(self) -> np.ndarray:
+        """The thresholds in the order :func:`_windows` reads them."""
+        return np.array([self.gyro_std_max, self.gyro_norm_max, self.accel_std_max, self.accel_norm_tol,
+                         self.gravity])
 
 
 @njit
-def _windows(ring: np.ndarray, keys: np.ndarray, k: int, W: int, Wb: int, thresholds: np.ndarray) -> int:
-    """:meth:`StandstillBlocks.windows` on the blocks' ring (bit 0: the ``W`` window passes, bit 1: ``Wb``'s)."""
-    if W <= 0 and Wb <= 0:
-        return 0
-    top = W if W > Wb else Wb
-    low = Wb if W <= 0 else (W if Wb <= 0 or W < Wb else Wb)
-    if k - top + 1 < 0 and k - low + 1 < 0:
-        return 0
+def _windows(ring: np.ndarray, keys: np.ndarray, k: int, W: int, Wb: int, thresholds: np.ndarray,
+             work: np.ndarray) -> int:
+    """:meth:`StandstillBlocks.windows` on the blocks' ring (bit 0: the ``W`` window passes, bit 1: ``Wb``'s;
+    ``work``: (5, 6) scratch, its row 2 zeros)."""
     R = ring.shape[0]
-    res_w, res_b = W > 0, Wb > 0                # (asked and not failed so far)
-    for first in (0, 3):
-        if not (res_w or res_b):
+    s, q, zero, m, sd = work[0], work[1], work[2], work[3], work[4]
+    s[:] = 0.0
+    q[:] = 0.0
+    n = 0.0
+    res = 0
+    for i in range(W if W > Wb else Wb):
+        j = k - i
+        slot = j % R
+        if j < 0 or keys[slot] != j or ring[slot, 0] == 0.0:
             break
-        col = first + 1
-        ask_w, ask_b = res_w, res_b
-        res_w = res_b = False
-        n = 0.0
-        s0 = s1 = s2 = q0 = q1 = q2 = 0.0
-        top = W if ask_w and (not ask_b or W > Wb) else Wb
-        for i in range(top):
-            j = k - i
-            slot = j % R
-            if j < 0 or keys[slot] != j or ring[slot, 0] == 0.0:
-                break
-            n += ring[slot, 0]
-            s0, s1, s2 = s0 + ring[slot, col], s1 + ring[slot, col + 1], s2 + ring[slot, col + 2]
-            q0, q1, q2 = q0 + ring[slot, col + 6], q1 + ring[slot, col + 7], q2 + ring[slot, col + 8]
-            if (ask_w and i + 1 == W) or (ask_b and i + 1 == Wb):
-                ok = _passes(n, s0, s1, s2, q0, q1, q2, thresholds[first], thresholds[first + 1], thresholds[5],
-                             thresholds[4], first == 0)
-                if ask_w and i + 1 == W:
-                    res_w = ok
-                if ask_b and i + 1 == Wb:
-                    res_b = ok
-    return (1 if res_w else 0) + (2 if res_b else 0)
+        n += ring[slot, 0]
+        for c in range(6):
+            s[c] += ring[slot, 1 + c]
+            q[c] += ring[slot, 7 + c]
+        if i + 1 == W or i + 1 == Wb:
+            norm = window_test(n, s, q, zero, m, sd, thresholds[0], thresholds[1], thresholds[2])
+            if abs(norm - thresholds[4]) <= thresholds[3]:
+                res |= (1 if i + 1 == W else 0) | (2 if i + 1 == Wb else 0)
+    return res
 
 
 @njit
@@ -172,14 +145,13 @@ class StandstillBlocks:
         The window of the standstills the gyro bias is taken from, s (``Wb`` blocks).
     """
 
-    def __init__(self, rate: float, tests: StandstillTests | None = None, bias_window: float = 2.0) -> None:
+    def __init__(self, rate: float, tests: StandstillTests | None = None, bias_window: float = WINDOW) -> None:
         self.rate = float(rate)
         self.tests = StandstillTests() if tests is None else tests
         self.W = self.tests.blocks(self.rate)
         self.Wb = max(1, int(round(bias_window * self.rate)))      # the bias's window, blocks
-        t = self.tests                          # (in the order _windows reads them)
-        self._thresholds = np.array([t.gyro_std_max, t.gyro_norm_max, 0.0, t.accel_std_max, t.accel_norm_tol,
-                                     t.gravity])
+        self._thresholds = self.tests.array()
+        self._work = np.zeros((5, 6))
         # the blocks held: block j in row j % R of the ring (its index in keys; _FREE: the row is free)
         self.ring = np.zeros((2 * max(self.W, self.Wb) + 4, BLOCK_SIZE))
         self._keys = np.full(self.ring.shape[0], _FREE, dtype=np.int64)
@@ -202,10 +174,9 @@ class StandstillBlocks:
 
     def windows(self, k: int, W: int | None = None, Wb: int | None = None) -> tuple[bool, bool]:
         """Whether the trailing windows of ``W`` and of ``Wb`` blocks (defaults :attr:`W`, :attr:`Wb`; 0: not
-        asked) ending at frame ``k`` pass, summed newest block first; the specific force only for a window
-        whose gyro passes (each component's sums are the same either way)."""
+        asked) ending at frame ``k`` pass, summed newest block first."""
         r = _windows(self.ring, self._keys, k, self.W if W is None else W, self.Wb if Wb is None else Wb,
-                     self._thresholds)
+                     self._thresholds, self._work)
         return r & 1 != 0, r & 2 != 0
 
     def done(self, k: int) -> None:
@@ -271,43 +242,39 @@ class StandstillBlocks:
 
 
 def block_sums(k: np.ndarray, gyro: np.ndarray, accel: np.ndarray, n_blocks: int) -> tuple[np.ndarray, np.ndarray]:
-    """Counts (B,) and sums (12, B) of the samples of each block 0 .. B-1 (``k`` each sample's; others skipped)."""
-    keep = (k >= 0) & (k < n_blocks)
-    kk = k[keep]
-    x = np.concatenate([gyro[keep], accel[keep]], axis=1)
-    sums = np.empty((12, n_blocks))
-    for i in range(6):
-        sums[i] = np.bincount(kk, weights=x[:, i], minlength=n_blocks)
-        sums[6 + i] = np.bincount(kk, weights=x[:, i] * x[:, i], minlength=n_blocks)
-    return np.bincount(kk, minlength=n_blocks), sums
+    """Counts (B,) and sums (12, B) of the samples of each block 0 .. B-1 (``k`` each sample's; others skipped):
+    :func:`add_sample` over the log."""
+    ring = np.zeros((n_blocks, BLOCK_SIZE))
+    _add_all(ring, np.asarray(k, dtype=np.int64), np.ascontiguousarray(gyro, dtype=float),
+             np.ascontiguousarray(accel, dtype=float))
+    return ring[:, 0].astype(np.int64), ring[:, 1:].T
+
+
+@njit
+def _add_all(ring: np.ndarray, k: np.ndarray, gyro: np.ndarray, accel: np.ndarray) -> None:
+    """:func:`add_sample` of every sample into its block's row (block ``k[i]``, if one of the rows)."""
+    for i in range(k.size):
+        if 0 <= k[i] < ring.shape[0]:
+            add_sample(ring[k[i]], gyro[i, 0], gyro[i, 1], gyro[i, 2], accel[i, 0], accel[i, 1], accel[i, 2])
 
 
 def window_standstill(counts: np.ndarray, sums: np.ndarray, tests: StandstillTests, rate: float,
                       W: int | None = None) -> np.ndarray:
-    """:meth:`StandstillBlocks.stationary` of every frame 0 .. B-1 at once (same sums in the same order;
-    ``W`` blocks, default the tests' window)."""
-    B = counts.size
-    W = tests.blocks(rate) if W is None else W
-    out = np.zeros(B, dtype=bool)
-    if B < W:
-        return out
-    m = B - W + 1                                   # frames W-1 .. B-1
-    n = np.zeros(m, dtype=np.int64)
-    s = np.zeros((12, m))
-    full = np.ones(m, dtype=bool)
-    for j in range(W):                              # newest block first, as StandstillBlocks.windows
-        lo = W - 1 - j
-        n += counts[lo:lo + m]
-        s += sums[:, lo:lo + m]
-        full &= counts[lo:lo + m] > 0
-    nn = np.maximum(n, 1).astype(float)
-    mean = s[:6] / nn
-    sd = np.sqrt(np.maximum(s[6:] / nn - mean * mean, 0.0))
-    gnorm = np.sqrt(mean[0] * mean[0] + mean[1] * mean[1] + mean[2] * mean[2])
-    anorm = np.sqrt(mean[3] * mean[3] + mean[4] * mean[4] + mean[5] * mean[5])
-    ok = (full & (gnorm <= tests.gyro_norm_max) & (sd[:3].max(axis=0) <= tests.gyro_std_max)
-          & (sd[3:].max(axis=0) <= tests.accel_std_max) & (np.abs(anorm - tests.gravity) <= tests.accel_norm_tol))
-    out[W - 1:] = ok
+    """:meth:`StandstillBlocks.stationary` of every frame 0 .. B-1 (its compiled body on the blocks of
+    :func:`block_sums`; ``W`` blocks, default the tests' window)."""
+    ring = np.concatenate([counts[:, None].astype(float), sums.T], axis=1)
+    return _all_windows(ring, tests.blocks(rate) if W is None else W, tests.array())
+
+
+@njit
+def _all_windows(ring: np.ndarray, W: int, thresholds: np.ndarray) -> np.ndarray:
+    """:func:`_windows` of the ``W`` window at every block of ``ring`` (block ``j`` in row ``j``)."""
+    B = ring.shape[0]
+    keys = np.arange(B)
+    out = np.zeros(B, dtype=np.bool_)
+    work = np.zeros((5, 6))
+    for k in range(B):
+        out[k] = _windows(ring, keys, k, W, 0, thresholds, work) & 1 != 0
     return out
 
 
@@ -397,6 +364,7 @@ class CausalGyroBias:
         self.last = r.int("last", minimum=-1)
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        self.auto = bool(state["auto"])
-        self.value = tuple(float(x) for x in state["value"])
-        self.n, self.s, self.last = int(state["n"]), [float(x) for x in state["s"]], int(state["last"])
+        """Resume from :meth:`state_dict`, of either kind (checked as :meth:`load_checked`)."""
+        from imu_ground.imu.warm_start import StateReader
+        self.auto, self.value = bool(state["auto"]), tuple(state["value"])
+        self.load_checked(StateReader("CausalGyroBias", state))

@@ -1,44 +1,31 @@
 """A causal sample clock: raw IMU stamps in, strictly increasing sample times out, one sample at a time.
 
-The readers retime a jittered log on the sample index with one fit over the whole
-file (:mod:`imu_ground.datasets.retime`); a live stream cannot wait for the end.
-:class:`SampleClock` makes the same choices from the stamps seen so far:
+The causal form of the readers' retiming on the sample index (:mod:`imu_ground.datasets.retime`, which fits
+the whole file at once); :class:`SampleClock` makes the same choices from the stamps seen so far:
 
-- **Warm-up**: the first :data:`WARMUP` samples with increasing stamps pass as they
-  are (non-increasing ones are dropped); the median of their steps is the first
-  sample period ``dt`` (s).
-- **Index clock**: afterwards each sample is one period after the last output,
-  ``t_out = t_prev + dt + alpha c`` with the stamp's offset ``e = t - (t_prev + dt)``
-  clipped to ``c = clip(e, -dt / 2, dt / 2)``; the period follows ``dt += beta c``
-  (a second-order phase-locked loop: ``alpha`` pulls the clock onto the stamps,
-  ``beta`` follows the true rate). Stamps that step back or repeat (``policy
-  "retime"``) are thereby retimed on the sample index; with ``policy "drop"`` a stamp
-  not later than every earlier one is dropped instead (the readers' ``drop``).
-- **Dropouts**: a stamp more than half a period ahead of the clock is jitter while
-  it comes back within ``hold`` seconds (the OXTS extract jumps ahead by up to
-  0.55 s and steps back by 50 ms every 6 samples); when it stays ahead for ``hold``
-  seconds the clock jumps forward by the least offset seen (a dropout, a gap the
-  preintegrator flags and integrates through). An offset of more than ``hold`` is
-  a dropout at once.
-- **Stamps far off** (more than ``max_gap`` before the last accepted stamp, or more than
-  ``hold`` ahead of the clock): one such stamp is a bad sample, not a new clock (a
-  nanosecond stamp among seconds, a driver's glitch): it is dropped (:data:`DROP`, counted
-  in :attr:`SampleClock.bad`) and the clock goes on. Only :data:`CONFIRM` consecutive far-off
-  stamps that agree with each other (each within ``max_gap`` of the one before) are a real
-  change of the clock, taken at the last of them: ahead by at most ``max_jump``, a dropout
-  (a gap the preintegrator flags); further ahead (a clock set forward: integrating through
-  would make a gap frame for every frame period of it) or back (a clock set back, a log
-  started again), a **restart** of the clock (warm-up again); :meth:`push` says so and the
-  caller starts its front end afresh. The warm-up likewise starts again when
-  :data:`CONFIRM` agreeing stamps in a row come before its latest one (a far-ahead stamp
-  among the first samples), and a warm-up stamp far ahead of the warm-up's own steps
-  (:data:`WARMUP_FAR_STEPS` times their median) is a bad sample unless :data:`CONFIRM` agree.
+- **Warm-up**: the first :data:`WARMUP` samples with increasing stamps pass as they are (non-increasing ones
+  are dropped); the median of their steps is the first sample period ``dt`` (s).
+- **Index clock**: then each sample is one period after the last output, ``t_out = t_prev + dt + alpha c``
+  with the stamp's offset ``e = t - (t_prev + dt)`` clipped to ``c = clip(e, -dt / 2, dt / 2)``, and
+  ``dt += beta c`` (a second-order phase-locked loop). Stamps that step back or repeat are thereby retimed
+  (policy ``"retime"``), or dropped when not later than every earlier one (``"drop"``, as the readers').
+- **Dropouts**: a stamp more than half a period ahead is jitter while it comes back within ``hold`` s; when
+  it stays ahead for ``hold`` s the clock jumps forward by the least offset seen (a gap the preintegrator
+  flags). An offset of more than ``hold`` is a dropout at once.
+- **Stamps far off** (more than ``max_gap`` before the last stamp, or more than ``hold`` ahead of the
+  clock): a bad sample, dropped (:data:`DROP`, counted in :attr:`SampleClock.bad`), unless it is the
+  :data:`CONFIRM`-th of consecutive ones that agree with each other (each within ``max_gap`` of the one
+  before): then the clock changed, at the last of them: ahead by at most ``max_jump``, a dropout; further
+  ahead or back, a **restart** (warm-up again; :meth:`~SampleClock.push` says so and the caller starts its
+  front end afresh). In the warm-up, :data:`CONFIRM` agreeing stamps before its latest one, or far ahead
+  of its steps (:data:`WARMUP_FAR_STEPS` times their median), start it again; fewer are bad samples.
 
-Times are seconds; nothing here allocates per sample beyond Python floats.
+Times are seconds.
 """
 from __future__ import annotations
 
 import math
+import statistics
 from typing import Any
 
 import numpy as np
@@ -107,14 +94,14 @@ def clock_step(c: np.ndarray, t: float) -> int:
     return OK
 
 
-def _slot(i: int, kind: type = float, doc: str | None = None) -> Any:
+def _slot(i: int, kind: type = float) -> Any:
     """An attribute kept in the clock buffer at ``i`` (read back as ``kind``)."""
     def get(self: SampleClock) -> Any:
         return kind(self._c[i])
 
     def put(self: SampleClock, v: Any) -> None:
         self._c[i] = v
-    return property(get, put, doc=doc)
+    return property(get, put)
 
 
 class SampleClock:
@@ -186,16 +173,16 @@ class SampleClock:
         self.t = math.nan
         self.dt = math.nan
         self._raw_max = -math.inf
-        self._raw_prev = math.nan            # the last stamp pushed
-        self._steps: list[float] = []
-        self._pending = math.nan            # output time when the stamps went ahead (NaN: they are not)
-        self._pmin = math.inf               # the least offset since then, s
+        self._raw_prev = math.nan
+        self._steps: list[float] = []       # the warm-up's steps
+        self._pending = math.nan
+        self._pmin = math.inf
         self.retimed = self.dropped = self.dropouts = self.restarts = self.bad = 0
         self.bad_offset = 0.0
-        self.confirming = 0                 # samples dropped while a change of the clock was confirmed
+        self.confirming = 0
         self.last_jump = 0.0                # the last restart's step back, s (negative: a step forward)
         self._sus_t = math.nan              # the last of the far-off stamps in a row (NaN: none)
-        self._sus_n = 0                     # how many agree so far
+        self._sus_n = 0
         if counts is not None:
             for k, v in zip(_COUNTS, counts, strict=True):
                 setattr(self, k, v)
@@ -204,11 +191,6 @@ class SampleClock:
     def buffer(self) -> np.ndarray:
         """The state and settings :func:`clock_step` runs on (float64), for a caller's own compiled step."""
         return self._c
-
-    @property
-    def suspect(self) -> bool:
-        """Far-off stamps are pending (the next stamp decides whether they were bad or a new clock)."""
-        return self._sus_n > 0
 
     @property
     def max_gap(self) -> float:
@@ -229,15 +211,23 @@ class SampleClock:
             return self._far_off(t, self._raw_prev, t - (self.t + self.dt))
         return (OK, self.t) if code == OK else (DROP, math.nan)
 
-    def _agrees(self, t: float, max_gap: float) -> bool:
-        """``t`` continues the far-off stamps pending (within ``max_gap`` of the last)."""
-        return self._sus_n > 0 and abs(t - self._sus_t) <= max_gap
+    def _suspect(self, t: float, agrees: bool) -> bool:
+        """One more far-off stamp (``agrees``: with the one before it); True at the :data:`CONFIRM`-th."""
+        self._sus_n = self._sus_n + 1 if (self._sus_n > 0 and agrees) else 1
+        self._sus_t = t
+        return self._sus_n >= CONFIRM
+
+    def _restart(self, t: float, jump: float) -> tuple[int, float]:
+        """A new clock from ``t`` (``jump``: the step back, s), warmed up again; the counts kept."""
+        self.reset(keep_counts=True)
+        self.restarts += 1
+        self.last_jump = jump
+        self._warmup(t)
+        return RESTART, t
 
     def _far_off(self, t: float, prev: float, e: float) -> tuple[int, float]:
         """A stamp far off the clock: dropped as bad, unless it is the :data:`CONFIRM`-th of agreeing ones."""
-        self._sus_n = self._sus_n + 1 if self._agrees(t, self.gap_factor * self.dt) else 1
-        self._sus_t = t
-        if self._sus_n < CONFIRM:
+        if not self._suspect(t, abs(t - self._sus_t) <= self.gap_factor * self.dt):
             self.bad += 1
             self.bad_offset = e if e > 0 else t - prev
             return DROP, math.nan
@@ -245,11 +235,7 @@ class SampleClock:
         self.bad = max(self.bad - (CONFIRM - 1), 0)         # the first of them: not bad stamps, a change of clock
         self.confirming += CONFIRM - 1
         if t < prev or t > prev + self.max_jump:            # the clock was set back or forward: start again
-            self.reset(keep_counts=True)
-            self.restarts += 1
-            self.last_jump = prev - t
-            self._warmup(t)
-            return RESTART, t
+            return self._restart(t, prev - t)
         self._pending = math.nan                            # far ahead for CONFIRM samples: a dropout
         self.dropouts += 1
         self._raw_prev = t
@@ -258,21 +244,6 @@ class SampleClock:
         self.t = t
         return OK, t
 
-    def _suspect(self, t: float, agrees: bool) -> bool:
-        """One more warm-up stamp off the warm-up (``agrees``: with the one before it); True at the CONFIRM-th."""
-        self._sus_n = self._sus_n + 1 if (self._sus_n > 0 and agrees) else 1
-        self._sus_t = t
-        return self._sus_n >= CONFIRM
-
-    def _warm_again(self, t: float) -> tuple[int, float]:
-        """CONFIRM agreeing stamps off the warm-up: a new clock, warmed up again from ``t`` (a restart)."""
-        jump = self._raw_max - t
-        self.reset(keep_counts=True)
-        self.restarts += 1
-        self.last_jump = jump
-        self._warmup(t)
-        return RESTART, t
-
     def _warmup(self, t: float) -> tuple[int, float]:
         self._raw_prev = t
         if not t > self._raw_max:
@@ -280,7 +251,7 @@ class SampleClock:
             # (its latest stamp was a bad one far ahead)
             # (agreeing: increasing; the unit of the stamps is not known yet)
             if self._suspect(t, t > self._sus_t):
-                return self._warm_again(t)
+                return self._restart(t, self._raw_max - t)
             self.dropped += 1
             return DROP, math.nan
         far = WARMUP_FAR_STEPS * sorted(self._steps)[len(self._steps) // 2] if len(self._steps) >= WARMUP_FAR_AFTER \
@@ -289,7 +260,7 @@ class SampleClock:
             # far ahead of the warm-up's steps (its unit not known yet: relative to them): a bad stamp, unless it
             # is the CONFIRM-th of agreeing ones (each within as many steps of the one before): then a new clock
             if self._suspect(t, 0 < t - self._sus_t <= far):
-                return self._warm_again(t)
+                return self._restart(t, self._raw_max - t)
             self.bad += 1
             self.bad_offset = t - self._raw_max
             return DROP, math.nan
@@ -298,9 +269,7 @@ class SampleClock:
             self._steps.append(t - self._raw_max)
         self._raw_max = self.t = t
         if len(self._steps) >= WARMUP - 1:
-            s = sorted(self._steps)
-            m = len(s) // 2
-            self.dt = s[m] if len(s) % 2 else 0.5 * (s[m - 1] + s[m])
+            self.dt = statistics.median(self._steps)
             self._steps = []
         return OK, t
 
@@ -314,17 +283,9 @@ class SampleClock:
                 "bad": [self.bad, self.bad_offset, self.confirming], "suspect": [_f(self._sus_t), self._sus_n]}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Resume from :meth:`state_dict`."""
-        self.t, self.dt = _g(state["t"]), _g(state["dt"])
-        self._raw_max, self._raw_prev = _g(state["raw_max"]), _g(state["raw_prev"])
-        self._steps = [float(x) for x in state["steps"]]
-        self._pending, self._pmin = _g(state["pending"]), _g(state["pmin"])
-        self.retimed, self.dropped, self.dropouts, self.restarts = (int(x) for x in state["counts"])
-        self.last_jump = float(state["last_jump"])
-        self.bad, self.bad_offset, self.confirming = (int(state["bad"][0]), float(state["bad"][1]),
-                                                      int(state["bad"][2])) if "bad" in state else (0, 0.0, 0)
-        self._sus_t, self._sus_n = (_g(state["suspect"][0]), int(state["suspect"][1])) if "suspect" in state \
-            else (math.nan, 0)
+        """Resume from :meth:`state_dict` (checked as :meth:`load_checked`, any period)."""
+        from imu_ground.imu.warm_start import StateReader
+        self.load_checked(StateReader("SampleClock", state), math.inf)
 
     def take_notes(self) -> list[str]:
         """What the clock did since the last call (bad stamps, samples dropped, stamps retimed), one phrase each
@@ -388,10 +349,5 @@ class SampleClock:
 
 
 def _f(x: float) -> float | str | None:
-    """A float for JSON: None for NaN and infinities (:func:`_g` reads it back)."""
+    """A float for JSON: None for NaN, "inf" and "-inf" for infinities (:meth:`SampleClock.load_checked` reads it)."""
     return x if math.isfinite(x) else (None if math.isnan(x) else ("inf" if x > 0 else "-inf"))
-
-
-def _g(x: Any) -> float:
-    """The float :func:`_f` wrote (None: NaN; "inf", "-inf": infinities)."""
-    return math.nan if x is None else float(x)
