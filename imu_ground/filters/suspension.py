@@ -92,7 +92,7 @@ from imu_ground.filters.status import (CONVERGED_MOVING_SECONDS, CONVERGED_STD, 
 from imu_ground.filters.suspension_model import SuspensionModel, load_share
 from imu_ground.imu.egomotion import EgoFrame
 from imu_ground.imu.warm_start import STATE_VERSION, StateError, StateReader, pack_state, unpack_state
-from imu_ground.so3 import heading_change, matrix_from_quat, twist_angle
+from imu_ground.so3 import heading_change, matrix_from_quat, quat_from_matrix, twist_angle
 from imu_ground.units import DEG
 
 __all__ = [
@@ -576,12 +576,14 @@ class SuspensionAwareFilter:
         Ps[:, 0, 0] = Ps[:, 1, 1] = o[:, 4]
         Ps[:, 2, 2] = o[:, 5]
         cum = gt.cumulative
+        qE = o[:, :4]
         if smooth and m:
             Xs = self._smooth(gt.body_increments, cum @ np.swapaxes(E, 1, 2), Ps, q)
             E = np.swapaxes(Xs, 1, 2) @ cum
+            qE = quat_from_matrix(E)
         held = {name: hold_skipped(v, good, start[name]) for name, v in
                 dict(E=E, P=Ps, cum=cum, load=u, speed=gt.speed, gains=ks, gravity=gt.gravity).items()}
-        extra = self._track_confidence(em, sub, good, Ps[:, 0, 0], u, ks, gt.P, E, speed, psi / dt, gt.speed, road,
+        extra = self._track_confidence(em, sub, good, Ps[:, 0, 0], u, ks, gt.P, qE, speed, psi / dt, gt.speed, road,
                                        road_pass)
         susp_all = self.model.tilt(held["gains"], held["load"])
         cum_all = held["cum"]
@@ -610,7 +612,7 @@ class SuspensionAwareFilter:
 
 
     def _track_confidence(self, em, sub, good: np.ndarray, a: np.ndarray, load: np.ndarray, gains: np.ndarray,
-                          gravity_cov: np.ndarray, E: np.ndarray, speed: Optional[np.ndarray], yaw_rate: np.ndarray,
+                          gravity_cov: np.ndarray, q: np.ndarray, speed: Optional[np.ndarray], yaw_rate: np.ndarray,
                           speed_used: np.ndarray, road_on: bool, road_pass=None) -> dict:
         """The fields of a batch's track that say how sure it is (the batch twin of the end of :meth:`step`);
         the road filter, the mount monitor, the clock and the 1-sigma latch advance as the frames would.
@@ -627,8 +629,8 @@ class SuspensionAwareFilter:
             The suspension model's load (m/s^2) and the gains used (rad per m/s^2) per good frame.
         gravity_cov : ndarray (G, 6, 6)
             The gravity/velocity filter's covariance per good frame.
-        E : ndarray (G, 3, 3)
-            The residuals road <- body.
+        q : ndarray (G, 4)
+            The residuals road <- body, unit quaternions (w, x, y, z).
         speed : ndarray (G,) or None
             Measured speed per good frame, m/s.
         yaw_rate : ndarray (G,)
@@ -656,7 +658,7 @@ class SuspensionAwareFilter:
         sp = np.full(m, np.nan) if speed is None else speed
         rg = np.full((m, 3), np.nan)
         if road_on:
-            road[good], rg, _ = self.road_filter.run(sub, sp, E, np.sqrt(var[:, 0]), np.sqrt(var[:, 1]), road_pass)
+            road[good], rg = self.road_filter.run(sub, sp, q, np.sqrt(var[:, 0]), np.sqrt(var[:, 1]), road_pass)
         times = np.cumsum(np.concatenate([[self._time], np.asarray(sub.delta_t, dtype=float)]))[1:]   # (as step sums)
         if m:
             self._time = float(times[-1])
