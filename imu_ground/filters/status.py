@@ -80,13 +80,14 @@ from typing import Any, Optional
 
 import numpy as np
 
+from imu_ground._jit import jitable, njit
 from imu_ground.imu.warm_start import as_reader
 from imu_ground.units import DEG
 
 __all__ = ["STATUSES", "CONVERGING", "OK", "STANDSTILL", "GAP", "DEGRADED", "INVALID", "CONVERGED_STD", "FILTER_CONVERGED_STD",
            "CONVERGED_MOVING_SECONDS",
            "AngleStd", "DriveStatistics", "DRIVE_PRIOR_SECONDS", "SigmaModel", "frame_std", "frame_reason", "SUSPENSION_STD", "FILTER_STD",
-           "SLOW_SPEED", "SLOW_REASON", "ok_note", "status_reason", "frame_status_code", "gap_run_durations",
+           "SLOW_SPEED", "SLOW_REASON", "ok_note", "tilt_weights", "status_reason", "frame_status_code", "gap_run_durations",
            "track_statuses", "track_reasons", "status_names"]
 
 #: The statuses, indexed by their code.
@@ -174,6 +175,14 @@ SUSPENSION_STD = (AngleStd(0.0416, 0.0221 * DEG, 0.0259 * DEG, 0.0129 * DEG, 0.0
 FILTER_STD = (AngleStd(0.0, 0.0, 0.0, 0.226 * DEG), AngleStd(0.0, 0.0, 0.0, 0.327 * DEG))
 
 
+def tilt_weights(k_pitch: Any, k_roll: Any, load_share: float, cross_gain: float) -> tuple:
+    """Factors of the gravity estimate's horizontal variance (its two world-horizontal variances summed,
+    (m/s^2)^2) in the variances of the modelled pitch and roll (rad^2), floats or arrays alike:
+    ``h (k_pitch^2 + k_cross^2)`` and ``h k_roll^2``, ``h = (1 - s)^2 / 2`` (``s`` the load share)."""
+    h = 0.5 * (1.0 - load_share) ** 2
+    return h * (k_pitch * k_pitch + cross_gain * cross_gain), h * k_roll * k_roll
+
+
 def ok_note(slow: bool, road_note: Optional[str]) -> Optional[str]:
     """The note of an ``ok`` frame: :data:`SLOW_REASON` when ``slow``, then ``road_note`` (None: no note)."""
     if slow:
@@ -225,38 +234,23 @@ def status_names(codes: np.ndarray) -> np.ndarray:
     return np.asarray(STATUSES, dtype=object)[np.asarray(codes, dtype=np.intp)]
 
 
-def frame_status_code(converged: bool, stationary: bool, valid: bool, degraded: bool = False) -> int:
-    """The status code of one processed frame (:func:`track_statuses` looks every frame of a batch up in it).
+def frame_status_code(converged: Any, stationary: Any, valid: Any, degraded: Any = False) -> Any:
+    """The status code of one processed frame, or of every frame of a batch alike (0/1 int arrays).
 
-    ``converged`` is the estimator's latch after this frame (its larger 1-sigma has been at
-    or below its threshold once); a frame at rest is ``standstill``, one a monitor flags
-    ``degraded``, one integrated through a gap ``gap``, each overriding the ones before.
+    ``converged`` is the estimator's latch after the frame (its larger 1-sigma has been at or below its
+    threshold once); a frame at rest is ``standstill``, one a monitor flags ``degraded``, one integrated
+    through a gap ``gap``, each overriding the ones before (``code + (X - code) * flag``: X where flagged).
     """
-    code = OK if converged else CONVERGING
-    if stationary:
-        code = STANDSTILL
-    if degraded:
-        code = DEGRADED
-    if not valid:
-        code = GAP
-    return code
-
-
-def _status_table() -> np.ndarray:
-    """:func:`frame_status_code` of every combination, indexed ``[converged, stationary, valid, degraded]``."""
-    table = np.zeros((2, 2, 2, 2), dtype=np.uint8)
-    for idx in np.ndindex(table.shape):
-        table[idx] = frame_status_code(*(bool(i) for i in idx))
-    return table
-
-
-_STATUS_TABLE = _status_table()
+    code = CONVERGING + (OK - CONVERGING) * converged
+    code = code + (STANDSTILL - code) * stationary
+    code = code + (DEGRADED - code) * degraded
+    return code + (GAP - code) * (1 - valid)
 
 
 def track_statuses(var_max: np.ndarray, stationary: np.ndarray, valid: np.ndarray, good: np.ndarray,
                    converged: bool = False, degraded: Optional[np.ndarray] = None,
                    converged_std: float = CONVERGED_STD) -> tuple[np.ndarray, bool]:
-    """The status code of every frame of a batch: :func:`frame_status_code` of each frame (looked up), the
+    """The status code of every frame of a batch: :func:`frame_status_code` of the frames' flags, the
     convergence latch accumulated over the batch, and ``invalid`` for a skipped frame.
 
     Parameters
@@ -284,9 +278,9 @@ def track_statuses(var_max: np.ndarray, stationary: np.ndarray, valid: np.ndarra
     n = len(good)
     below = good & (np.asarray(var_max, dtype=float) <= converged_std * converged_std)
     conv = np.logical_or.accumulate(below) | converged if n else below
-    deg = np.zeros(n, dtype=bool) if degraded is None else np.asarray(degraded, dtype=bool)
-    codes = _STATUS_TABLE[conv.astype(np.intp), np.asarray(stationary, dtype=np.intp),
-                          np.asarray(valid, dtype=np.intp), deg.astype(np.intp)]
+    deg = 0 if degraded is None else np.asarray(degraded, dtype=np.intp)
+    codes = frame_status_code(conv.astype(np.intp), np.asarray(stationary, dtype=np.intp),
+                              np.asarray(valid, dtype=np.intp), deg).astype(np.uint8)
     codes[~good] = INVALID
     return codes, bool(conv[-1]) if n else bool(converged)
 
@@ -352,12 +346,40 @@ def track_reasons(codes: np.ndarray, std_max: np.ndarray, dt: np.ndarray,
 DRIVE_PRIOR_SECONDS = 30.0
 
 
+def _rows(Rgs) -> tuple:
+    """The first two rows of ``Rgs`` (ground <- sensor; None: the identity) as 6 floats."""
+    return (1.0, 0.0, 0.0, 0.0, 1.0, 0.0) if Rgs is None else tuple(np.asarray(Rgs, dtype=float)[:2].ravel().tolist())
+
+
+@jitable
+def _drive_frame(s, m, dt, speed, stationary, valid, ux, uy, r):
+    """One frame of :class:`DriveStatistics` on its state ``s`` (5): ``m`` the rotation increment (9, row-major),
+    ``r`` the first two rows of ``R_gs`` (6)."""
+    if not valid or stationary or not abs(speed) >= SLOW_SPEED:
+        return
+    vx, vy, vz = 0.5 * (m[7] - m[5]), 0.5 * (m[2] - m[6]), 0.5 * (m[3] - m[1])
+    wx, wy = (r[0] * vx + r[1] * vy + r[2] * vz) / dt, (r[3] * vx + r[4] * vy + r[5] * vz) / dt
+    s[0] += dt
+    s[1] += dt * ux
+    s[2] += dt * uy
+    s[3] += dt * wx * wx
+    s[4] += dt * wy * wy
+
+
+@njit
+def _drive_frames(s, d, dt, speed, stationary, valid, load, r, out):
+    for k in range(dt.shape[0]):
+        _drive_frame(s, d[k], dt[k], speed[k], stationary[k], valid[k], load[k, 0], load[k, 1], r)
+        for i in range(5):
+            out[k, i] = s[i]
+
+
 class DriveStatistics:
     r"""Running statistics of the drive so far that the per-frame inputs of the 1-sigma do not see: the road's
     roughness (the mean square body pitch and roll rate) and the mean load (the accelerometer's offset plus the
     mean grade and crown), over the moving frames (valid, not at a standstill, the estimator's speed at or above
     :data:`SLOW_SPEED`), weighted by their durations. Causal and IMU-only (the speed is the measured one where
-    given, else the estimator's own), one formula in :meth:`update` (a frame) and :meth:`run` (a batch).
+    given, else the estimator's own); one body, :meth:`update` a frame or :meth:`run` over a batch.
 
     The body rates are the frame's rotation ``D`` (sensor increment) as the rate vector
     ``vee((D - D^T) / 2) / dt`` turned into the ground frame (``R_gs``): x the roll rate, y the pitch rate, rad/s.
@@ -370,52 +392,23 @@ class DriveStatistics:
     """
 
     def __init__(self) -> None:
-        self._rgs: Any = None
-        self._rgs_rows: list = []               # the first two rows of _rgs, once it is set
         self.reset()
 
     def reset(self) -> None:
         """No moving frame yet."""
         self.state = [0.0, 0.0, 0.0, 0.0, 0.0]
 
-    @staticmethod
-    def _rates(d, Rgs):
-        """Ground-frame roll and pitch rate times ``dt`` (rad) of rotation increments ``d`` ((N, 3, 3))."""
-        vx = 0.5 * (d[:, 2, 1] - d[:, 1, 2])
-        vy = 0.5 * (d[:, 0, 2] - d[:, 2, 0])
-        if Rgs is None:
-            return vx, vy
-        vz = 0.5 * (d[:, 1, 0] - d[:, 0, 1])
-        r = np.asarray(Rgs, dtype=float)
-        return (r[0, 0] * vx + r[0, 1] * vy + r[0, 2] * vz, r[1, 0] * vx + r[1, 1] * vy + r[1, 2] * vz)
-
     def update(self, d: np.ndarray, dt: float, speed: float, stationary: bool, valid: bool, ux: float, uy: float,
                Rgs: Optional[np.ndarray] = None) -> None:
         """One frame: ``d`` its rotation increment (sensor frame, 3x3), ``dt`` s, ``speed`` m/s, ``ux, uy`` the
-        suspension model's load (m/s^2); ``Rgs`` ground <- sensor (None: the identity). The arithmetic of
-        :meth:`run` on plain floats (the same operations in the same order)."""
-        if not valid or stationary or not abs(speed) >= SLOW_SPEED:
-            return
-        m = np.asarray(d, dtype=float).ravel().tolist()
-        vx, vy = 0.5 * (m[7] - m[5]), 0.5 * (m[2] - m[6])
-        if Rgs is not None:
-            if Rgs is not self._rgs:                # (the rows of the mount, kept while it is the same object)
-                self._rgs, self._rgs_rows = Rgs, np.asarray(Rgs, dtype=float)[:2].tolist()
-            (r00, r01, r02), (r10, r11, r12) = self._rgs_rows
-            vz = 0.5 * (m[3] - m[1])
-            vx, vy = r00 * vx + r01 * vy + r02 * vz, r10 * vx + r11 * vy + r12 * vz
-        wx, wy = vx / dt, vy / dt
-        s = self.state
-        s[0] += dt
-        s[1] += dt * ux
-        s[2] += dt * uy
-        s[3] += dt * wx * wx
-        s[4] += dt * wy * wy
+        suspension model's load (m/s^2); ``Rgs`` ground <- sensor (None: the identity)."""
+        _drive_frame(self.state, np.asarray(d, dtype=float).ravel().tolist(), dt, speed, stationary, valid, ux, uy,
+                     _rows(Rgs))
 
     def run(self, delta_R: np.ndarray, dt: np.ndarray, speed: np.ndarray, stationary: np.ndarray,
             valid: np.ndarray, load: np.ndarray, Rgs: Optional[np.ndarray] = None) -> np.ndarray:
-        """The batch twin of :meth:`update` (the same arithmetic, sums accumulated in the same order): the state
-        after each of the N frames, (N, 5), and :attr:`state` advanced to the last.
+        """:meth:`update` over N frames (a compiled loop of the same body): the state after each, (N, 5), and
+        :attr:`state` advanced to the last.
 
         Parameters
         ----------
@@ -427,20 +420,12 @@ class DriveStatistics:
             m/s^2.
         Rgs : ndarray (3, 3), optional
         """
-        dt = np.asarray(dt, dtype=float)
-        moving = np.asarray(valid, dtype=bool) & ~np.asarray(stationary, dtype=bool) & \
-            (np.abs(np.asarray(speed, dtype=float)) >= SLOW_SPEED)
-        w = np.where(moving, dt, 0.0)
-        vx, vy = self._rates(np.asarray(delta_R, dtype=float), Rgs)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            wx, wy = np.where(moving, vx / dt, 0.0), np.where(moving, vy / dt, 0.0)
-        load = np.asarray(load, dtype=float)
-        parts = (w, w * load[:, 0], w * load[:, 1], w * wx * wx, w * wy * wy)
-        out = np.empty((len(dt), 5))
-        for k, x in enumerate(parts):
-            out[:, k] = np.cumsum(np.concatenate([[self.state[k]], x]))[1:]
-        if len(dt):
-            self.state = out[-1].tolist()
+        c = np.ascontiguousarray
+        n = len(dt)
+        out, s = np.empty((n, 5)), np.array(self.state, dtype=float)
+        _drive_frames(s, c(delta_R, dtype=float).reshape(n, 9), c(dt, dtype=float), c(speed, dtype=float),
+                      c(stationary, dtype=np.bool_), c(valid, dtype=np.bool_), c(load, dtype=float), _rows(Rgs), out)
+        self.state = s.tolist()
         return out
 
     @staticmethod
@@ -547,8 +532,8 @@ class SigmaModel:
     def track(self, a: np.ndarray, load: Optional[np.ndarray] = None, gains: Optional[np.ndarray] = None,
               gravity_cov: Optional[np.ndarray] = None, yaw_rate: Optional[np.ndarray] = None,
               drive: Optional[np.ndarray] = None) -> np.ndarray:
-        """The variances (G, 2) of pitch and roll of a batch, rad^2 (the batch twin of :meth:`frame`: the same
-        :meth:`AngleStd.variance`, the gravity term grouped otherwise, equal to 1e-12 relative).
+        """The variances (G, 2) of pitch and roll of a batch, rad^2: :meth:`AngleStd.variance` of the inputs
+        :meth:`frame` keeps, as arrays.
 
         Parameters
         ----------
@@ -569,11 +554,11 @@ class SigmaModel:
             return np.stack([pm.variance(a, rate_ms=rp, load_offset=dx), rm.variance(a, rate_ms=rr, load_offset=dy)],
                             axis=1)
         assert gains is not None and gravity_cov is not None and yaw_rate is not None     # given with a load
-        sg2 = (1.0 - self.load_share) ** 2 * 0.5 * (gravity_cov[:, 3, 3] + gravity_cov[:, 4, 4])
+        gv = gravity_cov[:, 3, 3] + gravity_cov[:, 4, 4]
+        wp, wr = tilt_weights(gains[:, 0], gains[:, 1], self.load_share, self.cross_gain)
         w = np.abs(yaw_rate)
-        return np.stack([pm.variance(a, load[:, 0], load[:, 1], sg2 * (gains[:, 0] ** 2 + self.cross_gain ** 2), w,
-                                     rp, dx),
-                         rm.variance(a, load[:, 0], load[:, 1], sg2 * gains[:, 1] ** 2, w, rr, dy)], axis=1)
+        return np.stack([pm.variance(a, load[:, 0], load[:, 1], gv * wp, w, rp, dx),
+                         rm.variance(a, load[:, 0], load[:, 1], gv * wr, w, rr, dy)], axis=1)
 
     def latch_variance(self, a: np.ndarray, load: Optional[np.ndarray] = None, gains: Optional[np.ndarray] = None,
                        gravity_cov: Optional[np.ndarray] = None, yaw_rate: Optional[np.ndarray] = None,

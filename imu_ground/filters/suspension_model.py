@@ -28,6 +28,7 @@ import numpy as np
 from imu_ground import so3
 from imu_ground.filters.design import IIRFilter, butter_bandpass, foh_filter
 from imu_ground.filters.gains import TYPICAL_BAND_POWER, tilt_angles
+from imu_ground.filters.status import tilt_weights
 from imu_ground.imu.warm_start import as_reader
 
 __all__ = ["SuspensionModel", "load_share"]
@@ -84,9 +85,7 @@ class SuspensionModel:
     rate : float or None
         Frame rate of the design, Hz (None before the first frame).
     tilt_weights : (float, float)
-        Factors of the variance of gravity's horizontal components (m/s^2)^2 in the variance of the
-        modelled pitch and roll (rad^2), for the 1-sigma: ``h (k_pitch^2 + k_cross^2)`` and
-        ``h k_roll^2`` with ``h = (1 - s)^2 / 2`` (the load's share of the gravity estimate).
+        :func:`~imu_ground.filters.status.tilt_weights` of the current gains (for the 1-sigma).
     """
 
     def __init__(self, gains0: np.ndarray, load_share: float, response: Optional[Sequence[float]],
@@ -112,8 +111,7 @@ class SuspensionModel:
 
     def _set_tilt_weights(self) -> None:
         """:attr:`tilt_weights` of the current gains."""
-        h = 0.5 * (1.0 - self.load_share) ** 2
-        self.tilt_weights = (h * (self._kp * self._kp + self.cross_gain * self.cross_gain), h * self._kr * self._kr)
+        self.tilt_weights = tilt_weights(self._kp, self._kr, self.load_share, self.cross_gain)
 
     def set_mount(self, Rgs: Optional[np.ndarray]) -> None:
         """The static rotation ground <- sensor of the increments given to :meth:`step` from now on."""
