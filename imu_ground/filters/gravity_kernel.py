@@ -91,17 +91,23 @@ def body_increment(r9, d9, dv3):
                                                r9[6] * dv3[0] + r9[7] * dv3[1] + r9[8] * dv3[2])
 
 
-def body_increments(r, d, dv):
-    """:func:`body_increment` of many frames, vectorised: ``d`` (..., 3, 3), ``dv`` (..., 3), ``r`` (3, 3).
+@njit
+def _body_frames(r9, d, dv, d_out, dv_out):
+    for k in range(d.shape[0]):
+        b9, b3 = body_increment(r9, d[k], dv[k])
+        for i in range(9):
+            d_out[k, i] = b9[i]
+        dv_out[k, 0], dv_out[k, 1], dv_out[k, 2] = b3
 
-    Summed in :func:`body_increment`'s order (one rounding per product and sum, no
-    matrix-product library), so each frame equals the scalar result bit for bit.
-    """
-    r = np.asarray(r, dtype=float)
+
+def body_increments(r, d, dv):
+    """:func:`body_increment` of many frames (a compiled loop): ``d`` (..., 3, 3), ``dv`` (..., 3), ``r`` (3, 3)."""
     d, dv = np.asarray(d, dtype=float), np.asarray(dv, dtype=float)
-    t = (r[:, 0, None] * d[..., None, 0, :] + r[:, 1, None] * d[..., None, 1, :]) + r[:, 2, None] * d[..., None, 2, :]
-    b = (t[..., :, 0, None] * r[:, 0] + t[..., :, 1, None] * r[:, 1]) + t[..., :, 2, None] * r[:, 2]
-    return b, (dv[..., 0, None] * r[:, 0] + dv[..., 1, None] * r[:, 1]) + dv[..., 2, None] * r[:, 2]
+    n = d.size // 9
+    d_out, dv_out = np.empty((n, 9)), np.empty((n, 3))
+    r9 = tuple(np.asarray(r, dtype=float).ravel().tolist())
+    _body_frames(r9, np.ascontiguousarray(d).reshape(n, 9), np.ascontiguousarray(dv).reshape(n, 3), d_out, dv_out)
+    return d_out.reshape(d.shape), dv_out.reshape(dv.shape)
 
 
 @njit
