@@ -392,6 +392,8 @@ class DriveStatistics:
     """
 
     def __init__(self) -> None:
+        self._rgs: Any = None
+        self._rows = _rows(None)                # the first two rows of _rgs (kept while it is the same object)
         self.reset()
 
     def reset(self) -> None:
@@ -402,8 +404,10 @@ class DriveStatistics:
                Rgs: Optional[np.ndarray] = None) -> None:
         """One frame: ``d`` its rotation increment (sensor frame, 3x3), ``dt`` s, ``speed`` m/s, ``ux, uy`` the
         suspension model's load (m/s^2); ``Rgs`` ground <- sensor (None: the identity)."""
+        if Rgs is not self._rgs:
+            self._rgs, self._rows = Rgs, _rows(Rgs)
         _drive_frame(self.state, np.asarray(d, dtype=float).ravel().tolist(), dt, speed, stationary, valid, ux, uy,
-                     _rows(Rgs))
+                     self._rows)
 
     def run(self, delta_R: np.ndarray, dt: np.ndarray, speed: np.ndarray, stationary: np.ndarray,
             valid: np.ndarray, load: np.ndarray, Rgs: Optional[np.ndarray] = None) -> np.ndarray:
