@@ -2,52 +2,25 @@ r"""How sure an estimate is: the calibrated 1-sigma of pitch and roll, and a per
 
 1-sigma
 -------
-The residual filter's covariance of the slow road attitude is ``diag(a, a, c)``
-(rad^2, :mod:`imu_ground.filters.residual`); it knows the body's unmodelled
-motion (``sigma_e``) but not the errors of the suspension model (gains that are
-not the car's, worst in turns) nor the gravity estimate the load is built from. The
-standard deviation of the body-relative-to-road pitch and roll is modelled as
+The residual filter's covariance of the road attitude is ``diag(a, a, c)`` (rad^2,
+:mod:`imu_ground.filters.residual`); it knows the unmodelled body motion but not the errors of the
+suspension model nor of the gravity estimate. The variance of the body-relative-to-road pitch and roll is
 
 .. math::
 
     \sigma^2 = c_a^2\,a + (g_x u_x)^2 + (g_y u_y)^2 + (h\,\omega)^2 + f^2 + \sigma_b^2 + (r\,\rho)^2 + (m\,d)^2
 
-with ``u = (u_x, u_y)`` the load of the suspension model (m/s^2, body frame), ``omega``
-the frame's yaw rate (rad/s: the heading change about the ground's up axis over the frame
-duration, :func:`~imu_ground.so3.heading_change`), ``h`` its weight (rad per rad/s: a turn's
-roll error is the roll gradient the model has wrong times the lateral load, and the turning
-lasts while the road state is still catching up), ``f`` a floor and ``sigma_b^2`` the gravity
-estimate's horizontal variance carried through the load into the modelled tilt
-(``(k (1 - s))^2 sigma_g^2``: ``k`` the gains, ``s`` the load share, ``sigma_g^2`` the mean of
-the gravity filter's two world-horizontal variances).
-
-The last two are the drive terms (:class:`DriveStatistics`: running, causal, from the IMU alone, the same in a
-stream and a batch, kept in the saved state). ``rho`` is the RMS body rate about the angle's axis (pitch rate for
-pitch, roll rate for roll, rad/s) over the moving frames so far, ``r`` its weight (rad per rad/s): a rough road
-makes larger errors all drive long, which no per-frame input shows. ``d`` is the mean load along the angle's
-axis so far (``u_x`` for pitch, ``u_y`` for roll) off a centre ``c`` (m/s^2), ``m`` its weight (rad per m/s^2):
-an accelerometer bias ``b`` enters the load and tilts the modelled body by ``k b`` for the whole drive, an offset
-of the drive's errors. Its mean load is the bias plus the road's mean grade or crown and the mean acceleration;
-the bias cannot be told from a crown from the data (``benchmarks/studies/drive_offset.py``), so the term widens
-the 1-sigma by the size of the likely offset and corrects nothing. Both carry :data:`DRIVE_PRIOR_SECONDS` of
-prior (zero rate, the centre), so they grow in over the first minute of driving.
-
-The constants (:data:`SUSPENSION_STD`) are fitted by ``benchmarks/studies/calibrate_std.py`` on
-synthetic drives with exact truth only (navigation and MEMS grade, 300-600 s, several seeds): the
-Gaussian likelihood of the errors, with each grade's share within 1 sigma held at 62-76 %, that of
-each quarter of the frames by their 1-sigma at 58-80 % (as right where it is large as where it is
-small) and that of each drive at 55-82 %. The yaw-rate term ``h`` ships only where it makes the synthetic errors'
-likelihood better: not for roll (its turning frames' 1-sigma would be too wide; the roll is least sure in turns
-through the lateral load), a negligible one for pitch.
-``benchmarks/RESULTS.md`` has the coverage on held-out seeds, pooled and per drive, and, as a
-diagnostic only, the revisit check of the real drives that pass the same place twice, which measures
-how differently the passes were driven as much as the 1-sigma
-(``benchmarks/studies/synthetic_revisit.py``). The constants hold for the default configurations; a
-filter with other noises keeps them (its ``a`` still scales the first term).
-
-:data:`FILTER_STD`, for the invariant filter without a suspension model (whose covariance is a
-tuning), is a constant per angle: the smallest that keeps each grade of the same synthetic fit
-drives at 70 % within 1 sigma or above (its MEMS errors are larger on shorter drives).
+with ``u`` the suspension model's load (m/s^2, body frame), ``omega`` the yaw rate (rad/s,
+:func:`~imu_ground.so3.heading_change` over the frame duration) and ``h`` its weight, ``f`` a floor,
+``sigma_b^2`` the gravity estimate's horizontal variance carried through the load into the modelled tilt
+(:func:`tilt_weights`). The drive terms (:class:`DriveStatistics`, causal, IMU-only, saved with the
+state): ``rho`` the RMS body rate about the angle's axis over the moving frames so far, ``r`` its weight
+(a rough road makes larger errors all drive long); ``d`` the mean load along the angle's axis so far off a
+centre ``c`` (m/s^2), ``m`` its weight (an accelerometer bias tilts the modelled body by ``k b`` all
+drive; it cannot be told from a road crown, so the term widens the 1-sigma and corrects nothing). Both
+carry :data:`DRIVE_PRIOR_SECONDS` of prior. The constants (:data:`SUSPENSION_STD`, :data:`FILTER_STD`)
+are fitted on synthetic drives with exact truth by ``benchmarks/studies/calibrate_std.py``; their
+coverage is in ``benchmarks/RESULTS.md``.
 
 Status
 ------
@@ -55,22 +28,14 @@ One of :data:`STATUSES` per frame, the first that applies in this order:
 
 - ``invalid``: a bad frame the estimator skipped (``on_invalid="skip"``); the values are the previous frame's;
 - ``gap``: the frame was integrated through a timestamp gap (``valid`` False);
-- ``degraded``: a monitor of the estimate flags it, the reason says which: the mount monitor
-  (:mod:`imu_ground.filters.mount_monitor`, with a measured speed) when the sensor's mount moved,
-  from then on (until re-estimated, :mod:`imu_ground.filters.recalibration`);
+- ``degraded``: a monitor flags it, the reason says which (the mount monitor,
+  :mod:`imu_ground.filters.mount_monitor`, from the alarm on until re-estimated);
 - ``standstill``: the frame ends at a standstill (the road and the body are held);
-- ``converging``: from the start (and from a reset) until ``max(pitch_std, roll_std)``
-  has once been at or below :data:`CONVERGED_STD` (0.15 deg; :data:`FILTER_CONVERGED_STD` for the
-  invariant filter without suspension model) with at least :data:`CONVERGED_MOVING_SECONDS` of moving
-  frames seen (latched; the suspension filter only): before that the drive terms of the 1-sigma have not
-  yet grown in and too few of the first moving frames' errors fall within their 1-sigma
-  (``benchmarks/studies/convergence_time.py`` chooses the time on synthetic fit suites with exact truth and
-  scores it on held-out ones; the figures are in ``benchmarks/RESULTS.md``);
-- ``ok``; its reason is empty or a note (:func:`ok_note`): :data:`SLOW_REASON` below
-  :data:`SLOW_SPEED` (the estimator's speed: measured, else its own estimate), where the body's
-  tilt (stopping, starting, steering at walking pace) is no longer well separated from the
-  road's (on the synthetic MEMS-grade drives the errors there are about 1.5 times those above);
-  and, where the road's grade and bank are not estimated, why.
+- ``converging``: from the start (and a reset) until ``max(pitch_std, roll_std)`` without the drive terms has
+  once been at or below :data:`CONVERGED_STD` (:data:`FILTER_CONVERGED_STD` for the filter without
+  suspension model) after :data:`CONVERGED_MOVING_SECONDS` of moving frames (latched);
+- ``ok``; its reason is empty or a note (:func:`ok_note`): :data:`SLOW_REASON` below :data:`SLOW_SPEED`
+  (road and body tilt no longer well separated), and, where the road is not estimated, why.
 """
 from __future__ import annotations
 
@@ -96,14 +61,11 @@ CONVERGING, OK, STANDSTILL, GAP, DEGRADED, INVALID = range(6)
 #: A frame whose larger 1-sigma (pitch or roll) is at or below this (rad, 0.15 deg) ends ``converging``
 #: (:class:`~imu_ground.filters.suspension.SuspensionAwareFilter`).
 CONVERGED_STD = 0.15 * DEG
-#: The same for :class:`~imu_ground.filters.ground.GroundNormalFilter` (rad, 0.8 deg: its roll, with no
-#: suspension model, is never better than ~0.7 deg on the synthetic drives; the threshold ends the
-#: transient of its initial covariance).
+#: The same for :class:`~imu_ground.filters.ground.GroundNormalFilter` (rad, 0.8 deg: the end of its initial
+#: covariance's transient).
 FILTER_CONVERGED_STD = 0.8 * DEG
-#: Seconds of moving frames (:class:`DriveStatistics`: valid, not at a standstill, at or above :data:`SLOW_SPEED`)
-#: the suspension filter's latch waits for besides its 1-sigma threshold: the shortest after which at least half of the
-#: first ok frames' errors fall within their 1-sigma on the synthetic fit suites, each grade, angle and speed mode
-#: (``benchmarks/studies/convergence_time.py``; its held-out scores are in ``benchmarks/RESULTS.md``).
+#: Seconds of moving frames (:class:`DriveStatistics`) the suspension filter's latch waits for besides its
+#: 1-sigma threshold (chosen by ``benchmarks/studies/convergence_time.py``).
 CONVERGED_MOVING_SECONDS = 10.0
 #: Below this speed (m/s; the evaluation's moving-frame threshold) an ``ok`` frame carries :data:`SLOW_REASON`.
 SLOW_SPEED = 3.0
@@ -169,9 +131,8 @@ class AngleStd:
 SUSPENSION_STD = (AngleStd(0.0416, 0.0221 * DEG, 0.0259 * DEG, 0.0129 * DEG, 0.00785 * DEG, 0.0763, 0.362 * DEG,
                            0.0018),
                   AngleStd(0.395, 0.0262 * DEG, 0.0563 * DEG, 0.0396 * DEG, 0 * DEG, 0.0754, 0.488 * DEG, 0.177))
-#: Pitch and roll 1-sigma constants of :class:`~imu_ground.filters.ground.GroundNormalFilter` (no load).
-#: Its covariance is a tuning (``R = 1 rad^2``), not an angle's uncertainty: the 1-sigma is a constant, the
-#: 70th percentile of its errors on the synthetic drives of the worse grade (so it is never ``converging``).
+#: Pitch and roll 1-sigma constants of :class:`~imu_ground.filters.ground.GroundNormalFilter` (no load; its
+#: covariance is a tuning, so the 1-sigma is a constant: never ``converging``).
 FILTER_STD = (AngleStd(0.0, 0.0, 0.0, 0.226 * DEG), AngleStd(0.0, 0.0, 0.0, 0.327 * DEG))
 
 
@@ -495,9 +456,8 @@ class SigmaModel:
     def frame(self, a: float, ux: float = 0.0, uy: float = 0.0, gravity_var: float = 0.0,
               weights: tuple = (0.0, 0.0), dt: float = math.nan, note: Optional[str] = None,
               yaw_rate: float = 0.0) -> tuple:
-        """One frame (plain floats): advances the latch and returns the frame's 1-sigma inputs, which
-        :class:`~imu_ground.filters.estimator.GroundEstimate` keeps and reads on access with :func:`frame_std`
-        and :func:`frame_reason` (a plain tuple: built every frame, read only when asked for).
+        """One frame (plain floats): advances the latch and returns the frame's 1-sigma inputs (read on access
+        by :func:`frame_std` and :func:`frame_reason`).""
 
         Parameters
         ----------
@@ -568,11 +528,8 @@ class SigmaModel:
                        gravity_cov: Optional[np.ndarray] = None, yaw_rate: Optional[np.ndarray] = None,
                        moving: Optional[np.ndarray] = None) -> np.ndarray:
         """The larger of pitch's and roll's variance of each frame of a batch without the drive terms, rad^2
-        ((G,), arguments of :meth:`track`): what the convergence latch compares with ``converged_std``, in
-        :meth:`frame` and :meth:`statuses` alike. The drive's roughness and mean load do not shrink as the
-        filter converges; a drive whose terms stay large is uncertain, not converging. ``moving`` (G,): the
-        moving seconds seen after each frame (:meth:`DriveStatistics.run`'s first column); a frame with fewer
-        than ``min_moving_seconds`` gets inf (it cannot close the latch)."""
+        ((G,), arguments of :meth:`track`): what the latch compares with ``converged_std``, as :meth:`frame`
+        does. ``moving`` (G,): the moving seconds after each frame; fewer than ``min_moving_seconds``: inf."""
         var = self.track(a, load, gains, gravity_cov, yaw_rate, np.zeros((len(a), 5))).max(axis=1)
         if moving is not None and self.min_moving_seconds > 0:
             var[np.asarray(moving, dtype=float) < self.min_moving_seconds] = np.inf
