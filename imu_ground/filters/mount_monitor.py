@@ -1,32 +1,17 @@
-r"""Mount-change detection: the measured gravity turns away from the mount's up axis faster than any drift.
+"""Mount-change detection: the measured gravity turns away from the mount's up axis faster than any drift.
 
-A sensor that is bumped or remounted makes the static extrinsic wrong. With a
-measured speed the road's gravity/velocity filter (:mod:`imu_ground.filters.road`)
-keeps gravity in its gyro-integrated world frame consistent with the
-accelerometer: the speed and the vehicle constraints pin the velocity, so the
-filter turns its gravity towards whatever turn of the accelerometer's view of
-gravity the gyro did not see. A drift of the gyro-integrated frame (gyro bias) turns
-it slowly; a remount by 1 deg turns it by 0.7-0.9 deg within 15 s (then back over
-minutes, see below). The monitor compares the gravity direction now with the one
-:data:`WINDOW` seconds before: an angle above :data:`THRESHOLD` raises the alarm
-(latched until a reset). It first measures the gyro's own drift for :data:`GATE`
-seconds and stays silent if that turns gravity by more than :data:`DRIFT_LIMIT` in a
-window (a raw consumer MEMS gyro: its bias, up to ~1 deg/s, turns the frame by
-degrees). No comparison spans a frame without a speed or a gap, nor starts within
-:data:`HOLD_OFF` seconds of the road filter's start or of such a frame (the filter
-re-converges after them). Without a speed there is no road filter and no monitor
-(the accelerometer's gravity cannot then be told from the vehicle's own acceleration
-along the road).
+With a measured speed the road's gravity/velocity filter (:mod:`imu_ground.filters.road`) keeps
+gravity in its gyro-integrated world frame consistent with the accelerometer, so it turns its gravity
+towards any turn of the accelerometer's view of gravity the gyro did not see: slowly for a gyro
+drift, by most of a remount within seconds. The monitor compares the gravity direction now with
+the one :data:`WINDOW` seconds before: an angle above :data:`THRESHOLD` raises the alarm (latched
+until a reset). It first measures the gyro's own drift for :data:`GATE` seconds and stays silent if
+that turns gravity by more than :data:`DRIFT_LIMIT` in a window. No comparison spans a frame without
+a speed or a gap, nor starts within :data:`HOLD_OFF` seconds of the road filter's start or of such a
+frame. Without a speed there is no monitor.
 
-The monitor does not measure the change: the filter's gravity turns by most of the
-change within seconds and then turns back over minutes (the velocity constraints
-take up the rest), so neither its gravity nor its body-frame velocity keeps a
-record of the mount's new pitch accurate to 0.1 deg. Re-calibrate with
-``imu-ground calibrate`` when the status says the mount moved, or let
-:mod:`imu_ground.filters.recalibration` re-estimate it online (``recalibrate_online``).
-
-Measured on synthetic drives (true speed) and on the shared KITTI drives with
-``--speed auto`` in ``benchmarks/RESULTS.md`` (``benchmarks/studies/confidence.py``).
+The monitor does not measure the change (the filter's gravity turns back over minutes): re-calibrate
+(``imu-ground calibrate``) or let :mod:`imu_ground.filters.recalibration` re-estimate it online.
 """
 from __future__ import annotations
 

@@ -12,16 +12,10 @@ attitude relative to gravity, and
 
 to first order the body's attitude to gravity minus its attitude to the road.
 
-``u_b`` comes from a gravity/velocity filter of its own
-(:class:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter` with the
-estimator's options but a gravity random walk ``q_g`` of :data:`ROAD_Q_G`: the
-gyro-integrated world frame drifts with the gyro bias, and the estimator's own
-filter, tuned for the load, holds gravity too stiffly to follow it; measured on
-the synthetic drives, ``benchmarks/studies/confidence.py``). It needs a measured speed:
-without one, the velocity the attitude is corrected with is itself unobserved
-along the road, and a slow grade cannot be told from a slow acceleration. So the
-road is estimated from the first frame with a finite speed on, and is NaN
-before and wherever the frame's speed is NaN (the status reason says so).
+``u_b`` comes from a gravity/velocity filter of its own (the estimator's options with a gravity random
+walk ``q_g`` of :data:`ROAD_Q_G`, to follow the gyro-integrated world frame's drift). It needs a measured
+speed (else a slow grade cannot be told from a slow acceleration): the road is estimated from the first
+frame with a finite speed on, and is NaN before and wherever the frame's speed is NaN.
 
 1-sigma: ``sigma_grade^2 = sigma_pitch^2 + c^2 P_x / |g|^2 + f^2`` and the same for
 the bank with ``P_y``, ``P`` the gravity filter's covariance of gravity turned into
