@@ -1,23 +1,12 @@
 """The suspension model of :class:`~imu_ground.filters.suspension.SuspensionAwareFilter`: load in, body tilt out.
 
-Step 2 of that filter's pipeline. From the frame-mean specific force ``f`` and
-gravity-compensated acceleration ``a`` (body frame FLU, m/s^2, from the
-gravity/velocity filter):
-
-- the load on the springs ``u = a + s (f - a)`` (``s``: the share of gravity's
-  road-plane component the springs feel, 0 to 1), optionally through a
-  second-order ``response`` (unit static gain);
-- the body tilt relative to the road, as the residual kernel's tilt inputs:
-  roll (left side up +) ``k_roll u_y`` about x, pitch (nose down +)
-  ``k_pitch u_x + k_cross u_y`` about y (rad);
-- the gains ``(k_pitch, k_roll)`` fixed, or estimated online by causal
-  recursive least squares of the band-passed gyro tilt on the band-passed
-  acceleration (:func:`~imu_ground.filters.gains.bandpass_gain_regression` frame
-  by frame), the prior weighted like ``gain_prior_seconds`` of typical driving.
-
-Streaming (:meth:`SuspensionModel.step`) and batch (:meth:`SuspensionModel.run`)
-give the same numbers; the discrete-time design follows the frame rate
-(:meth:`SuspensionModel.design`).
+Step 2 of that filter's pipeline (its module docstring has the model: the load ``u = a + s (f - a)``,
+optionally through a second-order ``response``; the tilt roll ``k_roll u_y`` about x, pitch
+``k_pitch u_x + k_cross u_y`` about y; the gains fixed or estimated online by causal recursive least
+squares of the band-passed gyro tilt on the band-passed acceleration, the prior weighted like
+``gain_prior_seconds`` of typical driving). :meth:`SuspensionModel.step` (a frame) and
+:meth:`SuspensionModel.run` (a batch, the same recursions by :func:`scipy.signal.lfilter` and running
+sums) continue each other; the discrete-time design follows the frame rate (:meth:`SuspensionModel.design`).
 """
 from __future__ import annotations
 
