@@ -188,7 +188,7 @@ class SuspensionModel:
         return kr * uy, kp * ux + self.cross_gain * uy
 
     def _update_gains(self, d: np.ndarray, ax: float, ay: float) -> None:
-        """One frame of the online gain regression (the batch twin is in :meth:`_online_gains`)."""
+        """One frame of the online gain regression (:meth:`_online_gains` runs it over a batch)."""
         assert self._bpf is not None and self._sxx is not None and self._sxy is not None  # designed, online gains
         db = d if self._Rgs is None else self._Rgs @ d @ self._Rgs.T
         self._phi = self._phi + so3.log_one(db)[[1, 0]]
