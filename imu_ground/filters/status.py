@@ -282,21 +282,13 @@ def track_reasons(codes: np.ndarray, std_max: np.ndarray, dt: np.ndarray,
     """
     codes = np.asarray(codes)
     out = np.full(len(codes), "", dtype=object)
-    out[codes == STANDSTILL] = status_reason(STANDSTILL)
-    if details is not None:
-        ok = codes == OK
-        out[ok] = np.where(np.asarray(details, dtype=object)[ok] == None, "", details[ok])  # noqa: E711
-    # degraded (every frame after a mount alarm) and invalid: elementwise on the details, as status_reason says
     detail = np.full(len(codes), None, dtype=object) if details is None else np.asarray(details, dtype=object)
-    for code, base in ((DEGRADED, None), (INVALID, status_reason(INVALID))):
+    for code in (OK, STANDSTILL, DEGRADED, INVALID):            # status_reason of each distinct detail
         k = np.flatnonzero(codes == code)
         if k.size:
-            d = detail[k]
-            empty = (d == None) | (d == "")                                      # noqa: E711
-            if base is None:
-                out[k] = np.where(empty, status_reason(DEGRADED), d)
-            else:
-                out[k] = np.where(empty, base, base + ": " + np.where(empty, "", d))
+            d = detail[k].tolist()
+            texts = {v: status_reason(code, detail=v) for v in set(d)}
+            out[k] = [texts[v] for v in d]
     for i in np.flatnonzero((codes == CONVERGING) | (codes == GAP)).tolist():   # (few frames: the start, gaps)
         out[i] = status_reason(int(codes[i]), float(dt[i]), float(std_max[i]), detail[i], converged_std,
                                moving_seconds)
