@@ -164,10 +164,13 @@ class MountMonitor:
         """
         if self.alarm is not None:
             return self.alarm
-        self._room(1)
-        g = (math.nan,) * 3 if gravity is None else gravity
-        _frame(self._s, self._ht, self._hu, float(t), float(g[0]), float(g[1]), float(g[2]), bool(usable))
-        return self._raised()
+        s = self._s
+        if s[_HI] >= len(self._ht):
+            self._room(1)
+        gx, gy, gz = (math.nan, math.nan, math.nan) if gravity is None else gravity
+        if _frame(s, self._ht, self._hu, t, gx, gy, gz, usable):
+            return self._raised()
+        return None
 
     def run(self, t: np.ndarray, gravity: np.ndarray, usable: np.ndarray) -> np.ndarray:
         """:meth:`update` over a batch (frames in order); per frame whether the alarm is raised.
