@@ -299,19 +299,22 @@ def track_reasons(codes: np.ndarray, std_max: np.ndarray, dt: np.ndarray,
 DRIVE_PRIOR_SECONDS = 30.0
 
 
-def _rows(Rgs) -> tuple:
-    """The first two rows of ``Rgs`` (ground <- sensor; None: the identity) as 6 floats."""
-    return (1.0, 0.0, 0.0, 0.0, 1.0, 0.0) if Rgs is None else tuple(np.asarray(Rgs, dtype=float)[:2].ravel().tolist())
+def _rows(Rgs) -> Optional[tuple]:
+    """The first two rows of ``Rgs`` (ground <- sensor) as 6 floats; None for None (the identity)."""
+    return None if Rgs is None else tuple(np.asarray(Rgs, dtype=float)[:2].ravel().tolist())
 
 
 @jitable
 def _drive_frame(s, m, dt, speed, stationary, valid, ux, uy, r):
     """One frame of :class:`DriveStatistics` on its state ``s`` (5): ``m`` the rotation increment (9, row-major),
-    ``r`` the first two rows of ``R_gs`` (6)."""
+    ``r`` the first two rows of ``R_gs`` (6; None: the identity)."""
     if not valid or stationary or not abs(speed) >= SLOW_SPEED:
         return
-    vx, vy, vz = 0.5 * (m[7] - m[5]), 0.5 * (m[2] - m[6]), 0.5 * (m[3] - m[1])
-    wx, wy = (r[0] * vx + r[1] * vy + r[2] * vz) / dt, (r[3] * vx + r[4] * vy + r[5] * vz) / dt
+    vx, vy = 0.5 * (m[7] - m[5]), 0.5 * (m[2] - m[6])
+    if r is not None:
+        vz = 0.5 * (m[3] - m[1])
+        vx, vy = r[0] * vx + r[1] * vy + r[2] * vz, r[3] * vx + r[4] * vy + r[5] * vz
+    wx, wy = vx / dt, vy / dt
     s[0] += dt
     s[1] += dt * ux
     s[2] += dt * uy
@@ -397,8 +400,8 @@ class DriveStatistics:
 
 def frame_std(info: tuple, angle: int) -> float:
     """The 1-sigma (rad) of pitch (``angle`` 0) or roll (1) of a frame's :meth:`SigmaModel.frame` inputs."""
-    model, drive = info[angle], info[11][2 * angle:2 * angle + 2]
-    return math.sqrt(model.variance(info[2], info[3], info[4], info[5 + angle], info[10], *drive))
+    drive = DriveStatistics.terms(info[11], info[0], info[1])[2 * angle:2 * angle + 2]
+    return math.sqrt(info[angle].variance(info[2], info[3], info[4], info[5 + angle], info[10], *drive))
 
 
 def frame_reason(info: tuple, status_code: int, std: float) -> str:
@@ -472,13 +475,12 @@ class SigmaModel:
         -------
         tuple
             ``(pitch model, roll model, a, u_x, u_y, tilt variance pitch, tilt variance roll, frame s, note,
-            convergence threshold, yaw rate, drive terms (rate_ms_p, load_offset_x, rate_ms_r, load_offset_y),
-            moving seconds the latch waits for)``: read by :func:`frame_std` and :func:`frame_reason` only.
+            convergence threshold, yaw rate, the drive statistics' state, moving seconds the latch waits for)``:
+            read by :func:`frame_std` and :func:`frame_reason` only.
         """
         pm, rm = self.constants
-        dr = DriveStatistics.terms(self.drive.state, pm, rm)
         info = (pm, rm, a, ux, uy, gravity_var * weights[0], gravity_var * weights[1], dt, note, self.converged_std,
-                yaw_rate, dr, self.min_moving_seconds)
+                yaw_rate, tuple(self.drive.state), self.min_moving_seconds)
         if not self.converged and self.drive.state[0] >= self.min_moving_seconds:
             # the latch: without the drive terms (see :meth:`latch_variance`)
             self.converged = max(pm.variance(a, ux, uy, info[5], yaw_rate),
