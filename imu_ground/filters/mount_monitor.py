@@ -109,6 +109,7 @@ class MountMonitor:
         self.alarm: str | None = None
         self.alarm_t = math.nan
         self.reference: tuple | None = None
+        self._engaged = False
 
     def _room(self, n: int) -> None:
         """Room in the history arrays for ``n`` more entries (the window moved to their start, grown if needed)."""
@@ -143,7 +144,11 @@ class MountMonitor:
     @property
     def engaged(self) -> bool:
         """Armed or holding history: it must see every frame, with or without a road filter's gravity."""
-        return self._s[_HI] > self._s[_LO] or not math.isnan(self._s[_ARMED])
+        return self._engaged
+
+    def _after_call(self) -> None:
+        s = self._s
+        self._engaged = bool(s[_HI] > s[_LO] or not math.isnan(s[_ARMED]))
 
     def update(self, t: float, gravity, usable: bool) -> str | None:
         """One frame.
@@ -168,9 +173,9 @@ class MountMonitor:
         if s[_HI] >= len(self._ht):
             self._room(1)
         gx, gy, gz = (math.nan, math.nan, math.nan) if gravity is None else gravity
-        if _frame(s, self._ht, self._hu, t, gx, gy, gz, usable):
-            return self._raised()
-        return None
+        raised = _frame(s, self._ht, self._hu, t, gx, gy, gz, usable)
+        self._after_call()
+        return self._raised() if raised else None
 
     def run(self, t: np.ndarray, gravity: np.ndarray, usable: np.ndarray) -> np.ndarray:
         """:meth:`update` over a batch (frames in order); per frame whether the alarm is raised.
@@ -193,6 +198,7 @@ class MountMonitor:
         self._room(n)
         _frames(self._s, self._ht, self._hu, t, np.ascontiguousarray(gravity, dtype=float).reshape(n, 3),
                 np.ascontiguousarray(usable, dtype=np.bool_).reshape(n), out)
+        self._after_call()
         self._raised()
         return out
 
@@ -220,3 +226,4 @@ class MountMonitor:
         s[_HI], s[_ARMED], s[_DRIFT], s[_ALARM] = float(m), armed_at, drift, float(alarm is not None)
         self.alarm, self.alarm_t = alarm, alarm_t
         self.reference = None if reference is None else tuple(reference.tolist())
+        self._after_call()
