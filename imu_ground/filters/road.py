@@ -67,6 +67,14 @@ def _quad(p, a0, a1, a2):
 
 
 @jitable
+def _ratio(a, b):
+    """``a / b`` as numpy divides (inf, or NaN for 0 / 0, where ``b`` is 0: no gravity yet)."""
+    if b != 0.0:
+        return a / b
+    return math.nan if a == 0.0 or a != a else math.copysign(math.inf, a)
+
+
+@jitable
 def road_one(q, g, R, p6) -> tuple[float, float, float, float]:
     """Grade, bank (rad) and the gravity filter's share of their variances (rad^2) of one frame: the one body
     of the road (:func:`road_angles`, :func:`road_std` and :meth:`RoadFilter.run` drive it over a batch).
@@ -96,9 +104,9 @@ def road_one(q, g, R, p6) -> tuple[float, float, float, float]:
     n1 = 2 * (x * y + w * z) * ux + (1 - 2 * (x * x + z * z)) * uy + 2 * (y * z - w * x) * uz
     n2 = 2 * (x * z - w * y) * ux + 2 * (y * z + w * x) * uy + (1 - 2 * (x * x + y * y)) * uz
     c, f = ROAD_STD
-    s = c * c / (g[0] * g[0] + g[1] * g[1] + g[2] * g[2])
-    return (math.atan2(n0, math.hypot(n1, n2)), math.atan2(n1, n2),
-            s * _quad(p6, R[0], R[3], R[6]) + f * f, s * _quad(p6, R[1], R[4], R[7]) + f * f)   # body x, y axes
+    g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
+    return (math.atan2(n0, math.hypot(n1, n2)), math.atan2(n1, n2),                      # body x, y axes:
+            _ratio(c * c * _quad(p6, R[0], R[3], R[6]), g2) + f * f, _ratio(c * c * _quad(p6, R[1], R[4], R[7]), g2) + f * f)
 
 
 @njit
