@@ -132,7 +132,7 @@ def test_drive_terms_widen_the_1_sigma_but_do_not_hold_the_status_at_converging(
     wide = np.sqrt(sm.track(a, drive=np.array([sm.drive.state] * 2)))
     assert wide[0, 1] > CONVERGED_STD and wide[0, 1] == pytest.approx(
         np.sqrt(rm.variance(1e-8, rate_ms=0.0, load_offset=3.0 * 600.0 / (600.0 + DRIVE_PRIOR_SECONDS))), rel=1e-12)
-    assert sm.converged and info[11][3] > 2.0                       # latched, the drive term itself kept
+    assert sm.converged and DriveStatistics.terms(info[11], pm, rm)[3] > 2.0     # latched, the drive term kept
     latch = sm.latch_variance(a)
     assert np.all(latch <= CONVERGED_STD ** 2)
     fresh = SigmaModel()

@@ -69,15 +69,32 @@ def ground_filter() -> dict:
 
 
 def suspension_filter() -> dict:
-    """SuspensionAwareFilter's batch and a few steps on a short simulated drive."""
+    """SuspensionAwareFilter's batch (with a speed: road, drive statistics, monitor) and steps; the road and the
+    mount monitor (through an alarm) alone."""
     from imu_ground.evaluation.simulate import simulate
     from imu_ground.filters.suspension import SuspensionAwareFilter
     from imu_ground.imu.egomotion import imu_to_egomotion
     em = imu_to_egomotion(simulate(20.0, seed=3, imu="mems").imu)
+    from imu_ground.filters.mount_monitor import MountMonitor
+    from imu_ground.filters.road import road_angles, road_std
     tr = SuspensionAwareFilter().run(em)
     f = SuspensionAwareFilter()
     steps = np.array([[e.pitch, e.roll] for e in (f.step(em.frame_at(k)) for k in range(40))])
-    return {"pitch": tr.pitch, "roll": tr.roll, "steps": steps}
+    speed = np.full(len(em), 8.0)
+    speed[50:60] = np.nan
+    ts = SuspensionAwareFilter().run(em, speed=speed)              # the road, the drive statistics, the monitor
+    t = np.arange(1, 2001) * 0.1                                    # the mount monitor through an alarm
+    g = so3.exp(np.column_stack([np.zeros(len(t)), np.where(t > 150.0, 0.02, 0.0), np.zeros(len(t))])) @ [0, 0, 9.8]
+    g[1800:1810] = np.nan
+    m = MountMonitor()
+    alarm = m.run(t, g, np.ones(len(t), dtype=bool))
+    d = _frames(50, seed=6)
+    road = np.array([*road_angles(d, g[:50], d[::-1]), *road_std(g[:50, 0] * 1e-3, g[:50, 1] * 1e-3,
+                                                             np.tile(np.eye(3) * 1e-4, (50, 1, 1)), g[:50], d)])
+    assert alarm.any() and np.isfinite(ts.road_grade).any()
+    return {"pitch": tr.pitch, "roll": tr.roll, "steps": steps, "speed_std": np.array([ts.pitch_std, ts.roll_std]),
+            "road": np.array([ts.road_grade, ts.road_bank, ts.road_grade_std, ts.road_bank_std]),
+            "status": ts.status, "alarm": alarm, "monitor": np.array([m.alarm_t, *m.reference]), "road_fn": road}
 
 
 def imu_bodies() -> dict:

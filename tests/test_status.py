@@ -178,6 +178,32 @@ def test_road_angles_are_the_composition_of_attitudes():
     np.testing.assert_allclose(road_angles_one(q, g, R_wb.ravel()), [grade, bank], atol=1e-14)
 
 
+def test_road_values_against_the_formula_in_matrices():
+    """``road_angles``, ``road_std`` and one frame's ``road_one``: the grade and bank of ``E R^T g`` and
+    ``sigma^2 + c^2 (R^T P R)_ii / |g|^2 + f^2`` (module docstring), written here with matrix products."""
+    from imu_ground import so3
+    from imu_ground.filters.estimator import pitch_roll_from_normal
+    from imu_ground.filters.road import ROAD_STD, road_one, road_std
+    rng = np.random.default_rng(4)
+    n = 200
+    E, R = so3.exp(rng.normal(scale=0.05, size=(n, 3))), so3.exp(rng.normal(scale=1.0, size=(n, 3)))
+    g = np.array([0.0, 0.0, 9.81]) + rng.normal(scale=0.2, size=(n, 3))
+    A = rng.normal(scale=0.01, size=(n, 3, 3))
+    P = A @ np.swapaxes(A, 1, 2) + 1e-6 * np.eye(3)
+    ps, rs = rng.uniform(0.001, 0.01, n), rng.uniform(0.001, 0.01, n)
+    pitch, roll = pitch_roll_from_normal(np.einsum("nij,nkj,nk->ni", E, R, g))
+    Pb = np.swapaxes(R, 1, 2) @ P @ R
+    c, f = ROAD_STD
+    g2 = (g * g).sum(axis=1)
+    want_std = [np.sqrt(s ** 2 + c * c * Pb[:, i, i] / g2 + f * f) for i, s in ((0, ps), (1, rs))]
+    np.testing.assert_allclose(road_angles(E, g, R), [-pitch, roll], rtol=0, atol=1e-13)
+    np.testing.assert_allclose(road_std(ps, rs, P, g, R), want_std, rtol=1e-12)
+    q = so3.quat_from_matrix(E)
+    one = np.array([road_one(q[k], g[k], R[k].ravel(), P[k][np.triu_indices(3)]) for k in range(n)])
+    np.testing.assert_allclose(one[:, :2].T, [-pitch, roll], rtol=0, atol=1e-13)
+    np.testing.assert_allclose(np.sqrt(np.square([ps, rs]) + one[:, 2:].T), want_std, rtol=1e-12)
+
+
 def test_road_grade_and_bank_with_the_true_speed_nav_grade(drives):
     """Mean absolute error, each drive's mean removed, pooled over the drives: <= 0.15 deg (<= 0.2 each)."""
     err = {"road_grade": [], "road_bank": []}

@@ -297,3 +297,64 @@ def test_cross_gain_adds_pitch_from_the_lateral_load(mems_drive):
     off = SuspensionAwareFilter(extrinsic=ext, cross_gain=0.0).run(em)
     np.testing.assert_allclose(off.suspension, off.gains * off.load, atol=1e-15)
     assert np.max(np.abs(off.pitch - tr.pitch)) > 1e-5
+
+
+def _close(got, want):
+    got, want = np.asarray(got, dtype=float), np.asarray(want, dtype=float)
+    assert (np.isnan(got) == np.isnan(want)).all()
+    ok = ~np.isnan(want)
+    assert (np.abs(got[ok] - want[ok]) <= 1e-12 * np.maximum(1.0, np.abs(want[ok]))).all()
+
+
+def test_step_equals_run_with_a_speed_that_drops_out(speed_drive):
+    """``step`` frame by frame gives ``run``'s 1-sigma, road, status and reason (a public promise)."""
+    em, ext, v = speed_drive(40.0, 2, "mems")
+    v = v.copy()
+    v[100:130] = np.nan                                    # the speed drops out
+    tr = SuspensionAwareFilter(extrinsic=ext).run(em, speed=v)
+    f = SuspensionAwareFilter(extrinsic=ext)
+    es = [f.step(em.frame_at(k), speed=v[k]) for k in range(len(em))]
+    for name in ("pitch_std", "roll_std", "road_grade", "road_bank", "road_grade_std", "road_bank_std"):
+        _close([getattr(e, name) for e in es], getattr(tr, name))
+    assert [e.status_code for e in es] == tr.status.tolist()
+    assert [e.status_reason for e in es] == tr.status_reason.tolist()
+    assert np.isfinite(tr.road_grade).mean() > 0.5 and np.isnan(tr.road_grade[100:130]).all()
+
+
+def test_road_pass_in_a_second_thread_gives_the_same_track(speed_drive, monkeypatch):
+    """A long batch runs the road's gravity pass in a second thread: the track is bit for bit the one run in
+    turn, over two batches (the second starts without a speed: the running road filter goes on through it)."""
+    import threading
+
+    import imu_ground.filters.suspension as susp
+    from imu_ground.filters.frame_checks import frames_of
+    from imu_ground.filters.road import RoadFilter
+    em, ext, v = speed_drive(60.0, 3, "mems")
+    v = v.copy()
+    v[:10] = np.nan                                       # the road starts at frame 10
+    v[150:200] = np.nan
+    v[len(em) // 2:len(em) // 2 + 20] = np.nan
+    first = np.arange(len(em)) < len(em) // 2
+    half = int(first.sum())
+    threads = []
+    original = RoadFilter.gravity_pass
+
+    def recorded(self, *a, **k):
+        threads.append(threading.current_thread() is threading.main_thread())
+        return original(self, *a, **k)
+    monkeypatch.setattr(RoadFilter, "gravity_pass", recorded)
+    tracks = {}
+    for frames in (10 ** 9, 1):
+        monkeypatch.setattr(susp, "ROAD_THREAD_FRAMES", frames)
+        f = SuspensionAwareFilter(extrinsic=ext)
+        tracks[frames] = [f.run(frames_of(em, first), speed=v[:half]), f.run(frames_of(em, ~first), speed=v[half:])]
+    assert threads == [True, True, False, False]
+    for a, b in zip(*tracks.values(), strict=True):
+        for name in ("pitch", "roll", "pitch_std", "roll_std", "road_grade", "road_bank", "road_grade_std",
+                     "road_bank_std", "status", "status_reason"):
+            x, y = np.asarray(getattr(a, name)), np.asarray(getattr(b, name))
+            assert x.dtype == y.dtype
+            assert x.tolist() == y.tolist() if x.dtype == object else x.tobytes() == y.tobytes()
+    first, second = tracks[1][0].road_grade, tracks[1][1].road_grade
+    assert np.isnan(first[:10]).all() and np.isfinite(first[10:150]).all()
+    assert np.isnan(second[:20]).all() and np.isfinite(second[20:]).all()

@@ -9,50 +9,26 @@ Calibrate once per vehicle and IMU mounting, save, then run the
 
 What an IMU alone can tell (and what it cannot)
 -----------------------------------------------
-The ground frame is FLU with z along the road normal when the car stands on
-level ground (:mod:`imu_ground.filters.extrinsics`); ``R_gs`` maps sensor vectors into it.
+The ground frame is FLU with z along the road normal when the car stands on level ground
+(:mod:`imu_ground.filters.extrinsics`); ``R_gs`` maps sensor vectors into it.
 
-- **Tilt (the ground's z axis in the sensor frame).** At a standstill the
-  accelerometer reads the reaction to gravity, i.e. "up". Driving straight at
-  constant speed the body sits at its static stance on the road, so the mean
-  specific force over such *cruising* frames is "up" relative to the mean road
-  plane of the drive. Both equal the road normal only where the road is level:
-  an IMU cannot tell a mounting tilt from a road grade or cross-slope, so the
-  tilt carries the mean grade and cross-slope of the frames used (a standstill
-  on a 2 % slope tilts it by 1.1 deg, and one standstill also carries the
-  unevenness under the wheels, a few tenths of a degree on a class B road; the
-  crown of a road, about 2 % towards the kerb, biases the roll the same way
-  on every drive on the same side of the road), and an accelerometer bias
-  (0.2 m/s^2 is 1.2 deg) is a tilt to it as well. ``tilt="auto"`` uses the
-  cruising frames when there are at least ``min_cruise_s`` seconds of them
-  (many stretches of road average their grades out), else the standstills,
-  else every frame; ``stats`` reports each estimate that was available, so a
-  user can see the spread. Calibrate on level ground, or on a long loop.
-- **Forward axis (yaw of the mounting).** In turns the lateral acceleration is
-  ``v * yaw_rate`` with ``v > 0``, so the horizontal specific force correlated
-  with the yaw rate points to the left: that fixes the axes and their sign.
-  The longitudinal axis is refined as the principal direction of the
-  horizontal acceleration while driving straight (speeding up and braking),
-  with its sign taken from the turns. A drive without turns leaves the sign
-  to the sensor's x axis, one without either leaves the yaw unobservable
-  (``stats["yaw_source"]``; the sensor's x axis projected on the ground plane
-  is kept). Lateral accelerations correlated with speeding up and braking
-  (city driving) bias it: check the yaw against another source where one
-  exists.
-- **Suspension gains** (:func:`~imu_ground.filters.gains.bandpass_gain_regression`):
-  the body tilt from the gyro regressed on the gravity-compensated
-  acceleration (from :class:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter`,
-  with the extrinsic just found), both band-passed to 0.3 - 1.5 Hz. Not lower:
-  there the gyro tilt is mostly the road, and the road correlates with the
-  acceleration (cars speed up downhill; roads bank into curves, which makes
-  the roll gain of a drive through superelevated curves meaningless). Not higher: the
-  suspension's resonance (1 - 1.5 Hz) and the acceleration noise. Inside the
-  band the regression also sees the sensor's lever arm about the body's
-  pitch/roll centre (an IMU 0.9 m above it reads 0.9 m times the angular
-  acceleration, which moves with the tilt); give ``lever_arm`` when that
-  position is known. How well the calibration recovers synthetic mounts and
-  gains, and how the KITTI platform's calibration scores, is in
-  ``benchmarks/RESULTS.md``.
+- **Tilt (the ground's z axis in the sensor frame).** At a standstill the accelerometer reads "up";
+  cruising straight at constant speed the body sits at its static stance, so the mean specific force
+  over *cruising* frames is "up" relative to the drive's mean road plane. An IMU cannot tell a
+  mounting tilt from a road grade or cross-slope (or an accelerometer bias: 0.2 m/s^2 is 1.2 deg), so
+  the tilt carries the mean grade and cross-slope of the frames used. ``tilt="auto"`` uses the cruising
+  frames when there are ``min_cruise_s`` seconds of them, else the standstills, else every frame;
+  ``stats`` reports each estimate available. Calibrate on level ground, or on a long loop.
+- **Forward axis (yaw of the mounting).** In turns the lateral acceleration is ``v * yaw_rate`` with
+  ``v > 0``, which fixes the axes and their sign; the longitudinal axis is refined as the principal
+  direction of the horizontal acceleration driving straight, its sign from the turns. Without turns
+  the sign is the sensor's x axis'; without either the yaw is unobservable (``stats["yaw_source"]``).
+- **Suspension gains** (:func:`~imu_ground.filters.gains.bandpass_gain_regression`): the gyro's body
+  tilt regressed on the gravity-compensated acceleration (the
+  :class:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter` with the extrinsic just found),
+  both band-passed to :data:`~imu_ground.filters.gains.GAIN_BAND` (lower the road correlates with the
+  acceleration, higher the suspension's resonance and noise). Give ``lever_arm`` when the sensor's
+  position about the body's pitch/roll centre is known. Figures in ``benchmarks/RESULTS.md``.
 
 The calibration file format (:class:`~imu_ground.filters.extrinsics.Calibration`,
 :func:`~imu_ground.filters.extrinsics.load_calibration`) lives with the extrinsics.

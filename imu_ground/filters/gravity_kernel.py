@@ -1,10 +1,8 @@
-"""The gravity/velocity filter's per-frame kernel: one body, compiled by :func:`imu_ground._jit.njit`.
+"""The gravity/velocity filter's per-frame body, :func:`frame`, compiled by :func:`imu_ground._jit.njit`.
 
-:class:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter` keeps its whole
-state in one flat float64 buffer ``s`` (layout below) and calls :func:`step_frame` /
-:func:`step_sensor` (one frame) or :func:`run_frames` (a drive); both run the same
-frame, :func:`frame` (the recursion :func:`_predict_update`, then the frame-mean
-forces :func:`frame_forces`), so a stream and a batch cannot drift apart.
+:class:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter` keeps its whole state in one flat
+float64 buffer ``s`` (layout below); :func:`step_frame` / :func:`step_sensor` run one frame,
+:func:`run_frames` the same body over a drive.
 
 Buffer layout (indices; frames and units as in the filter's docstring)::
 
@@ -18,8 +16,7 @@ Buffer layout (indices; frames and units as in the filter's docstring)::
     89-94 S   95 dt   96 q_v^2 dt (+ gap)   97 q_g^2 dt (+ gap)   98-124 the prior (x then P's 21 entries)
     125 q_gap_g^2 (gravity random walk added through a gap)
 
-Every entry is a float in both kernels (filterpy's ``Saver`` stores the buffer as an array). The
-constraint's K, y and S fill the first 12, 2 and 3 of their slots; the rest keep their values.
+The constraint's K, y and S fill the first 12, 2 and 3 of their slots; the rest keep their values.
 """
 from __future__ import annotations
 
@@ -60,21 +57,9 @@ def full_cov(p21: np.ndarray) -> np.ndarray:
 
 
 def new_state(x6, p21, r9, prm7, initialised: bool, lever=None, extrinsic9=None, q_gap_g2: float = 0.0) -> list:
-    """A fresh state buffer (list, layout of the module docstring).
-
-    Parameters
-    ----------
-    x6, p21, r9 : sequences of 6, 21 and 9 floats
-        ``[v, g]``, P's unique entries, ``R0`` row-major.
-    prm7 : sequence of 7 floats
-        ``q_v^2, q_gap^2, q_g^2, sigma_zupt^2, sigma_nhc^2, zupt_gate, sigma_speed^2``.
-    initialised : bool
-        Gravity given (else taken from the first frame's specific force).
-    lever, extrinsic9 : sequences of 3 and 9 floats, optional
-        Lever arm (m) and ``R_gs`` (row-major); None: none.
-    q_gap_g2 : float
-        Gravity random walk added through a timestamp gap, (m/s^2)^2 per s.
-    """
+    """A fresh state buffer (list, the layout of the module docstring): ``[v, g]``, P's 21 entries, ``R0``
+    row-major, the noise parameters (``prm7``, in layout order), gravity given, lever arm and extrinsic (None:
+    none), the gravity random walk through a gap."""
     s = [float(v) for v in x6] + [float(v) for v in p21] + [float(v) for v in r9] + [0.0]
     s += [1.0 if initialised else 0.0, 0.0, 0.0, 0.0, 0.0, 0.0] + [float(v) for v in prm7]
     s += [0.0, 0.0, 0.0, 0.0] if lever is None else [1.0] + [float(v) for v in lever]
@@ -91,30 +76,30 @@ def body_increment(r9, d9, dv3):
                                                r9[6] * dv3[0] + r9[7] * dv3[1] + r9[8] * dv3[2])
 
 
-def body_increments(r, d, dv):
-    """:func:`body_increment` of many frames, vectorised: ``d`` (..., 3, 3), ``dv`` (..., 3), ``r`` (3, 3).
+@njit
+def _body_frames(r9, d, dv, d_out, dv_out):
+    for k in range(d.shape[0]):
+        b9, b3 = body_increment(r9, d[k], dv[k])
+        for i in range(9):
+            d_out[k, i] = b9[i]
+        dv_out[k, 0], dv_out[k, 1], dv_out[k, 2] = b3
 
-    Summed in :func:`body_increment`'s order (one rounding per product and sum, no
-    matrix-product library), so each frame equals the scalar result bit for bit.
-    """
-    r = np.asarray(r, dtype=float)
+
+def body_increments(r, d, dv):
+    """:func:`body_increment` of many frames (a compiled loop): ``d`` (..., 3, 3), ``dv`` (..., 3), ``r`` (3, 3)."""
     d, dv = np.asarray(d, dtype=float), np.asarray(dv, dtype=float)
-    t = (r[:, 0, None] * d[..., None, 0, :] + r[:, 1, None] * d[..., None, 1, :]) + r[:, 2, None] * d[..., None, 2, :]
-    b = (t[..., :, 0, None] * r[:, 0] + t[..., :, 1, None] * r[:, 1]) + t[..., :, 2, None] * r[:, 2]
-    return b, (dv[..., 0, None] * r[:, 0] + dv[..., 1, None] * r[:, 1]) + dv[..., 2, None] * r[:, 2]
+    n = d.size // 9
+    d_out, dv_out = np.empty((n, 9)), np.empty((n, 3))
+    r9 = tuple(np.asarray(r, dtype=float).ravel().tolist())
+    _body_frames(r9, np.ascontiguousarray(d).reshape(n, 9), np.ascontiguousarray(dv).reshape(n, 3), d_out, dv_out)
+    return d_out.reshape(d.shape), dv_out.reshape(dv.shape)
 
 
 @njit
 def _velocity_update(xp, n6, z0, z1, z2, gate):
-    """Update with the velocity ``z`` (world frame, noise ``n6``), unless gated out.
-
-    The body-frame measurement ``R_k^T v = z_b``, noise ``N_b``, is the world-frame ``v = R_k z_b``,
-    noise ``N = R_k N_b R_k^T``: ``H = [I, 0]``, ``S = A + N``, ``K = [A; B^T] S^-1``, ``P <- P - K S
-    K^T`` (zero-velocity update: ``z = 0``, ``N = sigma_zupt^2 I``). ``n6``: upper triangle of ``N``;
-    ``gate``: largest squared Mahalanobis distance; ``xp``: the 6-state then P's 21 unique entries
-    (``_UPPER21`` order). Returns ``(accepted, xp, K, y, S)``, world axes (K row-major 6x3, S upper
-    triangle); not accepted: ``xp`` unchanged.
-    """
+    """Update with the velocity ``z`` (world frame, noise ``N`` of upper triangle ``n6``: the body-frame
+    ``R_k^T v = z_b`` turned into the world), unless its squared Mahalanobis distance exceeds ``gate``.
+    ``xp``: the state then P's 21 entries. Returns ``(accepted, xp, K, y, S)`` (world axes)."""
     v0, v1, v2 = xp[0], xp[1], xp[2]
     a00, a01, a02, a11, a12, a22 = xp[6], xp[7], xp[8], xp[9], xp[10], xp[11]
     b0, b1, b2, b3, b4, b5, b6, b7, b8 = xp[12], xp[13], xp[14], xp[15], xp[16], xp[17], xp[18], xp[19], xp[20]
@@ -157,19 +142,8 @@ def _velocity_update(xp, n6, z0, z1, z2, gate):
 
 @njit
 def _predict_update(s, d9, dv3, dt, stationary, valid, speed):
-    """The filter's recursion, one frame: the one kernel of :meth:`GravityVelocityFilter.step` and ``run``.
-
-    Unrolled scalar arithmetic on the state buffer ``s`` (module docstring: velocity,
-    gravity, the 21 unique entries of P in ``_UPPER21`` order, ``R_{w<-body_k}`` as 9
-    floats row-major, the frame count, the gravity-initialised flag, the rejected
-    standstill flags, the noise parameters), updated in place, with the record of the
-    step (kind 0 constraint, 1 ZUPT, 2 speed; K, y, S, dt, the noise terms, the prior).
-    The frame ``(d9, dv3, dt, stationary, valid, speed)`` is in the body frame (``speed`` NaN:
-    none). The cumulative attitude (renormalised every ``RENORM_EVERY`` frames), the predict
-    ``v += R_{k-1} dv - dt g``, ``P <- F P F^T + Q`` (written out for ``F = [[I, -dt I], [0, I]]``
-    and isotropic ``Q``), then the update with the body velocity (:func:`_velocity_update`): a
-    measured forward ``speed`` as ``R_k^T v = (speed, 0, 0)``, else the gated zero-velocity
-    update, else the non-holonomic constraint on the body y and z axes, ``P <- P - K S K^T``.
+    """The filter's recursion of one body-frame frame on the buffer ``s`` (in place, with the record of the step):
+    the model of :class:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter` unrolled (``speed`` NaN: none).
     """
     (v0, v1, v2, g0, g1, g2, a00, a01, a02, a11, a12, a22, b00, b01, b02, b10, b11, b12, b20, b21, b22,
      c00, c01, c02, c11, c12, c22) = (s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7], s[8], s[9], s[10], s[11],
@@ -345,30 +319,9 @@ def _step(s: np.ndarray, d9, dv3, dt: float, stationary: bool, valid: bool, spee
 
 
 def step_frame(s: np.ndarray, d9, dv3, dt: float, stationary: bool, valid: bool, speed: float, out=None):
-    """One body-frame frame: :func:`frame`.
-
-    Parameters
-    ----------
-    s : ndarray (BUF_LEN,) float64
-        The state buffer (module docstring), updated in place.
-    d9, dv3 : sequences of 9 and 3 floats (or float64 arrays (3, 3) and (3,))
-        ``R_{body_{k-1}<-body_k}`` row-major; gravity-free velocity increment (body_{k-1}, m/s).
-    dt : float
-        Frame duration, s (> 0, else ValueError; nothing else is checked).
-    stationary, valid : bool
-        Standstill at the frame's end; False through a timestamp gap.
-    speed : float or None
-        Measured forward speed, m/s (None or NaN: none).
-    out : ndarray (12,), optional
-        Receives ``[v, g, acceleration, specific_force]``; only ``|v|`` is returned then.
-
-    Returns
-    -------
-    specific_force, acceleration : tuple of 3 floats
-        Frame means in the body frame at mid-frame, m/s^2 (lever arm applied, posterior gravity).
-    speed : float
-        ``|v|`` after the update, m/s.
-    """
+    """One body-frame frame (:func:`frame`) on the buffer ``s``: arguments and returns as
+    :meth:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter.step_body` (``dt`` > 0, else ValueError);
+    ``out`` (12,), optional, receives ``[v, g, acceleration, specific_force]`` and only ``|v|`` is returned."""
     return _step(s, d9, dv3, dt, stationary, valid, speed, out, False)
 
 
@@ -401,25 +354,11 @@ def _run(s, d, dv, dt, stationary, valid, speed, rows, fa, priors, has_priors, b
 
 def run_frames(s: np.ndarray, d, dv, dt, stationary, valid, speed, v_out, g_out, p_out, cum_out, f_out, a_out,
                speed_out, priors=None, body_out=None) -> None:
-    """A drive into output arrays: :func:`frame` over every frame.
-
-    Parameters
-    ----------
-    s : ndarray (BUF_LEN,) float64
-        The state buffer, updated in place (as after the last frame of :func:`step_frame`).
-    d, dv, dt, stationary, valid : ndarray (N, 3, 3), (N, 3), (N,), (N,) bool, (N,) bool
-        Body-frame increments (sensor frame with ``body_out``; C-contiguous float64; bool flags).
-    speed : ndarray (N,) or None
-        Measured forward speed, m/s (NaN: none).
-    v_out, g_out, p_out, cum_out, f_out, a_out, speed_out : ndarray
-        (N, 3), (N, 3), (N, 6, 6), (N, 3, 3), (N, 3), (N, 3), (N,): posterior velocity and gravity,
-        covariance, ``R_k``, specific force and acceleration (:func:`step_frame`), ``|v|``.
-    priors : ndarray (N, 27), optional
-        The prior state and P's unique entries of each frame (for the smoother).
-    body_out : ndarray (N, 3, 3), optional
-        Given: ``d``, ``dv`` are sensor-frame, turned into the body frame with the buffer's extrinsic
-        (``R_gs d R_gs^T``, ``R_gs dv``), and the body-frame ``d`` is written here.
-    """
+    """:func:`frame` over a drive (a compiled loop) into the output arrays (N, ...): posterior velocity and
+    gravity, covariance (6, 6), ``R_k``, specific force, acceleration and ``|v|``; ``priors`` (N, 27): each
+    frame's prior state and P entries (for the smoother). With ``body_out`` (N, 3, 3) the increments are in
+    the sensor frame, turned into the body with the buffer's extrinsic and written there; ``speed`` None:
+    none (NaN rows alike)."""
     n = len(dt)
     if not n:
         return
@@ -457,29 +396,10 @@ def _forces(d, dv, dt, g, r_start, cum, lever, r, wprev, wp, out):
 
 
 def body_forces(d, dv, dt, g, r_start, cum, lever=None, w_prev=None):
-    """Frame-mean specific force and acceleration of a drive, body frame at mid-frame (:func:`frame_forces` of
-    every frame: a smoothed gravity's forces).
-
-    Parameters
-    ----------
-    d, dv, dt : ndarray (N, 3, 3), (N, 3), (N,)
-        Body-frame increments and durations (s).
-    g : ndarray (N, 3)
-        Gravity reaction after each frame (posterior or smoothed), world frame, m/s^2.
-    r_start, cum : ndarray (3, 3), (N, 3, 3)
-        ``R_{w<-body}`` before the first frame and after each frame.
-    lever : sequence of 3 floats, optional
-        Lever arm, m (body frame).
-    w_prev : sequence of 3 floats, optional
-        Mean body rate of the frame before the first, rad/s (None: the first frame's own).
-
-    Returns
-    -------
-    f, acc : ndarray (N, 3)
-        m/s^2, as :func:`step_frame`.
-    w_last : list of 3 floats
-        The last frame's mean rate, rad/s.
-    """
+    """:func:`frame_forces` of every frame of a drive (a smoothed gravity's forces): body-frame ``d``, ``dv``,
+    ``dt`` (N, ...), gravity ``g`` (N, 3) after each frame, ``R_{w<-body}`` before the first (``r_start``) and
+    after each (``cum``), the lever arm (m) and the mean rate before the first frame (rad/s; None: its own).
+    Returns ``f``, ``acc`` (N, 3), m/s^2, and the last frame's mean rate."""
     n = len(dt)
     c = lambda a, shape: np.ascontiguousarray(a, dtype=float).reshape(shape)  # noqa: E731
     out, wp = np.empty((n, 6)), (np.zeros(3) if w_prev is None else c(w_prev, 3).copy())

@@ -4,10 +4,8 @@ Frames and signs follow the glossary of :mod:`imu_ground.so3`: world ``w`` is th
 gyro-integrated body frame at the start (``R0 = R_{w<-body_0}``), body ``b`` FLU
 (x forward, y left, z up), gravity stored as its reaction (+9.81 m/s^2 up at rest).
 
-One per-frame kernel serves :meth:`GravityVelocityFilter.step` and ``run``, so the
-two cannot drift: :mod:`imu_ground.filters.gravity_kernel` (unrolled arithmetic on the
-21 unique covariance entries, compiled by :func:`imu_ground._jit.njit`); the filter's
-whole state is the kernel's flat buffer.
+:meth:`GravityVelocityFilter.step` and ``run`` drive one compiled per-frame body
+(:mod:`imu_ground.filters.gravity_kernel`), whose flat buffer is the filter's whole state.
 """
 from __future__ import annotations
 
@@ -133,14 +131,11 @@ class GravityVelocityFilter:
     q_gap : float
         Extra velocity random walk through a timestamp gap (``valid`` False), m/s/sqrt(s) (1.0).
     q_gap_g : float
-        Extra gravity random walk through a timestamp gap, m/s^2/sqrt(s) (0.1): the rotation
-        integrated across a gap is uncertain, so is gravity in the gyro-integrated world frame
-        after it. With ``q_g`` alone (tiny) a wrong rotation across a gap biases gravity, hence
-        the accelerations, for minutes (degrees after three 1.5 s gaps on a real drive); this
-        lets the constraint re-estimate it.
+        Extra gravity random walk through a timestamp gap, m/s^2/sqrt(s) (0.1): the rotation integrated
+        across a gap is uncertain, so is gravity in the gyro-integrated world frame after it.
     zupt_gate : float
-        A standstill flag is ignored (the constraint used instead) when the predicted velocity is
-        this far from zero, squared Mahalanobis distance (100: ten sigma; detectors flag cruising too).
+        A standstill flag is ignored (the constraint used instead) when the predicted velocity is this far
+        from zero, squared Mahalanobis distance (100).
     sigma_v0, sigma_g0, v0, g0
         Initial std of velocity (m/s, 30) and gravity (m/s^2, 1); initial velocity and gravity
         reaction (array_like (3,), world frame; default zero and the first frame's specific force).
@@ -168,12 +163,6 @@ class GravityVelocityFilter:
         Standstill flags overruled by the gate so far.
     kernel : module
         The per-frame kernel (class attribute): :mod:`~imu_ground.filters.gravity_kernel`.
-
-    Notes
-    -----
-    Building blocks for estimators on this filter: :meth:`to_body` (:meth:`to_body_flat`),
-    :meth:`step_body` (plain floats, the fast path), :meth:`step_sensor` (both in one call),
-    :meth:`run_body`, :func:`egomotion_arrays`.
     """
 
     kernel = gravity_kernel
@@ -296,7 +285,7 @@ class GravityVelocityFilter:
     # -- public building blocks (SuspensionAwareFilter) --------------------------------------------
     def to_body(self, d: np.ndarray, dv: np.ndarray):
         """Sensor-frame increments ``d`` (..., 3, 3), sensor_{k-1} <- sensor_k, and ``dv`` (..., 3), m/s,
-        to the body frame: ``R_gs d R_gs^T``, ``R_gs dv`` (each frame as :meth:`to_body_flat`, bit for bit)."""
+        to the body frame: ``R_gs d R_gs^T``, ``R_gs dv``."""
         return (d, dv) if self._identity_extrinsic else body_increments(self._Rgs, d, dv)
 
     def to_body_flat(self, d9, dv3):
@@ -328,11 +317,8 @@ class GravityVelocityFilter:
 
     def step_sensor(self, d9, dv3, dt: float, stationary: bool = False, valid: bool = True,
                     speed: Optional[float] = None):
-        """``step_body(*to_body_flat(d9, dv3), ...)`` in one call: a sensor-frame frame as plain floats.
-
-        Parameters and returns as :meth:`step_body`, with ``d9`` (sensor_{k-1} <- sensor_k) and
-        ``dv3`` in the sensor frame.
-        """
+        """``step_body(*to_body_flat(d9, dv3), ...)`` in one call: ``d9`` (sensor_{k-1} <- sensor_k) and ``dv3``
+        in the sensor frame."""
         if self._w.sync is not None:
             self._pull()
         return self._step_sensor(self._s, d9, dv3, dt, stationary, valid, speed)

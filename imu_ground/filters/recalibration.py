@@ -1,47 +1,30 @@
 r"""Online re-estimation of a mount that moved: the static rotation ground <- sensor turned by the change.
 
-Frames and signs as in :mod:`imu_ground.filters.estimator` (body = ground frame, FLU); ``w`` is
-the gyro-integrated world frame of the road's gravity/velocity filter
-(:mod:`imu_ground.filters.road`), gravity stored as its reaction (up).
+Frames and signs as in :mod:`imu_ground.filters.estimator` (body = ground frame, FLU); ``w`` is the
+gyro-integrated world frame of the road's gravity/velocity filter (:mod:`imu_ground.filters.road`),
+gravity stored as its reaction (up).
 
 Model
 -----
-A remount turns the sensor by ``R_{s<-s'}``; with the old static rotation ``R_gs`` the
-filter's body frame is then the true one turned by ``D = R_gs R_{s<-s'} R_gs^T``
-(``x_true = D x_est``), and the correct static rotation is ``D R_gs``. The gyros do not see
-the turn, so the gyro-integrated attitude continues smoothly: after the change at frame
-``k0``, ``R_k = W R^true_k D`` with the fixed world tilt ``W = R_{k0} D^T R_{k0}^T``. The
-gravity reaction measured in the filter's body frame is the frame-mean specific force minus
-the kinematic acceleration (``a_x = dv/dt`` from the measured speed, ``a_y = v psi / dt``,
-``a_z = 0``, less the centripetal ``(psi / dt)^2`` times the sensor's horizontal offset, the
-extrinsic's translation; the neglected terms are along the body's up axis, a tilted gravity's
-direction moves with them by their size times the tilt, and they average out over seconds: the
-mean vertical velocity is zero); turned into
-the world frame with ``R_k`` it is ``g`` before the change and ``W g`` after it, whatever the
-road's grade and however the vehicle turned. So, per usable frame (valid, with a measured
-speed now and at the frame before), the small rotation ``theta_k = u_ref x u_k`` from the
-frozen gravity direction ``u_ref`` (the road filter's, at the start of the mount monitor's
-window, before the change) to the measured one ``u_k`` (world frame) is a step
-function of time: ~0, then ``w = Log(W)``, on top of the slow turn of the gyro-integrated
-world frame (the gyro's bias: a linear drift over the fit). Level, drift and step are fitted by
-least squares over the frames kept (from 5 s before the monitor's reference, :data:`WINDOW` s of
-usable frames after the alarm), the step's time ``k0`` searched from the reference on (the
-least residual); ``w`` is the step (a constant bias of the measurement is in the level and
-cancels), and the change in the body frame is ``delta = -R_{k0}^T w`` (rotation vector; its
-component about up is not observable from gravity and is left at 0). The attitude at ``k0``
-matters: the vehicle may have turned since the change, and the change is a rotation of the
-body axes it had then.
+A remount turns the sensor by ``R_{s<-s'}``; with the old static rotation ``R_gs`` the filter's body
+frame is the true one turned by ``D = R_gs R_{s<-s'} R_gs^T``, and the correct static rotation is
+``D R_gs``. The gyros do not see the turn, so after the change at frame ``k0``
+``R_k = W R^true_k D`` with the fixed world tilt ``W = R_{k0} D^T R_{k0}^T``. The gravity reaction
+measured in the body frame (the frame-mean specific force minus the kinematic acceleration from the
+measured speed and yaw rate, less the centripetal term at the sensor's offset, the extrinsic's
+translation), turned into the world frame with ``R_k``, is ``g`` before the change and ``W g`` after
+it. So per usable frame the small rotation ``theta_k = u_ref x u_k`` from the frozen gravity direction
+``u_ref`` (the road filter's at the start of the mount monitor's window) to the measured ``u_k`` is a
+step: ~0, then ``w = Log(W)``, on top of the gyro-integrated frame's linear drift. Level, drift and
+step are fitted by least squares over the frames kept (from 5 s before the reference to :data:`WINDOW`
+s of usable frames after the alarm), the step's time ``k0`` searched for the least residual; the change
+in the body frame is ``delta = -R_{k0}^T w`` (its component about up is not observable and left at 0).
 
-Applying it (:meth:`~imu_ground.filters.suspension.SuspensionAwareFilter`'s online re-estimation; this
-module keeps the record and the estimate): ``R_gs <- Exp(delta) R_gs`` in every part of the filter that turns sensor
-increments into the body frame, each gravity/velocity filter's attitude ``R_k <- R_k
-Exp(delta)^T`` (the body axes change, the world does not), its gravity set to the frozen
-direction turned by ``W`` and the drift since (its own magnitude kept), the residual filter's
-state (road <- body: the suspension model and the road's adaptation keep it near the truth
-through the change) kept, and the mount monitor restarted (its hold-off and drift check run
-again). A yaw of the mount is not corrected.
-
-Measured on synthetic drives in ``benchmarks/RESULTS.md`` (``benchmarks/studies/confidence.py``).
+Applying it (:class:`~imu_ground.filters.suspension.SuspensionAwareFilter`; this module keeps the
+record and the estimate): ``R_gs <- Exp(delta) R_gs`` wherever sensor increments are turned into the
+body frame, each gravity/velocity filter's attitude ``R_k <- R_k Exp(delta)^T``, its gravity set along
+the frozen direction turned by ``W`` and the drift since, the residual filter's state kept, and the
+mount monitor restarted. A yaw of the mount is not corrected.
 """
 from __future__ import annotations
 
@@ -56,8 +39,7 @@ from imu_ground.imu.warm_start import as_reader
 
 __all__ = ["WINDOW", "MountRecalibrator", "recalibrated_reason"]
 
-#: Usable frames after the alarm the change is estimated from, s (15: on the synthetic navigation-grade drives the
-#: normal is then within 0.07 deg of the truth; 10 s: 0.1 deg; benchmarks/RESULTS.md has the 15 s figures).
+#: Usable frames after the alarm the change is estimated from, s (figures in benchmarks/RESULTS.md).
 WINDOW = 15.0
 _KEEP = MONITOR_WINDOW + WINDOW + 5.0          # s of frames kept (the monitor's window before the alarm, then WINDOW)
 
@@ -143,8 +125,7 @@ class MountRecalibrator:
         ``t_ref`` (s), before the change, which is searched after it.
 
         The rotation from the reference to each frame's measured gravity is fitted as a level, a
-        linear drift (the gyro-integrated world frame turns with the gyro's bias: on the synthetic
-        navigation-grade drives up to 0.02 deg/s, 0.2 deg over the fit) and the step.
+        linear drift and the step (module docstring).
 
         Returns
         -------

@@ -12,16 +12,10 @@ attitude relative to gravity, and
 
 to first order the body's attitude to gravity minus its attitude to the road.
 
-``u_b`` comes from a gravity/velocity filter of its own
-(:class:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter` with the
-estimator's options but a gravity random walk ``q_g`` of :data:`ROAD_Q_G`: the
-gyro-integrated world frame drifts with the gyro bias, and the estimator's own
-filter, tuned for the load, holds gravity too stiffly to follow it; measured on
-the synthetic drives, ``benchmarks/studies/confidence.py``). It needs a measured speed:
-without one, the velocity the attitude is corrected with is itself unobserved
-along the road, and a slow grade cannot be told from a slow acceleration. So the
-road is estimated from the first frame with a finite speed on, and is NaN
-before and wherever the frame's speed is NaN (the status reason says so).
+``u_b`` comes from a gravity/velocity filter of its own (the estimator's options with a gravity random
+walk ``q_g`` of :data:`ROAD_Q_G`, to follow the gyro-integrated world frame's drift). It needs a measured
+speed (else a slow grade cannot be told from a slow acceleration): the road is estimated from the first
+frame with a finite speed on, and is NaN before and wherever the frame's speed is NaN.
 
 1-sigma: ``sigma_grade^2 = sigma_pitch^2 + c^2 P_x / |g|^2 + f^2`` and the same for
 the bank with ``P_y``, ``P`` the gravity filter's covariance of gravity turned into
@@ -35,11 +29,12 @@ from typing import Optional
 
 import numpy as np
 
-from imu_ground.filters.estimator import pitch_roll_from_normal
+from imu_ground._jit import jitable, njit
 from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.filters.frame_checks import frames_of
 from imu_ground.filters.gravity_velocity import GravityTrack, GravityVelocityFilter
 from imu_ground.imu.warm_start import as_reader
+from imu_ground.so3 import quat_from_matrix
 from imu_ground.units import DEG
 
 __all__ = ["ROAD_Q_G", "ROAD_STD", "NO_SPEED_REASON", "NO_ROAD_REASON", "RoadFilter", "road_gravity_options", "road_angles",
@@ -53,6 +48,8 @@ ROAD_STD = (1.0, 0.05 * DEG)
 NO_SPEED_REASON = "road grade and bank not estimated: no measured speed (give --speed)"
 #: Status reason of every frame of a method that cannot estimate the road (no accelerometer).
 NO_ROAD_REASON = "road grade and bank not estimated: this method has no gravity (use the suspension method and --speed)"
+_UPPER = np.triu_indices(3)
+_NO_COV = (0.0,) * 6
 
 
 def road_gravity_options(options: Optional[dict] = None) -> dict:
@@ -62,8 +59,75 @@ def road_gravity_options(options: Optional[dict] = None) -> dict:
     return kw
 
 
+@jitable
+def _quad(p, a0, a1, a2):
+    """``a^T P a`` with ``P`` given by its unique entries ``p`` = (xx, xy, xz, yy, yz, zz)."""
+    return (a0 * (p[0] * a0 + p[1] * a1 + p[2] * a2) + a1 * (p[1] * a0 + p[3] * a1 + p[4] * a2)
+            + a2 * (p[2] * a0 + p[4] * a1 + p[5] * a2))
+
+
+@jitable
+def _ratio(a, b):
+    """``a / b`` as numpy divides (inf, or NaN for 0 / 0, where ``b`` is 0: no gravity yet)."""
+    if b != 0.0:
+        return a / b
+    return math.nan if a == 0.0 or a != a else math.copysign(math.inf, a)
+
+
+@jitable
+def road_one(q, g, R, p6) -> tuple[float, float, float, float]:
+    """Grade, bank (rad) and the gravity filter's share of their variances (rad^2) of one frame: the one body
+    of the road (:func:`road_angles`, :func:`road_std` and :meth:`RoadFilter.run` drive it over a batch).
+
+    Parameters
+    ----------
+    q : sequence of 4 float
+        ``E`` (road <- body) as a unit quaternion (w, x, y, z).
+    g : sequence of 3 float
+        Gravity reaction, world frame, m/s^2.
+    R : sequence of 9 float
+        World <- body, row-major.
+    p6 : sequence of 6 float
+        The gravity covariance's unique entries ``(xx, xy, xz, yy, yz, zz)``, world frame, (m/s^2)^2.
+
+    Returns
+    -------
+    grade, bank, var_grade, var_bank : float
+        + uphill in the direction of travel, + left side up; ``var_*``: ``c^2 P_b / |g|^2 + f^2`` of the
+        module docstring (add the estimator's pitch or roll variance).
+    """
+    ux = R[0] * g[0] + R[3] * g[1] + R[6] * g[2]              # R^T g: up in the body frame
+    uy = R[1] * g[0] + R[4] * g[1] + R[7] * g[2]
+    uz = R[2] * g[0] + R[5] * g[1] + R[8] * g[2]
+    w, x, y, z = q[0], q[1], q[2], q[3]                      # E u: up in the road frame
+    n0 = (1 - 2 * (y * y + z * z)) * ux + 2 * (x * y - w * z) * uy + 2 * (x * z + w * y) * uz
+    n1 = 2 * (x * y + w * z) * ux + (1 - 2 * (x * x + z * z)) * uy + 2 * (y * z - w * x) * uz
+    n2 = 2 * (x * z - w * y) * ux + 2 * (y * z + w * x) * uy + (1 - 2 * (x * x + y * y)) * uz
+    c, f = ROAD_STD
+    g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
+    return (math.atan2(n0, math.hypot(n1, n2)), math.atan2(n1, n2),                      # body x, y axes:
+            _ratio(c * c * _quad(p6, R[0], R[3], R[6]), g2) + f * f, _ratio(c * c * _quad(p6, R[1], R[4], R[7]), g2) + f * f)
+
+
+@njit
+def _road_frames(q, g, R, p6, out):
+    for k in range(q.shape[0]):
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = road_one(q[k], g[k], R[k], p6[k])
+
+
+def _road_track(q, gravity, cumulative, cov=None) -> np.ndarray:
+    """:func:`road_one` of every frame, (F, 4): ``q`` (F, 4), ``gravity`` (F, 3), ``cumulative`` (F, 3, 3),
+    ``cov`` (F, 3, 3) or None (zero)."""
+    n = len(q)
+    out = np.empty((n, 4))
+    p6 = np.zeros((n, 6)) if cov is None else np.asarray(cov, dtype=float)[:, _UPPER[0], _UPPER[1]]
+    c = np.ascontiguousarray
+    _road_frames(c(q, dtype=float), c(gravity, dtype=float), c(cumulative, dtype=float).reshape(n, 9), c(p6), out)
+    return out
+
+
 def road_angles(E: np.ndarray, gravity: np.ndarray, cumulative: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Road grade and bank (rad) per frame.
+    """Road grade and bank (rad) per frame (:func:`road_one` of each).
 
     Parameters
     ----------
@@ -79,37 +143,18 @@ def road_angles(E: np.ndarray, gravity: np.ndarray, cumulative: np.ndarray) -> t
     grade, bank : ndarray (F,)
         + uphill in the direction of travel; + left side up.
     """
-    ub = np.einsum("nji,nj->ni", cumulative, gravity)            # R^T g: up in the body frame
-    ur = np.einsum("nij,nj->ni", E, ub)
-    pitch, roll = pitch_roll_from_normal(ur)
-    return -pitch, roll
+    out = _road_track(quat_from_matrix(np.asarray(E, dtype=float)), gravity, cumulative)
+    return out[:, 0], out[:, 1]
 
 
 def road_angles_one(q, g, R) -> tuple[float, float]:
-    """:func:`road_angles` of one frame from plain floats.
-
-    Parameters
-    ----------
-    q : sequence of 4 float
-        ``E`` as a unit quaternion (w, x, y, z).
-    g : sequence of 3 float
-        Gravity reaction, world frame.
-    R : sequence of 9 float
-        World <- body, row-major.
-    """
-    ux = R[0] * g[0] + R[3] * g[1] + R[6] * g[2]
-    uy = R[1] * g[0] + R[4] * g[1] + R[7] * g[2]
-    uz = R[2] * g[0] + R[5] * g[1] + R[8] * g[2]
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    n0 = (1 - 2 * (y * y + z * z)) * ux + 2 * (x * y - w * z) * uy + 2 * (x * z + w * y) * uz
-    n1 = 2 * (x * y + w * z) * ux + (1 - 2 * (x * x + z * z)) * uy + 2 * (y * z - w * x) * uz
-    n2 = 2 * (x * z - w * y) * ux + 2 * (y * z + w * x) * uy + (1 - 2 * (x * x + y * y)) * uz
-    return math.atan2(n0, math.hypot(n1, n2)), math.atan2(n1, n2)
+    """:func:`road_angles` of one frame from plain floats (``q``, ``g``, ``R`` as in :func:`road_one`)."""
+    return road_one(q, g, R, _NO_COV)[:2]
 
 
 def road_std(pitch_std, roll_std, gravity_cov: np.ndarray, gravity: np.ndarray,
              cumulative: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """1-sigma of road grade and bank (rad), module docstring.
+    """1-sigma of road grade and bank (rad), module docstring (:func:`road_one` of each frame).
 
     Parameters
     ----------
@@ -122,43 +167,8 @@ def road_std(pitch_std, roll_std, gravity_cov: np.ndarray, gravity: np.ndarray,
     cumulative : ndarray (F, 3, 3)
         World <- body.
     """
-    c, f = ROAD_STD
-    Pb = np.swapaxes(cumulative, 1, 2) @ gravity_cov @ cumulative
-    g2 = np.einsum("ni,ni->n", gravity, gravity)
-    grade = np.sqrt(pitch_std ** 2 + c * c * Pb[:, 0, 0] / g2 + f * f)
-    bank = np.sqrt(roll_std ** 2 + c * c * Pb[:, 1, 1] / g2 + f * f)
-    return grade, bank
-
-
-def road_one(q, g, R, p6) -> tuple[float, float, float, float]:
-    """Grade, bank (rad) and the gravity filter's share of their variances (rad^2) of one frame, plain floats.
-
-    Parameters
-    ----------
-    q : sequence of 4 float
-        ``E`` (road <- body) as a unit quaternion (w, x, y, z).
-    g : sequence of 3 float
-        Gravity reaction, world frame, m/s^2.
-    R : sequence of 9 float
-        World <- body, row-major.
-    p6 : sequence of 6 float
-        The gravity covariance's unique entries ``(xx, xy, xz, yy, yz, zz)``, world frame.
-
-    Returns
-    -------
-    grade, bank, var_grade, var_bank : float
-        ``var_*``: ``c^2 P_b / |g|^2 + f^2`` of the module docstring (add the estimator's pitch or roll variance).
-    """
-    grade, bank = road_angles_one(q, g, R)
-    c, f = ROAD_STD
-    r0, r1 = (R[0], R[3], R[6]), (R[1], R[4], R[7])          # body x and y axes in the world frame
-    pxx, pxy, pxz, pyy, pyz, pzz = p6
-
-    def quad(r):
-        return (r[0] * (pxx * r[0] + pxy * r[1] + pxz * r[2]) + r[1] * (pxy * r[0] + pyy * r[1] + pyz * r[2])
-                + r[2] * (pxz * r[0] + pyz * r[1] + pzz * r[2]))
-    g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
-    return grade, bank, c * c * quad(r0) / g2 + f * f, c * c * quad(r1) / g2 + f * f
+    out = _road_track(np.tile([1.0, 0.0, 0.0, 0.0], (len(gravity), 1)), gravity, cumulative, gravity_cov)
+    return np.sqrt(np.square(pitch_std) + out[:, 2]), np.sqrt(np.square(roll_std) + out[:, 3])
 
 
 class RoadFilter:
@@ -265,7 +275,7 @@ class RoadFilter:
         em = egomotion if i0 == 0 else frames_of(egomotion, keep)
         return keep, self.start().run(em, speed=speed[keep])
 
-    def run(self, egomotion, speed: np.ndarray, E: np.ndarray, pitch_std: np.ndarray, roll_std: np.ndarray,
+    def run(self, egomotion, speed: np.ndarray, q: np.ndarray, pitch_std: np.ndarray, roll_std: np.ndarray,
             gravity_pass=None):
         """The road of a batch of frames (already checked), continuing as :meth:`step` would.
 
@@ -275,8 +285,8 @@ class RoadFilter:
             The frames (sensor frame).
         speed : ndarray (F,)
             Measured forward speed, m/s (NaN: none).
-        E : ndarray (F, 3, 3)
-            The estimator's residuals road <- body.
+        q : ndarray (F, 4)
+            The estimator's residuals road <- body, unit quaternions (w, x, y, z).
         pitch_std, roll_std : ndarray (F,)
             The estimator's 1-sigma, rad.
         gravity_pass : callable, optional
@@ -290,19 +300,17 @@ class RoadFilter:
             had not started.
         gravity : ndarray (F, 3)
             The filter's gravity reaction (its world frame, m/s^2) after each frame; NaN before it started.
-        cumulative : ndarray (F, 3, 3)
-            Its attitude, world <- body; NaN before it started.
         """
         n = len(speed)
-        out = np.full((n, 4), np.nan)
-        grav, cum = np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan)
+        out, grav = np.full((n, 4), np.nan), np.full((n, 3), np.nan)
         done = self.gravity_pass(egomotion, speed) if gravity_pass is None else gravity_pass()
         if done is None:
-            return out, grav, cum
+            return out, grav
         keep, gt = done
-        grade, bank = road_angles(E[keep], gt.gravity, gt.cumulative)
-        gs, bs = road_std(pitch_std[keep], roll_std[keep], gt.P[:, 3:, 3:], gt.gravity, gt.cumulative)
-        out[keep] = np.stack([grade, bank, gs, bs], axis=1)
+        road = _road_track(q[keep], gt.gravity, gt.cumulative, gt.P[:, 3:, 3:])
+        road[:, 2] = np.sqrt(np.square(pitch_std[keep]) + road[:, 2])
+        road[:, 3] = np.sqrt(np.square(roll_std[keep]) + road[:, 3])
+        out[keep] = road
         out[~np.isfinite(speed)] = np.nan
-        grav[keep], cum[keep] = gt.gravity, gt.cumulative
-        return out, grav, cum
+        grav[keep] = gt.gravity
+        return out, grav

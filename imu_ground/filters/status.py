@@ -2,52 +2,25 @@ r"""How sure an estimate is: the calibrated 1-sigma of pitch and roll, and a per
 
 1-sigma
 -------
-The residual filter's covariance of the slow road attitude is ``diag(a, a, c)``
-(rad^2, :mod:`imu_ground.filters.residual`); it knows the body's unmodelled
-motion (``sigma_e``) but not the errors of the suspension model (gains that are
-not the car's, worst in turns) nor the gravity estimate the load is built from. The
-standard deviation of the body-relative-to-road pitch and roll is modelled as
+The residual filter's covariance of the road attitude is ``diag(a, a, c)`` (rad^2,
+:mod:`imu_ground.filters.residual`); it knows the unmodelled body motion but not the errors of the
+suspension model nor of the gravity estimate. The variance of the body-relative-to-road pitch and roll is
 
 .. math::
 
     \sigma^2 = c_a^2\,a + (g_x u_x)^2 + (g_y u_y)^2 + (h\,\omega)^2 + f^2 + \sigma_b^2 + (r\,\rho)^2 + (m\,d)^2
 
-with ``u = (u_x, u_y)`` the load of the suspension model (m/s^2, body frame), ``omega``
-the frame's yaw rate (rad/s: the heading change about the ground's up axis over the frame
-duration, :func:`~imu_ground.so3.heading_change`), ``h`` its weight (rad per rad/s: a turn's
-roll error is the roll gradient the model has wrong times the lateral load, and the turning
-lasts while the road state is still catching up), ``f`` a floor and ``sigma_b^2`` the gravity
-estimate's horizontal variance carried through the load into the modelled tilt
-(``(k (1 - s))^2 sigma_g^2``: ``k`` the gains, ``s`` the load share, ``sigma_g^2`` the mean of
-the gravity filter's two world-horizontal variances).
-
-The last two are the drive terms (:class:`DriveStatistics`: running, causal, from the IMU alone, the same in a
-stream and a batch, kept in the saved state). ``rho`` is the RMS body rate about the angle's axis (pitch rate for
-pitch, roll rate for roll, rad/s) over the moving frames so far, ``r`` its weight (rad per rad/s): a rough road
-makes larger errors all drive long, which no per-frame input shows. ``d`` is the mean load along the angle's
-axis so far (``u_x`` for pitch, ``u_y`` for roll) off a centre ``c`` (m/s^2), ``m`` its weight (rad per m/s^2):
-an accelerometer bias ``b`` enters the load and tilts the modelled body by ``k b`` for the whole drive, an offset
-of the drive's errors. Its mean load is the bias plus the road's mean grade or crown and the mean acceleration;
-the bias cannot be told from a crown from the data (``benchmarks/studies/drive_offset.py``), so the term widens
-the 1-sigma by the size of the likely offset and corrects nothing. Both carry :data:`DRIVE_PRIOR_SECONDS` of
-prior (zero rate, the centre), so they grow in over the first minute of driving.
-
-The constants (:data:`SUSPENSION_STD`) are fitted by ``benchmarks/studies/calibrate_std.py`` on
-synthetic drives with exact truth only (navigation and MEMS grade, 300-600 s, several seeds): the
-Gaussian likelihood of the errors, with each grade's share within 1 sigma held at 62-76 %, that of
-each quarter of the frames by their 1-sigma at 58-80 % (as right where it is large as where it is
-small) and that of each drive at 55-82 %. The yaw-rate term ``h`` ships only where it makes the synthetic errors'
-likelihood better: not for roll (its turning frames' 1-sigma would be too wide; the roll is least sure in turns
-through the lateral load), a negligible one for pitch.
-``benchmarks/RESULTS.md`` has the coverage on held-out seeds, pooled and per drive, and, as a
-diagnostic only, the revisit check of the real drives that pass the same place twice, which measures
-how differently the passes were driven as much as the 1-sigma
-(``benchmarks/studies/synthetic_revisit.py``). The constants hold for the default configurations; a
-filter with other noises keeps them (its ``a`` still scales the first term).
-
-:data:`FILTER_STD`, for the invariant filter without a suspension model (whose covariance is a
-tuning), is a constant per angle: the smallest that keeps each grade of the same synthetic fit
-drives at 70 % within 1 sigma or above (its MEMS errors are larger on shorter drives).
+with ``u`` the suspension model's load (m/s^2, body frame), ``omega`` the yaw rate (rad/s,
+:func:`~imu_ground.so3.heading_change` over the frame duration) and ``h`` its weight, ``f`` a floor,
+``sigma_b^2`` the gravity estimate's horizontal variance carried through the load into the modelled tilt
+(:func:`tilt_weights`). The drive terms (:class:`DriveStatistics`, causal, IMU-only, saved with the
+state): ``rho`` the RMS body rate about the angle's axis over the moving frames so far, ``r`` its weight
+(a rough road makes larger errors all drive long); ``d`` the mean load along the angle's axis so far off a
+centre ``c`` (m/s^2), ``m`` its weight (an accelerometer bias tilts the modelled body by ``k b`` all
+drive; it cannot be told from a road crown, so the term widens the 1-sigma and corrects nothing). Both
+carry :data:`DRIVE_PRIOR_SECONDS` of prior. The constants (:data:`SUSPENSION_STD`, :data:`FILTER_STD`)
+are fitted on synthetic drives with exact truth by ``benchmarks/studies/calibrate_std.py``; their
+coverage is in ``benchmarks/RESULTS.md``.
 
 Status
 ------
@@ -55,22 +28,14 @@ One of :data:`STATUSES` per frame, the first that applies in this order:
 
 - ``invalid``: a bad frame the estimator skipped (``on_invalid="skip"``); the values are the previous frame's;
 - ``gap``: the frame was integrated through a timestamp gap (``valid`` False);
-- ``degraded``: a monitor of the estimate flags it, the reason says which: the mount monitor
-  (:mod:`imu_ground.filters.mount_monitor`, with a measured speed) when the sensor's mount moved,
-  from then on (until re-estimated, :mod:`imu_ground.filters.recalibration`);
+- ``degraded``: a monitor flags it, the reason says which (the mount monitor,
+  :mod:`imu_ground.filters.mount_monitor`, from the alarm on until re-estimated);
 - ``standstill``: the frame ends at a standstill (the road and the body are held);
-- ``converging``: from the start (and from a reset) until ``max(pitch_std, roll_std)``
-  has once been at or below :data:`CONVERGED_STD` (0.15 deg; :data:`FILTER_CONVERGED_STD` for the
-  invariant filter without suspension model) with at least :data:`CONVERGED_MOVING_SECONDS` of moving
-  frames seen (latched; the suspension filter only): before that the drive terms of the 1-sigma have not
-  yet grown in and too few of the first moving frames' errors fall within their 1-sigma
-  (``benchmarks/studies/convergence_time.py`` chooses the time on synthetic fit suites with exact truth and
-  scores it on held-out ones; the figures are in ``benchmarks/RESULTS.md``);
-- ``ok``; its reason is empty or a note (:func:`ok_note`): :data:`SLOW_REASON` below
-  :data:`SLOW_SPEED` (the estimator's speed: measured, else its own estimate), where the body's
-  tilt (stopping, starting, steering at walking pace) is no longer well separated from the
-  road's (on the synthetic MEMS-grade drives the errors there are about 1.5 times those above);
-  and, where the road's grade and bank are not estimated, why.
+- ``converging``: from the start (and a reset) until ``max(pitch_std, roll_std)`` without the drive terms has
+  once been at or below :data:`CONVERGED_STD` (:data:`FILTER_CONVERGED_STD` for the filter without
+  suspension model) after :data:`CONVERGED_MOVING_SECONDS` of moving frames (latched);
+- ``ok``; its reason is empty or a note (:func:`ok_note`): :data:`SLOW_REASON` below :data:`SLOW_SPEED`
+  (road and body tilt no longer well separated), and, where the road is not estimated, why.
 """
 from __future__ import annotations
 
@@ -80,13 +45,14 @@ from typing import Any, Optional
 
 import numpy as np
 
+from imu_ground._jit import jitable, njit
 from imu_ground.imu.warm_start import as_reader
 from imu_ground.units import DEG
 
 __all__ = ["STATUSES", "CONVERGING", "OK", "STANDSTILL", "GAP", "DEGRADED", "INVALID", "CONVERGED_STD", "FILTER_CONVERGED_STD",
            "CONVERGED_MOVING_SECONDS",
            "AngleStd", "DriveStatistics", "DRIVE_PRIOR_SECONDS", "SigmaModel", "frame_std", "frame_reason", "SUSPENSION_STD", "FILTER_STD",
-           "SLOW_SPEED", "SLOW_REASON", "ok_note", "status_reason", "frame_status_code", "gap_run_durations",
+           "SLOW_SPEED", "SLOW_REASON", "ok_note", "tilt_weights", "status_reason", "frame_status_code", "gap_run_durations",
            "track_statuses", "track_reasons", "status_names"]
 
 #: The statuses, indexed by their code.
@@ -95,14 +61,11 @@ CONVERGING, OK, STANDSTILL, GAP, DEGRADED, INVALID = range(6)
 #: A frame whose larger 1-sigma (pitch or roll) is at or below this (rad, 0.15 deg) ends ``converging``
 #: (:class:`~imu_ground.filters.suspension.SuspensionAwareFilter`).
 CONVERGED_STD = 0.15 * DEG
-#: The same for :class:`~imu_ground.filters.ground.GroundNormalFilter` (rad, 0.8 deg: its roll, with no
-#: suspension model, is never better than ~0.7 deg on the synthetic drives; the threshold ends the
-#: transient of its initial covariance).
+#: The same for :class:`~imu_ground.filters.ground.GroundNormalFilter` (rad, 0.8 deg: the end of its initial
+#: covariance's transient).
 FILTER_CONVERGED_STD = 0.8 * DEG
-#: Seconds of moving frames (:class:`DriveStatistics`: valid, not at a standstill, at or above :data:`SLOW_SPEED`)
-#: the suspension filter's latch waits for besides its 1-sigma threshold: the shortest after which at least half of the
-#: first ok frames' errors fall within their 1-sigma on the synthetic fit suites, each grade, angle and speed mode
-#: (``benchmarks/studies/convergence_time.py``; its held-out scores are in ``benchmarks/RESULTS.md``).
+#: Seconds of moving frames (:class:`DriveStatistics`) the suspension filter's latch waits for besides its
+#: 1-sigma threshold (chosen by ``benchmarks/studies/convergence_time.py``).
 CONVERGED_MOVING_SECONDS = 10.0
 #: Below this speed (m/s; the evaluation's moving-frame threshold) an ``ok`` frame carries :data:`SLOW_REASON`.
 SLOW_SPEED = 3.0
@@ -168,10 +131,17 @@ class AngleStd:
 SUSPENSION_STD = (AngleStd(0.0416, 0.0221 * DEG, 0.0259 * DEG, 0.0129 * DEG, 0.00785 * DEG, 0.0763, 0.362 * DEG,
                            0.0018),
                   AngleStd(0.395, 0.0262 * DEG, 0.0563 * DEG, 0.0396 * DEG, 0 * DEG, 0.0754, 0.488 * DEG, 0.177))
-#: Pitch and roll 1-sigma constants of :class:`~imu_ground.filters.ground.GroundNormalFilter` (no load).
-#: Its covariance is a tuning (``R = 1 rad^2``), not an angle's uncertainty: the 1-sigma is a constant, the
-#: 70th percentile of its errors on the synthetic drives of the worse grade (so it is never ``converging``).
+#: Pitch and roll 1-sigma constants of :class:`~imu_ground.filters.ground.GroundNormalFilter` (no load; its
+#: covariance is a tuning, so the 1-sigma is a constant: never ``converging``).
 FILTER_STD = (AngleStd(0.0, 0.0, 0.0, 0.226 * DEG), AngleStd(0.0, 0.0, 0.0, 0.327 * DEG))
+
+
+def tilt_weights(k_pitch: Any, k_roll: Any, load_share: float, cross_gain: float) -> tuple:
+    """Factors of the gravity estimate's horizontal variance (its two world-horizontal variances summed,
+    (m/s^2)^2) in the variances of the modelled pitch and roll (rad^2), floats or arrays alike:
+    ``h (k_pitch^2 + k_cross^2)`` and ``h k_roll^2``, ``h = (1 - s)^2 / 2`` (``s`` the load share)."""
+    h = 0.5 * (1.0 - load_share) ** 2
+    return h * (k_pitch * k_pitch + cross_gain * cross_gain), h * k_roll * k_roll
 
 
 def ok_note(slow: bool, road_note: Optional[str]) -> Optional[str]:
@@ -225,38 +195,23 @@ def status_names(codes: np.ndarray) -> np.ndarray:
     return np.asarray(STATUSES, dtype=object)[np.asarray(codes, dtype=np.intp)]
 
 
-def frame_status_code(converged: bool, stationary: bool, valid: bool, degraded: bool = False) -> int:
-    """The status code of one processed frame (:func:`track_statuses` looks every frame of a batch up in it).
+def frame_status_code(converged: Any, stationary: Any, valid: Any, degraded: Any = False) -> Any:
+    """The status code of one processed frame, or of every frame of a batch alike (0/1 int arrays).
 
-    ``converged`` is the estimator's latch after this frame (its larger 1-sigma has been at
-    or below its threshold once); a frame at rest is ``standstill``, one a monitor flags
-    ``degraded``, one integrated through a gap ``gap``, each overriding the ones before.
+    ``converged`` is the estimator's latch after the frame (its larger 1-sigma has been at or below its
+    threshold once); a frame at rest is ``standstill``, one a monitor flags ``degraded``, one integrated
+    through a gap ``gap``, each overriding the ones before (``code + (X - code) * flag``: X where flagged).
     """
-    code = OK if converged else CONVERGING
-    if stationary:
-        code = STANDSTILL
-    if degraded:
-        code = DEGRADED
-    if not valid:
-        code = GAP
-    return code
-
-
-def _status_table() -> np.ndarray:
-    """:func:`frame_status_code` of every combination, indexed ``[converged, stationary, valid, degraded]``."""
-    table = np.zeros((2, 2, 2, 2), dtype=np.uint8)
-    for idx in np.ndindex(table.shape):
-        table[idx] = frame_status_code(*(bool(i) for i in idx))
-    return table
-
-
-_STATUS_TABLE = _status_table()
+    code = CONVERGING + (OK - CONVERGING) * converged
+    code = code + (STANDSTILL - code) * stationary
+    code = code + (DEGRADED - code) * degraded
+    return code + (GAP - code) * (1 - valid)
 
 
 def track_statuses(var_max: np.ndarray, stationary: np.ndarray, valid: np.ndarray, good: np.ndarray,
                    converged: bool = False, degraded: Optional[np.ndarray] = None,
                    converged_std: float = CONVERGED_STD) -> tuple[np.ndarray, bool]:
-    """The status code of every frame of a batch: :func:`frame_status_code` of each frame (looked up), the
+    """The status code of every frame of a batch: :func:`frame_status_code` of the frames' flags, the
     convergence latch accumulated over the batch, and ``invalid`` for a skipped frame.
 
     Parameters
@@ -284,9 +239,9 @@ def track_statuses(var_max: np.ndarray, stationary: np.ndarray, valid: np.ndarra
     n = len(good)
     below = good & (np.asarray(var_max, dtype=float) <= converged_std * converged_std)
     conv = np.logical_or.accumulate(below) | converged if n else below
-    deg = np.zeros(n, dtype=bool) if degraded is None else np.asarray(degraded, dtype=bool)
-    codes = _STATUS_TABLE[conv.astype(np.intp), np.asarray(stationary, dtype=np.intp),
-                          np.asarray(valid, dtype=np.intp), deg.astype(np.intp)]
+    deg = 0 if degraded is None else np.asarray(degraded, dtype=np.intp)
+    codes = frame_status_code(conv.astype(np.intp), np.asarray(stationary, dtype=np.intp),
+                              np.asarray(valid, dtype=np.intp), deg).astype(np.uint8)
     codes[~good] = INVALID
     return codes, bool(conv[-1]) if n else bool(converged)
 
@@ -327,21 +282,13 @@ def track_reasons(codes: np.ndarray, std_max: np.ndarray, dt: np.ndarray,
     """
     codes = np.asarray(codes)
     out = np.full(len(codes), "", dtype=object)
-    out[codes == STANDSTILL] = status_reason(STANDSTILL)
-    if details is not None:
-        ok = codes == OK
-        out[ok] = np.where(np.asarray(details, dtype=object)[ok] == None, "", details[ok])  # noqa: E711
-    # degraded (every frame after a mount alarm) and invalid: elementwise on the details, as status_reason says
     detail = np.full(len(codes), None, dtype=object) if details is None else np.asarray(details, dtype=object)
-    for code, base in ((DEGRADED, None), (INVALID, status_reason(INVALID))):
+    for code in (OK, STANDSTILL, DEGRADED, INVALID):            # status_reason of each distinct detail
         k = np.flatnonzero(codes == code)
         if k.size:
-            d = detail[k]
-            empty = (d == None) | (d == "")                                      # noqa: E711
-            if base is None:
-                out[k] = np.where(empty, status_reason(DEGRADED), d)
-            else:
-                out[k] = np.where(empty, base, base + ": " + np.where(empty, "", d))
+            d = detail[k].tolist()
+            texts = {v: status_reason(code, detail=v) for v in set(d)}
+            out[k] = [texts[v] for v in d]
     for i in np.flatnonzero((codes == CONVERGING) | (codes == GAP)).tolist():   # (few frames: the start, gaps)
         out[i] = status_reason(int(codes[i]), float(dt[i]), float(std_max[i]), detail[i], converged_std,
                                moving_seconds)
@@ -352,12 +299,43 @@ def track_reasons(codes: np.ndarray, std_max: np.ndarray, dt: np.ndarray,
 DRIVE_PRIOR_SECONDS = 30.0
 
 
+def _rows(Rgs) -> Optional[tuple]:
+    """The first two rows of ``Rgs`` (ground <- sensor) as 6 floats; None for None (the identity)."""
+    return None if Rgs is None else tuple(np.asarray(Rgs, dtype=float)[:2].ravel().tolist())
+
+
+@jitable
+def _drive_frame(s, m, dt, speed, stationary, valid, ux, uy, r):
+    """One frame of :class:`DriveStatistics` on its state ``s`` (5): ``m`` the rotation increment (9, row-major),
+    ``r`` the first two rows of ``R_gs`` (6; None: the identity)."""
+    if not valid or stationary or not abs(speed) >= SLOW_SPEED:
+        return
+    vx, vy = 0.5 * (m[7] - m[5]), 0.5 * (m[2] - m[6])
+    if r is not None:
+        vz = 0.5 * (m[3] - m[1])
+        vx, vy = r[0] * vx + r[1] * vy + r[2] * vz, r[3] * vx + r[4] * vy + r[5] * vz
+    wx, wy = vx / dt, vy / dt
+    s[0] += dt
+    s[1] += dt * ux
+    s[2] += dt * uy
+    s[3] += dt * wx * wx
+    s[4] += dt * wy * wy
+
+
+@njit
+def _drive_frames(s, d, dt, speed, stationary, valid, load, r, out):
+    for k in range(dt.shape[0]):
+        _drive_frame(s, d[k], dt[k], speed[k], stationary[k], valid[k], load[k, 0], load[k, 1], r)
+        for i in range(5):
+            out[k, i] = s[i]
+
+
 class DriveStatistics:
     r"""Running statistics of the drive so far that the per-frame inputs of the 1-sigma do not see: the road's
     roughness (the mean square body pitch and roll rate) and the mean load (the accelerometer's offset plus the
     mean grade and crown), over the moving frames (valid, not at a standstill, the estimator's speed at or above
     :data:`SLOW_SPEED`), weighted by their durations. Causal and IMU-only (the speed is the measured one where
-    given, else the estimator's own), one formula in :meth:`update` (a frame) and :meth:`run` (a batch).
+    given, else the estimator's own); one body, :meth:`update` a frame or :meth:`run` over a batch.
 
     The body rates are the frame's rotation ``D`` (sensor increment) as the rate vector
     ``vee((D - D^T) / 2) / dt`` turned into the ground frame (``R_gs``): x the roll rate, y the pitch rate, rad/s.
@@ -371,51 +349,26 @@ class DriveStatistics:
 
     def __init__(self) -> None:
         self._rgs: Any = None
-        self._rgs_rows: list = []               # the first two rows of _rgs, once it is set
+        self._rows = _rows(None)                # the first two rows of _rgs (kept while it is the same object)
         self.reset()
 
     def reset(self) -> None:
         """No moving frame yet."""
         self.state = [0.0, 0.0, 0.0, 0.0, 0.0]
 
-    @staticmethod
-    def _rates(d, Rgs):
-        """Ground-frame roll and pitch rate times ``dt`` (rad) of rotation increments ``d`` ((N, 3, 3))."""
-        vx = 0.5 * (d[:, 2, 1] - d[:, 1, 2])
-        vy = 0.5 * (d[:, 0, 2] - d[:, 2, 0])
-        if Rgs is None:
-            return vx, vy
-        vz = 0.5 * (d[:, 1, 0] - d[:, 0, 1])
-        r = np.asarray(Rgs, dtype=float)
-        return (r[0, 0] * vx + r[0, 1] * vy + r[0, 2] * vz, r[1, 0] * vx + r[1, 1] * vy + r[1, 2] * vz)
-
     def update(self, d: np.ndarray, dt: float, speed: float, stationary: bool, valid: bool, ux: float, uy: float,
                Rgs: Optional[np.ndarray] = None) -> None:
         """One frame: ``d`` its rotation increment (sensor frame, 3x3), ``dt`` s, ``speed`` m/s, ``ux, uy`` the
-        suspension model's load (m/s^2); ``Rgs`` ground <- sensor (None: the identity). The arithmetic of
-        :meth:`run` on plain floats (the same operations in the same order)."""
-        if not valid or stationary or not abs(speed) >= SLOW_SPEED:
-            return
-        m = np.asarray(d, dtype=float).ravel().tolist()
-        vx, vy = 0.5 * (m[7] - m[5]), 0.5 * (m[2] - m[6])
-        if Rgs is not None:
-            if Rgs is not self._rgs:                # (the rows of the mount, kept while it is the same object)
-                self._rgs, self._rgs_rows = Rgs, np.asarray(Rgs, dtype=float)[:2].tolist()
-            (r00, r01, r02), (r10, r11, r12) = self._rgs_rows
-            vz = 0.5 * (m[3] - m[1])
-            vx, vy = r00 * vx + r01 * vy + r02 * vz, r10 * vx + r11 * vy + r12 * vz
-        wx, wy = vx / dt, vy / dt
-        s = self.state
-        s[0] += dt
-        s[1] += dt * ux
-        s[2] += dt * uy
-        s[3] += dt * wx * wx
-        s[4] += dt * wy * wy
+        suspension model's load (m/s^2); ``Rgs`` ground <- sensor (None: the identity)."""
+        if Rgs is not self._rgs:
+            self._rgs, self._rows = Rgs, _rows(Rgs)
+        _drive_frame(self.state, np.asarray(d, dtype=float).ravel().tolist(), dt, speed, stationary, valid, ux, uy,
+                     self._rows)
 
     def run(self, delta_R: np.ndarray, dt: np.ndarray, speed: np.ndarray, stationary: np.ndarray,
             valid: np.ndarray, load: np.ndarray, Rgs: Optional[np.ndarray] = None) -> np.ndarray:
-        """The batch twin of :meth:`update` (the same arithmetic, sums accumulated in the same order): the state
-        after each of the N frames, (N, 5), and :attr:`state` advanced to the last.
+        """:meth:`update` over N frames (a compiled loop of the same body): the state after each, (N, 5), and
+        :attr:`state` advanced to the last.
 
         Parameters
         ----------
@@ -427,20 +380,12 @@ class DriveStatistics:
             m/s^2.
         Rgs : ndarray (3, 3), optional
         """
-        dt = np.asarray(dt, dtype=float)
-        moving = np.asarray(valid, dtype=bool) & ~np.asarray(stationary, dtype=bool) & \
-            (np.abs(np.asarray(speed, dtype=float)) >= SLOW_SPEED)
-        w = np.where(moving, dt, 0.0)
-        vx, vy = self._rates(np.asarray(delta_R, dtype=float), Rgs)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            wx, wy = np.where(moving, vx / dt, 0.0), np.where(moving, vy / dt, 0.0)
-        load = np.asarray(load, dtype=float)
-        parts = (w, w * load[:, 0], w * load[:, 1], w * wx * wx, w * wy * wy)
-        out = np.empty((len(dt), 5))
-        for k, x in enumerate(parts):
-            out[:, k] = np.cumsum(np.concatenate([[self.state[k]], x]))[1:]
-        if len(dt):
-            self.state = out[-1].tolist()
+        c = np.ascontiguousarray
+        n = len(dt)
+        out, s = np.empty((n, 5)), np.array(self.state, dtype=float)
+        _drive_frames(s, c(delta_R, dtype=float).reshape(n, 9), c(dt, dtype=float), c(speed, dtype=float),
+                      c(stationary, dtype=np.bool_), c(valid, dtype=np.bool_), c(load, dtype=float), _rows(Rgs), out)
+        self.state = s.tolist()
         return out
 
     @staticmethod
@@ -455,8 +400,8 @@ class DriveStatistics:
 
 def frame_std(info: tuple, angle: int) -> float:
     """The 1-sigma (rad) of pitch (``angle`` 0) or roll (1) of a frame's :meth:`SigmaModel.frame` inputs."""
-    model, drive = info[angle], info[11][2 * angle:2 * angle + 2]
-    return math.sqrt(model.variance(info[2], info[3], info[4], info[5 + angle], info[10], *drive))
+    drive = DriveStatistics.terms(info[11], info[0], info[1])[2 * angle:2 * angle + 2]
+    return math.sqrt(info[angle].variance(info[2], info[3], info[4], info[5 + angle], info[10], *drive))
 
 
 def frame_reason(info: tuple, status_code: int, std: float) -> str:
@@ -506,9 +451,8 @@ class SigmaModel:
     def frame(self, a: float, ux: float = 0.0, uy: float = 0.0, gravity_var: float = 0.0,
               weights: tuple = (0.0, 0.0), dt: float = math.nan, note: Optional[str] = None,
               yaw_rate: float = 0.0) -> tuple:
-        """One frame (plain floats): advances the latch and returns the frame's 1-sigma inputs, which
-        :class:`~imu_ground.filters.estimator.GroundEstimate` keeps and reads on access with :func:`frame_std`
-        and :func:`frame_reason` (a plain tuple: built every frame, read only when asked for).
+        """One frame (plain floats): advances the latch and returns the frame's 1-sigma inputs (read on access
+        by :func:`frame_std` and :func:`frame_reason`).""
 
         Parameters
         ----------
@@ -531,13 +475,12 @@ class SigmaModel:
         -------
         tuple
             ``(pitch model, roll model, a, u_x, u_y, tilt variance pitch, tilt variance roll, frame s, note,
-            convergence threshold, yaw rate, drive terms (rate_ms_p, load_offset_x, rate_ms_r, load_offset_y),
-            moving seconds the latch waits for)``: read by :func:`frame_std` and :func:`frame_reason` only.
+            convergence threshold, yaw rate, the drive statistics' state, moving seconds the latch waits for)``:
+            read by :func:`frame_std` and :func:`frame_reason` only.
         """
         pm, rm = self.constants
-        dr = DriveStatistics.terms(self.drive.state, pm, rm)
         info = (pm, rm, a, ux, uy, gravity_var * weights[0], gravity_var * weights[1], dt, note, self.converged_std,
-                yaw_rate, dr, self.min_moving_seconds)
+                yaw_rate, tuple(self.drive.state), self.min_moving_seconds)
         if not self.converged and self.drive.state[0] >= self.min_moving_seconds:
             # the latch: without the drive terms (see :meth:`latch_variance`)
             self.converged = max(pm.variance(a, ux, uy, info[5], yaw_rate),
@@ -547,8 +490,8 @@ class SigmaModel:
     def track(self, a: np.ndarray, load: Optional[np.ndarray] = None, gains: Optional[np.ndarray] = None,
               gravity_cov: Optional[np.ndarray] = None, yaw_rate: Optional[np.ndarray] = None,
               drive: Optional[np.ndarray] = None) -> np.ndarray:
-        """The variances (G, 2) of pitch and roll of a batch, rad^2 (the batch twin of :meth:`frame`: the same
-        :meth:`AngleStd.variance`, the gravity term grouped otherwise, equal to 1e-12 relative).
+        """The variances (G, 2) of pitch and roll of a batch, rad^2: :meth:`AngleStd.variance` of the inputs
+        :meth:`frame` keeps, as arrays.
 
         Parameters
         ----------
@@ -569,21 +512,18 @@ class SigmaModel:
             return np.stack([pm.variance(a, rate_ms=rp, load_offset=dx), rm.variance(a, rate_ms=rr, load_offset=dy)],
                             axis=1)
         assert gains is not None and gravity_cov is not None and yaw_rate is not None     # given with a load
-        sg2 = (1.0 - self.load_share) ** 2 * 0.5 * (gravity_cov[:, 3, 3] + gravity_cov[:, 4, 4])
+        gv = gravity_cov[:, 3, 3] + gravity_cov[:, 4, 4]
+        wp, wr = tilt_weights(gains[:, 0], gains[:, 1], self.load_share, self.cross_gain)
         w = np.abs(yaw_rate)
-        return np.stack([pm.variance(a, load[:, 0], load[:, 1], sg2 * (gains[:, 0] ** 2 + self.cross_gain ** 2), w,
-                                     rp, dx),
-                         rm.variance(a, load[:, 0], load[:, 1], sg2 * gains[:, 1] ** 2, w, rr, dy)], axis=1)
+        return np.stack([pm.variance(a, load[:, 0], load[:, 1], gv * wp, w, rp, dx),
+                         rm.variance(a, load[:, 0], load[:, 1], gv * wr, w, rr, dy)], axis=1)
 
     def latch_variance(self, a: np.ndarray, load: Optional[np.ndarray] = None, gains: Optional[np.ndarray] = None,
                        gravity_cov: Optional[np.ndarray] = None, yaw_rate: Optional[np.ndarray] = None,
                        moving: Optional[np.ndarray] = None) -> np.ndarray:
         """The larger of pitch's and roll's variance of each frame of a batch without the drive terms, rad^2
-        ((G,), arguments of :meth:`track`): what the convergence latch compares with ``converged_std``, in
-        :meth:`frame` and :meth:`statuses` alike. The drive's roughness and mean load do not shrink as the
-        filter converges; a drive whose terms stay large is uncertain, not converging. ``moving`` (G,): the
-        moving seconds seen after each frame (:meth:`DriveStatistics.run`'s first column); a frame with fewer
-        than ``min_moving_seconds`` gets inf (it cannot close the latch)."""
+        ((G,), arguments of :meth:`track`): what the latch compares with ``converged_std``, as :meth:`frame`
+        does. ``moving`` (G,): the moving seconds after each frame; fewer than ``min_moving_seconds``: inf."""
         var = self.track(a, load, gains, gravity_cov, yaw_rate, np.zeros((len(a), 5))).max(axis=1)
         if moving is not None and self.min_moving_seconds > 0:
             var[np.asarray(moving, dtype=float) < self.min_moving_seconds] = np.inf

@@ -1,63 +1,35 @@
 r"""Suspension-aware ground normal: the road's slow attitude plus the body's load-transfer tilt.
 
-The paper's filter (:class:`~imu_ground.filters.ground.GroundNormalFilter`) splits the
-gyro-integrated attitude into slow road geometry and fast body motion by
-frequency alone, so body tilt that lasts (the nose dive through a whole
-braking, the roll through a long bend) leaks into the "road". The body's pitch
-and roll relative to the road follow the load on the suspension, which the
-accelerometer measures. This module adds that to the invariant filter.
-
-Frames and signs are those of :mod:`imu_ground.filters.estimator`; forces and
-accelerations are in the body frame (FLU), m/s^2.
+The paper's filter (:class:`~imu_ground.filters.ground.GroundNormalFilter`) splits the attitude into
+road and body by frequency alone, so body tilt that lasts (a braking's nose dive, the roll through a
+long bend) leaks into the "road". The body's tilt relative to the road follows the load on the
+suspension, which the accelerometer measures. Frames and signs as in :mod:`imu_ground.filters.estimator`;
+forces in the body frame (FLU), m/s^2.
 
 Pipeline, per frame k
 ---------------------
 1. **Gravity and velocity** (:class:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter`):
-   the speed (which scales the road process noise), the gravity-compensated
-   acceleration ``a`` and the specific force ``f``, frame means in the body frame.
-2. **Suspension model** (:class:`~imu_ground.filters.suspension_model.SuspensionModel`): the
-   load ``u = a + s (f - a)`` (``a_y`` from speed times yaw rate where a speed is measured,
-   ``lateral``; ``s = load``: the share of gravity's road-plane component the
-   springs feel, 0 to 1), optionally through a second-order ``response``; the body tilt
-   relative to the road ``b_k = [k_roll u_y, k_pitch u_x + k_cross u_y, 0]`` (rotation
-   vector: roll about x, pitch about y; ``k_cross = cross_gain``, the pitch from the lateral
-   load); the gains fixed or estimated online.
-3. **Invariant EKF on SO(3)** (left error) on the road attitude ``X``: predict
-   ``X <- X Rz(psi_k)`` (the road turns with the heading) with noise
-   ``diag(q_k, q_k, q_yaw)``, ``q_k = ((q_time + q_dist |v_k|) dt_k + q_turn |psi_k|) sigma_e^2``;
-   update with the rotation measurement ``Z_k = R_k Exp(-b_k)``, noise
-   ``diag(sigma_e^2, sigma_e^2, r_yaw sigma_e^2)``. It runs as the scalar
-   :class:`~imu_ground.filters.residual.ResidualKernel` (the modelled tilt is its ``tilt_x, tilt_y``).
-4. **Output** ``E_k = X_k^T R_k``: the modelled tilt plus the unmodelled fast body motion.
+   the speed, the gravity-compensated acceleration ``a`` and the specific force ``f`` (frame means).
+2. **Suspension model** (:mod:`~imu_ground.filters.suspension_model`): the load
+   ``u = a + s (f - a)`` (``s = load``; ``a_y`` from speed times yaw rate per ``lateral``), optionally
+   through a second-order ``response``; the body tilt relative to the road
+   ``b_k = [k_roll u_y, k_pitch u_x + k_cross u_y, 0]`` (rotation vector); gains fixed or online.
+3. **Invariant EKF on SO(3)** (left error, the scalar :class:`~imu_ground.filters.residual.ResidualKernel`)
+   on the road attitude ``X``: predict ``X <- X Rz(psi_k)`` with noise ``diag(q_k, q_k, q_yaw)``,
+   ``q_k = ((q_time + q_dist |v_k|) dt_k + q_turn |psi_k|) sigma_e^2``; update with
+   ``Z_k = R_k Exp(-b_k)``, noise ``diag(sigma_e^2, sigma_e^2, r_yaw sigma_e^2)``.
+4. **Output** ``E_k = X_k^T R_k``: the modelled tilt plus the unmodelled fast body motion, with the
+   1-sigma and status (:mod:`~imu_ground.filters.status`), the road's grade and bank
+   (:mod:`~imu_ground.filters.road`) and the mount monitor (:mod:`~imu_ground.filters.mount_monitor`).
 
-Speed-aided mode (``run(..., speed=v)``, ``step(frame, speed=v_k)``): a measured forward
-speed per frame (wheel / CAN speed, m/s; NaN where unknown) is a velocity measurement of the
-gravity/velocity filter (``R_k^T v = (v_k, 0, 0)``, std ``sigma_speed``, in place of the
-zero-velocity update and the constraint) and the speed in the road noise ``q_k``.
+Speed-aided (``speed=``): a measured forward speed (m/s, NaN where unknown) is a velocity measurement
+of the gravity/velocity filter and the speed in ``q_k``. Online gains: causal recursive least squares
+of the band-passed gyro tilt on the band-passed acceleration. Offline (``run(..., smooth=True)``):
+gravity and speed from the linear RTS smoother, then the forward attitude filter and its RTS smoother
+on the group, blended ``X = X_f Exp(w Log(X_f^T X_s))``, ``w = smoother_weight``.
 
-Online gains (``online_gains=True``): causal recursive least squares of the
-band-passed gyro tilt on the band-passed acceleration
-(:func:`~imu_ground.filters.gains.bandpass_gain_regression` done frame by
-frame), with the prior ``gains`` weighted like ``gain_prior_seconds`` of typical
-driving. Offline mode (``run(..., smooth=True)``): gravity and speed from the
-RTS smoother of the linear filter, then the forward attitude filter and its
-RTS smoother on the group, blended ``X = X_f Exp(w Log(X_f^T X_s))``,
-``w = smoother_weight``.
-
-One class holds the estimator: its state and filterpy-style attributes, the streaming
-:meth:`~SuspensionAwareFilter.step` (with the per-frame 1-sigma, road, mount monitor and status),
-the batch :meth:`~SuspensionAwareFilter.run` (their vectorised twins, equal to 1e-12), the saved
-state (:meth:`~SuspensionAwareFilter.state_dict` / ``load_state_dict``) and the online
-re-estimation of the mount. Its components keep (and save) their own state: the suspension model
-(:mod:`~imu_ground.filters.suspension_model`), the 1-sigma model (:mod:`~imu_ground.filters.status`),
-the road filter (:mod:`~imu_ground.filters.road`), the mount monitor
-(:mod:`~imu_ground.filters.mount_monitor`) and the re-estimation's record
-(:mod:`~imu_ground.filters.recalibration`).
-
-The discrete-time design (band-pass, response) follows the ego-motion's frame
-rate (:attr:`~imu_ground.imu.egomotion.EgoMotion.rate`). How the defaults were
-chosen and how every configuration scores on real and synthetic drives is in
-``benchmarks/RESULTS.md`` (regenerated by the scripts in ``benchmarks/``).
+:meth:`~SuspensionAwareFilter.step` and :meth:`~SuspensionAwareFilter.run` drive the same component
+bodies (a frame, or a compiled loop over the batch); the components keep and save their own state.
 """
 from __future__ import annotations
 
@@ -92,7 +64,7 @@ from imu_ground.filters.status import (CONVERGED_MOVING_SECONDS, CONVERGED_STD, 
 from imu_ground.filters.suspension_model import SuspensionModel, load_share
 from imu_ground.imu.egomotion import EgoFrame
 from imu_ground.imu.warm_start import STATE_VERSION, StateError, StateReader, pack_state, unpack_state
-from imu_ground.so3 import heading_change, matrix_from_quat, twist_angle
+from imu_ground.so3 import heading_change, matrix_from_quat, quat_from_matrix, twist_angle
 from imu_ground.units import DEG
 
 __all__ = [
@@ -133,10 +105,8 @@ class SuspensionAwareFilter:
     q_time, q_dist : float
         Road process noise in units of ``sigma_e^2`` per second and per metre.
     q_turn : float
-        Road process noise in units of ``sigma_e^2`` per radian of heading change (10): a car
-        that turns onto another road meets another bank and grade within metres, and without
-        it the road state smooths that change into the body's roll (chosen on one revisit drive,
-        held on the other; ``benchmarks/RESULTS.md``).
+        Road process noise in units of ``sigma_e^2`` per radian of heading change (10): a car that
+        turns onto another road meets another bank and grade within metres.
     q_yaw : float
         Process noise about up per frame, rad^2.
     r_yaw : float
@@ -145,9 +115,8 @@ class SuspensionAwareFilter:
     P0 : float
         Initial variance of the road attitude, units of ``sigma_e^2``.
     load : {"specific_force", "acceleration"} or float
-        Share (0 to 1) of gravity's road-plane component in the load;
-        ``"acceleration"`` is 0, ``"specific_force"`` 1 (the default: the springs feel the
-        specific force, and the load then needs no gravity estimate; figures in ``benchmarks/RESULTS.md``).
+        Share (0 to 1) of gravity's road-plane component in the load; ``"acceleration"`` is 0,
+        ``"specific_force"`` 1 (the default: the springs feel the specific force).
     response : (float, float), optional
         Second-order response ``(freq_hz, damping)`` (unit static gain) applied
         to the load; None: quasi-static.
@@ -182,15 +151,12 @@ class SuspensionAwareFilter:
         Pitch (nose down +) per m/s^2 of lateral load ``u_y``, rad
         (:data:`~imu_ground.filters.gains.DEFAULT_CROSS_GAIN`; 0 disables).
     lateral : {"auto", "kinematic", "accelerometer"}
-        The lateral acceleration in the load ``u_y``: ``"kinematic"`` is speed times yaw rate
-        (``v psi_k / dt``, the centripetal acceleration of the path; the measured speed where
-        given, else the gravity/velocity filter's), ``"accelerometer"`` the gravity-compensated
-        accelerometer ``a_y`` (it carries every error of the gravity estimate); ``"auto"``
-        (default): kinematic on frames with a measured speed, accelerometer elsewhere (an
-        IMU-only speed estimate drifts, and speed times yaw rate with it).
+        The lateral acceleration in the load ``u_y``: ``"kinematic"`` is ``v psi_k / dt`` (the
+        measured speed where given, else the estimated), ``"accelerometer"`` the gravity-compensated
+        ``a_y``; ``"auto"``: kinematic on frames with a measured speed, accelerometer elsewhere.
     recalibrate_online : bool
-        Re-estimate the mount after the mount monitor's alarm (:mod:`imu_ground.filters.recalibration`;
-        the status is ``ok`` again, with a note); ``run`` then steps frame by frame (no ``smooth``).
+        Re-estimate the mount after the mount monitor's alarm (:mod:`imu_ground.filters.recalibration`);
+        ``run`` then steps frame by frame (no ``smooth``).
 
     Attributes
     ----------
@@ -200,18 +166,9 @@ class SuspensionAwareFilter:
         at standstill, up per frame); the process noise of the last frame is ``Q_last``.
     gains : ndarray (2,)
         Current ``(k_pitch, k_roll)``, rad per m/s^2 (the model's).
-    model : SuspensionModel
-        Load, gains and tilt (:mod:`imu_ground.filters.suspension_model`).
-    sigma : SigmaModel
-        The 1-sigma of pitch and roll and its convergence latch (:mod:`imu_ground.filters.status`).
-    road_filter : RoadFilter
-        The road's grade and bank (:mod:`imu_ground.filters.road`; from the first measured speed on).
-    mount_monitor : MountMonitor
-        A mount that moved (:mod:`imu_ground.filters.mount_monitor`).
-    recalibrator : MountRecalibrator or None
-        With ``recalibrate_online``: the record and estimate of a mount change
-        (:mod:`imu_ground.filters.recalibration`).
-    gravity_filter : GravityVelocityFilter
+    model, sigma, road_filter, mount_monitor, recalibrator, gravity_filter
+        The components: SuspensionModel, SigmaModel, RoadFilter, MountMonitor, MountRecalibrator (None
+        without ``recalibrate_online``), GravityVelocityFilter (module docstring).
     cumulative : ndarray (3, 3)
         ``R_k``, world <- body.
     last_load, speed
@@ -401,6 +358,20 @@ class SuspensionAwareFilter:
         if mount is not None:                       # (the kernels' buffers hold it already)
             self._set_mount(mount)
 
+    def _road_noise(self, speed, dt, psi):
+        """``q_k`` of the module docstring (rad^2) of a frame or of arrays of frames alike."""
+        return ((self.q_time + self.q_dist * abs(speed)) * dt + self.q_turn * abs(psi)) * self._r
+
+    @staticmethod
+    def _checked_speed(speed, n: int) -> Optional[np.ndarray]:
+        """``speed`` as floats, one per frame (ValueError otherwise), or None."""
+        if speed is None:
+            return None
+        speed = np.asarray(speed, dtype=float)
+        if speed.shape != (n,):
+            raise ValueError(f"speed must have one value per frame ({n}), got shape {speed.shape}")
+        return speed
+
     # -- streaming -------------------------------------------------------------------------------
     def step(self, frame, delta_v=None, delta_t: Optional[float] = None, stationary: bool = False,
              valid: bool = True, speed: Optional[float] = None) -> GroundEstimate:
@@ -481,7 +452,7 @@ class SuspensionAwareFilter:
         wp, wr = model.tilt_weights                 # (of the gains used at this frame)
         tilt_x, tilt_y = model.step(d, fx, fy, ax, ay, speed * psi / dt if kinematic else None)
         ux, uy = model.load
-        q = ((self.q_time + self.q_dist * abs(speed)) * dt + self.q_turn * abs(psi)) * self._r   # |v|: either way
+        q = self._road_noise(speed, dt, psi)
         self._q_last = q
         o = self._kstep(self._kbuf, d, q, self.q_yaw, tilt_x, tilt_y, None, 1.0)
         if road is not None:                        # grade and bank with their variances
@@ -534,10 +505,8 @@ class SuspensionAwareFilter:
                      speed=self.speed, gains=self.gains.copy(), gravity=self.gravity_filter.x[3:].copy())
         sub = em if good.all() else frames_of(em, good)
         m = len(sub)
+        speed = self._checked_speed(speed, n)
         if speed is not None:
-            speed = np.asarray(speed, dtype=float)
-            if speed.shape != (n,):
-                raise ValueError(f"speed must have one value per frame ({n}), got shape {speed.shape}")
             speed = speed[good]
             speed = np.where(np.abs(speed) <= MAX_MEASURED_SPEED, speed, np.nan)   # as step: absurd -> none
         self._frames += m
@@ -567,7 +536,7 @@ class SuspensionAwareFilter:
         if m:
             self.speed = float(gt.speed[-1])
         dt = np.asarray(sub.delta_t, dtype=float)
-        q = ((self.q_time + self.q_dist * np.abs(gt.speed)) * dt + self.q_turn * np.abs(psi)) * self._r
+        q = self._road_noise(gt.speed, dt, psi)
         o = self._kernel.run(sub.delta_R, q, self.q_yaw, susp[:, 1], susp[:, 0])
         if m:
             self._q_last = float(q[-1])
@@ -576,12 +545,14 @@ class SuspensionAwareFilter:
         Ps[:, 0, 0] = Ps[:, 1, 1] = o[:, 4]
         Ps[:, 2, 2] = o[:, 5]
         cum = gt.cumulative
+        qE = o[:, :4]
         if smooth and m:
             Xs = self._smooth(gt.body_increments, cum @ np.swapaxes(E, 1, 2), Ps, q)
             E = np.swapaxes(Xs, 1, 2) @ cum
+            qE = quat_from_matrix(E)
         held = {name: hold_skipped(v, good, start[name]) for name, v in
                 dict(E=E, P=Ps, cum=cum, load=u, speed=gt.speed, gains=ks, gravity=gt.gravity).items()}
-        extra = self._track_confidence(em, sub, good, Ps[:, 0, 0], u, ks, gt.P, E, speed, psi / dt, gt.speed, road,
+        extra = self._track_confidence(em, sub, good, Ps[:, 0, 0], u, ks, gt.P, qE, speed, psi / dt, gt.speed, road,
                                        road_pass)
         susp_all = self.model.tilt(held["gains"], held["load"])
         cum_all = held["cum"]
@@ -610,42 +581,11 @@ class SuspensionAwareFilter:
 
 
     def _track_confidence(self, em, sub, good: np.ndarray, a: np.ndarray, load: np.ndarray, gains: np.ndarray,
-                          gravity_cov: np.ndarray, E: np.ndarray, speed: Optional[np.ndarray], yaw_rate: np.ndarray,
+                          gravity_cov: np.ndarray, q: np.ndarray, speed: Optional[np.ndarray], yaw_rate: np.ndarray,
                           speed_used: np.ndarray, road_on: bool, road_pass=None) -> dict:
-        """The fields of a batch's track that say how sure it is (the batch twin of the end of :meth:`step`);
-        the road filter, the mount monitor, the clock and the 1-sigma latch advance as the frames would.
-
-        Parameters
-        ----------
-        em, sub : EgoMotion
-            All F frames of the batch, and its G good ones.
-        good : ndarray of bool (F,)
-            The frames processed (others were skipped).
-        a : ndarray (G,)
-            The residual filter's horizontal variance per good frame, rad^2.
-        load, gains : ndarray (G, 2)
-            The suspension model's load (m/s^2) and the gains used (rad per m/s^2) per good frame.
-        gravity_cov : ndarray (G, 6, 6)
-            The gravity/velocity filter's covariance per good frame.
-        E : ndarray (G, 3, 3)
-            The residuals road <- body.
-        speed : ndarray (G,) or None
-            Measured speed per good frame, m/s.
-        yaw_rate : ndarray (G,)
-            Heading change over frame duration per good frame, rad/s (signed).
-        speed_used : ndarray (G,)
-            The estimator's speed per good frame (measured, else estimated), m/s.
-        road_on : bool
-            The road is estimated (a measured speed, or the road filter ran before this batch).
-        road_pass : callable, optional
-            The road filter's gravity pass, already started (:meth:`RoadFilter.run`'s ``gravity_pass``).
-
-        Returns
-        -------
-        dict
-            ``pitch_std``, ``roll_std`` (rad; NaN on skipped frames), ``status``, ``status_reason``,
-            ``road_grade``, ``road_bank``, ``road_grade_std``, ``road_bank_std`` (rad), each (F,).
-        """
+        """The fields of a batch's track that say how sure it is (1-sigma, road, status) on the ``good`` frames
+        ``sub`` of ``em``; the road filter, the mount monitor, the clock and the 1-sigma latch advance as
+        the frames would."""
         n, m = len(good), len(sub)
         drive = self.sigma.drive.run(sub.delta_R, sub.delta_t, speed_used, sub.stationary, sub.valid, load, self._Rgs)
         var = self.sigma.track(a, load, gains, gravity_cov, yaw_rate, drive)
@@ -656,7 +596,7 @@ class SuspensionAwareFilter:
         sp = np.full(m, np.nan) if speed is None else speed
         rg = np.full((m, 3), np.nan)
         if road_on:
-            road[good], rg, _ = self.road_filter.run(sub, sp, E, np.sqrt(var[:, 0]), np.sqrt(var[:, 1]), road_pass)
+            road[good], rg = self.road_filter.run(sub, sp, q, np.sqrt(var[:, 0]), np.sqrt(var[:, 1]), road_pass)
         times = np.cumsum(np.concatenate([[self._time], np.asarray(sub.delta_t, dtype=float)]))[1:]   # (as step sums)
         if m:
             self._time = float(times[-1])
@@ -730,10 +670,7 @@ class SuspensionAwareFilter:
         n = len(em)
         checked_frames(em.delta_R, em.delta_v, em.delta_t, em.t, self.on_invalid)   # (raises before any frame)
         self.model.design(float(em.rate))
-        if speed is not None:
-            speed = np.asarray(speed, dtype=float)
-            if speed.shape != (n,):
-                raise ValueError(f"speed must have one value per frame ({n}), got shape {speed.shape}")
+        speed = self._checked_speed(speed, n)
         E, P, cum, Rgs = (np.zeros((n, 3, 3)) for _ in range(4))
         load, gains, grav = np.zeros((n, 2)), np.zeros((n, 2)), np.zeros((n, 3))
         sp, valid = np.zeros(n), np.zeros(n, dtype=bool)

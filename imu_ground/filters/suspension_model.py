@@ -1,23 +1,12 @@
 """The suspension model of :class:`~imu_ground.filters.suspension.SuspensionAwareFilter`: load in, body tilt out.
 
-Step 2 of that filter's pipeline. From the frame-mean specific force ``f`` and
-gravity-compensated acceleration ``a`` (body frame FLU, m/s^2, from the
-gravity/velocity filter):
-
-- the load on the springs ``u = a + s (f - a)`` (``s``: the share of gravity's
-  road-plane component the springs feel, 0 to 1), optionally through a
-  second-order ``response`` (unit static gain);
-- the body tilt relative to the road, as the residual kernel's tilt inputs:
-  roll (left side up +) ``k_roll u_y`` about x, pitch (nose down +)
-  ``k_pitch u_x + k_cross u_y`` about y (rad);
-- the gains ``(k_pitch, k_roll)`` fixed, or estimated online by causal
-  recursive least squares of the band-passed gyro tilt on the band-passed
-  acceleration (:func:`~imu_ground.filters.gains.bandpass_gain_regression` frame
-  by frame), the prior weighted like ``gain_prior_seconds`` of typical driving.
-
-Streaming (:meth:`SuspensionModel.step`) and batch (:meth:`SuspensionModel.run`)
-give the same numbers; the discrete-time design follows the frame rate
-(:meth:`SuspensionModel.design`).
+Step 2 of that filter's pipeline (its module docstring has the model: the load ``u = a + s (f - a)``,
+optionally through a second-order ``response``; the tilt roll ``k_roll u_y`` about x, pitch
+``k_pitch u_x + k_cross u_y`` about y; the gains fixed or estimated online by causal recursive least
+squares of the band-passed gyro tilt on the band-passed acceleration, the prior weighted like
+``gain_prior_seconds`` of typical driving). :meth:`SuspensionModel.step` (a frame) and
+:meth:`SuspensionModel.run` (a batch, the same recursions by :func:`scipy.signal.lfilter` and running
+sums) continue each other; the discrete-time design follows the frame rate (:meth:`SuspensionModel.design`).
 """
 from __future__ import annotations
 
@@ -28,6 +17,7 @@ import numpy as np
 from imu_ground import so3
 from imu_ground.filters.design import IIRFilter, butter_bandpass, foh_filter
 from imu_ground.filters.gains import TYPICAL_BAND_POWER, tilt_angles
+from imu_ground.filters.status import tilt_weights
 from imu_ground.imu.warm_start import as_reader
 
 __all__ = ["SuspensionModel", "load_share"]
@@ -84,9 +74,7 @@ class SuspensionModel:
     rate : float or None
         Frame rate of the design, Hz (None before the first frame).
     tilt_weights : (float, float)
-        Factors of the variance of gravity's horizontal components (m/s^2)^2 in the variance of the
-        modelled pitch and roll (rad^2), for the 1-sigma: ``h (k_pitch^2 + k_cross^2)`` and
-        ``h k_roll^2`` with ``h = (1 - s)^2 / 2`` (the load's share of the gravity estimate).
+        :func:`~imu_ground.filters.status.tilt_weights` of the current gains (for the 1-sigma).
     """
 
     def __init__(self, gains0: np.ndarray, load_share: float, response: Optional[Sequence[float]],
@@ -112,8 +100,7 @@ class SuspensionModel:
 
     def _set_tilt_weights(self) -> None:
         """:attr:`tilt_weights` of the current gains."""
-        h = 0.5 * (1.0 - self.load_share) ** 2
-        self.tilt_weights = (h * (self._kp * self._kp + self.cross_gain * self.cross_gain), h * self._kr * self._kr)
+        self.tilt_weights = tilt_weights(self._kp, self._kr, self.load_share, self.cross_gain)
 
     def set_mount(self, Rgs: Optional[np.ndarray]) -> None:
         """The static rotation ground <- sensor of the increments given to :meth:`step` from now on."""
@@ -201,7 +188,7 @@ class SuspensionModel:
         return kr * uy, kp * ux + self.cross_gain * uy
 
     def _update_gains(self, d: np.ndarray, ax: float, ay: float) -> None:
-        """One frame of the online gain regression (the batch twin is in :meth:`_online_gains`)."""
+        """One frame of the online gain regression (:meth:`_online_gains` runs it over a batch)."""
         assert self._bpf is not None and self._sxx is not None and self._sxy is not None  # designed, online gains
         db = d if self._Rgs is None else self._Rgs @ d @ self._Rgs.T
         self._phi = self._phi + so3.log_one(db)[[1, 0]]
