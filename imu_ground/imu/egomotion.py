@@ -1,10 +1,8 @@
 """From a raw IMU log to per-frame ego-motion: the front-end every estimator shares.
 
-``imu_to_egomotion`` runs: gyro bias from the log's standstills (if any),
-preintegration into frames (10 Hz by default), and per-frame standstill flags.
-The result, :class:`EgoMotion`, is what :class:`~imu_ground.filters.ground.GroundNormalFilter`
-(``delta_R``) and :class:`~imu_ground.filters.suspension.SuspensionAwareFilter`
-(``delta_R``, ``delta_v``, ``delta_t``, ``stationary``) consume.
+:func:`imu_to_egomotion`: gyro bias from the log's standstills (if any), preintegration into
+frames (10 Hz by default), per-frame standstill flags; its :class:`EgoMotion` is what the
+estimators (:mod:`imu_ground.filters`) consume.
 
 Frames (glossary: :mod:`imu_ground.so3`): everything is in the IMU's body frame
 (``imu.frame``); ``delta_R`` is ``R_{body_{k-1}<-body_k}``, the body frame at a
@@ -37,8 +35,7 @@ class EgoFrame(NamedTuple):
     Attributes
     ----------
     delta_R : ndarray (3, 3)
-        ``R_{body_{k-1} <- body_k}``: the body frame at the frame's end expressed
-        in the body frame at its start (``R_k = R_{k-1} @ delta_R``).
+        ``R_{body_{k-1} <- body_k}`` (module docstring).
     delta_v : ndarray (3,)
         Gravity-free velocity increment, m/s, body frame at the frame's start
         (zeros when the source has no accelerometer, e.g. visual odometry).
@@ -186,18 +183,16 @@ def imu_to_egomotion(imu: ImuData, rate: float = DEFAULT_FRAME_RATE, *, frame_ti
         ``"auto"``: the mean rate over the log's standstills (zero if it has
         none); an array: this bias, rad/s; None: no correction.
     max_gap : float, optional
-        Sample steps longer than this (s) are gaps; frames across them are
-        integrated with the held signal and flagged ``valid = False``. Default
-        10 times the median sample step (0.1 s at 100 Hz, 1 s at 10 Hz).
+        Sample steps longer than this (s) are gaps; frames across them are integrated with the held
+        signal and flagged ``valid = False``. Default 10 times the median sample step.
     standstill_window : float
         Shortest standstill (s) used for the per-frame ``stationary`` flags.
     max_gap_frames : int, optional
         A sample step longer than this many frame periods (default
-        :data:`~imu_ground.units.MAX_GAP_FRAMES`, an hour at 10 Hz) starts a new segment, as the live
-        front end's clock restarts: the frames start again at the first sample after it, on its own
-        grid, and none spans the step (its gap frames would grow with the step, not with the log).
-        ``meta["segment_cuts"]``: the sample index before each such step. None: gaps of any length
-        are integrated through, one invalid frame a period. Not with ``frame_times``.
+        :data:`~imu_ground.units.MAX_GAP_FRAMES`) starts a new segment, as the live front end's clock
+        restarts: the frames start again at the first sample after it, on its own grid, and none spans
+        the step. ``meta["segment_cuts"]``: the sample index before each such step. None: gaps of any
+        length are integrated through, one invalid frame a period. Not with ``frame_times``.
 
     Returns
     -------

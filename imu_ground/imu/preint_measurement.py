@@ -10,9 +10,6 @@ deltas, the 9x9 covariance and the bias Jacobians in Forster's right-error form,
 Frames (glossary: :mod:`imu_ground.so3`): ``delta_R`` is ``R_{start<-end}``, the
 body frame at the end expressed in the body frame at the start;
 ``delta_v``/``delta_p`` are in the body frame at the start.
-
-:func:`compose_left` is the batched composition (left-error, p-form arrays) that
-both :meth:`~PreintegratedImu.combine` and the batch preintegration's block merge use.
 """
 from __future__ import annotations
 
@@ -23,16 +20,11 @@ from typing import Any
 import numpy as np
 
 from imu_ground import so3
-from imu_ground.imu.preint_kernel import (
-    DELTAS_IDENTITY,
-    UNCERTAINTY_ZERO,
-    integrate_interval,
-    quaternion_from_rotation,
-    rotation_from_quaternion,
-)
+from imu_ground.imu.preint_kernel import (DELTAS_IDENTITY, UNCERTAINTY_ZERO, integrate_interval,
+                                          quaternion_from_rotation, rotation_from_quaternion)
 from imu_ground.imu.preint_params import ParamsView, PreintegrationParams
 
-__all__ = ["PreintegratedImu", "compose_left", "left_to_right", "right_to_left"]
+__all__ = ["PreintegratedImu", "compose_left", "left_to_right", "right_form", "right_to_left"]
 
 _I9 = np.eye(9)
 _I3 = np.eye(3)
@@ -55,6 +47,24 @@ def _gather_indices() -> tuple[np.ndarray, np.ndarray]:
 
 
 _J_IDX, _S_IDX = _gather_indices()
+
+
+def _left_p_form(T: Any, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The kernel's uncertainty (..., 90) as the bias Jacobian (..., 9, 6) and covariance (..., 9, 9), left error,
+    p form (``p = q + T v``: position rows and columns plus ``T`` times the velocity's)."""
+    a = np.concatenate([u, np.zeros(np.shape(u)[:-1] + (1,))], axis=-1)
+    J, S = a[..., _J_IDX], a[..., _S_IDX]
+    T = np.asarray(T, dtype=float)[..., None, None]
+    J[..., 6:9, :] += T * J[..., 3:6, :]
+    S[..., 6:9, :] += T * S[..., 3:6, :]
+    S[..., :, 6:9] += T * S[..., :, 3:6]
+    return J, S
+
+
+def right_form(T: Any, R: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Forster's right-error, p-form bias Jacobian (..., 9, 6) and covariance (..., 9, 9) of kernel states:
+    integrated times ``T`` (...) s, ``delta_R`` (..., 3, 3) (``R_{start<-end}``), uncertainty ``u`` (..., 90)."""
+    return left_to_right(R, *_left_p_form(T, u))
 
 
 def left_to_right(R: np.ndarray, J: np.ndarray, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -145,7 +155,7 @@ class PreintegratedImu(ParamsView):
     t_start, t_end : float
         Times of the interval this object summarises, s (``nan`` unless set by
         :class:`~imu_ground.imu.live.preint_stream.StreamingPreintegrator` or
-        :meth:`FrameDeltas.frame <imu_ground.imu.preint_batch.FrameDeltas.frame>`).
+        :meth:`FrameDeltas.frame <imu_ground.imu.preint_frames.FrameDeltas.frame>`).
     valid : bool
         False when the interval spans a timestamp gap longer than ``max_gap``.
     n_intervals : int
@@ -262,34 +272,14 @@ class PreintegratedImu(ParamsView):
             raise ValueError("this preintegration was made with uncertainty=False: it has no covariance "
                              "or bias Jacobians (use uncertainty=True)")
         s = self._s
-        T = s[0]
-        a = np.array(self._u + (0.0,))
-        J = a[_J_IDX]
-        S = a[_S_IDX]
-        # q form -> p form: p = q + T v (rows 6:9 += T rows 3:6, same for columns)
-        J[6:9] += T * J[3:6]
-        S[6:9] += T * S[3:6]
-        S[:, 6:9] += T * S[:, 3:6]
-        return (np.float64(T), np.array(rotation_from_quaternion(s[1:5])).reshape(3, 3), np.array(s[5:8]),
-                np.array(s[8:11]), J, S)
+        return (np.float64(s[0]), self.delta_R, self.delta_v, self.delta_p, *_left_p_form(s[0], np.array(self._u)))
 
     def _right(self) -> tuple[np.ndarray, np.ndarray]:
-        """(J, S) in Forster's right form, computed once per state (the state tuples are immutable).
-
-        One 9x9 map ``K = diag(R^T, I, I) M`` takes the kernel's left-error,
-        q-form state to the right-error, p-form read-out (``M``: ``p = q + T v``).
-        """
+        """(J, S) in Forster's right form (:func:`right_form`), computed once per state (the tuples are immutable)."""
         cache = self._right_cache
         if cache is None or cache[0] is not self._u:
-            if self._u is None:
-                self._left_arrays()         # raises the uncertainty=False error
-            assert self._u is not None
-            a = np.array(self._u + (0.0,))
-            K = _I9.copy()
-            K[0:3, 0:3] = np.array(rotation_from_quaternion(self._s[1:5])).reshape(3, 3).T
-            K[6:9, 3:6] = self._s[0] * _I3
-            S = K @ a[_S_IDX] @ K.T
-            cache = self._right_cache = (self._u, K @ a[_J_IDX], 0.5 * (S + S.T))
+            T, R, _, _, J, S = self._left_arrays()
+            cache = self._right_cache = (self._u, *left_to_right(R, J, S))
         return cache[1], cache[2]
 
     @property
