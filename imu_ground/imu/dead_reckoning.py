@@ -1,21 +1,12 @@
 r"""Strapdown dead reckoning in a gravity-aligned world frame from preintegrated deltas.
 
-World frame: a local level frame, z up, gravity ``g_world = [0, 0, -g]``; its
-heading is that of the initial attitude (yaw 0 when the attitude comes from the
-accelerometer). Attitudes are ``R_{world<-body}`` (glossary: :mod:`imu_ground.so3`),
-the convention of the filters' ``R0``: ``R @ f_body`` is ``f`` in the world frame. With per-frame deltas (:class:`~imu_ground.imu.preintegration.FrameDeltas`)
-the state at frame boundaries follows Forster et al. 2017 (Sec. VI-A):
-
-.. math::
-
-    R_{k+1} = R_k \Delta R_k, \quad
-    v_{k+1} = v_k + g \Delta t_k + R_k \Delta v_k, \quad
-    p_{k+1} = p_k + v_k \Delta t_k + \tfrac12 g \Delta t_k^2 + R_k \Delta p_k,
-
-with ``R = R_{world<-body}``, ``g = g_world``: :func:`imu_ground.so3.cumulative_rotations`
-gives every ``R_k``, cumulative sums give ``v`` and ``p``.
-Per-sample dead reckoning is the special case of one frame per sample
-(``every=1``).
+World frame: a local level frame, z up, gravity ``g_world = [0, 0, -g]``; its heading is that of
+the initial attitude (yaw 0 when the attitude comes from the accelerometer). Attitudes are
+``R_{world<-body}`` (glossary: :mod:`imu_ground.so3`): ``R @ f_body`` is ``f`` in the world frame.
+The state at frame boundaries follows the prediction of :mod:`imu_ground.imu.preintegration`
+(Forster et al. 2017, Sec. VI-A), frame after frame: :func:`imu_ground.so3.cumulative_rotations`
+gives every ``R_k``, cumulative sums give ``v`` and ``p``. Per-sample dead reckoning is one frame
+per sample (``every=1``).
 """
 from __future__ import annotations
 
@@ -67,11 +58,7 @@ class NavSolution:
     @property
     def roll_pitch_yaw(self) -> np.ndarray:
         """(F + 1, 3) roll, pitch, yaw in rad with ``R_{world<-body} = Rz(yaw) Ry(pitch) Rx(roll)``."""
-        R = self.R
-        pitch = np.arcsin(np.clip(-R[:, 2, 0], -1.0, 1.0))
-        roll = np.arctan2(R[:, 2, 1], R[:, 2, 2])
-        yaw = np.arctan2(R[:, 1, 0], R[:, 0, 0])
-        return np.stack([roll, pitch, yaw], axis=1)
+        return so3.euler_zyx(self.R)
 
 
 def attitude_from_accel(accel_mean: Sequence[float], yaw: float = 0.0) -> np.ndarray:

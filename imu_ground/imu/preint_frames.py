@@ -16,12 +16,11 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from imu_ground import so3
 from imu_ground.errors import ImuGroundError
 from imu_ground.imu.data import ImuData
 from imu_ground.imu.preint_kernel import _O_N, _O_SIZE, _O_VALID, _S_PREV, _S_UNC, run_log, state_buffer
 from imu_ground.imu.preint_kernel import first_rate_boundary as first_rate_boundary
-from imu_ground.imu.preint_measurement import PreintegratedImu, right_form, right_to_left
+from imu_ground.imu.preint_measurement import PreintegratedImu, bias_corrected, right_form, right_to_left
 from imu_ground.imu.preint_params import ParamsView, PreintegrationParams, gap_message
 from imu_ground.so3.conversions import matrix_from_quat
 
@@ -108,21 +107,6 @@ def segment_frame_times(t: np.ndarray, rate: float, segment_gap: float,
     return T, frames, cuts
 
 
-def _validate_times(t: np.ndarray) -> None:
-    if t.ndim != 1 or t.size < 2:
-        raise ImuGroundError(f"need at least 2 samples, got t of shape {t.shape}")
-    if not np.all(np.isfinite(t)):
-        raise ValueError("IMU timestamps contain NaN or inf")
-    d = np.diff(t)
-    bad = np.flatnonzero(~(d > 0))
-    if bad.size:
-        i = int(bad[0])
-        raise ValueError(
-            f"IMU timestamps must be strictly increasing: t[{i + 1}] = {t[i + 1]!r} s comes after "
-            f"t[{i}] = {t[i]!r} s ({bad.size} non-increasing step(s)); drop non-increasing samples "
-            f"upstream (validation) before preintegrating")
-
-
 def _inputs(imu: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(t, gyro, accel) as float arrays from an ImuData or a tuple, checked."""
     if isinstance(imu, ImuData):
@@ -134,7 +118,17 @@ def _inputs(imu: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     accel = np.asarray(accel, dtype=float)
     if gyro.shape != (t.size, 3) or accel.shape != (t.size, 3):
         raise ValueError(f"gyro and accel must have shape ({t.size}, 3), got {gyro.shape}, {accel.shape}")
-    _validate_times(t)
+    if t.ndim != 1 or t.size < 2:
+        raise ImuGroundError(f"need at least 2 samples, got t of shape {t.shape}")
+    if not np.all(np.isfinite(t)):
+        raise ValueError("IMU timestamps contain NaN or inf")
+    bad = np.flatnonzero(~(np.diff(t) > 0))
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(
+            f"IMU timestamps must be strictly increasing: t[{i + 1}] = {t[i + 1]!r} s comes after "
+            f"t[{i}] = {t[i]!r} s ({bad.size} non-increasing step(s)); drop non-increasing samples "
+            f"upstream (validation) before preintegrating")
     return t, gyro, accel
 
 
@@ -304,16 +298,10 @@ class FrameDeltas(ParamsView):
         delta_p : ndarray (F, 3)
             m, body frame at the start.
         """
-        self._need_uncertainty()
-        dbg = np.broadcast_to(np.asarray(bias_gyro, dtype=float) - self.bias_gyro, (len(self), 3))
-        dba = np.broadcast_to(np.asarray(bias_accel, dtype=float) - self.bias_accel, (len(self), 3))
-
-        def mv(M, x):
-            return np.einsum("fij,fj->fi", M, x)
-        R = self.delta_R @ so3.exp(mv(self.d_R_d_bg, dbg))
-        v = self.delta_v + mv(self.d_v_d_bg, dbg) + mv(self.d_v_d_ba, dba)
-        p = self.delta_p + mv(self.d_p_d_bg, dbg) + mv(self.d_p_d_ba, dba)
-        return R, v, p
+        shape = (len(self), 3)
+        return bias_corrected(self.delta_R, self.delta_v, self.delta_p, self.bias_jacobian,
+                              np.broadcast_to(np.asarray(bias_gyro, dtype=float) - self.bias_gyro, shape),
+                              np.broadcast_to(np.asarray(bias_accel, dtype=float) - self.bias_accel, shape))
 
     def frame(self, i: int) -> PreintegratedImu:
         """Frame ``i`` as a :class:`~imu_ground.imu.preint_measurement.PreintegratedImu` (e.g. to combine frames)."""

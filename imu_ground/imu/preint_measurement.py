@@ -24,7 +24,7 @@ from imu_ground.imu.preint_kernel import (DELTAS_IDENTITY, UNCERTAINTY_ZERO, int
                                           quaternion_from_rotation, rotation_from_quaternion)
 from imu_ground.imu.preint_params import ParamsView, PreintegrationParams
 
-__all__ = ["PreintegratedImu", "compose_left", "left_to_right", "right_form", "right_to_left"]
+__all__ = ["PreintegratedImu", "bias_corrected", "compose_left", "left_to_right", "right_form", "right_to_left"]
 
 _I9 = np.eye(9)
 _I3 = np.eye(3)
@@ -100,10 +100,9 @@ def right_to_left(R: np.ndarray, J: np.ndarray, S: np.ndarray) -> tuple[np.ndarr
 def compose_left(a: tuple, b: tuple) -> tuple:
     """Compose two consecutive preintegrated measurements (left-error, p-form), batched.
 
-    ``a`` and ``b`` are tuples ``(T, R, v, p, J, S)`` with shapes (...), (...,3,3),
-    (...,3), (...,3), (...,9,6), (...,9,9); ``a`` comes first; ``J``/``S`` may be
-    None (deltas only). Exact for the deltas, exact linear-error propagation for
-    the bias Jacobian ``J`` and the covariance ``S``.
+    ``a`` (first) and ``b`` are tuples ``(T, R, v, p, J, S)`` with shapes (...), (...,3,3), (...,3),
+    (...,3), (...,9,6), (...,9,9); ``J``/``S`` may be None (deltas only). Exact for the deltas, exact
+    linear-error propagation for the bias Jacobian ``J`` and the covariance ``S``.
     """
     Ta, Ra, va, pa, Ja, Sa = a
     Tb, Rb, vb, pb, Jb, Sb = b
@@ -126,6 +125,15 @@ def compose_left(a: tuple, b: tuple) -> tuple:
     J = Fa @ Ja + Fb @ Jb
     S = Fa @ Sa @ np.swapaxes(Fa, -1, -2) + Fb @ Sb @ np.swapaxes(Fb, -1, -2)
     return T, R, v, p, J, 0.5 * (S + np.swapaxes(S, -1, -2))
+
+
+def bias_corrected(R: np.ndarray, v: np.ndarray, p: np.ndarray, J: np.ndarray, dbg: np.ndarray,
+                   dba: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """First-order bias update (Forster, Sec. VI-C) of deltas ``R`` (..., 3, 3), ``v``, ``p`` (..., 3) with their
+    right-form bias Jacobian ``J`` (..., 9, 6) for bias changes ``dbg``, ``dba`` (..., 3; rad/s, m/s^2):
+    ``R Exp(J_R dbg)``, ``v + J_v [dbg, dba]``, ``p + J_p [dbg, dba]``."""
+    e = np.einsum("...ij,...j->...i", J, np.concatenate([dbg, dba], axis=-1))
+    return R @ so3.exp(e[..., 0:3]), v + e[..., 3:6], p + e[..., 6:9]
 
 
 def _jacobian_block(row: int, col: int, doc: str) -> property:
@@ -172,21 +180,9 @@ class PreintegratedImu(ParamsView):
     @classmethod
     def from_state(cls, params: PreintegrationParams, s: tuple, u: tuple | None, n: int,
                    t_start: float, t_end: float, valid: bool) -> PreintegratedImu:
-        """A measurement from the scalar kernel's state (no copy: the tuples are immutable).
-
-        Parameters
-        ----------
-        params : PreintegrationParams
-        s, u : tuple
-            Deltas (11 floats) and uncertainty (90 floats or None), layouts in
-            :mod:`imu_ground.imu.preint_kernel`.
-        n : int
-            Number of intervals integrated.
-        t_start, t_end : float
-            Times of the interval, s.
-        valid : bool
-            False when it spans a timestamp gap.
-        """
+        """A measurement from the kernel's state: deltas ``s`` (11 floats) and uncertainty ``u`` (90 floats or
+        None; layouts in :mod:`imu_ground.imu.preint_kernel`; no copy: the tuples are immutable), ``n``
+        intervals from ``t_start`` to ``t_end`` (s), ``valid`` False across a timestamp gap."""
         out = cls.__new__(cls)
         out.params = params
         out._s, out._u, out.n_intervals = s, u, n
@@ -194,7 +190,6 @@ class PreintegratedImu(ParamsView):
         out.t_start, out.t_end, out.valid = t_start, t_end, valid
         return out
 
-    # -- state -------------------------------------------------------------
     def reset(self, bias_gyro: Sequence[float] | None = None,
               bias_accel: Sequence[float] | None = None) -> None:
         """Start over: identity deltas, zero covariance and Jacobians.
@@ -240,7 +235,6 @@ class PreintegratedImu(ParamsView):
                                               (az - baz) * dt, self.params.noise)
         self.n_intervals += 1
 
-    # -- read-outs -----------------------------------------------------------
     @property
     def uncertainty(self) -> bool:
         """Whether the covariance and the bias Jacobians are propagated."""
@@ -317,12 +311,9 @@ class PreintegratedImu(ParamsView):
         delta_p : ndarray (3,)
             ``delta_p + d_p_d_bg @ dbg + d_p_d_ba @ dba``, m, start body frame.
         """
-        J = self.bias_jacobian
-        d = np.concatenate([np.asarray(bias_gyro, dtype=float) - self.bias_gyro,
-                            np.asarray(bias_accel, dtype=float) - self.bias_accel])
-        e = J @ d
-        R = self.delta_R @ so3.exp(e[0:3])
-        return so3.project(R), self.delta_v + e[3:6], self.delta_p + e[6:9]
+        return bias_corrected(self.delta_R, self.delta_v, self.delta_p, self.bias_jacobian,
+                              np.asarray(bias_gyro, dtype=float) - self.bias_gyro,
+                              np.asarray(bias_accel, dtype=float) - self.bias_accel)
 
     def predict(self, R_world_start: np.ndarray, v_world: Sequence[float], p_world: Sequence[float]
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -366,10 +357,7 @@ class PreintegratedImu(ParamsView):
     def from_arrays(cls, params: PreintegrationParams, T: float, R: np.ndarray, v: np.ndarray,
                     p: np.ndarray, J: np.ndarray, S: np.ndarray, *, t_start: float = math.nan,
                     t_end: float = math.nan, valid: bool = True, n_intervals: int = 0) -> PreintegratedImu:
-        """A measurement from left-error, p-form arrays (as :func:`compose_left` returns them).
-
-        ``J``/``S`` (9x6, 9x9) are converted to the q form of the kernel state.
-        """
+        """A measurement from left-error, p-form arrays (as :func:`compose_left` returns them)."""
         T = float(T)
         J = np.array(J, dtype=float)
         S = np.array(S, dtype=float)

@@ -137,9 +137,8 @@ class StreamingPreintegrator:
 
     @property
     def step_buffers(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(state, frame_times, frames)``: the float64 buffers :func:`push_step` runs on (for a caller that
-        runs it inside its own compiled step; on -1 it calls :meth:`push`); a positive answer of it is read
-        with :meth:`finished_frames`."""
+        """``(state, frame_times, frames)``: the buffers :func:`push_step` runs on, for a caller's own compiled
+        step (a positive answer read with :meth:`finished_frames`, -1 by calling :meth:`push`)."""
         return self._b, self._tb, self._out
 
     def finished_frames(self, n: int) -> tuple[PreintegratedImu, ...]:
@@ -192,11 +191,8 @@ class StreamingPreintegrator:
         return _from_state(self.params, *self._state(), int(b[_S_N] + b[_S_MARK] - b[_S_CD]),
                            float(b[_S_TSTART]), math.nan, b[_S_VALID] != 0.0)
 
-    # -- warm start ---------------------------------------------------------
-    # The state is the frame being integrated (deltas and, with ``uncertainty``, their covariance and
-    # Jacobians) and the bookkeeping of the sample stream (last sample, next boundary, counts); the settings
-    # are the frame boundaries and the PreintegrationParams. A stream stopped after any sample and resumed
-    # from its state emits the frames of the uninterrupted stream.
+    # -- warm start: the buffer's state (settings: the boundaries and the params); resumed after any sample,
+    # a stream emits the frames of the uninterrupted one
     def _settings(self) -> dict:
         return {"frame_times": self._times, "rate": self._rate, "every": self._every,
                 "params": dataclasses.asdict(self.params)}
