@@ -20,7 +20,7 @@ from imu_ground.errors import ImuGroundError
 from imu_ground.imu.data import ImuData
 from imu_ground.imu.preint_kernel import _O_N, _O_SIZE, _O_VALID, _S_PREV, _S_UNC, run_log, state_buffer
 from imu_ground.imu.preint_kernel import first_rate_boundary as first_rate_boundary
-from imu_ground.imu.preint_measurement import PreintegratedImu, bias_corrected, right_form, right_to_left
+from imu_ground.imu.preint_measurement import JACOBIAN_BLOCKS, PreintegratedImu, bias_corrected, right_form, right_to_left
 from imu_ground.imu.preint_params import ParamsView, PreintegrationParams, gap_message
 from imu_ground.so3.conversions import matrix_from_quat
 
@@ -200,14 +200,12 @@ def preintegrate(imu: ImuData | tuple[np.ndarray, np.ndarray, np.ndarray],
     assert n == F                       # every boundary is inside the log
     rows = out[:F]
     R = matrix_from_quat(rows[:, 1:5])
-    names = ("d_R_d_bg", "d_v_d_bg", "d_p_d_bg", "d_v_d_ba", "d_p_d_ba")
     jac: dict[str, np.ndarray | None]
     if par.uncertainty:
         J, S = right_form(rows[:, 0], R, rows[:, _S_UNC:_S_PREV])
-        blocks = ((0, 0), (3, 0), (6, 0), (3, 3), (6, 3))
-        jac = {k: J[:, r:r + 3, c:c + 3].copy() for k, (r, c) in zip(names, blocks, strict=True)}
+        jac = {k: J[:, r:r + 3, c:c + 3].copy() for k, (r, c) in JACOBIAN_BLOCKS.items()}
     else:
-        S, jac = None, dict.fromkeys(names)
+        S, jac = None, dict.fromkeys(JACOBIAN_BLOCKS)
     return FrameDeltas(
         t_start=T[:-1].copy(), t_end=T[1:].copy(), delta_t=rows[:, 0].copy(), delta_R=R, delta_v=rows[:, 5:8].copy(),
         delta_p=rows[:, 8:11].copy(), covariance=S, **jac, valid=rows[:, _O_VALID] != 0.0,
@@ -273,11 +271,8 @@ class FrameDeltas(ParamsView):
         """All bias Jacobians, shape (F, 9, 6): rows [rotation, velocity, position], columns [bg, ba]."""
         self._need_uncertainty()
         J = np.zeros((len(self), 9, 6))
-        J[:, 0:3, 0:3] = self.d_R_d_bg
-        J[:, 3:6, 0:3] = self.d_v_d_bg
-        J[:, 6:9, 0:3] = self.d_p_d_bg
-        J[:, 3:6, 3:6] = self.d_v_d_ba
-        J[:, 6:9, 3:6] = self.d_p_d_ba
+        for name, (r, c) in JACOBIAN_BLOCKS.items():
+            J[:, r:r + 3, c:c + 3] = getattr(self, name)
         return J
 
     def corrected(self, bias_gyro: npt.ArrayLike, bias_accel: npt.ArrayLike

@@ -24,16 +24,19 @@ from imu_ground.imu.preint_kernel import (DELTAS_IDENTITY, UNCERTAINTY_ZERO, int
                                           quaternion_from_rotation, rotation_from_quaternion)
 from imu_ground.imu.preint_params import ParamsView, PreintegrationParams
 
-__all__ = ["PreintegratedImu", "bias_corrected", "compose_left", "left_to_right", "right_form", "right_to_left"]
+__all__ = ["JACOBIAN_BLOCKS", "PreintegratedImu", "bias_corrected", "compose_left", "left_to_right", "right_form", "right_to_left"]
 
 _I9 = np.eye(9)
 _I3 = np.eye(3)
+#: The 3x3 blocks (row, column) of the 9x6 bias Jacobian (rows rotation, velocity, position; columns bg, ba).
+JACOBIAN_BLOCKS = {"d_R_d_bg": (0, 0), "d_v_d_bg": (3, 0), "d_p_d_bg": (6, 0),
+                   "d_v_d_ba": (3, 3), "d_p_d_ba": (6, 3)}
 
 
 def _gather_indices() -> tuple[np.ndarray, np.ndarray]:
     """Positions in ``(*uncertainty, 0.0)`` of the left-form q-form J (9x6) and S (9x9) entries."""
     J = np.full((9, 6), 90)
-    for k, (r, c) in enumerate(((0, 0), (3, 0), (6, 0), (3, 3), (6, 3))):
+    for k, (r, c) in enumerate(JACOBIAN_BLOCKS.values()):
         J[r:r + 3, c:c + 3] = np.arange(9 * k, 9 * k + 9).reshape(3, 3)
     S = np.full((9, 9), 90)
     sym = np.array([[0, 1, 2], [1, 3, 4], [2, 4, 5]])
