@@ -404,17 +404,13 @@ def push_step(b: np.ndarray, times: np.ndarray, out: np.ndarray, t: float, wx: f
         (non-increasing time, a gap with ``on_gap="raise"``, a frame time before the first sample) or one
         that finishes more frames than ``out`` has rows.
     """
-    t0 = b[_S_PREV]
-    h = t - t0
-    if t < b[_S_LIM]:                           # inside a frame (_S_LIM is -inf before the first sample)
-        cd = b[_S_CD] - 1.0
-        if not (0.0 < h <= b[_S_MAXGAP] and cd != 0.0):
-            return _push_boundary(b, times, out, t, wx, wy, wz, ax, ay, az)
-        b[_S_CD] = cd
+    h = t - b[_S_PREV]
+    # inside a frame (_S_LIM is -inf before the first sample), no gap, not an every-N boundary
+    if t < b[_S_LIM] and 0.0 < h <= b[_S_MAXGAP] and b[_S_CD] != 1.0:
+        b[_S_CD] -= 1.0
         wx, wy, wz = wx - b[_S_BIAS], wy - b[_S_BIAS + 1], wz - b[_S_BIAS + 2]
         ax, ay, az = ax - b[_S_BIAS + 3], ay - b[_S_BIAS + 4], az - b[_S_BIAS + 5]
-        gx, gy, gz, fx, fy, fz = b[_S_PREV + 1], b[_S_PREV + 2], b[_S_PREV + 3], b[_S_PREV + 4], b[_S_PREV + 5], \
-            b[_S_PREV + 6]
+        gx, gy, gz, fx, fy, fz = b[_S_PREV + 1:_S_PREV + 7]
         b[_S_PREV], b[_S_PREV + 1], b[_S_PREV + 2], b[_S_PREV + 3] = t, wx, wy, wz
         b[_S_PREV + 4], b[_S_PREV + 5], b[_S_PREV + 6] = ax, ay, az
         if b[_S_MIDPOINT] != 0.0:               # mean of the two samples, the 1/2 folded into dt
