@@ -18,7 +18,7 @@ import numpy.typing as npt
 
 from imu_ground.errors import ImuGroundError
 from imu_ground.imu.data import ImuData
-from imu_ground.imu.preint_kernel import _O_N, _O_SIZE, _O_VALID, _S_PREV, _S_UNC, run_log, state_buffer
+from imu_ground.imu.preint_kernel import run_log, state_buffer
 from imu_ground.imu.preint_kernel import first_rate_boundary as first_rate_boundary
 from imu_ground.imu.preint_measurement import JACOBIAN_BLOCKS, PreintegratedImu, bias_corrected, right_form, right_to_left
 from imu_ground.imu.preint_params import ParamsView, PreintegrationParams, gap_message
@@ -192,24 +192,23 @@ def preintegrate(imu: ImuData | tuple[np.ndarray, np.ndarray, np.ndarray],
     t, gyro, accel = _inputs(imu)
     T = _boundaries(t, frame_times, rate, every, t_origin, par.snap_tol)
     F = T.size - 1
-    out = np.empty((F + 1, _O_SIZE))
-    n, refused = run_log(state_buffer(par, None, None, None), T, out, t, np.ascontiguousarray(gyro),
-                         np.ascontiguousarray(accel))
+    deltas, unc, meta = np.empty((F, 11)), np.empty((F if par.uncertainty else 0, 90)), np.empty((F, 2))
+    n, refused = run_log(state_buffer(par, None, None, None), T, t, np.ascontiguousarray(gyro),
+                         np.ascontiguousarray(accel), deltas, unc, meta)
     if refused >= 0:                    # (the times are checked above: a gap inside a frame)
         raise ValueError(gap_message(float(t[refused - 1]), float(t[refused] - t[refused - 1]), par.max_gap))
     assert n == F                       # every boundary is inside the log
-    rows = out[:F]
-    R = matrix_from_quat(rows[:, 1:5])
+    R = matrix_from_quat(deltas[:, 1:5])
     jac: dict[str, np.ndarray | None]
     if par.uncertainty:
-        J, S = right_form(rows[:, 0], R, rows[:, _S_UNC:_S_PREV])
+        J, S = right_form(deltas[:, 0], R, unc)
         jac = {k: J[:, r:r + 3, c:c + 3].copy() for k, (r, c) in JACOBIAN_BLOCKS.items()}
     else:
         S, jac = None, dict.fromkeys(JACOBIAN_BLOCKS)
     return FrameDeltas(
-        t_start=T[:-1].copy(), t_end=T[1:].copy(), delta_t=rows[:, 0].copy(), delta_R=R, delta_v=rows[:, 5:8].copy(),
-        delta_p=rows[:, 8:11].copy(), covariance=S, **jac, valid=rows[:, _O_VALID] != 0.0,
-        n_intervals=rows[:, _O_N].astype(int), params=par)
+        t_start=T[:-1].copy(), t_end=T[1:].copy(), delta_t=deltas[:, 0].copy(), delta_R=R,
+        delta_v=deltas[:, 5:8].copy(), delta_p=deltas[:, 8:11].copy(), covariance=S, **jac, valid=meta[:, 1] != 0.0,
+        n_intervals=meta[:, 0].astype(int), params=par)
 
 
 @dataclass

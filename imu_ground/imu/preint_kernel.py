@@ -72,11 +72,11 @@ _SMALL_ANGLE2 = 1e-8
 _S_UNC, _S_PREV, _S_LIM, _S_MAXGAP, _S_CD, _S_BIAS, _S_NOISE, _S_MIDPOINT, _S_UNCERTAINTY = (
     11, 101, 108, 109, 110, 111, 117, 119, 120)
 _S_K, _S_NEXT, _S_ACTIVE, _S_N, _S_MARK, _S_TSTART, _S_VALID = 121, 122, 123, 124, 125, 126, 127
-_S_TOL, _S_MODE, _S_RATE, _S_ORIGIN, _S_RAISE, _S_EVERY, _S_SIZE = 128, 129, 130, 131, 132, 133, 134
+_S_TOL, _S_MODE, _S_RATE, _S_ORIGIN, _S_RAISE, _S_EVERY, _S_KNOTS, _S_SIZE = 128, 129, 130, 131, 132, 133, 134, 152
 # (_S_PREV: t, gyro (3), accel (3) of the last sample, bias removed; _S_LIM: the fast path runs while t < it;
 # _S_MODE: boundaries every-N 0, rate 1, frame_times 2; _S_K: index of the next boundary, at _S_NEXT (s);
 # _S_CD: samples until the next every-N boundary; _S_N: intervals integrated off the fast path in this frame,
-# _S_MARK: _S_CD at its start, so that the frame has _S_N + _S_MARK - _S_CD intervals)
+# _S_MARK: _S_CD at its start, so that the frame has _S_N + _S_MARK - _S_CD intervals; _S_KNOTS: scratch)
 # A finished frame's row of the frames buffer: deltas, uncertainty, then these
 _O_N, _O_TSTART, _O_TEND, _O_VALID, _O_SIZE = 101, 102, 103, 104, 105
 
@@ -427,15 +427,14 @@ def push_step(b: np.ndarray, times: np.ndarray, out: np.ndarray, t: float, wx: f
 def _push_boundary(b: np.ndarray, times: np.ndarray, out: np.ndarray, t: float, wx: float, wy: float, wz: float,
                    ax: float, ay: float, az: float) -> int:
     """:func:`push_step` off its fast path: the first sample, boundaries, gaps, refusals."""
-    k1 = np.empty(6)
-    k1[0], k1[1], k1[2] = wx - b[_S_BIAS], wy - b[_S_BIAS + 1], wz - b[_S_BIAS + 2]
-    k1[3], k1[4], k1[5] = ax - b[_S_BIAS + 3], ay - b[_S_BIAS + 4], az - b[_S_BIAS + 5]
     t0 = b[_S_PREV]
     if math.isnan(t0):
         nout = _first_sample(b, times, out, t)
         if nout >= 0:
-            b[_S_PREV] = t
-            b[_S_PREV + 1:_S_PREV + 7] = k1
+            b[_S_PREV], b[_S_PREV + 1], b[_S_PREV + 2], b[_S_PREV + 3] = t, wx - b[_S_BIAS], wy - b[_S_BIAS + 1], \
+                wz - b[_S_BIAS + 2]
+            b[_S_PREV + 4], b[_S_PREV + 5], b[_S_PREV + 6] = ax - b[_S_BIAS + 3], ay - b[_S_BIAS + 4], \
+                az - b[_S_BIAS + 5]
         return nout
     h = t - t0
     tol = b[_S_TOL]
@@ -452,11 +451,12 @@ def _push_boundary(b: np.ndarray, times: np.ndarray, out: np.ndarray, t: float, 
         rows += 1
     if rows > out.shape[0]:
         return -1
-    pv = b[_S_PREV + 1:_S_PREV + 7].copy()
-    k0 = pv.copy()
-    kb = np.empty(6)
-    b[_S_PREV] = t
-    b[_S_PREV + 1:_S_PREV + 7] = k1
+    # knots in the scratch (no allocation): the last sample pv, this one k1, a piece's ends k0 and kb
+    pv, k1 = b[_S_PREV + 1:_S_PREV + 7], b[_S_KNOTS:_S_KNOTS + 6]
+    k0, kb = b[_S_KNOTS + 6:_S_KNOTS + 12], b[_S_KNOTS + 12:_S_KNOTS + 18]
+    k1[0], k1[1], k1[2] = wx - b[_S_BIAS], wy - b[_S_BIAS + 1], wz - b[_S_BIAS + 2]
+    k1[3], k1[4], k1[5] = ax - b[_S_BIAS + 3], ay - b[_S_BIAS + 4], az - b[_S_BIAS + 5]
+    k0[:] = pv
     tk, nout = t0, 0
     while b[_S_NEXT] < t - tol:                 # boundaries strictly inside (t0, t - tol): split there
         tb = b[_S_NEXT]
@@ -481,6 +481,8 @@ def _push_boundary(b: np.ndarray, times: np.ndarray, out: np.ndarray, t: float, 
             b[_S_CD] = b[_S_MARK] = b[_S_EVERY]
     elif abs(b[_S_NEXT] - t) <= tol:
         nout = _cross_boundary(b, times, out, nout, b[_S_NEXT])
+    b[_S_PREV] = t
+    pv[:] = k1
     return nout
 
 
@@ -506,17 +508,29 @@ def state_buffer(par: PreintegrationParams, rate: float | None, every: int | Non
 
 
 @njit
-def run_log(b: np.ndarray, times: np.ndarray, out: np.ndarray, t: np.ndarray, gyro: np.ndarray,
-            accel: np.ndarray) -> tuple[int, int]:
-    """:func:`push_step` over a whole log (t (N,), s; gyro, accel (N, 3)), the finished frames into ``out``.
+def run_log(b: np.ndarray, times: np.ndarray, t: np.ndarray, gyro: np.ndarray, accel: np.ndarray,
+            deltas: np.ndarray, unc: np.ndarray, meta: np.ndarray) -> tuple[int, int]:
+    """:func:`push_step` over a whole log (t (N,), s; gyro, accel (N, 3)): frame ``f``'s deltas into ``deltas[f]``
+    (11), its uncertainty into ``unc[f]`` (90; ``unc`` may have no rows), its interval count and validity into
+    ``meta[f]``.
 
     Returns ``(frames, i)``: the frames written, and the first sample refused (-1: none).
     """
-    nf = 0
-    for i in range(t.size):
-        r = push_step(b, times, out[nf:], t[i], gyro[i, 0], gyro[i, 1], gyro[i, 2], accel[i, 0], accel[i, 1],
+    rows = np.empty((16, _O_SIZE))
+    nf, i = 0, 0
+    while i < t.size:
+        r = push_step(b, times, rows, t[i], gyro[i, 0], gyro[i, 1], gyro[i, 2], accel[i, 0], accel[i, 1],
                       accel[i, 2])
         if r < 0:
-            return nf, i
-        nf += r
+            if rows.shape[0] > times.size:      # (room for every frame: refused)
+                return nf, i
+            rows = np.empty((2 * rows.shape[0], _O_SIZE))
+            continue
+        for j in range(r):
+            deltas[nf] = rows[j, 0:_S_UNC]
+            if unc.shape[0]:
+                unc[nf] = rows[j, _S_UNC:_S_PREV]
+            meta[nf, 0], meta[nf, 1] = rows[j, _O_N], rows[j, _O_VALID]
+            nf += 1
+        i += 1
     return nf, -1
