@@ -410,7 +410,8 @@ def push_step(b: np.ndarray, times: np.ndarray, out: np.ndarray, t: float, wx: f
         b[_S_CD] -= 1.0
         wx, wy, wz = wx - b[_S_BIAS], wy - b[_S_BIAS + 1], wz - b[_S_BIAS + 2]
         ax, ay, az = ax - b[_S_BIAS + 3], ay - b[_S_BIAS + 4], az - b[_S_BIAS + 5]
-        gx, gy, gz, fx, fy, fz = b[_S_PREV + 1:_S_PREV + 7]
+        gx, gy, gz, fx, fy, fz = b[_S_PREV + 1], b[_S_PREV + 2], b[_S_PREV + 3], b[_S_PREV + 4], b[_S_PREV + 5], \
+            b[_S_PREV + 6]
         b[_S_PREV], b[_S_PREV + 1], b[_S_PREV + 2], b[_S_PREV + 3] = t, wx, wy, wz
         b[_S_PREV + 4], b[_S_PREV + 5], b[_S_PREV + 6] = ax, ay, az
         if b[_S_MIDPOINT] != 0.0:               # mean of the two samples, the 1/2 folded into dt
