@@ -275,8 +275,9 @@ class PreintegratedImu(ParamsView):
         """(J, S) in Forster's right form (:func:`right_form`), computed once per state (the tuples are immutable)."""
         cache = self._right_cache
         if cache is None or cache[0] is not self._u:
-            T, R, _, _, J, S = self._left_arrays()
-            cache = self._right_cache = (self._u, *left_to_right(R, J, S))
+            if self._u is None:
+                self._left_arrays()         # raises the uncertainty=False error
+            cache = self._right_cache = (self._u, *right_form(self._s[0], self.delta_R, np.array(self._u)))
         return cache[1], cache[2]
 
     @property
