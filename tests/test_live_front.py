@@ -143,3 +143,37 @@ def test_standstill_windows_match_the_samples_and_the_ring_grows_past_a_jump():
     assert all(copy.windows(k) == bl.windows(k) for k in ks) and copy.open_k == bl.open_k == ks[-1]
     bl.done(ks[-1])
     assert min(bl.blocks) == ks[-1] - 20 + 2
+
+
+def test_last_sample_time_and_next_boundary():
+    t, gyro, accel = _log()
+    sp = StreamingPreintegrator(rate=10.0, t_origin=0.0, max_gap=0.1)
+    assert sp.last_sample_time is None and sp.next_boundary == math.inf
+    for i in range(40):
+        sp.push(t[i], gyro[i].tolist(), accel[i].tolist())
+        assert sp.last_sample_time == t[i]
+        assert t[i] < sp.next_boundary <= t[i] + 0.1 + 1e-9 and sp.next_boundary * 10.0 == pytest.approx(
+            round(sp.next_boundary * 10.0), abs=1e-9)
+    every = StreamingPreintegrator(every=5)
+    every.push(t[0], gyro[0].tolist(), accel[0].tolist())
+    assert every.last_sample_time == t[0] and every.next_boundary == math.inf      # counted in samples
+    ends = StreamingPreintegrator(frame_times=[t[3], t[10]])
+    for i in range(12):
+        ends.push(t[i], gyro[i].tolist(), accel[i].tolist())
+        assert ends.next_boundary == (t[3] if i < 3 else t[10] if i < 10 else math.inf)
+
+
+def test_a_gap_that_ends_many_frames_at_once_is_the_batch():
+    """A flagged 3 s gap finishes 30 frames with one sample (more than the frames buffer's first rows)."""
+    from imu_ground.imu.preintegration import preintegrate
+    t, gyro, accel = _log()
+    t = t.copy()
+    t[150:] += 3.0
+    kw = dict(rate=10.0, max_gap=0.1, on_gap="flag", bias_gyro=[0.01, 0.0, -0.02])
+    sp = StreamingPreintegrator(**kw)
+    frames = [f for i in range(t.size) for f in sp.push(t[i], gyro[i].tolist(), accel[i].tolist())]
+    fd = preintegrate((t, gyro, accel), **kw)
+    assert len(frames) == len(fd) > 40 and sum(not f.valid for f in frames) >= 30
+    assert np.array_equal(fd.valid, [f.valid for f in frames])
+    np.testing.assert_allclose(fd.delta_v, [f.delta_v for f in frames], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(fd.delta_R, [f.delta_R for f in frames], rtol=0, atol=1e-14)

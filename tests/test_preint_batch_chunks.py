@@ -1,15 +1,8 @@
-"""Batch preintegration (imu/preint_batch.py) gathered chunk by chunk: the chunk size changes no delta."""
+"""Batch preintegration (imu/preint_frames.py): the frames a timestamp gap flags."""
 import numpy as np
 import pytest
 
-from imu_ground.imu import preint_batch
 from imu_ground.imu.preint_batch import preintegrate
-
-#: Per-block scans and cumulative sums: bit-identical whatever the chunk.
-EXACT = ("delta_t", "delta_R", "delta_v", "delta_p", "valid", "n_intervals")
-#: Sums over a block's intervals, whose rounding may follow the chunk's width.
-SUMS = ("covariance", "d_R_d_bg", "d_v_d_bg", "d_p_d_bg", "d_v_d_ba", "d_p_d_ba")
-
 
 def _log(n: int = 3000, seed: int = 5):
     """100 Hz with jittered stamps and one 0.4 s dropout; gyro rad/s, specific force m/s^2."""
@@ -19,25 +12,6 @@ def _log(n: int = 3000, seed: int = 5):
     gyro = rng.normal(0, 0.2, (n, 3))
     accel = rng.normal(0, 1.0, (n, 3)) + [0, 0, 9.81]
     return t, gyro, accel
-
-
-@pytest.mark.parametrize("options", [{"rate": 7.3, "uncertainty": True},
-                                     {"rate": 10.0, "uncertainty": False, "hold": "left"},
-                                     {"every": 9, "uncertainty": True, "bias_accel": [0.1, -0.2, 0.05]}])
-def test_chunk_size_changes_nothing(options, monkeypatch):
-    imu = _log()
-    kw = {"on_gap": "flag", "max_gap": 0.1, "bias_gyro": [0.01, -0.02, 0.003], **options}
-    whole = preintegrate(imu, **kw)
-    monkeypatch.setattr(preint_batch, "_CHUNK", 40)
-    small = preintegrate(imu, **kw)
-    assert not whole.valid.all()                               # the dropout's frame is flagged
-    for f in EXACT:
-        assert np.array_equal(getattr(whole, f), getattr(small, f)), f
-    for f in SUMS:
-        a, b = getattr(whole, f), getattr(small, f)
-        assert (a is None) == (b is None) == (not options["uncertainty"]), f
-        if a is not None:
-            np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-15 * np.abs(a).max(), err_msg=f)
 
 
 def test_the_dropout_flags_exactly_the_frames_it_falls_in():

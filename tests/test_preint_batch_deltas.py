@@ -1,19 +1,16 @@
-"""The batch preintegration's deltas-only loop (imu/preint_batch.py ``_frames_deltas``): the streaming kernel.
+"""The batch preintegration's deltas (imu/preint_frames.py): the streaming step over the log.
 
-``preintegrate(..., uncertainty=False)`` runs the compiled loop over padded blocks; with
-``uncertainty=True`` the vectorised numpy blocks (``_blocks_kernel``) give the same deltas with
-their covariance. The two must agree (to rounding) on synthetic logs over every branch (small and
-large rotations, both holds, boundaries between samples, frames cut into several blocks, gaps,
-biases), and the loop matches a plain sequential product of rotations.
+With or without ``uncertainty`` the deltas are the same on synthetic logs over every branch (small
+and large rotations, both holds, boundaries between samples, long frames, gaps, biases), and they
+are the streaming preintegrator's frames.
 """
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from imu_ground.imu import preint_batch as pb
+from imu_ground.imu import preint_frames as pb
 from imu_ground.imu.live.preint_stream import StreamingPreintegrator
-from imu_ground.so3.conversions import matrix_from_quat
 
 FIELDS = ("t_start", "t_end", "delta_t", "delta_R", "delta_v", "delta_p", "valid", "n_intervals")
 
@@ -33,7 +30,7 @@ def _log(seed: int, n: int = 4000, rate: float = 100.0, scale: float = 1.0):
 
 
 def _both(*args, **kw):
-    """The deltas-only frames (compiled loop) and the frames with uncertainty (numpy blocks)."""
+    """The deltas-only frames and the frames with uncertainty."""
     return pb.preintegrate(*args, uncertainty=False, **kw), pb.preintegrate(*args, uncertainty=True, **kw)
 
 
@@ -69,50 +66,9 @@ def test_the_deltas_do_not_depend_on_the_uncertainty(seed, hold, frames):
     assert not c.valid.all() and c.valid.any()          # the gaps flagged, the rest kept
 
 
-def test_one_long_frame_is_cut_into_blocks_and_merged():
-    t, gyro, accel = _log(5, n=3000)
-    T = np.concatenate([t[[0, 10, 20]], [t[-1]]])       # two short frames, then one of ~2980 intervals
-    c, p = _both((t, gyro, accel), T, max_gap=10.0)
-    np.testing.assert_allclose(c.delta_R, p.delta_R, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(c.delta_v, p.delta_v, rtol=0, atol=1e-9)
-    assert c.n_intervals[-1] > 2000
-
-
-def test_the_kernel_against_a_plain_sequential_product():
-    """An independent reference: each block's delta_R, delta_v, delta_p by a plain loop (equal to rounding)."""
-    from scipy.spatial.transform import Rotation
-    rng = np.random.default_rng(1)
-    K = 40
-    dt = rng.uniform(0.005, 0.015, K)
-    kv = np.vstack([rng.normal(0, 0.5, (3, K + 1)), rng.normal(0, 2.0, (3, K + 1))])
-    start, stop = np.array([0, 16, 30]), np.array([16, 30, 40])
-    bias = np.array([0.01, 0.02, -0.01, 0.1, -0.1, 0.0])
-    # the knots as 44 samples with knots 5, 17 and 33 inserted as boundaries (values in yb), from knot 2 on
-    ins = np.array([5, 17, 33])
-    samples = np.delete(np.hstack([np.zeros((6, 2)), kv, np.zeros((6, 1))]), ins + 2, axis=1)
-    ki = ins + 2 - np.arange(3)
-    d = np.empty((3, 11))
-    pb._frames_deltas(dt, np.ascontiguousarray(samples[:3].T), np.ascontiguousarray(samples[3:].T),
-                      ki.astype(np.int64), np.ascontiguousarray(kv[:, ins]), 2, np.array([0, 16, 30, 40]), bias, True,
-                      d)
-    T, R, v, p = d[:, 0], matrix_from_quat(d[:, 1:5]), d[:, 5:8], d[:, 8:11]
-    for b in range(3):
-        Rk, vk, pk = np.eye(3), np.zeros(3), np.zeros(3)
-        for j in range(start[b], stop[b]):
-            h = (kv[:, j] + kv[:, j + 1]) * 0.5 - bias
-            a = Rk @ h[3:] * dt[j]
-            pk = pk + vk * dt[j] + 0.5 * a * dt[j]
-            vk = vk + a
-            Rk = Rk @ Rotation.from_rotvec(h[:3] * dt[j]).as_matrix()
-        assert T[b] == pytest.approx(dt[start[b]:stop[b]].sum(), abs=1e-15)
-        np.testing.assert_allclose(R[b], Rk, rtol=0, atol=1e-14)
-        np.testing.assert_allclose(v[b], vk, rtol=0, atol=1e-13)
-        np.testing.assert_allclose(p[b], pk, rtol=0, atol=1e-14)
-
-
 @pytest.mark.parametrize("hold", ["midpoint", "left"])
 def test_the_batch_deltas_are_the_streaming_frames(hold):
-    """Frames on samples (every N): the batch runs the streaming kernel over the same intervals, so the two agree
+    """Frames on samples (every N): the batch runs the streaming step over the same samples, so the two agree
     to the bit but for the rotation matrix's normalisation (numpy's norm against math.sqrt)."""
     t, gyro, accel = _log(3, n=2000)
     kw = dict(hold=hold, on_gap="flag", max_gap=0.1, bias_gyro=[0.01, -0.02, 0.005], bias_accel=[0.1, 0.0, -0.05])

@@ -18,7 +18,6 @@ from imu_ground.imu.preintegration import (
     make_frame_times,
     preintegrate,
 )
-from imu_ground.so3.component_major import exp_and_left_jacobian
 
 SG, SA = 0.01, 0.1          # noise densities used in the comparisons
 
@@ -101,19 +100,6 @@ def forster_reference(dts, ws, fs, bg=np.zeros(3), ba=np.zeros(3), sg=0.0, sa=0.
 # ---------------------------------------------------------------------------
 # kernels and the reference recursion
 # ---------------------------------------------------------------------------
-def test_fused_exp_and_left_jacobian_match_so3():
-    rng = np.random.default_rng(1)
-    phi = np.concatenate([rng.normal(0, 1, (200, 3)), rng.normal(0, 1e-6, (50, 3)),
-                          rng.normal(0, 1e-3, (50, 3)), np.zeros((1, 3)),
-                          3.1 * so3.vee(so3.hat(rng.normal(0, 1, (20, 3)))) /
-                          np.linalg.norm(rng.normal(0, 1, (20, 3)), axis=1, keepdims=True)])
-    E, Jl = exp_and_left_jacobian(phi[:, 0].copy(), phi[:, 1].copy(), phi[:, 2].copy())
-    np.testing.assert_allclose(E.transpose(2, 0, 1), so3.exp(phi), atol=2e-15)
-    np.testing.assert_allclose(Jl.transpose(2, 0, 1), so3.left_jacobian(phi), atol=2e-15)
-    E_only, none = exp_and_left_jacobian(phi[:, 0].copy(), phi[:, 1].copy(), phi[:, 2].copy(), jacobian=False)
-    assert none is None and np.array_equal(E_only, E)          # the same rotations, bit for bit
-
-
 @pytest.mark.parametrize("hold", ["left", "midpoint"])
 def test_batch_and_streaming_equal_textbook_forster_recursion(hold):
     t, gyro, accel = random_log(300, seed=2)

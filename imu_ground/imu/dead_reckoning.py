@@ -1,21 +1,12 @@
 r"""Strapdown dead reckoning in a gravity-aligned world frame from preintegrated deltas.
 
-World frame: a local level frame, z up, gravity ``g_world = [0, 0, -g]``; its
-heading is that of the initial attitude (yaw 0 when the attitude comes from the
-accelerometer). Attitudes are ``R_{world<-body}`` (glossary: :mod:`imu_ground.so3`),
-the convention of the filters' ``R0``: ``R @ f_body`` is ``f`` in the world frame. With per-frame deltas (:class:`~imu_ground.imu.preintegration.FrameDeltas`)
-the state at frame boundaries follows Forster et al. 2017 (Sec. VI-A):
-
-.. math::
-
-    R_{k+1} = R_k \Delta R_k, \quad
-    v_{k+1} = v_k + g \Delta t_k + R_k \Delta v_k, \quad
-    p_{k+1} = p_k + v_k \Delta t_k + \tfrac12 g \Delta t_k^2 + R_k \Delta p_k,
-
-with ``R = R_{world<-body}``, ``g = g_world``. All frames are propagated at once: a
-log-depth product scan gives every ``R_k``, cumulative sums give ``v`` and ``p``.
-Per-sample dead reckoning is the special case of one frame per sample
-(``every=1``).
+World frame: a local level frame, z up, gravity ``g_world = [0, 0, -g]``; its heading is that of
+the initial attitude (yaw 0 when the attitude comes from the accelerometer). Attitudes are
+``R_{world<-body}`` (glossary: :mod:`imu_ground.so3`): ``R @ f_body`` is ``f`` in the world frame.
+The state at frame boundaries follows the prediction of :mod:`imu_ground.imu.preintegration`
+(Forster et al. 2017, Sec. VI-A), frame after frame: :func:`imu_ground.so3.cumulative_rotations`
+gives every ``R_k``, cumulative sums give ``v`` and ``p``. Per-sample dead reckoning is one frame
+per sample (``every=1``).
 """
 from __future__ import annotations
 
@@ -29,8 +20,7 @@ from imu_ground import so3
 from imu_ground.imu.data import ImuData
 from imu_ground.imu.preintegration import FrameDeltas, preintegrate
 from imu_ground.imu.standstill import estimate_gyro_bias
-from imu_ground.so3.component_major import mm, project_if_needed, scan_products
-from imu_ground.units import GRAVITY
+from imu_ground.units import GRAVITY, RENORM_EVERY
 
 __all__ = ["NavSolution", "attitude_from_accel", "dead_reckon", "dead_reckon_imu"]
 
@@ -68,11 +58,7 @@ class NavSolution:
     @property
     def roll_pitch_yaw(self) -> np.ndarray:
         """(F + 1, 3) roll, pitch, yaw in rad with ``R_{world<-body} = Rz(yaw) Ry(pitch) Rx(roll)``."""
-        R = self.R
-        pitch = np.arcsin(np.clip(-R[:, 2, 0], -1.0, 1.0))
-        roll = np.arctan2(R[:, 2, 1], R[:, 2, 2])
-        yaw = np.arctan2(R[:, 1, 0], R[:, 0, 0])
-        return np.stack([roll, pitch, yaw], axis=1)
+        return so3.euler_zyx(self.R)
 
 
 def attitude_from_accel(accel_mean: Sequence[float], yaw: float = 0.0) -> np.ndarray:
@@ -102,22 +88,11 @@ def attitude_from_accel(accel_mean: Sequence[float], yaw: float = 0.0) -> np.nda
     return so3.rotz(yaw) @ so3.roty(pitch) @ so3.rotx(roll)
 
 
-def _prefix_rotations(R0: np.ndarray, dR: np.ndarray) -> np.ndarray:
-    """[R0, R0 dR_0, R0 dR_0 dR_1, ...] by a log-depth scan; shape (F + 1, 3, 3)."""
-    F = dR.shape[0]
-    out = np.empty((F + 1, 3, 3))
-    out[0] = R0
-    if F:
-        P = scan_products(np.ascontiguousarray(dR.transpose(1, 2, 0))[:, :, :, None])  # (3,3,F,1)
-        out[1:] = mm(R0[:, :, None, None], P)[..., 0].transpose(2, 0, 1)
-    return project_if_needed(out)
-
-
 def dead_reckon(deltas: FrameDeltas, R0: np.ndarray, v0: Sequence[float] = (0.0, 0.0, 0.0),
                 p0: Sequence[float] = (0.0, 0.0, 0.0), *, gravity: float = GRAVITY,
                 bias_gyro: Sequence[float] | None = None,
                 bias_accel: Sequence[float] | None = None) -> NavSolution:
-    """Propagate attitude, velocity and position through consecutive frames (vectorised).
+    """Propagate attitude, velocity and position through consecutive frames.
 
     Parameters
     ----------
@@ -152,7 +127,9 @@ def dead_reckon(deltas: FrameDeltas, R0: np.ndarray, v0: Sequence[float] = (0.0,
     else:
         dR, dv, dp = deltas.delta_R, deltas.delta_v, deltas.delta_p
     T = np.asarray(deltas.delta_t, dtype=float)
-    R = _prefix_rotations(so3.project(R0), dR)
+    R = np.empty((F + 1, 3, 3))
+    R[0] = so3.project(R0)
+    R[1:] = so3.cumulative_rotations(dR, R[0], renorm_every=RENORM_EVERY)
     g_world = np.array([0.0, 0.0, -float(gravity)])
     Rdv = np.einsum("fij,fj->fi", R[:-1], dv)
     Rdp = np.einsum("fij,fj->fi", R[:-1], dp)

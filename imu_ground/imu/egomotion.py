@@ -1,10 +1,8 @@
 """From a raw IMU log to per-frame ego-motion: the front-end every estimator shares.
 
-``imu_to_egomotion`` runs: gyro bias from the log's standstills (if any),
-preintegration into frames (10 Hz by default), and per-frame standstill flags.
-The result, :class:`EgoMotion`, is what :class:`~imu_ground.filters.ground.GroundNormalFilter`
-(``delta_R``) and :class:`~imu_ground.filters.suspension.SuspensionAwareFilter`
-(``delta_R``, ``delta_v``, ``delta_t``, ``stationary``) consume.
+:func:`imu_to_egomotion`: gyro bias from the log's standstills (if any), preintegration into
+frames (10 Hz by default), per-frame standstill flags; its :class:`EgoMotion` is what the
+estimators (:mod:`imu_ground.filters`) consume.
 
 Frames (glossary: :mod:`imu_ground.so3`): everything is in the IMU's body frame
 (``imu.frame``); ``delta_R`` is ``R_{body_{k-1}<-body_k}``, the body frame at a
@@ -16,7 +14,7 @@ increment in the body frame at the frame's start (m/s). ``t`` holds the frame
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -37,8 +35,7 @@ class EgoFrame(NamedTuple):
     Attributes
     ----------
     delta_R : ndarray (3, 3)
-        ``R_{body_{k-1} <- body_k}``: the body frame at the frame's end expressed
-        in the body frame at its start (``R_k = R_{k-1} @ delta_R``).
+        ``R_{body_{k-1} <- body_k}`` (module docstring).
     delta_v : ndarray (3,)
         Gravity-free velocity increment, m/s, body frame at the frame's start
         (zeros when the source has no accelerometer, e.g. visual odometry).
@@ -186,18 +183,16 @@ def imu_to_egomotion(imu: ImuData, rate: float = DEFAULT_FRAME_RATE, *, frame_ti
         ``"auto"``: the mean rate over the log's standstills (zero if it has
         none); an array: this bias, rad/s; None: no correction.
     max_gap : float, optional
-        Sample steps longer than this (s) are gaps; frames across them are
-        integrated with the held signal and flagged ``valid = False``. Default
-        10 times the median sample step (0.1 s at 100 Hz, 1 s at 10 Hz).
+        Sample steps longer than this (s) are gaps; frames across them are integrated with the held
+        signal and flagged ``valid = False``. Default 10 times the median sample step.
     standstill_window : float
         Shortest standstill (s) used for the per-frame ``stationary`` flags.
     max_gap_frames : int, optional
         A sample step longer than this many frame periods (default
-        :data:`~imu_ground.units.MAX_GAP_FRAMES`, an hour at 10 Hz) starts a new segment, as the live
-        front end's clock restarts: the frames start again at the first sample after it, on its own
-        grid, and none spans the step (its gap frames would grow with the step, not with the log).
-        ``meta["segment_cuts"]``: the sample index before each such step. None: gaps of any length
-        are integrated through, one invalid frame a period. Not with ``frame_times``.
+        :data:`~imu_ground.units.MAX_GAP_FRAMES`) starts a new segment, as the live front end's clock
+        restarts: the frames start again at the first sample after it, on its own grid, and none spans
+        the step. ``meta["segment_cuts"]``: the sample index before each such step. None: gaps of any
+        length are integrated through, one invalid frame a period. Not with ``frame_times``.
 
     Returns
     -------
@@ -222,42 +217,34 @@ def imu_to_egomotion(imu: ImuData, rate: float = DEFAULT_FRAME_RATE, *, frame_ti
         bg = np.zeros(3)
     else:
         bg = np.asarray(bias_gyro, dtype=float).reshape(3)
+    T = None if frame_times is None else np.asarray(frame_times, dtype=float)
+    keep: slice | np.ndarray = slice(None)          # the frames of T that are frames (not across a segment cut)
     segments = None
     if frame_times is None and max_gap_frames is not None and len(imu) > 1:
         segment_gap = max_gap_frames / rate
         segments = segment_frame_times(imu.t, rate, segment_gap)
     if segments is not None:
         T, in_frame, cuts = segments
-        fd = preintegrate(imu, T, bias_gyro=bg, max_gap=max_gap, on_gap="flag", uncertainty=False)
+        keep = in_frame
+    fd = preintegrate(imu, T, rate=rate if T is None else None, bias_gyro=bg, max_gap=max_gap, on_gap="flag",
+                      uncertainty=False)
+    if segments is not None:
         if not in_frame.any():
             raise ImuGroundError(f"no frame at {rate:g} Hz: each of the {cuts.size + 1} segments between steps of "
                                  f"more than {segment_gap:g} s is shorter than a frame")
-        fd = _frames_only(fd, in_frame)
         meta["segment_cuts"] = cuts.tolist()
-    elif frame_times is None:
-        fd = preintegrate(imu, rate=rate, bias_gyro=bg, max_gap=max_gap, on_gap="flag", uncertainty=False)
-    else:
-        fd = preintegrate(imu, np.asarray(frame_times, dtype=float), bias_gyro=bg, max_gap=max_gap,
-                          on_gap="flag", uncertainty=False)
     if intervals is None:
         intervals = detect_standstill(imu, window=standstill_window, max_gap=max_gap)
-    te = fd.t_end
+    te = fd.t_end[keep]
     stationary = np.zeros(len(te), dtype=bool)
     if len(intervals):
         i = np.searchsorted(intervals[:, 0], te, side="right") - 1
         ok = i >= 0
         stationary[ok] = te[ok] <= intervals[i[ok], 1]
     meta["standstill_intervals"] = intervals.tolist()
-    meta["invalid_frames"] = int(np.sum(~fd.valid))
+    meta["invalid_frames"] = int(np.sum(~fd.valid[keep]))
     if frame_times is not None:
         ft = np.asarray(frame_times, dtype=float)
         rate = 1.0 / float(np.median(np.diff(ft))) if len(ft) > 1 else rate
-    return EgoMotion(te.copy(), fd.delta_R, fd.delta_v, fd.delta_t, stationary, fd.valid.copy(),
+    return EgoMotion(te.copy(), fd.delta_R[keep], fd.delta_v[keep], fd.delta_t[keep], stationary, fd.valid[keep].copy(),
                      bg, imu.frame, meta, float(rate), True)
-
-
-def _frames_only(fd, keep: np.ndarray):
-    """The frames ``keep`` of a :class:`~imu_ground.imu.preint_frames.FrameDeltas` (those the ego-motion uses)."""
-    arrays = {name: getattr(fd, name)[keep] for name in ("t_start", "t_end", "delta_t", "delta_R", "delta_v",
-                                                        "delta_p", "valid", "n_intervals")}
-    return replace(fd, **arrays)

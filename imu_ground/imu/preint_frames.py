@@ -1,37 +1,30 @@
-"""Frame boundaries and the batch result: which samples a frame covers, and what it holds.
+"""Frames: their boundaries, the batch preintegration of a whole log into them, and the result.
 
 :func:`make_frame_times` turns a frame rate or a sample count into boundary times;
-:class:`FrameDeltas` holds the preintegrated deltas, covariance and bias
-Jacobians of consecutive frames (the output of
-:func:`~imu_ground.imu.preint_batch.preintegrate`). Frames: ``delta_R`` is
+:func:`preintegrate` runs the streaming step (:func:`~imu_ground.imu.preint_kernel.push_step`)
+over a whole log in one compiled loop, so its frames are those of
+:class:`~imu_ground.imu.live.preint_stream.StreamingPreintegrator`; :class:`FrameDeltas` holds
+the deltas, covariance and bias Jacobians of consecutive frames. Frames: ``delta_R`` is
 ``R_{start<-end}`` (glossary in :mod:`imu_ground.so3`).
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from imu_ground import so3
-from imu_ground.imu.preint_measurement import PreintegratedImu, right_to_left
-from imu_ground.imu.preint_params import ParamsView, PreintegrationParams
-from imu_ground.so3.component_major import project_if_needed
+from imu_ground.errors import ImuGroundError
+from imu_ground.imu.data import ImuData
+from imu_ground.imu.preint_kernel import run_log, state_buffer
+from imu_ground.imu.preint_kernel import first_rate_boundary as first_rate_boundary
+from imu_ground.imu.preint_measurement import JACOBIAN_BLOCKS, PreintegratedImu, bias_corrected, right_form, right_to_left
+from imu_ground.imu.preint_params import ParamsView, PreintegrationParams, gap_message
+from imu_ground.so3.conversions import matrix_from_quat
 
-__all__ = ["FrameDeltas", "first_rate_boundary", "make_frame_times", "segment_frame_times"]
-
-
-def first_rate_boundary(t_first: float, rate: float, origin: float, snap_tol: float) -> int:
-    """Index of the first boundary ``origin + k / rate`` (k >= 0) at or after ``t_first - snap_tol``.
-
-    The batch (:func:`make_frame_times`) and the streaming front-end both start
-    their frames here, so that they cut a log into the same frames.
-    """
-    k = max(0, math.ceil((t_first - snap_tol - origin) * rate) - 1)
-    while origin + k / rate < t_first - snap_tol:
-        k += 1
-    return k
+__all__ = ["FrameDeltas", "first_rate_boundary", "make_frame_times", "preintegrate", "segment_frame_times"]
 
 
 def make_frame_times(t: np.ndarray, *, rate: float | None = None, every: int | None = None,
@@ -114,9 +107,113 @@ def segment_frame_times(t: np.ndarray, rate: float, segment_gap: float,
     return T, frames, cuts
 
 
+def _inputs(imu: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t, gyro, accel) as float arrays from an ImuData or a tuple, checked."""
+    if isinstance(imu, ImuData):
+        t, gyro, accel = imu.t, imu.gyro, imu.accel
+    else:
+        t, gyro, accel = imu
+    t = np.ascontiguousarray(t, dtype=float)
+    gyro = np.asarray(gyro, dtype=float)
+    accel = np.asarray(accel, dtype=float)
+    if gyro.shape != (t.size, 3) or accel.shape != (t.size, 3):
+        raise ValueError(f"gyro and accel must have shape ({t.size}, 3), got {gyro.shape}, {accel.shape}")
+    if t.ndim != 1 or t.size < 2:
+        raise ImuGroundError(f"need at least 2 samples, got t of shape {t.shape}")
+    if not np.all(np.isfinite(t)):
+        raise ValueError("IMU timestamps contain NaN or inf")
+    bad = np.flatnonzero(~(np.diff(t) > 0))
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(
+            f"IMU timestamps must be strictly increasing: t[{i + 1}] = {t[i + 1]!r} s comes after "
+            f"t[{i}] = {t[i]!r} s ({bad.size} non-increasing step(s)); drop non-increasing samples "
+            f"upstream (validation) before preintegrating")
+    return t, gyro, accel
+
+
+def _boundaries(t: np.ndarray, frame_times: Any, rate: float | None, every: int | None,
+                t_origin: float | None, snap_tol: float) -> np.ndarray:
+    """Frame boundaries (F + 1,) inside the log, checked."""
+    if frame_times is None:
+        T = make_frame_times(t, rate=rate, every=every, t_origin=t_origin, snap_tol=snap_tol)
+    else:
+        if rate is not None or every is not None:
+            raise ValueError("give frame_times or rate/every, not both")
+        T = np.asarray(frame_times, dtype=float).reshape(-1)
+    if T.size < 2:
+        raise ImuGroundError(f"need at least 2 frame boundaries inside the log, got {T.size}")
+    if not np.all(np.diff(T) > 2 * snap_tol):
+        raise ValueError("frame_times must be strictly increasing (by more than 2 * snap_tol)")
+    if T[0] < t[0] - snap_tol or T[-1] > t[-1] + snap_tol:
+        raise ValueError(f"frame boundaries [{T[0]!r}, {T[-1]!r}] s are not inside the log "
+                         f"[{t[0]!r}, {t[-1]!r}] s")
+    return T
+
+
+def preintegrate(imu: ImuData | tuple[np.ndarray, np.ndarray, np.ndarray],
+                 frame_times: np.ndarray | None = None, *,
+                 rate: float | None = None, every: int | None = None,
+                 t_origin: float | None = None, params: PreintegrationParams | None = None,
+                 **options: Any) -> FrameDeltas:
+    """Preintegrate a whole log into frames (the streaming step over every sample, compiled).
+
+    Parameters
+    ----------
+    imu : ImuData or (t, gyro, accel)
+        Times (s, strictly increasing), angular rate (rad/s) and specific force
+        (m/s^2), both in the body frame.
+    frame_times : array_like, shape (F + 1,), optional
+        Frame boundaries, s, strictly increasing and inside ``[t[0], t[-1]]``;
+        frame ``i`` spans ``[frame_times[i], frame_times[i+1]]``.
+    rate, every, t_origin :
+        Instead of ``frame_times``: frames at ``rate`` Hz from ``t_origin``
+        (default ``t[0]``), or every ``every`` samples (see :func:`make_frame_times`).
+    params : PreintegrationParams, optional
+        Biases, noise densities, hold, gap rule, snapping, ``uncertainty``
+        (False: no covariance or bias Jacobians; those fields are None).
+    **options
+        Fields of :class:`~imu_ground.imu.preint_params.PreintegrationParams`
+        overriding ``params`` (``bias_gyro=..., on_gap="flag"``).
+
+    Returns
+    -------
+    FrameDeltas
+        Per frame: ``delta_R`` (``R_{start<-end}``), ``delta_v``, ``delta_p``
+        (start body frame), 9x9 covariance, bias Jacobians, validity.
+
+    Raises
+    ------
+    ValueError
+        Non-increasing timestamps, frame boundaries outside the log or not
+        increasing, or a gap inside a frame with ``on_gap="raise"``.
+    """
+    par = PreintegrationParams.coerce(params, **options)
+    t, gyro, accel = _inputs(imu)
+    T = _boundaries(t, frame_times, rate, every, t_origin, par.snap_tol)
+    F = T.size - 1
+    deltas, unc, meta = np.empty((F, 11)), np.empty((F if par.uncertainty else 0, 90)), np.empty((F, 2))
+    n, refused = run_log(state_buffer(par, None, None, None), T, t, np.ascontiguousarray(gyro),
+                         np.ascontiguousarray(accel), deltas, unc, meta)
+    if refused >= 0:                    # (the times are checked above: a gap inside a frame)
+        raise ValueError(gap_message(float(t[refused - 1]), float(t[refused] - t[refused - 1]), par.max_gap))
+    assert n == F                       # every boundary is inside the log
+    R = matrix_from_quat(deltas[:, 1:5])
+    jac: dict[str, np.ndarray | None]
+    if par.uncertainty:
+        J, S = right_form(deltas[:, 0], R, unc)
+        jac = {k: J[:, r:r + 3, c:c + 3].copy() for k, (r, c) in JACOBIAN_BLOCKS.items()}
+    else:
+        S, jac = None, dict.fromkeys(JACOBIAN_BLOCKS)
+    return FrameDeltas(
+        t_start=T[:-1].copy(), t_end=T[1:].copy(), delta_t=deltas[:, 0].copy(), delta_R=R,
+        delta_v=deltas[:, 5:8].copy(), delta_p=deltas[:, 8:11].copy(), covariance=S, **jac, valid=meta[:, 1] != 0.0,
+        n_intervals=meta[:, 0].astype(int), params=par)
+
+
 @dataclass
 class FrameDeltas(ParamsView):
-    """Preintegrated deltas of consecutive frames (output of :func:`~imu_ground.imu.preint_batch.preintegrate`).
+    """Preintegrated deltas of consecutive frames (output of :func:`preintegrate`).
 
     Attributes
     ----------
@@ -173,11 +270,8 @@ class FrameDeltas(ParamsView):
         """All bias Jacobians, shape (F, 9, 6): rows [rotation, velocity, position], columns [bg, ba]."""
         self._need_uncertainty()
         J = np.zeros((len(self), 9, 6))
-        J[:, 0:3, 0:3] = self.d_R_d_bg
-        J[:, 3:6, 0:3] = self.d_v_d_bg
-        J[:, 6:9, 0:3] = self.d_p_d_bg
-        J[:, 3:6, 3:6] = self.d_v_d_ba
-        J[:, 6:9, 3:6] = self.d_p_d_ba
+        for name, (r, c) in JACOBIAN_BLOCKS.items():
+            J[:, r:r + 3, c:c + 3] = getattr(self, name)
         return J
 
     def corrected(self, bias_gyro: npt.ArrayLike, bias_accel: npt.ArrayLike
@@ -198,16 +292,10 @@ class FrameDeltas(ParamsView):
         delta_p : ndarray (F, 3)
             m, body frame at the start.
         """
-        self._need_uncertainty()
-        dbg = np.broadcast_to(np.asarray(bias_gyro, dtype=float) - self.bias_gyro, (len(self), 3))
-        dba = np.broadcast_to(np.asarray(bias_accel, dtype=float) - self.bias_accel, (len(self), 3))
-
-        def mv(M, x):
-            return np.einsum("fij,fj->fi", M, x)
-        R = self.delta_R @ so3.exp(mv(self.d_R_d_bg, dbg))
-        v = self.delta_v + mv(self.d_v_d_bg, dbg) + mv(self.d_v_d_ba, dba)
-        p = self.delta_p + mv(self.d_p_d_bg, dbg) + mv(self.d_p_d_ba, dba)
-        return project_if_needed(R), v, p
+        shape = (len(self), 3)
+        return bias_corrected(self.delta_R, self.delta_v, self.delta_p, self.bias_jacobian,
+                              np.broadcast_to(np.asarray(bias_gyro, dtype=float) - self.bias_gyro, shape),
+                              np.broadcast_to(np.asarray(bias_accel, dtype=float) - self.bias_accel, shape))
 
     def frame(self, i: int) -> PreintegratedImu:
         """Frame ``i`` as a :class:`~imu_ground.imu.preint_measurement.PreintegratedImu` (e.g. to combine frames)."""

@@ -1,25 +1,22 @@
-"""The scalar kinematics of one integration interval, written once: deltas, and optionally
-their bias Jacobians and covariance.
+"""The one body of preintegration: the kinematics of one interval, and the step of one sample into frames.
 
-:func:`integrate` is the hot path of the streaming preintegration and of
-:class:`~imu_ground.imu.preint_measurement.PreintegratedImu`: Forster's recursion
-(Forster, Carlone, Dellaert, Scaramuzza, IEEE T-RO 2017, Sec. VI and appendix) on
-scalar floats, compiled through :mod:`imu_ground._jit` (interpreted with
-``NUMBA_DISABLE_JIT=1``). The state is a flat float64 array, unpacked into locals,
-updated, and written back; :func:`integrate_interval` is the same on tuples.
+:func:`integrate` is Forster's recursion (Forster, Carlone, Dellaert, Scaramuzza, IEEE T-RO 2017,
+Sec. VI and appendix) on scalar floats: the deltas and, optionally, their bias Jacobians and
+covariance. :func:`push_step` takes one sample into the frame being integrated (splitting the
+sample interval at frame boundaries, flagging gaps, finishing frames); the live
+:class:`~imu_ground.imu.live.preint_stream.StreamingPreintegrator` runs it per sample, the batch
+:func:`~imu_ground.imu.preint_frames.preintegrate` over a whole log (:func:`run_log`), and
+:class:`~imu_ground.imu.preint_measurement.PreintegratedImu` runs :func:`integrate` per interval.
+All are compiled through :mod:`imu_ground._jit` (interpreted with ``NUMBA_DISABLE_JIT=1``).
 
 State layouts
 -------------
-``deltas`` (11 floats): ``T`` (integrated time, s), ``delta_R`` as the unit
-quaternion ``(w, x, y, z)`` of ``R_{start<-now}`` (body frame now -> body frame at
-the start; a quaternion product is 28 float operations where a 3x3 product and
-the matrix exponential are about 70), ``delta_v`` (m/s) and ``delta_p`` (m) in the
-start body frame. :func:`rotation_from_quaternion` gives the matrix.
+``deltas`` (11 floats): ``T`` (integrated time, s), ``delta_R`` as the unit quaternion
+``(w, x, y, z)`` of ``R_{start<-now}`` (body frame now -> body frame at the start),
+``delta_v`` (m/s) and ``delta_p`` (m) in the start body frame.
 
 ``uncertainty`` (90 floats), left-error form in the start body frame
-(``delta_R_measured = Exp(dtheta) delta_R_true``, which makes the transition unit
-lower block-triangular), position rows in the "q form" ``q = p - T v`` (so that
-every position row is a scaled copy of the velocity increment)::
+(``delta_R_measured = Exp(dtheta) delta_R_true``), position rows in the "q form" ``q = p - T v``::
 
     0:9    Th   left rotation-error Jacobian w.r.t. b_g (= delta_R @ dR_dbg)
     9:18   Vg   d delta_v / d b_g
@@ -33,26 +30,34 @@ every position row is a scaled copy of the velocity increment)::
     75:84  vq   E[dv dq^T]
     84:90  qq   symmetric
 
-:mod:`imu_ground.imu.preint_measurement` converts them to Forster's right-error,
-p-form 9x9 covariance and 9x6 bias Jacobian.
+:mod:`imu_ground.imu.preint_measurement` reads them out in Forster's right-error, p-form.
+
+The step's state buffer (offsets ``_S_*``) holds the deltas and uncertainty, then the last sample
+(bias removed; its time NaN before the first sample) and the frame bookkeeping; a finished frame
+is a row of the frames buffer: deltas, uncertainty, then ``_O_*``.
 """
 from __future__ import annotations
 
+import math
 from math import cos, sin, sqrt
 
 import numpy as np
 
 from imu_ground import so3
-from imu_ground._jit import njit
-from imu_ground.so3.component_major import SMALL_ANGLE2
+from imu_ground._jit import jitable, njit
+from imu_ground.imu.preint_params import PreintegrationParams
 
 __all__ = [
     "DELTAS_IDENTITY",
     "UNCERTAINTY_ZERO",
+    "first_rate_boundary",
     "integrate",
     "integrate_interval",
+    "push_step",
     "quaternion_from_rotation",
     "rotation_from_quaternion",
+    "run_log",
+    "state_buffer",
 ]
 
 #: Deltas of an empty interval: T = 0, delta_R = I (quaternion 1), delta_v = delta_p = 0.
@@ -60,53 +65,61 @@ DELTAS_IDENTITY: tuple = (0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 #: Bias Jacobians and covariance of an empty interval (all zero).
 UNCERTAINTY_ZERO: tuple = (0.0,) * 90
 _NO_UNCERTAINTY = np.zeros(0)
+#: theta^2 (rad^2) below which the Taylor series of the SO(3) coefficients are used (exact to double precision).
+_SMALL_ANGLE2 = 1e-8
+
+# The step's state buffer (offsets in floats): deltas (11) and uncertainty (90), then the bookkeeping
+_S_UNC, _S_PREV, _S_LIM, _S_MAXGAP, _S_CD, _S_BIAS, _S_NOISE, _S_MIDPOINT, _S_UNCERTAINTY = (
+    11, 101, 108, 109, 110, 111, 117, 119, 120)
+_S_K, _S_NEXT, _S_ACTIVE, _S_N, _S_MARK, _S_TSTART, _S_VALID = 121, 122, 123, 124, 125, 126, 127
+_S_TOL, _S_MODE, _S_RATE, _S_ORIGIN, _S_RAISE, _S_EVERY, _S_KNOTS, _S_SIZE = 128, 129, 130, 131, 132, 133, 134, 152
+# (_S_PREV: t, gyro (3), accel (3) of the last sample, bias removed; _S_LIM: the fast path runs while t < it;
+# _S_MODE: boundaries every-N 0, rate 1, frame_times 2; _S_K: index of the next boundary, at _S_NEXT (s);
+# _S_CD: samples until the next every-N boundary; _S_N: intervals integrated off the fast path in this frame,
+# _S_MARK: _S_CD at its start, so that the frame has _S_N + _S_MARK - _S_CD intervals; _S_KNOTS: scratch)
+# A finished frame's row of the frames buffer: deltas, uncertainty, then these
+_O_N, _O_TSTART, _O_TEND, _O_VALID, _O_SIZE = 101, 102, 103, 104, 105
 
 
 @njit
 def integrate(s: np.ndarray, u: np.ndarray, dt: float, x: float, y: float, z: float,
               fx: float, fy: float, fz: float, qg: float, qa: float) -> None:
-    """Add one interval of held rate and specific force to preintegrated deltas (unrolled).
+    """Add one interval of held rate and specific force to the deltas ``s`` and, unless ``u`` is empty,
+    to their bias Jacobians and covariance ``u`` (both updated in place; layouts in the module docstring).
 
-    Unrolled kernel: every 3x3 product, cross product and symmetric update is
-    written out entry by entry on float locals (no loops, no numpy), which is
-    why it is longer than the usual function. Per interval, with the
-    bias-corrected increments ``phi = (w - b_g) dt`` and ``f dt = (a - b_a) dt``
-    (the caller forms them: the streaming front-end folds the midpoint hold's
-    ``1/2`` into ``dt``), the rotation before the interval ``R_k``, ``c = R_k f dt``
-    and ``mid = T + dt/2``:
+    Unrolled: every 3x3 product, cross product and symmetric update is written out entry by entry on
+    float locals (no loops, no numpy). With ``R_k`` the rotation before the interval,
+    ``c = R_k f dt`` and ``mid = T + dt/2``:
 
-    - deltas: ``p += dt (v + c/2)``, ``v += c``, ``R = R_k Exp(phi)`` as the
-      quaternion product ``q_k (x) (cos(th/2), sin(th/2) phi / th)``;
-    - when ``u`` is not empty, first the bias Jacobians
-      (``Vg -= hat(c) Th``, ``Mg += mid hat(c) Th``, ``Th -= R_k Jl(phi) dt``,
-      ``Va -= R_k dt``, ``Ma += mid R_k dt``) and the covariance: with
-      ``u_k = hat(c) dtheta - n_a`` the errors move as ``dv' = dv - u_k``,
-      ``dq' = dq + mid u_k``, and the gyro noise adds
-      ``q_g dt [(1 - kappa t^2) I + kappa psi psi^T]`` to ``rr``
-      (``psi = R_k phi``, ``Jl Jl^T = I + kappa K^2``).
+    - deltas: ``p += dt (v + c/2)``, ``v += c``, ``R = R_k Exp(phi)`` as the quaternion product
+      ``q_k (x) (cos(th/2), sin(th/2) phi / th)``;
+    - bias Jacobians: ``Vg -= hat(c) Th``, ``Mg += mid hat(c) Th``, ``Th -= R_k Jl(phi) dt``,
+      ``Va -= R_k dt``, ``Ma += mid R_k dt``;
+    - covariance: with ``u_k = hat(c) dtheta - n_a`` the errors move as ``dv' = dv - u_k``,
+      ``dq' = dq + mid u_k``; the gyro noise adds ``q_g dt [(1 - kappa t^2) I + kappa psi psi^T]``
+      to ``rr`` (``psi = R_k phi``, ``Jl Jl^T = I + kappa K^2``).
 
     Parameters
     ----------
     s : ndarray, shape (11,)
-        Deltas so far (module docstring), updated in place.
+        Deltas so far.
     u : ndarray, shape (90,) or (0,)
-        Bias Jacobians and covariance so far (module docstring), updated in place;
-        empty to integrate the deltas only.
+        Bias Jacobians and covariance so far; empty for the deltas only.
     dt : float
         Interval length, s (> 0).
     x, y, z : float
         Rotation increment ``phi = (w - b_g) dt``, rad, body frame.
     fx, fy, fz : float
-        Velocity increment ``(a - b_a) dt`` before rotation, m/s, body frame.
+        Velocity increment ``(a - b_a) dt`` before rotation, m/s, body frame (the midpoint hold's
+        ``1/2`` folded into ``dt`` by the caller).
     qg, qa : float
-        Squared gyro and accelerometer noise densities (``PreintegrationParams.noise``);
-        used only with ``u``.
+        Squared gyro and accelerometer noise densities (``PreintegrationParams.noise``); used only with ``u``.
     """
     T, qw, qx, qy, qz, v0, v1, v2, p0, p1, p2 = s
     xx, yy, zz = x * x, y * y, z * z
     t2 = xx + yy + zz
     # Exp(phi) as the unit quaternion (cos(th/2), k phi), k = sin(th/2) / th
-    if t2 < SMALL_ANGLE2:
+    if t2 < _SMALL_ANGLE2:
         ch = 1.0 - t2 / 8.0 + t2 * t2 / 384.0
         k = 0.5 - t2 / 48.0 + t2 * t2 / 3840.0
     else:
@@ -136,7 +149,7 @@ def integrate(s: np.ndarray, u: np.ndarray, dt: float, x: float, y: float, z: fl
         vv11, vv12, vv22, vq00, vq01, vq02 = u[72], u[73], u[74], u[75], u[76], u[77]
         vq10, vq11, vq12, vq20, vq21, vq22 = u[78], u[79], u[80], u[81], u[82], u[83]
         qq00, qq01, qq02, qq11, qq12, qq22 = u[84], u[85], u[86], u[87], u[88], u[89]
-        if t2 < SMALL_ANGLE2:
+        if t2 < _SMALL_ANGLE2:
             B = 0.5 - t2 / 24.0 + t2 * t2 / 720.0
             C = 1.0 / 6.0 - t2 / 120.0 + t2 * t2 / 5040.0
         else:
@@ -264,13 +277,10 @@ def integrate(s: np.ndarray, u: np.ndarray, dt: float, x: float, y: float, z: fl
     s[8], s[9], s[10] = p0 + dt * (v0 + 0.5 * c0), p1 + dt * (v1 + 0.5 * c1), p2 + dt * (v2 + 0.5 * c2)
 
 
+
 def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float, z: float,
                        fx: float, fy: float, fz: float, noise: tuple[float, float]) -> tuple[tuple, tuple | None]:
-    """:func:`integrate` on tuples: the new ``(deltas, uncertainty)`` (``uncertainty`` None when ``u`` is).
-
-    For callers that keep the state as tuples (:class:`~imu_ground.imu.preint_measurement.PreintegratedImu`);
-    the streaming front-end runs :func:`integrate` on its state buffer.
-    """
+    """:func:`integrate` on tuples: the new ``(deltas, uncertainty)`` (``uncertainty`` None when ``u`` is)."""
     sa = np.array(s, dtype=float)
     ua = _NO_UNCERTAINTY if u is None else np.array(u, dtype=float)
     integrate(sa, ua, float(dt), float(x), float(y), float(z), float(fx), float(fy), float(fz),
@@ -284,6 +294,244 @@ def rotation_from_quaternion(q: tuple) -> tuple:
 
 
 def quaternion_from_rotation(r: tuple) -> tuple:
-    """Unit quaternion ``(w, x, y, z)`` of a row-major rotation matrix (9 floats): :func:`imu_ground.so3.quat_from_flat`
-    (Shepperd's method), normalised against the matrix's own rounding."""
+    """Unit quaternion ``(w, x, y, z)`` of a row-major rotation matrix (9 floats) (Shepperd's method)."""
     return so3.quat_normalise(so3.quat_from_flat(r))
+
+
+@jitable
+def first_rate_boundary(t_first: float, rate: float, origin: float, snap_tol: float) -> int:
+    """Index of the first boundary ``origin + k / rate`` (k >= 0) at or after ``t_first - snap_tol``."""
+    k = max(0, math.ceil((t_first - snap_tol - origin) * rate) - 1)
+    while origin + k / rate < t_first - snap_tol:
+        k += 1
+    return k
+
+
+@njit
+def _integrate(b: np.ndarray, dt: float, x: float, y: float, z: float, fx: float, fy: float, fz: float) -> None:
+    """:func:`integrate` on the state buffer."""
+    u = b[_S_UNC:_S_PREV] if b[_S_UNCERTAINTY] != 0.0 else b[_S_UNC:_S_UNC]
+    integrate(b[0:_S_UNC], u, dt, x, y, z, fx, fy, fz, b[_S_NOISE], b[_S_NOISE + 1])
+
+
+@njit
+def _integrate_piece(b: np.ndarray, dt: float, ka: np.ndarray, kb: np.ndarray, gap: bool) -> None:
+    """One piece of length ``dt`` (s) between knots with bias-free values ``ka`` and ``kb`` (6: rad/s, m/s^2),
+    held at their mean (midpoint) or at ``ka`` (left); a piece of a gap flags the frame."""
+    if gap:
+        b[_S_VALID] = 0.0
+    if b[_S_MIDPOINT] != 0.0:
+        hh = 0.5 * dt
+        _integrate(b, dt, (ka[0] + kb[0]) * hh, (ka[1] + kb[1]) * hh, (ka[2] + kb[2]) * hh,
+                   (ka[3] + kb[3]) * hh, (ka[4] + kb[4]) * hh, (ka[5] + kb[5]) * hh)
+    else:
+        _integrate(b, dt, ka[0] * dt, ka[1] * dt, ka[2] * dt, ka[3] * dt, ka[4] * dt, ka[5] * dt)
+    b[_S_N] += 1.0
+
+
+@njit
+def _boundary_after(b: np.ndarray, times: np.ndarray, k: float) -> float:
+    """Time of boundary ``k``, s: a frame time (inf past the last), on the rate's grid, or inf (every-N)."""
+    if b[_S_MODE] == 2.0:
+        return times[int(k)] if k < times.size else math.inf
+    if b[_S_MODE] == 1.0:
+        return b[_S_ORIGIN] + k / b[_S_RATE]
+    return math.inf
+
+
+@njit
+def _cross_boundary(b: np.ndarray, times: np.ndarray, out: np.ndarray, nout: int, tb: float) -> int:
+    """A boundary at ``tb``: the running frame's state into row ``nout`` of ``out``, the next frame
+    started; returns the rows written so far."""
+    if b[_S_ACTIVE] != 0.0:
+        out[nout, 0:_S_PREV] = b[0:_S_PREV]
+        out[nout, _O_N] = b[_S_N] + b[_S_MARK] - b[_S_CD]
+        out[nout, _O_TSTART] = b[_S_TSTART]
+        out[nout, _O_TEND] = tb
+        out[nout, _O_VALID] = b[_S_VALID]
+        nout += 1
+    k = b[_S_K] + 1.0
+    nxt = _boundary_after(b, times, k)
+    active = b[_S_MODE] == 0.0 or nxt != math.inf
+    b[_S_K] = k
+    b[_S_NEXT] = nxt
+    b[_S_ACTIVE] = 1.0 if active else 0.0
+    b[_S_LIM] = nxt - b[_S_TOL] if active else -math.inf
+    b[0:_S_PREV] = 0.0
+    b[1] = 1.0                                  # identity quaternion
+    b[_S_N] = 0.0
+    b[_S_MARK] = b[_S_CD]
+    b[_S_TSTART] = tb
+    b[_S_VALID] = 1.0
+    return nout
+
+
+@njit
+def _first_sample(b: np.ndarray, times: np.ndarray, out: np.ndarray, t: float) -> int:
+    """The first sample: place the first boundary (-1, nothing changed: a frame time before it)."""
+    tol = b[_S_TOL]
+    if b[_S_MODE] == 0.0:
+        _cross_boundary(b, times, out, 0, t)
+        b[_S_CD] = b[_S_MARK] = b[_S_EVERY]
+        return 0
+    k = b[_S_K]
+    if b[_S_MODE] == 1.0:
+        origin = t if math.isnan(b[_S_ORIGIN]) else b[_S_ORIGIN]
+        k = float(first_rate_boundary(t, b[_S_RATE], origin, tol))
+        b[_S_ORIGIN] = origin
+    nxt = _boundary_after(b, times, k)
+    if nxt < t - tol:
+        return -1
+    b[_S_K], b[_S_NEXT], b[_S_LIM] = k, nxt, -math.inf
+    if abs(nxt - t) <= tol:
+        _cross_boundary(b, times, out, 0, nxt)
+    return 0
+
+
+@njit
+def push_step(b: np.ndarray, times: np.ndarray, out: np.ndarray, t: float, wx: float, wy: float, wz: float,
+              ax: float, ay: float, az: float) -> int:
+    """Take one sample (time s; gyro rad/s, specific force m/s^2, body frame, bias not removed) into the state
+    buffer ``b`` with the frame times ``times`` (frame_times mode).
+
+    Inside a frame the sample interval is integrated at once; an interval that crosses boundaries is split
+    there (the midpoint hold's values interpolated), each finished frame's state written to a row of ``out``.
+
+    Returns
+    -------
+    int
+        The number of frames finished (0 usually); -1, the buffer untouched, for a sample refused
+        (non-increasing time, a gap with ``on_gap="raise"``, a frame time before the first sample) or one
+        that finishes more frames than ``out`` has rows.
+    """
+    h = t - b[_S_PREV]
+    # inside a frame (_S_LIM is -inf before the first sample), no gap, not an every-N boundary
+    if t < b[_S_LIM] and 0.0 < h <= b[_S_MAXGAP] and b[_S_CD] != 1.0:
+        b[_S_CD] -= 1.0
+        wx, wy, wz = wx - b[_S_BIAS], wy - b[_S_BIAS + 1], wz - b[_S_BIAS + 2]
+        ax, ay, az = ax - b[_S_BIAS + 3], ay - b[_S_BIAS + 4], az - b[_S_BIAS + 5]
+        gx, gy, gz, fx, fy, fz = b[_S_PREV + 1], b[_S_PREV + 2], b[_S_PREV + 3], b[_S_PREV + 4], b[_S_PREV + 5], \
+            b[_S_PREV + 6]
+        b[_S_PREV], b[_S_PREV + 1], b[_S_PREV + 2], b[_S_PREV + 3] = t, wx, wy, wz
+        b[_S_PREV + 4], b[_S_PREV + 5], b[_S_PREV + 6] = ax, ay, az
+        if b[_S_MIDPOINT] != 0.0:               # mean of the two samples, the 1/2 folded into dt
+            hh = 0.5 * h
+            _integrate(b, h, (gx + wx) * hh, (gy + wy) * hh, (gz + wz) * hh, (fx + ax) * hh, (fy + ay) * hh,
+                       (fz + az) * hh)
+        else:                                   # the left sample's value
+            _integrate(b, h, gx * h, gy * h, gz * h, fx * h, fy * h, fz * h)
+        return 0
+    return _push_boundary(b, times, out, t, wx, wy, wz, ax, ay, az)
+
+
+@njit
+def _push_boundary(b: np.ndarray, times: np.ndarray, out: np.ndarray, t: float, wx: float, wy: float, wz: float,
+                   ax: float, ay: float, az: float) -> int:
+    """:func:`push_step` off its fast path: the first sample, boundaries, gaps, refusals."""
+    t0 = b[_S_PREV]
+    if math.isnan(t0):
+        nout = _first_sample(b, times, out, t)
+        if nout >= 0:
+            b[_S_PREV], b[_S_PREV + 1], b[_S_PREV + 2], b[_S_PREV + 3] = t, wx - b[_S_BIAS], wy - b[_S_BIAS + 1], \
+                wz - b[_S_BIAS + 2]
+            b[_S_PREV + 4], b[_S_PREV + 5], b[_S_PREV + 6] = ax - b[_S_BIAS + 3], ay - b[_S_BIAS + 4], \
+                az - b[_S_BIAS + 5]
+        return nout
+    h = t - t0
+    tol = b[_S_TOL]
+    gap = h > b[_S_MAXGAP]
+    if not h > 0.0 or (gap and b[_S_RAISE] != 0.0 and (b[_S_ACTIVE] != 0.0 or b[_S_NEXT] < t - tol)):
+        return -1
+    # the frames this sample finishes: more than out holds is refused (the caller grows out)
+    nxt, k, rows = b[_S_NEXT], b[_S_K], 0
+    while nxt < t - tol:
+        rows += 1
+        k += 1.0
+        nxt = _boundary_after(b, times, k)
+    if abs(nxt - t) <= tol or (b[_S_MODE] == 0.0 and b[_S_CD] == 1.0):
+        rows += 1
+    if rows > out.shape[0]:
+        return -1
+    # knots in the scratch (no allocation): the last sample pv, this one k1, a piece's ends k0 and kb
+    pv, k1 = b[_S_PREV + 1:_S_PREV + 7], b[_S_KNOTS:_S_KNOTS + 6]
+    k0, kb = b[_S_KNOTS + 6:_S_KNOTS + 12], b[_S_KNOTS + 12:_S_KNOTS + 18]
+    k1[0], k1[1], k1[2] = wx - b[_S_BIAS], wy - b[_S_BIAS + 1], wz - b[_S_BIAS + 2]
+    k1[3], k1[4], k1[5] = ax - b[_S_BIAS + 3], ay - b[_S_BIAS + 4], az - b[_S_BIAS + 5]
+    k0[:] = pv
+    tk, nout = t0, 0
+    while b[_S_NEXT] < t - tol:                 # boundaries strictly inside (t0, t - tol): split there
+        tb = b[_S_NEXT]
+        if b[_S_MIDPOINT] != 0.0:
+            wgt = (tb - t0) / h
+            for i in range(6):
+                kb[i] = pv[i] + (k1[i] - pv[i]) * wgt
+        else:
+            kb[:] = k0
+        if b[_S_ACTIVE] != 0.0:
+            _integrate_piece(b, tb - tk, k0, kb, gap)
+        nout = _cross_boundary(b, times, out, nout, tb)
+        tk = tb
+        k0[:] = kb
+    if b[_S_ACTIVE] != 0.0:
+        _integrate_piece(b, t - tk, k0, k1, gap)
+    if b[_S_MODE] == 0.0:
+        b[_S_CD] -= 1.0
+        b[_S_MARK] -= 1.0                       # (an interval counted in _S_N)
+        if b[_S_CD] == 0.0:
+            nout = _cross_boundary(b, times, out, nout, t)
+            b[_S_CD] = b[_S_MARK] = b[_S_EVERY]
+    elif abs(b[_S_NEXT] - t) <= tol:
+        nout = _cross_boundary(b, times, out, nout, b[_S_NEXT])
+    b[_S_PREV] = t
+    pv[:] = k1
+    return nout
+
+
+def state_buffer(par: PreintegrationParams, rate: float | None, every: int | None,
+                   origin: float | None) -> np.ndarray:
+    """A fresh state buffer of :func:`push_step` (no sample yet): frames every ``every`` samples, at ``rate`` Hz
+    from ``origin`` (s; None: the first sample), or (both None) at the frame times passed to it."""
+    b = np.zeros(_S_SIZE)
+    b[0:11] = DELTAS_IDENTITY
+    b[_S_PREV] = b[_S_TSTART] = math.nan
+    b[_S_LIM], b[_S_NEXT], b[_S_VALID] = -math.inf, math.inf, 1.0
+    b[_S_CD] = b[_S_MARK] = float(1 << 52)      # (exact as a float)
+    b[_S_MAXGAP], b[_S_TOL] = par.max_gap, par.snap_tol
+    b[_S_BIAS:_S_BIAS + 6] = par.bias
+    b[_S_NOISE:_S_NOISE + 2] = par.noise
+    b[_S_MIDPOINT] = 1.0 if par.hold == "midpoint" else 0.0
+    b[_S_UNCERTAINTY] = 1.0 if par.uncertainty else 0.0
+    b[_S_RAISE] = 1.0 if par.on_gap == "raise" else 0.0
+    b[_S_MODE] = 0.0 if every is not None else (1.0 if rate is not None else 2.0)
+    b[_S_RATE], b[_S_EVERY] = rate or 0.0, every or 0
+    b[_S_ORIGIN] = math.nan if origin is None else origin
+    return b
+
+
+@njit
+def run_log(b: np.ndarray, times: np.ndarray, t: np.ndarray, gyro: np.ndarray, accel: np.ndarray,
+            deltas: np.ndarray, unc: np.ndarray, meta: np.ndarray) -> tuple[int, int]:
+    """:func:`push_step` over a whole log (t (N,), s; gyro, accel (N, 3)): frame ``f``'s deltas into ``deltas[f]``
+    (11), its uncertainty into ``unc[f]`` (90; ``unc`` may have no rows), its interval count and validity into
+    ``meta[f]``.
+
+    Returns ``(frames, i)``: the frames written, and the first sample refused (-1: none).
+    """
+    rows = np.empty((16, _O_SIZE))
+    nf, i = 0, 0
+    while i < t.size:
+        r = push_step(b, times, rows, t[i], gyro[i, 0], gyro[i, 1], gyro[i, 2], accel[i, 0], accel[i, 1],
+                      accel[i, 2])
+        if r < 0:
+            if rows.shape[0] > times.size:      # (room for every frame: refused)
+                return nf, i
+            rows = np.empty((2 * rows.shape[0], _O_SIZE))
+            continue
+        for j in range(r):
+            deltas[nf] = rows[j, 0:_S_UNC]
+            if unc.shape[0]:
+                unc[nf] = rows[j, _S_UNC:_S_PREV]
+            meta[nf, 0], meta[nf, 1] = rows[j, _O_N], rows[j, _O_VALID]
+            nf += 1
+        i += 1
+    return nf, -1

@@ -10,9 +10,6 @@ deltas, the 9x9 covariance and the bias Jacobians in Forster's right-error form,
 Frames (glossary: :mod:`imu_ground.so3`): ``delta_R`` is ``R_{start<-end}``, the
 body frame at the end expressed in the body frame at the start;
 ``delta_v``/``delta_p`` are in the body frame at the start.
-
-:func:`compose_left` is the batched composition (left-error, p-form arrays) that
-both :meth:`~PreintegratedImu.combine` and the batch preintegration's block merge use.
 """
 from __future__ import annotations
 
@@ -23,25 +20,23 @@ from typing import Any
 import numpy as np
 
 from imu_ground import so3
-from imu_ground.imu.preint_kernel import (
-    DELTAS_IDENTITY,
-    UNCERTAINTY_ZERO,
-    integrate_interval,
-    quaternion_from_rotation,
-    rotation_from_quaternion,
-)
+from imu_ground.imu.preint_kernel import (DELTAS_IDENTITY, UNCERTAINTY_ZERO, integrate_interval,
+                                          quaternion_from_rotation, rotation_from_quaternion)
 from imu_ground.imu.preint_params import ParamsView, PreintegrationParams
 
-__all__ = ["PreintegratedImu", "compose_left", "left_to_right", "right_to_left"]
+__all__ = ["JACOBIAN_BLOCKS", "PreintegratedImu", "bias_corrected", "compose_left", "left_to_right", "right_form", "right_to_left"]
 
 _I9 = np.eye(9)
 _I3 = np.eye(3)
+#: The 3x3 blocks (row, column) of the 9x6 bias Jacobian (rows rotation, velocity, position; columns bg, ba).
+JACOBIAN_BLOCKS = {"d_R_d_bg": (0, 0), "d_v_d_bg": (3, 0), "d_p_d_bg": (6, 0),
+                   "d_v_d_ba": (3, 3), "d_p_d_ba": (6, 3)}
 
 
 def _gather_indices() -> tuple[np.ndarray, np.ndarray]:
     """Positions in ``(*uncertainty, 0.0)`` of the left-form q-form J (9x6) and S (9x9) entries."""
     J = np.full((9, 6), 90)
-    for k, (r, c) in enumerate(((0, 0), (3, 0), (6, 0), (3, 3), (6, 3))):
+    for k, (r, c) in enumerate(JACOBIAN_BLOCKS.values()):
         J[r:r + 3, c:c + 3] = np.arange(9 * k, 9 * k + 9).reshape(3, 3)
     S = np.full((9, 9), 90)
     sym = np.array([[0, 1, 2], [1, 3, 4], [2, 4, 5]])
@@ -55,6 +50,24 @@ def _gather_indices() -> tuple[np.ndarray, np.ndarray]:
 
 
 _J_IDX, _S_IDX = _gather_indices()
+
+
+def _left_p_form(T: Any, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The kernel's uncertainty (..., 90) as the bias Jacobian (..., 9, 6) and covariance (..., 9, 9), left error,
+    p form (``p = q + T v``: position rows and columns plus ``T`` times the velocity's)."""
+    a = np.concatenate([u, np.zeros(np.shape(u)[:-1] + (1,))], axis=-1)
+    J, S = a[..., _J_IDX], a[..., _S_IDX]
+    T = np.asarray(T, dtype=float)[..., None, None]
+    J[..., 6:9, :] += T * J[..., 3:6, :]
+    S[..., 6:9, :] += T * S[..., 3:6, :]
+    S[..., :, 6:9] += T * S[..., :, 3:6]
+    return J, S
+
+
+def right_form(T: Any, R: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Forster's right-error, p-form bias Jacobian (..., 9, 6) and covariance (..., 9, 9) of kernel states:
+    integrated times ``T`` (...) s, ``delta_R`` (..., 3, 3) (``R_{start<-end}``), uncertainty ``u`` (..., 90)."""
+    return left_to_right(R, *_left_p_form(T, u))
 
 
 def left_to_right(R: np.ndarray, J: np.ndarray, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -90,10 +103,9 @@ def right_to_left(R: np.ndarray, J: np.ndarray, S: np.ndarray) -> tuple[np.ndarr
 def compose_left(a: tuple, b: tuple) -> tuple:
     """Compose two consecutive preintegrated measurements (left-error, p-form), batched.
 
-    ``a`` and ``b`` are tuples ``(T, R, v, p, J, S)`` with shapes (...), (...,3,3),
-    (...,3), (...,3), (...,9,6), (...,9,9); ``a`` comes first; ``J``/``S`` may be
-    None (deltas only). Exact for the deltas, exact linear-error propagation for
-    the bias Jacobian ``J`` and the covariance ``S``.
+    ``a`` (first) and ``b`` are tuples ``(T, R, v, p, J, S)`` with shapes (...), (...,3,3), (...,3),
+    (...,3), (...,9,6), (...,9,9); ``J``/``S`` may be None (deltas only). Exact for the deltas, exact
+    linear-error propagation for the bias Jacobian ``J`` and the covariance ``S``.
     """
     Ta, Ra, va, pa, Ja, Sa = a
     Tb, Rb, vb, pb, Jb, Sb = b
@@ -116,6 +128,15 @@ def compose_left(a: tuple, b: tuple) -> tuple:
     J = Fa @ Ja + Fb @ Jb
     S = Fa @ Sa @ np.swapaxes(Fa, -1, -2) + Fb @ Sb @ np.swapaxes(Fb, -1, -2)
     return T, R, v, p, J, 0.5 * (S + np.swapaxes(S, -1, -2))
+
+
+def bias_corrected(R: np.ndarray, v: np.ndarray, p: np.ndarray, J: np.ndarray, dbg: np.ndarray,
+                   dba: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """First-order bias update (Forster, Sec. VI-C) of deltas ``R`` (..., 3, 3), ``v``, ``p`` (..., 3) with their
+    right-form bias Jacobian ``J`` (..., 9, 6) for bias changes ``dbg``, ``dba`` (..., 3; rad/s, m/s^2):
+    ``R Exp(J_R dbg)``, ``v + J_v [dbg, dba]``, ``p + J_p [dbg, dba]``."""
+    e = np.einsum("...ij,...j->...i", J, np.concatenate([dbg, dba], axis=-1))
+    return R @ so3.exp(e[..., 0:3]), v + e[..., 3:6], p + e[..., 6:9]
 
 
 def _jacobian_block(row: int, col: int, doc: str) -> property:
@@ -145,7 +166,7 @@ class PreintegratedImu(ParamsView):
     t_start, t_end : float
         Times of the interval this object summarises, s (``nan`` unless set by
         :class:`~imu_ground.imu.live.preint_stream.StreamingPreintegrator` or
-        :meth:`FrameDeltas.frame <imu_ground.imu.preint_batch.FrameDeltas.frame>`).
+        :meth:`FrameDeltas.frame <imu_ground.imu.preint_frames.FrameDeltas.frame>`).
     valid : bool
         False when the interval spans a timestamp gap longer than ``max_gap``.
     n_intervals : int
@@ -162,21 +183,9 @@ class PreintegratedImu(ParamsView):
     @classmethod
     def from_state(cls, params: PreintegrationParams, s: tuple, u: tuple | None, n: int,
                    t_start: float, t_end: float, valid: bool) -> PreintegratedImu:
-        """A measurement from the scalar kernel's state (no copy: the tuples are immutable).
-
-        Parameters
-        ----------
-        params : PreintegrationParams
-        s, u : tuple
-            Deltas (11 floats) and uncertainty (90 floats or None), layouts in
-            :mod:`imu_ground.imu.preint_kernel`.
-        n : int
-            Number of intervals integrated.
-        t_start, t_end : float
-            Times of the interval, s.
-        valid : bool
-            False when it spans a timestamp gap.
-        """
+        """A measurement from the kernel's state: deltas ``s`` (11 floats) and uncertainty ``u`` (90 floats or
+        None; layouts in :mod:`imu_ground.imu.preint_kernel`; no copy: the tuples are immutable), ``n``
+        intervals from ``t_start`` to ``t_end`` (s), ``valid`` False across a timestamp gap."""
         out = cls.__new__(cls)
         out.params = params
         out._s, out._u, out.n_intervals = s, u, n
@@ -184,7 +193,6 @@ class PreintegratedImu(ParamsView):
         out.t_start, out.t_end, out.valid = t_start, t_end, valid
         return out
 
-    # -- state -------------------------------------------------------------
     def reset(self, bias_gyro: Sequence[float] | None = None,
               bias_accel: Sequence[float] | None = None) -> None:
         """Start over: identity deltas, zero covariance and Jacobians.
@@ -230,7 +238,6 @@ class PreintegratedImu(ParamsView):
                                               (az - baz) * dt, self.params.noise)
         self.n_intervals += 1
 
-    # -- read-outs -----------------------------------------------------------
     @property
     def uncertainty(self) -> bool:
         """Whether the covariance and the bias Jacobians are propagated."""
@@ -262,34 +269,15 @@ class PreintegratedImu(ParamsView):
             raise ValueError("this preintegration was made with uncertainty=False: it has no covariance "
                              "or bias Jacobians (use uncertainty=True)")
         s = self._s
-        T = s[0]
-        a = np.array(self._u + (0.0,))
-        J = a[_J_IDX]
-        S = a[_S_IDX]
-        # q form -> p form: p = q + T v (rows 6:9 += T rows 3:6, same for columns)
-        J[6:9] += T * J[3:6]
-        S[6:9] += T * S[3:6]
-        S[:, 6:9] += T * S[:, 3:6]
-        return (np.float64(T), np.array(rotation_from_quaternion(s[1:5])).reshape(3, 3), np.array(s[5:8]),
-                np.array(s[8:11]), J, S)
+        return (np.float64(s[0]), self.delta_R, self.delta_v, self.delta_p, *_left_p_form(s[0], np.array(self._u)))
 
     def _right(self) -> tuple[np.ndarray, np.ndarray]:
-        """(J, S) in Forster's right form, computed once per state (the state tuples are immutable).
-
-        One 9x9 map ``K = diag(R^T, I, I) M`` takes the kernel's left-error,
-        q-form state to the right-error, p-form read-out (``M``: ``p = q + T v``).
-        """
+        """(J, S) in Forster's right form (:func:`right_form`), computed once per state (the tuples are immutable)."""
         cache = self._right_cache
         if cache is None or cache[0] is not self._u:
             if self._u is None:
                 self._left_arrays()         # raises the uncertainty=False error
-            assert self._u is not None
-            a = np.array(self._u + (0.0,))
-            K = _I9.copy()
-            K[0:3, 0:3] = np.array(rotation_from_quaternion(self._s[1:5])).reshape(3, 3).T
-            K[6:9, 3:6] = self._s[0] * _I3
-            S = K @ a[_S_IDX] @ K.T
-            cache = self._right_cache = (self._u, K @ a[_J_IDX], 0.5 * (S + S.T))
+            cache = self._right_cache = (self._u, *right_form(self._s[0], self.delta_R, np.array(self._u)))
         return cache[1], cache[2]
 
     @property
@@ -327,12 +315,9 @@ class PreintegratedImu(ParamsView):
         delta_p : ndarray (3,)
             ``delta_p + d_p_d_bg @ dbg + d_p_d_ba @ dba``, m, start body frame.
         """
-        J = self.bias_jacobian
-        d = np.concatenate([np.asarray(bias_gyro, dtype=float) - self.bias_gyro,
-                            np.asarray(bias_accel, dtype=float) - self.bias_accel])
-        e = J @ d
-        R = self.delta_R @ so3.exp(e[0:3])
-        return so3.project(R), self.delta_v + e[3:6], self.delta_p + e[6:9]
+        return bias_corrected(self.delta_R, self.delta_v, self.delta_p, self.bias_jacobian,
+                              np.asarray(bias_gyro, dtype=float) - self.bias_gyro,
+                              np.asarray(bias_accel, dtype=float) - self.bias_accel)
 
     def predict(self, R_world_start: np.ndarray, v_world: Sequence[float], p_world: Sequence[float]
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -376,10 +361,7 @@ class PreintegratedImu(ParamsView):
     def from_arrays(cls, params: PreintegrationParams, T: float, R: np.ndarray, v: np.ndarray,
                     p: np.ndarray, J: np.ndarray, S: np.ndarray, *, t_start: float = math.nan,
                     t_end: float = math.nan, valid: bool = True, n_intervals: int = 0) -> PreintegratedImu:
-        """A measurement from left-error, p-form arrays (as :func:`compose_left` returns them).
-
-        ``J``/``S`` (9x6, 9x9) are converted to the q form of the kernel state.
-        """
+        """A measurement from left-error, p-form arrays (as :func:`compose_left` returns them)."""
         T = float(T)
         J = np.array(J, dtype=float)
         S = np.array(S, dtype=float)

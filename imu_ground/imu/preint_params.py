@@ -5,7 +5,7 @@ plus ``imuBias::ConstantBias``: the sensor's noise, the bias the deltas are
 integrated with (the linearisation point), gravity (used only when a
 preintegrated measurement predicts a navigation state), and how a sampled
 signal is cut into integration intervals (hold, gaps, snapping). The batch
-:func:`~imu_ground.imu.preint_batch.preintegrate`, the streaming
+:func:`~imu_ground.imu.preint_frames.preintegrate`, the streaming
 :class:`~imu_ground.imu.live.preint_stream.StreamingPreintegrator` and the value type
 :class:`~imu_ground.imu.preint_measurement.PreintegratedImu` all take one.
 """
@@ -144,40 +144,21 @@ class PreintegrationParams:
 
 
 class ParamsView:
-    """Read-only views of ``self.params`` under their old attribute names (a mixin).
-
-    :class:`~imu_ground.imu.preint_measurement.PreintegratedImu` and
-    :class:`~imu_ground.imu.preint_frames.FrameDeltas` keep their settings in one
-    :class:`PreintegrationParams`; these properties read it.
-    """
+    """Read-only views of ``self.params`` under their old attribute names (a mixin of
+    :class:`~imu_ground.imu.preint_measurement.PreintegratedImu` and :class:`~imu_ground.imu.preint_frames.FrameDeltas`)."""
 
     __slots__ = ()
     params: PreintegrationParams
 
-    @property
-    def bias_gyro(self) -> np.ndarray:
-        """Gyro bias the deltas were integrated with, rad/s, body frame, shape (3,)."""
-        return np.array(self.params.bias_gyro)
-
-    @property
-    def bias_accel(self) -> np.ndarray:
-        """Accelerometer bias the deltas were integrated with, m/s^2, body frame, shape (3,)."""
-        return np.array(self.params.bias_accel)
-
-    @property
-    def gyro_noise_density(self) -> float:
-        """Gyro white noise used for the covariance, rad/s/sqrt(Hz)."""
-        return self.params.gyro_noise_density
-
-    @property
-    def accel_noise_density(self) -> float:
-        """Accelerometer white noise used for the covariance, m/s^2/sqrt(Hz)."""
-        return self.params.accel_noise_density
-
-    @property
-    def hold(self) -> str:
-        """``"midpoint"`` or ``"left"`` (module docstring of :mod:`imu_ground.imu.preintegration`)."""
-        return self.params.hold
+    bias_gyro = property(lambda self: np.array(self.params.bias_gyro),
+                         doc="Gyro bias the deltas were integrated with, rad/s, body frame, shape (3,).")
+    bias_accel = property(lambda self: np.array(self.params.bias_accel),
+                          doc="Accelerometer bias the deltas were integrated with, m/s^2, body frame, shape (3,).")
+    gyro_noise_density = property(lambda self: self.params.gyro_noise_density,
+                                  doc="Gyro white noise used for the covariance, rad/s/sqrt(Hz).")
+    accel_noise_density = property(lambda self: self.params.accel_noise_density,
+                                   doc="Accelerometer white noise used for the covariance, m/s^2/sqrt(Hz).")
+    hold = property(lambda self: self.params.hold, doc="``'midpoint'`` or ``'left'`` (:mod:`imu_ground.imu.preintegration`).")
 
 
 def gap_message(t0: float, length: float, max_gap: float) -> str:

@@ -49,8 +49,7 @@ interval's start (Forster's discretisation): rotation is exact for the held
 rate, velocity and position are first order in ``|omega| dt`` (an error of
 about ``|omega| dt / 2`` of each interval's velocity change).
 
-The streaming and batch paths use the same knots, the same held values and the
-same ``delta_t`` per interval.
+The streaming and batch paths run the same step (:func:`~imu_ground.imu.preint_kernel.push_step`).
 
 Noise and bias Jacobians
 ------------------------
@@ -67,24 +66,20 @@ first-order update ``delta_R Exp(dR_dbg dbg)``, ``delta_v + dv_dbg dbg + dv_dba 
 
 Where it lives
 --------------
-This module is the public face; the pieces are small modules, as GTSAM has them:
-
-- :mod:`~imu_ground.imu.preint_params`: :class:`PreintegrationParams` (noise,
-  bias, gravity, hold and gap rules), the one place the options are defined.
-- :mod:`~imu_ground.imu.preint_kernel`: the kinematics of one interval, written
-  once in scalar floats, with or without covariance and bias Jacobians (left
-  error form internally; the read-outs convert to Forster's right error).
-- :mod:`~imu_ground.imu.preint_measurement`: :class:`PreintegratedImu` (the
-  measurement; its composition :meth:`~PreintegratedImu.combine`, prediction).
-- :mod:`~imu_ground.imu.preint_frames`: :func:`make_frame_times`, :class:`FrameDeltas`.
-- :mod:`~imu_ground.imu.preint_batch`: :func:`preintegrate`, the vectorised
-  closed form over a whole log.
-- :mod:`~imu_ground.imu.live.preint_stream`: :class:`StreamingPreintegrator`.
+- :mod:`~imu_ground.imu.preint_params`: :class:`PreintegrationParams` (noise, bias, gravity, hold
+  and gap rules), the one place the options are defined.
+- :mod:`~imu_ground.imu.preint_kernel`: the one body, compiled: the kinematics of one interval
+  (with or without covariance and bias Jacobians, left error form internally) and the step of one
+  sample into frames.
+- :mod:`~imu_ground.imu.preint_measurement`: :class:`PreintegratedImu` (the measurement; its
+  composition :meth:`~PreintegratedImu.combine`, prediction, the right-error read-out).
+- :mod:`~imu_ground.imu.preint_frames`: :func:`make_frame_times`, :func:`preintegrate` (the step
+  over a whole log), :class:`FrameDeltas`.
+- :mod:`~imu_ground.imu.live.preint_stream`: :class:`StreamingPreintegrator` (the step per sample).
 """
 from __future__ import annotations
 
-from imu_ground.imu.preint_batch import preintegrate
-from imu_ground.imu.preint_frames import FrameDeltas, make_frame_times
+from imu_ground.imu.preint_frames import FrameDeltas, make_frame_times, preintegrate
 from imu_ground.imu.preint_measurement import PreintegratedImu
 from imu_ground.imu.preint_params import PreintegrationParams
 from imu_ground.imu.live.preint_stream import StreamingPreintegrator

@@ -1,14 +1,12 @@
 r"""The rotation group SO(3): every rotation formula of the package, and the glossary of frames and signs.
 
 One home for rotation code (the compiled loops call its ``*_flat`` scalar kernels, compiled into
-them by numba: :func:`imu_ground._jit.jitable`), in three submodules, every public name re-exported here:
+them by numba: :func:`imu_ground._jit.jitable`), in two submodules, every public name re-exported here:
 
 - :mod:`imu_ground.so3.group`: hat/vee, exp/log, Jacobians, projection, axis rotations
   (one element or a batch), and the ``*_flat`` scalar kernels of the streaming filters;
 - :mod:`imu_ground.so3.conversions`: rotations from any input form (matrix, 4x4 pose,
-  rotation vector), heading twist, ZYX Euler angles, quaternions, cumulative products;
-- :mod:`imu_ground.so3.component_major`: batches of 3x3 matrices stored component-major,
-  ``(3, 3, ...)``, for the batch preintegration and dead reckoning.
+  rotation vector), heading twist, ZYX Euler angles, quaternions, cumulative products.
 
 Glossary of frames and signs (every module refers here)
 -------------------------------------------------------
@@ -53,9 +51,8 @@ Signs:
 - Units: radians and seconds everywhere inside the library
   (:mod:`imu_ground.units` owns the constants); degrees only at the edges.
 """
-from imu_ground.so3 import component_major, conversions, group
-from imu_ground.so3.component_major import *  # noqa: F403 (the package re-exports each submodule's __all__)
-from imu_ground.so3.conversions import *  # noqa: F403
+from imu_ground.so3 import conversions, group
+from imu_ground.so3.conversions import *  # noqa: F403 (the package re-exports each submodule's __all__)
 from imu_ground.so3.group import *  # noqa: F403
 
-__all__ = group.__all__ + conversions.__all__ + component_major.__all__
+__all__ = group.__all__ + conversions.__all__
