@@ -183,8 +183,7 @@ def frame_checked(buf, d, dv, dt):
 
 
 def _checked(v, shape: tuple, name: str):
-    """``v`` if it is a C-contiguous float64 ndarray of ``shape``; TypeError or ValueError otherwise (the filters
-    then coerce it with :func:`~imu_ground.filters.frame_checks.coerce_frame` and retry)."""
+    """``v`` if it is a C-contiguous float64 ndarray of ``shape``; TypeError or ValueError otherwise."""
     if type(v) is np.ndarray and v.shape == shape and v.dtype == np.float64 and v.flags.c_contiguous:
         return v
     if type(v) is not np.ndarray or v.dtype != np.float64 or not v.flags.c_contiguous:
@@ -197,20 +196,8 @@ def step(buf: np.ndarray, d, q_h: float, q_v: float, tilt_x: Optional[float], ti
          dv, dt: float):
     """One checked frame: the row of :func:`frame`, or the frame's status with the state untouched.
 
-    Parameters
-    ----------
-    buf : ndarray (BUF_LEN,) float64
-        The kernel's buffer (:attr:`ResidualKernel.buf`), updated in place.
-    d : ndarray (3, 3), float64
-        Increment sensor_{k-1} <- sensor_k.
-    q_h, q_v : float
-        Process noise of this frame, horizontal and about up, rad^2.
-    tilt_x, tilt_y : float or None
-        Modelled body tilt, rad (None: none).
-    dv : ndarray (3,) float64, or None
-        Velocity increment to check (m/s; None: not checked).
-    dt : float
-        Frame duration to check, s.
+    ``buf``, ``d``, ``q_h``, ``q_v`` as in :func:`frame`; ``tilt_x, tilt_y`` the modelled body tilt
+    (rad, None: none); ``dv`` (3,) float64 (m/s, None: not checked) and ``dt`` (s) are checked.
 
     Returns
     -------
@@ -234,26 +221,11 @@ def step(buf: np.ndarray, d, q_h: float, q_v: float, tilt_x: Optional[float], ti
 
 def run(buf: np.ndarray, d, q_h, q_v: float, tilt_x, tilt_y, out: np.ndarray, angles: bool,
         P_out: Optional[np.ndarray] = None) -> None:
-    """Many frames (already checked) into ``out``: the batch entry point.
+    """Many frames (already checked) into ``out``: the batch entry point, :func:`frame` over each.
 
-    Parameters
-    ----------
-    buf : ndarray (BUF_LEN,) float64
-        The kernel's buffer, updated in place.
-    d : ndarray (F, 3, 3) or (F, 9), float64
-        Increments sensor_{k-1} <- sensor_k.
-    q_h : float or ndarray (F,)
-        Horizontal process noise per frame, rad^2.
-    q_v : float
-        Process noise about up per frame, rad^2.
-    tilt_x, tilt_y : ndarray (F,) or None
-        Modelled body tilt per frame, rad.
-    out : ndarray (F, 8) or (F, 12), float64
-        Receives the rows of :func:`frame` (12 columns with the cumulative rotation).
-    angles : bool
-        Compute pitch and roll (else NaN).
-    P_out : ndarray (F, 3, 3) float64, optional
-        Receives each frame's covariance ``P``, rad^2.
+    ``d`` (F, 3, 3) or (F, 9); ``q_h`` a float or (F,); ``tilt_x, tilt_y`` (F,) or None (rad); ``out``
+    (F, 8) or (F, 12, with the cumulative rotation) receives the rows, ``P_out`` (F, 3, 3), if given, each
+    frame's covariance (rad^2); the rest as in :func:`frame`.
     """
     d = np.ascontiguousarray(d, dtype=float).reshape(-1, 3, 3)
     n = len(d)
@@ -280,9 +252,8 @@ def check(d, dv, dt: float) -> int:
     return int(status_of(d, True, _checked(dv, (3,), "delta_v"), float(dt)))
 
 
-def check_many(d: np.ndarray, dv: Optional[np.ndarray], dt: Optional[np.ndarray], out: np.ndarray) -> None:
-    """:func:`check` of every frame into ``out`` (uint8 (F,)); see :func:`~imu_ground.filters.frame_checks.frame_statuses`."""
-    statuses_of(d, dv, dt, out)
+#: :func:`check` of every frame into ``out`` (uint8 (F,)): :func:`~imu_ground.filters.frame_checks.statuses_of`.
+check_many = statuses_of
 
 
 def _buffer(P, Q, R, axis, follow_heading: bool, cumulative: bool, Rgs) -> np.ndarray:
@@ -302,8 +273,7 @@ _LOADED: list = []
 
 
 def _load_compiled() -> None:
-    """Call the compiled step once per process, on a scratch buffer: numba's first call (its typing and the
-    cached machine code) then happens when the first filter is built, not at the first frame of a stream."""
+    """Call the compiled steps once per process (numba's first call: when the first filter is built)."""
     if not _LOADED:
         _LOADED.append(True)
         buf = _buffer(np.eye(3), np.zeros((3, 3)), np.eye(3), None, True, True, None)

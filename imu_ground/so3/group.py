@@ -23,7 +23,7 @@ __all__ = [
     "hat", "vee", "exp", "log", "right_jacobian", "left_jacobian",
     "right_jacobian_inv", "left_jacobian_inv", "project", "angle",
     "rotx", "roty", "rotz", "renormalise", "exp_one", "log_one",
-    "exp_flat", "log_flat", "mul_flat", "mul_tn_flat", "mul_nt_flat", "transpose_flat", "renormalise_flat",
+    "exp_flat", "log_flat", "mul_flat", "mul_nt_flat", "transpose_flat", "renormalise_flat",
     "quat_from_flat", "flat_from_quat", "quat_mul", "quat_exp", "quat_normalise", "hat_flat", "SMALL_ANGLE",
 ]
 
@@ -353,11 +353,6 @@ def mul_flat(a, b) -> tuple:
 def transpose_flat(a) -> tuple:
     """``A^T`` of a row-major 9-sequence."""
     return a[0], a[3], a[6], a[1], a[4], a[7], a[2], a[5], a[8]
-
-
-def mul_tn_flat(a, b) -> tuple:
-    """``A^T @ B`` of two row-major 9-sequences."""
-    return mul_flat(transpose_flat(a), b)
 
 
 def mul_nt_flat(a, b) -> tuple:
