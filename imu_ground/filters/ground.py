@@ -35,6 +35,7 @@ from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.filters.frame_checks import (bad_frame, check_on_invalid, checked_frames, coerce_frame, hold_skipped,
                                              static_rotation)
 from imu_ground.filters.invariant_ekf import InvariantEKF
+from imu_ground.filters.invariant_ekf_kernel import check_cov
 from imu_ground.filters.residual import NO_DV, ResidualKernel, check, frame_checked
 from imu_ground.filters.road import NO_ROAD_REASON
 from imu_ground.filters.status import FILTER_CONVERGED_STD, FILTER_STD, OK, SigmaModel, frame_status_code, track_reasons
@@ -50,11 +51,7 @@ _MEASUREMENTS = ("rotation", "up", "forward")
 
 
 def _cov(name: str, value) -> np.ndarray:
-    m = np.asarray(value, dtype=float)
-    if m.ndim == 0:
-        m = float(m) * _I3
-    if m.shape != (3, 3):
-        raise ValueError(f"{name} must be a scalar or a 3x3 matrix, got shape {m.shape}")
+    m = check_cov(name, value)
     if not (np.all(np.isfinite(m)) and np.allclose(m, m.T) and np.all(np.linalg.eigvalsh(m) > 0)):
         shown = value if np.ndim(value) == 0 else m.tolist()
         raise ValueError(f"{name} must be a positive (co)variance, rad^2 (a positive number or a positive "
