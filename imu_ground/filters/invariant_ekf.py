@@ -59,29 +59,8 @@ import numpy as np
 from imu_ground import so3
 from imu_ground.filters import invariant_ekf_kernel as _kernel
 from imu_ground.filters.invariant_ekf_kernel import (
-    B_B,
-    B_DET,
-    B_K,
-    B_NUP,
-    B_P,
-    B_PPO,
-    B_PPR,
-    B_Q,
-    B_QN,
-    B_RN,
-    B_S,
-    B_SI,
-    B_X,
-    B_XPO,
-    B_XPR,
-    B_XV,
-    B_Y,
-    B_Z,
-    B_ZN,
-    check_cov,
-    fill_x,
-    flat_rotation,
-    new_state,
+    B_B, B_DET, B_K, B_NUP, B_P, B_PPO, B_PPR, B_Q, B_QN, B_RN, B_S, B_SI, B_X, B_XPO, B_XPR, B_XV, B_Y, B_Z, B_ZN,
+    check_cov, fill_x, flat_rotation, new_state
 )
 from imu_ground.so3 import flat_from_quat, quat_from_flat
 from imu_ground.units import RENORM_EVERY

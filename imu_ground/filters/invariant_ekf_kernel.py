@@ -23,17 +23,8 @@ import numpy as np
 
 from imu_ground._jit import jitable, njit
 from imu_ground.so3 import (
-    exp_flat,
-    flat_from_quat,
-    hat_flat,
-    log_flat,
-    mul_flat,
-    mul_nt_flat,
-    quat_exp,
-    quat_from_flat,
-    quat_mul,
-    quat_normalise,
-    transpose_flat,
+    exp_flat, flat_from_quat, hat_flat, log_flat, mul_flat, mul_nt_flat, quat_exp, quat_from_flat, quat_mul,
+    quat_normalise, transpose_flat
 )
 
 __all__ = [
