@@ -99,19 +99,25 @@ def test_streaming_and_batch_identical(kw):
     assert np.allclose(np.concatenate([a.pitch, b.pitch]), tr.pitch, atol=1e-12)
 
 
-def test_batch_fast_path_matches_plain_invariant_ekf_loop():
-    """Independent check: the same pipeline written out with InvariantEKF."""
+@pytest.mark.parametrize("measurement, Q, R", [("rotation", 0.05, 2.0), ("up", 0.05, 2.0), ("forward", 0.05, 2.0),
+                                             ("rotation", np.diag([0.05, 0.02, 0.01]), np.diag([2.0, 1.0, 0.5])),
+                                             ("forward", np.diag([0.05, 0.02, 0.01]), np.diag([2.0, 1.0, 0.5]))])
+def test_batch_fast_path_matches_plain_invariant_ekf_loop(measurement, Q, R):
+    """Independent check: the same pipeline written out with InvariantEKF (the filter on the residual is it)."""
     rng = np.random.default_rng(1)
     d = so3.exp(rng.normal(scale=[0.004, 0.004, 0.05], size=(300, 3)))
-    tr = GroundNormalFilter(Q=0.05, R=2.0, P=0.3).run(d)
-    ekf = InvariantEKF(P=0.3, Q=0.05, R=2.0)
-    R = np.eye(3)
+    R0 = so3.exp_one(np.array([0.1, -0.2, 0.7]))
+    tr = GroundNormalFilter(Q=Q, R=R, P=0.3, measurement=measurement, R0=R0).run(d)
+    b = {"rotation": None, "up": np.array([0.0, 0.0, 1.0]), "forward": np.array([1.0, 0.0, 0.0])}[measurement]
+    ekf = InvariantEKF(x=R0, P=0.3, Q=Q, R=R, b=b)
+    Rk = R0
     for k in range(len(d)):
-        R = R @ d[k]
+        Rk = Rk @ d[k]
         psi = np.arctan2(d[k][1, 0] - d[k][0, 1], d[k][0, 0] + d[k][1, 1])
         ekf.predict(so3.rotz(psi))
-        ekf.update(R)
-        assert np.allclose(ekf.x.T @ R, tr.residual[k], atol=1e-12)
+        ekf.update(Rk if b is None else Rk @ b)
+        assert np.allclose(ekf.x.T @ Rk, tr.residual[k], atol=1e-12)
+        assert np.allclose(ekf.P, tr.P[k], atol=1e-12)
 
 
 def test_sign_conventions_nose_down_and_left_up():

@@ -121,7 +121,6 @@ def test_flat_kernels_match_the_batch_functions():
     A, B = rng.normal(size=(2, 3, 3))
     a, b = A.ravel().tolist(), B.ravel().tolist()
     np.testing.assert_allclose(np.reshape(so3.mul_flat(a, b), (3, 3)), A @ B, atol=1e-15)
-    np.testing.assert_allclose(np.reshape(so3.mul_tn_flat(a, b), (3, 3)), A.T @ B, atol=1e-15)
     np.testing.assert_allclose(np.reshape(so3.mul_nt_flat(a, b), (3, 3)), A @ B.T, atol=1e-15)
 
 

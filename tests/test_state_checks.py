@@ -106,7 +106,7 @@ def test_non_finite_state_values_are_refused(drive, name, bad):
     On the old code a NaN there was accepted and every later frame was NaN with valid=True."""
     state = _saved(name, drive)
     entry = {"suspension": ("kernel", 4), "suspension-online-recal": ("gravity", 3), "filter": ("kernel", 0),
-             "filter-ekf": ("ekf", 5), "gravity": ("buffer", 3)}[name]
+             "filter-ekf": ("kernel", 5), "gravity": ("buffer", 3)}[name]
     with pytest.raises(StateError, match=rf"entry {entry[0]} holds"):
         MAKERS[name]().load_state_dict(_set(state, entry, bad))
     if name.startswith("suspension"):
@@ -124,7 +124,7 @@ def test_non_finite_state_values_are_refused(drive, name, bad):
     ("suspension-online-recal", ("monitor",), [1, 2]),
     ("suspension-online-recal", ("recalibrator", "prev_R"), [1.0, 0.0]),
     ("suspension-online-recal", ("bandpass", "z"), [[0.0, 0.0]]),
-    ("filter-ekf", ("cumulative",), [[1.0, 0.0, 0.0]]),
+    ("filter-ekf", ("kernel",), [0.0] * 5),
     ("gravity", ("buffer",), [1.0, 2.0]),
 ])
 def test_wrong_shapes_and_types_are_refused_at_load_naming_the_entry(drive, name, path, value):

@@ -19,13 +19,7 @@ import numpy as np
 
 from imu_ground.filters.estimator import GroundEstimate, GroundTrack, as_egomotion, pitch_roll_from_normal
 from imu_ground.filters.extrinsics import Extrinsic
-from imu_ground.filters.frame_checks import (
-    bad_frame_error,
-    frame_problem,
-    frame_problems,
-    frame_where,
-    static_rotation,
-)
+from imu_ground.filters.frame_checks import bad_frame_error, frame_problem, frame_problems, frame_where, static_rotation
 from imu_ground.imu.egomotion import EgoMotion
 from imu_ground.so3 import cumulative_rotations
 from imu_ground.units import RENORM_EVERY

@@ -18,9 +18,8 @@ The normal in the sensor frame is ``n_s = (E R_gs)^T e_z``.
 Every estimator (:class:`GroundEstimator`) has ``reset()``, ``step(frame) ->``
 :class:`GroundEstimate` and ``run(egomotion, smooth=False) ->`` :class:`GroundTrack`.
 The checks of the frames they are given are in :mod:`imu_ground.filters.frame_checks`;
-the output table of a track is :func:`imu_ground.pipeline.output.track_table`. The scalar
-residual filter both invariant-EKF estimators run on is
-:class:`~imu_ground.filters.residual.ResidualKernel`.
+the output table of a track is :func:`imu_ground.pipeline.output.track_table`. The invariant
+EKF both invariant-EKF estimators run on is :class:`~imu_ground.filters.residual.ResidualKernel`.
 """
 from __future__ import annotations
 

@@ -1,12 +1,13 @@
-"""Checks of the frames a streaming estimator is given, and what it does with a bad one.
+"""Checks of the frames an estimator is given, and what it does with a bad one.
 
 A frame is an ego-motion increment: ``delta_R`` (sensor_{k-1} <- sensor_k, a
 rotation), ``delta_v`` (m/s, sensor frame, optional) and ``delta_t`` (s). The check
-of one frame is one compiled body, :func:`status_of` (:func:`frame_status` on sequences),
-run by the estimators' kernels on every streamed frame and, over a whole batch, by
-:func:`frame_statuses` (:func:`checked_frames` serves the batch ``run``);
-:func:`checked_frame` / :func:`bad_frame` apply the estimators' ``on_invalid``
-policy (:data:`ON_INVALID`) with one message format (:func:`bad_frame_error`).
+of one frame is one compiled body, :func:`status_of`, run on every streamed frame and
+over a whole batch (:func:`frame_statuses`); :func:`frame_problem` names what is wrong,
+and :func:`checked_frame` / :func:`bad_frame` / :func:`checked_frames` apply the
+``on_invalid`` policy (:data:`ON_INVALID`) with one message (:func:`bad_frame_error`).
+Arguments named ``d, dv, dt`` are ``delta_R`` (3, 3) or (F, 3, 3), ``delta_v`` (3,) or
+(F, 3) (None: not checked) and ``delta_t`` (s, float or (F,)).
 """
 from __future__ import annotations
 
@@ -39,6 +40,8 @@ MIN_DELTA_T = 1e-6
 MAX_DELTA_T = 1e6
 #: :func:`frame_status` codes of a bad frame.
 BAD_ROTATION, BAD_DELTA_V, BAD_DELTA_T = 1, 2, 3
+
+
 @njit
 def status_of(d, has_dv, dv, delta_t):
     """:func:`frame_status` of ``d`` (ndarray (3, 3) float64), ``dv`` (ndarray (3,), read when ``has_dv``) and
@@ -70,16 +73,13 @@ _NO_FRAMES = np.zeros((1, 3))
 
 
 def statuses_of(d: np.ndarray, dv: Optional[np.ndarray], dt: Optional[np.ndarray], out: np.ndarray) -> None:
-    """:func:`status_of` of every frame into ``out`` (uint8 (F,)); ``d`` (F, 3, 3), ``dv`` (F, 3), ``dt``
-    (F,) float64, C-contiguous (``dv``, ``dt``: None when not checked)."""
+    """:func:`status_of` of every frame into ``out`` (uint8 (F,)); C-contiguous float64 arrays."""
     _statuses(d, dv is not None, _NO_FRAMES if dv is None else dv, dt is not None,
               _NO_FRAMES[0] if dt is None else dt, out)
 
 
 def frame_status(d9, delta_v=None, delta_t: float = 1.0) -> int:
-    """What is wrong with one frame, as a code (the check the streaming estimators run: :func:`status_of`).
-
-    :func:`frame_problem` turns a code into the message.
+    """What is wrong with one frame, as a code (:func:`status_of`; :func:`frame_problem` gives the message).
 
     Parameters
     ----------
@@ -104,16 +104,7 @@ def frame_status(d9, delta_v=None, delta_t: float = 1.0) -> int:
 
 
 def frame_problem(d9, delta_v=None, delta_t: float = 1.0, status: Optional[int] = None) -> Optional[str]:
-    """What is wrong with one frame, or None (the message of :func:`frame_status`; one frame of
-    :func:`frame_problems`).
-
-    Parameters
-    ----------
-    d9, delta_v, delta_t
-        As in :func:`frame_status`.
-    status : int, optional
-        The frame's :func:`frame_status` when already known (e.g. from the compiled check).
-    """
+    """What is wrong with one frame (arguments as :func:`frame_status`), or None; ``status`` its code if known."""
     status = frame_status(d9, delta_v, delta_t) if status is None else status
     if status == BAD_ROTATION:
         return _rotation_message(d9)
@@ -138,31 +129,12 @@ def _rotation_message(d9) -> str:
 
 
 def frame_statuses(d: np.ndarray, dv: Optional[np.ndarray] = None, dt: Optional[np.ndarray] = None) -> np.ndarray:
-    """:func:`frame_status` of every frame: the batch check (:func:`status_of` on each frame, so a batch
-    flags exactly the frames a stream would).
-
-    Parameters
-    ----------
-    d : ndarray (F, 3, 3)
-        Rotation increments.
-    dv : ndarray (F, 3), optional
-        Velocity increments, m/s.
-    dt : ndarray (F,), optional
-        Frame durations, s.
-
-    Returns
-    -------
-    ndarray of uint8 (F,)
-        0 for a good frame, else :data:`BAD_ROTATION`, :data:`BAD_DELTA_V` or :data:`BAD_DELTA_T`.
-    """
+    """:func:`frame_status` of every frame (uint8 (F,)): a batch flags exactly the frames a stream would."""
     d = np.ascontiguousarray(d, dtype=float)
-    n = len(d)
-    dv = None if dv is None else np.ascontiguousarray(dv, dtype=float)
-    dt = None if dt is None else np.ascontiguousarray(dt, dtype=float)
-    out = np.zeros(n, dtype=np.uint8)
-    if not n:
-        return out
-    statuses_of(d, dv, dt, out)
+    out = np.zeros(len(d), dtype=np.uint8)
+    if len(d):
+        statuses_of(d, None if dv is None else np.ascontiguousarray(dv, dtype=float),
+                    None if dt is None else np.ascontiguousarray(dt, dtype=float), out)
     return out
 
 
@@ -172,13 +144,7 @@ def _problem_at(k: int, status: int, d: np.ndarray, dv, dt) -> Optional[str]:
 
 
 def frame_problems(d: np.ndarray, dv: Optional[np.ndarray] = None, dt: Optional[np.ndarray] = None) -> list:
-    """Per frame, what is wrong with it (None for a good frame); :func:`frame_problem` of every frame.
-
-    Parameters
-    ----------
-    d, dv, dt
-        As in :func:`frame_statuses`.
-    """
+    """:func:`frame_problem` of every frame (None for a good one)."""
     status = frame_statuses(d, dv, dt)
     out: list = [None] * len(status)
     for k in np.flatnonzero(status).tolist():
@@ -188,12 +154,12 @@ def frame_problems(d: np.ndarray, dv: Optional[np.ndarray] = None, dt: Optional[
 
 def checked_frames(d: np.ndarray, dv: Optional[np.ndarray], dt: Optional[np.ndarray], t: np.ndarray,
                    on_invalid: str) -> np.ndarray:
-    """Which frames of a batch an estimator's ``run`` processes (the others it skips); the first step of ``run``.
+    """Which frames of a batch an estimator's ``run`` processes (the others it skips).
 
     Parameters
     ----------
     d, dv, dt
-        As in :func:`frame_statuses`.
+        The frames (module docstring).
     t : ndarray (F,)
         Frame times, s (to name a bad frame).
     on_invalid : {"raise", "skip"}
@@ -219,7 +185,6 @@ def checked_frames(d: np.ndarray, dv: Optional[np.ndarray], dt: Optional[np.ndar
     return good
 
 
-# ------------------------------------------------------------------------------------------ shared plumbing
 def check_on_invalid(on_invalid: str) -> str:
     """``on_invalid`` validated (one of :data:`ON_INVALID`)."""
     if on_invalid not in ON_INVALID:
@@ -236,27 +201,9 @@ def bad_frame_error(problem: str, where: str) -> ImuGroundError:
 def checked_frame(check, frame, delta_R, delta_v, delta_t: float, on_invalid: str, index: int) -> tuple | None:
     """A streamed frame's ``delta_R`` (3x3) and ``delta_v`` (3,) as float64 arrays, if the frame passes the check.
 
-    The first step of every estimator's ``step`` on its general path: the
-    kernel's ``check`` (:func:`status_of`), after
-    :func:`coerce_frame` when the inputs are not float64 arrays already; a bad
-    frame raises or is to be skipped (:func:`bad_frame`).
-
-    Parameters
-    ----------
-    check : callable
-        ``check(delta_R, delta_v, delta_t) -> int`` (:func:`imu_ground.filters.residual.check`).
-    frame : object
-        The frame as given to ``step``; its ``t`` (s), if it has one, locates the error.
-    delta_R : array_like
-        sensor_{k-1} <- sensor_k: a rotation matrix, a 4x4 relative pose or a rotation vector, rad.
-    delta_v : array_like (3,) or None
-        Velocity increment, m/s (None: not checked).
-    delta_t : float
-        Frame duration, s.
-    on_invalid : {"raise", "skip"}
-        The estimator's policy (:data:`ON_INVALID`).
-    index : int
-        0-based index of the frame in the estimator's run, for the message.
+    ``check(delta_R, delta_v, delta_t) -> int`` (:func:`imu_ground.filters.residual.check`) runs after
+    :func:`coerce_frame` when the inputs are not float64 arrays already; a bad frame raises or is to be
+    skipped (:func:`bad_frame`, whose parameters these are; ``delta_R`` in any form of :func:`coerce_frame`).
 
     Returns
     -------
@@ -283,7 +230,7 @@ def checked_frame(check, frame, delta_R, delta_v, delta_t: float, on_invalid: st
 
 def coerce_frame(delta_R, delta_v=None) -> tuple:
     """A streamed frame's ``delta_R`` as one C-contiguous float64 3x3 rotation and ``delta_v`` as a float64 (3,)
-    array (or None): what the kernels' ``step`` and ``check`` take (they raise TypeError/ValueError otherwise).
+    array (or None): what the kernels take.
 
     Parameters
     ----------
@@ -316,8 +263,9 @@ def bad_frame(frame, status: int, d: np.ndarray, dv, dt: float, on_invalid: str,
     status : int
         The frame's :func:`frame_status`.
     d, dv, dt
-        Its ``delta_R`` (3x3), ``delta_v`` (3,) or None, ``delta_t`` (s).
+        The frame (module docstring).
     on_invalid : {"raise", "skip"}
+        The estimator's policy (:data:`ON_INVALID`).
     index : int
         0-based index of the frame in the estimator's run, for the message.
     """
@@ -340,17 +288,8 @@ def frame_where(index: int, t: float) -> str:
 
 
 def hold_skipped(values: np.ndarray, good: np.ndarray, initial: np.ndarray) -> np.ndarray:
-    """Per-frame values of the good frames spread over all frames, a skipped frame holding the previous one.
-
-    Parameters
-    ----------
-    values : ndarray (G, ...)
-        One row per good frame.
-    good : ndarray of bool (F,)
-        Which frames were processed (``G = good.sum()``).
-    initial : ndarray (...)
-        The value before the first good frame.
-    """
+    """Per-frame ``values`` (G, ...) of the ``good`` frames (bool (F,)) spread over all frames, a skipped frame
+    holding the previous value (``initial`` before the first)."""
     if good.all():
         return values
     idx = np.cumsum(good) - 1

@@ -17,16 +17,14 @@ Pipeline, per frame k
 5. dynamic extrinsic ``R_gs(k) = E_k R_gs`` (road-ground <- sensor) and the
    ground normal in the sensor frame ``n_s = R_gs(k)^T e_z``.
 
-Steps 2-4 run on one of two engines, chosen once from the noise settings (the
-filter's ``step``, ``run`` and filterpy-style attributes are the engine's):
-with noise symmetric about the up axis (the defaults and the paper's) the scalar
-:class:`~imu_ground.filters.residual.ResidualKernel` (``_ResidualEngine``; compiled by
-:func:`imu_ground._jit.njit`); with other settings (the
-reference code's forward-axis measurement, general covariances) an
-:class:`~imu_ground.filters.invariant_ekf.InvariantEKF` frame by frame (``_EkfEngine``).
+Steps 2-4 are the invariant EKF of :mod:`imu_ground.filters.residual` (written on the
+residual, compiled by :func:`imu_ground._jit.njit`), for every setting: the filter's
+``step`` is one frame of it, ``run`` the same frame over the whole drive, the smoother a
+post-pass (:meth:`~imu_ground.filters.invariant_ekf.InvariantEKF.rts_smoother`).
 """
 from __future__ import annotations
 
+import math
 from typing import Any, Optional, Union
 
 import numpy as np
@@ -34,30 +32,26 @@ import numpy as np
 from imu_ground import so3
 from imu_ground.filters.estimator import GroundEstimate, GroundTrack, as_egomotion, pitch_roll_from_normal
 from imu_ground.filters.extrinsics import Extrinsic
-from imu_ground.filters.frame_checks import (bad_frame, check_on_invalid, checked_frame, checked_frames, coerce_frame,
-                                             hold_skipped, static_rotation)
+from imu_ground.filters.frame_checks import (bad_frame, check_on_invalid, checked_frames, coerce_frame, hold_skipped,
+                                             static_rotation)
 from imu_ground.filters.invariant_ekf import InvariantEKF
-from imu_ground.filters.residual import ResidualKernel
+from imu_ground.filters.invariant_ekf_kernel import check_cov
+from imu_ground.filters.residual import NO_DV, ResidualKernel, check, frame_checked
 from imu_ground.filters.road import NO_ROAD_REASON
 from imu_ground.filters.status import FILTER_CONVERGED_STD, FILTER_STD, OK, SigmaModel, frame_status_code, track_reasons
 from imu_ground.imu.warm_start import STATE_VERSION, StateReader, pack_state, unpack_state
-from imu_ground.so3 import cumulative_rotations, matrix_from_quat, twist_angle
-from imu_ground.units import RENORM_EVERY
+from imu_ground.so3 import matrix_from_quat, twist_angle
 
 __all__ = ["GroundNormalFilter", "GroundEstimate", "GroundTrack", "pitch_roll_from_normal"]
 
-_EZ = np.array([0.0, 0.0, 1.0])
-_EX = np.array([1.0, 0.0, 0.0])
 _I3 = np.eye(3)
+_F64 = np.dtype(np.float64)
+_AXES = {"rotation": None, "up": (0.0, 0.0, 1.0), "forward": (1.0, 0.0, 0.0)}
 _MEASUREMENTS = ("rotation", "up", "forward")
 
 
 def _cov(name: str, value) -> np.ndarray:
-    m = np.asarray(value, dtype=float)
-    if m.ndim == 0:
-        m = float(m) * _I3
-    if m.shape != (3, 3):
-        raise ValueError(f"{name} must be a scalar or a 3x3 matrix, got shape {m.shape}")
+    m = check_cov(name, value)
     if not (np.all(np.isfinite(m)) and np.allclose(m, m.T) and np.all(np.linalg.eigvalsh(m) > 0)):
         shown = value if np.ndim(value) == 0 else m.tolist()
         raise ValueError(f"{name} must be a positive (co)variance, rad^2 (a positive number or a positive "
@@ -108,8 +102,8 @@ class GroundNormalFilter:
         configured noises, and the last gain, innovation and innovation covariance.
     cumulative : ndarray (3, 3)
         ``R_k``, world <- body.
-    ekf : InvariantEKF or None
-        The filter object of the general path (None on the scalar path).
+    ekf : None
+        Kept for compatibility: every setting runs the one kernel (no separate filter object).
 
     Examples
     --------
@@ -134,10 +128,9 @@ class GroundNormalFilter:
         self.R0 = _I3.copy() if R0 is None else np.array(R0, dtype=float)
         self._Q, self._R, self._P0 = _cov("Q", Q), _cov("R", R), _cov("P", P)
         self._Rgs = static_rotation(self.extrinsic)
-        self._qh, self._qv = float(self._Q[0, 0]), float(self._Q[2, 2])
-        sym = _is_axisymmetric(self._P0) and _is_axisymmetric(self._Q)
-        self._scalar = sym and (measurement == "rotation" and _is_axisymmetric(self._R)
-                                or measurement == "up" and np.array_equal(self._R, self._R[0, 0] * _I3))
+        # P stays diag(a, a, c) (an estimate's P is then that of its row, see residual.frame)
+        self._diag = (_is_axisymmetric(self._P0) and _is_axisymmetric(self._Q) and _is_axisymmetric(self._R)
+                      and (measurement == "rotation" or measurement == "up" and self._R[0, 0] == self._R[2, 2]))
         self.reset()
 
     @classmethod
@@ -169,26 +162,30 @@ class GroundNormalFilter:
         """Back to the initial state (cumulative rotation R0, slow state R0, covariance P0)."""
         self._frames = 0
         self.sigma = SigmaModel(FILTER_STD, FILTER_CONVERGED_STD)      # the 1-sigma and its convergence latch
-        self._kernel = ResidualKernel(self._P0[0, 0], self._P0[2, 2], self._R[0, 0], self._R[2, 2],
-                                      up=self.measurement == "up", follow_heading=self.follow_heading,
-                                      Rgs=self._Rgs, cumulative=True)
-        self._engine = _ResidualEngine(self) if self._scalar else _EkfEngine(self)
+        axis = _AXES[self.measurement]
+        R = self._R if axis is None else self.R0.T @ self._R @ self.R0      # (a direction's noise: world axes)
+        self._kernel = ResidualKernel(0.0, 0.0, 0.0, 0.0, follow_heading=self.follow_heading, Rgs=self._Rgs,
+                                      cumulative=True, P=self._P0, Q=self._Q, R=R, axis=axis)
+        self._buf = self._kernel.buf
 
-    @property
-    def ekf(self) -> Optional[InvariantEKF]:
-        """The filter object of the general path (None on the scalar path)."""
-        return self._engine.ekf
+    ekf = None
 
-    # -- filterpy-style attributes (the engine's) ---------------------------------------------
-    cumulative = property(lambda self: self._engine.cumulative, doc="``R_k``, world <- body (3x3).")
-    residual = property(lambda self: self._engine.residual, doc="``E_k = X_k^T R_k``, road <- body (3x3).")
-    x = property(lambda self: self._engine.x, doc="Slow state X_k, world <- road (3x3).")
-    P = property(lambda self: self._engine.P, doc="Covariance of the slow state, body tangent space (rad^2).")
+    # -- filterpy-style attributes ------------------------------------------------------------
+    cumulative = property(lambda self: self.R0 @ matrix_from_quat(np.array(self._kernel.R)),
+                          doc="``R_k``, world <- body (3x3).")
+    residual = property(lambda self: self._kernel.residual_matrix(), doc="``E_k = X_k^T R_k``, road <- body (3x3).")
+    x = property(lambda self: self.cumulative @ self.residual.T, doc="Slow state X_k, world <- road (3x3).")
+    P = property(lambda self: self._kernel.covariance(), doc="Covariance of the slow state, body tangent space (rad^2).")
     Q = property(lambda self: self._Q, doc="Process noise per frame (rad^2), as configured.")
     R = property(lambda self: self._R, doc="Measurement noise, as configured.")
-    K = property(lambda self: self._engine.K, doc="Last Kalman gain (3x3).")
-    y = property(lambda self: self._engine.y, doc="Last innovation (rad, or the up-axis residual).")
-    S = property(lambda self: self._engine.S, doc="Last innovation covariance.")
+
+    def _last(self, i: int) -> np.ndarray:
+        last = self._kernel.last_matrices()
+        return np.zeros((3, 3) if i < 3 else 3) if last is None else last[i]
+
+    K = property(lambda self: self._last(0), doc="Last Kalman gain (3x3).")
+    y = property(lambda self: self._last(3), doc="Last innovation (rad, or the up-axis residual).")
+    S = property(lambda self: self._last(1), doc="Last innovation covariance.")
 
     # -- warm start ------------------------------------------------------------------------------
     def _settings(self) -> dict:
@@ -200,8 +197,6 @@ class GroundNormalFilter:
         """The state as a plain, JSON-serialisable dict (:mod:`imu_ground.imu.warm_start`): resume with
         :meth:`load_state_dict` on a GroundNormalFilter built with the same settings."""
         st = {"frames": self._frames, **self.sigma.state_dict(), "kernel": list(self._kernel.buf)}
-        if self.ekf is not None:
-            st["ekf"], st["cumulative"] = self.ekf.kernel_state(), self._engine.cumulative
         return pack_state("GroundNormalFilter", STATE_VERSION, self._settings(), st)
 
     def load_state_dict(self, state: dict) -> None:
@@ -214,16 +209,10 @@ class GroundNormalFilter:
         sigma = SigmaModel(FILTER_STD, FILTER_CONVERGED_STD)           # (read before anything changes)
         sigma.load_state_dict(st)
         kernel = self._kernel.read_state(st, "kernel")
-        if self._scalar:
-            ekf = cumulative = None
-        else:
-            assert self.ekf is not None             # not scalar
-            ekf = self.ekf.read_kernel_state(st, "ekf")
-            cumulative = st.floats("cumulative", (3, 3))
         self.reset()
         self._frames, self.sigma = frames, sigma
         self._kernel.load(kernel)
-        self._engine.resume(ekf, cumulative)
+        self._buf = self._kernel.buf
 
     # -- streaming -----------------------------------------------------------------------------
     def step(self, frame) -> GroundEstimate:
@@ -249,19 +238,28 @@ class GroundNormalFilter:
             A bad frame with ``on_invalid="raise"`` (the state is unchanged).
         """
         if type(frame) is np.ndarray or not hasattr(frame, "delta_R"):
-            return self._engine.step(frame, frame, None, 1.0)
-        return self._engine.step(frame, frame.delta_R, frame.delta_v, frame.delta_t)
-
-    def _estimate(self, frame, pitch: float, roll: float, q, E, P, a: float, dt: float) -> GroundEstimate:
-        """The estimate of a processed frame with its 1-sigma and status (:mod:`imu_ground.filters.status`).
-
-        ``a`` is the level variance of the slow state (rad^2), ``q`` the kernel's output (or None) and
-        ``E`` the residual road <- body (or None when ``q`` holds it).
-        """
-        info = self.sigma.frame(a, dt=dt, note=NO_ROAD_REASON)
+            d, dv, dt = frame, None, 1.0
+        else:
+            d, dv, dt = frame.delta_R, frame.delta_v, float(frame.delta_t)
+        o = None
+        if (type(d) is np.ndarray and d.shape == (3, 3) and d.dtype is _F64
+                and (dv is None or type(dv) is np.ndarray and dv.shape == (3,) and dv.dtype is _F64)):
+            try:
+                o = frame_checked(self._buf, d, NO_DV if dv is None else dv, dt)
+            except TypeError:                           # not C-contiguous
+                pass
+        if o is None or math.isnan(o[0]):               # coerced and checked again, to name a bad frame
+            d, dv = coerce_frame(d, dv)
+            status = check(d, dv, dt)
+            if status:
+                bad_frame(frame, status, d, dv, dt, self.on_invalid, self._frames)
+                return GroundEstimate.of_residual(self.residual, self.P, self._Rgs, valid=False)
+            o = frame_checked(self._buf, d, NO_DV if dv is None else dv, dt)
+        self._frames += 1
+        info = self.sigma.frame(o[4], dt=dt, note=NO_ROAD_REASON)
         code = frame_status_code(self.sigma.converged, getattr(frame, "stationary", False),
                                  getattr(frame, "valid", True))
-        return GroundEstimate(pitch, roll, True, q, E, self._Rgs, P, code, info)
+        return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o if self._diag else self.P, code, info)
 
     # -- batch -----------------------------------------------------------------------------------
     def run(self, egomotion, smooth: bool = False) -> GroundTrack:
@@ -292,9 +290,12 @@ class GroundNormalFilter:
         em = as_egomotion(egomotion)
         d = np.asarray(em.delta_R, dtype=float)
         good = checked_frames(d, em.delta_v, em.delta_t, em.t, self.on_invalid)
-        start = (self.residual, self.P.copy(), self.cumulative)
+        start = (self.residual, self.P, self.cumulative)
         dg = d[good]
-        E, Ps, cum = self._engine.run(dg)
+        Ps = np.empty((len(dg), 3, 3))
+        o = self._kernel.run(dg, 0.0, 0.0, P_out=Ps)
+        self._frames += len(dg)
+        E, cum = matrix_from_quat(o[:, :4]), self.R0 @ matrix_from_quat(o[:, 8:])
         Xs = cum @ np.swapaxes(E, 1, 2)
         if smooth and len(dg):
             Xs, Ps = self._smooth(dg, Xs, Ps)
@@ -322,138 +323,3 @@ class GroundNormalFilter:
         smoother = InvariantEKF(Q=self._Q, R=self._R, error="left")
         Xsm, Psm, _, _ = smoother.rts_smoother(Xs, Ps, us=T)
         return Xsm, Psm
-
-
-class _ResidualEngine:
-    """Steps 2-4 as the scalar :class:`~imu_ground.filters.residual.ResidualKernel` (the filter's ``_kernel``).
-
-    Exact for noise symmetric about the up axis (``Q``, ``P`` = diag(a, a, c); ``R`` too, or
-    isotropic for the up measurement): the covariance stays diag(a, a, c) and the gain acts
-    on the rotation vector alone.
-    """
-
-    ekf = None
-
-    def __init__(self, flt: GroundNormalFilter) -> None:
-        self._f, self._kernel = flt, flt._kernel
-        self._buf, self._kstep = flt._kernel.buf, flt._kernel.step    # the streaming fast path
-
-    @property
-    def cumulative(self) -> np.ndarray:
-        return self._f.R0 @ matrix_from_quat(np.array(self._kernel.R))
-
-    residual = property(lambda self: self._kernel.residual_matrix())
-    x = property(lambda self: self.cumulative @ self.residual.T)
-    P = property(lambda self: self._kernel.covariance())
-
-    @property
-    def K(self) -> np.ndarray:
-        last = self._kernel.last
-        if last is None:
-            return np.zeros((3, 3))
-        if self._f.measurement == "up":
-            return last[0] * np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
-        return np.diag([last[0], last[0], last[1]])
-
-    @property
-    def y(self) -> np.ndarray:
-        last = self._kernel.last
-        return np.zeros(3) if last is None else np.array(last[4:7])
-
-    @property
-    def S(self) -> np.ndarray:
-        last = self._kernel.last
-        if last is None:
-            return np.zeros((3, 3))
-        a, c = last[2], last[3]
-        return np.diag([a, a, 0.0 if self._f.measurement == "up" else c]) + self._f._R
-
-    def resume(self, ekf, cumulative) -> None:
-        """After a warm start loaded the kernel's buffer: take it for the fast path (no EKF state here)."""
-        self._buf = self._kernel.buf
-
-    def step(self, frame, d, dv, dt: float) -> GroundEstimate:
-        """One frame (:meth:`GroundNormalFilter.step`): the kernel checks it and advances."""
-        f = self._f
-        try:
-            o = self._kstep(self._buf, d, f._qh, f._qv, None, None, dv, dt)
-        except (TypeError, ValueError):                 # not float64 arrays (3, 3) and (3,): coerce, retry
-            d, dv = coerce_frame(d, dv)
-            o = self._kstep(self._buf, d, f._qh, f._qv, None, None, dv, dt)
-        if type(o) is int:
-            bad_frame(frame, o, d, dv, dt, f.on_invalid, f._frames)
-            return GroundEstimate.of_residual(self.residual, self.P.copy(), f._Rgs, valid=False)
-        f._frames += 1
-        return f._estimate(frame, o[6], o[7], o, None, o, o[4], dt)
-
-    def run(self, d: np.ndarray):
-        """Checked sensor increments (N, 3, 3) -> residuals E, covariances P, cumulative rotations (each (N, 3, 3))."""
-        f = self._f
-        o = self._kernel.run(d, f._qh, f._qv)
-        f._frames += len(d)
-        Ps = np.zeros((len(o), 3, 3))
-        Ps[:, 0, 0] = Ps[:, 1, 1] = o[:, 4]
-        Ps[:, 2, 2] = o[:, 5]
-        return matrix_from_quat(o[:, :4]), Ps, f.R0 @ matrix_from_quat(o[:, 8:])
-
-
-class _EkfEngine:
-    """Steps 2-4 as a general :class:`~imu_ground.filters.invariant_ekf.InvariantEKF`, frame by frame.
-
-    For any noise (e.g. the reference code's forward-axis measurement, full covariances).
-    """
-
-    def __init__(self, flt: GroundNormalFilter) -> None:
-        self._f = flt
-        b = _EX if flt.measurement == "forward" else _EZ
-        self.ekf = InvariantEKF(x=flt.R0, P=flt._P0, Q=flt._Q, R=flt._R, error="left", b=b)
-        self.cumulative = flt.R0.copy()
-
-    @property
-    def residual(self) -> np.ndarray:
-        return self.ekf.x.T @ self.cumulative
-
-    x = property(lambda self: self.ekf.x)
-    P = property(lambda self: self.ekf.P)
-    K = property(lambda self: self.ekf.K)
-    y = property(lambda self: self.ekf.y)
-    S = property(lambda self: self.ekf.S)
-
-    def resume(self, ekf: Optional[list], cumulative: Optional[np.ndarray]) -> None:
-        """After a warm start: the EKF's saved buffer and the cumulative rotation (world <- body)."""
-        assert ekf is not None and cumulative is not None      # both are in an EKF filter's state
-        self.ekf.load_kernel_state(ekf)
-        self.cumulative = cumulative
-
-    def step(self, frame, d, dv, dt: float) -> GroundEstimate:
-        """One frame (:meth:`GroundNormalFilter.step`): checked by the kernel's check, then one EKF frame."""
-        f = self._f
-        checked = checked_frame(f._kernel.check, frame, d, dv, dt, f.on_invalid, f._frames)
-        if checked is None:
-            return GroundEstimate.of_residual(self.residual, self.P.copy(), f._Rgs, valid=False)
-        f._frames += 1
-        E = self._frame(checked[0])
-        pitch, roll = pitch_roll_from_normal(E[2])
-        return f._estimate(frame, float(pitch), float(roll), None, E, self.ekf.P.copy(),
-                           0.5 * float(self.ekf.P[0, 0] + self.ekf.P[1, 1]), dt)
-
-    def _frame(self, d: np.ndarray) -> np.ndarray:
-        """One frame of the InvariantEKF on a checked sensor increment; returns the residual E (road <- body)."""
-        f = self._f
-        if f._Rgs is not None:
-            d = f._Rgs @ d @ f._Rgs.T
-        self.cumulative = Rk = cumulative_rotations(d[None], self.cumulative, f._frames - 1,
-                                                    renorm_every=RENORM_EVERY)[0]
-        ekf = self.ekf
-        ekf.predict(so3.rotz(float(twist_angle(d))) if f.follow_heading else None)
-        ekf.update(Rk if f.measurement == "rotation" else Rk @ ekf.b)
-        return ekf.x.T @ Rk
-
-    def run(self, d: np.ndarray):
-        """Checked sensor increments (N, 3, 3) -> residuals E, covariances P, cumulative rotations (each (N, 3, 3))."""
-        E, Ps, cum = np.empty((len(d), 3, 3)), np.empty((len(d), 3, 3)), np.empty((len(d), 3, 3))
-        for k in range(len(d)):
-            self._f._frames += 1
-            E[k] = self._frame(d[k])
-            Ps[k], cum[k] = self.ekf.P, self.cumulative
-        return E, Ps, cum

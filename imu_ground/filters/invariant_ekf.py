@@ -39,22 +39,15 @@ For body-axis observations the left error is the natural one; the right error
 is there for world-frame measurements and for comparison.
 
 Covariances are updated in Joseph form (for ``H = I`` in the equivalent
-information form ``P <- K Rn``, positive definite by construction) and kept
-exactly symmetric (the upper triangle is computed, the lower mirrored); the
-state's quaternion is renormalised every :data:`imu_ground.units.RENORM_EVERY`
-corrections, so both stay valid over millions of steps. Frames and signs: the
-glossary of :mod:`imu_ground.so3`.
+information form ``P <- K Rn``) and kept exactly symmetric; the state's quaternion
+is renormalised every :data:`imu_ground.units.RENORM_EVERY` corrections. Frames and
+signs: the glossary of :mod:`imu_ground.so3`.
 
-Implementation: one predict/update touches a handful of 3x3 matrices, where
-numpy's per-call overhead dominates, so the kernels are scalar code on row-major
-9-sequences and the rotation is held as a unit quaternion. The whole state
-(estimate, covariance, noises, priors, posteriors, last innovation and gain) is
-one float64 array owned by the filter (layout and kernels in
-:mod:`imu_ground.filters.invariant_ekf_kernel`: thin Python wrappers that sort the
-arguments and raise the errors around one body per step, compiled by numba through
-:func:`imu_ground._jit.njit`). The filterpy attributes
-(``x``, ``P``, ``K``, ``x_prior``, ...) are properties that build their array on
-access; ``x``, ``P``, ``Q``, ``R`` may be assigned or changed in place as in filterpy.
+The predict and updates are written once in :mod:`imu_ground.filters.invariant_ekf_kernel`
+(compiled by numba), on the filter's whole state held in one float64 array; the ground
+filters run the same functions (:mod:`imu_ground.filters.residual`). The filterpy
+attributes (``x``, ``P``, ``K``, ``x_prior``, ...) are properties built on access;
+``x``, ``P``, ``Q``, ``R`` may be assigned or changed in place as in filterpy.
 """
 from __future__ import annotations
 
@@ -66,29 +59,8 @@ import numpy as np
 from imu_ground import so3
 from imu_ground.filters import invariant_ekf_kernel as _kernel
 from imu_ground.filters.invariant_ekf_kernel import (
-    B_B,
-    B_DET,
-    B_K,
-    B_NUP,
-    B_P,
-    B_PPO,
-    B_PPR,
-    B_Q,
-    B_QN,
-    B_RN,
-    B_S,
-    B_SI,
-    B_X,
-    B_XPO,
-    B_XPR,
-    B_XV,
-    B_Y,
-    B_Z,
-    B_ZN,
-    check_cov,
-    fill_x,
-    flat_rotation,
-    new_state,
+    B_B, B_DET, B_K, B_NUP, B_P, B_PPO, B_PPR, B_Q, B_QN, B_RN, B_S, B_SI, B_X, B_XPO, B_XPR, B_XV, B_Y, B_Z, B_ZN,
+    check_cov, fill_x, flat_rotation, new_state
 )
 from imu_ground.so3 import flat_from_quat, quat_from_flat
 from imu_ground.units import RENORM_EVERY
@@ -98,6 +70,7 @@ __all__ = ["InvariantEKF"]
 ArrayLike = Union[np.ndarray, list, tuple]
 _I3 = np.eye(3)
 _LOG2PI = math.log(2.0 * math.pi)
+
 
 def _matrix(t) -> np.ndarray:
     return np.array(t).reshape(3, 3)

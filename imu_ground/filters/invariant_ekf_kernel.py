@@ -1,17 +1,19 @@
-"""The InvariantEKF's predict/update kernels, on the filter's flat float64 state buffer: one body, compiled by numba.
+"""The invariant EKF on SO(3), written once: its predict and updates on tuples, and the state buffer of InvariantEKF.
 
-:class:`~imu_ground.filters.invariant_ekf.InvariantEKF` keeps its whole state in
-one float64 array (layout: the ``B_*`` offsets below) and runs :func:`predict`
-and :func:`update` on it. Those are thin Python wrappers: they sort the
-arguments by kind (no increment, a (3, 3) matrix or a rotation vector; a (3, 3)
-or (3,) measurement; the state's noise or a given one) and raise the errors,
-and the arithmetic runs in one body per step, compiled by
-:func:`imu_ground._jit.njit` (interpreted with ``NUMBA_DISABLE_JIT=1``), which
-reports a singular innovation covariance by its determinant instead of raising
-and then leaves the state unchanged. The equations are in the module notes of
-:mod:`imu_ground.filters.invariant_ekf`; matrices are row-major 9-tuples
-(:func:`imu_ground.so3.mul_flat` and friends), rotations unit quaternions
-``(w, x, y, z)``.
+:func:`predict_left`, :func:`update_rotation_left` and :func:`update_direction_left` are
+the filter's one definition (left error; the equations in the module notes of
+:mod:`imu_ground.filters.invariant_ekf`), on a unit quaternion ``q`` ``(w, x, y, z)``
+and row-major 9-tuples (:func:`imu_ground.so3.mul_flat`). They are compiled into
+every body that calls them (:func:`imu_ground._jit.jitable`): the ``InvariantEKF``
+steps below (which add the right error) and the ground filters' frame,
+:func:`imu_ground.filters.residual.frame`. An update returns
+``(q, P, y, K, S, S^-1, det S, ok)``; ``ok`` False for a singular ``S`` (then only
+``det S`` is meaningful and the caller leaves its state unchanged).
+
+:class:`~imu_ground.filters.invariant_ekf.InvariantEKF` keeps its whole state in one
+float64 array (layout: the ``B_*`` offsets) and runs :func:`predict` and :func:`update`
+on it: Python wrappers that sort the arguments by kind and raise the errors around one
+compiled body per step (:func:`imu_ground._jit.njit`).
 """
 from __future__ import annotations
 
@@ -21,49 +23,15 @@ import numpy as np
 
 from imu_ground._jit import jitable, njit
 from imu_ground.so3 import (
-    exp_flat,
-    flat_from_quat,
-    hat_flat,
-    log_flat,
-    mul_flat,
-    mul_nt_flat,
-    quat_exp,
-    quat_from_flat,
-    quat_mul,
-    quat_normalise,
-    transpose_flat,
+    exp_flat, flat_from_quat, hat_flat, log_flat, mul_flat, mul_nt_flat, quat_exp, quat_from_flat, quat_mul,
+    quat_normalise, transpose_flat
 )
 
 __all__ = [
-    "B_B",
-    "B_DET",
-    "B_HB",
-    "B_K",
-    "B_LEFT",
-    "B_NUP",
-    "B_P",
-    "B_PPO",
-    "B_PPR",
-    "B_Q",
-    "B_QN",
-    "B_RENORM",
-    "B_RN",
-    "B_S",
-    "B_SI",
-    "B_X",
-    "B_XPO",
-    "B_XPR",
-    "B_XV",
-    "B_Y",
-    "B_Z",
-    "B_ZN",
-    "STATE_SIZE",
-    "check_cov",
-    "fill_x",
-    "flat_rotation",
-    "new_state",
-    "predict",
-    "update",
+    "B_B", "B_DET", "B_HB", "B_K", "B_LEFT", "B_NUP", "B_P", "B_PPO", "B_PPR", "B_Q", "B_QN", "B_RENORM", "B_RN",
+    "B_S", "B_SI", "B_X", "B_XPO", "B_XPR", "B_XV", "B_Y", "B_Z", "B_ZN", "STATE_SIZE", "check_cov", "fill_x",
+    "flat_rotation", "new_state", "predict", "update", "predict_left", "update_rotation_left",
+    "update_direction_left", "congruence",
 ]
 
 # State buffer layout (offsets in floats).
@@ -91,12 +59,10 @@ def new_state(q, P, Q, R, b, left: bool, renorm_every: int) -> np.ndarray:
     """A state buffer (float64, STATE_SIZE): quaternion ``q`` (4), ``P``, ``Q``, ``R`` (row-major 9),
     body axis ``b`` (3), error kind and renormalisation period; no update yet (``det S`` nan)."""
     s = np.zeros(STATE_SIZE)
-    s[B_Q:B_Q + 4] = q
-    s[B_P:B_P + 9] = P
+    s[B_Q:B_Q + 4] = s[B_XPR:B_XPR + 4] = s[B_XPO:B_XPO + 4] = q
+    s[B_P:B_P + 9] = s[B_PPR:B_PPR + 9] = s[B_PPO:B_PPO + 9] = P
     s[B_QN:B_QN + 9] = Q
     s[B_RN:B_RN + 9] = R
-    s[B_XPR:B_XPR + 4] = s[B_XPO:B_XPO + 4] = q
-    s[B_PPR:B_PPR + 9] = s[B_PPO:B_PPO + 9] = P
     s[B_DET] = math.nan
     s[B_B:B_B + 3] = b
     s[B_HB:B_HB + 9] = [-v for v in hat_flat(*b)]     # H = -[b]x of the left direction update
@@ -154,7 +120,7 @@ def _add9(a, b):
 
 
 @jitable
-def _congruence(a, p, q):
+def congruence(a, p, q):
     """``A P A^T + Q`` for symmetric ``P`` and ``Q`` (upper triangle computed, lower mirrored), 9-tuples."""
     a0, a1, a2, a3, a4, a5, a6, a7, a8 = a
     m0, m1, m2, m3, m4, m5, m6, m7, m8 = mul_flat(a, p)
@@ -188,25 +154,37 @@ def _inv_flat(m):
 
 
 @jitable
-def _update_rotation_left(q, P, z, r):
-    """Left-error update with a rotation measurement, unrolled (H = I; the state a unit quaternion).
+def _correct(q, K, y, left):
+    """``q Exp(K y)`` (left error) or ``Exp(K y) q`` (right)."""
+    y0, y1, y2 = y
+    k0, k1, k2, k3, k4, k5, k6, k7, k8 = K
+    e = quat_exp(k0 * y0 + k1 * y1 + k2 * y2, k3 * y0 + k4 * y1 + k5 * y2, k6 * y0 + k7 * y1 + k8 * y2)
+    return quat_mul(q, e) if left else quat_mul(e, q)
 
-    Unrolls ``y = Log(x^T z)`` (as ``2 atan2(|v|, w) v / |v|`` of the quaternion
-    ``conj(q) q_z``, accurate up to pi), ``S = P + R``, ``S^-1`` by symmetric
-    cofactors, ``K = P S^-1``, ``q <- q Exp(K y)`` and ``P <- K R`` (upper
-    triangle, mirrored); matrices are row-major 9-tuples. Returns ``q, P, y, K,
-    S, SI, det S`` and False for a singular ``S`` (then only ``det S`` is meaningful).
+
+@jitable
+def predict_left(q, P, U, u, Qn):
+    """Left-error predict ``x <- x U``, ``P <- U^T P U + Q``: ``U`` a 9-tuple, ``u`` its quaternion."""
+    return quat_mul(q, u), congruence(transpose_flat(U), P, Qn)
+
+
+@jitable
+def update_rotation_left(q, P, qz, r):
+    """Left-error update with a rotation measurement ``qz`` (quaternion), unrolled (``H = I``).
+
+    ``y = Log(x^T z)`` (as ``2 atan2(|v|, w) v / |v|`` of ``conj(q) qz``, accurate up to pi),
+    ``S = P + R``, ``S^-1`` by symmetric cofactors, ``K = P S^-1``, ``q <- q Exp(K y)`` and
+    ``P <- K R`` (the information form of ``(I - K) P``; upper triangle, mirrored).
     """
-    qw, qx, qy, qz = q
-    zw, zx, zy, zz = quat_from_flat(z)
-    aw, ax, ay, az = (qw * zw + qx * zx + qy * zy + qz * zz, qw * zx - qx * zw - qy * zz + qz * zy,
-                      qw * zy + qx * zz - qy * zw - qz * zx, qw * zz - qx * zy + qy * zx - qz * zw)
+    qw, qx, qy, qz_ = q
+    zw, zx, zy, zz = qz
+    aw, ax, ay, az = (qw * zw + qx * zx + qy * zy + qz_ * zz, qw * zx - qx * zw - qy * zz + qz_ * zy,
+                      qw * zy + qx * zz - qy * zw - qz_ * zx, qw * zz - qx * zy + qy * zx - qz_ * zw)
     if aw < 0.0:
         aw, ax, ay, az = -aw, -ax, -ay, -az
     vn = math.sqrt(ax * ax + ay * ay + az * az)
     f = 2.0 * math.atan2(vn, aw) / vn if vn > 0.0 else 2.0
-    y0, y1, y2 = ax * f, ay * f, az * f
-    y = (y0, y1, y2)
+    y = (ax * f, ay * f, az * f)
     p0, p1, p2, _, p4, p5, _, _, p8 = P
     r0, r1, r2, _, r4, r5, _, _, r8 = r
     s0, s1, s2, s4, s5, s8 = p0 + r0, p1 + r1, p2 + r2, p4 + r4, p5 + r5, p8 + r8
@@ -230,8 +208,34 @@ def _update_rotation_left(q, P, z, r):
         n12 = k3 * r2 + k4 * r5 + k5 * r8
         Pn = (k0 * r0 + k1 * r1 + k2 * r2, n01, n02, n01, k3 * r1 + k4 * r4 + k5 * r5, n12,
               n02, n12, k6 * r2 + k7 * r5 + k8 * r8)
-    e = quat_exp(k0 * y0 + k1 * y1 + k2 * y2, k3 * y0 + k4 * y1 + k5 * y2, k6 * y0 + k7 * y1 + k8 * y2)
-    return quat_mul(q, e), Pn, y, K, S, SI, det, True
+    return _correct(q, K, y, True), Pn, y, K, S, SI, det, True
+
+
+@jitable
+def _joseph(P, H, y, Rn):
+    """Gain and Joseph-form covariance of a linear update: ``(K, P, S, S^-1, det S, ok)``."""
+    PHT = mul_nt_flat(P, H)
+    S = _add9(_sym_upper(mul_flat(H, PHT)), _sym_upper(Rn))
+    SI, det, ok = _inv_flat(S)
+    K = mul_flat(PHT, SI)
+    kh = mul_flat(K, H)
+    IKH = (1.0 - kh[0], 0.0 - kh[1], 0.0 - kh[2], 0.0 - kh[3], 1.0 - kh[4], 0.0 - kh[5],
+           0.0 - kh[6], 0.0 - kh[7], 1.0 - kh[8])
+    return K, _add9(congruence(IKH, P, _ZERO9), congruence(K, Rn, _ZERO9)), S, SI, det, ok
+
+
+@jitable
+def update_direction_left(q, P, x, z, b, r):
+    """Left-error update with a direction ``z = x b + v`` (world axes, noise ``r`` world, 9-tuple), ``x`` the
+    matrix of ``q``: ``y = x^T z - b``, ``H = -[b]x``, noise ``x^T r x``, Joseph form, ``q <- q Exp(K y)``."""
+    x0, x1, x2, x3, x4, x5, x6, x7, x8 = x
+    z0, z1, z2 = z
+    y = (x0 * z0 + x3 * z1 + x6 * z2 - b[0], x1 * z0 + x4 * z1 + x7 * z2 - b[1],
+         x2 * z0 + x5 * z1 + x8 * z2 - b[2])
+    h = hat_flat(b[0], b[1], b[2])
+    H = (-h[0], -h[1], -h[2], -h[3], -h[4], -h[5], -h[6], -h[7], -h[8])
+    K, Pn, S, SI, det, ok = _joseph(P, H, y, congruence(transpose_flat(x), r, _ZERO9))
+    return _correct(q, K, y, True), Pn, y, K, S, SI, det, ok
 
 
 @njit
@@ -246,93 +250,51 @@ def fill_x(s):
 def _predict(s, u, kind, qm, own_q):
     """One predict on ``s``: ``kind`` 0 no increment, 9 ``u`` a (3, 3) matrix, 3 a rotation vector (rad);
     ``qm`` (3, 3) the process noise unless ``own_q`` (then the state's)."""
-    P = _get9(s, B_P)
-    q = _get4(s, B_Q)
+    P, q = _get9(s, B_P), _get4(s, B_Q)
     qn = _get9(s, B_QN) if own_q else _get9(qm.ravel(), 0)
-    left = s[B_LEFT] != 0.0
-    have_x = False
-    x = _ZERO9
-    if kind != 0:
+    if kind == 0:
+        U, uq = _I9, (1.0, 0.0, 0.0, 0.0)
+    else:
         uf = u.ravel()
         U = _get9(uf, 0) if kind == 9 else exp_flat(uf[0], uf[1], uf[2])
-        q = quat_mul(q, quat_from_flat(U))
-        if left:                        # P <- U^T P U + Q
-            Pn = _congruence(transpose_flat(U), P, qn)
-            _put(s, B_Q, q)
-            _put(s, B_P, Pn)
-            _put(s, B_XPR, q)
-            _put(s, B_PPR, Pn)
-            s[B_XV] = 0.0
-            return
-    elif s[B_XV] != 0.0:
-        x = _get9(s, B_X)
-        have_x = True
-    if not left:                        # P <- P + A Q A^T, A = x U
-        if not have_x:
-            x = flat_from_quat(q)
-            have_x = True
-        qn = _congruence(x, qn, _ZERO9)
-    p0, p1, p2, _, p4, p5, _, _, p8 = P
-    q0, q1, q2, _, q4, q5, _, _, q8 = qn
-    a, b, c = p1 + q1, p2 + q2, p5 + q5
-    Pn = (p0 + q0, a, b, a, p4 + q4, c, b, c, p8 + q8)
+        uq = quat_from_flat(U)
+        s[B_XV] = 0.0
+    if s[B_LEFT] != 0.0:
+        q, Pn = predict_left(q, P, U, uq, qn)
+    else:                               # P <- P + A Q A^T, A = x U
+        q = quat_mul(q, uq)
+        if kind == 0:
+            fill_x(s)
+        else:
+            _put(s, B_X, flat_from_quat(q))
+            s[B_XV] = 1.0
+        Pn = congruence(_get9(s, B_X), qn, P)
     _put(s, B_Q, q)
     _put(s, B_P, Pn)
     _put(s, B_XPR, q)
     _put(s, B_PPR, Pn)
-    if have_x:
-        _put(s, B_X, x)
-        s[B_XV] = 1.0
-    elif kind != 0:
-        s[B_XV] = 0.0
 
 
 @jitable
-def _update_general(s, n, zf, r):
-    """The right-error rotation update (``n`` 9) and both direction updates (``n`` 3; matrices as 9-tuples)."""
+def _update_right(s, n, zf, r):
+    """The right-error updates: rotation (``n`` 9, ``H = I``, information form) and direction (``n`` 3)."""
     fill_x(s)
-    x = _get9(s, B_X)
-    P = _get9(s, B_P)
-    left = s[B_LEFT] != 0.0
-    if n == 9:                          # H = I: K = P S^-1, P <- (I - K) P = K Rn (information form)
+    x, P, q = _get9(s, B_X), _get9(s, B_P), _get4(s, B_Q)
+    if n == 9:
         y = log_flat(mul_nt_flat(_get9(zf, 0), x))
-        Rn = _congruence(x, r, _ZERO9)
-        p0, p1, p2, _, p4, p5, _, _, p8 = P
-        r0, r1, r2, _, r4, r5, _, _, r8 = Rn
-        a, b, c = p1 + r1, p2 + r2, p5 + r5
-        S = (p0 + r0, a, b, a, p4 + r4, c, b, c, p8 + r8)
-        SI, detS, ok = _inv_flat(S)
+        Rn = congruence(x, r, _ZERO9)
+        S = _add9(_sym_upper(P), _sym_upper(Rn))
+        SI, det, ok = _inv_flat(S)
         K = mul_flat(P, SI)
         Pn = _sym_upper(mul_flat(K, Rn))
     else:
-        z0, z1, z2 = zf[0], zf[1], zf[2]
         b0, b1, b2 = s[B_B], s[B_B + 1], s[B_B + 2]
-        if left:
-            x0, x1, x2, x3, x4, x5, x6, x7, x8 = x
-            y = (x0 * z0 + x3 * z1 + x6 * z2 - b0, x1 * z0 + x4 * z1 + x7 * z2 - b1,
-                 x2 * z0 + x5 * z1 + x8 * z2 - b2)
-            H = _get9(s, B_HB)
-            Rn = _congruence((x0, x3, x6, x1, x4, x7, x2, x5, x8), r, _ZERO9)
-        else:
-            xb0, xb1, xb2 = (x[0] * b0 + x[1] * b1 + x[2] * b2, x[3] * b0 + x[4] * b1 + x[5] * b2,
-                             x[6] * b0 + x[7] * b1 + x[8] * b2)
-            y = (z0 - xb0, z1 - xb1, z2 - xb2)
-            h = hat_flat(xb0, xb1, xb2)
-            H = (-h[0], -h[1], -h[2], -h[3], -h[4], -h[5], -h[6], -h[7], -h[8])
-            Rn = r
-        PHT = mul_nt_flat(P, H)
-        S = _add9(_sym_upper(mul_flat(H, PHT)), _sym_upper(Rn))
-        SI, detS, ok = _inv_flat(S)
-        K = mul_flat(PHT, SI)
-        kh = mul_flat(K, H)
-        IKH = (1.0 - kh[0], 0.0 - kh[1], 0.0 - kh[2], 0.0 - kh[3], 1.0 - kh[4], 0.0 - kh[5],
-               0.0 - kh[6], 0.0 - kh[7], 1.0 - kh[8])                       # Joseph form
-        Pn = _add9(_congruence(IKH, P, _ZERO9), _congruence(K, Rn, _ZERO9))
-    y0, y1, y2 = y
-    k0, k1, k2, k3, k4, k5, k6, k7, k8 = K
-    e = quat_exp(k0 * y0 + k1 * y1 + k2 * y2, k3 * y0 + k4 * y1 + k5 * y2, k6 * y0 + k7 * y1 + k8 * y2)
-    q = _get4(s, B_Q)
-    return quat_mul(q, e) if left else quat_mul(e, q), Pn, y, K, S, SI, detS, ok
+        xb0, xb1, xb2 = (x[0] * b0 + x[1] * b1 + x[2] * b2, x[3] * b0 + x[4] * b1 + x[5] * b2,
+                         x[6] * b0 + x[7] * b1 + x[8] * b2)
+        y = (zf[0] - xb0, zf[1] - xb1, zf[2] - xb2)
+        h = hat_flat(xb0, xb1, xb2)
+        K, Pn, S, SI, det, ok = _joseph(P, (-h[0], -h[1], -h[2], -h[3], -h[4], -h[5], -h[6], -h[7], -h[8]), y, r)
+    return _correct(q, K, y, False), Pn, y, K, S, SI, det, ok
 
 
 @njit
@@ -348,10 +310,15 @@ def _update(s, z, n, rm, own_r):
         return True, s[B_DET]
     r = _get9(s, B_RN) if own_r else _get9(rm.ravel(), 0)
     zf = z.ravel()
-    if n == 9 and s[B_LEFT] != 0.0:             # the usual case
-        q, Pn, y, K, S, SI, detS, ok = _update_rotation_left(_get4(s, B_Q), _get9(s, B_P), _get9(zf, 0), r)
+    q, P = _get4(s, B_Q), _get9(s, B_P)
+    if s[B_LEFT] == 0.0:
+        q, Pn, y, K, S, SI, detS, ok = _update_right(s, n, zf, r)
+    elif n == 9:
+        q, Pn, y, K, S, SI, detS, ok = update_rotation_left(q, P, quat_from_flat(_get9(zf, 0)), r)
     else:
-        q, Pn, y, K, S, SI, detS, ok = _update_general(s, n, zf, r)
+        fill_x(s)
+        q, Pn, y, K, S, SI, detS, ok = update_direction_left(q, P, _get9(s, B_X), (zf[0], zf[1], zf[2]),
+                                                             (s[B_B], s[B_B + 1], s[B_B + 2]), r)
     if not ok:
         return False, detS
     m = s[B_NUP] + 1.0

@@ -1,203 +1,162 @@
-r"""The scalar residual filter both invariant-EKF ground estimators run on, one frame or a whole drive.
+r"""The ground filters' invariant EKF on the residual, one frame or a whole drive: the one body every estimator runs.
 
-With process and measurement noise symmetric about the up axis, the slow road
-attitude ``X`` (world <- road) of an invariant EKF (left error) keeps a
-covariance ``P = diag(a, a, c)`` whatever the data, and the residual
-``E = X^T R`` (road <- body) follows a recursion that needs neither ``X`` nor
-the cumulative rotation ``R``. Per frame, with ``dR`` the body increment and
-``T = Rz(psi)`` its heading twist (``psi = 2 atan2(q_z, q_w)``):
+Both invariant-EKF ground estimators (:class:`~imu_ground.filters.ground.GroundNormalFilter`,
+:class:`~imu_ground.filters.suspension.SuspensionAwareFilter`) filter the slow road
+attitude ``X`` (world <- road) with a left-invariant EKF (``X = Xhat Exp(xi)``):
+predict ``X <- X T`` (``T = Rz(psi)``, the heading twist of the body increment ``dR``,
+``psi = 2 atan2(q_z, q_w)``; identity for a random walk) with noise ``Q``, update with
+the cumulative rotation ``R`` (world <- body) seen as ``Z = R Exp(-b)`` (``b``: a
+modelled body tilt, zero for the paper's filter) or with one of its axes ``R b_axis``.
+Written on ``W = R^T X`` (body <- road, the inverse of the residual ``E = X^T R``) it
+needs neither ``X`` nor ``R``: ``W = Xhat``'s error is the same ``xi`` (a known rotation
+applied on the left leaves a left-invariant error unchanged), so
 
-- predict ``X^- = X T``:  ``E^- = T^T E dR``,  ``a += q_h``, ``c += q_v``;
-- update with the rotation ``Z = R Exp(-b)`` (``b``: a modelled body tilt,
-  zero for the paper's filter): ``y = Log(E^- Exp(-b))``, ``K = diag(k_a, k_a, k_c)``
-  with ``k_a = a / (a + r_h)``, ``k_c = c / (c + r_v)``; or with the up axis
-  ``R e_z``: ``y = E^- e_z - e_z``, correction ``k_a (e_z x y)``;
-- ``E = Exp(-K y) E^-`` (the correction ``X = X^- Exp(K y)`` seen from the body);
-- ``a = k_a r_h``, ``c = k_c r_v`` (``c`` unchanged with the up axis).
+- predict ``W <- dR^T W T``, ``P <- T^T P T + Q``: :func:`~imu_ground.filters.invariant_ekf_kernel.predict_left`;
+- update with the rotation ``W^T Z' = E Exp(-b)``, ``Z' = Exp(-b)``:
+  :func:`~imu_ground.filters.invariant_ekf_kernel.update_rotation_left`, or with the direction
+  ``z' = R^T R b_axis = b_axis`` (noise ``R^T R_n R``):
+  :func:`~imu_ground.filters.invariant_ekf_kernel.update_direction_left`,
 
-:class:`ResidualKernel` holds that state in one float64 buffer (``E`` and, when
-asked, ``R`` as unit quaternions; the layout is below) and advances it with one
-kernel, :func:`frame` (one body, compiled by :func:`imu_ground._jit.njit`):
-:func:`step` (one frame, checked) serves the streaming ``step`` of the
-filters, :func:`run` (many frames, into an output array) their batch ``run``,
-so the two cannot drift apart.
+the InvariantEKF's own predict and updates, compiled into :func:`frame`. With noise symmetric
+about the up axis (``P``, ``Q``, ``R`` = diag(a, a, c), the defaults and the paper's) the
+covariance stays diag(a, a, c) and the gain ``diag(a / (a + r_h), ., c / (c + r_v))``: the
+closed form is that of the general formulas, not a second body.
 
-Buffer layout (``BUF_LEN`` float64): ``[0:11]`` state ``ew ex ey ez a c rw rx ry rz
-frames``; ``[11:22]`` the last frame's ``k_a k_c a_prior c_prior yx yy yz mw mx my mz``;
-``[22]`` 1 once a frame was processed; ``[23:30]`` parameters ``r_h r_v up
-follow_heading cumulative has_Rgs renorm_every``; ``[30:39]`` ``R_gs`` row-major.
+:class:`ResidualKernel` holds the state in one float64 buffer (``E`` and, when asked, ``R``
+as unit quaternions) and advances it with :func:`frame`; :func:`step` (one frame, checked)
+serves the filters' streaming ``step``, :func:`run` (many frames) their batch ``run``.
+
+Buffer layout (``BUF_LEN`` float64): ``[0:4]`` ``E``; ``[4:13]`` ``P``; ``[13:17]`` ``R``;
+``[17]`` frames; the last frame's ``[18:27]`` ``K``, ``[27:36]`` ``S``, ``[36:45]`` ``P`` after
+the predict, ``[45:48]`` ``y``, ``[48:52]`` ``E^-``, ``[52]`` 1 once a frame was processed;
+parameters ``[53:62]`` ``Q`` (added to the per-frame ``diag(q_h, q_h, q_v)``), ``[62:71]``
+``R_n``, ``[71:74]`` the observed body axis, ``[74:79]`` ``direction follow_heading cumulative
+has_Rgs renorm_every``, ``[79:88]`` ``R_gs`` (all matrices row-major).
 """
 from __future__ import annotations
 
-from math import atan2, cos, nan, sin, sqrt
+from math import atan2, nan, sqrt
 from typing import Optional, Sequence
 
 import numpy as np
 
 from imu_ground._jit import njit
 from imu_ground.filters.frame_checks import status_of, statuses_of
-from imu_ground.so3 import matrix_from_quat
+from imu_ground.filters.invariant_ekf_kernel import (congruence, predict_left, update_direction_left,
+                                                     update_rotation_left)
+from imu_ground.so3 import flat_from_quat, matrix_from_quat, quat_exp, quat_from_flat, quat_mul, transpose_flat
 from imu_ground.units import RENORM_EVERY
 
-__all__ = ["ResidualKernel", "frame", "run_frames", "step", "run", "check", "check_many", "BUF_LEN", "ROW_LEN"]
+__all__ = ["ResidualKernel", "frame", "frame_checked", "run_frames", "step", "run", "check", "check_many", "BUF_LEN", "ROW_LEN"]
 
-_L_KA, _L_HAS, _P_RH, _P_G = 11, 22, 23, 30
-_F64 = np.dtype(np.float64)
+_E, _P, _R, _N, _K, _S, _PP, _Y, _M, _HAS = 0, 4, 13, 17, 18, 27, 36, 45, 48, 52
+_Q, _RN, _B, _DIR, _FOLLOW, _CUM, _HAS_G, _EVERY, _G = 53, 62, 71, 74, 75, 76, 77, 78, 79
 #: Length of a kernel's state-and-parameter buffer (float64).
-BUF_LEN = 39
+BUF_LEN = 88
 #: Length of an output row of :func:`frame` (the last 4, the cumulative rotation, are NaN when not tracked).
 ROW_LEN = 12
-_NO_DV = np.zeros(3)
+#: The ``dv`` of a frame without one (zeros pass the check).
+NO_DV = _NO_DV = np.zeros(3)
+_NO_P = np.zeros((0, 9))
+_ZERO9 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 @njit
 def frame(buf, d, q_h, q_v, tilt, bx, by, angles):
-    """One frame of the filter in ``buf`` (the one body of the kernel; unrolled, hence its length).
-
-    It unrolls: the quaternion of the increment (Shepperd), its rotation into
-    the body frame, the twist, the scalar covariance and gain recursion, the
-    residual update of the module docstring in quaternion products, the
-    cumulative rotation, and pitch and roll from the third row of ``E``
-    (:func:`~imu_ground.filters.estimator.pitch_roll_from_normal`).
+    """One frame of the filter in ``buf`` (module docstring), updated in place.
 
     Parameters
     ----------
     buf : ndarray (BUF_LEN,) float64
-        State and parameters (module docstring); updated in place.
+        State and parameters.
     d : ndarray (3, 3) float64
         Increment sensor_{k-1} <- sensor_k (already checked: a rotation, see
         :func:`~imu_ground.filters.frame_checks.frame_status`).
     q_h, q_v : float
-        Process noise of this frame, horizontal and about up, rad^2.
+        Process noise of this frame, horizontal and about up, rad^2 (added to the buffer's ``Q``).
     tilt : bool
-        Use the modelled body tilt ``b = (bx, by, 0)`` (rotation vector, rad; not used with ``up``).
+        Use the modelled body tilt ``b = (bx, by, 0)`` (rotation vector, rad; not with a direction).
     bx, by : float
         The tilt, rad.
     angles : bool
-        Compute pitch and roll (a batch that derives them from the residuals
-        afterwards passes False; they are then NaN).
+        Compute pitch and roll (from the third row of ``E``; else NaN).
 
     Returns
     -------
     tuple of ROW_LEN float
-        ``(ew, ex, ey, ez, a, c, pitch, roll, rw, rx, ry, rz)`` (the last 4 NaN when the cumulative rotation is
-        not tracked).
+        ``(ew, ex, ey, ez, a, P22, pitch, roll, rw, rx, ry, rz)``, ``a = (P00 + P11) / 2`` the level variance
+        (the last 4 NaN when the cumulative rotation is not tracked).
     """
-    ew, ex, ey, ez, a, c = buf[0], buf[1], buf[2], buf[3], buf[4], buf[5]    # the layout of the module docstring
-    rw, rx, ry, rz, count = buf[6], buf[7], buf[8], buf[9], buf[10]
-    r_h, r_v, up, follow, cum, every = buf[23], buf[24], buf[25] != 0.0, buf[26] != 0.0, buf[27] != 0.0, buf[29]
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = (d[0, 0], d[0, 1], d[0, 2], d[1, 0], d[1, 1], d[1, 2],
-                                                   d[2, 0], d[2, 1], d[2, 2])
-    # -- quaternion of the increment (Shepperd), w >= 0
-    tr = r00 + r11 + r22
-    if tr > 0.0:
-        s = 2.0 * sqrt(tr + 1.0)
-        si = 1.0 / s
-        dw, dx, dy, dz = 0.25 * s, (r21 - r12) * si, (r02 - r20) * si, (r10 - r01) * si
-    elif r00 >= r11 and r00 >= r22:
-        s = 2.0 * sqrt(1.0 + r00 - r11 - r22)
-        dw, dx, dy, dz = (r21 - r12) / s, 0.25 * s, (r01 + r10) / s, (r02 + r20) / s
-    elif r11 >= r22:
-        s = 2.0 * sqrt(1.0 + r11 - r00 - r22)
-        dw, dx, dy, dz = (r02 - r20) / s, (r01 + r10) / s, 0.25 * s, (r12 + r21) / s
-    else:
-        s = 2.0 * sqrt(1.0 + r22 - r00 - r11)
-        dw, dx, dy, dz = (r10 - r01) / s, (r02 + r20) / s, (r12 + r21) / s, 0.25 * s
-    if dw < 0.0:
-        dw, dx, dy, dz = -dw, -dx, -dy, -dz
-    if buf[28] != 0.0:                          # body increment: vector part turned by R_gs
-        dx, dy, dz = (buf[30] * dx + buf[31] * dy + buf[32] * dz, buf[33] * dx + buf[34] * dy + buf[35] * dz,
-                      buf[36] * dx + buf[37] * dy + buf[38] * dz)
-    # -- covariance and gains
-    a += q_h
-    c += q_v
-    a_pr, c_pr = a, c
-    ka = a / (a + r_h)
-    a = ka * r_h
-    if up:
-        kc = 0.0
-    else:
-        kc = c / (c + r_v)
-        c = kc * r_v
-    # -- E^- = T^T E dR: p = E d, then m = conj(t) p with t = (ch, 0, 0, sh) the heading twist
-    pw = ew * dw - ex * dx - ey * dy - ez * dz
-    px = ew * dx + ex * dw + ey * dz - ez * dy
-    py = ew * dy - ex * dz + ey * dw + ez * dx
-    pz = ew * dz + ex * dy - ey * dx + ez * dw
-    if follow and (dw > 0.0 or dz != 0.0):      # (a half turn about a level axis has no twist)
+    dq = quat_from_flat((d[0, 0], d[0, 1], d[0, 2], d[1, 0], d[1, 1], d[1, 2], d[2, 0], d[2, 1], d[2, 2]))
+    dw, dx, dy, dz = dq
+    if buf[_HAS_G] != 0.0:                      # body increment: vector part turned by R_gs
+        g = buf[_G:_G + 9]
+        dx, dy, dz = (g[0] * dx + g[1] * dy + g[2] * dz, g[3] * dx + g[4] * dy + g[5] * dz,
+                      g[6] * dx + g[7] * dy + g[8] * dz)
+    count = buf[_N] + 1.0
+    renorm = count % buf[_EVERY] == 0.0
+    rw, rx, ry, rz = buf[_R], buf[_R + 1], buf[_R + 2], buf[_R + 3]
+    cum = buf[_CUM] != 0.0
+    if cum:                                     # R <- R dR
+        rw, rx, ry, rz = quat_mul((rw, rx, ry, rz), (dw, dx, dy, dz))
+        if renorm:
+            nrm = 1.0 / sqrt(rw * rw + rx * rx + ry * ry + rz * rz)
+            rw, rx, ry, rz = rw * nrm, rx * nrm, ry * nrm, rz * nrm
+    # -- predict W <- dR^T W T, P <- T^T P T + Q (W = conj(E))
+    w = quat_mul((dw, -dx, -dy, -dz), (buf[_E], -buf[_E + 1], -buf[_E + 2], -buf[_E + 3]))
+    t = (1.0, 0.0, 0.0, 0.0)
+    if buf[_FOLLOW] != 0.0 and (dw > 0.0 or dz != 0.0):     # (a half turn about a level axis has no twist)
         h = 1.0 / sqrt(dw * dw + dz * dz)
-        ch, sh = dw * h, dz * h
-        mw, mx, my, mz = ch * pw + sh * pz, ch * px + sh * py, ch * py - sh * px, ch * pz - sh * pw
+        t = (dw * h, 0.0, 0.0, dz * h)
+    qn = buf[_Q:_Q + 9]
+    Qn = (qn[0] + q_h, qn[1], qn[2], qn[3], qn[4] + q_h, qn[5], qn[6], qn[7], qn[8] + q_v)
+    p = buf[_P:_P + 9]
+    w, Pp = predict_left(w, (p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8]), flat_from_quat(t), t, Qn)
+    # -- update
+    rn = buf[_RN:_RN + 9]
+    Rn = (rn[0], rn[1], rn[2], rn[3], rn[4], rn[5], rn[6], rn[7], rn[8])
+    if buf[_DIR] != 0.0:                        # z' = b (world noise R^T Rn R)
+        b = (buf[_B], buf[_B + 1], buf[_B + 2])
+        Rn = congruence(transpose_flat(flat_from_quat((rw, rx, ry, rz))), Rn, _ZERO9)
+        wn, P, y, K, S, _, _, _ = update_direction_left(w, Pp, flat_from_quat(w), b, b, Rn)
     else:
-        mw, mx, my, mz = pw, px, py, pz
-    if mw < 0.0:
-        mw, mx, my, mz = -mw, -mx, -my, -mz
-    # -- innovation y and correction g = K y
-    if up:
-        yx, yy, yz = 2.0 * (mx * mz + mw * my), 2.0 * (my * mz - mw * mx), -2.0 * (mx * mx + my * my)
-        gx, gy, gz = -ka * yy, ka * yx, 0.0
-    else:
-        if tilt:                                # M = E^- Exp(-b), b = (bx, by, 0)
-            bn = sqrt(bx * bx + by * by)
-            hb = 0.5 - bn * bn / 48.0 if bn < 1e-4 else sin(0.5 * bn) / bn
-            cw, cx, cy = cos(0.5 * bn), -hb * bx, -hb * by
-            Mw = mw * cw - mx * cx - my * cy
-            Mx = mw * cx + mx * cw - mz * cy
-            My = mw * cy + my * cw + mz * cx
-            Mz = mz * cw + mx * cy - my * cx
-            if Mw < 0.0:
-                Mw, Mx, My, Mz = -Mw, -Mx, -My, -Mz
-        else:
-            Mw, Mx, My, Mz = mw, mx, my, mz
-        vn = sqrt(Mx * Mx + My * My + Mz * Mz)
-        f = 2.0 * atan2(vn, Mw) / vn if vn > 1e-300 else 2.0
-        yx, yy, yz = f * Mx, f * My, f * Mz
-        gx, gy, gz = ka * yx, ka * yy, kc * yz
-    # -- E = Exp(-g) E^- (re-normalised every RENORM_EVERY frames)
-    th = sqrt(gx * gx + gy * gy + gz * gz)
-    hs = 0.5 - th * th / 48.0 if th < 1e-4 else sin(0.5 * th) / th
-    aw, ax, ay, az = cos(0.5 * th), -hs * gx, -hs * gy, -hs * gz
-    ew = aw * mw - ax * mx - ay * my - az * mz
-    ex = aw * mx + ax * mw + ay * mz - az * my
-    ey = aw * my - ax * mz + ay * mw + az * mx
-    ez = aw * mz + ax * my - ay * mx + az * mw
-    count += 1.0
-    renorm = count % every == 0.0
+        qz = quat_exp(-bx, -by, 0.0) if tilt else (1.0, 0.0, 0.0, 0.0)
+        wn, P, y, K, S, _, _, _ = update_rotation_left(w, Pp, qz, Rn)
+    ew, ex, ey, ez = wn[0], -wn[1], -wn[2], -wn[3]
     if renorm:
         nrm = 1.0 / sqrt(ew * ew + ex * ex + ey * ey + ez * ez)
         ew, ex, ey, ez = ew * nrm, ex * nrm, ey * nrm, ez * nrm
-    # -- pitch and roll from n_b = E^T e_z, the third row of E
     pitch = roll = nan
-    if angles:
+    if angles:                                  # n_b = E^T e_z, the third row of E
         n0 = 2.0 * (ex * ez - ew * ey)
         n1 = 2.0 * (ey * ez + ew * ex)
         n2 = 1.0 - 2.0 * (ex * ex + ey * ey)
         pitch, roll = atan2(-n0, sqrt(n1 * n1 + n2 * n2)), atan2(n1, n2)
-    ow = ox = oy = oz = nan
-    if cum:                                     # R = R dR
-        rw, rx, ry, rz = (rw * dw - rx * dx - ry * dy - rz * dz, rw * dx + rx * dw + ry * dz - rz * dy,
-                          rw * dy - rx * dz + ry * dw + rz * dx, rw * dz + rx * dy - ry * dx + rz * dw)
-        if renorm:
-            nrm = 1.0 / sqrt(rw * rw + rx * rx + ry * ry + rz * rz)
-            rw, rx, ry, rz = rw * nrm, rx * nrm, ry * nrm, rz * nrm
-        ow, ox, oy, oz = rw, rx, ry, rz
-    new = (ew, ex, ey, ez, a, c, rw, rx, ry, rz, count, ka, kc, a_pr, c_pr, yx, yy, yz, mw, mx, my, mz, 1.0)
-    for i in range(_P_RH):
-        buf[i] = new[i]
-    return ew, ex, ey, ez, a, c, pitch, roll, ow, ox, oy, oz
+    buf[0], buf[1], buf[2], buf[3] = ew, ex, ey, ez
+    for i in range(9):
+        buf[_P + i], buf[_K + i], buf[_S + i], buf[_PP + i] = P[i], K[i], S[i], Pp[i]
+    buf[_R], buf[_R + 1], buf[_R + 2], buf[_R + 3], buf[_N] = rw, rx, ry, rz, count
+    buf[_Y], buf[_Y + 1], buf[_Y + 2] = y
+    buf[_M], buf[_M + 1], buf[_M + 2], buf[_M + 3], buf[_HAS] = w[0], -w[1], -w[2], -w[3], 1.0
+    if not cum:
+        rw = rx = ry = rz = nan
+    return ew, ex, ey, ez, 0.5 * (P[0] + P[4]), P[8], pitch, roll, rw, rx, ry, rz
 
 
 @njit
-def run_frames(buf, d, q_h, q_v, tilt, tilt_x, tilt_y, angles, out):
+def run_frames(buf, d, q_h, q_v, tilt, tilt_x, tilt_y, angles, out, P_out):
     """Many frames (already checked) into ``out``: :func:`frame` over ``d`` (F, 3, 3), ``q_h`` (F,), the tilts
-    (F,) when ``tilt``, rows into ``out`` (F, 8) or (F, 12)."""
-    width = out.shape[1]
+    (F,) when ``tilt``, rows into ``out`` (F, 8) or (F, 12), each covariance into ``P_out`` (F, 9) unless empty."""
+    width, full = out.shape[1], P_out.shape[0] != 0
     for k in range(d.shape[0]):
         bx = tilt_x[k] if tilt else 0.0
         by = tilt_y[k] if tilt else 0.0
         row = frame(buf, d[k], q_h[k], q_v, tilt, bx, by, angles)
         for j in range(width):
             out[k, j] = row[j]
+        if full:
+            for j in range(9):
+                P_out[k, j] = buf[_P + j]
 
 
 _NAN_ROW = (nan,) * ROW_LEN
@@ -212,78 +171,61 @@ def _step(buf, d, q_h, q_v, tilt, bx, by, has_dv, dv, dt):
     return 0, frame(buf, d, q_h, q_v, tilt, bx, by, True)
 
 
+@njit
+def frame_checked(buf, d, dv, dt):
+    """:func:`frame` (no tilt, the buffer's own noise, with the angles) of a frame that passes
+    :func:`~imu_ground.filters.frame_checks.status_of` (``d`` (3, 3), ``dv`` (3,) m/s, ``dt`` s, float64),
+    else a NaN row and the state untouched: the streaming step of the ground filter. Compiled for those
+    types only (any other raises TypeError: the caller coerces)."""
+    if status_of(d, True, dv, dt):
+        return _NAN_ROW
+    return frame(buf, d, 0.0, 0.0, False, 0.0, 0.0, True)
+
+
 def _checked(v, shape: tuple, name: str):
-    """``v`` if it is a C-contiguous float64 ndarray of ``shape``; TypeError or ValueError otherwise (the filters
-    then coerce it with :func:`~imu_ground.filters.frame_checks.coerce_frame` and retry)."""
-    if type(v) is np.ndarray and v.shape == shape and (v.dtype is _F64 or v.dtype == _F64) and v.flags.c_contiguous:
+    """``v`` if it is a C-contiguous float64 ndarray of ``shape``; TypeError or ValueError otherwise."""
+    if type(v) is np.ndarray and v.shape == shape and v.dtype == np.float64 and v.flags.c_contiguous:
         return v
-    if type(v) is not np.ndarray or v.dtype != _F64 or not v.flags.c_contiguous:
+    if type(v) is not np.ndarray or v.dtype != np.float64 or not v.flags.c_contiguous:
         raise TypeError(f"{name} must be a C-contiguous float64 array, got {type(v).__name__}"
                         + (f" of {v.dtype}" if type(v) is np.ndarray else ""))
     raise ValueError(f"{name} must have shape {shape}, got {v.shape}")
-
-
-_SHAPE_R, _SHAPE_V = (3, 3), (3,)
 
 
 def step(buf: np.ndarray, d, q_h: float, q_v: float, tilt_x: Optional[float], tilt_y: Optional[float],
          dv, dt: float):
     """One checked frame: the row of :func:`frame`, or the frame's status with the state untouched.
 
-    Parameters
-    ----------
-    buf : ndarray (BUF_LEN,) float64
-        The kernel's buffer (:attr:`ResidualKernel.buf`), updated in place.
-    d : ndarray (3, 3), float64
-        Increment sensor_{k-1} <- sensor_k.
-    q_h, q_v : float
-        Process noise of this frame, horizontal and about up, rad^2.
-    tilt_x, tilt_y : float or None
-        Modelled body tilt, rad (None: none).
-    dv : ndarray (3,) float64, or None
-        Velocity increment to check (m/s; None: not checked).
-    dt : float
-        Frame duration to check, s.
+    ``buf``, ``d``, ``q_h``, ``q_v`` as in :func:`frame`; ``tilt_x, tilt_y`` the modelled body tilt
+    (rad, None: none); ``dv`` (3,) float64 (m/s, None: not checked) and ``dt`` (s) are checked.
 
     Returns
     -------
     tuple or int
-        The row ``(ew, ex, ey, ez, a, c, pitch, roll, rw, rx, ry, rz)`` of :func:`frame`, or the
-        status of :func:`~imu_ground.filters.frame_checks.frame_status` (> 0) of a bad frame.
+        The row of :func:`frame`, or the status of
+        :func:`~imu_ground.filters.frame_checks.frame_status` (> 0) of a bad frame.
 
     Raises
     ------
     TypeError, ValueError
         ``d`` or ``dv`` is not a float64 array of that shape: the caller coerces and retries.
     """
-    d = _checked(d, _SHAPE_R, "delta_R")
+    d = _checked(d, (3, 3), "delta_R")
     has_dv = dv is not None
-    dv = _checked(dv, _SHAPE_V, "delta_v") if has_dv else _NO_DV
+    dv = _checked(dv, (3,), "delta_v") if has_dv else _NO_DV
     tilt = tilt_x is not None
     status, row = _step(buf, d, float(q_h), float(q_v), tilt, 0.0 if tilt_x is None else float(tilt_x),
                         0.0 if tilt_y is None else float(tilt_y), has_dv, dv, float(dt))
     return status if status else row
 
 
-def run(buf: np.ndarray, d, q_h, q_v: float, tilt_x, tilt_y, out: np.ndarray, angles: bool) -> None:
-    """Many frames (already checked) into ``out``: the batch entry point.
+def run(buf: np.ndarray, d, q_h, q_v: float, tilt_x, tilt_y, out: np.ndarray, angles: bool,
+        P_out: Optional[np.ndarray] = None) -> None:
+    """Many frames (already checked) into ``out``: the batch entry point, :func:`frame` over each.
 
-    Parameters
-    ----------
-    buf : ndarray (BUF_LEN,) float64
-        The kernel's buffer, updated in place.
-    d : ndarray (F, 3, 3) or (F, 9), float64
-        Increments sensor_{k-1} <- sensor_k.
-    q_h : float or ndarray (F,)
-        Horizontal process noise per frame, rad^2.
-    q_v : float
-        Process noise about up per frame, rad^2.
-    tilt_x, tilt_y : ndarray (F,) or None
-        Modelled body tilt per frame, rad.
-    out : ndarray (F, 8) or (F, 12), float64
-        Receives the rows of :func:`frame` (12 columns with the cumulative rotation).
-    angles : bool
-        Compute pitch and roll (else NaN).
+    ``d`` (F, 3, 3) or (F, 9); ``q_h`` a float or (F,); ``tilt_x, tilt_y`` (F,) or None (rad); ``out``
+    (F, 8) or (F, 12, with the cumulative rotation) receives the rows, ``P_out`` (F, 3, 3), if given, each
+    frame's covariance (rad^2); the rest as in :func:`frame`.
     """
     d = np.ascontiguousarray(d, dtype=float).reshape(-1, 3, 3)
     n = len(d)
@@ -292,7 +234,8 @@ def run(buf: np.ndarray, d, q_h, q_v: float, tilt_x, tilt_y, out: np.ndarray, an
     tx = np.ascontiguousarray(tilt_x, dtype=float) if tilt else _NO_DV
     ty = np.ascontiguousarray(tilt_y, dtype=float) if tilt else _NO_DV
     if n:
-        run_frames(buf, d, qs, float(q_v), tilt, tx, ty, bool(angles), out.reshape(n, -1))
+        run_frames(buf, d, qs, float(q_v), tilt, tx, ty, bool(angles), out.reshape(n, -1),
+                   _NO_P if P_out is None else P_out.reshape(n, 9))
 
 
 def check(d, dv, dt: float) -> int:
@@ -303,33 +246,44 @@ def check(d, dv, dt: float) -> int:
     TypeError, ValueError
         ``d`` or ``dv`` is not a float64 array of shape (3, 3) or (3,): the caller coerces and retries.
     """
-    d = _checked(d, _SHAPE_R, "delta_R")
+    d = _checked(d, (3, 3), "delta_R")
     if dv is None:
         return int(status_of(d, False, _NO_DV, float(dt)))
-    return int(status_of(d, True, _checked(dv, _SHAPE_V, "delta_v"), float(dt)))
+    return int(status_of(d, True, _checked(dv, (3,), "delta_v"), float(dt)))
 
 
-def check_many(d: np.ndarray, dv: Optional[np.ndarray], dt: Optional[np.ndarray], out: np.ndarray) -> None:
-    """:func:`check` of every frame into ``out`` (uint8 (F,)); see :func:`~imu_ground.filters.frame_checks.frame_statuses`."""
-    statuses_of(d, dv, dt, out)
+#: :func:`check` of every frame into ``out`` (uint8 (F,)): :func:`~imu_ground.filters.frame_checks.statuses_of`.
+check_many = statuses_of
+
+
+def _buffer(P, Q, R, axis, follow_heading: bool, cumulative: bool, Rgs) -> np.ndarray:
+    """A fresh buffer (layout: module docstring); ``axis`` None for the rotation measurement."""
+    b = np.zeros(BUF_LEN)
+    b[_E] = b[_R] = 1.0
+    b[_P:_P + 9], b[_Q:_Q + 9], b[_RN:_RN + 9] = (np.asarray(m, dtype=float).ravel() for m in (P, Q, R))
+    if axis is not None:
+        b[_B:_B + 3], b[_DIR] = axis, 1.0
+    b[_FOLLOW], b[_CUM], b[_EVERY] = float(bool(follow_heading)), float(bool(cumulative)), float(RENORM_EVERY)
+    if Rgs is not None:
+        b[_HAS_G], b[_G:_G + 9] = 1.0, np.asarray(Rgs, dtype=float).ravel()
+    return b
 
 
 _LOADED: list = []
 
 
 def _load_compiled() -> None:
-    """Call the compiled step once per process, on a scratch buffer: numba's first call (its typing and the
-    cached machine code, a fraction of a second) then happens when the first filter is built, not at the
-    first frame of a live stream."""
+    """Call the compiled steps once per process (numba's first call: when the first filter is built)."""
     if not _LOADED:
         _LOADED.append(True)
-        scratch = np.array([1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0] + [0.0] * 12
-                           + [1.0, 1.0, 0.0, 1.0, 0.0, 0.0, float(RENORM_EVERY)] + [0.0] * 9)
-        step(scratch, np.eye(3), 0.0, 0.0, None, None, _NO_DV, 1.0)
+        buf = _buffer(np.eye(3), np.zeros((3, 3)), np.eye(3), None, True, True, None)
+        step(buf, np.eye(3), 0.0, 0.0, None, None, _NO_DV, 1.0)
+        frame_checked(buf, np.eye(3), _NO_DV, 1.0)
+        getattr(frame_checked, "disable_compile", lambda: None)()     # (numba's: other types raise TypeError)
 
 
 class ResidualKernel:
-    """State ``(E, a, c[, R])`` of the residual filter in one buffer, and the kernel that advances it.
+    """State ``(E, P[, R])`` of the ground filters' invariant EKF in one buffer, and the kernel that advances it.
 
     Parameters
     ----------
@@ -337,7 +291,7 @@ class ResidualKernel:
         Initial covariance ``diag(a, a, c)`` of the slow state, rad^2.
     r_h, r_v : float
         Measurement noise about the horizontal axes and about up, rad^2 (with
-        ``up``: the noise of each component of the observed up axis).
+        ``up``: ``r_h``, the noise of each component of the observed up axis).
     up : bool
         Observe only the up axis ``R e_z`` (tilt), not the whole rotation.
     follow_heading : bool
@@ -347,30 +301,36 @@ class ResidualKernel:
         frame and turned into the body frame (``R_gs dR R_gs^T``). None: identity.
     cumulative : bool
         Also accumulate ``R_k = R_{k-1} dR_k`` (world <- body, from ``R0`` = identity).
+    P, Q, R : ndarray (3, 3), optional
+        General initial covariance, process noise added to every frame's (body tangent space) and
+        measurement noise (rad^2; world axes for a direction, which then needs ``cumulative`` unless
+        isotropic), in place of ``a, c``, zero and ``r_h, r_v``.
+    axis : array_like (3,), optional
+        Observe the direction ``R axis`` (a unit body axis, e.g. ``e_x``) instead of the rotation.
 
     Attributes
     ----------
     buf : ndarray (BUF_LEN,) float64
         State and parameters (module docstring). The residual road <- body and the
         cumulative rotation are quaternions (w, x, y, z), re-normalised every
-        :data:`~imu_ground.units.RENORM_EVERY` frames (so unit to ~1e-14 in between).
+        :data:`~imu_ground.units.RENORM_EVERY` frames.
     """
 
     __slots__ = ("buf",)
 
     def __init__(self, a: float, c: float, r_h: float, r_v: float, up: bool = False, follow_heading: bool = True,
-                 Rgs=None, cumulative: bool = False) -> None:
-        g = [0.0] * 9 if Rgs is None else [float(v) for v in np.asarray(Rgs, dtype=float).ravel()]
-        values = ([1.0, 0.0, 0.0, 0.0, float(a), float(c), 1.0, 0.0, 0.0, 0.0, 0.0] + [0.0] * 12
-                  + [float(r_h), float(r_v), float(bool(up)), float(bool(follow_heading)),
-                     float(bool(cumulative)), float(Rgs is not None), float(RENORM_EVERY)] + g)
-        self.buf = np.array(values)
+                 Rgs=None, cumulative: bool = False, *, P=None, Q=None, R=None, axis=None) -> None:
+        if up:
+            axis = (0.0, 0.0, 1.0)
+            r_v = r_h
+        self.buf = _buffer(np.diag([a, a, c]) if P is None else P, np.zeros((3, 3)) if Q is None else Q,
+                           np.diag([r_h, r_h, r_v]) if R is None else R, axis, follow_heading, cumulative, Rgs)
         _load_compiled()
 
     def read_state(self, reader, name: str) -> list:
         """The entry ``name`` of a saved state (a :class:`~imu_ground.imu.warm_start.StateReader`), checked to
         be a buffer of this kernel's layout: finite, NaN only in the record of the last frame."""
-        return reader.floats(name, (len(self.buf),), nan=slice(_L_KA, _L_HAS)).tolist()
+        return reader.floats(name, (len(self.buf),), nan=slice(_K, _HAS)).tolist()
 
     def load(self, values: Sequence[float]) -> None:
         """A new :attr:`buf` of ``values`` (a saved state's)."""
@@ -379,9 +339,8 @@ class ResidualKernel:
     def set_mount(self, Rgs: np.ndarray) -> None:
         """Turn sensor increments into the body frame with the static rotation ``Rgs`` (ground <- sensor) from
         the next frame on (in place: the buffer object stays the same)."""
-        b = self.buf
-        b[_P_RH + 5] = 1.0
-        b[_P_G:_P_G + 9] = np.asarray(Rgs, dtype=float).ravel()
+        self.buf[_HAS_G] = 1.0
+        self.buf[_G:_G + 9] = np.asarray(Rgs, dtype=float).ravel()
 
     step = staticmethod(step)
     check = staticmethod(check)
@@ -394,34 +353,49 @@ class ResidualKernel:
     @property
     def R(self) -> Optional[tuple]:
         """Cumulative rotation world <- body (from identity), quaternion, or None when not tracked."""
-        return tuple(self.buf[6:10].tolist()) if self.buf[_P_RH + 4] != 0.0 else None
+        return tuple(self.buf[_R:_R + 4].tolist()) if self.buf[_CUM] != 0.0 else None
 
-    a = property(lambda self: float(self.buf[4]), doc="Covariance about the horizontal axes, rad^2.")
-    c = property(lambda self: float(self.buf[5]), doc="Covariance about up, rad^2.")
+    a = property(lambda self: float(self.buf[_P]), doc="Covariance about the first horizontal axis, rad^2.")
+    c = property(lambda self: float(self.buf[_P + 8]), doc="Covariance about up, rad^2.")
+    frames = property(lambda self: int(self.buf[_N]), doc="Frames processed.")
 
     def residual_matrix(self) -> np.ndarray:
         """:attr:`E` as a rotation matrix (3, 3), road <- body."""
         return matrix_from_quat(self.buf[0:4].copy())
 
     def covariance(self) -> np.ndarray:
-        """``diag(a, a, c)`` (3, 3), rad^2: the covariance of the slow state, body tangent space."""
-        return np.diag([self.a, self.a, self.c])
-    frames = property(lambda self: int(self.buf[10]), doc="Frames processed.")
+        """``P`` (3, 3), rad^2: the covariance of the slow state, body tangent space."""
+        return self.buf[_P:_P + 9].reshape(3, 3).copy()
+
+    def last_matrices(self) -> Optional[tuple]:
+        """Of the last frame: ``K``, ``S``, ``P`` after the predict (each (3, 3)) and ``y`` (3,); None before the
+        first."""
+        if self.buf[_HAS] == 0.0:
+            return None
+        b = self.buf
+        return (b[_K:_K + 9].reshape(3, 3).copy(), b[_S:_S + 9].reshape(3, 3).copy(),
+                b[_PP:_PP + 9].reshape(3, 3).copy(), b[_Y:_Y + 3].copy())
 
     @property
     def last(self) -> Optional[tuple]:
-        """Of the last frame: ``(k_a, k_c, a_prior, c_prior, yx, yy, yz, mw, mx, my, mz)``: gains,
-        predicted covariance, innovation and predicted residual ``E^-``; None before the first."""
-        return tuple(self.buf[_L_KA:_L_HAS].tolist()) if self.buf[_L_HAS] != 0.0 else None
+        """Of the last frame: ``(k_a, k_c, a_prior, c_prior, yx, yy, yz, mw, mx, my, mz)``: gains (of the
+        horizontal axes and about up), predicted covariance, innovation and predicted residual ``E^-``; None
+        before the first."""
+        b = self.buf
+        if b[_HAS] == 0.0:
+            return None
+        k_a = b[_K + 3] if b[_DIR] != 0.0 else b[_K]
+        return (float(k_a), float(b[_K + 8]), float(b[_PP]), float(b[_PP + 8]), *b[_Y:_Y + 3].tolist(),
+                *b[_M:_M + 4].tolist())
 
     @property
     def width(self) -> int:
         """Columns of an output row: 8, or 12 with the cumulative rotation."""
-        return 12 if self.buf[_P_RH + 4] != 0.0 else 8
+        return 12 if self.buf[_CUM] != 0.0 else 8
 
-    def run(self, d, q_h, q_v: float, tilt_x=None, tilt_y=None, angles: bool = False) -> np.ndarray:
-        """:func:`run` into a new array (F, :attr:`width`)."""
+    def run(self, d, q_h, q_v: float, tilt_x=None, tilt_y=None, angles: bool = False, P_out=None) -> np.ndarray:
+        """:func:`run` into a new array (F, :attr:`width`) (and each covariance into ``P_out`` (F, 3, 3))."""
         d = np.ascontiguousarray(d, dtype=float)
         out = np.empty((len(d), self.width))
-        run(self.buf, d, q_h, q_v, tilt_x, tilt_y, out, angles)
+        run(self.buf, d, q_h, q_v, tilt_x, tilt_y, out, angles, P_out)
         return out

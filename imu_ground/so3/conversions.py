@@ -7,7 +7,6 @@ scalar first, ``(w, x, y, z)``, with ``w >= 0``.
 from __future__ import annotations
 
 import math
-
 from typing import Optional
 
 import numpy as np
@@ -195,7 +194,7 @@ def heading_change(d: np.ndarray, Rgs: Optional[np.ndarray] = None) -> float:
     Returns
     -------
     float
-        ``atan2(m10 - m01, m00 + m11)`` of that increment: the scalar twin of :func:`twist_angle`.
+        :func:`twist_angle` of that increment, in Python floats (one frame).
     """
     if Rgs is not None:
         d = Rgs @ d @ Rgs.T

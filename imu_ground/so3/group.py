@@ -23,7 +23,7 @@ __all__ = [
     "hat", "vee", "exp", "log", "right_jacobian", "left_jacobian",
     "right_jacobian_inv", "left_jacobian_inv", "project", "angle",
     "rotx", "roty", "rotz", "renormalise", "exp_one", "log_one",
-    "exp_flat", "log_flat", "mul_flat", "mul_tn_flat", "mul_nt_flat", "transpose_flat", "renormalise_flat",
+    "exp_flat", "log_flat", "mul_flat", "mul_nt_flat", "transpose_flat", "renormalise_flat",
     "quat_from_flat", "flat_from_quat", "quat_mul", "quat_exp", "quat_normalise", "hat_flat", "SMALL_ANGLE",
 ]
 
@@ -208,9 +208,6 @@ def left_jacobian_inv(phi: np.ndarray) -> np.ndarray:
 def project(m: np.ndarray) -> np.ndarray:
     """Nearest rotation matrix in the Frobenius norm (SVD, det forced to +1).
 
-    Use it to pull a product of many rotations back onto SO(3) against
-    accumulated rounding.
-
     Parameters
     ----------
     m : array_like, shape (..., 3, 3)
@@ -268,11 +265,8 @@ def rotz(a) -> np.ndarray:
 
 
 def renormalise(r: np.ndarray) -> np.ndarray:
-    """One Newton step towards the nearest rotation: ``R (3 I - R^T R) / 2``.
-
-    Cheap and enough against the rounding drift of a product of rotations
-    (orthonormality error ``e`` becomes about ``e^2``); :func:`project` for
-    matrices far from SO(3).
+    """One Newton step towards the nearest rotation: ``R (3 I - R^T R) / 2`` (orthonormality error ``e`` becomes
+    about ``e^2``; :func:`project` for matrices far from SO(3)).
 
     Parameters
     ----------
@@ -287,12 +281,7 @@ def renormalise(r: np.ndarray) -> np.ndarray:
     return r @ (1.5 * np.eye(3) - 0.5 * (np.swapaxes(r, -1, -2) @ r))
 
 
-# ---------------------------------------------------------------------------
-# Single-element fast paths for streaming filters: the same formulas and
-# branches as the batch functions above, in scalar float arithmetic, so that
-# one call costs a few microseconds instead of a dozen numpy dispatches.
-# ``*_flat``: a 3x3 matrix is a row-major sequence of 9 floats.
-# ---------------------------------------------------------------------------
+# -- the scalar kernels: the formulas and branches above on floats (a 3x3 matrix: row-major 9 floats) -----
 def exp_flat(x: float, y: float, z: float) -> tuple:
     """:func:`exp` of the rotation vector ``(x, y, z)`` (rad) as a row-major 9-tuple (NaN: angle not finite)."""
     t2 = x * x + y * y + z * z
@@ -355,11 +344,6 @@ def transpose_flat(a) -> tuple:
     return a[0], a[3], a[6], a[1], a[4], a[7], a[2], a[5], a[8]
 
 
-def mul_tn_flat(a, b) -> tuple:
-    """``A^T @ B`` of two row-major 9-sequences."""
-    return mul_flat(transpose_flat(a), b)
-
-
 def mul_nt_flat(a, b) -> tuple:
     """``A @ B^T`` of two row-major 9-sequences."""
     return mul_flat(a, transpose_flat(b))
@@ -381,24 +365,25 @@ def renormalise_flat(r) -> tuple:
 def quat_from_flat(r) -> tuple:
     """Unit quaternion ``(w, x, y, z)`` (scalar first, ``w >= 0``) of a rotation given as a row-major 9-sequence.
 
-    Shepperd's method: the largest of ``w, x, y, z`` is taken from the trace or a
-    diagonal entry, the others from sums and differences, so every rotation
-    (also at pi) converts to full precision.
+    Shepperd's method: ``w`` from a positive trace, else the largest of ``x, y, z`` from its
+    diagonal entry, the others from sums and differences, so every rotation (also at pi)
+    converts to full precision.
     """
     r0, r1, r2, r3, r4, r5, r6, r7, r8 = r
     t = r0 + r4 + r8
-    if t >= r0 and t >= r4 and t >= r8:
-        s = 0.5 / math.sqrt(1.0 + t)
-        return 0.25 / s, (r7 - r5) * s, (r2 - r6) * s, (r3 - r1) * s
+    if t > 0.0:
+        s = 2.0 * math.sqrt(t + 1.0)
+        si = 1.0 / s
+        return 0.25 * s, (r7 - r5) * si, (r2 - r6) * si, (r3 - r1) * si
     if r0 >= r4 and r0 >= r8:
-        s = 0.5 / math.sqrt(1.0 + r0 - r4 - r8)
-        q = (r7 - r5) * s, 0.25 / s, (r1 + r3) * s, (r2 + r6) * s
+        s = 2.0 * math.sqrt(1.0 + r0 - r4 - r8)
+        q = (r7 - r5) / s, 0.25 * s, (r1 + r3) / s, (r2 + r6) / s
     elif r4 >= r8:
-        s = 0.5 / math.sqrt(1.0 + r4 - r0 - r8)
-        q = (r2 - r6) * s, (r1 + r3) * s, 0.25 / s, (r5 + r7) * s
+        s = 2.0 * math.sqrt(1.0 + r4 - r0 - r8)
+        q = (r2 - r6) / s, (r1 + r3) / s, 0.25 * s, (r5 + r7) / s
     else:
-        s = 0.5 / math.sqrt(1.0 + r8 - r0 - r4)
-        q = (r3 - r1) * s, (r2 + r6) * s, (r5 + r7) * s, 0.25 / s
+        s = 2.0 * math.sqrt(1.0 + r8 - r0 - r4)
+        q = (r3 - r1) / s, (r2 + r6) / s, (r5 + r7) / s, 0.25 * s
     return q if q[0] >= 0.0 else (-q[0], -q[1], -q[2], -q[3])
 
 
