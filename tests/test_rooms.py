@@ -97,13 +97,6 @@ def test_the_readme_room_table_follows_the_tree(layer, complete):
         assert tree <= mentioned, f"modules of imu_ground/{layer} missing from docs/library.md's table: {sorted(tree - mentioned)}"
 
 
-#: Reads of another object's private attributes the pipeline still makes: the live preintegrator's buffers and
-#: its last sample / next frame end (owned by ``imu_ground/imu/live/preint_stream.py``, whose rewrite is under way;
-#: give it read-only properties there, then empty this list). ``_replace`` is a named tuple's public method.
-PIPELINE_REACHES_LEFT = {("streaming.py", "pre._b"), ("streaming.py", "pre._tb"), ("streaming.py", "pre._prev"),
-                         ("streaming.py", "pre._next")}
-
-
 def test_the_pipeline_reads_no_private_attribute_of_another_object():
     """``x._name`` read anywhere in ``pipeline/`` (methods included) where ``x`` is not ``self``/``cls`` or a
     module: the owning class gives what is read (e.g. :meth:`GroundEstimate.copy_of`)."""
@@ -117,4 +110,4 @@ def test_the_pipeline_reads_no_private_attribute_of_another_object():
                     and not node.attr.startswith("__") and node.attr != "_replace"
                     and not (isinstance(node.value, ast.Name) and node.value.id in modules | {"self", "cls"})):
                 found.add((path.name, ast.unparse(node)))
-    assert found <= PIPELINE_REACHES_LEFT, sorted(found - PIPELINE_REACHES_LEFT)
+    assert not found, sorted(found)

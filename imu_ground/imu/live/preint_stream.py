@@ -168,11 +168,8 @@ class StreamingPreintegrator:
 
     @property
     def _prev(self) -> tuple | None:
-        """(t, gyro (3), accel (3)) of the last sample, bias removed (None before the first); for the pipeline's
-        reads until it uses :attr:`last_sample_time`."""
+        """(t, gyro (3), accel (3)) of the last sample, bias removed (None before the first): the saved ``prev``."""
         return None if self.last_sample_time is None else tuple(self._b[_S_PREV:_S_LIM].tolist())
-
-    _next = property(lambda self: self.next_boundary, doc="See :attr:`next_boundary`.")
 
     def set_gyro_bias(self, bx: float, by: float, bz: float) -> None:
         """Remove this gyro bias (rad/s, body frame) from the samples from the next one on, in place of
