@@ -36,7 +36,7 @@ has_Rgs renorm_every``, ``[79:88]`` ``R_gs`` (all matrices row-major).
 from __future__ import annotations
 
 from math import atan2, nan, sqrt
-from typing import Optional, Sequence
+from typing import Mapping, Optional, Sequence
 
 import numpy as np
 
@@ -269,6 +269,32 @@ def _buffer(P, Q, R, axis, follow_heading: bool, cumulative: bool, Rgs) -> np.nd
     return b
 
 
+#: Length of the buffer of the earlier closed-form kernel: ``[0:4]`` E, ``[4:6]`` the variances ``a`` (level) and
+#: ``c`` (about up) of ``P = diag(a, a, c)``, ``[6:10]`` R, ``[10]`` frames, ``[11:22]`` the last frame's ``k_a k_c
+#: a_prior c_prior y (3) E^- (4)``, ``[22]`` 1 once a frame was processed, ``[23:30]`` ``r_h r_v up follow_heading
+#: cumulative has_Rgs renorm_every``, ``[30:39]`` R_gs.
+CLOSED_FORM_LEN = 39
+
+
+def _from_closed_form(old: np.ndarray, template: np.ndarray) -> np.ndarray:
+    """A buffer of this layout holding the closed-form buffer ``old``'s state: its parameters from ``template``
+    (the loading filter's own), its state (E, P, R, frames, mount) and last-frame record from ``old``. The record's
+    matrices are the diagonal ones the closed form implies (its noise symmetric about up)."""
+    b = template.copy()
+    a, c, k_a, k_c, a_p, c_p = old[4], old[5], old[11], old[12], old[13], old[14]
+    b[_E:_E + 4], b[_R:_R + 4], b[_N], b[_HAS] = old[0:4], old[6:10], old[10], old[22]
+    b[_P:_P + 9] = np.diag([a, a, c]).ravel()
+    b[_PP:_PP + 9] = np.diag([a_p, a_p, c_p]).ravel()
+    b[_S:_S + 9] = b[_PP:_PP + 9] + b[_RN:_RN + 9]
+    b[_K:_K + 9] = 0.0
+    b[_K + 3 if b[_DIR] != 0.0 else _K], b[_K + 8] = k_a, k_c
+    if b[_DIR] == 0.0:
+        b[_K + 4] = k_a
+    b[_Y:_Y + 3], b[_M:_M + 4] = old[15:18], old[18:22]
+    b[_HAS_G], b[_G:_G + 9] = old[28], old[30:39]
+    return b
+
+
 _LOADED: list = []
 
 
@@ -329,7 +355,12 @@ class ResidualKernel:
 
     def read_state(self, reader, name: str) -> list:
         """The entry ``name`` of a saved state (a :class:`~imu_ground.imu.warm_start.StateReader`), checked to
-        be a buffer of this kernel's layout: finite, NaN only in the record of the last frame."""
+        be a buffer of this kernel's layout: finite, NaN only in the record of the last frame. A buffer of the
+        closed-form layout of earlier releases (:data:`CLOSED_FORM_LEN` floats) is
+        converted (:func:`_from_closed_form`), so a state saved before an upgrade still resumes."""
+        v = reader.state.get(name) if isinstance(reader.state, Mapping) else None
+        if isinstance(v, (list, tuple, np.ndarray)) and len(v) == CLOSED_FORM_LEN:
+            return _from_closed_form(reader.floats(name, (CLOSED_FORM_LEN,), nan=slice(11, 22)), self.buf).tolist()
         return reader.floats(name, (len(self.buf),), nan=slice(_K, _HAS)).tolist()
 
     def load(self, values: Sequence[float]) -> None:
