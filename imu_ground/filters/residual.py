@@ -286,10 +286,12 @@ def _from_closed_form(old: np.ndarray, template: np.ndarray) -> np.ndarray:
     b[_P:_P + 9] = np.diag([a, a, c]).ravel()
     b[_PP:_PP + 9] = np.diag([a_p, a_p, c_p]).ravel()
     b[_S:_S + 9] = b[_PP:_PP + 9] + b[_RN:_RN + 9]
-    b[_K:_K + 9] = 0.0
-    b[_K + 3 if b[_DIR] != 0.0 else _K], b[_K + 8] = k_a, k_c
-    if b[_DIR] == 0.0:
-        b[_K + 4] = k_a
+    b[_K:_K + 9] = 0.0                          # the gains where :attr:`ResidualKernel.last` reads them
+    if b[_DIR] != 0.0:
+        b[_K + 3] = k_a
+    else:
+        b[_K] = b[_K + 4] = k_a
+    b[_K + 8] = k_c
     b[_Y:_Y + 3], b[_M:_M + 4] = old[15:18], old[18:22]
     b[_HAS_G], b[_G:_G + 9] = old[28], old[30:39]
     return b

@@ -670,7 +670,9 @@ class StreamingEstimator:
             pre = StreamingPreintegrator(rate=self.rate, t_origin=origin, max_gap=max_gap, on_gap="flag",
                                          uncertainty=False)
             loaded("preintegrator", pre, unpack(state["preintegrator"], "preintegrator"))
-            last = pre.last_sample_time if pre.last_sample_time is not None else clock.t
+            last = pre.last_sample_time
+            if last is None:
+                last = clock.t
             if not (abs(clock.t - last) <= max_gap and abs(pre.next_boundary - clock.t) <= 2.0 / self.rate + max_gap):
                 raise r.error("clock.t", f"is {clock.t!r}, off the preintegrator's last sample ({last!r}) and next "
                                          f"frame end ({pre.next_boundary!r})")
