@@ -697,30 +697,6 @@ def test_estimate_causal_cli(cli, tmp_path):
     assert code == 2 and "--method" in err
 
 
-# --------------------------------------------------------------------------- the twins, piece by piece
-def test_standstill_blocks_equal_their_vectorised_twin():
-    from imu_ground.imu.live.causal_standstill import StandstillBlocks, block_sums, window_standstill
-    rng = np.random.default_rng(3)
-    n, rate = 3000, 10.0
-    t = np.cumsum(np.full(n, 0.01))
-    t[1500:] += 0.5                                              # a gap: empty blocks, no standstill across
-    still = (t % 20) < 8                                         # stops of 8 s every 20 s
-    gyro = np.where(still[:, None], 1e-3 + rng.normal(0, 5e-4, (n, 3)), rng.normal(0, 0.1, (n, 3)))
-    accel = np.array([0.0, 0.0, 9.80665]) + np.where(still[:, None], rng.normal(0, 0.01, (n, 3)),
-                                                     rng.normal(0, 0.5, (n, 3)))
-    k = np.ceil((t - t[0]) * rate - 1e-6).astype(np.int64) - 1
-    B = int(k.max()) + 1
-    flags = window_standstill(*block_sums(k, gyro, accel, B), StandstillBlocks(rate).tests, rate)
-    blocks = StandstillBlocks(rate)
-    got = []
-    for i in range(n):
-        if k[i] >= 0:
-            blocks.add(int(k[i]), gyro[i].tolist(), accel[i].tolist())
-        while len(got) < k[i]:                                   # frames before this sample's block are complete
-            got.append(blocks.stationary(len(got)))
-    assert got == flags[:len(got)].tolist() and 100 < sum(got) < len(got) - 100
-
-
 def test_speed_buffer_equals_frame_speed():
     from imu_ground.datasets.speed import frame_speed
     from imu_ground.imu.live.speed_buffer import SpeedBuffer

@@ -10,13 +10,7 @@ is no standstill). Gravity's magnitude is fixed (:data:`~imu_ground.units.GRAVIT
 detector cannot take the log's own median at rest.
 
 The gyro bias (:class:`CausalGyroBias`) is the mean rate over every block of the standstills seen so far
-(each block once) in windows of ``bias_window`` (2 s, as the whole-log bias: a shorter stop may be
-creeping), or a given bias.
-
-Sums run left to right from 0.0 in sample order (:class:`StandstillBlocks` one sample at a time,
-:func:`block_sums` over a log with ``np.bincount``, which adds in the same order), and a window's sums
-add its blocks newest first, in one compiled body for the live ring and a whole log
-(:func:`window_standstill`), so the streaming and the whole-log forms agree bit for bit.
+(each block once) in windows of ``bias_window`` (2 s, as the whole-log bias), or a given bias.
 """
 from __future__ import annotations
 
@@ -31,15 +25,14 @@ from imu_ground.imu.standstill import (ACCEL_NORM_TOL, ACCEL_STD_MAX, GYRO_NORM_
                                        window_test)
 from imu_ground.units import GRAVITY
 
-__all__ = ["MAX_GYRO_BIAS", "CausalGyroBias", "StandstillBlocks", "StandstillTests", "block_index", "block_sums",
-           "stop_starts", "window_standstill"]
+__all__ = ["MAX_GYRO_BIAS", "CausalGyroBias", "StandstillBlocks", "StandstillTests", "block_index"]
 
-#: Rounding allowance of :func:`block_index`, in frames: a sample this close to a boundary ends the frame before it.
+#: Rounding allowance of :func:`block_index`, frames.
 _EDGE = 1e-6
 _FREE = np.iinfo(np.int64).min            # a free row of the blocks' ring
 #: Floats of a block: the sample count, 6 sums (gyro rad/s, then specific force m/s^2), their 6 sums of squares.
 BLOCK_SIZE = 13
-#: The largest gyro bias a saved state may hold, rad/s (57 deg/s: far beyond any IMU's).
+#: The largest gyro bias a saved state may hold, rad/s.
 MAX_GYRO_BIAS = 1.0
 
 
@@ -67,7 +60,7 @@ def block_index(t: float, t0: float, rate: float) -> int:
 
 
 class StandstillTests:
-    """The thresholds of a standstill window (the defaults of :func:`imu_ground.imu.standstill.detect_standstill`).
+    """The thresholds of a standstill window (defaults as :func:`imu_ground.imu.standstill.detect_standstill`).
 
     Parameters
     ----------
@@ -75,10 +68,8 @@ class StandstillTests:
         Trailing window, s.
     gyro_std_max, gyro_norm_max : float
         rad/s.
-    accel_std_max, accel_norm_tol : float
-        m/s^2.
-    gravity : float
-        Magnitude of the specific force at rest, m/s^2.
+    accel_std_max, accel_norm_tol, gravity : float
+        m/s^2 (``gravity``: the specific force's magnitude at rest).
     """
 
     def __init__(self, window: float = 1.0, gyro_std_max: float = GYRO_STD_MAX, gyro_norm_max: float = GYRO_NORM_MAX,
@@ -101,8 +92,7 @@ class StandstillTests:
 @njit
 def _windows(ring: np.ndarray, keys: np.ndarray, k: int, W: int, Wb: int, thresholds: np.ndarray,
              work: np.ndarray) -> int:
-    """:meth:`StandstillBlocks.windows` on the blocks' ring (bit 0: the ``W`` window passes, bit 1: ``Wb``'s;
-    ``work``: (5, 6) scratch, its row 2 zeros)."""
+    """:meth:`StandstillBlocks.windows` on the ring (bit 0: ``W`` passes, bit 1: ``Wb``; ``work`` (5, 6) scratch)."""
     R = ring.shape[0]
     s, q, zero, m, sd = work[0], work[1], work[2], work[3], work[4]
     s[:] = 0.0
@@ -168,10 +158,6 @@ class StandstillBlocks:
             self.open_block(k)
         add_sample(self.ring[k % self.ring.shape[0]], g[0], g[1], g[2], a[0], a[1], a[2])
 
-    def stationary(self, k: int, W: int | None = None) -> bool:
-        """Whether frame ``k`` ends at a standstill (its trailing window of ``W`` blocks, default :attr:`W`, passes)."""
-        return self.windows(k, self.W if W is None else W, 0)[0]
-
     def windows(self, k: int, W: int | None = None, Wb: int | None = None) -> tuple[bool, bool]:
         """Whether the trailing windows of ``W`` and of ``Wb`` blocks (defaults :attr:`W`, :attr:`Wb`; 0: not
         asked) ending at frame ``k`` pass, summed newest block first."""
@@ -222,9 +208,8 @@ class StandstillBlocks:
         return {"k": keys, "n": [int(blocks[k][0]) for k in keys], "sums": [blocks[k][1:].tolist() for k in keys]}
 
     def load_checked(self, r: Any, limit: int) -> None:
-        """Resume from a saved :meth:`state_dict` read through ``r`` (a :class:`~imu_ground.imu.warm_start.StateReader`),
-        checked: at most ``limit`` blocks, integer keys and counts, 12 finite sums each; else
-        :class:`~imu_ground.imu.warm_start.StateError` naming the entry."""
+        """Resume from a :meth:`state_dict` read through ``r`` (a :class:`~imu_ground.imu.warm_start.StateReader`),
+        checked (at most ``limit`` blocks, integer keys and counts, 12 finite sums each; else a ``StateError``)."""
         keys = r.state.get("k") if isinstance(r.state, dict) else None
         if not isinstance(keys, list) or len(keys) > limit:
             raise r.error("k", f"is not a list of at most {limit} block indices")
@@ -239,69 +224,6 @@ class StandstillBlocks:
         for k, n, s in zip(state["k"], state["n"], state["sums"], strict=True):
             self.open_block(int(k))[:] = [int(n), *(float(x) for x in s)]
         self.open_k = max((int(k) for k in state["k"]), default=-1)   # samples come in time order: the last is open
-
-
-def block_sums(k: np.ndarray, gyro: np.ndarray, accel: np.ndarray, n_blocks: int) -> tuple[np.ndarray, np.ndarray]:
-    """Counts (B,) and sums (12, B) of the samples of each block 0 .. B-1 (``k`` each sample's; others skipped):
-    :func:`add_sample` over the log."""
-    ring = np.zeros((n_blocks, BLOCK_SIZE))
-    _add_all(ring, np.asarray(k, dtype=np.int64), np.ascontiguousarray(gyro, dtype=float),
-             np.ascontiguousarray(accel, dtype=float))
-    return ring[:, 0].astype(np.int64), ring[:, 1:].T
-
-
-@njit
-def _add_all(ring: np.ndarray, k: np.ndarray, gyro: np.ndarray, accel: np.ndarray) -> None:
-    """:func:`add_sample` of every sample into its block's row (block ``k[i]``, if one of the rows)."""
-    for i in range(k.size):
-        if 0 <= k[i] < ring.shape[0]:
-            add_sample(ring[k[i]], gyro[i, 0], gyro[i, 1], gyro[i, 2], accel[i, 0], accel[i, 1], accel[i, 2])
-
-
-def window_standstill(counts: np.ndarray, sums: np.ndarray, tests: StandstillTests, rate: float,
-                      W: int | None = None) -> np.ndarray:
-    """:meth:`StandstillBlocks.stationary` of every frame 0 .. B-1 (its compiled body on the blocks of
-    :func:`block_sums`; ``W`` blocks, default the tests' window)."""
-    ring = np.concatenate([counts[:, None].astype(float), sums.T], axis=1)
-    return _all_windows(ring, tests.blocks(rate) if W is None else W, tests.array())
-
-
-@njit
-def _all_windows(ring: np.ndarray, W: int, thresholds: np.ndarray) -> np.ndarray:
-    """:func:`_windows` of the ``W`` window at every block of ``ring`` (block ``j`` in row ``j``)."""
-    B = ring.shape[0]
-    keys = np.arange(B)
-    out = np.zeros(B, dtype=np.bool_)
-    work = np.zeros((5, 6))
-    for k in range(B):
-        out[k] = _windows(ring, keys, k, W, 0, thresholds, work) & 1 != 0
-    return out
-
-
-def stop_starts(still: np.ndarray, quiet: np.ndarray, W: int) -> np.ndarray:
-    """The standstill flags with the start of each stop: frame ``j`` is also at rest when its own block is quiet
-    (passes the tests alone) and so is every block up to a frame ``k <= j + W - 1`` whose trailing window passes
-    (``still``): the first ``W - 1`` frames of a stop, which a trailing window of ``W`` blocks cannot flag yet.
-    Live, such frames are held (at most ``W - 1`` frames) until that window passes or cannot any more.
-
-    Parameters
-    ----------
-    still, quiet : ndarray (B,) of bool
-        Per frame: the trailing window passes (:func:`window_standstill`), the frame's block alone does (``W=1``).
-    W : int
-        Blocks of the trailing window.
-    """
-    out = np.asarray(still, dtype=bool).copy()
-    nxt = math.inf                                  # the next frame whose window passes, through quiet frames
-    for j in range(out.size - 1, -1, -1):
-        if out[j]:
-            nxt = j
-        elif quiet[j]:
-            if nxt - j <= W - 1:
-                out[j] = True
-        else:
-            nxt = math.inf
-    return out
 
 
 class CausalGyroBias:
@@ -330,8 +252,7 @@ class CausalGyroBias:
         self.last = -1                  # last block added
 
     def absorb(self, k: int, W: int, block) -> None:
-        """Frame ``k`` ends at a standstill: add blocks ``max(last + 1, k - W + 1) .. k`` (``block(j)`` gives
-        ``(n, sx, sy, sz)`` of block ``j``)."""
+        """Frame ``k`` ends at a standstill: add blocks ``max(last + 1, k - W + 1) .. k`` (``block(j)``: n, sums)."""
         if not self.auto:
             return
         for j in range(max(self.last + 1, k - W + 1), k + 1):
@@ -352,9 +273,8 @@ class CausalGyroBias:
         return {"auto": self.auto, "value": list(self.value), "n": self.n, "s": list(self.s), "last": self.last}
 
     def load_checked(self, r: Any) -> None:
-        """Resume from a saved :meth:`state_dict` read through ``r`` (a :class:`~imu_ground.imu.warm_start.StateReader`),
-        checked: the same kind (auto or this bias), a bias of at most :data:`MAX_GYRO_BIAS`; else
-        :class:`~imu_ground.imu.warm_start.StateError` naming the entry."""
+        """Resume from a :meth:`state_dict` read through ``r`` (a :class:`~imu_ground.imu.warm_start.StateReader`),
+        checked (the same kind, a bias of at most :data:`MAX_GYRO_BIAS`; else a ``StateError``)."""
         value = r.floats("value", (3,))
         if r.bool("auto") != self.auto or (not self.auto and value.tolist() != list(self.value)):
             raise r.error("auto", "differs from this estimator's bias_gyro")
