@@ -21,8 +21,7 @@ import numpy as np
 
 from imu_ground.errors import ImuGroundError
 from imu_ground.imu.data import ImuData
-from imu_ground.imu.preint_frames import segment_frame_times
-from imu_ground.imu.preintegration import preintegrate
+from imu_ground.imu.preintegration import preintegrate, segment_frame_times
 from imu_ground.imu.standstill import WindowSums, detect_standstill, estimate_gyro_bias
 from imu_ground.units import DEFAULT_FRAME_RATE, MAX_GAP_FRAMES
 

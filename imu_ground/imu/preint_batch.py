@@ -1,2 +1,2 @@
-"""The batch preintegration's old import path: :func:`~imu_ground.imu.preint_frames.preintegrate` lives with the frames."""
-from imu_ground.imu.preint_frames import preintegrate as preintegrate
+"""The batch preintegration's old import path: :func:`~imu_ground.imu.preintegration.preintegrate`."""
+from imu_ground.imu.preintegration import preintegrate as preintegrate

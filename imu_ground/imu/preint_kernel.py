@@ -1,13 +1,9 @@
 """The one body of preintegration: the kinematics of one interval, and the step of one sample into frames.
 
-:func:`integrate` is Forster's recursion (Forster, Carlone, Dellaert, Scaramuzza, IEEE T-RO 2017,
-Sec. VI and appendix) on scalar floats: the deltas and, optionally, their bias Jacobians and
-covariance. :func:`push_step` takes one sample into the frame being integrated (splitting the
-sample interval at frame boundaries, flagging gaps, finishing frames); the live
-:class:`~imu_ground.imu.live.preint_stream.StreamingPreintegrator` runs it per sample, the batch
-:func:`~imu_ground.imu.preint_frames.preintegrate` over a whole log (:func:`run_log`), and
-:class:`~imu_ground.imu.preint_measurement.PreintegratedImu` runs :func:`integrate` per interval.
-All are compiled through :mod:`imu_ground._jit` (interpreted with ``NUMBA_DISABLE_JIT=1``).
+:func:`integrate` is Forster's recursion (Sec. VI and appendix; :mod:`imu_ground.imu.preintegration`) on
+scalar floats: the deltas and, optionally, their bias Jacobians and covariance. :func:`push_step` takes one
+sample into the frame being integrated (splitting the interval at frame boundaries, flagging gaps, finishing
+frames): per sample live, over a whole log in :func:`run_log`. Compiled through :mod:`imu_ground._jit`.
 
 State layouts
 -------------
@@ -40,12 +36,15 @@ from __future__ import annotations
 
 import math
 from math import cos, sin, sqrt
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from imu_ground import so3
 from imu_ground._jit import jitable, njit
-from imu_ground.imu.preint_params import PreintegrationParams
+
+if TYPE_CHECKING:
+    from imu_ground.imu.preint_measurement import PreintegrationParams
 
 __all__ = [
     "DELTAS_IDENTITY",
@@ -85,10 +84,9 @@ _O_N, _O_TSTART, _O_TEND, _O_VALID, _O_SIZE = 101, 102, 103, 104, 105
 def integrate(s: np.ndarray, u: np.ndarray, dt: float, x: float, y: float, z: float,
               fx: float, fy: float, fz: float, qg: float, qa: float) -> None:
     """Add one interval of held rate and specific force to the deltas ``s`` and, unless ``u`` is empty,
-    to their bias Jacobians and covariance ``u`` (both updated in place; layouts in the module docstring).
+    to their bias Jacobians and covariance ``u`` (in place; layouts in the module docstring).
 
-    Unrolled: every 3x3 product, cross product and symmetric update is written out entry by entry on
-    float locals (no loops, no numpy). With ``R_k`` the rotation before the interval,
+    Unrolled entry by entry on float locals. With ``R_k`` the rotation before the interval,
     ``c = R_k f dt`` and ``mid = T + dt/2``:
 
     - deltas: ``p += dt (v + c/2)``, ``v += c``, ``R = R_k Exp(phi)`` as the quaternion product
@@ -101,19 +99,15 @@ def integrate(s: np.ndarray, u: np.ndarray, dt: float, x: float, y: float, z: fl
 
     Parameters
     ----------
-    s : ndarray, shape (11,)
-        Deltas so far.
-    u : ndarray, shape (90,) or (0,)
-        Bias Jacobians and covariance so far; empty for the deltas only.
+    s, u : ndarray, shape (11,) and (90,) or (0,)
+        Deltas, bias Jacobians and covariance so far (``u`` empty: the deltas only).
     dt : float
         Interval length, s (> 0).
-    x, y, z : float
-        Rotation increment ``phi = (w - b_g) dt``, rad, body frame.
-    fx, fy, fz : float
-        Velocity increment ``(a - b_a) dt`` before rotation, m/s, body frame (the midpoint hold's
-        ``1/2`` folded into ``dt`` by the caller).
+    x, y, z, fx, fy, fz : float
+        Rotation increment ``phi = (w - b_g) dt`` (rad) and velocity increment ``(a - b_a) dt`` before
+        rotation (m/s), body frame.
     qg, qa : float
-        Squared gyro and accelerometer noise densities (``PreintegrationParams.noise``); used only with ``u``.
+        Squared gyro and accelerometer noise densities (``PreintegrationParams.noise``).
     """
     T, qw, qx, qy, qz, v0, v1, v2, p0, p1, p2 = s
     xx, yy, zz = x * x, y * y, z * z
@@ -316,8 +310,7 @@ def _integrate(b: np.ndarray, dt: float, x: float, y: float, z: float, fx: float
 
 @njit
 def _integrate_piece(b: np.ndarray, dt: float, ka: np.ndarray, kb: np.ndarray, gap: bool) -> None:
-    """One piece of length ``dt`` (s) between knots with bias-free values ``ka`` and ``kb`` (6: rad/s, m/s^2),
-    held at their mean (midpoint) or at ``ka`` (left); a piece of a gap flags the frame."""
+    """One piece of ``dt`` s between knots with bias-free values ``ka``, ``kb`` (6); a piece of a gap flags the frame."""
     if gap:
         b[_S_VALID] = 0.0
     if b[_S_MIDPOINT] != 0.0:
@@ -341,8 +334,7 @@ def _boundary_after(b: np.ndarray, times: np.ndarray, k: float) -> float:
 
 @njit
 def _cross_boundary(b: np.ndarray, times: np.ndarray, out: np.ndarray, nout: int, tb: float) -> int:
-    """A boundary at ``tb``: the running frame's state into row ``nout`` of ``out``, the next frame
-    started; returns the rows written so far."""
+    """A boundary at ``tb``: the frame into row ``nout`` of ``out``, the next started; returns the rows written."""
     if b[_S_ACTIVE] != 0.0:
         out[nout, 0:_S_PREV] = b[0:_S_PREV]
         out[nout, _O_N] = b[_S_N] + b[_S_MARK] - b[_S_CD]
@@ -368,7 +360,7 @@ def _cross_boundary(b: np.ndarray, times: np.ndarray, out: np.ndarray, nout: int
 
 @njit
 def _first_sample(b: np.ndarray, times: np.ndarray, out: np.ndarray, t: float) -> int:
-    """The first sample: place the first boundary (-1, nothing changed: a frame time before it)."""
+    """The first sample: place the first boundary (-1: a frame time before it)."""
     tol = b[_S_TOL]
     if b[_S_MODE] == 0.0:
         _cross_boundary(b, times, out, 0, t)
@@ -392,17 +384,14 @@ def _first_sample(b: np.ndarray, times: np.ndarray, out: np.ndarray, t: float) -
 def push_step(b: np.ndarray, times: np.ndarray, out: np.ndarray, t: float, wx: float, wy: float, wz: float,
               ax: float, ay: float, az: float) -> int:
     """Take one sample (time s; gyro rad/s, specific force m/s^2, body frame, bias not removed) into the state
-    buffer ``b`` with the frame times ``times`` (frame_times mode).
-
-    Inside a frame the sample interval is integrated at once; an interval that crosses boundaries is split
-    there (the midpoint hold's values interpolated), each finished frame's state written to a row of ``out``.
+    buffer ``b`` (``times``: the frame times, in that mode); an interval that crosses boundaries is split there,
+    each finished frame written to a row of ``out``.
 
     Returns
     -------
     int
-        The number of frames finished (0 usually); -1, the buffer untouched, for a sample refused
-        (non-increasing time, a gap with ``on_gap="raise"``, a frame time before the first sample) or one
-        that finishes more frames than ``out`` has rows.
+        Frames finished (usually 0); -1, the buffer untouched, for a sample refused (non-increasing time, a gap
+        with ``on_gap="raise"``, a frame time before the first sample) or finishing more frames than ``out`` holds.
     """
     h = t - b[_S_PREV]
     # inside a frame (_S_LIM is -inf before the first sample), no gap, not an every-N boundary
@@ -489,8 +478,8 @@ def _push_boundary(b: np.ndarray, times: np.ndarray, out: np.ndarray, t: float, 
 
 def state_buffer(par: PreintegrationParams, rate: float | None, every: int | None,
                    origin: float | None) -> np.ndarray:
-    """A fresh state buffer of :func:`push_step` (no sample yet): frames every ``every`` samples, at ``rate`` Hz
-    from ``origin`` (s; None: the first sample), or (both None) at the frame times passed to it."""
+    """A fresh state buffer of :func:`push_step`: frames every ``every`` samples, at ``rate`` Hz from ``origin``
+    (s; None: the first sample), or (both None) at the frame times passed to it."""
     b = np.zeros(_S_SIZE)
     b[0:11] = DELTAS_IDENTITY
     b[_S_PREV] = b[_S_TSTART] = math.nan
@@ -511,12 +500,9 @@ def state_buffer(par: PreintegrationParams, rate: float | None, every: int | Non
 @njit
 def run_log(b: np.ndarray, times: np.ndarray, t: np.ndarray, gyro: np.ndarray, accel: np.ndarray,
             deltas: np.ndarray, unc: np.ndarray, meta: np.ndarray) -> tuple[int, int]:
-    """:func:`push_step` over a whole log (t (N,), s; gyro, accel (N, 3)): frame ``f``'s deltas into ``deltas[f]``
-    (11), its uncertainty into ``unc[f]`` (90; ``unc`` may have no rows), its interval count and validity into
-    ``meta[f]``.
-
-    Returns ``(frames, i)``: the frames written, and the first sample refused (-1: none).
-    """
+    """:func:`push_step` over a whole log (t (N,), s; gyro, accel (N, 3)): frame ``f``'s deltas into ``deltas[f]``,
+    its uncertainty into ``unc[f]`` (``unc`` may have no rows), interval count and validity into ``meta[f]``.
+    Returns ``(frames written, first sample refused or -1)``."""
     rows = np.empty((16, _O_SIZE))
     nf, i = 0, 0
     while i < t.size:

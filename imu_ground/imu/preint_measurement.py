@@ -1,33 +1,155 @@
-"""The preintegrated measurement between two times, and its composition.
+"""The preintegrated measurement: its parameters, the value type between two times, and its composition.
 
-:class:`PreintegratedImu` is the value type of GTSAM's ``PreintegratedImuMeasurements``:
-:meth:`~PreintegratedImu.integrate` adds one interval (through the scalar kernel
-:func:`~imu_ground.imu.preint_kernel.integrate_interval`), the properties read the
-deltas, the 9x9 covariance and the bias Jacobians in Forster's right-error form,
-:meth:`~PreintegratedImu.combine` composes two consecutive measurements exactly,
-:meth:`~PreintegratedImu.predict` moves a navigation state across the interval.
-
-Frames (glossary: :mod:`imu_ground.so3`): ``delta_R`` is ``R_{start<-end}``, the
-body frame at the end expressed in the body frame at the start;
-``delta_v``/``delta_p`` are in the body frame at the start.
+:class:`PreintegrationParams` plays the part of GTSAM's ``PreintegrationParams`` plus ``imuBias::ConstantBias``
+(noise, the bias the deltas are integrated with, gravity, and how a signal is cut into intervals);
+:class:`PreintegratedImu` that of ``PreintegratedImuMeasurements``. Frames: :mod:`imu_ground.imu.preintegration`.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, Literal
 
 import numpy as np
 
 from imu_ground import so3
 from imu_ground.imu.preint_kernel import (DELTAS_IDENTITY, UNCERTAINTY_ZERO, integrate_interval,
                                           quaternion_from_rotation, rotation_from_quaternion)
-from imu_ground.imu.preint_params import ParamsView, PreintegrationParams
+from imu_ground.units import GRAVITY
 
-__all__ = ["JACOBIAN_BLOCKS", "PreintegratedImu", "bias_corrected", "compose_left", "left_to_right", "right_form", "right_to_left"]
+__all__ = ["JACOBIAN_BLOCKS", "Hold", "OnGap", "ParamsView", "PreintegratedImu", "PreintegrationParams",
+           "bias_corrected", "compose_left", "gap_message", "left_to_right", "right_form", "right_to_left"]
+
+Hold = Literal["midpoint", "left"]
+OnGap = Literal["raise", "flag"]
+
+
+def _vec3(x: Any, name: str) -> tuple[float, float, float]:
+    try:
+        vals = [float(v) for v in (x.tolist() if hasattr(x, "tolist") else x)]
+    except TypeError:
+        vals = []
+    if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
+        raise ValueError(f"{name} must be 3 finite numbers, got {x!r}")
+    return vals[0], vals[1], vals[2]
+
+
+@dataclass(frozen=True)
+class PreintegrationParams:
+    """Noise, bias, gravity and interval rules of a preintegration (immutable).
+
+    Parameters
+    ----------
+    bias_gyro, bias_accel : sequence of 3 floats
+        Biases subtracted from every rate (rad/s) and specific force (m/s^2), body frame: the linearisation
+        point of the bias Jacobians.
+    gyro_noise_density, accel_noise_density : float
+        White noise, rad/s/sqrt(Hz) and m/s^2/sqrt(Hz), the same on all axes
+        (:mod:`imu_ground.imu.preintegration`).
+    gravity : float
+        Magnitude of gravity, m/s^2, for :meth:`PreintegratedImu.predict` and dead reckoning
+        (``g_world = [0, 0, -gravity]``); the deltas never contain gravity.
+    hold : {"midpoint", "left"}
+        How a sample is held over its interval (:mod:`imu_ground.imu.preintegration`).
+    max_gap : float
+        Sample intervals longer than this, s, are timestamp gaps.
+    on_gap : {"raise", "flag"}
+        A gap inside a frame raises ValueError, or is integrated through and the frame flagged invalid.
+    snap_tol : float
+        A frame boundary within this of a sample, s, is placed on the sample.
+    uncertainty : bool
+        Propagate the 9x9 covariance and the bias Jacobians (default); False: the deltas only.
+    """
+
+    bias_gyro: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    bias_accel: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gyro_noise_density: float = 0.0
+    accel_noise_density: float = 0.0
+    gravity: float = GRAVITY
+    hold: Hold = "midpoint"
+    max_gap: float = 0.1
+    on_gap: OnGap = "raise"
+    snap_tol: float = 1e-9
+    uncertainty: bool = True
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        set_(self, "bias_gyro", _vec3(self.bias_gyro, "bias_gyro"))
+        set_(self, "bias_accel", _vec3(self.bias_accel, "bias_accel"))
+        for name in ("gyro_noise_density", "accel_noise_density", "gravity", "max_gap", "snap_tol"):
+            value = float(getattr(self, name))
+            if not value >= 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+            set_(self, name, value)
+        if self.hold not in ("midpoint", "left"):
+            raise ValueError(f"hold must be 'midpoint' or 'left', got {self.hold!r}")
+        if self.on_gap not in ("raise", "flag"):
+            raise ValueError(f"on_gap must be 'raise' or 'flag', got {self.on_gap!r}")
+        set_(self, "uncertainty", bool(self.uncertainty))
+
+    @classmethod
+    def coerce(cls, params: PreintegrationParams | None = None, **options: Any) -> PreintegrationParams:
+        """``params`` (default: the defaults) with the given fields (``None`` ignored) replaced.
+
+        Raises
+        ------
+        TypeError
+            An option that is not a field (the message lists the fields).
+        """
+        base = cls() if params is None else params
+        if not isinstance(base, cls):
+            raise TypeError(f"params must be a PreintegrationParams, got {type(params).__name__}")
+        fields = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(options) - fields)
+        if unknown:
+            raise TypeError(f"unknown preintegration option(s) {unknown}; the options are {sorted(fields)}")
+        changes = {k: v for k, v in options.items() if v is not None}
+        return dataclasses.replace(base, **changes) if changes else base
+
+    @property
+    def bias(self) -> tuple[float, ...]:
+        """``(bg_x, bg_y, bg_z, ba_x, ba_y, ba_z)``: rad/s and m/s^2, body frame."""
+        return self.bias_gyro + self.bias_accel
+
+    @property
+    def noise(self) -> tuple[float, float]:
+        """``(q_g, q_a)``: the squared noise densities, for the scalar kernel."""
+        return self.gyro_noise_density ** 2, self.accel_noise_density ** 2
+
+    def same_model(self, other: PreintegrationParams) -> bool:
+        """Equal biases and noise densities (what composing two measurements needs)."""
+        return (self.bias_gyro == other.bias_gyro and self.bias_accel == other.bias_accel
+                and self.gyro_noise_density == other.gyro_noise_density
+                and self.accel_noise_density == other.accel_noise_density)
+
+
+class ParamsView:
+    """Read-only views of ``self.params`` under their old attribute names (a mixin)."""
+
+    __slots__ = ()
+    params: PreintegrationParams
+
+    bias_gyro = property(lambda self: np.array(self.params.bias_gyro),
+                         doc="Gyro bias the deltas were integrated with, rad/s, body frame, shape (3,).")
+    bias_accel = property(lambda self: np.array(self.params.bias_accel),
+                          doc="Accelerometer bias the deltas were integrated with, m/s^2, body frame, shape (3,).")
+    gyro_noise_density = property(lambda self: self.params.gyro_noise_density,
+                                  doc="Gyro white noise used for the covariance, rad/s/sqrt(Hz).")
+    accel_noise_density = property(lambda self: self.params.accel_noise_density,
+                                   doc="Accelerometer white noise used for the covariance, m/s^2/sqrt(Hz).")
+    hold = property(lambda self: self.params.hold, doc="``'midpoint'`` or ``'left'`` (:mod:`imu_ground.imu.preintegration`).")
+
+
+def gap_message(t0: float, length: float, max_gap: float) -> str:
+    """The ValueError text for a timestamp gap of ``length`` s starting at ``t0`` s."""
+    return (f"IMU timestamp gap of {length:.6g} s at t = {t0:.6f} s (from {t0:.6f} s to "
+            f"{t0 + length:.6f} s) exceeds max_gap = {max_gap:g} s; refusing to preintegrate "
+            f"across it (pass on_gap='flag' to mark the affected frames invalid instead)")
+
 
 _I9 = np.eye(9)
-_I3 = np.eye(3)
 #: The 3x3 blocks (row, column) of the 9x6 bias Jacobian (rows rotation, velocity, position; columns bg, ba).
 JACOBIAN_BLOCKS = {"d_R_d_bg": (0, 0), "d_v_d_bg": (3, 0), "d_p_d_bg": (6, 0),
                    "d_v_d_ba": (3, 3), "d_p_d_ba": (6, 3)}
@@ -71,21 +193,8 @@ def right_form(T: Any, R: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.nda
 
 
 def left_to_right(R: np.ndarray, J: np.ndarray, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Left rotation error (start frame) to Forster's right error: ``D = diag(R^T, I, I)``.
-
-    Parameters
-    ----------
-    R : ndarray (..., 3, 3)
-        ``delta_R`` (``R_{start<-end}``).
-    J : ndarray (..., 9, 6)
-        Bias Jacobian, left form.
-    S : ndarray (..., 9, 9)
-        Covariance, left form.
-
-    Returns
-    -------
-    J, S : ndarrays of the same shapes, right form (S symmetrised).
-    """
+    """Bias Jacobian ``J`` (..., 9, 6) and covariance ``S`` (..., 9, 9) from the left rotation error (start
+    frame) to Forster's right error, ``D = diag(R^T, I, I)`` with ``R = delta_R`` (..., 3, 3); S symmetrised."""
     Rt = np.swapaxes(R, -1, -2)
     J = J.copy()
     J[..., 0:3, :] = Rt @ J[..., 0:3, :]
@@ -101,12 +210,9 @@ def right_to_left(R: np.ndarray, J: np.ndarray, S: np.ndarray) -> tuple[np.ndarr
 
 
 def compose_left(a: tuple, b: tuple) -> tuple:
-    """Compose two consecutive preintegrated measurements (left-error, p-form), batched.
-
-    ``a`` (first) and ``b`` are tuples ``(T, R, v, p, J, S)`` with shapes (...), (...,3,3), (...,3),
-    (...,3), (...,9,6), (...,9,9); ``J``/``S`` may be None (deltas only). Exact for the deltas, exact
-    linear-error propagation for the bias Jacobian ``J`` and the covariance ``S``.
-    """
+    """Compose two consecutive measurements ``a`` then ``b``, each ``(T, R, v, p, J, S)`` of shapes (...),
+    (..., 3, 3), (..., 3), (..., 3), (..., 9, 6), (..., 9, 9) (left error, p form; ``J``, ``S`` may be None):
+    exact for the deltas and the linear error propagation."""
     Ta, Ra, va, pa, Ja, Sa = a
     Tb, Rb, vb, pb, Jb, Sb = b
     R = Ra @ Rb
@@ -145,32 +251,25 @@ def _jacobian_block(row: int, col: int, doc: str) -> property:
 
 
 class PreintegratedImu(ParamsView):
-    """Preintegrated IMU measurements between two times (value type).
-
-    Like GTSAM's ``PreintegratedImuMeasurements``: :meth:`integrate` each
-    interval's duration and held measurements, read the deltas, covariance and
-    bias Jacobians, :meth:`reset` to start a new interval.
+    """Preintegrated IMU measurements between two times (value type): :meth:`integrate` each interval, read the
+    deltas, covariance and bias Jacobians, :meth:`reset` to start again.
 
     Parameters
     ----------
     params : PreintegrationParams, optional
-        Biases, noise densities, gravity, ``uncertainty`` (False: deltas only;
-        the covariance and Jacobian properties then raise ValueError).
+        ``uncertainty=False``: deltas only (the covariance and Jacobian properties raise ValueError).
     **options
-        Fields of :class:`~imu_ground.imu.preint_params.PreintegrationParams`
-        overriding ``params`` (``bias_gyro=..., gyro_noise_density=...``).
+        Fields of :class:`PreintegrationParams` overriding ``params``.
 
     Attributes
     ----------
     params : PreintegrationParams
     t_start, t_end : float
-        Times of the interval this object summarises, s (``nan`` unless set by
-        :class:`~imu_ground.imu.live.preint_stream.StreamingPreintegrator` or
-        :meth:`FrameDeltas.frame <imu_ground.imu.preint_frames.FrameDeltas.frame>`).
+        Times of the interval, s (``nan`` unless set by a frame of a preintegrator or of ``FrameDeltas``).
     valid : bool
         False when the interval spans a timestamp gap longer than ``max_gap``.
     n_intervals : int
-        Number of integration intervals since the last reset.
+        Integration intervals since the last reset.
     """
 
     __slots__ = ("_right_cache", "_s", "_u", "n_intervals", "params", "t_end", "t_start", "valid")
@@ -183,9 +282,8 @@ class PreintegratedImu(ParamsView):
     @classmethod
     def from_state(cls, params: PreintegrationParams, s: tuple, u: tuple | None, n: int,
                    t_start: float, t_end: float, valid: bool) -> PreintegratedImu:
-        """A measurement from the kernel's state: deltas ``s`` (11 floats) and uncertainty ``u`` (90 floats or
-        None; layouts in :mod:`imu_ground.imu.preint_kernel`; no copy: the tuples are immutable), ``n``
-        intervals from ``t_start`` to ``t_end`` (s), ``valid`` False across a timestamp gap."""
+        """A measurement from the kernel's deltas ``s`` (11) and uncertainty ``u`` (90 or None) tuples
+        (:mod:`imu_ground.imu.preint_kernel`), ``n`` intervals from ``t_start`` to ``t_end`` (s)."""
         out = cls.__new__(cls)
         out.params = params
         out._s, out._u, out.n_intervals = s, u, n
@@ -195,13 +293,8 @@ class PreintegratedImu(ParamsView):
 
     def reset(self, bias_gyro: Sequence[float] | None = None,
               bias_accel: Sequence[float] | None = None) -> None:
-        """Start over: identity deltas, zero covariance and Jacobians.
-
-        Parameters
-        ----------
-        bias_gyro, bias_accel : array_like, shape (3,), optional
-            New linearisation biases (rad/s, m/s^2, body frame); unchanged if None.
-        """
+        """Start over (identity deltas, zero covariance and Jacobians), with new linearisation biases (rad/s,
+        m/s^2, body frame) unless None."""
         self.params = PreintegrationParams.coerce(self.params, bias_gyro=bias_gyro, bias_accel=bias_accel)
         self._s = DELTAS_IDENTITY
         self._u = UNCERTAINTY_ZERO if self.params.uncertainty else None
@@ -222,10 +315,8 @@ class PreintegratedImu(ParamsView):
         ----------
         dt : float
             Interval length, s (> 0).
-        gyro : sequence of 3 floats
-            Angular rate held over the interval, rad/s, body frame (bias not removed).
-        accel : sequence of 3 floats
-            Specific force held over the interval, m/s^2, body frame (bias not removed).
+        gyro, accel : sequence of 3 floats
+            Angular rate (rad/s) and specific force (m/s^2) held over it, body frame, bias not removed.
         """
         if not dt > 0.0:
             raise ValueError(f"dt must be > 0, got {dt!r}")
@@ -308,12 +399,9 @@ class PreintegratedImu(ParamsView):
 
         Returns
         -------
-        delta_R : ndarray (3, 3)
-            ``delta_R Exp(d_R_d_bg @ dbg)``, ``R_{start<-end}``.
-        delta_v : ndarray (3,)
-            ``delta_v + d_v_d_bg @ dbg + d_v_d_ba @ dba``, m/s, start body frame.
-        delta_p : ndarray (3,)
-            ``delta_p + d_p_d_bg @ dbg + d_p_d_ba @ dba``, m, start body frame.
+        delta_R, delta_v, delta_p : ndarray (3, 3), (3,), (3,)
+            ``delta_R Exp(d_R_d_bg @ dbg)`` (``R_{start<-end}``), ``delta_v + d_v_d_bg @ dbg + d_v_d_ba @ dba``
+            (m/s) and likewise ``delta_p`` (m), start body frame.
         """
         return bias_corrected(self.delta_R, self.delta_v, self.delta_p, self.bias_jacobian,
                               np.asarray(bias_gyro, dtype=float) - self.bias_gyro,
@@ -344,12 +432,8 @@ class PreintegratedImu(ParamsView):
                 pi + vi * T + 0.5 * g * T * T + Ri @ self.delta_p)
 
     def combine(self, other: PreintegratedImu) -> PreintegratedImu:
-        """Preintegration of this interval followed by ``other`` (exact composition).
-
-        Both must share biases and noise densities. The result's ``delta_R`` is
-        ``self.delta_R @ other.delta_R`` (end of ``other`` -> start of ``self``);
-        covariance and bias Jacobians are propagated exactly (linear errors).
-        """
+        """This interval followed by ``other`` (equal biases and noise densities): ``delta_R`` is
+        ``self.delta_R @ other.delta_R``; covariance and bias Jacobians propagated exactly (:func:`compose_left`)."""
         if not self.params.same_model(other.params):
             raise ValueError("combine needs equal biases and noise densities")
         T, R, v, p, J, S = compose_left(self._left_arrays(), other._left_arrays())

@@ -1,9 +1,7 @@
-"""Sample-by-sample preintegration into frames: the streaming front-end.
+"""Sample-by-sample preintegration into frames (:class:`StreamingPreintegrator`).
 
-:class:`StreamingPreintegrator` keeps its state in one float64 buffer and takes each sample with one
-compiled call, :func:`~imu_ground.imu.preint_kernel.push_step`: the same step the batch
-:func:`~imu_ground.imu.preint_frames.preintegrate` runs over a whole log, so both cut a log into the
-same frames with the same numbers (knots, held values and gap rule in :mod:`imu_ground.imu.preintegration`).
+One float64 buffer, one compiled :func:`~imu_ground.imu.preint_kernel.push_step` a sample: the step the batch
+:func:`~imu_ground.imu.preintegration.preintegrate` runs over a whole log, so both give the same frames.
 """
 from __future__ import annotations
 
@@ -17,8 +15,7 @@ import numpy as np
 from imu_ground.imu.preint_kernel import (_O_N, _O_SIZE, _O_TEND, _O_TSTART, _O_VALID, _S_ACTIVE, _S_BIAS, _S_CD,
                                           _S_K, _S_LIM, _S_MARK, _S_N, _S_NEXT, _S_ORIGIN, _S_PREV, _S_TSTART, _S_UNC,
                                           _S_UNCERTAINTY, _S_VALID, push_step, state_buffer)
-from imu_ground.imu.preint_measurement import PreintegratedImu
-from imu_ground.imu.preint_params import PreintegrationParams, gap_message
+from imu_ground.imu.preint_measurement import PreintegratedImu, PreintegrationParams, gap_message
 from imu_ground.imu.warm_start import STATE_VERSION, StateError, StateReader, pack_state, unpack_state
 
 __all__ = ["StreamingPreintegrator"]
@@ -34,36 +31,22 @@ _from_state = PreintegratedImu.from_state
 class StreamingPreintegrator:
     """Sample-by-sample front-end: emits a finished :class:`PreintegratedImu` per frame.
 
-    Frames are given by explicit boundary times, a frame rate, or a sample
-    count, exactly as in :func:`~imu_ground.imu.preint_frames.preintegrate`, and
-    the results are the same.
+    Frames are given as in :func:`~imu_ground.imu.preintegration.preintegrate` (boundary times, a rate or a
+    sample count), with the same results. A frame is emitted by the first sample at or after its end (less
+    ``snap_tol``); a sample refused with ValueError leaves the state unchanged.
 
     Parameters
     ----------
     frame_times : iterable of float, optional
         Boundaries, s, strictly increasing; samples before the first are ignored.
     rate : float, optional
-        Frame rate, Hz: boundaries ``t_origin + k / rate``, unbounded.
+        Frame rate, Hz: boundaries ``t_origin + k / rate`` (default origin: the first sample's time, s).
     every : int, optional
         A boundary at every ``every``-th sample, starting with the first.
-    t_origin : float, optional
-        First boundary for ``rate`` (default: the first sample's time), s.
     params : PreintegrationParams, optional
-        Biases, noise densities, hold, gap rule, snapping, ``uncertainty``
-        (False: deltas only, the fast choice for a filter that needs just
-        ``delta_R``/``delta_v``).
+        ``uncertainty=False``: deltas only (the fast choice for a filter).
     **options
-        Fields of :class:`~imu_ground.imu.preint_params.PreintegrationParams`
-        overriding ``params``.
-
-    Notes
-    -----
-    A frame is emitted by the first sample at or after its end boundary (less
-    ``snap_tol``), since the interval that straddles the boundary is needed.
-    Each emitted frame has ``t_start``, ``t_end`` and ``valid`` set; its ``delta_R`` is
-    ``R_{start<-end}`` (body frame at ``t_end`` -> body frame at ``t_start``). A sample
-    rejected with ValueError (non-increasing time, gap with ``on_gap="raise"``) leaves the
-    state unchanged.
+        Fields of :class:`~imu_ground.imu.preint_measurement.PreintegrationParams` overriding ``params``.
     """
 
     def __init__(self, frame_times: Iterable[float] | None = None, *,
@@ -95,16 +78,13 @@ class StreamingPreintegrator:
         ----------
         t : float
             Sample time, s (strictly increasing).
-        gyro : sequence of 3 floats
-            Angular rate, rad/s, body frame.
-        accel : sequence of 3 floats
-            Specific force, m/s^2, body frame.
+        gyro, accel : sequence of 3 floats
+            Angular rate (rad/s) and specific force (m/s^2), body frame.
 
         Returns
         -------
         tuple of PreintegratedImu
-            Finished frames (usually an empty tuple), each with ``t_start``,
-            ``t_end``, ``valid``; ``delta_R`` of each is ``R_{start<-end}``.
+            Finished frames, with ``t_start``, ``t_end``, ``valid``; ``delta_R`` is ``R_{start<-end}``.
 
         Raises
         ------
@@ -137,8 +117,8 @@ class StreamingPreintegrator:
 
     @property
     def step_buffers(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(state, frame_times, frames)``: the buffers :func:`push_step` runs on, for a caller's own compiled
-        step (a positive answer read with :meth:`finished_frames`, -1 by calling :meth:`push`)."""
+        """``(state, frame_times, frames)``: the buffers of :func:`push_step`, for a caller's own compiled step
+        (a positive answer read with :meth:`finished_frames`, -1 by calling :meth:`push`)."""
         return self._b, self._tb, self._out
 
     def finished_frames(self, n: int) -> tuple[PreintegratedImu, ...]:
@@ -162,19 +142,17 @@ class StreamingPreintegrator:
 
     @property
     def next_boundary(self) -> float:
-        """Time of the next frame end, s (inf if none: past the last frame time, before the first sample,
-        or every-N frames, counted in samples)."""
+        """Time of the next frame end, s (inf if none or unknown: before the first sample, every-N frames)."""
         return float(self._b[_S_NEXT])
 
     @property
     def _prev(self) -> tuple | None:
-        """(t, gyro (3), accel (3)) of the last sample, bias removed (None before the first): the saved ``prev``."""
+        """(t, gyro, accel) of the last sample, bias removed (None before the first)."""
         return None if self.last_sample_time is None else tuple(self._b[_S_PREV:_S_LIM].tolist())
 
     def set_gyro_bias(self, bx: float, by: float, bz: float) -> None:
-        """Remove this gyro bias (rad/s, body frame) from the samples from the next one on, in place of
-        ``params.bias``'s (a live estimate that changes as the stream goes; the accelerometer's stays). Not part
-        of :meth:`state_dict`: the caller that sets it sets it again after a :meth:`load_state_dict`."""
+        """Remove this gyro bias (rad/s, body frame) from the next sample on, in place of ``params``' (not part of
+        :meth:`state_dict`: set it again after a :meth:`load_state_dict`)."""
         self._b[_S_BIAS:_S_BIAS + 3] = float(bx), float(by), float(bz)
 
     def _state(self) -> tuple[tuple, tuple | None]:
@@ -188,15 +166,12 @@ class StreamingPreintegrator:
         return _from_state(self.params, *self._state(), int(b[_S_N] + b[_S_MARK] - b[_S_CD]),
                            float(b[_S_TSTART]), math.nan, b[_S_VALID] != 0.0)
 
-    # -- warm start: the buffer's state (settings: the boundaries and the params); resumed after any sample,
-    # a stream emits the frames of the uninterrupted one
     def _settings(self) -> dict:
         return {"frame_times": self._times, "rate": self._rate, "every": self._every,
                 "params": dataclasses.asdict(self.params)}
 
     def state_dict(self) -> dict:
-        """The state as a plain, JSON-serialisable dict (:mod:`imu_ground.imu.warm_start`); resume with
-        :meth:`load_state_dict` on a preintegrator built with the same settings."""
+        """The state as a plain, JSON-serialisable dict (:mod:`imu_ground.imu.warm_start`)."""
         b = self._b
         deltas, unc = self._state()
         origin = float(b[_S_ORIGIN])
@@ -207,9 +182,8 @@ class StreamingPreintegrator:
         return pack_state("StreamingPreintegrator", STATE_VERSION, self._settings(), st)
 
     def load_state_dict(self, state: dict) -> None:
-        """Resume from a :meth:`state_dict`; another kind, layout or settings, or a corrupt state (entries
-        not finite or of another shape), raises :class:`~imu_ground.imu.warm_start.StateError` (a ValueError)
-        naming what is wrong, and the preintegrator is unchanged."""
+        """Resume from a :meth:`state_dict` of the same settings; else, or for a corrupt state, a
+        :class:`~imu_ground.imu.warm_start.StateError` naming what is wrong, the preintegrator unchanged."""
         st = StateReader("StreamingPreintegrator",
                          unpack_state(state, "StreamingPreintegrator", STATE_VERSION, self._settings()))
         ints = {i: st.int(name) for name, i in _INTS.items()}
