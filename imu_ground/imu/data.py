@@ -1,21 +1,8 @@
-"""One container for an IMU log, whatever format it came from.
+"""One container for an IMU log, whatever format it came from (every reader returns an :class:`ImuData`).
 
-Every reader in :mod:`imu_ground.datasets` returns an :class:`ImuData`; the
-preintegration, the simulator and the command-line tool consume it.
-
-Frames and units
-----------------
-- ``t``: sample times in seconds (float64). Readers convert from the file's unit
-  (ns, us, ms) and keep the epoch of the file in ``meta["t0"]`` when the file
-  gives absolute times; ``t`` itself may start anywhere.
-- ``gyro``: angular rate of the body frame relative to inertial space, expressed
-  in the body frame, rad/s.
-- ``accel``: specific force (acceleration minus gravity, what an accelerometer
-  measures) in the body frame, m/s^2; about ``+9.81`` on the up axis at rest.
-- ``frame``: the body frame's name and axes, e.g. ``"FLU"`` (x forward, y left,
-  z up: KITTI OXTS, nuScenes) or ``"device"`` (a phone's own axes).
-- ``extra``: every other column of the source (reference attitude, velocity,
-  GPS, ...), one row per sample, in the source's units (named in ``units``).
+Units: ``t`` seconds (the file's epoch in ``meta["t0"]`` when it gives absolute times); ``gyro`` the body's
+rate relative to inertial space, body frame, rad/s; ``accel`` the specific force (acceleration minus gravity),
+body frame, m/s^2, about ``+9.81`` on the up axis at rest.
 """
 from __future__ import annotations
 
@@ -43,22 +30,18 @@ class ImuData:
     Parameters
     ----------
     t : ndarray, shape (N,)
-        Sample times, seconds, strictly increasing once validated.
-    gyro : ndarray, shape (N, 3)
-        Angular rate in the body frame, rad/s.
-    accel : ndarray, shape (N, 3)
-        Specific force in the body frame, m/s^2.
+        Sample times, s, strictly increasing once validated.
+    gyro, accel : ndarray, shape (N, 3)
+        Angular rate (rad/s) and specific force (m/s^2), body frame.
     frame : str
-        Name of the body frame (``"FLU"``: x forward, y left, z up).
+        Name of the body frame (``"FLU"``: x forward, y left, z up; ``"device"``: a phone's axes).
     extra : pandas.DataFrame
-        Other columns of the source, aligned row for row with ``t``.
+        Other columns of the source, row for row with ``t``, in the units named by ``units`` (column -> unit).
     units : dict
-        Units of the ``extra`` columns (column name to unit string).
     source : str
         Where the data came from (path, or ``"simulated"``).
     meta : dict
-        Anything else a reader wants to keep (absolute start time, format, the
-        validation report, ...).
+        Anything else a reader keeps (absolute start time, format, the validation report, ...).
     """
 
     t: np.ndarray

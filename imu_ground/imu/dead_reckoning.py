@@ -1,12 +1,8 @@
 r"""Strapdown dead reckoning in a gravity-aligned world frame from preintegrated deltas.
 
-World frame: a local level frame, z up, gravity ``g_world = [0, 0, -g]``; its heading is that of
-the initial attitude (yaw 0 when the attitude comes from the accelerometer). Attitudes are
-``R_{world<-body}`` (glossary: :mod:`imu_ground.so3`): ``R @ f_body`` is ``f`` in the world frame.
-The state at frame boundaries follows the prediction of :mod:`imu_ground.imu.preintegration`
-(Forster et al. 2017, Sec. VI-A), frame after frame: :func:`imu_ground.so3.cumulative_rotations`
-gives every ``R_k``, cumulative sums give ``v`` and ``p``. Per-sample dead reckoning is one frame
-per sample (``every=1``).
+World frame: local level, z up, gravity ``g_world = [0, 0, -g]``, the heading of the initial attitude.
+Attitudes are ``R_{world<-body}`` (glossary: :mod:`imu_ground.so3`). The states at frame boundaries follow
+the prediction of :mod:`imu_ground.imu.preintegration` frame after frame (cumulative rotations and sums).
 """
 from __future__ import annotations
 
@@ -35,10 +31,8 @@ class NavSolution:
         Boundary times, s.
     R : ndarray, shape (F + 1, 3, 3)
         Attitude ``R_{world<-body}`` (world: level, z up).
-    v : ndarray, shape (F + 1, 3)
-        Velocity in the world frame, m/s.
-    p : ndarray, shape (F + 1, 3)
-        Position in the world frame, m.
+    v, p : ndarray, shape (F + 1, 3)
+        Velocity (m/s) and position (m), world frame.
     valid : ndarray of bool, shape (F + 1,)
         False from the first frame that crossed a timestamp gap onwards.
     gravity : float
@@ -62,9 +56,7 @@ class NavSolution:
 
 
 def attitude_from_accel(accel_mean: Sequence[float], yaw: float = 0.0) -> np.ndarray:
-    """Attitude of a body at rest from its mean specific force.
-
-    The specific force at rest points up; roll and pitch follow, yaw is free.
+    """Attitude of a body at rest from its mean specific force (which points up; yaw is free).
 
     Parameters
     ----------
@@ -97,19 +89,15 @@ def dead_reckon(deltas: FrameDeltas, R0: np.ndarray, v0: Sequence[float] = (0.0,
     Parameters
     ----------
     deltas : FrameDeltas
-        Consecutive frames (``t_end[k] == t_start[k+1]``), e.g. from
-        :func:`~imu_ground.imu.preintegration.preintegrate`.
+        Consecutive frames (``t_end[k] == t_start[k+1]``).
     R0 : array_like, shape (3, 3)
-        ``R_{world<-body}`` at ``deltas.t_start[0]`` (world: level, z up).
-    v0 : array_like, shape (3,)
-        Initial velocity, world frame, m/s.
-    p0 : array_like, shape (3,)
-        Initial position, world frame, m.
+        ``R_{world<-body}`` at ``deltas.t_start[0]``.
+    v0, p0 : array_like, shape (3,)
+        Initial velocity (m/s) and position (m), world frame.
     gravity : float
-        Magnitude of gravity, m/s^2 (``g_world = [0, 0, -gravity]``).
+        Magnitude of gravity, m/s^2.
     bias_gyro, bias_accel : array_like, shape (3,), optional
-        Apply a first-order bias correction (:meth:`FrameDeltas.corrected`) from
-        the biases the deltas were integrated with to these (rad/s, m/s^2, body).
+        Biases (rad/s, m/s^2, body) to correct the deltas to, first order (:meth:`FrameDeltas.corrected`).
 
     Returns
     -------
@@ -159,24 +147,19 @@ def dead_reckon_imu(imu: ImuData, *, rate: float | None = None, every: int | Non
     Parameters
     ----------
     imu : ImuData
-        Strictly increasing times (s), gyro (rad/s), specific force (m/s^2), body frame.
     rate, every : optional
         Output frames: ``rate`` Hz, or every ``every`` samples (default: every sample).
     R0 : array_like (3, 3), optional
-        Initial attitude ``R_{world<-body}`` (world: level, z up). Default: from the mean
-        specific force of the first standstill interval, which must begin within
-        1 s of the log's start (yaw 0); ValueError otherwise.
-    v0, p0 : array_like, shape (3,)
-        Initial velocity (m/s) and position (m), world frame.
+        Initial ``R_{world<-body}``. Default: from the mean specific force of the first standstill, which must
+        begin within 1 s of the log's start (yaw 0); ValueError otherwise.
+    v0, p0, gravity :
+        As :func:`dead_reckon`.
     bias_gyro : array_like (3,), "standstill" or None
-        Gyro bias, rad/s (``"standstill"``: :func:`~imu_ground.imu.standstill.estimate_gyro_bias`,
-        zeros if there is no standstill; None: zeros).
+        Gyro bias, rad/s (``"standstill"``: :func:`~imu_ground.imu.standstill.estimate_gyro_bias`; None: zeros).
     bias_accel : array_like, shape (3,)
         Accelerometer bias, m/s^2.
-    gravity : float
-        m/s^2.
     hold, max_gap, on_gap :
-        See :func:`~imu_ground.imu.preintegration.preintegrate`.
+        See :class:`~imu_ground.imu.preint_measurement.PreintegrationParams`.
     standstill : dict, optional
         Keyword arguments for the standstill detection.
 

@@ -1,15 +1,8 @@
-"""From a raw IMU log to per-frame ego-motion: the front-end every estimator shares.
+"""From a raw IMU log to per-frame ego-motion, the front-end every estimator shares (:func:`imu_to_egomotion`).
 
-:func:`imu_to_egomotion`: gyro bias from the log's standstills (if any), preintegration into
-frames (10 Hz by default), per-frame standstill flags; its :class:`EgoMotion` is what the
-estimators (:mod:`imu_ground.filters`) consume.
-
-Frames (glossary: :mod:`imu_ground.so3`): everything is in the IMU's body frame
-(``imu.frame``); ``delta_R`` is ``R_{body_{k-1}<-body_k}``, the body frame at a
-frame's end expressed in the body frame at its start (``R_k = R_{k-1} @ delta_R_k``
-for ``R_{world<-body}`` attitudes), ``delta_v`` is the gravity-free velocity
-increment in the body frame at the frame's start (m/s). ``t`` holds the frame
-*end* times.
+Frames (glossary: :mod:`imu_ground.so3`): the IMU's body frame; ``delta_R`` is ``R_{body_{k-1}<-body_k}``
+(``R_k = R_{k-1} @ delta_R_k`` for ``R_{world<-body}`` attitudes), ``delta_v`` the gravity-free velocity
+increment in the body frame at the frame's start (m/s); ``t`` the frame *end* times, s.
 """
 from __future__ import annotations
 
@@ -33,11 +26,8 @@ class EgoFrame(NamedTuple):
 
     Attributes
     ----------
-    delta_R : ndarray (3, 3)
-        ``R_{body_{k-1} <- body_k}`` (module docstring).
-    delta_v : ndarray (3,)
-        Gravity-free velocity increment, m/s, body frame at the frame's start
-        (zeros when the source has no accelerometer, e.g. visual odometry).
+    delta_R, delta_v : ndarray (3, 3), (3,)
+        As in the module docstring (``delta_v`` zeros when the source has no accelerometer).
     delta_t : float
         Frame duration, s (> 0).
     stationary : bool
@@ -56,8 +46,7 @@ class EgoFrame(NamedTuple):
 
     @classmethod
     def of(cls, frame, stationary: bool = False) -> "EgoFrame":
-        """The EgoFrame of a preintegrated frame (a :class:`~imu_ground.imu.preintegration.PreintegratedImu`
-        with ``delta_R``, ``delta_v``, ``delta_t``, ``valid`` and ``t_end``)."""
+        """The EgoFrame of a preintegrated frame (a :class:`~imu_ground.imu.preintegration.PreintegratedImu`)."""
         return cls(frame.delta_R, frame.delta_v, float(frame.delta_t), bool(stationary),
                    bool(getattr(frame, "valid", True)), float(getattr(frame, "t_end", float("nan"))))
 
@@ -68,27 +57,16 @@ class EgoMotion:
 
     Attributes
     ----------
-    t : ndarray (F,)
-        Frame times (end of each frame), s.
-    delta_R : ndarray (F, 3, 3)
-        ``R_{body_{k-1}<-body_k}`` rotation increments.
-    delta_v : ndarray (F, 3)
-        Gravity-free velocity increment, m/s, body frame at the frame's start.
-    delta_t : ndarray (F,)
-        Frame durations, s.
-    stationary : ndarray of bool (F,)
-        The frame ends inside a standstill detected from the IMU.
-    valid : ndarray of bool (F,)
-        False where the frame spans a timestamp gap (integrated through, held signal).
+    t, delta_R, delta_v, delta_t, stationary, valid : ndarray (F,), (F, 3, 3), (F, 3), (F,), (F,), (F,)
+        Per frame, as :class:`EgoFrame`'s fields.
     bias_gyro : ndarray (3,)
-        Gyro bias removed before integration, rad/s (body frame).
+        Gyro bias removed before integration, rad/s, body frame.
     frame : str
         Body frame name of the IMU.
     meta : dict
         Where the numbers came from (standstill intervals, gap count, source).
     rate : float
-        Nominal frame rate, Hz: the one owner of the frame rate; estimators
-        derive their discrete-time design (filters, noise per frame) from it.
+        Nominal frame rate, Hz, the one owner of it (estimators derive their discrete-time design from it).
     has_accel : bool
         False when ``delta_v`` is not measured (ego-motion from poses).
     """
@@ -131,10 +109,8 @@ class EgoMotion:
         rate : float, optional
             Frame rate, Hz. Default: from the median step of ``t``, else
             :data:`~imu_ground.units.DEFAULT_FRAME_RATE`.
-        frame : str
-            Body frame name.
-        meta : dict, optional
-            Provenance.
+        frame, meta :
+            Body frame name and provenance.
 
         Returns
         -------
@@ -156,11 +132,8 @@ class EgoMotion:
 
     @property
     def specific_force(self) -> np.ndarray:
-        """Mean specific force over each frame, m/s^2, body frame at the frame's end.
-
-        ``delta_R^T delta_v / delta_t``: exact for a constant specific force in a
-        rotating body up to the rotation within the frame (first order).
-        """
+        """Mean specific force over each frame, m/s^2, body frame at the frame's end: ``delta_R^T delta_v / delta_t``
+        (first order in the rotation within the frame)."""
         dv_end = np.einsum("nji,nj->ni", self.delta_R, self.delta_v)
         return dv_end / self.delta_t[:, None]
 
@@ -173,7 +146,7 @@ def imu_to_egomotion(imu: ImuData, rate: float = DEFAULT_FRAME_RATE, *, frame_ti
     Parameters
     ----------
     imu : ImuData
-        Validated log (strictly increasing times), gyro rad/s, specific force m/s^2.
+        Validated log (strictly increasing times).
     rate : float
         Frame rate, Hz (frames at ``t[0] + k / rate``). Ignored with ``frame_times``.
     frame_times : ndarray (F + 1,), optional
@@ -187,11 +160,9 @@ def imu_to_egomotion(imu: ImuData, rate: float = DEFAULT_FRAME_RATE, *, frame_ti
     standstill_window : float
         Shortest standstill (s) used for the per-frame ``stationary`` flags.
     max_gap_frames : int, optional
-        A sample step longer than this many frame periods (default
-        :data:`~imu_ground.units.MAX_GAP_FRAMES`) starts a new segment, as the live front end's clock
-        restarts: the frames start again at the first sample after it, on its own grid, and none spans
-        the step. ``meta["segment_cuts"]``: the sample index before each such step. None: gaps of any
-        length are integrated through, one invalid frame a period. Not with ``frame_times``.
+        A sample step longer than this many frame periods starts a new segment (as the live clock restarts):
+        frames start again on the grid of the first sample after it (``meta["segment_cuts"]``: the sample index
+        before each). None: gaps of any length are integrated through. Not with ``frame_times``.
 
     Returns
     -------

@@ -9,16 +9,10 @@ A window of the log counts as standstill when, over at least ``window`` seconds,
   (``| |mean accel| - g | <= accel_norm_tol``, which rejects accelerating),
 - no timestamp gap longer than ``max_gap`` lies inside.
 
-Standstill intervals are the unions of such windows. At rest the gyro reads its
-bias (plus the Earth's rotation, at most 7.3e-5 rad/s, which is absorbed into
-the bias) and the accelerometer reads the reaction to gravity: the specific
-force points *up*, so gravity points along ``-mean(accel)`` in the body frame.
-
-A vehicle cruising straight at constant speed on a smooth road looks like
-standstill to an IMU; the bias estimate is still sound there (the true rate is
-close to zero), the thresholds decide how strict to be. The defaults suit an
-automotive-grade IMU (the OXTS of the KITTI drives, where every detected interval
-is a real stop); noisier sensors (phones) need looser limits.
+Standstill intervals are the unions of such windows. At rest the gyro reads its bias (the Earth's rotation
+absorbed into it) and the specific force points *up*: gravity is along ``-mean(accel)`` in the body frame.
+Cruising straight on a smooth road looks like standstill too (the bias estimate is still sound there). The
+defaults suit an automotive-grade IMU; noisier sensors (phones) need looser limits.
 """
 from __future__ import annotations
 
@@ -33,8 +27,7 @@ from imu_ground.imu.data import ImuData
 __all__ = ["ACCEL_NORM_TOL", "ACCEL_STD_MAX", "GYRO_NORM_MAX", "GYRO_STD_MAX", "WINDOW", "GyroBiasEstimate",
            "WindowSums", "detect_standstill", "estimate_gyro_bias", "window_test"]
 
-#: The default thresholds of a standstill window (also the causal detector's,
-#: :mod:`imu_ground.imu.live.causal_standstill`): rad/s, rad/s, m/s^2, m/s^2.
+#: The default thresholds of a standstill window (also the causal detector's): rad/s, rad/s, m/s^2, m/s^2.
 GYRO_STD_MAX, GYRO_NORM_MAX, ACCEL_STD_MAX, ACCEL_NORM_TOL = 0.004, 0.05, 0.04, 0.15
 #: Shortest standstill, s: the whole-log detector's window and the causal gyro bias's.
 WINDOW = 2.0
@@ -44,10 +37,10 @@ WINDOW = 2.0
 def window_test(n: float, s: np.ndarray, q: np.ndarray, mean: np.ndarray, m: np.ndarray, sd: np.ndarray,
                 gyro_std_max: float, gyro_norm_max: float, accel_std_max: float) -> float:
     """The still test of one window (module docstring): its mean specific force's norm (m/s^2) when it passes the
-    rate and variance tests, else NaN (the gravity test is the caller's: ``|norm - gravity| <= accel_norm_tol``).
+    rate and variance tests, else NaN (the caller tests ``|norm - gravity| <= accel_norm_tol``).
 
-    ``n`` samples with sums ``s`` (6: gyro rad/s, then specific force m/s^2) of the samples less ``mean`` and ``q``
-    of their squares; the window's mean and standard deviation (variance floored at 0) go into ``m`` and ``sd``.
+    ``n`` samples with sums ``s`` (6: gyro rad/s, specific force m/s^2) of the samples less ``mean``, ``q`` of
+    their squares; the window's mean and standard deviation go into ``m`` and ``sd``.
     """
     for r in range(6):
         mm = s[r] / n
@@ -69,22 +62,19 @@ class GyroBiasEstimate:
 
     Attributes
     ----------
-    bias : ndarray, shape (3,)
-        Gyro bias, rad/s, body frame: the mean rate over all standstill samples
-        (zeros when none was found).
-    bias_std : ndarray, shape (3,)
-        Standard error of ``bias`` from the sample scatter, rad/s (inf when none).
+    bias, bias_std : ndarray, shape (3,)
+        Gyro bias (the mean rate over all standstill samples; zeros when none) and its standard error (inf when
+        none), rad/s, body frame.
     intervals : ndarray, shape (K, 2)
         Standstill intervals ``[start, end]``, s.
     gravity_body : ndarray, shape (3,)
-        Unit vector of gravity (pointing down) in the body frame during the first
-        standstill interval (nan when none).
+        Unit vector of gravity (down) in the body frame during the first interval (nan when none).
     gravity_body_per_interval : ndarray, shape (K, 3)
-        The same for every interval (the vehicle may stop on different slopes).
+        The same for every interval.
     accel_mean : ndarray, shape (K, 3)
         Mean specific force of each interval, m/s^2, body frame.
     n_samples : int
-        Number of samples averaged for ``bias``.
+        Samples averaged for ``bias``.
     """
 
     bias: np.ndarray
@@ -97,15 +87,14 @@ class GyroBiasEstimate:
 
     @property
     def found(self) -> bool:
-        """True when at least one standstill interval was detected."""
+        """At least one standstill interval was detected."""
         return self.intervals.shape[0] > 0
 
 
 @njit
 def _advance(s1: np.ndarray, s2: np.ndarray, at: int, to: int, gyro: np.ndarray, accel: np.ndarray,
              mean: np.ndarray) -> int:
-    """Running sums ``s1``, ``s2`` (6) of the centred samples and their squares, from sample ``at`` up to ``to``
-    (``s1[r]`` is then :class:`WindowSums`' ``c1[r, to]``). Returns ``max(at, to)``."""
+    """Running sums ``s1``, ``s2`` (6) of the centred samples and their squares from sample ``at`` to ``to``."""
     while at < to:
         for r in range(6):
             d = (gyro[at, r] if r < 3 else accel[at, r - 3]) - mean[r]
@@ -116,26 +105,21 @@ def _advance(s1: np.ndarray, s2: np.ndarray, at: int, to: int, gyro: np.ndarray,
 
 
 class WindowSums:
-    """Cumulative sums of a log's centred gyro and specific force and of their squares.
-
-    Every window's mean and standard deviation follow from them, whatever the window's length, so one
-    instance serves several calls of :func:`detect_standstill` and :func:`estimate_gyro_bias` on the same
-    log (pass it as ``sums``). Component-major (every operation runs along contiguous rows).
+    """Cumulative sums of a log's centred gyro and specific force and of their squares, shared by several
+    calls of :func:`detect_standstill` and :func:`estimate_gyro_bias` on the same log (``sums``).
 
     Parameters
     ----------
     imu : ImuData
-        The log (gyro rad/s, specific force m/s^2, body frame).
 
     Attributes
     ----------
     mean : ndarray, shape (6, 1)
         Mean gyro (rad/s) then specific force (m/s^2) over the log.
     gyro, accel : ndarray, shape (N, 3)
-        The log's gyro and specific force (C-contiguous; the log's own arrays where they are).
+        The log's gyro and specific force (C-contiguous).
     c1, c2 : ndarray, shape (6, N + 1)
-        ``c1[:, k]`` sum of the first ``k`` centred samples, ``c2[:, k]`` of their squares, computed on first
-        use only (the window pass carries the same running sums at each window's start and end instead).
+        ``c1[:, k]`` sum of the first ``k`` centred samples, ``c2[:, k]`` of their squares (on first use).
     """
 
     def __init__(self, imu: ImuData) -> None:
@@ -166,11 +150,7 @@ class WindowSums:
         return self._c
 
     def stats(self, start: np.ndarray, end: np.ndarray, rows: slice = slice(0, 6)) -> tuple[np.ndarray, np.ndarray]:
-        """Mean and standard deviation over samples ``[start[j], end[j])`` of the components ``rows``.
-
-        Returns two arrays (k, J): rows of :attr:`mean`'s order (gyro rad/s, then
-        specific force m/s^2), one column per window.
-        """
+        """Mean and standard deviation (k, J) over samples ``[start[j], end[j])`` of the components ``rows``."""
         n = np.maximum((end - start).astype(float), 1.0)
         c1, c2 = self.c1[rows], self.c2[rows]
         m = (c1[:, end] - c1[:, start]) / n
@@ -182,12 +162,10 @@ class WindowSums:
 def _quiet_windows(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, mean: np.ndarray, window: float,
                    max_gap: float, gyro_std_max: float, gyro_norm_max: float, accel_std_max: float,
                    norm: np.ndarray, end: np.ndarray) -> None:
-    """Every sample's window end and :func:`window_test` of its window (NaN: not quiet): one forward pass.
+    """Every sample's window end and :func:`window_test` of its window (NaN: not quiet), in one forward pass.
 
-    The window of sample ``i`` is samples ``i .. end[i] - 1`` with ``t < t[i] + window`` plus the first
-    sample at or after ``t[i] + window`` (so that it spans at least ``window`` s); a window that runs past
-    the log's end or holds a step longer than ``max_gap`` is not quiet. The sums are running sums at the
-    window's start and end (``t`` strictly increasing, so both only move forward).
+    The window of sample ``i``: samples with ``t < t[i] + window`` plus the first at or after it; one past the
+    log's end or holding a step longer than ``max_gap`` is not quiet.
     """
     n = t.size
     lo1, lo2, hi1, hi2 = np.zeros(6), np.zeros(6), np.zeros(6), np.zeros(6)
@@ -253,8 +231,7 @@ def _standstill_mask(imu: ImuData, window: float, gyro_std_max: float, gyro_norm
                    norm, end)
     quiet = ~np.isnan(norm)
     if gravity is None:
-        # the log's own |f| at rest: an accelerometer bias or scale error moves it
-        # away from 9.81 (0.2 m/s^2 is common for MEMS) and must not hide the stops
+        # the log's own |f| at rest
         if not quiet.any():
             return np.zeros(n, dtype=bool)
         gravity = float(np.median(norm[quiet]))
@@ -280,28 +257,21 @@ def detect_standstill(imu: ImuData, *, window: float = WINDOW, gyro_std_max: flo
     Parameters
     ----------
     imu : ImuData
-        Strictly increasing times (s), gyro (rad/s) and specific force (m/s^2),
-        body frame.
+        Strictly increasing times (s), gyro (rad/s) and specific force (m/s^2), body frame.
     window : float
         Shortest standstill, s.
-    gyro_std_max : float
-        Largest per-axis gyro standard deviation over a window, rad/s.
-    gyro_norm_max : float
-        Largest norm of the window's mean rate, rad/s (must exceed the bias).
-    accel_std_max : float
-        Largest per-axis accelerometer standard deviation, m/s^2.
-    accel_norm_tol : float
-        Largest difference between the mean specific force's norm and ``gravity``, m/s^2.
+    gyro_std_max, gyro_norm_max : float
+        Largest per-axis gyro standard deviation over a window, and norm of its mean rate, rad/s.
+    accel_std_max, accel_norm_tol : float
+        Largest per-axis accelerometer standard deviation, and difference of the mean's norm from ``gravity``,
+        m/s^2.
     gravity : float, optional
-        Magnitude of the specific force at rest, m/s^2. Default: measured from
-        the log (median over the windows that pass the rate and variance
-        tests), so that an accelerometer bias or scale error does not hide
-        the stops; ``accel_norm_tol`` then rejects windows of steady
-        acceleration.
+        Magnitude of the specific force at rest, m/s^2. Default: the log's own (median over the windows that pass
+        the other tests), so that an accelerometer bias or scale error does not hide the stops.
     max_gap : float
         Windows containing a longer timestamp step are rejected, s.
     sums : WindowSums, optional
-        This log's :class:`WindowSums`, to share between calls (computed when None).
+        This log's :class:`WindowSums`, shared between calls.
 
     Returns
     -------

@@ -1,25 +1,16 @@
 """Warm start: a streaming object's state as a plain dict, and back.
 
-Every streaming estimator (and :class:`~imu_ground.imu.live.preint_stream.StreamingPreintegrator`)
-has ``state_dict()`` and ``load_state_dict(state)``. A state is a dict of plain
-Python values (floats, ints, bools, strings, None and lists of them), so
-``json.dumps`` writes it and ``json.loads`` gives it back unchanged (floats
-round-trip exactly; NaN and infinities are written as JSON's ``NaN`` / ``Infinity``):
+Every streaming object has ``state_dict()`` and ``load_state_dict(state)``. A state is a dict of plain Python
+values, so ``json.dumps`` / ``json.loads`` round-trip it exactly (NaN and infinities as ``NaN`` / ``Infinity``)::
 
     {"kind": "SuspensionAwareFilter", "state_version": 1, "package_version": "...",
      "settings": {...}, "state": {...}}
 
-``kind`` and ``state_version`` must match the loading object's (a state from
-another estimator, or from a layout this version cannot read, is refused with
-:class:`StateError`, a ``ValueError`` that says which); ``settings`` are the
-options that determine the numbers, and must equal the loading object's too
-(resuming with other settings would not continue the same run; the error names each
-setting that differs, ``gravity.q_v`` for a nested one, with both values). Every entry of
-``state`` is checked as it is read (:class:`StateReader`): its shape, and that its numbers
-are finite (NaN only where the layout has "none yet") and at most :data:`MAX_MAGNITUDE` in
-size; a corrupt state is refused naming the entry, before anything is loaded. A run stopped
-after frame k and resumed from its state gives the frames of the uninterrupted
-run (the tests check 1e-12; the kernels' buffers are restored bit for bit).
+``kind``, ``state_version`` and ``settings`` (the options that determine the numbers) must equal the loading
+object's; else :class:`StateError` (a ``ValueError``) says which, nested settings as ``gravity.q_v``, with both
+values. Every entry of ``state`` is checked as it is read (:class:`StateReader`): its shape, finite numbers
+(NaN only where the layout has "none yet") of at most :data:`MAX_MAGNITUDE`. A run resumed from its state
+gives the frames of the uninterrupted run.
 """
 from __future__ import annotations
 
@@ -37,8 +28,7 @@ __all__ = ["MAX_MAGNITUDE", "STATE_VERSION", "StateError", "StateReader", "as_re
 
 #: Layout of the saved states of the streaming filters and the preintegrator (raised when one changes).
 STATE_VERSION = 1
-#: The largest magnitude a number of a saved state may have: beyond it the state is corrupt (a covariance
-#: entry of 1e300 overflows at its first square), and loading it would give NaN at every later frame.
+#: The largest magnitude a number of a saved state may have (beyond it, a covariance overflows at its first square).
 MAX_MAGNITUDE = 1e100
 
 
@@ -74,25 +64,10 @@ def buffer_like(old, values):
     return [float(v) for v in values]
 
 
-def _version() -> str:
-    return __version__
-
-
 def pack_state(kind: str, state_version: int, settings: Mapping[str, Any], state: Mapping[str, Any]) -> dict:
-    """The saved-state dict of the module docstring.
-
-    Parameters
-    ----------
-    kind : str
-        The class name of the saving object.
-    state_version : int
-        The layout of ``state`` (raised when it changes).
-    settings : mapping
-        The options that determine the numbers.
-    state : mapping
-        The dynamic state.
-    """
-    return {"kind": kind, "state_version": int(state_version), "package_version": _version(),
+    """The saved-state dict of the module docstring: the saving object's class name ``kind``, the layout
+    ``state_version``, its ``settings`` and dynamic ``state``."""
+    return {"kind": kind, "state_version": int(state_version), "package_version": __version__,
             "settings": plain(dict(settings)), "state": plain(dict(state))}
 
 
@@ -107,14 +82,8 @@ def _same(a: Any, b: Any) -> bool:
 
 
 def unpack_state(saved: Any, kind: str, state_version: int, settings: Mapping[str, Any]) -> dict:
-    """The dynamic state of a saved-state dict, after checking it belongs to this object.
-
-    Parameters
-    ----------
-    saved : dict
-        What ``state_dict()`` returned (possibly through JSON).
-    kind, state_version, settings
-        The loading object's (as for :func:`pack_state`).
+    """The dynamic state of a saved-state dict ``saved`` (``state_dict()``'s, possibly through JSON), after checking
+    it belongs to this object (``kind``, ``state_version``, ``settings``: the loading object's).
 
     Raises
     ------
@@ -130,11 +99,11 @@ def unpack_state(saved: Any, kind: str, state_version: int, settings: Mapping[st
     version = saved["state_version"]
     if type(version) is not int:                    # (bool is an int subclass: refused too)
         raise StateError(f"this {kind} state's state_version is {type(version).__name__} {version!r}, not the "
-                         f"layout number (an integer, {state_version} for imu-ground {_version()}): the file was "
+                         f"layout number (an integer, {state_version} for imu-ground {__version__}): the file was "
                          f"edited or written by another tool; save the state again with state_dict()")
     if version != state_version:
         raise StateError(f"this {kind} state has layout {saved['state_version']} (saved by imu-ground "
-                         f"{saved.get('package_version', '?')}); imu-ground {_version()} reads layout "
+                         f"{saved.get('package_version', '?')}); imu-ground {__version__} reads layout "
                          f"{state_version} only: start this filter afresh")
     mine, theirs = plain(dict(settings)), plain(saved["settings"])
     if not isinstance(theirs, dict) or not isinstance(saved["state"], Mapping):
@@ -167,19 +136,16 @@ def _differences(saved: dict, mine: dict, prefix: str = "") -> list:
 
 
 class StateReader:
-    """The entries of a saved state's ``state``, each checked as it is read.
-
-    Every method takes the entry's name and raises :class:`StateError` naming it (``monitor.hist``
-    for an entry of a nested part) when it is missing, of another shape or type, not finite
-    (NaN, the layout's "none yet", only where the loader allows it with ``nan``; infinities only
-    with ``inf``) or larger than :data:`MAX_MAGNITUDE`.
+    """The entries of a saved state's ``state``, each checked as it is read: every method raises
+    :class:`StateError` naming the entry (``monitor.hist`` in a nested part) when it is missing, of another shape
+    or type, not finite (NaN only with ``nan``, infinities with ``inf``) or larger than :data:`MAX_MAGNITUDE`.
 
     Parameters
     ----------
     kind : str
         The loading object's class name (said in the message).
     state : mapping
-        The ``state`` of the saved dict (what :func:`unpack_state` returns), or a nested part of it.
+        What :func:`unpack_state` returns, or a nested part of it.
     prefix : str
         The dotted name of that part (``""`` at the top).
     """
@@ -203,9 +169,8 @@ class StateReader:
 
     def floats(self, name: str, shape: tuple, nan: bool | slice = False, optional: bool = False,
                inf: bool = False) -> Any:
-        """A float array of ``shape`` (``None`` in it: any length on that axis); None if ``optional`` and null.
-        ``nan``: NaN allowed (everywhere, or in a slice of a 1-d entry: a record of the last step);
-        ``inf``: infinities allowed (a boundary not yet set)."""
+        """A float array of ``shape`` (``None``: any length on that axis); None if ``optional`` and null.
+        ``nan``: NaN allowed (everywhere, or in a slice of a 1-d entry); ``inf``: infinities allowed."""
         v = self._get(name)
         if v is None and optional:
             return None
@@ -256,8 +221,7 @@ class StateReader:
         return v
 
     def rows(self, name: str, flatten, width: builtins.int, nan: builtins.bool = False) -> np.ndarray:
-        """A list of records, each made a row of ``width`` floats by ``flatten`` (e.g. ``[t, [x, y, z]]`` ->
-        ``[t, x, y, z]``), checked as :meth:`floats` (n, width)."""
+        """A list of records, each made a row of ``width`` floats by ``flatten``, checked as :meth:`floats`."""
         v = self._get(name)
         if not isinstance(v, list):
             raise self.error(name, f"is {_short(v)}, expected a list")

@@ -1,26 +1,19 @@
-"""A causal sample clock: raw IMU stamps in, strictly increasing sample times out, one sample at a time.
+"""A causal sample clock: raw IMU stamps (s) in, strictly increasing sample times out, one sample at a time.
 
-The causal form of the readers' retiming on the sample index (:mod:`imu_ground.datasets.retime`, which fits
-the whole file at once); :class:`SampleClock` makes the same choices from the stamps seen so far:
+The causal form of the readers' retiming on the sample index (:mod:`imu_ground.datasets.retime`):
 
-- **Warm-up**: the first :data:`WARMUP` samples with increasing stamps pass as they are (non-increasing ones
-  are dropped); the median of their steps is the first sample period ``dt`` (s).
-- **Index clock**: then each sample is one period after the last output, ``t_out = t_prev + dt + alpha c``
-  with the stamp's offset ``e = t - (t_prev + dt)`` clipped to ``c = clip(e, -dt / 2, dt / 2)``, and
-  ``dt += beta c`` (a second-order phase-locked loop). Stamps that step back or repeat are thereby retimed
-  (policy ``"retime"``), or dropped when not later than every earlier one (``"drop"``, as the readers').
-- **Dropouts**: a stamp more than half a period ahead is jitter while it comes back within ``hold`` s; when
-  it stays ahead for ``hold`` s the clock jumps forward by the least offset seen (a gap the preintegrator
-  flags). An offset of more than ``hold`` is a dropout at once.
-- **Stamps far off** (more than ``max_gap`` before the last stamp, or more than ``hold`` ahead of the
-  clock): a bad sample, dropped (:data:`DROP`, counted in :attr:`SampleClock.bad`), unless it is the
-  :data:`CONFIRM`-th of consecutive ones that agree with each other (each within ``max_gap`` of the one
-  before): then the clock changed, at the last of them: ahead by at most ``max_jump``, a dropout; further
-  ahead or back, a **restart** (warm-up again; :meth:`~SampleClock.push` says so and the caller starts its
-  front end afresh). In the warm-up, :data:`CONFIRM` agreeing stamps before its latest one, or far ahead
-  of its steps (:data:`WARMUP_FAR_STEPS` times their median), start it again; fewer are bad samples.
-
-Times are seconds.
+- **Warm-up**: the first :data:`WARMUP` increasing stamps pass as they are (others dropped); the median of
+  their steps is the first sample period ``dt``.
+- **Index clock**: then ``t_out = t_prev + dt + alpha c`` and ``dt += beta c`` with the stamp's offset
+  ``e = t - (t_prev + dt)`` clipped to ``c = clip(e, -dt / 2, dt / 2)`` (a second-order phase-locked loop):
+  stamps that step back or repeat are retimed (``"retime"``), or dropped unless later than all (``"drop"``).
+- **Dropouts**: a stamp more than half a period ahead is jitter while it comes back within ``hold`` s; ahead
+  for ``hold`` s (or by more than ``hold``), the clock jumps forward by the least offset seen.
+- **Stamps far off** (more than ``max_gap`` back, or ``hold`` ahead): a bad sample (:data:`DROP`), unless the
+  :data:`CONFIRM`-th of consecutive ones that agree (each within ``max_gap`` of the one before): then the clock
+  changed: ahead by at most ``max_jump``, a dropout; else a **restart** (warm-up again, said by
+  :meth:`~SampleClock.push`). In the warm-up, :data:`CONFIRM` agreeing stamps before its latest one, or
+  :data:`WARMUP_FAR_STEPS` times the median step ahead, start it again.
 """
 from __future__ import annotations
 
@@ -36,9 +29,8 @@ __all__ = ["CONFIRM", "DROP", "FAR", "OK", "RESTART", "WARMUP", "SampleClock", "
 
 #: Samples of the warm-up: their median step is the first sample period.
 WARMUP = 10
-#: A warm-up stamp more than this many times the median step so far ahead of the latest (once
-#: :data:`WARMUP_FAR_AFTER` steps are known) is far off: a bad sample unless :data:`CONFIRM` agree (an hour-ahead
-#: stamp among the first samples would otherwise be integrated through as an hour of gap frames).
+#: A warm-up stamp more than this many median steps ahead of the latest (once :data:`WARMUP_FAR_AFTER` steps are
+#: known) is far off.
 WARMUP_FAR_STEPS = 1000.0
 WARMUP_FAR_AFTER = 3
 #: Consecutive far-off stamps, agreeing with each other, that make a real change of the clock (fewer: bad stamps).
@@ -57,8 +49,7 @@ FAR = -1
 @njit
 def clock_step(c: np.ndarray, t: float) -> int:
     """One raw stamp ``t`` (finite, s) after the warm-up, on the clock buffer ``c``: :data:`OK` (the output
-    time in ``c[0]``), :data:`DROP`, or :data:`FAR` (far off the clock, a bad stamp or a new clock: nothing
-    changed, :meth:`SampleClock.push` decides)."""
+    time in ``c[0]``), :data:`DROP`, or :data:`FAR` (nothing changed: :meth:`SampleClock.push` decides)."""
     out, dt = c[_C_T], c[_C_DT]
     hold = c[_C_HOLD]
     e = t - (out + dt)
@@ -114,30 +105,22 @@ class SampleClock:
     hold : float
         How long a stamp may run ahead of the clock before it counts as a dropout, s.
     gap_factor : float
-        ``max_gap = gap_factor * dt``: the longest sample step that is not a gap, and
-        how far back a stamp may be before the clock restarts.
+        ``max_gap = gap_factor * dt``: the longest step that is not a gap, and how far back a stamp may be.
     alpha, beta : float
         Phase and period gains of the loop (per sample).
     max_jump : float
-        Longest step forward of the stamps (from the one pushed last) that is a dropout, s;
-        a longer one restarts the clock (default: none does).
+        Longest step forward of the stamps that is a dropout, s; a longer one restarts the clock.
 
     Attributes
     ----------
-    dt : float
-        Current sample period, s (NaN during the warm-up).
-    t : float
-        Last output time, s (NaN before the first sample).
+    dt, t : float
+        Current sample period (NaN during the warm-up) and last output time (NaN before the first sample), s.
     retimed, dropped, dropouts, restarts : int
-        Samples moved by more than half a period, samples dropped, dropouts inserted,
-        restarts, since construction or :meth:`reset`.
-    bad : int
-        Samples dropped for a stamp far off the clock (a lone bad stamp, or one of the first
-        :data:`CONFIRM` - 1 of a change of the clock).
-    bad_offset : float
-        The last such stamp's offset from the clock, s (positive: ahead).
+        Samples moved by more than half a period, dropped, dropouts inserted, restarts (since :meth:`reset`).
+    bad, bad_offset : int, float
+        Samples dropped for a stamp far off the clock, and the last one's offset, s (positive: ahead).
     confirming : int
-        Samples dropped while a change of the clock was confirmed (the first :data:`CONFIRM` - 1 of it).
+        Samples dropped while a change of the clock was confirmed.
     """
 
     t = _slot(_C_T)
@@ -189,7 +172,7 @@ class SampleClock:
 
     @property
     def buffer(self) -> np.ndarray:
-        """The state and settings :func:`clock_step` runs on (float64), for a caller's own compiled step."""
+        """The state and settings :func:`clock_step` runs on, for a caller's own compiled step."""
         return self._c
 
     @property
@@ -247,9 +230,7 @@ class SampleClock:
     def _warmup(self, t: float) -> tuple[int, float]:
         self._raw_prev = t
         if not t > self._raw_max:
-            # before the warm-up's latest stamp: dropped; CONFIRM agreeing ones in a row start the warm-up again
-            # (its latest stamp was a bad one far ahead)
-            # (agreeing: increasing; the unit of the stamps is not known yet)
+            # before the warm-up's latest stamp: dropped; CONFIRM increasing ones in a row start it again
             if self._suspect(t, t > self._sus_t):
                 return self._restart(t, self._raw_max - t)
             self.dropped += 1
@@ -257,8 +238,7 @@ class SampleClock:
         far = WARMUP_FAR_STEPS * sorted(self._steps)[len(self._steps) // 2] if len(self._steps) >= WARMUP_FAR_AFTER \
             else math.inf
         if t - self._raw_max > far:
-            # far ahead of the warm-up's steps (its unit not known yet: relative to them): a bad stamp, unless it
-            # is the CONFIRM-th of agreeing ones (each within as many steps of the one before): then a new clock
+            # far ahead of the warm-up's steps: a bad stamp, unless the CONFIRM-th of agreeing ones: a new clock
             if self._suspect(t, 0 < t - self._sus_t <= far):
                 return self._restart(t, self._raw_max - t)
             self.bad += 1
@@ -288,8 +268,7 @@ class SampleClock:
         self.load_checked(StateReader("SampleClock", state), math.inf)
 
     def take_notes(self) -> list[str]:
-        """What the clock did since the last call (bad stamps, samples dropped, stamps retimed), one phrase each
-        for a frame's ``status_reason``; those counts start again."""
+        """What the clock did since the last call, one phrase each (for ``status_reason``); the counts start again."""
         notes = []
         if self.bad:
             off = self.bad_offset
@@ -308,10 +287,8 @@ class SampleClock:
         return notes
 
     def load_checked(self, c: Any, max_period: float) -> None:
-        """Resume from a saved :meth:`state_dict` read through ``c`` (a :class:`~imu_ground.imu.warm_start.StateReader`
-        of it), every entry checked: a corrupt or out-of-range one raises
-        :class:`~imu_ground.imu.warm_start.StateError` naming it (``clock.dt`` NaN where it must be a period of
-        1e-6 to ``max_period`` s, a stamp beyond the readers' magnitude, counts not integers ...)."""
+        """Resume from a :meth:`state_dict` read through ``c`` (a :class:`~imu_ground.imu.warm_start.StateReader`),
+        every entry checked (``dt`` NaN or 1e-6 to ``max_period`` s); a corrupt one raises a ``StateError``."""
         from imu_ground.imu.warm_start import StateReader
 
         def stamp(name: str, nan: bool = True, inf: bool = False) -> float:
