@@ -159,7 +159,7 @@ def dead_reckon_imu(imu: ImuData, *, rate: float | None = None, every: int | Non
     bias_accel : array_like, shape (3,)
         Accelerometer bias, m/s^2.
     hold, max_gap, on_gap :
-        See :class:`~imu_ground.imu.preint_measurement.PreintegrationParams`.
+        See :class:`~imu_ground.imu.preint_params.PreintegrationParams`.
     standstill : dict, optional
         Keyword arguments for the standstill detection.
 

@@ -36,15 +36,12 @@ from __future__ import annotations
 
 import math
 from math import cos, sin, sqrt
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from imu_ground import so3
 from imu_ground._jit import jitable, njit
-
-if TYPE_CHECKING:
-    from imu_ground.imu.preint_measurement import PreintegrationParams
+from imu_ground.imu.preint_params import PreintegrationParams
 
 __all__ = [
     "DELTAS_IDENTITY",

@@ -47,7 +47,8 @@ Where it lives
 --------------
 This module: frame boundaries, :func:`preintegrate` (the step over a whole log, compiled) and
 :class:`FrameDeltas`; :mod:`~imu_ground.imu.preint_kernel` the one body (an interval, a sample into frames);
-:mod:`~imu_ground.imu.preint_measurement` :class:`PreintegrationParams` and :class:`PreintegratedImu`;
+:mod:`~imu_ground.imu.preint_params` :class:`PreintegrationParams`; :mod:`~imu_ground.imu.preint_measurement`
+:class:`PreintegratedImu`;
 :mod:`~imu_ground.imu.live.preint_stream` :class:`StreamingPreintegrator` (the step per sample).
 """
 from __future__ import annotations
@@ -63,8 +64,8 @@ from imu_ground.errors import ImuGroundError
 from imu_ground.imu.data import ImuData
 from imu_ground.imu.live.preint_stream import StreamingPreintegrator
 from imu_ground.imu.preint_kernel import first_rate_boundary, run_log, state_buffer
-from imu_ground.imu.preint_measurement import (JACOBIAN_BLOCKS, ParamsView, PreintegratedImu, PreintegrationParams,
-                                               bias_corrected, gap_message, right_form, right_to_left)
+from imu_ground.imu.preint_measurement import JACOBIAN_BLOCKS, PreintegratedImu, bias_corrected, right_form, right_to_left
+from imu_ground.imu.preint_params import ParamsView, PreintegrationParams, gap_message
 from imu_ground.so3.conversions import matrix_from_quat
 
 __all__ = ["FrameDeltas", "PreintegratedImu", "PreintegrationParams", "StreamingPreintegrator", "first_rate_boundary",

@@ -1,14 +1,7 @@
-"""The live front end, in the order a raw sample passes it: clock, standstill and gyro bias, preintegration, speed.
-
-- :mod:`~imu_ground.imu.live.sample_clock` (:class:`SampleClock`): raw stamps to a strictly increasing clock,
-  bad samples, dropouts and restarts told apart;
-- :mod:`~imu_ground.imu.live.causal_standstill`: standstills and the gyro bias from the past alone;
-- :mod:`~imu_ground.imu.live.preint_stream` (:class:`StreamingPreintegrator`): samples to frames, one compiled
-  step a sample, the same body the batch preintegration's deltas run;
-- :mod:`~imu_ground.imu.live.speed_buffer` (:class:`SpeedBuffer`): the measured speed over each frame.
-
-:class:`~imu_ground.pipeline.streaming.StreamingEstimator` drives them, sample by sample, and its whole-log run
-(``estimate --causal``) drives the same objects over a log.
+"""The live front end, in the order a raw sample passes it: :class:`SampleClock` (raw stamps to a strictly
+increasing clock), :mod:`~imu_ground.imu.live.causal_standstill` (standstills and gyro bias from the past alone),
+:class:`StreamingPreintegrator` (samples to frames) and :class:`SpeedBuffer` (the measured speed over each
+frame), driven by :class:`~imu_ground.pipeline.streaming.StreamingEstimator`.
 """
 from imu_ground._lazy import lazy_exports
 

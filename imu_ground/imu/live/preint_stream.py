@@ -15,7 +15,8 @@ import numpy as np
 from imu_ground.imu.preint_kernel import (_O_N, _O_SIZE, _O_TEND, _O_TSTART, _O_VALID, _S_ACTIVE, _S_BIAS, _S_CD,
                                           _S_K, _S_LIM, _S_MARK, _S_N, _S_NEXT, _S_ORIGIN, _S_PREV, _S_TSTART, _S_UNC,
                                           _S_UNCERTAINTY, _S_VALID, push_step, state_buffer)
-from imu_ground.imu.preint_measurement import PreintegratedImu, PreintegrationParams, gap_message
+from imu_ground.imu.preint_measurement import PreintegratedImu
+from imu_ground.imu.preint_params import PreintegrationParams, gap_message
 from imu_ground.imu.warm_start import STATE_VERSION, StateError, StateReader, pack_state, unpack_state
 
 __all__ = ["StreamingPreintegrator"]
@@ -46,7 +47,7 @@ class StreamingPreintegrator:
     params : PreintegrationParams, optional
         ``uncertainty=False``: deltas only (the fast choice for a filter).
     **options
-        Fields of :class:`~imu_ground.imu.preint_measurement.PreintegrationParams` overriding ``params``.
+        Fields of :class:`~imu_ground.imu.preint_params.PreintegrationParams` overriding ``params``.
     """
 
     def __init__(self, frame_times: Iterable[float] | None = None, *,

@@ -1,9 +1,8 @@
 """Speed over a frame from the speed samples received so far (:class:`SpeedBuffer`).
 
-Keeps the few samples later frames still need and gives a frame's mean speed as
-:func:`~imu_ground.datasets.speed.frame_speed` defines it (its definition, holes included), once a
-sample at or after the frame's end has arrived (:meth:`covers`). Samples with a non-finite or
-repeated time, or after the frames they belong to, are ignored and counted (:attr:`rejected`).
+A frame's mean speed as :func:`~imu_ground.datasets.speed.frame_speed` defines it (holes included), once a sample
+at or after its end has arrived. Samples with a non-finite or repeated time, or after their frames, are ignored
+and counted (:attr:`SpeedBuffer.rejected`).
 """
 from __future__ import annotations
 
@@ -15,7 +14,7 @@ import numpy as np
 
 __all__ = ["SpeedBuffer"]
 
-#: Slack of the span test, s (as :func:`~imu_ground.datasets.speed.frame_speed`'s).
+#: Slack of the span test, s (as ``frame_speed``'s).
 _EDGE = 1e-9
 
 
@@ -139,7 +138,7 @@ class SpeedBuffer:
                 "done_until": None if self.done_until == -math.inf else self.done_until,
                 "rejected": dict(self.rejected)}
 
-    def load_checked(self, r: Any, limit: int) -> None:
+    def load_checked(self, r: Any, limit: float) -> None:
         """Resume from a :meth:`state_dict` read through ``r`` (a :class:`~imu_ground.imu.warm_start.StateReader`),
         checked (at most ``limit`` samples, increasing times); else a ``StateError`` naming the entry."""
         times = r.state.get("t") if isinstance(r.state, dict) else None
@@ -156,7 +155,6 @@ class SpeedBuffer:
         self.done_until = -math.inf if done is None else done
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        self.t, self.v = [float(x) for x in state["t"]], [float(x) for x in state["v"]]
-        self.received = bool(state["received"])
-        self.done_until = -math.inf if state["done_until"] is None else float(state["done_until"])
-        self.rejected = {k: int(n) for k, n in state["rejected"].items()}
+        """Resume from :meth:`state_dict` (checked as :meth:`load_checked`)."""
+        from imu_ground.imu.warm_start import StateReader
+        self.load_checked(StateReader("SpeedBuffer", state), math.inf)
