@@ -26,8 +26,8 @@ from imu_ground.imu.data import ImuData
 
 from .csvio import Columns, numeric, read_delimited
 from .skeleton import finish, register_format, with_finish_parameters
-from .unit_checks import (ACCEL_UNITS, GYRO_UNITS, TIME_UNITS, UNIT_OPTIONS, detect_time_unit, motion_in_si, raw_times,
-                          settle_unit, unit_scale)
+from .unit_checks import (ACCEL_UNITS, GYRO_UNITS, TIME_UNITS, UNIT_OPTIONS, check_units, detect_time_unit,
+                          motion_in_si, raw_times, settle_unit, unit_scale)
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -167,9 +167,7 @@ def _split(kw: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
     mapping = {k: kw.pop(k) for k in _MAPPING_KEYS if k in kw}
     if columns is not None:
         mapping.update(parse_columns(columns))
-    for kind in ("time", "gyro", "accel"):
-        if mapping.get(f"{kind}_unit") is not None:
-            unit_scale(kind, mapping[f"{kind}_unit"])  # fail on a bad unit before reading anything
+    check_units(**{k: mapping.get(k) for k in UNIT_OPTIONS})
     return mapping, kw
 
 
