@@ -78,7 +78,7 @@ class _Clock:
         return o
 
     def events(self, raw: np.ndarray | None) -> np.ndarray:
-        """Positions ``i`` where the offset steps by over half a sample to ``i + 1`` (``raw``: the raw steps, or None)."""
+        """Positions ``i`` where the offset steps by over half a sample to ``i + 1`` (``raw``: the raw steps)."""
         n = self.t.size
         if raw is not None and self.k is None and self.shortcuts():
             cand = np.flatnonzero((raw < (0.5 + 2e-3) * self.dt) | (raw > (1.5 - 2e-3) * self.dt))

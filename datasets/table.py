@@ -1,17 +1,7 @@
 """Generic IMU tables: CSV (optionally compressed), Parquet, or a pandas DataFrame with named columns.
 
-You say which columns hold time, angular rate and specific force; their units
-are told from the data when you do not say them (see
-:mod:`imu_ground.datasets.unit_checks`: converted with one warning where the
-evidence is unambiguous, else an error naming ``time_unit`` / ``gyro_unit`` /
-``accel_unit``). The reader converts to the :class:`~imu_ground.imu.data.ImuData`
-conventions (s, rad/s, m/s^2) and keeps every other column in ``extra``.
-
-Example
--------
->>> imu = read_table("log.csv", time="timestamp", time_unit="ns",
-...                  gyro=("gx", "gy", "gz"), gyro_unit="deg/s",
-...                  accel=("ax", "ay", "az"), accel_unit="g")   # doctest: +SKIP
+The columns of time, angular rate and specific force are named (``columns``); units not given are told from
+the data (:mod:`imu_ground.datasets.unit_checks`); the result is in s, rad/s, m/s^2, other columns in ``extra``.
 """
 from __future__ import annotations
 
@@ -41,14 +31,12 @@ TABLE_SUFFIXES = (".csv", ".csv.gz", ".txt", ".tsv", ".csv.bz2", ".txt.gz", ".ts
 PARQUET_SUFFIXES = (".parquet", ".pq")
 
 
-#: The quantities a table needs, in ``columns`` order: time, angular rate x y z, specific force x y z.
+#: The quantities a table needs: time, angular rate x y z, specific force x y z.
 QUANTITIES = ("t", "wx", "wy", "wz", "ax", "ay", "az")
 
 
 def parse_columns(columns: str | Mapping[str, str]) -> dict[str, Any]:
-    """``columns`` (``"t=timestamp,wx=gyro_x,..."`` or a mapping) as ``time``/``gyro``/``accel`` keywords.
-
-    Quantities not named keep their default column names (``t``, ``wx``, ...).
+    """``columns`` (``"t=timestamp,wx=gyro_x,..."`` or a mapping; others keep their names) as keywords.
 
     Raises
     ------
@@ -74,7 +62,7 @@ def parse_columns(columns: str | Mapping[str, str]) -> dict[str, Any]:
 
 
 def _match_case(cols: Mapping[str, np.ndarray], wanted: str) -> str:
-    """``wanted``, or the one column equal to it regardless of case and surrounding spaces (else ``wanted``)."""
+    """``wanted``, or the one column equal to it regardless of case and surrounding spaces."""
     if wanted in cols:
         return wanted
     found = [c for c in cols if str(c).strip().lower() == wanted.strip().lower()]
@@ -88,13 +76,8 @@ def map_columns(cols: Mapping[str, np.ndarray], *, time: str = "t",
                 extra_units: Mapping[str, str] | None = None, relative_time: bool = True,
                 source: str = "<DataFrame>", row_lines: Callable | None = None,
                 extra: pd.DataFrame | None = None) -> ImuData:
-    """Named columns to an (unvalidated) :class:`ImuData`: pick, convert units, keep the rest.
-
-    Parameters are those of :func:`read_table`; ``cols`` maps column names to
-    arrays in file order, ``row_lines`` maps rows to 1-based file lines (kept in
-    ``meta["row_lines"]`` for the validation's messages), ``extra`` overrides the
-    extra columns (a DataFrame source keeps its own).
-    """
+    """Named columns (``cols``: name -> array in file order) to an unvalidated :class:`ImuData`; parameters as
+    :func:`read_table`, ``row_lines`` rows to 1-based file lines, ``extra`` the extra columns if given."""
     import pandas as pd
     gyro, accel = tuple(gyro), tuple(accel)
     for name, c3 in (("gyro", gyro), ("accel", accel)):
@@ -180,25 +163,19 @@ def read_table(source: str | Path | pd.DataFrame, *, sep: str | None = None, dec
     ----------
     source : str, Path or pandas.DataFrame
         A delimited text file with a header line, or a DataFrame.
-    sep : str, optional
-        Field separator; None: a tab for ``.tsv``, else whichever of ``,``, tab and ``;`` splits the
-        header into the most fields (:func:`~imu_ground.datasets.csvio.detect_dialect`).
-    decimal : str, optional
-        Decimal mark (``"."`` or ``","``); None: a comma when the fields are not comma-separated and
-        the first data row writes its numbers so (``9,81``).
+    sep, decimal : str, optional
+        Field separator and decimal mark; None: told from the file (:func:`~imu_ground.datasets.csvio.detect_dialect`).
     {finish_parameters}
 
     Other Parameters
     ----------------
     columns : str or dict, optional
-        Which column holds what, ``"t=timestamp,wx=gyro_x,..."`` or ``{"t": "timestamp", ...}`` (keys
-        of :data:`QUANTITIES`; the others keep their default names; ``--columns``). Names are matched
-        regardless of case.
+        Which column holds what, ``"t=timestamp,wx=gyro_x,..."`` or ``{"t": "timestamp", ...}`` (keys of
+        :data:`QUANTITIES`, others keep their names; ``--columns``), matched regardless of case.
     time : str
-        Time column (numbers, or a datetime column), default ``"t"``.
+        Time column (numbers, or datetimes), default ``"t"``.
     gyro, accel : tuple of 3 str
-        Angular-rate columns about, and specific-force columns along, the body x, y, z axes
-        (default ``wx, wy, wz`` and ``ax, ay, az``; +1 g on the up axis at rest).
+        Angular rate about, and specific force along, the body x, y, z axes (default ``wx, wy, wz``, ``ax, ay, az``).
     time_unit : {"s", "ms", "us", "µs", "ns"}, optional
     gyro_unit : {"rad/s", "deg/s"}, optional
     accel_unit : {"m/s^2", "m/s2", "g"}, optional
@@ -208,8 +185,7 @@ def read_table(source: str | Path | pd.DataFrame, *, sep: str | None = None, dec
     extra_units : dict, optional
         Units of the other columns (kept in ``extra``), default ``"unknown"``.
     relative_time : bool
-        Shift ``t`` to start at 0 (default), the first time, s, in ``meta["t0"]``; integer times
-        are shifted before conversion (exact ns).
+        Shift ``t`` to start at 0 (default; the first time, s, in ``meta["t0"]``; integers shifted first).
 
     Returns
     -------
@@ -222,8 +198,8 @@ def read_table(source: str | Path | pd.DataFrame, *, sep: str | None = None, dec
     FileNotFoundError
         The file does not exist.
     MalformedFileError
-        Empty file, a line with the wrong number of fields, or a non-number in a time/gyro/accel
-        column (naming the file and 1-based line).
+        Empty file, a line with the wrong field count, or a non-number in a time/gyro/accel column (naming
+        the file and 1-based line).
     ImuInputError
         Unknown unit, units the data cannot decide, or a missing column (naming the option).
     """
