@@ -269,27 +269,23 @@ def read_delimited(path: str | Path, sep: str | None = ",", *,
     """
     import pandas as pd
     path = Path(path)
-    if sep is None or decimal is None:
-        open_binary(path).close()           # the missing-file and not-a-file messages
-        try:
-            found = detect_dialect(path)
-        except (EOFError, zlib.error, OSError, *_isal_errors()) as e:  # type: ignore[misc]  # (a .gz that is none; mypy: no starred except tuple)
-            raise MalformedFileError(path, f"truncated or corrupt gzip file ({e})") from e
-        sep, decimal = sep or found[0], decimal or found[1]
+    corrupt = (EOFError, zlib.error, OSError, *_isal_errors())     # (gzip.BadGzipFile is an OSError)
     try:
-        cols, n, blank = _parse(path, sep, stack, decimal)
+        try:
+            if sep is None or decimal is None:
+                open_binary(path).close()           # the missing-file and not-a-file messages
+                found = detect_dialect(path)
+                sep, decimal = sep or found[0], decimal or found[1]
+            cols, n, blank = _parse(path, sep, stack, decimal)
+        except pd.errors.ParserError as e:  # (a corrupt gzip stream may first show as lines of the wrong length)
+            err = locate_bad_lines(path, sep)
+            if err is not None:
+                raise err from None
+            m = re.search(r"line (\d+)", str(e))
+            raise MalformedFileError(path, f"cannot parse: {e}", line=int(m.group(1)) if m else None) from e
     except pd.errors.EmptyDataError as e:
         raise MalformedFileError(path, "file is empty") from e
-    except pd.errors.ParserError as e:
-        try:                            # (a corrupt gzip stream may first show as lines of the wrong length)
-            err = locate_bad_lines(path, sep)
-        except (EOFError, gzip.BadGzipFile, zlib.error, *_isal_errors()) as z:  # type: ignore[misc]  # (mypy: no starred except tuple)
-            raise MalformedFileError(path, f"truncated or corrupt gzip file ({z})") from e
-        if err is not None:
-            raise err from None
-        m = re.search(r"line (\d+)", str(e))
-        raise MalformedFileError(path, f"cannot parse: {e}", line=int(m.group(1)) if m else None) from e
-    except (EOFError, gzip.BadGzipFile, zlib.error, OSError, *_isal_errors()) as e:  # type: ignore[misc]  # (mypy: no starred except tuple)
+    except corrupt as e:
         if isinstance(e, FileNotFoundError):
             raise
         raise MalformedFileError(path, f"truncated or corrupt gzip file ({e})") from e
@@ -309,31 +305,21 @@ def return_free_memory() -> None:
         pass
 
 
-def _stack_layout(names: list[str], stack: Mapping[str, Sequence[str]] | None,
-                  numeric: Callable[[str], bool]) -> dict[str, tuple[str, int]]:
-    """Column -> (stack name, position) for the stacks that apply (see :func:`read_delimited`'s ``stack``)."""
-    into: dict[str, tuple[str, int]] = {}
-    for name, members in (stack or {}).items():
-        at = names.index(members[0]) if members and members[0] in names else -1
-        if (at >= 0 and name not in names and names[at:at + len(members)] == list(members)
-                and all(numeric(c) for c in members)):
-            into.update({c: (name, j) for j, c in enumerate(members)})
-    return into
-
-
 def _join_columns(names: list[str], parts: dict[str, list[np.ndarray]], n: int,
                   stack: Mapping[str, Sequence[str]] | None = None) -> Columns:
     """Each column's chunks as one array, the ``stack`` ones side by side (``parts`` is emptied)."""
-    into = _stack_layout(names, stack, lambda c: all(x.dtype.kind in "fiu" for x in parts[c]))
-    members: dict[str, list[str]] = {}
-    for c, (g, _) in sorted(into.items(), key=lambda item: item[1][1]):
-        members.setdefault(g, []).append(c)
+    groups: dict[str, Sequence[str]] = {}       # the stacks that apply (see read_delimited)
+    for name, members in (stack or {}).items():
+        at = names.index(members[0]) if members and members[0] in names else -1
+        if (at >= 0 and name not in names and names[at:at + len(members)] == list(members)
+                and all(x.dtype.kind in "fiu" for c in members for x in parts[c])):
+            groups[name] = members
+    into = {c: name for name, members in groups.items() for c in members}
     cols: Columns = {}
     for c in names:
         if c in into:
-            name = into[c][0]
-            if name not in cols:
-                cols[name] = _fill_stack(n, [parts.pop(m) for m in members[name]])
+            if into[c] not in cols:
+                cols[into[c]] = _fill_stack(n, [parts.pop(m) for m in groups[into[c]]])
             continue
         chunks = parts.pop(c)
         if len(chunks) == 1:            # pandas' own array (read-only under copy-on-write): not copied
