@@ -269,13 +269,13 @@ def read_delimited(path: str | Path, sep: str | None = ",", *,
     """
     import pandas as pd
     path = Path(path)
-    corrupt = (EOFError, zlib.error, OSError, *_isal_errors())     # (gzip.BadGzipFile is an OSError)
+    corrupt: tuple[type[BaseException], ...] = (EOFError, zlib.error, OSError, *_isal_errors())  # (BadGzipFile too)
     try:
+        if sep is None or decimal is None:
+            open_binary(path).close()           # the missing-file and not-a-file messages
+            found = detect_dialect(path)
+            sep, decimal = sep or found[0], decimal or found[1]
         try:
-            if sep is None or decimal is None:
-                open_binary(path).close()           # the missing-file and not-a-file messages
-                found = detect_dialect(path)
-                sep, decimal = sep or found[0], decimal or found[1]
             cols, n, blank = _parse(path, sep, stack, decimal)
         except pd.errors.ParserError as e:  # (a corrupt gzip stream may first show as lines of the wrong length)
             err = locate_bad_lines(path, sep)

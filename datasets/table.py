@@ -77,7 +77,7 @@ def map_columns(cols: Mapping[str, np.ndarray], *, time: str = "t",
                 source: str = "<DataFrame>", row_lines: Callable | None = None,
                 extra: pd.DataFrame | None = None) -> ImuData:
     """Named columns (``cols``: name -> array in file order) to an unvalidated :class:`ImuData`; parameters as
-    :func:`read_table`, ``row_lines`` rows to 1-based file lines, ``extra`` the extra columns if given."""
+    :func:`read_table`, ``row_lines`` rows to 1-based file lines, ``extra`` the source DataFrame if any."""
     import pandas as pd
     gyro, accel = tuple(gyro), tuple(accel)
     for name, c3 in (("gyro", gyro), ("accel", accel)):
@@ -109,6 +109,9 @@ def map_columns(cols: Mapping[str, np.ndarray], *, time: str = "t",
     extra_cols = [c for c in cols if c not in needed]
     if extra is None:
         extra = pd.DataFrame({c: cols[c] for c in extra_cols}, copy=False) if extra_cols else pd.DataFrame()
+    else:                                           # a DataFrame source keeps its own columns
+        rest = [c for c in extra.columns if str(c) in extra_cols]
+        extra = extra[rest].reset_index(drop=True) if rest else pd.DataFrame()
     units = {str(c): dict(extra_units or {}).get(str(c), "unknown") for c in extra_cols}
     meta: dict[str, Any] = {
         "format": "table", "t0": t0,
@@ -131,12 +134,7 @@ def from_dataframe(df: pd.DataFrame, *, source: str = "<DataFrame>", validate: b
                    policy: str = "retime", **kw: Any) -> ImuData:
     """Build an :class:`ImuData` from a DataFrame; see :func:`read_table` for the parameters."""
     mapping, options = _split(kw)
-    cols = {str(c): df[c].to_numpy() for c in df.columns}
-    needed = {_match_case(cols, c) for c in (mapping.get("time", "t"), *mapping.get("gyro", ("wx", "wy", "wz")),
-                                             *mapping.get("accel", ("ax", "ay", "az")))}
-    rest = [c for c in df.columns if str(c) not in needed]
-    extra = df[rest].reset_index(drop=True) if rest else None
-    imu = map_columns(cols, source=source, extra=extra, **mapping)
+    imu = map_columns({str(c): df[c].to_numpy() for c in df.columns}, source=source, extra=df, **mapping)
     return finish(imu, validate=validate, policy=policy, **options)
 
 
