@@ -2,6 +2,7 @@
 importable from here too). Nothing here imports a reader."""
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
@@ -46,12 +47,8 @@ class Gap(NamedTuple):
     length: float
 
 
-def _empty_int() -> np.ndarray:
-    return np.zeros(0, dtype=np.int64)
-
-
-def _empty_float() -> np.ndarray:
-    return np.zeros(0, dtype=float)
+_empty_int = functools.partial(np.zeros, 0, dtype=np.int64)
+_empty_float = functools.partial(np.zeros, 0, dtype=float)
 
 
 @dataclass

@@ -129,10 +129,6 @@ def _orientation(d: np.ndarray) -> np.ndarray | None:
     return d[:, [3, 0, 1, 2]]
 
 
-def _axes(frame_id: str) -> str:
-    return "RDF" if "optical" in frame_id else "FLU"
-
-
 @with_finish_parameters
 def read_rosbag_imu(path: PathLike, *, topic: str | None = None, time_source: str = "header",
                     stamp_tolerance: float = 0.1, validate: bool = True, policy: str = "retime",
@@ -180,7 +176,7 @@ def read_rosbag_imu(path: PathLike, *, topic: str | None = None, time_source: st
     meta = {"format": "rosbag", "topic": conns[0].topic, "frame_id": frame_id, "t0_ns": int(ns[0]),
             "t0": int(ns[0]) / 1e9, "t0_clock": f"{used} time of the first message",
             "time_source": used, "record_t0_ns": int(rec[0])}
-    imu = ImuData((ns - ns[0]) / 1e9, d[:, 13:16], d[:, 25:28], _axes(frame_id), extra,
+    imu = ImuData((ns - ns[0]) / 1e9, d[:, 13:16], d[:, 25:28], "RDF" if "optical" in frame_id else "FLU", extra,
                   {c: "1" for c in extra.columns}, str(p), meta)
     return finish(imu, validate=validate, policy=policy, **validate_kw)
 

@@ -236,10 +236,6 @@ def _check_time_order(p: Path, t: np.ndarray, tcol: str, row_lines: RowLines) ->
                              "sort it by time and remove repeated rows", line=line)
 
 
-def _imu_t0(imu) -> float:
-    return float(imu.meta.get("t0", 0.0)) if imu is not None else 0.0
-
-
 def _nuscenes_speed(imu, path: Path) -> tuple[np.ndarray, np.ndarray]:
     from imu_ground.datasets.nuscenes import find_ms_imu
     ms = find_ms_imu(path)
@@ -261,7 +257,8 @@ def _comma_speed(imu, path: Path) -> tuple[np.ndarray, np.ndarray]:
         raise FileNotFoundError(f"{can}: no CAN speed in this comma2k19 segment")
     t = np.load(can / "t", allow_pickle=False)
     v = np.load(can / "value", allow_pickle=False)
-    return _checked(t - _imu_t0(imu), np.asarray(v, dtype=float).reshape(len(t), -1)[:, 0], str(can))
+    t0 = float(imu.meta.get("t0", 0.0)) if imu is not None else 0.0
+    return _checked(t - t0, np.asarray(v, dtype=float).reshape(len(t), -1)[:, 0], str(can))
 
 
 def log_speed(path: str | Path, format: str, imu=None, topic: str | None = None

@@ -280,7 +280,11 @@ def validate(imu: ImuData, policy: Policy = "retime", *,
 
     # 5. input rows kept, in output order (None: every row, in order); enough of them?
     keep = (good if keep_pos is None else good[keep_pos]) if good is not None else keep_pos
-    _record_dropped(report, keep, n)
+    report.n_out = n if keep is None else int(keep.size)
+    if report.n_out < n:                # (keep holds distinct rows)
+        dropped = np.ones(n, dtype=bool)
+        dropped[keep] = False
+        report.dropped_index = np.flatnonzero(dropped)
     if report.n_out == 1 and n > 1:
         _all_equal_times(imu.t if good is None else imu.t[good], src, report, float(imu.meta.get("t0") or 0.0))
     if report.n_out < max(min_samples, 1):
@@ -334,15 +338,3 @@ def _sensors(report: ValidationReport, gyro: np.ndarray, accel: np.ndarray, rest
                    "standstill tilt can be estimated")
     if msg is not None:
         act(action, msg, SensorWarning, report)
-
-
-def _record_dropped(report: ValidationReport, keep: np.ndarray | None, n: int) -> None:
-    """``dropped_index`` and ``n_out`` of the report from the input rows kept (None: all ``n``)."""
-    n_out = n if keep is None else int(keep.size)
-    if n_out == n:                      # keep holds distinct rows: all of them
-        report.dropped_index = np.zeros(0, dtype=np.intp)
-    else:
-        dropped = np.ones(n, dtype=bool)
-        dropped[keep] = False
-        report.dropped_index = np.flatnonzero(dropped)
-    report.n_out = n_out
