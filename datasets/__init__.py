@@ -1,25 +1,11 @@
 """Readers of IMU logs; each returns a validated :class:`~imu_ground.imu.data.ImuData`.
 
-=================  ===========================================  ===================
-format             what                                         reader
-=================  ===========================================  ===================
-``kitti_oxts``     KITTI raw drive / ``oxts`` folder (10, 100   :func:`read_kitti_oxts`
-                   Hz)
-``comma2k19``      comma2k19 segment folder                     :func:`read_comma2k19`
-``nuscenes``       nuScenes CAN bus ``*_ms_imu.json``           :func:`read_nuscenes_imu`
-``rosbag``         ROS 1 ``.bag``, ``.mcap``, ROS 2 bag folder  ``rosbag.read_rosbag_imu`` (lazy)
-``parquet``        Parquet IMU table                            :func:`read_parquet_table`
-``kitti_imu100``   KITTI 100 Hz CSV(.gz) ``t,wx,...,pz``        :func:`read_kitti_imu100`
-``table``          any CSV(.gz) / DataFrame with a column map   :func:`read_table`
-=================  ===========================================  ===================
-
-Every format registers a probe and a reader with
-:func:`~imu_ground.datasets.skeleton.register_format`; :func:`read_imu` picks
-the reader from the path (:func:`detect_format`). Every reader ends in
-:func:`~imu_ground.datasets.skeleton.finish` (validation, ``policy="retime"``
-by default; see :mod:`imu_ground.datasets.validation`), which stores the report
-in ``meta["validation"]``. Pose files (KITTI odometry, TUM) are read by
-:func:`read_poses`; handed to :func:`read_imu` they get a :class:`PoseFileError`.
+Formats (:data:`FORMATS`, detected by :func:`read_imu`): ``kitti_oxts`` (:func:`read_kitti_oxts`), ``comma2k19``
+(:func:`read_comma2k19`), ``nuscenes`` (:func:`read_nuscenes_imu`), ``rosbag`` (``rosbag.read_rosbag_imu``),
+``parquet`` (:func:`read_parquet_table`), ``kitti_imu100`` (:func:`read_kitti_imu100`), ``table`` (any CSV or
+DataFrame, :func:`read_table`); each registered with :func:`~imu_ground.datasets.skeleton.register_format` and
+ending in :func:`~imu_ground.datasets.skeleton.finish` (validation, report in ``meta["validation"]``). Pose files
+(KITTI odometry, TUM) are read by :func:`read_poses`; handed to :func:`read_imu` they get a :class:`PoseFileError`.
 """
 from __future__ import annotations
 

@@ -7,10 +7,8 @@ Layout (NumPy ``.npy`` arrays stored without extension)::
     <segment>/processed_log/IMU/accelerometer/t      (M,)   s, log clock
     <segment>/processed_log/IMU/accelerometer/value  (M, 3) m/s^2
 
-Both are in the phone's own axes (frame ``"device"``; not rotated into a
-vehicle frame).  Gyro and accelerometer have their own time bases: the
-accelerometer is linearly interpolated onto the gyro times, and
-``meta["accel_alignment"]`` says how far apart the two bases were.
+Both are in the phone's own axes (frame ``"device"``, not rotated). The accelerometer is linearly
+interpolated onto the gyro's times; ``meta["accel_alignment"]`` says how far apart the two bases were.
 """
 from __future__ import annotations
 
@@ -19,10 +17,10 @@ from typing import Any
 
 import numpy as np
 
+from imu_ground.errors import ImuValidationWarning, MalformedFileError, warn_user
 from imu_ground.imu.data import ImuData
 
-from imu_ground.errors import ImuValidationWarning, MalformedFileError, warn_user
-from .skeleton import finish, register_format
+from .skeleton import finish, register_format, with_finish_parameters
 from .timestamps import check_timestamps
 
 __all__ = ["find_imu_dir", "read_comma2k19"]
@@ -61,6 +59,7 @@ def _load(path: Path, ndim: int) -> np.ndarray:
     return np.asarray(arr, dtype=float)
 
 
+@with_finish_parameters
 def read_comma2k19(path: str | Path, *, validate: bool = True, policy: str = "retime",
                    **validate_kw: Any) -> ImuData:
     """Read the IMU of a comma2k19 segment, accelerometer aligned onto gyro times.
@@ -68,27 +67,19 @@ def read_comma2k19(path: str | Path, *, validate: bool = True, policy: str = "re
     Parameters
     ----------
     path : str or Path
-        The segment folder (holding ``processed_log``), or its ``processed_log``
-        or ``processed_log/IMU`` folder.
-    validate : bool
-        Run :func:`imu_ground.datasets.validation.validate` (default True).
-    policy : {"retime", "drop", "sort", "strict", "recorded"}
-        Time-order policy of the result; the accelerometer's own times (only
-        interpolated from) get ``"drop"`` under ``"retime"``.
-    **validate_kw
-        Other options of :func:`~imu_ground.datasets.validation.validate`.
+        The segment folder (holding ``processed_log``), or its ``processed_log`` or ``processed_log/IMU``
+        folder.
+    {finish_parameters}
+        (the accelerometer's own times, only interpolated from, get ``"drop"`` under ``"retime"``)
 
     Returns
     -------
     ImuData
-        ``t`` s from the first gyro sample; ``gyro`` rad/s at the gyro's times;
-        ``accel`` m/s^2 linearly interpolated from the accelerometer's times;
-        frame ``"device"`` (the phone's axes).  ``meta``: ``format``, ``t0`` (first
-        gyro time on the log clock, s), ``t0_clock``, ``accel_alignment``
-        (method, ``identical_time_bases``, ``max_offset_s``: largest distance
-        from a gyro time to the nearest accelerometer time, ``n_gyro_outside_accel``:
-        gyro samples dropped because they lie outside the accelerometer's time
-        span, ``n_accel_dropped``), ``validation``.
+        ``t`` s from the first gyro sample, ``gyro`` rad/s, ``accel`` m/s^2 interpolated onto the gyro
+        times, frame ``"device"``. ``meta``: ``format``, ``t0`` (first gyro time on the log clock, s),
+        ``t0_clock``, ``accel_alignment`` (``method``, ``identical_time_bases``, ``max_offset_s``: largest
+        distance from a gyro time to the nearest accelerometer time, ``n_gyro_outside_accel``: gyro samples
+        dropped outside the accelerometer's span, ``n_accel_dropped``, ``accel_rate_hz``), ``validation``.
 
     Raises
     ------
@@ -107,10 +98,8 @@ def read_comma2k19(path: str | Path, *, validate: bool = True, policy: str = "re
             raise MalformedFileError(imu_dir / name / "value",
                                      f"{v_.shape[0]} samples but {imu_dir / name / 't'} has {t_.shape[0]}")
     identical = tg.shape == ta.shape and bool(np.array_equal(tg, ta))
-
     # the accelerometer's own time base must be finite and increasing for np.interp
     fin = np.flatnonzero(np.isfinite(ta))
-    n_accel_in = ta.size
     if fin.size < ta.size:
         warn_user(f"{imu_dir / 'accelerometer' / 't'}: {ta.size - fin.size} non-finite time(s) "
                   f"(first at index {int(np.flatnonzero(~np.isfinite(ta))[0])}); those "
@@ -119,7 +108,6 @@ def read_comma2k19(path: str | Path, *, validate: bool = True, policy: str = "re
                                   gaps="ignore", source=str(imu_dir / "accelerometer" / "t"), index=fin)
     sel = fin[keep]
     ta_k, va_k = ta[sel], va[sel]
-
     # gyro samples outside the accelerometer's span cannot be interpolated
     inside = ((tg >= ta_k[0]) & (tg <= ta_k[-1])) | ~np.isfinite(tg)
     n_out = int((~inside).sum())
@@ -137,19 +125,12 @@ def read_comma2k19(path: str | Path, *, validate: bool = True, policy: str = "re
         max_off = 0.0 if identical else float("nan")
 
     t_first = float(tg_in[0]) if tg_in.size and np.isfinite(tg_in[0]) else 0.0
-    meta: dict[str, Any] = {
-        "format": "comma2k19",
-        "t0": t_first,
-        "t0_clock": "comma2k19 log clock (s)",
-        "accel_alignment": {
-            "method": "accelerometer linearly interpolated onto the gyro times (numpy.interp per axis)",
-            "identical_time_bases": identical,
-            "max_offset_s": max_off,
-            "n_gyro_outside_accel": n_out,
-            "n_accel_dropped": int(n_accel_in - sel.size),
-            "accel_rate_hz": float(1.0 / np.median(np.diff(ta_k))) if ta_k.size > 1 else float("nan"),
-        },
-    }
+    align = {"method": "accelerometer linearly interpolated onto the gyro times (numpy.interp per axis)",
+             "identical_time_bases": identical, "max_offset_s": max_off, "n_gyro_outside_accel": n_out,
+             "n_accel_dropped": int(ta.size - sel.size),
+             "accel_rate_hz": float(1.0 / np.median(np.diff(ta_k))) if ta_k.size > 1 else float("nan")}
+    meta: dict[str, Any] = {"format": "comma2k19", "t0": t_first, "t0_clock": "comma2k19 log clock (s)",
+                            "accel_alignment": align}
     imu = ImuData(tg_in - t_first, wg_in, acc, "device", source=str(imu_dir), meta=meta)
     return finish(imu, validate=validate, policy=policy, **validate_kw)
 

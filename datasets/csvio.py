@@ -1,11 +1,8 @@
 """Delimited text files: one parse through pandas' C engine, in chunks; bad lines found only on failure.
 
-:func:`read_delimited` hands the file to :func:`pandas.read_csv` (C engine, ``.bz2``
-decompressed by pandas, ``.gz`` by :func:`open_gzip`) and takes the columns chunk by chunk, so
-the working memory grows with the parsed columns, not with the text. Only when the parse fails
-or looks suspicious (a short line fills the last column with NaN) does :func:`locate_bad_lines`
-walk the file to name the first bad line (1-based file line). pandas alone owns every parse
-message.
+:func:`read_delimited` takes the columns of :func:`pandas.read_csv` chunk by chunk (the working memory
+follows the columns, not the text). Only when the parse fails or looks suspicious (a short line leaves NaN
+in the last column) does :func:`locate_bad_lines` walk the file to name the first bad line.
 """
 from __future__ import annotations
 
@@ -52,7 +49,7 @@ def _isal_errors() -> tuple[type[BaseException], ...]:
 
 def open_gzip(path: Path) -> io.BufferedIOBase:
     """A ``.gz`` file's decompressed bytes: python-isal's igzip in a thread of its own when installed (the ``fast``
-    extra: the same bytes, the CRC checked, decompression beside the parse), else the standard :mod:`gzip`."""
+    extra), else the standard :mod:`gzip`."""
     try:
         from isal import igzip_threaded
     except ImportError:
@@ -94,11 +91,9 @@ def _first_lines(path: Path, count: int) -> list[str]:
 def detect_dialect(path: str | Path) -> tuple[str, str]:
     """The field separator and decimal mark of a delimited text file with a header line.
 
-    The separator: a tab for ``.tsv`` files (also ``.tsv.gz`` / ``.tsv.bz2``); else the one of
-    :data:`SEPARATORS` that splits the header line into the most fields (a comma when none
-    does). The decimal mark: a comma when fields are not separated by commas and the first
-    data row holds a number written with a decimal comma (``9,81``) and none with a point;
-    else a point.
+    The separator: a tab for ``.tsv`` (``.gz``, ``.bz2``), else the one of :data:`SEPARATORS` that splits the
+    header into the most fields (a comma when none does). The decimal mark: a comma when fields are not
+    comma-separated and the first data row has a number written so (``9,81``) and none with a point.
 
     Returns
     -------
@@ -128,8 +123,7 @@ class RowLines:
     Parameters
     ----------
     blank : ndarray of int
-        Positions, among the lines after the header, of the blank lines the
-        parser saw (usually none: row ``r`` is then on line ``r + 2``).
+        Positions, among the lines after the header, of the blank lines (none: row ``r`` is on line ``r + 2``).
     """
 
     def __init__(self, blank: np.ndarray) -> None:
@@ -150,8 +144,7 @@ def _iter_lines(path: Path) -> Iterator[tuple[int, bytes]]:
 
 
 def locate_bad_lines(path: Path, sep: str = ",") -> MalformedFileError | None:
-    """The error for the first line whose field count differs from the header's (None: all agree); walks the
-    whole file once (failure path only), so the message counts every bad line."""
+    """The error for the first line whose field count differs from the header's (None: all agree), counting all."""
     sep_b = sep.encode()
     numbers: list[int] = []
     counts: list[int] = []
@@ -176,7 +169,7 @@ def locate_bad_lines(path: Path, sep: str = ",") -> MalformedFileError | None:
 
 
 def _blank(x: np.ndarray) -> np.ndarray:
-    """Missing or whitespace-only values (what a blank line leaves in a column)."""
+    """Missing or whitespace-only values (what a blank line leaves)."""
     import pandas as pd
     empty = np.asarray(pd.isna(x))
     if x.dtype == object:
@@ -185,7 +178,7 @@ def _blank(x: np.ndarray) -> np.ndarray:
 
 
 def _drop_blank_rows(arrays: list[np.ndarray], first_row: int, blank: list[np.ndarray]) -> list[np.ndarray]:
-    """The chunk's columns without its blank lines (all-NaN or whitespace rows), whose raw rows go to ``blank``."""
+    """The chunk's columns without its blank lines, whose raw rows go to ``blank``."""
     empty = _blank(arrays[0])
     if empty.any():
         for x in arrays[1:]:
@@ -198,7 +191,7 @@ def _drop_blank_rows(arrays: list[np.ndarray], first_row: int, blank: list[np.nd
 
 def _parse(path: Path, sep: str, stack: Mapping[str, Sequence[str]] | None,
            decimal: str = ".") -> tuple[Columns, int, np.ndarray]:
-    """Chunked C-engine parse: (columns, rows, blank-line positions); the chunks joined by :func:`_join_columns`."""
+    """Chunked C-engine parse: (columns, rows, blank-line positions)."""
     import pandas as pd
     open_binary(path).close()           # the missing-file and not-a-file messages
     names: list[str] = []
@@ -252,24 +245,17 @@ def read_delimited(path: str | Path, sep: str | None = ",", *,
     ----------
     path : str or Path
         The file (``.gz`` / ``.bz2`` decompressed as a stream).
-    sep : str or None
-        Field separator; None: told from the file (:func:`detect_dialect`).
-    decimal : str or None
-        Decimal mark of the numbers (``"."`` or ``","``); None: told from the file
-        (:func:`detect_dialect`).
+    sep, decimal : str or None
+        Field separator and decimal mark (``"."`` or ``","``); None: told from the file (:func:`detect_dialect`).
     stack : mapping of str to sequence of str, optional
-        New name -> columns to return side by side as one float64 array (N, k)
-        under the new name (in their place), written there straight from the
-        parsed chunks; only when they are consecutive in the header in this
-        order, all numbers, and no column has the new name (else they come
-        back one by one, as without ``stack``).
+        New name -> columns returned side by side as one float64 array (N, k) in their place, when they are
+        consecutive in the header in this order, all numbers, and no column has the new name.
 
     Returns
     -------
     columns : dict of str to ndarray
-        One array per column, in file order (float or int where every value is
-        a number, else object), the stacked ones as asked. They may be
-        read-only (pandas' own arrays, not copied): compute new arrays from them.
+        One array per column, in file order (float or int where every value is a number, else object), maybe
+        read-only (pandas' own).
     row_lines : RowLines
         Data row -> 1-based file line.
 
@@ -278,32 +264,28 @@ def read_delimited(path: str | Path, sep: str | None = ",", *,
     FileNotFoundError
         No such file.
     MalformedFileError
-        Empty file, header only, a line with the wrong number of fields
-        (first bad line and count), not UTF-8, truncated or corrupt compression.
+        Empty file, header only, a line with the wrong number of fields (first bad line and count), not
+        UTF-8, truncated or corrupt compression.
     """
     import pandas as pd
     path = Path(path)
-    if sep is None or decimal is None:
-        open_binary(path).close()           # the missing-file and not-a-file messages
-        try:
-            found = detect_dialect(path)
-        except (EOFError, zlib.error, OSError, *_isal_errors()) as e:  # type: ignore[misc]  # (a .gz that is none; mypy: no starred except tuple)
-            raise MalformedFileError(path, f"truncated or corrupt gzip file ({e})") from e
-        sep, decimal = sep or found[0], decimal or found[1]
+    corrupt: tuple[type[BaseException], ...] = (EOFError, zlib.error, OSError, *_isal_errors())  # (BadGzipFile too)
     try:
-        cols, n, blank = _parse(path, sep, stack, decimal)
+        if sep is None or decimal is None:
+            open_binary(path).close()           # the missing-file and not-a-file messages
+            found = detect_dialect(path)
+            sep, decimal = sep or found[0], decimal or found[1]
+        try:
+            cols, n, blank = _parse(path, sep, stack, decimal)
+        except pd.errors.ParserError as e:  # (a corrupt gzip stream may first show as lines of the wrong length)
+            err = locate_bad_lines(path, sep)
+            if err is not None:
+                raise err from None
+            m = re.search(r"line (\d+)", str(e))
+            raise MalformedFileError(path, f"cannot parse: {e}", line=int(m.group(1)) if m else None) from e
     except pd.errors.EmptyDataError as e:
         raise MalformedFileError(path, "file is empty") from e
-    except pd.errors.ParserError as e:
-        try:                            # (a corrupt gzip stream may first show as lines of the wrong length)
-            err = locate_bad_lines(path, sep)
-        except (EOFError, gzip.BadGzipFile, zlib.error, *_isal_errors()) as z:  # type: ignore[misc]  # (mypy: no starred except tuple)
-            raise MalformedFileError(path, f"truncated or corrupt gzip file ({z})") from e
-        if err is not None:
-            raise err from None
-        m = re.search(r"line (\d+)", str(e))
-        raise MalformedFileError(path, f"cannot parse: {e}", line=int(m.group(1)) if m else None) from e
-    except (EOFError, gzip.BadGzipFile, zlib.error, OSError, *_isal_errors()) as e:  # type: ignore[misc]  # (mypy: no starred except tuple)
+    except corrupt as e:
         if isinstance(e, FileNotFoundError):
             raise
         raise MalformedFileError(path, f"truncated or corrupt gzip file ({e})") from e
@@ -316,48 +298,28 @@ def read_delimited(path: str | Path, sep: str | None = ",", *,
 
 
 def return_free_memory() -> None:
-    """Give the C heap's free pages back to the system (glibc ``malloc_trim``; nothing elsewhere).
-
-    A long parse and its validation free about as much as they keep, in glibc heaps (one per
-    parsing thread) that later arrays cannot always reuse; :func:`~imu_ground.datasets.skeleton.finish`
-    calls this after reading a long log.
-    """
+    """Give the C heap's free pages back to the system (glibc ``malloc_trim``; nothing elsewhere), after a long read."""
     try:
         ctypes.CDLL(None).malloc_trim(0)
     except (OSError, AttributeError):           # not glibc
         pass
 
 
-def _stack_layout(names: list[str], stack: Mapping[str, Sequence[str]] | None,
-                  numeric: Callable[[str], bool]) -> dict[str, tuple[str, int]]:
-    """Column -> (stack name, position) for the stacks that apply (see :func:`read_delimited`'s ``stack``)."""
-    into: dict[str, tuple[str, int]] = {}
+def _join_columns(names: list[str], parts: dict[str, list[np.ndarray]], n: int,
+                  stack: Mapping[str, Sequence[str]] | None = None) -> Columns:
+    """Each column's chunks as one array, the ``stack`` ones side by side (``parts`` is emptied)."""
+    groups: dict[str, Sequence[str]] = {}       # the stacks that apply (see read_delimited)
     for name, members in (stack or {}).items():
         at = names.index(members[0]) if members and members[0] in names else -1
         if (at >= 0 and name not in names and names[at:at + len(members)] == list(members)
-                and all(numeric(c) for c in members)):
-            into.update({c: (name, j) for j, c in enumerate(members)})
-    return into
-
-
-def _join_columns(names: list[str], parts: dict[str, list[np.ndarray]], n: int,
-                  stack: Mapping[str, Sequence[str]] | None = None) -> Columns:
-    """Each column's chunks as one array (``parts`` is emptied).
-
-    ``stack`` (name -> columns) puts numeric columns side by side into one
-    float64 array (N, k) under its name, written there straight from the chunks
-    (:func:`_fill_stack`).
-    """
-    into = _stack_layout(names, stack, lambda c: all(x.dtype.kind in "fiu" for x in parts[c]))
-    members: dict[str, list[str]] = {}
-    for c, (g, _) in sorted(into.items(), key=lambda item: item[1][1]):
-        members.setdefault(g, []).append(c)
+                and all(x.dtype.kind in "fiu" for c in members for x in parts[c])):
+            groups[name] = members
+    into = {c: name for name, members in groups.items() for c in members}
     cols: Columns = {}
     for c in names:
         if c in into:
-            name = into[c][0]
-            if name not in cols:
-                cols[name] = _fill_stack(n, [parts.pop(m) for m in members[name]])
+            if into[c] not in cols:
+                cols[into[c]] = _fill_stack(n, [parts.pop(m) for m in groups[into[c]]])
             continue
         chunks = parts.pop(c)
         if len(chunks) == 1:            # pandas' own array (read-only under copy-on-write): not copied
@@ -372,7 +334,7 @@ def _join_columns(names: list[str], parts: dict[str, list[np.ndarray]], n: int,
 
 
 def _fill(out: np.ndarray, chunks: list[np.ndarray]) -> None:
-    """Copy the chunks one after the other into ``out`` (the list is emptied as it goes: memory freed early)."""
+    """Copy the chunks one after the other into ``out``, emptying the list as it goes."""
     k = 0
     while chunks:
         x = chunks.pop(0)
@@ -381,16 +343,10 @@ def _fill(out: np.ndarray, chunks: list[np.ndarray]) -> None:
 
 
 def _fill_stack(n: int, columns: list[list[np.ndarray]]) -> np.ndarray:
-    """The columns (each a list of chunks, chunk ``p`` of the same length in every column) side by side, (n, k).
+    """The columns (each a list of equal chunks) side by side, (n, k), emptying the lists.
 
-    Written in blocks of :data:`STACK_BLOCK` rows, all columns of a block
-    together (the block stays in cache), on up to :data:`STACK_THREADS`
-    threads: the copy is the new array's first touch, and on a virtual
-    machine the page faults of a large fresh allocation can cost more than
-    the copy itself when one thread takes them in turn
-    (``benchmarks/bench_readers.py`` measures the reader). Every value is
-    copied as it is, so the result does not depend on the threads. The chunks are
-    dropped as they are copied (memory freed early).
+    In blocks of :data:`STACK_BLOCK` rows on up to :data:`STACK_THREADS` threads: the copy is the array's first
+    touch, whose page faults can cost more than the copy on one thread.
     """
     out = np.empty((n, len(columns)))
     threads = min(STACK_THREADS, -(-n // STACK_BLOCK))

@@ -1,16 +1,11 @@
 """KITTI raw 100 Hz OXTS logs ("extract" data) stored as one CSV per drive.
 
-Each ``<drive>.csv`` or ``<drive>.csv.gz`` has the columns :data:`COLUMNS`: ``t`` (s since the
-drive's first sample; ``drives.csv`` beside the files gives the start as seconds of the day and the
-sample count), ``wx,wy,wz`` (rad/s) and ``ax,ay,az`` (specific force, m/s^2, about +9.81 on z at rest)
-in FLU (x forward, y left, z up), and kept in ``extra`` ``roll,pitch,yaw`` (rad), ``ve,vn,vu`` (m/s,
-east/north/up), ``px,py,pz`` (m, east/north/up from the first sample). Files of other tools in this
-layout may hold other units: told from the data as for CSV tables (:mod:`imu_ground.datasets.unit_checks`)
-unless ``time_unit``, ``gyro_unit``, ``accel_unit`` say them.
-
-The raw extract stamps jitter (a step forward, then back by about 0.05 s) while the samples keep a
-steady 100 Hz, with real dropouts over 1 s: the default validation (``"retime"``) puts the samples back
-on the sample clock, keeps the dropouts as gaps and reports both.
+Each ``<drive>.csv`` or ``<drive>.csv.gz`` has the columns :data:`COLUMNS`: ``t`` (s since the drive's
+first sample; ``drives.csv`` beside the files gives the start as seconds of the day and the sample count),
+``wx,wy,wz`` (rad/s) and ``ax,ay,az`` (specific force, m/s^2) in FLU, and kept in ``extra`` ``roll,pitch,yaw``
+(rad), ``ve,vn,vu`` (m/s, east/north/up), ``px,py,pz`` (m, east/north/up from the first sample). Other units
+are told from the data as for CSV tables unless ``time_unit``, ``gyro_unit``, ``accel_unit`` say them. The
+raw stamps jitter (about -0.05 s steps) at a steady 100 Hz, with real dropouts: ``"retime"`` fixes the first.
 """
 from __future__ import annotations
 
@@ -24,7 +19,7 @@ from imu_ground.imu.data import ImuData
 
 from .csvio import numeric, open_binary, read_delimited
 from .skeleton import finish, register_format, with_finish_parameters
-from .unit_checks import (UNIT_OPTIONS, detect_time_unit, motion_in_si, raw_times, settle_unit, unit_scale)
+from .unit_checks import UNIT_OPTIONS, check_units, detect_time_unit, motion_in_si, raw_times, settle_unit, unit_scale
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -52,8 +47,7 @@ def drive_name(path: str | Path) -> str:
 
 
 def read_drives_index(path: str | Path) -> pd.DataFrame:
-    """Read ``drives.csv`` (the file, or the folder holding it): one row per drive, columns ``drive,
-    t0_seconds_of_day, samples``.
+    """Read ``drives.csv`` (the file, or its folder): one row per drive, ``drive, t0_seconds_of_day, samples``.
 
     Returns
     -------
@@ -92,8 +86,8 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
     path : str or Path
         The drive's ``.csv`` / ``.csv.gz`` file.
     drives_csv : str, Path, bool or None
-        The ``drives.csv`` index giving the drive's start time; None (default): the one beside
-        ``path`` if there is one; False: ignored.
+        The ``drives.csv`` giving the drive's start; None (default): the one beside ``path`` if any; True:
+        that one, required; False: ignored.
     time_unit : {"s", "ms", "us", "ns"}, optional
     gyro_unit : {"rad/s", "deg/s"}, optional
     accel_unit : {"m/s^2", "g"}, optional
@@ -103,25 +97,22 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
     Returns
     -------
     ImuData
-        ``t`` s from the first sample, ``gyro`` rad/s and ``accel`` m/s^2 in ``"FLU"``; ``extra`` the
-        other columns. ``meta``: ``format``, ``drive``, ``t0`` (start, seconds of the day when
-        ``drives.csv`` lists the drive, else 0.0), ``t0_clock``, ``expected_samples``,
-        ``source_units`` and ``validation``.
+        ``t`` s from the first sample, ``gyro`` rad/s and ``accel`` m/s^2 in ``"FLU"``; ``extra`` the other
+        columns. ``meta``: ``format``, ``drive``, ``t0`` (seconds of the day when ``drives.csv`` lists the
+        drive, else 0.0), ``t0_clock``, ``expected_samples``, ``source_units``, ``validation``.
 
     Raises
     ------
     FileNotFoundError
         ``path`` (or an explicitly given ``drives_csv``) does not exist.
     MalformedFileError
-        Empty or truncated file, wrong columns, a line with the wrong number of fields or a
-        non-number (naming the file and line).
+        Empty or truncated file, wrong columns, a line with the wrong field count or a non-number
+        (naming the file and line).
     ImuInputError
         Unknown unit, or units the data cannot decide (naming the option).
     """
     import pandas as pd
-    for kind, unit in (("time", time_unit), ("gyro", gyro_unit), ("accel", accel_unit)):
-        if unit is not None:
-            unit_scale(kind, unit)          # a bad unit fails before anything is read
+    check_units(time_unit=time_unit, gyro_unit=gyro_unit, accel_unit=accel_unit)
     path = Path(path)
     cols, lines = read_delimited(path, stack=_STACKS)       # numbers straight into (N, 3) arrays
     names = [m for c in cols for m in _STACKS.get(c, (c,))]  # the header as in the file
@@ -137,8 +128,7 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
     n = tval.size
     drive = drive_name(path)
     first = tval[0] if tval.dtype.kind == "i" or np.isfinite(tval[0]) else 0
-    if t_unit == "s":                   # KITTI's own files: t - t[0] as it stands
-        # (a file that starts at 0, as KITTI's do, keeps the parsed array: no copy)
+    if t_unit == "s":                   # KITTI's own files (starting at 0: the parsed array, no copy)
         t = (tval if first == 0 and not np.signbit(first) else tval - first) if tval.dtype.kind == "f" \
             else (tval - first).astype(float)
     else:                               # shifted before scaling (exact for integer ns)
@@ -146,7 +136,6 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
     t_first = float(first) * unit_scale("time", t_unit)
     meta: dict[str, Any] = {"format": "kitti_imu100", "drive": drive, "t0": 0.0,
                             "t0_clock": "t of the file (no drives.csv entry)"}
-
     index_path: Path | None
     if drives_csv is False:
         index_path = None
@@ -164,7 +153,6 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
         index = read_drives_index(index_path)
         meta["drives_csv"] = str(index_path)
         if drive in index.index:
-            import pandas as pd                 # (loaded by read_drives_index)
             row = index.loc[drive]
             assert isinstance(row, pd.Series)   # drives.csv names each drive once
             meta["t0"] = float(row["t0_seconds_of_day"]) + t_first
@@ -175,7 +163,6 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
                           f"samples for {drive} (truncated or edited file?)", ImuValidationWarning)
         else:
             meta["notes"] = [f"{drive} not listed in {index_path}"]
-
     if t_first != 0.0:
         meta["t_offset_in_file"] = t_first
     meta["row_lines"] = lines

@@ -6,13 +6,9 @@ Layout of a drive::
     <drive>/oxts/dataformat.txt    names and units of the 30 fields (optional)
     <drive>/oxts/data/0000000000.txt ...   one packet per file, 30 numbers
 
-The angular rate is taken from ``wx, wy, wz`` and the specific force from
-``ax, ay, az``: the vehicle body's axes (x front, y left, z top: the ``"FLU"`` body frame), the axes of
-the 100 Hz ``extract`` logs. ``wf, wl, wu`` and ``af, al, au`` are not body axes: OXTS gives them in the
-frame of the heading parallel to the earth's surface (``dataformat.txt``: "vf: forward velocity, i.e.
-parallel to earth-surface"), so they carry no gravity tilt (``ay - al`` is ``g sin(roll)`` packet by
-packet); read as the IMU they would hide the body's pitch and roll from the accelerometer. All 30 fields
-are kept in ``extra`` with their units.
+The angular rate is ``wx, wy, wz`` and the specific force ``ax, ay, az``: the body's axes (``"FLU"``).
+``wf, wl, wu`` and ``af, al, au`` are in the heading frame parallel to the earth's surface (no gravity tilt:
+they would hide the body's pitch and roll). All 30 fields are kept in ``extra`` with their units.
 """
 from __future__ import annotations
 
@@ -45,10 +41,7 @@ OXTS_UNITS: dict[str, str] = {
     "pos_accuracy": "m", "vel_accuracy": "m/s", "navstat": "-", "numsats": "-",
     "posmode": "-", "velmode": "-", "orimode": "-"}
 
-_GYRO = ("wx", "wy", "wz")             # body axes (module docstring)
-
-
-_ACCEL = ("ax", "ay", "az")            # body axes (module docstring)
+_GYRO, _ACCEL = ("wx", "wy", "wz"), ("ax", "ay", "az")            # body axes (module docstring)
 _LINE = re.compile(r"^\s*([A-Za-z_]\w*)\s*:\s*(.*?)\s*$")
 
 
@@ -58,8 +51,7 @@ def find_oxts_dir(path: str | Path) -> Path:
     Raises
     ------
     FileNotFoundError
-        ``path`` does not exist, or holds neither ``timestamps.txt`` nor
-        ``oxts/timestamps.txt`` (the message names what was looked for).
+        ``path`` does not exist, or holds neither ``timestamps.txt`` nor ``oxts/timestamps.txt`` (named).
     """
     p = Path(path)
     if not p.exists():
@@ -79,8 +71,7 @@ def read_oxts_timestamps(path: str | Path) -> np.ndarray:
     Parameters
     ----------
     path : str or Path
-        The file; lines like ``2011-09-26 13:02:25.964389445`` (no time zone;
-        KITTI wrote local time).  Trailing blank lines are ignored.
+        Lines like ``2011-09-26 13:02:25.964389445`` (local time, no zone); trailing blank lines ignored.
 
     Returns
     -------
@@ -89,8 +80,7 @@ def read_oxts_timestamps(path: str | Path) -> np.ndarray:
     Raises
     ------
     FileNotFoundError, MalformedFileError
-        Missing file; empty file, blank line inside, or a line that is not a
-        timestamp (the message names the line).
+        Missing file; empty file, blank line inside, or a line that is not a timestamp (named).
     """
     p = Path(path)
     if not p.is_file():
@@ -117,21 +107,13 @@ def read_oxts_timestamps(path: str | Path) -> np.ndarray:
 def read_oxts_dataformat(path: str | Path) -> tuple[list[str], dict[str, str], list[str]]:
     """Field names and units from a KITTI ``dataformat.txt``.
 
-    Units are the first parenthesised text of each line (``"north/east in m"``
-    gives ``"m"``); lines without one, or with a remark such as ``"(see
-    navstat_to_string)"``, get ``"-"``.  A name that is repeated (the
-    KITTI file calls field 14 ``ay`` a second time where it means ``az``) or a
-    wrong count falls back to the standard :data:`OXTS_FIELDS` name at that
-    position.
+    Units are each line's first parenthesised text (``"north/east in m"``: ``"m"``; none or a remark: ``"-"``).
+    A repeated name (KITTI's field 14 ``ay`` means ``az``) or a wrong count falls back to :data:`OXTS_FIELDS`.
 
     Returns
     -------
-    names : list of str
-        30 field names.
-    units : dict
-        Name to unit.
-    notes : list of str
-        What was corrected, if anything.
+    names, units, notes : list of str, dict, list of str
+        30 field names, name to unit, what was corrected.
     """
     p = Path(path)
     notes: list[str] = []
@@ -189,23 +171,14 @@ def _read_packets(files: list[Path], n_fields: int) -> np.ndarray:
     try:
         values = np.array(flat, dtype=float)
     except ValueError:
-        for f, tok in zip(files, tokens, strict=True):  # error path only: find the file
-            try:
-                np.array(tok, dtype=float)
-            except ValueError:
-                col = next(j for j, s in enumerate(tok) if not _is_number(s))
-                raise MalformedFileError(f, f"field {col + 1}: {tok[col]!r} is not a number",
-                                         line=1) from None
+        for f, tok in zip(files, tokens, strict=True):  # error path only: find the file and field
+            for j, x in enumerate(tok):
+                try:
+                    float(x)
+                except ValueError:
+                    raise MalformedFileError(f, f"field {j + 1}: {x!r} is not a number", line=1) from None
         raise
     return values.reshape(len(files), n_fields)
-
-
-def _is_number(s: str) -> bool:
-    try:
-        float(s)
-    except ValueError:
-        return False
-    return True
 
 
 @with_finish_parameters
@@ -218,36 +191,30 @@ def read_kitti_oxts(path: str | Path, *, allow_missing: bool = False, validate: 
     path : str or Path
         The drive folder (holding ``oxts/``) or its ``oxts`` folder.
     allow_missing : bool
-        If packet files are missing from ``data/``, read the ones present (matched
-        to ``timestamps.txt`` by file number) with a warning instead of raising.
+        Read the packet files present (matched to ``timestamps.txt`` by number) with a warning, not raise.
     {finish_parameters}
 
     Returns
     -------
     ImuData
-        ``t`` in s from the first timestamp (computed from integer nanoseconds);
-        ``gyro`` = (wx, wy, wz) rad/s and ``accel`` = (ax, ay, az) m/s^2 in
-        ``"FLU"`` (the body's x forward, y left, z up); ``extra`` = all 30 fields (names from
-        ``dataformat.txt`` when present) with their ``units``.  ``meta``:
-        ``format``, ``drive``, ``t0`` (first timestamp as s since 1970 of the
-        written clock, float), ``t0_ns`` (same, exact int), ``t0_iso``,
-        ``t0_clock``, ``fields_source``, ``notes``, ``validation``.
+        ``t`` s from the first timestamp (from integer ns), ``gyro`` (wx, wy, wz) rad/s and ``accel`` (ax, ay,
+        az) m/s^2 in ``"FLU"``; ``extra`` all 30 fields with their ``units``. ``meta``: ``format``, ``drive``,
+        ``t0`` (s since 1970 of the written clock), ``t0_ns``, ``t0_iso``, ``t0_clock``, ``fields_source``,
+        ``notes``, ``validation``.
 
     Raises
     ------
     FileNotFoundError
-        Missing folder, ``timestamps.txt``, ``data/`` or packet files (unless
-        ``allow_missing``); the message names the path.
+        Missing folder, ``timestamps.txt``, ``data/`` or packet files (unless ``allow_missing``), named.
     MalformedFileError
-        Bad timestamp line, packet with a wrong field count or a non-number,
-        or more packet files than timestamps; the message names file and line.
+        Bad timestamp line, packet with a wrong field count or a non-number, or more packet files than
+        timestamps; the message names file and line.
     """
     oxts = find_oxts_dir(path)
     ts = read_oxts_timestamps(oxts / "timestamps.txt")
     data_dir = oxts / "data"
     if not data_dir.is_dir():
         raise FileNotFoundError(f"{data_dir}: no such folder")
-
     fmt = oxts / "dataformat.txt"
     if fmt.is_file():
         names, units, notes = read_oxts_dataformat(fmt)
@@ -255,7 +222,6 @@ def read_kitti_oxts(path: str | Path, *, allow_missing: bool = False, validate: 
     else:
         names, units, notes = list(OXTS_FIELDS), dict(OXTS_UNITS), []
         fields_source = "standard KITTI OXTS field list (no dataformat.txt)"
-
     files = sorted(data_dir.glob("*.txt"))
     stems = [f.stem for f in files]
     if not all(s.isdigit() for s in stems):
@@ -279,7 +245,6 @@ def read_kitti_oxts(path: str | Path, *, allow_missing: bool = False, validate: 
             raise MissingPacketsError(msg + " ({hint} reads the others)", option="allow_missing", value=True)
         warn_user(msg + f"; reading the {number.size} present", ImuValidationWarning)
         notes.append(msg)
-
     import pandas as pd
     values = _read_packets(files, len(names))
     ns = ts.astype(np.int64)[number]
@@ -288,21 +253,14 @@ def read_kitti_oxts(path: str | Path, *, allow_missing: bool = False, validate: 
     gyro_idx = [col.get(n, OXTS_FIELDS.index(n)) for n in _GYRO]
     accel_idx = [col.get(n, OXTS_FIELDS.index(n)) for n in _ACCEL]
     extra = pd.DataFrame(values, columns=names)
-    drive_dir = oxts.parent
     meta: dict[str, Any] = {
-        "format": "kitti_oxts",
-        "drive": drive_dir.name,
-        "t0": float(ns[0]) * 1e-9,
-        "t0_ns": int(ns[0]),
+        "format": "kitti_oxts", "drive": oxts.parent.name, "t0": float(ns[0]) * 1e-9, "t0_ns": int(ns[0]),
         "t0_iso": str(ts[number[0]]),
         "t0_clock": "KITTI timestamps.txt as written (local time, no zone), s since 1970-01-01",
-        "fields_source": fields_source,
-        "notes": notes,
-    }
+        "fields_source": fields_source, "notes": notes}
     if missing.size:
         meta["missing_packets"] = missing
-    imu = ImuData(t, values[:, gyro_idx], values[:, accel_idx], "FLU", extra, units,
-                  str(oxts), meta)
+    imu = ImuData(t, values[:, gyro_idx], values[:, accel_idx], "FLU", extra, units, str(oxts), meta)
     return finish(imu, validate=validate, policy=policy, **validate_kw)
 
 

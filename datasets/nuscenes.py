@@ -1,9 +1,7 @@
 """nuScenes CAN bus expansion: the 100 Hz ``<scene>_ms_imu.json`` messages.
 
-Each message is ``{"utime": µs since 1970, "linear_accel": [x, y, z] m/s^2,
-"rotation_rate": [x, y, z] rad/s, "q": [w, x, y, z]}`` in the ego vehicle frame
-(x forward, y left, z up: ``"FLU"``).  ``linear_accel`` is the accelerometer's
-specific force (about +9.8 on z at rest).
+Each message is ``{"utime": µs since 1970, "linear_accel": [x, y, z] m/s^2 (specific force),
+"rotation_rate": [x, y, z] rad/s, "q": [w, x, y, z]}`` in the ego vehicle frame ``"FLU"``.
 """
 from __future__ import annotations
 
@@ -13,9 +11,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from imu_ground.errors import ImuInputError, MalformedFileError
 from imu_ground.imu.data import ImuData
 
-from imu_ground.errors import ImuInputError, MalformedFileError
 from .skeleton import finish, register_format, with_finish_parameters
 
 if TYPE_CHECKING:
@@ -27,14 +25,7 @@ _VECTORS = {"linear_accel": 3, "rotation_rate": 3, "q": 4}
 
 
 def find_ms_imu(path: str | Path, scene: str | None = None) -> Path:
-    """The ``*_ms_imu.json`` file for ``path`` (a file, or a folder with one such file).
-
-    Parameters
-    ----------
-    path : str or Path
-        The JSON file, or a CAN bus folder.
-    scene : str, optional
-        Scene name (``"scene-0103"``) to pick ``<scene>_ms_imu.json`` in a folder.
+    """The ``*_ms_imu.json`` file for ``path``: the file, or a CAN bus folder holding it (``<scene>_ms_imu.json``).
 
     Raises
     ------
@@ -98,19 +89,18 @@ def read_nuscenes_imu(path: str | Path, *, scene: str | None = None, validate: b
     Returns
     -------
     ImuData
-        ``t`` s from the first message (from integer µs), ``gyro`` =
-        ``rotation_rate`` rad/s, ``accel`` = ``linear_accel`` m/s^2, frame
-        ``"FLU"``; ``extra``: ``utime`` (µs) and the attitude quaternion ``qw, qx,
-        qy, qz``.  ``meta``: ``format``, ``scene``, ``t0`` (s since 1970, float),
-        ``t0_ns``, ``t0_clock``, ``validation``.
+        ``t`` s from the first message (from integer µs), ``gyro`` = ``rotation_rate`` rad/s, ``accel`` =
+        ``linear_accel`` m/s^2, frame ``"FLU"``; ``extra``: ``utime`` (µs) and the attitude quaternion
+        ``qw, qx, qy, qz``. ``meta``: ``format``, ``scene``, ``t0`` (s since 1970), ``t0_ns``, ``t0_clock``,
+        ``validation``.
 
     Raises
     ------
     FileNotFoundError
         No such file / no ``*_ms_imu.json`` in the folder.
     MalformedFileError
-        Not JSON (line and column given), not a list of messages, empty, a
-        missing key or a vector of the wrong length (message index given).
+        Not JSON (line and column given), not a list of messages, empty, a missing key or a vector of the
+        wrong length (message index given).
     """
     import pandas as pd
     p = find_ms_imu(path, scene)
@@ -143,18 +133,12 @@ def read_nuscenes_imu(path: str | Path, *, scene: str | None = None, validate: b
         raise MalformedFileError(p, f"'utime' is not integer microseconds ({e})") from e
     vec = {k: _vectors(df, k, w, p) for k, w in _VECTORS.items()}
     t = (utime - utime[0]).astype(float) * 1e-6
-    extra = pd.DataFrame({"utime": utime, "qw": vec["q"][:, 0], "qx": vec["q"][:, 1],
-                          "qy": vec["q"][:, 2], "qz": vec["q"][:, 3]})
+    extra = pd.DataFrame({"utime": utime, **dict(zip(("qw", "qx", "qy", "qz"), vec["q"].T, strict=True))})
     units = {"utime": "us", "qw": "-", "qx": "-", "qy": "-", "qz": "-"}
-    name = p.name
-    meta: dict[str, Any] = {
-        "format": "nuscenes",
-        "scene": name[: -len("_ms_imu.json")] if name.endswith("_ms_imu.json") else p.stem,
-        "t0": float(utime[0]) * 1e-6,
-        "t0_ns": int(utime[0]) * 1000,
-        "t0_clock": "nuScenes utime: s since 1970-01-01 (UTC)",
-        "quaternion": "extra qw, qx, qy, qz = the message's q (w, x, y, z) as given",
-    }
+    scene = p.name.removesuffix("_ms_imu.json") if p.name.endswith("_ms_imu.json") else p.stem
+    meta: dict[str, Any] = {"format": "nuscenes", "scene": scene, "t0": float(utime[0]) * 1e-6,
+                            "t0_ns": int(utime[0]) * 1000, "t0_clock": "nuScenes utime: s since 1970-01-01 (UTC)",
+                            "quaternion": "extra qw, qx, qy, qz = the message's q (w, x, y, z) as given"}
     imu = ImuData(t, vec["rotation_rate"], vec["linear_accel"], "FLU", extra, units, str(p), meta)
     return finish(imu, validate=validate, policy=policy, **validate_kw)
 

@@ -1,13 +1,9 @@
 """The reader options a user can set, each both a ``read_imu`` argument and an ``imu-ground`` flag.
 
-One table owns the correspondence, so that an error message can name the option
-the way the user sets it: ``gyro_unit="deg/s"`` from Python, ``--gyro-unit deg/s``
-from the command line. Readers raise :class:`~imu_ground.errors.ImuInputError`, the pipeline
-:class:`~imu_ground.errors.OptionError` (its base, an :class:`~imu_ground.errors.ImuGroundError`), with
-``option`` and ``value`` set; :meth:`~imu_ground.errors.OptionError.cli_message` is what the command line
-prints. The readers' warnings carry the same :class:`~imu_ground.errors.OptionMessage`. Those classes live
-in :mod:`imu_ground.errors` (the foundation layer) and are importable from here too; this table fills
-their :data:`~imu_ground.errors.CLI_FLAGS`.
+One table, so that a message names the option as the user sets it (``gyro_unit="deg/s"`` from Python,
+``--gyro-unit deg/s`` from the command line); it fills :data:`~imu_ground.errors.CLI_FLAGS`, which
+:class:`~imu_ground.errors.OptionError` and :class:`~imu_ground.errors.OptionMessage` (importable from here
+too) use.
 """
 from __future__ import annotations
 
@@ -66,9 +62,7 @@ CLI_FLAGS.update({o.name: o.flag for o in READER_OPTIONS.values()})
 class OptionText(str):
     """A message as plain text (the Python spelling) that keeps its CLI spelling: ``cli_message()``.
 
-    What a warning becomes once collected as a line (``estimate_log``'s
-    ``meta["warnings"]``): it compares and prints as the Python text, and the
-    command line prints :meth:`cli_message`.
+    A warning collected as a line (``estimate_log``'s ``meta["warnings"]``).
     """
 
     cli: str

@@ -1,10 +1,4 @@
-"""Order statistics of whole logs: the exact median without a full partition, running medians near events.
-
-:func:`median` gives the value ``np.median`` gives (the checks and the
-validation take medians of whole logs); :func:`_medians_near` the centred
-running medians (pandas' rolling median) the retiming needs near the clock's
-jumps only (:mod:`~imu_ground.datasets.retime`).
-"""
+"""Order statistics of whole logs: the exact median without a full partition, running medians near events."""
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -18,19 +12,11 @@ BLOCK = 1 << 15
 
 
 def median(x: np.ndarray, sqrt: bool = False) -> float:
-    """``float(np.median(x))`` of a 1-D float64 array, found without partitioning all of it.
+    """``float(np.median(x))`` of a 1-D float64 array (``np.sqrt(x)``'s with ``sqrt``, ``x >= 0``), exactly.
 
-    The same order statistic(s) (the mean of the middle two for an even count)
-    as NumPy's median, so the same value: a random sample brackets the middle
-    ranks between two sample values, one pass counts the values below and
-    gathers those between, and only these are sorted. NumPy's partition is
-    slow on some data (many repeated values, or the extra maximum it
-    partitions out for its NaN check). Falls back to ``np.median`` for short
-    arrays, a NaN or when the bracket misses (a rare sample).
-
-    ``sqrt=True``: the median of ``np.sqrt(x)`` (``x >= 0``, e.g. squared
-    norms), from the square roots of the middle values of ``x`` (a monotone
-    map keeps the order, so these are the middle values of ``np.sqrt(x)``).
+    A random sample brackets the middle ranks; one pass counts the values below and gathers those
+    between, and only these are sorted (NumPy's partition is slow on repeated values). Falls back to
+    ``np.median`` for short arrays, a NaN or a missed bracket.
     """
     x = np.asarray(x)
     n = x.size
@@ -83,12 +69,7 @@ def _near(events: np.ndarray, h: int, n: int) -> np.ndarray:
 
 
 def _medians_near(values: Callable[[np.ndarray], np.ndarray], n: int, near: np.ndarray, w: int) -> np.ndarray:
-    """Centred running medians over ``w`` (odd) samples at positions ``near`` (edges padded with the end values):
-    pandas' rolling median over the runs of ``near`` with their margins (a window holding NaN: NaN).
-
-    ``values(idx)`` gives the series at positions ``idx``; only the samples
-    within ``w // 2`` of a position in ``near`` are asked for.
-    """
+    """Centred running medians over ``w`` (odd) samples of ``values(idx)`` at positions ``near`` (ends padded)."""
     h = w // 2
     brk = np.flatnonzero(np.diff(near) != 1) + 1
     lo = near[np.concatenate([[0], brk])]
@@ -103,13 +84,7 @@ def _medians_near(values: Callable[[np.ndarray], np.ndarray], n: int, near: np.n
 
 
 def _running_median(x: np.ndarray, w: int, events: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Centred running median over ``w`` (odd) samples (edges padded with the end values), and where it differs.
-
-    Evaluated only within ``w // 2`` samples of an ``events`` position (a step
-    that is not one sample period); elsewhere the window holds one undisturbed
-    stretch and the value is taken as it is, so the cost follows the events,
-    not the log's length. Returns the medians and the positions evaluated.
-    """
+    """Centred running median over ``w`` (odd) samples, evaluated near ``events`` only; the medians and where."""
     out = x.copy()
     if not events.size:
         return out, events

@@ -1,23 +1,11 @@
 """Odometry pose files (visual odometry, SLAM, ground truth) to relative rotations.
 
-Two text formats are read:
+- KITTI odometry: one pose a line, 12 numbers, the row-major 3x4 ``[R | t]`` of world <- sensor_k, optionally
+  after a frame index (ORB-SLAM2's, from 1); times from the benchmark's ``times/XX.txt`` (``times=``).
+- TUM RGB-D: ``t x y z qx qy qz qw`` (s, m, unit quaternion of world <- sensor); ``#`` comments allowed.
 
-- KITTI odometry: one pose a line, 12 numbers, the row-major 3x4 matrix
-  ``[R | t]`` of the sensor in the first frame (world <- sensor_k), optionally
-  preceded by a frame index (ORB-SLAM2's output, whose frames start at 1).
-- TUM RGB-D: ``t x y z qx qy qz qw`` (seconds, metres, unit quaternion of
-  world <- sensor); ``#`` comments allowed.
-
-Camera conventions (x right, y down, z forward) are not special-cased here:
-the relative rotations stay in the sensor frame and the static extrinsic
-(:mod:`imu_ground.filters.extrinsics`) carries them into the ground frame.
-:func:`moves_along_z` tells a camera's poses (the motion is along the sensor's
-+z axis) from a vehicle body's (along +x), so that a caller can refuse to take
-camera axes as body axes.
-
-Times: a TUM file carries its own; a KITTI file has none, and the odometry
-benchmark's ``times/XX.txt`` (one time a line, seconds) gives them
-(``times=``); :attr:`PoseSequence.clock` says which clock ``t`` is on.
+Rotations stay in the sensor frame (a camera's x right, y down, z forward included: the extrinsic carries
+them into the ground frame); :func:`moves_along_z` tells a camera's poses from a vehicle body's.
 """
 from __future__ import annotations
 
@@ -46,12 +34,11 @@ class PoseSequence:
     translations : ndarray (N, 3)
         Sensor position in the world frame (the file's units, usually metres).
     t : ndarray (N,) or None
-        Timestamps in seconds (TUM), None when the file has none.
+        Timestamps, s (None without times).
     index : ndarray (N,)
-        Frame numbers (from the file's index column, else 0..N-1).
-    source : str
-    clock : str
-        What ``t`` is: the TUM file's own times, a KITTI times file, or "" (no times).
+        Frame numbers (the file's index column, else 0..N-1).
+    source, clock : str
+        The file; what ``t`` is (the TUM file's own times, a KITTI times file, or "").
     """
     rotations: np.ndarray
     translations: np.ndarray
@@ -79,8 +66,7 @@ def relative_rotations(rotations: np.ndarray) -> np.ndarray:
     Returns
     -------
     ndarray (N-1, 3, 3)
-        ``R_{k-1}^T R_k`` (sensor_{k-1} <- sensor_k), so that
-        ``R_k = R_{k-1} @ dR_k``.
+        ``R_{k-1}^T R_k`` (sensor_{k-1} <- sensor_k): ``R_k = R_{k-1} @ dR_k``.
     """
     r = np.asarray(rotations, dtype=float)
     return np.swapaxes(r[:-1], 1, 2) @ r[1:]
@@ -161,21 +147,10 @@ def _first_rows(path: Path, n: int = 3) -> list[list[float]]:
 
 
 def detect_pose_format(path: str | Path) -> str | None:
-    """``"kitti"`` or ``"tum"`` when ``path`` is a pose file, else None.
+    """``"kitti"`` or ``"tum"`` when ``path`` (any path) is a pose file, else None.
 
-    A KITTI odometry file has 12 numbers a line (or a frame index then 12)
-    whose 3x3 part is a rotation; a TUM file has ``t x y z qx qy qz qw`` with a
-    unit quaternion. Only the first lines are read; text with a header, commas
-    or compressed files are not pose files.
-
-    Parameters
-    ----------
-    path : str or Path
-        Any path; a folder or a missing file gives None.
-
-    Returns
-    -------
-    str or None
+    From the first lines: 12 numbers (or an index then 12) with a rotation, or 8 with a unit quaternion; text
+    with a header, commas or compressed files are not pose files.
     """
     p = Path(path)
     if not p.is_file() or p.name.lower().endswith(_BINARY_SUFFIXES):
@@ -210,17 +185,14 @@ def read_pose_times(path: str | Path, frames: np.ndarray, source: str | Path = "
     source : str or Path
         The pose file (named in messages).
     every_line : bool
-        One pose per line of the times file (a pose file without a frame index, as ``poses/XX.txt``):
-        both files must have as many lines. With a frame index (ORB-SLAM2's, which may skip frames at
-        its start or end) only its frames must be in the times file.
+        One pose per line of the times file (a pose file without a frame index): as many lines in both.
 
     Raises
     ------
     FileNotFoundError
         No such file.
     ImuInputError
-        Another sequence's times file, by the counts (too few lines, or with ``every_line`` not one a
-        pose), naming both files and ``times``; same-length sequences (01, 06, 07) cannot be told apart.
+        Another sequence's times file, by the counts, naming both files and ``times``.
     ImuGroundError
         Not one number a line; times not strictly increasing over the frames.
     """
@@ -244,12 +216,10 @@ def read_pose_times(path: str | Path, frames: np.ndarray, source: str | Path = "
 
 
 def moves_along_z(poses: PoseSequence, share: float = 0.9, min_steps: int = 10) -> bool:
-    """Whether the sensor moves along its own +z axis, as a camera does (x right, y down, z forward).
+    """Whether the sensor moves along its own +z axis, as a camera does (a vehicle body moves along +x).
 
-    The steps ``R_{k-1}^T (p_k - p_{k-1})`` (sensor_{k-1} frame) longer than a
-    thousandth of the longest are made unit vectors; their mean's z component
-    above ``share`` (with at least ``min_steps`` such steps) says "camera". A
-    vehicle body (x forward, REP 103 / KITTI IMU) moves along +x.
+    The steps ``R_{k-1}^T (p_k - p_{k-1})`` longer than a thousandth of the longest, as unit vectors: their
+    mean's z component above ``share`` (with at least ``min_steps`` steps) says "camera".
     """
     r = np.asarray(poses.rotations, dtype=float)
     d = np.einsum("nji,nj->ni", r[:-1], np.diff(np.asarray(poses.translations, dtype=float), axis=0))
@@ -266,18 +236,15 @@ def read_kitti_poses(path: str | Path, times: str | Path | None = None) -> PoseS
     Parameters
     ----------
     path : str or Path
-        E.g. ``poses/XX.txt`` of the odometry benchmark (12 numbers) or ORB-SLAM2's output (frame
-        index, then 12).
+        E.g. ``poses/XX.txt`` (12 numbers) or ORB-SLAM2's output (frame index, then 12).
     times : str or Path, optional
-        The sequence's ``times.txt`` (one time a line, s; ``--times``): pose ``k`` takes line ``k`` (one
-        line per pose), or with a frame index the index counts lines from 1 (from 0 when an index 0 is
-        present). Without it ``t`` is None (frames timed by the caller's rate).
+        The sequence's ``times.txt`` (one time a line, s; ``--times``): pose ``k`` takes line ``k``, or an
+        index counts lines from 1 (from 0 when an index 0 is present). Without it ``t`` is None.
 
     Returns
     -------
     PoseSequence
-        world <- sensor_k rotations (the first camera frame is the world frame), translations m, frame
-        indices.
+        world <- sensor_k rotations (the first camera frame is the world), translations m, frame indices.
 
     Raises
     ------
@@ -328,8 +295,8 @@ def read_tum_poses(path: str | Path) -> PoseSequence:
     Raises
     ------
     FileNotFoundError, ValueError
-        Missing file; malformed line (line number); NaN; quaternions far from
-        unit norm; timestamps unsorted or duplicated (which and where).
+        Missing file; malformed line (line number); NaN; quaternions far from unit norm; timestamps unsorted
+        or duplicated (which and where).
     """
     path = Path(path)
     data = _load_table(path, (8,))
@@ -392,7 +359,7 @@ def write_tum_poses(path: str | Path, t: np.ndarray, rotations: np.ndarray,
     rotations : ndarray (N, 3, 3), world <- sensor (or any a <- b the caller documents).
     translations : ndarray (N, 3), metres; zeros by default.
     header : str
-        The comment at the top (``# `` before each line).
+        The comment at the top.
     """
     from scipy.spatial.transform import Rotation
     t = np.asarray(t, dtype=float)

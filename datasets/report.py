@@ -1,13 +1,8 @@
-"""What the readers' checks report: the validation report (its errors and warnings live in
-:mod:`imu_ground.errors` and are importable from here too).
-
-The lowest room of :mod:`imu_ground.datasets`: every reader and check imports
-from here, nothing here imports a reader. Warnings are attributed to the user's
-code with :func:`warn_user` (the first caller outside the package), so no reader
-has to count its own stack depth.
-"""
+"""The validation report of the readers' checks (their errors and warnings, from :mod:`imu_ground.errors`,
+importable from here too). Nothing here imports a reader."""
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
@@ -36,18 +31,14 @@ def row_names(rows: np.ndarray, row_lines: Callable[[np.ndarray], np.ndarray] | 
 
 # --------------------------------------------------------------------------- report
 class Gap(NamedTuple):
-    """One gap: the sample before it, its start time and its length.
+    """One gap.
 
     Attributes
     ----------
-    index : int
-        Input row of the sample before the gap.
-    out_index : int
-        Row of that sample in the cleaned output.
-    t_start : float
-        Time of the sample before the gap, s.
-    length : float
-        Time to the next kept sample, s.
+    index, out_index : int
+        Input row, and row in the cleaned output, of the sample before the gap.
+    t_start, length : float
+        Time of that sample, and to the next kept sample, s.
     """
 
     index: int  # type: ignore[assignment]  # (the public field's name hides tuple.index)
@@ -56,12 +47,8 @@ class Gap(NamedTuple):
     length: float
 
 
-def _empty_int() -> np.ndarray:
-    return np.zeros(0, dtype=np.int64)
-
-
-def _empty_float() -> np.ndarray:
-    return np.zeros(0, dtype=float)
+_empty_int = functools.partial(np.zeros, 0, dtype=np.int64)
+_empty_float = functools.partial(np.zeros, 0, dtype=float)
 
 
 @dataclass
@@ -70,32 +57,20 @@ class ValidationReport:
 
     Attributes
     ----------
-    source : str
-        Where the data came from.
-    policy : str
-        Time-order policy asked for (``"retime"``, ``"drop"``, ``"sort"``, ``"strict"``).
+    source, policy : str
+        Where the data came from; the time-order policy asked for.
     n_in, n_out : int
         Samples before and after cleaning.
-    nonfinite_index : ndarray of int
-        Input rows with NaN/inf in t, gyro or accel.
-    nonfinite_columns : dict
-        Column name (``t``, ``wx``... ``az``) to number of non-finite values.
-    nonfinite_dropped : bool
-        Whether those rows were dropped.
-    backstep_index : ndarray of int
-        Input rows where time steps back (``t[i] < t[i-1]``), among finite rows.
-    backstep_size : ndarray of float
-        The size of those steps, s (negative).
-    out_of_order_index : ndarray of int
-        Input rows earlier than the latest time before them.
-    duplicate_index : ndarray of int
-        Input rows whose time equals an earlier one.
+    nonfinite_index, nonfinite_columns, nonfinite_dropped : ndarray of int, dict, bool
+        Input rows with NaN/inf in t, gyro or accel; column (``t``, ``wx``... ``az``) to count; dropped?
+    backstep_index, backstep_size : ndarray
+        Input rows where time steps back (among finite rows), and those steps, s (negative).
+    out_of_order_index, duplicate_index : ndarray of int
+        Input rows earlier than, and equal to, the latest time before them.
     dropped_index : ndarray of int
-        Every input row not in the output (non-finite, out of order, duplicate).
-    reordered : bool
-        Whether samples were sorted (``policy="sort"`` and something was out of order).
-    retimed : bool
-        Whether the sample index became the clock (``policy="retime"``).
+        Every input row not in the output.
+    reordered, retimed : bool
+        Whether samples were sorted (``"sort"``), or the sample index became the clock (``"retime"``).
     retime_rate : float
         Fitted sample rate of the index clock, Hz (nan when not retimed).
     retime_shift_max, retime_shift_rms : float
@@ -104,24 +79,14 @@ class ValidationReport:
         Input rows that start a new stretch after a real dropout (kept as a gap).
     retime_note : str
         Why retiming was not applied (empty when it was, or was not asked for).
-    median_step : float
-        Median time step of the cleaned data, s (nan for fewer than 2 samples).
-    gap_threshold : float
-        Steps longer than this are gaps, s.
+    median_step, gap_threshold : float
+        Median time step of the cleaned data (nan under 2 samples); steps longer than the threshold are gaps, s.
     gap_index, gap_out_index, gap_start, gap_length : ndarray
-        The gaps: input row and output row of the sample before each gap, its time
-        and the gap's length (s).  See :attr:`gaps`.
-    gyro_max_norm : float
-        Largest angular-rate magnitude, rad/s (nan when empty).
-    gyro_sustained : float
-        Longest time the rate stays above ``gyro_limit``, s.
-    gyro_limit : float
-        Rate above which a car's gyro is implausible, rad/s.
-    accel_median_norm : float
-        Median specific-force magnitude, m/s^2 (over samples at rest when there
-        are enough, see ``accel_norm_at_rest``).
-    accel_norm_at_rest : bool
-        Whether ``accel_median_norm`` was taken over samples with small rate.
+        Input and output row of the sample before each gap, its time and the gap's length, s (:attr:`gaps`).
+    gyro_max_norm, gyro_sustained, gyro_limit : float
+        Largest angular-rate magnitude, rad/s (nan when empty); longest time, s, above ``gyro_limit``, rad/s.
+    accel_median_norm, accel_norm_at_rest : float, bool
+        Median specific-force magnitude, m/s^2, and whether over samples at rest (small rate).
     issues : list of str
         One message per problem found (the texts of the warnings/errors).
     """

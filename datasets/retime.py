@@ -1,11 +1,5 @@
-"""The retiming of jittered sample clocks: the sample index as the clock, one intercept per stretch.
-
-:func:`retime` fits ``t_k = a_s + k / rate`` to raw stamps that step back or
-repeat while the sample count agrees with a steady rate (KITTI OXTS logs);
-lasting steps of more than a sample are real dropouts, kept as gaps between
-stretches. :func:`~imu_ground.datasets.timestamps.check_timestamps` applies it
-under the readers' default policy ``"retime"`` (see that module).
-"""
+"""The retiming of jittered sample clocks (policy ``"retime"``): the sample index as the clock, one intercept per
+stretch between real dropouts (lasting steps of more than a sample, kept as gaps)."""
 from __future__ import annotations
 
 from typing import NamedTuple
@@ -25,19 +19,8 @@ def _rows(pos: np.ndarray, index: np.ndarray | None) -> np.ndarray:
 
 # --------------------------------------------------------------------------- retime
 class RetimeResult(NamedTuple):
-    """Outcome of :func:`retime`.
-
-    Attributes
-    ----------
-    t : ndarray (N,) or None
-        The retimed stamps, s (None when not applicable).
-    rate : float
-        Fitted rate of the index clock, Hz.
-    breaks : ndarray of int
-        Positions (into the input) starting a new stretch after a real dropout.
-    note : str
-        Why retiming does not apply (empty when it does).
-    """
+    """Outcome of :func:`retime`: the stamps ``t`` (s; None when it does not apply, ``note`` says why), the
+    index clock's ``rate`` (Hz) and the ``breaks``, input positions starting a stretch after a dropout."""
 
     t: np.ndarray | None
     rate: float
@@ -60,18 +43,10 @@ _SLACK = 1e-4
 class _Clock:
     """The stamps' offset from a nominal clock, in samples: ``(t - t[0]) / dt - k`` (jitter = bump, dropout = step).
 
-    ``k`` None: the sample index ``0, 1, 2, ...``, made block by block. Offsets
-    are formed with the same three roundings wherever they are needed.
-
-    Shortcuts (consecutive index only): ``(t_i - t0) r`` and ``i`` are below
-    ``S`` (:attr:`scale`), so forming an offset, or the offset of the clock,
-    rounds by less than ``u S`` (``u = 2**-53``) a few times over. While
-    ``16 u S < 1e-4`` (:meth:`shortcuts`: any log shorter than ~9 years at
-    100 Hz), the offset's step differs from the raw step in samples, and
-    ``(clock - t0) r - off`` from the clock's shift in samples, by far less
-    than 1e-3; raw steps within ``[0.502, 1.498] dt`` then cannot step the offset
-    by more than half a sample, and shifts below ``0.999 dt`` cannot put it a
-    sample away. Only the other samples are worked out.
+    ``k`` None: the index ``0, 1, 2, ...``, made block by block. Shortcuts (:meth:`shortcuts`, consecutive index
+    only): while ``16 u S < 1e-4`` (``u = 2**-53``, ``S`` = :attr:`scale`), an offset's rounding is far below
+    1e-3 sample, so raw steps within ``[0.502, 1.498] dt`` cannot step the offset by half a sample, nor shifts
+    below ``0.999 dt`` put it a sample away: only the other samples are worked out.
     """
 
     def __init__(self, t: np.ndarray, k: np.ndarray | None, dt: float) -> None:
@@ -81,7 +56,7 @@ class _Clock:
         self.scale = span + t.size + 4 if k is None else np.inf
 
     def shortcuts(self, scale: float = 0.0) -> bool:
-        """Whether the shortcuts hold (``scale``: another bound of a clock in samples, e.g. the fitted one)."""
+        """Whether the shortcuts hold (``scale``: another bound of a clock in samples)."""
         return bool(16 * 2.0 ** -53 * self.scale < _SLACK and 16 * 2.0 ** -53 * scale < _SLACK)
 
     def kblock(self, lo: int, hi: int) -> np.ndarray:
@@ -103,11 +78,7 @@ class _Clock:
         return o
 
     def events(self, raw: np.ndarray | None) -> np.ndarray:
-        """Positions ``i`` where the offset steps by more than half a sample from ``i`` to ``i + 1``.
-
-        ``raw``: the steps ``t[1:] - t[:-1]``, if at hand (with :meth:`shortcuts`, only
-        the raw steps outside ``[0.502, 1.498] dt`` are looked at).
-        """
+        """Positions ``i`` where the offset steps by over half a sample to ``i + 1`` (``raw``: the raw steps)."""
         n = self.t.size
         if raw is not None and self.k is None and self.shortcuts():
             cand = np.flatnonzero((raw < (0.5 + 2e-3) * self.dt) | (raw > (1.5 - 2e-3) * self.dt))
@@ -170,25 +141,20 @@ def retime(t: np.ndarray, index: np.ndarray | None = None, *, window_s: float = 
            min_inliers: float = 0.95) -> RetimeResult:
     """Sample index as the clock: ``t_k = a_s + k / rate`` per stretch ``s`` between dropouts.
 
-    The stamps' offset from a nominal clock (in samples) is smoothed by a running
-    median over ``window_s``: a stretch displaced for less than half the window
-    is jitter, a lasting step of more than one sample is a dropout (a new
-    stretch, kept as a gap). One rate and one intercept per stretch are then
-    fitted by least squares to the stamps within half a sample of the smoothed
-    offset.
+    The stamps' offset from a nominal clock (samples) is smoothed by a running median over ``window_s``: a
+    shorter displacement is jitter, a lasting step of more than one sample a dropout (a new stretch). One rate
+    and one intercept per stretch are fitted by least squares to the stamps within half a sample of it.
 
     Parameters
     ----------
     t : ndarray (N,)
         Finite stamps, s, in file order.
     index : ndarray of int (N,), optional
-        Sample number of each stamp (input rows: a dropped non-finite row still
-        took a slot); default ``arange(N)``.
+        Sample number of each stamp (a dropped non-finite row still took a slot); default ``arange(N)``.
     window_s : float
         Length of the running median, s.
     min_inliers : float
-        Share of the log over which the smoothed offset must lie within one
-        sample of the fitted clock (single stamps may jitter further).
+        Share of the log over which the smoothed offset must lie within one sample of the fitted clock.
 
     Returns
     -------
@@ -200,16 +166,10 @@ def retime(t: np.ndarray, index: np.ndarray | None = None, *, window_s: float = 
 
 def _retime(t: np.ndarray, index: np.ndarray | None, window_s: float, min_inliers: float,
             scratch: np.ndarray | None = None) -> tuple[RetimeResult, _RetimeStats | None]:
-    """:func:`retime`, plus the shift of the stamps and the retimed steps when it applies.
+    """:func:`retime`, plus the stamps' shift and the retimed steps (into ``scratch``, (N - 1,), if given).
 
-    ``scratch``: an (N - 1,) float array the caller no longer needs, to hold the retimed steps.
-
-    The offset from the nominal clock is formed block by block (and again where
-    needed) instead of kept whole; the sums, products and comparisons are the
-    same operations on the same values, in the same order, so the result is
-    bit for bit the whole-array fit's. Beyond that only: sums of the integer
-    index are exact in any order (so they are formed in closed form), and the
-    :class:`_Clock` shortcuts skip samples that provably pass a test.
+    Block by block, bit for bit the whole-array fit (the same operations in the same order; integer index
+    sums in closed form, exact).
     """
     n = t.size
     k = None if index is None else np.asarray(index, dtype=float)
@@ -340,10 +300,7 @@ def _retime(t: np.ndarray, index: np.ndarray | None, window_s: float, min_inlier
 
 def _apply_retime(t: np.ndarray, index: np.ndarray | None, report: ValidationReport, scratch: np.ndarray,
                   ) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """Retime into the report; the new stamps and their steps, or None (then ``drop`` applies).
-
-    ``index`` None: the rows are ``0, 1, 2, ...`` (no row left out). ``scratch``: see :func:`_retime`.
-    """
+    """Retime into the report: the new stamps and their steps, or None (then ``drop`` applies)."""
     res, stats = _retime(t, index, 2.0, 0.95, scratch)
     if res.t is None or stats is None:
         report.retime_note = res.note

@@ -1,19 +1,12 @@
 """ROS logs: ``sensor_msgs/Imu``, poses and speeds from ROS 1 bags, ROS 2 bags and MCAP files.
 
-Read with `rosbags <https://gitlab.com/ternaris/rosbags>`_ (the ``ros`` extra, imported only when a
-function here is called): a ROS 1 bag (``*.bag``), a ROS 2 bag folder (``metadata.yaml``, ``*.db3`` or
-``*.mcap`` storage), a plain MCAP file of ROS 2 (CDR) messages or of ROS 1 messages (profile ``ros1``,
-as ``mcap convert x.bag`` writes: read with the ``mcap`` package, deserialised by rosbags).
-
-Times: the header stamps (``time_source="header"``, the sensor's clock) by default, the record times
-with ``time_source="record"``; one :class:`~imu_ground.errors.TimestampWarning` when the two disagree
-(median or spread of record - header beyond ``stamp_tolerance``); all-zero header stamps fall back to
-the record times, with a warning. ``ImuData.t`` starts at 0; ``meta["t0_ns"]`` (int, ns) and
-``meta["t0"]`` (s) hold the first stamp (``t0_ns + round(t * 1e9)`` is the original). Poses and speeds
-are in s since ``t0_ns`` when given (the IMU's ``meta["t0_ns"]``), else since the epoch.
-
-Frames: REP 103 body axes (x forward, y left, z up), ``ImuData.frame`` ``"FLU"``, or ``"RDF"`` for an
-``*optical*`` frame_id; the message's ``frame_id`` is in ``meta["frame_id"]``.
+The files are opened by :mod:`~imu_ground.datasets.rosbag_files`. Times: the header stamps
+(``time_source="header"``) by default, else the record times; one
+:class:`~imu_ground.errors.TimestampWarning` when the two disagree (median or spread of record - header
+beyond ``stamp_tolerance``, s); all-zero header stamps fall back to the record times, with a warning.
+``ImuData.t`` starts at 0, ``meta["t0_ns"]`` (int, ns) and ``meta["t0"]`` (s) hold the first stamp. Poses
+and speeds are in s since ``t0_ns`` when given, else since the epoch. Frames: REP 103 (``"FLU"``), or
+``"RDF"`` for an ``*optical*`` frame_id (in ``meta["frame_id"]``).
 """
 from __future__ import annotations
 
@@ -23,9 +16,9 @@ from typing import Any
 
 import numpy as np
 
+from imu_ground.errors import MalformedFileError, TimestampWarning, warn_user
 from imu_ground.imu.data import ImuData
 
-from imu_ground.errors import MalformedFileError, TimestampWarning, warn_user
 from .rosbag_files import (PathLike, _choose, _messages, _open, _raw_messages, is_rosbag, rosbag_topics)
 from .skeleton import finish, register_format, with_finish_parameters
 
@@ -42,17 +35,14 @@ SPEED_TYPES = ("geometry_msgs/msg/TwistStamped", "nav_msgs/msg/Odometry",
                "geometry_msgs/msg/TwistWithCovarianceStamped")
 
 
-#: float64 fields of sensor_msgs/Imu after its header: orientation (4), its covariance (9),
-#: angular_velocity (3), covariance (9), linear_acceleration (3), covariance (9).
+#: float64 fields of sensor_msgs/Imu after its header: orientation (4), angular_velocity (3 at 13),
+#: linear_acceleration (3 at 25), each followed by its covariance (9).
 _IMU_DOUBLES = 37
 
 
 def _imu_columns(raws: Sequence[bytes], ros1: bool) -> tuple[np.ndarray, str, np.ndarray] | None:
-    """Decode serialised ``sensor_msgs/Imu`` messages of one length with numpy (no per-message Python):
-    ROS 1 (``seq, sec, nsec: uint32``, frame_id as uint32 length + bytes, 37 float64 unaligned) or
-    little-endian CDR (4-byte encapsulation, ``sec: int32, nanosec: uint32``, frame_id + NUL, padding to
-    8, 37 float64). ``(stamps ns (N,), frame_id, doubles (N, 37))``, or None when the messages differ in
-    length or are big-endian CDR (then each is deserialised)."""
+    """``(stamps ns, frame_id, doubles (N, 37))`` of serialised ``sensor_msgs/Imu`` decoded by numpy: ROS 1 or
+    little-endian CDR messages of one length (else None: each is deserialised)."""
     size = len(raws[0])
     if size < 16 or any(len(r) != size for r in raws):
         return None
@@ -108,7 +98,7 @@ def _vectors(msgs: Sequence[Any], attr: str) -> np.ndarray:
 
 
 def _imu_slow(msgs: Sequence[Any]) -> tuple[np.ndarray, str, np.ndarray]:
-    """What :func:`_imu_columns` returns, from deserialised messages."""
+    """:func:`_imu_columns`' result from deserialised messages."""
     d = np.empty((len(msgs), _IMU_DOUBLES))
     for k, m in enumerate(msgs):
         o, w, a = m.orientation, m.angular_velocity, m.linear_acceleration
@@ -133,14 +123,10 @@ def _read_imu_topic(reader: Any, conns: Sequence[Any]) -> tuple[np.ndarray, np.n
 
 
 def _orientation(d: np.ndarray) -> np.ndarray | None:
-    """The IMU's own attitude (w, x, y, z) per message, or None when not provided (covariance[0] = -1, or zeros)."""
+    """The IMU's own attitude (w, x, y, z), or None when not provided (covariance[0] = -1, or zeros)."""
     if d[0, 4] == -1 or not np.any(d[:, :4]):
         return None
     return d[:, [3, 0, 1, 2]]
-
-
-def _axes(frame_id: str) -> str:
-    return "RDF" if "optical" in frame_id else "FLU"
 
 
 @with_finish_parameters
@@ -156,27 +142,23 @@ def read_rosbag_imu(path: PathLike, *, topic: str | None = None, time_source: st
     topic : str, optional
         The IMU topic; needed only when the log has more than one.
     time_source : {"header", "record"}
-        Header stamps (default) or the recorder's receive times.
     stamp_tolerance : float
-        Disagreement, s, between header and record times beyond which a warning is issued.
+        See the module docstring.
     {finish_parameters}
 
     Returns
     -------
     ImuData
-        ``t`` s from the first stamp, ``gyro`` (``angular_velocity``) rad/s,
-        ``accel`` (``linear_acceleration``, specific force) m/s^2, both in the
-        message's frame (REP 103: ``frame="FLU"``); ``extra`` holds the IMU's own
-        attitude ``qw, qx, qy, qz`` when the messages carry one; ``meta``:
-        ``format="rosbag"``, ``topic``, ``frame_id``, ``t0_ns`` / ``t0`` (first
-        stamp, ns / s), ``time_source``, ``record_t0_ns``.
+        ``t`` s from the first stamp, ``gyro`` (``angular_velocity``) rad/s, ``accel``
+        (``linear_acceleration``) m/s^2, in the message's frame; ``extra`` the IMU's own attitude ``qw, qx,
+        qy, qz`` when the messages carry one; ``meta``: ``format="rosbag"``, ``topic``, ``frame_id``,
+        ``t0_ns`` / ``t0``, ``time_source``, ``record_t0_ns``.
 
     Raises
     ------
     ImuInputError
-        No IMU topic (the message lists the topics there are), several (it
-        lists them with counts and rates and names the ``topic`` option), or
-        ``topic`` is not an IMU topic.
+        No IMU topic (the message lists the topics), several (listed with counts and rates, naming
+        ``topic``), or ``topic`` is not an IMU topic.
     MalformedFileError
         Truncated or corrupt file, or no IMU message.
     """
@@ -194,7 +176,7 @@ def read_rosbag_imu(path: PathLike, *, topic: str | None = None, time_source: st
     meta = {"format": "rosbag", "topic": conns[0].topic, "frame_id": frame_id, "t0_ns": int(ns[0]),
             "t0": int(ns[0]) / 1e9, "t0_clock": f"{used} time of the first message",
             "time_source": used, "record_t0_ns": int(rec[0])}
-    imu = ImuData((ns - ns[0]) / 1e9, d[:, 13:16], d[:, 25:28], _axes(frame_id), extra,
+    imu = ImuData((ns - ns[0]) / 1e9, d[:, 13:16], d[:, 25:28], "RDF" if "optical" in frame_id else "FLU", extra,
                   {c: "1" for c in extra.columns}, str(p), meta)
     return finish(imu, validate=validate, policy=policy, **validate_kw)
 
@@ -226,17 +208,15 @@ def read_rosbag_poses(path: PathLike, topic: str | None = None, *, t0_ns: int | 
     topic : str, optional
         The pose topic; needed only when the log has more than one.
     t0_ns : int, optional
-        Clock origin, ns, of the returned times (the IMU's ``meta["t0_ns"]``);
-        default: the epoch.
+        Clock origin, ns, of the returned times (the IMU's ``meta["t0_ns"]``); default: the epoch.
     time_source, stamp_tolerance
         As in :func:`read_rosbag_imu`.
 
     Returns
     -------
     PoseSequence
-        ``rotations`` world <- sensor (the message's ``header.frame_id`` <-
-        ``child_frame_id``/the pose's frame), ``translations`` m, ``t`` s,
-        ``index`` 0..N-1.
+        ``rotations`` world <- sensor (``header.frame_id`` <- ``child_frame_id``/the pose's frame),
+        ``translations`` m, ``t`` s, ``index`` 0..N-1.
     """
     from imu_ground.datasets.poses import PoseSequence
     from scipy.spatial.transform import Rotation
@@ -253,13 +233,7 @@ def read_rosbag_poses(path: PathLike, topic: str | None = None, *, t0_ns: int | 
 
 
 def speed_topics(path: PathLike) -> list[str]:
-    """The topics of a ROS log that carry a speed (:data:`SPEED_TYPES`), sorted; read from the index only.
-
-    Parameters
-    ----------
-    path : str or Path
-        ROS log.
-    """
+    """The topics of the ROS log ``path`` that carry a speed (:data:`SPEED_TYPES`), sorted (from the index only)."""
     with _open(Path(path)) as reader:
         return sorted({c.topic for c in reader.connections if c.msgtype in SPEED_TYPES})
 
@@ -276,13 +250,9 @@ def read_rosbag_speed(path: PathLike, topic: str | None = None, *, t0_ns: int | 
 
     Returns
     -------
-    t : ndarray (N,)
-        s.
-    speed : ndarray (N,)
-        m/s. ``nav_msgs/Odometry``: ``twist.linear.x``, the signed forward speed
-        (its twist is in the body frame, ``child_frame_id``, REP 105); twist
-        messages (frame not known to be the body's): the norm of ``linear``,
-        unsigned.
+    t, speed : ndarray (N,)
+        s; m/s: ``nav_msgs/Odometry`` the signed forward speed ``twist.linear.x`` (body frame, REP 105), twist
+        messages (frame not known to be the body's) the norm of ``linear``, unsigned.
     """
     _, msgtype, ns, msgs = _read_typed(path, SPEED_TYPES, topic, "speed", time_source, stamp_tolerance)
     twists = [m.twist.twist if hasattr(m.twist, "twist") else m.twist for m in msgs]

@@ -1,12 +1,9 @@
 """ROS logs as files: open a ROS 1 bag, a ROS 2 bag folder or an MCAP file, list and choose topics, read raw messages.
 
-The file side of :mod:`imu_ground.datasets.rosbag` (which turns the messages
-into IMU samples, poses and speeds). `rosbags <https://gitlab.com/ternaris/rosbags>`_
-(the ``ros`` extra) and ``mcap`` are imported only when a function here is
-called. Unreadable files raise
-:class:`~imu_ground.datasets.report.MalformedFileError` naming them; a topic
-that is missing or ambiguous raises
-:class:`~imu_ground.datasets.options.ImuInputError` naming ``topic``.
+With `rosbags <https://gitlab.com/ternaris/rosbags>`_ and ``mcap`` (the ``ros`` extra, imported when used);
+an MCAP file of ROS 1 messages (profile ``ros1``, as ``mcap convert x.bag`` writes) is read by ``mcap`` and
+deserialised by rosbags. Unreadable files raise :class:`~imu_ground.errors.MalformedFileError` naming
+them; a missing or ambiguous topic :class:`~imu_ground.errors.ImuInputError` naming ``topic``.
 """
 from __future__ import annotations
 
@@ -76,12 +73,7 @@ class _Connection(NamedTuple):
 
 
 class _Ros1Mcap:
-    """The part of rosbags' ``AnyReader`` used here, over an MCAP file of ROS 1 messages.
-
-    rosbags reads MCAP files of profile ``ros2`` only; ``mcap convert x.bag x.mcap``
-    writes profile ``ros1`` (``ros1msg`` schemas, ROS 1 serialisation). The
-    ``mcap`` package reads the records, rosbags deserialises the messages.
-    """
+    """The part of rosbags' ``AnyReader`` used here, over an MCAP file of ROS 1 messages (rosbags reads ``ros2``)."""
 
     is2 = False
 
@@ -189,15 +181,13 @@ def rosbag_topics(path: PathLike, rates: bool = True) -> list[tuple[str, str, in
     path : str or Path
         ``.bag``, ``.mcap`` or ROS 2 bag folder.
     rates : bool
-        Measure each topic's rate, which reads every message of the log (camera
-        topics included); False: counts only, from the index, ``rate_hz`` nan.
+        Measure each topic's rate (reads every message); False: counts from the index only.
 
     Returns
     -------
     list of (topic, msgtype, count, rate_hz)
-        Sorted by topic; ``msgtype`` in rosbags' spelling (``sensor_msgs/msg/Imu``),
-        ``rate_hz`` the median rate of the record times (nan below 2 messages
-        or without ``rates``).
+        Sorted by topic; ``msgtype`` as rosbags spells it (``sensor_msgs/msg/Imu``), ``rate_hz`` the median
+        rate of the record times (nan below 2 messages or without ``rates``).
 
     Raises
     ------

@@ -1,14 +1,8 @@
-"""The one reader skeleton: open, decompress, parse, map columns, convert units, validate, report.
+"""The format registry: each format registers a *probe* and its reader (:func:`register_format`).
 
-Each format registers a *probe* (does this path look like my format?) and its reader
-(:func:`register_format`). The shared steps live once each: open / decompress / parse text in
-:mod:`~imu_ground.datasets.csvio`; columns and units (told from the data when not given) in
-:mod:`~imu_ground.datasets.table` and :mod:`~imu_ground.datasets.unit_checks`; validation and its
-report in :func:`finish`, every reader's last step (``meta["validation"]``).
-
-:func:`detect_format` asks the probes in priority order; :func:`read_imu` picks the reader, passes the
-reader options it accepts (:data:`~imu_ground.datasets.options.READER_OPTIONS`) and names one that does
-not apply. A pose file handed to either gets a :class:`PoseFileError` saying so.
+:func:`detect_format` asks the probes in priority order; :func:`read_imu` picks the reader, passes the reader
+options it accepts (:data:`~imu_ground.datasets.options.READER_OPTIONS`) and names one that does not apply.
+Every reader ends in :func:`finish` (validation, report in ``meta["validation"]``).
 """
 from __future__ import annotations
 
@@ -34,8 +28,7 @@ __all__ = ["ALIASES", "FINISH_PARAMETERS", "FORMATS", "FormatSpec", "PoseFileErr
 #: Options every reader takes (they go to :func:`finish`).
 COMMON_OPTIONS = frozenset({"policy", "nonfinite"})
 
-#: The readers' common parameters, which they pass on to :func:`finish`, as numpydoc
-#: ``Parameters`` entries; :func:`with_finish_parameters` puts them in a reader's docstring.
+#: The readers' parameters passed to :func:`finish`, as numpydoc entries (:func:`with_finish_parameters`).
 FINISH_PARAMETERS = """\
 validate : bool
     Run :func:`imu_ground.datasets.validation.validate` (default True).
@@ -56,10 +49,9 @@ class FormatSpec:
     name : str
         Format name (``read_imu(format=...)``, ``--format``).
     probe : callable
-        ``probe(path: Path) -> bool``: does this existing path look like the format?
-        Cheap (names, a header line), never raises for a foreign path.
+        ``probe(path: Path) -> bool``: cheap (names, a header line), never raises for a foreign path.
     reader : callable
-        ``reader(path, **options) -> ImuData`` (validated through :func:`finish`).
+        ``reader(path, **options) -> ImuData``, ending in :func:`finish`.
     description : str
         One line: what the format is and what the probe looks for.
     priority : int
@@ -102,13 +94,8 @@ def finish(imu: ImuData, *, validate: bool = True, policy: str = "retime", **opt
     ----------
     imu : ImuData
         As parsed, in ImuData units (``meta["row_lines"]`` may map rows to file lines).
-    validate : bool
-        Run :func:`imu_ground.datasets.validation.validate` (default True); False returns ``imu``
-        unchanged and refuses validation options.
-    policy : {"retime", "drop", "sort", "strict", "recorded"}
-        Time-order policy (default ``"retime"``).
-    **options
-        Other options of :func:`~imu_ground.datasets.validation.validate`.
+    validate, policy, **options
+        As :data:`FINISH_PARAMETERS`; ``validate=False`` returns ``imu`` unchanged and refuses options.
 
     Returns
     -------
@@ -128,11 +115,7 @@ def finish(imu: ImuData, *, validate: bool = True, policy: str = "retime", **opt
 
 
 def with_finish_parameters(reader: _Reader) -> _Reader:
-    """Decorator: replace the line ``{finish_parameters}`` of ``reader``'s docstring by :data:`FINISH_PARAMETERS`.
-
-    The entries take the placeholder line's indentation, so the docstring reads
-    (``help``, Sphinx) as if they were written there.
-    """
+    """Decorator: the line ``{finish_parameters}`` of ``reader``'s docstring becomes :data:`FINISH_PARAMETERS`."""
     doc = reader.__doc__
     if doc and "{finish_parameters}" in doc:    # docstrings are None under python -OO
         line = next(x for x in doc.splitlines() if "{finish_parameters}" in x)
@@ -147,9 +130,7 @@ def _ordered() -> list[FormatSpec]:
 
 @storage.reads_sources
 def detect_format(path: str | Path | pd.DataFrame | IO) -> str:
-    """Name of the format of ``path`` (a key of :data:`FORMATS`), asking each format's probe.
-
-    ``path`` is what :func:`read_imu` takes (a URL or file object is copied to a local file first).
+    """Name of the format of ``path`` (what :func:`read_imu` takes), a key of :data:`FORMATS`.
 
     Raises
     ------
@@ -197,9 +178,9 @@ def read_imu(path: str | Path | pd.DataFrame | IO, format: str | None = None, **
     Parameters
     ----------
     path : str, Path, pandas.DataFrame or file object
-        File or folder (:func:`detect_format`), an fsspec URL of one (``s3://bucket/x.csv.gz``,
-        ``memory://...``, ``file://...``), an open file object (binary or text; the format from its
-        name, else its first bytes), or a DataFrame (``table``).
+        File or folder, an fsspec URL of one (``s3://bucket/x.csv.gz``, ``memory://...``, ``file://...``),
+        an open file object (binary or text; the format from its name, else its first bytes), or a
+        DataFrame (``table``).
     format : str, optional
         A key of :data:`FORMATS` or :data:`ALIASES`; detected from ``path`` when omitted.
     **kw

@@ -1,11 +1,8 @@
 """A vehicle speed signal (wheel / CAN speed) for the speed-aided estimators, and its resampling to frames.
 
-Sources (:func:`read_speed`): a CSV file ``t,speed`` (:func:`read_speed_file`); a column of the
-IMU log's own table; or the log's own signal (:func:`log_speed`): KITTI the INS horizontal speed
-``hypot(ve, vn)`` as a stand-in for a wheel speed, nuScenes CAN bus the ``vel`` of the scene's
-``pose.json``, comma2k19 ``processed_log/CAN/speed``, ROS bags and MCAP a twist or odometry topic.
-Times are seconds on the IMU's time base (``ImuData.t``), so :func:`frame_speed` averages the speed
-over each frame of the ego-motion.
+Sources (:func:`read_speed`): a CSV file ``t,speed``, a column of the IMU log's table, or the log's own
+signal (:data:`SPEED_SOURCES`: KITTI's INS horizontal speed, nuScenes ``pose.json`` ``vel``, comma2k19
+``CAN/speed``, a ROS twist or odometry topic). Times are s on the IMU's time base (``ImuData.t``).
 """
 from __future__ import annotations
 
@@ -18,6 +15,7 @@ import numpy as np
 
 from imu_ground.errors import ImuGroundError, ImuInputError, MalformedFileError
 
+from .csvio import RowLines, numeric, read_delimited
 from .rosbag_files import is_rosbag
 
 __all__ = ["MAX_REVERSE", "MAX_SPEED", "SPEED_NAMES", "SPEED_SOURCES", "TIME_NAMES", "check_speed", "frame_speed",
@@ -34,7 +32,7 @@ SPEED_SOURCES = {
 
 
 def _checked(t, v, source: str) -> tuple[np.ndarray, np.ndarray]:
-    """Samples with a finite time, sorted, duplicate times dropped; a NaN speed stays (a hole: :func:`frame_speed`)."""
+    """Samples with a finite time, sorted, duplicate times dropped; a NaN speed stays (a hole)."""
     t = np.asarray(t, dtype=float).ravel()
     v = np.asarray(v, dtype=float).ravel()
     if t.shape != v.shape or t.size == 0:
@@ -60,14 +58,12 @@ UNIT_WINDOW_S = 1.0
 
 
 def speed_unit(n: int, sums: Any) -> tuple[str | None, float]:
-    """The speed's unit told from ``n`` windows of its changes ``y`` (m/s or km/h) against the accelerometer's ``x``
-    (m/s): the least-squares slope and correlation of ``y`` on ``x``, means removed (a grade adds ``g sin(grade)``
-    to ``a_x``), from the sums ``(x, y, xx, yy, xy)``.
+    """The speed's unit from ``n`` windows of its changes ``y`` against the accelerometer's ``x`` (m/s), given the
+    sums ``(x, y, xx, yy, xy)``: the least-squares slope of ``y`` on ``x``, means removed.
 
     Returns ``(unit, slope)``: ``"km/h"`` for a slope of 2.9-4.5, ``"m/s"`` for 0.6-1.6, ``"other"`` for another,
-    each with a correlation over 0.6; ``None`` (and NaN) when the windows cannot tell (under 20, or no correlation).
-    :func:`check_speed` sums a whole signal, the live :class:`~imu_ground.pipeline.live_speed.SpeedUnit` frame by
-    frame.
+    each with a correlation over 0.6; ``(None, nan)`` when the windows cannot tell (under 20, no correlation).
+    Summed over a whole signal by :func:`check_speed`, frame by frame by the live ``SpeedUnit``.
     """
     if n < 20:
         return None, math.nan
@@ -80,8 +76,7 @@ def speed_unit(n: int, sums: Any) -> tuple[str | None, float]:
 
 
 def _scale_against_accel(t: np.ndarray, v: np.ndarray, imu) -> tuple[str | None, float, int]:
-    """:func:`speed_unit` of the signal over windows of :data:`UNIT_WINDOW_S` moving over 1 m/s at both ends (the
-    forward specific force integrated over each): ``(unit, slope, windows)``."""
+    """:func:`speed_unit` over windows of :data:`UNIT_WINDOW_S` above 1 m/s at both ends: ``(unit, slope, windows)``."""
     fin = np.isfinite(v)
     t, v = t[fin], v[fin]
     ti = np.asarray(imu.t, dtype=float)
@@ -105,10 +100,9 @@ def _scale_against_accel(t: np.ndarray, v: np.ndarray, imu) -> tuple[str | None,
 def check_speed(t: np.ndarray, v: np.ndarray, source: str, imu=None) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """Check a measured speed signal against what a car does and against the IMU; fix what is certain.
 
-    Times in milliseconds (spanning about 1000 times the log): converted to s. A speed in km/h
-    (:func:`_scale_against_accel` slope 2.9-4.5, correlation over 0.6): converted to m/s, another
-    scale said. Negative speeds: reversing, said; faster than :data:`MAX_REVERSE` backwards or mostly
-    negative (a flipped sign), refused; faster than :data:`MAX_SPEED`: refused.
+    Times in ms (spanning about 1000 times the log) and speeds in km/h (:func:`speed_unit`) are converted,
+    another scale said; negative speeds are reversing, said; faster than :data:`MAX_REVERSE` backwards, mostly
+    negative (a flipped sign) or faster than :data:`MAX_SPEED`: refused.
 
     Parameters
     ----------
@@ -175,7 +169,7 @@ SPEED_NAMES = ("speed", "v")
 
 
 def _named_column(p: Path, cols: list[str], names: tuple[str, ...], what: str) -> str:
-    """The one column of ``cols`` whose name is in ``names`` (regardless of case); else a one-line error."""
+    """The one column of ``cols`` whose name is in ``names`` (regardless of case)."""
     found = [c for c in cols if c.lower() in names]
     accepted = " or ".join(repr(n) for n in names)
     if len(found) == 1:
@@ -203,65 +197,43 @@ def read_speed_file(path: str | Path, column: str | None = None) -> tuple[np.nda
     FileNotFoundError
         No such file.
     MalformedFileError
-        No time or speed column by those names, or two of one kind (the message gives the
-        header and the accepted names); non-numeric values; a row without a time, or times that
-        step back or repeat (the message gives the first such line: nothing is sorted or dropped).
+        Not a CSV table; no time or speed column by those names, or two of one kind (the message gives the
+        header and the accepted names); non-numeric values; a row without a time, or times that step back or
+        repeat (the message gives the first such line: nothing is sorted or dropped).
     """
-    import pandas as pd
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"{p}: no such speed file")
-    try:
-        df = pd.read_csv(p, skipinitialspace=True)
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as e:
-        raise MalformedFileError(p, f"not a speed table, a CSV file with a header such as 't,speed' "
-                                 f"({' '.join(str(e).split())})") from e
-    cols = [str(c).strip() for c in df.columns]
-    df.columns = cols
+    data, row_lines = read_delimited(p)
+    cols = {str(c).strip(): x for c, x in data.items()}
     if column is not None and column not in cols:
         raise MalformedFileError(p, f"no speed column {column!r}; columns: {', '.join(cols)}")
-    name = column or _named_column(p, cols, SPEED_NAMES, "speed")
-    tcol = _named_column(p, cols, TIME_NAMES, "time")
-    try:
-        t, v = df[tcol].to_numpy(float), df[name].to_numpy(float)
-    except (TypeError, ValueError) as e:
-        raise MalformedFileError(p, f"column {tcol!r} or {name!r} is not numeric ({e})") from e
-    _check_time_order(p, t, tcol)
+    name = column or _named_column(p, list(cols), SPEED_NAMES, "speed")
+    tcol = _named_column(p, list(cols), TIME_NAMES, "time")
+    t, v = (numeric(cols[c], c, p, row_lines) for c in (tcol, name))
+    _check_time_order(p, t, tcol, row_lines)
     return _checked(t, v, str(p))
 
 
-def _data_lines(p: Path) -> np.ndarray:
-    """1-based file lines of the data rows as pandas reads them (after the header, blank lines skipped)."""
-    with open(p, encoding="utf-8", errors="replace") as f:
-        lines = [k for k, text in enumerate(f, start=1) if text.strip()]
-    return np.asarray(lines[1:], dtype=np.int64)
-
-
-def _check_time_order(p: Path, t: np.ndarray, tcol: str) -> None:
-    """Refuse a speed file with a row without a finite time or times that do not increase (a table the user wrote,
-    not jitter to retime): the message names the first bad line."""
+def _check_time_order(p: Path, t: np.ndarray, tcol: str, row_lines: RowLines) -> None:
+    """Refuse a speed file with a row without a finite time, or times that do not increase, naming the first line."""
     bad = np.flatnonzero(~np.isfinite(t))
     if bad.size:
-        line = int(_data_lines(p)[bad[0]])
         raise MalformedFileError(p, f"no time in column {tcol!r} ({bad.size} row(s) without one); every row of a "
-                                 "speed file has a time, s", line=line)
+                                 "speed file has a time, s", line=int(row_lines(bad[:1])[0]))
     steps = np.diff(t)
     back = np.flatnonzero(steps <= 0)
     if not back.size:
         return
     k = int(back[0]) + 1
-    lines = _data_lines(p)
+    before, line = (int(x) for x in row_lines(np.array([k - 1, k])))
     n_back, n_rep = int(np.count_nonzero(steps < 0)), int(np.count_nonzero(steps == 0))
     what = "repeats" if steps[k - 1] == 0 else "goes back from"
     counts = " and ".join(x for x in (f"{n_back} step(s) back" if n_back else "",
                                       f"{n_rep} repeated time(s)" if n_rep else "") if x)
-    raise MalformedFileError(p, f"the time {t[k]:.6g} s {what} {t[k - 1]:.6g} s on line {int(lines[k - 1])} "
+    raise MalformedFileError(p, f"the time {t[k]:.6g} s {what} {t[k - 1]:.6g} s on line {before} "
                              f"({counts} in {t.size} rows); a speed file's times increase from row to row: "
-                             "sort it by time and remove repeated rows", line=int(lines[k]))
-
-
-def _imu_t0(imu) -> float:
-    return float(imu.meta.get("t0", 0.0)) if imu is not None else 0.0
+                             "sort it by time and remove repeated rows", line=line)
 
 
 def _nuscenes_speed(imu, path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -285,12 +257,13 @@ def _comma_speed(imu, path: Path) -> tuple[np.ndarray, np.ndarray]:
         raise FileNotFoundError(f"{can}: no CAN speed in this comma2k19 segment")
     t = np.load(can / "t", allow_pickle=False)
     v = np.load(can / "value", allow_pickle=False)
-    return _checked(t - _imu_t0(imu), np.asarray(v, dtype=float).reshape(len(t), -1)[:, 0], str(can))
+    t0 = float(imu.meta.get("t0", 0.0)) if imu is not None else 0.0
+    return _checked(t - t0, np.asarray(v, dtype=float).reshape(len(t), -1)[:, 0], str(can))
 
 
 def log_speed(path: str | Path, format: str, imu=None, topic: str | None = None
               ) -> tuple[np.ndarray, np.ndarray] | None:
-    """The log's own speed signal on the IMU's time base, or None when its format has none.
+    """The log's own speed signal ``(t, speed)`` on the IMU's time base, or None when its format has none.
 
     Parameters
     ----------
@@ -302,6 +275,11 @@ def log_speed(path: str | Path, format: str, imu=None, topic: str | None = None
         The log as read (read when needed and not given).
     topic : str, optional
         ROS: the twist / odometry topic.
+
+    Raises
+    ------
+    ImuInputError
+        A ROS log with several speed topics (naming ``--speed``).
     """
     p = Path(path)
     if format in ("kitti_imu100", "kitti_oxts"):
@@ -383,8 +361,7 @@ def read_speed(source: Any, *, log: str | Path | None = None, format: str | None
 
 def frame_speed(t: np.ndarray, speed: np.ndarray, frame_t: np.ndarray, frame_dt: np.ndarray) -> np.ndarray:
     """Mean speed over each frame ``(t_k - dt_k, t_k]``, m/s: the exact mean of the piecewise-linear speed; NaN for a
-    frame outside the signal's span or reached by a hole (a run of NaN speeds, from the last finite sample before
-    it to the first after it: nothing is interpolated across).
+    frame outside the signal's span or reached by a hole (a run of NaN speeds, between its finite neighbours).
 
     Parameters
     ----------
@@ -423,7 +400,7 @@ def frame_speed(t: np.ndarray, speed: np.ndarray, frame_t: np.ndarray, frame_dt:
 
 
 def _holes(t: np.ndarray, fin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Open intervals ``(lo, hi)``, s, between the finite neighbours of each run of NaN speeds (+-inf at the ends)."""
+    """Open intervals ``(lo, hi)``, s, between the finite neighbours of each run of NaN speeds."""
     good = np.flatnonzero(fin)
     pos = np.unique(np.searchsorted(good, np.flatnonzero(~fin)))    # one per run: the next finite sample's rank
     lo = np.where(pos > 0, t[good[np.maximum(pos - 1, 0)]], -np.inf)

@@ -1,20 +1,10 @@
 """Where a log or an output lives: a local path, or an fsspec URL (``s3://``, ``gs://``, ``memory://`` ...).
 
-The one place that tells the two apart (:func:`is_url`). A local path (``str``, ``Path``, or a
-``file://`` URL, :func:`local_name`) keeps the package's own code paths (readers on the file, outputs
-staged beside the destination and renamed into place, the batch lock). A URL goes through
-`fsspec <https://filesystem-spec.readthedocs.io>`_:
-
-- reading (:func:`local_input`): the file or folder (or an open file object) is copied into a
-  temporary folder and read there by the same readers; messages and ``source`` fields name the URL;
-- writing (:func:`staged_outputs`, :func:`put_file`): each output is written whole to a local
-  temporary file, then uploaded in one piece (an object store's PUT: complete or absent; no rename,
-  no lock);
-- listing (:func:`glob`, :func:`exists`).
-
-A protocol's filesystem comes with its own package (``s3fs``, ``gcsfs`` ...; a missing one is a
-:class:`MissingFilesystemError` naming it); credentials and endpoints are the filesystem's own
-(``AWS_ACCESS_KEY_ID``, ``AWS_ENDPOINT_URL`` ..., or ``fsspec.config.conf``).
+The one place that tells the two apart (:func:`is_url`; ``file://`` URLs are local paths). A URL goes through
+`fsspec <https://filesystem-spec.readthedocs.io>`_: read from a local copy (:func:`local_input`; messages name
+the URL), written whole to a local file and uploaded in one piece (:func:`staged_outputs`, :func:`put_file`),
+listed (:func:`glob`, :func:`exists`). A protocol's package (``s3fs`` ...) missing is a
+:class:`MissingFilesystemError` naming it; credentials and endpoints are the filesystem's own.
 """
 from __future__ import annotations
 
@@ -120,18 +110,17 @@ def exists(path: Any) -> bool:
 
 def glob(pattern: str) -> list[str]:
     """The URLs a URL glob pattern matches (``s3://bucket/logs/**/*.csv.gz``), sorted, spelt with the protocol."""
-    fs, p = filesystem(pattern) if is_url(pattern) else _local_fs(pattern)
+    if is_url(pattern):
+        fs, p = filesystem(pattern)
+    else:
+        from fsspec.implementations.local import LocalFileSystem
+        fs, p = LocalFileSystem(), local_name(pattern)
     proto = pattern.split("://", 1)[0]
     out = []
     for m in fs.glob(p):
         url = fs.unstrip_protocol(m)
         out.append(proto + "://" + url.split("://", 1)[1] if "://" in url else url)
     return sorted(out)
-
-
-def _local_fs(url: str) -> tuple[Any, str]:
-    from fsspec.implementations.local import LocalFileSystem
-    return LocalFileSystem(), local_name(url)
 
 
 def url_name(url: str) -> str:
@@ -216,12 +205,8 @@ def put_file(local: str | Path, url: str) -> None:
 
 @contextmanager
 def staged_outputs(paths: Sequence[Any]) -> Iterator[list[Any]]:
-    """Local stand-ins for ``paths``: a URL's is a temporary file (same name), uploaded when the block succeeds.
-
-    Local paths are given back as they are (their writer stages them). The URLs are uploaded in
-    order, each in one piece: of several outputs the first may exist without the last when an upload
-    fails.
-    """
+    """Local stand-ins for ``paths``: a URL's is a temporary file (same name), uploaded in one piece when the block
+    succeeds (in order: the first may exist without the last when an upload fails); local paths as they are."""
     tmp = Path(tempfile.mkdtemp(prefix="imu-ground-out-"))
     try:
         local = [tmp / str(i) / url_name(p) if is_url(p) else p for i, p in enumerate(paths)]
@@ -286,18 +271,16 @@ def local_input(source: Any, label: str | None = None) -> Iterator[Any]:
     Parameters
     ----------
     source : str, Path, file object or anything else
-        A local path or ``file://`` URL (given back as its path); an fsspec URL (the file or folder
-        copied into a temporary folder, removed when the block ends); an open file object, binary or
-        text (its remaining content copied, named as the file object is, else by its first bytes:
-        ``.gz``, ``.bz2``, Parquet, ROS bag, MCAP, else ``log.csv``). Anything else (a DataFrame) is
-        given back.
+        A local path or ``file://`` URL (given back as its path); an fsspec URL (the file or folder copied
+        into a temporary folder, removed after the block); an open file object, binary or text (the rest
+        copied, named as the file object is, else by its first bytes: ``.gz``, ``.bz2``, Parquet, ROS bag,
+        MCAP, else ``log.csv``). Anything else (a DataFrame) is given back.
     label : str, optional
         How messages name a copied source (default: the URL, or the file object's name).
 
     Yields
     ------
-    The local path (or ``source``); inside the block, exceptions and warnings that name the copy
-    name the source instead.
+    The local path (or ``source``); in the block, exceptions and warnings name the source, not the copy.
 
     Raises
     ------
@@ -363,11 +346,8 @@ def relabel(data: Any, old: str, new: str) -> Any:
 
 
 def reads_sources(fn: _F) -> _F:
-    """Decorator: ``fn(path, ...)``, written for local paths, also takes a URL or a file object as ``path``.
-
-    A ``file://`` URL is passed on as its local path; a URL or file object as a local copy
-    (:func:`local_input`), and what ``fn`` returns names the source, not the copy (:func:`relabel`).
-    """
+    """Decorator: ``fn(path, ...)``, written for local paths, also takes a URL or a file object (:func:`local_input`);
+    what it returns names the source, not the copy (:func:`relabel`)."""
     @functools.wraps(fn)
     def wrapper(path: Any, *args: Any, **kwargs: Any) -> Any:
         path = local_name(path)

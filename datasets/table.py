@@ -1,17 +1,7 @@
 """Generic IMU tables: CSV (optionally compressed), Parquet, or a pandas DataFrame with named columns.
 
-You say which columns hold time, angular rate and specific force; their units
-are told from the data when you do not say them (see
-:mod:`imu_ground.datasets.unit_checks`: converted with one warning where the
-evidence is unambiguous, else an error naming ``time_unit`` / ``gyro_unit`` /
-``accel_unit``). The reader converts to the :class:`~imu_ground.imu.data.ImuData`
-conventions (s, rad/s, m/s^2) and keeps every other column in ``extra``.
-
-Example
--------
->>> imu = read_table("log.csv", time="timestamp", time_unit="ns",
-...                  gyro=("gx", "gy", "gz"), gyro_unit="deg/s",
-...                  accel=("ax", "ay", "az"), accel_unit="g")   # doctest: +SKIP
+The columns of time, angular rate and specific force are named (``columns``); units not given are told from
+the data (:mod:`imu_ground.datasets.unit_checks`); the result is in s, rad/s, m/s^2, other columns in ``extra``.
 """
 from __future__ import annotations
 
@@ -26,8 +16,8 @@ from imu_ground.imu.data import ImuData
 
 from .csvio import Columns, numeric, read_delimited
 from .skeleton import finish, register_format, with_finish_parameters
-from .unit_checks import (ACCEL_UNITS, GYRO_UNITS, TIME_UNITS, UNIT_OPTIONS, detect_time_unit, motion_in_si, raw_times,
-                          settle_unit, unit_scale)
+from .unit_checks import (ACCEL_UNITS, GYRO_UNITS, TIME_UNITS, UNIT_OPTIONS, check_units, detect_time_unit,
+                          motion_in_si, raw_times, settle_unit, unit_scale)
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -41,14 +31,12 @@ TABLE_SUFFIXES = (".csv", ".csv.gz", ".txt", ".tsv", ".csv.bz2", ".txt.gz", ".ts
 PARQUET_SUFFIXES = (".parquet", ".pq")
 
 
-#: The quantities a table needs, in ``columns`` order: time, angular rate x y z, specific force x y z.
+#: The quantities a table needs: time, angular rate x y z, specific force x y z.
 QUANTITIES = ("t", "wx", "wy", "wz", "ax", "ay", "az")
 
 
 def parse_columns(columns: str | Mapping[str, str]) -> dict[str, Any]:
-    """``columns`` (``"t=timestamp,wx=gyro_x,..."`` or a mapping) as ``time``/``gyro``/``accel`` keywords.
-
-    Quantities not named keep their default column names (``t``, ``wx``, ...).
+    """``columns`` (``"t=timestamp,wx=gyro_x,..."`` or a mapping; others keep their names) as keywords.
 
     Raises
     ------
@@ -74,7 +62,7 @@ def parse_columns(columns: str | Mapping[str, str]) -> dict[str, Any]:
 
 
 def _match_case(cols: Mapping[str, np.ndarray], wanted: str) -> str:
-    """``wanted``, or the one column equal to it regardless of case and surrounding spaces (else ``wanted``)."""
+    """``wanted``, or the one column equal to it regardless of case and surrounding spaces."""
     if wanted in cols:
         return wanted
     found = [c for c in cols if str(c).strip().lower() == wanted.strip().lower()]
@@ -88,13 +76,8 @@ def map_columns(cols: Mapping[str, np.ndarray], *, time: str = "t",
                 extra_units: Mapping[str, str] | None = None, relative_time: bool = True,
                 source: str = "<DataFrame>", row_lines: Callable | None = None,
                 extra: pd.DataFrame | None = None) -> ImuData:
-    """Named columns to an (unvalidated) :class:`ImuData`: pick, convert units, keep the rest.
-
-    Parameters are those of :func:`read_table`; ``cols`` maps column names to
-    arrays in file order, ``row_lines`` maps rows to 1-based file lines (kept in
-    ``meta["row_lines"]`` for the validation's messages), ``extra`` overrides the
-    extra columns (a DataFrame source keeps its own).
-    """
+    """Named columns (``cols``: name -> array in file order) to an unvalidated :class:`ImuData`; parameters as
+    :func:`read_table`, ``row_lines`` rows to 1-based file lines, ``extra`` the source DataFrame if any."""
     import pandas as pd
     gyro, accel = tuple(gyro), tuple(accel)
     for name, c3 in (("gyro", gyro), ("accel", accel)):
@@ -126,6 +109,9 @@ def map_columns(cols: Mapping[str, np.ndarray], *, time: str = "t",
     extra_cols = [c for c in cols if c not in needed]
     if extra is None:
         extra = pd.DataFrame({c: cols[c] for c in extra_cols}, copy=False) if extra_cols else pd.DataFrame()
+    else:                                           # a DataFrame source keeps its own columns
+        rest = [c for c in extra.columns if str(c) in extra_cols]
+        extra = extra[rest].reset_index(drop=True) if rest else pd.DataFrame()
     units = {str(c): dict(extra_units or {}).get(str(c), "unknown") for c in extra_cols}
     meta: dict[str, Any] = {
         "format": "table", "t0": t0,
@@ -148,12 +134,7 @@ def from_dataframe(df: pd.DataFrame, *, source: str = "<DataFrame>", validate: b
                    policy: str = "retime", **kw: Any) -> ImuData:
     """Build an :class:`ImuData` from a DataFrame; see :func:`read_table` for the parameters."""
     mapping, options = _split(kw)
-    cols = {str(c): df[c].to_numpy() for c in df.columns}
-    needed = {_match_case(cols, c) for c in (mapping.get("time", "t"), *mapping.get("gyro", ("wx", "wy", "wz")),
-                                             *mapping.get("accel", ("ax", "ay", "az")))}
-    rest = [c for c in df.columns if str(c) not in needed]
-    extra = df[rest].reset_index(drop=True) if rest else None
-    imu = map_columns(cols, source=source, extra=extra, **mapping)
+    imu = map_columns({str(c): df[c].to_numpy() for c in df.columns}, source=source, extra=df, **mapping)
     return finish(imu, validate=validate, policy=policy, **options)
 
 
@@ -167,9 +148,7 @@ def _split(kw: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
     mapping = {k: kw.pop(k) for k in _MAPPING_KEYS if k in kw}
     if columns is not None:
         mapping.update(parse_columns(columns))
-    for kind in ("time", "gyro", "accel"):
-        if mapping.get(f"{kind}_unit") is not None:
-            unit_scale(kind, mapping[f"{kind}_unit"])  # fail on a bad unit before reading anything
+    check_units(**{k: mapping.get(k) for k in UNIT_OPTIONS})
     return mapping, kw
 
 
@@ -182,25 +161,19 @@ def read_table(source: str | Path | pd.DataFrame, *, sep: str | None = None, dec
     ----------
     source : str, Path or pandas.DataFrame
         A delimited text file with a header line, or a DataFrame.
-    sep : str, optional
-        Field separator; None: a tab for ``.tsv``, else whichever of ``,``, tab and ``;`` splits the
-        header into the most fields (:func:`~imu_ground.datasets.csvio.detect_dialect`).
-    decimal : str, optional
-        Decimal mark (``"."`` or ``","``); None: a comma when the fields are not comma-separated and
-        the first data row writes its numbers so (``9,81``).
+    sep, decimal : str, optional
+        Field separator and decimal mark; None: told from the file (:func:`~imu_ground.datasets.csvio.detect_dialect`).
     {finish_parameters}
 
     Other Parameters
     ----------------
     columns : str or dict, optional
-        Which column holds what, ``"t=timestamp,wx=gyro_x,..."`` or ``{"t": "timestamp", ...}`` (keys
-        of :data:`QUANTITIES`; the others keep their default names; ``--columns``). Names are matched
-        regardless of case.
+        Which column holds what, ``"t=timestamp,wx=gyro_x,..."`` or ``{"t": "timestamp", ...}`` (keys of
+        :data:`QUANTITIES`, others keep their names; ``--columns``), matched regardless of case.
     time : str
-        Time column (numbers, or a datetime column), default ``"t"``.
+        Time column (numbers, or datetimes), default ``"t"``.
     gyro, accel : tuple of 3 str
-        Angular-rate columns about, and specific-force columns along, the body x, y, z axes
-        (default ``wx, wy, wz`` and ``ax, ay, az``; +1 g on the up axis at rest).
+        Angular rate about, and specific force along, the body x, y, z axes (default ``wx, wy, wz``, ``ax, ay, az``).
     time_unit : {"s", "ms", "us", "µs", "ns"}, optional
     gyro_unit : {"rad/s", "deg/s"}, optional
     accel_unit : {"m/s^2", "m/s2", "g"}, optional
@@ -210,8 +183,7 @@ def read_table(source: str | Path | pd.DataFrame, *, sep: str | None = None, dec
     extra_units : dict, optional
         Units of the other columns (kept in ``extra``), default ``"unknown"``.
     relative_time : bool
-        Shift ``t`` to start at 0 (default), the first time, s, in ``meta["t0"]``; integer times
-        are shifted before conversion (exact ns).
+        Shift ``t`` to start at 0 (default; the first time, s, in ``meta["t0"]``; integers shifted first).
 
     Returns
     -------
@@ -224,8 +196,8 @@ def read_table(source: str | Path | pd.DataFrame, *, sep: str | None = None, dec
     FileNotFoundError
         The file does not exist.
     MalformedFileError
-        Empty file, a line with the wrong number of fields, or a non-number in a time/gyro/accel
-        column (naming the file and 1-based line).
+        Empty file, a line with the wrong field count, or a non-number in a time/gyro/accel column (naming
+        the file and 1-based line).
     ImuInputError
         Unknown unit, units the data cannot decide, or a missing column (naming the option).
     """

@@ -2,22 +2,16 @@
 
 :func:`check_timestamps` applies a time-order policy to raw stamps:
 
-- ``"retime"`` (the readers' default): where the stamps step back or repeat but
-  the sample count agrees with a steady rate, the sample index is the clock
-  (:func:`~imu_ground.datasets.retime.retime`, re-exported here): ``t_k = a + k / rate``, fitted robustly to the stamps, one
-  intercept per stretch between real dropouts, which stay gaps. Nothing is
-  dropped. Logs whose stamps increase strictly are left exactly as they are;
-  where the rate is not steady it falls back to ``"drop"`` and says why.
+- ``"retime"`` (the readers' default): where the stamps step back or repeat but the sample count agrees
+  with a steady rate, the sample index is the clock (:func:`~imu_ground.datasets.retime.retime`), nothing
+  dropped; strictly increasing stamps are left as they are; without a steady rate it falls back to
+  ``"drop"`` and says why.
 - ``"drop"``: keep only samples later than every earlier one;
 - ``"sort"``: sort by time (stable) and drop repeated times;
 - ``"strict"``: raise.
-- ``"recorded"``: keep every sample in file order with its stamp as recorded
-  (back-steps and repeats stay; they are listed in the report, not warned about;
-  a gap is a stamp that far past the latest one before it).
-  For the live front end only (``estimate --causal``, ``stream --replay``): the
-  causal :class:`~imu_ground.imu.live.sample_clock.SampleClock` makes the time-order
-  choices itself, sample by sample. The data is then *not* strictly increasing
-  in time, which the batch pipeline needs.
+- ``"recorded"``: every sample in file order with its stamp (listed in the report, not warned about; a gap
+  is a stamp that far past the latest before it): for the live front end's causal
+  :class:`~imu_ground.imu.live.sample_clock.SampleClock` only, as the times are not increasing.
 """
 from __future__ import annotations
 
@@ -31,8 +25,8 @@ from .order_stats import median
 from .report import ValidationReport, row_names
 from .retime import RetimeResult, _apply_retime, _rows, retime
 
-__all__ = ["POLICIES", "Action", "Policy", "RetimeResult", "act", "check_gaps", "check_timestamps", "fmt_list", "gap_action",
-           "order_samples", "retime"]
+__all__ = ["POLICIES", "Action", "Policy", "RetimeResult", "act", "check_gaps", "check_timestamps", "fmt_list",
+           "gap_action", "order_samples", "retime"]
 
 Policy = Literal["retime", "drop", "sort", "strict", "recorded"]
 Action = Literal["warn", "raise", "ignore"]
@@ -101,12 +95,9 @@ def _ooo_dup(t: np.ndarray, steps: np.ndarray, back: np.ndarray, zero: np.ndarra
              finite: bool) -> tuple[np.ndarray, np.ndarray]:
     """Positions earlier than (out of order) and equal to (duplicates) the latest time before them.
 
-    ``back``, ``zero``: positions after a backward and a zero step; ``finite``:
-    ``t`` is known to be finite. The latest time before ``i`` is ``t[i - 1]``
-    except from a backward step until the stamps pass the time before it again:
-    with few backsteps only these stretches are looked at (at once while they
-    end within 16 samples), else (or with non-finite times) the running maximum
-    of the log is formed.
+    ``back``, ``zero``: positions after a backward and a zero step; ``finite``: ``t`` is known finite. With few
+    backsteps only the stretches from each until the stamps pass the time before it are looked at, else the
+    running maximum of the log.
     """
     if not back.size:
         return back[:0], zero
@@ -149,8 +140,7 @@ def _ooo_dup(t: np.ndarray, steps: np.ndarray, back: np.ndarray, zero: np.ndarra
 
 
 def _order(t: np.ndarray, steps: np.ndarray, finite: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Positions after a backward step, and those earlier than (out of order) and equal to (duplicates)
-    the latest time before them (``finite``: ``t`` is known to be finite)."""
+    """Positions after a backward step, out of order and duplicate (:func:`_ooo_dup`)."""
     cand = np.flatnonzero(steps <= 0)
     neg = steps[cand] < 0
     back = cand[neg] + 1
@@ -191,20 +181,14 @@ def check_timestamps(t: np.ndarray, policy: Policy = "retime", *, gaps: Action |
         Sample times, s; must be finite.
     policy : {"retime", "drop", "sort", "strict", "recorded"}
         See the module docstring.
-    gaps : {"warn", "raise", "ignore"}, optional
-        What to do about gaps; default ``"raise"`` under ``"strict"``, else ``"warn"``.
-    gap_factor : float
-        A step longer than ``gap_factor`` times the median step is a gap.
-    gap_threshold : float, optional
-        Absolute gap threshold, s; overrides ``gap_factor``.
+    gaps, gap_factor, gap_threshold, warn
+        As in :func:`~imu_ground.datasets.validation.validate`.
     source : str
         Name used in messages (file path).
     index : array_like of int, optional
         Input row numbers of ``t``, default ``arange(N)``.
     report : ValidationReport, optional
         Report to fill in (a new one by default).
-    warn : bool
-        Issue warnings (False: only record the issues in the report).
     row_lines : callable, optional
         Input rows to 1-based file lines, for messages.
 
@@ -243,11 +227,7 @@ def gap_action(gaps: str | None, policy: str, warn: bool) -> Action:
 
 
 def _reverse_order_error(src: str, n: int, back: np.ndarray, policy: str) -> ImuValidationError | None:
-    """The error for a log whose samples are newest first (most steps go back), None for any other log.
-
-    Retiming cannot apply and dropping would keep a handful of samples (a
-    silently wrong result): sorting is what such a log needs.
-    """
+    """The error for a log whose samples are newest first (most steps go back: dropping would keep a few), else None."""
     if policy not in ("retime", "drop", "recorded") or n < 3 or back.size * 2 <= n - 1:
         return None
     how = "in reverse order (newest first)" if back.size == n - 1 else "mostly in reverse order"
@@ -259,8 +239,7 @@ def order_samples(t, policy, source, index, report, warn, row_lines, finite: boo
                   ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
     """Apply the time-order policy: (positions kept in output order or None for all, their times, their steps).
 
-    ``finite``: the times are known to be finite (validated). Fills the report's order fields; warns (or raises under ``"strict"``)
-    naming the first out-of-order and duplicate samples.
+    ``finite``: the times are known finite. Fills the report's order fields, warns (raises under ``"strict"``).
     """
 
     def rows(pos: np.ndarray) -> np.ndarray:
@@ -327,11 +306,7 @@ def order_samples(t, policy, source, index, report, warn, row_lines, finite: boo
 
 
 def check_gaps(t_out, steps, keep, index, report, gaps, gap_factor, gap_threshold, source, row_lines) -> None:
-    """Find the steps longer than the gap threshold in the ordered times ``t_out`` (``steps`` their steps).
-
-    ``keep``: positions of ``t_out`` in the input of :func:`order_samples` (None:
-    the same positions); ``index``: their input rows (None: the positions).
-    """
+    """Gaps in the ordered times ``t_out`` (``keep``, ``index``: their positions and rows, as :func:`order_samples`)."""
     if t_out.size > 1:
 
         def out_rows(g: np.ndarray) -> np.ndarray:

@@ -1,22 +1,14 @@
 """Units and time scales told from the data, for tables whose units are not given.
 
-Each check returns the unit it settles on and, when that is not the
-ImuData unit, the one warning text saying what was converted; where the data
-cannot decide, it raises :class:`~imu_ground.datasets.options.ImuInputError`
-naming the option to pass (``time_unit``, ``gyro_unit``, ``accel_unit``).
+Each check returns the unit it settles on and, when it converts, one warning text; where the data cannot
+decide, it raises :class:`~imu_ground.errors.ImuInputError` naming ``time_unit``, ``gyro_unit`` or ``accel_unit``.
 
-- time: the median step must give an IMU rate of 1-2000 Hz, and times of epoch
-  size (1980-2100 since 1970) fix the unit by their magnitude;
-- gyro: a car does not turn at more than ~2 rad/s for 1 % of a drive; numbers
-  that large are deg/s (a gentle drive in deg/s can stay below this and is
-  then not caught);
-- accel: the specific force's median magnitude is about 9.8 in m/s^2 and about
-  1 in g.
+- time: the median step must give an IMU rate of 1-2000 Hz; epoch-sized times (1980-2100) fix the unit;
+- gyro: a car does not turn faster than ~2 rad/s for 1 % of a drive: numbers that large are deg/s (a
+  gentle drive in deg/s can stay below and is then not caught);
+- accel: the median specific-force magnitude is about 9.8 in m/s^2, about 1 in g.
 
-The medians of whole logs come from :func:`~imu_ground.datasets.order_stats.median`;
-on logs longer than :data:`DECIDE_SAMPLES` rows the decision is taken on that many
-rows evenly spread over the log (a unit is a property of the whole file: a
-sample of it decides it as well, at a fraction of the cost).
+Logs longer than :data:`DECIDE_SAMPLES` rows are decided on that many rows evenly spread.
 """
 from __future__ import annotations
 
@@ -31,8 +23,8 @@ from imu_ground.units import DEG, GRAVITY
 from .csvio import numeric
 from .order_stats import median
 
-__all__ = ["ACCEL_UNITS", "GYRO_UNITS", "TIME_UNITS", "detect_accel_unit", "detect_gyro_unit", "detect_time_unit",
-           "motion_in_si", "raw_times", "settle_unit", "unit_scale"]
+__all__ = ["ACCEL_UNITS", "GYRO_UNITS", "TIME_UNITS", "check_units", "detect_accel_unit", "detect_gyro_unit",
+           "detect_time_unit", "motion_in_si", "raw_times", "settle_unit", "unit_scale"]
 
 #: Time units, to seconds.
 TIME_UNITS: dict[str, float] = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9}
@@ -56,7 +48,7 @@ GYRO_RAD_SURE = 1.0                 # ... below this: rad/s; between: ask
 
 
 def _spread(x: np.ndarray) -> np.ndarray:
-    """At most about :data:`DECIDE_SAMPLES` rows of ``x``, evenly spread (all of a shorter log)."""
+    """At most about :data:`DECIDE_SAMPLES` rows of ``x``, evenly spread."""
     return x[::max(1, x.shape[0] // DECIDE_SAMPLES)]
 
 
@@ -77,6 +69,13 @@ def unit_scale(kind: str, unit: str) -> float:
     return table[unit]
 
 
+def check_units(**units: str | None) -> None:
+    """Refuse a bad ``time_unit``, ``gyro_unit`` or ``accel_unit`` (None: not given) before anything is read."""
+    for option, unit in units.items():
+        if unit is not None:
+            unit_scale(option.removesuffix("_unit"), unit)
+
+
 def raw_times(col: np.ndarray, name: str, source: str, row_lines) -> tuple[np.ndarray, str | None]:
     """Raw time values (int64 kept exact, for epoch ns) and a forced unit for datetime columns (else None)."""
     if col.dtype.kind == "M":
@@ -87,11 +86,7 @@ def raw_times(col: np.ndarray, name: str, source: str, row_lines) -> tuple[np.nd
 
 
 def settle_unit(kind: str, given: str | None, detect: Callable, values: np.ndarray, *args: Any) -> str:
-    """The unit given (checked), or the one told from the data by ``detect``, warning once when it converts.
-
-    ``kind`` is ``"time"``, ``"gyro"`` or ``"accel"``; ``detect(values, *args)``
-    returns ``(unit, warning text or None)`` (the ``detect_*`` functions here).
-    """
+    """The unit given (checked), or the one ``detect(values, *args)`` (a ``detect_*`` here) tells, warning once."""
     if given is not None:
         unit_scale(kind, given)
         _check_given(kind, given, detect, values, *args)
@@ -103,8 +98,7 @@ def settle_unit(kind: str, given: str | None, detect: Callable, values: np.ndarr
 
 
 def _check_given(kind: str, given: str, detect: Callable, values: np.ndarray, source: str, *args: Any) -> None:
-    """A given unit the data contradict: a time unit that gives no IMU rate is refused; a gyro unit the data
-    read otherwise is warned about (the accelerometer's: the validation's specific-force check)."""
+    """Refuse a given time unit that gives no IMU rate; warn about a gyro unit the data read otherwise."""
     opt = f"{{opt}} {given}"
     if kind == "time":
         step = _median_step(values)
@@ -138,10 +132,7 @@ def _check_given(kind: str, given: str, detect: Callable, values: np.ndarray, so
 
 def motion_in_si(gyro: np.ndarray, accel: np.ndarray, gyro_unit: str | None, accel_unit: str | None,
                  source: str) -> tuple[np.ndarray, np.ndarray, str, str]:
-    """Angular rate and specific force (N, 3), body frame, converted to rad/s and m/s^2.
-
-    Each unit is the one given (checked) or told from the data, with one warning when it converts
-    (:func:`settle_unit`); ``source`` is the file named in messages.
+    """Angular rate and specific force (N, 3), body frame, in rad/s and m/s^2 (units as :func:`settle_unit`).
 
     Returns
     -------
@@ -157,8 +148,7 @@ def motion_in_si(gyro: np.ndarray, accel: np.ndarray, gyro_unit: str | None, acc
 
 
 def _median_step(values: np.ndarray) -> float | None:
-    """The median positive step of raw times (their own unit) over evenly spread neighbour pairs; None under two
-    finite times or without a positive step."""
+    """The median positive step of raw times over evenly spread neighbour pairs (None: no such step)."""
     v = np.asarray(values)
     fin = v if v.dtype.kind != "f" or np.isfinite(v).all() else v[np.isfinite(v)]   # no copy when all finite
     if fin.size < 2:
@@ -212,7 +202,7 @@ def detect_time_unit(values: np.ndarray, source: str, column: str) -> tuple[str,
 
 
 def detect_gyro_unit(gyro: np.ndarray, source: str) -> tuple[str, str | None]:
-    """``"rad/s"`` or ``"deg/s"`` from the 99th percentile of the rate magnitude; see the module docstring.
+    """``"rad/s"`` or ``"deg/s"`` from the 99th percentile of the rate magnitude: ``(unit, warning or None)``.
 
     Raises
     ------
@@ -240,10 +230,7 @@ def _gyro_p99(gyro: np.ndarray) -> float:
 
 
 def detect_accel_unit(accel: np.ndarray, source: str) -> tuple[str, str | None]:
-    """``"m/s^2"`` or ``"g"`` from the median specific-force magnitude (about 9.8 or about 1).
-
-    Anything else is left to the validation's units check (gravity removed, mg, ...).
-    """
+    """``"m/s^2"`` or ``"g"`` from the median specific-force magnitude: ``(unit, warning or None)``."""
     a = _spread(np.asarray(accel, dtype=float))
     a = a[np.isfinite(a).all(axis=1)]
     if not a.size:

@@ -1,39 +1,22 @@
 """Checks on IMU logs: time order, gaps, non-finite values and plausible units.
 
-Every reader in :mod:`imu_ground.datasets` calls :func:`validate` by default
-(through :func:`imu_ground.datasets.skeleton.finish`), and it can be used on its
-own on any :class:`~imu_ground.imu.data.ImuData`::
+Every reader calls :func:`validate` (through :func:`~imu_ground.datasets.skeleton.finish`); it works on any
+:class:`~imu_ground.imu.data.ImuData`: ``imu, report = validate(imu); print(report.summary())``.
+What is checked, in this order:
 
-    imu, report = validate(imu, policy="retime")
-    print(report.summary())
+1. **Empty input** raises :class:`ImuValidationError`.
+2. **Non-finite values** in ``t``, ``gyro`` or ``accel``, or sensor values beyond :data:`READING_LIMIT` (a
+   corrupt sample): raise naming the columns, first rows (1-based file lines when known) and time, or drop
+   those rows with a :class:`NonFiniteWarning` (``nonfinite="drop"``). All-equal timestamps are refused.
+3. **Time order** under ``policy`` (:mod:`imu_ground.datasets.timestamps`).
+4. **Gaps**: steps longer than ``gap_threshold`` (default ``gap_factor`` x the median step): a :class:`GapWarning`.
+5. **Units**: a median step outside 1-2000 Hz, an angular rate sustained above ``gyro_limit`` or a median
+   specific-force magnitude far from 1 g: a :class:`UnitsWarning` (or raise, ``units``) naming the option.
+6. **Sensors**: a gyro reading exactly 0, an accelerometer reading one value, or a vehicle that never moves
+   (every rate below ``rest_gyro``, the specific force within :data:`STILL_SPREAD` on every axis): one
+   :class:`SensorWarning` (silent with ``units="ignore"`` or ``warn=False``).
 
-What is checked, in this order
-------------------------------
-1. **Empty input**: no samples raises :class:`ImuValidationError`.
-2. **Non-finite values** (NaN, inf) in ``t``, ``gyro`` or ``accel``, and gyro or
-   accelerometer values beyond :data:`READING_LIMIT` (no sensor reads that in any
-   unit: a corrupt sample, such as 1e308): raise (``nonfinite="raise"``, the
-   default; the message names the columns and the first rows, as 1-based file
-   lines when the reader knows them, and the time) or drop those rows with a
-   :class:`NonFiniteWarning` (``nonfinite="drop"``). A log whose timestamps are all
-   equal is refused saying so.
-3. **Time order** (:mod:`imu_ground.datasets.timestamps`): ``policy="retime"``
-   (default) puts jittered stamps back on the sample clock, ``"drop"`` keeps only
-   samples later than every earlier one, ``"sort"`` sorts, ``"strict"`` raises,
-   ``"recorded"`` keeps file order and stamps for the causal sample clock (the live front end).
-4. **Gaps**: steps longer than ``gap_threshold`` (default ``gap_factor`` times the
-   median step) are listed in the report and announced with a :class:`GapWarning`.
-5. **Units**: a median step outside 1-2000 Hz, a sustained angular rate above
-   ``gyro_limit`` rad/s and a median specific-force magnitude far from 1 g give
-   a :class:`UnitsWarning` (or raise, see ``units``), naming the option to pass.
-6. **Sensors**: a gyro that reads exactly 0 throughout, an accelerometer that
-   reads one value throughout, or a log in which the vehicle never moves (every
-   rate below ``rest_gyro``, the specific force within :data:`STILL_SPREAD` on
-   every axis) give one :class:`SensorWarning` (the first that applies; never
-   an error; silent with ``units="ignore"`` or ``warn=False``).
-
-Indices in the report refer to rows of the *input* (``index``) unless named
-``out_index`` (rows of the returned data); times are the input's ``t`` in s.
+Report indices are input rows unless named ``out_index`` (rows of the returned data); times in s.
 """
 from __future__ import annotations
 
@@ -41,27 +24,15 @@ from typing import Any, Literal
 
 import numpy as np
 
-from imu_ground.errors import (  # the readers' errors and warnings are re-exported, like the report's names
-    GapWarning as GapWarning,
-    ImuValidationError,
-    ImuValidationWarning as ImuValidationWarning,
-    MalformedFileError as MalformedFileError,
-    NonFiniteWarning,
-    SensorWarning,
-    TimestampWarning as TimestampWarning,
-    UnitsWarning,
-)
+from imu_ground.errors import (GapWarning as GapWarning, ImuValidationError,  # (re-exported, like the report's names)
+                               ImuValidationWarning as ImuValidationWarning, MalformedFileError as MalformedFileError,
+                               NonFiniteWarning, SensorWarning, TimestampWarning as TimestampWarning, UnitsWarning)
 from imu_ground.imu.data import ImuData
 
 from . import report as _report
 from .order_stats import median
+from .report import STANDARD_GRAVITY, Gap as Gap, ValidationReport, row_names
 from .unit_checks import RATE_RANGE
-from .report import (  # the report's public names are re-exported (ValidationReport)
-    STANDARD_GRAVITY,
-    Gap as Gap,
-    ValidationReport,
-    row_names,
-)
 from .timestamps import (POLICIES, Action, Policy, act, check_choice, check_gaps, check_timestamps, fmt_list,
                          gap_action, order_samples)
 
@@ -72,22 +43,18 @@ __all__ = ["POLICIES", "READING_LIMIT", "STILL_SPREAD", "check_timestamps", "val
     name for name in _report.__all__ if name not in _READER_HELPERS]
 
 _NONFINITE = ("raise", "drop")
-#: Largest magnitude of a gyro or accelerometer value that a sensor can read in any unit the readers take
-#: (rad/s or deg/s; m/s^2, g, mg or mm/s^2: a 16 g accelerometer reads 1.6e5 mm/s^2); beyond it a sample is
-#: corrupt and is treated as a non-finite one.
+#: Largest gyro or accelerometer value a sensor reads in any unit the readers take (a 16 g accelerometer:
+#: 1.6e5 mm/s^2); beyond it a sample is corrupt, treated as non-finite.
 READING_LIMIT = 1e6
-#: Spread (1st to 99th percentile, m/s^2) of the specific force on every axis below which, with every rate
-#: below ``rest_gyro``, a log never moves: a moving car brakes, accelerates or meets bumps beyond it.
+#: Spread (1st to 99th percentile, m/s^2) of the specific force on every axis below which, every rate below
+#: ``rest_gyro``, a log never moves.
 STILL_SPREAD = 0.5
 #: Leading rows compared first when looking for a stuck accelerometer (a working one differs within them).
 _STUCK_PROBE = 1024
 
 
 def _longest_run(flags: np.ndarray, t: np.ndarray, step: float) -> tuple[float, int]:
-    """Longest time span of consecutive True flags (vectorised); (duration s, first index).
-
-    ``step`` is the median time step (0 for a single sample).
-    """
+    """Longest time span of consecutive True flags, ``step`` (s) added: (duration s, first index)."""
     if not flags.any():
         return 0.0, -1
     padded = np.concatenate(([0], flags.astype(np.int8), [0]))
@@ -105,19 +72,8 @@ def _sq_norms(v: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
 
 
 class _RowStats:
-    """What the checks need of the rows' squared norms, found block by block (no whole-log arrays).
-
-    Attributes
-    ----------
-    total : float
-        Sum of all squared norms (finite iff every gyro and accel value is, unless it overflows).
-    top : float
-        Largest squared rate (sqrt is monotone: its root is the largest rate).
-    n_rest : int
-        Rows at rest (squared rate below ``rest_bound``; -1 without a bound).
-    rest_accel : ndarray
-        Squared specific forces of those rows, in order.
-    """
+    """The rows' squared norms, block by block: ``total`` (sum of all), ``top`` (largest squared rate), the squared
+    specific forces ``rest_accel`` of the ``n_rest`` rows with a squared rate below ``rest_bound`` (-1: no bound)."""
 
     def __init__(self, gyro: np.ndarray, accel: np.ndarray, rest_bound: float | None, block: int = 1 << 15) -> None:
         n = gyro.shape[0]
@@ -138,11 +94,7 @@ class _RowStats:
 
 
 def _sqrt_below(limit: float) -> float | None:
-    """The least ``s`` with ``sqrt(s) >= limit`` (so ``sqrt(x) < limit`` iff ``x < s``); None if not found.
-
-    The square root is monotone and correctly rounded, so this bound stands for
-    any ``x``; it is found from ``limit**2`` by stepping to neighbouring floats.
-    """
+    """The least ``s`` with ``sqrt(s) >= limit`` (so ``sqrt(x) < limit`` iff ``x < s``); None if not found."""
     if not 1e-150 < limit < 1e150:               # (its square a normal float)
         return None
     s = np.float64(limit) * np.float64(limit)
@@ -156,12 +108,7 @@ def _sqrt_below(limit: float) -> float | None:
 
 def _nonfinite(imu: ImuData, report: ValidationReport, nonfinite: str, warn: bool, row_lines,
                sq_total: float) -> np.ndarray | None:
-    """Rows to keep (finite t, gyro and accel within :data:`READING_LIMIT`), None for all; raise or warn about
-    the others.
-
-    ``sq_total``: the sum of the gyro and accel rows' squared norms (finite and below the limit's square:
-    every value is finite and within the limit).
-    """
+    """Rows to keep (finite, within :data:`READING_LIMIT`; None: all), raising or warning about the others."""
     names = ["t", "wx", "wy", "wz", "ax", "ay", "az"]
     t_sum = imu.t.sum()
     with np.errstate(all="ignore"):
@@ -203,11 +150,7 @@ def _nonfinite(imu: ImuData, report: ValidationReport, nonfinite: str, warn: boo
 
 def _units(report, t, gyro, accel, stats, keep, units, src, gyro_limit, gyro_min_duration, accel_tol, rest_gyro,
            row_lines) -> None:
-    """Magnitude checks of the cleaned data (rate, gyro, specific force); ``stats``: their :class:`_RowStats`.
-
-    The norms' square roots are taken where needed: sqrt is monotone, so the
-    largest and middle norms are the roots of the largest and middle squares.
-    """
+    """Magnitude checks of the cleaned data (rate, gyro, specific force); ``stats``: their :class:`_RowStats`."""
     step = 0.0
     if t.size > 1:
         # the gap check's median step of these same times, when it ran (one median of the log, not two)
@@ -269,50 +212,41 @@ def validate(imu: ImuData, policy: Policy = "retime", *,
     Parameters
     ----------
     imu : ImuData
-        The log (``t`` in s, ``gyro`` in rad/s, ``accel`` in m/s^2, any frame).
-        ``meta["row_lines"]``, when present, maps input rows to 1-based file
-        lines for the messages.
+        The log (``t`` s, ``gyro`` rad/s, ``accel`` m/s^2, any frame); ``meta["row_lines"]`` may map input
+        rows to 1-based file lines.
     policy : {"retime", "drop", "sort", "strict", "recorded"}
-        Unsorted/duplicate times (see :mod:`imu_ground.datasets.timestamps`);
-        default ``"retime"`` (falls back to ``"drop"`` where the rate is not steady).
+        Unsorted/duplicate times (:mod:`imu_ground.datasets.timestamps`).
     nonfinite : {"raise", "drop"}
-        NaN/inf in t, gyro or accel: raise naming the columns and rows (default),
-        or drop the rows with a :class:`NonFiniteWarning`.
-    gaps : {"warn", "raise", "ignore"}, optional
-        Gaps; default ``"raise"`` if ``policy="strict"`` else ``"warn"``.
-    units : {"warn", "raise", "ignore"}, optional
-        Implausible magnitudes; default ``"raise"`` if ``policy="strict"`` else ``"warn"``.
+        NaN/inf rows: raise (default) or drop.
+    gaps, units : {"warn", "raise", "ignore"}, optional
+        Gaps, implausible magnitudes; default ``"raise"`` if ``policy="strict"`` else ``"warn"``.
     gap_factor : float
-        Gap threshold as a multiple of the median step (default 5).
+        Gap threshold as a multiple of the median step.
     gap_threshold : float, optional
         Absolute gap threshold, s (overrides ``gap_factor``).
-    gyro_limit : float
-        Angular rate, rad/s, that a car does not sustain (default 10 rad/s).
-    gyro_min_duration : float
-        How long, s, the rate must stay above ``gyro_limit`` (default 0.5 s).
+    gyro_limit, gyro_min_duration : float
+        An angular rate, rad/s, that a car does not sustain for this long, s.
     accel_tol : float
         Allowed distance, m/s^2, of the median specific-force magnitude from 1 g.
     rest_gyro : float
-        Samples with rate below this, rad/s, count as "at rest" for the
-        specific-force check (used when at least 10 samples qualify).
+        Rate, rad/s, below which a sample is at rest (the specific-force check uses those if 10 or more).
     min_samples : int
-        Fewer samples than this (after cleaning) raises (default 1: empty raises).
+        Fewer samples than this after cleaning raises.
     warn : bool
         Issue warnings (False: record issues in the report only).
 
     Returns
     -------
     imu : ImuData
-        The cleaned log (times strictly increasing, except under ``"recorded"``), a new object;
-        ``meta["validation"]`` holds the report.
+        The cleaned log, a new object (times strictly increasing except under ``"recorded"``), the report
+        in ``meta["validation"]``.
     report : ValidationReport
 
     Raises
     ------
     ImuValidationError
-        Empty log, non-finite values (``nonfinite="raise"``), unsorted times
-        (``policy="strict"``), or gaps / units with action ``"raise"``; the
-        message names the option that changes the outcome.
+        Empty log, non-finite values (``nonfinite="raise"``), unsorted times (``"strict"``), or gaps / units
+        with action ``"raise"``; the message names the option that changes the outcome.
     """
     # the options, checked before any work
     check_choice("policy", policy, POLICIES)
@@ -346,7 +280,11 @@ def validate(imu: ImuData, policy: Policy = "retime", *,
 
     # 5. input rows kept, in output order (None: every row, in order); enough of them?
     keep = (good if keep_pos is None else good[keep_pos]) if good is not None else keep_pos
-    _record_dropped(report, keep, n)
+    report.n_out = n if keep is None else int(keep.size)
+    if report.n_out < n:                # (keep holds distinct rows)
+        dropped = np.ones(n, dtype=bool)
+        dropped[keep] = False
+        report.dropped_index = np.flatnonzero(dropped)
     if report.n_out == 1 and n > 1:
         _all_equal_times(imu.t if good is None else imu.t[good], src, report, float(imu.meta.get("t0") or 0.0))
     if report.n_out < max(min_samples, 1):
@@ -372,8 +310,7 @@ def validate(imu: ImuData, policy: Policy = "retime", *,
 
 
 def _all_equal_times(t: np.ndarray, src: str, report: ValidationReport, t0: float = 0.0) -> None:
-    """Raise when every (finite) timestamp is the same: the time column does not advance (``t0``: the
-    reader's shift of the times, s, added back for the message)."""
+    """Raise when every timestamp is the same (``t0``: the reader's shift, s, added back for the message)."""
     if t.size > 1 and np.all(t == t[0]):
         report.issues.append(f"{src}: all {t.size} timestamps are equal (t = {t[0] + t0:.6g} s): the time column "
                              "does not advance")
@@ -383,11 +320,7 @@ def _all_equal_times(t: np.ndarray, src: str, report: ValidationReport, t0: floa
 
 def _sensors(report: ValidationReport, gyro: np.ndarray, accel: np.ndarray, rest_gyro: float, src: str,
              action: str) -> None:
-    """One :class:`SensorWarning` for a dead gyro, a stuck accelerometer or a log that never moves (the first found).
-
-    Cheap on a working log: the largest rate is known (``report.gyro_max_norm``),
-    and a working accelerometer's first rows already differ.
-    """
+    """One :class:`SensorWarning` for a dead gyro, a stuck accelerometer or a log that never moves (the first found)."""
     n = gyro.shape[0]
     msg = None
     if n >= 2 and report.gyro_max_norm == 0.0:
@@ -405,15 +338,3 @@ def _sensors(report: ValidationReport, gyro: np.ndarray, accel: np.ndarray, rest
                    "standstill tilt can be estimated")
     if msg is not None:
         act(action, msg, SensorWarning, report)
-
-
-def _record_dropped(report: ValidationReport, keep: np.ndarray | None, n: int) -> None:
-    """``dropped_index`` and ``n_out`` of the report from the input rows kept (None: all ``n``)."""
-    n_out = n if keep is None else int(keep.size)
-    if n_out == n:                      # keep holds distinct rows: all of them
-        report.dropped_index = np.zeros(0, dtype=np.intp)
-    else:
-        dropped = np.ones(n, dtype=bool)
-        dropped[keep] = False
-        report.dropped_index = np.flatnonzero(dropped)
-    report.n_out = n_out

@@ -168,6 +168,18 @@ def test_a_speed_file_whose_times_do_not_increase_is_refused_naming_the_line(tru
     assert f"--speed {f}, line {line}: " in err and words in err and not out.exists()
 
 
+@pytest.mark.parametrize("bad, line, words", [
+    ("0.20,fast", 4, "column 'speed': 'fast' is not a number"),   # was: "... is not numeric (could not convert ...)"
+    ("0.20,9.8,1", 4, "3 fields, expected 2"),                    # was: pandas' own message, no line
+])
+def test_a_bad_row_of_a_speed_file_is_named_by_its_line(tmp_path, bad, line, words):
+    f = tmp_path / "speed.csv"
+    f.write_text("t,speed\n0.00,9.8\n0.10,9.8\n" + bad + "\n0.30,9.8\n")
+    with pytest.raises(MalformedFileError, match=re.escape(words)) as got:
+        read_speed_file(f)
+    assert got.value.line == line
+
+
 def test_a_speed_file_with_increasing_times_and_blank_lines_is_read_as_before(truth_speed, tmp_path):
     t, v = truth_speed
     f = tmp_path / "speed.csv"
