@@ -1,14 +1,14 @@
 """A camera: pinhole intrinsics, image size and its static extrinsic (ground <- camera).
 
-Camera axes x right, y down, z forward; pixel ``(u, v)`` (centres at whole numbers) sees
-the ray ``K^-1 (u, v, 1)``; images are rectified. A camera file is an extrinsic file
-(``calib/README.md``) with two more lines, so it still loads as an extrinsic::
+Camera axes x right, y down, z forward; pixel ``(u, v)`` (centres at whole numbers) sees the ray
+``K^-1 (u, v, 1)``; images are rectified. A camera file is an extrinsic file (``calib/README.md``) with two more
+lines, so it still loads as an extrinsic::
 
     K: fx 0 cx 0 fy cy 0 0 1        # 3x3 intrinsics, row-major, pixels
     image_size: 1242 375            # width height, pixels
 
-:func:`load_camera` reads a shipped name (``kitti_cam0`` ... ``kitti_cam3``), a file, or a
-KITTI raw calibration folder with a camera index (``PATH/2011_09_26:2``).
+:func:`load_camera` reads a shipped name (``kitti_cam0`` ... ``kitti_cam3``), a file, or a KITTI raw calibration
+folder with a camera index (``PATH/2011_09_26:2``).
 """
 from __future__ import annotations
 

@@ -2,14 +2,14 @@ r"""The road plane seen by a camera, frame by frame: :class:`GroundPlane`, and t
 
 Frames and signs
 ----------------
-- **Camera** axes: x right, y down, z forward; pixel ``(u, v)`` sees the ray
-  ``K^-1 (u, v, 1)`` (z component 1: a point's depth is the ray's scale).
-- **Road** frame ``r``: x forward, y left, z up along the road normal, origin on the
-  road. With :meth:`GroundPlane.from_camera`: ``R_rc = E · R_gc``, ``t_rc = E · t_gc``
-  with ``E`` the estimate's residual rotation road <- body and ``(R_gc, t_gc)`` the
-  camera's static extrinsic (ground <- camera); the static extrinsic is ``E = I``.
-- **Plane** in camera axes: ``n · X + d = 0``, ``n`` the unit road normal pointing up,
-  ``d`` the camera's height above the road, m (KITTI ``planes`` files' ``a b c d``).
+- **Camera** axes: x right, y down, z forward; pixel ``(u, v)`` sees the ray ``K^-1 (u, v, 1)`` (z component 1:
+  a point's depth is the ray's scale).
+- **Road** frame ``r``: x forward, y left, z up along the road normal, origin on the road. With
+  :meth:`GroundPlane.from_camera`: ``R_rc = E · R_gc``, ``t_rc = E · t_gc`` with ``E`` the estimate's residual
+  rotation road <- body and ``(R_gc, t_gc)`` the camera's static extrinsic (ground <- camera); the static
+  extrinsic is ``E = I``.
+- **Plane** in camera axes: ``n · X + d = 0``, ``n`` the unit road normal pointing up, ``d`` the camera's height
+  above the road, m (KITTI ``planes`` files' ``a b c d``).
 
 Batch-first: a :class:`GroundPlane` holds ``N`` frames, every query a leading axis of ``N``.
 """
