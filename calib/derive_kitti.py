@@ -23,8 +23,8 @@ def derive_kitti_extrinsics(calib_dir: Path) -> dict[str, Extrinsic]:
     Parameters
     ----------
     calib_dir : Path
-        Folder with ``calib_imu_to_velo.txt``, ``calib_velo_to_cam.txt`` and
-        ``calib_cam_to_cam.txt`` (e.g. ``kitti_raw/2011_09_26``).
+        Folder with ``calib_imu_to_velo.txt``, ``calib_velo_to_cam.txt`` and ``calib_cam_to_cam.txt`` (e.g.
+        ``kitti_raw/2011_09_26``).
     """
     return kitti_extrinsics(calib_dir)
 

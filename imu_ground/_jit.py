@@ -1,10 +1,10 @@
 """The one place that decides how the package's per-sample and per-frame loops run: compiled or interpreted.
 
-Each loop that must run at machine speed is written once, in plain Python on floats and numpy arrays, and
-decorated with :func:`njit`: with numba installed (a dependency; it compiles that source at first use and caches
-the machine code beside the module, no C compiler at install) it runs compiled; with ``NUMBA_DISABLE_JIT=1``
-(numba's own switch, read at import) or without numba it is the same body interpreted (the test suite runs a
-subset both ways). A foundation module: it imports nothing of the package.
+Each loop that must run at machine speed is written once, in plain Python on floats and numpy arrays, and decorated
+with :func:`njit`: with numba installed (a dependency; it compiles that source at first use and caches the machine
+code beside the module, no C compiler at install) it runs compiled; with ``NUMBA_DISABLE_JIT=1`` (numba's own
+switch, read at import) or without numba it is the same body interpreted (the test suite runs a subset both ways). A
+foundation module: it imports nothing of the package.
 """
 from __future__ import annotations
 
@@ -32,8 +32,8 @@ JIT_ENABLED: bool = _numba is not None and os.environ.get(DISABLE_JIT_ENV, "") i
 def njit(function: F) -> F:
     """Compile ``function`` with numba (``nopython``, cached on disk), or return it unchanged.
 
-    The body keeps to numba's nopython mode (floats, ints, bools, tuples, numpy arrays). No
-    ``fastmath``: compiled and interpreted bodies round alike up to the last bit of ``sin`` and the like.
+    The body keeps to numba's nopython mode (floats, ints, bools, tuples, numpy arrays). No ``fastmath``: compiled
+    and interpreted bodies round alike up to the last bit of ``sin`` and the like.
 
     Parameters
     ----------
@@ -53,8 +53,8 @@ def njit(function: F) -> F:
 def jitable(function: F) -> F:
     """Make ``function`` callable from :func:`njit` bodies (compiled into them, numba's ``register_jitable``).
 
-    For small helpers shared by compiled bodies and plain Python callers (e.g. the scalar rotation
-    kernels of :mod:`imu_ground.so3`); the same rules for the body as :func:`njit`.
+    For small helpers shared by compiled bodies and plain Python callers (e.g. the scalar rotation kernels of
+    :mod:`imu_ground.so3`); the same rules for the body as :func:`njit`.
 
     Parameters
     ----------

@@ -16,8 +16,8 @@ def lazy_exports(package: str, modules: Mapping[str, str]) -> tuple[Callable[[st
     package : str
         The package's ``__name__``.
     modules : mapping of str to str
-        Module (absolute, or relative to ``package`` when it starts with ``.``) to the space-separated
-        public names it defines; a name listed twice keeps its first module.
+        Module (absolute, or relative to ``package`` when it starts with ``.``) to the space-separated public names
+        it defines; a name listed twice keeps its first module.
 
     Returns
     -------

@@ -1,9 +1,9 @@
 """The one root of the errors a user can fix, :class:`ImuGroundError` (a ``ValueError``), and of the warnings.
 
 Every error raised for something the user gave (a log, a file, an option, a value) derives from
-:class:`ImuGroundError`; its message is one line naming the file and the option to use. ``imu-ground`` exits
-with status 2 for these and for ``OSError``, and reports any other exception as a bug (status 3). Every warning
-the package defines derives from :class:`ImuGroundWarning`. The classes that name an option carry an
+:class:`ImuGroundError`; its message is one line naming the file and the option to use. ``imu-ground`` exits with
+status 2 for these and for ``OSError``, and reports any other exception as a bug (status 3). Every warning the
+package defines derives from :class:`ImuGroundWarning`. The classes that name an option carry an
 :class:`OptionMessage`: the Python spelling of the option in ``str()``, the ``imu-ground`` flag in
 ``cli_message()``. The foundation layer: it imports nothing of the package.
 """
@@ -88,8 +88,8 @@ def option_hint(name: str, value: Any = None, cli: bool = False) -> str:
 class OptionMessage:
     """A message that names an option, in Python or CLI spelling: the one option-message rule.
 
-    ``{hint}`` in the text is how to set the option (``gyro_unit='deg/s'`` / ``--gyro-unit deg/s``,
-    with ``value`` when given), ``{opt}`` its bare name (``rate`` / ``--rate``).
+    ``{hint}`` in the text is how to set the option (``gyro_unit='deg/s'`` / ``--gyro-unit deg/s``, with ``value``
+    when given), ``{opt}`` its bare name (``rate`` / ``--rate``).
 
     Parameters
     ----------

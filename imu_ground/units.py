@@ -1,7 +1,7 @@
 """Units and physical constants: the one owner of each.
 
-Angles are radians and times seconds everywhere in the library; degrees appear only at the edges (CLI output
-columns ``*_deg``, documentation).
+Angles are radians and times seconds everywhere in the library; degrees appear only at the edges (CLI output columns
+``*_deg``, documentation).
 """
 from __future__ import annotations
 

@@ -7,14 +7,14 @@ A KITTI raw calibration folder (``2011_09_26/``) holds ``calib_imu_to_velo.txt``
    (``R_g_imu = I``) and its origin is on the road below the IMU, which is :data:`IMU_HEIGHT` up (KITTI sensor
    set-up, Geiger et al., IJRR 2013).
 2. ``T_velo_imu`` (imu_to_velo) and ``T_cam0_velo`` (velo_to_cam) map points of the first frame into the second;
-   ``R_rect_00`` rotates camera 0 into the rectified frame shared by the four rectified cameras. Rectified
-   camera ``i`` differs from rectified camera 0 by a translation only: ``P_rect_0i = K_i [I | K_i^-1 p_i]``
-   (``p_i`` its last column), so ``T_recti_rect0 = [I | K_i^-1 p_i]``.
-3. ``T_g_cami = T_g_imu · (T_recti_rect0 · R_rect_00 · T_cam0_velo · T_velo_imu)^-1``; rotations are projected
-   onto SO(3) (the files carry 7 digits).
+   ``R_rect_00`` rotates camera 0 into the rectified frame shared by the four rectified cameras. Rectified camera
+   ``i`` differs from rectified camera 0 by a translation only: ``P_rect_0i = K_i [I | K_i^-1 p_i]`` (``p_i`` its
+   last column), so ``T_recti_rect0 = [I | K_i^-1 p_i]``.
+3. ``T_g_cami = T_g_imu · (T_recti_rect0 · R_rect_00 · T_cam0_velo · T_velo_imu)^-1``; rotations are projected onto
+   SO(3) (the files carry 7 digits).
 
-Camera axes: x right, y down, z forward (optical axis). Intrinsics ``K_i`` are ``P_rect_0i[:, :3]``, the image
-size ``S_rect_0i`` (width, height, pixels).
+Camera axes: x right, y down, z forward (optical axis). Intrinsics ``K_i`` are ``P_rect_0i[:, :3]``, the image size
+``S_rect_0i`` (width, height, pixels).
 """
 from __future__ import annotations
 
@@ -116,8 +116,8 @@ def kitti_extrinsics(calib_dir: str | Path) -> dict[str, Extrinsic]:
     Returns
     -------
     dict
-        ``{"kitti_imu": ..., "kitti_cam0": ..., ..., "kitti_cam3": ...}``; rotation ground <- sensor,
-        translation the sensor origin in the ground frame (FLU, origin on the road below the IMU), m.
+        ``{"kitti_imu": ..., "kitti_cam0": ..., ..., "kitti_cam3": ...}``; rotation ground <- sensor, translation
+        the sensor origin in the ground frame (FLU, origin on the road below the IMU), m.
     """
     cams = kitti_rectified_cameras(calib_dir)
     src = f"{Path(calib_dir).name}/calib_*.txt"
@@ -133,17 +133,16 @@ def kitti_rectified_cameras(calib_dir: str | Path) -> dict[int, tuple[Extrinsic,
     Returns
     -------
     dict
-        Camera index -> ``(extrinsic, K, (width, height))``: extrinsic ground <- rectified camera
-        (camera axes x right, y down, z forward), ``K`` the 3x3 intrinsics (pixels), image size in pixels.
+        Camera index -> ``(extrinsic, K, (width, height))``: extrinsic ground <- rectified camera (camera axes x
+        right, y down, z forward), ``K`` the 3x3 intrinsics (pixels), image size in pixels.
 
     Raises
     ------
     FileNotFoundError
         No such folder or file.
     MalformedFileError
-        A file lacks an entry the derivation needs, or holds one that is not finite, a rotation
-        that is not one (to :data:`KITTI_ROTATION_TOL`) or intrinsics that are not; not a text
-        file (the message names file and key).
+        A file lacks an entry the derivation needs, or holds one that is not finite, a rotation that is not one (to
+        :data:`KITTI_ROTATION_TOL`) or intrinsics that are not; not a text file (the message names file and key).
     """
     calib_dir = Path(calib_dir)
     if not calib_dir.is_dir():

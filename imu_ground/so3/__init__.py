@@ -33,9 +33,9 @@ Signs:
 - Rotation vector ``phi = theta * axis`` (rad), ``R = exp(hat(phi))``, right-handed: ``exp(hat([0, 0, t]))``
   turns x towards y.
 - Pitch and roll of the body relative to the road, from the road normal in the body frame
-  ``n_b = E^T e_z = [-sin p, sin r cos p, cos p cos r]``: pitch positive = nose down (right-handed about
-  y-left), roll positive = left side up (right-handed about x-forward); KITTI's convention. Euler angles are
-  ZYX: ``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)``.
+  ``n_b = E^T e_z = [-sin p, sin r cos p, cos p cos r]``: pitch positive = nose down (right-handed about y-left),
+  roll positive = left side up (right-handed about x-forward); KITTI's convention. Euler angles are ZYX:
+  ``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)``.
 - Gravity is stored as its reaction (what an accelerometer at rest reads): +9.81 m/s^2 up; specific force
   ``f = a - g_vector``.
 - Perturbations: ``exp(phi + dphi) ~= exp(phi) @ exp(J_r(phi) @ dphi)`` ``~= exp(J_l(phi) @ dphi) @ exp(phi)``

@@ -1,6 +1,5 @@
 """Rotations in other forms: increments in any form, heading twist, ZYX Euler angles, quaternions (scalar
-first, ``(w, x, y, z)``, ``w >= 0``), cumulative rotations. Frames and signs: the glossary of
-:mod:`imu_ground.so3`.
+first, ``(w, x, y, z)``, ``w >= 0``), cumulative rotations. Frames and signs: the glossary of :mod:`imu_ground.so3`.
 """
 from __future__ import annotations
 

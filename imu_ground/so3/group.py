@@ -1,10 +1,10 @@
 """SO(3) itself: hat/vee, exp/log and their Jacobians, projections, axis rotations, and the scalar kernels.
 
 Every function takes one element or a batch (rotation vectors ``(..., 3)`` in rad, matrices ``(..., 3, 3)``) and
-returns the same leading shape without a Python loop. ``*_one``: the same formulas for one element; ``*_flat``:
-the scalar kernels of the streaming filters (a 3x3 matrix as a row-major 9-tuple, a vector as 3 floats). The
-logarithm is accurate over the whole range (Taylor series near 0, the symmetric part of ``R`` near pi).
-Conventions: the glossary of :mod:`imu_ground.so3`.
+returns the same leading shape without a Python loop. ``*_one``: the same formulas for one element; ``*_flat``: the
+scalar kernels of the streaming filters (a 3x3 matrix as a row-major 9-tuple, a vector as 3 floats). The logarithm
+is accurate over the whole range (Taylor series near 0, the symmetric part of ``R`` near pi). Conventions: the
+glossary of :mod:`imu_ground.so3`.
 """
 from __future__ import annotations
 
@@ -103,19 +103,8 @@ def log(r: np.ndarray) -> np.ndarray:
     a, _, _ = _coefficients(theta)              # sin(t)/t, Taylor near 0
     phi = w / np.where(a > 0, a, 1.0)[..., None]
     near_pi = c < -0.9
-    if np.any(near_pi):
-        # (R + R^T)/2 = cos(t) I + (1 - cos t) u u^T : read the axis off its
-        # largest column, take the sign from the antisymmetric part.
-        rs = r[near_pi]
-        sym = 0.5 * (rs + np.swapaxes(rs, -1, -2))
-        cc = c[near_pi]
-        uu = (sym - cc[:, None, None] * np.eye(3)) / (1.0 - cc)[:, None, None]
-        j = np.argmax(np.diagonal(uu, axis1=-2, axis2=-1), axis=-1)
-        col = np.take_along_axis(uu, j[:, None, None], axis=-1)[..., 0]
-        u = col / np.linalg.norm(col, axis=-1, keepdims=True)
-        sign = np.sign(np.sum(u * w[near_pi], axis=-1))
-        sign = np.where(sign == 0, 1.0, sign)
-        phi[near_pi] = (sign * theta[near_pi])[:, None] * u
+    if np.any(near_pi):                         # the axis from the symmetric part: :func:`log_flat`'s branch
+        phi[near_pi] = [log_flat(m) for m in r[near_pi].reshape(-1, 9).tolist()]
     return phi
 
 
