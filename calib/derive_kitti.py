@@ -1,10 +1,9 @@
 """Derive KITTI's static sensor-to-ground extrinsics and rectified cameras from the raw calibration files.
 
-Run ``python -m imu_ground.calib.derive_kitti PATH/TO/2011_09_26`` to rewrite
-``kitti_imu.txt`` and ``kitti_cam0.txt`` ... ``kitti_cam3.txt`` in this folder
-(the cameras with their intrinsics ``K`` and ``image_size``). The derivation is in
-``README.md`` beside this file and in :mod:`imu_ground.perception.kitti_calib`,
-which also reads a calibration folder directly (``--camera DIR:2``).
+Run ``python -m imu_ground.calib.derive_kitti PATH/TO/2011_09_26`` to rewrite ``kitti_imu.txt`` and
+``kitti_cam0.txt`` ... ``kitti_cam3.txt`` in this folder (the cameras with their intrinsics ``K`` and
+``image_size``). The derivation is in ``README.md`` beside this file and in
+:mod:`imu_ground.perception.kitti_calib`, which also reads a calibration folder directly (``--camera DIR:2``).
 """
 from __future__ import annotations
 
@@ -24,8 +23,8 @@ def derive_kitti_extrinsics(calib_dir: Path) -> dict[str, Extrinsic]:
     Parameters
     ----------
     calib_dir : Path
-        Folder with ``calib_imu_to_velo.txt``, ``calib_velo_to_cam.txt`` and
-        ``calib_cam_to_cam.txt`` (e.g. ``kitti_raw/2011_09_26``).
+        Folder with ``calib_imu_to_velo.txt``, ``calib_velo_to_cam.txt`` and ``calib_cam_to_cam.txt`` (e.g.
+        ``kitti_raw/2011_09_26``).
     """
     return kitti_extrinsics(calib_dir)
 

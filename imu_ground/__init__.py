@@ -2,22 +2,18 @@
 
 Layers (each imports only from the ones above it in this list)
 ----------------------------------------------------------------
-- :mod:`imu_ground.so3`, :mod:`imu_ground.units`, :mod:`imu_ground.errors`: rotations (and the
-  glossary of frames and signs), constants and units, the errors and warnings under their roots
-  (:class:`ImuGroundError`, :class:`ImuGroundWarning`).
-- :mod:`imu_ground.imu`: the IMU log container, standstills, preintegration,
-  per-frame ego-motion.
-- :mod:`imu_ground.datasets` and :mod:`imu_ground.filters` (siblings): readers of IMU logs and
-  pose files, validation; the invariant EKF on SO(3), the ground-normal estimators,
-  extrinsics and calibration.
-- :mod:`imu_ground.perception`: cameras, the per-frame road plane in a camera's axes,
-  bird's-eye homographies.
-- :mod:`imu_ground.pipeline` and :mod:`imu_ground.evaluation` (siblings): a log or a
-  fleet to files; reference, metrics, baselines, simulator, plots.
+- :mod:`imu_ground.so3`, :mod:`imu_ground.units`, :mod:`imu_ground.errors`: rotations (and the glossary of
+  frames and signs), constants and units, the errors and warnings under their roots (:class:`ImuGroundError`,
+  :class:`ImuGroundWarning`).
+- :mod:`imu_ground.imu`: the IMU log container, standstills, preintegration, per-frame ego-motion.
+- :mod:`imu_ground.datasets` and :mod:`imu_ground.filters` (siblings): readers of IMU logs and pose files,
+  validation; the invariant EKF on SO(3), the ground-normal estimators, extrinsics and calibration.
+- :mod:`imu_ground.perception`: cameras, the per-frame road plane in a camera's axes, bird's-eye homographies.
+- :mod:`imu_ground.pipeline` and :mod:`imu_ground.evaluation` (siblings): a log or a fleet to files; reference,
+  metrics, baselines, simulator, plots.
 - :mod:`imu_ground.cli`: the ``imu-ground`` command.
 
-The names below are imported lazily, on first use, so ``import imu_ground``
-costs no more than numpy.
+The names below are imported lazily, on first use, so ``import imu_ground`` costs no more than numpy.
 """
 from imu_ground._lazy import lazy_exports
 from imu_ground._version import __version__ as __version__

@@ -1,16 +1,10 @@
 """The one place that decides how the package's per-sample and per-frame loops run: compiled or interpreted.
 
-Each loop that must run at machine speed (a whole log's preintegration, the
-residual filter over a drive, ...) is written once, in plain Python on floats
-and numpy arrays, and decorated with :func:`njit`. With numba installed (a
-dependency: it compiles that same source with LLVM at first use and caches the
-machine code beside the module, so nothing needs a C compiler at install) the
-decorated function runs compiled; with ``NUMBA_DISABLE_JIT=1`` in the
-environment (numba's own switch, read at import) or without numba it is the
-plain Python function, the same body interpreted. The test suite runs a subset
-both ways so the two modes stay equal.
-
-A foundation module: it imports nothing of the package.
+Each loop that must run at machine speed is written once, in plain Python on floats and numpy arrays, and decorated
+with :func:`njit`: with numba installed (a dependency; it compiles that source at first use and caches the machine
+code beside the module, no C compiler at install) it runs compiled; with ``NUMBA_DISABLE_JIT=1`` (numba's own
+switch, read at import) or without numba it is the same body interpreted (the test suite runs a subset both ways). A
+foundation module: it imports nothing of the package.
 """
 from __future__ import annotations
 
@@ -38,10 +32,8 @@ JIT_ENABLED: bool = _numba is not None and os.environ.get(DISABLE_JIT_ENV, "") i
 def njit(function: F) -> F:
     """Compile ``function`` with numba (``nopython``, cached on disk), or return it unchanged.
 
-    The body must keep to what numba's nopython mode compiles: floats, ints,
-    bools, tuples and numpy arrays, no Python objects. Floating point is not
-    reassociated (no ``fastmath``), so the compiled and interpreted bodies round
-    alike up to the last bit of library functions such as ``sin``.
+    The body keeps to numba's nopython mode (floats, ints, bools, tuples, numpy arrays). No ``fastmath``: compiled
+    and interpreted bodies round alike up to the last bit of ``sin`` and the like.
 
     Parameters
     ----------
@@ -51,8 +43,7 @@ def njit(function: F) -> F:
     Returns
     -------
     callable
-        numba's dispatcher (same call signature), or ``function`` itself when
-        :data:`JIT_ENABLED` is False.
+        numba's dispatcher (same signature), or ``function`` itself when :data:`JIT_ENABLED` is False.
     """
     if not JIT_ENABLED or _numba is None:
         return function
@@ -60,12 +51,10 @@ def njit(function: F) -> F:
 
 
 def jitable(function: F) -> F:
-    """Make ``function`` callable from :func:`njit` bodies, compiled into them, and leave it plain Python otherwise.
+    """Make ``function`` callable from :func:`njit` bodies (compiled into them, numba's ``register_jitable``).
 
-    For small helpers shared by compiled bodies and by plain Python callers (e.g. the
-    scalar rotation kernels of :mod:`imu_ground.so3`): a Python caller gets the function
-    itself (no dispatch), a compiled body inlines its compiled form (numba's
-    ``register_jitable``). The same rules for the body as :func:`njit`.
+    For small helpers shared by compiled bodies and plain Python callers (e.g. the scalar rotation kernels of
+    :mod:`imu_ground.so3`); the same rules for the body as :func:`njit`.
 
     Parameters
     ----------
@@ -75,7 +64,7 @@ def jitable(function: F) -> F:
     Returns
     -------
     callable
-        ``function`` itself.
+        ``function`` itself (a Python caller gets no dispatch).
     """
     if not JIT_ENABLED:
         return function

@@ -1,9 +1,4 @@
-"""Lazy re-exports for package namespaces (PEP 562), so that ``import imu_ground`` stays light.
-
-A package names, per module, the public names it re-exports; it gets
-``__getattr__``/``__dir__`` that import the module on first use of a name, and
-``__all__``. Nothing else in the package depends on this.
-"""
+"""Lazy re-exports for package namespaces (PEP 562), so that ``import imu_ground`` stays light."""
 from __future__ import annotations
 
 import importlib
@@ -21,8 +16,8 @@ def lazy_exports(package: str, modules: Mapping[str, str]) -> tuple[Callable[[st
     package : str
         The package's ``__name__``.
     modules : mapping of str to str
-        Module (absolute, or relative to ``package`` when it starts with ``.``) to the
-        space-separated public names it defines. A name listed twice keeps its first module.
+        Module (absolute, or relative to ``package`` when it starts with ``.``) to the space-separated public names
+        it defines; a name listed twice keeps its first module.
 
     Returns
     -------

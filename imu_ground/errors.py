@@ -1,20 +1,11 @@
 """The one root of the errors a user can fix, :class:`ImuGroundError` (a ``ValueError``), and of the warnings.
 
-Every error the package raises for something the user gave (a log, a file, an
-option, a value) derives from :class:`ImuGroundError`; its message is one line
-that names the file and the option to use. ``imu-ground`` exits with status 2
-for these and for ``OSError`` (a missing or unreadable path), and reports any
-other exception as a bug (status 3). A ``ValueError`` or ``TypeError`` that is
-not an :class:`ImuGroundError` is a misuse of the library API or a bug.
-Every warning the package defines derives from :class:`ImuGroundWarning`.
-
-The foundation layer: this module imports nothing of the package, so every
-layer raises its errors from here. The classes that name an option
-(:class:`OptionError`, :class:`ImuInputError` and the readers' errors, the
-warnings) carry an :class:`OptionMessage`: the Python spelling of the option in
-``str()``, the ``imu-ground`` flag in ``cli_message()``.
-:class:`MissingExtraError` is the error of an optional dependency that is not
-installed.
+Every error raised for something the user gave (a log, a file, an option, a value) derives from
+:class:`ImuGroundError`; its message is one line naming the file and the option to use. ``imu-ground`` exits with
+status 2 for these and for ``OSError``, and reports any other exception as a bug (status 3). Every warning the
+package defines derives from :class:`ImuGroundWarning`. The classes that name an option carry an
+:class:`OptionMessage`: the Python spelling of the option in ``str()``, the ``imu-ground`` flag in
+``cli_message()``. The foundation layer: it imports nothing of the package.
 """
 from __future__ import annotations
 
@@ -26,62 +17,31 @@ from types import ModuleType
 from typing import Any
 
 __all__ = [
-    "CLI_FLAGS",
-    "GapWarning",
-    "ImuGroundError",
-    "ImuGroundWarning",
-    "ImuInputError",
-    "ImuValidationError",
-    "ImuValidationWarning",
-    "MalformedFileError",
-    "MissingExtraError",
-    "MissingFilesystemError",
-    "MissingPacketsError",
-    "NonFiniteWarning",
-    "OptionError",
-    "OptionMessage",
-    "PoseFileError",
-    "SensorWarning",
-    "StorageError",
-    "TimestampWarning",
-    "UnitsWarning",
-    "UnknownFormatError",
-    "option_hint",
-    "require_extra",
+    "CLI_FLAGS", "GapWarning", "ImuGroundError", "ImuGroundWarning", "ImuInputError", "ImuValidationError",
+    "ImuValidationWarning", "MalformedFileError", "MissingExtraError", "MissingFilesystemError",
+    "MissingPacketsError", "NonFiniteWarning", "OptionError", "OptionMessage", "PoseFileError", "SensorWarning",
+    "StorageError", "TimestampWarning", "UnitsWarning", "UnknownFormatError", "option_hint", "require_extra",
     "warn_user",
 ]
 
-#: Option keyword -> its ``imu-ground`` flag, for the options whose hint names the flag on the command
-#: line (the reader options: :data:`imu_ground.datasets.options.READER_OPTIONS` fills it when imported;
-#: any other option is spelled ``--`` + the keyword with ``-`` for ``_``, its hint the Python keyword).
+#: Option keyword -> its ``imu-ground`` flag (the reader options: :data:`imu_ground.datasets.options.READER_OPTIONS`
+#: fills it when imported; any other option is ``--`` + the keyword with ``-`` for ``_``).
 CLI_FLAGS: dict[str, str] = {}
 
 
 class ImuGroundError(ValueError):
-    """Bad user input, option or file: the root of every error a user can fix.
-
-    A ``ValueError``, so code that catches ``ValueError`` keeps working. The
-    message is one line naming the file (and line) and what to do.
-    """
+    """Bad user input, option or file: the root of every error a user can fix (one line naming the file)."""
 
 
 class MissingExtraError(ImuGroundError, ImportError):
-    """An optional dependency is not installed: the message names the extra to install.
-
-    Both an :class:`ImuGroundError` (the user can fix it) and an ``ImportError``.
+    """An optional dependency is not installed (also an ``ImportError``): the message names the extra to install.
 
     Parameters
     ----------
     what : str
         What needs it, e.g. ``"writing .parquet files"``.
-    module : str
-        The missing module, e.g. ``"pyarrow"``.
-    extra : str
-        The package extra that installs it, e.g. ``"parquet"``.
-
-    Attributes
-    ----------
     module, extra : str
+        The missing module (``"pyarrow"``) and the package extra that installs it (``"parquet"``); both attributes.
     """
 
     def __init__(self, what: str, module: str, extra: str) -> None:
@@ -97,11 +57,9 @@ def require_extra(module: str, extra: str, what: str) -> ModuleType:
     Parameters
     ----------
     module : str
-        Module to import (``"pyarrow.parquet"``, ``"rosbags.highlevel"``).
-    extra : str
-        The extra that installs it (``"parquet"``, ``"ros"``, ``"fleet"``, ``"plot"``).
-    what : str
-        What needs it, for the message (``"writing .parquet files"``).
+        Module to import (``"pyarrow.parquet"``).
+    extra, what : str
+        The extra that installs it (``"parquet"``) and what needs it, for the message.
 
     Returns
     -------
@@ -128,30 +86,37 @@ def option_hint(name: str, value: Any = None, cli: bool = False) -> str:
 
 
 class OptionMessage:
-    """A message template that names an option, in Python or CLI spelling: the one option-message rule.
+    """A message that names an option, in Python or CLI spelling: the one option-message rule.
 
-    Two placeholders: ``{hint}`` is how to set the option (``gyro_unit='deg/s'``
-    / ``--gyro-unit deg/s``, with :attr:`value` when given), ``{opt}`` the
-    option's bare name (``rate`` / ``--rate``). ``str()`` of the exception or
-    warning carries the Python spelling; :meth:`cli_message` is what the command
-    line prints.
+    ``{hint}`` in the text is how to set the option (``gyro_unit='deg/s'`` / ``--gyro-unit deg/s``, with ``value``
+    when given), ``{opt}`` its bare name (``rate`` / ``--rate``).
+
+    Parameters
+    ----------
+    message : str
+        What is wrong, naming the file (and 1-based line where there is one), with ``{hint}``/``{opt}``.
+    option : str, optional
+        The option that fixes it (Python keyword).
+    value : optional
+        The option value to suggest.
+    flag : str, optional
+        Its CLI flag, when not the :data:`CLI_FLAGS` one or ``--`` + the keyword with ``-`` for ``_``.
 
     Attributes
     ----------
-    template : str
-        The text with ``{hint}`` and/or ``{opt}`` where the option goes.
-    option : str or None
-        The Python keyword (a reader option of :data:`CLI_FLAGS`, or another option such as ``rate``).
-    value : optional
-        The option value to suggest.
-    flag : str or None
-        The CLI flag when it is not the :data:`CLI_FLAGS` one or ``--`` + the keyword with ``-`` for ``_``.
+    template, option, value, flag
+        The parameters.
     """
 
     template: str
     option: str | None
     value: Any
     flag: str | None = None
+
+    def __init__(self, message: str = "", option: str | None = None, value: Any = None, *,
+                 flag: str | None = None) -> None:
+        self.template, self.option, self.value, self.flag = message, option, value, flag
+        super().__init__(self._render(cli=False))  # type: ignore[call-arg]  # the exception or warning base
 
     @property
     def name(self) -> str | None:
@@ -183,28 +148,10 @@ class OptionMessage:
 
 
 class OptionError(OptionMessage, ImuGroundError):
-    """A bad input or option value that an option can fix; the message names the option.
+    """A bad input or option value that an option can fix, in the readers and the pipeline alike.
 
-    The one error class for options, in the readers and in
-    :func:`imu_ground.pipeline.estimate_log` alike.
-
-    Parameters
-    ----------
-    message : str
-        What is wrong, naming the file (and 1-based line where there is one). It
-        may contain ``{hint}`` / ``{opt}`` (see :class:`OptionMessage`).
-    option : str, optional
-        The option that fixes it (Python keyword).
-    value : optional
-        The option value to suggest.
-    flag : str, optional
-        Its CLI flag, when not derived from the keyword.
+    Parameters as :class:`OptionMessage`.
     """
-
-    def __init__(self, message: str, option: str | None = None, value: Any = None, *,
-                 flag: str | None = None) -> None:
-        self.template, self.option, self.value, self.flag = message, option, value, flag
-        super().__init__(self._render(cli=False))
 
 
 class ImuInputError(OptionError):
@@ -235,20 +182,11 @@ class MalformedFileError(ImuGroundError):
 
 
 class ImuGroundWarning(OptionMessage, UserWarning):
-    """The root of every warning the package defines (a ``UserWarning``).
-
-    Like :class:`ImuInputError`, the text may name an option (``{hint}``, ``{opt}``);
-    :meth:`cli_message` spells it as the CLI flag.
-    """
-
-    def __init__(self, message: str = "", option: str | None = None, value: Any = None) -> None:
-        self.template, self.option, self.value = message, option, value
-        super().__init__(self._render(cli=False))
+    """The root of every warning the package defines (a ``UserWarning``); parameters as :class:`OptionMessage`."""
 
 
 class ImuValidationWarning(ImuGroundWarning):
-    """Base class of every warning issued by the readers and
-    :func:`~imu_ground.datasets.validation.validate`."""
+    """Base class of every warning issued by the readers and :func:`~imu_ground.datasets.validation.validate`."""
 
 
 class TimestampWarning(ImuValidationWarning):
@@ -303,8 +241,7 @@ class MissingFilesystemError(StorageError, ImportError):
 
 
 # --------------------------------------------------------------------------- issuing a warning
-#: The package's folders (the readers are ``imu_ground/datasets`` once installed, ``datasets/`` beside
-#: ``imu_ground/`` in a checkout): frames there are not the user's.
+#: The package's folders (the readers: ``datasets/`` beside ``imu_ground/`` in a checkout): not the user's frames.
 _PACKAGE_DIRS = tuple(str(Path(p).resolve()) for p in (
     Path(__file__).parent, Path(__file__).parent.parent / "datasets"))
 
@@ -316,10 +253,8 @@ def warn_user(message: str, category: type[Warning] = ImuValidationWarning, opti
     Parameters
     ----------
     message : str
-        The text, naming the file (and 1-based line where there is one); may hold
-        ``{hint}`` for ``option``.
+        The text, naming the file (and 1-based line); may hold ``{hint}`` for ``option``.
     category : Warning subclass
-        The warning class.
     option, value : optional
         The option (and value) the text names (:class:`ImuGroundWarning` subclasses).
     """

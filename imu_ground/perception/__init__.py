@@ -1,16 +1,9 @@
 """Perception geometry: cameras, the per-frame road plane in a camera's axes, bird's-eye (IPM) homographies.
 
-- :mod:`imu_ground.perception.camera`: :class:`Camera` (intrinsics, image size,
-  static extrinsic ground <- camera), :func:`load_camera` (shipped ``kitti_cam0`` ...
-  ``kitti_cam3``, a camera file, or a KITTI raw calibration folder as ``DIR:2``).
-- :mod:`imu_ground.perception.kitti_calib`: the KITTI raw calibration chain.
-- :mod:`imu_ground.perception.plane`: :class:`GroundPlane` (``N`` frames: plane
-  ``n . X + d = 0`` in camera axes, road <- camera transform, pixel <-> road
-  queries, bird's-eye homographies), :class:`BevGrid`, :func:`range_error`.
-- :mod:`imu_ground.perception.warp`: :func:`warp_to_bev` (scipy's ``map_coordinates``).
-
-Layer: above :mod:`imu_ground.filters` (it reads extrinsic files), below
-:mod:`imu_ground.pipeline`. Names are imported lazily.
+:mod:`~imu_ground.perception.camera` (:class:`Camera`, :func:`load_camera`), :mod:`~imu_ground.perception.kitti_calib`
+(the KITTI raw calibration chain), :mod:`~imu_ground.perception.plane` (:class:`GroundPlane`, :class:`BevGrid`,
+:func:`range_error`), :mod:`~imu_ground.perception.warp` (:func:`warp_to_bev`). Layer: above
+:mod:`imu_ground.filters` (it reads extrinsic files), below :mod:`imu_ground.pipeline`. Names are imported lazily.
 """
 from imu_ground._lazy import lazy_exports
 

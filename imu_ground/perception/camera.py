@@ -1,14 +1,14 @@
 """A camera: pinhole intrinsics, image size and its static extrinsic (ground <- camera).
 
-Camera axes x right, y down, z forward; pixel ``(u, v)`` (centres at whole numbers) sees
-the ray ``K^-1 (u, v, 1)``; images are rectified. A camera file is an extrinsic file
-(``calib/README.md``) with two more lines, so it still loads as an extrinsic::
+Camera axes x right, y down, z forward; pixel ``(u, v)`` (centres at whole numbers) sees the ray ``K^-1 (u, v, 1)``;
+images are rectified. A camera file is an extrinsic file (``calib/README.md``) with two more lines, so it still
+loads as an extrinsic::
 
     K: fx 0 cx 0 fy cy 0 0 1        # 3x3 intrinsics, row-major, pixels
     image_size: 1242 375            # width height, pixels
 
-:func:`load_camera` reads a shipped name (``kitti_cam0`` ... ``kitti_cam3``), a file, or a
-KITTI raw calibration folder with a camera index (``PATH/2011_09_26:2``).
+:func:`load_camera` reads a shipped name (``kitti_cam0`` ... ``kitti_cam3``), a file, or a KITTI raw calibration
+folder with a camera index (``PATH/2011_09_26:2``).
 """
 from __future__ import annotations
 
@@ -38,9 +38,8 @@ class Camera:
     image_size : tuple of int
         ``(width, height)``, pixels.
     extrinsic : Extrinsic
-        Static ground <- camera: rotation (ground frame FLU, z up along the road
-        normal at rest) and the camera origin in the ground frame, m (its ``z`` is
-        the camera's height above the road at rest).
+        Static ground <- camera: rotation (ground frame FLU, z up along the road normal at rest) and the camera
+        origin in the ground frame, m (its ``z`` is the camera's height above the road at rest).
     name : str
         What it was loaded from.
     """
@@ -100,19 +99,17 @@ def load_camera(spec: str | Path | Camera) -> Camera:
     Parameters
     ----------
     spec : str, Path or Camera
-        ``"kitti_cam2"`` (see :func:`available_cameras`); a file in the format of
-        ``calib/README.md`` with ``K`` and ``image_size`` lines; ``"DIR:I"`` for
-        rectified camera ``I`` (0-3) of the KITTI raw calibration folder ``DIR``
-        (derived as :mod:`imu_ground.perception.kitti_calib` says); a Camera is
-        returned as it is.
+        ``"kitti_cam2"`` (see :func:`available_cameras`); a file in the format of ``calib/README.md`` with ``K`` and
+        ``image_size`` lines; ``"DIR:I"`` for rectified camera ``I`` (0-3) of the KITTI raw calibration folder
+        ``DIR`` (derived as :mod:`imu_ground.perception.kitti_calib` says); a Camera is returned as it is.
 
     Raises
     ------
     FileNotFoundError
         No such file, folder or shipped name (the message lists the shipped cameras).
     ImuGroundError
-        The file is not a camera (no ``K`` or ``image_size`` line) or a value is
-        malformed; the message names the file.
+        The file is not a camera (no ``K`` or ``image_size`` line) or a value is malformed; the message names the
+        file.
     """
     if isinstance(spec, Camera):
         return spec

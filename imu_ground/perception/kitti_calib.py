@@ -1,21 +1,20 @@
 """KITTI raw calibration: the static extrinsics and the rectified cameras of one recording day.
 
-A KITTI raw calibration folder (``2011_09_26/``) holds ``calib_imu_to_velo.txt``,
-``calib_velo_to_cam.txt`` and ``calib_cam_to_cam.txt``. From them:
+A KITTI raw calibration folder (``2011_09_26/``) holds ``calib_imu_to_velo.txt``, ``calib_velo_to_cam.txt`` and
+``calib_cam_to_cam.txt``. From them:
 
-1. The OXTS RT3003 frame is FLU and mounted level in the car; the ground frame's
-   axes are the IMU's (``R_g_imu = I``) and its origin is on the road below the IMU,
-   which is :data:`IMU_HEIGHT` up (KITTI sensor set-up, Geiger et al., IJRR 2013).
-2. ``T_velo_imu`` (imu_to_velo) and ``T_cam0_velo`` (velo_to_cam) map points of the
-   first frame into the second; ``R_rect_00`` rotates camera 0 into the rectified
-   frame shared by the four rectified cameras. Rectified camera ``i`` differs from
-   rectified camera 0 by a translation only: ``P_rect_0i = K_i [I | K_i^-1 p_i]``
-   (``p_i`` its last column), so ``T_recti_rect0 = [I | K_i^-1 p_i]``.
-3. ``T_g_cami = T_g_imu · (T_recti_rect0 · R_rect_00 · T_cam0_velo · T_velo_imu)^-1``;
-   rotations are projected onto SO(3) (the files carry 7 digits).
+1. The OXTS RT3003 frame is FLU and mounted level in the car; the ground frame's axes are the IMU's
+   (``R_g_imu = I``) and its origin is on the road below the IMU, which is :data:`IMU_HEIGHT` up (KITTI sensor
+   set-up, Geiger et al., IJRR 2013).
+2. ``T_velo_imu`` (imu_to_velo) and ``T_cam0_velo`` (velo_to_cam) map points of the first frame into the second;
+   ``R_rect_00`` rotates camera 0 into the rectified frame shared by the four rectified cameras. Rectified camera
+   ``i`` differs from rectified camera 0 by a translation only: ``P_rect_0i = K_i [I | K_i^-1 p_i]`` (``p_i`` its
+   last column), so ``T_recti_rect0 = [I | K_i^-1 p_i]``.
+3. ``T_g_cami = T_g_imu · (T_recti_rect0 · R_rect_00 · T_cam0_velo · T_velo_imu)^-1``; rotations are projected onto
+   SO(3) (the files carry 7 digits).
 
-Camera axes: x right, y down, z forward (optical axis). Intrinsics ``K_i`` are
-``P_rect_0i[:, :3]``, the image size ``S_rect_0i`` (width, height, pixels).
+Camera axes: x right, y down, z forward (optical axis). Intrinsics ``K_i`` are ``P_rect_0i[:, :3]``, the image size
+``S_rect_0i`` (width, height, pixels).
 """
 from __future__ import annotations
 
@@ -106,22 +105,6 @@ def _intrinsics(p: np.ndarray, key: str, path: Path) -> np.ndarray:
     return k
 
 
-def _read_folder(calib_dir: Path) -> tuple[dict, dict, dict]:
-    calib_dir = Path(calib_dir)
-    if not calib_dir.is_dir():
-        raise FileNotFoundError(f"{calib_dir}: no such KITTI raw calibration folder (it holds "
-                                f"{', '.join(KITTI_CALIB_FILES)})")
-    return tuple(read_kitti_calib(calib_dir / f) for f in KITTI_CALIB_FILES)      # type: ignore[return-value]
-
-
-def _rect0_from_imu(calib_dir: Path, iv: dict, vc: dict, cc: dict) -> np.ndarray:
-    d = Path(calib_dir)
-    t_velo_imu = _rigid(_rotation(iv, "R", d / KITTI_CALIB_FILES[0]), _entry(iv, "T", 3, d / KITTI_CALIB_FILES[0]))
-    t_cam0_velo = _rigid(_rotation(vc, "R", d / KITTI_CALIB_FILES[1]), _entry(vc, "T", 3, d / KITTI_CALIB_FILES[1]))
-    t_rect0_cam0 = _rigid(_rotation(cc, "R_rect_00", d / KITTI_CALIB_FILES[2]), np.zeros(3))
-    return t_rect0_cam0 @ t_cam0_velo @ t_velo_imu
-
-
 def kitti_extrinsics(calib_dir: str | Path) -> dict[str, Extrinsic]:
     """The IMU's and the four rectified cameras' static extrinsics (ground <- sensor) of a KITTI raw folder.
 
@@ -133,11 +116,10 @@ def kitti_extrinsics(calib_dir: str | Path) -> dict[str, Extrinsic]:
     Returns
     -------
     dict
-        ``{"kitti_imu": ..., "kitti_cam0": ..., ..., "kitti_cam3": ...}``; rotation ground <- sensor,
-        translation the sensor origin in the ground frame (FLU, origin on the road below the IMU), m.
+        ``{"kitti_imu": ..., "kitti_cam0": ..., ..., "kitti_cam3": ...}``; rotation ground <- sensor, translation
+        the sensor origin in the ground frame (FLU, origin on the road below the IMU), m.
     """
     cams = kitti_rectified_cameras(calib_dir)
-    iv, _, _ = _read_folder(Path(calib_dir))
     src = f"{Path(calib_dir).name}/calib_*.txt"
     out = {"kitti_imu": Extrinsic(np.eye(3), np.array([0.0, 0.0, IMU_HEIGHT]),
                                   {"platform": "kitti", "sensor": "oxts_imu (FLU)", "derived_from": src})}
@@ -151,23 +133,27 @@ def kitti_rectified_cameras(calib_dir: str | Path) -> dict[int, tuple[Extrinsic,
     Returns
     -------
     dict
-        Camera index -> ``(extrinsic, K, (width, height))``: extrinsic ground <- rectified camera
-        (camera axes x right, y down, z forward), ``K`` the 3x3 intrinsics (pixels), image size in pixels.
+        Camera index -> ``(extrinsic, K, (width, height))``: extrinsic ground <- rectified camera (camera axes x
+        right, y down, z forward), ``K`` the 3x3 intrinsics (pixels), image size in pixels.
 
     Raises
     ------
     FileNotFoundError
         No such folder or file.
     MalformedFileError
-        A file lacks an entry the derivation needs, or holds one that is not finite, a rotation
-        that is not one (to :data:`KITTI_ROTATION_TOL`) or intrinsics that are not; not a text
-        file (the message names file and key).
+        A file lacks an entry the derivation needs, or holds one that is not finite, a rotation that is not one (to
+        :data:`KITTI_ROTATION_TOL`) or intrinsics that are not; not a text file (the message names file and key).
     """
     calib_dir = Path(calib_dir)
-    iv, vc, cc = _read_folder(calib_dir)
-    t_rect0_imu = _rect0_from_imu(calib_dir, iv, vc, cc)
+    if not calib_dir.is_dir():
+        raise FileNotFoundError(f"{calib_dir}: no such KITTI raw calibration folder (it holds "
+                                f"{', '.join(KITTI_CALIB_FILES)})")
+    iv_path, vc_path, cc_path = (calib_dir / f for f in KITTI_CALIB_FILES)
+    iv, vc, cc = (read_kitti_calib(p) for p in (iv_path, vc_path, cc_path))
+    t_velo_imu = _rigid(_rotation(iv, "R", iv_path), _entry(iv, "T", 3, iv_path))
+    t_cam0_velo = _rigid(_rotation(vc, "R", vc_path), _entry(vc, "T", 3, vc_path))
+    t_rect0_imu = _rigid(_rotation(cc, "R_rect_00", cc_path), np.zeros(3)) @ t_cam0_velo @ t_velo_imu
     t_g_imu = _rigid(np.eye(3), np.array([0.0, 0.0, IMU_HEIGHT]))
-    cc_path = calib_dir / KITTI_CALIB_FILES[2]
     out = {}
     for i in range(4):
         p = _entry(cc, f"P_rect_0{i}", 12, cc_path).reshape(3, 4)

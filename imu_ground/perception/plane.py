@@ -2,14 +2,14 @@ r"""The road plane seen by a camera, frame by frame: :class:`GroundPlane`, and t
 
 Frames and signs
 ----------------
-- **Camera** axes: x right, y down, z forward; pixel ``(u, v)`` sees the ray
-  ``K^-1 (u, v, 1)`` (z component 1: a point's depth is the ray's scale).
-- **Road** frame ``r``: x forward, y left, z up along the road normal, origin on the
-  road. With :meth:`GroundPlane.from_camera`: ``R_rc = E · R_gc``, ``t_rc = E · t_gc``
-  with ``E`` the estimate's residual rotation road <- body and ``(R_gc, t_gc)`` the
-  camera's static extrinsic (ground <- camera); the static extrinsic is ``E = I``.
-- **Plane** in camera axes: ``n · X + d = 0``, ``n`` the unit road normal pointing up,
-  ``d`` the camera's height above the road, m (KITTI ``planes`` files' ``a b c d``).
+- **Camera** axes: x right, y down, z forward; pixel ``(u, v)`` sees the ray ``K^-1 (u, v, 1)`` (z component 1:
+  a point's depth is the ray's scale).
+- **Road** frame ``r``: x forward, y left, z up along the road normal, origin on the road. With
+  :meth:`GroundPlane.from_camera`: ``R_rc = E · R_gc``, ``t_rc = E · t_gc`` with ``E`` the estimate's residual
+  rotation road <- body and ``(R_gc, t_gc)`` the camera's static extrinsic (ground <- camera); the static extrinsic
+  is ``E = I``.
+- **Plane** in camera axes: ``n · X + d = 0``, ``n`` the unit road normal pointing up, ``d`` the camera's height
+  above the road, m (KITTI ``planes`` files' ``a b c d``).
 
 Batch-first: a :class:`GroundPlane` holds ``N`` frames, every query a leading axis of ``N``.
 """
@@ -29,8 +29,8 @@ __all__ = ["BevGrid", "GroundPlane", "range_error"]
 class BevGrid:
     """A bird's-eye (inverse perspective) grid on the road: ``x0..x1`` ahead, ``y0..y1`` to the left, ``res`` m a pixel.
 
-    Forward is up, left is left: pixel ``(col, row)``'s centre is the road point
-    ``X = x1 - (row + 0.5) res``, ``Y = y1 - (col + 0.5) res`` (m, road frame).
+    Forward is up, left is left: pixel ``(col, row)``'s centre is the road point ``X = x1 - (row + 0.5) res``,
+    ``Y = y1 - (col + 0.5) res`` (m, road frame).
     """
     x0: float
     x1: float
@@ -91,10 +91,10 @@ def range_error(distance: Any, dpitch: Any, droll: Any = 0.0, height: Any = 1.65
                 first_order: bool = False) -> np.ndarray:
     r"""How far a ground point's estimated range moves when the road plane is off by ``dpitch``, ``droll``.
 
-    The ray to the road point ``distance`` m ahead and ``lateral`` m left of the point
-    below a camera ``height`` m up, intersected with the plane through that point tilted
-    by the errors (estimated minus true pitch, + nose down, and roll, + left side up,
-    rad): its ground range in the tilted plane minus the true one, m; NaN above the horizon.
+    The ray to the road point ``distance`` m ahead and ``lateral`` m left of the point below a camera ``height`` m
+    up, intersected with the plane through that point tilted by the errors (estimated minus true pitch, + nose down,
+    and roll, + left side up, rad): its ground range in the tilted plane minus the true one, m; NaN above the
+    horizon.
 
     Parameters
     ----------
@@ -105,8 +105,8 @@ def range_error(distance: Any, dpitch: Any, droll: Any = 0.0, height: Any = 1.65
     height : array_like
         Camera height above the road, m.
     first_order : bool
-        The linearisation ``-(rho^2 + height^2) (distance dpitch - lateral droll) / (rho height)``
-        (``rho`` the true ground range; far ahead ``-distance^2 dpitch / height``).
+        The linearisation ``-(rho^2 + height^2) (distance dpitch - lateral droll) / (rho height)`` (``rho`` the true
+        ground range; far ahead ``-distance^2 dpitch / height``).
 
     Returns
     -------

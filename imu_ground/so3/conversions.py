@@ -1,8 +1,5 @@
-"""Rotations in other forms: increments in any form, heading twist, ZYX Euler angles, quaternions,
-cumulative rotations.
-
-Frames and signs follow the glossary of :mod:`imu_ground.so3`. Quaternions are
-scalar first, ``(w, x, y, z)``, with ``w >= 0``.
+"""Rotations in other forms: increments in any form, heading twist, ZYX Euler angles, quaternions (scalar
+first, ``(w, x, y, z)``, ``w >= 0``), cumulative rotations. Frames and signs: the glossary of :mod:`imu_ground.so3`.
 """
 from __future__ import annotations
 
@@ -25,8 +22,7 @@ def as_rotations(delta_R, name: str = "delta_R") -> np.ndarray:
     Parameters
     ----------
     delta_R : array_like, shape (3, 3), (4, 4), (3,), (N, 3, 3), (N, 4, 4) or (N, 3)
-        One increment or a batch; the rotation part of a 4x4 pose is its upper-left 3x3 block
-        (a (3, 3) array is one matrix, never three rotation vectors).
+        One increment or a batch; a 4x4 pose's upper-left 3x3 block; a (3, 3) array is one matrix.
     name : str
         Argument name used in the error message.
 
@@ -54,36 +50,20 @@ def as_rotations(delta_R, name: str = "delta_R") -> np.ndarray:
 
 
 def twist_angle(d: np.ndarray) -> np.ndarray:
-    """Angle of the twist of a rotation about z (swing-twist decomposition), rad.
+    """Twist about z of rotations ``d`` (..., 3, 3) (swing-twist), rad in (-pi, pi], shape (...).
 
-    ``psi = 2 atan2(q_z, q_w) = atan2(R_10 - R_01, R_00 + R_11)``: the heading
-    change of a body increment about its up axis.
-
-    Parameters
-    ----------
-    d : ndarray (..., 3, 3)
-
-    Returns
-    -------
-    ndarray (...)
-        In (-pi, pi].
+    ``psi = 2 atan2(q_z, q_w) = atan2(R_10 - R_01, R_00 + R_11)``: the heading change of a body increment.
     """
     return np.arctan2(d[..., 1, 0] - d[..., 0, 1], d[..., 0, 0] + d[..., 1, 1])
 
 
 def euler_zyx(R: np.ndarray) -> np.ndarray:
-    """``(roll, pitch, yaw)`` with ``R = Rz(yaw) Ry(pitch) Rx(roll)``, rad.
+    """``(roll, pitch, yaw)`` (..., 3), rad, with ``R = Rz(yaw) Ry(pitch) Rx(roll)``; pitch in [-pi/2, pi/2].
 
     Parameters
     ----------
     R : ndarray (..., 3, 3)
         Rotations (e.g. world <- body, or ground <- sensor for a mounting).
-
-    Returns
-    -------
-    ndarray (..., 3)
-        Roll about x, pitch about y (``atan2(-R_20, hypot(R_21, R_22))``, in
-        [-pi/2, pi/2]), yaw about z.
     """
     R = np.asarray(R, dtype=float)
     yaw = np.arctan2(R[..., 1, 0], R[..., 0, 0])
@@ -93,16 +73,7 @@ def euler_zyx(R: np.ndarray) -> np.ndarray:
 
 
 def quat_from_matrix(R: np.ndarray) -> np.ndarray:
-    """Unit quaternions ``(w, x, y, z)``, ``w >= 0``, of rotation matrices (Shepperd's method).
-
-    Parameters
-    ----------
-    R : ndarray (..., 3, 3)
-
-    Returns
-    -------
-    ndarray (..., 4)
-    """
+    """Unit quaternions ``(w, x, y, z)`` (..., 4), ``w >= 0``, of rotation matrices ``R`` (..., 3, 3) (Shepperd)."""
     R = np.asarray(R, dtype=float)
     m = R.reshape(-1, 3, 3)
     r00, r11, r22 = m[:, 0, 0], m[:, 1, 1], m[:, 2, 2]
@@ -113,29 +84,18 @@ def quat_from_matrix(R: np.ndarray) -> np.ndarray:
     a21, a12 = m[:, 2, 1], m[:, 1, 2]
     a02, a20 = m[:, 0, 2], m[:, 2, 0]
     a10, a01 = m[:, 1, 0], m[:, 0, 1]
-    q = np.empty((len(m), 4))
-    cand = (np.stack([0.25 * s, (a21 - a12) / s, (a02 - a20) / s, (a10 - a01) / s], 1),
-            np.stack([(a21 - a12) / s, 0.25 * s, (a01 + a10) / s, (a02 + a20) / s], 1),
-            np.stack([(a02 - a20) / s, (a01 + a10) / s, 0.25 * s, (a12 + a21) / s], 1),
-            np.stack([(a10 - a01) / s, (a02 + a20) / s, (a12 + a21) / s, 0.25 * s], 1))
-    for j in range(4):
-        q[i == j] = cand[j][i == j]
+    cand = np.stack([np.stack([0.25 * s, (a21 - a12) / s, (a02 - a20) / s, (a10 - a01) / s], 1),
+                     np.stack([(a21 - a12) / s, 0.25 * s, (a01 + a10) / s, (a02 + a20) / s], 1),
+                     np.stack([(a02 - a20) / s, (a01 + a10) / s, 0.25 * s, (a12 + a21) / s], 1),
+                     np.stack([(a10 - a01) / s, (a02 + a20) / s, (a12 + a21) / s, 0.25 * s], 1)], 1)
+    q = cand[np.arange(len(m)), i]
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     q[q[:, 0] < 0] *= -1.0
     return q.reshape(R.shape[:-2] + (4,))
 
 
 def matrix_from_quat(q: np.ndarray) -> np.ndarray:
-    """Rotation matrices of quaternions ``(w, x, y, z)`` (normalised first).
-
-    Parameters
-    ----------
-    q : ndarray (..., 4)
-
-    Returns
-    -------
-    ndarray (..., 3, 3)
-    """
+    """Rotation matrices (..., 3, 3) of quaternions ``q`` (..., 4), ``(w, x, y, z)``, normalised first."""
     q = np.asarray(q, dtype=float)
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
@@ -148,10 +108,7 @@ def matrix_from_quat(q: np.ndarray) -> np.ndarray:
 
 
 def cumulative_rotations(d: np.ndarray, R0=None, count: int = 0, *, renorm_every: int) -> np.ndarray:
-    """``R_k = R_{k-1} d_k`` (right-multiplied: increments in the moving frame), kept on SO(3).
-
-    Re-orthonormalised (:func:`imu_ground.so3.renormalise`) every ``renorm_every``
-    products, counted from ``count``.
+    """``R_k = R_{k-1} d_k`` (increments in the moving frame), kept on SO(3).
 
     Parameters
     ----------
@@ -162,8 +119,7 @@ def cumulative_rotations(d: np.ndarray, R0=None, count: int = 0, *, renorm_every
     count : int
         Products already taken before ``d[0]`` (to continue a sequence).
     renorm_every : int
-        Products between re-orthonormalisations (the filters pass
-        :data:`imu_ground.units.RENORM_EVERY`).
+        Products between re-orthonormalisations (:func:`imu_ground.so3.renormalise`), counted from ``count``.
 
     Returns
     -------
@@ -181,20 +137,14 @@ def cumulative_rotations(d: np.ndarray, R0=None, count: int = 0, *, renorm_every
 
 
 def heading_change(d: np.ndarray, Rgs: Optional[np.ndarray] = None) -> float:
-    """Twist (rad, + counter-clockwise seen from above) about the ground's up axis of one increment.
+    """:func:`twist_angle` (rad, + counter-clockwise seen from above) of one increment, as a float.
 
     Parameters
     ----------
     d : ndarray (3, 3)
         Increment sensor_{k-1} <- sensor_k.
     Rgs : ndarray (3, 3), optional
-        Static rotation ground <- sensor: the increment is taken in the ground frame,
-        ``Rgs d Rgs^T`` (None: the sensor is the ground frame).
-
-    Returns
-    -------
-    float
-        :func:`twist_angle` of that increment, in Python floats (one frame).
+        Static rotation ground <- sensor: the increment is taken in the ground frame, ``Rgs d Rgs^T``.
     """
     if Rgs is not None:
         d = Rgs @ d @ Rgs.T

@@ -1,17 +1,10 @@
-r"""SO(3) itself: hat/vee, exp/log and their Jacobians, projections, axis rotations, and the scalar kernels.
+"""SO(3) itself: hat/vee, exp/log and their Jacobians, projections, axis rotations, and the scalar kernels.
 
-Every function takes one element or a batch: a rotation vector of shape (3,)
-or (N, 3), a matrix of shape (3, 3) or (N, 3, 3), and returns the same leading
-shape, without a Python loop over the batch. The ``*_one`` functions are the
-same formulas for one element; the ``*_flat`` functions are the scalar kernels
-of the streaming filters (a 3x3 matrix as a row-major tuple of 9 floats, a
-vector as 3 floats), a few times faster than numpy on one tiny matrix.
-Conventions: the glossary of :mod:`imu_ground.so3`.
-
-The logarithm is accurate over the whole range: near the identity through
-Taylor series (angles down to 1e-300 rad), and near pi from the symmetric part
-of ``R``, where the antisymmetric part vanishes and the usual formula loses
-every digit.
+Every function takes one element or a batch (rotation vectors ``(..., 3)`` in rad, matrices ``(..., 3, 3)``) and
+returns the same leading shape without a Python loop. ``*_one``: the same formulas for one element; ``*_flat``: the
+scalar kernels of the streaming filters (a 3x3 matrix as a row-major 9-tuple, a vector as 3 floats). The logarithm
+is accurate over the whole range (Taylor series near 0, the symmetric part of ``R`` near pi). Conventions: the
+glossary of :mod:`imu_ground.so3`.
 """
 from __future__ import annotations
 
@@ -19,13 +12,10 @@ import math
 
 import numpy as np
 
-__all__ = [
-    "hat", "vee", "exp", "log", "right_jacobian", "left_jacobian",
-    "right_jacobian_inv", "left_jacobian_inv", "project", "angle",
-    "rotx", "roty", "rotz", "renormalise", "exp_one", "log_one",
-    "exp_flat", "log_flat", "mul_flat", "mul_nt_flat", "transpose_flat", "renormalise_flat",
-    "quat_from_flat", "flat_from_quat", "quat_mul", "quat_exp", "quat_normalise", "hat_flat", "SMALL_ANGLE",
-]
+__all__ = ["hat", "vee", "exp", "log", "right_jacobian", "left_jacobian", "right_jacobian_inv", "left_jacobian_inv",
+           "project", "angle", "rotx", "roty", "rotz", "renormalise", "exp_one", "log_one", "exp_flat", "log_flat",
+           "mul_flat", "mul_nt_flat", "transpose_flat", "renormalise_flat", "quat_from_flat", "flat_from_quat",
+           "quat_mul", "quat_exp", "quat_normalise", "hat_flat", "SMALL_ANGLE"]
 
 #: Below this angle (rad) the Taylor series are exact to double precision.
 SMALL_ANGLE = 1e-4
@@ -37,36 +27,24 @@ def hat(phi: np.ndarray) -> np.ndarray:
     Parameters
     ----------
     phi : array_like, shape (..., 3)
-        Any vectors (the map is linear; units carry over).
 
     Returns
     -------
     ndarray, shape (..., 3, 3)
     """
     phi = np.asarray(phi, dtype=float)
-    out = np.zeros(phi.shape[:-1] + (3, 3))
     x, y, z = phi[..., 0], phi[..., 1], phi[..., 2]
-    out[..., 0, 1] = -z
-    out[..., 0, 2] = y
-    out[..., 1, 0] = z
-    out[..., 1, 2] = -x
-    out[..., 2, 0] = -y
-    out[..., 2, 1] = x
-    return out
+    o = np.zeros_like(x)
+    return np.stack([o, -z, y, z, o, -x, -y, x, o], axis=-1).reshape(phi.shape[:-1] + (3, 3))
 
 
 def vee(m: np.ndarray) -> np.ndarray:
-    """Inverse of :func:`hat`: the vector of the antisymmetric part of ``m``.
+    """Inverse of :func:`hat`: ``0.5 * [m21 - m12, m02 - m20, m10 - m01]``, shape (..., 3).
 
     Parameters
     ----------
     m : array_like, shape (..., 3, 3)
         Any square matrices; the symmetric part is ignored.
-
-    Returns
-    -------
-    ndarray, shape (..., 3)
-        ``0.5 * [m21 - m12, m02 - m20, m10 - m01]`` (exact for skew matrices).
     """
     m = np.asarray(m, dtype=float)
     return 0.5 * np.stack([m[..., 2, 1] - m[..., 1, 2],
@@ -86,17 +64,16 @@ def _coefficients(theta: np.ndarray):
 
 
 def exp(phi: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a rotation vector (Rodrigues' formula).
+    """Rotation matrix of a rotation vector (Rodrigues): ``I + sin(t)/t K + (1 - cos t)/t^2 K^2``, ``K = hat(phi)``.
 
     Parameters
     ----------
     phi : array_like, shape (..., 3)
-        Rotation vector, radians (axis times angle).
+        Rotation vector, rad (axis times angle ``t = |phi|``).
 
     Returns
     -------
     ndarray, shape (..., 3, 3)
-        ``I + sin(t)/t K + (1 - cos t)/t^2 K^2`` with ``K = hat(phi)``, ``t = |phi|``.
     """
     phi = np.asarray(phi, dtype=float)
     theta = np.linalg.norm(phi, axis=-1)
@@ -106,18 +83,17 @@ def exp(phi: np.ndarray) -> np.ndarray:
 
 
 def log(r: np.ndarray) -> np.ndarray:
-    """Rotation vector of a rotation matrix, angle in [0, pi].
+    """Rotation vector (rad) of a rotation matrix, angle in [0, pi] (at exactly pi the axis sign is arbitrary).
 
     Parameters
     ----------
     r : array_like, shape (..., 3, 3)
-        Rotation matrices (orthonormal, det +1).
+        Rotation matrices.
 
     Returns
     -------
     ndarray, shape (..., 3)
-        ``phi`` with ``exp(phi) == r``. At exactly pi the sign of the axis is
-        arbitrary (both are correct).
+        ``phi`` with ``exp(phi) == r``.
     """
     r = np.asarray(r, dtype=float)
     w = vee(r)                                  # sin(t) * axis
@@ -127,24 +103,13 @@ def log(r: np.ndarray) -> np.ndarray:
     a, _, _ = _coefficients(theta)              # sin(t)/t, Taylor near 0
     phi = w / np.where(a > 0, a, 1.0)[..., None]
     near_pi = c < -0.9
-    if np.any(near_pi):
-        # (R + R^T)/2 = cos(t) I + (1 - cos t) u u^T : read the axis off its
-        # largest column, take the sign from the antisymmetric part.
-        rs = r[near_pi]
-        sym = 0.5 * (rs + np.swapaxes(rs, -1, -2))
-        cc = c[near_pi]
-        uu = (sym - cc[:, None, None] * np.eye(3)) / (1.0 - cc)[:, None, None]
-        j = np.argmax(np.diagonal(uu, axis1=-2, axis2=-1), axis=-1)
-        col = np.take_along_axis(uu, j[:, None, None], axis=-1)[..., 0]
-        u = col / np.linalg.norm(col, axis=-1, keepdims=True)
-        sign = np.sign(np.sum(u * w[near_pi], axis=-1))
-        sign = np.where(sign == 0, 1.0, sign)
-        phi[near_pi] = (sign * theta[near_pi])[:, None] * u
+    if np.any(near_pi):                         # the axis from the symmetric part: :func:`log_flat`'s branch
+        phi[near_pi] = [log_flat(m) for m in r[near_pi].reshape(-1, 9).tolist()]
     return phi
 
 
 def right_jacobian(phi: np.ndarray) -> np.ndarray:
-    """Right Jacobian of SO(3): ``exp(phi + d) ~= exp(phi) exp(J_r(phi) d)``.
+    """Right Jacobian ``I - (1 - cos t)/t^2 K + (t - sin t)/t^3 K^2``: ``exp(phi + d) ~= exp(phi) exp(J_r d)``.
 
     Parameters
     ----------
@@ -154,7 +119,6 @@ def right_jacobian(phi: np.ndarray) -> np.ndarray:
     Returns
     -------
     ndarray, shape (..., 3, 3)
-        ``I - (1 - cos t)/t^2 K + (t - sin t)/t^3 K^2``.
     """
     phi = np.asarray(phi, dtype=float)
     _, b, c = _coefficients(np.linalg.norm(phi, axis=-1))
@@ -163,15 +127,12 @@ def right_jacobian(phi: np.ndarray) -> np.ndarray:
 
 
 def left_jacobian(phi: np.ndarray) -> np.ndarray:
-    """Left Jacobian of SO(3): ``exp(phi + d) ~= exp(J_l(phi) d) exp(phi)``; ``J_l(phi) = J_r(-phi)``.
-
-    Shapes and units as :func:`right_jacobian`: ``phi`` (..., 3), rad -> (..., 3, 3).
-    """
+    """Left Jacobian ``J_l(phi) = J_r(-phi)``: ``exp(phi + d) ~= exp(J_l d) exp(phi)``; as :func:`right_jacobian`."""
     return right_jacobian(-np.asarray(phi, dtype=float))
 
 
 def _inv_coefficient(theta: np.ndarray) -> np.ndarray:
-    """d = 1/t^2 - (1 + cos t) / (2 t sin t), safe at 0 (d -> 1/12)."""
+    """``1/t^2 - (1 + cos t) / (2 t sin t)``, safe at 0 (-> 1/12)."""
     small = theta < 1e-3
     t = np.where(small, 1.0, theta)
     t2 = theta * theta
@@ -183,12 +144,10 @@ def _inv_coefficient(theta: np.ndarray) -> np.ndarray:
 def right_jacobian_inv(phi: np.ndarray) -> np.ndarray:
     """Inverse of :func:`right_jacobian`: ``I + K/2 + (1/t^2 - (1+cos t)/(2 t sin t)) K^2``.
 
-    Singular at ``|phi| = 2 pi``; defined for angles in [0, pi].
-
     Parameters
     ----------
     phi : array_like, shape (..., 3)
-        Rotation vectors, rad, angle ``|phi|`` at most pi.
+        Rotation vectors, rad, angle at most pi (singular at 2 pi).
 
     Returns
     -------
@@ -201,21 +160,17 @@ def right_jacobian_inv(phi: np.ndarray) -> np.ndarray:
 
 
 def left_jacobian_inv(phi: np.ndarray) -> np.ndarray:
-    """Inverse of :func:`left_jacobian`, ``J_l^{-1}(phi) = J_r^{-1}(-phi)``; shapes as :func:`right_jacobian_inv`."""
+    """Inverse of :func:`left_jacobian`, ``J_r^{-1}(-phi)``; shapes as :func:`right_jacobian_inv`."""
     return right_jacobian_inv(-np.asarray(phi, dtype=float))
 
 
 def project(m: np.ndarray) -> np.ndarray:
-    """Nearest rotation matrix in the Frobenius norm (SVD, det forced to +1).
+    """Nearest rotation matrix in the Frobenius norm (SVD, det forced to +1), shape (..., 3, 3).
 
     Parameters
     ----------
     m : array_like, shape (..., 3, 3)
         Non-singular matrices, near SO(3) or not.
-
-    Returns
-    -------
-    ndarray, shape (..., 3, 3)
     """
     m = np.asarray(m, dtype=float)
     u, _, vt = np.linalg.svd(m)
@@ -227,12 +182,7 @@ def project(m: np.ndarray) -> np.ndarray:
 
 
 def angle(r: np.ndarray) -> np.ndarray:
-    """Rotation angle of ``r`` in radians, in [0, pi], accurate at 0 and pi.
-
-    Parameters
-    ----------
-    r : array_like, shape (..., 3, 3)
-    """
+    """Rotation angle of ``r`` (..., 3, 3) in rad, in [0, pi], accurate at 0 and pi."""
     return np.linalg.norm(log(r), axis=-1)
 
 
@@ -265,13 +215,12 @@ def rotz(a) -> np.ndarray:
 
 
 def renormalise(r: np.ndarray) -> np.ndarray:
-    """One Newton step towards the nearest rotation: ``R (3 I - R^T R) / 2`` (orthonormality error ``e`` becomes
-    about ``e^2``; :func:`project` for matrices far from SO(3)).
+    """One Newton step towards the nearest rotation, ``R (3 I - R^T R) / 2`` (error ``e`` -> ``e^2``).
 
     Parameters
     ----------
     r : array_like, shape (..., 3, 3)
-        Nearly orthonormal matrices (e.g. long products of rotations).
+        Nearly orthonormal matrices (:func:`project` for matrices far from SO(3)).
 
     Returns
     -------
@@ -363,12 +312,7 @@ def renormalise_flat(r) -> tuple:
 
 
 def quat_from_flat(r) -> tuple:
-    """Unit quaternion ``(w, x, y, z)`` (scalar first, ``w >= 0``) of a rotation given as a row-major 9-sequence.
-
-    Shepperd's method: ``w`` from a positive trace, else the largest of ``x, y, z`` from its
-    diagonal entry, the others from sums and differences, so every rotation (also at pi)
-    converts to full precision.
-    """
+    """Unit quaternion ``(w, x, y, z)``, ``w >= 0``, of a row-major 9-sequence (Shepperd's method, exact at pi)."""
     r0, r1, r2, r3, r4, r5, r6, r7, r8 = r
     t = r0 + r4 + r8
     if t > 0.0:
