@@ -62,18 +62,16 @@ MAX_STATE_BYTES = 16 * 1024 * 1024
 
 def _load_state(est, path: Path) -> dict:
     """Load the saved state into ``est``; returns where a replay got to (``{}`` for none)."""
-    from imu_ground.errors import OptionError
+    from imu_ground.errors import ImuGroundError, OptionError
     try:
         if path.stat().st_size > MAX_STATE_BYTES:
             raise OptionError(f"{path}: {path.stat().st_size} bytes, larger than a saved state of 'imu-ground "
                               f"stream' can be ({MAX_STATE_BYTES} bytes); give another file to {{opt}}", "state",
                               flag="--state")
-        text = path.read_text(encoding="utf-8")
-        state = json.loads(text)
+        state = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as e:
         raise OptionError(f"{path}: not a saved state of 'imu-ground stream' ({type(e).__name__}); give another "
                           "file to {opt}", "state", flag="--state") from None
-    from imu_ground.errors import ImuGroundError
     try:
         est.load_state_dict(state)
     except ImuGroundError as e:                     # StateError: another estimator's, settings' or a corrupt state
@@ -93,9 +91,8 @@ def _write_state(est, path: Path, where: dict | None = None) -> None:
     state = est.state_dict()
     if where is not None:
         state[_REPLAY_KEY] = where
-    text = json.dumps(state)
     with atomic_path(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
+        tmp.write_text(json.dumps(state), encoding="utf-8")
 
 
 class _Writer:
