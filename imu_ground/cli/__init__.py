@@ -1,12 +1,8 @@
 """The ``imu-ground`` command: ``estimate | stream | batch | evaluate | simulate | calibrate | preview``.
 
-One module per command (``register`` adds its parser, ``run`` does the work; the
-library's heavy dependencies, pandas, scipy, matplotlib and the optional ones, load
-only when a command needs them). :func:`main` is the one error handler: bad input,
-options or paths (:class:`~imu_ground.errors.ImuGroundError`, ``OSError``) never show a
-traceback but one line naming the file and what to do, and exit status 2; any other
-exception is a bug: one line saying so, exit status 3 (``IMU_GROUND_DEBUG=1`` adds the
-traceback). Run ``imu-ground COMMAND --help`` for each command's options.
+One module per command (``register`` adds its parser, ``run`` does the work; heavy dependencies load only when a
+command needs them). :func:`main` is the one error handler (its exit statuses). ``imu-ground COMMAND --help`` lists
+each command's options.
 """
 from __future__ import annotations
 
@@ -22,8 +18,7 @@ import warnings
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 
-# Nothing of the library is imported at module level: the console script imports this module
-# before main() runs, and a Ctrl-C during those imports could only end in a traceback.
+# Nothing of the library is imported at module level: a Ctrl-C during those imports could only end in a traceback.
 
 __all__ = ["COMMANDS", "Terminated", "build_parser", "main"]
 
@@ -37,8 +32,7 @@ _NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse with usage errors as one line (``imu-ground CMD: error: ...; see --help``), exit status 2,
-    and negative numbers in scientific notation read as values (``--bev 0 1e5 -1e5 1e5 1``)."""
+    """argparse with usage errors as one line, exit status 2, and ``-1e5`` read as a value."""
 
     def __init__(self, *args, **kwargs) -> None:
         super().__init__(*args, **kwargs)
@@ -48,8 +42,7 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see '{self.prog} --help')\n")
 
     def refuse_urls(self, args: argparse.Namespace) -> None:
-        """Refuse, before any work, a URL given as a path that the command cannot use: ``memory://`` (another
-        process's memory), or a protocol whose filesystem package is missing (named)."""
+        """Refuse a URL the command cannot use (``memory://``, a protocol whose package is missing) before any work."""
         from imu_ground.errors import StorageError
         from imu_ground.datasets.storage import cli_refusal
         for action in self._actions:
@@ -70,8 +63,7 @@ _NOT_PATHS = ("scheduler", "command")
 
 
 class _VersionAction(argparse.Action):
-    """``--version``: the package version and whether the loops run compiled or interpreted, on one line (argparse's
-    own would wrap it)."""
+    """``--version``: the version and whether the loops run compiled, on one line (argparse's own would wrap it)."""
 
     def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, help=None):
         super().__init__(option_strings, dest=dest, default=default, nargs=0, help=help)
@@ -103,7 +95,7 @@ def build_parser() -> _Parser:
 
 
 def _one_line(e: BaseException) -> str:
-    """The user-facing message of an exception: the CLI form when it has one, the file for OS errors."""
+    """An exception's one-line message: its CLI form when it has one, the file for OS errors."""
     if hasattr(e, "cli_message"):
         text = e.cli_message()
     elif isinstance(e, OSError) and e.filename is not None and str(e.filename) not in str(e.strerror or ""):
@@ -143,21 +135,13 @@ def _sigterm_as_exception() -> Iterator[None]:
 
 
 def _quiet_stdout() -> None:
-    """After a broken pipe on stdout (``imu-ground ... | head -1``): point stdout at the null device.
-
-    Python flushes stdout at exit, which would raise the same error again.
-    """
+    """After a broken pipe on stdout (``| head -1``): stdout to the null device (Python flushes it at exit)."""
     try:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         os.close(devnull)
     except (OSError, ValueError):
         pass
-
-
-def _debug() -> bool:
-    """``IMU_GROUND_DEBUG`` is set (and not ``0``): an unexpected error shows its traceback."""
-    return os.environ.get("IMU_GROUND_DEBUG", "").strip() not in ("", "0")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -167,7 +151,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     (one line on stderr: ``imu-ground COMMAND: error: ...``); 3 an unexpected error
     (a bug: one line, ``IMU_GROUND_DEBUG=1`` shows the traceback); 130 interrupted
     (Ctrl-C); 143 terminated (SIGTERM); 141 the reader of stdout went away (``| head``),
-    quietly, as Unix tools do. Interrupted or terminated, no temporary or partial file is left.
+    quietly. Interrupted or terminated, no temporary or partial file is left.
     """
     try:
         parser = build_parser()
@@ -195,7 +179,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"imu-ground {args.command}: error: {_one_line(e)}", file=sys.stderr)
         return 2
     except Exception as e:
-        if _debug():
+        if os.environ.get("IMU_GROUND_DEBUG", "").strip() not in ("", "0"):
             traceback.print_exc(file=sys.stderr)
         print(f"imu-ground {args.command}: bug: unexpected {type(e).__name__}: {_one_line(e)} (please report it; "
               f"IMU_GROUND_DEBUG=1 shows the traceback)", file=sys.stderr)

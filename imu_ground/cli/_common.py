@@ -1,8 +1,5 @@
-"""What the ``imu-ground`` commands share: option types, reader flags, progress, messages.
-
-Nothing heavy is imported here: each command imports the library inside its
-``run`` function, so ``imu-ground --help`` and argument errors stay fast.
-"""
+"""What the ``imu-ground`` commands share: option types, reader flags, progress, messages (nothing heavy imported:
+``imu-ground --help`` and argument errors stay fast)."""
 from __future__ import annotations
 
 import math
@@ -18,8 +15,9 @@ from imu_ground.datasets import FORMATS
 from imu_ground.datasets.options import READER_OPTIONS
 from imu_ground.pipeline.estimate import POSE_FORMATS
 
-__all__ = ["INPUT_FLAGS", "LazyHelp", "add_progress_flag", "add_reader_flags", "input_paths", "nonnegative_int",
-           "positive_float", "progress_enabled", "reader_options", "say", "warn_line", "warnings_as_lines"]
+__all__ = ["INPUT_FLAGS", "LazyHelp", "add_progress_flag", "add_reader_flags", "estimate_said", "first_given",
+           "input_paths", "no_warnings", "nonnegative_int", "positive_float", "progress_enabled", "reader_options",
+           "say", "warn_line", "warnings_as_lines"]
 
 
 class LazyHelp(str):
@@ -151,3 +149,26 @@ def warnings_as_lines(file: Any = None) -> Iterator[None]:
         yield
     for message in {str(w.message): w.message for w in caught}.values():
         warn_line(message, file)
+
+
+@contextmanager
+def no_warnings() -> Iterator[None]:
+    """The warnings raised inside the block are dropped (the caller says them its own way)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        yield
+
+
+def estimate_said(log: Any, **kwargs: Any) -> Any:
+    """:func:`~imu_ground.pipeline.estimate_log` of ``log``, its warnings said one line each."""
+    from imu_ground.pipeline.estimate import estimate_log
+    with no_warnings():
+        res = estimate_log(log, **kwargs)
+    for w in res.meta["warnings"]:
+        warn_line(w, log)
+    return res
+
+
+def first_given(*flags: tuple[str, Any]) -> str | None:
+    """The first of ``(flag, value)`` whose value is set (for "FLAG goes with ..." messages)."""
+    return next((flag for flag, value in flags if value), None)

@@ -1,28 +1,21 @@
 """``imu-ground evaluate --lidar``: every method against road planes fitted to LiDAR scans.
 
-Two forms, told apart by the first path:
-
-- ``--lidar DRIVE_DIR [DRIVE_DIR ...]``: KITTI raw sync folders as they come
-  (:mod:`imu_ground.evaluation.lidar_kitti`; ``--log FILE`` a log of the same drive instead
-  of ``oxts/``), per drive and pooled, per fit (:func:`lidar_drives_report`);
-- ``--lidar LOG SCANS --times FILE --lidar-extrinsic SPEC`` (or ``--lidar LOG
-  --lidar-planes DIR``): one log, any scans, times given.
-
-The log is estimated once (:func:`~imu_ground.pipeline.estimate_log`, ``estimate``'s
-defaults: the row ``default``, or ``estimate (METHOD)``); the methods of ``evaluate
---real`` run on the same frames; each is compared with the planes at the scans' times.
+Two forms, told apart by the first path: ``--lidar DRIVE_DIR ...``, KITTI raw sync folders per drive and pooled,
+per fit (:func:`lidar_drives_report`); ``--lidar LOG SCANS --times FILE --lidar-extrinsic SPEC`` (or ``--lidar LOG
+--lidar-planes DIR``), one log, any scans. The log is estimated once with ``estimate``'s defaults; the methods of
+``evaluate --real`` run on its frames, each compared with the planes at the scans' times.
 """
 from __future__ import annotations
 
 import argparse
 import json
-import warnings
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from imu_ground.cli._common import say, warn_line
+from imu_ground.cli._common import estimate_said, first_given, no_warnings, say, warn_line
 from imu_ground.errors import ImuGroundError, OptionError
 from imu_ground.filters.methods import reference_methods
 
@@ -83,8 +76,7 @@ def add_lidar_flags(v: argparse.ArgumentParser) -> None:
 
 
 def _drive_form(a: argparse.Namespace) -> bool:
-    """The ``DRIVE_DIR`` form: the first path is a KITTI raw sync folder, or (without ``--times`` and
-    ``--lidar-planes``) every path holds ``oxts/``."""
+    """The first path is a KITTI raw sync folder, or (no ``--times``, ``--lidar-planes``) every path holds ``oxts/``."""
     from imu_ground.evaluation.lidar_kitti import is_kitti_sync_folder
     if is_kitti_sync_folder(a.lidar[0]):
         return True
@@ -92,7 +84,7 @@ def _drive_form(a: argparse.Namespace) -> bool:
 
 
 def _region_arg(a: argparse.Namespace):
-    """``--lidar-region``: ``"path"``, or a :class:`RoadRegion` (the default box when not given)."""
+    """``--lidar-region``: ``"path"`` or a :class:`RoadRegion` (default the box)."""
     from imu_ground.evaluation import lidar as L
     if not a.lidar_region:
         return L.ROAD_REGION
@@ -111,9 +103,9 @@ def _region_arg(a: argparse.Namespace):
 def _check_common(a: argparse.Namespace) -> None:
     if a.real is not None or a.synthetic:
         raise OptionError("--lidar goes alone: not with --real or --synthetic", "lidar")
-    other = [f for f, v in (("--plots", a.plots), ("--per-drive", a.per_drive)) if v]
+    other = first_given(("--plots", a.plots), ("--per-drive", a.per_drive))
     if other:
-        raise OptionError(f"{other[0]} goes with --real or --synthetic; with --lidar: -o FILE.png plots, --csv "
+        raise OptionError(f"{other} goes with --real or --synthetic; with --lidar: -o FILE.png plots, --csv "
                           "writes the frames", "lidar")
     if a.plot and Path(a.plot).suffix.lower() != ".png":
         raise OptionError(f"{a.plot}: the plot is a PNG; end the {{opt}} file name with .png", "plot", flag="-o")
@@ -126,12 +118,11 @@ def _check_common(a: argparse.Namespace) -> None:
 def check_lidar(a: argparse.Namespace) -> None:
     """Option checks of the ``LOG SCANS`` form before any work (one line each, naming the flag)."""
     _check_common(a)
-    drive_only = [f for f, v in (("--log", a.log), ("--json", a.json), ("--lidar-scans", a.lidar_scans),
-                                 ("--lidar-min-speed", a.lidar_min_speed),
-                                 ("--lidar-fit all", a.lidar_fit == "all"),
-                                 ("--lidar-region path", a.lidar_region == ["path"])) if v]
+    drive_only = first_given(("--log", a.log), ("--json", a.json), ("--lidar-scans", a.lidar_scans),
+                             ("--lidar-min-speed", a.lidar_min_speed), ("--lidar-fit all", a.lidar_fit == "all"),
+                             ("--lidar-region path", a.lidar_region == ["path"]))
     if drive_only:
-        raise OptionError(f"{a.lidar[0]}: {drive_only[0]} goes with --lidar DRIVE_DIR (a KITTI raw sync folder with "
+        raise OptionError(f"{a.lidar[0]}: {drive_only} goes with --lidar DRIVE_DIR (a KITTI raw sync folder with "
                           "oxts/ and velodyne_points/), not with --lidar LOG SCANS", "lidar")
     if len(a.lidar) > 2:
         raise OptionError(f"{{opt}} takes LOG and SCANS, got {len(a.lidar)} paths", "lidar")
@@ -162,22 +153,22 @@ def _check_outputs(a: argparse.Namespace, inputs: list, named: list, extra: tupl
     check_run_paths([("-o", a.plot), *texts], [*named, *input_paths(a)])
 
 
-def write_said(path: str, text: str) -> None:
-    """``text`` written to ``path`` whole (or not at all), then said."""
+def write_said(path: str | Path, text: str | Callable[[Path], Any]) -> None:
+    """``text`` (or what ``text(tmp)`` writes) written to ``path`` whole (or not at all), then said."""
     from imu_ground.pipeline.output import atomic_path
     with atomic_path(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
+        if callable(text):
+            text(tmp)
+        else:
+            tmp.write_text(text, encoding="utf-8")
     say(f"wrote {path}")
 
 
 def _plot(path: str | Path, frames: Any, name: str) -> None:
     """The pitch and roll plot of ``frames`` (:func:`~imu_ground.evaluation.lidar.plot_lidar`) written to ``path``."""
     from imu_ground.evaluation.lidar import plot_lidar
-    from imu_ground.pipeline.output import atomic_path
-    with atomic_path(path) as tmp:
-        plot_lidar(frames, tmp, title=f"{name}: pitch and roll relative to the road, LiDAR planes and estimates "
-                                      "(means removed)")
-    say(f"wrote {path}")
+    write_said(path, lambda tmp: plot_lidar(frames, tmp, title=f"{name}: pitch and roll relative to the road, "
+                                                                 "LiDAR planes and estimates (means removed)"))
 
 
 def _truth(a: argparse.Namespace, ext) -> tuple[list, np.ndarray, np.ndarray, str]:
@@ -191,8 +182,9 @@ def _truth(a: argparse.Namespace, ext) -> tuple[list, np.ndarray, np.ndarray, st
         ground, why = _ground(a.lidar_fit)
         fits = L.fit_scans(files, region, seed=a.lidar_seed, ground=ground)
         lp, lr = L.lidar_pitch_roll(fits[["normal_x", "normal_y", "normal_z"]].to_numpy(), rot)
-        return files, lp, lr, (f"planes fitted to {len(files)} scans of {a.lidar[1]} (region {region}, "
-                               f"{_ground_label(ground, a.lidar_seed)}{why})")
+        how = "Patchwork++ ground points" if ground == "patchwork" else f"RANSAC seed {a.lidar_seed}"
+        return files, lp, lr, (f"planes fitted to {len(files)} scans of {a.lidar[1]} (region {region}, {how}, "
+                               f"least squares{why})")
     d = Path(a.lidar_planes)
     if not d.is_dir():
         raise OptionError(f"{d}: no such folder ({{opt}} DIR: KITTI planes files)", "lidar_planes")
@@ -220,31 +212,18 @@ def _ground(fit: str) -> tuple[str, str]:
     return "ransac", "; --lidar-fit auto: pypatchworkpp is not installed (pip install -e \".[lidar]\"), RANSAC instead"
 
 
-def _ground_label(ground: str, seed: int) -> str:
-    return "Patchwork++ ground points, least squares" if ground == "patchwork" else \
-        f"RANSAC seed {seed}, least squares"
-
-
 def _estimates(log: Any, methods: list, extrinsic: Any, default_name: str | None = None):
-    """``estimate``'s default on the log (its defaults: method and speed auto) and every method on its frames.
-
-    Returns the estimate result and ``{name: (t, pitch, roll, valid)}``, the default first.
-    """
+    """``estimate``'s defaults on the log, then every method on its frames: the result, ``{name: (t, pitch, roll,
+    valid)}`` (the default first)."""
     from imu_ground.evaluation.runner import METHODS
     from imu_ground.filters import Extrinsic
-    from imu_ground.pipeline.estimate import estimate_log
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        res = estimate_log(log, extrinsic=extrinsic)
-    for w in res.meta["warnings"]:
-        warn_line(w, log)
+    res = estimate_said(log, extrinsic=extrinsic)
     tr = res.track
     ext = Extrinsic.coerce(extrinsic)
     estimates = {default_name or f"estimate ({res.meta['method']})": (tr.t, tr.pitch, tr.roll, tr.valid)}
     for name in methods:
         m = METHODS[name]
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
+        with no_warnings():
             track = m.factory(extrinsic=ext).run(res.egomotion, smooth=m.smooth)
         estimates[name] = (track.t, track.pitch, track.roll, track.valid)
     return res, estimates
@@ -276,7 +255,8 @@ def run_lidar(a: argparse.Namespace) -> int:
     say("(angle_mean: mean angle between the normals, the paper's metric; *_offset: mean differences (a mounting "
         "calibration removes them); angle_centred: the angle with both centred; pitch_spread: standard deviation "
         "of the pitch difference, lo95..hi95 its moving-block bootstrap interval, p_best: share of the draws in "
-        "which the method ranks first, vs_best_*: the interval of its spread minus the best method's; roll as changes only: the region sees the lane's crown)")
+        "which the method ranks first, vs_best_*: the interval of its spread minus the best method's; roll as "
+        "changes only: the region sees the lane's crown)")
     if a.csv:
         write_said(a.csv, frames.to_csv(index=False, float_format="%.5f"))
     if a.markdown:
@@ -288,7 +268,7 @@ def run_lidar(a: argparse.Namespace) -> int:
 
 # ----------------------------------------------------------------------------- the drive form
 def _fits(fit: str, region: Any) -> list[tuple[str, Any]]:
-    """The (ground, region) pairs to run: one, or with ``all`` RANSAC and Patchwork++ each in the box and on the path."""
+    """The (ground, region) pairs: one, or with ``all`` RANSAC and Patchwork++ each in the box and on the path."""
     from imu_ground.evaluation import lidar as L
     box = region if isinstance(region, L.RoadRegion) else L.ROAD_REGION
     if fit == "all":
@@ -302,7 +282,7 @@ def _fit_name(ground: str, region: Any) -> str:
 
 
 def _pair_logs(folders: list, logs: list | None) -> dict:
-    """``--log`` files by drive name (the CSV's stem, e.g. ``2011_09_26_drive_0009``), each naming a given DRIVE_DIR."""
+    """``--log`` files by drive name (``2011_09_26_drive_0009``), each of a given DRIVE_DIR."""
     from imu_ground.datasets.kitti_imu100 import drive_name
     names = [Path(f).name[:-5] if Path(f).name.endswith("_sync") else Path(f).name for f in folders]
     out: dict = {}
@@ -324,7 +304,7 @@ def _pair_logs(folders: list, logs: list | None) -> dict:
 
 
 def _lidar_from_imu(ground_from_lidar, ground_from_imu):
-    """LiDAR <- IMU from ground <- LiDAR and ground <- IMU (``x_l = R^T (R_g<-imu x + t_imu - t_l)``)."""
+    """LiDAR <- IMU from ground <- LiDAR and ground <- IMU: ``x_l = R^T (R_g<-imu x + t_imu - t_l)``."""
     from imu_ground.filters import Extrinsic
     r_l, t_l = ground_from_lidar.rotation, ground_from_lidar.translation
     return Extrinsic(r_l.T @ ground_from_imu.rotation, r_l.T @ (ground_from_imu.translation - t_l))
@@ -377,17 +357,14 @@ def lidar_drives_report(folders: list, logs: dict | None = None, methods: list |
     Parameters
     ----------
     folders : list of str or Path
-        KITTI raw sync folders (:func:`~imu_ground.evaluation.lidar_kitti.read_kitti_lidar_drive`).
-    logs : dict, optional
-        Drive name -> a log of that drive to estimate instead of its ``oxts/`` folder (``--log``).
+        KITTI raw sync folders; ``logs`` (dict, optional) drive name -> a log to estimate instead of its ``oxts/``.
     methods : list of str, optional
         Methods of ``evaluate --real`` beside the default (row :data:`DEFAULT_ROW`); default all.
     fit, region, extrinsic, lidar_extrinsic, min_speed (m/s), max_scans, seed
-        As ``--lidar-fit``, ``--lidar-region`` (a RoadRegion or ``"path"``), ``--extrinsic``,
-        ``--lidar-extrinsic`` (default each folder's parent), ``--lidar-min-speed``,
-        ``--lidar-scans``, ``--lidar-seed``.
+        As ``--lidar-fit``, ``--lidar-region`` (a RoadRegion or ``"path"``), ``--extrinsic``, ``--lidar-extrinsic``
+        (default each folder's parent), ``--lidar-min-speed``, ``--lidar-scans``, ``--lidar-seed``.
     on_note : callable, optional
-        Called with ``(drive, text)`` for what is left out or chosen.
+        ``on_note(drive, text)`` for what is left out or chosen.
 
     Returns
     -------
@@ -438,21 +415,18 @@ def lidar_drives_report(folders: list, logs: dict | None = None, methods: list |
                 path_regions = [regs[i] for i in kept]
             regions = path_regions if reg == "path" else [reg] * len(files)
             assert regions is not None                         # the path's regions are made above
-            normals, fitted = [], []
+            normals = []
             for f, r in zip(files, regions, strict=True):
                 try:
-                    normal, _ = L.fit_ground_plane(L.read_scan(f), r, seed=seed, source=str(f), ground=ground)
+                    normals.append(L.fit_ground_plane(L.read_scan(f), r, seed=seed, source=str(f), ground=ground)[0])
                 except OptionError as e:                       # no road in this scan's region: left out, said so
                     note(drive.name, f"{name}: {' '.join(str(e).split())}: left out")
-                    fitted.append(False)
-                    continue
-                normals.append(normal)
-                fitted.append(True)
-            ok = np.array(fitted, dtype=bool)
+                    normals.append(None)
+            ok = np.array([n is not None for n in normals], dtype=bool)
             if ok.sum() < 2:
-                raise OptionError(f"{drive.folder}: {int(ok.sum())} scan(s) to compare ({'; '.join(left_out) or 'none left out'}); "
-                                  "{opt} needs 2 or more a drive", "lidar")
-            lp, lr = L.lidar_pitch_roll(np.array(normals), ground_from_lidar.rotation)
+                raise OptionError(f"{drive.folder}: {int(ok.sum())} scan(s) to compare "
+                                  f"({'; '.join(left_out) or 'none left out'}); {{opt}} needs 2 or more a drive", "lidar")
+            lp, lr = L.lidar_pitch_roll(np.array([n for n in normals if n is not None]), ground_from_lidar.rotation)
             frames, _ = L.lidar_table(estimates, t_scan[kept][ok], lp, lr, source=str(log))
             frames = frames.assign(drive=drive.name, fit=name)
             all_frames.append(frames)
@@ -479,11 +453,8 @@ def _order(methods: dict, key: str) -> list[str]:
 
 
 def _ranking(fits: dict) -> dict:
-    """Per drive and pooled: the methods by pitch and by roll spread under each fit; whether the order holds.
-
-    ``holds`` compares the order of the whole list; ``holds_default_paper_naive`` that of the three the
-    project's claim is about (the default, the paper's method, the static extrinsic).
-    """
+    """Per drive and pooled, the methods by pitch and by roll spread under each fit: whether the order of all
+    (``holds``) and of the default, paper and naive (``holds_default_paper_naive``) holds across the fits."""
     out: dict = {}
     names = list(fits)
     keys = [d["drive"] for d in fits[names[0]]["drives"]] + ["pooled"]
@@ -520,10 +491,10 @@ def check_lidar_drives(a: argparse.Namespace) -> dict:
     """Option checks of the ``DRIVE_DIR`` form before any work; the ``--log`` files by drive name."""
     from imu_ground.evaluation.lidar_kitti import check_sync_folder
     _check_common(a)
-    for f, v in (("--times", a.times), ("--lidar-planes", a.lidar_planes)):
-        if v:
-            raise OptionError(f"{a.lidar[0]}: {f} goes with --lidar LOG SCANS; a KITTI raw DRIVE_DIR has its scans' "
-                              "times (velodyne_points/timestamps.txt, else the OXTS stamps)", "lidar")
+    f = first_given(("--times", a.times), ("--lidar-planes", a.lidar_planes))
+    if f:
+        raise OptionError(f"{a.lidar[0]}: {f} goes with --lidar LOG SCANS; a KITTI raw DRIVE_DIR has its scans' "
+                          "times (velodyne_points/timestamps.txt, else the OXTS stamps)", "lidar")
     for d in a.lidar:
         check_sync_folder(d)
         _drive_checked(d, a.lidar_extrinsic)
@@ -544,17 +515,6 @@ def check_lidar_drives(a: argparse.Namespace) -> dict:
     return _pair_logs(a.lidar, a.log)
 
 
-def _plain(v: Any) -> Any:
-    """JSON-ready: a float that is not finite becomes null (standard JSON has no NaN)."""
-    if isinstance(v, dict):
-        return {k: _plain(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_plain(x) for x in v]
-    if isinstance(v, float) and not np.isfinite(v):
-        return None
-    return v
-
-
 def run_lidar_drives(a: argparse.Namespace) -> int:
     """``--lidar DRIVE_DIR ...``: per drive and pooled tables, the ranking across fits; JSON, CSV, plots."""
     from imu_ground.evaluation.runner import format_table, methods_from_list
@@ -568,6 +528,7 @@ def run_lidar_drives(a: argparse.Namespace) -> int:
     report, frames = lidar_drives_report(
         a.lidar, logs, methods, a.lidar_fit, region, a.extrinsic, a.lidar_extrinsic, min_speed, a.lidar_scans,
         a.lidar_seed, on_note=lambda drive, text: warn_line(text, drive))
+    markdown = []
     for fit, block in report["fits"].items():
         for d in block["drives"]:
             say(f"\n{d['drive']} [{fit}, region {'the driven path' if fit.endswith('path') else region}]: "
@@ -576,10 +537,14 @@ def run_lidar_drives(a: argparse.Namespace) -> int:
             say(format_table(_table(d["methods"]), "text"))
             say(f"fit's own repeatability (frame to frame): pitch {d['fit_noise_pitch_deg']:.3f}, roll "
                 f"{d['fit_noise_roll_deg']:.3f} deg")
+            markdown.append(f"{d['drive']} ({fit}, {d['scans']} scans):\n\n" + format_table(_table(d["methods"]),
+                                                                                               "markdown"))
+        pooled = _table(block["pooled"]["methods"])
+        markdown.append(f"pooled ({fit}):\n\n" + format_table(pooled, "markdown"))
         if len(block["drives"]) > 1:
             say(f"\npooled over {block['pooled']['drives']} drives [{fit}] ({block['pooled']['scans']} scans; each "
                 "drive's offset removed):")
-            say(format_table(_table(block["pooled"]["methods"]), "text"))
+            say(format_table(pooled, "text"))
     say(f"\n({DEFAULT_ROW}: what 'imu-ground estimate' runs with its defaults on the log; pitch_spread, roll_spread: "
         "standard deviation of estimate minus LiDAR, each method's offset removed, lo95..hi95 their moving-block "
         "bootstrap interval; angle_mean: the angle between the normals, angle_centred: with both centred; p_best: "
@@ -596,17 +561,12 @@ def run_lidar_drives(a: argparse.Namespace) -> int:
                              f" ({'same' if e['holds'] else 'not the same'} order of all methods)")
             say(f"  {key}: " + "; ".join(parts))
     if a.json:
-        write_said(a.json, json.dumps(_plain(report), indent=1, allow_nan=False) + "\n")
+        plain = json.loads(json.dumps(report), parse_constant=lambda _: None)     # NaN: null (standard JSON)
+        write_said(a.json, json.dumps(plain, indent=1, allow_nan=False) + "\n")
     if a.csv:
         write_said(a.csv, frames.to_csv(index=False, float_format="%.5f"))
     if a.markdown:
-        parts = []
-        for fit, block in report["fits"].items():
-            for d in block["drives"]:
-                parts.append(f"{d['drive']} ({fit}, {d['scans']} scans):\n\n" + format_table(_table(d["methods"]),
-                                                                                              "markdown"))
-            parts.append(f"pooled ({fit}):\n\n" + format_table(_table(block["pooled"]["methods"]), "markdown"))
-        write_said(a.markdown, "\n\n".join(parts) + "\n")
+        write_said(a.markdown, "\n\n".join(markdown) + "\n")
     if a.plot:
         first = report["fit"]
         drives = list(dict.fromkeys(frames["drive"]))

@@ -17,18 +17,19 @@ def register(sub) -> None:
     """Add the ``batch`` sub-command."""
     b = add_logs_command(
         sub, "batch", help="many logs -> one output each and a summary table (Dask)",
-        description="Estimate every log (paths or quoted glob patterns) on Dask: a local pool of --workers "
-                    "processes, or a running cluster (--scheduler). Each output is the file 'imu-ground estimate' "
-                    "writes; a rerun skips logs whose output exists with the same settings (--force replaces them); "
-                    "one file named twice is estimated once; a failing log is reported in the summary and "
-                    "never stops the others. One run at a time writes to a local OUTDIR (a second one exits 2 naming "
-                    "the running one; a lock left by a killed run is taken over; an OUTDIR URL, s3://..., has no "
-                    "lock: each output is uploaded whole, then its record, see docs/storage.md); files this tool wrote that the "
-                    "patterns match (outputs, summary.csv) are skipped, not read as logs.",
-        logs_metavar="LOG_OR_GLOB", logs_help="IMU logs or pose files, or glob patterns in quotes (e.g. 'logs/**/*.csv.gz'); "
-                                                "URLs too (file://, s3://bucket/logs/*.csv.gz with s3fs)",
-        output_metavar="OUTDIR", output_help="output folder (created) or URL (s3://bucket/out): <log name>_ground.<type> per log "
-                    "and summary.csv")
+        description="Estimate every log (paths or quoted glob patterns) on Dask: a local pool of --workers processes, "
+                    "or a running cluster (--scheduler). Each output is the file 'imu-ground estimate' writes; a rerun "
+                    "skips logs whose output exists with the same settings (--force replaces them); one file named "
+                    "twice is estimated once; a failing log is reported in the summary and never stops the others. "
+                    "One run at a time writes to a local OUTDIR (a second one exits 2 naming the running one; a lock "
+                    "left by a killed run is taken over; an OUTDIR URL, s3://..., has no lock: each output is "
+                    "uploaded whole, then its record, see docs/storage.md); files this tool wrote that the patterns "
+                    "match (outputs, summary.csv) are skipped, not read as logs.",
+        logs_metavar="LOG_OR_GLOB",
+        logs_help="IMU logs or pose files, or glob patterns in quotes (e.g. 'logs/**/*.csv.gz'); URLs too (file://, "
+                  "s3://bucket/logs/*.csv.gz with s3fs)",
+        output_metavar="OUTDIR",
+        output_help="output folder (created) or URL (s3://bucket/out): <log name>_ground.<type> per log and summary.csv")
     b.add_argument("--type", default="csv", choices=("csv", "parquet", "tum", "mcap", "bag"),
                    help="output file type of every log (default csv)")
     b.add_argument("--workers", type=nonnegative_int, metavar="N",

@@ -3,13 +3,12 @@ from __future__ import annotations
 
 import argparse
 import time
-import warnings
 from pathlib import Path
 
 import numpy as np
 
-from imu_ground.cli._common import (add_progress_flag, add_reader_flags, input_paths, positive_float, progress_enabled,
-                                    reader_options, say, warn_line)
+from imu_ground.cli._common import (add_progress_flag, add_reader_flags, input_paths, no_warnings, positive_float,
+                                    progress_enabled, reader_options, say, warn_line)
 from imu_ground.datasets.storage import with_suffix
 from imu_ground.filters.methods import default_method
 from imu_ground.pipeline.estimate import available_methods, estimate_to_files
@@ -21,18 +20,11 @@ __all__ = ["add_method_flags", "method_kwargs", "register", "run"]
 
 
 def _methods_epilog() -> str:
-    """One line per method, shown under the options by ``--help``."""
     methods = {"auto": ((f"the best for the input (default): {default_method(True)} for IMU logs with an "
                          f"accelerometer, {default_method(False)} for pose files"), False), **available_methods()}
     width = max(map(len, methods)) + 2
-    lines = ["methods (--method):"]
-    for name, (desc, _) in methods.items():
-        lines.append(f"  {name:<{width}}{' '.join(desc.split())}")
-    return "\n".join(lines)
-
-
-def _method_choices() -> list[str]:
-    return ["auto", *available_methods()]
+    return "\n".join(["methods (--method):", *(f"  {name:<{width}}{' '.join(desc.split())}"
+                                                for name, (desc, _) in methods.items())])
 
 
 def add_method_flags(p: argparse.ArgumentParser) -> None:
@@ -40,7 +32,7 @@ def add_method_flags(p: argparse.ArgumentParser) -> None:
     p.formatter_class = argparse.RawDescriptionHelpFormatter
     p.epilog = _methods_epilog()
     g = p.add_argument_group("estimation")
-    g.add_argument("--method", default="auto", choices=_method_choices(), metavar="NAME",
+    g.add_argument("--method", default="auto", choices=["auto", *available_methods()], metavar="NAME",
                    help="estimation method: auto (default) or one of those listed below")
     g.add_argument("--extrinsic", metavar="NAME_OR_FILE",
                    help="static sensor-to-ground extrinsic: a shipped name (kitti_imu; kitti_cam0 for KITTI "
@@ -109,7 +101,6 @@ def register(sub) -> None:
 
 def run(a: argparse.Namespace) -> int:
     """Estimate, write the outputs (atomically, all or none) and print a three-line summary."""
-
     t0 = time.perf_counter()
     named = [("-o", a.output or default_output_name(a.log)), ("--tum", a.tum), ("--plot", a.plot),
              ("--planes", a.planes)]
@@ -131,13 +122,11 @@ def run(a: argparse.Namespace) -> int:
         warn_line(f"a TUM file holds poses only, not the road plane of --camera {a.camera}"
                   + (" nor the --bev homographies" if a.bev is not None else "")
                   + f": write it with -o {with_suffix(outputs[0], '.csv')} (or .parquet, .mcap)", outputs[0])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
+    with no_warnings():
         res, table = estimate_to_files(a.log, outputs, kinds, planes=a.planes, progress=progress_enabled(a),
                                        speed=a.speed, camera=a.camera, bev=a.bev,
                                        **({"recalibrate_online": True} if a.recalibrate_online else {}),
-                                       **({"causal": True} if a.causal else {}),
-                                       **method_kwargs(a))
+                                       **({"causal": True} if a.causal else {}), **method_kwargs(a))
     for w in res.meta["warnings"]:
         warn_line(w, a.log)
     s = summarize_table(table)

@@ -1,14 +1,14 @@
 """``imu-ground evaluate``: compare the methods on real (KITTI) and/or synthetic drives."""
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
 
 import argparse
 import numpy as np
 
 from imu_ground.cli._lidar import add_lidar_flags, run_lidar, write_said
-from imu_ground.cli._common import LazyHelp, add_progress_flag, input_paths, nonnegative_int, progress_enabled, say
+from imu_ground.cli._common import (LazyHelp, add_progress_flag, first_given, input_paths, no_warnings, nonnegative_int,
+                                    progress_enabled, say)
 from imu_ground.datasets.storage import is_url, join, local_input, local_name, staged_folder
 from imu_ground.errors import ImuGroundError
 from imu_ground.evaluation.plots import evaluation_plots
@@ -39,7 +39,8 @@ def _methods_help() -> str:
 
 def register(sub) -> None:
     """Add the ``evaluate`` sub-command."""
-    v = sub.add_parser("evaluate", help="compare methods on real and/or synthetic drives", formatter_class=_WholeWordsHelp,
+    v = sub.add_parser("evaluate", help="compare methods on real and/or synthetic drives",
+                       formatter_class=_WholeWordsHelp,
                        description="Error of every method against the reference (real KITTI drives: pitch relative "
                                    "to the road from the INS; synthetic drives: exact truth), like the paper's "
                                    "Table 2; on real drives also the pitch error by the reference's own uncertainty "
@@ -66,14 +67,13 @@ def register(sub) -> None:
 
 
 def _check(a: argparse.Namespace) -> list:
-    lidar_only = [f for f, v in (("--times", a.times), ("--lidar-extrinsic", a.lidar_extrinsic),
-                                 ("--lidar-planes", a.lidar_planes), ("--lidar-region", a.lidar_region),
-                                 ("--extrinsic", a.extrinsic), ("-o", a.plot), ("--log", a.log),
-                                 ("--json", a.json), ("--lidar-scans", a.lidar_scans),
-                                 ("--lidar-min-speed", a.lidar_min_speed),
-                                 ("--lidar-fit", a.lidar_fit != "auto")) if v]
+    lidar_only = first_given(("--times", a.times), ("--lidar-extrinsic", a.lidar_extrinsic),
+                             ("--lidar-planes", a.lidar_planes), ("--lidar-region", a.lidar_region),
+                             ("--extrinsic", a.extrinsic), ("-o", a.plot), ("--log", a.log), ("--json", a.json),
+                             ("--lidar-scans", a.lidar_scans), ("--lidar-min-speed", a.lidar_min_speed),
+                             ("--lidar-fit", a.lidar_fit != "auto"))
     if lidar_only:
-        raise ImuGroundError(f"{lidar_only[0]} goes with --lidar (DRIVE_DIR ..., or LOG SCANS)")
+        raise ImuGroundError(f"{lidar_only} goes with --lidar (DRIVE_DIR ..., or LOG SCANS)")
     if a.real is None and not a.synthetic:
         raise ImuGroundError("nothing to evaluate: give --real DIR (kitti_imu100 drives) and/or --synthetic N, or "
                              "--lidar LOG SCANS (LiDAR road planes)")
@@ -114,8 +114,7 @@ def run(a: argparse.Namespace) -> int:
             drives += load_real_drives(Path(real), progress=progress)
     if a.synthetic:
         drives += synthetic_drives(a.synthetic, seed=a.seed, grades=a.grades.split(","), progress=progress)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
+    with no_warnings():
         out = evaluate(drives, methods, progress=progress, keep_tracks=bool(a.plots))
     res, tracks = out if isinstance(out, tuple) else (out, {})
     if not res["valid"].any():
@@ -127,8 +126,8 @@ def run(a: argparse.Namespace) -> int:
     say(format_table(table[cols], "text"))
     say("(mean_deg: per-drive mean absolute error averaged over drives; seg_pitch_deg: the same with the mean "
         "removed per moving segment; ref_floor_deg: what a perfect estimator would score against the reference's "
-        "own uncertainty, each drive at most the method's own error; ref_share: the share of the squared error the reference alone can explain, "
-        "each drive at most all of its own)")
+        "own uncertainty, each drive at most the method's own error; ref_share: the share of the squared error the "
+        "reference alone can explain, each drive at most all of its own)")
     say("\nby condition (mean absolute pitch error, deg, pooled over frames):")
     say(format_table(conditions_table(res), "text"))
     sig, rev = sigma_table(res), revisit_table(res)
@@ -157,11 +156,10 @@ def run(a: argparse.Namespace) -> int:
         write_said(a.csv, res.to_csv(index=False, float_format="%.5f"))
     if a.markdown:
         md = format_table(table[cols], "markdown") + "\n"
-        if len(sig):
-            md += "\nPitch error by the reference's own uncertainty (deg):\n\n" + format_table(sig, "markdown") + "\n"
-        if len(rev):
-            md += ("\nRevisit consistency (mean |difference| / sqrt(2), deg):\n\n"
-                   + format_table(rev, "markdown") + "\n")
+        for title, tab in (("Pitch error by the reference's own uncertainty (deg)", sig),
+                           ("Revisit consistency (mean |difference| / sqrt(2), deg)", rev)):
+            if len(tab):
+                md += f"\n{title}:\n\n" + format_table(tab, "markdown") + "\n"
         write_said(a.markdown, md)
     if a.plots:
         with staged_folder(a.plots) as folder:     # a URL: written here, then uploaded

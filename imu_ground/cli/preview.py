@@ -1,28 +1,23 @@
 """``imu-ground preview -o bev.png``: bird's-eye views with the static and the dynamic ground plane.
 
-Without a log: a synthetic drive whose camera (KITTI's camera 2) sees lane
-markings and a metric grid on the true moving road; the picture shows the camera
-view, the bird's-eye views made with the static extrinsic, with the estimate and
-with the truth, and the lane-width error against distance (static and dynamic).
-With a log: ``imu-ground preview LOG --images DIR --times FILE [--camera NAME] -o F``
-shows the user's images with the log's estimate (camera :data:`DEFAULT_CAMERA` unless given).
-``-o x.gif`` animates the frames.
+Without a log: a synthetic drive whose camera sees lane markings and a metric grid on the true moving road (the camera
+view, the bird's-eye views with the static extrinsic, the estimate and the truth, the lane-width error against
+distance). With a log: ``imu-ground preview LOG --images DIR --times FILE [--camera NAME] -o F`` shows the user's
+images with the log's estimate (camera :data:`DEFAULT_CAMERA` unless given). ``-o x.gif`` animates the frames.
 """
 from __future__ import annotations
 
 import argparse
 import time
-import warnings
 from pathlib import Path
 
 import numpy as np
 
-from imu_ground.cli._common import input_paths, nonnegative_int, say, warn_line
+from imu_ground.cli._common import estimate_said, input_paths, no_warnings, nonnegative_int, say
 from imu_ground.errors import ImuGroundError
 from imu_ground.evaluation.preview import (DRAWN_BEV_PIXELS, PREVIEW_GRID, drawn_grid, images_preview, render_preview,
                                            synthetic_preview)
 from imu_ground.perception import BevGrid, load_camera
-from imu_ground.pipeline.estimate import estimate_log
 from imu_ground.pipeline.output import atomic_path, check_output_path, check_run_paths, result_table
 
 __all__ = ["DEFAULT_CAMERA", "register", "run"]
@@ -97,22 +92,16 @@ def _check(a: argparse.Namespace):
 
 def run(a: argparse.Namespace) -> int:
     """Build the preview, draw it and write it atomically; print what the picture shows."""
-
     t0 = time.perf_counter()
     out, grid = _check(a)
     fmt = out.suffix.lower()[1:]
     if a.log is None:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
+        with no_warnings():
             preview = synthetic_preview(seed=a.seed, frames=1 if fmt == "png" else max(a.frames, 1), grid=grid,
                                         camera=a.camera or DEFAULT_CAMERA)
     else:
         camera = a.camera or DEFAULT_CAMERA
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            res = estimate_log(a.log, camera=camera, extrinsic=a.extrinsic)
-        for w in res.meta["warnings"]:
-            warn_line(w, a.log)
+        res = estimate_said(a.log, camera=camera, extrinsic=a.extrinsic)
         table = result_table(res)                   # the captions say what the CSV says (nan inside long gaps)
         preview = images_preview(a.images, a.times, load_camera(camera), res.track.t, res.meta["plane"],
                                  np.radians(table["pitch_deg"].to_numpy(float)),

@@ -42,7 +42,6 @@ def register(sub) -> None:
 
 def run(a: argparse.Namespace) -> int:
     """Simulate and write both files atomically (both or neither)."""
-
     out = Path(a.output)
     truth = Path(a.truth) if a.truth else out.with_name(out.name.split(".")[0] + "_truth.csv")
     check_output_path(out, option="-o", kind="csv")

@@ -1,26 +1,22 @@
 """``imu-ground stream``: samples in (stdin CSV lines, or a log replayed), one line per frame out, as it completes.
 
-The command-line form of :class:`imu_ground.pipeline.streaming.StreamingEstimator`. Standard input:
-a header naming ``t,wx,wy,wz,ax,ay,az`` (any order and case; optionally ``speed``, m/s, or ``--speed
-COLUMN`` / ``--speed FILE``) then one sample a line (a line that does not parse: said with its number,
-skipped); units s, rad/s, m/s^2 or ``--time-unit``, ``--gyro-unit``, ``--accel-unit`` (without
-``--time-unit`` the estimator tells the stamps' unit and says so). ``--replay LOG`` feeds a log sample by
-sample with its stamps as recorded (the sample clock handles back-steps and repeats, ``--policy``), its
-speed before the samples it precedes; ``--realtime`` paces it on the log's clock. Each frame is written
-(and flushed) as soon as it is complete: a CSV line (header first) or ``--json`` lines. ``--state FILE``
-resumes from a saved state and writes it at the end, on SIGTERM and on Ctrl-C (atomically; a file that
-is not a saved state is refused, never replaced); with ``--replay`` it also holds how far into the log
-it got, and a run on the same log resumes there.
+The command-line form of :class:`imu_ground.pipeline.streaming.StreamingEstimator`. Standard input: a header naming
+``t,wx,wy,wz,ax,ay,az`` (any order and case; optionally ``speed``, m/s, or ``--speed COLUMN`` / ``--speed FILE``)
+then one sample a line (a line that does not parse: said with its number, skipped); units s, rad/s, m/s^2 or
+``--time-unit``, ``--gyro-unit``, ``--accel-unit``. ``--replay LOG`` feeds a log with its stamps as recorded
+(:func:`~imu_ground.pipeline.live_replay.replay`, as ``estimate --causal``); ``--realtime`` paces it on the log's
+clock. Each frame is written (and flushed) as soon as it is complete: a CSV line (header first) or ``--json`` lines.
+``--state FILE`` resumes from a saved state and writes it at the end, on SIGTERM and on Ctrl-C (atomically; a file
+that is not a saved state is refused, never replaced); with ``--replay`` it also holds how far into the log it got,
+and a run on the same log resumes there.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import math
-import os
 import signal
 import sys
-import tempfile
 import threading
 import time
 from pathlib import Path
@@ -60,24 +56,22 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-#: The largest state file ``--state`` reads, bytes (a state is some 10 KB).
+#: The largest state file ``--state`` reads, bytes.
 MAX_STATE_BYTES = 16 * 1024 * 1024
 
 
 def _load_state(est, path: Path) -> dict:
     """Load the saved state into ``est``; returns where a replay got to (``{}`` for none)."""
-    from imu_ground.errors import OptionError
+    from imu_ground.errors import ImuGroundError, OptionError
     try:
         if path.stat().st_size > MAX_STATE_BYTES:
             raise OptionError(f"{path}: {path.stat().st_size} bytes, larger than a saved state of 'imu-ground "
                               f"stream' can be ({MAX_STATE_BYTES} bytes); give another file to {{opt}}", "state",
                               flag="--state")
-        text = path.read_text(encoding="utf-8")
-        state = json.loads(text)
+        state = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as e:
         raise OptionError(f"{path}: not a saved state of 'imu-ground stream' ({type(e).__name__}); give another "
                           "file to {opt}", "state", flag="--state") from None
-    from imu_ground.errors import ImuGroundError
     try:
         est.load_state_dict(state)
     except ImuGroundError as e:                     # StateError: another estimator's, settings' or a corrupt state
@@ -91,30 +85,14 @@ def _load_state(est, path: Path) -> dict:
 _REPLAY_KEY = "stream_replay"
 
 
-class _Position:
-    """How far a replay got: the log, its samples and speed samples fed."""
-
-    def __init__(self, log: str | None = None) -> None:
-        self.log, self.samples, self.speeds = log, 0, 0
-
-    def as_dict(self) -> dict | None:
-        return None if self.log is None else {"log": self.log, "samples": self.samples, "speeds": self.speeds}
-
-
 def _write_state(est, path: Path, where: dict | None = None) -> None:
-    """The state (and where a replay got to), atomically (a temporary file beside it, then renamed)."""
+    """The state (and where a replay got to: log, samples and speed samples fed), atomically."""
+    from imu_ground.pipeline.output import atomic_path
     state = est.state_dict()
     if where is not None:
         state[_REPLAY_KEY] = where
-    text = json.dumps(state)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or Path("."))
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(state), encoding="utf-8")
 
 
 class _Writer:
@@ -151,9 +129,8 @@ def _cell(v) -> str:
 
 
 class _WholeSamples:
-    """SIGTERM and Ctrl-C while a sample is pushed and its frames written: held until both are done, then raised
-    (at any other moment at once), so that the saved state, the samples counted and the frames written agree.
-    Caught in the main thread only."""
+    """SIGTERM and Ctrl-C held while a sample is pushed and its frames written (main thread only): the saved state,
+    the samples counted and the frames written agree."""
 
     def __init__(self) -> None:
         self.busy = False
@@ -203,80 +180,67 @@ def run(a: argparse.Namespace) -> int:
     if a.realtime and a.replay is None:
         raise OptionError("{opt} paces a replayed log: add --replay LOG", "realtime", flag="--realtime")
     out = _Writer(a.json)
-    pos = _Position(None if a.replay is None else str(Path(a.replay).resolve()))
+    pos = None if a.replay is None else {"log": str(Path(a.replay).resolve()), "samples": 0, "speeds": 0}
     try:
-        if a.replay is not None:
-            _replay(est, a, out, where, pos)
+        if pos is not None:
+            out.write(_replay(est, a, out, where, pos))
         else:
             _stdin(est, a, out)
-        out.write(est.flush())
+            out.write(est.flush())
     finally:
         if state is not None:
-            _write_state(est, state, pos.as_dict())
+            _write_state(est, state, pos)
     return 0
 
 
-def _replay(est, a, out, where: dict, pos: _Position) -> None:
-    import warnings
-
-    import numpy as np
-
-    from imu_ground.cli._common import warn_line
+def _replay(est, a, out, where: dict, pos: dict) -> list:
+    """``--replay``: the log fed by :func:`~imu_ground.pipeline.live_replay.replay`; returns the flush's frames."""
+    from imu_ground.cli._common import warn_line, warnings_as_lines
     from imu_ground.datasets import detect_format, read_imu
     from imu_ground.datasets.storage import local_input
     from imu_ground.errors import OptionError
     from imu_ground.pipeline.estimate import check_frame_rate, speed_samples
+    from imu_ground.pipeline.live_replay import replay
     opts = reader_options(a)
     fmt = opts.pop("format", None)
     opts["policy"] = "recorded"         # the stamps as recorded, in file order: the estimator's clock retimes them
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        with local_input(a.replay) as log:     # a URL (s3://...): one local copy, messages naming the URL
-            fmt = detect_format(log) if fmt is None else fmt
-            imu = read_imu(log, format=fmt, **opts)
-            check_frame_rate(a.rate, imu.t, log)
-            sp = None
-            if est.speed_aided and a.speed != "none":
-                sp, _ = speed_samples(a.speed, log, fmt, imu)
-    for w in {str(w.message): w.message for w in caught}.values():
-        warn_line(w, a.replay)
-    t = imu.t.tolist()
-    g, acc = imu.gyro.tolist(), imu.accel.tolist()
-    ts, vs = ([], []) if sp is None else (np.asarray(sp[0]).tolist(), np.asarray(sp[1]).tolist())
-    j, M = 0, len(ts)
-    first = 0
+    with warnings_as_lines(a.replay), local_input(a.replay) as log:     # a URL: one local copy, said by its URL
+        fmt = detect_format(log) if fmt is None else fmt
+        imu = read_imu(log, format=fmt, **opts)
+        check_frame_rate(a.rate, imu.t, log)
+        sp = None
+        if est.speed_aided and a.speed != "none":
+            sp, _ = speed_samples(a.speed, log, fmt, imu)
+    M = 0 if sp is None else len(sp[0])
+    first = j = 0
     if where:                                       # the state was saved replaying a log
         n, m = where.get("samples"), where.get("speeds")
-        if where.get("log") != pos.log:
+        if where.get("log") != pos["log"]:
             warn_line(f"the state given to --state was saved replaying {where.get('log')!r}, not this log: "
                       f"this log is fed from its start", a.replay)
-        elif not (type(n) is int and type(m) is int and 0 <= n <= len(t) and 0 <= m <= M):
+        elif not (type(n) is int and type(m) is int and 0 <= n <= len(imu.t) and 0 <= m <= M):
             raise OptionError(f"{a.state}: says the replay got to sample {n!r:.20} and speed sample {m!r:.20} of a "
-                              f"log of {len(t)} and {M}: not this log's state; give another file to {{opt}}",
+                              f"log of {len(imu.t)} and {M}: not this log's state; give another file to {{opt}}",
                               "state", flag="--state")
         else:
             first, j = n, m
-    pos.samples, pos.speeds = first, j
-    start = time.monotonic()
+    pos["samples"], pos["speeds"] = first, j
+    t, start = imu.t, time.monotonic()
+
+    def before(i: int) -> None:
+        if a.realtime:
+            wait = start + (t[i] - t[first]) - time.monotonic()
+            if wait > 0:
+                time.sleep(wait)
+        whole.busy = True
+
+    def after(frames: list, samples: int, speeds: int) -> None:
+        out.write(frames)
+        pos["samples"], pos["speeds"] = samples, speeds
+        whole.done()
+
     with _WholeSamples() as whole:
-        for i in range(first, len(t)):
-            ti = t[i]
-            if a.realtime:
-                wait = start + (ti - t[first]) - time.monotonic()
-                if wait > 0:
-                    time.sleep(wait)
-            whole.busy = True
-            while j < M and ts[j] <= ti:
-                est.push_speed(ts[j], vs[j])
-                j += 1
-                pos.speeds = j
-            out.write(est.push_imu(ti, g[i], acc[i]))
-            pos.samples = i + 1
-            whole.done()
-    while j < M:
-        est.push_speed(ts[j], vs[j])
-        j += 1
-        pos.speeds = j
+        return replay(est, imu.t, imu.gyro, imu.accel, sp, start=(first, j), before=before, after=after)
 
 
 def _stdin(est, a, out) -> None:
@@ -294,10 +258,8 @@ def _stdin(est, a, out) -> None:
         raise OptionError(f"<stdin>: the header line {header.strip()[:80]!r} does not name {', '.join(missing)}; "
                           f"the first line names the columns: t,wx,wy,wz,ax,ay,az (and optionally speed)", None)
     idx = [names.index(c) for c in _SAMPLE_COLUMNS]
-    i_speed, file_speed = _stdin_speed(a, names, est)
-    width = len(names)
-    nan = math.nan
-    fs_t, fs_v = file_speed
+    i_speed, (fs_t, fs_v) = _stdin_speed(a, names, est)
+    width, nan = len(names), math.nan
     j, M = 0, len(fs_t)
     bad_lines = 0
     with _WholeSamples() as whole:
@@ -345,8 +307,7 @@ _BAD_LINES_SAID = 10
 
 
 def _stdin_speed(a, names: list[str], est) -> tuple[int | None, tuple[list, list]]:
-    """The speed of a stream on standard input: ``(column index or None, (times, speeds) of a speed file)``: ``auto``
-    a ``speed`` column if any, ``none``, a column of the header, or a speed file (checked as estimate checks it)."""
+    """``--speed`` on standard input: ``(column index or None, (times, speeds) of a speed file))``."""
     from imu_ground.cli._common import warn_line
     from imu_ground.errors import OptionError
     choice = a.speed

@@ -1,8 +1,9 @@
 """A log replayed through the live object (:class:`~imu_ground.pipeline.streaming.StreamingEstimator`) sample by
-sample, and the track of the frames it gives (:meth:`StreamingEstimator.run`, ``estimate --causal``)."""
+sample, and the track of its frames (:meth:`StreamingEstimator.run`, ``estimate --causal``, ``stream --replay``)."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -12,30 +13,62 @@ from imu_ground.imu.egomotion import EgoMotion
 __all__ = ["frames_track", "replay"]
 
 
-def replay(est: Any, t, gyro, accel, speed=None) -> list:
-    """Feed a log to ``est`` (a :class:`~imu_ground.pipeline.streaming.StreamingEstimator`; not imported here, which
-    imports this module) sample by sample as a stream would bring it (the speed samples up to each IMU
-    sample's stamp before it, the rest before the flush); every frame, in order."""
-    t = np.asarray(t, dtype=float)
+def replay(est: Any, t, gyro, accel, speed=None, *, start: tuple[int, int] = (0, 0),
+           before: Callable[[int], None] | None = None,
+           after: Callable[[list, int, int], None] | None = None) -> list:
+    """Feed a log to ``est`` sample by sample as a stream would bring it, then flush: the one loop of ``estimate
+    --causal`` and ``stream --replay``. Before each IMU sample come the speed samples up to the largest IMU stamp so
+    far (after a stamp steps back those already due stay pushed: a stream's arrival clock does not step back).
+
+    Parameters
+    ----------
+    est : StreamingEstimator
+        The live object (:mod:`imu_ground.pipeline.streaming`, which imports this module).
+    t, gyro, accel : array_like
+        IMU stamps (s, as recorded), rates (rad/s), specific forces (m/s^2) in the sensor's axes; (n,), (n, 3).
+    speed : tuple of array_like, optional
+        ``(t, v)``, s and m/s, sorted by time (ignored by a method that takes no speed).
+    start : tuple of int
+        IMU and speed samples already fed (a resumed replay).
+    before, after : callable, optional
+        ``before(i)`` before IMU sample ``i`` and its speeds are pushed; ``after(frames, samples, speeds)`` after
+        each (its frames, the IMU and speed samples fed so far) and once after the last speeds.
+
+    Returns
+    -------
+    list of FrameEstimate
+        Every frame in order; with ``after``, the flush's only.
+    """
+    t = np.asarray(t, dtype=float).tolist()
     g, a = np.asarray(gyro, float).tolist(), np.asarray(accel, float).tolist()
     out: list = []
     if speed is not None and est.speed_aided:
         ts_sp, v_sp = (np.asarray(x, dtype=float).tolist() for x in speed)
     else:
         ts_sp, v_sp = [], []
-    j, M = 0, len(ts_sp)
+    first, j = start
+    M = len(ts_sp)
     top = -math.inf
     push_speed, push_imu = est.push_speed, est.push_imu
-    for i, ti in enumerate(t.tolist()):
+    for i in range(first, len(t)):
+        ti = t[i]
+        if before is not None:
+            before(i)
         if ti > top:
             top = ti
         while j < M and ts_sp[j] <= top:
             push_speed(ts_sp[j], v_sp[j])
             j += 1
-        out += push_imu(ti, g[i], a[i])
+        frames = push_imu(ti, g[i], a[i])
+        if after is None:
+            out += frames
+        else:
+            after(frames, i + 1, j)
     while j < M:
         push_speed(ts_sp[j], v_sp[j])
         j += 1
+    if after is not None:
+        after([], len(t), j)
     return out + est.flush()
 
 
