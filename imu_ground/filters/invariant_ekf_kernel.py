@@ -1,19 +1,11 @@
 """The invariant EKF on SO(3), written once: its predict and updates on tuples, and the state buffer of InvariantEKF.
 
-:func:`predict_left`, :func:`update_rotation_left` and :func:`update_direction_left` are
-the filter's one definition (left error; the equations in the module notes of
-:mod:`imu_ground.filters.invariant_ekf`), on a unit quaternion ``q`` ``(w, x, y, z)``
-and row-major 9-tuples (:func:`imu_ground.so3.mul_flat`). They are compiled into
-every body that calls them (:func:`imu_ground._jit.jitable`): the ``InvariantEKF``
-steps below (which add the right error) and the ground filters' frame,
-:func:`imu_ground.filters.residual.frame`. An update returns
-``(q, P, y, K, S, S^-1, det S, ok)``; ``ok`` False for a singular ``S`` (then only
-``det S`` is meaningful and the caller leaves its state unchanged).
-
-:class:`~imu_ground.filters.invariant_ekf.InvariantEKF` keeps its whole state in one
-float64 array (layout: the ``B_*`` offsets) and runs :func:`predict` and :func:`update`
-on it: Python wrappers that sort the arguments by kind and raise the errors around one
-compiled body per step (:func:`imu_ground._jit.njit`).
+:func:`predict_left`, :func:`update_rotation_left` and :func:`update_direction_left` are the filter's one definition
+(left error; equations: :mod:`imu_ground.filters.invariant_ekf`) on a unit quaternion ``q`` ``(w, x, y, z)`` and
+row-major 9-tuples (:func:`imu_ground.so3.mul_flat`), compiled into every body that calls them
+(:func:`imu_ground._jit.jitable`): :func:`predict` and :func:`update` below (which add the right error) on the
+InvariantEKF's state array (layout: the ``B_*`` offsets), and :func:`imu_ground.filters.residual.frame`. An update
+returns ``(q, P, y, K, S, S^-1, det S, ok)``; ``ok`` False for a singular ``S`` (the caller keeps its state).
 """
 from __future__ import annotations
 
@@ -56,8 +48,8 @@ for _helper in (exp_flat, flat_from_quat, hat_flat, log_flat, mul_flat, mul_nt_f
 
 
 def new_state(q, P, Q, R, b, left: bool, renorm_every: int) -> np.ndarray:
-    """A state buffer (float64, STATE_SIZE): quaternion ``q`` (4), ``P``, ``Q``, ``R`` (row-major 9),
-    body axis ``b`` (3), error kind and renormalisation period; no update yet (``det S`` nan)."""
+    """A state buffer (STATE_SIZE float64): quaternion ``q``, ``P``, ``Q``, ``R`` (row-major), body axis ``b``,
+    error kind and renormalisation period; no update yet (``det S`` nan)."""
     s = np.zeros(STATE_SIZE)
     s[B_Q:B_Q + 4] = s[B_XPR:B_XPR + 4] = s[B_XPO:B_XPO + 4] = q
     s[B_P:B_P + 9] = s[B_PPR:B_PPR + 9] = s[B_PPO:B_PPO + 9] = P
@@ -170,12 +162,8 @@ def predict_left(q, P, U, u, Qn):
 
 @jitable
 def update_rotation_left(q, P, qz, r):
-    """Left-error update with a rotation measurement ``qz`` (quaternion), unrolled (``H = I``).
-
-    ``y = Log(x^T z)`` (as ``2 atan2(|v|, w) v / |v|`` of ``conj(q) qz``, accurate up to pi),
-    ``S = P + R``, ``S^-1`` by symmetric cofactors, ``K = P S^-1``, ``q <- q Exp(K y)`` and
-    ``P <- K R`` (the information form of ``(I - K) P``; upper triangle, mirrored).
-    """
+    """Left-error update with a rotation ``qz`` (quaternion), ``H = I``: ``y = Log(x^T z)`` (``2 atan2(|v|, w) v / |v|``
+    of ``conj(q) qz``, accurate up to pi), ``S = P + R``, ``K = P S^-1``, ``q <- q Exp(K y)``, ``P <- K R``."""
     qw, qx, qy, qz_ = q
     zw, zx, zy, zz = qz
     aw, ax, ay, az = (qw * zw + qx * zx + qy * zy + qz_ * zz, qw * zx - qx * zw - qy * zz + qz_ * zy,
@@ -300,8 +288,7 @@ def _update_right(s, n, zf, r):
 @njit
 def _update(s, z, n, rm, own_r):
     """One update on ``s``: ``n`` 0 none (skip), 9 ``z`` a (3, 3) rotation, 3 a (3,) direction; ``rm`` (3, 3)
-    the noise unless ``own_r`` (then the state's). Returns ``(done, det S)``: not done for a singular ``S``,
-    the state then unchanged."""
+    the noise unless ``own_r``. Returns ``(done, det S)``, not done (state unchanged) for a singular ``S``."""
     if n == 0:
         s[B_ZN] = 0.0
         _put(s, B_XPO, _get4(s, B_Q))
@@ -349,8 +336,8 @@ def _array(a) -> np.ndarray:
 
 
 def _argument(v, error: str) -> tuple[np.ndarray, int]:
-    """An increment or a measurement as the compiled bodies take it, and its kind: 0 (None), 9 ((3, 3)) or 3
-    ((3,)); any other shape is the ValueError ``error`` naming it."""
+    """An increment or measurement as the compiled bodies take it and its kind: 0 (None), 9 ((3, 3)) or 3 ((3,));
+    another shape raises ValueError ``error``."""
     if v is None:
         return _NONE, 0
     a = _array(v)
@@ -362,8 +349,8 @@ def _argument(v, error: str) -> tuple[np.ndarray, int]:
 
 
 def predict(s: np.ndarray, u, Q: np.ndarray | None) -> None:
-    """``InvariantEKF.predict`` on the state ``s``: increment ``u`` (None, (3, 3) or a rotation vector (3,),
-    rad), process noise ``Q`` ((3, 3) array; None: the state's). Raises ValueError naming a bad ``u``."""
+    """``InvariantEKF.predict`` on the state ``s``: increment ``u`` (None, (3, 3) or a rotation vector, rad), noise
+    ``Q`` ((3, 3); None: the state's). Raises ValueError naming a bad ``u``."""
     a, kind = _argument(u, "rotation increment must be a 3x3 matrix or a rotation vector of shape (3,)")
     if Q is None:
         _predict(s, a, kind, _NONE, True)
@@ -372,9 +359,9 @@ def predict(s: np.ndarray, u, Q: np.ndarray | None) -> None:
 
 
 def update(s: np.ndarray, z, R: np.ndarray | None) -> None:
-    """``InvariantEKF.update`` on the state ``s``: ``z`` None (skip), a (3, 3) rotation or a (3,) direction;
-    noise ``R`` ((3, 3) array; None: the state's). Raises LinAlgError for a singular ``S`` (naming its
-    determinant) and ValueError naming a bad ``z``; the state is then unchanged."""
+    """``InvariantEKF.update`` on the state ``s``: ``z`` None (skip), a (3, 3) rotation or a (3,) direction; noise
+    ``R`` ((3, 3); None: the state's). Raises LinAlgError (singular ``S``, its determinant) or ValueError (a bad
+    ``z``), the state unchanged."""
     a, n = _argument(z, "z must be a 3x3 rotation or a unit vector of shape (3,)")
     done, det = _update(s, a, n, _NONE, True) if R is None else _update(s, a, n, _array(R), False)
     if not done:
