@@ -62,15 +62,12 @@ class GroundEstimate:
         Unit ground normal in the sensor frame.
     pitch, roll : float
         Body attitude relative to the road, rad (pitch + nose down, roll + left up).
-    residual : ndarray (3, 3)
-        ``E = X^T R`` (road <- body), the fast body motion.
-    extrinsic : ndarray (3, 3)
-        Dynamic extrinsic rotation ``E R_gs`` (road-ground <- sensor).
+    residual, extrinsic : ndarray (3, 3)
+        ``E = X^T R`` (road <- body) and the dynamic extrinsic ``E R_gs`` (road-ground <- sensor).
     P : ndarray (3, 3)
         Covariance of the slow state, body tangent space (rad^2).
     valid : bool
-        False for a frame the estimator skipped (``on_invalid="skip"``): the
-        values are then those of the previous frame.
+        False for a frame skipped (``on_invalid="skip"``), the values those of the previous frame.
     pitch_std, roll_std : float
         Calibrated 1-sigma of pitch and roll, rad (:mod:`imu_ground.filters.status`; NaN when unknown).
     status : str
@@ -167,27 +164,16 @@ class GroundEstimate:
 
 @dataclass
 class GroundTrack:
-    """Per-frame results of an estimator's ``run`` (F frames).
+    """Per-frame results of an estimator's ``run`` (F frames): the fields of :class:`GroundEstimate` stacked
+    (``normal`` (F, 3); ``residual``, ``extrinsic``, ``P`` (F, 3, 3); the others (F,), ``status`` its uint8 code,
+    by default ok, or gap where not valid), and the following.
 
     Attributes
     ----------
-    normal : ndarray (F, 3)      unit ground normal, sensor frame.
-    pitch, roll : ndarray (F,)   rad, body relative to road (signs as in :class:`GroundEstimate`).
-    residual : ndarray (F, 3, 3) road <- body.
-    extrinsic : ndarray (F, 3, 3) dynamic extrinsic, road-ground <- sensor.
-    P : ndarray (F, 3, 3)        covariance of the slow state (rad^2).
-    x : ndarray (F, 3, 3)        slow state, world <- road.
-    cumulative : ndarray (F, 3, 3) cumulative body rotation, world <- body.
-    translation : ndarray (3,)   static sensor position in the ground frame (m).
-    t : ndarray (F,)             frame (end) times, s (NaN when unknown).
-    valid : ndarray of bool (F,) False where the frame spans a gap in the source or was skipped.
-    pitch_std, roll_std : ndarray (F,) calibrated 1-sigma of pitch and roll, rad (NaN: unknown).
-    status : ndarray of uint8 (F,) code of :data:`~imu_ground.filters.status.STATUSES` (default: ok, or gap
-                                 where not valid).
-    status_reason : ndarray of object (F,) str, why (empty for ok).
-    road_grade, road_bank : ndarray (F,) the road's attitude relative to gravity, rad (+ uphill in the
-                                 direction of travel, + left side up; NaN: not estimated).
-    road_grade_std, road_bank_std : ndarray (F,) their 1-sigma, rad.
+    x, cumulative : ndarray (F, 3, 3)  slow state (world <- road) and cumulative body rotation (world <- body).
+    translation : ndarray (3,)         static sensor position in the ground frame, m.
+    t : ndarray (F,)                   frame (end) times, s (NaN when unknown).
+    valid : ndarray of bool (F,)       False where the frame spans a gap in the source or was skipped.
     """
     normal: np.ndarray
     pitch: np.ndarray

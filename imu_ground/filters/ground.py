@@ -38,7 +38,6 @@ __all__ = ["GroundNormalFilter", "GroundEstimate", "GroundTrack", "pitch_roll_fr
 _I3 = np.eye(3)
 _F64 = np.dtype(np.float64)
 _AXES = {"rotation": None, "up": (0.0, 0.0, 1.0), "forward": (1.0, 0.0, 0.0)}
-_MEASUREMENTS = ("rotation", "up", "forward")
 _PAPER: dict[str, Any] = dict(Q=1e-2, R=1.0, P=1.0, follow_heading=False)
 
 
@@ -92,7 +91,7 @@ class GroundNormalFilter:
                  P: Union[float, np.ndarray] = 1.0, extrinsic: Union[Extrinsic, np.ndarray, None] = None,
                  measurement: str = "rotation", follow_heading: bool = True,
                  R0: Optional[np.ndarray] = None, on_invalid: str = "raise") -> None:
-        if measurement not in _MEASUREMENTS:
+        if measurement not in _AXES:
             raise ValueError(f"measurement must be 'rotation', 'up' or 'forward', got {measurement!r}")
         self.extrinsic = Extrinsic.coerce(extrinsic)
         self.measurement = measurement
@@ -108,8 +107,8 @@ class GroundNormalFilter:
 
     @classmethod
     def paper(cls, **kwargs) -> "GroundNormalFilter":
-        """The paper's method (Zhang et al. 2022): random walk, full rotation, ``Q = 1e-2 I``, ``R = P0 = I``, rotations
-        accumulated in the correct order; keyword arguments override."""
+        """The paper's method (Zhang et al. 2022): random walk, full rotation, ``Q = 1e-2 I``, ``R = P0 = I``,
+        rotations accumulated in the correct order; keyword arguments override."""
         return cls(**{**_PAPER, "measurement": "rotation", **kwargs})
 
     @classmethod

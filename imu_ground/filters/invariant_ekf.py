@@ -227,10 +227,8 @@ class InvariantEKF:
 
     # -- filterpy-style derived quantities ---------------------------------
     def _ysiy(self) -> float:
-        y0, y1, y2 = self._s[B_Y:B_Y + 3].tolist()
-        s = self._s[B_SI:B_SI + 9].tolist()
-        return (y0 * (s[0] * y0 + s[1] * y1 + s[2] * y2) + y1 * (s[3] * y0 + s[4] * y1 + s[5] * y2)
-                + y2 * (s[6] * y0 + s[7] * y1 + s[8] * y2))
+        y = self._s[B_Y:B_Y + 3]
+        return float(y @ self._s[B_SI:B_SI + 9].reshape(3, 3) @ y)
 
     @property
     def log_likelihood(self) -> float:

@@ -155,6 +155,19 @@ def _correct(q, K, y, left):
 
 
 @jitable
+def _identity_gain(P, r):
+    """Gain of an update with ``H = I`` (upper triangles of ``P`` and ``r``): ``S = P + R``, ``K = P S^-1`` and
+    ``P <- K R`` (the information form of ``(I - K) P``), as ``(K, P, S, S^-1, det S, ok)``; ``K`` zero if not ok."""
+    R = _sym_upper(r)
+    S = _add9(_sym_upper(P), R)
+    SI, det, ok = _inv_flat(S)
+    if not ok:
+        return _ZERO9, P, S, SI, det, False
+    K = mul_flat(P, SI)
+    return K, _sym_upper(mul_flat(K, R)), S, SI, det, True
+
+
+@jitable
 def predict_left(q, P, U, u, Qn):
     """Left-error predict ``x <- x U``, ``P <- U^T P U + Q``: ``U`` a 9-tuple, ``u`` its quaternion."""
     return quat_mul(q, u), congruence(transpose_flat(U), P, Qn)
@@ -173,29 +186,9 @@ def update_rotation_left(q, P, qz, r):
     vn = math.sqrt(ax * ax + ay * ay + az * az)
     f = 2.0 * math.atan2(vn, aw) / vn if vn > 0.0 else 2.0
     y = (ax * f, ay * f, az * f)
-    p0, p1, p2, _, p4, p5, _, _, p8 = P
-    r0, r1, r2, _, r4, r5, _, _, r8 = r
-    s0, s1, s2, s4, s5, s8 = p0 + r0, p1 + r1, p2 + r2, p4 + r4, p5 + r5, p8 + r8
-    S = (s0, s1, s2, s1, s4, s5, s2, s5, s8)
-    i00, i01, i02 = s4 * s8 - s5 * s5, s2 * s5 - s1 * s8, s1 * s5 - s2 * s4
-    det = s0 * i00 + s1 * i01 + s2 * i02
-    if det == 0.0 or not math.isfinite(det):
-        return q, P, y, _ZERO9, S, _ZERO9, det, False
-    d = 1.0 / det
-    i00, i01, i02 = i00 * d, i01 * d, i02 * d
-    i11, i12, i22 = (s0 * s8 - s2 * s2) * d, (s1 * s2 - s0 * s5) * d, (s0 * s4 - s1 * s1) * d
-    SI = (i00, i01, i02, i01, i11, i12, i02, i12, i22)
-    K = mul_flat(P, SI)
-    k0, k1, k2, k3, k4, k5, k6, k7, k8 = K
-    if r1 == 0.0 and r2 == 0.0 and r5 == 0.0:   # diagonal R (the same numbers, without the zero terms)
-        n01, n02, n12 = k1 * r4, k2 * r8, k5 * r8
-        Pn = (k0 * r0, n01, n02, n01, k4 * r4, n12, n02, n12, k8 * r8)
-    else:
-        n01 = k0 * r1 + k1 * r4 + k2 * r5
-        n02 = k0 * r2 + k1 * r5 + k2 * r8
-        n12 = k3 * r2 + k4 * r5 + k5 * r8
-        Pn = (k0 * r0 + k1 * r1 + k2 * r2, n01, n02, n01, k3 * r1 + k4 * r4 + k5 * r5, n12,
-              n02, n12, k6 * r2 + k7 * r5 + k8 * r8)
+    K, Pn, S, SI, det, ok = _identity_gain(P, r)
+    if not ok:
+        return q, P, y, K, S, SI, det, False
     return _correct(q, K, y, True), Pn, y, K, S, SI, det, True
 
 
@@ -270,11 +263,7 @@ def _update_right(s, n, zf, r):
     x, P, q = _get9(s, B_X), _get9(s, B_P), _get4(s, B_Q)
     if n == 9:
         y = log_flat(mul_nt_flat(_get9(zf, 0), x))
-        Rn = congruence(x, r, _ZERO9)
-        S = _add9(_sym_upper(P), _sym_upper(Rn))
-        SI, det, ok = _inv_flat(S)
-        K = mul_flat(P, SI)
-        Pn = _sym_upper(mul_flat(K, Rn))
+        K, Pn, S, SI, det, ok = _identity_gain(P, congruence(x, r, _ZERO9))
     else:
         b0, b1, b2 = s[B_B], s[B_B + 1], s[B_B + 2]
         xb0, xb1, xb2 = (x[0] * b0 + x[1] * b1 + x[2] * b2, x[3] * b0 + x[4] * b1 + x[5] * b2,

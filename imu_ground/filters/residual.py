@@ -30,7 +30,8 @@ from imu_ground._jit import njit
 from imu_ground.filters.frame_checks import status_of, statuses_of
 from imu_ground.filters.invariant_ekf_kernel import (congruence, predict_left, update_direction_left,
                                                      update_rotation_left)
-from imu_ground.so3 import flat_from_quat, matrix_from_quat, quat_exp, quat_from_flat, quat_mul, transpose_flat
+from imu_ground.so3 import (flat_from_quat, matrix_from_quat, quat_exp, quat_from_flat, quat_mul, quat_normalise,
+                            transpose_flat)
 from imu_ground.units import RENORM_EVERY
 
 __all__ = ["ResidualKernel", "frame", "frame_checked", "run_frames", "step", "run", "check", "check_many", "BUF_LEN", "ROW_LEN"]
@@ -59,10 +60,8 @@ def frame(buf, d, q_h, q_v, tilt, bx, by, angles):
         Increment sensor_{k-1} <- sensor_k, already checked (:func:`~imu_ground.filters.frame_checks.frame_status`).
     q_h, q_v : float
         Process noise of this frame, horizontal and about up, rad^2 (added to the buffer's ``Q``).
-    tilt : bool
+    tilt, bx, by : bool, float, float
         Use the modelled body tilt ``b = (bx, by, 0)`` (rotation vector, rad; not with a direction).
-    bx, by : float
-        The tilt, rad.
     angles : bool
         Compute pitch and roll (from the third row of ``E``; else NaN).
 
@@ -72,8 +71,7 @@ def frame(buf, d, q_h, q_v, tilt, bx, by, angles):
         ``(ew, ex, ey, ez, a, P22, pitch, roll, rw, rx, ry, rz)``, ``a = (P00 + P11) / 2`` the level variance
         (the last 4 NaN when the cumulative rotation is not tracked).
     """
-    dq = quat_from_flat((d[0, 0], d[0, 1], d[0, 2], d[1, 0], d[1, 1], d[1, 2], d[2, 0], d[2, 1], d[2, 2]))
-    dw, dx, dy, dz = dq
+    dw, dx, dy, dz = quat_from_flat((d[0, 0], d[0, 1], d[0, 2], d[1, 0], d[1, 1], d[1, 2], d[2, 0], d[2, 1], d[2, 2]))
     if buf[_HAS_G] != 0.0:                      # body increment: vector part turned by R_gs
         g = buf[_G:_G + 9]
         dx, dy, dz = (g[0] * dx + g[1] * dy + g[2] * dz, g[3] * dx + g[4] * dy + g[5] * dz,
@@ -85,8 +83,7 @@ def frame(buf, d, q_h, q_v, tilt, bx, by, angles):
     if cum:                                     # R <- R dR
         rw, rx, ry, rz = quat_mul((rw, rx, ry, rz), (dw, dx, dy, dz))
         if renorm:
-            nrm = 1.0 / sqrt(rw * rw + rx * rx + ry * ry + rz * rz)
-            rw, rx, ry, rz = rw * nrm, rx * nrm, ry * nrm, rz * nrm
+            rw, rx, ry, rz = quat_normalise((rw, rx, ry, rz))
     # -- predict W <- dR^T W T, P <- T^T P T + Q (W = conj(E))
     w = quat_mul((dw, -dx, -dy, -dz), (buf[_E], -buf[_E + 1], -buf[_E + 2], -buf[_E + 3]))
     t = (1.0, 0.0, 0.0, 0.0)
@@ -109,8 +106,7 @@ def frame(buf, d, q_h, q_v, tilt, bx, by, angles):
         wn, P, y, K, S, _, _, _ = update_rotation_left(w, Pp, qz, Rn)
     ew, ex, ey, ez = wn[0], -wn[1], -wn[2], -wn[3]
     if renorm:
-        nrm = 1.0 / sqrt(ew * ew + ex * ex + ey * ey + ez * ez)
-        ew, ex, ey, ez = ew * nrm, ex * nrm, ey * nrm, ez * nrm
+        ew, ex, ey, ez = quat_normalise((ew, ex, ey, ez))
     pitch = roll = nan
     if angles:                                  # n_b = E^T e_z, the third row of E
         n0 = 2.0 * (ex * ez - ew * ey)
