@@ -14,7 +14,7 @@ smoother a post-pass, :meth:`~imu_ground.filters.invariant_ekf.InvariantEKF.rts_
 """
 from __future__ import annotations
 
-import math
+from math import isnan
 from typing import Any, Optional, Union
 
 import numpy as np
@@ -22,7 +22,7 @@ import numpy as np
 from imu_ground import so3
 from imu_ground.filters.estimator import GroundEstimate, GroundTrack, as_egomotion, pitch_roll_from_normal
 from imu_ground.filters.extrinsics import Extrinsic
-from imu_ground.filters.frame_checks import (bad_frame, check_on_invalid, checked_frames, coerce_frame, hold_skipped,
+from imu_ground.filters.frame_checks import (check_on_invalid, checked_frame, checked_frames, hold_skipped,
                                              static_rotation)
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.invariant_ekf_kernel import check_cov
@@ -206,12 +206,11 @@ class GroundNormalFilter:
                 o = frame_checked(self._buf, d, NO_DV if dv is None else dv, dt)
             except TypeError:                           # not C-contiguous
                 pass
-        if o is None or math.isnan(o[0]):               # coerced and checked again, to name a bad frame
-            d, dv = coerce_frame(d, dv)
-            status = check(d, dv, dt)
-            if status:
-                bad_frame(frame, status, d, dv, dt, self.on_invalid, self._frames)
+        if o is None or isnan(o[0]):               # checked again (coerced if need be), to name a bad frame
+            checked = checked_frame(check, frame, d, dv, dt, self.on_invalid, self._frames)
+            if checked is None:
                 return GroundEstimate.of_residual(self.residual, self.P, self._Rgs, valid=False)
+            d, dv = checked
             o = frame_checked(self._buf, d, NO_DV if dv is None else dv, dt)
         self._frames += 1
         info = self.sigma.frame(o[4], dt=dt, note=NO_ROAD_REASON)
