@@ -87,7 +87,13 @@ class ConstantNormal(BaselineEstimator):
         self._count = 0
 
     def step(self, frame) -> GroundEstimate:
-        """One frame (an EgoFrame or its ``delta_R``, sensor_{k-1} <- sensor_k): the residual is the identity."""
+        """One frame: the residual is the identity (normal = static normal).
+
+        Parameters
+        ----------
+        frame : EgoFrame or ndarray (3, 3)
+            ``delta_R`` sensor_{k-1} <- sensor_k (only the cumulative rotation uses it).
+        """
         self.cumulative = self.cumulative @ self._body_increment(frame)
         return self._estimate(np.eye(3), np.zeros((3, 3)))
 

@@ -215,9 +215,19 @@ class GroundTrack:
     @classmethod
     def from_residuals(cls, E: np.ndarray, X: np.ndarray, P: np.ndarray, cumulative: np.ndarray,
                        Rgs: Optional[np.ndarray] = None, translation=None, t=None, valid=None, **extra):
-        """The track of residuals ``E`` (road <- body, (F, 3, 3)), with ``X`` (world <- road), ``P`` and
-        ``cumulative`` (world <- body) as in the attributes, ``Rgs`` ground <- sensor (None: identity),
-        ``translation`` (m), ``t`` (s), ``valid`` and a subclass's fields ``extra``."""
+        """The track of residuals ``E``: normal, pitch, roll and dynamic extrinsic from them.
+
+        Parameters
+        ----------
+        E, X, P, cumulative : ndarray (F, 3, 3)
+            Residual (road <- body), slow state (world <- road), its covariance, cumulative rotation (world <- body).
+        Rgs, translation : ndarray (3, 3) and (3,), optional
+            Static extrinsic ground <- sensor (None: identity) and sensor position in the ground frame, m.
+        t, valid : ndarray (F,), optional
+            Frame times (s) and validity.
+        **extra
+            Further fields of a subclass.
+        """
         E = np.asarray(E, dtype=float).reshape(-1, 3, 3)
         pitch, roll = pitch_roll_from_normal(E[:, 2, :])
         dyn = E if Rgs is None else E @ Rgs

@@ -268,7 +268,13 @@ class Calibration:
 
 
 def load_calibration(name_or_path: Union[str, Path]) -> Calibration:
-    """Read a calibration file (``name_or_path`` as :func:`load_extrinsic`; gains None without their line)."""
+    """Read a calibration file (or any extrinsic file; the gains are None without a ``suspension_gains`` line).
+
+    Parameters
+    ----------
+    name_or_path : str or Path
+        As for :func:`load_extrinsic`.
+    """
     return Calibration.from_extrinsic(load_extrinsic(name_or_path))
 
 

@@ -149,8 +149,25 @@ def frame_problems(d: np.ndarray, dv: Optional[np.ndarray] = None, dt: Optional[
 
 def checked_frames(d: np.ndarray, dv: Optional[np.ndarray], dt: Optional[np.ndarray], t: np.ndarray,
                    on_invalid: str) -> np.ndarray:
-    """Which frames of a batch (``d, dv, dt``, times ``t`` s) an estimator's ``run`` processes: bool (F,), True
-    for a good frame. A bad one with ``on_invalid="raise"`` raises ValueError naming the first, with the count."""
+    """Which frames of a batch an estimator's ``run`` processes (the others it skips).
+
+    Parameters
+    ----------
+    d, dv, dt, t : ndarray
+        The frames (module docstring) and their times, s (to name a bad frame).
+    on_invalid : {"raise", "skip"}
+        The estimator's policy (:data:`ON_INVALID`).
+
+    Returns
+    -------
+    ndarray of bool (F,)
+        True for a good frame.
+
+    Raises
+    ------
+    ValueError
+        A bad frame with ``on_invalid="raise"``: the first one is named, with the count.
+    """
     status = frame_statuses(d, dv, dt)
     good = status == 0
     if on_invalid == "raise" and not good.all():
@@ -175,9 +192,26 @@ def bad_frame_error(problem: str, where: str) -> ImuGroundError:
 
 
 def checked_frame(check, frame, delta_R, delta_v, delta_t: float, on_invalid: str, index: int) -> tuple | None:
-    """A streamed frame's ``delta_R`` (3x3) and ``delta_v`` (3,) float64 arrays if it passes ``check(delta_R,
-    delta_v, delta_t) -> int`` (:func:`imu_ground.filters.residual.check`, after :func:`coerce_frame` if needed),
-    else None (skip it) or the ValueError of :func:`bad_frame`, whose parameters these are."""
+    """A streamed frame's ``delta_R`` (3x3) and ``delta_v`` (3,) as float64 arrays, if the frame passes the check.
+
+    Parameters
+    ----------
+    check : callable
+        ``check(delta_R, delta_v, delta_t) -> int`` (:func:`imu_ground.filters.residual.check`), run after
+        :func:`coerce_frame` when the inputs are not float64 arrays already.
+    frame, delta_R, delta_v, delta_t, on_invalid, index
+        As for :func:`bad_frame` (``delta_R`` in any form of :func:`coerce_frame`).
+
+    Returns
+    -------
+    (ndarray (3, 3), ndarray (3,) or None) or None
+        None: a bad frame to skip (``on_invalid="skip"``).
+
+    Raises
+    ------
+    ValueError
+        ``delta_R`` is not one rotation, or a bad frame with ``on_invalid="raise"``.
+    """
     d, dv = delta_R, delta_v
     try:
         status = check(d, dv, delta_t)
@@ -191,9 +225,19 @@ def checked_frame(check, frame, delta_R, delta_v, delta_t: float, on_invalid: st
 
 
 def coerce_frame(delta_R, delta_v=None) -> tuple:
-    """``delta_R`` (sensor_{k-1} <- sensor_k: a matrix, 4x4 pose or rotation vector, rad) as one C-contiguous
-    float64 3x3 and ``delta_v`` (m/s) as float64 (3,) or None, what the kernels take; ValueError if ``delta_R``
-    is not one rotation or ``delta_v`` not 3 values."""
+    """A streamed frame as the kernels take it: one C-contiguous float64 3x3 rotation and a float64 (3,) or None.
+
+    Parameters
+    ----------
+    delta_R, delta_v : array_like
+        sensor_{k-1} <- sensor_k (a matrix, a 4x4 relative pose or a rotation vector, rad,
+        :func:`~imu_ground.so3.as_rotations`) and the velocity increment (3,), m/s, or None.
+
+    Raises
+    ------
+    ValueError
+        ``delta_R`` is not one rotation (e.g. a batch) or ``delta_v`` not 3 values.
+    """
     d = as_rotations(delta_R)
     if d.shape != (3, 3):
         raise ValueError(f"delta_R must be one rotation, got shape {d.shape}")
@@ -202,8 +246,21 @@ def coerce_frame(delta_R, delta_v=None) -> tuple:
 
 
 def bad_frame(frame, status: int, d: np.ndarray, dv, dt: float, on_invalid: str, index: int) -> None:
-    """A bad streamed frame (``status`` its :func:`frame_status`, > 0): raise :func:`bad_frame_error` located by
-    ``index`` (0-based, in the run) and the ``t`` of ``frame`` if any, or return with ``on_invalid="skip"``."""
+    """A bad streamed frame: raise the error, or return with ``on_invalid="skip"``.
+
+    Parameters
+    ----------
+    frame : object
+        The frame as given to ``step``; its ``t`` (s), if it has one, locates the error.
+    status : int
+        The frame's :func:`frame_status` (> 0).
+    d, dv, dt
+        The frame (module docstring).
+    on_invalid : {"raise", "skip"}
+        The estimator's policy (:data:`ON_INVALID`).
+    index : int
+        0-based index of the frame in the estimator's run, for the message.
+    """
     if on_invalid == "raise":
         dv3 = None if dv is None else np.asarray(dv, dtype=float).ravel().tolist()
         problem = frame_problem(np.asarray(d, dtype=float).ravel().tolist(), dv3, dt, status)

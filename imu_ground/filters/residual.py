@@ -178,8 +178,17 @@ def step(buf: np.ndarray, d, q_h: float, q_v: float, tilt_x: Optional[float], ti
     """One checked frame: the row of :func:`frame`, or the frame's status (> 0) with the state untouched.
 
     ``buf``, ``d``, ``q_h``, ``q_v`` as in :func:`frame`; ``tilt_x, tilt_y`` the modelled body tilt (rad, None:
-    none); ``dv`` (3,) m/s (None: not checked) and ``dt`` (s) are checked. Raises TypeError or ValueError when
-    ``d`` or ``dv`` is not a float64 array of that shape (the caller coerces and retries).
+    none); ``dv`` (3,) m/s (None: not checked) and ``dt`` (s) are checked.
+
+    Returns
+    -------
+    tuple or int
+        The row of :func:`frame`, or the :func:`~imu_ground.filters.frame_checks.frame_status` (> 0) of a bad frame.
+
+    Raises
+    ------
+    TypeError, ValueError
+        ``d`` or ``dv`` is not a float64 array of that shape: the caller coerces and retries.
     """
     d = _checked(d, (3, 3), "delta_R")
     has_dv = dv is not None
@@ -207,8 +216,13 @@ def run(buf: np.ndarray, d, q_h, q_v: float, tilt_x, tilt_y, out: np.ndarray, an
 
 
 def check(d, dv, dt: float) -> int:
-    """The status of one frame (:func:`~imu_ground.filters.frame_checks.frame_status`; 0: good); TypeError or
-    ValueError as :func:`step`."""
+    """The status of one frame (:func:`~imu_ground.filters.frame_checks.frame_status`; 0: good).
+
+    Raises
+    ------
+    TypeError, ValueError
+        As :func:`step`.
+    """
     d = _checked(d, (3, 3), "delta_R")
     if dv is None:
         return int(status_of(d, False, _NO_DV, float(dt)))
