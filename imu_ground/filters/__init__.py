@@ -2,29 +2,22 @@
 
 Module map (each imports only the ones above it, and the imu layer below):
 
-- ``design``: discrete-time filter design (band-pass, second-order response, IIR runner);
-- ``extrinsics``: static extrinsics and the calibration file format (``Calibration``);
-- ``status``: the calibrated 1-sigma of pitch and roll (``SigmaModel``, with its convergence latch) and the
-  per-frame status with its reason;
-- ``estimator``: the estimator protocol, ``GroundEstimate``, ``GroundTrack``, ``as_egomotion``;
-- ``frame_checks``: the checks of the frames an estimator is given, its ``on_invalid`` policy;
-- ``residual``: the scalar residual filter both invariant-EKF estimators run on;
-- ``invariant_ekf_kernel``, ``gravity_kernel``: the per-frame kernels of the invariant EKF and of the
-  gravity/velocity filter;
+- ``design``: discrete-time filter design; ``extrinsics``: static extrinsics and the calibration file format;
+- ``status``: the calibrated 1-sigma of pitch and roll (``SigmaModel``) and the per-frame status with its reason;
+- ``estimator``: the protocol, ``GroundEstimate``, ``GroundTrack``; ``frame_checks``: frame checks, ``on_invalid``;
+- ``residual``: the invariant EKF on the residual both ground estimators run;
+- ``invariant_ekf_kernel``, ``gravity_kernel``: the per-frame kernels of the invariant EKF and the gravity filter;
 - ``invariant_ekf``, ``gravity_velocity``: the filters the estimators are built from;
-- ``road``: road grade and bank relative to gravity (a gravity/velocity filter of their own);
-- ``mount_monitor``: a sensor mount that moved (status ``degraded``); ``recalibration``: the record and
-  the estimate of a mount change (online re-estimation);
-- ``gains``: suspension gains (defaults, band-pass regression); ``suspension_model``: load, gains and body tilt;
-- ``ground`` (``GroundNormalFilter``), ``suspension`` (``SuspensionAwareFilter``): the estimators, each one
-  class with its state, step, batch run, saved state (``state_dict`` / ``load_state_dict``, the format of
-  :mod:`imu_ground.imu.warm_start`) and, for the suspension-aware filter, its online re-estimation of the
-  mount; each component keeps and saves its own state; ``constant_normal`` (``ConstantNormal``, the
-  static extrinsic alone);
+- ``road``: road grade and bank relative to gravity; ``mount_monitor``: a sensor mount that moved;
+  ``recalibration``: the estimate of a mount change (online re-estimation);
+- ``gains``: suspension gains; ``suspension_model``: load, gains and body tilt;
+- ``ground`` (``GroundNormalFilter``), ``suspension`` (``SuspensionAwareFilter``): the estimators, each one class
+  with its state, step, batch run and saved state (:mod:`imu_ground.imu.warm_start`); ``constant_normal``
+  (``ConstantNormal``, the static extrinsic alone);
 - ``methods``: the one registry of the estimators by CLI name; ``calibration``: ``calibrate`` a platform.
 
-The loops of ``frame_checks``, ``residual``, ``gravity_kernel`` and ``invariant_ekf_kernel`` are written
-once and compiled by numba (:mod:`imu_ground._jit`).
+The loops of ``frame_checks``, ``residual``, ``gravity_kernel`` and ``invariant_ekf_kernel`` are compiled by numba
+(:mod:`imu_ground._jit`).
 """
 from imu_ground._lazy import lazy_exports
 

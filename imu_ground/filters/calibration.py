@@ -7,31 +7,22 @@ Calibrate once per vehicle and IMU mounting, save, then run the
     cal.save("my_car.txt")                # the calib/ text format, plus a suspension_gains line
     track = estimate_suspension_aware(egomotion, extrinsic="my_car.txt")   # imu_ground.filters.methods
 
-What an IMU alone can tell (and what it cannot)
------------------------------------------------
-The ground frame is FLU with z along the road normal when the car stands on level ground
-(:mod:`imu_ground.filters.extrinsics`); ``R_gs`` maps sensor vectors into it.
+What an IMU alone can tell (ground frame FLU, z along the road normal on level ground, ``R_gs`` ground <- sensor):
 
-- **Tilt (the ground's z axis in the sensor frame).** At a standstill the accelerometer reads "up";
-  cruising straight at constant speed the body sits at its static stance, so the mean specific force
-  over *cruising* frames is "up" relative to the drive's mean road plane. An IMU cannot tell a
-  mounting tilt from a road grade or cross-slope (or an accelerometer bias: 0.2 m/s^2 is 1.2 deg), so
-  the tilt carries the mean grade and cross-slope of the frames used. ``tilt="auto"`` uses the cruising
-  frames when there are ``min_cruise_s`` seconds of them, else the standstills, else every frame;
-  ``stats`` reports each estimate available. Calibrate on level ground, or on a long loop.
-- **Forward axis (yaw of the mounting).** In turns the lateral acceleration is ``v * yaw_rate`` with
-  ``v > 0``, which fixes the axes and their sign; the longitudinal axis is refined as the principal
-  direction of the horizontal acceleration driving straight, its sign from the turns. Without turns
-  the sign is the sensor's x axis'; without either the yaw is unobservable (``stats["yaw_source"]``).
-- **Suspension gains** (:func:`~imu_ground.filters.gains.bandpass_gain_regression`): the gyro's body
-  tilt regressed on the gravity-compensated acceleration (the
-  :class:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter` with the extrinsic just found),
-  both band-passed to :data:`~imu_ground.filters.gains.GAIN_BAND` (lower the road correlates with the
-  acceleration, higher the suspension's resonance and noise). Give ``lever_arm`` when the sensor's
-  position about the body's pitch/roll centre is known. Figures in ``benchmarks/RESULTS.md``.
+- **Tilt.** At a standstill the accelerometer reads "up"; cruising straight at constant speed the body sits at its
+  static stance, so the mean specific force over cruising frames is "up" relative to the drive's mean road plane.
+  An IMU cannot tell a mounting tilt from a grade or cross-slope (or an accelerometer bias: 0.2 m/s^2 is 1.2 deg),
+  so the tilt carries the mean grade and cross-slope of the frames used: calibrate on level ground or a long loop.
+  ``stats`` reports each estimate available.
+- **Forward axis (yaw).** In turns the lateral acceleration is ``v * yaw_rate`` with ``v > 0``, which fixes the axes
+  and their sign; the longitudinal axis is refined as the principal direction of the horizontal acceleration
+  driving straight. Without turns the sign is the sensor's x axis'; without either the yaw is unobservable.
+- **Suspension gains** (:func:`~imu_ground.filters.gains.bandpass_gain_regression`): the gyro's body tilt regressed
+  on the gravity-compensated acceleration (:class:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter` with
+  the extrinsic just found), both band-passed to :data:`~imu_ground.filters.gains.GAIN_BAND` (lower, the road
+  correlates with the acceleration; higher, the suspension's resonance and noise).
 
-The calibration file format (:class:`~imu_ground.filters.extrinsics.Calibration`,
-:func:`~imu_ground.filters.extrinsics.load_calibration`) lives with the extrinsics.
+The calibration file format (:class:`~imu_ground.filters.extrinsics.Calibration`) lives with the extrinsics.
 """
 from __future__ import annotations
 
@@ -84,11 +75,7 @@ def _pooled_frames(egos, R, min_speed, lever_arm=None):
 
 
 def _forward_axis(fs, up, yaw_rate, moving, max_yaw_rate, x_prev):
-    """The ground's forward axis in sensor axes (or None) and where it came from.
-
-    The lateral axis from turns (``a_y = v * yaw rate``, ``v > 0``), the longitudinal axis from the
-    straight-line accelerations (principal direction), its sign from the turns (else ``x_prev``).
-    """
+    """The ground's forward axis in sensor axes (or None) and where it came from (module docstring)."""
     Ph = np.eye(3) - np.outer(up, up)
     fh = fs @ Ph                                         # horizontal specific force, sensor frame
     fwd_turn = np.cross(Ph @ (fh[moving].T @ yaw_rate[moving]), up)       # left x up = forward
@@ -121,10 +108,8 @@ def _suspension_gains(egos, R, min_speed, lever_arm, band, stats: dict) -> np.nd
     with np.errstate(invalid="ignore", divide="ignore"):
         k = np.where(sxx > 0, sxy / sxx, np.nan)
     stats.update(gain_frames=int(sum(np.count_nonzero(m) for m in movings)), gain_sxx=sxx.tolist())
-    # physics: braking pitches the nose down (k_pitch < 0) and a car rolls out of a turn
-    # (k_roll > 0). A regression with the other sign has measured something else, typically the
-    # road banking into curves (superelevation correlates with lateral acceleration in the
-    # regression band): keep the default gain for that axis and say so.
+    # braking pitches the nose down (k_pitch < 0), a car rolls out of a turn (k_roll > 0): the other sign has
+    # measured something else (typically superelevation in curves), so the default gain is kept and said so
     for i, (name, sign) in enumerate((("pitch", -1.0), ("roll", 1.0))):
         if np.isfinite(k[i]) and np.sign(k[i]) != sign:
             stats[f"{name}_gain_rejected"] = (f"{np.degrees(k[i]):+.3f} deg per m/s^2 has the wrong sign "
@@ -165,8 +150,7 @@ class TooLittleDataError(ImuGroundError):
         super().__init__(f"{base}: {advice}")
 
 
-#: Largest sensor offset a calibration takes, m per axis (``translation``, ``lever_arm``): a vehicle's sensor is
-#: metres from its centre; more is a unit mistake (mm for m).
+#: Largest sensor offset a calibration takes, m per axis (``translation``, ``lever_arm``): more is a unit mistake.
 MAX_OFFSET_M = 50.0
 
 
@@ -188,71 +172,54 @@ def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "Ego
               min_speed: float = 3.0, max_yaw_rate: float = 0.02, max_accel: float = 0.15,
               rate: Optional[float] = None, min_drive_s: float = 20.0, min_standstill_s: float = 1.0,
               min_all_s: float = 60.0) -> Calibration:
-    """Static sensor-to-ground extrinsic and suspension gains from a drive, or several of one platform.
-
-    See the module docstring for what is observable and how each part is found.
+    """Static sensor-to-ground extrinsic and suspension gains from a drive, or several of one platform (module
+    docstring: what is observable and how each part is found).
 
     Parameters
     ----------
     data : ImuData, EgoMotion, or a sequence of them
-        The calibration drive(s), sensor frame (ImuData are preintegrated at
-        ``rate``). Several drives are pooled frame by frame (one mounting).
+        The calibration drive(s), sensor frame (ImuData preintegrated at ``rate``), pooled frame by frame.
     tilt : {"auto", "cruise", "standstill", "all"}
-        Frames whose mean specific force defines "up": straight constant-speed
-        driving, standstills, or every frame; ``"auto"``: cruise if there are
-        ``min_cruise_s`` seconds of it, else standstill, else all.
+        Frames whose mean specific force defines "up": straight constant-speed driving, standstills, or every
+        frame; ``"auto"``: cruise if there are ``min_cruise_s`` seconds of it, else standstill, else all.
     translation : array_like (3,), optional
-        Sensor origin in the ground frame, m, stored in the extrinsic (not
-        observable from an IMU; default zero).
+        Sensor origin in the ground frame, m, stored in the extrinsic (not observable; default zero).
     lever_arm : array_like (3,), optional
-        Sensor position relative to the body's pitch/roll centre (ground frame,
-        m), removed from the accelerations of the gain regression.
+        Sensor position from the body's pitch/roll centre (ground frame, m), removed from the gain regression.
     gains : bool
         Estimate the suspension gains.
     band : (float, float)
         Gain regression band, Hz.
-    min_cruise_s : float
-        Seconds of cruising needed for ``tilt="auto"`` to use it.
+    min_cruise_s, min_standstill_s, min_all_s : float
+        Seconds of cruising, standing still or valid frames for ``tilt="auto"`` to use each (fewer valid
+        seconds than ``min_all_s``: ``"auto"`` raises).
     min_speed : float
         Slower frames (m/s) are not "moving" for cruise, yaw and gains.
-    max_yaw_rate : float
-        Straight driving: yaw rate below this, rad/s.
-    max_accel : float
-        Constant speed: longitudinal and lateral acceleration below this, m/s^2.
+    max_yaw_rate, max_accel : float
+        Straight driving: yaw rate below this, rad/s; constant speed: horizontal acceleration below this, m/s^2.
     rate : float, optional
-        Frame rate for ImuData, Hz (default :data:`~imu_ground.units.DEFAULT_FRAME_RATE`);
-        ego-motion keeps its own rate.
+        Frame rate for ImuData, Hz (default :data:`~imu_ground.units.DEFAULT_FRAME_RATE`).
     min_drive_s : float
-        Seconds of driving (faster than ``min_speed``) the mounting yaw and the
-        suspension gains need. With less the yaw stays the sensor's x axis
-        projected on the ground (``stats["yaw_source"]`` says why, and a
-        warning), and ``gains=True`` raises.
-    min_standstill_s : float
-        Seconds standing still for ``tilt="auto"`` to take "up" from the standstills.
-    min_all_s : float
-        Seconds of valid frames for ``tilt="auto"`` to fall back to every frame (a
-        shorter drive's accelerations would tilt "up"); with less, ``"auto"`` raises.
+        Seconds of driving (faster than ``min_speed``) the yaw and the gains need; with less the yaw stays the
+        sensor's x axis (``stats["yaw_source"]``, a warning) and ``gains=True`` raises.
 
     Returns
     -------
     Calibration
-        ``extrinsic.rotation`` ground <- sensor; ``gains`` ``(k_pitch, k_roll)``
-        rad per m/s^2; ``stats``.
+        ``extrinsic.rotation`` ground <- sensor; ``gains`` ``(k_pitch, k_roll)`` rad per m/s^2; ``stats``.
 
     Raises
     ------
     OptionError
         ``translation`` or ``lever_arm`` not 3 finite numbers (names the option).
     ValueError
-        No frames, or none of the kind ``tilt`` asks for; ``tilt="auto"`` with too
-        little of every kind; ``gains=True`` with less than ``min_drive_s`` of driving.
-        The message says how much of which kind is needed.
+        No frames, none of the kind ``tilt`` asks for, or too little of what ``"auto"`` or ``gains=True`` needs
+        (the message says how much of which kind).
 
     Warns
     -----
     UserWarning
-        ``tilt="auto"`` not from cruising (which source and why), and a yaw left
-        at the sensor's x axis for want of driving.
+        ``tilt="auto"`` not from cruising (which source and why); a yaw left at the sensor's x axis.
     """
     if tilt not in ("auto", "cruise", "standstill", "all"):
         raise ImuGroundError(f"tilt must be 'auto', 'cruise', 'standstill' or 'all', got {tilt!r}")

@@ -1,15 +1,10 @@
 r"""The constant normal: the static extrinsic alone (the paper's "naive" baseline), an estimator like the others.
 
-:class:`ConstantNormal` follows :class:`~imu_ground.filters.estimator.GroundEstimator`:
-``reset()``, ``step(frame) -> GroundEstimate`` and ``run(egomotion, smooth=False) ->
-GroundTrack`` (frames and signs as documented in :mod:`imu_ground.filters.estimator`);
-its residual road <- body is the identity on every frame, so the normal is the static
-extrinsic's, ``n_s = R_gs^T e_z`` in the sensor frame, and pitch and roll relative to the
-road are 0. It still integrates the body rotation (``cumulative``, world <- body) as every
-estimator does. :class:`BaselineEstimator` is the plumbing it shares with the evaluation's
-research baselines (:class:`~imu_ground.evaluation.baselines.EulerEKF`): the static
-extrinsic, checked body increments and ``run`` over ``_run``. A bad frame (not a rotation,
-non-finite, ``delta_t <= 0``) raises ``ValueError`` and leaves the state as it was.
+:class:`ConstantNormal` follows :class:`~imu_ground.filters.estimator.GroundEstimator`; its residual road <- body is
+the identity on every frame, so the normal is the static extrinsic's, ``n_s = R_gs^T e_z`` (sensor frame), and pitch
+and roll relative to the road are 0; it still integrates ``cumulative`` (world <- body). :class:`BaselineEstimator`
+is the plumbing it shares with the evaluation's research baselines (:class:`~imu_ground.evaluation.baselines.EulerEKF`).
+A bad frame (not a rotation, non-finite, ``delta_t <= 0``) raises ``ValueError``, the state unchanged.
 """
 from __future__ import annotations
 
@@ -65,10 +60,9 @@ class BaselineEstimator:
         Parameters
         ----------
         egomotion : EgoMotion, ImuData or ndarray (F, 3, 3) / (F, 3)
-            Frames in the sensor frame (see :func:`~imu_ground.filters.estimator.as_egomotion`).
+            Frames, sensor frame (:func:`~imu_ground.filters.estimator.as_egomotion`).
         smooth : bool
-            Offline smoothing: the baselines have none (:class:`ConstantNormal` accepts
-            it and changes nothing, :class:`EulerEKF` refuses it).
+            The baselines have no smoother (:class:`ConstantNormal` accepts it and changes nothing).
         """
         if smooth and not self._smooth_ok:
             raise ValueError(f"{type(self).__name__} has no offline smoother: run it with smooth=False")

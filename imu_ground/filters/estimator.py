@@ -1,25 +1,14 @@
 r"""What every ground estimator shares: the protocol, its results, and the input it accepts.
 
-Frames and signs (see the glossary of :mod:`imu_ground.so3`)
-------------------------------------------------------------
-- sensor ``s``: the frame of the ego-motion (IMU, camera, ...);
-- body/ground ``g``: FLU vehicle frame, z along the road normal at rest on flat
-  ground; ``R_gs`` (ground <- sensor) is the static extrinsic;
-- world ``w``: the body frame at the start (``R0``); road ``r``: the slow state
-  ``X`` (world <- road) of the estimators;
-- residual ``E = X^T R`` (road <- body): the fast body motion, with ``R``
-  (world <- body) the cumulative rotation.
+Frames and signs (glossary: :mod:`imu_ground.so3`): sensor ``s``, the frame of the ego-motion; body/ground ``g``,
+FLU, z along the road normal at rest on flat ground, ``R_gs`` (ground <- sensor) the static extrinsic; world ``w``,
+the body frame at the start (``R0``); road ``r``, the slow state ``X`` (world <- road); residual ``E = X^T R``
+(road <- body), the fast body motion, ``R`` (world <- body) the cumulative rotation. Pitch is positive nose *down*
+(about y-left), roll positive left side *up* (about x-forward), both read off the road normal in the body frame
+``n_b = E^T e_z = [-sin p, sin r cos p, cos p cos r]``; the normal in the sensor frame is ``n_s = (E R_gs)^T e_z``.
 
-Pitch is positive nose *down* (right-handed about y-left), roll positive left
-side *up* (about x-forward); both are read off the road normal in the body
-frame ``n_b = E^T e_z = [-sin p, sin r cos p, cos p cos r]`` (:func:`pitch_roll_from_normal`).
-The normal in the sensor frame is ``n_s = (E R_gs)^T e_z``.
-
-Every estimator (:class:`GroundEstimator`) has ``reset()``, ``step(frame) ->``
-:class:`GroundEstimate` and ``run(egomotion, smooth=False) ->`` :class:`GroundTrack`.
-The checks of the frames they are given are in :mod:`imu_ground.filters.frame_checks`;
-the output table of a track is :func:`imu_ground.pipeline.output.track_table`. The invariant
-EKF both invariant-EKF estimators run on is :class:`~imu_ground.filters.residual.ResidualKernel`.
+Every estimator (:class:`GroundEstimator`) has ``reset()``, ``step(frame) ->`` :class:`GroundEstimate` and
+``run(egomotion, smooth=False) ->`` :class:`GroundTrack`; frame checks: :mod:`imu_ground.filters.frame_checks`.
 """
 from __future__ import annotations
 
@@ -65,10 +54,7 @@ _Estimate = TypeVar("_Estimate", bound="GroundEstimate")
 
 
 class GroundEstimate:
-    """One frame's result of an estimator's ``step``.
-
-    Pitch, roll and the flag are plain floats; the arrays are built on first
-    access (a streaming step that only needs pitch and roll does not pay for them).
+    """One frame's result of an estimator's ``step`` (the arrays built on first access).
 
     Attributes
     ----------
@@ -76,15 +62,12 @@ class GroundEstimate:
         Unit ground normal in the sensor frame.
     pitch, roll : float
         Body attitude relative to the road, rad (pitch + nose down, roll + left up).
-    residual : ndarray (3, 3)
-        ``E = X^T R`` (road <- body), the fast body motion.
-    extrinsic : ndarray (3, 3)
-        Dynamic extrinsic rotation ``E R_gs`` (road-ground <- sensor).
+    residual, extrinsic : ndarray (3, 3)
+        ``E = X^T R`` (road <- body) and the dynamic extrinsic ``E R_gs`` (road-ground <- sensor).
     P : ndarray (3, 3)
         Covariance of the slow state, body tangent space (rad^2).
     valid : bool
-        False for a frame the estimator skipped (``on_invalid="skip"``): the
-        values are then those of the previous frame.
+        False for a frame skipped (``on_invalid="skip"``), the values those of the previous frame.
     pitch_std, roll_std : float
         Calibrated 1-sigma of pitch and roll, rad (:mod:`imu_ground.filters.status`; NaN when unknown).
     status : str
@@ -97,8 +80,7 @@ class GroundEstimate:
     """
     __slots__ = ("pitch", "roll", "valid", "_q", "_E", "_Rgs", "_P", "status_code", "_info", "_road")
 
-    # quaternion: a kernel output row (its first 4 entries, w x y z); P: a 3x3 array or the same row
-    # (entries 4 and 5: diag(a, a, c))
+    # quaternion: a kernel output row (w x y z first); P: a 3x3 array or that row (entries 4, 5: diag(a, a, c))
 
     def __init__(self, pitch: float, roll: float, valid: bool = True, quaternion=None, residual=None,
                  Rgs: Optional[np.ndarray] = None, P=None, status_code: Optional[int] = None, info=None,
@@ -139,8 +121,7 @@ class GroundEstimate:
 
     @classmethod
     def copy_of(cls: type[_Estimate], est: GroundEstimate) -> _Estimate:
-        """A value copy of ``est`` as a ``cls`` (a subclass then sets its own fields): its pitch, roll, flag,
-        status and the data its arrays, 1-sigma and road are built from on access."""
+        """A value copy of ``est`` as a ``cls`` (a subclass then sets its own fields)."""
         out = cls.__new__(cls)
         out.pitch, out.roll, out.valid, out.status_code = est.pitch, est.roll, est.valid, est.status_code
         out._q, out._E, out._Rgs, out._P, out._info, out._road = est._q, est._E, est._Rgs, est._P, est._info, est._road
@@ -183,27 +164,16 @@ class GroundEstimate:
 
 @dataclass
 class GroundTrack:
-    """Per-frame results of an estimator's ``run`` (F frames).
+    """Per-frame results of an estimator's ``run`` (F frames): the fields of :class:`GroundEstimate` stacked
+    (``normal`` (F, 3); ``residual``, ``extrinsic``, ``P`` (F, 3, 3); the others (F,), ``status`` its uint8 code,
+    by default ok, or gap where not valid), and the following.
 
     Attributes
     ----------
-    normal : ndarray (F, 3)      unit ground normal, sensor frame.
-    pitch, roll : ndarray (F,)   rad, body relative to road (signs as in :class:`GroundEstimate`).
-    residual : ndarray (F, 3, 3) road <- body.
-    extrinsic : ndarray (F, 3, 3) dynamic extrinsic, road-ground <- sensor.
-    P : ndarray (F, 3, 3)        covariance of the slow state (rad^2).
-    x : ndarray (F, 3, 3)        slow state, world <- road.
-    cumulative : ndarray (F, 3, 3) cumulative body rotation, world <- body.
-    translation : ndarray (3,)   static sensor position in the ground frame (m).
-    t : ndarray (F,)             frame (end) times, s (NaN when unknown).
-    valid : ndarray of bool (F,) False where the frame spans a gap in the source or was skipped.
-    pitch_std, roll_std : ndarray (F,) calibrated 1-sigma of pitch and roll, rad (NaN: unknown).
-    status : ndarray of uint8 (F,) code of :data:`~imu_ground.filters.status.STATUSES` (default: ok, or gap
-                                 where not valid).
-    status_reason : ndarray of object (F,) str, why (empty for ok).
-    road_grade, road_bank : ndarray (F,) the road's attitude relative to gravity, rad (+ uphill in the
-                                 direction of travel, + left side up; NaN: not estimated).
-    road_grade_std, road_bank_std : ndarray (F,) their 1-sigma, rad.
+    x, cumulative : ndarray (F, 3, 3)  slow state (world <- road) and cumulative body rotation (world <- body).
+    translation : ndarray (3,)         static sensor position in the ground frame, m.
+    t : ndarray (F,)                   frame (end) times, s (NaN when unknown).
+    valid : ndarray of bool (F,)       False where the frame spans a gap in the source or was skipped.
     """
     normal: np.ndarray
     pitch: np.ndarray
@@ -245,16 +215,14 @@ class GroundTrack:
     @classmethod
     def from_residuals(cls, E: np.ndarray, X: np.ndarray, P: np.ndarray, cumulative: np.ndarray,
                        Rgs: Optional[np.ndarray] = None, translation=None, t=None, valid=None, **extra):
-        """The track of residuals ``E`` (road <- body): normal, pitch, roll and dynamic extrinsic from them.
+        """The track of residuals ``E``: normal, pitch, roll and dynamic extrinsic from them.
 
         Parameters
         ----------
         E, X, P, cumulative : ndarray (F, 3, 3)
-            Residual, slow state (world <- road), its covariance, cumulative rotation (world <- body).
-        Rgs : ndarray (3, 3), optional
-            Static extrinsic ground <- sensor (None: identity).
-        translation : array_like (3,), optional
-            Static sensor position in the ground frame, m.
+            Residual (road <- body), slow state (world <- road), its covariance, cumulative rotation (world <- body).
+        Rgs, translation : ndarray (3, 3) and (3,), optional
+            Static extrinsic ground <- sensor (None: identity) and sensor position in the ground frame, m.
         t, valid : ndarray (F,), optional
             Frame times (s) and validity.
         **extra
@@ -287,9 +255,8 @@ def as_egomotion(data, rate: Optional[float] = None) -> "EgoMotion":
     Parameters
     ----------
     data : EgoMotion, ImuData or array_like
-        Ego-motion (returned as is), a raw IMU log (preintegrated at ``rate``)
-        or rotation increments sensor_{k-1} <- sensor_k, shape (F, 3, 3),
-        (F, 4, 4) or (F, 3) (rotation vectors, rad), at ``rate``.
+        Ego-motion (returned as is), a raw IMU log (preintegrated at ``rate``) or rotation increments
+        sensor_{k-1} <- sensor_k, (F, 3, 3), (F, 4, 4) or (F, 3) (rotation vectors, rad), at ``rate``.
     rate : float, optional
         Frame rate, Hz, for the last two; :data:`~imu_ground.units.DEFAULT_FRAME_RATE` by default.
     """
@@ -308,20 +275,15 @@ def as_egomotion(data, rate: Optional[float] = None) -> "EgoMotion":
 
 @dataclass
 class SuspensionTrack(GroundTrack):
-    """A :class:`~imu_ground.filters.estimator.GroundTrack` plus the suspension model's inputs (F frames).
+    """A :class:`GroundTrack` plus the suspension model's inputs (F frames).
 
     Attributes
     ----------
-    load : ndarray (F, 2)
-        Load entering the model (``u_x``, ``u_y``), m/s^2, body frame.
-    speed : ndarray (F,)
-        Speed in the road noise, m/s: the measured speed where given, else the gravity/velocity filter's.
-    gains : ndarray (F, 2)
-        ``(k_pitch, k_roll)`` used at each frame, rad per m/s^2.
-    suspension : ndarray (F, 2)
-        Modelled tilt ``(pitch, roll) = (k_pitch u_x + cross_gain u_y, k_roll u_y)``, rad.
-    gravity : ndarray (F, 3)
-        Reaction to gravity, world frame, m/s^2.
+    load : ndarray (F, 2)       load ``(u_x, u_y)`` entering the model, m/s^2, body frame.
+    speed : ndarray (F,)        speed in the road noise, m/s (measured where given, else the gravity filter's).
+    gains : ndarray (F, 2)      ``(k_pitch, k_roll)`` used, rad per m/s^2.
+    suspension : ndarray (F, 2) modelled tilt ``(k_pitch u_x + cross_gain u_y, k_roll u_y)``, rad.
+    gravity : ndarray (F, 3)    reaction to gravity, world frame, m/s^2.
     """
     load: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     speed: np.ndarray = field(default_factory=lambda: np.zeros(0))

@@ -1,12 +1,8 @@
 """Static sensor-to-ground extrinsics: the value type and the text-file loader.
 
-An extrinsic is calibrated once, with the vehicle at rest on flat ground. The
-ground frame is FLU (x forward, y left, z up along the ground normal) with
-its origin on the road surface; ``rotation`` maps sensor-frame vectors into
-the ground frame (ground <- sensor) and ``translation`` is the sensor origin
-in ground coordinates, metres.
-
-File format (``calib/*.txt``, described in ``calib/README.md``)::
+An extrinsic is calibrated once, the vehicle at rest on flat ground. The ground frame is FLU (z up along the ground
+normal, origin on the road); ``rotation`` maps sensor-frame vectors into it (ground <- sensor) and ``translation``
+is the sensor origin in ground coordinates, m. File format (``calib/*.txt``, ``calib/README.md``)::
 
     # comments start with '#'
     platform: kitti
@@ -14,19 +10,13 @@ File format (``calib/*.txt``, described in ``calib/README.md``)::
     R: r00 r01 r02 r10 r11 r12 r20 r21 r22    # row-major, ground <- sensor
     t: tx ty tz                                # metres, sensor origin in the ground frame
 
-``R`` is required; ``t`` defaults to zero; other ``key: value`` lines are kept
-as metadata.
-
-A *calibration file* is the same format with two more lines, the platform's
-suspension gains (written by :meth:`Calibration.save`, read by
-:func:`load_calibration`)::
+``R`` is required, ``t`` defaults to zero, other ``key: value`` lines are metadata. A *calibration file*
+(:meth:`Calibration.save`, :func:`load_calibration`) adds the platform's suspension gains::
 
     suspension_gains: -0.0043633 0.0087266      # k_pitch k_roll
     suspension_gains_unit: rad per m/s^2         # or: deg per m/s^2
 
-:func:`resolve_platform` is the one reader of an ``extrinsic=`` argument:
-None, an :class:`Extrinsic`, a :class:`Calibration`, a 3x3 rotation, a
-shipped name or a file path.
+:func:`resolve_platform` is the one reader of an ``extrinsic=`` argument.
 """
 from __future__ import annotations
 
@@ -54,12 +44,9 @@ class Extrinsic:
 
     Attributes
     ----------
-    rotation : ndarray (3, 3)
-        ground <- sensor rotation (ground frame FLU, z = ground normal).
-    translation : ndarray (3,)
-        Sensor origin in the ground frame, metres.
-    meta : dict
-        Platform, sensor name, source, derivation notes.
+    rotation : ndarray (3, 3)     ground <- sensor (ground frame FLU, z = ground normal).
+    translation : ndarray (3,)    sensor origin in the ground frame, m.
+    meta : dict                   platform, sensor name, source, derivation notes.
     """
     rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
     translation: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -85,8 +72,7 @@ class Extrinsic:
 
     @classmethod
     def coerce(cls, value) -> "Extrinsic":
-        """An Extrinsic from None (identity), an Extrinsic (itself), a 3x3 rotation (ground <- sensor),
-        a :class:`Calibration` (its extrinsic) or a shipped name or file path (:func:`load_extrinsic`)."""
+        """The Extrinsic of an ``extrinsic=`` argument (:func:`resolve_platform`)."""
         return resolve_platform(value)[0]
 
     @property
@@ -143,22 +129,18 @@ def load_extrinsic(name_or_path: Union[str, Path]) -> Extrinsic:
     Parameters
     ----------
     name_or_path : str or Path
-        A name from :func:`available_extrinsics` or the path of a file in the
-        format of ``calib/README.md``.
+        A name from :func:`available_extrinsics` or a file in the format of ``calib/README.md``.
 
     Returns
     -------
     Extrinsic
-        ``rotation`` is ground <- sensor; ``translation`` the sensor origin in
-        the ground frame, metres.
 
     Raises
     ------
     FileNotFoundError
         No such file or shipped name (the message lists the shipped names).
     ImuGroundError
-        Not text, a malformed line (file and line number), missing ``R``, or a matrix that
-        is not a rotation.
+        Not text, a malformed line (file and line number), no ``R``, or not a rotation.
     """
     path = _resolve(name_or_path)
     rot = None
@@ -230,11 +212,10 @@ class Calibration:
     Attributes
     ----------
     extrinsic : Extrinsic
-        ``rotation``: ground <- sensor; ``translation``: sensor origin in the ground frame, m.
+        Ground <- sensor rotation and sensor origin (m).
     gains : ndarray (2,) or None
-        ``(k_pitch, k_roll)``, rad per m/s^2 (pitch nose down + per m/s^2 of
-        forward acceleration; roll left side up + per m/s^2 of leftward
-        acceleration); NaN where a drive had no signal, None if not estimated.
+        ``(k_pitch, k_roll)``, rad per m/s^2 (pitch nose down + per m/s^2 forward, roll left side up + per m/s^2
+        leftward); NaN where a drive had no signal, None if not estimated.
     stats : dict
         The numbers behind the result (frames used, per-source tilts in deg, ...).
     """
@@ -303,9 +284,8 @@ def resolve_platform(value) -> tuple:
     Parameters
     ----------
     value : None, Extrinsic, Calibration, array_like (3, 3), str or Path
-        None: identity; a 3x3 rotation: ground <- sensor; a str or Path: a
-        shipped name or a file (:func:`load_extrinsic`), whose
-        ``suspension_gains`` line, if any, gives the gains.
+        None: identity; a 3x3 rotation: ground <- sensor; a str or Path: a shipped name or a file
+        (:func:`load_extrinsic`), whose ``suspension_gains`` line, if any, gives the gains.
 
     Returns
     -------

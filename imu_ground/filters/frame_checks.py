@@ -1,13 +1,11 @@
 """Checks of the frames an estimator is given, and what it does with a bad one.
 
-A frame is an ego-motion increment: ``delta_R`` (sensor_{k-1} <- sensor_k, a
-rotation), ``delta_v`` (m/s, sensor frame, optional) and ``delta_t`` (s). The check
-of one frame is one compiled body, :func:`status_of`, run on every streamed frame and
-over a whole batch (:func:`frame_statuses`); :func:`frame_problem` names what is wrong,
-and :func:`checked_frame` / :func:`bad_frame` / :func:`checked_frames` apply the
-``on_invalid`` policy (:data:`ON_INVALID`) with one message (:func:`bad_frame_error`).
-Arguments named ``d, dv, dt`` are ``delta_R`` (3, 3) or (F, 3, 3), ``delta_v`` (3,) or
-(F, 3) (None: not checked) and ``delta_t`` (s, float or (F,)).
+A frame is an ego-motion increment: ``delta_R`` (sensor_{k-1} <- sensor_k, a rotation), ``delta_v`` (m/s, sensor
+frame, optional) and ``delta_t`` (s); arguments named ``d, dv, dt`` are those, (3, 3), (3,) (None: not checked) and
+a float, or (F, ...) for a batch. The check is one compiled body, :func:`status_of`, run on every streamed frame
+and over a batch (:func:`frame_statuses`); :func:`frame_problem` names what is wrong, and :func:`checked_frame`,
+:func:`bad_frame` and :func:`checked_frames` apply the ``on_invalid`` policy with one message
+(:func:`bad_frame_error`).
 """
 from __future__ import annotations
 
@@ -85,18 +83,15 @@ def frame_status(d9, delta_v=None, delta_t: float = 1.0) -> int:
     ----------
     d9 : sequence of 9 float
         ``delta_R`` row-major (sensor_{k-1} <- sensor_k).
-    delta_v : sequence of 3 float, optional
-        Velocity increment, m/s.
-    delta_t : float
-        Frame duration, s.
+    delta_v, delta_t : sequence of 3 float (optional), float
+        Velocity increment, m/s, and frame duration, s.
 
     Returns
     -------
     int
-        0: a good frame; :data:`BAD_ROTATION` (non-finite, not orthonormal to
-        :data:`ORTHO_TOL`, or det <= 0), :data:`BAD_DELTA_V` (not finite, or a component
-        beyond :data:`MAX_DELTA_V`) or
-        :data:`BAD_DELTA_T` (not a number of seconds from :data:`MIN_DELTA_T` to :data:`MAX_DELTA_T`).
+        0: good; :data:`BAD_ROTATION` (non-finite, not orthonormal to :data:`ORTHO_TOL`, or det <= 0),
+        :data:`BAD_DELTA_V` (not finite or beyond :data:`MAX_DELTA_V`) or :data:`BAD_DELTA_T` (not from
+        :data:`MIN_DELTA_T` to :data:`MAX_DELTA_T` s).
     """
     d = np.array(d9, dtype=float).reshape(3, 3)
     dv = _NO_FRAMES[0] if delta_v is None else np.array(delta_v, dtype=float).reshape(3)
@@ -158,10 +153,8 @@ def checked_frames(d: np.ndarray, dv: Optional[np.ndarray], dt: Optional[np.ndar
 
     Parameters
     ----------
-    d, dv, dt
-        The frames (module docstring).
-    t : ndarray (F,)
-        Frame times, s (to name a bad frame).
+    d, dv, dt, t : ndarray
+        The frames (module docstring) and their times, s (to name a bad frame).
     on_invalid : {"raise", "skip"}
         The estimator's policy (:data:`ON_INVALID`).
 
@@ -201,15 +194,18 @@ def bad_frame_error(problem: str, where: str) -> ImuGroundError:
 def checked_frame(check, frame, delta_R, delta_v, delta_t: float, on_invalid: str, index: int) -> tuple | None:
     """A streamed frame's ``delta_R`` (3x3) and ``delta_v`` (3,) as float64 arrays, if the frame passes the check.
 
-    ``check(delta_R, delta_v, delta_t) -> int`` (:func:`imu_ground.filters.residual.check`) runs after
-    :func:`coerce_frame` when the inputs are not float64 arrays already; a bad frame raises or is to be
-    skipped (:func:`bad_frame`, whose parameters these are; ``delta_R`` in any form of :func:`coerce_frame`).
+    Parameters
+    ----------
+    check : callable
+        ``check(delta_R, delta_v, delta_t) -> int`` (:func:`imu_ground.filters.residual.check`), run after
+        :func:`coerce_frame` when the inputs are not float64 arrays already.
+    frame, delta_R, delta_v, delta_t, on_invalid, index
+        As for :func:`bad_frame` (``delta_R`` in any form of :func:`coerce_frame`).
 
     Returns
     -------
     (ndarray (3, 3), ndarray (3,) or None) or None
-        None: a bad frame to skip (``on_invalid="skip"``); the caller returns
-        its current estimate flagged invalid.
+        None: a bad frame to skip (``on_invalid="skip"``).
 
     Raises
     ------
@@ -229,16 +225,13 @@ def checked_frame(check, frame, delta_R, delta_v, delta_t: float, on_invalid: st
 
 
 def coerce_frame(delta_R, delta_v=None) -> tuple:
-    """A streamed frame's ``delta_R`` as one C-contiguous float64 3x3 rotation and ``delta_v`` as a float64 (3,)
-    array (or None): what the kernels take.
+    """A streamed frame as the kernels take it: one C-contiguous float64 3x3 rotation and a float64 (3,) or None.
 
     Parameters
     ----------
-    delta_R : array_like
-        sensor_{k-1} <- sensor_k: a rotation matrix, a 4x4 relative pose or a
-        rotation vector, rad (:func:`~imu_ground.so3.as_rotations`).
-    delta_v : array_like (3,), optional
-        Velocity increment, m/s.
+    delta_R, delta_v : array_like
+        sensor_{k-1} <- sensor_k (a matrix, a 4x4 relative pose or a rotation vector, rad,
+        :func:`~imu_ground.so3.as_rotations`) and the velocity increment (3,), m/s, or None.
 
     Raises
     ------
@@ -253,15 +246,14 @@ def coerce_frame(delta_R, delta_v=None) -> tuple:
 
 
 def bad_frame(frame, status: int, d: np.ndarray, dv, dt: float, on_invalid: str, index: int) -> None:
-    """A bad streamed frame (its :func:`frame_status` ``status`` > 0): raise the error, or return with
-    ``on_invalid="skip"`` (the caller then returns its current estimate flagged invalid).
+    """A bad streamed frame: raise the error, or return with ``on_invalid="skip"``.
 
     Parameters
     ----------
     frame : object
         The frame as given to ``step``; its ``t`` (s), if it has one, locates the error.
     status : int
-        The frame's :func:`frame_status`.
+        The frame's :func:`frame_status` (> 0).
     d, dv, dt
         The frame (module docstring).
     on_invalid : {"raise", "skip"}

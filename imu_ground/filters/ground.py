@@ -1,30 +1,20 @@
 r"""Ground plane normal from ego-motion: the paper's pipeline, done right.
 
-Frames and signs are those of :mod:`imu_ground.filters.estimator` (sensor ``s``,
-body/ground ``g`` with the static extrinsic ``R_gs``, world ``w``, road ``r``).
+Frames and signs: :mod:`imu_ground.filters.estimator`. Per frame k:
 
-Pipeline, per frame k
----------------------
 1. body increment ``dR_b = R_gs dR_s R_gs^T`` (``dR_s``: sensor_{k-1} <- sensor_k);
-2. cumulative body rotation ``R_k = R_{k-1} dR_b`` (world <- body), right-multiplied
-   because the increments are expressed in the moving body frame;
-3. invariant EKF (left error) on ``X_k``: predict ``X <- X T_k`` where
-   ``T_k = Rz(psi_k)`` is the twist of ``dR_b`` about the body up axis (the road
-   frame turns with the vehicle's heading; ``follow_heading=False`` gives the
-   paper's pure random walk), then update with ``R_k`` (full rotation) or with
-   its up axis ``R_k e_z``;
-4. residual ``E_k = X_k^T R_k`` (road <- body): the fast body motion;
-5. dynamic extrinsic ``R_gs(k) = E_k R_gs`` (road-ground <- sensor) and the
-   ground normal in the sensor frame ``n_s = R_gs(k)^T e_z``.
+2. cumulative rotation ``R_k = R_{k-1} dR_b`` (world <- body; right-multiplied, the increments are body-frame);
+3. invariant EKF (left error) on ``X_k``: predict ``X <- X T_k``, ``T_k = Rz(psi_k)`` the twist of ``dR_b`` about
+   the body up axis (``follow_heading=False``: the paper's random walk), update with ``R_k`` or one of its axes;
+4. residual ``E_k = X_k^T R_k`` (road <- body), dynamic extrinsic ``E_k R_gs`` (road-ground <- sensor) and the
+   normal in the sensor frame ``n_s = (E_k R_gs)^T e_z``.
 
-Steps 2-4 are the invariant EKF of :mod:`imu_ground.filters.residual` (written on the
-residual, compiled by :func:`imu_ground._jit.njit`), for every setting: the filter's
-``step`` is one frame of it, ``run`` the same frame over the whole drive, the smoother a
-post-pass (:meth:`~imu_ground.filters.invariant_ekf.InvariantEKF.rts_smoother`).
+Steps 2-4 are :mod:`imu_ground.filters.residual` (``step`` one frame of it, ``run`` the same over a drive, the
+smoother a post-pass, :meth:`~imu_ground.filters.invariant_ekf.InvariantEKF.rts_smoother`).
 """
 from __future__ import annotations
 
-import math
+from math import isnan
 from typing import Any, Optional, Union
 
 import numpy as np
@@ -32,13 +22,14 @@ import numpy as np
 from imu_ground import so3
 from imu_ground.filters.estimator import GroundEstimate, GroundTrack, as_egomotion, pitch_roll_from_normal
 from imu_ground.filters.extrinsics import Extrinsic
-from imu_ground.filters.frame_checks import (bad_frame, check_on_invalid, checked_frames, coerce_frame, hold_skipped,
+from imu_ground.filters.frame_checks import (check_on_invalid, checked_frame, checked_frames, hold_skipped,
                                              static_rotation)
 from imu_ground.filters.invariant_ekf import InvariantEKF
 from imu_ground.filters.invariant_ekf_kernel import check_cov
 from imu_ground.filters.residual import NO_DV, ResidualKernel, check, frame_checked
 from imu_ground.filters.road import NO_ROAD_REASON
 from imu_ground.filters.status import FILTER_CONVERGED_STD, FILTER_STD, OK, SigmaModel, frame_status_code, track_reasons
+from imu_ground.imu.egomotion import EgoFrame
 from imu_ground.imu.warm_start import STATE_VERSION, StateReader, pack_state, unpack_state
 from imu_ground.so3 import matrix_from_quat, twist_angle
 
@@ -47,7 +38,7 @@ __all__ = ["GroundNormalFilter", "GroundEstimate", "GroundTrack", "pitch_roll_fr
 _I3 = np.eye(3)
 _F64 = np.dtype(np.float64)
 _AXES = {"rotation": None, "up": (0.0, 0.0, 1.0), "forward": (1.0, 0.0, 0.0)}
-_MEASUREMENTS = ("rotation", "up", "forward")
+_PAPER: dict[str, Any] = dict(Q=1e-2, R=1.0, P=1.0, follow_heading=False)
 
 
 def _cov(name: str, value) -> np.ndarray:
@@ -69,57 +60,38 @@ class GroundNormalFilter:
 
     Parameters
     ----------
-    Q : float or ndarray (3, 3)
-        Process noise of the slow road attitude per frame, body tangent space,
-        rad^2 (the paper defines it per 10 Hz frame). Default ``1e-2 I`` (the paper).
-    R : float or ndarray (3, 3)
-        Measurement noise of the cumulative rotation (rad^2) or of its up axis.
-        Default ``I`` (the paper).
-    P : float or ndarray (3, 3)
-        Initial covariance (rad^2). Default ``I`` (the paper's code).
+    Q, R, P : float or ndarray (3, 3)
+        Process noise per frame (body tangent space), measurement noise of ``R_k`` or of its observed axis, and
+        initial covariance, rad^2. Defaults ``1e-2 I``, ``I``, ``I`` (the paper's, per 10 Hz frame).
     extrinsic : Extrinsic or ndarray (3, 3), optional
-        Static sensor-to-ground extrinsic (``R_gs``: ground <- sensor, and the
-        sensor position in the ground frame). Default identity.
+        Static extrinsic ``R_gs`` (ground <- sensor) and sensor position. Default identity.
     measurement : {"rotation", "up", "forward"}
-        What the filter observes of ``R_k``: the full rotation, its up axis
-        ``R_k e_z`` (tilt only) or its forward axis ``R_k e_x`` (the paper's
-        code, which observes the camera's optical axis).
+        What is observed of ``R_k``: the full rotation, its up axis ``R_k e_z`` or its forward axis ``R_k e_x``
+        (the paper's code, which observes the camera's optical axis).
     follow_heading : bool
-        Predict the road frame with the twist of each body increment about the
-        up axis (default). False is the paper's random walk, which lags in turns.
+        Predict with the heading twist of each increment (default); False: the paper's random walk (lags in turns).
     R0 : ndarray (3, 3), optional
         Initial cumulative rotation, world <- body (default identity).
     on_invalid : {"raise", "skip"}
-        A bad frame (non-finite, not a rotation, ``delta_t <= 0``) raises
-        ``ValueError`` with the state unchanged, or is skipped: ``step`` then
-        returns the previous estimate flagged ``valid=False`` and ``run`` holds
-        the previous values on that frame.
+        A bad frame (non-finite, not a rotation, ``delta_t <= 0``) raises ``ValueError`` with the state unchanged,
+        or is skipped: ``step`` returns the previous estimate flagged ``valid=False``, ``run`` holds the values.
 
     Attributes
     ----------
     x, P, Q, R, K, y, S : ndarray
-        filterpy-style: slow state (world <- road), its covariance, the
-        configured noises, and the last gain, innovation and innovation covariance.
+        filterpy-style: slow state (world <- road), its covariance, the noises, the last gain, innovation and
+        innovation covariance.
     cumulative : ndarray (3, 3)
         ``R_k``, world <- body.
     ekf : None
-        Kept for compatibility: every setting runs the one kernel (no separate filter object).
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from imu_ground.filters.ground import GroundNormalFilter
-    >>> f = GroundNormalFilter()
-    >>> est = f.step(np.eye(3))
-    >>> est.normal
-    array([0., 0., 1.])
+        Kept for compatibility (there is no separate filter object).
     """
 
     def __init__(self, Q: Union[float, np.ndarray] = 1e-2, R: Union[float, np.ndarray] = 1.0,
                  P: Union[float, np.ndarray] = 1.0, extrinsic: Union[Extrinsic, np.ndarray, None] = None,
                  measurement: str = "rotation", follow_heading: bool = True,
                  R0: Optional[np.ndarray] = None, on_invalid: str = "raise") -> None:
-        if measurement not in _MEASUREMENTS:
+        if measurement not in _AXES:
             raise ValueError(f"measurement must be 'rotation', 'up' or 'forward', got {measurement!r}")
         self.extrinsic = Extrinsic.coerce(extrinsic)
         self.measurement = measurement
@@ -135,28 +107,15 @@ class GroundNormalFilter:
 
     @classmethod
     def paper(cls, **kwargs) -> "GroundNormalFilter":
-        """The paper's method with its published parameters (Zhang et al. 2022).
-
-        A random-walk slow state observed through the full cumulative rotation,
-        ``Q = 1e-2 I``, ``R = I``, ``P0 = I``, one predict and update a frame;
-        rotations accumulated in the correct order. Keyword arguments override.
-        """
-        kw: dict[str, Any] = dict(Q=1e-2, R=1.0, P=1.0, measurement="rotation", follow_heading=False)
-        kw.update(kwargs)
-        return cls(**kw)
+        """The paper's method (Zhang et al. 2022): random walk, full rotation, ``Q = 1e-2 I``, ``R = P0 = I``,
+        rotations accumulated in the correct order; keyword arguments override."""
+        return cls(**{**_PAPER, "measurement": "rotation", **kwargs})
 
     @classmethod
     def reference_code(cls, **kwargs) -> "GroundNormalFilter":
-        """The configuration of the paper's reference code (manymuch/ground_normal_filter).
-
-        As :meth:`paper`, but only the forward axis of the cumulative rotation
-        is observed (the code measures the camera's optical axis, the body's x
-        axis), so roll about it is never corrected. Its accumulation-order
-        error is not reproduced.
-        """
-        kw: dict[str, Any] = dict(Q=1e-2, R=1.0, P=1.0, measurement="forward", follow_heading=False)
-        kw.update(kwargs)
-        return cls(**kw)
+        """The paper's reference code (manymuch/ground_normal_filter): as :meth:`paper` observing only the forward
+        axis (roll about it never corrected); its accumulation-order error is not reproduced."""
+        return cls(**{**_PAPER, "measurement": "forward", **kwargs})
 
     def reset(self) -> None:
         """Back to the initial state (cumulative rotation R0, slow state R0, covariance P0)."""
@@ -194,15 +153,13 @@ class GroundNormalFilter:
                     on_invalid=self.on_invalid)
 
     def state_dict(self) -> dict:
-        """The state as a plain, JSON-serialisable dict (:mod:`imu_ground.imu.warm_start`): resume with
-        :meth:`load_state_dict` on a GroundNormalFilter built with the same settings."""
+        """The state as a JSON-serialisable dict (:mod:`imu_ground.imu.warm_start`), for :meth:`load_state_dict`."""
         st = {"frames": self._frames, **self.sigma.state_dict(), "kernel": list(self._kernel.buf)}
         return pack_state("GroundNormalFilter", STATE_VERSION, self._settings(), st)
 
     def load_state_dict(self, state: dict) -> None:
-        """Resume from a :meth:`state_dict`; a state of another estimator, layout or settings, or a corrupt
-        one (entries not finite or of another shape), raises :class:`~imu_ground.imu.warm_start.StateError`
-        (a ValueError) naming what is wrong, and the filter is unchanged."""
+        """Resume from a :meth:`state_dict` of the same settings; another estimator's, layout, settings or a corrupt
+        one raises :class:`~imu_ground.imu.warm_start.StateError` naming what is wrong (the filter unchanged)."""
         st = StateReader("GroundNormalFilter", unpack_state(state, "GroundNormalFilter", STATE_VERSION,
                                                             self._settings()))
         frames = st.int("frames")
@@ -221,26 +178,27 @@ class GroundNormalFilter:
         Parameters
         ----------
         frame : EgoFrame or ndarray (3, 3), (4, 4) or (3,)
-            An :class:`~imu_ground.imu.egomotion.EgoFrame`, or its ``delta_R``
-            alone: the rotation of the sensor from the previous frame to this
-            one, sensor_{k-1} <- sensor_k (a rotation matrix, a 4x4 relative
-            pose, or a rotation vector in rad).
+            An :class:`~imu_ground.imu.egomotion.EgoFrame`, or its ``delta_R`` alone (sensor_{k-1} <- sensor_k:
+            a rotation matrix, a 4x4 relative pose or a rotation vector, rad).
 
         Returns
         -------
         GroundEstimate
-            Pitch and roll relative to the road after this frame; a skipped bad
-            frame gives the previous state flagged ``valid=False``.
+            After this frame; a skipped bad frame gives the previous state flagged ``valid=False``.
 
         Raises
         ------
         ValueError
             A bad frame with ``on_invalid="raise"`` (the state is unchanged).
         """
-        if type(frame) is np.ndarray or not hasattr(frame, "delta_R"):
-            d, dv, dt = frame, None, 1.0
+        if type(frame) is EgoFrame:
+            d, dv, dt, stationary, valid, _ = frame
+            dt = float(dt)
+        elif type(frame) is np.ndarray or not hasattr(frame, "delta_R"):
+            d, dv, dt, stationary, valid = frame, None, 1.0, False, True
         else:
             d, dv, dt = frame.delta_R, frame.delta_v, float(frame.delta_t)
+            stationary, valid = getattr(frame, "stationary", False), getattr(frame, "valid", True)
         o = None
         if (type(d) is np.ndarray and d.shape == (3, 3) and d.dtype is _F64
                 and (dv is None or type(dv) is np.ndarray and dv.shape == (3,) and dv.dtype is _F64)):
@@ -248,33 +206,27 @@ class GroundNormalFilter:
                 o = frame_checked(self._buf, d, NO_DV if dv is None else dv, dt)
             except TypeError:                           # not C-contiguous
                 pass
-        if o is None or math.isnan(o[0]):               # coerced and checked again, to name a bad frame
-            d, dv = coerce_frame(d, dv)
-            status = check(d, dv, dt)
-            if status:
-                bad_frame(frame, status, d, dv, dt, self.on_invalid, self._frames)
+        if o is None or isnan(o[0]):               # checked again (coerced if need be), to name a bad frame
+            checked = checked_frame(check, frame, d, dv, dt, self.on_invalid, self._frames)
+            if checked is None:
                 return GroundEstimate.of_residual(self.residual, self.P, self._Rgs, valid=False)
+            d, dv = checked
             o = frame_checked(self._buf, d, NO_DV if dv is None else dv, dt)
         self._frames += 1
         info = self.sigma.frame(o[4], dt=dt, note=NO_ROAD_REASON)
-        code = frame_status_code(self.sigma.converged, getattr(frame, "stationary", False),
-                                 getattr(frame, "valid", True))
+        code = frame_status_code(self.sigma.converged, stationary, valid)
         return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o if self._diag else self.P, code, info)
 
     # -- batch -----------------------------------------------------------------------------------
     def run(self, egomotion, smooth: bool = False) -> GroundTrack:
-        """Process a whole drive.
-
-        Continues from the filter's current state, exactly as calling
-        :meth:`step` once per frame would (the same kernel).
+        """Process a whole drive, continuing from the current state exactly as :meth:`step` per frame would.
 
         Parameters
         ----------
         egomotion : EgoMotion, ImuData or ndarray (F, 3, 3), (F, 4, 4) or (F, 3)
-            Ego-motion in the sensor frame (see :func:`~imu_ground.filters.estimator.as_egomotion`).
+            Ego-motion, sensor frame (:func:`~imu_ground.filters.estimator.as_egomotion`).
         smooth : bool
-            Offline mode: forward filter plus Rauch-Tung-Striebel smoother on
-            the group, zero lag (results at frame k depend on the future).
+            Offline: forward filter plus Rauch-Tung-Striebel smoother on the group (zero lag, uses the future).
 
         Returns
         -------
@@ -284,8 +236,7 @@ class GroundNormalFilter:
         Raises
         ------
         ValueError
-            A bad frame with ``on_invalid="raise"`` (named by index and time;
-            nothing is processed).
+            A bad frame with ``on_invalid="raise"`` (named by index and time; nothing is processed).
         """
         em = as_egomotion(egomotion)
         d = np.asarray(em.delta_R, dtype=float)

@@ -1,53 +1,22 @@
 r"""Invariant extended Kalman filter on SO(3), with filterpy's interface.
 
-The model
----------
-The state is a rotation ``X`` (3x3, world <- body: ``X @ v_body`` is the
-vector in world axes). It evolves by a body-frame increment ``U`` (optional,
-known) and process noise ``w ~ N(0, Q)`` in the body tangent space::
+The state is a rotation ``X`` (world <- body). It evolves by a known body-frame increment ``U`` and process noise
+``w ~ N(0, Q)`` in the body tangent space, ``X_k = X_{k-1} U_k Exp(w_k)``, and is observed (:meth:`InvariantEKF.update`)
+as a rotation ``Z = X Exp(v)``, ``v ~ N(0, R)`` (body tangent space), or as the world image of a known unit body axis
+``b``, ``z = X b + v``, ``v ~ N(0, R)`` (world frame; ``b = e_z`` observes the tilt alone).
 
-    X_k = X_{k-1} @ U_k @ Exp(w_k)
+``error="left"`` (default): the left-invariant error ``X = Xhat Exp(xi)`` (unchanged when both are left-multiplied
+by one rotation). Predict ``Xhat <- Xhat U``, ``P <- U^T P U + Q``; rotation ``y = Log(Xhat^T Z)``, ``H = I``;
+direction ``y = Xhat^T z - b ~= -[b]x xi + Xhat^T v``, so ``H = -[b]x`` does not depend on the estimate (Barrau &
+Bonnabel 2017) and the noise in the body frame is ``Xhat^T R Xhat``; correction ``Xhat <- Xhat Exp(K y)``.
 
-Two kinds of measurement are supported by :meth:`InvariantEKF.update`:
+``error="right"``: ``X = Exp(xi) Xhat``; predict ``P <- P + A Q A^T``, ``A = Xhat U``; rotation ``y = Log(Z Xhat^T)``,
+``H = I``, noise ``A R A^T``; direction ``y = z - Xhat b``, ``H = -[Xhat b]x``; correction ``Xhat <- Exp(K y) Xhat``.
 
-* a full rotation, ``Z = X @ Exp(v)``, ``v ~ N(0, R)`` (body tangent space);
-* a unit direction, the world-frame image of a known body axis ``b``:
-  ``z = X @ b + v``, ``v ~ N(0, R)`` (world frame, 3x3). With ``b = e_z`` this
-  observes only the up axis (tilt), which is all a ground normal needs.
-
-The error and why it is "invariant"
------------------------------------
-``error="left"`` (default) uses the left-invariant error, written as a
-body-frame perturbation ``X = Xhat @ Exp(xi)`` (``Exp(xi) = Xhat^-1 X`` is
-unchanged when both are left-multiplied by the same rotation). Then
-
-* predict: ``Xhat <- Xhat U``, ``xi <- U^T xi + w``, so ``F = U^T`` and
-  ``P <- U^T P U + Q``;
-* full rotation: ``y = Log(Xhat^T Z) ~= xi + v``, ``H = I``;
-* direction: ``y = Xhat^T z - b ~= Exp(xi) b - b ~= -[b]x xi + Xhat^T v``, so
-  ``H = -[b]x`` does not depend on the estimate (the invariant-EKF property
-  of Barrau & Bonnabel 2017 for left-invariant observations), and the noise
-  covariance seen in the body frame is ``Xhat^T R Xhat``;
-* correction: ``Xhat <- Xhat Exp(K y)``.
-
-``error="right"`` uses the right-invariant error, a world-frame perturbation
-``X = Exp(xi) @ Xhat``: predict ``P <- P + A Q A^T`` with ``A = Xhat U`` (the
-adjoint of SO(3) is the rotation itself), full rotation ``y = Log(Z Xhat^T)``
-with ``H = I`` and noise ``A R A^T``, direction ``y = z - Xhat b`` with
-``H = -[Xhat b]x`` (now state dependent), correction ``Xhat <- Exp(K y) Xhat``.
-For body-axis observations the left error is the natural one; the right error
-is there for world-frame measurements and for comparison.
-
-Covariances are updated in Joseph form (for ``H = I`` in the equivalent
-information form ``P <- K Rn``) and kept exactly symmetric; the state's quaternion
-is renormalised every :data:`imu_ground.units.RENORM_EVERY` corrections. Frames and
-signs: the glossary of :mod:`imu_ground.so3`.
-
-The predict and updates are written once in :mod:`imu_ground.filters.invariant_ekf_kernel`
-(compiled by numba), on the filter's whole state held in one float64 array; the ground
-filters run the same functions (:mod:`imu_ground.filters.residual`). The filterpy
-attributes (``x``, ``P``, ``K``, ``x_prior``, ...) are properties built on access;
-``x``, ``P``, ``Q``, ``R`` may be assigned or changed in place as in filterpy.
+Covariances are updated in Joseph form (for ``H = I`` in the information form ``P <- K Rn``) and kept symmetric;
+the quaternion is renormalised every :data:`imu_ground.units.RENORM_EVERY` corrections. The predict and updates
+are :mod:`imu_ground.filters.invariant_ekf_kernel` on the state held in one float64 array; the filterpy attributes
+are properties, and ``x``, ``P``, ``Q``, ``R`` may be assigned or changed in place as in filterpy.
 """
 from __future__ import annotations
 
@@ -77,9 +46,8 @@ def _matrix(t) -> np.ndarray:
 
 
 def _state_property(name: str, start: int, doc: str) -> property:
-    """A 3x3 input (``P``, ``Q``, ``R``) held in the state buffer at ``start``. The array the getter builds (and
-    caches in ``_<name>_a``), once handed out, is what the next step reads (so ``f.P *= 2`` is seen); an
-    assigned array likewise."""
+    """A 3x3 input (``P``, ``Q``, ``R``) in the state at ``start``; the array handed out or assigned (cached in
+    ``_<name>_a``) is what the next step reads, so ``f.P *= 2`` is seen."""
     cache = "_" + name + "_a"
 
     def get(self):
@@ -101,8 +69,8 @@ def _state_property(name: str, start: int, doc: str) -> property:
 
 
 def _output_property(name: str, start: int, doc: str, shape=(3, 3), rotation: bool = False) -> property:
-    """A result (``K``, ``S``, ``x_prior``, ...) held in the state buffer at ``start`` (a quaternion for a
-    ``rotation``), built as a fresh array on access."""
+    """A result (``K``, ``S``, ``x_prior``, ...) in the state at ``start`` (a quaternion for a ``rotation``), a
+    fresh array on access."""
     size = 4 if rotation else int(np.prod(shape))
 
     def get(self):
@@ -123,36 +91,22 @@ class InvariantEKF:
     ----------
     x : ndarray (3, 3), optional
         Initial rotation, world <- body. Default identity.
-    P : float or ndarray (3, 3), optional
-        Initial error covariance in the tangent space (rad^2). Default ``I``.
-    Q : float or ndarray (3, 3), optional
-        Process noise per predict, body tangent space (rad^2). Default
-        ``1e-2 I`` (Zhang et al. 2022).
+    P, Q : float or ndarray (3, 3), optional
+        Initial covariance (tangent space) and process noise per predict (body tangent space), rad^2. Defaults
+        ``I`` and ``1e-2 I`` (Zhang et al. 2022).
     R : float or ndarray (3, 3), optional
-        Measurement noise (rad^2 for rotations, squared unit-vector components
-        for directions). Default ``I`` (Zhang et al. 2022).
+        Measurement noise (rad^2 for rotations, squared unit-vector components for directions). Default ``I``.
     error : {"left", "right"}
-        Which invariant error the covariance describes (see the module notes).
+        Which invariant error the covariance describes (module docstring).
     b : array_like (3,), optional
-        Body axis observed by direction measurements. Default ``[0, 0, 1]``
-        (the up axis).
+        Unit body axis observed by direction measurements. Default ``[0, 0, 1]`` (up).
 
     Attributes
     ----------
     x, P : the current estimate and its covariance.
-    x_prior, P_prior : after the last :meth:`predict`.
-    x_post, P_post : after the last :meth:`update`.
-    z, y, K, S, SI : last measurement, innovation (tangent / body-frame
-        residual), gain, innovation covariance and its inverse.
+    x_prior, P_prior, x_post, P_post : after the last :meth:`predict` and :meth:`update`.
+    z, y, K, S, SI : last measurement, innovation, gain, innovation covariance and its inverse.
     log_likelihood, likelihood, mahalanobis : of the last innovation.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from imu_ground.filters.invariant_ekf import InvariantEKF
-    >>> f = InvariantEKF()
-    >>> f.predict()
-    >>> f.update(np.array([0.0, 0.0, 1.0]))   # the body up axis is seen straight up
     """
 
     def __init__(self, x: ArrayLike | None = None, P: float | ArrayLike | None = None,
@@ -182,7 +136,7 @@ class InvariantEKF:
         self._held = False                       # any of them not None
 
     def _take_held(self) -> None:
-        """Take in the ``x`` and ``P`` arrays handed out (or assigned) since the last step, maybe changed in place."""
+        """Take in the ``x`` and ``P`` arrays handed out or assigned since the last step (maybe changed in place)."""
         s, xa, Pa = self._s, self._x_a, self._P_a
         if xa is not None:
             if xa.tobytes() != self._x_t:       # changed in place since handed out
@@ -202,8 +156,8 @@ class InvariantEKF:
         return self._s.tolist()
 
     def read_kernel_state(self, reader, name: str) -> list:
-        """The entry ``name`` of a saved state (a :class:`~imu_ground.imu.warm_start.StateReader`), checked to
-        be a buffer of this filter's layout: finite, NaN only in the records of the last step."""
+        """Entry ``name`` of a saved state (a :class:`~imu_ground.imu.warm_start.StateReader`) checked as a buffer
+        of this layout (finite, NaN only in the last step's records)."""
         return reader.floats(name, (len(self._s),), nan=slice(B_XPR, B_B)).tolist()
 
     def load_kernel_state(self, values: list) -> None:
@@ -273,10 +227,8 @@ class InvariantEKF:
 
     # -- filterpy-style derived quantities ---------------------------------
     def _ysiy(self) -> float:
-        y0, y1, y2 = self._s[B_Y:B_Y + 3].tolist()
-        s = self._s[B_SI:B_SI + 9].tolist()
-        return (y0 * (s[0] * y0 + s[1] * y1 + s[2] * y2) + y1 * (s[3] * y0 + s[4] * y1 + s[5] * y2)
-                + y2 * (s[6] * y0 + s[7] * y1 + s[8] * y2))
+        y = self._s[B_Y:B_Y + 3]
+        return float(y @ self._s[B_SI:B_SI + 9].reshape(3, 3) @ y)
 
     @property
     def log_likelihood(self) -> float:
@@ -303,10 +255,9 @@ class InvariantEKF:
         Parameters
         ----------
         u : ndarray (3, 3) or (3,), optional
-            Body-frame rotation increment (body_{k-1} <- body_k), as a matrix
-            or a rotation vector in rad: ``x <- x @ u``. None: random walk.
+            Body-frame increment body_{k-1} <- body_k (matrix or rotation vector, rad): ``x <- x u``. None: random walk.
         Q : float or ndarray (3, 3), optional
-            Process noise for this step (body tangent space); default ``self.Q``.
+            Process noise of this step (body tangent space, rad^2); default ``self.Q``.
         """
         if self._held:
             self._take_held()
@@ -319,10 +270,10 @@ class InvariantEKF:
         Parameters
         ----------
         z : ndarray (3, 3) or (3,) or None
-            A rotation (world <- body, ``Z = X Exp(v)``) or a unit vector in
-            world axes (``z = X b + v``). None skips the update (like filterpy).
+            A rotation (world <- body, ``Z = X Exp(v)``) or a unit vector in world axes (``z = X b + v``). None
+            skips the update (like filterpy).
         R : float or ndarray (3, 3), optional
-            Measurement noise for this update; default ``self.R``.
+            Measurement noise of this update; default ``self.R``.
         """
         if self._held:
             self._take_held()
@@ -338,18 +289,16 @@ class InvariantEKF:
         zs : sequence or ndarray, (N, 3, 3) rotations or (N, 3) directions
             Measurements; an entry of None skips that update.
         us : sequence or ndarray, (N, 3, 3) or (N, 3), optional
-            Body-frame increments used in the predict before each update.
+            Body-frame increments of the predict before each update.
         Rs, Qs : sequence of (3, 3), optional
             Per-step noise; default the filter's ``R`` and ``Q``.
         saver : filterpy.common.Saver, optional
-            Called with ``saver.save()`` after every step.
+            ``saver.save()`` after every step.
 
         Returns
         -------
-        Xs, Ps : ndarray (N, 3, 3)
-            Posterior rotations (world <- body) and covariances.
-        Xs_prior, Ps_prior : ndarray (N, 3, 3)
-            Predicted rotations and covariances (what :meth:`rts_smoother` needs).
+        Xs, Ps, Xs_prior, Ps_prior : ndarray (N, 3, 3)
+            Posterior rotations (world <- body) and covariances, then the predicted ones.
         """
         n = len(zs)
         Xs, Ps, Xp, Pp = (np.empty((n, 3, 3)) for _ in range(4))
@@ -368,31 +317,22 @@ class InvariantEKF:
         Parameters
         ----------
         Xs, Ps : ndarray (N, 3, 3)
-            Posterior rotations (world <- body) and covariances from
-            :meth:`batch_filter`.
+            Posterior rotations (world <- body) and covariances from :meth:`batch_filter`.
         us : ndarray (N, 3, 3) or (N, 3), optional
-            The same increments as given to :meth:`batch_filter` (``us[k]``
-            propagates from step k-1 to k).
+            The increments given to :meth:`batch_filter` (``us[k]`` propagates from step k-1 to k).
         Qs : sequence of (3, 3), optional
             Per-step process noise; default ``self.Q``.
 
         Returns
         -------
-        Xs_smooth, Ps_smooth : ndarray (N, 3, 3)
-            Smoothed rotations and covariances.
-        Cs : ndarray (N, 3, 3)
-            Smoother gains.
-        Ps_prior : ndarray (N, 3, 3)
-            Predicted covariances recomputed from ``Ps``.
+        Xs_smooth, Ps_smooth, Cs, Ps_prior : ndarray (N, 3, 3)
+            Smoothed rotations and covariances, smoother gains, predicted covariances recomputed from ``Ps``.
 
         Notes
         -----
-        With the left error, ``X_{k+1}^- = X_k U_{k+1}``, ``F = U_{k+1}^T`` and
-        ``C_k = P_k F^T (P_{k+1}^-)^-1``; the smoothed state is
-        ``X_k Exp(C_k Log((X_{k+1}^-)^-1 Xs_{k+1}))`` and
-        ``Ps_k = P_k + C_k (Ps_{k+1} - P_{k+1}^-) C_k^T``. With the right error
-        ``F = I``, the process noise enters as ``A Q A^T`` with ``A = X_k U_{k+1}``
-        and the correction multiplies on the left.
+        Left error: ``X_{k+1}^- = X_k U_{k+1}``, ``F = U_{k+1}^T``, ``C_k = P_k F^T (P_{k+1}^-)^-1``, smoothed
+        ``X_k Exp(C_k Log((X_{k+1}^-)^-1 Xs_{k+1}))`` and ``Ps_k = P_k + C_k (Ps_{k+1} - P_{k+1}^-) C_k^T``. Right
+        error: ``F = I``, the noise enters as ``A Q A^T`` (``A = X_k U_{k+1}``), the correction on the left.
         """
         Xs = np.asarray(Xs, dtype=float)
         Ps = np.asarray(Ps, dtype=float)

@@ -1,19 +1,11 @@
 """The invariant EKF on SO(3), written once: its predict and updates on tuples, and the state buffer of InvariantEKF.
 
-:func:`predict_left`, :func:`update_rotation_left` and :func:`update_direction_left` are
-the filter's one definition (left error; the equations in the module notes of
-:mod:`imu_ground.filters.invariant_ekf`), on a unit quaternion ``q`` ``(w, x, y, z)``
-and row-major 9-tuples (:func:`imu_ground.so3.mul_flat`). They are compiled into
-every body that calls them (:func:`imu_ground._jit.jitable`): the ``InvariantEKF``
-steps below (which add the right error) and the ground filters' frame,
-:func:`imu_ground.filters.residual.frame`. An update returns
-``(q, P, y, K, S, S^-1, det S, ok)``; ``ok`` False for a singular ``S`` (then only
-``det S`` is meaningful and the caller leaves its state unchanged).
-
-:class:`~imu_ground.filters.invariant_ekf.InvariantEKF` keeps its whole state in one
-float64 array (layout: the ``B_*`` offsets) and runs :func:`predict` and :func:`update`
-on it: Python wrappers that sort the arguments by kind and raise the errors around one
-compiled body per step (:func:`imu_ground._jit.njit`).
+:func:`predict_left`, :func:`update_rotation_left` and :func:`update_direction_left` are the filter's one definition
+(left error; equations: :mod:`imu_ground.filters.invariant_ekf`) on a unit quaternion ``q`` ``(w, x, y, z)`` and
+row-major 9-tuples (:func:`imu_ground.so3.mul_flat`), compiled into every body that calls them
+(:func:`imu_ground._jit.jitable`): :func:`predict` and :func:`update` below (which add the right error) on the
+InvariantEKF's state array (layout: the ``B_*`` offsets), and :func:`imu_ground.filters.residual.frame`. An update
+returns ``(q, P, y, K, S, S^-1, det S, ok)``; ``ok`` False for a singular ``S`` (the caller keeps its state).
 """
 from __future__ import annotations
 
@@ -56,8 +48,8 @@ for _helper in (exp_flat, flat_from_quat, hat_flat, log_flat, mul_flat, mul_nt_f
 
 
 def new_state(q, P, Q, R, b, left: bool, renorm_every: int) -> np.ndarray:
-    """A state buffer (float64, STATE_SIZE): quaternion ``q`` (4), ``P``, ``Q``, ``R`` (row-major 9),
-    body axis ``b`` (3), error kind and renormalisation period; no update yet (``det S`` nan)."""
+    """A state buffer (STATE_SIZE float64): quaternion ``q``, ``P``, ``Q``, ``R`` (row-major), body axis ``b``,
+    error kind and renormalisation period; no update yet (``det S`` nan)."""
     s = np.zeros(STATE_SIZE)
     s[B_Q:B_Q + 4] = s[B_XPR:B_XPR + 4] = s[B_XPO:B_XPO + 4] = q
     s[B_P:B_P + 9] = s[B_PPR:B_PPR + 9] = s[B_PPO:B_PPO + 9] = P
@@ -163,6 +155,19 @@ def _correct(q, K, y, left):
 
 
 @jitable
+def _identity_gain(P, r):
+    """Gain of an update with ``H = I`` (upper triangles of ``P`` and ``r``): ``S = P + R``, ``K = P S^-1`` and
+    ``P <- K R`` (the information form of ``(I - K) P``), as ``(K, P, S, S^-1, det S, ok)``; ``K`` zero if not ok."""
+    R = _sym_upper(r)
+    S = _add9(_sym_upper(P), R)
+    SI, det, ok = _inv_flat(S)
+    if not ok:
+        return _ZERO9, P, S, SI, det, False
+    K = mul_flat(P, SI)
+    return K, _sym_upper(mul_flat(K, R)), S, SI, det, True
+
+
+@jitable
 def predict_left(q, P, U, u, Qn):
     """Left-error predict ``x <- x U``, ``P <- U^T P U + Q``: ``U`` a 9-tuple, ``u`` its quaternion."""
     return quat_mul(q, u), congruence(transpose_flat(U), P, Qn)
@@ -170,12 +175,8 @@ def predict_left(q, P, U, u, Qn):
 
 @jitable
 def update_rotation_left(q, P, qz, r):
-    """Left-error update with a rotation measurement ``qz`` (quaternion), unrolled (``H = I``).
-
-    ``y = Log(x^T z)`` (as ``2 atan2(|v|, w) v / |v|`` of ``conj(q) qz``, accurate up to pi),
-    ``S = P + R``, ``S^-1`` by symmetric cofactors, ``K = P S^-1``, ``q <- q Exp(K y)`` and
-    ``P <- K R`` (the information form of ``(I - K) P``; upper triangle, mirrored).
-    """
+    """Left-error update with a rotation ``qz`` (quaternion), ``H = I``: ``y = Log(x^T z)`` (``2 atan2(|v|, w) v / |v|``
+    of ``conj(q) qz``, accurate up to pi), ``S = P + R``, ``K = P S^-1``, ``q <- q Exp(K y)``, ``P <- K R``."""
     qw, qx, qy, qz_ = q
     zw, zx, zy, zz = qz
     aw, ax, ay, az = (qw * zw + qx * zx + qy * zy + qz_ * zz, qw * zx - qx * zw - qy * zz + qz_ * zy,
@@ -185,29 +186,9 @@ def update_rotation_left(q, P, qz, r):
     vn = math.sqrt(ax * ax + ay * ay + az * az)
     f = 2.0 * math.atan2(vn, aw) / vn if vn > 0.0 else 2.0
     y = (ax * f, ay * f, az * f)
-    p0, p1, p2, _, p4, p5, _, _, p8 = P
-    r0, r1, r2, _, r4, r5, _, _, r8 = r
-    s0, s1, s2, s4, s5, s8 = p0 + r0, p1 + r1, p2 + r2, p4 + r4, p5 + r5, p8 + r8
-    S = (s0, s1, s2, s1, s4, s5, s2, s5, s8)
-    i00, i01, i02 = s4 * s8 - s5 * s5, s2 * s5 - s1 * s8, s1 * s5 - s2 * s4
-    det = s0 * i00 + s1 * i01 + s2 * i02
-    if det == 0.0 or not math.isfinite(det):
-        return q, P, y, _ZERO9, S, _ZERO9, det, False
-    d = 1.0 / det
-    i00, i01, i02 = i00 * d, i01 * d, i02 * d
-    i11, i12, i22 = (s0 * s8 - s2 * s2) * d, (s1 * s2 - s0 * s5) * d, (s0 * s4 - s1 * s1) * d
-    SI = (i00, i01, i02, i01, i11, i12, i02, i12, i22)
-    K = mul_flat(P, SI)
-    k0, k1, k2, k3, k4, k5, k6, k7, k8 = K
-    if r1 == 0.0 and r2 == 0.0 and r5 == 0.0:   # diagonal R (the same numbers, without the zero terms)
-        n01, n02, n12 = k1 * r4, k2 * r8, k5 * r8
-        Pn = (k0 * r0, n01, n02, n01, k4 * r4, n12, n02, n12, k8 * r8)
-    else:
-        n01 = k0 * r1 + k1 * r4 + k2 * r5
-        n02 = k0 * r2 + k1 * r5 + k2 * r8
-        n12 = k3 * r2 + k4 * r5 + k5 * r8
-        Pn = (k0 * r0 + k1 * r1 + k2 * r2, n01, n02, n01, k3 * r1 + k4 * r4 + k5 * r5, n12,
-              n02, n12, k6 * r2 + k7 * r5 + k8 * r8)
+    K, Pn, S, SI, det, ok = _identity_gain(P, r)
+    if not ok:
+        return q, P, y, K, S, SI, det, False
     return _correct(q, K, y, True), Pn, y, K, S, SI, det, True
 
 
@@ -282,11 +263,7 @@ def _update_right(s, n, zf, r):
     x, P, q = _get9(s, B_X), _get9(s, B_P), _get4(s, B_Q)
     if n == 9:
         y = log_flat(mul_nt_flat(_get9(zf, 0), x))
-        Rn = congruence(x, r, _ZERO9)
-        S = _add9(_sym_upper(P), _sym_upper(Rn))
-        SI, det, ok = _inv_flat(S)
-        K = mul_flat(P, SI)
-        Pn = _sym_upper(mul_flat(K, Rn))
+        K, Pn, S, SI, det, ok = _identity_gain(P, congruence(x, r, _ZERO9))
     else:
         b0, b1, b2 = s[B_B], s[B_B + 1], s[B_B + 2]
         xb0, xb1, xb2 = (x[0] * b0 + x[1] * b1 + x[2] * b2, x[3] * b0 + x[4] * b1 + x[5] * b2,
@@ -300,8 +277,7 @@ def _update_right(s, n, zf, r):
 @njit
 def _update(s, z, n, rm, own_r):
     """One update on ``s``: ``n`` 0 none (skip), 9 ``z`` a (3, 3) rotation, 3 a (3,) direction; ``rm`` (3, 3)
-    the noise unless ``own_r`` (then the state's). Returns ``(done, det S)``: not done for a singular ``S``,
-    the state then unchanged."""
+    the noise unless ``own_r``. Returns ``(done, det S)``, not done (state unchanged) for a singular ``S``."""
     if n == 0:
         s[B_ZN] = 0.0
         _put(s, B_XPO, _get4(s, B_Q))
@@ -349,8 +325,8 @@ def _array(a) -> np.ndarray:
 
 
 def _argument(v, error: str) -> tuple[np.ndarray, int]:
-    """An increment or a measurement as the compiled bodies take it, and its kind: 0 (None), 9 ((3, 3)) or 3
-    ((3,)); any other shape is the ValueError ``error`` naming it."""
+    """An increment or measurement as the compiled bodies take it and its kind: 0 (None), 9 ((3, 3)) or 3 ((3,));
+    another shape raises ValueError ``error``."""
     if v is None:
         return _NONE, 0
     a = _array(v)
@@ -362,8 +338,8 @@ def _argument(v, error: str) -> tuple[np.ndarray, int]:
 
 
 def predict(s: np.ndarray, u, Q: np.ndarray | None) -> None:
-    """``InvariantEKF.predict`` on the state ``s``: increment ``u`` (None, (3, 3) or a rotation vector (3,),
-    rad), process noise ``Q`` ((3, 3) array; None: the state's). Raises ValueError naming a bad ``u``."""
+    """``InvariantEKF.predict`` on the state ``s``: increment ``u`` (None, (3, 3) or a rotation vector, rad), noise
+    ``Q`` ((3, 3); None: the state's). Raises ValueError naming a bad ``u``."""
     a, kind = _argument(u, "rotation increment must be a 3x3 matrix or a rotation vector of shape (3,)")
     if Q is None:
         _predict(s, a, kind, _NONE, True)
@@ -372,9 +348,9 @@ def predict(s: np.ndarray, u, Q: np.ndarray | None) -> None:
 
 
 def update(s: np.ndarray, z, R: np.ndarray | None) -> None:
-    """``InvariantEKF.update`` on the state ``s``: ``z`` None (skip), a (3, 3) rotation or a (3,) direction;
-    noise ``R`` ((3, 3) array; None: the state's). Raises LinAlgError for a singular ``S`` (naming its
-    determinant) and ValueError naming a bad ``z``; the state is then unchanged."""
+    """``InvariantEKF.update`` on the state ``s``: ``z`` None (skip), a (3, 3) rotation or a (3,) direction; noise
+    ``R`` ((3, 3); None: the state's). Raises LinAlgError (singular ``S``, its determinant) or ValueError (a bad
+    ``z``), the state unchanged."""
     a, n = _argument(z, "z must be a 3x3 rotation or a unit vector of shape (3,)")
     done, det = _update(s, a, n, _NONE, True) if R is None else _update(s, a, n, _array(R), False)
     if not done:

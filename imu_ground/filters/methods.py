@@ -1,18 +1,11 @@
 """The ground estimators by name, the one registry: what ``imu-ground estimate --method NAME`` and the evaluation run.
 
-:data:`METHODS` maps a CLI name to a :class:`MethodSpec` (one-line description,
-factory, whether it needs an accelerometer, whether it smooths offline). Adding a
-method is one entry here: ``imu-ground estimate --method`` and ``batch`` take their
-choices and ``--help`` lines from it, ``imu-ground stream --method`` (and
-:class:`~imu_ground.pipeline.streaming.StreamingEstimator`, ``estimate --causal``) its
-:func:`live_methods`, :func:`imu_ground.pipeline.estimate_log` runs it, and the
-evaluation (:mod:`imu_ground.evaluation.runner`) compares it, adding only its own
-research baselines. :func:`default_method` picks the method for an input;
-:func:`estimate` runs one.
-A method accepts exactly the options of its estimator's constructor: anything
-else (e.g. ``Q``/``R`` for the suspension methods, whose noise is set by
-``sigma_e``, ``q_time`` and ``q_dist``) is rejected with a message that lists
-what the method does accept.
+:data:`METHODS` maps a CLI name to a :class:`MethodSpec`; adding a method is one entry here. ``estimate --method``
+and ``batch`` take their choices and ``--help`` lines from it, ``stream --method`` (and
+:class:`~imu_ground.pipeline.streaming.StreamingEstimator`, ``estimate --causal``) its :func:`live_methods`,
+:func:`imu_ground.pipeline.estimate_log` runs it and the evaluation (:mod:`imu_ground.evaluation.runner`) compares
+it. A method accepts exactly the options of its estimator's constructor; anything else is rejected with a message
+listing what it accepts.
 """
 from __future__ import annotations
 
@@ -35,10 +28,8 @@ class MethodSpec:
 
     Attributes
     ----------
-    name : str
-        CLI name.
-    description : str
-        One line for ``--help``.
+    name, description : str
+        CLI name and its one ``--help`` line.
     factory : callable
         ``factory(**options) -> estimator`` (a :class:`~imu_ground.filters.estimator.GroundEstimator`).
     needs_accel : bool
@@ -48,11 +39,9 @@ class MethodSpec:
     speed_aided : bool
         ``run(..., speed=v)`` takes a measured forward speed per frame (m/s).
     live : bool
-        Runs live, sample by sample (:class:`~imu_ground.pipeline.streaming.StreamingEstimator`,
-        ``imu-ground stream``, ``estimate --causal``).
+        Runs live, sample by sample (``StreamingEstimator``, ``imu-ground stream``, ``estimate --causal``).
     reference : bool
-        A reference the reports compare every method with and draw bold beside the default
-        (the paper's method, the naive baseline): :func:`reference_methods`.
+        A reference the reports compare every method with and draw bold (:func:`reference_methods`).
     """
     name: str
     description: str
@@ -149,8 +138,7 @@ def estimate(egomotion, method=None, speed=None, **options):
     method : str, optional
         A name of :data:`METHODS`; default :func:`default_method` of the input.
     speed : ndarray (F,), optional
-        Measured forward speed per frame, m/s (NaN where unknown), for a
-        ``speed_aided`` method; None: IMU only.
+        Measured forward speed per frame, m/s (NaN: unknown), for a ``speed_aided`` method.
     **options
         Options of the method's estimator.
 
@@ -161,8 +149,7 @@ def estimate(egomotion, method=None, speed=None, **options):
     Raises
     ------
     OptionError
-        Unknown method or option, or a method that needs an accelerometer on
-        input without one (an :class:`~imu_ground.errors.ImuGroundError`).
+        Unknown method or option, or a method that needs an accelerometer on input without one.
     """
     has_accel = bool(getattr(egomotion, "has_accel", True))
     name = default_method(has_accel) if method is None else method
@@ -188,8 +175,8 @@ def estimate_suspension_aware(egomotion, extrinsic=None, smooth: bool = False, c
     egomotion : EgoMotion or ImuData
         Per-frame ego-motion (an ImuData is preintegrated at 10 Hz, or at ``frame_rate``).
     extrinsic : Extrinsic, ndarray (3, 3), str or Path, optional
-        Static ground <- sensor extrinsic, or a calibration file (name or path);
-        see :func:`~imu_ground.filters.extrinsics.resolve_platform`.
+        Static ground <- sensor extrinsic or a calibration file (:func:`~imu_ground.filters.extrinsics.resolve_platform`
+        reads it).
     smooth : bool
         Offline mode (forward filter and RTS smoother).
     calibration : Calibration, optional

@@ -1,30 +1,23 @@
 r"""Online re-estimation of a mount that moved: the static rotation ground <- sensor turned by the change.
 
-Frames and signs as in :mod:`imu_ground.filters.estimator` (body = ground frame, FLU); ``w`` is the
-gyro-integrated world frame of the road's gravity/velocity filter (:mod:`imu_ground.filters.road`),
-gravity stored as its reaction (up).
+Frames and signs: :mod:`imu_ground.filters.estimator` (body = ground frame, FLU); ``w`` is the gyro-integrated
+world frame of the road's gravity/velocity filter (:mod:`imu_ground.filters.road`), gravity stored as its reaction.
 
-Model
------
-A remount turns the sensor by ``R_{s<-s'}``; with the old static rotation ``R_gs`` the filter's body
-frame is the true one turned by ``D = R_gs R_{s<-s'} R_gs^T``, and the correct static rotation is
-``D R_gs``. The gyros do not see the turn, so after the change at frame ``k0``
-``R_k = W R^true_k D`` with the fixed world tilt ``W = R_{k0} D^T R_{k0}^T``. The gravity reaction
-measured in the body frame (the frame-mean specific force minus the kinematic acceleration from the
-measured speed and yaw rate, less the centripetal term at the sensor's offset, the extrinsic's
-translation), turned into the world frame with ``R_k``, is ``g`` before the change and ``W g`` after
-it. So per usable frame the small rotation ``theta_k = u_ref x u_k`` from the frozen gravity direction
-``u_ref`` (the road filter's at the start of the mount monitor's window) to the measured ``u_k`` is a
-step: ~0, then ``w = Log(W)``, on top of the gyro-integrated frame's linear drift. Level, drift and
-step are fitted by least squares over the frames kept (from 5 s before the reference to :data:`WINDOW`
-s of usable frames after the alarm), the step's time ``k0`` searched for the least residual; the change
-in the body frame is ``delta = -R_{k0}^T w`` (its component about up is not observable and left at 0).
+A remount turns the sensor by ``R_{s<-s'}``; with the old ``R_gs`` the filter's body frame is the true one turned by
+``D = R_gs R_{s<-s'} R_gs^T`` and the correct static rotation is ``D R_gs``. The gyros do not see the turn, so after
+the change at frame ``k0`` ``R_k = W R^true_k D`` with the fixed world tilt ``W = R_{k0} D^T R_{k0}^T``. The gravity
+reaction measured in the body frame (frame-mean specific force minus the kinematic acceleration from the measured
+speed and yaw rate, less the centripetal term at the sensor's offset), turned into the world frame with ``R_k``, is
+``g`` before the change and ``W g`` after. So the small rotation ``theta_k = u_ref x u_k`` from the frozen gravity
+direction ``u_ref`` (the road filter's at the start of the mount monitor's window) to the measured ``u_k`` is a step,
+~0 then ``w = Log(W)``, on the world frame's linear drift: level, drift and step are fitted by least squares over
+the frames kept (from 5 s before the reference to :data:`WINDOW` s of usable frames after the alarm), ``k0``
+searched for the least residual; the change in the body frame is ``delta = -R_{k0}^T w`` (its component about up
+is not observable, left at 0).
 
-Applying it (:class:`~imu_ground.filters.suspension.SuspensionAwareFilter`; this module keeps the
-record and the estimate): ``R_gs <- Exp(delta) R_gs`` wherever sensor increments are turned into the
-body frame, each gravity/velocity filter's attitude ``R_k <- R_k Exp(delta)^T``, its gravity set along
-the frozen direction turned by ``W`` and the drift since, the residual filter's state kept, and the
-mount monitor restarted. A yaw of the mount is not corrected.
+:class:`~imu_ground.filters.suspension.SuspensionAwareFilter` applies it: ``R_gs <- Exp(delta) R_gs``, each
+gravity/velocity filter's ``R_k <- R_k Exp(delta)^T`` and its gravity along the frozen direction turned by ``W`` and
+the drift since, the residual filter's state kept, the mount monitor restarted. A yaw of the mount is not corrected.
 """
 from __future__ import annotations
 
@@ -39,7 +32,7 @@ from imu_ground.imu.warm_start import as_reader
 
 __all__ = ["WINDOW", "MountRecalibrator", "recalibrated_reason"]
 
-#: Usable frames after the alarm the change is estimated from, s (figures in benchmarks/RESULTS.md).
+#: Usable frames after the alarm the change is estimated from, s.
 WINDOW = 15.0
 _KEEP = MONITOR_WINDOW + WINDOW + 5.0          # s of frames kept (the monitor's window before the alarm, then WINDOW)
 
@@ -86,10 +79,8 @@ class MountRecalibrator:
             Frame end time and duration, s.
         f : sequence of 3 float
             Frame-mean specific force, body frame (the filter's), m/s^2.
-        speed : float
-            Measured speed at the frame's end, m/s (NaN: none).
-        psi : float
-            Heading change over the frame, rad.
+        speed, psi : float
+            Measured speed at the frame's end, m/s (NaN: none), and heading change over the frame, rad.
         road : tuple or None
             The road filter's output of the frame (``(g, R, p6)``, :meth:`RoadFilter.step`), None without.
         usable : bool
@@ -121,11 +112,8 @@ class MountRecalibrator:
         return self._after >= WINDOW
 
     def estimate(self, reference, t_ref: float) -> Optional[tuple]:
-        """The change from the frames kept: ``reference`` is the frozen gravity direction (world frame) at
-        ``t_ref`` (s), before the change, which is searched after it.
-
-        The rotation from the reference to each frame's measured gravity is fitted as a level, a
-        linear drift and the step (module docstring).
+        """The change (module docstring) from the frames kept: ``reference`` the frozen gravity direction (world
+        frame) at ``t_ref`` (s), before the change, which is searched after it.
 
         Returns
         -------
@@ -159,8 +147,7 @@ class MountRecalibrator:
         return delta, w + coef[1] * (rows[-1, 0] - t_ref)
 
     def accept(self, delta: np.ndarray, t: float) -> None:
-        """Record a re-estimation applied at time ``t`` (s): :attr:`delta`, :attr:`note`, :attr:`count`; the
-        count of frames after an alarm starts over."""
+        """Record a re-estimation applied at ``t`` (s); the count of frames after an alarm starts over."""
         self._after = 0.0
         self.delta, self.note, self.count = delta, recalibrated_reason(delta, t), self.count + 1
 
@@ -171,8 +158,8 @@ class MountRecalibrator:
                 "delta": None if self.delta is None else self.delta.tolist(), "note": self.note, "count": self.count}
 
     def load_state_dict(self, state) -> None:
-        """Back to a :meth:`state_dict` (a dict or a :class:`~imu_ground.imu.warm_start.StateReader`); every
-        entry checked (finite, shapes) before the record changes."""
+        """Back to a :meth:`state_dict` (dict or :class:`~imu_ground.imu.warm_start.StateReader`), every entry
+        checked before the record changes."""
         st = as_reader(state, "MountRecalibrator")
         frames = st.rows("frames", list, 13)
         prev_speed, after = st.float("prev_speed", nan=True), st.float("after")

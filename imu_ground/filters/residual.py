@@ -1,40 +1,26 @@
 r"""The ground filters' invariant EKF on the residual, one frame or a whole drive: the one body every estimator runs.
 
-Both invariant-EKF ground estimators (:class:`~imu_ground.filters.ground.GroundNormalFilter`,
-:class:`~imu_ground.filters.suspension.SuspensionAwareFilter`) filter the slow road
-attitude ``X`` (world <- road) with a left-invariant EKF (``X = Xhat Exp(xi)``):
-predict ``X <- X T`` (``T = Rz(psi)``, the heading twist of the body increment ``dR``,
-``psi = 2 atan2(q_z, q_w)``; identity for a random walk) with noise ``Q``, update with
-the cumulative rotation ``R`` (world <- body) seen as ``Z = R Exp(-b)`` (``b``: a
-modelled body tilt, zero for the paper's filter) or with one of its axes ``R b_axis``.
-Written on ``W = R^T X`` (body <- road, the inverse of the residual ``E = X^T R``) it
-needs neither ``X`` nor ``R``: ``W = Xhat``'s error is the same ``xi`` (a known rotation
-applied on the left leaves a left-invariant error unchanged), so
+Both ground estimators (:class:`~imu_ground.filters.ground.GroundNormalFilter`,
+:class:`~imu_ground.filters.suspension.SuspensionAwareFilter`) filter the slow road attitude ``X`` (world <- road)
+with a left-invariant EKF (``X = Xhat Exp(xi)``): predict ``X <- X T`` (``T = Rz(psi)``, the heading twist of the
+body increment ``dR``, ``psi = 2 atan2(q_z, q_w)``; identity for a random walk) with noise ``Q``, update with the
+cumulative rotation ``R`` (world <- body) seen as ``Z = R Exp(-b)`` (``b``: a modelled body tilt, zero for the
+paper's filter) or with one of its axes ``R b_axis``. Written on ``W = R^T X`` (body <- road, the inverse of the
+residual ``E = X^T R``; a known rotation on the left leaves the error ``xi`` unchanged) it needs neither ``X`` nor
+``R``: predict ``W <- dR^T W T``, ``P <- T^T P T + Q``; update with the rotation ``W^T Z' = E Exp(-b)``,
+``Z' = Exp(-b)``, or the direction ``z' = b_axis`` (noise ``R^T R_n R``): the InvariantEKF's own functions of
+:mod:`~imu_ground.filters.invariant_ekf_kernel`, compiled into :func:`frame`. With ``P``, ``Q``, ``R`` =
+diag(a, a, c) (the defaults and the paper's) ``P`` stays diag(a, a, c).
 
-- predict ``W <- dR^T W T``, ``P <- T^T P T + Q``: :func:`~imu_ground.filters.invariant_ekf_kernel.predict_left`;
-- update with the rotation ``W^T Z' = E Exp(-b)``, ``Z' = Exp(-b)``:
-  :func:`~imu_ground.filters.invariant_ekf_kernel.update_rotation_left`, or with the direction
-  ``z' = R^T R b_axis = b_axis`` (noise ``R^T R_n R``):
-  :func:`~imu_ground.filters.invariant_ekf_kernel.update_direction_left`,
-
-the InvariantEKF's own predict and updates, compiled into :func:`frame`. With noise symmetric
-about the up axis (``P``, ``Q``, ``R`` = diag(a, a, c), the defaults and the paper's) the
-covariance stays diag(a, a, c) and the gain ``diag(a / (a + r_h), ., c / (c + r_v))``: the
-closed form is that of the general formulas, not a second body.
-
-:class:`ResidualKernel` holds the state in one float64 buffer (``E`` and, when asked, ``R``
-as unit quaternions) and advances it with :func:`frame`; :func:`step` (one frame, checked)
-serves the filters' streaming ``step``, :func:`run` (many frames) their batch ``run``.
-
-Buffer layout (``BUF_LEN`` float64): ``[0:4]`` ``E``; ``[4:13]`` ``P``; ``[13:17]`` ``R``;
-``[17]`` frames; the last frame's ``[18:27]`` ``K``, ``[27:36]`` ``S``, ``[36:45]`` ``P`` after
-the predict, ``[45:48]`` ``y``, ``[48:52]`` ``E^-``, ``[52]`` 1 once a frame was processed;
-parameters ``[53:62]`` ``Q`` (added to the per-frame ``diag(q_h, q_h, q_v)``), ``[62:71]``
-``R_n``, ``[71:74]`` the observed body axis, ``[74:79]`` ``direction follow_heading cumulative
-has_Rgs renorm_every``, ``[79:88]`` ``R_gs`` (all matrices row-major).
+Buffer layout (``BUF_LEN`` float64, matrices row-major, rotations quaternions): ``[0:4]`` ``E``; ``[4:13]`` ``P``;
+``[13:17]`` ``R``; ``[17]`` frames; the last frame's ``[18:27]`` ``K``, ``[27:36]`` ``S``, ``[36:45]`` ``P`` after
+the predict, ``[45:48]`` ``y``, ``[48:52]`` ``E^-``, ``[52]`` 1 once a frame was processed; parameters ``[53:62]``
+``Q`` (added to the per-frame ``diag(q_h, q_h, q_v)``), ``[62:71]`` ``R_n``, ``[71:74]`` the observed body axis,
+``[74:79]`` ``direction follow_heading cumulative has_Rgs renorm_every``, ``[79:88]`` ``R_gs``.
 """
 from __future__ import annotations
 
+import functools
 from math import atan2, nan, sqrt
 from typing import Mapping, Optional, Sequence
 
@@ -44,7 +30,8 @@ from imu_ground._jit import njit
 from imu_ground.filters.frame_checks import status_of, statuses_of
 from imu_ground.filters.invariant_ekf_kernel import (congruence, predict_left, update_direction_left,
                                                      update_rotation_left)
-from imu_ground.so3 import flat_from_quat, matrix_from_quat, quat_exp, quat_from_flat, quat_mul, transpose_flat
+from imu_ground.so3 import (flat_from_quat, matrix_from_quat, quat_exp, quat_from_flat, quat_mul, quat_normalise,
+                            transpose_flat)
 from imu_ground.units import RENORM_EVERY
 
 __all__ = ["ResidualKernel", "frame", "frame_checked", "run_frames", "step", "run", "check", "check_many", "BUF_LEN", "ROW_LEN"]
@@ -70,14 +57,11 @@ def frame(buf, d, q_h, q_v, tilt, bx, by, angles):
     buf : ndarray (BUF_LEN,) float64
         State and parameters.
     d : ndarray (3, 3) float64
-        Increment sensor_{k-1} <- sensor_k (already checked: a rotation, see
-        :func:`~imu_ground.filters.frame_checks.frame_status`).
+        Increment sensor_{k-1} <- sensor_k, already checked (:func:`~imu_ground.filters.frame_checks.frame_status`).
     q_h, q_v : float
         Process noise of this frame, horizontal and about up, rad^2 (added to the buffer's ``Q``).
-    tilt : bool
+    tilt, bx, by : bool, float, float
         Use the modelled body tilt ``b = (bx, by, 0)`` (rotation vector, rad; not with a direction).
-    bx, by : float
-        The tilt, rad.
     angles : bool
         Compute pitch and roll (from the third row of ``E``; else NaN).
 
@@ -87,8 +71,7 @@ def frame(buf, d, q_h, q_v, tilt, bx, by, angles):
         ``(ew, ex, ey, ez, a, P22, pitch, roll, rw, rx, ry, rz)``, ``a = (P00 + P11) / 2`` the level variance
         (the last 4 NaN when the cumulative rotation is not tracked).
     """
-    dq = quat_from_flat((d[0, 0], d[0, 1], d[0, 2], d[1, 0], d[1, 1], d[1, 2], d[2, 0], d[2, 1], d[2, 2]))
-    dw, dx, dy, dz = dq
+    dw, dx, dy, dz = quat_from_flat((d[0, 0], d[0, 1], d[0, 2], d[1, 0], d[1, 1], d[1, 2], d[2, 0], d[2, 1], d[2, 2]))
     if buf[_HAS_G] != 0.0:                      # body increment: vector part turned by R_gs
         g = buf[_G:_G + 9]
         dx, dy, dz = (g[0] * dx + g[1] * dy + g[2] * dz, g[3] * dx + g[4] * dy + g[5] * dz,
@@ -100,8 +83,7 @@ def frame(buf, d, q_h, q_v, tilt, bx, by, angles):
     if cum:                                     # R <- R dR
         rw, rx, ry, rz = quat_mul((rw, rx, ry, rz), (dw, dx, dy, dz))
         if renorm:
-            nrm = 1.0 / sqrt(rw * rw + rx * rx + ry * ry + rz * rz)
-            rw, rx, ry, rz = rw * nrm, rx * nrm, ry * nrm, rz * nrm
+            rw, rx, ry, rz = quat_normalise((rw, rx, ry, rz))
     # -- predict W <- dR^T W T, P <- T^T P T + Q (W = conj(E))
     w = quat_mul((dw, -dx, -dy, -dz), (buf[_E], -buf[_E + 1], -buf[_E + 2], -buf[_E + 3]))
     t = (1.0, 0.0, 0.0, 0.0)
@@ -124,8 +106,7 @@ def frame(buf, d, q_h, q_v, tilt, bx, by, angles):
         wn, P, y, K, S, _, _, _ = update_rotation_left(w, Pp, qz, Rn)
     ew, ex, ey, ez = wn[0], -wn[1], -wn[2], -wn[3]
     if renorm:
-        nrm = 1.0 / sqrt(ew * ew + ex * ex + ey * ey + ez * ez)
-        ew, ex, ey, ez = ew * nrm, ex * nrm, ey * nrm, ez * nrm
+        ew, ex, ey, ez = quat_normalise((ew, ex, ey, ez))
     pitch = roll = nan
     if angles:                                  # n_b = E^T e_z, the third row of E
         n0 = 2.0 * (ex * ez - ew * ey)
@@ -173,37 +154,36 @@ def _step(buf, d, q_h, q_v, tilt, bx, by, has_dv, dv, dt):
 
 @njit
 def frame_checked(buf, d, dv, dt):
-    """:func:`frame` (no tilt, the buffer's own noise, with the angles) of a frame that passes
-    :func:`~imu_ground.filters.frame_checks.status_of` (``d`` (3, 3), ``dv`` (3,) m/s, ``dt`` s, float64),
-    else a NaN row and the state untouched: the streaming step of the ground filter. Compiled for those
-    types only (any other raises TypeError: the caller coerces)."""
+    """The ground filter's streaming step: :func:`frame` (no tilt, the buffer's noise, angles) of a frame that
+    passes :func:`~imu_ground.filters.frame_checks.status_of` (``d`` (3, 3), ``dv`` (3,) m/s, ``dt`` s, float64),
+    else a NaN row, the state untouched: the row's first 8 entries. Compiled for those types only (others raise
+    TypeError)."""
     if status_of(d, True, dv, dt):
-        return _NAN_ROW
-    return frame(buf, d, 0.0, 0.0, False, 0.0, 0.0, True)
+        return _NAN_ROW[:8]
+    return frame(buf, d, 0.0, 0.0, False, 0.0, 0.0, True)[:8]
 
 
 def _checked(v, shape: tuple, name: str):
     """``v`` if it is a C-contiguous float64 ndarray of ``shape``; TypeError or ValueError otherwise."""
-    if type(v) is np.ndarray and v.shape == shape and v.dtype == np.float64 and v.flags.c_contiguous:
-        return v
     if type(v) is not np.ndarray or v.dtype != np.float64 or not v.flags.c_contiguous:
         raise TypeError(f"{name} must be a C-contiguous float64 array, got {type(v).__name__}"
                         + (f" of {v.dtype}" if type(v) is np.ndarray else ""))
-    raise ValueError(f"{name} must have shape {shape}, got {v.shape}")
+    if v.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {v.shape}")
+    return v
 
 
 def step(buf: np.ndarray, d, q_h: float, q_v: float, tilt_x: Optional[float], tilt_y: Optional[float],
          dv, dt: float):
-    """One checked frame: the row of :func:`frame`, or the frame's status with the state untouched.
+    """One checked frame: the row of :func:`frame`, or the frame's status (> 0) with the state untouched.
 
-    ``buf``, ``d``, ``q_h``, ``q_v`` as in :func:`frame`; ``tilt_x, tilt_y`` the modelled body tilt
-    (rad, None: none); ``dv`` (3,) float64 (m/s, None: not checked) and ``dt`` (s) are checked.
+    ``buf``, ``d``, ``q_h``, ``q_v`` as in :func:`frame`; ``tilt_x, tilt_y`` the modelled body tilt (rad, None:
+    none); ``dv`` (3,) m/s (None: not checked) and ``dt`` (s) are checked.
 
     Returns
     -------
     tuple or int
-        The row of :func:`frame`, or the status of
-        :func:`~imu_ground.filters.frame_checks.frame_status` (> 0) of a bad frame.
+        The row of :func:`frame`, or the :func:`~imu_ground.filters.frame_checks.frame_status` (> 0) of a bad frame.
 
     Raises
     ------
@@ -221,12 +201,9 @@ def step(buf: np.ndarray, d, q_h: float, q_v: float, tilt_x: Optional[float], ti
 
 def run(buf: np.ndarray, d, q_h, q_v: float, tilt_x, tilt_y, out: np.ndarray, angles: bool,
         P_out: Optional[np.ndarray] = None) -> None:
-    """Many frames (already checked) into ``out``: the batch entry point, :func:`frame` over each.
-
-    ``d`` (F, 3, 3) or (F, 9); ``q_h`` a float or (F,); ``tilt_x, tilt_y`` (F,) or None (rad); ``out``
-    (F, 8) or (F, 12, with the cumulative rotation) receives the rows, ``P_out`` (F, 3, 3), if given, each
-    frame's covariance (rad^2); the rest as in :func:`frame`.
-    """
+    """:func:`frame` over many checked frames: ``d`` (F, 3, 3) or (F, 9); ``q_h`` a float or (F,); ``tilt_x,
+    tilt_y`` (F,) or None (rad); rows into ``out`` (F, 8) or (F, 12, with the cumulative rotation), each
+    covariance (rad^2) into ``P_out`` (F, 3, 3) if given."""
     d = np.ascontiguousarray(d, dtype=float).reshape(-1, 3, 3)
     n = len(d)
     qs = np.full(n, float(q_h)) if isinstance(q_h, (int, float)) else np.ascontiguousarray(q_h, dtype=float)
@@ -244,7 +221,7 @@ def check(d, dv, dt: float) -> int:
     Raises
     ------
     TypeError, ValueError
-        ``d`` or ``dv`` is not a float64 array of shape (3, 3) or (3,): the caller coerces and retries.
+        As :func:`step`.
     """
     d = _checked(d, (3, 3), "delta_R")
     if dv is None:
@@ -277,9 +254,8 @@ CLOSED_FORM_LEN = 39
 
 
 def _from_closed_form(old: np.ndarray, template: np.ndarray) -> np.ndarray:
-    """A buffer of this layout holding the closed-form buffer ``old``'s state: its parameters from ``template``
-    (the loading filter's own), its state (E, P, R, frames, mount) and last-frame record from ``old``. The record's
-    matrices are the diagonal ones the closed form implies (its noise symmetric about up)."""
+    """``template`` (the loading filter's parameters) with the state and last-frame record of the closed-form buffer
+    ``old`` (its matrices the diagonal ones the closed form implies)."""
     b = template.copy()
     a, c, k_a, k_c, a_p, c_p = old[4], old[5], old[11], old[12], old[13], old[14]
     b[_E:_E + 4], b[_R:_R + 4], b[_N], b[_HAS] = old[0:4], old[6:10], old[10], old[22]
@@ -297,17 +273,13 @@ def _from_closed_form(old: np.ndarray, template: np.ndarray) -> np.ndarray:
     return b
 
 
-_LOADED: list = []
-
-
+@functools.cache
 def _load_compiled() -> None:
-    """Call the compiled steps once per process (numba's first call: when the first filter is built)."""
-    if not _LOADED:
-        _LOADED.append(True)
-        buf = _buffer(np.eye(3), np.zeros((3, 3)), np.eye(3), None, True, True, None)
-        step(buf, np.eye(3), 0.0, 0.0, None, None, _NO_DV, 1.0)
-        frame_checked(buf, np.eye(3), _NO_DV, 1.0)
-        getattr(frame_checked, "disable_compile", lambda: None)()     # (numba's: other types raise TypeError)
+    """Call the compiled steps once per process, when the first filter is built."""
+    buf = _buffer(np.eye(3), np.zeros((3, 3)), np.eye(3), None, True, True, None)
+    step(buf, np.eye(3), 0.0, 0.0, None, None, _NO_DV, 1.0)
+    frame_checked(buf, np.eye(3), _NO_DV, 1.0)
+    getattr(frame_checked, "disable_compile", lambda: None)()     # (numba's: other types raise TypeError)
 
 
 class ResidualKernel:
@@ -318,29 +290,26 @@ class ResidualKernel:
     a, c : float
         Initial covariance ``diag(a, a, c)`` of the slow state, rad^2.
     r_h, r_v : float
-        Measurement noise about the horizontal axes and about up, rad^2 (with
-        ``up``: ``r_h``, the noise of each component of the observed up axis).
+        Measurement noise about the horizontal axes and about up, rad^2 (with ``up``: ``r_h`` per component).
     up : bool
         Observe only the up axis ``R e_z`` (tilt), not the whole rotation.
     follow_heading : bool
         Predict with the heading twist of each increment (False: random walk).
     Rgs : ndarray (3, 3), optional
-        Static extrinsic ground <- sensor: increments are given in the sensor
-        frame and turned into the body frame (``R_gs dR R_gs^T``). None: identity.
+        Static extrinsic ground <- sensor turning sensor increments into the body frame. None: identity.
     cumulative : bool
-        Also accumulate ``R_k = R_{k-1} dR_k`` (world <- body, from ``R0`` = identity).
+        Also accumulate ``R_k = R_{k-1} dR_k`` (world <- body, from the identity).
     P, Q, R : ndarray (3, 3), optional
-        General initial covariance, process noise added to every frame's (body tangent space) and
-        measurement noise (rad^2; world axes for a direction, which then needs ``cumulative`` unless
-        isotropic), in place of ``a, c``, zero and ``r_h, r_v``.
+        Initial covariance, process noise added to every frame's (body tangent space) and measurement noise
+        (rad^2; world axes for a direction, which then needs ``cumulative`` unless isotropic), in place of
+        ``a, c``, zero and ``r_h, r_v``.
     axis : array_like (3,), optional
         Observe the direction ``R axis`` (a unit body axis, e.g. ``e_x``) instead of the rotation.
 
     Attributes
     ----------
     buf : ndarray (BUF_LEN,) float64
-        State and parameters (module docstring). The residual road <- body and the
-        cumulative rotation are quaternions (w, x, y, z), re-normalised every
+        State and parameters (module docstring); quaternions re-normalised every
         :data:`~imu_ground.units.RENORM_EVERY` frames.
     """
 
@@ -356,10 +325,9 @@ class ResidualKernel:
         _load_compiled()
 
     def read_state(self, reader, name: str) -> list:
-        """The entry ``name`` of a saved state (a :class:`~imu_ground.imu.warm_start.StateReader`), checked to
-        be a buffer of this kernel's layout: finite, NaN only in the record of the last frame. A buffer of the
-        closed-form layout of earlier releases (:data:`CLOSED_FORM_LEN` floats) is
-        converted (:func:`_from_closed_form`), so a state saved before an upgrade still resumes."""
+        """Entry ``name`` of a saved state (a :class:`~imu_ground.imu.warm_start.StateReader`) checked as a buffer
+        of this layout (finite, NaN only in the last frame's record); one of the earlier closed-form layout
+        (:data:`CLOSED_FORM_LEN` floats) is converted, so a state saved before an upgrade resumes."""
         v = reader.state.get(name) if isinstance(reader.state, Mapping) else None
         if isinstance(v, (list, tuple, np.ndarray)) and len(v) == CLOSED_FORM_LEN:
             return _from_closed_form(reader.floats(name, (CLOSED_FORM_LEN,), nan=slice(11, 22)), self.buf).tolist()
@@ -370,18 +338,13 @@ class ResidualKernel:
         self.buf = np.array(values, dtype=float)
 
     def set_mount(self, Rgs: np.ndarray) -> None:
-        """Turn sensor increments into the body frame with the static rotation ``Rgs`` (ground <- sensor) from
-        the next frame on (in place: the buffer object stays the same)."""
+        """Turn sensor increments into the body frame with ``Rgs`` (ground <- sensor) from the next frame on (in
+        place)."""
         self.buf[_HAS_G] = 1.0
         self.buf[_G:_G + 9] = np.asarray(Rgs, dtype=float).ravel()
 
     step = staticmethod(step)
     check = staticmethod(check)
-
-    @property
-    def E(self) -> tuple:
-        """Residual road <- body, quaternion (w, x, y, z)."""
-        return tuple(self.buf[0:4].tolist())
 
     @property
     def R(self) -> Optional[tuple]:
@@ -401,8 +364,7 @@ class ResidualKernel:
         return self.buf[_P:_P + 9].reshape(3, 3).copy()
 
     def last_matrices(self) -> Optional[tuple]:
-        """Of the last frame: ``K``, ``S``, ``P`` after the predict (each (3, 3)) and ``y`` (3,); None before the
-        first."""
+        """The last frame's ``K``, ``S``, ``P`` after the predict (each (3, 3)) and ``y`` (3,); None before one."""
         if self.buf[_HAS] == 0.0:
             return None
         b = self.buf
@@ -411,9 +373,8 @@ class ResidualKernel:
 
     @property
     def last(self) -> Optional[tuple]:
-        """Of the last frame: ``(k_a, k_c, a_prior, c_prior, yx, yy, yz, mw, mx, my, mz)``: gains (of the
-        horizontal axes and about up), predicted covariance, innovation and predicted residual ``E^-``; None
-        before the first."""
+        """The last frame's ``(k_a, k_c, a_prior, c_prior, yx, yy, yz, mw, mx, my, mz)``: horizontal and up gains,
+        predicted covariance, innovation and predicted residual ``E^-``; None before one."""
         b = self.buf
         if b[_HAS] == 0.0:
             return None
