@@ -12,6 +12,7 @@ from typing import Sequence
 
 import numpy as np
 
+from imu_ground._jit import njit
 from imu_ground.imu.warm_start import as_reader
 
 __all__ = ["butter_bandpass", "foh_filter", "IIRFilter"]
@@ -88,10 +89,24 @@ def foh_filter(freq: float, damping: float, dt: float):
     return num[0], num[1], den
 
 
-class IIRFilter:
-    """A causal IIR filter over a few channels, one sample at a time or a batch that continues it.
+@njit
+def _lfilter(b, a, z, u, y):
+    """Direct form II transposed (:func:`scipy.signal.lfilter`'s recursion) of ``u`` (N, C) into ``y``; ``z``
+    (len(a) - 1, C) advanced in place."""
+    m = z.shape[0]
+    for k in range(u.shape[0]):
+        for c in range(u.shape[1]):
+            x = u[k, c]
+            out = b[0] * x + z[0, c]
+            for i in range(m - 1):
+                z[i, c] = b[i + 1] * x + z[i + 1, c] - a[i + 1] * out
+            z[m - 1, c] = b[m] * x - a[m] * out
+            y[k, c] = out
 
-    The recursion of :func:`scipy.signal.lfilter` (direct form II transposed).
+
+class IIRFilter:
+    """A causal IIR filter over a few channels: :meth:`step` a sample, :meth:`run` a batch that continues it (one
+    compiled body).
 
     Parameters
     ----------
@@ -111,34 +126,20 @@ class IIRFilter:
         self.steady = bool(steady)
         self.started = False
 
-    def _start(self, u0: np.ndarray) -> None:
-        if self.steady:
-            from scipy.signal import lfilter_zi
-            self.z = lfilter_zi(self.b, self.a)[:, None] * np.asarray(u0, dtype=float)[None, :]
-        self.started = True
-
-    def step(self, u: np.ndarray) -> np.ndarray:
+    def step(self, u) -> np.ndarray:
         """Filter one sample (one value per channel)."""
-        u = np.asarray(u, dtype=float)
-        if not self.started:
-            self._start(u)
-        z, b, a = self.z, self.b, self.a
-        y = b[0] * u + z[0]
-        m = len(z)
-        for i in range(m - 1):
-            z[i] = b[i + 1] * u + z[i + 1] - a[i + 1] * y
-        z[m - 1] = b[m] * u - a[m] * y
-        return y
+        return self.run(np.asarray(u, dtype=float).reshape(1, -1))[0]
 
     def run(self, u: np.ndarray) -> np.ndarray:
         """Filter samples (N, channels), continuing from the current state."""
-        from scipy.signal import lfilter
-        u = np.asarray(u, dtype=float)
-        if len(u) == 0:
-            return u.copy()
-        if not self.started:
-            self._start(u[0])
-        y, self.z = lfilter(self.b, self.a, u, axis=0, zi=self.z)
+        u = np.ascontiguousarray(u, dtype=float)
+        if len(u) and not self.started:
+            if self.steady:
+                from scipy.signal import lfilter_zi
+                self.z = lfilter_zi(self.b, self.a)[:, None] * u[0][None, :]
+            self.started = True
+        y = np.empty_like(u)
+        _lfilter(self.b, self.a, self.z, u, y)
         return y
 
     def state_dict(self) -> dict:
@@ -146,8 +147,8 @@ class IIRFilter:
         return {"z": self.z.tolist(), "started": self.started}
 
     def load_state_dict(self, state) -> None:
-        """Back to a :meth:`state_dict` (a dict, or a :class:`~imu_ground.imu.warm_start.StateReader` of the
-        saved state's part); each entry checked (``z`` of this filter's shape, finite) before any is set."""
+        """Back to a :meth:`state_dict` (a dict or a :class:`~imu_ground.imu.warm_start.StateReader`), checked
+        (``z`` of this filter's shape, finite) before any is set."""
         state = as_reader(state, "IIRFilter")
         z = state.floats("z", self.z.shape)
-        self.z, self.started = z, state.bool("started")
+        self.z, self.started = np.ascontiguousarray(z, dtype=float), state.bool("started")
