@@ -1,9 +1,7 @@
 """Discrete-time filter design for the estimators: band-pass, second-order response, a streaming IIR runner.
 
-Every design takes the frame rate (Hz) or the frame interval (s) it is for; the
-estimators pass the rate of the ego-motion they run on
-(:attr:`~imu_ground.imu.egomotion.EgoMotion.rate`). scipy is imported inside the
-functions that need it, so the streaming path does not load it.
+Every design takes the frame rate (Hz) or interval (s) it is for. scipy is imported inside the functions that
+need it, so the streaming path does not load it.
 """
 from __future__ import annotations
 
@@ -23,10 +21,8 @@ def butter_bandpass(band: Sequence[float], rate: float, order: int = 2) -> tuple
 
     Parameters
     ----------
-    band : (float, float)
-        Pass band, Hz; must lie strictly inside (0, rate / 2).
-    rate : float
-        Sampling (frame) rate, Hz.
+    band, rate : (float, float), float
+        Pass band, strictly inside (0, rate / 2), and the sampling (frame) rate, Hz.
     order : int
         Order of the low-pass prototype (the band-pass has twice as many poles).
 
@@ -51,24 +47,18 @@ def butter_bandpass(band: Sequence[float], rate: float, order: int = 2) -> tuple
 def foh_filter(freq: float, damping: float, dt: float):
     """Exact discretisation of ``x'' + 2 zeta w x' + w^2 x = w^2 u`` for a first-order-hold input.
 
-    The input is linear between samples ``dt`` apart; the state ``(x, x')`` is
-    propagated by the matrix exponential of the system augmented with the input
-    and its slope, so the sampled response has no discretisation error.
+    The input is linear between samples ``dt`` apart; ``(x, x')`` is propagated by the matrix exponential of
+    the system augmented with the input and its slope (no discretisation error).
 
     Parameters
     ----------
-    freq : float
-        Undamped natural frequency, Hz (``w = 2 pi freq``).
-    damping : float
-        Damping ratio ``zeta``.
-    dt : float
-        Sample interval, s.
+    freq, damping, dt : float
+        Undamped natural frequency (Hz, ``w = 2 pi freq``), damping ratio ``zeta``, sample interval (s).
 
     Returns
     -------
     num_x, num_xdot, den : ndarray (3,)
-        Transfer functions from ``u`` to ``x`` and to ``x'`` (unit static gain
-        for ``x``), for :func:`scipy.signal.lfilter`.
+        Transfer functions from ``u`` to ``x`` (unit static gain) and to ``x'``, for :func:`scipy.signal.lfilter`.
     """
     from scipy.linalg import expm
     w = 2.0 * math.pi * float(freq)

@@ -46,31 +46,20 @@ class SuspensionModel:
     ----------
     gains0 : ndarray (2,)
         ``(k_pitch, k_roll)`` at the start (the prior with ``online_gains``), rad per m/s^2.
-    load_share : float
-        ``s`` of the load ``u = a + s (f - a)``.
-    response : (float, float) or None
-        Second-order response ``(freq_hz, damping)`` of the load; None: quasi-static.
-    cross_gain : float
-        ``k_cross``: pitch per m/s^2 of lateral load, rad.
-    online_gains : bool
-        Estimate the gains online.
-    gain_prior_seconds : float
-        Weight of the prior gains, seconds of typical driving.
-    gain_band : (float, float)
-        Band of the online regression, Hz.
+    load_share, response, cross_gain, online_gains, gain_prior_seconds, gain_band
+        As ``load`` (its share ``s``) and these parameters of
+        :class:`~imu_ground.filters.suspension.SuspensionAwareFilter`.
     Rgs : ndarray (3, 3) or None
         Static rotation ground <- sensor of the increments given to :meth:`step`; None: identity.
 
     Attributes
     ----------
-    gains : ndarray (2,)
-        Current ``(k_pitch, k_roll)``, rad per m/s^2.
-    load : (float, float)
-        Load of the last frame ``(u_x, u_y)``, m/s^2.
+    gains, load : ndarray (2,), (float, float)
+        Current ``(k_pitch, k_roll)`` (rad per m/s^2); the last frame's ``(u_x, u_y)`` (m/s^2).
     rate : float or None
         Frame rate of the design, Hz (None before the first frame).
     tilt_weights : (float, float)
-        :func:`~imu_ground.filters.status.tilt_weights` of the current gains (for the 1-sigma).
+        :func:`~imu_ground.filters.status.tilt_weights` of the current gains.
     """
 
     def __init__(self, gains0: np.ndarray, load_share: float, response: Optional[Sequence[float]],
@@ -158,8 +147,7 @@ class SuspensionModel:
         fx, fy, ax, ay : float
             Horizontal specific force and acceleration, body frame, m/s^2.
         lateral : float, optional
-            Lateral acceleration from kinematics (speed times yaw rate), m/s^2, in place of ``ay``
-            in the load's ``u_y``; None: the gravity/velocity filter's ``ay``.
+            Kinematic lateral acceleration (speed times yaw rate), m/s^2, in place of ``ay`` in ``u_y``.
 
         Returns
         -------
@@ -185,8 +173,7 @@ class SuspensionModel:
         Parameters
         ----------
         gt : GravityTrack
-            The gravity/velocity filter's track of the frames (``acceleration``, ``specific_force``,
-            ``body_increments``).
+            The gravity/velocity filter's track of the frames.
         lateral : ndarray (N,), optional
             ``lateral`` of :meth:`step` per frame (NaN: the filter's ``a_y``).
 
