@@ -1,9 +1,7 @@
 """Discrete-time filter design for the estimators: band-pass, second-order response, a streaming IIR runner.
 
-Every design takes the frame rate (Hz) or the frame interval (s) it is for; the
-estimators pass the rate of the ego-motion they run on
-(:attr:`~imu_ground.imu.egomotion.EgoMotion.rate`). scipy is imported inside the
-functions that need it, so the streaming path does not load it.
+Every design takes the frame rate (Hz) or interval (s) it is for. scipy is imported inside the functions that
+need it, so the streaming path does not load it.
 """
 from __future__ import annotations
 
@@ -12,6 +10,7 @@ from typing import Sequence
 
 import numpy as np
 
+from imu_ground._jit import njit
 from imu_ground.imu.warm_start import as_reader
 
 __all__ = ["butter_bandpass", "foh_filter", "IIRFilter"]
@@ -22,10 +21,8 @@ def butter_bandpass(band: Sequence[float], rate: float, order: int = 2) -> tuple
 
     Parameters
     ----------
-    band : (float, float)
-        Pass band, Hz; must lie strictly inside (0, rate / 2).
-    rate : float
-        Sampling (frame) rate, Hz.
+    band, rate : (float, float), float
+        Pass band, strictly inside (0, rate / 2), and the sampling (frame) rate, Hz.
     order : int
         Order of the low-pass prototype (the band-pass has twice as many poles).
 
@@ -50,24 +47,18 @@ def butter_bandpass(band: Sequence[float], rate: float, order: int = 2) -> tuple
 def foh_filter(freq: float, damping: float, dt: float):
     """Exact discretisation of ``x'' + 2 zeta w x' + w^2 x = w^2 u`` for a first-order-hold input.
 
-    The input is linear between samples ``dt`` apart; the state ``(x, x')`` is
-    propagated by the matrix exponential of the system augmented with the input
-    and its slope, so the sampled response has no discretisation error.
+    The input is linear between samples ``dt`` apart; ``(x, x')`` is propagated by the matrix exponential of
+    the system augmented with the input and its slope (no discretisation error).
 
     Parameters
     ----------
-    freq : float
-        Undamped natural frequency, Hz (``w = 2 pi freq``).
-    damping : float
-        Damping ratio ``zeta``.
-    dt : float
-        Sample interval, s.
+    freq, damping, dt : float
+        Undamped natural frequency (Hz, ``w = 2 pi freq``), damping ratio ``zeta``, sample interval (s).
 
     Returns
     -------
     num_x, num_xdot, den : ndarray (3,)
-        Transfer functions from ``u`` to ``x`` and to ``x'`` (unit static gain
-        for ``x``), for :func:`scipy.signal.lfilter`.
+        Transfer functions from ``u`` to ``x`` (unit static gain) and to ``x'``, for :func:`scipy.signal.lfilter`.
     """
     from scipy.linalg import expm
     w = 2.0 * math.pi * float(freq)
@@ -88,10 +79,24 @@ def foh_filter(freq: float, damping: float, dt: float):
     return num[0], num[1], den
 
 
-class IIRFilter:
-    """A causal IIR filter over a few channels, one sample at a time or a batch that continues it.
+@njit
+def _lfilter(b, a, z, u, y):
+    """Direct form II transposed (:func:`scipy.signal.lfilter`'s recursion) of ``u`` (N, C) into ``y``; ``z``
+    (len(a) - 1, C) advanced in place."""
+    m = z.shape[0]
+    for k in range(u.shape[0]):
+        for c in range(u.shape[1]):
+            x = u[k, c]
+            out = b[0] * x + z[0, c]
+            for i in range(m - 1):
+                z[i, c] = b[i + 1] * x + z[i + 1, c] - a[i + 1] * out
+            z[m - 1, c] = b[m] * x - a[m] * out
+            y[k, c] = out
 
-    The recursion of :func:`scipy.signal.lfilter` (direct form II transposed).
+
+class IIRFilter:
+    """A causal IIR filter over a few channels: :meth:`step` a sample, :meth:`run` a batch that continues it (one
+    compiled body).
 
     Parameters
     ----------
@@ -111,34 +116,20 @@ class IIRFilter:
         self.steady = bool(steady)
         self.started = False
 
-    def _start(self, u0: np.ndarray) -> None:
-        if self.steady:
-            from scipy.signal import lfilter_zi
-            self.z = lfilter_zi(self.b, self.a)[:, None] * np.asarray(u0, dtype=float)[None, :]
-        self.started = True
-
-    def step(self, u: np.ndarray) -> np.ndarray:
+    def step(self, u) -> np.ndarray:
         """Filter one sample (one value per channel)."""
-        u = np.asarray(u, dtype=float)
-        if not self.started:
-            self._start(u)
-        z, b, a = self.z, self.b, self.a
-        y = b[0] * u + z[0]
-        m = len(z)
-        for i in range(m - 1):
-            z[i] = b[i + 1] * u + z[i + 1] - a[i + 1] * y
-        z[m - 1] = b[m] * u - a[m] * y
-        return y
+        return self.run(np.asarray(u, dtype=float).reshape(1, -1))[0]
 
     def run(self, u: np.ndarray) -> np.ndarray:
         """Filter samples (N, channels), continuing from the current state."""
-        from scipy.signal import lfilter
-        u = np.asarray(u, dtype=float)
-        if len(u) == 0:
-            return u.copy()
-        if not self.started:
-            self._start(u[0])
-        y, self.z = lfilter(self.b, self.a, u, axis=0, zi=self.z)
+        u = np.ascontiguousarray(u, dtype=float)
+        if len(u) and not self.started:
+            if self.steady:
+                from scipy.signal import lfilter_zi
+                self.z = lfilter_zi(self.b, self.a)[:, None] * u[0][None, :]
+            self.started = True
+        y = np.empty_like(u)
+        _lfilter(self.b, self.a, self.z, u, y)
         return y
 
     def state_dict(self) -> dict:
@@ -146,8 +137,8 @@ class IIRFilter:
         return {"z": self.z.tolist(), "started": self.started}
 
     def load_state_dict(self, state) -> None:
-        """Back to a :meth:`state_dict` (a dict, or a :class:`~imu_ground.imu.warm_start.StateReader` of the
-        saved state's part); each entry checked (``z`` of this filter's shape, finite) before any is set."""
+        """Back to a :meth:`state_dict` (a dict or a :class:`~imu_ground.imu.warm_start.StateReader`), checked
+        (``z`` of this filter's shape, finite) before any is set."""
         state = as_reader(state, "IIRFilter")
         z = state.floats("z", self.z.shape)
-        self.z, self.started = z, state.bool("started")
+        self.z, self.started = np.ascontiguousarray(z, dtype=float), state.bool("started")

@@ -5,9 +5,8 @@ suspension: pitch (nose down +) ``k_pitch u_x`` and roll (left side up +)
 ``k_roll u_y`` for a load ``u`` (m/s^2, body frame FLU). Both the gyro tilt and
 the acceleration pass the same band-pass (:data:`GAIN_BAND`): lower
 frequencies are confounded by the road (cars speed up downhill, roads bank
-into curves), higher ones by the suspension's resonance and noise. How the
-defaults were chosen, and how well they do, is in ``benchmarks/RESULTS.md``
-(``benchmarks/studies/tune_suspension.py`` regenerates the choice).
+into curves), higher ones by the suspension's resonance and noise. The defaults are chosen by
+``benchmarks/studies/tune_suspension.py``.
 """
 from __future__ import annotations
 
@@ -22,14 +21,10 @@ from imu_ground.units import DEG
 __all__ = ["DEFAULT_GAINS", "DEFAULT_CROSS_GAIN", "GAIN_BAND", "TYPICAL_BAND_POWER", "tilt_angles", "bandpass_gain_regression"]
 
 #: Suspension gains of the KITTI car ``(k_pitch, k_roll)``, rad per m/s^2: braking dives the nose
-#: (``k_pitch < 0``), a car rolls out of a turn (``k_roll > 0``). ``k_roll`` is the gain that makes the
-#: filter's road-relative roll repeat best where a drive passes the same place twice (chosen on one
-#: such drive, held on the other; ``benchmarks/studies/revisit_table.py``): below the band-passed regression's
-#: 0.5 deg, because the filter's output adds the gyro's fast roll to the modelled tilt.
+#: (``k_pitch < 0``), a car rolls out of a turn (``k_roll > 0``; chosen where a drive passes the same place
+#: twice, ``benchmarks/studies/revisit_table.py``).
 DEFAULT_GAINS = (-0.25 * DEG, 0.40 * DEG)
-#: Pitch (nose down +) per m/s^2 of *lateral* load ``u_y``, rad: a left-turn load lifts the nose.
-#: Empirical (road crown, chassis asymmetry), chosen by split-half validation on the real KITTI
-#: drives (``benchmarks/studies/tune_suspension.py``; figures in ``benchmarks/RESULTS.md``).
+#: Pitch (nose down +) per m/s^2 of *lateral* load ``u_y``, rad (empirical: road crown, chassis asymmetry).
 DEFAULT_CROSS_GAIN = -0.05 * DEG
 #: Band of the gain regression, Hz.
 GAIN_BAND = (0.3, 1.5)
@@ -54,10 +49,8 @@ def bandpass_gain_regression(body_increments: np.ndarray, acceleration: np.ndarr
         Body-frame rotation increments, body_{k-1} <- body_k.
     acceleration : ndarray (N, 2) or (N, 3)
         Gravity-compensated body acceleration per frame (``a_x, a_y``), m/s^2.
-    band : (float, float)
-        Pass band, Hz.
-    frame_rate : float
-        Frames per second of the increments (the ego-motion's rate).
+    band, frame_rate : (float, float), float
+        Pass band and frame rate, Hz.
     mask : ndarray of bool (N,), optional
         Frames that enter the sums (after filtering), e.g. moving frames.
 

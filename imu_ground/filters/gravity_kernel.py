@@ -97,9 +97,8 @@ def body_increments(r, d, dv):
 
 @njit
 def _velocity_update(xp, n6, z0, z1, z2, gate):
-    """Update with the velocity ``z`` (world frame, noise ``N`` of upper triangle ``n6``: the body-frame
-    ``R_k^T v = z_b`` turned into the world), unless its squared Mahalanobis distance exceeds ``gate``.
-    ``xp``: the state then P's 21 entries. Returns ``(accepted, xp, K, y, S)`` (world axes)."""
+    """Update of ``xp`` (state, P's 21 entries) with the velocity ``z`` (world frame, noise of upper triangle
+    ``n6``) unless its squared Mahalanobis distance exceeds ``gate``: ``(accepted, xp, K, y, S)``."""
     v0, v1, v2 = xp[0], xp[1], xp[2]
     a00, a01, a02, a11, a12, a22 = xp[6], xp[7], xp[8], xp[9], xp[10], xp[11]
     b0, b1, b2, b3, b4, b5, b6, b7, b8 = xp[12], xp[13], xp[14], xp[15], xp[16], xp[17], xp[18], xp[19], xp[20]
@@ -142,9 +141,8 @@ def _velocity_update(xp, n6, z0, z1, z2, gate):
 
 @njit
 def _predict_update(s, d9, dv3, dt, stationary, valid, speed):
-    """The filter's recursion of one body-frame frame on the buffer ``s`` (in place, with the record of the step):
-    the model of :class:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter` unrolled (``speed`` NaN: none).
-    """
+    """The filter's recursion of one body-frame frame on ``s`` (in place, with the step's record; ``speed`` NaN:
+    none)."""
     (v0, v1, v2, g0, g1, g2, a00, a01, a02, a11, a12, a22, b00, b01, b02, b10, b11, b12, b20, b21, b22,
      c00, c01, c02, c11, c12, c22) = (s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7], s[8], s[9], s[10], s[11],
                                       s[12], s[13], s[14], s[15], s[16], s[17], s[18], s[19], s[20], s[21],
@@ -252,13 +250,9 @@ def _predict_update(s, d9, dv3, dt, stationary, valid, speed):
 
 @njit
 def frame_forces(d9, dv3, dt, g0, g1, g2, rp, lever, r, wprev, wp):
-    """Frame-mean specific force and acceleration (m/s^2, body frame at mid-frame) and the mean rate (rad/s).
-
-    ``d9``, ``dv3``: the body-frame increments; ``g0..g2``: gravity reaction after the frame (world);
-    ``rp``: ``R_{w<-body}`` before the frame (9 row-major); ``lever``: the lever arm ``r`` (m, body) is
-    applied; ``wprev``: ``wp`` is the previous frame's mean rate (else the frame's own). Returns
-    ``(f0, f1, f2, a0, a1, a2, w0, w1, w2)``.
-    """
+    """Frame-mean specific force and acceleration (m/s^2, body frame at mid-frame) and mean rate (rad/s),
+    ``(f0, f1, f2, a0, a1, a2, w0, w1, w2)``: ``g0..g2`` gravity after the frame (world), ``rp`` ``R_{w<-body}``
+    before it, ``lever``/``r`` the lever arm (m, body), ``wprev``/``wp`` the previous frame's mean rate."""
     p0, p1, p2 = log_flat(d9)
     w0, w1, w2 = p0 / dt, p1 / dt, p2 / dt
     h0, h1, h2, h3, h4, h5, h6, h7, h8 = exp_flat(0.5 * p0, 0.5 * p1, 0.5 * p2)   # body_{k-1} <- mid
@@ -279,9 +273,8 @@ def frame_forces(d9, dv3, dt, g0, g1, g2, rp, lever, r, wprev, wp):
 
 @njit
 def frame(s, d9, dv3, dt, stationary, valid, speed, sensor):
-    """One frame: the body increment (``sensor``: the buffer's extrinsic applied), :func:`_predict_update`, then
-    :func:`frame_forces` with the posterior gravity. Returns ``(f0, f1, f2, a0, a1, a2, |v|)``; the
-    body-frame ``d9``, ``dv3`` are those used."""
+    """One frame (``sensor``: the buffer's extrinsic applied first): :func:`_predict_update`, then
+    :func:`frame_forces` with the posterior gravity. Returns ``(f0, f1, f2, a0, a1, a2, |v|)``, ``d9``, ``dv3``."""
     if sensor and s[I_EXTR]:
         d9, dv3 = body_increment((s[55], s[56], s[57], s[58], s[59], s[60], s[61], s[62], s[63]), d9, dv3)
     rp = (s[27], s[28], s[29], s[30], s[31], s[32], s[33], s[34], s[35])
@@ -354,11 +347,9 @@ def _run(s, d, dv, dt, stationary, valid, speed, rows, fa, priors, has_priors, b
 
 def run_frames(s: np.ndarray, d, dv, dt, stationary, valid, speed, v_out, g_out, p_out, cum_out, f_out, a_out,
                speed_out, priors=None, body_out=None) -> None:
-    """:func:`frame` over a drive (a compiled loop) into the output arrays (N, ...): posterior velocity and
-    gravity, covariance (6, 6), ``R_k``, specific force, acceleration and ``|v|``; ``priors`` (N, 27): each
-    frame's prior state and P entries (for the smoother). With ``body_out`` (N, 3, 3) the increments are in
-    the sensor frame, turned into the body with the buffer's extrinsic and written there; ``speed`` None:
-    none (NaN rows alike)."""
+    """:func:`frame` over a drive (a compiled loop) into the output arrays (N, ...); ``priors`` (N, 27): each
+    frame's prior (for the smoother); with ``body_out`` (N, 3, 3) the increments are sensor-frame and their
+    body-frame values written there; ``speed`` None or NaN: none."""
     n = len(dt)
     if not n:
         return
@@ -368,7 +359,7 @@ def run_frames(s: np.ndarray, d, dv, dt, stationary, valid, speed, v_out, g_out,
     sp = np.full(n, math.nan) if speed is None else np.ascontiguousarray(speed, dtype=float)
     rows, fa = np.empty((n, 36)), np.empty((n, 7))
     pri = np.empty((n, 27)) if priors is None else priors
-    body = np.empty((n, 9)) if body_out is None else np.empty((n, 9))
+    body = np.empty((n, 9))
     _run(s, d, dv, dt, st, va, sp, rows, fa, pri, priors is not None, body, body_out is not None)
     v_out[...], g_out[...], p_out[...] = rows[:, :3], rows[:, 3:6], full_cov(rows[:, 6:27])
     cum_out[...] = rows[:, 27:].reshape(n, 3, 3)
@@ -396,10 +387,9 @@ def _forces(d, dv, dt, g, r_start, cum, lever, r, wprev, wp, out):
 
 
 def body_forces(d, dv, dt, g, r_start, cum, lever=None, w_prev=None):
-    """:func:`frame_forces` of every frame of a drive (a smoothed gravity's forces): body-frame ``d``, ``dv``,
-    ``dt`` (N, ...), gravity ``g`` (N, 3) after each frame, ``R_{w<-body}`` before the first (``r_start``) and
-    after each (``cum``), the lever arm (m) and the mean rate before the first frame (rad/s; None: its own).
-    Returns ``f``, ``acc`` (N, 3), m/s^2, and the last frame's mean rate."""
+    """:func:`frame_forces` of every frame of a drive (a smoothed gravity's): ``r_start`` ``R_{w<-body}`` before
+    the first frame, ``cum`` after each, ``w_prev`` the mean rate before (None: its own). Returns ``f``, ``acc``
+    (N, 3), m/s^2, and the last mean rate."""
     n = len(dt)
     c = lambda a, shape: np.ascontiguousarray(a, dtype=float).reshape(shape)  # noqa: E731
     out, wp = np.empty((n, 6)), (np.zeros(3) if w_prev is None else c(w_prev, 3).copy())

@@ -68,11 +68,12 @@ class GravityEstimate(NamedTuple):
 
     Attributes
     ----------
-    velocity : ndarray (3,)          m/s, world frame (gyro-integrated body frame at the start).
-    gravity : ndarray (3,)           reaction to gravity (+9.81 m/s^2 up at rest), m/s^2, world frame.
-    acceleration : ndarray (3,)      gravity-compensated, frame mean, m/s^2, body frame at mid-frame.
-    specific_force : ndarray (3,)    what an accelerometer reads, frame mean, m/s^2, body frame at mid-frame.
-    speed : float                    ``|velocity|``, m/s.
+    velocity, gravity : ndarray (3,)
+        m/s and the reaction to gravity (m/s^2), world frame.
+    acceleration, specific_force : ndarray (3,)
+        Gravity-compensated and as an accelerometer reads it: frame means, m/s^2, body frame at mid-frame.
+    speed : float
+        ``|velocity|``, m/s.
     """
     velocity: np.ndarray
     gravity: np.ndarray
@@ -87,14 +88,12 @@ class GravityTrack:
 
     Attributes
     ----------
-    velocity : ndarray (N, 3)        m/s, world frame.
-    gravity : ndarray (N, 3)         reaction to gravity, m/s^2, world frame.
-    acceleration : ndarray (N, 3)    gravity-compensated, m/s^2, body frame at mid-frame.
-    specific_force : ndarray (N, 3)  m/s^2, body frame at mid-frame.
-    speed : ndarray (N,)             m/s.
-    P : ndarray (N, 6, 6)            covariance of ``[v, g]``.
-    cumulative : ndarray (N, 3, 3)   body attitude, world <- body (frame end).
-    body_increments : ndarray (N, 3, 3) body_{k-1} <- body_k (extrinsic applied).
+    velocity, gravity, acceleration, specific_force, speed : ndarray (N, 3) / (N,)
+        As in :class:`GravityEstimate`, per frame.
+    P : ndarray (N, 6, 6)
+        Covariance of ``[v, g]``.
+    cumulative, body_increments : ndarray (N, 3, 3)
+        World <- body at the frame end; body_{k-1} <- body_k (extrinsic applied).
     """
     velocity: np.ndarray
     gravity: np.ndarray
@@ -124,45 +123,35 @@ class GravityVelocityFilter:
     Parameters
     ----------
     sigma_nhc, sigma_zupt : float
-        Std of the body lateral and vertical velocity (0.3) and of the velocity
-        at standstill (0.05), m/s.
-    q_v, q_g : float
-        Velocity (m/s/sqrt(s), 0.05) and gravity (m/s^2/sqrt(s), 1e-6) random walks.
-    q_gap : float
-        Extra velocity random walk through a timestamp gap (``valid`` False), m/s/sqrt(s) (1.0).
-    q_gap_g : float
-        Extra gravity random walk through a timestamp gap, m/s^2/sqrt(s) (0.1): the rotation integrated
-        across a gap is uncertain, so is gravity in the gyro-integrated world frame after it.
+        Std of the body lateral and vertical velocity and of the velocity at standstill, m/s.
+    q_v, q_g, q_gap, q_gap_g : float
+        Velocity (m/s/sqrt(s)) and gravity (m/s^2/sqrt(s)) random walks, and the extra ones through a
+        timestamp gap (``valid`` False).
     zupt_gate : float
-        A standstill flag is ignored (the constraint used instead) when the predicted velocity is this far
-        from zero, squared Mahalanobis distance (100).
+        A standstill flag is ignored (the constraint used instead) beyond this squared Mahalanobis distance
+        of the predicted velocity from zero.
     sigma_v0, sigma_g0, v0, g0
-        Initial std of velocity (m/s, 30) and gravity (m/s^2, 1); initial velocity and gravity
-        reaction (array_like (3,), world frame; default zero and the first frame's specific force).
-    extrinsic : Extrinsic or ndarray (3, 3), optional
-        Static ground <- sensor rotation (inputs are sensor-frame increments).
+        Initial std of velocity (m/s) and gravity (m/s^2); initial velocity and gravity reaction
+        (array_like (3,), world frame; default zero and the first frame's specific force).
+    extrinsic, R0 : Extrinsic or ndarray (3, 3), optional
+        Static ground <- sensor rotation (inputs are sensor-frame increments); initial attitude world <- body.
     lever_arm : array_like (3,), optional
-        Sensor position relative to the body's pitch/roll centre, ground frame, m: the accelerations
-        are moved there, ``f_0 = f_s - alpha x r - w x (w x r)`` (``w`` the frame's mean rate,
-        ``alpha`` its backward difference: half a frame late). Default: none.
-    R0 : ndarray (3, 3), optional
-        Initial attitude, world <- body (identity).
+        Sensor position relative to the body's pitch/roll centre, ground frame, m: the accelerations are moved
+        there, ``f_0 = f_s - alpha x r - w x (w x r)`` (``w`` the frame's mean rate, ``alpha`` its backward
+        difference).
     sigma_speed : float
-        Std of a measured forward speed (``speed`` of :meth:`step` / :meth:`run`, wheel or CAN),
-        m/s (0.1; at most 1000): the update is then ``R_k^T v = (speed, 0, 0)``, noise ``diag(sigma_speed^2,
-        sigma_nhc^2, sigma_nhc^2)``, in place of the zero-velocity update and the constraint.
+        Std of a measured forward speed (``speed`` of :meth:`step` / :meth:`run`), m/s (at most 1000): the
+        update is then ``R_k^T v = (speed, 0, 0)``, noise ``diag(sigma_speed^2, sigma_nhc^2, sigma_nhc^2)``.
 
     Attributes
     ----------
-    x, P : ndarray (6,), (6, 6)
-        State and covariance; ``x_prior``, ``P_prior``, ``x_post``, ``P_post``, ``F``, ``Q``,
-        ``H``, ``R``, ``K``, ``y``, ``S`` of the last step (filterpy's names, built on access).
-    cumulative : ndarray (3, 3)
-        ``R_k``, world <- body.
+    x, P, cumulative : ndarray (6,), (6, 6), (3, 3)
+        State, covariance, ``R_k`` (world <- body); ``x_prior``, ``P_prior``, ``x_post``, ``P_post``, ``F``,
+        ``Q``, ``H``, ``R``, ``K``, ``y``, ``S`` of the last step (filterpy's names).
     zupt_rejected : int
         Standstill flags overruled by the gate so far.
     kernel : module
-        The per-frame kernel (class attribute): :mod:`~imu_ground.filters.gravity_kernel`.
+        :mod:`~imu_ground.filters.gravity_kernel` (class attribute).
     """
 
     kernel = gravity_kernel
@@ -202,10 +191,9 @@ class GravityVelocityFilter:
         s = new_state(v + g, p, self.R0.ravel().tolist(), prm, self._g0 is not None, self._lever,
                       None if self._identity_extrinsic else self._rgs9, self.q_gap_g ** 2)
         k = self.kernel
-        self._s = np.array(s)                   # the kernel's state buffer (gravity_kernel)
+        self._s = np.array(s)
         self._step_frame, self._step_sensor, self._run_frames = k.step_frame, k.step_sensor, k.run_frames
         self._to_body = k.to_body
-        # arrays handed out by x / P / cumulative (_pull): one object for filterpy's Saver
         self._w = SimpleNamespace(sync=None)
 
     @property
@@ -213,9 +201,9 @@ class GravityVelocityFilter:
         """Standstill flags overruled by the gate so far."""
         return int(self._s[I_REJECTED])
 
-    # -- state as numpy arrays (built on access; in-place changes are seen by the next frame) --------
+    # -- state as numpy arrays (built on access; in-place changes are seen by the next frame)
     def _pull(self) -> None:
-        """Copy arrays handed out by ``x``, ``P`` or ``cumulative`` back into the kernel's state."""
+        """Arrays handed out by ``x``, ``P`` or ``cumulative`` back into the buffer."""
         x, P, R = self._w.sync
         self._s[0:36] = x.tolist() + [float(P[i, j]) for i, j in _UPPER21] + R.ravel().tolist()
         self._w.sync = None
@@ -241,11 +229,10 @@ class GravityVelocityFilter:
     x_post = property(lambda self: self.x.copy(), doc="State after the last update (6,).")
     P_post = property(lambda self: self.P.copy(), doc="P after the last update (6, 6).")
 
-    # -- filterpy-style matrices of the last step, built on demand ----------------------------------
     def _last_step(self):
         """``(kind, K, y, S, dt, qv, qg, prior)`` of the last frame (kind 0 constraint, 1 ZUPT, 2 speed)."""
         s = self._s
-        if s[I_LAST]:                           # (layout: gravity_kernel)
+        if s[I_LAST]:
             last = s[I_LAST:I_LAST + 59].tolist()
             kind = int(last[1])
             nk, ny, ns = (18, 3, 6) if kind else (12, 2, 3)
@@ -282,10 +269,8 @@ class GravityVelocityFilter:
     y = property(lambda self: self._update_matrices()[3], doc="Innovation of the last update (3,), body axes.")
     S = property(lambda self: self._update_matrices()[4], doc="Innovation covariance of the last update (3x3).")
 
-    # -- public building blocks (SuspensionAwareFilter) --------------------------------------------
     def to_body(self, d: np.ndarray, dv: np.ndarray):
-        """Sensor-frame increments ``d`` (..., 3, 3), sensor_{k-1} <- sensor_k, and ``dv`` (..., 3), m/s,
-        to the body frame: ``R_gs d R_gs^T``, ``R_gs dv``."""
+        """Sensor-frame increments ``d`` (..., 3, 3) and ``dv`` (..., 3, m/s) to the body frame."""
         return (d, dv) if self._identity_extrinsic else body_increments(self._Rgs, d, dv)
 
     def to_body_flat(self, d9, dv3):
@@ -294,20 +279,19 @@ class GravityVelocityFilter:
 
     def step_body(self, d9, dv3, dt: float, stationary: bool = False, valid: bool = True,
                   speed: Optional[float] = None):
-        """One frame already in the body frame, as plain floats: the fast path of :meth:`step`.
+        """One unchecked frame already in the body frame, as plain floats: the fast path of :meth:`step`.
 
         Parameters
         ----------
         d9, dv3 : sequences of 9 and 3 floats
             ``R_{body_{k-1}<-body_k}`` row-major; gravity-free velocity increment (body_{k-1}, m/s).
-            Not checked (see :func:`imu_ground.filters.frame_checks.frame_problem`).
         dt, stationary, valid, speed
-            As in :meth:`step` (``dt`` > 0, s).
+            As in :meth:`step`.
 
         Returns
         -------
         specific_force, acceleration : tuple of 3 floats
-            Frame means in the body frame at mid-frame, m/s^2 (see :class:`GravityEstimate`).
+            As in :class:`GravityEstimate`.
         speed : float
             ``|v|`` after the update, m/s.
         """
@@ -317,13 +301,11 @@ class GravityVelocityFilter:
 
     def step_sensor(self, d9, dv3, dt: float, stationary: bool = False, valid: bool = True,
                     speed: Optional[float] = None):
-        """``step_body(*to_body_flat(d9, dv3), ...)`` in one call: ``d9`` (sensor_{k-1} <- sensor_k) and ``dv3``
-        in the sensor frame."""
+        """``step_body(*to_body_flat(d9, dv3), ...)`` in one call (sensor-frame increments)."""
         if self._w.sync is not None:
             self._pull()
         return self._step_sensor(self._s, d9, dv3, dt, stationary, valid, speed)
 
-    # -- warm start ------------------------------------------------------------------------------
     def _settings(self) -> dict:
         return dict(sigma_speed=self.sigma_speed, sigma_nhc=self.sigma_nhc, sigma_zupt=self.sigma_zupt, q_v=self.q_v,
                     q_g=self.q_g, q_gap=self.q_gap, sigma_v0=self.sigma_v0, sigma_g0=self.sigma_g0,
@@ -331,14 +313,14 @@ class GravityVelocityFilter:
                     R0=self.R0, v0=self._v0, g0=self._g0)
 
     def kernel_state(self) -> list:
-        """The kernel's whole state buffer as plain floats (:mod:`~imu_ground.filters.gravity_kernel`'s layout)."""
+        """The kernel's state buffer as plain floats."""
         if self._w.sync is not None:
             self._pull()
         return [float(v) for v in self._s]
 
     def read_kernel_state(self, reader: StateReader, name: str, optional: bool = False) -> Optional[list]:
-        """The entry ``name`` of a saved state, checked to be a buffer of this filter's layout: finite, NaN
-        only in the record of the last step (plain floats; None if ``optional`` and null)."""
+        """The entry ``name`` of a saved state, checked to be a buffer of this layout (None if ``optional`` and
+        null)."""
         a = reader.floats(name, (len(self._s),), nan=slice(I_LAST, I_QGAPG), optional=optional)
         return None if a is None else a.tolist()
 
@@ -348,39 +330,40 @@ class GravityVelocityFilter:
         self._s = buffer_like(self._s, values)
 
     def state_dict(self) -> dict:
-        """The state as a plain, JSON-serialisable dict (:mod:`imu_ground.imu.warm_start`): resume with
-        :meth:`load_state_dict` on a GravityVelocityFilter built with the same settings."""
+        """The state as a JSON-serialisable dict, for :meth:`load_state_dict` with the same settings."""
         return pack_state("GravityVelocityFilter", STATE_VERSION, self._settings(), {"buffer": self.kernel_state()})
 
     def load_state_dict(self, state: dict) -> None:
-        """Resume from a :meth:`state_dict`; a state of another estimator, layout or settings, or a corrupt
-        one, raises :class:`~imu_ground.imu.warm_start.StateError` (a ValueError) naming what is wrong."""
+        """Resume from a :meth:`state_dict`.
+
+        Raises
+        ------
+        StateError
+            A state of another estimator, layout or settings, or a corrupt one (named).
+        """
         st = StateReader("GravityVelocityFilter", unpack_state(state, "GravityVelocityFilter", STATE_VERSION,
                                                                self._settings()))
         buffer = self.read_kernel_state(st, "buffer")
         assert buffer is not None                   # not optional
         self.load_kernel_state(buffer)
 
-    # -- the plain-float views the suspension-aware filter reads each frame -----------------------------
     def horizontal_gravity_variance(self) -> float:
-        """``P[3, 3] + P[4, 4]``: the variances of gravity's two world-horizontal components, (m/s^2)^2."""
+        """``P[3, 3] + P[4, 4]``, (m/s^2)^2."""
         s = self._s
         return s.item(_I_GXX) + s.item(_I_GYY)
 
     def gravity_snapshot(self) -> tuple:
-        """``(g, R, p6)`` as plain floats: the gravity reaction (world frame, m/s^2), the attitude world <- body
-        (row-major 9) and the gravity covariance's unique entries ``(xx, xy, xz, yy, yz, zz)``."""
+        """``(g, R, p6)`` of :func:`~imu_ground.filters.road.road_one` as plain floats."""
         if self._w.sync is not None:
             self._pull()
-        s = self._s[3:36].tolist()                  # (Python floats, not numpy's)
+        s = self._s[3:36].tolist()
         return tuple(s[0:3]), tuple(s[24:33]), tuple(s[18:24])
 
     def set_mount(self, Rgs: np.ndarray, turn: Optional[np.ndarray] = None,
                   direction: Optional[np.ndarray] = None) -> None:
-        """A new static rotation ground <- sensor ``Rgs``; with ``turn``, the change ``D`` (body frame) applied
-        to the state: attitude ``R <- R D^T`` (the body axes turn, the world does not), gravity set along the
-        unit ``direction`` (world frame) with its magnitude kept, and the kernel's extrinsic set to ``Rgs``.
-        Without ``turn`` only the Python side is set (a warm start: the kernel's buffer holds it already)."""
+        """A new static rotation ground <- sensor ``Rgs``; with ``turn`` (the change ``D``, body frame) also the
+        state: ``R <- R D^T``, gravity along the unit ``direction`` (world frame), the buffer's extrinsic.
+        Without ``turn`` only the Python side (a warm start)."""
         Rgs = np.asarray(Rgs, dtype=float)
         if turn is not None:
             if self._w.sync is not None:
@@ -394,7 +377,6 @@ class GravityVelocityFilter:
             s[I_EXTR + 1:I_EXTR + 10] = Rgs.ravel().tolist()
         self._Rgs, self._identity_extrinsic, self._rgs9 = Rgs, False, Rgs.ravel().tolist()
 
-    # -- streaming ----------------------------------------------------------------------------
     def step(self, delta_R, delta_v=None, delta_t=None, stationary: bool = False,
              valid: bool = True, speed: Optional[float] = None) -> GravityEstimate:
         """Process one frame.
@@ -402,12 +384,9 @@ class GravityVelocityFilter:
         Parameters
         ----------
         delta_R : ndarray (3, 3), (4, 4) or (3,), or EgoFrame
-            Sensor rotation increment, sensor_{k-1} <- sensor_k; or an
-            :class:`~imu_ground.imu.egomotion.EgoFrame` carrying every field.
-        delta_v : ndarray (3,)
-            Gravity-free velocity increment, sensor frame at the frame's start, m/s.
-        delta_t : float
-            Frame duration, s.
+            Sensor rotation increment, sensor_{k-1} <- sensor_k; or an EgoFrame carrying every field.
+        delta_v, delta_t : ndarray (3,), float
+            Gravity-free velocity increment (sensor frame at the frame's start, m/s); frame duration, s.
         stationary, valid : bool
             The frame ends at a standstill (zero-velocity update); False through a timestamp gap.
         speed : float, optional
@@ -420,8 +399,8 @@ class GravityVelocityFilter:
         Raises
         ------
         ValueError
-            ``delta_R`` is not one rotation; a bad frame (:func:`~imu_ground.filters.frame_checks.frame_problem`:
-            not a rotation, non-finite ``delta_v``, ``delta_t`` not a positive number); the state is unchanged.
+            Not one rotation, or a bad frame (:func:`~imu_ground.filters.frame_checks.frame_problem`); the state
+            is unchanged.
         """
         if delta_v is None:
             delta_R, delta_v, delta_t, stationary, valid = delta_R[:5]
@@ -438,11 +417,10 @@ class GravityVelocityFilter:
             raise ValueError(f"bad frame: {problem}; the filter's state is unchanged")
         if self._w.sync is not None:
             self._pull()
-        e = np.empty(12)                                    # [v, g, acceleration, specific force]: four views
+        e = np.empty(12)                                    # [v, g, acceleration, specific force]
         speed = self._step_sensor(self._s, delta_R, dva, dt, stationary, valid, speed, e)
         return GravityEstimate(e[0:3], e[3:6], e[6:9], e[9:12], speed)
 
-    # -- batch -------------------------------------------------------------------------------
     def run(self, egomotion: Union[EgoMotion, ImuData], smooth: bool = False,
             speed: Optional[np.ndarray] = None) -> GravityTrack:
         """Process a whole drive, continuing from the current state as :meth:`step` would.
@@ -454,7 +432,7 @@ class GravityVelocityFilter:
         smooth : bool
             Rauch-Tung-Striebel smoother over the drive (offline).
         speed : ndarray (N,), optional
-            Measured forward speed per frame, m/s (NaN: none at that frame).
+            Measured forward speed per frame, m/s (NaN: none).
 
         Returns
         -------
@@ -464,12 +442,11 @@ class GravityVelocityFilter:
         return self._run(d, dv, dt, st, valid, smooth, speed, sensor=True)
 
     def run_body(self, d, dv, dt, stationary, valid, smooth: bool = False, speed=None) -> GravityTrack:
-        """:meth:`run` on body-frame arrays (``d`` (N, 3, 3), ``dv`` (N, 3), ``dt``, ``stationary``,
-        ``valid``, ``speed`` (N,) or None), already checked (:func:`egomotion_arrays`)."""
+        """:meth:`run` on checked body-frame arrays (:func:`egomotion_arrays`; ``speed`` (N,) or None)."""
         return self._run(d, dv, dt, stationary, valid, smooth, speed, sensor=False)
 
     def _run(self, d, dv, dt, stationary, valid, smooth, speed, sensor: bool) -> GravityTrack:
-        """The kernel's ``run_frames`` on checked arrays (``sensor``: sensor-frame increments), then the smoother."""
+        """The kernel's ``run_frames`` on checked arrays, then the smoother."""
         n = len(dt)
         d = np.ascontiguousarray(d, dtype=float).reshape(n, 3, 3)
         dv, dt = np.ascontiguousarray(dv, dtype=float).reshape(n, 3), np.ascontiguousarray(dt, dtype=float)
@@ -497,7 +474,7 @@ class GravityVelocityFilter:
 
 
 def _rts(xs, Ps, xps, Pps, dt):
-    """Rauch-Tung-Striebel smoother of the filter's forward pass (F = [[I, -dt I], [0, I]])."""
+    """RTS smoother of the forward pass (F = [[I, -dt I], [0, I]])."""
     xs, Ps = xs.copy(), Ps.copy()
     F = np.eye(6)
     for k in range(len(dt) - 2, -1, -1):

@@ -45,8 +45,8 @@ _LO, _HI, _ARMED, _DRIFT, _ALARM, _ALARM_T, _ALARM_COS, _REF = range(8)
 
 @njit
 def _frame(s, ht, hu, t, gx, gy, gz, usable):
-    """One frame of the monitor on its state ``s`` and history arrays ``ht`` (times), ``hu`` (unit gravity);
-    ``gx, gy, gz`` NaN: no road filter. Returns whether the alarm is raised (latched)."""
+    """One frame on the state ``s`` and history ``ht`` (times), ``hu`` (unit gravity); NaN gravity: no road
+    filter. Returns whether the alarm is raised."""
     if s[_ALARM] != 0.0:
         return True
     if not usable or isnan(gx) or isnan(gy) or isnan(gz):
@@ -79,14 +79,13 @@ def _frame(s, ht, hu, t, gx, gy, gz, usable):
 
 @njit
 def _frames(s, ht, hu, t, g, usable, out):
-    """:func:`_frame` over a batch: ``t`` (F,), ``g`` (F, 3) (rows of NaN: no road filter), ``usable`` (F,)."""
+    """:func:`_frame` over a batch."""
     for k in range(t.shape[0]):
         out[k] = _frame(s, ht, hu, t[k], g[k, 0], g[k, 1], g[k, 2], usable[k])
 
 
 class MountMonitor:
-    """The monitor of the module docstring: one :meth:`update` a frame, or :meth:`run` over a batch (the same
-    compiled body driven over the frames).
+    """The monitor of the module docstring: :meth:`update` a frame, :meth:`run` a batch (one compiled body).
 
     Attributes
     ----------
@@ -112,7 +111,7 @@ class MountMonitor:
         self._engaged = False
 
     def _room(self, n: int) -> None:
-        """Room in the history arrays for ``n`` more entries (the window moved to their start, grown if needed)."""
+        """Room in the history for ``n`` more entries."""
         s = self._s
         lo, hi = int(s[_LO]), int(s[_HI])
         if hi + n <= len(self._ht):
@@ -151,22 +150,9 @@ class MountMonitor:
         self._engaged = bool(s[_HI] > s[_LO] or not math.isnan(s[_ARMED]))
 
     def update(self, t: float, gravity, usable: bool) -> str | None:
-        """One frame.
-
-        Parameters
-        ----------
-        t : float
-            Frame end time, s.
-        gravity : sequence of 3 float or None
-            The road filter's gravity reaction (world frame) after the frame; None without a road filter.
-        usable : bool
-            The frame is valid (no gap) and has a speed.
-
-        Returns
-        -------
-        str or None
-            The alarm's reason once raised (latched), else None.
-        """
+        """One frame: ``t`` its end (s), ``gravity`` the road filter's gravity reaction after it (world frame;
+        None: no road filter), ``usable`` valid and with a speed. Returns the alarm's reason once raised, else
+        None."""
         if self.alarm is not None:
             return self.alarm
         s = self._s
@@ -178,20 +164,8 @@ class MountMonitor:
         return self._raised() if raised else None
 
     def run(self, t: np.ndarray, gravity: np.ndarray, usable: np.ndarray) -> np.ndarray:
-        """:meth:`update` over a batch (frames in order); per frame whether the alarm is raised.
-
-        Parameters
-        ----------
-        t : ndarray (F,)
-            Frame times, s, non-decreasing.
-        gravity : ndarray (F, 3)
-            The road filter's gravity per frame (rows of NaN: no road filter at that frame).
-        usable : ndarray of bool (F,)
-
-        Returns
-        -------
-        ndarray of bool (F,)
-        """
+        """:meth:`update` over a batch (``t`` (F,) non-decreasing, ``gravity`` (F, 3) with NaN rows for none,
+        ``usable`` (F,)): per frame whether the alarm is raised, bool (F,)."""
         t = np.ascontiguousarray(t, dtype=float)
         n = len(t)
         out = np.zeros(n, dtype=bool)
@@ -211,8 +185,7 @@ class MountMonitor:
                 "alarm_t": self.alarm_t, "reference": None if self.reference is None else list(self.reference)}
 
     def load_state_dict(self, state) -> None:
-        """Back to a :meth:`state_dict` (a dict or a :class:`~imu_ground.imu.warm_start.StateReader`); every
-        entry checked (finite, shapes) before the monitor changes."""
+        """Back to a :meth:`state_dict` (a dict or a StateReader), every entry checked first."""
         st = as_reader(state, "MountMonitor")
         hist = st.rows("hist", lambda r: [r[0], *r[1]], 4)
         armed_at, drift = st.float("armed_at", nan=True), st.float("drift")

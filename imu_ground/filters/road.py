@@ -17,10 +17,8 @@ walk ``q_g`` of :data:`ROAD_Q_G`, to follow the gyro-integrated world frame's dr
 speed (else a slow grade cannot be told from a slow acceleration): the road is estimated from the first
 frame with a finite speed on, and is NaN before and wherever the frame's speed is NaN.
 
-1-sigma: ``sigma_grade^2 = sigma_pitch^2 + c^2 P_x / |g|^2 + f^2`` and the same for
-the bank with ``P_y``, ``P`` the gravity filter's covariance of gravity turned into
-the body frame; ``c`` and ``f`` (:data:`ROAD_STD`) fitted on synthetic drives like
-those of :mod:`imu_ground.filters.status`.
+1-sigma: ``sigma_grade^2 = sigma_pitch^2 + c^2 P_x / |g|^2 + f^2`` and the same for the bank with ``P_y``,
+``P`` the gravity filter's covariance of gravity in the body frame, ``(c, f)`` :data:`ROAD_STD`.
 """
 from __future__ import annotations
 
@@ -61,14 +59,14 @@ def road_gravity_options(options: Optional[dict] = None) -> dict:
 
 @jitable
 def _quad(p, a0, a1, a2):
-    """``a^T P a`` with ``P`` given by its unique entries ``p`` = (xx, xy, xz, yy, yz, zz)."""
+    """``a^T P a``, ``p`` = P's (xx, xy, xz, yy, yz, zz)."""
     return (a0 * (p[0] * a0 + p[1] * a1 + p[2] * a2) + a1 * (p[1] * a0 + p[3] * a1 + p[4] * a2)
             + a2 * (p[2] * a0 + p[4] * a1 + p[5] * a2))
 
 
 @jitable
 def _ratio(a, b):
-    """``a / b`` as numpy divides (inf, or NaN for 0 / 0, where ``b`` is 0: no gravity yet)."""
+    """``a / b`` as numpy divides (inf or NaN where ``b`` is 0)."""
     if b != 0.0:
         return a / b
     return math.nan if a == 0.0 or a != a else math.copysign(math.inf, a)
@@ -77,7 +75,7 @@ def _ratio(a, b):
 @jitable
 def road_one(q, g, R, p6) -> tuple[float, float, float, float]:
     """Grade, bank (rad) and the gravity filter's share of their variances (rad^2) of one frame: the one body
-    of the road (:func:`road_angles`, :func:`road_std` and :meth:`RoadFilter.run` drive it over a batch).
+    of the road, driven over a batch by :func:`road_angles`, :func:`road_std` and :meth:`RoadFilter.run`.
 
     Parameters
     ----------
@@ -93,10 +91,9 @@ def road_one(q, g, R, p6) -> tuple[float, float, float, float]:
     Returns
     -------
     grade, bank, var_grade, var_bank : float
-        + uphill in the direction of travel, + left side up; ``var_*``: ``c^2 P_b / |g|^2 + f^2`` of the
-        module docstring (add the estimator's pitch or roll variance).
+        + uphill, + left side up; ``c^2 P_b / |g|^2 + f^2`` (module docstring).
     """
-    ux = R[0] * g[0] + R[3] * g[1] + R[6] * g[2]              # R^T g: up in the body frame
+    ux = R[0] * g[0] + R[3] * g[1] + R[6] * g[2]              # R^T g: up, body frame
     uy = R[1] * g[0] + R[4] * g[1] + R[7] * g[2]
     uz = R[2] * g[0] + R[5] * g[1] + R[8] * g[2]
     w, x, y, z = q[0], q[1], q[2], q[3]                      # E u: up in the road frame
@@ -105,7 +102,7 @@ def road_one(q, g, R, p6) -> tuple[float, float, float, float]:
     n2 = 2 * (x * z - w * y) * ux + 2 * (y * z + w * x) * uy + (1 - 2 * (x * x + y * y)) * uz
     c, f = ROAD_STD
     g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
-    return (math.atan2(n0, math.hypot(n1, n2)), math.atan2(n1, n2),                      # body x, y axes:
+    return (math.atan2(n0, math.hypot(n1, n2)), math.atan2(n1, n2),
             _ratio(c * c * _quad(p6, R[0], R[3], R[6]), g2) + f * f, _ratio(c * c * _quad(p6, R[1], R[4], R[7]), g2) + f * f)
 
 
@@ -116,8 +113,7 @@ def _road_frames(q, g, R, p6, out):
 
 
 def _road_track(q, gravity, cumulative, cov=None) -> np.ndarray:
-    """:func:`road_one` of every frame, (F, 4): ``q`` (F, 4), ``gravity`` (F, 3), ``cumulative`` (F, 3, 3),
-    ``cov`` (F, 3, 3) or None (zero)."""
+    """:func:`road_one` of every frame, (F, 4) (``cov`` (F, 3, 3) or None: zero)."""
     n = len(q)
     out = np.empty((n, 4))
     p6 = np.zeros((n, 6)) if cov is None else np.asarray(cov, dtype=float)[:, _UPPER[0], _UPPER[1]]
@@ -133,15 +129,13 @@ def road_angles(E: np.ndarray, gravity: np.ndarray, cumulative: np.ndarray) -> t
     ----------
     E : ndarray (F, 3, 3)
         Residual road <- body.
-    gravity : ndarray (F, 3)
-        Reaction to gravity in the gravity filter's world frame, m/s^2.
-    cumulative : ndarray (F, 3, 3)
-        That filter's attitude, world <- body.
+    gravity, cumulative : ndarray (F, 3), (F, 3, 3)
+        The gravity filter's reaction to gravity (its world frame, m/s^2) and attitude world <- body.
 
     Returns
     -------
     grade, bank : ndarray (F,)
-        + uphill in the direction of travel; + left side up.
+        + uphill; + left side up.
     """
     out = _road_track(quat_from_matrix(np.asarray(E, dtype=float)), gravity, cumulative)
     return out[:, 0], out[:, 1]
@@ -159,13 +153,9 @@ def road_std(pitch_std, roll_std, gravity_cov: np.ndarray, gravity: np.ndarray,
     Parameters
     ----------
     pitch_std, roll_std : ndarray (F,)
-        The estimator's 1-sigma of the body relative to the road, rad.
-    gravity_cov : ndarray (F, 3, 3)
-        Covariance of the gravity reaction, world frame, (m/s^2)^2.
-    gravity : ndarray (F, 3)
-        Gravity reaction, world frame, m/s^2.
-    cumulative : ndarray (F, 3, 3)
-        World <- body.
+        The estimator's 1-sigma, rad.
+    gravity_cov, gravity, cumulative : ndarray (F, 3, 3), (F, 3), (F, 3, 3)
+        Covariance ((m/s^2)^2) and value (m/s^2) of the gravity reaction, world frame; world <- body.
     """
     out = _road_track(np.tile([1.0, 0.0, 0.0, 0.0], (len(gravity), 1)), gravity, cumulative, gravity_cov)
     return np.sqrt(np.square(pitch_std) + out[:, 2]), np.sqrt(np.square(roll_std) + out[:, 3])
@@ -177,8 +167,7 @@ class RoadFilter:
     Parameters
     ----------
     extrinsic, lever_arm, gravity
-        The estimator's extrinsic, lever arm and gravity/velocity options (``q_g`` is replaced by
-        :data:`ROAD_Q_G`).
+        The estimator's extrinsic, lever arm and gravity/velocity options (``q_g``: :data:`ROAD_Q_G`).
 
     Attributes
     ----------
@@ -199,8 +188,7 @@ class RoadFilter:
         return {"road": None if self.gravity_filter is None else self.gravity_filter.kernel_state()}
 
     def load_state_dict(self, state) -> None:
-        """Back to a :meth:`state_dict` (a dict or a :class:`~imu_ground.imu.warm_start.StateReader`; the buffer
-        checked before it is taken)."""
+        """Back to a :meth:`state_dict` (a dict or a StateReader; the buffer checked first)."""
         st = as_reader(state, "RoadFilter")
         gf = GravityVelocityFilter(**self._kw)
         values = gf.read_kernel_state(st, "road", optional=True)
@@ -210,9 +198,8 @@ class RoadFilter:
 
     def set_mount(self, Rgs: np.ndarray, turn: Optional[np.ndarray] = None,
                   direction: Optional[np.ndarray] = None) -> None:
-        """A new static rotation ground <- sensor (online re-estimation of the mount): for the filter started
-        from now on, and for the running one (:meth:`GravityVelocityFilter.set_mount`; ``direction``: the unit
-        gravity reaction after the change, this filter's world frame)."""
+        """A new static rotation ground <- sensor, for the running filter and one started later
+        (:meth:`GravityVelocityFilter.set_mount`)."""
         self._kw["extrinsic"] = Extrinsic(Rgs, self._kw["extrinsic"].translation, dict(self._kw["extrinsic"].meta))
         if self.gravity_filter is not None:
             self.gravity_filter.set_mount(Rgs, turn, direction)
@@ -224,44 +211,24 @@ class RoadFilter:
         return self.gravity_filter
 
     def step(self, d, dv, dt: float, stationary: bool, valid: bool, speed: float) -> Optional[tuple]:
-        """One frame (sensor frame, as :meth:`GravityVelocityFilter.step_sensor` takes it).
-
-        Returns
-        -------
-        tuple or None
-            ``(g, R, p6)`` after the frame (plain floats, see :func:`road_one`), or None when
-            the frame has no speed (the filter still advances once started).
-        """
+        """One frame (as :meth:`GravityVelocityFilter.step_sensor` takes it): ``(g, R, p6)`` of :func:`road_one`
+        after it, or None when it has no speed (the filter still advances once started)."""
         if self.gravity_filter is None:
             if math.isnan(speed):
                 return None
             self.start()
-        gf = self.gravity_filter
-        assert gf is not None                   # started
+        gf = self.start()
         gf.step_sensor(d, dv, dt, stationary, valid, speed)
-        if math.isnan(speed):
-            return None
-        return gf.gravity_snapshot()
+        return None if math.isnan(speed) else gf.gravity_snapshot()
 
     def gravity_pass(self, egomotion, speed: np.ndarray) -> Optional[tuple[np.ndarray, GravityTrack]]:
-        """The first half of :meth:`run`: the gravity/velocity filter over a batch of frames (already checked),
-        started at the first frame with a speed unless it runs already. It touches this object's own state
-        only, so it may run in another thread while the estimator's other filters run (the compiled kernel
-        releases the GIL).
-
-        Parameters
-        ----------
-        egomotion : EgoMotion
-            The frames (sensor frame).
-        speed : ndarray (F,)
-            Measured forward speed, m/s (NaN: none).
+        """The first half of :meth:`run`: the filter over checked frames (sensor frame; ``speed`` (F,) m/s, NaN:
+        none), started at the first with a speed. Touches only this object (it may run in another thread).
 
         Returns
         -------
         (keep, track) or None
-            ``keep``: bool (F,), the frames from the filter's start on; ``track``: its
-            :class:`~imu_ground.filters.gravity_velocity.GravityTrack` over them. None when it does
-            not start (no frame with a speed).
+            The frames from the filter's start on (bool (F,)) and its GravityTrack over them; None: no start.
         """
         n = len(speed)
         if self.gravity_filter is None:
@@ -281,25 +248,21 @@ class RoadFilter:
 
         Parameters
         ----------
-        egomotion : EgoMotion
-            The frames (sensor frame).
-        speed : ndarray (F,)
-            Measured forward speed, m/s (NaN: none).
+        egomotion, speed
+            As in :meth:`gravity_pass`.
         q : ndarray (F, 4)
             The estimator's residuals road <- body, unit quaternions (w, x, y, z).
         pitch_std, roll_std : ndarray (F,)
             The estimator's 1-sigma, rad.
         gravity_pass : callable, optional
-            Returns :meth:`gravity_pass` of these frames, already run (e.g. a
-            ``concurrent.futures.Future``'s ``result``); by default it runs here.
+            Returns :meth:`gravity_pass` of these frames, already run (e.g. a Future's ``result``).
 
         Returns
         -------
         road : ndarray (F, 4)
-            Grade, bank and their 1-sigma (rad); NaN where the frame has no speed or the filter
-            had not started.
+            Grade, bank and their 1-sigma (rad); NaN without a speed or before the start.
         gravity : ndarray (F, 3)
-            The filter's gravity reaction (its world frame, m/s^2) after each frame; NaN before it started.
+            The filter's gravity reaction (its world frame, m/s^2); NaN before the start.
         """
         n = len(speed)
         out, grav = np.full((n, 4), np.nan), np.full((n, 3), np.nan)

@@ -13,14 +13,10 @@ suspension model nor of the gravity estimate. The variance of the body-relative-
 with ``u`` the suspension model's load (m/s^2, body frame), ``omega`` the yaw rate (rad/s,
 :func:`~imu_ground.so3.heading_change` over the frame duration) and ``h`` its weight, ``f`` a floor,
 ``sigma_b^2`` the gravity estimate's horizontal variance carried through the load into the modelled tilt
-(:func:`tilt_weights`). The drive terms (:class:`DriveStatistics`, causal, IMU-only, saved with the
-state): ``rho`` the RMS body rate about the angle's axis over the moving frames so far, ``r`` its weight
-(a rough road makes larger errors all drive long); ``d`` the mean load along the angle's axis so far off a
-centre ``c`` (m/s^2), ``m`` its weight (an accelerometer bias tilts the modelled body by ``k b`` all
-drive; it cannot be told from a road crown, so the term widens the 1-sigma and corrects nothing). Both
-carry :data:`DRIVE_PRIOR_SECONDS` of prior. The constants (:data:`SUSPENSION_STD`, :data:`FILTER_STD`)
-are fitted on synthetic drives with exact truth by ``benchmarks/studies/calibrate_std.py``; their
-coverage is in ``benchmarks/RESULTS.md``.
+(:func:`tilt_weights`). The drive terms (:class:`DriveStatistics`, causal, IMU-only): ``rho`` the RMS body
+rate about the angle's axis over the moving frames so far (a rough road), ``d`` the mean load along that axis
+off a centre ``c`` (m/s^2; an accelerometer bias, which cannot be told from a road crown, so it only widens the
+1-sigma), weighted by ``r`` and ``m``. The constants are fitted by ``benchmarks/studies/calibrate_std.py``.
 
 Status
 ------
@@ -79,20 +75,9 @@ class AngleStd:
 
     Attributes
     ----------
-    cov_scale : float
-        ``c_a``: factor on the filter's standard deviation ``sqrt(a)``.
-    load_x, load_y : float
-        ``g_x, g_y``: rad per m/s^2 of forward and leftward load.
-    floor : float
-        ``f``, rad.
-    turn : float
-        ``h``: rad per rad/s of yaw rate.
-    rough : float
-        ``r``: rad per rad/s of the drive's RMS body rate about this angle's axis (:class:`DriveStatistics`).
-    drive_load : float
-        ``m``: rad per m/s^2 of the drive's mean load off ``load_center`` along this angle's load axis.
-    load_center : float
-        ``c``: the mean load the drive term is measured from, m/s^2.
+    cov_scale, load_x, load_y, floor, turn, rough, drive_load, load_center : float
+        ``c_a``; ``g_x, g_y`` (rad per m/s^2 of load); ``f`` (rad); ``h`` (rad per rad/s of yaw rate); ``r``
+        (rad per rad/s of RMS body rate); ``m`` (rad per m/s^2 of mean load off ``c``); ``c`` (m/s^2).
     """
     cov_scale: float
     load_x: float
@@ -104,23 +89,16 @@ class AngleStd:
     load_center: float = 0.0
 
     def variance(self, a, load_x=0.0, load_y=0.0, tilt_var=0.0, yaw_rate=0.0, rate_ms=0.0, load_offset=0.0):
-        """``sigma^2`` (rad^2) of the module docstring; scalars (Python floats) or arrays alike.
+        """``sigma^2`` (rad^2) of the module docstring; floats or arrays alike.
 
         Parameters
         ----------
         a : float or ndarray
             The filter's horizontal variance of the road attitude, rad^2.
-        load_x, load_y : float or ndarray
-            Load of the suspension model, m/s^2, body frame.
-        tilt_var : float or ndarray
-            ``sigma_b^2``, rad^2: the gravity estimate's share through the modelled tilt.
-        yaw_rate : float or ndarray
-            ``omega``, rad/s (its sign does not matter).
-        rate_ms : float or ndarray
-            ``rho^2``: the drive's mean square body rate about this angle's axis so far, (rad/s)^2
-            (:meth:`DriveStatistics.terms`).
-        load_offset : float or ndarray
-            ``d``: the drive's mean load so far off :attr:`load_center`, m/s^2 (:meth:`DriveStatistics.terms`).
+        load_x, load_y, tilt_var, yaw_rate : float or ndarray
+            ``u_x, u_y`` (m/s^2, body frame), ``sigma_b^2`` (rad^2), ``omega`` (rad/s, either sign).
+        rate_ms, load_offset : float or ndarray
+            ``rho^2`` ((rad/s)^2) and ``d`` (m/s^2) of :meth:`DriveStatistics.terms`.
         """
         gx, gy, h, m = self.load_x * load_x, self.load_y * load_y, self.turn * yaw_rate, self.drive_load * load_offset
         return (self.cov_scale * self.cov_scale * a + gx * gx + gy * gy + h * h + self.floor * self.floor + tilt_var
@@ -137,9 +115,8 @@ FILTER_STD = (AngleStd(0.0, 0.0, 0.0, 0.226 * DEG), AngleStd(0.0, 0.0, 0.0, 0.32
 
 
 def tilt_weights(k_pitch: Any, k_roll: Any, load_share: float, cross_gain: float) -> tuple:
-    """Factors of the gravity estimate's horizontal variance (its two world-horizontal variances summed,
-    (m/s^2)^2) in the variances of the modelled pitch and roll (rad^2), floats or arrays alike:
-    ``h (k_pitch^2 + k_cross^2)`` and ``h k_roll^2``, ``h = (1 - s)^2 / 2`` (``s`` the load share)."""
+    """Factors of the gravity estimate's horizontal variance ((m/s^2)^2) in the modelled pitch's and roll's
+    (rad^2): ``h (k_pitch^2 + k_cross^2)`` and ``h k_roll^2``, ``h = (1 - s)^2 / 2``; floats or arrays alike."""
     h = 0.5 * (1.0 - load_share) ** 2
     return h * (k_pitch * k_pitch + cross_gain * cross_gain), h * k_roll * k_roll
 
@@ -161,17 +138,11 @@ def status_reason(code: int, gap_seconds: float = math.nan, std: float = math.na
     code : int
         Index into :data:`STATUSES`.
     gap_seconds : float
-        Duration of the gap (s), said for ``gap``: the frame's own (a stream cannot know more);
-        the output table says the whole run's (:func:`gap_run_durations`).
-    std : float
-        The larger 1-sigma of the frame (rad), said for ``converging``.
+        Duration of the gap, s (``gap``; a frame's own, the output table the run's: :func:`gap_run_durations`).
+    std, converged_std, moving_seconds : float
+        For ``converging``: the larger 1-sigma (rad), the threshold (rad), the moving time the latch waits for (s).
     detail : str, optional
-        The monitor's reason for ``degraded``, the frame's problem for ``invalid``, or a note for
-        ``ok`` (e.g. why the road is not estimated).
-    converged_std : float
-        The estimator's threshold, rad, said for ``converging``.
-    moving_seconds : float
-        The seconds of moving frames the estimator's latch also waits for (0: none), said for ``converging``.
+        The reason of ``degraded``, the problem of ``invalid`` or the note of ``ok``.
     """
     if code == OK:
         return detail or ""
@@ -196,12 +167,8 @@ def status_names(codes: np.ndarray) -> np.ndarray:
 
 
 def frame_status_code(converged: Any, stationary: Any, valid: Any, degraded: Any = False) -> Any:
-    """The status code of one processed frame, or of every frame of a batch alike (0/1 int arrays).
-
-    ``converged`` is the estimator's latch after the frame (its larger 1-sigma has been at or below its
-    threshold once); a frame at rest is ``standstill``, one a monitor flags ``degraded``, one integrated
-    through a gap ``gap``, each overriding the ones before (``code + (X - code) * flag``: X where flagged).
-    """
+    """The status code of one processed frame, or of a batch's (0/1 int arrays): the latch ``converged``, then
+    ``standstill``, ``degraded`` and ``gap``, each overriding the ones before."""
     code = CONVERGING + (OK - CONVERGING) * converged
     code = code + (STANDSTILL - code) * stationary
     code = code + (DEGRADED - code) * degraded
@@ -211,23 +178,20 @@ def frame_status_code(converged: Any, stationary: Any, valid: Any, degraded: Any
 def track_statuses(var_max: np.ndarray, stationary: np.ndarray, valid: np.ndarray, good: np.ndarray,
                    converged: bool = False, degraded: Optional[np.ndarray] = None,
                    converged_std: float = CONVERGED_STD) -> tuple[np.ndarray, bool]:
-    """The status code of every frame of a batch: :func:`frame_status_code` of the frames' flags, the
-    convergence latch accumulated over the batch, and ``invalid`` for a skipped frame.
+    """The status codes of a batch: :func:`frame_status_code` with the latch accumulated, ``invalid`` where skipped.
 
     Parameters
     ----------
     var_max : ndarray (F,)
         ``max(pitch_std, roll_std)^2`` per frame, rad^2.
-    stationary, valid : ndarray of bool (F,)
-        The frames' standstill and validity flags (as in the ego-motion).
-    good : ndarray of bool (F,)
-        False for a skipped bad frame (it neither converges nor counts).
+    stationary, valid, good : ndarray of bool (F,)
+        The ego-motion's flags; ``good`` False for a skipped bad frame.
     converged : bool
-        Whether the estimator had converged before the first frame.
+        The latch before the first frame.
     degraded : ndarray of bool (F,), optional
         Frames a monitor flags.
     converged_std : float
-        The estimator's threshold, rad (:data:`CONVERGED_STD` or :data:`FILTER_CONVERGED_STD`).
+        The threshold, rad.
 
     Returns
     -------
@@ -247,13 +211,12 @@ def track_statuses(var_max: np.ndarray, stationary: np.ndarray, valid: np.ndarra
 
 
 def gap_run_durations(gap: np.ndarray, dt: np.ndarray) -> np.ndarray:
-    """``dt`` (frame durations, s) with each run of consecutive ``gap`` frames replaced by the run's summed
-    duration: the length of the gap every frame inside it says."""
+    """``dt`` (s) with each run of consecutive ``gap`` frames replaced by the run's summed duration."""
     gap, dt = np.asarray(gap, dtype=bool), np.asarray(dt, dtype=float)
     if not gap.any():
         return dt
     start = gap & ~np.concatenate([[False], gap[:-1]])
-    run = np.cumsum(start) - 1                              # run index of each gap frame
+    run = np.cumsum(start) - 1
     total = np.bincount(run[gap], weights=dt[gap])
     out = dt.copy()
     out[gap] = total[run[gap]]
@@ -267,29 +230,23 @@ def track_reasons(codes: np.ndarray, std_max: np.ndarray, dt: np.ndarray,
 
     Parameters
     ----------
-    codes : ndarray (F,)
-        Status codes (:func:`track_statuses`).
-    std_max : ndarray (F,)
-        ``max(pitch_std, roll_std)`` per frame, rad.
-    dt : ndarray (F,)
-        Frame durations, s.
+    codes, std_max, dt : ndarray (F,)
+        Status codes, ``max(pitch_std, roll_std)`` (rad), frame durations (s).
     details : ndarray of object (F,), optional
-        The monitor's reason of each ``degraded`` frame, a bad frame's problem, or an ``ok`` frame's note.
-    converged_std : float
-        The estimator's threshold, rad.
-    moving_seconds : float
-        The moving time its latch also waits for, s (:func:`status_reason`).
+        ``detail`` of :func:`status_reason` per frame.
+    converged_std, moving_seconds : float
+        As in :func:`status_reason`.
     """
     codes = np.asarray(codes)
     out = np.full(len(codes), "", dtype=object)
     detail = np.full(len(codes), None, dtype=object) if details is None else np.asarray(details, dtype=object)
-    for code in (OK, STANDSTILL, DEGRADED, INVALID):            # status_reason of each distinct detail
+    for code in (OK, STANDSTILL, DEGRADED, INVALID):
         k = np.flatnonzero(codes == code)
         if k.size:
             d = detail[k].tolist()
             texts = {v: status_reason(code, detail=v) for v in set(d)}
             out[k] = [texts[v] for v in d]
-    for i in np.flatnonzero((codes == CONVERGING) | (codes == GAP)).tolist():   # (few frames: the start, gaps)
+    for i in np.flatnonzero((codes == CONVERGING) | (codes == GAP)).tolist():
         out[i] = status_reason(int(codes[i]), float(dt[i]), float(std_max[i]), detail[i], converged_std,
                                moving_seconds)
     return out
@@ -300,14 +257,13 @@ DRIVE_PRIOR_SECONDS = 30.0
 
 
 def _rows(Rgs) -> Optional[tuple]:
-    """The first two rows of ``Rgs`` (ground <- sensor) as 6 floats; None for None (the identity)."""
+    """The first two rows of ``Rgs`` as 6 floats (None: the identity)."""
     return None if Rgs is None else tuple(np.asarray(Rgs, dtype=float)[:2].ravel().tolist())
 
 
 @jitable
 def _drive_frame(s, m, dt, speed, stationary, valid, ux, uy, r):
-    """One frame of :class:`DriveStatistics` on its state ``s`` (5): ``m`` the rotation increment (9, row-major),
-    ``r`` the first two rows of ``R_gs`` (6; None: the identity)."""
+    """One frame of :class:`DriveStatistics` on its state ``s``: ``m`` (9, row-major), ``r`` :func:`_rows`."""
     if not valid or stationary or not abs(speed) >= SLOW_SPEED:
         return
     vx, vy = 0.5 * (m[7] - m[5]), 0.5 * (m[2] - m[6])
@@ -331,14 +287,10 @@ def _drive_frames(s, d, dt, speed, stationary, valid, load, r, out):
 
 
 class DriveStatistics:
-    r"""Running statistics of the drive so far that the per-frame inputs of the 1-sigma do not see: the road's
-    roughness (the mean square body pitch and roll rate) and the mean load (the accelerometer's offset plus the
-    mean grade and crown), over the moving frames (valid, not at a standstill, the estimator's speed at or above
-    :data:`SLOW_SPEED`), weighted by their durations. Causal and IMU-only (the speed is the measured one where
-    given, else the estimator's own); one body, :meth:`update` a frame or :meth:`run` over a batch.
-
-    The body rates are the frame's rotation ``D`` (sensor increment) as the rate vector
-    ``vee((D - D^T) / 2) / dt`` turned into the ground frame (``R_gs``): x the roll rate, y the pitch rate, rad/s.
+    r"""The drive terms of the 1-sigma (module docstring): duration-weighted sums over the moving frames (valid,
+    not at a standstill, speed at or above :data:`SLOW_SPEED`). One body: :meth:`update` a frame, :meth:`run` a
+    batch. The body rates are ``vee((D - D^T) / 2) / dt`` of the sensor increment ``D``, turned into the ground
+    frame (x roll, y pitch, rad/s).
 
     Attributes
     ----------
@@ -349,7 +301,7 @@ class DriveStatistics:
 
     def __init__(self) -> None:
         self._rgs: Any = None
-        self._rows = _rows(None)                # the first two rows of _rgs (kept while it is the same object)
+        self._rows = _rows(None)
         self.reset()
 
     def reset(self) -> None:
@@ -358,8 +310,8 @@ class DriveStatistics:
 
     def update(self, d: np.ndarray, dt: float, speed: float, stationary: bool, valid: bool, ux: float, uy: float,
                Rgs: Optional[np.ndarray] = None) -> None:
-        """One frame: ``d`` its rotation increment (sensor frame, 3x3), ``dt`` s, ``speed`` m/s, ``ux, uy`` the
-        suspension model's load (m/s^2); ``Rgs`` ground <- sensor (None: the identity)."""
+        """One frame: ``d`` the sensor increment (3x3), ``dt`` s, ``speed`` m/s, ``ux, uy`` the load (m/s^2),
+        ``Rgs`` ground <- sensor (None: the identity)."""
         if Rgs is not self._rgs:
             self._rgs, self._rows = Rgs, _rows(Rgs)
         _drive_frame(self.state, np.asarray(d, dtype=float).ravel().tolist(), dt, speed, stationary, valid, ux, uy,
@@ -367,19 +319,8 @@ class DriveStatistics:
 
     def run(self, delta_R: np.ndarray, dt: np.ndarray, speed: np.ndarray, stationary: np.ndarray,
             valid: np.ndarray, load: np.ndarray, Rgs: Optional[np.ndarray] = None) -> np.ndarray:
-        """:meth:`update` over N frames (a compiled loop of the same body): the state after each, (N, 5), and
-        :attr:`state` advanced to the last.
-
-        Parameters
-        ----------
-        delta_R : ndarray (N, 3, 3)
-        dt, speed : ndarray (N,)
-            s, m/s.
-        stationary, valid : ndarray of bool (N,)
-        load : ndarray (N, 2)
-            m/s^2.
-        Rgs : ndarray (3, 3), optional
-        """
+        """:meth:`update` over N frames (``delta_R`` (N, 3, 3), ``load`` (N, 2), the others (N,)): the state
+        after each, (N, 5); :attr:`state` advanced to the last."""
         c = np.ascontiguousarray
         n = len(dt)
         out, s = np.empty((n, 5)), np.array(self.state, dtype=float)
@@ -390,9 +331,8 @@ class DriveStatistics:
 
     @staticmethod
     def terms(state, pitch: AngleStd, roll: AngleStd) -> tuple:
-        """``(rho_p^2, d_x, rho_r^2, d_y)`` of :meth:`AngleStd.variance` from a state (5 floats, or arrays
-        (..., 5) alike): the mean square pitch and roll rates, (rad/s)^2, and the mean loads off the models'
-        ``load_center``, m/s^2, each with :data:`DRIVE_PRIOR_SECONDS` of prior (zero rate, the centre)."""
+        """``(rho_p^2, d_x, rho_r^2, d_y)`` of :meth:`AngleStd.variance` from a state (5, or (..., 5)), each
+        with :data:`DRIVE_PRIOR_SECONDS` of prior at zero rate and the load centre."""
         t, sx, sy, rx2, ry2 = (state[..., k] for k in range(5)) if isinstance(state, np.ndarray) else state
         T = t + DRIVE_PRIOR_SECONDS
         return ry2 / T, (sx - pitch.load_center * t) / T, rx2 / T, (sy - roll.load_center * t) / T
@@ -417,21 +357,18 @@ class SigmaModel:
     constants : (AngleStd, AngleStd)
         Pitch and roll constants (:data:`SUSPENSION_STD` or :data:`FILTER_STD`).
     converged_std : float
-        The latch's threshold, rad (:data:`CONVERGED_STD` or :data:`FILTER_CONVERGED_STD`).
+        The latch's threshold, rad.
     load_share, cross_gain : float
-        The suspension model's ``s`` and ``k_cross`` (the gravity estimate's share, batch only).
+        The suspension model's ``s`` and ``k_cross`` (batch only).
     min_moving_seconds : float
-        The moving time (s, :attr:`DriveStatistics.state`'s first entry) the latch also waits for
-        (:data:`CONVERGED_MOVING_SECONDS` for the suspension filter; 0: none).
+        Moving time the latch also waits for, s (0: none).
 
     Attributes
     ----------
     converged : bool
-        The larger 1-sigma without the drive terms (:meth:`latch_variance`) has been at or below
-        ``converged_std`` once since the start or a reset, at a frame with at least ``min_moving_seconds``
-        of moving frames seen.
+        The latch (module docstring, ``converging``).
     drive : DriveStatistics
-        The drive so far (the estimator advances it before each frame's :meth:`frame`).
+        The drive so far (advanced by the estimator before each :meth:`frame`).
     """
 
     def __init__(self, constants=SUSPENSION_STD, converged_std: float = CONVERGED_STD, load_share: float = 1.0,
@@ -451,38 +388,28 @@ class SigmaModel:
     def frame(self, a: float, ux: float = 0.0, uy: float = 0.0, gravity_var: float = 0.0,
               weights: tuple = (0.0, 0.0), dt: float = math.nan, note: Optional[str] = None,
               yaw_rate: float = 0.0) -> tuple:
-        """One frame (plain floats): advances the latch and returns the frame's 1-sigma inputs (read on access
-        by :func:`frame_std` and :func:`frame_reason`).""
+        """One frame (plain floats): advances the latch and returns the frame's 1-sigma inputs.
 
         Parameters
         ----------
-        a : float
-            The filter's level variance of the road attitude, rad^2.
-        ux, uy : float
-            The suspension model's load, m/s^2.
-        gravity_var : float
-            The gravity estimate's two world-horizontal variances summed, (m/s^2)^2.
+        a, ux, uy, gravity_var : float
+            Level variance (rad^2), load (m/s^2), gravity's horizontal variance ((m/s^2)^2).
         weights : (float, float)
-            The suspension model's tilt weights of the gains used at this frame.
-        dt : float
-            Frame duration, s.
+            :func:`tilt_weights` of the gains used at this frame.
+        dt, yaw_rate : float
+            Frame duration (s), ``|omega|`` (rad/s).
         note : str or None
             The note of an ``ok`` frame (or the monitor's alarm).
-        yaw_rate : float
-            ``|omega|``, rad/s.
 
         Returns
         -------
         tuple
-            ``(pitch model, roll model, a, u_x, u_y, tilt variance pitch, tilt variance roll, frame s, note,
-            convergence threshold, yaw rate, the drive statistics' state, moving seconds the latch waits for)``:
-            read by :func:`frame_std` and :func:`frame_reason` only.
+            Read by :func:`frame_std` and :func:`frame_reason` only.
         """
         pm, rm = self.constants
         info = (pm, rm, a, ux, uy, gravity_var * weights[0], gravity_var * weights[1], dt, note, self.converged_std,
                 yaw_rate, tuple(self.drive.state), self.min_moving_seconds)
         if not self.converged and self.drive.state[0] >= self.min_moving_seconds:
-            # the latch: without the drive terms (see :meth:`latch_variance`)
             self.converged = max(pm.variance(a, ux, uy, info[5], yaw_rate),
                                  rm.variance(a, ux, uy, info[6], yaw_rate)) <= self._var
         return info
@@ -490,21 +417,20 @@ class SigmaModel:
     def track(self, a: np.ndarray, load: Optional[np.ndarray] = None, gains: Optional[np.ndarray] = None,
               gravity_cov: Optional[np.ndarray] = None, yaw_rate: Optional[np.ndarray] = None,
               drive: Optional[np.ndarray] = None) -> np.ndarray:
-        """The variances (G, 2) of pitch and roll of a batch, rad^2: :meth:`AngleStd.variance` of the inputs
-        :meth:`frame` keeps, as arrays.
+        """The variances (G, 2) of pitch and roll of a batch, rad^2 (:meth:`frame`'s inputs as arrays).
 
         Parameters
         ----------
         a : ndarray (G,)
-            The filter's level variance, rad^2.
+            Level variance, rad^2.
         load, gains : ndarray (G, 2), optional
-            The suspension model's load (m/s^2) and the gains used (rad per m/s^2); None: no load.
+            Load (m/s^2) and gains used (rad per m/s^2); None: no load.
         gravity_cov : ndarray (G, 6, 6), optional
             The gravity/velocity filter's covariance.
         yaw_rate : ndarray (G,), optional
-            rad/s (signed).
+            rad/s.
         drive : ndarray (G, 5), optional
-            :attr:`drive`'s state after each frame (:meth:`DriveStatistics.run`); None: its state now, for all.
+            :meth:`DriveStatistics.run`'s states; None: :attr:`drive`'s now, for all.
         """
         pm, rm = self.constants
         rp, dx, rr, dy = DriveStatistics.terms(self.drive.state if drive is None else drive, pm, rm)
@@ -521,9 +447,8 @@ class SigmaModel:
     def latch_variance(self, a: np.ndarray, load: Optional[np.ndarray] = None, gains: Optional[np.ndarray] = None,
                        gravity_cov: Optional[np.ndarray] = None, yaw_rate: Optional[np.ndarray] = None,
                        moving: Optional[np.ndarray] = None) -> np.ndarray:
-        """The larger of pitch's and roll's variance of each frame of a batch without the drive terms, rad^2
-        ((G,), arguments of :meth:`track`): what the latch compares with ``converged_std``, as :meth:`frame`
-        does. ``moving`` (G,): the moving seconds after each frame; fewer than ``min_moving_seconds``: inf."""
+        """The variance the latch compares (G,), rad^2: the larger of :meth:`track`'s without the drive terms,
+        inf where ``moving`` (s, (G,)) is below ``min_moving_seconds``."""
         var = self.track(a, load, gains, gravity_cov, yaw_rate, np.zeros((len(a), 5))).max(axis=1)
         if moving is not None and self.min_moving_seconds > 0:
             var[np.asarray(moving, dtype=float) < self.min_moving_seconds] = np.inf
@@ -541,8 +466,7 @@ class SigmaModel:
         return {"converged": self.converged, "drive": list(self.drive.state)}
 
     def load_state_dict(self, state) -> None:
-        """Back to a :meth:`state_dict` (a dict or a :class:`~imu_ground.imu.warm_start.StateReader`; a state
-        saved before the drive statistics existed resumes with none seen)."""
+        """Back to a :meth:`state_dict` (a dict or a StateReader; without ``drive``: none seen)."""
         st = as_reader(state, "SigmaModel")
         converged = st.bool("converged")
         drive = st.floats("drive", (5,)) if st.has("drive") else None

@@ -24,9 +24,10 @@ Pipeline, per frame k
 
 Speed-aided (``speed=``): a measured forward speed (m/s, NaN where unknown) is a velocity measurement
 of the gravity/velocity filter and the speed in ``q_k``. Online gains: causal recursive least squares
-of the band-passed gyro tilt on the band-passed acceleration. Offline (``run(..., smooth=True)``):
-gravity and speed from the linear RTS smoother, then the forward attitude filter and its RTS smoother
-on the group, blended ``X = X_f Exp(w Log(X_f^T X_s))``, ``w = smoother_weight``.
+of the band-passed gyro tilt on the band-passed acceleration, the prior weighted like ``gain_prior_seconds``
+of typical driving. Offline (``run(..., smooth=True)``): gravity and speed from the linear RTS smoother, then
+the forward attitude filter and its RTS smoother on the group, blended ``X = X_f Exp(w Log(X_f^T X_s))``,
+``w = smoother_weight``.
 
 :meth:`~SuspensionAwareFilter.step` and :meth:`~SuspensionAwareFilter.run` drive the same component
 bodies (a frame, or a compiled loop over the batch); the components keep and save their own state.
@@ -81,8 +82,7 @@ __all__ = [
 _I3 = np.eye(3)
 #: A measured speed beyond this, m/s (or not finite), is no measurement: the frame runs on the IMU alone.
 MAX_MEASURED_SPEED = 1e3
-#: Frames of a batch from which :meth:`SuspensionAwareFilter.run` runs the road's gravity pass in a second thread
-#: (on a short batch a thread's start costs about what the overlap saves).
+#: Frames of a batch from which :meth:`SuspensionAwareFilter.run` runs the road's gravity pass in a second thread.
 ROAD_THREAD_FRAMES = 2000
 _LATERAL = ("auto", "kinematic", "accelerometer")
 
@@ -90,66 +90,44 @@ _LATERAL = ("auto", "kinematic", "accelerometer")
 class SuspensionAwareFilter:
     r"""Ground normal with a suspension model: an invariant EKF on the road attitude, filterpy style.
 
-    See the module docstring for the model; ``SuspensionAwareFilter()`` is the
-    configuration of the KITTI car (OXTS RT3003, FLU, identity extrinsic).
+    The model is in the module docstring; the defaults are the KITTI car's (OXTS RT3003, FLU, identity extrinsic).
 
     Parameters
     ----------
     gains : (float, float)
-        ``(k_pitch, k_roll)``, rad per m/s^2: pitch (nose down +) per m/s^2 of
-        forward load (negative: braking dives the nose) and roll (left side up +)
-        per m/s^2 of leftward load (positive: a car rolls out of a turn).
-        With ``online_gains``: the prior.
+        ``(k_pitch, k_roll)``, rad per m/s^2 (:data:`~imu_ground.filters.gains.DEFAULT_GAINS`); with
+        ``online_gains`` the prior.
     sigma_e : float
         Std of the unmodelled body motion per frame, rad (0.2 deg).
-    q_time, q_dist : float
-        Road process noise in units of ``sigma_e^2`` per second and per metre.
-    q_turn : float
-        Road process noise in units of ``sigma_e^2`` per radian of heading change (10): a car that
-        turns onto another road meets another bank and grade within metres.
+    q_time, q_dist, q_turn : float
+        Road process noise, units of ``sigma_e^2`` per second, per metre and per radian of heading change.
     q_yaw : float
         Process noise about up per frame, rad^2.
-    r_yaw : float
-        Measurement noise about up, units of ``sigma_e^2`` (tiny: the road
-        frame follows the heading).
-    P0 : float
-        Initial variance of the road attitude, units of ``sigma_e^2``.
+    r_yaw, P0 : float
+        Measurement noise about up and initial variance of the road attitude, units of ``sigma_e^2``.
     load : {"specific_force", "acceleration"} or float
-        Share (0 to 1) of gravity's road-plane component in the load; ``"acceleration"`` is 0,
-        ``"specific_force"`` 1 (the default: the springs feel the specific force).
+        Share ``s`` (0 to 1) of gravity's road-plane component in the load (``"specific_force"``: 1, the default).
     response : (float, float), optional
-        Second-order response ``(freq_hz, damping)`` (unit static gain) applied
-        to the load; None: quasi-static.
-    online_gains : bool
-        Estimate the gains online (band-pass RLS).
-    gain_prior_seconds : float
-        Weight of the prior gains in the online estimate, seconds of typical driving.
-    gain_band : (float, float)
-        Band of the online regression, Hz.
+        Second-order response ``(freq_hz, damping)`` (unit static gain) of the load; None: quasi-static.
+    online_gains, gain_prior_seconds, gain_band : bool, float, (float, float)
+        Estimate the gains online; the prior's weight (s of typical driving); the regression's band, Hz.
     frame_rate : float, optional
-        Frame rate, Hz, of the discrete-time design (band-pass, response) and of
-        the preintegration of an ImuData given to :meth:`run`. Default: the rate
-        of the ego-motion given to :meth:`run` (or ``1 / delta_t`` of the first
-        frame given to :meth:`step`).
+        Hz, of the discrete-time design and of the preintegration of an ImuData given to :meth:`run`. Default:
+        the ego-motion's rate (or ``1 / delta_t`` of the first frame given to :meth:`step`).
     smoother_weight : float
         Offline mode: weight of the RTS smoother against the forward filter (1 = pure smoother).
     extrinsic : Extrinsic, ndarray (3, 3), str or Path, optional
-        Static ground <- sensor extrinsic (identity), or a shipped name or a
-        calibration file (:func:`~imu_ground.filters.extrinsics.resolve_platform`;
-        a file's suspension gains are used unless ``gains`` is given).
+        Static ground <- sensor extrinsic (identity), a shipped name or a calibration file
+        (:func:`~imu_ground.filters.extrinsics.resolve_platform`; its gains are used unless ``gains`` is given).
     lever_arm : array_like (3,), optional
-        Sensor position relative to the body's pitch/roll centre (ground frame,
-        m), to move the accelerations there.
-    gravity : dict, optional
-        Other options of the :class:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter`.
-    R0 : ndarray (3, 3), optional
-        Initial body attitude, world <- body.
+        Sensor position relative to the body's pitch/roll centre, ground frame, m.
+    gravity, R0 : dict, ndarray (3, 3), optional
+        Options of the :class:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter`; initial attitude
+        world <- body.
     on_invalid : {"raise", "skip"}
-        A bad frame raises ``ValueError`` with the state unchanged, or is
-        skipped (``step`` returns the previous estimate flagged ``valid=False``).
+        A bad frame raises ``ValueError`` (state unchanged) or is skipped (the previous estimate, ``valid=False``).
     cross_gain : float
-        Pitch (nose down +) per m/s^2 of lateral load ``u_y``, rad
-        (:data:`~imu_ground.filters.gains.DEFAULT_CROSS_GAIN`; 0 disables).
+        ``k_cross``, rad per m/s^2 (:data:`~imu_ground.filters.gains.DEFAULT_CROSS_GAIN`; 0 disables).
     lateral : {"auto", "kinematic", "accelerometer"}
         The lateral acceleration in the load ``u_y``: ``"kinematic"`` is ``v psi_k / dt`` (the
         measured speed where given, else the estimated), ``"accelerometer"`` the gravity-compensated
@@ -161,27 +139,14 @@ class SuspensionAwareFilter:
     Attributes
     ----------
     x, P, Q, R, K, y, S, x_prior, P_prior, x_post, P_post : ndarray
-        filterpy-style. ``Q`` and ``R`` are the configured noises: ``Q =
-        diag(q_time sigma_e^2, q_time sigma_e^2, q_yaw)`` (horizontal per second
-        at standstill, up per frame); the process noise of the last frame is ``Q_last``.
+        filterpy-style; ``Q`` and ``R`` the configured noises, ``Q_last`` the last frame's process noise.
     gains : ndarray (2,)
         Current ``(k_pitch, k_roll)``, rad per m/s^2 (the model's).
     model, sigma, road_filter, mount_monitor, recalibrator, gravity_filter
         The components: SuspensionModel, SigmaModel, RoadFilter, MountMonitor, MountRecalibrator (None
         without ``recalibrate_online``), GravityVelocityFilter (module docstring).
-    cumulative : ndarray (3, 3)
-        ``R_k``, world <- body.
-    last_load, speed
-        Model inputs of the last frame (m/s^2, m/s).
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from imu_ground.filters.suspension import SuspensionAwareFilter
-    >>> f = SuspensionAwareFilter()
-    >>> est = f.step(np.eye(3), np.array([0.0, 0.0, 0.981]), 0.1, stationary=True)
-    >>> est.normal.round(6)
-    array([0., 0., 1.])
+    cumulative, last_load, speed
+        ``R_k`` (world <- body); the last frame's load (m/s^2) and speed (m/s).
     """
 
     def __init__(self, gains: Optional[Sequence[float]] = None, sigma_e: float = 0.2 * DEG,
@@ -237,9 +202,9 @@ class SuspensionAwareFilter:
     def reset(self) -> None:
         """Back to the initial state (attitude R0, prior gains, fresh gravity filter)."""
         r = self._r
-        self._Rgs = static_rotation(self.extrinsic)     # (an online re-estimation turns it)
+        self._Rgs = static_rotation(self.extrinsic)
         self._kernel = k = ResidualKernel(self.P0 * r, self.P0 * r, r, self.r_yaw * r, Rgs=self._Rgs)
-        self._kbuf, self._kstep, self._kcheck = k.buf, k.step, k.check   # the streaming fast path
+        self._kbuf, self._kstep, self._kcheck = k.buf, k.step, k.check
         self.gravity_filter = GravityVelocityFilter(R0=self.R0, extrinsic=self.extrinsic,
                                                     lever_arm=self.lever_arm, **self._gravity_kw)
         self.model = SuspensionModel(self.gains0, self.load_share, self.response, self.cross_gain,
@@ -252,11 +217,10 @@ class SuspensionAwareFilter:
         self.road_filter = RoadFilter(self.extrinsic, self.lever_arm, self._gravity_kw)
         self.mount_monitor = MountMonitor()
         self.recalibrator = MountRecalibrator(self.extrinsic.translation) if self.recalibrate_online else None
-        self._time = 0.0                            # s of processed frames since the start or a reset
+        self._time = 0.0                            # s since the start or a reset
         if self.frame_rate is not None:
             self.model.design(self.frame_rate)
 
-    # -- filterpy-style attributes --------------------------------------------------------------
     cumulative = property(lambda self: self.gravity_filter.cumulative,
                           doc="Cumulative body attitude R_k, world <- body (3x3).")
     Q = property(lambda self: np.diag([self.q_time * self._r, self.q_time * self._r, self.q_yaw]),
@@ -292,7 +256,6 @@ class SuspensionAwareFilter:
         m = self._last(slice(7, 11), None)
         return self.x if m is None else self.cumulative @ matrix_from_quat(np.array(m)).T
 
-    # -- warm start ------------------------------------------------------------------------------
     def _settings(self) -> dict:
         return dict(gains=self.gains0, sigma_e=self.sigma_e, q_time=self.q_time, q_dist=self.q_dist,
                     q_yaw=self.q_yaw, r_yaw=self.r_yaw, P0=self.P0, load=self.load_share, response=self.response,
@@ -303,13 +266,9 @@ class SuspensionAwareFilter:
                     q_turn=self.q_turn, **({"recalibrate_online": True} if self.recalibrate_online else {}))
 
     def state_dict(self) -> dict:
-        """The state as a plain, JSON-serialisable dict (:mod:`imu_ground.imu.warm_start`): resume with
-        :meth:`load_state_dict` on a SuspensionAwareFilter built with the same settings.
-
-        The kernels' buffers (residual filter, gravity/velocity filter) are saved whole, so a resumed run
-        continues bit for bit; beside them the components' own states (the suspension model's, the 1-sigma
-        latch, the road filter's, the mount monitor's and, with ``recalibrate_online``, the re-estimation's
-        record and the mount now)."""
+        """The state as a JSON-serialisable dict (:mod:`imu_ground.imu.warm_start`), for :meth:`load_state_dict`
+        with the same settings: the kernels' buffers whole (a resumed run continues bit for bit) and the
+        components' states."""
         st = {"frames": self._frames, **self.sigma.state_dict(), "kernel": list(self._kernel.buf),
               "gravity": self.gravity_filter.kernel_state(), **self.model.state_dict(), "speed": self.speed,
               "q_last": self._q_last, **self.road_filter.state_dict(), "monitor": self.mount_monitor.state_dict(),
@@ -325,16 +284,14 @@ class SuspensionAwareFilter:
         Raises
         ------
         StateError
-            (:class:`~imu_ground.imu.warm_start.StateError`, a ValueError) A state of another estimator,
-            layout or settings (naming each setting that differs), or a corrupt one: an entry that is
-            missing, of another shape, not finite where a number is needed, or beyond
-            :data:`~imu_ground.imu.warm_start.MAX_MAGNITUDE` (named). The filter is then as after :meth:`reset`.
+            (a ValueError) A state of another estimator, layout or settings (each differing setting named), or
+            a corrupt one (the entry named); the filter is then as after :meth:`reset`.
         """
         st = StateReader("SuspensionAwareFilter",
                          unpack_state(state, "SuspensionAwareFilter", STATE_VERSION, self._settings()))
         frames, kernel = st.int("frames"), self._kernel.read_state(st, "kernel")
         gravity = self.gravity_filter.read_kernel_state(st, "gravity")
-        assert gravity is not None                  # not optional
+        assert gravity is not None
         speed, q_last, time = st.float("speed"), st.float("q_last"), st.float("time")
         mount = None if self.recalibrator is None else st.floats("mount", (9,), optional=True)
         mount = None if mount is None else mount.reshape(3, 3)
@@ -355,16 +312,16 @@ class SuspensionAwareFilter:
         self._kbuf = self._kernel.buf
         self.gravity_filter.load_kernel_state(gravity)
         self._frames, self.speed, self._q_last, self._time = frames, speed, q_last, time
-        if mount is not None:                       # (the kernels' buffers hold it already)
+        if mount is not None:
             self._set_mount(mount)
 
     def _road_noise(self, speed, dt, psi):
-        """``q_k`` of the module docstring (rad^2) of a frame or of arrays of frames alike."""
+        """``q_k`` of the module docstring (rad^2), floats or arrays alike."""
         return ((self.q_time + self.q_dist * abs(speed)) * dt + self.q_turn * abs(psi)) * self._r
 
     @staticmethod
     def _checked_speed(speed, n: int) -> Optional[np.ndarray]:
-        """``speed`` as floats, one per frame (ValueError otherwise), or None."""
+        """``speed`` as floats, one per frame (else ValueError), or None."""
         if speed is None:
             return None
         speed = np.asarray(speed, dtype=float)
@@ -372,7 +329,6 @@ class SuspensionAwareFilter:
             raise ValueError(f"speed must have one value per frame ({n}), got shape {speed.shape}")
         return speed
 
-    # -- streaming -------------------------------------------------------------------------------
     def step(self, frame, delta_v=None, delta_t: Optional[float] = None, stationary: bool = False,
              valid: bool = True, speed: Optional[float] = None) -> GroundEstimate:
         """Process one frame of ego-motion.
@@ -383,14 +339,8 @@ class SuspensionAwareFilter:
             An :class:`~imu_ground.imu.egomotion.EgoFrame` (or a frame of the
             :class:`~imu_ground.imu.preintegration.StreamingPreintegrator`), or its ``delta_R``
             (sensor_{k-1} <- sensor_k) followed by the other fields:
-        delta_v : ndarray (3,)
-            Gravity-free velocity increment, sensor frame at the frame's start, m/s.
-        delta_t : float
-            Frame duration, s.
-        stationary : bool
-            The frame ends at a standstill.
-        valid : bool
-            False for a frame integrated through a timestamp gap.
+        delta_v, delta_t, stationary, valid
+            As in :meth:`~imu_ground.filters.gravity_velocity.GravityVelocityFilter.step`.
         speed : float, optional
             Measured forward speed over the frame (wheel / CAN), m/s; None, NaN, infinite or beyond
             :data:`MAX_MEASURED_SPEED`: IMU only.
@@ -398,8 +348,7 @@ class SuspensionAwareFilter:
         Returns
         -------
         GroundEstimate
-            The residual rotation road <- body after this frame (pitch, roll,
-            quaternion); a skipped bad frame gives the previous state, ``valid=False``.
+            The residual road <- body after this frame; a skipped bad frame gives the previous one, ``valid=False``.
 
         Raises
         ------
@@ -407,7 +356,7 @@ class SuspensionAwareFilter:
             A bad frame with ``on_invalid="raise"`` (the state is unchanged).
         """
         if delta_v is None and not isinstance(frame, (tuple, list, np.ndarray)) and hasattr(frame, "delta_v"):
-            frame = EgoFrame.of(frame)              # a PreintegratedImu (its delta_R, delta_v, delta_t, valid)
+            frame = EgoFrame.of(frame)              # a PreintegratedImu
         if delta_v is None:
             if isinstance(frame, np.ndarray) or not isinstance(frame, (tuple, list)) or len(frame) < 5:
                 shape = getattr(np.asarray(frame, dtype=object), "shape", ())
@@ -435,7 +384,7 @@ class SuspensionAwareFilter:
         force, (ax, ay, _), v = gf.step_sensor(d, dv, dt, bool(stationary), bool(valid), sp)
         fx, fy = force[0], force[1]
         stationary, valid = bool(stationary), bool(valid)
-        road = None                                 # the road filter, from the first measured speed on
+        road = None
         if sp == sp or self.road_filter.gravity_filter is not None:
             road = self.road_filter.step(d, dv, dt, stationary, valid, sp)
         self._time += dt
@@ -449,15 +398,15 @@ class SuspensionAwareFilter:
             alarm = self._recalibrate(dt, force, sp, psi, road, valid, alarm)
         kinematic = self.lateral == "kinematic" or (self.lateral == "auto" and not math.isnan(sp))
         model = self.model
-        wp, wr = model.tilt_weights                 # (of the gains used at this frame)
+        wp, wr = model.tilt_weights                 # (the gains used at this frame)
         tilt_x, tilt_y = model.step(d, fx, fy, ax, ay, speed * psi / dt if kinematic else None)
         ux, uy = model.load
         q = self._road_noise(speed, dt, psi)
         self._q_last = q
         o = self._kstep(self._kbuf, d, q, self.q_yaw, tilt_x, tilt_y, None, 1.0)
-        if road is not None:                        # grade and bank with their variances
+        if road is not None:
             road = road_one(o, *road)
-        recal = None if self.recalibrator is None else self.recalibrator.note     # (after an online re-estimation)
+        recal = None if self.recalibrator is None else self.recalibrator.note
         note = alarm if alarm is not None else ok_note(abs(speed) < SLOW_SPEED,
                                                         recal if road is not None else NO_SPEED_REASON)
         self.sigma.drive.update(d, dt, speed, stationary, valid, ux, uy, self._Rgs)
@@ -465,21 +414,17 @@ class SuspensionAwareFilter:
         code = frame_status_code(self.sigma.converged, stationary, valid, alarm is not None)
         return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o, code, info, road)
 
-    # -- batch -----------------------------------------------------------------------------------
     def run(self, egomotion, smooth: bool = False, speed: Optional[np.ndarray] = None) -> SuspensionTrack:
         """Process a whole drive, continuing from the current state as :meth:`step` would (the same kernel).
 
         Parameters
         ----------
         egomotion : EgoMotion or ImuData
-            Per-frame ego-motion in the sensor frame (an ImuData is
-            preintegrated at ``frame_rate``, default 10 Hz).
+            Per-frame ego-motion, sensor frame (an ImuData is preintegrated at ``frame_rate``, default 10 Hz).
         smooth : bool
-            Offline mode (module docstring). The streaming state is left at the
-            end of the forward pass.
+            Offline mode (module docstring); the streaming state is left at the end of the forward pass.
         speed : ndarray (N,), optional
-            Measured forward speed per frame (wheel / CAN, e.g. from
-            :func:`imu_ground.datasets.speed.frame_speed`), m/s; NaN where unknown.
+            Measured forward speed per frame (e.g. :func:`imu_ground.datasets.speed.frame_speed`), m/s; NaN: none.
 
         Returns
         -------
@@ -489,8 +434,7 @@ class SuspensionAwareFilter:
         Raises
         ------
         ValueError
-            A bad frame with ``on_invalid="raise"`` (nothing is processed), or
-            a frame rate other than the one the filter is designed for.
+            A bad frame with ``on_invalid="raise"`` (nothing processed), or another frame rate than the design's.
         """
         em = as_egomotion(egomotion, rate=self.frame_rate)
         if self.recalibrator is not None:
@@ -508,10 +452,9 @@ class SuspensionAwareFilter:
         speed = self._checked_speed(speed, n)
         if speed is not None:
             speed = speed[good]
-            speed = np.where(np.abs(speed) <= MAX_MEASURED_SPEED, speed, np.nan)   # as step: absurd -> none
+            speed = np.where(np.abs(speed) <= MAX_MEASURED_SPEED, speed, np.nan)
         self._frames += m
-        # The road's own gravity/velocity pass depends on nothing computed below: on a long batch it runs in a
-        # second thread beside the estimator's (both compiled kernels release the GIL); the same numbers.
+        # the road's gravity pass depends on nothing below: on a long batch it runs in a second thread
         road = speed is not None or self.road_filter.gravity_filter is not None
         sp = np.full(m, np.nan) if speed is None else speed
         with ThreadPoolExecutor(1) if road and m >= ROAD_THREAD_FRAMES else nullcontext() as pool:
@@ -520,8 +463,7 @@ class SuspensionAwareFilter:
 
     def _run_filters(self, em, sub, good: np.ndarray, start: dict, speed: Optional[np.ndarray], smooth: bool,
                      road: bool, road_pass) -> SuspensionTrack:
-        """The rest of :meth:`run` on the good frames ``sub`` (``road``: the road is estimated; ``road_pass``: its
-        gravity pass, already started, or None to run it in turn)."""
+        """The rest of :meth:`run` on the good frames ``sub`` (``road_pass``: the road's gravity pass or None)."""
         m = len(sub)
         gt = self.gravity_filter.run(sub, smooth=smooth, speed=speed)
         if speed is not None:
@@ -579,25 +521,22 @@ class SuspensionAwareFilter:
             return Xs @ so3.exp(w * so3.log(np.swapaxes(Xs, 1, 2) @ Xsm))
         return Xs
 
-
     def _track_confidence(self, em, sub, good: np.ndarray, a: np.ndarray, load: np.ndarray, gains: np.ndarray,
                           gravity_cov: np.ndarray, q: np.ndarray, speed: Optional[np.ndarray], yaw_rate: np.ndarray,
                           speed_used: np.ndarray, road_on: bool, road_pass=None) -> dict:
-        """The fields of a batch's track that say how sure it is (1-sigma, road, status) on the ``good`` frames
-        ``sub`` of ``em``; the road filter, the mount monitor, the clock and the 1-sigma latch advance as
-        the frames would."""
+        """A batch's 1-sigma, road and status fields; the components advance as the frames would."""
         n, m = len(good), len(sub)
         drive = self.sigma.drive.run(sub.delta_R, sub.delta_t, speed_used, sub.stationary, sub.valid, load, self._Rgs)
         var = self.sigma.track(a, load, gains, gravity_cov, yaw_rate, drive)
         var_max = np.full(n, np.inf)
-        std = np.full((n, 2), np.nan)                   # (a skipped frame has none, as in step)
+        std = np.full((n, 2), np.nan)
         var_max[good], std[good] = var.max(axis=1), np.sqrt(var)
         road = np.full((n, 4), np.nan)
         sp = np.full(m, np.nan) if speed is None else speed
         rg = np.full((m, 3), np.nan)
         if road_on:
             road[good], rg = self.road_filter.run(sub, sp, q, np.sqrt(var[:, 0]), np.sqrt(var[:, 1]), road_pass)
-        times = np.cumsum(np.concatenate([[self._time], np.asarray(sub.delta_t, dtype=float)]))[1:]   # (as step sums)
+        times = np.cumsum(np.concatenate([[self._time], np.asarray(sub.delta_t, dtype=float)]))[1:]
         if m:
             self._time = float(times[-1])
         mm = self.mount_monitor
@@ -617,13 +556,11 @@ class SuspensionAwareFilter:
         return dict(pitch_std=std[:, 0], roll_std=std[:, 1], status=codes, status_reason=reasons,
                     road_grade=road[:, 0], road_bank=road[:, 1], road_grade_std=road[:, 2], road_bank_std=road[:, 3])
 
-    # -- online re-estimation of the mount (imu_ground.filters.recalibration) ------------------------
     def _recalibrate(self, dt: float, force, speed: float, psi: float, road, valid: bool, alarm):
-        """One frame of the online re-estimation: records it; once :data:`~imu_ground.filters.recalibration.WINDOW`
-        s of usable frames followed the mount monitor's alarm, estimates the change, applies it and restarts
-        the monitor. Returns the alarm still standing after the frame (None once re-estimated)."""
+        """One frame of the online re-estimation (:mod:`imu_ground.filters.recalibration`); returns the alarm
+        still standing (None once re-estimated)."""
         r = self.recalibrator
-        assert r is not None                    # recalibrate_online
+        assert r is not None
         r.record(self._time, dt, force, speed, psi, road, valid)
         if alarm is None:
             return None
@@ -640,14 +577,12 @@ class SuspensionAwareFilter:
         return None
 
     def _apply_mount_change(self, delta: np.ndarray, w: np.ndarray, reference) -> None:
-        """Turn the static rotation by ``delta`` (rotation vector, body frame, rad: ``R_gs <- Exp(delta) R_gs``)
-        in every part that turns sensor increments into the body frame; ``w`` is the world tilt (rotation
-        vector, the road filter's world frame) and ``reference`` the frozen gravity direction before the
-        change (:mod:`imu_ground.filters.recalibration`)."""
+        """``R_gs <- Exp(delta) R_gs`` in every component; ``w`` the world tilt and ``reference`` the gravity
+        before the change (:mod:`imu_ground.filters.recalibration`)."""
         D = so3.exp(np.asarray(delta, dtype=float))
         Rgs = D @ (_I3 if self._Rgs is None else self._Rgs)
         gf = self.road_filter.gravity_filter
-        assert gf is not None                   # the mount changed while driving: the road filter runs
+        assert gf is not None
         Rr = np.array(gf.gravity_snapshot()[1], dtype=float).reshape(3, 3)
         Rm = self.gravity_filter.cumulative.copy()
         up = so3.exp(np.asarray(w, dtype=float)) @ (np.asarray(reference, dtype=float) / np.linalg.norm(reference))
@@ -658,17 +593,16 @@ class SuspensionAwareFilter:
         self.model.set_mount(Rgs)
 
     def _set_mount(self, Rgs: np.ndarray) -> None:
-        """The static rotation where the Python objects keep it (a warm start: the kernels' buffers hold it)."""
+        """The static rotation in the Python objects (a warm start)."""
         self._Rgs = Rgs
         self.model.set_mount(Rgs)
         self.gravity_filter.set_mount(Rgs)
         self.road_filter.set_mount(Rgs)
 
     def _run_by_steps(self, em, speed: Optional[np.ndarray]) -> SuspensionTrack:
-        """:meth:`run` frame by frame through :meth:`step` (what online re-estimation needs: the static rotation
-        may change within the batch); the same track fields as the vectorised run."""
+        """:meth:`run` frame by frame through :meth:`step` (online re-estimation), the same track fields."""
         n = len(em)
-        checked_frames(em.delta_R, em.delta_v, em.delta_t, em.t, self.on_invalid)   # (raises before any frame)
+        checked_frames(em.delta_R, em.delta_v, em.delta_t, em.t, self.on_invalid)
         self.model.design(float(em.rate))
         speed = self._checked_speed(speed, n)
         E, P, cum, Rgs = (np.zeros((n, 3, 3)) for _ in range(4))

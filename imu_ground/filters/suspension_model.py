@@ -1,12 +1,8 @@
 """The suspension model of :class:`~imu_ground.filters.suspension.SuspensionAwareFilter`: load in, body tilt out.
 
-Step 2 of that filter's pipeline (its module docstring has the model: the load ``u = a + s (f - a)``,
-optionally through a second-order ``response``; the tilt roll ``k_roll u_y`` about x, pitch
-``k_pitch u_x + k_cross u_y`` about y; the gains fixed or estimated online by causal recursive least
-squares of the band-passed gyro tilt on the band-passed acceleration, the prior weighted like
-``gain_prior_seconds`` of typical driving). :meth:`SuspensionModel.step` (a frame) and
-:meth:`SuspensionModel.run` (a batch, the same recursions by :func:`scipy.signal.lfilter` and running
-sums) continue each other; the discrete-time design follows the frame rate (:meth:`SuspensionModel.design`).
+Step 2 of that filter's pipeline (the model is in its module docstring). :meth:`SuspensionModel.step` (a
+frame) and :meth:`SuspensionModel.run` (a batch) drive the same filters (:class:`~imu_ground.filters.design.IIRFilter`)
+and regression, and continue each other.
 """
 from __future__ import annotations
 
@@ -16,7 +12,7 @@ import numpy as np
 
 from imu_ground import so3
 from imu_ground.filters.design import IIRFilter, butter_bandpass, foh_filter
-from imu_ground.filters.gains import TYPICAL_BAND_POWER, tilt_angles
+from imu_ground.filters.gains import TYPICAL_BAND_POWER
 from imu_ground.filters.status import tilt_weights
 from imu_ground.imu.warm_start import as_reader
 
@@ -50,31 +46,20 @@ class SuspensionModel:
     ----------
     gains0 : ndarray (2,)
         ``(k_pitch, k_roll)`` at the start (the prior with ``online_gains``), rad per m/s^2.
-    load_share : float
-        ``s`` of the load ``u = a + s (f - a)``.
-    response : (float, float) or None
-        Second-order response ``(freq_hz, damping)`` of the load; None: quasi-static.
-    cross_gain : float
-        ``k_cross``: pitch per m/s^2 of lateral load, rad.
-    online_gains : bool
-        Estimate the gains online.
-    gain_prior_seconds : float
-        Weight of the prior gains, seconds of typical driving.
-    gain_band : (float, float)
-        Band of the online regression, Hz.
+    load_share, response, cross_gain, online_gains, gain_prior_seconds, gain_band
+        As ``load`` (its share ``s``) and these parameters of
+        :class:`~imu_ground.filters.suspension.SuspensionAwareFilter`.
     Rgs : ndarray (3, 3) or None
         Static rotation ground <- sensor of the increments given to :meth:`step`; None: identity.
 
     Attributes
     ----------
-    gains : ndarray (2,)
-        Current ``(k_pitch, k_roll)``, rad per m/s^2.
-    load : (float, float)
-        Load of the last frame ``(u_x, u_y)``, m/s^2.
+    gains, load : ndarray (2,), (float, float)
+        Current ``(k_pitch, k_roll)`` (rad per m/s^2); the last frame's ``(u_x, u_y)`` (m/s^2).
     rate : float or None
         Frame rate of the design, Hz (None before the first frame).
     tilt_weights : (float, float)
-        :func:`~imu_ground.filters.status.tilt_weights` of the current gains (for the 1-sigma).
+        :func:`~imu_ground.filters.status.tilt_weights` of the current gains.
     """
 
     def __init__(self, gains0: np.ndarray, load_share: float, response: Optional[Sequence[float]],
@@ -99,17 +84,14 @@ class SuspensionModel:
         self._set_tilt_weights()
 
     def _set_tilt_weights(self) -> None:
-        """:attr:`tilt_weights` of the current gains."""
         self.tilt_weights = tilt_weights(self._kp, self._kr, self.load_share, self.cross_gain)
 
     def set_mount(self, Rgs: Optional[np.ndarray]) -> None:
         """The static rotation ground <- sensor of the increments given to :meth:`step` from now on."""
         self._Rgs = Rgs
 
-    # -- warm start --------------------------------------------------------------------------------
     def state_dict(self) -> dict:
-        """The model's state as plain values: gains, design rate, the response's and the band-pass's
-        memories, the online regression's sums and the last load."""
+        """The model's state as plain values (gains, design rate, the filters' memories, the sums, the load)."""
         return {"gains": self.gains.tolist(), "rate": self.rate,
                 "response": None if self._resp is None else self._resp.state_dict(),
                 "bandpass": None if self._bpf is None else self._bpf.state_dict(),
@@ -117,8 +99,7 @@ class SuspensionModel:
                 "sxy": None if self._sxy is None else self._sxy.tolist(), "load": list(self.load)}
 
     def load_state_dict(self, state) -> None:
-        """Back to a :meth:`state_dict` (a dict or a :class:`~imu_ground.imu.warm_start.StateReader`); every
-        entry is checked (shape, finite) before the model changes."""
+        """Back to a :meth:`state_dict` (a dict or a StateReader), every entry checked before the model changes."""
         st = as_reader(state, "SuspensionModel")
         rate = st.float("rate", optional=True)
         gains, phi, load = st.floats("gains", (2,)), st.floats("phi", (2,)), st.floats("load", (2,))
@@ -155,7 +136,6 @@ class SuspensionModel:
             self._sxx = w.copy()          # the sums include the prior: gains = sxy / sxx
             self._sxy = w * self.gains0
 
-    # -- streaming ---------------------------------------------------------------------------------
     def step(self, d: np.ndarray, fx: float, fy: float, ax: float, ay: float,
              lateral: Optional[float] = None) -> tuple:
         """One frame: its load, the tilt from the gains so far, then (online) the gains updated.
@@ -167,8 +147,7 @@ class SuspensionModel:
         fx, fy, ax, ay : float
             Horizontal specific force and acceleration, body frame, m/s^2.
         lateral : float, optional
-            Lateral acceleration from kinematics (speed times yaw rate), m/s^2, in place of ``ay``
-            in the load's ``u_y``; None: the gravity/velocity filter's ``ay``.
+            Kinematic lateral acceleration (speed times yaw rate), m/s^2, in place of ``ay`` in ``u_y``.
 
         Returns
         -------
@@ -184,33 +163,19 @@ class SuspensionModel:
         self.load = (ux, uy)
         kp, kr = self._kp, self._kr
         if self.online_gains:
-            self._update_gains(d, ax, ay)
+            db = d if self._Rgs is None else self._Rgs @ d @ self._Rgs.T
+            self._online_gains(so3.log_one(db)[None, [1, 0]], np.array([[ax, ay]]))
         return kr * uy, kp * ux + self.cross_gain * uy
 
-    def _update_gains(self, d: np.ndarray, ax: float, ay: float) -> None:
-        """One frame of the online gain regression (:meth:`_online_gains` runs it over a batch)."""
-        assert self._bpf is not None and self._sxx is not None and self._sxy is not None  # designed, online gains
-        db = d if self._Rgs is None else self._Rgs @ d @ self._Rgs.T
-        self._phi = self._phi + so3.log_one(db)[[1, 0]]
-        z = self._bpf.step(np.concatenate([[ax, ay], self._phi]))
-        self._sxy = self._sxy + z[:2] * z[2:]
-        self._sxx = self._sxx + z[:2] * z[:2]
-        self.gains = self._sxy / self._sxx
-        self._kp, self._kr = self.gains.tolist()
-        self._set_tilt_weights()
-
-    # -- batch -------------------------------------------------------------------------------------
     def run(self, gt, lateral: Optional[np.ndarray] = None) -> tuple:
         """A drive: loads, the gains used at each frame, and the tilt, continuing as :meth:`step` would.
 
         Parameters
         ----------
         gt : GravityTrack
-            The gravity/velocity filter's track of the frames (``acceleration``, ``specific_force``,
-            ``body_increments``).
+            The gravity/velocity filter's track of the frames.
         lateral : ndarray (N,), optional
-            Lateral acceleration from kinematics, m/s^2, in place of ``a_y`` where finite (NaN: the
-            filter's ``a_y``), as ``lateral`` of :meth:`step`.
+            ``lateral`` of :meth:`step` per frame (NaN: the filter's ``a_y``).
 
         Returns
         -------
@@ -226,20 +191,24 @@ class SuspensionModel:
             u = self._resp.run(u)
         if m:
             self.load = tuple(u[-1].tolist())
-        ks = self._online_gains(gt) if self.online_gains and m else np.tile(self.gains, (m, 1))
+        if self.online_gains and m:
+            ks = self._online_gains(so3.log(gt.body_increments)[:, [1, 0]], gt.acceleration[:, :2])
+        else:
+            ks = np.tile(self.gains, (m, 1))
         return u, ks, self.tilt(ks, u)
 
     def tilt(self, gains: np.ndarray, load: np.ndarray) -> np.ndarray:
         """``(pitch, roll) = (k_pitch u_x + k_cross u_y, k_roll u_y)`` per frame, rad, (N, 2)."""
-        susp = gains * load                             # (pitch, roll) = (k_p u_x, k_r u_y) ...
-        susp[:, 0] += self.cross_gain * load[:, 1]      # ... + the pitch from the lateral load
+        susp = gains * load
+        susp[:, 0] += self.cross_gain * load[:, 1]
         return susp
 
-    def _online_gains(self, gt) -> np.ndarray:
-        """Gains used at each frame of a batch (the frame before's estimate); advances the regression."""
+    def _online_gains(self, tilt: np.ndarray, acceleration: np.ndarray) -> np.ndarray:
+        """Gains used at each of N frames (the frame before's estimate), (N, 2), from the frames' body tilt
+        increments (pitch, roll; rad) and ``(a_x, a_y)``; advances the regression."""
         assert self._bpf is not None and self._sxx is not None and self._sxy is not None  # designed, online gains
-        phi = self._phi + tilt_angles(gt.body_increments)
-        z = self._bpf.run(np.concatenate([gt.acceleration[:, :2], phi], axis=1))
+        phi = self._phi + np.cumsum(tilt, axis=0)
+        z = self._bpf.run(np.concatenate([acceleration, phi], axis=1))
         sxy = self._sxy + np.cumsum(z[:, :2] * z[:, 2:], axis=0)
         sxx = self._sxx + np.cumsum(z[:, :2] * z[:, :2], axis=0)
         ks = np.vstack([self.gains[None], (sxy / sxx)[:-1]])
