@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import functools
 import json
+import re
 import shutil
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -130,9 +131,7 @@ class _Serializer:
         if stamp_ns < 0:
             raise ImuGroundError(f"{self.path}: negative ROS stamp {stamp_ns} ns; pass t0/t0_ns (the log's start time)")
         t = self.message("builtin_interfaces/msg/Time", sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
-        if self.ros1:
-            return self.message("std_msgs/msg/Header", seq=seq, stamp=t, frame_id=frame_id)
-        return self.message("std_msgs/msg/Header", stamp=t, frame_id=frame_id)
+        return self.message("std_msgs/msg/Header", stamp=t, frame_id=frame_id, **({"seq": seq} if self.ros1 else {}))
 
     def serialize(self, msg: Any) -> bytes:
         """``msg`` serialised for this log (ROS 1 for ``.bag``, CDR otherwise)."""
@@ -156,12 +155,8 @@ class _Serializer:
         raw = np.frombuffer(template, dtype=np.uint8)
         buf = np.tile(raw, (n, 1))
 
-        def offsets(pattern: bytes) -> list[int]:
-            found, at = [], template.find(pattern)
-            while at >= 0:
-                found.append(at)
-                at = template.find(pattern, at + 1)
-            return found
+        def offsets(pattern: bytes) -> list[int]:           # (overlapping ones too)
+            return [m.start() for m in re.finditer(b"(?=" + re.escape(pattern) + b")", template)]
 
         def put(at: int, column: np.ndarray, dtype: str) -> None:
             data = np.ascontiguousarray(column, dtype=dtype)
