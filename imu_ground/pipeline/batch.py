@@ -346,12 +346,6 @@ def _describe(holder: dict) -> str:
             + (f": {holder['command']}" if holder.get("command") else ""))
 
 
-def _client(scheduler: str):
-    """A client of the running Dask cluster at ``scheduler``."""
-    distributed = require_extra("dask.distributed", "fleet", "imu-ground batch --scheduler")
-    return distributed.Client(scheduler, timeout="10s")
-
-
 def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | None = None,
               scheduler: str | None = None, suffix: str = ".csv", progress: bool = False, cli: bool = False,
               summary: str | None = "summary.csv", force: bool = False, tum: bool = False, **options: Any):
@@ -525,7 +519,8 @@ def _run_local(jobs, rows, options, cli, force, pool: ProcessPoolExecutor, bar) 
 
 def _run_on_dask(jobs, rows, options, cli, force, scheduler, bar) -> None:
     """The logs on a running dask.distributed cluster; a worker that dies fails its log only."""
-    client = _client(scheduler)
+    distributed = require_extra("dask.distributed", "fleet", "imu-ground batch --scheduler")
+    client = distributed.Client(scheduler, timeout="10s")
     from dask.distributed import as_completed
     try:
         futures = {client.submit(process_log, log, out, options, cli, force, extra, pure=False): (i, log)

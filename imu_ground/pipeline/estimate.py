@@ -145,14 +145,6 @@ def _check_positive(value: Any, name: str, what: str) -> Any:
     return value
 
 
-def _check_rate(rate: float | None) -> float | None:
-    if rate is None:
-        return None
-    if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
-        raise OptionError(f"{{opt}} must be a positive frame rate in Hz, got {rate!r}", "rate")
-    return float(rate)
-
-
 def check_options(*, method: str = "auto", rate: float | None = None, Q: Any = None, R: Any = None,
                   **reader_options: Any) -> dict:
     """:func:`estimate_log`'s options checked without reading anything; returns the reader keywords to pass.
@@ -166,17 +158,14 @@ def check_options(*, method: str = "auto", rate: float | None = None, Q: Any = N
     """
     if method != "auto":
         resolve_method(method, True)
-    _check_rate(rate)
+    if rate is not None and not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
+        raise OptionError(f"{{opt}} must be a positive frame rate in Hz, got {rate!r}", "rate")
     _check_positive(Q, "Q", "process noise, rad^2 per frame")
     _check_positive(R, "R", "measurement noise")
-    return _reader_kwargs(reader_options)
-
-
-def _reader_kwargs(options: dict) -> dict:
-    unknown = sorted(set(options) - set(READER_OPTIONS))
+    unknown = sorted(set(reader_options) - set(READER_OPTIONS))
     if unknown:
         raise TypeError(f"estimate_log() got unknown reader options {unknown}; known: {sorted(READER_OPTIONS)}")
-    return {k: v for k, v in options.items() if v is not None and k != "format"}
+    return {k: v for k, v in reader_options.items() if v is not None and k != "format"}
 
 
 def _one_line(path: str | Path, message: Any) -> str:

@@ -153,10 +153,6 @@ def _foreign_files(folder: Path, outputs: Sequence[str | Path] = ()) -> list[Pat
                           or e.resolve() in allowed))
 
 
-def _planes_text(abcd: np.ndarray) -> str:
-    return "# Matrix\nWIDTH 4\nHEIGHT 1\n" + " ".join(PLANES_FORMAT % v for v in abcd) + "\n"
-
-
 @contextmanager
 def _signals_deferred() -> Iterator[None]:
     """Hold SIGINT and SIGTERM until the block ends, then act on the first one received (main thread only)."""
@@ -264,7 +260,8 @@ def write_kitti_planes(folder: str | Path, coefficients: Any, first_index: int =
                   "frames": len(names), "pid": os.getpid()}
         (tmp / PLANES_MARKER).write_text(json.dumps(marker) + "\n", encoding="utf-8")
         for name, row in zip(names, abcd, strict=True):
-            (tmp / name).write_text(_planes_text(row), encoding="ascii")
+            (tmp / name).write_text("# Matrix\nWIDTH 4\nHEIGHT 1\n" + " ".join(PLANES_FORMAT % v for v in row) + "\n",
+                                    encoding="ascii")
         for k in keep:
             k = Path(k)
             if k.is_file() and k.parent.resolve() == out.resolve():

@@ -2,32 +2,28 @@
 
 It plays in Foxglove or RViz beside the recording: header stamps are the recording's clock
 (``t0`` / ``t0_ns``), ``frame_id`` the IMU's. One message per valid, finite frame of the output
-table (``PREFIX`` is ``topic_prefix``, default ``/ground``):
+table (``PREFIX`` is ``topic_prefix``, default ``/ground``; types: :data:`ROS_OUTPUT_TOPICS`):
 
-- ``PREFIX/normal`` (``Vector3Stamped``): unit ground normal, body frame;
-- ``PREFIX/rotation`` (``QuaternionStamped``): residual rotation road <- body (the table's q);
-- ``PREFIX/pitch_roll`` (``Vector3Stamped``): ``x`` roll, ``y`` pitch of the body relative to the
-  road, rad (the table's signs), ``z`` 0 (one stamped message keeps the stamp and frame_id; plot
-  ``PREFIX/pitch_roll.vector.y`` for pitch);
+- ``PREFIX/normal``: unit ground normal, body frame; ``PREFIX/rotation``: residual rotation
+  road <- body (the table's q); ``PREFIX/pitch_roll``: ``x`` roll, ``y`` pitch of the body relative
+  to the road, rad (the table's signs), ``z`` 0;
 - ``PREFIX/road_from_camera`` (``TransformStamped``, with a camera): road <- camera, ``frame_id``
   ``road``, ``child_frame_id`` ``camera``, translation m (the camera origin in the road frame);
-- ``/tf`` (``tf2_msgs/TFMessage``, not prefixed): road -> sensor, ``frame_id`` ``road``
-  (``road_frame_id``: the road plane under the vehicle, z its normal, x along the heading),
-  ``child_frame_id`` the IMU's; rotation the dynamic extrinsic road-ground <- sensor
-  ``R = R(q) R_gs`` (what ``.tum`` holds; ``R^T e_z`` is the normal), translation the static
-  extrinsic's (m); with a camera also road -> camera. A recording whose tf tree already gives the
-  IMU's frame a parent gets two parents: pass another ``frame_id`` (e.g. ``imu_link_road``);
-- ``PREFIX/pose`` (``PoseWithCovarianceStamped``): the same transform as a pose in the road frame,
-  covariance (6 x 6 row-major, x y z then rotations about the road's x y z) ``[21]`` roll and
-  ``[28]`` pitch variance, rad^2, every other entry 0 (not estimated); where the 1-sigma is finite;
-- settings (with ``settings``): the JSON in an ``.mcap`` metadata record ``imu_ground``
-  (``settings``, ``version``; :func:`read_mcap_settings`), else once on ``PREFIX/settings``
-  (``std_msgs/String``) at the first stamp;
+- ``/tf`` (not prefixed): road -> sensor, ``frame_id`` ``road`` (``road_frame_id``: the road plane
+  under the vehicle, z its normal, x along the heading), ``child_frame_id`` the IMU's; rotation the
+  dynamic extrinsic road-ground <- sensor ``R = R(q) R_gs`` (what ``.tum`` holds), translation the
+  static extrinsic's (m); with a camera also road -> camera. A recording whose tf tree already gives
+  the IMU's frame a parent gets two parents: pass another ``frame_id`` (e.g. ``imu_link_road``);
+- ``PREFIX/pose``: the same transform as a pose in the road frame, covariance (6 x 6 row-major,
+  x y z then rotations about the road's x y z) ``[21]`` roll and ``[28]`` pitch variance, rad^2,
+  every other entry 0; where the 1-sigma is finite;
+- settings: the JSON in an ``.mcap`` metadata record ``imu_ground`` (``settings``, ``version``;
+  :func:`read_mcap_settings`), else once on ``PREFIX/settings`` at the first stamp;
 - ``PREFIX/pitch_roll_std``, ``PREFIX/road`` (``x`` bank, + left side up; ``y`` grade, + uphill)
-  and ``PREFIX/road_std`` (``Vector3Stamped``, rad), where estimated;
-- ``PREFIX/status`` (``diagnostic_msgs/DiagnosticArray``) on *every* frame: one status named
-  ``imu-ground PREFIX``, ``hardware_id`` the ``frame_id``, ``level`` :data:`DIAGNOSTIC_LEVELS`,
-  ``message`` ``"status"`` or ``"status: reason"``, ``values`` ``status`` and ``reason``.
+  and ``PREFIX/road_std`` (rad), where estimated;
+- ``PREFIX/status`` on *every* frame: one status named ``imu-ground PREFIX``, ``hardware_id`` the
+  ``frame_id``, ``level`` :data:`DIAGNOSTIC_LEVELS`, ``message`` ``"status"`` or ``"status: reason"``,
+  ``values`` ``status`` and ``reason``.
 
 The last four and ``PREFIX/pose`` only when the table has their columns. Container from the
 path: ``.bag`` ROS 1, ``.mcap`` one MCAP file (CDR, ``ros2msg`` schemas), no suffix a ROS 2 bag
@@ -102,24 +98,18 @@ def ros_output_kind(path: str | Path) -> str:
 _STANDARD_DEFINITIONS = {"tf2_msgs/msg/TFMessage": "geometry_msgs/TransformStamped[] transforms"}
 
 
-def _register_missing(typestore: Any) -> None:
-    """Add :data:`_STANDARD_DEFINITIONS` missing from ``typestore`` (the ROS 1 md5 sums come out as ROS's)."""
-    from rosbags.typesys import get_types_from_msg
-    for name, text in _STANDARD_DEFINITIONS.items():
-        if name not in typestore.types:
-            typestore.register(get_types_from_msg(text, name))
-
-
 class _Serializer:
     """Messages of one ROS version (``ros1``: ROS 1 Noetic, else ROS 2 Humble) built and serialised by rosbags."""
 
     path: Any = "ROS output"
 
     def __init__(self, ros1: bool) -> None:
-        from rosbags.typesys import Stores, get_typestore
+        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
         self.ros1 = ros1
         self.typestore = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
-        _register_missing(self.typestore)
+        for name, text in _STANDARD_DEFINITIONS.items():         # (the ROS 1 md5 sums come out as ROS's)
+            if name not in self.typestore.types:
+                self.typestore.register(get_types_from_msg(text, name))
 
     def message(self, msgtype: str, **fields: Any) -> Any:
         """A message object of ``msgtype`` from this writer's type store (ROS 1 or ROS 2)."""
@@ -440,8 +430,10 @@ def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
         if road_from_camera is not None:
             camera = _write_camera_transforms(w, f"{prefix}/road_from_camera", rows, stamps, road_from_camera,
                                               camera_frame_id, road_frame_id)
-        _write_road_from_sensor(w, rows, stamps, r_gs, trans, road_frame_id, frame_id, camera,
-                                _table_std(table), prefix)
+        std = None                                              # (F, 2) roll and pitch 1-sigma, rad
+        if "roll_std_deg" in table and "pitch_std_deg" in table:
+            std = np.column_stack([np.asarray(table[c], dtype=float) for c in ("roll_std_deg", "pitch_std_deg")]) * DEG
+        _write_road_from_sensor(w, rows, stamps, r_gs, trans, road_frame_id, frame_id, camera, std, prefix)
         _write_optional(w, table, prefix, frame_id, origin)
         return dict(w.counts)
 
@@ -454,14 +446,6 @@ def _static_extrinsic(extrinsic: Any) -> tuple[np.ndarray, np.ndarray]:
     rot = np.asarray(get("rotation", np.eye(3)) if get("rotation") is not None else np.eye(3), dtype=float)
     trans = np.asarray(get("translation") if get("translation") is not None else np.zeros(3), dtype=float)
     return rot.reshape(3, 3), trans.reshape(3)
-
-
-def _table_std(table: Any) -> np.ndarray | None:
-    """``(F, 2)`` roll and pitch 1-sigma of every table row, rad; None without the columns."""
-    if "roll_std_deg" not in table or "pitch_std_deg" not in table:
-        return None
-    return np.column_stack([np.asarray(table["roll_std_deg"], dtype=float),
-                            np.asarray(table["pitch_std_deg"], dtype=float)]) * DEG
 
 
 def _write_raw_all(w: RosWriter, handle: Any, stamps: np.ndarray, messages: Sequence[bytes]) -> None:
