@@ -1,21 +1,17 @@
 """The one output table of an estimate and its writers, chosen by the file's suffix; every write is atomic.
 
-Table (:func:`track_table` of a track, :func:`result_table` of an estimate): ``t`` (s, frame
-end), ``normal_x/y/z`` (unit ground normal, sensor frame), ``pitch_deg`` (+ nose down),
-``roll_deg`` (+ left side up) of the body relative to the road, ``qw qx qy qz`` (residual
-rotation road <- body, scalar first), ``valid``, the 1-sigma ``pitch_std_deg roll_std_deg``, the
-road's ``road_grade_deg road_bank_deg`` and their 1-sigma, ``status`` and ``status_reason``
-(:data:`UNITS`); frames inside a gap longer than :data:`GAP_NAN_FRAMES` frames hold NaN.
+Table (:func:`track_table` of a track, :func:`result_table` of an estimate): :data:`COLUMNS`, their
+units and signs in :data:`UNITS` (pitch + nose down, roll + left side up, of the body relative to the
+road; ``qw qx qy qz`` the residual rotation road <- body, scalar first); frames inside a gap longer
+than :data:`GAP_NAN_FRAMES` frames hold NaN.
 
-Writers: ``.csv`` (comment header with units, method, settings and what ``valid``
-holds), ``.parquet`` (typed; units and settings in the schema metadata), ``.tum``
-(dynamic extrinsic ground <- sensor of the valid frames, for evo), ``.bag``/``.mcap``
-(ROS topics, :mod:`imu_ground.pipeline.ros_output`); a picture (``.png``, ``.pdf``, ``.svg``:
-:func:`imu_ground.pipeline.plot.plot_estimate`) when asked for by its kind.
+Writers: ``.csv`` (comment header with units, method, settings), ``.parquet`` (typed; units and
+settings in the schema metadata), ``.tum`` (dynamic extrinsic ground <- sensor of the valid frames,
+for evo), ``.bag``/``.mcap`` (:mod:`imu_ground.pipeline.ros_output`); a picture (``.png``, ``.pdf``,
+``.svg``: :func:`imu_ground.pipeline.plot.plot_estimate`) when asked for by its kind.
 
-Atomic: each file is written to a temporary folder beside its destination and
-renamed into place only when every requested file has been written, so a
-failure leaves neither a partial file nor a fresh file beside a missing one.
+Atomic: each file is written to a temporary folder beside its destination and renamed into place only
+when every requested file has been written: never a partial file, nor a fresh one beside a missing one.
 """
 from __future__ import annotations
 

@@ -177,11 +177,8 @@ def estimate_row(est: FrameEstimate) -> dict[str, Any]:
 
 # ------------------------------------------------------------------------------------------ checks
 def _number(x: Any, name: str) -> float:
-    if isinstance(x, float):                         # float and numpy.float64 (a float subclass): the common case
-        return float(x)
-    if isinstance(x, numbers.Real) and not isinstance(x, bool):
-        return float(x)
-    if isinstance(x, np.ndarray) and x.shape == () and x.dtype.kind in "fiu":
+    if isinstance(x, float) or (isinstance(x, numbers.Real) and not isinstance(x, bool)) or (
+            isinstance(x, np.ndarray) and x.shape == () and x.dtype.kind in "fiu"):
         return float(x)
     raise OptionError(f"{{opt}} must be a number (s or m/s), got {type(x).__name__} {x!r:.40}", name)
 
