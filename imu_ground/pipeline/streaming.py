@@ -255,6 +255,18 @@ class StreamingEstimator:
     and the speed's the same one. ``state_dict`` / ``load_state_dict`` save and resume
     everything (JSON-serialisable); the rest of the stream is then bit-identical.
     """
+    # the settings and parts (set in __init__), declared for mypy (the methods' uses come before __init__'s)
+    method: str
+    rate: float
+    speed_wait: float
+    extrinsic: Extrinsic
+    camera: Any
+    recalibrate_online: bool
+    policy: str
+    speed_aided: bool
+    _bias_arg: Any
+    _clock: SampleClock
+    _filter: Any                        # the method's estimator (METHODS[method].make)
 
     def __init__(self, method: str = "auto", extrinsic: Any = None, rate: float = 10.0, camera: Any = None, *,
                  bias_gyro: Any = "auto", policy: str = "retime", speed_wait: float = SPEED_WAIT,
