@@ -1,18 +1,13 @@
 """Many logs: :func:`run_batch` estimates every log on Dask, one output file per log and a summary table.
 
-Each log is one task (:func:`process_log`) that reads the log, estimates, writes its
-output atomically and returns one summary row, never the data: a worker holds one
-log at a time (one thread a worker), so its memory is bounded by the largest log,
-not the fleet. A failing log becomes a row with its error; the others go on. An
-output that exists is complete (writes are atomic), so a rerun skips it (resume).
+Each log is one task (:func:`process_log`): read, estimate, write its output atomically (the file
+``imu-ground estimate LOG -o OUT`` writes, byte for byte), return one summary row, never the data; a
+worker holds one log at a time. A failing log becomes a row with its error; the others go on. An output
+that exists is complete, so a rerun skips it (resume).
 
-The output of a log is the file ``imu-ground estimate LOG -o OUT`` writes, byte for
-byte: both call :func:`~imu_ground.pipeline.estimate.estimate_to_files`.
-
-Logs, patterns and the output folder may be fsspec URLs (:mod:`imu_ground.datasets.storage`).
-An output folder at a URL (``s3://bucket/out``) has no lock and no rename: each output is
-uploaded whole by the worker that made it, then the log's record (:func:`record_path`), which a
-rerun needs to skip the log; the summary is uploaded once at the end (``docs/storage.md``).
+Logs, patterns and the output folder may be fsspec URLs (:mod:`imu_ground.datasets.storage`). An output
+folder at a URL has no lock and no rename: each output is uploaded whole, then the log's record
+(:func:`record_path`), which a rerun needs to skip the log (``docs/storage.md``).
 """
 from __future__ import annotations
 
@@ -27,6 +22,7 @@ import sys
 import threading
 import time
 import warnings
+from collections import Counter
 from collections.abc import Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
@@ -56,12 +52,8 @@ WORKERS_PER_CORE = 4
 
 
 def expand_logs(patterns: Iterable[str | Path]) -> list[tuple[str, str | None]]:
-    """Logs named by paths and glob patterns, in order, each once: ``(log, error or None)``.
-
-    A pattern that matches nothing gives ``(pattern, "no file matches ...")``; a plain path is kept as
-    given (a missing one fails when read). A URL pattern (``s3://bucket/logs/**/*.csv.gz``) is expanded
-    by its fsspec filesystem, its matches spelt as URLs of the same protocol.
-    """
+    """Logs named by paths and glob patterns (local or URLs), in order, each once: ``(log, error or None)``; a
+    pattern that matches nothing gives ``(pattern, "no file matches ...")``, a plain path is kept as given."""
     out: dict[str, str | None] = {}
     for pat in patterns:
         pat = str(pat)
@@ -78,17 +70,12 @@ def expand_logs(patterns: Iterable[str | Path]) -> list[tuple[str, str | None]]:
 
 
 def output_names(logs: Sequence[str], suffix: str = ".csv") -> list[str]:
-    """Output file name of each log (``<name>_ground<suffix>``), made unique with the parent folders' names.
-
-    Always a bare file name, so the output lands in the output folder whatever the log's path; names
-    that still clash get a number: ``_2``, ``_3``...
-    """
+    """Output file name of each log (``<name>_ground<suffix>``, a bare name), made unique with the parent folders'
+    names, then a number (``_2``, ``_3``...)."""
     base = [default_output_name(log, suffix) for log in logs]
     names = list(base)
     for depth in range(1, 8):
-        counts: dict[str, int] = {}
-        for n in names:
-            counts[n] = counts.get(n, 0) + 1
+        counts = Counter(names)
         clash = [i for i, n in enumerate(names) if counts[n] > 1]
         if not clash:
             break
@@ -132,12 +119,8 @@ def unique_logs(found: Sequence[tuple[str, str | None]]) -> tuple[list[tuple[str
 
 
 def is_own_output(path: str | Path, out_dir: str | Path | None = None) -> bool:
-    """Whether ``path`` is a file this tool wrote (an output or a batch summary), not a log.
-
-    An output records its settings (CSV and TUM header, Parquet schema, MCAP metadata); a summary
-    starts with :data:`SUMMARY_COLUMNS`; a ROS bag output is recognised by its name
-    ``*_ground.bag`` / ``*_ground.mcap`` inside ``out_dir``. A URL is read through its filesystem.
-    """
+    """Whether ``path`` is a file this tool wrote, not a log: an output recording its settings, a summary (starting
+    with :data:`SUMMARY_COLUMNS`), or a ROS output named ``*_ground.bag`` / ``*_ground.mcap`` inside ``out_dir``."""
     url = storage.local_name(path)
     remote = storage.is_url(url)
     p = Path(storage.url_name(url) if remote else url)
@@ -180,12 +163,9 @@ def _recorded_format_method(out: Path) -> dict[str, Any]:
 def _skipped_row(out: Path) -> dict[str, Any]:
     row: dict[str, Any] = {"status": "skipped (output exists)"}
     try:
-        if out.suffix == ".csv":
+        if out.suffix in (".csv", ".parquet"):
             import pandas as pd
-            row.update(summarize_table(pd.read_csv(out, comment="#")))
-        elif out.suffix == ".parquet":
-            import pandas as pd
-            row.update(summarize_table(pd.read_parquet(out)))
+            row.update(summarize_table(pd.read_csv(out, comment="#") if out.suffix == ".csv" else pd.read_parquet(out)))
         row.update(_recorded_format_method(out))
     except Exception as e:                                   # noqa: BLE001 - the row reports it
         row["warnings"] = f"{out}: could not summarise the existing output ({e})"
@@ -243,8 +223,8 @@ def _as_path(path: str | Path) -> str | Path:
 
 
 def record_path(out: str) -> str:
-    """The record object of a batch output at a URL, ``OUTDIR/.imu-ground-batch/<output name>.json``: written
-    after all the log's outputs, it says they are complete and holds the log's summary row."""
+    """The record of a batch output at a URL, ``OUTDIR/.imu-ground-batch/<output name>.json``, written after all the
+    log's outputs: they are complete; it holds the log's summary row."""
     return str(storage.join(out.rsplit("/", 1)[0], f"{RECORD_FOLDER}/{storage.url_name(out)}.json"))
 
 
@@ -302,9 +282,8 @@ def output_folder_lock(out_dir: str | Path, option: str = "-o") -> Iterator[Path
     """Hold the batch lock of an output folder (:data:`LOCK_NAME`) for the block; a second run is refused.
 
     The lock file records the holder (process id, host, start time, command) and is a kernel lock
-    (``flock``), released however the holder ends (without ``flock``, the recorded process id decides).
-    A running holder raises at once; a file left by a process that no longer runs is taken over with a
-    warning. The file is removed when the block ends.
+    (``flock``; without it, the recorded process id decides). One left by a process that no longer runs
+    is taken over with a warning.
 
     Raises
     ------
@@ -367,12 +346,6 @@ def _describe(holder: dict) -> str:
             + (f": {holder['command']}" if holder.get("command") else ""))
 
 
-def _client(scheduler: str):
-    """A client of the running Dask cluster at ``scheduler``."""
-    distributed = require_extra("dask.distributed", "fleet", "imu-ground batch --scheduler")
-    return distributed.Client(scheduler, timeout="10s")
-
-
 def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | None = None,
               scheduler: str | None = None, suffix: str = ".csv", progress: bool = False, cli: bool = False,
               summary: str | None = "summary.csv", force: bool = False, tum: bool = False, **options: Any):
@@ -385,33 +358,29 @@ def run_batch(logs: Iterable[str | Path], outdir: str | Path, *, workers: int | 
     outdir : str or Path
         Output folder (created); one ``<log name>_ground<suffix>`` per log.
     workers : int, optional
-        Worker processes of Dask's local process pool (default: CPU count); 0
-        runs the logs one after the other in this process, without Dask.
+        Worker processes of Dask's local process pool (default: CPU count); 0: one log after the other in
+        this process, without Dask.
     scheduler : str, optional
         Address of a running Dask scheduler (``tcp://host:8786``) to use instead.
     suffix : str
         Output type, one of :data:`~imu_ground.pipeline.output.OUTPUT_SUFFIXES`.
-    progress : bool
-        Progress bar counting logs.
-    cli : bool
-        Error messages name command-line flags.
+    progress, cli : bool
+        Progress bar counting logs; error messages naming command-line flags.
     summary : str, optional
         File name of the summary CSV in ``outdir`` (None: not written).
     force : bool
-        Estimate every log again, replacing its outputs. Without it an existing output
-        is kept (resume) when it records the same options as this run's, and an output
-        written with other options raises :class:`~imu_ground.pipeline.estimate.OptionError`
-        before any work (naming ``--force`` from the command line).
+        Estimate every log again. Without it an existing output recording the same options is kept (resume),
+        and one written with other options raises :class:`~imu_ground.pipeline.estimate.OptionError` first.
     tum : bool
         Also write each log's dynamic extrinsic as TUM poses, ``<log name>_ground.tum``.
     **options
-        :func:`~imu_ground.pipeline.estimate_log` keywords (method, extrinsic, rate, reader options).
+        :func:`~imu_ground.pipeline.estimate_log` keywords.
 
     Returns
     -------
     pandas.DataFrame
-        :data:`SUMMARY_COLUMNS`, one row per log in input order, then one row (status
-        ``"duplicate"``) per path that named a file already listed.
+        :data:`SUMMARY_COLUMNS`, one row per log in input order, then one row (status ``"duplicate"``) per
+        path that named a file already listed.
     """
     if suffix not in OUTPUT_SUFFIXES:
         raise ImuGroundError(f"unknown output type {suffix!r}; choose from {', '.join(OUTPUT_SUFFIXES)}")
@@ -489,9 +458,8 @@ def _run_batch_locked(logs, out_dir: Path | str, workers, scheduler, suffix, pro
 
 
 def _check_batch_paths(out_dir: str | Path, planned: Sequence[str | Path], options: dict, cli: bool) -> None:
-    """Before any work: no output is an input the user named (:func:`check_run_paths`), and none would replace
-    a file in the output folder that this tool did not write (:func:`is_own_output`); raises
-    :class:`OptionError` naming the file and ``-o`` (``outdir``)."""
+    """Before any work: no output is an input the user named, and none would replace a file in the output folder that
+    this tool did not write (:class:`OptionError` naming the file and ``-o``)."""
     flag = (lambda name: "--" + name.replace("_", "-")) if cli else (lambda name: name)
     check_run_paths([("-o" if cli else "outdir", p) for p in planned],
                     [(flag(k), options.get(k)) for k in ("speed", "extrinsic", "times")
@@ -506,8 +474,7 @@ def _check_batch_paths(out_dir: str | Path, planned: Sequence[str | Path], optio
 
 
 def _start_method() -> str:
-    """``"fork"`` where the platform has it and this process runs no other Python thread (a forked worker
-    starts with the modules imported; forking is safe only while no other thread could hold a lock), else
+    """``"fork"`` where the platform has it and this process runs no other Python thread (safe only then), else
     ``"spawn"``."""
     if "fork" in multiprocessing.get_all_start_methods() and threading.active_count() == 1:
         return "fork"
@@ -516,8 +483,8 @@ def _start_method() -> str:
 
 @contextlib.contextmanager
 def _local_pool(workers: int | None, n_logs: int, cli: bool = False) -> Iterator[ProcessPoolExecutor]:
-    """``workers`` (default: CPU count) worker processes, started now (:func:`_start_method`); never more than
-    logs, nor than :data:`WORKERS_PER_CORE` a CPU core (each holds a whole log in memory; the cap is warned about)."""
+    """``workers`` (default: CPU count) worker processes, started now; at most one a log and
+    :data:`WORKERS_PER_CORE` a CPU core (warned)."""
     require_extra("dask.multiprocessing", "fleet", "imu-ground batch")      # checked before any worker starts
     cores = os.cpu_count() or 1
     n = min(int(workers) if workers else cores, max(1, n_logs))
@@ -532,9 +499,8 @@ def _local_pool(workers: int | None, n_logs: int, cli: bool = False) -> Iterator
 
 
 def _run_local(jobs, rows, options, cli, force, pool: ProcessPoolExecutor, bar) -> None:
-    """The logs on Dask's local process scheduler over ``pool``, one task a log handed out one at a time
-    (``chunksize=1``); the scheduler passed as a function, so Dask does not look for a ``dask.distributed``
-    client (whose worker runs these filters markedly slower)."""
+    """The logs on Dask's local process scheduler over ``pool``, one task a log at a time (the scheduler passed as a
+    function, so Dask does not look for a ``dask.distributed`` client)."""
     import dask
     from dask.callbacks import Callback
     from dask.multiprocessing import get as process_scheduler
@@ -553,7 +519,8 @@ def _run_local(jobs, rows, options, cli, force, pool: ProcessPoolExecutor, bar) 
 
 def _run_on_dask(jobs, rows, options, cli, force, scheduler, bar) -> None:
     """The logs on a running dask.distributed cluster; a worker that dies fails its log only."""
-    client = _client(scheduler)
+    distributed = require_extra("dask.distributed", "fleet", "imu-ground batch --scheduler")
+    client = distributed.Client(scheduler, timeout="10s")
     from dask.distributed import as_completed
     try:
         futures = {client.submit(process_log, log, out, options, cli, force, extra, pure=False): (i, log)

@@ -68,20 +68,16 @@ class EstimateResult(NamedTuple):
     Attributes
     ----------
     track : GroundTrack
-        Per-frame normal (sensor frame), pitch and roll of the body relative to
-        the road (rad), residual rotation road <- body; ``t`` (s) and ``valid``.
+        Per-frame normal (sensor frame), pitch and roll of the body relative to the road (rad), residual
+        rotation road <- body; ``t`` (s) and ``valid``.
     egomotion : EgoMotion
         The frames the track belongs to.
     meta : dict
-        ``source``, ``format``, ``kind`` ("imu" or "poses"), ``method``,
-        ``method_description``, ``settings`` (everything that determines the
-        numbers), ``warnings`` (one line each, ``file: message``), ``frame_id``
-        (the log's, e.g. a ROS header's; else "imu"), ``t0_ns`` (the first stamp,
-        ns, when the log has absolute times; the track's ``t`` starts at 0),
-        ``imu_rate`` (Hz, IMU input), ``extrinsic`` (rotation ground <- sensor
-        and translation, m), ``frame_speed`` (the measured speed the method used, m/s per
-        frame, NaN where unknown; None without one: ``speed`` says why); with a camera
-        ``camera``, ``plane`` and ``bev`` (see :func:`estimate_log`).
+        ``source``, ``format``, ``kind`` ("imu" or "poses"), ``method``, ``method_description``, ``settings``
+        (everything that determines the numbers), ``warnings`` (one line each), ``frame_id`` (the log's; else
+        "imu"), ``t0_ns`` (the first stamp, ns, when the log has absolute times), ``imu_rate`` (Hz),
+        ``extrinsic`` (rotation ground <- sensor and translation, m), ``speed`` (what speed was used) and
+        ``frame_speed`` (m/s per frame, NaN where unknown, or None); with a camera ``camera``, ``plane``, ``bev``.
     """
     track: Any
     egomotion: Any
@@ -114,13 +110,8 @@ def resolve_method(method: str, has_accel: bool) -> str:
 
 # ------------------------------------------------------------------------------------------ input kind
 def detect_input(path: str | Path, format: str | None = None) -> tuple[str, str | None]:
-    """What ``path`` is: ``("poses", "kitti_poses" | "tum")`` or ``("imu", format or None)``.
-
-    Raises
-    ------
-    FileNotFoundError
-        ``path`` does not exist.
-    """
+    """What ``path`` is: ``("poses", "kitti_poses" | "tum")`` or ``("imu", format or None)``; FileNotFoundError
+    when it does not exist."""
     p = Path(path)
     if format in POSE_FORMATS:
         return "poses", format
@@ -154,14 +145,6 @@ def _check_positive(value: Any, name: str, what: str) -> Any:
     return value
 
 
-def _check_rate(rate: float | None) -> float | None:
-    if rate is None:
-        return None
-    if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
-        raise OptionError(f"{{opt}} must be a positive frame rate in Hz, got {rate!r}", "rate")
-    return float(rate)
-
-
 def check_options(*, method: str = "auto", rate: float | None = None, Q: Any = None, R: Any = None,
                   **reader_options: Any) -> dict:
     """:func:`estimate_log`'s options checked without reading anything; returns the reader keywords to pass.
@@ -171,21 +154,18 @@ def check_options(*, method: str = "auto", rate: float | None = None, Q: Any = N
     OptionError
         Unknown method, non-positive rate or noise.
     TypeError
-        A reader option that :data:`~imu_ground.datasets.options.READER_OPTIONS` does not have.
+        An unknown reader option (not in :data:`~imu_ground.datasets.options.READER_OPTIONS`).
     """
     if method != "auto":
         resolve_method(method, True)
-    _check_rate(rate)
+    if rate is not None and not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
+        raise OptionError(f"{{opt}} must be a positive frame rate in Hz, got {rate!r}", "rate")
     _check_positive(Q, "Q", "process noise, rad^2 per frame")
     _check_positive(R, "R", "measurement noise")
-    return _reader_kwargs(reader_options)
-
-
-def _reader_kwargs(options: dict) -> dict:
-    unknown = sorted(set(options) - set(READER_OPTIONS))
+    unknown = sorted(set(reader_options) - set(READER_OPTIONS))
     if unknown:
         raise TypeError(f"estimate_log() got unknown reader options {unknown}; known: {sorted(READER_OPTIONS)}")
-    return {k: v for k, v in options.items() if v is not None and k != "format"}
+    return {k: v for k, v in reader_options.items() if v is not None and k != "format"}
 
 
 def _one_line(path: str | Path, message: Any) -> str:
@@ -209,64 +189,46 @@ def estimate_log(path: str | Path | IO, *, format: str | None = None, method: st
     Parameters
     ----------
     path : str, Path or file object
-        IMU log (any format of :func:`imu_ground.datasets.read_imu`) or pose file
-        (KITTI odometry, TUM; detected from the content); an fsspec URL of one
-        (``s3://``, ``memory://``, ``file://``: :mod:`imu_ground.datasets.storage`) or an open file object.
+        IMU log (any format of :func:`imu_ground.datasets.read_imu`) or pose file (KITTI odometry, TUM;
+        detected from the content); an fsspec URL of one (:mod:`imu_ground.datasets.storage`) or an open file.
     format : str, optional
         Input format: a reader's name, or ``"kitti_poses"`` / ``"tum"``; detected when None.
     method : str
-        ``"auto"`` (suspension-aware with an accelerometer, ``"filter"`` for poses)
-        or a name of :func:`available_methods`.
+        ``"auto"`` (suspension-aware with an accelerometer, ``"filter"`` for poses) or a name of
+        :func:`available_methods`.
     extrinsic : str, Path or Extrinsic, optional
-        Static ground <- sensor extrinsic: a shipped name (``kitti_imu``,
-        ``kitti_cam0`` for KITTI camera poses), a file (a calibration file also
-        sets the suspension gains), or an :class:`~imu_ground.filters.Extrinsic`.
-        Identity when None.
+        Static ground <- sensor extrinsic: a shipped name (``kitti_imu``, ``kitti_cam0`` for KITTI camera
+        poses), a file (a calibration file also sets the suspension gains), or an
+        :class:`~imu_ground.filters.Extrinsic`. Identity when None.
     rate : float, optional
-        Frame rate, Hz; at most the IMU's sample rate. Default 10 Hz
-        (:data:`~imu_ground.units.DEFAULT_FRAME_RATE`); for a TUM pose file its
-        own times; for a KITTI pose file (no times) this rate or the default.
+        Frame rate, Hz; at most the IMU's sample rate. Default :data:`~imu_ground.units.DEFAULT_FRAME_RATE`;
+        a TUM pose file: its own times.
     Q, R : float or ndarray (3, 3), optional
-        Process (rad^2 per frame) and measurement noise of the ``filter`` and
-        ``paper`` methods; positive.
+        Process (rad^2 per frame) and measurement noise of the ``filter`` and ``paper`` methods; positive.
     progress : bool
         Progress bar on stderr.
     speed : None, "none", "auto", str, Path or ndarray, optional
-        Measured vehicle speed for the speed-aided mode of the suspension methods
-        (:mod:`imu_ground.datasets.speed`): ``None`` / ``"none"`` IMU only;
-        ``"auto"`` (default) the log's own speed where its format has one (else IMU only);
-        a speed file (CSV ``t,speed``, s on the log's time base) or the name of a
-        column of the log's table; or an array, one speed per frame (m/s). What
-        was used is in ``meta["speed"]``.
+        Measured vehicle speed for the suspension methods (:mod:`imu_ground.datasets.speed`): ``None`` /
+        ``"none"`` IMU only; ``"auto"`` the log's own speed where its format has one; a speed file (CSV
+        ``t,speed``, s on the log's time base) or a column of the log's table; or one speed per frame (m/s).
     camera : str, Path or Camera, optional
-        A camera on the same platform (:func:`imu_ground.perception.load_camera`:
-        ``kitti_cam0`` ... ``kitti_cam3``, a camera file, or a KITTI raw calibration
-        folder as ``"DIR:2"``); its static extrinsic is ground <- camera in the
-        ground frame of ``extrinsic``. Adds ``meta["camera"]`` (the camera as plain
-        numbers) and ``meta["plane"]``: a :class:`~imu_ground.perception.GroundPlane`
-        of every frame (road plane in camera axes, road <- camera transforms, pixel
-        queries; NaN on frames that span a gap).
+        A camera on the same platform (:func:`imu_ground.perception.load_camera`), its extrinsic ground <-
+        camera in the ground frame of ``extrinsic``: adds ``meta["camera"]`` and ``meta["plane"]``, a
+        :class:`~imu_ground.perception.GroundPlane` of every frame (NaN on frames that span a gap).
     bev : sequence of 5 floats or BevGrid, optional
-        Bird's-eye grid ``X0 X1 Y0 Y1 RES`` (m: ahead, left, metres a pixel), with a
-        camera: ``meta["bev"]`` (the :class:`~imu_ground.perception.BevGrid`); the
-        output table gains the homographies (:mod:`imu_ground.pipeline.planes`).
+        Bird's-eye grid ``X0 X1 Y0 Y1 RES`` (m: ahead, left, metres a pixel), with a camera: ``meta["bev"]``;
+        the output table gains the homographies (:mod:`imu_ground.pipeline.planes`).
     recalibrate_online : bool
-        Re-estimate the mount when the mount monitor sees it move (the ``suspension`` method, frames
-        with a measured speed; :mod:`imu_ground.filters.recalibration`). Without a measured speed an
-        :class:`OptionError` naming ``speed``; frames with a speed spanning less than the monitor's 2
-        minutes: a warning (:func:`~imu_ground.pipeline.input_checks.check_recalibration`).
+        Re-estimate the mount when the mount monitor sees it move (:mod:`imu_ground.filters.recalibration`);
+        needs a measured speed (:func:`~imu_ground.pipeline.input_checks.check_recalibration`).
     causal : bool
-        Every choice from the samples before it, as live: the frames a
-        :class:`~imu_ground.pipeline.streaming.StreamingEstimator` gives when fed the log sample by
-        sample (:func:`~imu_ground.pipeline.streaming.causal_track`: the sample clock, the standstills
-        and gyro bias seen so far, each frame's speed from the speed samples up to its decision).
-        IMU logs and the live methods only. The log is read with the reader policy ``"recorded"``
-        (stamps as recorded, in file order); ``policy`` ``"retime"`` or ``"drop"`` is the sample
-        clock's (:func:`live_policy`).
+        Every choice from the samples before it: the frames a
+        :class:`~imu_ground.pipeline.streaming.StreamingEstimator` gives when fed the log sample by sample
+        (IMU logs and the live methods only). The log is read with the reader policy ``"recorded"``;
+        ``policy`` ``"retime"`` or ``"drop"`` is the sample clock's (:func:`live_policy`).
     **reader_options
-        Entries of :data:`imu_ground.datasets.options.READER_OPTIONS`
-        (``policy``, ``nonfinite``, ``gyro_unit``, ...), passed to the reader
-        when not None.
+        Entries of :data:`imu_ground.datasets.options.READER_OPTIONS` (``policy``, ``gyro_unit``, ...), passed
+        to the reader when not None.
 
     Returns
     -------
@@ -307,6 +269,7 @@ def estimate_log(path: str | Path | IO, *, format: str | None = None, method: st
             if reader_kw.get("policy") == "recorded":
                 raise OptionError(f"{path}: {{opt}} recorded keeps the stamps out of order, for the live front end "
                                   "only (add --causal, or choose retime, drop, sort or strict)", "policy")
+            imu = None
             if kind == "poses":
                 em, info = _poses_egomotion(path, fmt, rate, reader_kw.get("times"), extrinsic)
             else:
@@ -322,8 +285,9 @@ def estimate_log(path: str | Path | IO, *, format: str | None = None, method: st
                 raise OptionError(f"{path}: {{opt}} re-estimates the mount, frame by frame, when the streaming "
                                   f"suspension method's mount monitor sees it move; method {name} cannot (use "
                                   f"--method {recalibrating_methods()[0]}, or leave it out)", "recalibrate_online")
-            frame_speeds, speed_info = _frame_speeds(speed, path, info.get("format"), imu if kind == "imu" else None,
-                                                     em, name)
+            frame_speeds, speed_info = _frame_speeds(speed, path, info.get("format"), imu, em, name)
+            segments = _segment_notes(em, imu)
+            imu = None                                  # the samples freed before the filter (the job's peak memory)
             if recalibrate_online:
                 check_recalibration(path, frame_speeds, speed_info, em)
             try:
@@ -332,8 +296,8 @@ def estimate_log(path: str | Path | IO, *, format: str | None = None, method: st
                 if hasattr(e, "cli_message") or str(e).startswith(str(path)):
                     raise
                 raise ImuGroundError(f"{path}: {e}") from e
-            if kind == "imu":
-                _note_segments(track, em, imu)
+            for j, note in segments:                    # the first frame of each new segment says so, as live
+                track.status_reason[j] = f"{track.status_reason[j]}; {note}" if track.status_reason[j] else note
         ext = Extrinsic.coerce(extrinsic)
         bar.update()
     bar.close()
@@ -368,6 +332,7 @@ def check_frame_rate(rate: float | None, t: np.ndarray, path) -> float:
         raise OptionError(f"{{opt}} {rate:g} Hz is above the IMU's own sample rate of {imu_rate:.4g} Hz in "
                           f"{path}; choose a frame rate of at most {imu_rate:.4g} Hz", "rate")
     return imu_rate
+
 
 def _read_log(path, fmt, rate, reader_kw):
     """The IMU log read and its frame rate checked: ``(imu, info)`` (format, IMU rate, frame id, ``t0_ns``)."""
@@ -423,15 +388,11 @@ def _warn_segments(path, imu, em, rate: float, max_frames: int) -> None:
               + (f"; ... ({len(where) - 5} more)" if len(where) > 5 else ""), UserWarning)
 
 
-def _note_segments(track, em, imu) -> None:
-    """The first frame of each new segment says so in its ``status_reason``, as live."""
-    cuts = em.meta.get("segment_cuts") or []
-    reason = track.status_reason
-    for i in cuts:
-        j = int(np.searchsorted(em.t, imu.t[i + 1], side="right"))
-        if j < len(reason):
-            note = _segment_note(imu, i)
-            reason[j] = f"{reason[j]}; {note}" if reason[j] else note
+def _segment_notes(em, imu) -> list[tuple[int, str]]:
+    """The first frame of each new segment of ``em`` (``imu``: its samples, or None) and what it says."""
+    cuts = (em.meta.get("segment_cuts") or []) if imu is not None else []
+    found = [(int(np.searchsorted(em.t, imu.t[i + 1], side="right")), _segment_note(imu, i)) for i in cuts]
+    return [(j, note) for j, note in found if j < len(em)]
 
 
 def _poses_egomotion(path, fmt, rate, times=None, extrinsic=None):
@@ -530,13 +491,9 @@ def _refuse_speed_clock(speed, t_speed, lo: float, hi: float, what: str) -> None
 
 
 def live_policy(policy: str | None) -> str:
-    """The live sample clock's policy for the time-order option ``policy`` (``estimate --causal``, ``stream``).
-
-    The live front end reads a log with the reader policy ``"recorded"`` (stamps in file order) and
-    leaves the time order to its :class:`~imu_ground.imu.live.sample_clock.SampleClock`: ``retime``
-    (also for None and ``"recorded"``) or ``drop``; ``sort`` and ``strict`` need the whole log
-    (:class:`OptionError` naming ``policy``).
-    """
+    """The live sample clock's policy for the time-order option ``policy`` (``estimate --causal``, ``stream``):
+    ``retime`` (also for None and ``"recorded"``) or ``drop``; ``sort`` and ``strict`` need the whole log
+    (:class:`OptionError` naming ``policy``)."""
     if policy in (None, "recorded"):
         return "retime"
     if policy in ("retime", "drop"):
@@ -599,14 +556,11 @@ def estimate_to_files(path: str | Path, outputs, kinds=None, planes: str | Path 
     Parameters
     ----------
     path : str or Path
-        The log.
-    outputs : sequence of str or Path
-        Output files (writer by suffix, or by ``kinds``; see
-        :func:`imu_ground.pipeline.output.write_outputs`).
-    kinds : sequence of str or None, optional
+    outputs, kinds : sequence
+        Output files and their writers (:func:`imu_ground.pipeline.output.write_outputs`).
     planes : str or Path, optional
-        Folder of KITTI ``planes`` files, one per frame (needs ``camera=``;
-        :func:`imu_ground.pipeline.planes.write_kitti_planes`), written before the outputs.
+        Folder of KITTI ``planes`` files (needs ``camera=``; :func:`imu_ground.pipeline.planes.write_kitti_planes`),
+        written before the outputs.
     **kwargs
         :func:`estimate_log`'s keywords.
 

@@ -20,9 +20,7 @@ __all__ = ["GRAVITY_REFUSE_DEG", "GRAVITY_WARN_DEG", "OptionError", "check_creat
 def requested_options(*, method: str = "auto", rate: float | None = None, extrinsic: Any = None, Q: Any = None,
                       R: Any = None, speed: Any = None, **reader_options: Any) -> dict:
     """The options of a run as the user gave them, in JSON form: what an output records as ``settings["options"]``
-    (``imu-ground batch`` compares it to tell whether an output may be kept). ``format`` and None-valued reader
-    options are left out; a speed given as an array is recorded as ``"per-frame array"``.
-    """
+    (``format`` and None-valued reader options left out; a speed array as ``"per-frame array"``)."""
     if speed is None or isinstance(speed, str) and speed == "none":
         speed_text = "none"
     elif isinstance(speed, (np.ndarray, list, tuple)):
@@ -42,8 +40,8 @@ GRAVITY_REFUSE_DEG = 60.0
 
 
 def gravity_angle(accel: np.ndarray, extrinsic: Any = None) -> float:
-    """Angle, deg, between the mean specific force of a log ("up" on average over a drive) and the up axis the
-    extrinsic (ground <- sensor) assigns to the sensor, its third row; NaN under 1 m/s^2 (no accelerometer data).
+    """Angle, deg, between the mean specific force of a log ("up" on average) and the up axis the extrinsic
+    (ground <- sensor) gives the sensor, its third row; NaN under 1 m/s^2.
 
     Parameters
     ----------
@@ -69,14 +67,8 @@ def gravity_angle(accel: np.ndarray, extrinsic: Any = None) -> float:
 
 def check_gravity_direction(imu, extrinsic: Any, path: str | Path) -> float:
     """Warn (above :data:`GRAVITY_WARN_DEG`), or refuse (above :data:`GRAVITY_REFUSE_DEG`, an :class:`OptionError`
-    naming ``extrinsic``), when a log's mean specific force is not along the extrinsic's up axis (a z-down
-    sensor, a camera extrinsic on an IMU log: every angle turned).
-
-    Returns
-    -------
-    float
-        The angle, deg (:func:`gravity_angle`).
-    """
+    naming ``extrinsic``), when a log's mean specific force is off the extrinsic's up axis; returns
+    :func:`gravity_angle` (deg)."""
     angle = gravity_angle(imu.accel, extrinsic)
     if not math.isfinite(angle) or angle <= GRAVITY_WARN_DEG:
         return angle
@@ -112,13 +104,11 @@ def check_recalibration(path: str | Path, speeds: np.ndarray | None, speed_info:
     Parameters
     ----------
     path : str or Path
-        The log (for messages).
     speeds : ndarray (F,) or None
         Speed per frame, m/s (NaN where unknown); None: IMU only.
     speed_info : str
         What the speed is (``meta["speed"]``), for the message.
     em : EgoMotion
-        The frames (their times, s).
 
     Raises
     ------

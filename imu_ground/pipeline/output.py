@@ -1,24 +1,22 @@
 """The one output table of an estimate and its writers, chosen by the file's suffix; every write is atomic.
 
-Table (:func:`track_table` of a track, :func:`result_table` of an estimate): ``t`` (s, frame
-end), ``normal_x/y/z`` (unit ground normal, sensor frame), ``pitch_deg`` (+ nose down),
-``roll_deg`` (+ left side up) of the body relative to the road, ``qw qx qy qz`` (residual
-rotation road <- body, scalar first), ``valid``, the 1-sigma ``pitch_std_deg roll_std_deg``, the
-road's ``road_grade_deg road_bank_deg`` and their 1-sigma, ``status`` and ``status_reason``
-(:data:`UNITS`); frames inside a gap longer than :data:`GAP_NAN_FRAMES` frames hold NaN.
+Table (:func:`track_table` of a track, :func:`result_table` of an estimate): :data:`COLUMNS`, their
+units and signs in :data:`UNITS` (pitch + nose down, roll + left side up, of the body relative to the
+road; ``qw qx qy qz`` the residual rotation road <- body, scalar first); frames inside a gap longer
+than :data:`GAP_NAN_FRAMES` frames hold NaN.
 
-Writers: ``.csv`` (comment header with units, method, settings and what ``valid``
-holds), ``.parquet`` (typed; units and settings in the schema metadata), ``.tum``
-(dynamic extrinsic ground <- sensor of the valid frames, for evo), ``.bag``/``.mcap``
-(ROS topics, :mod:`imu_ground.pipeline.ros_output`); a picture (``.png``, ``.pdf``, ``.svg``:
-:func:`imu_ground.pipeline.plot.plot_estimate`) when asked for by its kind.
+Writers: ``.csv`` (comment header with units, method, settings), ``.parquet`` (typed; units and
+settings in the schema metadata), ``.tum`` (dynamic extrinsic ground <- sensor of the valid frames,
+for evo), ``.bag``/``.mcap`` (:mod:`imu_ground.pipeline.ros_output`); a picture (``.png``, ``.pdf``,
+``.svg``: :func:`imu_ground.pipeline.plot.plot_estimate`) when asked for by its kind.
 
-Atomic: each file is written to a temporary folder beside its destination and
-renamed into place only when every requested file has been written, so a
-failure leaves neither a partial file nor a fresh file beside a missing one.
+Atomic: each file is written to a temporary folder beside its destination and renamed into place only
+when every requested file has been written: never a partial file, nor a fresh one beside a missing one.
 """
 from __future__ import annotations
 
+import csv
+import io
 import json
 import os
 import shutil
@@ -75,20 +73,19 @@ _PathLike = str | Path
 
 # ------------------------------------------------------------------------------------------ table
 def track_table(track: GroundTrack, max_gap_frames: int = GAP_NAN_FRAMES) -> "pd.DataFrame":
-    """THE output table of an estimate, one row a frame (the columns, units and signs: the module docstring,
+    """THE output table of an estimate, one row a frame: :data:`COLUMNS` (units and signs: the module docstring,
     :data:`UNITS`; ``qw >= 0``; ``status`` one of :data:`~imu_ground.filters.status.STATUSES`).
 
     Parameters
     ----------
     track : GroundTrack
     max_gap_frames : int
-        Invalid frames in a run of more than this many consecutive invalid frames (a long gap in the
-        source) get NaN values; shorter runs keep their (extrapolated) values. ``valid`` is False for all.
+        Frames in a run of more than this many invalid frames get NaN values; shorter runs keep their
+        (extrapolated) values. ``valid`` is False for all.
 
     Returns
     -------
     pandas.DataFrame
-        :data:`COLUMNS`.
     """
     import pandas as pd                             # heavy: only when a table is made
     n = len(track)
@@ -110,8 +107,7 @@ def track_table(track: GroundTrack, max_gap_frames: int = GAP_NAN_FRAMES) -> "pd
 
 
 def _gap_reasons(codes: np.ndarray, t: np.ndarray, reasons: np.ndarray) -> np.ndarray:
-    """The reasons with every frame of a run of ``gap`` frames saying the whole gap's length (a stream's
-    frame can say only its own)."""
+    """The reasons with every frame of a run of ``gap`` frames saying the whole gap's length."""
     gap = codes == GAP
     if not gap.any():
         return reasons
@@ -139,13 +135,11 @@ def _long_runs(mask: np.ndarray, longer_than: int) -> np.ndarray:
 
 
 def result_table(result) -> Any:
-    """The output table (pandas.DataFrame, :data:`COLUMNS`) of an :class:`~imu_ground.pipeline.EstimateResult`.
-
-    With a camera (``meta["plane"]``) the plane columns ``plane_a`` ... ``plane_d`` (and with a
-    bird's-eye grid ``bev_h00`` ... ``bev_h22``) follow :data:`COLUMNS`, whose order stays the same
-    with or without a camera (:mod:`imu_ground.pipeline.planes`)."""
+    """The output table (pandas.DataFrame, :data:`COLUMNS`) of an :class:`~imu_ground.pipeline.EstimateResult`;
+    with a camera (``meta["plane"]``) then ``plane_a`` ... ``plane_d`` (and with a bird's-eye grid ``bev_h00`` ...
+    ``bev_h22``: :mod:`imu_ground.pipeline.planes`)."""
     table = track_table(result.track, max_gap_frames=GAP_NAN_FRAMES)
-    if result.meta.get("plane") is not None:            # with a camera: plane_a..plane_d (and bev_h00..bev_h22)
+    if result.meta.get("plane") is not None:
         for name, values in plane_columns(result.meta["plane"], result.meta.get("bev")).items():
             table[name] = values
     return table
@@ -159,11 +153,8 @@ def summarize_table(table) -> dict[str, Any]:
     row: dict[str, Any] = {"frames": len(table), "valid_frames": int(valid.sum()),
                            "valid_share": float(valid.mean()) if len(table) else float("nan")}
     for name, x in (("pitch", p[ok]), ("roll", r[ok])):
-        empty = x.size == 0
-        row.update({f"{name}_mean_deg": float("nan") if empty else float(x.mean()),
-                    f"{name}_std_deg": float("nan") if empty else float(x.std()),
-                    f"{name}_min_deg": float("nan") if empty else float(x.min()),
-                    f"{name}_max_deg": float("nan") if empty else float(x.max())})
+        for stat in ("mean", "std", "min", "max"):
+            row[f"{name}_{stat}_deg"] = float(getattr(x, stat)()) if x.size else float("nan")
     return row
 
 
@@ -182,8 +173,7 @@ def check_output_path(path: _PathLike, inputs: Sequence[_PathLike] = (), option:
     ----------
     path : str or Path
         Output file; its suffix picks the writer (:data:`OUTPUT_SUFFIXES`). A URL
-        (:mod:`imu_ground.datasets.storage`) is checked for its type, filesystem, bucket and the
-        inputs, and returned as it is (a string).
+        (:mod:`imu_ground.datasets.storage`) is returned as it is (a string).
     inputs : sequence of str or Path
         Input logs, which an output must never overwrite.
     option : str
@@ -198,8 +188,7 @@ def check_output_path(path: _PathLike, inputs: Sequence[_PathLike] = (), option:
     Raises
     ------
     ImuGroundError
-        Unknown suffix; the path is a folder, an input, or lies under a file; no permission to
-        write there. One line, naming the path and what to do.
+        Unknown suffix; the path is a folder, an input, or lies under a file; no permission to write there.
     MissingExtraError
         The writer of its type needs an optional extra that is not installed.
     MissingFilesystemError
@@ -248,15 +237,13 @@ def _file_keys(path: _PathLike) -> set:
 def check_run_paths(outputs: Sequence[tuple[str, _PathLike | None]],
                     inputs: Sequence[tuple[str, _PathLike | None]] = ()) -> None:
     """The one check of a run's paths, before any work: no output is a file the user named as an input, and no
-    two outputs share a path (:func:`same_file` decides; every ``imu-ground`` command calls it).
+    two outputs share a path (:func:`same_file` decides).
 
     Parameters
     ----------
-    outputs : sequence of (flag, path)
-        Every file or folder the run writes, with the flag naming it (``"-o"``, ``"--tum"``, ...); None left out.
-    inputs : sequence of (flag, path)
-        Every input the user named (``"LOG"``, ``"--speed"``, ...): a path, or a value that is not one
-        (``auto``, a shipped name), which then names no output either; None and empty left out.
+    outputs, inputs : sequence of (flag, path)
+        Every file or folder the run writes, and every input the user named, with the flag naming it
+        (``"-o"``, ``"LOG"``, ``"--speed"``, ...); None and empty left out.
 
     Raises
     ------
@@ -297,12 +284,9 @@ def _require_writer(path: Path, kind: str) -> None:
 
 @contextmanager
 def atomic_path(path: _PathLike) -> Iterator[Path]:
-    """Temporary path beside ``path`` (same folder, same name), renamed onto it when the block succeeds.
-
-    The parent folders are created; on an exception nothing is left behind and an existing ``path`` is
-    untouched. A URL's temporary file is local, uploaded in one piece
-    (:func:`~imu_ground.datasets.storage.staged_outputs`).
-    """
+    """Temporary path beside ``path``, renamed onto it when the block succeeds (parents created; on an exception
+    nothing is left and ``path`` untouched). A URL's is local, uploaded in one piece
+    (:func:`~imu_ground.datasets.storage.staged_outputs`)."""
     path = storage.local_name(path)
     if storage.is_url(path):
         with storage.staged_outputs([path]) as (tmp,):
@@ -318,7 +302,6 @@ def atomic_path(path: _PathLike) -> Iterator[Path]:
 def package_version() -> str:
     """The package's version (its one owner is ``imu_ground/_version.py``; pyproject reads it from there)."""
     return __version__
-
 
 
 def _csv_header(meta: Mapping[str, Any]) -> str:
@@ -352,21 +335,23 @@ def _csv_header(meta: Mapping[str, Any]) -> str:
 
 
 def write_csv_rows(fh, table) -> None:
-    """Write ``table``'s header line and rows as CSV to ``fh`` (binary, open for writing; the index not written).
+    """Write ``table``'s header line and rows as CSV to ``fh`` (binary; the index not written).
 
-    Through pyarrow's CSV writer (the ``parquet`` extra; pandas' ``to_csv`` without it, the same
-    values, numbers maybe spelt otherwise): every number the shortest text that reads back as the same
-    double, NaN as ``nan``, infinities as ``inf``/``-inf``, bools as 0/1; text quoted (``"`` doubled),
-    header names only where they need it.
+    Through pyarrow's CSV writer (pandas' ``to_csv`` without it: the same values, numbers maybe spelt
+    otherwise): every number the shortest text that reads back as the same double, NaN as ``nan``,
+    infinities as ``inf``/``-inf``, bools as 0/1; text quoted where it needs it (``"`` doubled).
     """
-    fh.write((",".join(_csv_quoted(str(c)) for c in table.columns) + "\n").encode("utf-8"))
+    head = io.StringIO()
+    csv.writer(head, lineterminator="\n").writerow([str(c) for c in table.columns])
+    fh.write(head.getvalue().encode("utf-8"))
     if not len(table.columns):
         return
     df = table.reset_index(drop=True)
     for c in df.columns[[k == "b" for k in df.dtypes.map(lambda d: d.kind)]]:
         df[c] = df[c].astype(np.int8)
     try:
-        pa, pacsv = _pyarrow_csv()
+        import pyarrow as pa
+        import pyarrow.csv as pacsv
         # column by column from numpy (NaN stays a number, written nan; pandas' conversion would make it empty)
         rows = pa.table([pa.array(df[c].to_numpy() if df[c].dtype.kind in "fiu" else df[c].to_numpy(dtype=object))
                          for c in df.columns], names=[f"c{j}" for j in range(len(df.columns))])
@@ -401,20 +386,6 @@ def _write_row_blocks(pa: Any, pacsv: Any, rows: Any, fh: Any, options: Any) -> 
         for buf in pool.map(block, range(parts)):
             fh.write(buf)
             del buf
-
-
-def _pyarrow_csv():
-    """``(pyarrow, pyarrow.csv)``; ImportError without pyarrow."""
-    import pyarrow as pa
-    import pyarrow.csv as pacsv
-    return pa, pacsv
-
-
-def _csv_quoted(v: str) -> str:
-    """A header name as the csv module writes it with minimal quoting."""
-    if any(ch in v for ch in ',"\r\n') or v == "":
-        return '"' + v.replace('"', '""') + '"'
-    return v
 
 
 def _write_csv(path: Path, table, meta: Mapping[str, Any]) -> None:

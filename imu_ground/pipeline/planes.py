@@ -1,10 +1,7 @@
 """A camera's road plane per output frame: the table's plane columns and the KITTI object ``planes`` files.
 
-With a camera (:func:`~imu_ground.pipeline.estimate_log`'s ``camera=``, the CLI's
-``--camera``), every frame's residual rotation road <- body gives the road plane
-in the camera's axes (:meth:`GroundPlane.from_camera
-<imu_ground.perception.GroundPlane.from_camera>`); frames that span a gap
-(``valid`` false) get NaN, so nothing extrapolated reaches a detector.
+With a camera (``camera=``, ``--camera``), every frame's residual rotation road <- body gives the road
+plane in the camera's axes; frames that span a gap (``valid`` false) get NaN.
 
 - Table columns :data:`PLANE_COLUMNS` (``plane_a`` ... ``plane_d``: unit normal
   pointing up in camera axes, x right, y down, z forward, and the camera's height
@@ -65,10 +62,8 @@ PLANES_FORMAT = "%.9e"
 
 
 def camera_plane(residual: Any, valid: Any, camera: Camera) -> GroundPlane:
-    """The road plane of ``camera`` per frame: residual rotations road <- body, NaN where ``valid`` is false.
-
-    Only the residual's road normal counts (:meth:`GroundPlane.from_pitch_roll`), so a residual's yaw
-    cannot turn a bird's-eye view.
+    """The road plane of ``camera`` per frame from the residuals' road normal (their yaw cannot turn a bird's-eye
+    view), NaN where ``valid`` is false.
 
     Parameters
     ----------
@@ -104,21 +99,16 @@ def _is_inside(path: str | Path, folder: Path) -> bool:
 
 def check_planes_dir(path: str | Path, option: str = "--planes", inputs: Sequence[str | Path] = (),
                      outputs: Sequence[str | Path] = ()) -> Path:
-    """Check, before any work, that ``path`` can be the planes folder.
-
-    It may be absent, empty, or a folder this tool wrote (holding :data:`PLANES_MARKER`) with nothing
-    but planes files (``%06d.txt``) and this run's own outputs; any other folder is refused naming one
-    of its files, and so is a folder holding an input log.
+    """Check, before any work, that ``path`` can be the planes folder: absent, empty, or a folder this tool wrote
+    (holding :data:`PLANES_MARKER`) with nothing but planes files and this run's own outputs, and no input.
 
     Parameters
     ----------
     path : str or Path
     option : str
         How the user named the folder (for messages).
-    inputs : sequence of str or Path
-        The input logs, which must not lie inside the folder.
-    outputs : sequence of str or Path
-        Outputs of the same run, which may lie inside it (they are written after the planes).
+    inputs, outputs : sequence of str or Path
+        The input logs (never inside the folder) and outputs of the same run (allowed inside it).
 
     Raises
     ------
@@ -150,9 +140,8 @@ def check_planes_dir(path: str | Path, option: str = "--planes", inputs: Sequenc
 
 
 def _foreign_files(folder: Path, outputs: Sequence[str | Path] = ()) -> list[Path]:
-    """What of a folder's content may not be replaced: all of it without the marker, else what is neither
-    a planes file, nor one of ``outputs``, nor what an interrupted write of one of them left (``.NAME.*.tmp``);
-    empty for a missing or empty folder."""
+    """What of a folder's content may not be replaced: all of it without the marker, else what is neither a planes
+    file, nor one of ``outputs``, nor an interrupted write of one (``.NAME.*.tmp``)."""
     if not folder.is_dir():
         return []
     ours = (folder / PLANES_MARKER).is_file()
@@ -164,14 +153,9 @@ def _foreign_files(folder: Path, outputs: Sequence[str | Path] = ()) -> list[Pat
                           or e.resolve() in allowed))
 
 
-def _planes_text(abcd: np.ndarray) -> str:
-    return "# Matrix\nWIDTH 4\nHEIGHT 1\n" + " ".join(PLANES_FORMAT % v for v in abcd) + "\n"
-
-
 @contextmanager
 def _signals_deferred() -> Iterator[None]:
-    """Hold SIGINT and SIGTERM until the block ends, then act on the first one received (a no-op outside the
-    main thread, where Python runs no signal handler)."""
+    """Hold SIGINT and SIGTERM until the block ends, then act on the first one received (main thread only)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -212,8 +196,8 @@ def _marker_pid(folder: Path) -> int | None:
 
 
 def _remove_stale_leftovers(out: Path) -> None:
-    """Remove what an interrupted earlier run left beside ``out``: ``.NAME.*.tmp`` folders of a process no
-    longer running and ``.NAME.*.tmp.old`` folders, each only when it holds :data:`PLANES_MARKER`."""
+    """Remove what an interrupted run left beside ``out`` (``.NAME.*.tmp`` of a process no longer running,
+    ``.NAME.*.tmp.old``), each only when it holds :data:`PLANES_MARKER`."""
     prefix = f".{out.name}."
     for d in out.parent.iterdir():
         if not (d.name.startswith(prefix) and d.name.endswith((".tmp", ".tmp.old")) and d.is_dir()
@@ -237,11 +221,9 @@ def write_kitti_planes(folder: str | Path, coefficients: Any, first_index: int =
                        inputs: Sequence[str | Path] = (), keep: Sequence[str | Path] = ()) -> list[Path]:
     """Write one KITTI ``planes`` file per frame, ``%06d.txt`` from ``first_index``; NaN rows as ``nan``.
 
-    The files and :data:`PLANES_MARKER` go to a temporary folder beside ``folder``, which then takes
-    its place (SIGINT and SIGTERM held over the renames and the old folder's removal): no partial file,
-    no stale frames of a longer earlier run. Only a folder :func:`check_planes_dir` accepts is replaced;
-    what an interrupted run left beside it is removed; the permissions are the replaced folder's, or
-    the umask's.
+    The files and :data:`PLANES_MARKER` go to a temporary folder beside ``folder``, which then takes its place
+    (signals held over the renames): no partial file, no stale frames of a longer earlier run. Only a folder
+    :func:`check_planes_dir` accepts is replaced; the permissions are the replaced folder's, or the umask's.
 
     Parameters
     ----------
@@ -278,7 +260,8 @@ def write_kitti_planes(folder: str | Path, coefficients: Any, first_index: int =
                   "frames": len(names), "pid": os.getpid()}
         (tmp / PLANES_MARKER).write_text(json.dumps(marker) + "\n", encoding="utf-8")
         for name, row in zip(names, abcd, strict=True):
-            (tmp / name).write_text(_planes_text(row), encoding="ascii")
+            (tmp / name).write_text("# Matrix\nWIDTH 4\nHEIGHT 1\n" + " ".join(PLANES_FORMAT % v for v in row) + "\n",
+                                    encoding="ascii")
         for k in keep:
             k = Path(k)
             if k.is_file() and k.parent.resolve() == out.resolve():
@@ -336,8 +319,7 @@ def check_camera(camera: Any, bev: Any) -> tuple[Any, Any]:
     Raises
     ------
     OptionError
-        A camera that cannot be loaded, a grid that is not 5 numbers, or a grid without a camera,
-        naming the option (``--camera`` / ``--bev`` on the command line).
+        A camera that cannot be loaded, a grid that is not 5 numbers, or a grid without a camera.
     """
     if camera is None:
         if bev is not None:

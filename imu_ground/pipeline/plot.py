@@ -1,14 +1,10 @@
 """A picture of one estimate: pitch and roll over time with their 1-sigma, the status and the speed.
 
-:func:`plot_estimate` draws (:func:`estimate_figure`) THE output table (:func:`imu_ground.pipeline.output.track_table`) of any
-log and method; ``imu-ground estimate LOG --plot FILE.png`` writes it beside the other outputs (all
-or none, :func:`imu_ground.pipeline.output.write_outputs`). Matplotlib's object interface is used
-(a :class:`~matplotlib.figure.Figure` of its own, no ``pyplot``): the caller's backend and open
-figures are left alone.
-
-Angles in degrees, the body relative to the road: pitch + nose down, roll + left side up; the band
-is the calibrated 1-sigma (``pitch_std_deg``, ``roll_std_deg``), the shading the per-frame status
-(:data:`~imu_ground.filters.status.STATUSES`), the grey line the measured speed the estimate used (m/s).
+:func:`plot_estimate` draws THE output table (:func:`imu_ground.pipeline.output.track_table`) of any log
+(``imu-ground estimate LOG --plot FILE.png``) with a :class:`~matplotlib.figure.Figure` of its own (no
+``pyplot``: the caller's backend and figures are left alone). Angles in degrees, the body relative to
+the road: pitch + nose down, roll + left side up; the band the calibrated 1-sigma, the shading the
+status (:data:`~imu_ground.filters.status.STATUSES`), the grey line the measured speed (m/s).
 """
 from __future__ import annotations
 
@@ -32,13 +28,8 @@ SHADE_ALPHA = 0.45
 
 
 def check_plot_path(path: str | Path, option: str = "--plot") -> Path:
-    """``path`` as a :class:`~pathlib.Path` if its suffix is one of :data:`PLOT_SUFFIXES`.
-
-    Raises
-    ------
-    ImuGroundError
-        Any other suffix: one line naming the path and ``option``.
-    """
+    """``path`` as a :class:`~pathlib.Path` if its suffix is one of :data:`PLOT_SUFFIXES`, else an
+    :class:`~imu_ground.errors.ImuGroundError` naming it and ``option``."""
     p = Path(path)
     if p.suffix.lower() not in PLOT_SUFFIXES:
         raise ImuGroundError(f"{p}: unknown picture type {p.suffix or '(no suffix)'!r}; end the {option} file name "
@@ -57,11 +48,7 @@ def _runs(values: np.ndarray) -> list[tuple[int, int]]:
 
 def plot_estimate(table: Any, path: str | Path, *, speed: Any = None, speed_note: str = "", title: str = "",
                   time_label: str = "t (s, frame end)") -> Path:
-    """Write :func:`estimate_figure` to ``path`` (format by its suffix, :data:`PLOT_SUFFIXES`); returns ``path``.
-
-    Written in place: the caller stages it for atomicity (as
-    :func:`~imu_ground.pipeline.output.write_outputs` does). The keywords are :func:`estimate_figure`'s.
-    """
+    """Write :func:`estimate_figure` (the keywords are its) to ``path``, in place, format by its suffix; returns it."""
     path = Path(path)
     fig = estimate_figure(table, speed=speed, speed_note=speed_note, title=title, time_label=time_label)
     fig.savefig(path, format=path.suffix.lower().lstrip(".") or "png")
@@ -70,27 +57,18 @@ def plot_estimate(table: Any, path: str | Path, *, speed: Any = None, speed_note
 
 def estimate_figure(table: Any, *, speed: Any = None, speed_note: str = "", title: str = "",
                     time_label: str = "t (s, frame end)") -> Any:
-    """Pitch and roll over time with their 1-sigma band, the status as shading and the speed.
-
-    Two panels on one time axis: pitch (top) and roll (bottom) of the body relative to
-    the road, deg, each with its calibrated 1-sigma band; the frames' status shades
-    the background (ok unshaded, see :data:`STATUS_COLOURS`; the legend lists the
-    statuses present); a given speed is drawn on a second axis (m/s) of each panel.
+    """Pitch (top) and roll (bottom) over time with their 1-sigma band, the status as shading (:data:`STATUS_COLOURS`)
+    and the speed on a second axis.
 
     Parameters
     ----------
     table : pandas.DataFrame
-        THE output table (:func:`imu_ground.pipeline.output.track_table`): ``t`` (s, frame end),
-        ``pitch_deg`` (+ nose down), ``roll_deg`` (+ left side up); optional ``pitch_std_deg``,
-        ``roll_std_deg`` (1-sigma, deg), ``status`` (str), ``valid``. NaN values leave holes.
+        THE output table: ``t``, ``pitch_deg``, ``roll_deg``; optional ``pitch_std_deg``, ``roll_std_deg``,
+        ``status``. NaN values leave holes.
     speed : array_like (F,), optional
         Speed per row of ``table``, m/s (NaN: unknown); None or no finite value: no speed axis.
-    speed_note : str
-        What the speed is, or why there is none (shown in the title).
-    title : str
-        First title line (e.g. the log and the method).
-    time_label : str
-        Label of the time axis.
+    speed_note, title, time_label : str
+        What the speed is (or why there is none), the first title line, the time axis's label.
 
     Returns
     -------

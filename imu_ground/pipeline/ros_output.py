@@ -2,32 +2,28 @@
 
 It plays in Foxglove or RViz beside the recording: header stamps are the recording's clock
 (``t0`` / ``t0_ns``), ``frame_id`` the IMU's. One message per valid, finite frame of the output
-table (``PREFIX`` is ``topic_prefix``, default ``/ground``):
+table (``PREFIX`` is ``topic_prefix``, default ``/ground``; types: :data:`ROS_OUTPUT_TOPICS`):
 
-- ``PREFIX/normal`` (``Vector3Stamped``): unit ground normal, body frame;
-- ``PREFIX/rotation`` (``QuaternionStamped``): residual rotation road <- body (the table's q);
-- ``PREFIX/pitch_roll`` (``Vector3Stamped``): ``x`` roll, ``y`` pitch of the body relative to the
-  road, rad (the table's signs), ``z`` 0 (one stamped message keeps the stamp and frame_id; plot
-  ``PREFIX/pitch_roll.vector.y`` for pitch);
+- ``PREFIX/normal``: unit ground normal, body frame; ``PREFIX/rotation``: residual rotation
+  road <- body (the table's q); ``PREFIX/pitch_roll``: ``x`` roll, ``y`` pitch of the body relative
+  to the road, rad (the table's signs), ``z`` 0;
 - ``PREFIX/road_from_camera`` (``TransformStamped``, with a camera): road <- camera, ``frame_id``
   ``road``, ``child_frame_id`` ``camera``, translation m (the camera origin in the road frame);
-- ``/tf`` (``tf2_msgs/TFMessage``, not prefixed): road -> sensor, ``frame_id`` ``road``
-  (``road_frame_id``: the road plane under the vehicle, z its normal, x along the heading),
-  ``child_frame_id`` the IMU's; rotation the dynamic extrinsic road-ground <- sensor
-  ``R = R(q) R_gs`` (what ``.tum`` holds; ``R^T e_z`` is the normal), translation the static
-  extrinsic's (m); with a camera also road -> camera. A recording whose tf tree already gives the
-  IMU's frame a parent gets two parents: pass another ``frame_id`` (e.g. ``imu_link_road``);
-- ``PREFIX/pose`` (``PoseWithCovarianceStamped``): the same transform as a pose in the road frame,
-  covariance (6 x 6 row-major, x y z then rotations about the road's x y z) ``[21]`` roll and
-  ``[28]`` pitch variance, rad^2, every other entry 0 (not estimated); where the 1-sigma is finite;
-- settings (with ``settings``): the JSON in an ``.mcap`` metadata record ``imu_ground``
-  (``settings``, ``version``; :func:`read_mcap_settings`), else once on ``PREFIX/settings``
-  (``std_msgs/String``) at the first stamp;
+- ``/tf`` (not prefixed): road -> sensor, ``frame_id`` ``road`` (``road_frame_id``: the road plane
+  under the vehicle, z its normal, x along the heading), ``child_frame_id`` the IMU's; rotation the
+  dynamic extrinsic road-ground <- sensor ``R = R(q) R_gs`` (what ``.tum`` holds), translation the
+  static extrinsic's (m); with a camera also road -> camera. A recording whose tf tree already gives
+  the IMU's frame a parent gets two parents: pass another ``frame_id`` (e.g. ``imu_link_road``);
+- ``PREFIX/pose``: the same transform as a pose in the road frame, covariance (6 x 6 row-major,
+  x y z then rotations about the road's x y z) ``[21]`` roll and ``[28]`` pitch variance, rad^2,
+  every other entry 0; where the 1-sigma is finite;
+- settings: the JSON in an ``.mcap`` metadata record ``imu_ground`` (``settings``, ``version``;
+  :func:`read_mcap_settings`), else once on ``PREFIX/settings`` at the first stamp;
 - ``PREFIX/pitch_roll_std``, ``PREFIX/road`` (``x`` bank, + left side up; ``y`` grade, + uphill)
-  and ``PREFIX/road_std`` (``Vector3Stamped``, rad), where estimated;
-- ``PREFIX/status`` (``diagnostic_msgs/DiagnosticArray``) on *every* frame: one status named
-  ``imu-ground PREFIX``, ``hardware_id`` the ``frame_id``, ``level`` :data:`DIAGNOSTIC_LEVELS`,
-  ``message`` ``"status"`` or ``"status: reason"``, ``values`` ``status`` and ``reason``.
+  and ``PREFIX/road_std`` (rad), where estimated;
+- ``PREFIX/status`` on *every* frame: one status named ``imu-ground PREFIX``, ``hardware_id`` the
+  ``frame_id``, ``level`` :data:`DIAGNOSTIC_LEVELS`, ``message`` ``"status"`` or ``"status: reason"``,
+  ``values`` ``status`` and ``reason``.
 
 The last four and ``PREFIX/pose`` only when the table has their columns. Container from the
 path: ``.bag`` ROS 1, ``.mcap`` one MCAP file (CDR, ``ros2msg`` schemas), no suffix a ROS 2 bag
@@ -37,6 +33,7 @@ from __future__ import annotations
 
 import functools
 import json
+import re
 import shutil
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -79,9 +76,8 @@ _KINDS = {".bag": "ros1", ".mcap": "mcap", "": "ros2"}
 
 
 def ros_output_kind(path: str | Path) -> str:
-    """Container written for ``path``: ``"ros1"`` (``.bag``), ``"mcap"`` (``.mcap``) or ``"ros2"``.
-
-    ``"ros2"`` is a ROS 2 bag folder: a path without suffix, or an existing folder.
+    """Container written for ``path``: ``"ros1"`` (``.bag``), ``"mcap"`` (``.mcap``) or ``"ros2"`` (a ROS 2 bag
+    folder: a path without suffix, or an existing folder).
 
     Raises
     ------
@@ -102,24 +98,18 @@ def ros_output_kind(path: str | Path) -> str:
 _STANDARD_DEFINITIONS = {"tf2_msgs/msg/TFMessage": "geometry_msgs/TransformStamped[] transforms"}
 
 
-def _register_missing(typestore: Any) -> None:
-    """Add :data:`_STANDARD_DEFINITIONS` missing from ``typestore`` (the ROS 1 md5 sums come out as ROS's)."""
-    from rosbags.typesys import get_types_from_msg
-    for name, text in _STANDARD_DEFINITIONS.items():
-        if name not in typestore.types:
-            typestore.register(get_types_from_msg(text, name))
-
-
 class _Serializer:
     """Messages of one ROS version (``ros1``: ROS 1 Noetic, else ROS 2 Humble) built and serialised by rosbags."""
 
     path: Any = "ROS output"
 
     def __init__(self, ros1: bool) -> None:
-        from rosbags.typesys import Stores, get_typestore
+        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
         self.ros1 = ros1
         self.typestore = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
-        _register_missing(self.typestore)
+        for name, text in _STANDARD_DEFINITIONS.items():         # (the ROS 1 md5 sums come out as ROS's)
+            if name not in self.typestore.types:
+                self.typestore.register(get_types_from_msg(text, name))
 
     def message(self, msgtype: str, **fields: Any) -> Any:
         """A message object of ``msgtype`` from this writer's type store (ROS 1 or ROS 2)."""
@@ -131,9 +121,7 @@ class _Serializer:
         if stamp_ns < 0:
             raise ImuGroundError(f"{self.path}: negative ROS stamp {stamp_ns} ns; pass t0/t0_ns (the log's start time)")
         t = self.message("builtin_interfaces/msg/Time", sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
-        if self.ros1:
-            return self.message("std_msgs/msg/Header", seq=seq, stamp=t, frame_id=frame_id)
-        return self.message("std_msgs/msg/Header", stamp=t, frame_id=frame_id)
+        return self.message("std_msgs/msg/Header", stamp=t, frame_id=frame_id, **({"seq": seq} if self.ros1 else {}))
 
     def serialize(self, msg: Any) -> bytes:
         """``msg`` serialised for this log (ROS 1 for ``.bag``, CDR otherwise)."""
@@ -144,26 +132,10 @@ class _Serializer:
 
     def serialize_many(self, build: Callable[..., Any], stamps_ns: np.ndarray,
                        values: Mapping[str, np.ndarray] | None = None) -> list[bytes]:
-        """N messages of one layout at once: one serialised by rosbags, the others patched in with numpy.
-
-        ``build(stamp_ns, seq, **doubles)`` makes one message whose headers are all
-        ``self.header(stamp_ns, ..., seq)`` and whose other fields are the same for all N (the
-        same byte layout) but the float64 ``doubles``; called once with sentinels, whose bytes
-        show where each message's stamps (ROS 1 ``seq``: the row index) and doubles go.
-
-        Parameters
-        ----------
-        build : callable
-        stamps_ns : ndarray (N,) of int64
-            Header stamps, ns (>= 0).
-        values : mapping of str to ndarray (N,), optional
-            The doubles of each message, by ``build``'s keyword.
-
-        Returns
-        -------
-        list of bytes
-            One serialised message per stamp, equal to serialising ``build(stamp, k, **row k)``.
-        """
+        """N messages of one layout, each equal to serialising ``build(stamp, k, **values row k)``: one serialised
+        by rosbags with sentinels, whose bytes show where each message's stamps (ROS 1 ``seq``: the row index)
+        and float64 ``values`` go, patched in with numpy. ``build(stamp_ns, seq, **doubles)`` makes headers with
+        ``self.header(stamp_ns, ..., seq)`` and every other field the same for all N."""
         stamps = np.asarray(stamps_ns, dtype=np.int64)
         values = dict(values or {})
         n = len(stamps)
@@ -173,12 +145,8 @@ class _Serializer:
         raw = np.frombuffer(template, dtype=np.uint8)
         buf = np.tile(raw, (n, 1))
 
-        def offsets(pattern: bytes) -> list[int]:
-            found, at = [], template.find(pattern)
-            while at >= 0:
-                found.append(at)
-                at = template.find(pattern, at + 1)
-            return found
+        def offsets(pattern: bytes) -> list[int]:           # (overlapping ones too)
+            return [m.start() for m in re.finditer(b"(?=" + re.escape(pattern) + b")", template)]
 
         def put(at: int, column: np.ndarray, dtype: str) -> None:
             data = np.ascontiguousarray(column, dtype=dtype)
@@ -214,12 +182,6 @@ class RosWriter(_Serializer):
         Storage of a ROS 2 bag folder (ignored for ``.bag`` and ``.mcap``).
     overwrite : bool
         Remove an existing file, or an existing ROS 2 bag folder (one with a ``metadata.yaml``), first.
-
-    Examples
-    --------
-    >>> with RosWriter("out.mcap") as w:                                  # doctest: +SKIP
-    ...     h = w.add_topic("/x", "std_msgs/msg/String")
-    ...     w.write(h, 0, w.message("std_msgs/msg/String", data="hi"))
     """
 
     def __init__(self, path: str | Path, *, storage: str = "mcap", overwrite: bool = False) -> None:
@@ -274,13 +236,7 @@ class RosWriter(_Serializer):
         self._writer = None
 
     def add_metadata(self, name: str, data: Mapping[str, str]) -> None:
-        """Write an MCAP metadata record ``name`` (str -> str); only an ``.mcap`` file has them.
-
-        Raises
-        ------
-        ValueError
-            For a ROS 1 bag or a ROS 2 bag folder.
-        """
+        """Write an MCAP metadata record ``name`` (str -> str); ValueError for another container."""
         if self.kind != "mcap":
             raise ValueError(f"{self.path}: only an .mcap file holds metadata records, not a {self.kind} log")
         self._writer.add_metadata(name=name, data={str(k): str(v) for k, v in data.items()})
@@ -320,17 +276,14 @@ def _serializer(ros1: bool) -> _Serializer:
 
 
 def serialize_stamped(stamps_ns: np.ndarray, frame_id: str, values: np.ndarray, ros1: bool) -> list[bytes]:
-    """Serialise N ``geometry_msgs/Vector3Stamped`` (K = 3: x, y, z) or ``QuaternionStamped`` (K = 4: x, y, z, w).
-
-    Built and serialised by rosbags once, the other messages patched in with numpy
-    (:meth:`RosWriter.serialize_many`); ROS 1 ``seq`` is the row index.
+    """N serialised ``geometry_msgs/Vector3Stamped`` (K = 3: x, y, z) or ``QuaternionStamped`` (K = 4: x, y, z, w)
+    (:meth:`RosWriter.serialize_many`; ROS 1 ``seq`` is the row index).
 
     Parameters
     ----------
     stamps_ns : ndarray (N,) of int64
         Header stamps, ns since the clock's epoch (>= 0).
     frame_id : str
-        Header frame_id.
     values : ndarray (N, K)
         The float64 fields after the header, in message order.
     ros1 : bool
@@ -339,7 +292,6 @@ def serialize_stamped(stamps_ns: np.ndarray, frame_id: str, values: np.ndarray, 
     Returns
     -------
     list of bytes
-        One serialised message per row.
     """
     s = _serializer(ros1)
     values = np.asarray(values, dtype=float)
@@ -388,10 +340,7 @@ def _valid_rows(table: Any) -> dict[str, np.ndarray]:
 
 
 def read_mcap_settings(path: str | Path) -> dict | None:
-    """The settings :func:`write_ros_output` recorded in an ``.mcap`` file (its metadata record), or None.
-
-    None when the file has no :data:`MCAP_METADATA_NAME` record with settings (or cannot be read as MCAP).
-    """
+    """The settings :func:`write_ros_output` recorded in an ``.mcap`` file (its metadata record), or None."""
     from mcap.exceptions import McapError
     from mcap.reader import make_reader
     try:
@@ -411,53 +360,40 @@ def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
                      storage: str = "mcap", overwrite: bool = False, road_from_camera: Any = None,
                      camera_frame_id: str = "camera", extrinsic: Any = None,
                      road_frame_id: str = "road") -> dict[str, int]:
-    """Write the per-frame ground estimate as ROS topics (see the module docstring for the topics).
+    """Write the per-frame ground estimate as ROS topics (the module docstring).
 
     Parameters
     ----------
     path : str or Path
-        ``.bag`` (ROS 1), ``.mcap`` (MCAP file, ROS 2 CDR) or a folder name
-        without suffix (ROS 2 bag). Written exactly there; the caller renames
-        for atomicity.
+        ``.bag`` (ROS 1), ``.mcap`` (MCAP file, ROS 2 CDR) or a folder name without suffix (ROS 2 bag).
+        Written exactly there; the caller renames for atomicity.
     table : pandas.DataFrame or mapping of arrays
-        THE output table (:func:`imu_ground.pipeline.output.track_table`): t (s),
-        normal_x/y/z, pitch_deg, roll_deg (deg), qw, qx, qy, qz (road <- body),
-        valid. Rows with ``valid`` false or a NaN are skipped.
+        THE output table (:func:`imu_ground.pipeline.output.track_table`); rows with ``valid`` false or a
+        NaN are skipped.
     frame_id : str
-        ``header.frame_id`` of every message: the IMU's frame (the input's
-        ``meta["frame_id"]`` for a ROS input).
+        ``header.frame_id`` of every message: the IMU's frame.
     settings : mapping, optional
-        The method's settings (JSON-serialisable; others are written with
-        ``str``): an ``.mcap`` file's metadata record, else once on ``PREFIX/settings``.
-        Its ``t0_ns`` / ``t0`` entries are used when the arguments are not given.
+        The method's settings (JSON; others written with ``str``): an ``.mcap`` file's metadata record, else
+        once on ``PREFIX/settings``. Its ``t0_ns`` / ``t0`` entries are used when the arguments are not given.
     topic_prefix : str
         Namespace of the topics.
     t0, t0_ns : optional
-        Time, in s (float) or in ns (int, exact), added to the table's ``t`` to
-        make the header stamps: the log's start time (``ImuData.meta["t0_ns"]``
-        from :func:`imu_ground.datasets.rosbag.read_rosbag_imu`, or
-        ``meta["t0"]``) so that the topics line up with the recording. Default:
-        ``settings``' entries, else 0 (stamps are the table's ``t``). Each frame's
-        stamp is ``t0_ns + round(t * 1e9)`` ns; record times equal the stamps.
+        The log's start time, s (float) or ns (int, exact; ``ImuData.meta["t0_ns"]``): each frame's stamp
+        (and record time) is ``t0_ns + round(t * 1e9)`` ns. Default: ``settings``' entries, else 0.
     storage : {"mcap", "sqlite3"}
         Storage of a ROS 2 bag folder.
     overwrite : bool
         Replace an existing output (otherwise :class:`FileExistsError`).
     road_from_camera : ndarray (N, 4, 4), optional
         Per table row, the road <- camera transform
-        (:attr:`GroundPlane.matrix <imu_ground.perception.GroundPlane.matrix>`); written on
-        ``PREFIX/road_from_camera`` for the rows written on the other topics (and finite).
+        (:attr:`GroundPlane.matrix <imu_ground.perception.GroundPlane.matrix>`), written where finite.
     camera_frame_id : str
         ``child_frame_id`` of those transforms.
     extrinsic : mapping or Extrinsic, optional
-        The static extrinsic of the estimate: ``rotation`` (3 x 3, ground <- sensor) and
-        ``translation`` (m, the sensor's origin in the ground frame), as
-        :class:`~imu_ground.pipeline.EstimateResult` ``meta["extrinsic"]`` (or an
-        :class:`~imu_ground.filters.Extrinsic`). Default: identity, at the origin. Makes the
-        ``/tf`` and ``PREFIX/pose`` transforms road -> sensor.
+        The static extrinsic ``rotation`` (3 x 3, ground <- sensor) and ``translation`` (m, the sensor's
+        origin in the ground frame), as ``EstimateResult.meta["extrinsic"]``. Default: identity, at the origin.
     road_frame_id : str
-        The road frame's id: ``header.frame_id`` of ``/tf``, ``PREFIX/pose`` and
-        ``PREFIX/road_from_camera``.
+        ``header.frame_id`` of ``/tf``, ``PREFIX/pose`` and ``PREFIX/road_from_camera``.
 
     Returns
     -------
@@ -494,8 +430,10 @@ def write_ros_output(path: str | Path, table: Any, *, frame_id: str = "imu",
         if road_from_camera is not None:
             camera = _write_camera_transforms(w, f"{prefix}/road_from_camera", rows, stamps, road_from_camera,
                                               camera_frame_id, road_frame_id)
-        _write_road_from_sensor(w, rows, stamps, r_gs, trans, road_frame_id, frame_id, camera,
-                                _table_std(table), prefix)
+        std = None                                              # (F, 2) roll and pitch 1-sigma, rad
+        if "roll_std_deg" in table and "pitch_std_deg" in table:
+            std = np.column_stack([np.asarray(table[c], dtype=float) for c in ("roll_std_deg", "pitch_std_deg")]) * DEG
+        _write_road_from_sensor(w, rows, stamps, r_gs, trans, road_frame_id, frame_id, camera, std, prefix)
         _write_optional(w, table, prefix, frame_id, origin)
         return dict(w.counts)
 
@@ -508,14 +446,6 @@ def _static_extrinsic(extrinsic: Any) -> tuple[np.ndarray, np.ndarray]:
     rot = np.asarray(get("rotation", np.eye(3)) if get("rotation") is not None else np.eye(3), dtype=float)
     trans = np.asarray(get("translation") if get("translation") is not None else np.zeros(3), dtype=float)
     return rot.reshape(3, 3), trans.reshape(3)
-
-
-def _table_std(table: Any) -> np.ndarray | None:
-    """``(F, 2)`` roll and pitch 1-sigma of every table row, rad; None without the columns."""
-    if "roll_std_deg" not in table or "pitch_std_deg" not in table:
-        return None
-    return np.column_stack([np.asarray(table["roll_std_deg"], dtype=float),
-                            np.asarray(table["pitch_std_deg"], dtype=float)]) * DEG
 
 
 def _write_raw_all(w: RosWriter, handle: Any, stamps: np.ndarray, messages: Sequence[bytes]) -> None:
@@ -538,11 +468,7 @@ _TRANSFORM_KEYS = ("tx", "ty", "tz", "qx", "qy", "qz", "qw")
 def _write_road_from_sensor(w: RosWriter, rows: dict[str, np.ndarray], stamps: np.ndarray, r_gs: np.ndarray,
                             trans: np.ndarray, road: str, sensor: str, camera: dict[str, Any] | None,
                             std: np.ndarray | None, prefix: str) -> None:
-    """``/tf`` (road -> sensor, and road -> camera) and ``PREFIX/pose`` (with the 1-sigma) of the written rows.
-
-    ``rows``: :func:`_valid_rows`; ``camera``: :func:`_write_camera_transforms`' transforms by table row;
-    ``std``: every table row's roll and pitch 1-sigma, rad.
-    """
+    """``/tf`` (road -> sensor, and road -> camera) and ``PREFIX/pose`` (``std``: every row's 1-sigma) of ``rows``."""
     from scipy.spatial.transform import Rotation
     q = np.column_stack([rows["qw"], rows["qx"], rows["qy"], rows["qz"]])
     # the dynamic extrinsic road-ground <- sensor: the residual road <- body after the static ground <- sensor
@@ -631,9 +557,8 @@ def _write_diagnostics(w: RosWriter, handle: Any, table: Any, stamps: np.ndarray
 
 def _write_camera_transforms(w: RosWriter, topic: str, rows: dict[str, np.ndarray], stamps: np.ndarray,
                              transforms: Any, child: str, road: str = "road") -> dict[str, Any]:
-    """``geometry_msgs/TransformStamped`` road <- camera on the written rows (``rows``, ``stamps``) whose transform
-    is finite; returns them for ``/tf``: ``child``, ``rows`` (table rows, increasing) and ``values`` (translation
-    xyz, m, and quaternion xyzw per row)."""
+    """Road <- camera on the written rows whose transform is finite; returns them for ``/tf``: ``child``, ``rows``
+    (table rows) and ``values`` (translation xyz, m, and quaternion xyzw per row)."""
     from scipy.spatial.transform import Rotation
     m = np.asarray(transforms, dtype=float).reshape(-1, 4, 4)[rows["row"]]
     keep = np.all(np.isfinite(m.reshape(len(m), -1)), axis=1)

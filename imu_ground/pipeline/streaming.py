@@ -24,9 +24,8 @@ Per sample, each piece one class:
    (:class:`~imu_ground.pipeline.live_speed.SpeedUnit`), said and converted.
 5. **Filter**: the method's streaming ``step`` (``on_invalid="skip"``).
 
-After the warm-up, steps 1-3 are one compiled call a sample (:func:`_front_step`: the bodies the
-clock, the standstill blocks and the preintegrator run themselves); a sample that opens a block, a
-stamp far off the clock and the preintegrator's gaps go on in Python.
+After the warm-up, steps 1-3 are one compiled call a sample (:func:`_front_step`); a sample that opens
+a block, a stamp far off the clock and the preintegrator's gaps go on in Python.
 
 Data never raise: a non-finite sample, a dropped or retimed stamp, a restart, a late, repeated or
 non-finite speed sample, each is said in the next frame's ``status_reason``. Misuse (a 3x3 array as
@@ -82,9 +81,9 @@ _NOT_TAKEN, _DROPPED, _NEW_BLOCK = -4, -3, -2
 def _front_step(clock: np.ndarray, blocks: np.ndarray, open_k: int, pre: np.ndarray, times: np.ndarray,
                 frames: np.ndarray, origin: float, rate: float, t: float, g0: float, g1: float, g2: float,
                 a0: float, a1: float, a2: float) -> int:
-    """Steps 1-3 of one sample after the warm-up (``clock_step``, ``add_sample`` into block ``open_k``, ``push_step``,
-    whose answer is returned); before the preintegration: :data:`_NOT_TAKEN` (non-finite or far off the clock:
-    nothing changed), :data:`_DROPPED`, :data:`_NEW_BLOCK` (the clock's step done, the rest in Python)."""
+    """Steps 1-3 of one sample after the warm-up: ``push_step``'s answer, or :data:`_NOT_TAKEN` (non-finite or far
+    off the clock: nothing changed), :data:`_DROPPED`, :data:`_NEW_BLOCK` (the clock's step done, the rest in
+    Python)."""
     if not (math.isfinite(t) and math.isfinite(g0 + g1 + g2 + a0 + a1 + a2)):
         return _NOT_TAKEN
     code = clock_step(clock, t)
@@ -178,11 +177,8 @@ def estimate_row(est: FrameEstimate) -> dict[str, Any]:
 
 # ------------------------------------------------------------------------------------------ checks
 def _number(x: Any, name: str) -> float:
-    if isinstance(x, float):                         # float and numpy.float64 (a float subclass): the common case
-        return float(x)
-    if isinstance(x, numbers.Real) and not isinstance(x, bool):
-        return float(x)
-    if isinstance(x, np.ndarray) and x.shape == () and x.dtype.kind in "fiu":
+    if isinstance(x, float) or (isinstance(x, numbers.Real) and not isinstance(x, bool)) or (
+            isinstance(x, np.ndarray) and x.shape == () and x.dtype.kind in "fiu"):
         return float(x)
     raise OptionError(f"{{opt}} must be a number (s or m/s), got {type(x).__name__} {x!r:.40}", name)
 
@@ -259,7 +255,7 @@ class StreamingEstimator:
     and the speed's the same one. ``state_dict`` / ``load_state_dict`` save and resume
     everything (JSON-serialisable); the rest of the stream is then bit-identical.
     """
-    # the settings and parts (set in __init__), declared for type checkers
+    # the settings and parts (set in __init__), declared for mypy (the methods' uses come before __init__'s)
     method: str
     rate: float
     speed_wait: float
@@ -327,7 +323,7 @@ class StreamingEstimator:
         self._new_run()
 
     def _new_run(self) -> None:
-        """The front end after a (re)start: no preintegrator until the clock's warm-up is over."""
+        """The front end after a (re)start (no preintegrator until the clock's warm-up is over)."""
         self._pre: StreamingPreintegrator | None = None
         self._warm: list = []
         self._origin = math.nan
@@ -421,9 +417,7 @@ class StreamingEstimator:
 
     # -- the front end -------------------------------------------------------------------------
     def _end_warmup(self) -> None:
-        """The clock's warm-up is over: the stamps' unit told from its samples as the readers tell it
-        (:func:`~imu_ground.datasets.unit_checks.detect_time_unit`; a new one: the warm-up again on seconds), then
-        the frames start; a warm-up still slower than :data:`MAX_SAMPLE_PERIOD` is skipped, counted, said."""
+        """The warm-up is over: the stamps' unit told (module docstring, step 1), then the frames start."""
         if self.time_unit is None:
             from imu_ground.datasets.unit_checks import TIME_UNITS, detect_time_unit
             from imu_ground.errors import ImuGroundError
@@ -449,8 +443,7 @@ class StreamingEstimator:
             self._feed(*w)
 
     def _rescale(self, scale: float, note: str) -> None:
-        """The stamps are in another unit (``scale`` s each): the warm-up's samples again on seconds, the speed
-        samples kept too, and said in the next frame."""
+        """The stamps are in another unit (``scale`` s each): the warm-up and the speed samples again on seconds."""
         factor = scale / self._tscale
         self._tscale, self._scaled = scale, scale != 1.0
         clock = self._clock
@@ -463,8 +456,7 @@ class StreamingEstimator:
         self._notes.append(note)
 
     def _kmh(self, notes: list) -> float:
-        """The speed is in km/h (:class:`~imu_ground.pipeline.live_speed.SpeedUnit`): converted from now on, the filter
-        run again over the frames since its first speed (when it can), said; returns the factor."""
+        """The speed is in km/h: converted from now on, the filter run again since its first speed; the factor."""
         unit, k = self._vunit, 1.0 / 3.6
         self._vscale = k
         sp = self._speed
@@ -528,8 +520,7 @@ class StreamingEstimator:
         return notes + c.take_notes()
 
     def _decide(self, now: float) -> list[FrameEstimate]:
-        """The frames' speeds in order, as their speed comes (or their wait ends); then the filter over the
-        frames from the oldest on, up to one held at a possible start of a stop."""
+        """The frames' speeds as they come (or their wait ends); the filter over them up to one held at a stop."""
         q, sp = self._queue, self._speed
         for e in q:
             if e[3] is not _UNDECIDED:
@@ -574,9 +565,8 @@ class StreamingEstimator:
                 "recalibrate_online": self.recalibrate_online, "time_unit": self.time_unit}
 
     def state_dict(self) -> dict[str, Any]:
-        """Everything (clock, preintegrator, standstill window, gyro bias, speed buffer, waiting frames, filter)
-        as a plain JSON-serialisable dict (long lists of floats as base64 of their compressed float64 bytes, exact);
-        :meth:`load_state_dict` on an estimator with the same settings resumes."""
+        """Everything (clock, preintegrator, standstill window, gyro bias, speed, waiting frames, filter) as a
+        JSON-serialisable dict (:mod:`~imu_ground.pipeline.live_state`); :meth:`load_state_dict` resumes."""
         queue = [[ego.delta_R.ravel().tolist(), ego.delta_v.tolist(), ego.delta_t, ego.stationary, ego.valid,
                   ego.t, ts, list(notes), v, held, scale, j] for ego, ts, notes, v, held, scale, j in self._queue]
         return {"kind": _STATE_KIND, "version": _STATE_VERSION, "settings": self._settings(),
@@ -592,13 +582,14 @@ class StreamingEstimator:
                 "filter": pack(self._filter.state_dict())}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Resume from :meth:`state_dict`.
+        """Resume from :meth:`state_dict`; a refused state leaves the estimator as it was.
 
-        The whole state is read and checked before anything changes: a refused state leaves the estimator
-        as it was. Another kind, version or settings raises ``OptionError`` naming ``state``; a corrupt or
-        out-of-range entry (a number not finite or out of its range, a packed list garbled, truncated or
-        inflating beyond its size, a record of another layout) raises
-        :class:`~imu_ground.imu.warm_start.StateError` naming the entry (``clock.dt``, ``filter``, ...).
+        Raises
+        ------
+        OptionError
+            Another kind, version or settings (naming ``state``).
+        StateError
+            A corrupt or out-of-range entry (:class:`~imu_ground.imu.warm_start.StateError`, naming it).
         """
         if not isinstance(state, dict) or state.get("kind") != _STATE_KIND:
             kind = state.get("kind") if isinstance(state, dict) else type(state).__name__
@@ -613,144 +604,127 @@ class StreamingEstimator:
         if differ:
             raise OptionError(f"{{opt}} was saved with other settings ({', '.join(differ)}): "
                               f"{', '.join(f'{k}={theirs.get(k)!r:.60}' for k in differ)}", "state")
-        parts = self._read_state(state)                # every entry checked: raises before anything changes
-        self.__dict__.update(parts)
+        self.__dict__.update(self._read_state(state))  # every entry checked: raises before anything changes
 
     def _read_state(self, state: dict) -> dict[str, Any]:
-        """Every entry of ``state`` checked and built into new objects: the attributes to set (nothing of the
-        estimator changes here); a corrupt entry raises :class:`~imu_ground.imu.warm_start.StateError` naming it."""
+        """The attributes ``state`` sets, every entry checked and built into new objects (the estimator unchanged);
+        a corrupt entry raises :class:`~imu_ground.imu.warm_start.StateError` naming it. Entries older states lack
+        (``time_scale``, ``speed_latency``, ``speed_unit``, ``slow_warmups``, a queue record's last four) take
+        their defaults."""
         from imu_ground.datasets.unit_checks import TIME_UNITS
         from imu_ground.imu.live.sample_clock import WARMUP
         from imu_ground.imu.warm_start import StateError, StateReader
         r = StateReader("StreamingEstimator", state)
 
-        def records(name: str, value: Any, limit: int = MAX_RECORDS) -> list:
+        def records(name: str, limit: int) -> list:
+            value = r.state.get(name)
             if not isinstance(value, list):
                 raise r.error(name, f"is {type(value).__name__}, expected a list")
             if len(value) > limit:
                 raise r.error(name, f"holds {len(value)} records, more than {limit}")
             return value
 
-        def loaded(name: str, obj: Any, value: Any) -> Any:
+        def packed(name: str) -> StateReader:
+            return StateReader("StreamingEstimator", unpack(r.state.get(name), name), f"{name}.")
+
+        def loaded(name: str, obj: Any, value: Any, layout: str = "") -> Any:
             try:
                 obj.load_state_dict(value)
             except StateError as e:
                 raise StateError(f"this StreamingEstimator state is corrupt in its entry {name}: {e}") from None
             except (KeyError, TypeError, ValueError, IndexError, AttributeError) as e:
-                raise r.error(name, f"is damaged ({type(e).__name__}: {str(e)[:80]})") from None
+                raise r.error(name, f"is not {layout} ({e})" if layout else
+                              f"is damaged ({type(e).__name__}: {str(e)[:80]})") from None
             return obj
 
-        out: dict[str, Any] = {}
+        # the clock, the stamps' unit, the warm-up
         clock = SampleClock(self.policy, max_jump=MAX_GAP_FRAMES / self.rate)
         clock.load_checked(r.part("clock"), MAX_SAMPLE_PERIOD)
-        out["_clock"] = clock
-        # the stamps' unit
         scale = r.float("time_scale") if r.has("time_scale") else 1.0
         if scale not in TIME_UNITS.values() or (self.time_unit is not None and scale != self._tscale0):
             raise r.error("time_scale", f"is {scale!r}, expected one of {sorted(set(TIME_UNITS.values()))}"
                                         f"{'' if self.time_unit is None else ' (that of time_unit)'}")
-        out["_tscale"], out["_scaled"] = scale, scale != 1.0
-        # warm-up, origin, preintegrator
         warm = r.rows("warm", lambda x: [float(v) for v in x] if len(x) == 7 else [], 7)
         if len(warm) > WARMUP:
             raise r.error("warm", f"holds {len(warm)} samples, more than the warm-up's {WARMUP}")
-        out["_warm"] = [(float(w[0]), tuple(w[1:4].tolist()), tuple(w[4:7].tolist())) for w in warm]
+        # the preintegrator (once the frames have started), the standstill blocks, the gyro bias
         origin = r.float("origin", optional=True)
-        out["_origin"] = math.nan if origin is None else origin
         pre = None
         if r.has("preintegrator"):
             if math.isnan(clock.dt):
                 raise r.error("clock.dt", "is NaN (a warm-up) where the frames have started (a preintegrator is saved)")
             if origin is None:
                 raise r.error("origin", "is null where the frames have started (a preintegrator is saved)")
-            max_gap = r.float("max_gap")
-            if not 0 < max_gap <= clock.gap_factor * MAX_SAMPLE_PERIOD:
-                raise r.error("max_gap", f"is {max_gap!r}, expected a positive time of at most "
-                                         f"{clock.gap_factor * MAX_SAMPLE_PERIOD:g} s")
+            max_gap, most = r.float("max_gap"), clock.gap_factor * MAX_SAMPLE_PERIOD
+            if not 0 < max_gap <= most:
+                raise r.error("max_gap", f"is {max_gap!r}, expected a positive time of at most {most:g} s")
             pre = StreamingPreintegrator(rate=self.rate, t_origin=origin, max_gap=max_gap, on_gap="flag",
                                          uncertainty=False)
             loaded("preintegrator", pre, unpack(state["preintegrator"], "preintegrator"))
-            last = pre.last_sample_time
-            if last is None:
-                last = clock.t
+            last = clock.t if pre.last_sample_time is None else pre.last_sample_time
             if not (abs(clock.t - last) <= max_gap and abs(pre.next_boundary - clock.t) <= 2.0 / self.rate + max_gap):
                 raise r.error("clock.t", f"is {clock.t!r}, off the preintegrator's last sample ({last!r}) and next "
                                          f"frame end ({pre.next_boundary!r})")
-        out["_pre"] = pre
-        # standstill blocks and the gyro bias
-        out["_blocks"] = blocks = StandstillBlocks(self.rate)
-        blocks.load_checked(StateReader("StreamingEstimator", unpack(r.state.get("blocks"), "blocks"), "blocks."),
-                            MAX_RECORDS)
-        out["_bias"] = bias = CausalGyroBias(self._bias_arg)
+        blocks = StandstillBlocks(self.rate)
+        blocks.load_checked(packed("blocks"), MAX_RECORDS)
+        bias = CausalGyroBias(self._bias_arg)
         bias.load_checked(r.part("bias"))
         if pre is not None:
             pre.set_gyro_bias(*bias.value)                  # (not in the preintegrator's state: the causal bias)
-        # speed
-        out["_speed"] = sp = SpeedBuffer()
-        sp.load_checked(StateReader("StreamingEstimator", unpack(r.state.get("speed"), "speed"), "speed."), MAX_RECORDS)
+        # the speed: its samples, latency and unit
+        speed = SpeedBuffer()
+        speed.load_checked(packed("speed"), MAX_RECORDS)
         latency = SpeedLatency(self.speed_wait)
-        if r.has("speed_latency"):                          # (older states: none)
-            try:
-                latency.load_state_dict(r.state.get("speed_latency"))
-            except (ValueError, TypeError) as e:
-                raise r.error("speed_latency", f"is not [wait, said, latencies, periods, last stamp] ({e})") from None
-        out["_latency"] = latency
-        vunit = SpeedUnit(self.rate)
-        vscale = 1.0
-        if r.has("speed_unit"):                             # (older states: none)
+        if r.has("speed_latency"):
+            loaded("speed_latency", latency, r.state["speed_latency"], "[wait, said, latencies, periods, last stamp]")
+        vunit, vscale = SpeedUnit(self.rate), 1.0
+        if r.has("speed_unit"):
             try:
                 vscale, rec = r.state["speed_unit"]
-                if vscale not in (1.0, 1.0 / 3.6):
-                    raise ValueError(f"scale {vscale!r}")
-                vunit.load_state_dict(rec)
-            except (ValueError, TypeError) as e:
+            except (TypeError, ValueError) as e:
                 raise r.error("speed_unit", f"is not [scale, check] ({e})") from None
-        out["_vunit"], out["_vscale"] = vunit, vscale
-        # the frames waiting, notes, counts
+            if vscale not in (1.0, 1.0 / 3.6):
+                raise r.error("speed_unit", f"is not [scale, check] (scale {vscale!r})")
+            loaded("speed_unit", vunit, rec, "[scale, check]")
+        # the frames waiting: [ego, t_start, notes, speed, held, scale, index] (older states: the first five)
         queue: deque[list] = deque()
-        hold: deque[list] = deque()
-        for i, q in enumerate(records("queue", r.state.get("queue"))):
+        for i, q in enumerate(records("queue", MAX_RECORDS)):
             name = f"queue[{i}]"
             if not (isinstance(q, list) and len(q) in (8, 12) and isinstance(q[3], bool) and isinstance(q[4], bool)
                     and isinstance(q[7], list) and all(isinstance(x, str) for x in q[7])):
                 raise r.error(name, "is a record of another layout")
-            v, held, scale, j = q[8:] if len(q) == 12 else (_UNDECIDED, False, 1.0, -1)   # (older states: 8)
-            v = _UNDECIDED if v == _UNDECIDED else v   # (the marker itself: compared by identity)
+            v, held, vs, j = q[8:] if len(q) == 12 else (_UNDECIDED, False, 1.0, -1)
+            v = _UNDECIDED if v == _UNDECIDED else v        # (the marker itself: compared by identity)
             if not ((v is None or v is _UNDECIDED or type(v) is float) and type(held) is bool
-                    and scale in (1.0, 1 / 3.6) and type(j) is int):
+                    and vs in (1.0, 1 / 3.6) and type(j) is int):
                 raise r.error(name, "is a record of another layout (its speed, hold, scale or index)")
             qr = StateReader("StreamingEstimator", {"delta_R": q[0], "delta_v": q[1], "times": [q[2], q[5], q[6]]},
                              f"{name}.")
-            entry = [EgoFrame(qr.floats("delta_R", (9,)).reshape(3, 3), qr.floats("delta_v", (3,)),
-                              float(qr.floats("times", (3,))[0]), q[3], q[4], float(q[5])), float(q[6]), list(q[7]),
-                     v, held, scale, j]
-            queue.append(entry)
-            if held:
-                hold.append(entry)
-        out["_hold"] = hold
-        out["_queue"] = queue
-        notes = records("notes", r.state.get("notes"), 1000)
+            dt, t_end, t_start = qr.floats("times", (3,)).tolist()
+            ego = EgoFrame(qr.floats("delta_R", (9,)).reshape(3, 3), qr.floats("delta_v", (3,)), dt, q[3], q[4], t_end)
+            queue.append([ego, t_start, list(q[7]), v, held, vs, j])
+        # notes and counts
+        notes = records("notes", 1000)
         if not all(isinstance(x, str) and len(x) <= 1000 for x in notes):
             raise r.error("notes", "holds something other than short texts")
-        out["_notes"], out["_skipped"] = list(notes), r.int("skipped")
-        if r.has("slow_warmups"):                           # (older states: none)
-            slow = r.floats("slow_warmups", (2,))
-            if slow[0] < 0 or slow[0] != int(slow[0]) or slow[1] < 0:
-                raise r.error("slow_warmups", f"holds {slow.tolist()!r}, expected a count and a period")
-            out["_slow"] = [int(slow[0]), float(slow[1])]
-        else:
-            out["_slow"] = [0, 0.0]
+        slow = r.floats("slow_warmups", (2,)) if r.has("slow_warmups") else np.zeros(2)
+        if slow[0] < 0 or slow[0] != int(slow[0]) or slow[1] < 0:
+            raise r.error("slow_warmups", f"holds {slow.tolist()!r}, expected a count and a period")
         now = r.float("now", optional=True)
-        out["_now"] = -math.inf if now is None else now
-        flt = _make_filter(self.method, self.extrinsic, self.rate, self.recalibrate_online)
-        out["_filter"] = loaded("filter", flt, unpack(r.state.get("filter"), "filter"))
-        return out
+        flt = loaded("filter", _make_filter(self.method, self.extrinsic, self.rate, self.recalibrate_online),
+                     unpack(r.state.get("filter"), "filter"))
+        return {"_clock": clock, "_tscale": scale, "_scaled": scale != 1.0,
+                "_warm": [(float(w[0]), tuple(w[1:4].tolist()), tuple(w[4:7].tolist())) for w in warm],
+                "_origin": math.nan if origin is None else origin, "_pre": pre, "_blocks": blocks, "_bias": bias,
+                "_speed": speed, "_latency": latency, "_vunit": vunit, "_vscale": vscale,
+                "_queue": queue, "_hold": deque(e for e in queue if e[4]), "_notes": list(notes),
+                "_skipped": r.int("skipped"), "_slow": [int(slow[0]), float(slow[1])],
+                "_now": -math.inf if now is None else now, "_filter": flt}
 
     # -- a whole log at once ---------------------------------------------------------------------
     def run(self, t: np.ndarray, gyro: np.ndarray, accel: np.ndarray,
             speed: tuple[np.ndarray, np.ndarray] | None = None):
-        """This estimator, from :meth:`reset`, fed a whole log sample by sample (:func:`replay`): ``(track,
-        egomotion)``, the frames as the filter stepped them."""
+        """This estimator, from :meth:`reset`, fed a whole log sample by sample: :func:`causal_track`'s answer."""
         self.reset()
         self._egos = []
         try:
@@ -764,9 +738,8 @@ class StreamingEstimator:
 def causal_track(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, *, method: str = "auto", extrinsic: Any = None,
                  rate: float = 10.0, speed: tuple[np.ndarray, np.ndarray] | None = None, bias_gyro: Any = "auto",
                  policy: str = "retime", speed_wait: float = SPEED_WAIT, recalibrate_online: bool = False):
-    """What a :class:`StreamingEstimator` gives for a whole log: the log fed to it sample by sample as a stream
-    (IMU sample ``i`` after the speed samples up to its stamp, the rest before
-    :meth:`StreamingEstimator.flush`; :meth:`StreamingEstimator.run`).
+    """What a :class:`StreamingEstimator` gives for a whole log fed sample by sample (IMU sample ``i`` after the
+    speed samples up to its stamp, the rest before :meth:`StreamingEstimator.flush`).
 
     Parameters
     ----------
