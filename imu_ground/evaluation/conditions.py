@@ -21,19 +21,16 @@ roughness). A frame can be in several; all are restricted to the evaluated frame
 
 Moving segments (:func:`moving_segments`, :func:`segment_centred`)
 ------------------------------------------------------------------
-Maximal runs of frames between stops (``speed < STOP_SPEED``), gaps included. The
-per-segment metric removes the means of estimate and reference per segment instead
-of per drive; segments with fewer than ``MIN_SEGMENT_FRAMES`` evaluated frames are
-left out.
+Runs of frames between stops (``speed < STOP_SPEED``), gaps included; the per-segment
+metric removes the means per segment instead of per drive.
 
 Reference uncertainty (:func:`reference_sigma`)
 -----------------------------------------------
-``sigma_ref = sqrt((INS_VU_NOISE / v)^2 + INS_PITCH_NOISE^2)`` (a vertical-velocity
-error ``e_vu`` is a grade error ``e_vu / v``; it is slow, so the grade window does not
-average it away). A perfect estimator would score ``sqrt(2 / pi) * sigma_ref`` in mean
-absolute error (``ref_floor``); ``mean(sigma_ref^2) / mean(error^2)`` is the share of a
-method's squared error the reference alone explains (``ref_share``); per drive both
-are capped at the method's own error. Synthetic drives: ``sigma_ref = 0``.
+``sigma_ref = sqrt((INS_VU_NOISE / v)^2 + INS_PITCH_NOISE^2)`` (a slow vertical-velocity
+error ``e_vu`` is a grade error ``e_vu / v``). A perfect estimator would score
+``sqrt(2 / pi) * sigma_ref`` in mean absolute error (``ref_floor``); ``mean(sigma_ref^2) /
+mean(error^2)`` is the share of the squared error the reference explains (``ref_share``);
+per drive both capped at the method's own error. Synthetic drives: ``sigma_ref = 0``.
 """
 from __future__ import annotations
 
@@ -121,15 +118,7 @@ def frame_signals(egomotion, extrinsic_rotation: np.ndarray, speed: np.ndarray) 
 
 
 def condition_masks(signals: dict[str, np.ndarray], t: np.ndarray) -> dict[str, np.ndarray]:
-    """Boolean masks per condition (:data:`CONDITIONS`) from :func:`frame_signals`.
-
-    Parameters
-    ----------
-    signals : dict
-        As from :func:`frame_signals`.
-    t : ndarray (F,)
-        Frame times, s.
-    """
+    """Boolean masks per condition (:data:`CONDITIONS`) from :func:`frame_signals`' ``signals`` at frame times ``t`` (s)."""
     v = signals["speed"]
     with np.errstate(invalid="ignore"):
         out = {name: (v > lo) & (v <= hi) for name, lo, hi in SPEED_BINS}
@@ -150,13 +139,7 @@ def condition_masks(signals: dict[str, np.ndarray], t: np.ndarray) -> dict[str, 
 
 
 def moving_segments(speed: np.ndarray) -> np.ndarray:
-    """Segment index per frame: runs between stops get 0, 1, 2, ...; stopped frames -1.
-
-    Parameters
-    ----------
-    speed : ndarray (F,)
-        m/s; NaN (unknown, e.g. a data gap) does not end a segment.
-    """
+    """Segment index per frame from ``speed`` (m/s; NaN does not end a segment): runs 0, 1, ...; stopped frames -1."""
     v = np.asarray(speed, dtype=float)
     with np.errstate(invalid="ignore"):
         stopped = v < STOP_SPEED
@@ -180,8 +163,7 @@ def segment_centred(est: np.ndarray, ref: np.ndarray, mask: np.ndarray, segments
     Returns
     -------
     errors : ndarray (F,)
-        NaN outside the evaluated frames of segments with at least
-        :data:`MIN_SEGMENT_FRAMES` evaluated frames.
+        NaN outside the evaluated frames of segments with :data:`MIN_SEGMENT_FRAMES` of them or more.
     """
     use = np.asarray(mask, dtype=bool) & np.isfinite(est) & np.isfinite(ref) & (segments >= 0)
     out = np.full(np.shape(est), np.nan)
@@ -194,18 +176,14 @@ def segment_centred(est: np.ndarray, ref: np.ndarray, mask: np.ndarray, segments
 
 def reference_sigma(speed: np.ndarray, vu_noise: float = INS_VU_NOISE,
                     pitch_noise: float = INS_PITCH_NOISE) -> np.ndarray:
-    """Uncertainty (1 sigma, rad) of the INS pitch-relative-to-road reference per frame.
-
-    ``sqrt((vu_noise / v)^2 + pitch_noise^2)``; see the module docstring.
+    """Uncertainty (1 sigma, rad) of the INS pitch-relative-to-road reference per frame (module docstring).
 
     Parameters
     ----------
     speed : ndarray (F,)
-        Horizontal speed, m/s (frames at or below 0 m/s give inf).
-    vu_noise : float
-        INS vertical-velocity noise, m/s.
-    pitch_noise : float
-        INS pitch noise, rad.
+        Horizontal speed, m/s (at or below 0: inf).
+    vu_noise, pitch_noise : float
+        INS vertical-velocity (m/s) and pitch (rad) noise.
     """
     v = np.asarray(speed, dtype=float)
     with np.errstate(divide="ignore", invalid="ignore"):

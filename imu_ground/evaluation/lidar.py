@@ -1,30 +1,24 @@
 r"""LiDAR ground truth, the paper's protocol: road planes fitted to scans, and the estimate against them.
 
 Plane fit (:func:`fit_ground_plane`)
-    The points of a road region (:class:`RoadRegion`, a box in the LiDAR's axes x
-    forward, y left, z up; or :class:`PathRegion`, the driven path) are chosen by
-    RANSAC (scikit-learn, the height over ``x, y``) or Patchwork++, then refitted by
-    total least squares (the smallest singular vector of the centred inliers), the
-    inliers re-chosen by their distance until they settle. Result: the unit normal
-    pointing up and ``d`` with ``n . x + d = 0`` on the road (the LiDAR's height, m).
-    Too few points, no consensus or a plane tilted more than ``max_tilt_deg`` is
-    "no road" (:class:`~imu_ground.errors.OptionError`). The extra ``.[lidar]``
-    brings scikit-learn, pypatchworkpp and the ``.pcd``/``.ply`` readers.
+    The points of a road region (:class:`RoadRegion`, a box in the LiDAR's axes x forward,
+    y left, z up; or :class:`PathRegion`, the driven path) chosen by RANSAC (scikit-learn)
+    or Patchwork++, then refitted by total least squares, the inliers re-chosen by their
+    distance until they settle. Result: the unit normal pointing up and ``d`` with
+    ``n . x + d = 0`` on the road (m). The extra ``.[lidar]`` brings scikit-learn,
+    pypatchworkpp and the ``.pcd``/``.ply`` readers.
 
 Frames and signs
-    ``R_{g<-l}`` (:func:`lidar_rotation`) turns LiDAR vectors into the ground frame of
-    the log's static extrinsic (FLU): with KITTI's calibration ``R_{g<-l} = R_{g<-imu}
-    R_{velo<-imu}^T``, with the project's extrinsic file its ``R``. A road normal
-    ``n_b = R_{g<-l} n_l`` gives the body's pitch and roll relative to the road
-    (:func:`~imu_ground.filters.estimator.pitch_roll_from_normal`: pitch + nose down,
-    roll + left side up). Camera planes (KITTI ``planes`` files, rectified camera
-    axes) turn with ``R_{g<-cam}`` the same way (:func:`planes_pitch_roll`).
+    ``R_{g<-l}`` (:func:`lidar_rotation`) turns LiDAR vectors into the ground frame of the
+    log's static extrinsic (FLU): with KITTI's calibration ``R_{g<-imu} R_{velo<-imu}^T``,
+    with the project's extrinsic file its ``R``. ``n_b = R_{g<-l} n_l`` gives the body's
+    pitch (+ nose down) and roll (+ left side up) relative to the road. Camera planes
+    (KITTI ``planes`` files, rectified camera axes) turn with ``R_{g<-cam}``.
 
 Comparison (:func:`compare_to_lidar`, :func:`lidar_summary`, :func:`bootstrap_spread`)
-    Per scan, the estimate interpolated to the scan's time against the plane: the
-    angle between the normals (the paper's metric) and the pitch and roll differences
-    (estimate minus LiDAR, deg), with the constant offset and without it; the roll as
-    changes only (the region sees the lane's crown).
+    Per scan, the estimate interpolated to the scan's time against the plane: the angle
+    between the normals and the pitch and roll differences (estimate minus LiDAR, deg),
+    with the constant offset and without it; the roll as changes only (the lane's crown).
 """
 from __future__ import annotations
 
@@ -45,7 +39,7 @@ from imu_ground.so3 import project
 __all__ = ["GROUND_FITS", "LIDAR_EXTRA", "PATCHWORK_MODULE", "ROAD_REGION", "SCAN_SUFFIXES", "PathRegion", "RoadRegion",
            "bootstrap_spread", "compare_to_lidar", "fit_ground_plane", "fit_scans", "kitti_object_rotation",
            "lidar_figure", "lidar_pitch_roll", "lidar_rotation", "lidar_summary", "lidar_table", "lidar_transform",
-           "path_region",
+           "method_summaries", "path_region",
            "patchwork_available", "patchwork_ground", "planes_pitch_roll", "planes_rotations", "plot_lidar",
            "read_bin_scan", "read_scan", "read_scan_times", "read_times", "scan_files"]
 
@@ -155,8 +149,7 @@ def path_region(t_scan: float, t: Any, positions: Any, rotations: Any, lidar_fro
     lidar_from_body : Extrinsic
         LiDAR <- body: ``x_lidar = R x_body + t``.
     half_width, ahead
-        As :class:`PathRegion`. A track shorter than ``ahead[1]`` is continued straight along
-        its last direction (at a standstill: the body's x axis).
+        As :class:`PathRegion`; a shorter track is continued straight (at a standstill: along body x).
     """
     t = np.asarray(t, dtype=float)
     pos = np.asarray(positions, dtype=float)
@@ -180,7 +173,7 @@ _PATCHWORK: dict = {}
 
 
 def _quiet(make, *args):
-    """``make(*args)`` with the process's stdout (file descriptor 1) closed to C++'s own prints."""
+    """``make(*args)`` with file descriptor 1 closed to C++'s own prints."""
     import os
     import sys
     sys.stdout.flush()
@@ -244,10 +237,8 @@ def fit_ground_plane(points: Any, region: Any = ROAD_REGION, threshold: float = 
         Where the road is looked for; anything with ``mask(points)``.
     threshold : float
         Inlier distance to the plane, m (RANSAC's vertical residual, then the refit's perpendicular one).
-    seed : int
-        RANSAC's random seed.
-    max_trials : int
-        RANSAC iterations.
+    seed, max_trials : int
+        RANSAC's random seed and iterations.
     min_inliers : int
         Fewer road points than this is "no road".
     max_tilt_deg : float
@@ -257,8 +248,7 @@ def fit_ground_plane(points: Any, region: Any = ROAD_REGION, threshold: float = 
     return_inliers : bool
         Also return the number of inliers.
     ground : {"ransac", "patchwork"}
-        How the road's points are first chosen: RANSAC on the region's points, or
-        :func:`patchwork_ground` of the whole scan kept in the region.
+        The road's first points: RANSAC on the region's, or :func:`patchwork_ground`'s in the region.
 
     Returns
     -------
@@ -282,16 +272,20 @@ def fit_ground_plane(points: Any, region: Any = ROAD_REGION, threshold: float = 
         raise OptionError(f"{source}: the scan is empty; give {{opt}} scans with points", "lidar")
     full = pts[np.all(np.isfinite(pts[:, :3]), axis=1)]
     pts = full[:, :3]
-    road = pts[region.mask(pts)]
-    no_road = (f"{source}: no road in the region ({region}): {{n}}; give {{opt}} scans whose LiDAR sees the "
-               "road ahead, or another region (--lidar-region)")
-    if len(road) < max(min_inliers, 3):
-        raise OptionError(no_road.replace("{n}", f"{len(road)} points there, {min_inliers} needed"), "lidar")
+    inside = region.mask(pts)
+    road = pts[inside]
+    need = max(min_inliers, 3)
+
+    def no_road(why: str) -> OptionError:
+        return OptionError(f"{source}: no road in the region ({region}): {why}; give {{opt}} scans whose LiDAR sees "
+                           "the road ahead, or another region (--lidar-region)", "lidar")
+
+    if len(road) < need:
+        raise no_road(f"{len(road)} points there, {min_inliers} needed")
     if ground == "patchwork":
-        road = pts[region.mask(pts) & patchwork_ground(full)]
-        if len(road) < max(min_inliers, 3):
-            raise OptionError(no_road.replace("{n}", f"{len(road)} Patchwork++ ground points there, {min_inliers} "
-                                                     "needed"), "lidar")
+        road = pts[inside & patchwork_ground(full)]
+        if len(road) < need:
+            raise no_road(f"{len(road)} Patchwork++ ground points there, {min_inliers} needed")
         inl = np.ones(len(road), dtype=bool)
     elif ground == "ransac":
         lm = require_extra("sklearn.linear_model", "lidar", "the LiDAR plane fit (--lidar)")
@@ -300,11 +294,11 @@ def fit_ground_plane(points: Any, region: Any = ROAD_REGION, threshold: float = 
                          random_state=seed).fit(road[:, :2], road[:, 2])
             inl = fit.inlier_mask_
         except ValueError:
-            raise OptionError(no_road.replace("{n}", "RANSAC found no plane"), "lidar") from None
+            raise no_road("RANSAC found no plane") from None
     else:
         raise OptionError(f"{{opt}} {ground}: choose ransac or patchwork", "lidar_fit")
     for _ in range(5):
-        if np.count_nonzero(inl) < max(min_inliers, 3):
+        if np.count_nonzero(inl) < need:
             break
         normal, d = _tls_plane(road[inl])
         again = np.abs(road @ normal + d) < threshold
@@ -312,13 +306,12 @@ def fit_ground_plane(points: Any, region: Any = ROAD_REGION, threshold: float = 
             break
         inl = again
     count = int(np.count_nonzero(inl))
-    if count < max(min_inliers, 3):
-        raise OptionError(no_road.replace("{n}", f"{count} points on a plane, {min_inliers} needed"), "lidar")
+    if count < need:
+        raise no_road(f"{count} points on a plane, {min_inliers} needed")
     normal, d = _tls_plane(road[inl])
     tilt = math.degrees(math.acos(min(1.0, normal[2])))
     if tilt > max_tilt_deg:
-        raise OptionError(no_road.replace("{n}", f"the best plane is tilted {tilt:.0f} deg from the LiDAR's z "
-                                                 f"axis (at most {max_tilt_deg:g})"), "lidar")
+        raise no_road(f"the best plane is tilted {tilt:.0f} deg from the LiDAR's z axis (at most {max_tilt_deg:g})")
     return (normal, d, count) if return_inliers else (normal, d)
 
 
@@ -342,9 +335,7 @@ def read_bin_scan(path: str | Path) -> np.ndarray:
 
 
 def read_scan(path: str | Path) -> np.ndarray:
-    """One scan's points, (N, 3) or (N, 4) float64, LiDAR axes, m: KITTI ``.bin``, ``.pcd`` or ``.ply``.
-
-    ``.bin``: :func:`read_bin_scan`; ``.pcd``: ``x y z`` through pypcd4; ``.ply``: the ``vertex`` ``x y z`` (plyfile).
+    """One scan's points, (N, 3) or (N, 4) float64, LiDAR axes, m: KITTI ``.bin``, ``.pcd`` (pypcd4) or ``.ply`` (plyfile).
 
     Raises
     ------
@@ -447,10 +438,10 @@ def lidar_transform(spec: str | Path, imu_extrinsic: Any = None) -> Extrinsic:
     Parameters
     ----------
     spec : str or Path
-        A KITTI raw calibration folder (holding ``calib_imu_to_velo.txt``), that file,
-        or an extrinsic file of the project's format (``R``: ground <- LiDAR, ``t``).
+        A KITTI raw calibration folder (holding ``calib_imu_to_velo.txt``), that file, or an
+        extrinsic file of the project's format (``R``: ground <- LiDAR, ``t``).
     imu_extrinsic : optional
-        The log's static extrinsic (ground <- IMU), with KITTI's files only; default ``kitti_imu``.
+        The log's static extrinsic (ground <- IMU), for KITTI's files; default ``kitti_imu``.
 
     Raises
     ------
@@ -482,8 +473,7 @@ def lidar_transform(spec: str | Path, imu_extrinsic: Any = None) -> Extrinsic:
 
 
 def lidar_rotation(spec: str | Path, imu_extrinsic: Any = None) -> np.ndarray:
-    """``R_{g<-l}``: LiDAR vectors into the ground frame of the log's static extrinsic
-    (the rotation of :func:`lidar_transform`; the same arguments), (3, 3)."""
+    """``R_{g<-l}`` (3, 3): the rotation of :func:`lidar_transform` (the same arguments)."""
     return lidar_transform(spec, imu_extrinsic).rotation
 
 
@@ -631,17 +621,14 @@ def lidar_summary(frames: pd.DataFrame) -> dict[str, float]:
 
 def bootstrap_spread(differences: dict[str, Any], samples: int = 2000, block: int = 5,
                      seed: int = 0) -> pd.DataFrame:
-    """Each method's pitch spread with a moving-block bootstrap interval, and how often it ranks first.
-
-    Blocks of ``block`` consecutive frames (the frames are correlated), the same draws
-    for every method (paired).
+    """Each method's spread with a paired moving-block bootstrap interval, and how often it ranks first.
 
     Parameters
     ----------
     differences : dict of str to array_like (S,)
         Per method, the difference estimate minus LiDAR per scan, deg.
     samples, block, seed : int
-        Bootstrap draws, frames a block, the seed.
+        Bootstrap draws, consecutive frames a block (they are correlated), the seed.
 
     Returns
     -------
@@ -688,18 +675,22 @@ def lidar_table(estimates: dict[str, Any], t_scan: Any, lidar_pitch: Any, lidar_
         Index ``method``: :func:`lidar_summary` and, with 3 scans or more, :func:`bootstrap_spread`'s
         ``lo95``, ``hi95``, ``p_best``, ``vs_best_lo95`` and ``vs_best_hi95`` of the pitch spread.
     """
-    parts, rows = [], {}
-    for name, (t, pitch, roll, valid) in estimates.items():
-        f = compare_to_lidar(t_scan, lidar_pitch, lidar_roll, t, pitch, roll, valid, source)
-        rows[name] = lidar_summary(f)
-        parts.append(f.assign(method=name, scan=np.arange(len(f))))
-    frames = pd.concat(parts, ignore_index=True)
-    summary = pd.DataFrame.from_dict(rows, orient="index")
+    frames = pd.concat([compare_to_lidar(t_scan, lidar_pitch, lidar_roll, t, pitch, roll, valid, source)
+                        .assign(method=name, scan=lambda f: np.arange(len(f)))
+                        for name, (t, pitch, roll, valid) in estimates.items()], ignore_index=True)
+    return frames, method_summaries(frames)
+
+
+def method_summaries(frames: pd.DataFrame, what: str = "pitch") -> pd.DataFrame:
+    """Index ``method``: :func:`lidar_summary` of each method's frames (:func:`lidar_table`'s) and, with 3 scans or
+    more, :func:`bootstrap_spread` of its ``d_{what}_deg`` (``lo95 hi95 p_best vs_best_lo95 vs_best_hi95``)."""
+    groups = frames.groupby("method", sort=False)
+    summary = pd.DataFrame.from_dict({str(k): lidar_summary(g) for k, g in groups}, orient="index")
     summary.index.name = "method"
-    if len(np.atleast_1d(t_scan)) >= 3:
-        boot = bootstrap_spread({str(k): g["d_pitch_deg"].to_numpy() for k, g in frames.groupby("method", sort=False)})
+    if len(summary) and summary["n"].iloc[0] >= 3:
+        boot = bootstrap_spread({str(k): g[f"d_{what}_deg"].to_numpy() for k, g in groups})
         summary = summary.join(boot.drop(columns="spread"))
-    return frames, summary
+    return summary
 
 
 def planes_rotations(spec: str | Path, names: list[str], imu_extrinsic: Any = None) -> np.ndarray:
@@ -708,10 +699,9 @@ def planes_rotations(spec: str | Path, names: list[str], imu_extrinsic: Any = No
     Parameters
     ----------
     spec : str or Path
-        A folder of KITTI object calibration files named as the planes files, one such
-        file, or a camera (:func:`~imu_ground.perception.load_camera`).
+        A folder of KITTI object calibration files named as the planes files (``names``,
+        ``000005.txt``), one such file, or a camera (:func:`~imu_ground.perception.load_camera`).
     names : list of str
-        The planes files' names (``000005.txt``).
     imu_extrinsic : optional
         The log's static extrinsic (ground <- IMU), for the KITTI object files.
 

@@ -1,10 +1,4 @@
-"""The LiDAR plane in a bird's-eye preview of real images, and a distance the LiDAR measured read off each view.
-
-:func:`add_lidar_plane` adds the plane fitted to each image's scan (attitude and height)
-as a bird's-eye view ``"lidar"``, and projects the LiDAR's road point nearest ``distance``
-m ahead into the image with the static extrinsics: each view says how far ahead that
-pixel is, the right one what the LiDAR measured.
-"""
+"""The LiDAR plane in a bird's-eye preview of real images, and a distance the LiDAR measured read off each view."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -55,17 +49,16 @@ def add_lidar_plane(preview: Preview, scans: str | Path, spec: str | Path, imu_e
     Parameters
     ----------
     preview : Preview
-        An image preview; gains ``planes["lidar"]``, ``readings`` and ``marks`` (ground x, y, m).
+        An image preview; gains ``planes["lidar"]``, ``readings`` (each view's distance to the LiDAR's
+        road point nearest ``distance`` m ahead) and ``marks`` (that point's ground x, y, m).
     scans : str or Path
         A folder of scans, one per image, in the images' order.
-    spec : str or Path
-        The LiDAR's extrinsic (:func:`~imu_ground.evaluation.lidar.lidar_transform`).
-    imu_extrinsic : optional
-        The log's static extrinsic (ground <- IMU).
+    spec, imu_extrinsic
+        As :func:`~imu_ground.evaluation.lidar.lidar_transform`.
     region, seed
         Of the fit.
     distance : float
-        Where the measured point is looked for, m ahead.
+        m ahead.
 
     Raises
     ------

@@ -74,7 +74,7 @@ def _split_methods(methods: Sequence[str]) -> tuple[list[str], list[str]]:
 SAME_RMS_DEG = 0.01
 
 
-def _overlap_labels(drive, tracks: dict, names: Sequence[str], centred, m: np.ndarray) -> dict[str, str]:
+def _overlap_labels(tracks: dict, names: Sequence[str], centred, m: np.ndarray) -> dict[str, str]:
     """Legend label per method: its name, and the earlier method it lies on (pitch within :data:`SAME_RMS_DEG`)."""
     labels: dict[str, str] = {}
     drawn: list[tuple[str, np.ndarray]] = []
@@ -91,7 +91,6 @@ def _overlap_labels(drive, tracks: dict, names: Sequence[str], centred, m: np.nd
 
 
 def _save(fig, path: Path) -> Path:
-    """``fig`` written as a PNG to ``path`` and closed; returns ``path``."""
     fig.savefig(path, dpi=110)
     _plt().close(fig)
     return Path(path)
@@ -105,11 +104,8 @@ def plot_pitch_over_time(drive, tracks: dict, path: Path, methods: Optional[Sequ
 def pitch_over_time_figure(drive, tracks: dict, methods: Optional[Sequence[str]] = None):
     """Pitch (and roll, where the truth has it) relative to the road over time: reference and estimates.
 
-    Panels on one time axis: pitch of the reference and the :data:`HIGHLIGHTED` methods (the
-    default with its 1-sigma band); roll likewise (synthetic drives); every other method's
-    pitch (one within :data:`SAME_RMS_DEG` of an earlier one says so); the speed with
-    :data:`~imu_ground.evaluation.reference.MIN_SPEED`. Real drives show estimates and
-    reference less their means over the scored frames. Deg, pitch + nose down, roll + left up.
+    The :data:`HIGHLIGHTED` methods (the default with its 1-sigma band) apart from the others;
+    real drives less their means over the scored frames. Deg, pitch + nose down, roll + left up.
 
     Parameters
     ----------
@@ -140,7 +136,7 @@ def pitch_over_time_figure(drive, tracks: dict, methods: Optional[Sequence[str]]
     def centred(x: np.ndarray) -> np.ndarray:
         return x - (np.nanmean(x[m]) if drive.remove_mean and m.any() else 0.0)
 
-    label = _overlap_labels(drive, tracks, [*bold, *others], centred, m)
+    label = _overlap_labels(tracks, [*bold, *others], centred, m)
     sign = {"pitch": "+ nose down", "roll": "+ left side up"}
     for what in angles:
         ax = ax_of[what]
@@ -186,12 +182,8 @@ def plot_error_distribution(errors: dict, path: Path, title: str = "") -> Path:
 
 
 def error_distribution_figure(errors: dict, title: str = ""):
-    """Histogram and empirical CDF of per-frame absolute errors (deg), ``errors`` by method (a Figure).
-
-    The histogram (a density, 1/deg) shows the :data:`HIGHLIGHTED` methods there (every method when
-    none is), the CDF every method: the highlighted bold, the others thinner, each in its own colour
-    and line style (the same as in :func:`plot_pitch_over_time`).
-    """
+    """Histogram (density, 1/deg; the :data:`HIGHLIGHTED` methods) and CDF (every method) of per-frame absolute
+    errors (deg), ``errors`` by method (a Figure)."""
     plt = _plt()
     styles = _method_styles(list(errors))
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(13, 4.5))
@@ -225,12 +217,7 @@ def error_distribution_figure(errors: dict, title: str = ""):
 
 
 def plot_simulation(sim, path: Path) -> Path:
-    """The synthetic road and the body motion of a :class:`~imu_ground.evaluation.simulate.SimResult`.
-
-    Panels: top view of the path coloured by speed; road grade and bank along
-    the path; roughness profile (left and right tracks); body pitch and roll
-    relative to the road with the longitudinal and lateral acceleration.
-    """
+    """The synthetic road (top view, grade, bank, roughness) and the body motion of a ``SimResult``, as a PNG."""
     plt = _plt()
     tr = sim.truth
     fig = plt.figure(figsize=(12, 9))
@@ -282,11 +269,12 @@ def evaluation_plots(drives: Iterable, results: pd.DataFrame, tracks: dict, fold
 
     Parameters
     ----------
-    drives : the drives evaluated.
-    results : DataFrame from :func:`imu_ground.evaluation.runner.evaluate`.
-    tracks : ``{(drive, method): GroundTrack}`` from the same call (``keep_tracks=True``).
-    folder : output folder (created).
-    max_drives : pitch-over-time plots for at most this many drives per kind.
+    drives, results, tracks
+        The drives evaluated, :func:`~imu_ground.evaluation.runner.evaluate`'s table and tracks (``keep_tracks``).
+    folder : Path
+        Output folder (created).
+    max_drives : int
+        Pitch-over-time plots for at most this many drives per kind.
 
     Returns
     -------

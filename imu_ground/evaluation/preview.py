@@ -64,9 +64,9 @@ class Preview:
     labels : list of str
         One caption per frame.
     lanes : bool
-        Draw the true lane lines (``+- LANE_WIDTH / 2``) over the bird's-eye views (simulation only).
+        Draw the true lane lines (``+- LANE_WIDTH / 2``) (simulation only).
     readings : dict of str to list of str
-        Per plane name, one caption a frame (:func:`~imu_ground.evaluation.lidar_preview.add_lidar_plane`).
+        Per plane name, one caption a frame.
     marks : ndarray (F, 2), optional
         Per frame, a road point ``(x, y)`` (m, ahead and left) crossed on every bird's-eye view.
     """
@@ -221,9 +221,7 @@ def images_preview(images: str | Path, times: str | Path, camera: str | Camera, 
 
 
 def drawn_grid(grid: BevGrid) -> BevGrid:
-    """The grid a bird's-eye view is drawn on: ``grid`` itself, or, when it has more than
-    :data:`DRAWN_BEV_PIXELS` pixels a side, the same extent at a resolution coarser by the smallest
-    whole factor that fits."""
+    """``grid``, or above :data:`DRAWN_BEV_PIXELS` pixels a side the same extent coarser by the smallest whole factor."""
     factor = math.ceil(max(grid.shape) / DRAWN_BEV_PIXELS)
     if factor <= 1:
         return grid
@@ -231,7 +229,7 @@ def drawn_grid(grid: BevGrid) -> BevGrid:
 
 
 def _deg(value: float) -> str:
-    """An angle of a caption, deg: ``nan`` (as the output table writes it) where there is no estimate."""
+    """A caption's angle, deg (``nan`` as the output table writes it)."""
     return "nan" if math.isnan(value) else f"{value:+.2f}"
 
 
@@ -282,11 +280,8 @@ def _figure(preview: Preview, k: int, grid: BevGrid):
 
 
 def render_preview(preview: Preview, fmt: str = "png", grid: BevGrid = PREVIEW_GRID, fps: float = 5.0) -> bytes:
-    """The preview drawn: a PNG of its first frame, or (``fmt="gif"``) an animation of all its frames.
-
-    The PNG carries the plotted lane-width errors (when there are any) as JSON in its
-    :data:`PNG_KEY` text chunk (:func:`read_preview_errors`).
-    """
+    """The preview drawn: a PNG of its first frame (the lane-width errors in its :data:`PNG_KEY` chunk), or
+    (``fmt="gif"``) an animation of all its frames."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from PIL import Image
     if fmt not in ("png", "gif"):

@@ -1,15 +1,11 @@
 """Compare ground-normal methods on drives with ground truth: real KITTI and synthetic.
 
-Every method is a :class:`~imu_ground.filters.methods.MethodSpec` (built with the
-drive's extrinsic, run over its ego-motion). :data:`METHODS`: the registry's
-(:data:`imu_ground.filters.methods.METHODS`) then the evaluation's research
-baselines. :func:`evaluate` runs methods over drives
-(:mod:`imu_ground.evaluation.drives`) and reports per drive and method the error
-statistics (pitch; roll and the normal angle where the truth has them), the
-per-segment metric, the error by condition (:mod:`~imu_ground.evaluation.conditions`),
-``ref_floor`` and ``ref_share`` (what the reference's own uncertainty explains), the
-error by that uncertainty (:func:`sigma_table`) and, on real drives passing a place
-twice, the revisit consistency (:mod:`imu_ground.evaluation.revisit`).
+:data:`METHODS`: the registry's :class:`~imu_ground.filters.methods.MethodSpec` then the research
+baselines, each built with the drive's extrinsic and run over its ego-motion. :func:`evaluate` reports
+per drive and method the error statistics, the per-segment metric, the error by condition
+(:mod:`~imu_ground.evaluation.conditions`), what the reference's own uncertainty explains
+(``ref_floor``, ``ref_share``, :func:`sigma_table`) and the revisit consistency
+(:mod:`imu_ground.evaluation.revisit`).
 """
 from __future__ import annotations
 
@@ -35,9 +31,7 @@ __all__ = [
     "sigma_table", "summary_table", "synthetic_drive", "synthetic_drives"
 ]
 
-#: Tuned parameters of the paper's method (the GroundNormalFilter with the
-#: heading-following slow state): chosen on the real drives, see
-#: ``benchmarks/studies/tune_paper.py``.
+#: Tuned parameters of the paper's method, chosen on the real drives (``benchmarks/studies/tune_paper.py``).
 TUNED = dict(Q=0.1, R=1.0, P=1.0)
 #: Edges (deg) of the bins of the reference's own 1-sigma uncertainty in :func:`sigma_table`.
 SIGMA_BINS = (0.0, 0.075, 0.1, 0.15, 0.25, 0.5, math.inf)
@@ -48,19 +42,15 @@ SIGMA_BINS = (0.0, 0.075, 0.1, 0.15, 0.25, 0.5, math.inf)
 Method = MethodSpec
 
 
-def _research_baselines() -> list[MethodSpec]:
-    """The methods the evaluation adds to the registry: research baselines, not offered by ``estimate``."""
-    return [
-        MethodSpec("ekf", "standard EKF, Euler-angle state, the paper's Q and R, random walk",
-                   partial(EulerEKF, Q=1e-2, R=1.0, P=1.0, follow_heading=False), False, False),
-        MethodSpec("paper-code", "the reference code's variant: forward axis observed only",
-                   GroundNormalFilter.reference_code, False, False),
-        MethodSpec("paper-tuned", "invariant EKF, heading-following, Q tuned on the real drives",
-                   partial(GroundNormalFilter, **TUNED), False, False),
-    ]
-
-
-_BASELINES: tuple[MethodSpec, ...] = tuple(_research_baselines())
+#: The methods the evaluation adds to the registry: research baselines, not offered by ``estimate``.
+_BASELINES: tuple[MethodSpec, ...] = (
+    MethodSpec("ekf", "standard EKF, Euler-angle state, the paper's Q and R, random walk",
+               partial(EulerEKF, Q=1e-2, R=1.0, P=1.0, follow_heading=False), False, False),
+    MethodSpec("paper-code", "the reference code's variant: forward axis observed only",
+               GroundNormalFilter.reference_code, False, False),
+    MethodSpec("paper-tuned", "invariant EKF, heading-following, Q tuned on the real drives",
+               partial(GroundNormalFilter, **TUNED), False, False),
+)
 
 
 class _MethodsByName(Mapping):
@@ -79,8 +69,7 @@ class _MethodsByName(Mapping):
         return len(self._all())
 
 
-#: Every method of the evaluation by name, in report order: the registry's
-#: (:data:`imu_ground.filters.methods.METHODS`, as it is now) then the research baselines.
+#: Every method of the evaluation by name, in report order: the registry's (as it is now), then the research baselines.
 METHODS: Mapping[str, MethodSpec] = _MethodsByName()
 #: The same methods (a view of :data:`METHODS`).
 EVALUATION_METHODS: ValuesView[MethodSpec] = METHODS.values()
@@ -164,8 +153,7 @@ def check_methods(methods: Iterable[str]) -> list[str]:
     Raises
     ------
     OptionError
-        No name, an unknown name, or one given twice (its rows would count twice in every table),
-        naming ``methods`` (``--methods``).
+        No name, an unknown name, or one given twice (naming ``--methods``).
     """
     methods = list(methods)
     if not methods:
@@ -182,8 +170,7 @@ def check_methods(methods: Iterable[str]) -> list[str]:
     return methods
 
 def methods_from_list(text: str | None) -> list[str]:
-    """The methods a comma-separated list names (``--methods``), checked (:func:`check_methods`); None: all of
-    :data:`METHODS`. Blanks around and between the names are ignored; a list naming none is refused."""
+    """The methods a comma-separated list names (``--methods``; blanks ignored), checked; None: all of :data:`METHODS`."""
     if text is None:
         return list(METHODS)
     return check_methods([m.strip() for m in text.split(",") if m.strip()])
@@ -206,18 +193,13 @@ def evaluate(drives: Iterable[Drive], methods: Sequence[str] | None = None,
     Returns
     -------
     pandas.DataFrame
-        One row per drive and method: drive, kind, grade, method, valid, reason,
-        frames, n (frames evaluated); ``{pitch,roll,angle}_{mean,median,rms,p95,bias}``
-        (deg, absolute errors; roll and angle on synthetic drives);
-        ``seg_pitch_mean`` (deg) and ``seg_n``; ``cond_<key>_n`` and ``cond_<key>_sum``
-        (frames and sum of absolute pitch errors, deg, per condition of
-        :data:`~imu_ground.evaluation.conditions.CONDITIONS`); ``ref_floor`` (deg),
-        ``ref_share``, ``ref_var_sum`` and ``err_sq_sum`` (deg^2); ``us_per_frame``;
-        ``sigma<b>_n``, ``sigma<b>_sum`` and ``sigma<b>_ref_sum`` (frames, sums of absolute pitch
-        errors and of the reference's sigma, deg, per bin ``b`` of :data:`SIGMA_BINS`); on real
-        drives with a raw log, ``revisit_n``, ``revisit_pitch_sum`` and ``revisit_roll_sum``
-        (revisit pairs and sums of their absolute differences, deg; 0 pairs when the drive
-        never passes the same place twice).
+        One row per drive and method: drive, kind, grade, method, valid, reason, frames, n;
+        ``{pitch,roll,angle}_{mean,median,rms,p95,bias}`` (deg, absolute errors; roll and angle on
+        synthetic drives); ``seg_pitch_mean`` (deg), ``seg_n``; ``cond_<key>_n``, ``cond_<key>_sum``
+        (frames and summed absolute pitch error, deg, per condition); ``ref_floor`` (deg), ``ref_share``,
+        ``ref_var_sum``, ``err_sq_sum`` (deg^2); ``us_per_frame``; ``sigma<b>_n``, ``sigma<b>_sum``,
+        ``sigma<b>_ref_sum`` per bin of :data:`SIGMA_BINS`; on real drives with a raw log ``revisit_n``,
+        ``revisit_pitch_sum``, ``revisit_roll_sum`` (deg).
     dict, only with ``keep_tracks``
     """
     import pandas as pd
@@ -268,17 +250,14 @@ def summary_table(results, quantity: str | None = None):
     ----------
     results : DataFrame from :func:`evaluate`.
     quantity : {"pitch", "angle"}, optional
-        Error to summarise; default ``"angle"`` for synthetic drives (normal
-        angle) and ``"pitch"`` for real ones.
+        Error to summarise; default ``"angle"`` on synthetic drives, ``"pitch"`` on real ones.
 
     Returns
     -------
     pandas.DataFrame
-        Index (set, method); columns drives, mean_deg (mean over valid drives of
-        the per-drive mean absolute error), median_deg, worst_deg / worst_drive,
-        worst ratio to the paper's method, seg_pitch_deg (mean over drives of the
-        per-segment metric), ref_floor_deg (mean over drives, each at most the method's error), ref_share (pooled
-        over frames, each drive explaining at most its own error: 0..1), us_per_frame.
+        Index (set, method); columns drives, mean_deg (over drives of the mean absolute error),
+        median_deg, worst_deg / worst_drive, the worst ratio to the paper's method, seg_pitch_deg,
+        ref_floor_deg, ref_share (pooled over frames, 0..1), us_per_frame.
     """
     import pandas as pd
     ok = _sets(results)
@@ -312,8 +291,7 @@ def conditions_table(results, counts: bool = False):
     Returns
     -------
     pandas.DataFrame
-        Index (set, method); one column per condition, labelled as in
-        :data:`~imu_ground.evaluation.conditions.CONDITIONS`, plus ``all``.
+        Index (set, method); a column per label of :data:`~imu_ground.evaluation.conditions.CONDITIONS`, and ``all``.
     """
     import pandas as pd
     ok = _sets(results)
@@ -339,11 +317,9 @@ def sigma_table(results):
     Returns
     -------
     pandas.DataFrame
-        Index: the ``ref_sigma`` bin, deg (:data:`SIGMA_BINS`; bins without frames left out);
-        columns ``frames``, ``ref_floor_deg`` (``sqrt(2/pi)`` times the bin's mean sigma: what a
-        perfect estimator would score there) and one per method: its mean absolute pitch error,
-        deg, pooled over the bin's frames. Where ``ref_floor_deg`` is near or above 0.1 deg the
-        reference cannot judge a tenth of a degree.
+        Index: the ``ref_sigma`` bin, deg (:data:`SIGMA_BINS`, bins with frames); ``frames``, ``ref_floor_deg``
+        (``sqrt(2/pi)`` times the bin's mean sigma: a perfect estimator's score) and per method its mean
+        absolute pitch error, deg, pooled over the bin's frames.
     """
     import pandas as pd
     ok = results[results["valid"] & (results["kind"] == "real")]

@@ -1,12 +1,7 @@
 r"""Exact kinematics of the simulated sensor: attitude, angular rate, specific force, position.
 
-Frames and signs follow the simulator's conventions (see
-:mod:`imu_ground.evaluation.simulate`): world ``w`` z up, body ``b`` FLU,
-``R_wr = Rz(heading) Ry(-grade) Rx(bank)`` (world <- road), body relative to the
-road ``Ry(pitch) Rx(roll)``, so ``R_wb = Rz Ry Rx Ry Rx`` of
-``(heading, -grade, bank, pitch, roll)``. The angular rate and acceleration are
-assembled from the angles' time derivatives through the kinematic chain
-(:func:`chain`), the specific force from the analytic acceleration of the sensor.
+Frames and signs: :mod:`imu_ground.evaluation.simulate`; ``R_wb = Rz Ry Rx Ry Rx`` of ``(heading, -grade,
+bank, pitch, roll)``, its rates through the kinematic chain (:func:`chain`).
 """
 from __future__ import annotations
 
@@ -83,10 +78,8 @@ def sensor_kinematics(a, v, s, layout, body, R_gs, t_gs):
     Returns
     -------
     dict
-        ``R_wb``, ``R_ws``, ``R_wr`` (N, 3, 3); ``gyro`` (sensor angular rate, rad/s),
-        ``accel`` (specific force in the sensor frame, m/s^2), ``v_ws`` (sensor velocity
-        in the world frame, m/s), ``curvature``, ``heading``, ``grade``, ``bank`` and
-        ``acc_lat`` (lateral acceleration of the reference point in the road frame) (N,).
+        ``R_wb``, ``R_ws``, ``R_wr`` (N, 3, 3); ``gyro`` (rad/s), ``accel`` (specific force, m/s^2), sensor
+        frame; ``v_ws`` (world, m/s); ``curvature``, ``heading``, ``grade``, ``bank``, ``acc_lat`` (N,).
     """
     kappa_pw, grade_pw, bank_pw = layout
     (th, th_d1, th_d2), (ph, ph_d1, ph_d2), (_, zh_d1, zh_d2) = body
@@ -118,10 +111,7 @@ def sensor_kinematics(a, v, s, layout, body, R_gs, t_gs):
 
 
 def road_positions(t_imu, dt: float, motion, layout) -> np.ndarray:
-    """Road-point positions (m, world frame, from the origin at t = 0) at the IMU samples.
-
-    The Gauss-Legendre (3 nodes) integral of the road-point velocity
-    ``v (cos(grade) cos(heading), cos(grade) sin(heading), sin(grade))`` per step.
+    """Road-point positions (m, world frame, from the origin at t = 0) at the IMU samples (3-node Gauss-Legendre).
 
     Parameters
     ----------

@@ -1,9 +1,5 @@
-r"""Closed-form smooth profiles: septic smooth steps and piecewise sums of them.
-
-Every profile of the simulator (speed in time; curvature, grade and bank along
-the road) is a :class:`Piecewise` function: contiguous phases, each a smooth
-step between two levels, with its first two derivatives and its first two
-integrals in closed form. That is what makes the simulated kinematics exact.
+r"""Closed-form smooth profiles (speed in time; curvature, grade and bank along the road): septic smooth steps
+and :class:`Piecewise` sums of them, with two derivatives and two integrals in closed form (exact kinematics).
 """
 from __future__ import annotations
 
@@ -16,8 +12,7 @@ __all__ = ["Piecewise", "smoothstep"]
 
 
 def smoothstep(u):
-    """Septic smooth step S(u) on [0, 1] (C^3: value, slope, curvature and jerk
-    continuous at both ends), its first two derivatives, and its integrals from 0.
+    """Septic smooth step S(u) on [0, 1] (C^3 at both ends), its first two derivatives, and its integrals from 0.
 
     Parameters
     ----------
@@ -87,14 +82,8 @@ class Piecewise:
             v = v + level * dur + delta * dur / 2.0
             level = level + delta
             x = x + dur
-        self.end_level = level
 
-    @property
-    def end(self) -> float:
-        """Start of the final (infinite) phase."""
-        return float(self.start[-1])
-
-    def __call__(self, x, derivatives: bool = True):
+    def __call__(self, x):
         """Value, first and second derivative, first and second integral at ``x``."""
         x = np.asarray(x, dtype=float)
         j = np.clip(np.searchsorted(self.start, x, side="right") - 1, 0, len(self.start) - 1)

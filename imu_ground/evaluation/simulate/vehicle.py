@@ -167,12 +167,7 @@ def _random_speed(p: SpeedParams, duration: float, rng: np.random.Generator) -> 
 
 
 def speed_profile(p: SpeedParams, duration: float, rng: np.random.Generator) -> Piecewise:
-    """Longitudinal acceleration (m/s^2) as smooth-step phases in time (s).
-
-    Its first integral is the speed (m/s), its second the distance (m). With
-    ``p.plan`` the profile follows the plan; otherwise it is drawn from ``rng``
-    by ``p.style`` until ``duration`` seconds are covered.
-    """
+    """Longitudinal acceleration (m/s^2; integrals: speed, distance) in time (s): ``p.plan``, or drawn by ``p.style``."""
     if p.plan is not None:
         return _planned_speed(p)
     return _random_speed(p, duration, rng)
@@ -182,25 +177,17 @@ def speed_profile(p: SpeedParams, duration: float, rng: np.random.Generator) -> 
 def suspension_response(u, dt: float, freq: float, damping: float, gain: float = 1.0):
     """Exact response of ``x'' + 2 zeta w x' + w^2 x = w^2 gain u(t)``, ``w = 2 pi freq``.
 
-    ``u`` is sampled every ``dt`` and linear in between (first-order hold); the
-    system starts at rest in equilibrium with ``u[0]``. The states are exact at the
-    samples (no discretisation error), the acceleration follows from the equation.
+    ``u`` linear between samples (first-order hold), starting at rest in equilibrium with ``u[0]``.
 
     Parameters
     ----------
-    u : array_like, shape (N,)
-    dt : float
-        Sample interval, s.
-    freq : float
-        Undamped natural frequency, Hz.
-    damping : float
-        Damping ratio.
-    gain : float
-        Static gain.
+    u : array_like (N,)
+    dt, freq, damping, gain : float
+        Sample interval (s), undamped natural frequency (Hz), damping ratio, static gain.
 
     Returns
     -------
-    x, xdot, xddot : ndarray, shape (N,)
+    x, xdot, xddot : ndarray (N,)
     """
     from scipy.signal import lfilter, lfilter_zi
     u = gain * np.asarray(u, dtype=float)
@@ -272,20 +259,15 @@ def body_motion(vehicle: VehicleParams, a_f, v_f, s_f, dt_f: float, layout, roug
     Parameters
     ----------
     vehicle : VehicleParams
-    a_f, v_f, s_f : ndarray, shape (N,)
-        Longitudinal acceleration (m/s^2), speed (m/s) and distance (m) at the fine grid.
-    dt_f : float
-        Fine-grid step, s.
-    layout : (curvature, grade, bank)
-        The road profiles (:func:`~imu_ground.evaluation.simulate.road.road_layout`).
-    rough : (x, h_left, h_right)
-        The roughness profile (:func:`~imu_ground.evaluation.simulate.road.road_profile`).
+    a_f, v_f, s_f : ndarray (N,)
+        Longitudinal acceleration (m/s^2), speed (m/s), distance (m) on the fine grid of step ``dt_f`` (s).
+    layout, rough
+        The road profiles and the roughness (:mod:`~imu_ground.evaluation.simulate.road`).
 
     Returns
     -------
     pitch, roll, heave : tuple of three ndarrays (N,)
-        Each ``(value, rate, acceleration)``: rad, rad/s, rad/s^2 (heave m, m/s, m/s^2);
-        pitch nose down positive, roll left side up positive.
+        Each ``(value, rate, acceleration)``: rad, rad/s, rad/s^2 (heave m, m/s, m/s^2).
     """
     (u_pitch, u_roll, u_heave), (du_pitch, du_roll, du_heave) = _road_inputs(vehicle, s_f, v_f, rough)
     load_pitch = load_roll = np.zeros_like(s_f)
