@@ -39,6 +39,7 @@ import math
 import numpy as np
 
 from imu_ground import so3
+from imu_ground.evaluation.reference import sample_gap
 from imu_ground.units import DEG
 
 __all__ = [
@@ -118,7 +119,13 @@ def frame_signals(egomotion, extrinsic_rotation: np.ndarray, speed: np.ndarray) 
 
 
 def condition_masks(signals: dict[str, np.ndarray], t: np.ndarray) -> dict[str, np.ndarray]:
-    """Boolean masks per condition (:data:`CONDITIONS`) from :func:`frame_signals`' ``signals`` at frame times ``t`` (s)."""
+    """Boolean masks per condition (:data:`CONDITIONS`).
+
+    Parameters
+    ----------
+    signals, t : dict, ndarray (F,)
+        :func:`frame_signals`' signals and the frame times, s.
+    """
     v = signals["speed"]
     with np.errstate(invalid="ignore"):
         out = {name: (v > lo) & (v <= hi) for name, lo, hi in SPEED_BINS}
@@ -127,19 +134,19 @@ def condition_masks(signals: dict[str, np.ndarray], t: np.ndarray) -> dict[str, 
         stopped = v < STOP_SPEED
         out["rough"] = signals["pitch_rate_hf"] > ROUGH_PITCH_RATE
     t = np.asarray(t, dtype=float)
-    near = np.zeros(v.shape, dtype=bool)
     ts = t[stopped]                                   # increasing, as t is
-    if ts.size:
-        j = np.clip(np.searchsorted(ts, t), 1, ts.size)
-        before = np.abs(t - ts[j - 1])
-        after = np.abs(ts[np.minimum(j, ts.size - 1)] - t)
-        near = np.minimum(before, after) <= NEAR_STOP_S
-    out["near_stop"] = near
+    out["near_stop"] = sample_gap(ts, t) <= NEAR_STOP_S if ts.size else np.zeros(v.shape, dtype=bool)
     return {name: np.asarray(out[name], dtype=bool) for name in CONDITIONS}
 
 
 def moving_segments(speed: np.ndarray) -> np.ndarray:
-    """Segment index per frame from ``speed`` (m/s; NaN does not end a segment): runs 0, 1, ...; stopped frames -1."""
+    """Segment index per frame: runs between stops get 0, 1, 2, ...; stopped frames -1.
+
+    Parameters
+    ----------
+    speed : ndarray (F,)
+        m/s; NaN (unknown) does not end a segment.
+    """
     v = np.asarray(speed, dtype=float)
     with np.errstate(invalid="ignore"):
         stopped = v < STOP_SPEED

@@ -22,6 +22,7 @@ Comparison (:func:`compare_to_lidar`, :func:`lidar_summary`, :func:`bootstrap_sp
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -91,18 +92,14 @@ PATCHWORK_MODULE = "pypatchworkpp"
 class PathRegion:
     """The road along the driven path: points within ``half_width`` of the vehicle's future track, ahead of it.
 
-    The track is in the LiDAR's axes at the scan's time (:func:`path_region`).
-
     Parameters
     ----------
     xy : array_like (M, 2)
-        The future track, LiDAR x and y, m, in driving order.
-    half_width : float
-        Points within this horizontal distance of the track, m (default 1.5).
+        The future track in the LiDAR's axes at the scan's time (x, y, m), in driving order.
+    half_width, step : float
+        Horizontal distance to the track, and the track's resampling step, m.
     ahead : tuple of float
-        Their distance along the track from its point nearest the LiDAR, m (default 3 to 32).
-    step : float
-        The track is resampled every ``step`` m along its length.
+        Distance along the track from its point nearest the LiDAR, m.
     """
 
     def __init__(self, xy: Any, half_width: float = 1.5, ahead: tuple[float, float] = (3.0, 32.0),
@@ -169,9 +166,6 @@ def path_region(t_scan: float, t: Any, positions: Any, rotations: Any, lidar_fro
     return PathRegion(xy, half_width, ahead)
 
 
-_PATCHWORK: dict = {}
-
-
 def _quiet(make, *args):
     """``make(*args)`` with file descriptor 1 closed to C++'s own prints."""
     import os
@@ -187,22 +181,25 @@ def _quiet(make, *args):
         os.close(null)
 
 
+@functools.cache
+def _patchwork(sensor_height: float):
+    """One Patchwork++ segmenter per sensor height (its construction prints)."""
+    pw = require_extra(PATCHWORK_MODULE, "lidar", "Patchwork++ ground points (--lidar-fit patchwork)")
+    params = pw.Parameters()
+    params.verbose = False
+    params.sensor_height = sensor_height
+    return _quiet(pw.patchworkpp, params)
+
+
 def patchwork_ground(points: np.ndarray, sensor_height: float = 1.73) -> np.ndarray:
-    """Patchwork++'s ground points of a whole scan (bool (N,)), LiDAR axes, m; its defaults but the sensor height.
+    """Patchwork++'s ground points of a whole scan (bool (N,); LiDAR axes, m), its defaults but the sensor height.
 
     Raises
     ------
     MissingExtraError
         ``pypatchworkpp`` is not installed (naming ``.[lidar]`` and ``--lidar-fit``).
     """
-    key = float(sensor_height)
-    if key not in _PATCHWORK:
-        pw = require_extra(PATCHWORK_MODULE, "lidar", "Patchwork++ ground points (--lidar-fit patchwork)")
-        params = pw.Parameters()
-        params.verbose = False
-        params.sensor_height = key
-        _PATCHWORK[key] = _quiet(pw.patchworkpp, params)
-    seg = _PATCHWORK[key]
+    seg = _patchwork(float(sensor_height))
     pts = np.asarray(points, dtype=float)
     cloud = np.column_stack([pts[:, :3], pts[:, 3] if pts.shape[1] > 3 else np.zeros(len(pts))])
     seg.estimateGround(np.ascontiguousarray(cloud, dtype=np.float32))          # (N, 4) x y z intensity
@@ -246,16 +243,13 @@ def fit_ground_plane(points: Any, region: Any = ROAD_REGION, threshold: float = 
     source : str
         The scan's name for messages.
     return_inliers : bool
-        Also return the number of inliers.
     ground : {"ransac", "patchwork"}
         The road's first points: RANSAC on the region's, or :func:`patchwork_ground`'s in the region.
 
     Returns
     -------
-    normal : ndarray (3,)
-        Unit normal pointing up (``normal[2] > 0``), LiDAR axes.
-    d : float
-        ``normal . x + d = 0`` on the road: the LiDAR's height above it, m.
+    normal, d : ndarray (3,), float
+        Unit normal pointing up, LiDAR axes, and ``d`` (m) with ``normal . x + d = 0`` on the road.
     inliers : int
         Only with ``return_inliers``.
 
@@ -322,7 +316,7 @@ def read_bin_scan(path: str | Path) -> np.ndarray:
     Raises
     ------
     OptionError
-        Not a whole number of 16-byte records, or no such file (naming the file and ``--lidar``).
+        No such file, or not a whole number of 16-byte records.
     """
     p = Path(path)
     if not p.is_file():
@@ -340,7 +334,7 @@ def read_scan(path: str | Path) -> np.ndarray:
     Raises
     ------
     OptionError
-        No such file, an unknown suffix, or a file its reader cannot read (naming the file and ``--lidar``).
+        No such file, an unknown suffix, or a file its reader cannot read.
     """
     p = Path(path)
     suffix = p.suffix.lower()
@@ -389,7 +383,7 @@ def read_times(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     Raises
     ------
     OptionError
-        No such file, no time, or a line that is not a finite number (naming the file, the line and ``--times``).
+        No such file, no time, or a line that is not a finite number (naming the line).
     """
     p = Path(path)
     if not p.is_file():
@@ -419,7 +413,7 @@ def read_scan_times(path: str | Path, count: int, what: str = "scans") -> np.nda
     Raises
     ------
     OptionError
-        As :func:`read_times`, or a count other than ``count``, or times that do not increase (naming ``--times``).
+        As :func:`read_times`, a count other than ``count``, or times that do not increase.
     """
     t, lines = read_times(path)
     if len(t) != count:
@@ -499,10 +493,8 @@ def lidar_pitch_roll(normals: Any, rotation: Any) -> tuple[np.ndarray, np.ndarra
 
     Parameters
     ----------
-    normals : array_like (N, 3) or (3,)
-        Road normals pointing up (any length), sensor axes.
-    rotation : array_like (3, 3) or (N, 3, 3)
-        Ground <- sensor (:func:`lidar_rotation`, :func:`kitti_object_rotation`).
+    normals, rotation : array_like (N, 3) or (3,); (3, 3) or (N, 3, 3)
+        Road normals pointing up (any length), sensor axes; ground <- sensor (:func:`lidar_rotation`).
     """
     n = np.asarray(normals, dtype=float)
     nb = np.einsum("...ij,...j->...i", np.asarray(rotation, dtype=float), n)
@@ -550,10 +542,8 @@ def compare_to_lidar(t_scan: Any, lidar_pitch: Any, lidar_roll: Any, t: Any, pit
 
     Parameters
     ----------
-    t_scan : array_like (S,)
-        Scan times, s, on the log's clock.
-    lidar_pitch, lidar_roll : array_like (S,)
-        The LiDAR planes' body pitch and roll relative to the road, rad.
+    t_scan, lidar_pitch, lidar_roll : array_like (S,)
+        Scan times (s, the log's clock) and the LiDAR planes' body pitch and roll relative to the road, rad.
     t, pitch, roll, valid : array_like (N,)
         The estimate's frame times (s), angles (rad) and valid frames (default: finite ones).
     source : str
@@ -562,13 +552,13 @@ def compare_to_lidar(t_scan: Any, lidar_pitch: Any, lidar_roll: Any, t: Any, pit
     Returns
     -------
     pandas.DataFrame
-        ``t``, ``lidar_pitch_deg``, ``lidar_roll_deg``, ``pitch_deg``, ``roll_deg`` (the estimate,
-        interpolated), ``d_pitch_deg``, ``d_roll_deg`` (estimate minus LiDAR), ``angle_deg``.
+        ``t``, ``lidar_pitch_deg``, ``lidar_roll_deg``, ``pitch_deg``, ``roll_deg`` (the estimate, interpolated),
+        ``d_pitch_deg``, ``d_roll_deg`` (estimate minus LiDAR), ``angle_deg``.
 
     Raises
     ------
     OptionError
-        A scan time outside the log's frames (naming ``--times``).
+        Fewer than 2 valid frames, or a scan time outside the log's frames.
     """
     ts = np.asarray(t_scan, dtype=float)
     t, p, r = (np.asarray(a, dtype=float) for a in (t, pitch, roll))
@@ -600,9 +590,8 @@ def lidar_summary(frames: pd.DataFrame) -> dict[str, float]:
     Returns
     -------
     dict
-        ``n``, ``angle_mean``, ``pitch_offset``, ``roll_offset`` (with the offset);
-        ``angle_centred``, ``pitch_spread`` (sample std), ``pitch_mae_centred``,
-        ``roll_change_spread``, ``roll_change_corr`` (both centred).
+        ``n``, ``angle_mean``, ``pitch_offset``, ``roll_offset``; centred: ``angle_centred``, ``pitch_spread``
+        (sample std), ``pitch_mae_centred``, ``roll_change_spread``, ``roll_change_corr``.
     """
     dp, dr = frames["d_pitch_deg"].to_numpy(), frames["d_roll_deg"].to_numpy()
     n = len(frames)
@@ -633,9 +622,8 @@ def bootstrap_spread(differences: dict[str, Any], samples: int = 2000, block: in
     Returns
     -------
     pandas.DataFrame
-        Index: method. ``spread`` (sample std), ``lo95``, ``hi95`` (bootstrap quantiles),
-        ``p_best`` (share of the draws it ranks first), ``vs_best_lo95``, ``vs_best_hi95``
-        (its spread minus the best method's).
+        Index ``method``: ``spread`` (sample std), ``lo95``, ``hi95``, ``p_best`` (share of the draws it ranks
+        first), ``vs_best_lo95``, ``vs_best_hi95`` (its spread minus the best method's).
     """
     names = list(differences)
     d = np.array([np.asarray(differences[k], dtype=float) for k in names])
@@ -663,17 +651,15 @@ def lidar_table(estimates: dict[str, Any], t_scan: Any, lidar_pitch: Any, lidar_
     ----------
     estimates : dict of str to tuple
         Method name to ``(t, pitch, roll, valid)`` of its track (s, rad, rad, bool; ``valid`` may be None).
-    t_scan, lidar_pitch, lidar_roll : array_like (S,)
+    t_scan, lidar_pitch, lidar_roll, source
         As :func:`compare_to_lidar`.
-    source : str
 
     Returns
     -------
     frames : pandas.DataFrame
         :func:`compare_to_lidar`'s columns plus ``method`` and ``scan`` (0-based).
     summary : pandas.DataFrame
-        Index ``method``: :func:`lidar_summary` and, with 3 scans or more, :func:`bootstrap_spread`'s
-        ``lo95``, ``hi95``, ``p_best``, ``vs_best_lo95`` and ``vs_best_hi95`` of the pitch spread.
+        :func:`method_summaries` of the pitch.
     """
     frames = pd.concat([compare_to_lidar(t_scan, lidar_pitch, lidar_roll, t, pitch, roll, valid, source)
                         .assign(method=name, scan=lambda f: np.arange(len(f)))

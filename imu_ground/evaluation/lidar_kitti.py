@@ -202,8 +202,13 @@ def drive_path_regions(drive: KittiLidarDrive, lidar_from_imu: Extrinsic, half_w
                        ahead: tuple[float, float] = (3.0, 32.0)) -> list[PathRegion]:
     """Each scan's driven-path region (:func:`~imu_ground.evaluation.lidar.path_region`) from the folder's OXTS.
 
-    ``lidar_from_imu``: LiDAR <- IMU (``calib_imu_to_velo.txt``: ``x_velo = R x_imu + T``); ``half_width``,
-    ``ahead``: as :class:`~imu_ground.evaluation.lidar.PathRegion`.
+    Parameters
+    ----------
+    drive : KittiLidarDrive
+    lidar_from_imu : Extrinsic
+        LiDAR <- IMU (``calib_imu_to_velo.txt``: ``x_velo = R x_imu + T``).
+    half_width, ahead
+        As :class:`~imu_ground.evaluation.lidar.PathRegion`.
     """
     t, pos, rot = oxts_track(drive)
     t_scan = (drive.stamps_ns - drive.oxts_ns[0]).astype(float) * 1e-9

@@ -41,7 +41,17 @@ def normal_from_pitch_roll(pitch, roll) -> np.ndarray:
 
 
 def normal_angle(n_est, n_true) -> np.ndarray:
-    """Angle between two (not necessarily unit) vectors (..., 3), deg in [0, 180]: ``atan2(|a x b|, a . b)``."""
+    """Angle between two (not necessarily unit) vectors: ``atan2(|a x b|, a . b)``, exact at any angle.
+
+    Parameters
+    ----------
+    n_est, n_true : array_like (..., 3)
+
+    Returns
+    -------
+    ndarray (...)
+        deg, in [0, 180].
+    """
     a = np.asarray(n_est, dtype=float)
     b = np.asarray(n_true, dtype=float)
     cross = np.linalg.norm(np.cross(a, b), axis=-1)

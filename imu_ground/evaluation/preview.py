@@ -89,11 +89,10 @@ def synthetic_preview(seed: int = 3, duration: float = 40.0, frames: int = 1, gr
     Parameters
     ----------
     seed, duration : int, float
-        The drive (:func:`~imu_ground.evaluation.simulate.simulate`, urban style, navigation-grade IMU).
+        The drive (urban style, navigation-grade IMU).
     frames : int
         Frames to show, centred on the moving frame with the largest true pitch.
-    grid : BevGrid
-    camera : str or Camera
+    grid, camera : BevGrid, str or Camera
 
     Returns
     -------
@@ -136,14 +135,6 @@ def synthetic_preview(seed: int = 3, duration: float = 40.0, frames: int = 1, gr
                    f"{default_method(True)}", labels, lanes=True)
 
 
-def _check_increasing(path: Path, times: np.ndarray, linenos: np.ndarray) -> None:
-    back = np.flatnonzero(np.diff(times) < 0)
-    if back.size:
-        i = int(back[0]) + 1
-        raise OptionError(f"{path}:{linenos[i]}: time {times[i]:g} s is before the one above it ({times[i - 1]:g} s); "
-                          "give {opt} the images' times in their name order, increasing", "times")
-
-
 def _read_image(path: Path, camera: Camera) -> np.ndarray:
     from PIL import Image, UnidentifiedImageError
     try:
@@ -164,16 +155,12 @@ def images_preview(images: str | Path, times: str | Path, camera: str | Camera, 
 
     Parameters
     ----------
-    images : str or Path
-        Folder of the camera's images, taken in name order.
-    times : str or Path
-        One time a line (s, on the log's clock: the ``t`` of the estimate's table), one per image.
+    images, times : str or Path
+        Folder of the camera's images (in name order) and one time a line for each (s, the log's clock).
     camera : str or Camera
         :func:`~imu_ground.perception.load_camera`.
-    t : array_like (N,)
-        The estimate's frame times, s.
-    dynamic : GroundPlane
-        The estimate's planes, N frames (``estimate_log(..., camera=...).meta["plane"]``).
+    t, dynamic : array_like (N,), GroundPlane
+        The estimate's frame times (s) and planes (``estimate_log(..., camera=...).meta["plane"]``).
     pitch, roll : array_like (N,), optional
         The estimate's angles, rad, for the captions.
     title : str
@@ -201,7 +188,12 @@ def images_preview(images: str | Path, times: str | Path, camera: str | Camera, 
         i = int(bad[0])
         raise ImuGroundError(f"{times_path}:{linenos[i]}: time {t_img[i]:g} s ({files[i].name}) is outside the "
                              f"log's frames ({lo:g} .. {hi:g} s on the log's clock); give --times on the log's clock")
-    _check_increasing(times_path, t_img, linenos)
+    back = np.flatnonzero(np.diff(t_img) < 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise OptionError(f"{times_path}:{linenos[i]}: time {t_img[i]:g} s is before the one above it "
+                          f"({t_img[i - 1]:g} s); give {{opt}} the images' times in their name order, increasing",
+                          "times")
     cam = load_camera(camera)
     for f in files:
         _read_image(f, cam)                         # every image readable and of the camera's size before drawing

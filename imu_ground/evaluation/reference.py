@@ -41,7 +41,18 @@ _REQUIRED = ("t", "pitch", "ve", "vn", "vu")
 
 
 def drop_out_of_order(df: pd.DataFrame) -> pd.DataFrame:
-    """The rows of ``df`` (column ``t``, s) whose time is later than every earlier row's, index reset."""
+    """The rows whose time is later than every earlier row's (repeats dropped; idempotent).
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        With a column ``t`` (s).
+
+    Returns
+    -------
+    pandas.DataFrame
+        The kept rows, index reset.
+    """
     t = df["t"].to_numpy(dtype=float)
     if t.size == 0:
         return df.reset_index(drop=True)
@@ -52,7 +63,18 @@ def drop_out_of_order(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def frame_times(t: np.ndarray, rate: float = FRAME_RATE) -> np.ndarray:
-    """The frame grid ``min(t) + k / rate`` (s; ``rate`` in Hz) up to ``max(t)``."""
+    """A regular frame grid from the first to the last sample time.
+
+    Parameters
+    ----------
+    t, rate : array_like (N,), float
+        Sample times (s, any order) and frames per second.
+
+    Returns
+    -------
+    ndarray
+        ``min(t) + k / rate`` up to ``max(t)``, s.
+    """
     t = np.asarray(t, dtype=float)
     if t.size == 0:
         return np.zeros(0)
@@ -62,7 +84,18 @@ def frame_times(t: np.ndarray, rate: float = FRAME_RATE) -> np.ndarray:
 
 
 def travelled_distance(t: np.ndarray, speed: np.ndarray) -> np.ndarray:
-    """Cumulative distance (m, from 0): trapezoidal integral of ``speed`` (m/s) over increasing ``t`` (s)."""
+    """Cumulative distance: trapezoidal integral of ``speed`` over ``t``.
+
+    Parameters
+    ----------
+    t, speed : array_like (N,)
+        Increasing sample times (s) and horizontal speed (m/s).
+
+    Returns
+    -------
+    ndarray (N,)
+        m, from 0.
+    """
     from scipy.integrate import cumulative_trapezoid
     t = np.asarray(t, dtype=float)
     return cumulative_trapezoid(np.asarray(speed, dtype=float), t, initial=0) if t.size > 1 else np.zeros_like(t)
@@ -121,16 +154,13 @@ class Reference:
 
     Attributes
     ----------
-    t : ndarray, shape (M,)
+    t : ndarray (M,)
         Frame times, s.
-    pitch_rel_road : ndarray, shape (M,)
-        ``pitch + grade - offset``, nose down positive; NaN only without data, used where ``valid``.
-    valid : ndarray of bool, shape (M,)
-        Moving (speed above ``min_speed``) and not inside a data gap.
-    pitch, grade : ndarray
-        OXTS pitch and smoothed road grade (uphill positive) at the frames.
-    speed, distance : ndarray
-        Horizontal speed (m/s) and travelled distance (m) at the frames.
+    pitch_rel_road : ndarray (M,)
+        ``pitch + grade - offset``, nose down positive, used where ``valid`` (moving, not in a gap).
+    valid : ndarray of bool (M,)
+    pitch, grade, speed, distance : ndarray (M,)
+        OXTS pitch, smoothed grade (uphill +), horizontal speed (m/s), travelled distance (m).
     offset : float
         The removed mean of ``pitch + grade`` over the valid frames (NaN when none is valid).
     params : dict

@@ -44,20 +44,17 @@ class Piecewise:
     ``I1 = V_j + A_j tau + D_j d_j S1(u)`` (integral of y, ``V_0 = y1_0``) and
     ``I2 = P_j + V_j tau + A_j tau^2/2 + D_j d_j^2 S2(u)`` (integral of I1), all in
     closed form. The last phase holds forever; before ``x_0`` the first level holds.
-    ``snap`` sets an integral level of magnitude below 1e-9 to exactly 0 at the
-    start of a constant phase whose level is 0 (exact stops for a speed profile).
 
     Parameters
     ----------
-    x0 : float
-        Start of the first phase (s for a time profile, m for a road profile).
-    y0 : float
-        Level before and at the start of the first phase.
+    x0, y0 : float
+        Start of the first phase (s or m) and the level there.
     phases : sequence of (duration, delta)
         Each phase's length and the change of level over it.
     i1_0, i2_0 : float
         First and second integrals at ``x0``.
     snap : bool
+        An integral below 1e-9 at the start of a zero-level constant phase is set to 0 (exact stops).
     """
 
     def __init__(self, x0: float, y0: float, phases: Sequence[tuple[float, float]],
