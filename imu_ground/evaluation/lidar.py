@@ -22,7 +22,6 @@ Comparison (:func:`compare_to_lidar`, :func:`lidar_summary`, :func:`bootstrap_sp
 """
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -181,14 +180,7 @@ def _quiet(make, *args):
         os.close(null)
 
 
-@functools.cache
-def _patchwork(sensor_height: float):
-    """One Patchwork++ segmenter per sensor height (its construction prints)."""
-    pw = require_extra(PATCHWORK_MODULE, "lidar", "Patchwork++ ground points (--lidar-fit patchwork)")
-    params = pw.Parameters()
-    params.verbose = False
-    params.sensor_height = sensor_height
-    return _quiet(pw.patchworkpp, params)
+_PATCHWORK: dict = {}
 
 
 def patchwork_ground(points: np.ndarray, sensor_height: float = 1.73) -> np.ndarray:
@@ -199,7 +191,14 @@ def patchwork_ground(points: np.ndarray, sensor_height: float = 1.73) -> np.ndar
     MissingExtraError
         ``pypatchworkpp`` is not installed (naming ``.[lidar]`` and ``--lidar-fit``).
     """
-    seg = _patchwork(float(sensor_height))
+    key = float(sensor_height)
+    if key not in _PATCHWORK:
+        pw = require_extra(PATCHWORK_MODULE, "lidar", "Patchwork++ ground points (--lidar-fit patchwork)")
+        params = pw.Parameters()
+        params.verbose = False
+        params.sensor_height = key
+        _PATCHWORK[key] = _quiet(pw.patchworkpp, params)
+    seg = _PATCHWORK[key]
     pts = np.asarray(points, dtype=float)
     cloud = np.column_stack([pts[:, :3], pts[:, 3] if pts.shape[1] > 3 else np.zeros(len(pts))])
     seg.estimateGround(np.ascontiguousarray(cloud, dtype=np.float32))          # (N, 4) x y z intensity
