@@ -328,7 +328,7 @@ def read_bin_scan(path: str | Path) -> np.ndarray:
 
 
 def read_scan(path: str | Path) -> np.ndarray:
-    """One scan's points, (N, 3) or (N, 4) float64, LiDAR axes, m: KITTI ``.bin``, ``.pcd`` (pypcd4) or ``.ply`` (plyfile).
+    """One scan's points, (N, 3) or (N, 4) float64, LiDAR axes, m: KITTI ``.bin``, ``.pcd`` or ``.ply``.
 
     Raises
     ------

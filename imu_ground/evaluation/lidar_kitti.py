@@ -31,7 +31,8 @@ import numpy as np
 import pandas as pd
 
 from imu_ground.errors import OptionError
-from imu_ground.evaluation.lidar import PathRegion, bootstrap_spread, lidar_summary, method_summaries, path_region, scan_files
+from imu_ground.evaluation.lidar import (PathRegion, bootstrap_spread, lidar_summary, method_summaries, path_region,
+                                         scan_files)
 from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.so3 import rotx, roty, rotz
 
@@ -43,9 +44,9 @@ __all__ = ["EARTH_RADIUS_M", "KittiLidarDrive", "check_sync_folder", "drive_path
 EARTH_RADIUS_M = 6378137.0
 #: :func:`drive_summary`'s keys from :func:`~imu_ground.evaluation.lidar.method_summaries`' columns.
 _FROM_SUMMARY = {"pitch_spread": "pitch_spread_deg", "roll_change_spread": "roll_spread_deg",
-                 "angle_mean": "angle_mean_deg", "angle_centred": "angle_centred_deg", "pitch_offset": "pitch_offset_deg",
-                 "roll_offset": "roll_offset_deg", "lo95": "pitch_spread_lo95", "hi95": "pitch_spread_hi95",
-                 "p_best": "p_best_pitch"}
+                 "angle_mean": "angle_mean_deg", "angle_centred": "angle_centred_deg",
+                 "pitch_offset": "pitch_offset_deg", "roll_offset": "roll_offset_deg", "lo95": "pitch_spread_lo95",
+                 "hi95": "pitch_spread_hi95", "p_best": "p_best_pitch"}
 
 
 @dataclass
@@ -216,7 +217,8 @@ def drive_path_regions(drive: KittiLidarDrive, lidar_from_imu: Extrinsic, half_w
 
 
 def fit_noise(lidar_pitch_deg: Any, lidar_roll_deg: Any) -> dict[str, float]:
-    """The fit's frame-to-frame noise, deg: std of the second difference / sqrt(6) (white noise s gives s; NaN < 4 scans)."""
+    """The fit's frame-to-frame noise, deg: std of the second difference / sqrt(6) (white noise of std s gives s;
+    NaN with fewer than 4 scans)."""
     out = {}
     for key, v in (("fit_noise_pitch_deg", lidar_pitch_deg), ("fit_noise_roll_deg", lidar_roll_deg)):
         v = np.asarray(v, dtype=float)

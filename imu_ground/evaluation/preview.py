@@ -213,7 +213,7 @@ def images_preview(images: str | Path, times: str | Path, camera: str | Camera, 
 
 
 def drawn_grid(grid: BevGrid) -> BevGrid:
-    """``grid``, or above :data:`DRAWN_BEV_PIXELS` pixels a side the same extent coarser by the smallest whole factor."""
+    """``grid``, or above :data:`DRAWN_BEV_PIXELS` pixels a side its extent coarser by the smallest whole factor."""
     factor = math.ceil(max(grid.shape) / DRAWN_BEV_PIXELS)
     if factor <= 1:
         return grid

@@ -129,7 +129,8 @@ def ins_at_frames(df, times: np.ndarray) -> dict[str, np.ndarray]:
 
 
 def drive_revisit_pairs(drive, **thresholds) -> RevisitPairs:
-    """The revisit pairs of a real drive with its raw log: valid frames near a sample (``thresholds``: :func:`revisit_pairs`)."""
+    """The revisit pairs of a real drive with its raw log: valid frames near a sample (``thresholds``: as
+    :func:`revisit_pairs`)."""
     em = drive.egomotion
     ins = ins_at_frames(drive.imu.to_dataframe(), em.t)
     usable = np.asarray(em.valid, dtype=bool) & ins["near"]

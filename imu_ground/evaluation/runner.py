@@ -170,7 +170,7 @@ def check_methods(methods: Iterable[str]) -> list[str]:
     return methods
 
 def methods_from_list(text: str | None) -> list[str]:
-    """The methods a comma-separated list names (``--methods``; blanks ignored), checked; None: all of :data:`METHODS`."""
+    """The methods a comma-separated list names (``--methods``; blanks ignored), checked; None: all of them."""
     if text is None:
         return list(METHODS)
     return check_methods([m.strip() for m in text.split(",") if m.strip()])

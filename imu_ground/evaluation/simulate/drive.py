@@ -1,5 +1,5 @@
-r"""One simulated drive with exact truth: :func:`clean_drive` (the road and speed, :func:`drive_road`; the body on a
-fine grid and the sensor's kinematics, :func:`drive_on_road`), then the IMU errors and the frames (:func:`finish_drive`).
+r"""One simulated drive with exact truth: :func:`clean_drive` (the road and speed, :func:`drive_road`; the body on
+a fine grid and the sensor's kinematics, :func:`drive_on_road`), then the IMU errors and frames (:func:`finish_drive`).
 """
 from __future__ import annotations
 

@@ -167,7 +167,10 @@ def _random_speed(p: SpeedParams, duration: float, rng: np.random.Generator) -> 
 
 
 def speed_profile(p: SpeedParams, duration: float, rng: np.random.Generator) -> Piecewise:
-    """Longitudinal acceleration (m/s^2; integrals: speed, distance) in time (s): ``p.plan``, or drawn by ``p.style``."""
+    """Longitudinal acceleration (m/s^2; its integrals the speed and distance) in time (s).
+
+    ``p.plan`` if given, otherwise drawn from ``rng`` by ``p.style`` until ``duration`` s are covered.
+    """
     if p.plan is not None:
         return _planned_speed(p)
     return _random_speed(p, duration, rng)
