@@ -38,11 +38,9 @@ class Drive:
     name : str
     kind : {"real", "synthetic"}
     grade : str
-        IMU grade (``"oxts"`` for KITTI, ``"nav"`` or ``"mems"`` for synthetic).
-    egomotion : EgoMotion
-        Frames in the IMU (sensor) frame.
-    extrinsic : Extrinsic
-        Static sensor-to-ground extrinsic given to every method.
+        IMU grade (``"oxts"`` for KITTI, ``"nav"`` or ``"mems"``).
+    egomotion, extrinsic : EgoMotion, Extrinsic
+        Frames in the IMU (sensor) frame; the static extrinsic (ground <- sensor) every method gets.
     truth : pandas.DataFrame
         Per frame: ``t`` (s), ``pitch``, ``roll`` (rad), ``normal_x/y/z`` (sensor frame; NaN when
         unknown), ``speed`` (m/s), ``evaluate`` (the frames that count), ``ref_sigma`` (rad) and the

@@ -93,12 +93,6 @@ def _centred(x: np.ndarray, use: np.ndarray) -> np.ndarray:
     return x - x[use].mean() if np.any(use) else x
 
 
-def _ref_floor(sigma: np.ndarray, err: np.ndarray) -> float:
-    """``sqrt(2/pi) * mean(sigma)``, at most ``mean(|err|)`` (:mod:`~imu_ground.evaluation.conditions`), deg."""
-    if not sigma.size:
-        return math.nan
-    return float(min(math.sqrt(2.0 / math.pi) * sigma.mean(), np.abs(err).mean()))
-
 def _drive_metrics(d: Drive, track) -> dict[str, float]:
     """All per-drive numbers of one track (see the module docstring); angles in deg."""
     tr = d.truth
@@ -127,7 +121,8 @@ def _drive_metrics(d: Drive, track) -> dict[str, float]:
         row[f"cond_{key}_n"] = int(np.count_nonzero(sel))
         row[f"cond_{key}_sum"] = float(np.abs(err[sel]).sum())
     sigma = np.degrees(tr["ref_sigma"].to_numpy(float))[use]
-    row["ref_floor"] = _ref_floor(sigma, err[use])
+    row["ref_floor"] = (float(min(math.sqrt(2.0 / math.pi) * sigma.mean(), np.abs(err[use]).mean()))   # deg, capped
+                        if sigma.size else math.nan)
     row["ref_var_sum"] = float(np.sum(sigma * sigma))
     row["err_sq_sum"] = float(np.sum(err[use] ** 2))
     row["ref_share"] = min(row["ref_var_sum"] / row["err_sq_sum"], 1.0) if row["err_sq_sum"] > 0 else math.nan

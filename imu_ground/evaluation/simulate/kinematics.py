@@ -22,8 +22,7 @@ _EZ = np.array([0.0, 0.0, 1.0])
 
 
 def chain(axes: str, q, qd, qdd):
-    """Rotation ``R = R_1(q_1) ... R_n(q_n)`` with its body-frame angular velocity and
-    acceleration, from the angles and their first two time derivatives.
+    """Rotation ``R = R_1(q_1) ... R_n(q_n)`` with its body-frame angular velocity and acceleration.
 
     ``w = sum_i u_i q_i'`` with ``u_i = (R_{i+1} ... R_n)^T a_i``, and
     ``w' = sum_i u_i q_i'' + sum_i q_i' u_i x w_(i)`` with ``w_(i) = sum_{j > i} u_j q_j'``.
@@ -37,9 +36,8 @@ def chain(axes: str, q, qd, qdd):
 
     Returns
     -------
-    R : ndarray (N, 3, 3)
-    w, wd : ndarray (N, 3)
-        Angular velocity (rad/s) and acceleration (rad/s^2) in the rotated frame.
+    R, w, wd : ndarray (N, 3, 3), (N, 3), (N, 3)
+        The rotation, its angular velocity (rad/s) and acceleration (rad/s^2) in the rotated frame.
     """
     n = q[0].shape[0]
     c = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
@@ -68,10 +66,9 @@ def sensor_kinematics(a, v, s, layout, body, R_gs, t_gs):
     ----------
     a, v, s : ndarray (N,)
         Longitudinal acceleration (m/s^2), speed (m/s), distance (m) at the IMU samples.
-    layout : (curvature, grade, bank)
-        Road profiles along s.
-    body : (pitch, roll, heave)
-        Each ``(value, rate, acceleration)`` at the IMU samples (rad or m).
+    layout, body
+        Road profiles ``(curvature, grade, bank)`` along s; ``(pitch, roll, heave)``, each
+        ``(value, rate, acceleration)`` at the samples (rad or m).
     R_gs, t_gs : ndarray
         Body <- sensor rotation (3, 3) and sensor origin in the body frame (3,), m.
 
