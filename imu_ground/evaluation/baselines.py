@@ -79,9 +79,7 @@ class EulerEKF(BaselineEstimator):
         """d euler(X(x) T) / dx by central differences (3x3)."""
         F = np.empty((3, 3))
         h = 1e-6
-        for i in range(3):
-            dx = np.zeros(3)
-            dx[i] = h
+        for i, dx in enumerate(np.eye(3) * h):
             F[:, i] = _wrap(euler_zyx(from_euler_zyx(x + dx) @ T) - euler_zyx(from_euler_zyx(x - dx) @ T)) / (2 * h)
         return F
 

@@ -161,9 +161,7 @@ def synthetic_drive(sim, rate: float = DEFAULT_FRAME_RATE) -> Drive:
     sel = tr.iloc[idx].reset_index(drop=True)
     ext = Extrinsic(sim.R_gs, sim.t_gs, {"source": "simulation truth"})
     truth = _truth_frame(em, ext, {
-        "pitch": sel["pitch"].to_numpy(), "roll": sel["roll"].to_numpy(),
-        "normal_x": sel["normal_x"].to_numpy(), "normal_y": sel["normal_y"].to_numpy(),
-        "normal_z": sel["normal_z"].to_numpy(), "speed": sel["speed"].to_numpy(),
+        **{k: sel[k].to_numpy() for k in ("pitch", "roll", "normal_x", "normal_y", "normal_z", "speed")},
         "evaluate": (sel["speed"] > MIN_SPEED).to_numpy() & em.valid, "ref_sigma": np.zeros(len(em))})
     return Drive(sim.name, "synthetic", sim.imu_model.name, em, ext, truth, False, True, "ok", sim.imu, sim)
 

@@ -241,10 +241,8 @@ def _figure(preview: Preview, k: int, grid: BevGrid):
     grid = drawn_grid(grid)
     for j, name in enumerate(names):
         plane = preview.planes[name]
-        if not np.all(np.isfinite(plane.rotation[k])):
-            bev = np.zeros(grid.shape + (3,), dtype=np.uint8)
-        else:
-            bev = warp_to_bev(img, plane.from_bev(grid)[k], grid)
+        finite = np.all(np.isfinite(plane.rotation[k]))
+        bev = warp_to_bev(img, plane.from_bev(grid)[k], grid) if finite else np.zeros(grid.shape + (3,), np.uint8)
         a = fig.add_subplot(gs[1, j])
         a.imshow(bev, extent=(grid.y1, grid.y0, grid.x0, grid.x1), aspect="equal")
         for y in ((-lanes, lanes) if preview.lanes else ()):
@@ -253,16 +251,13 @@ def _figure(preview: Preview, k: int, grid: BevGrid):
             a.plot(preview.marks[k][1], preview.marks[k][0], "x", color="red", ms=9, mew=2)
         reading = preview.readings.get(name)
         a.set_title(f"bird's-eye, {what[name]}" + (f"\n{reading[k]}" if reading else ""), fontsize=9)
-        a.set_xlabel("left (m)")
-        if j == 0:
-            a.set_ylabel("ahead (m)")
+        a.set(xlabel="left (m)", ylabel="ahead (m)" if j == 0 else "")
     if preview.lane_error is not None:
         a = fig.add_subplot(gs[1, -1])
         d = preview.lane_error["distance_m"]
         for name, style in (("static", "C3-"), ("dynamic", "C0-")):
             a.plot(d, preview.lane_error[name], style, label=what[name])
-        a.set_xlabel("distance ahead (m)")
-        a.set_ylabel("mean |lane-width error| (m)")
+        a.set(xlabel="distance ahead (m)", ylabel="mean |lane-width error| (m)")
         a.set_title("lane-width error (moving frames)", fontsize=9)
         a.grid(True, alpha=0.3)
         a.legend(fontsize=8)

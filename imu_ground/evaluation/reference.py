@@ -219,11 +219,8 @@ def pitch_reference(df: pd.DataFrame, times: np.ndarray | None = None, *,
     tf = frame_times(t, rate) if times is None else np.asarray(times, dtype=float)
     inside = (tf >= t[0]) & (tf <= t[-1])
     near = sample_gap(t, tf)
-    nan = np.nan
-    f_pitch = np.interp(tf, t, pitch, left=nan, right=nan)
-    f_grade = np.interp(tf, t, grade_s, left=nan, right=nan)
-    f_speed = np.interp(tf, t, speed, left=nan, right=nan)
-    f_dist = np.interp(tf, t, s, left=nan, right=nan)
+    f_pitch, f_grade, f_speed, f_dist = (np.interp(tf, t, x, left=np.nan, right=np.nan)
+                                         for x in (pitch, grade_s, speed, s))
     valid = inside & (near <= max_gap + 1e-9) & (f_speed > min_speed)
     raw = f_pitch + f_grade
     offset = float(np.mean(raw[valid])) if np.any(valid) else float("nan")

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from imu_ground.evaluation.baselines import _wrap
 from imu_ground.evaluation.reference import MIN_SPEED, drop_out_of_order, sample_gap
 
 __all__ = ["RevisitPairs", "drive_revisit_pairs", "ins_at_frames", "revisit_consistency", "revisit_differences",
@@ -36,10 +37,6 @@ class RevisitPairs:
 
     def __len__(self) -> int:
         return int(len(self.i))
-
-
-def _wrap(a: np.ndarray) -> np.ndarray:
-    return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def revisit_pairs(t: np.ndarray, x: np.ndarray, y: np.ndarray, heading: np.ndarray, speed: np.ndarray,
@@ -65,8 +62,7 @@ def revisit_pairs(t: np.ndarray, x: np.ndarray, y: np.ndarray, heading: np.ndarr
         The pairs, ``i < j``, sorted: each frame's closest partner (ties: the earliest), each pair once.
     """
     from scipy.spatial import cKDTree
-    t, x, y = (np.asarray(a, dtype=float) for a in (t, x, y))
-    heading, speed = np.asarray(heading, dtype=float), np.asarray(speed, dtype=float)
+    t, x, y, heading, speed = (np.asarray(a, dtype=float) for a in (t, x, y, heading, speed))
     ok = (speed > min_speed) & np.isfinite(x) & np.isfinite(y) & np.isfinite(heading) & np.isfinite(t)
     if usable is not None:
         ok &= np.asarray(usable, dtype=bool)
@@ -117,15 +113,10 @@ def ins_at_frames(df, times: np.ndarray) -> dict[str, np.ndarray]:
     ts = d["t"].to_numpy(float)
     times = np.asarray(times, dtype=float)
 
-    def at(v: np.ndarray) -> np.ndarray:
-        return np.interp(times, ts, v)
-
-    out = {"pitch": at(d["pitch"].to_numpy(float)), "roll": at(d["roll"].to_numpy(float)),
-           "yaw": at(np.unwrap(d["yaw"].to_numpy(float))), "x": at(d["px"].to_numpy(float)),
-           "y": at(d["py"].to_numpy(float)),
-           "speed": at(np.hypot(d["ve"].to_numpy(float), d["vn"].to_numpy(float)))}
-    out["near"] = sample_gap(ts, times) <= 0.1
-    return out
+    c = {k: d[k].to_numpy(float) for k in ("pitch", "roll", "yaw", "px", "py", "ve", "vn")}
+    signals = {"pitch": c["pitch"], "roll": c["roll"], "yaw": np.unwrap(c["yaw"]), "x": c["px"], "y": c["py"],
+               "speed": np.hypot(c["ve"], c["vn"])}
+    return {**{k: np.interp(times, ts, v) for k, v in signals.items()}, "near": sample_gap(ts, times) <= 0.1}
 
 
 def drive_revisit_pairs(drive, **thresholds) -> RevisitPairs:
@@ -156,11 +147,9 @@ def revisit_differences(pairs: RevisitPairs, pitch: np.ndarray, roll: np.ndarray
     """
     road_p = pairs.ins_pitch - np.asarray(pitch, dtype=float)
     road_r = pairs.ins_roll - np.asarray(roll, dtype=float)
-    i, j = pairs.i, pairs.j
-    if valid is not None:
-        v = np.asarray(valid, dtype=bool)
-        keep = v[i] & v[j]
-        i, j = i[keep], j[keep]
+    v = np.ones(len(road_p), dtype=bool) if valid is None else np.asarray(valid, dtype=bool)
+    keep = v[pairs.i] & v[pairs.j]
+    i, j = pairs.i[keep], pairs.j[keep]
     return road_p[j] - road_p[i], road_r[j] - road_r[i]
 
 

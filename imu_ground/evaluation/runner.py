@@ -98,11 +98,8 @@ def _drive_metrics(d: Drive, track) -> dict[str, float]:
     tr = d.truth
     mask = tr["evaluate"].to_numpy(bool) & np.asarray(track.valid, dtype=bool)
     true_pitch = tr["pitch"].to_numpy(float)
-    if d.has_roll:
-        res = evaluate_drive(track.pitch, true_pitch, track.roll, tr["roll"].to_numpy(float),
-                             mask=mask, remove_mean=d.remove_mean)
-    else:
-        res = evaluate_drive(track.pitch, true_pitch, mask=mask, remove_mean=d.remove_mean)
+    roll = (track.roll, tr["roll"].to_numpy(float)) if d.has_roll else ()
+    res = evaluate_drive(track.pitch, true_pitch, *roll, mask=mask, remove_mean=d.remove_mean)
     row: dict[str, float] = {"n": res["pitch"]["n"]}
     for q, s in res.items():
         for stat in _STATS:

@@ -9,7 +9,7 @@ errors: vibration of a holder or an engine is not in them (:meth:`ImuErrorModel.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -55,10 +55,8 @@ class ImuErrorModel:
 
     def scaled(self, factor: float, name: str | None = None) -> ImuErrorModel:
         """The same model with every error multiplied by ``factor``."""
-        return ImuErrorModel(name or f"{self.name}x{factor:g}",
-                             *(factor * v for v in (self.gyro_noise_density, self.gyro_bias_rw,
-                                                    self.gyro_bias_turn_on, self.accel_noise_density,
-                                                    self.accel_bias_rw, self.accel_bias_turn_on)))
+        errors = (factor * getattr(self, f.name) for f in fields(self)[1:])
+        return ImuErrorModel(name or f"{self.name}x{factor:g}", *errors)
 
 
 IMU_PRESETS: dict[str, ImuErrorModel] = {

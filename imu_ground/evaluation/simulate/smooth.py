@@ -60,25 +60,19 @@ class Piecewise:
     def __init__(self, x0: float, y0: float, phases: Sequence[tuple[float, float]],
                  i1_0: float = 0.0, i2_0: float = 0.0, snap: bool = False) -> None:
         phases = list(phases) + [(math.inf, 0.0)]
-        n = len(phases)
-        self.start = np.empty(n)
-        self.dur = np.empty(n)
-        self.a = np.empty(n)
-        self.d = np.empty(n)
-        self.v = np.empty(n)
-        self.p = np.empty(n)
+        rows = []
         x, level, v, p = float(x0), float(y0), float(i1_0), float(i2_0)
-        for j, (dur, delta) in enumerate(phases):
+        for dur, delta in phases:
             if snap and delta == 0.0 and level == 0.0 and abs(v) < 1e-9:
                 v = 0.0
-            self.start[j], self.dur[j], self.a[j], self.d[j] = x, dur, level, delta
-            self.v[j], self.p[j] = v, p
+            rows.append((x, dur, level, delta, v, p))
             if math.isinf(dur):
                 break
             p = p + v * dur + level * dur * dur / 2.0 + delta * dur * dur * _S2_AT_1
             v = v + level * dur + delta * dur / 2.0
             level = level + delta
             x = x + dur
+        self.start, self.dur, self.a, self.d, self.v, self.p = np.array(rows, dtype=float).T
 
     def __call__(self, x):
         """Value, first and second derivative, first and second integral at ``x``."""

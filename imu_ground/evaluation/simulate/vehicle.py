@@ -278,10 +278,8 @@ def body_motion(vehicle: VehicleParams, a_f, v_f, s_f, dt_f: float, layout, roug
         f_x, f_y = _load_transfer(vehicle, a_f, v_f, s_f, layout)
         load_pitch = -vehicle.pitch_gain_deg * DEG * f_x
         load_roll = vehicle.roll_gain_deg * DEG * f_y
-    pitch = _base_excited(u_pitch, du_pitch, load_pitch, dt_f, vehicle.pitch_freq, vehicle.pitch_damping,
-                          vehicle.damper_road_input)
-    roll = _base_excited(u_roll, du_roll, load_roll, dt_f, vehicle.roll_freq, vehicle.roll_damping,
-                         vehicle.damper_road_input)
-    heave = _base_excited(u_heave, du_heave, np.zeros_like(s_f), dt_f, vehicle.heave_freq, vehicle.heave_damping,
-                          vehicle.damper_road_input)
-    return pitch, roll, heave
+    modes = (("pitch", u_pitch, du_pitch, load_pitch), ("roll", u_roll, du_roll, load_roll),
+             ("heave", u_heave, du_heave, np.zeros_like(s_f)))
+    return tuple(_base_excited(u, du, load, dt_f, getattr(vehicle, f"{mode}_freq"),
+                               getattr(vehicle, f"{mode}_damping"), vehicle.damper_road_input)
+                 for mode, u, du, load in modes)
