@@ -67,9 +67,8 @@ class EulerEKF(BaselineEstimator):
         Q, R, P, x0 = self._init
         ekf = ExtendedKalmanFilter(dim_x=3, dim_z=3)
         ekf.x = np.zeros(3) if x0 is None else x0.copy()
-        ekf.P = np.eye(3) * P if np.ndim(P) == 0 else np.asarray(P, dtype=float).copy()
-        ekf.Q = np.eye(3) * Q if np.ndim(Q) == 0 else np.asarray(Q, dtype=float).copy()
-        ekf.R = np.eye(3) * R if np.ndim(R) == 0 else np.asarray(R, dtype=float).copy()
+        ekf.P, ekf.Q, ekf.R = (np.eye(3) * v if np.ndim(v) == 0 else np.asarray(v, dtype=float).copy()
+                               for v in (P, Q, R))
         self.ekf = ekf
         self.cumulative = np.eye(3)
         self._count = 0

@@ -119,9 +119,9 @@ def read_kitti_lidar_drive(folder: str | Path) -> KittiLidarDrive:
     """
     d = check_sync_folder(folder)
     files = scan_files(d / "velodyne_points" / "data")
-    if not all(f.stem.isdigit() for f in files):
-        bad = next(f for f in files if not f.stem.isdigit())
-        raise OptionError(f"{bad}: a KITTI raw scan is named by its frame number (0000000000.bin ...) ({{opt}})",
+    bad = [f for f in files if not f.stem.isdigit()]
+    if bad:
+        raise OptionError(f"{bad[0]}: a KITTI raw scan is named by its frame number (0000000000.bin ...) ({{opt}})",
                           "lidar")
     frames = np.array([int(f.stem) for f in files], dtype=np.int64)
     oxts_ns = _read_stamps(d / "oxts" / "timestamps.txt", "lidar")

@@ -119,8 +119,7 @@ def summarize(errors, mask=None) -> dict[str, float]:
     n_nonfinite = int(np.count_nonzero(m & ~finite))
     x = e[m & finite]
     if x.size == 0:
-        nan = float("nan")
-        return {"n": 0, "mean": nan, "median": nan, "rms": nan, "p95": nan, "bias": nan,
+        return {"n": 0, **dict.fromkeys(("mean", "median", "rms", "p95", "bias"), float("nan")),
                 "n_nonfinite": n_nonfinite}
     a = np.abs(x)
     return {"n": int(x.size), "mean": float(a.mean()), "median": float(np.median(a)),
@@ -146,12 +145,10 @@ def evaluate_drive(est_pitch, true_pitch, est_roll=None, true_roll=None, mask=No
     dict
         ``{"pitch": ..., "roll": ..., "angle": ...}`` (the last two only with roll), each :func:`summarize`'s.
     """
-    arrays = [np.asarray(est_pitch, dtype=float), np.asarray(true_pitch, dtype=float)]
-    with_roll = est_roll is not None or true_roll is not None
-    if with_roll:
-        if est_roll is None or true_roll is None:
-            raise ValueError("give both est_roll and true_roll, or neither")
-        arrays += [np.asarray(est_roll, dtype=float), np.asarray(true_roll, dtype=float)]
+    rolls = [np.asarray(a, dtype=float) for a in (est_roll, true_roll) if a is not None]
+    if len(rolls) == 1:
+        raise ValueError("give both est_roll and true_roll, or neither")
+    arrays = [np.asarray(est_pitch, dtype=float), np.asarray(true_pitch, dtype=float), *rolls]
     n = arrays[0].shape
     for a in arrays:
         if a.shape != n or a.ndim != 1:

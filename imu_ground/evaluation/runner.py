@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterable, Iterator, Mapping, Sequence, ValuesView
+from collections import ChainMap
+from collections.abc import Iterable, Mapping, Sequence, ValuesView
 from functools import partial
 
 import numpy as np
@@ -53,24 +54,9 @@ _BASELINES: tuple[MethodSpec, ...] = (
 )
 
 
-class _MethodsByName(Mapping):
-    """The registry's methods then the research baselines, by name: a view, read from the registry at each use."""
-
-    def _all(self) -> dict[str, MethodSpec]:
-        return {m.name: m for m in (*REGISTRY.values(), *_BASELINES)}
-
-    def __getitem__(self, name: str) -> MethodSpec:
-        return self._all()[name]
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self._all())
-
-    def __len__(self) -> int:
-        return len(self._all())
-
-
-#: Every method of the evaluation by name, in report order: the registry's (as it is now), then the research baselines.
-METHODS: Mapping[str, MethodSpec] = _MethodsByName()
+#: Every method of the evaluation by name, in report order: the registry's (as it is now), then the research baselines
+#: (a live view: a ChainMap lists its last mapping's keys first).
+METHODS: Mapping[str, MethodSpec] = ChainMap({m.name: m for m in _BASELINES}, REGISTRY)
 #: The same methods (a view of :data:`METHODS`).
 EVALUATION_METHODS: ValuesView[MethodSpec] = METHODS.values()
 
@@ -285,18 +271,12 @@ def conditions_table(results, counts: bool = False):
     pandas.DataFrame
         Index (set, method); a column per label of :data:`~imu_ground.evaluation.conditions.CONDITIONS`, and ``all``.
     """
-    import pandas as pd
-    ok = _sets(results)
-    out = []
-    for (s, m), g in ok.groupby(["set", "method"], sort=False):
-        row = {"set": s, "method": m}
-        for key, label in CONDITIONS.items():
-            n = int(g[f"cond_{key}_n"].sum())
-            row[label] = n if counts else (g[f"cond_{key}_sum"].sum() / n if n else np.nan)
-        n_all = int(g["n"].sum())
-        row["all"] = n_all if counts else float((g["pitch_mean"] * g["n"]).sum() / n_all) if n_all else np.nan
-        out.append(row)
-    return pd.DataFrame(out).set_index(["set", "method"])
+    ok = _sets(results).assign(pitch_sum=lambda f: f["pitch_mean"] * f["n"])
+    by = ok.groupby(["set", "method"], sort=False)
+    n = by[[*(f"cond_{key}_n" for key in CONDITIONS), "n"]].sum().astype(int)
+    sums = by[[*(f"cond_{key}_sum" for key in CONDITIONS), "pitch_sum"]].sum()
+    n.columns = sums.columns = [*CONDITIONS.values(), "all"]
+    return n if counts else sums / n.where(n > 0)
 
 
 def sigma_table(results):
@@ -319,6 +299,7 @@ def sigma_table(results):
         return pd.DataFrame(columns=["frames", "ref_floor_deg"])
     out = []
     first = ok[ok["method"] == ok["method"].iloc[0]]
+    by = ok.groupby("method", sort=False)[[c for c in ok.columns if c.startswith("sigma")]].sum()
     for b in range(len(SIGMA_BINS) - 1):
         n = int(first[f"sigma{b}_n"].sum())
         if not n:
@@ -326,9 +307,8 @@ def sigma_table(results):
         lo, hi = SIGMA_BINS[b], SIGMA_BINS[b + 1]
         row = {"ref_sigma_deg": f"{lo:g}-{hi:g}" if math.isfinite(hi) else f">{lo:g}", "frames": n,
                "ref_floor_deg": math.sqrt(2.0 / math.pi) * first[f"sigma{b}_ref_sum"].sum() / n}
-        for m, g in ok.groupby("method", sort=False):
-            k = g[f"sigma{b}_n"].sum()
-            row[m] = g[f"sigma{b}_sum"].sum() / k if k else np.nan
+        k = by[f"sigma{b}_n"]
+        row.update(by[f"sigma{b}_sum"] / k.where(k > 0))            # per method
         out.append(row)
     return pd.DataFrame(out).set_index("ref_sigma_deg")
 

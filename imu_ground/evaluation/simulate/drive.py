@@ -15,6 +15,7 @@ from imu_ground.evaluation.simulate.imu_errors import ImuErrorModel, imu_error_m
 from imu_ground.evaluation.simulate.kinematics import quat_wxyz, road_positions, sensor_kinematics
 from imu_ground.evaluation.simulate.road import RoadParams, road_layout, road_profile, rough_plane
 from imu_ground.evaluation.simulate.vehicle import SpeedParams, VehicleParams, body_motion, speed_profile
+from imu_ground.filters.estimator import pitch_roll_from_normal
 from imu_ground.imu.data import ImuData
 
 if TYPE_CHECKING:
@@ -181,8 +182,7 @@ def _truth_samples(kin, body, rough, s, vehicle: VehicleParams, road: RoadParams
     al_t, bk_t = kin["grade"] + d_grade, kin["bank"] + d_bank
     r_wr_t = so3.rotz(kin["heading"]) @ so3.roty(-al_t) @ so3.rotx(bk_t)
     n_b = np.einsum("nji,nj->ni", kin["R_wb"], r_wr_t[:, :, 2])      # E^T e_z, E = R_wr^T R_wb
-    th_t = np.arctan2(-n_b[:, 0], np.hypot(n_b[:, 1], n_b[:, 2]))
-    ph_t = np.arctan2(n_b[:, 1], n_b[:, 2])
+    th_t, ph_t = pitch_roll_from_normal(n_b)
     n_s = n_b @ R_gs
     return {
         "t": t_imu, "s": s, "speed": v, "acc_long": a, "acc_lat": kin["acc_lat"],

@@ -217,15 +217,14 @@ def _road_inputs(vehicle: VehicleParams, s_f, v_f, rough):
     l_r = vehicle.rear_axle_to_ref
     l_f = vehicle.wheelbase - l_r
     front, rear = s_f + l_f, s_f - l_r
-    (hfl, sfl), (hfr, sfr) = _profile_at(x_rough, h_l, front), _profile_at(x_rough, h_r, front)
-    (hrl, srl), (hrr, srr) = _profile_at(x_rough, h_l, rear), _profile_at(x_rough, h_r, rear)
+    heights, slopes = zip(*(_profile_at(x_rough, h, pos) for pos in (front, rear) for h in (h_l, h_r)), strict=True)
 
     def inputs(fl, fr, rl, rr):
         h_front, h_rear = 0.5 * (fl + fr), 0.5 * (rl + rr)
         return (-(h_front - h_rear) / vehicle.wheelbase, (0.5 * (fl + rl) - 0.5 * (fr + rr)) / vehicle.track,
                 (l_r * h_front + l_f * h_rear) / vehicle.wheelbase)
 
-    return inputs(hfl, hfr, hrl, hrr), tuple(d * v_f for d in inputs(sfl, sfr, srl, srr))
+    return inputs(*heights), tuple(d * v_f for d in inputs(*slopes))          # wheels fl, fr, rl, rr
 
 
 def _base_excited(road, road_rate, load, dt_f: float, freq: float, damping: float, damper: bool = True):
