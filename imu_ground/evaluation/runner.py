@@ -75,24 +75,21 @@ def run_method(name: str, drive: Drive):
 _STATS = ("mean", "median", "rms", "p95", "bias")
 
 
-def _centred(x: np.ndarray, use: np.ndarray) -> np.ndarray:
-    return x - x[use].mean() if np.any(use) else x
-
-
 def _drive_metrics(d: Drive, track) -> dict[str, float]:
     """All per-drive numbers of one track (see the module docstring); angles in deg."""
     tr = d.truth
     mask = tr["evaluate"].to_numpy(bool) & np.asarray(track.valid, dtype=bool)
     true_pitch = tr["pitch"].to_numpy(float)
-    roll = (track.roll, tr["roll"].to_numpy(float)) if d.has_roll else ()
-    res = evaluate_drive(track.pitch, true_pitch, *roll, mask=mask, remove_mean=d.remove_mean)
+    est_roll, true_roll = (track.roll, tr["roll"].to_numpy(float)) if d.has_roll else (None, None)
+    res = evaluate_drive(track.pitch, true_pitch, est_roll, true_roll, mask=mask, remove_mean=d.remove_mean)
     row: dict[str, float] = {"n": res["pitch"]["n"]}
     for q, s in res.items():
         for stat in _STATS:
             row[f"{q}_{stat}"] = s[stat]
     use = mask & np.isfinite(track.pitch) & np.isfinite(true_pitch)
-    est_c, ref_c = ((_centred(track.pitch, use), _centred(true_pitch, use)) if d.remove_mean
-                    else (track.pitch, true_pitch))
+    est_c, ref_c = track.pitch, true_pitch
+    if d.remove_mean and np.any(use):
+        est_c, ref_c = est_c - est_c[use].mean(), ref_c - ref_c[use].mean()
     err = np.degrees(est_c - ref_c)
     seg = np.degrees(segment_centred(track.pitch, true_pitch, use, moving_segments(tr["speed"].to_numpy(float))))
     row["seg_n"] = int(np.count_nonzero(np.isfinite(seg)))
@@ -118,13 +115,6 @@ def _drive_metrics(d: Drive, track) -> dict[str, float]:
     return row
 
 
-def _revisit_metrics(pairs, track) -> dict[str, float]:
-    """Revisit pair count and sums of |road attitude difference| (deg) of one track."""
-    dp, dr = revisit_differences(pairs, track.pitch, track.roll, track.valid)
-    return {"revisit_n": int(len(dp)), "revisit_pitch_sum": float(np.degrees(np.abs(dp)).sum()),
-            "revisit_roll_sum": float(np.degrees(np.abs(dr)).sum())}
-
-
 def check_methods(methods: Iterable[str]) -> list[str]:
     """The method names of an evaluation, checked: each a key of :data:`METHODS`, each once.
 
@@ -146,6 +136,7 @@ def check_methods(methods: Iterable[str]) -> list[str]:
         raise OptionError(f"{{opt}}: {', '.join(twice)} given twice; each method once (its rows would count twice)",
                           "methods")
     return methods
+
 
 def methods_from_list(text: str | None) -> list[str]:
     """The methods a comma-separated list names (``--methods``; blanks ignored), checked; None: all of them."""
@@ -197,7 +188,9 @@ def evaluate(drives: Iterable[Drive], methods: Sequence[str] | None = None,
                 row["us_per_frame"] = sec / max(len(d.egomotion), 1) * 1e6
                 row.update(_drive_metrics(d, track))
                 if pairs is not None:
-                    row.update(_revisit_metrics(pairs, track))
+                    dp, dr = revisit_differences(pairs, track.pitch, track.roll, track.valid)
+                    row.update(revisit_n=int(len(dp)), revisit_pitch_sum=float(np.degrees(np.abs(dp)).sum()),
+                               revisit_roll_sum=float(np.degrees(np.abs(dr)).sum()))
                 if keep_tracks:
                     tracks[(d.name, m)] = track
             rows.append(row)

@@ -131,13 +131,6 @@ MAX_IMU_RATE_HZ = 1000.0
 MAX_IMU_SAMPLES = 360_000
 
 
-def _finite_positive(value) -> bool:
-    try:
-        return math.isfinite(value) and value > 0
-    except TypeError:
-        return False
-
-
 def check_rates(duration, imu_rate, frame_rate, oversample) -> int:
     """Check a drive's duration and rates; the fine-grid factor (default: the smallest giving >= 1 kHz).
 
@@ -149,7 +142,11 @@ def check_rates(duration, imu_rate, frame_rate, oversample) -> int:
     """
     for value, name, flag in ((imu_rate, "imu_rate", "--rate"), (frame_rate, "frame_rate", None),
                               (duration, "duration", None)):
-        if not _finite_positive(value):
+        try:
+            ok = math.isfinite(value) and value > 0
+        except TypeError:
+            ok = False
+        if not ok:
             raise OptionError(f"{{opt}} {value}: must be a finite number > 0", name, flag=flag)
     ratio = imu_rate / frame_rate
     if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
@@ -204,6 +201,7 @@ def check_seed(seed) -> int:
     if value < 0 or value != seed:
         raise OptionError(f"{{opt}} {seed}: a seed is a whole number >= 0", "seed")
     return value
+
 
 def clean_drive(duration: float, seed: int, imu_rate: float, road: RoadParams, vehicle: VehicleParams,
                 speed: SpeedParams, R_gs: np.ndarray, t_gs: np.ndarray, oversample: int) -> dict:

@@ -106,6 +106,7 @@ def check_suite_size(n) -> int:
                           "in memory); for more, run several suites with other seeds", "n", flag="--synthetic")
     return int(n)
 
+
 def simulate_suite(n: int, seed: int = 0, grades: Sequence[str | ImuErrorModel] = ("nav", "mems"), *,
                    duration_range: tuple[float, float] = (60.0, 180.0),
                    roughness_classes: Sequence[str] | None = None,

@@ -112,21 +112,6 @@ def _speed_change(phases: list, v_from: float, v_to: float, a_mag: float, ramp: 
     return 2.0 * ramp + hold
 
 
-def _planned_speed(p: SpeedParams) -> Piecewise:
-    phases: list[tuple[float, float]] = []
-    v = float(p.v_start)
-    ramp = float(np.mean(p.ramp_time))
-    assert p.plan is not None                   # a planned speed
-    for target, accel, hold in p.plan:
-        if target < 0:
-            raise ValueError("speeds in the plan must be >= 0")
-        _speed_change(phases, v, float(target), float(accel), ramp)
-        v = float(target)
-        if hold > 0:
-            phases.append((float(hold), 0.0))
-    return Piecewise(0.0, 0.0, phases, i1_0=float(p.v_start), snap=True)
-
-
 def _random_speed(p: SpeedParams, duration: float, rng: np.random.Generator) -> Piecewise:
     style = STYLES.get(p.style)
     if style is None:
@@ -171,9 +156,19 @@ def speed_profile(p: SpeedParams, duration: float, rng: np.random.Generator) -> 
 
     ``p.plan`` if given, otherwise drawn from ``rng`` by ``p.style`` until ``duration`` s are covered.
     """
-    if p.plan is not None:
-        return _planned_speed(p)
-    return _random_speed(p, duration, rng)
+    if p.plan is None:
+        return _random_speed(p, duration, rng)
+    phases: list[tuple[float, float]] = []
+    v = float(p.v_start)
+    ramp = float(np.mean(p.ramp_time))
+    for target, accel, hold in p.plan:
+        if target < 0:
+            raise ValueError("speeds in the plan must be >= 0")
+        _speed_change(phases, v, float(target), float(accel), ramp)
+        v = float(target)
+        if hold > 0:
+            phases.append((float(hold), 0.0))
+    return Piecewise(0.0, 0.0, phases, i1_0=float(p.v_start), snap=True)
 
 
 # --------------------------------------------------------------------------- suspension
