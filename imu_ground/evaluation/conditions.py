@@ -111,11 +111,8 @@ def frame_signals(egomotion, extrinsic_rotation: np.ndarray, speed: np.ndarray) 
     if v.size > 2 * k:
         acc[k:-k] = (v[2 * k:] - v[:-2 * k]) / (t[2 * k:] - t[:-2 * k])
     half = max(int(round(0.5 * ROUGH_WINDOW_S * fr)), 1)
-    q = rate[:, 1] if len(rate) else np.zeros(0)
-    hf = q - _centred_mean(q, half)
-    rough = np.sqrt(_centred_mean(hf * hf, half)) if q.size else q
-    return {"speed": v, "acc_long": acc, "yaw_rate": rate[:, 2] if len(rate) else q,
-            "pitch_rate_hf": rough}
+    hf = rate[:, 1] - _centred_mean(rate[:, 1], half)              # rate is (F, 3), also without frames
+    return {"speed": v, "acc_long": acc, "yaw_rate": rate[:, 2], "pitch_rate_hf": np.sqrt(_centred_mean(hf * hf, half))}
 
 
 def condition_masks(signals: dict[str, np.ndarray], t: np.ndarray) -> dict[str, np.ndarray]:
