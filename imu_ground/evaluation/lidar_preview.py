@@ -88,15 +88,13 @@ def add_lidar_plane(preview: Preview, scans: str | Path, spec: str | Path, imu_e
     in_cam = (marks - ext.translation) @ ext.rotation                # R^T (x_g - t), row-wise
     with np.errstate(invalid="ignore", divide="ignore"):
         uv = (in_cam @ cam.K.T)[:, :2] / in_cam[:, 2:]
-    readings: dict[str, list[str]] = {}
-    for name, plane in preview.planes.items():
-        texts = []
-        for k in range(len(files)):
-            x = plane[k].road_from_pixel(uv[k, 0], uv[k, 1])[0, 0] if np.all(np.isfinite(uv[k])) else np.nan
-            texts.append(f"LiDAR point {marks[k, 0]:.1f} m ahead reads {x:.1f} m" if np.isfinite(x)
-                         else "LiDAR point: not on the road in this view")
-        readings[name] = texts
-    preview.readings = readings
+
+    def reading(plane: GroundPlane, k: int) -> str:
+        x = plane[k].road_from_pixel(uv[k, 0], uv[k, 1])[0, 0] if np.all(np.isfinite(uv[k])) else np.nan
+        return (f"LiDAR point {marks[k, 0]:.1f} m ahead reads {x:.1f} m" if np.isfinite(x)
+                else "LiDAR point: not on the road in this view")
+
+    preview.readings = {name: [reading(p, k) for k in range(len(files))] for name, p in preview.planes.items()}
     preview.marks = marks[:, :2]
     preview.title += (f"; the LiDAR plane from {Path(scans).parent.name}/{Path(scans).name} (region {region}); "
                       f"cross: the LiDAR's road point nearest {distance:g} m ahead")

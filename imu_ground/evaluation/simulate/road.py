@@ -150,11 +150,8 @@ def road_profile(length: float, roughness: str | float | None = "B", *, dx: floa
     shape = (2, freqs.size)
     z = amp * (rng.standard_normal(shape) + 1j * rng.standard_normal(shape))
     coh = np.exp(-coherence_decay * freqs * track)
-    zl = z[0]
     zr = coh * z[0] + np.sqrt(1.0 - coh * coh) * z[1]
-    h_left = np.fft.irfft(zl, n_fft)[:n_pts]
-    h_right = np.fft.irfft(zr, n_fft)[:n_pts]
-    return x, h_left, h_right
+    return x, np.fft.irfft(z[0], n_fft)[:n_pts], np.fft.irfft(zr, n_fft)[:n_pts]
 
 
 def rough_plane(x, h_l, h_r, s, track, dx):
@@ -185,8 +182,7 @@ def rough_plane(x, h_l, h_r, s, track, dx):
         return (c[lo + half] - c[lo]) / half
 
     hl, hr = box(box(h_l)), box(box(h_r))
-    hc = 0.5 * (hl + hr)
-    slope = np.gradient(hc, x)
+    slope = np.gradient(0.5 * (hl + hr), x)
     grade = np.arctan(np.interp(s, x, slope))
     bank = np.arctan(np.interp(s, x, (hl - hr) / track))
     return grade, bank
