@@ -64,8 +64,6 @@ def drive_ground_errors(camera: Camera, pitch: Any, roll: Any, true_pitch: Any, 
         ``{"static": errors, "dynamic": errors, "truth": errors}``, each :func:`ground_errors`' dict.
     """
     truth = GroundPlane.from_pitch_roll(camera, true_pitch, true_roll)
-    n = len(truth)
-    static = GroundPlane.from_pitch_roll(camera, np.zeros(n), np.zeros(n))
-    dynamic = GroundPlane.from_pitch_roll(camera, pitch, roll)
-    return {name: ground_errors(truth, plane, distances, lane_width)
-            for name, plane in (("static", static), ("dynamic", dynamic), ("truth", truth))}
+    planes = {"static": GroundPlane.from_pitch_roll(camera, np.zeros(len(truth)), np.zeros(len(truth))),
+              "dynamic": GroundPlane.from_pitch_roll(camera, pitch, roll), "truth": truth}
+    return {name: ground_errors(truth, plane, distances, lane_width) for name, plane in planes.items()}

@@ -70,9 +70,8 @@ def revisit_pairs(t: np.ndarray, x: np.ndarray, y: np.ndarray, heading: np.ndarr
     empty = np.zeros(0, dtype=int)
     if len(idx) < 2:
         return empty, empty
-    pts = np.column_stack([x[idx], y[idx]])
-    tree = cKDTree(pts)
-    near = tree.query_pairs(max_distance, output_type="ndarray")       # a < b, indices into idx
+    # a < b, indices into idx
+    near = cKDTree(np.column_stack([x[idx], y[idx]])).query_pairs(max_distance, output_type="ndarray")
     if len(near) == 0:
         return empty, empty
     a, b = idx[near[:, 0]], idx[near[:, 1]]
