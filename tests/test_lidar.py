@@ -201,6 +201,29 @@ def test_bootstrap_ranks_a_clearly_better_method_first():
     assert b.loc["good", "lo95"] < b.loc["good", "spread"] < b.loc["good", "hi95"]
 
 
+def test_the_table_and_the_drive_summary_are_one_per_method_summary():
+    from imu_ground.evaluation import lidar_kitti as K
+    rng = np.random.default_rng(1)
+    t = np.arange(1, 301) * 0.1
+    ts = np.linspace(1.0, 29.0, 25)
+    lp, lr = rng.normal(0, 0.01, 25), rng.normal(0, 0.01, 25)
+    estimates = {m: (t, rng.normal(0, s, t.size), rng.normal(0, s, t.size), None) for m, s in (("a", 0.002),
+                                                                                              ("b", 0.02))}
+    frames, summary = L.lidar_table(estimates, ts, lp, lr)
+    assert summary.equals(L.method_summaries(frames))
+    drive = K.drive_summary(frames)
+    for m in ("a", "b"):
+        s = summary.loc[m]
+        assert drive[m]["scans"] == 25 and drive[m]["pitch_spread_deg"] == s["pitch_spread"]
+        assert (drive[m]["pitch_spread_lo95"], drive[m]["p_best_pitch"]) == (s["lo95"], s["p_best"])
+        roll = L.method_summaries(frames, "roll").loc[m]
+        assert (drive[m]["roll_spread_lo95"], drive[m]["p_best_roll"]) == (roll["lo95"], roll["p_best"])
+    short, _ = L.lidar_table(estimates, ts[:2], lp[:2], lr[:2])
+    assert "lo95" not in L.method_summaries(short) and set(K.drive_summary(short)["a"]) == {
+        "scans", "pitch_spread_deg", "roll_spread_deg", "angle_mean_deg", "angle_centred_deg", "pitch_offset_deg",
+        "roll_offset_deg"}
+
+
 # ----------------------------------------------------------------------------- CLI
 def test_evaluate_lidar_bad_inputs_exit_2_with_one_line(cli, tmp_path):
     scans = tmp_path / "scans"

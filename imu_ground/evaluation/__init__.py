@@ -20,8 +20,9 @@ _EXPORTS = {
                 "format_table sigma_table summary_table"),
     ".lidar": ("GROUND_FITS LIDAR_EXTRA PATCHWORK_MODULE ROAD_REGION SCAN_SUFFIXES PathRegion RoadRegion bootstrap_spread "
                "compare_to_lidar fit_ground_plane fit_scans kitti_object_rotation lidar_figure lidar_pitch_roll lidar_rotation "
-               "lidar_summary lidar_table lidar_transform path_region patchwork_available patchwork_ground "
-               "planes_pitch_roll planes_rotations plot_lidar read_bin_scan read_scan read_scan_times read_times scan_files"),
+               "lidar_summary lidar_table lidar_transform method_summaries path_region patchwork_available "
+               "patchwork_ground planes_pitch_roll planes_rotations plot_lidar read_bin_scan read_scan "
+               "read_scan_times read_times scan_files"),
     ".revisit": ("RevisitPairs revisit_pairs ins_at_frames drive_revisit_pairs revisit_differences "
                  "revisit_consistency revisit_table"),
     ".lidar_kitti": ("KittiLidarDrive check_sync_folder drive_path_regions drive_summary find_lidar_drives fit_noise "

@@ -1,25 +1,16 @@
 r"""The evaluation's research baselines, on the estimator protocol.
 
-- :class:`ConstantNormal`: the static extrinsic alone (the paper's "naive"); a method of
-  the registry (``imu-ground estimate --method naive``), defined in
-  :mod:`imu_ground.filters.constant_normal` and re-exported here.
-- :class:`EulerEKF`: a standard EKF on filterpy's
-  :class:`~filterpy.kalman.ExtendedKalmanFilter` whose state is the ZYX Euler
-  angles ``(roll, pitch, yaw)`` of the slow road attitude ``X`` (world <- road,
-  ``X = Rz(yaw) Ry(pitch) Rx(roll)``). It gets the same ego-motion, the same
-  prediction (``X <- X T_k``, the heading twist of each increment, or a pure
-  random walk) and the same Q and R as :class:`~imu_ground.filters.GroundNormalFilter`
-  and measures the Euler angles of the cumulative rotation (``H = I``, angle
-  differences wrapped to (-pi, pi]). What it lacks is invariance: its
-  covariance lives in Euler coordinates, whose Jacobians depend on the state
-  and whose axes do not turn with the vehicle, so large turns and poor
-  initial estimates are where it differs.
+- :class:`ConstantNormal`: the static extrinsic alone (the paper's "naive", ``--method naive``),
+  re-exported from :mod:`imu_ground.filters.constant_normal`.
+- :class:`EulerEKF`: a standard EKF (filterpy) whose state is the ZYX Euler angles ``(roll, pitch,
+  yaw)`` of the slow road attitude ``X = Rz(yaw) Ry(pitch) Rx(roll)`` (world <- road), with the
+  ego-motion, prediction (``X <- X T_k``, the heading twist, or a random walk) and Q, R of
+  :class:`~imu_ground.filters.GroundNormalFilter`, measuring the Euler angles of the cumulative
+  rotation (``H = I``, differences wrapped). It lacks invariance: its covariance lives in Euler
+  coordinates, whose axes do not turn with the vehicle.
 
-Both follow :class:`~imu_ground.filters.estimator.GroundEstimator`: ``reset()``,
-``step(frame) -> GroundEstimate`` and ``run(egomotion, smooth=False) -> GroundTrack``
-(frames and signs as documented in :mod:`imu_ground.filters.estimator`). A bad
-frame (not a rotation, non-finite, ``delta_t <= 0``) raises ``ValueError`` and
-leaves the state as it was.
+Both follow :class:`~imu_ground.filters.estimator.GroundEstimator` (frames and signs there); a bad
+frame raises ``ValueError`` and leaves the state as it was.
 """
 from __future__ import annotations
 
@@ -49,13 +40,11 @@ class EulerEKF(BaselineEstimator):
     Parameters
     ----------
     Q, R, P : float or ndarray (3, 3)
-        Process noise per frame, measurement noise and initial covariance in
-        Euler-angle coordinates (rad^2); defaults as the paper: 1e-2 I, I, I.
+        Process noise per frame, measurement noise and initial covariance, Euler coordinates (rad^2).
     extrinsic : Extrinsic or ndarray (3, 3), optional
-        Static sensor-to-ground extrinsic (ground <- sensor).
+        Static extrinsic, ground <- sensor.
     follow_heading : bool
-        Predict with the heading twist of each body increment (as
-        :class:`~imu_ground.filters.GroundNormalFilter` does by default).
+        Predict with the heading twist of each body increment.
     x0 : array_like (3,), optional
         Initial (roll, pitch, yaw) of the slow state, rad; default zeros.
 
@@ -78,9 +67,8 @@ class EulerEKF(BaselineEstimator):
         Q, R, P, x0 = self._init
         ekf = ExtendedKalmanFilter(dim_x=3, dim_z=3)
         ekf.x = np.zeros(3) if x0 is None else x0.copy()
-        ekf.P = np.eye(3) * P if np.ndim(P) == 0 else np.asarray(P, dtype=float).copy()
-        ekf.Q = np.eye(3) * Q if np.ndim(Q) == 0 else np.asarray(Q, dtype=float).copy()
-        ekf.R = np.eye(3) * R if np.ndim(R) == 0 else np.asarray(R, dtype=float).copy()
+        ekf.P, ekf.Q, ekf.R = (np.eye(3) * v if np.ndim(v) == 0 else np.asarray(v, dtype=float).copy()
+                               for v in (P, Q, R))
         self.ekf = ekf
         self.cumulative = np.eye(3)
         self._count = 0
@@ -90,9 +78,7 @@ class EulerEKF(BaselineEstimator):
         """d euler(X(x) T) / dx by central differences (3x3)."""
         F = np.empty((3, 3))
         h = 1e-6
-        for i in range(3):
-            dx = np.zeros(3)
-            dx[i] = h
+        for i, dx in enumerate(np.eye(3) * h):
             F[:, i] = _wrap(euler_zyx(from_euler_zyx(x + dx) @ T) - euler_zyx(from_euler_zyx(x - dx) @ T)) / (2 * h)
         return F
 

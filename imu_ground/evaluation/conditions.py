@@ -21,19 +21,16 @@ roughness). A frame can be in several; all are restricted to the evaluated frame
 
 Moving segments (:func:`moving_segments`, :func:`segment_centred`)
 ------------------------------------------------------------------
-Maximal runs of frames between stops (``speed < STOP_SPEED``), gaps included. The
-per-segment metric removes the means of estimate and reference per segment instead
-of per drive; segments with fewer than ``MIN_SEGMENT_FRAMES`` evaluated frames are
-left out.
+Runs of frames between stops (``speed < STOP_SPEED``), gaps included; the per-segment
+metric removes the means per segment instead of per drive.
 
 Reference uncertainty (:func:`reference_sigma`)
 -----------------------------------------------
-``sigma_ref = sqrt((INS_VU_NOISE / v)^2 + INS_PITCH_NOISE^2)`` (a vertical-velocity
-error ``e_vu`` is a grade error ``e_vu / v``; it is slow, so the grade window does not
-average it away). A perfect estimator would score ``sqrt(2 / pi) * sigma_ref`` in mean
-absolute error (``ref_floor``); ``mean(sigma_ref^2) / mean(error^2)`` is the share of a
-method's squared error the reference alone explains (``ref_share``); per drive both
-are capped at the method's own error. Synthetic drives: ``sigma_ref = 0``.
+``sigma_ref = sqrt((INS_VU_NOISE / v)^2 + INS_PITCH_NOISE^2)`` (a slow vertical-velocity
+error ``e_vu`` is a grade error ``e_vu / v``). A perfect estimator would score
+``sqrt(2 / pi) * sigma_ref`` in mean absolute error (``ref_floor``); ``mean(sigma_ref^2) /
+mean(error^2)`` is the share of the squared error the reference explains (``ref_share``);
+per drive both capped at the method's own error. Synthetic drives: ``sigma_ref = 0``.
 """
 from __future__ import annotations
 
@@ -42,6 +39,7 @@ import math
 import numpy as np
 
 from imu_ground import so3
+from imu_ground.evaluation.reference import sample_gap
 from imu_ground.units import DEG
 
 __all__ = [
@@ -113,22 +111,17 @@ def frame_signals(egomotion, extrinsic_rotation: np.ndarray, speed: np.ndarray) 
     if v.size > 2 * k:
         acc[k:-k] = (v[2 * k:] - v[:-2 * k]) / (t[2 * k:] - t[:-2 * k])
     half = max(int(round(0.5 * ROUGH_WINDOW_S * fr)), 1)
-    q = rate[:, 1] if len(rate) else np.zeros(0)
-    hf = q - _centred_mean(q, half)
-    rough = np.sqrt(_centred_mean(hf * hf, half)) if q.size else q
-    return {"speed": v, "acc_long": acc, "yaw_rate": rate[:, 2] if len(rate) else q,
-            "pitch_rate_hf": rough}
+    hf = rate[:, 1] - _centred_mean(rate[:, 1], half)              # rate is (F, 3), also without frames
+    return {"speed": v, "acc_long": acc, "yaw_rate": rate[:, 2], "pitch_rate_hf": np.sqrt(_centred_mean(hf * hf, half))}
 
 
 def condition_masks(signals: dict[str, np.ndarray], t: np.ndarray) -> dict[str, np.ndarray]:
-    """Boolean masks per condition (:data:`CONDITIONS`) from :func:`frame_signals`.
+    """Boolean masks per condition (:data:`CONDITIONS`).
 
     Parameters
     ----------
-    signals : dict
-        As from :func:`frame_signals`.
-    t : ndarray (F,)
-        Frame times, s.
+    signals, t : dict, ndarray (F,)
+        :func:`frame_signals`' signals and the frame times, s.
     """
     v = signals["speed"]
     with np.errstate(invalid="ignore"):
@@ -138,14 +131,8 @@ def condition_masks(signals: dict[str, np.ndarray], t: np.ndarray) -> dict[str, 
         stopped = v < STOP_SPEED
         out["rough"] = signals["pitch_rate_hf"] > ROUGH_PITCH_RATE
     t = np.asarray(t, dtype=float)
-    near = np.zeros(v.shape, dtype=bool)
     ts = t[stopped]                                   # increasing, as t is
-    if ts.size:
-        j = np.clip(np.searchsorted(ts, t), 1, ts.size)
-        before = np.abs(t - ts[j - 1])
-        after = np.abs(ts[np.minimum(j, ts.size - 1)] - t)
-        near = np.minimum(before, after) <= NEAR_STOP_S
-    out["near_stop"] = near
+    out["near_stop"] = sample_gap(ts, t) <= NEAR_STOP_S if ts.size else np.zeros(v.shape, dtype=bool)
     return {name: np.asarray(out[name], dtype=bool) for name in CONDITIONS}
 
 
@@ -155,7 +142,7 @@ def moving_segments(speed: np.ndarray) -> np.ndarray:
     Parameters
     ----------
     speed : ndarray (F,)
-        m/s; NaN (unknown, e.g. a data gap) does not end a segment.
+        m/s; NaN (unknown) does not end a segment.
     """
     v = np.asarray(speed, dtype=float)
     with np.errstate(invalid="ignore"):
@@ -180,8 +167,7 @@ def segment_centred(est: np.ndarray, ref: np.ndarray, mask: np.ndarray, segments
     Returns
     -------
     errors : ndarray (F,)
-        NaN outside the evaluated frames of segments with at least
-        :data:`MIN_SEGMENT_FRAMES` evaluated frames.
+        NaN outside the evaluated frames of segments with :data:`MIN_SEGMENT_FRAMES` of them or more.
     """
     use = np.asarray(mask, dtype=bool) & np.isfinite(est) & np.isfinite(ref) & (segments >= 0)
     out = np.full(np.shape(est), np.nan)
@@ -194,18 +180,14 @@ def segment_centred(est: np.ndarray, ref: np.ndarray, mask: np.ndarray, segments
 
 def reference_sigma(speed: np.ndarray, vu_noise: float = INS_VU_NOISE,
                     pitch_noise: float = INS_PITCH_NOISE) -> np.ndarray:
-    """Uncertainty (1 sigma, rad) of the INS pitch-relative-to-road reference per frame.
-
-    ``sqrt((vu_noise / v)^2 + pitch_noise^2)``; see the module docstring.
+    """Uncertainty (1 sigma, rad) of the INS pitch-relative-to-road reference per frame (module docstring).
 
     Parameters
     ----------
     speed : ndarray (F,)
-        Horizontal speed, m/s (frames at or below 0 m/s give inf).
-    vu_noise : float
-        INS vertical-velocity noise, m/s.
-    pitch_noise : float
-        INS pitch noise, rad.
+        Horizontal speed, m/s (at or below 0: inf).
+    vu_noise, pitch_noise : float
+        INS vertical-velocity (m/s) and pitch (rad) noise.
     """
     v = np.asarray(speed, dtype=float)
     with np.errstate(divide="ignore", invalid="ignore"):

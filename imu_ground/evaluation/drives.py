@@ -1,17 +1,10 @@
-"""Drives with ground truth for the evaluation: real KITTI drives and synthetic ones.
+"""Drives with ground truth for the evaluation (:class:`Drive`: ego-motion, static extrinsic, truth at the frames).
 
-A :class:`Drive` holds one drive's ego-motion, static extrinsic and truth at the
-frames. :func:`load_real_drive` and :func:`load_real_drives` are the loaders of the
-real ``kitti_imu100`` drives: the reader, the reference
-(:func:`~imu_ground.evaluation.reference.pitch_reference`) and its verdict
-(:func:`~imu_ground.evaluation.reference.check_reference`).
-
-- Real drives: pitch only, on moving frames valid in the ego-motion, means removed
-  per drive; each frame carries the reference's 1-sigma
-  (:func:`~imu_ground.evaluation.conditions.reference_sigma`); faulty drives are
-  reported, not averaged.
-- Synthetic drives: exact truth, pitch and roll, moving frames, nothing removed;
-  every method gets the true static extrinsic.
+- Real ``kitti_imu100`` drives (:func:`load_real_drive`): pitch only (the INS reference and its
+  verdict, :mod:`~imu_ground.evaluation.reference`), moving frames valid in the ego-motion, means
+  removed per drive, the reference's 1-sigma per frame; faulty drives reported, not averaged.
+- Synthetic drives (:func:`synthetic_drive`): exact truth, pitch and roll, nothing removed; every
+  method gets the true static extrinsic.
 """
 from __future__ import annotations
 
@@ -45,27 +38,20 @@ class Drive:
     name : str
     kind : {"real", "synthetic"}
     grade : str
-        IMU grade (``"oxts"`` for KITTI, ``"nav"`` or ``"mems"`` for synthetic).
-    egomotion : EgoMotion
-        Frames in the IMU (sensor) frame.
-    extrinsic : Extrinsic
-        Static sensor-to-ground extrinsic given to every method.
+        IMU grade (``"oxts"`` for KITTI, ``"nav"`` or ``"mems"``).
+    egomotion, extrinsic : EgoMotion, Extrinsic
+        Frames in the IMU (sensor) frame; the static extrinsic (ground <- sensor) every method gets.
     truth : pandas.DataFrame
-        Per frame: ``t`` (s), ``pitch``, ``roll`` (rad, NaN when unknown), ``normal_x/y/z``
-        (sensor frame, NaN when unknown), ``speed`` (m/s), ``evaluate`` (the frames that
-        count), ``ref_sigma`` (rad, 0 for an exact truth) and the condition signals
-        (:func:`~imu_ground.evaluation.conditions.frame_signals`).
+        Per frame: ``t`` (s), ``pitch``, ``roll`` (rad), ``normal_x/y/z`` (sensor frame; NaN when
+        unknown), ``speed`` (m/s), ``evaluate`` (the frames that count), ``ref_sigma`` (rad) and the
+        condition signals (:func:`~imu_ground.evaluation.conditions.frame_signals`).
     remove_mean : bool
         Centre estimate and truth per drive before the errors (real protocol).
     valid : bool
         False when the truth is unusable; ``reason`` says why.
     reason : str
-    imu : ImuData, optional
-        The raw log.
-    sim : SimResult, optional
-        The simulation a synthetic drive came from.
-    check : ReferenceCheck, optional
-        The verdict on a real drive's reference.
+    imu, sim, check : optional
+        The raw log, the simulation (synthetic) or the reference's verdict (real).
     """
     name: str
     kind: str
@@ -109,10 +95,9 @@ def load_real_drive(path: Path, rate: float = DEFAULT_FRAME_RATE) -> Drive:
     Returns
     -------
     Drive
-        ``valid`` and ``reason`` from the signals alone; ``check`` holds the verdict's
-        statistics; the reader's warnings are in ``egomotion.meta["reader_warnings"]``.
+        ``valid``, ``reason`` and ``check`` from the signals alone; the reader's warnings in
+        ``egomotion.meta["reader_warnings"]``.
     """
-
     path = Path(path)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -143,7 +128,6 @@ def load_real_drives(folder: Path, names: Sequence[str] | None = None, progress:
     names : sequence of str, optional
         Drive names (e.g. ``2011_09_26_drive_0001``); every one must exist.
     progress : bool
-        A progress bar over the drives.
     rate : float
         Frame rate, Hz.
     valid_only : bool
@@ -177,9 +161,7 @@ def synthetic_drive(sim, rate: float = DEFAULT_FRAME_RATE) -> Drive:
     sel = tr.iloc[idx].reset_index(drop=True)
     ext = Extrinsic(sim.R_gs, sim.t_gs, {"source": "simulation truth"})
     truth = _truth_frame(em, ext, {
-        "pitch": sel["pitch"].to_numpy(), "roll": sel["roll"].to_numpy(),
-        "normal_x": sel["normal_x"].to_numpy(), "normal_y": sel["normal_y"].to_numpy(),
-        "normal_z": sel["normal_z"].to_numpy(), "speed": sel["speed"].to_numpy(),
+        **{k: sel[k].to_numpy() for k in ("pitch", "roll", "normal_x", "normal_y", "normal_z", "speed")},
         "evaluate": (sel["speed"] > MIN_SPEED).to_numpy() & em.valid, "ref_sigma": np.zeros(len(em))})
     return Drive(sim.name, "synthetic", sim.imu_model.name, em, ext, truth, False, True, "ok", sim.imu, sim)
 

@@ -1,11 +1,8 @@
 """What a plane error does to perception: ground-point range and lane-width errors of a camera.
 
-:func:`ground_errors` projects true road points into the image through the true plane
-and back through the believed one (static extrinsic, or an estimate): the **range
-error** at ``X`` m is the believed forward distance of the point straight ahead at ``X``
-minus ``X``; the **lane-width error** the believed distance between the lane lines
-``Y = +- lane_width / 2`` minus ``lane_width``. :func:`drive_ground_errors` does it for a
-drive's static, estimated and true planes.
+True road points go into the image through the true plane and back through the believed one: the
+range error at ``X`` m is the believed forward distance of the point ahead at ``X`` minus ``X``; the
+lane-width error the believed distance between the lines ``Y = +- lane_width / 2`` minus the width.
 """
 from __future__ import annotations
 
@@ -31,8 +28,7 @@ def ground_errors(truth: GroundPlane, believed: GroundPlane, distances: Any = DI
     Parameters
     ----------
     truth, believed : GroundPlane
-        The same camera's true and believed planes, ``N`` frames each (road frames
-        whose origin is on the road below the same point of the vehicle).
+        The same camera's true and believed planes, ``N`` frames each (origins below the same point).
     distances : array_like (D,)
         Road distances ahead, m.
     lane_width : float
@@ -41,8 +37,7 @@ def ground_errors(truth: GroundPlane, believed: GroundPlane, distances: Any = DI
     Returns
     -------
     dict
-        ``range`` and ``lane_width``: ndarray (N, D), m, NaN where a point is not
-        in front of the camera for one of the planes.
+        ``range`` and ``lane_width``: ndarray (N, D), m, NaN where a point is behind the camera.
     """
     x = np.asarray(distances, dtype=float)
     y = np.array([0.0, 0.5 * lane_width, -0.5 * lane_width])
@@ -69,8 +64,6 @@ def drive_ground_errors(camera: Camera, pitch: Any, roll: Any, true_pitch: Any, 
         ``{"static": errors, "dynamic": errors, "truth": errors}``, each :func:`ground_errors`' dict.
     """
     truth = GroundPlane.from_pitch_roll(camera, true_pitch, true_roll)
-    n = len(truth)
-    static = GroundPlane.from_pitch_roll(camera, np.zeros(n), np.zeros(n))
-    dynamic = GroundPlane.from_pitch_roll(camera, pitch, roll)
-    return {name: ground_errors(truth, plane, distances, lane_width)
-            for name, plane in (("static", static), ("dynamic", dynamic), ("truth", truth))}
+    planes = {"static": GroundPlane.from_pitch_roll(camera, np.zeros(len(truth)), np.zeros(len(truth))),
+              "dynamic": GroundPlane.from_pitch_roll(camera, pitch, roll), "truth": truth}
+    return {name: ground_errors(truth, plane, distances, lane_width) for name, plane in planes.items()}

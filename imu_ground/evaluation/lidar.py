@@ -1,30 +1,24 @@
 r"""LiDAR ground truth, the paper's protocol: road planes fitted to scans, and the estimate against them.
 
 Plane fit (:func:`fit_ground_plane`)
-    The points of a road region (:class:`RoadRegion`, a box in the LiDAR's axes x
-    forward, y left, z up; or :class:`PathRegion`, the driven path) are chosen by
-    RANSAC (scikit-learn, the height over ``x, y``) or Patchwork++, then refitted by
-    total least squares (the smallest singular vector of the centred inliers), the
-    inliers re-chosen by their distance until they settle. Result: the unit normal
-    pointing up and ``d`` with ``n . x + d = 0`` on the road (the LiDAR's height, m).
-    Too few points, no consensus or a plane tilted more than ``max_tilt_deg`` is
-    "no road" (:class:`~imu_ground.errors.OptionError`). The extra ``.[lidar]``
-    brings scikit-learn, pypatchworkpp and the ``.pcd``/``.ply`` readers.
+    The points of a road region (:class:`RoadRegion`, a box in the LiDAR's axes x forward,
+    y left, z up; or :class:`PathRegion`, the driven path) chosen by RANSAC (scikit-learn)
+    or Patchwork++, then refitted by total least squares, the inliers re-chosen by their
+    distance until they settle. Result: the unit normal pointing up and ``d`` with
+    ``n . x + d = 0`` on the road (m). The extra ``.[lidar]`` brings scikit-learn,
+    pypatchworkpp and the ``.pcd``/``.ply`` readers.
 
 Frames and signs
-    ``R_{g<-l}`` (:func:`lidar_rotation`) turns LiDAR vectors into the ground frame of
-    the log's static extrinsic (FLU): with KITTI's calibration ``R_{g<-l} = R_{g<-imu}
-    R_{velo<-imu}^T``, with the project's extrinsic file its ``R``. A road normal
-    ``n_b = R_{g<-l} n_l`` gives the body's pitch and roll relative to the road
-    (:func:`~imu_ground.filters.estimator.pitch_roll_from_normal`: pitch + nose down,
-    roll + left side up). Camera planes (KITTI ``planes`` files, rectified camera
-    axes) turn with ``R_{g<-cam}`` the same way (:func:`planes_pitch_roll`).
+    ``R_{g<-l}`` (:func:`lidar_rotation`) turns LiDAR vectors into the ground frame of the
+    log's static extrinsic (FLU): with KITTI's calibration ``R_{g<-imu} R_{velo<-imu}^T``,
+    with the project's extrinsic file its ``R``. ``n_b = R_{g<-l} n_l`` gives the body's
+    pitch (+ nose down) and roll (+ left side up) relative to the road. Camera planes
+    (KITTI ``planes`` files, rectified camera axes) turn with ``R_{g<-cam}``.
 
 Comparison (:func:`compare_to_lidar`, :func:`lidar_summary`, :func:`bootstrap_spread`)
-    Per scan, the estimate interpolated to the scan's time against the plane: the
-    angle between the normals (the paper's metric) and the pitch and roll differences
-    (estimate minus LiDAR, deg), with the constant offset and without it; the roll as
-    changes only (the region sees the lane's crown).
+    Per scan, the estimate interpolated to the scan's time against the plane: the angle
+    between the normals and the pitch and roll differences (estimate minus LiDAR, deg),
+    with the constant offset and without it; the roll as changes only (the lane's crown).
 """
 from __future__ import annotations
 
@@ -45,7 +39,7 @@ from imu_ground.so3 import project
 __all__ = ["GROUND_FITS", "LIDAR_EXTRA", "PATCHWORK_MODULE", "ROAD_REGION", "SCAN_SUFFIXES", "PathRegion", "RoadRegion",
            "bootstrap_spread", "compare_to_lidar", "fit_ground_plane", "fit_scans", "kitti_object_rotation",
            "lidar_figure", "lidar_pitch_roll", "lidar_rotation", "lidar_summary", "lidar_table", "lidar_transform",
-           "path_region",
+           "method_summaries", "path_region",
            "patchwork_available", "patchwork_ground", "planes_pitch_roll", "planes_rotations", "plot_lidar",
            "read_bin_scan", "read_scan", "read_scan_times", "read_times", "scan_files"]
 
@@ -97,18 +91,14 @@ PATCHWORK_MODULE = "pypatchworkpp"
 class PathRegion:
     """The road along the driven path: points within ``half_width`` of the vehicle's future track, ahead of it.
 
-    The track is in the LiDAR's axes at the scan's time (:func:`path_region`).
-
     Parameters
     ----------
     xy : array_like (M, 2)
-        The future track, LiDAR x and y, m, in driving order.
-    half_width : float
-        Points within this horizontal distance of the track, m (default 1.5).
+        The future track in the LiDAR's axes at the scan's time (x, y, m), in driving order.
+    half_width, step : float
+        Horizontal distance to the track, and the track's resampling step, m.
     ahead : tuple of float
-        Their distance along the track from its point nearest the LiDAR, m (default 3 to 32).
-    step : float
-        The track is resampled every ``step`` m along its length.
+        Distance along the track from its point nearest the LiDAR, m.
     """
 
     def __init__(self, xy: Any, half_width: float = 1.5, ahead: tuple[float, float] = (3.0, 32.0),
@@ -155,8 +145,7 @@ def path_region(t_scan: float, t: Any, positions: Any, rotations: Any, lidar_fro
     lidar_from_body : Extrinsic
         LiDAR <- body: ``x_lidar = R x_body + t``.
     half_width, ahead
-        As :class:`PathRegion`. A track shorter than ``ahead[1]`` is continued straight along
-        its last direction (at a standstill: the body's x axis).
+        As :class:`PathRegion`; a shorter track is continued straight (at a standstill: along body x).
     """
     t = np.asarray(t, dtype=float)
     pos = np.asarray(positions, dtype=float)
@@ -176,11 +165,8 @@ def path_region(t_scan: float, t: Any, positions: Any, rotations: Any, lidar_fro
     return PathRegion(xy, half_width, ahead)
 
 
-_PATCHWORK: dict = {}
-
-
 def _quiet(make, *args):
-    """``make(*args)`` with the process's stdout (file descriptor 1) closed to C++'s own prints."""
+    """``make(*args)`` with file descriptor 1 closed to C++'s own prints."""
     import os
     import sys
     sys.stdout.flush()
@@ -194,8 +180,11 @@ def _quiet(make, *args):
         os.close(null)
 
 
+_PATCHWORK: dict = {}
+
+
 def patchwork_ground(points: np.ndarray, sensor_height: float = 1.73) -> np.ndarray:
-    """Patchwork++'s ground points of a whole scan (bool (N,)), LiDAR axes, m; its defaults but the sensor height.
+    """Patchwork++'s ground points of a whole scan (bool (N,); LiDAR axes, m), its defaults but the sensor height.
 
     Raises
     ------
@@ -244,10 +233,8 @@ def fit_ground_plane(points: Any, region: Any = ROAD_REGION, threshold: float = 
         Where the road is looked for; anything with ``mask(points)``.
     threshold : float
         Inlier distance to the plane, m (RANSAC's vertical residual, then the refit's perpendicular one).
-    seed : int
-        RANSAC's random seed.
-    max_trials : int
-        RANSAC iterations.
+    seed, max_trials : int
+        RANSAC's random seed and iterations.
     min_inliers : int
         Fewer road points than this is "no road".
     max_tilt_deg : float
@@ -255,17 +242,13 @@ def fit_ground_plane(points: Any, region: Any = ROAD_REGION, threshold: float = 
     source : str
         The scan's name for messages.
     return_inliers : bool
-        Also return the number of inliers.
     ground : {"ransac", "patchwork"}
-        How the road's points are first chosen: RANSAC on the region's points, or
-        :func:`patchwork_ground` of the whole scan kept in the region.
+        The road's first points: RANSAC on the region's, or :func:`patchwork_ground`'s in the region.
 
     Returns
     -------
-    normal : ndarray (3,)
-        Unit normal pointing up (``normal[2] > 0``), LiDAR axes.
-    d : float
-        ``normal . x + d = 0`` on the road: the LiDAR's height above it, m.
+    normal, d : ndarray (3,), float
+        Unit normal pointing up, LiDAR axes, and ``d`` (m) with ``normal . x + d = 0`` on the road.
     inliers : int
         Only with ``return_inliers``.
 
@@ -282,16 +265,20 @@ def fit_ground_plane(points: Any, region: Any = ROAD_REGION, threshold: float = 
         raise OptionError(f"{source}: the scan is empty; give {{opt}} scans with points", "lidar")
     full = pts[np.all(np.isfinite(pts[:, :3]), axis=1)]
     pts = full[:, :3]
-    road = pts[region.mask(pts)]
-    no_road = (f"{source}: no road in the region ({region}): {{n}}; give {{opt}} scans whose LiDAR sees the "
-               "road ahead, or another region (--lidar-region)")
-    if len(road) < max(min_inliers, 3):
-        raise OptionError(no_road.replace("{n}", f"{len(road)} points there, {min_inliers} needed"), "lidar")
+    inside = region.mask(pts)
+    road = pts[inside]
+    need = max(min_inliers, 3)
+
+    def no_road(why: str) -> OptionError:
+        return OptionError(f"{source}: no road in the region ({region}): {why}; give {{opt}} scans whose LiDAR sees "
+                           "the road ahead, or another region (--lidar-region)", "lidar")
+
+    if len(road) < need:
+        raise no_road(f"{len(road)} points there, {min_inliers} needed")
     if ground == "patchwork":
-        road = pts[region.mask(pts) & patchwork_ground(full)]
-        if len(road) < max(min_inliers, 3):
-            raise OptionError(no_road.replace("{n}", f"{len(road)} Patchwork++ ground points there, {min_inliers} "
-                                                     "needed"), "lidar")
+        road = pts[inside & patchwork_ground(full)]
+        if len(road) < need:
+            raise no_road(f"{len(road)} Patchwork++ ground points there, {min_inliers} needed")
         inl = np.ones(len(road), dtype=bool)
     elif ground == "ransac":
         lm = require_extra("sklearn.linear_model", "lidar", "the LiDAR plane fit (--lidar)")
@@ -300,11 +287,11 @@ def fit_ground_plane(points: Any, region: Any = ROAD_REGION, threshold: float = 
                          random_state=seed).fit(road[:, :2], road[:, 2])
             inl = fit.inlier_mask_
         except ValueError:
-            raise OptionError(no_road.replace("{n}", "RANSAC found no plane"), "lidar") from None
+            raise no_road("RANSAC found no plane") from None
     else:
         raise OptionError(f"{{opt}} {ground}: choose ransac or patchwork", "lidar_fit")
     for _ in range(5):
-        if np.count_nonzero(inl) < max(min_inliers, 3):
+        if np.count_nonzero(inl) < need:
             break
         normal, d = _tls_plane(road[inl])
         again = np.abs(road @ normal + d) < threshold
@@ -312,13 +299,12 @@ def fit_ground_plane(points: Any, region: Any = ROAD_REGION, threshold: float = 
             break
         inl = again
     count = int(np.count_nonzero(inl))
-    if count < max(min_inliers, 3):
-        raise OptionError(no_road.replace("{n}", f"{count} points on a plane, {min_inliers} needed"), "lidar")
+    if count < need:
+        raise no_road(f"{count} points on a plane, {min_inliers} needed")
     normal, d = _tls_plane(road[inl])
     tilt = math.degrees(math.acos(min(1.0, normal[2])))
     if tilt > max_tilt_deg:
-        raise OptionError(no_road.replace("{n}", f"the best plane is tilted {tilt:.0f} deg from the LiDAR's z "
-                                                 f"axis (at most {max_tilt_deg:g})"), "lidar")
+        raise no_road(f"the best plane is tilted {tilt:.0f} deg from the LiDAR's z axis (at most {max_tilt_deg:g})")
     return (normal, d, count) if return_inliers else (normal, d)
 
 
@@ -329,7 +315,7 @@ def read_bin_scan(path: str | Path) -> np.ndarray:
     Raises
     ------
     OptionError
-        Not a whole number of 16-byte records, or no such file (naming the file and ``--lidar``).
+        No such file, or not a whole number of 16-byte records.
     """
     p = Path(path)
     if not p.is_file():
@@ -344,12 +330,10 @@ def read_bin_scan(path: str | Path) -> np.ndarray:
 def read_scan(path: str | Path) -> np.ndarray:
     """One scan's points, (N, 3) or (N, 4) float64, LiDAR axes, m: KITTI ``.bin``, ``.pcd`` or ``.ply``.
 
-    ``.bin``: :func:`read_bin_scan`; ``.pcd``: ``x y z`` through pypcd4; ``.ply``: the ``vertex`` ``x y z`` (plyfile).
-
     Raises
     ------
     OptionError
-        No such file, an unknown suffix, or a file its reader cannot read (naming the file and ``--lidar``).
+        No such file, an unknown suffix, or a file its reader cannot read.
     """
     p = Path(path)
     suffix = p.suffix.lower()
@@ -398,7 +382,7 @@ def read_times(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     Raises
     ------
     OptionError
-        No such file, no time, or a line that is not a finite number (naming the file, the line and ``--times``).
+        No such file, no time, or a line that is not a finite number (naming the line).
     """
     p = Path(path)
     if not p.is_file():
@@ -428,7 +412,7 @@ def read_scan_times(path: str | Path, count: int, what: str = "scans") -> np.nda
     Raises
     ------
     OptionError
-        As :func:`read_times`, or a count other than ``count``, or times that do not increase (naming ``--times``).
+        As :func:`read_times`, a count other than ``count``, or times that do not increase.
     """
     t, lines = read_times(path)
     if len(t) != count:
@@ -447,10 +431,10 @@ def lidar_transform(spec: str | Path, imu_extrinsic: Any = None) -> Extrinsic:
     Parameters
     ----------
     spec : str or Path
-        A KITTI raw calibration folder (holding ``calib_imu_to_velo.txt``), that file,
-        or an extrinsic file of the project's format (``R``: ground <- LiDAR, ``t``).
+        A KITTI raw calibration folder (holding ``calib_imu_to_velo.txt``), that file, or an
+        extrinsic file of the project's format (``R``: ground <- LiDAR, ``t``).
     imu_extrinsic : optional
-        The log's static extrinsic (ground <- IMU), with KITTI's files only; default ``kitti_imu``.
+        The log's static extrinsic (ground <- IMU), for KITTI's files; default ``kitti_imu``.
 
     Raises
     ------
@@ -482,8 +466,7 @@ def lidar_transform(spec: str | Path, imu_extrinsic: Any = None) -> Extrinsic:
 
 
 def lidar_rotation(spec: str | Path, imu_extrinsic: Any = None) -> np.ndarray:
-    """``R_{g<-l}``: LiDAR vectors into the ground frame of the log's static extrinsic
-    (the rotation of :func:`lidar_transform`; the same arguments), (3, 3)."""
+    """``R_{g<-l}`` (3, 3): the rotation of :func:`lidar_transform` (the same arguments)."""
     return lidar_transform(spec, imu_extrinsic).rotation
 
 
@@ -509,10 +492,8 @@ def lidar_pitch_roll(normals: Any, rotation: Any) -> tuple[np.ndarray, np.ndarra
 
     Parameters
     ----------
-    normals : array_like (N, 3) or (3,)
-        Road normals pointing up (any length), sensor axes.
-    rotation : array_like (3, 3) or (N, 3, 3)
-        Ground <- sensor (:func:`lidar_rotation`, :func:`kitti_object_rotation`).
+    normals, rotation : array_like (N, 3) or (3,); (3, 3) or (N, 3, 3)
+        Road normals pointing up (any length), sensor axes; ground <- sensor (:func:`lidar_rotation`).
     """
     n = np.asarray(normals, dtype=float)
     nb = np.einsum("...ij,...j->...i", np.asarray(rotation, dtype=float), n)
@@ -560,10 +541,8 @@ def compare_to_lidar(t_scan: Any, lidar_pitch: Any, lidar_roll: Any, t: Any, pit
 
     Parameters
     ----------
-    t_scan : array_like (S,)
-        Scan times, s, on the log's clock.
-    lidar_pitch, lidar_roll : array_like (S,)
-        The LiDAR planes' body pitch and roll relative to the road, rad.
+    t_scan, lidar_pitch, lidar_roll : array_like (S,)
+        Scan times (s, the log's clock) and the LiDAR planes' body pitch and roll relative to the road, rad.
     t, pitch, roll, valid : array_like (N,)
         The estimate's frame times (s), angles (rad) and valid frames (default: finite ones).
     source : str
@@ -572,13 +551,13 @@ def compare_to_lidar(t_scan: Any, lidar_pitch: Any, lidar_roll: Any, t: Any, pit
     Returns
     -------
     pandas.DataFrame
-        ``t``, ``lidar_pitch_deg``, ``lidar_roll_deg``, ``pitch_deg``, ``roll_deg`` (the estimate,
-        interpolated), ``d_pitch_deg``, ``d_roll_deg`` (estimate minus LiDAR), ``angle_deg``.
+        ``t``, ``lidar_pitch_deg``, ``lidar_roll_deg``, ``pitch_deg``, ``roll_deg`` (the estimate, interpolated),
+        ``d_pitch_deg``, ``d_roll_deg`` (estimate minus LiDAR), ``angle_deg``.
 
     Raises
     ------
     OptionError
-        A scan time outside the log's frames (naming ``--times``).
+        Fewer than 2 valid frames, or a scan time outside the log's frames.
     """
     ts = np.asarray(t_scan, dtype=float)
     t, p, r = (np.asarray(a, dtype=float) for a in (t, pitch, roll))
@@ -610,9 +589,8 @@ def lidar_summary(frames: pd.DataFrame) -> dict[str, float]:
     Returns
     -------
     dict
-        ``n``, ``angle_mean``, ``pitch_offset``, ``roll_offset`` (with the offset);
-        ``angle_centred``, ``pitch_spread`` (sample std), ``pitch_mae_centred``,
-        ``roll_change_spread``, ``roll_change_corr`` (both centred).
+        ``n``, ``angle_mean``, ``pitch_offset``, ``roll_offset``; centred: ``angle_centred``, ``pitch_spread``
+        (sample std), ``pitch_mae_centred``, ``roll_change_spread``, ``roll_change_corr``.
     """
     dp, dr = frames["d_pitch_deg"].to_numpy(), frames["d_roll_deg"].to_numpy()
     n = len(frames)
@@ -631,24 +609,20 @@ def lidar_summary(frames: pd.DataFrame) -> dict[str, float]:
 
 def bootstrap_spread(differences: dict[str, Any], samples: int = 2000, block: int = 5,
                      seed: int = 0) -> pd.DataFrame:
-    """Each method's pitch spread with a moving-block bootstrap interval, and how often it ranks first.
-
-    Blocks of ``block`` consecutive frames (the frames are correlated), the same draws
-    for every method (paired).
+    """Each method's spread with a paired moving-block bootstrap interval, and how often it ranks first.
 
     Parameters
     ----------
     differences : dict of str to array_like (S,)
         Per method, the difference estimate minus LiDAR per scan, deg.
     samples, block, seed : int
-        Bootstrap draws, frames a block, the seed.
+        Bootstrap draws, consecutive frames a block (they are correlated), the seed.
 
     Returns
     -------
     pandas.DataFrame
-        Index: method. ``spread`` (sample std), ``lo95``, ``hi95`` (bootstrap quantiles),
-        ``p_best`` (share of the draws it ranks first), ``vs_best_lo95``, ``vs_best_hi95``
-        (its spread minus the best method's).
+        Index ``method``: ``spread`` (sample std), ``lo95``, ``hi95``, ``p_best`` (share of the draws it ranks
+        first), ``vs_best_lo95``, ``vs_best_hi95`` (its spread minus the best method's).
     """
     names = list(differences)
     d = np.array([np.asarray(differences[k], dtype=float) for k in names])
@@ -676,30 +650,32 @@ def lidar_table(estimates: dict[str, Any], t_scan: Any, lidar_pitch: Any, lidar_
     ----------
     estimates : dict of str to tuple
         Method name to ``(t, pitch, roll, valid)`` of its track (s, rad, rad, bool; ``valid`` may be None).
-    t_scan, lidar_pitch, lidar_roll : array_like (S,)
+    t_scan, lidar_pitch, lidar_roll, source
         As :func:`compare_to_lidar`.
-    source : str
 
     Returns
     -------
     frames : pandas.DataFrame
         :func:`compare_to_lidar`'s columns plus ``method`` and ``scan`` (0-based).
     summary : pandas.DataFrame
-        Index ``method``: :func:`lidar_summary` and, with 3 scans or more, :func:`bootstrap_spread`'s
-        ``lo95``, ``hi95``, ``p_best``, ``vs_best_lo95`` and ``vs_best_hi95`` of the pitch spread.
+        :func:`method_summaries` of the pitch.
     """
-    parts, rows = [], {}
-    for name, (t, pitch, roll, valid) in estimates.items():
-        f = compare_to_lidar(t_scan, lidar_pitch, lidar_roll, t, pitch, roll, valid, source)
-        rows[name] = lidar_summary(f)
-        parts.append(f.assign(method=name, scan=np.arange(len(f))))
-    frames = pd.concat(parts, ignore_index=True)
-    summary = pd.DataFrame.from_dict(rows, orient="index")
+    frames = pd.concat([compare_to_lidar(t_scan, lidar_pitch, lidar_roll, t, pitch, roll, valid, source)
+                        .assign(method=name, scan=lambda f: np.arange(len(f)))
+                        for name, (t, pitch, roll, valid) in estimates.items()], ignore_index=True)
+    return frames, method_summaries(frames)
+
+
+def method_summaries(frames: pd.DataFrame, what: str = "pitch") -> pd.DataFrame:
+    """Index ``method``: :func:`lidar_summary` of each method's frames (:func:`lidar_table`'s) and, with 3 scans or
+    more, :func:`bootstrap_spread` of its ``d_{what}_deg`` (``lo95 hi95 p_best vs_best_lo95 vs_best_hi95``)."""
+    groups = frames.groupby("method", sort=False)
+    summary = pd.DataFrame.from_dict({str(k): lidar_summary(g) for k, g in groups}, orient="index")
     summary.index.name = "method"
-    if len(np.atleast_1d(t_scan)) >= 3:
-        boot = bootstrap_spread({str(k): g["d_pitch_deg"].to_numpy() for k, g in frames.groupby("method", sort=False)})
+    if len(summary) and summary["n"].iloc[0] >= 3:
+        boot = bootstrap_spread({str(k): g[f"d_{what}_deg"].to_numpy() for k, g in groups})
         summary = summary.join(boot.drop(columns="spread"))
-    return frames, summary
+    return summary
 
 
 def planes_rotations(spec: str | Path, names: list[str], imu_extrinsic: Any = None) -> np.ndarray:
@@ -708,10 +684,9 @@ def planes_rotations(spec: str | Path, names: list[str], imu_extrinsic: Any = No
     Parameters
     ----------
     spec : str or Path
-        A folder of KITTI object calibration files named as the planes files, one such
-        file, or a camera (:func:`~imu_ground.perception.load_camera`).
+        A folder of KITTI object calibration files named as the planes files (``names``,
+        ``000005.txt``), one such file, or a camera (:func:`~imu_ground.perception.load_camera`).
     names : list of str
-        The planes files' names (``000005.txt``).
     imu_extrinsic : optional
         The log's static extrinsic (ground <- IMU), for the KITTI object files.
 

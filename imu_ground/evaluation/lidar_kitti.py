@@ -1,26 +1,24 @@
 r"""KITTI raw sync folders as LiDAR ground truth: the scans, their times, the driven path, per-drive summaries.
 
-A sync folder (:func:`read_kitti_lidar_drive`) holds ``oxts/`` (the 10 Hz OXTS log
-and the vehicle's track), ``velodyne_points/data/*.bin`` (the scans, named by frame
-number) and ``velodyne_points/timestamps.txt`` (else the OXTS stamp of the same
-frame, said in :attr:`KittiLidarDrive.times_source`); ``calib_imu_to_velo.txt`` in
-the parent folder.
+A sync folder (:func:`read_kitti_lidar_drive`) holds ``oxts/`` (the 10 Hz OXTS log and
+the track), ``velodyne_points/data/*.bin`` (the scans, named by frame number) and
+``velodyne_points/timestamps.txt`` (else the OXTS stamps, said in
+:attr:`KittiLidarDrive.times_source`); ``calib_imu_to_velo.txt`` in the parent folder.
 
 Clocks (:func:`log_clock`, :func:`scan_times_on_log`)
-    On a log with absolute stamps (``t0_ns``) a scan is at ``(stamp - t0_ns) * 1e-9``
-    s; on a ``kitti_imu100`` CSV at its stamp's seconds of the day minus
-    ``t0_seconds_of_day`` of the ``drives.csv`` beside it.
+    With absolute stamps (``t0_ns``) a scan is at ``(stamp - t0_ns) * 1e-9`` s; on a
+    ``kitti_imu100`` CSV at its stamp's seconds of the day minus ``t0_seconds_of_day``
+    of the ``drives.csv`` beside it.
 
 Driven path (:func:`drive_path_regions`)
     OXTS latitude and longitude on KITTI's Mercator projection (the devkit's), altitude
-    up, attitude ``R_{w<-imu} = R_z(yaw) R_y(pitch) R_x(roll)``; each scan's future
-    track in the LiDAR's axes: :class:`~imu_ground.evaluation.lidar.PathRegion`.
+    up, ``R_{w<-imu} = R_z(yaw) R_y(pitch) R_x(roll)``; each scan's future track in the
+    LiDAR's axes: :class:`~imu_ground.evaluation.lidar.PathRegion`.
 
 Summaries (:func:`drive_summary`, :func:`pooled_summary`)
     Per method, deg, estimate minus LiDAR: pitch and roll spreads (sample std, offset
-    removed) with moving-block bootstrap intervals, the angles, the offsets; pooled,
-    each drive centred on its own mean (one degree of freedom a drive).
-    :func:`fit_noise`: the fit's own frame-to-frame noise.
+    removed) with moving-block bootstrap intervals, the angles, the offsets; pooled, each
+    drive centred on its own mean. :func:`fit_noise`: the fit's own frame-to-frame noise.
 """
 from __future__ import annotations
 
@@ -33,7 +31,8 @@ import numpy as np
 import pandas as pd
 
 from imu_ground.errors import OptionError
-from imu_ground.evaluation.lidar import PathRegion, bootstrap_spread, lidar_summary, path_region, scan_files
+from imu_ground.evaluation.lidar import (PathRegion, bootstrap_spread, lidar_summary, method_summaries, path_region,
+                                         scan_files)
 from imu_ground.filters.extrinsics import Extrinsic
 from imu_ground.so3 import rotx, roty, rotz
 
@@ -43,10 +42,11 @@ __all__ = ["EARTH_RADIUS_M", "KittiLidarDrive", "check_sync_folder", "drive_path
 
 #: KITTI devkit's earth radius for the Mercator projection, m.
 EARTH_RADIUS_M = 6378137.0
-#: Summary columns of one method (deg unless a count), the ``--json`` keys.
-_KEYS = ("scans", "pitch_spread_deg", "pitch_spread_lo95", "pitch_spread_hi95", "roll_spread_deg",
-         "roll_spread_lo95", "roll_spread_hi95", "angle_mean_deg", "angle_centred_deg", "pitch_offset_deg",
-         "roll_offset_deg", "p_best_pitch", "p_best_roll")
+#: :func:`drive_summary`'s keys from :func:`~imu_ground.evaluation.lidar.method_summaries`' columns.
+_FROM_SUMMARY = {"pitch_spread": "pitch_spread_deg", "roll_change_spread": "roll_spread_deg",
+                 "angle_mean": "angle_mean_deg", "angle_centred": "angle_centred_deg",
+                 "pitch_offset": "pitch_offset_deg", "roll_offset": "roll_offset_deg", "lo95": "pitch_spread_lo95",
+                 "hi95": "pitch_spread_hi95", "p_best": "p_best_pitch"}
 
 
 @dataclass
@@ -59,13 +59,10 @@ class KittiLidarDrive:
         The drive (the folder's name without ``_sync``).
     folder : Path
     files : list of Path
-        The scans, in name order.
-    frames : ndarray of int (S,)
-        Their sync frame numbers.
+        The scans, in name order; ``frames`` (int (S,)) their sync frame numbers.
     stamps_ns, oxts_ns : ndarray of int64
         Each scan's and each OXTS packet's time, ns since 1970 of KITTI's written (local) clock.
     times_source : str
-        Where the scans' times come from.
     calibration : Path or None
         The folder holding ``calib_imu_to_velo.txt``.
     """
@@ -118,14 +115,13 @@ def read_kitti_lidar_drive(folder: str | Path) -> KittiLidarDrive:
     Raises
     ------
     OptionError
-        Not a sync folder (no ``oxts/`` or ``velodyne_points/``), no scans, scan names
-        that are not frame numbers, or fewer stamps than frames (naming the path and ``--lidar``).
+        Not a sync folder, no scans, scans not named by frame numbers, or fewer stamps than frames.
     """
     d = check_sync_folder(folder)
     files = scan_files(d / "velodyne_points" / "data")
-    if not all(f.stem.isdigit() for f in files):
-        bad = next(f for f in files if not f.stem.isdigit())
-        raise OptionError(f"{bad}: a KITTI raw scan is named by its frame number (0000000000.bin ...) ({{opt}})",
+    bad = [f for f in files if not f.stem.isdigit()]
+    if bad:
+        raise OptionError(f"{bad[0]}: a KITTI raw scan is named by its frame number (0000000000.bin ...) ({{opt}})",
                           "lidar")
     frames = np.array([int(f.stem) for f in files], dtype=np.int64)
     oxts_ns = _read_stamps(d / "oxts" / "timestamps.txt", "lidar")
@@ -151,7 +147,7 @@ def log_clock(path: str | Path, t0_ns: int | None = None) -> tuple[str, int | fl
     path : str or Path
         The log (a KITTI OXTS folder, a ``kitti_imu100`` CSV, ...).
     t0_ns : int, optional
-        The first stamp its reader gave (``estimate``'s ``meta["t0_ns"]``), ns.
+        The first stamp its reader gave (``meta["t0_ns"]``), ns.
 
     Raises
     ------
@@ -187,13 +183,9 @@ def oxts_track(drive: KittiLidarDrive) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
     Returns
     -------
-    t : ndarray (N,)
-        s from the first OXTS stamp.
-    positions : ndarray (N, 3)
-        The IMU's position: east and north on KITTI's Mercator projection (scale of the
-        first packet's latitude), altitude up; m, from the first packet.
-    rotations : ndarray (N, 3, 3)
-        World (east, north, up) <- IMU (x forward, y left, z up): ``R_z(yaw) R_y(pitch) R_x(roll)``.
+    t, positions, rotations : ndarray (N,), (N, 3), (N, 3, 3)
+        s from the first stamp; the IMU's east, north (Mercator at the first latitude) and up, m from the
+        first packet; world (ENU) <- IMU (FLU), ``R_z(yaw) R_y(pitch) R_x(roll)``.
     """
     from imu_ground.datasets.kitti_oxts import read_kitti_oxts
     imu = read_kitti_oxts(drive.folder, validate=False)
@@ -215,7 +207,7 @@ def drive_path_regions(drive: KittiLidarDrive, lidar_from_imu: Extrinsic, half_w
     ----------
     drive : KittiLidarDrive
     lidar_from_imu : Extrinsic
-        LiDAR <- IMU (KITTI's ``calib_imu_to_velo.txt``: ``x_velo = R x_imu + T``).
+        LiDAR <- IMU (``calib_imu_to_velo.txt``: ``x_velo = R x_imu + T``).
     half_width, ahead
         As :class:`~imu_ground.evaluation.lidar.PathRegion`.
     """
@@ -225,11 +217,8 @@ def drive_path_regions(drive: KittiLidarDrive, lidar_from_imu: Extrinsic, half_w
 
 
 def fit_noise(lidar_pitch_deg: Any, lidar_roll_deg: Any) -> dict[str, float]:
-    """The fit's frame-to-frame noise: standard deviation of the second difference / sqrt(6), deg.
-
-    What moves linearly over two frames is removed; white fit noise of standard
-    deviation s gives s. NaN with fewer than 4 scans.
-    """
+    """The fit's frame-to-frame noise, deg: std of the second difference / sqrt(6) (white noise of std s gives s;
+    NaN with fewer than 4 scans)."""
     out = {}
     for key, v in (("fit_noise_pitch_deg", lidar_pitch_deg), ("fit_noise_roll_deg", lidar_roll_deg)):
         v = np.asarray(v, dtype=float)
@@ -252,34 +241,26 @@ def drive_summary(frames: pd.DataFrame) -> dict[str, dict[str, float]]:
     Parameters
     ----------
     frames : pandas.DataFrame
-        :func:`~imu_ground.evaluation.lidar.lidar_table`'s frames (``method`` and the per-scan differences).
+        :func:`~imu_ground.evaluation.lidar.lidar_table`'s frames.
 
     Returns
     -------
     dict of str to dict
-        Method name -> ``scans``, ``pitch_spread_deg`` and ``roll_spread_deg`` with their
-        ``_lo95`` / ``_hi95`` bootstrap intervals and ``p_best_pitch`` / ``p_best_roll``
-        (3 scans or more), ``angle_mean_deg``, ``angle_centred_deg``, ``pitch_offset_deg``,
-        ``roll_offset_deg``.
+        Method -> ``scans``, ``pitch_spread_deg`` and ``roll_spread_deg`` (with ``_lo95`` / ``_hi95``
+        and ``p_best_pitch`` / ``p_best_roll`` from 3 scans), ``angle_mean_deg``, ``angle_centred_deg``,
+        ``pitch_offset_deg``, ``roll_offset_deg``.
     """
-    rows: dict[str, dict] = {}
-    for name, g in frames.groupby("method", sort=False):
-        s = lidar_summary(g)
-        rows[str(name)] = {"scans": int(s["n"]), "pitch_spread_deg": s["pitch_spread"],
-                           "roll_spread_deg": s["roll_change_spread"], "angle_mean_deg": s["angle_mean"],
-                           "angle_centred_deg": s["angle_centred"], "pitch_offset_deg": s["pitch_offset"],
-                           "roll_offset_deg": s["roll_offset"]}
-    for what in ("pitch", "roll"):
-        _bootstrap({str(k): g[f"d_{what}_deg"].to_numpy() for k, g in frames.groupby("method", sort=False)}, what, rows)
+    rows = {str(k): {"scans": int(r["n"]), **{new: float(r[old]) for old, new in _FROM_SUMMARY.items() if old in r}}
+            for k, r in method_summaries(frames).iterrows()}
+    _bootstrap({str(k): g["d_roll_deg"].to_numpy() for k, g in frames.groupby("method", sort=False)}, "roll", rows)
     return rows
 
 
 def pooled_summary(per_drive: list[pd.DataFrame]) -> dict[str, dict[str, float]]:
     """Per method, the spreads pooled over drives, each drive's differences centred on its own mean (deg).
 
-    The pooled spread is ``sqrt(sum of squared centred differences / (scans - drives))``;
-    the bootstrap draws blocks within the concatenated centred differences. The
-    angles are scan-weighted means of the drives'.
+    Spread ``sqrt(sum of squared centred differences / (scans - drives))``, bootstrapped over the
+    concatenated centred differences; the angles are scan-weighted means of the drives'.
     """
     parts: dict[str, list[pd.DataFrame]] = {}
     rows: dict[str, dict] = {}

@@ -1,10 +1,4 @@
-"""The LiDAR plane in a bird's-eye preview of real images, and a distance the LiDAR measured read off each view.
-
-:func:`add_lidar_plane` adds the plane fitted to each image's scan (attitude and height)
-as a bird's-eye view ``"lidar"``, and projects the LiDAR's road point nearest ``distance``
-m ahead into the image with the static extrinsics: each view says how far ahead that
-pixel is, the right one what the LiDAR measured.
-"""
+"""The LiDAR plane in a bird's-eye preview of real images, and a distance the LiDAR measured read off each view."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -55,17 +49,16 @@ def add_lidar_plane(preview: Preview, scans: str | Path, spec: str | Path, imu_e
     Parameters
     ----------
     preview : Preview
-        An image preview; gains ``planes["lidar"]``, ``readings`` and ``marks`` (ground x, y, m).
+        An image preview; gains ``planes["lidar"]``, ``readings`` (each view's distance to the LiDAR's
+        road point nearest ``distance`` m ahead) and ``marks`` (that point's ground x, y, m).
     scans : str or Path
         A folder of scans, one per image, in the images' order.
-    spec : str or Path
-        The LiDAR's extrinsic (:func:`~imu_ground.evaluation.lidar.lidar_transform`).
-    imu_extrinsic : optional
-        The log's static extrinsic (ground <- IMU).
+    spec, imu_extrinsic
+        As :func:`~imu_ground.evaluation.lidar.lidar_transform`.
     region, seed
         Of the fit.
     distance : float
-        Where the measured point is looked for, m ahead.
+        m ahead.
 
     Raises
     ------
@@ -95,15 +88,13 @@ def add_lidar_plane(preview: Preview, scans: str | Path, spec: str | Path, imu_e
     in_cam = (marks - ext.translation) @ ext.rotation                # R^T (x_g - t), row-wise
     with np.errstate(invalid="ignore", divide="ignore"):
         uv = (in_cam @ cam.K.T)[:, :2] / in_cam[:, 2:]
-    readings: dict[str, list[str]] = {}
-    for name, plane in preview.planes.items():
-        texts = []
-        for k in range(len(files)):
-            x = plane[k].road_from_pixel(uv[k, 0], uv[k, 1])[0, 0] if np.all(np.isfinite(uv[k])) else np.nan
-            texts.append(f"LiDAR point {marks[k, 0]:.1f} m ahead reads {x:.1f} m" if np.isfinite(x)
-                         else "LiDAR point: not on the road in this view")
-        readings[name] = texts
-    preview.readings = readings
+
+    def reading(plane: GroundPlane, k: int) -> str:
+        x = plane[k].road_from_pixel(uv[k, 0], uv[k, 1])[0, 0] if np.all(np.isfinite(uv[k])) else np.nan
+        return (f"LiDAR point {marks[k, 0]:.1f} m ahead reads {x:.1f} m" if np.isfinite(x)
+                else "LiDAR point: not on the road in this view")
+
+    preview.readings = {name: [reading(p, k) for k in range(len(files))] for name, p in preview.planes.items()}
     preview.marks = marks[:, :2]
     preview.title += (f"; the LiDAR plane from {Path(scans).parent.name}/{Path(scans).name} (region {region}); "
                       f"cross: the LiDAR's road point nearest {distance:g} m ahead")

@@ -1,23 +1,13 @@
 r"""Error metrics for ground-normal estimates, per frame and per drive: pitch and roll in rad, errors in deg.
 
-Pitch and roll are the body's relative to the road (KITTI's: pitch + nose down,
-roll + left side up, attitude ``Ry(pitch) @ Rx(roll)``); the road normal in the body
-frame (FLU) is ``n = (-sin p, sin r cos p, cos r cos p)``.
-
-Per frame (:func:`frame_errors`)
-    ``angle`` between the normals, deg, in [0, 180] (``atan2(|n1 x n2|, n1 . n2)``,
-    accurate for tiny angles); ``pitch``, ``roll``: estimate minus truth, deg,
-    wrapped to (-180, 180].
-
-Per drive (:func:`summarize`, :func:`evaluate_drive`)
-    Over the masked frames: ``n``, ``mean``, ``median``, ``rms``, ``p95`` of the
-    absolute errors and ``bias`` (mean signed error; the angle's equals ``mean``).
-
-Mean removal (``remove_mean=True``, the real-data protocol)
-    The estimate and the reference are each centred on their own mean over the
-    evaluated frames (pitch and roll separately, the normals rebuilt from the
-    centred angles): the static mounting offsets a calibration removes. Synthetic
-    drives with an exact truth use ``remove_mean=False``.
+Pitch and roll are the body's relative to the road (pitch + nose down, roll + left side up,
+attitude ``Ry(pitch) @ Rx(roll)``); the road normal in the body frame (FLU) is
+``n = (-sin p, sin r cos p, cos r cos p)``. Per frame (:func:`frame_errors`): the ``angle``
+between the normals (deg, [0, 180]) and ``pitch``, ``roll`` estimate minus truth (deg, wrapped
+to (-180, 180]). Per drive (:func:`summarize`): ``n``, ``mean``, ``median``, ``rms``, ``p95`` of
+the absolute errors and ``bias`` (mean signed error). Mean removal (``remove_mean=True``, the
+real-data protocol): estimate and reference each centred on their own mean over the evaluated
+frames (the static mounting offsets a calibration removes).
 """
 from __future__ import annotations
 
@@ -32,18 +22,17 @@ __all__ = [
 ]
 
 
-
 def normal_from_pitch_roll(pitch, roll) -> np.ndarray:
     """Road normal in the body frame (FLU) for a body pitch and roll relative to the road.
 
     Parameters
     ----------
     pitch, roll : array_like, rad
-        Broadcast together. Pitch positive nose down, roll positive left up.
+        Broadcast together; pitch positive nose down, roll positive left up.
 
     Returns
     -------
-    ndarray, shape (..., 3)
+    ndarray (..., 3)
         Unit vectors ``(-sin p, sin r cos p, cos r cos p)``.
     """
     p, r = np.broadcast_arrays(np.asarray(pitch, dtype=float), np.asarray(roll, dtype=float))
@@ -52,16 +41,16 @@ def normal_from_pitch_roll(pitch, roll) -> np.ndarray:
 
 
 def normal_angle(n_est, n_true) -> np.ndarray:
-    """Angle between two (not necessarily unit) vectors, deg, in [0, 180].
+    """Angle between two (not necessarily unit) vectors: ``atan2(|a x b|, a . b)``, exact at any angle.
 
     Parameters
     ----------
-    n_est, n_true : array_like, shape (..., 3)
+    n_est, n_true : array_like (..., 3)
 
     Returns
     -------
-    ndarray, shape (...)
-        ``degrees(atan2(|a x b|, a . b))``: exact to rounding at any angle.
+    ndarray (...)
+        deg, in [0, 180].
     """
     a = np.asarray(n_est, dtype=float)
     b = np.asarray(n_true, dtype=float)
@@ -81,9 +70,9 @@ def frame_errors(est_pitch, true_pitch, est_roll=None, true_roll=None) -> pd.Dat
 
     Parameters
     ----------
-    est_pitch, true_pitch : array_like, shape (N,), rad
-    est_roll, true_roll : array_like, shape (N,), rad, optional
-        Both or neither (without: the pitch error only).
+    est_pitch, true_pitch : array_like (N,), rad
+    est_roll, true_roll : array_like (N,), rad, optional
+        Both or neither.
 
     Returns
     -------
@@ -112,16 +101,15 @@ def summarize(errors, mask=None) -> dict[str, float]:
 
     Parameters
     ----------
-    errors : array_like, shape (N,)
-        Signed (or unsigned) errors, deg.
-    mask : array_like of bool, shape (N,), optional
+    errors : array_like (N,)
+        Errors, deg.
+    mask : array_like of bool (N,), optional
         Frames to use (default all); non-finite errors are left out and counted in ``n_nonfinite``.
 
     Returns
     -------
     dict
-        ``n``, ``mean``, ``median``, ``rms``, ``p95`` (linear interpolation) of ``|errors|``,
-        ``bias``, ``n_nonfinite``; NaN when no frame is used.
+        ``n``, ``mean``, ``median``, ``rms``, ``p95`` of ``|errors|``, ``bias``, ``n_nonfinite``; NaN without frames.
     """
     e = np.asarray(errors, dtype=float)
     m = np.ones(e.shape, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
@@ -131,8 +119,7 @@ def summarize(errors, mask=None) -> dict[str, float]:
     n_nonfinite = int(np.count_nonzero(m & ~finite))
     x = e[m & finite]
     if x.size == 0:
-        nan = float("nan")
-        return {"n": 0, "mean": nan, "median": nan, "rms": nan, "p95": nan, "bias": nan,
+        return {"n": 0, **dict.fromkeys(("mean", "median", "rms", "p95", "bias"), float("nan")),
                 "n_nonfinite": n_nonfinite}
     a = np.abs(x)
     return {"n": int(x.size), "mean": float(a.mean()), "median": float(np.median(a)),
@@ -146,9 +133,9 @@ def evaluate_drive(est_pitch, true_pitch, est_roll=None, true_roll=None, mask=No
 
     Parameters
     ----------
-    est_pitch, true_pitch : array_like, shape (N,), rad
-    est_roll, true_roll : array_like, shape (N,), rad, optional
-    mask : array_like of bool, shape (N,), optional
+    est_pitch, true_pitch, est_roll, true_roll : array_like (N,), rad
+        As :func:`frame_errors`.
+    mask : array_like of bool (N,), optional
         Frames evaluated (e.g. ``Reference.valid``); frames with a non-finite input are left out too.
     remove_mean : bool
         The real-data protocol (module docstring).
@@ -158,12 +145,10 @@ def evaluate_drive(est_pitch, true_pitch, est_roll=None, true_roll=None, mask=No
     dict
         ``{"pitch": ..., "roll": ..., "angle": ...}`` (the last two only with roll), each :func:`summarize`'s.
     """
-    arrays = [np.asarray(est_pitch, dtype=float), np.asarray(true_pitch, dtype=float)]
-    with_roll = est_roll is not None or true_roll is not None
-    if with_roll:
-        if est_roll is None or true_roll is None:
-            raise ValueError("give both est_roll and true_roll, or neither")
-        arrays += [np.asarray(est_roll, dtype=float), np.asarray(true_roll, dtype=float)]
+    rolls = [np.asarray(a, dtype=float) for a in (est_roll, true_roll) if a is not None]
+    if len(rolls) == 1:
+        raise ValueError("give both est_roll and true_roll, or neither")
+    arrays = [np.asarray(est_pitch, dtype=float), np.asarray(true_pitch, dtype=float), *rolls]
     n = arrays[0].shape
     for a in arrays:
         if a.shape != n or a.ndim != 1:
@@ -174,10 +159,7 @@ def evaluate_drive(est_pitch, true_pitch, est_roll=None, true_roll=None, mask=No
     use = m & np.logical_and.reduce([np.isfinite(a) for a in arrays])
     if remove_mean and np.any(use):
         arrays = [a - a[use].mean() for a in arrays]
-    if with_roll:
-        err = frame_errors(arrays[0], arrays[1], arrays[2], arrays[3])
-    else:
-        err = frame_errors(arrays[0], arrays[1])
+    err = frame_errors(*arrays)
     return {k: summarize(err[k].to_numpy(), use) for k in err.columns}
 
 
@@ -188,9 +170,8 @@ def per_drive_table(per_drive: Mapping[str, Mapping[str, Any]], quantity: str = 
     Parameters
     ----------
     per_drive : mapping
-        Drive name to the dict returned by :func:`evaluate_drive`.
-    quantity : str
-        ``"pitch"``, ``"roll"`` or ``"angle"``.
+        Drive name to :func:`evaluate_drive`'s dict.
+    quantity : {"pitch", "roll", "angle"}
     stat : str, optional
         Keep only this column (e.g. ``"mean"``).
 
@@ -207,6 +188,4 @@ def per_drive_table(per_drive: Mapping[str, Mapping[str, Any]], quantity: str = 
         if "n_nonfinite" in table:
             agg["n_nonfinite"] = table["n_nonfinite"].sum()
         table.loc["mean over drives"] = agg
-    if stat is not None:
-        return table[[stat]]
-    return table
+    return table if stat is None else table[[stat]]

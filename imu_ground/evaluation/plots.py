@@ -74,7 +74,7 @@ def _split_methods(methods: Sequence[str]) -> tuple[list[str], list[str]]:
 SAME_RMS_DEG = 0.01
 
 
-def _overlap_labels(drive, tracks: dict, names: Sequence[str], centred, m: np.ndarray) -> dict[str, str]:
+def _overlap_labels(tracks: dict, names: Sequence[str], centred, m: np.ndarray) -> dict[str, str]:
     """Legend label per method: its name, and the earlier method it lies on (pitch within :data:`SAME_RMS_DEG`)."""
     labels: dict[str, str] = {}
     drawn: list[tuple[str, np.ndarray]] = []
@@ -91,7 +91,6 @@ def _overlap_labels(drive, tracks: dict, names: Sequence[str], centred, m: np.nd
 
 
 def _save(fig, path: Path) -> Path:
-    """``fig`` written as a PNG to ``path`` and closed; returns ``path``."""
     fig.savefig(path, dpi=110)
     _plt().close(fig)
     return Path(path)
@@ -105,11 +104,8 @@ def plot_pitch_over_time(drive, tracks: dict, path: Path, methods: Optional[Sequ
 def pitch_over_time_figure(drive, tracks: dict, methods: Optional[Sequence[str]] = None):
     """Pitch (and roll, where the truth has it) relative to the road over time: reference and estimates.
 
-    Panels on one time axis: pitch of the reference and the :data:`HIGHLIGHTED` methods (the
-    default with its 1-sigma band); roll likewise (synthetic drives); every other method's
-    pitch (one within :data:`SAME_RMS_DEG` of an earlier one says so); the speed with
-    :data:`~imu_ground.evaluation.reference.MIN_SPEED`. Real drives show estimates and
-    reference less their means over the scored frames. Deg, pitch + nose down, roll + left up.
+    The :data:`HIGHLIGHTED` methods (the default with its 1-sigma band) apart from the others;
+    real drives less their means over the scored frames. Deg, pitch + nose down, roll + left up.
 
     Parameters
     ----------
@@ -140,12 +136,13 @@ def pitch_over_time_figure(drive, tracks: dict, methods: Optional[Sequence[str]]
     def centred(x: np.ndarray) -> np.ndarray:
         return x - (np.nanmean(x[m]) if drive.remove_mean and m.any() else 0.0)
 
-    label = _overlap_labels(drive, tracks, [*bold, *others], centred, m)
+    label = _overlap_labels(tracks, [*bold, *others], centred, m)
     sign = {"pitch": "+ nose down", "roll": "+ left side up"}
+    for p in panels[:-1]:                       # the reference in every angle panel (other methods: the pitch)
+        ref = drive.truth["pitch" if p == "others" else p].to_numpy()
+        ax_of[p].plot(t, np.degrees(np.where(m, centred(ref), np.nan)), color="k", lw=2.0, label="reference")
     for what in angles:
         ax = ax_of[what]
-        ref = drive.truth[what].to_numpy()
-        ax.plot(t, np.degrees(np.where(m, centred(ref), np.nan)), color="k", lw=2.0, label="reference")
         for k, name in enumerate(bold):
             est = centred(np.asarray(getattr(tracks[name], what), dtype=float))
             std = getattr(tracks[name], f"{what}_std", None)
@@ -157,23 +154,18 @@ def pitch_over_time_figure(drive, tracks: dict, methods: Optional[Sequence[str]]
         ax.set_ylabel(f"{what} rel. road\n(deg, {sign[what]})")
     if others:
         ax = ax_of["others"]
-        ax.plot(t, np.degrees(np.where(m, centred(drive.truth["pitch"].to_numpy()), np.nan)), color="k", lw=2.0,
-                label="reference")
         for name in others:
             ax.plot(t, np.degrees(centred(np.asarray(tracks[name].pitch, dtype=float))), label=label[name],
                     **styles[name])
         ax.set_ylabel("pitch rel. road\n(deg, other methods)")
-    for p in panels[:-1]:
-        ax_of[p].legend(loc="upper left", bbox_to_anchor=(1.005, 1.0), fontsize=8, frameon=False)
-        ax_of[p].grid(alpha=0.3)
     ax = ax_of["speed"]
     ax.plot(t, drive.truth["speed"].to_numpy(), color="tab:gray", label="speed")
     ax.axhline(MIN_SPEED, color="tab:red", lw=0.8, ls="--",
                label=f"{MIN_SPEED:g} m/s: slower frames\nnot scored")
-    ax.set_ylabel("speed (m/s)")
-    ax.set_xlabel("time (s)")
-    ax.legend(loc="upper left", bbox_to_anchor=(1.005, 1.0), fontsize=8, frameon=False)
-    ax.grid(alpha=0.3)
+    ax.set(ylabel="speed (m/s)", xlabel="time (s)")
+    for p in panels:
+        ax_of[p].legend(loc="upper left", bbox_to_anchor=(1.005, 1.0), fontsize=8, frameon=False)
+        ax_of[p].grid(alpha=0.3)
     axes[0].set_title(f"{drive.name} ({drive.kind}, {drive.grade})" +
                       (": estimates and reference less their means" if drive.remove_mean else ""))
     fig.tight_layout()
@@ -186,12 +178,8 @@ def plot_error_distribution(errors: dict, path: Path, title: str = "") -> Path:
 
 
 def error_distribution_figure(errors: dict, title: str = ""):
-    """Histogram and empirical CDF of per-frame absolute errors (deg), ``errors`` by method (a Figure).
-
-    The histogram (a density, 1/deg) shows the :data:`HIGHLIGHTED` methods there (every method when
-    none is), the CDF every method: the highlighted bold, the others thinner, each in its own colour
-    and line style (the same as in :func:`plot_pitch_over_time`).
-    """
+    """Histogram (density, 1/deg; the :data:`HIGHLIGHTED` methods) and CDF (every method) of per-frame absolute
+    errors (deg), ``errors`` by method (a Figure)."""
     plt = _plt()
     styles = _method_styles(list(errors))
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(13, 4.5))
@@ -208,15 +196,12 @@ def error_distribution_figure(errors: dict, title: str = ""):
                     lw=styles[name]["lw"] + 0.3, label=name)
         s = np.sort(e)
         a2.plot(s, np.arange(1, len(s) + 1) / len(s), label=f"{name} (mean {e.mean():.3f} deg)", **styles[name])
-    a1.set_xlabel("absolute error (deg; the last bin holds the top 1%)")
-    a1.set_ylabel("density (1/deg)")
+    a1.set(xlabel="absolute error (deg; the last bin holds the top 1%)", ylabel="density (1/deg)")
     a1.set_title("histogram: " + ", ".join(bold) + ("; every method in the CDF" if len(bold) < len(errors) else ""),
                  fontsize=9)
     a1.legend(fontsize=8, loc="upper right")
     a1.grid(alpha=0.3)
-    a2.set_xlabel("absolute error (deg)")
-    a2.set_ylabel("fraction of frames")
-    a2.set_xlim(0, bins[-1])
+    a2.set(xlabel="absolute error (deg)", ylabel="fraction of frames", xlim=(0, bins[-1]))
     a2.grid(alpha=0.3)
     a2.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     fig.suptitle(title)
@@ -225,12 +210,7 @@ def error_distribution_figure(errors: dict, title: str = ""):
 
 
 def plot_simulation(sim, path: Path) -> Path:
-    """The synthetic road and the body motion of a :class:`~imu_ground.evaluation.simulate.SimResult`.
-
-    Panels: top view of the path coloured by speed; road grade and bank along
-    the path; roughness profile (left and right tracks); body pitch and roll
-    relative to the road with the longitudinal and lateral acceleration.
-    """
+    """The synthetic road (top view, grade, bank, roughness) and the body motion of a ``SimResult``, as a PNG."""
     plt = _plt()
     tr = sim.truth
     fig = plt.figure(figsize=(12, 9))
@@ -239,34 +219,28 @@ def plot_simulation(sim, path: Path) -> Path:
     sc = ax.scatter(tr["x"], tr["y"], c=tr["speed"], s=4, cmap="viridis")
     fig.colorbar(sc, ax=ax, label="speed (m/s)")
     ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel("east (m)")
-    ax.set_ylabel("north (m)")
-    ax.set_title(f"{sim.name or 'synthetic drive'}: path")
-    ax = fig.add_subplot(gs[0, 1])
+    ax.set(xlabel="east (m)", ylabel="north (m)", title=f"{sim.name or 'synthetic drive'}: path")
+    ax = a_grade = fig.add_subplot(gs[0, 1])
     ax.plot(tr["s"], np.degrees(tr["road_grade"]), label="grade (+ uphill)")
     ax.plot(tr["s"], np.degrees(tr["road_bank"]), label="bank (+ left edge up)")
-    ax.set_xlabel("distance (m)")
-    ax.set_ylabel("deg")
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
+    ax.set(xlabel="distance (m)", ylabel="deg")
     ax = fig.add_subplot(gs[1, 1])
     road = sim.road
     x = np.asarray(road["x"])
     sel = (x >= 0) & (x <= min(tr["s"].max(), 200.0))
     ax.plot(x[sel], 1e3 * np.asarray(road["h_left"])[sel], lw=0.7, label="left track")
     ax.plot(x[sel], 1e3 * np.asarray(road["h_right"])[sel], lw=0.7, label="right track")
-    ax.set_xlabel("distance (m)")
-    ax.set_ylabel("roughness (mm)")
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
+    ax.set(xlabel="distance (m)", ylabel="roughness (mm)")
+    for a in (a_grade, ax):
+        a.legend(fontsize=8)
+        a.grid(alpha=0.3)
     ax = fig.add_subplot(gs[2, :])
     ax.plot(tr["t"], np.degrees(tr["pitch"]), label="body pitch rel. road (deg)")
     ax.plot(tr["t"], np.degrees(tr["roll"]), label="body roll rel. road (deg)")
     ax2 = ax.twinx()
     ax2.plot(tr["t"], tr["acc_long"], color="tab:gray", lw=0.8, alpha=0.7, label="long. accel (m/s²)")
     ax2.plot(tr["t"], tr["acc_lat"], color="tab:olive", lw=0.8, alpha=0.7, label="lat. accel (m/s²)")
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("deg")
+    ax.set(xlabel="time (s)", ylabel="deg")
     ax2.set_ylabel("m/s²")
     h1, l1 = ax.get_legend_handles_labels()
     h2, l2 = ax2.get_legend_handles_labels()
@@ -282,11 +256,12 @@ def evaluation_plots(drives: Iterable, results: pd.DataFrame, tracks: dict, fold
 
     Parameters
     ----------
-    drives : the drives evaluated.
-    results : DataFrame from :func:`imu_ground.evaluation.runner.evaluate`.
-    tracks : ``{(drive, method): GroundTrack}`` from the same call (``keep_tracks=True``).
-    folder : output folder (created).
-    max_drives : pitch-over-time plots for at most this many drives per kind.
+    drives, results, tracks
+        The drives evaluated, :func:`~imu_ground.evaluation.runner.evaluate`'s table and tracks (``keep_tracks``).
+    folder : Path
+        Output folder (created).
+    max_drives : int
+        Pitch-over-time plots for at most this many drives per kind.
 
     Returns
     -------

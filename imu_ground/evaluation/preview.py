@@ -64,9 +64,9 @@ class Preview:
     labels : list of str
         One caption per frame.
     lanes : bool
-        Draw the true lane lines (``+- LANE_WIDTH / 2``) over the bird's-eye views (simulation only).
+        Draw the true lane lines (``+- LANE_WIDTH / 2``) (simulation only).
     readings : dict of str to list of str
-        Per plane name, one caption a frame (:func:`~imu_ground.evaluation.lidar_preview.add_lidar_plane`).
+        Per plane name, one caption a frame.
     marks : ndarray (F, 2), optional
         Per frame, a road point ``(x, y)`` (m, ahead and left) crossed on every bird's-eye view.
     """
@@ -89,11 +89,10 @@ def synthetic_preview(seed: int = 3, duration: float = 40.0, frames: int = 1, gr
     Parameters
     ----------
     seed, duration : int, float
-        The drive (:func:`~imu_ground.evaluation.simulate.simulate`, urban style, navigation-grade IMU).
+        The drive (urban style, navigation-grade IMU).
     frames : int
         Frames to show, centred on the moving frame with the largest true pitch.
-    grid : BevGrid
-    camera : str or Camera
+    grid, camera : BevGrid, str or Camera
 
     Returns
     -------
@@ -136,14 +135,6 @@ def synthetic_preview(seed: int = 3, duration: float = 40.0, frames: int = 1, gr
                    f"{default_method(True)}", labels, lanes=True)
 
 
-def _check_increasing(path: Path, times: np.ndarray, linenos: np.ndarray) -> None:
-    back = np.flatnonzero(np.diff(times) < 0)
-    if back.size:
-        i = int(back[0]) + 1
-        raise OptionError(f"{path}:{linenos[i]}: time {times[i]:g} s is before the one above it ({times[i - 1]:g} s); "
-                          "give {opt} the images' times in their name order, increasing", "times")
-
-
 def _read_image(path: Path, camera: Camera) -> np.ndarray:
     from PIL import Image, UnidentifiedImageError
     try:
@@ -164,16 +155,12 @@ def images_preview(images: str | Path, times: str | Path, camera: str | Camera, 
 
     Parameters
     ----------
-    images : str or Path
-        Folder of the camera's images, taken in name order.
-    times : str or Path
-        One time a line (s, on the log's clock: the ``t`` of the estimate's table), one per image.
+    images, times : str or Path
+        Folder of the camera's images (in name order) and one time a line for each (s, the log's clock).
     camera : str or Camera
         :func:`~imu_ground.perception.load_camera`.
-    t : array_like (N,)
-        The estimate's frame times, s.
-    dynamic : GroundPlane
-        The estimate's planes, N frames (``estimate_log(..., camera=...).meta["plane"]``).
+    t, dynamic : array_like (N,), GroundPlane
+        The estimate's frame times (s) and planes (``estimate_log(..., camera=...).meta["plane"]``).
     pitch, roll : array_like (N,), optional
         The estimate's angles, rad, for the captions.
     title : str
@@ -201,7 +188,12 @@ def images_preview(images: str | Path, times: str | Path, camera: str | Camera, 
         i = int(bad[0])
         raise ImuGroundError(f"{times_path}:{linenos[i]}: time {t_img[i]:g} s ({files[i].name}) is outside the "
                              f"log's frames ({lo:g} .. {hi:g} s on the log's clock); give --times on the log's clock")
-    _check_increasing(times_path, t_img, linenos)
+    back = np.flatnonzero(np.diff(t_img) < 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise OptionError(f"{times_path}:{linenos[i]}: time {t_img[i]:g} s is before the one above it "
+                          f"({t_img[i - 1]:g} s); give {{opt}} the images' times in their name order, increasing",
+                          "times")
     cam = load_camera(camera)
     for f in files:
         _read_image(f, cam)                         # every image readable and of the camera's size before drawing
@@ -221,9 +213,7 @@ def images_preview(images: str | Path, times: str | Path, camera: str | Camera, 
 
 
 def drawn_grid(grid: BevGrid) -> BevGrid:
-    """The grid a bird's-eye view is drawn on: ``grid`` itself, or, when it has more than
-    :data:`DRAWN_BEV_PIXELS` pixels a side, the same extent at a resolution coarser by the smallest
-    whole factor that fits."""
+    """``grid``, or above :data:`DRAWN_BEV_PIXELS` pixels a side its extent coarser by the smallest whole factor."""
     factor = math.ceil(max(grid.shape) / DRAWN_BEV_PIXELS)
     if factor <= 1:
         return grid
@@ -231,7 +221,7 @@ def drawn_grid(grid: BevGrid) -> BevGrid:
 
 
 def _deg(value: float) -> str:
-    """An angle of a caption, deg: ``nan`` (as the output table writes it) where there is no estimate."""
+    """A caption's angle, deg (``nan`` as the output table writes it)."""
     return "nan" if math.isnan(value) else f"{value:+.2f}"
 
 
@@ -251,10 +241,8 @@ def _figure(preview: Preview, k: int, grid: BevGrid):
     grid = drawn_grid(grid)
     for j, name in enumerate(names):
         plane = preview.planes[name]
-        if not np.all(np.isfinite(plane.rotation[k])):
-            bev = np.zeros(grid.shape + (3,), dtype=np.uint8)
-        else:
-            bev = warp_to_bev(img, plane.from_bev(grid)[k], grid)
+        finite = np.all(np.isfinite(plane.rotation[k]))
+        bev = warp_to_bev(img, plane.from_bev(grid)[k], grid) if finite else np.zeros(grid.shape + (3,), np.uint8)
         a = fig.add_subplot(gs[1, j])
         a.imshow(bev, extent=(grid.y1, grid.y0, grid.x0, grid.x1), aspect="equal")
         for y in ((-lanes, lanes) if preview.lanes else ()):
@@ -263,16 +251,13 @@ def _figure(preview: Preview, k: int, grid: BevGrid):
             a.plot(preview.marks[k][1], preview.marks[k][0], "x", color="red", ms=9, mew=2)
         reading = preview.readings.get(name)
         a.set_title(f"bird's-eye, {what[name]}" + (f"\n{reading[k]}" if reading else ""), fontsize=9)
-        a.set_xlabel("left (m)")
-        if j == 0:
-            a.set_ylabel("ahead (m)")
+        a.set(xlabel="left (m)", ylabel="ahead (m)" if j == 0 else "")
     if preview.lane_error is not None:
         a = fig.add_subplot(gs[1, -1])
         d = preview.lane_error["distance_m"]
         for name, style in (("static", "C3-"), ("dynamic", "C0-")):
             a.plot(d, preview.lane_error[name], style, label=what[name])
-        a.set_xlabel("distance ahead (m)")
-        a.set_ylabel("mean |lane-width error| (m)")
+        a.set(xlabel="distance ahead (m)", ylabel="mean |lane-width error| (m)")
         a.set_title("lane-width error (moving frames)", fontsize=9)
         a.grid(True, alpha=0.3)
         a.legend(fontsize=8)
@@ -282,11 +267,8 @@ def _figure(preview: Preview, k: int, grid: BevGrid):
 
 
 def render_preview(preview: Preview, fmt: str = "png", grid: BevGrid = PREVIEW_GRID, fps: float = 5.0) -> bytes:
-    """The preview drawn: a PNG of its first frame, or (``fmt="gif"``) an animation of all its frames.
-
-    The PNG carries the plotted lane-width errors (when there are any) as JSON in its
-    :data:`PNG_KEY` text chunk (:func:`read_preview_errors`).
-    """
+    """The preview drawn: a PNG of its first frame (the lane-width errors in its :data:`PNG_KEY` chunk), or
+    (``fmt="gif"``) an animation of all its frames."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from PIL import Image
     if fmt not in ("png", "gif"):

@@ -2,32 +2,17 @@ r"""Reference pitch relative to the road on real drives (KITTI OXTS at 100 Hz), 
 
     pitch_rel_road(t) = pitch(t) + grade(t),   grade = atan2(vu, hypot(ve, vn))
 
-KITTI's signs: pitch + nose down, grade + uphill (a car on an uphill road pitches
-nose up by the grade, so ``pitch + grade`` is its pitch relative to the road). Roll
-relative to the road is not observable (the cross-slope is unknown): pitch only.
+KITTI's signs: pitch + nose down, grade + uphill. Roll relative to the road is not
+observable (the cross-slope is unknown): pitch only.
 
-Construction
-------------
-1. Samples not later than every earlier one are dropped (:func:`drop_out_of_order`);
-   gaps are kept, never interpolated across.
-2. Travelled distance: trapezoidal integral of ``hypot(ve, vn)`` (the positions jump
-   with the GPS fix, the velocity does not).
-3. The grade is averaged over a centred window of ``window_m`` metres of distance,
-   moving samples only (:func:`smoothed_grade`)::
-
-       grade_s(s) = [G(s + w/2) - G(s - w/2)] / [W(s + w/2) - W(s - w/2)]
-       G(s) = integral of grade ds,  W(s) = integral of ds
-
-   truncated (one-sided) at the drive's ends and next to stops.
-4. Frames at or below ``min_speed`` are not valid (``vu / v`` is noise there).
-5. Evaluated at the frame times (default :func:`frame_times`) by linear
-   interpolation; a frame farther than ``max_gap`` from a sample is not valid.
-6. The drive mean of ``pitch + grade`` over the valid frames (the static mounting
-   offset) is removed and returned as ``offset``.
-
-The reference is only as good as the INS vertical velocity (a 0.1 m/s ``vu`` bias is
-1.4 deg of grade at 4 m/s). :func:`check_reference` decides from the data alone
-(no list of drives) whether a drive's reference can be trusted.
+Construction: out-of-order samples dropped (:func:`drop_out_of_order`; gaps kept, never
+interpolated across); distance = trapezoidal integral of ``hypot(ve, vn)``; the grade
+averaged over a centred window of ``window_m`` m of distance, moving samples only
+(:func:`smoothed_grade`, one-sided at the ends and next to stops); frames at or below
+``min_speed`` or farther than ``max_gap`` from a sample not valid; linear interpolation
+to the frame times; the drive mean over the valid frames (the mounting offset) removed
+and returned as ``offset``. :func:`check_reference` decides from the data alone whether
+a drive's reference (only as good as the INS vertical velocity) can be trusted.
 """
 from __future__ import annotations
 
@@ -56,12 +41,12 @@ _REQUIRED = ("t", "pitch", "ve", "vn", "vu")
 
 
 def drop_out_of_order(df: pd.DataFrame) -> pd.DataFrame:
-    """Keep only the rows whose time is later than every earlier row's (repeats dropped; idempotent).
+    """The rows whose time is later than every earlier row's (repeats dropped; idempotent).
 
     Parameters
     ----------
     df : pandas.DataFrame
-        With a column ``t`` (seconds).
+        With a column ``t`` (s).
 
     Returns
     -------
@@ -82,15 +67,13 @@ def frame_times(t: np.ndarray, rate: float = FRAME_RATE) -> np.ndarray:
 
     Parameters
     ----------
-    t : array_like, shape (N,)
-        Sample times, s (any order; only the min and max are used).
-    rate : float
-        Frames per second.
+    t, rate : array_like (N,), float
+        Sample times (s, any order) and frames per second.
 
     Returns
     -------
     ndarray
-        ``t_min + k / rate`` for ``k = 0, 1, ...`` up to ``t_max``.
+        ``min(t) + k / rate`` up to ``max(t)``, s.
     """
     t = np.asarray(t, dtype=float)
     if t.size == 0:
@@ -101,19 +84,17 @@ def frame_times(t: np.ndarray, rate: float = FRAME_RATE) -> np.ndarray:
 
 
 def travelled_distance(t: np.ndarray, speed: np.ndarray) -> np.ndarray:
-    """Cumulative distance, m: trapezoidal integral of ``speed`` over ``t``.
+    """Cumulative distance: trapezoidal integral of ``speed`` over ``t``.
 
     Parameters
     ----------
-    t : array_like, shape (N,)
-        Increasing sample times, s.
-    speed : array_like, shape (N,)
-        Horizontal speed, m/s.
+    t, speed : array_like (N,)
+        Increasing sample times (s) and horizontal speed (m/s).
 
     Returns
     -------
-    ndarray, shape (N,)
-        Starts at 0, non-decreasing for non-negative speed.
+    ndarray (N,)
+        m, from 0.
     """
     from scipy.integrate import cumulative_trapezoid
     t = np.asarray(t, dtype=float)
@@ -124,25 +105,18 @@ def smoothed_grade(s: np.ndarray, grade: np.ndarray, window_m: float = WINDOW_M,
                    use: np.ndarray | None = None) -> np.ndarray:
     """Distance-weighted centred moving average of the grade over ``window_m`` metres.
 
-    Each segment between samples whose ends are both in ``use`` contributes its mean
-    grade times its length; the window ``[s - w/2, s + w/2]`` (clipped to the drive)
-    is read off cumulative sums with ``np.interp`` (exact for partial segments).
-    Where the window holds no used length the raw grade is returned.
+    Each segment whose ends are both in ``use`` weighs its mean grade by its length; the
+    window ``[s - w/2, s + w/2]`` (clipped to the drive) is read off cumulative sums. Where
+    it holds no used length the raw grade is kept.
 
     Parameters
     ----------
-    s : array_like, shape (N,)
-        Non-decreasing travelled distance, m.
-    grade : array_like, shape (N,)
-        Grade, rad (any unit: the average keeps it).
+    s, grade : array_like (N,)
+        Non-decreasing travelled distance (m) and grade (any unit: the average keeps it).
     window_m : float
         Full window length, m.
-    use : array_like of bool, shape (N,), optional
-        Samples allowed in the average (default all; :func:`pitch_reference`: the moving ones).
-
-    Returns
-    -------
-    ndarray, shape (N,)
+    use : array_like of bool (N,), optional
+        Samples allowed in the average (default all).
     """
     s = np.asarray(s, dtype=float)
     g = np.asarray(grade, dtype=float)
@@ -180,16 +154,13 @@ class Reference:
 
     Attributes
     ----------
-    t : ndarray, shape (M,)
+    t : ndarray (M,)
         Frame times, s.
-    pitch_rel_road : ndarray, shape (M,)
-        ``pitch + grade - offset``, nose down positive; NaN only without data, used where ``valid``.
-    valid : ndarray of bool, shape (M,)
-        Moving (speed above ``min_speed``) and not inside a data gap.
-    pitch, grade : ndarray
-        OXTS pitch and smoothed road grade (uphill positive) at the frames.
-    speed, distance : ndarray
-        Horizontal speed (m/s) and travelled distance (m) at the frames.
+    pitch_rel_road : ndarray (M,)
+        ``pitch + grade - offset``, nose down positive, used where ``valid`` (moving, not in a gap).
+    valid : ndarray of bool (M,)
+    pitch, grade, speed, distance : ndarray (M,)
+        OXTS pitch, smoothed grade (uphill +), horizontal speed (m/s), travelled distance (m).
     offset : float
         The removed mean of ``pitch + grade`` over the valid frames (NaN when none is valid).
     params : dict
@@ -215,25 +186,21 @@ def pitch_reference(df: pd.DataFrame, times: np.ndarray | None = None, *,
     Parameters
     ----------
     df : pandas.DataFrame
-        A ``kitti_imu100`` drive: columns ``t, pitch, ve, vn, vu`` at least
-        (radians, m/s). Raw (out-of-order timestamps are dropped here, see
-        :func:`drop_out_of_order`) or already cleaned.
+        A ``kitti_imu100`` drive: columns ``t, pitch, ve, vn, vu`` at least (s, rad, m/s), raw or cleaned.
     times : array_like, optional
-        Frame times, s, on the same clock as ``df.t``. Default: the 10 Hz grid
-        of :func:`frame_times`.
-    window_m : float
-        Length of the centred distance window of the grade average, m.
-    min_speed : float
-        Frames with horizontal speed at or below it are not valid, m/s.
-    max_gap : float
-        A frame farther than this from the nearest sample is in a gap and not valid, s.
-    rate : float
-        Frame rate of the default grid, Hz.
+        Frame times, s, on ``df.t``'s clock (default: :func:`frame_times` at ``rate`` Hz).
+    window_m, min_speed, max_gap : float
+        The grade window (m), the speed at or below which a frame is not valid (m/s), the
+        largest distance to a sample (s): see the module docstring.
 
     Returns
     -------
     Reference
-        See the module docstring for the construction.
+
+    Raises
+    ------
+    ImuGroundError
+        Missing columns or no samples.
     """
     missing = [c for c in _REQUIRED if c not in df.columns]
     if missing:
@@ -252,11 +219,8 @@ def pitch_reference(df: pd.DataFrame, times: np.ndarray | None = None, *,
     tf = frame_times(t, rate) if times is None else np.asarray(times, dtype=float)
     inside = (tf >= t[0]) & (tf <= t[-1])
     near = sample_gap(t, tf)
-    nan = np.nan
-    f_pitch = np.interp(tf, t, pitch, left=nan, right=nan)
-    f_grade = np.interp(tf, t, grade_s, left=nan, right=nan)
-    f_speed = np.interp(tf, t, speed, left=nan, right=nan)
-    f_dist = np.interp(tf, t, s, left=nan, right=nan)
+    f_pitch, f_grade, f_speed, f_dist = (np.interp(tf, t, x, left=np.nan, right=np.nan)
+                                         for x in (pitch, grade_s, speed, s))
     valid = inside & (near <= max_gap + 1e-9) & (f_speed > min_speed)
     raw = f_pitch + f_grade
     offset = float(np.mean(raw[valid])) if np.any(valid) else float("nan")
@@ -269,17 +233,7 @@ def pitch_reference(df: pd.DataFrame, times: np.ndarray | None = None, *,
 
 @dataclass
 class ReferenceCheck:
-    """Verdict of :func:`check_reference`.
-
-    Attributes
-    ----------
-    valid : bool
-        Whether the reference can be used.
-    reasons : list of str
-        One sentence per failed criterion.
-    stats : dict
-        The numbers behind the verdict.
-    """
+    """Verdict of :func:`check_reference`: ``valid``, ``reasons`` (one sentence a failed criterion), ``stats``."""
 
     valid: bool
     reasons: list[str]
@@ -309,25 +263,18 @@ def check_reference(df: pd.DataFrame, ref: Reference | None = None, *,
                     **reference_kwargs: Any) -> ReferenceCheck:
     """Decide from the data alone whether a drive's pitch reference is usable.
 
-    A drive fails when any of these holds:
-
-    1. **Too little motion**: fewer than ``min_moving_frames`` valid frames.
-    2. **Impossible road grade**: on some valid frame the smoothed grade exceeds
-       ``max_grade_deg`` in magnitude (an INS vertical-velocity fault).
-    3. **Impossible body pitch relative to the road**: some valid frame has
-       ``|pitch + grade - offset|`` above ``max_pitch_rel_road_deg`` (INS pitch and
-       vertical velocity disagree).
+    It fails with fewer than ``min_moving_frames`` valid frames, a smoothed grade beyond
+    ``max_grade_deg`` or ``|pitch + grade - offset|`` beyond ``max_pitch_rel_road_deg`` on
+    a valid frame (INS faults).
 
     Parameters
     ----------
     df : pandas.DataFrame
         The drive (as for :func:`pitch_reference`).
     ref : Reference, optional
-        Its reference, if already computed (otherwise computed here with ``reference_kwargs``).
+        Its reference (default: computed with ``reference_kwargs``, passed to :func:`pitch_reference`).
     max_grade_deg, max_pitch_rel_road_deg, min_moving_frames
         Thresholds (deg, deg, frames).
-    **reference_kwargs
-        Passed to :func:`pitch_reference` (``window_m``, ``min_speed``, ...).
 
     Returns
     -------

@@ -1,21 +1,11 @@
 r"""Revisit consistency: the road's attitude must repeat where a drive passes the same place twice.
 
-Where a drive passes the same place twice in the same direction, the road's own
-attitude there is the same on both passes, so::
-
-    road_pitch = INS pitch - estimated pitch relative to the road
-    road_roll  = INS roll  - estimated roll relative to the road
-
-must repeat; a difference is the estimator's error (the mounting offset cancels).
-This needs no grade reference and checks roll too. The INS and the estimators
-share signs (pitch + nose down, roll + left side up). Angles in rad unless a name
-ends in ``_deg``.
-
-Pairs (:func:`revisit_pairs`): frames above ``min_speed``, within ``max_distance``
-and ``max_heading`` of each other, at least ``min_separation`` apart; each frame
-keeps its closest partner, each unordered pair once. The metric
-(:func:`revisit_consistency`) is ``mean |difference| / sqrt(2)``: the per-pass error
-of two independent, alike passes.
+Passing the same place twice in the same direction, ``road = INS attitude - estimated
+attitude relative to the road`` (pitch and roll) must repeat; a difference is the estimator's
+error (the mounting offset cancels; no grade reference needed). The INS and the estimators
+share signs (pitch + nose down, roll + left side up); angles in rad unless a name ends in
+``_deg``. The metric (:func:`revisit_consistency`) is ``mean |difference| / sqrt(2)``: the
+per-pass error of two independent, alike passes.
 """
 from __future__ import annotations
 
@@ -24,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from imu_ground.evaluation.baselines import _wrap
 from imu_ground.evaluation.reference import MIN_SPEED, drop_out_of_order, sample_gap
 
 __all__ = ["RevisitPairs", "drive_revisit_pairs", "ins_at_frames", "revisit_consistency", "revisit_differences",
@@ -37,15 +28,8 @@ MIN_SEPARATION = 30.0
 
 @dataclass(frozen=True)
 class RevisitPairs:
-    """Frame pairs on the same place, same direction, on two passes of one drive.
-
-    Attributes
-    ----------
-    i, j : ndarray of int (P,)
-        Frame indices, ``i < j`` (the earlier pass first).
-    ins_pitch, ins_roll : ndarray (F,)
-        The INS attitude at every frame, rad (KITTI convention: pitch front down +, roll left up +).
-    """
+    """Frame pairs ``i < j`` (int (P,)) on the same place, same direction, and the INS ``ins_pitch``, ``ins_roll``
+    at every frame (F,), rad."""
     i: np.ndarray
     j: np.ndarray
     ins_pitch: np.ndarray
@@ -53,10 +37,6 @@ class RevisitPairs:
 
     def __len__(self) -> int:
         return int(len(self.i))
-
-
-def _wrap(a: np.ndarray) -> np.ndarray:
-    return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def revisit_pairs(t: np.ndarray, x: np.ndarray, y: np.ndarray, heading: np.ndarray, speed: np.ndarray,
@@ -68,23 +48,21 @@ def revisit_pairs(t: np.ndarray, x: np.ndarray, y: np.ndarray, heading: np.ndarr
     Parameters
     ----------
     t, x, y, heading, speed : ndarray (F,)
-        Frame times (s), horizontal position (m, any local level frame), heading (rad,
-        compared modulo 2 pi) and horizontal speed (m/s).
+        Frame times (s), horizontal position (m, any local level frame), heading (rad, modulo 2 pi),
+        horizontal speed (m/s).
     usable : ndarray of bool (F,), optional
-        Frames allowed to pair (e.g. valid ego-motion frames).
+        Frames allowed to pair.
     max_distance, max_heading, min_separation, min_speed : float
-        Largest distance (m) and heading difference (rad) of a pair, smallest time between
-        its frames (s); both frames strictly faster than ``min_speed`` (m/s).
+        Largest distance (m) and heading difference (rad) of a pair, smallest time between its
+        frames (s); both frames faster than ``min_speed`` (m/s).
 
     Returns
     -------
     i, j : ndarray of int (P,)
-        The pairs, ``i < j``, sorted; every eligible frame with a partner keeps its
-        closest one (ties: the earliest), and a pair chosen from both ends counts once.
+        The pairs, ``i < j``, sorted: each frame's closest partner (ties: the earliest), each pair once.
     """
     from scipy.spatial import cKDTree
-    t, x, y = (np.asarray(a, dtype=float) for a in (t, x, y))
-    heading, speed = np.asarray(heading, dtype=float), np.asarray(speed, dtype=float)
+    t, x, y, heading, speed = (np.asarray(a, dtype=float) for a in (t, x, y, heading, speed))
     ok = (speed > min_speed) & np.isfinite(x) & np.isfinite(y) & np.isfinite(heading) & np.isfinite(t)
     if usable is not None:
         ok &= np.asarray(usable, dtype=bool)
@@ -92,9 +70,8 @@ def revisit_pairs(t: np.ndarray, x: np.ndarray, y: np.ndarray, heading: np.ndarr
     empty = np.zeros(0, dtype=int)
     if len(idx) < 2:
         return empty, empty
-    pts = np.column_stack([x[idx], y[idx]])
-    tree = cKDTree(pts)
-    near = tree.query_pairs(max_distance, output_type="ndarray")       # a < b, indices into idx
+    # a < b, indices into idx
+    near = cKDTree(np.column_stack([x[idx], y[idx]])).query_pairs(max_distance, output_type="ndarray")
     if len(near) == 0:
         return empty, empty
     a, b = idx[near[:, 0]], idx[near[:, 1]]
@@ -128,31 +105,22 @@ def ins_at_frames(df, times: np.ndarray) -> dict[str, np.ndarray]:
     Returns
     -------
     dict
-        ``pitch, roll, yaw`` (rad; KITTI convention), ``x, y`` (m), ``speed``
-        (horizontal, m/s) by linear interpolation (the yaw unwrapped first);
-        ``near`` (bool): a kept sample lies within 0.1 s of the frame.
+        ``pitch, roll, yaw`` (rad), ``x, y`` (m), ``speed`` (m/s), interpolated (the yaw unwrapped);
+        ``near`` (bool): a sample within 0.1 s of the frame.
     """
     d = drop_out_of_order(df)
     ts = d["t"].to_numpy(float)
     times = np.asarray(times, dtype=float)
 
-    def at(v: np.ndarray) -> np.ndarray:
-        return np.interp(times, ts, v)
-
-    out = {"pitch": at(d["pitch"].to_numpy(float)), "roll": at(d["roll"].to_numpy(float)),
-           "yaw": at(np.unwrap(d["yaw"].to_numpy(float))), "x": at(d["px"].to_numpy(float)),
-           "y": at(d["py"].to_numpy(float)),
-           "speed": at(np.hypot(d["ve"].to_numpy(float), d["vn"].to_numpy(float)))}
-    out["near"] = sample_gap(ts, times) <= 0.1
-    return out
+    c = {k: d[k].to_numpy(float) for k in ("pitch", "roll", "yaw", "px", "py", "ve", "vn")}
+    signals = {"pitch": c["pitch"], "roll": c["roll"], "yaw": np.unwrap(c["yaw"]), "x": c["px"], "y": c["py"],
+               "speed": np.hypot(c["ve"], c["vn"])}
+    return {**{k: np.interp(times, ts, v) for k, v in signals.items()}, "near": sample_gap(ts, times) <= 0.1}
 
 
 def drive_revisit_pairs(drive, **thresholds) -> RevisitPairs:
-    """The revisit pairs of a real drive (:class:`~imu_ground.evaluation.drives.Drive` with its raw log).
-
-    Frames pair when the ego-motion frame is valid and a log sample lies near it;
-    ``thresholds`` go to :func:`revisit_pairs`.
-    """
+    """The revisit pairs of a real drive with its raw log: valid frames near a sample (``thresholds``: as
+    :func:`revisit_pairs`)."""
     em = drive.egomotion
     ins = ins_at_frames(drive.imu.to_dataframe(), em.t)
     usable = np.asarray(em.valid, dtype=bool) & ins["near"]
@@ -168,9 +136,8 @@ def revisit_differences(pairs: RevisitPairs, pitch: np.ndarray, roll: np.ndarray
     ----------
     pairs : RevisitPairs
     pitch, roll : ndarray (F,)
-        Estimated body attitude relative to the road, rad (pitch nose down +, roll left up +).
+        Estimated body attitude relative to the road, rad.
     valid : ndarray of bool (F,), optional
-        The estimator's validity per frame.
 
     Returns
     -------
@@ -179,11 +146,9 @@ def revisit_differences(pairs: RevisitPairs, pitch: np.ndarray, roll: np.ndarray
     """
     road_p = pairs.ins_pitch - np.asarray(pitch, dtype=float)
     road_r = pairs.ins_roll - np.asarray(roll, dtype=float)
-    i, j = pairs.i, pairs.j
-    if valid is not None:
-        v = np.asarray(valid, dtype=bool)
-        keep = v[i] & v[j]
-        i, j = i[keep], j[keep]
+    v = np.ones(len(road_p), dtype=bool) if valid is None else np.asarray(valid, dtype=bool)
+    keep = v[pairs.i] & v[pairs.j]
+    i, j = pairs.i[keep], pairs.j[keep]
     return road_p[j] - road_p[i], road_r[j] - road_r[i]
 
 
@@ -202,19 +167,18 @@ def revisit_table(results):
     Parameters
     ----------
     results : pandas.DataFrame
-        The evaluation's rows with ``revisit_n``, ``revisit_pitch_sum`` and ``revisit_roll_sum``
-        (sums of ``|difference|``, deg).
+        The evaluation's rows (``revisit_n``, ``revisit_pitch_sum``, ``revisit_roll_sum``, deg).
 
     Returns
     -------
     pandas.DataFrame
-        Index (drive, method); columns ``pairs``, ``pitch_deg``, ``roll_deg``
-        (``mean |difference| / sqrt(2)``); drive ``pooled`` sums over the drives. Empty
-        when no drive has revisit pairs.
+        Index (drive, method; drive ``pooled`` over the drives); ``pairs``, ``pitch_deg``, ``roll_deg``. Empty
+        without pairs.
     """
     import pandas as pd
+    empty = pd.DataFrame(columns=["pairs", "pitch_deg", "roll_deg"])
     if "revisit_n" not in results.columns:
-        return pd.DataFrame(columns=["pairs", "pitch_deg", "roll_deg"])
+        return empty
     ok = results[results["valid"] & (results["revisit_n"].fillna(0) > 0)]
     rows = []
     s = 1.0 / math.sqrt(2.0)
@@ -224,6 +188,4 @@ def revisit_table(results):
         rows.append({"drive": key[0], "method": key[1], "pairs": n,
                      "pitch_deg": g["revisit_pitch_sum"].sum() / n * s,
                      "roll_deg": g["revisit_roll_sum"].sum() / n * s})
-    if not rows:
-        return pd.DataFrame(columns=["pairs", "pitch_deg", "roll_deg"])
-    return pd.DataFrame(rows).set_index(["drive", "method"])
+    return pd.DataFrame(rows).set_index(["drive", "method"]) if rows else empty

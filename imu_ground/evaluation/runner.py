@@ -1,21 +1,18 @@
 """Compare ground-normal methods on drives with ground truth: real KITTI and synthetic.
 
-Every method is a :class:`~imu_ground.filters.methods.MethodSpec` (built with the
-drive's extrinsic, run over its ego-motion). :data:`METHODS`: the registry's
-(:data:`imu_ground.filters.methods.METHODS`) then the evaluation's research
-baselines. :func:`evaluate` runs methods over drives
-(:mod:`imu_ground.evaluation.drives`) and reports per drive and method the error
-statistics (pitch; roll and the normal angle where the truth has them), the
-per-segment metric, the error by condition (:mod:`~imu_ground.evaluation.conditions`),
-``ref_floor`` and ``ref_share`` (what the reference's own uncertainty explains), the
-error by that uncertainty (:func:`sigma_table`) and, on real drives passing a place
-twice, the revisit consistency (:mod:`imu_ground.evaluation.revisit`).
+:data:`METHODS`: the registry's :class:`~imu_ground.filters.methods.MethodSpec` then the research
+baselines, each built with the drive's extrinsic and run over its ego-motion. :func:`evaluate` reports
+per drive and method the error statistics, the per-segment metric, the error by condition
+(:mod:`~imu_ground.evaluation.conditions`), what the reference's own uncertainty explains
+(``ref_floor``, ``ref_share``, :func:`sigma_table`) and the revisit consistency
+(:mod:`imu_ground.evaluation.revisit`).
 """
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterable, Iterator, Mapping, Sequence, ValuesView
+from collections import ChainMap
+from collections.abc import Iterable, Mapping, Sequence, ValuesView
 from functools import partial
 
 import numpy as np
@@ -35,9 +32,7 @@ __all__ = [
     "sigma_table", "summary_table", "synthetic_drive", "synthetic_drives"
 ]
 
-#: Tuned parameters of the paper's method (the GroundNormalFilter with the
-#: heading-following slow state): chosen on the real drives, see
-#: ``benchmarks/studies/tune_paper.py``.
+#: Tuned parameters of the paper's method, chosen on the real drives (``benchmarks/studies/tune_paper.py``).
 TUNED = dict(Q=0.1, R=1.0, P=1.0)
 #: Edges (deg) of the bins of the reference's own 1-sigma uncertainty in :func:`sigma_table`.
 SIGMA_BINS = (0.0, 0.075, 0.1, 0.15, 0.25, 0.5, math.inf)
@@ -48,40 +43,20 @@ SIGMA_BINS = (0.0, 0.075, 0.1, 0.15, 0.25, 0.5, math.inf)
 Method = MethodSpec
 
 
-def _research_baselines() -> list[MethodSpec]:
-    """The methods the evaluation adds to the registry: research baselines, not offered by ``estimate``."""
-    return [
-        MethodSpec("ekf", "standard EKF, Euler-angle state, the paper's Q and R, random walk",
-                   partial(EulerEKF, Q=1e-2, R=1.0, P=1.0, follow_heading=False), False, False),
-        MethodSpec("paper-code", "the reference code's variant: forward axis observed only",
-                   GroundNormalFilter.reference_code, False, False),
-        MethodSpec("paper-tuned", "invariant EKF, heading-following, Q tuned on the real drives",
-                   partial(GroundNormalFilter, **TUNED), False, False),
-    ]
+#: The methods the evaluation adds to the registry: research baselines, not offered by ``estimate``.
+_BASELINES: tuple[MethodSpec, ...] = (
+    MethodSpec("ekf", "standard EKF, Euler-angle state, the paper's Q and R, random walk",
+               partial(EulerEKF, Q=1e-2, R=1.0, P=1.0, follow_heading=False), False, False),
+    MethodSpec("paper-code", "the reference code's variant: forward axis observed only",
+               GroundNormalFilter.reference_code, False, False),
+    MethodSpec("paper-tuned", "invariant EKF, heading-following, Q tuned on the real drives",
+               partial(GroundNormalFilter, **TUNED), False, False),
+)
 
 
-_BASELINES: tuple[MethodSpec, ...] = tuple(_research_baselines())
-
-
-class _MethodsByName(Mapping):
-    """The registry's methods then the research baselines, by name: a view, read from the registry at each use."""
-
-    def _all(self) -> dict[str, MethodSpec]:
-        return {m.name: m for m in (*REGISTRY.values(), *_BASELINES)}
-
-    def __getitem__(self, name: str) -> MethodSpec:
-        return self._all()[name]
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self._all())
-
-    def __len__(self) -> int:
-        return len(self._all())
-
-
-#: Every method of the evaluation by name, in report order: the registry's
-#: (:data:`imu_ground.filters.methods.METHODS`, as it is now) then the research baselines.
-METHODS: Mapping[str, MethodSpec] = _MethodsByName()
+#: Every method of the evaluation by name, in report order: the registry's (as it is now), then the research baselines
+#: (a live view: a ChainMap lists its last mapping's keys first).
+METHODS: Mapping[str, MethodSpec] = ChainMap({m.name: m for m in _BASELINES}, REGISTRY)
 #: The same methods (a view of :data:`METHODS`).
 EVALUATION_METHODS: ValuesView[MethodSpec] = METHODS.values()
 
@@ -100,33 +75,21 @@ def run_method(name: str, drive: Drive):
 _STATS = ("mean", "median", "rms", "p95", "bias")
 
 
-def _centred(x: np.ndarray, use: np.ndarray) -> np.ndarray:
-    return x - x[use].mean() if np.any(use) else x
-
-
-def _ref_floor(sigma: np.ndarray, err: np.ndarray) -> float:
-    """``sqrt(2/pi) * mean(sigma)``, at most ``mean(|err|)`` (:mod:`~imu_ground.evaluation.conditions`), deg."""
-    if not sigma.size:
-        return math.nan
-    return float(min(math.sqrt(2.0 / math.pi) * sigma.mean(), np.abs(err).mean()))
-
 def _drive_metrics(d: Drive, track) -> dict[str, float]:
     """All per-drive numbers of one track (see the module docstring); angles in deg."""
     tr = d.truth
     mask = tr["evaluate"].to_numpy(bool) & np.asarray(track.valid, dtype=bool)
     true_pitch = tr["pitch"].to_numpy(float)
-    if d.has_roll:
-        res = evaluate_drive(track.pitch, true_pitch, track.roll, tr["roll"].to_numpy(float),
-                             mask=mask, remove_mean=d.remove_mean)
-    else:
-        res = evaluate_drive(track.pitch, true_pitch, mask=mask, remove_mean=d.remove_mean)
+    est_roll, true_roll = (track.roll, tr["roll"].to_numpy(float)) if d.has_roll else (None, None)
+    res = evaluate_drive(track.pitch, true_pitch, est_roll, true_roll, mask=mask, remove_mean=d.remove_mean)
     row: dict[str, float] = {"n": res["pitch"]["n"]}
     for q, s in res.items():
         for stat in _STATS:
             row[f"{q}_{stat}"] = s[stat]
     use = mask & np.isfinite(track.pitch) & np.isfinite(true_pitch)
-    est_c, ref_c = ((_centred(track.pitch, use), _centred(true_pitch, use)) if d.remove_mean
-                    else (track.pitch, true_pitch))
+    est_c, ref_c = track.pitch, true_pitch
+    if d.remove_mean and np.any(use):
+        est_c, ref_c = est_c - est_c[use].mean(), ref_c - ref_c[use].mean()
     err = np.degrees(est_c - ref_c)
     seg = np.degrees(segment_centred(track.pitch, true_pitch, use, moving_segments(tr["speed"].to_numpy(float))))
     row["seg_n"] = int(np.count_nonzero(np.isfinite(seg)))
@@ -138,7 +101,8 @@ def _drive_metrics(d: Drive, track) -> dict[str, float]:
         row[f"cond_{key}_n"] = int(np.count_nonzero(sel))
         row[f"cond_{key}_sum"] = float(np.abs(err[sel]).sum())
     sigma = np.degrees(tr["ref_sigma"].to_numpy(float))[use]
-    row["ref_floor"] = _ref_floor(sigma, err[use])
+    row["ref_floor"] = (float(min(math.sqrt(2.0 / math.pi) * sigma.mean(), np.abs(err[use]).mean()))   # deg, capped
+                        if sigma.size else math.nan)
     row["ref_var_sum"] = float(np.sum(sigma * sigma))
     row["err_sq_sum"] = float(np.sum(err[use] ** 2))
     row["ref_share"] = min(row["ref_var_sum"] / row["err_sq_sum"], 1.0) if row["err_sq_sum"] > 0 else math.nan
@@ -151,21 +115,13 @@ def _drive_metrics(d: Drive, track) -> dict[str, float]:
     return row
 
 
-def _revisit_metrics(pairs, track) -> dict[str, float]:
-    """Revisit pair count and sums of |road attitude difference| (deg) of one track."""
-    dp, dr = revisit_differences(pairs, track.pitch, track.roll, track.valid)
-    return {"revisit_n": int(len(dp)), "revisit_pitch_sum": float(np.degrees(np.abs(dp)).sum()),
-            "revisit_roll_sum": float(np.degrees(np.abs(dr)).sum())}
-
-
 def check_methods(methods: Iterable[str]) -> list[str]:
     """The method names of an evaluation, checked: each a key of :data:`METHODS`, each once.
 
     Raises
     ------
     OptionError
-        No name, an unknown name, or one given twice (its rows would count twice in every table),
-        naming ``methods`` (``--methods``).
+        No name, an unknown name, or one given twice (naming ``--methods``).
     """
     methods = list(methods)
     if not methods:
@@ -181,9 +137,9 @@ def check_methods(methods: Iterable[str]) -> list[str]:
                           "methods")
     return methods
 
+
 def methods_from_list(text: str | None) -> list[str]:
-    """The methods a comma-separated list names (``--methods``), checked (:func:`check_methods`); None: all of
-    :data:`METHODS`. Blanks around and between the names are ignored; a list naming none is refused."""
+    """The methods a comma-separated list names (``--methods``; blanks ignored), checked; None: all of them."""
     if text is None:
         return list(METHODS)
     return check_methods([m.strip() for m in text.split(",") if m.strip()])
@@ -206,18 +162,13 @@ def evaluate(drives: Iterable[Drive], methods: Sequence[str] | None = None,
     Returns
     -------
     pandas.DataFrame
-        One row per drive and method: drive, kind, grade, method, valid, reason,
-        frames, n (frames evaluated); ``{pitch,roll,angle}_{mean,median,rms,p95,bias}``
-        (deg, absolute errors; roll and angle on synthetic drives);
-        ``seg_pitch_mean`` (deg) and ``seg_n``; ``cond_<key>_n`` and ``cond_<key>_sum``
-        (frames and sum of absolute pitch errors, deg, per condition of
-        :data:`~imu_ground.evaluation.conditions.CONDITIONS`); ``ref_floor`` (deg),
-        ``ref_share``, ``ref_var_sum`` and ``err_sq_sum`` (deg^2); ``us_per_frame``;
-        ``sigma<b>_n``, ``sigma<b>_sum`` and ``sigma<b>_ref_sum`` (frames, sums of absolute pitch
-        errors and of the reference's sigma, deg, per bin ``b`` of :data:`SIGMA_BINS`); on real
-        drives with a raw log, ``revisit_n``, ``revisit_pitch_sum`` and ``revisit_roll_sum``
-        (revisit pairs and sums of their absolute differences, deg; 0 pairs when the drive
-        never passes the same place twice).
+        One row per drive and method: drive, kind, grade, method, valid, reason, frames, n;
+        ``{pitch,roll,angle}_{mean,median,rms,p95,bias}`` (deg, absolute errors; roll and angle on
+        synthetic drives); ``seg_pitch_mean`` (deg), ``seg_n``; ``cond_<key>_n``, ``cond_<key>_sum``
+        (frames and summed absolute pitch error, deg, per condition); ``ref_floor`` (deg), ``ref_share``,
+        ``ref_var_sum``, ``err_sq_sum`` (deg^2); ``us_per_frame``; ``sigma<b>_n``, ``sigma<b>_sum``,
+        ``sigma<b>_ref_sum`` per bin of :data:`SIGMA_BINS`; on real drives with a raw log ``revisit_n``,
+        ``revisit_pitch_sum``, ``revisit_roll_sum`` (deg).
     dict, only with ``keep_tracks``
     """
     import pandas as pd
@@ -237,7 +188,9 @@ def evaluate(drives: Iterable[Drive], methods: Sequence[str] | None = None,
                 row["us_per_frame"] = sec / max(len(d.egomotion), 1) * 1e6
                 row.update(_drive_metrics(d, track))
                 if pairs is not None:
-                    row.update(_revisit_metrics(pairs, track))
+                    dp, dr = revisit_differences(pairs, track.pitch, track.roll, track.valid)
+                    row.update(revisit_n=int(len(dp)), revisit_pitch_sum=float(np.degrees(np.abs(dp)).sum()),
+                               revisit_roll_sum=float(np.degrees(np.abs(dr)).sum()))
                 if keep_tracks:
                     tracks[(d.name, m)] = track
             rows.append(row)
@@ -268,17 +221,14 @@ def summary_table(results, quantity: str | None = None):
     ----------
     results : DataFrame from :func:`evaluate`.
     quantity : {"pitch", "angle"}, optional
-        Error to summarise; default ``"angle"`` for synthetic drives (normal
-        angle) and ``"pitch"`` for real ones.
+        Error to summarise; default ``"angle"`` on synthetic drives, ``"pitch"`` on real ones.
 
     Returns
     -------
     pandas.DataFrame
-        Index (set, method); columns drives, mean_deg (mean over valid drives of
-        the per-drive mean absolute error), median_deg, worst_deg / worst_drive,
-        worst ratio to the paper's method, seg_pitch_deg (mean over drives of the
-        per-segment metric), ref_floor_deg (mean over drives, each at most the method's error), ref_share (pooled
-        over frames, each drive explaining at most its own error: 0..1), us_per_frame.
+        Index (set, method); columns drives, mean_deg (over drives of the mean absolute error),
+        median_deg, worst_deg / worst_drive, the worst ratio to the paper's method, seg_pitch_deg,
+        ref_floor_deg, ref_share (pooled over frames, 0..1), us_per_frame.
     """
     import pandas as pd
     ok = _sets(results)
@@ -312,21 +262,14 @@ def conditions_table(results, counts: bool = False):
     Returns
     -------
     pandas.DataFrame
-        Index (set, method); one column per condition, labelled as in
-        :data:`~imu_ground.evaluation.conditions.CONDITIONS`, plus ``all``.
+        Index (set, method); a column per label of :data:`~imu_ground.evaluation.conditions.CONDITIONS`, and ``all``.
     """
-    import pandas as pd
-    ok = _sets(results)
-    out = []
-    for (s, m), g in ok.groupby(["set", "method"], sort=False):
-        row = {"set": s, "method": m}
-        for key, label in CONDITIONS.items():
-            n = int(g[f"cond_{key}_n"].sum())
-            row[label] = n if counts else (g[f"cond_{key}_sum"].sum() / n if n else np.nan)
-        n_all = int(g["n"].sum())
-        row["all"] = n_all if counts else float((g["pitch_mean"] * g["n"]).sum() / n_all) if n_all else np.nan
-        out.append(row)
-    return pd.DataFrame(out).set_index(["set", "method"])
+    ok = _sets(results).assign(pitch_sum=lambda f: f["pitch_mean"] * f["n"])
+    by = ok.groupby(["set", "method"], sort=False)
+    n = by[[*(f"cond_{key}_n" for key in CONDITIONS), "n"]].sum().astype(int)
+    sums = by[[*(f"cond_{key}_sum" for key in CONDITIONS), "pitch_sum"]].sum()
+    n.columns = sums.columns = [*CONDITIONS.values(), "all"]
+    return n if counts else sums / n.where(n > 0)
 
 
 def sigma_table(results):
@@ -339,11 +282,9 @@ def sigma_table(results):
     Returns
     -------
     pandas.DataFrame
-        Index: the ``ref_sigma`` bin, deg (:data:`SIGMA_BINS`; bins without frames left out);
-        columns ``frames``, ``ref_floor_deg`` (``sqrt(2/pi)`` times the bin's mean sigma: what a
-        perfect estimator would score there) and one per method: its mean absolute pitch error,
-        deg, pooled over the bin's frames. Where ``ref_floor_deg`` is near or above 0.1 deg the
-        reference cannot judge a tenth of a degree.
+        Index: the ``ref_sigma`` bin, deg (:data:`SIGMA_BINS`, bins with frames); ``frames``, ``ref_floor_deg``
+        (``sqrt(2/pi)`` times the bin's mean sigma: a perfect estimator's score) and per method its mean
+        absolute pitch error, deg, pooled over the bin's frames.
     """
     import pandas as pd
     ok = results[results["valid"] & (results["kind"] == "real")]
@@ -351,6 +292,7 @@ def sigma_table(results):
         return pd.DataFrame(columns=["frames", "ref_floor_deg"])
     out = []
     first = ok[ok["method"] == ok["method"].iloc[0]]
+    by = ok.groupby("method", sort=False)[[c for c in ok.columns if c.startswith("sigma")]].sum()
     for b in range(len(SIGMA_BINS) - 1):
         n = int(first[f"sigma{b}_n"].sum())
         if not n:
@@ -358,9 +300,8 @@ def sigma_table(results):
         lo, hi = SIGMA_BINS[b], SIGMA_BINS[b + 1]
         row = {"ref_sigma_deg": f"{lo:g}-{hi:g}" if math.isfinite(hi) else f">{lo:g}", "frames": n,
                "ref_floor_deg": math.sqrt(2.0 / math.pi) * first[f"sigma{b}_ref_sum"].sum() / n}
-        for m, g in ok.groupby("method", sort=False):
-            k = g[f"sigma{b}_n"].sum()
-            row[m] = g[f"sigma{b}_sum"].sum() / k if k else np.nan
+        k = by[f"sigma{b}_n"]
+        row.update(by[f"sigma{b}_sum"] / k.where(k > 0))            # per method
         out.append(row)
     return pd.DataFrame(out).set_index("ref_sigma_deg")
 

@@ -1,11 +1,8 @@
 """A camera's view of the simulated road: lane markings and a metric grid on the true, moving road plane.
 
-:func:`render_road` ray-casts every pixel onto one frame's true road plane
-(:class:`~imu_ground.perception.GroundPlane`) and paints what it hits: asphalt, solid
-lane lines at ``Y = +- lane_width/2``, dashed ones a lane further out, grass beyond, and
-a metric grid that scrolls with the distance travelled; sky above the horizon or beyond
-``max_range``. Each pixel is the mean of ``supersample`` x ``supersample`` rays. The road
-ahead is the local plane at the vehicle (what a per-frame ground plane describes).
+:func:`render_road` ray-casts every pixel onto one frame's true road plane and paints asphalt,
+solid lane lines at ``Y = +- lane_width/2``, dashed ones a lane further out, grass beyond, a grid
+scrolling with the distance travelled, and sky above the horizon or beyond ``max_range``.
 """
 from __future__ import annotations
 

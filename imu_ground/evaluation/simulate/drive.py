@@ -1,9 +1,5 @@
-r"""One simulated drive: the road, the vehicle on it, the sensor and its errors, with exact truth.
-
-:func:`simulate` builds the clean drive (:func:`clean_drive`: speed profile, road
-layout and roughness (:func:`drive_road`), body motion on a fine grid and exact sensor
-kinematics at the IMU samples (:func:`drive_on_road`)), then adds the IMU errors and samples the truth at the frames
-(:class:`SimResult`).
+r"""One simulated drive with exact truth: :func:`clean_drive` (the road and speed, :func:`drive_road`; the body on
+a fine grid and the sensor's kinematics, :func:`drive_on_road`), then the IMU errors and frames (:func:`finish_drive`).
 """
 from __future__ import annotations
 
@@ -19,6 +15,7 @@ from imu_ground.evaluation.simulate.imu_errors import ImuErrorModel, imu_error_m
 from imu_ground.evaluation.simulate.kinematics import quat_wxyz, road_positions, sensor_kinematics
 from imu_ground.evaluation.simulate.road import RoadParams, road_layout, road_profile, rough_plane
 from imu_ground.evaluation.simulate.vehicle import SpeedParams, VehicleParams, body_motion, speed_profile
+from imu_ground.filters.estimator import pitch_roll_from_normal
 from imu_ground.imu.data import ImuData
 
 if TYPE_CHECKING:
@@ -52,26 +49,22 @@ class SimResult:
     imu_clean : ImuData
         The same without any error (exact angular rate and specific force).
     truth : pandas.DataFrame
-        One row per frame (``frame_rate``), columns :data:`TRUTH_COLUMNS`:
-        ``t`` s; ``s`` distance travelled m; ``speed`` m/s; ``acc_long`` dv/dt and
-        ``acc_lat`` (lateral acceleration of the reference point in the road
-        frame, ~ v^2 curvature, > 0 to the left) m/s^2; ``curvature`` 1/m (> 0 left);
-        ``heading`` rad (yaw of the road frame); ``normal_x/y/z`` the ground normal
-        in the sensor frame; ``normal_body_x/y/z`` in the body frame; ``pitch``,
-        ``roll`` body relative to road (rad, nose down / left up positive) and their
-        rates rad/s; ``heave`` m; ``road_grade`` rad (uphill positive), ``road_bank``
-        rad (left edge higher positive); ``qw, qx, qy, qz`` world <- sensor (``qw >= 0``);
-        ``x, y, z`` sensor position and ``vx, vy, vz`` its velocity in the world
-        frame (m, m/s); ``stationary`` (speed exactly 0).
+        One row a frame, columns :data:`TRUTH_COLUMNS`: ``t`` s; ``s`` distance m; ``speed`` m/s;
+        ``acc_long``, ``acc_lat`` (road frame, > 0 left) m/s^2; ``curvature`` 1/m (> 0 left); ``heading``
+        rad; the ground normal in the sensor (``normal_x/y/z``) and body (``normal_body_*``) frames;
+        body ``pitch``, ``roll`` relative to the road (rad, nose down / left up positive) and their rates
+        rad/s; ``heave`` m; ``road_grade`` (uphill +), ``road_bank`` (left edge higher +) rad; ``qw qx qy
+        qz`` world <- sensor (``qw >= 0``); sensor position ``x y z`` and velocity ``vx vy vz`` in the
+        world frame (m, m/s); ``stationary`` (speed exactly 0).
     R_gs, t_gs : ndarray
         The extrinsic (body/ground <- sensor rotation, sensor origin in the body frame).
     imu_model : ImuErrorModel
-    bias_gyro, bias_accel : ndarray, shape (N, 3)
+    bias_gyro, bias_accel : ndarray (N, 3)
         The true biases at every IMU sample.
     R_ws, p_ws, v_ws : ndarray
         World <- sensor attitude (N, 3, 3), position and velocity (N, 3) at every IMU sample.
     params : dict
-        Everything needed to rerun: ``simulate(**params)`` gives this drive again.
+        ``simulate(**params)`` gives this drive again.
     seed : int
     name : str
     curves : list of (s_start, transition, arc, curvature)
@@ -101,12 +94,7 @@ class SimResult:
                 f"duration={self.imu.duration:.1f} s, samples={len(self.imu)}, frames={len(self.truth)})")
 
     def truth_table(self) -> pd.DataFrame:
-        """The truth as written to a file: angles in degrees, the unit in each angle's column name.
-
-        The columns of :attr:`truth` in their order, those of :data:`TRUTH_ANGLES` converted
-        from rad (rad/s) to degrees (deg/s) and renamed (``pitch`` -> ``pitch_deg``, ...;
-        ``pitch_deg``/``roll_deg`` with the signs of the ``estimate`` output), ``stationary`` as 0/1.
-        """
+        """The truth as written to a file: :data:`TRUTH_ANGLES` in degrees and renamed, ``stationary`` as 0/1."""
         truth = self.truth.copy()
         truth["stationary"] = truth["stationary"].astype(int)
         for col in TRUTH_ANGLES:
@@ -143,27 +131,22 @@ MAX_IMU_RATE_HZ = 1000.0
 MAX_IMU_SAMPLES = 360_000
 
 
-def _finite_positive(value) -> bool:
-    try:
-        return math.isfinite(value) and value > 0
-    except TypeError:
-        return False
-
-
 def check_rates(duration, imu_rate, frame_rate, oversample) -> int:
     """Check a drive's duration and rates; the fine-grid factor (default: the smallest giving >= 1 kHz).
 
     Raises
     ------
     OptionError
-        Not a finite number > 0; a drive shorter than one truth frame (``1 / frame_rate``); a
-        rate that is not a whole multiple of the frame rate; over :data:`MAX_DURATION_S`,
-        :data:`MAX_IMU_RATE_HZ` or :data:`MAX_IMU_SAMPLES` (the message names ``duration``, or
-        ``imu_rate``, whose command-line flag is ``--rate``).
+        Not a finite number > 0, shorter than one frame, a rate not a whole multiple of the frame
+        rate, or over :data:`MAX_DURATION_S`, :data:`MAX_IMU_RATE_HZ` or :data:`MAX_IMU_SAMPLES`.
     """
     for value, name, flag in ((imu_rate, "imu_rate", "--rate"), (frame_rate, "frame_rate", None),
                               (duration, "duration", None)):
-        if not _finite_positive(value):
+        try:
+            ok = math.isfinite(value) and value > 0
+        except TypeError:
+            ok = False
+        if not ok:
             raise OptionError(f"{{opt}} {value}: must be a finite number > 0", name, flag=flag)
     ratio = imu_rate / frame_rate
     if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
@@ -190,19 +173,13 @@ def check_rates(duration, imu_rate, frame_rate, oversample) -> int:
 
 
 def _truth_samples(kin, body, rough, s, vehicle: VehicleParams, road: RoadParams, t_imu, a, v, R_gs):
-    """Per-sample truth columns (subsampled to frames later).
-
-    The road plane the truth refers to is the macro road (grade, cross-slope) plus
-    the roughness smoothed over a centred window (:func:`~imu_ground.evaluation.simulate.road.rough_plane`).
-    The IMU signals do not depend on this choice.
-    """
+    """Per-sample truth columns against the macro road plus the smoothed roughness (``rough_plane``)."""
     (th, th_d1, _), (ph, ph_d1, _), (zh, _, _) = body
     d_grade, d_bank = rough_plane(rough[0], rough[1], rough[2], s, vehicle.track, road.dx)
     al_t, bk_t = kin["grade"] + d_grade, kin["bank"] + d_bank
     r_wr_t = so3.rotz(kin["heading"]) @ so3.roty(-al_t) @ so3.rotx(bk_t)
     n_b = np.einsum("nji,nj->ni", kin["R_wb"], r_wr_t[:, :, 2])      # E^T e_z, E = R_wr^T R_wb
-    th_t = np.arctan2(-n_b[:, 0], np.hypot(n_b[:, 1], n_b[:, 2]))
-    ph_t = np.arctan2(n_b[:, 1], n_b[:, 2])
+    th_t, ph_t = pitch_roll_from_normal(n_b)
     n_s = n_b @ R_gs
     return {
         "t": t_imu, "s": s, "speed": v, "acc_long": a, "acc_lat": kin["acc_lat"],
@@ -225,16 +202,16 @@ def check_seed(seed) -> int:
         raise OptionError(f"{{opt}} {seed}: a seed is a whole number >= 0", "seed")
     return value
 
+
 def clean_drive(duration: float, seed: int, imu_rate: float, road: RoadParams, vehicle: VehicleParams,
                 speed: SpeedParams, R_gs: np.ndarray, t_gs: np.ndarray, oversample: int) -> dict:
-    """The exact trajectory and noise-free IMU samples of one drive (:func:`drive_road`, then
-    :func:`drive_on_road`).
+    """The exact trajectory and noise-free IMU samples of one drive.
 
     Returns
     -------
     dict
-        ``t``, ``gyro``, ``accel`` (noise-free samples), ``R_ws``, ``R_wr``, ``p_ws``,
-        ``v_ws``, ``truth`` (per-sample columns), ``curves``, ``road`` (roughness profile).
+        ``t``, ``gyro``, ``accel``, ``R_ws``, ``R_wr``, ``p_ws``, ``v_ws``, ``truth`` (per-sample columns),
+        ``curves``, ``road`` (roughness profile).
     """
     acc_pw, layout, curves, rough = drive_road(duration, seed, road, vehicle, speed)
     out = drive_on_road(motion_of(acc_pw), duration, imu_rate, layout, rough, road, vehicle, R_gs, t_gs, oversample)
@@ -248,13 +225,9 @@ def drive_road(duration: float, seed: int, road: RoadParams, vehicle: VehiclePar
 
     Returns
     -------
-    acc_pw : Piecewise
-        Longitudinal acceleration in time (:func:`~imu_ground.evaluation.simulate.vehicle.speed_profile`).
-    layout : (curvature, grade, bank)
-        Profiles along the distance (:func:`~imu_ground.evaluation.simulate.road.road_layout`).
-    curves : list
-    rough : (x, h_left, h_right)
-        The roughness per wheel track, m (:func:`~imu_ground.evaluation.simulate.road.road_profile`).
+    acc_pw, layout, curves, rough
+        Acceleration in time (``speed_profile``), ``(curvature, grade, bank)`` along the distance and
+        curves (``road_layout``), ``(x, h_left, h_right)`` per wheel track, m (``road_profile``).
     """
     rng_speed, rng_road, rng_rough, _ = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(4))
     acc_pw = speed_profile(speed, duration, rng_speed)
@@ -286,13 +259,11 @@ def drive_on_road(motion, duration: float, imu_rate: float, layout: tuple, rough
     Parameters
     ----------
     motion : callable
-        ``t -> (a, v, s)``: acceleration (m/s^2), speed (m/s, >= 0), distance (m) at ``t`` (s) (:func:`motion_of`).
+        ``t -> (a, v, s)``: m/s^2, m/s (>= 0), m at ``t`` (s) (:func:`motion_of`).
     duration, imu_rate : float
-        s, Hz: samples at ``k / imu_rate`` for ``k = 0 .. floor(duration * imu_rate)``.
+        s, Hz: samples at ``k / imu_rate`` up to ``duration``.
     layout, rough
-        As :func:`drive_road` returns them.
-    road, vehicle, R_gs, t_gs, oversample
-        As for :func:`clean_drive`.
+        As :func:`drive_road` returns them; the rest as :func:`clean_drive`.
 
     Returns
     -------
@@ -322,9 +293,8 @@ def finish_drive(clean: dict, model: ImuErrorModel, seed: int, imu_rate: float, 
                  R_gs, t_gs, params: dict, name: str, errors: tuple | None = None) -> SimResult:
     """Add the IMU errors of ``model`` to a clean drive and sample the truth at the frames.
 
-    ``errors``: the ``(bias_gyro, noise_gyro, bias_accel, noise_accel)`` to add, each (N, 3) in the
-    sensor frame (rad/s, m/s^2); None: drawn by :func:`~imu_ground.evaluation.simulate.imu_errors.imu_errors`
-    from ``seed``.
+    ``errors``: ``(bias_gyro, noise_gyro, bias_accel, noise_accel)``, each (N, 3), sensor frame (rad/s, m/s^2);
+    default drawn by ``imu_errors`` from ``seed``.
     """
     import pandas as pd
     n = clean["t"].shape[0]
@@ -365,8 +335,7 @@ def simulate(duration: float = 120.0, seed: int = 0, imu: str | ImuErrorModel | 
     duration : float
         Seconds; the IMU has ``floor(duration * imu_rate) + 1`` samples from t = 0.
     seed : int
-        Everything random follows from it; the IMU errors have their own stream (the same
-        seed with another ``imu`` gives the same trajectory).
+        Everything random; the IMU errors have their own stream (another ``imu``: the same trajectory).
     imu : str or ImuErrorModel or None
         ``"nav"``, ``"mems"``, ``"perfect"`` (no error), or a model.
     imu_rate, frame_rate : float

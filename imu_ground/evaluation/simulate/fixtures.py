@@ -9,19 +9,12 @@ same numbers (and, on the same platform and library versions, the same bytes)::
 Files
 -----
 ``example_drive.csv``
-    60 s of a navigation-grade IMU (preset ``"nav"``, OXTS RT3003-like) at
-    100 Hz: columns ``t,wx,wy,wz,ax,ay,az`` (s, rad/s, m/s^2). The sensor is
-    aligned with the vehicle's FLU body frame (x forward, y left, z up), 0.9 m
-    above the road and 0.3 m ahead of the reference point (``R_gs = I``,
-    ``t_gs = (0.3, 0, 0.9)``).
+    60 s of a navigation-grade IMU (``"nav"``) at 100 Hz: ``t,wx,wy,wz,ax,ay,az`` (s, rad/s,
+    m/s^2), sensor aligned with the body (FLU), ``t_gs = (0.3, 0, 0.9)`` m.
 ``example_drive_truth.csv``
-    Ground truth at 10 Hz (every 10th IMU sample, from t = 0), the columns of
-    :data:`imu_ground.evaluation.simulate.TRUTH_COLUMNS` (``stationary`` as 0/1).
+    Ground truth at 10 Hz (:meth:`~imu_ground.evaluation.simulate.SimResult.truth_table`).
 ``example_drive_meta.json``
     Seed, IMU error model, extrinsic and every simulation parameter.
-
-The drive: 5 s at rest, accelerations, two left-hand curves, a stop from 43 s
-to 50 s, grades between -1.6 % and +2.5 %, crown 2 %, ISO 8608 class B roughness.
 """
 from __future__ import annotations
 

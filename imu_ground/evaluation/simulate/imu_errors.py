@@ -9,7 +9,7 @@ errors: vibration of a holder or an engine is not in them (:meth:`ImuErrorModel.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -31,18 +31,10 @@ class ImuErrorModel:
     Parameters
     ----------
     name : str
-    gyro_noise_density : float
-        Angular random walk, rad/s/sqrt(Hz).
-    gyro_bias_rw : float
-        Rate random walk, rad/s^2/sqrt(Hz) (rad/s per sqrt(s)).
-    gyro_bias_turn_on : float
-        Constant gyro bias, rad/s.
-    accel_noise_density : float
-        Velocity random walk, m/s^2/sqrt(Hz).
-    accel_bias_rw : float
-        Accelerometer bias random walk, m/s^3/sqrt(Hz).
-    accel_bias_turn_on : float
-        Constant accelerometer bias, m/s^2.
+    gyro_noise_density, gyro_bias_rw, gyro_bias_turn_on : float
+        rad/s/sqrt(Hz), rad/s^2/sqrt(Hz), rad/s.
+    accel_noise_density, accel_bias_rw, accel_bias_turn_on : float
+        m/s^2/sqrt(Hz), m/s^3/sqrt(Hz), m/s^2.
     """
 
     name: str
@@ -63,10 +55,8 @@ class ImuErrorModel:
 
     def scaled(self, factor: float, name: str | None = None) -> ImuErrorModel:
         """The same model with every error multiplied by ``factor``."""
-        return ImuErrorModel(name or f"{self.name}x{factor:g}",
-                             *(factor * v for v in (self.gyro_noise_density, self.gyro_bias_rw,
-                                                    self.gyro_bias_turn_on, self.accel_noise_density,
-                                                    self.accel_bias_rw, self.accel_bias_turn_on)))
+        errors = (factor * getattr(self, f.name) for f in fields(self)[1:])
+        return ImuErrorModel(name or f"{self.name}x{factor:g}", *errors)
 
 
 IMU_PRESETS: dict[str, ImuErrorModel] = {
@@ -93,8 +83,7 @@ IMU_PRESETS: dict[str, ImuErrorModel] = {
 
 
 def imu_error_model(model: str | ImuErrorModel | None) -> ImuErrorModel:
-    """An :class:`ImuErrorModel` from a preset name (``"nav"``, ``"mems"``,
-    ``"perfect"``; ``None`` means ``"perfect"``) or a model (returned as is)."""
+    """An :class:`ImuErrorModel` from a preset name (:data:`IMU_PRESETS`; ``None``: ``"perfect"``) or a model."""
     if model is None:
         return IMU_PRESETS["perfect"]
     if isinstance(model, ImuErrorModel):
@@ -107,15 +96,11 @@ def imu_error_model(model: str | ImuErrorModel | None) -> ImuErrorModel:
 
 
 def imu_errors(model: ImuErrorModel, n: int, rate: float, seed: int):
-    """One draw of the errors of ``n`` samples at ``rate`` Hz.
-
-    The random stream is the fourth child of ``SeedSequence(seed)`` (the first
-    three drive the speed profile, the road layout and the roughness), so the same
-    seed with another model gives the same trajectory.
+    """One draw of the errors of ``n`` samples at ``rate`` Hz, from the fourth child of ``SeedSequence(seed)``.
 
     Returns
     -------
-    bias_gyro, noise_gyro, bias_accel, noise_accel : ndarray, shape (n, 3)
+    bias_gyro, noise_gyro, bias_accel, noise_accel : ndarray (n, 3)
         rad/s and m/s^2, sensor frame.
     """
     rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(4)[3])

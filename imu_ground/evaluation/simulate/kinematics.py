@@ -1,12 +1,7 @@
 r"""Exact kinematics of the simulated sensor: attitude, angular rate, specific force, position.
 
-Frames and signs follow the simulator's conventions (see
-:mod:`imu_ground.evaluation.simulate`): world ``w`` z up, body ``b`` FLU,
-``R_wr = Rz(heading) Ry(-grade) Rx(bank)`` (world <- road), body relative to the
-road ``Ry(pitch) Rx(roll)``, so ``R_wb = Rz Ry Rx Ry Rx`` of
-``(heading, -grade, bank, pitch, roll)``. The angular rate and acceleration are
-assembled from the angles' time derivatives through the kinematic chain
-(:func:`chain`), the specific force from the analytic acceleration of the sensor.
+Frames and signs: :mod:`imu_ground.evaluation.simulate`; ``R_wb = Rz Ry Rx Ry Rx`` of ``(heading, -grade,
+bank, pitch, roll)``, its rates through the kinematic chain (:func:`chain`).
 """
 from __future__ import annotations
 
@@ -27,8 +22,7 @@ _EZ = np.array([0.0, 0.0, 1.0])
 
 
 def chain(axes: str, q, qd, qdd):
-    """Rotation ``R = R_1(q_1) ... R_n(q_n)`` with its body-frame angular velocity and
-    acceleration, from the angles and their first two time derivatives.
+    """Rotation ``R = R_1(q_1) ... R_n(q_n)`` with its body-frame angular velocity and acceleration.
 
     ``w = sum_i u_i q_i'`` with ``u_i = (R_{i+1} ... R_n)^T a_i``, and
     ``w' = sum_i u_i q_i'' + sum_i q_i' u_i x w_(i)`` with ``w_(i) = sum_{j > i} u_j q_j'``.
@@ -42,9 +36,8 @@ def chain(axes: str, q, qd, qdd):
 
     Returns
     -------
-    R : ndarray (N, 3, 3)
-    w, wd : ndarray (N, 3)
-        Angular velocity (rad/s) and acceleration (rad/s^2) in the rotated frame.
+    R, w, wd : ndarray (N, 3, 3), (N, 3), (N, 3)
+        The rotation, its angular velocity (rad/s) and acceleration (rad/s^2) in the rotated frame.
     """
     n = q[0].shape[0]
     c = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
@@ -73,20 +66,17 @@ def sensor_kinematics(a, v, s, layout, body, R_gs, t_gs):
     ----------
     a, v, s : ndarray (N,)
         Longitudinal acceleration (m/s^2), speed (m/s), distance (m) at the IMU samples.
-    layout : (curvature, grade, bank)
-        Road profiles along s.
-    body : (pitch, roll, heave)
-        Each ``(value, rate, acceleration)`` at the IMU samples (rad or m).
+    layout, body
+        Road profiles ``(curvature, grade, bank)`` along s; ``(pitch, roll, heave)``, each
+        ``(value, rate, acceleration)`` at the samples (rad or m).
     R_gs, t_gs : ndarray
         Body <- sensor rotation (3, 3) and sensor origin in the body frame (3,), m.
 
     Returns
     -------
     dict
-        ``R_wb``, ``R_ws``, ``R_wr`` (N, 3, 3); ``gyro`` (sensor angular rate, rad/s),
-        ``accel`` (specific force in the sensor frame, m/s^2), ``v_ws`` (sensor velocity
-        in the world frame, m/s), ``curvature``, ``heading``, ``grade``, ``bank`` and
-        ``acc_lat`` (lateral acceleration of the reference point in the road frame) (N,).
+        ``R_wb``, ``R_ws``, ``R_wr`` (N, 3, 3); ``gyro`` (rad/s), ``accel`` (specific force, m/s^2), sensor
+        frame; ``v_ws`` (world, m/s); ``curvature``, ``heading``, ``grade``, ``bank``, ``acc_lat`` (N,).
     """
     kappa_pw, grade_pw, bank_pw = layout
     (th, th_d1, th_d2), (ph, ph_d1, ph_d2), (_, zh_d1, zh_d2) = body
@@ -118,10 +108,7 @@ def sensor_kinematics(a, v, s, layout, body, R_gs, t_gs):
 
 
 def road_positions(t_imu, dt: float, motion, layout) -> np.ndarray:
-    """Road-point positions (m, world frame, from the origin at t = 0) at the IMU samples.
-
-    The Gauss-Legendre (3 nodes) integral of the road-point velocity
-    ``v (cos(grade) cos(heading), cos(grade) sin(heading), sin(grade))`` per step.
+    """Road-point positions (m, world frame, from the origin at t = 0) at the IMU samples (3-node Gauss-Legendre).
 
     Parameters
     ----------

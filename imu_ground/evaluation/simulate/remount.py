@@ -1,13 +1,9 @@
 """A drive whose sensor is turned on its mount part-way: the case the mount monitor must flag.
 
-:func:`remounted` turns the sensor by a fixed rotation at one instant, as a remount
-while logging (the gyro does not see the turn, the accelerometer's view of gravity
-turns with it). Frames and signs as in :mod:`imu_ground.evaluation.simulate`: after the
-instant the sensor frame ``s'`` relates to the old one by ``R_{s<-s'}`` (``rotation``),
-so the samples become ``w_s' = R^T w_s``, ``f_s' = R^T f_s``, the sensor attitude
-``R_ws' = R_ws R`` and the ground normal in the sensor frame ``n_s' = R^T n_s``; the
-body's truth (pitch, roll relative to the road, road grade and bank) is unchanged and
-``R_gs`` stays the extrinsic known before the change.
+After the instant the sensor frame ``s'`` relates to the old one by ``R = R_{s<-s'}``:
+``w_s' = R^T w_s``, ``f_s' = R^T f_s``, ``R_ws' = R_ws R``, ``n_s' = R^T n_s`` (the gyro does
+not see the turn itself); the body's truth is unchanged and ``R_gs`` stays the extrinsic known
+before the change.
 """
 from __future__ import annotations
 

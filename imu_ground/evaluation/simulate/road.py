@@ -7,10 +7,9 @@ superelevation above it).
 
 Roughness (:func:`road_profile`): ISO 8608 displacement PSD ``G_d(n) = G_d(n0) (n /
 n0)^-w``, ``n0 = 0.1`` cycles/m, classes A-D (:data:`ISO8608_CLASSES`, m^3); the
-waviness ``w`` is 2 above ``n0`` and :data:`LONG_WAVINESS` below it by default (a
-two-slope fit; ``waviness=(2, 2)`` is ISO 8608's simplified spectrum), in the band
-``0.011 <= n <= 2.83`` cycles/m. The two wheel tracks are Gaussian profiles with the
-coherence ``exp(-k n B)`` (``B`` the track width, ``k = coherence_decay``).
+waviness ``w`` is 2 above ``n0`` and :data:`LONG_WAVINESS` below it by default
+(``(2, 2)``: ISO 8608's simplified spectrum), in a band of spatial frequencies. The two
+wheel tracks are Gaussian with the coherence ``exp(-k n B)`` (``B`` the track width).
 
 The truth's road plane is the macro road plus the roughness smoothed over
 :data:`ROAD_PLANE_WINDOW` metres (:func:`rough_plane`); shorter undulations shake the body.
@@ -102,8 +101,7 @@ def iso8608_psd(n, roughness: str | float = "B", waviness: tuple[float, float] =
     roughness : str or float
         Class letter or ``G_d(n0)`` in m^3.
     waviness : (float, float)
-        Exponent ``w`` below and above ``n0`` (default ``(2, 2)``: ISO 8608's
-        simplified single-slope spectrum; :class:`RoadParams` uses ``(2.5, 2)``).
+        Exponent ``w`` below and above ``n0``.
     """
     n = np.asarray(n, dtype=float)
     w = np.where(n < ISO8608_N0, waviness[0], waviness[1])
@@ -119,29 +117,22 @@ def road_profile(length: float, roughness: str | float | None = "B", *, dx: floa
 
     Parameters
     ----------
-    length : float
-        Metres of road to generate.
+    length, dx, x0 : float
+        Metres of road, sample spacing and first position, m.
     roughness : str, float or None
         ISO 8608 class letter, ``G_d(n0)`` in m^3, or ``None`` (zero heights).
-    dx : float
-        Sample spacing, m.
     band : (float, float)
         Spatial-frequency band with the ISO PSD, cycles/m; zero outside.
-    track : float
-        Track width, m (sets the coherence).
-    coherence_decay : float
-        ``k`` in the left/right coherence ``exp(-k n track)``.
-    x0 : float
-        Position of the first sample, m.
+    track, coherence_decay : float
+        Track width (m) and ``k`` of the left/right coherence ``exp(-k n track)``.
     rng : numpy Generator, seed or None
     waviness : (float, float)
-        PSD exponents below and above ``n0`` (:func:`iso8608_psd`).
+        As :func:`iso8608_psd`.
 
     Returns
     -------
-    x, h_left, h_right : ndarray, shape (N,)
-        Positions and heights (m); Gaussian, zero mean, one-sided PSD
-        ``iso8608_psd(n, roughness, waviness)`` in the band for each track.
+    x, h_left, h_right : ndarray (N,)
+        Positions and heights, m (zero mean, the PSD in the band).
     """
     rng = np.random.default_rng(rng)
     n_pts = max(int(math.ceil(length / dx)) + 1, 16)
@@ -159,11 +150,8 @@ def road_profile(length: float, roughness: str | float | None = "B", *, dx: floa
     shape = (2, freqs.size)
     z = amp * (rng.standard_normal(shape) + 1j * rng.standard_normal(shape))
     coh = np.exp(-coherence_decay * freqs * track)
-    zl = z[0]
     zr = coh * z[0] + np.sqrt(1.0 - coh * coh) * z[1]
-    h_left = np.fft.irfft(zl, n_fft)[:n_pts]
-    h_right = np.fft.irfft(zr, n_fft)[:n_pts]
-    return x, h_left, h_right
+    return x, np.fft.irfft(z[0], n_fft)[:n_pts], np.fft.irfft(zr, n_fft)[:n_pts]
 
 
 def rough_plane(x, h_l, h_r, s, track, dx):
@@ -171,19 +159,17 @@ def rough_plane(x, h_l, h_r, s, track, dx):
 
     Parameters
     ----------
-    x, h_l, h_r : ndarray, shape (N,)
+    x, h_l, h_r : ndarray (N,)
         The roughness profile (m), as from :func:`road_profile`.
-    s : ndarray, shape (M,)
+    s : ndarray (M,)
         Distances at which to evaluate, m.
-    track : float
-        Track width, m.
-    dx : float
-        Profile spacing, m.
+    track, dx : float
+        Track width and profile spacing, m.
 
     Returns
     -------
-    grade, bank : ndarray, shape (M,)
-        Extra grade (uphill positive) and cross-slope (left edge higher positive), rad.
+    grade, bank : ndarray (M,)
+        Extra grade (uphill +) and cross-slope (left edge higher +), rad.
     """
     if not np.any(h_l) and not np.any(h_r):
         return np.zeros_like(s), np.zeros_like(s)
@@ -196,8 +182,7 @@ def rough_plane(x, h_l, h_r, s, track, dx):
         return (c[lo + half] - c[lo]) / half
 
     hl, hr = box(box(h_l)), box(box(h_r))
-    hc = 0.5 * (hl + hr)
-    slope = np.gradient(hc, x)
+    slope = np.gradient(0.5 * (hl + hr), x)
     grade = np.arctan(np.interp(s, x, slope))
     bank = np.arctan(np.interp(s, x, (hl - hr) / track))
     return grade, bank
@@ -290,8 +275,7 @@ def road_layout(p: RoadParams, length: float, s_grid, v_grid, rng: np.random.Gen
     length : float
         Metres of road needed.
     s_grid, v_grid : ndarray
-        Distance (m) and speed (m/s) on a coarse time grid: curves are sized and banked
-        for ``p.lat_accel`` at the speed driven there.
+        Distance (m) and speed (m/s) on a coarse time grid (curves sized for ``p.lat_accel`` there).
     rng : numpy Generator
 
     Returns

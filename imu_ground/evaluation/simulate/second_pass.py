@@ -1,12 +1,8 @@
 """The same road driven a second time: what a revisit check sees when the truth is exact.
 
-:func:`second_pass` drives the road of a simulated drive again from its start, with the
-same vehicle and sensor, at ``speed_scale`` times the first pass's speed at every place
-(``v_2(s) = k v_1(s)``; ``k = 1``: only the noise differs) or with a new random profile
-of the drive's style (``speed_seed``). The road is a function of the distance ``s``, so
-frames of both passes with the same ``s`` are on the same place, heading the same way.
-The sensor keeps the first pass's bias path sample by sample (held past its end), with
-its own white noise (``noise_seed``).
+The road is a function of the distance ``s``, so frames of both passes with the same ``s``
+are on the same place, heading the same way. The sensor keeps the first pass's bias path
+sample by sample (held past its end), with its own white noise.
 """
 from __future__ import annotations
 
@@ -38,22 +34,19 @@ def second_pass(sim: SimResult, *, speed_scale: float = 1.0, speed_seed: int | N
     Parameters
     ----------
     sim : SimResult
-        A drive from :func:`~imu_ground.evaluation.simulate.simulate` or
-        :func:`~imu_ground.evaluation.simulate.simulate_suite` (its ``params`` rebuild the road).
+        A drive from ``simulate`` or ``simulate_suite`` (its ``params`` rebuild the road).
     speed_scale : float
-        ``k > 0``: the first pass's speed profile, ``k`` times as fast at every place (ignored with
-        ``speed_seed``).
+        ``k > 0``: ``v_2(s) = k v_1(s)`` at every place (``k = 1``: only the noise differs).
     speed_seed : int, optional
-        Draw a new random speed profile of the drive's style from this seed instead.
+        Instead, a new random speed profile of the drive's style from this seed.
     noise_seed : int, optional
         Seed of the second pass's white noise (default ``sim.seed + 1``).
 
     Returns
     -------
     SimResult
-        The second pass, named ``NAME_second_pass``, its time from 0; ``params`` are the first
-        pass's plus ``second_pass`` (the three arguments). Its truth's ``s`` is the distance along
-        the same road.
+        Named ``NAME_second_pass``, its time from 0, ``params`` the first pass's plus ``second_pass``
+        (the three arguments); its truth's ``s`` the distance along the same road.
 
     Raises
     ------

@@ -1,9 +1,5 @@
-r"""Closed-form smooth profiles: septic smooth steps and piecewise sums of them.
-
-Every profile of the simulator (speed in time; curvature, grade and bank along
-the road) is a :class:`Piecewise` function: contiguous phases, each a smooth
-step between two levels, with its first two derivatives and its first two
-integrals in closed form. That is what makes the simulated kinematics exact.
+r"""Closed-form smooth profiles (speed in time; curvature, grade and bank along the road): septic smooth steps
+and :class:`Piecewise` sums of them, with two derivatives and two integrals in closed form (exact kinematics).
 """
 from __future__ import annotations
 
@@ -16,8 +12,7 @@ __all__ = ["Piecewise", "smoothstep"]
 
 
 def smoothstep(u):
-    """Septic smooth step S(u) on [0, 1] (C^3: value, slope, curvature and jerk
-    continuous at both ends), its first two derivatives, and its integrals from 0.
+    """Septic smooth step S(u) on [0, 1] (C^3 at both ends), its first two derivatives, and its integrals from 0.
 
     Parameters
     ----------
@@ -49,52 +44,37 @@ class Piecewise:
     ``I1 = V_j + A_j tau + D_j d_j S1(u)`` (integral of y, ``V_0 = y1_0``) and
     ``I2 = P_j + V_j tau + A_j tau^2/2 + D_j d_j^2 S2(u)`` (integral of I1), all in
     closed form. The last phase holds forever; before ``x_0`` the first level holds.
-    ``snap`` sets an integral level of magnitude below 1e-9 to exactly 0 at the
-    start of a constant phase whose level is 0 (exact stops for a speed profile).
 
     Parameters
     ----------
-    x0 : float
-        Start of the first phase (s for a time profile, m for a road profile).
-    y0 : float
-        Level before and at the start of the first phase.
+    x0, y0 : float
+        Start of the first phase (s or m) and the level there.
     phases : sequence of (duration, delta)
         Each phase's length and the change of level over it.
     i1_0, i2_0 : float
         First and second integrals at ``x0``.
     snap : bool
+        An integral below 1e-9 at the start of a zero-level constant phase is set to 0 (exact stops).
     """
 
     def __init__(self, x0: float, y0: float, phases: Sequence[tuple[float, float]],
                  i1_0: float = 0.0, i2_0: float = 0.0, snap: bool = False) -> None:
         phases = list(phases) + [(math.inf, 0.0)]
-        n = len(phases)
-        self.start = np.empty(n)
-        self.dur = np.empty(n)
-        self.a = np.empty(n)
-        self.d = np.empty(n)
-        self.v = np.empty(n)
-        self.p = np.empty(n)
+        rows = []
         x, level, v, p = float(x0), float(y0), float(i1_0), float(i2_0)
-        for j, (dur, delta) in enumerate(phases):
+        for dur, delta in phases:
             if snap and delta == 0.0 and level == 0.0 and abs(v) < 1e-9:
                 v = 0.0
-            self.start[j], self.dur[j], self.a[j], self.d[j] = x, dur, level, delta
-            self.v[j], self.p[j] = v, p
+            rows.append((x, dur, level, delta, v, p))
             if math.isinf(dur):
                 break
             p = p + v * dur + level * dur * dur / 2.0 + delta * dur * dur * _S2_AT_1
             v = v + level * dur + delta * dur / 2.0
             level = level + delta
             x = x + dur
-        self.end_level = level
+        self.start, self.dur, self.a, self.d, self.v, self.p = np.array(rows, dtype=float).T
 
-    @property
-    def end(self) -> float:
-        """Start of the final (infinite) phase."""
-        return float(self.start[-1])
-
-    def __call__(self, x, derivatives: bool = True):
+    def __call__(self, x):
         """Value, first and second derivative, first and second integral at ``x``."""
         x = np.asarray(x, dtype=float)
         j = np.clip(np.searchsorted(self.start, x, side="right") - 1, 0, len(self.start) - 1)

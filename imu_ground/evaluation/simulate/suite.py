@@ -26,17 +26,11 @@ STYLE_MIX = {"urban": 0.4, "mixed": 0.3, "rural": 0.2, "highway": 0.1}
 class SuiteRanges:
     """The ranges a suite draws each drive's road, vehicle and mount from (uniform unless said).
 
-    Road: ``roughness_level`` (ISO 8608 ``G_d(n0)``, m^3, log-uniform between the two;
-    used when the suite is given no ``roughness_classes``), ``grade_std`` (rise over
-    run), ``crown``, and the grade layout along the
-    road (``grade_segment``, ``grade_transition``, m; see
-    :class:`~imu_ground.evaluation.simulate.road.RoadParams`). Vehicle: wheelbase and
-    track (m), suspension frequencies (Hz), damping ratios, pitch and roll gains (deg
-    per m/s^2), reference point as a share of the wheelbase ahead of the rear axle.
-    Mount: misalignment std per axis (rad) and lever-arm box (m). Speed:
-    probability of starting at rest.
-
-    Calibrated to the shared real KITTI drives (``benchmarks/studies/sim_vs_real.py``).
+    Road: ``roughness_level`` (``G_d(n0)``, m^3, log-uniform; without ``roughness_classes``) and the
+    fields of :class:`~imu_ground.evaluation.simulate.road.RoadParams`. Vehicle: those of
+    :class:`~imu_ground.evaluation.simulate.vehicle.VehicleParams`, the reference point as a share of
+    the wheelbase. Mount: misalignment std per axis (rad), lever-arm box (m). ``start_at_rest``: a
+    probability. Calibrated to the shared real KITTI drives (``benchmarks/studies/sim_vs_real.py``).
     """
 
     roughness_level: tuple[float, float] = (ISO8608_CLASSES["B"], ISO8608_CLASSES["C"])
@@ -67,8 +61,7 @@ def random_drive(rng: np.random.Generator, duration_range, roughness_classes, st
     Returns
     -------
     dict
-        ``duration`` (s), ``road``, ``vehicle``, ``speed`` (parameter objects),
-        ``R_gs`` (body <- sensor, 1.5 deg per axis) and ``t_gs`` (lever arm, m).
+        ``duration`` (s), ``road``, ``vehicle``, ``speed``, ``R_gs`` (body <- sensor) and ``t_gs`` (m).
     """
     r = ranges
     u = lambda lim: float(rng.uniform(*lim))           # noqa: E731  (one draw, in this order)
@@ -106,12 +99,13 @@ def check_suite_size(n) -> int:
     Raises
     ------
     OptionError
-        Otherwise, naming ``n`` (the command line's ``--synthetic``).
+        Otherwise (naming ``--synthetic``).
     """
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 0 <= n <= MAX_SUITE_DRIVES:
         raise OptionError(f"{{opt}} {n}: a suite has 0 to {MAX_SUITE_DRIVES} drives per IMU grade (all are held "
                           "in memory); for more, run several suites with other seeds", "n", flag="--synthetic")
     return int(n)
+
 
 def simulate_suite(n: int, seed: int = 0, grades: Sequence[str | ImuErrorModel] = ("nav", "mems"), *,
                    duration_range: tuple[float, float] = (60.0, 180.0),
@@ -121,16 +115,16 @@ def simulate_suite(n: int, seed: int = 0, grades: Sequence[str | ImuErrorModel] 
                    ranges: SuiteRanges = SuiteRanges()) -> list[SimResult]:
     """``n`` varied drives, each simulated once per IMU grade.
 
-    Every drive draws its duration, roughness (by default a level between ISO 8608
-    classes B and C, ``ranges.roughness_level``: the real drives' body motion at
-    0.5-5 Hz lies between the two; or one of ``roughness_classes``), driving style (weighted by
-    ``styles``, a mapping of style to share, or a sequence drawn uniformly), grades and
-    cross-slope, vehicle geometry and suspension (frequencies 1.0-1.6 Hz, damping
-    0.3-0.55, gains 0.2-0.35 / 0.3-0.5 deg per m/s^2) and a slightly misaligned
-    mount (1.5 deg per axis) with its lever arm; the grades of one drive share its
-    trajectory and extrinsic. Returns ``n * len(grades)`` results, drive-major,
-    named ``"drive{i:03d}_{grade}"``; ``simulate(**result.params)`` reproduces any one.
-    ``ranges`` (:class:`SuiteRanges`) sets what each drive is drawn from.
+    Every drive draws its duration, roughness (``ranges.roughness_level``, or one of
+    ``roughness_classes``), style (``styles``: a mapping of style to share, or a sequence drawn
+    uniformly), road, vehicle and mount from ``ranges`` (:class:`SuiteRanges`); the grades of one
+    drive share its trajectory and extrinsic.
+
+    Returns
+    -------
+    list of SimResult
+        ``n * len(grades)``, drive-major, named ``"drive{i:03d}_{grade}"``; ``simulate(**result.params)``
+        reproduces any one.
     """
     check_suite_size(n)
     seed = check_seed(seed)

@@ -112,21 +112,6 @@ def _speed_change(phases: list, v_from: float, v_to: float, a_mag: float, ramp: 
     return 2.0 * ramp + hold
 
 
-def _planned_speed(p: SpeedParams) -> Piecewise:
-    phases: list[tuple[float, float]] = []
-    v = float(p.v_start)
-    ramp = float(np.mean(p.ramp_time))
-    assert p.plan is not None                   # a planned speed
-    for target, accel, hold in p.plan:
-        if target < 0:
-            raise ValueError("speeds in the plan must be >= 0")
-        _speed_change(phases, v, float(target), float(accel), ramp)
-        v = float(target)
-        if hold > 0:
-            phases.append((float(hold), 0.0))
-    return Piecewise(0.0, 0.0, phases, i1_0=float(p.v_start), snap=True)
-
-
 def _random_speed(p: SpeedParams, duration: float, rng: np.random.Generator) -> Piecewise:
     style = STYLES.get(p.style)
     if style is None:
@@ -167,40 +152,40 @@ def _random_speed(p: SpeedParams, duration: float, rng: np.random.Generator) -> 
 
 
 def speed_profile(p: SpeedParams, duration: float, rng: np.random.Generator) -> Piecewise:
-    """Longitudinal acceleration (m/s^2) as smooth-step phases in time (s).
+    """Longitudinal acceleration (m/s^2; its integrals the speed and distance) in time (s).
 
-    Its first integral is the speed (m/s), its second the distance (m). With
-    ``p.plan`` the profile follows the plan; otherwise it is drawn from ``rng``
-    by ``p.style`` until ``duration`` seconds are covered.
+    ``p.plan`` if given, otherwise drawn from ``rng`` by ``p.style`` until ``duration`` s are covered.
     """
-    if p.plan is not None:
-        return _planned_speed(p)
-    return _random_speed(p, duration, rng)
+    if p.plan is None:
+        return _random_speed(p, duration, rng)
+    phases: list[tuple[float, float]] = []
+    v = float(p.v_start)
+    ramp = float(np.mean(p.ramp_time))
+    for target, accel, hold in p.plan:
+        if target < 0:
+            raise ValueError("speeds in the plan must be >= 0")
+        _speed_change(phases, v, float(target), float(accel), ramp)
+        v = float(target)
+        if hold > 0:
+            phases.append((float(hold), 0.0))
+    return Piecewise(0.0, 0.0, phases, i1_0=float(p.v_start), snap=True)
 
 
 # --------------------------------------------------------------------------- suspension
 def suspension_response(u, dt: float, freq: float, damping: float, gain: float = 1.0):
     """Exact response of ``x'' + 2 zeta w x' + w^2 x = w^2 gain u(t)``, ``w = 2 pi freq``.
 
-    ``u`` is sampled every ``dt`` and linear in between (first-order hold); the
-    system starts at rest in equilibrium with ``u[0]``. The states are exact at the
-    samples (no discretisation error), the acceleration follows from the equation.
+    ``u`` linear between samples (first-order hold), starting at rest in equilibrium with ``u[0]``.
 
     Parameters
     ----------
-    u : array_like, shape (N,)
-    dt : float
-        Sample interval, s.
-    freq : float
-        Undamped natural frequency, Hz.
-    damping : float
-        Damping ratio.
-    gain : float
-        Static gain.
+    u : array_like (N,)
+    dt, freq, damping, gain : float
+        Sample interval (s), undamped natural frequency (Hz), damping ratio, static gain.
 
     Returns
     -------
-    x, xdot, xddot : ndarray, shape (N,)
+    x, xdot, xddot : ndarray (N,)
     """
     from scipy.signal import lfilter, lfilter_zi
     u = gain * np.asarray(u, dtype=float)
@@ -227,15 +212,14 @@ def _road_inputs(vehicle: VehicleParams, s_f, v_f, rough):
     l_r = vehicle.rear_axle_to_ref
     l_f = vehicle.wheelbase - l_r
     front, rear = s_f + l_f, s_f - l_r
-    (hfl, sfl), (hfr, sfr) = _profile_at(x_rough, h_l, front), _profile_at(x_rough, h_r, front)
-    (hrl, srl), (hrr, srr) = _profile_at(x_rough, h_l, rear), _profile_at(x_rough, h_r, rear)
+    heights, slopes = zip(*(_profile_at(x_rough, h, pos) for pos in (front, rear) for h in (h_l, h_r)), strict=True)
 
     def inputs(fl, fr, rl, rr):
         h_front, h_rear = 0.5 * (fl + fr), 0.5 * (rl + rr)
         return (-(h_front - h_rear) / vehicle.wheelbase, (0.5 * (fl + rl) - 0.5 * (fr + rr)) / vehicle.track,
                 (l_r * h_front + l_f * h_rear) / vehicle.wheelbase)
 
-    return inputs(hfl, hfr, hrl, hrr), tuple(d * v_f for d in inputs(sfl, sfr, srl, srr))
+    return inputs(*heights), tuple(d * v_f for d in inputs(*slopes))          # wheels fl, fr, rl, rr
 
 
 def _base_excited(road, road_rate, load, dt_f: float, freq: float, damping: float, damper: bool = True):
@@ -272,20 +256,15 @@ def body_motion(vehicle: VehicleParams, a_f, v_f, s_f, dt_f: float, layout, roug
     Parameters
     ----------
     vehicle : VehicleParams
-    a_f, v_f, s_f : ndarray, shape (N,)
-        Longitudinal acceleration (m/s^2), speed (m/s) and distance (m) at the fine grid.
-    dt_f : float
-        Fine-grid step, s.
-    layout : (curvature, grade, bank)
-        The road profiles (:func:`~imu_ground.evaluation.simulate.road.road_layout`).
-    rough : (x, h_left, h_right)
-        The roughness profile (:func:`~imu_ground.evaluation.simulate.road.road_profile`).
+    a_f, v_f, s_f : ndarray (N,)
+        Longitudinal acceleration (m/s^2), speed (m/s), distance (m) on the fine grid of step ``dt_f`` (s).
+    layout, rough
+        The road profiles and the roughness (:mod:`~imu_ground.evaluation.simulate.road`).
 
     Returns
     -------
     pitch, roll, heave : tuple of three ndarrays (N,)
-        Each ``(value, rate, acceleration)``: rad, rad/s, rad/s^2 (heave m, m/s, m/s^2);
-        pitch nose down positive, roll left side up positive.
+        Each ``(value, rate, acceleration)``: rad, rad/s, rad/s^2 (heave m, m/s, m/s^2).
     """
     (u_pitch, u_roll, u_heave), (du_pitch, du_roll, du_heave) = _road_inputs(vehicle, s_f, v_f, rough)
     load_pitch = load_roll = np.zeros_like(s_f)
@@ -293,10 +272,8 @@ def body_motion(vehicle: VehicleParams, a_f, v_f, s_f, dt_f: float, layout, roug
         f_x, f_y = _load_transfer(vehicle, a_f, v_f, s_f, layout)
         load_pitch = -vehicle.pitch_gain_deg * DEG * f_x
         load_roll = vehicle.roll_gain_deg * DEG * f_y
-    pitch = _base_excited(u_pitch, du_pitch, load_pitch, dt_f, vehicle.pitch_freq, vehicle.pitch_damping,
-                          vehicle.damper_road_input)
-    roll = _base_excited(u_roll, du_roll, load_roll, dt_f, vehicle.roll_freq, vehicle.roll_damping,
-                         vehicle.damper_road_input)
-    heave = _base_excited(u_heave, du_heave, np.zeros_like(s_f), dt_f, vehicle.heave_freq, vehicle.heave_damping,
-                          vehicle.damper_road_input)
-    return pitch, roll, heave
+    modes = (("pitch", u_pitch, du_pitch, load_pitch), ("roll", u_roll, du_roll, load_roll),
+             ("heave", u_heave, du_heave, np.zeros_like(s_f)))
+    return tuple(_base_excited(u, du, load, dt_f, getattr(vehicle, f"{mode}_freq"),
+                               getattr(vehicle, f"{mode}_damping"), vehicle.damper_road_input)
+                 for mode, u, du, load in modes)
