@@ -8,7 +8,7 @@ import pytest
 
 from imu_ground import so3
 from imu_ground.evaluation.metrics import (evaluate_drive, frame_errors, normal_angle,
-                                normal_from_pitch_roll, summarize, per_drive_table, wrap_angle)
+                                normal_from_pitch_roll, summarize, per_drive_table, wrap_angle, wrap_pi)
 
 D = math.radians
 
@@ -43,6 +43,15 @@ def test_normal_angle_values():
 def test_wrap_angle():
     np.testing.assert_allclose(wrap_angle([190.0, -190.0, 180.0, -180.0, 0.0, 359.0]),
                                [-170.0, 170.0, 180.0, 180.0, 0.0, -1.0])
+
+
+def test_wrap_pi_is_wrap_angle_in_rad_on_the_half_open_range():
+    a = np.linspace(-20.0, 20.0, 4001)
+    w = wrap_pi(a)
+    assert np.all((w >= -np.pi) & (w < np.pi))
+    np.testing.assert_allclose(np.exp(1j * w), np.exp(1j * a), atol=1e-12)
+    np.testing.assert_allclose(np.degrees(w[np.abs(w) < 3.0]), wrap_angle(np.degrees(a))[np.abs(w) < 3.0], atol=1e-9)
+    assert wrap_pi(np.array([np.pi]))[0] == -np.pi
 
 
 def test_frame_errors_hand_values():

@@ -5,7 +5,7 @@ _EXPORTS = {
     ".reference": ("WINDOW_M MIN_SPEED FRAME_RATE MAX_GRADE_DEG MAX_PITCH_REL_ROAD_DEG "
                    "MIN_MOVING_FRAMES Reference ReferenceCheck drop_out_of_order frame_times "
                    "travelled_distance smoothed_grade pitch_reference check_reference"),
-    ".metrics": ("normal_from_pitch_roll normal_angle wrap_angle frame_errors summarize "
+    ".metrics": ("normal_from_pitch_roll normal_angle wrap_angle wrap_pi frame_errors summarize "
                  "evaluate_drive per_drive_table"),
     ".baselines": "ConstantNormal EulerEKF euler_zyx from_euler_zyx",
     ".simulate": ("GRAVITY ISO8608_N0 ISO8608_CLASSES ImuErrorModel IMU_PRESETS imu_error_model "

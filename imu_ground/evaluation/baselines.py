@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from imu_ground import so3
+from imu_ground.evaluation.metrics import wrap_pi
 from imu_ground.filters.constant_normal import BaselineEstimator, ConstantNormal
 from imu_ground.filters.estimator import GroundEstimate, GroundTrack
 from imu_ground.so3 import euler_zyx, twist_angle
@@ -28,10 +29,6 @@ def from_euler_zyx(e: np.ndarray) -> np.ndarray:
     """Inverse of :func:`euler_zyx`: ``Rz(yaw) Ry(pitch) Rx(roll)``, batch (..., 3) -> (..., 3, 3)."""
     e = np.asarray(e, dtype=float)
     return so3.rotz(e[..., 2]) @ so3.roty(e[..., 1]) @ so3.rotx(e[..., 0])
-
-
-def _wrap(a: np.ndarray) -> np.ndarray:
-    return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
 class EulerEKF(BaselineEstimator):
@@ -79,7 +76,7 @@ class EulerEKF(BaselineEstimator):
         F = np.empty((3, 3))
         h = 1e-6
         for i, dx in enumerate(np.eye(3) * h):
-            F[:, i] = _wrap(euler_zyx(from_euler_zyx(x + dx) @ T) - euler_zyx(from_euler_zyx(x - dx) @ T)) / (2 * h)
+            F[:, i] = wrap_pi(euler_zyx(from_euler_zyx(x + dx) @ T) - euler_zyx(from_euler_zyx(x - dx) @ T)) / (2 * h)
         return F
 
     def step(self, frame) -> GroundEstimate:
@@ -109,9 +106,9 @@ class EulerEKF(BaselineEstimator):
         ekf.x_prior, ekf.P_prior = ekf.x.copy(), ekf.P.copy()
         z = euler_zyx(self.cumulative)
         ekf.update(z, HJacobian=lambda x: np.eye(3), Hx=lambda x: x,
-                   residual=lambda a, b: _wrap(np.asarray(a) - np.asarray(b)))
+                   residual=lambda a, b: wrap_pi(np.asarray(a) - np.asarray(b)))
         ekf.x = np.asarray(ekf.x, dtype=float).ravel()
-        ekf.x[2] = _wrap(ekf.x[2])
+        ekf.x[2] = wrap_pi(ekf.x[2])
         return self._estimate(from_euler_zyx(ekf.x).T @ self.cumulative, ekf.P.copy())
 
     def _run(self, em) -> GroundTrack:

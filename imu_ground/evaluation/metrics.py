@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 __all__ = [
-    "normal_from_pitch_roll", "normal_angle", "wrap_angle", "frame_errors", "summarize", "evaluate_drive",
+    "normal_from_pitch_roll", "normal_angle", "wrap_angle", "wrap_pi", "frame_errors", "summarize", "evaluate_drive",
     "per_drive_table"
 ]
 
@@ -63,6 +63,11 @@ def wrap_angle(a_deg) -> np.ndarray:
     """Wrap angles in degrees to (-180, 180]."""
     a = np.asarray(a_deg, dtype=float)
     return 180.0 - np.mod(180.0 - a, 360.0)
+
+
+def wrap_pi(a_rad: np.ndarray) -> np.ndarray:
+    """Wrap angles in rad to [-pi, pi)."""
+    return (a_rad + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def frame_errors(est_pitch, true_pitch, est_roll=None, true_roll=None) -> pd.DataFrame:

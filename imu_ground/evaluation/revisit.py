@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imu_ground.evaluation.baselines import _wrap
+from imu_ground.evaluation.metrics import wrap_pi
 from imu_ground.evaluation.reference import MIN_SPEED, drop_out_of_order, sample_gap
 
 __all__ = ["RevisitPairs", "drive_revisit_pairs", "ins_at_frames", "revisit_consistency", "revisit_differences",
@@ -75,7 +75,7 @@ def revisit_pairs(t: np.ndarray, x: np.ndarray, y: np.ndarray, heading: np.ndarr
     if len(near) == 0:
         return empty, empty
     a, b = idx[near[:, 0]], idx[near[:, 1]]
-    keep = (np.abs(t[a] - t[b]) >= min_separation) & (np.abs(_wrap(heading[a] - heading[b])) <= max_heading)
+    keep = (np.abs(t[a] - t[b]) >= min_separation) & (np.abs(wrap_pi(heading[a] - heading[b])) <= max_heading)
     a, b = a[keep], b[keep]
     if len(a) == 0:
         return empty, empty
