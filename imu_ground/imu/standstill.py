@@ -191,9 +191,7 @@ def _quiet_windows(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, mean: np.
             continue
         lo_at = _advance(lo1, lo2, lo_at, i, gyro, accel, mean)
         hi_at = _advance(hi1, hi2, hi_at, e, gyro, accel, mean)
-        cnt = float(hi_at - lo_at)
-        if not cnt >= 1.0:
-            cnt = 1.0
+        cnt = float(hi_at - lo_at)              # >= 1: e = last + 1 > i here
         for r in range(6):
             s[r] = hi1[r] - lo1[r]
             q[r] = hi2[r] - lo2[r]

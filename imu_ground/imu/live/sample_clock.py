@@ -222,8 +222,7 @@ class SampleClock:
         self._pending = math.nan                            # far ahead for CONFIRM samples: a dropout
         self.dropouts += 1
         self._raw_prev = t
-        if t > self._raw_max:
-            self._raw_max = t
+        self._raw_max = max(self._raw_max, t)
         self.t = t
         return OK, t
 
