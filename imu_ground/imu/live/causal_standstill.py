@@ -115,14 +115,6 @@ def _windows(ring: np.ndarray, keys: np.ndarray, k: int, W: int, Wb: int, thresh
     return res
 
 
-@njit
-def _forget(keys: np.ndarray, cut: int) -> None:
-    """Free the ring's slots of the blocks before ``cut``."""
-    for i in range(keys.size):
-        if keys[i] < cut:
-            keys[i] = _FREE
-
-
 class StandstillBlocks:
     """Per-frame sums of the samples and the trailing-window standstill test, one sample at a time.
 
@@ -168,7 +160,7 @@ class StandstillBlocks:
     def done(self, k: int) -> None:
         """Frame ``k`` is finished: forget the blocks no later frame's windows hold."""
         cut = k - max(self.W, self.Wb) + 2
-        _forget(self._keys, cut)
+        self._keys[self._keys < cut] = _FREE
         if self.open_k < cut:
             self.open_k = -1
 
