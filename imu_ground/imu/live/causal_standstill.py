@@ -115,6 +115,14 @@ def _windows(ring: np.ndarray, keys: np.ndarray, k: int, W: int, Wb: int, thresh
     return res
 
 
+@njit
+def _forget(keys: np.ndarray, cut: int) -> None:
+    """Free the ring's slots of the blocks before ``cut``."""
+    for i in range(keys.size):
+        if keys[i] < cut:
+            keys[i] = _FREE
+
+
 class StandstillBlocks:
     """Per-frame sums of the samples and the trailing-window standstill test, one sample at a time.
 
@@ -160,7 +168,7 @@ class StandstillBlocks:
     def done(self, k: int) -> None:
         """Frame ``k`` is finished: forget the blocks no later frame's windows hold."""
         cut = k - max(self.W, self.Wb) + 2
-        self._keys[self._keys < cut] = _FREE
+        _forget(self._keys, cut)
         if self.open_k < cut:
             self.open_k = -1
 
