@@ -208,8 +208,7 @@ def imu_to_egomotion(imu: ImuData, rate: float = DEFAULT_FRAME_RATE, *, frame_ti
         stationary[ok] = te[ok] <= intervals[i[ok], 1]
     meta["standstill_intervals"] = intervals.tolist()
     meta["invalid_frames"] = int(np.sum(~fd.valid[keep]))
-    if frame_times is not None:
-        ft = np.asarray(frame_times, dtype=float)
-        rate = 1.0 / float(np.median(np.diff(ft))) if len(ft) > 1 else rate
+    if frame_times is not None and T is not None and len(T) > 1:
+        rate = 1.0 / float(np.median(np.diff(T)))
     return EgoMotion(te.copy(), fd.delta_R[keep], fd.delta_v[keep], fd.delta_t[keep], stationary, fd.valid[keep].copy(),
                      bg, imu.frame, meta, float(rate), True)

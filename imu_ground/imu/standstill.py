@@ -305,8 +305,7 @@ def estimate_gyro_bias(imu: ImuData, *, window: float = WINDOW, gyro_std_max: fl
     intervals = _intervals(np.asarray(imu.t, dtype=float), mask)
     k = intervals.shape[0]
     if k == 0:
-        nan3 = np.full(3, np.nan)
-        return GyroBiasEstimate(np.zeros(3), np.full(3, np.inf), np.zeros((0, 2)), nan3,
+        return GyroBiasEstimate(np.zeros(3), np.full(3, np.inf), np.zeros((0, 2)), np.full(3, np.nan),
                                 np.zeros((0, 3)), np.zeros((0, 3)), 0)
     g = imu.gyro[mask]
     bias = g.mean(axis=0)
