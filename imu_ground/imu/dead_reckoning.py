@@ -184,8 +184,6 @@ def dead_reckon_imu(imu: ImuData, *, rate: float | None = None, every: int | Non
             raise ValueError("the log does not start at rest (no standstill within 1 s of its "
                              "start); give the initial attitude R0")
         R0 = attitude_from_accel(est.accel_mean[0])
-    if rate is None and every is None:
-        every = 1
-    deltas = preintegrate(imu, rate=rate, every=every, bias_gyro=bg, bias_accel=bias_accel,
-                          hold=hold, max_gap=max_gap, on_gap=on_gap, uncertainty=False)
+    deltas = preintegrate(imu, rate=rate, every=1 if rate is None and every is None else every, bias_gyro=bg,
+                          bias_accel=bias_accel, hold=hold, max_gap=max_gap, on_gap=on_gap, uncertainty=False)
     return dead_reckon(deltas, R0, v0, p0, gravity=gravity)

@@ -92,8 +92,7 @@ class EgoMotion:
 
     def frames(self) -> Iterator[EgoFrame]:
         """The frames one at a time, for streaming estimators."""
-        for k in range(len(self)):
-            yield self.frame_at(k)
+        return map(self.frame_at, range(len(self)))
 
     @classmethod
     def from_rotations(cls, delta_R: np.ndarray, t: np.ndarray | None = None,
@@ -183,10 +182,8 @@ def imu_to_egomotion(imu: ImuData, rate: float = DEFAULT_FRAME_RATE, *, frame_ti
         # the flags' standstills now (times checked above), so the sums are freed before preintegrating
         intervals = detect_standstill(imu, window=standstill_window, max_gap=max_gap, sums=sums)
         del sums
-    elif bias_gyro is None:
-        bg = np.zeros(3)
     else:
-        bg = np.asarray(bias_gyro, dtype=float).reshape(3)
+        bg = np.zeros(3) if bias_gyro is None else np.asarray(bias_gyro, dtype=float).reshape(3)
     T = None if frame_times is None else np.asarray(frame_times, dtype=float)
     keep: slice | np.ndarray = slice(None)          # the frames of T that are frames (not across a segment cut)
     segments = None
@@ -194,15 +191,13 @@ def imu_to_egomotion(imu: ImuData, rate: float = DEFAULT_FRAME_RATE, *, frame_ti
         segment_gap = max_gap_frames / rate
         segments = segment_frame_times(imu.t, rate, segment_gap)
     if segments is not None:
-        T, in_frame, cuts = segments
-        keep = in_frame
-    fd = preintegrate(imu, T, rate=rate if T is None else None, bias_gyro=bg, max_gap=max_gap, on_gap="flag",
-                      uncertainty=False)
-    if segments is not None:
-        if not in_frame.any():
+        T, keep, cuts = segments
+        if not keep.any():
             raise ImuGroundError(f"no frame at {rate:g} Hz: each of the {cuts.size + 1} segments between steps of "
                                  f"more than {segment_gap:g} s is shorter than a frame")
         meta["segment_cuts"] = cuts.tolist()
+    fd = preintegrate(imu, T, rate=rate if T is None else None, bias_gyro=bg, max_gap=max_gap, on_gap="flag",
+                      uncertainty=False)
     if intervals is None:
         intervals = detect_standstill(imu, window=standstill_window, max_gap=max_gap)
     te = fd.t_end[keep]
@@ -213,8 +208,7 @@ def imu_to_egomotion(imu: ImuData, rate: float = DEFAULT_FRAME_RATE, *, frame_ti
         stationary[ok] = te[ok] <= intervals[i[ok], 1]
     meta["standstill_intervals"] = intervals.tolist()
     meta["invalid_frames"] = int(np.sum(~fd.valid[keep]))
-    if frame_times is not None:
-        ft = np.asarray(frame_times, dtype=float)
-        rate = 1.0 / float(np.median(np.diff(ft))) if len(ft) > 1 else rate
+    if frame_times is not None and T is not None and len(T) > 1:
+        rate = 1.0 / float(np.median(np.diff(T)))
     return EgoMotion(te.copy(), fd.delta_R[keep], fd.delta_v[keep], fd.delta_t[keep], stationary, fd.valid[keep].copy(),
                      bg, imu.frame, meta, float(rate), True)

@@ -324,8 +324,7 @@ class PreintegratedImu(ParamsView):
         u[_J_IDX] = J
         u[_S_IDX] = S
         q = quaternion_from_rotation(tuple(np.asarray(R, dtype=float).reshape(9).tolist()))
-        s = (T, *q, *np.asarray(v, dtype=float).tolist(),
-             *np.asarray(p, dtype=float).tolist())
+        s = (T, *q, *np.asarray(v, dtype=float).tolist(), *np.asarray(p, dtype=float).tolist())
         return cls.from_state(params, s, tuple(u[:90].tolist()), int(n_intervals), float(t_start),
                                float(t_end), bool(valid))
 

@@ -191,9 +191,7 @@ def _quiet_windows(t: np.ndarray, gyro: np.ndarray, accel: np.ndarray, mean: np.
             continue
         lo_at = _advance(lo1, lo2, lo_at, i, gyro, accel, mean)
         hi_at = _advance(hi1, hi2, hi_at, e, gyro, accel, mean)
-        cnt = float(hi_at - lo_at)
-        if not cnt >= 1.0:
-            cnt = 1.0
+        cnt = float(hi_at - lo_at)              # >= 1: e = last + 1 > i here
         for r in range(6):
             s[r] = hi1[r] - lo1[r]
             q[r] = hi2[r] - lo2[r]
@@ -307,8 +305,7 @@ def estimate_gyro_bias(imu: ImuData, *, window: float = WINDOW, gyro_std_max: fl
     intervals = _intervals(np.asarray(imu.t, dtype=float), mask)
     k = intervals.shape[0]
     if k == 0:
-        nan3 = np.full(3, np.nan)
-        return GyroBiasEstimate(np.zeros(3), np.full(3, np.inf), np.zeros((0, 2)), nan3,
+        return GyroBiasEstimate(np.zeros(3), np.full(3, np.inf), np.zeros((0, 2)), np.full(3, np.nan),
                                 np.zeros((0, 3)), np.zeros((0, 3)), 0)
     g = imu.gyro[mask]
     bias = g.mean(axis=0)

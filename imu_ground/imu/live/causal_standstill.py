@@ -256,12 +256,9 @@ class CausalGyroBias:
         if not self.auto:
             return
         for j in range(max(self.last + 1, k - W + 1), k + 1):
-            n, sx, sy, sz = block(j)
+            n, *sums = block(j)
             self.n += n
-            s = self.s
-            s[0] += sx
-            s[1] += sy
-            s[2] += sz
+            self.s = [a + b for a, b in zip(self.s, sums, strict=True)]
         self.last = k
         self.value = (self.s[0] / self.n, self.s[1] / self.n, self.s[2] / self.n)
 

@@ -146,11 +146,6 @@ class StreamingPreintegrator:
         """Time of the next frame end, s (inf if none or unknown: before the first sample, every-N frames)."""
         return float(self._b[_S_NEXT])
 
-    @property
-    def _prev(self) -> tuple | None:
-        """(t, gyro, accel) of the last sample, bias removed (None before the first)."""
-        return None if self.last_sample_time is None else tuple(self._b[_S_PREV:_S_LIM].tolist())
-
     def set_gyro_bias(self, bx: float, by: float, bz: float) -> None:
         """Remove this gyro bias (rad/s, body frame) from the next sample on, in place of ``params``' (not part of
         :meth:`state_dict`: set it again after a :meth:`load_state_dict`)."""
@@ -178,8 +173,9 @@ class StreamingPreintegrator:
         origin = float(b[_S_ORIGIN])
         st: dict[str, Any] = {name: int(b[i]) for name, i in _INTS.items()}
         st.update({name: float(b[i]) for name, i in _FLOATS.items()})
+        prev = None if self.last_sample_time is None else b[_S_PREV:_S_LIM].tolist()   # t, gyro, accel less bias
         st.update(_valid=b[_S_VALID] != 0.0, _active=b[_S_ACTIVE] != 0.0,
-                  _origin=None if math.isnan(origin) else origin, prev=self._prev, deltas=deltas, uncertainty=unc)
+                  _origin=None if math.isnan(origin) else origin, prev=prev, deltas=deltas, uncertainty=unc)
         return pack_state("StreamingPreintegrator", STATE_VERSION, self._settings(), st)
 
     def load_state_dict(self, state: dict) -> None:

@@ -222,8 +222,7 @@ class SampleClock:
         self._pending = math.nan                            # far ahead for CONFIRM samples: a dropout
         self.dropouts += 1
         self._raw_prev = t
-        if t > self._raw_max:
-            self._raw_max = t
+        self._raw_max = max(self._raw_max, t)
         self.t = t
         return OK, t
 
@@ -275,15 +274,12 @@ class SampleClock:
             notes.append(f"{self.bad} IMU sample(s) dropped: stamp far off the clock (the last {abs(off):.6g} s "
                          f"{'ahead' if off > 0 else 'behind'}), a bad stamp, not a new clock")
             self.bad = 0
-        if self.confirming:
-            notes.append(f"{self.confirming} IMU sample(s) dropped while the change of the clock was confirmed")
-            self.confirming = 0
-        if self.dropped:
-            notes.append(f"{self.dropped} IMU sample(s) dropped (time not after the last; policy {self.policy})")
-            self.dropped = 0
-        if self.retimed:
-            notes.append(f"{self.retimed} stamp(s) retimed on the sample clock")
-            self.retimed = 0
+        for count, text in (("confirming", "IMU sample(s) dropped while the change of the clock was confirmed"),
+                            ("dropped", f"IMU sample(s) dropped (time not after the last; policy {self.policy})"),
+                            ("retimed", "stamp(s) retimed on the sample clock")):
+            if getattr(self, count):
+                notes.append(f"{getattr(self, count)} {text}")
+                setattr(self, count, 0)
         return notes
 
     def load_checked(self, c: Any, max_period: float) -> None:

@@ -57,16 +57,12 @@ class SpeedBuffer:
         if t < self.done_until:
             self.rejected["late"] += 1          # before the end of a frame already decided
             return
-        if ts and t <= ts[-1]:
-            i = bisect.bisect_left(ts, t)
-            if i < len(ts) and ts[i] == t:
-                self.rejected["repeated"] += 1
-                return
-            ts.insert(i, t)
-            self.v.insert(i, v)
+        i = bisect.bisect_left(ts, t)
+        if i < len(ts) and ts[i] == t:
+            self.rejected["repeated"] += 1
             return
-        ts.append(t)
-        self.v.append(v)
+        ts.insert(i, t)
+        self.v.insert(i, v)
 
     def covers(self, t_end: float) -> bool:
         """A sample at or after ``t_end`` (s) has arrived."""
@@ -124,8 +120,6 @@ class SpeedBuffer:
     def take_notes(self) -> list[str]:
         """What was rejected since the last call, one phrase each (and the counts start again)."""
         r = self.rejected
-        if not (r["nonfinite"] or r["late"] or r["repeated"]):
-            return []
         notes = [f"{n} {what} speed sample(s) {how}" for what, how, n in
                  (("non-finite-time", "ignored", r["nonfinite"]),
                   ("late (after their frames)", "ignored", r["late"]),
