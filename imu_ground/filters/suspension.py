@@ -59,6 +59,7 @@ from imu_ground.filters.mount_monitor import WINDOW as MONITOR_WINDOW
 from imu_ground.filters.mount_monitor import MountMonitor
 from imu_ground.filters.recalibration import MountRecalibrator
 from imu_ground.filters.residual import ResidualKernel
+from imu_ground.filters.residual import frame as residual_frame
 from imu_ground.filters.road import NO_SPEED_REASON, RoadFilter, road_one
 from imu_ground.filters.status import (CONVERGED_MOVING_SECONDS, CONVERGED_STD, DEGRADED, OK, SLOW_SPEED, SUSPENSION_STD, SigmaModel,
                                        frame_status_code, ok_note, track_reasons)
@@ -204,7 +205,7 @@ class SuspensionAwareFilter:
         r = self._r
         self._Rgs = static_rotation(self.extrinsic)
         self._kernel = k = ResidualKernel(self.P0 * r, self.P0 * r, r, self.r_yaw * r, Rgs=self._Rgs)
-        self._kbuf, self._kstep, self._kcheck = k.buf, k.step, k.check
+        self._kbuf, self._kcheck = k.buf, k.check
         self.gravity_filter = GravityVelocityFilter(R0=self.R0, extrinsic=self.extrinsic,
                                                     lever_arm=self.lever_arm, **self._gravity_kw)
         self.model = SuspensionModel(self.gains0, self.load_share, self.response, self.cross_gain,
@@ -403,7 +404,7 @@ class SuspensionAwareFilter:
         ux, uy = model.load
         q = self._road_noise(speed, dt, psi)
         self._q_last = q
-        o = self._kstep(self._kbuf, d, q, self.q_yaw, tilt_x, tilt_y, None, 1.0)
+        o = residual_frame(self._kbuf, d, q, self.q_yaw, True, tilt_x, tilt_y, True)   # d checked above
         if road is not None:
             road = road_one(o, *road)
         recal = None if self.recalibrator is None else self.recalibrator.note
