@@ -99,15 +99,10 @@ def _vectors(msgs: Sequence[Any], attr: str) -> np.ndarray:
 
 def _imu_slow(msgs: Sequence[Any]) -> tuple[np.ndarray, str, np.ndarray]:
     """:func:`_imu_columns`' result from deserialised messages."""
-    d = np.empty((len(msgs), _IMU_DOUBLES))
-    for k, m in enumerate(msgs):
-        o, w, a = m.orientation, m.angular_velocity, m.linear_acceleration
-        d[k, :4] = (o.x, o.y, o.z, o.w)
-        d[k, 4:13] = m.orientation_covariance
-        d[k, 13:16] = (w.x, w.y, w.z)
-        d[k, 16:25] = m.angular_velocity_covariance
-        d[k, 25:28] = (a.x, a.y, a.z)
-        d[k, 28:] = m.linear_acceleration_covariance
+    quat = [(m.orientation.x, m.orientation.y, m.orientation.z, m.orientation.w) for m in msgs]
+    d = np.column_stack([quat, [m.orientation_covariance for m in msgs], _vectors(msgs, "angular_velocity"),
+                         [m.angular_velocity_covariance for m in msgs], _vectors(msgs, "linear_acceleration"),
+                         [m.linear_acceleration_covariance for m in msgs]]).astype(float, copy=False)
     return _header_ns(msgs), str(msgs[0].header.frame_id), d
 
 
