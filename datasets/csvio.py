@@ -229,11 +229,7 @@ def _parse(path: Path, sep: str, stack: Mapping[str, Sequence[str]] | None,
         err = locate_bad_lines(path, sep)
         if err is not None:
             raise err
-    return _join_columns(names, parts, n, stack), n, _blank_rows(blank)
-
-
-def _blank_rows(blank: list[np.ndarray]) -> np.ndarray:
-    return np.concatenate(blank) if blank else np.zeros(0, dtype=np.int64)
+    return _join_columns(names, parts, n, stack), n, np.concatenate(blank) if blank else np.zeros(0, dtype=np.int64)
 
 
 def read_delimited(path: str | Path, sep: str | None = ",", *,

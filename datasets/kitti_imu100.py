@@ -136,19 +136,15 @@ def read_kitti_imu100(path: str | Path, *, drives_csv: str | Path | bool | None 
     t_first = float(first) * unit_scale("time", t_unit)
     meta: dict[str, Any] = {"format": "kitti_imu100", "drive": drive, "t0": 0.0,
                             "t0_clock": "t of the file (no drives.csv entry)"}
-    index_path: Path | None
-    if drives_csv is False:
-        index_path = None
-    elif drives_csv is None or drives_csv is True:
-        index_path = path.parent / "drives.csv"
-        if not index_path.is_file():
-            if drives_csv is True:
-                raise FileNotFoundError(f"{index_path}: no such file (drives_csv=True)")
-            index_path = None
-    else:
+    index_path: Path | None = None
+    if isinstance(drives_csv, (str, Path)):
         index_path = Path(drives_csv)
         if not index_path.exists():
             raise FileNotFoundError(f"{index_path}: no such file")
+    elif drives_csv is not False and (path.parent / "drives.csv").is_file():
+        index_path = path.parent / "drives.csv"
+    elif drives_csv is True:
+        raise FileNotFoundError(f"{path.parent / 'drives.csv'}: no such file (drives_csv=True)")
     if index_path is not None:
         index = read_drives_index(index_path)
         meta["drives_csv"] = str(index_path)

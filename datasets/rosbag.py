@@ -19,7 +19,7 @@ import numpy as np
 from imu_ground.errors import MalformedFileError, TimestampWarning, warn_user
 from imu_ground.imu.data import ImuData
 
-from .rosbag_files import (PathLike, _choose, _messages, _open, _raw_messages, is_rosbag, rosbag_topics)
+from .rosbag_files import PathLike, _choose, _open, _raw_messages, is_rosbag, rosbag_topics
 from .skeleton import finish, register_format, with_finish_parameters
 
 __all__ = ["IMU_TYPE", "POSE_TYPES", "SPEED_TYPES", "is_rosbag", "read_rosbag_imu", "read_rosbag_poses",
@@ -99,27 +99,11 @@ def _vectors(msgs: Sequence[Any], attr: str) -> np.ndarray:
 
 def _imu_slow(msgs: Sequence[Any]) -> tuple[np.ndarray, str, np.ndarray]:
     """:func:`_imu_columns`' result from deserialised messages."""
-    d = np.empty((len(msgs), _IMU_DOUBLES))
-    for k, m in enumerate(msgs):
-        o, w, a = m.orientation, m.angular_velocity, m.linear_acceleration
-        d[k, :4] = (o.x, o.y, o.z, o.w)
-        d[k, 4:13] = m.orientation_covariance
-        d[k, 13:16] = (w.x, w.y, w.z)
-        d[k, 16:25] = m.angular_velocity_covariance
-        d[k, 25:28] = (a.x, a.y, a.z)
-        d[k, 28:] = m.linear_acceleration_covariance
+    quat = [(m.orientation.x, m.orientation.y, m.orientation.z, m.orientation.w) for m in msgs]
+    d = np.column_stack([quat, [m.orientation_covariance for m in msgs], _vectors(msgs, "angular_velocity"),
+                         [m.angular_velocity_covariance for m in msgs], _vectors(msgs, "linear_acceleration"),
+                         [m.linear_acceleration_covariance for m in msgs]]).astype(float, copy=False)
     return _header_ns(msgs), str(msgs[0].header.frame_id), d
-
-
-def _read_imu_topic(reader: Any, conns: Sequence[Any]) -> tuple[np.ndarray, np.ndarray, str, np.ndarray]:
-    """Record times, header stamps (ns), frame_id and the float64 fields (N, 37) of an IMU topic."""
-    rec, raws = _raw_messages(reader, conns)
-    if not raws:
-        return rec, rec, "", np.empty((0, _IMU_DOUBLES))
-    fast = _imu_columns(raws, ros1=not reader.is2)
-    if fast is None:
-        fast = _imu_slow([reader.deserialize(raw, conns[0].msgtype) for raw in raws])
-    return (rec, *fast)
 
 
 def _orientation(d: np.ndarray) -> np.ndarray | None:
@@ -166,10 +150,9 @@ def read_rosbag_imu(path: PathLike, *, topic: str | None = None, time_source: st
 
     p = Path(path)
     with _open(p) as reader:
-        conns = _choose(reader, p, (IMU_TYPE,), topic, "IMU")
-        rec, hdr, frame_id, d = _read_imu_topic(reader, conns)
-    if not len(rec):
-        raise MalformedFileError(p, f"IMU topic {conns[0].topic!r} has no messages")
+        conns, rec, raws = _topic(reader, p, (IMU_TYPE,), topic, "IMU")
+        fast = _imu_columns(raws, ros1=not reader.is2)
+        hdr, frame_id, d = fast or _imu_slow([reader.deserialize(raw, conns[0].msgtype) for raw in raws])
     ns, used = _stamps(p, hdr, rec, time_source, stamp_tolerance)
     q = _orientation(d)
     extra = pd.DataFrame(q, columns=["qw", "qx", "qy", "qz"]) if q is not None else pd.DataFrame()
@@ -185,14 +168,22 @@ def _times(ns: np.ndarray, t0_ns: int | None) -> np.ndarray:
     return (ns - (0 if t0_ns is None else int(t0_ns))) / 1e9
 
 
+def _topic(reader: Any, p: Path, types: Sequence[str], topic: str | None,
+           what: str) -> tuple[list[Any], np.ndarray, list[bytes]]:
+    """The chosen topic's connections, record times (ns) and serialised messages; none raises."""
+    conns = _choose(reader, p, types, topic, what)
+    rec, raws = _raw_messages(reader, conns)
+    if not raws:
+        raise MalformedFileError(p, f"{what} topic {conns[0].topic!r} has no messages")
+    return conns, rec, raws
+
+
 def _read_typed(path: PathLike, types: Sequence[str], topic: str | None, what: str,
                 time_source: str, stamp_tolerance: float) -> tuple[Path, str, np.ndarray, list[Any]]:
     p = Path(path)
     with _open(p) as reader:
-        conns = _choose(reader, p, types, topic, what)
-        rec, msgs = _messages(reader, conns)
-    if not msgs:
-        raise MalformedFileError(p, f"{what} topic {conns[0].topic!r} has no messages")
+        conns, rec, raws = _topic(reader, p, types, topic, what)
+        msgs = [reader.deserialize(raw, conns[0].msgtype) for raw in raws]
     ns, _ = _stamps(p, _header_ns(msgs), rec, time_source, stamp_tolerance)
     return p, conns[0].msgtype, ns, msgs
 

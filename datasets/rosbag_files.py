@@ -151,25 +151,20 @@ def _open(path: PathLike) -> Iterator[Any]:
         reader.close()
 
 
-def _topic_rates(reader: Any, connections: Sequence[Any]) -> dict[str, float]:
-    """Median message rate, Hz, of each topic, from its record times (nan below 2 messages)."""
-    times: dict[str, list[int]] = {}
-    for conn, rec_ns, _ in reader.messages(connections=connections):
-        times.setdefault(conn.topic, []).append(rec_ns)
-    out = {}
-    for topic, ts in times.items():
-        d = np.diff(np.sort(np.asarray(ts, dtype=np.int64)))
-        d = d[d > 0]
-        out[topic] = 1e9 / float(np.median(d)) if d.size else float("nan")
-    return out
-
-
 def _topic_rows(reader: Any, connections: Sequence[Any], rates: bool = True) -> list[tuple[str, str, int, float]]:
-    """(topic, msgtype, count, rate_hz) of ``connections``; rates (nan without ``rates``) read every message."""
+    """(topic, msgtype, count, rate_hz) of ``connections``; rates (median of the record-time steps, nan below 2
+    messages or without ``rates``) read every message."""
     counts: dict[tuple[str, str], int] = {}
     for c in connections:
         counts[(c.topic, c.msgtype)] = counts.get((c.topic, c.msgtype), 0) + c.msgcount
-    hz = _topic_rates(reader, connections) if connections and rates else {}
+    times: dict[str, list[int]] = {}
+    for conn, rec_ns, _ in (reader.messages(connections=connections) if connections and rates else ()):
+        times.setdefault(conn.topic, []).append(rec_ns)
+    hz = {}
+    for topic, ts in times.items():
+        d = np.diff(np.sort(np.asarray(ts, dtype=np.int64)))
+        d = d[d > 0]
+        hz[topic] = 1e9 / float(np.median(d)) if d.size else float("nan")
     return [(topic, msgtype, n, hz.get(topic, float("nan"))) for (topic, msgtype), n in sorted(counts.items())]
 
 
@@ -235,9 +230,3 @@ def _raw_messages(reader: Any, conns: Sequence[Any]) -> tuple[np.ndarray, list[b
         rec.append(rec_ns)
         raws.append(bytes(raw))
     return np.asarray(rec, dtype=np.int64), raws
-
-
-def _messages(reader: Any, conns: Sequence[Any]) -> tuple[np.ndarray, list[Any]]:
-    """Record times (ns, int64) and deserialised messages of ``conns``, in record order."""
-    rec, raws = _raw_messages(reader, conns)
-    return rec, [reader.deserialize(raw, conns[0].msgtype) for raw in raws]

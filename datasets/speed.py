@@ -246,7 +246,7 @@ def _nuscenes_speed(imu, path: Path) -> tuple[np.ndarray, np.ndarray]:
         msgs = json.load(f)
     utime = np.array([m["utime"] for m in msgs], dtype=np.int64)
     vel = np.array([m["vel"] for m in msgs], dtype=float)
-    t0_us = int(imu.meta["t0_ns"]) // 1000 if imu is not None and imu.meta.get("t0_ns") is not None else utime[0]
+    t0_us = int(imu.meta["t0_ns"]) // 1000 if imu.meta.get("t0_ns") is not None else utime[0]
     return _checked((utime - t0_us) * 1e-6, np.linalg.norm(vel, axis=1), str(pose))
 
 
@@ -257,8 +257,7 @@ def _comma_speed(imu, path: Path) -> tuple[np.ndarray, np.ndarray]:
         raise FileNotFoundError(f"{can}: no CAN speed in this comma2k19 segment")
     t = np.load(can / "t", allow_pickle=False)
     v = np.load(can / "value", allow_pickle=False)
-    t0 = float(imu.meta.get("t0", 0.0)) if imu is not None else 0.0
-    return _checked(t - t0, np.asarray(v, dtype=float).reshape(len(t), -1)[:, 0], str(can))
+    return _checked(t - float(imu.meta.get("t0", 0.0)), np.asarray(v, dtype=float).reshape(len(t), -1)[:, 0], str(can))
 
 
 def log_speed(path: str | Path, format: str, imu=None, topic: str | None = None
@@ -282,14 +281,9 @@ def log_speed(path: str | Path, format: str, imu=None, topic: str | None = None
         A ROS log with several speed topics (naming ``--speed``).
     """
     p = Path(path)
-    if format in ("kitti_imu100", "kitti_oxts"):
-        if imu is None:
-            from imu_ground.datasets import read_imu
-            imu = read_imu(p, format=format)
-        if not {"ve", "vn"} <= set(imu.extra.columns):
-            return None
-        return _checked(imu.t, np.hypot(imu.extra["ve"].to_numpy(float), imu.extra["vn"].to_numpy(float)), str(p))
-    if format in ("nuscenes", "comma2k19", "rosbag") and imu is None:
+    if format not in SPEED_SOURCES:
+        return None
+    if imu is None:
         from imu_ground.datasets import read_imu
         imu = read_imu(p, format=format)
     if format == "nuscenes":
@@ -305,9 +299,10 @@ def log_speed(path: str | Path, format: str, imu=None, topic: str | None = None
             if len(names) > 1:
                 raise ImuInputError(f"{p}: {len(names)} speed topics ({', '.join(names)}); choose one with {{hint}}",
                                     option="speed", value=names[0], flag="--speed")
-        t0_ns = None if imu is None else imu.meta.get("t0_ns")
-        return _checked(*read_rosbag_speed(p, topic, t0_ns=t0_ns), str(p))
-    return None
+        return _checked(*read_rosbag_speed(p, topic, t0_ns=imu.meta.get("t0_ns")), str(p))
+    if not {"ve", "vn"} <= set(imu.extra.columns):
+        return None
+    return _checked(imu.t, np.hypot(imu.extra["ve"].to_numpy(float), imu.extra["vn"].to_numpy(float)), str(p))
 
 
 def read_speed(source: Any, *, log: str | Path | None = None, format: str | None = None, imu=None,

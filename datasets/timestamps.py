@@ -16,6 +16,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import partial
 from typing import Literal, cast
 
 import numpy as np
@@ -139,34 +140,6 @@ def _ooo_dup(t: np.ndarray, steps: np.ndarray, back: np.ndarray, zero: np.ndarra
     return np.sort(np.concatenate(ooo)), np.sort(np.concatenate(dup))
 
 
-def _order(t: np.ndarray, steps: np.ndarray, finite: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Positions after a backward step, out of order and duplicate (:func:`_ooo_dup`)."""
-    cand = np.flatnonzero(steps <= 0)
-    neg = steps[cand] < 0
-    back = cand[neg] + 1
-    return (back, *_ooo_dup(t, steps, back, cand[~neg] + 1, finite))
-
-
-def _gaps(tk, dk, out_rows, report, gaps, gap_factor, gap_threshold, src, row_lines) -> None:
-    report.median_step = median(dk)
-    thr = float(gap_threshold) if gap_threshold is not None else gap_factor * report.median_step
-    report.gap_threshold = thr
-    g = np.flatnonzero(dk > thr)
-    report.gap_out_index = g.astype(np.int64)
-    report.gap_index = out_rows(g)
-    report.gap_start = tk[g]
-    report.gap_length = dk[g]
-    if g.size:
-        k = int(np.argmax(dk[g]))
-        how = (f"{gap_threshold:g} s" if gap_threshold is not None else
-               f"{thr:.4g} s = {gap_factor:g} x median step {report.median_step:.4g} s")
-        kind, where = row_names(report.gap_index[[k]], row_lines)
-        msg = (f"{src}: {g.size} gap(s) longer than {how}: longest {dk[g][k]:.4g} s at "
-               f"t={tk[g][k]:.6f} s ({kind} {where[0]}); starts (s) "
-               f"{fmt_list(tk[g], fmt='{:.3f}')}, lengths (s) {fmt_list(dk[g], fmt='{:.3f}')}")
-        act(gaps, msg, GapWarning, report)
-
-
 def check_timestamps(t: np.ndarray, policy: Policy = "retime", *, gaps: Action | None = None,
                      gap_factor: float = 5.0, gap_threshold: float | None = None,
                      source: str = "", index: np.ndarray | None = None,
@@ -241,15 +214,15 @@ def order_samples(t, policy, source, index, report, warn, row_lines, finite: boo
 
     ``finite``: the times are known finite. Fills the report's order fields, warns (raises under ``"strict"``).
     """
-
-    def rows(pos: np.ndarray) -> np.ndarray:
-        return _rows(pos, index)
-
+    rows = partial(_rows, index=index)
     report.policy = policy
     src = source or "<timestamps>"
     n = t.size
     steps = t[1:] - t[:-1]
-    back, ooo, dup = _order(t, steps, finite)
+    cand = np.flatnonzero(steps <= 0)
+    neg = steps[cand] < 0
+    back = cand[neg] + 1
+    ooo, dup = _ooo_dup(t, steps, back, cand[~neg] + 1, finite)
     keep: np.ndarray | None = None
     if policy == "sort":                # stable, without the repeated times
         order = np.argsort(t, kind="stable")
@@ -307,11 +280,24 @@ def order_samples(t, policy, source, index, report, warn, row_lines, finite: boo
 
 def check_gaps(t_out, steps, keep, index, report, gaps, gap_factor, gap_threshold, source, row_lines) -> None:
     """Gaps in the ordered times ``t_out`` (``keep``, ``index``: their positions and rows, as :func:`order_samples`)."""
-    if t_out.size > 1:
-
-        def out_rows(g: np.ndarray) -> np.ndarray:
-            return _rows(g if keep is None else keep[g], index)
-
-        _gaps(t_out, steps, out_rows, report, gaps, gap_factor, gap_threshold, source or "<timestamps>", row_lines)
-    elif gap_threshold is not None:
-        report.gap_threshold = float(gap_threshold)
+    if t_out.size < 2:
+        if gap_threshold is not None:
+            report.gap_threshold = float(gap_threshold)
+        return
+    report.median_step = median(steps)
+    thr = float(gap_threshold) if gap_threshold is not None else gap_factor * report.median_step
+    report.gap_threshold = thr
+    g = np.flatnonzero(steps > thr)
+    report.gap_out_index = g.astype(np.int64)
+    report.gap_index = _rows(g if keep is None else keep[g], index)
+    report.gap_start = t_out[g]
+    report.gap_length = steps[g]
+    if g.size:
+        k = int(np.argmax(steps[g]))
+        how = (f"{gap_threshold:g} s" if gap_threshold is not None else
+               f"{thr:.4g} s = {gap_factor:g} x median step {report.median_step:.4g} s")
+        kind, where = row_names(report.gap_index[[k]], row_lines)
+        msg = (f"{source or '<timestamps>'}: {g.size} gap(s) longer than {how}: longest {steps[g][k]:.4g} s at "
+               f"t={t_out[g][k]:.6f} s ({kind} {where[0]}); starts (s) "
+               f"{fmt_list(t_out[g], fmt='{:.3f}')}, lengths (s) {fmt_list(steps[g], fmt='{:.3f}')}")
+        act(gaps, msg, GapWarning, report)

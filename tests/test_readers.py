@@ -335,6 +335,24 @@ def test_kitti_imu100_synthetic_with_index(tmp_path):
         read_kitti_imu100(tmp_path / f"{name}.csv.gz")
 
 
+def test_kitti_imu100_drives_csv_choices(tmp_path):
+    """None: the drives.csv beside the file if any; True: that one, required; False: ignored; a path: required."""
+    name = "2011_01_01_drive_0002"
+    path = tmp_path / f"{name}.csv"
+    path.write_text(kitti100_text(20))
+    assert read_kitti_imu100(path).meta["t0"] == 0.0                    # none beside: the file's own t
+    with pytest.raises(FileNotFoundError, match=r"drives\.csv: no such file \(drives_csv=True\)"):
+        read_kitti_imu100(path, drives_csv=True)
+    with pytest.raises(FileNotFoundError, match=r"other\.csv: no such file$"):
+        read_kitti_imu100(path, drives_csv=tmp_path / "other.csv")
+    (tmp_path / "drives.csv").write_text(f"drive,t0_seconds_of_day,samples\n{name},7.5,20\n")
+    assert read_kitti_imu100(path).meta["t0"] == 7.5
+    assert read_kitti_imu100(path, drives_csv=True).meta["drives_csv"] == str(tmp_path / "drives.csv")
+    assert "drives_csv" not in read_kitti_imu100(path, drives_csv=False).meta
+    (tmp_path / "other.csv").write_text(f"drive,t0_seconds_of_day,samples\n{name},9.0,20\n")
+    assert read_kitti_imu100(path, drives_csv=str(tmp_path / "other.csv")).meta["t0"] == 9.0
+
+
 def test_kitti_imu100_wrong_header(tmp_path):
     p = write_csv(tmp_path / "x.csv", HEADER + rows(3))
     with pytest.raises(MalformedFileError, match=r"x\.csv, line 1: expected columns t,wx.*missing \['roll'"):
