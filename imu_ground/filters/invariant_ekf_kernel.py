@@ -244,16 +244,11 @@ def _predict(s, u, kind, qm, own_q):
         q, Pn = predict_left(q, P, U, uq, qn)
     else:                               # P <- P + A Q A^T, A = x U
         q = quat_mul(q, uq)
-        if kind == 0:
-            fill_x(s)
-        else:
-            _put(s, B_X, flat_from_quat(q))
-            s[B_XV] = 1.0
+        _put(s, B_Q, q)
+        fill_x(s)                       # (the cache kept for no increment, else that of the new q)
         Pn = congruence(_get9(s, B_X), qn, P)
-    _put(s, B_Q, q)
-    _put(s, B_P, Pn)
-    _put(s, B_XPR, q)
-    _put(s, B_PPR, Pn)
+    _put(s, B_Q, q + Pn)                # (q and P adjacent in the layout, as x_prior and P_prior)
+    _put(s, B_XPR, q + Pn)
 
 
 @jitable
@@ -280,8 +275,7 @@ def _update(s, z, n, rm, own_r):
     the noise unless ``own_r``. Returns ``(done, det S)``, not done (state unchanged) for a singular ``S``."""
     if n == 0:
         s[B_ZN] = 0.0
-        _put(s, B_XPO, _get4(s, B_Q))
-        _put(s, B_PPO, _get9(s, B_P))
+        s[B_XPO:B_XPO + 13] = s[B_Q:B_Q + 13]
         _put(s, B_Y, _ZERO3)
         return True, s[B_DET]
     r = _get9(s, B_RN) if own_r else _get9(rm.ravel(), 0)
@@ -301,18 +295,12 @@ def _update(s, z, n, rm, own_r):
     s[B_NUP] = m
     if m % s[B_RENORM] == 0.0:
         q = quat_normalise(q)
-    _put(s, B_Q, q)
-    _put(s, B_P, Pn)
-    _put(s, B_XPO, q)
-    _put(s, B_PPO, Pn)
+    _put(s, B_Q, q + Pn)
+    _put(s, B_XPO, q + Pn)
     s[B_XV] = 0.0
-    for k in range(n):
-        s[B_Z + k] = zf[k]
+    s[B_Z:B_Z + n] = zf
     s[B_ZN] = float(n)
-    _put(s, B_Y, y)
-    _put(s, B_K, K)
-    _put(s, B_S, S)
-    _put(s, B_SI, SI)
+    _put(s, B_Y, y + K + S + SI)        # (y, K, S, S^-1 adjacent in the layout)
     s[B_DET] = detS
     return True, detS
 
@@ -341,10 +329,7 @@ def predict(s: np.ndarray, u, Q: np.ndarray | None) -> None:
     """``InvariantEKF.predict`` on the state ``s``: increment ``u`` (None, (3, 3) or a rotation vector, rad), noise
     ``Q`` ((3, 3); None: the state's). Raises ValueError naming a bad ``u``."""
     a, kind = _argument(u, "rotation increment must be a 3x3 matrix or a rotation vector of shape (3,)")
-    if Q is None:
-        _predict(s, a, kind, _NONE, True)
-    else:
-        _predict(s, a, kind, _array(Q), False)
+    _predict(s, a, kind, _NONE if Q is None else _array(Q), Q is None)
 
 
 def update(s: np.ndarray, z, R: np.ndarray | None) -> None:
@@ -352,6 +337,6 @@ def update(s: np.ndarray, z, R: np.ndarray | None) -> None:
     ``R`` ((3, 3); None: the state's). Raises LinAlgError (singular ``S``, its determinant) or ValueError (a bad
     ``z``), the state unchanged."""
     a, n = _argument(z, "z must be a 3x3 rotation or a unit vector of shape (3,)")
-    done, det = _update(s, a, n, _NONE, True) if R is None else _update(s, a, n, _array(R), False)
+    done, det = _update(s, a, n, _NONE if R is None else _array(R), R is None)
     if not done:
         raise np.linalg.LinAlgError(f"innovation covariance is singular (det = {det})")
