@@ -42,6 +42,7 @@ _ZERO9 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 _ZERO3 = (0.0, 0.0, 0.0)
 _NONE = np.zeros(0)                            # the array argument of a kind "none" (no increment, the state's noise)
 _F64 = np.dtype(np.float64)
+_BAD_INCREMENT = "rotation increment must be a 3x3 matrix or a rotation vector of shape (3,)"
 for _helper in (exp_flat, flat_from_quat, hat_flat, log_flat, mul_flat, mul_nt_flat, quat_exp, quat_from_flat,
                 quat_mul, quat_normalise, transpose_flat):
     jitable(_helper)                    # so3's scalar kernels, compiled into the bodies below that call them
@@ -67,12 +68,8 @@ def flat_rotation(u) -> list | None:
     """Row-major 9 floats of a 3x3 matrix or a rotation vector (rad); None stays None."""
     if u is None:
         return None
-    u = np.asarray(u, dtype=float)
-    if u.shape == (3, 3):
-        return u.ravel().tolist()
-    if u.shape == (3,):
-        return list(exp_flat(*u.tolist()))
-    raise ValueError(f"rotation increment must be a 3x3 matrix or a rotation vector of shape (3,), got {u.shape}")
+    a, kind = _argument(u, _BAD_INCREMENT)
+    return a.ravel().tolist() if kind == 9 else list(exp_flat(*a.tolist()))
 
 
 def check_cov(name: str, m) -> np.ndarray:
@@ -328,7 +325,7 @@ def _argument(v, error: str) -> tuple[np.ndarray, int]:
 def predict(s: np.ndarray, u, Q: np.ndarray | None) -> None:
     """``InvariantEKF.predict`` on the state ``s``: increment ``u`` (None, (3, 3) or a rotation vector, rad), noise
     ``Q`` ((3, 3); None: the state's). Raises ValueError naming a bad ``u``."""
-    a, kind = _argument(u, "rotation increment must be a 3x3 matrix or a rotation vector of shape (3,)")
+    a, kind = _argument(u, _BAD_INCREMENT)
     _predict(s, a, kind, _NONE if Q is None else _array(Q), Q is None)
 
 
