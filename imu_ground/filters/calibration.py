@@ -253,8 +253,7 @@ def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "Ego
         cruise = moving & (np.abs(yaw_rate) < max_yaw_rate) & np.all(np.abs(F["acc"][:, :2]) < max_accel, axis=1)
         # -- tilt
         candidates = {"cruise": up_of(fs, cruise), "standstill": up_of(fs, F["still"]), "all": up_of(fs, F["valid"])}
-        cruise_s = float(dt[cruise].sum())
-        still_s, moving_s, valid_s = (float(dt[m].sum()) for m in (F["still"], moving, F["valid"]))
+        cruise_s, still_s, moving_s, valid_s = (float(dt[m].sum()) for m in (cruise, F["still"], moving, F["valid"]))
         if tilt == "auto":
             src, why = _auto_tilt_source(cruise_s, still_s, valid_s, min_cruise_s, min_standstill_s, min_all_s)
         else:
@@ -281,9 +280,8 @@ def calibrate(data: Union["ImuData", "EgoMotion", Sequence[Union["ImuData", "Ego
                                  "and turns)", "gains", "calibrate on a longer drive, or with gains=False for the "
                                  "tilt alone")
     stats: dict[str, Any] = {"drives": len(egos), "frames": int(len(dt)), "tilt_source": src, "tilt_reason": why,
-                             "yaw_source": yaw_src,
-                             "cruise_s": round(cruise_s, 1), "standstill_s": round(float(dt[F["still"]].sum()), 1),
-                             "moving_s": round(float(dt[moving].sum()), 1)}
+                             "yaw_source": yaw_src, "cruise_s": round(cruise_s, 1), "standstill_s": round(still_s, 1),
+                             "moving_s": round(moving_s, 1)}
     for name, u in candidates.items():
         if u is not None:
             r, p, _ = np.degrees(euler_zyx(_extrinsic_from_axes(u, R[0])))

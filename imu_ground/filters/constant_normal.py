@@ -107,9 +107,9 @@ class ConstantNormal(BaselineEstimator):
                 raise bad_frame_error(problem, frame_where(self._count + k, float(em.t[k])))
         body = d if self._Rgs is None else self._Rgs @ d @ self._Rgs.T
         n = len(body)
-        cum = (cumulative_rotations(body, self.cumulative, self._count, renorm_every=RENORM_EVERY) if n
-               else np.zeros((0, 3, 3)))
+        cum = np.zeros((0, 3, 3))
         if n:
+            cum = cumulative_rotations(body, self.cumulative, self._count, renorm_every=RENORM_EVERY)
             self.cumulative = cum[-1].copy()
             self._count += n
         E = np.tile(np.eye(3), (n, 1, 1))

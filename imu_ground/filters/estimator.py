@@ -197,9 +197,8 @@ class GroundTrack:
 
     def __post_init__(self) -> None:
         n = len(self.pitch)
-        self.t = np.full(n, np.nan) if self.t is None else np.asarray(self.t, dtype=float).reshape(n)
         self.valid = np.ones(n, dtype=bool) if self.valid is None else np.asarray(self.valid, dtype=bool).reshape(n)
-        for name in ("pitch_std", "roll_std", "road_grade", "road_bank", "road_grade_std", "road_bank_std"):
+        for name in ("t", "pitch_std", "roll_std", "road_grade", "road_bank", "road_grade_std", "road_bank_std"):
             v = getattr(self, name)
             setattr(self, name, np.full(n, np.nan) if v is None else np.asarray(v, dtype=float).reshape(n))
         if self.status is None:

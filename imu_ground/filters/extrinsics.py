@@ -176,9 +176,7 @@ def load_extrinsic(name_or_path: Union[str, Path]) -> Extrinsic:
 def save_extrinsic(ext: Extrinsic, path: Union[str, Path], comment: str = "") -> None:
     """Write an extrinsic in the ``calib/`` text format (17 significant digits)."""
     lines = [f"# {c}" for c in comment.splitlines()] if comment else []
-    for k, v in ext.meta.items():
-        if k != "source":
-            lines.append(f"{k}: {v}")
+    lines += [f"{k}: {v}" for k, v in ext.meta.items() if k != "source"]
     lines.append("R: " + " ".join(f"{v:.17g}" for v in ext.rotation.ravel()))
     lines.append("t: " + " ".join(f"{v:.17g}" for v in ext.translation))
     Path(path).write_text("\n".join(lines) + "\n")
@@ -188,19 +186,17 @@ def _gains_from_meta(ext: Extrinsic) -> Optional[np.ndarray]:
     """Suspension gains ``(k_pitch, k_roll)`` (rad per m/s^2) of a calibration file's metadata, or None."""
     if "suspension_gains" not in ext.meta:
         return None
-    parts = str(ext.meta["suspension_gains"]).split()
+    raw, where = ext.meta["suspension_gains"], f"{ext.meta.get('source', 'extrinsic')}: 'suspension_gains'"
+    parts = str(raw).split()
     unit = str(ext.meta.get("suspension_gains_unit", "rad per m/s^2")).strip()
     if len(parts) != 2 or unit not in _GAIN_UNITS:
-        raise ImuGroundError(f"{ext.meta.get('source', 'extrinsic')}: 'suspension_gains' needs two numbers "
-                             f"and a unit in {sorted(_GAIN_UNITS)}, got {ext.meta['suspension_gains']!r} ({unit!r})")
+        raise ImuGroundError(f"{where} needs two numbers and a unit in {sorted(_GAIN_UNITS)}, got {raw!r} ({unit!r})")
     try:
         gains = np.array([float(p) for p in parts]) * _GAIN_UNITS[unit]
     except ValueError:
-        raise ImuGroundError(f"{ext.meta.get('source', 'extrinsic')}: 'suspension_gains' has a value that is not a "
-                             f"number: {ext.meta['suspension_gains']!r}") from None
+        raise ImuGroundError(f"{where} has a value that is not a number: {raw!r}") from None
     if not np.all(np.isfinite(gains)):
-        raise ImuGroundError(f"{ext.meta.get('source', 'extrinsic')}: 'suspension_gains' is not finite "
-                             f"({ext.meta['suspension_gains']}): the calibration could not determine them; calibrate "
+        raise ImuGroundError(f"{where} is not finite ({raw}): the calibration could not determine them; calibrate "
                              "again on a drive (with --lever-arm), or delete the line to use the default gains")
     return gains
 

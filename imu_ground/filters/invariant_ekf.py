@@ -124,26 +124,28 @@ class InvariantEKF:
         if b.shape != (3,) or not np.isclose(np.linalg.norm(b), 1.0):
             raise ValueError("b must be a unit vector of shape (3,)")
         self.b = b
-        xt = tuple(x.ravel().tolist())
         # the whole state, one flat buffer (layout: invariant_ekf_kernel); what the kernels read and write
-        self._s = new_state(quat_from_flat(xt), P.ravel().tolist(), Q.ravel().tolist(),
-                                    R.ravel().tolist(), b.tolist(), self._left, RENORM_EVERY)
-        self._s[B_X:B_X + 9] = xt       # x as given (the quaternion is its Shepperd conversion)
-        self._s[B_XV] = 1.0
+        self._s = new_state(quat_from_flat(tuple(x.ravel().tolist())), P.ravel().tolist(), Q.ravel().tolist(),
+                            R.ravel().tolist(), b.tolist(), self._left, RENORM_EVERY)
+        self._put_x(x)                  # x as given (the quaternion is its Shepperd conversion)
         self._x_t = b""                          # bytes of x as last handed out or assigned
         self._x_a: np.ndarray | None = None      # arrays handed out (see _state_property)
         self._P_a = self._Q_a = self._R_a = None
         self._held = False                       # any of them not None
+
+    def _put_x(self, a: np.ndarray) -> None:
+        """Set ``x`` (3x3) in the state: the matrix as given and its quaternion."""
+        xl = a.ravel().tolist()
+        self._s[B_X:B_X + 9] = xl
+        self._s[B_XV] = 1.0
+        self._s[B_Q:B_Q + 4] = quat_from_flat(xl)
 
     def _take_held(self) -> None:
         """Take in the ``x`` and ``P`` arrays handed out or assigned since the last step (maybe changed in place)."""
         s, xa, Pa = self._s, self._x_a, self._P_a
         if xa is not None:
             if xa.tobytes() != self._x_t:       # changed in place since handed out
-                xl = xa.ravel().tolist()
-                s[B_X:B_X + 9] = xl
-                s[B_XV] = 1.0
-                s[B_Q:B_Q + 4] = quat_from_flat(xl)
+                self._put_x(xa)
             self._x_a = None
         if Pa is not None:
             s[B_P:B_P + 9] = Pa.ravel()
@@ -182,11 +184,7 @@ class InvariantEKF:
         a = np.asarray(value, dtype=float)
         if a.shape != (3, 3):
             raise ValueError(f"x must be a 3x3 matrix, got shape {a.shape}")
-        s = self._s
-        xt = a.ravel().tolist()
-        s[B_X:B_X + 9] = xt
-        s[B_XV] = 1.0
-        s[B_Q:B_Q + 4] = quat_from_flat(xt)
+        self._put_x(a)
         self._x_a, self._x_t = a, a.tobytes()
         self._held = True
 
@@ -341,24 +339,17 @@ class InvariantEKF:
         Cs, Ppr = np.zeros((n, 3, 3)), np.zeros((n, 3, 3))
         if n:
             Ppr[0] = Ps[0]
+        left = self.error == "left"
         for k in range(n - 2, -1, -1):
             U = _I3 if us is None else _matrix(flat_rotation(us[k + 1]))
             Q = self.Q if Qs is None else check_cov("Q", Qs[k + 1])
             Xpred = Xs[k] @ U
-            if self.error == "left":
-                F = U.T
-                Pp = F @ Ps[k] @ F.T + Q
-            else:
-                F = _I3
-                Pp = Ps[k] + Xpred @ Q @ Xpred.T
+            F = U.T if left else _I3
+            Pp = F @ Ps[k] @ F.T + Q if left else Ps[k] + Xpred @ Q @ Xpred.T
             Pp = 0.5 * (Pp + Pp.T)
             C = Ps[k] @ F.T @ np.linalg.inv(Pp)
-            if self.error == "left":
-                d = so3.log_one(Xpred.T @ Xsm[k + 1])
-                Xsm[k] = so3.renormalise(Xs[k] @ so3.exp_one(C @ d))
-            else:
-                d = so3.log_one(Xsm[k + 1] @ Xpred.T)
-                Xsm[k] = so3.renormalise(so3.exp_one(C @ d) @ Xs[k])
+            e = so3.exp_one(C @ so3.log_one(Xpred.T @ Xsm[k + 1] if left else Xsm[k + 1] @ Xpred.T))
+            Xsm[k] = so3.renormalise(Xs[k] @ e if left else e @ Xs[k])
             P = Ps[k] + C @ (Psm[k + 1] - Pp) @ C.T
             Psm[k] = 0.5 * (P + P.T)
             Cs[k] = C

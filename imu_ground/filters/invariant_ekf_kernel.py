@@ -42,6 +42,7 @@ _ZERO9 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 _ZERO3 = (0.0, 0.0, 0.0)
 _NONE = np.zeros(0)                            # the array argument of a kind "none" (no increment, the state's noise)
 _F64 = np.dtype(np.float64)
+_BAD_INCREMENT = "rotation increment must be a 3x3 matrix or a rotation vector of shape (3,)"
 for _helper in (exp_flat, flat_from_quat, hat_flat, log_flat, mul_flat, mul_nt_flat, quat_exp, quat_from_flat,
                 quat_mul, quat_normalise, transpose_flat):
     jitable(_helper)                    # so3's scalar kernels, compiled into the bodies below that call them
@@ -67,12 +68,8 @@ def flat_rotation(u) -> list | None:
     """Row-major 9 floats of a 3x3 matrix or a rotation vector (rad); None stays None."""
     if u is None:
         return None
-    u = np.asarray(u, dtype=float)
-    if u.shape == (3, 3):
-        return u.ravel().tolist()
-    if u.shape == (3,):
-        return list(exp_flat(*u.tolist()))
-    raise ValueError(f"rotation increment must be a 3x3 matrix or a rotation vector of shape (3,), got {u.shape}")
+    a, kind = _argument(u, _BAD_INCREMENT)
+    return a.ravel().tolist() if kind == 9 else list(exp_flat(*a.tolist()))
 
 
 def check_cov(name: str, m) -> np.ndarray:
@@ -244,16 +241,11 @@ def _predict(s, u, kind, qm, own_q):
         q, Pn = predict_left(q, P, U, uq, qn)
     else:                               # P <- P + A Q A^T, A = x U
         q = quat_mul(q, uq)
-        if kind == 0:
-            fill_x(s)
-        else:
-            _put(s, B_X, flat_from_quat(q))
-            s[B_XV] = 1.0
+        _put(s, B_Q, q)
+        fill_x(s)                       # (the cache kept for no increment, else that of the new q)
         Pn = congruence(_get9(s, B_X), qn, P)
-    _put(s, B_Q, q)
-    _put(s, B_P, Pn)
-    _put(s, B_XPR, q)
-    _put(s, B_PPR, Pn)
+    _put(s, B_Q, q + Pn)                # (q and P adjacent in the layout, as x_prior and P_prior)
+    _put(s, B_XPR, q + Pn)
 
 
 @jitable
@@ -280,8 +272,7 @@ def _update(s, z, n, rm, own_r):
     the noise unless ``own_r``. Returns ``(done, det S)``, not done (state unchanged) for a singular ``S``."""
     if n == 0:
         s[B_ZN] = 0.0
-        _put(s, B_XPO, _get4(s, B_Q))
-        _put(s, B_PPO, _get9(s, B_P))
+        s[B_XPO:B_XPO + 13] = s[B_Q:B_Q + 13]
         _put(s, B_Y, _ZERO3)
         return True, s[B_DET]
     r = _get9(s, B_RN) if own_r else _get9(rm.ravel(), 0)
@@ -301,18 +292,12 @@ def _update(s, z, n, rm, own_r):
     s[B_NUP] = m
     if m % s[B_RENORM] == 0.0:
         q = quat_normalise(q)
-    _put(s, B_Q, q)
-    _put(s, B_P, Pn)
-    _put(s, B_XPO, q)
-    _put(s, B_PPO, Pn)
+    _put(s, B_Q, q + Pn)
+    _put(s, B_XPO, q + Pn)
     s[B_XV] = 0.0
-    for k in range(n):
-        s[B_Z + k] = zf[k]
+    s[B_Z:B_Z + n] = zf
     s[B_ZN] = float(n)
-    _put(s, B_Y, y)
-    _put(s, B_K, K)
-    _put(s, B_S, S)
-    _put(s, B_SI, SI)
+    _put(s, B_Y, y + K + S + SI)        # (y, K, S, S^-1 adjacent in the layout)
     s[B_DET] = detS
     return True, detS
 
@@ -340,11 +325,8 @@ def _argument(v, error: str) -> tuple[np.ndarray, int]:
 def predict(s: np.ndarray, u, Q: np.ndarray | None) -> None:
     """``InvariantEKF.predict`` on the state ``s``: increment ``u`` (None, (3, 3) or a rotation vector, rad), noise
     ``Q`` ((3, 3); None: the state's). Raises ValueError naming a bad ``u``."""
-    a, kind = _argument(u, "rotation increment must be a 3x3 matrix or a rotation vector of shape (3,)")
-    if Q is None:
-        _predict(s, a, kind, _NONE, True)
-    else:
-        _predict(s, a, kind, _array(Q), False)
+    a, kind = _argument(u, _BAD_INCREMENT)
+    _predict(s, a, kind, _NONE if Q is None else _array(Q), Q is None)
 
 
 def update(s: np.ndarray, z, R: np.ndarray | None) -> None:
@@ -352,6 +334,6 @@ def update(s: np.ndarray, z, R: np.ndarray | None) -> None:
     ``R`` ((3, 3); None: the state's). Raises LinAlgError (singular ``S``, its determinant) or ValueError (a bad
     ``z``), the state unchanged."""
     a, n = _argument(z, "z must be a 3x3 rotation or a unit vector of shape (3,)")
-    done, det = _update(s, a, n, _NONE, True) if R is None else _update(s, a, n, _array(R), False)
+    done, det = _update(s, a, n, _NONE if R is None else _array(R), R is None)
     if not done:
         raise np.linalg.LinAlgError(f"innovation covariance is singular (det = {det})")

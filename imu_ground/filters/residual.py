@@ -191,11 +191,10 @@ def step(buf: np.ndarray, d, q_h: float, q_v: float, tilt_x: Optional[float], ti
         ``d`` or ``dv`` is not a float64 array of that shape: the caller coerces and retries.
     """
     d = _checked(d, (3, 3), "delta_R")
-    has_dv = dv is not None
-    dv = _checked(dv, (3,), "delta_v") if has_dv else _NO_DV
+    dv3 = _NO_DV if dv is None else _checked(dv, (3,), "delta_v")
     tilt = tilt_x is not None
     status, row = _step(buf, d, float(q_h), float(q_v), tilt, 0.0 if tilt_x is None else float(tilt_x),
-                        0.0 if tilt_y is None else float(tilt_y), has_dv, dv, float(dt))
+                        0.0 if tilt_y is None else float(tilt_y), dv is not None, dv3, float(dt))
     return status if status else row
 
 
@@ -208,8 +207,7 @@ def run(buf: np.ndarray, d, q_h, q_v: float, tilt_x, tilt_y, out: np.ndarray, an
     n = len(d)
     qs = np.full(n, float(q_h)) if isinstance(q_h, (int, float)) else np.ascontiguousarray(q_h, dtype=float)
     tilt = tilt_x is not None
-    tx = np.ascontiguousarray(tilt_x, dtype=float) if tilt else _NO_DV
-    ty = np.ascontiguousarray(tilt_y, dtype=float) if tilt else _NO_DV
+    tx, ty = (np.ascontiguousarray(v, dtype=float) if tilt else _NO_DV for v in (tilt_x, tilt_y))
     if n:
         run_frames(buf, d, qs, float(q_v), tilt, tx, ty, bool(angles), out.reshape(n, -1),
                    _NO_P if P_out is None else P_out.reshape(n, 9))
@@ -224,9 +222,8 @@ def check(d, dv, dt: float) -> int:
         As :func:`step`.
     """
     d = _checked(d, (3, 3), "delta_R")
-    if dv is None:
-        return int(status_of(d, False, _NO_DV, float(dt)))
-    return int(status_of(d, True, _checked(dv, (3,), "delta_v"), float(dt)))
+    dv3 = _NO_DV if dv is None else _checked(dv, (3,), "delta_v")
+    return int(status_of(d, dv is not None, dv3, float(dt)))
 
 
 #: :func:`check` of every frame into ``out`` (uint8 (F,)): :func:`~imu_ground.filters.frame_checks.statuses_of`.
