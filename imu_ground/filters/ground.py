@@ -214,7 +214,7 @@ class GroundNormalFilter:
             o = frame_checked(self._buf, d, NO_DV if dv is None else dv, dt)
         self._frames += 1
         info = self.sigma.frame(o[4], dt=dt, note=NO_ROAD_REASON)
-        code = frame_status_code(self.sigma.converged, stationary, valid)
+        code = frame_status_code(self.sigma.converged, bool(stationary), bool(valid))
         return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o if self._diag else self.P, code, info)
 
     # -- batch -----------------------------------------------------------------------------------

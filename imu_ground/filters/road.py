@@ -216,7 +216,6 @@ class RoadFilter:
         if self.gravity_filter is None:
             if math.isnan(speed):
                 return None
-            self.start()
         gf = self.start()
         gf.step_sensor(d, dv, dt, stationary, valid, speed)
         return None if math.isnan(speed) else gf.gravity_snapshot()

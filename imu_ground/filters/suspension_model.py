@@ -12,7 +12,7 @@ import numpy as np
 
 from imu_ground import so3
 from imu_ground.filters.design import IIRFilter, butter_bandpass, foh_filter
-from imu_ground.filters.gains import TYPICAL_BAND_POWER
+from imu_ground.filters.gains import TYPICAL_BAND_POWER, tilt_angles
 from imu_ground.filters.status import tilt_weights
 from imu_ground.imu.warm_start import as_reader
 
@@ -192,7 +192,7 @@ class SuspensionModel:
         if m:
             self.load = tuple(u[-1].tolist())
         if self.online_gains and m:
-            ks = self._online_gains(so3.log(gt.body_increments)[:, [1, 0]], gt.acceleration[:, :2])
+            ks = self._online_gains(tilt_angles(gt.body_increments), gt.acceleration[:, :2])
         else:
             ks = np.tile(self.gains, (m, 1))
         return u, ks, self.tilt(ks, u)
@@ -204,10 +204,11 @@ class SuspensionModel:
         return susp
 
     def _online_gains(self, tilt: np.ndarray, acceleration: np.ndarray) -> np.ndarray:
-        """Gains used at each of N frames (the frame before's estimate), (N, 2), from the frames' body tilt
-        increments (pitch, roll; rad) and ``(a_x, a_y)``; advances the regression."""
+        """Gains used at each of N frames (the frame before's estimate), (N, 2), from the body tilt (pitch, roll;
+        rad) accumulated since the first of them (:func:`~imu_ground.filters.gains.tilt_angles`) and
+        ``(a_x, a_y)``; advances the regression."""
         assert self._bpf is not None and self._sxx is not None and self._sxy is not None  # designed, online gains
-        phi = self._phi + np.cumsum(tilt, axis=0)
+        phi = self._phi + tilt
         z = self._bpf.run(np.concatenate([acceleration, phi], axis=1))
         sxy = self._sxy + np.cumsum(z[:, :2] * z[:, 2:], axis=0)
         sxx = self._sxx + np.cumsum(z[:, :2] * z[:, :2], axis=0)
