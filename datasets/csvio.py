@@ -266,9 +266,10 @@ def read_delimited(path: str | Path, sep: str | None = ",", *,
     import pandas as pd
     path = Path(path)
     corrupt: tuple[type[BaseException], ...] = (EOFError, zlib.error, OSError, *_isal_errors())  # (BadGzipFile too)
+    if sep is None or decimal is None:
+        open_binary(path).close()               # the missing-file, not-a-file and permission messages, as they are
     try:
         if sep is None or decimal is None:
-            open_binary(path).close()           # the missing-file and not-a-file messages
             found = detect_dialect(path)
             sep, decimal = sep or found[0], decimal or found[1]
         try:
