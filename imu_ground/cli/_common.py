@@ -7,6 +7,7 @@ import sys
 import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
 import argparse
@@ -17,7 +18,7 @@ from imu_ground.pipeline.estimate import POSE_FORMATS
 
 __all__ = ["INPUT_FLAGS", "LazyHelp", "add_progress_flag", "add_reader_flags", "estimate_said", "first_given",
            "input_paths", "no_warnings", "nonnegative_int", "positive_float", "progress_enabled", "reader_options",
-           "say", "warn_line", "warnings_as_lines"]
+           "say", "warn_line", "warnings_as_lines", "write_said"]
 
 
 class LazyHelp(str):
@@ -149,6 +150,17 @@ def warnings_as_lines(file: Any = None) -> Iterator[None]:
         yield
     for message in {str(w.message): w.message for w in caught}.values():
         warn_line(message, file)
+
+
+def write_said(path: str | Path, text: str | Callable[[Path], Any]) -> None:
+    """``text`` (or what ``text(tmp)`` writes) written to ``path`` whole (or not at all), then said."""
+    from imu_ground.pipeline.output import atomic_path
+    with atomic_path(path) as tmp:
+        if callable(text):
+            text(tmp)
+        else:
+            tmp.write_text(text, encoding="utf-8")
+    say(f"wrote {path}")
 
 
 @contextmanager

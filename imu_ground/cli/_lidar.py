@@ -9,17 +9,16 @@ from __future__ import annotations
 
 import argparse
 import json
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from imu_ground.cli._common import estimate_said, first_given, no_warnings, say, warn_line
+from imu_ground.cli._common import estimate_said, first_given, no_warnings, say, warn_line, write_said
 from imu_ground.errors import ImuGroundError, OptionError
 from imu_ground.filters.methods import reference_methods
 
-__all__ = ["DEFAULT_ROW", "FITS", "add_lidar_flags", "check_lidar", "lidar_drives_report", "run_lidar", "write_said"]
+__all__ = ["DEFAULT_ROW", "FITS", "add_lidar_flags", "check_lidar", "lidar_drives_report", "run_lidar"]
 
 #: The name of ``estimate``'s default (method auto, speed auto) among the methods of the drive form.
 DEFAULT_ROW = "default"
@@ -151,17 +150,6 @@ def _check_outputs(a: argparse.Namespace, inputs: list, named: list, extra: tupl
         if path:
             check_output_path(path, inputs, option=option, kind="text")
     check_run_paths([("-o", a.plot), *texts], [*named, *input_paths(a)])
-
-
-def write_said(path: str | Path, text: str | Callable[[Path], Any]) -> None:
-    """``text`` (or what ``text(tmp)`` writes) written to ``path`` whole (or not at all), then said."""
-    from imu_ground.pipeline.output import atomic_path
-    with atomic_path(path) as tmp:
-        if callable(text):
-            text(tmp)
-        else:
-            tmp.write_text(text, encoding="utf-8")
-    say(f"wrote {path}")
 
 
 def _plot(path: str | Path, frames: Any, name: str) -> None:
@@ -534,11 +522,11 @@ def run_lidar_drives(a: argparse.Namespace) -> int:
             say(f"\n{d['drive']} [{fit}, region {'the driven path' if fit.endswith('path') else region}]: "
                 f"{Path(d['input']).name}, {d['scans']} of {d['scans_total']} scans, times from {d['times']}; deg, "
                 "estimate minus LiDAR")
-            say(format_table(_table(d["methods"]), "text"))
+            table = _table(d["methods"])
+            say(format_table(table, "text"))
             say(f"fit's own repeatability (frame to frame): pitch {d['fit_noise_pitch_deg']:.3f}, roll "
                 f"{d['fit_noise_roll_deg']:.3f} deg")
-            markdown.append(f"{d['drive']} ({fit}, {d['scans']} scans):\n\n" + format_table(_table(d["methods"]),
-                                                                                               "markdown"))
+            markdown.append(f"{d['drive']} ({fit}, {d['scans']} scans):\n\n" + format_table(table, "markdown"))
         pooled = _table(block["pooled"]["methods"])
         markdown.append(f"pooled ({fit}):\n\n" + format_table(pooled, "markdown"))
         if len(block["drives"]) > 1:

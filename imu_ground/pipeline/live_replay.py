@@ -32,7 +32,7 @@ def replay(est: Any, t, gyro, accel, speed=None, *, start: tuple[int, int] = (0,
         IMU and speed samples already fed (a resumed replay).
     before, after : callable, optional
         ``before(i)`` before IMU sample ``i`` and its speeds are pushed; ``after(frames, samples, speeds)`` after
-        each (its frames, the IMU and speed samples fed so far) and once after the last speeds.
+        each (its frames, the IMU and speed samples fed so far) and after each speed sample that follows the last.
 
     Returns
     -------
@@ -67,8 +67,8 @@ def replay(est: Any, t, gyro, accel, speed=None, *, start: tuple[int, int] = (0,
     while j < M:
         push_speed(ts_sp[j], v_sp[j])
         j += 1
-    if after is not None:
-        after([], len(t), j)
+        if after is not None:
+            after([], len(t), j)
     return out + est.flush()
 
 
