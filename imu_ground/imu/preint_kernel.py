@@ -61,8 +61,8 @@ DELTAS_IDENTITY: tuple = (0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 #: Bias Jacobians and covariance of an empty interval (all zero).
 UNCERTAINTY_ZERO: tuple = (0.0,) * 90
 _NO_UNCERTAINTY = np.zeros(0)
-#: theta^2 (rad^2) below which the Taylor series of the SO(3) coefficients are used (exact to double precision).
-_SMALL_ANGLE2 = 1e-8
+#: theta^2 (rad^2) below which the Taylor series of the SO(3) coefficients are used (so3.SMALL_ANGLE, as exp_flat).
+_SMALL_ANGLE2 = so3.SMALL_ANGLE ** 2
 
 # The step's state buffer (offsets in floats): deltas (11) and uncertainty (90), then the bookkeeping
 _S_UNC, _S_PREV, _S_LIM, _S_MAXGAP, _S_CD, _S_BIAS, _S_NOISE, _S_MIDPOINT, _S_UNCERTAINTY = (
