@@ -33,9 +33,11 @@ def hat(phi: np.ndarray) -> np.ndarray:
     ndarray, shape (..., 3, 3)
     """
     phi = np.asarray(phi, dtype=float)
+    out = np.zeros(phi.shape[:-1] + (3, 3))
     x, y, z = phi[..., 0], phi[..., 1], phi[..., 2]
-    o = np.zeros_like(x)
-    return np.stack([o, -z, y, z, o, -x, -y, x, o], axis=-1).reshape(phi.shape[:-1] + (3, 3))
+    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -z, y, -x
+    out[..., 1, 0], out[..., 2, 0], out[..., 2, 1] = z, -y, x
+    return out
 
 
 def vee(m: np.ndarray) -> np.ndarray:
