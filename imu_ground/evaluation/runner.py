@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import time
+from types import MappingProxyType
 from collections import ChainMap
 from collections.abc import Iterable, Mapping, Sequence, ValuesView
 from functools import partial
@@ -55,8 +56,8 @@ _BASELINES: tuple[MethodSpec, ...] = (
 
 
 #: Every method of the evaluation by name, in report order: the registry's (as it is now), then the research baselines
-#: (a live view: a ChainMap lists its last mapping's keys first).
-METHODS: Mapping[str, MethodSpec] = ChainMap({m.name: m for m in _BASELINES}, REGISTRY)
+#: (a live, read-only view: a ChainMap lists its last mapping's keys first).
+METHODS: Mapping[str, MethodSpec] = MappingProxyType(ChainMap({m.name: m for m in _BASELINES}, REGISTRY))
 #: The same methods (a view of :data:`METHODS`).
 EVALUATION_METHODS: ValuesView[MethodSpec] = METHODS.values()
 
