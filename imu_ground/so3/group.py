@@ -1,7 +1,8 @@
 """SO(3) itself: hat/vee, exp/log and their Jacobians, projections, axis rotations, and the scalar kernels.
 
 Every function takes one element or a batch (rotation vectors ``(..., 3)`` in rad, matrices ``(..., 3, 3)``) and
-returns the same leading shape without a Python loop. ``*_one``: the same formulas for one element; ``*_flat``: the
+returns the same leading shape without a Python loop (except :func:`log`'s rotations near pi, which go through
+:func:`log_flat`, one body for that branch). ``*_one``: the same formulas for one element; ``*_flat``: the
 scalar kernels of the streaming filters (a 3x3 matrix as a row-major 9-tuple, a vector as 3 floats). The logarithm
 is accurate over the whole range (Taylor series near 0, the symmetric part of ``R`` near pi). Conventions: the
 glossary of :mod:`imu_ground.so3`.
