@@ -185,12 +185,12 @@ def _named_column(p: Path, cols: list[str], names: tuple[str, ...], what: str) -
 
 def read_speed_file(path: str | Path, column: str | None = None) -> tuple[np.ndarray, np.ndarray]:
     """A speed table: a CSV file whose header names a time (``t``, ``time``; s on the IMU log's time base) and a
-    speed (``speed``, ``v``, or ``column``; m/s) column, in any case and order; rows without a speed are NaN.
+    speed (``speed``, ``v``, or ``column``; m/s) column, in any case and order; an empty speed field is NaN, a row of another field count is refused.
 
     Returns
     -------
     t, v : ndarray (M,)
-        s, increasing; m/s, NaN where a row has no speed.
+        s, increasing; m/s, NaN where a row's speed field is empty.
 
     Raises
     ------

@@ -171,6 +171,7 @@ def test_a_speed_file_whose_times_do_not_increase_is_refused_naming_the_line(tru
 @pytest.mark.parametrize("bad, line, words", [
     ("0.20,fast", 4, "column 'speed': 'fast' is not a number"),   # was: "... is not numeric (could not convert ...)"
     ("0.20,9.8,1", 4, "3 fields, expected 2"),                    # was: pandas' own message, no line
+    ("0.20", 4, "1 fields, expected 2"),                          # was: read as a NaN speed (a missing comma)
 ])
 def test_a_bad_row_of_a_speed_file_is_named_by_its_line(tmp_path, bad, line, words):
     f = tmp_path / "speed.csv"
