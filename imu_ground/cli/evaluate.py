@@ -6,10 +6,9 @@ from pathlib import Path
 import argparse
 import numpy as np
 
-from imu_ground.cli._common import write_said
-from imu_ground.cli._lidar import add_lidar_flags, run_lidar
 from imu_ground.cli._common import (LazyHelp, add_progress_flag, first_given, input_paths, no_warnings, nonnegative_int,
-                                    progress_enabled, say)
+                                    progress_enabled, say, write_said)
+from imu_ground.cli._lidar import add_lidar_flags, run_lidar
 from imu_ground.datasets.storage import is_url, join, local_input, local_name, staged_folder
 from imu_ground.errors import ImuGroundError
 from imu_ground.evaluation.plots import evaluation_plots
