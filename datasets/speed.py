@@ -185,7 +185,8 @@ def _named_column(p: Path, cols: list[str], names: tuple[str, ...], what: str) -
 
 def read_speed_file(path: str | Path, column: str | None = None) -> tuple[np.ndarray, np.ndarray]:
     """A speed table: a CSV file whose header names a time (``t``, ``time``; s on the IMU log's time base) and a
-    speed (``speed``, ``v``, or ``column``; m/s) column, in any case and order; an empty speed field is NaN, a row of another field count is refused.
+    speed (``speed``, ``v``, or ``column``; m/s) column, in any case and order; an empty speed field is NaN, a row
+    with another number of fields than the header is refused.
 
     Returns
     -------
