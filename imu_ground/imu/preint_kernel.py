@@ -298,6 +298,14 @@ def first_rate_boundary(t_first: float, rate: float, origin: float, snap_tol: fl
     return k
 
 
+@jitable
+def _copy(dst: np.ndarray, src: np.ndarray) -> None:
+    """``dst[:] = src`` for 1-d arrays of one length, as a loop (an array slice assignment compiles numba's
+    shape-check and error code at every use, much of this module's first compile)."""
+    for i in range(src.size):
+        dst[i] = src[i]
+
+
 @njit
 def _integrate(b: np.ndarray, dt: float, x: float, y: float, z: float, fx: float, fy: float, fz: float) -> None:
     """:func:`integrate` on the state buffer."""
@@ -333,7 +341,7 @@ def _boundary_after(b: np.ndarray, times: np.ndarray, k: float) -> float:
 def _cross_boundary(b: np.ndarray, times: np.ndarray, out: np.ndarray, nout: int, tb: float) -> int:
     """A boundary at ``tb``: the frame into row ``nout`` of ``out``, the next started; returns the rows written."""
     if b[_S_ACTIVE] != 0.0:
-        out[nout, 0:_S_PREV] = b[0:_S_PREV]
+        _copy(out[nout, 0:_S_PREV], b[0:_S_PREV])
         out[nout, _O_N] = b[_S_N] + b[_S_MARK] - b[_S_CD]
         out[nout, _O_TSTART] = b[_S_TSTART]
         out[nout, _O_TEND] = tb
@@ -443,7 +451,7 @@ def _push_boundary(b: np.ndarray, times: np.ndarray, out: np.ndarray, t: float, 
     k0, kb = b[_S_KNOTS + 6:_S_KNOTS + 12], b[_S_KNOTS + 12:_S_KNOTS + 18]
     k1[0], k1[1], k1[2] = wx - b[_S_BIAS], wy - b[_S_BIAS + 1], wz - b[_S_BIAS + 2]
     k1[3], k1[4], k1[5] = ax - b[_S_BIAS + 3], ay - b[_S_BIAS + 4], az - b[_S_BIAS + 5]
-    k0[:] = pv
+    _copy(k0, pv)
     tk, nout = t0, 0
     while b[_S_NEXT] < t - tol:                 # boundaries strictly inside (t0, t - tol): split there
         tb = b[_S_NEXT]
@@ -452,12 +460,12 @@ def _push_boundary(b: np.ndarray, times: np.ndarray, out: np.ndarray, t: float, 
             for i in range(6):
                 kb[i] = pv[i] + (k1[i] - pv[i]) * wgt
         else:
-            kb[:] = k0
+            _copy(kb, k0)
         if b[_S_ACTIVE] != 0.0:
             _integrate_piece(b, tb - tk, k0, kb, gap)
         nout = _cross_boundary(b, times, out, nout, tb)
         tk = tb
-        k0[:] = kb
+        _copy(k0, kb)
     if b[_S_ACTIVE] != 0.0:
         _integrate_piece(b, t - tk, k0, k1, gap)
     if b[_S_MODE] == 0.0:
@@ -469,7 +477,7 @@ def _push_boundary(b: np.ndarray, times: np.ndarray, out: np.ndarray, t: float, 
     elif abs(b[_S_NEXT] - t) <= tol:
         nout = _cross_boundary(b, times, out, nout, b[_S_NEXT])
     b[_S_PREV] = t
-    pv[:] = k1
+    _copy(pv, k1)
     return nout
 
 
@@ -511,9 +519,9 @@ def run_log(b: np.ndarray, times: np.ndarray, t: np.ndarray, gyro: np.ndarray, a
             rows = np.empty((2 * rows.shape[0], _O_SIZE))
             continue
         for j in range(r):
-            deltas[nf] = rows[j, 0:_S_UNC]
+            _copy(deltas[nf], rows[j, 0:_S_UNC])
             if unc.shape[0]:
-                unc[nf] = rows[j, _S_UNC:_S_PREV]
+                _copy(unc[nf], rows[j, _S_UNC:_S_PREV])
             meta[nf, 0], meta[nf, 1] = rows[j, _O_N], rows[j, _O_VALID]
             nf += 1
         i += 1
