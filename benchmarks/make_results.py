@@ -29,7 +29,8 @@ Speed: the tables of the benchmark scripts in ``benchmarks/``, each of which exp
 ``rows()`` returning its rows
 (``bench_filter``, ``bench_suspension``, ``bench_preintegration``, ``bench_ekf``,
 ``bench_gravity``, ``bench_readers``, ``bench_batch``, ``bench_job``; ``bench_preview``: the preview's peak memory;
-``bench_streaming``: the live estimator); a script that is missing
+``bench_streaming``: the live estimator; ``bench_first_run``: a new install's cold first run and a fresh
+process's first live estimate); a script that is missing
 or has no ``rows()`` is listed with a note instead. Figures are measured on
 whatever machine runs this (shared, 2 cores while others work: speed figures are
 medians but noisy).
@@ -51,7 +52,7 @@ REPO = HERE.parent
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_imu100"
 OUT = HERE / "RESULTS.md"
 BENCHMARKS = ("bench_filter", "bench_suspension", "bench_preintegration", "bench_ekf", "bench_gravity",
-              "bench_readers", "bench_batch", "bench_preview", "bench_streaming", "bench_job")
+              "bench_readers", "bench_batch", "bench_preview", "bench_streaming", "bench_job", "bench_first_run")
 #: Folder of the studies (accuracy, tuning and simulator checks; not speed targets).
 STUDIES = HERE / "studies"
 #: Studies whose rows check the simulator against the real drives (band powers, method ranking), not speeds.
