@@ -13,7 +13,7 @@ import numpy as np
 from imu_ground._jit import njit
 from imu_ground.imu.warm_start import as_reader
 
-__all__ = ["butter_bandpass", "foh_filter", "IIRFilter"]
+__all__ = ["butter_bandpass", "foh_filter", "IIRFilter", "lfilter_df2t"]
 
 
 def butter_bandpass(band: Sequence[float], rate: float, order: int = 2) -> tuple[np.ndarray, np.ndarray]:
@@ -80,9 +80,19 @@ def foh_filter(freq: float, damping: float, dt: float):
 
 
 @njit
-def _lfilter(b, a, z, u, y):
-    """Direct form II transposed (:func:`scipy.signal.lfilter`'s recursion) of ``u`` (N, C) into ``y``; ``z``
-    (len(a) - 1, C) advanced in place."""
+def lfilter_df2t(b: np.ndarray, a: np.ndarray, z: np.ndarray, u: np.ndarray, y: np.ndarray) -> None:
+    """Direct form II transposed, :func:`scipy.signal.lfilter`'s recursion, of ``u`` into ``y`` (compiled; callable
+    from other compiled bodies).
+
+    Parameters
+    ----------
+    b, a : ndarray (M + 1,)
+        Numerator and denominator, normalised (``a[0] == 1``).
+    z : ndarray (M, C)
+        The filter's memory, advanced in place.
+    u, y : ndarray (N, C)
+        Input samples, and the output written, one column per channel.
+    """
     m = z.shape[0]
     for k in range(u.shape[0]):
         for c in range(u.shape[1]):
@@ -129,7 +139,7 @@ class IIRFilter:
                 self.z = lfilter_zi(self.b, self.a)[:, None] * u[0][None, :]
             self.started = True
         y = np.empty_like(u)
-        _lfilter(self.b, self.a, self.z, u, y)
+        lfilter_df2t(self.b, self.a, self.z, u, y)
         return y
 
     def state_dict(self) -> dict:

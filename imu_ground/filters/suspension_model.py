@@ -11,14 +11,18 @@ from typing import Optional, Sequence, Union
 import numpy as np
 
 from imu_ground import so3
-from imu_ground.filters.design import IIRFilter, butter_bandpass, foh_filter
-from imu_ground.filters.gains import TYPICAL_BAND_POWER, tilt_angles
+from imu_ground._jit import njit
+from imu_ground.filters.design import IIRFilter, butter_bandpass, foh_filter, lfilter_df2t
+from imu_ground.filters.gains import TYPICAL_BAND_POWER
 from imu_ground.filters.status import tilt_weights
 from imu_ground.imu.warm_start import as_reader
 
 __all__ = ["SuspensionModel", "load_share"]
 
 _LOADS = {"specific_force": 1.0, "acceleration": 0.0}
+# The online regression's state (floats): the tilt integrated so far (pitch, roll; rad), the sums
+# sxx (acceleration^2) and sxy (tilt x acceleration) per axis, the current gains (k_pitch, k_roll)
+_R_PHI, _R_SXX, _R_SXY, _R_GAINS, _R_SIZE = 0, 2, 4, 6, 8
 
 
 def load_share(load: Union[str, float]) -> float:
@@ -77,9 +81,9 @@ class SuspensionModel:
         self.rate: Optional[float] = None
         self._resp: Optional[IIRFilter] = None
         self._bpf: Optional[IIRFilter] = None
-        self._phi = np.zeros(2)
-        self._sxx: Optional[np.ndarray] = None
-        self._sxy: Optional[np.ndarray] = None
+        self._reg = np.zeros(_R_SIZE)
+        self._reg[_R_GAINS:] = self.gains0
+        self._has_sums = False                  # sxx, sxy set (designed with online gains, or loaded)
         self.load: tuple[float, ...] = (0.0, 0.0)
         self._set_tilt_weights()
 
@@ -95,8 +99,9 @@ class SuspensionModel:
         return {"gains": self.gains.tolist(), "rate": self.rate,
                 "response": None if self._resp is None else self._resp.state_dict(),
                 "bandpass": None if self._bpf is None else self._bpf.state_dict(),
-                "phi": self._phi.tolist(), "sxx": None if self._sxx is None else self._sxx.tolist(),
-                "sxy": None if self._sxy is None else self._sxy.tolist(), "load": list(self.load)}
+                "phi": self._reg[_R_PHI:_R_SXX].tolist(),
+                "sxx": self._reg[_R_SXX:_R_SXY].tolist() if self._has_sums else None,
+                "sxy": self._reg[_R_SXY:_R_GAINS].tolist() if self._has_sums else None, "load": list(self.load)}
 
     def load_state_dict(self, state) -> None:
         """Back to a :meth:`state_dict` (a dict or a StateReader), every entry checked before the model changes."""
@@ -106,6 +111,9 @@ class SuspensionModel:
         sxx, sxy = st.floats("sxx", (2,), optional=True), st.floats("sxy", (2,), optional=True)
         if rate is not None and not rate > 0:
             raise st.error("rate", f"is {rate!r}, expected a frame rate > 0 Hz")
+        if (sxx is None) != (sxy is None):
+            raise st.error("sxx" if sxx is None else "sxy", "is null but its partner is not: the regression's "
+                           "two sums are saved together or not at all")
         self.reset()
         if rate is not None:
             self.design(rate)
@@ -116,7 +124,10 @@ class SuspensionModel:
         self.gains = gains
         self._kp, self._kr = (float(g) for g in gains)
         self._set_tilt_weights()
-        self._phi, self._sxx, self._sxy = phi, sxx, sxy
+        self._reg[_R_PHI:_R_SXX], self._reg[_R_GAINS:] = phi, gains
+        self._has_sums = sxx is not None
+        if sxx is not None:
+            self._reg[_R_SXX:_R_SXY], self._reg[_R_SXY:_R_GAINS] = sxx, sxy
         self.load = tuple(float(v) for v in load)
 
     def design(self, rate: float) -> None:
@@ -133,8 +144,9 @@ class SuspensionModel:
         if self.online_gains:
             self._bpf = IIRFilter(*butter_bandpass(self.gain_band, rate), 4)
             w = self.gain_prior_seconds * rate * np.asarray(TYPICAL_BAND_POWER)
-            self._sxx = w.copy()          # the sums include the prior: gains = sxy / sxx
-            self._sxy = w * self.gains0
+            self._reg[_R_SXX:_R_SXY] = w          # the sums include the prior: gains = sxy / sxx
+            self._reg[_R_SXY:_R_GAINS] = w * self.gains0
+            self._has_sums = True
 
     def step(self, d: np.ndarray, fx: float, fy: float, ax: float, ay: float,
              lateral: Optional[float] = None) -> tuple:
@@ -164,7 +176,8 @@ class SuspensionModel:
         kp, kr = self._kp, self._kr
         if self.online_gains:
             db = d if self._Rgs is None else self._Rgs @ d @ self._Rgs.T
-            self._online_gains(so3.log_one(db)[None, [1, 0]], np.array([[ax, ay]]))
+            w = so3.log_one(db)
+            self._online_gains(np.array([[w[1], w[0], ax, ay]]))
         return kr * uy, kp * ux + self.cross_gain * uy
 
     def run(self, gt, lateral: Optional[np.ndarray] = None) -> tuple:
@@ -192,7 +205,8 @@ class SuspensionModel:
         if m:
             self.load = tuple(u[-1].tolist())
         if self.online_gains and m:
-            ks = self._online_gains(tilt_angles(gt.body_increments), gt.acceleration[:, :2])
+            w = so3.log(np.asarray(gt.body_increments, dtype=float))
+            ks = self._online_gains(np.column_stack([w[:, 1], w[:, 0], gt.acceleration[:, :2]]))
         else:
             ks = np.tile(self.gains, (m, 1))
         return u, ks, self.tilt(ks, u)
@@ -203,18 +217,62 @@ class SuspensionModel:
         susp[:, 0] += self.cross_gain * load[:, 1]
         return susp
 
-    def _online_gains(self, tilt: np.ndarray, acceleration: np.ndarray) -> np.ndarray:
-        """Gains used at each of N frames (the frame before's estimate), (N, 2), from the body tilt (pitch, roll;
-        rad) accumulated since the first of them (:func:`~imu_ground.filters.gains.tilt_angles`) and
-        ``(a_x, a_y)``; advances the regression."""
-        assert self._bpf is not None and self._sxx is not None and self._sxy is not None  # designed, online gains
-        phi = self._phi + tilt
-        z = self._bpf.run(np.concatenate([acceleration, phi], axis=1))
-        sxy = self._sxy + np.cumsum(z[:, :2] * z[:, 2:], axis=0)
-        sxx = self._sxx + np.cumsum(z[:, :2] * z[:, :2], axis=0)
-        ks = np.vstack([self.gains[None], (sxy / sxx)[:-1]])
-        self._phi, self._sxy, self._sxx = phi[-1].copy(), sxy[-1].copy(), sxx[-1].copy()
-        self.gains = self._sxy / self._sxx
+    def _online_gains(self, frames: np.ndarray) -> np.ndarray:
+        """Gains used at each of N frames (the frame before's estimate), (N, 2), from ``frames`` (N, 4): each
+        frame's body tilt increment (pitch, roll; rad; the rotation vector's y and x of its body increment) and
+        ``(a_x, a_y)`` (m/s^2); advances the regression (:func:`_regression`)."""
+        assert self._bpf is not None and self._has_sums      # designed, online gains
+        ks = np.empty((len(frames), 2))
+        _regression(self._bpf.b, self._bpf.a, self._bpf.z, self._reg, np.ascontiguousarray(frames), ks)
+        self._bpf.started = True
+        self.gains = self._reg[_R_GAINS:].copy()
         self._kp, self._kr = self.gains.tolist()
         self._set_tilt_weights()
         return ks
+
+
+@njit
+def _regression(b: np.ndarray, a: np.ndarray, z: np.ndarray, reg: np.ndarray, frames: np.ndarray,
+                ks: np.ndarray) -> None:
+    """The online gain regression over N frames (one frame live, a drive in a batch), the state ``reg`` advanced.
+
+    Per frame: the tilt integrated (``phi``), ``(a_x, a_y, phi_pitch, phi_roll)`` band-passed by the filter
+    ``b, a`` with memory ``z`` (4 channels), then ``sxy += a_bp phi_bp``, ``sxx += a_bp^2`` per axis and the gains
+    ``sxy / sxx``; ``ks[i]`` gets the gains before frame ``i``'s update. The increments and the products are
+    summed from zero, then added to the state (one call over N frames and N calls over one agree to rounding).
+
+    Parameters
+    ----------
+    b, a, z : ndarray
+        The band-pass (:func:`~imu_ground.filters.design.lfilter_df2t`); ``z`` (M, 4) advanced in place.
+    reg : ndarray (8,)
+        ``phi`` (rad), ``sxx`` ((m/s^2)^2), ``sxy`` (rad m/s^2), gains (rad per m/s^2), two each, advanced.
+    frames : ndarray (N, 4)
+        Tilt increment (pitch, roll; rad) and ``(a_x, a_y)`` (m/s^2) per frame.
+    ks : ndarray (N, 2)
+        Written: ``(k_pitch, k_roll)`` used at each frame.
+    """
+    n = frames.shape[0]
+    u = np.empty((n, 4))
+    c0 = c1 = 0.0
+    for i in range(n):
+        c0 += frames[i, 0]
+        c1 += frames[i, 1]
+        u[i, 0], u[i, 1] = frames[i, 2], frames[i, 3]
+        u[i, 2], u[i, 3] = reg[_R_PHI] + c0, reg[_R_PHI + 1] + c1
+    y = np.empty((n, 4))
+    lfilter_df2t(b, a, z, u, y)
+    x0 = x1 = p0 = p1 = 0.0
+    k0, k1 = reg[_R_GAINS], reg[_R_GAINS + 1]
+    sxx0, sxx1, sxy0, sxy1 = reg[_R_SXX], reg[_R_SXX + 1], reg[_R_SXY], reg[_R_SXY + 1]
+    for i in range(n):
+        ks[i, 0], ks[i, 1] = k0, k1
+        p0 += y[i, 0] * y[i, 2]
+        p1 += y[i, 1] * y[i, 3]
+        x0 += y[i, 0] * y[i, 0]
+        x1 += y[i, 1] * y[i, 1]
+        k0, k1 = (sxy0 + p0) / (sxx0 + x0), (sxy1 + p1) / (sxx1 + x1)
+    if n:
+        reg[_R_PHI], reg[_R_PHI + 1] = u[n - 1, 2], u[n - 1, 3]
+        reg[_R_SXX], reg[_R_SXX + 1], reg[_R_SXY], reg[_R_SXY + 1] = sxx0 + x0, sxx1 + x1, sxy0 + p0, sxy1 + p1
+        reg[_R_GAINS], reg[_R_GAINS + 1] = k0, k1
