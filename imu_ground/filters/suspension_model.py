@@ -232,8 +232,8 @@ class SuspensionModel:
         _regression(bpf.b, bpf.a, bpf.z, reg, frames, ks)
         bpf.started = True
         self.gains = reg[_R_GAINS:].copy()
-        self._kp, self._kr = kp, kr = self.gains.tolist()
-        self.tilt_weights = tilt_weights(kp, kr, self.load_share, self.cross_gain)
+        self._kp, self._kr = self.gains.tolist()
+        self._set_tilt_weights()
         return ks
 
 
