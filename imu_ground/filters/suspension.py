@@ -356,15 +356,16 @@ class SuspensionAwareFilter:
         ValueError
             A bad frame with ``on_invalid="raise"`` (the state is unchanged).
         """
-        if delta_v is None and not isinstance(frame, (tuple, list, np.ndarray)) and hasattr(frame, "delta_v"):
-            frame = EgoFrame.of(frame)              # a PreintegratedImu
         if delta_v is None:
-            if isinstance(frame, np.ndarray) or not isinstance(frame, (tuple, list)) or len(frame) < 5:
-                shape = getattr(np.asarray(frame, dtype=object), "shape", ())
-                raise ValueError("SuspensionAwareFilter.step needs an EgoFrame (delta_R, delta_v, delta_t, "
-                                 "stationary, valid) with accelerometer data, or step(delta_R, delta_v, delta_t): "
-                                 f"got {type(frame).__name__} of shape {shape} alone; a rotation alone has no "
-                                 "accelerometer data (use GroundNormalFilter for rotations only)")
+            if type(frame) is not EgoFrame:         # (an EgoFrame has the five fields)
+                if not isinstance(frame, (tuple, list, np.ndarray)) and hasattr(frame, "delta_v"):
+                    frame = EgoFrame.of(frame)      # a PreintegratedImu
+                elif isinstance(frame, np.ndarray) or not isinstance(frame, (tuple, list)) or len(frame) < 5:
+                    shape = getattr(np.asarray(frame, dtype=object), "shape", ())
+                    raise ValueError("SuspensionAwareFilter.step needs an EgoFrame (delta_R, delta_v, delta_t, "
+                                     "stationary, valid) with accelerometer data, or step(delta_R, delta_v, "
+                                     f"delta_t): got {type(frame).__name__} of shape {shape} alone; a rotation "
+                                     "alone has no accelerometer data (use GroundNormalFilter for rotations only)")
             d, delta_v, delta_t, stationary, valid = frame[:5]
         else:
             d = frame
@@ -375,16 +376,17 @@ class SuspensionAwareFilter:
             return GroundEstimate.of_residual(self.residual, self.P, self._Rgs, valid=False)
         d, dv = checked
         dt = float(delta_t)
-        if self.model.rate is None:
-            self.model.design(1.0 / dt)
+        model = self.model
+        if model.rate is None:
+            model.design(1.0 / dt)
         self._frames += 1
         gf = self.gravity_filter
         sp = math.nan if speed is None else float(speed)
         if not abs(sp) <= MAX_MEASURED_SPEED:
             sp = math.nan                           # infinite or absurd: no measurement (NaN stays NaN)
-        force, (ax, ay, _), v = gf.step_sensor(d, dv, dt, bool(stationary), bool(valid), sp)
-        fx, fy = force[0], force[1]
         stationary, valid = bool(stationary), bool(valid)
+        force, (ax, ay, _), v = gf.step_sensor(d, dv, dt, stationary, valid, sp)
+        fx, fy = force[0], force[1]
         road = None
         if sp == sp or self.road_filter.gravity_filter is not None:
             road = self.road_filter.step(d, dv, dt, stationary, valid, sp)
@@ -397,9 +399,9 @@ class SuspensionAwareFilter:
         psi = heading_change(d, self._Rgs)
         if self.recalibrator is not None:
             alarm = self._recalibrate(dt, force, sp, psi, road, valid, alarm)
-        kinematic = self.lateral == "kinematic" or (self.lateral == "auto" and not math.isnan(sp))
-        model = self.model
-        wp, wr = model.tilt_weights                 # (the gains used at this frame)
+        lateral = self.lateral
+        kinematic = lateral == "kinematic" or (lateral == "auto" and sp == sp)
+        weights = model.tilt_weights                # (the gains used at this frame)
         tilt_x, tilt_y = model.step(d, fx, fy, ax, ay, speed * psi / dt if kinematic else None)
         ux, uy = model.load
         q = self._road_noise(speed, dt, psi)
@@ -410,10 +412,11 @@ class SuspensionAwareFilter:
         recal = None if self.recalibrator is None else self.recalibrator.note
         note = alarm if alarm is not None else ok_note(abs(speed) < SLOW_SPEED,
                                                         recal if road is not None else NO_SPEED_REASON)
-        self.sigma.drive.update(d, dt, speed, stationary, valid, ux, uy, self._Rgs)
-        info = self.sigma.frame(o[4], ux, uy, gf.horizontal_gravity_variance(), (wp, wr), dt, note, abs(psi) / dt)
-        code = frame_status_code(self.sigma.converged, stationary, valid, alarm is not None)
-        return GroundEstimate(o[6], o[7], True, o, None, self._Rgs, o, code, info, road)
+        Rgs, sigma = self._Rgs, self.sigma
+        sigma.drive.update(d, dt, speed, stationary, valid, ux, uy, Rgs)
+        info = sigma.frame(o[4], ux, uy, gf.horizontal_gravity_variance(), weights, dt, note, abs(psi) / dt)
+        code = frame_status_code(sigma.converged, stationary, valid, alarm is not None)
+        return GroundEstimate(o[6], o[7], True, o, None, Rgs, o, code, info, road)
 
     def run(self, egomotion, smooth: bool = False, speed: Optional[np.ndarray] = None) -> SuspensionTrack:
         """Process a whole drive, continuing from the current state as :meth:`step` would (the same kernel).

@@ -83,6 +83,7 @@ class SuspensionModel:
         self._bpf: Optional[IIRFilter] = None
         self._reg = np.zeros(_R_SIZE)
         self._reg[_R_GAINS:] = self.gains0
+        self._frame1, self._ks1 = np.empty((1, 4)), np.empty((1, 2))    # step's one frame of the regression
         self._has_sums = False                  # sxx, sxy set (designed with online gains, or loaded)
         self.load: tuple[float, ...] = (0.0, 0.0)
         self._set_tilt_weights()
@@ -175,9 +176,12 @@ class SuspensionModel:
         self.load = (ux, uy)
         kp, kr = self._kp, self._kr
         if self.online_gains:
-            db = d if self._Rgs is None else self._Rgs @ d @ self._Rgs.T
-            w = so3.log_one(db)
-            self._online_gains(np.array([[w[1], w[0], ax, ay]]))
+            Rgs = self._Rgs
+            db = d if Rgs is None else Rgs @ d @ Rgs.T
+            wx, wy, _ = so3.log_flat(db.ravel().tolist())
+            frame = self._frame1
+            frame[0, 0], frame[0, 1], frame[0, 2], frame[0, 3] = wy, wx, ax, ay
+            self._online_gains(frame, self._ks1)
         return kr * uy, kp * ux + self.cross_gain * uy
 
     def run(self, gt, lateral: Optional[np.ndarray] = None) -> tuple:
@@ -206,7 +210,7 @@ class SuspensionModel:
             self.load = tuple(u[-1].tolist())
         if self.online_gains and m:
             w = so3.log(np.asarray(gt.body_increments, dtype=float))
-            ks = self._online_gains(np.column_stack([w[:, 1], w[:, 0], gt.acceleration[:, :2]]))
+            ks = self._online_gains(np.column_stack([w[:, 1], w[:, 0], gt.acceleration[:, :2]]), np.empty((m, 2)))
         else:
             ks = np.tile(self.gains, (m, 1))
         return u, ks, self.tilt(ks, u)
@@ -217,15 +221,17 @@ class SuspensionModel:
         susp[:, 0] += self.cross_gain * load[:, 1]
         return susp
 
-    def _online_gains(self, frames: np.ndarray) -> np.ndarray:
-        """Gains used at each of N frames (the frame before's estimate), (N, 2), from ``frames`` (N, 4): each
-        frame's body tilt increment (pitch, roll; rad; the rotation vector's y and x of its body increment) and
-        ``(a_x, a_y)`` (m/s^2); advances the regression (:func:`_regression`)."""
-        assert self._bpf is not None and self._has_sums      # designed, online gains
-        ks = np.empty((len(frames), 2))
-        _regression(self._bpf.b, self._bpf.a, self._bpf.z, self._reg, np.ascontiguousarray(frames), ks)
-        self._bpf.started = True
-        self.gains = self._reg[_R_GAINS:].copy()
+    def _online_gains(self, frames: np.ndarray, ks: np.ndarray) -> np.ndarray:
+        """Gains used at each of N frames (the frame before's estimate) written into ``ks`` (N, 2) and returned,
+        from ``frames`` (N, 4, C-contiguous): each frame's body tilt increment (pitch, roll; rad; the rotation
+        vector's y and x of its body increment) and ``(a_x, a_y)`` (m/s^2); advances the regression
+        (:func:`_regression`)."""
+        bpf = self._bpf
+        assert bpf is not None and self._has_sums      # designed, online gains
+        reg = self._reg
+        _regression(bpf.b, bpf.a, bpf.z, reg, frames, ks)
+        bpf.started = True
+        self.gains = reg[_R_GAINS:].copy()
         self._kp, self._kr = self.gains.tolist()
         self._set_tilt_weights()
         return ks
