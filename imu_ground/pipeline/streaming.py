@@ -46,7 +46,7 @@ from imu_ground.imu.live.speed_buffer import SpeedBuffer
 from imu_ground.filters import Extrinsic
 from imu_ground.filters.estimator import GroundEstimate
 from imu_ground.filters.methods import METHODS, default_method, live_methods, recalibrating_methods
-from imu_ground.imu.live.causal_standstill import CausalGyroBias, StandstillBlocks, add_sample
+from imu_ground.imu.live.causal_standstill import CausalGyroBias, StandstillBlocks, add_sample, open_row
 from imu_ground.imu.egomotion import EgoFrame
 from imu_ground.imu.live.preint_stream import push_step
 from imu_ground.imu.preintegration import StreamingPreintegrator
@@ -98,6 +98,19 @@ def _front_step(clock: np.ndarray, blocks: np.ndarray, open_k: int, pre: np.ndar
             return _NEW_BLOCK
         add_sample(blocks[k % blocks.shape[0]], g0, g1, g2, a0, a1, a2)
     return push_step(pre, times, frames, tout, g0, g1, g2, a0, a1, a2)
+
+
+@njit
+def _block_step(ring: np.ndarray, keys: np.ndarray, k: int, pre: np.ndarray, times: np.ndarray, frames: np.ndarray,
+                t: float, g0: float, g1: float, g2: float, a0: float, a1: float, a2: float) -> int:
+    """Steps 2-3 of a sample :func:`_front_step` left at :data:`_NEW_BLOCK` (output time ``t``, s; in block ``k``):
+    the block opened (:func:`open_row`), the sample summed there, then ``push_step``'s answer; :data:`_NEW_BLOCK`,
+    nothing changed, when the blocks' ring must grow first (in Python)."""
+    i = open_row(ring, keys, k)
+    if i < 0:
+        return _NEW_BLOCK
+    add_sample(ring[i], g0, g1, g2, a0, a1, a2)
+    return push_step(pre, times, frames, t, g0, g1, g2, a0, a1, a2)
 
 
 class FrameEstimate(GroundEstimate):
@@ -372,9 +385,16 @@ class StreamingEstimator:
                 if r == _DROPPED:
                     return []
                 tout = self._clock.t
-                if r == _NEW_BLOCK:
-                    self._feed(tout, g, a)
-                elif r != 0:
+                if r == _NEW_BLOCK:                     # the sample opens its block (k >= 0: _front_step's test)
+                    k = math.ceil((tout - self._origin) * self.rate - 1e-6) - 1
+                    ring, keys = blocks.buffers
+                    r = _block_step(ring, keys, k, b, times, frames, tout, g[0], g[1], g[2], a[0], a[1], a[2])
+                    if r == _NEW_BLOCK:                 # (the ring grows first)
+                        self._feed(tout, g, a)
+                        r = 0
+                    else:
+                        blocks.open_k = k
+                if r != 0:
                     for f in (pre.push(tout, g, a) if r < 0 else pre.finished_frames(r)):
                         self._frame(f)
                 self._now = tout
