@@ -499,8 +499,8 @@ class StreamingEstimator:
     def _frame(self, f) -> None:
         j = round((f.t_end - self._origin) * self.rate) - 1
         blocks = self._blocks
-        still, for_bias = blocks.windows(j, blocks.W, blocks.Wb if self._bias.auto else 0)
-        quiet = False if still else blocks.windows(j, 1, 0)[0]
+        still, for_bias, quiet = blocks.frame_windows(j, self._bias.auto)
+        quiet = quiet and not still
         if for_bias:
             self._bias.absorb(j, blocks.Wb, blocks.block)
             assert self._pre is not None                # a frame came from it

@@ -104,16 +104,17 @@ class StandstillTests:
 
 
 @njit
-def _windows(ring: np.ndarray, keys: np.ndarray, k: int, W: int, Wb: int, thresholds: np.ndarray,
+def _windows(ring: np.ndarray, keys: np.ndarray, k: int, W: int, Wb: int, Wq: int, thresholds: np.ndarray,
              work: np.ndarray) -> int:
-    """:meth:`StandstillBlocks.windows` on the ring (bit 0: ``W`` passes, bit 1: ``Wb``; ``work`` (5, 6) scratch)."""
+    """:meth:`StandstillBlocks.windows` on the ring (bit 0: ``W`` passes, bit 1: ``Wb``, bit 2: ``Wq``; 0: not asked;
+    ``work`` (5, 6) scratch), the three summed in one pass."""
     R = ring.shape[0]
     s, q, zero, m, sd = work[0], work[1], work[2], work[3], work[4]
     s[:] = 0.0
     q[:] = 0.0
     n = 0.0
     res = 0
-    for i in range(W if W > Wb else Wb):
+    for i in range(max(W, Wb, Wq)):
         j = k - i
         slot = j % R
         if j < 0 or keys[slot] != j or ring[slot, 0] == 0.0:
@@ -122,10 +123,10 @@ def _windows(ring: np.ndarray, keys: np.ndarray, k: int, W: int, Wb: int, thresh
         for c in range(6):
             s[c] += ring[slot, 1 + c]
             q[c] += ring[slot, 7 + c]
-        if i + 1 == W or i + 1 == Wb:
+        if i + 1 == W or i + 1 == Wb or i + 1 == Wq:
             norm = window_test(n, s, q, zero, m, sd, thresholds[0], thresholds[1], thresholds[2])
             if abs(norm - thresholds[4]) <= thresholds[3]:
-                res |= (1 if i + 1 == W else 0) | (2 if i + 1 == Wb else 0)
+                res |= (1 if i + 1 == W else 0) | (2 if i + 1 == Wb else 0) | (4 if i + 1 == Wq else 0)
     return res
 
 
@@ -181,9 +182,15 @@ class StandstillBlocks:
     def windows(self, k: int, W: int | None = None, Wb: int | None = None) -> tuple[bool, bool]:
         """Whether the trailing windows of ``W`` and of ``Wb`` blocks (defaults :attr:`W`, :attr:`Wb`; 0: not
         asked) ending at frame ``k`` pass, summed newest block first."""
-        r = _windows(self.ring, self._keys, k, self.W if W is None else W, self.Wb if Wb is None else Wb,
+        r = _windows(self.ring, self._keys, k, self.W if W is None else W, self.Wb if Wb is None else Wb, 0,
                      self._thresholds, self._work)
         return r & 1 != 0, r & 2 != 0
+
+    def frame_windows(self, k: int, bias: bool) -> tuple[bool, bool, bool]:
+        """``(still, for_bias, quiet)`` of frame ``k`` in one pass: :meth:`windows` of :attr:`W` and (when ``bias``)
+        :attr:`Wb` blocks, and whether the frame's own block alone passes."""
+        r = _windows(self.ring, self._keys, k, self.W, self.Wb if bias else 0, 1, self._thresholds, self._work)
+        return r & 1 != 0, r & 2 != 0, r & 4 != 0
 
     def done(self, k: int) -> None:
         """Frame ``k`` is finished: forget the blocks no later frame's windows hold."""
