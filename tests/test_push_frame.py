@@ -65,3 +65,19 @@ def test_clock_notes_empty_then_said_once():
     c.push(0.2)                                          # a step back: retimed
     notes = c.take_notes()
     assert notes and c.take_notes() == []
+
+
+def test_finished_motion_is_finished_frames():
+    from imu_ground.imu.preintegration import StreamingPreintegrator
+    rng = np.random.default_rng(7)
+    pre = StreamingPreintegrator(rate=10.0, t_origin=0.0, max_gap=0.1, on_gap="flag", uncertainty=False)
+    seen = 0
+    for i in range(1, 300):
+        t = i * 0.01 + (0.3 if i > 150 else 0.0)         # a gap: a frame not valid
+        frames = pre.push(t, rng.normal(0, 0.1, 3), rng.normal(0, 1, 3) + [0, 0, 9.8])
+        motion = pre.finished_motion(len(frames))
+        for f, (dR, dv, dt, ts, te, valid) in zip(frames, motion, strict=True):
+            assert (dR == f.delta_R).all() and (dv == f.delta_v).all() and dt == f.delta_t
+            assert (ts, te, valid) == (f.t_start, f.t_end, f.valid) and type(valid) is bool
+            seen += 1
+    assert seen > 25

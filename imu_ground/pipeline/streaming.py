@@ -395,8 +395,8 @@ class StreamingEstimator:
                     else:
                         blocks.open_k = k
                 if r != 0:
-                    for f in (pre.push(tout, g, a) if r < 0 else pre.finished_frames(r)):
-                        self._frame(f)
+                    for f in pre.finished_motion(len(pre.push(tout, g, a)) if r < 0 else r):
+                        self._frame(*f)
                 self._now = tout
                 q = self._queue                         # (frames whose speed is decided, held at a stop's start,
                 return self._decide(tout) if q and (q[-1][3] is _UNDECIDED or not q[0][4]) else []   # wait)
@@ -493,11 +493,14 @@ class StreamingEstimator:
         if k >= 0:
             self._blocks.add(k, g, a)
         assert self._pre is not None                    # after the warm-up
-        for f in self._pre.push(t, g, a):
-            self._frame(f)
+        pre = self._pre
+        for f in pre.finished_motion(len(pre.push(t, g, a))):
+            self._frame(*f)
 
-    def _frame(self, f) -> None:
-        j = round((f.t_end - self._origin) * self.rate) - 1
+    def _frame(self, dR: np.ndarray, dv: np.ndarray, dt: float, t_start: float, t_end: float, valid: bool) -> None:
+        """A frame finished (:meth:`StreamingPreintegrator.finished_motion`): its standstill tests, the gyro bias, then
+        it waits in the queue for its speed (or is held at a possible start of a stop)."""
+        j = round((t_end - self._origin) * self.rate) - 1
         blocks = self._blocks
         still, for_bias, quiet = blocks.frame_windows(j, self._bias.auto)
         quiet = quiet and not still
@@ -506,7 +509,7 @@ class StreamingEstimator:
             assert self._pre is not None                # a frame came from it
             self._pre.set_gyro_bias(*self._bias.value)  # from the next sample on
         blocks.done(j)
-        entry = [EgoFrame(f.delta_R, f.delta_v, f.delta_t, still, bool(f.valid), f.t_end), f.t_start,
+        entry = [EgoFrame(dR, dv, dt, still, valid, t_end), t_start,
                  self._take_notes(), _UNDECIDED, quiet, 1.0, j]
         hold = self._hold
         if still:                                       # a stop: the quiet frames before it were at rest too
