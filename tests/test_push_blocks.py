@@ -49,3 +49,25 @@ def test_stream_equal_to_its_state_resumed_each_frame():
     assert len(got) == len(again) > 40
     assert [(e.t, e.pitch, e.roll, e.status_reason) for e in got] == [(e.t, e.pitch, e.roll, e.status_reason)
                                                                        for e in again]
+
+
+def test_copies_and_pickles_go_on_alike():
+    import copy
+    import pickle
+    rng = np.random.default_rng(4)
+    n = 500
+    t = np.arange(n) * 0.01 + rng.normal(0, 5e-4, n)
+    g = rng.normal(0, 0.02, (n, 3))
+    a = rng.normal(0, 0.05, (n, 3)) + [0, 0, 9.81]
+    one = StreamingEstimator()
+    for i in range(205):                              # mid-frame, the blocks and preintegrator under way
+        one.push_imu(float(t[i]), g[i], a[i])
+    others = [copy.deepcopy(one), pickle.loads(pickle.dumps(one))]
+    outs = [[] for _ in range(3)]
+    for i in range(205, n):
+        for est, out in zip([one, *others], outs, strict=True):
+            out += est.push_imu(float(t[i]), g[i], a[i])
+    for est, out in zip([one, *others], outs, strict=True):
+        out += est.flush()
+    key = [[(e.t, e.pitch, e.roll, e.status_reason) for e in out] for out in outs]
+    assert len(key[0]) > 25 and key[0] == key[1] == key[2]
