@@ -35,6 +35,7 @@ is a row of the frames buffer: deltas, uncertainty, then ``_O_*``.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from math import cos, sin, sqrt
 
 import numpy as np
@@ -279,7 +280,7 @@ def integrate_interval(s: tuple, u: tuple | None, dt: float, x: float, y: float,
     return tuple(sa.tolist()), (None if u is None else tuple(ua.tolist()))
 
 
-def rotation_from_quaternion(q: tuple) -> tuple:
+def rotation_from_quaternion(q: Sequence[float]) -> tuple:
     """Row-major rotation matrix (9 floats) of a quaternion ``(w, x, y, z)``, normalised first."""
     return so3.flat_from_quat(so3.quat_normalise(q))
 

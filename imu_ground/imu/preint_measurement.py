@@ -14,13 +14,19 @@ from imu_ground.imu.preint_kernel import (DELTAS_IDENTITY, UNCERTAINTY_ZERO, int
                                           quaternion_from_rotation, rotation_from_quaternion)
 from imu_ground.imu.preint_params import ParamsView, PreintegrationParams
 
-__all__ = ["JACOBIAN_BLOCKS", "PreintegratedImu", "bias_corrected", "compose_left", "left_to_right", "right_form",
+__all__ = ["JACOBIAN_BLOCKS", "PreintegratedImu", "bias_corrected", "delta_rotation", "compose_left", "left_to_right", "right_form",
            "right_to_left"]
 
 _I9 = np.eye(9)
 #: The 3x3 blocks (row, column) of the 9x6 bias Jacobian (rows rotation, velocity, position; columns bg, ba).
 JACOBIAN_BLOCKS = {"d_R_d_bg": (0, 0), "d_v_d_bg": (3, 0), "d_p_d_bg": (6, 0),
                    "d_v_d_ba": (3, 3), "d_p_d_ba": (6, 3)}
+
+
+def delta_rotation(q: Sequence[float]) -> np.ndarray:
+    """``R_{start<-end}`` (3, 3) of the deltas' quaternion ``q`` ``(w, x, y, z)`` (normalised first): a measurement's
+    :attr:`PreintegratedImu.delta_R`."""
+    return np.array(rotation_from_quaternion(q)).reshape(3, 3)
 
 
 def _gather_indices() -> tuple[np.ndarray, np.ndarray]:
@@ -210,7 +216,7 @@ class PreintegratedImu(ParamsView):
     @property
     def delta_R(self) -> np.ndarray:
         """``R_{start<-end}``, shape (3, 3): body frame at the end -> body frame at the start."""
-        return np.array(rotation_from_quaternion(self._s[1:5])).reshape(3, 3)
+        return delta_rotation(self._s[1:5])
 
     @property
     def delta_v(self) -> np.ndarray:

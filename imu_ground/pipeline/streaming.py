@@ -46,7 +46,7 @@ from imu_ground.imu.live.speed_buffer import SpeedBuffer
 from imu_ground.filters import Extrinsic
 from imu_ground.filters.estimator import GroundEstimate
 from imu_ground.filters.methods import METHODS, default_method, live_methods, recalibrating_methods
-from imu_ground.imu.live.causal_standstill import CausalGyroBias, StandstillBlocks, add_sample
+from imu_ground.imu.live.causal_standstill import CausalGyroBias, StandstillBlocks, add_sample, open_row
 from imu_ground.imu.egomotion import EgoFrame
 from imu_ground.imu.live.preint_stream import push_step
 from imu_ground.imu.preintegration import StreamingPreintegrator
@@ -98,6 +98,19 @@ def _front_step(clock: np.ndarray, blocks: np.ndarray, open_k: int, pre: np.ndar
             return _NEW_BLOCK
         add_sample(blocks[k % blocks.shape[0]], g0, g1, g2, a0, a1, a2)
     return push_step(pre, times, frames, tout, g0, g1, g2, a0, a1, a2)
+
+
+@njit
+def _block_step(ring: np.ndarray, keys: np.ndarray, k: int, pre: np.ndarray, times: np.ndarray, frames: np.ndarray,
+                t: float, g0: float, g1: float, g2: float, a0: float, a1: float, a2: float) -> int:
+    """Steps 2-3 of a sample :func:`_front_step` left at :data:`_NEW_BLOCK` (output time ``t``, s; in block ``k``):
+    the block opened (:func:`open_row`), the sample summed there, then ``push_step``'s answer; :data:`_NEW_BLOCK`,
+    nothing changed, when the blocks' ring must grow first (in Python)."""
+    i = open_row(ring, keys, k)
+    if i < 0:
+        return _NEW_BLOCK
+    add_sample(ring[i], g0, g1, g2, a0, a1, a2)
+    return push_step(pre, times, frames, t, g0, g1, g2, a0, a1, a2)
 
 
 class FrameEstimate(GroundEstimate):
@@ -372,11 +385,18 @@ class StreamingEstimator:
                 if r == _DROPPED:
                     return []
                 tout = self._clock.t
-                if r == _NEW_BLOCK:
-                    self._feed(tout, g, a)
-                elif r != 0:
-                    for f in (pre.push(tout, g, a) if r < 0 else pre.finished_frames(r)):
-                        self._frame(f)
+                if r == _NEW_BLOCK:                     # the sample opens its block (k >= 0: _front_step's test)
+                    k = math.ceil((tout - self._origin) * self.rate - 1e-6) - 1
+                    ring, keys = blocks.buffers
+                    r = _block_step(ring, keys, k, b, times, frames, tout, g[0], g[1], g[2], a[0], a[1], a[2])
+                    if r == _NEW_BLOCK:                 # (the ring grows first)
+                        self._feed(tout, g, a)
+                        r = 0
+                    else:
+                        blocks.open_k = k
+                if r != 0:
+                    for f in pre.finished_motion(len(pre.push(tout, g, a)) if r < 0 else r):
+                        self._frame(*f)
                 self._now = tout
                 q = self._queue                         # (frames whose speed is decided, held at a stop's start,
                 return self._decide(tout) if q and (q[-1][3] is _UNDECIDED or not q[0][4]) else []   # wait)
@@ -473,20 +493,23 @@ class StreamingEstimator:
         if k >= 0:
             self._blocks.add(k, g, a)
         assert self._pre is not None                    # after the warm-up
-        for f in self._pre.push(t, g, a):
-            self._frame(f)
+        pre = self._pre
+        for f in pre.finished_motion(len(pre.push(t, g, a))):
+            self._frame(*f)
 
-    def _frame(self, f) -> None:
-        j = round((f.t_end - self._origin) * self.rate) - 1
+    def _frame(self, dR: np.ndarray, dv: np.ndarray, dt: float, t_start: float, t_end: float, valid: bool) -> None:
+        """A frame finished (:meth:`StreamingPreintegrator.finished_motion`): its standstill tests, the gyro bias, then
+        it waits in the queue for its speed (or is held at a possible start of a stop)."""
+        j = round((t_end - self._origin) * self.rate) - 1
         blocks = self._blocks
-        still, for_bias = blocks.windows(j, blocks.W, blocks.Wb if self._bias.auto else 0)
-        quiet = False if still else blocks.windows(j, 1, 0)[0]
+        still, for_bias, quiet = blocks.frame_windows(j, self._bias.auto)
+        quiet = quiet and not still
         if for_bias:
             self._bias.absorb(j, blocks.Wb, blocks.block)
             assert self._pre is not None                # a frame came from it
             self._pre.set_gyro_bias(*self._bias.value)  # from the next sample on
         blocks.done(j)
-        entry = [EgoFrame(f.delta_R, f.delta_v, f.delta_t, still, bool(f.valid), f.t_end), f.t_start,
+        entry = [EgoFrame(dR, dv, dt, still, valid, t_end), t_start,
                  self._take_notes(), _UNDECIDED, quiet, 1.0, j]
         hold = self._hold
         if still:                                       # a stop: the quiet frames before it were at rest too

@@ -25,7 +25,7 @@ from imu_ground.imu.standstill import (ACCEL_NORM_TOL, ACCEL_STD_MAX, GYRO_NORM_
                                        window_test)
 from imu_ground.units import GRAVITY
 
-__all__ = ["MAX_GYRO_BIAS", "CausalGyroBias", "StandstillBlocks", "StandstillTests", "block_index"]
+__all__ = ["MAX_GYRO_BIAS", "CausalGyroBias", "StandstillBlocks", "StandstillTests", "block_index", "open_row"]
 
 #: Rounding allowance of :func:`block_index`, frames.
 _EDGE = 1e-6
@@ -52,6 +52,20 @@ def add_sample(b: np.ndarray, g0: float, g1: float, g2: float, a0: float, a1: fl
     b[10] += a0 * a0
     b[11] += a1 * a1
     b[12] += a2 * a2
+
+
+@njit
+def open_row(ring: np.ndarray, keys: np.ndarray, k: int) -> int:
+    """Block ``k``'s row of the ``ring`` (its sums zeroed and its key set unless it holds block ``k`` already); -1,
+    nothing changed, when that row holds another block (the ring must grow: :meth:`StandstillBlocks.open_block`)."""
+    i = k % ring.shape[0]
+    key = keys[i]
+    if key != k:
+        if key != _FREE:
+            return -1
+        ring[i, :] = 0.0
+        keys[i] = k
+    return i
 
 
 def block_index(t: float, t0: float, rate: float) -> int:
@@ -90,16 +104,17 @@ class StandstillTests:
 
 
 @njit
-def _windows(ring: np.ndarray, keys: np.ndarray, k: int, W: int, Wb: int, thresholds: np.ndarray,
+def _windows(ring: np.ndarray, keys: np.ndarray, k: int, W: int, Wb: int, Wq: int, thresholds: np.ndarray,
              work: np.ndarray) -> int:
-    """:meth:`StandstillBlocks.windows` on the ring (bit 0: ``W`` passes, bit 1: ``Wb``; ``work`` (5, 6) scratch)."""
+    """:meth:`StandstillBlocks.windows` on the ring (bit 0: ``W`` passes, bit 1: ``Wb``, bit 2: ``Wq``; 0: not asked;
+    ``work`` (5, 6) scratch), the three summed in one pass."""
     R = ring.shape[0]
     s, q, zero, m, sd = work[0], work[1], work[2], work[3], work[4]
     s[:] = 0.0
     q[:] = 0.0
     n = 0.0
     res = 0
-    for i in range(W if W > Wb else Wb):
+    for i in range(max(W, Wb, Wq)):
         j = k - i
         slot = j % R
         if j < 0 or keys[slot] != j or ring[slot, 0] == 0.0:
@@ -108,10 +123,10 @@ def _windows(ring: np.ndarray, keys: np.ndarray, k: int, W: int, Wb: int, thresh
         for c in range(6):
             s[c] += ring[slot, 1 + c]
             q[c] += ring[slot, 7 + c]
-        if i + 1 == W or i + 1 == Wb:
+        if i + 1 == W or i + 1 == Wb or i + 1 == Wq:
             norm = window_test(n, s, q, zero, m, sd, thresholds[0], thresholds[1], thresholds[2])
             if abs(norm - thresholds[4]) <= thresholds[3]:
-                res |= (1 if i + 1 == W else 0) | (2 if i + 1 == Wb else 0)
+                res |= (1 if i + 1 == W else 0) | (2 if i + 1 == Wb else 0) | (4 if i + 1 == Wq else 0)
     return res
 
 
@@ -152,6 +167,12 @@ class StandstillBlocks:
         """Block index -> a copy of its float64 sums ``[n, 6 sums, 6 sums of squares]``, every block held."""
         return {int(j): self.ring[i].copy() for i, j in enumerate(self._keys.tolist()) if j != _FREE}
 
+    @property
+    def buffers(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(ring, keys)``: the sums' rows and the block each row holds, for a caller's compiled step (:func:`open_row`,
+        :func:`add_sample`; it sets :attr:`open_k`); new arrays after the ring grows."""
+        return self.ring, self._keys
+
     def add(self, k: int, g: Sequence[float], a: Sequence[float]) -> None:
         """Add a sample (gyro rad/s, specific force m/s^2) to block ``k``."""
         if k != self.open_k:
@@ -161,9 +182,15 @@ class StandstillBlocks:
     def windows(self, k: int, W: int | None = None, Wb: int | None = None) -> tuple[bool, bool]:
         """Whether the trailing windows of ``W`` and of ``Wb`` blocks (defaults :attr:`W`, :attr:`Wb`; 0: not
         asked) ending at frame ``k`` pass, summed newest block first."""
-        r = _windows(self.ring, self._keys, k, self.W if W is None else W, self.Wb if Wb is None else Wb,
+        r = _windows(self.ring, self._keys, k, self.W if W is None else W, self.Wb if Wb is None else Wb, 0,
                      self._thresholds, self._work)
         return r & 1 != 0, r & 2 != 0
+
+    def frame_windows(self, k: int, bias: bool) -> tuple[bool, bool, bool]:
+        """``(still, for_bias, quiet)`` of frame ``k`` in one pass: :meth:`windows` of :attr:`W` and (when ``bias``)
+        :attr:`Wb` blocks, and whether the frame's own block alone passes."""
+        r = _windows(self.ring, self._keys, k, self.W, self.Wb if bias else 0, 1, self._thresholds, self._work)
+        return r & 1 != 0, r & 2 != 0, r & 4 != 0
 
     def done(self, k: int) -> None:
         """Frame ``k`` is finished: forget the blocks no later frame's windows hold."""
@@ -182,19 +209,16 @@ class StandstillBlocks:
 
     def open_block(self, k: int) -> np.ndarray:
         """Block ``k`` (a new, empty one unless it holds samples) becomes the one samples are summed into."""
-        R = self.ring.shape[0]
-        if self._keys[k % R] not in (k, _FREE):     # its row holds another block: a larger ring
+        i = open_row(self.ring, self._keys, k)
+        if i < 0:                                   # its row holds another block: a larger ring
             held = self.blocks
-            R *= 2
+            R = 2 * self.ring.shape[0]
             while len({j % R for j in [*held, k]}) <= len(held):
                 R *= 2
             self.ring, self._keys = np.zeros((R, BLOCK_SIZE)), np.full(R, _FREE, dtype=np.int64)
             for j, row in held.items():
                 self.ring[j % R], self._keys[j % R] = row, j
-        i = k % R
-        if self._keys[i] != k:
-            self.ring[i] = 0.0
-            self._keys[i] = k
+            i = open_row(self.ring, self._keys, k)
         self.open_k = k
         return self.ring[i]
 

@@ -15,7 +15,7 @@ import numpy as np
 from imu_ground.imu.preint_kernel import (_O_N, _O_SIZE, _O_TEND, _O_TSTART, _O_VALID, _S_ACTIVE, _S_BIAS, _S_CD,
                                           _S_K, _S_LIM, _S_MARK, _S_N, _S_NEXT, _S_ORIGIN, _S_PREV, _S_TSTART, _S_UNC,
                                           _S_UNCERTAINTY, _S_VALID, push_step, state_buffer)
-from imu_ground.imu.preint_measurement import PreintegratedImu
+from imu_ground.imu.preint_measurement import PreintegratedImu, delta_rotation
 from imu_ground.imu.preint_params import PreintegrationParams, gap_message
 from imu_ground.imu.warm_start import STATE_VERSION, StateError, StateReader, pack_state, unpack_state
 
@@ -128,6 +128,13 @@ class StreamingPreintegrator:
         return tuple(_from_state(par, tuple(row[0:_S_UNC]), tuple(row[_S_UNC:_S_PREV]) if unc else None,
                                  int(row[_O_N]), row[_O_TSTART], row[_O_TEND], row[_O_VALID] != 0.0)
                      for row in self._out[:n].tolist())
+
+    def finished_motion(self, n: int) -> list[tuple[np.ndarray, np.ndarray, float, float, float, bool]]:
+        """``(delta_R, delta_v, delta_t, t_start, t_end, valid)`` of each of the ``n`` frames :func:`push_step` just
+        finished (as :meth:`finished_frames` gives them: ``R_{start<-end}``, m/s in the start body frame, s), without
+        building the measurements."""
+        return [(delta_rotation(row[1:5]), np.array(row[5:8]), row[0], row[_O_TSTART], row[_O_TEND],
+                 row[_O_VALID] != 0.0) for row in self._out[:n].tolist()]
 
     # settings, read-only views of params
     hold = property(lambda self: self.params.hold, doc="``'midpoint'`` or ``'left'``.")

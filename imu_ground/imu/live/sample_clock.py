@@ -268,6 +268,8 @@ class SampleClock:
 
     def take_notes(self) -> list[str]:
         """What the clock did since the last call, one phrase each (for ``status_reason``); the counts start again."""
+        if not (self.bad or self.confirming or self.dropped or self.retimed):
+            return []                                       # (the usual case: nothing to say, the counts at 0)
         notes = []
         if self.bad:
             off = self.bad_offset

@@ -91,15 +91,16 @@ class SpeedBuffer:
         b = ts[-1] if ts[-1] < t_end else t_end
         i = max(bisect.bisect_right(ts, a) - 1, 0)
         total = 0.0
-        last = len(ts) - 1
-        while i < last and ts[i] < b:
-            t0, t1, v0, v1 = ts[i], ts[i + 1], vs[i], vs[i + 1]
+        t0, v0 = ts[i], vs[i]
+        for t1, v1 in zip(ts[i + 1:], vs[i + 1:], strict=True):   # the intervals (t0, t1] from the one holding a
+            if not t0 < b:
+                break
             lo = t0 if t0 > a else a                   # max(a, t0), min(b, t1)
             hi = t1 if t1 < b else b
             if hi > lo:
                 slope = (v1 - v0) / (t1 - t0)
                 total += (hi - lo) * (v0 + 0.5 * slope * ((lo - t0) + (hi - t0)))
-            i += 1
+            t0, v0 = t1, v1
         return total / (t_end - t_start)
 
     def done(self, t: float) -> None:
@@ -120,6 +121,8 @@ class SpeedBuffer:
     def take_notes(self) -> list[str]:
         """What was rejected since the last call, one phrase each (and the counts start again)."""
         r = self.rejected
+        if not (r["nonfinite"] or r["late"] or r["repeated"]):
+            return []                           # (the usual case: nothing rejected, the counts at 0)
         notes = [f"{n} {what} speed sample(s) {how}" for what, how, n in
                  (("non-finite-time", "ignored", r["nonfinite"]),
                   ("late (after their frames)", "ignored", r["late"]),
