@@ -14,8 +14,8 @@ from imu_ground.imu.preint_kernel import (DELTAS_IDENTITY, UNCERTAINTY_ZERO, int
                                           quaternion_from_rotation, rotation_from_quaternion)
 from imu_ground.imu.preint_params import ParamsView, PreintegrationParams
 
-__all__ = ["JACOBIAN_BLOCKS", "PreintegratedImu", "bias_corrected", "delta_rotation", "compose_left", "left_to_right", "right_form",
-           "right_to_left"]
+__all__ = ["JACOBIAN_BLOCKS", "PreintegratedImu", "bias_corrected", "compose_left", "delta_rotation", "left_to_right",
+           "right_form", "right_to_left"]
 
 _I9 = np.eye(9)
 #: The 3x3 blocks (row, column) of the 9x6 bias Jacobian (rows rotation, velocity, position; columns bg, ba).

@@ -169,8 +169,8 @@ class StandstillBlocks:
 
     @property
     def buffers(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(ring, keys)``: the sums' rows and the block each row holds, for a caller's compiled step (:func:`open_row`,
-        :func:`add_sample`; it sets :attr:`open_k`); new arrays after the ring grows."""
+        """``(ring, keys)``: the sums' rows and the block each row holds, for a caller's compiled step
+        (:func:`open_row`, :func:`add_sample`; it sets :attr:`open_k`); new arrays after the ring grows."""
         return self.ring, self._keys
 
     def add(self, k: int, g: Sequence[float], a: Sequence[float]) -> None:
