@@ -29,12 +29,16 @@ def test_open_block_grows_the_ring():
     assert bl.block(0) == (1, 1.0, 0.0, 0.0) and bl.block(R) == (1, 2.0, 0.0, 0.0)
 
 
-def test_stream_equal_to_its_state_resumed_each_frame():
-    rng = np.random.default_rng(3)
-    n = 600
+def _noisy_still_log(seed: int, n: int):
+    """``n`` samples at about 100 Hz (jittered stamps), a still IMU with noise: t (s), gyro, accel."""
+    rng = np.random.default_rng(seed)
     t = np.arange(n) * 0.01 + rng.normal(0, 5e-4, n)
-    g = rng.normal(0, 0.02, (n, 3))
-    a = rng.normal(0, 0.05, (n, 3)) + [0, 0, 9.81]
+    return t, rng.normal(0, 0.02, (n, 3)), rng.normal(0, 0.05, (n, 3)) + [0, 0, 9.81]
+
+
+def test_stream_equal_to_its_state_resumed_each_frame():
+    n = 600
+    t, g, a = _noisy_still_log(3, n)
     one, two = StreamingEstimator(), StreamingEstimator()
     got, again = [], []
     for i in range(n):
@@ -54,11 +58,8 @@ def test_stream_equal_to_its_state_resumed_each_frame():
 def test_copies_and_pickles_go_on_alike():
     import copy
     import pickle
-    rng = np.random.default_rng(4)
     n = 500
-    t = np.arange(n) * 0.01 + rng.normal(0, 5e-4, n)
-    g = rng.normal(0, 0.02, (n, 3))
-    a = rng.normal(0, 0.05, (n, 3)) + [0, 0, 9.81]
+    t, g, a = _noisy_still_log(4, n)
     one = StreamingEstimator()
     for i in range(205):                              # mid-frame, the blocks and preintegrator under way
         one.push_imu(float(t[i]), g[i], a[i])
