@@ -81,3 +81,24 @@ def test_finished_motion_is_finished_frames():
             assert (ts, te, valid) == (f.t_start, f.t_end, f.valid) and type(valid) is bool
             seen += 1
     assert seen > 25
+
+
+def test_finished_motion_is_what_push_gives_and_push_counted_counts_it():
+    """``push_counted`` + ``finished_motion`` (the live path) against ``push``'s measurements, sample by sample,
+    through a gap (a frame of several pieces) and the frames buffer growing."""
+    from imu_ground.imu.preintegration import StreamingPreintegrator
+    rng = np.random.default_rng(8)
+    t = np.cumsum(rng.uniform(0.008, 0.012, 900))
+    t[400:] += 2.0                                     # a gap: 20 frames finish at one sample (16 rows held)
+    g, a = rng.normal(0, 0.1, (900, 3)), rng.normal(0, 1.0, (900, 3)) + [0, 0, 9.81]
+    one, two = (StreamingPreintegrator(rate=10.0, t_origin=float(t[0]), on_gap="flag") for _ in range(2))
+    frames, most = 0, 0
+    for i in range(900):
+        want = one.push(t[i], g[i], a[i])
+        n = two.push_counted(t[i], g[i], a[i])
+        assert n == len(want)
+        for f, (dR, dv, dt, t0, t1, valid) in zip(want, two.finished_motion(n), strict=True):
+            assert np.array_equal(dR, f.delta_R) and np.array_equal(dv, f.delta_v)
+            assert (dt, t0, t1, valid) == (f.delta_t, f.t_start, f.t_end, f.valid)
+        frames, most = frames + n, max(most, n)
+    assert frames > 80 and most > 16

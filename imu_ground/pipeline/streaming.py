@@ -46,7 +46,7 @@ from imu_ground.imu.live.speed_buffer import SpeedBuffer
 from imu_ground.filters import Extrinsic
 from imu_ground.filters.estimator import GroundEstimate
 from imu_ground.filters.methods import METHODS, default_method, live_methods, recalibrating_methods
-from imu_ground.imu.live.causal_standstill import CausalGyroBias, StandstillBlocks, add_sample, open_row
+from imu_ground.imu.live.causal_standstill import CausalGyroBias, StandstillBlocks, add_sample, block_index, open_row
 from imu_ground.imu.egomotion import EgoFrame
 from imu_ground.imu.live.preint_stream import push_step
 from imu_ground.imu.preintegration import StreamingPreintegrator
@@ -92,7 +92,7 @@ def _front_step(clock: np.ndarray, blocks: np.ndarray, open_k: int, pre: np.ndar
     if code == DROP:
         return _DROPPED
     tout = clock[0]
-    k = math.ceil((tout - origin) * rate - 1e-6) - 1
+    k = block_index(tout, origin, rate)
     if k >= 0:
         if k != open_k:
             return _NEW_BLOCK
@@ -386,7 +386,7 @@ class StreamingEstimator:
                     return []
                 tout = self._clock.t
                 if r == _NEW_BLOCK:                     # the sample opens its block (k >= 0: _front_step's test)
-                    k = math.ceil((tout - self._origin) * self.rate - 1e-6) - 1
+                    k = block_index(tout, self._origin, self.rate)
                     ring, keys = blocks.buffers
                     r = _block_step(ring, keys, k, b, times, frames, tout, g[0], g[1], g[2], a[0], a[1], a[2])
                     if r == _NEW_BLOCK:                 # (the ring grows first)
@@ -395,7 +395,7 @@ class StreamingEstimator:
                     else:
                         blocks.open_k = k
                 if r != 0:
-                    for f in pre.finished_motion(len(pre.push(tout, g, a)) if r < 0 else r):
+                    for f in pre.finished_motion(pre.push_counted(tout, g, a) if r < 0 else r):
                         self._frame(*f)
                 self._now = tout
                 q = self._queue                         # (frames whose speed is decided, held at a stop's start,
@@ -489,12 +489,12 @@ class StreamingEstimator:
         return k
 
     def _feed(self, t: float, g: tuple, a: tuple) -> None:
-        k = math.ceil((t - self._origin) * self.rate - 1e-6) - 1
+        k = block_index(t, self._origin, self.rate)
         if k >= 0:
             self._blocks.add(k, g, a)
         assert self._pre is not None                    # after the warm-up
         pre = self._pre
-        for f in pre.finished_motion(len(pre.push(t, g, a))):
+        for f in pre.finished_motion(pre.push_counted(t, g, a)):
             self._frame(*f)
 
     def _frame(self, dR: np.ndarray, dv: np.ndarray, dt: float, t_start: float, t_end: float, valid: bool) -> None:

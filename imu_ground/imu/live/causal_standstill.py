@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from imu_ground._jit import njit
+from imu_ground._jit import jitable, njit
 from imu_ground.imu.standstill import (ACCEL_NORM_TOL, ACCEL_STD_MAX, GYRO_NORM_MAX, GYRO_STD_MAX, WINDOW,
                                        window_test)
 from imu_ground.units import GRAVITY
@@ -68,8 +68,10 @@ def open_row(ring: np.ndarray, keys: np.ndarray, k: int) -> int:
     return i
 
 
+@jitable
 def block_index(t: float, t0: float, rate: float) -> int:
-    """The block (frame) of a sample at ``t`` (s): ``ceil((t - t0) rate - 1e-6) - 1``; -1 for the first sample."""
+    """The block (frame) of a sample at ``t`` (s): ``ceil((t - t0) rate - 1e-6) - 1``; -1 for the first sample
+    (callable from compiled bodies too)."""
     return math.ceil((t - t0) * rate - _EDGE) - 1
 
 

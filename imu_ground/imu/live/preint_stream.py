@@ -93,6 +93,12 @@ class StreamingPreintegrator:
             A time not after the last sample's, a gap with ``on_gap="raise"``, a first sample
             after the first frame time, or gyro/accel not 3 numbers each.
         """
+        n = self.push_counted(t, gyro, accel)
+        return self.finished_frames(n) if n else ()
+
+    def push_counted(self, t: float, gyro: Sequence[float], accel: Sequence[float]) -> int:
+        """:meth:`push` answering only how many frames the sample finished (0 usually), read then with
+        :meth:`finished_frames` or :meth:`finished_motion`; the same checks and errors."""
         t = float(t)
         try:
             wx, wy, wz = gyro
@@ -101,10 +107,8 @@ class StreamingPreintegrator:
                              float(ax), float(ay), float(az))
         except (TypeError, ValueError):
             raise ValueError(f"gyro and accel must have 3 values each, got {gyro!r}, {accel!r}") from None
-        if done == 0:
-            return ()
-        if done > 0:
-            return self.finished_frames(done)
+        if done >= 0:
+            return done
         t0 = self._b[_S_PREV]
         if math.isnan(t0):
             raise ValueError(f"frame boundary {float(self._tb[0])!r} s is before the first sample at {t!r} s")
@@ -114,7 +118,7 @@ class StreamingPreintegrator:
         if t - t0 > self.params.max_gap and self.params.on_gap == "raise":
             raise ValueError(gap_message(t0, t - t0, self.params.max_gap))
         self._out = np.zeros((2 * len(self._out), _O_SIZE))    # more frames than the buffer holds
-        return self.push(t, gyro, accel)
+        return self.push_counted(t, gyro, accel)
 
     @property
     def step_buffers(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
